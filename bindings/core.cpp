@@ -1,0 +1,124 @@
+#include <functional>
+
+#include "numpy.hpp"
+#include "probslam/core/check.hpp"
+#include "probslam/core/angle.hpp"
+#include "probslam/core/pose2.hpp"
+#include "probslam/core/range_bearing_model.hpp"
+#include "probslam/core/velocity_motion_model.hpp"
+
+namespace probslam::bindings {
+
+namespace {
+
+py::array points_through(py::handle points, const char* name,
+                         const std::function<Eigen::Vector2d(const Eigen::Vector2d&)>& f) {
+  DoubleArray a = as_array(points, name);
+  if (a.ndim() == 1) return py::cast(f(fixed_vector<2>(points, name)));
+  DoubleArray m = matrix_arg(points, name, 2);
+  Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor> out(m.shape(0), 2);
+  const auto in = as_matrix(m);
+  for (Eigen::Index i = 0; i < out.rows(); ++i) out.row(i) = f(in.row(i).transpose()).transpose();
+  return py::cast(std::move(out));
+}
+
+}  // namespace
+
+void define_core(py::module_& m) {
+  m.def("wrap_angle", py::vectorize(static_cast<double (*)(double)>(&wrap_angle)), py::arg("angle"),
+        "Wrap angles (radians) to (-pi, pi]; works element-wise on arrays.");
+
+  py::class_<Pose2>(m, "Pose2", "Planar pose (x, y in metres, theta in radians wrapped to (-pi, pi]).")
+      .def(py::init([](double x, double y, double theta) {
+             return Pose2::from_vector(Eigen::Vector3d(x, y, theta));
+           }),
+           py::arg("x") = 0.0, py::arg("y") = 0.0, py::arg("theta") = 0.0)
+      .def_static("from_array", [](py::handle a) { return Pose2::from_vector(pose_arg(a, "array")); },
+                  py::arg("array"), "Pose from a (3,) array (x, y, theta).")
+      .def_readonly("x", &Pose2::x)
+      .def_readonly("y", &Pose2::y)
+      .def_readonly("theta", &Pose2::theta)
+      .def("as_array", &Pose2::vector, "(3,) array (x, y, theta).")
+      .def("compose", &Pose2::compose, py::arg("other"), "self (+) other.")
+      .def("__mul__", &Pose2::compose)
+      .def("inverse", &Pose2::inverse)
+      .def("between", &Pose2::between, py::arg("other"), "self^-1 (+) other.")
+      .def(
+          "transform_from",
+          [](const Pose2& p, py::handle pts) {
+            return points_through(pts, "points", [&](const Eigen::Vector2d& q) { return p.transform_from(q); });
+          },
+          py::arg("points"), "Body-frame points (2,) or (n, 2) to the world frame.")
+      .def(
+          "transform_to",
+          [](const Pose2& p, py::handle pts) {
+            return points_through(pts, "points", [&](const Eigen::Vector2d& q) { return p.transform_to(q); });
+          },
+          py::arg("points"), "World-frame points (2,) or (n, 2) to the body frame.")
+      .def("__repr__", [](const Pose2& p) {
+        return "Pose2(x=" + std::to_string(p.x) + ", y=" + std::to_string(p.y) + ", theta=" + std::to_string(p.theta) + ")";
+      });
+
+  m.def(
+      "velocity_motion",
+      [](py::handle pose, double v, double w, double dt) { return velocity_motion(pose_arg(pose), v, w, dt); },
+      py::arg("pose"), py::arg("v"), py::arg("w"), py::arg("dt"));
+  m.def(
+      "velocity_motion_jacobian",
+      [](py::handle pose, double v, double w, double dt) {
+        return velocity_motion_jacobian(pose_arg(pose), v, w, dt);
+      },
+      py::arg("pose"), py::arg("v"), py::arg("w"), py::arg("dt"));
+  m.def(
+      "velocity_motion_control_jacobian",
+      [](py::handle pose, double v, double w, double dt) {
+        return velocity_motion_control_jacobian(pose_arg(pose), v, w, dt);
+      },
+      py::arg("pose"), py::arg("v"), py::arg("w"), py::arg("dt"));
+
+  m.def(
+      "range_bearing",
+      [](py::handle pose, py::handle landmark) -> py::object {
+        const Eigen::Vector3d x = pose_arg(pose);
+        DoubleArray lm = as_array(landmark, "landmark");
+        if (lm.ndim() == 1 && lm.shape(0) == 3) return py::cast(range_bearing(x, fixed_vector<3>(landmark, "landmark")));
+        return py::cast(range_bearing(x, fixed_vector<2>(landmark, "landmark")));
+      },
+      py::arg("pose"), py::arg("landmark"));
+  m.def(
+      "range_bearing_jacobians",
+      [](py::handle pose, py::handle landmark) -> py::tuple {
+        const Eigen::Vector3d x = pose_arg(pose);
+        DoubleArray lm = as_array(landmark, "landmark");
+        if (lm.ndim() == 1 && lm.shape(0) == 3) {
+          const auto j = range_bearing_jacobians(x, fixed_vector<3>(landmark, "landmark"));
+          return py::make_tuple(j.pose, j.landmark);
+        }
+        const auto j = range_bearing_jacobians(x, fixed_vector<2>(landmark, "landmark"));
+        return py::make_tuple(j.pose, j.landmark);
+      },
+      py::arg("pose"), py::arg("landmark"));
+  m.def(
+      "landmark_from_range_bearing",
+      [](py::handle pose, py::handle z) -> py::object {
+        const Eigen::Vector3d x = pose_arg(pose);
+        DoubleArray a = as_array(z, "z");
+        if (a.ndim() == 1 && a.shape(0) == 3) {
+          const Eigen::Vector3d z3 = fixed_vector<3>(z, "z");
+          require_finite(z3[2], "z");
+          const Eigen::Vector2d m2 = landmark_from_range_bearing(x, z3.head<2>());
+          return py::cast(Eigen::Vector3d(m2[0], m2[1], z3[2]));
+        }
+        return py::cast(landmark_from_range_bearing(x, fixed_vector<2>(z, "z")));
+      },
+      py::arg("pose"), py::arg("z"));
+  m.def(
+      "landmark_from_range_bearing_jacobians",
+      [](py::handle pose, py::handle z) {
+        const auto j = landmark_from_range_bearing_jacobians(pose_arg(pose), fixed_vector<2>(z, "z"));
+        return py::make_tuple(j.pose, j.landmark);
+      },
+      py::arg("pose"), py::arg("z"));
+}
+
+}  // namespace probslam::bindings

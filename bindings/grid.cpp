@@ -1,0 +1,205 @@
+#include <pybind11/stl.h>
+
+#include <vector>
+
+#include "numpy.hpp"
+#include "probslam/core/check.hpp"
+#include "probslam/grid/inverse_range_sensor_model.hpp"
+#include "probslam/grid/occupancy_grid_2d.hpp"
+
+namespace probslam::bindings {
+
+namespace {
+
+LogOddsClamp clamp_arg(py::handle clamp) {
+  if (clamp.is_none()) return LogOddsClamp::none();
+  const Eigen::Vector2d p = fixed_vector<2>(clamp, "clamp");
+  require_probability(p[0], "clamp");
+  require_probability(p[1], "clamp");
+  require(p[0] < p[1], "clamp", "must be (p_min, p_max) with p_min < p_max");
+  return LogOddsClamp::from_probabilities(p[0], p[1]);
+}
+
+py::object clamp_value(const LogOddsClamp& c) {
+  if (!c.enabled) return py::none();
+  return py::make_tuple(probability_from_log_odds(c.min), probability_from_log_odds(c.max));
+}
+
+struct Scan {
+  DoubleArray ranges, angles;
+};
+
+Scan scan_args(py::handle ranges, py::handle beam_angles, const char* angles_name = "beam_angles") {
+  Scan s{vector_arg(ranges, "ranges"), vector_arg(beam_angles, angles_name)};
+  if (s.ranges.shape(0) == 0) throw py::value_error("ranges must not be empty");
+  if (s.angles.shape(0) != s.ranges.shape(0))
+    throw py::value_error(std::string(angles_name) + " must have the same length as ranges (" +
+                          std::to_string(s.ranges.shape(0)) + "), got " + std::to_string(s.angles.shape(0)));
+  if (!as_vector(s.angles).allFinite()) throw py::value_error(std::string(angles_name) + " must contain only finite values");
+  return s;
+}
+
+}  // namespace
+
+void define_grid(py::module_& m) {
+  using Grid = OccupancyGrid2D;
+  py::class_<Grid>(m, "OccupancyGrid2D")
+      .def(py::init([](double resolution, int width, int height, py::handle origin, double p_prior,
+                       py::handle clamp, double p_hit, double p_miss) {
+             Grid g(resolution, width, height, fixed_vector<2>(origin, "origin"), p_prior, clamp_arg(clamp));
+             g.set_beam_model({p_hit, p_miss});
+             return g;
+           }),
+           py::arg("resolution"), py::arg("width"), py::arg("height"),
+           py::arg("origin") = py::make_tuple(0.0, 0.0), py::arg("p_prior") = 0.5,
+           py::arg("clamp") = py::make_tuple(0.1192, 0.971), py::arg("p_hit") = 0.7, py::arg("p_miss") = 0.4)
+      .def_static(
+          "covering",
+          [](py::handle bounds, double resolution, double p_prior, py::handle clamp, double p_hit, double p_miss) {
+            const Eigen::Vector4d b = fixed_vector<4>(bounds, "bounds");
+            Grid g = Grid::covering(b[0], b[1], b[2], b[3], resolution, p_prior, clamp_arg(clamp));
+            g.set_beam_model({p_hit, p_miss});
+            return g;
+          },
+          py::arg("bounds"), py::arg("resolution"), py::arg("p_prior") = 0.5,
+          py::arg("clamp") = py::make_tuple(0.1192, 0.971), py::arg("p_hit") = 0.7, py::arg("p_miss") = 0.4)
+      .def_property_readonly("resolution", &Grid::resolution)
+      .def_property_readonly("width", &Grid::width)
+      .def_property_readonly("height", &Grid::height)
+      .def_property_readonly("shape", [](const Grid& g) { return py::make_tuple(g.height(), g.width()); })
+      .def_property_readonly("origin", [](const Grid& g) { return py::make_tuple(g.origin().x(), g.origin().y()); })
+      .def_property_readonly("p_prior", &Grid::p_prior)
+      .def_property_readonly("l0", &Grid::prior_log_odds)
+      .def_property(
+          "clamp", [](const Grid& g) { return clamp_value(g.clamp()); },
+          [](Grid& g, py::handle c) { g.set_clamp(clamp_arg(c)); })
+      .def_property(
+          "p_hit", [](const Grid& g) { return g.beam_model().p_hit; },
+          [](Grid& g, double p) { g.set_beam_model({p, g.beam_model().p_miss}); })
+      .def_property(
+          "p_miss", [](const Grid& g) { return g.beam_model().p_miss; },
+          [](Grid& g, double p) { g.set_beam_model({g.beam_model().p_hit, p}); })
+      .def_property_readonly(
+          "log_odds",
+          [](py::object self) {
+            Grid& g = self.cast<Grid&>();
+            const py::ssize_t w = g.width(), h = g.height();
+            return py::array_t<double>({h, w}, {w * static_cast<py::ssize_t>(sizeof(double)), static_cast<py::ssize_t>(sizeof(double))},
+                                       g.data(), self);
+          })
+      .def("probability", &Grid::probability)
+      .def(
+          "cell_of",
+          [](const Grid& g, py::handle points) {
+            DoubleArray a = matrix_arg(points, "points", 2);
+            const auto p = as_matrix(a);
+            require_all_finite(p, "points");
+            Eigen::Matrix<long, Eigen::Dynamic, 2, Eigen::RowMajor> out(p.rows(), 2);
+            for (Eigen::Index i = 0; i < p.rows(); ++i) {
+              const Eigen::Vector2i c = g.cell_of(p(i, 0), p(i, 1));
+              out.row(i) << c[0], c[1];
+            }
+            return out;
+          },
+          py::arg("points"))
+      .def("cell_centers",
+           [](const Grid& g) {
+             Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor> out(static_cast<Eigen::Index>(g.width()) * g.height(), 2);
+             for (int r = 0; r < g.height(); ++r)
+               for (int c = 0; c < g.width(); ++c) out.row(static_cast<Eigen::Index>(r) * g.width() + c) = g.cell_center(r, c).transpose();
+             return out;
+           })
+      .def(
+          "insert_cone_scan",
+          [](Grid& g, py::handle pose, py::handle ranges, py::handle beam_angles, double z_max, double alpha,
+             double beta, double l_occ, double l_free) {
+            const Eigen::Vector3d x = pose_arg(pose);
+            const Scan s = scan_args(ranges, beam_angles);
+            py::gil_scoped_release release;
+            return g.insert_cone_scan(x, as_vector(s.ranges), as_vector(s.angles), z_max, alpha, beta, l_occ, l_free);
+          },
+          py::arg("pose"), py::arg("ranges"), py::arg("beam_angles"), py::arg("z_max"), py::arg("alpha"),
+          py::arg("beta"), py::arg("l_occ"), py::arg("l_free"))
+      .def(
+          "insert_rays",
+          [](Grid& g, py::handle pose, py::handle ranges, py::handle angles, double max_range) {
+            const Eigen::Vector3d x = pose_arg(pose);
+            const Scan s = scan_args(ranges, angles, "angles");
+            py::gil_scoped_release release;
+            return g.insert_rays(x, as_vector(s.ranges), as_vector(s.angles), max_range);
+          },
+          py::arg("pose"), py::arg("ranges"), py::arg("angles"), py::arg("max_range"))
+      .def(
+          "insert_scans",
+          [](Grid& g, py::handle poses, py::handle ranges, py::handle angles, double max_range) {
+            DoubleArray p = matrix_arg(poses, "poses", 3);
+            DoubleArray r = matrix_arg(ranges, "ranges");
+            DoubleArray a = as_array(angles, "angles");
+            if (a.ndim() == 1) a = DoubleArray(a.reshape({py::ssize_t{1}, a.shape(0)}));
+            else a = matrix_arg(angles, "angles");
+            if (r.shape(0) != p.shape(0))
+              throw py::value_error("ranges must have one row per pose: got " + shape_of(r) + " for poses " + shape_of(p));
+            if (r.shape(1) == 0) throw py::value_error("ranges must not be empty");
+            if (!as_matrix(a).allFinite()) throw py::value_error("angles must contain only finite values");
+            if (a.shape(1) != r.shape(1) || (a.shape(0) != 1 && a.shape(0) != r.shape(0)))
+              throw py::value_error("angles must have shape (" + std::to_string(r.shape(1)) + ",) or " + shape_of(r) +
+                                    ", got " + shape_of(a));
+            const Poses2 x = Eigen::Map<const Poses2>(p.data(), p.shape(0), 3);
+            py::gil_scoped_release release;
+            return g.insert_scans(x, as_matrix(r), as_matrix(a), max_range);
+          },
+          py::arg("poses"), py::arg("ranges"), py::arg("angles"), py::arg("max_range"))
+      .def(
+          "clear_footprint",
+          [](Grid& g, py::handle pose, double radius, py::object l_free) {
+            const double lf = l_free.is_none() ? (g.clamp().enabled ? g.clamp().min : logit(0.05)) : l_free.cast<double>();
+            return g.clear_footprint(pose_arg(pose), radius, lf);
+          },
+          py::arg("pose"), py::arg("radius"), py::arg("l_free") = py::none())
+      .def(
+          "grown",
+          [](const Grid& g, py::handle bounds) {
+            const Eigen::Vector4d b = fixed_vector<4>(bounds, "bounds");
+            return g.grown_to_include(b[0], b[1], b[2], b[3]);
+          },
+          py::arg("bounds"))
+      .def("copy", [](const Grid& g) { return Grid(g); })
+      .def("same_geometry", &Grid::same_geometry, py::arg("other"))
+      .def("__repr__", [](const Grid& g) {
+        return "OccupancyGrid2D(resolution=" + std::to_string(g.resolution()) + ", width=" + std::to_string(g.width()) +
+               ", height=" + std::to_string(g.height()) + ", origin=(" + std::to_string(g.origin().x()) + ", " +
+               std::to_string(g.origin().y()) + "))";
+      });
+
+  m.def(
+      "fuse_max",
+      [](const std::vector<const Grid*>& grids) { return fuse_max(grids); }, py::arg("grids"));
+
+  m.def(
+      "inverse_range_sensor_model",
+      [](py::handle cells, py::handle pose, py::handle ranges, py::handle beam_angles, double z_max, double alpha,
+         double beta, double l0, double l_occ, double l_free) -> py::object {
+        const ConeModel model{z_max, alpha, beta, l0, l_occ, l_free};
+        const Eigen::Vector3d x = pose_arg(pose);
+        const Scan s = scan_args(ranges, beam_angles);
+        DoubleArray c = as_array(cells, "cells_xy");
+        const bool single = c.ndim() == 1;
+        if (single) c = DoubleArray(vector_arg(cells, "cells_xy", 2).reshape({py::ssize_t{1}, py::ssize_t{2}}));
+        else c = matrix_arg(cells, "cells_xy", 2);
+        const Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>> xy(c.data(), c.shape(0), 2);
+        Eigen::VectorXd out;
+        {
+          py::gil_scoped_release release;
+          out = inverse_range_sensor_model(xy, x, as_vector(s.ranges), as_vector(s.angles), model);
+        }
+        if (single) return py::float_(out[0]);
+        return py::cast(std::move(out));
+      },
+      py::arg("cells_xy"), py::arg("pose"), py::arg("ranges"), py::arg("beam_angles"), py::arg("z_max"),
+      py::arg("alpha"), py::arg("beta"), py::arg("l0"), py::arg("l_occ"), py::arg("l_free"));
+
+  m.def("logit", py::vectorize(&logit), py::arg("p"), "log(p / (1 - p)), eq. 9.5.");
+  m.def("probability_from_log_odds", py::vectorize(&probability_from_log_odds), py::arg("l"), "Eq. 9.6.");
+}
+
+}  // namespace probslam::bindings

@@ -1,0 +1,72 @@
+#include <pybind11/stl.h>
+
+#include <sstream>
+
+#include "numpy.hpp"
+#include "probslam/io/carmen_log.hpp"
+#include "probslam/io/grid_file.hpp"
+#include "probslam/io/ros_map.hpp"
+
+namespace probslam::bindings {
+
+namespace {
+
+py::dict log_to_dict(CarmenLog&& log) {
+  py::dict scans;
+  scans["ranges"] = py::cast(std::move(log.scans.ranges));
+  scans["laser_poses"] = py::cast(std::move(log.scans.laser_poses));
+  scans["robot_poses"] = py::cast(std::move(log.scans.robot_poses));
+  scans["start_angles"] = py::cast(std::move(log.scans.start_angles));
+  scans["angular_resolutions"] = py::cast(std::move(log.scans.angular_resolutions));
+  scans["max_ranges"] = py::cast(std::move(log.scans.max_ranges));
+  scans["num_beams"] = py::cast(std::move(log.scans.num_beams));
+  scans["timestamps"] = py::cast(std::move(log.scans.timestamps));
+  py::dict odometry;
+  odometry["poses"] = py::cast(std::move(log.odometry.poses));
+  odometry["velocities"] = py::cast(std::move(log.odometry.velocities));
+  odometry["timestamps"] = py::cast(std::move(log.odometry.timestamps));
+  py::dict out;
+  out["scans"] = scans;
+  out["odometry"] = odometry;
+  out["params"] = py::cast(log.params);
+  return out;
+}
+
+}  // namespace
+
+void define_io(py::module_& m) {
+  m.def(
+      "read_carmen_log",
+      [](const std::string& path) {
+        CarmenLog log;
+        {
+          py::gil_scoped_release release;
+          log = read_carmen_log(path);
+        }
+        return log_to_dict(std::move(log));
+      },
+      py::arg("path"));
+  m.def(
+      "parse_carmen_log",
+      [](const std::string& text, const std::string& source) {
+        CarmenLog log;
+        {
+          py::gil_scoped_release release;
+          std::istringstream in(text);
+          log = parse_carmen_log(in, source);
+        }
+        return log_to_dict(std::move(log));
+      },
+      py::arg("text"), py::arg("source") = "<text>");
+  m.def(
+      "save_ros_map",
+      [](const OccupancyGrid2D& grid, const std::string& yaml_path, double occupied_thresh, double free_thresh) {
+        save_ros_map(grid, yaml_path, {occupied_thresh, free_thresh});
+      },
+      py::arg("grid"), py::arg("yaml_path"), py::arg("occupied_thresh") = 0.65, py::arg("free_thresh") = 0.196);
+  m.def("load_ros_map", &load_ros_map, py::arg("yaml_path"));
+  m.def("save_grid", &save_grid, py::arg("grid"), py::arg("path"));
+  m.def("load_grid", &load_grid, py::arg("path"));
+}
+
+}  // namespace probslam::bindings

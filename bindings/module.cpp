@@ -1,0 +1,14 @@
+#include <pybind11/pybind11.h>
+
+namespace probslam::bindings {
+void define_core(pybind11::module_& m);
+void define_grid(pybind11::module_& m);
+void define_io(pybind11::module_& m);
+}  // namespace probslam::bindings
+
+PYBIND11_MODULE(_core, m) {
+  m.doc() = "probslam's C++ core; use the pure-Python API in the probslam package.";
+  probslam::bindings::define_core(m);
+  probslam::bindings::define_grid(m);
+  probslam::bindings::define_io(m);
+}

@@ -1,0 +1,59 @@
+#pragma once
+// Conversions from Python objects to Eigen views, with errors that name the argument.
+#include <pybind11/eigen.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+
+#include <string>
+
+namespace probslam::bindings {
+
+namespace py = pybind11;
+using DoubleArray = py::array_t<double, py::array::c_style | py::array::forcecast>;
+using ConstVectorMap = Eigen::Map<const Eigen::VectorXd>;
+using ConstRowMatrixMap =
+    Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>;
+
+/// A C-contiguous float64 view of obj (copied only if it is not one already).
+inline DoubleArray as_array(py::handle obj, const char* name) {
+  if (obj.is_none()) throw py::type_error(std::string(name) + " must be an array of numbers, not None");
+  DoubleArray array = DoubleArray::ensure(obj);
+  if (!array) throw py::type_error(std::string(name) + " must be an array of numbers");
+  return array;
+}
+
+inline std::string shape_of(const DoubleArray& a) {
+  std::string s = "(";
+  for (py::ssize_t i = 0; i < a.ndim(); ++i) s += (i ? ", " : "") + std::to_string(a.shape(i));
+  return s + (a.ndim() == 1 ? ",)" : ")");
+}
+
+/// A 1-D array of `size` entries (any size if size < 0).
+inline DoubleArray vector_arg(py::handle obj, const char* name, py::ssize_t size = -1) {
+  DoubleArray a = as_array(obj, name);
+  if (a.ndim() != 1 || (size >= 0 && a.shape(0) != size))
+    throw py::value_error(std::string(name) + " must have shape (" + (size >= 0 ? std::to_string(size) : "n") +
+                          ",), got " + shape_of(a));
+  return a;
+}
+
+/// A 2-D array with `cols` columns (any number if cols < 0).
+inline DoubleArray matrix_arg(py::handle obj, const char* name, py::ssize_t cols = -1) {
+  DoubleArray a = as_array(obj, name);
+  if (a.ndim() != 2 || (cols >= 0 && a.shape(1) != cols))
+    throw py::value_error(std::string(name) + " must have shape (n, " + (cols >= 0 ? std::to_string(cols) : "m") +
+                          "), got " + shape_of(a));
+  return a;
+}
+
+inline ConstVectorMap as_vector(const DoubleArray& a) { return {a.data(), a.size()}; }
+inline ConstRowMatrixMap as_matrix(const DoubleArray& a) { return {a.data(), a.shape(0), a.shape(1)}; }
+
+template <int N>
+Eigen::Matrix<double, N, 1> fixed_vector(py::handle obj, const char* name) {
+  return as_vector(vector_arg(obj, name, N));
+}
+
+inline Eigen::Vector3d pose_arg(py::handle obj, const char* name = "pose") { return fixed_vector<3>(obj, name); }
+
+}  // namespace probslam::bindings

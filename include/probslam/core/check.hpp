@@ -1,0 +1,34 @@
+#pragma once
+// Argument validation shared by every module: each failure throws std::invalid_argument
+// whose message starts with the offending argument's name.
+#include <Eigen/Core>
+#include <cmath>
+#include <string>
+
+namespace probslam {
+
+[[noreturn]] void throw_invalid_argument(const std::string& name, const std::string& what);
+
+inline void require(bool condition, const char* name, const char* what) {
+  if (!condition) throw_invalid_argument(name, what);
+}
+
+inline void require_finite(double value, const char* name) {
+  require(std::isfinite(value), name, "must be finite");
+}
+
+inline void require_positive(double value, const char* name) {
+  require(std::isfinite(value) && value > 0.0, name, "must be finite and > 0");
+}
+
+inline void require_probability(double value, const char* name) {
+  require(std::isfinite(value) && value > 0.0 && value < 1.0, name,
+          "must be a probability strictly between 0 and 1");
+}
+
+template <typename Derived>
+void require_all_finite(const Eigen::DenseBase<Derived>& values, const char* name) {
+  require(values.allFinite(), name, "must contain only finite values");
+}
+
+}  // namespace probslam

@@ -1,0 +1,30 @@
+#pragma once
+// Nearest-beam lookup for Table 9.2 line 5, in O(1) per query.
+#include <Eigen/Core>
+#include <cstdint>
+#include <vector>
+
+namespace probslam {
+
+/// Answers k = argmin_j |wrap(phi - theta_j)| over the beams marked valid, lowest index on
+/// ties, exactly as the loop over all beams does: angles are bucketed, each bucket keeps the
+/// few beams that can be nearest to an angle in it, and those are compared with the same
+/// arithmetic as the loop.
+class BeamIndex {
+ public:
+  /// `valid[j] == 0` leaves beam j out (e.g. a NaN reading). Angles must be finite (radians).
+  BeamIndex(const Eigen::Ref<const Eigen::VectorXd>& beam_angles, const std::vector<std::uint8_t>& valid);
+
+  /// Index of the nearest valid beam to bearing phi (radians, any range), or -1 if none.
+  int nearest(double phi) const;
+  bool empty() const { return count_ == 0; }
+
+ private:
+  std::vector<double> angles_;  // as given, for the exact comparison
+  std::vector<std::int32_t> bucket_start_;
+  std::vector<std::int32_t> candidates_;
+  double buckets_per_radian_ = 0.0;
+  int count_ = 0;
+};
+
+}  // namespace probslam

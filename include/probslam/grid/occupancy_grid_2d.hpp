@@ -1,0 +1,124 @@
+#pragma once
+// The 2-D occupancy grid of ch. 9.2 (Table 9.1) with a cone (Table 9.2) and a laser-beam
+// (exact ray traversal, OctoMap's hit/miss rules) measurement update.
+#include <Eigen/Core>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <vector>
+
+#include "probslam/grid/inverse_range_sensor_model.hpp"
+#include "probslam/grid/log_odds.hpp"
+
+namespace probslam {
+
+using RowMatrixXd = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
+using Poses2 = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
+
+/// Regular lattice of a 2-D grid: axis 0 is x (columns), axis 1 is y (rows). Cell (i, j)
+/// covers [x0 + j res, x0 + (j + 1) res) x [y0 + i res, y0 + (i + 1) res).
+struct GridLattice2D {
+  double x0 = 0.0, y0 = 0.0, res = 1.0, inv_res = 1.0;
+
+  int key(int axis, double coord) const {
+    return static_cast<int>(std::floor((coord - (axis == 0 ? x0 : y0)) * inv_res));
+  }
+  double key_to_coord(int axis, int key) const { return (axis == 0 ? x0 : y0) + (key + 0.5) * res; }
+  double resolution() const { return res; }
+};
+
+/// Sensor model of the laser-beam update: hit and miss probabilities (OctoMap's defaults).
+struct BeamModel {
+  double p_hit = 0.7;
+  double p_miss = 0.4;
+};
+
+class OccupancyGrid2D {
+ public:
+  /// resolution (m per cell), width x height cells, origin (m) of cell (0, 0)'s lower-left
+  /// corner, prior occupancy p_prior (l0 = logit(p_prior)). Clamping defaults to OctoMap's
+  /// [0.1192, 0.971]; LogOddsClamp::none() gives the textbook update.
+  OccupancyGrid2D(double resolution, int width, int height, const Eigen::Vector2d& origin = {0, 0},
+                  double p_prior = 0.5,
+                  const LogOddsClamp& clamp = LogOddsClamp::from_probabilities(0.1192, 0.971));
+
+  /// A grid of the given resolution covering [xmin, xmax] x [ymin, ymax] (metres).
+  static OccupancyGrid2D covering(double xmin, double ymin, double xmax, double ymax,
+                                  double resolution, double p_prior = 0.5,
+                                  const LogOddsClamp& clamp = LogOddsClamp::from_probabilities(0.1192, 0.971));
+
+  double resolution() const { return lattice_.res; }
+  int width() const { return width_; }
+  int height() const { return height_; }
+  Eigen::Vector2d origin() const { return {lattice_.x0, lattice_.y0}; }
+  double p_prior() const { return p_prior_; }
+  double prior_log_odds() const { return l0_; }
+  const LogOddsClamp& clamp() const { return clamp_; }
+  void set_clamp(const LogOddsClamp& clamp);
+  const BeamModel& beam_model() const { return beam_; }
+  void set_beam_model(const BeamModel& beam);
+  const GridLattice2D& lattice() const { return lattice_; }
+
+  /// Log-odds, row-major (height x width); row i holds cells of increasing x at y-row i.
+  double* data() { return log_odds_.data(); }
+  const double* data() const { return log_odds_.data(); }
+  Eigen::Map<RowMatrixXd> log_odds() { return {log_odds_.data(), height_, width_}; }
+  Eigen::Map<const RowMatrixXd> log_odds() const { return {log_odds_.data(), height_, width_}; }
+  /// Occupancy probability of every cell, eq. 9.6.
+  RowMatrixXd probability() const;
+
+  bool contains(int row, int col) const { return row >= 0 && row < height_ && col >= 0 && col < width_; }
+  /// (row, col) of the cell containing (x, y); may lie outside the grid.
+  Eigen::Vector2i cell_of(double x, double y) const { return {lattice_.key(1, y), lattice_.key(0, x)}; }
+  /// Centre of mass (x, y) of cell (row, col).
+  Eigen::Vector2d cell_center(int row, int col) const {
+    return {lattice_.key_to_coord(0, col), lattice_.key_to_coord(1, row)};
+  }
+
+  /// Table 9.1 with the cone model of Table 9.2: l += ism - l0 for every cell in the
+  /// perceptual field (ism != l0); only cells within z_max of the pose are visited. Returns
+  /// the number of cells changed. Invalid readings (NaN, inf, < 0) are left out.
+  std::size_t insert_cone_scan(const Eigen::Vector3d& pose, const Eigen::Ref<const Eigen::VectorXd>& ranges,
+                               const Eigen::Ref<const Eigen::VectorXd>& beam_angles, double z_max,
+                               double alpha, double beta, double l_occ, double l_free);
+
+  /// Laser-beam update (see apply_scan): readings < max_range hit their end cell and clear
+  /// the cells before it; readings >= max_range clear up to max_range and mark nothing;
+  /// NaN, infinite and negative readings are skipped. Returns the number of cells updated.
+  std::size_t insert_rays(const Eigen::Vector3d& pose, const Eigen::Ref<const Eigen::VectorXd>& ranges,
+                          const Eigen::Ref<const Eigen::VectorXd>& beam_angles, double max_range);
+
+  /// insert_rays for each scan: poses (S x 3), ranges (S x B), beam_angles (B) or (S x B).
+  std::size_t insert_scans(const Eigen::Ref<const Poses2>& poses, const Eigen::Ref<const RowMatrixXd>& ranges,
+                           const Eigen::Ref<const RowMatrixXd>& beam_angles, double max_range);
+
+  /// The robot's footprint (cells whose centre lies within radius of the pose) is free
+  /// space: l += l_free - l0 there (ch. 9.2). Returns the number of cells changed.
+  std::size_t clear_footprint(const Eigen::Vector3d& pose, double radius, double l_free);
+
+  /// A copy enlarged, on the same lattice, to cover [xmin, xmax] x [ymin, ymax]; new cells
+  /// hold the prior. The grid never shrinks.
+  OccupancyGrid2D grown_to_include(double xmin, double ymin, double xmax, double ymax) const;
+
+  bool same_geometry(const OccupancyGrid2D& other) const;
+
+ private:
+  friend class GridScanStore;
+  void update_cell(std::size_t index, double delta) {
+    log_odds_[index] = clamp_.apply(log_odds_[index] + delta);
+  }
+
+  GridLattice2D lattice_;
+  int width_ = 0, height_ = 0;
+  double p_prior_ = 0.5, l0_ = 0.0;
+  LogOddsClamp clamp_;
+  BeamModel beam_;
+  std::vector<double> log_odds_;
+  std::vector<std::uint32_t> stamp_;  // scan counter of each cell's last laser-beam update
+  std::uint32_t scan_counter_ = 0;
+};
+
+/// Eq. 9.9: the most pessimistic map (cell-wise maximum occupancy) of grids of equal geometry.
+OccupancyGrid2D fuse_max(const std::vector<const OccupancyGrid2D*>& grids);
+
+}  // namespace probslam

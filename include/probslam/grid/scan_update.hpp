@@ -1,0 +1,50 @@
+#pragma once
+// The per-scan hit/miss update of the laser-beam model, shared by the 2-D and 3-D grids.
+#include <cstddef>
+#include <cstdint>
+
+#include "probslam/grid/ray_traversal.hpp"
+
+namespace probslam {
+
+/// One scan's rays, already turned into segments: `ends` holds n end points of Dim
+/// coordinates each, `is_hit[i]` says whether ray i ends in an obstacle (else it only clears).
+template <int Dim, typename Real>
+struct ScanSegments {
+  const Real* origin;
+  const Real* ends;
+  const std::uint8_t* is_hit;
+  std::size_t n;
+};
+
+/// Applies one scan with OctoMap's rules: every cell a ray crosses (origin's cell included,
+/// end cell excluded) gets the miss update, every end cell of a hit the hit update; within a
+/// scan each cell changes at most once and a cell both hit and crossed counts as hit.
+///
+/// Store provides `bool contains(const CellKey<Dim>&)` and `bool update_once(const CellKey<Dim>&,
+/// bool hit)`, which applies the update unless the cell was already updated in this scan (the
+/// caller starts a new scan on the store first). Rays leaving a bounded store stop there.
+/// Returns the number of cells updated.
+template <int Dim, typename Real, class Lattice, class Store>
+std::size_t apply_scan(const Lattice& lattice, Store& store, const ScanSegments<Dim, Real>& scan) {
+  std::size_t updated = 0;
+  // Hits first, so that a later ray crossing a hit cell leaves it alone.
+  for (std::size_t i = 0; i < scan.n; ++i) {
+    if (!scan.is_hit[i]) continue;
+    CellKey<Dim> key;
+    for (int d = 0; d < Dim; ++d) key[d] = lattice.key(d, scan.ends[i * Dim + d]);
+    if (store.contains(key) && store.update_once(key, true)) ++updated;
+  }
+  for (std::size_t i = 0; i < scan.n; ++i) {
+    bool entered = false;
+    walk_ray<Dim, Real>(lattice, scan.origin, scan.ends + i * Dim, [&](const CellKey<Dim>& key) {
+      if (!store.contains(key)) return !entered;  // a segment leaves a box only once
+      entered = true;
+      if (store.update_once(key, false)) ++updated;
+      return true;
+    });
+  }
+  return updated;
+}
+
+}  // namespace probslam

@@ -1,0 +1,44 @@
+#pragma once
+// Reader for CARMEN robot logs (.log / .clf): FLASER, ROBOTLASER1, ODOM and PARAM lines.
+#include <Eigen/Core>
+#include <istream>
+#include <map>
+#include <string>
+
+namespace probslam {
+
+/// Laser scans of a log, one row per scan. Rows with fewer beams than the widest scan are
+/// padded with NaN (which the grid updates skip).
+struct LaserScans {
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> ranges;  // (S, B), metres
+  Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> laser_poses;          // (S, 3)
+  Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> robot_poses;          // (S, 3)
+  Eigen::VectorXd start_angles;        // (S,) bearing of beam 0 relative to the laser, rad
+  Eigen::VectorXd angular_resolutions;  // (S,) rad between beams
+  Eigen::VectorXd max_ranges;           // (S,) sensor maximum, NaN where the log does not say
+  Eigen::VectorXi num_beams;            // (S,)
+  Eigen::VectorXd timestamps;           // (S,) ipc timestamp, NaN where absent
+};
+
+struct Odometry {
+  Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> poses;  // (M, 3)
+  Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor> velocities;  // (M, 2): tv m/s, rv rad/s
+  Eigen::VectorXd timestamps;  // (M,)
+};
+
+struct CarmenLog {
+  LaserScans scans;
+  Odometry odometry;
+  std::map<std::string, std::string> params;
+};
+
+/// Parses a log from a stream; `source` names it in error messages. Malformed FLASER,
+/// ROBOTLASER1, ODOM or PARAM lines throw std::invalid_argument "source:LINE: ...".
+/// Other message types are skipped. FLASER beams start at -90 degrees and step by
+/// PARAM laser_front_laser_resolution (degrees) when the log gives it, else by 180 degrees /
+/// n for even n and 180 degrees / (n - 1) for odd n (so 181 and 361 beams include both ends).
+CarmenLog parse_carmen_log(std::istream& in, const std::string& source = "<stream>");
+/// Reads a plain-text log file (decompress .gz / .bz2 first).
+CarmenLog read_carmen_log(const std::string& path);
+
+}  // namespace probslam

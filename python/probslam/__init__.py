@@ -1,0 +1,45 @@
+"""probslam: probabilistic robot mapping and SLAM (Thrun, Burgard & Fox, ch. 9-11).
+
+Units: metres and radians; poses are ``(x, y, theta)`` with theta wrapped to (-pi, pi].
+"""
+
+from ._core import (
+    OccupancyGrid2D,
+    Pose2,
+    fuse_max,
+    inverse_range_sensor_model,
+    landmark_from_range_bearing,
+    landmark_from_range_bearing_jacobians,
+    logit,
+    probability_from_log_odds,
+    range_bearing,
+    range_bearing_jacobians,
+    velocity_motion,
+    velocity_motion_control_jacobian,
+    velocity_motion_jacobian,
+    wrap_angle,
+)
+from . import io
+from .mapping import MappingSummary, map_laser_log
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "MappingSummary",
+    "OccupancyGrid2D",
+    "Pose2",
+    "fuse_max",
+    "inverse_range_sensor_model",
+    "io",
+    "landmark_from_range_bearing",
+    "landmark_from_range_bearing_jacobians",
+    "logit",
+    "map_laser_log",
+    "probability_from_log_odds",
+    "range_bearing",
+    "range_bearing_jacobians",
+    "velocity_motion",
+    "velocity_motion_control_jacobian",
+    "velocity_motion_jacobian",
+    "wrap_angle",
+]

@@ -1,0 +1,65 @@
+"""Map files: ROS map_server (YAML + PGM), lossless grids, and PNG pictures."""
+
+from __future__ import annotations
+
+import os
+import struct
+import zlib
+from typing import Optional, Union
+
+import numpy as np
+
+from .. import _core
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+
+def save_ros_map(grid: _core.OccupancyGrid2D, yaml_path: PathLike,
+                 occupied_thresh: float = 0.65, free_thresh: float = 0.196) -> None:
+    """Write ``yaml_path`` and a trinary PGM beside it (map_saver's conventions)."""
+    _core.save_ros_map(grid, os.fspath(yaml_path), occupied_thresh, free_thresh)
+
+
+def load_ros_map(yaml_path: PathLike) -> _core.OccupancyGrid2D:
+    """Read a map_server map (modes trinary and scale) into an OccupancyGrid2D."""
+    return _core.load_ros_map(os.fspath(yaml_path))
+
+
+def save_grid(grid: _core.OccupancyGrid2D, path: PathLike) -> None:
+    """Lossless save: log-odds and every grid parameter."""
+    _core.save_grid(grid, os.fspath(path))
+
+
+def load_grid(path: PathLike) -> _core.OccupancyGrid2D:
+    return _core.load_grid(os.fspath(path))
+
+
+def _png(pixels: np.ndarray) -> bytes:
+    """PNG bytes of an 8-bit (h, w) grey or (h, w, 3) RGB image, row 0 at the top."""
+    h, w = pixels.shape[:2]
+    colour_type = 2 if pixels.ndim == 3 else 0
+    rows = pixels.reshape(h, -1)
+    raw = np.hstack([np.zeros((h, 1), np.uint8), rows]).tobytes()  # filter byte 0 per row
+
+    def chunk(tag: bytes, data: bytes) -> bytes:
+        return struct.pack(">I", len(data)) + tag + data + struct.pack(">I", zlib.crc32(tag + data))
+
+    header = struct.pack(">IIBBBBB", w, h, 8, colour_type, 0, 0, 0)
+    return b"\x89PNG\r\n\x1a\n" + chunk(b"IHDR", header) + chunk(b"IDAT", zlib.compress(raw, 6)) + chunk(b"IEND", b"")
+
+
+def write_png(grid: _core.OccupancyGrid2D, path: PathLike, trajectory: Optional[np.ndarray] = None) -> None:
+    """Picture of the map: occupancy probability as grey (black occupied, white free), the
+    top of the image at the largest y; ``trajectory`` (n, 2 or 3) metres is drawn in red."""
+    grey = np.round(255.0 * (1.0 - grid.probability())).astype(np.uint8)[::-1]
+    if trajectory is None:
+        pixels = grey
+    else:
+        pixels = np.repeat(grey[:, :, None], 3, axis=2)
+        xy = np.asarray(trajectory, dtype=float).reshape(-1, np.shape(trajectory)[-1])[:, :2]
+        cells = grid.cell_of(xy[np.isfinite(xy).all(axis=1)])
+        inside = (cells[:, 0] >= 0) & (cells[:, 0] < grid.height) & (cells[:, 1] >= 0) & (cells[:, 1] < grid.width)
+        rows, cols = grid.height - 1 - cells[inside, 0], cells[inside, 1]
+        pixels[rows, cols] = (220, 30, 30)
+    with open(os.fspath(path), "wb") as f:
+        f.write(_png(np.ascontiguousarray(pixels)))

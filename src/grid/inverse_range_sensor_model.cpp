@@ -1,0 +1,77 @@
+#include "probslam/grid/inverse_range_sensor_model.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "probslam/core/angle.hpp"
+#include "probslam/core/check.hpp"
+
+namespace probslam {
+
+void ConeModel::validate() const {
+  require_positive(z_max, "z_max");
+  require(std::isfinite(alpha) && alpha >= 0.0, "alpha", "must be finite and >= 0");
+  require(std::isfinite(beta) && beta >= 0.0, "beta", "must be finite and >= 0");
+  require_finite(l0, "l0");
+  require_finite(l_occ, "l_occ");
+  require_finite(l_free, "l_free");
+}
+
+std::vector<std::uint8_t> valid_readings(const Eigen::Ref<const Eigen::VectorXd>& ranges) {
+  std::vector<std::uint8_t> valid(static_cast<std::size_t>(ranges.size()));
+  for (Eigen::Index j = 0; j < ranges.size(); ++j)
+    valid[j] = std::isfinite(ranges[j]) && ranges[j] >= 0.0;
+  return valid;
+}
+
+namespace {
+const Eigen::Ref<const Eigen::VectorXd>& checked_scan(const Eigen::Vector3d& pose,
+                                                      const Eigen::Ref<const Eigen::VectorXd>& ranges,
+                                                      const Eigen::Ref<const Eigen::VectorXd>& angles,
+                                                      const ConeModel& model) {
+  require_all_finite(pose, "pose");
+  require(ranges.size() > 0, "ranges", "must not be empty");
+  require(ranges.size() == angles.size(), "beam_angles", "must have the same length as ranges");
+  model.validate();
+  return ranges;
+}
+}  // namespace
+
+ConeScan::ConeScan(const Eigen::Vector3d& pose, const Eigen::Ref<const Eigen::VectorXd>& ranges,
+                   const Eigen::Ref<const Eigen::VectorXd>& beam_angles, const ConeModel& model)
+    : pose_(pose),
+      ranges_(checked_scan(pose, ranges, beam_angles, model)),
+      angles_(beam_angles),
+      model_(model),
+      beams_(beam_angles, valid_readings(ranges)) {}
+
+// Table 9.2 lines 2-12 (line 8 corrected: |r - z_k| < alpha / 2).
+double ConeScan::operator()(double cx, double cy) const {
+  const double dx = cx - pose_[0], dy = cy - pose_[1];
+  const double r = std::sqrt(dx * dx + dy * dy);
+  if (r > model_.z_max) return model_.l0;  // implied by line 6 whatever k is
+  const double phi = std::atan2(dy, dx) - pose_[2];
+  const int k = beams_.nearest(phi);
+  if (k < 0) return model_.l0;
+  const double z_k = ranges_[k];
+  const double half_alpha = model_.alpha / 2.0;
+  if (r > std::min(model_.z_max, z_k + half_alpha) ||
+      std::fabs(wrap_angle(phi - angles_[k])) > model_.beta / 2.0)
+    return model_.l0;
+  if (z_k < model_.z_max && std::fabs(r - z_k) < half_alpha) return model_.l_occ;
+  if (r <= z_k) return model_.l_free;
+  return model_.l0;
+}
+
+Eigen::VectorXd inverse_range_sensor_model(
+    const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>>& cells,
+    const Eigen::Vector3d& pose, const Eigen::Ref<const Eigen::VectorXd>& ranges,
+    const Eigen::Ref<const Eigen::VectorXd>& beam_angles, const ConeModel& model) {
+  require_all_finite(cells, "cells");
+  const ConeScan scan(pose, ranges, beam_angles, model);
+  Eigen::VectorXd out(cells.rows());
+  for (Eigen::Index i = 0; i < cells.rows(); ++i) out[i] = scan(cells(i, 0), cells(i, 1));
+  return out;
+}
+
+}  // namespace probslam

@@ -1,0 +1,223 @@
+#include "probslam/io/carmen_log.hpp"
+
+#include <cctype>
+#include <charconv>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <stdexcept>
+#include <string_view>
+#include <vector>
+
+#include "probslam/core/angle.hpp"
+
+namespace probslam {
+namespace {
+
+// More beams than this in one message is a corrupt count, not a laser.
+constexpr long kMaxBeams = 1'000'000;
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr double kDegree = kPi / 180.0;
+
+class LineError {
+ public:
+  LineError(const std::string& source, long line) : prefix_(source + ":" + std::to_string(line) + ": ") {}
+  [[noreturn]] void fail(const std::string& what) const { throw std::invalid_argument(prefix_ + what); }
+
+ private:
+  std::string prefix_;
+};
+
+std::vector<std::string_view> split(std::string_view line) {
+  std::vector<std::string_view> tokens;
+  std::size_t i = 0;
+  while (i < line.size()) {
+    while (i < line.size() && std::isspace(static_cast<unsigned char>(line[i]))) ++i;
+    const std::size_t start = i;
+    while (i < line.size() && !std::isspace(static_cast<unsigned char>(line[i]))) ++i;
+    if (i > start) tokens.push_back(line.substr(start, i - start));
+  }
+  return tokens;
+}
+
+class Fields {
+ public:
+  Fields(const std::vector<std::string_view>& tokens, const LineError& err) : t_(tokens), err_(err) {}
+  std::size_t size() const { return t_.size(); }
+  void need(std::size_t n, const char* what) const {
+    if (t_.size() < n)
+      err_.fail(std::string(t_[0]) + " has " + std::to_string(t_.size()) + " fields, expected at least " +
+                std::to_string(n) + " (" + what + ")");
+  }
+  double number(std::size_t i) const {
+    double v = 0.0;
+    const char* first = t_[i].data();
+    const char* last = first + t_[i].size();
+    if (*first == '+') ++first;
+    const auto [ptr, ec] = std::from_chars(first, last, v);
+    if (ec != std::errc() || ptr != last)
+      err_.fail("field " + std::to_string(i + 1) + " ('" + std::string(t_[i]) + "') is not a number");
+    return v;
+  }
+  double optional_number(std::size_t i) const { return i < t_.size() ? number(i) : kNaN; }
+  long count(std::size_t i) const {
+    const double v = number(i);
+    if (!(v >= 0 && v <= kMaxBeams && v == std::floor(v)))
+      err_.fail("field " + std::to_string(i + 1) + " ('" + std::string(t_[i]) + "') is not a valid count");
+    return static_cast<long>(v);
+  }
+
+ private:
+  const std::vector<std::string_view>& t_;
+  const LineError& err_;
+};
+
+struct ScanRow {
+  std::vector<double> ranges;
+  double laser[3], robot[3];
+  double start, step, max_range, stamp;
+};
+
+struct Builder {
+  std::vector<ScanRow> scans;
+  std::vector<double> odom;  // x y theta tv rv t
+  std::map<std::string, std::string> params;
+
+  double flaser_step(long n) const {
+    const auto it = params.find("laser_front_laser_resolution");
+    if (it != params.end()) {
+      try {
+        const double deg = std::stod(it->second);
+        if (deg > 0 && std::isfinite(deg)) return deg * kDegree;
+      } catch (const std::exception&) {
+      }  // fall through to the beam-count rule
+    }
+    const long intervals = (n % 2 == 0) ? n : n - 1;
+    return intervals > 0 ? kPi / intervals : 0.0;
+  }
+
+  // FLASER n r_1..r_n x y theta odom_x odom_y odom_theta [ipc_ts host logger_ts]
+  void flaser(const Fields& f) {
+    f.need(2, "beam count");
+    const long n = f.count(1);
+    f.need(2 + n + 6, "ranges and two poses");
+    ScanRow s;
+    s.ranges.resize(n);
+    for (long i = 0; i < n; ++i) s.ranges[i] = f.number(2 + i);
+    for (int k = 0; k < 3; ++k) {
+      s.laser[k] = f.number(2 + n + k);
+      s.robot[k] = f.number(2 + n + 3 + k);
+    }
+    s.step = flaser_step(n);
+    s.start = -s.step * ((n % 2 == 0) ? n : n - 1) / 2.0;
+    s.max_range = kNaN;
+    s.stamp = f.optional_number(2 + n + 6);
+    scans.push_back(std::move(s));
+  }
+
+  // ROBOTLASER1 type start fov res max_range accuracy remission_mode n r.. n_rem rem.. laser(3) robot(3) ...
+  void robotlaser(const Fields& f) {
+    f.need(9, "laser parameters and beam count");
+    const long n = f.count(8);
+    f.need(9 + n + 1, "ranges and remission count");
+    const long n_rem = f.count(9 + n);
+    const std::size_t pose_at = 10 + n + n_rem;
+    f.need(pose_at + 6, "remissions and two poses");
+    ScanRow s;
+    s.ranges.resize(n);
+    for (long i = 0; i < n; ++i) s.ranges[i] = f.number(9 + i);
+    for (int k = 0; k < 3; ++k) {
+      s.laser[k] = f.number(pose_at + k);
+      s.robot[k] = f.number(pose_at + 3 + k);
+    }
+    s.start = f.number(2);
+    s.step = f.number(4);
+    s.max_range = f.number(5);
+    s.stamp = f.optional_number(pose_at + 11);
+    scans.push_back(std::move(s));
+  }
+
+  // ODOM x y theta tv rv accel [ipc_ts host logger_ts]
+  void odometry(const Fields& f) {
+    f.need(7, "pose, velocities and acceleration");
+    for (int k = 1; k <= 5; ++k) odom.push_back(f.number(k));
+    odom.push_back(f.optional_number(7));
+  }
+
+  CarmenLog finish() {
+    CarmenLog log;
+    log.params = std::move(params);
+    const Eigen::Index s_count = static_cast<Eigen::Index>(scans.size());
+    long width = 0;
+    for (const ScanRow& s : scans) width = std::max<long>(width, static_cast<long>(s.ranges.size()));
+    LaserScans& out = log.scans;
+    out.ranges.setConstant(s_count, width, kNaN);
+    out.laser_poses.resize(s_count, 3);
+    out.robot_poses.resize(s_count, 3);
+    out.start_angles.resize(s_count);
+    out.angular_resolutions.resize(s_count);
+    out.max_ranges.resize(s_count);
+    out.num_beams.resize(s_count);
+    out.timestamps.resize(s_count);
+    for (Eigen::Index i = 0; i < s_count; ++i) {
+      const ScanRow& s = scans[i];
+      for (std::size_t b = 0; b < s.ranges.size(); ++b) out.ranges(i, b) = s.ranges[b];
+      for (int k = 0; k < 3; ++k) {
+        out.laser_poses(i, k) = s.laser[k];
+        out.robot_poses(i, k) = s.robot[k];
+      }
+      out.start_angles[i] = s.start;
+      out.angular_resolutions[i] = s.step;
+      out.max_ranges[i] = s.max_range;
+      out.num_beams[i] = static_cast<int>(s.ranges.size());
+      out.timestamps[i] = s.stamp;
+    }
+    const Eigen::Index m = static_cast<Eigen::Index>(odom.size() / 6);
+    log.odometry.poses.resize(m, 3);
+    log.odometry.velocities.resize(m, 2);
+    log.odometry.timestamps.resize(m);
+    for (Eigen::Index i = 0; i < m; ++i) {
+      const double* o = &odom[6 * i];
+      log.odometry.poses.row(i) << o[0], o[1], o[2];
+      log.odometry.velocities.row(i) << o[3], o[4];
+      log.odometry.timestamps[i] = o[5];
+    }
+    return log;
+  }
+};
+
+}  // namespace
+
+CarmenLog parse_carmen_log(std::istream& in, const std::string& source) {
+  Builder builder;
+  std::string line;
+  long line_number = 0;
+  while (std::getline(in, line)) {
+    ++line_number;
+    const std::vector<std::string_view> tokens = split(line);
+    if (tokens.empty() || tokens[0][0] == '#') continue;
+    const LineError err(source, line_number);
+    const Fields fields(tokens, err);
+    const std::string_view type = tokens[0];
+    if (type == "FLASER") {
+      builder.flaser(fields);
+    } else if (type == "ROBOTLASER1") {
+      builder.robotlaser(fields);
+    } else if (type == "ODOM") {
+      builder.odometry(fields);
+    } else if (type == "PARAM") {
+      fields.need(3, "name and value");
+      builder.params[std::string(tokens[1])] = std::string(tokens[2]);
+    }
+  }
+  if (in.bad()) throw std::runtime_error(source + ": read error");
+  return builder.finish();
+}
+
+CarmenLog read_carmen_log(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::invalid_argument("path: cannot open '" + path + "'");
+  return parse_carmen_log(in, path);
+}
+
+}  // namespace probslam

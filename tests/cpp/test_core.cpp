@@ -1,0 +1,134 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+#include <stdexcept>
+
+#include "probslam/core/angle.hpp"
+#include "probslam/core/pose2.hpp"
+#include "probslam/core/range_bearing_model.hpp"
+#include "probslam/core/velocity_motion_model.hpp"
+
+using namespace probslam;
+
+namespace {
+
+// Central differences with this step are accurate to ~1e-10 for these smooth models.
+constexpr double kFdStep = 1e-6;
+constexpr double kFdTolerance = 1e-7;
+
+Eigen::MatrixXd numeric_jacobian(const std::function<Eigen::VectorXd(const Eigen::VectorXd&)>& f,
+                                 const Eigen::VectorXd& x, bool wrap_last_output_angle_rows = false) {
+  const Eigen::VectorXd f0 = f(x);
+  Eigen::MatrixXd j(f0.size(), x.size());
+  for (Eigen::Index i = 0; i < x.size(); ++i) {
+    Eigen::VectorXd a = x, b = x;
+    a[i] += kFdStep;
+    b[i] -= kFdStep;
+    Eigen::VectorXd d = f(a) - f(b);
+    if (wrap_last_output_angle_rows)
+      for (Eigen::Index r = 0; r < d.size(); ++r) d[r] = wrap_angle(d[r]);
+    j.col(i) = d / (2 * kFdStep);
+  }
+  return j;
+}
+
+}  // namespace
+
+TEST(WrapAngle, RangeAndIdentity) {
+  EXPECT_DOUBLE_EQ(wrap_angle(kPi), kPi);
+  EXPECT_DOUBLE_EQ(wrap_angle(-kPi), kPi);
+  EXPECT_DOUBLE_EQ(wrap_angle(3 * kPi), kPi);
+  EXPECT_NEAR(wrap_angle(2 * kPi + 0.5), 0.5, 1e-12);
+  EXPECT_NEAR(wrap_angle(-7.0), -7.0 + 2 * kPi, 1e-12);
+  for (double a = -50.0; a < 50.0; a += 0.37) {
+    const double w = wrap_angle(a);
+    EXPECT_GT(w, -kPi);
+    EXPECT_LE(w, kPi);
+    EXPECT_NEAR(std::remainder(w - a, 2 * kPi), 0.0, 1e-9);
+  }
+}
+
+TEST(Pose2, ComposeInverseBetween) {
+  const Pose2 a(1.0, 2.0, 0.5), b(-0.3, 0.7, 2.9);
+  const Pose2 ab = a.compose(b);
+  const Pose2 back = a.between(ab);
+  EXPECT_NEAR(back.x, b.x, 1e-12);
+  EXPECT_NEAR(back.y, b.y, 1e-12);
+  EXPECT_NEAR(back.theta, b.theta, 1e-12);
+  const Pose2 identity = a.compose(a.inverse());
+  EXPECT_NEAR(identity.vector().norm(), 0.0, 1e-12);
+  EXPECT_NEAR(ab.theta, wrap_angle(0.5 + 2.9), 1e-12);
+  const Eigen::Vector2d p(0.4, -1.1);
+  EXPECT_NEAR((a.transform_to(a.transform_from(p)) - p).norm(), 0.0, 1e-12);
+  EXPECT_THROW(Pose2::from_vector({NAN, 0, 0}), std::invalid_argument);
+}
+
+TEST(VelocityMotion, MatchesEquation1011AndStraightLine) {
+  const Eigen::Vector3d x(1.0, -2.0, 0.3);
+  const double v = 1.3, w = 0.7, dt = 0.5;
+  // Eq. 10.11 written with v / w, valid away from w = 0.
+  const Eigen::Vector3d expected(x[0] - v / w * std::sin(x[2]) + v / w * std::sin(x[2] + w * dt),
+                                 x[1] + v / w * std::cos(x[2]) - v / w * std::cos(x[2] + w * dt), x[2] + w * dt);
+  EXPECT_LT((velocity_motion(x, v, w, dt) - expected).norm(), 1e-12);
+  const Eigen::Vector3d straight = velocity_motion(x, v, 0.0, dt);
+  EXPECT_LT((straight - Eigen::Vector3d(x[0] + v * dt * std::cos(x[2]), x[1] + v * dt * std::sin(x[2]), x[2])).norm(), 1e-15);
+  // Continuous across w = 0: the tiny-w arc converges to the straight line.
+  EXPECT_LT((velocity_motion(x, v, 1e-9, dt) - straight).norm(), 1e-9);
+  EXPECT_LT((velocity_motion(x, v, -1e-9, dt) - straight).norm(), 1e-9);
+  EXPECT_GT(velocity_motion(x, 0.0, 10.0, 1.0)[2], -kPi);  // heading wrapped
+}
+
+TEST(VelocityMotion, JacobiansMatchFiniteDifferences) {
+  for (double w : {0.7, -1.9, 1e-5, 0.0}) {
+    const Eigen::Vector3d x(0.5, 0.2, 2.0);
+    const double v = 0.9, dt = 0.4;
+    const auto f_pose = [&](const Eigen::VectorXd& p) -> Eigen::VectorXd { return velocity_motion(p, v, w, dt); };
+    const auto f_ctrl = [&](const Eigen::VectorXd& u) -> Eigen::VectorXd { return velocity_motion(x, u[0], u[1], dt); };
+    EXPECT_LT((velocity_motion_jacobian(x, v, w, dt) - numeric_jacobian(f_pose, x, true)).norm(), kFdTolerance) << w;
+    EXPECT_LT((Eigen::MatrixXd(velocity_motion_control_jacobian(x, v, w, dt)) -
+               numeric_jacobian(f_ctrl, Eigen::Vector2d(v, w), true)).norm(),
+              kFdTolerance)
+        << w;
+  }
+}
+
+TEST(VelocityMotion, RejectsBadInput) {
+  const Eigen::Vector3d x(0, 0, 0);
+  EXPECT_THROW(velocity_motion(x, 1.0, 0.0, 0.0), std::invalid_argument);
+  EXPECT_THROW(velocity_motion(x, 1.0, 0.0, -1.0), std::invalid_argument);
+  EXPECT_THROW(velocity_motion(x, NAN, 0.0, 1.0), std::invalid_argument);
+  EXPECT_THROW(velocity_motion(Eigen::Vector3d(0, INFINITY, 0), 1.0, 0.0, 1.0), std::invalid_argument);
+  try {
+    velocity_motion(x, 1.0, 0.0, 0.0);
+  } catch (const std::invalid_argument& e) {
+    EXPECT_EQ(std::string(e.what()).rfind("dt", 0), 0u);
+  }
+}
+
+TEST(RangeBearing, ValuesJacobiansAndInverse) {
+  const Eigen::Vector3d x(1.0, 1.0, 2.5);
+  const Eigen::Vector2d m(-2.0, 3.0);
+  const Eigen::Vector2d z = range_bearing(x, m);
+  EXPECT_NEAR(z[0], std::hypot(-3.0, 2.0), 1e-12);
+  EXPECT_NEAR(z[1], wrap_angle(std::atan2(2.0, -3.0) - 2.5), 1e-12);
+  const auto j = range_bearing_jacobians(x, m);
+  const auto f_pose = [&](const Eigen::VectorXd& p) -> Eigen::VectorXd { return range_bearing(p, m); };
+  const auto f_lm = [&](const Eigen::VectorXd& l) -> Eigen::VectorXd { return range_bearing(x, Eigen::Vector2d(l)); };
+  EXPECT_LT((Eigen::MatrixXd(j.pose) - numeric_jacobian(f_pose, x, true)).norm(), kFdTolerance);
+  EXPECT_LT((Eigen::MatrixXd(j.landmark) - numeric_jacobian(f_lm, m, true)).norm(), kFdTolerance);
+  // Inverse model: places the landmark back, and its Jacobians match finite differences.
+  EXPECT_LT((landmark_from_range_bearing(x, z) - m).norm(), 1e-12);
+  const auto ji = landmark_from_range_bearing_jacobians(x, z);
+  const auto g_pose = [&](const Eigen::VectorXd& p) -> Eigen::VectorXd { return landmark_from_range_bearing(p, z); };
+  const auto g_z = [&](const Eigen::VectorXd& zz) -> Eigen::VectorXd { return landmark_from_range_bearing(x, Eigen::Vector2d(zz)); };
+  EXPECT_LT((Eigen::MatrixXd(ji.pose) - numeric_jacobian(g_pose, x)).norm(), kFdTolerance);
+  EXPECT_LT((Eigen::MatrixXd(ji.landmark) - numeric_jacobian(g_z, z)).norm(), kFdTolerance);
+  // With signature: the signature passes through with unit Jacobian.
+  const auto j3 = range_bearing_jacobians(x, Eigen::Vector3d(m[0], m[1], 4.0));
+  EXPECT_EQ(j3.landmark(2, 2), 1.0);
+  EXPECT_EQ(range_bearing(x, Eigen::Vector3d(m[0], m[1], 4.0))[2], 4.0);
+  EXPECT_THROW(range_bearing_jacobians(x, Eigen::Vector2d(1.0, 1.0)), std::invalid_argument);
+  EXPECT_THROW(range_bearing(x, Eigen::Vector2d(NAN, 1.0)), std::invalid_argument);
+  EXPECT_THROW(landmark_from_range_bearing(x, Eigen::Vector2d(-1.0, 0.0)), std::invalid_argument);
+}

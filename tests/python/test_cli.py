@@ -1,0 +1,38 @@
+"""The probslam command line, end to end."""
+
+import numpy as np
+
+import probslam as ps
+from probslam import cli, io
+
+
+def test_map_bundled_log(tmp_path, capsys):
+    assert cli.main(["map", "-o", str(tmp_path / "m"), "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    expected, summary = ps.map_laser_log(io.read_carmen_log(cli._bundled_log()).scans, progress=False)
+    assert f"scans:         {summary.scans}" in out and f"beams:         {summary.beams}" in out
+    assert f"cells updated: {summary.cells_updated}" in out
+    saved = io.load_ros_map(tmp_path / "m.yaml")
+    assert saved.same_geometry(expected)
+    classes = lambda g: np.digitize(g.probability(), [0.196, 0.65])
+    np.testing.assert_array_equal(classes(saved), classes(expected))
+    assert 0 < np.count_nonzero(classes(saved) == 2) < np.count_nonzero(classes(saved) == 0)
+    assert (tmp_path / "m.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_map_bad_log_reports_line(tmp_path, capsys):
+    bad = tmp_path / "bad.log"
+    bad.write_text("ODOM 0 0 0 0 0 0\nFLASER 3 1 2\n")
+    assert cli.main(["map", str(bad), "-o", str(tmp_path / "m"), "--no-progress"]) == 2
+    assert "bad.log:2:" in capsys.readouterr().err
+
+
+def test_map_matches_direct_api(tmp_path):
+    log = io.read_carmen_log(cli._bundled_log())
+    grid, summary = ps.map_laser_log(log.scans, resolution=0.1, progress=False)
+    direct = ps.OccupancyGrid2D(0.1, grid.width, grid.height, origin=grid.origin)
+    scans = log.scans
+    ranges = np.where(scans.ranges >= 81.83, np.nan, scans.ranges)  # the log's no-return value
+    direct.insert_scans(scans.laser_poses, ranges, scans.beam_angles(), 30.0)
+    np.testing.assert_array_equal(grid.log_odds, direct.log_odds)
+    assert summary.scans == 180
