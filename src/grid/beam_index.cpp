@@ -15,7 +15,7 @@ namespace {
 constexpr double kBucketMargin = 1e-9;
 constexpr int kMinBuckets = 64;
 constexpr int kMaxBuckets = 1 << 16;
-constexpr int kBucketsPerBeam = 4;
+constexpr int kBucketsPerBeam = 8;  // mostly two candidates per bucket
 
 struct SortedBeam {
   double angle;  // wrapped, possibly shifted by +-2pi
@@ -38,6 +38,13 @@ BeamIndex::BeamIndex(const Eigen::Ref<const Eigen::VectorXd>& beam_angles,
   std::sort(sorted.begin(), sorted.end(), [](const SortedBeam& a, const SortedBeam& b) {
     return a.angle < b.angle || (a.angle == b.angle && a.index < b.index);
   });
+  for (std::size_t p = 0; p < sorted.size(); ++p) {
+    const double next = p + 1 < sorted.size() ? sorted[p + 1].angle : sorted.front().angle + kTwoPi;
+    if (next - sorted[p].angle > gap_width_) {
+      gap_width_ = next - sorted[p].angle;
+      gap_start_ = sorted[p].angle;
+    }
+  }
   // Three turns of the circle, so that neighbours across +-pi are plain neighbours.
   std::vector<SortedBeam> ring;
   ring.reserve(3 * sorted.size());
@@ -73,8 +80,8 @@ BeamIndex::BeamIndex(const Eigen::Ref<const Eigen::VectorXd>& beam_angles,
 }
 
 // Table 9.2 line 5.
-int BeamIndex::nearest(double phi) const {
-  if (count_ == 0) return -1;
+BeamIndex::Nearest BeamIndex::nearest(double phi) const {
+  if (count_ == 0) return {-1, std::numeric_limits<double>::infinity()};
   const int buckets = static_cast<int>(bucket_start_.size()) - 1;
   int b = static_cast<int>((wrap_angle(phi) + kPi) * buckets_per_radian_);
   b = std::clamp(b, 0, buckets - 1);
@@ -88,7 +95,7 @@ int BeamIndex::nearest(double phi) const {
       best = j;
     }
   }
-  return best;
+  return {best, best_distance};
 }
 
 }  // namespace probslam

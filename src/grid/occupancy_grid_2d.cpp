@@ -111,8 +111,8 @@ std::size_t OccupancyGrid2D::insert_cone_scan(const Eigen::Vector3d& pose,
                                               double l_free) {
   check_scan_shape(pose, ranges, beam_angles);
   const ConeScan scan(pose, ranges, beam_angles, {z_max, alpha, beta, l0_, l_occ, l_free});
-  // Visit a disc one cell wider than z_max; the exact r > z_max test is the model's own.
-  const double reach = z_max + lattice_.res;
+  // Visit a disc one cell wider than the scan's reach; the exact test is the model's own.
+  const double reach = scan.reach() + lattice_.res;
   const int row_lo = std::max(0, lattice_.key(1, pose.y() - reach));
   const int row_hi = std::min(height_ - 1, lattice_.key(1, pose.y() + reach));
   std::size_t changed = 0;

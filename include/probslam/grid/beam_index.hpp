@@ -15,9 +15,17 @@ class BeamIndex {
   /// `valid[j] == 0` leaves beam j out (e.g. a NaN reading). Angles must be finite (radians).
   BeamIndex(const Eigen::Ref<const Eigen::VectorXd>& beam_angles, const std::vector<std::uint8_t>& valid);
 
-  /// Index of the nearest valid beam to bearing phi (radians, any range), or -1 if none.
-  int nearest(double phi) const;
+  struct Nearest {
+    int index;        // -1 if there is no valid beam
+    double distance;  // |wrap(phi - theta_index)|, radians
+  };
+  /// The nearest valid beam to bearing phi (radians, any range).
+  Nearest nearest(double phi) const;
   bool empty() const { return count_ == 0; }
+  /// The widest angular gap between neighbouring valid beams: it starts at the wrapped angle
+  /// `gap_start` and spans `gap_width` radians counter-clockwise (2 pi for a single beam).
+  double gap_start() const { return gap_start_; }
+  double gap_width() const { return gap_width_; }
 
  private:
   std::vector<double> angles_;  // as given, for the exact comparison
@@ -25,6 +33,7 @@ class BeamIndex {
   std::vector<std::int32_t> candidates_;
   double buckets_per_radian_ = 0.0;
   int count_ = 0;
+  double gap_start_ = 0.0, gap_width_ = 0.0;
 };
 
 }  // namespace probslam

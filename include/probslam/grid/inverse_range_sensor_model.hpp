@@ -32,6 +32,8 @@ class ConeScan {
 
   /// Table 9.2 for the cell whose centre of mass is (cx, cy); line 8 tests the measured range.
   double operator()(double cx, double cy) const;
+  /// No cell farther than this from the sensor can be in the perceptual field (metres).
+  double reach() const { return reach_; }
   const ConeModel& model() const { return model_; }
   const Eigen::Vector3d& pose() const { return pose_; }
 
@@ -41,6 +43,13 @@ class ConeScan {
   Eigen::VectorXd angles_;
   ConeModel model_;
   BeamIndex beams_;
+  double reach_ = 0.0;
+  // The blind wedge: directions (world frame) farther than beta/2 from every beam, shrunk by a
+  // margin; cells inside it return l0 without the cost of atan2.
+  bool has_blind_wedge_ = false;
+  bool blind_wedge_reflex_ = false;  // wider than pi
+  double wedge_from_[2] = {0, 0}, wedge_to_[2] = {0, 0};
+  bool in_blind_wedge(double dx, double dy) const;
 };
 
 /// Table 9.2 for each row of cells (n x 2 centres, metres).

@@ -67,7 +67,10 @@ class OccupancyGrid2D {
   /// Occupancy probability of every cell, eq. 9.6.
   RowMatrixXd probability() const;
 
-  bool contains(int row, int col) const { return row >= 0 && row < height_ && col >= 0 && col < width_; }
+  bool contains(int row, int col) const {
+    return static_cast<unsigned>(row) < static_cast<unsigned>(height_) &&
+           static_cast<unsigned>(col) < static_cast<unsigned>(width_);
+  }
   /// (row, col) of the cell containing (x, y); may lie outside the grid.
   Eigen::Vector2i cell_of(double x, double y) const { return {lattice_.key(1, y), lattice_.key(0, x)}; }
   /// Centre of mass (x, y) of cell (row, col).

@@ -54,6 +54,24 @@ void walk_ray(const Lattice& lattice, const Real* origin, const Real* end, Visit
     }
   }
 
+  if constexpr (Dim == 2) {
+    // The same steps with scalar state: the compiler keeps it in registers and selects the
+    // axis without a branch.
+    int kx = key[0], ky = key[1];
+    const int ex = key_end[0], ey = key_end[1], sx = step[0], sy = step[1];
+    double tx = t_max[0], ty = t_max[1];
+    const double dx = t_delta[0], dy = t_delta[1];
+    for (;;) {
+      const bool along_x = tx < ty;
+      kx += along_x ? sx : 0;
+      ky += along_x ? 0 : sy;
+      tx += along_x ? dx : 0.0;
+      ty += along_x ? 0.0 : dy;
+      if (kx == ex && ky == ey) return;
+      if (std::min(tx, ty) > length) return;
+      if (!visit(CellKey<2>{kx, ky})) return;
+    }
+  }
   for (;;) {
     int dim = 0;
     for (int i = 1; i < Dim; ++i)

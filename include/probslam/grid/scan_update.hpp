@@ -35,9 +35,24 @@ std::size_t apply_scan(const Lattice& lattice, Store& store, const ScanSegments<
     for (int d = 0; d < Dim; ++d) key[d] = lattice.key(d, scan.ends[i * Dim + d]);
     if (store.contains(key) && store.update_once(key, true)) ++updated;
   }
+  CellKey<Dim> origin_key;
+  for (int d = 0; d < Dim; ++d) origin_key[d] = lattice.key(d, scan.origin[d]);
+  const bool origin_inside = store.contains(origin_key);
   for (std::size_t i = 0; i < scan.n; ++i) {
+    const Real* end = scan.ends + i * Dim;
+    CellKey<Dim> end_key;
+    for (int d = 0; d < Dim; ++d) end_key[d] = lattice.key(d, end[d]);
+    if (origin_inside && store.contains(end_key)) {
+      // Both ends inside a box, so the whole segment is: the walk need not watch for an exit.
+      // (The check stays: rounding may step beside a segment that runs along the box's edge.)
+      walk_ray<Dim, Real>(lattice, scan.origin, end, [&](const CellKey<Dim>& key) {
+        if (store.contains(key)) updated += store.update_once(key, false);
+        return true;
+      });
+      continue;
+    }
     bool entered = false;
-    walk_ray<Dim, Real>(lattice, scan.origin, scan.ends + i * Dim, [&](const CellKey<Dim>& key) {
+    walk_ray<Dim, Real>(lattice, scan.origin, end, [&](const CellKey<Dim>& key) {
       if (!store.contains(key)) return !entered;  // a segment leaves a box only once
       entered = true;
       if (store.update_once(key, false)) ++updated;
