@@ -119,7 +119,10 @@ void define_grid(py::module_& m) {
             return g.insert_cone_scan(x, as_vector(s.ranges), as_vector(s.angles), z_max, alpha, beta, l_occ, l_free);
           },
           py::arg("pose"), py::arg("ranges"), py::arg("beam_angles"), py::arg("z_max"), py::arg("alpha"),
-          py::arg("beta"), py::arg("l_occ"), py::arg("l_free"))
+          py::arg("beta"), py::arg("l_occ"), py::arg("l_free"),
+          "Table 9.1 with the cone model of Table 9.2: l += ism - l0 in the perceptual field.\n"
+          "pose (3,), ranges (n,) m, beam_angles (n,) rad relative to theta; z_max, alpha m; beta rad.\n"
+          "NaN, inf and negative readings are left out. Returns the number of cells changed.")
       .def(
           "insert_rays",
           [](Grid& g, py::handle pose, py::handle ranges, py::handle angles, double max_range) {
@@ -128,7 +131,11 @@ void define_grid(py::module_& m) {
             py::gil_scoped_release release;
             return g.insert_rays(x, as_vector(s.ranges), as_vector(s.angles), max_range);
           },
-          py::arg("pose"), py::arg("ranges"), py::arg("angles"), py::arg("max_range"))
+          py::arg("pose"), py::arg("ranges"), py::arg("angles"), py::arg("max_range"),
+          "Laser-beam update: exact cell walk, misses along each ray, a hit at the end of readings\n"
+          "< max_range (m); readings >= max_range clear up to it. Each cell changes once per scan,\n"
+          "a hit beats a miss (OctoMap's rules). NaN, inf, negative readings are skipped.\n"
+          "pose (3,), ranges (n,) m, angles (n,) rad. Returns the number of cells updated.")
       .def(
           "insert_scans",
           [](Grid& g, py::handle poses, py::handle ranges, py::handle angles, double max_range) {
@@ -148,21 +155,25 @@ void define_grid(py::module_& m) {
             py::gil_scoped_release release;
             return g.insert_scans(x, as_matrix(r), as_matrix(a), max_range);
           },
-          py::arg("poses"), py::arg("ranges"), py::arg("angles"), py::arg("max_range"))
+          py::arg("poses"), py::arg("ranges"), py::arg("angles"), py::arg("max_range"),
+          "insert_rays for every scan: poses (S, 3), ranges (S, B), angles (B,) or (S, B).")
       .def(
           "clear_footprint",
           [](Grid& g, py::handle pose, double radius, py::object l_free) {
             const double lf = l_free.is_none() ? (g.clamp().enabled ? g.clamp().min : logit(0.05)) : l_free.cast<double>();
             return g.clear_footprint(pose_arg(pose), radius, lf);
           },
-          py::arg("pose"), py::arg("radius"), py::arg("l_free") = py::none())
+          py::arg("pose"), py::arg("radius"), py::arg("l_free") = py::none(),
+          "Cells whose centre is within radius (m) of the pose are free: l += l_free - l0\n"
+          "(default l_free: the lower clamp, else logit(0.05)). Returns the cells changed.")
       .def(
           "grown",
           [](const Grid& g, py::handle bounds) {
             const Eigen::Vector4d b = fixed_vector<4>(bounds, "bounds");
             return g.grown_to_include(b[0], b[1], b[2], b[3]);
           },
-          py::arg("bounds"))
+          py::arg("bounds"),
+          "An enlarged copy on the same lattice covering bounds (xmin, ymin, xmax, ymax) m.")
       .def("copy", [](const Grid& g) { return Grid(g); })
       .def("same_geometry", &Grid::same_geometry, py::arg("other"))
       .def("__repr__", [](const Grid& g) {

@@ -21,6 +21,11 @@ void check_clamp(const LogOddsClamp& clamp) {
           "must be two probabilities (p_min < p_max) strictly between 0 and 1");
 }
 
+void check_bounds(double xmin, double ymin, double xmax, double ymax) {
+  require(std::isfinite(xmin) && std::isfinite(xmax) && xmin <= xmax, "xmin", "must be finite and <= xmax");
+  require(std::isfinite(ymin) && std::isfinite(ymax) && ymin <= ymax, "ymin", "must be finite and <= ymax");
+}
+
 void check_scan_shape(const Eigen::Vector3d& pose, const Eigen::Ref<const Eigen::VectorXd>& ranges,
                       const Eigen::Ref<const Eigen::VectorXd>& beam_angles) {
   require_all_finite(pose, "pose");
@@ -79,8 +84,7 @@ OccupancyGrid2D::OccupancyGrid2D(double resolution, int width, int height, const
 
 OccupancyGrid2D OccupancyGrid2D::covering(double xmin, double ymin, double xmax, double ymax,
                                           double resolution, double p_prior, const LogOddsClamp& clamp) {
-  require(std::isfinite(xmin) && std::isfinite(xmax) && xmin <= xmax, "xmin", "must be finite and <= xmax");
-  require(std::isfinite(ymin) && std::isfinite(ymax) && ymin <= ymax, "ymin", "must be finite and <= ymax");
+  check_bounds(xmin, ymin, xmax, ymax);
   require_positive(resolution, "resolution");
   const double w = std::max(1.0, std::ceil((xmax - xmin) / resolution));
   const double h = std::max(1.0, std::ceil((ymax - ymin) / resolution));
@@ -204,8 +208,7 @@ std::size_t OccupancyGrid2D::clear_footprint(const Eigen::Vector3d& pose, double
 }
 
 OccupancyGrid2D OccupancyGrid2D::grown_to_include(double xmin, double ymin, double xmax, double ymax) const {
-  require(std::isfinite(xmin) && std::isfinite(xmax) && xmin <= xmax, "xmin", "must be finite and <= xmax");
-  require(std::isfinite(ymin) && std::isfinite(ymax) && ymin <= ymax, "ymin", "must be finite and <= ymax");
+  check_bounds(xmin, ymin, xmax, ymax);
   const double res = lattice_.res;
   const auto cells_beyond = [&](double distance) { return std::max(0.0, std::ceil(distance / res)); };
   const double left = cells_beyond(lattice_.x0 - xmin);

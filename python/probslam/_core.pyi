@@ -1,0 +1,103 @@
+"""Type stubs for probslam's C++ core. Units: metres, radians; poses are (x, y, theta)."""
+
+from typing import List, Optional, Sequence, Tuple, Union, overload
+
+import numpy as np
+import numpy.typing as npt
+
+ArrayLike = npt.ArrayLike
+Array = npt.NDArray[np.float64]
+Bounds = Tuple[float, float, float, float]  # (xmin, ymin, xmax, ymax), metres
+
+@overload
+def wrap_angle(angle: float) -> float: ...
+@overload
+def wrap_angle(angle: ArrayLike) -> Array: ...
+@overload
+def logit(p: float) -> float: ...
+@overload
+def logit(p: ArrayLike) -> Array: ...
+@overload
+def probability_from_log_odds(l: float) -> float: ...
+@overload
+def probability_from_log_odds(l: ArrayLike) -> Array: ...
+
+class Pose2:
+    """Planar pose; theta wrapped to (-pi, pi]."""
+    x: float
+    y: float
+    theta: float
+    def __init__(self, x: float = 0.0, y: float = 0.0, theta: float = 0.0) -> None: ...
+    @staticmethod
+    def from_array(array: ArrayLike) -> "Pose2": ...
+    def as_array(self) -> Array: ...  # (3,)
+    def compose(self, other: "Pose2") -> "Pose2": ...
+    def __mul__(self, other: "Pose2") -> "Pose2": ...
+    def inverse(self) -> "Pose2": ...
+    def between(self, other: "Pose2") -> "Pose2": ...
+    def transform_from(self, points: ArrayLike) -> Array: ...  # (2,) or (n, 2) body -> world
+    def transform_to(self, points: ArrayLike) -> Array: ...  # (2,) or (n, 2) world -> body
+
+def velocity_motion(pose: ArrayLike, v: float, w: float, dt: float) -> Array:
+    """(3,) pose after v m/s, w rad/s for dt s (eq. 10.11); exact through w = 0."""
+def velocity_motion_jacobian(pose: ArrayLike, v: float, w: float, dt: float) -> Array:
+    """(3, 3) G = dg/dpose (Table 10.1 line 4, signs corrected)."""
+def velocity_motion_control_jacobian(pose: ArrayLike, v: float, w: float, dt: float) -> Array:
+    """(3, 2) V = dg/d(v, w)."""
+def range_bearing(pose: ArrayLike, landmark: ArrayLike) -> Array:
+    """(2,) (range, bearing) of landmark (2,), or (3,) with its signature for a (3,) landmark."""
+def range_bearing_jacobians(pose: ArrayLike, landmark: ArrayLike) -> Tuple[Array, Array]:
+    """(d h/d pose (2, 3), d h/d landmark (2, 2)), or (3, 3) and (3, 3) with a signature."""
+def landmark_from_range_bearing(pose: ArrayLike, z: ArrayLike) -> Array:
+    """Table 10.1 line 10: landmark (2,) from z = (range, bearing), (3,) with a signature."""
+def landmark_from_range_bearing_jacobians(pose: ArrayLike, z: ArrayLike) -> Tuple[Array, Array]:
+    """(d m/d pose (2, 3), d m/d z (2, 2))."""
+
+def inverse_range_sensor_model(cells_xy: ArrayLike, pose: ArrayLike, ranges: ArrayLike, beam_angles: ArrayLike,
+                               z_max: float, alpha: float, beta: float, l0: float, l_occ: float,
+                               l_free: float) -> Union[float, Array]:
+    """Table 9.2 for cell centres (n, 2) -> (n,) log-odds, or one (2,) cell -> float."""
+
+class OccupancyGrid2D:
+    """2-D occupancy grid (ch. 9.2). Cell (row i, col j) covers x in [x0 + j res, x0 + (j+1) res),
+    y in [y0 + i res, y0 + (i+1) res)."""
+    resolution: float
+    width: int
+    height: int
+    shape: Tuple[int, int]  # (height, width)
+    origin: Tuple[float, float]  # (x0, y0) of cell (0, 0)'s lower-left corner
+    p_prior: float
+    l0: float  # logit(p_prior)
+    clamp: Optional[Tuple[float, float]]  # probabilities; None: the textbook update
+    p_hit: float
+    p_miss: float
+    log_odds: Array  # zero-copy, writable (height, width) view
+    def __init__(self, resolution: float, width: int, height: int, origin: ArrayLike = (0.0, 0.0),
+                 p_prior: float = 0.5, clamp: Optional[Tuple[float, float]] = (0.1192, 0.971),
+                 p_hit: float = 0.7, p_miss: float = 0.4) -> None: ...
+    @staticmethod
+    def covering(bounds: Bounds, resolution: float, p_prior: float = 0.5,
+                 clamp: Optional[Tuple[float, float]] = (0.1192, 0.971), p_hit: float = 0.7,
+                 p_miss: float = 0.4) -> "OccupancyGrid2D": ...
+    def probability(self) -> Array: ...  # (height, width), eq. 9.6
+    def cell_of(self, points: ArrayLike) -> npt.NDArray[np.int64]: ...  # (n, 2) xy -> (n, 2) (row, col)
+    def cell_centers(self) -> Array: ...  # (height * width, 2), row-major
+    def insert_cone_scan(self, pose: ArrayLike, ranges: ArrayLike, beam_angles: ArrayLike, z_max: float,
+                         alpha: float, beta: float, l_occ: float, l_free: float) -> int: ...
+    def insert_rays(self, pose: ArrayLike, ranges: ArrayLike, angles: ArrayLike, max_range: float) -> int: ...
+    def insert_scans(self, poses: ArrayLike, ranges: ArrayLike, angles: ArrayLike, max_range: float) -> int: ...
+    def clear_footprint(self, pose: ArrayLike, radius: float, l_free: Optional[float] = None) -> int: ...
+    def grown(self, bounds: Bounds) -> "OccupancyGrid2D": ...
+    def copy(self) -> "OccupancyGrid2D": ...
+    def same_geometry(self, other: "OccupancyGrid2D") -> bool: ...
+
+def fuse_max(grids: Sequence[OccupancyGrid2D]) -> OccupancyGrid2D:
+    """Eq. 9.9: cell-wise most pessimistic map of grids of equal geometry."""
+
+def read_carmen_log(path: str) -> dict: ...
+def parse_carmen_log(text: str, source: str = "<text>") -> dict: ...
+def save_ros_map(grid: OccupancyGrid2D, yaml_path: str, occupied_thresh: float = 0.65,
+                 free_thresh: float = 0.196) -> None: ...
+def load_ros_map(yaml_path: str) -> OccupancyGrid2D: ...
+def save_grid(grid: OccupancyGrid2D, path: str) -> None: ...
+def load_grid(path: str) -> OccupancyGrid2D: ...
