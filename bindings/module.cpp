@@ -4,6 +4,7 @@ namespace probslam::bindings {
 void define_core(pybind11::module_& m);
 void define_grid(pybind11::module_& m);
 void define_io(pybind11::module_& m);
+void define_ekf(pybind11::module_& m);
 }  // namespace probslam::bindings
 
 PYBIND11_MODULE(_core, m) {
@@ -11,4 +12,5 @@ PYBIND11_MODULE(_core, m) {
   probslam::bindings::define_core(m);
   probslam::bindings::define_grid(m);
   probslam::bindings::define_io(m);
+  probslam::bindings::define_ekf(m);
 }

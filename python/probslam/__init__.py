@@ -19,12 +19,15 @@ from ._core import (
     velocity_motion_jacobian,
     wrap_angle,
 )
-from . import io
+from . import io, sim
+from .ekf import EkfSlam, MapManagement
 from .mapping import MappingSummary, map_laser_log
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "EkfSlam",
+    "MapManagement",
     "MappingSummary",
     "OccupancyGrid2D",
     "Pose2",
@@ -37,6 +40,7 @@ __all__ = [
     "map_laser_log",
     "probability_from_log_odds",
     "range_bearing",
+    "sim",
     "range_bearing_jacobians",
     "velocity_motion",
     "velocity_motion_control_jacobian",

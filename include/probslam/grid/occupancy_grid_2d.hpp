@@ -7,13 +7,11 @@
 #include <cstdint>
 #include <vector>
 
+#include "probslam/core/types.hpp"
 #include "probslam/grid/inverse_range_sensor_model.hpp"
 #include "probslam/grid/log_odds.hpp"
 
 namespace probslam {
-
-using RowMatrixXd = Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>;
-using Poses2 = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
 
 /// Regular lattice of a 2-D grid: axis 0 is x (columns), axis 1 is y (rows). Cell (i, j)
 /// covers [x0 + j res, x0 + (j + 1) res) x [y0 + i res, y0 + (i + 1) res).

@@ -1,15 +1,20 @@
 """Readers and writers: CARMEN laser logs, ROS map_server maps, lossless grids, PNG pictures."""
 
 from .carmen import CarmenLog, LaserScans, Odometry, read_carmen_log
+from .landmark_datasets import Mrclam, VictoriaPark, read_mrclam, read_victoria_park
 from .maps import load_grid, load_ros_map, save_grid, save_ros_map, write_png
 
 __all__ = [
     "CarmenLog",
     "LaserScans",
+    "Mrclam",
     "Odometry",
+    "VictoriaPark",
     "load_grid",
     "load_ros_map",
     "read_carmen_log",
+    "read_mrclam",
+    "read_victoria_park",
     "save_grid",
     "save_ros_map",
     "write_png",

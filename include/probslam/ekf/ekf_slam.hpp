@@ -1,0 +1,144 @@
+#pragma once
+// EKF SLAM (ch. 10) with point landmarks: Table 10.1 (known correspondences) and Table 10.2
+// (maximum-likelihood correspondences), with the map management of ch. 10.3.3.
+#include <Eigen/Core>
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <unordered_map>
+#include <vector>
+
+#include "probslam/core/types.hpp"
+
+namespace probslam {
+
+/// Mean and covariance storage with spare capacity. Views into it stay valid (if stale) after
+/// the state grows beyond the capacity, because growing moves to a new storage object.
+struct EkfSlamStorage {
+  Eigen::VectorXd mean;  // capacity
+  Eigen::MatrixXd cov;   // capacity x capacity, column-major; the top-left dim x dim is in use
+};
+
+/// Ch. 10.3.3 map management for update_unknown; every part is off by default.
+struct MapManagement {
+  bool provisional = false;          // new landmarks first wait on a provisional list
+  int min_observations = 3;          // sightings before a provisional landmark joins the map
+  double provisional_max_std = 0.5;  // m: ... and its largest position std-dev is below this
+  int provisional_max_age = 20;      // scans without a sighting before it is forgotten
+  bool existence = false;            // landmark existence log-odds o_j
+  double existence_hit = 1.0;        // added to o_j when landmark j is observed
+  double existence_miss = 0.5;       // subtracted when j is in the perceptual field, unobserved
+  double existence_threshold = -1.0; // landmarks with o_j below this are removed
+  double sensor_range = std::numeric_limits<double>::infinity();  // m, perceptual field
+  double sensor_fov = 6.283185307179586;                           // rad, full opening angle
+};
+
+/// What update() did with each measurement.
+struct UpdateReport {
+  Eigen::VectorXd nis;             // normalised innovation squared; NaN for first sightings
+  std::vector<std::uint8_t> used;  // 0 where the gate rejected the measurement
+};
+
+/// What update_unknown() did with each measurement.
+struct AssociationReport {
+  enum Outcome : std::uint8_t { kAssociated = 0, kNewLandmark = 1, kProvisional = 2, kDiscarded = 3 };
+  std::vector<long> ids;               // landmark id used or created; -1 if none
+  Eigen::VectorXd mahalanobis;         // smallest pi_k over the candidates (inf if none)
+  std::vector<std::uint8_t> outcome;   // Outcome per measurement
+  std::vector<long> removed;           // landmarks dropped by the existence test
+};
+
+class EkfSlam {
+ public:
+  /// motion_noise: 3x3 pose-space R_t, or 2x2 control-space M (R_t = V M V^T) for (v, w).
+  /// measurement_noise: Q_t, variances of (range, bearing[, signature]): 3x3 with signatures.
+  /// All must be symmetric positive definite (initial_pose_cov positive semi-definite).
+  EkfSlam(const Eigen::MatrixXd& motion_noise, const Eigen::MatrixXd& measurement_noise, bool use_signatures,
+          const Eigen::Vector3d& initial_pose, const Eigen::Matrix3d& initial_pose_cov);
+
+  int state_dim() const { return n_; }
+  int landmark_dim() const { return ld_; }
+  int num_landmarks() const { return static_cast<int>(ids_.size()); }
+  bool use_signatures() const { return ld_ == 3; }
+  Eigen::VectorBlock<Eigen::VectorXd> mean() { return s_->mean.head(n_); }
+  Eigen::Block<Eigen::MatrixXd> covariance() { return s_->cov.topLeftCorner(n_, n_); }
+  Eigen::Vector3d pose() const { return s_->mean.head<3>(); }
+  const std::vector<long>& landmark_ids() const { return ids_; }
+  bool has_landmark(long id) const { return index_.count(id) != 0; }
+  Eigen::VectorXd landmark(long id) const;
+  Eigen::MatrixXd landmark_covariance(long id) const;
+  double existence(long id) const;
+  std::shared_ptr<EkfSlamStorage> storage() const { return s_; }
+  Eigen::Index capacity() const { return s_->mean.size(); }
+  const Eigen::MatrixXd& measurement_noise() const { return Q_; }
+
+  /// Table 10.1 lines 2-5: velocity motion model for dt seconds. O(N).
+  void predict(double v, double w, double dt);
+  /// Odometry given as a relative pose: x <- x (+) delta, delta ~ N(., noise) in the robot frame.
+  void predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matrix3d& noise);
+
+  /// Table 10.1 lines 6-20 for measurements z (k x 2, or k x 3 with signatures) of landmarks
+  /// `ids`, applied one after another (the exact EKF). A landmark seen for the first time is
+  /// added by state augmentation. Measurements whose NIS exceeds `gate` are skipped.
+  UpdateReport update(const Eigen::Ref<const RowMatrixXd>& z, const std::vector<long>& ids,
+                      double gate = std::numeric_limits<double>::infinity());
+
+  /// Table 10.2: maximum-likelihood correspondences. A measurement joins the landmark of smallest
+  /// Mahalanobis distance pi <= alpha (each landmark at most once per scan); with min pi > alpha_new
+  /// it creates a landmark; in between it is discarded as ambiguous.
+  AssociationReport update_unknown(const Eigen::Ref<const RowMatrixXd>& z, double alpha, double alpha_new);
+
+  void set_map_management(const MapManagement& m);
+  const MapManagement& map_management() const { return mm_; }
+  /// Candidates for association: landmarks within this distance (m) of where the measurement
+  /// places its landmark.
+  void set_gate_distance(double metres);
+  double gate_distance() const { return gate_distance_; }
+  int num_provisional() const { return static_cast<int>(provisional_.size()); }
+  /// Marginalises landmark `id` out of the state.
+  void remove_landmark(long id);
+
+ private:
+  struct Provisional {
+    Eigen::VectorXd mean;  // ld
+    Eigen::MatrixXd cov;   // ld x ld
+    int seen = 1;
+    int age = 0;
+  };
+  struct Candidate {
+    Eigen::VectorXd z_hat;
+    Eigen::MatrixXd psi_inv;
+  };
+
+  void check_measurements(const Eigen::Ref<const RowMatrixXd>& z) const;
+  void apply_motion(const Eigen::Vector3d& new_pose, const Eigen::Matrix3d& g, const Eigen::Matrix3d& r);
+  void measurement_jacobian(const Eigen::VectorXd& landmark, Eigen::VectorXd& z_hat, Eigen::MatrixXd& hx,
+                            Eigen::MatrixXd& hm) const;
+  void innovation(const Eigen::VectorXd& z, const Eigen::VectorXd& z_hat, Eigen::VectorXd& nu) const;
+  double correct(const Eigen::VectorXd& z, int index, double gate, bool& used);
+  void augment(const Eigen::VectorXd& z, long id);
+  void inverse_measurement(const Eigen::VectorXd& z, Eigen::VectorXd& m, Eigen::MatrixXd& gx,
+                           Eigen::MatrixXd& gz) const;
+  void reserve(Eigen::Index dim);
+  Candidate candidate(const Eigen::VectorXd& landmark, const Eigen::MatrixXd* own_cov, int index) const;
+  bool update_provisional(Provisional& p, const Eigen::VectorXd& z) const;
+  void update_existence(const std::vector<std::uint8_t>& observed, const Eigen::Vector3d& pose,
+                        AssociationReport& report);
+
+  Eigen::Matrix3d r_pose_ = Eigen::Matrix3d::Zero();
+  Eigen::Matrix2d m_control_ = Eigen::Matrix2d::Zero();
+  bool control_noise_ = false;
+  Eigen::MatrixXd Q_;
+  int md_ = 2, ld_ = 2;
+  std::shared_ptr<EkfSlamStorage> s_;
+  int n_ = 3;
+  std::vector<long> ids_;
+  std::unordered_map<long, int> index_;  // id -> first state index
+  std::vector<double> existence_;
+  std::vector<Provisional> provisional_;
+  long next_id_ = 0;
+  double gate_distance_ = 5.0;
+  MapManagement mm_;
+};
+
+}  // namespace probslam

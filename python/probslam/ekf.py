@@ -1,0 +1,163 @@
+"""EKF SLAM (ch. 10): the Python face of the C++ filter."""
+
+from __future__ import annotations
+
+from typing import NamedTuple, Optional
+
+import numpy as np
+
+from . import _core
+from ._core import MapManagement
+
+#: Association gate: the chi-square quantile at this probability, with the measurement's
+#: degrees of freedom, is the default Mahalanobis threshold alpha of Table 10.2.
+DEFAULT_ASSOCIATION_PROBABILITY = 0.99
+#: A measurement creates a landmark only when even this quantile rejects every candidate; those
+#: in between are discarded as ambiguous (otherwise the 1% of true re-sightings beyond alpha
+#: would each spawn a duplicate landmark).
+DEFAULT_NEW_LANDMARK_PROBABILITY = 1.0 - 1e-6
+
+
+class UpdateResult(NamedTuple):
+    nis: np.ndarray  # (k,) normalised innovation squared, NaN for first sightings
+    used: np.ndarray  # (k,) bool, False where the gate rejected the measurement
+
+
+class AssociationResult(NamedTuple):
+    ids: np.ndarray  # (k,) landmark id used or created, -1 if none
+    mahalanobis: np.ndarray  # (k,) smallest pi over the candidates
+    outcome: np.ndarray  # (k,) 0 associated, 1 new landmark, 2 provisional, 3 discarded
+    removed: np.ndarray  # ids dropped by the existence test
+
+    ASSOCIATED, NEW_LANDMARK, PROVISIONAL, DISCARDED = 0, 1, 2, 3
+
+
+def chi2_quantile(probability: float, dof: int) -> float:
+    from scipy.stats import chi2
+
+    return float(chi2.ppf(probability, dof))
+
+
+class EkfSlam:
+    """Online SLAM with the extended Kalman filter (Tables 10.1, 10.2).
+
+    State (eq. 10.7): ``(x, y, theta, m1x, m1y[, s1], ...)``.
+
+    Args:
+        motion_noise: (3, 3) pose-space covariance R_t added as F_x^T R_t F_x, or (2, 2)
+            control-space covariance M of (v [m/s], w [rad/s]) mapped through dg/du.
+        measurement_noise: Q_t, (2, 2) variances of (range [m^2], bearing [rad^2]), or (3, 3)
+            with the signature's variance when ``use_signatures``.
+        initial_pose: (3,) ``(x, y, theta)``; initial_pose_cov: (3, 3), zeros by default.
+        map_management: ch. 10.3.3 options (``MapManagement``) for ``update_unknown``.
+        gate_distance: metres; association candidates are the landmarks within it of where
+            the measurement places its landmark.
+    """
+
+    def __init__(self, motion_noise, measurement_noise, use_signatures: bool = True, initial_pose=(0.0, 0.0, 0.0),
+                 initial_pose_cov=None, map_management: Optional[MapManagement] = None, gate_distance: float = 5.0):
+        cov = np.zeros((3, 3)) if initial_pose_cov is None else initial_pose_cov
+        self._f = _core._EkfSlam(motion_noise, measurement_noise, use_signatures, initial_pose, cov)
+        if map_management is not None:
+            self._f.map_management = map_management
+        self._f.gate_distance = gate_distance
+
+    # --- state -------------------------------------------------------------------------
+    @property
+    def mean(self) -> np.ndarray:
+        """(D,) zero-copy view of the state; valid until the next call that adds a landmark."""
+        return self._f.mean
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """(D, D) zero-copy view of the covariance (symmetric); same validity as ``mean``."""
+        return self._f.covariance
+
+    @property
+    def pose(self) -> np.ndarray:
+        return self._f.pose
+
+    @property
+    def landmark_ids(self) -> np.ndarray:
+        """(N,) external ids, in state order."""
+        return self._f.landmark_ids
+
+    @property
+    def landmarks(self) -> np.ndarray:
+        """(N, 2) landmark positions in metres, in state order."""
+        d = self._f.landmark_dim
+        return self._f.mean[3:].reshape(-1, d)[:, :2].copy()
+
+    @property
+    def num_landmarks(self) -> int:
+        return self._f.num_landmarks
+
+    @property
+    def num_provisional(self) -> int:
+        return self._f.num_provisional
+
+    @property
+    def state_dim(self) -> int:
+        return self._f.state_dim
+
+    @property
+    def use_signatures(self) -> bool:
+        return self._f.landmark_dim == 3
+
+    @property
+    def map_management(self) -> MapManagement:
+        return self._f.map_management
+
+    @map_management.setter
+    def map_management(self, value: MapManagement) -> None:
+        self._f.map_management = value
+
+    def landmark(self, id: int) -> np.ndarray:
+        return self._f.landmark(int(id))
+
+    def landmark_covariance(self, id: int) -> np.ndarray:
+        """(2, 2) (or (3, 3) with signatures) covariance of landmark ``id``."""
+        return self._f.landmark_covariance(int(id))
+
+    def existence(self, id: int) -> float:
+        """Existence log-odds o_j of landmark ``id`` (ch. 10.3.3)."""
+        return self._f.existence(int(id))
+
+    def remove_landmark(self, id: int) -> None:
+        self._f.remove_landmark(int(id))
+
+    # --- filter ------------------------------------------------------------------------
+    def predict(self, v: float, w: float, dt: float) -> None:
+        """Table 10.1 lines 2-5 (v m/s, w rad/s, dt s > 0); O(N)."""
+        self._f.predict(v, w, dt)
+
+    def predict_odometry(self, delta, noise) -> None:
+        """x <- x (+) delta for odometry given as a relative pose (3,) with (3, 3) covariance."""
+        self._f.predict_odometry(delta, noise)
+
+    def update(self, z, ids, gate: Optional[float] = None) -> UpdateResult:
+        """Known correspondences: z (k, 2) ``(r, phi)`` or (k, 3) ``(r, phi, s)``, ids (k,) ints.
+
+        Measurements are applied one after another; a landmark seen for the first time is
+        added by state augmentation. With ``gate``, measurements whose NIS exceeds it (e.g. a
+        chi-square quantile) are skipped as outliers.
+        """
+        ids_array = np.asarray(ids)
+        if ids_array.dtype.kind not in "iu":
+            raise TypeError(f"ids must be integers, got dtype {ids_array.dtype}")
+        nis, used = self._f.update(z, ids_array, np.inf if gate is None else gate)
+        return UpdateResult(nis, used)
+
+    def update_unknown(self, z, alpha: Optional[float] = None, alpha_new: Optional[float] = None) -> AssociationResult:
+        """Table 10.2: maximum-likelihood correspondences.
+
+        ``alpha`` (default: chi-square quantile 0.99) is the Mahalanobis threshold below which a
+        measurement joins a landmark; above ``alpha_new`` (default: quantile 1 - 1e-6) it creates
+        one; in between it is discarded. Each landmark takes at most one measurement of a scan.
+        """
+        d = self._f.landmark_dim
+        alpha = chi2_quantile(DEFAULT_ASSOCIATION_PROBABILITY, d) if alpha is None else alpha
+        if alpha_new is None:
+            alpha_new = max(alpha, chi2_quantile(DEFAULT_NEW_LANDMARK_PROBABILITY, d))
+        ids, pi, outcome, removed = self._f.update_unknown(z, alpha, alpha_new)
+        return AssociationResult(ids.astype(np.int64), pi, outcome.astype(np.int8), np.asarray(removed, np.int64))

@@ -1,0 +1,163 @@
+"""Running EKF SLAM on the landmark datasets, and the metrics used to judge it."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Dict, Optional
+
+import numpy as np
+
+from ._core import velocity_motion
+from .ekf import AssociationResult, EkfSlam, MapManagement, chi2_quantile
+from .io.landmark_datasets import Mrclam, VictoriaPark
+
+#: Outlier gate on the NIS of known-correspondence updates: the chi-square quantile at this
+#: probability (2 dof). MRCLAM holds 0.5-3.6% gross outliers (wrong barcodes, reflections).
+MRCLAM_OUTLIER_PROBABILITY = 0.999
+
+
+@dataclass
+class EkfRun:
+    times: np.ndarray  # (T,) seconds
+    poses: np.ndarray  # (T, 3) filtered poses
+    ekf: EkfSlam
+    landmarks: Dict[int, np.ndarray]  # id -> (2,) estimate
+    rejected: int = 0  # measurements the outlier gate skipped
+    associations: list = field(default_factory=list)  # per scan: (true ids, AssociationResult)
+
+
+def align_rigid(estimate: np.ndarray, truth: np.ndarray):
+    """Best-fit rotation R (2, 2) and translation t (2,) with R @ estimate + t ~ truth (Kabsch)."""
+    mu_e, mu_t = estimate.mean(0), truth.mean(0)
+    u, _, vt = np.linalg.svd((estimate - mu_e).T @ (truth - mu_t))
+    d = np.sign(np.linalg.det(vt.T @ u.T))
+    r = vt.T @ np.diag([1.0, d]) @ u.T
+    return r, mu_t - r @ mu_e
+
+
+def rmse(a: np.ndarray, b: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.sum((np.asarray(a) - np.asarray(b)) ** 2, axis=1))))
+
+
+def interpolate_poses(groundtruth: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """(T, 2) ground-truth positions at `times` (linear interpolation of (t, x, y, ...) rows)."""
+    return np.column_stack([np.interp(times, groundtruth[:, 0], groundtruth[:, 1]),
+                            np.interp(times, groundtruth[:, 0], groundtruth[:, 2])])
+
+
+def run_ekf_mrclam(data: Mrclam, motion_noise, measurement_noise, known: bool = True,
+                   gate: Optional[float] = None, alpha: Optional[float] = None, alpha_new: Optional[float] = None,
+                   initial_pose=None, map_management: Optional[MapManagement] = None,
+                   gate_distance: float = 1.0, dead_reckoning: bool = False) -> EkfRun:
+    """EKF SLAM over an MRCLAM robot: odometry (v, w) between stamps, the measurements of one
+    time stamp as one scan. ``known``: the barcodes give the correspondences (gated by
+    ``gate``, default the chi-square 0.999 quantile); else Table 10.2 (barcodes hidden).
+    ``dead_reckoning``: predictions only. The start pose defaults to the ground truth's."""
+    odo, meas = data.odometry, data.measurements
+    if initial_pose is None:
+        if data.groundtruth is None:
+            initial_pose = (0.0, 0.0, 0.0)
+        else:
+            g = data.groundtruth
+            k = int(np.searchsorted(g[:, 0], odo[0, 0]))
+            initial_pose = g[min(k, len(g) - 1), 1:4]
+    gate = chi2_quantile(MRCLAM_OUTLIER_PROBABILITY, 2) if gate is None else gate
+    ekf = EkfSlam(motion_noise, measurement_noise, use_signatures=False, initial_pose=initial_pose,
+                  map_management=map_management, gate_distance=gate_distance)
+    run = EkfRun(np.empty(0), np.empty((0, 3)), ekf, {})
+    times, poses = np.empty(len(odo)), np.empty((len(odo), 3))
+    t_now, m, rejected = odo[0, 0], 0, 0
+    starts = np.flatnonzero(np.r_[True, np.diff(meas[:, 0]) != 0])  # first row of each scan
+    scan_end = np.r_[starts[1:], len(meas)]
+    s = int(np.searchsorted(meas[starts, 0], odo[0, 0]))  # scans before the first control are skipped
+    for k in range(len(odo)):
+        v, w = odo[k, 1], odo[k, 2]
+        t_next = odo[k + 1, 0] if k + 1 < len(odo) else odo[k, 0]
+        while not dead_reckoning and s < len(starts) and meas[starts[s], 0] < t_next:
+            rows = meas[starts[s]:scan_end[s]]
+            if rows[0, 0] > t_now:
+                ekf.predict(v, w, rows[0, 0] - t_now)
+                t_now = rows[0, 0]
+            if known:
+                rejected += int(np.count_nonzero(~ekf.update(rows[:, 2:4], rows[:, 1].astype(np.int64), gate).used))
+            else:
+                run.associations.append((rows[:, 1].astype(np.int64), ekf.update_unknown(rows[:, 2:4], alpha, alpha_new)))
+            s += 1
+        if t_next > t_now:
+            ekf.predict(v, w, t_next - t_now)
+            t_now = t_next
+        times[k], poses[k] = t_now, ekf.pose
+    run.times, run.poses, run.rejected = times, poses, rejected
+    run.landmarks = {int(i): ekf.landmark(i)[:2] for i in ekf.landmark_ids}
+    return run
+
+
+@dataclass
+class MrclamScore:
+    path_rmse: float  # m, raw
+    path_rmse_aligned: float  # m, after the best rigid alignment of the path to ground truth
+    landmark_rmse: float  # m, against the surveyed positions (same frame as the path)
+    landmark_rmse_aligned: float  # m, after the path's alignment
+
+
+def score_mrclam(run: EkfRun, data: Mrclam, landmark_map: Optional[Dict[int, int]] = None) -> MrclamScore:
+    """``landmark_map``: filter id -> surveyed subject (identity when correspondences were known)."""
+    truth = interpolate_poses(data.groundtruth, run.times)
+    r, t = align_rigid(run.poses[:, :2], truth)
+    aligned = run.poses[:, :2] @ r.T + t
+    surveyed = data.landmark_positions
+    pairs = [(xy, surveyed[(landmark_map or {}).get(i, i)]) for i, xy in run.landmarks.items()
+             if (landmark_map or {}).get(i, i) in surveyed]
+    est = np.array([p[0] for p in pairs]).reshape(-1, 2)
+    sur = np.array([p[1] for p in pairs]).reshape(-1, 2)
+    return MrclamScore(rmse(run.poses[:, :2], truth), rmse(aligned, truth),
+                       rmse(est, sur) if len(est) else float("nan"),
+                       rmse(est @ r.T + t, sur) if len(est) else float("nan"))
+
+
+def polar_measurements(xy: np.ndarray, xy_cov: np.ndarray):
+    """Robot-frame points (L, 2) with covariances (L, 2, 2) as range-bearing (L, 2) with
+    covariances (L, 2, 2), through the Jacobian of (r, phi) = (|p|, atan2(p_y, p_x))."""
+    r = np.hypot(xy[:, 0], xy[:, 1])
+    z = np.column_stack([r, np.arctan2(xy[:, 1], xy[:, 0])])
+    j = np.stack([np.column_stack([xy[:, 0] / r, xy[:, 1] / r]),
+                  np.column_stack([-xy[:, 1] / r ** 2, xy[:, 0] / r ** 2])], axis=1)
+    return z, j @ xy_cov @ j.transpose(0, 2, 1)
+
+
+def run_ekf_victoria_park(data: VictoriaPark, measurement_noise=None) -> EkfRun:
+    """EKF SLAM with known correspondences over Victoria Park: odometry as relative poses,
+    landmark points converted to range-bearing. The file's per-observation covariances are
+    constant (0.4 m^2 per axis); their polar form at each range would change Q_t per
+    measurement, so Q_t is the polar covariance at the median range unless given."""
+    z, z_cov = polar_measurements(data.xy, data.xy_cov)
+    q = np.median(z_cov, axis=0) if measurement_noise is None else np.asarray(measurement_noise)
+    q = 0.5 * (q + q.T)
+    ekf = EkfSlam(np.eye(3) * 1e-6, q, use_signatures=False)
+    by_pose: Dict[int, np.ndarray] = {}
+    for p in np.unique(data.pose):
+        by_pose[int(p)] = np.flatnonzero(data.pose == p)
+    poses = [ekf.pose]
+    if data.pose_from[0] in by_pose:
+        rows = by_pose[int(data.pose_from[0])]
+        ekf.update(z[rows], data.landmark[rows])
+    for e in range(len(data.delta)):
+        ekf.predict_odometry(data.delta[e], data.delta_cov[e])
+        rows = by_pose.get(int(data.pose_to[e]))
+        if rows is not None:
+            ekf.update(z[rows], data.landmark[rows])
+        poses.append(ekf.pose)
+    run = EkfRun(np.arange(len(poses), dtype=float), np.array(poses), ekf, {})
+    run.landmarks = {int(i): ekf.landmark(i)[:2] for i in ekf.landmark_ids}
+    return run
+
+
+def dead_reckoning(odometry: np.ndarray, initial_pose) -> np.ndarray:
+    """(M, 3) poses integrating (t, v, w) rows with the velocity motion model."""
+    poses = np.empty((len(odometry), 3))
+    x = np.asarray(initial_pose, float)
+    for k in range(len(odometry)):
+        poses[k] = x
+        if k + 1 < len(odometry) and odometry[k + 1, 0] > odometry[k, 0]:
+            x = velocity_motion(x, odometry[k, 1], odometry[k, 2], odometry[k + 1, 0] - odometry[k, 0])
+    return poses

@@ -1,0 +1,90 @@
+"""A dense numpy EKF SLAM (Table 10.1 with the errata): full-width H and K, (I - K H) Sigma,
+sequential measurements, state augmentation for new landmarks. The independent reference."""
+
+import numpy as np
+
+
+def wrap(a):
+    return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+def motion(x, v, w, dt):
+    th = x[2]
+    if abs(w) > 1e-9:  # eq. 10.11 and Table 10.1 line 4 (signs corrected)
+        d = np.array([-v / w * np.sin(th) + v / w * np.sin(th + w * dt),
+                      v / w * np.cos(th) - v / w * np.cos(th + w * dt), w * dt])
+        g = np.array([[0, 0, -v / w * np.cos(th) + v / w * np.cos(th + w * dt)],
+                      [0, 0, -v / w * np.sin(th) + v / w * np.sin(th + w * dt)], [0, 0, 0]])
+        dv = np.array([[(-np.sin(th) + np.sin(th + w * dt)) / w, 0], [(np.cos(th) - np.cos(th + w * dt)) / w, 0],
+                       [0, dt]])
+        dv[0, 1] = v * (np.sin(th) - np.sin(th + w * dt)) / w ** 2 + v * np.cos(th + w * dt) * dt / w
+        dv[1, 1] = -v * (np.cos(th) - np.cos(th + w * dt)) / w ** 2 + v * np.sin(th + w * dt) * dt / w
+    else:
+        d = np.array([v * dt * np.cos(th), v * dt * np.sin(th), 0.0])
+        g = np.array([[0, 0, -v * dt * np.sin(th)], [0, 0, v * dt * np.cos(th)], [0, 0, 0]])
+        # the straight-line limit of the arc's derivatives (w -> 0)
+        dv = np.array([[dt * np.cos(th), -v * dt * dt * np.sin(th) / 2],
+                       [dt * np.sin(th), v * dt * dt * np.cos(th) / 2], [0, dt]])
+    return d, np.eye(3) + g, dv
+
+
+class DenseEkfSlam:
+    def __init__(self, motion_noise, q, signatures, pose=(0, 0, 0), pose_cov=None):
+        self.m = np.asarray(motion_noise, float)
+        self.q = np.asarray(q, float)
+        self.ld = 3 if signatures else 2
+        self.mu = np.array(pose, float)
+        self.sigma = np.zeros((3, 3)) if pose_cov is None else np.array(pose_cov, float)
+        self.ids = []
+
+    def predict(self, v, w, dt):
+        d, g3, dv = motion(self.mu, v, w, dt)
+        n = len(self.mu)
+        fx = np.zeros((3, n))
+        fx[:, :3] = np.eye(3)
+        r = dv @ self.m @ dv.T if self.m.shape == (2, 2) else self.m
+        g = np.eye(n) + fx.T @ (g3 - np.eye(3)) @ fx
+        self.mu = self.mu + fx.T @ d
+        self.mu[2] = wrap(self.mu[2])
+        self.sigma = g @ self.sigma @ g.T + fx.T @ r @ fx
+
+    def update(self, z, ids):
+        for zi, j in zip(np.atleast_2d(z), np.atleast_1d(ids)):
+            if j not in self.ids:
+                self._augment(zi, j)
+                continue
+            k0 = 3 + self.ld * self.ids.index(j)
+            x, m = self.mu[:3], self.mu[k0:k0 + self.ld]
+            dx, dy = m[0] - x[0], m[1] - x[1]
+            q = dx * dx + dy * dy
+            sq = np.sqrt(q)
+            h = np.zeros((self.ld, len(self.mu)))
+            h[0, [0, 1, k0, k0 + 1]] = [-dx / sq, -dy / sq, dx / sq, dy / sq]
+            h[1, [0, 1, 2, k0, k0 + 1]] = [dy / q, -dx / q, -1, -dy / q, dx / q]
+            z_hat = [sq, wrap(np.arctan2(dy, dx) - x[2])]
+            if self.ld == 3:
+                h[2, k0 + 2] = 1
+                z_hat.append(m[2])
+            nu = zi - np.array(z_hat)
+            nu[1] = wrap(nu[1])
+            s = h @ self.sigma @ h.T + self.q
+            k = self.sigma @ h.T @ np.linalg.inv(s)
+            self.mu = self.mu + k @ nu
+            self.mu[2] = wrap(self.mu[2])
+            self.sigma = (np.eye(len(self.mu)) - k @ h) @ self.sigma
+
+    def _augment(self, z, j):
+        x = self.mu[:3]
+        a = z[1] + x[2]
+        m = [x[0] + z[0] * np.cos(a), x[1] + z[0] * np.sin(a)] + ([z[2]] if self.ld == 3 else [])
+        gx = np.zeros((self.ld, len(self.mu)))
+        gx[:2, :3] = [[1, 0, -z[0] * np.sin(a)], [0, 1, z[0] * np.cos(a)]]
+        gz = np.zeros((self.ld, self.ld))
+        gz[:2, :2] = [[np.cos(a), -z[0] * np.sin(a)], [np.sin(a), z[0] * np.cos(a)]]
+        if self.ld == 3:
+            gz[2, 2] = 1
+        top = np.hstack([self.sigma, self.sigma @ gx.T])
+        bottom = np.hstack([gx @ self.sigma, gx @ self.sigma @ gx.T + gz @ self.q @ gz.T])
+        self.sigma = np.vstack([top, bottom])
+        self.mu = np.concatenate([self.mu, m])
+        self.ids.append(j)

@@ -1,0 +1,161 @@
+"""EKF SLAM: equality with a dense numpy Table 10.1, structure, association, bad input."""
+
+import numpy as np
+import pytest
+
+import probslam as ps
+from ekf_reference import DenseEkfSlam
+
+EXACT = 1e-9  # the sparse and dense forms differ only by rounding
+
+
+def random_sequence(rng, signatures, steps=40, n_landmarks=12):
+    world = ps.sim.LandmarkWorld.random(n_landmarks, 8.0, rng)
+    q = np.diag([0.05 ** 2, 0.02 ** 2] + ([0.1 ** 2] if signatures else []))
+    sensor = ps.sim.Sensor(q, max_range=9.0, fov=np.radians(240), signatures=signatures)
+    controls = np.column_stack([rng.uniform(0.2, 1.5, steps), rng.uniform(-0.6, 0.6, steps)])
+    controls[::7, 1] = 0.0  # straight segments too
+    run = ps.sim.simulate(world, controls, 0.3, sensor, np.diag([0.02, 0.01]), rng, initial_pose=(0, 0, 0.3))
+    return run, q
+
+
+@pytest.mark.parametrize("signatures", [False, True])
+@pytest.mark.parametrize("noise", ["pose", "control"])
+@pytest.mark.parametrize("seed", range(3))
+def test_filter_equals_dense_numpy_table_10_1(signatures, noise, seed):
+    rng = np.random.default_rng(seed)
+    run, q = random_sequence(rng, signatures)
+    r = np.diag([0.01, 0.01, 0.004]) if noise == "pose" else np.diag([0.03, 0.02])
+    p0 = np.diag([0.01, 0.02, 0.003])
+    ekf = ps.EkfSlam(r, q, use_signatures=signatures, initial_pose=(0, 0, 0.3), initial_pose_cov=p0)
+    ref = DenseEkfSlam(r, q, signatures, pose=(0, 0, 0.3), pose_cov=p0)
+    for (v, w), z, ids in zip(run.controls, run.measurements, run.ids):
+        ekf.predict(v, w, run.dt)
+        ref.predict(v, w, run.dt)
+        np.testing.assert_allclose(ekf.mean, ref.mu, atol=EXACT, rtol=0)
+        if len(z):
+            ekf.update(z, ids)
+            ref.update(z, ids)
+        np.testing.assert_allclose(ekf.mean, ref.mu, atol=EXACT, rtol=0)
+        np.testing.assert_allclose(ekf.covariance, ref.sigma, atol=EXACT, rtol=0)
+    assert list(ekf.landmark_ids) == ref.ids
+    assert np.array_equal(ekf.covariance, ekf.covariance.T)  # symmetric to the bit
+
+
+def test_first_sighting_never_moves_the_robot_and_augments_exactly():
+    ekf = ps.EkfSlam(np.diag([0.01, 0.01, 0.001]), np.diag([0.01, 0.001]), use_signatures=False,
+                     initial_pose_cov=np.diag([0.1, 0.2, 0.05]))
+    ekf.predict(1.0, 0.2, 1.0)
+    ekf.update([[3.0, 0.5]], [42])
+    before_mean, before_cov = ekf.mean.copy(), ekf.covariance.copy()
+    ekf.update([[2.0, -0.4], [4.0, 1.0]], [7, 8])
+    np.testing.assert_array_equal(ekf.mean[:5], before_mean)
+    np.testing.assert_array_equal(ekf.covariance[:5, :5], before_cov)
+    np.testing.assert_allclose(ekf.landmark(7), ps.landmark_from_range_bearing(ekf.pose, [2.0, -0.4]))
+    jp, jz = ps.landmark_from_range_bearing_jacobians(ekf.pose, [2.0, -0.4])
+    expected = jp @ before_cov[:3, :3] @ jp.T + jz @ np.diag([0.01, 0.001]) @ jz.T
+    np.testing.assert_allclose(ekf.landmark_covariance(7), expected, atol=1e-15)
+
+
+def test_predict_touches_only_robot_rows_and_columns():
+    rng = np.random.default_rng(2)
+    run, q = random_sequence(rng, False, steps=10)
+    ekf = ps.EkfSlam(np.diag([0.01, 0.01, 0.004]), q, use_signatures=False)
+    for (v, w), z, ids in zip(run.controls, run.measurements, run.ids):
+        ekf.predict(v, w, run.dt)
+        ekf.update(z, ids)
+    before = ekf.covariance.copy()
+    ekf.predict(1.0, 0.3, 0.5)
+    np.testing.assert_array_equal(ekf.covariance[3:, 3:], before[3:, 3:])
+
+
+def test_views_are_zero_copy_and_survive_growth():
+    ekf = ps.EkfSlam(np.eye(3) * 0.01, np.diag([0.01, 0.001]), use_signatures=False)
+    mean = ekf.mean
+    assert not mean.flags.owndata
+    ekf.predict(1.0, 0.0, 1.0)
+    assert mean[0] == pytest.approx(1.0)  # same memory
+    old_cov = ekf.covariance
+    for j in range(200):  # grows the storage well past its initial capacity
+        ekf.update([[5.0 + j * 0.01, 0.001 * j]], [j])
+    assert ekf.num_landmarks == 200 and ekf.covariance.shape == (403, 403)
+    assert old_cov.shape == (3, 3) and np.isfinite(old_cov).all()  # stale but valid memory
+
+
+def test_landmark_accessors():
+    ekf = ps.EkfSlam(np.eye(3) * 0.01, np.diag([0.01, 0.001, 0.1]), use_signatures=True)
+    ekf.update([[2.0, 0.0, 7.0], [3.0, np.pi / 2, 9.0]], [10, 20])
+    np.testing.assert_allclose(ekf.landmarks, [[2.0, 0.0], [0.0, 3.0]], atol=1e-12)
+    assert ekf.landmark(20)[2] == 9.0
+    assert ekf.landmark_covariance(10).shape == (3, 3)
+    ekf.remove_landmark(10)
+    assert list(ekf.landmark_ids) == [20] and ekf.state_dim == 6
+    np.testing.assert_allclose(ekf.landmark(20)[:2], [0.0, 3.0], atol=1e-12)
+
+
+def test_unknown_correspondences_find_the_landmarks():
+    rng = np.random.default_rng(4)
+    world = ps.sim.LandmarkWorld.random(15, 10.0, rng, min_separation=2.0)
+    q = np.diag([0.05 ** 2, np.radians(1.0) ** 2])
+    sensor = ps.sim.Sensor(q, max_range=8.0, fov=np.radians(180))
+    m = np.diag([0.003, 0.0005])  # moderate odometry noise: sigma_v 5.5 cm/s, sigma_w 1.3 deg/s
+    run = ps.sim.simulate(world, ps.sim.circle_controls(300, 1.0, 0.12), 0.2, sensor, m, rng, initial_pose=(0, -8.3, 0))
+    ekf = ps.EkfSlam(m, q, use_signatures=False, initial_pose=(0, -8.3, 0))
+    truth_of = {}
+    correct = total = 0
+    for (v, w), z, ids in zip(run.controls, run.measurements, run.ids):
+        ekf.predict(v, w, run.dt)
+        result = ekf.update_unknown(z)
+        for true_id, got, outcome in zip(ids, result.ids, result.outcome):
+            if outcome == result.NEW_LANDMARK:
+                truth_of[got] = true_id
+            elif outcome == result.ASSOCIATED:
+                total += 1
+                correct += truth_of[got] == true_id
+        assert len(set(result.ids[result.ids >= 0])) == np.count_nonzero(result.ids >= 0)  # one per landmark
+    assert correct / total > 0.99
+    seen = {i for ids in run.ids for i in ids}
+    assert ekf.num_landmarks == len(seen)
+
+
+@pytest.mark.parametrize("call, err, name", [
+    (lambda: ps.EkfSlam(np.diag([1, 1, -1.0]), np.eye(2)), ValueError, "motion_noise"),
+    (lambda: ps.EkfSlam(np.ones((3, 3)), np.eye(2)), ValueError, "motion_noise"),
+    (lambda: ps.EkfSlam(np.eye(4), np.eye(2)), ValueError, "motion_noise"),
+    (lambda: ps.EkfSlam(np.eye(3), np.eye(2), use_signatures=True), ValueError, "measurement_noise"),
+    (lambda: ps.EkfSlam(np.eye(3), np.array([[1, 2], [0, 1.0]]), use_signatures=False), ValueError,
+     "measurement_noise"),
+    (lambda: ps.EkfSlam(np.eye(3), np.eye(2) * np.nan, use_signatures=False), ValueError, "measurement_noise"),
+    (lambda: ps.EkfSlam(np.eye(3), np.eye(2), use_signatures=False, initial_pose=(0, np.nan, 0)), ValueError,
+     "initial_pose"),
+])
+def test_bad_construction(call, err, name):
+    with pytest.raises(err, match=name):
+        call()
+
+
+@pytest.mark.parametrize("call, err, name", [
+    (lambda e: e.predict(1.0, 0.0, 0.0), ValueError, "dt"),
+    (lambda e: e.predict(1.0, 0.0, -0.1), ValueError, "dt"),
+    (lambda e: e.predict(np.nan, 0.0, 0.1), ValueError, "v"),
+    (lambda e: e.predict(1.0, np.inf, 0.1), ValueError, "w"),
+    (lambda e: e.update([[np.nan, 0.1]], [1]), ValueError, "z"),
+    (lambda e: e.update([[-1.0, 0.1]], [1]), ValueError, "z"),
+    (lambda e: e.update([[1.0, 0.1, 3.0]], [1]), ValueError, "z"),
+    (lambda e: e.update([[1.0, 0.1], [2.0, 0.2]], [1]), ValueError, "ids"),
+    (lambda e: e.update([[1.0, 0.1]], [1.5]), TypeError, "ids"),
+    (lambda e: e.update_unknown([[1.0, np.inf]]), ValueError, "z"),
+    (lambda e: e.update_unknown([[1.0, 0.1]], alpha=-1.0), ValueError, "alpha"),
+    (lambda e: e.landmark_covariance(99), ValueError, "id"),
+    (lambda e: e.predict_odometry([0, 0, 0], np.diag([1, -1, 1.0])), ValueError, "noise"),
+    (lambda e: e.predict_odometry([0, np.nan, 0], np.eye(3)), ValueError, "delta"),
+])
+def test_bad_calls_raise_and_leave_state_unchanged(call, err, name):
+    ekf = ps.EkfSlam(np.diag([0.01, 0.01, 0.001]), np.diag([0.01, 0.001]), use_signatures=False)
+    ekf.predict(1.0, 0.1, 0.5)
+    ekf.update([[2.0, 0.3]], [5])
+    mean, cov = ekf.mean.copy(), ekf.covariance.copy()
+    with pytest.raises(err, match=name):
+        call(ekf)
+    np.testing.assert_array_equal(ekf.mean, mean)
+    np.testing.assert_array_equal(ekf.covariance, cov)
