@@ -87,3 +87,33 @@ def numpy_cone(log_odds, x0, y0, res, pose, ranges, angles, z_max, alpha, beta, 
     block[occ] += l_occ
     block[free] += l_free
     return int(occ.sum() + free.sum())
+
+
+def dense_ekf_predict(mu, sigma, v, w, dt, r):
+    """Table 10.1 lines 2-5 with full matrices: G is (3N+3) x (3N+3)."""
+    n = len(mu)
+    th = mu[2]
+    fx = np.zeros((3, n))
+    fx[:, :3] = np.eye(3)
+    d = np.array([-v / w * np.sin(th) + v / w * np.sin(th + w * dt), v / w * np.cos(th) - v / w * np.cos(th + w * dt),
+                  w * dt])
+    g3 = np.array([[0, 0, -v / w * np.cos(th) + v / w * np.cos(th + w * dt)],
+                   [0, 0, -v / w * np.sin(th) + v / w * np.sin(th + w * dt)], [0, 0, 0]])
+    g = np.eye(n) + fx.T @ g3 @ fx
+    return mu + fx.T @ d, g @ sigma @ g.T + fx.T @ r @ fx
+
+
+def dense_ekf_update(mu, sigma, z, j, q):
+    """Table 10.1 lines 12-20 for one measurement of landmark j, with full-width H and K."""
+    n = len(mu)
+    k0 = 3 + 2 * j
+    dx, dy = mu[k0] - mu[0], mu[k0 + 1] - mu[1]
+    qq = dx * dx + dy * dy
+    s = np.sqrt(qq)
+    h = np.zeros((2, n))
+    h[0, [0, 1, k0, k0 + 1]] = [-dx / s, -dy / s, dx / s, dy / s]
+    h[1, [0, 1, 2, k0, k0 + 1]] = [dy / qq, -dx / qq, -1, -dy / qq, dx / qq]
+    nu = z - np.array([s, np.arctan2(dy, dx) - mu[2]])
+    nu[1] = (nu[1] + np.pi) % (2 * np.pi) - np.pi
+    k = sigma @ h.T @ np.linalg.inv(h @ sigma @ h.T + q)
+    return mu + k @ nu, (np.eye(n) - k @ h) @ sigma
