@@ -91,7 +91,13 @@ void define_ekf(py::module_& m) {
       .def("landmark_covariance", &EkfSlam::landmark_covariance, py::arg("id"))
       .def("existence", &EkfSlam::existence, py::arg("id"))
       .def("has_landmark", &EkfSlam::has_landmark, py::arg("id"))
-      .def("predict", &EkfSlam::predict, py::arg("v"), py::arg("w"), py::arg("dt"))
+      .def(
+          "predict",
+          [](EkfSlam& e, double v, double w, double dt, py::handle noise) {
+            if (noise.is_none()) e.predict(v, w, dt);
+            else e.predict(v, w, dt, square_arg(noise, "noise"));
+          },
+          py::arg("v"), py::arg("w"), py::arg("dt"), py::arg("noise") = py::none())
       .def(
           "predict_odometry",
           [](EkfSlam& e, py::handle delta, py::handle noise) {

@@ -39,6 +39,59 @@ def _cmd_map(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_ekf_slam(args: argparse.Namespace) -> int:
+    import pathlib
+
+    import numpy as np
+
+    from . import landmark_slam as ls
+    from .plot import landmark_map, require_matplotlib
+
+    path = pathlib.Path(args.dataset)
+    t0 = time.perf_counter()
+    if path.is_dir() and (path / "Barcodes.dat").exists():
+        data = io.read_mrclam(path, robot=args.robot)
+        motion = np.diag([args.sigma_v ** 2, args.sigma_w ** 2])
+        sensor = np.diag([args.sigma_r ** 2, args.sigma_phi ** 2])
+        t_load = time.perf_counter()
+        run = ls.run_ekf_mrclam(data, motion, sensor, known=not args.unknown)
+        t_run = time.perf_counter() - t_load
+        dr = ls.run_ekf_mrclam(data, motion, sensor, dead_reckoning=True)
+        print(f"dataset:       UTIAS MRCLAM {path} robot {args.robot}, "
+              f"{'unknown' if args.unknown else 'known'} correspondences")
+        print(f"odometry:      {len(data.odometry)} controls; measurements: {len(data.measurements)} of landmarks "
+              f"({data.robot_measurements} of robots dropped), {run.rejected} gated as outliers")
+        print(f"landmarks:     {run.ekf.num_landmarks} in the map; filter time {t_run:.2f} s")
+        truth = truth_lm = None
+        if data.groundtruth is not None:
+            label = None
+            if args.unknown:
+                label = ls.majority_labels(run)
+            s, d = ls.score_mrclam(run, data, label), ls.score_mrclam(dr, data)
+            truth, truth_lm = data.groundtruth[:, 1:3], data.landmark_positions
+            print(f"path RMSE:     {s.path_rmse:.3f} m raw, {s.path_rmse_aligned:.3f} m aligned "
+                  f"(dead reckoning {d.path_rmse:.3f} / {d.path_rmse_aligned:.3f} m)")
+            print(f"landmark RMSE: {s.landmark_rmse:.3f} m raw, {s.landmark_rmse_aligned:.3f} m aligned")
+        poses, dead = run.poses, dr.poses
+    else:
+        data = io.read_victoria_park(path)
+        t_load = time.perf_counter()
+        run = ls.run_ekf_victoria_park(data)
+        t_run = time.perf_counter() - t_load
+        print(f"dataset:       Victoria Park {path}: {len(run.poses)} poses, {len(data.xy)} observations")
+        print(f"landmarks:     {run.ekf.num_landmarks}; filter time {t_run:.3f} s")
+        poses, dead, truth, truth_lm = run.poses, None, None, None
+    plt = require_matplotlib()
+    fig, ax = plt.subplots(figsize=(8, 8))
+    landmark_map(ax, poses, run.ekf, truth_path=truth, truth_landmarks=truth_lm, dead_reckoning=dead)
+    fig.tight_layout()
+    fig.savefig(args.output + ".png", dpi=120)
+    np.savetxt(args.output + "_path.txt", poses, header="x y theta (filtered)")
+    print(f"time:          {time.perf_counter() - t0:.2f} s total")
+    print(f"wrote:         {args.output}.png, {args.output}_path.txt")
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="probslam", description="Probabilistic robot mapping and SLAM.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -54,6 +107,17 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", default="map", help="output prefix: PREFIX.yaml/.pgm/.png (default 'map')")
     p.add_argument("--no-progress", dest="progress", action="store_false", help="never show a progress bar")
     p.set_defaults(func=_cmd_map)
+
+    e = sub.add_parser("ekf-slam", help="EKF SLAM on a landmark dataset (MRCLAM folder or Victoria Park file)")
+    e.add_argument("dataset", help="a UTIAS MRCLAM folder, or Victoria Park in iSAM/GTSAM text format")
+    e.add_argument("--unknown", action="store_true", help="hide the correspondences (Table 10.2)")
+    e.add_argument("--robot", type=int, default=1, help="MRCLAM robot number (default 1)")
+    e.add_argument("--sigma-v", type=float, default=0.15, help="MRCLAM odometry noise, m/s per 10 ms command")
+    e.add_argument("--sigma-w", type=float, default=0.6, help="MRCLAM odometry noise, rad/s per 10 ms command")
+    e.add_argument("--sigma-r", type=float, default=0.15, help="range noise, m")
+    e.add_argument("--sigma-phi", type=float, default=0.04, help="bearing noise, rad")
+    e.add_argument("-o", "--output", default="ekf_slam", help="output prefix (default 'ekf_slam')")
+    e.set_defaults(func=_cmd_ekf_slam)
     return parser
 
 

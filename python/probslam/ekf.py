@@ -127,9 +127,10 @@ class EkfSlam:
         self._f.remove_landmark(int(id))
 
     # --- filter ------------------------------------------------------------------------
-    def predict(self, v: float, w: float, dt: float) -> None:
-        """Table 10.1 lines 2-5 (v m/s, w rad/s, dt s > 0); O(N)."""
-        self._f.predict(v, w, dt)
+    def predict(self, v: float, w: float, dt: float, noise=None) -> None:
+        """Table 10.1 lines 2-5 (v m/s, w rad/s, dt s > 0); O(N). ``noise`` overrides the
+        motion noise for this call ((3, 3) pose space or (2, 2) control space)."""
+        self._f.predict(v, w, dt, noise)
 
     def predict_odometry(self, delta, noise) -> None:
         """x <- x (+) delta for odometry given as a relative pose (3,) with (3, 3) covariance."""

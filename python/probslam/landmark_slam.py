@@ -48,9 +48,13 @@ def interpolate_poses(groundtruth: np.ndarray, times: np.ndarray) -> np.ndarray:
 def run_ekf_mrclam(data: Mrclam, motion_noise, measurement_noise, known: bool = True,
                    gate: Optional[float] = None, alpha: Optional[float] = None, alpha_new: Optional[float] = None,
                    initial_pose=None, map_management: Optional[MapManagement] = None,
-                   gate_distance: float = 1.0, dead_reckoning: bool = False) -> EkfRun:
+                   gate_distance: float = 1.0, dead_reckoning: bool = False,
+                   command_period: float = 0.01) -> EkfRun:
     """EKF SLAM over an MRCLAM robot: odometry (v, w) between stamps, the measurements of one
-    time stamp as one scan. ``known``: the barcodes give the correspondences (gated by
+    time stamp as one scan. ``motion_noise`` (2, 2) is the control noise of one command
+    period (MRCLAM's ~10 ms); the stamps are irregular (gaps up to 1 s), so it is applied as a
+    white velocity noise, M * command_period / dt for a step of dt, whose pose variance grows
+    linearly with time whatever the stamps. ``known``: the barcodes give the correspondences (gated by
     ``gate``, default the chi-square 0.999 quantile); else Table 10.2 (barcodes hidden).
     ``dead_reckoning``: predictions only. The start pose defaults to the ground truth's."""
     odo, meas = data.odometry, data.measurements
@@ -66,7 +70,8 @@ def run_ekf_mrclam(data: Mrclam, motion_noise, measurement_noise, known: bool = 
                   map_management=map_management, gate_distance=gate_distance)
     run = EkfRun(np.empty(0), np.empty((0, 3)), ekf, {})
     times, poses = np.empty(len(odo)), np.empty((len(odo), 3))
-    t_now, m, rejected = odo[0, 0], 0, 0
+    m_rate = np.asarray(motion_noise, float) * command_period
+    t_now, rejected = odo[0, 0], 0
     starts = np.flatnonzero(np.r_[True, np.diff(meas[:, 0]) != 0])  # first row of each scan
     scan_end = np.r_[starts[1:], len(meas)]
     s = int(np.searchsorted(meas[starts, 0], odo[0, 0]))  # scans before the first control are skipped
@@ -76,7 +81,7 @@ def run_ekf_mrclam(data: Mrclam, motion_noise, measurement_noise, known: bool = 
         while not dead_reckoning and s < len(starts) and meas[starts[s], 0] < t_next:
             rows = meas[starts[s]:scan_end[s]]
             if rows[0, 0] > t_now:
-                ekf.predict(v, w, rows[0, 0] - t_now)
+                ekf.predict(v, w, rows[0, 0] - t_now, m_rate / (rows[0, 0] - t_now))
                 t_now = rows[0, 0]
             if known:
                 rejected += int(np.count_nonzero(~ekf.update(rows[:, 2:4], rows[:, 1].astype(np.int64), gate).used))
@@ -84,7 +89,7 @@ def run_ekf_mrclam(data: Mrclam, motion_noise, measurement_noise, known: bool = 
                 run.associations.append((rows[:, 1].astype(np.int64), ekf.update_unknown(rows[:, 2:4], alpha, alpha_new)))
             s += 1
         if t_next > t_now:
-            ekf.predict(v, w, t_next - t_now)
+            ekf.predict(v, w, t_next - t_now, m_rate / (t_next - t_now))
             t_now = t_next
         times[k], poses[k] = t_now, ekf.pose
     run.times, run.poses, run.rejected = times, poses, rejected
@@ -113,6 +118,30 @@ def score_mrclam(run: EkfRun, data: Mrclam, landmark_map: Optional[Dict[int, int
     return MrclamScore(rmse(run.poses[:, :2], truth), rmse(aligned, truth),
                        rmse(est, sur) if len(est) else float("nan"),
                        rmse(est @ r.T + t, sur) if len(est) else float("nan"))
+
+
+def majority_labels(run: EkfRun) -> Dict[int, int]:
+    """For a run with hidden correspondences: each filter landmark's most frequent true id."""
+    import collections
+
+    votes: Dict[int, collections.Counter] = collections.defaultdict(collections.Counter)
+    for truth, result in run.associations:
+        for t, i, outcome in zip(truth, result.ids, result.outcome):
+            if outcome in (AssociationResult.ASSOCIATED, AssociationResult.NEW_LANDMARK):
+                votes[int(i)][int(t)] += 1
+    return {i: c.most_common(1)[0][0] for i, c in votes.items()}
+
+
+def association_accuracy(run: EkfRun) -> float:
+    """Fraction of the measurements applied to the map that went to their landmark's majority id."""
+    label = majority_labels(run)
+    good = total = 0
+    for truth, result in run.associations:
+        for t, i, outcome in zip(truth, result.ids, result.outcome):
+            if outcome in (AssociationResult.ASSOCIATED, AssociationResult.NEW_LANDMARK):
+                total += 1
+                good += label[int(i)] == int(t)
+    return good / total if total else float("nan")
 
 
 def polar_measurements(xy: np.ndarray, xy_cov: np.ndarray):

@@ -109,12 +109,19 @@ void EkfSlam::apply_motion(const Eigen::Vector3d& new_pose, const Eigen::Matrix3
 }
 
 void EkfSlam::predict(double v, double w, double dt) {
+  predict(v, w, dt, control_noise_ ? Eigen::MatrixXd(m_control_) : Eigen::MatrixXd(r_pose_));
+}
+
+void EkfSlam::predict(double v, double w, double dt, const Eigen::MatrixXd& noise) {
   const Eigen::Vector3d x = pose();
   const Eigen::Matrix3d g = velocity_motion_jacobian(x, v, w, dt);  // validates v, w, dt
-  Eigen::Matrix3d r = r_pose_;
-  if (control_noise_) {
+  require((noise.rows() == 3 && noise.cols() == 3) || (noise.rows() == 2 && noise.cols() == 2), "noise",
+          "must be 3x3 (pose space) or 2x2 (control space)");
+  require_spd(noise, "noise", true);
+  Eigen::Matrix3d r = noise.rows() == 3 ? Eigen::Matrix3d(noise) : Eigen::Matrix3d::Zero();
+  if (noise.rows() == 2) {
     const Eigen::Matrix<double, 3, 2> vj = velocity_motion_control_jacobian(x, v, w, dt);
-    r = vj * m_control_ * vj.transpose();
+    r = vj * noise * vj.transpose();
   }
   apply_motion(velocity_motion(x, v, w, dt), g, r);
 }

@@ -159,3 +159,18 @@ def test_bad_calls_raise_and_leave_state_unchanged(call, err, name):
         call(ekf)
     np.testing.assert_array_equal(ekf.mean, mean)
     np.testing.assert_array_equal(ekf.covariance, cov)
+
+
+def test_predict_with_per_call_noise_equals_a_filter_built_with_it():
+    m = np.diag([0.04, 0.01])
+    a = ps.EkfSlam(np.diag([0.3, 0.3]), np.diag([0.01, 0.001]), use_signatures=False)
+    b = ps.EkfSlam(m, np.diag([0.01, 0.001]), use_signatures=False)
+    for ekf in (a, b):
+        ekf.update([[2.0, 0.3]], [1])
+    a.predict(1.0, 0.2, 0.5, noise=m)
+    b.predict(1.0, 0.2, 0.5)
+    np.testing.assert_array_equal(a.covariance, b.covariance)
+    with pytest.raises(ValueError, match="noise"):
+        a.predict(1.0, 0.2, 0.5, noise=np.eye(4))
+    with pytest.raises(ValueError, match="noise"):
+        a.predict(1.0, 0.2, 0.5, noise=-np.eye(2))

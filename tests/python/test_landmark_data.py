@@ -7,10 +7,10 @@ import probslam as ps
 from probslam import landmark_slam as ls
 
 # Noise measured on MRCLAM Dataset 7 against its Vicon ground truth (see README): odometry
-# sigma_v 0.11 m/s, sigma_w 0.43 rad/s per ~10 ms command; sensor sigma_r 0.10 m,
-# sigma_phi 0.018 rad, inflated 1.5x for linearisation and a 4 cm range bias.
-MRCLAM_MOTION = np.diag([0.11 ** 2, 0.43 ** 2])
-MRCLAM_SENSOR = np.diag([0.15 ** 2, 0.03 ** 2])
+# sigma_v 0.11 m/s, sigma_w 0.43 rad/s per 10 ms command, inflated ~1.4x for its turn-rate
+# bias; sensor sigma_r 0.10 m, sigma_phi 0.018 rad, inflated for linearisation and a 4 cm bias.
+MRCLAM_MOTION = np.diag([0.15 ** 2, 0.6 ** 2])
+MRCLAM_SENSOR = np.diag([0.15 ** 2, 0.04 ** 2])
 
 
 def test_mrclam_reader(tmp_path, shared_data):
@@ -80,3 +80,15 @@ def test_ekf_on_victoria_park(shared_data):
     # the car drives about 3.5 km around the park and comes back near its start
     steps = np.hypot(*np.diff(run.poses[:, :2], axis=0).T)
     assert steps.sum() > 3000
+
+
+def test_cli_ekf_slam(tmp_path, capsys, shared_data):
+    from probslam import cli
+
+    vp = shared_data / "landmark_slam/victoria_park/victoriaPark.txt"
+    assert cli.main(["ekf-slam", str(vp), "-o", str(tmp_path / "vp")]) == 0
+    out = capsys.readouterr().out
+    assert "landmarks:     151" in out
+    assert (tmp_path / "vp.png").read_bytes()[:4] == b"\x89PNG"
+    assert np.loadtxt(tmp_path / "vp_path.txt").shape == (6969, 3)
+    assert cli.main(["ekf-slam", str(tmp_path / "missing.txt"), "-o", str(tmp_path / "x")]) == 2

@@ -74,6 +74,8 @@ class EkfSlam {
 
   /// Table 10.1 lines 2-5: velocity motion model for dt seconds. O(N).
   void predict(double v, double w, double dt);
+  /// The same with this call's noise: 3x3 pose-space R_t or 2x2 control-space M.
+  void predict(double v, double w, double dt, const Eigen::MatrixXd& noise);
   /// Odometry given as a relative pose: x <- x (+) delta, delta ~ N(., noise) in the robot frame.
   void predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matrix3d& noise);
 

@@ -1,0 +1,55 @@
+"""Plotting helpers; each draws on a matplotlib ``ax`` (matplotlib is imported lazily)."""
+
+from __future__ import annotations
+
+from typing import Dict, Optional
+
+import numpy as np
+
+
+def require_matplotlib():
+    try:
+        import matplotlib
+
+        matplotlib.use("Agg", force=False)
+        import matplotlib.pyplot as plt
+    except ImportError as exc:  # pragma: no cover - depends on the environment
+        raise ImportError("plotting needs matplotlib: pip install 'probslam[plot]'") from exc
+    return plt
+
+
+def covariance_ellipse(ax, mean, cov, n_sigma: float = 2.0, **style):
+    """Draw the n-sigma ellipse of a 2-D Gaussian (mean (2,), cov (2, 2), metres)."""
+    from matplotlib.patches import Ellipse
+
+    values, vectors = np.linalg.eigh(np.asarray(cov)[:2, :2])
+    values = np.clip(values, 0.0, None)
+    angle = np.degrees(np.arctan2(vectors[1, 1], vectors[0, 1]))
+    ellipse = Ellipse(mean[:2], 2 * n_sigma * np.sqrt(values[1]), 2 * n_sigma * np.sqrt(values[0]), angle=angle,
+                      fill=False, **style)
+    ax.add_patch(ellipse)
+    return ellipse
+
+
+def landmark_map(ax, poses: np.ndarray, ekf=None, truth_path: Optional[np.ndarray] = None,
+                 truth_landmarks: Optional[Dict[int, np.ndarray]] = None, dead_reckoning: Optional[np.ndarray] = None,
+                 n_sigma: float = 2.0) -> None:
+    """Estimated path (T, 3+), landmarks with their n-sigma ellipses from an EkfSlam, and the
+    ground truth and dead reckoning where given."""
+    if dead_reckoning is not None:
+        ax.plot(dead_reckoning[:, 0], dead_reckoning[:, 1], color="0.6", lw=0.8, label="dead reckoning")
+    if truth_path is not None:
+        ax.plot(truth_path[:, 0], truth_path[:, 1], color="tab:green", lw=0.8, label="ground truth")
+    ax.plot(poses[:, 0], poses[:, 1], color="tab:blue", lw=0.8, label="EKF SLAM")
+    if truth_landmarks:
+        xy = np.array(list(truth_landmarks.values()))
+        ax.plot(xy[:, 0], xy[:, 1], "g+", ms=9, label="surveyed landmarks")
+    if ekf is not None and ekf.num_landmarks:
+        xy = ekf.landmarks
+        ax.plot(xy[:, 0], xy[:, 1], "r.", ms=4, label="estimated landmarks")
+        for i, m in zip(ekf.landmark_ids, xy):
+            covariance_ellipse(ax, m, ekf.landmark_covariance(i), n_sigma, color="tab:red", lw=0.6)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.legend(loc="best", fontsize="small")
