@@ -174,3 +174,39 @@ def test_predict_with_per_call_noise_equals_a_filter_built_with_it():
         a.predict(1.0, 0.2, 0.5, noise=np.eye(4))
     with pytest.raises(ValueError, match="noise"):
         a.predict(1.0, 0.2, 0.5, noise=-np.eye(2))
+
+
+def test_map_management_removes_clutter_landmarks():
+    """With clutter, the provisional list and existence log-odds keep false landmarks out."""
+    rng = np.random.default_rng(9)
+    world = ps.sim.LandmarkWorld.random(20, 12.0, rng, min_separation=2.0)
+    q = np.diag([0.05 ** 2, np.radians(1.0) ** 2])
+    sensor = ps.sim.Sensor(q, max_range=8.0, fov=np.radians(180), clutter_rate=0.5)
+    m = np.diag([0.003, 0.0005])
+    run = ps.sim.simulate(world, ps.sim.circle_controls(400, 1.0, 0.1), 0.2, sensor, m, rng, initial_pose=(0, -10, 0))
+    managed = ps.MapManagement()
+    managed.provisional = managed.existence = True
+    managed.sensor_range, managed.sensor_fov = 8.0, np.radians(180)
+    sizes = {}
+    for name, mm in (("plain", None), ("managed", managed)):
+        ekf = ps.EkfSlam(m, q, use_signatures=False, initial_pose=(0, -10, 0), map_management=mm)
+        for (v, w), z, ids in zip(run.controls, run.measurements, run.ids):
+            ekf.predict(v, w, run.dt)
+            if len(z):
+                ekf.update_unknown(z)
+        sizes[name] = ekf.num_landmarks
+    seen = len({i for ids in run.ids for i in ids if i != ps.sim.CLUTTER_ID})
+    assert sizes["plain"] > seen + 20  # clutter became landmarks
+    assert sizes["managed"] >= seen - 2  # real landmarks are kept
+    assert sizes["managed"] - seen < (sizes["plain"] - seen) / 5  # most of the excess is gone
+
+
+def test_map_management_options_validated():
+    mm = ps.MapManagement()
+    mm.min_observations = 0
+    with pytest.raises(ValueError, match="min_observations"):
+        ps.EkfSlam(np.eye(3), np.eye(2), use_signatures=False, map_management=mm)
+    mm = ps.MapManagement()
+    mm.sensor_fov = -1.0
+    with pytest.raises(ValueError, match="sensor_fov"):
+        ps.EkfSlam(np.eye(3), np.eye(2), use_signatures=False, map_management=mm)
