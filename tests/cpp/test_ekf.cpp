@@ -1,0 +1,58 @@
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <stdexcept>
+
+#include "probslam/core/range_bearing_model.hpp"
+#include "probslam/ekf/ekf_slam.hpp"
+
+using namespace probslam;
+
+namespace {
+EkfSlam make() {
+  return EkfSlam(Eigen::Vector3d(0.01, 0.01, 0.001).asDiagonal().toDenseMatrix(),
+                 Eigen::Vector2d(0.01, 0.001).asDiagonal().toDenseMatrix(), false, Eigen::Vector3d::Zero(),
+                 Eigen::Matrix3d::Identity() * 0.01);
+}
+}  // namespace
+
+TEST(EkfSlam, AugmentUpdateAndSymmetry) {
+  EkfSlam ekf = make();
+  ekf.predict(1.0, 0.2, 0.5);
+  RowMatrixXd z(2, 2);
+  z << 3.0, 0.4, 2.0, -1.0;
+  const Eigen::Vector3d before = ekf.pose();
+  ekf.update(z, {4, 9});
+  EXPECT_EQ(ekf.num_landmarks(), 2);
+  EXPECT_EQ(ekf.pose(), before);  // first sightings never move the robot
+  EXPECT_LT((ekf.landmark(4) - landmark_from_range_bearing(before, Eigen::Vector2d(3.0, 0.4))).norm(), 1e-12);
+  RowMatrixXd again(1, 2);
+  again << 3.05, 0.41;
+  const UpdateReport r = ekf.update(again, {4});
+  EXPECT_TRUE(std::isfinite(r.nis[0]));
+  const Eigen::MatrixXd p = ekf.covariance();
+  EXPECT_EQ((p - p.transpose()).cwiseAbs().maxCoeff(), 0.0);
+  ekf.remove_landmark(4);
+  EXPECT_EQ(ekf.state_dim(), 5);
+  EXPECT_THROW(ekf.landmark_covariance(4), std::invalid_argument);
+}
+
+TEST(EkfSlam, RejectsBadInputAndKeepsState) {
+  EXPECT_THROW(EkfSlam(-Eigen::Matrix3d::Identity(), Eigen::Matrix2d::Identity(), false, Eigen::Vector3d::Zero(),
+                       Eigen::Matrix3d::Zero()),
+               std::invalid_argument);
+  EXPECT_THROW(EkfSlam(Eigen::Matrix3d::Identity(), Eigen::Matrix2d::Identity(), true, Eigen::Vector3d::Zero(),
+                       Eigen::Matrix3d::Zero()),
+               std::invalid_argument);
+  EkfSlam ekf = make();
+  ekf.update(RowMatrixXd::Constant(1, 2, 1.0), {1});
+  const Eigen::VectorXd mean = ekf.mean();
+  EXPECT_THROW(ekf.predict(1.0, 0.0, 0.0), std::invalid_argument);
+  RowMatrixXd bad(1, 2);
+  bad << -1.0, 0.0;
+  EXPECT_THROW(ekf.update(bad, {1}), std::invalid_argument);
+  bad << NAN, 0.0;
+  EXPECT_THROW(ekf.update(bad, {1}), std::invalid_argument);
+  EXPECT_THROW(ekf.update(RowMatrixXd::Constant(2, 2, 1.0), {1}), std::invalid_argument);
+  EXPECT_EQ(ekf.mean(), mean);
+}
