@@ -6,16 +6,14 @@ numpy implementation of Table 10.1 in the same run. Appends a table to benchmark
 
 import argparse
 import datetime
-import pathlib
 import time
 
 import numpy as np
 
 import probslam as ps
-from bench_grid2d import machine
+from common import machine, report
 from peers import dense_ekf_predict, dense_ekf_update
 
-HERE = pathlib.Path(__file__).resolve().parent
 R = np.diag([0.01, 0.01, 0.001])
 Q = np.diag([0.01, 0.001])
 
@@ -71,11 +69,7 @@ def main():
     lines += ["", "Dense numpy: Table 10.1 as printed, full (3N+3)-wide G, H and K (with 2-D landmarks, 2N+3).",
               "probslam: predict touches only the robot rows/columns (O(N)), an update uses H's non-zero",
               "columns and a rank-2 covariance update (O(N^2)).", ""]
-    text = "\n".join(lines)
-    print(text)
-    if not args.quick:
-        with open(HERE / "RESULTS.md", "a") as f:
-            f.write(text + "\n")
+    report(lines, record=not args.quick)
 
 
 if __name__ == "__main__":

@@ -9,12 +9,12 @@ import argparse
 import datetime
 import os
 import pathlib
-import platform
 import time
 
 import numpy as np
 
 import probslam as ps
+from common import machine, report
 from peers import numpy_cone, numpy_rays, python_rays
 
 HERE = pathlib.Path(__file__).resolve().parent
@@ -121,15 +121,6 @@ def cone_rows(poses, ranges, angles, z_max, res, bounds):
              t_np / t_ours)]
 
 
-def machine():
-    cpu = "unknown CPU"
-    try:
-        cpu = next(l.split(":", 1)[1].strip() for l in open("/proc/cpuinfo") if l.startswith("model name"))
-    except (OSError, StopIteration):
-        pass
-    return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}, numpy {np.__version__}"
-
-
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--quick", action="store_true", help="fewer scans (for a smoke run)")
@@ -161,11 +152,7 @@ def main():
     lines += ["", "Ray cells: cells the exact walks visit, |dkx| + |dky| per beam (an update each, de-duplicated per scan);",
               "Disc cells: the pi (z_max / res)^2 cells of the perceptual field a Table 9.1 loop must consider;",
               "cells changed: cells whose log-odds a scan updated (each at most once per scan for insert_rays).", ""]
-    text = "\n".join(lines)
-    print(text)
-    if not args.quick:
-        with open(HERE / "RESULTS.md", "a") as f:
-            f.write(text + "\n")
+    report(lines, record=not args.quick)
 
 
 if __name__ == "__main__":

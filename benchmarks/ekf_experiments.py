@@ -9,15 +9,13 @@ Appends to benchmarks/RESULTS.md.
 import argparse
 import collections
 import datetime
-import pathlib
 
 import numpy as np
 from scipy.stats import chi2
 
 import probslam as ps
-from bench_grid2d import machine
+from common import machine, report
 
-HERE = pathlib.Path(__file__).resolve().parent
 Q = np.diag([0.05 ** 2, np.radians(1.0) ** 2])
 M = np.diag([0.01, 0.002])
 WINDOW = 50  # steps of the moving average used to call the filter inconsistent
@@ -122,11 +120,7 @@ def main():
     for name, mm in configs:
         p, r, s, d, n = association(max(4, runs // 5), 1500 if not args.quick else 400, mm, 0.5)
         lines.append(f"| {name} | {p:.3f} | {r:.3f} | {s:.1f} | {d:.1f} | {n:.1f} |")
-    text = "\n".join(lines + [""])
-    print(text)
-    if not args.quick:
-        with open(HERE / "RESULTS.md", "a") as f:
-            f.write(text + "\n")
+    report(lines, record=not args.quick)
 
 
 if __name__ == "__main__":
