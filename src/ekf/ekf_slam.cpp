@@ -23,6 +23,9 @@ constexpr double kSymmetryTolerance = 1e-9;
 // Squared range below which a landmark sits on the robot: no bearing, no linearisation.
 constexpr double kMinRangeSquared = 1e-18;
 constexpr Eigen::Index kInitialLandmarkCapacity = 16;
+// Association candidates: within gate_distance plus this many standard deviations of where
+// the measurement places its landmark (3 sigma holds 99% of a 2-D Gaussian's mass).
+constexpr double kPlacementSigmas = 3.0;
 
 void require_spd(const Eigen::MatrixXd& m, const char* name, bool semi = false) {
   require(m.allFinite(), name, "must contain only finite values");
@@ -317,9 +320,17 @@ AssociationReport EkfSlam::update_unknown(const Eigen::Ref<const RowMatrixXd>& z
   std::vector<int> near;
   for (Eigen::Index i = 0; i < k; ++i) {
     const Eigen::VectorXd zi = z.row(i).transpose();
+    // Candidates near where the measurement places its landmark, the radius widened by three
+    // sigma of that placement, so a drifted pose still finds the landmark it sees.
     const Eigen::Vector2d placed = landmark_from_range_bearing(x, zi.head<2>());
+    const MeasurementJacobians<2> place = landmark_from_range_bearing_jacobians(x, zi.head<2>());
+    const Eigen::Matrix2d spread = place.pose * s_->cov.topLeftCorner<3, 3>() * place.pose.transpose() +
+                                   place.landmark * Q_.topLeftCorner<2, 2>() * place.landmark.transpose();
+    const double radius =
+        gate_distance_ + kPlacementSigmas * std::sqrt(std::max(0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(
+                                                                         spread, Eigen::EigenvaluesOnly).eigenvalues()(1)));
     near.clear();
-    hash.query(placed.x(), placed.y(), gate_distance_, where, near);
+    hash.query(placed.x(), placed.y(), radius, where, near);
     for (int j : near) {
       auto it = cache.find(j);
       if (it == cache.end()) {
