@@ -68,22 +68,23 @@ EkfSlam::EkfSlam(const Eigen::MatrixXd& motion_noise, const Eigen::MatrixXd& mea
   s_->cov.topLeftCorner<3, 3>() = 0.5 * (initial_pose_cov + initial_pose_cov.transpose());
 }
 
-Eigen::VectorXd EkfSlam::landmark(long id) const {
+int EkfSlam::index_of(long id) const {
   const auto it = index_.find(id);
   require(it != index_.end(), "id", ("is not a landmark of the map: " + std::to_string(id)).c_str());
-  return s_->mean.segment(it->second, ld_);
+  return it->second;
+}
+
+Eigen::VectorXd EkfSlam::landmark(long id) const {
+  return s_->mean.segment(index_of(id), ld_);
 }
 
 Eigen::MatrixXd EkfSlam::landmark_covariance(long id) const {
-  const auto it = index_.find(id);
-  require(it != index_.end(), "id", ("is not a landmark of the map: " + std::to_string(id)).c_str());
-  return s_->cov.block(it->second, it->second, ld_, ld_);
+  const int at = index_of(id);
+  return s_->cov.block(at, at, ld_, ld_);
 }
 
 double EkfSlam::existence(long id) const {
-  const auto it = index_.find(id);
-  require(it != index_.end(), "id", ("is not a landmark of the map: " + std::to_string(id)).c_str());
-  return existence_[(it->second - 3) / ld_];
+  return existence_[(index_of(id) - 3) / ld_];
 }
 
 void EkfSlam::reserve(Eigen::Index dim) {
@@ -431,9 +432,7 @@ void EkfSlam::update_existence(const std::vector<std::uint8_t>& observed, const 
 }
 
 void EkfSlam::remove_landmark(long id) {
-  const auto it = index_.find(id);
-  require(it != index_.end(), "id", ("is not a landmark of the map: " + std::to_string(id)).c_str());
-  const int at = it->second, tail = n_ - at - ld_;
+  const int at = index_of(id), tail = n_ - at - ld_;
   Eigen::MatrixXd& p = s_->cov;
   if (tail > 0) {
     s_->mean.segment(at, tail) = s_->mean.segment(at + ld_, tail).eval();
@@ -443,7 +442,7 @@ void EkfSlam::remove_landmark(long id) {
   const int slot = (at - 3) / ld_;
   ids_.erase(ids_.begin() + slot);
   existence_.erase(existence_.begin() + slot);
-  index_.erase(it);
+  index_.erase(id);
   n_ -= ld_;
   for (auto& [other, index] : index_)
     if (index > at) index -= ld_;

@@ -112,6 +112,8 @@ class EkfSlam {
     Eigen::MatrixXd psi_inv;
   };
 
+  /// First state index of landmark `id`; std::invalid_argument if it is not in the map.
+  int index_of(long id) const;
   void check_measurements(const Eigen::Ref<const RowMatrixXd>& z) const;
   void apply_motion(const Eigen::Vector3d& new_pose, const Eigen::Matrix3d& g, const Eigen::Matrix3d& r);
   void measurement_jacobian(const Eigen::VectorXd& landmark, Eigen::VectorXd& z_hat, Eigen::MatrixXd& hx,
