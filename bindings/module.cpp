@@ -5,6 +5,7 @@ void define_core(pybind11::module_& m);
 void define_grid(pybind11::module_& m);
 void define_io(pybind11::module_& m);
 void define_ekf(pybind11::module_& m);
+void define_graph(pybind11::module_& m);
 }  // namespace probslam::bindings
 
 PYBIND11_MODULE(_core, m) {
@@ -13,4 +14,5 @@ PYBIND11_MODULE(_core, m) {
   probslam::bindings::define_grid(m);
   probslam::bindings::define_io(m);
   probslam::bindings::define_ekf(m);
+  probslam::bindings::define_graph(m);
 }

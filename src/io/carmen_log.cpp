@@ -10,67 +10,17 @@
 #include <vector>
 
 #include "probslam/core/angle.hpp"
+#include "text_fields.hpp"
 
 namespace probslam {
 namespace {
 
-// More beams than this in one message is a corrupt count, not a laser.
-constexpr long kMaxBeams = 1'000'000;
+using io_detail::Fields;
+using io_detail::LineError;
+using io_detail::split;
+
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kDegree = kPi / 180.0;
-
-class LineError {
- public:
-  LineError(const std::string& source, long line) : prefix_(source + ":" + std::to_string(line) + ": ") {}
-  [[noreturn]] void fail(const std::string& what) const { throw std::invalid_argument(prefix_ + what); }
-
- private:
-  std::string prefix_;
-};
-
-std::vector<std::string_view> split(std::string_view line) {
-  std::vector<std::string_view> tokens;
-  std::size_t i = 0;
-  while (i < line.size()) {
-    while (i < line.size() && std::isspace(static_cast<unsigned char>(line[i]))) ++i;
-    const std::size_t start = i;
-    while (i < line.size() && !std::isspace(static_cast<unsigned char>(line[i]))) ++i;
-    if (i > start) tokens.push_back(line.substr(start, i - start));
-  }
-  return tokens;
-}
-
-class Fields {
- public:
-  Fields(const std::vector<std::string_view>& tokens, const LineError& err) : t_(tokens), err_(err) {}
-  std::size_t size() const { return t_.size(); }
-  void need(std::size_t n, const char* what) const {
-    if (t_.size() < n)
-      err_.fail(std::string(t_[0]) + " has " + std::to_string(t_.size()) + " fields, expected at least " +
-                std::to_string(n) + " (" + what + ")");
-  }
-  double number(std::size_t i) const {
-    double v = 0.0;
-    const char* first = t_[i].data();
-    const char* last = first + t_[i].size();
-    if (*first == '+') ++first;
-    const auto [ptr, ec] = std::from_chars(first, last, v);
-    if (ec != std::errc() || ptr != last)
-      err_.fail("field " + std::to_string(i + 1) + " ('" + std::string(t_[i]) + "') is not a number");
-    return v;
-  }
-  double optional_number(std::size_t i) const { return i < t_.size() ? number(i) : kNaN; }
-  long count(std::size_t i) const {
-    const double v = number(i);
-    if (!(v >= 0 && v <= kMaxBeams && v == std::floor(v)))
-      err_.fail("field " + std::to_string(i + 1) + " ('" + std::string(t_[i]) + "') is not a valid count");
-    return static_cast<long>(v);
-  }
-
- private:
-  const std::vector<std::string_view>& t_;
-  const LineError& err_;
-};
 
 struct ScanRow {
   std::vector<double> ranges;

@@ -1,0 +1,57 @@
+#pragma once
+// Gauss-Newton and Levenberg-Marquardt for PoseGraph2D on the shared sparse path
+// (BlockSystem assembly, SparseCholesky solve with the analysis reused across iterations).
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "probslam/graph/pose_graph_2d.hpp"
+#include "probslam/graph/sparse_cholesky.hpp"
+
+namespace probslam {
+
+enum class OptimizerAlgorithm { kGaussNewton, kLevenbergMarquardt };
+
+/// Robust kernels reweight an edge by rho'(s), s = e^T Omega e (iteratively reweighted least
+/// squares): Huber is quadratic up to s = width^2 and linear in sqrt(s) beyond; Cauchy is
+/// width^2 log(1 + s / width^2).
+enum class RobustKernel { kNone, kHuber, kCauchy };
+
+struct OptimizerOptions {
+  OptimizerAlgorithm algorithm = OptimizerAlgorithm::kGaussNewton;
+  int max_iterations = 100;
+  /// Stop when an iteration lowers the objective by less than this fraction of it.
+  double relative_tolerance = 1e-10;
+  /// Stop when the largest entry of the update is below this (metres / radians).
+  double step_tolerance = 1e-10;
+  RobustKernel kernel = RobustKernel::kNone;
+  double kernel_width = 1.0;  ///< in units of sqrt(chi2), e.g. 1.345 or chi2 quantiles' roots
+  SparseCholeskyOptions linear_solver;
+};
+
+struct OptimizationReport {
+  int iterations = 0;
+  double initial_chi2 = 0.0;
+  double chi2 = 0.0;        ///< sum of e^T Omega e at the end (g2o's chi2)
+  double objective = 0.0;   ///< the robust objective (equals chi2 without a kernel)
+  bool converged = false;
+  std::string stop_reason;
+  std::vector<double> chi2_history;      ///< after each iteration
+  std::vector<double> iteration_seconds; ///< linearise + factorise + solve + update
+  long factor_nonzeros = 0;
+};
+
+/// Minimises the graph's objective in place from its current values. Fixed vertices keep
+/// their values; with none fixed the first pose is held (the gauge). Throws
+/// std::invalid_argument for an empty graph, or a singular system (a part of the graph not
+/// connected to a fixed vertex).
+OptimizationReport optimize(PoseGraph2D& graph, const OptimizerOptions& options = {});
+
+/// Marginal covariances (3x3 for poses, 2x2 for points) of the given vertex ids at the
+/// current values, from the sparse inverse of the information matrix. A fixed vertex has zero
+/// covariance.
+std::vector<Eigen::MatrixXd> marginal_covariances(const PoseGraph2D& graph,
+                                                  const std::vector<int>& ids,
+                                                  const SparseCholeskyOptions& linear_solver = {});
+
+}  // namespace probslam

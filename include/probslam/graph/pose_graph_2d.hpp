@@ -1,0 +1,90 @@
+#pragma once
+// A planar pose/landmark graph: the data of the full SLAM problem as g2o, TORO and iSAM files
+// hold it. Optimised by graph_optimizer.hpp.
+#include <Eigen/Core>
+#include <unordered_map>
+#include <vector>
+
+namespace probslam {
+
+enum class VertexKind { kPose, kPoint };
+
+/// A pose (x, y, theta) or a point (x, y, unused 0); ids are the user's, in one id space.
+struct GraphVertex {
+  int id;
+  VertexKind kind;
+  Eigen::Vector3d value;
+  bool fixed = false;
+};
+
+/// x_to measured in the frame of x_from (g2o EDGE_SE2): error t2v(z^-1 x_from^-1 x_to).
+struct PoseEdge {
+  int from, to;  ///< vertex indices (not ids)
+  Eigen::Vector3d measurement;
+  Eigen::Matrix3d information;
+};
+
+/// A point measured in the frame of a pose (g2o EDGE_SE2_XY): error x_pose^-1 * point - z.
+struct PointEdge {
+  int pose, point;  ///< vertex indices (not ids)
+  Eigen::Vector2d measurement;
+  Eigen::Matrix2d information;
+};
+
+class PoseGraph2D {
+ public:
+  /// Each add_* throws std::invalid_argument for a repeated or unknown id, a non-finite value,
+  /// or an information matrix that is not symmetric positive definite; the graph is unchanged.
+  void add_pose(int id, const Eigen::Vector3d& pose);
+  void add_point(int id, const Eigen::Vector2d& point);
+  void add_pose_edge(int from_id, int to_id, const Eigen::Vector3d& measurement,
+                     const Eigen::Matrix3d& information);
+  void add_point_edge(int pose_id, int point_id, const Eigen::Vector2d& measurement,
+                      const Eigen::Matrix2d& information);
+  /// A fixed vertex keeps its value (the gauge); with none fixed, optimisers fix the first pose.
+  void set_fixed(int id, bool fixed = true);
+  /// Replaces a vertex's value (an initial guess); a point uses value[0..1].
+  void set_value(int id, const Eigen::Vector3d& value);
+
+  int num_vertices() const { return static_cast<int>(vertices_.size()); }
+  bool has_vertex(int id) const { return index_.count(id) != 0; }
+  /// The index of a vertex id; throws std::invalid_argument for an unknown id.
+  int index_of(int id) const;
+  const GraphVertex& vertex(int index) const { return vertices_[index]; }
+  GraphVertex& vertex(int index) { return vertices_[index]; }
+  const std::vector<GraphVertex>& vertices() const { return vertices_; }
+  const std::vector<PoseEdge>& pose_edges() const { return pose_edges_; }
+  const std::vector<PointEdge>& point_edges() const { return point_edges_; }
+
+  /// Sum of e^T Omega e over all edges at the current values (g2o's chi2).
+  double chi2() const;
+
+ private:
+  int add_vertex(int id, VertexKind kind, const Eigen::Vector3d& value);
+  int require_vertex(int id, VertexKind kind, const char* argument) const;
+
+  std::vector<GraphVertex> vertices_;
+  std::unordered_map<int, int> index_;
+  std::vector<PoseEdge> pose_edges_;
+  std::vector<PointEdge> point_edges_;
+};
+
+/// The error of a pose edge and its Jacobians with respect to (x, y, theta) of both ends, the
+/// angles moving additively (as g2o's VertexSE2 does).
+struct PoseEdgeLinearization {
+  Eigen::Vector3d error;
+  Eigen::Matrix3d d_from, d_to;
+};
+PoseEdgeLinearization linearize_pose_edge(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
+                                          const Eigen::Vector3d& measurement);
+
+struct PointEdgeLinearization {
+  Eigen::Vector2d error;
+  Eigen::Matrix<double, 2, 3> d_pose;
+  Eigen::Matrix2d d_point;
+};
+PointEdgeLinearization linearize_point_edge(const Eigen::Vector3d& pose,
+                                            const Eigen::Vector2d& point,
+                                            const Eigen::Vector2d& measurement);
+
+}  // namespace probslam

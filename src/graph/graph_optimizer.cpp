@@ -1,0 +1,294 @@
+#include "probslam/graph/graph_optimizer.hpp"
+
+#include <algorithm>
+#include <array>
+#include <chrono>
+#include <cmath>
+
+#include "probslam/core/angle.hpp"
+#include "probslam/core/check.hpp"
+#include "probslam/graph/block_system.hpp"
+
+namespace probslam {
+namespace {
+
+// Levenberg-Marquardt's first damping, relative to H's largest diagonal entry (Madsen, Nielsen
+// and Tingleff's customary tau), and the rejected steps allowed in a row before giving up.
+constexpr double kInitialDampingFactor = 1e-5;
+constexpr int kMaxRejectedSteps = 10;
+
+struct RobustValue {
+  double rho, weight;  // rho(s) and rho'(s)
+};
+
+RobustValue robust(double s, RobustKernel kernel, double width) {
+  const double w2 = width * width;
+  switch (kernel) {
+    case RobustKernel::kHuber:
+      if (s <= w2) return {s, 1.0};
+      return {2.0 * width * std::sqrt(s) - w2, width / std::sqrt(s)};
+    case RobustKernel::kCauchy:
+      return {w2 * std::log1p(s / w2), 1.0 / (1.0 + s / w2)};
+    case RobustKernel::kNone:
+      break;
+  }
+  return {s, 1.0};
+}
+
+struct Objective {
+  double robust = 0.0, chi2 = 0.0;
+};
+
+// Variable sizes for the solver: 3 per pose, 2 per point, 0 for a fixed vertex (and for the
+// first pose when nothing is fixed: the gauge).
+std::vector<int> variable_sizes(const PoseGraph2D& graph) {
+  std::vector<int> sizes(graph.num_vertices());
+  bool any_fixed = false;
+  int first_pose = -1;
+  for (int v = 0; v < graph.num_vertices(); ++v) {
+    const GraphVertex& vertex = graph.vertex(v);
+    sizes[v] = vertex.fixed ? 0 : (vertex.kind == VertexKind::kPose ? 3 : 2);
+    any_fixed = any_fixed || vertex.fixed;
+    if (first_pose < 0 && vertex.kind == VertexKind::kPose) first_pose = v;
+  }
+  if (!any_fixed && first_pose >= 0) sizes[first_pose] = 0;
+  return sizes;
+}
+
+std::vector<std::pair<int, int>> couplings(const PoseGraph2D& graph) {
+  std::vector<std::pair<int, int>> pairs;
+  pairs.reserve(graph.pose_edges().size() + graph.point_edges().size());
+  for (const PoseEdge& e : graph.pose_edges()) pairs.emplace_back(e.from, e.to);
+  for (const PointEdge& e : graph.point_edges()) pairs.emplace_back(e.pose, e.point);
+  return pairs;
+}
+
+// The Gauss-Newton normal equations of a graph: pattern and block handles built once.
+class NormalEquations {
+ public:
+  explicit NormalEquations(const PoseGraph2D& graph)
+      : system_(variable_sizes(graph), couplings(graph)) {
+    for (const PoseEdge& e : graph.pose_edges())
+      pose_handles_.push_back({system_.block(e.from, e.from), system_.block(e.to, e.to),
+                               system_.block(e.from, e.to)});
+    for (const PointEdge& e : graph.point_edges())
+      point_handles_.push_back({system_.block(e.pose, e.pose), system_.block(e.point, e.point),
+                                system_.block(e.pose, e.point)});
+  }
+
+  BlockSystem& system() { return system_; }
+
+  // H = sum w J^T Omega J and b = -sum w J^T Omega e at the graph's values.
+  Objective assemble(const PoseGraph2D& graph, RobustKernel kernel, double width) {
+    system_.set_zero();
+    Objective total;
+    const auto& vertices = graph.vertices();
+    for (size_t k = 0; k < graph.pose_edges().size(); ++k) {
+      const PoseEdge& e = graph.pose_edges()[k];
+      const auto lin = linearize_pose_edge(vertices[e.from].value, vertices[e.to].value,
+                                           e.measurement);
+      const Eigen::Vector3d we = e.information * lin.error;
+      const double s = lin.error.dot(we);
+      const RobustValue r = robust(s, kernel, width);
+      total.robust += r.rho;
+      total.chi2 += s;
+      const Eigen::Matrix3d omega = r.weight * e.information;
+      const Eigen::Matrix3d a_t_omega = lin.d_from.transpose() * omega;
+      const Eigen::Matrix3d b_t_omega = lin.d_to.transpose() * omega;
+      const auto& h = pose_handles_[k];
+      system_.add(h[0], a_t_omega * lin.d_from);
+      system_.add(h[1], b_t_omega * lin.d_to);
+      system_.add(h[2], a_t_omega * lin.d_to);
+      system_.add_rhs(e.from, -r.weight * (lin.d_from.transpose() * we));
+      system_.add_rhs(e.to, -r.weight * (lin.d_to.transpose() * we));
+    }
+    for (size_t k = 0; k < graph.point_edges().size(); ++k) {
+      const PointEdge& e = graph.point_edges()[k];
+      const auto lin = linearize_point_edge(vertices[e.pose].value,
+                                            vertices[e.point].value.head<2>(), e.measurement);
+      const Eigen::Vector2d we = e.information * lin.error;
+      const double s = lin.error.dot(we);
+      const RobustValue r = robust(s, kernel, width);
+      total.robust += r.rho;
+      total.chi2 += s;
+      const Eigen::Matrix2d omega = r.weight * e.information;
+      const Eigen::Matrix<double, 3, 2> a_t_omega = lin.d_pose.transpose() * omega;
+      const auto& h = point_handles_[k];
+      system_.add(h[0], a_t_omega * lin.d_pose);
+      system_.add(h[1], lin.d_point.transpose() * omega * lin.d_point);
+      system_.add(h[2], a_t_omega * lin.d_point);
+      system_.add_rhs(e.pose, -r.weight * (lin.d_pose.transpose() * we));
+      system_.add_rhs(e.point, -r.weight * (lin.d_point.transpose() * we));
+    }
+    return total;
+  }
+
+  void apply(PoseGraph2D& graph, const Eigen::VectorXd& dx) const {
+    for (int v = 0; v < graph.num_vertices(); ++v) {
+      const int size = system_.size(v);
+      if (size == 0) continue;
+      GraphVertex& vertex = graph.vertex(v);
+      vertex.value.head(size) += dx.segment(system_.offset(v), size);
+      if (vertex.kind == VertexKind::kPose) vertex.value[2] = wrap_angle(vertex.value[2]);
+    }
+  }
+
+ private:
+  BlockSystem system_;
+  std::vector<std::array<BlockHandle, 3>> pose_handles_, point_handles_;
+};
+
+Objective evaluate(const PoseGraph2D& graph, RobustKernel kernel, double width) {
+  Objective total;
+  const auto& vertices = graph.vertices();
+  for (const PoseEdge& e : graph.pose_edges()) {
+    const Eigen::Vector3d r =
+        linearize_pose_edge(vertices[e.from].value, vertices[e.to].value, e.measurement).error;
+    const double s = r.dot(e.information * r);
+    total.robust += robust(s, kernel, width).rho;
+    total.chi2 += s;
+  }
+  for (const PointEdge& e : graph.point_edges()) {
+    const Eigen::Vector2d r = linearize_point_edge(vertices[e.pose].value,
+                                                   vertices[e.point].value.head<2>(),
+                                                   e.measurement)
+                                  .error;
+    const double s = r.dot(e.information * r);
+    total.robust += robust(s, kernel, width).rho;
+    total.chi2 += s;
+  }
+  return total;
+}
+
+void validate(const PoseGraph2D& graph, const OptimizerOptions& options) {
+  require(graph.num_vertices() > 0, "graph", "has no vertices");
+  require(!graph.pose_edges().empty() || !graph.point_edges().empty(), "graph", "has no edges");
+  require(options.max_iterations >= 0, "max_iterations", "must be >= 0");
+  require(options.relative_tolerance >= 0.0, "relative_tolerance", "must be >= 0");
+  require(options.step_tolerance >= 0.0, "step_tolerance", "must be >= 0");
+  if (options.kernel != RobustKernel::kNone) require_positive(options.kernel_width, "kernel_width");
+}
+
+using Clock = std::chrono::steady_clock;
+double seconds_since(Clock::time_point start) {
+  return std::chrono::duration<double>(Clock::now() - start).count();
+}
+
+}  // namespace
+
+OptimizationReport optimize(PoseGraph2D& graph, const OptimizerOptions& options) {
+  validate(graph, options);
+  NormalEquations equations(graph);
+  OptimizationReport report;
+  if (equations.system().dim() == 0) {
+    report.initial_chi2 = report.chi2 = graph.chi2();
+    report.objective = evaluate(graph, options.kernel, options.kernel_width).robust;
+    report.converged = true;
+    report.stop_reason = "nothing to optimise: every vertex is fixed";
+    return report;
+  }
+  SparseCholesky cholesky(options.linear_solver);
+  const RobustKernel kernel = options.kernel;
+  const double width = options.kernel_width;
+  Objective current = equations.assemble(graph, kernel, width);
+  report.initial_chi2 = current.chi2;
+  report.stop_reason = "maximum iterations reached";
+  const bool levenberg = options.algorithm == OptimizerAlgorithm::kLevenbergMarquardt;
+  double lambda = 0.0, nu = 2.0;
+  if (levenberg) lambda = kInitialDampingFactor * equations.system().diagonal().maxCoeff();
+
+  for (int iteration = 0; iteration < options.max_iterations; ++iteration) {
+    const auto start = Clock::now();
+    BlockSystem& system = equations.system();
+    Eigen::VectorXd dx;
+    Objective next;
+    if (!levenberg) {
+      cholesky.factorize(system.upper());
+      dx = cholesky.solve(system.rhs());
+      equations.apply(graph, dx);
+      next = equations.assemble(graph, kernel, width);
+    } else {
+      const std::vector<GraphVertex> saved = graph.vertices();
+      bool accepted = false;
+      for (int attempt = 0; attempt < kMaxRejectedSteps && !accepted; ++attempt) {
+        const Eigen::VectorXd damping = Eigen::VectorXd::Constant(system.dim(), lambda);
+        system.add_to_diagonal(damping);
+        cholesky.factorize(system.upper());
+        system.add_to_diagonal(-damping);
+        dx = cholesky.solve(system.rhs());
+        equations.apply(graph, dx);
+        next = evaluate(graph, kernel, width);
+        const double predicted = system.rhs().dot(dx) + lambda * dx.squaredNorm();
+        const double rho = (current.robust - next.robust) / predicted;
+        if (predicted > 0.0 && rho > 0.0) {
+          accepted = true;
+          lambda *= std::max(1.0 / 3.0, 1.0 - std::pow(2.0 * rho - 1.0, 3));
+          nu = 2.0;
+        } else {
+          for (int v = 0; v < graph.num_vertices(); ++v) graph.vertex(v).value = saved[v].value;
+          lambda *= nu;
+          nu *= 2.0;
+        }
+      }
+      if (!accepted) {
+        report.converged = true;  // no step lowers the objective: a minimum to working precision
+        report.stop_reason = "no step lowers the objective";
+        break;
+      }
+      next = equations.assemble(graph, kernel, width);
+    }
+    report.iteration_seconds.push_back(seconds_since(start));
+    report.chi2_history.push_back(next.chi2);
+    report.iterations = iteration + 1;
+    const double decrease = current.robust - next.robust;
+    current = next;
+    if (dx.lpNorm<Eigen::Infinity>() < options.step_tolerance) {
+      report.converged = true;
+      report.stop_reason = "step below step_tolerance";
+      break;
+    }
+    if (std::abs(decrease) <= options.relative_tolerance * current.robust) {
+      report.converged = true;
+      report.stop_reason = "objective change below relative_tolerance";
+      break;
+    }
+  }
+  report.chi2 = current.chi2;
+  report.objective = current.robust;
+  report.factor_nonzeros = cholesky.factor_nonzeros();
+  return report;
+}
+
+std::vector<Eigen::MatrixXd> marginal_covariances(const PoseGraph2D& graph,
+                                                  const std::vector<int>& ids,
+                                                  const SparseCholeskyOptions& linear_solver) {
+  validate(graph, {});
+  NormalEquations equations(graph);
+  equations.assemble(graph, RobustKernel::kNone, 1.0);
+  SparseCholesky cholesky(linear_solver);
+  std::vector<InverseBlock> requests;
+  std::vector<int> request_of(ids.size(), -1);
+  for (size_t k = 0; k < ids.size(); ++k) {
+    const int v = graph.index_of(ids[k]);
+    const int size = equations.system().size(v);
+    if (size == 0) continue;
+    const int offset = equations.system().offset(v);
+    request_of[k] = static_cast<int>(requests.size());
+    requests.push_back({offset, size, offset, size});
+  }
+  std::vector<Eigen::MatrixXd> blocks;
+  if (!requests.empty()) {
+    cholesky.factorize(equations.system().upper());
+    blocks = cholesky.inverse_blocks(requests);
+  }
+  std::vector<Eigen::MatrixXd> out;
+  for (size_t k = 0; k < ids.size(); ++k) {
+    const int v = graph.index_of(ids[k]);
+    const int size = graph.vertex(v).kind == VertexKind::kPose ? 3 : 2;
+    out.push_back(request_of[k] < 0 ? Eigen::MatrixXd::Zero(size, size)
+                                    : blocks[request_of[k]]);
+  }
+  return out;
+}
+
+}  // namespace probslam

@@ -1,0 +1,266 @@
+#include "probslam/graph/sparse_cholesky.hpp"
+
+#include <cholmod.h>
+
+#include <algorithm>
+#include <map>
+#include <stdexcept>
+#include <string>
+
+#include "probslam/core/check.hpp"
+
+namespace probslam {
+namespace {
+
+// A positive-definite matrix whose factor's squared pivot ratio falls below this is singular to
+// working precision (a gauge freedom left unanchored, a disconnected part): the solution would
+// be noise, so it is refused rather than returned.
+constexpr double kSingularReciprocalCondition = 1e-14;
+
+}  // namespace
+
+struct SparseCholesky::Impl {
+  SparseCholeskyOptions options;
+  cholmod_common common{};
+  cholmod_factor* factor = nullptr;
+  // Pattern of the matrix the analysis was made for, to detect a change.
+  std::vector<int> outer, inner;
+  bool reused = false;
+
+  // Sparse inverse on the pattern of L (computed on demand, dropped at each factorisation).
+  mutable bool have_inverse = false;
+  mutable std::vector<int> z_outer, z_inner;  // column-compressed lower triangle, rows sorted
+  mutable std::vector<double> z_values;
+  mutable std::vector<int> inverse_permutation;
+
+  explicit Impl(SparseCholeskyOptions o) : options(o) {
+    cholmod_start(&common);
+    common.print = 0;
+    common.error_handler = nullptr;
+    common.supernodal = options.method == FactorMethod::kSimplicial   ? CHOLMOD_SIMPLICIAL
+                        : options.method == FactorMethod::kSupernodal ? CHOLMOD_SUPERNODAL
+                                                                      : CHOLMOD_AUTO;
+    common.nmethods = 1;
+    common.method[0].ordering =
+        options.ordering == FillOrdering::kMetis ? CHOLMOD_METIS : CHOLMOD_AMD;
+    common.postorder = 1;
+    common.final_ll = 1;  // LL' keeps the sparse-inverse recurrence simple
+  }
+  ~Impl() {
+    if (factor) cholmod_free_factor(&factor, &common);
+    cholmod_finish(&common);
+  }
+
+  // A non-owning CHOLMOD view of an Eigen column-compressed matrix (upper triangle stored).
+  static cholmod_sparse view(const SparseMatrixd& a) {
+    cholmod_sparse s{};
+    s.nrow = static_cast<size_t>(a.rows());
+    s.ncol = static_cast<size_t>(a.cols());
+    s.nzmax = static_cast<size_t>(a.nonZeros());
+    s.p = const_cast<int*>(a.outerIndexPtr());
+    s.i = const_cast<int*>(a.innerIndexPtr());
+    s.nz = a.isCompressed() ? nullptr : const_cast<int*>(a.innerNonZeroPtr());
+    s.x = const_cast<double*>(a.valuePtr());
+    s.stype = 1;
+    s.itype = CHOLMOD_INT;
+    s.xtype = CHOLMOD_REAL;
+    s.dtype = CHOLMOD_DOUBLE;
+    s.sorted = 1;
+    s.packed = a.isCompressed() ? 1 : 0;
+    return s;
+  }
+
+  bool same_pattern(const SparseMatrixd& a) const {
+    if (!factor || static_cast<int>(outer.size()) != a.cols() + 1) return false;
+    if (!std::equal(outer.begin(), outer.end(), a.outerIndexPtr())) return false;
+    return std::equal(inner.begin(), inner.end(), a.innerIndexPtr());
+  }
+
+  void compute_inverse() const;
+  double inverse_entry(int r, int c) const;  // permuted indices; NaN when outside the pattern
+};
+
+SparseCholesky::SparseCholesky(SparseCholeskyOptions options)
+    : impl_(std::make_unique<Impl>(options)) {}
+SparseCholesky::~SparseCholesky() = default;
+SparseCholesky::SparseCholesky(SparseCholesky&&) noexcept = default;
+SparseCholesky& SparseCholesky::operator=(SparseCholesky&&) noexcept = default;
+
+int SparseCholesky::rows() const {
+  return impl_->factor ? static_cast<int>(impl_->factor->n) : 0;
+}
+bool SparseCholesky::factorized() const { return impl_->factor && impl_->factor->minor == impl_->factor->n; }
+bool SparseCholesky::analysis_reused() const { return impl_->reused; }
+
+long SparseCholesky::factor_nonzeros() const {
+  const cholmod_factor* f = impl_->factor;
+  if (!f) return 0;
+  if (f->is_super) {
+    long n = 0;
+    const int* super = static_cast<const int*>(f->super);
+    const int* pi = static_cast<const int*>(f->pi);
+    for (size_t s = 0; s < f->nsuper; ++s) {
+      const long cols = super[s + 1] - super[s], rows = pi[s + 1] - pi[s];
+      n += cols * rows - cols * (cols - 1) / 2;
+    }
+    return n;
+  }
+  const int* nz = static_cast<const int*>(f->nz);
+  long n = 0;
+  for (size_t j = 0; j < f->n; ++j) n += nz[j];
+  return n;
+}
+
+void SparseCholesky::factorize(const SparseMatrixd& upper) {
+  Impl& m = *impl_;
+  require(upper.rows() == upper.cols(), "matrix", "must be square");
+  require(upper.rows() > 0, "matrix", "must not be empty");
+  const Eigen::Map<const Eigen::VectorXd> values(upper.valuePtr(), upper.nonZeros());
+  require(upper.isCompressed(), "matrix", "must be compressed (call makeCompressed())");
+  require_all_finite(values, "matrix");
+  m.have_inverse = false;
+  cholmod_sparse a = Impl::view(upper);
+  m.reused = m.same_pattern(upper);
+  if (!m.reused) {
+    if (m.factor) cholmod_free_factor(&m.factor, &m.common);
+    m.factor = cholmod_analyze(&a, &m.common);
+    if (!m.factor) throw std::runtime_error("CHOLMOD analysis failed (out of memory?)");
+    m.outer.assign(upper.outerIndexPtr(), upper.outerIndexPtr() + upper.cols() + 1);
+    m.inner.assign(upper.innerIndexPtr(), upper.innerIndexPtr() + upper.nonZeros());
+  }
+  cholmod_factorize(&a, m.factor, &m.common);
+  const bool not_positive = m.common.status == CHOLMOD_NOT_POSDEF || m.factor->minor < m.factor->n;
+  if (not_positive || cholmod_rcond(m.factor, &m.common) < kSingularReciprocalCondition) {
+    const std::string where =
+        not_positive ? " (pivot " + std::to_string(m.factor->minor) + " of " +
+                           std::to_string(m.factor->n) + ")"
+                     : "";
+    // The analysis stays valid; the next factorize() with this pattern may succeed.
+    m.factor->minor = 0;
+    throw_invalid_argument("matrix", "is singular or not positive definite" + where +
+                                         ": is every variable anchored and connected?");
+  }
+}
+
+Eigen::MatrixXd SparseCholesky::solve(const Eigen::MatrixXd& b) const {
+  Impl& m = *impl_;
+  require(factorized(), "solve", "needs a successful factorize() first");
+  require(b.rows() == rows(), "b", "must have as many rows as the matrix");
+  cholmod_dense rhs{};
+  rhs.nrow = static_cast<size_t>(b.rows());
+  rhs.ncol = static_cast<size_t>(b.cols());
+  rhs.nzmax = rhs.nrow * rhs.ncol;
+  rhs.d = rhs.nrow;
+  rhs.x = const_cast<double*>(b.data());
+  rhs.xtype = CHOLMOD_REAL;
+  rhs.dtype = CHOLMOD_DOUBLE;
+  cholmod_dense* x = cholmod_solve(CHOLMOD_A, m.factor, &rhs, &m.common);
+  if (!x) throw std::runtime_error("CHOLMOD solve failed (out of memory?)");
+  Eigen::MatrixXd out = Eigen::Map<const Eigen::MatrixXd>(static_cast<const double*>(x->x),
+                                                          b.rows(), b.cols());
+  cholmod_free_dense(&x, &m.common);
+  return out;
+}
+
+Eigen::VectorXd SparseCholesky::solve(const Eigen::VectorXd& b) const {
+  return solve(Eigen::MatrixXd(b));
+}
+
+// Takahashi's recurrence on L L^T = P A P^T: Z = (L L^T)^-1 on the pattern of L, from the last
+// column to the first, each entry needing only entries of later columns on that pattern.
+void SparseCholesky::Impl::compute_inverse() const {
+  cholmod_factor* copy = cholmod_copy_factor(factor, const_cast<cholmod_common*>(&common));
+  if (!copy) throw std::runtime_error("CHOLMOD copy failed (out of memory?)");
+  auto* cm = const_cast<cholmod_common*>(&common);
+  cholmod_change_factor(CHOLMOD_REAL, /*to_ll=*/1, /*to_super=*/0, /*to_packed=*/1,
+                        /*to_monotonic=*/1, copy, cm);
+  const int n = static_cast<int>(copy->n);
+  const int* lp = static_cast<const int*>(copy->p);
+  const int* li = static_cast<const int*>(copy->i);
+  const int* lnz = static_cast<const int*>(copy->nz);
+  const double* lx = static_cast<const double*>(copy->x);
+
+  // Sorted copy of L; z shares its pattern.
+  z_outer.assign(n + 1, 0);
+  for (int j = 0; j < n; ++j) z_outer[j + 1] = z_outer[j] + lnz[j];
+  z_inner.resize(z_outer[n]);
+  std::vector<double> l_values(z_outer[n]);
+  std::vector<std::pair<int, double>> column;
+  for (int j = 0; j < n; ++j) {
+    column.clear();
+    for (int k = lp[j]; k < lp[j] + lnz[j]; ++k) column.emplace_back(li[k], lx[k]);
+    std::sort(column.begin(), column.end());
+    for (size_t k = 0; k < column.size(); ++k) {
+      z_inner[z_outer[j] + k] = column[k].first;
+      l_values[z_outer[j] + k] = column[k].second;
+    }
+  }
+  inverse_permutation.assign(n, 0);
+  const int* perm = static_cast<const int*>(copy->Perm);
+  for (int k = 0; k < n; ++k) inverse_permutation[perm[k]] = k;
+  cholmod_free_factor(&copy, cm);
+
+  z_values.assign(z_outer[n], 0.0);
+  for (int j = n - 1; j >= 0; --j) {
+    const int begin = z_outer[j], end = z_outer[j + 1];  // begin holds the diagonal
+    const double diag = l_values[begin];
+    // Off-diagonal entries first (they feed the diagonal), each from the later columns.
+    for (int a = end - 1; a > begin; --a) {
+      const int i = z_inner[a];
+      double sum = 0.0;
+      for (int b = begin + 1; b < end; ++b) sum += l_values[b] * inverse_entry(i, z_inner[b]);
+      z_values[a] = -sum / diag;
+    }
+    double sum = 0.0;
+    for (int b = begin + 1; b < end; ++b) sum += l_values[b] * z_values[b];
+    z_values[begin] = 1.0 / (diag * diag) - sum / diag;
+  }
+  have_inverse = true;
+}
+
+double SparseCholesky::Impl::inverse_entry(int r, int c) const {
+  if (r < c) std::swap(r, c);
+  const auto first = z_inner.begin() + z_outer[c], last = z_inner.begin() + z_outer[c + 1];
+  const auto it = std::lower_bound(first, last, r);
+  if (it == last || *it != r) return std::numeric_limits<double>::quiet_NaN();
+  return z_values[it - z_inner.begin()];
+}
+
+std::vector<Eigen::MatrixXd> SparseCholesky::inverse_blocks(
+    const std::vector<InverseBlock>& blocks) const {
+  const Impl& m = *impl_;
+  require(factorized(), "inverse_blocks", "needs a successful factorize() first");
+  const int n = rows();
+  for (const InverseBlock& b : blocks)
+    require(b.row >= 0 && b.col >= 0 && b.rows >= 0 && b.cols >= 0 && b.row + b.rows <= n &&
+                b.col + b.cols <= n,
+            "blocks", "must lie inside the matrix");
+  if (!m.have_inverse) m.compute_inverse();
+
+  std::vector<Eigen::MatrixXd> out;
+  out.reserve(blocks.size());
+  std::map<int, Eigen::VectorXd> solved_columns;  // entries outside the pattern of L
+  for (const InverseBlock& b : blocks) {
+    Eigen::MatrixXd block(b.rows, b.cols);
+    for (int c = 0; c < b.cols; ++c) {
+      for (int r = 0; r < b.rows; ++r) {
+        const int orig_r = b.row + r, orig_c = b.col + c;
+        double v = m.inverse_entry(m.inverse_permutation[orig_r], m.inverse_permutation[orig_c]);
+        if (std::isnan(v)) {
+          auto it = solved_columns.find(orig_c);
+          if (it == solved_columns.end()) {
+            Eigen::VectorXd unit = Eigen::VectorXd::Zero(n);
+            unit[orig_c] = 1.0;
+            it = solved_columns.emplace(orig_c, solve(unit)).first;
+          }
+          v = it->second[orig_r];
+        }
+        block(r, c) = v;
+      }
+    }
+    out.push_back(std::move(block));
+  }
+  return out;
+}
+
+}  // namespace probslam

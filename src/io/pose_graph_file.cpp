@@ -1,0 +1,243 @@
+#include "probslam/io/pose_graph_file.hpp"
+
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <optional>
+#include <unordered_map>
+#include <vector>
+
+#include "probslam/core/check.hpp"
+#include "probslam/core/pose2.hpp"
+#include "text_fields.hpp"
+
+namespace probslam {
+namespace {
+
+using io_detail::Fields;
+using io_detail::LineError;
+using io_detail::split;
+
+struct VertexRecord {
+  int id;
+  VertexKind kind;
+  Eigen::Vector3d value;
+};
+
+struct EdgeRecord {
+  long line;
+  bool to_point;  // EDGE_SE2_XY / LANDMARK
+  int from, to;
+  Eigen::Vector3d measurement;  // (dx, dy, dtheta) or (dx, dy, 0)
+  Eigen::Matrix3d information;  // top-left 2x2 for point edges
+};
+
+struct Records {
+  std::vector<VertexRecord> vertices;
+  std::vector<EdgeRecord> edges;
+  std::vector<std::pair<int, long>> fixed;  // id, line
+};
+
+Eigen::Matrix3d symmetric3(double a11, double a12, double a13, double a22, double a23, double a33) {
+  Eigen::Matrix3d m;
+  m << a11, a12, a13, a12, a22, a23, a13, a23, a33;
+  return m;
+}
+
+// iSAM stores the upper-triangular square root R of the information R^T R.
+Eigen::Matrix3d from_square_root(const Eigen::Matrix3d& upper) {
+  const Eigen::Matrix3d r = upper.triangularView<Eigen::Upper>();
+  return r.transpose() * r;
+}
+
+int vertex_id(const Fields& f, std::size_t i, const LineError& err) {
+  const long id = f.integer(i);
+  if (id < std::numeric_limits<int>::min() || id > std::numeric_limits<int>::max())
+    err.fail("vertex id " + std::to_string(id) + " out of range");
+  return static_cast<int>(id);
+}
+
+PoseGraphFormat detect(const std::string& tag) {
+  if (tag == "VERTEX2") return PoseGraphFormat::kToro;
+  if (tag == "ODOMETRY" || tag == "LANDMARK" || tag == "EDGE2") return PoseGraphFormat::kIsam;
+  return PoseGraphFormat::kG2o;
+}
+
+void parse_line(const Fields& f, const std::string& tag, PoseGraphFormat format, long line,
+                const LineError& err, Records& out) {
+  auto pose_edge = [&](const Eigen::Matrix3d& information) {
+    out.edges.push_back({line, false, vertex_id(f, 1, err), vertex_id(f, 2, err),
+                         {f.number(3), f.number(4), f.number(5)}, information});
+  };
+  auto point_edge = [&](const Eigen::Matrix2d& information) {
+    Eigen::Matrix3d info = Eigen::Matrix3d::Identity();
+    info.topLeftCorner<2, 2>() = information;
+    out.edges.push_back(
+        {line, true, vertex_id(f, 1, err), vertex_id(f, 2, err), {f.number(3), f.number(4), 0.0}, info});
+  };
+  if (format == PoseGraphFormat::kG2o) {
+    if (tag == "VERTEX_SE2") {
+      f.need(5, "id x y theta");
+      out.vertices.push_back({vertex_id(f, 1, err), VertexKind::kPose,
+                              {f.number(2), f.number(3), f.number(4)}});
+    } else if (tag == "VERTEX_XY") {
+      f.need(4, "id x y");
+      out.vertices.push_back({vertex_id(f, 1, err), VertexKind::kPoint, {f.number(2), f.number(3), 0.0}});
+    } else if (tag == "EDGE_SE2") {
+      f.need(12, "i j dx dy dtheta and 6 information entries");
+      pose_edge(symmetric3(f.number(6), f.number(7), f.number(8), f.number(9), f.number(10), f.number(11)));
+    } else if (tag == "EDGE_SE2_XY") {
+      f.need(8, "i j dx dy and 3 information entries");
+      Eigen::Matrix2d info;
+      info << f.number(5), f.number(6), f.number(6), f.number(7);
+      point_edge(info);
+    } else if (tag == "FIX") {
+      f.need(2, "vertex ids");
+      for (std::size_t i = 1; i < f.size(); ++i) out.fixed.emplace_back(vertex_id(f, i, err), line);
+    } else {
+      err.fail("unsupported g2o record '" + tag + "' (2-D SE2 / XY graphs only)");
+    }
+  } else if (format == PoseGraphFormat::kToro) {
+    if (tag == "VERTEX2") {
+      f.need(5, "id x y theta");
+      out.vertices.push_back({vertex_id(f, 1, err), VertexKind::kPose,
+                              {f.number(2), f.number(3), f.number(4)}});
+    } else if (tag == "EDGE2") {
+      f.need(12, "i j dx dy dtheta and 6 information entries");
+      // TORO order: xx xy yy tt xt yt.
+      pose_edge(symmetric3(f.number(6), f.number(7), f.number(10), f.number(8), f.number(11), f.number(9)));
+    } else {
+      err.fail("unsupported TORO record '" + tag + "' (VERTEX2 and EDGE2 only)");
+    }
+  } else {
+    if (tag == "ODOMETRY" || tag == "EDGE2") {
+      f.need(12, "i j dx dy dtheta and 6 square-root information entries");
+      pose_edge(from_square_root(
+          symmetric3(f.number(6), f.number(7), f.number(8), f.number(9), f.number(10), f.number(11))));
+    } else if (tag == "LANDMARK") {
+      f.need(8, "i j dx dy and 3 square-root information entries");
+      const Eigen::Matrix3d info =
+          from_square_root(symmetric3(f.number(5), f.number(6), 0.0, f.number(7), 0.0, 1.0));
+      point_edge(info.topLeftCorner<2, 2>());
+    } else {
+      err.fail("unsupported iSAM record '" + tag + "' (ODOMETRY, EDGE2, LANDMARK only)");
+    }
+  }
+}
+
+// Vertices the file did not list, from the edges in order: the dead-reckoning guess.
+void add_missing_vertices(const Records& records, PoseGraph2D& graph, const std::string& source) {
+  for (const EdgeRecord& e : records.edges) {
+    const LineError err(source, e.line);
+    const bool has_from = graph.has_vertex(e.from), has_to = graph.has_vertex(e.to);
+    if (!has_from && graph.num_vertices() == 0) graph.add_pose(e.from, Eigen::Vector3d::Zero());
+    if (!graph.has_vertex(e.from)) {
+      if (e.to_point || !has_to)
+        err.fail("vertex " + std::to_string(e.from) + " is not connected to the earlier records");
+      const Pose2 to = Pose2::from_vector(graph.vertex(graph.index_of(e.to)).value);
+      const Pose2 z = Pose2::from_vector(e.measurement);
+      graph.add_pose(e.from, to.compose(z.inverse()).vector());
+      continue;
+    }
+    if (has_to) continue;
+    const Pose2 from = Pose2::from_vector(graph.vertex(graph.index_of(e.from)).value);
+    if (e.to_point)
+      graph.add_point(e.to, from.transform_from(e.measurement.head<2>()));
+    else
+      graph.add_pose(e.to, from.compose(Pose2::from_vector(e.measurement)).vector());
+  }
+}
+
+PoseGraph2D build(const Records& records, const std::string& source) {
+  PoseGraph2D graph;
+  for (const VertexRecord& v : records.vertices) {
+    try {
+      if (v.kind == VertexKind::kPose)
+        graph.add_pose(v.id, v.value);
+      else
+        graph.add_point(v.id, v.value.head<2>());
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(source + ": vertex " + std::to_string(v.id) + ": " + e.what());
+    }
+  }
+  // A file that lists vertices must list all of them: an unknown id in an edge is an error.
+  if (records.vertices.empty()) add_missing_vertices(records, graph, source);
+  for (const EdgeRecord& e : records.edges) {
+    try {
+      if (e.to_point)
+        graph.add_point_edge(e.from, e.to, e.measurement.head<2>(),
+                             e.information.topLeftCorner<2, 2>());
+      else
+        graph.add_pose_edge(e.from, e.to, e.measurement, e.information);
+    } catch (const std::invalid_argument& ex) {
+      LineError(source, e.line).fail(ex.what());
+    }
+  }
+  for (const auto& [id, line] : records.fixed) {
+    if (!graph.has_vertex(id)) LineError(source, line).fail("FIX names unknown vertex " + std::to_string(id));
+    graph.set_fixed(id);
+  }
+  return graph;
+}
+
+}  // namespace
+
+PoseGraph2D parse_pose_graph(std::istream& in, PoseGraphFormat format, const std::string& source) {
+  Records records;
+  std::string line;
+  long line_number = 0;
+  while (std::getline(in, line)) {
+    ++line_number;
+    const std::vector<std::string_view> tokens = split(line);
+    if (tokens.empty() || tokens[0][0] == '#') continue;
+    const LineError err(source, line_number);
+    const Fields fields(tokens, err);
+    const std::string tag(tokens[0]);
+    if (format == PoseGraphFormat::kAuto) format = detect(tag);
+    parse_line(fields, tag, format, line_number, err, records);
+  }
+  if (in.bad()) throw std::invalid_argument(source + ": read error");
+  if (records.edges.empty() && records.vertices.empty())
+    throw std::invalid_argument(source + ": no vertices or edges");
+  return build(records, source);
+}
+
+PoseGraph2D read_pose_graph(const std::string& path, PoseGraphFormat format) {
+  std::ifstream in(path);
+  if (!in) throw std::invalid_argument("path: cannot open '" + path + "'");
+  return parse_pose_graph(in, format, path);
+}
+
+void write_g2o(std::ostream& out, const PoseGraph2D& graph) {
+  out.precision(std::numeric_limits<double>::max_digits10);
+  for (const GraphVertex& v : graph.vertices()) {
+    if (v.kind == VertexKind::kPose)
+      out << "VERTEX_SE2 " << v.id << ' ' << v.value[0] << ' ' << v.value[1] << ' ' << v.value[2] << '\n';
+    else
+      out << "VERTEX_XY " << v.id << ' ' << v.value[0] << ' ' << v.value[1] << '\n';
+  }
+  for (const GraphVertex& v : graph.vertices())
+    if (v.fixed) out << "FIX " << v.id << '\n';
+  for (const PoseEdge& e : graph.pose_edges()) {
+    const Eigen::Matrix3d& i = e.information;
+    out << "EDGE_SE2 " << graph.vertex(e.from).id << ' ' << graph.vertex(e.to).id << ' '
+        << e.measurement[0] << ' ' << e.measurement[1] << ' ' << e.measurement[2] << ' ' << i(0, 0)
+        << ' ' << i(0, 1) << ' ' << i(0, 2) << ' ' << i(1, 1) << ' ' << i(1, 2) << ' ' << i(2, 2)
+        << '\n';
+  }
+  for (const PointEdge& e : graph.point_edges()) {
+    const Eigen::Matrix2d& i = e.information;
+    out << "EDGE_SE2_XY " << graph.vertex(e.pose).id << ' ' << graph.vertex(e.point).id << ' '
+        << e.measurement[0] << ' ' << e.measurement[1] << ' ' << i(0, 0) << ' ' << i(0, 1) << ' '
+        << i(1, 1) << '\n';
+  }
+}
+
+void write_g2o(const std::string& path, const PoseGraph2D& graph) {
+  std::ofstream out(path);
+  if (!out) throw std::invalid_argument("path: cannot write '" + path + "'");
+  write_g2o(out, graph);
+  if (!out) throw std::invalid_argument("path: write to '" + path + "' failed");
+}
+
+}  // namespace probslam
