@@ -6,6 +6,7 @@ void define_grid(pybind11::module_& m);
 void define_io(pybind11::module_& m);
 void define_ekf(pybind11::module_& m);
 void define_graph(pybind11::module_& m);
+void define_information_form(pybind11::module_& m);
 }  // namespace probslam::bindings
 
 PYBIND11_MODULE(_core, m) {
@@ -15,4 +16,5 @@ PYBIND11_MODULE(_core, m) {
   probslam::bindings::define_io(m);
   probslam::bindings::define_ekf(m);
   probslam::bindings::define_graph(m);
+  probslam::bindings::define_information_form(m);
 }

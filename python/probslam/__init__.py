@@ -20,6 +20,17 @@ from ._core import (
     wrap_angle,
 )
 from . import io, sim
+from .graph import OptimizationReport, PoseGraph2D, marginal_covariances, optimize, read_pose_graph, write_g2o
+from .graphslam import (
+    GraphSlamResult,
+    Measurements,
+    eif_construct,
+    eif_initialize,
+    eif_objective,
+    eif_reduce,
+    eif_solve,
+    graph_slam,
+)
 from .ekf import EkfSlam, MapManagement
 from .mapping import MappingSummary, map_laser_log
 
@@ -27,6 +38,20 @@ __version__ = "0.1.0"
 
 __all__ = [
     "EkfSlam",
+    "GraphSlamResult",
+    "Measurements",
+    "OptimizationReport",
+    "PoseGraph2D",
+    "eif_construct",
+    "eif_initialize",
+    "eif_objective",
+    "eif_reduce",
+    "eif_solve",
+    "graph_slam",
+    "marginal_covariances",
+    "optimize",
+    "read_pose_graph",
+    "write_g2o",
     "MapManagement",
     "MappingSummary",
     "OccupancyGrid2D",

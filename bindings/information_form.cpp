@@ -1,0 +1,196 @@
+#include <pybind11/stl.h>
+
+#include "numpy.hpp"
+#include "probslam/graph/information_form.hpp"
+
+namespace probslam::bindings {
+
+namespace {
+
+using IndexArray = py::array_t<int, py::array::c_style | py::array::forcecast>;
+
+// scipy.sparse CSC parts (indptr, indices, data, shape) <-> Eigen column-compressed matrices.
+SparseMatrixd sparse_from_csc(py::handle indptr_obj, py::handle indices_obj, py::handle data_obj,
+                              int rows, int cols, const char* name) {
+  IndexArray indptr = IndexArray::ensure(indptr_obj), indices = IndexArray::ensure(indices_obj);
+  DoubleArray data = as_array(data_obj, name);
+  if (!indptr || !indices || indptr.ndim() != 1 || indices.ndim() != 1 || data.ndim() != 1 ||
+      indptr.shape(0) != cols + 1 || indices.shape(0) != data.shape(0) ||
+      indptr.at(cols) != data.shape(0))
+    throw py::value_error(std::string(name) + " is not a consistent CSC matrix");
+  for (py::ssize_t k = 0; k < indices.shape(0); ++k)
+    if (indices.at(k) < 0 || indices.at(k) >= rows)
+      throw py::value_error(std::string(name) + " has a row index outside the matrix");
+  const Eigen::Map<const SparseMatrixd> map(rows, cols, data.shape(0), indptr.data(), indices.data(),
+                                            data.data());
+  SparseMatrixd out = map;  // also sorts nothing: scipy's canonical CSC has sorted indices
+  return out;
+}
+
+py::tuple sparse_to_csc(const SparseMatrixd& m) {
+  const py::ssize_t nnz = m.nonZeros();
+  py::array_t<int> indptr(m.cols() + 1), indices(nnz);
+  py::array_t<double> data(nnz);
+  std::copy(m.outerIndexPtr(), m.outerIndexPtr() + m.cols() + 1, indptr.mutable_data());
+  std::copy(m.innerIndexPtr(), m.innerIndexPtr() + nnz, indices.mutable_data());
+  std::copy(m.valuePtr(), m.valuePtr() + nnz, data.mutable_data());
+  return py::make_tuple(data, indices, indptr, py::make_tuple(m.rows(), m.cols()));
+}
+
+Eigen::VectorXi int_vector(py::handle obj, const char* name, py::ssize_t size) {
+  auto a = py::array_t<long, py::array::c_style | py::array::forcecast>::ensure(obj);
+  if (!a) throw py::type_error(std::string(name) + " must be an array of integers");
+  if (a.ndim() != 1 || a.shape(0) != size)
+    throw py::value_error(std::string(name) + " must have shape (" + std::to_string(size) + ",)");
+  Eigen::VectorXi out(size);
+  for (py::ssize_t k = 0; k < size; ++k) out[k] = static_cast<int>(a.at(k));
+  return out;
+}
+
+FeatureMeasurements measurements_arg(py::handle time, py::handle z, py::handle correspondences) {
+  DoubleArray za = as_array(z, "z");
+  if (za.ndim() != 2 || (za.shape(1) != 2 && za.shape(1) != 3))
+    throw py::value_error("z must have shape (M, 2) or (M, 3), got " + shape_of(za));
+  FeatureMeasurements m;
+  m.z = as_matrix(za);
+  m.time = int_vector(time, "time", za.shape(0));
+  m.feature = int_vector(correspondences, "correspondences", za.shape(0));
+  return m;
+}
+
+Eigen::VectorXd dt_arg(py::handle dt, py::ssize_t steps) {
+  DoubleArray a = as_array(dt, "dt");
+  if (a.ndim() == 0) return Eigen::VectorXd::Constant(steps, *a.data());
+  if (a.ndim() != 1 || a.shape(0) != steps)
+    throw py::value_error("dt must be a number or have shape (" + std::to_string(steps) + ",)");
+  return as_vector(a);
+}
+
+Eigen::MatrixXd square(py::handle obj, const char* name) {
+  DoubleArray a = as_array(obj, name);
+  if (a.ndim() != 2 || a.shape(0) != a.shape(1))
+    throw py::value_error(std::string(name) + " must be a square matrix, got shape " + shape_of(a));
+  return as_matrix(a);
+}
+
+Eigen::Matrix3d matrix3(py::handle obj, const char* name) {
+  Eigen::MatrixXd m = square(obj, name);
+  if (m.rows() != 3) throw py::value_error(std::string(name) + " must have shape (3, 3)");
+  return m;
+}
+
+InformationForm form_arg(py::handle indptr, py::handle indices, py::handle data, int dim, py::handle xi,
+                         int num_poses, int feature_dim) {
+  InformationForm f;
+  f.omega = sparse_from_csc(indptr, indices, data, dim, dim, "omega");
+  f.xi = as_vector(vector_arg(xi, "xi", dim));
+  f.num_poses = num_poses;
+  f.feature_dim = feature_dim;
+  return f;
+}
+
+py::array_t<double> blocks_array(const std::vector<Eigen::Matrix3d>& blocks) {
+  py::array_t<double> out({static_cast<py::ssize_t>(blocks.size()), py::ssize_t{3}, py::ssize_t{3}});
+  auto r = out.mutable_unchecked<3>();
+  for (size_t k = 0; k < blocks.size(); ++k)
+    for (int i = 0; i < 3; ++i)
+      for (int j = 0; j < 3; ++j) r(k, i, j) = blocks[k](i, j);
+  return out;
+}
+
+}  // namespace
+
+void define_information_form(py::module_& m) {
+  m.def("_eif_initialize",
+        [](py::handle controls, py::handle dt, py::handle initial_pose) {
+          DoubleArray u = matrix_arg(controls, "controls", 2);
+          return Poses2(eif_initialize(as_matrix(u), dt_arg(dt, u.shape(0)), pose_arg(initial_pose, "initial_pose")));
+        });
+  m.def("_eif_construct", [](py::handle controls, py::handle dt, py::handle time, py::handle z,
+                             py::handle correspondences, py::handle poses, py::handle features, py::handle R,
+                             py::handle Q) {
+    DoubleArray u = matrix_arg(controls, "controls", 2);
+    const FeatureMeasurements meas = measurements_arg(time, z, correspondences);
+    DoubleArray p = matrix_arg(poses, "poses", 3);
+    DoubleArray f = as_array(features, "features");
+    if (f.ndim() != 2) throw py::value_error("features must have shape (N, d)");
+    InformationForm form;
+    {
+      const Eigen::VectorXd steps = dt_arg(dt, u.shape(0));
+      const Eigen::Matrix3d r = matrix3(R, "R");
+      const Eigen::MatrixXd q = square(Q, "Q");
+      py::gil_scoped_release release;
+      form = eif_construct(as_matrix(u), steps, meas, as_matrix(p), as_matrix(f), r, q);
+    }
+    return py::make_tuple(sparse_to_csc(form.omega), form.xi);
+  });
+  m.def("_eif_initial_features", [](py::handle poses, py::handle time, py::handle z, py::handle correspondences,
+                                    int num_features) {
+    DoubleArray p = matrix_arg(poses, "poses", 3);
+    return RowMatrixXd(eif_initial_features(as_matrix(p), measurements_arg(time, z, correspondences), num_features));
+  });
+  m.def("_eif_reduce", [](py::handle indptr, py::handle indices, py::handle data, int dim, py::handle xi,
+                          int num_poses, int feature_dim) {
+    const InformationForm form = form_arg(indptr, indices, data, dim, xi, num_poses, feature_dim);
+    ReducedInformationForm reduced;
+    {
+      py::gil_scoped_release release;
+      reduced = eif_reduce(form);
+    }
+    return py::make_tuple(sparse_to_csc(reduced.omega), reduced.xi);
+  });
+  m.def("_eif_solve", [](py::handle r_indptr, py::handle r_indices, py::handle r_data, py::handle r_xi,
+                         py::handle indptr, py::handle indices, py::handle data, int dim, py::handle xi,
+                         int num_poses, int feature_dim, const std::vector<std::pair<int, int>>& blocks) {
+    const InformationForm form = form_arg(indptr, indices, data, dim, xi, num_poses, feature_dim);
+    ReducedInformationForm reduced;
+    const int p = 3 * num_poses;
+    reduced.omega = sparse_from_csc(r_indptr, r_indices, r_data, p, p, "reduced_omega");
+    reduced.xi = as_vector(vector_arg(r_xi, "reduced_xi", p));
+    EifSolution sol;
+    {
+      py::gil_scoped_release release;
+      sol = eif_solve(reduced, form, blocks);
+    }
+    return py::make_tuple(sol.poses, sol.features, blocks_array(sol.covariance_blocks));
+  });
+  m.def("_graph_slam", [](py::handle controls, py::handle dt, py::handle time, py::handle z,
+                          py::handle correspondences, py::handle R, py::handle Q, int max_iterations,
+                          double tolerance, py::handle initial_pose, bool path_covariances) {
+    DoubleArray u = matrix_arg(controls, "controls", 2);
+    const FeatureMeasurements meas = measurements_arg(time, z, correspondences);
+    GraphSlamOptions o;
+    o.max_iterations = max_iterations;
+    o.tolerance = tolerance;
+    o.initial_pose = pose_arg(initial_pose, "initial_pose");
+    o.path_covariances = path_covariances;
+    GraphSlamResult r;
+    {
+      const Eigen::VectorXd steps = dt_arg(dt, u.shape(0));
+      const Eigen::Matrix3d rm = matrix3(R, "R");
+      const Eigen::MatrixXd qm = square(Q, "Q");
+      py::gil_scoped_release release;
+      r = graph_slam(as_matrix(u), steps, meas, rm, qm, o);
+    }
+    py::dict out;
+    out["poses"] = r.poses;
+    out["features"] = r.features;
+    out["pose_covariances"] = blocks_array(r.pose_covariances);
+    out["iterations"] = r.iterations;
+    out["converged"] = r.converged;
+    out["objective"] = r.objective;
+    return out;
+  });
+  m.def("_eif_objective", [](py::handle controls, py::handle dt, py::handle time, py::handle z,
+                             py::handle correspondences, py::handle poses, py::handle features, py::handle R,
+                             py::handle Q) {
+    DoubleArray u = matrix_arg(controls, "controls", 2);
+    DoubleArray p = matrix_arg(poses, "poses", 3);
+    DoubleArray f = as_array(features, "features");
+    if (f.ndim() != 2) throw py::value_error("features must have shape (N, d)");
+    return eif_objective(as_matrix(u), dt_arg(dt, u.shape(0)), measurements_arg(time, z, correspondences),
+                         as_matrix(p), as_matrix(f), matrix3(R, "R"), square(Q, "Q"));
+  });
+}
+
+}  // namespace probslam::bindings
