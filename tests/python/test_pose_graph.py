@@ -1,0 +1,259 @@
+"""2-D pose graphs: optimiser against a dense numpy Gauss-Newton, marginals against the dense
+inverse, file formats, bad input, and the published optima of Intel and M3500."""
+
+import numpy as np
+import pytest
+
+import probslam
+
+# Two converged double-precision optimisers of the same objective agree to about this.
+CONVERGED = 1e-8
+
+
+def wrap(a):
+    return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+def rot(t):
+    return np.array([[np.cos(t), -np.sin(t)], [np.sin(t), np.cos(t)]])
+
+
+def between(a, b):
+    return np.r_[rot(a[2]).T @ (b[:2] - a[:2]), wrap(b[2] - a[2])]
+
+
+def edge_error(a, b, z):
+    """g2o's EDGE_SE2 error t2v(z^-1 a^-1 b), written independently of the C++ code."""
+    d = between(a, b)
+    return np.r_[rot(z[2]).T @ (d[:2] - z[:2]), wrap(d[2] - z[2])]
+
+
+def random_graph(n=12, loops=6, landmarks=3, seed=3):
+    rng = np.random.default_rng(seed)
+    truth = np.zeros((n, 3))
+    for i in range(1, n):
+        step = np.r_[1.0, 0.0, 0.4] + rng.normal(0, 0.1, 3)
+        truth[i, :2] = truth[i - 1, :2] + rot(truth[i - 1, 2]) @ step[:2]
+        truth[i, 2] = wrap(truth[i - 1, 2] + step[2])
+    g = probslam.PoseGraph2D()
+    for i in range(n):
+        g.add_pose(i, truth[i] + rng.normal(0, [0.3, 0.3, 0.1]))
+    edges = [(i, i + 1) for i in range(n - 1)] + [tuple(rng.choice(n, 2, replace=False)) for _ in range(loops)]
+    pose_edges = []
+    for i, j in edges:
+        a = rng.normal(size=(3, 3))
+        info = a @ a.T + 3 * np.eye(3)  # full, non-diagonal information
+        z = between(truth[i], truth[j]) + rng.normal(0, 0.05, 3)
+        g.add_pose_edge(int(i), int(j), z, info)
+        pose_edges.append((int(i), int(j), z, info))
+    point_edges = []
+    for k in range(landmarks):
+        lid = 100 + k
+        p = rng.uniform(-3, 3, 2)
+        g.add_point(lid, p + rng.normal(0, 0.3, 2))
+        for i in rng.choice(n, 3, replace=False):
+            z = rot(truth[i, 2]).T @ (p - truth[i, :2]) + rng.normal(0, 0.05, 2)
+            info = np.array([[4.0, 0.5], [0.5, 2.0]])
+            g.add_point_edge(int(i), lid, z, info)
+            point_edges.append((int(i), lid, z, info))
+    return g, pose_edges, point_edges
+
+
+def dense_problem(g, pose_edges, point_edges):
+    ids = [int(i) for i in g.pose_ids] + [int(i) for i in g.point_ids]
+    dims = {int(i): 3 for i in g.pose_ids} | {int(i): 2 for i in g.point_ids}
+    first = int(g.pose_ids[0])
+    free = [i for i in ids if i != first]
+    offset, k = {}, 0
+    for i in free:
+        offset[i] = k
+        k += dims[i]
+
+    def unpack(values, x):
+        out = dict(values)
+        for i in free:
+            out[i] = out[i].copy()
+            out[i][:dims[i]] = out[i][:dims[i]] + x[offset[i]:offset[i] + dims[i]]
+        return out
+
+    def residual(values):
+        r = []
+        for i, j, z, info in pose_edges:
+            r.append(np.linalg.cholesky(info).T @ edge_error(values[i], values[j], z))
+        for i, lid, z, info in point_edges:
+            e = rot(values[i][2]).T @ (values[lid][:2] - values[i][:2]) - z
+            r.append(np.linalg.cholesky(info).T @ e)
+        return np.concatenate(r)
+
+    return free, offset, dims, unpack, residual, k
+
+
+def dense_gauss_newton(g, pose_edges, point_edges, iterations=50):
+    free, offset, dims, unpack, residual, k = dense_problem(g, pose_edges, point_edges)
+    values = {int(i): p.copy() for i, p in zip(g.pose_ids, g.poses)}
+    values |= {int(i): np.r_[p, 0.0] for i, p in zip(g.point_ids, g.points)}
+    for _ in range(iterations):
+        r = residual(values)
+        jac = np.zeros((r.size, k))
+        for c in range(k):
+            e = np.zeros(k)
+            e[c] = 1e-6
+            jac[:, c] = (residual(unpack(values, e)) - residual(unpack(values, -e))) / 2e-6
+        step = np.linalg.lstsq(jac, -r, rcond=None)[0]
+        values = unpack(values, step)
+        for i in g.pose_ids:
+            values[int(i)][2] = wrap(values[int(i)][2])
+        if np.abs(step).max() < 1e-12:
+            break
+    hessian = jac.T @ jac
+    return values, residual(values) @ residual(values), hessian, offset
+
+
+@pytest.mark.parametrize("algorithm", ["gauss-newton", "levenberg-marquardt"])
+@pytest.mark.parametrize("solver", ["simplicial", "supernodal"])
+def test_optimum_equals_dense_gauss_newton(algorithm, solver):
+    g, pose_edges, point_edges = random_graph()
+    reference, ref_chi2, hessian, offset = dense_gauss_newton(g, pose_edges, point_edges)
+    report = probslam.optimize(g, algorithm=algorithm, linear_solver=solver)
+    assert report.converged
+    assert report.chi2 == pytest.approx(ref_chi2, rel=CONVERGED)
+    assert g.chi2() == pytest.approx(report.chi2)
+    for i, p in zip(g.pose_ids, g.poses):
+        np.testing.assert_allclose(p[:2], reference[int(i)][:2], atol=1e-7)
+        assert abs(wrap(p[2] - reference[int(i)][2])) < 1e-7
+    for i, p in zip(g.point_ids, g.points):
+        np.testing.assert_allclose(p, reference[int(i)][:2], atol=1e-7)
+
+
+def test_marginals_equal_the_dense_inverse():
+    g, pose_edges, point_edges = random_graph()
+    probslam.optimize(g)
+    _, _, hessian, offset = dense_gauss_newton(g, pose_edges, point_edges, iterations=1)
+    sigma = np.linalg.inv(hessian)
+    ids = [0, 3, 7, 100, 102]
+    blocks = probslam.marginal_covariances(g, ids)
+    assert np.all(blocks[0] == 0)  # the gauge pose
+    for i, block in zip(ids[1:], blocks[1:]):
+        o, d = offset[i], block.shape[0]
+        np.testing.assert_allclose(block, sigma[o:o + d, o:o + d], rtol=1e-5)
+
+
+def test_robust_kernels_downweight_an_outlier_edge():
+    g, pose_edges, _ = random_graph(landmarks=0)
+    clean = g.copy()
+    probslam.optimize(clean)
+    g.add_pose_edge(0, 6, np.r_[30.0, -20.0, 2.0], np.eye(3) * 10)  # a false loop closure
+    lm = "levenberg-marquardt"
+    runs = {}
+    for name, options in {"plain": dict(algorithm=lm), "huber": dict(algorithm=lm, kernel="huber"),
+                          "cauchy": dict(kernel="cauchy"), "cauchy-lm": dict(algorithm=lm, kernel="cauchy")}.items():
+        x = g.copy()
+        report = probslam.optimize(x, kernel_width=1.0, **options)
+        runs[name] = np.abs(x.poses[:, :2] - clean.poses[:, :2]).max()
+        assert report.converged or name == "plain"  # the outlier leaves plain least squares crawling
+    # Cauchy's influence vanishes for gross errors; Huber's stays bounded but not zero.
+    assert runs["cauchy"] < 0.2 and runs["cauchy-lm"] < 0.2
+    assert runs["huber"] < runs["plain"] / 2
+
+
+def test_g2o_round_trip_is_lossless(tmp_path):
+    g, _, _ = random_graph()
+    g.set_fixed(3)
+    path = tmp_path / "g.g2o"
+    probslam.write_g2o(str(path), g)
+    back = probslam.read_pose_graph(str(path))
+    np.testing.assert_array_equal(back.poses, g.poses)
+    np.testing.assert_array_equal(back.points, g.points)
+    np.testing.assert_array_equal(back.edge_ids(), g.edge_ids())
+    assert back.chi2() == g.chi2() and back.is_fixed(3) and not back.is_fixed(0)
+
+
+def test_toro_and_isam_information_conventions(tmp_path):
+    # One edge, information [[a, b, c], [b, d, e], [c, e, f]] in the three orders.
+    a, b, c, d, e, f = 4.0, 0.5, 0.2, 3.0, 0.1, 9.0
+    info = np.array([[a, b, c], [b, d, e], [c, e, f]])
+    z = np.array([1.0, 0.2, 0.3])
+    g2o = tmp_path / "a.g2o"
+    g2o.write_text(f"VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nEDGE_SE2 0 1 1 0.2 0.3 {a} {b} {c} {d} {e} {f}\n")
+    toro = tmp_path / "a.graph"
+    toro.write_text(f"VERTEX2 0 0 0 0\nVERTEX2 1 1 0 0\nEDGE2 0 1 1 0.2 0.3 {a} {b} {d} {f} {c} {e}\n")
+    upper = np.linalg.cholesky(info).T  # info = upper^T upper
+    isam = tmp_path / "a.txt"
+    isam.write_text("ODOMETRY 0 1 1 0.2 0.3 " + " ".join(str(upper[i, j]) for i in range(3) for j in range(i, 3)) + "\n")
+    expected = edge_error(np.zeros(3), np.array([1.0, 0, 0]), z) @ info @ edge_error(np.zeros(3), np.array([1.0, 0, 0]), z)
+    assert probslam.read_pose_graph(str(g2o)).chi2() == pytest.approx(expected)
+    assert probslam.read_pose_graph(str(toro)).chi2() == pytest.approx(expected)
+    isam_graph = probslam.read_pose_graph(str(isam))
+    # iSAM lists no vertices: they come from chaining the edges, so the edge is satisfied.
+    np.testing.assert_allclose(isam_graph.poses[1], z)
+    isam_graph.set_poses([1], [[1.0, 0, 0]])
+    assert isam_graph.chi2() == pytest.approx(expected)
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0\n", r":2: VERTEX_SE2 has 4 fields"),
+        ("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 x\n", r":2: field 5 \('x'\) is not a number"),
+        ("VERTEX_SE2 0 0 0 0\nEDGE_SE2 0 7 1 0 0 1 0 0 1 0 1\n", r":2: .*unknown vertex id 7"),
+        ("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 0 0 0\nEDGE_SE2 0 1 1 0 0 1 0 0 -1 0 1\n", r":3: information must be positive definite"),
+        ("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 0 0 0\nEDGE_SE2 0 1 nan 0 0 1 0 0 1 0 1\n", r":3: measurement must contain only finite"),
+        ("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 0 1 0 0\n", r"id is already used: 0"),
+        ("VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\n", r":1: unsupported g2o record"),
+        ("# only a comment\n", r"no vertices or edges"),
+    ],
+)
+def test_malformed_files_name_the_line(tmp_path, text, message):
+    path = tmp_path / "bad.g2o"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=message):
+        probslam.read_pose_graph(str(path))
+
+
+def test_bad_graphs_raise_clear_errors():
+    g = probslam.PoseGraph2D()
+    with pytest.raises(ValueError, match="no vertices"):
+        probslam.optimize(g)
+    g.add_pose(0, [0, 0, 0])
+    g.add_pose(1, [1, 0, 0])
+    g.add_pose(2, [2, 0, 0])
+    g.add_pose(3, [3, 0, 0])
+    with pytest.raises(ValueError, match="no edges"):
+        probslam.optimize(g)
+    g.add_pose_edge(0, 1, [1, 0, 0], np.eye(3))
+    g.add_pose_edge(2, 3, [1, 0, 0], np.eye(3))  # not connected to the gauge pose 0
+    before = g.poses.copy()
+    with pytest.raises(ValueError, match="singular"):
+        probslam.optimize(g)
+    with pytest.raises(ValueError, match="singular"):
+        probslam.marginal_covariances(g, [3])
+    with pytest.raises(ValueError, match="information"):
+        g.add_pose_edge(0, 2, [1, 0, 0], np.diag([1.0, 1.0, np.inf]))
+    with pytest.raises(ValueError, match="information"):
+        g.add_pose_edge(0, 2, [1, 0, 0], np.diag([1.0, -1.0, 1.0]))
+    with pytest.raises(ValueError, match="information must have shape"):
+        g.add_pose_edge(0, 2, [1, 0, 0], np.eye(2))
+    with pytest.raises(ValueError, match="unknown vertex id 9"):
+        g.add_pose_edge(0, 9, [1, 0, 0], np.eye(3))
+    with pytest.raises(ValueError, match="pose"):
+        g.add_pose(5, [np.nan, 0, 0])
+    with pytest.raises(ValueError, match="algorithm"):
+        probslam.optimize(g, algorithm="newton")
+    with pytest.raises(ValueError, match="kernel_width"):
+        probslam.optimize(g, kernel="huber", kernel_width=0.0)
+    assert g.num_pose_edges == 2
+    np.testing.assert_array_equal(g.poses, before)
+
+
+@pytest.mark.parametrize(
+    "name, expected",
+    [("pose_graphs/intel/intel.g2o", 45.0047), ("pose_graphs/manhattan_m3500/input_M3500_g2o.g2o", 137.913)],
+)
+def test_published_optima(shared_data, name, expected):
+    g = probslam.read_pose_graph(str(shared_data / name))
+    report = probslam.optimize(g)
+    assert report.converged
+    # The published figures carry 6 significant digits.
+    assert report.chi2 == pytest.approx(expected, rel=5e-6)
+    lm = probslam.read_pose_graph(str(shared_data / name))
+    assert probslam.optimize(lm, algorithm="levenberg-marquardt").chi2 == pytest.approx(report.chi2, rel=1e-6)
