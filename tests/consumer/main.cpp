@@ -1,6 +1,8 @@
-// Built against the installed package: maps one scan and checks the result.
+// Built against the installed package: maps one scan and optimises a small pose graph (which
+// needs CHOLMOD through the package's dependencies), and checks both results.
 #include <cmath>
 #include <iostream>
+#include <probslam/graph/graph_optimizer.hpp>
 #include <probslam/grid/occupancy_grid_2d.hpp>
 
 int main() {
@@ -11,5 +13,13 @@ int main() {
   const Eigen::Vector2i wall = grid.cell_of(1.0, 0.0);
   const double p = grid.probability()(wall[0], wall[1]);
   std::cout << "consumer: " << updated << " cells updated, p(wall) = " << p << "\n";
-  return (updated > 0 && std::abs(p - 0.7) < 1e-12) ? 0 : 1;
+
+  // Two poses, one edge: the optimum satisfies the edge exactly.
+  probslam::PoseGraph2D graph;
+  graph.add_pose(0, Eigen::Vector3d::Zero());
+  graph.add_pose(1, {0.5, 0.5, 0.0});
+  graph.add_pose_edge(0, 1, {1.0, 0.0, 0.5}, Eigen::Matrix3d::Identity());
+  const probslam::OptimizationReport report = probslam::optimize(graph);
+  std::cout << "consumer: chi2 " << report.initial_chi2 << " -> " << report.chi2 << "\n";
+  return (updated > 0 && std::abs(p - 0.7) < 1e-12 && report.chi2 < 1e-20) ? 0 : 1;
 }
