@@ -92,6 +92,40 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
     return 0
 
 
+def _cmd_optimize(args: argparse.Namespace) -> int:
+    from . import graph as pg
+
+    t0 = time.perf_counter()
+    g = pg.read_pose_graph(args.graph, format=args.format)
+    t_read = time.perf_counter() - t0
+    initial = g.poses
+    print(f"graph:      {args.graph}: {len(g.pose_ids)} poses, {len(g.point_ids)} points, "
+          f"{g.num_pose_edges} pose edges, {g.num_point_edges} point edges (read in {t_read:.3f} s)")
+    t1 = time.perf_counter()
+    report = pg.optimize(g, algorithm=args.algorithm, max_iterations=args.max_iterations, kernel=args.kernel,
+                         kernel_width=args.kernel_width, linear_solver=args.linear_solver, ordering=args.ordering)
+    t_opt = time.perf_counter() - t1
+    print(f"chi2:       {report.initial_chi2:.6f} initially")
+    for i, (chi2, seconds) in enumerate(zip(report.chi2_history, report.iteration_seconds), 1):
+        print(f"  iteration {i:3d}: chi2 {chi2:.6f}  ({seconds * 1e3:.2f} ms)")
+    print(f"result:     chi2 {report.chi2:.6f} after {report.iterations} iterations ({report.stop_reason}); "
+          f"optimisation {t_opt:.3f} s, file to result {time.perf_counter() - t0:.3f} s")
+    pg.write_g2o(args.output + ".g2o", g)
+    written = [args.output + ".g2o"]
+    if not args.no_plot:
+        from .plot import pose_graph, require_matplotlib
+
+        plt = require_matplotlib()
+        fig, ax = plt.subplots(figsize=(8, 8))
+        pose_graph(ax, g, initial=initial, edges=args.edges)
+        ax.set_title(f"{args.graph.split('/')[-1]}: chi2 {report.chi2:.4f}")
+        fig.tight_layout()
+        fig.savefig(args.output + ".png", dpi=120)
+        written.append(args.output + ".png")
+    print(f"wrote:      {', '.join(written)}")
+    return 0 if report.converged else 1
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="probslam", description="Probabilistic robot mapping and SLAM.")
     sub = parser.add_subparsers(dest="command", required=True)
@@ -118,6 +152,20 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--sigma-phi", type=float, default=0.04, help="bearing noise, rad")
     e.add_argument("-o", "--output", default="ekf_slam", help="output prefix (default 'ekf_slam')")
     e.set_defaults(func=_cmd_ekf_slam)
+
+    o = sub.add_parser("optimize", help="optimise a 2-D pose/landmark graph (g2o, TORO or iSAM text)")
+    o.add_argument("graph", help="graph file: .g2o, TORO .graph, or iSAM .txt")
+    o.add_argument("--format", default="auto", choices=["auto", "g2o", "toro", "isam"])
+    o.add_argument("--algorithm", default="gauss-newton", choices=["gauss-newton", "levenberg-marquardt"])
+    o.add_argument("--max-iterations", type=int, default=100)
+    o.add_argument("--kernel", default="none", choices=["none", "huber", "cauchy"], help="robust kernel")
+    o.add_argument("--kernel-width", type=float, default=1.0, help="kernel width, in units of sqrt(chi2)")
+    o.add_argument("--linear-solver", default="simplicial", choices=["simplicial", "supernodal", "auto"])
+    o.add_argument("--ordering", default="amd", choices=["amd", "metis"])
+    o.add_argument("--edges", action="store_true", help="draw every edge in the picture")
+    o.add_argument("--no-plot", action="store_true", help="write no picture")
+    o.add_argument("-o", "--output", default="optimized", help="output prefix: PREFIX.g2o/.png (default 'optimized')")
+    o.set_defaults(func=_cmd_optimize)
     return parser
 
 

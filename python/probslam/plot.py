@@ -53,3 +53,24 @@ def landmark_map(ax, poses: np.ndarray, ekf=None, truth_path: Optional[np.ndarra
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.legend(loc="best", fontsize="small")
+
+
+def pose_graph(ax, graph, initial=None, edges: bool = True) -> None:
+    """A PoseGraph2D: its poses as a path, points as dots, and (if ``edges``) every edge as a thin
+    line; ``initial`` (P, 3+) draws the starting guess in grey beneath."""
+    from matplotlib.collections import LineCollection
+
+    if initial is not None:
+        ax.plot(initial[:, 0], initial[:, 1], color="0.7", lw=0.5, label="initial guess")
+    xy = {int(i): p[:2] for i, p in zip(graph.pose_ids, graph.poses)}
+    xy.update({int(i): p for i, p in zip(graph.point_ids, graph.points)})
+    if edges:
+        segments = [(xy[int(a)], xy[int(b)]) for a, b in graph.edge_ids()]
+        ax.add_collection(LineCollection(segments, colors="tab:orange", linewidths=0.3, alpha=0.5, label="edges"))
+    ax.plot(graph.poses[:, 0], graph.poses[:, 1], color="tab:blue", lw=0.7, label="optimised poses")
+    if len(graph.point_ids):
+        ax.plot(graph.points[:, 0], graph.points[:, 1], "r.", ms=3, label="points")
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.legend(loc="best", fontsize="small")

@@ -36,3 +36,29 @@ def test_map_matches_direct_api(tmp_path):
     direct.insert_scans(scans.laser_poses, ranges, scans.beam_angles(), 30.0)
     np.testing.assert_array_equal(grid.log_odds, direct.log_odds)
     assert summary.scans == 180
+
+
+def test_optimize_writes_the_optimised_graph(tmp_path, capsys):
+    g = ps.PoseGraph2D()
+    truth = np.array([[0, 0, 0], [1, 0, np.pi / 2], [1, 1, np.pi], [0, 1, -np.pi / 2]])
+    for i, p in enumerate(truth):
+        g.add_pose(i, p + np.array([0.2, -0.1, 0.1]) * (i > 0))
+    for i in range(4):
+        a, b = truth[i], truth[(i + 1) % 4]
+        c, s = np.cos(a[2]), np.sin(a[2])
+        z = np.r_[np.array([[c, s], [-s, c]]) @ (b[:2] - a[:2]), ps.wrap_angle(b[2] - a[2])]
+        g.add_pose_edge(i, (i + 1) % 4, z, np.eye(3))
+    ps.write_g2o(str(tmp_path / "square.g2o"), g)
+    assert cli.main(["optimize", str(tmp_path / "square.g2o"), "-o", str(tmp_path / "out")]) == 0
+    out = capsys.readouterr().out
+    assert "4 poses" in out and "iteration   1" in out and "chi2 0.000000 after" in out
+    result = ps.read_pose_graph(str(tmp_path / "out.g2o"))
+    np.testing.assert_allclose(result.poses, truth, atol=1e-9)
+    assert (tmp_path / "out.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_optimize_bad_file_reports_line(tmp_path, capsys):
+    bad = tmp_path / "bad.g2o"
+    bad.write_text("VERTEX_SE2 0 0 0 0\nEDGE_SE2 0 1 1 0 0\n")
+    assert cli.main(["optimize", str(bad), "--no-plot", "-o", str(tmp_path / "o")]) == 2
+    assert "bad.g2o:2:" in capsys.readouterr().err
