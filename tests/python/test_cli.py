@@ -36,3 +36,14 @@ def test_map_matches_direct_api(tmp_path):
     direct.insert_scans(scans.laser_poses, ranges, scans.beam_angles(), 30.0)
     np.testing.assert_array_equal(grid.log_odds, direct.log_odds)
     assert summary.scans == 180
+
+
+def test_ekf_slam_unknown_correspondences(tmp_path, capsys, shared_data):
+    import pytest
+
+    pytest.importorskip("matplotlib")
+    folder = shared_data / "landmark_slam/mrclam_dataset7"
+    assert cli.main(["ekf-slam", str(folder), "--unknown", "-o", str(tmp_path / "e")]) == 0
+    out = capsys.readouterr().out
+    assert "unknown (jcbb) correspondences" in out and "% correct" in out
+    assert (tmp_path / "e.png").read_bytes()[:4] == b"\x89PNG"
