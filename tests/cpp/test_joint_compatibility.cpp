@@ -100,3 +100,14 @@ TEST(EkfSlam, JointCompatibilityTellsSwappedNeighboursApart) {
     }
   }
 }
+
+TEST(EkfSlam, UnknownAssociationMethodIsRejected) {
+  EkfSlam ekf(Eigen::Matrix3d::Identity() * 1e-3, Eigen::Matrix2d::Identity() * 1e-3, false, Eigen::Vector3d::Zero(),
+              Eigen::Matrix3d::Zero());
+  RowMatrixXd z(1, 2);
+  z << 2.0, 0.1;
+  ekf.update(z, {3});
+  const Eigen::VectorXd mean = ekf.mean();
+  EXPECT_THROW(ekf.update_unknown(z, 9.0, 30.0, static_cast<Association>(7)), std::invalid_argument);
+  EXPECT_EQ(Eigen::VectorXd(ekf.mean()), mean);
+}
