@@ -55,6 +55,10 @@ void define_ekf(py::module_& m) {
       .def_readwrite("sensor_range", &MapManagement::sensor_range)
       .def_readwrite("sensor_fov", &MapManagement::sensor_fov);
 
+  py::enum_<Association>(m, "Association", "How update_unknown pairs a scan's measurements with landmarks.")
+      .value("MAXIMUM_LIKELIHOOD", Association::kMaximumLikelihood)
+      .value("JOINT_COMPATIBILITY", Association::kJointCompatibility);
+
   py::class_<EkfSlam>(m, "_EkfSlam")
       .def(py::init([](py::handle motion_noise, py::handle measurement_noise, bool use_signatures,
                        py::handle initial_pose, py::handle initial_pose_cov) {
@@ -122,18 +126,19 @@ void define_ekf(py::module_& m) {
           py::arg("z"), py::arg("ids"), py::arg("gate") = std::numeric_limits<double>::infinity())
       .def(
           "update_unknown",
-          [](EkfSlam& e, py::handle z, double alpha, double alpha_new) {
+          [](EkfSlam& e, py::handle z, double alpha, double alpha_new, Association association) {
             DoubleArray zz = measurements_arg(e, z);
             AssociationReport r;
             {
               py::gil_scoped_release release;
-              r = e.update_unknown(as_matrix(zz), alpha, alpha_new);
+              r = e.update_unknown(as_matrix(zz), alpha, alpha_new, association);
             }
             return py::make_tuple(py::array(py::cast(r.ids)), r.mahalanobis,
                                   py::array(py::cast(std::vector<int>(r.outcome.begin(), r.outcome.end()))),
                                   py::array(py::cast(r.removed)));
           },
-          py::arg("z"), py::arg("alpha"), py::arg("alpha_new"))
+          py::arg("z"), py::arg("alpha"), py::arg("alpha_new"),
+          py::arg("association") = Association::kMaximumLikelihood)
       .def_property("map_management", &EkfSlam::map_management, &EkfSlam::set_map_management)
       .def_property("gate_distance", &EkfSlam::gate_distance, &EkfSlam::set_gate_distance)
       .def("remove_landmark", &EkfSlam::remove_landmark, py::arg("id"));

@@ -101,3 +101,50 @@ def save_ros_map(grid: OccupancyGrid2D, yaml_path: str, occupied_thresh: float =
 def load_ros_map(yaml_path: str) -> OccupancyGrid2D: ...
 def save_grid(grid: OccupancyGrid2D, path: str) -> None: ...
 def load_grid(path: str) -> OccupancyGrid2D: ...
+
+# --- EKF SLAM (ch. 10); the public face is probslam.ekf.EkfSlam -------------------------------
+class MapManagement:
+    """Ch. 10.3.3 map management for update_unknown; every part off by default."""
+    provisional: bool
+    min_observations: int
+    provisional_max_std: float  # m
+    provisional_max_age: int  # scans
+    existence: bool
+    existence_hit: float
+    existence_miss: float
+    existence_threshold: float
+    sensor_range: float  # m
+    sensor_fov: float  # rad, full opening angle
+    def __init__(self) -> None: ...
+
+class Association:
+    """How update_unknown pairs a scan's measurements with landmarks."""
+    MAXIMUM_LIKELIHOOD: "Association"  # Table 10.2, the best pairs first
+    JOINT_COMPATIBILITY: "Association"  # JCBB over the scan (Neira & Tardos 2001)
+
+class _EkfSlam:
+    state_dim: int
+    landmark_dim: int
+    num_landmarks: int
+    num_provisional: int
+    capacity: int
+    landmark_ids: npt.NDArray[np.int64]
+    mean: Array  # (state_dim,) zero-copy view
+    covariance: Array  # (state_dim, state_dim) zero-copy view
+    pose: Array  # (3,)
+    map_management: MapManagement
+    gate_distance: float  # m
+    def __init__(self, motion_noise: ArrayLike, measurement_noise: ArrayLike, use_signatures: bool,
+                 initial_pose: ArrayLike, initial_pose_cov: ArrayLike) -> None: ...
+    def landmark(self, id: int) -> Array: ...
+    def landmark_covariance(self, id: int) -> Array: ...
+    def existence(self, id: int) -> float: ...
+    def has_landmark(self, id: int) -> bool: ...
+    def predict(self, v: float, w: float, dt: float, noise: Optional[ArrayLike] = None) -> None: ...
+    def predict_odometry(self, delta: ArrayLike, noise: ArrayLike) -> None: ...
+    def update(self, z: ArrayLike, ids: ArrayLike, gate: float = ...) -> Tuple[Array, npt.NDArray[np.bool_]]: ...
+    def update_unknown(self, z: ArrayLike, alpha: float, alpha_new: float,
+                       association: Association = ...) -> Tuple[npt.NDArray[np.int64], Array,
+                                                                npt.NDArray[np.int64], npt.NDArray[np.int64]]:
+        """(ids, smallest pi, outcome, removed ids) for a scan z (k, 2) or (k, 3)."""
+    def remove_landmark(self, id: int) -> None: ...

@@ -54,14 +54,18 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
         motion = np.diag([args.sigma_v ** 2, args.sigma_w ** 2])
         sensor = np.diag([args.sigma_r ** 2, args.sigma_phi ** 2])
         t_load = time.perf_counter()
-        run = ls.run_ekf_mrclam(data, motion, sensor, known=not args.unknown)
+        run = ls.run_ekf_mrclam(data, motion, sensor, known=not args.unknown, association=args.association)
         t_run = time.perf_counter() - t_load
         dr = ls.run_ekf_mrclam(data, motion, sensor, dead_reckoning=True)
         print(f"dataset:       UTIAS MRCLAM {path} robot {args.robot}, "
-              f"{'unknown' if args.unknown else 'known'} correspondences")
+              f"{'unknown (' + args.association + ')' if args.unknown else 'known'} correspondences")
         print(f"odometry:      {len(data.odometry)} controls; measurements: {len(data.measurements)} of landmarks "
               f"({data.robot_measurements} of robots dropped), {run.rejected} gated as outliers")
         print(f"landmarks:     {run.ekf.num_landmarks} in the map; filter time {t_run:.2f} s")
+        if args.unknown:
+            applied = sum(int(np.count_nonzero(r.outcome <= r.NEW_LANDMARK)) for _, r in run.associations)
+            print(f"associations:  {ls.association_accuracy(run):.1%} correct (each landmark's majority barcode), "
+                  f"{applied} of {len(data.measurements)} sightings applied")
         truth = truth_lm = None
         if data.groundtruth is not None:
             label = None
@@ -145,6 +149,8 @@ def build_parser() -> argparse.ArgumentParser:
     e = sub.add_parser("ekf-slam", help="EKF SLAM on a landmark dataset (MRCLAM folder or Victoria Park file)")
     e.add_argument("dataset", help="a UTIAS MRCLAM folder, or Victoria Park in iSAM/GTSAM text format")
     e.add_argument("--unknown", action="store_true", help="hide the correspondences (Table 10.2)")
+    e.add_argument("--association", choices=("jcbb", "ml"), default="jcbb",
+                   help="with --unknown: joint compatibility over each scan (default) or maximum likelihood")
     e.add_argument("--robot", type=int, default=1, help="MRCLAM robot number (default 1)")
     e.add_argument("--sigma-v", type=float, default=0.15, help="MRCLAM odometry noise, m/s per 10 ms command")
     e.add_argument("--sigma-w", type=float, default=0.6, help="MRCLAM odometry noise, rad/s per 10 ms command")

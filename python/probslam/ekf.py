@@ -7,7 +7,7 @@ from typing import NamedTuple, Optional
 import numpy as np
 
 from . import _core
-from ._core import MapManagement
+from ._core import Association, MapManagement
 
 #: Association gate: the chi-square quantile at this probability, with the measurement's
 #: degrees of freedom, is the default Mahalanobis threshold alpha of Table 10.2.
@@ -16,6 +16,9 @@ DEFAULT_ASSOCIATION_PROBABILITY = 0.99
 #: in between are discarded as ambiguous (otherwise the 1% of true re-sightings beyond alpha
 #: would each spawn a duplicate landmark).
 DEFAULT_NEW_LANDMARK_PROBABILITY = 1.0 - 1e-6
+
+#: ``update_unknown``'s association methods by name.
+ASSOCIATIONS = {"ml": Association.MAXIMUM_LIKELIHOOD, "jcbb": Association.JOINT_COMPATIBILITY}
 
 
 class UpdateResult(NamedTuple):
@@ -149,16 +152,27 @@ class EkfSlam:
         nis, used = self._f.update(z, ids_array, np.inf if gate is None else gate)
         return UpdateResult(nis, used)
 
-    def update_unknown(self, z, alpha: Optional[float] = None, alpha_new: Optional[float] = None) -> AssociationResult:
-        """Table 10.2: maximum-likelihood correspondences.
+    def update_unknown(self, z, alpha: Optional[float] = None, alpha_new: Optional[float] = None,
+                       association: str = "ml") -> AssociationResult:
+        """Table 10.2: unknown correspondences for one scan z (k, 2) or (k, 3).
 
         ``alpha`` (default: chi-square quantile 0.99) is the Mahalanobis threshold below which a
-        measurement joins a landmark; above ``alpha_new`` (default: quantile 1 - 1e-6) it creates
-        one; in between it is discarded. Each landmark takes at most one measurement of a scan.
+        measurement may join a landmark; each landmark takes at most one measurement of a scan.
+        ``association``: ``"ml"`` pairs the smallest distances first (Table 10.2); ``"jcbb"``
+        takes the jointly compatible pairing of the whole scan with the most pairs (joint
+        compatibility branch and bound, Neira & Tardos 2001), its joint gates the chi-square
+        quantiles at alpha's probability, which tells neighbouring landmarks apart when several
+        are seen at once. An unpaired measurement creates a landmark when its distance exceeds
+        ``alpha_new`` (default: quantile 1 - 1e-6) for every landmark not paired with another
+        measurement of the scan; otherwise it is discarded as ambiguous.
         """
+        if not isinstance(association, str):
+            raise TypeError(f"association must be a string, got {type(association).__name__}")
+        if association not in ASSOCIATIONS:
+            raise ValueError(f"association must be one of {sorted(ASSOCIATIONS)}, got {association!r}")
         d = self._f.landmark_dim
         alpha = chi2_quantile(DEFAULT_ASSOCIATION_PROBABILITY, d) if alpha is None else alpha
         if alpha_new is None:
             alpha_new = max(alpha, chi2_quantile(DEFAULT_NEW_LANDMARK_PROBABILITY, d))
-        ids, pi, outcome, removed = self._f.update_unknown(z, alpha, alpha_new)
+        ids, pi, outcome, removed = self._f.update_unknown(z, alpha, alpha_new, ASSOCIATIONS[association])
         return AssociationResult(ids.astype(np.int64), pi, outcome.astype(np.int8), np.asarray(removed, np.int64))

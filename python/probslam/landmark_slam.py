@@ -49,13 +49,15 @@ def run_ekf_mrclam(data: Mrclam, motion_noise, measurement_noise, known: bool = 
                    gate: Optional[float] = None, alpha: Optional[float] = None, alpha_new: Optional[float] = None,
                    initial_pose=None, map_management: Optional[MapManagement] = None,
                    gate_distance: float = 1.0, dead_reckoning: bool = False,
-                   command_period: float = 0.01) -> EkfRun:
+                   command_period: float = 0.01, association: str = "jcbb") -> EkfRun:
     """EKF SLAM over an MRCLAM robot: odometry (v, w) between stamps, the measurements of one
     time stamp as one scan. ``motion_noise`` (2, 2) is the control noise of one command
     period (MRCLAM's ~10 ms); the stamps are irregular (gaps up to 1 s), so it is applied as a
     white velocity noise, M * command_period / dt for a step of dt, whose pose variance grows
     linearly with time whatever the stamps. ``known``: the barcodes give the correspondences (gated by
-    ``gate``, default the chi-square 0.999 quantile); else Table 10.2 (barcodes hidden).
+    ``gate``, default the chi-square 0.999 quantile); else Table 10.2 (barcodes hidden) with
+    ``association`` ("jcbb" or "ml", see ``EkfSlam.update_unknown``): the landmarks stand in
+    clusters 0.18 m apart, which one measurement at a time cannot tell apart.
     ``dead_reckoning``: predictions only. The start pose defaults to the ground truth's."""
     odo, meas = data.odometry, data.measurements
     if initial_pose is None:
@@ -86,7 +88,8 @@ def run_ekf_mrclam(data: Mrclam, motion_noise, measurement_noise, known: bool = 
             if known:
                 rejected += int(np.count_nonzero(~ekf.update(rows[:, 2:4], rows[:, 1].astype(np.int64), gate).used))
             else:
-                run.associations.append((rows[:, 1].astype(np.int64), ekf.update_unknown(rows[:, 2:4], alpha, alpha_new)))
+                result = ekf.update_unknown(rows[:, 2:4], alpha, alpha_new, association)
+                run.associations.append((rows[:, 1].astype(np.int64), result))
             s += 1
         if t_next > t_now:
             ekf.predict(v, w, t_next - t_now, m_rate / (t_next - t_now))

@@ -9,10 +9,12 @@
 #include <tuple>
 
 #include "probslam/core/angle.hpp"
+#include "probslam/core/chi_square.hpp"
 #include "probslam/core/check.hpp"
 #include "probslam/core/range_bearing_model.hpp"
 #include "probslam/core/spatial_hash_2d.hpp"
 #include "probslam/core/velocity_motion_model.hpp"
+#include "probslam/ekf/joint_compatibility.hpp"
 
 namespace probslam {
 namespace {
@@ -263,8 +265,9 @@ UpdateReport EkfSlam::update(const Eigen::Ref<const RowMatrixXd>& z, const std::
 
 EkfSlam::Candidate EkfSlam::candidate(const Eigen::VectorXd& lm, const Eigen::MatrixXd* own_cov, int index) const {
   Candidate c;
-  Eigen::MatrixXd hx, hm;
-  measurement_jacobian(lm, c.z_hat, hx, hm);
+  measurement_jacobian(lm, c.z_hat, c.hx, c.hm);
+  const Eigen::MatrixXd& hx = c.hx;
+  const Eigen::MatrixXd& hm = c.hm;
   const Eigen::MatrixXd& p = s_->cov;
   Eigen::MatrixXd psi = hx * p.topLeftCorner<3, 3>() * hx.transpose() + Q_;
   if (own_cov == nullptr) {  // a map landmark: correlated with the robot
@@ -296,10 +299,13 @@ bool EkfSlam::update_provisional(Provisional& p, const Eigen::VectorXd& z) const
 
 // Table 10.2, with candidates gated through a spatial index and per-landmark quantities
 // (z-hat, Psi^-1) computed once per scan from the predicted belief.
-AssociationReport EkfSlam::update_unknown(const Eigen::Ref<const RowMatrixXd>& z, double alpha, double alpha_new) {
+AssociationReport EkfSlam::update_unknown(const Eigen::Ref<const RowMatrixXd>& z, double alpha, double alpha_new,
+                                          Association association) {
   check_measurements(z);
   require(std::isfinite(alpha) && alpha > 0.0, "alpha", "must be finite and > 0");
   require(!std::isnan(alpha_new) && alpha_new >= alpha, "alpha_new", "must be >= alpha");
+  require(association == Association::kMaximumLikelihood || association == Association::kJointCompatibility,
+          "association", "must be maximum likelihood or joint compatibility");
   const Eigen::Index k = z.rows();
   const int n_map = num_landmarks();
   const int n_prov = static_cast<int>(provisional_.size());
@@ -313,7 +319,8 @@ AssociationReport EkfSlam::update_unknown(const Eigen::Ref<const RowMatrixXd>& z
   for (int j = 0; j < where.rows(); ++j) hash.insert(j, where(j, 0), where(j, 1));
 
   std::unordered_map<int, Candidate> cache;
-  std::vector<std::tuple<double, int, int>> pairs;  // (pi, measurement, target)
+  std::vector<std::tuple<double, int, int>> pairs;  // (pi, measurement, target), pi <= alpha
+  std::vector<std::tuple<double, int, int>> near_pairs;  // every candidate looked at
   AssociationReport report;
   report.ids.assign(k, -1);
   report.outcome.assign(k, AssociationReport::kDiscarded);
@@ -345,18 +352,30 @@ AssociationReport EkfSlam::update_unknown(const Eigen::Ref<const RowMatrixXd>& z
       innovation(zi, it->second.z_hat, nu);
       const double pi = nu.dot(it->second.psi_inv * nu);  // Table 10.2 line 17
       report.mahalanobis[i] = std::min(report.mahalanobis[i], pi);
+      near_pairs.emplace_back(pi, static_cast<int>(i), j);
       if (pi <= alpha) pairs.emplace_back(pi, static_cast<int>(i), j);
     }
   }
-  // Lines 19-20, globally: the best pairs first, one landmark per measurement and vice versa.
-  std::sort(pairs.begin(), pairs.end());
   std::vector<int> target(k, -1);
   std::vector<std::uint8_t> taken(where.rows(), 0);
-  for (const auto& [pi, i, j] : pairs) {
-    if (target[i] >= 0 || taken[j]) continue;
-    target[i] = j;
-    taken[j] = 1;
+  if (association == Association::kMaximumLikelihood) {
+    // Lines 19-20, globally: the best pairs first, one landmark per measurement and vice versa.
+    std::sort(pairs.begin(), pairs.end());
+    for (const auto& [pi, i, j] : pairs) {
+      if (target[i] >= 0 || taken[j]) continue;
+      target[i] = j;
+      taken[j] = 1;
+    }
+  } else {
+    target = joint_target(z, pairs, cache, n_map, alpha);
+    for (const int j : target)
+      if (j >= 0) taken[j] = 1;
   }
+  // A landmark paired with another measurement of this scan cannot explain this one too, so only
+  // the others decide whether an unpaired measurement is a new landmark.
+  std::vector<double> free_pi(k, std::numeric_limits<double>::infinity());
+  for (const auto& [pi, i, j] : near_pairs)
+    if (!taken[j]) free_pi[i] = std::min(free_pi[i], pi);
 
   std::vector<std::uint8_t> observed(n_map, 0);
   std::vector<long> map_ids(ids_.begin(), ids_.end());  // ids before this scan changes the map
@@ -380,7 +399,7 @@ AssociationReport EkfSlam::update_unknown(const Eigen::Ref<const RowMatrixXd>& z
       } else {
         report.outcome[i] = AssociationReport::kProvisional;
       }
-    } else if (report.mahalanobis[i] > alpha_new) {  // line 19: a new landmark
+    } else if (free_pi[i] > alpha_new) {  // line 19: a new landmark
       if (mm_.provisional) {
         Provisional p;
         Eigen::MatrixXd gx, gz;
@@ -409,6 +428,41 @@ AssociationReport EkfSlam::update_unknown(const Eigen::Ref<const RowMatrixXd>& z
   provisional_ = std::move(kept);
   if (mm_.existence) update_existence(observed, x, report);
   return report;
+}
+
+// JCBB over the scan's individually compatible pairs. The joint gate for n pairs is the chi-square
+// quantile, with n times one measurement's dof, at the probability alpha has for one.
+std::vector<int> EkfSlam::joint_target(const Eigen::Ref<const RowMatrixXd>& z,
+                                       const std::vector<std::tuple<double, int, int>>& pairs,
+                                       const std::unordered_map<int, Candidate>& cache, int n_map, double alpha) const {
+  const int k = static_cast<int>(z.rows());
+  const double probability = chi_square_cdf(alpha, md_);
+  std::vector<double> gates(k + 1, std::numeric_limits<double>::infinity());
+  if (probability < 1.0)
+    for (int n = 1; n <= k; ++n) gates[n] = chi_square_quantile(probability, n * md_);
+  std::vector<Pairing> pairings;
+  pairings.reserve(pairs.size());
+  for (const auto& [pi, i, j] : pairs) {
+    const Candidate& c = cache.at(j);
+    Pairing p;
+    p.measurement = i;
+    p.target = j;
+    innovation(z.row(i).transpose(), c.z_hat, p.innovation);
+    if (j < n_map) {  // robot and landmark columns of the state
+      const int at = 3 + j * ld_;
+      p.jacobian.resize(md_, 3 + ld_);
+      p.jacobian << c.hx, c.hm;
+      p.columns = {0, 1, 2};
+      for (int d = 0; d < ld_; ++d) p.columns.push_back(at + d);
+      p.noise = Q_;
+    } else {  // a provisional landmark: outside the state, uncorrelated with it
+      p.jacobian = c.hx;
+      p.columns = {0, 1, 2};
+      p.noise = Q_ + c.hm * provisional_[j - n_map].cov * c.hm.transpose();
+    }
+    pairings.push_back(std::move(p));
+  }
+  return joint_compatibility(k, pairings, s_->cov.topLeftCorner(n_, n_), gates).target;
 }
 
 // Ch. 10.3.3: o_j rises when j is observed, falls when j should have been seen but was not.

@@ -88,3 +88,68 @@ class DenseEkfSlam:
         self.sigma = np.vstack([top, bottom])
         self.mu = np.concatenate([self.mu, m])
         self.ids.append(j)
+
+
+def measurement_rows(mu, ld, index, q_dim):
+    """Predicted measurement (q_dim,) and dense Jacobian (q_dim, D) of landmark `index` (state order)."""
+    k0 = 3 + ld * index
+    dx, dy = mu[k0] - mu[0], mu[k0 + 1] - mu[1]
+    q = dx * dx + dy * dy
+    sq = np.sqrt(q)
+    z_hat = np.array([sq, wrap(np.arctan2(dy, dx) - mu[2])] + ([mu[k0 + 2]] if q_dim == 3 else []))
+    h = np.zeros((q_dim, len(mu)))
+    h[0, [0, 1, k0, k0 + 1]] = np.array([-dx, -dy, dx, dy]) / sq
+    h[1, [0, 1, 2, k0, k0 + 1]] = np.array([dy, -dx, -q, -dy, dx]) / q
+    if q_dim == 3:
+        h[2, k0 + 2] = 1.0
+    return z_hat, h
+
+
+def joint_compatibility_brute_force(z, mu, sigma, q, ld, alpha):
+    """Every assignment of the scan's measurements to landmarks (state order) or to nothing,
+    each landmark at most once, every pairing individually compatible (pi <= alpha) and every
+    leading part, in measurement order, jointly compatible (joint NIS of its n pairings within the
+    chi-square quantile with n * dof at alpha's probability). Returns the one with the most
+    pairings, then the smallest joint NIS: (targets per measurement or -1, joint NIS, pi (k, N))."""
+    from scipy.stats import chi2
+
+    z = np.atleast_2d(z)
+    k, m = z.shape
+    n_lm = (len(mu) - 3) // ld
+    rows = [measurement_rows(mu, ld, j, m) for j in range(n_lm)]
+    nu = np.empty((k, n_lm, m))
+    pi = np.empty((k, n_lm))
+    for i in range(k):
+        for j, (z_hat, h) in enumerate(rows):
+            nu[i, j] = z[i] - z_hat
+            nu[i, j, 1] = wrap(nu[i, j, 1])
+            pi[i, j] = nu[i, j] @ np.linalg.solve(h @ sigma @ h.T + q, nu[i, j])
+    p = chi2.cdf(alpha, m)
+
+    def joint_nis(pairs):
+        h = np.vstack([rows[j][1] for _, j in pairs])
+        v = np.concatenate([nu[i, j] for i, j in pairs])
+        s = h @ sigma @ h.T + np.kron(np.eye(len(pairs)), q)
+        return float(v @ np.linalg.solve(s, v))
+
+    best = [(), 0.0]
+
+    def visit(i, pairs):
+        if pairs and joint_nis(pairs) > chi2.ppf(p, m * len(pairs)):
+            return  # not jointly compatible: nothing extending it is admissible
+        if i == k:
+            nis = joint_nis(pairs) if pairs else 0.0
+            if len(pairs) > len(best[0]) or (len(pairs) == len(best[0]) and nis < best[1]):
+                best[0], best[1] = tuple(pairs), nis
+            return
+        used = {j for _, j in pairs}
+        for j in range(n_lm):
+            if pi[i, j] <= alpha and j not in used:
+                visit(i + 1, pairs + [(i, j)])
+        visit(i + 1, pairs)
+
+    visit(0, [])
+    target = -np.ones(k, dtype=np.int64)
+    for i, j in best[0]:
+        target[i] = j
+    return target, best[1], pi

@@ -62,3 +62,14 @@ def test_optimize_bad_file_reports_line(tmp_path, capsys):
     bad.write_text("VERTEX_SE2 0 0 0 0\nEDGE_SE2 0 1 1 0 0\n")
     assert cli.main(["optimize", str(bad), "--no-plot", "-o", str(tmp_path / "o")]) == 2
     assert "bad.g2o:2:" in capsys.readouterr().err
+
+
+def test_ekf_slam_unknown_correspondences(tmp_path, capsys, shared_data):
+    import pytest
+
+    pytest.importorskip("matplotlib")
+    folder = shared_data / "landmark_slam/mrclam_dataset7"
+    assert cli.main(["ekf-slam", str(folder), "--unknown", "-o", str(tmp_path / "e")]) == 0
+    out = capsys.readouterr().out
+    assert "unknown (jcbb) correspondences" in out and "% correct" in out
+    assert (tmp_path / "e.png").read_bytes()[:4] == b"\x89PNG"

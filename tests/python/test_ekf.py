@@ -146,6 +146,9 @@ def test_bad_construction(call, err, name):
     (lambda e: e.update([[1.0, 0.1]], [1.5]), TypeError, "ids"),
     (lambda e: e.update_unknown([[1.0, np.inf]]), ValueError, "z"),
     (lambda e: e.update_unknown([[1.0, 0.1]], alpha=-1.0), ValueError, "alpha"),
+    (lambda e: e.update_unknown([[1.0, 0.1]], association="nearest"), ValueError, "association"),
+    (lambda e: e.update_unknown([[1.0, 0.1]], association=1), TypeError, "association"),
+    (lambda e: e.update_unknown([[1.0, np.nan]], association="jcbb"), ValueError, "z"),
     (lambda e: e.landmark_covariance(99), ValueError, "id"),
     (lambda e: e.predict_odometry([0, 0, 0], np.diag([1, -1, 1.0])), ValueError, "noise"),
     (lambda e: e.predict_odometry([0, np.nan, 0], np.eye(3)), ValueError, "delta"),
@@ -210,3 +213,62 @@ def test_map_management_options_validated():
     mm.sensor_fov = -1.0
     with pytest.raises(ValueError, match="sensor_fov"):
         ps.EkfSlam(np.eye(3), np.eye(2), use_signatures=False, map_management=mm)
+
+
+def clustered_scan(rng, n_landmarks, k):
+    """A filter whose map holds landmarks 0.2-0.4 m apart, a robot whose heading became
+    uncertain, and a scan of k measurements (a common heading error, noise, maybe clutter)."""
+    q = np.diag([0.03 ** 2, 0.01 ** 2])
+    ekf = ps.EkfSlam(np.diag([0.01, 0.01, 0.002]), q, use_signatures=False, gate_distance=100.0)
+    centre = rng.uniform(2.5, 4.0) * np.array([1.0, rng.uniform(-0.3, 0.3)])
+    xy = centre + rng.uniform(-0.4, 0.4, (n_landmarks, 2))
+    z0 = np.column_stack([np.hypot(xy[:, 0], xy[:, 1]), np.arctan2(xy[:, 1], xy[:, 0])])
+    ekf.update(z0 + rng.normal(0, [0.03, 0.01], z0.shape), np.arange(n_landmarks))
+    ekf.predict(0.3, 0.0, 1.0, noise=np.diag([0.01, 0.01, rng.uniform(0.002, 0.02)]))
+    seen = rng.choice(n_landmarks, size=min(k, n_landmarks), replace=False)
+    pose = ekf.pose + rng.normal(0, [0.05, 0.05, 0.08])
+    d = xy[seen] - pose[:2]
+    z = np.column_stack([np.hypot(d[:, 0], d[:, 1]), wrap_np(np.arctan2(d[:, 1], d[:, 0]) - pose[2])])
+    z += rng.normal(0, [0.03, 0.01], z.shape)
+    if rng.random() < 0.3:  # clutter
+        z = np.vstack([z, [rng.uniform(2, 4), rng.uniform(-0.5, 0.5)]])
+    return ekf, z[rng.permutation(len(z))], q
+
+
+def wrap_np(a):
+    return (a + np.pi) % (2 * np.pi) - np.pi
+
+
+@pytest.mark.parametrize("seed", range(40))
+def test_joint_compatibility_equals_brute_force(seed):
+    from ekf_reference import joint_compatibility_brute_force
+
+    rng = np.random.default_rng(seed)
+    ekf, z, q = clustered_scan(rng, int(rng.integers(2, 7)), int(rng.integers(1, 5)))
+    alpha, alpha_new = ps.ekf.chi2_quantile(0.99, 2), ps.ekf.chi2_quantile(1 - 1e-6, 2)
+    mu, sigma, ids = ekf.mean.copy(), ekf.covariance.copy(), ekf.landmark_ids.copy()
+    target, _, pi = joint_compatibility_brute_force(z, mu, sigma, q, 2, alpha)
+    result = ekf.update_unknown(z, association="jcbb")
+    paired = target >= 0
+    np.testing.assert_array_equal(result.outcome[paired], result.ASSOCIATED)
+    np.testing.assert_array_equal(result.ids[paired], ids[target[paired]])
+    # Unpaired: a new landmark when every landmark not paired in this scan is beyond alpha_new.
+    taken = np.zeros(len(ids), bool)
+    taken[target[paired]] = True
+    for i in np.flatnonzero(~paired):
+        new = np.min(pi[i, ~taken], initial=np.inf) > alpha_new
+        assert result.outcome[i] == (result.NEW_LANDMARK if new else result.DISCARDED)
+
+
+def test_joint_compatibility_cases_differ_from_maximum_likelihood():
+    """The random cases above are ones where the method matters."""
+    differ = 0
+    for seed in range(40):
+        results = []
+        for method in ("ml", "jcbb"):
+            rng = np.random.default_rng(seed)
+            ekf, z, _ = clustered_scan(rng, int(rng.integers(2, 7)), int(rng.integers(1, 5)))
+            results.append(ekf.update_unknown(z, association=method))
+        differ += not (np.array_equal(results[0].ids, results[1].ids)
+                       and np.array_equal(results[0].outcome, results[1].outcome))
+    assert differ >= 5

