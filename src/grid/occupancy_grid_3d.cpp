@@ -49,6 +49,9 @@ class VoxelStoreT {
     std::uint64_t* word = changed_ + (v >> 6);
     const std::uint64_t bit = std::uint64_t{1} << (v & 63);
     if constexpr (Concurrent) {
+      // Most voxels near the sensor are crossed by many rays: a plain look first spares the
+      // locked read-modify-write for those already claimed.
+      if (__atomic_load_n(word, __ATOMIC_RELAXED) & bit) return false;
       if (__atomic_fetch_or(word, bit, __ATOMIC_RELAXED) & bit) return false;
     } else {
       if (*word & bit) return false;
@@ -70,6 +73,8 @@ class VoxelStoreT {
 
   bool missing() const { return missing_; }
   void reset_missing() { missing_ = false; }
+  /// Where the concurrent flavour lists the blocks it found missing.
+  void record_missing_blocks(std::vector<std::uint64_t>* blocks) { missing_blocks_ = blocks; }
 
  private:
   void select(std::uint64_t packed) {
@@ -79,6 +84,7 @@ class VoxelStoreT {
       const std::int64_t found = g_.find_block(packed);
       if (found < 0) {
         values_ = nullptr;
+        if (missing_blocks_ != nullptr) missing_blocks_->push_back(packed);
         return;
       }
       b = static_cast<std::size_t>(found);
@@ -103,6 +109,7 @@ class VoxelStoreT {
   std::uint64_t* changed_ = nullptr;
   std::uint32_t* known_ = nullptr;
   bool missing_ = false;
+  std::vector<std::uint64_t>* missing_blocks_ = nullptr;
 };
 
 using VoxelStore = VoxelStoreT<false>;
@@ -262,33 +269,44 @@ InsertStats3D OccupancyGrid3D::insert_point_cloud(const float* xyz, std::size_t 
     return stats;
   }
 
-  // Concurrent walk over the existing blocks; rays that reach a missing block are finished
-  // afterwards by the serial store. The per-scan result is a union of voxel sets (hit beats
-  // miss, one change per voxel), so it does not depend on which thread walks which ray.
-  std::atomic<std::size_t> next{0};
+  // Concurrent walk over the existing blocks. A ray that reaches a missing block is set aside
+  // (its walk goes on, listing every missing block it meets); the listed blocks are then
+  // created serially and the set-aside rays walked again, concurrently. The per-scan result is
+  // a union of voxel sets (hit beats miss, one change per voxel), so it does not depend on
+  // which thread walks which ray or how often.
   std::vector<std::vector<std::uint32_t>> touched_by(workers), deferred_by(workers);
+  std::vector<std::vector<std::uint64_t>> missing_by(workers);
   std::vector<std::size_t> updated_by(workers, 0);
-  const auto work = [&](std::size_t w) {
-    VoxelLookupStore lookup(*this, touched_by[w]);
-    for (;;) {
-      const std::size_t first = next.fetch_add(kRaysPerTask);
-      if (first >= scan.n) break;
-      const std::size_t last = std::min(scan.n, first + kRaysPerTask);
-      for (std::size_t i = first; i < last; ++i) {
-        lookup.reset_missing();
-        updated_by[w] += apply_misses(lattice_, lookup, scan, i, i + 1);
-        if (lookup.missing()) deferred_by[w].push_back(static_cast<std::uint32_t>(i));
+  const auto run = [&](std::size_t count, const std::uint32_t* rays, bool second_pass) {
+    std::atomic<std::size_t> next{0};
+    const auto work = [&](std::size_t w) {
+      VoxelLookupStore lookup(*this, touched_by[w]);
+      if (!second_pass) lookup.record_missing_blocks(&missing_by[w]);
+      for (;;) {
+        const std::size_t first = next.fetch_add(kRaysPerTask);
+        if (first >= count) break;
+        const std::size_t last = std::min(count, first + kRaysPerTask);
+        for (std::size_t j = first; j < last; ++j) {
+          const std::size_t i = rays ? rays[j] : j;
+          lookup.reset_missing();
+          updated_by[w] += apply_misses(lattice_, lookup, scan, i, i + 1);
+          if (lookup.missing() && !second_pass) deferred_by[w].push_back(static_cast<std::uint32_t>(i));
+        }
       }
-    }
+    };
+    std::vector<std::thread> pool;
+    for (std::size_t w = 1; w < workers; ++w) pool.emplace_back(work, w);
+    work(0);
+    for (auto& t : pool) t.join();
   };
-  std::vector<std::thread> pool;
-  for (std::size_t w = 1; w < workers; ++w) pool.emplace_back(work, w);
-  work(0);
-  for (auto& t : pool) t.join();
+  run(scan.n, nullptr, false);
+  std::vector<std::uint32_t> deferred;
   for (std::size_t w = 0; w < workers; ++w) {
-    stats.voxels_updated += updated_by[w];
-    for (const std::uint32_t i : deferred_by[w]) stats.voxels_updated += apply_misses(lattice_, store, scan, i, i + 1);
+    for (const std::uint64_t packed : missing_by[w]) find_or_create_block(packed);
+    deferred.insert(deferred.end(), deferred_by[w].begin(), deferred_by[w].end());
   }
+  if (!deferred.empty()) run(deferred.size(), deferred.data(), true);
+  for (const std::size_t u : updated_by) stats.voxels_updated += u;
   // Only now, with every ray walked, may the "changed in this scan" marks go.
   for (const auto& t : touched_by) end_scan(t);
   end_scan(touched);
