@@ -14,9 +14,11 @@ namespace probslam {
 namespace {
 
 constexpr std::size_t kInitialTableSlots = 1024;  // power of two
-// Rays handed to a worker at a time: large enough to amortise the shared counter, small
-// enough that two workers finish together on a 100 k-point scan.
-constexpr std::size_t kRaysPerTask = 512;
+// Below this many rays per thread, threads cost more than they save.
+constexpr std::size_t kMinRaysPerThread = 512;
+// Rays are grouped by azimuth into this many sectors so that each thread walks its own wedge
+// of space: threads walking neighbouring rays would fight over the same cache lines.
+constexpr int kAzimuthSectors = 1024;
 
 // OctoMap stores its probabilities as float log-odds: logodds(p) = (float) log(p / (1 - p)).
 float float_logit(double p) { return static_cast<float>(logit(p)); }
@@ -261,51 +263,63 @@ InsertStats3D OccupancyGrid3D::insert_point_cloud(const float* xyz, std::size_t 
     end_scan(touched);
     return stats;
   }
-  const std::size_t workers = std::min<std::size_t>(static_cast<std::size_t>(threads),
-                                                    (scan.n + kRaysPerTask - 1) / kRaysPerTask);
+  const std::size_t workers =
+      std::min<std::size_t>(static_cast<std::size_t>(threads), scan.n / kMinRaysPerThread);
   if (workers <= 1) {
     stats.voxels_updated += apply_misses(lattice_, store, scan, 0, scan.n);
     end_scan(touched);
     return stats;
   }
 
-  // Concurrent walk over the existing blocks. A ray that reaches a missing block is set aside
-  // (its walk goes on, listing every missing block it meets); the listed blocks are then
-  // created serially and the set-aside rays walked again, concurrently. The per-scan result is
-  // a union of voxel sets (hit beats miss, one change per voxel), so it does not depend on
-  // which thread walks which ray or how often.
+  // Concurrent walk over the existing blocks, each thread over a contiguous range of azimuth
+  // sectors. A ray that reaches a missing block is set aside (its walk goes on, listing every
+  // missing block it meets); the listed blocks are then created serially and the set-aside rays
+  // walked again, concurrently. The per-scan result is a union of voxel sets (hit beats miss,
+  // one change per voxel), so it does not depend on which thread walks which ray or how often.
+  std::vector<std::uint32_t> order(scan.n);
+  {
+    std::vector<std::uint16_t> sector(scan.n);
+    std::vector<std::uint32_t> start(kAzimuthSectors + 1, 0);
+    constexpr double kTwoPi = 6.283185307179586;
+    for (std::size_t i = 0; i < scan.n; ++i) {
+      const double a = std::atan2(static_cast<double>(scan.ends[3 * i + 1] - origin[1]),
+                                  static_cast<double>(scan.ends[3 * i] - origin[0]));
+      const int k = static_cast<int>((a + kTwoPi / 2) / kTwoPi * kAzimuthSectors);
+      sector[i] = static_cast<std::uint16_t>(std::min(std::max(k, 0), kAzimuthSectors - 1));
+      ++start[sector[i] + 1];
+    }
+    for (int k = 0; k < kAzimuthSectors; ++k) start[k + 1] += start[k];
+    for (std::size_t i = 0; i < scan.n; ++i) order[start[sector[i]]++] = static_cast<std::uint32_t>(i);
+  }
   std::vector<std::vector<std::uint32_t>> touched_by(workers), deferred_by(workers);
   std::vector<std::vector<std::uint64_t>> missing_by(workers);
   std::vector<std::size_t> updated_by(workers, 0);
-  const auto run = [&](std::size_t count, const std::uint32_t* rays, bool second_pass) {
-    std::atomic<std::size_t> next{0};
+  const auto run = [&](const std::vector<std::uint32_t>& rays, bool second_pass) {
     const auto work = [&](std::size_t w) {
       VoxelLookupStore lookup(*this, touched_by[w]);
       if (!second_pass) lookup.record_missing_blocks(&missing_by[w]);
-      for (;;) {
-        const std::size_t first = next.fetch_add(kRaysPerTask);
-        if (first >= count) break;
-        const std::size_t last = std::min(count, first + kRaysPerTask);
-        for (std::size_t j = first; j < last; ++j) {
-          const std::size_t i = rays ? rays[j] : j;
-          lookup.reset_missing();
-          updated_by[w] += apply_misses(lattice_, lookup, scan, i, i + 1);
-          if (lookup.missing() && !second_pass) deferred_by[w].push_back(static_cast<std::uint32_t>(i));
-        }
+      std::size_t updated = 0;
+      const std::size_t first = rays.size() * w / workers, last = rays.size() * (w + 1) / workers;
+      for (std::size_t j = first; j < last; ++j) {
+        const std::size_t i = rays[j];
+        lookup.reset_missing();
+        updated += apply_misses(lattice_, lookup, scan, i, i + 1);
+        if (lookup.missing() && !second_pass) deferred_by[w].push_back(static_cast<std::uint32_t>(i));
       }
+      updated_by[w] += updated;
     };
     std::vector<std::thread> pool;
     for (std::size_t w = 1; w < workers; ++w) pool.emplace_back(work, w);
     work(0);
     for (auto& t : pool) t.join();
   };
-  run(scan.n, nullptr, false);
+  run(order, false);
   std::vector<std::uint32_t> deferred;
   for (std::size_t w = 0; w < workers; ++w) {
     for (const std::uint64_t packed : missing_by[w]) find_or_create_block(packed);
     deferred.insert(deferred.end(), deferred_by[w].begin(), deferred_by[w].end());
   }
-  if (!deferred.empty()) run(deferred.size(), deferred.data(), true);
+  if (!deferred.empty()) run(deferred, true);
   for (const std::size_t u : updated_by) stats.voxels_updated += u;
   // Only now, with every ray walked, may the "changed in this scan" marks go.
   for (const auto& t : touched_by) end_scan(t);
