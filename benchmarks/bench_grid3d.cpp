@@ -6,7 +6,6 @@
 //
 // Prints one line of key=value pairs.
 #include <octomap/OcTree.h>
-#include <sys/resource.h>
 
 #include <algorithm>
 #include <chrono>
@@ -90,10 +89,17 @@ void simulate_scan(int index, const std::vector<Box>& boxes, std::vector<float>&
   }
 }
 
+// This process's peak resident set (VmHWM; getrusage's ru_maxrss would carry over the parent's
+// peak across fork and exec).
 long peak_rss_kb() {
-  rusage u{};
-  getrusage(RUSAGE_SELF, &u);
-  return u.ru_maxrss;
+  FILE* f = std::fopen("/proc/self/status", "r");
+  if (f == nullptr) return -1;
+  char line[256];
+  long kb = -1;
+  while (std::fgets(line, sizeof line, f))
+    if (std::sscanf(line, "VmHWM: %ld kB", &kb) == 1) break;
+  std::fclose(f);
+  return kb;
 }
 
 // Order-independent fingerprint of a voxel map: both implementations must print the same.
