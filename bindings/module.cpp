@@ -3,6 +3,7 @@
 namespace probslam::bindings {
 void define_core(pybind11::module_& m);
 void define_grid(pybind11::module_& m);
+void define_grid3d(pybind11::module_& m);
 void define_io(pybind11::module_& m);
 void define_ekf(pybind11::module_& m);
 void define_graph(pybind11::module_& m);
@@ -13,6 +14,7 @@ PYBIND11_MODULE(_core, m) {
   m.doc() = "probslam's C++ core; use the pure-Python API in the probslam package.";
   probslam::bindings::define_core(m);
   probslam::bindings::define_grid(m);
+  probslam::bindings::define_grid3d(m);
   probslam::bindings::define_io(m);
   probslam::bindings::define_ekf(m);
   probslam::bindings::define_graph(m);

@@ -5,6 +5,7 @@ Units: metres and radians; poses are ``(x, y, theta)`` with theta wrapped to (-p
 
 from ._core import (
     OccupancyGrid2D,
+    OccupancyGrid3D,
     Pose2,
     fuse_max,
     inverse_range_sensor_model,
@@ -55,6 +56,7 @@ __all__ = [
     "MapManagement",
     "MappingSummary",
     "OccupancyGrid2D",
+    "OccupancyGrid3D",
     "Pose2",
     "fuse_max",
     "inverse_range_sensor_model",

@@ -91,6 +91,47 @@ class OccupancyGrid2D:
     def copy(self) -> "OccupancyGrid2D": ...
     def same_geometry(self, other: "OccupancyGrid2D") -> bool: ...
 
+class OccupancyGrid3D:
+    """Sparse 3-D occupancy grid (ch. 9.2 in 3-D), hashed 8x8x8-voxel blocks, unbounded within
+    OctoMap's key range (+-32768 voxels per axis). Updated with OctoMap 1.9.7's
+    OcTree::insertPointCloud rules: same voxel keys, same float32 log-odds."""
+    resolution: float  # voxel edge, m
+    p_hit: float
+    p_miss: float
+    clamp: Tuple[float, float]  # (clamp_min, clamp_max) probabilities
+    occupancy_threshold: float
+    log_odds_hit: float  # float32 logit(p_hit)
+    log_odds_miss: float
+    log_odds_clamp: Tuple[float, float]
+    num_known_voxels: int
+    num_occupied_voxels: int
+    num_blocks: int
+    memory_bytes: int
+    def __init__(self, resolution: float, p_hit: float = 0.7, p_miss: float = 0.4, clamp_min: float = 0.1192,
+                 clamp_max: float = 0.971, occupancy_threshold: float = 0.5) -> None: ...
+    def insert_point_cloud(self, points: ArrayLike, origin: ArrayLike, max_range: float = -1.0,
+                           threads: int = 1) -> dict:
+        """points (n, 3) m, origin (3,) m (rounded to float32); max_range m, < 0 unlimited. Returns
+        counts: points, skipped_nonfinite, out_of_bounds, max_range_cut, voxels_updated."""
+    @overload
+    def log_odds_at(self, points: ArrayLike) -> npt.NDArray[np.float32]: ...  # (n, 3) -> (n,), NaN unknown
+    @overload
+    def log_odds_at(self, points: Tuple[float, float, float]) -> float: ...
+    def is_occupied(self, points: ArrayLike) -> Union[bool, npt.NDArray[np.bool_]]: ...
+    def cast_ray(self, origin: ArrayLike, direction: ArrayLike, max_range: float) -> Optional[Array]:
+        """Centre (3,) of the first occupied voxel within max_range m, or None."""
+    def known_voxels(self) -> Tuple[Array, npt.NDArray[np.float32]]: ...  # centres (n, 3), log-odds (n,)
+    def occupied_voxels(self) -> Tuple[Array, npt.NDArray[np.float32]]: ...
+    def project_2d(self, z_min: float = ..., z_max: float = ...) -> OccupancyGrid2D:
+        """Column-wise maximum log-odds of known voxels with centre z in [z_min, z_max]."""
+    def write_bt(self, path: str) -> int:
+        """OctoMap .bt file (occupancy bits only); returns the number of tree nodes."""
+    @staticmethod
+    def read_bt(path: str, p_hit: float = 0.7, p_miss: float = 0.4, clamp_min: float = 0.1192,
+                clamp_max: float = 0.971, occupancy_threshold: float = 0.5) -> "OccupancyGrid3D":
+        """OctoMap .bt file; voxels get the clamped log-odds. ValueError on a bad file."""
+    def clear(self) -> None: ...
+
 def fuse_max(grids: Sequence[OccupancyGrid2D]) -> OccupancyGrid2D:
     """Eq. 9.9: cell-wise most pessimistic map of grids of equal geometry."""
 

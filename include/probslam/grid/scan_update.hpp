@@ -17,28 +17,32 @@ struct ScanSegments {
   std::size_t n;
 };
 
-/// Applies one scan with OctoMap's rules: every cell a ray crosses (origin's cell included,
-/// end cell excluded) gets the miss update, every end cell of a hit the hit update; within a
-/// scan each cell changes at most once and a cell both hit and crossed counts as hit.
-///
-/// Store provides `bool contains(const CellKey<Dim>&)` and `bool update_once(const CellKey<Dim>&,
-/// bool hit)`, which applies the update unless the cell was already updated in this scan (the
-/// caller starts a new scan on the store first). Rays leaving a bounded store stop there.
-/// Returns the number of cells updated.
+/// The hit half of a scan: every hit's end cell gets the hit update (once per scan). Run it
+/// before apply_misses so that a cell both hit and crossed counts as hit. Returns the number of
+/// cells updated.
 template <int Dim, typename Real, class Lattice, class Store>
-std::size_t apply_scan(const Lattice& lattice, Store& store, const ScanSegments<Dim, Real>& scan) {
+std::size_t apply_hits(const Lattice& lattice, Store& store, const ScanSegments<Dim, Real>& scan) {
   std::size_t updated = 0;
-  // Hits first, so that a later ray crossing a hit cell leaves it alone.
   for (std::size_t i = 0; i < scan.n; ++i) {
     if (!scan.is_hit[i]) continue;
     CellKey<Dim> key;
     for (int d = 0; d < Dim; ++d) key[d] = lattice.key(d, scan.ends[i * Dim + d]);
     if (store.contains(key) && store.update_once(key, true)) ++updated;
   }
+  return updated;
+}
+
+/// The miss half of a scan for rays [first, last): every cell a ray crosses (origin's cell
+/// included, end cell excluded) gets the miss update unless it changed already in this scan.
+/// Split from apply_hits so that a caller may walk disjoint ranges of rays concurrently.
+template <int Dim, typename Real, class Lattice, class Store>
+std::size_t apply_misses(const Lattice& lattice, Store& store, const ScanSegments<Dim, Real>& scan,
+                         std::size_t first, std::size_t last) {
+  std::size_t updated = 0;
   CellKey<Dim> origin_key;
   for (int d = 0; d < Dim; ++d) origin_key[d] = lattice.key(d, scan.origin[d]);
   const bool origin_inside = store.contains(origin_key);
-  for (std::size_t i = 0; i < scan.n; ++i) {
+  for (std::size_t i = first; i < last; ++i) {
     const Real* end = scan.ends + i * Dim;
     CellKey<Dim> end_key;
     for (int d = 0; d < Dim; ++d) end_key[d] = lattice.key(d, end[d]);
@@ -60,6 +64,21 @@ std::size_t apply_scan(const Lattice& lattice, Store& store, const ScanSegments<
     });
   }
   return updated;
+}
+
+/// Applies one scan with OctoMap's rules: every cell a ray crosses (origin's cell included,
+/// end cell excluded) gets the miss update, every end cell of a hit the hit update; within a
+/// scan each cell changes at most once and a cell both hit and crossed counts as hit.
+///
+/// Store provides `bool contains(const CellKey<Dim>&)` and `bool update_once(const CellKey<Dim>&,
+/// bool hit)`, which applies the update unless the cell was already updated in this scan (the
+/// caller starts a new scan on the store first). Rays leaving a bounded store stop there.
+/// Returns the number of cells updated.
+template <int Dim, typename Real, class Lattice, class Store>
+std::size_t apply_scan(const Lattice& lattice, Store& store, const ScanSegments<Dim, Real>& scan) {
+  // Hits first, so that a later ray crossing a hit cell leaves it alone.
+  const std::size_t hits = apply_hits(lattice, store, scan);
+  return hits + apply_misses(lattice, store, scan, 0, scan.n);
 }
 
 }  // namespace probslam

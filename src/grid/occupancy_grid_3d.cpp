@@ -1,0 +1,451 @@
+#include "probslam/grid/occupancy_grid_3d.hpp"
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <limits>
+#include <thread>
+
+#include "probslam/core/check.hpp"
+#include "probslam/grid/log_odds.hpp"
+#include "probslam/grid/scan_update.hpp"
+
+namespace probslam {
+namespace {
+
+constexpr std::size_t kInitialTableSlots = 1024;  // power of two
+// Below this many rays per thread, threads cost more than they save.
+constexpr std::size_t kMinRaysPerThread = 512;
+// Rays are grouped by azimuth into this many sectors so that each thread walks its own wedge
+// of space: threads walking neighbouring rays would fight over the same cache lines.
+constexpr int kAzimuthSectors = 1024;
+
+// OctoMap stores its probabilities as float log-odds: logodds(p) = (float) log(p / (1 - p)).
+float float_logit(double p) { return static_cast<float>(logit(p)); }
+
+std::size_t hash_slot(std::uint64_t packed, std::size_t mask) {
+  return static_cast<std::size_t>((packed * 0x9E3779B97F4A7C15ull) >> 29) & mask;
+}
+
+}  // namespace
+
+/// The grid as apply_scan sees it: OctoMap's key range, voxels that change once per scan.
+/// Serial flavour: creates blocks on demand. Concurrent flavour: never creates a block (the
+/// block table is read-only while several walk), claims voxels with atomic bit operations, and
+/// reports rays that reached a missing block so that the caller re-walks them serially.
+template <bool Concurrent>
+class VoxelStoreT {
+ public:
+  VoxelStoreT(OccupancyGrid3D& grid, std::vector<std::uint32_t>& touched) : g_(grid), touched_(touched) {}
+
+  bool contains(const CellKey<3>& k) const { return OctreeLattice::valid(k); }
+
+  bool update_once(const CellKey<3>& k, bool hit) {
+    const std::uint64_t packed = OccupancyGrid3D::pack(k);
+    if (packed != cached_) select(packed);
+    if (Concurrent && values_ == nullptr) {
+      missing_ = true;
+      return false;
+    }
+    const int v = OccupancyGrid3D::voxel_index(k);
+    std::uint64_t* word = changed_ + (v >> 6);
+    const std::uint64_t bit = std::uint64_t{1} << (v & 63);
+    if constexpr (Concurrent) {
+      // Most voxels near the sensor are crossed by many rays: a plain look first spares the
+      // locked read-modify-write for those already claimed.
+      if (__atomic_load_n(word, __ATOMIC_RELAXED) & bit) return false;
+      if (__atomic_fetch_or(word, bit, __ATOMIC_RELAXED) & bit) return false;
+    } else {
+      if (*word & bit) return false;
+      *word |= bit;
+    }
+    float& l = values_[v];
+    float x = l;
+    if (x != x) {  // unknown: OctoMap creates the node with log-odds 0
+      x = 0.0f;
+      if constexpr (Concurrent) __atomic_fetch_add(known_, 1u, __ATOMIC_RELAXED);
+      else ++*known_;
+    }
+    x += hit ? g_.hit_ : g_.miss_;
+    if (x < g_.lo_) x = g_.lo_;
+    else if (x > g_.hi_) x = g_.hi_;
+    l = x;
+    return true;
+  }
+
+  bool missing() const { return missing_; }
+  void reset_missing() { missing_ = false; }
+  /// Where the concurrent flavour lists the blocks it found missing.
+  void record_missing_blocks(std::vector<std::uint64_t>* blocks) { missing_blocks_ = blocks; }
+
+ private:
+  void select(std::uint64_t packed) {
+    cached_ = packed;
+    std::size_t b;
+    if constexpr (Concurrent) {
+      const std::int64_t found = g_.find_block(packed);
+      if (found < 0) {
+        values_ = nullptr;
+        if (missing_blocks_ != nullptr) missing_blocks_->push_back(packed);
+        return;
+      }
+      b = static_cast<std::size_t>(found);
+      if (__atomic_exchange_n(&g_.listed_[b], std::uint8_t{1}, __ATOMIC_RELAXED) == 0)
+        touched_.push_back(static_cast<std::uint32_t>(b));
+    } else {
+      b = g_.find_or_create_block(packed);
+      if (!g_.listed_[b]) {
+        g_.listed_[b] = 1;
+        touched_.push_back(static_cast<std::uint32_t>(b));
+      }
+    }
+    values_ = g_.block_values(b);
+    changed_ = g_.changed_.data() + b * OccupancyGrid3D::kWordsPerBlock;
+    known_ = g_.known_.data() + b;
+  }
+
+  OccupancyGrid3D& g_;
+  std::vector<std::uint32_t>& touched_;
+  std::uint64_t cached_ = ~std::uint64_t{0};
+  float* values_ = nullptr;
+  std::uint64_t* changed_ = nullptr;
+  std::uint32_t* known_ = nullptr;
+  bool missing_ = false;
+  std::vector<std::uint64_t>* missing_blocks_ = nullptr;
+};
+
+using VoxelStore = VoxelStoreT<false>;
+using VoxelLookupStore = VoxelStoreT<true>;
+
+OccupancyGrid3D::OccupancyGrid3D(double resolution, const OccupancyParams3D& params) {
+  require_positive(resolution, "resolution");
+  require_probability(params.p_hit, "p_hit");
+  require_probability(params.p_miss, "p_miss");
+  require(params.p_hit > 0.5, "p_hit", "must be > 0.5 (a hit must raise the occupancy)");
+  require(params.p_miss < 0.5, "p_miss", "must be < 0.5 (a miss must lower the occupancy)");
+  require_probability(params.clamp_min, "clamp_min");
+  require_probability(params.clamp_max, "clamp_max");
+  require(params.clamp_min < params.clamp_max, "clamp_min", "must be < clamp_max");
+  require_probability(params.occupancy_threshold, "occupancy_threshold");
+  lattice_.res = resolution;
+  lattice_.inv_res = 1.0 / resolution;  // OctoMap's resolution_factor
+  params_ = params;
+  hit_ = float_logit(params.p_hit);
+  miss_ = float_logit(params.p_miss);
+  lo_ = float_logit(params.clamp_min);
+  hi_ = float_logit(params.clamp_max);
+  occ_ = float_logit(params.occupancy_threshold);
+  clear();
+}
+
+OccupancyGrid3D::OccupancyGrid3D(OccupancyGrid3D&&) noexcept = default;
+OccupancyGrid3D& OccupancyGrid3D::operator=(OccupancyGrid3D&&) noexcept = default;
+OccupancyGrid3D::~OccupancyGrid3D() = default;
+
+void OccupancyGrid3D::clear() {
+  chunks_.clear();
+  block_keys_.clear();
+  known_.clear();
+  changed_.clear();
+  listed_.clear();
+  table_keys_.assign(kInitialTableSlots, 0);
+  table_blocks_.assign(kInitialTableSlots, 0);
+}
+
+std::int64_t OccupancyGrid3D::find_block(std::uint64_t packed) const {
+  const std::size_t mask = table_keys_.size() - 1;
+  for (std::size_t s = hash_slot(packed, mask);; s = (s + 1) & mask) {
+    const std::uint64_t k = table_keys_[s];
+    if (k == packed + 1) return table_blocks_[s];
+    if (k == 0) return -1;
+  }
+}
+
+void OccupancyGrid3D::grow_table() {
+  const std::size_t slots = table_keys_.size() * 2, mask = slots - 1;
+  std::vector<std::uint64_t> keys(slots, 0);
+  std::vector<std::uint32_t> blocks(slots, 0);
+  for (std::size_t b = 0; b < block_keys_.size(); ++b) {
+    std::size_t s = hash_slot(block_keys_[b], mask);
+    while (keys[s] != 0) s = (s + 1) & mask;
+    keys[s] = block_keys_[b] + 1;
+    blocks[s] = static_cast<std::uint32_t>(b);
+  }
+  table_keys_.swap(keys);
+  table_blocks_.swap(blocks);
+}
+
+std::size_t OccupancyGrid3D::find_or_create_block(std::uint64_t packed) {
+  std::size_t mask = table_keys_.size() - 1;
+  std::size_t s = hash_slot(packed, mask);
+  for (;; s = (s + 1) & mask) {
+    const std::uint64_t k = table_keys_[s];
+    if (k == packed + 1) return table_blocks_[s];
+    if (k == 0) break;
+  }
+  const std::size_t b = block_keys_.size();
+  if (b % kBlocksPerChunk == 0) {
+    chunks_.emplace_back(new float[static_cast<std::size_t>(kBlocksPerChunk) * kBlockVoxels]);
+    std::fill_n(chunks_.back().get(), static_cast<std::size_t>(kBlocksPerChunk) * kBlockVoxels,
+                std::numeric_limits<float>::quiet_NaN());
+  }
+  block_keys_.push_back(packed);
+  known_.push_back(0);
+  changed_.resize(changed_.size() + kWordsPerBlock, 0);
+  listed_.push_back(0);
+  // Keep the table at most half full so that probe sequences stay short.
+  if (2 * block_keys_.size() > table_keys_.size()) {
+    grow_table();
+  } else {
+    table_keys_[s] = packed + 1;
+    table_blocks_[s] = static_cast<std::uint32_t>(b);
+  }
+  return b;
+}
+
+void OccupancyGrid3D::end_scan(const std::vector<std::uint32_t>& touched) {
+  for (const std::uint32_t b : touched) {
+    std::fill_n(changed_.data() + static_cast<std::size_t>(b) * kWordsPerBlock, kWordsPerBlock, 0);
+    listed_[b] = 0;
+  }
+}
+
+InsertStats3D OccupancyGrid3D::insert_point_cloud(const float* xyz, std::size_t n, const float origin[3],
+                                                  double max_range, int threads) {
+  require(std::isfinite(origin[0]) && std::isfinite(origin[1]) && std::isfinite(origin[2]), "origin",
+          "must contain only finite values");
+  require(!std::isnan(max_range), "max_range", "must not be NaN (negative means unlimited)");
+  require(threads >= 1, "threads", "must be >= 1");
+  require(n == 0 || xyz != nullptr, "points", "must not be null");
+  InsertStats3D stats;
+  stats.points = n;
+
+  // Turn points into segments with computeUpdate's arithmetic: float differences, the norm
+  // as sqrt(double(float sum of squares)), the cut end as origin + (d / (float)|d|) * (float)max_range.
+  std::vector<float> ends;
+  std::vector<std::uint8_t> is_hit;
+  ends.reserve(3 * n);
+  is_hit.reserve(n);
+  const bool cut = max_range >= 0.0;
+  const float range_f = static_cast<float>(max_range);
+  for (std::size_t i = 0; i < n; ++i) {
+    const float* p = xyz + 3 * i;
+    if (!(std::isfinite(p[0]) && std::isfinite(p[1]) && std::isfinite(p[2]))) {
+      ++stats.skipped_nonfinite;
+      continue;
+    }
+    const float d[3] = {p[0] - origin[0], p[1] - origin[1], p[2] - origin[2]};
+    const float norm_sq = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+    const double norm = std::sqrt(static_cast<double>(norm_sq));
+    float end[3] = {p[0], p[1], p[2]};
+    bool hit = true;
+    if (cut && !(norm <= max_range)) {
+      ++stats.max_range_cut;
+      hit = false;
+      const float len = static_cast<float>(norm);  // > 0: the point lies beyond max_range >= 0
+      for (int a = 0; a < 3; ++a) end[a] = origin[a] + (d[a] / len) * range_f;
+    }
+    const CellKey<3> key = key_of(end[0], end[1], end[2]);
+    if (!OctreeLattice::valid(key)) {  // OctoMap drops both the ray and the hit
+      ++stats.out_of_bounds;
+      continue;
+    }
+    ends.insert(ends.end(), end, end + 3);
+    is_hit.push_back(hit);
+  }
+
+  const ScanSegments<3, float> scan{origin, ends.data(), is_hit.data(), is_hit.size()};
+  std::vector<std::uint32_t> touched;
+  VoxelStore store(*this, touched);
+  const bool origin_valid = OctreeLattice::valid(key_of(origin[0], origin[1], origin[2]));
+  const std::size_t workers =
+      std::min<std::size_t>(static_cast<std::size_t>(threads), scan.n / kMinRaysPerThread);
+  if (workers <= 1 || !origin_valid) {
+    stats.voxels_updated = apply_hits(lattice_, store, scan);
+    // computeRayKeys refuses a ray whose origin is outside the key range; the hits remain.
+    if (origin_valid) stats.voxels_updated += apply_misses(lattice_, store, scan, 0, scan.n);
+    end_scan(touched);
+    return stats;
+  }
+
+  // Concurrent updates of the existing blocks; an update that needs a missing block is set
+  // aside, the missing blocks are created serially and the set-aside work done again. Hits go
+  // first, all of them, then the rays. The per-scan result is a union of voxel sets (hit beats
+  // miss, one change per voxel), so it does not depend on which thread does what or how often.
+  //
+  // Rays are walked in azimuth order, each thread over a contiguous range of sectors: threads
+  // walking neighbouring rays would fight over the same cache lines.
+  std::vector<std::uint32_t> order(scan.n);
+  {
+    std::vector<std::uint16_t> sector(scan.n);
+    std::vector<std::uint32_t> start(kAzimuthSectors + 1, 0);
+    for (std::size_t i = 0; i < scan.n; ++i) {
+      // A pseudo-angle in [-2, 2], monotonic in the azimuth: cheaper than atan2.
+      const double dx = scan.ends[3 * i] - origin[0], dy = scan.ends[3 * i + 1] - origin[1];
+      const double r = std::fabs(dx) + std::fabs(dy);
+      double p = r > 0.0 ? dy / r : 0.0;
+      p = dx >= 0.0 ? p : (dy >= 0.0 ? 2.0 - p : -2.0 - p);
+      const int k = static_cast<int>((p + 2.0) * (kAzimuthSectors / 4.0));
+      sector[i] = static_cast<std::uint16_t>(std::min(std::max(k, 0), kAzimuthSectors - 1));
+      ++start[sector[i] + 1];
+    }
+    for (int k = 0; k < kAzimuthSectors; ++k) start[k + 1] += start[k];
+    for (std::size_t i = 0; i < scan.n; ++i) order[start[sector[i]]++] = static_cast<std::uint32_t>(i);
+  }
+  std::vector<std::vector<std::uint32_t>> touched_by(workers), deferred_by(workers);
+  std::vector<std::vector<std::uint64_t>> missing_by(workers);
+  std::vector<std::size_t> updated_by(workers, 0);
+  // Does updates [share of `items`] on each thread: hits (one point each) or ray walks.
+  const auto run = [&](const std::vector<std::uint32_t>& items, bool hits, bool second_pass) {
+    const auto work = [&](std::size_t w) {
+      VoxelLookupStore lookup(*this, touched_by[w]);
+      if (!second_pass) lookup.record_missing_blocks(&missing_by[w]);
+      std::size_t updated = 0;
+      const std::size_t first = items.size() * w / workers, last = items.size() * (w + 1) / workers;
+      for (std::size_t j = first; j < last; ++j) {
+        const std::size_t i = items[j];
+        lookup.reset_missing();
+        if (hits) updated += apply_hits(lattice_, lookup, ScanSegments<3, float>{origin, scan.ends + 3 * i, scan.is_hit + i, 1});
+        else updated += apply_misses(lattice_, lookup, scan, i, i + 1);
+        if (lookup.missing() && !second_pass) deferred_by[w].push_back(static_cast<std::uint32_t>(i));
+      }
+      updated_by[w] += updated;
+    };
+    std::vector<std::thread> pool;
+    for (std::size_t w = 1; w < workers; ++w) pool.emplace_back(work, w);
+    work(0);
+    for (auto& t : pool) t.join();
+  };
+  // Creates the blocks the first pass missed and repeats the updates that needed them.
+  const auto finish = [&](bool hits) {
+    std::vector<std::uint32_t> deferred;
+    for (std::size_t w = 0; w < workers; ++w) {
+      for (const std::uint64_t packed : missing_by[w]) find_or_create_block(packed);
+      missing_by[w].clear();
+      deferred.insert(deferred.end(), deferred_by[w].begin(), deferred_by[w].end());
+      deferred_by[w].clear();
+    }
+    if (!deferred.empty()) run(deferred, hits, true);
+  };
+  std::vector<std::uint32_t> hit_points;
+  for (std::size_t i = 0; i < scan.n; ++i)
+    if (scan.is_hit[i]) hit_points.push_back(static_cast<std::uint32_t>(i));
+  run(hit_points, true, false);
+  finish(true);
+  run(order, false, false);
+  finish(false);
+  for (const std::size_t u : updated_by) stats.voxels_updated += u;
+  // Only now, with every ray walked, may the "changed in this scan" marks go.
+  for (const auto& t : touched_by) end_scan(t);
+  end_scan(touched);
+  return stats;
+}
+
+InsertStats3D OccupancyGrid3D::insert_point_cloud(
+    const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>& points,
+    const Eigen::Vector3d& origin, double max_range, int threads) {
+  require_all_finite(origin, "origin");
+  std::vector<float> xyz(static_cast<std::size_t>(points.rows()) * 3);
+  for (Eigen::Index i = 0; i < points.rows(); ++i)
+    for (int a = 0; a < 3; ++a) xyz[3 * i + a] = static_cast<float>(points(i, a));
+  const float o[3] = {static_cast<float>(origin.x()), static_cast<float>(origin.y()), static_cast<float>(origin.z())};
+  return insert_point_cloud(xyz.data(), static_cast<std::size_t>(points.rows()), o, max_range, threads);
+}
+
+float OccupancyGrid3D::log_odds_at_key(const CellKey<3>& key) const {
+  if (!OctreeLattice::valid(key)) return std::numeric_limits<float>::quiet_NaN();
+  const std::int64_t b = find_block(pack(key));
+  if (b < 0) return std::numeric_limits<float>::quiet_NaN();
+  return block_values(static_cast<std::size_t>(b))[voxel_index(key)];
+}
+
+void OccupancyGrid3D::set_log_odds(const CellKey<3>& key, float value) {
+  require(OctreeLattice::valid(key), "key", "must lie in [0, 65536) on every axis");
+  const std::int64_t found = find_block(pack(key));
+  if (found < 0 && std::isnan(value)) return;
+  const std::size_t b = found < 0 ? find_or_create_block(pack(key)) : static_cast<std::size_t>(found);
+  float& l = block_values(b)[voxel_index(key)];
+  const bool was_known = !std::isnan(l);
+  if (std::isnan(value)) {
+    l = value;
+    if (was_known) --known_[b];
+    return;
+  }
+  l = std::min(std::max(value, lo_), hi_);
+  if (!was_known) ++known_[b];
+}
+
+std::optional<Eigen::Vector3d> OccupancyGrid3D::cast_ray(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
+                                                         double max_range) const {
+  require_all_finite(origin, "origin");
+  require_all_finite(direction, "direction");
+  require(direction.norm() > 0.0, "direction", "must not be zero");
+  require_positive(max_range, "max_range");
+  const Eigen::Vector3d end = origin + direction.normalized() * max_range;
+  const double o[3] = {origin.x(), origin.y(), origin.z()}, e[3] = {end.x(), end.y(), end.z()};
+  std::optional<Eigen::Vector3d> found;
+  const auto occupied = [&](const CellKey<3>& k) { return log_odds_at_key(k) >= occ_; };
+  walk_ray<3, double>(lattice_, o, e, [&](const CellKey<3>& k) {
+    if (!occupied(k)) return true;
+    found = key_center(k);
+    return false;
+  });
+  if (!found) {  // the walk leaves out the end's voxel (and is empty when it is the origin's)
+    const CellKey<3> k = key_of(e[0], e[1], e[2]);
+    if (occupied(k)) found = key_center(k);
+  }
+  return found;
+}
+
+std::size_t OccupancyGrid3D::num_known_voxels() const {
+  std::size_t n = 0;
+  for (const std::uint32_t k : known_) n += k;
+  return n;
+}
+
+std::size_t OccupancyGrid3D::num_occupied_voxels() const {
+  std::size_t n = 0;
+  for_each_known([&](const CellKey<3>&, float l) { n += l >= occ_; });
+  return n;
+}
+
+std::size_t OccupancyGrid3D::memory_bytes() const {
+  return sizeof(*this) + chunks_.capacity() * sizeof(chunks_[0]) +
+         chunks_.size() * static_cast<std::size_t>(kBlocksPerChunk) * kBlockVoxels * sizeof(float) +
+         block_keys_.capacity() * sizeof(std::uint64_t) + known_.capacity() * sizeof(std::uint32_t) +
+         changed_.capacity() * sizeof(std::uint64_t) + listed_.capacity() +
+         table_keys_.capacity() * sizeof(std::uint64_t) + table_blocks_.capacity() * sizeof(std::uint32_t);
+}
+
+OccupancyGrid2D OccupancyGrid3D::project_2d(double z_min, double z_max) const {
+  require(std::isfinite(z_min) && std::isfinite(z_max) && z_min <= z_max, "z_min", "must be finite and <= z_max");
+  int x_lo = OctreeLattice::kKeyLimit, y_lo = OctreeLattice::kKeyLimit, x_hi = -1, y_hi = -1;
+  const auto in_slab = [&](const CellKey<3>& k) {
+    const double z = lattice_.key_to_coord(2, k[2]);
+    return z >= z_min && z <= z_max;
+  };
+  for_each_known([&](const CellKey<3>& k, float) {
+    if (!in_slab(k)) return;
+    x_lo = std::min(x_lo, k[0]);
+    x_hi = std::max(x_hi, k[0]);
+    y_lo = std::min(y_lo, k[1]);
+    y_hi = std::max(y_hi, k[1]);
+  });
+  const LogOddsClamp clamp{lo_, hi_, true};
+  if (x_hi < 0) return OccupancyGrid2D(lattice_.res, 1, 1, {0.0, 0.0}, 0.5, clamp);
+  const int w = x_hi - x_lo + 1, h = y_hi - y_lo + 1;
+  const Eigen::Vector2d corner((x_lo - OctreeLattice::kKeyOffset) * lattice_.res,
+                               (y_lo - OctreeLattice::kKeyOffset) * lattice_.res);
+  OccupancyGrid2D grid(lattice_.res, w, h, corner, 0.5, clamp);
+  std::vector<std::uint8_t> seen(static_cast<std::size_t>(w) * h, 0);
+  double* out = grid.data();
+  for_each_known([&](const CellKey<3>& k, float l) {
+    if (!in_slab(k)) return;
+    const std::size_t i = static_cast<std::size_t>(k[1] - y_lo) * w + (k[0] - x_lo);
+    out[i] = seen[i] ? std::max(out[i], static_cast<double>(l)) : l;
+    seen[i] = 1;
+  });
+  return grid;
+}
+
+}  // namespace probslam
