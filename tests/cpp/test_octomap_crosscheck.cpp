@@ -123,7 +123,12 @@ TEST_P(CrossCheck, RandomisedCloudsMatchOctomap) {
 
 INSTANTIATE_TEST_SUITE_P(Resolutions, CrossCheck,
                          ::testing::Values(Case{0.1, -1.0}, Case{0.1, 4.0}, Case{0.25, -1.0}, Case{0.25, 3.0},
-                                           Case{0.05, -1.0}, Case{0.05, 2.5}, Case{0.2, 0.0}));
+                                           Case{0.05, -1.0}, Case{0.05, 2.5}, Case{0.2, 0.0}),
+                         [](const ::testing::TestParamInfo<Case>& info) {
+                           const auto mm = [](double v) { return std::to_string(static_cast<int>(std::lround(v * 1000))); };
+                           return "res_" + mm(info.param.res) + "mm_range_" +
+                                  (info.param.max_range < 0 ? std::string("none") : mm(info.param.max_range) + "mm");
+                         });
 
 TEST(CrossCheck, SaturatedVoxelsAndPruningMatch) {
   // The same scan twelve times: voxels reach both clamps, OctoMap prunes uniform regions.
