@@ -15,13 +15,9 @@
 namespace probslam {
 namespace {
 
-void require_covariance(const Eigen::MatrixXd& m, const char* name) {
-  require_all_finite(m, name);
-  require((m - m.transpose()).cwiseAbs().maxCoeff() <= 1e-12 * m.cwiseAbs().maxCoeff(), name,
-          "must be symmetric");
-  require(Eigen::LLT<Eigen::MatrixXd>(m).info() == Eigen::Success, name,
-          "must be positive definite");
-}
+// Asymmetry tolerated in R and Q relative to their largest entry: matrices built in code are
+// symmetric to rounding; more is a mistake.
+constexpr double kSymmetryTolerance = 1e-12;
 
 // Checks the problem's arrays against each other; returns the number of features N.
 int validate(const Eigen::Ref<const RowMatrixXd>& controls, const Eigen::VectorXd& dt,
@@ -178,9 +174,9 @@ InformationForm eif_construct(const Eigen::Ref<const RowMatrixXd>& controls,
   const int d = static_cast<int>(meas.z.cols());
   const int num_poses = static_cast<int>(controls.rows()) + 1;
   validate_state(poses, features, num_poses, n, d);
-  require_covariance(R, "R");
+  require_symmetric_positive_definite(R, "R", kSymmetryTolerance);
   require(Q.rows() == d && Q.cols() == d, "Q", "must be d x d, d the measurement's dimension");
-  require_covariance(Q, "Q");
+  require_symmetric_positive_definite(Q, "Q", kSymmetryTolerance);
 
   std::vector<int> sizes(num_poses, 3);
   sizes.resize(num_poses + n, d);

@@ -1,6 +1,5 @@
 #include "probslam/graph/pose_graph_2d.hpp"
 
-#include <Eigen/Cholesky>
 #include <cmath>
 #include <string>
 
@@ -13,17 +12,6 @@ namespace {
 // Information matrices come from text files with about six significant digits; asymmetry below
 // this (relative to the largest entry) is rounding in the file, larger is a wrong matrix.
 constexpr double kSymmetryTolerance = 1e-6;
-
-template <int N>
-void require_information(const Eigen::Matrix<double, N, N>& information) {
-  require_all_finite(information, "information");
-  const double scale = information.cwiseAbs().maxCoeff();
-  require((information - information.transpose()).cwiseAbs().maxCoeff() <=
-              kSymmetryTolerance * scale,
-          "information", "must be symmetric");
-  Eigen::LLT<Eigen::Matrix<double, N, N>> llt(information);
-  require(llt.info() == Eigen::Success, "information", "must be positive definite");
-}
 
 Eigen::Matrix2d rotation(double theta) {
   const double c = std::cos(theta), s = std::sin(theta);
@@ -84,7 +72,7 @@ void PoseGraph2D::add_pose_edge(int from_id, int to_id, const Eigen::Vector3d& m
   const int to = require_vertex(to_id, VertexKind::kPose, "to");
   require(from != to, "to", "must differ from the edge's first vertex");
   require_all_finite(measurement, "measurement");
-  require_information(information);
+  require_symmetric_positive_definite(information, "information", kSymmetryTolerance);
   pose_edges_.push_back({from, to, measurement, 0.5 * (information + information.transpose())});
 }
 
@@ -93,7 +81,7 @@ void PoseGraph2D::add_point_edge(int pose_id, int point_id, const Eigen::Vector2
   const int pose = require_vertex(pose_id, VertexKind::kPose, "pose");
   const int point = require_vertex(point_id, VertexKind::kPoint, "point");
   require_all_finite(measurement, "measurement");
-  require_information(information);
+  require_symmetric_positive_definite(information, "information", kSymmetryTolerance);
   point_edges_.push_back({pose, point, measurement, 0.5 * (information + information.transpose())});
 }
 

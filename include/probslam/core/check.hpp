@@ -1,6 +1,7 @@
 #pragma once
 // Argument validation shared by every module: each failure throws std::invalid_argument
 // whose message starts with the offending argument's name.
+#include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <cmath>
 #include <string>
@@ -29,6 +30,18 @@ inline void require_probability(double value, const char* name) {
 template <typename Derived>
 void require_all_finite(const Eigen::DenseBase<Derived>& values, const char* name) {
   require(values.allFinite(), name, "must contain only finite values");
+}
+
+/// Finite, symmetric up to `symmetry_tolerance` relative to its largest entry, and positive
+/// definite (its Cholesky factorisation succeeds).
+template <typename Derived>
+void require_symmetric_positive_definite(const Eigen::MatrixBase<Derived>& m, const char* name,
+                                         double symmetry_tolerance) {
+  require_all_finite(m, name);
+  require((m - m.transpose()).cwiseAbs().maxCoeff() <= symmetry_tolerance * m.cwiseAbs().maxCoeff(),
+          name, "must be symmetric");
+  require(Eigen::LLT<typename Derived::PlainObject>(m).info() == Eigen::Success, name,
+          "must be positive definite");
 }
 
 }  // namespace probslam
