@@ -17,7 +17,6 @@ namespace {
 
 using io_detail::Fields;
 using io_detail::LineError;
-using io_detail::split;
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kDegree = kPi / 180.0;
@@ -140,15 +139,8 @@ struct Builder {
 
 CarmenLog parse_carmen_log(std::istream& in, const std::string& source) {
   Builder builder;
-  std::string line;
-  long line_number = 0;
-  while (std::getline(in, line)) {
-    ++line_number;
-    const std::vector<std::string_view> tokens = split(line);
-    if (tokens.empty() || tokens[0][0] == '#') continue;
-    const LineError err(source, line_number);
-    const Fields fields(tokens, err);
-    const std::string_view type = tokens[0];
+  io_detail::for_each_record(in, source, [&](const Fields& fields, const LineError&, long) {
+    const std::string_view type = fields.token(0);
     if (type == "FLASER") {
       builder.flaser(fields);
     } else if (type == "ROBOTLASER1") {
@@ -157,9 +149,9 @@ CarmenLog parse_carmen_log(std::istream& in, const std::string& source) {
       builder.odometry(fields);
     } else if (type == "PARAM") {
       fields.need(3, "name and value");
-      builder.params[std::string(tokens[1])] = std::string(tokens[2]);
+      builder.params[std::string(fields.token(1))] = std::string(fields.token(2));
     }
-  }
+  });
   if (in.bad()) throw std::runtime_error(source + ": read error");
   return builder.finish();
 }

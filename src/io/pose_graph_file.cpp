@@ -16,7 +16,6 @@ namespace {
 
 using io_detail::Fields;
 using io_detail::LineError;
-using io_detail::split;
 
 struct VertexRecord {
   int id;
@@ -184,18 +183,11 @@ PoseGraph2D build(const Records& records, const std::string& source) {
 
 PoseGraph2D parse_pose_graph(std::istream& in, PoseGraphFormat format, const std::string& source) {
   Records records;
-  std::string line;
-  long line_number = 0;
-  while (std::getline(in, line)) {
-    ++line_number;
-    const std::vector<std::string_view> tokens = split(line);
-    if (tokens.empty() || tokens[0][0] == '#') continue;
-    const LineError err(source, line_number);
-    const Fields fields(tokens, err);
-    const std::string tag(tokens[0]);
+  io_detail::for_each_record(in, source, [&](const Fields& fields, const LineError& err, long line) {
+    const std::string tag(fields.token(0));
     if (format == PoseGraphFormat::kAuto) format = detect(tag);
-    parse_line(fields, tag, format, line_number, err, records);
-  }
+    parse_line(fields, tag, format, line, err, records);
+  });
   if (in.bad()) throw std::invalid_argument(source + ": read error");
   if (records.edges.empty() && records.vertices.empty())
     throw std::invalid_argument(source + ": no vertices or edges");

@@ -4,6 +4,7 @@
 #include <charconv>
 #include <cctype>
 #include <cmath>
+#include <istream>
 #include <limits>
 #include <stdexcept>
 #include <string>
@@ -40,6 +41,7 @@ class Fields {
  public:
   Fields(const std::vector<std::string_view>& tokens, const LineError& err) : t_(tokens), err_(err) {}
   std::size_t size() const { return t_.size(); }
+  std::string_view token(std::size_t i) const { return t_[i]; }
   void need(std::size_t n, const char* what) const {
     if (t_.size() < n)
       err_.fail(std::string(t_[0]) + " has " + std::to_string(t_.size()) + " fields, expected at least " +
@@ -78,5 +80,20 @@ class Fields {
   const std::vector<std::string_view>& t_;
   const LineError& err_;
 };
+
+/// Calls record(fields, error, line_number) for each line of `in` that is neither blank nor a
+/// '#' comment; `error` prefixes messages with "source:LINE: ".
+template <class Record>
+void for_each_record(std::istream& in, const std::string& source, Record&& record) {
+  std::string line;
+  long line_number = 0;
+  while (std::getline(in, line)) {
+    ++line_number;
+    const std::vector<std::string_view> tokens = split(line);
+    if (tokens.empty() || tokens[0][0] == '#') continue;
+    const LineError err(source, line_number);
+    record(Fields(tokens, err), err, line_number);
+  }
+}
 
 }  // namespace probslam::io_detail
