@@ -144,20 +144,7 @@ class NormalEquations {
 
 Objective evaluate(const PoseGraph2D& graph, RobustKernel kernel, double width) {
   Objective total;
-  const auto& vertices = graph.vertices();
-  for (const PoseEdge& e : graph.pose_edges()) {
-    const Eigen::Vector3d r =
-        linearize_pose_edge(vertices[e.from].value, vertices[e.to].value, e.measurement).error;
-    const double s = r.dot(e.information * r);
-    total.robust += robust(s, kernel, width).rho;
-    total.chi2 += s;
-  }
-  for (const PointEdge& e : graph.point_edges()) {
-    const Eigen::Vector2d r = linearize_point_edge(vertices[e.pose].value,
-                                                   vertices[e.point].value.head<2>(),
-                                                   e.measurement)
-                                  .error;
-    const double s = r.dot(e.information * r);
+  for (const double s : graph.edge_chi2()) {
     total.robust += robust(s, kernel, width).rho;
     total.chi2 += s;
   }
@@ -185,8 +172,9 @@ OptimizationReport optimize(PoseGraph2D& graph, const OptimizerOptions& options)
   NormalEquations equations(graph);
   OptimizationReport report;
   if (equations.system().dim() == 0) {
-    report.initial_chi2 = report.chi2 = graph.chi2();
-    report.objective = evaluate(graph, options.kernel, options.kernel_width).robust;
+    const Objective fixed = evaluate(graph, options.kernel, options.kernel_width);
+    report.initial_chi2 = report.chi2 = fixed.chi2;
+    report.objective = fixed.robust;
     report.converged = true;
     report.stop_reason = "nothing to optimise: every vertex is fixed";
     return report;

@@ -97,20 +97,27 @@ void PoseGraph2D::set_value(int id, const Eigen::Vector3d& value) {
     v.value[2] = 0.0;
 }
 
-double PoseGraph2D::chi2() const {
-  double sum = 0.0;
+Eigen::VectorXd PoseGraph2D::edge_chi2() const {
+  Eigen::VectorXd out(pose_edges_.size() + point_edges_.size());
+  Eigen::Index k = 0;
   for (const PoseEdge& e : pose_edges_) {
     const Eigen::Vector3d r =
         linearize_pose_edge(vertices_[e.from].value, vertices_[e.to].value, e.measurement).error;
-    sum += r.dot(e.information * r);
+    out[k++] = r.dot(e.information * r);
   }
   for (const PointEdge& e : point_edges_) {
     const Eigen::Vector2d r = linearize_point_edge(vertices_[e.pose].value,
                                                    vertices_[e.point].value.head<2>(),
                                                    e.measurement)
                                   .error;
-    sum += r.dot(e.information * r);
+    out[k++] = r.dot(e.information * r);
   }
+  return out;
+}
+
+double PoseGraph2D::chi2() const {
+  double sum = 0.0;
+  for (const double s : edge_chi2()) sum += s;
   return sum;
 }
 

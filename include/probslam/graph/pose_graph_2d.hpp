@@ -56,7 +56,9 @@ class PoseGraph2D {
   const std::vector<PoseEdge>& pose_edges() const { return pose_edges_; }
   const std::vector<PointEdge>& point_edges() const { return point_edges_; }
 
-  /// Sum of e^T Omega e over all edges at the current values (g2o's chi2).
+  /// e^T Omega e of every edge at the current values: pose edges, then point edges.
+  Eigen::VectorXd edge_chi2() const;
+  /// Their sum (g2o's chi2).
   double chi2() const;
 
  private:
