@@ -8,13 +8,6 @@ namespace probslam::bindings {
 
 namespace {
 
-Eigen::MatrixXd square_arg(py::handle obj, const char* name) {
-  DoubleArray a = as_array(obj, name);
-  if (a.ndim() != 2 || a.shape(0) != a.shape(1))
-    throw py::value_error(std::string(name) + " must be a square matrix, got shape " + shape_of(a));
-  return as_matrix(a);
-}
-
 DoubleArray measurements_arg(const EkfSlam& ekf, py::handle z) {
   DoubleArray a = as_array(z, "z");
   if (a.ndim() == 1 && a.shape(0) == ekf.landmark_dim()) return DoubleArray(a.reshape({py::ssize_t{1}, a.shape(0)}));
@@ -22,9 +15,7 @@ DoubleArray measurements_arg(const EkfSlam& ekf, py::handle z) {
 }
 
 std::vector<long> ids_arg(py::handle ids, py::ssize_t k) {
-  py::array_t<long, py::array::c_style | py::array::forcecast> a;
-  if (!ids.is_none()) a = py::array_t<long, py::array::c_style | py::array::forcecast>::ensure(ids);
-  if (!a) throw py::type_error("ids must be an array of integers");
+  LongArray a = integer_array_arg(ids, "ids");
   if (a.ndim() == 0) a = a.reshape({py::ssize_t{1}});
   if (a.ndim() != 1 || a.shape(0) != k)
     throw py::value_error("ids must have shape (" + std::to_string(k) + ",), one id per measurement");
@@ -62,9 +53,9 @@ void define_ekf(py::module_& m) {
   py::class_<EkfSlam>(m, "_EkfSlam")
       .def(py::init([](py::handle motion_noise, py::handle measurement_noise, bool use_signatures,
                        py::handle initial_pose, py::handle initial_pose_cov) {
-             return EkfSlam(square_arg(motion_noise, "motion_noise"), square_arg(measurement_noise, "measurement_noise"),
+             return EkfSlam(square_matrix_arg(motion_noise, "motion_noise"), square_matrix_arg(measurement_noise, "measurement_noise"),
                             use_signatures, pose_arg(initial_pose, "initial_pose"),
-                            Eigen::Matrix3d(square_arg(initial_pose_cov, "initial_pose_cov").topLeftCorner(3, 3)));
+                            Eigen::Matrix3d(square_matrix_arg(initial_pose_cov, "initial_pose_cov").topLeftCorner(3, 3)));
            }),
            py::arg("motion_noise"), py::arg("measurement_noise"), py::arg("use_signatures"), py::arg("initial_pose"),
            py::arg("initial_pose_cov"))
@@ -99,13 +90,13 @@ void define_ekf(py::module_& m) {
           "predict",
           [](EkfSlam& e, double v, double w, double dt, py::handle noise) {
             if (noise.is_none()) e.predict(v, w, dt);
-            else e.predict(v, w, dt, square_arg(noise, "noise"));
+            else e.predict(v, w, dt, square_matrix_arg(noise, "noise"));
           },
           py::arg("v"), py::arg("w"), py::arg("dt"), py::arg("noise") = py::none())
       .def(
           "predict_odometry",
           [](EkfSlam& e, py::handle delta, py::handle noise) {
-            const Eigen::MatrixXd n = square_arg(noise, "noise");
+            const Eigen::MatrixXd n = square_matrix_arg(noise, "noise");
             if (n.rows() != 3) throw py::value_error("noise must be 3x3");
             e.predict_odometry(fixed_vector<3>(delta, "delta"), n);
           },

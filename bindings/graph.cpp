@@ -27,8 +27,8 @@ py::array_t<double> values_of(const PoseGraph2D& g, VertexKind kind) {
 }
 
 void set_values(PoseGraph2D& g, py::handle ids_obj, py::handle values_obj, int dim) {
-  auto ids = py::array_t<long, py::array::c_style | py::array::forcecast>::ensure(ids_obj);
-  if (!ids || ids.ndim() != 1) throw py::type_error("ids must be a 1-D array of integers");
+  const LongArray ids = integer_array_arg(ids_obj, "ids");
+  if (ids.ndim() != 1) throw py::type_error("ids must be a 1-D array of integers");
   DoubleArray values = matrix_arg(values_obj, "values", dim);
   if (values.shape(0) != ids.shape(0)) throw py::value_error("values must have one row per id");
   for (py::ssize_t k = 0; k < ids.shape(0); ++k) {
@@ -77,16 +77,12 @@ void define_graph(py::module_& m) {
            py::arg("id"), py::arg("point"))
       .def("add_pose_edge",
            [](PoseGraph2D& g, int from, int to, py::handle z, py::handle info) {
-             DoubleArray i = matrix_arg(info, "information", 3);
-             if (i.shape(0) != 3) throw py::value_error("information must have shape (3, 3)");
-             g.add_pose_edge(from, to, fixed_vector<3>(z, "measurement"), as_matrix(i));
+             g.add_pose_edge(from, to, fixed_vector<3>(z, "measurement"), square_matrix_arg(info, "information", 3));
            },
            py::arg("from_id"), py::arg("to_id"), py::arg("measurement"), py::arg("information"))
       .def("add_point_edge",
            [](PoseGraph2D& g, int pose, int point, py::handle z, py::handle info) {
-             DoubleArray i = matrix_arg(info, "information", 2);
-             if (i.shape(0) != 2) throw py::value_error("information must have shape (2, 2)");
-             g.add_point_edge(pose, point, fixed_vector<2>(z, "measurement"), as_matrix(i));
+             g.add_point_edge(pose, point, fixed_vector<2>(z, "measurement"), square_matrix_arg(info, "information", 2));
            },
            py::arg("pose_id"), py::arg("point_id"), py::arg("measurement"), py::arg("information"))
       .def("set_fixed", &PoseGraph2D::set_fixed, py::arg("id"), py::arg("fixed") = true)

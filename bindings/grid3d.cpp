@@ -37,6 +37,21 @@ FloatArray query_arg(py::handle obj, bool& single) {
   return points_arg(obj, "points");
 }
 
+/// query(x, y, z) of every point of (n, 3) points as an (n,) array, or a Python scalar for one
+/// (3,) point.
+template <typename T, class Query>
+py::object per_point(py::handle points, Query&& query) {
+  bool single = false;
+  const FloatArray p = query_arg(points, single);
+  const py::ssize_t n = p.shape(0);
+  py::array_t<T> out(n);
+  T* o = out.mutable_data();
+  const float* q = p.data();
+  for (py::ssize_t i = 0; i < n; ++i) o[i] = query(q[3 * i], q[3 * i + 1], q[3 * i + 2]);
+  if (single) return py::cast(o[0]);
+  return std::move(out);
+}
+
 py::dict stats_dict(const InsertStats3D& s) {
   py::dict d;
   d["points"] = s.points;
@@ -121,30 +136,14 @@ void define_grid3d(py::module_& m) {
           "rays concurrently with an identical result. Returns a dict of counts.")
       .def(
           "log_odds_at",
-          [](const Grid& g, py::handle points) -> py::object {
-            bool single = false;
-            const FloatArray p = query_arg(points, single);
-            const py::ssize_t n = p.shape(0);
-            py::array_t<float> out(n);
-            float* o = out.mutable_data();
-            const float* q = p.data();
-            for (py::ssize_t i = 0; i < n; ++i) o[i] = g.log_odds_at(q[3 * i], q[3 * i + 1], q[3 * i + 2]);
-            if (single) return py::float_(o[0]);
-            return std::move(out);
+          [](const Grid& g, py::handle points) {
+            return per_point<float>(points, [&](float x, float y, float z) { return g.log_odds_at(x, y, z); });
           },
           py::arg("points"), "Log-odds (float32) of the voxels holding points (n, 3) or (3,); NaN where unknown.")
       .def(
           "is_occupied",
-          [](const Grid& g, py::handle points) -> py::object {
-            bool single = false;
-            const FloatArray p = query_arg(points, single);
-            const py::ssize_t n = p.shape(0);
-            py::array_t<bool> out(n);
-            bool* o = out.mutable_data();
-            const float* q = p.data();
-            for (py::ssize_t i = 0; i < n; ++i) o[i] = g.is_occupied(q[3 * i], q[3 * i + 1], q[3 * i + 2]);
-            if (single) return py::bool_(o[0]);
-            return std::move(out);
+          [](const Grid& g, py::handle points) {
+            return per_point<bool>(points, [&](float x, float y, float z) { return g.is_occupied(x, y, z); });
           },
           py::arg("points"), "Known and log-odds >= logit(occupancy_threshold); unknown is False.")
       .def(

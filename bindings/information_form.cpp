@@ -38,8 +38,7 @@ py::tuple sparse_to_csc(const SparseMatrixd& m) {
 }
 
 Eigen::VectorXi int_vector(py::handle obj, const char* name, py::ssize_t size) {
-  auto a = py::array_t<long, py::array::c_style | py::array::forcecast>::ensure(obj);
-  if (!a) throw py::type_error(std::string(name) + " must be an array of integers");
+  const LongArray a = integer_array_arg(obj, name);
   if (a.ndim() != 1 || a.shape(0) != size)
     throw py::value_error(std::string(name) + " must have shape (" + std::to_string(size) + ",)");
   Eigen::VectorXi out(size);
@@ -64,19 +63,6 @@ Eigen::VectorXd dt_arg(py::handle dt, py::ssize_t steps) {
   if (a.ndim() != 1 || a.shape(0) != steps)
     throw py::value_error("dt must be a number or have shape (" + std::to_string(steps) + ",)");
   return as_vector(a);
-}
-
-Eigen::MatrixXd square(py::handle obj, const char* name) {
-  DoubleArray a = as_array(obj, name);
-  if (a.ndim() != 2 || a.shape(0) != a.shape(1))
-    throw py::value_error(std::string(name) + " must be a square matrix, got shape " + shape_of(a));
-  return as_matrix(a);
-}
-
-Eigen::Matrix3d matrix3(py::handle obj, const char* name) {
-  Eigen::MatrixXd m = square(obj, name);
-  if (m.rows() != 3) throw py::value_error(std::string(name) + " must have shape (3, 3)");
-  return m;
 }
 
 InformationForm form_arg(py::handle indptr, py::handle indices, py::handle data, int dim, py::handle xi,
@@ -117,8 +103,8 @@ void define_information_form(py::module_& m) {
     InformationForm form;
     {
       const Eigen::VectorXd steps = dt_arg(dt, u.shape(0));
-      const Eigen::Matrix3d r = matrix3(R, "R");
-      const Eigen::MatrixXd q = square(Q, "Q");
+      const Eigen::Matrix3d r = Eigen::Matrix3d(square_matrix_arg(R, "R", 3));
+      const Eigen::MatrixXd q = square_matrix_arg(Q, "Q");
       py::gil_scoped_release release;
       form = eif_construct(as_matrix(u), steps, meas, as_matrix(p), as_matrix(f), r, q);
     }
@@ -167,8 +153,8 @@ void define_information_form(py::module_& m) {
     GraphSlamResult r;
     {
       const Eigen::VectorXd steps = dt_arg(dt, u.shape(0));
-      const Eigen::Matrix3d rm = matrix3(R, "R");
-      const Eigen::MatrixXd qm = square(Q, "Q");
+      const Eigen::Matrix3d rm = Eigen::Matrix3d(square_matrix_arg(R, "R", 3));
+      const Eigen::MatrixXd qm = square_matrix_arg(Q, "Q");
       py::gil_scoped_release release;
       r = graph_slam(as_matrix(u), steps, meas, rm, qm, o);
     }
@@ -189,7 +175,7 @@ void define_information_form(py::module_& m) {
     DoubleArray f = as_array(features, "features");
     if (f.ndim() != 2) throw py::value_error("features must have shape (N, d)");
     return eif_objective(as_matrix(u), dt_arg(dt, u.shape(0)), measurements_arg(time, z, correspondences),
-                         as_matrix(p), as_matrix(f), matrix3(R, "R"), square(Q, "Q"));
+                         as_matrix(p), as_matrix(f), Eigen::Matrix3d(square_matrix_arg(R, "R", 3)), square_matrix_arg(Q, "Q"));
   });
 }
 

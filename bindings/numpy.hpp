@@ -54,6 +54,27 @@ Eigen::Matrix<double, N, 1> fixed_vector(py::handle obj, const char* name) {
   return as_vector(vector_arg(obj, name, N));
 }
 
+/// A square matrix, of size x size when size >= 0.
+inline Eigen::MatrixXd square_matrix_arg(py::handle obj, const char* name, py::ssize_t size = -1) {
+  DoubleArray a = as_array(obj, name);
+  if (a.ndim() != 2 || a.shape(0) != a.shape(1))
+    throw py::value_error(std::string(name) + " must be a square matrix, got shape " + shape_of(a));
+  if (size >= 0 && a.shape(0) != size)
+    throw py::value_error(std::string(name) + " must have shape (" + std::to_string(size) + ", " +
+                          std::to_string(size) + "), got " + shape_of(a));
+  return as_matrix(a);
+}
+
+using LongArray = py::array_t<long, py::array::c_style | py::array::forcecast>;
+
+/// An integer array (ids, indices); a TypeError names the argument otherwise.
+inline LongArray integer_array_arg(py::handle obj, const char* name) {
+  LongArray a;
+  if (!obj.is_none()) a = LongArray::ensure(obj);
+  if (!a) throw py::type_error(std::string(name) + " must be an array of integers");
+  return a;
+}
+
 inline Eigen::Vector3d pose_arg(py::handle obj, const char* name = "pose") { return fixed_vector<3>(obj, name); }
 
 }  // namespace probslam::bindings
