@@ -14,12 +14,14 @@ Pose2 Pose2::from_vector(const Eigen::Vector3d& v) {
   return Pose2(v[0], v[1], v[2]);
 }
 
-Eigen::Matrix2d Pose2::rotation() const {
+Eigen::Matrix2d rotation_matrix(double theta) {
   const double c = std::cos(theta), s = std::sin(theta);
   Eigen::Matrix2d r;
   r << c, -s, s, c;
   return r;
 }
+
+Eigen::Matrix2d Pose2::rotation() const { return rotation_matrix(theta); }
 
 Pose2 Pose2::compose(const Pose2& other) const {
   const Eigen::Vector2d t = transform_from(other.translation());

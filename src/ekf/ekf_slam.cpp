@@ -11,6 +11,7 @@
 #include "probslam/core/angle.hpp"
 #include "probslam/core/chi_square.hpp"
 #include "probslam/core/check.hpp"
+#include "probslam/core/pose2.hpp"
 #include "probslam/core/range_bearing_model.hpp"
 #include "probslam/core/spatial_hash_2d.hpp"
 #include "probslam/core/velocity_motion_model.hpp"
@@ -36,12 +37,6 @@ void require_spd(const Eigen::MatrixXd& m, const char* name, bool semi = false) 
   const double min_eig = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(m, Eigen::EigenvaluesOnly).eigenvalues()(0);
   if (semi) require(min_eig >= -kSymmetryTolerance * scale, name, "must be positive semi-definite");
   else require(min_eig > 0.0, name, "must be positive definite");
-}
-
-Eigen::Matrix2d rot(double a) {
-  Eigen::Matrix2d r;
-  r << std::cos(a), -std::sin(a), std::sin(a), std::cos(a);
-  return r;
 }
 
 }  // namespace
@@ -136,7 +131,7 @@ void EkfSlam::predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matrix
   require_all_finite(delta, "delta");
   require_spd(noise, "noise", true);
   const Eigen::Vector3d x = pose();
-  const Eigen::Matrix2d rx = rot(x[2]);
+  const Eigen::Matrix2d rx = rotation_matrix(x[2]);
   const Eigen::Vector2d t = x.head<2>() + rx * delta.head<2>();
   Eigen::Matrix3d g = Eigen::Matrix3d::Identity();
   const Eigen::Vector2d turned = rx * delta.head<2>();

@@ -5,6 +5,7 @@
 
 #include "probslam/core/angle.hpp"
 #include "probslam/core/check.hpp"
+#include "probslam/core/pose2.hpp"
 
 namespace probslam {
 namespace {
@@ -12,13 +13,6 @@ namespace {
 // Information matrices come from text files with about six significant digits; asymmetry below
 // this (relative to the largest entry) is rounding in the file, larger is a wrong matrix.
 constexpr double kSymmetryTolerance = 1e-6;
-
-Eigen::Matrix2d rotation(double theta) {
-  const double c = std::cos(theta), s = std::sin(theta);
-  Eigen::Matrix2d r;
-  r << c, -s, s, c;
-  return r;
-}
 
 // d(R(theta)^T)/d theta.
 Eigen::Matrix2d rotation_transpose_derivative(double theta) {
@@ -123,8 +117,8 @@ double PoseGraph2D::chi2() const {
 
 PoseEdgeLinearization linearize_pose_edge(const Eigen::Vector3d& from, const Eigen::Vector3d& to,
                                           const Eigen::Vector3d& measurement) {
-  const Eigen::Matrix2d rz_t = rotation(measurement[2]).transpose();
-  const Eigen::Matrix2d ri_t = rotation(from[2]).transpose();
+  const Eigen::Matrix2d rz_t = rotation_matrix(measurement[2]).transpose();
+  const Eigen::Matrix2d ri_t = rotation_matrix(from[2]).transpose();
   const Eigen::Vector2d delta = to.head<2>() - from.head<2>();
   PoseEdgeLinearization out;
   out.error.head<2>() = rz_t * (ri_t * delta - measurement.head<2>());
@@ -142,7 +136,7 @@ PoseEdgeLinearization linearize_pose_edge(const Eigen::Vector3d& from, const Eig
 PointEdgeLinearization linearize_point_edge(const Eigen::Vector3d& pose,
                                             const Eigen::Vector2d& point,
                                             const Eigen::Vector2d& measurement) {
-  const Eigen::Matrix2d ri_t = rotation(pose[2]).transpose();
+  const Eigen::Matrix2d ri_t = rotation_matrix(pose[2]).transpose();
   const Eigen::Vector2d delta = point - pose.head<2>();
   PointEdgeLinearization out;
   out.error = ri_t * delta - measurement;

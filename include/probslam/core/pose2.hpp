@@ -3,6 +3,9 @@
 
 namespace probslam {
 
+/// The 2x2 rotation by theta radians (counter-clockwise).
+Eigen::Matrix2d rotation_matrix(double theta);
+
 /// A planar pose (x, y in metres, theta in radians, wrapped to (-pi, pi]): the transform
 /// from the body frame to the world frame.
 struct Pose2 {
