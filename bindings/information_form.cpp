@@ -1,6 +1,7 @@
 #include <pybind11/stl.h>
 
 #include "numpy.hpp"
+#include "probslam/graph/eif_correspondence.hpp"
 #include "probslam/graph/information_form.hpp"
 
 namespace probslam::bindings {
@@ -84,6 +85,47 @@ py::array_t<double> blocks_array(const std::vector<Eigen::Matrix3d>& blocks) {
   return out;
 }
 
+py::dict slam_dict(const GraphSlamResult& r) {
+  py::dict out;
+  out["poses"] = r.poses;
+  out["features"] = r.features;
+  out["pose_covariances"] = blocks_array(r.pose_covariances);
+  out["iterations"] = r.iterations;
+  out["converged"] = r.converged;
+  out["objective"] = r.objective;
+  return out;
+}
+
+GraphSlamOptions slam_options(int max_iterations, double tolerance, py::handle initial_pose, bool path_covariances) {
+  GraphSlamOptions o;
+  o.max_iterations = max_iterations;
+  o.tolerance = tolerance;
+  o.initial_pose = pose_arg(initial_pose, "initial_pose");
+  o.path_covariances = path_covariances;
+  return o;
+}
+
+py::dict merges_dict(const std::vector<FeatureMerge>& merges) {
+  const auto k = static_cast<py::ssize_t>(merges.size());
+  py::array_t<int> round(k), kept(k), merged(k);
+  py::array_t<double> probability(k), distance2(k);
+  for (py::ssize_t i = 0; i < k; ++i) {
+    const FeatureMerge& f = merges[static_cast<size_t>(i)];
+    round.mutable_at(i) = f.round;
+    kept.mutable_at(i) = f.kept;
+    merged.mutable_at(i) = f.merged;
+    probability.mutable_at(i) = f.probability;
+    distance2.mutable_at(i) = f.distance2;
+  }
+  py::dict out;
+  out["round"] = round;
+  out["kept"] = kept;
+  out["merged"] = merged;
+  out["probability"] = probability;
+  out["distance2"] = distance2;
+  return out;
+}
+
 }  // namespace
 
 void define_information_form(py::module_& m) {
@@ -145,11 +187,7 @@ void define_information_form(py::module_& m) {
                           double tolerance, py::handle initial_pose, bool path_covariances) {
     DoubleArray u = matrix_arg(controls, "controls", 2);
     const FeatureMeasurements meas = measurements_arg(time, z, correspondences);
-    GraphSlamOptions o;
-    o.max_iterations = max_iterations;
-    o.tolerance = tolerance;
-    o.initial_pose = pose_arg(initial_pose, "initial_pose");
-    o.path_covariances = path_covariances;
+    const GraphSlamOptions o = slam_options(max_iterations, tolerance, initial_pose, path_covariances);
     GraphSlamResult r;
     {
       const Eigen::VectorXd steps = dt_arg(dt, u.shape(0));
@@ -158,13 +196,69 @@ void define_information_form(py::module_& m) {
       py::gil_scoped_release release;
       r = graph_slam(as_matrix(u), steps, meas, rm, qm, o);
     }
-    py::dict out;
-    out["poses"] = r.poses;
-    out["features"] = r.features;
-    out["pose_covariances"] = blocks_array(r.pose_covariances);
-    out["iterations"] = r.iterations;
-    out["converged"] = r.converged;
-    out["objective"] = r.objective;
+    return slam_dict(r);
+  });
+  m.def("_eif_correspondence_test", [](py::handle indptr, py::handle indices, py::handle data, int dim,
+                                       py::handle r_indptr, py::handle r_indices, py::handle r_data,
+                                       py::handle features, int num_poses,
+                                       const std::vector<std::pair<int, int>>& pairs) {
+    DoubleArray f = as_array(features, "features");
+    if (f.ndim() != 2 || (f.shape(1) != 2 && f.shape(1) != 3))
+      throw py::value_error("features must have shape (N, 2) or (N, 3), got " + shape_of(f));
+    const int d = static_cast<int>(f.shape(1));
+    const InformationForm form = form_arg(indptr, indices, data, dim, py::array_t<double>(dim), num_poses, d);
+    const int p = 3 * num_poses;
+    SparseMatrixd reduced = sparse_from_csc(r_indptr, r_indices, r_data, p, p, "reduced_omega");
+    const auto k = static_cast<py::ssize_t>(pairs.size());
+    py::array_t<double> probability(k), distance2(k), mean({k, py::ssize_t{d}}), cov({k, py::ssize_t{d}, py::ssize_t{d}});
+    std::vector<CorrespondenceTest> tests;
+    {
+      const RowMatrixXd means = as_matrix(f);
+      py::gil_scoped_release release;
+      SparseCholesky factor;
+      SparseMatrixd upper = reduced.triangularView<Eigen::Upper>();
+      factor.factorize(upper);
+      EifCorrespondenceTester tester(form, factor, means);
+      for (const auto& [j, kk] : pairs) tests.push_back(tester.test(j, kk));
+    }
+    for (py::ssize_t i = 0; i < k; ++i) {
+      const CorrespondenceTest& t = tests[static_cast<size_t>(i)];
+      probability.mutable_at(i) = t.probability;
+      distance2.mutable_at(i) = t.distance2;
+      for (int r = 0; r < d; ++r) {
+        mean.mutable_at(i, r) = t.mean[r];
+        for (int c = 0; c < d; ++c) cov.mutable_at(i, r, c) = t.covariance(r, c);
+      }
+    }
+    return py::make_tuple(probability, distance2, mean, cov);
+  });
+  m.def("_graph_slam_unknown", [](py::handle controls, py::handle dt, py::handle time, py::handle z,
+                                  py::handle R, py::handle Q, int max_iterations, double tolerance,
+                                  py::handle initial_pose, bool path_covariances, double chi,
+                                  double search_radius, int max_rounds) {
+    DoubleArray u = matrix_arg(controls, "controls", 2);
+    DoubleArray za = as_array(z, "z");
+    py::array_t<long> unknown(za.ndim() == 2 ? za.shape(0) : 0);  // ignored: Table 11.9 line 2
+    std::fill_n(unknown.mutable_data(), unknown.size(), 0L);
+    const FeatureMeasurements meas = measurements_arg(time, z, unknown);
+    const GraphSlamOptions o = slam_options(max_iterations, tolerance, initial_pose, path_covariances);
+    CorrespondenceSearchOptions search;
+    search.chi = chi;
+    search.search_radius = search_radius;
+    search.max_rounds = max_rounds;
+    GraphSlamUnknownResult r;
+    {
+      const Eigen::VectorXd steps = dt_arg(dt, u.shape(0));
+      const Eigen::Matrix3d rm = Eigen::Matrix3d(square_matrix_arg(R, "R", 3));
+      const Eigen::MatrixXd qm = square_matrix_arg(Q, "Q");
+      py::gil_scoped_release release;
+      r = graph_slam_unknown(as_matrix(u), steps, meas, rm, qm, o, search);
+    }
+    py::dict out = slam_dict(r.slam);
+    out["correspondences"] = Eigen::VectorXi(r.correspondences);
+    out["merges"] = merges_dict(r.merges);
+    out["rounds"] = r.rounds;
+    out["search_converged"] = r.converged;
     return out;
   });
   m.def("_eif_objective", [](py::handle controls, py::handle dt, py::handle time, py::handle z,

@@ -23,9 +23,12 @@ from ._core import (
 from . import io, sim
 from .graph import OptimizationReport, PoseGraph2D, marginal_covariances, optimize, read_pose_graph, write_g2o
 from .graphslam import (
+    CorrespondenceTest,
+    FeatureMerges,
     GraphSlamResult,
     Measurements,
     eif_construct,
+    eif_correspondence_test,
     eif_initialize,
     eif_objective,
     eif_reduce,
@@ -39,11 +42,14 @@ __version__ = "0.1.0"
 
 __all__ = [
     "EkfSlam",
+    "CorrespondenceTest",
+    "FeatureMerges",
     "GraphSlamResult",
     "Measurements",
     "OptimizationReport",
     "PoseGraph2D",
     "eif_construct",
+    "eif_correspondence_test",
     "eif_initialize",
     "eif_objective",
     "eif_reduce",

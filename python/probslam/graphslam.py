@@ -1,4 +1,4 @@
-"""GraphSLAM in information form (ch. 11, Tables 11.1-11.5), one function per table.
+"""GraphSLAM in information form (ch. 11, Tables 11.1-11.5, 11.8 and 11.9), one function per table.
 
 The state is ``y = (x_0 .. x_T, m_0 .. m_{N-1})``: poses ``(x, y, theta)`` then features
 ``(m_x, m_y)`` (or ``(m_x, m_y, s)`` when measurements carry a signature). ``Omega`` is a
@@ -29,19 +29,46 @@ class GraphSlamResult(NamedTuple):
     poses: np.ndarray  # (T + 1, 3)
     features: np.ndarray  # (N, d)
     pose_covariances: np.ndarray  # (T + 1, 3, 3), zeros for the anchored x_0
-    iterations: int
+    iterations: int  # of the last solve
     converged: bool
     objective: float  # eq. 11.11 (the anchor term is zero)
+    correspondences: Optional[np.ndarray] = None  # (M,) feature of each measurement (Table 11.9)
+    merges: Optional["FeatureMerges"] = None  # the merges Table 11.9 made, in order
+    rounds: int = 0  # Table 11.9's test-merge-solve rounds
+
+
+class FeatureMerges(NamedTuple):
+    """Merges made by Table 11.9, one entry each: features are named by their first measurement
+    (an index into the measurement arrays); ``kept`` absorbed ``merged`` in ``round``."""
+
+    round: np.ndarray  # (K,)
+    kept: np.ndarray  # (K,)
+    merged: np.ndarray  # (K,)
+    probability: np.ndarray  # (K,) p(m_kept - m_merged = 0), Table 11.8
+    distance2: np.ndarray  # (K,) squared Mahalanobis distance of the difference
+
+
+class CorrespondenceTest(NamedTuple):
+    """Table 11.8 for a pair (or arrays of pairs) of features: the difference m_j - m_k."""
+
+    probability: Union[float, np.ndarray]  # density of m_j - m_k at 0, 1/m^2 (1/(m^2 s) with signatures)
+    distance2: Union[float, np.ndarray]  # squared Mahalanobis distance of the difference
+    mean: np.ndarray  # (d,) or (K, d)
+    covariance: np.ndarray  # (d, d) or (K, d, d)
 
 
 def _measurements(measurements) -> Measurements:
     if isinstance(measurements, Measurements):
         return measurements
     try:
-        time, z, correspondences = measurements
-    except (TypeError, ValueError):
-        raise TypeError("measurements must be a (time, z, correspondences) tuple") from None
-    return Measurements(time, z, correspondences)
+        parts = tuple(measurements)
+    except TypeError:
+        parts = ()
+    if len(parts) == 2:  # (time, z): correspondences unknown
+        parts = parts + (None,)
+    if len(parts) != 3:
+        raise TypeError("measurements must be a (time, z, correspondences) or (time, z) tuple")
+    return Measurements(*parts)
 
 
 def _csc(matrix, name: str):
@@ -141,6 +168,34 @@ def eif_solve(
     )
 
 
+def eif_correspondence_test(omega, reduced_omega, features, num_poses: int, j, k) -> CorrespondenceTest:
+    """Table 11.8 (with the errata): the posterior of ``m_j - m_k`` and its density at 0.
+
+    ``omega`` is the information of Table 11.2, ``reduced_omega`` the path information of
+    Table 11.3 (standing for the path covariance Sigma_{0:t}, never inverted densely) and
+    ``features`` ``(N, d)`` the means of Table 11.4. The marginal of the pair is
+    ``Sigma_[jk] = A^-1 + A^-1 B Sigma_tt B^T A^-1`` with ``A = Omega_{jk,jk}`` and
+    ``B = Omega_{jk,tau(j,k)}``; the book's line 2 and eq. 11.46 are wrong. ``j`` and ``k`` are
+    feature indices, or equal-length integer arrays of pairs (the factor is then shared).
+    """
+    f = _csc(omega, "omega")
+    r = _csc(reduced_omega, "reduced_omega")
+    scalar = np.ndim(j) == 0 and np.ndim(k) == 0
+    js, ks = np.atleast_1d(j), np.atleast_1d(k)
+    for name, a in (("j", js), ("k", ks)):
+        if a.ndim != 1 or not np.issubdtype(a.dtype, np.integer):
+            raise TypeError(f"{name} must be an integer or a 1-D integer array")
+    if js.shape != ks.shape:
+        raise ValueError(f"j and k must have the same length, got {js.shape} and {ks.shape}")
+    pairs = [(int(a), int(b)) for a, b in zip(js, ks)]
+    probability, distance2, mean, cov = _core._eif_correspondence_test(
+        f.indptr, f.indices, f.data, f.shape[0], r.indptr, r.indices, r.data, features, num_poses, pairs
+    )
+    if scalar:
+        return CorrespondenceTest(float(probability[0]), float(distance2[0]), mean[0], cov[0])
+    return CorrespondenceTest(probability, distance2, mean, cov)
+
+
 def graph_slam(
     controls,
     dt,
@@ -153,6 +208,9 @@ def graph_slam(
     tolerance: float = 1e-9,
     initial_pose=(0.0, 0.0, 0.0),
     path_covariances: bool = True,
+    chi: float = 1e-4,
+    search_radius: float = 3.0,
+    max_rounds: int = 100,
 ) -> GraphSlamResult:
     """Table 11.5: construct, reduce and solve from the dead-reckoned path until no coordinate
     moves more than ``tolerance`` (m / rad).
@@ -160,16 +218,30 @@ def graph_slam(
     ``measurements`` is ``(time, z, correspondences)``; a separate ``correspondences`` argument
     replaces the third entry. Returns poses, features, the 3x3 marginal of every pose, the
     iteration count and the objective of eq. 11.11.
+
+    With no correspondences (``measurements`` ``(time, z)`` or a third entry of ``None``) this is
+    Table 11.9: a feature per measurement, then rounds that test every pair of features whose
+    means lie within ``search_radius`` metres and not observed at a common time step
+    (Table 11.8), merge those with ``p(m_j - m_k = 0) > chi`` (the most probable first, a
+    feature may absorb several in one round, never two sharing a time step) and re-solve, until
+    no pair exceeds ``chi`` or
+    ``max_rounds``. ``chi`` is a density (1/m^2; 1/(m^2 s) with signatures): a pair is merged
+    when its difference is both near zero and certain. The result carries ``correspondences``,
+    ``merges`` and ``rounds``; ``converged`` then also says no pair above ``chi`` was left.
     """
     meas = _measurements(measurements)
     if correspondences is not None:
         meas = meas._replace(correspondences=correspondences)
+    options = (max_iterations, tolerance, initial_pose, path_covariances)
     if meas.correspondences is None:
-        raise NotImplementedError("unknown correspondences (Table 11.9) are not implemented yet")
-    out = _core._graph_slam(
-        controls, dt, meas.time, meas.z, meas.correspondences, R, Q,
-        max_iterations, tolerance, initial_pose, path_covariances,
-    )
+        out = _core._graph_slam_unknown(
+            controls, dt, meas.time, meas.z, R, Q, *options, chi, search_radius, max_rounds
+        )
+        out["merges"] = FeatureMerges(**out["merges"])
+        search_converged = out.pop("search_converged")
+        out["converged"] = out["converged"] and search_converged
+        return GraphSlamResult(**out)
+    out = _core._graph_slam(controls, dt, meas.time, meas.z, meas.correspondences, R, Q, *options)
     return GraphSlamResult(**out)
 
 

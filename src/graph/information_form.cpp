@@ -146,6 +146,8 @@ Poses2 eif_initialize(const Eigen::Ref<const RowMatrixXd>& controls, const Eigen
 RowMatrixXd eif_initial_features(const Eigen::Ref<const RowMatrixXd>& poses,
                                  const FeatureMeasurements& meas, int num_features) {
   require(poses.cols() == 3, "poses", "must have shape (T + 1, 3)");
+  require_all_finite(meas.z, "z");
+  require((meas.z.col(0).array() > 0.0).all(), "z", "ranges must be > 0");
   const int d = static_cast<int>(meas.z.cols());
   RowMatrixXd features(num_features, d);
   std::vector<char> done(num_features, 0);
@@ -359,41 +361,105 @@ double eif_objective(const Eigen::Ref<const RowMatrixXd>& controls, const Eigen:
   return sum;
 }
 
+std::vector<Eigen::Matrix3d> eif_pose_covariances(const SparseCholesky& path_factor, int num_poses) {
+  require(path_factor.rows() == 3 * num_poses, "num_poses", "does not match the factor's size");
+  std::vector<InverseBlock> requests;
+  for (int t = 1; t < num_poses; ++t) requests.push_back({3 * t, 3, 3 * t, 3});
+  std::vector<Eigen::Matrix3d> out{Eigen::Matrix3d::Zero()};
+  for (const auto& b : path_factor.inverse_blocks(requests)) out.emplace_back(b);
+  return out;
+}
+
+namespace {
+
+// The largest coordinate change between two estimates (headings wrapped), metres / radians.
+double largest_change(const EifSolution& next, const Poses2& poses, const RowMatrixXd& features) {
+  Eigen::ArrayXXd pose_change = (next.poses - poses).cwiseAbs().array();
+  for (Eigen::Index t = 0; t < poses.rows(); ++t)
+    pose_change(t, 2) = std::abs(wrap_angle(next.poses(t, 2) - poses(t, 2)));
+  double change = pose_change.size() ? pose_change.maxCoeff() : 0.0;
+  if (features.size()) change = std::max(change, (next.features - features).cwiseAbs().maxCoeff());
+  return change;
+}
+
+// A decrease of eq. 11.11 below this fraction of it is rounding: the estimate has converged even
+// when rounding keeps its coordinates moving by more than the tolerance (a feature measured at
+// millimetres eliminated by the Schur complement loses that many digits).
+constexpr double kStalledDecrease = 1e-12;
+
+// Halvings of a Gauss-Newton step tried before it is taken as it is.
+constexpr int kMaxStepHalvings = 20;
+
+// Table 11.5 takes the full Gauss-Newton step, which is what converges near the optimum; far from
+// it (an inconsistent feature, a measurement at a few millimetres) the full step can raise eq.
+// 11.11 and the iteration oscillates. The step is then halved until the objective drops, which
+// leaves the fixed points, and every step that already descends, unchanged. Returns the
+// objective at the (possibly shortened) step stored in `next`.
+double shorten_until_descent(const Eigen::Ref<const RowMatrixXd>& controls, const Eigen::VectorXd& dt,
+                             const FeatureMeasurements& meas, const Eigen::Matrix3d& R,
+                             const Eigen::MatrixXd& Q, const GraphSlamResult& current,
+                             EifSolution& next, double objective) {
+  double trial = eif_objective(controls, dt, meas, next.poses, next.features, R, Q);
+  Poses2 step = next.poses - current.poses;
+  for (Eigen::Index t = 0; t < step.rows(); ++t) step(t, 2) = wrap_angle(step(t, 2));
+  const RowMatrixXd feature_step = next.features - current.features;
+  double alpha = 1.0;
+  for (int k = 0; k < kMaxStepHalvings && !(trial <= objective); ++k) {
+    alpha *= 0.5;
+    next.poses = current.poses + alpha * step;
+    for (Eigen::Index t = 0; t < step.rows(); ++t) next.poses(t, 2) = wrap_angle(next.poses(t, 2));
+    next.features = current.features + alpha * feature_step;
+    trial = eif_objective(controls, dt, meas, next.poses, next.features, R, Q);
+  }
+  return trial;
+}
+
+}  // namespace
+
+// Table 11.5 lines 3-5, repeated.
+GraphSlamResult graph_slam_from(const Eigen::Ref<const RowMatrixXd>& controls,
+                                const Eigen::VectorXd& dt, const FeatureMeasurements& meas,
+                                const Eigen::Matrix3d& R, const Eigen::MatrixXd& Q, Poses2 poses,
+                                RowMatrixXd features, const GraphSlamOptions& options,
+                                SparseCholesky& cholesky, InformationForm* last_form) {
+  require(options.max_iterations > 0, "max_iterations", "must be > 0");
+  require(options.tolerance >= 0.0, "tolerance", "must be >= 0");
+  GraphSlamResult result;
+  result.poses = std::move(poses);
+  result.features = std::move(features);
+  double objective = eif_objective(controls, dt, meas, result.poses, result.features, R, Q);
+  for (int it = 0; it < options.max_iterations; ++it) {
+    InformationForm form = eif_construct(controls, dt, meas, result.poses, result.features, R, Q);
+    EifSolution sol = eif_solve(eif_reduce(form), form, {}, &cholesky);
+    const double before = objective;
+    objective = shorten_until_descent(controls, dt, meas, R, Q, result, sol, objective);
+    const double change = largest_change(sol, result.poses, result.features);
+    const bool stalled = before - objective <= kStalledDecrease * std::max(before, 1.0);
+    result.poses = std::move(sol.poses);
+    result.features = std::move(sol.features);
+    result.iterations = it + 1;
+    if (last_form) *last_form = std::move(form);
+    if (change <= options.tolerance || stalled) {
+      result.converged = true;
+      break;
+    }
+  }
+  if (options.path_covariances)
+    result.pose_covariances = eif_pose_covariances(cholesky, static_cast<int>(result.poses.rows()));
+  result.objective = objective;
+  return result;
+}
+
 // Table 11.5.
 GraphSlamResult graph_slam(const Eigen::Ref<const RowMatrixXd>& controls, const Eigen::VectorXd& dt,
                            const FeatureMeasurements& meas, const Eigen::Matrix3d& R,
                            const Eigen::MatrixXd& Q, const GraphSlamOptions& options) {
   const int n = validate(controls, dt, meas);
-  require(options.max_iterations > 0, "max_iterations", "must be > 0");
-  require(options.tolerance >= 0.0, "tolerance", "must be >= 0");
-  GraphSlamResult result;
-  result.poses = eif_initialize(controls, dt, options.initial_pose);
-  result.features = eif_initial_features(result.poses, meas, n);
+  Poses2 poses = eif_initialize(controls, dt, options.initial_pose);
+  RowMatrixXd features = eif_initial_features(poses, meas, n);
   SparseCholesky cholesky(options.linear_solver);
-  for (int it = 0; it < options.max_iterations; ++it) {
-    const InformationForm form = eif_construct(controls, dt, meas, result.poses, result.features, R, Q);
-    EifSolution sol = eif_solve(eif_reduce(form), form, {}, &cholesky);
-    Eigen::ArrayXXd pose_change = (sol.poses - result.poses).cwiseAbs().array();
-    for (Eigen::Index t = 0; t < sol.poses.rows(); ++t)
-      pose_change(t, 2) = std::abs(wrap_angle(sol.poses(t, 2) - result.poses(t, 2)));
-    double change = pose_change.size() ? pose_change.maxCoeff() : 0.0;
-    if (sol.features.size()) change = std::max(change, (sol.features - result.features).cwiseAbs().maxCoeff());
-    result.poses = std::move(sol.poses);
-    result.features = std::move(sol.features);
-    result.iterations = it + 1;
-    if (change <= options.tolerance) {
-      result.converged = true;
-      break;
-    }
-  }
-  if (options.path_covariances) {
-    std::vector<InverseBlock> requests;
-    for (int t = 1; t < result.poses.rows(); ++t) requests.push_back({3 * t, 3, 3 * t, 3});
-    result.pose_covariances.push_back(Eigen::Matrix3d::Zero());
-    for (const auto& b : cholesky.inverse_blocks(requests)) result.pose_covariances.emplace_back(b);
-  }
-  result.objective = eif_objective(controls, dt, meas, result.poses, result.features, R, Q);
-  return result;
+  return graph_slam_from(controls, dt, meas, R, Q, std::move(poses), std::move(features), options,
+                         cholesky);
 }
 
 }  // namespace probslam

@@ -200,20 +200,35 @@ void SparseCholesky::Impl::compute_inverse() const {
   for (int k = 0; k < n; ++k) inverse_permutation[perm[k]] = k;
   cholmod_free_factor(&copy, cm);
 
+  // Column j needs S_i = sum_k L_kj Z(i, k) over i, k in its pattern. Every such Z(i, k) sits in
+  // the pattern of L (fill is chordal), in column min(i, k), so one sweep over the columns c of
+  // the pattern covers each pair once, with a scatter array instead of a search per entry.
   z_values.assign(z_outer[n], 0.0);
+  std::vector<double> l_at(n, 0.0), sum_at(n, 0.0);
+  std::vector<int> stamp(n, -1);
   for (int j = n - 1; j >= 0; --j) {
     const int begin = z_outer[j], end = z_outer[j + 1];  // begin holds the diagonal
-    const double diag = l_values[begin];
-    // Off-diagonal entries first (they feed the diagonal), each from the later columns.
-    for (int a = end - 1; a > begin; --a) {
-      const int i = z_inner[a];
-      double sum = 0.0;
-      for (int b = begin + 1; b < end; ++b) sum += l_values[b] * inverse_entry(i, z_inner[b]);
-      z_values[a] = -sum / diag;
+    for (int b = begin + 1; b < end; ++b) {
+      stamp[z_inner[b]] = j;
+      l_at[z_inner[b]] = l_values[b];
+      sum_at[z_inner[b]] = 0.0;
     }
-    double sum = 0.0;
-    for (int b = begin + 1; b < end; ++b) sum += l_values[b] * z_values[b];
-    z_values[begin] = 1.0 / (diag * diag) - sum / diag;
+    for (int b = begin + 1; b < end; ++b) {
+      const int c = z_inner[b];
+      for (int e = z_outer[c]; e < z_outer[c + 1]; ++e) {
+        const int r = z_inner[e];
+        if (stamp[r] != j) continue;
+        sum_at[c] += l_at[r] * z_values[e];
+        if (r != c) sum_at[r] += l_at[c] * z_values[e];
+      }
+    }
+    const double diag = l_values[begin];
+    double diag_sum = 0.0;
+    for (int b = begin + 1; b < end; ++b) {
+      z_values[b] = -sum_at[z_inner[b]] / diag;
+      diag_sum += l_values[b] * z_values[b];
+    }
+    z_values[begin] = 1.0 / (diag * diag) - diag_sum / diag;
   }
   have_inverse = true;
 }

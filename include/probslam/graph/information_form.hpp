@@ -72,7 +72,8 @@ EifSolution eif_solve(const ReducedInformationForm& reduced, const InformationFo
                       SparseCholesky* cholesky = nullptr);
 
 /// Table 11.5: construct, reduce and solve from the dead-reckoned path until no pose or
-/// feature coordinate moves by more than `tolerance` (metres / radians) or max_iterations.
+/// feature coordinate moves by more than `tolerance` (metres / radians), eq. 11.11 stops falling
+/// beyond rounding, or max_iterations. A step that would raise eq. 11.11 is halved until it does not.
 struct GraphSlamOptions {
   int max_iterations = 50;
   double tolerance = 1e-9;
@@ -91,6 +92,18 @@ struct GraphSlamResult {
 GraphSlamResult graph_slam(const Eigen::Ref<const RowMatrixXd>& controls, const Eigen::VectorXd& dt,
                            const FeatureMeasurements& measurements, const Eigen::Matrix3d& R,
                            const Eigen::MatrixXd& Q, const GraphSlamOptions& options = {});
+
+/// Table 11.5's loop (lines 3-5 repeated) from the linearisation point (poses, features): what
+/// graph_slam runs after Table 11.1. `cholesky` keeps the factor of the last reduction and
+/// `last_form`, when given, receives the last information form: the inputs of Table 11.8.
+GraphSlamResult graph_slam_from(const Eigen::Ref<const RowMatrixXd>& controls,
+                                const Eigen::VectorXd& dt, const FeatureMeasurements& measurements,
+                                const Eigen::Matrix3d& R, const Eigen::MatrixXd& Q, Poses2 poses,
+                                RowMatrixXd features, const GraphSlamOptions& options,
+                                SparseCholesky& cholesky, InformationForm* last_form = nullptr);
+
+/// The 3x3 marginal covariance of every pose x_0 .. x_T from the factor of Omega~ (x_0's is zero).
+std::vector<Eigen::Matrix3d> eif_pose_covariances(const SparseCholesky& path_factor, int num_poses);
 
 /// Eq. 11.11 without the anchor term: sum of the motion and measurement squared Mahalanobis
 /// residuals at (poses, features).
