@@ -3,11 +3,12 @@ landmarks): probslam's EkfSlam next to a dense numpy EKF of the same equations (
 relative pose, sequential range-bearing updates, state augmentation) in the same run. The two
 final states must agree; prints a table and, with --record, appends it to benchmarks/RESULTS.md.
 
-    .venv/bin/python benchmarks/bench_victoria_park.py [FILE] [--record]
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_victoria_park.py [FILE] [--record]
 """
 
 import argparse
 import datetime
+import os
 import pathlib
 import time
 
@@ -115,7 +116,8 @@ def main() -> None:
     if diff > AGREEMENT:
         raise SystemExit(f"the filters disagree by {diff:g}")
     lines = [f"## EKF SLAM, Victoria Park full run vs dense numpy, {datetime.date.today()}", "",
-             f"Machine: {machine()}.", "",
+             f"Machine: {machine()}; load average {os.getloadavg()[0]:.1f} at the end (shared machine), "
+             f"BLAS threads: OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}.", "",
              f"{len(data.delta) + 1} poses, {len(z)} sightings, {len(dense.index)} landmarks (state "
              f"{len(dense.mu)}), known correspondences, odometry as relative poses; both filters in "
              f"the same run, final states equal to {diff:.1e}.", "",
@@ -123,7 +125,7 @@ def main() -> None:
              f"| probslam `EkfSlam` | {t_ours:.3f} s | {t_ours / (len(data.delta) + 1) * 1e6:.1f} us |",
              f"| dense numpy, same equations | {t_dense:.2f} s ({t_dense / t_ours:.0f}x slower) | "
              f"{t_dense / (len(data.delta) + 1) * 1e6:.0f} us |", "",
-             "Command: `python benchmarks/bench_victoria_park.py --record`."]
+             "Command: `OPENBLAS_NUM_THREADS=1 python benchmarks/bench_victoria_park.py --record`."]
     report(lines, args.record)
 
 
