@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import os
 import pathlib
 from dataclasses import dataclass
@@ -54,6 +55,19 @@ class Mrclam:
     @property
     def landmark_positions(self) -> Dict[int, np.ndarray]:
         return {int(s): xy for s, xy in zip(self.landmarks[:, 0], self.landmarks[:, 1:3])}
+
+    def with_survey_swapped(self, pairs) -> "Mrclam":
+        """A copy whose surveyed positions of each subject pair ``(a, b)`` are exchanged, for data
+        whose survey labels disagree with the barcodes (Dataset 1: subjects 11 and 17, see
+        ``landmark_slam.survey_label_swaps``). Measurements are left as the robot saw them."""
+        landmarks = self.landmarks.copy()
+        row = {int(s): k for k, s in enumerate(landmarks[:, 0])}
+        for a, b in pairs:
+            if int(a) not in row or int(b) not in row:
+                raise ValueError(f"pairs: subjects must be surveyed landmarks, got ({a}, {b})")
+            ka, kb = row[int(a)], row[int(b)]
+            landmarks[[ka, kb], 1:] = landmarks[[kb, ka], 1:]
+        return dataclasses.replace(self, landmarks=landmarks)
 
 
 def read_mrclam(folder: PathLike, robot: int = 1) -> Mrclam:
