@@ -68,8 +68,10 @@ SparseCholeskyOptions solver_options(const std::string& method, const std::strin
 
 OptimizerOptions optimizer_options(const std::string& algorithm, int max_iterations, double relative_tolerance,
                                    double step_tolerance, const std::string& kernel, double kernel_width,
-                                   const std::string& linear_solver, const std::string& ordering) {
+                                   const std::string& linear_solver, const std::string& ordering,
+                                   const std::string& damping) {
   OptimizerOptions o;
+  o.damping = choice<Damping>(damping, "damping", {{"marquardt", Damping::kMarquardt}, {"levenberg", Damping::kLevenberg}});
   o.algorithm = choice<OptimizerAlgorithm>(algorithm, "algorithm",
                                            {{"gauss-newton", OptimizerAlgorithm::kGaussNewton},
                                             {"levenberg-marquardt", OptimizerAlgorithm::kLevenbergMarquardt}});
@@ -187,15 +189,16 @@ void define_graph(py::module_& m) {
   m.def("optimize",
         [](PoseGraph2D& graph, const std::string& algorithm, int max_iterations, double relative_tolerance,
            double step_tolerance, const std::string& kernel, double kernel_width,
-           const std::string& linear_solver, const std::string& ordering) {
+           const std::string& linear_solver, const std::string& ordering, const std::string& damping) {
           const OptimizerOptions o = optimizer_options(algorithm, max_iterations, relative_tolerance, step_tolerance,
-                                                       kernel, kernel_width, linear_solver, ordering);
+                                                       kernel, kernel_width, linear_solver, ordering, damping);
           py::gil_scoped_release release;
           return optimize(graph, o);
         },
         py::arg("graph"), py::arg("algorithm") = "gauss-newton", py::arg("max_iterations") = 100,
         py::arg("relative_tolerance") = 1e-10, py::arg("step_tolerance") = 1e-10, py::arg("kernel") = "none",
-        py::arg("kernel_width") = 1.0, py::arg("linear_solver") = "simplicial", py::arg("ordering") = "amd");
+        py::arg("kernel_width") = 1.0, py::arg("linear_solver") = "simplicial", py::arg("ordering") = "amd",
+        py::arg("damping") = "marquardt");
 
   py::class_<IncrementalReport>(m, "IncrementalReport")
       .def_readonly("steps", &IncrementalReport::steps)
@@ -216,18 +219,18 @@ void define_graph(py::module_& m) {
   m.def("optimize_incremental",
         [](PoseGraph2D& graph, int poses_per_step, const std::string& algorithm, int max_iterations,
            double relative_tolerance, double step_tolerance, const std::string& kernel, double kernel_width,
-           const std::string& linear_solver, const std::string& ordering) {
+           const std::string& linear_solver, const std::string& ordering, const std::string& damping) {
           IncrementalOptions o;
           o.poses_per_step = poses_per_step;
           o.step = optimizer_options(algorithm, max_iterations, relative_tolerance, step_tolerance, kernel,
-                                     kernel_width, linear_solver, ordering);
+                                     kernel_width, linear_solver, ordering, damping);
           py::gil_scoped_release release;
           return optimize_incremental(graph, o);
         },
         py::arg("graph"), py::arg("poses_per_step") = 100, py::arg("algorithm") = "gauss-newton",
         py::arg("max_iterations") = 10, py::arg("relative_tolerance") = 1e-6, py::arg("step_tolerance") = 1e-10,
         py::arg("kernel") = "none", py::arg("kernel_width") = 1.0, py::arg("linear_solver") = "simplicial",
-        py::arg("ordering") = "amd");
+        py::arg("ordering") = "amd", py::arg("damping") = "marquardt");
 
   m.def("marginal_covariances",
         [](const PoseGraph2D& graph, const std::vector<int>& ids, const std::string& linear_solver,
