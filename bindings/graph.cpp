@@ -1,6 +1,7 @@
 #include <pybind11/stl.h>
 
 #include "numpy.hpp"
+#include "probslam/graph/graph_initialization.hpp"
 #include "probslam/graph/graph_optimizer.hpp"
 #include "probslam/graph/pose_graph_2d.hpp"
 #include "probslam/io/pose_graph_file.hpp"
@@ -65,6 +66,48 @@ SparseCholeskyOptions solver_options(const std::string& method, const std::strin
   return o;
 }
 
+OptimizerOptions optimizer_options(const std::string& algorithm, int max_iterations, double relative_tolerance,
+                                   double step_tolerance, const std::string& kernel, double kernel_width,
+                                   const std::string& linear_solver, const std::string& ordering,
+                                   const std::string& damping) {
+  OptimizerOptions o;
+  o.damping = choice<Damping>(damping, "damping", {{"marquardt", Damping::kMarquardt}, {"levenberg", Damping::kLevenberg}});
+  o.algorithm = choice<OptimizerAlgorithm>(algorithm, "algorithm",
+                                           {{"gauss-newton", OptimizerAlgorithm::kGaussNewton},
+                                            {"levenberg-marquardt", OptimizerAlgorithm::kLevenbergMarquardt}});
+  o.kernel = choice<RobustKernel>(kernel, "kernel",
+                                  {{"none", RobustKernel::kNone},
+                                   {"huber", RobustKernel::kHuber},
+                                   {"cauchy", RobustKernel::kCauchy}});
+  o.max_iterations = max_iterations;
+  o.relative_tolerance = relative_tolerance;
+  o.step_tolerance = step_tolerance;
+  o.kernel_width = kernel_width;
+  o.linear_solver = solver_options(linear_solver, ordering);
+  return o;
+}
+
+// Every edge's end ids (E, 2), measurement (E, dim) and information (E, dim, dim) as arrays.
+template <int Dim, typename Edge, typename Ends>
+py::tuple edge_arrays(const PoseGraph2D& g, const std::vector<Edge>& edges, Ends ends) {
+  const auto n = static_cast<py::ssize_t>(edges.size());
+  py::array_t<long> ids({n, py::ssize_t{2}});
+  py::array_t<double> z({n, py::ssize_t{Dim}}), info({n, py::ssize_t{Dim}, py::ssize_t{Dim}});
+  auto i = ids.mutable_unchecked<2>();
+  auto m = z.mutable_unchecked<2>();
+  auto w = info.mutable_unchecked<3>();
+  for (py::ssize_t k = 0; k < n; ++k) {
+    const auto [a, b] = ends(edges[k]);
+    i(k, 0) = g.vertex(a).id;
+    i(k, 1) = g.vertex(b).id;
+    for (int r = 0; r < Dim; ++r) {
+      m(k, r) = edges[k].measurement[r];
+      for (int c = 0; c < Dim; ++c) w(k, r, c) = edges[k].information(r, c);
+    }
+  }
+  return py::make_tuple(ids, z, info);
+}
+
 }  // namespace
 
 void define_graph(py::module_& m) {
@@ -116,6 +159,14 @@ void define_graph(py::module_& m) {
              }
              return out;
            })
+      .def("pose_edges",
+           [](const PoseGraph2D& g) {
+             return edge_arrays<3>(g, g.pose_edges(), [](const PoseEdge& e) { return std::pair{e.from, e.to}; });
+           })
+      .def("point_edges",
+           [](const PoseGraph2D& g) {
+             return edge_arrays<2>(g, g.point_edges(), [](const PointEdge& e) { return std::pair{e.pose, e.point}; });
+           })
       .def("chi2", &PoseGraph2D::chi2)
       .def("copy", [](const PoseGraph2D& g) { return PoseGraph2D(g); });
 
@@ -138,26 +189,48 @@ void define_graph(py::module_& m) {
   m.def("optimize",
         [](PoseGraph2D& graph, const std::string& algorithm, int max_iterations, double relative_tolerance,
            double step_tolerance, const std::string& kernel, double kernel_width,
-           const std::string& linear_solver, const std::string& ordering) {
-          OptimizerOptions o;
-          o.algorithm = choice<OptimizerAlgorithm>(algorithm, "algorithm",
-                                                   {{"gauss-newton", OptimizerAlgorithm::kGaussNewton},
-                                                    {"levenberg-marquardt", OptimizerAlgorithm::kLevenbergMarquardt}});
-          o.kernel = choice<RobustKernel>(kernel, "kernel",
-                                          {{"none", RobustKernel::kNone},
-                                           {"huber", RobustKernel::kHuber},
-                                           {"cauchy", RobustKernel::kCauchy}});
-          o.max_iterations = max_iterations;
-          o.relative_tolerance = relative_tolerance;
-          o.step_tolerance = step_tolerance;
-          o.kernel_width = kernel_width;
-          o.linear_solver = solver_options(linear_solver, ordering);
+           const std::string& linear_solver, const std::string& ordering, const std::string& damping) {
+          const OptimizerOptions o = optimizer_options(algorithm, max_iterations, relative_tolerance, step_tolerance,
+                                                       kernel, kernel_width, linear_solver, ordering, damping);
           py::gil_scoped_release release;
           return optimize(graph, o);
         },
         py::arg("graph"), py::arg("algorithm") = "gauss-newton", py::arg("max_iterations") = 100,
         py::arg("relative_tolerance") = 1e-10, py::arg("step_tolerance") = 1e-10, py::arg("kernel") = "none",
-        py::arg("kernel_width") = 1.0, py::arg("linear_solver") = "simplicial", py::arg("ordering") = "amd");
+        py::arg("kernel_width") = 1.0, py::arg("linear_solver") = "simplicial", py::arg("ordering") = "amd",
+        py::arg("damping") = "marquardt");
+
+  py::class_<IncrementalReport>(m, "IncrementalReport")
+      .def_readonly("steps", &IncrementalReport::steps)
+      .def_readonly("iterations", &IncrementalReport::iterations)
+      .def_readonly("chi2", &IncrementalReport::chi2)
+      .def_readonly("step_chi2", &IncrementalReport::step_chi2)
+      .def("__repr__", [](const IncrementalReport& r) {
+        return "IncrementalReport(steps=" + std::to_string(r.steps) + ", iterations=" + std::to_string(r.iterations) +
+               ", chi2=" + std::to_string(r.chi2) + ")";
+      });
+
+  m.def("initialize_odometry",
+        [](PoseGraph2D& graph) {
+          py::gil_scoped_release release;
+          initialize_odometry(graph);
+        },
+        py::arg("graph"));
+  m.def("optimize_incremental",
+        [](PoseGraph2D& graph, int poses_per_step, const std::string& algorithm, int max_iterations,
+           double relative_tolerance, double step_tolerance, const std::string& kernel, double kernel_width,
+           const std::string& linear_solver, const std::string& ordering, const std::string& damping) {
+          IncrementalOptions o;
+          o.poses_per_step = poses_per_step;
+          o.step = optimizer_options(algorithm, max_iterations, relative_tolerance, step_tolerance, kernel,
+                                     kernel_width, linear_solver, ordering, damping);
+          py::gil_scoped_release release;
+          return optimize_incremental(graph, o);
+        },
+        py::arg("graph"), py::arg("poses_per_step") = 100, py::arg("algorithm") = "gauss-newton",
+        py::arg("max_iterations") = 10, py::arg("relative_tolerance") = 1e-6, py::arg("step_tolerance") = 1e-10,
+        py::arg("kernel") = "none", py::arg("kernel_width") = 1.0, py::arg("linear_solver") = "simplicial",
+        py::arg("ordering") = "amd", py::arg("damping") = "marquardt");
 
   m.def("marginal_covariances",
         [](const PoseGraph2D& graph, const std::vector<int>& ids, const std::string& linear_solver,

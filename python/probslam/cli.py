@@ -118,9 +118,13 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     g = pg.read_pose_graph(args.graph, format=args.format)
     t_read = time.perf_counter() - t0
-    initial = g.poses
     print(f"graph:      {args.graph}: {len(g.pose_ids)} poses, {len(g.point_ids)} points, "
           f"{g.num_pose_edges} pose edges, {g.num_point_edges} point edges (read in {t_read:.3f} s)")
+    if args.init != "file":
+        t_init = time.perf_counter()
+        pg.initialize(g, args.init, poses_per_step=args.poses_per_step)
+        print(f"init:       {args.init} in {time.perf_counter() - t_init:.3f} s, chi2 {g.chi2():.6f}")
+    initial = g.poses
     t1 = time.perf_counter()
     report = pg.optimize(g, algorithm=args.algorithm, max_iterations=args.max_iterations, kernel=args.kernel,
                          kernel_width=args.kernel_width, linear_solver=args.linear_solver, ordering=args.ordering)
@@ -179,6 +183,10 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("graph", help="graph file: .g2o, TORO .graph, or iSAM .txt")
     o.add_argument("--format", default="auto", choices=["auto", "g2o", "toro", "isam"])
     o.add_argument("--algorithm", default="gauss-newton", choices=["gauss-newton", "levenberg-marquardt"])
+    o.add_argument("--init", default="file", choices=["file", "odometry", "ekf", "incremental"],
+                   help="starting point: the file's values (default; dead reckoning for iSAM files), "
+                        "dead reckoning, the EKF SLAM estimate, or incremental optimisation")
+    o.add_argument("--poses-per-step", type=int, default=100, help="with --init incremental: poses per step")
     o.add_argument("--max-iterations", type=int, default=100)
     o.add_argument("--kernel", default="none", choices=["none", "huber", "cauchy"], help="robust kernel")
     o.add_argument("--kernel-width", type=float, default=1.0, help="kernel width, in units of sqrt(chi2)")

@@ -1,15 +1,64 @@
-"""2-D pose/landmark graphs: reading, optimising (Gauss-Newton / Levenberg-Marquardt on CHOLMOD),
-marginal covariances, writing. The math is in C++; this module only names things."""
+"""2-D pose/landmark graphs: reading, initialising, optimising (Gauss-Newton / Levenberg-Marquardt
+on CHOLMOD), marginal covariances, writing. The math is in C++; this module only names things
+and drives the EKF for the EKF initialisation."""
 
 from __future__ import annotations
 
-from ._core import OptimizationReport, PoseGraph2D, marginal_covariances, optimize, read_pose_graph, write_g2o
+from typing import Optional
+
+from ._core import (IncrementalReport, OptimizationReport, PoseGraph2D, initialize_odometry, marginal_covariances,
+                    optimize, optimize_incremental, read_pose_graph, write_g2o)
+
+#: The starting points ``initialize`` offers (ch. 11.3): dead reckoning, the EKF SLAM estimate,
+#: and incremental optimisation pose by pose.
+INITIALIZATIONS = ("odometry", "ekf", "incremental")
+
+
+def initialize(graph: PoseGraph2D, method: str = "odometry", poses_per_step: int = 100,
+               **step_options) -> Optional[IncrementalReport]:
+    """Replace the graph's values by a starting point for ``optimize``.
+
+    ``method``:
+      * ``"odometry"``: dead reckoning, composing pose edges outward from the held vertices
+        (``initialize_odometry``);
+      * ``"ekf"``: the estimate of EKF SLAM run along the poses in the order they were added,
+        with the pose edges between consecutive poses as odometry and the point edges as
+        landmark observations (``landmark_slam.run_ekf_on_graph``);
+      * ``"incremental"``: ``optimize_incremental``: the poses join ``poses_per_step`` at a time
+        and the graph so far is optimised after each step (``step_options`` go to each step's
+        optimisation, e.g. ``algorithm``); its report is returned, and the graph ends at a
+        minimum of the full problem.
+
+    Fixed vertices keep their values. Raises ValueError for an unknown method.
+    """
+    if method == "odometry":
+        initialize_odometry(graph)
+        return None
+    if method == "ekf":
+        from .landmark_slam import run_ekf_on_graph
+
+        run = run_ekf_on_graph(graph)
+        free = [not graph.is_fixed(int(i)) for i in graph.pose_ids]
+        graph.set_poses(graph.pose_ids[free], run.poses[free])
+        points = [i for i in run.landmarks if not graph.is_fixed(i)]
+        if points:
+            graph.set_points(points, [run.landmarks[i] for i in points])
+        return None
+    if method == "incremental":
+        return optimize_incremental(graph, poses_per_step=poses_per_step, **step_options)
+    raise ValueError(f"method must be one of {', '.join(repr(m) for m in INITIALIZATIONS)}, got {method!r}")
+
 
 __all__ = [
+    "INITIALIZATIONS",
+    "IncrementalReport",
     "OptimizationReport",
     "PoseGraph2D",
+    "initialize",
+    "initialize_odometry",
     "marginal_covariances",
     "optimize",
+    "optimize_incremental",
     "read_pose_graph",
     "write_g2o",
 ]

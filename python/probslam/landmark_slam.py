@@ -260,31 +260,68 @@ def polar_measurements(xy: np.ndarray, xy_cov: np.ndarray):
     return z, j @ xy_cov @ j.transpose(0, 2, 1)
 
 
+def _ekf_along_chain(delta: np.ndarray, delta_cov: np.ndarray, observed_from: np.ndarray, z: np.ndarray,
+                     z_cov: np.ndarray, landmark: np.ndarray, measurement_noise=None,
+                     initial_pose=(0.0, 0.0, 0.0)) -> EkfRun:
+    """EKF SLAM with known correspondences along a chain of P poses: ``delta`` (P-1, 3) relative
+    poses with covariances (P-1, 3, 3); observation k (robot-frame range-bearing ``z[k]``, polar
+    covariance ``z_cov[k]``) of landmark ``landmark[k]`` is made from chain pose
+    ``observed_from[k]``. The filter takes one Q_t: the median of ``z_cov`` unless given; the
+    chain starts at ``initial_pose``, known exactly."""
+    q = np.median(z_cov, axis=0) if measurement_noise is None else np.asarray(measurement_noise, float)
+    ekf = EkfSlam(np.eye(3) * 1e-6, 0.5 * (q + q.T), use_signatures=False, initial_pose=initial_pose)
+    order = np.argsort(observed_from, kind="stable")
+    bounds = np.searchsorted(observed_from[order], np.arange(len(delta) + 2))
+    poses = np.empty((len(delta) + 1, 3))
+    for k in range(len(delta) + 1):
+        if k > 0:
+            ekf.predict_odometry(delta[k - 1], delta_cov[k - 1])
+        rows = order[bounds[k]:bounds[k + 1]]
+        if len(rows):
+            ekf.update(z[rows], landmark[rows])
+        poses[k] = ekf.pose
+    run = EkfRun(np.arange(len(poses), dtype=float), poses, ekf, {})
+    run.landmarks = {int(i): ekf.landmark(i)[:2] for i in ekf.landmark_ids}
+    return run
+
+
 def run_ekf_victoria_park(data: VictoriaPark, measurement_noise=None) -> EkfRun:
     """EKF SLAM with known correspondences over Victoria Park: odometry as relative poses,
     landmark points converted to range-bearing. The file's per-observation covariances are
     constant (0.4 m^2 per axis); their polar form at each range would change Q_t per
     measurement, so Q_t is the polar covariance at the median range unless given."""
+    chain = np.r_[data.pose_from[0], data.pose_to]
+    if np.any(data.pose_from[1:] != data.pose_to[:-1]):
+        raise ValueError("data: the odometry edges do not form one chain")
     z, z_cov = polar_measurements(data.xy, data.xy_cov)
-    q = np.median(z_cov, axis=0) if measurement_noise is None else np.asarray(measurement_noise)
-    q = 0.5 * (q + q.T)
-    ekf = EkfSlam(np.eye(3) * 1e-6, q, use_signatures=False)
-    by_pose: Dict[int, np.ndarray] = {}
-    for p in np.unique(data.pose):
-        by_pose[int(p)] = np.flatnonzero(data.pose == p)
-    poses = [ekf.pose]
-    if data.pose_from[0] in by_pose:
-        rows = by_pose[int(data.pose_from[0])]
-        ekf.update(z[rows], data.landmark[rows])
-    for e in range(len(data.delta)):
-        ekf.predict_odometry(data.delta[e], data.delta_cov[e])
-        rows = by_pose.get(int(data.pose_to[e]))
-        if rows is not None:
-            ekf.update(z[rows], data.landmark[rows])
-        poses.append(ekf.pose)
-    run = EkfRun(np.arange(len(poses), dtype=float), np.array(poses), ekf, {})
-    run.landmarks = {int(i): ekf.landmark(i)[:2] for i in ekf.landmark_ids}
-    return run
+    position = {int(p): k for k, p in enumerate(chain)}
+    observed_from = np.array([position[int(p)] for p in data.pose], dtype=np.int64)
+    return _ekf_along_chain(data.delta, data.delta_cov, observed_from, z, z_cov, data.landmark, measurement_noise)
+
+
+def run_ekf_on_graph(graph, measurement_noise=None) -> EkfRun:
+    """EKF SLAM over a pose/landmark graph (``probslam.graph.PoseGraph2D``): the poses in the
+    order they were added form the chain, each consecutive pair linked by a pose edge (the
+    odometry, its covariance the inverse information); the point edges are the landmark
+    observations, converted to range-bearing. Other pose edges (loop closures) are ignored.
+    The filter starts, certain, at the first pose's current value.
+    ``EkfRun.poses`` follows ``graph.pose_ids``; ``landmarks`` maps point ids to positions."""
+    chain = np.asarray(graph.pose_ids)
+    if len(chain) < 2 or graph.num_point_edges == 0:
+        raise ValueError("graph: the EKF needs at least two poses and one point edge")
+    ends, delta, info = graph.pose_edges()
+    edge_of = {(int(a), int(b)): k for k, (a, b) in enumerate(ends)}
+    links = [edge_of.get((int(a), int(b)), -1) for a, b in zip(chain[:-1], chain[1:])]
+    if min(links) < 0:
+        k = links.index(-1)
+        raise ValueError(f"graph: no pose edge from pose {chain[k]} to the next pose {chain[k + 1]}; "
+                         "the EKF follows a chain of odometry edges in the order the poses were added")
+    point_ends, xy, xy_info = graph.point_edges()
+    by_id = np.argsort(chain)
+    observed_from = by_id[np.searchsorted(chain[by_id], point_ends[:, 0])]
+    z, z_cov = polar_measurements(xy, np.linalg.inv(xy_info))
+    return _ekf_along_chain(delta[links], np.linalg.inv(info[links]), observed_from, z, z_cov,
+                            point_ends[:, 1].astype(np.int64), measurement_noise, graph.poses[0])
 
 
 def dead_reckoning(odometry: np.ndarray, initial_pose) -> np.ndarray:

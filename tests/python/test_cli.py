@@ -57,6 +57,21 @@ def test_optimize_writes_the_optimised_graph(tmp_path, capsys):
     assert (tmp_path / "out.png").read_bytes()[:4] == b"\x89PNG"
 
 
+def test_optimize_with_an_initialisation(tmp_path, capsys):
+    g = ps.PoseGraph2D()
+    for i in range(3):
+        g.add_pose(i, [0.0, 0.0, 0.0])
+        if i:
+            g.add_pose_edge(i - 1, i, [1.0, 0.0, 0.5], np.eye(3))
+    ps.write_g2o(str(tmp_path / "chain.g2o"), g)
+    args = ["optimize", str(tmp_path / "chain.g2o"), "--no-plot", "-o", str(tmp_path / "o")]
+    assert cli.main(args + ["--init", "odometry"]) == 0
+    out = capsys.readouterr().out
+    assert "init:       odometry" in out and "chi2 0.000000 after" in out
+    assert cli.main(args + ["--init", "incremental", "--poses-per-step", "0"]) == 2
+    assert "poses_per_step" in capsys.readouterr().err
+
+
 def test_optimize_bad_file_reports_line(tmp_path, capsys):
     bad = tmp_path / "bad.g2o"
     bad.write_text("VERTEX_SE2 0 0 0 0\nEDGE_SE2 0 1 1 0 0\n")

@@ -109,12 +109,13 @@ def dense_gauss_newton(g, pose_edges, point_edges, iterations=50):
     return values, residual(values) @ residual(values), hessian, offset
 
 
-@pytest.mark.parametrize("algorithm", ["gauss-newton", "levenberg-marquardt"])
+@pytest.mark.parametrize("algorithm, damping", [("gauss-newton", "marquardt"), ("levenberg-marquardt", "marquardt"),
+                                                ("levenberg-marquardt", "levenberg")])
 @pytest.mark.parametrize("solver", ["simplicial", "supernodal"])
-def test_optimum_equals_dense_gauss_newton(algorithm, solver):
+def test_optimum_equals_dense_gauss_newton(algorithm, damping, solver):
     g, pose_edges, point_edges = random_graph()
     reference, ref_chi2, hessian, offset = dense_gauss_newton(g, pose_edges, point_edges)
-    report = probslam.optimize(g, algorithm=algorithm, linear_solver=solver)
+    report = probslam.optimize(g, algorithm=algorithm, linear_solver=solver, damping=damping)
     assert report.converged
     assert report.chi2 == pytest.approx(ref_chi2, rel=CONVERGED)
     assert g.chi2() == pytest.approx(report.chi2)
@@ -239,6 +240,8 @@ def test_bad_graphs_raise_clear_errors():
         g.add_pose(5, [np.nan, 0, 0])
     with pytest.raises(ValueError, match="algorithm"):
         probslam.optimize(g, algorithm="newton")
+    with pytest.raises(ValueError, match="damping"):
+        probslam.optimize(g, algorithm="levenberg-marquardt", damping="none")
     with pytest.raises(ValueError, match="kernel_width"):
         probslam.optimize(g, kernel="huber", kernel_width=0.0)
     assert g.num_pose_edges == 2
@@ -253,7 +256,34 @@ def test_published_optima(shared_data, name, expected):
     g = probslam.read_pose_graph(str(shared_data / name))
     report = probslam.optimize(g)
     assert report.converged
-    # The published figures carry 6 significant digits.
-    assert report.chi2 == pytest.approx(expected, rel=5e-6)
+    # The tolerance; the published figures carry 6 significant digits, and ours
+    # (45.004696, 137.912951) round to them.
+    assert report.chi2 == pytest.approx(expected, rel=1e-6)
+
+
+#: Gauss-Newton's minima (chi2, iterations) of the pose-graph files, measured here. Marquardt-damped
+#: Levenberg-Marquardt with a tiny first damping takes Gauss-Newton's steps on the first three;
+#: from input_INTEL_g2o's initial values it refuses Gauss-Newton's first step (chi2 x30) and
+#: follows a curved valley to the same minimum in about 550 iterations.
+GAUSS_NEWTON_MINIMA = {
+    "pose_graphs/intel/intel.g2o": (45.004696, 5),
+    "pose_graphs/manhattan_m3500/input_M3500_g2o.g2o": (137.912951, 7),
+    "pose_graphs/manhattan_m3500/manhattanOlson3500.g2o": (146.076745, 7),
+    "pose_graphs/intel/input_INTEL_g2o.g2o": (215.830235, 7),
+}
+#: Enough iterations for input_INTEL_g2o's valley.
+LM_MAX_ITERATIONS = 1000
+
+
+@pytest.mark.parametrize("name", sorted(GAUSS_NEWTON_MINIMA))
+def test_levenberg_marquardt_reaches_the_gauss_newton_minimum(shared_data, name):
+    if not (shared_data / name).exists():
+        pytest.skip(f"{name} not present")
+    chi2, iterations = GAUSS_NEWTON_MINIMA[name]
+    g = probslam.read_pose_graph(str(shared_data / name))
+    gn = probslam.optimize(g)
+    assert (gn.iterations, round(gn.chi2, 6)) == (iterations, chi2)
     lm = probslam.read_pose_graph(str(shared_data / name))
-    assert probslam.optimize(lm, algorithm="levenberg-marquardt").chi2 == pytest.approx(report.chi2, rel=1e-6)
+    report = probslam.optimize(lm, algorithm="levenberg-marquardt", max_iterations=LM_MAX_ITERATIONS)
+    assert report.converged
+    assert report.chi2 == pytest.approx(gn.chi2, rel=CONVERGED)
