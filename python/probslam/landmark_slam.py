@@ -78,14 +78,14 @@ def run_ekf_mrclam(data: Mrclam, motion_noise, measurement_noise, known: bool = 
     times, poses = np.empty(len(odo)), np.empty((len(odo), 3))
     m_rate = np.asarray(motion_noise, float) * command_period
     t_now, rejected, innovations = odo[0, 0], 0, []
-    starts = np.flatnonzero(np.r_[True, np.diff(meas[:, 0]) != 0])  # first row of each scan
-    scan_end = np.r_[starts[1:], len(meas)]
+    scan_rows = scans(meas)
+    starts = np.array([r.start for r in scan_rows], dtype=np.int64)
     s = int(np.searchsorted(meas[starts, 0], odo[0, 0]))  # scans before the first control are skipped
     for k in range(len(odo)):
         v, w = odo[k, 1], odo[k, 2]
         t_next = odo[k + 1, 0] if k + 1 < len(odo) else odo[k, 0]
         while not dead_reckoning and s < len(starts) and meas[starts[s], 0] < t_next:
-            rows = meas[starts[s]:scan_end[s]]
+            rows = meas[scan_rows[s]]
             if rows[0, 0] > t_now:
                 ekf.predict(v, w, rows[0, 0] - t_now, m_rate / (rows[0, 0] - t_now))
                 t_now = rows[0, 0]
