@@ -66,14 +66,19 @@ Eigen::VectorXd dt_arg(py::handle dt, py::ssize_t steps) {
   return as_vector(a);
 }
 
-InformationForm form_arg(py::handle indptr, py::handle indices, py::handle data, int dim, py::handle xi,
-                         int num_poses, int feature_dim) {
+InformationForm form_from(py::handle indptr, py::handle indices, py::handle data, int dim, Eigen::VectorXd xi,
+                          int num_poses, int feature_dim) {
   InformationForm f;
   f.omega = sparse_from_csc(indptr, indices, data, dim, dim, "omega");
-  f.xi = as_vector(vector_arg(xi, "xi", dim));
+  f.xi = std::move(xi);
   f.num_poses = num_poses;
   f.feature_dim = feature_dim;
   return f;
+}
+
+InformationForm form_arg(py::handle indptr, py::handle indices, py::handle data, int dim, py::handle xi,
+                         int num_poses, int feature_dim) {
+  return form_from(indptr, indices, data, dim, as_vector(vector_arg(xi, "xi", dim)), num_poses, feature_dim);
 }
 
 py::array_t<double> blocks_array(const std::vector<Eigen::Matrix3d>& blocks) {
@@ -206,9 +211,10 @@ void define_information_form(py::module_& m) {
     if (f.ndim() != 2 || (f.shape(1) != 2 && f.shape(1) != 3))
       throw py::value_error("features must have shape (N, 2) or (N, 3), got " + shape_of(f));
     const int d = static_cast<int>(f.shape(1));
-    const InformationForm form = form_arg(indptr, indices, data, dim, py::array_t<double>(dim), num_poses, d);
+    // Table 11.8 reads Omega alone: xi is not needed.
+    const InformationForm form = form_from(indptr, indices, data, dim, Eigen::VectorXd::Zero(dim), num_poses, d);
     const int p = 3 * num_poses;
-    SparseMatrixd reduced = sparse_from_csc(r_indptr, r_indices, r_data, p, p, "reduced_omega");
+    const SparseMatrixd reduced = sparse_from_csc(r_indptr, r_indices, r_data, p, p, "reduced_omega");
     const auto k = static_cast<py::ssize_t>(pairs.size());
     py::array_t<double> probability(k), distance2(k), mean({k, py::ssize_t{d}}), cov({k, py::ssize_t{d}, py::ssize_t{d}});
     std::vector<CorrespondenceTest> tests;
@@ -216,8 +222,7 @@ void define_information_form(py::module_& m) {
       const RowMatrixXd means = as_matrix(f);
       py::gil_scoped_release release;
       SparseCholesky factor;
-      SparseMatrixd upper = reduced.triangularView<Eigen::Upper>();
-      factor.factorize(upper);
+      eif_factorize_path(reduced, factor);
       EifCorrespondenceTester tester(form, factor, means);
       for (const auto& [j, kk] : pairs) tests.push_back(tester.test(j, kk));
     }

@@ -10,6 +10,7 @@
 
 #include "probslam/core/angle.hpp"
 #include "probslam/core/check.hpp"
+#include "feature_block.hpp"
 
 namespace probslam {
 namespace {
@@ -53,25 +54,18 @@ const EifCorrespondenceTester::Feature& EifCorrespondenceTester::feature(int j) 
   if (cached_[j]) return cache_[j];
   const int p = form_.pose_dim(), d = form_.feature_dim;
   Feature& f = cache_[j];
-  Eigen::MatrixXd a = Eigen::MatrixXd::Zero(d, d);
+  f.a_inv = graph_detail::feature_information_inverse(form_, j);
   std::vector<std::pair<int, Eigen::VectorXd>> entries;  // path row -> its row of B_j^T
   std::unordered_map<int, size_t> slot;
   for (int c = 0; c < d; ++c) {
     for (SparseMatrixd::InnerIterator it(form_.omega, p + d * j + c); it; ++it) {
       const int row = static_cast<int>(it.row());
-      if (row >= p + d * j && row < p + d * (j + 1)) {
-        a(row - p - d * j, c) = it.value();
-      } else if (row < p && it.value() != 0.0) {
-        auto [pos, fresh] = slot.emplace(row, entries.size());
-        if (fresh) entries.emplace_back(row, Eigen::VectorXd::Zero(d));
-        entries[pos->second].second[c] = it.value();
-      }
+      if (row >= p || it.value() == 0.0) continue;
+      auto [pos, fresh] = slot.emplace(row, entries.size());
+      if (fresh) entries.emplace_back(row, Eigen::VectorXd::Zero(d));
+      entries[pos->second].second[c] = it.value();
     }
   }
-  Eigen::LLT<Eigen::MatrixXd> llt(a);
-  if (llt.info() != Eigen::Success)
-    throw_invalid_argument("omega", "the block of feature " + std::to_string(j) + " is not positive definite");
-  f.a_inv = llt.solve(Eigen::MatrixXd::Identity(d, d));
   Eigen::MatrixXd bt = Eigen::MatrixXd::Zero(p, d);
   f.rows.resize(entries.size());
   f.b.resize(static_cast<Eigen::Index>(entries.size()), d);
@@ -292,12 +286,14 @@ GraphSlamUnknownResult graph_slam_unknown(const Eigen::Ref<const RowMatrixXd>& c
     auto times = feature_times(meas, n);
     const auto accepted = accepted_pairs(tester, times, out.slam.features, search);
     MergeGroups groups(std::move(times), first);
+    bool merged = false;
     for (const Candidate& c : accepted) {
       const int a = groups.first(groups.root(c.j)), b = groups.first(groups.root(c.k));
-      if (groups.join(c.j, c.k))
-        out.merges.push_back({round, std::min(a, b), std::max(a, b), c.test.probability, c.test.distance2});
+      if (!groups.join(c.j, c.k)) continue;
+      merged = true;
+      out.merges.push_back({round, std::min(a, b), std::max(a, b), c.test.probability, c.test.distance2});
     }
-    if (out.merges.empty() || out.merges.back().round != round) {  // line 17
+    if (!merged) {  // line 17
       out.converged = true;
       break;
     }

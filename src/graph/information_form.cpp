@@ -11,6 +11,7 @@
 #include "probslam/core/range_bearing_model.hpp"
 #include "probslam/core/velocity_motion_model.hpp"
 #include "probslam/graph/block_system.hpp"
+#include "feature_block.hpp"
 
 namespace probslam {
 namespace {
@@ -224,6 +225,30 @@ InformationForm eif_construct(const Eigen::Ref<const RowMatrixXd>& controls,
   return form;
 }
 
+Eigen::MatrixXd graph_detail::feature_information_inverse(const InformationForm& form, int j) {
+  const int p = form.pose_dim(), d = form.feature_dim;
+  Eigen::MatrixXd block = Eigen::MatrixXd::Zero(d, d);
+  for (int c = 0; c < d; ++c) {
+    for (SparseMatrixd::InnerIterator it(form.omega, p + d * j + c); it; ++it) {
+      if (it.row() < p) continue;
+      if (it.row() < p + d * j || it.row() >= p + d * (j + 1)) {
+        if (it.value() != 0.0)
+          throw_invalid_argument("omega", "features " + std::to_string(j) + " and " +
+                                              std::to_string((it.row() - p) / d) +
+                                              " share information: Omega_mm must be block diagonal");
+        continue;
+      }
+      block(it.row() - p - d * j, c) = it.value();
+    }
+  }
+  require_all_finite(block, "omega");
+  Eigen::LLT<Eigen::MatrixXd> llt(block);
+  if (llt.info() != Eigen::Success)
+    throw_invalid_argument("omega", "the block of feature " + std::to_string(j) +
+                                        " is not positive definite (is it observed?)");
+  return llt.solve(Eigen::MatrixXd::Identity(d, d));
+}
+
 namespace {
 
 void validate_form(const InformationForm& form) {
@@ -237,35 +262,13 @@ void validate_form(const InformationForm& form) {
   require_all_finite(form.xi, "xi");
 }
 
-// Omega_mm^-1, block by block; throws when a feature's block is singular or features share
-// information (Omega_mm not block diagonal).
+// Omega_mm^-1 as a block-diagonal sparse matrix.
 SparseMatrixd feature_block_inverse(const InformationForm& form) {
-  const int p = form.pose_dim(), d = form.feature_dim, n = form.num_features();
+  const int d = form.feature_dim, n = form.num_features();
   std::vector<Eigen::Triplet<double>> triplets;
   triplets.reserve(static_cast<size_t>(n) * d * d);
-  Eigen::MatrixXd block(d, d);
   for (int j = 0; j < n; ++j) {
-    block.setZero();
-    for (int c = 0; c < d; ++c) {
-      const int col = p + d * j + c;
-      for (SparseMatrixd::InnerIterator it(form.omega, col); it; ++it) {
-        if (it.row() < p) continue;
-        if (it.row() < p + d * j || it.row() >= p + d * (j + 1)) {
-          if (it.value() != 0.0)
-            throw_invalid_argument("omega", "features " + std::to_string(j) + " and " +
-                                                std::to_string((it.row() - p) / d) +
-                                                " share information: Omega_mm must be block diagonal");
-          continue;
-        }
-        block(it.row() - p - d * j, c) = it.value();
-      }
-    }
-    require_all_finite(block, "omega");
-    Eigen::LLT<Eigen::MatrixXd> llt(block);
-    if (llt.info() != Eigen::Success)
-      throw_invalid_argument("omega", "the block of feature " + std::to_string(j) +
-                                          " is not positive definite (is it observed?)");
-    const Eigen::MatrixXd inv = llt.solve(Eigen::MatrixXd::Identity(d, d));
+    const Eigen::MatrixXd inv = graph_detail::feature_information_inverse(form, j);
     for (int c = 0; c < d; ++c)
       for (int r = 0; r < d; ++r) triplets.emplace_back(d * j + r, d * j + c, inv(r, c));
   }
@@ -291,6 +294,12 @@ ReducedInformationForm eif_reduce(const InformationForm& form) {
   return out;
 }
 
+void eif_factorize_path(const SparseMatrixd& reduced_omega, SparseCholesky& cholesky) {
+  SparseMatrixd upper = reduced_omega.triangularView<Eigen::Upper>();
+  upper.makeCompressed();
+  cholesky.factorize(upper);
+}
+
 // Table 11.4.
 EifSolution eif_solve(const ReducedInformationForm& reduced, const InformationForm& form,
                       const std::vector<std::pair<int, int>>& covariance_blocks,
@@ -305,9 +314,7 @@ EifSolution eif_solve(const ReducedInformationForm& reduced, const InformationFo
             "must index poses 0 .. T");
   SparseCholesky local;
   SparseCholesky& chol = cholesky ? *cholesky : local;
-  SparseMatrixd upper = reduced.omega.triangularView<Eigen::Upper>();
-  upper.makeCompressed();
-  chol.factorize(upper);
+  eif_factorize_path(reduced.omega, chol);
   const Eigen::VectorXd path = chol.solve(reduced.xi);
 
   EifSolution out;

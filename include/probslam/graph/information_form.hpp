@@ -67,6 +67,10 @@ struct EifSolution {
   RowMatrixXd features;  ///< (N, d)
   std::vector<Eigen::Matrix3d> covariance_blocks;
 };
+/// The sparse Cholesky factor of Omega~ into `cholesky`: the first step of Table 11.4, and the
+/// path covariance Table 11.8 applies through solves.
+void eif_factorize_path(const SparseMatrixd& reduced_omega, SparseCholesky& cholesky);
+
 EifSolution eif_solve(const ReducedInformationForm& reduced, const InformationForm& form,
                       const std::vector<std::pair<int, int>>& covariance_blocks = {},
                       SparseCholesky* cholesky = nullptr);
