@@ -3,6 +3,7 @@
 #include "numpy.hpp"
 #include "probslam/core/check.hpp"
 #include "probslam/ekf/ekf_slam.hpp"
+#include "probslam/ekf/multi_hypothesis_ekf_slam.hpp"
 
 namespace probslam::bindings {
 
@@ -132,7 +133,61 @@ void define_ekf(py::module_& m) {
           py::arg("association") = Association::kMaximumLikelihood)
       .def_property("map_management", &EkfSlam::map_management, &EkfSlam::set_map_management)
       .def_property("gate_distance", &EkfSlam::gate_distance, &EkfSlam::set_gate_distance)
-      .def("remove_landmark", &EkfSlam::remove_landmark, py::arg("id"));
+      .def("remove_landmark", &EkfSlam::remove_landmark, py::arg("id"))
+      .def("clone", &EkfSlam::clone)
+      .def(
+          "pairing_likelihood",
+          [](const EkfSlam& e, py::handle z, long id) {
+            DoubleArray zz = measurements_arg(e, z);
+            if (zz.shape(0) != 1) throw py::value_error("z must be one measurement");
+            const EkfSlam::PairingLikelihood p = e.pairing_likelihood(as_matrix(zz).row(0).transpose(), id);
+            return py::make_tuple(p.nis, p.log_det);
+          },
+          py::arg("z"), py::arg("id"));
+
+  py::class_<MultiHypothesisOptions>(m, "MultiHypothesisOptions",
+                                     "Beam and costs (NIS units) of MultiHypothesisEkfSlam.")
+      .def(py::init<>())
+      .def_readwrite("max_hypotheses", &MultiHypothesisOptions::max_hypotheses)
+      .def_readwrite("max_children", &MultiHypothesisOptions::max_children)
+      .def_readwrite("gate", &MultiHypothesisOptions::gate)
+      .def_readwrite("new_landmark_cost", &MultiHypothesisOptions::new_landmark_cost)
+      .def_readwrite("clutter_cost", &MultiHypothesisOptions::clutter_cost)
+      .def_readwrite("prune_margin", &MultiHypothesisOptions::prune_margin);
+
+  using Mht = MultiHypothesisEkfSlam;
+  py::class_<Mht>(m, "_MultiHypothesisEkfSlam")
+      .def(py::init<const EkfSlam&, const MultiHypothesisOptions&>(), py::arg("initial"), py::arg("options"))
+      .def(
+          "predict",
+          [](Mht& e, double v, double w, double dt, py::handle noise) {
+            if (noise.is_none()) e.predict(v, w, dt);
+            else e.predict(v, w, dt, square_matrix_arg(noise, "noise"));
+          },
+          py::arg("v"), py::arg("w"), py::arg("dt"), py::arg("noise") = py::none())
+      .def(
+          "update",
+          [](Mht& e, py::handle z) {
+            DoubleArray zz = measurements_arg(e.best(), z);
+            std::vector<long> ids;
+            {
+              py::gil_scoped_release release;
+              ids = e.update(as_matrix(zz));
+            }
+            return py::array(py::cast(ids));
+          },
+          py::arg("z"))
+      .def_property_readonly("best", [](const Mht& e) { return e.best().clone(); })
+      .def_property_readonly("pose", [](const Mht& e) { return e.best().pose(); })
+      .def_property_readonly("num_hypotheses", &Mht::num_hypotheses)
+      .def_property_readonly("total_cost", &Mht::total_cost)
+      .def_property_readonly("costs", [](const Mht& e) { return py::array(py::cast(e.costs())); })
+      .def_property_readonly("options", &Mht::options)
+      .def("history", [](const Mht& e) {
+        py::list out;
+        for (const auto& ids : e.history()) out.append(py::array(py::cast(ids)));
+        return out;
+      });
 }
 
 }  // namespace probslam::bindings

@@ -35,7 +35,7 @@ from .graphslam import (
     eif_solve,
     graph_slam,
 )
-from .ekf import EkfSlam, MapManagement
+from .ekf import EkfSlam, MapManagement, MultiHypothesisEkfSlam
 from .mapping import MappingSummary, map_laser_log
 
 __version__ = "0.1.0"
@@ -60,6 +60,7 @@ __all__ = [
     "read_pose_graph",
     "write_g2o",
     "MapManagement",
+    "MultiHypothesisEkfSlam",
     "MappingSummary",
     "OccupancyGrid2D",
     "OccupancyGrid3D",

@@ -189,3 +189,27 @@ class _EkfSlam:
                                                                 npt.NDArray[np.int64], npt.NDArray[np.int64]]:
         """(ids, smallest pi, outcome, removed ids) for a scan z (k, 2) or (k, 3)."""
     def remove_landmark(self, id: int) -> None: ...
+    def clone(self) -> "_EkfSlam": ...
+    def pairing_likelihood(self, z: ArrayLike, id: int) -> Tuple[float, float]:
+        """(NIS, log det(2 pi S)) of one measurement against landmark id, without updating."""
+
+class MultiHypothesisOptions:
+    max_hypotheses: int
+    max_children: int
+    gate: float  # NIS
+    new_landmark_cost: float  # NIS units
+    clutter_cost: float  # NIS units
+    prune_margin: float  # NIS units
+    def __init__(self) -> None: ...
+
+class _MultiHypothesisEkfSlam:
+    best: _EkfSlam  # a copy of the cheapest filter
+    pose: Array  # (3,) the cheapest filter's
+    num_hypotheses: int
+    total_cost: float
+    costs: Array  # (H,) above the best, ascending
+    options: MultiHypothesisOptions
+    def __init__(self, initial: _EkfSlam, options: MultiHypothesisOptions) -> None: ...
+    def predict(self, v: float, w: float, dt: float, noise: Optional[ArrayLike] = None) -> None: ...
+    def update(self, z: ArrayLike) -> npt.NDArray[np.int64]: ...
+    def history(self) -> List[npt.NDArray[np.int64]]: ...

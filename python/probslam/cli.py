@@ -169,8 +169,9 @@ def build_parser() -> argparse.ArgumentParser:
     e = sub.add_parser("ekf-slam", help="EKF SLAM on a landmark dataset (MRCLAM folder or Victoria Park file)")
     e.add_argument("dataset", help="a UTIAS MRCLAM folder, or Victoria Park in iSAM/GTSAM text format")
     e.add_argument("--unknown", action="store_true", help="hide the correspondences (Table 10.2)")
-    e.add_argument("--association", choices=("jcbb", "ml"), default="jcbb",
-                   help="with --unknown: joint compatibility over each scan (default) or maximum likelihood")
+    e.add_argument("--association", choices=("jcbb", "ml", "mht"), default="jcbb",
+                   help="with --unknown: joint compatibility over each scan (default), maximum likelihood, "
+                        "or a beam of filters (multiple hypotheses)")
     e.add_argument("--robot", type=int, default=1, help="MRCLAM robot number (default 1)")
     e.add_argument("--sigma-v", type=float, default=0.15, help="MRCLAM odometry noise, m/s per 10 ms command")
     e.add_argument("--sigma-w", type=float, default=0.6, help="MRCLAM odometry noise, rad/s per 10 ms command")

@@ -65,6 +65,17 @@ class EkfSlam:
             self._f.map_management = map_management
         self._f.gate_distance = gate_distance
 
+    def copy(self) -> "EkfSlam":
+        """An independent copy of the filter: state, map, ids, options."""
+        c = object.__new__(type(self))
+        c._f = self._f.clone()
+        return c
+
+    __copy__ = copy
+
+    def __deepcopy__(self, memo) -> "EkfSlam":
+        return self.copy()
+
     # --- state -------------------------------------------------------------------------
     @property
     def mean(self) -> np.ndarray:
@@ -152,6 +163,11 @@ class EkfSlam:
         nis, used = self._f.update(z, ids_array, np.inf if gate is None else gate)
         return UpdateResult(nis, used)
 
+    def pairing_likelihood(self, z, id: int):
+        """Table 10.1 lines 12-16 for one measurement z (2,) or (3,) against landmark ``id``,
+        without updating: ``(nis, log det(2 pi S))``, whose sum is -2 log N(nu; 0, S)."""
+        return self._f.pairing_likelihood(z, id)
+
     def update_unknown(self, z, alpha: Optional[float] = None, alpha_new: Optional[float] = None,
                        association: str = "ml") -> AssociationResult:
         """Table 10.2: unknown correspondences for one scan z (k, 2) or (k, 3).
@@ -176,3 +192,88 @@ class EkfSlam:
             alpha_new = max(alpha, chi2_quantile(DEFAULT_NEW_LANDMARK_PROBABILITY, d))
         ids, pi, outcome, removed = self._f.update_unknown(z, alpha, alpha_new, ASSOCIATIONS[association])
         return AssociationResult(ids.astype(np.int64), pi, outcome.astype(np.int8), np.asarray(removed, np.int64))
+
+
+#: MultiHypothesisEkfSlam's defaults as chi-square probabilities (the measurement's dof):
+#: a pairing candidate's NIS gate; the costs, in NIS units, of starting a landmark and of
+#: dropping a measurement as clutter. Clutter is the cheaper explanation of one odd sighting,
+#: a new landmark of a second sighting at the same place.
+MHT_GATE_PROBABILITY = 0.999
+MHT_CLUTTER_PROBABILITY = 1.0 - 4.5e-5
+
+
+class MultiHypothesisEkfSlam:
+    """EKF SLAM with unknown correspondences decided over several scans: a beam of ``EkfSlam``
+    filters, each one history of assignments (track-splitting multiple-hypothesis tracking).
+
+    Every scan, each filter branches into its ``max_children`` cheapest assignments (each
+    measurement to a gated landmark, a new landmark, or clutter; a landmark takes one
+    measurement per scan), applied one measurement after another; the ``max_hypotheses``
+    cheapest children within ``prune_margin`` of the best survive. Costs are -2 log-likelihoods
+    in NIS units: a pairing costs NIS + log det(S Q^-1), a new landmark ``new_landmark_cost``
+    (default: chi-square quantile 1 - 1e-6), clutter ``clutter_cost`` (quantile 1 - 4.5e-5, 20.0 for 2 dof).
+    A pairing that later scans contradict, such as a robot that lost its heading during a
+    stretch without landmarks pairing its first sighting with the wrong landmark, or a first
+    sighting that was an outlier, is overtaken by the branch that did not make it.
+
+    Args:
+        ekf: the starting filter (copied): noise, pose, any landmarks already mapped.
+        gate: NIS gate of a pairing candidate (default: chi-square quantile 0.999).
+    """
+
+    def __init__(self, ekf: EkfSlam, max_hypotheses: int = 10, max_children: int = 4, gate: Optional[float] = None,
+                 new_landmark_cost: Optional[float] = None, clutter_cost: Optional[float] = None,
+                 prune_margin: float = 40.0):
+        if not isinstance(ekf, EkfSlam):
+            raise TypeError(f"ekf must be an EkfSlam, got {type(ekf).__name__}")
+        d = ekf._f.landmark_dim
+        o = _core.MultiHypothesisOptions()
+        o.max_hypotheses, o.max_children, o.prune_margin = max_hypotheses, max_children, prune_margin
+        o.gate = chi2_quantile(MHT_GATE_PROBABILITY, d) if gate is None else gate
+        o.new_landmark_cost = (chi2_quantile(DEFAULT_NEW_LANDMARK_PROBABILITY, d) if new_landmark_cost is None
+                               else new_landmark_cost)
+        o.clutter_cost = chi2_quantile(MHT_CLUTTER_PROBABILITY, d) if clutter_cost is None else clutter_cost
+        self._m = _core._MultiHypothesisEkfSlam(ekf._f, o)
+
+    def predict(self, v: float, w: float, dt: float, noise=None) -> None:
+        """Table 10.1 lines 2-5 on every filter (see ``EkfSlam.predict``)."""
+        self._m.predict(v, w, dt, noise)
+
+    def update(self, z) -> np.ndarray:
+        """One scan z (k, 2) or (k, 3). Returns the best filter's landmark id per measurement
+        (k,), -1 for clutter; later scans may still change the best filter's earlier choices."""
+        return self._m.update(z).astype(np.int64)
+
+    @property
+    def best(self) -> EkfSlam:
+        """A copy of the cheapest filter."""
+        e = object.__new__(EkfSlam)
+        e._f = self._m.best
+        return e
+
+    @property
+    def pose(self) -> np.ndarray:
+        """(3,) the best filter's pose, without copying the filter."""
+        return self._m.pose
+
+    @property
+    def num_hypotheses(self) -> int:
+        return self._m.num_hypotheses
+
+    @property
+    def costs(self) -> np.ndarray:
+        """Cost of each filter above the best's, ascending (NIS units)."""
+        return self._m.costs
+
+    @property
+    def total_cost(self) -> float:
+        """The best filter's whole cost (NIS units): its pairings, new landmarks and clutter."""
+        return self._m.total_cost
+
+    @property
+    def options(self):
+        return self._m.options
+
+    def history(self) -> list:
+        """The best filter's assignment of every non-empty scan so far: (k,) ids, -1 clutter."""
+        return [a.astype(np.int64) for a in self._m.history()]

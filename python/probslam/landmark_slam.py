@@ -9,7 +9,7 @@ from typing import Dict, List, Optional, Tuple
 import numpy as np
 
 from ._core import velocity_motion
-from .ekf import AssociationResult, EkfSlam, MapManagement, chi2_quantile
+from .ekf import AssociationResult, EkfSlam, MapManagement, MultiHypothesisEkfSlam, chi2_quantile
 from .io.landmark_datasets import Mrclam, VictoriaPark
 
 #: Outlier gate on the NIS of known-correspondence updates: the chi-square quantile at this
@@ -53,15 +53,17 @@ def run_ekf_mrclam(data: Mrclam, motion_noise, measurement_noise, known: bool = 
                    gate: Optional[float] = None, alpha: Optional[float] = None, alpha_new: Optional[float] = None,
                    initial_pose=None, map_management: Optional[MapManagement] = None,
                    gate_distance: float = 1.0, dead_reckoning: bool = False,
-                   command_period: float = 0.01, association: str = "jcbb") -> EkfRun:
+                   command_period: float = 0.01, association: str = "jcbb",
+                   hypotheses: Optional[dict] = None) -> EkfRun:
     """EKF SLAM over an MRCLAM robot: odometry (v, w) between stamps, the measurements of one
     time stamp as one scan. ``motion_noise`` (2, 2) is the control noise of one command
     period (MRCLAM's ~10 ms); the stamps are irregular (gaps up to 1 s), so it is applied as a
     white velocity noise, M * command_period / dt for a step of dt, whose pose variance grows
     linearly with time whatever the stamps. ``known``: the barcodes give the correspondences (gated by
     ``gate``, default the chi-square 0.999 quantile); else Table 10.2 (barcodes hidden) with
-    ``association`` ("jcbb" or "ml", see ``EkfSlam.update_unknown``): the landmarks stand in
-    clusters 0.18 m apart, which one measurement at a time cannot tell apart.
+    ``association``: "jcbb" or "ml" (see ``EkfSlam.update_unknown``), or "mht", a beam of
+    filters (``MultiHypothesisEkfSlam``, options from ``hypotheses``) whose best one is
+    returned, its assignments in ``associations`` (clutter as DISCARDED).
     ``dead_reckoning``: predictions only. The start pose defaults to the ground truth's."""
     odo, meas = data.odometry, data.measurements
     if initial_pose is None:
@@ -74,6 +76,10 @@ def run_ekf_mrclam(data: Mrclam, motion_noise, measurement_noise, known: bool = 
     gate = chi2_quantile(MRCLAM_OUTLIER_PROBABILITY, 2) if gate is None else gate
     ekf = EkfSlam(motion_noise, measurement_noise, use_signatures=False, initial_pose=initial_pose,
                   map_management=map_management, gate_distance=gate_distance)
+    mht = None
+    if not known and association == "mht":
+        mht = MultiHypothesisEkfSlam(ekf, **(hypotheses or {}))
+        ekf = mht  # predict() goes to every filter
     run = EkfRun(np.empty(0), np.empty((0, 3)), ekf, {})
     times, poses = np.empty(len(odo)), np.empty((len(odo), 3))
     m_rate = np.asarray(motion_noise, float) * command_period
@@ -93,6 +99,9 @@ def run_ekf_mrclam(data: Mrclam, motion_noise, measurement_noise, known: bool = 
                 report = ekf.update(rows[:, 2:4], rows[:, 1].astype(np.int64), gate)
                 rejected += int(np.count_nonzero(~report.used))
                 innovations.append(np.column_stack([rows[:, :2], report.nis, report.used]))
+            elif mht is not None:
+                mht.update(rows[:, 2:4])
+                run.associations.append((rows[:, 1].astype(np.int64), None))
             else:
                 result = ekf.update_unknown(rows[:, 2:4], alpha, alpha_new, association)
                 run.associations.append((rows[:, 1].astype(np.int64), result))
@@ -101,11 +110,28 @@ def run_ekf_mrclam(data: Mrclam, motion_noise, measurement_noise, known: bool = 
             ekf.predict(v, w, t_next - t_now, m_rate / (t_next - t_now))
             t_now = t_next
         times[k], poses[k] = t_now, ekf.pose
+    if mht is not None:
+        ekf = run.ekf = mht.best
+        run.associations = _history_results(run.associations, mht.history())
     run.times, run.poses, run.rejected = times, poses, rejected
     if innovations:
         run.innovations = np.vstack(innovations)
     run.landmarks = {int(i): ekf.landmark(i)[:2] for i in ekf.landmark_ids}
     return run
+
+
+def _history_results(associations, history):
+    """(true ids, AssociationResult) per scan from a multiple-hypothesis filter's final history:
+    a landmark's first measurement NEW_LANDMARK, later ones ASSOCIATED, clutter DISCARDED."""
+    seen, out = set(), []
+    for (truth, _), ids in zip(associations, history):
+        outcome = np.full(len(ids), AssociationResult.DISCARDED, np.int8)
+        for i, lid in enumerate(ids):
+            if lid >= 0:
+                outcome[i] = AssociationResult.ASSOCIATED if lid in seen else AssociationResult.NEW_LANDMARK
+                seen.add(int(lid))
+        out.append((truth, AssociationResult(ids, np.full(len(ids), np.nan), outcome, np.empty(0, np.int64))))
+    return out
 
 
 @dataclass
@@ -141,6 +167,19 @@ def majority_labels(run: EkfRun) -> Dict[int, int]:
             if outcome in (AssociationResult.ASSOCIATED, AssociationResult.NEW_LANDMARK):
                 votes[int(i)][int(t)] += 1
     return {i: c.most_common(1)[0][0] for i, c in votes.items()}
+
+
+def primary_landmarks(run: EkfRun) -> Dict[int, int]:
+    """For a run with hidden correspondences: true id -> the filter landmark holding most of its
+    sightings (duplicates left out), among the landmarks still in the map."""
+    import collections
+
+    votes: Dict[int, collections.Counter] = collections.defaultdict(collections.Counter)
+    for truth, result in run.associations:
+        for t, i, outcome in zip(truth, result.ids, result.outcome):
+            if outcome in (AssociationResult.ASSOCIATED, AssociationResult.NEW_LANDMARK) and int(i) in run.landmarks:
+                votes[int(t)][int(i)] += 1
+    return {t: c.most_common(1)[0][0] for t, c in votes.items()}
 
 
 def association_accuracy(run: EkfRun) -> float:

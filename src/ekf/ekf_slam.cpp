@@ -84,6 +84,14 @@ double EkfSlam::existence(long id) const {
   return existence_[(index_of(id) - 3) / ld_];
 }
 
+EkfSlam EkfSlam::clone() const {
+  EkfSlam c = *this;
+  c.s_ = std::make_shared<EkfSlamStorage>();
+  c.s_->mean = s_->mean.head(n_);
+  c.s_->cov = s_->cov.topLeftCorner(n_, n_);
+  return c;
+}
+
 void EkfSlam::reserve(Eigen::Index dim) {
   if (dim <= s_->mean.size()) return;
   auto grown = std::make_shared<EkfSlamStorage>();
@@ -175,20 +183,29 @@ void EkfSlam::innovation(const Eigen::VectorXd& z, const Eigen::VectorXd& z_hat,
   nu[1] = wrap_angle(nu[1]);  // bearing innovations live on the circle
 }
 
-// Table 10.1 lines 12-20 for one measurement, with H's six non-zero columns.
-double EkfSlam::correct(const Eigen::VectorXd& z, int index, double gate, bool& used) {
-  used = false;
-  Eigen::VectorXd z_hat, nu;
+bool EkfSlam::innovation_at(const Eigen::VectorXd& z, int index, Eigen::VectorXd& nu, Eigen::MatrixXd& s,
+                            Eigen::MatrixXd& pht) const {
+  Eigen::VectorXd z_hat;
   Eigen::MatrixXd hx, hm;
   const Eigen::VectorXd lm = s_->mean.segment(index, ld_);
   const double dx = lm[0] - s_->mean[0], dy = lm[1] - s_->mean[1];
-  if (dx * dx + dy * dy < kMinRangeSquared) return std::numeric_limits<double>::quiet_NaN();
+  if (dx * dx + dy * dy < kMinRangeSquared) return false;
   measurement_jacobian(lm, z_hat, hx, hm);
   innovation(z, z_hat, nu);
-  Eigen::MatrixXd& p = s_->cov;
-  const Eigen::MatrixXd pht = p.block(0, 0, n_, 3) * hx.transpose() + p.block(0, index, n_, ld_) * hm.transpose();
-  const Eigen::MatrixXd s = hx * pht.topRows(3) + hm * pht.middleRows(index, ld_) + Q_;
-  const Eigen::LLT<Eigen::MatrixXd> llt(0.5 * (s + s.transpose()));
+  const Eigen::MatrixXd& p = s_->cov;
+  pht = p.block(0, 0, n_, 3) * hx.transpose() + p.block(0, index, n_, ld_) * hm.transpose();
+  const Eigen::MatrixXd hph = hx * pht.topRows(3) + hm * pht.middleRows(index, ld_);
+  s = 0.5 * (hph + hph.transpose()) + Q_;
+  return true;
+}
+
+// Table 10.1 lines 12-20 for one measurement, with H's six non-zero columns.
+double EkfSlam::correct(const Eigen::VectorXd& z, int index, double gate, bool& used) {
+  used = false;
+  Eigen::VectorXd nu;
+  Eigen::MatrixXd s, pht;
+  if (!innovation_at(z, index, nu, s, pht)) return std::numeric_limits<double>::quiet_NaN();
+  const Eigen::LLT<Eigen::MatrixXd> llt(s);
   const Eigen::VectorXd white = llt.matrixL().solve(nu);  // L^-1 nu
   const double nis = white.squaredNorm();
   if (!(nis <= gate)) return nis;
@@ -196,9 +213,47 @@ double EkfSlam::correct(const Eigen::VectorXd& z, int index, double gate, bool& 
   const Eigen::MatrixXd w = llt.matrixL().solve(pht.transpose()).transpose();
   s_->mean.head(n_).noalias() += w * white;
   s_->mean[2] = wrap_angle(s_->mean[2]);
-  p.topLeftCorner(n_, n_).noalias() -= w * w.transpose();
+  s_->cov.topLeftCorner(n_, n_).noalias() -= w * w.transpose();
   used = true;
   return nis;
+}
+
+EkfSlam::PairingLikelihood EkfSlam::pairing_likelihood(const Eigen::VectorXd& z, long id) const {
+  require(z.size() == md_, "z", md_ == 3 ? "must have 3 entries (range, bearing, signature)"
+                                          : "must have 2 entries (range, bearing)");
+  require(z.allFinite() && z[0] >= 0.0, "z", "must be finite with a range >= 0");
+  Eigen::VectorXd nu;
+  Eigen::MatrixXd s, pht;
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  if (!innovation_at(z, index_of(id), nu, s, pht)) return {nan, nan};
+  const Eigen::LLT<Eigen::MatrixXd> llt(s);
+  const Eigen::VectorXd white = llt.matrixL().solve(nu);
+  const double log_det = 2.0 * llt.matrixLLT().diagonal().array().log().sum() +
+                         md_ * std::log(2.0 * kPi);
+  return {white.squaredNorm(), log_det};
+}
+
+double EkfSlam::placement_radius(const Eigen::Vector3d& x, const Eigen::VectorXd& z) const {
+  // The radius widened by three sigma of the placement, so a drifted pose still finds the
+  // landmark it sees.
+  const MeasurementJacobians<2> place = landmark_from_range_bearing_jacobians(x, z.head<2>());
+  const Eigen::Matrix2d spread = place.pose * s_->cov.topLeftCorner<3, 3>() * place.pose.transpose() +
+                                 place.landmark * Q_.topLeftCorner<2, 2>() * place.landmark.transpose();
+  return gate_distance_ +
+         kPlacementSigmas *
+             std::sqrt(std::max(0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(spread, Eigen::EigenvaluesOnly)
+                                         .eigenvalues()(1)));
+}
+
+std::vector<long> EkfSlam::nearby_landmarks(const Eigen::VectorXd& z) const {
+  require(z.size() == md_ && z.allFinite() && z[0] >= 0.0, "z", "must be one finite measurement with a range >= 0");
+  const Eigen::Vector3d x = pose();
+  const Eigen::Vector2d placed = landmark_from_range_bearing(x, z.head<2>());
+  const double radius = placement_radius(x, z);
+  std::vector<long> out;
+  for (std::size_t j = 0; j < ids_.size(); ++j)
+    if ((s_->mean.segment<2>(3 + static_cast<Eigen::Index>(j) * ld_) - placed).norm() <= radius) out.push_back(ids_[j]);
+  return out;
 }
 
 void EkfSlam::inverse_measurement(const Eigen::VectorXd& z, Eigen::VectorXd& m, Eigen::MatrixXd& gx,
@@ -323,15 +378,9 @@ AssociationReport EkfSlam::update_unknown(const Eigen::Ref<const RowMatrixXd>& z
   std::vector<int> near;
   for (Eigen::Index i = 0; i < k; ++i) {
     const Eigen::VectorXd zi = z.row(i).transpose();
-    // Candidates near where the measurement places its landmark, the radius widened by three
-    // sigma of that placement, so a drifted pose still finds the landmark it sees.
+    // Candidates near where the measurement places its landmark.
     const Eigen::Vector2d placed = landmark_from_range_bearing(x, zi.head<2>());
-    const MeasurementJacobians<2> place = landmark_from_range_bearing_jacobians(x, zi.head<2>());
-    const Eigen::Matrix2d spread = place.pose * s_->cov.topLeftCorner<3, 3>() * place.pose.transpose() +
-                                   place.landmark * Q_.topLeftCorner<2, 2>() * place.landmark.transpose();
-    const double radius =
-        gate_distance_ + kPlacementSigmas * std::sqrt(std::max(0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(
-                                                                         spread, Eigen::EigenvaluesOnly).eigenvalues()(1)));
+    const double radius = placement_radius(x, zi);
     near.clear();
     hash.query(placed.x(), placed.y(), radius, where, near);
     for (int j : near) {

@@ -5,6 +5,7 @@
 
 #include "probslam/core/range_bearing_model.hpp"
 #include "probslam/ekf/ekf_slam.hpp"
+#include "probslam/ekf/multi_hypothesis_ekf_slam.hpp"
 
 using namespace probslam;
 
@@ -55,4 +56,53 @@ TEST(EkfSlam, RejectsBadInputAndKeepsState) {
   EXPECT_THROW(ekf.update(bad, {1}), std::invalid_argument);
   EXPECT_THROW(ekf.update(RowMatrixXd::Constant(2, 2, 1.0), {1}), std::invalid_argument);
   EXPECT_EQ(ekf.mean(), mean);
+}
+
+TEST(EkfSlam, PairingLikelihoodIsTheUpdatesNisAndCloneIsIndependent) {
+  EkfSlam ekf = make();
+  RowMatrixXd z(1, 2);
+  z << 3.0, 0.4;
+  ekf.update(z, {4});
+  ekf.predict(0.5, 0.1, 1.0);
+  z << 2.6, 0.35;
+  const EkfSlam copy = ekf.clone();
+  const EkfSlam::PairingLikelihood p = ekf.pairing_likelihood(z.row(0).transpose(), 4);
+  const UpdateReport r = ekf.update(z, {4});
+  EXPECT_NEAR(p.nis, r.nis[0], 1e-12);
+  EXPECT_TRUE(std::isfinite(p.log_det));
+  EXPECT_NE(copy.pose(), ekf.pose());  // the update moved only the original
+  EXPECT_THROW(ekf.pairing_likelihood(z.row(0).transpose(), 7), std::invalid_argument);
+}
+
+TEST(MultiHypothesisEkfSlam, KeepsTheCheapestBranchAndValidates) {
+  MultiHypothesisOptions o;
+  EkfSlam ekf = make();
+  MultiHypothesisEkfSlam mht(ekf, o);
+  RowMatrixXd z(2, 2);
+  z << 3.0, 0.4, 2.0, -1.0;
+  mht.update(z);
+  mht.predict(0.2, 0.0, 0.5);  // to (0.1, 0, 0)
+  RowMatrixXd again(2, 2);     // both seen again, exactly, from there
+  for (int i = 0; i < 2; ++i) {
+    const Eigen::Vector2d m = landmark_from_range_bearing(Eigen::Vector3d::Zero(), z.row(i).transpose());
+    again(i, 0) = std::hypot(m.x() - 0.1, m.y());
+    again(i, 1) = std::atan2(m.y(), m.x() - 0.1);
+  }
+  const std::vector<long> ids = mht.update(again);
+  const std::vector<std::vector<long>> history = mht.history();
+  EXPECT_EQ(history.size(), 2u);
+  for (int i = 0; i < 2; ++i) EXPECT_EQ(ids[i], history[0][i]);  // re-seen, not new or clutter
+  EXPECT_GE(ids[0], 0);
+  EXPECT_NE(ids[0], ids[1]);
+  EXPECT_LE(mht.num_hypotheses(), o.max_hypotheses);
+  EXPECT_EQ(mht.costs().front(), 0.0);
+  RowMatrixXd bad(1, 2);
+  bad << -1.0, 0.0;
+  EXPECT_THROW(mht.update(bad), std::invalid_argument);
+  EXPECT_EQ(mht.history().size(), 2u);
+  o.max_hypotheses = 0;
+  EXPECT_THROW(MultiHypothesisEkfSlam(ekf, o), std::invalid_argument);
+  o = MultiHypothesisOptions{};
+  o.clutter_cost = -1.0;
+  EXPECT_THROW(MultiHypothesisEkfSlam(ekf, o), std::invalid_argument);
 }

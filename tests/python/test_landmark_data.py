@@ -161,6 +161,27 @@ def test_ekf_on_mrclam_unknown_correspondences(shared_data):
     assert abs(count["ml"] - 15) <= 1  # no cluster collapse: a landmark explains one sighting per scan
 
 
+def test_mrclam_dataset1_unknown_correspondences_multiple_hypotheses(shared_data):
+    """Dataset 1, barcodes hidden. Its landmarks stand 1-10 m apart, but the robot goes up to
+    37 s without one and comes back with its heading 0.2-0.3 rad uncertain; one filter then pairs
+    a lone sighting with the wrong landmark, or starts a duplicate after an outlying first range,
+    and the errors cascade (JCBB: 84.6% correct, 49 landmarks). A beam of ten filters keeps the
+    other branch until later scans decide: 97.8% correct, 21 landmarks; the 15 holding most sightings
+    of their barcode (93% of them) map to 0.062 m after alignment."""
+    d = mrclam_dataset(shared_data, 1)
+    single = ls.run_ekf_mrclam(d, MRCLAM_MOTION, MRCLAM_SENSOR, known=False, association="jcbb")
+    run = ls.run_ekf_mrclam(d, MRCLAM_MOTION, MRCLAM_SENSOR, known=False, association="mht")
+    applied = sum(int(np.count_nonzero(r.outcome <= r.NEW_LANDMARK)) for _, r in run.associations)
+    assert applied > 0.99 * len(d.measurements)  # under 1% dropped as clutter
+    assert ls.association_accuracy(run) >= 0.95 > ls.association_accuracy(single)
+    assert len(run.landmarks) <= 22 < len(single.landmarks)
+    # each barcode's landmark with the most sightings: all 15, as good as known correspondences
+    primary = ls.primary_landmarks(run)
+    score = ls.score_landmarks({i: run.landmarks[i] for i in primary.values()}, d.with_survey_swapped([(11, 17)]),
+                               {i: t for t, i in primary.items()})
+    assert len(primary) == 15 and score.rmse_aligned < DATASET1_MAP_RMSE
+
+
 def test_ekf_on_victoria_park(shared_data):
     data = ps.io.read_victoria_park(shared_data / "landmark_slam/victoria_park/victoriaPark.txt")
     run = ls.run_ekf_victoria_park(data)

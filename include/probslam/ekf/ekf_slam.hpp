@@ -76,6 +76,8 @@ class EkfSlam {
   Eigen::MatrixXd landmark_covariance(long id) const;
   double existence(long id) const;
   std::shared_ptr<EkfSlamStorage> storage() const { return s_; }
+  /// An independent copy: its own storage (the copy constructor would share it).
+  EkfSlam clone() const;
   Eigen::Index capacity() const { return s_->mean.size(); }
   const Eigen::MatrixXd& measurement_noise() const { return Q_; }
 
@@ -91,6 +93,18 @@ class EkfSlam {
   /// added by state augmentation. Measurements whose NIS exceeds `gate` are skipped.
   UpdateReport update(const Eigen::Ref<const RowMatrixXd>& z, const std::vector<long>& ids,
                       double gate = std::numeric_limits<double>::infinity());
+
+  /// Table 10.1 lines 12-16 for one measurement z against landmark `id`, without updating:
+  /// the normalised innovation squared and log det(2 pi S), whose sum is -2 log N(nu; 0, S).
+  /// NaN for a landmark on the robot (no bearing).
+  struct PairingLikelihood {
+    double nis;
+    double log_det;
+  };
+  PairingLikelihood pairing_likelihood(const Eigen::VectorXd& z, long id) const;
+  /// Landmarks that may explain measurement z: within gate_distance() plus three standard
+  /// deviations of where z places its landmark (the candidates update_unknown looks at).
+  std::vector<long> nearby_landmarks(const Eigen::VectorXd& z) const;
 
   /// Table 10.2: unknown correspondences. Candidates are the landmarks with Mahalanobis distance
   /// pi <= alpha; each landmark takes at most one measurement of the scan. kMaximumLikelihood
@@ -133,6 +147,11 @@ class EkfSlam {
                             Eigen::MatrixXd& hm) const;
   void innovation(const Eigen::VectorXd& z, const Eigen::VectorXd& z_hat, Eigen::VectorXd& nu) const;
   double correct(const Eigen::VectorXd& z, int index, double gate, bool& used);
+  /// Innovation nu, its covariance S and P H^T of z against the landmark at state index `index`;
+  /// false for a landmark on the robot.
+  bool innovation_at(const Eigen::VectorXd& z, int index, Eigen::VectorXd& nu, Eigen::MatrixXd& s,
+                     Eigen::MatrixXd& pht) const;
+  double placement_radius(const Eigen::Vector3d& x, const Eigen::VectorXd& z) const;
   void augment(const Eigen::VectorXd& z, long id);
   void inverse_measurement(const Eigen::VectorXd& z, Eigen::VectorXd& m, Eigen::MatrixXd& gx,
                            Eigen::MatrixXd& gz) const;

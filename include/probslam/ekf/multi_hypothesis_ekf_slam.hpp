@@ -1,0 +1,72 @@
+#pragma once
+// EKF SLAM with unknown correspondences kept open over several scans: a beam of EkfSlam filters,
+// each one assignment history (track-splitting multiple-hypothesis association). Where
+// Table 10.2 commits to the most likely pairing of every scan, a pairing that later scans
+// contradict (a lost heading re-seeing one landmark, a first sighting that was an outlier) is
+// overtaken by the branch that did not make it.
+#include <Eigen/Core>
+#include <memory>
+#include <vector>
+
+#include "probslam/core/types.hpp"
+#include "probslam/ekf/ekf_slam.hpp"
+
+namespace probslam {
+
+/// Costs are -2 log-likelihoods relative to a pairing with zero innovation and S = Q, so they
+/// read as NIS values: a pairing costs NIS + log det(S Q^-1).
+struct MultiHypothesisOptions {
+  int max_hypotheses = 10;          // filters kept after each scan (the beam)
+  int max_children = 4;             // assignments of one scan tried per filter, cheapest first
+  double gate = 13.815510557964274; // NIS gate of a pairing candidate (chi-square 0.999, 2 dof)
+  double new_landmark_cost = 27.6;  // a measurement starting a landmark (about chi-square 1 - 1e-6)
+  double clutter_cost = 20.0;       // a measurement dropped as a false detection or outlier
+  double prune_margin = 40.0;       // filters costing more than the best plus this are dropped
+};
+
+class MultiHypothesisEkfSlam {
+ public:
+  /// Starts from one filter (copied); every option must be positive, the costs finite.
+  MultiHypothesisEkfSlam(const EkfSlam& initial, const MultiHypothesisOptions& options);
+
+  /// Table 10.1 lines 2-5 on every filter (see EkfSlam::predict).
+  void predict(double v, double w, double dt);
+  void predict(double v, double w, double dt, const Eigen::MatrixXd& noise);
+
+  /// One scan z (k x 2, or k x 3 with signatures). Each filter branches into its cheapest
+  /// assignments (every measurement to a gated landmark, a new landmark or clutter; a landmark
+  /// takes one measurement per scan), applied one measurement after another; the cheapest
+  /// max_hypotheses children within prune_margin of the best survive. Returns the best
+  /// filter's landmark id per measurement, -1 for clutter.
+  std::vector<long> update(const Eigen::Ref<const RowMatrixXd>& z);
+
+  const EkfSlam& best() const { return beam_.front().filter; }
+  int num_hypotheses() const { return static_cast<int>(beam_.size()); }
+  /// Cost of each filter above the best's, ascending (the first is 0).
+  std::vector<double> costs() const;
+  /// The best filter's whole cost: the sum over its scans of pairing, new-landmark and clutter costs.
+  double total_cost() const { return offset_ + beam_.front().cost; }
+  /// The best filter's assignment of every scan so far: landmark id per measurement, -1 clutter.
+  std::vector<std::vector<long>> history() const;
+  const MultiHypothesisOptions& options() const { return options_; }
+
+ private:
+  struct HistoryNode {
+    std::shared_ptr<const HistoryNode> parent;
+    std::vector<long> ids;
+  };
+  struct Hypothesis {
+    EkfSlam filter;
+    double cost;
+    long next_id;
+    std::shared_ptr<const HistoryNode> history;
+  };
+  void branch(const Hypothesis& parent, const Eigen::Ref<const RowMatrixXd>& z, std::vector<Hypothesis>& out) const;
+
+  MultiHypothesisOptions options_;
+  std::vector<Hypothesis> beam_;  // best first
+  double log_det_q_ = 0.0;        // log det(2 pi Q)
+  double offset_ = 0.0;           // cost subtracted from the beam so far
+};
+
+}  // namespace probslam

@@ -1,0 +1,175 @@
+#include "probslam/ekf/multi_hypothesis_ekf_slam.hpp"
+
+#include <Eigen/Cholesky>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <queue>
+#include <utility>
+
+#include "probslam/core/angle.hpp"
+#include "probslam/core/check.hpp"
+
+namespace probslam {
+namespace {
+
+constexpr long kClutter = -1;
+constexpr long kNewLandmark = -2;
+
+struct Option {
+  double cost;
+  long target;  // landmark id, kClutter or kNewLandmark
+  bool operator<(const Option& o) const { return cost < o.cost; }
+};
+
+struct Assignment {
+  double cost;
+  std::vector<long> targets;
+  bool operator<(const Assignment& o) const { return cost < o.cost; }  // max-heap on cost
+};
+
+// The `keep` cheapest assignments by summed individual costs, one landmark per measurement and
+// vice versa: depth-first over the options sorted by cost, bounded by the cheapest completion.
+class AssignmentSearch {
+ public:
+  AssignmentSearch(const std::vector<std::vector<Option>>& options, int keep) : options_(options), keep_(keep) {
+    floor_.assign(options.size() + 1, 0.0);
+    for (std::size_t i = options.size(); i-- > 0;) floor_[i] = floor_[i + 1] + options[i].front().cost;
+    current_.reserve(options.size());
+  }
+  std::vector<Assignment> run() {
+    visit(0, 0.0);
+    std::vector<Assignment> out;
+    while (!heap_.empty()) {
+      out.push_back(heap_.top());
+      heap_.pop();
+    }
+    std::reverse(out.begin(), out.end());
+    return out;
+  }
+
+ private:
+  void visit(std::size_t i, double cost) {
+    if (static_cast<int>(heap_.size()) == keep_ && cost + floor_[i] >= heap_.top().cost) return;
+    if (i == options_.size()) {
+      heap_.push({cost, current_});
+      if (static_cast<int>(heap_.size()) > keep_) heap_.pop();
+      return;
+    }
+    for (const Option& o : options_[i]) {
+      if (o.target >= 0 && std::find(current_.begin(), current_.end(), o.target) != current_.end()) continue;
+      current_.push_back(o.target);
+      visit(i + 1, cost + o.cost);
+      current_.pop_back();
+    }
+  }
+  const std::vector<std::vector<Option>>& options_;
+  int keep_;
+  std::vector<double> floor_;
+  std::vector<long> current_;
+  std::priority_queue<Assignment> heap_;
+};
+
+}  // namespace
+
+MultiHypothesisEkfSlam::MultiHypothesisEkfSlam(const EkfSlam& initial, const MultiHypothesisOptions& options)
+    : options_(options) {
+  require(options.max_hypotheses >= 1, "max_hypotheses", "must be >= 1");
+  require(options.max_children >= 1, "max_children", "must be >= 1");
+  require_positive(options.gate, "gate");
+  require_positive(options.new_landmark_cost, "new_landmark_cost");
+  require_positive(options.clutter_cost, "clutter_cost");
+  require_positive(options.prune_margin, "prune_margin");
+  const Eigen::MatrixXd& q = initial.measurement_noise();
+  log_det_q_ = 2.0 * Eigen::LLT<Eigen::MatrixXd>(2.0 * kPi * q).matrixLLT().diagonal().array().log().sum();
+  long next_id = 0;
+  for (const long id : initial.landmark_ids()) next_id = std::max(next_id, id + 1);
+  beam_.push_back({initial.clone(), 0.0, next_id, nullptr});
+}
+
+void MultiHypothesisEkfSlam::predict(double v, double w, double dt) {
+  for (Hypothesis& h : beam_) h.filter.predict(v, w, dt);
+}
+
+void MultiHypothesisEkfSlam::predict(double v, double w, double dt, const Eigen::MatrixXd& noise) {
+  for (Hypothesis& h : beam_) h.filter.predict(v, w, dt, noise);
+}
+
+void MultiHypothesisEkfSlam::branch(const Hypothesis& parent, const Eigen::Ref<const RowMatrixXd>& z,
+                                    std::vector<Hypothesis>& out) const {
+  const Eigen::Index k = z.rows();
+  std::vector<std::vector<Option>> options(k);
+  for (Eigen::Index i = 0; i < k; ++i) {
+    const Eigen::VectorXd zi = z.row(i).transpose();
+    options[i] = {{options_.new_landmark_cost, kNewLandmark}, {options_.clutter_cost, kClutter}};
+    for (const long id : parent.filter.nearby_landmarks(zi)) {
+      const EkfSlam::PairingLikelihood p = parent.filter.pairing_likelihood(zi, id);
+      if (p.nis <= options_.gate) options[i].push_back({p.nis + p.log_det - log_det_q_, id});
+    }
+    std::sort(options[i].begin(), options[i].end());
+  }
+  for (const Assignment& a : AssignmentSearch(options, options_.max_children).run()) {
+    Hypothesis child{parent.filter.clone(), parent.cost, parent.next_id, nullptr};
+    auto node = std::make_shared<HistoryNode>();
+    node->parent = parent.history;
+    node->ids.assign(k, kClutter);
+    for (Eigen::Index i = 0; i < k; ++i) {
+      const long target = a.targets[i];
+      if (target == kClutter) {
+        child.cost += options_.clutter_cost;
+        continue;
+      }
+      long id = target;
+      if (target == kNewLandmark) {
+        id = child.next_id++;
+        child.cost += options_.new_landmark_cost;
+      } else {  // exact: the filter has taken this scan's earlier measurements
+        const EkfSlam::PairingLikelihood p = child.filter.pairing_likelihood(z.row(i).transpose(), id);
+        child.cost += p.nis + p.log_det - log_det_q_;
+      }
+      child.filter.update(z.row(i), {id});
+      node->ids[i] = id;
+    }
+    child.history = std::move(node);
+    out.push_back(std::move(child));
+  }
+}
+
+std::vector<long> MultiHypothesisEkfSlam::update(const Eigen::Ref<const RowMatrixXd>& z) {
+  const int md = best().landmark_dim();
+  require(z.cols() == md, "z", md == 3 ? "must have 3 columns (range, bearing, signature)"
+                                       : "must have 2 columns (range, bearing)");
+  require(z.allFinite(), "z", "must contain only finite values");
+  require((z.col(0).array() >= 0.0).all(), "z", "ranges must be >= 0");
+  if (z.rows() == 0) return {};
+  std::vector<Hypothesis> children;
+  for (const Hypothesis& h : beam_) branch(h, z, children);
+  std::stable_sort(children.begin(), children.end(),
+                   [](const Hypothesis& a, const Hypothesis& b) { return a.cost < b.cost; });
+  const double best_cost = children.front().cost;
+  std::vector<Hypothesis> kept;
+  for (Hypothesis& c : children) {
+    if (static_cast<int>(kept.size()) == options_.max_hypotheses || c.cost > best_cost + options_.prune_margin) break;
+    c.cost -= best_cost;  // only differences matter; this keeps the numbers small
+    kept.push_back(std::move(c));
+  }
+  beam_ = std::move(kept);
+  offset_ += best_cost;
+  return beam_.front().history->ids;
+}
+
+std::vector<double> MultiHypothesisEkfSlam::costs() const {
+  std::vector<double> out;
+  for (const Hypothesis& h : beam_) out.push_back(h.cost);
+  return out;
+}
+
+std::vector<std::vector<long>> MultiHypothesisEkfSlam::history() const {
+  std::vector<std::vector<long>> out;
+  for (const HistoryNode* n = beam_.front().history.get(); n != nullptr; n = n->parent.get()) out.push_back(n->ids);
+  std::reverse(out.begin(), out.end());
+  return out;
+}
+
+}  // namespace probslam
