@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import collections
 import itertools
 from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Tuple
@@ -157,41 +158,37 @@ def score_mrclam(run: EkfRun, data: Mrclam, landmark_map: Optional[Dict[int, int
                        rmse(est @ r.T + t, sur) if len(est) else float("nan"))
 
 
-def majority_labels(run: EkfRun) -> Dict[int, int]:
-    """For a run with hidden correspondences: each filter landmark's most frequent true id."""
-    import collections
-
-    votes: Dict[int, collections.Counter] = collections.defaultdict(collections.Counter)
+def _applied_sightings(run: EkfRun):
+    """(true id, filter landmark id) of every sighting a hidden-correspondence run put in the map."""
     for truth, result in run.associations:
         for t, i, outcome in zip(truth, result.ids, result.outcome):
             if outcome in (AssociationResult.ASSOCIATED, AssociationResult.NEW_LANDMARK):
-                votes[int(i)][int(t)] += 1
+                yield int(t), int(i)
+
+
+def majority_labels(run: EkfRun) -> Dict[int, int]:
+    """For a run with hidden correspondences: each filter landmark's most frequent true id."""
+    votes: Dict[int, collections.Counter] = collections.defaultdict(collections.Counter)
+    for t, i in _applied_sightings(run):
+        votes[i][t] += 1
     return {i: c.most_common(1)[0][0] for i, c in votes.items()}
 
 
 def primary_landmarks(run: EkfRun) -> Dict[int, int]:
     """For a run with hidden correspondences: true id -> the filter landmark holding most of its
     sightings (duplicates left out), among the landmarks still in the map."""
-    import collections
-
     votes: Dict[int, collections.Counter] = collections.defaultdict(collections.Counter)
-    for truth, result in run.associations:
-        for t, i, outcome in zip(truth, result.ids, result.outcome):
-            if outcome in (AssociationResult.ASSOCIATED, AssociationResult.NEW_LANDMARK) and int(i) in run.landmarks:
-                votes[int(t)][int(i)] += 1
+    for t, i in _applied_sightings(run):
+        if i in run.landmarks:
+            votes[t][i] += 1
     return {t: c.most_common(1)[0][0] for t, c in votes.items()}
 
 
 def association_accuracy(run: EkfRun) -> float:
     """Fraction of the measurements applied to the map that went to their landmark's majority id."""
     label = majority_labels(run)
-    good = total = 0
-    for truth, result in run.associations:
-        for t, i, outcome in zip(truth, result.ids, result.outcome):
-            if outcome in (AssociationResult.ASSOCIATED, AssociationResult.NEW_LANDMARK):
-                total += 1
-                good += label[int(i)] == int(t)
-    return good / total if total else float("nan")
+    pairs = list(_applied_sightings(run))
+    return sum(label[i] == t for t, i in pairs) / len(pairs) if pairs else float("nan")
 
 
 #: A surveyed landmark whose distances to the landmarks sighted in the same scans disagree with

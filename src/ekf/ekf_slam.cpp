@@ -219,9 +219,7 @@ double EkfSlam::correct(const Eigen::VectorXd& z, int index, double gate, bool& 
 }
 
 EkfSlam::PairingLikelihood EkfSlam::pairing_likelihood(const Eigen::VectorXd& z, long id) const {
-  require(z.size() == md_, "z", md_ == 3 ? "must have 3 entries (range, bearing, signature)"
-                                          : "must have 2 entries (range, bearing)");
-  require(z.allFinite() && z[0] >= 0.0, "z", "must be finite with a range >= 0");
+  check_measurements(z.transpose());
   Eigen::VectorXd nu;
   Eigen::MatrixXd s, pht;
   const double nan = std::numeric_limits<double>::quiet_NaN();
@@ -246,7 +244,7 @@ double EkfSlam::placement_radius(const Eigen::Vector3d& x, const Eigen::VectorXd
 }
 
 std::vector<long> EkfSlam::nearby_landmarks(const Eigen::VectorXd& z) const {
-  require(z.size() == md_ && z.allFinite() && z[0] >= 0.0, "z", "must be one finite measurement with a range >= 0");
+  check_measurements(z.transpose());
   const Eigen::Vector3d x = pose();
   const Eigen::Vector2d placed = landmark_from_range_bearing(x, z.head<2>());
   const double radius = placement_radius(x, z);

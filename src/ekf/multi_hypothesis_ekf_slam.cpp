@@ -137,11 +137,7 @@ void MultiHypothesisEkfSlam::branch(const Hypothesis& parent, const Eigen::Ref<c
 }
 
 std::vector<long> MultiHypothesisEkfSlam::update(const Eigen::Ref<const RowMatrixXd>& z) {
-  const int md = best().landmark_dim();
-  require(z.cols() == md, "z", md == 3 ? "must have 3 columns (range, bearing, signature)"
-                                       : "must have 2 columns (range, bearing)");
-  require(z.allFinite(), "z", "must contain only finite values");
-  require((z.col(0).array() >= 0.0).all(), "z", "ranges must be >= 0");
+  best().check_measurements(z);
   if (z.rows() == 0) return {};
   std::vector<Hypothesis> children;
   for (const Hypothesis& h : beam_) branch(h, z, children);

@@ -94,6 +94,8 @@ class EkfSlam {
   UpdateReport update(const Eigen::Ref<const RowMatrixXd>& z, const std::vector<long>& ids,
                       double gate = std::numeric_limits<double>::infinity());
 
+  /// std::invalid_argument naming "z" unless z is k x landmark_dim() of finite values, ranges >= 0.
+  void check_measurements(const Eigen::Ref<const RowMatrixXd>& z) const;
   /// Table 10.1 lines 12-16 for one measurement z against landmark `id`, without updating:
   /// the normalised innovation squared and log det(2 pi S), whose sum is -2 log N(nu; 0, S).
   /// NaN for a landmark on the robot (no bearing).
@@ -141,7 +143,6 @@ class EkfSlam {
 
   /// First state index of landmark `id`; std::invalid_argument if it is not in the map.
   int index_of(long id) const;
-  void check_measurements(const Eigen::Ref<const RowMatrixXd>& z) const;
   void apply_motion(const Eigen::Vector3d& new_pose, const Eigen::Matrix3d& g, const Eigen::Matrix3d& r);
   void measurement_jacobian(const Eigen::VectorXd& landmark, Eigen::VectorXd& z_hat, Eigen::MatrixXd& hx,
                             Eigen::MatrixXd& hm) const;
