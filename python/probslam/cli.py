@@ -51,6 +51,8 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     if path.is_dir() and (path / "Barcodes.dat").exists():
         data = io.read_mrclam(path, robot=args.robot)
+        if not args.raw_ranges:
+            data = data.with_euclidean_ranges()
         motion = np.diag([args.sigma_v ** 2, args.sigma_w ** 2])
         sensor = np.diag([args.sigma_r ** 2, args.sigma_phi ** 2])
         t_load = time.perf_counter()
@@ -58,7 +60,8 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
         t_run = time.perf_counter() - t_load
         dr = ls.run_ekf_mrclam(data, motion, sensor, dead_reckoning=True)
         print(f"dataset:       UTIAS MRCLAM {path} robot {args.robot}, "
-              f"{'unknown (' + args.association + ')' if args.unknown else 'known'} correspondences")
+              f"{'unknown (' + args.association + ')' if args.unknown else 'known'} correspondences, "
+              f"{'raw depth readings' if args.raw_ranges else 'ranges from depth x ' + str(io.MRCLAM_RANGE_SCALE)}")
         print(f"odometry:      {len(data.odometry)} controls; measurements: {len(data.measurements)} of landmarks "
               f"({data.robot_measurements} of robots dropped), {run.rejected} gated as outliers")
         print(f"landmarks:     {run.ekf.num_landmarks} in the map; filter time {t_run:.2f} s")
@@ -173,6 +176,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --unknown: joint compatibility over each scan (default), maximum likelihood, "
                         "or a beam of filters (multiple hypotheses)")
     e.add_argument("--robot", type=int, default=1, help="MRCLAM robot number (default 1)")
+    e.add_argument("--raw-ranges", action="store_true",
+                   help="use MRCLAM's readings as ranges (by default they are taken as the camera's depth "
+                        "and turned into distances, see io.MRCLAM_RANGE_SCALE)")
     e.add_argument("--sigma-v", type=float, default=0.15, help="MRCLAM odometry noise, m/s per 10 ms command")
     e.add_argument("--sigma-w", type=float, default=0.6, help="MRCLAM odometry noise, rad/s per 10 ms command")
     e.add_argument("--sigma-r", type=float, default=0.15, help="range noise, m")

@@ -198,6 +198,23 @@ def association_accuracy(run: EkfRun) -> float:
 SURVEY_RESIDUAL_LIMIT = 0.5  # m
 
 
+def fit_range_scale(data: Mrclam) -> float:
+    """The scale k of MRCLAM's depth readings (distance = k * range / cos(bearing), see
+    ``io.MRCLAM_RANGE_SCALE``) fitted against the ground truth: the median over the sightings of
+    true distance * cos(bearing) / range, the true distance measured from the interpolated
+    ground-truth pose to the surveyed landmark."""
+    if data.groundtruth is None:
+        raise ValueError("data: fitting the range scale needs the robot's ground truth")
+    surveyed = data.landmark_positions
+    m = data.measurements[[int(s) in surveyed for s in data.measurements[:, 1]]]
+    m = m[m[:, 2] > 0]
+    if len(m) == 0:
+        raise ValueError("data: no sightings of surveyed landmarks with a positive range")
+    truth = np.array([surveyed[int(s)] for s in m[:, 1]])
+    distance = np.hypot(*(truth - interpolate_poses(data.groundtruth, m[:, 0])).T)
+    return float(np.median(distance * np.cos(m[:, 3]) / m[:, 2]))
+
+
 def scans(measurements: np.ndarray):
     """Row slices of the measurements sharing one time stamp (rows sorted by time)."""
     starts = np.flatnonzero(np.r_[True, np.diff(measurements[:, 0]) != 0])

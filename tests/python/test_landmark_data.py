@@ -1,5 +1,7 @@
 """Landmark dataset readers and EKF SLAM on real data (skipped without ../shared/data)."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -8,7 +10,9 @@ from probslam import landmark_slam as ls
 
 # Noise measured on MRCLAM Dataset 7 against its Vicon ground truth (see README): odometry
 # sigma_v 0.11 m/s, sigma_w 0.43 rad/s per 10 ms command, inflated ~1.4x for its turn-rate
-# bias; sensor sigma_r 0.10 m, sigma_phi 0.018 rad, inflated for linearisation and a 4 cm bias.
+# bias; sensor sigma_phi 0.018 rad, mostly an offset shared by one scan's sightings, and sigma_r
+# 0.10 m for the raw depth readings (0.02 m as distances), inflated: correlated errors the EKF
+# does not model. The hidden-barcode runs need the room (README).
 MRCLAM_MOTION = np.diag([0.15 ** 2, 0.6 ** 2])
 MRCLAM_SENSOR = np.diag([0.15 ** 2, 0.04 ** 2])
 
@@ -69,6 +73,12 @@ def test_ekf_on_mrclam_known_correspondences_beats_reference(shared_data):
     assert score.landmark_rmse_aligned < 0.26
     dr = ls.score_mrclam(ls.run_ekf_mrclam(d, MRCLAM_MOTION, MRCLAM_SENSOR, dead_reckoning=True), d)
     assert dr.path_rmse_aligned > 5 * score.path_rmse_aligned
+    # distances instead of depth readings: the map (0.19 -> 0.07 m aligned) and the global
+    # rotation (2.9 -> 0.9 m raw) both shrink; the aligned path stays within the reference
+    fixed = ls.score_mrclam(ls.run_ekf_mrclam(d.with_euclidean_ranges(), MRCLAM_MOTION, MRCLAM_SENSOR), d)
+    assert fixed.path_rmse_aligned < 0.30
+    assert fixed.landmark_rmse_aligned < score.landmark_rmse_aligned / 2
+    assert fixed.landmark_rmse < score.landmark_rmse / 2
 
 
 
@@ -93,6 +103,71 @@ def test_survey_label_swaps_finds_exchanged_positions():
     assert all(np.allclose(r, 0.0, atol=1e-12) for r in residuals.values())
     with pytest.raises(ValueError, match="pairs"):
         synthetic_mrclam([(7, 42)])
+
+
+def depth_mrclam(scale):
+    """Landmarks ahead of three poses, read as MRCLAM's camera does: depth along the axis divided
+    by ``scale`` (the distance is scale * reading / cos(bearing)); ground truth included."""
+    landmarks = np.array([[6, 4.0, 0.5], [7, 5.0, 3.0], [8, 3.0, -2.0], [9, 6.5, -1.0]])
+    poses = [(0.0, 0.0, 0.0, 0.1), (1.0, 0.5, -0.5, -0.2), (2.0, 1.0, 0.5, 0.3)]
+    rows = []
+    for t, x, y, th in poses:
+        for s, lx, ly in landmarks:
+            bearing = np.arctan2(ly - y, lx - x) - th
+            rows.append([t, s, np.hypot(lx - x, ly - y) * np.cos(bearing) / scale, bearing])
+    odometry = np.array([[0.0, 0.0, 0.0], [3.0, 0.0, 0.0]])
+    return ps.io.Mrclam(odometry, np.array(rows), np.array(poses), landmarks, 0)
+
+
+def test_euclidean_ranges_from_depth_readings():
+    d = depth_mrclam(0.97)
+    assert ls.fit_range_scale(d) == pytest.approx(0.97, rel=1e-12)
+    fixed = d.with_euclidean_ranges(0.97)
+    np.testing.assert_array_equal(fixed.measurements[:, [0, 1, 3]], d.measurements[:, [0, 1, 3]])
+    # distances now: the pose-free same-scan check closes exactly, and did not before
+    assert all(np.allclose(r, 0.0, atol=1e-12) for r in ls.same_scan_residuals(fixed).values())
+    assert max(np.abs(r).max() for r in ls.same_scan_residuals(d).values()) > 0.1
+    assert d.measurements[0, 2] != fixed.measurements[0, 2]  # the original is left alone
+    for bad in (0.0, -1.0, np.nan, np.inf):
+        with pytest.raises(ValueError, match="scale"):
+            d.with_euclidean_ranges(bad)
+    behind = d.measurements.copy()
+    behind[0, 3] = 2.0
+    with pytest.raises(ValueError, match="measurements"):
+        dataclasses.replace(d, measurements=behind).with_euclidean_ranges()
+    with pytest.raises(ValueError, match="data"):
+        ls.fit_range_scale(dataclasses.replace(d, groundtruth=None))
+
+
+def range_errors(data):
+    """Reading minus the distance from the Vicon pose to the surveyed landmark, and the bearings."""
+    m = data.measurements
+    truth = np.array([data.landmark_positions[int(s)] for s in m[:, 1]])
+    return m[:, 2] - np.hypot(*(truth - ls.interpolate_poses(data.groundtruth, m[:, 0])).T), m[:, 3]
+
+
+def robust_std(e):
+    return 1.4826 * np.median(np.abs(e - np.median(e)))
+
+
+def test_mrclam_ranges_are_camera_depths(shared_data):
+    """MRCLAM's ranges are depths: against Vicon, the raw reading is short at the image edges and
+    long at its centre; scale * range / cos(bearing) removes that and two thirds of the error.
+    Dataset 1 (no Vicon) confirms the same constant pose-free, by the same-scan distances."""
+    d7 = mrclam_dataset(shared_data, 7)
+    assert ls.fit_range_scale(d7) == pytest.approx(ps.io.MRCLAM_RANGE_SCALE, abs=0.002)
+    raw, bearing = range_errors(d7)
+    fixed, _ = range_errors(d7.with_euclidean_ranges())
+    edge, centre = np.abs(bearing) > 0.4, np.abs(bearing) < 0.1
+    assert np.median(raw[edge]) < -0.15 and np.median(raw[centre]) > 0.05
+    assert abs(np.median(fixed[edge])) < 0.02 and abs(np.median(fixed[centre])) < 0.02
+    assert robust_std(fixed) < robust_std(raw) / 2.5
+    d1 = mrclam_dataset(shared_data, 1).with_survey_swapped([(11, 17)])
+
+    def same_scan_error(data):
+        return np.median(np.abs(np.concatenate(list(ls.same_scan_residuals(data).values()))))
+
+    assert same_scan_error(d1.with_euclidean_ranges()) < same_scan_error(d1) / 2.5
 
 
 def test_score_landmarks_aligns_the_map_onto_the_survey():
@@ -120,6 +195,8 @@ def mrclam_dataset(shared_data, number):
 #: fixed is 0.080 m (every landmark within 0.17 m); the bounds leave room for noise-model changes.
 DATASET1_MAP_RMSE = 0.12  # m
 DATASET1_LANDMARK_ERROR = 0.3  # m
+#: The same with distances instead of MRCLAM's depth readings (``with_euclidean_ranges``): 0.029 m.
+DATASET1_MAP_RMSE_DISTANCES = 0.05  # m
 
 
 def test_mrclam_dataset1_survey_labels_and_known_correspondences(shared_data):
@@ -141,43 +218,59 @@ def test_mrclam_dataset1_survey_labels_and_known_correspondences(shared_data):
     assert len(used) == len(d.measurements) - run.rejected - 15 and used[:, 2].mean() < 2.0
     dead = ls.score_landmarks(ls.dead_reckoning_map(d), d.with_survey_swapped([(11, 17)]))
     assert dead.rmse_aligned > 10 * score.rmse_aligned
+    run = ls.run_ekf_mrclam(d.with_euclidean_ranges(), MRCLAM_MOTION, MRCLAM_SENSOR)
+    assert ls.score_landmarks(run.landmarks, d.with_survey_swapped([(11, 17)])).rmse_aligned < DATASET1_MAP_RMSE_DISTANCES
 
 
 def test_ekf_on_mrclam_unknown_correspondences(shared_data):
     """Barcodes hidden. The landmarks stand in clusters 0.18 m apart, about the error of one
-    sighting: even placed from the Vicon pose, 15% of the sightings fall nearer another
-    landmark than their own, so no test of one sighting at a time can reach the issue's 95%.
-    Joint compatibility over each scan does better than maximum likelihood and keeps the
-    clusters apart (15 landmarks); these are the figures reached, kept from regressing."""
-    d = ps.io.read_mrclam(shared_data / "landmark_slam/mrclam_dataset7")
+    sighting: even placed from the Vicon pose, 13% of the sightings fall nearer another landmark
+    than their own (15% with the raw depth readings), and fitting each scan's common bearing
+    offset with the true pose and map still leaves 4.5% wrong, so the issue's 95% is beyond a
+    filter here (benchmarks/mrclam_association_ceiling.py). Joint compatibility over each scan
+    does better than maximum likelihood and keeps the clusters apart (15 landmarks); these are
+    the figures reached, kept from regressing."""
+    raw = mrclam_dataset(shared_data, 7)
     accuracy, count = {}, {}
     for method in ("ml", "jcbb"):
-        run = ls.run_ekf_mrclam(d, MRCLAM_MOTION, MRCLAM_SENSOR, known=False, association=method)
+        run = ls.run_ekf_mrclam(raw.with_euclidean_ranges(), MRCLAM_MOTION, MRCLAM_SENSOR, known=False,
+                                association=method)
         accuracy[method], count[method] = ls.association_accuracy(run), len(run.landmarks)
         applied = sum(int(np.count_nonzero(r.outcome <= r.NEW_LANDMARK)) for _, r in run.associations)
-        assert applied > 0.97 * len(d.measurements)  # almost nothing is discarded
-    assert accuracy["jcbb"] >= 0.77 and abs(count["jcbb"] - 15) <= 1
-    assert accuracy["jcbb"] > accuracy["ml"] + 0.02
+        assert applied > 0.97 * len(raw.measurements)  # almost nothing is discarded
+    assert accuracy["jcbb"] >= 0.85 and abs(count["jcbb"] - 15) <= 1
+    assert accuracy["jcbb"] > accuracy["ml"] + 0.03
     assert abs(count["ml"] - 15) <= 1  # no cluster collapse: a landmark explains one sighting per scan
+    run = ls.run_ekf_mrclam(raw, MRCLAM_MOTION, MRCLAM_SENSOR, known=False)  # depth readings: worse
+    assert ls.association_accuracy(run) < accuracy["jcbb"] - 0.05
 
 
 def test_mrclam_dataset1_unknown_correspondences_multiple_hypotheses(shared_data):
-    """Dataset 1, barcodes hidden. Its landmarks stand 1-10 m apart, but the robot goes up to
-    37 s without one and comes back with its heading 0.2-0.3 rad uncertain; one filter then pairs
-    a lone sighting with the wrong landmark, or starts a duplicate after an outlying first range,
-    and the errors cascade (JCBB: 84.6% correct, 49 landmarks). A beam of ten filters keeps the
-    other branch until later scans decide: 97.8% correct, 21 landmarks; the 15 holding most sightings
-    of their barcode (93% of them) map to 0.062 m after alignment."""
-    d = mrclam_dataset(shared_data, 1)
+    """Dataset 1, barcodes hidden: the issue's 95% correct with 15 +- 1 landmarks. Its landmarks
+    stand 1-10 m apart, but the robot goes up to 37 s without one and comes back with its heading
+    0.2-0.3 rad uncertain; one filter then pairs a lone sighting with the wrong landmark and the
+    errors cascade (JCBB: 81-85% correct, 40-49 landmarks). A beam of ten filters keeps the other
+    branch until later scans decide. With the raw depth readings it still splits landmarks seen
+    at the image edge, where the reading is 0.3 m short (97.8%, 21 landmarks); with distances,
+    99.96% and 15, mapped to 0.031 m after alignment."""
+    raw = mrclam_dataset(shared_data, 1)
+    d = raw.with_euclidean_ranges()
+    survey = d.with_survey_swapped([(11, 17)])
     single = ls.run_ekf_mrclam(d, MRCLAM_MOTION, MRCLAM_SENSOR, known=False, association="jcbb")
     run = ls.run_ekf_mrclam(d, MRCLAM_MOTION, MRCLAM_SENSOR, known=False, association="mht")
     applied = sum(int(np.count_nonzero(r.outcome <= r.NEW_LANDMARK)) for _, r in run.associations)
     assert applied > 0.99 * len(d.measurements)  # under 1% dropped as clutter
-    assert ls.association_accuracy(run) >= 0.95 > ls.association_accuracy(single)
-    assert len(run.landmarks) <= 22 < len(single.landmarks)
-    # each barcode's landmark with the most sightings: all 15, as good as known correspondences
-    primary = ls.primary_landmarks(run)
-    score = ls.score_landmarks({i: run.landmarks[i] for i in primary.values()}, d.with_survey_swapped([(11, 17)]),
+    assert ls.association_accuracy(run) >= 0.99 and ls.association_accuracy(single) < 0.95
+    assert abs(len(run.landmarks) - 15) <= 1 < len(single.landmarks) - 15
+    labels = ls.majority_labels(run)
+    assert sorted(labels[i] for i in run.landmarks) == list(range(6, 21))  # one landmark per barcode
+    score = ls.score_landmarks(run.landmarks, survey, labels)
+    assert score.rmse_aligned < DATASET1_MAP_RMSE_DISTANCES
+    # raw readings: duplicates, but each barcode's landmark with the most sightings maps well
+    split = ls.run_ekf_mrclam(raw, MRCLAM_MOTION, MRCLAM_SENSOR, known=False, association="mht")
+    assert len(split.landmarks) > 16 and ls.association_accuracy(split) >= 0.95
+    primary = ls.primary_landmarks(split)
+    score = ls.score_landmarks({i: split.landmarks[i] for i in primary.values()}, survey,
                                {i: t for t, i in primary.items()})
     assert len(primary) == 15 and score.rmse_aligned < DATASET1_MAP_RMSE
 

@@ -1,10 +1,11 @@
 """Readers and writers: CARMEN laser logs, ROS map_server maps, lossless grids, PNG pictures."""
 
 from .carmen import CarmenLog, LaserScans, Odometry, read_carmen_log
-from .landmark_datasets import Mrclam, VictoriaPark, read_mrclam, read_victoria_park
+from .landmark_datasets import MRCLAM_RANGE_SCALE, Mrclam, VictoriaPark, read_mrclam, read_victoria_park
 from .maps import load_grid, load_ros_map, save_grid, save_ros_map, write_png
 
 __all__ = [
+    "MRCLAM_RANGE_SCALE",
     "CarmenLog",
     "LaserScans",
     "Mrclam",

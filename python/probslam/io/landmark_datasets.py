@@ -15,6 +15,14 @@ PathLike = Union[str, "os.PathLike[str]"]
 #: MRCLAM subjects 1-5 are robots, 6-20 landmarks.
 MRCLAM_LANDMARK_SUBJECTS = range(6, 21)
 
+#: MRCLAM's "range" is the landmark's distance along the camera's optical axis (its depth), not
+#: its distance from the robot: against Dataset 7's Vicon poses the distance is
+#: MRCLAM_RANGE_SCALE * range / cos(bearing). The raw range is 0.09 m long at the image centre
+#: and 0.31 m short at its edges; corrected, the robust std-dev of the range error falls from
+#: 0.067 m to 0.021 m. Fitted by ``landmark_slam.fit_range_scale`` on Dataset 7, robot 1; on
+#: Dataset 1 it shrinks the pose-free same-scan distance residuals from 0.091 m to 0.026 m.
+MRCLAM_RANGE_SCALE = 0.971
+
 
 def _table(path: PathLike, columns: int) -> np.ndarray:
     """Rows of `columns` numbers from a text file; '#' lines are comments. Errors name the line."""
@@ -68,6 +76,18 @@ class Mrclam:
             ka, kb = row[int(a)], row[int(b)]
             landmarks[[ka, kb], 1:] = landmarks[[kb, ka], 1:]
         return dataclasses.replace(self, landmarks=landmarks)
+
+    def with_euclidean_ranges(self, scale: float = MRCLAM_RANGE_SCALE) -> "Mrclam":
+        """A copy whose ranges are distances from the robot, ``scale * range / cos(bearing)``,
+        for MRCLAM's camera, which reports depth along its axis (see ``MRCLAM_RANGE_SCALE``)."""
+        scale = float(scale)
+        if not np.isfinite(scale) or scale <= 0:
+            raise ValueError(f"scale: must be finite and > 0, got {scale}")
+        m = self.measurements.copy()
+        if len(m) and not np.all(np.abs(m[:, 3]) < np.pi / 2):
+            raise ValueError("measurements: a depth reading needs |bearing| < pi/2 (in front of the camera)")
+        m[:, 2] *= scale / np.cos(m[:, 3])
+        return dataclasses.replace(self, measurements=m)
 
 
 def read_mrclam(folder: PathLike, robot: int = 1) -> Mrclam:
