@@ -296,3 +296,19 @@ def test_cli_ekf_slam(tmp_path, capsys, shared_data):
     assert (tmp_path / "vp.png").read_bytes()[:4] == b"\x89PNG"
     assert np.loadtxt(tmp_path / "vp_path.txt").shape == (6969, 3)
     assert cli.main(["ekf-slam", str(tmp_path / "missing.txt"), "-o", str(tmp_path / "x")]) == 2
+
+
+def test_cli_ekf_slam_mrclam(tmp_path, capsys, shared_data):
+    """MRCLAM through the CLI: distances by default, the logged depth readings on request."""
+    from probslam import cli
+
+    mrclam_dataset(shared_data, 1), mrclam_dataset(shared_data, 7)  # skips without them
+    d1, d7 = (str(shared_data / f"landmark_slam/mrclam_dataset{n}") for n in (1, 7))
+    assert cli.main(["ekf-slam", d1, "--unknown", "--association", "mht", "-o", str(tmp_path / "d1")]) == 0
+    out = capsys.readouterr().out
+    assert f"ranges from depth x {ps.io.MRCLAM_RANGE_SCALE}" in out and "landmarks:     15 in the map" in out
+    assert "subjects 11<->17 exchanged" in out and (tmp_path / "d1.png").exists()
+    assert cli.main(["ekf-slam", d7, "--raw-ranges", "-o", str(tmp_path / "d7")]) == 0
+    out = capsys.readouterr().out
+    assert "raw depth readings" in out and "12 gated as outliers" in out
+    assert np.loadtxt(tmp_path / "d7_path.txt").shape == (58598, 3)
