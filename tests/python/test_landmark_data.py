@@ -137,6 +137,9 @@ def test_euclidean_ranges_from_depth_readings():
         dataclasses.replace(d, measurements=behind).with_euclidean_ranges()
     with pytest.raises(ValueError, match="data"):
         ls.fit_range_scale(dataclasses.replace(d, groundtruth=None))
+    with pytest.raises(ValueError, match="data"):
+        ls.fit_range_scale(dataclasses.replace(d, measurements=np.empty((0, 4))))
+    assert len(dataclasses.replace(d, measurements=np.empty((0, 4))).with_euclidean_ranges().measurements) == 0
 
 
 def range_errors(data):
