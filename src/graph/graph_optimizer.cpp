@@ -93,40 +93,15 @@ class NormalEquations {
     const auto& vertices = graph.vertices();
     for (size_t k = 0; k < graph.pose_edges().size(); ++k) {
       const PoseEdge& e = graph.pose_edges()[k];
-      const auto lin = linearize_pose_edge(vertices[e.from].value, vertices[e.to].value,
-                                           e.measurement);
-      const Eigen::Vector3d we = e.information * lin.error;
-      const double s = lin.error.dot(we);
-      const RobustValue r = robust(s, kernel, width);
-      total.robust += r.rho;
-      total.chi2 += s;
-      const Eigen::Matrix3d omega = r.weight * e.information;
-      const Eigen::Matrix3d a_t_omega = lin.d_from.transpose() * omega;
-      const Eigen::Matrix3d b_t_omega = lin.d_to.transpose() * omega;
-      const auto& h = pose_handles_[k];
-      system_.add(h[0], a_t_omega * lin.d_from);
-      system_.add(h[1], b_t_omega * lin.d_to);
-      system_.add(h[2], a_t_omega * lin.d_to);
-      system_.add_rhs(e.from, -r.weight * (lin.d_from.transpose() * we));
-      system_.add_rhs(e.to, -r.weight * (lin.d_to.transpose() * we));
+      const auto lin = linearize_pose_edge(vertices[e.from].value, vertices[e.to].value, e.measurement);
+      add_edge(pose_handles_[k], e.from, e.to, lin.error, lin.d_from, lin.d_to, e.information, kernel, width, total);
     }
     for (size_t k = 0; k < graph.point_edges().size(); ++k) {
       const PointEdge& e = graph.point_edges()[k];
-      const auto lin = linearize_point_edge(vertices[e.pose].value,
-                                            vertices[e.point].value.head<2>(), e.measurement);
-      const Eigen::Vector2d we = e.information * lin.error;
-      const double s = lin.error.dot(we);
-      const RobustValue r = robust(s, kernel, width);
-      total.robust += r.rho;
-      total.chi2 += s;
-      const Eigen::Matrix2d omega = r.weight * e.information;
-      const Eigen::Matrix<double, 3, 2> a_t_omega = lin.d_pose.transpose() * omega;
-      const auto& h = point_handles_[k];
-      system_.add(h[0], a_t_omega * lin.d_pose);
-      system_.add(h[1], lin.d_point.transpose() * omega * lin.d_point);
-      system_.add(h[2], a_t_omega * lin.d_point);
-      system_.add_rhs(e.pose, -r.weight * (lin.d_pose.transpose() * we));
-      system_.add_rhs(e.point, -r.weight * (lin.d_point.transpose() * we));
+      const auto lin = linearize_point_edge(vertices[e.pose].value, vertices[e.point].value.head<2>(),
+                                            e.measurement);
+      add_edge(point_handles_[k], e.pose, e.point, lin.error, lin.d_pose, lin.d_point, e.information, kernel,
+               width, total);
     }
     return total;
   }
@@ -142,6 +117,27 @@ class NormalEquations {
   }
 
  private:
+  // One edge between variables a and b (error e, Jacobians ja and jb, information omega) added
+  // to H and b with its robust weight; the edge's chi2 and kernel value added to `total`.
+  template <int E, int A, int B>
+  void add_edge(const std::array<BlockHandle, 3>& h, int a, int b, const Eigen::Matrix<double, E, 1>& error,
+                const Eigen::Matrix<double, E, A>& ja, const Eigen::Matrix<double, E, B>& jb,
+                const Eigen::Matrix<double, E, E>& information, RobustKernel kernel, double width,
+                Objective& total) {
+    const Eigen::Matrix<double, E, 1> we = information * error;
+    const double s = error.dot(we);
+    const RobustValue r = robust(s, kernel, width);
+    total.robust += r.rho;
+    total.chi2 += s;
+    const Eigen::Matrix<double, E, E> omega = r.weight * information;
+    const Eigen::Matrix<double, A, E> a_t_omega = ja.transpose() * omega;
+    system_.add(h[0], a_t_omega * ja);
+    system_.add(h[1], jb.transpose() * omega * jb);
+    system_.add(h[2], a_t_omega * jb);
+    system_.add_rhs(a, -r.weight * (ja.transpose() * we));
+    system_.add_rhs(b, -r.weight * (jb.transpose() * we));
+  }
+
   BlockSystem system_;
   std::vector<std::array<BlockHandle, 3>> pose_handles_, point_handles_;
 };
