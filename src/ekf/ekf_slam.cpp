@@ -11,6 +11,7 @@
 #include "probslam/core/angle.hpp"
 #include "probslam/core/chi_square.hpp"
 #include "probslam/core/check.hpp"
+#include "probslam/core/gaussian.hpp"
 #include "probslam/core/pose2.hpp"
 #include "probslam/core/range_bearing_model.hpp"
 #include "probslam/core/spatial_hash_2d.hpp"
@@ -226,9 +227,7 @@ EkfSlam::PairingLikelihood EkfSlam::pairing_likelihood(const Eigen::VectorXd& z,
   if (!innovation_at(z, index_of(id), nu, s, pht)) return {nan, nan};
   const Eigen::LLT<Eigen::MatrixXd> llt(s);
   const Eigen::VectorXd white = llt.matrixL().solve(nu);
-  const double log_det = 2.0 * llt.matrixLLT().diagonal().array().log().sum() +
-                         md_ * std::log(2.0 * kPi);
-  return {white.squaredNorm(), log_det};
+  return {white.squaredNorm(), log_det_2pi(llt)};
 }
 
 double EkfSlam::placement_radius(const Eigen::Vector3d& x, const Eigen::VectorXd& z) const {

@@ -10,6 +10,7 @@
 
 #include "probslam/core/angle.hpp"
 #include "probslam/core/check.hpp"
+#include "probslam/core/gaussian.hpp"
 
 namespace probslam {
 namespace {
@@ -81,8 +82,7 @@ MultiHypothesisEkfSlam::MultiHypothesisEkfSlam(const EkfSlam& initial, const Mul
   require_positive(options.new_landmark_cost, "new_landmark_cost");
   require_positive(options.clutter_cost, "clutter_cost");
   require_positive(options.prune_margin, "prune_margin");
-  const Eigen::MatrixXd& q = initial.measurement_noise();
-  log_det_q_ = 2.0 * Eigen::LLT<Eigen::MatrixXd>(2.0 * kPi * q).matrixLLT().diagonal().array().log().sum();
+  log_det_q_ = log_det_2pi(Eigen::LLT<Eigen::MatrixXd>(initial.measurement_noise()));
   long next_id = 0;
   for (const long id : initial.landmark_ids()) next_id = std::max(next_id, id + 1);
   beam_.push_back({initial.clone(), 0.0, next_id, nullptr});

@@ -10,6 +10,7 @@
 
 #include "probslam/core/angle.hpp"
 #include "probslam/core/check.hpp"
+#include "probslam/core/gaussian.hpp"
 #include "feature_block.hpp"
 
 namespace probslam {
@@ -101,9 +102,7 @@ CorrespondenceTest EifCorrespondenceTester::test(int j, int k) {
     throw_invalid_argument("omega", "the covariance of m_j - m_k is not positive definite");
   const Eigen::VectorXd white = llt.matrixL().solve(out.mean);
   out.distance2 = white.squaredNorm();
-  const double log_det = 2.0 * llt.matrixLLT().diagonal().array().log().sum();
-  const double d = static_cast<double>(out.mean.size());
-  out.probability = std::exp(-0.5 * (d * std::log(kTwoPi) + log_det + out.distance2));
+  out.probability = std::exp(-0.5 * (log_det_2pi(llt) + out.distance2));
   return out;
 }
 
