@@ -5,13 +5,12 @@ numpy implementation of Table 10.1 in the same run. Appends a table to benchmark
 """
 
 import argparse
-import datetime
 import time
 
 import numpy as np
 
 import probslam as ps
-from common import machine, report
+from common import heading, report
 from peers import dense_ekf_predict, dense_ekf_update
 
 R = np.diag([0.01, 0.01, 0.001])
@@ -60,10 +59,9 @@ def main():
         rows.append((n, t_pred, t_dpred, t_upd, t_dupd))
         print(f"N={n}: predict {t_pred * 1e6:.1f} us (numpy {t_dpred * 1e3:.2f} ms), "
               f"update {t_upd * 1e6:.1f} us (numpy {t_dupd * 1e3:.2f} ms)", flush=True)
-    lines = [f"## EKF SLAM predict / update, {datetime.date.today()}", "", f"Machine: {machine()}. One thread "
-             "(numpy's BLAS may use both cores).", "",
-             "| landmarks N | predict (us) | dense numpy predict (ms) | speed-up | one update (us) | "
-             "dense numpy update (ms) | speed-up |", "|---|---|---|---|---|---|---|"]
+    lines = heading("EKF SLAM predict / update", "One thread (numpy's BLAS may use both cores).",
+                    ["landmarks N", "predict (us)", "dense numpy predict (ms)", "speed-up", "one update (us)",
+                     "dense numpy update (ms)", "speed-up"])
     lines += [f"| {n} | {tp * 1e6:.1f} | {dp * 1e3:.2f} | {dp / tp:.0f}x | {tu * 1e6:.1f} | {du * 1e3:.2f} | "
               f"{du / tu:.0f}x |" for n, tp, dp, tu, du in rows]
     lines += ["", "Dense numpy: Table 10.1 as printed, full (3N+3)-wide G, H and K (with 2-D landmarks, 2N+3).",

@@ -6,7 +6,6 @@ benchmarks/RESULTS.md.
 """
 
 import argparse
-import datetime
 import os
 import pathlib
 import time
@@ -14,7 +13,7 @@ import time
 import numpy as np
 
 import probslam as ps
-from common import machine, report
+from common import heading, report
 from peers import numpy_cone, numpy_rays, python_rays
 
 HERE = pathlib.Path(__file__).resolve().parent
@@ -142,9 +141,8 @@ def main():
                               res, b, python_scans=20)
     cone = cone_rows(poses[: max(4, n // 10)], ranges[: max(4, n // 10)], angles, 20.0, res, bounds)
 
-    lines = [f"## 2-D grid updates, {datetime.date.today()}", "", f"Machine: {machine()}. One thread.", "",
-             "| workload | implementation | M beams/s | M ray cells/s | M cells changed/s | probslam speed-up |",
-             "|---|---|---|---|---|---|"]
+    lines = heading("2-D grid updates", "One thread.", ["workload", "implementation", "M beams/s", "M ray cells/s",
+                                                         "M cells changed/s", "probslam speed-up"])
     lines += [f"| {w} | {impl} | {b / 1e6:.3f} | {st / 1e6:.1f} | {c / 1e6:.1f} | {ratio:.0f}x |"
               for w, impl, b, st, c, ratio in ray_rows]
     lines += ["", "| workload | implementation | M disc cells/s | scans/s | probslam speed-up |", "|---|---|---|---|---|"]

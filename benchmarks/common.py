@@ -1,5 +1,6 @@
 """What every benchmark script shares: the machine line and the report's destination."""
 
+import datetime
 import os
 import pathlib
 import platform
@@ -16,6 +17,13 @@ def machine() -> str:
     except (OSError, StopIteration):
         pass
     return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}, numpy {np.__version__}"
+
+
+def heading(title: str, note: str, columns) -> list:
+    """The opening lines of a RESULTS.md section: title with today's date, the machine, and the
+    header of its first table."""
+    return [f"## {title}, {datetime.date.today()}", "", f"Machine: {machine()}. {note}", "",
+            "| " + " | ".join(columns) + " |", "|" + "---|" * len(columns)]
 
 
 def report(lines, record: bool) -> None:
