@@ -31,15 +31,10 @@ def consistency(runs, steps):
         rng = np.random.default_rng(1000 + k)
         run = ps.sim.simulate(world, ps.sim.circle_controls(steps, 1.0, 0.12), 0.2, sensor, M, rng,
                               initial_pose=(0, -8.3, 0))
-        ekf = ps.EkfSlam(M, Q, use_signatures=False, initial_pose=(0, -8.3, 0))
-        for t, ((v, w), z, ids) in enumerate(zip(run.controls, run.measurements, run.ids)):
-            ekf.predict(v, w, run.dt)
-            if len(z):
-                r = ekf.update(z, ids)
-                if np.isfinite(r.nis).any():
-                    nis[k, t] = np.nanmean(r.nis) / 2  # per degree of freedom
-            e = ps.sim.pose_error(ekf.pose, run.poses[t + 1])
-            nees[k, t] = e @ np.linalg.pinv(ekf.covariance[:3, :3]) @ e
+        nees[k], step_nis = ps.sim.filter_known(run, M, Q)
+        for t, values in enumerate(step_nis):
+            if len(values):
+                nis[k, t] = values.mean() / 2  # per degree of freedom
     return nees.mean(0), np.nanmean(nis, 0)
 
 

@@ -109,3 +109,20 @@ def pose_error(estimate: np.ndarray, truth: np.ndarray) -> np.ndarray:
     e = np.asarray(estimate, float) - np.asarray(truth, float)
     e[..., 2] = wrap_angle(e[..., 2])
     return e
+
+
+def filter_known(run: SimRun, motion_noise: np.ndarray, measurement_noise: np.ndarray):
+    """EKF SLAM with known correspondences over a simulated run (without signatures), started at
+    its true initial pose with zero covariance. Returns the pose NEES after each step (T,) and
+    each step's finite NIS values (a list of T arrays, empty where nothing was updated)."""
+    from .ekf import EkfSlam
+
+    ekf = EkfSlam(motion_noise, measurement_noise, use_signatures=False, initial_pose=run.poses[0])
+    nees, nis = np.zeros(len(run.controls)), []
+    for t, ((v, w), z, ids) in enumerate(zip(run.controls, run.measurements, run.ids)):
+        ekf.predict(v, w, run.dt)
+        r = ekf.update(z, ids) if len(z) else None
+        nis.append(r.nis[np.isfinite(r.nis)] if r is not None else np.empty(0))
+        e = pose_error(ekf.pose, run.poses[t + 1])
+        nees[t] = e @ np.linalg.pinv(ekf.covariance[:3, :3]) @ e
+    return nees, nis

@@ -16,20 +16,14 @@ def monte_carlo(steps=STEPS, runs=RUNS):
     m = np.diag([0.01, 0.002])
     sensor = ps.sim.Sensor(q, max_range=8.0, fov=np.radians(180))
     nees = np.zeros((runs, steps))
-    nis, nis_dof = [], 0
+    nis = []
     for k in range(runs):
         rng = np.random.default_rng(1000 + k)
         run = ps.sim.simulate(world, ps.sim.circle_controls(steps, 1.0, 0.12), 0.2, sensor, m, rng,
                               initial_pose=(0, -8.3, 0))
-        ekf = ps.EkfSlam(m, q, use_signatures=False, initial_pose=(0, -8.3, 0))
-        for t, ((v, w), z, ids) in enumerate(zip(run.controls, run.measurements, run.ids)):
-            ekf.predict(v, w, run.dt)
-            if len(z):
-                r = ekf.update(z, ids)
-                nis += list(r.nis[np.isfinite(r.nis)])
-            e = ps.sim.pose_error(ekf.pose, run.poses[t + 1])
-            nees[k, t] = e @ np.linalg.pinv(ekf.covariance[:3, :3]) @ e
-    return nees.mean(axis=0), np.array(nis)
+        nees[k], step_nis = ps.sim.filter_known(run, m, q)
+        nis += step_nis
+    return nees.mean(axis=0), np.concatenate(nis)
 
 
 def test_average_nees_and_nis_inside_chi_square_bands():
