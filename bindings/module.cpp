@@ -1,5 +1,7 @@
 #include <pybind11/pybind11.h>
 
+#include "exceptions.hpp"
+
 namespace probslam::bindings {
 void define_core(pybind11::module_& m);
 void define_grid(pybind11::module_& m);
@@ -12,6 +14,7 @@ void define_information_form(pybind11::module_& m);
 
 PYBIND11_MODULE(_core, m) {
   m.doc() = "probslam's C++ core; use the pure-Python API in the probslam package.";
+  probslam::bindings::register_exception_translator();
   probslam::bindings::define_core(m);
   probslam::bindings::define_grid(m);
   probslam::bindings::define_grid3d(m);

@@ -9,6 +9,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "probslam/core/object_mutex.hpp"
 #include "probslam/core/types.hpp"
 
 namespace probslam {
@@ -57,6 +58,9 @@ struct AssociationReport {
 
 class EkfSlam {
  public:
+  /// Lock it around every call when several threads share this object (core/object_mutex.hpp).
+  std::mutex& mutex() const noexcept { return mutex_.get(); }
+
   /// motion_noise: 3x3 pose-space R_t, or 2x2 control-space M (R_t = V M V^T) for (v, w).
   /// measurement_noise: Q_t, variances of (range, bearing[, signature]): 3x3 with signatures.
   /// All must be symmetric positive definite (initial_pose_cov positive semi-definite).
@@ -179,6 +183,7 @@ class EkfSlam {
   long next_id_ = 0;
   double gate_distance_ = 5.0;
   MapManagement mm_;
+  ObjectMutex mutex_;
 };
 
 }  // namespace probslam

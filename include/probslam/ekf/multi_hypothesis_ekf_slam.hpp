@@ -8,6 +8,7 @@
 #include <memory>
 #include <vector>
 
+#include "probslam/core/object_mutex.hpp"
 #include "probslam/core/types.hpp"
 #include "probslam/ekf/ekf_slam.hpp"
 
@@ -26,6 +27,9 @@ struct MultiHypothesisOptions {
 
 class MultiHypothesisEkfSlam {
  public:
+  /// Lock it around every call when several threads share this object (core/object_mutex.hpp).
+  std::mutex& mutex() const noexcept { return mutex_.get(); }
+
   /// Starts from one filter (copied); every option must be positive, the costs finite.
   MultiHypothesisEkfSlam(const EkfSlam& initial, const MultiHypothesisOptions& options);
 
@@ -67,6 +71,7 @@ class MultiHypothesisEkfSlam {
   std::vector<Hypothesis> beam_;  // best first
   double log_det_q_ = 0.0;        // log det(2 pi Q)
   double offset_ = 0.0;           // cost subtracted from the beam so far
+  ObjectMutex mutex_;
 };
 
 }  // namespace probslam

@@ -5,6 +5,8 @@
 #include <unordered_map>
 #include <vector>
 
+#include "probslam/core/object_mutex.hpp"
+
 namespace probslam {
 
 enum class VertexKind { kPose, kPoint };
@@ -33,6 +35,9 @@ struct PointEdge {
 
 class PoseGraph2D {
  public:
+  /// Lock it around every call when several threads share this object (core/object_mutex.hpp).
+  std::mutex& mutex() const noexcept { return mutex_.get(); }
+
   /// Each add_* throws std::invalid_argument for a repeated or unknown id, a non-finite value,
   /// or an information matrix that is not symmetric positive definite; the graph is unchanged.
   void add_pose(int id, const Eigen::Vector3d& pose);
@@ -69,6 +74,7 @@ class PoseGraph2D {
   std::unordered_map<int, int> index_;
   std::vector<PoseEdge> pose_edges_;
   std::vector<PointEdge> point_edges_;
+  ObjectMutex mutex_;
 };
 
 /// The error of a pose edge and its Jacobians with respect to (x, y, theta) of both ends, the

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "probslam/core/object_mutex.hpp"
 #include "probslam/core/types.hpp"
 #include "probslam/grid/inverse_range_sensor_model.hpp"
 #include "probslam/grid/log_odds.hpp"
@@ -33,6 +34,9 @@ struct BeamModel {
 
 class OccupancyGrid2D {
  public:
+  /// Lock it around every call when several threads share this object (core/object_mutex.hpp).
+  std::mutex& mutex() const noexcept { return mutex_.get(); }
+
   /// resolution (m per cell), width x height cells, origin (m) of cell (0, 0)'s lower-left
   /// corner, prior occupancy p_prior (l0 = logit(p_prior)). Clamping defaults to OctoMap's
   /// [0.1192, 0.971]; LogOddsClamp::none() gives the textbook update.
@@ -117,6 +121,7 @@ class OccupancyGrid2D {
   std::vector<double> log_odds_;
   std::vector<std::uint32_t> stamp_;  // scan counter of each cell's last laser-beam update
   std::uint32_t scan_counter_ = 0;
+  ObjectMutex mutex_;
 };
 
 /// Eq. 9.9: the most pessimistic map (cell-wise maximum occupancy) of grids of equal geometry.

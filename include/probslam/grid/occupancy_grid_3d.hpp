@@ -10,6 +10,7 @@
 #include <optional>
 #include <vector>
 
+#include "probslam/core/object_mutex.hpp"
 #include "probslam/grid/occupancy_grid_2d.hpp"
 #include "probslam/grid/ray_traversal.hpp"
 
@@ -59,6 +60,9 @@ struct InsertStats3D {
 
 class OccupancyGrid3D {
  public:
+  /// Lock it around every call when several threads share this object (core/object_mutex.hpp).
+  std::mutex& mutex() const noexcept { return mutex_.get(); }
+
   /// Voxels per block edge is 2^kBlockBits; blocks are allocated when a ray first reaches them.
   static constexpr int kBlockBits = 3;
   static constexpr int kBlockSide = 1 << kBlockBits;
@@ -183,6 +187,7 @@ class OccupancyGrid3D {
   // Open-addressing hash table: slot holds packed key + 1 (0 = empty) and the block index.
   std::vector<std::uint64_t> table_keys_;
   std::vector<std::uint32_t> table_blocks_;
+  ObjectMutex mutex_;
 };
 
 }  // namespace probslam

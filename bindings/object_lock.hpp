@@ -1,0 +1,39 @@
+#pragma once
+// Per-object serialisation for the bindings (the reliability policy's thread rule).
+//
+// Every method of a stateful class (EkfSlam, MultiHypothesisEkfSlam, OccupancyGrid2D/3D,
+// PoseGraph2D) runs its C++ work inside `locked(obj, f)`: the GIL is released first and the
+// object's mutex taken second, so a thread waiting for the object never holds the GIL, and the
+// thread that holds the object can always get the GIL back afterwards: no deadlock. f must not
+// touch Python objects; convert arguments before and results after.
+#include <pybind11/pybind11.h>
+
+#include <mutex>
+#include <type_traits>
+
+namespace probslam::bindings {
+
+template <typename T, typename F>
+decltype(auto) locked(const T& object, F&& f) {
+  pybind11::gil_scoped_release release;
+  std::lock_guard<std::mutex> lock(object.mutex());
+  if constexpr (std::is_void_v<std::invoke_result_t<F>>) {
+    f();
+  } else {
+    return f();
+  }
+}
+
+/// Two objects at once (e.g. a source and a destination), in a deadlock-free order.
+template <typename A, typename B, typename F>
+decltype(auto) locked(const A& a, const B& b, F&& f) {
+  pybind11::gil_scoped_release release;
+  if (static_cast<const void*>(&a) == static_cast<const void*>(&b)) {
+    std::lock_guard<std::mutex> lock(a.mutex());
+    return f();
+  }
+  std::scoped_lock lock(a.mutex(), b.mutex());
+  return f();
+}
+
+}  // namespace probslam::bindings
