@@ -1,5 +1,6 @@
 #include "probslam/core/spatial_hash_2d.hpp"
 
+#include <algorithm>
 #include <cmath>
 
 #include "probslam/core/check.hpp"
@@ -8,10 +9,18 @@ namespace probslam {
 
 SpatialHash2D::SpatialHash2D(double cell_size) : cell_(cell_size) { require_positive(cell_size, "cell_size"); }
 
-void SpatialHash2D::insert(int id, double x, double y) {
-  cells_[key(static_cast<std::int64_t>(std::floor(x / cell_)), static_cast<std::int64_t>(std::floor(y / cell_)))]
-      .push_back(id);
+namespace {
+// 2^40 cells each way: far more than any map, far less than int64's range.
+constexpr double kMaxCellIndex = 1099511627776.0;
+}  // namespace
+
+std::int64_t SpatialHash2D::cell_index(double v) const {
+  const double c = std::floor(v / cell_);
+  if (std::isnan(c)) return 0;
+  return static_cast<std::int64_t>(std::clamp(c, -kMaxCellIndex, kMaxCellIndex));
 }
+
+void SpatialHash2D::insert(int id, double x, double y) { cells_[key(cell_index(x), cell_index(y))].push_back(id); }
 
 void SpatialHash2D::query(double x, double y, double radius,
                           const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>>& points,
@@ -28,10 +37,8 @@ void SpatialHash2D::query(double x, double y, double radius,
         if (near(id)) out.push_back(id);
     return;
   }
-  const auto lo_x = static_cast<std::int64_t>(std::floor((x - radius) / cell_));
-  const auto hi_x = static_cast<std::int64_t>(std::floor((x + radius) / cell_));
-  const auto lo_y = static_cast<std::int64_t>(std::floor((y - radius) / cell_));
-  const auto hi_y = static_cast<std::int64_t>(std::floor((y + radius) / cell_));
+  const std::int64_t lo_x = cell_index(x - radius), hi_x = cell_index(x + radius);
+  const std::int64_t lo_y = cell_index(y - radius), hi_y = cell_index(y + radius);
   for (std::int64_t cx = lo_x; cx <= hi_x; ++cx) {
     for (std::int64_t cy = lo_y; cy <= hi_y; ++cy) {
       const auto it = cells_.find(key(cx, cy));

@@ -1,12 +1,16 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <algorithm>
 #include <functional>
+#include <limits>
+#include <random>
 #include <stdexcept>
 
 #include "probslam/core/angle.hpp"
 #include "probslam/core/pose2.hpp"
 #include "probslam/core/range_bearing_model.hpp"
+#include "probslam/core/spatial_hash_2d.hpp"
 #include "probslam/core/velocity_motion_model.hpp"
 
 using namespace probslam;
@@ -131,4 +135,30 @@ TEST(RangeBearing, ValuesJacobiansAndInverse) {
   EXPECT_THROW(range_bearing_jacobians(x, Eigen::Vector2d(1.0, 1.0)), std::invalid_argument);
   EXPECT_THROW(range_bearing(x, Eigen::Vector2d(NAN, 1.0)), std::invalid_argument);
   EXPECT_THROW(landmark_from_range_bearing(x, Eigen::Vector2d(-1.0, 0.0)), std::invalid_argument);
+}
+
+// Negative, huge and NaN coordinates: the hash's cell keys must stay defined (the sanitizer
+// build caught a left shift of a negative index) and queries must equal a brute-force scan.
+TEST(SpatialHash2D, QueriesMatchBruteForceAtAnyCoordinate) {
+  std::mt19937 rng(7);
+  std::uniform_real_distribution<double> u(-50.0, 50.0);
+  Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor> pts(200, 2);
+  for (int i = 0; i < 200; ++i) pts.row(i) << u(rng), u(rng);
+  pts.row(0) << 1e300, -1e300;
+  pts.row(1) << std::numeric_limits<double>::quiet_NaN(), 3.0;
+  pts.row(2) << -1e18, 1e18;
+  probslam::SpatialHash2D hash(2.0);
+  for (int i = 0; i < pts.rows(); ++i) hash.insert(i, pts(i, 0), pts(i, 1));
+  const double queries[][3] = {{0, 0, 5}, {-30, -30, 7}, {1e300, -1e300, 1}, {-1e18, 1e18, 10}, {12, -40, 0.5}};
+  for (const auto& q : queries) {
+    std::vector<int> got;
+    hash.query(q[0], q[1], q[2], pts, got);
+    std::sort(got.begin(), got.end());
+    std::vector<int> want;
+    for (int i = 0; i < pts.rows(); ++i) {
+      const double dx = pts(i, 0) - q[0], dy = pts(i, 1) - q[1];
+      if (dx * dx + dy * dy <= q[2] * q[2]) want.push_back(i);
+    }
+    EXPECT_EQ(got, want) << "query at " << q[0] << ", " << q[1];
+  }
 }

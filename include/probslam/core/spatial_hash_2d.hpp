@@ -21,9 +21,15 @@ class SpatialHash2D {
   double cell_size() const { return cell_; }
 
  private:
-  static std::int64_t key(std::int64_t cx, std::int64_t cy) { return (cx << 32) ^ (cy & 0xffffffff); }
+  // Unsigned arithmetic: shifting a negative cell index is undefined behaviour.
+  static std::uint64_t key(std::int64_t cx, std::int64_t cy) {
+    return (static_cast<std::uint64_t>(cx) << 32) ^ (static_cast<std::uint64_t>(cy) & 0xffffffffu);
+  }
+  /// The cell index of coordinate v, clamped so that the conversion to an integer is defined for
+  /// any double (a NaN goes to cell 0; near() never matches it).
+  std::int64_t cell_index(double v) const;
   double cell_;
-  std::unordered_map<std::int64_t, std::vector<int>> cells_;
+  std::unordered_map<std::uint64_t, std::vector<int>> cells_;
 };
 
 }  // namespace probslam
