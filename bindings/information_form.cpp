@@ -1,5 +1,7 @@
 #include <pybind11/stl.h>
 
+#include <limits>
+
 #include "numpy.hpp"
 #include "probslam/graph/eif_correspondence.hpp"
 #include "probslam/graph/information_form.hpp"
@@ -15,13 +17,20 @@ SparseMatrixd sparse_from_csc(py::handle indptr_obj, py::handle indices_obj, py:
                               int rows, int cols, const char* name) {
   IndexArray indptr = IndexArray::ensure(indptr_obj), indices = IndexArray::ensure(indices_obj);
   DoubleArray data = as_array(data_obj, name);
-  if (!indptr || !indices || indptr.ndim() != 1 || indices.ndim() != 1 || data.ndim() != 1 ||
-      indptr.shape(0) != cols + 1 || indices.shape(0) != data.shape(0) ||
-      indptr.at(cols) != data.shape(0))
+  if (rows < 0 || cols < 0 || !indptr || !indices || indptr.ndim() != 1 || indices.ndim() != 1 ||
+      data.ndim() != 1 || indptr.shape(0) != cols + 1 || indices.shape(0) != data.shape(0) ||
+      indptr.at(0) != 0 || indptr.at(cols) != data.shape(0))
     throw py::value_error(std::string(name) + " is not a consistent CSC matrix");
-  for (py::ssize_t k = 0; k < indices.shape(0); ++k)
-    if (indices.at(k) < 0 || indices.at(k) >= rows)
-      throw py::value_error(std::string(name) + " has a row index outside the matrix");
+  // Eigen reads the arrays as they are: column starts must not decrease and the row indices of a
+  // column must increase strictly (scipy's canonical form), or it reads out of bounds.
+  for (int c = 0; c < cols; ++c) {
+    if (indptr.at(c + 1) < indptr.at(c))
+      throw py::value_error(std::string(name) + " has decreasing column starts (indptr)");
+    for (int k = indptr.at(c); k < indptr.at(c + 1); ++k)
+      if (indices.at(k) < 0 || indices.at(k) >= rows || (k > indptr.at(c) && indices.at(k) <= indices.at(k - 1)))
+        throw py::value_error(std::string(name) +
+                              " has a row index outside the matrix or out of order (sum duplicates and sort)");
+  }
   const Eigen::Map<const SparseMatrixd> map(rows, cols, data.shape(0), indptr.data(), indices.data(),
                                             data.data());
   SparseMatrixd out = map;  // also sorts nothing: scipy's canonical CSC has sorted indices
@@ -43,7 +52,12 @@ Eigen::VectorXi int_vector(py::handle obj, const char* name, py::ssize_t size) {
   if (a.ndim() != 1 || a.shape(0) != size)
     throw py::value_error(std::string(name) + " must have shape (" + std::to_string(size) + ",)");
   Eigen::VectorXi out(size);
-  for (py::ssize_t k = 0; k < size; ++k) out[k] = static_cast<int>(a.at(k));
+  for (py::ssize_t k = 0; k < size; ++k) {
+    // An index beyond int would wrap onto another feature or pose: refused, not truncated.
+    if (a.at(k) < std::numeric_limits<int>::min() || a.at(k) > std::numeric_limits<int>::max())
+      throw py::value_error(std::string(name) + ": index " + std::to_string(a.at(k)) + " is out of range");
+    out[k] = static_cast<int>(a.at(k));
+  }
   return out;
 }
 
