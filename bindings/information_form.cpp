@@ -18,7 +18,7 @@ SparseMatrixd sparse_from_csc(py::handle indptr_obj, py::handle indices_obj, py:
   IndexArray indptr = IndexArray::ensure(indptr_obj), indices = IndexArray::ensure(indices_obj);
   DoubleArray data = as_array(data_obj, name);
   if (rows < 0 || cols < 0 || !indptr || !indices || indptr.ndim() != 1 || indices.ndim() != 1 ||
-      data.ndim() != 1 || indptr.shape(0) != cols + 1 || indices.shape(0) != data.shape(0) ||
+      data.ndim() != 1 || indptr.shape(0) != static_cast<py::ssize_t>(cols) + 1 || indices.shape(0) != data.shape(0) ||
       indptr.at(0) != 0 || indptr.at(cols) != data.shape(0))
     throw py::value_error(std::string(name) + " is not a consistent CSC matrix");
   // Eigen reads the arrays as they are: column starts must not decrease and the row indices of a
@@ -80,8 +80,17 @@ Eigen::VectorXd dt_arg(py::handle dt, py::ssize_t steps) {
   return as_vector(a);
 }
 
+// num_poses sizes the path block 3 num_poses: checked against omega's size before it is used
+// (a huge value would overflow the product).
+void require_num_poses(int num_poses, int dim) {
+  if (num_poses <= 0 || num_poses > dim / 3)
+    throw py::value_error("num_poses must be in 1 .. " + std::to_string(dim / 3) + " for omega of size " +
+                          std::to_string(dim) + ", got " + std::to_string(num_poses));
+}
+
 InformationForm form_from(py::handle indptr, py::handle indices, py::handle data, int dim, Eigen::VectorXd xi,
                           int num_poses, int feature_dim) {
+  require_num_poses(num_poses, dim);
   InformationForm f;
   f.omega = sparse_from_csc(indptr, indices, data, dim, dim, "omega");
   f.xi = std::move(xi);
@@ -226,7 +235,9 @@ void define_information_form(py::module_& m) {
       throw py::value_error("features must have shape (N, 2) or (N, 3), got " + shape_of(f));
     const int d = static_cast<int>(f.shape(1));
     // Table 11.8 reads Omega alone: xi is not needed.
-    const InformationForm form = form_from(indptr, indices, data, dim, Eigen::VectorXd::Zero(dim), num_poses, d);
+    // xi is sized only once omega's arrays have vouched for dim.
+    InformationForm form = form_from(indptr, indices, data, dim, Eigen::VectorXd(), num_poses, d);
+    form.xi = Eigen::VectorXd::Zero(dim);
     const int p = 3 * num_poses;
     const SparseMatrixd reduced = sparse_from_csc(r_indptr, r_indices, r_data, p, p, "reduced_omega");
     const auto k = static_cast<py::ssize_t>(pairs.size());
