@@ -28,8 +28,13 @@ int PoseGraph2D::add_vertex(int id, VertexKind kind, const Eigen::Vector3d& valu
   if (has_vertex(id)) throw_invalid_argument("id", "is already used: " + std::to_string(id));
   require_all_finite(value, kind == VertexKind::kPose ? "pose" : "point");
   const int index = num_vertices();
-  vertices_.push_back({id, kind, value, false, id});
   index_.emplace(id, index);
+  try {
+    vertices_.push_back({id, kind, value, false, id});
+  } catch (...) {  // out of memory: the graph stays as it was
+    index_.erase(id);
+    throw;
+  }
   return index;
 }
 

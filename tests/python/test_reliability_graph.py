@@ -60,7 +60,7 @@ def test_concurrent_optimize_and_mutation_on_one_graph_do_not_crash():
         import numpy as np, probslam, policy
         from probslam import graph as pg
         from test_pose_graph import random_graph
-        for round in range(30):
+        for round in range(10):
             g, _, _ = random_graph(n=95, loops=50, landmarks=5, seed=round)
             ids = g.pose_ids.copy()
             def optimise():
