@@ -1,6 +1,9 @@
 #include <pybind11/stl.h>
 
+#include <limits>
+
 #include "numpy.hpp"
+#include "object_lock.hpp"
 #include "probslam/graph/graph_initialization.hpp"
 #include "probslam/graph/graph_optimizer.hpp"
 #include "probslam/graph/pose_graph_2d.hpp"
@@ -10,38 +13,65 @@ namespace probslam::bindings {
 
 namespace {
 
-py::array_t<long> ids_of(const PoseGraph2D& g, VertexKind kind) {
+// Vertex ids and values of one kind, gathered under the graph's lock, arrays built after it.
+struct KindSnapshot {
   std::vector<long> ids;
-  for (const GraphVertex& v : g.vertices())
-    if (v.kind == kind) ids.push_back(v.id);
-  return py::array_t<long>(static_cast<py::ssize_t>(ids.size()), ids.data());
+  std::vector<double> values;
+};
+
+KindSnapshot snapshot(const PoseGraph2D& g, VertexKind kind, bool landmark_ids = false) {
+  return locked(g, [&] {
+    KindSnapshot out;
+    const int dim = kind == VertexKind::kPose ? 3 : 2;
+    for (const GraphVertex& v : g.vertices()) {
+      if (v.kind != kind) continue;
+      out.ids.push_back(landmark_ids ? v.landmark_id : v.id);
+      out.values.insert(out.values.end(), v.value.data(), v.value.data() + dim);
+    }
+    return out;
+  });
+}
+
+py::array_t<long> ids_of(const PoseGraph2D& g, VertexKind kind, bool landmark_ids = false) {
+  const KindSnapshot s = snapshot(g, kind, landmark_ids);
+  return py::array_t<long>(static_cast<py::ssize_t>(s.ids.size()), s.ids.data());
 }
 
 py::array_t<double> values_of(const PoseGraph2D& g, VertexKind kind) {
-  const int dim = kind == VertexKind::kPose ? 3 : 2;
-  std::vector<double> values;
-  for (const GraphVertex& v : g.vertices())
-    if (v.kind == kind) values.insert(values.end(), v.value.data(), v.value.data() + dim);
-  py::array_t<double> out({static_cast<py::ssize_t>(values.size() / dim), py::ssize_t{dim}});
-  std::copy(values.begin(), values.end(), out.mutable_data());
+  const KindSnapshot s = snapshot(g, kind);
+  const py::ssize_t dim = kind == VertexKind::kPose ? 3 : 2;
+  py::array_t<double> out({static_cast<py::ssize_t>(s.ids.size()), dim});
+  std::copy(s.values.begin(), s.values.end(), out.mutable_data());
+  return out;
+}
+
+// Vertex ids from Python: integers only (a float id would be truncated) and within int (a
+// larger one would wrap onto another vertex).
+std::vector<int> vertex_ids(py::handle obj, const char* name) {
+  py::array raw = obj.is_none() ? py::array() : py::array::ensure(obj);
+  if (!raw || (raw.size() > 0 && raw.dtype().kind() != 'i' && raw.dtype().kind() != 'u'))
+    throw py::type_error(std::string(name) + " must be an array of integers");
+  if (raw.ndim() != 1) throw py::value_error(std::string(name) + " must be a 1-D array of integers");
+  const LongArray ids = integer_array_arg(raw, name);
+  std::vector<int> out(static_cast<size_t>(ids.shape(0)));
+  for (py::ssize_t k = 0; k < ids.shape(0); ++k) {
+    const long id = ids.at(k);
+    if (id < std::numeric_limits<int>::min() || id > std::numeric_limits<int>::max())
+      throw py::value_error(std::string(name) + ": vertex id " + std::to_string(id) + " is out of range");
+    out[static_cast<size_t>(k)] = static_cast<int>(id);
+  }
   return out;
 }
 
 void set_values(PoseGraph2D& g, py::handle ids_obj, py::handle values_obj, int dim) {
-  const LongArray ids = integer_array_arg(ids_obj, "ids");
-  if (ids.ndim() != 1) throw py::type_error("ids must be a 1-D array of integers");
-  DoubleArray values = matrix_arg(values_obj, "values", dim);
-  if (values.shape(0) != ids.shape(0)) throw py::value_error("values must have one row per id");
-  for (py::ssize_t k = 0; k < ids.shape(0); ++k) {
-    Eigen::Vector3d v = Eigen::Vector3d::Zero();
-    for (int d = 0; d < dim; ++d) v[d] = values.at(k, d);
-    const int index = g.index_of(static_cast<int>(ids.at(k)));
-    const VertexKind want = dim == 3 ? VertexKind::kPose : VertexKind::kPoint;
-    if (g.vertex(index).kind != want)
-      throw py::value_error("ids: vertex " + std::to_string(ids.at(k)) + " is not a " +
-                            (dim == 3 ? "pose" : "point"));
-    g.set_value(static_cast<int>(ids.at(k)), v);
-  }
+  const std::vector<int> ids = vertex_ids(ids_obj, "ids");
+  DoubleArray values = matrix_arg(values_obj, dim == 3 ? "poses" : "points", dim);
+  if (values.shape(0) != static_cast<py::ssize_t>(ids.size()))
+    throw py::value_error(std::string(dim == 3 ? "poses" : "points") + " must have one row per id");
+  std::vector<Eigen::Vector3d> rows(ids.size(), Eigen::Vector3d::Zero());
+  for (size_t k = 0; k < ids.size(); ++k)
+    for (int d = 0; d < dim; ++d) rows[k][d] = values.at(static_cast<py::ssize_t>(k), d);
+  locked(g, [&] { g.set_values(ids, rows, dim == 3 ? VertexKind::kPose : VertexKind::kPoint); });
 }
 
 template <typename Enum>
@@ -87,9 +117,18 @@ OptimizerOptions optimizer_options(const std::string& algorithm, int max_iterati
   return o;
 }
 
-// Every edge's end ids (E, 2), measurement (E, dim) and information (E, dim, dim) as arrays.
+// Every edge's end ids (E, 2), measurement (E, dim) and information (E, dim, dim) as arrays,
+// copied under the graph's lock first.
 template <int Dim, typename Edge, typename Ends>
-py::tuple edge_arrays(const PoseGraph2D& g, const std::vector<Edge>& edges, Ends ends) {
+py::tuple edge_arrays(const PoseGraph2D& g, const std::vector<Edge>& live, Ends ends) {
+  std::vector<std::pair<long, long>> ends_ids;
+  const std::vector<Edge> edges = locked(g, [&] {
+    for (const Edge& e : live) {
+      const auto [a, b] = ends(e);
+      ends_ids.emplace_back(g.vertex(a).id, g.vertex(b).id);
+    }
+    return live;
+  });
   const auto n = static_cast<py::ssize_t>(edges.size());
   py::array_t<long> ids({n, py::ssize_t{2}});
   py::array_t<double> z({n, py::ssize_t{Dim}}), info({n, py::ssize_t{Dim}, py::ssize_t{Dim}});
@@ -97,9 +136,8 @@ py::tuple edge_arrays(const PoseGraph2D& g, const std::vector<Edge>& edges, Ends
   auto m = z.mutable_unchecked<2>();
   auto w = info.mutable_unchecked<3>();
   for (py::ssize_t k = 0; k < n; ++k) {
-    const auto [a, b] = ends(edges[k]);
-    i(k, 0) = g.vertex(a).id;
-    i(k, 1) = g.vertex(b).id;
+    i(k, 0) = ends_ids[k].first;
+    i(k, 1) = ends_ids[k].second;
     for (int r = 0; r < Dim; ++r) {
       m(k, r) = edges[k].measurement[r];
       for (int c = 0; c < Dim; ++c) w(k, r, c) = edges[k].information(r, c);
@@ -108,57 +146,83 @@ py::tuple edge_arrays(const PoseGraph2D& g, const std::vector<Edge>& edges, Ends
   return py::make_tuple(ids, z, info);
 }
 
+py::array_t<long> all_edge_ids(const PoseGraph2D& g) {
+  const std::vector<long> flat = locked(g, [&] {
+    std::vector<long> out;
+    for (const PoseEdge& e : g.pose_edges()) out.insert(out.end(), {g.vertex(e.from).id, g.vertex(e.to).id});
+    for (const PointEdge& e : g.point_edges()) out.insert(out.end(), {g.vertex(e.pose).id, g.vertex(e.point).id});
+    return out;
+  });
+  py::array_t<long> out({static_cast<py::ssize_t>(flat.size() / 2), py::ssize_t{2}});
+  std::copy(flat.begin(), flat.end(), out.mutable_data());
+  return out;
+}
+
+PoseGraphFormat format_arg(const std::string& format) {
+  return choice<PoseGraphFormat>(format, "format",
+                                 {{"auto", PoseGraphFormat::kAuto},
+                                  {"g2o", PoseGraphFormat::kG2o},
+                                  {"toro", PoseGraphFormat::kToro},
+                                  {"isam", PoseGraphFormat::kIsam}});
+}
+
 }  // namespace
 
 void define_graph(py::module_& m) {
+  // Every method runs its C++ work under the graph's lock with the GIL released (object_lock.hpp).
   py::class_<PoseGraph2D>(m, "PoseGraph2D")
       .def(py::init<>())
-      .def("add_pose", [](PoseGraph2D& g, int id, py::handle pose) { g.add_pose(id, pose_arg(pose)); },
+      .def("add_pose",
+           [](PoseGraph2D& g, int id, py::handle pose) {
+             const Eigen::Vector3d p = pose_arg(pose);
+             locked(g, [&] { g.add_pose(id, p); });
+           },
            py::arg("id"), py::arg("pose"))
       .def("add_point",
-           [](PoseGraph2D& g, int id, py::handle p) { g.add_point(id, fixed_vector<2>(p, "point")); },
+           [](PoseGraph2D& g, int id, py::handle point) {
+             const Eigen::Vector2d p = fixed_vector<2>(point, "point");
+             locked(g, [&] { g.add_point(id, p); });
+           },
            py::arg("id"), py::arg("point"))
       .def("add_pose_edge",
            [](PoseGraph2D& g, int from, int to, py::handle z, py::handle info) {
-             g.add_pose_edge(from, to, fixed_vector<3>(z, "measurement"), square_matrix_arg(info, "information", 3));
+             const Eigen::Vector3d zv = fixed_vector<3>(z, "measurement");
+             const Eigen::Matrix3d omega = square_matrix_arg(info, "information", 3);
+             locked(g, [&] { g.add_pose_edge(from, to, zv, omega); });
            },
            py::arg("from_id"), py::arg("to_id"), py::arg("measurement"), py::arg("information"))
       .def("add_point_edge",
            [](PoseGraph2D& g, int pose, int point, py::handle z, py::handle info) {
-             g.add_point_edge(pose, point, fixed_vector<2>(z, "measurement"), square_matrix_arg(info, "information", 2));
+             const Eigen::Vector2d zv = fixed_vector<2>(z, "measurement");
+             const Eigen::Matrix2d omega = square_matrix_arg(info, "information", 2);
+             locked(g, [&] { g.add_point_edge(pose, point, zv, omega); });
            },
            py::arg("pose_id"), py::arg("point_id"), py::arg("measurement"), py::arg("information"))
-      .def("set_fixed", &PoseGraph2D::set_fixed, py::arg("id"), py::arg("fixed") = true)
-      .def("is_fixed", [](const PoseGraph2D& g, int id) { return g.vertex(g.index_of(id)).fixed; },
+      .def("set_fixed", [](PoseGraph2D& g, int id, bool fixed) { locked(g, [&] { g.set_fixed(id, fixed); }); },
+           py::arg("id"), py::arg("fixed") = true)
+      .def("is_fixed", [](const PoseGraph2D& g, int id) { return locked(g, [&] { return g.vertex(g.index_of(id)).fixed; }); },
            py::arg("id"))
       .def("set_poses", [](PoseGraph2D& g, py::handle ids, py::handle v) { set_values(g, ids, v, 3); },
            py::arg("ids"), py::arg("poses"))
       .def("set_points", [](PoseGraph2D& g, py::handle ids, py::handle v) { set_values(g, ids, v, 2); },
            py::arg("ids"), py::arg("points"))
-      .def("has_vertex", &PoseGraph2D::has_vertex, py::arg("id"))
-      .def_property_readonly("num_vertices", &PoseGraph2D::num_vertices)
-      .def_property_readonly("num_pose_edges", [](const PoseGraph2D& g) { return g.pose_edges().size(); })
-      .def_property_readonly("num_point_edges", [](const PoseGraph2D& g) { return g.point_edges().size(); })
+      .def("has_vertex", [](const PoseGraph2D& g, int id) { return locked(g, [&] { return g.has_vertex(id); }); },
+           py::arg("id"))
+      .def_property_readonly("num_vertices", [](const PoseGraph2D& g) { return locked(g, [&] { return g.num_vertices(); }); })
+      .def_property_readonly("num_pose_edges",
+                             [](const PoseGraph2D& g) { return locked(g, [&] { return g.pose_edges().size(); }); })
+      .def_property_readonly("num_point_edges",
+                             [](const PoseGraph2D& g) { return locked(g, [&] { return g.point_edges().size(); }); })
       .def_property_readonly("pose_ids", [](const PoseGraph2D& g) { return ids_of(g, VertexKind::kPose); })
       .def_property_readonly("point_ids", [](const PoseGraph2D& g) { return ids_of(g, VertexKind::kPoint); })
+      .def_property_readonly(
+          "landmark_ids", [](const PoseGraph2D& g) { return ids_of(g, VertexKind::kPoint, true); },
+          "Each point's id among the landmarks (iSAM's LANDMARK numbers, an id space apart from the "
+          "poses'): equal to point_ids unless read_pose_graph moved an iSAM landmark whose number a pose "
+          "uses; write_isam writes these.")
       .def_property_readonly("poses", [](const PoseGraph2D& g) { return values_of(g, VertexKind::kPose); })
       .def_property_readonly("points", [](const PoseGraph2D& g) { return values_of(g, VertexKind::kPoint); })
-      .def("edge_ids",
-           [](const PoseGraph2D& g) {
-             const py::ssize_t n = static_cast<py::ssize_t>(g.pose_edges().size() + g.point_edges().size());
-             py::array_t<long> out({n, py::ssize_t{2}});
-             auto r = out.mutable_unchecked<2>();
-             py::ssize_t k = 0;
-             for (const PoseEdge& e : g.pose_edges()) {
-               r(k, 0) = g.vertex(e.from).id;
-               r(k++, 1) = g.vertex(e.to).id;
-             }
-             for (const PointEdge& e : g.point_edges()) {
-               r(k, 0) = g.vertex(e.pose).id;
-               r(k++, 1) = g.vertex(e.point).id;
-             }
-             return out;
-           })
+      .def("edge_ids", &all_edge_ids)
       .def("pose_edges",
            [](const PoseGraph2D& g) {
              return edge_arrays<3>(g, g.pose_edges(), [](const PoseEdge& e) { return std::pair{e.from, e.to}; });
@@ -167,8 +231,8 @@ void define_graph(py::module_& m) {
            [](const PoseGraph2D& g) {
              return edge_arrays<2>(g, g.point_edges(), [](const PointEdge& e) { return std::pair{e.pose, e.point}; });
            })
-      .def("chi2", &PoseGraph2D::chi2)
-      .def("copy", [](const PoseGraph2D& g) { return PoseGraph2D(g); });
+      .def("chi2", [](const PoseGraph2D& g) { return locked(g, [&] { return g.chi2(); }); })
+      .def("copy", [](const PoseGraph2D& g) { return locked(g, [&] { return PoseGraph2D(g); }); });
 
   py::class_<OptimizationReport>(m, "OptimizationReport")
       .def_readonly("iterations", &OptimizationReport::iterations)
@@ -192,8 +256,7 @@ void define_graph(py::module_& m) {
            const std::string& linear_solver, const std::string& ordering, const std::string& damping) {
           const OptimizerOptions o = optimizer_options(algorithm, max_iterations, relative_tolerance, step_tolerance,
                                                        kernel, kernel_width, linear_solver, ordering, damping);
-          py::gil_scoped_release release;
-          return optimize(graph, o);
+          return locked(graph, [&] { return optimize(graph, o); });
         },
         py::arg("graph"), py::arg("algorithm") = "gauss-newton", py::arg("max_iterations") = 100,
         py::arg("relative_tolerance") = 1e-10, py::arg("step_tolerance") = 1e-10, py::arg("kernel") = "none",
@@ -212,8 +275,7 @@ void define_graph(py::module_& m) {
 
   m.def("initialize_odometry",
         [](PoseGraph2D& graph) {
-          py::gil_scoped_release release;
-          initialize_odometry(graph);
+          locked(graph, [&] { initialize_odometry(graph); });
         },
         py::arg("graph"));
   m.def("optimize_incremental",
@@ -224,8 +286,7 @@ void define_graph(py::module_& m) {
           o.poses_per_step = poses_per_step;
           o.step = optimizer_options(algorithm, max_iterations, relative_tolerance, step_tolerance, kernel,
                                      kernel_width, linear_solver, ordering, damping);
-          py::gil_scoped_release release;
-          return optimize_incremental(graph, o);
+          return locked(graph, [&] { return optimize_incremental(graph, o); });
         },
         py::arg("graph"), py::arg("poses_per_step") = 100, py::arg("algorithm") = "gauss-newton",
         py::arg("max_iterations") = 10, py::arg("relative_tolerance") = 1e-6, py::arg("step_tolerance") = 1e-10,
@@ -236,11 +297,8 @@ void define_graph(py::module_& m) {
         [](const PoseGraph2D& graph, const std::vector<int>& ids, const std::string& linear_solver,
            const std::string& ordering) {
           const SparseCholeskyOptions o = solver_options(linear_solver, ordering);
-          std::vector<Eigen::MatrixXd> blocks;
-          {
-            py::gil_scoped_release release;
-            blocks = marginal_covariances(graph, ids, o);
-          }
+          const std::vector<Eigen::MatrixXd> blocks =
+              locked(graph, [&] { return marginal_covariances(graph, ids, o); });
           py::list out;
           for (const auto& b : blocks) out.append(py::cast(b));
           return out;
@@ -249,17 +307,17 @@ void define_graph(py::module_& m) {
 
   m.def("read_pose_graph",
         [](const std::string& path, const std::string& format) {
-          const PoseGraphFormat f = choice<PoseGraphFormat>(format, "format",
-                                                            {{"auto", PoseGraphFormat::kAuto},
-                                                             {"g2o", PoseGraphFormat::kG2o},
-                                                             {"toro", PoseGraphFormat::kToro},
-                                                             {"isam", PoseGraphFormat::kIsam}});
-          py::gil_scoped_release release;
+          const PoseGraphFormat f = format_arg(format);
+          py::gil_scoped_release release;  // a new graph: nothing else can see it yet
           return read_pose_graph(path, f);
         },
         py::arg("path"), py::arg("format") = "auto");
-  m.def("write_g2o", [](const std::string& path, const PoseGraph2D& g) { write_g2o(path, g); },
+  m.def("write_g2o", [](const std::string& path, const PoseGraph2D& g) { locked(g, [&] { write_g2o(path, g); }); },
         py::arg("path"), py::arg("graph"));
+  m.def("write_isam", [](const std::string& path, const PoseGraph2D& g) { locked(g, [&] { write_isam(path, g); }); },
+        py::arg("path"), py::arg("graph"),
+        "iSAM text: pose edges, then LANDMARK edges under each point's landmark id (see "
+        "PoseGraph2D.landmark_ids); no vertex values (reading back dead-reckons them).");
 }
 
 }  // namespace probslam::bindings

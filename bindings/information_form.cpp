@@ -1,5 +1,7 @@
 #include <pybind11/stl.h>
 
+#include <limits>
+
 #include "numpy.hpp"
 #include "probslam/graph/eif_correspondence.hpp"
 #include "probslam/graph/information_form.hpp"
@@ -15,13 +17,20 @@ SparseMatrixd sparse_from_csc(py::handle indptr_obj, py::handle indices_obj, py:
                               int rows, int cols, const char* name) {
   IndexArray indptr = IndexArray::ensure(indptr_obj), indices = IndexArray::ensure(indices_obj);
   DoubleArray data = as_array(data_obj, name);
-  if (!indptr || !indices || indptr.ndim() != 1 || indices.ndim() != 1 || data.ndim() != 1 ||
-      indptr.shape(0) != cols + 1 || indices.shape(0) != data.shape(0) ||
-      indptr.at(cols) != data.shape(0))
+  if (rows < 0 || cols < 0 || !indptr || !indices || indptr.ndim() != 1 || indices.ndim() != 1 ||
+      data.ndim() != 1 || indptr.shape(0) != static_cast<py::ssize_t>(cols) + 1 || indices.shape(0) != data.shape(0) ||
+      indptr.at(0) != 0 || indptr.at(cols) != data.shape(0))
     throw py::value_error(std::string(name) + " is not a consistent CSC matrix");
-  for (py::ssize_t k = 0; k < indices.shape(0); ++k)
-    if (indices.at(k) < 0 || indices.at(k) >= rows)
-      throw py::value_error(std::string(name) + " has a row index outside the matrix");
+  // Eigen reads the arrays as they are: column starts must not decrease and the row indices of a
+  // column must increase strictly (scipy's canonical form), or it reads out of bounds.
+  for (int c = 0; c < cols; ++c) {
+    if (indptr.at(c + 1) < indptr.at(c))
+      throw py::value_error(std::string(name) + " has decreasing column starts (indptr)");
+    for (int k = indptr.at(c); k < indptr.at(c + 1); ++k)
+      if (indices.at(k) < 0 || indices.at(k) >= rows || (k > indptr.at(c) && indices.at(k) <= indices.at(k - 1)))
+        throw py::value_error(std::string(name) +
+                              " has a row index outside the matrix or out of order (sum duplicates and sort)");
+  }
   const Eigen::Map<const SparseMatrixd> map(rows, cols, data.shape(0), indptr.data(), indices.data(),
                                             data.data());
   SparseMatrixd out = map;  // also sorts nothing: scipy's canonical CSC has sorted indices
@@ -43,7 +52,12 @@ Eigen::VectorXi int_vector(py::handle obj, const char* name, py::ssize_t size) {
   if (a.ndim() != 1 || a.shape(0) != size)
     throw py::value_error(std::string(name) + " must have shape (" + std::to_string(size) + ",)");
   Eigen::VectorXi out(size);
-  for (py::ssize_t k = 0; k < size; ++k) out[k] = static_cast<int>(a.at(k));
+  for (py::ssize_t k = 0; k < size; ++k) {
+    // An index beyond int would wrap onto another feature or pose: refused, not truncated.
+    if (a.at(k) < std::numeric_limits<int>::min() || a.at(k) > std::numeric_limits<int>::max())
+      throw py::value_error(std::string(name) + ": index " + std::to_string(a.at(k)) + " is out of range");
+    out[k] = static_cast<int>(a.at(k));
+  }
   return out;
 }
 
@@ -66,8 +80,17 @@ Eigen::VectorXd dt_arg(py::handle dt, py::ssize_t steps) {
   return as_vector(a);
 }
 
+// num_poses sizes the path block 3 num_poses: checked against omega's size before it is used
+// (a huge value would overflow the product).
+void require_num_poses(int num_poses, int dim) {
+  if (num_poses <= 0 || num_poses > dim / 3)
+    throw py::value_error("num_poses must be in 1 .. " + std::to_string(dim / 3) + " for omega of size " +
+                          std::to_string(dim) + ", got " + std::to_string(num_poses));
+}
+
 InformationForm form_from(py::handle indptr, py::handle indices, py::handle data, int dim, Eigen::VectorXd xi,
                           int num_poses, int feature_dim) {
+  require_num_poses(num_poses, dim);
   InformationForm f;
   f.omega = sparse_from_csc(indptr, indices, data, dim, dim, "omega");
   f.xi = std::move(xi);
@@ -212,7 +235,9 @@ void define_information_form(py::module_& m) {
       throw py::value_error("features must have shape (N, 2) or (N, 3), got " + shape_of(f));
     const int d = static_cast<int>(f.shape(1));
     // Table 11.8 reads Omega alone: xi is not needed.
-    const InformationForm form = form_from(indptr, indices, data, dim, Eigen::VectorXd::Zero(dim), num_poses, d);
+    // xi is sized only once omega's arrays have vouched for dim.
+    InformationForm form = form_from(indptr, indices, data, dim, Eigen::VectorXd(), num_poses, d);
+    form.xi = Eigen::VectorXd::Zero(dim);
     const int p = 3 * num_poses;
     const SparseMatrixd reduced = sparse_from_csc(r_indptr, r_indices, r_data, p, p, "reduced_omega");
     const auto k = static_cast<py::ssize_t>(pairs.size());

@@ -1,13 +1,22 @@
 """2-D pose/landmark graphs: reading, initialising, optimising (Gauss-Newton / Levenberg-Marquardt
 on CHOLMOD), marginal covariances, writing. The math is in C++; this module only names things
-and drives the EKF for the EKF initialisation."""
+and drives the EKF for the EKF initialisation.
+
+Reliability (README "Reliability"): every call on a PoseGraph2D takes the graph's lock, so
+threads may share a graph; mutations and optimisations are all or nothing (a call that raises
+leaves the graph as it was); results are finite or the call raises. A part of the graph not
+connected to a fixed vertex (or to the first pose, held when none is fixed) is refused by name
+before any number is computed; numerical singularity is CHOLMOD's own positive-definiteness
+report plus a per-variable pivot test, not a cut on the condition number, so information from
+1e-12 to 1e12 in one graph is fine. iSAM files number landmarks apart from poses: see
+``PoseGraph2D.landmark_ids`` and ``write_isam``."""
 
 from __future__ import annotations
 
 from typing import Optional
 
 from ._core import (IncrementalReport, OptimizationReport, PoseGraph2D, initialize_odometry, marginal_covariances,
-                    optimize, optimize_incremental, read_pose_graph, write_g2o)
+                    optimize, optimize_incremental, read_pose_graph, write_g2o, write_isam)
 
 #: The starting points ``initialize`` offers (ch. 11.3): dead reckoning, the EKF SLAM estimate,
 #: and incremental optimisation pose by pose.
@@ -61,4 +70,5 @@ __all__ = [
     "optimize_incremental",
     "read_pose_graph",
     "write_g2o",
+    "write_isam",
 ]

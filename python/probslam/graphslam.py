@@ -77,7 +77,7 @@ def _csc(matrix, name: str):
     if not sp.issparse(matrix):
         raise TypeError(f"{name} must be a scipy.sparse matrix")
     m = sp.csc_matrix(matrix, dtype=np.float64)
-    m.sort_indices()
+    m.sum_duplicates()  # canonical form: sorted, unique row indices per column (the C++ side requires it)
     if m.shape[0] != m.shape[1]:
         raise ValueError(f"{name} must be square, got shape {m.shape}")
     return m

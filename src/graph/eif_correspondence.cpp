@@ -103,6 +103,8 @@ CorrespondenceTest EifCorrespondenceTester::test(int j, int k) {
   const Eigen::VectorXd white = llt.matrixL().solve(out.mean);
   out.distance2 = white.squaredNorm();
   out.probability = std::exp(-0.5 * (log_det_2pi(llt) + out.distance2));
+  require(std::isfinite(out.probability) && std::isfinite(out.distance2) && out.covariance.allFinite(), "omega",
+          "gives a non-finite correspondence test (information too large or too small?)");
   return out;
 }
 

@@ -77,7 +77,8 @@ PoseGraph2D part_of(const PoseGraph2D& graph, const std::vector<int>& joins, int
 
 }  // namespace
 
-void initialize_odometry(PoseGraph2D& graph) {
+void initialize_odometry(PoseGraph2D& target) {
+  PoseGraph2D graph = target;  // committed only when every value is finite
   const int n = graph.num_vertices();
   std::vector<char> reached(n, 0);
   std::deque<int> queue;
@@ -107,10 +108,12 @@ void initialize_odometry(PoseGraph2D& graph) {
   const auto first = first_observations(graph, [&](int pose) { return reached[pose] ? 0 : -1; });
   for (int v = 0; v < n; ++v)
     if (!reached[v] && first[v] != kNone) graph.vertex(v).value = place_point(graph, graph.point_edges()[first[v]]);
+  target.assign_values(graph.values());
 }
 
-IncrementalReport optimize_incremental(PoseGraph2D& graph, const IncrementalOptions& options) {
+IncrementalReport optimize_incremental(PoseGraph2D& target, const IncrementalOptions& options) {
   require(options.poses_per_step >= 1, "poses_per_step", "must be >= 1");
+  PoseGraph2D graph = target;  // committed only when every step succeeded with finite values
   const int n = graph.num_vertices();
   std::vector<int> order, position(n, kNone), joins(n, kNone);
   for (int v = 0; v < n; ++v) {
@@ -160,6 +163,7 @@ IncrementalReport optimize_incremental(PoseGraph2D& graph, const IncrementalOpti
     report.step_chi2.push_back(r.chi2);
   }
   report.chi2 = graph.chi2();
+  target.assign_values(graph.values());
   return report;
 }
 

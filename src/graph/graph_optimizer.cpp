@@ -4,6 +4,10 @@
 #include <array>
 #include <chrono>
 #include <cmath>
+#include <limits>
+#include <numeric>
+#include <stdexcept>
+#include <string>
 
 #include "probslam/core/angle.hpp"
 #include "probslam/core/check.hpp"
@@ -157,7 +161,91 @@ void validate(const PoseGraph2D& graph, const OptimizerOptions& options) {
   require(options.max_iterations >= 0, "max_iterations", "must be >= 0");
   require(options.relative_tolerance >= 0.0, "relative_tolerance", "must be >= 0");
   require(options.step_tolerance >= 0.0, "step_tolerance", "must be >= 0");
-  if (options.kernel != RobustKernel::kNone) require_positive(options.kernel_width, "kernel_width");
+  if (options.kernel != RobustKernel::kNone) {
+    require_positive(options.kernel_width, "kernel_width");
+    // The kernels divide by width^2: it must neither overflow nor underflow.
+    const double w2 = options.kernel_width * options.kernel_width;
+    require(std::isfinite(w2) && w2 >= std::numeric_limits<double>::min(), "kernel_width",
+            "must have a finite, normal square");
+  }
+}
+
+// Floating vertices listed by name in the error; the rest are counted.
+constexpr size_t kListedVertices = 20;
+
+int find_root(std::vector<int>& parent, int v) {
+  while (parent[v] != v) v = parent[v] = parent[parent[v]];
+  return v;
+}
+
+// Gauge freedom is a property of the graph's structure, decided before any number is computed:
+// every connected component must hold a fixed vertex (or, when none is fixed anywhere, the first
+// pose, which the optimiser holds). A component that holds none can move rigidly without
+// changing the objective: its information is singular whatever the numbers, so it is refused by
+// name, for Gauss-Newton and Levenberg-Marquardt alike (damping would hide it).
+void require_anchored(const PoseGraph2D& graph) {
+  const int n = graph.num_vertices();
+  std::vector<int> parent(n);
+  std::iota(parent.begin(), parent.end(), 0);
+  for (const auto& [a, b] : couplings(graph)) parent[find_root(parent, a)] = find_root(parent, b);
+  std::vector<char> anchored(n, 0);
+  bool any_fixed = false;
+  for (int v = 0; v < n; ++v)
+    if (graph.vertex(v).fixed) anchored[find_root(parent, v)] = any_fixed = true;
+  for (int v = 0; v < n && !any_fixed; ++v)
+    if (graph.vertex(v).kind == VertexKind::kPose) {
+      anchored[find_root(parent, v)] = any_fixed = true;
+    }
+  int floating_root = -1, others = 0;
+  std::vector<int> ids;
+  std::vector<char> counted(n, 0);
+  for (int v = 0; v < n; ++v) {
+    const int root = find_root(parent, v);
+    if (anchored[root]) continue;
+    if (floating_root < 0) floating_root = root;
+    if (root == floating_root) {
+      ids.push_back(graph.vertex(v).id);
+    } else if (!counted[root]) {
+      counted[root] = 1;
+      ++others;
+    }
+  }
+  if (floating_root < 0) return;
+  std::string names;
+  for (size_t k = 0; k < ids.size() && k < kListedVertices; ++k) names += (k ? ", " : "") + std::to_string(ids[k]);
+  if (ids.size() > kListedVertices) names += " and " + std::to_string(ids.size() - kListedVertices) + " more";
+  throw_invalid_argument(
+      "graph", "vertices " + names + " form a part of the graph not connected to a fixed vertex (nor to " +
+                   "the first pose, held when none is fixed): its information matrix is singular; fix one " +
+                   "of its vertices or connect it" +
+                   (others ? " (" + std::to_string(others) + " more such parts)" : ""));
+}
+
+// Rethrows a failed factorisation naming the vertex whose variable it failed at.
+[[noreturn]] void throw_singular(const PoseGraph2D& graph, const BlockSystem& system, const SparseCholesky& chol,
+                                 const std::invalid_argument& error) {
+  const int column = chol.singular_column();
+  for (int v = 0; column >= 0 && v < graph.num_vertices(); ++v)
+    if (system.size(v) > 0 && column >= system.offset(v) && column < system.offset(v) + system.size(v))
+      throw_invalid_argument("graph", "information matrix is singular to working precision at vertex " +
+                                          std::to_string(graph.vertex(v).id) +
+                                          " (constrained in fewer directions than it has, or tied so " +
+                                          "rigidly to another that their common motion is lost in rounding)");
+  throw error;
+}
+
+void factorize(SparseCholesky& chol, const PoseGraph2D& graph, const BlockSystem& system) {
+  try {
+    chol.factorize(system.upper());
+  } catch (const std::invalid_argument& error) {
+    throw_singular(graph, system, chol, error);
+  }
+}
+
+void require_finite_objective(const Objective& o, const char* when) {
+  if (!std::isfinite(o.chi2) || !std::isfinite(o.robust))
+    throw_invalid_argument("graph", std::string("chi2 is not finite ") + when +
+                                        " (values or information too large?)");
 }
 
 using Clock = std::chrono::steady_clock;
@@ -165,10 +253,8 @@ double seconds_since(Clock::time_point start) {
   return std::chrono::duration<double>(Clock::now() - start).count();
 }
 
-}  // namespace
-
-OptimizationReport optimize(PoseGraph2D& graph, const OptimizerOptions& options) {
-  validate(graph, options);
+// The iterations, on a graph the caller may throw away (optimize() passes a copy).
+OptimizationReport optimize_in_place(PoseGraph2D& graph, const OptimizerOptions& options) {
   NormalEquations equations(graph);
   OptimizationReport report;
   if (equations.system().dim() == 0) {
@@ -183,6 +269,7 @@ OptimizationReport optimize(PoseGraph2D& graph, const OptimizerOptions& options)
   const RobustKernel kernel = options.kernel;
   const double width = options.kernel_width;
   Objective current = equations.assemble(graph, kernel, width);
+  require_finite_objective(current, "at the initial values");
   report.initial_chi2 = current.chi2;
   report.stop_reason = "maximum iterations reached";
   const bool levenberg = options.algorithm == OptimizerAlgorithm::kLevenbergMarquardt;
@@ -196,10 +283,12 @@ OptimizationReport optimize(PoseGraph2D& graph, const OptimizerOptions& options)
     Eigen::VectorXd dx;
     Objective next;
     if (!levenberg) {
-      cholesky.factorize(system.upper());
+      factorize(cholesky, graph, system);
       dx = cholesky.solve(system.rhs());
+      require(dx.allFinite(), "graph", "Gauss-Newton step is not finite (values or information too large?)");
       equations.apply(graph, dx);
       next = equations.assemble(graph, kernel, width);
+      require_finite_objective(next, "after a Gauss-Newton step");
     } else {
       const std::vector<GraphVertex> saved = graph.vertices();
       bool accepted = false;
@@ -208,7 +297,12 @@ OptimizationReport optimize(PoseGraph2D& graph, const OptimizerOptions& options)
             marquardt ? system.diagonal() : Eigen::VectorXd::Ones(system.dim());
         const Eigen::VectorXd damping = lambda * scale;
         system.add_to_diagonal(damping);
-        cholesky.factorize(system.upper());
+        try {
+          factorize(cholesky, graph, system);
+        } catch (...) {
+          system.add_to_diagonal(-damping);
+          throw;
+        }
         system.add_to_diagonal(-damping);
         dx = cholesky.solve(system.rhs());
         equations.apply(graph, dx);
@@ -216,7 +310,7 @@ OptimizationReport optimize(PoseGraph2D& graph, const OptimizerOptions& options)
         // The quadratic model's decrease 2 b^T dx - dx^T H dx, with (H + lambda D) dx = b.
         const double predicted = system.rhs().dot(dx) + dx.dot(damping.cwiseProduct(dx));
         const double rho = (current.robust - next.robust) / predicted;
-        if (predicted > 0.0 && rho > 0.0) {
+        if (predicted > 0.0 && rho > 0.0 && dx.allFinite()) {
           accepted = true;
           lambda *= std::max(kMinDampingDecrease, 1.0 - std::pow(2.0 * rho - 1.0, 3));
           nu = kInitialDampingIncrease;
@@ -232,6 +326,7 @@ OptimizationReport optimize(PoseGraph2D& graph, const OptimizerOptions& options)
         break;
       }
       next = equations.assemble(graph, kernel, width);
+      require_finite_objective(next, "after a Levenberg-Marquardt step");
     }
     report.iteration_seconds.push_back(seconds_since(start));
     report.chi2_history.push_back(next.chi2);
@@ -255,12 +350,27 @@ OptimizationReport optimize(PoseGraph2D& graph, const OptimizerOptions& options)
   return report;
 }
 
+}  // namespace
+
+OptimizationReport optimize(PoseGraph2D& graph, const OptimizerOptions& options) {
+  validate(graph, options);
+  require_anchored(graph);
+  PoseGraph2D work = graph;  // the graph changes only when a finite result is committed
+  const OptimizationReport report = optimize_in_place(work, options);
+  require(std::isfinite(report.chi2) && std::isfinite(report.objective), "graph",
+          "chi2 is not finite at the result (values or information too large?)");
+  graph.assign_values(work.values());
+  return report;
+}
+
 std::vector<Eigen::MatrixXd> marginal_covariances(const PoseGraph2D& graph,
                                                   const std::vector<int>& ids,
                                                   const SparseCholeskyOptions& linear_solver) {
+  for (const int id : ids) graph.index_of(id);  // unknown ids first, before any work
   validate(graph, {});
+  require_anchored(graph);
   NormalEquations equations(graph);
-  equations.assemble(graph, RobustKernel::kNone, 1.0);
+  require_finite_objective(equations.assemble(graph, RobustKernel::kNone, 1.0), "at the current values");
   SparseCholesky cholesky(linear_solver);
   std::vector<InverseBlock> requests;
   std::vector<int> request_of(ids.size(), -1);
@@ -274,9 +384,11 @@ std::vector<Eigen::MatrixXd> marginal_covariances(const PoseGraph2D& graph,
   }
   std::vector<Eigen::MatrixXd> blocks;
   if (!requests.empty()) {
-    cholesky.factorize(equations.system().upper());
+    factorize(cholesky, graph, equations.system());
     blocks = cholesky.inverse_blocks(requests);
   }
+  for (const Eigen::MatrixXd& b : blocks)
+    require(b.allFinite(), "graph", "marginal covariances are not finite (information too small or too large?)");
   std::vector<Eigen::MatrixXd> out;
   for (size_t k = 0; k < ids.size(); ++k) {
     const int v = graph.index_of(ids[k]);

@@ -16,6 +16,13 @@
 namespace probslam {
 namespace {
 
+// The finite-or-raise rule for an information form computed from finite input (overflow).
+void require_finite_form(const SparseMatrixd& omega, const Eigen::VectorXd& xi, const char* where) {
+  const Eigen::Map<const Eigen::VectorXd> values(omega.valuePtr(), omega.nonZeros());
+  if (!values.allFinite() || !xi.allFinite())
+    throw_invalid_argument(where, "result is not finite (controls, measurements or noise too large or too small?)");
+}
+
 // Asymmetry tolerated in R and Q relative to their largest entry: matrices built in code are
 // symmetric to rounding; more is a mistake.
 constexpr double kSymmetryTolerance = 1e-12;
@@ -38,6 +45,10 @@ int validate(const Eigen::Ref<const RowMatrixXd>& controls, const Eigen::VectorX
   require(meas.time.minCoeff() >= 0 && meas.time.maxCoeff() <= controls.rows(), "time",
           "must index a pose 0 .. T");
   require(meas.feature.minCoeff() >= 0, "correspondences", "must be >= 0");
+  // Every feature 0 .. N-1 is observed, so N <= M: a larger index is refused before anything
+  // is sized by it (one index of 1e9 would otherwise allocate a gigabyte before the error).
+  require(meas.feature.maxCoeff() < m, "correspondences",
+          "must index features 0 .. N-1, each observed, so every index must be < the number of measurements");
   const int n = meas.feature.maxCoeff() + 1;
   std::vector<char> seen(n, 0);
   for (Eigen::Index k = 0; k < m; ++k) seen[meas.feature[k]] = 1;
@@ -141,14 +152,23 @@ Poses2 eif_initialize(const Eigen::Ref<const RowMatrixXd>& controls, const Eigen
   path(0, 2) = wrap_angle(initial_pose[2]);
   for (Eigen::Index t = 0; t < controls.rows(); ++t)
     path.row(t + 1) = velocity_motion(path.row(t).transpose(), controls(t, 0), controls(t, 1), dt[t]).transpose();
+  require(path.allFinite(), "controls", "give a path that is not finite (too large?)");
   return path;
 }
 
 RowMatrixXd eif_initial_features(const Eigen::Ref<const RowMatrixXd>& poses,
                                  const FeatureMeasurements& meas, int num_features) {
   require(poses.cols() == 3, "poses", "must have shape (T + 1, 3)");
+  require_all_finite(poses, "poses");
+  require(meas.z.cols() == 2 || meas.z.cols() == 3, "z", "must have 2 or 3 columns");
+  require(meas.time.size() == meas.z.rows(), "time", "must have one entry per measurement");
+  require(meas.feature.size() == meas.z.rows(), "correspondences", "must have one entry per measurement");
   require_all_finite(meas.z, "z");
   require((meas.z.col(0).array() > 0.0).all(), "z", "ranges must be > 0");
+  // Each feature is observed at least once: more features than measurements is a bad index,
+  // refused before the (num_features, d) array is allocated.
+  require(num_features >= 0 && num_features <= meas.z.rows(), "correspondences",
+          "must index features 0 .. N-1, each observed, so every index must be < the number of measurements");
   const int d = static_cast<int>(meas.z.cols());
   RowMatrixXd features(num_features, d);
   std::vector<char> done(num_features, 0);
@@ -164,6 +184,7 @@ RowMatrixXd eif_initial_features(const Eigen::Ref<const RowMatrixXd>& poses,
   }
   for (int j = 0; j < num_features; ++j)
     if (!done[j]) throw_invalid_argument("correspondences", "feature " + std::to_string(j) + " is never observed");
+  require(features.allFinite(), "z", "places features at non-finite positions (too large?)");
   return features;
 }
 
@@ -222,6 +243,7 @@ InformationForm eif_construct(const Eigen::Ref<const RowMatrixXd>& controls,
   for (int i = 0; i < 3; ++i) form.omega.coeffRef(i, i) = 1.0;
   form.xi.head<3>() = x0;
   form.omega.makeCompressed();
+  require_finite_form(form.omega, form.xi, "eif_construct");
   return form;
 }
 
@@ -260,6 +282,7 @@ void validate_form(const InformationForm& form) {
   require(dim >= form.pose_dim() && (dim - form.pose_dim()) % form.feature_dim == 0, "omega",
           "must have 3 (T + 1) + d N rows");
   require_all_finite(form.xi, "xi");
+  require_all_finite(Eigen::Map<const Eigen::VectorXd>(form.omega.valuePtr(), form.omega.nonZeros()), "omega");
 }
 
 // Omega_mm^-1 as a block-diagonal sparse matrix.
@@ -291,6 +314,7 @@ ReducedInformationForm eif_reduce(const InformationForm& form) {
   out.omega = SparseMatrixd(form.omega.topLeftCorner(p, p)) - fill;
   out.omega.makeCompressed();
   out.xi = form.xi.head(p) - omega_pm * (dinv * form.xi.tail(m));
+  require_finite_form(out.omega, out.xi, "eif_reduce");
   return out;
 }
 
@@ -309,6 +333,7 @@ EifSolution eif_solve(const ReducedInformationForm& reduced, const InformationFo
   require(reduced.omega.rows() == p && reduced.omega.cols() == p, "reduced",
           "omega must be 3 (T + 1) square");
   require(reduced.xi.size() == p, "reduced", "xi must have 3 (T + 1) entries");
+  require_finite_form(reduced.omega, reduced.xi, "reduced");
   for (const auto& [s, t] : covariance_blocks)
     require(s >= 0 && t >= 0 && s < form.num_poses && t < form.num_poses, "covariance_blocks",
             "must index poses 0 .. T");
@@ -335,6 +360,10 @@ EifSolution eif_solve(const ReducedInformationForm& reduced, const InformationFo
     const bool anchored = covariance_blocks[k].first == 0 || covariance_blocks[k].second == 0;
     out.covariance_blocks.push_back(anchored ? Eigen::Matrix3d::Zero() : Eigen::Matrix3d(blocks[k]));
   }
+  require(out.poses.allFinite() && out.features.allFinite(), "eif_solve",
+          "result is not finite (information too large or too small?)");
+  for (const Eigen::Matrix3d& b : out.covariance_blocks)
+    require(b.allFinite(), "eif_solve", "covariance is not finite (information too large or too small?)");
   return out;
 }
 
@@ -365,6 +394,7 @@ double eif_objective(const Eigen::Ref<const RowMatrixXd>& controls, const Eigen:
     r[1] = wrap_angle(r[1]);
     sum += r.dot(q_inv * r);
   }
+  require(std::isfinite(sum), "eif_objective", "is not finite (residuals or noise too large or too small?)");
   return sum;
 }
 
@@ -373,7 +403,10 @@ std::vector<Eigen::Matrix3d> eif_pose_covariances(const SparseCholesky& path_fac
   std::vector<InverseBlock> requests;
   for (int t = 1; t < num_poses; ++t) requests.push_back({3 * t, 3, 3 * t, 3});
   std::vector<Eigen::Matrix3d> out{Eigen::Matrix3d::Zero()};
-  for (const auto& b : path_factor.inverse_blocks(requests)) out.emplace_back(b);
+  for (const auto& b : path_factor.inverse_blocks(requests)) {
+    require(b.allFinite(), "pose_covariances", "are not finite (information too large or too small?)");
+    out.emplace_back(b);
+  }
   return out;
 }
 

@@ -28,8 +28,13 @@ int PoseGraph2D::add_vertex(int id, VertexKind kind, const Eigen::Vector3d& valu
   if (has_vertex(id)) throw_invalid_argument("id", "is already used: " + std::to_string(id));
   require_all_finite(value, kind == VertexKind::kPose ? "pose" : "point");
   const int index = num_vertices();
-  vertices_.push_back({id, kind, value, false});
   index_.emplace(id, index);
+  try {
+    vertices_.push_back({id, kind, value, false, id});
+  } catch (...) {  // out of memory: the graph stays as it was
+    index_.erase(id);
+    throw;
+  }
   return index;
 }
 
@@ -41,6 +46,10 @@ void PoseGraph2D::add_pose(int id, const Eigen::Vector3d& pose) {
 
 void PoseGraph2D::add_point(int id, const Eigen::Vector2d& point) {
   add_vertex(id, VertexKind::kPoint, {point.x(), point.y(), 0.0});
+}
+
+void PoseGraph2D::add_point(int id, const Eigen::Vector2d& point, int landmark_id) {
+  vertices_[add_vertex(id, VertexKind::kPoint, {point.x(), point.y(), 0.0})].landmark_id = landmark_id;
 }
 
 int PoseGraph2D::index_of(int id) const {
@@ -91,6 +100,31 @@ void PoseGraph2D::set_value(int id, const Eigen::Vector3d& value) {
     v.value[2] = 0.0;
 }
 
+void PoseGraph2D::set_values(const std::vector<int>& ids, const std::vector<Eigen::Vector3d>& values,
+                             VertexKind kind) {
+  require(ids.size() == values.size(), "values", "must have one row per id");
+  const char* name = kind == VertexKind::kPose ? "poses" : "points";
+  for (size_t k = 0; k < ids.size(); ++k) {  // everything checked before anything is written
+    require_vertex(ids[k], kind, "ids");
+    require_all_finite(values[k], name);
+  }
+  for (size_t k = 0; k < ids.size(); ++k) set_value(ids[k], values[k]);
+}
+
+void PoseGraph2D::assign_values(const std::vector<Eigen::Vector3d>& values) {
+  require(values.size() == vertices_.size(), "values", "must have one entry per vertex");
+  for (const Eigen::Vector3d& v : values)
+    require(v.allFinite(), "graph", "result is not finite (values or information too large?)");
+  for (size_t k = 0; k < values.size(); ++k) vertices_[k].value = values[k];
+}
+
+std::vector<Eigen::Vector3d> PoseGraph2D::values() const {
+  std::vector<Eigen::Vector3d> out;
+  out.reserve(vertices_.size());
+  for (const GraphVertex& v : vertices_) out.push_back(v.value);
+  return out;
+}
+
 Eigen::VectorXd PoseGraph2D::edge_chi2() const {
   Eigen::VectorXd out(pose_edges_.size() + point_edges_.size());
   Eigen::Index k = 0;
@@ -112,6 +146,7 @@ Eigen::VectorXd PoseGraph2D::edge_chi2() const {
 double PoseGraph2D::chi2() const {
   double sum = 0.0;
   for (const double s : edge_chi2()) sum += s;
+  require(std::isfinite(sum), "graph", "chi2 is not finite at the current values (values or information too large?)");
   return sum;
 }
 

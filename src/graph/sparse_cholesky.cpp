@@ -3,6 +3,7 @@
 #include <cholmod.h>
 
 #include <algorithm>
+#include <limits>
 #include <map>
 #include <stdexcept>
 #include <string>
@@ -12,10 +13,54 @@
 namespace probslam {
 namespace {
 
-// A positive-definite matrix whose factor's squared pivot ratio falls below this is singular to
-// working precision (a gauge freedom left unanchored, a disconnected part): the solution would
-// be noise, so it is refused rather than returned.
-constexpr double kSingularReciprocalCondition = 1e-14;
+// A pivot of the factor (the Schur complement left of a diagonal entry once the variables before
+// it are eliminated) is computed with a rounding error of about (entries summed) x epsilon x the
+// diagonal entry itself. A pivot below this multiple of epsilon times its own diagonal entry is
+// rounding noise: that direction of the system is singular to working precision (a variable
+// constrained in fewer directions than it has, or two variables tied so rigidly that their
+// common motion is lost in the rounding of the tie). The test is per variable and so invariant
+// to the scale of each one: information from 1e-12 to 1e12 in one system passes, which a cut on
+// the reciprocal condition number (the ratio of the smallest to the largest pivot) refuses.
+constexpr double kMinRelativePivot = 1e4 * std::numeric_limits<double>::epsilon();
+
+// The diagonal of the factor L (L L^T = P A P^T), simplicial or supernodal.
+std::vector<double> factor_diagonal(const cholmod_factor* f) {
+  std::vector<double> d(f->n);
+  const double* x = static_cast<const double*>(f->x);
+  if (!f->is_super) {
+    const int* p = static_cast<const int*>(f->p);
+    for (size_t j = 0; j < f->n; ++j) d[j] = x[p[j]];  // the diagonal leads each column
+    return d;
+  }
+  const int* super = static_cast<const int*>(f->super);
+  const int* pi = static_cast<const int*>(f->pi);
+  const int* px = static_cast<const int*>(f->px);
+  for (size_t s = 0; s < f->nsuper; ++s) {
+    const int rows = pi[s + 1] - pi[s];
+    for (int k = 0; k < super[s + 1] - super[s]; ++k) d[super[s] + k] = x[px[s] + k + k * rows];
+  }
+  return d;
+}
+
+// The diagonal of the symmetric matrix whose upper triangle `upper` holds.
+std::vector<double> matrix_diagonal(const SparseMatrixd& upper) {
+  std::vector<double> d(upper.cols(), 0.0);
+  for (int j = 0; j < upper.cols(); ++j)
+    for (SparseMatrixd::InnerIterator it(upper, j); it; ++it)
+      if (it.row() == j) d[j] = it.value();
+  return d;
+}
+
+// The first column (of the factor's order) whose pivot is rounding noise, or -1.
+int first_negligible_pivot(const cholmod_factor* f, const SparseMatrixd& upper) {
+  const std::vector<double> l = factor_diagonal(f), a = matrix_diagonal(upper);
+  const int* perm = static_cast<const int*>(f->Perm);
+  for (size_t j = 0; j < f->n; ++j) {
+    const double diagonal = a[perm ? perm[j] : j];
+    if (!(l[j] * l[j] > kMinRelativePivot * diagonal)) return static_cast<int>(j);
+  }
+  return -1;
+}
 
 }  // namespace
 
@@ -26,6 +71,7 @@ struct SparseCholesky::Impl {
   // Pattern of the matrix the analysis was made for, to detect a change.
   std::vector<int> outer, inner;
   bool reused = false;
+  int singular_column = -1;  // of A, when the last factorize() failed there
 
   // Sparse inverse on the pattern of L (computed on demand, dropped at each factorisation).
   mutable bool have_inverse = false;
@@ -128,19 +174,23 @@ void SparseCholesky::factorize(const SparseMatrixd& upper) {
     m.outer.assign(upper.outerIndexPtr(), upper.outerIndexPtr() + upper.cols() + 1);
     m.inner.assign(upper.innerIndexPtr(), upper.innerIndexPtr() + upper.nonZeros());
   }
+  m.singular_column = -1;
   cholmod_factorize(&a, m.factor, &m.common);
   const bool not_positive = m.common.status == CHOLMOD_NOT_POSDEF || m.factor->minor < m.factor->n;
-  if (not_positive || cholmod_rcond(m.factor, &m.common) < kSingularReciprocalCondition) {
-    const std::string where =
-        not_positive ? " (pivot " + std::to_string(m.factor->minor) + " of " +
-                           std::to_string(m.factor->n) + ")"
-                     : "";
+  const int pivot = not_positive ? static_cast<int>(m.factor->minor) : first_negligible_pivot(m.factor, upper);
+  if (pivot >= 0) {
+    const int* perm = static_cast<const int*>(m.factor->Perm);
+    m.singular_column = perm && pivot < static_cast<int>(m.factor->n) ? perm[pivot] : pivot;
     // The analysis stays valid; the next factorize() with this pattern may succeed.
     m.factor->minor = 0;
-    throw_invalid_argument("matrix", "is singular or not positive definite" + where +
-                                         ": is every variable anchored and connected?");
+    throw_invalid_argument("matrix", "is singular or not positive definite (column " +
+                                         std::to_string(m.singular_column) + " of " +
+                                         std::to_string(m.factor->n) +
+                                         "): is every variable anchored and connected?");
   }
 }
+
+int SparseCholesky::singular_column() const { return impl_->singular_column; }
 
 Eigen::MatrixXd SparseCholesky::solve(const Eigen::MatrixXd& b) const {
   Impl& m = *impl_;

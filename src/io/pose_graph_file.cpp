@@ -1,7 +1,12 @@
 #include "probslam/io/pose_graph_file.hpp"
 
+#include <Eigen/Cholesky>
+#include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <fstream>
+#include <set>
+#include <sstream>
 #include <limits>
 #include <optional>
 #include <unordered_map>
@@ -17,7 +22,12 @@ namespace {
 using io_detail::Fields;
 using io_detail::LineError;
 
+// The longest line read: a g2o / TORO / iSAM record is a few hundred bytes (a FIX line listing
+// ids may be longer); a longer line is a corrupt or foreign file, refused before it is buffered.
+constexpr std::size_t kMaxLineBytes = std::size_t{1} << 20;
+
 struct VertexRecord {
+  long line;
   int id;
   VertexKind kind;
   Eigen::Vector3d value;
@@ -26,9 +36,10 @@ struct VertexRecord {
 struct EdgeRecord {
   long line;
   bool to_point;  // EDGE_SE2_XY / LANDMARK
-  int from, to;
+  int from, to;   // vertex ids (iSAM landmarks: after separate_landmark_ids)
   Eigen::Vector3d measurement;  // (dx, dy, dtheta) or (dx, dy, 0)
   Eigen::Matrix3d information;  // top-left 2x2 for point edges
+  int landmark = 0;  // the file's own id of the point, for point edges
 };
 
 struct Records {
@@ -71,17 +82,17 @@ void parse_line(const Fields& f, const std::string& tag, PoseGraphFormat format,
   auto point_edge = [&](const Eigen::Matrix2d& information) {
     Eigen::Matrix3d info = Eigen::Matrix3d::Identity();
     info.topLeftCorner<2, 2>() = information;
-    out.edges.push_back(
-        {line, true, vertex_id(f, 1, err), vertex_id(f, 2, err), {f.number(3), f.number(4), 0.0}, info});
+    const int point = vertex_id(f, 2, err);
+    out.edges.push_back({line, true, vertex_id(f, 1, err), point, {f.number(3), f.number(4), 0.0}, info, point});
   };
   if (format == PoseGraphFormat::kG2o) {
     if (tag == "VERTEX_SE2") {
       f.need(5, "id x y theta");
-      out.vertices.push_back({vertex_id(f, 1, err), VertexKind::kPose,
+      out.vertices.push_back({line, vertex_id(f, 1, err), VertexKind::kPose,
                               {f.number(2), f.number(3), f.number(4)}});
     } else if (tag == "VERTEX_XY") {
       f.need(4, "id x y");
-      out.vertices.push_back({vertex_id(f, 1, err), VertexKind::kPoint, {f.number(2), f.number(3), 0.0}});
+      out.vertices.push_back({line, vertex_id(f, 1, err), VertexKind::kPoint, {f.number(2), f.number(3), 0.0}});
     } else if (tag == "EDGE_SE2") {
       f.need(12, "i j dx dy dtheta and 6 information entries");
       pose_edge(symmetric3(f.number(6), f.number(7), f.number(8), f.number(9), f.number(10), f.number(11)));
@@ -99,7 +110,7 @@ void parse_line(const Fields& f, const std::string& tag, PoseGraphFormat format,
   } else if (format == PoseGraphFormat::kToro) {
     if (tag == "VERTEX2") {
       f.need(5, "id x y theta");
-      out.vertices.push_back({vertex_id(f, 1, err), VertexKind::kPose,
+      out.vertices.push_back({line, vertex_id(f, 1, err), VertexKind::kPose,
                               {f.number(2), f.number(3), f.number(4)}});
     } else if (tag == "EDGE2") {
       f.need(12, "i j dx dy dtheta and 6 information entries");
@@ -124,30 +135,62 @@ void parse_line(const Fields& f, const std::string& tag, PoseGraphFormat format,
   }
 }
 
+// One edge's missing end, composed from the end already placed.
+void add_missing_end(const EdgeRecord& e, PoseGraph2D& graph, const LineError& err) {
+  const bool has_from = graph.has_vertex(e.from), has_to = graph.has_vertex(e.to);
+  if (!has_from && graph.num_vertices() == 0) graph.add_pose(e.from, Eigen::Vector3d::Zero());
+  if (!graph.has_vertex(e.from)) {
+    if (e.to_point || !has_to)
+      err.fail("vertex " + std::to_string(e.from) + " is not connected to the earlier records");
+    const Pose2 to = Pose2::from_vector(graph.vertex(graph.index_of(e.to)).value);
+    const Pose2 z = Pose2::from_vector(e.measurement);
+    graph.add_pose(e.from, to.compose(z.inverse()).vector());
+    return;
+  }
+  if (has_to) return;
+  const Pose2 from = Pose2::from_vector(graph.vertex(graph.index_of(e.from)).value);
+  if (e.to_point)
+    graph.add_point(e.to, from.transform_from(e.measurement.head<2>()), e.landmark);
+  else
+    graph.add_pose(e.to, from.compose(Pose2::from_vector(e.measurement)).vector());
+}
+
 // Vertices the file did not list, from the edges in order: the dead-reckoning guess.
 void add_missing_vertices(const Records& records, PoseGraph2D& graph, const std::string& source) {
   for (const EdgeRecord& e : records.edges) {
     const LineError err(source, e.line);
-    const bool has_from = graph.has_vertex(e.from), has_to = graph.has_vertex(e.to);
-    if (!has_from && graph.num_vertices() == 0) graph.add_pose(e.from, Eigen::Vector3d::Zero());
-    if (!graph.has_vertex(e.from)) {
-      if (e.to_point || !has_to)
-        err.fail("vertex " + std::to_string(e.from) + " is not connected to the earlier records");
-      const Pose2 to = Pose2::from_vector(graph.vertex(graph.index_of(e.to)).value);
-      const Pose2 z = Pose2::from_vector(e.measurement);
-      graph.add_pose(e.from, to.compose(z.inverse()).vector());
-      continue;
+    try {
+      add_missing_end(e, graph, err);
+    } catch (const std::invalid_argument& ex) {
+      const std::string what = ex.what();
+      if (what.rfind(source + ":", 0) == 0) throw;  // already names the line
+      err.fail("dead reckoning: " + what);
     }
-    if (has_to) continue;
-    const Pose2 from = Pose2::from_vector(graph.vertex(graph.index_of(e.from)).value);
-    if (e.to_point)
-      graph.add_point(e.to, from.transform_from(e.measurement.head<2>()));
-    else
-      graph.add_pose(e.to, from.compose(Pose2::from_vector(e.measurement)).vector());
   }
 }
 
-PoseGraph2D build(const Records& records, const std::string& source) {
+// iSAM's loader keeps poses and landmarks in two tables, so a LANDMARK may reuse a pose's number.
+// The graph has one id space (g2o's): when the two sets of numbers meet, every landmark is moved
+// past the largest pose id (keeping their order); the file's number stays the point's
+// landmark_id, which write_isam writes back.
+void separate_landmark_ids(Records& records, const std::string& source) {
+  std::set<long> poses, landmarks;
+  for (const EdgeRecord& e : records.edges) {
+    poses.insert(e.from);
+    (e.to_point ? landmarks : poses).insert(e.to);
+  }
+  bool collide = false;
+  for (const long l : landmarks) collide = collide || poses.count(l) != 0;
+  if (!collide) return;
+  const long offset = *poses.rbegin() + 1 - *landmarks.begin();
+  if (*landmarks.rbegin() + offset > std::numeric_limits<int>::max())
+    throw std::invalid_argument(source + ": landmark ids reuse pose ids and cannot be moved past them within int range");
+  for (EdgeRecord& e : records.edges)
+    if (e.to_point) e.to = static_cast<int>(e.landmark + offset);
+}
+
+PoseGraph2D build(Records& records, PoseGraphFormat format, const std::string& source) {
+  if (format == PoseGraphFormat::kIsam) separate_landmark_ids(records, source);
   PoseGraph2D graph;
   for (const VertexRecord& v : records.vertices) {
     try {
@@ -156,7 +199,7 @@ PoseGraph2D build(const Records& records, const std::string& source) {
       else
         graph.add_point(v.id, v.value.head<2>());
     } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument(source + ": vertex " + std::to_string(v.id) + ": " + e.what());
+      LineError(source, v.line).fail("vertex " + std::to_string(v.id) + ": " + e.what());
     }
   }
   // A file that lists vertices must list all of them: an unknown id in an edge is an error.
@@ -179,23 +222,53 @@ PoseGraph2D build(const Records& records, const std::string& source) {
   return graph;
 }
 
+// Reads one line of at most kMaxLineBytes into `line` (without its newline); false at the end.
+bool read_line(std::istream& in, std::string& line, const std::string& source, long number) {
+  line.clear();
+  std::streambuf* buffer = in.rdbuf();
+  bool any = false;
+  for (;;) {
+    const auto c = buffer->sbumpc();
+    if (std::char_traits<char>::eq_int_type(c, std::char_traits<char>::eof())) {
+      in.setstate(std::ios::eofbit);
+      return any;
+    }
+    any = true;
+    if (c == '\n') return true;
+    if (line.size() >= kMaxLineBytes)
+      LineError(source, number).fail("line longer than " + std::to_string(kMaxLineBytes) + " bytes");
+    line.push_back(std::char_traits<char>::to_char_type(c));
+  }
+}
+
 }  // namespace
 
 PoseGraph2D parse_pose_graph(std::istream& in, PoseGraphFormat format, const std::string& source) {
   Records records;
-  io_detail::for_each_record(in, source, [&](const Fields& fields, const LineError& err, long line) {
+  std::string line;
+  for (long number = 1; in.rdbuf() && read_line(in, line, source, number); ++number) {
+    const std::vector<std::string_view> tokens = io_detail::split(line);
+    if (tokens.empty() || tokens[0][0] == '#') continue;
+    const LineError err(source, number);
+    const Fields fields(tokens, err);
     const std::string tag(fields.token(0));
     if (format == PoseGraphFormat::kAuto) format = detect(tag);
-    parse_line(fields, tag, format, line, err, records);
-  });
-  if (in.bad()) throw std::invalid_argument(source + ": read error");
+    parse_line(fields, tag, format, number, err, records);
+  }
   if (records.edges.empty() && records.vertices.empty())
     throw std::invalid_argument(source + ": no vertices or edges");
-  return build(records, source);
+  return build(records, format, source);
 }
 
 PoseGraph2D read_pose_graph(const std::string& path, PoseGraphFormat format) {
-  std::ifstream in(path);
+  // A directory or a device (/dev/zero, a FIFO) is refused before it is opened: it has no end.
+  std::error_code error;
+  const auto status = std::filesystem::status(path, error);
+  if (error || !std::filesystem::exists(status))
+    throw std::invalid_argument("path: cannot open '" + path + "': no such file");
+  if (!std::filesystem::is_regular_file(status))
+    throw std::invalid_argument("path: '" + path + "' is not a regular file");
+  std::ifstream in(path, std::ios::binary);
   if (!in) throw std::invalid_argument("path: cannot open '" + path + "'");
   return parse_pose_graph(in, format, path);
 }
@@ -223,6 +296,53 @@ void write_g2o(std::ostream& out, const PoseGraph2D& graph) {
         << e.measurement[0] << ' ' << e.measurement[1] << ' ' << i(0, 0) << ' ' << i(0, 1) << ' '
         << i(1, 1) << '\n';
   }
+}
+
+namespace {
+
+// iSAM's square-root information: the upper-triangular R with R^T R = information.
+template <int N>
+Eigen::Matrix<double, N, N> square_root(const Eigen::Matrix<double, N, N>& information) {
+  const Eigen::LLT<Eigen::Matrix<double, N, N>> llt(information);
+  if (llt.info() != Eigen::Success) throw_invalid_argument("graph", "holds an information matrix that is not positive definite");
+  return llt.matrixU();
+}
+
+}  // namespace
+
+void write_isam(std::ostream& out, const PoseGraph2D& graph) {
+  std::set<int> landmarks;
+  for (const GraphVertex& v : graph.vertices())
+    if (v.kind == VertexKind::kPoint && !landmarks.insert(v.landmark_id).second)
+      throw_invalid_argument("graph", "has two points with landmark id " + std::to_string(v.landmark_id) +
+                                          ": iSAM needs one id per landmark");
+  out.precision(std::numeric_limits<double>::max_digits10);
+  std::vector<char> placed(graph.num_vertices(), 0);
+  if (!graph.pose_edges().empty()) placed[graph.pose_edges().front().from] = 1;
+  for (const PoseEdge& e : graph.pose_edges()) {
+    // ODOMETRY introduces its second pose; EDGE2 joins two placed ones (a loop closure).
+    const bool odometry = !placed[e.to] && placed[e.from];
+    placed[e.from] = placed[e.to] = 1;
+    const Eigen::Matrix3d r = square_root<3>(e.information);
+    out << (odometry ? "ODOMETRY " : "EDGE2 ") << graph.vertex(e.from).id << ' ' << graph.vertex(e.to).id << ' '
+        << e.measurement[0] << ' ' << e.measurement[1] << ' ' << e.measurement[2] << ' ' << r(0, 0) << ' '
+        << r(0, 1) << ' ' << r(0, 2) << ' ' << r(1, 1) << ' ' << r(1, 2) << ' ' << r(2, 2) << '\n';
+  }
+  for (const PointEdge& e : graph.point_edges()) {
+    const Eigen::Matrix2d r = square_root<2>(e.information);
+    out << "LANDMARK " << graph.vertex(e.pose).id << ' ' << graph.vertex(e.point).landmark_id << ' '
+        << e.measurement[0] << ' ' << e.measurement[1] << ' ' << r(0, 0) << ' ' << r(0, 1) << ' ' << r(1, 1)
+        << '\n';
+  }
+}
+
+void write_isam(const std::string& path, const PoseGraph2D& graph) {
+  std::ostringstream text;  // all or nothing: a graph iSAM cannot hold leaves no file behind
+  write_isam(text, graph);
+  std::ofstream out(path);
+  if (!out) throw std::invalid_argument("path: cannot write '" + path + "'");
+  out << text.str();
+  if (!out) throw std::invalid_argument("path: write to '" + path + "' failed");
 }
 
 void write_g2o(const std::string& path, const PoseGraph2D& graph) {

@@ -11,12 +11,15 @@ namespace probslam {
 
 enum class VertexKind { kPose, kPoint };
 
-/// A pose (x, y, theta) or a point (x, y, unused 0); ids are the user's, in one id space.
+/// A pose (x, y, theta) or a point (x, y, unused 0); ids are the user's, in one id space (g2o's).
+/// iSAM files number landmarks apart from poses: a point keeps that number as `landmark_id`,
+/// which equals `id` unless a reader had to renumber the point to keep the ids unique.
 struct GraphVertex {
   int id;
   VertexKind kind;
   Eigen::Vector3d value;
   bool fixed = false;
+  int landmark_id = 0;
 };
 
 /// x_to measured in the frame of x_from (g2o EDGE_SE2): error t2v(z^-1 x_from^-1 x_to).
@@ -42,6 +45,8 @@ class PoseGraph2D {
   /// or an information matrix that is not symmetric positive definite; the graph is unchanged.
   void add_pose(int id, const Eigen::Vector3d& pose);
   void add_point(int id, const Eigen::Vector2d& point);
+  /// A point whose id in the landmark id space (iSAM's LANDMARK records) differs from `id`.
+  void add_point(int id, const Eigen::Vector2d& point, int landmark_id);
   void add_pose_edge(int from_id, int to_id, const Eigen::Vector3d& measurement,
                      const Eigen::Matrix3d& information);
   void add_point_edge(int pose_id, int point_id, const Eigen::Vector2d& measurement,
@@ -50,12 +55,22 @@ class PoseGraph2D {
   void set_fixed(int id, bool fixed = true);
   /// Replaces a vertex's value (an initial guess); a point uses value[0..1].
   void set_value(int id, const Eigen::Vector3d& value);
+  /// Replaces the values of several vertices of one kind, all or nothing: every id must name a
+  /// vertex of that kind and every value be finite, or std::invalid_argument and no change.
+  void set_values(const std::vector<int>& ids, const std::vector<Eigen::Vector3d>& values,
+                  VertexKind kind);
+  /// Replaces every vertex's value (optimisers commit their result this way); `values` has one
+  /// entry per vertex, in index order, all finite, or std::invalid_argument and no change.
+  void assign_values(const std::vector<Eigen::Vector3d>& values);
+  std::vector<Eigen::Vector3d> values() const;
 
   int num_vertices() const { return static_cast<int>(vertices_.size()); }
   bool has_vertex(int id) const { return index_.count(id) != 0; }
   /// The index of a vertex id; throws std::invalid_argument for an unknown id.
   int index_of(int id) const;
   const GraphVertex& vertex(int index) const { return vertices_[index]; }
+  /// Unchecked write access for the optimisers, which work on a copy and commit through
+  /// assign_values(); a caller writing through it owns the finiteness of what it writes.
   GraphVertex& vertex(int index) { return vertices_[index]; }
   const std::vector<GraphVertex>& vertices() const { return vertices_; }
   const std::vector<PoseEdge>& pose_edges() const { return pose_edges_; }
@@ -63,7 +78,8 @@ class PoseGraph2D {
 
   /// e^T Omega e of every edge at the current values: pose edges, then point edges.
   Eigen::VectorXd edge_chi2() const;
-  /// Their sum (g2o's chi2).
+  /// Their sum (g2o's chi2); throws std::invalid_argument when it is not finite (values or
+  /// information so large that the squares overflow).
   double chi2() const;
 
  private:

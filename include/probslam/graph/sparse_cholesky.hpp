@@ -44,8 +44,12 @@ class SparseCholesky {
 
   /// Factorises the symmetric matrix whose upper triangle (diagonal included) `upper` holds;
   /// entries below the diagonal are ignored. Throws std::invalid_argument when the matrix is
-  /// not square, holds a non-finite value, or is singular or not positive definite.
+  /// not square, holds a non-finite value, or is not positive definite: CHOLMOD meets a pivot
+  /// <= 0, or a pivot is rounding noise next to its own diagonal entry (a test per variable,
+  /// invariant to each variable's scale; no cut on the condition number).
   void factorize(const SparseMatrixd& upper);
+  /// The column of A at which the last factorize() failed, or -1.
+  int singular_column() const;
 
   /// A^-1 b for one or several right-hand sides.
   Eigen::VectorXd solve(const Eigen::VectorXd& b) const;

@@ -16,17 +16,35 @@ enum class PoseGraphFormat {
 };
 
 /// Parses a graph; `source` names it in errors, which are std::invalid_argument
-/// "source:LINE: ..." for a malformed line, an unknown tag, an unknown vertex id, or a bad
-/// information matrix. Vertices a file does not list (iSAM files list none) are initialised
-/// by composing the edges in file order from the first pose, placed at the origin: the
-/// dead-reckoning guess.
+/// "source:LINE: ..." for a malformed line (or one longer than 1 MiB), an unknown tag, an
+/// unknown vertex id, a non-finite value, or a bad information matrix. Vertices a file does
+/// not list (iSAM files list none) are initialised by composing the edges in file order from
+/// the first pose, placed at the origin: the dead-reckoning guess.
+///
+/// iSAM numbers poses and landmarks in two id spaces (its loader keeps two tables), the graph
+/// in one (g2o's): when an iSAM file's landmark numbers meet its pose numbers, every landmark
+/// becomes vertex (landmark + max pose id + 1 - min landmark id); its own number stays the
+/// point's `landmark_id`. A file whose numbers do not meet (Victoria Park) keeps them as ids.
 PoseGraph2D parse_pose_graph(std::istream& in, PoseGraphFormat format = PoseGraphFormat::kAuto,
                              const std::string& source = "<stream>");
+/// As parse_pose_graph; `path` must name a regular file (a directory or a device is refused).
 PoseGraph2D read_pose_graph(const std::string& path,
                             PoseGraphFormat format = PoseGraphFormat::kAuto);
 
 /// Writes g2o text that reads back to the same graph, bit for bit (17 significant digits).
+/// g2o has one id space: points are written under their vertex ids (an iSAM landmark whose
+/// number met a pose's appears under the id the reader gave it; see landmark_id).
 void write_g2o(std::ostream& out, const PoseGraph2D& graph);
 void write_g2o(const std::string& path, const PoseGraph2D& graph);
+
+/// Writes iSAM text: pose edges (ODOMETRY when the edge introduces its second pose, EDGE2
+/// otherwise), then LANDMARK edges under each point's landmark_id, information as its
+/// upper-triangular square root. It reads back to the same ids in both id spaces and the same
+/// edges (information to rounding, ~1e-16 relative). iSAM text holds no vertex values, no fixed
+/// vertices and no vertex without an edge: reading it back dead-reckons the values from the
+/// first pose at the origin. Throws std::invalid_argument (and writes nothing) when two points
+/// share a landmark_id.
+void write_isam(std::ostream& out, const PoseGraph2D& graph);
+void write_isam(const std::string& path, const PoseGraph2D& graph);
 
 }  // namespace probslam
