@@ -16,18 +16,28 @@ namespace {
 using FloatArray = py::array_t<float, py::array::c_style | py::array::forcecast>;
 constexpr double kFloatMax = std::numeric_limits<float>::max();
 
+/// Finite doubles beyond float range become +-FLT_MAX (a far point, outside the key range)
+/// rather than inf (which would read as "no return"); NaN and inf stay as they are.
+float to_float(double v) { return static_cast<float>(std::isfinite(v) ? std::min(std::max(v, -kFloatMax), kFloatMax) : v); }
+
 /// (n, 3) points as a C-contiguous float32 array: float32 input is used in place, anything
 /// else is converted (OctoMap's points are float, so coordinates are rounded to float anyway).
 FloatArray points_arg(py::handle obj, const char* name) {
   if (obj.is_none()) throw py::type_error(std::string(name) + " must be an array of numbers, not None");
-  FloatArray a = FloatArray::ensure(obj);
-  if (!a) throw py::type_error(std::string(name) + " must be an array of numbers");
-  if (a.ndim() != 2 || a.shape(1) != 3) {
+  const bool is_float32 = py::isinstance<py::array_t<float>>(obj);
+  const DoubleArray d = is_float32 ? DoubleArray() : DoubleArray::ensure(obj);
+  const FloatArray a = is_float32 ? FloatArray::ensure(obj) : FloatArray();
+  if (!is_float32 && !d) throw py::type_error(std::string(name) + " must be an array of numbers");
+  const py::array& any = is_float32 ? static_cast<const py::array&>(a) : static_cast<const py::array&>(d);
+  if (any.ndim() != 2 || any.shape(1) != 3) {
     std::string shape = "(";
-    for (py::ssize_t i = 0; i < a.ndim(); ++i) shape += (i ? ", " : "") + std::to_string(a.shape(i));
-    throw py::value_error(std::string(name) + " must have shape (n, 3), got " + shape + (a.ndim() == 1 ? ",)" : ")"));
+    for (py::ssize_t i = 0; i < any.ndim(); ++i) shape += (i ? ", " : "") + std::to_string(any.shape(i));
+    throw py::value_error(std::string(name) + " must have shape (n, 3), got " + shape + (any.ndim() == 1 ? ",)" : ")"));
   }
-  return a;
+  if (is_float32) return a;
+  FloatArray f({d.shape(0), py::ssize_t{3}});
+  std::transform(d.data(), d.data() + d.size(), f.mutable_data(), to_float);
+  return f;
 }
 
 /// (n, 3) query points, or one (3,) point (then `single`), as float32 (the grid's point type).
@@ -47,10 +57,7 @@ FloatArray query_arg(py::handle obj, bool& single) {
   FloatArray f({d.size() / 3, py::ssize_t{3}});
   float* out = f.mutable_data();
   const double* in = d.data();
-  for (py::ssize_t i = 0; i < d.size(); ++i) {
-    const double v = std::min(std::max(in[i], -kFloatMax), kFloatMax);  // beyond float range: still far out
-    out[i] = static_cast<float>(v);
-  }
+  for (py::ssize_t i = 0; i < d.size(); ++i) out[i] = to_float(in[i]);
   return f;
 }
 
@@ -149,7 +156,8 @@ void define_grid3d(py::module_& m) {
           [](Grid& g, py::handle points, py::handle origin, double max_range, int threads) {
             const FloatArray p = points_arg(points, "points");
             const Eigen::Vector3d o = fixed_vector<3>(origin, "origin");
-            const float of[3] = {static_cast<float>(o.x()), static_cast<float>(o.y()), static_cast<float>(o.z())};
+            if (!o.allFinite()) throw py::value_error("origin must contain only finite values");
+            const float of[3] = {to_float(o.x()), to_float(o.y()), to_float(o.z())};
             const InsertStats3D s = locked(g, [&] {
               return g.insert_point_cloud(p.data(), static_cast<std::size_t>(p.shape(0)), of, max_range, threads);
             });

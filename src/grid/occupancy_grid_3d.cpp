@@ -25,6 +25,14 @@ constexpr double kRayCutSlack = 1024.0;
 // of space: threads walking neighbouring rays would fight over the same cache lines.
 constexpr int kAzimuthSectors = 1024;
 
+// A double as OctoMap's float point coordinate. A finite value beyond float range becomes
+// +-FLT_MAX (a far point, outside the key range) instead of undefined behaviour; NaN and inf
+// stay as they are (skipped and counted as non-finite).
+float to_float(double v) {
+  constexpr double kFloatMax = std::numeric_limits<float>::max();
+  return static_cast<float>(std::isfinite(v) ? std::min(std::max(v, -kFloatMax), kFloatMax) : v);
+}
+
 // OctoMap stores its probabilities as float log-odds: logodds(p) = (float) log(p / (1 - p)).
 float float_logit(double p) { return static_cast<float>(logit(p)); }
 
@@ -363,8 +371,8 @@ InsertStats3D OccupancyGrid3D::insert_point_cloud(
   require_all_finite(origin, "origin");
   std::vector<float> xyz(static_cast<std::size_t>(points.rows()) * 3);
   for (Eigen::Index i = 0; i < points.rows(); ++i)
-    for (int a = 0; a < 3; ++a) xyz[3 * i + a] = static_cast<float>(points(i, a));
-  const float o[3] = {static_cast<float>(origin.x()), static_cast<float>(origin.y()), static_cast<float>(origin.z())};
+    for (int a = 0; a < 3; ++a) xyz[3 * i + a] = to_float(points(i, a));
+  const float o[3] = {to_float(origin.x()), to_float(origin.y()), to_float(origin.z())};
   return insert_point_cloud(xyz.data(), static_cast<std::size_t>(points.rows()), o, max_range, threads);
 }
 

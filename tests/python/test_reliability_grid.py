@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from hypothesis.extra import numpy as hnp
 
 import policy
 import probslam as ps
@@ -37,10 +38,24 @@ PROPERTY = settings(max_examples=40, deadline=None, suppress_health_check=[Healt
 HIT, MISS = ps.logit(0.7), ps.logit(0.4)
 
 
+class VoxelMap:
+    """Every known voxel's centre and log-odds, sorted by centre: equal maps compare equal
+    whatever their block order."""
+
+    def __init__(self, grid):
+        centres, values = grid.known_voxels()
+        order = np.lexsort(centres.T[::-1])
+        self.centres, self.values = centres[order], values[order]
+
+    def __eq__(self, other):
+        return np.array_equal(self.centres, other.centres) and np.array_equal(self.values, other.values)
+
+    def __repr__(self):
+        return f"VoxelMap({len(self.values)} voxels)"
+
+
 def voxel_map(grid):
-    """{voxel centre: log-odds} of every known voxel, to compare maps whatever their block order."""
-    centres, values = grid.known_voxels()
-    return dict(zip(map(tuple, centres), values.tolist()))
+    return VoxelMap(grid)
 
 
 def cloud(rng, n, centre, spread):
@@ -71,22 +86,29 @@ def test_3d_two_threads_on_one_grid_equal_the_serial_inserts():
 
 
 def test_3d_many_inserts_from_two_threads_equal_the_serial_map():
-    """Two threads insert scans into disjoint regions many times: whatever the interleaving, each
-    voxel sees its own thread's updates in order, so the map equals the serial one exactly."""
+    """Two threads insert overlapping scans many times. Every point lies beyond max_range, so a
+    scan only clears: each voxel's value depends only on how many scans crossed it, not on their
+    order, and the map must equal the serial one exactly."""
     rng = np.random.default_rng(4)
-    left = [cloud(rng, 1500, (-4, 0, 0), 1.5) for _ in range(12)]
-    right = [cloud(rng, 1500, (4, 0, 0), 1.5) for _ in range(12)]
+
+    def far_cloud(n):  # directions to points 4-6 m away, cut at max_range 3 m
+        d = rng.normal(size=(n, 3))
+        return d / np.linalg.norm(d, axis=1)[:, None] * rng.uniform(4, 6, (n, 1))
+
+    left = [far_cloud(3000) + (-0.5, 0, 0) for _ in range(12)]
+    right = [far_cloud(3000) + (0.5, 0, 0) for _ in range(12)]
     serial, shared = ps.OccupancyGrid3D(0.1), ps.OccupancyGrid3D(0.1)
     for pts in left:
-        serial.insert_point_cloud(pts, (-4, 0, 0))
+        serial.insert_point_cloud(pts, (-0.5, 0, 0), max_range=3.0)
     for pts in right:
-        serial.insert_point_cloud(pts, (4, 0, 0))
+        serial.insert_point_cloud(pts, (0.5, 0, 0), max_range=3.0)
 
     def run(clouds, origin, threads):
-        return lambda: [shared.insert_point_cloud(p, origin, threads=threads) for p in clouds]
+        return lambda: [shared.insert_point_cloud(p, origin, max_range=3.0, threads=threads) for p in clouds]
 
-    assert policy.run_threads([run(left, (-4, 0, 0), 2), run(right, (4, 0, 0), 1)]) == []
+    assert policy.run_threads([run(left, (-0.5, 0, 0), 2), run(right, (0.5, 0, 0), 1)]) == []
     assert voxel_map(shared) == voxel_map(serial)
+    assert shared.num_known_voxels == serial.num_known_voxels
 
 
 def test_3d_queries_during_inserts_see_consistent_maps():
@@ -125,11 +147,11 @@ def test_2d_insert_rays_and_scans_from_two_threads_equal_the_serial_map():
     """Two threads scan disjoint halves of one grid (rays never reach the other half) with
     insert_rays and insert_scans, many times: the map equals the serial one exactly."""
     rng = np.random.default_rng(6)
-    angles = np.linspace(-np.pi, np.pi, 180, endpoint=False)
+    angles = np.linspace(-np.pi, np.pi, 720, endpoint=False)
 
     def scans(x0):
         poses = np.column_stack([rng.uniform(x0 - 1, x0 + 1, 8), rng.uniform(4, 6, 8), rng.uniform(-3, 3, 8)])
-        return poses, rng.uniform(0.5, 2.5, (8, 180))
+        return poses, rng.uniform(0.5, 2.5, (8, 720))
 
     work = {"left": [scans(5.0) for _ in range(10)], "right": [scans(15.0) for _ in range(10)]}
 
@@ -141,35 +163,39 @@ def test_2d_insert_rays_and_scans_from_two_threads_equal_the_serial_map():
                 for p, r in zip(poses, ranges):
                     grid.insert_rays(p, r, angles, 3.0)
 
-    serial = ps.OccupancyGrid2D(0.05, 400, 200)
+    serial = ps.OccupancyGrid2D(0.01, 2000, 1000)
     apply(serial, work["left"])
     apply(serial, work["right"])
-    shared = ps.OccupancyGrid2D(0.05, 400, 200)
-    errors = policy.run_threads([lambda: apply(shared, work["left"]), lambda: apply(shared, work["right"]),
-                                 lambda: [shared.probability() for _ in range(20)]])
+    shared = ps.OccupancyGrid2D(0.01, 2000, 1000)
+    errors = policy.run_threads([lambda: apply(shared, work["left"]), lambda: apply(shared, work["right"])])
     assert errors == []
     np.testing.assert_array_equal(shared.log_odds, serial.log_odds)
 
 
-def test_2d_fuse_and_grow_during_updates_do_not_crash():
-    grid = ps.OccupancyGrid2D(0.1, 200, 200)
-    angles = np.linspace(-np.pi, np.pi, 90, endpoint=False)
-    results = []
-    expected = {grid.copy().shape, grid.grown((-1, -1, 21, 21)).shape, (1, 2)}
+def test_2d_reads_during_updates_see_whole_scans():
+    """Each insert_rays adds one miss to every cell of row 0 (clamp off): a copy, fusion, growth
+    or probability taken while another thread updates must see a whole number of scans, i.e. a
+    constant row, never a scan half applied."""
+    grid = ps.OccupancyGrid2D(0.1, 200000, 1, clamp=None)
+    row = lambda log_odds: np.asarray(log_odds)[0, :200000]  # noqa: E731
+    seen = []
 
     def update():
-        for k in range(200):
-            grid.insert_rays((10.0, 10.0, 0.01 * k), np.full(90, 5.0), angles, 8.0)
+        for _ in range(50):
+            grid.insert_rays((0.05, 0.05, 0.0), [30000.0], [0.0], 30000.0)
 
     def read():
         for _ in range(50):
-            results.append(ps.fuse_max([grid, grid.copy()]).shape)
-            results.append(grid.grown((-1, -1, 21, 21)).shape)
-            results.append(grid.cell_of([[1.0, 2.0]]).shape)
+            seen.append(row(grid.copy().log_odds))
+            seen.append(row(ps.fuse_max([grid, grid]).log_odds))
+            seen.append(row(grid.grown((-1.0, 0.0, 20000.0, 0.1)).log_odds)[10:])
+            seen.append(ps.logit(row(grid.probability())))
 
     assert policy.run_threads([update, read]) == []
-    assert set(results) == expected
-
+    for r in seen:
+        np.testing.assert_allclose(r, r[0], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(row(grid.log_odds), 50 * MISS, rtol=1e-12)
+    assert grid.cell_of([[1.0, 0.05]]).tolist() == [[0, 10]] and grid.shape == (1, 200000)
 
 # --- Worker threads ------------------------------------------------------------------------------
 
@@ -380,7 +406,8 @@ def grid2d_state(grid):
 
 
 def grid3d_state(grid):
-    return {"voxels": voxel_map(grid), "blocks": grid.num_blocks}
+    centres, values = grid.known_voxels()
+    return {"centres": centres, "values": values, "blocks": grid.num_blocks}
 
 
 def small_grid():
@@ -431,9 +458,22 @@ def test_property_insert_rays_and_scans(pose, ranges, angles, max_range):
     assert np.all(np.isfinite(grid.log_odds))
 
 
-@PROPERTY
-@given(poses=policy.arrays(shape=(3, 3)), ranges=policy.arrays(shape=(3, 4)),
-       angles=policy.arrays(shape=(4,), special=False), max_range=policy.floats())
+def near_values():
+    """Values around small_grid() (so that updates do change it) mixed with the special ones."""
+    return st.one_of(st.floats(-2, 3), st.sampled_from(policy.SPECIAL_FLOATS))
+
+
+def near_arrays(shape):
+    """Arrays of near_values in float64 or float32, C or Fortran order, or as a strided view."""
+    def layouts(a):
+        with np.errstate(over="ignore"):
+            return st.sampled_from([a, np.asfortranarray(a), np.repeat(a, 2, axis=-1)[..., ::2], a.astype(np.float32)])
+    return hnp.arrays(np.float64, shape, elements=near_values()).flatmap(layouts)
+
+
+@settings(max_examples=150, deadline=None)
+@given(poses=near_arrays((3, 3)), ranges=near_arrays((3, 4)), angles=near_arrays((4,)),
+       max_range=near_values())
 def test_property_insert_scans_all_or_nothing(poses, ranges, angles, max_range):
     grid = small_grid()
     raised, _ = policy.check_call(lambda: grid.insert_scans(poses, ranges, angles, max_range),
@@ -517,3 +557,29 @@ def test_property_grid3d_queries(points, origin, direction, max_range, z):
     raised, flat = policy.check_call(lambda: grid.project_2d(*z), snapshot)
     if not raised:
         assert np.all(np.isfinite(flat.log_odds)) and np.all(np.isfinite(flat.cell_centers()))
+
+
+# --- map_laser_log -------------------------------------------------------------------------------
+
+def laser_scans(n=5, beams=30):
+    from probslam.io.carmen import LaserScans
+    rng = np.random.default_rng(9)
+    poses = np.column_stack([np.linspace(0, 2, n), np.zeros(n), np.zeros(n)])
+    return LaserScans(ranges=rng.uniform(1, 3, (n, beams)), laser_poses=poses, robot_poses=poses.copy(),
+                      start_angles=np.full(n, -np.pi / 2), angular_resolutions=np.full(n, np.pi / beams),
+                      max_ranges=np.full(n, np.nan), num_beams=np.full(n, beams), timestamps=np.arange(n, dtype=float))
+
+
+@pytest.mark.parametrize("field, row, name", [("laser_poses", 4, "laser_poses"), ("robot_poses", 3, "robot_poses"),
+                                              ("start_angles", 4, "start_angles")])
+def test_map_laser_log_checks_every_scan_before_mapping(field, row, name):
+    scans = laser_scans()
+    given = ps.OccupancyGrid2D(0.1, 10, 10)
+    before = given.log_odds.copy()
+    getattr(scans, field)[row] = np.nan
+    with pytest.raises(ValueError, match=name):
+        ps.map_laser_log(scans, resolution=0.1, robot_radius=0.3, grid=given, chunk=2, progress=False)
+    np.testing.assert_array_equal(given.log_odds, before)
+    good = laser_scans()
+    grid, summary = ps.map_laser_log(good, resolution=0.1, robot_radius=0.3, chunk=2, progress=False)
+    assert summary.scans == 5 and np.all(np.isfinite(grid.log_odds))
