@@ -7,6 +7,7 @@
 #include "numpy.hpp"
 #include "object_lock.hpp"
 #include "probslam/grid/occupancy_grid_3d.hpp"
+#include "probslam/grid/worker_pool.hpp"
 #include "probslam/io/octomap_bt.hpp"
 
 namespace probslam::bindings {
@@ -120,6 +121,11 @@ OccupancyParams3D params_of(double p_hit, double p_miss, double clamp_min, doubl
 
 void define_grid3d(py::module_& m) {
   using Grid = OccupancyGrid3D;
+  m.def(
+      "_fail_worker_thread_start_after", [](int successes) { testing::worker_start_failure_after.store(successes); },
+      py::arg("successes"),
+      "Test hook: after `successes` more worker-thread starts the next one fails as if the system\n"
+      "refused it (std::system_error -> RuntimeError); negative turns it off.");
   py::class_<Grid>(m, "OccupancyGrid3D",
                    "Sparse 3-D occupancy grid (ch. 9.2 in 3-D) updated with OctoMap 1.9.7's\n"
                    "OcTree::insertPointCloud rules: same voxel keys, same float log-odds.")

@@ -5,7 +5,6 @@
 #include <cmath>
 #include <limits>
 #include <string>
-#include <thread>
 
 #include "probslam/core/check.hpp"
 #include "probslam/grid/log_odds.hpp"
@@ -232,8 +231,9 @@ InsertStats3D OccupancyGrid3D::insert_point_cloud(const float* xyz, std::size_t 
   require(std::isfinite(origin[0]) && std::isfinite(origin[1]) && std::isfinite(origin[2]), "origin",
           "must contain only finite values");
   require(!std::isnan(max_range), "max_range", "must not be NaN (negative means unlimited)");
-  require(threads >= 1 && threads <= kMaxThreads, "threads",
-          "must be between 1 and 256 (OccupancyGrid3D::kMaxThreads)");
+  if (threads < 1 || threads > kMaxThreads)
+    throw_invalid_argument("threads", "must be between 1 and " + std::to_string(kMaxThreads) +
+                                          " (OccupancyGrid3D::kMaxThreads), got " + std::to_string(threads));
   require(n == 0 || xyz != nullptr, "points", "must not be null");
   InsertStats3D stats;
   stats.points = n;

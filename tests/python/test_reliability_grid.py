@@ -211,6 +211,27 @@ def test_thread_count_beyond_the_named_limit_is_refused_before_anything_changes(
     assert voxel_map(grid) == voxel_map(one)
 
 
+@pytest.mark.parametrize("successes", [0, 1, 2])
+def test_a_refused_worker_thread_raises_runtime_error_and_leaves_the_grid_unchanged(successes):
+    """RLIMIT_NPROC does not bind root (CI), so the failure is injected where threads start."""
+    rng = np.random.default_rng(10)
+    first, second = rng.uniform(-3, 3, (4000, 3)), rng.uniform(-3, 3, (4000, 3))
+    grid, serial = ps.OccupancyGrid3D(0.1), ps.OccupancyGrid3D(0.1)
+    grid.insert_point_cloud(first, (0, 0, 0))
+    serial.insert_point_cloud(first, (0, 0, 0))
+    before = grid3d_state(grid)
+    ps._core._fail_worker_thread_start_after(successes)
+    try:
+        with pytest.raises(RuntimeError, match="worker thread"):
+            grid.insert_point_cloud(second, (0, 0, 0), threads=4)
+    finally:
+        ps._core._fail_worker_thread_start_after(-1)
+    assert policy.same_state(grid3d_state(grid), before)
+    grid.insert_point_cloud(second, (0, 0, 0), threads=4)  # no stale per-scan marks
+    serial.insert_point_cloud(second, (0, 0, 0))
+    assert voxel_map(grid) == voxel_map(serial)
+
+
 # --- Bounded walks -------------------------------------------------------------------------------
 
 def first_occupied_brute_force(grid, origin, direction, max_range):
