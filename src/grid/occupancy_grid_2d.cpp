@@ -238,7 +238,7 @@ std::size_t OccupancyGrid2D::insert_scans(const Eigen::Ref<const Poses2>& poses,
 std::size_t OccupancyGrid2D::clear_footprint(const Eigen::Vector3d& pose, double radius, double l_free) {
   require_all_finite(pose, "pose");
   require(std::isfinite(radius) && radius >= 0.0, "radius", "must be finite and >= 0");
-  require_finite(l_free, "l_free");
+  require_log_odds(l_free, "l_free");
   const double delta = l_free - l0_;
   const int row_lo = std::max(0, lattice_.key(1, pose.y() - radius));
   const int row_hi = std::min(height_ - 1, lattice_.key(1, pose.y() + radius));

@@ -604,3 +604,21 @@ def test_map_laser_log_checks_every_scan_before_mapping(field, row, name):
     good = laser_scans()
     grid, summary = ps.map_laser_log(good, resolution=0.1, robot_radius=0.3, chunk=2, progress=False)
     assert summary.scans == 5 and np.all(np.isfinite(grid.log_odds))
+
+
+# --- Finite log-odds -----------------------------------------------------------------------------
+
+@pytest.mark.parametrize("update, name", [
+    (lambda g, l: g.insert_cone_scan((0.55, 0.55, 0.0), [0.3], [0.0], 1.0, 0.1, 0.5, l, -1.0), "l_occ"),
+    (lambda g, l: g.insert_cone_scan((0.55, 0.55, 0.0), [0.3], [0.0], 1.0, 0.1, 0.5, 1.0, -l), "l_free"),
+    (lambda g, l: g.clear_footprint((0.5, 0.5, 0.0), 0.3, l_free=-l), "l_free"),
+])
+def test_unclamped_updates_cannot_overflow_to_inf(update, name):
+    """Two updates by 1e308 made an unclamped cell inf; such model values are refused by name."""
+    grid = ps.OccupancyGrid2D(0.1, 10, 10, clamp=None)
+    with pytest.raises(ValueError, match=name):
+        update(grid, 1e308)
+    assert np.all(grid.log_odds == 0.0)
+    for _ in range(2):
+        update(grid, 1e6)  # the limit itself is accepted
+    assert np.all(np.isfinite(grid.log_odds)) and np.abs(grid.log_odds).max() == 2e6
