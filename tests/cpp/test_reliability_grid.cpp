@@ -157,7 +157,7 @@ TEST(GridReliability, CastRayIsClippedToTheKeyRange) {
   const std::vector<float> cloud = random_cloud(rng, 300, 3.0f);
   grid.insert_point_cloud(cloud.data(), 300, origin);
   std::normal_distribution<double> n(0.0, 1.0);
-  for (int i = 0; i < 300; ++i) {
+  for (int i = 0; i < 60; ++i) {  // each far ray walks to the key range's edge (~5e4 voxels)
     const Eigen::Vector3d o(n(rng), n(rng), n(rng)), d(n(rng), n(rng), n(rng));
     const auto near = grid.cast_ray(o, d, 20.0);
     const auto far = grid.cast_ray(o, d, 1e12);
