@@ -1,8 +1,12 @@
 #include <pybind11/stl.h>
 
+#include <mutex>
+#include <optional>
+#include <utility>
 #include <vector>
 
 #include "numpy.hpp"
+#include "object_lock.hpp"
 #include "probslam/core/check.hpp"
 #include "probslam/grid/inverse_range_sensor_model.hpp"
 #include "probslam/grid/occupancy_grid_2d.hpp"
@@ -43,6 +47,8 @@ Scan scan_args(py::handle ranges, py::handle beam_angles, const char* angles_nam
 
 void define_grid(py::module_& m) {
   using Grid = OccupancyGrid2D;
+  // Every call runs under the grid's lock with the GIL released (object_lock.hpp): arguments are
+  // converted before, Python results built after. Only the zero-copy log_odds view is unguarded.
   py::class_<Grid>(m, "OccupancyGrid2D")
       .def(py::init([](double resolution, int width, int height, py::handle origin, double p_prior,
                        py::handle clamp, double p_hit, double p_miss) {
@@ -63,51 +69,66 @@ void define_grid(py::module_& m) {
           },
           py::arg("bounds"), py::arg("resolution"), py::arg("p_prior") = 0.5,
           py::arg("clamp") = py::make_tuple(0.1192, 0.971), py::arg("p_hit") = 0.7, py::arg("p_miss") = 0.4)
-      .def_property_readonly("resolution", &Grid::resolution)
-      .def_property_readonly("width", &Grid::width)
-      .def_property_readonly("height", &Grid::height)
-      .def_property_readonly("shape", [](const Grid& g) { return py::make_tuple(g.height(), g.width()); })
-      .def_property_readonly("origin", [](const Grid& g) { return py::make_tuple(g.origin().x(), g.origin().y()); })
-      .def_property_readonly("p_prior", &Grid::p_prior)
-      .def_property_readonly("l0", &Grid::prior_log_odds)
+      .def_property_readonly_static("max_cells", [](py::object) { return Grid::kMaxCells; },
+                                    "Largest number of cells a grid may have (constructor, covering, grown, project_2d).")
+      .def_property_readonly("resolution", [](const Grid& g) { return locked(g, [&] { return g.resolution(); }); })
+      .def_property_readonly("width", [](const Grid& g) { return locked(g, [&] { return g.width(); }); })
+      .def_property_readonly("height", [](const Grid& g) { return locked(g, [&] { return g.height(); }); })
+      .def_property_readonly("shape", [](const Grid& g) {
+        const auto [h, w] = locked(g, [&] { return std::make_pair(g.height(), g.width()); });
+        return py::make_tuple(h, w);
+      })
+      .def_property_readonly("origin", [](const Grid& g) {
+        const Eigen::Vector2d o = locked(g, [&] { return g.origin(); });
+        return py::make_tuple(o.x(), o.y());
+      })
+      .def_property_readonly("p_prior", [](const Grid& g) { return locked(g, [&] { return g.p_prior(); }); })
+      .def_property_readonly("l0", [](const Grid& g) { return locked(g, [&] { return g.prior_log_odds(); }); })
       .def_property(
-          "clamp", [](const Grid& g) { return clamp_value(g.clamp()); },
-          [](Grid& g, py::handle c) { g.set_clamp(clamp_arg(c)); })
+          "clamp", [](const Grid& g) { return clamp_value(locked(g, [&] { return g.clamp(); })); },
+          [](Grid& g, py::handle c) {
+            const LogOddsClamp clamp = clamp_arg(c);
+            locked(g, [&] { g.set_clamp(clamp); });
+          })
       .def_property(
-          "p_hit", [](const Grid& g) { return g.beam_model().p_hit; },
-          [](Grid& g, double p) { g.set_beam_model({p, g.beam_model().p_miss}); })
+          "p_hit", [](const Grid& g) { return locked(g, [&] { return g.beam_model().p_hit; }); },
+          [](Grid& g, double p) { locked(g, [&] { g.set_beam_model({p, g.beam_model().p_miss}); }); })
       .def_property(
-          "p_miss", [](const Grid& g) { return g.beam_model().p_miss; },
-          [](Grid& g, double p) { g.set_beam_model({g.beam_model().p_hit, p}); })
+          "p_miss", [](const Grid& g) { return locked(g, [&] { return g.beam_model().p_miss; }); },
+          [](Grid& g, double p) { locked(g, [&] { g.set_beam_model({g.beam_model().p_hit, p}); }); })
       .def_property_readonly(
           "log_odds",
           [](py::object self) {
             Grid& g = self.cast<Grid&>();
-            const py::ssize_t w = g.width(), h = g.height();
+            const py::ssize_t w = g.width(), h = g.height();  // fixed for the grid's life
             return py::array_t<double>({h, w}, {w * static_cast<py::ssize_t>(sizeof(double)), static_cast<py::ssize_t>(sizeof(double))},
                                        g.data(), self);
           })
-      .def("probability", &Grid::probability)
+      .def("probability", [](const Grid& g) { return locked(g, [&] { return g.probability(); }); })
       .def(
           "cell_of",
           [](const Grid& g, py::handle points) {
             DoubleArray a = matrix_arg(points, "points", 2);
             const auto p = as_matrix(a);
-            require_all_finite(p, "points");
-            Eigen::Matrix<long, Eigen::Dynamic, 2, Eigen::RowMajor> out(p.rows(), 2);
-            for (Eigen::Index i = 0; i < p.rows(); ++i) {
-              const Eigen::Vector2i c = g.cell_of(p(i, 0), p(i, 1));
-              out.row(i) << c[0], c[1];
-            }
-            return out;
+            return locked(g, [&] {
+              // Exact 64-bit indices; points too far for an exact index are refused, never wrapped.
+              Eigen::Matrix<std::int64_t, Eigen::Dynamic, 2, Eigen::RowMajor> out(p.rows(), 2);
+              for (Eigen::Index i = 0; i < p.rows(); ++i) out.row(i) = g.cell_index(p(i, 0), p(i, 1), "points").transpose();
+              return out;
+            });
           },
-          py::arg("points"))
+          py::arg("points"),
+          "(row, col) int64 of the cell holding each point (n, 2); may lie outside the grid.\n"
+          "Points more than 2^53 cells away are refused.")
       .def("cell_centers",
            [](const Grid& g) {
-             Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor> out(static_cast<Eigen::Index>(g.width()) * g.height(), 2);
-             for (int r = 0; r < g.height(); ++r)
-               for (int c = 0; c < g.width(); ++c) out.row(static_cast<Eigen::Index>(r) * g.width() + c) = g.cell_center(r, c).transpose();
-             return out;
+             return locked(g, [&] {
+               Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor> out(static_cast<Eigen::Index>(g.width()) * g.height(), 2);
+               for (int r = 0; r < g.height(); ++r)
+                 for (int c = 0; c < g.width(); ++c)
+                   out.row(static_cast<Eigen::Index>(r) * g.width() + c) = g.cell_center(r, c).transpose();
+               return out;
+             });
            })
       .def(
           "insert_cone_scan",
@@ -115,8 +136,9 @@ void define_grid(py::module_& m) {
              double beta, double l_occ, double l_free) {
             const Eigen::Vector3d x = pose_arg(pose);
             const Scan s = scan_args(ranges, beam_angles);
-            py::gil_scoped_release release;
-            return g.insert_cone_scan(x, as_vector(s.ranges), as_vector(s.angles), z_max, alpha, beta, l_occ, l_free);
+            return locked(g, [&] {
+              return g.insert_cone_scan(x, as_vector(s.ranges), as_vector(s.angles), z_max, alpha, beta, l_occ, l_free);
+            });
           },
           py::arg("pose"), py::arg("ranges"), py::arg("beam_angles"), py::arg("z_max"), py::arg("alpha"),
           py::arg("beta"), py::arg("l_occ"), py::arg("l_free"),
@@ -128,14 +150,14 @@ void define_grid(py::module_& m) {
           [](Grid& g, py::handle pose, py::handle ranges, py::handle angles, double max_range) {
             const Eigen::Vector3d x = pose_arg(pose);
             const Scan s = scan_args(ranges, angles, "angles");
-            py::gil_scoped_release release;
-            return g.insert_rays(x, as_vector(s.ranges), as_vector(s.angles), max_range);
+            return locked(g, [&] { return g.insert_rays(x, as_vector(s.ranges), as_vector(s.angles), max_range); });
           },
           py::arg("pose"), py::arg("ranges"), py::arg("angles"), py::arg("max_range"),
           "Laser-beam update: exact cell walk, misses along each ray, a hit at the end of readings\n"
           "< max_range (m); readings >= max_range clear up to it. Each cell changes once per scan,\n"
-          "a hit beats a miss (OctoMap's rules). NaN, inf, negative readings are skipped.\n"
-          "pose (3,), ranges (n,) m, angles (n,) rad. Returns the number of cells updated.")
+          "a hit beats a miss (OctoMap's rules). NaN, inf, negative readings are skipped. Rays are\n"
+          "clipped to the grid before the walk. pose (3,), ranges (n,) m, angles (n,) rad. Returns\n"
+          "the number of cells updated.")
       .def(
           "insert_scans",
           [](Grid& g, py::handle poses, py::handle ranges, py::handle angles, double max_range) {
@@ -151,17 +173,21 @@ void define_grid(py::module_& m) {
             if (a.shape(1) != r.shape(1) || (a.shape(0) != 1 && a.shape(0) != r.shape(0)))
               throw py::value_error("angles must have shape (" + std::to_string(r.shape(1)) + ",) or " + shape_of(r) +
                                     ", got " + shape_of(a));
-            const Poses2 x = Eigen::Map<const Poses2>(p.data(), p.shape(0), 3);
-            py::gil_scoped_release release;
-            return g.insert_scans(x, as_matrix(r), as_matrix(a), max_range);
+            const Eigen::Map<const Poses2> x(p.data(), p.shape(0), 3);
+            return locked(g, [&] { return g.insert_scans(x, as_matrix(r), as_matrix(a), max_range); });
           },
           py::arg("poses"), py::arg("ranges"), py::arg("angles"), py::arg("max_range"),
-          "insert_rays for every scan: poses (S, 3), ranges (S, B), angles (B,) or (S, B).")
+          "insert_rays for every scan: poses (S, 3), ranges (S, B), angles (B,) or (S, B). Every\n"
+          "row is checked before the first is applied.")
       .def(
           "clear_footprint",
           [](Grid& g, py::handle pose, double radius, py::object l_free) {
-            const double lf = l_free.is_none() ? (g.clamp().enabled ? g.clamp().min : logit(0.05)) : l_free.cast<double>();
-            return g.clear_footprint(pose_arg(pose), radius, lf);
+            const Eigen::Vector3d x = pose_arg(pose);
+            const std::optional<double> given = l_free.is_none() ? std::nullopt : std::optional<double>(l_free.cast<double>());
+            return locked(g, [&] {
+              const double lf = given ? *given : (g.clamp().enabled ? g.clamp().min : logit(0.05));
+              return g.clear_footprint(x, radius, lf);
+            });
           },
           py::arg("pose"), py::arg("radius"), py::arg("l_free") = py::none(),
           "Cells whose centre is within radius (m) of the pose are free: l += l_free - l0\n"
@@ -170,21 +196,38 @@ void define_grid(py::module_& m) {
           "grown",
           [](const Grid& g, py::handle bounds) {
             const Eigen::Vector4d b = fixed_vector<4>(bounds, "bounds");
-            return g.grown_to_include(b[0], b[1], b[2], b[3]);
+            return locked(g, [&] { return g.grown_to_include(b[0], b[1], b[2], b[3]); });
           },
           py::arg("bounds"),
           "An enlarged copy on the same lattice covering bounds (xmin, ymin, xmax, ymax) m.")
-      .def("copy", [](const Grid& g) { return Grid(g); })
-      .def("same_geometry", &Grid::same_geometry, py::arg("other"))
+      .def("copy", [](const Grid& g) { return locked(g, [&] { return Grid(g); }); })
+      .def(
+          "same_geometry", [](const Grid& g, const Grid& other) { return locked(g, other, [&] { return g.same_geometry(other); }); },
+          py::arg("other"))
       .def("__repr__", [](const Grid& g) {
-        return "OccupancyGrid2D(resolution=" + std::to_string(g.resolution()) + ", width=" + std::to_string(g.width()) +
-               ", height=" + std::to_string(g.height()) + ", origin=(" + std::to_string(g.origin().x()) + ", " +
-               std::to_string(g.origin().y()) + "))";
+        return locked(g, [&] {
+          return "OccupancyGrid2D(resolution=" + std::to_string(g.resolution()) + ", width=" + std::to_string(g.width()) +
+                 ", height=" + std::to_string(g.height()) + ", origin=(" + std::to_string(g.origin().x()) + ", " +
+                 std::to_string(g.origin().y()) + "))";
+        });
       });
 
   m.def(
       "fuse_max",
-      [](const std::vector<const Grid*>& grids) { return fuse_max(grids); }, py::arg("grids"));
+      [](const std::vector<const Grid*>& grids) {
+        require(!grids.empty(), "grids", "must not be empty");
+        for (const Grid* g : grids) require(g != nullptr, "grids", "must not contain None");
+        // One grid locked at a time (never two: no lock order to get wrong), the GIL released.
+        py::gil_scoped_release release;
+        std::optional<Grid> fused;
+        for (const Grid* g : grids) {
+          std::lock_guard<std::mutex> lock(g->mutex());
+          if (!fused) fused.emplace(*g);
+          else fuse_max_into(*fused, *g);
+        }
+        return std::move(*fused);
+      },
+      py::arg("grids"), "Eq. 9.9: the cell-wise maximum of grids of equal geometry.");
 
   m.def(
       "inverse_range_sensor_model",

@@ -1,9 +1,13 @@
+#include <algorithm>
 #include <cmath>
 #include <limits>
 #include <string>
+#include <vector>
 
 #include "numpy.hpp"
+#include "object_lock.hpp"
 #include "probslam/grid/occupancy_grid_3d.hpp"
+#include "probslam/grid/worker_pool.hpp"
 #include "probslam/io/octomap_bt.hpp"
 
 namespace probslam::bindings {
@@ -11,43 +15,66 @@ namespace probslam::bindings {
 namespace {
 
 using FloatArray = py::array_t<float, py::array::c_style | py::array::forcecast>;
+constexpr double kFloatMax = std::numeric_limits<float>::max();
+
+/// Finite doubles beyond float range become +-FLT_MAX (a far point, outside the key range)
+/// rather than inf (which would read as "no return"); NaN and inf stay as they are.
+float to_float(double v) { return static_cast<float>(std::isfinite(v) ? std::min(std::max(v, -kFloatMax), kFloatMax) : v); }
 
 /// (n, 3) points as a C-contiguous float32 array: float32 input is used in place, anything
 /// else is converted (OctoMap's points are float, so coordinates are rounded to float anyway).
 FloatArray points_arg(py::handle obj, const char* name) {
   if (obj.is_none()) throw py::type_error(std::string(name) + " must be an array of numbers, not None");
-  FloatArray a = FloatArray::ensure(obj);
-  if (!a) throw py::type_error(std::string(name) + " must be an array of numbers");
-  if (a.ndim() != 2 || a.shape(1) != 3) {
+  const bool is_float32 = py::isinstance<py::array_t<float>>(obj);
+  const DoubleArray d = is_float32 ? DoubleArray() : DoubleArray::ensure(obj);
+  const FloatArray a = is_float32 ? FloatArray::ensure(obj) : FloatArray();
+  if (!is_float32 && !d) throw py::type_error(std::string(name) + " must be an array of numbers");
+  const py::array& any = is_float32 ? static_cast<const py::array&>(a) : static_cast<const py::array&>(d);
+  if (any.ndim() != 2 || any.shape(1) != 3) {
     std::string shape = "(";
-    for (py::ssize_t i = 0; i < a.ndim(); ++i) shape += (i ? ", " : "") + std::to_string(a.shape(i));
-    throw py::value_error(std::string(name) + " must have shape (n, 3), got " + shape + (a.ndim() == 1 ? ",)" : ")"));
+    for (py::ssize_t i = 0; i < any.ndim(); ++i) shape += (i ? ", " : "") + std::to_string(any.shape(i));
+    throw py::value_error(std::string(name) + " must have shape (n, 3), got " + shape + (any.ndim() == 1 ? ",)" : ")"));
   }
-  return a;
+  if (is_float32) return a;
+  FloatArray f({d.shape(0), py::ssize_t{3}});
+  std::transform(d.data(), d.data() + d.size(), f.mutable_data(), to_float);
+  return f;
 }
 
-/// (n, 3) query points, or one (3,) point (then `single`).
+/// (n, 3) query points, or one (3,) point (then `single`), as float32 (the grid's point type).
+/// NaN and infinite coordinates are refused (checked before the cast, so that a finite double
+/// beyond float range becomes a far point, outside the key range, rather than an error).
 FloatArray query_arg(py::handle obj, bool& single) {
-  FloatArray a = FloatArray::ensure(obj);
-  single = a && a.ndim() == 1;
-  if (single) {
-    if (a.shape(0) != 3) throw py::value_error("points must have shape (3,) or (n, 3), got (" + std::to_string(a.shape(0)) + ",)");
-    return FloatArray(a.reshape({py::ssize_t{1}, py::ssize_t{3}}));
-  }
-  return points_arg(obj, "points");
+  if (obj.is_none()) throw py::type_error("points must be an array of numbers, not None");
+  DoubleArray d = DoubleArray::ensure(obj);
+  if (!d) throw py::type_error("points must be an array of numbers");
+  single = d.ndim() == 1;
+  if (single && d.shape(0) != 3)
+    throw py::value_error("points must have shape (3,) or (n, 3), got " + shape_of(d));
+  if (!single && (d.ndim() != 2 || d.shape(1) != 3))
+    throw py::value_error("points must have shape (3,) or (n, 3), got " + shape_of(d));
+  if (!ConstVectorMap(d.data(), d.size()).allFinite())
+    throw py::value_error("points must contain only finite values");
+  FloatArray f({d.size() / 3, py::ssize_t{3}});
+  float* out = f.mutable_data();
+  const double* in = d.data();
+  for (py::ssize_t i = 0; i < d.size(); ++i) out[i] = to_float(in[i]);
+  return f;
 }
 
 /// query(x, y, z) of every point of (n, 3) points as an (n,) array, or a Python scalar for one
-/// (3,) point.
+/// (3,) point; run under the grid's lock with the GIL released.
 template <typename T, class Query>
-py::object per_point(py::handle points, Query&& query) {
+py::object per_point(const OccupancyGrid3D& g, py::handle points, Query&& query) {
   bool single = false;
   const FloatArray p = query_arg(points, single);
   const py::ssize_t n = p.shape(0);
   py::array_t<T> out(n);
   T* o = out.mutable_data();
   const float* q = p.data();
-  for (py::ssize_t i = 0; i < n; ++i) o[i] = query(q[3 * i], q[3 * i + 1], q[3 * i + 2]);
+  locked(g, [&] {
+    for (py::ssize_t i = 0; i < n; ++i) o[i] = query(q[3 * i], q[3 * i + 1], q[3 * i + 2]);
+  });
   if (single) return py::cast(o[0]);
   return std::move(out);
 }
@@ -63,22 +90,26 @@ py::dict stats_dict(const InsertStats3D& s) {
 }
 
 py::tuple voxels(const OccupancyGrid3D& g, bool occupied_only) {
-  const float occ = g.occupancy_log_odds();
-  const std::size_t n = occupied_only ? g.num_occupied_voxels() : g.num_known_voxels();
-  py::array_t<double> centres({static_cast<py::ssize_t>(n), py::ssize_t{3}});
-  py::array_t<float> values(static_cast<py::ssize_t>(n));
-  double* c = centres.mutable_data();
-  float* v = values.mutable_data();
-  {
-    py::gil_scoped_release release;
-    std::size_t i = 0;
+  // Collected under the lock (the count and the walk must see the same map), copied out after.
+  std::vector<double> c;
+  std::vector<float> v;
+  locked(g, [&] {
+    const float occ = g.occupancy_log_odds();
+    const std::size_t n = occupied_only ? g.num_occupied_voxels() : g.num_known_voxels();
+    c.reserve(3 * n);
+    v.reserve(n);
     g.for_each_known([&](const CellKey<3>& k, float l) {
       if (occupied_only && !(l >= occ)) return;
       const Eigen::Vector3d p = g.key_center(k);
-      c[3 * i] = p.x(), c[3 * i + 1] = p.y(), c[3 * i + 2] = p.z();
-      v[i++] = l;
+      c.insert(c.end(), {p.x(), p.y(), p.z()});
+      v.push_back(l);
     });
-  }
+  });
+  const auto n = static_cast<py::ssize_t>(v.size());
+  py::array_t<double> centres({n, py::ssize_t{3}});
+  py::array_t<float> values(n);
+  std::copy(c.begin(), c.end(), centres.mutable_data());
+  std::copy(v.begin(), v.end(), values.mutable_data());
   return py::make_tuple(centres, values);
 }
 
@@ -90,6 +121,11 @@ OccupancyParams3D params_of(double p_hit, double p_miss, double clamp_min, doubl
 
 void define_grid3d(py::module_& m) {
   using Grid = OccupancyGrid3D;
+  m.def(
+      "_fail_worker_thread_start_after", [](int successes) { testing::worker_start_failure_after.store(successes); },
+      py::arg("successes"),
+      "Test hook: after `successes` more worker-thread starts the next one fails as if the system\n"
+      "refused it (std::system_error -> RuntimeError); negative turns it off.");
   py::class_<Grid>(m, "OccupancyGrid3D",
                    "Sparse 3-D occupancy grid (ch. 9.2 in 3-D) updated with OctoMap 1.9.7's\n"
                    "OcTree::insertPointCloud rules: same voxel keys, same float log-odds.")
@@ -101,31 +137,36 @@ void define_grid3d(py::module_& m) {
            py::arg("clamp_max") = 0.971, py::arg("occupancy_threshold") = 0.5,
            "resolution: voxel edge (m). Probabilities: hit and miss of the sensor model, the\n"
            "clamping bounds, and the occupancy threshold (OctoMap's defaults).")
-      .def_property_readonly("resolution", &Grid::resolution)
-      .def_property_readonly("p_hit", [](const Grid& g) { return g.params().p_hit; })
-      .def_property_readonly("p_miss", [](const Grid& g) { return g.params().p_miss; })
-      .def_property_readonly("clamp", [](const Grid& g) { return py::make_tuple(g.params().clamp_min, g.params().clamp_max); })
-      .def_property_readonly("occupancy_threshold", [](const Grid& g) { return g.params().occupancy_threshold; })
-      .def_property_readonly("log_odds_hit", &Grid::hit_log_odds)
-      .def_property_readonly("log_odds_miss", &Grid::miss_log_odds)
-      .def_property_readonly("log_odds_clamp", [](const Grid& g) {
-        return py::make_tuple(g.clamp_min_log_odds(), g.clamp_max_log_odds());
+      .def_property_readonly("resolution", [](const Grid& g) { return locked(g, [&] { return g.resolution(); }); })
+      .def_property_readonly("p_hit", [](const Grid& g) { return locked(g, [&] { return g.params().p_hit; }); })
+      .def_property_readonly("p_miss", [](const Grid& g) { return locked(g, [&] { return g.params().p_miss; }); })
+      .def_property_readonly("clamp", [](const Grid& g) {
+        const OccupancyParams3D p = locked(g, [&] { return g.params(); });
+        return py::make_tuple(p.clamp_min, p.clamp_max);
       })
-      .def_property_readonly("num_known_voxels", &Grid::num_known_voxels)
-      .def_property_readonly("num_occupied_voxels", &Grid::num_occupied_voxels)
-      .def_property_readonly("num_blocks", &Grid::num_blocks)
-      .def_property_readonly("memory_bytes", &Grid::memory_bytes)
+      .def_property_readonly("occupancy_threshold",
+                             [](const Grid& g) { return locked(g, [&] { return g.params().occupancy_threshold; }); })
+      .def_property_readonly("log_odds_hit", [](const Grid& g) { return locked(g, [&] { return g.hit_log_odds(); }); })
+      .def_property_readonly("log_odds_miss", [](const Grid& g) { return locked(g, [&] { return g.miss_log_odds(); }); })
+      .def_property_readonly("log_odds_clamp", [](const Grid& g) {
+        const auto [lo, hi] = locked(g, [&] { return std::make_pair(g.clamp_min_log_odds(), g.clamp_max_log_odds()); });
+        return py::make_tuple(lo, hi);
+      })
+      .def_property_readonly("num_known_voxels", [](const Grid& g) { return locked(g, [&] { return g.num_known_voxels(); }); })
+      .def_property_readonly("num_occupied_voxels",
+                             [](const Grid& g) { return locked(g, [&] { return g.num_occupied_voxels(); }); })
+      .def_property_readonly("num_blocks", [](const Grid& g) { return locked(g, [&] { return g.num_blocks(); }); })
+      .def_property_readonly("memory_bytes", [](const Grid& g) { return locked(g, [&] { return g.memory_bytes(); }); })
       .def(
           "insert_point_cloud",
           [](Grid& g, py::handle points, py::handle origin, double max_range, int threads) {
             const FloatArray p = points_arg(points, "points");
             const Eigen::Vector3d o = fixed_vector<3>(origin, "origin");
-            const float of[3] = {static_cast<float>(o.x()), static_cast<float>(o.y()), static_cast<float>(o.z())};
-            InsertStats3D s;
-            {
-              py::gil_scoped_release release;
-              s = g.insert_point_cloud(p.data(), static_cast<std::size_t>(p.shape(0)), of, max_range, threads);
-            }
+            if (!o.allFinite()) throw py::value_error("origin must contain only finite values");
+            const float of[3] = {to_float(o.x()), to_float(o.y()), to_float(o.z())};
+            const InsertStats3D s = locked(g, [&] {
+              return g.insert_point_cloud(p.data(), static_cast<std::size_t>(p.shape(0)), of, max_range, threads);
+            });
             return stats_dict(s);
           },
           py::arg("points"), py::arg("origin"), py::arg("max_range") = -1.0, py::arg("threads") = 1,
@@ -137,40 +178,39 @@ void define_grid3d(py::module_& m) {
       .def(
           "log_odds_at",
           [](const Grid& g, py::handle points) {
-            return per_point<float>(points, [&](float x, float y, float z) { return g.log_odds_at(x, y, z); });
+            return per_point<float>(g, points, [&](float x, float y, float z) { return g.log_odds_at(x, y, z); });
           },
           py::arg("points"), "Log-odds (float32) of the voxels holding points (n, 3) or (3,); NaN where unknown.")
       .def(
           "is_occupied",
           [](const Grid& g, py::handle points) {
-            return per_point<bool>(points, [&](float x, float y, float z) { return g.is_occupied(x, y, z); });
+            return per_point<bool>(g, points, [&](float x, float y, float z) { return g.is_occupied(x, y, z); });
           },
           py::arg("points"), "Known and log-odds >= logit(occupancy_threshold); unknown is False.")
       .def(
           "cast_ray",
           [](const Grid& g, py::handle origin, py::handle direction, double max_range) -> py::object {
-            const auto hit = g.cast_ray(fixed_vector<3>(origin, "origin"), fixed_vector<3>(direction, "direction"), max_range);
+            const Eigen::Vector3d o = fixed_vector<3>(origin, "origin"), d = fixed_vector<3>(direction, "direction");
+            const auto hit = locked(g, [&] { return g.cast_ray(o, d, max_range); });
             if (!hit) return py::none();
             return py::cast(Eigen::Vector3d(*hit));
           },
           py::arg("origin"), py::arg("direction"), py::arg("max_range"),
           "Centre (3,) of the first occupied voxel along the ray within max_range (m), or None.\n"
-          "Unknown voxels are passed through.")
+          "Unknown voxels are passed through. The walk is clipped to the key range first.")
       .def("known_voxels", [](const Grid& g) { return voxels(g, false); },
            "(centres (n, 3) m, log_odds (n,) float32) of every known voxel.")
       .def("occupied_voxels", [](const Grid& g) { return voxels(g, true); },
            "(centres (n, 3) m, log_odds (n,) float32) of the occupied voxels.")
       .def(
-          "project_2d", [](const Grid& g, double z_min, double z_max) { return g.project_2d(z_min, z_max); },
+          "project_2d",
+          [](const Grid& g, double z_min, double z_max) { return locked(g, [&] { return g.project_2d(z_min, z_max); }); },
           py::arg("z_min") = -std::numeric_limits<double>::max(), py::arg("z_max") = std::numeric_limits<double>::max(),
           "OccupancyGrid2D on the same x-y lattice: per column the largest log-odds of the known\n"
           "voxels with centre z in [z_min, z_max] (eq. 9.9); unobserved columns hold 0.")
       .def(
           "write_bt",
-          [](const Grid& g, const std::string& path) {
-            py::gil_scoped_release release;
-            return write_octomap_bt(g, path);
-          },
+          [](const Grid& g, const std::string& path) { return locked(g, [&] { return write_octomap_bt(g, path); }); },
           py::arg("path"),
           "Writes an OctoMap .bt file (maximum-likelihood: occupied or free per voxel). Returns the\n"
           "number of tree nodes.")
@@ -186,10 +226,12 @@ void define_grid3d(py::module_& m) {
           py::arg("clamp_max") = 0.971, py::arg("occupancy_threshold") = 0.5,
           "Reads an OctoMap .bt file (OcTree). The format stores occupancy only: voxels get the\n"
           "clamped log-odds logit(clamp_max) or logit(clamp_min). Raises ValueError on a bad file.")
-      .def("clear", &Grid::clear)
+      .def("clear", [](Grid& g) { locked(g, [&] { g.clear(); }); })
       .def("__repr__", [](const Grid& g) {
-        return "OccupancyGrid3D(resolution=" + std::to_string(g.resolution()) +
-               ", known_voxels=" + std::to_string(g.num_known_voxels()) + ")";
+        return locked(g, [&] {
+          return "OccupancyGrid3D(resolution=" + std::to_string(g.resolution()) +
+                 ", known_voxels=" + std::to_string(g.num_known_voxels()) + ")";
+        });
       });
 }
 

@@ -58,10 +58,24 @@ def map_laser_log(scans: LaserScans, resolution: float = 0.05, max_range: float 
     seen" (often glass), not free space. With ``robot_radius`` > 0 the robot's footprint
     around each robot pose is cleared too. ``progress=None`` shows a bar only on a terminal.
     """
+    # All or nothing: everything is checked before the first chunk changes the grid, so that a
+    # bad pose in the last chunk is reported by name, not as a bound or a half-built map.
     if len(scans) == 0:
         raise ValueError("scans must not be empty")
     if not (np.isfinite(max_range) and max_range > 0):
         raise ValueError("max_range must be finite and > 0")
+    if not (np.isfinite(resolution) and resolution > 0):
+        raise ValueError("resolution must be finite and > 0")
+    if not (np.isfinite(robot_radius) and robot_radius >= 0):
+        raise ValueError("robot_radius must be finite and >= 0")
+    if int(chunk) != chunk or chunk < 1:
+        raise ValueError("chunk must be an integer >= 1")
+    if not np.all(np.isfinite(scans.laser_poses)):
+        raise ValueError("scans.laser_poses must contain only finite values")
+    if robot_radius > 0 and not np.all(np.isfinite(scans.robot_poses)):
+        raise ValueError("scans.robot_poses must contain only finite values")
+    if not np.all(np.isfinite(scans.beam_angles())):
+        raise ValueError("scans.start_angles and angular_resolutions must be finite")
     if skip_no_return:
         ranges = np.where(scans.ranges >= no_return_range(scans), np.nan, scans.ranges)
         scans = replace(scans, ranges=ranges)
@@ -72,6 +86,7 @@ def map_laser_log(scans: LaserScans, resolution: float = 0.05, max_range: float 
 
     updated, seconds = 0, 0.0
     bar = tqdm(total=len(scans), unit="scan", disable=(None if progress is None else not progress))
+    chunk = int(chunk)
     for start in range(0, len(scans), chunk):
         stop = min(start + chunk, len(scans))
         t0 = time.perf_counter()

@@ -6,6 +6,7 @@
 
 #include "probslam/core/angle.hpp"
 #include "probslam/core/check.hpp"
+#include "probslam/grid/log_odds.hpp"
 
 namespace probslam {
 
@@ -15,13 +16,17 @@ namespace {
 constexpr double kWedgeMargin = 1e-9;
 }  // namespace
 
+void require_log_odds(double l, const char* name) {
+  require(std::fabs(l) <= kMaxLogOddsValue, name, "must be a finite log-odds of magnitude <= 1e6 (kMaxLogOddsValue)");
+}
+
 void ConeModel::validate() const {
   require_positive(z_max, "z_max");
   require(std::isfinite(alpha) && alpha >= 0.0, "alpha", "must be finite and >= 0");
   require(std::isfinite(beta) && beta >= 0.0, "beta", "must be finite and >= 0");
-  require_finite(l0, "l0");
-  require_finite(l_occ, "l_occ");
-  require_finite(l_free, "l_free");
+  require_log_odds(l0, "l0");
+  require_log_odds(l_occ, "l_occ");
+  require_log_odds(l_free, "l_free");
 }
 
 std::vector<std::uint8_t> valid_readings(const Eigen::Ref<const Eigen::VectorXd>& ranges) {

@@ -2,7 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <limits>
+#include <string>
 
 #include "probslam/core/check.hpp"
 #include "probslam/grid/scan_update.hpp"
@@ -10,10 +12,31 @@
 namespace probslam {
 namespace {
 
-// Grids above this many cells (32 GiB of log-odds) are refused rather than attempted.
-constexpr double kMaxCells = 4.0e9;
-// Rays longer than this many cells are refused: walking them would take minutes.
-constexpr double kMaxRayCells = 1.0e8;
+// A ray longer than this many times the grid's reach from the sensor (its farthest corner) is
+// cut to that length before its end point is computed: it leaves the grid either way, and its
+// end stays finite (a range of 1e308 would overflow). Rays up to it are walked exactly as given.
+constexpr double kRayCutSlack = 1024.0;
+
+// Refuses a grid of w x h cells (as doubles: they may come from arbitrary bounds) beyond kMaxCells.
+void check_cell_count(double w, double h, const char* name) {
+  if (w * h <= static_cast<double>(OccupancyGrid2D::kMaxCells)) return;
+  char text[96];
+  std::snprintf(text, sizeof text, "asks for %.6g x %.6g cells, more than OccupancyGrid2D.max_cells = ", w, h);
+  throw_invalid_argument(name, text + std::to_string(OccupancyGrid2D::kMaxCells));
+}
+
+// The lattice must map coordinates to cells and back without overflow or coinciding borders.
+void check_lattice(double resolution, int width, int height, const Eigen::Vector2d& origin) {
+  require_positive(resolution, "resolution");
+  require(std::isfinite(1.0 / resolution), "resolution", "must have a finite inverse");
+  require_all_finite(origin, "origin");
+  const double x1 = origin.x() + width * resolution, y1 = origin.y() + height * resolution;
+  require(std::isfinite(x1) && std::isfinite(y1), "resolution", "* width (height) + origin must be finite");
+  const double magnitude = std::max({1.0, std::fabs(origin.x()), std::fabs(origin.y()), std::fabs(x1), std::fabs(y1)});
+  require(resolution >= OccupancyGrid2D::kMinRelativeResolution * magnitude, "resolution",
+          "must be at least 1e-9 of the grid's largest coordinate (and 1e-9 m): finer cells would "
+          "share borders in double precision");
+}
 
 void check_clamp(const LogOddsClamp& clamp) {
   if (!clamp.enabled) return;
@@ -49,6 +72,7 @@ class GridScanStore {
     }
   }
   bool contains(const CellKey<2>& key) const { return grid_.contains(key[1], key[0]); }
+  KeyBox<2> box() const { return {{0, 0}, {grid_.width_, grid_.height_}}; }
   bool update_once(const CellKey<2>& key, bool hit) {
     const std::size_t index = static_cast<std::size_t>(key[1]) * grid_.width_ + key[0];
     if (grid_.stamp_[index] == grid_.scan_counter_) return false;
@@ -67,8 +91,8 @@ OccupancyGrid2D::OccupancyGrid2D(double resolution, int width, int height, const
   require_positive(resolution, "resolution");
   require(width > 0, "width", "must be > 0");
   require(height > 0, "height", "must be > 0");
-  require(static_cast<double>(width) * height <= kMaxCells, "width", "* height is too many cells");
-  require_all_finite(origin, "origin");
+  check_cell_count(width, height, "width");
+  check_lattice(resolution, width, height, origin);
   require_probability(p_prior, "p_prior");
   check_clamp(clamp);
   lattice_ = {origin.x(), origin.y(), resolution, 1.0 / resolution};
@@ -88,7 +112,7 @@ OccupancyGrid2D OccupancyGrid2D::covering(double xmin, double ymin, double xmax,
   require_positive(resolution, "resolution");
   const double w = std::max(1.0, std::ceil((xmax - xmin) / resolution));
   const double h = std::max(1.0, std::ceil((ymax - ymin) / resolution));
-  require(w * h <= kMaxCells, "resolution", "is too fine for the requested extent");
+  check_cell_count(w, h, "resolution");
   return OccupancyGrid2D(resolution, static_cast<int>(w), static_cast<int>(h), {xmin, ymin}, p_prior, clamp);
 }
 
@@ -105,6 +129,15 @@ void OccupancyGrid2D::set_beam_model(const BeamModel& beam) {
 
 RowMatrixXd OccupancyGrid2D::probability() const {
   return log_odds().unaryExpr([](double l) { return probability_from_log_odds(l); });
+}
+
+Eigen::Matrix<std::int64_t, 2, 1> OccupancyGrid2D::cell_index(double x, double y, const char* name) const {
+  require(std::isfinite(x) && std::isfinite(y), name, "must contain only finite values");
+  const double col = std::floor((x - lattice_.x0) * lattice_.inv_res);
+  const double row = std::floor((y - lattice_.y0) * lattice_.inv_res);
+  require(std::fabs(col) <= kMaxCellIndex && std::fabs(row) <= kMaxCellIndex, name,
+          "must lie within 2^53 cells of the grid's origin (the cell index is no longer exact beyond)");
+  return {static_cast<std::int64_t>(row), static_cast<std::int64_t>(col)};
 }
 
 // Table 9.1 lines 2-8 with the inverse model of Table 9.2.
@@ -143,11 +176,22 @@ std::size_t OccupancyGrid2D::insert_rays(const Eigen::Vector3d& pose,
                                          double max_range) {
   check_scan_shape(pose, ranges, beam_angles);
   require_positive(max_range, "max_range");
-  require(max_range * lattice_.inv_res <= kMaxRayCells, "max_range", "spans too many cells");
+  return insert_rays_checked(pose, ranges, beam_angles, max_range);
+}
+
+std::size_t OccupancyGrid2D::insert_rays_checked(const Eigen::Vector3d& pose,
+                                                 const Eigen::Ref<const Eigen::VectorXd>& ranges,
+                                                 const Eigen::Ref<const Eigen::VectorXd>& beam_angles,
+                                                 double max_range) {
   // A scan farther than max_range from the grid cannot touch it.
-  const double gap_x = std::max({lattice_.x0 - pose.x(), pose.x() - (lattice_.x0 + width_ * lattice_.res), 0.0});
-  const double gap_y = std::max({lattice_.y0 - pose.y(), pose.y() - (lattice_.y0 + height_ * lattice_.res), 0.0});
+  const double x1 = lattice_.x0 + width_ * lattice_.res, y1 = lattice_.y0 + height_ * lattice_.res;
+  const double gap_x = std::max({lattice_.x0 - pose.x(), pose.x() - x1, 0.0});
+  const double gap_y = std::max({lattice_.y0 - pose.y(), pose.y() - y1, 0.0});
   if (std::hypot(gap_x, gap_y) > max_range) return 0;
+  const double reach = std::hypot(std::max(std::fabs(pose.x() - lattice_.x0), std::fabs(pose.x() - x1)),
+                                  std::max(std::fabs(pose.y() - lattice_.y0), std::fabs(pose.y() - y1))) +
+                       2.0 * lattice_.res;
+  const double cut = std::isfinite(kRayCutSlack * reach) ? kRayCutSlack * reach : reach;
 
   const Eigen::Index n = ranges.size();
   std::vector<double> ends;
@@ -158,7 +202,7 @@ std::size_t OccupancyGrid2D::insert_rays(const Eigen::Vector3d& pose,
     const double r = ranges[i];
     if (!(std::isfinite(r) && r >= 0.0)) continue;  // invalid reading: skipped
     const bool hit = r < max_range;
-    const double length = hit ? r : max_range;
+    const double length = std::min(hit ? r : max_range, cut);  // a cut end lies outside: no hit
     const double a = pose[2] + beam_angles[i];
     ends.push_back(pose.x() + length * std::cos(a));
     ends.push_back(pose.y() + length * std::sin(a));
@@ -173,15 +217,20 @@ std::size_t OccupancyGrid2D::insert_scans(const Eigen::Ref<const Poses2>& poses,
                                           const Eigen::Ref<const RowMatrixXd>& ranges,
                                           const Eigen::Ref<const RowMatrixXd>& beam_angles,
                                           double max_range) {
+  // All or nothing: every row is checked before the first is applied.
   require(ranges.rows() == poses.rows(), "ranges", "must have one row per pose");
+  require(ranges.cols() > 0, "ranges", "must not be empty");
   const bool shared_angles = beam_angles.rows() == 1;
   require(shared_angles || beam_angles.rows() == ranges.rows(), "beam_angles",
           "must have one row, or one row per pose");
   require(beam_angles.cols() == ranges.cols(), "beam_angles", "must have as many columns as ranges");
+  require_all_finite(poses, "poses");
+  require_all_finite(beam_angles, "beam_angles");
+  require_positive(max_range, "max_range");
   std::size_t updated = 0;
   for (Eigen::Index s = 0; s < poses.rows(); ++s) {
     const Eigen::VectorXd angles = beam_angles.row(shared_angles ? 0 : s).transpose();
-    updated += insert_rays(poses.row(s).transpose(), ranges.row(s).transpose(), angles, max_range);
+    updated += insert_rays_checked(poses.row(s).transpose(), ranges.row(s).transpose(), angles, max_range);
   }
   return updated;
 }
@@ -189,7 +238,7 @@ std::size_t OccupancyGrid2D::insert_scans(const Eigen::Ref<const Poses2>& poses,
 std::size_t OccupancyGrid2D::clear_footprint(const Eigen::Vector3d& pose, double radius, double l_free) {
   require_all_finite(pose, "pose");
   require(std::isfinite(radius) && radius >= 0.0, "radius", "must be finite and >= 0");
-  require_finite(l_free, "l_free");
+  require_log_odds(l_free, "l_free");
   const double delta = l_free - l0_;
   const int row_lo = std::max(0, lattice_.key(1, pose.y() - radius));
   const int row_hi = std::min(height_ - 1, lattice_.key(1, pose.y() + radius));
@@ -216,7 +265,7 @@ OccupancyGrid2D OccupancyGrid2D::grown_to_include(double xmin, double ymin, doub
   const double right = cells_beyond(xmax - (lattice_.x0 + width_ * res));
   const double top = cells_beyond(ymax - (lattice_.y0 + height_ * res));
   const double new_w = width_ + left + right, new_h = height_ + bottom + top;
-  require(new_w * new_h <= kMaxCells, "xmin", "..xmax x ymin..ymax is too many cells");
+  check_cell_count(new_w, new_h, "bounds");
   OccupancyGrid2D grown(res, static_cast<int>(new_w), static_cast<int>(new_h),
                         {lattice_.x0 - left * res, lattice_.y0 - bottom * res}, p_prior_, clamp_);
   grown.beam_ = beam_;

@@ -4,11 +4,12 @@
 #include <atomic>
 #include <cmath>
 #include <limits>
-#include <thread>
+#include <string>
 
 #include "probslam/core/check.hpp"
 #include "probslam/grid/log_odds.hpp"
 #include "probslam/grid/scan_update.hpp"
+#include "probslam/grid/worker_pool.hpp"
 
 namespace probslam {
 namespace {
@@ -16,9 +17,20 @@ namespace {
 constexpr std::size_t kInitialTableSlots = 1024;  // power of two
 // Below this many rays per thread, threads cost more than they save.
 constexpr std::size_t kMinRaysPerThread = 512;
+// cast_ray cuts a range beyond this many times the farthest distance to the key range (so that
+// its end stays finite); rays up to it are walked exactly as given.
+constexpr double kRayCutSlack = 1024.0;
 // Rays are grouped by azimuth into this many sectors so that each thread walks its own wedge
 // of space: threads walking neighbouring rays would fight over the same cache lines.
 constexpr int kAzimuthSectors = 1024;
+
+// A double as OctoMap's float point coordinate. A finite value beyond float range becomes
+// +-FLT_MAX (a far point, outside the key range) instead of undefined behaviour; NaN and inf
+// stay as they are (skipped and counted as non-finite).
+float to_float(double v) {
+  constexpr double kFloatMax = std::numeric_limits<float>::max();
+  return static_cast<float>(std::isfinite(v) ? std::min(std::max(v, -kFloatMax), kFloatMax) : v);
+}
 
 // OctoMap stores its probabilities as float log-odds: logodds(p) = (float) log(p / (1 - p)).
 float float_logit(double p) { return static_cast<float>(logit(p)); }
@@ -39,6 +51,7 @@ class VoxelStoreT {
   VoxelStoreT(OccupancyGrid3D& grid, std::vector<std::uint32_t>& touched) : g_(grid), touched_(touched) {}
 
   bool contains(const CellKey<3>& k) const { return OctreeLattice::valid(k); }
+  KeyBox<3> box() const { return OctreeLattice::key_box(); }
 
   bool update_once(const CellKey<3>& k, bool hit) {
     const std::uint64_t packed = OccupancyGrid3D::pack(k);
@@ -119,6 +132,9 @@ using VoxelLookupStore = VoxelStoreT<true>;
 
 OccupancyGrid3D::OccupancyGrid3D(double resolution, const OccupancyParams3D& params) {
   require_positive(resolution, "resolution");
+  // Voxel centres span +-32768 res and keys scale by 1 / res: both must stay finite.
+  require(std::isfinite(1.0 / resolution) && std::isfinite(resolution * OctreeLattice::kKeyLimit), "resolution",
+          "must have a finite inverse and a finite key range (65536 * resolution)");
   require_probability(params.p_hit, "p_hit");
   require_probability(params.p_miss, "p_miss");
   require(params.p_hit > 0.5, "p_hit", "must be > 0.5 (a hit must raise the occupancy)");
@@ -215,7 +231,9 @@ InsertStats3D OccupancyGrid3D::insert_point_cloud(const float* xyz, std::size_t 
   require(std::isfinite(origin[0]) && std::isfinite(origin[1]) && std::isfinite(origin[2]), "origin",
           "must contain only finite values");
   require(!std::isnan(max_range), "max_range", "must not be NaN (negative means unlimited)");
-  require(threads >= 1, "threads", "must be >= 1");
+  if (threads < 1 || threads > kMaxThreads)
+    throw_invalid_argument("threads", "must be between 1 and " + std::to_string(kMaxThreads) +
+                                          " (OccupancyGrid3D::kMaxThreads), got " + std::to_string(threads));
   require(n == 0 || xyz != nullptr, "points", "must not be null");
   InsertStats3D stats;
   stats.points = n;
@@ -255,19 +273,27 @@ InsertStats3D OccupancyGrid3D::insert_point_cloud(const float* xyz, std::size_t 
   }
 
   const ScanSegments<3, float> scan{origin, ends.data(), is_hit.data(), is_hit.size()};
-  std::vector<std::uint32_t> touched;
-  VoxelStore store(*this, touched);
   const bool origin_valid = OctreeLattice::valid(key_of(origin[0], origin[1], origin[2]));
   const std::size_t workers =
-      std::min<std::size_t>(static_cast<std::size_t>(threads), scan.n / kMinRaysPerThread);
-  if (workers <= 1 || !origin_valid) {
+      origin_valid ? std::min<std::size_t>(static_cast<std::size_t>(threads), scan.n / kMinRaysPerThread) : 1;
+  if (workers <= 1) {
+    std::vector<std::uint32_t> touched;
+    VoxelStore store(*this, touched);
+    ScanEnd guard(*this, touched);
     stats.voxels_updated = apply_hits(lattice_, store, scan);
     // computeRayKeys refuses a ray whose origin is outside the key range; the hits remain.
     if (origin_valid) stats.voxels_updated += apply_misses(lattice_, store, scan, 0, scan.n);
-    end_scan(touched);
     return stats;
   }
+  // Every thread is started before anything changes: a refused thread leaves the map as it was.
+  WorkerPool pool(workers);
+  stats.voxels_updated = insert_concurrently(pool, scan);
+  return stats;
+}
 
+std::size_t OccupancyGrid3D::insert_concurrently(WorkerPool& pool, const ScanSegments<3, float>& scan) {
+  const std::size_t workers = pool.size();
+  const float* origin = scan.origin;
   // Concurrent updates of the existing blocks; an update that needs a missing block is set
   // aside, the missing blocks are created serially and the set-aside work done again. Hits go
   // first, all of them, then the rays. The per-scan result is a union of voxel sets (hit beats
@@ -292,12 +318,19 @@ InsertStats3D OccupancyGrid3D::insert_point_cloud(const float* xyz, std::size_t 
     for (int k = 0; k < kAzimuthSectors; ++k) start[k + 1] += start[k];
     for (std::size_t i = 0; i < scan.n; ++i) order[start[sector[i]]++] = static_cast<std::uint32_t>(i);
   }
+  std::vector<std::uint32_t> hit_points;
+  for (std::size_t i = 0; i < scan.n; ++i)
+    if (scan.is_hit[i]) hit_points.push_back(static_cast<std::uint32_t>(i));
+
   std::vector<std::vector<std::uint32_t>> touched_by(workers), deferred_by(workers);
   std::vector<std::vector<std::uint64_t>> missing_by(workers);
   std::vector<std::size_t> updated_by(workers, 0);
+  // Only with every ray walked (or on an exception) may the "changed in this scan" marks go.
+  std::vector<std::unique_ptr<ScanEnd>> guards;
+  for (auto& t : touched_by) guards.push_back(std::make_unique<ScanEnd>(*this, t));
   // Does updates [share of `items`] on each thread: hits (one point each) or ray walks.
   const auto run = [&](const std::vector<std::uint32_t>& items, bool hits, bool second_pass) {
-    const auto work = [&](std::size_t w) {
+    pool.run([&](std::size_t w) {
       VoxelLookupStore lookup(*this, touched_by[w]);
       if (!second_pass) lookup.record_missing_blocks(&missing_by[w]);
       std::size_t updated = 0;
@@ -310,11 +343,7 @@ InsertStats3D OccupancyGrid3D::insert_point_cloud(const float* xyz, std::size_t 
         if (lookup.missing() && !second_pass) deferred_by[w].push_back(static_cast<std::uint32_t>(i));
       }
       updated_by[w] += updated;
-    };
-    std::vector<std::thread> pool;
-    for (std::size_t w = 1; w < workers; ++w) pool.emplace_back(work, w);
-    work(0);
-    for (auto& t : pool) t.join();
+    });
   };
   // Creates the blocks the first pass missed and repeats the updates that needed them.
   const auto finish = [&](bool hits) {
@@ -327,18 +356,13 @@ InsertStats3D OccupancyGrid3D::insert_point_cloud(const float* xyz, std::size_t 
     }
     if (!deferred.empty()) run(deferred, hits, true);
   };
-  std::vector<std::uint32_t> hit_points;
-  for (std::size_t i = 0; i < scan.n; ++i)
-    if (scan.is_hit[i]) hit_points.push_back(static_cast<std::uint32_t>(i));
   run(hit_points, true, false);
   finish(true);
   run(order, false, false);
   finish(false);
-  for (const std::size_t u : updated_by) stats.voxels_updated += u;
-  // Only now, with every ray walked, may the "changed in this scan" marks go.
-  for (const auto& t : touched_by) end_scan(t);
-  end_scan(touched);
-  return stats;
+  std::size_t updated = 0;
+  for (const std::size_t u : updated_by) updated += u;
+  return updated;
 }
 
 InsertStats3D OccupancyGrid3D::insert_point_cloud(
@@ -347,8 +371,8 @@ InsertStats3D OccupancyGrid3D::insert_point_cloud(
   require_all_finite(origin, "origin");
   std::vector<float> xyz(static_cast<std::size_t>(points.rows()) * 3);
   for (Eigen::Index i = 0; i < points.rows(); ++i)
-    for (int a = 0; a < 3; ++a) xyz[3 * i + a] = static_cast<float>(points(i, a));
-  const float o[3] = {static_cast<float>(origin.x()), static_cast<float>(origin.y()), static_cast<float>(origin.z())};
+    for (int a = 0; a < 3; ++a) xyz[3 * i + a] = to_float(points(i, a));
+  const float o[3] = {to_float(origin.x()), to_float(origin.y()), to_float(origin.z())};
   return insert_point_cloud(xyz.data(), static_cast<std::size_t>(points.rows()), o, max_range, threads);
 }
 
@@ -381,11 +405,16 @@ std::optional<Eigen::Vector3d> OccupancyGrid3D::cast_ray(const Eigen::Vector3d& 
   require_all_finite(direction, "direction");
   require(direction.norm() > 0.0, "direction", "must not be zero");
   require_positive(max_range, "max_range");
-  const Eigen::Vector3d end = origin + direction.normalized() * max_range;
+  // Past the key range nothing is occupied: a range beyond kRayCutSlack times the farthest
+  // distance to it is cut there, so that the end stays finite (the walk itself is clipped to
+  // the key range by walk_ray_in_box). Shorter rays are walked exactly as given.
+  const double reach = origin.norm() + std::sqrt(3.0) * (OctreeLattice::kKeyOffset + 2) * lattice_.res;
+  const double range = std::min(max_range, kRayCutSlack * reach);
+  const Eigen::Vector3d end = origin + direction.normalized() * range;
   const double o[3] = {origin.x(), origin.y(), origin.z()}, e[3] = {end.x(), end.y(), end.z()};
   std::optional<Eigen::Vector3d> found;
   const auto occupied = [&](const CellKey<3>& k) { return log_odds_at_key(k) >= occ_; };
-  walk_ray<3, double>(lattice_, o, e, [&](const CellKey<3>& k) {
+  walk_ray_in_box<3, double>(lattice_, OctreeLattice::key_box(), o, e, [&](const CellKey<3>& k) {
     if (!occupied(k)) return true;
     found = key_center(k);
     return false;
@@ -434,6 +463,11 @@ OccupancyGrid2D OccupancyGrid3D::project_2d(double z_min, double z_max) const {
   const LogOddsClamp clamp{lo_, hi_, true};
   if (x_hi < 0) return OccupancyGrid2D(lattice_.res, 1, 1, {0.0, 0.0}, 0.5, clamp);
   const int w = x_hi - x_lo + 1, h = y_hi - y_lo + 1;
+  // Up to 65536^2 cells: bounded before the grid and the `seen` marks are allocated.
+  if (static_cast<std::int64_t>(w) * h > OccupancyGrid2D::kMaxCells)
+    throw_invalid_argument("z_min", "..z_max covers known voxels over " + std::to_string(w) + " x " +
+                                        std::to_string(h) + " cells, more than OccupancyGrid2D.max_cells = " +
+                                        std::to_string(OccupancyGrid2D::kMaxCells));
   const Eigen::Vector2d corner((x_lo - OctreeLattice::kKeyOffset) * lattice_.res,
                                (y_lo - OctreeLattice::kKeyOffset) * lattice_.res);
   OccupancyGrid2D grid(lattice_.res, w, h, corner, 0.5, clamp);

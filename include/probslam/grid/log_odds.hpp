@@ -9,6 +9,14 @@ namespace probslam {
 /// log(p / (1 - p)), eq. 9.5 / 9.7.
 inline double logit(double p) { return std::log(p / (1.0 - p)); }
 
+/// Largest |log-odds| accepted as a model value (l0, l_occ, l_free). Probabilities saturate in
+/// double beyond |l| ~ 37, so nothing meaningful is refused; the bound keeps unclamped sums
+/// finite: a cell would need 1e302 updates to overflow.
+constexpr double kMaxLogOddsValue = 1e6;
+
+/// Throws std::invalid_argument naming `name` unless |l| <= kMaxLogOddsValue (NaN included).
+void require_log_odds(double l, const char* name);
+
 /// Occupancy probability from log-odds, eq. 9.6.
 inline double probability_from_log_odds(double l) { return 1.0 - 1.0 / (1.0 + std::exp(l)); }
 

@@ -11,17 +11,17 @@
 #include "probslam/core/types.hpp"
 #include "probslam/grid/inverse_range_sensor_model.hpp"
 #include "probslam/grid/log_odds.hpp"
+#include "probslam/grid/ray_traversal.hpp"
 
 namespace probslam {
 
 /// Regular lattice of a 2-D grid: axis 0 is x (columns), axis 1 is y (rows). Cell (i, j)
-/// covers [x0 + j res, x0 + (j + 1) res) x [y0 + i res, y0 + (i + 1) res).
+/// covers [x0 + j res, x0 + (j + 1) res) x [y0 + i res, y0 + (i + 1) res). Keys saturate at
+/// +-kKeyBound (outside every grid) rather than overflow.
 struct GridLattice2D {
   double x0 = 0.0, y0 = 0.0, res = 1.0, inv_res = 1.0;
 
-  int key(int axis, double coord) const {
-    return static_cast<int>(std::floor((coord - (axis == 0 ? x0 : y0)) * inv_res));
-  }
+  int key(int axis, double coord) const { return saturated_key((coord - (axis == 0 ? x0 : y0)) * inv_res); }
   double key_to_coord(int axis, int key) const { return (axis == 0 ? x0 : y0) + (key + 0.5) * res; }
   double resolution() const { return res; }
 };
@@ -34,6 +34,19 @@ struct BeamModel {
 
 class OccupancyGrid2D {
  public:
+  /// Grids of more cells are refused, whatever asks for them (constructor, covering, grown,
+  /// OccupancyGrid3D::project_2d): 2^28 cells hold 2 GiB of log-odds and 1 GiB of scan stamps,
+  /// a 1.6 km square at 10 cm; a larger request is almost always a bad bound or resolution, and
+  /// would otherwise exhaust memory instead of raising.
+  static constexpr std::int64_t kMaxCells = std::int64_t{1} << 28;
+  /// Cell borders are x0 + k res in double: a cell narrower than this fraction of the grid's
+  /// largest coordinate (or of 1 m) would span only a few ulps, and neighbouring cells would
+  /// share borders. Finer resolutions are refused.
+  static constexpr double kMinRelativeResolution = 1e-9;
+  /// cell_index refuses points whose index exceeds this magnitude: beyond 2^53 a double has no
+  /// fractional part, so the index is no longer that of one cell.
+  static constexpr double kMaxCellIndex = 9007199254740992.0;  // 2^53
+
   /// Lock it around every call when several threads share this object (core/object_mutex.hpp).
   std::mutex& mutex() const noexcept { return mutex_.get(); }
 
@@ -73,8 +86,13 @@ class OccupancyGrid2D {
     return static_cast<unsigned>(row) < static_cast<unsigned>(height_) &&
            static_cast<unsigned>(col) < static_cast<unsigned>(width_);
   }
-  /// (row, col) of the cell containing (x, y); may lie outside the grid.
+  /// (row, col) of the cell containing (x, y); may lie outside the grid. Indices saturate at
+  /// +-kKeyBound (2^30), which is outside every grid: use cell_index for the exact index.
   Eigen::Vector2i cell_of(double x, double y) const { return {lattice_.key(1, y), lattice_.key(0, x)}; }
+  /// (row, col) of the cell containing (x, y) as exact 64-bit indices. Throws
+  /// std::invalid_argument naming `name` when (x, y) is not finite or an index exceeds
+  /// kMaxCellIndex in magnitude.
+  Eigen::Matrix<std::int64_t, 2, 1> cell_index(double x, double y, const char* name = "points") const;
   /// Centre of mass (x, y) of cell (row, col).
   Eigen::Vector2d cell_center(int row, int col) const {
     return {lattice_.key_to_coord(0, col), lattice_.key_to_coord(1, row)};
@@ -89,11 +107,14 @@ class OccupancyGrid2D {
 
   /// Laser-beam update (see apply_scan): readings < max_range hit their end cell and clear
   /// the cells before it; readings >= max_range clear up to max_range and mark nothing;
-  /// NaN, infinite and negative readings are skipped. Returns the number of cells updated.
+  /// NaN, infinite and negative readings are skipped. Each ray is clipped to the grid before it
+  /// is walked, so it costs what its part inside the grid costs, whatever max_range is (a ray
+  /// that never enters the grid costs O(1)). Returns the number of cells updated.
   std::size_t insert_rays(const Eigen::Vector3d& pose, const Eigen::Ref<const Eigen::VectorXd>& ranges,
                           const Eigen::Ref<const Eigen::VectorXd>& beam_angles, double max_range);
 
   /// insert_rays for each scan: poses (S x 3), ranges (S x B), beam_angles (B) or (S x B).
+  /// Every row is validated before the first is applied.
   std::size_t insert_scans(const Eigen::Ref<const Poses2>& poses, const Eigen::Ref<const RowMatrixXd>& ranges,
                            const Eigen::Ref<const RowMatrixXd>& beam_angles, double max_range);
 
@@ -109,6 +130,9 @@ class OccupancyGrid2D {
 
  private:
   friend class GridScanStore;
+  /// insert_rays after its arguments have been checked.
+  std::size_t insert_rays_checked(const Eigen::Vector3d& pose, const Eigen::Ref<const Eigen::VectorXd>& ranges,
+                                  const Eigen::Ref<const Eigen::VectorXd>& beam_angles, double max_range);
   void update_cell(std::size_t index, double delta) {
     log_odds_[index] = clamp_.apply(log_odds_[index] + delta);
   }
@@ -126,5 +150,7 @@ class OccupancyGrid2D {
 
 /// Eq. 9.9: the most pessimistic map (cell-wise maximum occupancy) of grids of equal geometry.
 OccupancyGrid2D fuse_max(const std::vector<const OccupancyGrid2D*>& grids);
+/// One step of fuse_max: fused becomes the cell-wise maximum of fused and other (same geometry).
+void fuse_max_into(OccupancyGrid2D& fused, const OccupancyGrid2D& other);
 
 }  // namespace probslam

@@ -18,26 +18,27 @@ namespace probslam {
 
 template <bool Concurrent>
 class VoxelStoreT;
+template <int Dim, typename Real>
+struct ScanSegments;
+class WorkerPool;
 
 /// OctoMap's voxel addressing at full depth: key = (int)floor(coord / res) + 32768 per axis,
-/// valid in [0, 65536); a key's centre is (key - 32768 + 0.5) * res. Coordinates beyond int
-/// range map to the invalid key -1 (OctoMap's cast would be undefined there).
+/// valid in [0, 65536); a key's centre is (key - 32768 + 0.5) * res. Keys outside the valid
+/// range saturate at +-kKeyBound + 32768 (OctoMap's cast would be undefined beyond int range),
+/// NaN gives an invalid key too; so a ray walk stays consistent outside the range.
 struct OctreeLattice {
   static constexpr int kKeyOffset = 32768;
   static constexpr int kKeyLimit = 65536;
   double res = 0.1, inv_res = 10.0;
 
-  int key(int /*axis*/, double coord) const {
-    const double f = std::floor(inv_res * coord);
-    if (!(f >= -kKeyOffset && f < kKeyOffset)) return -1;
-    return static_cast<int>(f) + kKeyOffset;
-  }
+  int key(int /*axis*/, double coord) const { return saturated_key(inv_res * coord) + kKeyOffset; }
   double key_to_coord(int /*axis*/, int key) const { return (static_cast<double>(key - kKeyOffset) + 0.5) * res; }
   double resolution() const { return res; }
   static bool valid(const CellKey<3>& k) {
     return static_cast<unsigned>(k[0]) < kKeyLimit && static_cast<unsigned>(k[1]) < kKeyLimit &&
            static_cast<unsigned>(k[2]) < kKeyLimit;
   }
+  static KeyBox<3> key_box() { return {{0, 0, 0}, {kKeyLimit, kKeyLimit, kKeyLimit}}; }
 };
 
 /// Sensor model and log-odds bounds of the 3-D grid, as probabilities (OctoMap's defaults).
@@ -62,6 +63,10 @@ class OccupancyGrid3D {
  public:
   /// Lock it around every call when several threads share this object (core/object_mutex.hpp).
   std::mutex& mutex() const noexcept { return mutex_.get(); }
+
+  /// insert_point_cloud refuses more worker threads: more than any machine this runs on has
+  /// cores only adds thread stacks and contention, so a larger count is a mistake.
+  static constexpr int kMaxThreads = 256;
 
   /// Voxels per block edge is 2^kBlockBits; blocks are allocated when a ray first reaches them.
   static constexpr int kBlockBits = 3;
@@ -91,7 +96,10 @@ class OccupancyGrid3D {
   /// within max_range of the origin (or any point if max_range < 0) clears the voxels its ray
   /// crosses and hits its own; a farther one clears the ray cut at max_range and hits nothing.
   /// Each voxel changes at most once per scan, hit beating miss. Non-finite points are skipped
-  /// and counted. With threads > 1 the rays are walked concurrently; the result is identical.
+  /// and counted. With threads > 1 (at most kMaxThreads) the rays are walked concurrently; the
+  /// result is identical. All worker threads are started before the map changes: when one cannot
+  /// be, std::system_error is thrown and the map is unchanged. (std::bad_alloc midway leaves the
+  /// scan partly applied, with the map consistent.)
   InsertStats3D insert_point_cloud(const float* xyz, std::size_t n, const float origin[3], double max_range = -1.0,
                                    int threads = 1);
   /// The same for double coordinates, rounded to float first.
@@ -114,7 +122,9 @@ class OccupancyGrid3D {
   void set_log_odds(const CellKey<3>& key, float value);
 
   /// The first occupied voxel a ray from origin along direction meets within max_range (m),
-  /// the origin's voxel included; unknown voxels are passed through. Returns its centre.
+  /// the origin's voxel included; unknown voxels are passed through. Returns its centre. The
+  /// walk is clipped to the key range before it starts: it costs at most the range's size
+  /// whatever max_range is, and an origin outside the range is walked from where it enters.
   std::optional<Eigen::Vector3d> cast_ray(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
                                           double max_range) const;
 
@@ -144,6 +154,8 @@ class OccupancyGrid3D {
   /// Occupancy seen from above: an OccupancyGrid2D on the same x-y lattice covering the known
   /// voxels whose centres lie in [z_min, z_max], each cell holding the largest log-odds of its
   /// column (eq. 9.9's pessimistic fusion); columns with no known voxel keep the prior 0.
+  /// Refused (std::invalid_argument naming OccupancyGrid2D.max_cells) before anything is
+  /// allocated when the covered area has more cells than OccupancyGrid2D::kMaxCells.
   OccupancyGrid2D project_2d(double z_min, double z_max) const;
 
  private:
@@ -174,6 +186,21 @@ class OccupancyGrid3D {
   void grow_table();
   /// Clears the per-scan "changed" bits of the blocks a scan touched.
   void end_scan(const std::vector<std::uint32_t>& touched);
+  /// Ends a scan (end_scan) when it goes out of scope, on an exception too: marks left set would
+  /// make the next scan skip those voxels.
+  class ScanEnd {
+   public:
+    ScanEnd(OccupancyGrid3D& grid, const std::vector<std::uint32_t>& touched) : grid_(grid), touched_(touched) {}
+    ScanEnd(const ScanEnd&) = delete;
+    ScanEnd& operator=(const ScanEnd&) = delete;
+    ~ScanEnd() { grid_.end_scan(touched_); }
+
+   private:
+    OccupancyGrid3D& grid_;
+    const std::vector<std::uint32_t>& touched_;
+  };
+  /// The multi-threaded half of insert_point_cloud: walks the scan on the pool's threads.
+  std::size_t insert_concurrently(WorkerPool& pool, const ScanSegments<3, float>& scan);
 
   OctreeLattice lattice_;
   OccupancyParams3D params_;

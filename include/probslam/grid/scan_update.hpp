@@ -39,27 +39,11 @@ template <int Dim, typename Real, class Lattice, class Store>
 std::size_t apply_misses(const Lattice& lattice, Store& store, const ScanSegments<Dim, Real>& scan,
                          std::size_t first, std::size_t last) {
   std::size_t updated = 0;
-  CellKey<Dim> origin_key;
-  for (int d = 0; d < Dim; ++d) origin_key[d] = lattice.key(d, scan.origin[d]);
-  const bool origin_inside = store.contains(origin_key);
+  const KeyBox<Dim> box = store.box();
   for (std::size_t i = first; i < last; ++i) {
-    const Real* end = scan.ends + i * Dim;
-    CellKey<Dim> end_key;
-    for (int d = 0; d < Dim; ++d) end_key[d] = lattice.key(d, end[d]);
-    if (origin_inside && store.contains(end_key)) {
-      // Both ends inside a box, so the whole segment is: the walk need not watch for an exit.
-      // (The check stays: rounding may step beside a segment that runs along the box's edge.)
-      walk_ray<Dim, Real>(lattice, scan.origin, end, [&](const CellKey<Dim>& key) {
-        if (store.contains(key)) updated += store.update_once(key, false);
-        return true;
-      });
-      continue;
-    }
-    bool entered = false;
-    walk_ray<Dim, Real>(lattice, scan.origin, end, [&](const CellKey<Dim>& key) {
-      if (!store.contains(key)) return !entered;  // a segment leaves a box only once
-      entered = true;
-      if (store.update_once(key, false)) ++updated;
+    // Clipped to the store's box: a ray costs what its part inside costs, whatever its length.
+    walk_ray_in_box<Dim, Real>(lattice, box, scan.origin, scan.ends + i * Dim, [&](const CellKey<Dim>& key) {
+      updated += store.update_once(key, false);
       return true;
     });
   }
@@ -70,9 +54,10 @@ std::size_t apply_misses(const Lattice& lattice, Store& store, const ScanSegment
 /// end cell excluded) gets the miss update, every end cell of a hit the hit update; within a
 /// scan each cell changes at most once and a cell both hit and crossed counts as hit.
 ///
-/// Store provides `bool contains(const CellKey<Dim>&)` and `bool update_once(const CellKey<Dim>&,
-/// bool hit)`, which applies the update unless the cell was already updated in this scan (the
-/// caller starts a new scan on the store first). Rays leaving a bounded store stop there.
+/// Store provides `bool contains(const CellKey<Dim>&)`, `KeyBox<Dim> box()` (the keys it holds)
+/// and `bool update_once(const CellKey<Dim>&, bool hit)`, which applies the update unless the
+/// cell was already updated in this scan (the caller starts a new scan on the store first). Rays
+/// are clipped to the store's box.
 /// Returns the number of cells updated.
 template <int Dim, typename Real, class Lattice, class Store>
 std::size_t apply_scan(const Lattice& lattice, Store& store, const ScanSegments<Dim, Real>& scan) {
