@@ -86,11 +86,11 @@ def _library_files(out: pathlib.Path) -> None:
         _write(out / "ros_map", "p2_scale.bin", YAML.replace(b"trinary", b"scale") + SEPARATOR +
                b"P2\n# comment\n3 2\n255\n0 128 254\n205 10 255\n")
         g3 = ps.OccupancyGrid3D(0.2)
-        g3.insert_point_cloud(np.array([[0.0, 0.0, 0.0]]), np.array([[1.0, 0.5, 0.2], [0.6, -0.4, 0.1]]))
+        g3.insert_point_cloud(np.array([[1.0, 0.5, 0.2], [0.6, -0.4, 0.1]]), np.zeros(3))
         g3.write_bt(os.path.join(tmp, "t.bt"))
         _write(out / "octomap_bt", "rays.bt", pathlib.Path(tmp, "t.bt").read_bytes())
         g3 = ps.OccupancyGrid3D(0.5)
-        g3.insert_point_cloud(np.array([[0.0, 0.0, 0.0]]), np.array([[3.0, 0.0, 0.0]]))
+        g3.insert_point_cloud(np.array([[3.0, 0.0, 0.0]]), np.zeros(3))
         g3.write_bt(os.path.join(tmp, "t.bt"))
         _write(out / "octomap_bt", "line.bt", pathlib.Path(tmp, "t.bt").read_bytes())
 

@@ -23,8 +23,8 @@ EXPECTED = (ValueError, FileNotFoundError)
 class Workspace:
     """A private directory whose files are rewritten for every input."""
 
-    def __init__(self) -> None:
-        self.dir = tempfile.mkdtemp(prefix="probslam-fuzz-")
+    def __init__(self, directory=None) -> None:
+        self.dir = str(directory) if directory is not None else tempfile.mkdtemp(prefix="probslam-fuzz-")
 
     def write(self, name: str, data: bytes) -> str:
         path = os.path.join(self.dir, name)
