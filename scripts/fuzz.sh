@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Fuzzes every parser entry point with atheris (fuzz/targets.py) for SECONDS_PER_TARGET seconds
-# each (default 8: about 1.5 minutes for the ten targets), then prints a table of executions,
+# each (default 6: about 80 s for the ten targets on 2 cores), then prints a table of executions,
 # crashes and hangs. Exits 1 on any finding; the inputs are kept in $FUZZ_OUT (default
 # fuzz/findings/) as crash-*, timeout-* or oom-* files. Skips (exit 0) if atheris is missing.
 #   usage: scripts/fuzz.sh [SECONDS_PER_TARGET] [TARGET ...]
@@ -9,7 +9,7 @@
 set -uo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
 
-seconds="${1:-8}"
+seconds="${1:-6}"
 shift || true
 py="${PYTHON:-}"
 [ -n "$py" ] || { [ -x .venv/bin/python ] && py=.venv/bin/python || py=python3; }
