@@ -11,6 +11,14 @@ namespace probslam::bindings {
 
 namespace {
 
+// A log's PARAM values are bytes from the file: bytes that are not UTF-8 become \xNN escapes
+// rather than a UnicodeDecodeError when the dict is built.
+py::str escaped_text(const std::string& s) {
+  PyObject* o = PyUnicode_DecodeUTF8(s.data(), static_cast<Py_ssize_t>(s.size()), "backslashreplace");
+  if (o == nullptr) throw py::error_already_set();
+  return py::reinterpret_steal<py::str>(o);
+}
+
 py::dict log_to_dict(CarmenLog&& log) {
   py::dict scans;
   scans["ranges"] = py::cast(std::move(log.scans.ranges));
@@ -28,7 +36,10 @@ py::dict log_to_dict(CarmenLog&& log) {
   py::dict out;
   out["scans"] = scans;
   out["odometry"] = odometry;
-  out["params"] = py::cast(log.params);
+  py::dict params;
+  for (const auto& [key, value] : log.params) params[escaped_text(key)] = escaped_text(value);
+  out["params"] = params;
+  out["skipped_wide_scans"] = log.skipped_wide_scans;
   return out;
 }
 
@@ -48,7 +59,7 @@ void define_io(py::module_& m) {
       py::arg("path"));
   m.def(
       "parse_carmen_log",
-      [](const std::string& text, const std::string& source) {
+      [](const std::string& text, const std::string& source) {  // text: str or bytes
         CarmenLog log;
         {
           py::gil_scoped_release release;

@@ -30,7 +30,8 @@ def _cmd_map(args: argparse.Namespace) -> int:
     total = time.perf_counter() - t0
     rate = summary.beams / summary.seconds / 1e6 if summary.seconds > 0 else float("inf")
     print(f"log:           {path}{' (bundled Intel Research Lab excerpt)' if not args.log else ''}")
-    print(f"scans:         {summary.scans}")
+    print(f"scans:         {summary.scans}"
+          + (f" ({log.skipped_wide_scans} skipped: far wider than the rest)" if log.skipped_wide_scans else ""))
     print(f"beams:         {summary.beams}")
     print(f"cells updated: {summary.cells_updated}")
     print(f"map:           {grid.width} x {grid.height} cells at {grid.resolution} m, origin {grid.origin}")
@@ -51,6 +52,9 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
     if path.is_dir() and (path / "Barcodes.dat").exists():
         data = io.read_mrclam(path, robot=args.robot)
+        _print_skipped(data.skipped_rows)
+        if args.seconds is not None:
+            data = ls.first_seconds(data, args.seconds)
         if not args.raw_ranges:
             data = data.with_euclidean_ranges()
         motion = np.diag([args.sigma_v ** 2, args.sigma_w ** 2])
@@ -84,6 +88,7 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
         poses, dead = run.poses, dr.poses
     else:
         data = io.read_victoria_park(path)
+        _print_skipped({"unreadable records": data.skipped_rows} if data.skipped_rows else {})
         t_load = time.perf_counter()
         run = ls.run_ekf_victoria_park(data)
         t_run = time.perf_counter() - t_load
@@ -99,6 +104,15 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
     print(f"time:          {time.perf_counter() - t0:.2f} s total")
     print(f"wrote:         {args.output}.png, {args.output}_path.txt")
     return 0
+
+
+def _print_skipped(skipped) -> None:
+    """The rows a reader skipped (a real file is read even with a few bad rows, and says so)."""
+    if skipped:
+        print(f"skipped rows:  {sum(skipped.values())} "
+              f"({'; '.join(f'{reason}: {count}' for reason, count in sorted(skipped.items()))})")
+    else:
+        print("skipped rows:  0")
 
 
 def _print_map_score(ls, data, run, unknown: bool) -> None:
@@ -176,6 +190,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --unknown: joint compatibility over each scan (default), maximum likelihood, "
                         "or a beam of filters (multiple hypotheses)")
     e.add_argument("--robot", type=int, default=1, help="MRCLAM robot number (default 1)")
+    e.add_argument("--seconds", type=float, default=None,
+                   help="MRCLAM: use only the first SECONDS of the robot's odometry (default: all)")
     e.add_argument("--raw-ranges", action="store_true",
                    help="use MRCLAM's readings as ranges (by default they are taken as the camera's depth "
                         "and turned into distances, see io.MRCLAM_RANGE_SCALE)")

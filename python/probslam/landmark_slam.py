@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import collections
+import dataclasses
 import itertools
 from dataclasses import dataclass, field
 from typing import Dict, List, Optional, Tuple
@@ -67,6 +68,8 @@ def run_ekf_mrclam(data: Mrclam, motion_noise, measurement_noise, known: bool = 
     returned, its assignments in ``associations`` (clutter as DISCARDED).
     ``dead_reckoning``: predictions only. The start pose defaults to the ground truth's."""
     odo, meas = data.odometry, data.measurements
+    if len(odo) == 0:
+        raise ValueError("data: the robot has no odometry")
     if initial_pose is None:
         if data.groundtruth is None:
             initial_pose = (0.0, 0.0, 0.0)
@@ -215,8 +218,24 @@ def fit_range_scale(data: Mrclam) -> float:
     return float(np.median(distance * np.cos(m[:, 3]) / m[:, 2]))
 
 
+def first_seconds(data: Mrclam, seconds: float) -> Mrclam:
+    """A copy holding the odometry, measurements and ground truth of the first ``seconds`` of
+    the run (from the first odometry stamp): a short run of a long dataset."""
+    seconds = float(seconds)
+    if not (np.isfinite(seconds) and seconds > 0):
+        raise ValueError(f"seconds: must be finite and > 0, got {seconds}")
+    if len(data.odometry) == 0:
+        raise ValueError("data: no odometry")
+    end = data.odometry[0, 0] + seconds
+    keep = lambda rows: rows if rows is None else rows[rows[:, 0] <= end]
+    return dataclasses.replace(data, odometry=keep(data.odometry), measurements=keep(data.measurements),
+                               groundtruth=keep(data.groundtruth))
+
+
 def scans(measurements: np.ndarray):
     """Row slices of the measurements sharing one time stamp (rows sorted by time)."""
+    if len(measurements) == 0:
+        return []
     starts = np.flatnonzero(np.r_[True, np.diff(measurements[:, 0]) != 0])
     return [slice(a, b) for a, b in zip(starts, np.r_[starts[1:], len(measurements)])]
 

@@ -1,5 +1,6 @@
 #include "probslam/io/carmen_log.hpp"
 
+#include <algorithm>
 #include <cctype>
 #include <charconv>
 #include <cmath>
@@ -20,6 +21,14 @@ using io_detail::LineError;
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kDegree = kPi / 180.0;
+
+// The scans are returned padded to the widest one kept. A log mixing widths (a front laser of
+// 181 and a rear one of 361 beams) pads by less than 2x; padding beyond this factor of the beams
+// read, plus kPaddingAllowance cells so that small logs always load, comes from a few scans far
+// wider than the rest. Those are skipped and counted: without the bound 255 kB of text (one
+// 60000-beam scan among thousands of empty ones) asked for 1.9 GB.
+constexpr double kMaxPaddingFactor = 4.0;
+constexpr double kPaddingAllowance = double(1 << 20);  // cells: 8 MiB of doubles
 
 struct ScanRow {
   std::vector<double> ranges;
@@ -93,14 +102,34 @@ struct Builder {
     odom.push_back(f.optional_number(7));
   }
 
+  /// The widest scan width whose padded matrix stays within the bound above.
+  std::size_t padded_width() const {
+    std::vector<std::size_t> widths;
+    widths.reserve(scans.size());
+    for (const ScanRow& s : scans) widths.push_back(s.ranges.size());
+    std::sort(widths.begin(), widths.end());
+    double beams = 0.0;
+    for (std::size_t w : widths) beams += static_cast<double>(w);
+    std::size_t kept = widths.size();  // widths[0, kept) are kept
+    while (kept > 0) {
+      const std::size_t width = widths[kept - 1];
+      if (static_cast<double>(kept) * width <= kMaxPaddingFactor * beams + kPaddingAllowance) return width;
+      for (; kept > 0 && widths[kept - 1] == width; --kept) beams -= static_cast<double>(width);
+    }
+    return 0;
+  }
+
   CarmenLog finish() {
     CarmenLog log;
     log.params = std::move(params);
+    const std::size_t width = padded_width();
+    const std::size_t before = scans.size();
+    scans.erase(std::remove_if(scans.begin(), scans.end(), [&](const ScanRow& s) { return s.ranges.size() > width; }),
+                scans.end());
+    log.skipped_wide_scans = before - scans.size();
     const Eigen::Index s_count = static_cast<Eigen::Index>(scans.size());
-    long width = 0;
-    for (const ScanRow& s : scans) width = std::max<long>(width, static_cast<long>(s.ranges.size()));
     LaserScans& out = log.scans;
-    out.ranges.setConstant(s_count, width, kNaN);
+    out.ranges.setConstant(s_count, static_cast<Eigen::Index>(width), kNaN);
     out.laser_poses.resize(s_count, 3);
     out.robot_poses.resize(s_count, 3);
     out.start_angles.resize(s_count);
@@ -157,7 +186,8 @@ CarmenLog parse_carmen_log(std::istream& in, const std::string& source) {
 }
 
 CarmenLog read_carmen_log(const std::string& path) {
-  std::ifstream in(path);
+  io_detail::require_regular_file(path, "path");
+  std::ifstream in(path, std::ios::binary);
   if (!in) throw std::invalid_argument("path: cannot open '" + path + "'");
   return parse_carmen_log(in, path);
 }

@@ -5,6 +5,8 @@
 #include <fstream>
 #include <stdexcept>
 
+#include "text_fields.hpp"
+
 namespace probslam {
 namespace {
 
@@ -59,6 +61,7 @@ void save_grid(const OccupancyGrid2D& grid, const std::string& path) {
 
 OccupancyGrid2D load_grid(const std::string& path) {
   if (!little_endian()) throw std::runtime_error("load_grid supports little-endian machines only");
+  io_detail::require_regular_file(path, "path");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::invalid_argument("path: cannot open '" + path + "'");
   char magic[sizeof(kMagic)];

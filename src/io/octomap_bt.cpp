@@ -10,6 +10,8 @@
 #include <stdexcept>
 #include <vector>
 
+#include "text_fields.hpp"
+
 namespace probslam {
 namespace {
 
@@ -100,7 +102,7 @@ class Decoder {
                              base[2] + static_cast<int>(((c >> 2) & 1) << level)};
       if (codes[c] == kInner) continue;
       voxels += std::size_t{1} << (3 * level);
-      if (voxels > kMaxBtImportVoxels) fail("expands to more voxels than an import accepts");
+      if (voxels > kMaxBtImportVoxels) fail("expands to more than " + std::to_string(kMaxBtImportVoxels) + " voxels (kMaxBtImportVoxels)");
       leaves.push_back({child, level, codes[c] == kOccupied});
     }
     for (unsigned c = 0; c < 8; ++c) {
@@ -149,6 +151,7 @@ std::size_t write_octomap_bt(const OccupancyGrid3D& grid, const std::string& pat
 }
 
 OccupancyGrid3D read_octomap_bt(const std::string& path, const OccupancyParams3D& params) {
+  io_detail::require_regular_file(path, "path");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::invalid_argument("path: cannot open '" + path + "'");
   const auto fail = [&](const std::string& what) -> void { throw std::invalid_argument(path + ": " + what); };

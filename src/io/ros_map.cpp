@@ -1,6 +1,8 @@
 #include "probslam/io/ros_map.hpp"
 
 #include <cmath>
+#include <cstdint>
+#include <filesystem>
 #include <fstream>
 #include <map>
 #include <sstream>
@@ -8,6 +10,7 @@
 #include <vector>
 
 #include "probslam/core/check.hpp"
+#include "text_fields.hpp"
 
 namespace probslam {
 namespace {
@@ -18,6 +21,12 @@ constexpr unsigned char kUnknownPixel = 205;
 // The certainty a loaded map gives its known cells: OctoMap's default clamping bounds.
 constexpr double kLoadedOccupied = 0.971;
 constexpr double kLoadedFree = 0.1192;
+// map_server YAML files are a few hundred bytes; a larger one is not a map description, and
+// reading it line by line into a map of keys would cost memory for nothing.
+constexpr std::uintmax_t kMaxYamlBytes = 1 << 20;
+// Pixels of a map image: 2^27 (a 11.6 km square at 1 m, or 580 m at 5 cm) becomes 1 GiB of
+// log-odds; larger images are refused before anything is allocated.
+constexpr std::size_t kMaxMapPixels = std::size_t{1} << 27;
 
 [[noreturn]] void fail(const std::string& where, const std::string& what) {
   throw std::invalid_argument(where + ": " + what);
@@ -67,6 +76,9 @@ struct YamlEntry {
 };
 
 std::map<std::string, YamlEntry> read_flat_yaml(const std::string& path) {
+  io_detail::require_regular_file(path, "yaml_path");
+  if (std::filesystem::file_size(path) > kMaxYamlBytes)
+    fail(path, "larger than " + std::to_string(kMaxYamlBytes) + " bytes (kMaxYamlBytes): not a map_server YAML file");
   std::ifstream in(path);
   if (!in) throw std::invalid_argument("yaml_path: cannot open '" + path + "'");
   std::map<std::string, YamlEntry> entries;
@@ -86,14 +98,16 @@ std::map<std::string, YamlEntry> read_flat_yaml(const std::string& path) {
 
 struct Pgm {
   int width = 0, height = 0, maxval = 255;
-  std::vector<int> pixels;  // row 0 = top
+  std::vector<unsigned char> pixels;  // row 0 = top
 };
 
 Pgm read_pgm(const std::string& path) {
+  if (!std::filesystem::exists(path)) fail(path, "cannot open the map image (no such file)");
+  if (!std::filesystem::is_regular_file(path)) fail(path, "the map image is not a regular file");
   std::ifstream in(path, std::ios::binary);
   if (!in) fail(path, "cannot open the map image");
-  std::string magic;
-  in >> magic;
+  std::string magic(2, '\0');
+  in.read(magic.data(), 2);
   if (magic != "P5" && magic != "P2") fail(path, "not a PGM file (magic '" + magic + "')");
   Pgm pgm;
   int* header[3] = {&pgm.width, &pgm.height, &pgm.maxval};
@@ -108,6 +122,9 @@ Pgm read_pgm(const std::string& path) {
   }
   if (pgm.maxval > 255) fail(path, "16-bit PGM files are not supported");
   const std::size_t n = static_cast<std::size_t>(pgm.width) * pgm.height;
+  if (n > kMaxMapPixels)
+    fail(path, std::to_string(pgm.width) + " x " + std::to_string(pgm.height) + " pixels exceed the limit of " +
+                   std::to_string(kMaxMapPixels) + " (kMaxMapPixels)");
   // Refuse sizes the file cannot hold before allocating (a P2 pixel takes >= 2 bytes).
   const std::streamoff here = in.tellg();
   in.seekg(0, std::ios::end);
@@ -117,13 +134,14 @@ Pgm read_pgm(const std::string& path) {
   pgm.pixels.resize(n);
   if (magic == "P5") {
     in.get();  // the single whitespace after maxval
-    std::vector<unsigned char> raw(n);
-    if (!in.read(reinterpret_cast<char*>(raw.data()), static_cast<std::streamsize>(n)))
+    if (!in.read(reinterpret_cast<char*>(pgm.pixels.data()), static_cast<std::streamsize>(n)))
       fail(path, "truncated PGM data");
-    for (std::size_t i = 0; i < n; ++i) pgm.pixels[i] = raw[i];
   } else {
-    for (std::size_t i = 0; i < n; ++i)
-      if (!(in >> pgm.pixels[i]) || pgm.pixels[i] < 0 || pgm.pixels[i] > pgm.maxval) fail(path, "truncated PGM data");
+    for (std::size_t i = 0; i < n; ++i) {
+      int v = -1;
+      if (!(in >> v) || v < 0 || v > pgm.maxval) fail(path, "truncated PGM data");
+      pgm.pixels[i] = static_cast<unsigned char>(v);
+    }
   }
   return pgm;
 }
@@ -134,6 +152,9 @@ void save_ros_map(const OccupancyGrid2D& grid, const std::string& yaml_path, con
   require_probability(options.occupied_thresh, "occupied_thresh");
   require_probability(options.free_thresh, "free_thresh");
   require(options.free_thresh < options.occupied_thresh, "free_thresh", "must be below occupied_thresh");
+  // Refused before the image is written, so that a bad path leaves no half-written map.
+  if (yaml_path.empty() || yaml_path.back() == '/' || std::filesystem::is_directory(yaml_path))
+    throw std::invalid_argument("yaml_path: must name a file, got '" + yaml_path + "'");
   const std::string image = stem_of(yaml_path) + ".pgm";
   const std::string pgm_path = directory_of(yaml_path) + image;
   const RowMatrixXd p = grid.probability();

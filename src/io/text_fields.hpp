@@ -4,6 +4,7 @@
 #include <charconv>
 #include <cctype>
 #include <cmath>
+#include <filesystem>
 #include <istream>
 #include <limits>
 #include <stdexcept>
@@ -15,6 +16,19 @@ namespace probslam::io_detail {
 
 // A count larger than this in one message is corrupt, not data.
 constexpr long kMaxCount = 1'000'000;
+
+/// Throws std::invalid_argument "ARG: '<path>' ..." unless `path` names an existing regular file
+/// (or a link to one). Checked before opening: opening a fifo blocks until a writer comes, and a
+/// device such as /dev/zero never ends. A missing file gives "ARG: cannot open '<path>'", the
+/// readers' message before this check existed.
+inline void require_regular_file(const std::string& path, const char* arg) {
+  std::error_code ec;
+  const std::filesystem::file_status st = std::filesystem::status(path, ec);
+  if (ec || !std::filesystem::exists(st))
+    throw std::invalid_argument(std::string(arg) + ": cannot open '" + path + "' (no such file)");
+  if (!std::filesystem::is_regular_file(st))
+    throw std::invalid_argument(std::string(arg) + ": '" + path + "' is not a regular file");
+}
 
 class LineError {
  public:

@@ -34,8 +34,10 @@ def test_mrclam_reader_errors(tmp_path):
     (tmp_path / "Robot1_Odometry.dat").write_text("1.0 0.1 0.0\n")
     (tmp_path / "Robot1_Measurement.dat").write_text("1.0 99 1.0 0.1\n")
     (tmp_path / "Landmark_Groundtruth.dat").write_text("6 0 0 0 0\n")
-    with pytest.raises(ValueError, match="barcodes not in Barcodes.dat: \\[99\\]"):
-        ps.io.read_mrclam(tmp_path)
+    # Issue 12: a stray barcode is skipped and counted, not a reason to refuse the robot.
+    stray = ps.io.read_mrclam(tmp_path)
+    assert len(stray.measurements) == 0
+    assert stray.skipped_rows == {"Robot1_Measurement.dat: barcode not in Barcodes.dat": 1}
     with pytest.raises(FileNotFoundError):
         ps.io.read_mrclam(tmp_path / "missing")
 

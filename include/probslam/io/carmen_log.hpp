@@ -8,7 +8,9 @@
 namespace probslam {
 
 /// Laser scans of a log, one row per scan. Rows with fewer beams than the widest scan are
-/// padded with NaN (which the grid updates skip).
+/// padded with NaN (which the grid updates skip). The padding is bounded: scans so much wider
+/// than the rest that padding to them would exceed 4x the beams read (plus 2^20 cells) are
+/// skipped and counted in CarmenLog::skipped_wide_scans.
 struct LaserScans {
   Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> ranges;  // (S, B), metres
   Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> laser_poses;          // (S, 3)
@@ -30,15 +32,19 @@ struct CarmenLog {
   LaserScans scans;
   Odometry odometry;
   std::map<std::string, std::string> params;
+  std::size_t skipped_wide_scans = 0;  // scans dropped to bound the padding (see LaserScans)
 };
 
 /// Parses a log from a stream; `source` names it in error messages. Malformed FLASER,
-/// ROBOTLASER1, ODOM or PARAM lines throw std::invalid_argument "source:LINE: ...".
+/// ROBOTLASER1, ODOM or PARAM lines throw std::invalid_argument "source:LINE: ..." (a line that
+/// does not parse means the file is not the format we think, so it is fatal); scans far wider
+/// than the rest are skipped and counted (row-level, see LaserScans).
 /// Other message types are skipped. FLASER beams start at -90 degrees and step by
 /// PARAM laser_front_laser_resolution (degrees) when the log gives it, else by 180 degrees /
 /// n for even n and 180 degrees / (n - 1) for odd n (so 181 and 361 beams include both ends).
 CarmenLog parse_carmen_log(std::istream& in, const std::string& source = "<stream>");
-/// Reads a plain-text log file (decompress .gz / .bz2 first).
+/// Reads a plain-text log file (decompress .gz / .bz2 first). `path` must be a regular file
+/// (std::invalid_argument otherwise, as for a missing file).
 CarmenLog read_carmen_log(const std::string& path);
 
 }  // namespace probslam

@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import bz2
-import gzip
 import os
 from dataclasses import dataclass, field
 from typing import Dict, Union
@@ -11,6 +9,7 @@ from typing import Dict, Union
 import numpy as np
 
 from .. import _core
+from ._files import read_compressed, require_regular_file
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -57,22 +56,29 @@ class CarmenLog:
     scans: LaserScans
     odometry: Odometry
     params: Dict[str, str] = field(default_factory=dict)
+    #: scans skipped because padding every scan to their width would exceed 4x the beams read
+    skipped_wide_scans: int = 0
 
 
 def read_carmen_log(path: PathLike) -> CarmenLog:
     """Read a CARMEN log (plain, ``.gz`` or ``.bz2``).
 
     FLASER beams start at -90 degrees; their step is ``PARAM laser_front_laser_resolution``
-    when the log has it, else 180 degrees / n (even n) or / (n - 1) (odd n). A malformed
-    line raises ``ValueError`` naming the file and line number.
+    when the log has it, else 180 degrees / n (even n) or / (n - 1) (odd n).
+
+    Errors: a missing file raises ``FileNotFoundError``; a path that is not a regular file, a
+    corrupt ``.gz`` / ``.bz2`` stream or one expanding beyond ``MAX_DECOMPRESSED_BYTES`` raises
+    ``ValueError`` naming the file. A malformed FLASER / ROBOTLASER1 / ODOM / PARAM line is fatal
+    (``ValueError("file:line: ...")``, whatever bytes it holds): it means the file is not the
+    format we read. Row-level: other message types are ignored, and scans so much wider than the
+    rest that padding to them would exceed 4x the beams read are skipped, counted in
+    ``skipped_wide_scans``.
     """
     path = os.fspath(path)
-    if not os.path.isfile(path):
-        raise FileNotFoundError(f"path: no such log file: {path!r}")
-    opener = {".gz": gzip.open, ".bz2": bz2.open}.get(os.path.splitext(path)[1])
-    if opener is None:
-        raw = _core.read_carmen_log(path)
+    require_regular_file(path)
+    if os.path.splitext(path)[1] in (".gz", ".bz2"):
+        raw = _core.parse_carmen_log(read_compressed(path), path)
     else:
-        with opener(path, "rt", encoding="ascii") as f:
-            raw = _core.parse_carmen_log(f.read(), path)
-    return CarmenLog(LaserScans(**raw["scans"]), Odometry(**raw["odometry"]), dict(raw["params"]))
+        raw = _core.read_carmen_log(path)
+    return CarmenLog(LaserScans(**raw["scans"]), Odometry(**raw["odometry"]), dict(raw["params"]),
+                     int(raw["skipped_wide_scans"]))

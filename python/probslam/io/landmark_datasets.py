@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 import os
 import pathlib
-from dataclasses import dataclass
-from typing import Dict, List, Optional, Union
+from dataclasses import dataclass, field
+from typing import Dict, List, Optional, Tuple, Union
 
 import numpy as np
+
+from ._files import require_regular_file, text_lines
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -24,25 +27,69 @@ MRCLAM_LANDMARK_SUBJECTS = range(6, 21)
 MRCLAM_RANGE_SCALE = 0.971
 
 
-def _table(path: PathLike, columns: int) -> np.ndarray:
-    """Rows of `columns` numbers from a text file; '#' lines are comments. Errors name the line."""
+#: A data file (odometry, measurements, ground truth) may hold a few unreadable rows (a line cut
+#: short when the logger stopped, a corrupt number): they are skipped and counted. More than this
+#: fraction of a file's rows means it is not in the format we read, and the file is refused.
+MAX_BAD_ROW_FRACTION = 0.01
+
+
+class _Rows:
+    """Rows read from one text file, the first error of each kind kept for the message."""
+
+    def __init__(self, path: str):
+        self.path, self.rows, self.bad, self.first_error = path, [], 0, None
+
+    def skip(self, number: int, reason: str) -> None:
+        self.bad += 1
+        if self.first_error is None:
+            self.first_error = f"{self.path}:{number}: {reason}"
+
+    def check(self, strict: bool) -> None:
+        """Raise the first error if any row was bad (strict) or too many were."""
+        if self.bad and (strict or self.bad > MAX_BAD_ROW_FRACTION * (len(self.rows) + self.bad)):
+            raise ValueError(self.first_error if strict else
+                             f"{self.first_error} ({self.bad} of {len(self.rows) + self.bad} rows unreadable, "
+                             f"more than MAX_BAD_ROW_FRACTION = {MAX_BAD_ROW_FRACTION})")
+
+
+def _numbers(fields: List[str]) -> Optional[List[float]]:
+    """The fields as finite floats, or None (Python's float() also takes 'nan', 'inf', '1_0')."""
+    try:
+        values = [float(x) for x in fields]
+    except ValueError:
+        return None
+    if not all(map(math.isfinite, values)) or any("_" in x for x in fields):
+        return None
+    return values
+
+
+def _table(path: PathLike, columns: int, strict: bool = False) -> Tuple[np.ndarray, int]:
+    """Rows of `columns` finite numbers from a text file ('#' starts a comment) and the number of
+    rows skipped as unreadable; ``strict``: any unreadable row is an error naming its line."""
     path = os.fspath(path)
-    if not os.path.isfile(path):
-        raise FileNotFoundError(f"path: no such file: {path!r}")
-    rows: List[List[float]] = []
-    with open(path) as f:
-        for number, line in enumerate(f, 1):
-            text = line.split("#", 1)[0].strip()
-            if not text:
-                continue
-            fields = text.split()
-            if len(fields) != columns:
-                raise ValueError(f"{path}:{number}: expected {columns} fields, got {len(fields)}")
-            try:
-                rows.append([float(x) for x in fields])
-            except ValueError as exc:
-                raise ValueError(f"{path}:{number}: {exc}") from None
-    return np.array(rows, float).reshape(-1, columns)
+    require_regular_file(path)
+    rows = _Rows(path)
+    for number, line in text_lines(path):
+        fields = line.split("#", 1)[0].split()
+        if not fields:
+            continue
+        values = _numbers(fields)
+        if len(fields) != columns:
+            rows.skip(number, f"expected {columns} fields, got {len(fields)}")
+        elif values is None:
+            rows.skip(number, f"not {columns} finite numbers: {line.strip()[:80]!r}")
+        else:
+            rows.rows.append(values)
+    rows.check(strict)
+    return np.array(rows.rows, float).reshape(-1, columns), rows.bad
+
+
+def _subject_of(folder: pathlib.Path) -> Dict[int, int]:
+    """Barcodes.dat: barcode -> subject, both integers (the map's key: read strictly)."""
+    table, _ = _table(folder / "Barcodes.dat", 2, strict=True)
+    if not np.all((table == np.round(table)) & (np.abs(table) < 2 ** 31)):
+        raise ValueError(f"{folder / 'Barcodes.dat'}: subjects and barcodes must be integers")
+    return {int(b): int(s) for s, b in table}
 
 
 @dataclass
@@ -59,6 +106,9 @@ class Mrclam:
     groundtruth: Optional[np.ndarray]
     landmarks: np.ndarray
     robot_measurements: int  # sightings of other robots that were dropped
+    #: rows skipped while reading, by reason: "<file>: barcode not in Barcodes.dat" (a barcode
+    #: the data's own table does not list), "<file>: unreadable" (see ``read_mrclam``)
+    skipped_rows: Dict[str, int] = field(default_factory=dict)
 
     @property
     def landmark_positions(self) -> Dict[int, np.ndarray]:
@@ -86,28 +136,50 @@ class Mrclam:
         m = self.measurements.copy()
         if len(m) and not np.all(np.abs(m[:, 3]) < np.pi / 2):
             raise ValueError("measurements: a depth reading needs |bearing| < pi/2 (in front of the camera)")
-        m[:, 2] *= scale / np.cos(m[:, 3])
+        with np.errstate(over="ignore"):
+            m[:, 2] *= scale / np.cos(m[:, 3])
+        if not np.all(np.isfinite(m[:, 2])):
+            raise ValueError(f"scale: {scale} makes ranges overflow")
         return dataclasses.replace(self, measurements=m)
 
 
 def read_mrclam(folder: PathLike, robot: int = 1) -> Mrclam:
+    """Robot ``robot`` (1-5) of the MRCLAM dataset in ``folder``.
+
+    Fatal (``ValueError("file:line: ...")``, ``FileNotFoundError`` for a missing file): any
+    unreadable row of Barcodes.dat or Landmark_Groundtruth.dat (they define the map), and more
+    than ``MAX_BAD_ROW_FRACTION`` unreadable rows in a data file. Row-level (skipped, counted in
+    ``Mrclam.skipped_rows``): a few unreadable rows of the odometry, measurement or ground-truth
+    files (wrong field count, not a finite number), and measurements of barcodes missing from
+    Barcodes.dat (Dataset 1 robots 3 and 5, Dataset 7 robot 3 hold a few).
+    """
     folder = pathlib.Path(folder)
-    barcodes = _table(folder / "Barcodes.dat", 2)
-    subject_of = {int(b): int(s) for s, b in barcodes}
-    odometry = _table(folder / f"Robot{robot}_Odometry.dat", 3)
-    raw = _table(folder / f"Robot{robot}_Measurement.dat", 4)
-    unknown = sorted({int(b) for b in raw[:, 1]} - set(subject_of))
-    if unknown:
-        raise ValueError(f"{folder / f'Robot{robot}_Measurement.dat'}: barcodes not in Barcodes.dat: {unknown}")
+    if isinstance(robot, bool) or not isinstance(robot, (int, np.integer)) or not 1 <= robot <= 5:
+        raise ValueError(f"robot: MRCLAM robots are numbered 1 to 5, got {robot!r}")
+    subject_of = _subject_of(folder)
+    skipped: Dict[str, int] = {}
+
+    def data_table(name: str, columns: int) -> np.ndarray:
+        table, bad = _table(folder / name, columns)
+        if bad:
+            skipped[f"{name}: unreadable"] = bad
+        return table
+
+    odometry = data_table(f"Robot{robot}_Odometry.dat", 3)
+    raw = data_table(f"Robot{robot}_Measurement.dat", 4)
+    known = np.array([b == int(b) and int(b) in subject_of for b in raw[:, 1]], bool).reshape(-1)
+    if not known.all():
+        skipped[f"Robot{robot}_Measurement.dat: barcode not in Barcodes.dat"] = int(np.count_nonzero(~known))
+        raw = raw[known]
     subjects = np.array([subject_of[int(b)] for b in raw[:, 1]], float)
     is_landmark = np.isin(subjects, list(MRCLAM_LANDMARK_SUBJECTS))
     measurements = np.column_stack([raw[:, 0], subjects, raw[:, 2], raw[:, 3]])[is_landmark]
-    gt_path = folder / f"Robot{robot}_Groundtruth.dat"
-    groundtruth = _table(gt_path, 4) if gt_path.exists() else None
-    landmarks = _table(folder / "Landmark_Groundtruth.dat", 5)[:, :3]
+    gt_name = f"Robot{robot}_Groundtruth.dat"
+    groundtruth = data_table(gt_name, 4) if (folder / gt_name).exists() else None
+    landmarks = _table(folder / "Landmark_Groundtruth.dat", 5, strict=True)[0][:, :3]
     order = np.argsort(odometry[:, 0], kind="stable")
     return Mrclam(odometry[order], measurements[np.argsort(measurements[:, 0], kind="stable")], groundtruth,
-                  landmarks, int(np.count_nonzero(~is_landmark)))
+                  landmarks, int(np.count_nonzero(~is_landmark)), skipped)
 
 
 @dataclass
@@ -127,6 +199,7 @@ class VictoriaPark:
     landmark: np.ndarray
     xy: np.ndarray
     xy_cov: np.ndarray
+    skipped_rows: int = 0  # unreadable records skipped (see read_victoria_park)
 
 
 def _upper(values: List[float], n: int) -> np.ndarray:
@@ -135,9 +208,44 @@ def _upper(values: List[float], n: int) -> np.ndarray:
     return m
 
 
+#: Largest |id| accepted for a pose or landmark: ids become int64 and are compared exactly, so
+#: they must be integers a float64 holds exactly.
+MAX_ID = 2 ** 53
+
+
+def _victoria_row(fields: List[str], covariance) -> Tuple[Optional[list], str]:
+    """(values + covariance, "") of one ODOMETRY / LANDMARK record, or (None, reason)."""
+    kind, expected = fields[0], {"ODOMETRY": 12, "LANDMARK": 8}.get(fields[0])
+    if expected is None:
+        return None, f"unknown record {kind[:40]!r}"
+    if len(fields) != expected:
+        return None, f"{kind} needs {expected} fields, got {len(fields)}"
+    values = _numbers(fields[1:])
+    if values is None:
+        return None, f"{kind} fields are not all finite numbers"
+    if not all(v == int(v) and abs(v) <= MAX_ID for v in values[:2]):
+        return None, f"{kind} ids must be integers of at most 2^53"
+    n = 3 if kind == "ODOMETRY" else 2
+    with np.errstate(all="ignore"):
+        try:
+            cov = covariance(_upper(values[2 + n:], n))
+            np.linalg.cholesky(cov)
+        except np.linalg.LinAlgError:
+            return None, f"{kind} noise is not positive definite"
+    if not np.all(np.isfinite(cov)):
+        return None, f"{kind} noise is not finite"
+    return [kind] + values[:2 + n] + [cov], ""
+
+
 def read_victoria_park(path: PathLike, noise: str = "auto") -> VictoriaPark:
     """``noise``: 'sqrt_information' (iSAM's file: upper-triangular R, covariance (R^T R)^-1),
-    'covariance' (GTSAM's copy), or 'auto' (covariance if the file name contains 'gtsam')."""
+    'covariance' (GTSAM's copy), or 'auto' (covariance if the file name contains 'gtsam').
+
+    Fatal: a missing file (``FileNotFoundError``), a path that is not a regular file, and more
+    than ``MAX_BAD_ROW_FRACTION`` unreadable records (``ValueError("file:line: ...")`` naming the
+    first). Row-level (skipped, counted in ``VictoriaPark.skipped_rows``): a few records of an
+    unknown type, with the wrong field count, numbers that are not finite, ids that are not
+    integers, or a noise matrix that is not positive definite."""
     path = os.fspath(path)
     if noise == "auto":
         noise = "covariance" if "gtsam" in os.path.basename(path).lower() else "sqrt_information"
@@ -149,30 +257,23 @@ def read_victoria_park(path: PathLike, noise: str = "auto") -> VictoriaPark:
             return upper + np.triu(upper, 1).T
         return np.linalg.inv(upper.T @ upper)
 
-    odo: List[list] = []
-    obs: List[list] = []
-    if not os.path.isfile(path):
-        raise FileNotFoundError(f"path: no such file: {path!r}")
-    with open(path) as f:
-        for number, line in enumerate(f, 1):
-            fields = line.split()
-            if not fields or fields[0].startswith("#"):
-                continue
-            kind, expected = fields[0], {"ODOMETRY": 12, "LANDMARK": 8}.get(fields[0])
-            if expected is None:
-                raise ValueError(f"{path}:{number}: unknown record {kind!r}")
-            if len(fields) != expected:
-                raise ValueError(f"{path}:{number}: {kind} needs {expected} fields, got {len(fields)}")
-            try:
-                values = [float(x) for x in fields[1:]]
-            except ValueError as exc:
-                raise ValueError(f"{path}:{number}: {exc}") from None
-            if not np.all(np.isfinite(values)):
-                raise ValueError(f"{path}:{number}: non-finite value")
-            (odo if kind == "ODOMETRY" else obs).append(values + [number])
-    o = np.array(odo).reshape(-1, 12)
-    b = np.array(obs).reshape(-1, 8)
-    delta_cov = np.array([covariance(_upper(r[5:11], 3)) for r in o]).reshape(-1, 3, 3)
-    xy_cov = np.array([covariance(_upper(r[4:7], 2)) for r in b]).reshape(-1, 2, 2)
-    return VictoriaPark(o[:, 0].astype(np.int64), o[:, 1].astype(np.int64), o[:, 2:5], delta_cov,
-                        b[:, 0].astype(np.int64), b[:, 1].astype(np.int64), b[:, 2:4], xy_cov)
+    require_regular_file(path)
+    rows = _Rows(path)
+    for number, line in text_lines(path):
+        fields = line.split()
+        if not fields or fields[0].startswith("#"):
+            continue
+        row, reason = _victoria_row(fields, covariance)
+        if row is None:
+            rows.skip(number, reason)
+        else:
+            rows.rows.append(row)
+    rows.check(strict=False)
+    odo = [r[1:] for r in rows.rows if r[0] == "ODOMETRY"]
+    obs = [r[1:] for r in rows.rows if r[0] == "LANDMARK"]
+    o = np.array([r[:5] for r in odo], float).reshape(-1, 5)
+    b = np.array([r[:4] for r in obs], float).reshape(-1, 4)
+    return VictoriaPark(o[:, 0].astype(np.int64), o[:, 1].astype(np.int64), o[:, 2:5],
+                        np.array([r[5] for r in odo]).reshape(-1, 3, 3),
+                        b[:, 0].astype(np.int64), b[:, 1].astype(np.int64), b[:, 2:4],
+                        np.array([r[4] for r in obs]).reshape(-1, 2, 2), rows.bad)

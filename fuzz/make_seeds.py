@@ -1,0 +1,163 @@
+"""Seed corpora for the fuzz targets.
+
+``python fuzz/make_seeds.py committed`` rewrites fuzz/seeds/<target>/ (small self-written
+files, committed); ``python fuzz/make_seeds.py shared DIR`` writes seeds cut from the real files
+of /work/shared/data (or $PROBSLAM_SHARED_DATA) into DIR/<target>/, at most MAX_SEED_BYTES each
+and cut at a line end, when the data is present (fuzz.sh does this at run time).
+"""
+
+from __future__ import annotations
+
+import bz2
+import gzip
+import os
+import pathlib
+import sys
+import tempfile
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(__file__))
+from targets import MRCLAM_FILES, SEPARATOR  # noqa: E402
+
+#: Larger seeds slow every execution (libFuzzer's -max_len follows the largest seed).
+MAX_SEED_BYTES = 4096
+HERE = pathlib.Path(__file__).resolve().parent
+
+CARMEN = b"""# tiny log
+PARAM laser_front_laser_resolution 1.0 nohost 0
+ODOM 0 0 0 0 0 0 1.0 host 1.0
+FLASER 4 1.0 2.0 3.0 4.0 0.5 0.1 0.2 0.5 0.1 0.2 2.0 host 2.0
+ROBOTLASER1 0 -1.57 3.14 0.785 30 0.01 0 5 1 2 3 4 5 0 0.5 0.1 0.2 0.5 0.1 0.2 0 0 0 0 0 3.0 host 3.0
+FLASER 3 1.5 2.5 81.83 0.6 0.1 0.25 0.6 0.1 0.25 4.0 host 4.0
+"""
+G2O = b"""VERTEX_SE2 0 0 0 0
+VERTEX_SE2 1 1 0 0.1
+VERTEX_XY 2 1 1
+EDGE_SE2 0 1 1 0 0.1 100 0 0 100 0 1000
+EDGE_SE2_XY 1 2 0 1 10 0 10
+FIX 0
+"""
+TORO = b"""VERTEX2 0 0 0 0
+VERTEX2 1 1 0 0
+VERTEX2 2 2 0 0
+EDGE2 0 1 1 0 0 100 0 100 1000 0 0
+EDGE2 1 2 1 0 0 100 0 100 1000 0 0
+EDGE2 0 2 2 0 0 100 0 100 1000 0 0
+"""
+ISAM = b"""ODOMETRY 0 1 1 0 0 10 0 0 10 0 31.6
+ODOMETRY 1 2 1 0 0.1 10 0 0 10 0 31.6
+LANDMARK 1 5 2 1 1.6 0 1.6
+LANDMARK 2 5 1 1 1.6 0 1.6
+LANDMARK 2 1 1 -1 1.6 0 1.6
+"""
+VICTORIA = b"""ODOMETRY 0 1 1 0 0 10 0 0 10 0 31.6
+ODOMETRY 1 2 1 0 0.1 10 0 0 10 0 31.6
+LANDMARK 1 7 2 1 1.6 0 1.6
+LANDMARK 2 7 1 1 1.6 0 1.6
+"""
+MRCLAM = [b"# Subject # Barcode #\n1 5\n2 14\n6 9\n7 25\n8 88\n",
+          b"# Subject # x # y # sx # sy\n6 1.0 2.0 0.001 0.001\n7 3.0 -1.0 0.001 0.001\n8 0 0 0.001 0.001\n",
+          b"# Time # v # w\n100.0 0.1 0.0\n100.5 0.1 0.1\n101.0 0.0 0.0\n",
+          b"# Time # Barcode # Range # Bearing\n100.2 9 2.1 0.3\n100.2 25 3.0 -0.2\n100.7 14 1.0 0.0\n"
+          b"100.8 77 1.0 0.0\n",
+          b"# Time # x # y # theta\n100.0 0 0 0\n101.0 0.1 0 0.05\n"]
+YAML = b"image: map.pgm\nmode: trinary\nresolution: 0.05\norigin: [-1.0, 2.0, 0.0]\nnegate: 0\n" \
+       b"occupied_thresh: 0.65\nfree_thresh: 0.196\n"
+
+
+def _write(folder: pathlib.Path, name: str, data: bytes) -> None:
+    folder.mkdir(parents=True, exist_ok=True)
+    (folder / name).write_bytes(data)
+
+
+def _library_files(out: pathlib.Path) -> None:
+    """Seeds the library writes itself: a grid file, a map_server map, two .bt trees."""
+    import probslam as ps
+    from probslam import io
+    with tempfile.TemporaryDirectory() as tmp:
+        grid = ps.OccupancyGrid2D(0.1, 5, 3, origin=(-0.2, 0.3))
+        grid.log_odds[:] = np.arange(15.0).reshape(3, 5) - 7
+        io.save_grid(grid, os.path.join(tmp, "g.grid"))
+        _write(out / "grid_file", "small.grid", pathlib.Path(tmp, "g.grid").read_bytes())
+        io.save_ros_map(grid, os.path.join(tmp, "m.yaml"))
+        yaml = pathlib.Path(tmp, "m.yaml").read_bytes().replace(b"m.pgm", b"map.pgm")
+        _write(out / "ros_map", "trinary.bin", yaml + SEPARATOR + pathlib.Path(tmp, "m.pgm").read_bytes())
+        _write(out / "ros_map", "p2_scale.bin", YAML.replace(b"trinary", b"scale") + SEPARATOR +
+               b"P2\n# comment\n3 2\n255\n0 128 254\n205 10 255\n")
+        g3 = ps.OccupancyGrid3D(0.2)
+        g3.insert_point_cloud(np.array([[1.0, 0.5, 0.2], [0.6, -0.4, 0.1]]), np.zeros(3))
+        g3.write_bt(os.path.join(tmp, "t.bt"))
+        _write(out / "octomap_bt", "rays.bt", pathlib.Path(tmp, "t.bt").read_bytes())
+        g3 = ps.OccupancyGrid3D(0.5)
+        g3.insert_point_cloud(np.array([[3.0, 0.0, 0.0]]), np.zeros(3))
+        g3.write_bt(os.path.join(tmp, "t.bt"))
+        _write(out / "octomap_bt", "line.bt", pathlib.Path(tmp, "t.bt").read_bytes())
+
+
+def committed(out: pathlib.Path = HERE / "seeds") -> None:
+    _write(out / "carmen", "tiny.log", CARMEN)
+    _write(out / "carmen_gz", "tiny.log.gz", gzip.compress(CARMEN, mtime=0))
+    _write(out / "g2o", "tiny.g2o", G2O)
+    _write(out / "toro", "tiny.graph", TORO)
+    _write(out / "isam", "tiny.txt", ISAM)
+    _write(out / "victoria_park", "tiny.txt", VICTORIA)
+    _write(out / "mrclam", "tiny.bin", SEPARATOR.join(MRCLAM))
+    _library_files(out)
+
+
+def _head(data: bytes) -> bytes:
+    """At most MAX_SEED_BYTES, cut after a line end."""
+    if len(data) <= MAX_SEED_BYTES:
+        return data
+    cut = data.rfind(b"\n", 0, MAX_SEED_BYTES)
+    return data[:cut + 1 if cut > 0 else MAX_SEED_BYTES]
+
+
+def _open(path: pathlib.Path) -> bytes:
+    opener = gzip.open if path.suffix == ".gz" else bz2.open if path.suffix == ".bz2" else open
+    with opener(path, "rb") as f:
+        return f.read(8 * MAX_SEED_BYTES)
+
+
+def shared(out: pathlib.Path, data: pathlib.Path) -> int:
+    """Seeds cut from the shared data; returns how many were written (0 without the data)."""
+    if not data.is_dir():
+        return 0
+    count = 0
+
+    def add(target: str, name: str, content: bytes) -> None:
+        nonlocal count
+        _write(out / target, name, content)
+        count += 1
+
+    for log in sorted(data.glob("laser_2d/*/*")):
+        if log.suffix in (".gz", ".bz2", ".clf", ".log"):
+            head = _head(_open(log))
+            add("carmen", log.name.split(".")[0] + ".log", head)
+            add("carmen_gz", log.name.split(".")[0] + ".log.gz", gzip.compress(head, mtime=0))
+    for graph in sorted(data.glob("pose_graphs/*/*")):
+        target = {".g2o": "g2o", ".graph": "toro"}.get(graph.suffix)
+        if target:
+            add(target, graph.name, _head(_open(graph)))
+    vp = data / "landmark_slam/victoria_park"
+    for name in ("victoriaPark.txt", "victoria_park_gtsam.txt"):
+        if (vp / name).exists():
+            add("isam", name, _head(_open(vp / name)))
+            add("victoria_park", name, _head(_open(vp / name)))
+    for folder in sorted(data.glob("landmark_slam/mrclam_dataset*")):
+        for robot in (1, 3):
+            files = [f.replace("Robot1", f"Robot{robot}") for f in MRCLAM_FILES]
+            parts = [_head(_open(folder / f)) if (folder / f).exists() else b"" for f in files]
+            add("mrclam", f"{folder.name}_robot{robot}.bin", SEPARATOR.join(parts))
+    return count
+
+
+if __name__ == "__main__":
+    if sys.argv[1:2] == ["committed"]:
+        committed()
+    elif sys.argv[1:2] == ["shared"] and len(sys.argv) == 3:
+        root = pathlib.Path(os.environ.get("PROBSLAM_SHARED_DATA", "/work/shared/data"))
+        print(shared(pathlib.Path(sys.argv[2]), root))
+    else:
+        sys.exit(__doc__)

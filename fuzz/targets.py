@@ -1,0 +1,122 @@
+"""Fuzz targets: one per parser entry point. Each writes the input bytes to file(s) in a
+private temporary directory (the readers take paths) and calls the reader.
+
+A target's documented outcomes are a result or ``ValueError`` (with ``FileNotFoundError``
+where the reader documents it); ``UnicodeError`` is a ``ValueError`` subclass but is a finding
+(the readers must name the file and line instead). Anything else escaping a target is a
+finding: atheris reports it as a crash and saves the input.
+
+Multi-file formats take one input split at SEPARATOR lines: map_server is YAML + PGM, MRCLAM is
+Barcodes + Landmark_Groundtruth + Odometry + Measurement (+ Groundtruth).
+"""
+
+from __future__ import annotations
+
+import os
+import tempfile
+from typing import Callable, Dict, Tuple
+
+SEPARATOR = b"\n=====\n"
+EXPECTED = (ValueError, FileNotFoundError)
+
+
+class Workspace:
+    """A private directory whose files are rewritten for every input."""
+
+    def __init__(self, directory=None) -> None:
+        self.dir = str(directory) if directory is not None else tempfile.mkdtemp(prefix="probslam-fuzz-")
+
+    def write(self, name: str, data: bytes) -> str:
+        path = os.path.join(self.dir, name)
+        with open(path, "wb") as f:
+            f.write(data)
+        return path
+
+    def clear(self) -> None:
+        for name in os.listdir(self.dir):
+            os.unlink(os.path.join(self.dir, name))
+
+
+def _parts(data: bytes, n: int):
+    parts = data.split(SEPARATOR, n - 1)
+    return parts + [b""] * (n - len(parts))
+
+
+def carmen(ws: Workspace, data: bytes) -> None:
+    from probslam import io
+    io.read_carmen_log(ws.write("log.log", data))
+
+
+def carmen_gz(ws: Workspace, data: bytes) -> None:
+    from probslam import io
+    io.read_carmen_log(ws.write("log.log.gz", data))
+
+
+def _pose_graph(name: str, fmt: str):
+    def target(ws: Workspace, data: bytes) -> None:
+        from probslam import graph
+        graph.read_pose_graph(ws.write(name, data), format=fmt)
+    return target
+
+
+def ros_map(ws: Workspace, data: bytes) -> None:
+    from probslam import io
+    yaml, pgm = _parts(data, 2)
+    ws.write("map.pgm", pgm)
+    io.load_ros_map(ws.write("map.yaml", yaml))
+
+
+def grid_file(ws: Workspace, data: bytes) -> None:
+    from probslam import io
+    io.load_grid(ws.write("map.grid", data))
+
+
+def octomap_bt(ws: Workspace, data: bytes) -> None:
+    import probslam as ps
+    ps.OccupancyGrid3D.read_bt(ws.write("tree.bt", data))
+
+
+MRCLAM_FILES = ("Barcodes.dat", "Landmark_Groundtruth.dat", "Robot1_Odometry.dat", "Robot1_Measurement.dat",
+                "Robot1_Groundtruth.dat")
+
+
+def mrclam(ws: Workspace, data: bytes) -> None:
+    from probslam import io
+    parts = data.split(SEPARATOR, len(MRCLAM_FILES) - 1)
+    ws.clear()
+    for name, part in zip(MRCLAM_FILES, parts):
+        ws.write(name, part)
+    io.read_mrclam(ws.dir, robot=1)
+
+
+def victoria_park(ws: Workspace, data: bytes) -> None:
+    from probslam import io
+    io.read_victoria_park(ws.write("victoriaPark.txt", data))
+
+
+TARGETS: Dict[str, Callable[[Workspace, bytes], None]] = {
+    "carmen": carmen,
+    "carmen_gz": carmen_gz,
+    "g2o": _pose_graph("graph.g2o", "g2o"),
+    "toro": _pose_graph("graph.graph", "toro"),
+    "isam": _pose_graph("graph.txt", "isam"),
+    "ros_map": ros_map,
+    "grid_file": grid_file,
+    "octomap_bt": octomap_bt,
+    "mrclam": mrclam,
+    "victoria_park": victoria_park,
+}
+
+
+def check(target: Callable[[Workspace, bytes], None], ws: Workspace, data: bytes) -> None:
+    """Runs one input; returns quietly on a documented outcome, raises on a finding."""
+    try:
+        target(ws, data)
+    except UnicodeError:
+        raise
+    except EXPECTED:
+        pass
+
+
+def describe() -> Tuple[str, ...]:
+    return tuple(TARGETS)
