@@ -3,6 +3,7 @@
 #include <sstream>
 
 #include "numpy.hpp"
+#include "object_lock.hpp"
 #include "probslam/io/carmen_log.hpp"
 #include "probslam/io/grid_file.hpp"
 #include "probslam/io/ros_map.hpp"
@@ -72,11 +73,19 @@ void define_io(py::module_& m) {
   m.def(
       "save_ros_map",
       [](const OccupancyGrid2D& grid, const std::string& yaml_path, double occupied_thresh, double free_thresh) {
-        save_ros_map(grid, yaml_path, {occupied_thresh, free_thresh});
+        locked(grid, [&] { save_ros_map(grid, yaml_path, {occupied_thresh, free_thresh}); });
       },
       py::arg("grid"), py::arg("yaml_path"), py::arg("occupied_thresh") = 0.65, py::arg("free_thresh") = 0.196);
-  m.def("load_ros_map", &load_ros_map, py::arg("yaml_path"));
-  m.def("save_grid", &save_grid, py::arg("grid"), py::arg("path"));
+  m.def(
+      "load_ros_map",
+      [](const std::string& yaml_path) {
+        py::gil_scoped_release release;
+        return load_ros_map(yaml_path);
+      },
+      py::arg("yaml_path"));
+  m.def(
+      "save_grid", [](const OccupancyGrid2D& grid, const std::string& path) { locked(grid, [&] { save_grid(grid, path); }); },
+      py::arg("grid"), py::arg("path"));
   m.def("load_grid", &load_grid, py::arg("path"));
 }
 
