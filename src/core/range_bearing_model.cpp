@@ -29,6 +29,7 @@ Eigen::Vector2d range_bearing(const Eigen::Vector3d& pose, const Eigen::Vector2d
 }
 
 Eigen::Vector3d range_bearing(const Eigen::Vector3d& pose, const Eigen::Vector3d& landmark) {
+  require_finite(landmark[2], "landmark");
   const Eigen::Vector2d z = range_bearing(pose, Eigen::Vector2d(landmark.head<2>()));
   return {z[0], z[1], landmark[2]};
 }
