@@ -256,6 +256,11 @@ class MultiHypothesisEkfSlam:
     Args:
         ekf: the starting filter (copied): noise, pose, any landmarks already mapped.
         gate: NIS gate of a pairing candidate (default: chi-square quantile 0.999).
+
+    Limits (``multi_hypothesis_ekf_slam.hpp``): max_hypotheses in [1, 1000], max_children in
+    [1, 100], gate, costs and prune_margin in (0, 1e6]; a scan whose children would hold more
+    than 4 GiB of covariance is refused. ``predict`` and ``update`` change every filter of the
+    beam or, when they raise, none.
     """
 
     def __init__(self, ekf: EkfSlam, max_hypotheses: int = 10, max_children: int = 4, gate: Optional[float] = None,
