@@ -25,8 +25,18 @@ py::array points_through(py::handle points, const char* name,
 }  // namespace
 
 void define_core(py::module_& m) {
-  m.def("wrap_angle", py::vectorize(static_cast<double (*)(double)>(&wrap_angle)), py::arg("angle"),
-        "Wrap angles (radians) to (-pi, pi]; works element-wise on arrays.");
+  m.def(
+      "wrap_angle",
+      [](py::handle angle) -> py::object {
+        DoubleArray a = as_array(angle, "angle");
+        const auto in = as_vector(a);
+        if (!in.allFinite()) throw py::value_error("angle must be finite (NaN and inf have no direction)");
+        py::array_t<double> out(std::vector<py::ssize_t>(a.shape(), a.shape() + a.ndim()));
+        Eigen::Map<Eigen::VectorXd>(out.mutable_data(), a.size()) = in.unaryExpr([](double v) { return wrap_angle(v); });
+        if (a.ndim() == 0) return py::float_(out.data()[0]);
+        return std::move(out);
+      },
+      py::arg("angle"), "Wrap finite angles (radians) to (-pi, pi]; works element-wise on arrays.");
 
   py::class_<Pose2>(m, "Pose2", "Planar pose (x, y in metres, theta in radians wrapped to (-pi, pi]).")
       .def(py::init([](double x, double y, double theta) {

@@ -35,6 +35,27 @@ class AssociationResult(NamedTuple):
     ASSOCIATED, NEW_LANDMARK, PROVISIONAL, DISCARDED = 0, 1, 2, 3
 
 
+def _number(value, name: str) -> float:
+    """value as a float; TypeError naming the argument for anything that is not a real number."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{name} must be a number, got {type(value).__name__}")
+    return float(value)
+
+
+def _count(value, name: str) -> int:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name} must be an integer, got {type(value).__name__}")
+    if not -2**31 <= value < 2**31:
+        raise ValueError(f"{name} is out of range: {value}")
+    return int(value)
+
+
+def _flag(value, name: str) -> bool:
+    if not isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name} must be a bool, got {type(value).__name__}")
+    return bool(value)
+
+
 def chi2_quantile(probability: float, dof: int) -> float:
     from scipy.stats import chi2
 
@@ -55,15 +76,27 @@ class EkfSlam:
         map_management: ch. 10.3.3 options (``MapManagement``) for ``update_unknown``.
         gate_distance: metres; association candidates are the landmarks within it of where
             the measurement places its landmark.
+
+    Reliability (README): every call validates all its input first and raises ValueError or
+    TypeError naming the argument, with the filter unchanged; a call whose result would not be
+    finite raises too, and changes nothing. Named limits (``ekf_slam.hpp``): coordinates,
+    ranges, signatures and one motion's length within 1e9 m (``kEkfMaxCoordinate``); noise
+    entries within 1e18 (``kEkfMaxVariance``); a state of at most 16384 dimensions
+    (``kEkfMaxStateDimension``); landmark ids in [0, 2^62]. Concurrent calls from several
+    threads are serialised by a per-filter lock; ``mean`` and ``covariance`` are views that no
+    lock guards (copy them while other threads update the filter).
     """
 
     def __init__(self, motion_noise, measurement_noise, use_signatures: bool = True, initial_pose=(0.0, 0.0, 0.0),
                  initial_pose_cov=None, map_management: Optional[MapManagement] = None, gate_distance: float = 5.0):
+        if map_management is not None and not isinstance(map_management, MapManagement):
+            raise TypeError(f"map_management must be a MapManagement, got {type(map_management).__name__}")
         cov = np.zeros((3, 3)) if initial_pose_cov is None else initial_pose_cov
-        self._f = _core._EkfSlam(motion_noise, measurement_noise, use_signatures, initial_pose, cov)
+        f = _core._EkfSlam(motion_noise, measurement_noise, _flag(use_signatures, "use_signatures"), initial_pose, cov)
         if map_management is not None:
-            self._f.map_management = map_management
-        self._f.gate_distance = gate_distance
+            f.map_management = map_management
+        f.gate_distance = _number(gate_distance, "gate_distance")
+        self._f = f
 
     def copy(self) -> "EkfSlam":
         """An independent copy of the filter: state, map, ids, options."""
@@ -124,6 +157,8 @@ class EkfSlam:
 
     @map_management.setter
     def map_management(self, value: MapManagement) -> None:
+        if not isinstance(value, MapManagement):
+            raise TypeError(f"map_management must be a MapManagement, got {type(value).__name__}")
         self._f.map_management = value
 
     def landmark(self, id: int) -> np.ndarray:
@@ -144,7 +179,7 @@ class EkfSlam:
     def predict(self, v: float, w: float, dt: float, noise=None) -> None:
         """Table 10.1 lines 2-5 (v m/s, w rad/s, dt s > 0); O(N). ``noise`` overrides the
         motion noise for this call ((3, 3) pose space or (2, 2) control space)."""
-        self._f.predict(v, w, dt, noise)
+        self._f.predict(_number(v, "v"), _number(w, "w"), _number(dt, "dt"), noise)
 
     def predict_odometry(self, delta, noise) -> None:
         """x <- x (+) delta for odometry given as a relative pose (3,) with (3, 3) covariance."""
@@ -158,9 +193,9 @@ class EkfSlam:
         chi-square quantile) are skipped as outliers.
         """
         ids_array = np.asarray(ids)
-        if ids_array.dtype.kind not in "iu":
+        if ids_array.size and ids_array.dtype.kind not in "iu":
             raise TypeError(f"ids must be integers, got dtype {ids_array.dtype}")
-        nis, used = self._f.update(z, ids_array, np.inf if gate is None else gate)
+        nis, used = self._f.update(z, ids_array, np.inf if gate is None else _number(gate, "gate"))
         return UpdateResult(nis, used)
 
     def pairing_likelihood(self, z, id: int):
@@ -186,6 +221,8 @@ class EkfSlam:
             raise TypeError(f"association must be a string, got {type(association).__name__}")
         if association not in ASSOCIATIONS:
             raise ValueError(f"association must be one of {sorted(ASSOCIATIONS)}, got {association!r}")
+        alpha = None if alpha is None else _number(alpha, "alpha")
+        alpha_new = None if alpha_new is None else _number(alpha_new, "alpha_new")
         d = self._f.landmark_dim
         alpha = chi2_quantile(DEFAULT_ASSOCIATION_PROBABILITY, d) if alpha is None else alpha
         if alpha_new is None:
@@ -219,6 +256,11 @@ class MultiHypothesisEkfSlam:
     Args:
         ekf: the starting filter (copied): noise, pose, any landmarks already mapped.
         gate: NIS gate of a pairing candidate (default: chi-square quantile 0.999).
+
+    Limits (``multi_hypothesis_ekf_slam.hpp``): max_hypotheses in [1, 1000], max_children in
+    [1, 100], gate, costs and prune_margin in (0, 1e6]; a scan whose children would hold more
+    than 4 GiB of covariance is refused. ``predict`` and ``update`` change every filter of the
+    beam or, when they raise, none.
     """
 
     def __init__(self, ekf: EkfSlam, max_hypotheses: int = 10, max_children: int = 4, gate: Optional[float] = None,
@@ -228,7 +270,11 @@ class MultiHypothesisEkfSlam:
             raise TypeError(f"ekf must be an EkfSlam, got {type(ekf).__name__}")
         d = ekf._f.landmark_dim
         o = _core.MultiHypothesisOptions()
-        o.max_hypotheses, o.max_children, o.prune_margin = max_hypotheses, max_children, prune_margin
+        o.max_hypotheses = _count(max_hypotheses, "max_hypotheses")
+        o.max_children = _count(max_children, "max_children")
+        o.prune_margin = _number(prune_margin, "prune_margin")
+        gate, new_landmark_cost, clutter_cost = (None if v is None else _number(v, name) for v, name in (
+            (gate, "gate"), (new_landmark_cost, "new_landmark_cost"), (clutter_cost, "clutter_cost")))
         o.gate = chi2_quantile(MHT_GATE_PROBABILITY, d) if gate is None else gate
         o.new_landmark_cost = (chi2_quantile(DEFAULT_NEW_LANDMARK_PROBABILITY, d) if new_landmark_cost is None
                                else new_landmark_cost)
@@ -237,7 +283,7 @@ class MultiHypothesisEkfSlam:
 
     def predict(self, v: float, w: float, dt: float, noise=None) -> None:
         """Table 10.1 lines 2-5 on every filter (see ``EkfSlam.predict``)."""
-        self._m.predict(v, w, dt, noise)
+        self._m.predict(_number(v, "v"), _number(w, "w"), _number(dt, "dt"), noise)
 
     def update(self, z) -> np.ndarray:
         """One scan z (k, 2) or (k, 3). Returns the best filter's landmark id per measurement

@@ -12,20 +12,24 @@ namespace {
 // (1/q) would exceed 1e18 and poison any filter that used them.
 constexpr double kMinRangeSquared = 1e-18;
 
-void check_pose_landmark(const Eigen::Vector3d& pose, const Eigen::Ref<const Eigen::VectorXd>& lm) {
+// The landmark's offset from the pose; std::invalid_argument unless it is finite.
+Eigen::Vector2d offset(const Eigen::Vector3d& pose, const Eigen::Ref<const Eigen::VectorXd>& lm) {
   require_all_finite(pose, "pose");
   require_all_finite(lm, "landmark");
+  const Eigen::Vector2d d(lm[0] - pose[0], lm[1] - pose[1]);
+  require(d.allFinite(), "landmark", "is beyond the double range from the pose");
+  return d;
 }
 
 }  // namespace
 
 Eigen::Vector2d range_bearing(const Eigen::Vector3d& pose, const Eigen::Vector2d& landmark) {
-  check_pose_landmark(pose, landmark);
-  const double dx = landmark[0] - pose[0], dy = landmark[1] - pose[1];
-  return {std::sqrt(dx * dx + dy * dy), wrap_angle(std::atan2(dy, dx) - pose[2])};
+  const Eigen::Vector2d d = offset(pose, landmark);
+  return {std::hypot(d.x(), d.y()), wrap_angle(std::atan2(d.y(), d.x()) - pose[2])};
 }
 
 Eigen::Vector3d range_bearing(const Eigen::Vector3d& pose, const Eigen::Vector3d& landmark) {
+  require_finite(landmark[2], "landmark");
   const Eigen::Vector2d z = range_bearing(pose, Eigen::Vector2d(landmark.head<2>()));
   return {z[0], z[1], landmark[2]};
 }
@@ -33,16 +37,16 @@ Eigen::Vector3d range_bearing(const Eigen::Vector3d& pose, const Eigen::Vector3d
 // Table 10.1 line 16 (rows corrected per the errata).
 MeasurementJacobians<2> range_bearing_jacobians(const Eigen::Vector3d& pose,
                                                 const Eigen::Vector2d& landmark) {
-  check_pose_landmark(pose, landmark);
-  const double dx = landmark[0] - pose[0], dy = landmark[1] - pose[1];
-  const double q = dx * dx + dy * dy;
-  require(q >= kMinRangeSquared, "landmark", "coincides with the robot position");
-  const double r = std::sqrt(q);
+  const Eigen::Vector2d d = offset(pose, landmark);
+  const double r = std::hypot(d.x(), d.y());
+  require(r * r >= kMinRangeSquared, "landmark", "coincides with the robot position");
+  // Unit vector u = d / r; the 1/q terms as u / r, which cannot overflow where d^2 would.
+  const double ux = d.x() / r, uy = d.y() / r;
   MeasurementJacobians<2> j;
-  j.pose << -dx / r, -dy / r, 0.0,  //
-      dy / q, -dx / q, -1.0;
-  j.landmark << dx / r, dy / r,  //
-      -dy / q, dx / q;
+  j.pose << -ux, -uy, 0.0,  //
+      uy / r, -ux / r, -1.0;
+  j.landmark << ux, uy,  //
+      -uy / r, ux / r;
   return j;
 }
 
@@ -65,7 +69,9 @@ Eigen::Vector2d landmark_from_range_bearing(const Eigen::Vector3d& pose, const E
   require_all_finite(z, "z");
   require(z[0] >= 0.0, "z", "range must be >= 0");
   const double a = z[1] + pose[2];
-  return {pose[0] + z[0] * std::cos(a), pose[1] + z[0] * std::sin(a)};
+  const Eigen::Vector2d m(pose[0] + z[0] * std::cos(a), pose[1] + z[0] * std::sin(a));
+  require(m.allFinite(), "z", "places the landmark beyond the double range");
+  return m;
 }
 
 MeasurementJacobians<2> landmark_from_range_bearing_jacobians(const Eigen::Vector3d& pose,
@@ -80,6 +86,7 @@ MeasurementJacobians<2> landmark_from_range_bearing_jacobians(const Eigen::Vecto
       0.0, 1.0, z[0] * c;
   j.landmark << c, -z[0] * s,  //
       s, z[0] * c;
+  require(std::isfinite(a), "z", "bearing plus heading is beyond the double range");
   return j;
 }
 

@@ -10,17 +10,20 @@ namespace probslam {
 SpatialHash2D::SpatialHash2D(double cell_size) : cell_(cell_size) { require_positive(cell_size, "cell_size"); }
 
 namespace {
-// 2^40 cells each way: far more than any map, far less than int64's range.
+// Cell indices are clamped to +-2^40: far inside int64 (so key() and the query loops cannot
+// overflow), and far beyond any map (2^40 cells of 1 um span 1000 km).
 constexpr double kMaxCellIndex = 1099511627776.0;
 }  // namespace
 
-std::int64_t SpatialHash2D::cell_index(double v) const {
-  const double c = std::floor(v / cell_);
-  if (std::isnan(c)) return 0;
-  return static_cast<std::int64_t>(std::clamp(c, -kMaxCellIndex, kMaxCellIndex));
+std::int64_t SpatialHash2D::cell_of(double v) const {
+  if (std::isnan(v)) return 0;  // a NaN query finds nothing (its distance test fails)
+  return static_cast<std::int64_t>(std::clamp(std::floor(v / cell_), -kMaxCellIndex, kMaxCellIndex));
 }
 
-void SpatialHash2D::insert(int id, double x, double y) { cells_[key(cell_index(x), cell_index(y))].push_back(id); }
+void SpatialHash2D::insert(int id, double x, double y) {
+  require(std::isfinite(x) && std::isfinite(y), "point", "must be finite");
+  cells_[key(cell_of(x), cell_of(y))].push_back(id);
+}
 
 void SpatialHash2D::query(double x, double y, double radius,
                           const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor>>& points,
@@ -37,8 +40,8 @@ void SpatialHash2D::query(double x, double y, double radius,
         if (near(id)) out.push_back(id);
     return;
   }
-  const std::int64_t lo_x = cell_index(x - radius), hi_x = cell_index(x + radius);
-  const std::int64_t lo_y = cell_index(y - radius), hi_y = cell_index(y + radius);
+  const std::int64_t lo_x = cell_of(x - radius), hi_x = cell_of(x + radius);
+  const std::int64_t lo_y = cell_of(y - radius), hi_y = cell_of(y + radius);
   for (std::int64_t cx = lo_x; cx <= hi_x; ++cx) {
     for (std::int64_t cy = lo_y; cy <= hi_y; ++cy) {
       const auto it = cells_.find(key(cx, cy));

@@ -33,6 +33,16 @@ void check_inputs(const Eigen::Vector3d& pose, double v, double w, double dt) {
   require_finite(v, "v");
   require_finite(w, "w");
   require_positive(dt, "dt");
+  require(std::isfinite(v * dt), "v", "* dt is beyond the double range");
+  require(std::isfinite(w * dt), "w", "* dt is beyond the double range");
+}
+
+// Finite or raise: huge but finite inputs can still overflow (a pose near the double range
+// moved further, v dt^2 in the control Jacobian).
+template <typename Derived>
+const Derived& finite_result(const Eigen::MatrixBase<Derived>& r, const char* name) {
+  require(r.allFinite(), name, "gives a result beyond the double range");
+  return r.derived();
 }
 
 // Arc geometry shared by the model and its Jacobians. With a = w dt / 2 the displacement of
@@ -56,7 +66,8 @@ Eigen::Vector3d velocity_motion(const Eigen::Vector3d& pose, double v, double w,
   check_inputs(pose, v, w, dt);
   const Arc arc(pose, w, dt);
   const double d = v * dt * arc.s;
-  return {pose[0] + d * arc.c_h, pose[1] + d * arc.s_h, wrap_angle(pose[2] + w * dt)};
+  const Eigen::Vector3d next(pose[0] + d * arc.c_h, pose[1] + d * arc.s_h, wrap_angle(pose[2] + w * dt));
+  return finite_result(next, "v");
 }
 
 // Table 10.1 line 4: only the theta column differs from the identity.
@@ -68,7 +79,7 @@ Eigen::Matrix3d velocity_motion_jacobian(const Eigen::Vector3d& pose, double v, 
   Eigen::Matrix3d g = Eigen::Matrix3d::Identity();
   g(0, 2) = -d * arc.s_h;
   g(1, 2) = d * arc.c_h;
-  return g;
+  return finite_result(g, "v");
 }
 
 Eigen::Matrix<double, 3, 2> velocity_motion_control_jacobian(const Eigen::Vector3d& pose, double v,
@@ -85,7 +96,7 @@ Eigen::Matrix<double, 3, 2> velocity_motion_control_jacobian(const Eigen::Vector
   jac(0, 1) = dd_dw * arc.c_h - d * arc.s_h * 0.5 * dt;
   jac(1, 1) = dd_dw * arc.s_h + d * arc.c_h * 0.5 * dt;
   jac(2, 1) = dt;
-  return jac;
+  return finite_result(jac, "v");
 }
 
 }  // namespace probslam

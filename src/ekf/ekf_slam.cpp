@@ -3,6 +3,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <optional>
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -30,9 +31,21 @@ constexpr Eigen::Index kInitialLandmarkCapacity = 16;
 // Association candidates: within gate_distance plus this many standard deviations of where
 // the measurement places its landmark (3 sigma holds 99% of a 2-D Gaussian's mass).
 constexpr double kPlacementSigmas = 3.0;
+// Largest covariance entry (and squared gain row) a call may produce: the square root of the
+// double range, so that the products of the next call (G P G^T, H P H^T) still fit.
+constexpr double kMaxCovarianceEntry = 1e150;
+// Smallest association gate distance (m): it is also the spatial hash's cell size, and smaller
+// cells would make cell indices of far landmarks overflow.
+constexpr double kMinGateDistance = 1e-6;
+// Existence log-odds are clamped to this magnitude (a thousand of the largest increments).
+constexpr double kMaxExistence = 1e3 * kEkfMaxLogOdds;
 
+// Refused with the argument's name unless finite, symmetric, positive (semi-)definite and with
+// entries within kEkfMaxVariance.
 void require_spd(const Eigen::MatrixXd& m, const char* name, bool semi = false) {
+  require(m.size() > 0, name, "must not be empty");
   require(m.allFinite(), name, "must contain only finite values");
+  require(m.cwiseAbs().maxCoeff() <= kEkfMaxVariance, name, "entries must be <= 1e18 (kEkfMaxVariance) in magnitude");
   const double scale = std::max(1.0, m.cwiseAbs().maxCoeff());
   require((m - m.transpose()).cwiseAbs().maxCoeff() <= kSymmetryTolerance * scale, name, "must be symmetric");
   const double min_eig = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(m, Eigen::EigenvaluesOnly).eigenvalues()(0);
@@ -40,14 +53,70 @@ void require_spd(const Eigen::MatrixXd& m, const char* name, bool semi = false) 
   else require(min_eig > 0.0, name, "must be positive definite");
 }
 
+void require_motion_noise(const Eigen::MatrixXd& noise, const char* name, bool semi) {
+  require((noise.rows() == 3 && noise.cols() == 3) || (noise.rows() == 2 && noise.cols() == 2), name,
+          "must be 3x3 (pose space) or 2x2 (control space)");
+  require_spd(noise, name, semi);
+}
+
+void require_on_map(const Eigen::Vector3d& pose, const char* name, const char* what) {
+  require(pose.allFinite() && pose.head<2>().cwiseAbs().maxCoeff() <= kEkfMaxCoordinate, name, what);
+}
+
 }  // namespace
+
+// A call's effect on the state, computed without touching it. With P0 the covariance before the
+// call, extended by the staged landmarks as if they had been added first (rows L_a = G_x,a P0's
+// robot rows, own block + G_z Q G_z^T), the covariance after the staged corrections is
+// P0 - W W^T, W holding one n x m factor per correction (Table 10.1 line 18's K S K^T). A
+// landmark added after correction j extends that correction's factor with G_x W_j's robot rows.
+// So each correction costs O(n) for the few columns it reads, and commit applies all of them
+// in one product: the state is written only once everything has been checked finite.
+struct EkfSlam::Staged {
+  struct Added {
+    long id;
+    Eigen::Index at;
+    Eigen::MatrixXd gx;   // ld x 3
+    Eigen::MatrixXd own;  // ld x ld, G_z Q G_z^T
+  };
+  Eigen::Index n0 = 0, n = 0, c = 0;  // state dimension before / now, factor columns used
+  Eigen::VectorXd mean;               // the state mean now (n of its rows used)
+  Eigen::MatrixXd robot;              // P0's robot columns, extended (n x 3 used)
+  Eigen::MatrixXd w;                  // the factors (n x c used)
+  std::vector<Added> added;
+  std::unordered_map<long, Eigen::Index> index;  // landmarks added by this call
+
+  Staged(const EkfSlam& f, Eigen::Index final_dim, Eigen::Index max_columns)
+      : n0(f.n_), n(f.n_), mean(final_dim), robot(final_dim, 3), w(final_dim, max_columns) {
+    mean.head(n0) = f.s_->mean.head(n0);
+    robot.topRows(n0) = f.s_->cov.block(0, 0, n0, 3);
+  }
+  // The rows of the factors that robot and landmark `at` columns need: P[:, cols] = P0 - W W[cols]^T.
+  Eigen::MatrixXd factor_rows(Eigen::Index at, Eigen::Index ld) const {
+    Eigen::MatrixXd rows(3 + ld, c);
+    rows << w.block(0, 0, 3, c), w.block(at, 0, ld, c);
+    return rows;
+  }
+  Eigen::Matrix3d robot_cov() const {
+    return robot.topRows<3>() - w.block(0, 0, 3, c) * w.block(0, 0, 3, c).transpose();
+  }
+};
+
+struct EkfSlam::Saved {
+  std::shared_ptr<EkfSlamStorage> storage;
+  Eigen::VectorXd mean;
+  Eigen::MatrixXd cov;
+  int n;
+  std::vector<long> ids;
+  std::unordered_map<long, int> index;
+  std::vector<double> existence;
+  long next_id;
+};
 
 EkfSlam::EkfSlam(const Eigen::MatrixXd& motion_noise, const Eigen::MatrixXd& measurement_noise, bool use_signatures,
                  const Eigen::Vector3d& initial_pose, const Eigen::Matrix3d& initial_pose_cov) {
   md_ = ld_ = use_signatures ? 3 : 2;
-  require((motion_noise.rows() == 3 && motion_noise.cols() == 3) || (motion_noise.rows() == 2 && motion_noise.cols() == 2),
-          "motion_noise", "must be 3x3 (pose space) or 2x2 (control space)");
-  require_spd(motion_noise, "motion_noise");
+  require_motion_noise(motion_noise, "motion_noise", false);
   control_noise_ = motion_noise.rows() == 2;
   if (control_noise_) m_control_ = motion_noise;
   else r_pose_ = motion_noise;
@@ -55,7 +124,7 @@ EkfSlam::EkfSlam(const Eigen::MatrixXd& motion_noise, const Eigen::MatrixXd& mea
           use_signatures ? "must be 3x3 (range, bearing, signature)" : "must be 2x2 (range, bearing)");
   require_spd(measurement_noise, "measurement_noise");
   Q_ = measurement_noise;
-  require_all_finite(initial_pose, "initial_pose");
+  require_on_map(initial_pose, "initial_pose", "must be finite with |x|, |y| <= 1e9 m (kEkfMaxCoordinate)");
   require_spd(initial_pose_cov, "initial_pose_cov", true);
   s_ = std::make_shared<EkfSlamStorage>();
   const Eigen::Index cap = 3 + kInitialLandmarkCapacity * ld_;
@@ -93,10 +162,15 @@ EkfSlam EkfSlam::clone() const {
   return c;
 }
 
+void EkfSlam::require_state_room(Eigen::Index added_landmarks) const {
+  require(added_landmarks <= (kEkfMaxStateDimension - n_) / ld_, "z",
+          "would grow the state beyond 16384 dimensions (kEkfMaxStateDimension)");
+}
+
 void EkfSlam::reserve(Eigen::Index dim) {
   if (dim <= s_->mean.size()) return;
   auto grown = std::make_shared<EkfSlamStorage>();
-  const Eigen::Index cap = std::max(dim, 2 * s_->mean.size());
+  const Eigen::Index cap = std::min<Eigen::Index>(std::max(dim, 2 * s_->mean.size()), kEkfMaxStateDimension);
   grown->mean = Eigen::VectorXd::Zero(cap);
   grown->cov = Eigen::MatrixXd::Zero(cap, cap);
   grown->mean.head(n_) = s_->mean.head(n_);
@@ -104,18 +178,25 @@ void EkfSlam::reserve(Eigen::Index dim) {
   s_ = std::move(grown);  // old views keep the old storage alive
 }
 
-// Table 10.1 line 5 exploiting G = I + F_x^T g F_x: only robot rows and columns change.
-void EkfSlam::apply_motion(const Eigen::Vector3d& new_pose, const Eigen::Matrix3d& g, const Eigen::Matrix3d& r) {
+// Table 10.1 line 5 exploiting G = I + F_x^T g F_x: only robot rows and columns change. Both
+// are computed first and written only when finite.
+EkfSlam::Motion EkfSlam::plan_motion(const Eigen::Vector3d& new_pose, const Eigen::Matrix3d& g,
+                                     const Eigen::Matrix3d& r) const {
+  const Eigen::MatrixXd& p = s_->cov;
+  const Eigen::Matrix3d prr = g * p.topLeftCorner<3, 3>() * g.transpose() + r;
+  Motion m{new_pose, 0.5 * (prr + prr.transpose()), g * p.block(0, 3, 3, n_ - 3)};
+  require(m.prr.allFinite() && m.prm.allFinite() && m.prr.cwiseAbs().maxCoeff() <= kMaxCovarianceEntry, "noise",
+          "and the motion would make the covariance too large to stay finite");
+  return m;
+}
+
+void EkfSlam::apply(const Motion& motion) {
   Eigen::MatrixXd& p = s_->cov;
   const Eigen::Index m = n_ - 3;
-  const Eigen::Matrix3d prr = g * p.topLeftCorner<3, 3>() * g.transpose() + r;
-  p.topLeftCorner<3, 3>() = 0.5 * (prr + prr.transpose());
-  if (m > 0) {
-    const Eigen::MatrixXd prm = g * p.block(0, 3, 3, m);
-    p.block(0, 3, 3, m) = prm;
-    p.block(3, 0, m, 3) = prm.transpose();
-  }
-  s_->mean.head<3>() = new_pose;
+  p.topLeftCorner<3, 3>() = motion.prr;
+  p.block(0, 3, 3, m) = motion.prm;
+  p.block(3, 0, m, 3) = motion.prm.transpose();
+  s_->mean.head<3>() = motion.pose;
 }
 
 void EkfSlam::predict(double v, double w, double dt) {
@@ -123,21 +204,27 @@ void EkfSlam::predict(double v, double w, double dt) {
 }
 
 void EkfSlam::predict(double v, double w, double dt, const Eigen::MatrixXd& noise) {
+  apply(plan_predict(v, w, dt, noise));
+}
+
+EkfSlam::Motion EkfSlam::plan_predict(double v, double w, double dt, const Eigen::MatrixXd& noise) const {
   const Eigen::Vector3d x = pose();
   const Eigen::Matrix3d g = velocity_motion_jacobian(x, v, w, dt);  // validates v, w, dt
-  require((noise.rows() == 3 && noise.cols() == 3) || (noise.rows() == 2 && noise.cols() == 2), "noise",
-          "must be 3x3 (pose space) or 2x2 (control space)");
-  require_spd(noise, "noise", true);
+  require(std::fabs(v * dt) <= kEkfMaxCoordinate, "v", "* dt must be <= 1e9 m (kEkfMaxCoordinate)");
+  require_motion_noise(noise, "noise", true);
   Eigen::Matrix3d r = noise.rows() == 3 ? Eigen::Matrix3d(noise) : Eigen::Matrix3d::Zero();
   if (noise.rows() == 2) {
     const Eigen::Matrix<double, 3, 2> vj = velocity_motion_control_jacobian(x, v, w, dt);
     r = vj * noise * vj.transpose();
   }
-  apply_motion(velocity_motion(x, v, w, dt), g, r);
+  const Eigen::Vector3d next = velocity_motion(x, v, w, dt);
+  require_on_map(next, "v", "moves the robot beyond 1e9 m (kEkfMaxCoordinate)");
+  return plan_motion(next, g, r);
 }
 
 void EkfSlam::predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matrix3d& noise) {
   require_all_finite(delta, "delta");
+  require(delta.head<2>().norm() <= kEkfMaxCoordinate, "delta", "must be a step of at most 1e9 m (kEkfMaxCoordinate)");
   require_spd(noise, "noise", true);
   const Eigen::Vector3d x = pose();
   const Eigen::Matrix2d rx = rotation_matrix(x[2]);
@@ -148,7 +235,9 @@ void EkfSlam::predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matrix
   g(1, 2) = turned.x();
   Eigen::Matrix3d j = Eigen::Matrix3d::Identity();  // d(x (+) delta) / d delta
   j.topLeftCorner<2, 2>() = rx;
-  apply_motion({t.x(), t.y(), wrap_angle(x[2] + delta[2])}, g, j * noise * j.transpose());
+  const Eigen::Vector3d next(t.x(), t.y(), wrap_angle(x[2] + delta[2]));
+  require_on_map(next, "delta", "moves the robot beyond 1e9 m (kEkfMaxCoordinate)");
+  apply(plan_motion(next, g, j * noise * j.transpose()));
 }
 
 void EkfSlam::check_measurements(const Eigen::Ref<const RowMatrixXd>& z) const {
@@ -156,11 +245,13 @@ void EkfSlam::check_measurements(const Eigen::Ref<const RowMatrixXd>& z) const {
                                          : "must have 2 columns (range, bearing)");
   require(z.allFinite(), "z", "must contain only finite values");
   require((z.col(0).array() >= 0.0).all(), "z", "ranges must be >= 0");
+  require(z.size() == 0 || z.cwiseAbs().maxCoeff() <= kEkfMaxCoordinate, "z",
+          "entries must be <= 1e9 (kEkfMaxCoordinate) in magnitude");
 }
 
-void EkfSlam::measurement_jacobian(const Eigen::VectorXd& lm, Eigen::VectorXd& z_hat, Eigen::MatrixXd& hx,
-                                   Eigen::MatrixXd& hm) const {
-  const Eigen::Vector3d x = s_->mean.head<3>();
+void EkfSlam::measurement_jacobian(const Eigen::Vector3d& x, const Eigen::VectorXd& lm, Eigen::VectorXd& z_hat,
+                                   Eigen::MatrixXd& hx, Eigen::MatrixXd& hm) const {
+  // Coordinates are within a few kEkfMaxCoordinate, so q cannot overflow.
   const double dx = lm[0] - x[0], dy = lm[1] - x[1], q = dx * dx + dy * dy;
   const double r = std::sqrt(q);
   z_hat.resize(md_);
@@ -191,32 +282,13 @@ bool EkfSlam::innovation_at(const Eigen::VectorXd& z, int index, Eigen::VectorXd
   const Eigen::VectorXd lm = s_->mean.segment(index, ld_);
   const double dx = lm[0] - s_->mean[0], dy = lm[1] - s_->mean[1];
   if (dx * dx + dy * dy < kMinRangeSquared) return false;
-  measurement_jacobian(lm, z_hat, hx, hm);
+  measurement_jacobian(pose(), lm, z_hat, hx, hm);
   innovation(z, z_hat, nu);
   const Eigen::MatrixXd& p = s_->cov;
   pht = p.block(0, 0, n_, 3) * hx.transpose() + p.block(0, index, n_, ld_) * hm.transpose();
   const Eigen::MatrixXd hph = hx * pht.topRows(3) + hm * pht.middleRows(index, ld_);
   s = 0.5 * (hph + hph.transpose()) + Q_;
   return true;
-}
-
-// Table 10.1 lines 12-20 for one measurement, with H's six non-zero columns.
-double EkfSlam::correct(const Eigen::VectorXd& z, int index, double gate, bool& used) {
-  used = false;
-  Eigen::VectorXd nu;
-  Eigen::MatrixXd s, pht;
-  if (!innovation_at(z, index, nu, s, pht)) return std::numeric_limits<double>::quiet_NaN();
-  const Eigen::LLT<Eigen::MatrixXd> llt(s);
-  const Eigen::VectorXd white = llt.matrixL().solve(nu);  // L^-1 nu
-  const double nis = white.squaredNorm();
-  if (!(nis <= gate)) return nis;
-  // K = P H^T S^-1 = W L^-1 with W = P H^T L^-T; then P -= W W^T (symmetric by construction).
-  const Eigen::MatrixXd w = llt.matrixL().solve(pht.transpose()).transpose();
-  s_->mean.head(n_).noalias() += w * white;
-  s_->mean[2] = wrap_angle(s_->mean[2]);
-  s_->cov.topLeftCorner(n_, n_).noalias() -= w * w.transpose();
-  used = true;
-  return nis;
 }
 
 EkfSlam::PairingLikelihood EkfSlam::pairing_likelihood(const Eigen::VectorXd& z, long id) const {
@@ -227,7 +299,10 @@ EkfSlam::PairingLikelihood EkfSlam::pairing_likelihood(const Eigen::VectorXd& z,
   if (!innovation_at(z, index_of(id), nu, s, pht)) return {nan, nan};
   const Eigen::LLT<Eigen::MatrixXd> llt(s);
   const Eigen::VectorXd white = llt.matrixL().solve(nu);
-  return {white.squaredNorm(), log_det_2pi(llt)};
+  const PairingLikelihood out{white.squaredNorm(), log_det_2pi(llt)};
+  require(llt.info() == Eigen::Success && std::isfinite(out.nis) && std::isfinite(out.log_det), "z",
+          "has no finite likelihood against this landmark (innovation covariance degenerate)");
+  return out;
 }
 
 double EkfSlam::placement_radius(const Eigen::Vector3d& x, const Eigen::VectorXd& z) const {
@@ -253,9 +328,8 @@ std::vector<long> EkfSlam::nearby_landmarks(const Eigen::VectorXd& z) const {
   return out;
 }
 
-void EkfSlam::inverse_measurement(const Eigen::VectorXd& z, Eigen::VectorXd& m, Eigen::MatrixXd& gx,
-                                  Eigen::MatrixXd& gz) const {
-  const Eigen::Vector3d x = s_->mean.head<3>();
+void EkfSlam::inverse_measurement(const Eigen::Vector3d& x, const Eigen::VectorXd& z, Eigen::VectorXd& m,
+                                  Eigen::MatrixXd& gx, Eigen::MatrixXd& gz) const {
   const MeasurementJacobians<2> j = landmark_from_range_bearing_jacobians(x, z.head<2>());
   m.resize(ld_);
   m.head<2>() = landmark_from_range_bearing(x, z.head<2>());
@@ -269,50 +343,174 @@ void EkfSlam::inverse_measurement(const Eigen::VectorXd& z, Eigen::VectorXd& m, 
   }
 }
 
+// Table 10.1 lines 12-20 for one measurement, with H's non-zero columns (robot and landmark):
+// P H^T is read from the staged covariance P0 - W W^T without forming it.
+double EkfSlam::stage_correct(Staged& st, const Eigen::VectorXd& z, Eigen::Index index, double gate,
+                              bool& used) const {
+  used = false;
+  const Eigen::Index n = st.n;
+  const Eigen::VectorXd lm = st.mean.segment(index, ld_);
+  const Eigen::Vector3d x = st.mean.head<3>();
+  const double dx = lm[0] - x[0], dy = lm[1] - x[1];
+  if (!(dx * dx + dy * dy >= kMinRangeSquared)) return std::numeric_limits<double>::quiet_NaN();
+  Eigen::VectorXd z_hat, nu;
+  Eigen::MatrixXd hx, hm;
+  measurement_jacobian(x, lm, z_hat, hx, hm);
+  innovation(z, z_hat, nu);
+  // P0's robot and landmark columns (n x (3 + ld)), then minus the staged factors.
+  Eigen::MatrixXd cols(n, 3 + ld_);
+  cols.leftCols<3>() = st.robot.topRows(n);
+  if (index < st.n0) {
+    cols.rightCols(ld_).topRows(st.n0) = s_->cov.block(0, index, st.n0, ld_);
+    for (const Staged::Added& a : st.added)
+      cols.block(a.at, 3, ld_, ld_) = a.gx * s_->cov.block(0, index, 3, ld_);
+  } else {
+    const auto it = std::find_if(st.added.begin(), st.added.end(), [&](const Staged::Added& a) { return a.at == index; });
+    cols.rightCols(ld_) = st.robot.topRows(n) * it->gx.transpose();
+    cols.block(index, 3, ld_, ld_) += it->own;
+  }
+  if (st.c > 0) cols.noalias() -= st.w.topLeftCorner(n, st.c) * st.factor_rows(index, ld_).transpose();
+  const Eigen::MatrixXd pht = cols.leftCols<3>() * hx.transpose() + cols.rightCols(ld_) * hm.transpose();  // n x md
+  const Eigen::MatrixXd hph = hx * pht.topRows(3) + hm * pht.middleRows(index, ld_);
+  const Eigen::MatrixXd s = 0.5 * (hph + hph.transpose()) + Q_;
+  const Eigen::LLT<Eigen::MatrixXd> llt(s);
+  const Eigen::VectorXd white = llt.matrixL().solve(nu);  // L^-1 nu
+  const double nis = white.squaredNorm();
+  require(llt.info() == Eigen::Success && std::isfinite(nis), "z",
+          "cannot be applied: its innovation covariance is not finite positive definite");
+  if (!(nis <= gate)) return nis;
+  // K = P H^T S^-1 = W L^-1 with W = P H^T L^-T; then P -= W W^T.
+  const Eigen::MatrixXd wj = llt.matrixL().solve(pht.transpose()).transpose();
+  Eigen::VectorXd moved = st.mean.head(n);
+  moved.noalias() += wj * white;
+  moved[2] = wrap_angle(moved[2]);
+  require(wj.allFinite() && moved.allFinite() && wj.cwiseAbs2().rowwise().sum().maxCoeff() <= kMaxCovarianceEntry,
+          "z", "cannot be applied: the update would not be finite");
+  st.mean.head(n) = moved;
+  st.w.block(0, st.c, n, md_) = wj;
+  st.c += md_;
+  used = true;
+  return nis;
+}
+
 // Table 10.1 line 10, with the covariance of that inverse measurement: the exact limit of an
 // infinite prior updated with this first sighting, so the rest of the state does not move.
-void EkfSlam::augment(const Eigen::VectorXd& z, long id) {
+void EkfSlam::stage_augment(Staged& st, const Eigen::VectorXd& z, long id) const {
   Eigen::VectorXd m;
   Eigen::MatrixXd gx, gz;
-  inverse_measurement(z, m, gx, gz);
-  reserve(n_ + ld_);
+  inverse_measurement(st.mean.head<3>(), z, m, gx, gz);
+  Staged::Added a{id, st.n, gx, gz * Q_ * gz.transpose()};
+  const Eigen::MatrixXd robot_rows = gx * s_->cov.topLeftCorner<3, 3>();
+  require(m.allFinite() && a.own.allFinite() && robot_rows.allFinite() &&
+              std::max(a.own.cwiseAbs().maxCoeff(), robot_rows.cwiseAbs().maxCoeff()) <= kMaxCovarianceEntry,
+          "z", "places a landmark whose covariance would be too large to stay finite");
+  st.mean.segment(st.n, ld_) = m;
+  st.robot.middleRows(st.n, ld_) = robot_rows;
+  if (st.c > 0) st.w.block(st.n, 0, ld_, st.c) = gx * st.w.block(0, 0, 3, st.c);
+  st.index[id] = st.n;
+  st.added.push_back(std::move(a));
+  st.n += ld_;
+}
+
+void EkfSlam::commit(Staged& st) {
+  const Eigen::Index n = st.n;
+  reserve(n);
   Eigen::MatrixXd& p = s_->cov;
-  const Eigen::MatrixXd cross = gx * p.block(0, 0, 3, n_);  // ld x n
-  Eigen::MatrixXd own = gx * p.topLeftCorner<3, 3>() * gx.transpose() + gz * Q_ * gz.transpose();
-  s_->mean.segment(n_, ld_) = m;
-  p.block(n_, 0, ld_, n_) = cross;
-  p.block(0, n_, n_, ld_) = cross.transpose();
-  p.block(n_, n_, ld_, ld_) = 0.5 * (own + own.transpose());
-  ids_.push_back(id);
-  index_[id] = n_;
-  existence_.push_back(mm_.existence_hit);
-  n_ += ld_;
-  next_id_ = std::max(next_id_, id + 1);
+  for (const Staged::Added& a : st.added) {  // P0's rows and columns of the new landmarks
+    Eigen::MatrixXd col = st.robot.topRows(n) * a.gx.transpose();
+    col.middleRows(a.at, ld_) += a.own;
+    const Eigen::MatrixXd block = col.middleRows(a.at, ld_);
+    col.middleRows(a.at, ld_) = 0.5 * (block + block.transpose());
+    p.block(0, a.at, n, ld_) = col;
+    p.block(a.at, 0, ld_, n) = col.transpose();
+  }
+  // One correction at a time: with an inner dimension of m, each product is symmetric to the
+  // bit (entry (i, j) and (j, i) sum the same products in the same order).
+  for (Eigen::Index j = 0; j < st.c; j += md_)
+    p.topLeftCorner(n, n).noalias() -= st.w.block(0, j, n, md_) * st.w.block(0, j, n, md_).transpose();
+  s_->mean.head(n) = st.mean.head(n);
+  for (const Staged::Added& a : st.added) {
+    ids_.push_back(a.id);
+    index_[a.id] = static_cast<int>(a.at);
+    existence_.push_back(mm_.existence_hit);
+    next_id_ = std::max(next_id_, a.id + 1);
+  }
+  n_ = static_cast<int>(n);
+}
+
+EkfSlam::Saved EkfSlam::save() const {
+  return {s_, s_->mean.head(n_), s_->cov.topLeftCorner(n_, n_), n_, ids_, index_, existence_, next_id_};
+}
+
+void EkfSlam::restore(Saved& saved) {
+  s_ = saved.storage;
+  n_ = saved.n;
+  s_->mean.head(n_) = saved.mean;
+  s_->cov.topLeftCorner(n_, n_) = saved.cov;
+  ids_ = std::move(saved.ids);
+  index_ = std::move(saved.index);
+  existence_ = std::move(saved.existence);
+  next_id_ = saved.next_id;
 }
 
 UpdateReport EkfSlam::update(const Eigen::Ref<const RowMatrixXd>& z, const std::vector<long>& ids, double gate) {
   check_measurements(z);
   require(static_cast<Eigen::Index>(ids.size()) == z.rows(), "ids", "must have one id per measurement");
+  for (const long id : ids) require(id >= 0 && id <= kEkfMaxLandmarkId, "ids", "must be in [0, 2^62]");
   require(!std::isnan(gate) && gate > 0.0, "gate", "must be > 0");
-  UpdateReport report{Eigen::VectorXd::Constant(z.rows(), std::numeric_limits<double>::quiet_NaN()),
-                      std::vector<std::uint8_t>(z.rows(), 1)};
-  for (Eigen::Index i = 0; i < z.rows(); ++i) {
-    const Eigen::VectorXd zi = z.row(i).transpose();
-    const auto it = index_.find(ids[i]);
-    if (it == index_.end()) {
-      augment(zi, ids[i]);
-      continue;
+  // Which measurements correct a landmark (the others are first sightings).
+  std::unordered_map<long, int> fresh;
+  std::vector<std::uint8_t> corrects(ids.size(), 1);
+  for (std::size_t i = 0; i < ids.size(); ++i)
+    if (!index_.count(ids[i]) && fresh.emplace(ids[i], 0).second) corrects[i] = 0;
+  require_state_room(static_cast<Eigen::Index>(fresh.size()));
+  const Eigen::Index k = z.rows(), final_dim = n_ + static_cast<Eigen::Index>(fresh.size()) * ld_;
+  // Staging reads O(n) per factor column: up to n columns it costs no more than the update it
+  // replaces. Longer calls (the same landmarks many times) run in chunks on a saved state.
+  const Eigen::Index max_corrections = std::max<Eigen::Index>(1, final_dim / md_);
+  std::vector<Eigen::Index> ends;  // chunk ends
+  Eigen::Index count = 0;
+  for (Eigen::Index i = 0; i < k; ++i) {
+    if (corrects[i] && count == max_corrections) {
+      ends.push_back(i);
+      count = 0;
     }
-    bool used = false;
-    report.nis[i] = correct(zi, it->second, gate, used);
-    report.used[i] = used;
+    count += corrects[i];
+  }
+  ends.push_back(k);
+  UpdateReport report{Eigen::VectorXd::Constant(k, std::numeric_limits<double>::quiet_NaN()),
+                      std::vector<std::uint8_t>(k, 1)};
+  std::optional<Saved> saved;
+  if (ends.size() > 1) saved = save();
+  try {
+    Eigen::Index from = 0;
+    for (const Eigen::Index to : ends) {
+      Staged st(*this, final_dim, md_ * std::count(corrects.begin() + from, corrects.begin() + to, 1));
+      for (Eigen::Index i = from; i < to; ++i) {
+        const Eigen::VectorXd zi = z.row(i).transpose();
+        const auto it = index_.find(ids[i]);
+        const auto staged = st.index.find(ids[i]);
+        if (it == index_.end() && staged == st.index.end()) {
+          stage_augment(st, zi, ids[i]);
+          continue;
+        }
+        bool used = false;
+        report.nis[i] = stage_correct(st, zi, it != index_.end() ? it->second : staged->second, gate, used);
+        report.used[i] = used;
+      }
+      commit(st);
+      from = to;
+    }
+  } catch (...) {
+    if (saved) restore(*saved);
+    throw;
   }
   return report;
 }
 
 EkfSlam::Candidate EkfSlam::candidate(const Eigen::VectorXd& lm, const Eigen::MatrixXd* own_cov, int index) const {
   Candidate c;
-  measurement_jacobian(lm, c.z_hat, c.hx, c.hm);
+  measurement_jacobian(pose(), lm, c.z_hat, c.hx, c.hm);
   const Eigen::MatrixXd& hx = c.hx;
   const Eigen::MatrixXd& hm = c.hm;
   const Eigen::MatrixXd& p = s_->cov;
@@ -325,27 +523,33 @@ EkfSlam::Candidate EkfSlam::candidate(const Eigen::VectorXd& lm, const Eigen::Ma
     psi += hm * (*own_cov) * hm.transpose();
   }
   c.psi_inv = psi.llt().solve(Eigen::MatrixXd::Identity(md_, md_));
+  require(c.psi_inv.allFinite(), "z", "cannot be associated: an innovation covariance is not finite");
   return c;
 }
 
-bool EkfSlam::update_provisional(Provisional& p, const Eigen::VectorXd& z) const {
+// Updates a copy of provisional landmark p; the robot pose and its covariance are the scan's
+// current (staged) ones.
+bool EkfSlam::update_provisional(Provisional& p, const Eigen::Vector3d& x, const Eigen::Matrix3d& pose_cov,
+                                 const Eigen::VectorXd& z) const {
   Eigen::VectorXd z_hat, nu;
   Eigen::MatrixXd hx, hm;
-  measurement_jacobian(p.mean, z_hat, hx, hm);
+  measurement_jacobian(x, p.mean, z_hat, hx, hm);
   innovation(z, z_hat, nu);
-  const Eigen::MatrixXd s = hm * p.cov * hm.transpose() + hx * s_->cov.topLeftCorner<3, 3>() * hx.transpose() + Q_;
+  const Eigen::MatrixXd s = hm * p.cov * hm.transpose() + hx * pose_cov * hx.transpose() + Q_;
   const Eigen::MatrixXd k = p.cov * hm.transpose() * s.llt().solve(Eigen::MatrixXd::Identity(md_, md_));
   p.mean += k * nu;
   const Eigen::MatrixXd c = (Eigen::MatrixXd::Identity(ld_, ld_) - k * hm) * p.cov;
   p.cov = 0.5 * (c + c.transpose());
-  ++p.seen;
+  require(p.mean.allFinite() && p.cov.allFinite(), "z", "cannot be applied: a provisional landmark would not be finite");
+  p.seen = std::min(p.seen + 1, kEkfMaxCount);
   p.age = 0;
   const double largest = Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(p.cov.topLeftCorner<2, 2>()).eigenvalues()(1);
   return p.seen >= mm_.min_observations && std::sqrt(largest) < mm_.provisional_max_std;
 }
 
 // Table 10.2, with candidates gated through a spatial index and per-landmark quantities
-// (z-hat, Psi^-1) computed once per scan from the predicted belief.
+// (z-hat, Psi^-1) computed once per scan from the predicted belief. Every decision is taken on
+// that belief first; the corrections and new landmarks are then staged and applied together.
 AssociationReport EkfSlam::update_unknown(const Eigen::Ref<const RowMatrixXd>& z, double alpha, double alpha_new,
                                           Association association) {
   check_measurements(z);
@@ -354,6 +558,7 @@ AssociationReport EkfSlam::update_unknown(const Eigen::Ref<const RowMatrixXd>& z
   require(association == Association::kMaximumLikelihood || association == Association::kJointCompatibility,
           "association", "must be maximum likelihood or joint compatibility");
   const Eigen::Index k = z.rows();
+  require_state_room(k);  // at most one landmark per measurement
   const int n_map = num_landmarks();
   const int n_prov = static_cast<int>(provisional_.size());
   const Eigen::Vector3d x = pose();
@@ -418,24 +623,26 @@ AssociationReport EkfSlam::update_unknown(const Eigen::Ref<const RowMatrixXd>& z
   for (const auto& [pi, i, j] : near_pairs)
     if (!taken[j]) free_pi[i] = std::min(free_pi[i], pi);
 
+  // Stage the scan: nothing below changes the filter until commit.
+  Staged st(*this, n_ + k * ld_, std::min<Eigen::Index>(k, n_map) * md_);
+  std::vector<Provisional> prov = provisional_;
   std::vector<std::uint8_t> observed(n_map, 0);
-  std::vector<long> map_ids(ids_.begin(), ids_.end());  // ids before this scan changes the map
   std::vector<int> promoted;
+  long next_id = next_id_;
   for (Eigen::Index i = 0; i < k; ++i) {
     const Eigen::VectorXd zi = z.row(i).transpose();
     const int j = target[i];
     if (j >= 0 && j < n_map) {  // line 22 and the update of lines 24-25, one at a time
       bool used = false;
-      correct(zi, index_.at(map_ids[j]), std::numeric_limits<double>::infinity(), used);
+      stage_correct(st, zi, 3 + j * ld_, std::numeric_limits<double>::infinity(), used);
       observed[j] = 1;
-      report.ids[i] = map_ids[j];
+      report.ids[i] = ids_[j];
       report.outcome[i] = AssociationReport::kAssociated;
     } else if (j >= n_map) {
-      if (update_provisional(provisional_[j - n_map], zi)) {
-        const long id = next_id_;
-        augment(zi, id);
+      if (update_provisional(prov[j - n_map], st.mean.head<3>(), st.robot_cov(), zi)) {
+        stage_augment(st, zi, next_id);
         promoted.push_back(j - n_map);
-        report.ids[i] = id;
+        report.ids[i] = next_id++;
         report.outcome[i] = AssociationReport::kNewLandmark;
       } else {
         report.outcome[i] = AssociationReport::kProvisional;
@@ -444,28 +651,29 @@ AssociationReport EkfSlam::update_unknown(const Eigen::Ref<const RowMatrixXd>& z
       if (mm_.provisional) {
         Provisional p;
         Eigen::MatrixXd gx, gz;
-        inverse_measurement(zi, p.mean, gx, gz);
-        p.cov = gx * s_->cov.topLeftCorner<3, 3>() * gx.transpose() + gz * Q_ * gz.transpose();
-        provisional_.push_back(std::move(p));
+        inverse_measurement(st.mean.head<3>(), zi, p.mean, gx, gz);
+        p.cov = gx * st.robot_cov() * gx.transpose() + gz * Q_ * gz.transpose();
+        require(p.mean.allFinite() && p.cov.allFinite(), "z", "places a landmark whose covariance would not be finite");
+        prov.push_back(std::move(p));
         report.outcome[i] = AssociationReport::kProvisional;
       } else {
-        const long id = next_id_;
-        augment(zi, id);
-        report.ids[i] = id;
+        stage_augment(st, zi, next_id);
+        report.ids[i] = next_id++;
         report.outcome[i] = AssociationReport::kNewLandmark;
       }
     }
   }
   // Provisional bookkeeping: drop the promoted, age the unseen, forget the stale.
-  std::vector<std::uint8_t> seen_now(provisional_.size(), 0);
+  std::vector<std::uint8_t> seen_now(prov.size(), 0);
   for (Eigen::Index i = 0; i < k; ++i)
     if (target[i] >= n_map) seen_now[target[i] - n_map] = 1;
   std::vector<Provisional> kept;
-  for (std::size_t p = 0; p < provisional_.size(); ++p) {
+  for (std::size_t p = 0; p < prov.size(); ++p) {
     if (std::find(promoted.begin(), promoted.end(), static_cast<int>(p)) != promoted.end()) continue;
-    if (p < static_cast<std::size_t>(n_prov) && !seen_now[p] && ++provisional_[p].age > mm_.provisional_max_age) continue;
-    kept.push_back(std::move(provisional_[p]));
+    if (p < static_cast<std::size_t>(n_prov) && !seen_now[p] && ++prov[p].age > mm_.provisional_max_age) continue;
+    kept.push_back(std::move(prov[p]));
   }
+  commit(st);
   provisional_ = std::move(kept);
   if (mm_.existence) update_existence(observed, x, report);
   return report;
@@ -507,6 +715,8 @@ std::vector<int> EkfSlam::joint_target(const Eigen::Ref<const RowMatrixXd>& z,
 }
 
 // Ch. 10.3.3: o_j rises when j is observed, falls when j should have been seen but was not.
+// The increments are bounded (kEkfMaxLogOdds) and o_j is clamped to a multiple of that bound:
+// it can neither overflow nor take longer to fall than it took to rise.
 void EkfSlam::update_existence(const std::vector<std::uint8_t>& observed, const Eigen::Vector3d& x,
                                AssociationReport& report) {
   std::vector<long> doomed;
@@ -514,12 +724,13 @@ void EkfSlam::update_existence(const std::vector<std::uint8_t>& observed, const 
     const long id = ids_[j];
     double& o = existence_[j];
     if (observed[j]) {
-      o += mm_.existence_hit;
+      o = std::min(o + mm_.existence_hit, kMaxExistence);
       continue;
     }
     const Eigen::Vector2d d = s_->mean.segment<2>(3 + j * ld_) - x.head<2>();
     const double bearing = wrap_angle(std::atan2(d.y(), d.x()) - x[2]);
-    if (d.norm() <= mm_.sensor_range && std::fabs(bearing) <= mm_.sensor_fov / 2.0) o -= mm_.existence_miss;
+    if (d.norm() <= mm_.sensor_range && std::fabs(bearing) <= mm_.sensor_fov / 2.0)
+      o = std::max(o - mm_.existence_miss, -kMaxExistence);
     if (o < mm_.existence_threshold) doomed.push_back(id);
   }
   for (long id : doomed) remove_landmark(id);
@@ -544,19 +755,24 @@ void EkfSlam::remove_landmark(long id) {
 }
 
 void EkfSlam::set_map_management(const MapManagement& m) {
-  require(m.min_observations >= 1, "min_observations", "must be >= 1");
+  require(m.min_observations >= 1 && m.min_observations <= kEkfMaxCount, "min_observations", "must be in [1, 1e6]");
   require_positive(m.provisional_max_std, "provisional_max_std");
-  require(m.provisional_max_age >= 0, "provisional_max_age", "must be >= 0");
-  require_finite(m.existence_hit, "existence_hit");
-  require_finite(m.existence_miss, "existence_miss");
-  require_finite(m.existence_threshold, "existence_threshold");
+  require(m.provisional_max_age >= 0 && m.provisional_max_age <= kEkfMaxCount, "provisional_max_age",
+          "must be in [0, 1e6]");
+  const auto log_odds = [](double v, const char* name) {
+    require(std::isfinite(v) && std::fabs(v) <= kEkfMaxLogOdds, name, "must be finite with magnitude <= 1e6 (kEkfMaxLogOdds)");
+  };
+  log_odds(m.existence_hit, "existence_hit");
+  log_odds(m.existence_miss, "existence_miss");
+  log_odds(m.existence_threshold, "existence_threshold");
   require(!std::isnan(m.sensor_range) && m.sensor_range > 0.0, "sensor_range", "must be > 0");
   require(std::isfinite(m.sensor_fov) && m.sensor_fov > 0.0, "sensor_fov", "must be finite and > 0");
   mm_ = m;
 }
 
 void EkfSlam::set_gate_distance(double metres) {
-  require_positive(metres, "gate_distance");
+  require(std::isfinite(metres) && metres >= kMinGateDistance && metres <= kEkfMaxCoordinate, "gate_distance",
+          "must be in [1e-6, 1e9] m");
   gate_distance_ = metres;
 }
 

@@ -30,6 +30,7 @@ class Search {
 
   JointAssociation run() {
     descend(0, Eigen::MatrixXd(0, 0), Eigen::VectorXd(0), 0.0);
+    best_.complete = nodes_ <= kJcbbMaxNodes;
     return best_;
   }
 
@@ -66,6 +67,7 @@ class Search {
       // The most this branch can still reach: prune when it cannot beat the best, knowing that
       // the joint NIS never decreases as pairings are added.
       if (paired + 1 + remaining < best_.pairings) break;
+      if (nodes_++ >= kJcbbMaxNodes) return;  // budget spent: keep the best found so far
       const Eigen::Index m = pq.innovation.size(), n = s.rows();
       Eigen::MatrixXd grown(n + m, n + m);
       grown.topLeftCorner(n, n) = s;
@@ -94,6 +96,7 @@ class Search {
       offsets_.pop_back();
     }
     // Measurement i unpaired (a new landmark, clutter, or ambiguous).
+    if (nodes_ >= kJcbbMaxNodes) return;
     if (paired + remaining > best_.pairings || (paired + remaining == best_.pairings && nis < best_.nis))
       descend(i + 1, s, nu, nis);
   }
@@ -106,6 +109,7 @@ class Search {
   std::vector<int> chosen_, chosen_targets_, current_;
   std::vector<Eigen::Index> offsets_;
   JointAssociation best_;
+  long nodes_ = 0;
 };
 
 }  // namespace

@@ -74,26 +74,38 @@ class AssignmentSearch {
 
 }  // namespace
 
+void validate(const MultiHypothesisOptions& o) {
+  require(o.max_hypotheses >= 1 && o.max_hypotheses <= kMhtMaxHypotheses, "max_hypotheses", "must be in [1, 1000]");
+  require(o.max_children >= 1 && o.max_children <= kMhtMaxChildren, "max_children", "must be in [1, 100]");
+  const auto cost = [](double v, const char* name) {
+    require(std::isfinite(v) && v > 0.0 && v <= kMhtMaxCost, name, "must be in (0, 1e6] (kMhtMaxCost)");
+  };
+  cost(o.gate, "gate");
+  cost(o.new_landmark_cost, "new_landmark_cost");
+  cost(o.clutter_cost, "clutter_cost");
+  cost(o.prune_margin, "prune_margin");
+}
+
 MultiHypothesisEkfSlam::MultiHypothesisEkfSlam(const EkfSlam& initial, const MultiHypothesisOptions& options)
     : options_(options) {
-  require(options.max_hypotheses >= 1, "max_hypotheses", "must be >= 1");
-  require(options.max_children >= 1, "max_children", "must be >= 1");
-  require_positive(options.gate, "gate");
-  require_positive(options.new_landmark_cost, "new_landmark_cost");
-  require_positive(options.clutter_cost, "clutter_cost");
-  require_positive(options.prune_margin, "prune_margin");
+  validate(options);
   log_det_q_ = log_det_2pi(Eigen::LLT<Eigen::MatrixXd>(initial.measurement_noise()));
   long next_id = 0;
   for (const long id : initial.landmark_ids()) next_id = std::max(next_id, id + 1);
   beam_.push_back({initial.clone(), 0.0, next_id, nullptr});
 }
 
+// Every filter's motion is planned (and checked) before any is applied.
 void MultiHypothesisEkfSlam::predict(double v, double w, double dt) {
-  for (Hypothesis& h : beam_) h.filter.predict(v, w, dt);
+  const EkfSlam& f = best();
+  predict(v, w, dt, f.control_noise_ ? Eigen::MatrixXd(f.m_control_) : Eigen::MatrixXd(f.r_pose_));
 }
 
 void MultiHypothesisEkfSlam::predict(double v, double w, double dt, const Eigen::MatrixXd& noise) {
-  for (Hypothesis& h : beam_) h.filter.predict(v, w, dt, noise);
+  std::vector<EkfSlam::Motion> planned;
+  planned.reserve(beam_.size());
+  for (const Hypothesis& h : beam_) planned.push_back(h.filter.plan_predict(v, w, dt, noise));
+  for (std::size_t i = 0; i < beam_.size(); ++i) beam_[i].filter.apply(planned[i]);
 }
 
 void MultiHypothesisEkfSlam::branch(const Hypothesis& parent, const Eigen::Ref<const RowMatrixXd>& z,
@@ -139,11 +151,20 @@ void MultiHypothesisEkfSlam::branch(const Hypothesis& parent, const Eigen::Ref<c
 std::vector<long> MultiHypothesisEkfSlam::update(const Eigen::Ref<const RowMatrixXd>& z) {
   best().check_measurements(z);
   if (z.rows() == 0) return {};
+  double bytes = 0.0;  // the children's covariances, at most
+  for (const Hypothesis& h : beam_) {
+    const double dim = h.filter.state_dim() + static_cast<double>(z.rows()) * h.filter.landmark_dim();
+    bytes += options_.max_children * dim * dim * sizeof(double);
+  }
+  require(bytes <= kMhtMaxBranchBytes, "z", "would make the children of this scan hold more than 4 GiB "
+          "(kMhtMaxBranchBytes): lower max_hypotheses or max_children");
   std::vector<Hypothesis> children;
   for (const Hypothesis& h : beam_) branch(h, z, children);
   std::stable_sort(children.begin(), children.end(),
                    [](const Hypothesis& a, const Hypothesis& b) { return a.cost < b.cost; });
   const double best_cost = children.front().cost;
+  for (const Hypothesis& c : children)
+    require(std::isfinite(c.cost) && std::isfinite(offset_ + best_cost), "z", "gives a hypothesis a non-finite cost");
   std::vector<Hypothesis> kept;
   for (Hypothesis& c : children) {
     if (static_cast<int>(kept.size()) == options_.max_hypotheses || c.cost > best_cost + options_.prune_margin) break;

@@ -9,7 +9,7 @@ namespace probslam {
 
 class SpatialHash2D {
  public:
-  /// cell_size (m) should be about the typical query radius.
+  /// cell_size (m) should be about the typical query radius. Points and queries must be finite.
   explicit SpatialHash2D(double cell_size);
 
   void clear() { cells_.clear(); }
@@ -21,15 +21,15 @@ class SpatialHash2D {
   double cell_size() const { return cell_; }
 
  private:
-  // Unsigned arithmetic: shifting a negative cell index is undefined behaviour.
-  static std::uint64_t key(std::int64_t cx, std::int64_t cy) {
-    return (static_cast<std::uint64_t>(cx) << 32) ^ (static_cast<std::uint64_t>(cy) & 0xffffffffu);
+  // Unsigned arithmetic: no overflow for any cell index (distinct cells may share a key; queries
+  // check the distance of every point they return).
+  static std::int64_t key(std::int64_t cx, std::int64_t cy) {
+    return static_cast<std::int64_t>((static_cast<std::uint64_t>(cx) << 32) ^ (static_cast<std::uint64_t>(cy) & 0xffffffffu));
   }
-  /// The cell index of coordinate v, clamped so that the conversion to an integer is defined for
-  /// any double (a NaN goes to cell 0; near() never matches it).
-  std::int64_t cell_index(double v) const;
+  /// Cell index of coordinate v, clamped so the conversion to an integer is defined.
+  std::int64_t cell_of(double v) const;
   double cell_;
-  std::unordered_map<std::uint64_t, std::vector<int>> cells_;
+  std::unordered_map<std::int64_t, std::vector<int>> cells_;
 };
 
 }  // namespace probslam

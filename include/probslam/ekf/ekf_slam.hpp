@@ -14,6 +14,25 @@
 
 namespace probslam {
 
+// Reliability limits (README "Reliability"): input beyond them is refused by name, so that the
+// filter's products (r^2 times a variance, G P G^T, K S K^T) stay far inside the double range.
+/// Metres: robot coordinates, measured ranges and signatures, one motion's length. Larger than
+/// any planar map (the Earth's circumference is 4e7 m).
+inline constexpr double kEkfMaxCoordinate = 1e9;
+/// Entries of a noise or initial covariance: a standard deviation of kEkfMaxCoordinate metres,
+/// beyond which a measurement or motion carries no information at all.
+inline constexpr double kEkfMaxVariance = 1e18;
+/// State dimension (3 + landmarks x landmark_dim): a dense covariance of 2 GiB, whose O(n^2)
+/// update takes about a second. Larger maps need a sparse method (graph SLAM).
+inline constexpr int kEkfMaxStateDimension = 16384;
+/// Landmark ids are in [0, kEkfMaxLandmarkId]: negative ids mark "no landmark" in the reports,
+/// and new ids (largest + 1) must never overflow.
+inline constexpr long kEkfMaxLandmarkId = 1L << 62;
+/// Existence log-odds increments and threshold: far beyond any probability a double can hold.
+inline constexpr double kEkfMaxLogOdds = 1e6;
+/// Sighting and age counts of the provisional list.
+inline constexpr int kEkfMaxCount = 1000000;
+
 /// Mean and covariance storage with spare capacity. Views into it stay valid (if stale) after
 /// the state grows beyond the capacity, because growing moves to a new storage object.
 struct EkfSlamStorage {
@@ -56,6 +75,9 @@ struct AssociationReport {
   std::vector<long> removed;           // landmarks dropped by the existence test
 };
 
+/// Every method validates all its input before changing anything (std::invalid_argument whose
+/// message starts with the argument's name) and leaves the filter unchanged when it throws; a
+/// call whose result would not be finite throws too. The filter does not lock itself: see mutex().
 class EkfSlam {
  public:
   /// Lock it around every call when several threads share this object (core/object_mutex.hpp).
@@ -98,11 +120,12 @@ class EkfSlam {
   UpdateReport update(const Eigen::Ref<const RowMatrixXd>& z, const std::vector<long>& ids,
                       double gate = std::numeric_limits<double>::infinity());
 
-  /// std::invalid_argument naming "z" unless z is k x landmark_dim() of finite values, ranges >= 0.
+  /// std::invalid_argument naming "z" unless z is k x landmark_dim() of finite values with
+  /// ranges in [0, kEkfMaxCoordinate] and |bearing|, |signature| <= kEkfMaxCoordinate.
   void check_measurements(const Eigen::Ref<const RowMatrixXd>& z) const;
   /// Table 10.1 lines 12-16 for one measurement z against landmark `id`, without updating:
   /// the normalised innovation squared and log det(2 pi S), whose sum is -2 log N(nu; 0, S).
-  /// NaN for a landmark on the robot (no bearing).
+  /// NaN for a landmark on the robot (no bearing); otherwise finite, or std::invalid_argument.
   struct PairingLikelihood {
     double nis;
     double log_det;
@@ -145,24 +168,44 @@ class EkfSlam {
     Eigen::MatrixXd hx, hm;  // measurement Jacobians (robot, landmark)
   };
 
+  struct Staged;  // a call's corrections and new landmarks, not yet applied (ekf_slam.cpp)
+  struct Saved;   // a copy of the whole state, to restore when a long call fails part way
+
   /// First state index of landmark `id`; std::invalid_argument if it is not in the map.
   int index_of(long id) const;
-  void apply_motion(const Eigen::Vector3d& new_pose, const Eigen::Matrix3d& g, const Eigen::Matrix3d& r);
-  void measurement_jacobian(const Eigen::VectorXd& landmark, Eigen::VectorXd& z_hat, Eigen::MatrixXd& hx,
-                            Eigen::MatrixXd& hm) const;
+  friend class MultiHypothesisEkfSlam;  // plans every filter's motion before applying any
+  struct Motion {  // Table 10.1 lines 3-5's result: the robot's mean, covariance and cross rows
+    Eigen::Vector3d pose;
+    Eigen::Matrix3d prr;
+    Eigen::MatrixXd prm;
+  };
+  /// The motion's result, checked finite; std::invalid_argument otherwise. Changes nothing.
+  Motion plan_motion(const Eigen::Vector3d& new_pose, const Eigen::Matrix3d& g, const Eigen::Matrix3d& r) const;
+  Motion plan_predict(double v, double w, double dt, const Eigen::MatrixXd& noise) const;
+  void apply(const Motion& motion);
+  void measurement_jacobian(const Eigen::Vector3d& x, const Eigen::VectorXd& landmark, Eigen::VectorXd& z_hat,
+                            Eigen::MatrixXd& hx, Eigen::MatrixXd& hm) const;
   void innovation(const Eigen::VectorXd& z, const Eigen::VectorXd& z_hat, Eigen::VectorXd& nu) const;
-  double correct(const Eigen::VectorXd& z, int index, double gate, bool& used);
   /// Innovation nu, its covariance S and P H^T of z against the landmark at state index `index`;
   /// false for a landmark on the robot.
   bool innovation_at(const Eigen::VectorXd& z, int index, Eigen::VectorXd& nu, Eigen::MatrixXd& s,
                      Eigen::MatrixXd& pht) const;
   double placement_radius(const Eigen::Vector3d& x, const Eigen::VectorXd& z) const;
-  void augment(const Eigen::VectorXd& z, long id);
-  void inverse_measurement(const Eigen::VectorXd& z, Eigen::VectorXd& m, Eigen::MatrixXd& gx,
-                           Eigen::MatrixXd& gz) const;
+  void inverse_measurement(const Eigen::Vector3d& x, const Eigen::VectorXd& z, Eigen::VectorXd& m,
+                           Eigen::MatrixXd& gx, Eigen::MatrixXd& gz) const;
   void reserve(Eigen::Index dim);
+  /// Table 10.1 lines 12-20 for one measurement, staged; returns the NIS (NaN: no bearing).
+  double stage_correct(Staged& st, const Eigen::VectorXd& z, Eigen::Index index, double gate, bool& used) const;
+  /// Table 10.1 line 10 (state augmentation), staged.
+  void stage_augment(Staged& st, const Eigen::VectorXd& z, long id) const;
+  /// Writes a staged call into the state; throws nothing once the staged values are checked.
+  void commit(Staged& st);
+  Saved save() const;
+  void restore(Saved& saved);
+  void require_state_room(Eigen::Index added_landmarks) const;
   Candidate candidate(const Eigen::VectorXd& landmark, const Eigen::MatrixXd* own_cov, int index) const;
-  bool update_provisional(Provisional& p, const Eigen::VectorXd& z) const;
+  bool update_provisional(Provisional& p, const Eigen::Vector3d& x, const Eigen::Matrix3d& pose_cov,
+                          const Eigen::VectorXd& z) const;
   std::vector<int> joint_target(const Eigen::Ref<const RowMatrixXd>& z,
                                 const std::vector<std::tuple<double, int, int>>& pairs,
                                 const std::unordered_map<int, Candidate>& cache, int n_map, double alpha) const;

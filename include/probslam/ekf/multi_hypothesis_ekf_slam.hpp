@@ -25,6 +25,19 @@ struct MultiHypothesisOptions {
   double prune_margin = 40.0;       // filters costing more than the best plus this are dropped
 };
 
+/// Reliability limits: the beam and the children per filter, each a full copy of a filter.
+inline constexpr int kMhtMaxHypotheses = 1000;
+inline constexpr int kMhtMaxChildren = 100;
+/// Costs and the prune margin, in NIS units: chi-square quantiles of any probability a double
+/// resolves are far below this.
+inline constexpr double kMhtMaxCost = 1e6;
+/// Bytes of covariance the children of one scan may hold together (beam x children x state^2).
+inline constexpr double kMhtMaxBranchBytes = 4.0 * (1 << 30);
+
+/// std::invalid_argument naming the first option out of its range.
+void validate(const MultiHypothesisOptions& options);
+
+/// Every call validates all input first and leaves the beam unchanged when it throws.
 class MultiHypothesisEkfSlam {
  public:
   /// Lock it around every call when several threads share this object (core/object_mutex.hpp).
