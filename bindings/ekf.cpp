@@ -22,18 +22,8 @@ DoubleArray measurements_arg(int landmark_dim, py::handle z) {
   return matrix_arg(z, "z", landmark_dim);
 }
 
-// Integer ids only: a float or bool array is a mistake, not something to truncate; values must
-// fit a C long (unsigned values beyond it would wrap).
+// Integer ids (integer_array_arg refuses floats, bools and unsigned values beyond long); range checks (ids in [0, 2^62]) are EkfSlam::update's own.
 std::vector<long> ids_arg(py::handle ids, py::ssize_t k) {
-  py::array raw = py::array::ensure(ids);
-  if (!raw || (raw.size() > 0 && raw.dtype().kind() != 'i' && raw.dtype().kind() != 'u'))
-    throw py::type_error("ids must be an array of integers");
-  if (raw.dtype().kind() == 'u' && raw.dtype().itemsize() >= static_cast<py::ssize_t>(sizeof(long))) {
-    py::array_t<unsigned long long, py::array::forcecast> u(raw);
-    for (py::ssize_t i = 0; i < u.size(); ++i)
-      if (u.data()[i] > static_cast<unsigned long long>(kEkfMaxLandmarkId))
-        throw py::value_error("ids must be in [0, 2^62]");
-  }
   LongArray a = integer_array_arg(ids, "ids");
   if (a.ndim() == 0) a = a.reshape({py::ssize_t{1}});
   if (a.ndim() != 1 || a.shape(0) != k)

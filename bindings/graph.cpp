@@ -48,11 +48,8 @@ py::array_t<double> values_of(const PoseGraph2D& g, VertexKind kind) {
 // Vertex ids from Python: integers only (a float id would be truncated) and within int (a
 // larger one would wrap onto another vertex).
 std::vector<int> vertex_ids(py::handle obj, const char* name) {
-  py::array raw = obj.is_none() ? py::array() : py::array::ensure(obj);
-  if (!raw || (raw.size() > 0 && raw.dtype().kind() != 'i' && raw.dtype().kind() != 'u'))
-    throw py::type_error(std::string(name) + " must be an array of integers");
-  if (raw.ndim() != 1) throw py::value_error(std::string(name) + " must be a 1-D array of integers");
-  const LongArray ids = integer_array_arg(raw, name);
+  const LongArray ids = integer_array_arg(obj, name);
+  if (ids.ndim() != 1) throw py::value_error(std::string(name) + " must be a 1-D array of integers");
   std::vector<int> out(static_cast<size_t>(ids.shape(0)));
   for (py::ssize_t k = 0; k < ids.shape(0); ++k) {
     const long id = ids.at(k);

@@ -4,6 +4,7 @@
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
 
+#include <limits>
 #include <string>
 
 namespace probslam::bindings {
@@ -67,10 +68,20 @@ inline Eigen::MatrixXd square_matrix_arg(py::handle obj, const char* name, py::s
 
 using LongArray = py::array_t<long, py::array::c_style | py::array::forcecast>;
 
-/// An integer array (ids, indices); a TypeError names the argument otherwise.
+/// An integer array (ids, indices); a TypeError names the argument otherwise. Float arrays are
+/// refused rather than cast: a cast would truncate 1.7 to 1 and pick another id silently.
 inline LongArray integer_array_arg(py::handle obj, const char* name) {
-  LongArray a;
-  if (!obj.is_none()) a = LongArray::ensure(obj);
+  py::array raw = obj.is_none() ? py::array() : py::array::ensure(obj);
+  const bool integral = raw && (raw.size() == 0 || raw.dtype().kind() == 'i' || raw.dtype().kind() == 'u');
+  if (!integral) throw py::type_error(std::string(name) + " must be an array of integers");
+  if (raw.dtype().kind() == 'u' && raw.dtype().itemsize() >= static_cast<py::ssize_t>(sizeof(long))) {
+    // An unsigned value beyond long's range would wrap to a negative id.
+    const py::array_t<unsigned long long, py::array::forcecast> u(raw);
+    for (py::ssize_t i = 0; i < u.size(); ++i)
+      if (u.data()[i] > static_cast<unsigned long long>(std::numeric_limits<long>::max()))
+        throw py::value_error(std::string(name) + ": value " + std::to_string(u.data()[i]) + " is out of range");
+  }
+  LongArray a = LongArray::ensure(raw);
   if (!a) throw py::type_error(std::string(name) + " must be an array of integers");
   return a;
 }

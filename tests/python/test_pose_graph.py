@@ -202,6 +202,13 @@ def test_toro_and_isam_information_conventions(tmp_path):
         ("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 0 1 0 0\n", r"id is already used: 0"),
         ("VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\n", r":1: unsupported g2o record"),
         ("# only a comment\n", r"no vertices or edges"),
+        # issue 12: non-finite values, ids beyond int, overflowing dead reckoning
+        ("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 inf 0 0\n", r":2: .*finite"),
+        ("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1e999 0 0\n", r":2: field 3"),
+        ("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 99999999999 0 0 0\n", r":2: vertex id 99999999999 out of range"),
+        ("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 0 0 0\nEDGE_SE2 0 1 1 0 0 1 2 0 1 0 1\n", r":3: information"),
+        ("ODOMETRY 0 1 1e308 0 0 1 0 0 1 0 1\nODOMETRY 1 2 1e308 0 0 1 0 0 1 0 1\n", r":2: .*(finite|beyond the double range)"),
+        ("LANDMARK 0 1 1 1 nan 0 1\n", r":1: "),
     ],
 )
 def test_malformed_files_name_the_line(tmp_path, text, message):
