@@ -22,6 +22,8 @@ DoubleArray measurements_arg(int landmark_dim, py::handle z) {
   return matrix_arg(z, "z", landmark_dim);
 }
 
+DoubleArray measurements_arg(const EkfSlam& e, py::handle z) { return measurements_arg(getter(&EkfSlam::landmark_dim)(e), z); }
+
 // Integer ids (integer_array_arg refuses floats, bools and unsigned values beyond long); range checks (ids in [0, 2^62]) are EkfSlam::update's own.
 std::vector<long> ids_arg(py::handle ids, py::ssize_t k) {
   LongArray a = integer_array_arg(ids, "ids");
@@ -44,15 +46,15 @@ std::pair<std::shared_ptr<EkfSlamStorage>, int> storage_of(const EkfSlam& e) {
   return locked(e, [&] { return std::make_pair(e.storage(), e.state_dim()); });
 }
 
-// A read-only property whose getter runs under the object's lock.
-template <typename T, typename R>
-auto getter(R (T::*method)() const) {
-  return [method](const T& obj) { return locked(obj, [&] { return (obj.*method)(); }); };
-}
-
-std::optional<Eigen::MatrixXd> optional_noise(py::handle noise) {
-  if (noise.is_none()) return std::nullopt;
-  return square_matrix_arg(noise, "noise");
+// predict(v, w, dt[, noise]) of an EkfSlam or a MultiHypothesisEkfSlam, under its lock.
+template <typename Filter>
+void predict_locked(Filter& f, double v, double w, double dt, py::handle noise) {
+  const std::optional<Eigen::MatrixXd> n =
+      noise.is_none() ? std::nullopt : std::optional<Eigen::MatrixXd>(square_matrix_arg(noise, "noise"));
+  locked(f, [&] {
+    if (n) f.predict(v, w, dt, *n);
+    else f.predict(v, w, dt);
+  });
 }
 
 void define_options(py::module_& m) {
@@ -133,13 +135,7 @@ void define_ekf_state(py::class_<EkfSlam>& c) {
 void define_ekf_calls(py::class_<EkfSlam>& c) {
   c.def(
        "predict",
-       [](EkfSlam& e, double v, double w, double dt, py::handle noise) {
-         const std::optional<Eigen::MatrixXd> n = optional_noise(noise);
-         locked(e, [&] {
-           if (n) e.predict(v, w, dt, *n);
-           else e.predict(v, w, dt);
-         });
-       },
+       &predict_locked<EkfSlam>,
        py::arg("v"), py::arg("w"), py::arg("dt"), py::arg("noise") = py::none())
       .def(
           "predict_odometry",
@@ -152,7 +148,7 @@ void define_ekf_calls(py::class_<EkfSlam>& c) {
       .def(
           "update",
           [](EkfSlam& e, py::handle z, py::handle ids, double gate) {
-            DoubleArray zz = measurements_arg(locked(e, [&] { return e.landmark_dim(); }), z);
+            DoubleArray zz = measurements_arg(e, z);
             const std::vector<long> id = ids_arg(ids, zz.shape(0));
             const UpdateReport r = locked(e, [&] { return e.update(as_matrix(zz), id, gate); });
             std::vector<bool> used(r.used.begin(), r.used.end());
@@ -162,7 +158,7 @@ void define_ekf_calls(py::class_<EkfSlam>& c) {
       .def(
           "update_unknown",
           [](EkfSlam& e, py::handle z, double alpha, double alpha_new, Association association) {
-            DoubleArray zz = measurements_arg(locked(e, [&] { return e.landmark_dim(); }), z);
+            DoubleArray zz = measurements_arg(e, z);
             const AssociationReport r =
                 locked(e, [&] { return e.update_unknown(as_matrix(zz), alpha, alpha_new, association); });
             return py::make_tuple(py::array(py::cast(r.ids)), r.mahalanobis,
@@ -176,7 +172,7 @@ void define_ekf_calls(py::class_<EkfSlam>& c) {
       .def(
           "pairing_likelihood",
           [](const EkfSlam& e, py::handle z, long id) {
-            DoubleArray zz = measurements_arg(locked(e, [&] { return e.landmark_dim(); }), z);
+            DoubleArray zz = measurements_arg(e, z);
             if (zz.shape(0) != 1) throw py::value_error("z must be one measurement");
             const Eigen::VectorXd zi = as_matrix(zz).row(0).transpose();
             const EkfSlam::PairingLikelihood p = locked(e, [&] { return e.pairing_likelihood(zi, id); });
@@ -194,13 +190,7 @@ void define_multi_hypothesis(py::module_& m) {
            py::arg("initial"), py::arg("options"))
       .def(
           "predict",
-          [](Mht& e, double v, double w, double dt, py::handle noise) {
-            const std::optional<Eigen::MatrixXd> n = optional_noise(noise);
-            locked(e, [&] {
-              if (n) e.predict(v, w, dt, *n);
-              else e.predict(v, w, dt);
-            });
-          },
+          &predict_locked<Mht>,
           py::arg("v"), py::arg("w"), py::arg("dt"), py::arg("noise") = py::none())
       .def(
           "update",

@@ -1,6 +1,5 @@
 #include <pybind11/stl.h>
 
-#include <limits>
 
 #include "numpy.hpp"
 #include "object_lock.hpp"
@@ -50,14 +49,7 @@ py::array_t<double> values_of(const PoseGraph2D& g, VertexKind kind) {
 std::vector<int> vertex_ids(py::handle obj, const char* name) {
   const LongArray ids = integer_array_arg(obj, name);
   if (ids.ndim() != 1) throw py::value_error(std::string(name) + " must be a 1-D array of integers");
-  std::vector<int> out(static_cast<size_t>(ids.shape(0)));
-  for (py::ssize_t k = 0; k < ids.shape(0); ++k) {
-    const long id = ids.at(k);
-    if (id < std::numeric_limits<int>::min() || id > std::numeric_limits<int>::max())
-      throw py::value_error(std::string(name) + ": vertex id " + std::to_string(id) + " is out of range");
-    out[static_cast<size_t>(k)] = static_cast<int>(id);
-  }
-  return out;
+  return int_entries(ids, name, "vertex id");
 }
 
 void set_values(PoseGraph2D& g, py::handle ids_obj, py::handle values_obj, int dim) {
@@ -205,7 +197,7 @@ void define_graph(py::module_& m) {
            py::arg("ids"), py::arg("points"))
       .def("has_vertex", [](const PoseGraph2D& g, int id) { return locked(g, [&] { return g.has_vertex(id); }); },
            py::arg("id"))
-      .def_property_readonly("num_vertices", [](const PoseGraph2D& g) { return locked(g, [&] { return g.num_vertices(); }); })
+      .def_property_readonly("num_vertices", getter(&PoseGraph2D::num_vertices))
       .def_property_readonly("num_pose_edges",
                              [](const PoseGraph2D& g) { return locked(g, [&] { return g.pose_edges().size(); }); })
       .def_property_readonly("num_point_edges",
@@ -228,7 +220,7 @@ void define_graph(py::module_& m) {
            [](const PoseGraph2D& g) {
              return edge_arrays<2>(g, g.point_edges(), [](const PointEdge& e) { return std::pair{e.pose, e.point}; });
            })
-      .def("chi2", [](const PoseGraph2D& g) { return locked(g, [&] { return g.chi2(); }); })
+      .def("chi2", getter(&PoseGraph2D::chi2))
       .def("copy", [](const PoseGraph2D& g) { return locked(g, [&] { return PoseGraph2D(g); }); });
 
   py::class_<OptimizationReport>(m, "OptimizationReport")

@@ -71,9 +71,9 @@ void define_grid(py::module_& m) {
           py::arg("clamp") = py::make_tuple(0.1192, 0.971), py::arg("p_hit") = 0.7, py::arg("p_miss") = 0.4)
       .def_property_readonly_static("max_cells", [](py::object) { return Grid::kMaxCells; },
                                     "Largest number of cells a grid may have (constructor, covering, grown, project_2d).")
-      .def_property_readonly("resolution", [](const Grid& g) { return locked(g, [&] { return g.resolution(); }); })
-      .def_property_readonly("width", [](const Grid& g) { return locked(g, [&] { return g.width(); }); })
-      .def_property_readonly("height", [](const Grid& g) { return locked(g, [&] { return g.height(); }); })
+      .def_property_readonly("resolution", getter(&Grid::resolution))
+      .def_property_readonly("width", getter(&Grid::width))
+      .def_property_readonly("height", getter(&Grid::height))
       .def_property_readonly("shape", [](const Grid& g) {
         const auto [h, w] = locked(g, [&] { return std::make_pair(g.height(), g.width()); });
         return py::make_tuple(h, w);
@@ -82,8 +82,8 @@ void define_grid(py::module_& m) {
         const Eigen::Vector2d o = locked(g, [&] { return g.origin(); });
         return py::make_tuple(o.x(), o.y());
       })
-      .def_property_readonly("p_prior", [](const Grid& g) { return locked(g, [&] { return g.p_prior(); }); })
-      .def_property_readonly("l0", [](const Grid& g) { return locked(g, [&] { return g.prior_log_odds(); }); })
+      .def_property_readonly("p_prior", getter(&Grid::p_prior))
+      .def_property_readonly("l0", getter(&Grid::prior_log_odds))
       .def_property(
           "clamp", [](const Grid& g) { return clamp_value(locked(g, [&] { return g.clamp(); })); },
           [](Grid& g, py::handle c) {
@@ -104,7 +104,7 @@ void define_grid(py::module_& m) {
             return py::array_t<double>({h, w}, {w * static_cast<py::ssize_t>(sizeof(double)), static_cast<py::ssize_t>(sizeof(double))},
                                        g.data(), self);
           })
-      .def("probability", [](const Grid& g) { return locked(g, [&] { return g.probability(); }); })
+      .def("probability", getter(&Grid::probability))
       .def(
           "cell_of",
           [](const Grid& g, py::handle points) {

@@ -21,6 +21,13 @@ constexpr double kFloatMax = std::numeric_limits<float>::max();
 /// rather than inf (which would read as "no return"); NaN and inf stay as they are.
 float to_float(double v) { return static_cast<float>(std::isfinite(v) ? std::min(std::max(v, -kFloatMax), kFloatMax) : v); }
 
+/// (n, 3) float32 copy of d's values (d holds 3n of them), through to_float.
+FloatArray float_points(const DoubleArray& d) {
+  FloatArray f({d.size() / 3, py::ssize_t{3}});
+  std::transform(d.data(), d.data() + d.size(), f.mutable_data(), to_float);
+  return f;
+}
+
 /// (n, 3) points as a C-contiguous float32 array: float32 input is used in place, anything
 /// else is converted (OctoMap's points are float, so coordinates are rounded to float anyway).
 FloatArray points_arg(py::handle obj, const char* name) {
@@ -30,15 +37,9 @@ FloatArray points_arg(py::handle obj, const char* name) {
   const FloatArray a = is_float32 ? FloatArray::ensure(obj) : FloatArray();
   if (!is_float32 && !d) throw py::type_error(std::string(name) + " must be an array of numbers");
   const py::array& any = is_float32 ? static_cast<const py::array&>(a) : static_cast<const py::array&>(d);
-  if (any.ndim() != 2 || any.shape(1) != 3) {
-    std::string shape = "(";
-    for (py::ssize_t i = 0; i < any.ndim(); ++i) shape += (i ? ", " : "") + std::to_string(any.shape(i));
-    throw py::value_error(std::string(name) + " must have shape (n, 3), got " + shape + (any.ndim() == 1 ? ",)" : ")"));
-  }
-  if (is_float32) return a;
-  FloatArray f({d.shape(0), py::ssize_t{3}});
-  std::transform(d.data(), d.data() + d.size(), f.mutable_data(), to_float);
-  return f;
+  if (any.ndim() != 2 || any.shape(1) != 3)
+    throw py::value_error(std::string(name) + " must have shape (n, 3), got " + shape_of(any));
+  return is_float32 ? a : float_points(d);
 }
 
 /// (n, 3) query points, or one (3,) point (then `single`), as float32 (the grid's point type).
@@ -55,11 +56,7 @@ FloatArray query_arg(py::handle obj, bool& single) {
     throw py::value_error("points must have shape (3,) or (n, 3), got " + shape_of(d));
   if (!ConstVectorMap(d.data(), d.size()).allFinite())
     throw py::value_error("points must contain only finite values");
-  FloatArray f({d.size() / 3, py::ssize_t{3}});
-  float* out = f.mutable_data();
-  const double* in = d.data();
-  for (py::ssize_t i = 0; i < d.size(); ++i) out[i] = to_float(in[i]);
-  return f;
+  return float_points(d);
 }
 
 /// query(x, y, z) of every point of (n, 3) points as an (n,) array, or a Python scalar for one
@@ -137,7 +134,7 @@ void define_grid3d(py::module_& m) {
            py::arg("clamp_max") = 0.971, py::arg("occupancy_threshold") = 0.5,
            "resolution: voxel edge (m). Probabilities: hit and miss of the sensor model, the\n"
            "clamping bounds, and the occupancy threshold (OctoMap's defaults).")
-      .def_property_readonly("resolution", [](const Grid& g) { return locked(g, [&] { return g.resolution(); }); })
+      .def_property_readonly("resolution", getter(&Grid::resolution))
       .def_property_readonly("p_hit", [](const Grid& g) { return locked(g, [&] { return g.params().p_hit; }); })
       .def_property_readonly("p_miss", [](const Grid& g) { return locked(g, [&] { return g.params().p_miss; }); })
       .def_property_readonly("clamp", [](const Grid& g) {
@@ -146,17 +143,16 @@ void define_grid3d(py::module_& m) {
       })
       .def_property_readonly("occupancy_threshold",
                              [](const Grid& g) { return locked(g, [&] { return g.params().occupancy_threshold; }); })
-      .def_property_readonly("log_odds_hit", [](const Grid& g) { return locked(g, [&] { return g.hit_log_odds(); }); })
-      .def_property_readonly("log_odds_miss", [](const Grid& g) { return locked(g, [&] { return g.miss_log_odds(); }); })
+      .def_property_readonly("log_odds_hit", getter(&Grid::hit_log_odds))
+      .def_property_readonly("log_odds_miss", getter(&Grid::miss_log_odds))
       .def_property_readonly("log_odds_clamp", [](const Grid& g) {
         const auto [lo, hi] = locked(g, [&] { return std::make_pair(g.clamp_min_log_odds(), g.clamp_max_log_odds()); });
         return py::make_tuple(lo, hi);
       })
-      .def_property_readonly("num_known_voxels", [](const Grid& g) { return locked(g, [&] { return g.num_known_voxels(); }); })
-      .def_property_readonly("num_occupied_voxels",
-                             [](const Grid& g) { return locked(g, [&] { return g.num_occupied_voxels(); }); })
-      .def_property_readonly("num_blocks", [](const Grid& g) { return locked(g, [&] { return g.num_blocks(); }); })
-      .def_property_readonly("memory_bytes", [](const Grid& g) { return locked(g, [&] { return g.memory_bytes(); }); })
+      .def_property_readonly("num_known_voxels", getter(&Grid::num_known_voxels))
+      .def_property_readonly("num_occupied_voxels", getter(&Grid::num_occupied_voxels))
+      .def_property_readonly("num_blocks", getter(&Grid::num_blocks))
+      .def_property_readonly("memory_bytes", getter(&Grid::memory_bytes))
       .def(
           "insert_point_cloud",
           [](Grid& g, py::handle points, py::handle origin, double max_range, int threads) {

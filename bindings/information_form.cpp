@@ -1,6 +1,5 @@
 #include <pybind11/stl.h>
 
-#include <limits>
 
 #include "numpy.hpp"
 #include "probslam/graph/eif_correspondence.hpp"
@@ -51,14 +50,8 @@ Eigen::VectorXi int_vector(py::handle obj, const char* name, py::ssize_t size) {
   const LongArray a = integer_array_arg(obj, name);
   if (a.ndim() != 1 || a.shape(0) != size)
     throw py::value_error(std::string(name) + " must have shape (" + std::to_string(size) + ",)");
-  Eigen::VectorXi out(size);
-  for (py::ssize_t k = 0; k < size; ++k) {
-    // An index beyond int would wrap onto another feature or pose: refused, not truncated.
-    if (a.at(k) < std::numeric_limits<int>::min() || a.at(k) > std::numeric_limits<int>::max())
-      throw py::value_error(std::string(name) + ": index " + std::to_string(a.at(k)) + " is out of range");
-    out[k] = static_cast<int>(a.at(k));
-  }
-  return out;
+  const std::vector<int> entries = int_entries(a, name, "index");
+  return Eigen::Map<const Eigen::VectorXi>(entries.data(), size);
 }
 
 FeatureMeasurements measurements_arg(py::handle time, py::handle z, py::handle correspondences) {

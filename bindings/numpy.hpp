@@ -6,6 +6,7 @@
 
 #include <limits>
 #include <string>
+#include <vector>
 
 namespace probslam::bindings {
 
@@ -23,7 +24,7 @@ inline DoubleArray as_array(py::handle obj, const char* name) {
   return array;
 }
 
-inline std::string shape_of(const DoubleArray& a) {
+inline std::string shape_of(const py::array& a) {
   std::string s = "(";
   for (py::ssize_t i = 0; i < a.ndim(); ++i) s += (i ? ", " : "") + std::to_string(a.shape(i));
   return s + (a.ndim() == 1 ? ",)" : ")");
@@ -84,6 +85,19 @@ inline LongArray integer_array_arg(py::handle obj, const char* name) {
   LongArray a = LongArray::ensure(raw);
   if (!a) throw py::type_error(std::string(name) + " must be an array of integers");
   return a;
+}
+
+/// The entries of an integer array as ints; an entry beyond int would wrap onto another id or
+/// index, so it is refused ("NAME: NOUN N is out of range"), never truncated.
+inline std::vector<int> int_entries(const LongArray& a, const char* name, const char* noun) {
+  std::vector<int> out(static_cast<std::size_t>(a.size()));
+  for (py::ssize_t k = 0; k < a.size(); ++k) {
+    const long v = a.data()[k];
+    if (v < std::numeric_limits<int>::min() || v > std::numeric_limits<int>::max())
+      throw py::value_error(std::string(name) + ": " + noun + " " + std::to_string(v) + " is out of range");
+    out[static_cast<std::size_t>(k)] = static_cast<int>(v);
+  }
+  return out;
 }
 
 inline Eigen::Vector3d pose_arg(py::handle obj, const char* name = "pose") { return fixed_vector<3>(obj, name); }

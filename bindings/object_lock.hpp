@@ -9,7 +9,6 @@
 #include <pybind11/pybind11.h>
 
 #include <mutex>
-#include <type_traits>
 
 namespace probslam::bindings {
 
@@ -17,11 +16,14 @@ template <typename T, typename F>
 decltype(auto) locked(const T& object, F&& f) {
   pybind11::gil_scoped_release release;
   std::lock_guard<std::mutex> lock(object.mutex());
-  if constexpr (std::is_void_v<std::invoke_result_t<F>>) {
-    f();
-  } else {
-    return f();
-  }
+  return f();
+}
+
+/// A property getter (or a method without arguments) that runs `method` under the lock; the
+/// result is copied out before the lock is released.
+template <typename T, typename R>
+auto getter(R (T::*method)() const) {
+  return [method](const T& obj) { return locked(obj, [&] { return (obj.*method)(); }); };
 }
 
 /// Two objects at once (e.g. a source and a destination), in a deadlock-free order.

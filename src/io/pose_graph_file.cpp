@@ -3,7 +3,6 @@
 #include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
-#include <filesystem>
 #include <fstream>
 #include <set>
 #include <sstream>
@@ -222,52 +221,25 @@ PoseGraph2D build(Records& records, PoseGraphFormat format, const std::string& s
   return graph;
 }
 
-// Reads one line of at most kMaxLineBytes into `line` (without its newline); false at the end.
-bool read_line(std::istream& in, std::string& line, const std::string& source, long number) {
-  line.clear();
-  std::streambuf* buffer = in.rdbuf();
-  bool any = false;
-  for (;;) {
-    const auto c = buffer->sbumpc();
-    if (std::char_traits<char>::eq_int_type(c, std::char_traits<char>::eof())) {
-      in.setstate(std::ios::eofbit);
-      return any;
-    }
-    any = true;
-    if (c == '\n') return true;
-    if (line.size() >= kMaxLineBytes)
-      LineError(source, number).fail("line longer than " + std::to_string(kMaxLineBytes) + " bytes");
-    line.push_back(std::char_traits<char>::to_char_type(c));
-  }
-}
-
 }  // namespace
 
 PoseGraph2D parse_pose_graph(std::istream& in, PoseGraphFormat format, const std::string& source) {
   Records records;
-  std::string line;
-  for (long number = 1; in.rdbuf() && read_line(in, line, source, number); ++number) {
-    const std::vector<std::string_view> tokens = io_detail::split(line);
-    if (tokens.empty() || tokens[0][0] == '#') continue;
-    const LineError err(source, number);
-    const Fields fields(tokens, err);
-    const std::string tag(fields.token(0));
-    if (format == PoseGraphFormat::kAuto) format = detect(tag);
-    parse_line(fields, tag, format, number, err, records);
-  }
+  io_detail::for_each_record(
+      in, source,
+      [&](const Fields& fields, const LineError& err, long line) {
+        const std::string tag(fields.token(0));
+        if (format == PoseGraphFormat::kAuto) format = detect(tag);
+        parse_line(fields, tag, format, line, err, records);
+      },
+      kMaxLineBytes);
   if (records.edges.empty() && records.vertices.empty())
     throw std::invalid_argument(source + ": no vertices or edges");
   return build(records, format, source);
 }
 
 PoseGraph2D read_pose_graph(const std::string& path, PoseGraphFormat format) {
-  // A directory or a device (/dev/zero, a FIFO) is refused before it is opened: it has no end.
-  std::error_code error;
-  const auto status = std::filesystem::status(path, error);
-  if (error || !std::filesystem::exists(status))
-    throw std::invalid_argument("path: cannot open '" + path + "': no such file");
-  if (!std::filesystem::is_regular_file(status))
-    throw std::invalid_argument("path: '" + path + "' is not a regular file");
+  io_detail::require_regular_file(path, "path");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::invalid_argument("path: cannot open '" + path + "'");
   return parse_pose_graph(in, format, path);

@@ -102,8 +102,7 @@ struct Pgm {
 };
 
 Pgm read_pgm(const std::string& path) {
-  if (!std::filesystem::exists(path)) fail(path, "cannot open the map image (no such file)");
-  if (!std::filesystem::is_regular_file(path)) fail(path, "the map image is not a regular file");
+  io_detail::require_regular_file(path, "image");
   std::ifstream in(path, std::ios::binary);
   if (!in) fail(path, "cannot open the map image");
   std::string magic(2, '\0');

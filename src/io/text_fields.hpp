@@ -7,6 +7,7 @@
 #include <filesystem>
 #include <istream>
 #include <limits>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -95,14 +96,39 @@ class Fields {
   const LineError& err_;
 };
 
+/// Reads one line of at most max_bytes into `line` (without its newline); false at the end.
+/// A longer line is refused ("source:LINE: line longer than ...") before it is buffered.
+inline bool read_bounded_line(std::istream& in, std::string& line, std::size_t max_bytes, const std::string& source,
+                              long number) {
+  line.clear();
+  std::streambuf* buffer = in.rdbuf();
+  if (buffer == nullptr) return false;
+  bool any = false;
+  for (;;) {
+    const auto c = buffer->sbumpc();
+    if (std::char_traits<char>::eq_int_type(c, std::char_traits<char>::eof())) {
+      in.setstate(std::ios::eofbit);
+      return any;
+    }
+    any = true;
+    if (c == '\n') return true;
+    if (line.size() >= max_bytes)
+      LineError(source, number).fail("line longer than " + std::to_string(max_bytes) + " bytes");
+    line.push_back(std::char_traits<char>::to_char_type(c));
+  }
+}
+
 /// Calls record(fields, error, line_number) for each line of `in` that is neither blank nor a
-/// '#' comment; `error` prefixes messages with "source:LINE: ".
+/// '#' comment; `error` prefixes messages with "source:LINE: ". With max_line_bytes, a longer
+/// line is refused before it is buffered.
 template <class Record>
-void for_each_record(std::istream& in, const std::string& source, Record&& record) {
+void for_each_record(std::istream& in, const std::string& source, Record&& record,
+                     std::optional<std::size_t> max_line_bytes = std::nullopt) {
   std::string line;
-  long line_number = 0;
-  while (std::getline(in, line)) {
-    ++line_number;
+  for (long line_number = 1;; ++line_number) {
+    const bool more = max_line_bytes ? read_bounded_line(in, line, *max_line_bytes, source, line_number)
+                                     : static_cast<bool>(std::getline(in, line));
+    if (!more) return;
     const std::vector<std::string_view> tokens = split(line);
     if (tokens.empty() || tokens[0][0] == '#') continue;
     const LineError err(source, line_number);

@@ -14,32 +14,14 @@
 
 #include "probslam/grid/occupancy_grid_3d.hpp"
 #include "probslam/io/octomap_bt.hpp"
+#include "test_support.hpp"
 
 namespace probslam {
 namespace {
 
-std::vector<float> random_cloud(std::mt19937& rng, int n, float extent) {
-  std::uniform_real_distribution<float> u(-extent, extent);
-  std::vector<float> c(3 * n);
-  for (float& v : c) v = u(rng);
-  return c;
-}
-
-bool same_map(const OccupancyGrid3D& a, const OccupancyGrid3D& b) {
-  if (a.num_known_voxels() != b.num_known_voxels()) return false;
-  bool same = true;
-  a.for_each_known([&](const CellKey<3>& k, float l) { same = same && b.log_odds_at_key(k) == l; });
-  return same;
-}
-
-void expect_invalid(const std::function<void()>& f, const std::string& name) {
-  try {
-    f();
-    ADD_FAILURE() << "expected std::invalid_argument naming " << name;
-  } catch (const std::invalid_argument& e) {
-    EXPECT_EQ(std::string(e.what()).rfind(name, 0), 0u) << e.what();
-  }
-}
+using test_support::expect_invalid;
+using test_support::random_cloud;
+using test_support::same_map;
 
 TEST(Grid3D, RejectsBadParameters) {
   expect_invalid([] { OccupancyGrid3D g(0.0); }, "resolution");

@@ -14,29 +14,19 @@
 #include "probslam/grid/occupancy_grid_3d.hpp"
 #include "probslam/grid/ray_traversal.hpp"
 #include "probslam/grid/worker_pool.hpp"
+#include "test_support.hpp"
 
 namespace probslam {
 namespace {
 
-std::vector<float> random_cloud(std::mt19937& rng, int n, float extent) {
-  std::uniform_real_distribution<float> u(-extent, extent);
-  std::vector<float> c(3 * n);
-  for (float& v : c) v = u(rng);
-  return c;
-}
+using test_support::random_cloud;
+using test_support::same_map;
 
 // Every known voxel and its log-odds, in block order (a change anywhere shows).
 std::vector<std::pair<CellKey<3>, float>> dump(const OccupancyGrid3D& g) {
   std::vector<std::pair<CellKey<3>, float>> out;
   g.for_each_known([&](const CellKey<3>& k, float l) { out.emplace_back(k, l); });
   return out;
-}
-
-bool same_map(const OccupancyGrid3D& a, const OccupancyGrid3D& b) {
-  if (a.num_known_voxels() != b.num_known_voxels()) return false;
-  bool same = true;
-  a.for_each_known([&](const CellKey<3>& k, float l) { same = same && b.log_odds_at_key(k) == l; });
-  return same;
 }
 
 // Resets the hook whatever a test does.
