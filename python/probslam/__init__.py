@@ -20,7 +20,7 @@ from ._core import (
     velocity_motion_jacobian,
     wrap_angle,
 )
-from . import io, sim
+from . import eval, io, sim
 from .graph import OptimizationReport, PoseGraph2D, marginal_covariances, optimize, read_pose_graph, write_g2o
 from .graphslam import (
     CorrespondenceTest,
@@ -54,6 +54,7 @@ __all__ = [
     "eif_objective",
     "eif_reduce",
     "eif_solve",
+    "eval",
     "graph_slam",
     "marginal_covariances",
     "optimize",

@@ -1,0 +1,293 @@
+"""The relations metric of Kümmerle et al. 2009, "On measuring the accuracy of SLAM algorithms".
+
+A SLAM result is scored by the relative poses it implies between pairs of timestamps, compared
+with reference relations (the Freiburg SLAM benchmark's ``*.relations`` files, hand-checked scan
+alignments). Relative poses do not depend on where the map is anchored, so no global alignment
+is needed, and an error in one place is counted once rather than carried along the trajectory.
+
+Units: metres, radians and seconds; poses are ``(x, y, theta)`` with theta in (-pi, pi].
+"""
+
+from __future__ import annotations
+
+import io as _io
+import math
+import os
+import warnings
+from dataclasses import dataclass, field
+from typing import Iterable, List, Optional, Tuple, Union
+
+import numpy as np
+
+from .io._files import read_compressed, require_regular_file, text_lines
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+#: How many line numbers of skipped rows a ``Relations`` keeps (and a warning names).
+MAX_REPORTED_LINES = 20
+
+#: Fields of a relations row: ``t1 t2 x y z roll pitch yaw``.
+_RELATION_FIELDS = 8
+
+
+@dataclass
+class Relations:
+    """Reference relations, R of them.
+
+    t1, t2: (R,) seconds; delta: (R, 3) the expected pose at t2 in the frame of the pose at t1,
+    ``(x m, y m, theta rad)``; skipped_rows: unreadable rows the reader skipped; skipped_lines:
+    the line numbers of the first ``MAX_REPORTED_LINES`` of them.
+    """
+
+    t1: np.ndarray
+    t2: np.ndarray
+    delta: np.ndarray
+    skipped_rows: int = 0
+    skipped_lines: List[int] = field(default_factory=list)
+
+    def __len__(self) -> int:
+        return int(self.t1.shape[0])
+
+
+@dataclass
+class RelationsError:
+    """Per-relation errors of a trajectory against reference relations, K relations used.
+
+    translational: (K,) metres; rotational: (K,) radians, absolute; used: (K,) indices into the
+    relations; skipped: relations with t1 or t2 outside the trajectory's time span. Means and
+    standard deviations (population, ddof=0) are over the used relations; Kümmerle et al. report
+    both the absolute errors and the squared ones.
+    """
+
+    translational: np.ndarray
+    rotational: np.ndarray
+    used: np.ndarray
+    skipped: int = 0
+
+    @property
+    def trans_mean(self) -> float:
+        """Mean translational error, metres."""
+        return float(np.mean(self.translational))
+
+    @property
+    def trans_std(self) -> float:
+        """Standard deviation of the translational error, metres."""
+        return float(np.std(self.translational))
+
+    @property
+    def trans_sq_mean(self) -> float:
+        """Mean squared translational error, square metres."""
+        return float(np.mean(self.translational ** 2))
+
+    @property
+    def rot_mean_deg(self) -> float:
+        """Mean rotational error, degrees."""
+        return float(np.degrees(np.mean(self.rotational)))
+
+    @property
+    def rot_std_deg(self) -> float:
+        """Standard deviation of the rotational error, degrees."""
+        return float(np.degrees(np.std(self.rotational)))
+
+    @property
+    def rot_sq_mean_deg2(self) -> float:
+        """Mean squared rotational error, square degrees."""
+        return float(np.mean(np.degrees(self.rotational) ** 2))
+
+    def __str__(self) -> str:
+        return (f"relations {len(self.used)} (skipped {self.skipped}): translational "
+                f"{self.trans_mean:.3f} +- {self.trans_std:.3f} m, rotational "
+                f"{self.rot_mean_deg:.2f} +- {self.rot_std_deg:.2f} deg")
+
+
+def wrap(angle: np.ndarray) -> np.ndarray:
+    """Angles wrapped to (-pi, pi], elementwise (``probslam.wrap_angle`` for arrays)."""
+    r = np.pi - np.mod(np.pi - np.asarray(angle, dtype=float), 2.0 * np.pi)
+    # np.mod rounds a tiny negative argument up to 2pi, giving -pi for angles just above pi.
+    return np.where(r <= -np.pi, r + 2.0 * np.pi, r)
+
+
+# --------------------------------------------------------------------------------------------
+# Reading relations files
+
+
+def _lines(path: str) -> Iterable[Tuple[int, str]]:
+    """(line number, text) of a plain, .gz or .bz2 file, line ends as ``open`` splits them."""
+    if os.path.splitext(path)[1] in (".gz", ".bz2"):
+        text = _io.TextIOWrapper(_io.BytesIO(read_compressed(path)), encoding="utf-8",
+                                 errors="backslashreplace")
+        return enumerate(text, 1)
+    return text_lines(path)
+
+
+def _parse_relation(fields: List[str]) -> Tuple[Optional[List[float]], str]:
+    """The row's numbers, or None and why it cannot be used."""
+    if len(fields) != _RELATION_FIELDS:
+        return None, f"expected {_RELATION_FIELDS} fields, got {len(fields)}"
+    try:
+        values = [float(x) for x in fields]
+    except ValueError:
+        return None, "not numbers"
+    # float() also takes 'nan', 'inf' and '1_0'; none of them belongs in a relations file.
+    if not all(map(math.isfinite, values)) or any("_" in x for x in fields):
+        return None, "not finite numbers"
+    if values[1] < values[0]:
+        return None, "t2 < t1"
+    return values, ""
+
+
+def read_relations(path: PathLike) -> Relations:
+    """Read a Freiburg SLAM-benchmark relations file (plain, ``.gz`` or ``.bz2``).
+
+    Each row is ``t1 t2 x y z roll pitch yaw`` (whitespace separated; ``#`` starts a comment,
+    blank lines are ignored); for 2-D only x, y and yaw are kept, as ``delta``.
+
+    Errors: a missing file raises ``FileNotFoundError``; a path that is not a regular file, a
+    corrupt compressed stream, or a file with no valid row raises ``ValueError`` naming the file.
+    Row-level: rows of the wrong field count, with non-numeric or non-finite values, or with
+    t2 < t1 are skipped, counted in ``skipped_rows`` and announced by a warning naming the first
+    line numbers (a real file is read even with a few bad rows).
+    """
+    path = os.fspath(path)
+    require_regular_file(path)
+    rows: List[List[float]] = []
+    bad_lines: List[int] = []
+    bad = 0
+    first_reason = ""
+    for number, line in _lines(path):
+        fields = line.split("#", 1)[0].split()
+        if not fields:
+            continue
+        values, reason = _parse_relation(fields)
+        if values is not None:
+            rows.append(values)
+            continue
+        bad += 1
+        if len(bad_lines) < MAX_REPORTED_LINES:
+            bad_lines.append(number)
+        first_reason = first_reason or reason
+    if not rows:
+        detail = f"first bad line {bad_lines[0]}: {first_reason}" if bad else "empty or only comments"
+        raise ValueError(f"{path}: no valid relation rows ({detail})")
+    if bad:
+        warnings.warn(f"{path}: skipped {bad} unreadable relation rows (lines "
+                      f"{', '.join(map(str, bad_lines))}{', ...' if bad > len(bad_lines) else ''}; "
+                      f"first: {first_reason})", stacklevel=2)
+    table = np.array(rows, dtype=float)
+    return Relations(table[:, 0].copy(), table[:, 1].copy(), table[:, [2, 3, 7]].copy(), bad, bad_lines)
+
+
+# --------------------------------------------------------------------------------------------
+# Interpolation and the metric
+
+
+def _real_array(value: object, name: str, shape: Tuple[Optional[int], ...]) -> np.ndarray:
+    """``value`` as a finite float array of ``shape`` (None: any length); TypeError for anything
+    but real numbers, ValueError for a wrong shape or NaN / inf, both naming ``name``."""
+    try:
+        a = np.asarray(value)
+    except ValueError as exc:  # ragged nested lists
+        raise ValueError(f"{name}: not an array of numbers: {exc}") from None
+    if a.dtype.kind not in "iuf":
+        raise TypeError(f"{name}: expected real numbers, got dtype {a.dtype}")
+    want = "(" + ", ".join("N" if n is None else str(n) for n in shape) + ")"
+    if a.ndim != len(shape) or any(n is not None and n != m for n, m in zip(shape, a.shape)):
+        raise ValueError(f"{name}: expected shape {want}, got {a.shape}")
+    a = a.astype(float, copy=False)
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{name}: contains NaN or inf")
+    return a
+
+
+def _trajectory(timestamps: object, poses: object) -> Tuple[np.ndarray, np.ndarray]:
+    """Checked (N,) timestamps and (N, 3) poses: non-empty, same length, non-decreasing."""
+    ts = _real_array(timestamps, "timestamps", (None,))
+    ps = _real_array(poses, "poses", (None, 3))
+    if ts.shape[0] == 0:
+        raise ValueError("timestamps: empty trajectory")
+    if ps.shape[0] != ts.shape[0]:
+        raise ValueError(f"poses: {ps.shape[0]} poses for {ts.shape[0]} timestamps")
+    decreasing = np.flatnonzero(np.diff(ts) < 0)
+    if decreasing.size:
+        i = int(decreasing[0])
+        raise ValueError(f"timestamps: decrease at index {i + 1} ({ts[i]:g} then {ts[i + 1]:g})")
+    return ts, ps
+
+
+def _interpolate(ts: np.ndarray, ps: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Interpolation on a checked trajectory, queries known to lie within its span."""
+    n = ts.shape[0]
+    # side="right": a query at a repeated timestamp starts from the last pose stamped with it.
+    i = np.clip(np.searchsorted(ts, q, side="right") - 1, 0, max(n - 2, 0))
+    j = np.minimum(i + 1, n - 1)
+    dt = ts[j] - ts[i]
+    # dt is 0 only at the end (repeated last timestamp, or one pose): take the later pose.
+    frac = np.where(dt > 0, (q - ts[i]) / np.where(dt > 0, dt, 1.0), 1.0)
+    xy = ps[i, :2] + frac[:, None] * (ps[j, :2] - ps[i, :2])
+    theta = wrap(ps[i, 2] + frac * wrap(ps[j, 2] - ps[i, 2]))
+    return np.column_stack([xy, theta])
+
+
+def interpolate_poses(timestamps: object, poses: object, query_times: object) -> np.ndarray:
+    """Poses at ``query_times``, interpolated linearly along a trajectory.
+
+    timestamps: (N,) seconds, non-decreasing; poses: (N, 3) ``(x m, y m, theta rad)``;
+    query_times: (Q,) seconds within ``[timestamps[0], timestamps[-1]]`` (callers filter first).
+    Returns (Q, 3): x and y linear in time, theta along the shorter way round between the two
+    neighbouring poses, wrapped to (-pi, pi]. At a timestamp shared by several poses, the last of
+    them is used. An empty query gives an empty (0, 3) result.
+
+    Errors: non-numeric arrays raise ``TypeError``; wrong shapes, NaN / inf, an empty
+    trajectory, decreasing timestamps or a query outside the span raise ``ValueError`` naming
+    the argument.
+    """
+    ts, ps = _trajectory(timestamps, poses)
+    q = _real_array(query_times, "query_times", (None,))
+    outside = np.flatnonzero((q < ts[0]) | (q > ts[-1]))
+    if outside.size:
+        k = int(outside[0])
+        raise ValueError(f"query_times: {outside.size} outside the trajectory span "
+                         f"[{ts[0]:g}, {ts[-1]:g}], first at index {k} ({q[k]:g})")
+    return _interpolate(ts, ps, q)
+
+
+def _between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """``a^-1 (+) b`` for (K, 3) SE(2) poses: b expressed in the frame of a."""
+    c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
+    dx, dy = b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]
+    return np.column_stack([c * dx + s * dy, -s * dx + c * dy, wrap(b[:, 2] - a[:, 2])])
+
+
+def _checked_relations(relations: Relations) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """t1, t2, delta of a Relations built by hand, checked as read_relations would."""
+    t1 = _real_array(relations.t1, "relations.t1", (None,))
+    t2 = _real_array(relations.t2, "relations.t2", (t1.shape[0],))
+    delta = _real_array(relations.delta, "relations.delta", (t1.shape[0], 3))
+    return t1, t2, delta
+
+
+def relations_error(timestamps: object, poses: object,
+                    relations: Union[Relations, PathLike]) -> RelationsError:
+    """Kümmerle et al.'s relations error of a trajectory.
+
+    timestamps: (N,) seconds, non-decreasing; poses: (N, 3) ``(x m, y m, theta rad)``;
+    relations: a ``Relations`` or the path of a relations file (read with ``read_relations``).
+    For each relation the poses x1, x2 at t1, t2 are interpolated (``interpolate_poses``), the
+    estimated relative pose is ``d_est = x1^-1 (+) x2`` and the error ``e = d_ref^-1 (+) d_est``;
+    translational error ``|e_xy|`` (which equals ``|d_est_xy - d_ref_xy|``), rotational
+    ``|wrap(e_theta)|``. Relations with t1 or t2 outside the trajectory's span are skipped and
+    counted; if none is left, ``ValueError``. Argument errors are as for ``interpolate_poses``.
+    """
+    if not isinstance(relations, Relations):
+        relations = read_relations(relations)
+    ts, ps = _trajectory(timestamps, poses)
+    t1, t2, delta = _checked_relations(relations)
+    inside = (np.minimum(t1, t2) >= ts[0]) & (np.maximum(t1, t2) <= ts[-1])
+    used = np.flatnonzero(inside)
+    if used.size == 0:
+        raise ValueError(f"relations: none of the {len(t1)} relations lies within the trajectory "
+                         f"span [{ts[0]:g}, {ts[-1]:g}]")
+    d_est = _between(_interpolate(ts, ps, t1[used]), _interpolate(ts, ps, t2[used]))
+    e = _between(delta[used], d_est)
+    return RelationsError(np.hypot(e[:, 0], e[:, 1]), np.abs(wrap(e[:, 2])), used,
+                          int(len(t1) - used.size))
