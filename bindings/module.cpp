@@ -10,6 +10,7 @@ void define_io(pybind11::module_& m);
 void define_ekf(pybind11::module_& m);
 void define_graph(pybind11::module_& m);
 void define_information_form(pybind11::module_& m);
+void define_slam2d(pybind11::module_& m);
 }  // namespace probslam::bindings
 
 PYBIND11_MODULE(_core, m) {
@@ -22,4 +23,5 @@ PYBIND11_MODULE(_core, m) {
   probslam::bindings::define_ekf(m);
   probslam::bindings::define_graph(m);
   probslam::bindings::define_information_form(m);
+  probslam::bindings::define_slam2d(m);
 }

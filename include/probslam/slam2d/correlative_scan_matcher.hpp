@@ -1,0 +1,105 @@
+#pragma once
+// Correlative scan matching (Olson 2009) with branch and bound over a max-pooled pyramid of
+// the likelihood field (Hess et al. 2016), a Gauss-Newton refinement on the interpolated field,
+// and a covariance from the response surface: the Gaussian approximation of the match function
+// that ch. 11.7 turns into a constraint.
+#include <Eigen/Core>
+#include <vector>
+
+#include "probslam/core/types.hpp"
+#include "probslam/slam2d/likelihood_field.hpp"
+
+namespace probslam {
+
+/// The search window around the prior pose: every (x, y, theta) with |x - x0|, |y - y0| <=
+/// linear (on the field's lattice) and |theta - theta0| <= angular (in angular_step steps).
+struct SearchWindow {
+  double linear = 0.3;    ///< half-width, m
+  double angular = 0.35;  ///< half-width, rad
+  /// rad; <= 0 picks the step at which the scan's farthest point moves one cell.
+  double angular_step = 0.0;
+};
+
+struct MatchOptions {
+  SearchWindow window;
+  /// The odometry prior p(x_t | u_t, x_t-1): N(prior pose, prior_covariance) joins the score
+  /// (the lecture's argmax p(z | x, m) p(x | u, x_t-1)) when use_prior is set.
+  bool use_prior = false;
+  Eigen::Matrix3d prior_covariance = Eigen::Matrix3d::Identity();
+  bool refine = true;       ///< Gauss-Newton on the interpolated field after the search
+  bool brute_force = false; ///< score every pose of the window (the oracle of the tests)
+  /// Minimum standard deviations of the returned covariance (m, m, rad): the map is only known
+  /// to a cell, so a sharper response would claim more than the grid can support.
+  /// <= 0 (default): resolution / sqrt(12) and angular step / sqrt(12), a uniform cell.
+  double min_translation_std = 0.0;
+  double min_rotation_std = 0.0;
+
+  void validate() const;
+};
+
+struct MatchResult {
+  Eigen::Vector3d pose = Eigen::Vector3d::Zero();         ///< best pose (refined if asked)
+  Eigen::Vector3d search_pose = Eigen::Vector3d::Zero();  ///< best pose on the search lattice
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();  ///< from the response surface
+  double score = 0.0;         ///< sum of log p over the points (+ log prior) at `pose`
+  double search_score = 0.0;  ///< the same on the lattice at search_pose
+  /// Mean over the points of exp(-d^2 / 2 sigma^2) at `pose`: 1 when every point lies on an
+  /// obstacle, 0 when none is near one. Comparable across scans; the acceptance test uses it.
+  double match_quality = 0.0;
+  int num_points = 0;
+  long candidates_scored = 0;  ///< poses and pyramid nodes scored by the search
+  int angular_steps = 0;       ///< rotations searched
+  double angular_step = 0.0;   ///< rad
+};
+
+class CorrelativeScanMatcher {
+ public:
+  /// Keeps the field and its max-pooled pyramid: level k holds the maximum of the table over
+  /// 2^k x 2^k cells, k = 0..max_level (a window wider than 2^max_level cells starts with
+  /// several top-level nodes). Throws std::invalid_argument unless 0 <= max_level <= kMaxLevel.
+  explicit CorrelativeScanMatcher(LikelihoodField field, int max_level = 6);
+  const LikelihoodField& field() const { return field_; }
+
+  /// Matches hit points (N, 2, sensor frame, metres) against the field around `prior` (the
+  /// sensor pose (x, y, theta) in the field's frame). Throws std::invalid_argument for no
+  /// points, non-finite input, or a window of more than kMaxCandidates poses.
+  MatchResult match(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
+                    const MatchOptions& options = {}) const;
+
+  /// The score (sum of log p over points, + log prior when options.use_prior) of `pose` on the
+  /// interpolated field: the function the refinement maximises and the covariance samples.
+  double smooth_score(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& pose,
+                      const Eigen::Vector3d& prior, const MatchOptions& options) const;
+
+  /// Largest number of lattice poses a window may hold: 2e9 would take minutes even pruned.
+  static constexpr double kMaxCandidates = 2e9;
+  /// Largest number of points in a scan (a long scan is decimated first).
+  static constexpr long kMaxPoints = 1 << 20;
+  /// 2^10 cells is wider than any search window at a sensible resolution.
+  static constexpr int kMaxLevel = 10;
+  int max_level() const { return static_cast<int>(pyramid_.size()) - 1; }
+
+ private:
+  struct Level {
+    int pad = 0;  // stored rows/cols start at -pad
+    int width = 0, height = 0;
+    std::vector<float> values;
+  };
+  float level_value(int k, int row, int col) const;
+  /// Score (sum of log p + log prior) at pose; with hessian/gradient also the Gauss-Newton
+  /// terms of the negative score; quality: mean exp(-d^2 / 2 sigma^2).
+  double evaluate(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& pose,
+                  const Eigen::Vector3d& prior, const Eigen::Matrix3d* prior_info, Eigen::Matrix3d* hessian,
+                  Eigen::Vector3d* gradient, double* quality) const;
+  void refine_and_measure(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
+                          const MatchOptions& options, double angular_step, MatchResult& result) const;
+  Eigen::Matrix3d response_covariance(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
+                                      const Eigen::Matrix3d* prior_info, const MatchOptions& options,
+                                      double angular_step, const Eigen::Vector3d& pose,
+                                      const Eigen::Matrix3d& hessian) const;
+
+  LikelihoodField field_;
+  std::vector<Level> pyramid_;  // immutable after construction: match() is thread-safe
+};
+
+}  // namespace probslam

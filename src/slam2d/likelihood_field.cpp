@@ -1,0 +1,169 @@
+#include "probslam/slam2d/likelihood_field.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "probslam/core/check.hpp"
+#include "probslam/grid/ray_traversal.hpp"
+
+namespace probslam {
+
+void LikelihoodFieldOptions::validate() const {
+  require_positive(sigma, "sigma");
+  require(std::isfinite(p_rand) && p_rand > 0.0 && p_rand < 1.0, "p_rand",
+          "must be a probability strictly between 0 and 1");
+  require_probability(occupied_probability, "occupied_probability");
+  require(std::isfinite(max_distance), "max_distance", "must be finite (<= 0: 6 sigma)");
+}
+
+namespace {
+
+constexpr float kFar = std::numeric_limits<float>::infinity();
+
+/// Squared distance transform of one line (Felzenszwalb & Huttenlocher 2012): out[q] =
+/// min_p (q - p)^2 + f[p], read and written with a stride. v, z are scratch of n and n + 1.
+void distance_transform_1d(const float* f, float* out, int n, int stride, std::vector<int>& v,
+                           std::vector<double>& z) {
+  int k = -1;
+  for (int q = 0; q < n; ++q) {
+    const float fq = f[static_cast<std::size_t>(q) * stride];
+    if (fq == kFar) continue;
+    double s = -kFar;
+    while (k >= 0) {  // parabola intersections in double: q^2 exceeds float's exact range
+      const int p = v[k];
+      const double fp = f[static_cast<std::size_t>(p) * stride];
+      s = ((fq + double(q) * q) - (fp + double(p) * p)) / (2.0 * (q - p));
+      if (s > z[k]) break;
+      --k;
+    }
+    ++k;
+    v[k] = q;
+    z[k] = k == 0 ? -kFar : s;
+    z[k + 1] = kFar;
+  }
+  if (k < 0) {  // no finite value on this line
+    for (int q = 0; q < n; ++q) out[static_cast<std::size_t>(q) * stride] = kFar;
+    return;
+  }
+  int j = 0;
+  for (int q = 0; q < n; ++q) {
+    while (z[j + 1] < q) ++j;
+    const float d = float(q - v[j]);
+    out[static_cast<std::size_t>(q) * stride] = d * d + f[static_cast<std::size_t>(v[j]) * stride];
+  }
+}
+
+}  // namespace
+
+LikelihoodField LikelihoodField::from_grid(const OccupancyGrid2D& grid, const LikelihoodFieldOptions& options) {
+  const Eigen::Vector2d lo = grid.origin();
+  const double w = grid.width() * grid.resolution(), h = grid.height() * grid.resolution();
+  return from_grid(grid, Eigen::Vector4d(lo.x(), lo.y(), lo.x() + w, lo.y() + h), options);
+}
+
+LikelihoodField LikelihoodField::from_grid(const OccupancyGrid2D& grid, const Eigen::Vector4d& region,
+                                           const LikelihoodFieldOptions& options) {
+  options.validate();
+  require_all_finite(region, "region");
+  require(region[0] <= region[2] && region[1] <= region[3], "region", "must be (xmin, ymin, xmax, ymax)");
+  const GridLattice2D& lat = grid.lattice();
+  // Cells [c0, c1) x [r0, r1) of the grid that meet the region.
+  const int c0 = std::clamp(lat.key(0, region[0]), 0, grid.width());
+  const int c1 = std::clamp(lat.key(0, region[2]) + 1, 0, grid.width());
+  const int r0 = std::clamp(lat.key(1, region[1]), 0, grid.height());
+  const int r1 = std::clamp(lat.key(1, region[3]) + 1, 0, grid.height());
+
+  LikelihoodField field;
+  field.options_ = options;
+  field.res_ = grid.resolution();
+  field.inv_res_ = 1.0 / field.res_;
+  field.x0_ = lat.x0 + c0 * field.res_;
+  field.y0_ = lat.y0 + r0 * field.res_;
+  field.width_ = std::max(0, c1 - c0);
+  field.height_ = std::max(0, r1 - r0);
+  field.floor_ = static_cast<float>(std::log(options.p_rand));
+  const std::size_t n = static_cast<std::size_t>(field.width_) * field.height_;
+
+  const double occupied = logit(options.occupied_probability);
+  std::vector<float> sq(n);
+  for (int r = 0; r < field.height_; ++r) {
+    const double* row = grid.data() + static_cast<std::size_t>(r0 + r) * grid.width() + c0;
+    for (int c = 0; c < field.width_; ++c) {
+      const bool obstacle = row[c] > occupied;
+      field.num_occupied_ += obstacle;
+      sq[static_cast<std::size_t>(r) * field.width_ + c] = obstacle ? 0.0f : kFar;
+    }
+  }
+  // Separable exact EDT: columns, then rows (squared distances in cells).
+  std::vector<float> tmp(n);
+  const int longest = std::max(field.width_, field.height_);
+  std::vector<int> v(static_cast<std::size_t>(longest) + 1);
+  std::vector<double> z(static_cast<std::size_t>(longest) + 2);
+  for (int c = 0; c < field.width_; ++c)
+    distance_transform_1d(sq.data() + c, tmp.data() + c, field.height_, field.width_, v, z);
+  for (int r = 0; r < field.height_; ++r) {
+    const std::size_t off = static_cast<std::size_t>(r) * field.width_;
+    distance_transform_1d(tmp.data() + off, sq.data() + off, field.width_, 1, v, z);
+  }
+
+  const double cap = options.truncation();
+  field.distance_.resize(n);
+  field.log_likelihood_.resize(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const double d = std::min(cap, std::max(0.0, (std::sqrt(double(sq[i])) - 0.5) * field.res_));  // inf -> cap
+    field.distance_[i] = static_cast<float>(d);
+    field.log_likelihood_[i] = static_cast<float>(field.log_likelihood_of_distance(d));
+  }
+  field.build_tables();
+  return field;
+}
+
+void LikelihoodField::build_tables() {
+  truncation_ = options_.truncation();
+  table_scale_ = (kTableSize - 1) / truncation_;
+  log_table_.resize(kTableSize + 1);
+  hit_table_.resize(kTableSize + 1);
+  const double s = options_.sigma;
+  for (std::size_t i = 0; i <= kTableSize; ++i) {
+    const double d = std::min(truncation_, static_cast<double>(i) / table_scale_);
+    log_table_[i] = log_likelihood_of_distance(d);
+    hit_table_[i] = std::exp(-0.5 * d * d / (s * s));
+  }
+}
+
+double LikelihoodField::log_likelihood_of_distance(double d) const {
+  const double s = options_.sigma;
+  return std::log((1.0 - options_.p_rand) * std::exp(-0.5 * d * d / (s * s)) + options_.p_rand);
+}
+
+int LikelihoodField::col_of(double x) const { return saturated_key((x - x0_) * inv_res_); }
+int LikelihoodField::row_of(double y) const { return saturated_key((y - y0_) * inv_res_); }
+
+double LikelihoodField::interpolate_distance(double x, double y, Eigen::Vector2d* gradient) const {
+  const double cap = options_.truncation();
+  // Cell centres sit at integer + 0.5 in cell units.
+  const double u = (x - x0_) * inv_res_ - 0.5, v = (y - y0_) * inv_res_ - 0.5;
+  if (!(u > -1.0 && v > -1.0 && u < width_ && v < height_)) {
+    if (gradient) gradient->setZero();
+    return cap;
+  }
+  const int c = static_cast<int>(std::floor(u)), r = static_cast<int>(std::floor(v));
+  const double fu = u - c, fv = v - r;
+  auto at = [&](int row, int col) -> double {
+    if (static_cast<unsigned>(row) >= static_cast<unsigned>(height_) ||
+        static_cast<unsigned>(col) >= static_cast<unsigned>(width_))
+      return cap;
+    return distance_[static_cast<std::size_t>(row) * width_ + col];
+  };
+  const double d00 = at(r, c), d01 = at(r, c + 1), d10 = at(r + 1, c), d11 = at(r + 1, c + 1);
+  const double bottom = d00 + fu * (d01 - d00), top = d10 + fu * (d11 - d10);
+  if (gradient) {
+    const double ddu = (1.0 - fv) * (d01 - d00) + fv * (d11 - d10);
+    const double ddv = top - bottom;
+    *gradient = Eigen::Vector2d(ddu, ddv) * inv_res_;
+  }
+  return bottom + fv * (top - bottom);
+}
+
+}  // namespace probslam
