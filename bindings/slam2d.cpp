@@ -6,8 +6,10 @@
 #include <string>
 
 #include "numpy.hpp"
+#include "probslam/core/check.hpp"
 #include "object_lock.hpp"
 #include "probslam/slam2d/correlative_scan_matcher.hpp"
+#include "probslam/slam2d/incremental_scan_matcher.hpp"
 #include "probslam/slam2d/likelihood_field.hpp"
 #include "probslam/slam2d/range_scan.hpp"
 
@@ -162,6 +164,96 @@ void define_slam2d(py::module_& m) {
             return self.smooth_score(p, x, x0, o);
           },
           py::arg("points"), py::arg("pose"), py::arg("prior") = py::none(), py::arg("prior_covariance") = py::none());
+
+  using ISM = IncrementalScanMatcher;
+  py::class_<ISM>(m, "IncrementalScanMatcher")
+      .def(py::init([](double resolution, double max_range, double min_range, double max_usable_range,
+                       double sigma, double p_rand, double linear_window, double angular_window, bool refine,
+                       bool use_odometry_prior, py::handle odometry_noise, double min_travel, double min_rotation,
+                       double submap_distance, int submap_scans, double min_match_quality) {
+             IncrementalScanMatcherOptions o;
+             o.resolution = resolution;
+             o.filter = filter_args(max_range, min_range, max_usable_range, true, 0.0);
+             o.field.sigma = sigma;
+             o.field.p_rand = p_rand;
+             o.match.window.linear = linear_window;
+             o.match.window.angular = angular_window;
+             o.match.refine = refine;
+             o.use_odometry_prior = use_odometry_prior;
+             if (!odometry_noise.is_none()) {
+               const DoubleArray a = vector_arg(odometry_noise, "odometry_noise", 6);
+               o.odometry = {a.data()[0], a.data()[1], a.data()[2], a.data()[3], a.data()[4], a.data()[5]};
+             }
+             o.min_travel = min_travel;
+             o.min_rotation = min_rotation;
+             o.submap_distance = submap_distance;
+             o.submap_scans = submap_scans;
+             o.min_match_quality = min_match_quality;
+             return ISM(o);
+           }),
+           py::arg("resolution") = 0.05, py::arg("max_range") = inf, py::arg("min_range") = 0.0,
+           py::arg("max_usable_range") = 30.0, py::arg("sigma") = 0.05, py::arg("p_rand") = 0.05,
+           py::arg("linear_window") = 0.3, py::arg("angular_window") = 0.35, py::arg("refine") = true,
+           py::arg("use_odometry_prior") = true, py::arg("odometry_noise") = py::none(), py::arg("min_travel") = 0.05,
+           py::arg("min_rotation") = 0.05, py::arg("submap_distance") = 5.0, py::arg("submap_scans") = 0,
+           py::arg("min_match_quality") = 0.1)
+      .def(
+          "add_scans",
+          [](ISM& self, py::handle ranges, py::handle beam_angles, py::handle odometry, py::handle timestamps) {
+            const DoubleArray r = matrix_arg(ranges, "ranges");
+            const DoubleArray o = matrix_arg(odometry, "odometry", 3);
+            const DoubleArray t = vector_arg(timestamps, "timestamps");
+            const DoubleArray a = as_array(beam_angles, "beam_angles");
+            const auto S = r.shape(0), B = r.shape(1);
+            if (o.shape(0) != S || t.shape(0) != S)
+              throw py::value_error("odometry and timestamps must have one row per scan (" + std::to_string(S) + ")");
+            const bool per_scan = a.ndim() == 2;
+            if (!((a.ndim() == 1 && a.shape(0) == B) || (per_scan && a.shape(0) == S && a.shape(1) == B)))
+              throw py::value_error("beam_angles must have shape (" + std::to_string(B) + ",) or (" + std::to_string(S) +
+                                    ", " + std::to_string(B) + "), got " + shape_of(a));
+            const auto R = as_matrix(r), O = as_matrix(o);
+            const auto T = as_vector(t);
+            // All or nothing: every row is checked before the first scan is added.
+            if (!O.allFinite()) throw py::value_error("odometry must contain only finite values");
+            if (!as_vector(a).allFinite()) throw py::value_error("beam_angles must contain only finite values");
+            if (T.hasNaN()) throw py::value_error("timestamps must not contain NaN");
+            locked(self, [&] {
+              for (py::ssize_t k = 0; k < S; ++k) {
+                const Eigen::Map<const Eigen::VectorXd> ang(a.data() + (per_scan ? k * B : 0), B);
+                self.add_scan(R.row(k).transpose(), ang, O.row(k).transpose(), T[k]);
+              }
+            });
+          },
+          py::arg("ranges"), py::arg("beam_angles"), py::arg("odometry"), py::arg("timestamps"))
+      .def_property_readonly("num_scans", getter(&ISM::num_scans))
+      .def_property_readonly("poses", [](const ISM& self) {
+        return locked(self, [&] {
+          Poses2 p(self.num_scans(), 3);
+          for (int k = 0; k < self.num_scans(); ++k) p.row(k) = self.estimates()[k].pose.transpose();
+          return p;
+        });
+      })
+      .def_property_readonly("timestamps", [](const ISM& self) {
+        return locked(self, [&] { return Eigen::VectorXd(Eigen::Map<const Eigen::VectorXd>(self.timestamps().data(), self.num_scans())); });
+      })
+      .def_property_readonly("scan_info", [](const ISM& self) {
+        // (N, 5): matched, fallback, submap, match_quality, points
+        return locked(self, [&] {
+          RowMatrixXd info(self.num_scans(), 5);
+          for (int k = 0; k < self.num_scans(); ++k) {
+            const ScanEstimate& e = self.estimates()[k];
+            info.row(k) << e.matched, e.fallback, e.submap, e.match_quality, e.points;
+          }
+          return info;
+        });
+      })
+      .def_property_readonly("num_submaps", [](const ISM& self) { return locked(self, [&] { return self.submaps().size(); }); })
+      .def("submap_grid", [](const ISM& self, int k) {
+        return locked(self, [&] {
+          require(k >= 0 && k < static_cast<int>(self.submaps().size()), "index", "is not a submap index");
+          return self.submaps()[k].grid;
+        });
+      }, py::arg("index"));
 }
 
 }  // namespace probslam::bindings

@@ -1,0 +1,110 @@
+#pragma once
+// Incremental scan matching (the lecture's "scan matching": x_t = argmax p(z_t | x_t, m_t-1)
+// p(x_t | u_t-1, x_t-1)): each scan is matched against the map built from the scans before it
+// and then inserted at the matched pose. With submap_distance > 0 the map is cut into local
+// submaps (ch. 11.7's "local submaps from scan matching"), each starting at a scan's pose.
+#include <Eigen/Core>
+#include <vector>
+
+#include "probslam/core/object_mutex.hpp"
+#include "probslam/core/types.hpp"
+#include "probslam/grid/occupancy_grid_2d.hpp"
+#include "probslam/slam2d/correlative_scan_matcher.hpp"
+#include "probslam/slam2d/range_scan.hpp"
+
+namespace probslam {
+
+/// The odometry motion model's noise (Thrun et al. Table 5.6 in spirit): the standard
+/// deviations of the odometry-predicted relative motion grow with the distance travelled (d)
+/// and the angle turned (a): sd_xy = trans_per_metre d + trans_per_radian a + trans_floor,
+/// sd_theta = rot_per_radian a + rot_per_metre d + rot_floor.
+struct OdometryNoise {
+  double trans_per_metre = 0.1, trans_per_radian = 0.02, trans_floor = 0.01;
+  double rot_per_radian = 0.1, rot_per_metre = 0.05, rot_floor = 0.005;
+  void validate() const;
+  /// Covariance (3x3, in the frame of the earlier pose) of a relative motion `delta`.
+  Eigen::Matrix3d covariance(const Eigen::Vector3d& delta) const;
+};
+
+struct IncrementalScanMatcherOptions {
+  double resolution = 0.05;  ///< of the local maps, m
+  ScanFilter filter;
+  LikelihoodFieldOptions field;
+  MatchOptions match;  ///< window and refinement; the prior covariance comes from `odometry`
+  OdometryNoise odometry;
+  bool use_odometry_prior = true;  ///< the odometry motion model enters the score
+  /// A scan is matched only after the odometry has moved this far or turned this much since
+  /// the last matched scan; scans in between take the odometry's relative motion (m, rad).
+  double min_travel = 0.05, min_rotation = 0.05;
+  /// A new submap starts after this much travel (m) or this many matched scans; 0 = never
+  /// (one map: incremental scan matching alone, the inconsistent map of Fig. 11.2).
+  double submap_distance = 5.0;
+  int submap_scans = 0;
+  /// Matches below this quality (mean hit likelihood, 0..1) fall back to the odometry prior.
+  double min_match_quality = 0.1;
+  /// Scans inserted into a new local map before matching starts against it.
+  int warmup_scans = 1;
+
+  void validate() const;
+};
+
+/// One submap: a local occupancy grid in the frontend's world frame, the pose of its first scan
+/// (its node in the pose graph) and the scans inserted into it.
+struct Submap {
+  OccupancyGrid2D grid;
+  Eigen::Vector3d origin;  ///< pose of the first scan, world frame of the frontend
+  std::vector<int> scans;  ///< indices of the scans inserted
+  double travel = 0.0;     ///< odometry distance covered, m
+  int matched = 0;
+};
+
+/// Per scan: the pose estimate, whether it was matched, the match quality and the covariance of
+/// the pose relative to the previous matched scan's (the constraint ch. 11.7 links nodes with).
+struct ScanEstimate {
+  Eigen::Vector3d pose = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d relative_covariance = Eigen::Matrix3d::Zero();
+  double match_quality = 0.0;
+  bool matched = false;   ///< scan-matched (else the odometry's motion)
+  bool fallback = false;  ///< matching ran but failed the quality test
+  int submap = -1;        ///< submap it was inserted into (-1: not inserted)
+  int points = 0;
+};
+
+class IncrementalScanMatcher {
+ public:
+  std::mutex& mutex() const noexcept { return mutex_.get(); }
+
+  explicit IncrementalScanMatcher(const IncrementalScanMatcherOptions& options = {});
+
+  /// Adds one scan: ranges (B,) metres, beam_angles (B,) rad relative to the sensor, the
+  /// sensor's odometry pose (x, y, theta) and a timestamp (s). Returns its estimate. Throws
+  /// std::invalid_argument (nothing changed) for mismatched lengths, non-finite odometry or
+  /// angles.
+  ScanEstimate add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
+                        const Eigen::Ref<const Eigen::VectorXd>& beam_angles, const Eigen::Vector3d& odometry,
+                        double timestamp);
+
+  const IncrementalScanMatcherOptions& options() const { return options_; }
+  const std::vector<ScanEstimate>& estimates() const { return estimates_; }
+  const std::vector<double>& timestamps() const { return timestamps_; }
+  const std::vector<Submap>& submaps() const { return submaps_; }
+  int num_scans() const { return static_cast<int>(estimates_.size()); }
+
+ private:
+  Submap& open_submap(const Eigen::Vector3d& origin);
+  void insert(Submap& submap, int scan, const Eigen::Ref<const Eigen::VectorXd>& ranges,
+              const Eigen::Ref<const Eigen::VectorXd>& beam_angles, const Eigen::Vector3d& pose);
+  MatchResult match(const Submap& submap, const Points2& points, const Eigen::Vector3d& prior,
+                    const Eigen::Matrix3d& prior_cov) const;
+
+  IncrementalScanMatcherOptions options_;
+  std::vector<ScanEstimate> estimates_;
+  std::vector<double> timestamps_;
+  std::vector<Submap> submaps_;
+  Eigen::Vector3d last_odometry_ = Eigen::Vector3d::Zero();   // of the previous scan
+  Eigen::Vector3d matched_odometry_ = Eigen::Vector3d::Zero();  // of the last matched scan
+  Eigen::Vector3d matched_pose_ = Eigen::Vector3d::Zero();
+  ObjectMutex mutex_;
+};
+
+}  // namespace probslam

@@ -1,0 +1,177 @@
+#include "probslam/slam2d/incremental_scan_matcher.hpp"
+
+#include <algorithm>
+#include <cmath>
+
+#include "probslam/core/angle.hpp"
+#include "probslam/core/check.hpp"
+#include "probslam/core/pose2.hpp"
+
+namespace probslam {
+
+namespace {
+
+/// New and grown local maps get this much room beyond the scan (m), so that a grid is copied
+/// to a larger one every few metres of travel rather than every scan.
+constexpr double kGrowMargin = 10.0;
+
+Eigen::Matrix3d frame_jacobian(double theta) {
+  Eigen::Matrix3d J = Eigen::Matrix3d::Identity();
+  J.topLeftCorner<2, 2>() = rotation_matrix(theta);
+  return J;
+}
+
+}  // namespace
+
+void OdometryNoise::validate() const {
+  for (double v : {trans_per_metre, trans_per_radian, rot_per_radian, rot_per_metre})
+    require(std::isfinite(v) && v >= 0.0, "odometry_noise", "coefficients must be finite and >= 0");
+  require_positive(trans_floor, "odometry_noise");
+  require_positive(rot_floor, "odometry_noise");
+}
+
+Eigen::Matrix3d OdometryNoise::covariance(const Eigen::Vector3d& delta) const {
+  const double d = delta.head<2>().norm(), a = std::abs(delta.z());
+  const double st = trans_per_metre * d + trans_per_radian * a + trans_floor;
+  const double sr = rot_per_radian * a + rot_per_metre * d + rot_floor;
+  return Eigen::Vector3d(st * st, st * st, sr * sr).asDiagonal();
+}
+
+void IncrementalScanMatcherOptions::validate() const {
+  require_positive(resolution, "resolution");
+  filter.validate();
+  field.validate();
+  MatchOptions m = match;
+  m.use_prior = false;
+  m.validate();
+  odometry.validate();
+  require(std::isfinite(min_travel) && min_travel >= 0.0, "min_travel", "must be finite and >= 0");
+  require(std::isfinite(min_rotation) && min_rotation >= 0.0, "min_rotation", "must be finite and >= 0");
+  require(std::isfinite(submap_distance) && submap_distance >= 0.0, "submap_distance", "must be finite and >= 0");
+  require(submap_scans >= 0, "submap_scans", "must be >= 0");
+  require(std::isfinite(min_match_quality) && min_match_quality >= 0.0 && min_match_quality <= 1.0,
+          "min_match_quality", "must be in [0, 1]");
+  require(warmup_scans >= 1, "warmup_scans", "must be >= 1");
+}
+
+IncrementalScanMatcher::IncrementalScanMatcher(const IncrementalScanMatcherOptions& options) : options_(options) {
+  options_.validate();
+}
+
+Submap& IncrementalScanMatcher::open_submap(const Eigen::Vector3d& origin) {
+  const double r = options_.filter.usable_range() + kGrowMargin;
+  submaps_.push_back(Submap{OccupancyGrid2D::covering(origin.x() - r, origin.y() - r, origin.x() + r,
+                                                      origin.y() + r, options_.resolution),
+                            origin, {}, 0.0, 0});
+  return submaps_.back();
+}
+
+void IncrementalScanMatcher::insert(Submap& submap, int scan, const Eigen::Ref<const Eigen::VectorXd>& ranges,
+                                    const Eigen::Ref<const Eigen::VectorXd>& beam_angles,
+                                    const Eigen::Vector3d& pose) {
+  const Eigen::VectorXd r = ranges_for_insertion(ranges, options_.filter);
+  // Every ray ends within the usable range: grow the grid to hold that disc, with room to spare.
+  const double reach = options_.filter.usable_range();
+  const Eigen::Vector2d lo = submap.grid.origin();
+  const Eigen::Vector2d hi = lo + submap.grid.resolution() * Eigen::Vector2d(submap.grid.width(), submap.grid.height());
+  if (pose.x() - reach < lo.x() || pose.y() - reach < lo.y() || pose.x() + reach > hi.x() || pose.y() + reach > hi.y()) {
+    const double m = reach + kGrowMargin;
+    submap.grid = submap.grid.grown_to_include(std::min(lo.x(), pose.x() - m), std::min(lo.y(), pose.y() - m),
+                                               std::max(hi.x(), pose.x() + m), std::max(hi.y(), pose.y() + m));
+  }
+  submap.grid.insert_rays(pose, r, beam_angles, reach);
+  submap.scans.push_back(scan);
+}
+
+MatchResult IncrementalScanMatcher::match(const Submap& submap, const Points2& points, const Eigen::Vector3d& prior,
+                                          const Eigen::Matrix3d& prior_cov) const {
+  MatchOptions m = options_.match;
+  m.use_prior = options_.use_odometry_prior;
+  m.prior_covariance = prior_cov;
+  // The field only where the scan can land: its points at the prior heading and at both ends
+  // of the angular window (the arcs between bulge by at most r (1 - cos(window / 2))), widened
+  // by the linear window and the field's reach.
+  Eigen::Vector2d lo = prior.head<2>(), hi = prior.head<2>();
+  for (double turn : {-m.window.angular, 0.0, m.window.angular}) {
+    const Eigen::Matrix2d R = rotation_matrix(prior.z() + turn);
+    for (Eigen::Index i = 0; i < points.rows(); ++i) {
+      const Eigen::Vector2d q = R * points.row(i).transpose() + prior.head<2>();
+      lo = lo.cwiseMin(q);
+      hi = hi.cwiseMax(q);
+    }
+  }
+  const double bulge = points.rowwise().norm().maxCoeff() * (1.0 - std::cos(0.5 * m.window.angular));
+  const double margin = m.window.linear + bulge + options_.field.truncation() + 2 * options_.resolution;
+  const Eigen::Vector4d region(lo.x() - margin, lo.y() - margin, hi.x() + margin, hi.y() + margin);
+  LikelihoodField field = LikelihoodField::from_grid(submap.grid, region, options_.field);
+  int levels = 0;
+  const double cells = 2.0 * std::ceil(m.window.linear / options_.resolution) + 1.0;
+  while (levels < CorrelativeScanMatcher::kMaxLevel && (1 << levels) < cells) ++levels;
+  const CorrelativeScanMatcher matcher(std::move(field), levels);
+  return matcher.match(points, prior, m);
+}
+
+ScanEstimate IncrementalScanMatcher::add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
+                                              const Eigen::Ref<const Eigen::VectorXd>& beam_angles,
+                                              const Eigen::Vector3d& odometry, double timestamp) {
+  require(ranges.size() == beam_angles.size(), "beam_angles", "must have one angle per range");
+  require_all_finite(beam_angles, "beam_angles");
+  require_all_finite(odometry, "odometry");
+  require(!std::isnan(timestamp), "timestamp", "must not be NaN");
+  const int index = num_scans();
+  ScanEstimate est;
+  const Points2 points = scan_hits(ranges, beam_angles, options_.filter);
+  est.points = static_cast<int>(points.rows());
+
+  if (index == 0) {  // the map's frame is the first scan's odometry frame
+    est.pose = odometry;
+    est.pose.z() = wrap_angle(est.pose.z());
+    est.matched = true;
+    Submap& s = open_submap(est.pose);
+    insert(s, index, ranges, beam_angles, est.pose);
+    est.submap = static_cast<int>(submaps_.size()) - 1;
+    matched_odometry_ = odometry;
+    matched_pose_ = est.pose;
+  } else {
+    const Eigen::Vector3d delta = Pose2::from_vector(matched_odometry_).between(Pose2::from_vector(odometry)).vector();
+    const Eigen::Vector3d prior = Pose2::from_vector(matched_pose_).compose(Pose2::from_vector(delta)).vector();
+    const Eigen::Matrix3d rel_cov = options_.odometry.covariance(delta);
+    est.pose = prior;
+    est.relative_covariance = rel_cov;
+    const bool moved = delta.head<2>().norm() >= options_.min_travel || std::abs(delta.z()) >= options_.min_rotation;
+    if (moved) {
+      Submap& cur = submaps_.back();
+      const Eigen::Matrix3d J = frame_jacobian(matched_pose_.z());
+      if (points.rows() > 0 && static_cast<int>(cur.scans.size()) >= options_.warmup_scans) {
+        const MatchResult r = match(cur, points, prior, J * rel_cov * J.transpose());
+        est.match_quality = r.match_quality;
+        if (r.match_quality >= options_.min_match_quality) {
+          est.pose = r.pose;
+          est.relative_covariance = J.transpose() * r.covariance * J;  // into the earlier pose's frame
+          est.matched = true;
+        } else {
+          est.fallback = true;
+        }
+      }
+      cur.travel += delta.head<2>().norm();
+      cur.matched += est.matched;
+      insert(cur, index, ranges, beam_angles, est.pose);
+      est.submap = static_cast<int>(submaps_.size()) - 1;
+      const bool full = (options_.submap_distance > 0.0 && cur.travel >= options_.submap_distance) ||
+                        (options_.submap_scans > 0 && cur.matched >= options_.submap_scans);
+      if (full) {
+        // The next submap starts here, with this scan in both: consecutive submaps overlap.
+        Submap& next = open_submap(est.pose);
+        insert(next, index, ranges, beam_angles, est.pose);
+      }
+      matched_odometry_ = odometry;
+      matched_pose_ = est.pose;
+    }
+  }
+  last_odometry_ = odometry;
+  estimates_.push_back(est);
+  timestamps_.push_back(timestamp);
+  return est;
+}
+
+}  // namespace probslam

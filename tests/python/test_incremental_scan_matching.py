@@ -1,0 +1,108 @@
+"""Incremental scan matching (IncrementalScanMatcher): on a simulated drive through a known room
+with drifting odometry, the matched trajectory stays close to the truth while odometry drifts."""
+
+import numpy as np
+import pytest
+
+import probslam as ps
+from probslam import _core
+
+# A 10 m x 8 m room with a box and a slanted wall, off the cell borders of any 5 cm grid.
+WALLS = [((-5.01, -4.02), (5.03, -4.02)), ((5.03, -4.02), (5.03, 3.97)), ((5.03, 3.97), (-5.01, 3.97)),
+         ((-5.01, 3.97), (-5.01, -4.02)), ((1.01, 1.02), (2.03, 1.02)), ((2.03, 1.02), (2.03, 2.04)),
+         ((2.03, 2.04), (1.01, 2.04)), ((1.01, 2.04), (1.01, 1.02)), ((-3.02, -2.01), (-1.03, -3.04))]
+ANGLES = np.linspace(-np.pi / 2, np.pi / 2, 181)
+
+
+def cast(pose, angles=ANGLES):
+    """Ranges from `pose` to the nearest wall along each beam (inf where none), vectorised."""
+    d = np.stack([np.cos(pose[2] + angles), np.sin(pose[2] + angles)], axis=1)  # (B, 2)
+    out = np.full(len(angles), np.inf)
+    for p, q in WALLS:
+        p, q = np.asarray(p), np.asarray(q)
+        e = q - p
+        det = d[:, 0] * (-e[1]) - d[:, 1] * (-e[0])
+        w = p - pose[:2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (w[0] * (-e[1]) - w[1] * (-e[0])) / det
+            u = (d[:, 0] * w[1] - d[:, 1] * w[0]) / det
+        ok = (np.abs(det) > 1e-12) & (t > 0) & (u >= 0) & (u <= 1)
+        out[ok] = np.minimum(out[ok], t[ok])
+    return out
+
+
+def drive(n=120, seed=3):
+    """A loop around the box: true poses, drifting odometry poses, noisy ranges."""
+    rng = np.random.default_rng(seed)
+    s = np.linspace(0, 2 * np.pi, n)
+    true = np.stack([1.5 + 2.2 * np.cos(s), 1.5 + 2.2 * np.sin(s), s + np.pi / 2], axis=1)
+    true[:, 2] = np.arctan2(np.sin(true[:, 2]), np.cos(true[:, 2]))
+    odo = [true[0].copy()]
+    for k in range(1, n):
+        d = ps.Pose2(*true[k - 1]).between(ps.Pose2(*true[k]))
+        step = np.array([d.x, d.y, d.theta]) * (1 + rng.normal(0, 0.05, 3)) + [0.0, 0.0, 0.01]
+        odo.append(np.asarray(ps.Pose2(*odo[-1]).compose(ps.Pose2(*step)).as_array()))
+    ranges = np.stack([cast(p) + rng.normal(0, 0.01, len(ANGLES)) for p in true])
+    return true, np.array(odo), ranges
+
+
+def test_matched_trajectory_beats_drifting_odometry():
+    true, odo, ranges = drive()
+    ism = _core.IncrementalScanMatcher(max_range=30.0, submap_distance=0.0, min_travel=0.0, min_rotation=0.0)
+    ism.add_scans(ranges, ANGLES, odo, np.arange(len(true), dtype=float))
+    err = np.linalg.norm(ism.poses[:, :2] - true[:, :2], axis=1)
+    odo_err = np.linalg.norm(odo[:, :2] - true[:, :2], axis=1)
+    info = ism.scan_info
+    assert info[:, 0].all()  # every scan matched
+    assert odo_err.max() > 0.5  # the odometry really drifts
+    assert err.max() < 0.1, err.max()  # a couple of cells at most, after a full loop
+
+
+def test_submaps_cut_by_travel():
+    true, odo, ranges = drive()
+    ism = _core.IncrementalScanMatcher(max_range=30.0, submap_distance=5.0, min_travel=0.0, min_rotation=0.0)
+    ism.add_scans(ranges, ANGLES, odo, np.arange(len(true), dtype=float))
+    travel = np.linalg.norm(np.diff(ism.poses[:, :2], axis=0), axis=1).sum()
+    assert ism.num_submaps == int(travel // 5.0) + 1 or ism.num_submaps == int(travel // 5.0)
+    assert isinstance(ism.submap_grid(0), ps.OccupancyGrid2D)
+    with pytest.raises(ValueError, match="index"):
+        ism.submap_grid(ism.num_submaps)
+
+
+def test_scans_without_motion_are_not_matched():
+    true, odo, ranges = drive(n=10)
+    still = np.repeat(odo[:1], 5, axis=0)
+    ism = _core.IncrementalScanMatcher(max_range=30.0)
+    ism.add_scans(ranges[:5], ANGLES, still, np.arange(5.0))
+    assert ism.scan_info[1:, 0].sum() == 0
+    np.testing.assert_allclose(ism.poses, still)
+
+
+@pytest.mark.parametrize("kwargs, name", [
+    (dict(resolution=0.0), "resolution"), (dict(max_range=-1.0), "max_range"), (dict(sigma=float("nan")), "sigma"),
+    (dict(p_rand=1.5), "p_rand"), (dict(linear_window=-1.0), "linear_window"), (dict(submap_scans=-1), "submap_scans"),
+    (dict(min_match_quality=2.0), "min_match_quality"), (dict(odometry_noise=[1, 2]), "odometry_noise"),
+    (dict(odometry_noise=[0.1, 0.1, 0.0, 0.1, 0.1, 0.1]), "odometry_noise")])
+def test_bad_options_name_the_argument(kwargs, name):
+    with pytest.raises(ValueError, match=name):
+        _core.IncrementalScanMatcher(**kwargs)
+
+
+def test_bad_scans_change_nothing():
+    true, odo, ranges = drive(n=6)
+    ism = _core.IncrementalScanMatcher(max_range=30.0)
+    ism.add_scans(ranges[:2], ANGLES, odo[:2], np.arange(2.0))
+    bad_odo = odo[2:4].copy()
+    bad_odo[1, 0] = np.nan
+    with pytest.raises(ValueError, match="odometry"):
+        ism.add_scans(ranges[2:4], ANGLES, bad_odo, np.arange(2.0))
+    with pytest.raises(ValueError, match="beam_angles"):
+        ism.add_scans(ranges[2:4], ANGLES[:-1], odo[2:4], np.arange(2.0))
+    with pytest.raises(ValueError, match="timestamps"):
+        ism.add_scans(ranges[2:4], ANGLES, odo[2:4], np.arange(3.0))
+    with pytest.raises(TypeError, match="ranges"):
+        ism.add_scans("x", ANGLES, odo[2:4], np.arange(2.0))
+    assert ism.num_scans == 2
+    # A scan whose every reading is invalid is no hit: it takes the odometry's motion.
+    ism.add_scans(np.full((1, len(ANGLES)), np.nan), ANGLES, odo[2:3], np.array([2.0]))
+    assert ism.num_scans == 3 and ism.scan_info[2, 4] == 0 and ism.scan_info[2, 0] == 0
