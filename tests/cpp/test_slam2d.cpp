@@ -1,0 +1,324 @@
+// slam2d/: the likelihood field's EDT against a brute-force loop, branch and bound against the
+// brute-force search, pose recovery in a simulated room, the scan filter, and bad input.
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <utility>
+#include <vector>
+
+#include <Eigen/LU>
+
+#include "probslam/core/angle.hpp"
+#include "probslam/grid/occupancy_grid_2d.hpp"
+#include "probslam/slam2d/correlative_scan_matcher.hpp"
+#include "probslam/slam2d/likelihood_field.hpp"
+#include "probslam/slam2d/range_scan.hpp"
+#include "test_support.hpp"
+
+using namespace probslam;
+using probslam::test_support::expect_invalid;
+
+namespace {
+
+using Segment = std::pair<Eigen::Vector2d, Eigen::Vector2d>;
+
+std::vector<Segment> room_walls() {
+  const double w[][4] = {{-5, -4, 5, -4}, {5, -4, 5, 4}, {5, 4, -5, 4}, {-5, 4, -5, -4}, {1, 1, 2, 1},
+                         {2, 1, 2, 2},    {2, 2, 1, 2},  {1, 2, 1, 1},  {-3, -2, -1, -3}};
+  std::vector<Segment> out;
+  for (const auto& s : w) out.push_back({{s[0], s[1]}, {s[2], s[3]}});
+  return out;
+}
+
+Eigen::VectorXd cast(const Eigen::Vector3d& pose, const Eigen::VectorXd& angles, const std::vector<Segment>& walls) {
+  Eigen::VectorXd out = Eigen::VectorXd::Constant(angles.size(), std::numeric_limits<double>::infinity());
+  for (Eigen::Index k = 0; k < angles.size(); ++k) {
+    const Eigen::Vector2d d(std::cos(pose.z() + angles[k]), std::sin(pose.z() + angles[k]));
+    for (const auto& [p, q] : walls) {
+      const Eigen::Vector2d e = q - p, w = p - pose.head<2>();
+      const double det = d.x() * -e.y() - d.y() * -e.x();
+      if (std::abs(det) < 1e-12) continue;
+      const double t = (w.x() * -e.y() - w.y() * -e.x()) / det;
+      const double u = (d.x() * w.y() - d.y() * w.x()) / det;
+      if (t > 0 && u >= 0 && u <= 1) out[k] = std::min(out[k], t);
+    }
+  }
+  return out;
+}
+
+Eigen::VectorXd fan() { return Eigen::VectorXd::LinSpaced(181, -kPi / 2, kPi / 2); }
+
+OccupancyGrid2D room_map() {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> u(-3, 3);
+  OccupancyGrid2D g = OccupancyGrid2D::covering(-6.0123, -5.9871, 6, 6, 0.05);
+  const auto walls = room_walls();
+  for (int i = 0; i < 20; ++i) {
+    const Eigen::Vector3d pose(u(rng), u(rng), u(rng));
+    g.insert_rays(pose, cast(pose, fan(), walls), fan(), 30.0);
+  }
+  return g;
+}
+
+/// A true pose inside the room and outside the pillar [1, 2]^2 (a margin of 0.3 m).
+Eigen::Vector3d random_truth(std::mt19937& rng) {
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (;;) {
+    const Eigen::Vector3d x(2 * u(rng), 2 * u(rng), kPi * u(rng));
+    if (!(x.x() > 0.7 && x.x() < 2.3 && x.y() > 0.7 && x.y() < 2.3)) return x;
+  }
+}
+
+Points2 noisy_scan(std::mt19937& rng, const Eigen::Vector3d& pose, double noise) {
+  std::normal_distribution<double> n(0.0, noise);
+  Eigen::VectorXd r = cast(pose, fan(), room_walls());
+  for (Eigen::Index i = 0; i < r.size(); ++i) r[i] += n(rng);
+  return scan_hits(r, fan(), ScanFilter{});
+}
+
+/// Brute force: min over occupied cells (inside [r0, r1) x [c0, c1)) of centre distance - res/2.
+double brute_distance(const OccupancyGrid2D& g, int r0, int r1, int c0, int c1, const Eigen::Vector2d& x,
+                      double threshold, double cap) {
+  double best = std::numeric_limits<double>::infinity();
+  for (int r = r0; r < r1; ++r)
+    for (int c = c0; c < c1; ++c)
+      if (g.log_odds()(r, c) > threshold) best = std::min(best, (g.cell_center(r, c) - x).norm());
+  return std::clamp(best - 0.5 * g.resolution(), 0.0, cap);
+}
+
+}  // namespace
+
+TEST(Slam2dLikelihoodField, EdtEqualsBruteForceWithCropAndEmpty) {
+  std::mt19937 rng(1);
+  std::uniform_real_distribution<double> u(0, 1);
+  OccupancyGrid2D g(0.1, 47, 33, {-2.03, 1.07});
+  for (int r = 0; r < g.height(); ++r)
+    for (int c = 0; c < g.width(); ++c) {
+      const double x = u(rng);
+      g.log_odds()(r, c) = x < 0.03 ? 2.0 : (x < 0.05 ? 0.3 : (x < 0.5 ? -1.0 : 0.0));
+    }
+  for (const double occ : {0.5, 0.6}) {
+    LikelihoodFieldOptions o;
+    o.sigma = 0.08;
+    o.occupied_probability = occ;
+    const double thr = logit(occ);
+    for (int crop = 0; crop < 2; ++crop) {
+      const LikelihoodField f = crop ? LikelihoodField::from_grid(g, Eigen::Vector4d(-1.31, 1.52, 1.77, 3.0), o)
+                                     : LikelihoodField::from_grid(g, o);
+      const int c0 = static_cast<int>(std::lround((f.origin().x() - g.origin().x()) / g.resolution()));
+      const int r0 = static_cast<int>(std::lround((f.origin().y() - g.origin().y()) / g.resolution()));
+      if (crop) {
+        EXPECT_EQ(c0, 7);
+        EXPECT_EQ(r0, 4);
+        EXPECT_EQ(f.width(), g.lattice().key(0, 1.77) + 1 - c0);
+        EXPECT_EQ(f.height(), g.lattice().key(1, 3.0) + 1 - r0);
+      } else {
+        EXPECT_EQ(f.width(), g.width());
+        EXPECT_EQ(f.height(), g.height());
+      }
+      int occupied = 0;
+      for (int r = 0; r < f.height(); ++r)
+        for (int c = 0; c < f.width(); ++c) {
+          occupied += g.log_odds()(r + r0, c + c0) > thr;
+          const double expected = brute_distance(g, r0, r0 + f.height(), c0, c0 + f.width(),
+                                                 g.cell_center(r + r0, c + c0), thr, o.truncation());
+          ASSERT_NEAR(f.distance()(r, c), expected, 1e-5) << r << " " << c << " crop " << crop;
+          ASSERT_NEAR(f.log_likelihood()(r, c), f.log_likelihood_of_distance(expected), 1e-5);
+        }
+      EXPECT_EQ(f.num_occupied(), occupied);
+      EXPECT_GT(occupied, 0);
+    }
+  }
+  OccupancyGrid2D empty(0.1, 20, 10);
+  LikelihoodFieldOptions o;
+  o.max_distance = 0.37;
+  const LikelihoodField f = LikelihoodField::from_grid(empty, o);
+  EXPECT_EQ(f.num_occupied(), 0);
+  EXPECT_EQ(f.distance().minCoeff(), static_cast<float>(0.37));
+  EXPECT_EQ(f.distance().maxCoeff(), static_cast<float>(0.37));
+}
+
+TEST(Slam2dMatcher, BranchAndBoundEqualsBruteForce) {
+  const OccupancyGrid2D g = room_map();
+  const LikelihoodField field = LikelihoodField::from_grid(g);
+  std::mt19937 rng(2);
+  std::uniform_real_distribution<double> u(-1, 1);
+  Eigen::Matrix3d L;
+  L << 0.1, 0, 0, 0.05, 0.2, 0, 0.02, -0.03, 0.1;
+  const Eigen::Matrix3d cov = L * L.transpose();
+  for (const int level : {0, 1, 3, 6}) {
+    const CorrelativeScanMatcher m(field, level);
+    for (int trial = 0; trial < 8; ++trial) {
+      const Eigen::Vector3d truth = random_truth(rng);
+      Points2 full = noisy_scan(rng, truth, 0.01);
+      Points2 pts(full.rows() / 3, 2);
+      for (Eigen::Index i = 0; i < pts.rows(); ++i) pts.row(i) = full.row(3 * i);
+      const Eigen::Vector3d prior = truth + 0.2 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+      MatchOptions o;
+      o.window = {0.15 + 0.25 * (u(rng) + 1) / 2, 0.05 + 0.1 * (u(rng) + 1), 0.01 + 0.01 * (u(rng) + 1)};
+      o.refine = false;
+      o.use_prior = trial % 2;
+      o.prior_covariance = cov;
+      const MatchResult bb = m.match(pts, prior, o);
+      o.brute_force = true;
+      const MatchResult bf = m.match(pts, prior, o);
+      ASSERT_EQ(bb.search_score, bf.search_score) << "level " << level << " trial " << trial;
+      EXPECT_LT(bb.candidates_scored, bf.candidates_scored + 1);
+      // The pose B&B returns has that score on the lattice.
+      const double res = field.resolution(), step = bb.angular_step;
+      const int cx = static_cast<int>(std::lround((bb.search_pose.x() - prior.x()) / res));
+      const int cy = static_cast<int>(std::lround((bb.search_pose.y() - prior.y()) / res));
+      const double dth = wrap_angle(bb.search_pose.z() - prior.z());
+      const int a = static_cast<int>(std::lround(dth / step));
+      const double th = prior.z() + a * step;
+      double s = 0.0;
+      for (Eigen::Index i = 0; i < pts.rows(); ++i) {
+        const double x = std::cos(th) * pts(i, 0) - std::sin(th) * pts(i, 1) + prior.x();
+        const double y = std::sin(th) * pts(i, 0) + std::cos(th) * pts(i, 1) + prior.y();
+        s += field.cell_value(field.row_of(y) + cy, field.col_of(x) + cx);
+      }
+      if (o.use_prior) {
+        const Eigen::Vector3d d(cx * res, cy * res, a * step);
+        s -= 0.5 * d.dot(cov.inverse() * d);
+      }
+      EXPECT_NEAR(s, bb.search_score, 1e-6 * std::abs(s));
+    }
+  }
+}
+
+TEST(Slam2dMatcher, RecoversPoseInSimulatedRoom) {
+  const CorrelativeScanMatcher m(LikelihoodField::from_grid(room_map()));
+  std::mt19937 rng(3);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (int trial = 0; trial < 12; ++trial) {
+    const Eigen::Vector3d truth = random_truth(rng);
+    const Points2 pts = noisy_scan(rng, truth, 0.01);
+    const Eigen::Vector3d prior = truth + 0.2 * Eigen::Vector3d(u(rng), u(rng), u(rng));
+    const MatchResult r = m.match(pts, prior);
+    EXPECT_LE(std::abs(r.pose.x() - truth.x()), 0.025) << trial;
+    EXPECT_LE(std::abs(r.pose.y() - truth.y()), 0.025) << trial;
+    EXPECT_LE(std::abs(wrap_angle(r.pose.z() - truth.z())), std::max(r.angular_step, 0.01)) << trial;
+    EXPECT_GT(r.match_quality, 0.5);
+  }
+}
+
+TEST(Slam2dScan, FilterAndInsertionSemantics) {
+  const double nan = std::nan(""), inf = std::numeric_limits<double>::infinity();
+  ScanFilter f;
+  f.max_range = 10.0;
+  f.min_range = 0.1;
+  f.max_usable_range = 5.0;
+  Eigen::VectorXd r(10), a = Eigen::VectorXd::LinSpaced(10, -1, 1);
+  r << 1.0, nan, inf, 10.0, 12.0, -1.0, 0.05, 6.0, 2.0, -inf;
+  const Points2 hits = scan_hits(r, a, f);
+  ASSERT_EQ(hits.rows(), 2);
+  EXPECT_NEAR(hits.row(0).norm(), 1.0, 1e-12);
+  EXPECT_NEAR(hits(1, 0), 2.0 * std::cos(a[8]), 1e-12);
+  Eigen::VectorXd ins = ranges_for_insertion(r, f);
+  const double expect_clear[10] = {1.0, 5.0, 5.0, 5.0, 5.0, nan, nan, 5.0, 2.0, nan};
+  for (int i = 0; i < 10; ++i) {
+    if (std::isnan(expect_clear[i]))
+      EXPECT_TRUE(std::isnan(ins[i])) << i;
+    else
+      EXPECT_EQ(ins[i], expect_clear[i]) << i;
+  }
+  f.clear_no_return = false;
+  ins = ranges_for_insertion(r, f);
+  for (int i = 0; i < 10; ++i) {
+    if (i == 0 || i == 8)
+      EXPECT_EQ(ins[i], r[i]);
+    else
+      EXPECT_TRUE(std::isnan(ins[i])) << i;
+  }
+  // Decimation: kept points are at least the spacing apart; each dropped one is within it of the
+  // last kept point.
+  ScanFilter d;
+  d.min_point_spacing = 0.3;
+  const Eigen::VectorXd ang = Eigen::VectorXd::LinSpaced(200, -2, 2);
+  Eigen::VectorXd rr = Eigen::VectorXd::Constant(200, 3.0);
+  const Points2 all = scan_hits(rr, ang, ScanFilter{}), kept = scan_hits(rr, ang, d);
+  ASSERT_EQ(all.rows(), 200);
+  ASSERT_LT(kept.rows(), 200);
+  Eigen::Index k = 0;
+  for (Eigen::Index i = 0; i < all.rows(); ++i) {
+    if (k < kept.rows() && all.row(i) == kept.row(k)) {
+      if (k > 0) EXPECT_GE((kept.row(k) - kept.row(k - 1)).norm(), 0.3);
+      ++k;
+    } else {
+      ASSERT_GT(k, 0);
+      EXPECT_LT((all.row(i) - kept.row(k - 1)).norm(), 0.3);
+    }
+  }
+  EXPECT_EQ(k, kept.rows());
+}
+
+TEST(Slam2dBadInput, EachNamesItsArgument) {
+  OccupancyGrid2D g(0.05, 40, 40, {-1.01, -0.99});
+  g.log_odds()(20, 20) = 2.0;
+  const LikelihoodField field = LikelihoodField::from_grid(g);
+  const CorrelativeScanMatcher m(field);
+  Points2 pts(2, 2);
+  pts << 0.5, 0.0, 0.0, 0.5;
+  const Eigen::Vector3d prior = Eigen::Vector3d::Zero();
+  const double nan = std::nan("");
+  expect_invalid([&] { m.match(Points2(0, 2), prior); }, "points");
+  Points2 bad = pts;
+  bad(1, 0) = nan;
+  expect_invalid([&] { m.match(bad, prior); }, "points");
+  expect_invalid([&] { m.match(pts, Eigen::Vector3d(0, nan, 0)); }, "prior");
+  auto with = [&](auto change, const char* name) {
+    MatchOptions o;
+    change(o);
+    expect_invalid([&] { m.match(pts, prior, o); }, name);
+  };
+  with([](MatchOptions& o) { o.window.linear = -0.1; }, "linear_window");
+  with([](MatchOptions& o) { o.window.angular = -0.1; }, "angular_window");
+  with([](MatchOptions& o) { o.window.angular = 3.2; }, "angular_window");
+  with([&](MatchOptions& o) { o.window.angular_step = nan; }, "angular_step");
+  with([](MatchOptions& o) { o.window = {2000.0, 0.0, 0.0}; }, "window");
+  with([](MatchOptions& o) { o.window = {0.0, kPi, 1e-12}; }, "window");
+  with([](MatchOptions& o) { o.use_prior = true, o.prior_covariance = -Eigen::Matrix3d::Identity(); },
+       "prior_covariance");
+  with([](MatchOptions& o) { o.use_prior = true, o.prior_covariance(0, 1) = 0.5; }, "prior_covariance");
+  with([&](MatchOptions& o) { o.use_prior = true, o.prior_covariance(2, 2) = nan; }, "prior_covariance");
+  expect_invalid([&] { m.smooth_score(pts, Eigen::Vector3d(nan, 0, 0), prior, {}); }, "pose");
+  expect_invalid([&] { CorrelativeScanMatcher(field, -1); }, "max_level");
+  expect_invalid([&] { CorrelativeScanMatcher(field, CorrelativeScanMatcher::kMaxLevel + 1); }, "max_level");
+  auto field_with = [&](auto change, const char* name) {
+    LikelihoodFieldOptions o;
+    change(o);
+    expect_invalid([&] { LikelihoodField::from_grid(g, o); }, name);
+  };
+  field_with([](LikelihoodFieldOptions& o) { o.sigma = 0.0; }, "sigma");
+  field_with([](LikelihoodFieldOptions& o) { o.sigma = -1.0; }, "sigma");
+  field_with([&](LikelihoodFieldOptions& o) { o.sigma = nan; }, "sigma");
+  field_with([](LikelihoodFieldOptions& o) { o.p_rand = 0.0; }, "p_rand");
+  field_with([](LikelihoodFieldOptions& o) { o.p_rand = 1.0; }, "p_rand");
+  field_with([&](LikelihoodFieldOptions& o) { o.p_rand = nan; }, "p_rand");
+  field_with([&](LikelihoodFieldOptions& o) { o.occupied_probability = nan; }, "occupied_probability");
+  field_with([&](LikelihoodFieldOptions& o) { o.max_distance = nan; }, "max_distance");
+  expect_invalid([&] { LikelihoodField::from_grid(g, Eigen::Vector4d(0, nan, 1, 1)); }, "region");
+  expect_invalid([&] { LikelihoodField::from_grid(g, Eigen::Vector4d(1, 1, 0, 0)); }, "region");
+  auto filter_with = [&](auto change, const char* name) {
+    ScanFilter f;
+    change(f);
+    expect_invalid([&] { scan_hits(Eigen::VectorXd::Ones(3), Eigen::VectorXd::Zero(3), f); }, name);
+    expect_invalid([&] { ranges_for_insertion(Eigen::VectorXd::Ones(3), f); }, name);
+  };
+  filter_with([&](ScanFilter& f) { f.max_range = nan; }, "max_range");
+  filter_with([](ScanFilter& f) { f.max_range = 0.0; }, "max_range");
+  filter_with([](ScanFilter& f) { f.min_range = -1.0; }, "min_range");
+  filter_with([&](ScanFilter& f) { f.min_range = nan; }, "min_range");
+  filter_with([](ScanFilter& f) { f.min_range = 40.0; }, "min_range");
+  filter_with([](ScanFilter& f) { f.max_usable_range = std::numeric_limits<double>::infinity(); },
+              "max_usable_range");
+  filter_with([](ScanFilter& f) { f.max_usable_range = 0.0; }, "max_usable_range");
+  filter_with([](ScanFilter& f) { f.min_point_spacing = -0.1; }, "min_point_spacing");
+  expect_invalid([&] { scan_hits(Eigen::VectorXd::Ones(3), Eigen::VectorXd::Zero(2), ScanFilter{}); },
+                 "beam_angles");
+  expect_invalid([&] { scan_hits(Eigen::VectorXd::Ones(2), Eigen::Vector2d(0, nan), ScanFilter{}); },
+                 "beam_angles");
+}
