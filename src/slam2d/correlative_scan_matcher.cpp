@@ -303,6 +303,10 @@ MatchResult CorrelativeScanMatcher::match(const Eigen::Ref<const Points2>& point
   const double candidates = (2 * angular_steps + 1) * (2 * linear_cells + 1) * (2 * linear_cells + 1);
   require(candidates <= kMaxCandidates, "window",
           "holds more than 2e9 poses at this resolution; narrow it or coarsen angular_step");
+  // The rotated scans and the top-level nodes are stored: bound them as well (a fine step over a
+  // wide angle with no translation passes the candidate limit yet fills memory).
+  require((2 * angular_steps + 1) * static_cast<double>(points.rows()) <= kMaxStoredCells, "angular_step",
+          "gives more rotated scan points than 2^27; coarsen it or narrow angular_window");
   sp.linear_cells = static_cast<int>(linear_cells);
   sp.angular_steps = static_cast<int>(angular_steps);
   if (sp.use_prior) {
@@ -351,6 +355,9 @@ MatchResult CorrelativeScanMatcher::match(const Eigen::Ref<const Points2>& point
   } else {
     int top = 0;
     while (top < max_level() && (1 << top) < 2 * W + 1) ++top;
+    const double per_axis = std::ceil((2.0 * W + 1) / (1 << top));
+    require(num_angles * per_axis * per_axis <= kMaxStoredCells, "max_level",
+            "is too low for this window: more than 2^27 top-level nodes");
     std::vector<Node> roots;
     for (int a = 0; a < num_angles; ++a)
       for (int cx = -W; cx <= W; cx += 1 << top)

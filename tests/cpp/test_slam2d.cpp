@@ -280,6 +280,12 @@ TEST(Slam2dBadInput, EachNamesItsArgument) {
   with([&](MatchOptions& o) { o.window.angular_step = nan; }, "angular_step");
   with([](MatchOptions& o) { o.window = {2000.0, 0.0, 0.0}; }, "window");
   with([](MatchOptions& o) { o.window = {0.0, kPi, 1e-12}; }, "window");
+  // Within the candidate limit, yet the rotated scans or the top-level nodes would fill memory.
+  with([](MatchOptions& o) { o.window = {0.0, kPi, 1e-8}; }, "angular_step");
+  const CorrelativeScanMatcher flat(field, 0);
+  MatchOptions wide;
+  wide.window = {100 * g.resolution(), 0.4, 1e-4};
+  expect_invalid([&] { flat.match(pts, prior, wide); }, "max_level");
   with([](MatchOptions& o) { o.use_prior = true, o.prior_covariance = -Eigen::Matrix3d::Identity(); },
        "prior_covariance");
   with([](MatchOptions& o) { o.use_prior = true, o.prior_covariance(0, 1) = 0.5; }, "prior_covariance");

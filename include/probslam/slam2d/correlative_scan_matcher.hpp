@@ -75,6 +75,9 @@ class CorrelativeScanMatcher {
   static constexpr double kMaxCandidates = 2e9;
   /// Largest number of points in a scan (a long scan is decimated first).
   static constexpr long kMaxPoints = 1 << 20;
+  /// Largest number of rotated scan points, and of top-level search nodes, held at once (2^27:
+  /// 1 GiB of cells).
+  static constexpr double kMaxStoredCells = 134217728.0;
   /// 2^10 cells is wider than any search window at a sensible resolution.
   static constexpr int kMaxLevel = 10;
   int max_level() const { return static_cast<int>(pyramid_.size()) - 1; }

@@ -9,7 +9,7 @@
 namespace probslam {
 
 /// How raw readings become hits. A reading r is a hit when it is finite and
-/// max(min_range, 0) <= r < min(max_range, max_usable_range). Readings at or beyond the
+/// 0 < r, min_range <= r and r < min(max_range, max_usable_range). Readings at or beyond the
 /// sensor's maximum, inf and NaN are "no return": they never hit, and (clear_no_return) clear
 /// free space up to the usable range, as do hits beyond the usable range. Negative readings
 /// and readings below min_range are dropped.
