@@ -9,6 +9,7 @@
 
 #include "probslam/core/angle.hpp"
 #include "probslam/core/check.hpp"
+#include "probslam/core/pose2.hpp"
 
 namespace probslam {
 
@@ -72,11 +73,6 @@ struct SearchSpace {
   }
 };
 
-Eigen::Matrix2d rotation(double theta) {
-  const double c = std::cos(theta), s = std::sin(theta);
-  return (Eigen::Matrix2d() << c, -s, s, c).finished();
-}
-
 }  // namespace
 
 void MatchOptions::validate() const {
@@ -131,7 +127,7 @@ double CorrelativeScanMatcher::evaluate(const Eigen::Ref<const Points2>& points,
                                         Eigen::Matrix3d* hessian, Eigen::Vector3d* gradient,
                                         double* quality) const {
   const double sigma = field_.options().sigma, p_rand = field_.options().p_rand;
-  const Eigen::Matrix2d R = rotation(pose.z());
+  const Eigen::Matrix2d R = rotation_matrix(pose.z());
   const Eigen::Vector2d t = pose.head<2>();
   if (hessian) hessian->setZero();
   if (gradient) gradient->setZero();
@@ -177,11 +173,9 @@ double CorrelativeScanMatcher::smooth_score(const Eigen::Ref<const Points2>& poi
 }
 
 void CorrelativeScanMatcher::refine_and_measure(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
-                                                const MatchOptions& options, double angular_step,
-                                                MatchResult& result) const {
+                                                const Eigen::Matrix3d* prior_info, const MatchOptions& options,
+                                                double angular_step, MatchResult& result) const {
   const double res = field_.resolution();
-  const Eigen::Matrix3d info = options.prior_covariance.inverse();
-  const Eigen::Matrix3d* prior_info = options.use_prior ? &info : nullptr;
   Eigen::Matrix3d H;
   Eigen::Vector3d g;
   double quality = 0.0;
@@ -324,7 +318,7 @@ MatchResult CorrelativeScanMatcher::match(const Eigen::Ref<const Points2>& point
   const int num_angles = 2 * sp.angular_steps + 1;
   sp.scans.resize(static_cast<std::size_t>(num_angles));
   for (int a = 0; a < num_angles; ++a) {
-    const Eigen::Matrix2d R = rotation(prior.z() + sp.theta_offset(a));
+    const Eigen::Matrix2d R = rotation_matrix(prior.z() + sp.theta_offset(a));
     auto& cells = sp.scans[static_cast<std::size_t>(a)];
     cells.resize(static_cast<std::size_t>(points.rows()));
     for (Eigen::Index i = 0; i < points.rows(); ++i) {
@@ -406,7 +400,7 @@ MatchResult CorrelativeScanMatcher::match(const Eigen::Ref<const Points2>& point
                                        wrap_angle(prior.z() + sp.theta_offset(best.a)));
   result.search_score = best.bound;
   result.pose = result.search_pose;
-  refine_and_measure(points, prior, options, sp.step, result);
+  refine_and_measure(points, prior, sp.use_prior ? &sp.info : nullptr, options, sp.step, result);
   return result;
 }
 

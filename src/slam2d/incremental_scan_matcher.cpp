@@ -168,7 +168,6 @@ ScanEstimate IncrementalScanMatcher::add_scan(const Eigen::Ref<const Eigen::Vect
       matched_pose_ = est.pose;
     }
   }
-  last_odometry_ = odometry;
   estimates_.push_back(est);
   timestamps_.push_back(timestamp);
   return est;

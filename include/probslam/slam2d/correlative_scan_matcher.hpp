@@ -95,7 +95,8 @@ class CorrelativeScanMatcher {
                   const Eigen::Vector3d& prior, const Eigen::Matrix3d* prior_info, Eigen::Matrix3d* hessian,
                   Eigen::Vector3d* gradient, double* quality) const;
   void refine_and_measure(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
-                          const MatchOptions& options, double angular_step, MatchResult& result) const;
+                          const Eigen::Matrix3d* prior_info, const MatchOptions& options, double angular_step,
+                          MatchResult& result) const;
   Eigen::Matrix3d response_covariance(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
                                       const Eigen::Matrix3d* prior_info, const MatchOptions& options,
                                       double angular_step, const Eigen::Vector3d& pose,

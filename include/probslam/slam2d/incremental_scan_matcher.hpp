@@ -101,7 +101,6 @@ class IncrementalScanMatcher {
   std::vector<ScanEstimate> estimates_;
   std::vector<double> timestamps_;
   std::vector<Submap> submaps_;
-  Eigen::Vector3d last_odometry_ = Eigen::Vector3d::Zero();   // of the previous scan
   Eigen::Vector3d matched_odometry_ = Eigen::Vector3d::Zero();  // of the last matched scan
   Eigen::Vector3d matched_pose_ = Eigen::Vector3d::Zero();
   ObjectMutex mutex_;
