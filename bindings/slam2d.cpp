@@ -2,7 +2,9 @@
 // are immutable once built, so their calls need no object lock; long work releases the GIL.
 #include <pybind11/stl.h>
 
+#include <algorithm>
 #include <limits>
+#include <memory>
 #include <string>
 
 #include "numpy.hpp"
@@ -12,6 +14,7 @@
 #include "probslam/slam2d/incremental_scan_matcher.hpp"
 #include "probslam/slam2d/likelihood_field.hpp"
 #include "probslam/slam2d/range_scan.hpp"
+#include "probslam/slam2d/submap_slam.hpp"
 
 namespace probslam::bindings {
 
@@ -33,8 +36,10 @@ ScanFilter filter_args(double max_range, double min_range, double max_usable_ran
 
 MatchOptions match_options(double linear_window, double angular_window, double angular_step,
                            py::handle prior_covariance, bool refine, bool brute_force,
-                           double min_translation_std, double min_rotation_std) {
+                           double min_translation_std, double min_rotation_std,
+                           double min_score = -std::numeric_limits<double>::infinity()) {
   MatchOptions o;
+  o.min_score = min_score;
   o.window = {linear_window, angular_window, angular_step};
   if (!prior_covariance.is_none()) {
     o.use_prior = true;
@@ -46,6 +51,145 @@ MatchOptions match_options(double linear_window, double angular_window, double a
   o.min_rotation_std = min_rotation_std;
   o.validate();
   return o;
+}
+
+/// Keyword options of the stateful classes: each name read once with its type checked (a bool
+/// is not a number here), and any name left over is a TypeError, as for a Python signature.
+class Kwargs {
+ public:
+  explicit Kwargs(const py::kwargs& kw) : kw_(kw) {}
+  void get(const char* name, double& target) {
+    if (const py::handle v = take(name)) {
+      if (py::isinstance<py::bool_>(v) || !PyNumber_Check(v.ptr()) || PyComplex_Check(v.ptr()))
+        throw py::type_error(std::string(name) + " must be a real number");
+      target = v.cast<double>();
+    }
+  }
+  void get(const char* name, int& target) {
+    if (const py::handle v = take(name)) {
+      if (py::isinstance<py::bool_>(v) || !PyIndex_Check(v.ptr())) throw py::type_error(std::string(name) + " must be an int");
+      const long long x = v.cast<long long>();
+      if (x < std::numeric_limits<int>::min() || x > std::numeric_limits<int>::max())
+        throw py::value_error(std::string(name) + " is out of range");
+      target = static_cast<int>(x);
+    }
+  }
+  void get(const char* name, bool& target) {
+    if (const py::handle v = take(name)) {
+      if (!py::isinstance<py::bool_>(v)) throw py::type_error(std::string(name) + " must be a bool");
+      target = v.cast<bool>();
+    }
+  }
+  py::handle take(const char* name) {
+    if (!kw_.contains(name)) return py::handle();
+    used_.emplace_back(name);
+    return kw_[name];
+  }
+  void finish() const {
+    for (const auto& item : kw_) {
+      const std::string key = py::str(item.first);
+      if (std::find(used_.begin(), used_.end(), key) == used_.end())
+        throw py::type_error("unexpected keyword argument '" + key + "'");
+    }
+  }
+
+ private:
+  py::kwargs kw_;
+  std::vector<std::string> used_;
+};
+
+/// The frontend's options (IncrementalScanMatcher, and SubmapSlam2D's frontend) by keyword.
+IncrementalScanMatcherOptions frontend_options(Kwargs& k, IncrementalScanMatcherOptions o = {}) {
+  k.get("resolution", o.resolution);
+  k.get("max_range", o.filter.max_range);
+  k.get("min_range", o.filter.min_range);
+  k.get("max_usable_range", o.filter.max_usable_range);
+  k.get("sigma", o.field.sigma);
+  k.get("p_rand", o.field.p_rand);
+  k.get("linear_window", o.match.window.linear);
+  k.get("angular_window", o.match.window.angular);
+  k.get("refine", o.match.refine);
+  k.get("use_odometry_prior", o.use_odometry_prior);
+  if (const py::handle v = k.take("odometry_noise"); v && !v.is_none()) {
+    const DoubleArray a = vector_arg(v, "odometry_noise", 6);
+    o.odometry = {a.data()[0], a.data()[1], a.data()[2], a.data()[3], a.data()[4], a.data()[5]};
+  }
+  k.get("min_travel", o.min_travel);
+  k.get("min_rotation", o.min_rotation);
+  k.get("submap_distance", o.submap_distance);
+  k.get("submap_scans", o.submap_scans);
+  k.get("min_match_quality", o.min_match_quality);
+  k.get("warmup_scans", o.warmup_scans);
+  return o;
+}
+
+SubmapSlamOptions slam_options(Kwargs& k) {
+  SubmapSlamOptions o;
+  o.frontend = frontend_options(k, o.frontend);
+  LoopClosureOptions& c = o.closures;
+  k.get("loop_closures", c.enabled);
+  k.get("closure_scans_per_submap", c.scans_per_submap);
+  k.get("closure_min_match_quality", c.min_match_quality);
+  k.get("closure_window_sigmas", c.window_sigmas);
+  k.get("closure_min_linear_window", c.min_linear_window);
+  k.get("closure_max_linear_window", c.max_linear_window);
+  k.get("closure_min_angular_window", c.min_angular_window);
+  k.get("closure_max_angular_window", c.max_angular_window);
+  k.get("closure_max_distance", c.max_distance);
+  k.get("dissolve_chi2", c.dissolve_chi2);
+  double cache_mb = c.field_cache_bytes / (1024.0 * 1024.0);
+  k.get("field_cache_mb", cache_mb);
+  c.field_cache_bytes = cache_mb * 1024.0 * 1024.0;
+  k.get("max_rounds", o.max_rounds);
+  return o;
+}
+
+/// add_scans of IncrementalScanMatcher and SubmapSlam2D: every row is checked before the first
+/// scan is added, so a bad batch changes nothing.
+template <typename Mapper>
+void add_scans(Mapper& self, py::handle ranges, py::handle beam_angles, py::handle odometry, py::handle timestamps) {
+  const DoubleArray r = matrix_arg(ranges, "ranges");
+  const DoubleArray o = matrix_arg(odometry, "odometry", 3);
+  const DoubleArray t = vector_arg(timestamps, "timestamps");
+  const DoubleArray a = as_array(beam_angles, "beam_angles");
+  const auto S = r.shape(0), B = r.shape(1);
+  if (o.shape(0) != S || t.shape(0) != S)
+    throw py::value_error("odometry and timestamps must have one row per scan (" + std::to_string(S) + ")");
+  const bool per_scan = a.ndim() == 2;
+  if (!((a.ndim() == 1 && a.shape(0) == B) || (per_scan && a.shape(0) == S && a.shape(1) == B)))
+    throw py::value_error("beam_angles must have shape (" + std::to_string(B) + ",) or (" + std::to_string(S) +
+                          ", " + std::to_string(B) + "), got " + shape_of(a));
+  const auto R = as_matrix(r), O = as_matrix(o);
+  const auto T = as_vector(t);
+  if (!O.allFinite()) throw py::value_error("odometry must contain only finite values");
+  if (!as_vector(a).allFinite()) throw py::value_error("beam_angles must contain only finite values");
+  if (T.hasNaN()) throw py::value_error("timestamps must not contain NaN");
+  locked(self, [&] {
+    for (py::ssize_t k = 0; k < S; ++k) {
+      const Eigen::Map<const Eigen::VectorXd> ang(a.data() + (per_scan ? k * B : 0), B);
+      self.add_scan(R.row(k).transpose(), ang, O.row(k).transpose(), T[k]);
+    }
+  });
+}
+
+/// (N, 5) per scan: matched, fallback, submap, match_quality, points.
+RowMatrixXd scan_info(const IncrementalScanMatcher& frontend) {
+  RowMatrixXd info(frontend.num_scans(), 5);
+  for (int k = 0; k < frontend.num_scans(); ++k) {
+    const ScanEstimate& e = frontend.estimates()[k];
+    info.row(k) << e.matched, e.fallback, e.submap, e.match_quality, e.points;
+  }
+  return info;
+}
+
+Eigen::VectorXd timestamps_of(const IncrementalScanMatcher& frontend) {
+  return Eigen::Map<const Eigen::VectorXd>(frontend.timestamps().data(), frontend.num_scans());
+}
+
+Poses2 rows_of(const std::vector<Eigen::Vector3d>& poses) {
+  Poses2 p(static_cast<Eigen::Index>(poses.size()), 3);
+  for (std::size_t k = 0; k < poses.size(); ++k) p.row(static_cast<Eigen::Index>(k)) = poses[k].transpose();
+  return p;
 }
 
 }  // namespace
@@ -113,6 +257,7 @@ void define_slam2d(py::module_& m) {
           py::arg("points"));
 
   py::class_<MatchResult>(m, "MatchResult")
+      .def_readonly("found", &MatchResult::found)
       .def_readonly("pose", &MatchResult::pose)
       .def_readonly("search_pose", &MatchResult::search_pose)
       .def_readonly("covariance", &MatchResult::covariance)
@@ -141,17 +286,18 @@ void define_slam2d(py::module_& m) {
           "match",
           [](const CorrelativeScanMatcher& self, py::handle points, py::handle prior, double linear_window,
              double angular_window, double angular_step, py::handle prior_covariance, bool refine, bool brute_force,
-             double min_translation_std, double min_rotation_std) {
+             double min_translation_std, double min_rotation_std, double min_score) {
             const Points2 p = points_arg(points);
             const Eigen::Vector3d x0 = pose_arg(prior, "prior");
             const MatchOptions o = match_options(linear_window, angular_window, angular_step, prior_covariance,
-                                                 refine, brute_force, min_translation_std, min_rotation_std);
+                                                 refine, brute_force, min_translation_std, min_rotation_std, min_score);
             py::gil_scoped_release release;
             return self.match(p, x0, o);
           },
           py::arg("points"), py::arg("prior"), py::arg("linear_window") = 0.3, py::arg("angular_window") = 0.35,
           py::arg("angular_step") = 0.0, py::arg("prior_covariance") = py::none(), py::arg("refine") = true,
-          py::arg("brute_force") = false, py::arg("min_translation_std") = 0.0, py::arg("min_rotation_std") = 0.0)
+          py::arg("brute_force") = false, py::arg("min_translation_std") = 0.0, py::arg("min_rotation_std") = 0.0,
+          py::arg("min_score") = -std::numeric_limits<double>::infinity())
       .def(
           "smooth_score",
           [](const CorrelativeScanMatcher& self, py::handle points, py::handle pose, py::handle prior,
@@ -167,64 +313,14 @@ void define_slam2d(py::module_& m) {
 
   using ISM = IncrementalScanMatcher;
   py::class_<ISM>(m, "IncrementalScanMatcher")
-      .def(py::init([](double resolution, double max_range, double min_range, double max_usable_range,
-                       double sigma, double p_rand, double linear_window, double angular_window, bool refine,
-                       bool use_odometry_prior, py::handle odometry_noise, double min_travel, double min_rotation,
-                       double submap_distance, int submap_scans, double min_match_quality) {
-             IncrementalScanMatcherOptions o;
-             o.resolution = resolution;
-             o.filter = filter_args(max_range, min_range, max_usable_range, true, 0.0);
-             o.field.sigma = sigma;
-             o.field.p_rand = p_rand;
-             o.match.window.linear = linear_window;
-             o.match.window.angular = angular_window;
-             o.match.refine = refine;
-             o.use_odometry_prior = use_odometry_prior;
-             if (!odometry_noise.is_none()) {
-               const DoubleArray a = vector_arg(odometry_noise, "odometry_noise", 6);
-               o.odometry = {a.data()[0], a.data()[1], a.data()[2], a.data()[3], a.data()[4], a.data()[5]};
-             }
-             o.min_travel = min_travel;
-             o.min_rotation = min_rotation;
-             o.submap_distance = submap_distance;
-             o.submap_scans = submap_scans;
-             o.min_match_quality = min_match_quality;
-             return ISM(o);
-           }),
-           py::arg("resolution") = 0.05, py::arg("max_range") = inf, py::arg("min_range") = 0.0,
-           py::arg("max_usable_range") = 30.0, py::arg("sigma") = 0.05, py::arg("p_rand") = 0.05,
-           py::arg("linear_window") = 0.3, py::arg("angular_window") = 0.35, py::arg("refine") = true,
-           py::arg("use_odometry_prior") = true, py::arg("odometry_noise") = py::none(), py::arg("min_travel") = 0.05,
-           py::arg("min_rotation") = 0.05, py::arg("submap_distance") = 5.0, py::arg("submap_scans") = 0,
-           py::arg("min_match_quality") = 0.1)
-      .def(
-          "add_scans",
-          [](ISM& self, py::handle ranges, py::handle beam_angles, py::handle odometry, py::handle timestamps) {
-            const DoubleArray r = matrix_arg(ranges, "ranges");
-            const DoubleArray o = matrix_arg(odometry, "odometry", 3);
-            const DoubleArray t = vector_arg(timestamps, "timestamps");
-            const DoubleArray a = as_array(beam_angles, "beam_angles");
-            const auto S = r.shape(0), B = r.shape(1);
-            if (o.shape(0) != S || t.shape(0) != S)
-              throw py::value_error("odometry and timestamps must have one row per scan (" + std::to_string(S) + ")");
-            const bool per_scan = a.ndim() == 2;
-            if (!((a.ndim() == 1 && a.shape(0) == B) || (per_scan && a.shape(0) == S && a.shape(1) == B)))
-              throw py::value_error("beam_angles must have shape (" + std::to_string(B) + ",) or (" + std::to_string(S) +
-                                    ", " + std::to_string(B) + "), got " + shape_of(a));
-            const auto R = as_matrix(r), O = as_matrix(o);
-            const auto T = as_vector(t);
-            // All or nothing: every row is checked before the first scan is added.
-            if (!O.allFinite()) throw py::value_error("odometry must contain only finite values");
-            if (!as_vector(a).allFinite()) throw py::value_error("beam_angles must contain only finite values");
-            if (T.hasNaN()) throw py::value_error("timestamps must not contain NaN");
-            locked(self, [&] {
-              for (py::ssize_t k = 0; k < S; ++k) {
-                const Eigen::Map<const Eigen::VectorXd> ang(a.data() + (per_scan ? k * B : 0), B);
-                self.add_scan(R.row(k).transpose(), ang, O.row(k).transpose(), T[k]);
-              }
-            });
-          },
-          py::arg("ranges"), py::arg("beam_angles"), py::arg("odometry"), py::arg("timestamps"))
+      .def(py::init([](const py::kwargs& kw) {
+        Kwargs k(kw);
+        const IncrementalScanMatcherOptions o = frontend_options(k);
+        k.finish();
+        return ISM(o);
+      }))
+      .def("add_scans", &add_scans<ISM>, py::arg("ranges"), py::arg("beam_angles"), py::arg("odometry"),
+           py::arg("timestamps"))
       .def_property_readonly("num_scans", getter(&ISM::num_scans))
       .def_property_readonly("poses", [](const ISM& self) {
         return locked(self, [&] {
@@ -233,20 +329,8 @@ void define_slam2d(py::module_& m) {
           return p;
         });
       })
-      .def_property_readonly("timestamps", [](const ISM& self) {
-        return locked(self, [&] { return Eigen::VectorXd(Eigen::Map<const Eigen::VectorXd>(self.timestamps().data(), self.num_scans())); });
-      })
-      .def_property_readonly("scan_info", [](const ISM& self) {
-        // (N, 5): matched, fallback, submap, match_quality, points
-        return locked(self, [&] {
-          RowMatrixXd info(self.num_scans(), 5);
-          for (int k = 0; k < self.num_scans(); ++k) {
-            const ScanEstimate& e = self.estimates()[k];
-            info.row(k) << e.matched, e.fallback, e.submap, e.match_quality, e.points;
-          }
-          return info;
-        });
-      })
+      .def_property_readonly("timestamps", [](const ISM& self) { return locked(self, [&] { return timestamps_of(self); }); })
+      .def_property_readonly("scan_info", [](const ISM& self) { return locked(self, [&] { return scan_info(self); }); })
       .def_property_readonly("num_submaps", [](const ISM& self) { return locked(self, [&] { return self.submaps().size(); }); })
       .def("submap_grid", [](const ISM& self, int k) {
         return locked(self, [&] {
@@ -254,6 +338,63 @@ void define_slam2d(py::module_& m) {
           return self.submaps()[k].grid;
         });
       }, py::arg("index"));
+
+  using Slam = SubmapSlam2D;
+  py::class_<Slam>(m, "SubmapSlam2D")
+      .def(py::init([](const py::kwargs& kw) {
+        Kwargs k(kw);
+        const SubmapSlamOptions o = slam_options(k);
+        k.finish();
+        return std::make_unique<Slam>(o);
+      }))
+      .def("add_scans", &add_scans<Slam>, py::arg("ranges"), py::arg("beam_angles"), py::arg("odometry"),
+           py::arg("timestamps"))
+      .def("finish", [](Slam& self) { locked(self, [&] { self.finish(); }); })
+      .def_property_readonly("num_scans", getter(&Slam::num_scans))
+      .def_property_readonly("num_submaps", getter(&Slam::num_submaps))
+      .def_property_readonly("scan_poses", [](const Slam& self) { return locked(self, [&] { return rows_of(self.scan_poses()); }); })
+      .def_property_readonly("frontend_poses", [](const Slam& self) {
+        return locked(self, [&] {
+          std::vector<Eigen::Vector3d> p;
+          for (const ScanEstimate& e : self.frontend().estimates()) p.push_back(e.pose);
+          return rows_of(p);
+        });
+      })
+      .def_property_readonly("submap_poses", [](const Slam& self) { return locked(self, [&] { return rows_of(self.submap_poses()); }); })
+      .def_property_readonly("timestamps", [](const Slam& self) { return locked(self, [&] { return timestamps_of(self.frontend()); }); })
+      .def_property_readonly("scan_info", [](const Slam& self) { return locked(self, [&] { return scan_info(self.frontend()); }); })
+      .def("graph", [](const Slam& self) { return locked(self, [&] { return self.graph(); }); })
+      .def("map", [](const Slam& self, double resolution) { return locked(self, [&] { return self.map(resolution); }); },
+           py::arg("resolution") = 0.0)
+      .def_property_readonly("constraints", [](const Slam& self) {
+        const std::vector<SubmapConstraint> cs = locked(self, [&] { return self.constraints(); });
+        const auto n = static_cast<py::ssize_t>(cs.size());
+        py::array_t<int> from(n), to(n), scan(n);
+        py::array_t<bool> loop(n), active(n);
+        py::array_t<double> z({n, py::ssize_t(3)}), cov({n, py::ssize_t(3), py::ssize_t(3)}), quality(n);
+        for (py::ssize_t k = 0; k < n; ++k) {
+          const SubmapConstraint& c = cs[static_cast<std::size_t>(k)];
+          from.mutable_at(k) = c.from, to.mutable_at(k) = c.to, scan.mutable_at(k) = c.scan;
+          loop.mutable_at(k) = c.loop, active.mutable_at(k) = c.active, quality.mutable_at(k) = c.match_quality;
+          for (int i = 0; i < 3; ++i) {
+            z.mutable_at(k, i) = c.measurement[i];
+            for (int j = 0; j < 3; ++j) cov.mutable_at(k, i, j) = c.covariance(i, j);
+          }
+        }
+        py::dict d;
+        d["from"] = from, d["to"] = to, d["measurement"] = z, d["covariance"] = cov, d["loop"] = loop;
+        d["scan"] = scan, d["match_quality"] = quality, d["active"] = active;
+        return d;
+      })
+      .def_property_readonly("summary", [](const Slam& self) {
+        const SubmapSlamSummary s = locked(self, [&] { return self.summary(); });
+        py::dict d;
+        d["scans"] = s.scans, d["submaps"] = s.submaps, d["matched_scans"] = s.matched_scans;
+        d["closures_searched"] = s.closures_searched, d["closures_accepted"] = s.closures_accepted;
+        d["closures_rejected"] = s.closures_rejected, d["closures_dissolved"] = s.closures_dissolved;
+        d["rounds"] = s.rounds, d["optimizations"] = s.optimizations, d["final_chi2"] = s.final_chi2;
+        return d;
+      });
 }
 
 }  // namespace probslam::bindings

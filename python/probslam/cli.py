@@ -12,10 +12,13 @@ from . import io
 from .mapping import map_laser_log
 
 BUNDLED_LOG = "intel_excerpt.log.gz"
+#: A raw log (odometry and scans, no corrected poses) for ``probslam slam``: the Intel Research
+#: Lab's first loop.
+BUNDLED_RAW_LOG = "intel_raw_loop.log.gz"
 
 
-def _bundled_log() -> str:
-    return str(resources.files("probslam") / "data" / BUNDLED_LOG)
+def _bundled_log(name: str = BUNDLED_LOG) -> str:
+    return str(resources.files("probslam") / "data" / name)
 
 
 def _cmd_map(args: argparse.Namespace) -> int:
@@ -37,6 +40,38 @@ def _cmd_map(args: argparse.Namespace) -> int:
     print(f"map:           {grid.width} x {grid.height} cells at {grid.resolution} m, origin {grid.origin}")
     print(f"time:          {total:.2f} s total, {summary.seconds:.3f} s mapping ({rate:.2f} M beams/s)")
     print(f"wrote:         {args.output}.yaml, {args.output}.pgm, {args.output}.png")
+    return 0
+
+
+def _cmd_slam(args: argparse.Namespace) -> int:
+    from .graph import write_g2o
+    from .slam import run_slam, write_trajectory
+
+    path = args.log or _bundled_log(BUNDLED_RAW_LOG)
+    log = io.read_carmen_log(path)
+    options = dict(resolution=args.resolution, submap_distance=args.submap_distance,
+                   loop_closures=not args.no_loop_closures)
+    if args.max_range is not None:
+        options["max_range"] = args.max_range
+    result = run_slam(log, progress=None if args.progress else False, **options)
+    io.save_ros_map(result.grid, args.output + ".yaml")
+    io.write_png(result.grid, args.output + ".png", trajectory=result.poses)
+    write_trajectory(args.output + "_trajectory.txt", result.timestamps, result.poses)
+    write_g2o(args.output + ".g2o", result.graph)
+    s = result.summary
+    grid = result.grid
+    print(f"log:           {path}{' (bundled Intel Research Lab raw excerpt)' if not args.log else ''}")
+    print(f"scans:         {s['scans']} ({s['matched_scans']} scan-matched"
+          + ("" if result.odometry else "; no odometry in the log: scan matching alone") + ")"
+          + (f", {log.skipped_wide_scans} skipped: far wider than the rest" if log.skipped_wide_scans else ""))
+    print(f"submaps:       {s['submaps']}")
+    print(f"closures:      {s['closures_accepted']} accepted, {s['closures_rejected']} rejected, "
+          f"{s['closures_dissolved']} dissolved ({s['closures_searched']} searched, {s['rounds']} rounds)")
+    print(f"map:           {grid.width} x {grid.height} cells at {grid.resolution} m, origin {grid.origin}")
+    print(f"time:          {result.seconds:.1f} s for {result.log_duration:.0f} s of log "
+          f"(real-time factor {result.real_time_factor:.1f})")
+    print(f"wrote:         {args.output}.yaml, {args.output}.pgm, {args.output}.png, "
+          f"{args.output}_trajectory.txt, {args.output}.g2o")
     return 0
 
 
@@ -182,6 +217,21 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("-o", "--output", default="map", help="output prefix: PREFIX.yaml/.pgm/.png (default 'map')")
     p.add_argument("--no-progress", dest="progress", action="store_false", help="never show a progress bar")
     p.set_defaults(func=_cmd_map)
+
+    sl = sub.add_parser("slam", help="map a raw CARMEN laser log (odometry and scans): scan matching into "
+                                     "submaps, GraphSLAM over them with loop closures (ch. 11.7)")
+    sl.add_argument("log", nargs="?", help="CARMEN log (.log/.clf, optionally .gz/.bz2); "
+                                           "default: a bundled raw excerpt of the Intel Research Lab log")
+    sl.add_argument("--resolution", type=float, default=0.05, help="cell size in metres (default 0.05)")
+    sl.add_argument("--max-range", type=float, default=None,
+                    help="the sensor's no-return reading in metres (default: from the log)")
+    sl.add_argument("--submap-distance", type=float, default=10.0,
+                    help="travel per submap in metres (default 10; 0: one map, scan matching alone)")
+    sl.add_argument("--no-loop-closures", action="store_true", help="scan matching and submaps only")
+    sl.add_argument("-o", "--output", default="slam",
+                    help="output prefix: PREFIX.yaml/.pgm/.png, PREFIX_trajectory.txt, PREFIX.g2o (default 'slam')")
+    sl.add_argument("--no-progress", dest="progress", action="store_false", help="never show a progress bar")
+    sl.set_defaults(func=_cmd_slam)
 
     e = sub.add_parser("ekf-slam", help="EKF SLAM on a landmark dataset (MRCLAM folder or Victoria Park file)")
     e.add_argument("dataset", help="a UTIAS MRCLAM folder, or Victoria Park in iSAM/GTSAM text format")

@@ -82,6 +82,8 @@ void MatchOptions::validate() const {
   require(std::isfinite(window.angular_step), "angular_step", "must be finite (<= 0: automatic)");
   require(std::isfinite(min_translation_std) && std::isfinite(min_rotation_std), "min_translation_std",
           "and min_rotation_std must be finite");
+  require(!std::isnan(min_score) && min_score < std::numeric_limits<double>::infinity(), "min_score",
+          "must be a number below +inf (-inf: no minimum)");
   if (use_prior) require_symmetric_positive_definite(prior_covariance, "prior_covariance", 1e-9);
 }
 
@@ -338,7 +340,9 @@ MatchResult CorrelativeScanMatcher::match(const Eigen::Ref<const Points2>& point
   };
 
   const int W = sp.linear_cells;
-  Node best{sp.angular_steps, 0, 0, -std::numeric_limits<double>::infinity()};
+  // Nothing below min_score is wanted: B&B prunes against it from the start (Hess et al.'s
+  // minimum score), so a scan that fits nowhere ends after the coarse levels.
+  Node best{-1, 0, 0, options.min_score};
   if (options.brute_force) {
     for (int a = 0; a < num_angles; ++a)
       for (int cx = -W; cx <= W; ++cx)
@@ -396,6 +400,13 @@ MatchResult CorrelativeScanMatcher::match(const Eigen::Ref<const Points2>& point
   result.candidates_scored = scored;
   result.angular_steps = num_angles;
   result.angular_step = sp.step;
+  if (best.a < 0) {  // no pose reached min_score
+    result.found = false;
+    result.pose = result.search_pose = prior;
+    result.score = result.search_score = -std::numeric_limits<double>::infinity();
+    result.covariance.setZero();
+    return result;
+  }
   result.search_pose = Eigen::Vector3d(prior.x() + best.cx * res, prior.y() + best.cy * res,
                                        wrap_angle(prior.z() + sp.theta_offset(best.a)));
   result.search_score = best.bound;

@@ -4,6 +4,7 @@
 // and a covariance from the response surface: the Gaussian approximation of the match function
 // that ch. 11.7 turns into a constraint.
 #include <Eigen/Core>
+#include <limits>
 #include <vector>
 
 #include "probslam/core/types.hpp"
@@ -33,11 +34,15 @@ struct MatchOptions {
   /// <= 0 (default): resolution / sqrt(12) and angular step / sqrt(12), a uniform cell.
   double min_translation_std = 0.0;
   double min_rotation_std = 0.0;
+  /// Lattice poses scoring below this are not wanted (search score: sum of log p + log prior);
+  /// when none reaches it the result has found = false. -inf: always return the best.
+  double min_score = -std::numeric_limits<double>::infinity();
 
   void validate() const;
 };
 
 struct MatchResult {
+  bool found = true;  ///< false: no lattice pose reached options.min_score (pose = prior)
   Eigen::Vector3d pose = Eigen::Vector3d::Zero();         ///< best pose (refined if asked)
   Eigen::Vector3d search_pose = Eigen::Vector3d::Zero();  ///< best pose on the search lattice
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();  ///< from the response surface

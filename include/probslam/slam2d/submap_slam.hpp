@@ -1,0 +1,144 @@
+#pragma once
+// GraphSLAM over local submaps (Thrun et al. ch. 11.7, "Empirical implementation"): scan
+// matching builds local submaps, each submap's origin is a pose node, consecutive nodes are
+// linked by the scan-matched motion and its covariance, and a correlation between a scan and an
+// older overlapping submap becomes a Gaussian constraint. The search adds and dissolves
+// constraints until the graph is stable (Fig. 11.4); a robust kernel guards the optimiser.
+#include <Eigen/Core>
+#include <map>
+#include <memory>
+#include <utility>
+#include <vector>
+
+#include "probslam/core/object_mutex.hpp"
+#include "probslam/graph/graph_optimizer.hpp"
+#include "probslam/graph/pose_graph_2d.hpp"
+#include "probslam/slam2d/incremental_scan_matcher.hpp"
+
+namespace probslam {
+
+struct LoopClosureOptions {
+  bool enabled = true;
+  /// Scans of each finished submap matched against the older submaps (spread over the submap).
+  int scans_per_submap = 3;
+  /// A closure needs at least this match quality (mean hit likelihood, 0..1): stricter than the
+  /// frontend's, since a wrong closure bends the whole map.
+  double min_match_quality = 0.55;
+  /// The search window is this many standard deviations of the predicted relative pose ...
+  double window_sigmas = 3.0;
+  /// ... within these bounds (m, rad): the lower keeps a sharp prediction searchable, the
+  /// upper bounds the search time.
+  double min_linear_window = 0.3, max_linear_window = 4.0;
+  double min_angular_window = 0.1, max_angular_window = 0.7;
+  /// Submaps whose origins are predicted farther apart than this are not searched (m).
+  double max_distance = 20.0;
+  /// A closure whose error in the optimised graph exceeds this chi2 (3 dof) is dissolved
+  /// (ch. 11.6 item 3); 16.27 is the 99.9% quantile.
+  double dissolve_chi2 = 16.27;
+  /// Fields of submaps kept for the search (bytes); the least recently used are rebuilt.
+  double field_cache_bytes = 512.0 * 1024 * 1024;
+
+  void validate() const;
+};
+
+struct SubmapSlamOptions {
+  IncrementalScanMatcherOptions frontend = default_frontend();
+  LoopClosureOptions closures;
+  /// Gauss-Newton with a Huber kernel: a closure that slipped through the tests pulls
+  /// linearly, not quadratically.
+  OptimizerOptions optimizer = default_optimizer();
+  /// Rounds of search, optimisation and dissolution after the last scan (Fig. 11.4).
+  int max_rounds = 10;
+
+  void validate() const;
+  static OptimizerOptions default_optimizer();
+  /// The frontend's defaults, with submaps cut every 10 m of travel: on ACES 5 m submaps (ch.
+  /// 11.7's figure) gave 0.233 +- 0.891 m relation error, 10 m gave 0.043 +- 0.038 m; a short
+  /// submap holds too little of a corridor to pin the next scans along it.
+  static IncrementalScanMatcherOptions default_frontend();
+};
+
+/// A constraint between two submap nodes: `to`'s origin seen from `from`'s (x, y, theta).
+struct SubmapConstraint {
+  int from = 0, to = 0;
+  Eigen::Vector3d measurement = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
+  bool loop = false;        ///< a loop closure (else consecutive submaps)
+  int scan = -1;            ///< loop closures: the scan that was matched against `from`
+  double match_quality = 0.0;
+  bool active = true;       ///< false once dissolved
+};
+
+struct SubmapSlamSummary {
+  int scans = 0, submaps = 0, matched_scans = 0;
+  int closures_searched = 0;   ///< scan-submap pairs searched
+  int closures_accepted = 0;   ///< added to the graph (and still active)
+  int closures_rejected = 0;   ///< failed the quality or consistency test
+  int closures_dissolved = 0;  ///< added, then undone by the optimised graph
+  int rounds = 0, optimizations = 0;
+  double final_chi2 = 0.0;
+};
+
+class SubmapSlam2D {
+ public:
+  std::mutex& mutex() const noexcept { return mutex_.get(); }
+
+  explicit SubmapSlam2D(const SubmapSlamOptions& options = {});
+  ~SubmapSlam2D();
+
+  /// Adds one scan (see IncrementalScanMatcher::add_scan); a submap that this scan completes is
+  /// linked to the graph and searched for loop closures at once.
+  void add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges, const Eigen::Ref<const Eigen::VectorXd>& beam_angles,
+                const Eigen::Vector3d& odometry, double timestamp);
+  /// Closes the last submap and repeats search, optimisation and dissolution until no
+  /// constraint changes (or max_rounds). Adding scans afterwards starts a new finish.
+  void finish();
+
+  const SubmapSlamOptions& options() const { return options_; }
+  const IncrementalScanMatcher& frontend() const { return frontend_; }
+  int num_scans() const { return frontend_.num_scans(); }
+  int num_submaps() const { return static_cast<int>(nodes_.size()); }
+  /// Optimised submap origins (N, 3), world frame = the first scan's odometry frame.
+  const std::vector<Eigen::Vector3d>& submap_poses() const { return nodes_; }
+  const std::vector<SubmapConstraint>& constraints() const { return constraints_; }
+  /// Every scan's pose (x, y, theta): its submap's optimised origin composed with the scan's
+  /// scan-matched offset from that origin.
+  std::vector<Eigen::Vector3d> scan_poses() const;
+  /// The graph as optimised: one pose per submap (id = submap index), the consecutive edges
+  /// and the active closures.
+  PoseGraph2D graph() const;
+  /// An occupancy grid of every scan at scan_poses() (resolution in metres; <= 0: the
+  /// frontend's).
+  OccupancyGrid2D map(double resolution = 0.0) const;
+  SubmapSlamSummary summary() const;
+
+ private:
+  class FieldCache;
+  void link_finished_submap(int j);
+  int search_closures(int j);
+  bool try_closure(int scan, int i, const std::vector<Eigen::Matrix3d>& marginals);
+  void optimize_and_dissolve();
+  CorrelativeScanMatcher build_matcher(int submap) const;
+  double constraint_chi2(const SubmapConstraint& c) const;
+
+  SubmapSlamOptions options_;
+  IncrementalScanMatcher frontend_;
+  std::vector<Points2> points_;             // hits of each scan, sensor frame
+  std::vector<Eigen::Matrix3d> offset_cov_; // of each inserted scan's pose from its submap's origin
+  std::vector<Eigen::Vector3d> nodes_;      // optimised submap origins
+  std::vector<SubmapConstraint> constraints_;
+  std::vector<Eigen::VectorXd> ranges_, angles_;  // every scan, for the final map
+  // The chain of matched scans in the open submap: last pose (frontend frame), its covariance
+  // from the submap's origin.
+  Eigen::Vector3d chain_pose_ = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d chain_cov_ = Eigen::Matrix3d::Zero();
+  int chain_submap_ = 0;
+  // Scan-submap pairs searched, with where the graph predicted the scan then.
+  std::map<std::pair<int, int>, Eigen::Vector3d> attempts_;
+  std::unique_ptr<FieldCache> fields_;
+  int finished_ = 0;  // submaps linked and searched
+  SubmapSlamSummary counts_;
+  ObjectMutex mutex_;
+};
+
+}  // namespace probslam

@@ -1,0 +1,140 @@
+"""SLAM from a raw laser log: incremental scan matching into local submaps and GraphSLAM over the
+submaps with correlative loop closures (Thrun et al. ch. 11.7; C++ ``SubmapSlam2D``).
+
+Units: metres, radians, seconds. Poses are laser poses ``(x, y, theta)`` in the frame of the first
+scan's odometry pose.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass, field
+from typing import Any, Dict, Optional, Union
+
+import numpy as np
+
+from . import _core
+from .io.carmen import CarmenLog, LaserScans, read_carmen_log
+from .mapping import no_return_range
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+#: Laser poses that move less than this over a whole log (metres, radians) mean the log carries
+#: no odometry (MIT CSAIL's FLASER lines repeat one pose): scan matching alone then.
+NO_ODOMETRY_MOTION = 1e-6
+
+
+@dataclass
+class SlamResult:
+    """What ``run_slam`` returns.
+
+    timestamps (S,) s; poses (S, 3) optimised laser poses; frontend_poses (S, 3) from incremental
+    scan matching alone; submap_poses (N, 3) the graph's nodes; grid the occupancy map from every
+    scan at ``poses``; graph the optimised ``PoseGraph2D`` (one pose per submap); constraints the
+    graph's edges (dict of arrays: from, to, measurement (M, 3), covariance (M, 3, 3), loop,
+    scan, match_quality, active); summary counts (scans, submaps, closures accepted / rejected /
+    dissolved, ...); seconds of processing; log_duration in s; odometry whether the log had it.
+    """
+
+    timestamps: np.ndarray
+    poses: np.ndarray
+    frontend_poses: np.ndarray
+    submap_poses: np.ndarray
+    grid: _core.OccupancyGrid2D
+    graph: _core.PoseGraph2D
+    constraints: Dict[str, np.ndarray]
+    summary: Dict[str, Any]
+    seconds: float
+    log_duration: float
+    odometry: bool
+    options: Dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def real_time_factor(self) -> float:
+        """Log duration over processing time (> 1: faster than the robot recorded it)."""
+        return self.log_duration / self.seconds if self.seconds > 0 else float("inf")
+
+
+def has_odometry(scans: LaserScans) -> bool:
+    """Whether the laser poses of the log move at all (some logs repeat one pose throughout)."""
+    p = scans.laser_poses
+    return bool(len(p) > 1 and np.ptp(p, axis=0).max() > NO_ODOMETRY_MOTION)
+
+
+def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, progress: Optional[bool] = None, chunk: int = 200,
+             **options: Any) -> SlamResult:
+    """Turns a raw log (a CARMEN path, a ``CarmenLog`` or its ``LaserScans``) into a consistent map.
+
+    ``options`` are those of ``probslam._core.SubmapSlam2D``: the frontend's (resolution (m),
+    max_range (m; default: the log's no-return reading), max_usable_range, sigma, p_rand,
+    linear_window, angular_window, min_travel, min_rotation, submap_distance, submap_scans,
+    min_match_quality, odometry_noise, use_odometry_prior) and the loop closures' (loop_closures,
+    closure_scans_per_submap, closure_min_match_quality, closure_window_sigmas,
+    closure_{min,max}_{linear,angular}_window, closure_max_distance, dissolve_chi2, max_rounds,
+    field_cache_mb). A log without odometry runs on scan matching alone (no odometry prior,
+    every scan matched, wider windows). ``progress=None`` shows a bar only on a terminal.
+    """
+    if isinstance(log, (str, os.PathLike)):
+        log = read_carmen_log(log)
+    scans = log.scans if isinstance(log, CarmenLog) else log
+    if not isinstance(scans, LaserScans):
+        raise TypeError("log must be a path, a CarmenLog or LaserScans")
+    if len(scans) == 0:
+        raise ValueError("log has no laser scans")
+    if int(chunk) != chunk or chunk < 1:
+        raise ValueError("chunk must be an integer >= 1")
+    odometry = has_odometry(scans)
+    opts: Dict[str, Any] = {}
+    no_return = no_return_range(scans)
+    if np.isfinite(no_return):
+        opts["max_range"] = no_return
+    if not odometry:
+        # Without odometry each scan is matched against the last one's pose: every scan, and a
+        # window wide enough for the motion between two scans.
+        opts.update(use_odometry_prior=False, min_travel=0.0, min_rotation=0.0, linear_window=0.5,
+                    angular_window=0.5)
+    opts.update(options)
+    slam = _core.SubmapSlam2D(**opts)
+    angles = scans.beam_angles()
+    t0 = time.perf_counter()
+    bar = _progress_bar(len(scans), progress)
+    try:
+        for a in range(0, len(scans), chunk):
+            b = min(len(scans), a + chunk)
+            slam.add_scans(scans.ranges[a:b], angles[a:b], scans.laser_poses[a:b], scans.timestamps[a:b])
+            if bar is not None:
+                bar.update(b - a)
+    finally:
+        if bar is not None:
+            bar.close()
+    frontend = slam.frontend_poses
+    slam.finish()
+    grid = slam.map()
+    seconds = time.perf_counter() - t0
+    t = scans.timestamps
+    duration = float(np.nanmax(t) - np.nanmin(t)) if np.isfinite(t).any() else 0.0
+    return SlamResult(timestamps=slam.timestamps, poses=slam.scan_poses, frontend_poses=frontend,
+                      submap_poses=slam.submap_poses, grid=grid, graph=slam.graph(), constraints=slam.constraints,
+                      summary=slam.summary, seconds=seconds, log_duration=duration, odometry=odometry, options=opts)
+
+
+def write_trajectory(path: PathLike, timestamps: np.ndarray, poses: np.ndarray) -> None:
+    """One line per scan: ``timestamp x y theta`` (s, m, m, rad), the TUM-like text layout."""
+    data = np.column_stack([timestamps, poses])
+    np.savetxt(os.fspath(path), data, fmt="%.6f", header="timestamp x y theta")
+
+
+def _progress_bar(total: int, progress: Optional[bool]):
+    import sys
+
+    if progress is False or (progress is None and not sys.stderr.isatty()):
+        return None
+    try:
+        from tqdm import tqdm
+    except ImportError:  # optional: no bar without it
+        return None
+    return tqdm(total=total, unit="scan", desc="slam")
+
+
+__all__ = ["SlamResult", "has_odometry", "run_slam", "write_trajectory", "NO_ODOMETRY_MOTION"]

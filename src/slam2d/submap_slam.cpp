@@ -1,0 +1,440 @@
+#include "probslam/slam2d/submap_slam.hpp"
+
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <list>
+#include <functional>
+#include <map>
+#include <unordered_map>
+
+#include "probslam/core/angle.hpp"
+#include "probslam/core/check.hpp"
+#include "probslam/core/pose2.hpp"
+
+namespace probslam {
+
+namespace {
+
+/// A window half-width wider than 2^kSearchLevels cells starts with several top-level nodes;
+/// 8 levels (12.8 m at 5 cm) cover the largest default window with one.
+constexpr int kSearchLevels = 8;
+/// A best pose this close to the window's edge (in cells or angular steps) may be the edge of
+/// a peak that lies outside: such a match is not trusted as a closure.
+constexpr double kEdgeCells = 1.0;
+/// Added to the variances of a consecutive constraint: keeps its information finite should a
+/// submap's chain ever have zero covariance (odometry floors make that impossible today).
+constexpr double kMinConstraintVariance = 1e-9;
+/// The quality test is made at the refined pose and the minimum score on the lattice: a lattice
+/// pose a fraction of a cell off scores lower, so the bound is loosened by this factor.
+constexpr double kClosureScoreSlack = 1.25;
+/// Scans with fewer hits than this are not used for closures: too few to tell places apart.
+constexpr int kMinClosurePoints = 30;
+
+Pose2 pose_of(const Eigen::Vector3d& v) { return Pose2::from_vector(v); }
+
+Eigen::Matrix3d frame_rotation(double theta) {
+  Eigen::Matrix3d J = Eigen::Matrix3d::Identity();
+  J.topLeftCorner<2, 2>() = rotation_matrix(theta);
+  return J;
+}
+
+/// Jacobians of a (+) b with respect to a and to b.
+void compose_jacobians(const Eigen::Vector3d& a, const Eigen::Vector3d& b, Eigen::Matrix3d& Ja, Eigen::Matrix3d& Jb) {
+  const Eigen::Vector2d rb = rotation_matrix(a.z()) * b.head<2>();
+  Ja = Eigen::Matrix3d::Identity();
+  Ja(0, 2) = -rb.y();
+  Ja(1, 2) = rb.x();
+  Jb = frame_rotation(a.z());
+}
+
+/// Covariance of a (+) b for independent a and b.
+Eigen::Matrix3d compose_covariance(const Eigen::Vector3d& a, const Eigen::Matrix3d& Sa, const Eigen::Vector3d& b,
+                                   const Eigen::Matrix3d& Sb) {
+  Eigen::Matrix3d Ja, Jb;
+  compose_jacobians(a, b, Ja, Jb);
+  const Eigen::Matrix3d S = Ja * Sa * Ja.transpose() + Jb * Sb * Jb.transpose();
+  return 0.5 * (S + S.transpose());
+}
+
+/// Jacobian of the inverse pose a^-1 = (-R^T t, -theta) with respect to a.
+Eigen::Matrix3d inverse_jacobian(const Eigen::Vector3d& a) {
+  const double c = std::cos(a.z()), s = std::sin(a.z());
+  Eigen::Matrix3d J = Eigen::Matrix3d::Zero();
+  J.topLeftCorner<2, 2>() = -rotation_matrix(a.z()).transpose();
+  J(0, 2) = s * a.x() - c * a.y();
+  J(1, 2) = c * a.x() + s * a.y();
+  J(2, 2) = -1.0;
+  return J;
+}
+
+double largest_eigenvalue(const Eigen::Matrix2d& m) {
+  return Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(0.5 * (m + m.transpose())).eigenvalues()(1);
+}
+
+}  // namespace
+
+/// The likelihood fields (with their pyramids) of finished submaps, built on first use and
+/// evicted least recently used beyond a byte budget: a long log has hundreds of submaps.
+class SubmapSlam2D::FieldCache {
+ public:
+  explicit FieldCache(double budget) : budget_(budget) {}
+
+  const CorrelativeScanMatcher& get(int submap, const std::function<CorrelativeScanMatcher()>& build) {
+    const auto it = entries_.find(submap);
+    if (it != entries_.end()) {
+      order_.splice(order_.begin(), order_, it->second.position);
+      return *it->second.matcher;
+    }
+    auto matcher = std::make_shared<CorrelativeScanMatcher>(build());
+    const double bytes = 4.0 * matcher->field().width() * matcher->field().height() * (matcher->max_level() + 2);
+    order_.push_front(submap);
+    entries_[submap] = Entry{matcher, bytes, order_.begin()};
+    used_ += bytes;
+    while (used_ > budget_ && order_.size() > 1) {
+      const int victim = order_.back();
+      order_.pop_back();
+      used_ -= entries_[victim].bytes;
+      entries_.erase(victim);
+    }
+    return *matcher;
+  }
+
+ private:
+  struct Entry {
+    std::shared_ptr<CorrelativeScanMatcher> matcher;
+    double bytes;
+    std::list<int>::iterator position;
+  };
+  double budget_, used_ = 0.0;
+  std::list<int> order_;  // most recent first
+  std::unordered_map<int, Entry> entries_;
+};
+
+void LoopClosureOptions::validate() const {
+  require(scans_per_submap >= 1, "scans_per_submap", "must be >= 1");
+  require(std::isfinite(min_match_quality) && min_match_quality >= 0.0 && min_match_quality <= 1.0,
+          "min_match_quality", "must be in [0, 1]");
+  require_positive(window_sigmas, "window_sigmas");
+  require(std::isfinite(min_linear_window) && min_linear_window >= 0.0 && max_linear_window >= min_linear_window &&
+              std::isfinite(max_linear_window),
+          "linear_window", "needs 0 <= min_linear_window <= max_linear_window, finite");
+  require(std::isfinite(min_angular_window) && min_angular_window >= 0.0 &&
+              max_angular_window >= min_angular_window && max_angular_window <= kPi,
+          "angular_window", "needs 0 <= min_angular_window <= max_angular_window <= pi");
+  require_positive(max_distance, "max_distance");
+  require_positive(dissolve_chi2, "dissolve_chi2");
+  require_positive(field_cache_bytes, "field_cache_bytes");
+}
+
+OptimizerOptions SubmapSlamOptions::default_optimizer() {
+  OptimizerOptions o;
+  o.algorithm = OptimizerAlgorithm::kLevenbergMarquardt;
+  o.kernel = RobustKernel::kHuber;
+  o.kernel_width = std::sqrt(7.81);  // the 95% quantile of chi2 with 3 dof
+  o.max_iterations = 50;
+  o.relative_tolerance = 1e-9;
+  return o;
+}
+
+IncrementalScanMatcherOptions SubmapSlamOptions::default_frontend() {
+  IncrementalScanMatcherOptions o;
+  o.submap_distance = 10.0;
+  return o;
+}
+
+void SubmapSlamOptions::validate() const {
+  frontend.validate();
+  closures.validate();
+  require(optimizer.max_iterations >= 1, "max_iterations", "must be >= 1");
+  require_positive(optimizer.kernel_width, "kernel_width");
+  require(max_rounds >= 1, "max_rounds", "must be >= 1");
+}
+
+SubmapSlam2D::SubmapSlam2D(const SubmapSlamOptions& options)
+    : options_((options.validate(), options)),
+      frontend_(options.frontend),
+      fields_(std::make_unique<FieldCache>(options.closures.field_cache_bytes)) {}
+
+SubmapSlam2D::~SubmapSlam2D() = default;
+
+void SubmapSlam2D::add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
+                            const Eigen::Ref<const Eigen::VectorXd>& beam_angles, const Eigen::Vector3d& odometry,
+                            double timestamp) {
+  const std::size_t submaps_before = frontend_.submaps().size();
+  const ScanEstimate est = frontend_.add_scan(ranges, beam_angles, odometry, timestamp);  // validates
+  points_.push_back(scan_hits(ranges, beam_angles, frontend_.options().filter));
+  ranges_.emplace_back(ranges);
+  angles_.emplace_back(beam_angles);
+  // The scan's offset from its submap's origin, and its covariance along the chain of matches.
+  const int index = frontend_.num_scans() - 1;
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  if (est.submap >= 0 && index > 0 && est.submap == chain_submap_) {
+    const Eigen::Vector3d origin = frontend_.submaps()[est.submap].origin;
+    const Eigen::Vector3d prev = pose_of(origin).between(pose_of(chain_pose_)).vector();
+    const Eigen::Vector3d step = pose_of(chain_pose_).between(pose_of(est.pose)).vector();
+    cov = compose_covariance(prev, chain_cov_, step, est.relative_covariance);
+  }
+  offset_cov_.push_back(cov);
+  if (est.submap >= 0) {
+    chain_pose_ = est.pose;
+    chain_cov_ = cov;
+    chain_submap_ = est.submap;
+  }
+  if (nodes_.empty()) nodes_.push_back(frontend_.submaps()[0].origin);
+  if (frontend_.submaps().size() > submaps_before && submaps_before > 0) {
+    // This scan completed submap `submaps_before - 1` and opened the next one at its pose.
+    link_finished_submap(static_cast<int>(submaps_before) - 1);
+    chain_pose_ = est.pose;
+    chain_cov_.setZero();
+    chain_submap_ = static_cast<int>(submaps_before);
+  }
+}
+
+void SubmapSlam2D::link_finished_submap(int j) {
+  const auto& submaps = frontend_.submaps();
+  const Eigen::Vector3d z = pose_of(submaps[j].origin).between(pose_of(submaps[j + 1].origin)).vector();
+  SubmapConstraint c;
+  c.from = j;
+  c.to = j + 1;
+  c.measurement = z;
+  // The boundary scan's covariance from submap j's origin; a floor keeps it invertible when
+  // every scan in between fell back to a zero-motion prior (it never does: odometry has floors).
+  c.covariance = chain_cov_ + kMinConstraintVariance * Eigen::Matrix3d::Identity();
+  constraints_.push_back(c);
+  nodes_.push_back(pose_of(nodes_[j]).compose(pose_of(z)).vector());
+  if (options_.closures.enabled && search_closures(j) > 0) optimize_and_dissolve();
+  finished_ = j + 1;
+}
+
+int SubmapSlam2D::search_closures(int j) {
+  if (j < 2) return 0;
+  const std::vector<ScanEstimate>& est = frontend_.estimates();
+  std::vector<int> candidates;
+  for (int s : frontend_.submaps()[j].scans)
+    if (est[s].submap == j && points_[s].rows() >= kMinClosurePoints) candidates.push_back(s);
+  if (candidates.empty()) return 0;
+  const PoseGraph2D g = graph();
+  std::vector<int> ids(static_cast<std::size_t>(j) + 1);
+  for (int k = 0; k <= j; ++k) ids[k] = k;
+  std::vector<Eigen::Matrix3d> marginals;
+  for (const Eigen::MatrixXd& m : marginal_covariances(g, ids, options_.optimizer.linear_solver))
+    marginals.push_back(m);
+  const int n = std::min<int>(options_.closures.scans_per_submap, static_cast<int>(candidates.size()));
+  int added = 0;
+  for (int q = 0; q < n; ++q) {
+    const int s = candidates[static_cast<std::size_t>((q + 0.5) * candidates.size() / n)];
+    for (int i = 0; i + 2 <= j; ++i) added += try_closure(s, i, marginals);
+  }
+  return added;
+}
+
+bool SubmapSlam2D::try_closure(int s, int i, const std::vector<Eigen::Matrix3d>& marginals) {
+  const LoopClosureOptions& lc = options_.closures;
+  const std::vector<Submap>& submaps = frontend_.submaps();
+  const std::vector<ScanEstimate>& est = frontend_.estimates();
+  const int j = est[s].submap;
+  const Pose2 origin_i = pose_of(submaps[i].origin), origin_j = pose_of(submaps[j].origin);
+  const Eigen::Vector3d o = origin_j.between(pose_of(est[s].pose)).vector();
+  const Eigen::Vector3d W = pose_of(nodes_[j]).compose(pose_of(o)).vector();
+  const Eigen::Matrix3d SW = compose_covariance(nodes_[j], marginals[j], o, offset_cov_[s]);
+  const Eigen::Matrix3d& Si = marginals[i];
+  // Submap i's frontend frame in the world: its scans' positions, where W must come near.
+  const Pose2 Ti = pose_of(nodes_[i]).compose(origin_i.inverse());
+  double nearest = std::numeric_limits<double>::infinity();
+  for (int k : submaps[i].scans)
+    nearest = std::min(nearest, (Ti.transform_from(est[k].pose.head<2>()) - W.head<2>()).norm());
+  const double lever = (W.head<2>() - nodes_[i].head<2>()).squaredNorm();
+  const double lin_sd = std::sqrt(std::max(0.0, largest_eigenvalue(SW.topLeftCorner<2, 2>()) +
+                                                    largest_eigenvalue(Si.topLeftCorner<2, 2>()) + Si(2, 2) * lever));
+  const double ang_sd = std::sqrt(std::max(0.0, SW(2, 2) + Si(2, 2)));
+  MatchOptions m = options_.frontend.match;
+  m.use_prior = false;
+  m.refine = true;
+  m.window.linear = std::clamp(lc.window_sigmas * lin_sd, lc.min_linear_window, lc.max_linear_window);
+  m.window.angular = std::clamp(lc.window_sigmas * ang_sd, lc.min_angular_window, lc.max_angular_window);
+  if (nearest > lc.max_distance + m.window.linear) return false;
+
+  // Where the graph puts the scan in submap i's grid; skip a pair already searched there.
+  const Eigen::Vector3d predicted = Ti.inverse().compose(pose_of(W)).vector();
+  const auto key = std::make_pair(s, i);
+  const auto seen = attempts_.find(key);
+  if (seen != attempts_.end()) {
+    const Eigen::Vector3d d = seen->second - predicted;
+    if (d.head<2>().norm() < 0.5 * lc.min_linear_window && std::abs(wrap_angle(d.z())) < 0.5 * lc.min_angular_window)
+      return false;
+  }
+  attempts_[key] = predicted;
+
+  const CorrelativeScanMatcher& matcher = fields_->get(i, [&] { return build_matcher(i); });
+  // log p >= (1 - h) log p_rand for a hit share h (log p is concave in h): a pose whose mean h
+  // reaches min_match_quality scores at least this, and the search prunes everything below.
+  m.min_score = kClosureScoreSlack * static_cast<double>(points_[s].rows()) * (1.0 - lc.min_match_quality) *
+                std::log(options_.frontend.field.p_rand);
+  const MatchResult r = matcher.match(points_[s], predicted, m);
+  ++counts_.closures_searched;
+  if (!r.found) {
+    ++counts_.closures_rejected;
+    return false;
+  }
+  const double res = matcher.field().resolution();
+  const Eigen::Vector3d off = r.search_pose - predicted;
+  const bool at_edge =
+      (m.window.linear < lc.max_linear_window &&
+       std::max(std::abs(off.x()), std::abs(off.y())) > m.window.linear - kEdgeCells * res) ||
+      (m.window.angular < lc.max_angular_window &&
+       std::abs(wrap_angle(off.z())) > m.window.angular - kEdgeCells * r.angular_step);
+  if (r.match_quality < lc.min_match_quality || at_edge) {
+    ++counts_.closures_rejected;
+    return false;
+  }
+  // The scan in submap i's frame (a), and submap j's origin seen from the scan (b = o^-1).
+  const Eigen::Vector3d a = origin_i.between(pose_of(r.pose)).vector();
+  const Eigen::Matrix3d Ri = frame_rotation(origin_i.theta);
+  const Eigen::Matrix3d Sa = Ri.transpose() * r.covariance * Ri;
+  const Eigen::Vector3d b = pose_of(o).inverse().vector();
+  const Eigen::Matrix3d Jinv = inverse_jacobian(o);
+  SubmapConstraint c;
+  c.from = i;
+  c.to = j;
+  c.loop = true;
+  c.scan = s;
+  c.match_quality = r.match_quality;
+  c.measurement = pose_of(a).compose(pose_of(b)).vector();
+  c.covariance = compose_covariance(a, Sa, b, Jinv * offset_cov_[s] * Jinv.transpose()) +
+                 kMinConstraintVariance * Eigen::Matrix3d::Identity();
+  constraints_.push_back(c);
+  return true;
+}
+
+CorrelativeScanMatcher SubmapSlam2D::build_matcher(int i) const {
+  // The field over the submap's hits only (a submap grid is sized for the sensor's full reach).
+  const Submap& sub = frontend_.submaps()[i];
+  const std::vector<ScanEstimate>& est = frontend_.estimates();
+  Eigen::Vector2d lo = sub.origin.head<2>(), hi = lo;
+  for (int k : sub.scans) {
+    const Pose2 p = pose_of(est[k].pose);
+    for (Eigen::Index n = 0; n < points_[k].rows(); ++n) {
+      const Eigen::Vector2d q = p.transform_from(points_[k].row(n).transpose());
+      lo = lo.cwiseMin(q);
+      hi = hi.cwiseMax(q);
+    }
+  }
+  const double margin = options_.frontend.field.truncation() + 2.0 * options_.frontend.resolution;
+  const Eigen::Vector4d region(lo.x() - margin, lo.y() - margin, hi.x() + margin, hi.y() + margin);
+  return CorrelativeScanMatcher(LikelihoodField::from_grid(sub.grid, region, options_.frontend.field), kSearchLevels);
+}
+
+PoseGraph2D SubmapSlam2D::graph() const {
+  PoseGraph2D g;
+  for (std::size_t k = 0; k < nodes_.size(); ++k) g.add_pose(static_cast<int>(k), nodes_[k]);
+  if (!nodes_.empty()) g.set_fixed(0);
+  for (const SubmapConstraint& c : constraints_)
+    if (c.active && c.to < static_cast<int>(nodes_.size()))
+      g.add_pose_edge(c.from, c.to, c.measurement, c.covariance.inverse());
+  return g;
+}
+
+double SubmapSlam2D::constraint_chi2(const SubmapConstraint& c) const {
+  const Eigen::Vector3d e = linearize_pose_edge(nodes_[c.from], nodes_[c.to], c.measurement).error;
+  return e.dot(c.covariance.ldlt().solve(e));
+}
+
+void SubmapSlam2D::optimize_and_dissolve() {
+  for (;;) {
+    PoseGraph2D g = graph();
+    optimize(g, options_.optimizer);
+    ++counts_.optimizations;
+    nodes_ = g.values();
+    // Undo the closure the optimised graph contradicts most (ch. 11.6 item 3), one at a time:
+    // a single wrong closure can make right ones look wrong until it is gone.
+    SubmapConstraint* worst = nullptr;
+    double worst_chi2 = options_.closures.dissolve_chi2;
+    for (SubmapConstraint& c : constraints_) {
+      if (!c.loop || !c.active) continue;
+      const double chi2 = constraint_chi2(c);
+      if (chi2 > worst_chi2) worst = &c, worst_chi2 = chi2;
+    }
+    if (!worst) return;
+    worst->active = false;
+    ++counts_.closures_dissolved;
+  }
+}
+
+void SubmapSlam2D::finish() {
+  const int last = static_cast<int>(nodes_.size()) - 1;
+  if (last < 0) return;
+  if (options_.closures.enabled) {
+    for (int round = 0; round < options_.max_rounds; ++round) {
+      const int dissolved = counts_.closures_dissolved;
+      int added = 0;
+      for (int j = 2; j <= last; ++j) added += search_closures(j);
+      optimize_and_dissolve();
+      ++counts_.rounds;
+      if (added == 0 && counts_.closures_dissolved == dissolved) break;
+    }
+  } else if (last > 0) {
+    optimize_and_dissolve();
+  }
+  finished_ = last + 1;
+}
+
+std::vector<Eigen::Vector3d> SubmapSlam2D::scan_poses() const {
+  const std::vector<ScanEstimate>& est = frontend_.estimates();
+  const std::vector<Submap>& submaps = frontend_.submaps();
+  std::vector<Eigen::Vector3d> poses;
+  poses.reserve(est.size());
+  int ref = 0;  // scans not inserted moved with the odometry from the last inserted one
+  for (const ScanEstimate& e : est) {
+    if (e.submap >= 0) ref = e.submap;
+    const Eigen::Vector3d node = ref < static_cast<int>(nodes_.size()) ? nodes_[ref] : submaps[ref].origin;
+    poses.push_back(pose_of(node).compose(pose_of(submaps[ref].origin).between(pose_of(e.pose))).vector());
+  }
+  return poses;
+}
+
+OccupancyGrid2D SubmapSlam2D::map(double resolution) const {
+  const double res = resolution > 0.0 ? resolution : options_.frontend.resolution;
+  require(std::isfinite(res), "resolution", "must be finite");
+  require(num_scans() > 0, "scans", "none added: nothing to map");
+  const std::vector<Eigen::Vector3d> poses = scan_poses();
+  // No-return beams (glass, open doors, the sky) and hits beyond the usable range say little
+  // about the cells they cross: the final map leaves them out, as `probslam map` does.
+  ScanFilter filter = options_.frontend.filter;
+  filter.clear_no_return = false;
+  const double reach = filter.usable_range();
+  Eigen::Vector2d lo = poses[0].head<2>(), hi = lo;
+  for (std::size_t s = 0; s < poses.size(); ++s) {
+    // The extent of what the scan saw (hits and cleared space), not of the sensor's reach.
+    const Eigen::VectorXd r = ranges_for_insertion(ranges_[s], filter);
+    const Pose2 p = pose_of(poses[s]);
+    for (Eigen::Index b = 0; b < r.size(); ++b) {
+      if (!std::isfinite(r[b])) continue;
+      const double a = p.theta + angles_[s][b];
+      const Eigen::Vector2d q(p.x + r[b] * std::cos(a), p.y + r[b] * std::sin(a));
+      lo = lo.cwiseMin(q);
+      hi = hi.cwiseMax(q);
+    }
+    lo = lo.cwiseMin(p.translation());
+    hi = hi.cwiseMax(p.translation());
+  }
+  OccupancyGrid2D grid = OccupancyGrid2D::covering(lo.x() - res, lo.y() - res, hi.x() + res, hi.y() + res, res);
+  for (std::size_t s = 0; s < poses.size(); ++s)
+    grid.insert_rays(poses[s], ranges_for_insertion(ranges_[s], filter), angles_[s], reach);
+  return grid;
+}
+
+SubmapSlamSummary SubmapSlam2D::summary() const {
+  SubmapSlamSummary out = counts_;
+  out.scans = num_scans();
+  out.submaps = num_submaps();
+  out.matched_scans = 0;
+  for (const ScanEstimate& e : frontend_.estimates()) out.matched_scans += e.matched;
+  out.closures_accepted = 0;
+  for (const SubmapConstraint& c : constraints_) out.closures_accepted += c.loop && c.active;
+  out.final_chi2 = nodes_.empty() ? 0.0 : graph().chi2();
+  return out;
+}
+
+}  // namespace probslam

@@ -1,0 +1,160 @@
+"""GraphSLAM over submaps (SubmapSlam2D, ch. 11.7) on a simulated corridor loop: odometry with a
+heading bias drifts metres over a lap; the submap graph with correlative loop closures brings
+every scan back to the true trajectory."""
+
+import numpy as np
+import pytest
+
+import probslam as ps
+from probslam import _core
+
+# A rectangular corridor loop (outer 20 x 12 m, inner block 3..17 x 3..9) with alcoves and
+# pillars so that no stretch is a featureless corridor.
+OUTER = [(0.02, 0.03), (20.01, 0.03), (20.01, 12.02), (0.02, 12.02)]
+INNER = [(3.01, 3.02), (17.03, 3.02), (17.03, 9.01), (3.01, 9.01)]
+
+
+def _boxes():
+    boxes = []
+    for cx, cy in [(5.5, 0.3), (9.2, 0.4), (14.1, 0.3), (19.7, 4.1), (19.6, 8.3), (15.2, 11.7), (10.3, 11.6),
+                   (4.4, 11.7), (0.3, 7.7), (0.4, 3.9), (7.3, 3.3), (12.6, 8.7)]:
+        h = 0.3 if (cx, cy) not in [(9.2, 0.4), (10.3, 11.6)] else 0.45
+        boxes.append([(cx - h, cy - h), (cx + h, cy - h), (cx + h, cy + h), (cx - h, cy + h)])
+    return boxes
+
+
+def _segments():
+    segs = []
+    for poly in [OUTER, INNER] + _boxes():
+        for k in range(len(poly)):
+            segs.append((np.asarray(poly[k]), np.asarray(poly[(k + 1) % len(poly)])))
+    return segs
+
+
+SEGMENTS = _segments()
+ANGLES = np.linspace(-np.pi / 2, np.pi / 2, 181)
+MAX_RANGE = 12.0
+
+
+def cast(pose):
+    """Ranges from `pose` to the nearest segment along each beam (MAX_RANGE where none)."""
+    d = np.stack([np.cos(pose[2] + ANGLES), np.sin(pose[2] + ANGLES)], axis=1)
+    out = np.full(len(ANGLES), np.inf)
+    for p, q in SEGMENTS:
+        e = q - p
+        det = -d[:, 0] * e[1] + d[:, 1] * e[0]
+        w = p - pose[:2]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (-w[0] * e[1] + w[1] * e[0]) / det
+            u = (d[:, 0] * w[1] - d[:, 1] * w[0]) / det
+        ok = (np.abs(det) > 1e-12) & (t > 0) & (u >= 0) & (u <= 1)
+        out[ok] = np.minimum(out[ok], t[ok])
+    out[out >= MAX_RANGE] = MAX_RANGE
+    return out
+
+
+def corridor_drive(laps=1.25, step=0.25, bias=0.0015, seed=5):
+    """True poses along the corridor's centre line (counter-clockwise), odometry with a heading
+    bias and noise, and noisy ranges."""
+    rng = np.random.default_rng(seed)
+    corners = np.array([(1.5, 1.5), (18.5, 1.5), (18.5, 10.5), (1.5, 10.5)])
+    legs = [(corners[k], corners[(k + 1) % 4]) for k in range(4)]
+    perimeter = sum(np.linalg.norm(b - a) for a, b in legs)
+    poses = []
+    for s in np.arange(0.0, laps * perimeter, step):
+        s %= perimeter
+        for a, b in legs:
+            length = np.linalg.norm(b - a)
+            if s <= length:
+                p = a + (b - a) * s / length
+                poses.append([p[0], p[1], np.arctan2(*(b - a)[::-1])])
+                break
+            s -= length
+    true = np.array(poses)
+    odo = [true[0].copy()]
+    for k in range(1, len(true)):
+        d = ps.Pose2(*true[k - 1]).between(ps.Pose2(*true[k]))
+        inc = np.array([d.x, d.y, d.theta]) + rng.normal(0, [0.01, 0.005, 0.005]) + [0.0, 0.0, bias]
+        odo.append(np.asarray(ps.Pose2(*odo[-1]).compose(ps.Pose2(*inc)).as_array()))
+    ranges = np.stack([cast(p) for p in true]) + rng.normal(0, 0.01, (len(true), len(ANGLES)))
+    return true, np.array(odo), ranges
+
+
+@pytest.fixture(scope="module")
+def drive():
+    return corridor_drive()
+
+
+def run(drive, **kw):
+    true, odo, ranges = drive
+    slam = _core.SubmapSlam2D(max_range=MAX_RANGE, **kw)
+    slam.add_scans(ranges, ANGLES, odo, np.arange(len(true), dtype=float))
+    slam.finish()
+    return slam
+
+
+def position_errors(poses, true):
+    return np.linalg.norm(poses[:, :2] - true[:, :2], axis=1)
+
+
+def test_loop_closes_with_odometry_only_frontend(drive):
+    # min_match_quality 1 turns the frontend's matches down: submaps are built on odometry alone,
+    # so only the loop closures can remove the drift.
+    true, odo, _ = drive
+    slam = run(drive, min_match_quality=1.0, submap_distance=4.0)
+    odo_err = position_errors(odo, true)
+    err = position_errors(slam.scan_poses, true)
+    s = slam.summary
+    assert odo_err.max() > 1.5  # the odometry really drifts
+    assert s["closures_accepted"] >= 3, s
+    assert err.max() < 0.35 and np.median(err) < 0.15, (err.max(), np.median(err), s)
+    # Without closures the same graph keeps the drift.
+    open_loop = run(drive, min_match_quality=1.0, submap_distance=4.0, loop_closures=False)
+    assert position_errors(open_loop.scan_poses, true).max() > 1.0
+
+
+def test_full_pipeline_on_the_loop(drive):
+    true, odo, _ = drive
+    slam = run(drive)
+    err = position_errors(slam.scan_poses, true)
+    heading = np.abs(np.angle(np.exp(1j * (slam.scan_poses[:, 2] - true[:, 2]))))
+    assert err.max() < 0.15 and heading.max() < 0.03, (err.max(), heading.max(), slam.summary)
+    c = slam.constraints
+    consecutive = ~c["loop"]
+    assert consecutive.sum() == slam.num_submaps - 1
+    np.testing.assert_array_equal(c["to"][consecutive], c["from"][consecutive] + 1)
+    for cov in c["covariance"]:
+        np.testing.assert_allclose(cov, cov.T, atol=1e-12)
+        assert np.linalg.eigvalsh(cov).min() > 0
+    g = slam.graph()
+    assert g.num_vertices == slam.num_submaps
+    grid = slam.map()
+    assert isinstance(grid, ps.OccupancyGrid2D)
+
+
+@pytest.mark.parametrize("kwargs, name", [
+    (dict(closure_scans_per_submap=0), "scans_per_submap"), (dict(closure_min_match_quality=1.5), "min_match_quality"),
+    (dict(closure_window_sigmas=0.0), "window_sigmas"), (dict(closure_max_linear_window=-1.0), "linear_window"),
+    (dict(closure_max_angular_window=4.0), "angular_window"), (dict(dissolve_chi2=float("nan")), "dissolve_chi2"),
+    (dict(max_rounds=0), "max_rounds"), (dict(field_cache_mb=0.0), "field_cache_bytes")])
+def test_bad_options_name_the_argument(kwargs, name):
+    with pytest.raises(ValueError, match=name):
+        _core.SubmapSlam2D(**kwargs)
+
+
+@pytest.mark.parametrize("kwargs, kind", [(dict(loop_closures=1), TypeError), (dict(max_rounds=2.5), TypeError),
+                                          (dict(resolution="x"), TypeError), (dict(no_such_option=1), TypeError)])
+def test_option_types(kwargs, kind):
+    with pytest.raises(kind):
+        _core.SubmapSlam2D(**kwargs)
+
+
+def test_empty_and_bad_input():
+    slam = _core.SubmapSlam2D()
+    slam.finish()  # nothing to do
+    assert slam.num_scans == 0 and slam.scan_poses.shape == (0, 3)
+    with pytest.raises(ValueError, match="scans"):
+        slam.map()
+    with pytest.raises(ValueError, match="odometry"):
+        slam.add_scans(np.ones((1, 3)), np.zeros(3), np.full((1, 3), np.nan), np.zeros(1))
+    assert slam.num_scans == 0
