@@ -41,12 +41,21 @@ py::dict log_to_dict(CarmenLog&& log) {
   for (const auto& [key, value] : log.params) params[escaped_text(key)] = escaped_text(value);
   out["params"] = params;
   out["skipped_wide_scans"] = log.skipped_wide_scans;
+  out["skipped_rows"] = log.skipped_rows;
+  py::list lines, reasons;
+  for (const SkippedLine& s : log.skipped_lines) {
+    lines.append(s.line);
+    reasons.append(escaped_text(s.reason));
+  }
+  out["skipped_lines"] = lines;
+  out["skipped_reasons"] = reasons;
   return out;
 }
 
 }  // namespace
 
 void define_io(py::module_& m) {
+  m.attr("CARMEN_MAX_REPORTED_LINES") = kCarmenMaxReportedLines;
   m.def(
       "read_carmen_log",
       [](const std::string& path) {

@@ -34,7 +34,8 @@ def _cmd_map(args: argparse.Namespace) -> int:
     rate = summary.beams / summary.seconds / 1e6 if summary.seconds > 0 else float("inf")
     print(f"log:           {path}{' (bundled Intel Research Lab excerpt)' if not args.log else ''}")
     print(f"scans:         {summary.scans}"
-          + (f" ({log.skipped_wide_scans} skipped: far wider than the rest)" if log.skipped_wide_scans else ""))
+          + (f" ({log.skipped_wide_scans} skipped: far wider than the rest)" if log.skipped_wide_scans else "")
+          + (f" ({log.skipped_rows} malformed log lines skipped)" if log.skipped_rows else ""))
     print(f"beams:         {summary.beams}")
     print(f"cells updated: {summary.cells_updated}")
     print(f"map:           {grid.width} x {grid.height} cells at {grid.resolution} m, origin {grid.origin}")

@@ -18,6 +18,7 @@ namespace {
 
 using io_detail::Fields;
 using io_detail::LineError;
+using io_detail::LineParseError;
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 constexpr double kDegree = kPi / 180.0;
@@ -29,6 +30,18 @@ constexpr double kDegree = kPi / 180.0;
 // 60000-beam scan among thousands of empty ones) asked for 1.9 GB.
 constexpr double kMaxPaddingFactor = 4.0;
 constexpr double kPaddingAllowance = double(1 << 20);  // cells: 8 MiB of doubles
+// A skipped line's reason quotes the field that failed; a field of a corrupt line can be long.
+constexpr std::size_t kMaxReasonBytes = 200;
+
+/// A CARMEN message name: an upper-case letter, then upper-case letters, digits, '_' or '-'
+/// (ODOM, FLASER, ROBOTLASER1, RAWLASER1, NMEAGGA, ...). A line starting with anything else is
+/// not a message (a corrupt line), unlike a message type this reader does not use.
+bool is_message_name(std::string_view token) {
+  if (token.empty() || !(token[0] >= 'A' && token[0] <= 'Z')) return false;
+  return std::all_of(token.begin(), token.end(), [](char c) {
+    return (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '_' || c == '-';
+  });
+}
 
 struct ScanRow {
   std::vector<double> ranges;
@@ -40,6 +53,14 @@ struct Builder {
   std::vector<ScanRow> scans;
   std::vector<double> odom;  // x y theta tv rv t
   std::map<std::string, std::string> params;
+  std::size_t skipped_rows = 0;
+  std::vector<SkippedLine> skipped_lines;
+
+  void skip(long line, const std::string& reason) {
+    ++skipped_rows;
+    if (skipped_lines.size() < kCarmenMaxReportedLines)
+      skipped_lines.push_back({line, reason.size() <= kMaxReasonBytes ? reason : reason.substr(0, kMaxReasonBytes) + "..."});
+  }
 
   double flaser_step(long n) const {
     const auto it = params.find("laser_front_laser_resolution");
@@ -98,8 +119,10 @@ struct Builder {
   // ODOM x y theta tv rv accel [ipc_ts host logger_ts]
   void odometry(const Fields& f) {
     f.need(7, "pose, velocities and acceleration");
-    for (int k = 1; k <= 5; ++k) odom.push_back(f.number(k));
-    odom.push_back(f.optional_number(7));
+    double row[6];  // parsed whole before it is kept: a bad field skips the line, not half of it
+    for (int k = 1; k <= 5; ++k) row[k - 1] = f.number(k);
+    row[5] = f.optional_number(7);
+    odom.insert(odom.end(), row, row + 6);
   }
 
   /// The widest scan width whose padded matrix stays within the bound above.
@@ -122,6 +145,8 @@ struct Builder {
   CarmenLog finish() {
     CarmenLog log;
     log.params = std::move(params);
+    log.skipped_rows = skipped_rows;
+    log.skipped_lines = std::move(skipped_lines);
     const std::size_t width = padded_width();
     const std::size_t before = scans.size();
     scans.erase(std::remove_if(scans.begin(), scans.end(), [&](const ScanRow& s) { return s.ranges.size() > width; }),
@@ -168,20 +193,37 @@ struct Builder {
 
 CarmenLog parse_carmen_log(std::istream& in, const std::string& source) {
   Builder builder;
-  io_detail::for_each_record(in, source, [&](const Fields& fields, const LineError&, long) {
+  io_detail::for_each_record(in, source, [&](const Fields& fields, const LineError& err, long) {
     const std::string_view type = fields.token(0);
-    if (type == "FLASER") {
-      builder.flaser(fields);
-    } else if (type == "ROBOTLASER1") {
-      builder.robotlaser(fields);
-    } else if (type == "ODOM") {
-      builder.odometry(fields);
-    } else if (type == "PARAM") {
-      fields.need(3, "name and value");
-      builder.params[std::string(fields.token(1))] = std::string(fields.token(2));
+    try {
+      if (type == "FLASER") {
+        builder.flaser(fields);
+      } else if (type == "ROBOTLASER1") {
+        builder.robotlaser(fields);
+      } else if (type == "ODOM") {
+        builder.odometry(fields);
+      } else if (type == "PARAM") {
+        fields.need(3, "name and value");
+        builder.params[std::string(fields.token(1))] = std::string(fields.token(2));
+      } else if (!is_message_name(type)) {
+        err.fail("'" + std::string(type.substr(0, 40)) + "' is not a CARMEN message name");
+      }
+    } catch (const LineParseError& e) {  // row-level: the line is skipped and counted
+      builder.skip(e.line(), e.reason());
     }
   });
   if (in.bad()) throw std::runtime_error(source + ": read error");
+  if (builder.scans.empty()) {
+    std::string what = source + ": no laser scan (FLASER or ROBOTLASER1) could be read";
+    if (builder.skipped_rows > 0) {
+      const SkippedLine& first = builder.skipped_lines.front();
+      what += "; " + std::to_string(builder.skipped_rows) + " malformed line" + (builder.skipped_rows == 1 ? "" : "s") +
+              " skipped, the first " + source + ":" + std::to_string(first.line) + ": " + first.reason;
+    } else {
+      what += " (the log holds none)";
+    }
+    throw std::invalid_argument(what);
+  }
   return builder.finish();
 }
 

@@ -31,13 +31,28 @@ inline void require_regular_file(const std::string& path, const char* arg) {
     throw std::invalid_argument(std::string(arg) + ": '" + path + "' is not a regular file");
 }
 
+/// What LineError::fail throws: std::invalid_argument "source:LINE: reason", the line and the
+/// reason also kept apart for a reader that skips a bad line (and counts it) rather than fails.
+class LineParseError : public std::invalid_argument {
+ public:
+  LineParseError(const std::string& prefix, long line, const std::string& reason)
+      : std::invalid_argument(prefix + reason), line_(line), reason_(reason) {}
+  long line() const noexcept { return line_; }
+  const std::string& reason() const noexcept { return reason_; }
+
+ private:
+  long line_;
+  std::string reason_;
+};
+
 class LineError {
  public:
-  LineError(const std::string& source, long line) : prefix_(source + ":" + std::to_string(line) + ": ") {}
-  [[noreturn]] void fail(const std::string& what) const { throw std::invalid_argument(prefix_ + what); }
+  LineError(const std::string& source, long line) : prefix_(source + ":" + std::to_string(line) + ": "), line_(line) {}
+  [[noreturn]] void fail(const std::string& what) const { throw LineParseError(prefix_, line_, what); }
 
  private:
   std::string prefix_;
+  long line_;
 };
 
 inline std::vector<std::string_view> split(std::string_view line) {

@@ -67,13 +67,65 @@ TEST(CarmenLog, FlaserDefaultStepRule) {
   EXPECT_NEAR(log.scans.start_angles[0] + 180 * log.scans.angular_resolutions[0], kPi / 2, 1e-12);
 }
 
-TEST(CarmenLog, MalformedLinesNameTheLine) {
+// A real log is read even with a few bad lines: they are skipped, counted and named by line.
+TEST(CarmenLog, MalformedLinesAreSkippedCountedAndNamed) {
+  std::istringstream text(
+      "PARAM laser_front_laser_resolution 1.0 nohost 0\n"               // 1
+      "ODOM 1 2 0.5 0.3 0.1 0 10.5 host 10.5\n"                         // 2
+      "FLASER 2 1.0 2.0 0 0 0 0 0 0 11.0 host 11.0\n"                   // 3
+      "%$#@ garbage !!\n"                                               // 4: not a message
+      "FLASER 2 1.0 x 0 0 0 0 0 0 12.0 host 12.0\n"                     // 5: non-numeric range
+      "ODOM 1 2 0.5 0.3 0.1 0 oops host 13.0\n"                         // 6: bad timestamp
+      "NEFF 12\n"                                                       // 7: ignored, not bad
+      "PARAM lonely\n"                                                  // 8: no value
+      "FLASER 2 3.0 4.0 0 0 0 0 0 0 14.0 host 14.0\n"                   // 9
+      "FLASER 180 1.0 1.0 1.0 1.0");                                    // 10: cut off mid-write
+  const CarmenLog log = parse_carmen_log(text, "t.log");
+  ASSERT_EQ(log.scans.ranges.rows(), 2);
+  EXPECT_EQ(log.scans.ranges(1, 0), 3.0);
+  EXPECT_EQ(log.scans.timestamps[1], 14.0);
+  EXPECT_EQ(log.odometry.poses.rows(), 1);  // the bad ODOM line left nothing behind
+  EXPECT_EQ(log.odometry.timestamps.size(), 1);
+  EXPECT_EQ(log.params.count("lonely"), 0u);
+  EXPECT_EQ(log.skipped_rows, 5u);
+  ASSERT_EQ(log.skipped_lines.size(), 5u);
+  const long expected_lines[] = {4, 5, 6, 8, 10};
+  for (std::size_t k = 0; k < 5; ++k) EXPECT_EQ(log.skipped_lines[k].line, expected_lines[k]) << k;
+  EXPECT_NE(log.skipped_lines[0].reason.find("not a CARMEN message"), std::string::npos);
+  EXPECT_NE(log.skipped_lines[1].reason.find("('x') is not a number"), std::string::npos);
+  EXPECT_NE(log.skipped_lines[2].reason.find("('oops') is not a number"), std::string::npos);
+  EXPECT_NE(log.skipped_lines[3].reason.find("PARAM has 2 fields"), std::string::npos);
+  EXPECT_NE(log.skipped_lines[4].reason.find("FLASER has 6 fields, expected at least 188"), std::string::npos);
+  EXPECT_EQ(log.skipped_lines[1].reason.find("t.log"), std::string::npos);  // the reason alone
+}
+
+TEST(CarmenLog, SkippedLinesAreAllCountedTheFirstListed) {
+  std::string text = "FLASER 1 1.0 0 0 0 0 0 0\n";
+  for (int k = 0; k < 30; ++k) text += "FLASER 3 1 2\n";  // lines 2..31
+  std::istringstream in(text);
+  const CarmenLog log = parse_carmen_log(in, "many.log");
+  EXPECT_EQ(log.scans.ranges.rows(), 1);
+  EXPECT_EQ(log.skipped_rows, 30u);
+  ASSERT_EQ(log.skipped_lines.size(), kCarmenMaxReportedLines);
+  EXPECT_EQ(log.skipped_lines.front().line, 2);
+  EXPECT_EQ(log.skipped_lines.back().line, static_cast<long>(kCarmenMaxReportedLines) + 1);
+}
+
+TEST(CarmenLog, NoValidScanIsAnErrorNamingTheFirstBadLine) {
+  std::istringstream garbage("\nthis is not\na CARMEN log 1 2 3\n%%%\n");
+  const std::string what = expect_invalid([&] { parse_carmen_log(garbage, "g.log"); });
+  EXPECT_NE(what.find("g.log: no laser scan"), std::string::npos) << what;
+  EXPECT_NE(what.find("3 malformed lines skipped"), std::string::npos) << what;
+  EXPECT_NE(what.find("g.log:2: 'this' is not a CARMEN message name"), std::string::npos) << what;
   std::istringstream bad_number("ODOM 0 0 0 0 0 0\nFLASER 2 1.0 x 0 0 0 0 0 0\n");
   EXPECT_NE(expect_invalid([&] { parse_carmen_log(bad_number, "f.log"); }).find("f.log:2:"), std::string::npos);
   std::istringstream short_line("\n\nFLASER 5 1 2 3\n");
   EXPECT_NE(expect_invalid([&] { parse_carmen_log(short_line, "g.log"); }).find("g.log:3:"), std::string::npos);
   std::istringstream bad_count("FLASER -3 1 2 3 4 5 6\n");
   EXPECT_NE(expect_invalid([&] { parse_carmen_log(bad_count, "h.log"); }).find("h.log:1:"), std::string::npos);
+  std::istringstream odometry_only("ODOM 0 0 0 0 0 0\n");
+  EXPECT_NE(expect_invalid([&] { parse_carmen_log(odometry_only, "o.log"); }).find("o.log: no laser scan"),
+            std::string::npos);
   EXPECT_THROW(read_carmen_log("/nonexistent/file.log"), std::invalid_argument);
 }
 
@@ -85,6 +137,7 @@ TEST(CarmenLog, RealIntelCorrectedLogWhenPresent) {
   EXPECT_EQ(log.scans.ranges.rows(), 13631);
   EXPECT_EQ(log.scans.ranges.cols(), 180);
   EXPECT_EQ(log.odometry.poses.rows(), 26915);
+  EXPECT_EQ(log.skipped_rows, 0u);
   EXPECT_NEAR(log.scans.angular_resolutions[0], kPi / 180, 1e-15);
 }
 

@@ -1,6 +1,7 @@
 """The probslam command line, end to end."""
 
 import numpy as np
+import pytest
 
 import probslam as ps
 from probslam import cli, io
@@ -25,6 +26,14 @@ def test_map_bad_log_reports_line(tmp_path, capsys):
     bad.write_text("ODOM 0 0 0 0 0 0\nFLASER 3 1 2\n")
     assert cli.main(["map", str(bad), "-o", str(tmp_path / "m"), "--no-progress"]) == 2
     assert "bad.log:2:" in capsys.readouterr().err
+
+
+def test_map_log_with_a_bad_line_reports_the_skip(tmp_path, capsys):
+    log = tmp_path / "log.log"
+    log.write_text("FLASER 3 1 2 1 0 0 0 0 0 0\nFLASER 3 1 2\nFLASER 3 1 2 1 0.1 0 0 0.1 0 0\n")
+    with pytest.warns(UserWarning, match=r"log\.log: skipped 1 malformed line \(line 2: FLASER has 4 fields"):
+        assert cli.main(["map", str(log), "-o", str(tmp_path / "m"), "--no-progress"]) == 0
+    assert "scans:         2 (1 malformed log lines skipped)" in capsys.readouterr().out
 
 
 def test_map_matches_direct_api(tmp_path):

@@ -35,16 +35,63 @@ def test_read_carmen_log_plain_and_compressed(tmp_path, suffix, opener):
     assert log.params["robot_frontlaser_offset"] == "0.0"
 
 
-def test_malformed_log_line_reports_line_number(tmp_path):
-    path = tmp_path / "bad.log.gz"
-    with gzip.open(path, "wt") as f:
-        f.write(LOG.replace("FLASER 4 1.5 2.5", "FLASER 4 1.5 oops"))
-    with pytest.raises(ValueError, match=r"bad\.log\.gz:6:.*oops"):
-        io.read_carmen_log(path)
+# A real log is read even with a few bad lines: skipped, counted, listed and warned about once.
+# Line 4 is garbage, line 6 has a non-numeric range, the last line was cut off mid-write.
+BAD_LOG = (LOG.replace("FLASER 4 1.5 2.5", "%% garbage line %%\nODOM 0.05 0 0 0.2 0.05 0 2.5 host 2.5\nFLASER 4 1.5 oops")
+           + "FLASER 4 1.5 2.5 81.83 4.5 0.6 0.1 0.25 0.6 0.1 0.25 5.0 host 5.0\n"
+           + "FLASER 180 1.0 1.0 1.0")
+
+
+@pytest.mark.parametrize("suffix, opener", [(".log", open), (".log.gz", gzip.open)])
+def test_malformed_log_lines_are_skipped_counted_and_warned(tmp_path, suffix, opener):
+    path = tmp_path / ("bad" + suffix)
+    with opener(path, "wt") as f:
+        f.write(BAD_LOG)
+    with pytest.warns(UserWarning) as record:
+        log = io.read_carmen_log(path)
+    assert len(record) == 1
+    message = str(record[0].message)
+    assert message.startswith(f"{path}: skipped 3 malformed lines (lines 6, 8, 10;")
+    assert "'%%' is not a CARMEN message name" in message
+    np.testing.assert_array_equal(log.scans.timestamps, [2.0, 5.0])
+    np.testing.assert_array_equal(log.scans.ranges[1], [1.5, 2.5, 81.83, 4.5])
+    assert len(log.odometry.poses) == 3
+    assert log.skipped_rows == 3 and log.skipped_lines == [6, 8, 10]
+    assert "('oops') is not a number" in log.skipped_reasons[1]
+    assert "FLASER has 5 fields, expected at least 188" in log.skipped_reasons[2]
+
+
+def test_many_bad_lines_are_counted_and_the_first_listed(tmp_path):
+    path = tmp_path / "many.log"
+    path.write_text(LOG + "ODOM 1 2\n" * 30)
+    with pytest.warns(UserWarning, match=r"skipped 30 malformed lines \(lines 7, 8, .*, 26, \.\.\.; first: ODOM has 3"):
+        log = io.read_carmen_log(path)
+    assert log.skipped_rows == 30 and log.skipped_lines == list(range(7, 7 + io.carmen.MAX_REPORTED_LINES))
+    assert len(log.scans) == 2
+
+
+def test_clean_log_does_not_warn(tmp_path, recwarn):
+    path = tmp_path / "t.log"
+    path.write_text(LOG + "NEFF 12\n")  # a message type the reader does not use is not a bad line
+    log = io.read_carmen_log(path)
+    assert log.skipped_rows == 0 and log.skipped_lines == [] and len(recwarn) == 0
+
+
+def test_log_without_a_valid_scan_is_an_error(tmp_path):
+    garbage = tmp_path / "garbage.log.gz"
+    with gzip.open(garbage, "wt") as f:
+        f.write("\nthis is not\na CARMEN log\n%%%\n")
+    with pytest.raises(ValueError, match=r"garbage\.log\.gz: no laser scan .*3 malformed lines skipped, the first "
+                                         r".*garbage\.log\.gz:2: 'this' is not a CARMEN message name"):
+        io.read_carmen_log(garbage)
     truncated = tmp_path / "short.log"
     truncated.write_text("ODOM 1 2\n")
-    with pytest.raises(ValueError, match=r"short\.log:1:"):
+    with pytest.raises(ValueError, match=r"short\.log: no laser scan.*1 malformed line skipped.*short\.log:1:"):
         io.read_carmen_log(truncated)
+    only_bad_scans = tmp_path / "bad.log"
+    only_bad_scans.write_text(LOG.replace("FLASER 4 1.0 2.0", "FLASER 4 1.0 x").replace("FLASER 4 1.5", "FLASER 9 1.5"))
+    with pytest.raises(ValueError, match=r"bad\.log: .*2 malformed lines skipped.*bad\.log:4: field 4 \('x'\)"):
+        io.read_carmen_log(only_bad_scans)
     with pytest.raises(FileNotFoundError, match="path"):
         io.read_carmen_log(tmp_path / "missing.log")
 
@@ -116,6 +163,7 @@ def test_png_is_a_valid_image(tmp_path):
 def test_real_corrected_logs(shared_data):
     intel = io.read_carmen_log(shared_data / "laser_2d/intel/intel-corrected.log.gz")
     assert intel.scans.ranges.shape == (910, 180) and len(intel.odometry.poses) == 14541
+    assert intel.skipped_rows == 0
     np.testing.assert_allclose(intel.scans.angular_resolutions, np.pi / 180)
     fr079 = io.read_carmen_log(shared_data / "laser_2d/fr079/freiburg-079-corrected.log.gz")
     assert fr079.scans.ranges.shape == (4791, 360)

@@ -242,6 +242,16 @@ def test_victoria_park_singular_noise_record_skipped(tmp_path):
     assert data.skipped_rows == 1 and len(data.pose_from) == 200 and len(data.xy) == 0
 
 
+def test_carmen_bad_lines_with_non_utf8_bytes_are_skipped_and_reported_escaped(tmp_path):
+    path = tmp_path / "log.clf"
+    path.write_bytes(_flaser(3).encode() + b"FLASER 2 1 " + BAD_BYTES + b" 0 0 0 0 0 0 2\n" + BAD_BYTES + b" 1 2\n"
+                     + _flaser(3, t=3.0).encode())
+    with pytest.warns(UserWarning, match=r"skipped 2 malformed lines \(lines 2, 3; first: .*\\xff"):
+        log = io.read_carmen_log(path)
+    assert len(log.scans) == 2 and log.skipped_rows == 2 and log.skipped_lines == [2, 3]
+    assert all("\\xff\\xfe\\x80" in reason for reason in log.skipped_reasons)
+
+
 MRCLAM_SKIPPED = {("mrclam_dataset1", 3): 2, ("mrclam_dataset1", 5): 1, ("mrclam_dataset7", 3): 9}
 
 

@@ -2,8 +2,10 @@
 // Reader for CARMEN robot logs (.log / .clf): FLASER, ROBOTLASER1, ODOM and PARAM lines.
 #include <Eigen/Core>
 #include <istream>
+#include <cstddef>
 #include <map>
 #include <string>
+#include <vector>
 
 namespace probslam {
 
@@ -28,18 +30,35 @@ struct Odometry {
   Eigen::VectorXd timestamps;  // (M,)
 };
 
+/// A line the reader skipped: its number (1-based) and why.
+struct SkippedLine {
+  long line = 0;
+  std::string reason;
+};
+
+/// How many skipped lines a CarmenLog lists (all are counted); as eval.MAX_REPORTED_LINES.
+constexpr std::size_t kCarmenMaxReportedLines = 20;
+
 struct CarmenLog {
   LaserScans scans;
   Odometry odometry;
   std::map<std::string, std::string> params;
   std::size_t skipped_wide_scans = 0;  // scans dropped to bound the padding (see LaserScans)
+  /// Malformed lines skipped (see parse_carmen_log), and the first kCarmenMaxReportedLines of them.
+  std::size_t skipped_rows = 0;
+  std::vector<SkippedLine> skipped_lines;
 };
 
-/// Parses a log from a stream; `source` names it in error messages. Malformed FLASER,
-/// ROBOTLASER1, ODOM or PARAM lines throw std::invalid_argument "source:LINE: ..." (a line that
-/// does not parse means the file is not the format we think, so it is fatal); scans far wider
-/// than the rest are skipped and counted (row-level, see LaserScans).
-/// Other message types are skipped. FLASER beams start at -90 degrees and step by
+/// Parses a log from a stream; `source` names it in error messages.
+/// Row-level (skipped, counted in skipped_rows, the first listed in skipped_lines): a FLASER,
+/// ROBOTLASER1, ODOM or PARAM line that does not parse (too few fields, a beam count larger than
+/// the fields present as in a line cut off mid-write, a field that is not a number), and a line
+/// whose first field is not a message name (upper-case letters, digits, '_' or '-', starting
+/// with a letter); scans far wider than the rest (counted in skipped_wide_scans, see LaserScans).
+/// Fatal: a log with no valid scan at all (std::invalid_argument "source: no laser scan ...",
+/// with the number of lines skipped and the first of them as "source:LINE: reason"), and a read
+/// error (std::runtime_error).
+/// Other message types are ignored. FLASER beams start at -90 degrees and step by
 /// PARAM laser_front_laser_resolution (degrees) when the log gives it, else by 180 degrees /
 /// n for even n and 180 degrees / (n - 1) for odd n (so 181 and 361 beams include both ends).
 CarmenLog parse_carmen_log(std::istream& in, const std::string& source = "<stream>");

@@ -3,8 +3,9 @@
 from __future__ import annotations
 
 import os
+import warnings
 from dataclasses import dataclass, field
-from typing import Dict, Union
+from typing import Dict, List, Union
 
 import numpy as np
 
@@ -12,6 +13,9 @@ from .. import _core
 from ._files import read_compressed, require_regular_file
 
 PathLike = Union[str, "os.PathLike[str]"]
+
+#: How many skipped lines a ``CarmenLog`` lists (and its warning names); all are counted.
+MAX_REPORTED_LINES = _core.CARMEN_MAX_REPORTED_LINES
 
 
 @dataclass
@@ -58,6 +62,11 @@ class CarmenLog:
     params: Dict[str, str] = field(default_factory=dict)
     #: scans skipped because padding every scan to their width would exceed 4x the beams read
     skipped_wide_scans: int = 0
+    #: malformed lines skipped (see ``read_carmen_log``); the line numbers and reasons of the
+    #: first ``MAX_REPORTED_LINES`` of them
+    skipped_rows: int = 0
+    skipped_lines: List[int] = field(default_factory=list)
+    skipped_reasons: List[str] = field(default_factory=list)
 
 
 def read_carmen_log(path: PathLike) -> CarmenLog:
@@ -68,11 +77,15 @@ def read_carmen_log(path: PathLike) -> CarmenLog:
 
     Errors: a missing file raises ``FileNotFoundError``; a path that is not a regular file, a
     corrupt ``.gz`` / ``.bz2`` stream or one expanding beyond ``MAX_DECOMPRESSED_BYTES`` raises
-    ``ValueError`` naming the file. A malformed FLASER / ROBOTLASER1 / ODOM / PARAM line is fatal
-    (``ValueError("file:line: ...")``, whatever bytes it holds): it means the file is not the
-    format we read. Row-level: other message types are ignored, and scans so much wider than the
-    rest that padding to them would exceed 4x the beams read are skipped, counted in
-    ``skipped_wide_scans``.
+    ``ValueError`` naming the file, and so does a log with no valid scan at all (the message
+    gives how many lines were skipped and the first as ``file:line: reason``, whatever bytes it
+    holds). Row-level (a real log is read even with a few bad lines): a malformed FLASER /
+    ROBOTLASER1 / ODOM / PARAM line (too few fields, a beam count larger than the fields present
+    as in a line cut off mid-write, a field that is not a number) and a line whose first field
+    is not a message name are skipped, counted in ``skipped_rows`` (the first listed in
+    ``skipped_lines`` / ``skipped_reasons``) and announced by one warning naming the first line
+    numbers; other message types are ignored; scans so much wider than the rest that padding to
+    them would exceed 4x the beams read are skipped, counted in ``skipped_wide_scans``.
     """
     path = os.fspath(path)
     require_regular_file(path)
@@ -80,5 +93,15 @@ def read_carmen_log(path: PathLike) -> CarmenLog:
         raw = _core.parse_carmen_log(read_compressed(path), path)
     else:
         raw = _core.read_carmen_log(path)
-    return CarmenLog(LaserScans(**raw["scans"]), Odometry(**raw["odometry"]), dict(raw["params"]),
-                     int(raw["skipped_wide_scans"]))
+    log = CarmenLog(LaserScans(**raw["scans"]), Odometry(**raw["odometry"]), dict(raw["params"]),
+                    int(raw["skipped_wide_scans"]), int(raw["skipped_rows"]), list(raw["skipped_lines"]),
+                    list(raw["skipped_reasons"]))
+    if log.skipped_rows == 1:
+        warnings.warn(f"{path}: skipped 1 malformed line (line {log.skipped_lines[0]}: {log.skipped_reasons[0]})",
+                      stacklevel=2)
+    elif log.skipped_rows:
+        more = ", ..." if log.skipped_rows > len(log.skipped_lines) else ""
+        warnings.warn(f"{path}: skipped {log.skipped_rows} malformed lines (lines "
+                      f"{', '.join(map(str, log.skipped_lines))}{more}; first: {log.skipped_reasons[0]})",
+                      stacklevel=2)
+    return log
