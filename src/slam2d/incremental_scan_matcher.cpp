@@ -153,7 +153,8 @@ ScanEstimate IncrementalScanMatcher::add_scan(const Eigen::Ref<const Eigen::Vect
           est.fallback = true;
         }
       }
-      cur.travel += delta.head<2>().norm();
+      // Travel as estimated, not as the odometry says: a log without odometry still moves.
+      cur.travel += (est.pose.head<2>() - matched_pose_.head<2>()).norm();
       cur.matched += est.matched;
       insert(cur, index, ranges, beam_angles, est.pose);
       est.submap = static_cast<int>(submaps_.size()) - 1;

@@ -342,6 +342,7 @@ double SubmapSlam2D::constraint_chi2(const SubmapConstraint& c) const {
 }
 
 void SubmapSlam2D::optimize_and_dissolve() {
+  if (nodes_.size() < 2) return;  // one submap: nothing to optimise
   for (;;) {
     PoseGraph2D g = graph();
     optimize(g, options_.optimizer);

@@ -97,3 +97,30 @@ def test_ekf_slam_unknown_correspondences(tmp_path, capsys, shared_data):
     out = capsys.readouterr().out
     assert "unknown (jcbb) correspondences" in out and "% correct" in out
     assert (tmp_path / "e.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_slam_bundled_raw_log(tmp_path, capsys):
+    prefix = tmp_path / "s"
+    assert cli.main(["slam", "-o", str(prefix), "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    log = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_RAW_LOG))
+    assert f"scans:         {len(log.scans)} (" in out and "closures:" in out and "real-time factor" in out
+    traj = np.loadtxt(tmp_path / "s_trajectory.txt")
+    assert traj.shape == (len(log.scans), 4)
+    np.testing.assert_allclose(traj[:, 0], log.scans.timestamps, atol=1e-6)
+    # The first scan is the map frame's origin: its raw odometry pose.
+    np.testing.assert_allclose(traj[0, 1:], log.scans.laser_poses[0], atol=1e-6)
+    graph = ps.read_pose_graph(str(tmp_path / "s.g2o"))
+    submaps = int(out.split("submaps:")[1].split()[0])
+    assert graph.num_vertices == submaps >= 2
+    grid = io.load_ros_map(tmp_path / "s.yaml")
+    assert grid.resolution == pytest.approx(0.05)
+    assert (tmp_path / "s.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_slam_bad_log_is_an_error_not_a_traceback(tmp_path, capsys):
+    bad = tmp_path / "bad.log"
+    bad.write_text("ODOM 0 0 0 0 0 0\n")
+    assert cli.main(["slam", str(bad), "-o", str(tmp_path / "s"), "--no-progress"]) == 2
+    assert "bad.log" in capsys.readouterr().err
+    assert cli.main(["slam", str(tmp_path / "missing.log"), "--no-progress"]) == 2
