@@ -104,6 +104,8 @@ IncrementalScanMatcherOptions frontend_options(Kwargs& k, IncrementalScanMatcher
   k.get("max_range", o.filter.max_range);
   k.get("min_range", o.filter.min_range);
   k.get("max_usable_range", o.filter.max_usable_range);
+  k.get("clear_no_return", o.filter.clear_no_return);
+  k.get("min_point_spacing", o.filter.min_point_spacing);
   k.get("sigma", o.field.sigma);
   k.get("p_rand", o.field.p_rand);
   k.get("linear_window", o.match.window.linear);
@@ -120,6 +122,8 @@ IncrementalScanMatcherOptions frontend_options(Kwargs& k, IncrementalScanMatcher
   k.get("submap_scans", o.submap_scans);
   k.get("min_match_quality", o.min_match_quality);
   k.get("warmup_scans", o.warmup_scans);
+  k.get("field_refresh_distance", o.field_refresh_distance);
+  k.get("field_refresh_angle", o.field_refresh_angle);
   return o;
 }
 

@@ -14,6 +14,9 @@ namespace {
 /// New and grown local maps get this much room beyond the scan (m), so that a grid is copied
 /// to a larger one every few metres of travel rather than every scan.
 constexpr double kGrowMargin = 10.0;
+/// A field is built this far (m) beyond the region the scan needs: the next scans, a few cm
+/// on, then land inside it and reuse it.
+constexpr double kFieldRoom = 2.0;
 
 Eigen::Matrix3d frame_jacobian(double theta) {
   Eigen::Matrix3d J = Eigen::Matrix3d::Identity();
@@ -52,6 +55,10 @@ void IncrementalScanMatcherOptions::validate() const {
   require(std::isfinite(min_match_quality) && min_match_quality >= 0.0 && min_match_quality <= 1.0,
           "min_match_quality", "must be in [0, 1]");
   require(warmup_scans >= 1, "warmup_scans", "must be >= 1");
+  require(std::isfinite(field_refresh_distance) && field_refresh_distance >= 0.0, "field_refresh_distance",
+          "must be finite and >= 0");
+  require(std::isfinite(field_refresh_angle) && field_refresh_angle >= 0.0, "field_refresh_angle",
+          "must be finite and >= 0");
 }
 
 IncrementalScanMatcher::IncrementalScanMatcher(const IncrementalScanMatcherOptions& options) : options_(options) {
@@ -84,7 +91,7 @@ void IncrementalScanMatcher::insert(Submap& submap, int scan, const Eigen::Ref<c
 }
 
 MatchResult IncrementalScanMatcher::match(const Submap& submap, const Points2& points, const Eigen::Vector3d& prior,
-                                          const Eigen::Matrix3d& prior_cov) const {
+                                          const Eigen::Matrix3d& prior_cov) {
   MatchOptions m = options_.match;
   m.use_prior = options_.use_odometry_prior;
   m.prior_covariance = prior_cov;
@@ -103,12 +110,34 @@ MatchResult IncrementalScanMatcher::match(const Submap& submap, const Points2& p
   const double bulge = points.rowwise().norm().maxCoeff() * (1.0 - std::cos(0.5 * m.window.angular));
   const double margin = m.window.linear + bulge + options_.field.truncation() + 2 * options_.resolution;
   const Eigen::Vector4d region(lo.x() - margin, lo.y() - margin, hi.x() + margin, hi.y() + margin);
-  LikelihoodField field = LikelihoodField::from_grid(submap.grid, region, options_.field);
+  return matcher_for(submap, region, prior).match(points, prior, m);
+}
+
+const CorrelativeScanMatcher& IncrementalScanMatcher::matcher_for(const Submap& submap, const Eigen::Vector4d& region,
+                                                                  const Eigen::Vector3d& prior) {
+  const int index = static_cast<int>(&submap - submaps_.data());
+  FieldCache& c = field_cache_;
+  const bool near = (prior.head<2>() - c.built_at.head<2>()).norm() < options_.field_refresh_distance &&
+                    std::abs(wrap_angle(prior.z() - c.built_at.z())) < options_.field_refresh_angle;
+  const bool fresh = c.matcher && near && c.submap == index && c.grid_origin == submap.grid.origin() &&
+                     c.grid_width == submap.grid.width() && c.grid_height == submap.grid.height() &&
+                     region[0] >= c.region[0] &&
+                     region[1] >= c.region[1] && region[2] <= c.region[2] && region[3] <= c.region[3];
+  if (fresh) return *c.matcher;
+  // Built with room to spare, so that the next scans land inside it too.
+  const Eigen::Vector4d grown = region + Eigen::Vector4d(-kFieldRoom, -kFieldRoom, kFieldRoom, kFieldRoom);
+  LikelihoodField field = LikelihoodField::from_grid(submap.grid, grown, options_.field);
   int levels = 0;
-  const double cells = 2.0 * std::ceil(m.window.linear / options_.resolution) + 1.0;
+  const double cells = 2.0 * std::ceil(options_.match.window.linear / options_.resolution) + 1.0;
   while (levels < CorrelativeScanMatcher::kMaxLevel && (1 << levels) < cells) ++levels;
-  const CorrelativeScanMatcher matcher(std::move(field), levels);
-  return matcher.match(points, prior, m);
+  c.matcher = std::make_shared<const CorrelativeScanMatcher>(std::move(field), levels);
+  c.submap = index;
+  c.built_at = prior;
+  c.region = grown;
+  c.grid_origin = submap.grid.origin();
+  c.grid_width = submap.grid.width();
+  c.grid_height = submap.grid.height();
+  return *c.matcher;
 }
 
 ScanEstimate IncrementalScanMatcher::add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,

@@ -4,6 +4,7 @@
 // and then inserted at the matched pose. With submap_distance > 0 the map is cut into local
 // submaps (ch. 11.7's "local submaps from scan matching"), each starting at a scan's pose.
 #include <Eigen/Core>
+#include <memory>
 #include <vector>
 
 #include "probslam/core/object_mutex.hpp"
@@ -44,6 +45,11 @@ struct IncrementalScanMatcherOptions {
   double min_match_quality = 0.1;
   /// Scans inserted into a new local map before matching starts against it.
   int warmup_scans = 1;
+  /// The likelihood field of the local map is rebuilt once the robot has moved this far (m) or
+  /// turned this much (rad) since it was built, or a scan lands outside it: matching against
+  /// the map of a few decimetres ago costs nothing in accuracy and saves most distance transforms
+  /// (ACES, first 2500 scans: 0.037 m relation error either way, 3x faster). 0: every scan.
+  double field_refresh_distance = 0.3, field_refresh_angle = 0.3;
 
   void validate() const;
 };
@@ -95,7 +101,18 @@ class IncrementalScanMatcher {
   void insert(Submap& submap, int scan, const Eigen::Ref<const Eigen::VectorXd>& ranges,
               const Eigen::Ref<const Eigen::VectorXd>& beam_angles, const Eigen::Vector3d& pose);
   MatchResult match(const Submap& submap, const Points2& points, const Eigen::Vector3d& prior,
-                    const Eigen::Matrix3d& prior_cov) const;
+                    const Eigen::Matrix3d& prior_cov);
+  const CorrelativeScanMatcher& matcher_for(const Submap& submap, const Eigen::Vector4d& region,
+                                            const Eigen::Vector3d& prior);
+
+  struct FieldCache {
+    std::shared_ptr<const CorrelativeScanMatcher> matcher;
+    int submap = -1, grid_width = 0, grid_height = 0;
+    Eigen::Vector3d built_at = Eigen::Vector3d::Zero();  // the prior it was built for
+    Eigen::Vector4d region = Eigen::Vector4d::Zero();
+    Eigen::Vector2d grid_origin = Eigen::Vector2d::Zero();
+  };
+  FieldCache field_cache_;
 
   IncrementalScanMatcherOptions options_;
   std::vector<ScanEstimate> estimates_;
