@@ -3,6 +3,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <utility>
@@ -36,6 +37,13 @@ constexpr double kPoseDof = 3.0;
 /// too, so the scan's information is zero whatever the guard; elsewhere it is 1e-9 of the
 /// window's weight, far below the scatter of any real scan.
 constexpr double kMeatRidge = 1e-9;
+/// The profile of the score across the window (see widen_where_flat) starts this many of the
+/// model's Laplace widths from the pose: beyond 4 widths a Gaussian basin holds 6e-5 of its
+/// mass, so whatever mass the profile finds there is not the local basin's.
+constexpr double kBasinWidths = 4.0;
+/// Samples on each side of the pose in that profile: enough to see a flat run or a second
+/// basin inside the window at a few evaluations of the score.
+constexpr int kProfileSamples = 8;
 
 /// One point's fit to the field: distance d (m), log p(d), exp(-d^2 / 2 sigma^2); with
 /// linearisation also J = d(d)/d(pose) and the IRLS weight w of -log p (see evaluate).
@@ -269,9 +277,12 @@ Eigen::Matrix3d CorrelativeScanMatcher::scan_meat(const ScanMoments& m) {
   return m.meat * (m.effective_points / (m.effective_points - kPoseDof));
 }
 
-Eigen::Matrix3d CorrelativeScanMatcher::pose_covariance(const ScanMoments& scan, const Eigen::Matrix3d* prior_info,
-                                                        const MatchOptions& options, double angular_step,
+Eigen::Matrix3d CorrelativeScanMatcher::pose_covariance(const Eigen::Ref<const Points2>& points,
+                                                        const Eigen::Vector3d& prior,
+                                                        const Eigen::Matrix3d* prior_info, const MatchOptions& options,
+                                                        double angular_step, const MatchResult& result,
                                                         bool stationary) const {
+  const ScanMoments scan = scan_moments(points, result.pose);
   // The scan's information is the inverse of the sandwich H^-1 B H^-1 (Huber 1967; White 1982),
   // H the Gauss-Newton Hessian of the negative score, B the sum of the outer products of the
   // per-point gradients. It equals the Laplace approximation H^-1 when the points scatter about
@@ -279,25 +290,91 @@ Eigen::Matrix3d CorrelativeScanMatcher::pose_covariance(const ScanMoments& scan,
   // blur chosen for the search, not the range noise, so H^-1 alone is off by their ratio
   // squared. The prior enters the estimating equation as sigma-exact information, in H and B.
   const Eigen::Matrix3d none = Eigen::Matrix3d::Zero();
-  const Eigen::Matrix3d& prior = prior_info ? *prior_info : none;
-  const Eigen::Matrix3d H = scan.bread + prior;
-  const Eigen::Matrix3d B = scan_meat(scan) + prior;
+  const Eigen::Matrix3d& prior_part = prior_info ? *prior_info : none;
+  const Eigen::Matrix3d H = scan.bread + prior_part;
+  const Eigen::Matrix3d B = scan_meat(scan) + prior_part;
   // The search only looked inside the window: the truth is taken as uniform over the box the
   // refinement may reach (a Gaussian of the same variance, (2 half-width)^2 / 12). This is what
   // bounds the covariance along a direction the scan does not constrain (a corridor); elsewhere
   // it is negligible against the scan.
   const double res = field_.resolution();
-  const double lin = 2.0 * (options.window.linear + res), ang = 2.0 * (options.window.angular + angular_step);
-  const Eigen::Vector3d window_info(1.0 / (kUniformVariance * lin * lin), 1.0 / (kUniformVariance * lin * lin),
-                                    1.0 / (kUniformVariance * ang * ang));
-  const Eigen::LDLT<Eigen::Matrix3d> meat(B + kMeatRidge * Eigen::Matrix3d(window_info.asDiagonal()));
+  const Eigen::Vector3d half(options.window.linear + res, options.window.linear + res,
+                             options.window.angular + angular_step);
+  const Eigen::Matrix3d window_info = (4.0 * kUniformVariance * half.cwiseAbs2()).cwiseInverse().asDiagonal();
+  const Eigen::LDLT<Eigen::Matrix3d> meat(B + kMeatRidge * window_info);
   const Eigen::Matrix3d info = H * meat.solve(H);
-  Eigen::Matrix3d cov = (info + Eigen::Matrix3d(window_info.asDiagonal())).ldlt().solve(Eigen::Matrix3d::Identity());
+  Eigen::Matrix3d cov = (info + window_info).ldlt().solve(Eigen::Matrix3d::Identity());
   // Shifting the map by s moves the scan's optimum by s and so this estimate by share * s: the
   // scan's part of the information, zero along directions the scan does not constrain.
   const Eigen::Matrix<double, 3, 2> share = cov * H * meat.solve(scan.bread.leftCols<2>());
+  cov = widen_where_flat(points, prior, prior_info, result, half, H, cov);
   cov += unseen_errors(share, options, angular_step, stationary);
   return 0.5 * (cov + cov.transpose());
+}
+
+Eigen::Matrix3d CorrelativeScanMatcher::widen_where_flat(const Eigen::Ref<const Points2>& points,
+                                                         const Eigen::Vector3d& prior,
+                                                         const Eigen::Matrix3d* prior_info, const MatchResult& result,
+                                                         const Eigen::Vector3d& half, const Eigen::Matrix3d& hessian,
+                                                         const Eigen::Matrix3d& cov) const {
+  // The sandwich is local: it reads cell-sized steps of a wall in the map as information along
+  // the wall, and it cannot see a second basin. So the model's own likelihood exp(score) is
+  // profiled across the window along each principal axis of the covariance (in units of the
+  // window's half-widths), beyond the basin the model itself predicts there (kBasinWidths of
+  // its Laplace width). The field's sigma is a blur at least as wide as the points' scatter, so
+  // this likelihood overstates no difference of score. The variance along the axis becomes
+  // that of the mixture of the local basin (its mass from the model, its spread from the
+  // sandwich) and the mass the profile finds beyond it: unchanged in a basin, about the
+  // window's along a flat run (see profile_variance for a basin as wide as the window).
+  const Eigen::Matrix3d to_unit = half.cwiseInverse().asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> axes(to_unit * cov * to_unit);
+  const Eigen::Matrix3d unit_hessian = half.asDiagonal() * hessian * half.asDiagonal();
+  Eigen::Vector3d var = axes.eigenvalues();
+  for (int j = 0; j < 3; ++j) {
+    const Eigen::Vector3d v = axes.eigenvectors().col(j);
+    const double curvature = v.dot(unit_hessian * v);
+    if (!(curvature > 0.0)) continue;  // no basin: the window already bounds this axis
+    var[j] = profile_variance(points, prior, prior_info, result, half.asDiagonal() * v, 1.0 / std::sqrt(curvature),
+                              var[j]);
+  }
+  const Eigen::Matrix3d V = half.asDiagonal() * axes.eigenvectors();
+  return V * var.asDiagonal() * V.transpose();
+}
+
+double CorrelativeScanMatcher::profile_variance(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
+                                                const Eigen::Matrix3d* prior_info, const MatchResult& result,
+                                                const Eigen::Vector3d& direction, double width,
+                                                double local_variance) const {
+  // Beyond `start` the local basin has no mass to speak of. When that is past the window, the
+  // window cannot tell the basin from a flat run: the whole profile is the answer, and the
+  // sandwich's sharpening (fitted to the points' scatter, not to a flat score) is not applied.
+  const double start = kBasinWidths * width;
+  const bool basin_fills_window = !(start < 1.0);
+  const double from = basin_fills_window ? 0.0 : start;
+  const double dt = (1.0 - from) / kProfileSamples;
+  std::array<double, 2 * kProfileSamples> t{}, score{};
+  double top = result.score;
+  for (int k = 0; k < 2 * kProfileSamples; ++k) {
+    const double side = k < kProfileSamples ? -1.0 : 1.0;
+    // Uniform over [from, 1]: cell ends when starting at the pose, cell midpoints beyond the basin.
+    const double offset = basin_fills_window ? k % kProfileSamples + 1.0 : k % kProfileSamples + 0.5;
+    t[static_cast<std::size_t>(k)] = side * (from + dt * offset);
+    Eigen::Vector3d p = result.pose + t[static_cast<std::size_t>(k)] * direction;
+    p.z() = wrap_angle(p.z());
+    score[static_cast<std::size_t>(k)] = evaluate(points, p, prior, prior_info, nullptr, nullptr, nullptr);
+    top = std::max(top, score[static_cast<std::size_t>(k)]);
+  }
+  // exp(score) relative to its largest value. The pose holds one sample's mass when the profile
+  // starts there, else the local basin's: a Gaussian of the model's width, peak exp(score).
+  const double peak = std::exp(result.score - top);
+  const double local_mass = basin_fills_window ? peak * dt : std::sqrt(2.0 * kPi) * width * peak;
+  double mass = local_mass, moment = basin_fills_window ? 0.0 : local_mass * local_variance;
+  for (std::size_t k = 0; k < t.size(); ++k) {
+    const double m = std::exp(score[k] - top) * dt;
+    mass += m;
+    moment += m * t[k] * t[k];
+  }
+  return basin_fills_window ? std::max(local_variance, moment / mass) : moment / mass;
 }
 
 Eigen::Matrix3d CorrelativeScanMatcher::unseen_errors(const Eigen::Matrix<double, 3, 2>& map_share,
@@ -452,7 +529,7 @@ MatchResult CorrelativeScanMatcher::match(const Eigen::Ref<const Points2>& point
   result.pose = result.search_pose;
   const Eigen::Matrix3d* prior_info = sp.use_prior ? &sp.info : nullptr;
   const bool stationary = refine(points, prior, prior_info, options, sp.step, result);
-  result.covariance = pose_covariance(scan_moments(points, result.pose), prior_info, options, sp.step, stationary);
+  result.covariance = pose_covariance(points, prior, prior_info, options, sp.step, result, stationary);
   return result;
 }
 

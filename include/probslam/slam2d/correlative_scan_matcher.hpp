@@ -70,7 +70,8 @@ class CorrelativeScanMatcher {
   /// The covariance is the sandwich H^-1 B H^-1 of the score at the refined pose (H its
   /// Gauss-Newton Hessian, B the scatter of the per-point gradients: calibrated to the actual
   /// scatter of the points, not to the field's sigma), with the prior as information, fused with
-  /// a uniform distribution over the window, plus the map's cell quantization (see
+  /// a uniform distribution over the window, widened along an axis where exp(score) stays high
+  /// across the window (a corridor, a second basin), plus the map's cell quantization (see
   /// MatchOptions::min_translation_std) and, when the pose was not refined, the lattice cell.
   MatchResult match(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
                     const MatchOptions& options = {}) const;
@@ -118,8 +119,23 @@ class CorrelativeScanMatcher {
               const Eigen::Matrix3d* prior_info, const MatchOptions& options, double angular_step,
               MatchResult& result) const;
   static Eigen::Matrix3d scan_meat(const ScanMoments& scan);
-  Eigen::Matrix3d pose_covariance(const ScanMoments& scan, const Eigen::Matrix3d* prior_info,
-                                  const MatchOptions& options, double angular_step, bool stationary) const;
+  Eigen::Matrix3d pose_covariance(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
+                                  const Eigen::Matrix3d* prior_info, const MatchOptions& options,
+                                  double angular_step, const MatchResult& result, bool stationary) const;
+  /// cov widened along its principal axes where exp(score) keeps mass beyond the local basin
+  /// across the window (half: the window's half-widths, m, m, rad; hessian: Gauss-Newton, with
+  /// the prior).
+  Eigen::Matrix3d widen_where_flat(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
+                                   const Eigen::Matrix3d* prior_info, const MatchResult& result,
+                                   const Eigen::Vector3d& half, const Eigen::Matrix3d& hessian,
+                                   const Eigen::Matrix3d& cov) const;
+  /// Variance, in units of `direction`, of the mixture of the local basin (model width `width`,
+  /// variance local_variance) and exp(score) sampled along result.pose + t direction for
+  /// kBasinWidths width <= |t| <= 1; when that basin reaches the window's edge, the larger of
+  /// local_variance and the moment of exp(score) over |t| <= 1.
+  double profile_variance(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
+                          const Eigen::Matrix3d* prior_info, const MatchResult& result,
+                          const Eigen::Vector3d& direction, double width, double local_variance) const;
   /// The errors no residual shows: the map's offset (map_share: d(estimate) / d(map shift)), the
   /// user's floors, the lattice when unrefined, the refinement's tolerance.
   Eigen::Matrix3d unseen_errors(const Eigen::Matrix<double, 3, 2>& map_share, const MatchOptions& options,
