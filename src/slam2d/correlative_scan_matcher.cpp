@@ -288,7 +288,10 @@ Eigen::Matrix3d CorrelativeScanMatcher::pose_covariance(const Eigen::Ref<const P
   // per-point gradients. It equals the Laplace approximation H^-1 when the points scatter about
   // the field as its sigma says, and corrects it when they do not: the field's sigma is a
   // blur chosen for the search, not the range noise, so H^-1 alone is off by their ratio
-  // squared. The prior enters the estimating equation as sigma-exact information, in H and B.
+  // squared. The prior is taken as exact: it weighs in H as the score weighs it, and its mean
+  // is off the truth by its covariance P, so its gradient scatters by P^-1 P P^-1 = P^-1 in B.
+  // This is the covariance of the estimate the score defines, which weighs the scan by the
+  // field's sigma; with no scan information it is the prior's.
   const Eigen::Matrix3d none = Eigen::Matrix3d::Zero();
   const Eigen::Matrix3d& prior_part = prior_info ? *prior_info : none;
   const Eigen::Matrix3d H = scan.bread + prior_part;
