@@ -3,6 +3,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <limits>
 #include <utility>
@@ -25,9 +26,48 @@ constexpr double kBoundSlack = 1e-12;
 constexpr int kMaxRefineIterations = 30;
 constexpr int kMaxHalvings = 12;
 constexpr double kRefineStepTolerance = 1e-7;
-/// The response surface is sampled at +-kSurfaceSteps steps per axis around the optimum, the
-/// steps set from the Laplace approximation so that the samples reach 3 standard deviations.
-constexpr int kSurfaceSteps = 3;
+/// Variance of a uniform distribution over an interval of unit width: the error of a quantity
+/// known only to one cell (or one lattice step).
+constexpr double kUniformVariance = 1.0 / 12.0;
+/// Pose parameters (x, y, theta): the residuals at the fitted pose are smaller than the errors,
+/// on average by this many degrees of freedom.
+constexpr double kPoseDof = 3.0;
+/// Numerical guard of the meat (the scatter of the per-point gradients): that many "window-sized
+/// observations" keep it invertible in directions no point constrains. There the bread is zero
+/// too, so the scan's information is zero whatever the guard; elsewhere it is 1e-9 of the
+/// window's weight, far below the scatter of any real scan.
+constexpr double kMeatRidge = 1e-9;
+/// The profile of the score across the window (see widen_where_flat) starts this many of the
+/// model's Laplace widths from the pose: beyond 4 widths a Gaussian basin holds 6e-5 of its
+/// mass, so whatever mass the profile finds there is not the local basin's.
+constexpr double kBasinWidths = 4.0;
+/// Samples on each side of the pose in that profile: enough to see a flat run or a second
+/// basin inside the window at a few evaluations of the score.
+constexpr int kProfileSamples = 8;
+
+/// One point's fit to the field: distance d (m), log p(d), exp(-d^2 / 2 sigma^2); with
+/// linearisation also J = d(d)/d(pose) and the IRLS weight w of -log p (see evaluate).
+struct PointFit {
+  double d = 0.0, log_p = 0.0, hit = 0.0, weight = 0.0;
+  Eigen::Vector3d J = Eigen::Vector3d::Zero();
+};
+
+/// q: the point in the field's frame; t: the pose's translation (the centre of rotation).
+PointFit fit_point(const LikelihoodField& field, const Eigen::Vector2d& q, const Eigen::Vector2d& t,
+                   bool linearise) {
+  PointFit p;
+  Eigen::Vector2d grad;
+  p.d = field.interpolate_distance(q.x(), q.y(), linearise ? &grad : nullptr);
+  field.tabulated(p.d, &p.log_p, &p.hit);
+  if (!linearise) return p;
+  // -log p(d) has gradient (d / sigma^2) w' J with w' the hit part's share of the mixture:
+  // iteratively reweighted least squares on the distance, robust to stray points.
+  const double sigma = field.options().sigma, p_rand = field.options().p_rand;
+  p.weight = (1.0 - p_rand) * p.hit / std::exp(p.log_p) / (sigma * sigma);
+  const Eigen::Vector2d dq_dtheta(-(q.y() - t.y()), q.x() - t.x());
+  p.J = Eigen::Vector3d(grad.x(), grad.y(), grad.dot(dq_dtheta));
+  return p;
+}
 
 struct Cell {
   int col, row;
@@ -128,28 +168,18 @@ double CorrelativeScanMatcher::evaluate(const Eigen::Ref<const Points2>& points,
                                         const Eigen::Vector3d& prior, const Eigen::Matrix3d* prior_info,
                                         Eigen::Matrix3d* hessian, Eigen::Vector3d* gradient,
                                         double* quality) const {
-  const double sigma = field_.options().sigma, p_rand = field_.options().p_rand;
   const Eigen::Matrix2d R = rotation_matrix(pose.z());
   const Eigen::Vector2d t = pose.head<2>();
   if (hessian) hessian->setZero();
   if (gradient) gradient->setZero();
   double sum = 0.0, fit = 0.0;
   for (Eigen::Index i = 0; i < points.rows(); ++i) {
-    const Eigen::Vector2d q = R * points.row(i).transpose() + t;
-    Eigen::Vector2d grad;
-    const double d = field_.interpolate_distance(q.x(), q.y(), hessian ? &grad : nullptr);
-    double log_p, f;
-    field_.tabulated(d, &log_p, &f);
-    sum += log_p;
-    fit += f;
+    const PointFit p = fit_point(field_, R * points.row(i).transpose() + t, t, hessian != nullptr);
+    sum += p.log_p;
+    fit += p.hit;
     if (!hessian) continue;
-    // -log p(d) has gradient (d / sigma^2) w J with w the hit part's share of the mixture:
-    // iteratively reweighted least squares on the distance, robust to stray points.
-    const double w = (1.0 - p_rand) * f / std::exp(log_p) / (sigma * sigma);
-    const Eigen::Vector2d dq_dtheta(-(q.y() - t.y()), q.x() - t.x());
-    const Eigen::Vector3d J(grad.x(), grad.y(), grad.dot(dq_dtheta));
-    *gradient += (w * d) * J;
-    *hessian += w * J * J.transpose();
+    *gradient += (p.weight * p.d) * p.J;
+    *hessian += p.weight * p.J * p.J.transpose();
   }
   if (prior_info) {
     Eigen::Vector3d d = pose - prior;
@@ -164,6 +194,26 @@ double CorrelativeScanMatcher::evaluate(const Eigen::Ref<const Points2>& points,
   return sum;
 }
 
+CorrelativeScanMatcher::ScanMoments CorrelativeScanMatcher::scan_moments(const Eigen::Ref<const Points2>& points,
+                                                                         const Eigen::Vector3d& pose) const {
+  const Eigen::Matrix2d R = rotation_matrix(pose.z());
+  const Eigen::Vector2d t = pose.head<2>();
+  ScanMoments m;
+  // Kish's effective count of the points that constrain the pose, weighted by their information.
+  double info_sum = 0.0, info_sq_sum = 0.0;
+  for (Eigen::Index i = 0; i < points.rows(); ++i) {
+    const PointFit p = fit_point(field_, R * points.row(i).transpose() + t, t, true);
+    const Eigen::Vector3d g = (p.weight * p.d) * p.J;  // this point's gradient of -log p
+    m.bread += p.weight * p.J * p.J.transpose();
+    m.meat += g * g.transpose();
+    const double info = p.weight * p.J.head<2>().squaredNorm();
+    info_sum += info;
+    info_sq_sum += info * info;
+  }
+  m.effective_points = info_sq_sum > 0.0 ? info_sum * info_sum / info_sq_sum : 0.0;
+  return m;
+}
+
 double CorrelativeScanMatcher::smooth_score(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& pose,
                                             const Eigen::Vector3d& prior, const MatchOptions& options) const {
   options.validate();
@@ -174,106 +224,186 @@ double CorrelativeScanMatcher::smooth_score(const Eigen::Ref<const Points2>& poi
   return evaluate(points, pose, prior, options.use_prior ? &info : nullptr, nullptr, nullptr, nullptr);
 }
 
-void CorrelativeScanMatcher::refine_and_measure(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
-                                                const Eigen::Matrix3d* prior_info, const MatchOptions& options,
-                                                double angular_step, MatchResult& result) const {
+bool CorrelativeScanMatcher::refine(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
+                                    const Eigen::Matrix3d* prior_info, const MatchOptions& options, double angular_step,
+                                    MatchResult& result) const {
   const double res = field_.resolution();
   Eigen::Matrix3d H;
   Eigen::Vector3d g;
   double quality = 0.0;
-  double score = evaluate(points, result.pose, prior, prior_info, &H, &g, &quality);
-  if (options.refine) {
-    Eigen::Vector3d x = result.pose;
-    Eigen::Matrix3d Hx = H;
-    Eigen::Vector3d gx = g;
-    double sx = score, qx = quality;
-    for (int it = 0; it < kMaxRefineIterations; ++it) {
-      const Eigen::LDLT<Eigen::Matrix3d> ldlt(Hx);
-      if (ldlt.info() != Eigen::Success || !ldlt.isPositive() || ldlt.vectorD().minCoeff() <= 0.0) break;
-      const Eigen::Vector3d step = -ldlt.solve(gx);
-      if (!step.allFinite()) break;
-      double scale = 1.0;
-      bool accepted = false;
-      for (int h = 0; h < kMaxHalvings && !accepted; ++h, scale *= 0.5) {
-        Eigen::Vector3d cand = x + scale * step;
-        cand.z() = wrap_angle(cand.z());
-        Eigen::Matrix3d Hc;
-        Eigen::Vector3d gc;
-        double qc = 0.0;
-        const double sc = evaluate(points, cand, prior, prior_info, &Hc, &gc, &qc);
-        if (sc > sx) {
-          x = cand, Hx = Hc, gx = gc, sx = sc, qx = qc;
-          accepted = true;
-        }
+  result.score = evaluate(points, result.pose, prior, prior_info, &H, &g, &quality);
+  result.match_quality = quality;
+  if (!options.refine) return false;
+  Eigen::Vector3d x = result.pose;
+  double sx = result.score, qx = quality;
+  bool stationary = false;  // ended at a (numerically) stationary point of the smooth score
+  for (int it = 0; it < kMaxRefineIterations; ++it) {
+    const Eigen::LDLT<Eigen::Matrix3d> ldlt(H);
+    if (ldlt.info() != Eigen::Success || !ldlt.isPositive() || ldlt.vectorD().minCoeff() <= 0.0) break;
+    const Eigen::Vector3d step = -ldlt.solve(g);
+    if (!step.allFinite()) break;
+    double scale = 1.0;
+    bool accepted = false;
+    for (int h = 0; h < kMaxHalvings && !accepted; ++h, scale *= 0.5) {
+      Eigen::Vector3d cand = x + scale * step;
+      cand.z() = wrap_angle(cand.z());
+      Eigen::Matrix3d Hc;
+      Eigen::Vector3d gc;
+      double qc = 0.0;
+      const double sc = evaluate(points, cand, prior, prior_info, &Hc, &gc, &qc);
+      if (sc > sx) {
+        x = cand, H = Hc, g = gc, sx = sc, qx = qc;
+        accepted = true;
       }
-      if (!accepted || (scale * step).cwiseAbs().maxCoeff() < kRefineStepTolerance) break;
     }
-    // A refinement that wanders out of the window has left the basin the search found.
-    const Eigen::Vector3d moved(x.x() - prior.x(), x.y() - prior.y(), wrap_angle(x.z() - prior.z()));
-    if (std::abs(moved.x()) <= options.window.linear + res && std::abs(moved.y()) <= options.window.linear + res &&
-        std::abs(moved.z()) <= options.window.angular + angular_step) {
-      result.pose = x, H = Hx, score = sx, quality = qx;
+    // No ascent along the Newton direction, or a step below the tolerance: converged.
+    if (!accepted || (scale * step).cwiseAbs().maxCoeff() < kRefineStepTolerance) {
+      stationary = true;
+      break;
     }
   }
-  result.score = score;
-  result.match_quality = quality;
-  result.covariance = response_covariance(points, prior, prior_info, options, angular_step, result.pose, H);
+  // A refinement that wanders out of the window has left the basin the search found.
+  const Eigen::Vector3d moved(x.x() - prior.x(), x.y() - prior.y(), wrap_angle(x.z() - prior.z()));
+  if (std::abs(moved.x()) > options.window.linear + res || std::abs(moved.y()) > options.window.linear + res ||
+      std::abs(moved.z()) > options.window.angular + angular_step)
+    return false;
+  result.pose = x, result.score = sx, result.match_quality = qx;
+  return stationary;
 }
 
-Eigen::Matrix3d CorrelativeScanMatcher::response_covariance(const Eigen::Ref<const Points2>& points,
-                                                            const Eigen::Vector3d& prior,
-                                                            const Eigen::Matrix3d* prior_info,
-                                                            const MatchOptions& options, double angular_step,
-                                                            const Eigen::Vector3d& pose,
-                                                            const Eigen::Matrix3d& hessian) const {
+Eigen::Matrix3d CorrelativeScanMatcher::scan_meat(const ScanMoments& m) {
+  // With no more informative points than pose parameters the residuals say nothing about the
+  // scatter: fall back to the field's own sigma (the model, meat = bread).
+  if (m.effective_points <= kPoseDof) return m.bread;
+  // The residuals at the fitted pose underestimate the errors by the fitted degrees of freedom.
+  return m.meat * (m.effective_points / (m.effective_points - kPoseDof));
+}
+
+Eigen::Matrix3d CorrelativeScanMatcher::pose_covariance(const Eigen::Ref<const Points2>& points,
+                                                        const Eigen::Vector3d& prior,
+                                                        const Eigen::Matrix3d* prior_info, const MatchOptions& options,
+                                                        double angular_step, const MatchResult& result,
+                                                        bool stationary) const {
+  const ScanMoments scan = scan_moments(points, result.pose);
+  // The scan's information is the inverse of the sandwich H^-1 B H^-1 (Huber 1967; White 1982),
+  // H the Gauss-Newton Hessian of the negative score, B the sum of the outer products of the
+  // per-point gradients. It equals the Laplace approximation H^-1 when the points scatter about
+  // the field as its sigma says, and corrects it when they do not: the field's sigma is a
+  // blur chosen for the search, not the range noise, so H^-1 alone is off by their ratio
+  // squared. The prior is taken as exact: it weighs in H as the score weighs it, and its mean
+  // is off the truth by its covariance P, so its gradient scatters by P^-1 P P^-1 = P^-1 in B.
+  // This is the covariance of the estimate the score defines, which weighs the scan by the
+  // field's sigma; with no scan information it is the prior's.
+  const Eigen::Matrix3d none = Eigen::Matrix3d::Zero();
+  const Eigen::Matrix3d& prior_part = prior_info ? *prior_info : none;
+  const Eigen::Matrix3d H = scan.bread + prior_part;
+  const Eigen::Matrix3d B = scan_meat(scan) + prior_part;
+  // The search only looked inside the window: the truth is taken as uniform over the box the
+  // refinement may reach (a Gaussian of the same variance, (2 half-width)^2 / 12). This is what
+  // bounds the covariance along a direction the scan does not constrain (a corridor); elsewhere
+  // it is negligible against the scan.
   const double res = field_.resolution();
-  // Sample spacing per axis from the Laplace approximation (H^-1), within [1/8 cell, window/3]:
-  // the samples then reach about 3 standard deviations of the surface.
-  Eigen::Vector3d laplace_var(options.window.linear, options.window.linear, options.window.angular);
-  laplace_var = laplace_var.cwiseAbs2();
-  const Eigen::LDLT<Eigen::Matrix3d> ldlt(hessian);
-  if (ldlt.info() == Eigen::Success && ldlt.isPositive() && ldlt.vectorD().minCoeff() > 0.0)
-    laplace_var = ldlt.solve(Eigen::Matrix3d::Identity()).diagonal();
-  Eigen::Vector3d spacing;
-  const double lin_max = std::max(options.window.linear, res) / kSurfaceSteps;
-  const double ang_max = std::max(options.window.angular, angular_step) / kSurfaceSteps;
-  for (int j = 0; j < 3; ++j) {
-    const double lo = (j < 2 ? res : angular_step) / 8.0, hi = j < 2 ? lin_max : ang_max;
-    const double sd = std::sqrt(std::max(laplace_var[j], 0.0));
-    spacing[j] = std::clamp(std::isfinite(sd) ? sd : hi, lo, hi);
-  }
-  const int K = kSurfaceSteps, n = 2 * K + 1;
-  std::vector<double> values;
-  values.reserve(static_cast<std::size_t>(n * n * n));
-  double vmax = -std::numeric_limits<double>::infinity();
-  for (int i = -K; i <= K; ++i)
-    for (int j = -K; j <= K; ++j)
-      for (int k = -K; k <= K; ++k) {
-        Eigen::Vector3d p = pose + Eigen::Vector3d(i, j, k).cwiseProduct(spacing);
-        p.z() = wrap_angle(p.z());
-        values.push_back(evaluate(points, p, prior, prior_info, nullptr, nullptr, nullptr));
-        vmax = std::max(vmax, values.back());
-      }
-  double total = 0.0;
-  Eigen::Vector3d mean = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d second = Eigen::Matrix3d::Zero();
-  std::size_t idx = 0;
-  for (int i = -K; i <= K; ++i)
-    for (int j = -K; j <= K; ++j)
-      for (int k = -K; k <= K; ++k) {
-        const double w = std::exp(values[idx++] - vmax);
-        const Eigen::Vector3d o = Eigen::Vector3d(i, j, k).cwiseProduct(spacing);
-        total += w;
-        mean += w * o;
-        second += w * o * o.transpose();
-      }
-  mean /= total;
-  Eigen::Matrix3d cov = second / total - mean * mean.transpose();
-  // The map is known to a cell and the search to a step: a uniform error over one of each.
-  const double ft = options.min_translation_std > 0.0 ? options.min_translation_std : res / std::sqrt(12.0);
-  const double fr = options.min_rotation_std > 0.0 ? options.min_rotation_std : angular_step / std::sqrt(12.0);
-  cov += Eigen::Vector3d(ft * ft, ft * ft, fr * fr).asDiagonal();
+  const Eigen::Vector3d half(options.window.linear + res, options.window.linear + res,
+                             options.window.angular + angular_step);
+  const Eigen::Matrix3d window_info = (4.0 * kUniformVariance * half.cwiseAbs2()).cwiseInverse().asDiagonal();
+  const Eigen::LDLT<Eigen::Matrix3d> meat(B + kMeatRidge * window_info);
+  const Eigen::Matrix3d info = H * meat.solve(H);
+  Eigen::Matrix3d cov = (info + window_info).ldlt().solve(Eigen::Matrix3d::Identity());
+  // Shifting the map by s moves the scan's optimum by s and so this estimate by share * s: the
+  // scan's part of the information, zero along directions the scan does not constrain.
+  const Eigen::Matrix<double, 3, 2> share = cov * H * meat.solve(scan.bread.leftCols<2>());
+  cov = widen_where_flat(points, prior, prior_info, result, half, H, cov);
+  cov += unseen_errors(share, options, angular_step, stationary);
   return 0.5 * (cov + cov.transpose());
+}
+
+Eigen::Matrix3d CorrelativeScanMatcher::widen_where_flat(const Eigen::Ref<const Points2>& points,
+                                                         const Eigen::Vector3d& prior,
+                                                         const Eigen::Matrix3d* prior_info, const MatchResult& result,
+                                                         const Eigen::Vector3d& half, const Eigen::Matrix3d& hessian,
+                                                         const Eigen::Matrix3d& cov) const {
+  // The sandwich is local: it reads cell-sized steps of a wall in the map as information along
+  // the wall, and it cannot see a second basin. So the model's own likelihood exp(score) is
+  // profiled across the window along each principal axis of the covariance (in units of the
+  // window's half-widths), beyond the basin the model itself predicts there (kBasinWidths of
+  // its Laplace width). The field's sigma is a blur at least as wide as the points' scatter, so
+  // this likelihood overstates no difference of score. The variance along the axis becomes
+  // that of the mixture of the local basin (its mass from the model, its spread from the
+  // sandwich) and the mass the profile finds beyond it: unchanged in a basin, about the
+  // window's along a flat run (see profile_variance for a basin as wide as the window).
+  const Eigen::Matrix3d to_unit = half.cwiseInverse().asDiagonal();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> axes(to_unit * cov * to_unit);
+  const Eigen::Matrix3d unit_hessian = half.asDiagonal() * hessian * half.asDiagonal();
+  Eigen::Vector3d var = axes.eigenvalues();
+  for (int j = 0; j < 3; ++j) {
+    const Eigen::Vector3d v = axes.eigenvectors().col(j);
+    const double curvature = v.dot(unit_hessian * v);
+    if (!(curvature > 0.0)) continue;  // no basin: the window already bounds this axis
+    var[j] = profile_variance(points, prior, prior_info, result, half.asDiagonal() * v, 1.0 / std::sqrt(curvature),
+                              var[j]);
+  }
+  const Eigen::Matrix3d V = half.asDiagonal() * axes.eigenvectors();
+  return V * var.asDiagonal() * V.transpose();
+}
+
+double CorrelativeScanMatcher::profile_variance(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
+                                                const Eigen::Matrix3d* prior_info, const MatchResult& result,
+                                                const Eigen::Vector3d& direction, double width,
+                                                double local_variance) const {
+  // Beyond `start` the local basin has no mass to speak of. When that is past the window, the
+  // window cannot tell the basin from a flat run: the whole profile is the answer, and the
+  // sandwich's sharpening (fitted to the points' scatter, not to a flat score) is not applied.
+  const double start = kBasinWidths * width;
+  const bool basin_fills_window = !(start < 1.0);
+  const double from = basin_fills_window ? 0.0 : start;
+  const double dt = (1.0 - from) / kProfileSamples;
+  std::array<double, 2 * kProfileSamples> t{}, score{};
+  double top = result.score;
+  for (int k = 0; k < 2 * kProfileSamples; ++k) {
+    const double side = k < kProfileSamples ? -1.0 : 1.0;
+    // Uniform over [from, 1]: cell ends when starting at the pose, cell midpoints beyond the basin.
+    const double offset = basin_fills_window ? k % kProfileSamples + 1.0 : k % kProfileSamples + 0.5;
+    t[static_cast<std::size_t>(k)] = side * (from + dt * offset);
+    Eigen::Vector3d p = result.pose + t[static_cast<std::size_t>(k)] * direction;
+    p.z() = wrap_angle(p.z());
+    score[static_cast<std::size_t>(k)] = evaluate(points, p, prior, prior_info, nullptr, nullptr, nullptr);
+    top = std::max(top, score[static_cast<std::size_t>(k)]);
+  }
+  // exp(score) relative to its largest value. The pose holds one sample's mass when the profile
+  // starts there, else the local basin's: a Gaussian of the model's width, peak exp(score).
+  const double peak = std::exp(result.score - top);
+  const double local_mass = basin_fills_window ? peak * dt : std::sqrt(2.0 * kPi) * width * peak;
+  double mass = local_mass, moment = basin_fills_window ? 0.0 : local_mass * local_variance;
+  for (std::size_t k = 0; k < t.size(); ++k) {
+    const double m = std::exp(score[k] - top) * dt;
+    mass += m;
+    moment += m * t[k] * t[k];
+  }
+  return basin_fills_window ? std::max(local_variance, moment / mass) : moment / mass;
+}
+
+Eigen::Matrix3d CorrelativeScanMatcher::unseen_errors(const Eigen::Matrix<double, 3, 2>& map_share,
+                                                      const MatchOptions& options, double angular_step,
+                                                      bool stationary) const {
+  const double res = field_.resolution();
+  Eigen::Matrix3d extra = Eigen::Matrix3d::Zero();
+  if (options.min_translation_std > 0.0) {
+    extra.topLeftCorner<2, 2>().diagonal().setConstant(options.min_translation_std * options.min_translation_std);
+  } else {
+    // The map holds each wall only to a cell: the field is measured from cell centres, so a
+    // wall sits off its true place by up to half a cell, uniformly (res^2 / 12 per axis). Walls
+    // on a common lattice share that offset, which moves the scan's optimum with the map: no
+    // residual shows it, so the sandwich cannot.
+    extra += kUniformVariance * res * res * map_share * map_share.transpose();
+  }
+  if (options.min_rotation_std > 0.0) extra(2, 2) += options.min_rotation_std * options.min_rotation_std;
+  // Without a converged refinement the pose is a lattice point, off the optimum by up to half a
+  // cell and half an angular step.
+  if (!stationary)
+    extra += kUniformVariance * Eigen::Vector3d(res * res, res * res, angular_step * angular_step).asDiagonal();
+  // The refinement stops at steps below kRefineStepTolerance: the optimum is located to that.
+  extra.diagonal().array() += kRefineStepTolerance * kRefineStepTolerance;
+  return extra;
 }
 
 MatchResult CorrelativeScanMatcher::match(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
@@ -411,7 +541,9 @@ MatchResult CorrelativeScanMatcher::match(const Eigen::Ref<const Points2>& point
                                        wrap_angle(prior.z() + sp.theta_offset(best.a)));
   result.search_score = best.bound;
   result.pose = result.search_pose;
-  refine_and_measure(points, prior, sp.use_prior ? &sp.info : nullptr, options, sp.step, result);
+  const Eigen::Matrix3d* prior_info = sp.use_prior ? &sp.info : nullptr;
+  const bool stationary = refine(points, prior, prior_info, options, sp.step, result);
+  result.covariance = pose_covariance(points, prior, prior_info, options, sp.step, result, stationary);
   return result;
 }
 

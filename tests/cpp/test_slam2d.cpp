@@ -1,14 +1,19 @@
 // slam2d/: the likelihood field's EDT against a brute-force loop, branch and bound against the
-// brute-force search, pose recovery in a simulated room, the scan filter, and bad input.
+// brute-force search, pose recovery in a simulated room, the match covariance (positive definite,
+// large along a corridor, the prior and the window when the scan says nothing), the scan
+// filter, and bad input.
 #include <gtest/gtest.h>
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
 #include <random>
+#include <string>
 #include <utility>
 #include <vector>
 
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 
 #include "probslam/core/angle.hpp"
@@ -203,6 +208,138 @@ TEST(Slam2dMatcher, RecoversPoseInSimulatedRoom) {
     EXPECT_LE(std::abs(wrap_angle(r.pose.z() - truth.z())), std::max(r.angular_step, 0.01)) << trial;
     EXPECT_GT(r.match_quality, 0.5);
   }
+}
+
+/// Symmetric to rounding (the covariance is symmetrised explicitly) and positive definite.
+void expect_spd(const Eigen::Matrix3d& c, const std::string& where) {
+  EXPECT_TRUE(c.allFinite()) << where;
+  EXPECT_EQ((c - c.transpose()).cwiseAbs().maxCoeff(), 0.0) << where;
+  EXPECT_GT(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(c).eigenvalues().minCoeff(), 0.0) << where;
+  EXPECT_EQ(Eigen::LLT<Eigen::Matrix3d>(c).info(), Eigen::Success) << where;
+}
+
+/// Variance of a uniform distribution over the search window's half-width w: (2 w)^2 / 12.
+double window_variance(double w) { return w * w / 3.0; }
+
+TEST(Slam2dCovariance, PositiveDefiniteInTheRoom) {
+  const CorrelativeScanMatcher m(LikelihoodField::from_grid(room_map()));
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<double> u(-1, 1);
+  for (int trial = 0; trial < 12; ++trial) {
+    const Eigen::Vector3d truth = random_truth(rng);
+    const Points2 pts = noisy_scan(rng, truth, 0.01 + 0.02 * (u(rng) + 1));
+    MatchOptions o;
+    o.refine = trial % 3 != 0;
+    o.use_prior = trial % 2;
+    o.prior_covariance = Eigen::Vector3d(0.01, 0.02, 0.005).asDiagonal();
+    const MatchResult r = m.match(pts, truth + 0.1 * Eigen::Vector3d(u(rng), u(rng), u(rng)), o);
+    expect_spd(r.covariance, "trial " + std::to_string(trial));
+    // Without refinement the pose is a lattice point: at least a uniform cell's variance.
+    if (!o.refine) EXPECT_GE(r.covariance(0, 0), 0.05 * 0.05 / 12.0) << trial;
+  }
+}
+
+/// A grid holding walls y = y_i for x in [-10, 10] (off the cell borders), mapped from below.
+OccupancyGrid2D wall_map(const std::vector<double>& ys) {
+  std::vector<Segment> walls;
+  for (double y : ys) walls.push_back({{-10.0, y}, {10.0, y}});
+  OccupancyGrid2D g = OccupancyGrid2D::covering(-11.0123, -2.9871, 11.0, 3.0, 0.05);
+  const Eigen::VectorXd beams = Eigen::VectorXd::LinSpaced(241, -kPi, kPi);
+  for (double x = -9.0; x <= 9.0; x += 0.5) {
+    const Eigen::Vector3d pose(x, 0.0, 0.0);
+    g.insert_rays(pose, cast(pose, beams, walls), beams, 30.0);
+  }
+  return g;
+}
+
+// A single wall or a corridor fixes y and theta but not x: along the wall the covariance must
+// be about the window's (the search had nothing to choose x by), far above the other axes. The
+// wall y = 1.0123 lies close to a row border, so the map draws it with cell-sized steps:
+// texture that a local approximation would read as information along the wall.
+TEST(Slam2dCovariance, LargeAlongAWallOrCorridor) {
+  for (const std::vector<double>& ys : {std::vector<double>{1.0123}, std::vector<double>{-1.0123, 1.0123}}) {
+    const CorrelativeScanMatcher m(LikelihoodField::from_grid(wall_map(ys)));
+    std::vector<Segment> walls;
+    for (double y : ys) walls.push_back({{-10.0, y}, {10.0, y}});
+    // Beams within 60 degrees of the walls' normals: the walls' ends stay out of sight.
+    Eigen::VectorXd beams(2 * 61);
+    beams << Eigen::VectorXd::LinSpaced(61, kPi / 2 - kPi / 3, kPi / 2 + kPi / 3),
+        Eigen::VectorXd::LinSpaced(61, -kPi / 2 - kPi / 3, -kPi / 2 + kPi / 3);
+    std::mt19937 rng(4);
+    std::normal_distribution<double> n(0.0, 0.01);
+    for (const bool prior : {false, true}) {
+      const Eigen::Vector3d truth(0.3, 0.0, 0.0);
+      Eigen::VectorXd r = cast(truth, beams, walls);
+      for (Eigen::Index i = 0; i < r.size(); ++i) r[i] += n(rng);
+      MatchOptions o;
+      o.use_prior = prior;
+      o.prior_covariance = Eigen::Vector3d(1.0, 1.0, 1.0).asDiagonal();  // weaker than the window
+      const MatchResult res = m.match(scan_hits(r, beams, ScanFilter{}), truth + Eigen::Vector3d(0.05, 0.02, 0.01), o);
+      const std::string where = std::to_string(ys.size()) + " walls, prior " + std::to_string(prior);
+      expect_spd(res.covariance, where);
+      EXPECT_GE(res.covariance(0, 0), 0.5 * window_variance(o.window.linear)) << where;
+      EXPECT_GT(res.covariance(0, 0), 50 * res.covariance(1, 1)) << where;
+      EXPECT_LT(res.covariance(1, 1), 1e-3) << where;  // across the wall the scan decides
+    }
+  }
+}
+
+// Points far from every obstacle carry no information: the covariance is then the window's
+// (uniform over the box the refinement may reach), or the prior cut by the window.
+TEST(Slam2dCovariance, PriorAndWindowWhenTheScanSaysNothing) {
+  const CorrelativeScanMatcher m(LikelihoodField::from_grid(room_map()));
+  Points2 far(5, 2);
+  far << 50, 0, 51, 1, 52, -1, 53, 2, 54, -2;  // outside the field
+  const Eigen::Vector3d prior(0.2, -0.3, 0.4);
+  MatchOptions o;
+  const double res = 0.05;
+  const MatchResult none = m.match(far, prior, o);
+  expect_spd(none.covariance, "no prior");
+  EXPECT_GE(none.covariance(0, 0), window_variance(o.window.linear)) << none.covariance;
+  EXPECT_GE(none.covariance(2, 2), window_variance(o.window.angular)) << none.covariance;
+
+  o.use_prior = true;
+  Eigen::Matrix3d P;
+  P << 0.01, 0.002, 0.001, 0.002, 0.02, -0.003, 0.001, -0.003, 0.005;
+  o.prior_covariance = P;
+  const MatchResult r = m.match(far, prior, o);
+  expect_spd(r.covariance, "prior");
+  // The window (+-0.35 m, rad) cuts the prior (std <= 0.15) beyond 2 std: the covariance lies
+  // between the prior's and the prior fused with the window's Gaussian equivalent.
+  const Eigen::Vector3d half(o.window.linear + res, o.window.linear + res, o.window.angular + r.angular_step);
+  const Eigen::Matrix3d window_info = (half.cwiseAbs2() / 3.0).cwiseInverse().asDiagonal();
+  const Eigen::Matrix3d fused = (P.inverse() + window_info).inverse();
+  // Rounding of 3x3 inversions of matrices with entries ~1e-2: far below 1e-12.
+  constexpr double kRounding = 1e-12;
+  EXPECT_GE(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(r.covariance - fused).eigenvalues().minCoeff(), -kRounding)
+      << r.covariance << "\n" << fused;
+  EXPECT_GE(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(P - r.covariance).eigenvalues().minCoeff(), -kRounding)
+      << r.covariance;
+}
+
+// A prior much sharper than the scan dominates; the user's floors are added on top.
+TEST(Slam2dCovariance, SharpPriorAndUserFloors) {
+  const CorrelativeScanMatcher m(LikelihoodField::from_grid(room_map()));
+  std::mt19937 rng(9);
+  const Eigen::Vector3d truth = random_truth(rng);
+  const Points2 pts = noisy_scan(rng, truth, 0.01);
+  MatchOptions o;
+  o.use_prior = true;
+  const Eigen::Vector3d prior_var(1e-8, 2e-8, 1e-9);
+  o.prior_covariance = prior_var.asDiagonal();
+  const MatchResult sharp = m.match(pts, truth, o);
+  for (int j = 0; j < 3; ++j) EXPECT_NEAR(sharp.covariance(j, j), prior_var[j], 0.05 * prior_var[j]) << j;
+
+  o.use_prior = false;
+  const MatchResult base = m.match(pts, truth, o);
+  o.min_translation_std = 0.2;
+  o.min_rotation_std = 0.1;
+  const MatchResult floored = m.match(pts, truth, o);
+  expect_spd(floored.covariance, "floors");
+  EXPECT_GE(floored.covariance(0, 0), 0.04);
+  EXPECT_GE(floored.covariance(1, 1), 0.04);
+  EXPECT_GE(floored.covariance(2, 2), 0.01);
+  EXPECT_LT(floored.covariance(2, 2), 0.01 + 2 * base.covariance(2, 2));
 }
 
 TEST(Slam2dScan, FilterAndInsertionSemantics) {

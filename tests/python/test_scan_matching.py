@@ -1,5 +1,6 @@
 """slam2d scan matching: the branch-and-bound search against an independent numpy brute force of
-the same lattice, the smooth score against numpy, covariance calibration (NEES) and bad input."""
+the same lattice, the smooth score against numpy, covariance calibration (NEES) at three levels of
+range noise, and bad input."""
 
 import numpy as np
 import pytest
@@ -15,12 +16,12 @@ WALLS = [((-5, -4), (5, -4)), ((5, -4), (5, 4)), ((5, 4), (-5, 4)), ((-5, 4), (-
 ANGLES = np.linspace(-np.pi / 2, np.pi / 2, 181)
 
 
-def cast(pose, angles):
-    """Ranges from pose along angles to the nearest wall (inf when none), analytically."""
+def cast(pose, angles, walls=None):
+    """Ranges from pose along angles to the nearest of walls (default WALLS; inf when none)."""
     o = np.asarray(pose[:2], float)
     d = np.stack([np.cos(pose[2] + angles), np.sin(pose[2] + angles)], axis=1)
     out = np.full(len(angles), np.inf)
-    for p, q in WALLS:
+    for p, q in WALLS if walls is None else walls:
         p, q = np.asarray(p, float), np.asarray(q, float)
         e = q - p
         det = d[:, 0] * -e[1] - d[:, 1] * -e[0]
@@ -48,8 +49,8 @@ def make_matcher(grid, sigma=0.05, **kw):
     return field, _core.CorrelativeScanMatcher(field, **kw)
 
 
-def scan_at(rng, pose, noise=0.01):
-    r = cast(pose, ANGLES) + rng.normal(0, noise, len(ANGLES))
+def scan_at(rng, pose, noise=0.01, walls=None):
+    r = cast(pose, ANGLES, walls) + rng.normal(0, noise, len(ANGLES))
     return _core.scan_hits(r, ANGLES)
 
 
@@ -159,29 +160,60 @@ def test_smooth_score_equals_numpy(room, seed):
     assert got == pytest.approx(expected - 0.5 * d @ np.linalg.solve(cov, d), abs=1e-5 * n)
 
 
-@pytest.mark.xfail(strict=True, reason="not calibrated: measured mean NEES 0.996 over 120 trials (95% band "
-                   "[2.578, 3.454]); per-axis err^2/var x 0.499, y 0.443, theta 0.040: too conservative. "
-                   "rms errors 0.013 m / 0.00095 rad vs mean returned std 0.019 m / 0.0047 rad; the "
-                   "floors res/sqrt(12) = 0.0144 m and step/sqrt(12) = 0.0022 rad alone exceed the errors")
-def test_covariance_is_calibrated_nees(room):
-    rng = np.random.default_rng(2024)
-    field, m = make_matcher(room, sigma=0.05)
-    n = 120
+def room_with_origin(origin, walls):
+    """The map of walls, built as the `room` fixture builds its own, on a lattice from `origin`."""
+    rng = np.random.default_rng(7)
+    g = ps.OccupancyGrid2D.covering((origin[0], origin[1], 6, 6), RES)
+    for _ in range(20):
+        pose = np.array([rng.uniform(-3, 3), rng.uniform(-3, 3), rng.uniform(-3, 3)])
+        g.insert_rays(pose, cast(pose, ANGLES, walls), ANGLES, 30.0)
+    return g
+
+
+def match_nees(walls, noise, n=120, seed=2024):
+    """Mean NEES of n matches, each on a map whose lattice origin is drawn anew within a cell, and
+    the per-axis mean of err^2 / var. The map holds a wall only to a cell, so its offset from the
+    truth is an error the covariance must cover; on one fixed lattice all trials would share one
+    draw of it (the fixed `room` gives 2.56 here, its offset being 0.25 cells on both axes), and
+    the chi-square band, which assumes independent trials, would not apply."""
+    rng = np.random.default_rng(seed)
     nees, sq = [], []
     for _ in range(n):
+        origin = (-6.0 - rng.uniform(0, RES), -6.0 - rng.uniform(0, RES))
+        _, m = make_matcher(room_with_origin(origin, walls), sigma=0.05)
         true = true_pose(rng)
-        pts = scan_at(rng, true, noise=0.015)
+        pts = scan_at(rng, true, noise=noise, walls=walls)
         prior = true + rng.uniform(-0.1, 0.1, 3)
         r = m.match(pts, prior, linear_window=0.2, angular_window=0.15)
         e = r.pose - true
         e[2] = (e[2] + np.pi) % (2 * np.pi) - np.pi
         nees.append(e @ np.linalg.solve(r.covariance, e))
         sq.append(e * e / np.diag(r.covariance))
-    mean = float(np.mean(nees))
-    lo, hi = stats.chi2.ppf([0.025, 0.975], 3 * n) / n
-    ratios = np.mean(sq, axis=0)
-    print(f"mean NEES {mean:.3f} band [{lo:.3f}, {hi:.3f}] per-axis err^2/var {ratios}")
-    assert lo <= mean <= hi, (mean, lo, hi, ratios)
+    return float(np.mean(nees)), np.mean(sq, axis=0)
+
+
+NEES_BAND = stats.chi2.ppf([0.025, 0.975], 3 * 120) / 120  # 95% band of the mean of 120 chi2(3)
+AXIS_WALLS = WALLS[:8]  # the room and the pillar: all on one lattice offset (integer coordinates)
+
+
+@pytest.mark.parametrize("noise", [0.005, 0.015, 0.03])
+def test_covariance_is_calibrated_nees(noise):
+    # Range noise from a third of the field's sigma to below it: the sandwich follows the points'
+    # scatter, not sigma. Measured (mean, per-axis x y theta): 0.005: 2.61 (0.94 0.91 0.76);
+    # 0.015: 2.84 (0.92 0.92 0.99); 0.03: 2.81 (0.91 0.91 0.97).
+    mean, ratios = match_nees(AXIS_WALLS, noise)
+    print(f"noise {noise}: mean NEES {mean:.3f} band {NEES_BAND.round(3)} per-axis err^2/var {ratios.round(3)}")
+    assert NEES_BAND[0] <= mean <= NEES_BAND[1], (mean, NEES_BAND, ratios)
+
+
+@pytest.mark.xfail(strict=True, reason="overconfident in rotation with the slanted wall: mean NEES 3.86, per-axis "
+                   "0.90 0.70 2.26. Its offset on the lattice is its own, not the room's; the covariance models one "
+                   "offset shared by all walls (no residual shows it), and a wall whose offset differs tilts the "
+                   "pose by an amount no residual shows either. Walls at arbitrary positions (real maps) do the same.")
+def test_covariance_is_calibrated_nees_with_an_offset_wall():
+    mean, ratios = match_nees(WALLS, 0.015)
+    print(f"mean NEES {mean:.3f} band {NEES_BAND.round(3)} per-axis err^2/var {ratios.round(3)}")
+    assert NEES_BAND[0] <= mean <= NEES_BAND[1], (mean, NEES_BAND, ratios)
 
 
 def test_recovers_pose(room):

@@ -1,8 +1,8 @@
 #pragma once
 // Correlative scan matching (Olson 2009) with branch and bound over a max-pooled pyramid of
 // the likelihood field (Hess et al. 2016), a Gauss-Newton refinement on the interpolated field,
-// and a covariance from the response surface: the Gaussian approximation of the match function
-// that ch. 11.7 turns into a constraint.
+// and a covariance of the refined pose (the Gaussian that ch. 11.7 turns into a constraint):
+// the robust sandwich of the score, the map's cell quantization and the search window.
 #include <Eigen/Core>
 #include <limits>
 #include <vector>
@@ -29,9 +29,11 @@ struct MatchOptions {
   Eigen::Matrix3d prior_covariance = Eigen::Matrix3d::Identity();
   bool refine = true;       ///< Gauss-Newton on the interpolated field after the search
   bool brute_force = false; ///< score every pose of the window (the oracle of the tests)
-  /// Minimum standard deviations of the returned covariance (m, m, rad): the map is only known
-  /// to a cell, so a sharper response would claim more than the grid can support.
-  /// <= 0 (default): resolution / sqrt(12) and angular step / sqrt(12), a uniform cell.
+  /// Floors of the returned covariance (m, m, rad): their squares are added to the translation
+  /// (both axes) and rotation variances, for errors the scan cannot show (how well the map
+  /// itself is known, a miscalibrated sensor), so that every marginal std is at least this.
+  /// <= 0 (default): translation: the map's cell quantization, a uniform offset over one cell
+  /// (resolution / sqrt(12)) carried by the scan's share of the estimate; rotation: nothing.
   double min_translation_std = 0.0;
   double min_rotation_std = 0.0;
   /// Lattice poses scoring below this are not wanted (search score: sum of log p + log prior);
@@ -45,7 +47,9 @@ struct MatchResult {
   bool found = true;  ///< false: no lattice pose reached options.min_score (pose = prior)
   Eigen::Vector3d pose = Eigen::Vector3d::Zero();         ///< best pose (refined if asked)
   Eigen::Vector3d search_pose = Eigen::Vector3d::Zero();  ///< best pose on the search lattice
-  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();  ///< from the response surface
+  /// Of `pose`: symmetric positive definite; at least the window's variance along a direction
+  /// the scan does not constrain (see CorrelativeScanMatcher::match).
+  Eigen::Matrix3d covariance = Eigen::Matrix3d::Identity();
   double score = 0.0;         ///< sum of log p over the points (+ log prior) at `pose`
   double search_score = 0.0;  ///< the same on the lattice at search_pose
   /// Mean over the points of exp(-d^2 / 2 sigma^2) at `pose`: 1 when every point lies on an
@@ -68,11 +72,17 @@ class CorrelativeScanMatcher {
   /// Matches hit points (N, 2, sensor frame, metres) against the field around `prior` (the
   /// sensor pose (x, y, theta) in the field's frame). Throws std::invalid_argument for no
   /// points, non-finite input, or a window of more than kMaxCandidates poses.
+  /// The covariance is the sandwich H^-1 B H^-1 of the score at the refined pose (H its
+  /// Gauss-Newton Hessian, B the scatter of the per-point gradients: calibrated to the actual
+  /// scatter of the points, not to the field's sigma), with the prior as information, fused with
+  /// a uniform distribution over the window, widened along an axis where exp(score) stays high
+  /// across the window (a corridor, a second basin), plus the map's cell quantization (see
+  /// MatchOptions::min_translation_std) and, when the pose was not refined, the lattice cell.
   MatchResult match(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
                     const MatchOptions& options = {}) const;
 
   /// The score (sum of log p over points, + log prior when options.use_prior) of `pose` on the
-  /// interpolated field: the function the refinement maximises and the covariance samples.
+  /// interpolated field: the function the refinement maximises.
   double smooth_score(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& pose,
                       const Eigen::Vector3d& prior, const MatchOptions& options) const;
 
@@ -99,13 +109,42 @@ class CorrelativeScanMatcher {
   double evaluate(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& pose,
                   const Eigen::Vector3d& prior, const Eigen::Matrix3d* prior_info, Eigen::Matrix3d* hessian,
                   Eigen::Vector3d* gradient, double* quality) const;
-  void refine_and_measure(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
-                          const Eigen::Matrix3d* prior_info, const MatchOptions& options, double angular_step,
-                          MatchResult& result) const;
-  Eigen::Matrix3d response_covariance(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
-                                      const Eigen::Matrix3d* prior_info, const MatchOptions& options,
-                                      double angular_step, const Eigen::Vector3d& pose,
-                                      const Eigen::Matrix3d& hessian) const;
+  /// Sums over the points at a pose of the scan alone (no prior): bread = sum w J J^T (the
+  /// Gauss-Newton Hessian of -score), meat = sum g g^T (g the per-point gradients of -log p),
+  /// and Kish's effective number of points that constrain the pose.
+  struct ScanMoments {
+    Eigen::Matrix3d bread = Eigen::Matrix3d::Zero();
+    Eigen::Matrix3d meat = Eigen::Matrix3d::Zero();
+    double effective_points = 0.0;
+  };
+  ScanMoments scan_moments(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& pose) const;
+  /// Gauss-Newton from result.pose (when options.refine); sets pose, score and match_quality.
+  /// True when it ended at a stationary point of the smooth score inside the window.
+  bool refine(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
+              const Eigen::Matrix3d* prior_info, const MatchOptions& options, double angular_step,
+              MatchResult& result) const;
+  static Eigen::Matrix3d scan_meat(const ScanMoments& scan);
+  Eigen::Matrix3d pose_covariance(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
+                                  const Eigen::Matrix3d* prior_info, const MatchOptions& options,
+                                  double angular_step, const MatchResult& result, bool stationary) const;
+  /// cov widened along its principal axes where exp(score) keeps mass beyond the local basin
+  /// across the window (half: the window's half-widths, m, m, rad; hessian: Gauss-Newton, with
+  /// the prior).
+  Eigen::Matrix3d widen_where_flat(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
+                                   const Eigen::Matrix3d* prior_info, const MatchResult& result,
+                                   const Eigen::Vector3d& half, const Eigen::Matrix3d& hessian,
+                                   const Eigen::Matrix3d& cov) const;
+  /// Variance, in units of `direction`, of the mixture of the local basin (model width `width`,
+  /// variance local_variance) and exp(score) sampled along result.pose + t direction for
+  /// kBasinWidths width <= |t| <= 1; when that basin reaches the window's edge, the larger of
+  /// local_variance and the moment of exp(score) over |t| <= 1.
+  double profile_variance(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
+                          const Eigen::Matrix3d* prior_info, const MatchResult& result,
+                          const Eigen::Vector3d& direction, double width, double local_variance) const;
+  /// The errors no residual shows: the map's offset (map_share: d(estimate) / d(map shift)), the
+  /// user's floors, the lattice when unrefined, the refinement's tolerance.
+  Eigen::Matrix3d unseen_errors(const Eigen::Matrix<double, 3, 2>& map_share, const MatchOptions& options,
+                                double angular_step, bool stationary) const;
 
   LikelihoodField field_;
   std::vector<Level> pyramid_;  // immutable after construction: match() is thread-safe
