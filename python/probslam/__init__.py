@@ -20,7 +20,7 @@ from ._core import (
     velocity_motion_jacobian,
     wrap_angle,
 )
-from . import eval, io, sim
+from . import eval, io, sim, slam
 from .graph import OptimizationReport, PoseGraph2D, marginal_covariances, optimize, read_pose_graph, write_g2o
 from .graphslam import (
     CorrespondenceTest,
@@ -37,6 +37,7 @@ from .graphslam import (
 )
 from .ekf import EkfSlam, MapManagement, MultiHypothesisEkfSlam
 from .mapping import MappingSummary, map_laser_log
+from .slam import SlamResult, run_slam
 
 __version__ = "0.1.0"
 
@@ -55,6 +56,9 @@ __all__ = [
     "eif_reduce",
     "eif_solve",
     "eval",
+    "SlamResult",
+    "run_slam",
+    "slam",
     "graph_slam",
     "marginal_covariances",
     "optimize",

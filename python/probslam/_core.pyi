@@ -1,6 +1,6 @@
 """Type stubs for probslam's C++ core. Units: metres, radians; poses are (x, y, theta)."""
 
-from typing import List, Optional, Sequence, Tuple, Union, overload
+from typing import Any, Dict, List, Optional, Sequence, Tuple, Union, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -213,3 +213,99 @@ class _MultiHypothesisEkfSlam:
     def predict(self, v: float, w: float, dt: float, noise: Optional[ArrayLike] = None) -> None: ...
     def update(self, z: ArrayLike) -> npt.NDArray[np.int64]: ...
     def history(self) -> List[npt.NDArray[np.int64]]: ...
+
+class PoseGraph2D:
+    """A planar pose/landmark graph (graph/); its full stub is left to issue 17."""
+    num_vertices: int
+    def __getattr__(self, name: str) -> Any: ...
+
+# --- slam2d/: scan matching and GraphSLAM over submaps (ch. 11.7) ---------------------------
+
+def scan_hits(ranges: ArrayLike, beam_angles: ArrayLike, max_range: float = ..., min_range: float = 0.0,
+              max_usable_range: float = 30.0, min_point_spacing: float = 0.0) -> Array:
+    """(N, 2) hit points in the sensor frame, metres; no-return readings (>= max_range, inf, NaN) never hit."""
+def ranges_for_insertion(ranges: ArrayLike, max_range: float = ..., min_range: float = 0.0,
+                         max_usable_range: float = 30.0, clear_no_return: bool = True) -> Array:
+    """(B,) ranges for OccupancyGrid2D.insert_rays(max_range=usable range): no-return beams clear only."""
+
+class LikelihoodField:
+    """The blurred likelihood field of a grid: log((1 - p_rand) exp(-d^2 / 2 sigma^2) + p_rand)."""
+    resolution: float
+    origin: Tuple[float, float]
+    shape: Tuple[int, int]  # (rows, cols)
+    num_occupied: int
+    floor_value: float  # log p_rand
+    sigma: float
+    p_rand: float
+    truncation: float
+    distance: npt.NDArray[np.float32]  # (rows, cols) metres to the nearest occupied cell
+    log_likelihood: npt.NDArray[np.float32]
+    def __init__(self, grid: OccupancyGrid2D, sigma: float = 0.05, p_rand: float = 0.05,
+                 occupied_probability: float = 0.5, max_distance: float = 0.0,
+                 region: Optional[ArrayLike] = None) -> None: ...
+    def interpolate_distance(self, points: ArrayLike) -> Tuple[Array, Array]:
+        """(N,) bilinear distances and (N, 2) their gradients at world points (N, 2)."""
+
+class MatchResult:
+    found: bool  # False: nothing reached min_score (pose = prior)
+    pose: Array  # (3,) refined
+    search_pose: Array  # (3,) on the search lattice
+    covariance: Array  # (3, 3)
+    score: float
+    search_score: float
+    match_quality: float  # mean hit likelihood, 0..1
+    num_points: int
+    candidates_scored: int
+    angular_steps: int
+    angular_step: float  # rad
+
+class CorrelativeScanMatcher:
+    """Correlative scan matching (Olson 2009), branch and bound over a max-pooled pyramid (Hess 2016)."""
+    max_level: int
+    field: LikelihoodField
+    def __init__(self, field: LikelihoodField, max_level: int = 6) -> None: ...
+    def match(self, points: ArrayLike, prior: ArrayLike, linear_window: float = 0.3, angular_window: float = 0.35,
+              angular_step: float = 0.0, prior_covariance: Optional[ArrayLike] = None, refine: bool = True,
+              brute_force: bool = False, min_translation_std: float = 0.0, min_rotation_std: float = 0.0,
+              min_score: float = ...) -> MatchResult: ...
+    def smooth_score(self, points: ArrayLike, pose: ArrayLike, prior: Optional[ArrayLike] = None,
+                     prior_covariance: Optional[ArrayLike] = None) -> float: ...
+
+class IncrementalScanMatcher:
+    """Each scan matched against the map so far (the lecture's scan matching). Keyword options:
+    resolution, max_range, min_range, max_usable_range, clear_no_return, min_point_spacing, sigma,
+    p_rand, linear_window, angular_window, refine, use_odometry_prior, odometry_noise (6,),
+    min_travel, min_rotation, submap_distance, submap_scans, min_match_quality, warmup_scans,
+    field_refresh_distance, field_refresh_angle."""
+    num_scans: int
+    num_submaps: int
+    poses: Array  # (S, 3)
+    timestamps: Array  # (S,)
+    scan_info: Array  # (S, 5): matched, fallback, submap, match_quality, points
+    def __init__(self, **options: Any) -> None: ...
+    def add_scans(self, ranges: ArrayLike, beam_angles: ArrayLike, odometry: ArrayLike,
+                  timestamps: ArrayLike) -> None:
+        """ranges (S, B) m, beam_angles (B,) or (S, B) rad, odometry (S, 3) laser poses, timestamps (S,) s."""
+    def submap_grid(self, index: int) -> OccupancyGrid2D: ...
+
+class SubmapSlam2D:
+    """GraphSLAM over scan-matched submaps with correlative loop closures (ch. 11.7). Keyword
+    options: the IncrementalScanMatcher's (submap_distance default 10 m) and loop_closures,
+    closure_scans_per_submap, closure_min_match_quality, closure_window_sigmas,
+    closure_{min,max}_{linear,angular}_window, closure_max_distance, dissolve_chi2, max_rounds,
+    field_cache_mb."""
+    num_scans: int
+    num_submaps: int
+    scan_poses: Array  # (S, 3) optimised
+    frontend_poses: Array  # (S, 3) scan matching alone
+    submap_poses: Array  # (N, 3)
+    timestamps: Array  # (S,)
+    scan_info: Array  # (S, 5)
+    constraints: Dict[str, npt.NDArray[Any]]  # from, to, measurement, covariance, loop, scan, match_quality, active
+    summary: Dict[str, Union[int, float]]
+    def __init__(self, **options: Any) -> None: ...
+    def add_scans(self, ranges: ArrayLike, beam_angles: ArrayLike, odometry: ArrayLike,
+                  timestamps: ArrayLike) -> None: ...
+    def finish(self) -> None: ...
+    def graph(self) -> PoseGraph2D: ...
+    def map(self, resolution: float = 0.0) -> OccupancyGrid2D: ...
