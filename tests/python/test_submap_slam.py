@@ -222,3 +222,30 @@ def test_run_slam_bad_input(drive):
         run_slam(scans_of(true, odo, ranges), chunk=0)
     with pytest.raises(TypeError, match="unexpected keyword"):
         run_slam(scans_of(true[:3], odo[:3], ranges[:3]), no_such_option=1)
+
+
+def test_scans_of_differing_beam_counts(drive):
+    # A CARMEN log whose scans differ in width is NaN-padded by the reader: the padding is
+    # "no return", never a hit, and the result equals that of the unpadded scans.
+    from probslam.slam import run_slam
+
+    true, odo, ranges = drive
+    n = 40
+    padded = np.concatenate([ranges[:n], np.full((n, 20), np.nan)], axis=1)
+    scans = scans_of(true[:n], odo[:n], padded)
+    scans.num_beams[:] = len(ANGLES)
+    got = run_slam(scans, progress=False)
+    want = run_slam(scans_of(true[:n], odo[:n], ranges[:n]), progress=False)
+    np.testing.assert_allclose(got.poses, want.poses, atol=1e-9)
+
+
+def test_scans_with_no_valid_reading_take_the_odometry(drive):
+    true, odo, ranges = drive
+    bad = ranges[:30].copy()
+    bad[10:13] = np.nan  # three scans with no return at all
+    slam = _core.SubmapSlam2D(max_range=MAX_RANGE)
+    slam.add_scans(bad, ANGLES, odo[:30], np.arange(30.0))
+    slam.finish()
+    info = slam.scan_info
+    assert (info[10:13, 4] == 0).all() and not info[10:13, 0].any()
+    assert np.isfinite(slam.scan_poses).all()
