@@ -25,6 +25,7 @@ import numpy as np
 import probslam as ps
 from common import heading, report
 from probslam import _core
+from probslam.sim import cast_ranges
 
 HERE = pathlib.Path(__file__).resolve().parent
 SHARED = pathlib.Path(os.environ.get("PROBSLAM_SHARED_DATA", HERE.parents[1] / "shared" / "data"))
@@ -46,20 +47,7 @@ ROOM_ANGLES = np.linspace(-np.pi / 2, np.pi / 2, 181)
 
 def cast(pose, angles):
     """Ranges from pose along angles to the nearest wall (inf when none), analytically."""
-    o = np.asarray(pose[:2], float)
-    d = np.stack([np.cos(pose[2] + angles), np.sin(pose[2] + angles)], axis=1)
-    out = np.full(len(angles), np.inf)
-    for p, q in WALLS:
-        p, q = np.asarray(p, float), np.asarray(q, float)
-        e = q - p
-        det = d[:, 0] * -e[1] - d[:, 1] * -e[0]
-        ok = np.abs(det) > 1e-12
-        w = p - o
-        t = np.where(ok, (w[0] * -e[1] - w[1] * -e[0]) / np.where(ok, det, 1), np.inf)
-        u = np.where(ok, (d[:, 0] * w[1] - d[:, 1] * w[0]) / np.where(ok, det, 1), -1)
-        hit = ok & (t > 0) & (u >= 0) & (u <= 1)
-        out = np.where(hit, np.minimum(out, t), out)
-    return out
+    return cast_ranges(pose, angles, WALLS)
 
 
 def room_problems(n, rng):

@@ -126,3 +126,30 @@ def filter_known(run: SimRun, motion_noise: np.ndarray, measurement_noise: np.nd
         e = pose_error(ekf.pose, run.poses[t + 1])
         nees[t] = e @ np.linalg.pinv(ekf.covariance[:3, :3]) @ e
     return nees, nis
+
+
+def cast_ranges(pose: np.ndarray, angles: np.ndarray, segments) -> np.ndarray:
+    """A simulated laser scan: the range (metres) from ``pose`` (x, y, theta) along each beam
+    ``angles`` (B,) radians relative to the heading to the nearest of ``segments`` (an iterable
+    of ((x0, y0), (x1, y1)) walls, metres), inf where a beam meets none. Vectorised over beams."""
+    pose = np.asarray(pose, dtype=float)
+    angles = np.asarray(angles, dtype=float)
+    d = np.stack([np.cos(pose[2] + angles), np.sin(pose[2] + angles)], axis=1)  # (B, 2)
+    out = np.full(len(angles), np.inf)
+    for p, q in segments:
+        p, q = np.asarray(p, dtype=float), np.asarray(q, dtype=float)
+        e = q - p
+        det = d[:, 1] * e[0] - d[:, 0] * e[1]  # beam x wall; 0 when parallel
+        ok = np.abs(det) > _PARALLEL
+        w = p - pose[:2]
+        safe = np.where(ok, det, 1.0)
+        t = (w[1] * e[0] - w[0] * e[1]) / safe  # along the beam
+        u = (d[:, 0] * w[1] - d[:, 1] * w[0]) / safe  # along the wall, 0..1 inside it
+        hit = ok & (t > 0) & (u >= 0) & (u <= 1)
+        out = np.where(hit, np.minimum(out, t), out)
+    return out
+
+
+#: |sin| of the angle between a beam and a wall below which they count as parallel (no hit).
+_PARALLEL = 1e-12
+

@@ -6,6 +6,7 @@ import pytest
 
 import probslam as ps
 from probslam import _core
+from probslam.sim import cast_ranges
 
 # A 10 m x 8 m room with a box and a slanted wall, off the cell borders of any 5 cm grid.
 WALLS = [((-5.01, -4.02), (5.03, -4.02)), ((5.03, -4.02), (5.03, 3.97)), ((5.03, 3.97), (-5.01, 3.97)),
@@ -15,20 +16,8 @@ ANGLES = np.linspace(-np.pi / 2, np.pi / 2, 181)
 
 
 def cast(pose, angles=ANGLES):
-    """Ranges from `pose` to the nearest wall along each beam (inf where none), vectorised."""
-    d = np.stack([np.cos(pose[2] + angles), np.sin(pose[2] + angles)], axis=1)  # (B, 2)
-    out = np.full(len(angles), np.inf)
-    for p, q in WALLS:
-        p, q = np.asarray(p), np.asarray(q)
-        e = q - p
-        det = d[:, 0] * (-e[1]) - d[:, 1] * (-e[0])
-        w = p - pose[:2]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = (w[0] * (-e[1]) - w[1] * (-e[0])) / det
-            u = (d[:, 0] * w[1] - d[:, 1] * w[0]) / det
-        ok = (np.abs(det) > 1e-12) & (t > 0) & (u >= 0) & (u <= 1)
-        out[ok] = np.minimum(out[ok], t[ok])
-    return out
+    """Ranges from `pose` to the nearest wall along each beam (inf where none)."""
+    return cast_ranges(pose, angles, WALLS)
 
 
 def drive(n=120, seed=3):

@@ -8,6 +8,7 @@ from scipy import stats
 
 import probslam as ps
 from probslam import _core
+from probslam.sim import cast_ranges
 
 RES = 0.05
 ORIGIN = (-6.0123, -5.9871)  # walls off the cell borders
@@ -18,20 +19,7 @@ ANGLES = np.linspace(-np.pi / 2, np.pi / 2, 181)
 
 def cast(pose, angles, walls=None):
     """Ranges from pose along angles to the nearest of walls (default WALLS; inf when none)."""
-    o = np.asarray(pose[:2], float)
-    d = np.stack([np.cos(pose[2] + angles), np.sin(pose[2] + angles)], axis=1)
-    out = np.full(len(angles), np.inf)
-    for p, q in WALLS if walls is None else walls:
-        p, q = np.asarray(p, float), np.asarray(q, float)
-        e = q - p
-        det = d[:, 0] * -e[1] - d[:, 1] * -e[0]
-        ok = np.abs(det) > 1e-12
-        w = p - o
-        t = np.where(ok, (w[0] * -e[1] - w[1] * -e[0]) / np.where(ok, det, 1), np.inf)
-        u = np.where(ok, (d[:, 0] * w[1] - d[:, 1] * w[0]) / np.where(ok, det, 1), -1)
-        hit = ok & (t > 0) & (u >= 0) & (u <= 1)
-        out = np.where(hit, np.minimum(out, t), out)
-    return out
+    return cast_ranges(pose, angles, WALLS if walls is None else walls)
 
 
 @pytest.fixture(scope="module")

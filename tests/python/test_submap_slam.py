@@ -7,6 +7,7 @@ import pytest
 
 import probslam as ps
 from probslam import _core
+from probslam.sim import cast_ranges
 
 # A rectangular corridor loop (outer 20 x 12 m, inner block 3..17 x 3..9) with alcoves and
 # pillars so that no stretch is a featureless corridor.
@@ -38,19 +39,7 @@ MAX_RANGE = 12.0
 
 def cast(pose):
     """Ranges from `pose` to the nearest segment along each beam (MAX_RANGE where none)."""
-    d = np.stack([np.cos(pose[2] + ANGLES), np.sin(pose[2] + ANGLES)], axis=1)
-    out = np.full(len(ANGLES), np.inf)
-    for p, q in SEGMENTS:
-        e = q - p
-        det = -d[:, 0] * e[1] + d[:, 1] * e[0]
-        w = p - pose[:2]
-        with np.errstate(divide="ignore", invalid="ignore"):
-            t = (-w[0] * e[1] + w[1] * e[0]) / det
-            u = (d[:, 0] * w[1] - d[:, 1] * w[0]) / det
-        ok = (np.abs(det) > 1e-12) & (t > 0) & (u >= 0) & (u <= 1)
-        out[ok] = np.minimum(out[ok], t[ok])
-    out[out >= MAX_RANGE] = MAX_RANGE
-    return out
+    return np.minimum(cast_ranges(pose, ANGLES, SEGMENTS), MAX_RANGE)
 
 
 def corridor_drive(laps=1.25, step=0.25, bias=0.0015, seed=5):
@@ -249,3 +238,11 @@ def test_scans_with_no_valid_reading_take_the_odometry(drive):
     info = slam.scan_info
     assert (info[10:13, 4] == 0).all() and not info[10:13, 0].any()
     assert np.isfinite(slam.scan_poses).all()
+
+
+def test_cast_ranges_against_the_analytic_wall():
+    a = np.linspace(-1.5, 1.5, 61)
+    r = cast_ranges([0.0, 0.0, 0.3], a, [((2.0, -5.0), (2.0, 5.0))])
+    inside = np.abs(np.tan(a + 0.3)) * 2.0 <= 5.0
+    np.testing.assert_allclose(r[inside & (np.cos(a + 0.3) > 0)], 2.0 / np.cos(a + 0.3)[inside & (np.cos(a + 0.3) > 0)])
+    assert np.isinf(r[~inside]).all()
