@@ -129,6 +129,7 @@ void MatchOptions::validate() const {
 
 CorrelativeScanMatcher::CorrelativeScanMatcher(LikelihoodField field, int max_level) : field_(std::move(field)) {
   require(max_level >= 0 && max_level <= kMaxLevel, "max_level", "must be in [0, 10]");
+  floor_ = field_.floor_value();
   pyramid_.resize(static_cast<std::size_t>(max_level) + 1);
   Level& base = pyramid_[0];
   base.width = field_.width();
@@ -143,25 +144,19 @@ CorrelativeScanMatcher::CorrelativeScanMatcher(LikelihoodField field, int max_le
     L.width = base.width + L.pad;
     L.height = base.height + L.pad;
     L.values.resize(static_cast<std::size_t>(L.width) * L.height);
+    // In stored indices level k's (i, j) is the maximum of level k-1's (i - half | i, j - half | j)
+    // (the pads differ by half); outside level k-1 the floor. Rows first, then the column pair.
+    const Level& P = pyramid_[static_cast<std::size_t>(k - 1)];
+    std::vector<float> pair(static_cast<std::size_t>(P.width));
     for (int i = 0; i < L.height; ++i) {
-      const int r = i - L.pad;
-      for (int j = 0; j < L.width; ++j) {
-        const int c = j - L.pad;
-        L.values[static_cast<std::size_t>(i) * L.width + j] =
-            std::max(std::max(level_value(k - 1, r, c), level_value(k - 1, r, c + half)),
-                     std::max(level_value(k - 1, r + half, c), level_value(k - 1, r + half, c + half)));
-      }
+      const float* a = i - half >= 0 ? &P.values[static_cast<std::size_t>(i - half) * P.width] : nullptr;
+      const float* b = i < P.height ? &P.values[static_cast<std::size_t>(i) * P.width] : nullptr;
+      for (int j = 0; j < P.width; ++j) pair[j] = std::max(a ? a[j] : floor_, b ? b[j] : floor_);
+      float* out = &L.values[static_cast<std::size_t>(i) * L.width];
+      for (int j = 0; j < L.width; ++j)
+        out[j] = std::max(j - half >= 0 ? pair[j - half] : floor_, j < P.width ? pair[j] : floor_);
     }
   }
-}
-
-float CorrelativeScanMatcher::level_value(int k, int row, int col) const {
-  const Level& L = pyramid_[static_cast<std::size_t>(k)];
-  const int i = row + L.pad, j = col + L.pad;
-  if (static_cast<unsigned>(i) >= static_cast<unsigned>(L.height) ||
-      static_cast<unsigned>(j) >= static_cast<unsigned>(L.width))
-    return field_.floor_value();
-  return L.values[static_cast<std::size_t>(i) * L.width + j];
 }
 
 double CorrelativeScanMatcher::evaluate(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& pose,

@@ -107,13 +107,27 @@ LikelihoodField LikelihoodField::from_grid(const OccupancyGrid2D& grid, const Ei
     distance_transform_1d(tmp.data() + off, sq.data() + off, field.width_, 1, v, z);
   }
 
+  // Squared distances are whole numbers of cells, and every one beyond the truncation maps to
+  // it: the distance and log p of each are computed once, for the few below it.
   const double cap = options.truncation();
+  const double cap_cells = cap * field.inv_res_ + 0.5;
+  const std::size_t distinct = static_cast<std::size_t>(std::ceil(cap_cells * cap_cells)) + 1;
+  std::vector<float> dist_of(distinct), logp_of(distinct);
+  auto distance_of = [&](double sq_cells) {
+    return std::min(cap, std::max(0.0, (std::sqrt(sq_cells) - 0.5) * field.res_));  // inf -> cap
+  };
+  for (std::size_t k = 0; k < distinct; ++k) {
+    dist_of[k] = static_cast<float>(distance_of(static_cast<double>(k)));
+    logp_of[k] = static_cast<float>(field.log_likelihood_of_distance(distance_of(static_cast<double>(k))));
+  }
+  const float far_d = static_cast<float>(cap), far_logp = static_cast<float>(field.log_likelihood_of_distance(cap));
   field.distance_.resize(n);
   field.log_likelihood_.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
-    const double d = std::min(cap, std::max(0.0, (std::sqrt(double(sq[i])) - 0.5) * field.res_));  // inf -> cap
-    field.distance_[i] = static_cast<float>(d);
-    field.log_likelihood_[i] = static_cast<float>(field.log_likelihood_of_distance(d));
+    const bool near = sq[i] < static_cast<float>(distinct);
+    const std::size_t k = near ? static_cast<std::size_t>(sq[i]) : 0;
+    field.distance_[i] = near ? dist_of[k] : far_d;
+    field.log_likelihood_[i] = near ? logp_of[k] : far_logp;
   }
   field.build_tables();
   return field;

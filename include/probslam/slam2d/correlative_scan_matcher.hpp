@@ -103,7 +103,15 @@ class CorrelativeScanMatcher {
     int width = 0, height = 0;
     std::vector<float> values;
   };
-  float level_value(int k, int row, int col) const;
+  // In the header so that the search's inner loop inlines it (it is most of a match's time).
+  float level_value(int k, int row, int col) const {
+    const Level& L = pyramid_[static_cast<std::size_t>(k)];
+    const int i = row + L.pad, j = col + L.pad;
+    if (static_cast<unsigned>(i) >= static_cast<unsigned>(L.height) ||
+        static_cast<unsigned>(j) >= static_cast<unsigned>(L.width))
+      return floor_;
+    return L.values[static_cast<std::size_t>(i) * L.width + j];
+  }
   /// Score (sum of log p + log prior) at pose; with hessian/gradient also the Gauss-Newton
   /// terms of the negative score; quality: mean exp(-d^2 / 2 sigma^2).
   double evaluate(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& pose,
@@ -147,6 +155,7 @@ class CorrelativeScanMatcher {
                                 double angular_step, bool stationary) const;
 
   LikelihoodField field_;
+  float floor_ = 0.0f;  // field_.floor_value(), kept beside the pyramid
   std::vector<Level> pyramid_;  // immutable after construction: match() is thread-safe
 };
 
