@@ -21,6 +21,8 @@
 #include "probslam/slam2d/correlative_scan_matcher.hpp"
 #include "probslam/slam2d/likelihood_field.hpp"
 #include "probslam/slam2d/range_scan.hpp"
+#include "probslam/slam2d/submap_slam.hpp"
+#include "probslam/core/pose2.hpp"
 #include "test_support.hpp"
 
 using namespace probslam;
@@ -464,4 +466,88 @@ TEST(Slam2dBadInput, EachNamesItsArgument) {
                  "beam_angles");
   expect_invalid([&] { scan_hits(Eigen::VectorXd::Ones(2), Eigen::Vector2d(0, nan), ScanFilter{}); },
                  "beam_angles");
+}
+
+namespace {
+
+// Two laps around the room's box with odometry whose heading drifts 0.003 rad per 0.2 m step.
+struct LoopDrive {
+  std::vector<Eigen::Vector3d> truth, odometry;
+  std::vector<Eigen::VectorXd> ranges;
+};
+
+LoopDrive loop_drive(int steps) {
+  std::mt19937 rng(17);
+  std::normal_distribution<double> noise(0.0, 0.01);
+  LoopDrive d;
+  for (int k = 0; k < steps; ++k) {
+    const double s = 4.0 * kPi * k / steps;
+    d.truth.emplace_back(1.5 + 2.6 * std::cos(s), 1.5 + 2.6 * std::sin(s), wrap_angle(s + kPi / 2));
+  }
+  d.odometry.push_back(d.truth[0]);
+  for (int k = 1; k < steps; ++k) {
+    Eigen::Vector3d step = Pose2::from_vector(d.truth[k - 1]).between(Pose2::from_vector(d.truth[k])).vector();
+    step.z() += 0.003;
+    d.odometry.push_back(Pose2::from_vector(d.odometry.back()).compose(Pose2::from_vector(step)).vector());
+  }
+  for (const Eigen::Vector3d& p : d.truth) {
+    Eigen::VectorXd r = cast(p, fan(), room_walls());
+    for (Eigen::Index b = 0; b < r.size(); ++b) r[b] += noise(rng);
+    d.ranges.push_back(r);
+  }
+  return d;
+}
+
+double end_error(const std::vector<Eigen::Vector3d>& poses, const std::vector<Eigen::Vector3d>& truth) {
+  return (poses.back().head<2>() - truth.back().head<2>()).norm();
+}
+
+}  // namespace
+
+TEST(Slam2dSubmapSlam, LoopClosuresRemoveTheOdometryDrift) {
+  const LoopDrive d = loop_drive(160);
+  SubmapSlamOptions o;
+  o.frontend.filter.max_range = 30.0;
+  o.frontend.min_match_quality = 1.0;  // the frontend keeps the odometry: only closures can help
+  o.frontend.submap_distance = 4.0;
+  SubmapSlam2D slam(o);
+  for (std::size_t k = 0; k < d.truth.size(); ++k) slam.add_scan(d.ranges[k], fan(), d.odometry[k], double(k));
+  slam.finish();
+  const SubmapSlamSummary s = slam.summary();
+  EXPECT_GE(s.closures_accepted, 2);
+  EXPECT_GT(end_error(d.odometry, d.truth), 1.0);
+  // Each submap's origin (its node) is back on the truth; scans inside a submap keep the
+  // odometry's drift since its origin (0.06 rad over a 4 m submap here), so only their median is.
+  for (int j = 0; j < slam.num_submaps(); ++j) {
+    const int origin_scan = slam.frontend().submaps()[j].scans.front();
+    EXPECT_LT((slam.submap_poses()[j].head<2>() - d.truth[origin_scan].head<2>()).norm(), 0.1) << "submap " << j;
+  }
+  std::vector<double> errors;
+  const std::vector<Eigen::Vector3d> poses = slam.scan_poses();
+  for (std::size_t k = 0; k < poses.size(); ++k) errors.push_back((poses[k] - d.truth[k]).head<2>().norm());
+  std::nth_element(errors.begin(), errors.begin() + errors.size() / 2, errors.end());
+  EXPECT_LT(errors[errors.size() / 2], 0.1);
+  EXPECT_TRUE(std::isfinite(s.final_chi2));
+  const PoseGraph2D g = slam.graph();
+  EXPECT_EQ(g.num_vertices(), slam.num_submaps());
+  for (const SubmapConstraint& c : slam.constraints()) {
+    EXPECT_LT((c.covariance - c.covariance.transpose()).cwiseAbs().maxCoeff(), 1e-12);
+    EXPECT_GT(Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(c.covariance).eigenvalues().minCoeff(), 0.0);
+  }
+}
+
+TEST(Slam2dSubmapSlam, BadOptionsAndEmptyInput) {
+  SubmapSlamOptions o;
+  o.closures.scans_per_submap = 0;
+  expect_invalid([&] { SubmapSlam2D s(o); }, "scans_per_submap");
+  o = SubmapSlamOptions();
+  o.closures.max_angular_window = 4.0;
+  expect_invalid([&] { SubmapSlam2D s(o); }, "angular_window");
+  o = SubmapSlamOptions();
+  o.max_rounds = 0;
+  expect_invalid([&] { SubmapSlam2D s(o); }, "max_rounds");
+  SubmapSlam2D empty;
+  empty.finish();
+  EXPECT_EQ(empty.num_scans(), 0);
+  expect_invalid([&] { empty.map(); }, "scans");
 }
