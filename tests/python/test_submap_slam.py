@@ -90,7 +90,10 @@ def test_loop_closes_with_odometry_only_frontend(drive):
     # min_match_quality 1 turns the frontend's matches down: submaps are built on odometry alone,
     # so only the loop closures can remove the drift.
     true, odo, _ = drive
-    slam = run(drive, min_match_quality=1.0, submap_distance=4.0)
+    # Submaps built on drifting odometry are blurred by the drift inside them, so their matches
+    # score lower than scan-matched ones: 0.55 rather than the default 0.6 (measured: 0.55
+    # closes the loop to 0.20 m at most, 0.6 to 0.38 m, and 0.5 accepts wrong closures).
+    slam = run(drive, min_match_quality=1.0, submap_distance=4.0, closure_min_match_quality=0.55)
     odo_err = position_errors(odo, true)
     err = position_errors(slam.scan_poses, true)
     s = slam.summary
