@@ -190,6 +190,13 @@ Eigen::VectorXd timestamps_of(const IncrementalScanMatcher& frontend) {
   return Eigen::Map<const Eigen::VectorXd>(frontend.timestamps().data(), frontend.num_scans());
 }
 
+/// (S, 3) the frontend's pose of every scan.
+Poses2 estimate_poses(const IncrementalScanMatcher& frontend) {
+  Poses2 p(frontend.num_scans(), 3);
+  for (int k = 0; k < frontend.num_scans(); ++k) p.row(k) = frontend.estimates()[k].pose.transpose();
+  return p;
+}
+
 Poses2 rows_of(const std::vector<Eigen::Vector3d>& poses) {
   Poses2 p(static_cast<Eigen::Index>(poses.size()), 3);
   for (std::size_t k = 0; k < poses.size(); ++k) p.row(static_cast<Eigen::Index>(k)) = poses[k].transpose();
@@ -326,13 +333,7 @@ void define_slam2d(py::module_& m) {
       .def("add_scans", &add_scans<ISM>, py::arg("ranges"), py::arg("beam_angles"), py::arg("odometry"),
            py::arg("timestamps"))
       .def_property_readonly("num_scans", getter(&ISM::num_scans))
-      .def_property_readonly("poses", [](const ISM& self) {
-        return locked(self, [&] {
-          Poses2 p(self.num_scans(), 3);
-          for (int k = 0; k < self.num_scans(); ++k) p.row(k) = self.estimates()[k].pose.transpose();
-          return p;
-        });
-      })
+      .def_property_readonly("poses", [](const ISM& self) { return locked(self, [&] { return estimate_poses(self); }); })
       .def_property_readonly("timestamps", [](const ISM& self) { return locked(self, [&] { return timestamps_of(self); }); })
       .def_property_readonly("scan_info", [](const ISM& self) { return locked(self, [&] { return scan_info(self); }); })
       .def_property_readonly("num_submaps", [](const ISM& self) { return locked(self, [&] { return self.submaps().size(); }); })
@@ -357,13 +358,8 @@ void define_slam2d(py::module_& m) {
       .def_property_readonly("num_scans", getter(&Slam::num_scans))
       .def_property_readonly("num_submaps", getter(&Slam::num_submaps))
       .def_property_readonly("scan_poses", [](const Slam& self) { return locked(self, [&] { return rows_of(self.scan_poses()); }); })
-      .def_property_readonly("frontend_poses", [](const Slam& self) {
-        return locked(self, [&] {
-          std::vector<Eigen::Vector3d> p;
-          for (const ScanEstimate& e : self.frontend().estimates()) p.push_back(e.pose);
-          return rows_of(p);
-        });
-      })
+      .def_property_readonly("frontend_poses",
+                             [](const Slam& self) { return locked(self, [&] { return estimate_poses(self.frontend()); }); })
       .def_property_readonly("submap_poses", [](const Slam& self) { return locked(self, [&] { return rows_of(self.submap_poses()); }); })
       .def_property_readonly("timestamps", [](const Slam& self) { return locked(self, [&] { return timestamps_of(self.frontend()); }); })
       .def_property_readonly("scan_info", [](const Slam& self) { return locked(self, [&] { return scan_info(self.frontend()); }); })

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 from typing import Any, Dict, Optional, Union
 
 import numpy as np
+from tqdm import tqdm
 
 from . import _core
 from .io.carmen import CarmenLog, LaserScans, read_carmen_log
@@ -98,16 +99,13 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, progress: Optional[
     slam = _core.SubmapSlam2D(**opts)
     angles = scans.beam_angles()
     t0 = time.perf_counter()
-    bar = _progress_bar(len(scans), progress)
-    try:
+    # As map_laser_log: disable=None lets tqdm show the bar only on a terminal.
+    with tqdm(total=len(scans), unit="scan", desc="slam",
+              disable=(None if progress is None else not progress)) as bar:
         for a in range(0, len(scans), chunk):
             b = min(len(scans), a + chunk)
             slam.add_scans(scans.ranges[a:b], angles[a:b], scans.laser_poses[a:b], scans.timestamps[a:b])
-            if bar is not None:
-                bar.update(b - a)
-    finally:
-        if bar is not None:
-            bar.close()
+            bar.update(b - a)
     frontend = slam.frontend_poses
     slam.finish()
     grid = slam.map()
@@ -123,18 +121,6 @@ def write_trajectory(path: PathLike, timestamps: np.ndarray, poses: np.ndarray) 
     """One line per scan: ``timestamp x y theta`` (s, m, m, rad), the TUM-like text layout."""
     data = np.column_stack([timestamps, poses])
     np.savetxt(os.fspath(path), data, fmt="%.6f", header="timestamp x y theta")
-
-
-def _progress_bar(total: int, progress: Optional[bool]):
-    import sys
-
-    if progress is False or (progress is None and not sys.stderr.isatty()):
-        return None
-    try:
-        from tqdm import tqdm
-    except ImportError:  # optional: no bar without it
-        return None
-    return tqdm(total=total, unit="scan", desc="slam")
 
 
 __all__ = ["SlamResult", "has_odometry", "run_slam", "write_trajectory", "NO_ODOMETRY_MOTION"]

@@ -6,6 +6,7 @@
 #include "probslam/core/angle.hpp"
 #include "probslam/core/check.hpp"
 #include "probslam/core/pose2.hpp"
+#include "probslam/core/pose2_covariance.hpp"
 
 namespace probslam {
 
@@ -17,12 +18,6 @@ constexpr double kGrowMargin = 10.0;
 /// A field is built this far (m) beyond the region the scan needs: the next scans, a few cm
 /// on, then land inside it and reuse it.
 constexpr double kFieldRoom = 2.0;
-
-Eigen::Matrix3d frame_jacobian(double theta) {
-  Eigen::Matrix3d J = Eigen::Matrix3d::Identity();
-  J.topLeftCorner<2, 2>() = rotation_matrix(theta);
-  return J;
-}
 
 }  // namespace
 
@@ -170,7 +165,7 @@ ScanEstimate IncrementalScanMatcher::add_scan(const Eigen::Ref<const Eigen::Vect
     const bool moved = delta.head<2>().norm() >= options_.min_travel || std::abs(delta.z()) >= options_.min_rotation;
     if (moved) {
       Submap& cur = submaps_.back();
-      const Eigen::Matrix3d J = frame_jacobian(matched_pose_.z());
+      const Eigen::Matrix3d J = frame_rotation(matched_pose_.z());
       if (points.rows() > 0 && static_cast<int>(cur.scans.size()) >= options_.warmup_scans) {
         const MatchResult r = match(cur, points, prior, J * rel_cov * J.transpose());
         est.match_quality = r.match_quality;

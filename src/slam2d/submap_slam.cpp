@@ -12,6 +12,7 @@
 #include "probslam/core/angle.hpp"
 #include "probslam/core/check.hpp"
 #include "probslam/core/pose2.hpp"
+#include "probslam/core/pose2_covariance.hpp"
 
 namespace probslam {
 
@@ -33,41 +34,6 @@ constexpr double kClosureScoreSlack = 1.25;
 constexpr int kMinClosurePoints = 30;
 
 Pose2 pose_of(const Eigen::Vector3d& v) { return Pose2::from_vector(v); }
-
-Eigen::Matrix3d frame_rotation(double theta) {
-  Eigen::Matrix3d J = Eigen::Matrix3d::Identity();
-  J.topLeftCorner<2, 2>() = rotation_matrix(theta);
-  return J;
-}
-
-/// Jacobians of a (+) b with respect to a and to b.
-void compose_jacobians(const Eigen::Vector3d& a, const Eigen::Vector3d& b, Eigen::Matrix3d& Ja, Eigen::Matrix3d& Jb) {
-  const Eigen::Vector2d rb = rotation_matrix(a.z()) * b.head<2>();
-  Ja = Eigen::Matrix3d::Identity();
-  Ja(0, 2) = -rb.y();
-  Ja(1, 2) = rb.x();
-  Jb = frame_rotation(a.z());
-}
-
-/// Covariance of a (+) b for independent a and b.
-Eigen::Matrix3d compose_covariance(const Eigen::Vector3d& a, const Eigen::Matrix3d& Sa, const Eigen::Vector3d& b,
-                                   const Eigen::Matrix3d& Sb) {
-  Eigen::Matrix3d Ja, Jb;
-  compose_jacobians(a, b, Ja, Jb);
-  const Eigen::Matrix3d S = Ja * Sa * Ja.transpose() + Jb * Sb * Jb.transpose();
-  return 0.5 * (S + S.transpose());
-}
-
-/// Jacobian of the inverse pose a^-1 = (-R^T t, -theta) with respect to a.
-Eigen::Matrix3d inverse_jacobian(const Eigen::Vector3d& a) {
-  const double c = std::cos(a.z()), s = std::sin(a.z());
-  Eigen::Matrix3d J = Eigen::Matrix3d::Zero();
-  J.topLeftCorner<2, 2>() = -rotation_matrix(a.z()).transpose();
-  J(0, 2) = s * a.x() - c * a.y();
-  J(1, 2) = c * a.x() + s * a.y();
-  J(2, 2) = -1.0;
-  return J;
-}
 
 double largest_eigenvalue(const Eigen::Matrix2d& m) {
   return Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(0.5 * (m + m.transpose())).eigenvalues()(1);
@@ -205,7 +171,6 @@ void SubmapSlam2D::link_finished_submap(int j) {
   constraints_.push_back(c);
   nodes_.push_back(pose_of(nodes_[j]).compose(pose_of(z)).vector());
   if (options_.closures.enabled && search_closures(j) > 0) optimize_and_dissolve();
-  finished_ = j + 1;
 }
 
 int SubmapSlam2D::search_closures(int j) {
@@ -331,8 +296,7 @@ PoseGraph2D SubmapSlam2D::graph() const {
   for (std::size_t k = 0; k < nodes_.size(); ++k) g.add_pose(static_cast<int>(k), nodes_[k]);
   if (!nodes_.empty()) g.set_fixed(0);
   for (const SubmapConstraint& c : constraints_)
-    if (c.active && c.to < static_cast<int>(nodes_.size()))
-      g.add_pose_edge(c.from, c.to, c.measurement, c.covariance.inverse());
+    if (c.active) g.add_pose_edge(c.from, c.to, c.measurement, c.covariance.inverse());
   return g;
 }
 
@@ -378,7 +342,6 @@ void SubmapSlam2D::finish() {
   } else if (last > 0) {
     optimize_and_dissolve();
   }
-  finished_ = last + 1;
 }
 
 std::vector<Eigen::Vector3d> SubmapSlam2D::scan_poses() const {
@@ -405,10 +368,12 @@ OccupancyGrid2D SubmapSlam2D::map(double resolution) const {
   ScanFilter filter = options_.frontend.filter;
   filter.clear_no_return = false;
   const double reach = filter.usable_range();
+  std::vector<Eigen::VectorXd> ranges(poses.size());
   Eigen::Vector2d lo = poses[0].head<2>(), hi = lo;
   for (std::size_t s = 0; s < poses.size(); ++s) {
     // The extent of what the scan saw (hits and cleared space), not of the sensor's reach.
-    const Eigen::VectorXd r = ranges_for_insertion(ranges_[s], filter);
+    ranges[s] = ranges_for_insertion(ranges_[s], filter);
+    const Eigen::VectorXd& r = ranges[s];
     const Pose2 p = pose_of(poses[s]);
     for (Eigen::Index b = 0; b < r.size(); ++b) {
       if (!std::isfinite(r[b])) continue;
@@ -421,8 +386,7 @@ OccupancyGrid2D SubmapSlam2D::map(double resolution) const {
     hi = hi.cwiseMax(p.translation());
   }
   OccupancyGrid2D grid = OccupancyGrid2D::covering(lo.x() - res, lo.y() - res, hi.x() + res, hi.y() + res, res);
-  for (std::size_t s = 0; s < poses.size(); ++s)
-    grid.insert_rays(poses[s], ranges_for_insertion(ranges_[s], filter), angles_[s], reach);
+  for (std::size_t s = 0; s < poses.size(); ++s) grid.insert_rays(poses[s], ranges[s], angles_[s], reach);
   return grid;
 }
 

@@ -9,6 +9,7 @@
 
 #include "probslam/core/angle.hpp"
 #include "probslam/core/pose2.hpp"
+#include "probslam/core/pose2_covariance.hpp"
 #include "probslam/core/range_bearing_model.hpp"
 #include "probslam/core/spatial_hash_2d.hpp"
 #include "probslam/core/velocity_motion_model.hpp"
@@ -161,4 +162,27 @@ TEST(SpatialHash2D, QueriesMatchBruteForceAtAnyCoordinate) {
     }
     EXPECT_EQ(got, want) << "query at " << q[0] << ", " << q[1];
   }
+}
+
+TEST(Pose2Covariance, JacobiansMatchFiniteDifferences) {
+  std::mt19937 rng(4);
+  std::uniform_real_distribution<double> u(-3.0, 3.0);
+  auto vec = [](const Pose2& p) -> Eigen::VectorXd { return p.vector(); };
+  for (int trial = 0; trial < 20; ++trial) {
+    const Eigen::Vector3d a(u(rng), u(rng), u(rng) * 0.9), b(u(rng), u(rng), u(rng) * 0.9);
+    Eigen::Matrix3d Ja, Jb;
+    compose_jacobians(a, b, Ja, Jb);
+    auto f_a = [&](const Eigen::VectorXd& x) { return vec(Pose2::from_vector(x).compose(Pose2::from_vector(b))); };
+    auto f_b = [&](const Eigen::VectorXd& x) { return vec(Pose2::from_vector(a).compose(Pose2::from_vector(x))); };
+    auto f_inv = [&](const Eigen::VectorXd& x) { return vec(Pose2::from_vector(x).inverse()); };
+    EXPECT_LT((Eigen::MatrixXd(Ja) - numeric_jacobian(f_a, a, true)).norm(), kFdTolerance);
+    EXPECT_LT((Eigen::MatrixXd(Jb) - numeric_jacobian(f_b, b, true)).norm(), kFdTolerance);
+    EXPECT_LT((Eigen::MatrixXd(inverse_jacobian(a)) - numeric_jacobian(f_inv, a, true)).norm(), kFdTolerance);
+    // compose_covariance is J_a Sa J_a^T + J_b Sb J_b^T, symmetric.
+    const Eigen::Matrix3d Sa = Eigen::Vector3d(0.1, 0.2, 0.03).asDiagonal(), Sb = Eigen::Vector3d(0.05, 0.01, 0.02).asDiagonal();
+    const Eigen::Matrix3d S = compose_covariance(a, Sa, b, Sb);
+    EXPECT_LT((S - (Ja * Sa * Ja.transpose() + Jb * Sb * Jb.transpose())).norm(), 1e-12);
+    EXPECT_EQ(S, S.transpose());
+  }
+  EXPECT_LT((frame_rotation(0.7).topLeftCorner<2, 2>() - rotation_matrix(0.7)).norm(), 1e-15);
 }

@@ -60,7 +60,7 @@ struct Submap {
   OccupancyGrid2D grid;
   Eigen::Vector3d origin;  ///< pose of the first scan, world frame of the frontend
   std::vector<int> scans;  ///< indices of the scans inserted
-  double travel = 0.0;     ///< odometry distance covered, m
+  double travel = 0.0;     ///< distance covered by the scans' estimated poses, m
   int matched = 0;
 };
 

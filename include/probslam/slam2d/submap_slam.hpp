@@ -137,7 +137,6 @@ class SubmapSlam2D {
   // Scan-submap pairs searched, with where the graph predicted the scan then.
   std::map<std::pair<int, int>, Eigen::Vector3d> attempts_;
   std::unique_ptr<FieldCache> fields_;
-  int finished_ = 0;  // submaps linked and searched
   SubmapSlamSummary counts_;
   ObjectMutex mutex_;
 };
