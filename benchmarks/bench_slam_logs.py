@@ -53,6 +53,8 @@ LOGS = {
     "mit_csail": ("MIT CSAIL", "mit_csail/mit-csail.clf.bz2", None, None),
 }
 QUICK_SCANS = 1500
+#: Relations spanning less than this (s) are "short": consecutive-scan geometry, no loop in them.
+SHORT_RELATION = 1.0
 #: Largest |logger timestamp difference| of a corrected scan and its raw twin (s).
 PAIR_TOLERANCE = 0.01
 
@@ -95,6 +97,24 @@ def pair_scans(raw_path, raw_scans, corrected_path):
     if ambiguous:
         note += f", {ambiguous} ambiguous left out"
     return np.array(raw_index, int), corrected.laser_poses[cor_index], len(corrected), note
+
+
+def relations_breakdown(timestamps, poses, rel):
+    """Where a trajectory's relations error comes from: mean translational error (m) of the short
+    (|t2 - t1| < SHORT_RELATION) and the other relations, and for the short ones the mean absolute
+    error along the reference displacement and across it."""
+    e = ps.eval.relations_error(timestamps, poses, rel)
+    t1, t2, ref = rel.t1[e.used], rel.t2[e.used], rel.delta[e.used]
+    x1, x2 = (ps.eval.interpolate_poses(timestamps, poses, t) for t in (t1, t2))
+    c, s = np.cos(x1[:, 2]), np.sin(x1[:, 2])
+    dx, dy = x2[:, 0] - x1[:, 0], x2[:, 1] - x1[:, 1]
+    err = np.column_stack([c * dx + s * dy, -s * dx + c * dy]) - ref[:, :2]
+    u = ref[:, :2] / np.maximum(np.linalg.norm(ref[:, :2], axis=1, keepdims=True), 1e-12)
+    along, across = np.abs(np.sum(err * u, axis=1)), np.abs(err[:, 1] * u[:, 0] - err[:, 0] * u[:, 1])
+    short = np.abs(t2 - t1) < SHORT_RELATION
+    mean = lambda v: float(v.mean()) if v.size else float("nan")
+    return (f"short ({short.sum()}): {mean(e.translational[short]):.3f} m (along {mean(along[short]):.3f}, "
+            f"across {mean(across[short]):.3f}); longer ({(~short).sum()}): {mean(e.translational[~short]):.3f} m")
 
 
 def align_2d(src: np.ndarray, dst: np.ndarray):
@@ -144,11 +164,16 @@ def run_log(name, quick, figures):
     if relations is not None:
         rel = LASER / relations
         if rel.exists():
-            for label, poses in trajectories:
-                e = ps.eval.relations_error(result.timestamps, poses, rel)
+            relations_file = ps.eval.read_relations(rel)
+            breakdown = []
+            for label, poses in trajectories + [("raw odometry", scans.laser_poses)]:
+                e = ps.eval.relations_error(result.timestamps, poses, relations_file)
                 acc.append(f"| {title} | {label} | relations ({rel.name}) | {len(e.used)} used, {e.skipped} skipped | "
                            f"{e.trans_mean:.3f} +- {e.trans_std:.3f} m (mean +- std) | "
                            f"{e.rot_mean_deg:.2f} +- {e.rot_std_deg:.2f} deg (mean +- std) |")
+                breakdown.append(f"{label}: " + relations_breakdown(result.timestamps, poses, relations_file))
+            notes.append(f"{title} relations by span (< {SHORT_RELATION:g} s is short; along / across the reference "
+                         "displacement): " + "; ".join(breakdown) + ".")
         else:
             notes.append(f"{title}: {rel} not found; relations error skipped.")
     if corrected is not None:
