@@ -49,6 +49,8 @@ void check_bounds(double xmin, double ymin, double xmax, double ymax) {
   require(std::isfinite(ymin) && std::isfinite(ymax) && ymin <= ymax, "ymin", "must be finite and <= ymax");
 }
 
+}  // namespace
+
 void check_scan_shape(const Eigen::Vector3d& pose, const Eigen::Ref<const Eigen::VectorXd>& ranges,
                       const Eigen::Ref<const Eigen::VectorXd>& beam_angles) {
   require_all_finite(pose, "pose");
@@ -57,7 +59,38 @@ void check_scan_shape(const Eigen::Vector3d& pose, const Eigen::Ref<const Eigen:
   require_all_finite(beam_angles, "beam_angles");
 }
 
-}  // namespace
+bool laser_segments(const GridLattice2D& lattice, int width, int height, const Eigen::Vector3d& pose,
+                    const Eigen::Ref<const Eigen::VectorXd>& ranges, const Eigen::Ref<const Eigen::VectorXd>& beam_angles,
+                    double max_range, LaserSegments2D& out) {
+  out.origin[0] = pose.x();
+  out.origin[1] = pose.y();
+  out.ends.clear();
+  out.is_hit.clear();
+  // A scan farther than max_range from the grid cannot touch it.
+  const double x1 = lattice.x0 + width * lattice.res, y1 = lattice.y0 + height * lattice.res;
+  const double gap_x = std::max({lattice.x0 - pose.x(), pose.x() - x1, 0.0});
+  const double gap_y = std::max({lattice.y0 - pose.y(), pose.y() - y1, 0.0});
+  if (std::hypot(gap_x, gap_y) > max_range) return false;
+  const double reach = std::hypot(std::max(std::fabs(pose.x() - lattice.x0), std::fabs(pose.x() - x1)),
+                                  std::max(std::fabs(pose.y() - lattice.y0), std::fabs(pose.y() - y1))) +
+                       2.0 * lattice.res;
+  const double cut = std::isfinite(kRayCutSlack * reach) ? kRayCutSlack * reach : reach;
+
+  const Eigen::Index n = ranges.size();
+  out.ends.reserve(2 * n);
+  out.is_hit.reserve(n);
+  for (Eigen::Index i = 0; i < n; ++i) {
+    const double r = ranges[i];
+    if (!(std::isfinite(r) && r >= 0.0)) continue;  // invalid reading: skipped
+    const bool hit = r < max_range;
+    const double length = std::min(hit ? r : max_range, cut);  // a cut end lies outside: no hit
+    const double a = pose[2] + beam_angles[i];
+    out.ends.push_back(pose.x() + length * std::cos(a));
+    out.ends.push_back(pose.y() + length * std::sin(a));
+    out.is_hit.push_back(hit);
+  }
+  return true;
+}
 
 /// The grid as apply_scan sees it: a bounded store whose cells change once per scan.
 class GridScanStore {
@@ -183,34 +216,10 @@ std::size_t OccupancyGrid2D::insert_rays_checked(const Eigen::Vector3d& pose,
                                                  const Eigen::Ref<const Eigen::VectorXd>& ranges,
                                                  const Eigen::Ref<const Eigen::VectorXd>& beam_angles,
                                                  double max_range) {
-  // A scan farther than max_range from the grid cannot touch it.
-  const double x1 = lattice_.x0 + width_ * lattice_.res, y1 = lattice_.y0 + height_ * lattice_.res;
-  const double gap_x = std::max({lattice_.x0 - pose.x(), pose.x() - x1, 0.0});
-  const double gap_y = std::max({lattice_.y0 - pose.y(), pose.y() - y1, 0.0});
-  if (std::hypot(gap_x, gap_y) > max_range) return 0;
-  const double reach = std::hypot(std::max(std::fabs(pose.x() - lattice_.x0), std::fabs(pose.x() - x1)),
-                                  std::max(std::fabs(pose.y() - lattice_.y0), std::fabs(pose.y() - y1))) +
-                       2.0 * lattice_.res;
-  const double cut = std::isfinite(kRayCutSlack * reach) ? kRayCutSlack * reach : reach;
-
-  const Eigen::Index n = ranges.size();
-  std::vector<double> ends;
-  std::vector<std::uint8_t> is_hit;
-  ends.reserve(2 * n);
-  is_hit.reserve(n);
-  for (Eigen::Index i = 0; i < n; ++i) {
-    const double r = ranges[i];
-    if (!(std::isfinite(r) && r >= 0.0)) continue;  // invalid reading: skipped
-    const bool hit = r < max_range;
-    const double length = std::min(hit ? r : max_range, cut);  // a cut end lies outside: no hit
-    const double a = pose[2] + beam_angles[i];
-    ends.push_back(pose.x() + length * std::cos(a));
-    ends.push_back(pose.y() + length * std::sin(a));
-    is_hit.push_back(hit);
-  }
-  const double origin[2] = {pose.x(), pose.y()};
+  LaserSegments2D segments;
+  if (!laser_segments(lattice_, width_, height_, pose, ranges, beam_angles, max_range, segments)) return 0;
   GridScanStore store(*this);
-  return apply_scan<2, double>(lattice_, store, {origin, ends.data(), is_hit.data(), is_hit.size()});
+  return apply_scan<2, double>(lattice_, store, segments.view());
 }
 
 std::size_t OccupancyGrid2D::insert_scans(const Eigen::Ref<const Poses2>& poses,

@@ -12,6 +12,7 @@
 #include "probslam/grid/inverse_range_sensor_model.hpp"
 #include "probslam/grid/log_odds.hpp"
 #include "probslam/grid/ray_traversal.hpp"
+#include "probslam/grid/scan_update.hpp"
 
 namespace probslam {
 
@@ -147,6 +148,28 @@ class OccupancyGrid2D {
   std::uint32_t scan_counter_ = 0;
   ObjectMutex mutex_;
 };
+
+/// A laser scan's rays as the segments apply_scan walks (grid/scan_update.hpp).
+struct LaserSegments2D {
+  double origin[2] = {0.0, 0.0};
+  std::vector<double> ends;           // x, y of each ray's end
+  std::vector<std::uint8_t> is_hit;   // 1 where the ray ends in an obstacle
+  ScanSegments<2, double> view() const { return {origin, ends.data(), is_hit.data(), is_hit.size()}; }
+};
+
+/// std::invalid_argument unless pose and beam_angles are finite and ranges is non-empty and as
+/// long as beam_angles (ranges themselves may hold invalid readings: they are skipped).
+void check_scan_shape(const Eigen::Vector3d& pose, const Eigen::Ref<const Eigen::VectorXd>& ranges,
+                      const Eigen::Ref<const Eigen::VectorXd>& beam_angles);
+
+/// insert_rays' rays for a grid of this lattice and size: readings < max_range hit their end,
+/// readings >= max_range clear up to max_range, NaN / inf / negative readings are left out, and
+/// a ray far longer than the grid's reach is cut (its end then lies outside, no hit). Returns
+/// false (out left empty) when the scan lies farther than max_range from the grid. Arguments
+/// must have passed check_scan_shape and max_range > 0.
+bool laser_segments(const GridLattice2D& lattice, int width, int height, const Eigen::Vector3d& pose,
+                    const Eigen::Ref<const Eigen::VectorXd>& ranges, const Eigen::Ref<const Eigen::VectorXd>& beam_angles,
+                    double max_range, LaserSegments2D& out);
 
 /// Eq. 9.9: the most pessimistic map (cell-wise maximum occupancy) of grids of equal geometry.
 OccupancyGrid2D fuse_max(const std::vector<const OccupancyGrid2D*>& grids);

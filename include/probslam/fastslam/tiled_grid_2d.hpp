@@ -1,0 +1,100 @@
+#pragma once
+// A 2-D occupancy grid stored as tiles shared copy-on-write between particles (grid-based
+// FastSLAM): copying a TiledGrid2D copies its table of tile pointers, never a cell; the first
+// write to a tile another grid still holds clones that tile. A grid never sees another's change.
+#include <Eigen/Core>
+#include <array>
+#include <cstddef>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "probslam/grid/occupancy_grid_2d.hpp"
+
+namespace probslam {
+
+/// Tiles held by a set of grids: `references` counts a tile once per grid holding it,
+/// `distinct` once in all (references - distinct tiles are shared, not copied).
+struct TileSharing {
+  std::size_t references = 0;
+  std::size_t distinct = 0;
+  std::size_t bytes = 0;  ///< memory of the distinct tiles
+};
+
+class TiledGrid2D {
+ public:
+  static constexpr int kTileShift = 5;
+  static constexpr int kTileSize = 1 << kTileShift;  ///< cells per tile side (32 x 32 tiles)
+  static constexpr int kTileCells = kTileSize * kTileSize;
+
+  struct Tile {
+    std::array<double, kTileCells> log_odds;  // row-major within the tile
+    std::array<std::uint32_t, kTileCells> stamp;  // scan counter of each cell's last update
+  };
+
+  /// The geometry, prior, clamp, beam model and cells of `prototype` (a grid with only prior
+  /// cells allocates no tile). Cells the grids never touch stay unallocated at the prior.
+  explicit TiledGrid2D(const OccupancyGrid2D& prototype);
+
+  /// Copies share every tile (O(tiles) pointer copies, no cell).
+  TiledGrid2D(const TiledGrid2D&) = default;
+  TiledGrid2D& operator=(const TiledGrid2D&) = default;
+  TiledGrid2D(TiledGrid2D&&) noexcept = default;
+  TiledGrid2D& operator=(TiledGrid2D&&) noexcept = default;
+
+  double resolution() const { return lattice_.res; }
+  int width() const { return width_; }
+  int height() const { return height_; }
+  Eigen::Vector2d origin() const { return {lattice_.x0, lattice_.y0}; }
+  const GridLattice2D& lattice() const { return lattice_; }
+  double prior_log_odds() const { return l0_; }
+
+  bool contains(int row, int col) const {
+    return static_cast<unsigned>(row) < static_cast<unsigned>(height_) &&
+           static_cast<unsigned>(col) < static_cast<unsigned>(width_);
+  }
+  /// Log-odds of cell (row, col), which must lie inside (the prior where no tile is allocated).
+  double log_odds(int row, int col) const {
+    const Tile* t = tiles_[tile_index(row, col)].get();
+    return t ? t->log_odds[cell_in_tile(row, col)] : l0_;
+  }
+
+  /// OccupancyGrid2D::insert_rays on this grid, with the same rules, result and checks
+  /// (std::invalid_argument naming the argument; nothing changes then).
+  std::size_t insert_rays(const Eigen::Vector3d& pose, const Eigen::Ref<const Eigen::VectorXd>& ranges,
+                          const Eigen::Ref<const Eigen::VectorXd>& beam_angles, double max_range);
+
+  /// The cells as a dense grid (geometry and settings as the prototype's).
+  OccupancyGrid2D to_grid() const;
+
+  int tiles_x() const { return tiles_x_; }
+  int tiles_y() const { return tiles_y_; }
+  /// Tiles this grid holds (allocated, shared or not).
+  std::size_t tiles_allocated() const;
+  /// True when this grid and `other` hold the same tile object at table slot `tile`.
+  bool shares_tile(const TiledGrid2D& other, std::size_t tile) const {
+    return tiles_[tile] != nullptr && tiles_[tile] == other.tiles_[tile];
+  }
+  static TileSharing sharing(const std::vector<const TiledGrid2D*>& grids);
+
+ private:
+  friend class TiledScanStore;
+  std::size_t tile_index(int row, int col) const {
+    return static_cast<std::size_t>(row >> kTileShift) * tiles_x_ + (col >> kTileShift);
+  }
+  static int cell_in_tile(int row, int col) {
+    return ((row & (kTileSize - 1)) << kTileShift) | (col & (kTileSize - 1));
+  }
+  /// The tile at `index`, this grid's alone: allocated at the prior, or cloned if shared.
+  Tile& writable_tile(std::size_t index);
+
+  GridLattice2D lattice_;
+  int width_ = 0, height_ = 0, tiles_x_ = 0, tiles_y_ = 0;
+  double p_prior_ = 0.5, l0_ = 0.0;
+  LogOddsClamp clamp_;
+  BeamModel beam_;
+  std::vector<std::shared_ptr<Tile>> tiles_;  // row-major tile table; nullptr: all prior
+  std::uint32_t scan_counter_ = 0;
+};
+
+}  // namespace probslam

@@ -1,0 +1,121 @@
+#include "probslam/fastslam/tiled_grid_2d.hpp"
+
+#include <atomic>
+#include <unordered_set>
+
+#include "probslam/core/check.hpp"
+
+namespace probslam {
+
+/// The tiled grid as apply_scan sees it (OccupancyGrid2D's GridScanStore over tiles).
+class TiledScanStore {
+ public:
+  explicit TiledScanStore(TiledGrid2D& grid)
+      : grid_(grid),
+        hit_delta_(logit(grid.beam_.p_hit) - grid.l0_),
+        miss_delta_(logit(grid.beam_.p_miss) - grid.l0_) {
+    if (++grid_.scan_counter_ == 0) forget_stamps();
+  }
+  bool contains(const CellKey<2>& key) const { return grid_.contains(key[1], key[0]); }
+  KeyBox<2> box() const { return {{0, 0}, {grid_.width_, grid_.height_}}; }
+  bool update_once(const CellKey<2>& key, bool hit) {
+    const int row = key[1], col = key[0];
+    const std::size_t t = grid_.tile_index(row, col);
+    const int c = TiledGrid2D::cell_in_tile(row, col);
+    // Read before writing: a cell already updated in this scan needs no private tile.
+    const TiledGrid2D::Tile* seen = grid_.tiles_[t].get();
+    if (seen && seen->stamp[c] == grid_.scan_counter_) return false;
+    TiledGrid2D::Tile& tile = grid_.writable_tile(t);
+    tile.stamp[c] = grid_.scan_counter_;
+    tile.log_odds[c] = grid_.clamp_.apply(tile.log_odds[c] + (hit ? hit_delta_ : miss_delta_));
+    return true;
+  }
+
+ private:
+  // After 2^32 scans the counter wraps: old stamps could then read as this scan's.
+  void forget_stamps() {
+    for (std::size_t t = 0; t < grid_.tiles_.size(); ++t)
+      if (grid_.tiles_[t]) grid_.writable_tile(t).stamp.fill(0u);
+    grid_.scan_counter_ = 1;
+  }
+  TiledGrid2D& grid_;
+  double hit_delta_, miss_delta_;
+};
+
+TiledGrid2D::TiledGrid2D(const OccupancyGrid2D& prototype)
+    : lattice_(prototype.lattice()),
+      width_(prototype.width()),
+      height_(prototype.height()),
+      tiles_x_((prototype.width() + kTileSize - 1) >> kTileShift),
+      tiles_y_((prototype.height() + kTileSize - 1) >> kTileShift),
+      p_prior_(prototype.p_prior()),
+      l0_(prototype.prior_log_odds()),
+      clamp_(prototype.clamp()),
+      beam_(prototype.beam_model()),
+      tiles_(static_cast<std::size_t>(tiles_x_) * tiles_y_) {
+  const double* cells = prototype.data();
+  for (int row = 0; row < height_; ++row)
+    for (int col = 0; col < width_; ++col) {
+      const double l = cells[static_cast<std::size_t>(row) * width_ + col];
+      if (l != l0_) writable_tile(tile_index(row, col)).log_odds[cell_in_tile(row, col)] = l;
+    }
+}
+
+TiledGrid2D::Tile& TiledGrid2D::writable_tile(std::size_t index) {
+  std::shared_ptr<Tile>& slot = tiles_[index];
+  if (!slot) {
+    slot = std::make_shared<Tile>();
+    slot->log_odds.fill(l0_);
+    slot->stamp.fill(0u);
+  } else if (slot.use_count() > 1) {
+    slot = std::make_shared<Tile>(*slot);
+  } else {
+    // Sole owner: the other holders' reads of this tile (before they let go of it, a release
+    // decrement) happen before the writes that follow.
+    std::atomic_thread_fence(std::memory_order_acquire);
+  }
+  return *slot;
+}
+
+std::size_t TiledGrid2D::insert_rays(const Eigen::Vector3d& pose, const Eigen::Ref<const Eigen::VectorXd>& ranges,
+                                     const Eigen::Ref<const Eigen::VectorXd>& beam_angles, double max_range) {
+  check_scan_shape(pose, ranges, beam_angles);
+  require_positive(max_range, "max_range");
+  LaserSegments2D segments;
+  if (!laser_segments(lattice_, width_, height_, pose, ranges, beam_angles, max_range, segments)) return 0;
+  TiledScanStore store(*this);
+  return apply_scan<2, double>(lattice_, store, segments.view());
+}
+
+OccupancyGrid2D TiledGrid2D::to_grid() const {
+  OccupancyGrid2D grid(lattice_.res, width_, height_, origin(), p_prior_, clamp_);
+  grid.set_beam_model(beam_);
+  double* cells = grid.data();
+  for (int row = 0; row < height_; ++row)
+    for (int col = 0; col < width_; ++col) cells[static_cast<std::size_t>(row) * width_ + col] = log_odds(row, col);
+  return grid;
+}
+
+std::size_t TiledGrid2D::tiles_allocated() const {
+  std::size_t n = 0;
+  for (const auto& t : tiles_) n += t != nullptr;
+  return n;
+}
+
+TileSharing TiledGrid2D::sharing(const std::vector<const TiledGrid2D*>& grids) {
+  TileSharing s;
+  std::unordered_set<const Tile*> distinct;
+  for (const TiledGrid2D* g : grids) {
+    require(g != nullptr, "grids", "must not hold a null grid");
+    for (const auto& t : g->tiles_)
+      if (t) {
+        ++s.references;
+        distinct.insert(t.get());
+      }
+  }
+  s.distinct = distinct.size();
+  s.bytes = s.distinct * sizeof(Tile);
+  return s;
+}
+
+}  // namespace probslam
