@@ -1,0 +1,59 @@
+#pragma once
+// The measurement likelihood p(z | x, m) of grid-based FastSLAM: the likelihood field model
+// (Thrun et al. ch. 6.4) with the distance to the nearest occupied cell found by a local search
+// around each end point, on the particle's own (changing) map. A particle's map changes with
+// every scan, so a distance transform per particle per step (the correlative matcher's
+// LikelihoodField) would cost more than the whole update; the search visits only the few cells
+// within search_radius of each end point, nearest first.
+#include <Eigen/Core>
+#include <vector>
+
+#include "probslam/core/types.hpp"
+#include "probslam/fastslam/tiled_grid_2d.hpp"
+
+namespace probslam {
+
+struct EndpointLikelihoodOptions {
+  double sigma = 0.05;          ///< std of a hit around the nearest obstacle, m
+  double p_rand = 0.05;         ///< uniform part: bounds a stray point's cost
+  double search_radius = 0.15;  ///< obstacles farther than this count as none (p = p_rand), m
+  double occupied_log_odds = 0.0;  ///< cells above this log-odds (p > 0.5) are obstacles
+  void validate() const;
+};
+
+/// log p(z | x, m) = sum over the end points of log((1 - p_rand) exp(-d^2 / 2 sigma^2) + p_rand),
+/// d the distance (m) from the end point to the nearest occupied cell's centre, if that is within
+/// search_radius (otherwise the p_rand term alone). Cells outside the grid are free. d is
+/// continuous in the pose (an end point is not snapped to its cell), so the score has no
+/// one-cell plateaus for the proposal's hill climbing and its Gaussian fit to resolve.
+class EndpointLikelihood {
+ public:
+  /// For grids of this resolution (m). std::invalid_argument naming the option on bad options;
+  /// the search window is bounded (kMaxSearchCells).
+  EndpointLikelihood(const EndpointLikelihoodOptions& options, double resolution);
+
+  /// Search windows of more cells than this are refused (search_radius / resolution too large).
+  static constexpr int kMaxSearchCells = 1 << 16;
+
+  const EndpointLikelihoodOptions& options() const { return options_; }
+  double resolution() const { return res_; }
+
+  /// points: (N, 2) end points in the sensor frame (m); pose (x, y, theta) of the sensor in
+  /// the map. `quality` (if given): the mean of exp(-d^2 / 2 sigma^2) over the points, 0..1.
+  /// The grid must have this resolution; the pose and points must be finite (unchecked: the
+  /// filter's inner loop; the bindings check).
+  double log_likelihood(const TiledGrid2D& grid, const Eigen::Vector3d& pose, const Eigen::Ref<const Points2>& points,
+                        double* quality = nullptr) const;
+
+ private:
+  struct Offset {
+    int drow, dcol;
+    double centre_distance;  // between the two cells' centres, m
+  };
+  EndpointLikelihoodOptions options_;
+  double res_;
+  std::vector<Offset> offsets_;  // cells that may lie within search_radius, nearest first
+  double half_diagonal_ = 0.0, log_p_none_ = 0.0;
+};
+
+}  // namespace probslam
