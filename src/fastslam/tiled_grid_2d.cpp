@@ -1,6 +1,9 @@
 #include "probslam/fastslam/tiled_grid_2d.hpp"
 
+#include <algorithm>
 #include <atomic>
+#include <cmath>
+#include <string>
 #include <unordered_set>
 
 #include "probslam/core/check.hpp"
@@ -85,6 +88,36 @@ std::size_t TiledGrid2D::insert_rays(const Eigen::Vector3d& pose, const Eigen::R
   if (!laser_segments(lattice_, width_, height_, pose, ranges, beam_angles, max_range, segments)) return 0;
   TiledScanStore store(*this);
   return apply_scan<2, double>(lattice_, store, segments.view());
+}
+
+void TiledGrid2D::grow_to_include(double xmin, double ymin, double xmax, double ymax) {
+  require(std::isfinite(xmin) && std::isfinite(xmax) && xmin <= xmax, "xmin", "must be finite and <= xmax");
+  require(std::isfinite(ymin) && std::isfinite(ymax) && ymin <= ymax, "ymin", "must be finite and <= ymax");
+  const double tile_m = kTileSize * lattice_.res;
+  // Tiles to add on each side, as doubles first: far bounds must be refused, not overflow.
+  const double add_left = std::max(0.0, std::ceil((lattice_.x0 - xmin) / tile_m));
+  const double add_down = std::max(0.0, std::ceil((lattice_.y0 - ymin) / tile_m));
+  const double new_x0 = lattice_.x0 - add_left * tile_m, new_y0 = lattice_.y0 - add_down * tile_m;
+  const double width = std::max(add_left * kTileSize + width_, std::ceil((xmax - new_x0) / lattice_.res) + 1.0);
+  const double height = std::max(add_down * kTileSize + height_, std::ceil((ymax - new_y0) / lattice_.res) + 1.0);
+  if (add_left == 0.0 && add_down == 0.0 && width == width_ && height == height_) return;
+  if (width * height > static_cast<double>(OccupancyGrid2D::kMaxCells))
+    throw_invalid_argument("xmax", "would grow the grid beyond OccupancyGrid2D.max_cells = " +
+                                       std::to_string(OccupancyGrid2D::kMaxCells));
+  const int left = static_cast<int>(add_left), down = static_cast<int>(add_down);
+  const int new_w = static_cast<int>(width), new_h = static_cast<int>(height);
+  const int new_tx = (new_w + kTileSize - 1) >> kTileShift, new_ty = (new_h + kTileSize - 1) >> kTileShift;
+  std::vector<std::shared_ptr<Tile>> table(static_cast<std::size_t>(new_tx) * new_ty);
+  for (int ty = 0; ty < tiles_y_; ++ty)
+    for (int tx = 0; tx < tiles_x_; ++tx)
+      table[static_cast<std::size_t>(ty + down) * new_tx + (tx + left)] = std::move(tiles_[static_cast<std::size_t>(ty) * tiles_x_ + tx]);
+  tiles_ = std::move(table);
+  lattice_.x0 = new_x0;
+  lattice_.y0 = new_y0;
+  width_ = new_w;
+  height_ = new_h;
+  tiles_x_ = new_tx;
+  tiles_y_ = new_ty;
 }
 
 OccupancyGrid2D TiledGrid2D::to_grid() const {

@@ -168,6 +168,42 @@ TEST(TiledGrid2D, CopyingSharesEveryTileAndAnUpdateClonesOnlyTheTilesItTouches) 
   EXPECT_FALSE(a.shares_tile(b, touched));
 }
 
+TEST(TiledGrid2D, GrowingKeepsCellsAndSharingAndMatchesTheDenseGrid) {
+  std::mt19937 rng(9);
+  OccupancyGrid2D dense = prototype();
+  TiledGrid2D a(dense);
+  for (int k = 0; k < 10; ++k) {
+    const Scan s = random_scan(rng);
+    a.insert_rays(s.pose, s.ranges, s.angles, s.max_range);
+    dense.insert_rays(s.pose, s.ranges, s.angles, s.max_range);
+  }
+  TiledGrid2D b = a;
+  const std::size_t held = a.tiles_allocated();
+  b.grow_to_include(-12.0, -9.5, 15.0, 11.0);
+  EXPECT_LE(b.origin().x(), -12.0);
+  EXPECT_LE(b.origin().y(), -9.5);
+  EXPECT_GE(b.origin().x() + b.width() * b.resolution(), 15.0);
+  EXPECT_GE(b.origin().y() + b.height() * b.resolution(), 11.0);
+  EXPECT_EQ(TiledGrid2D::sharing({&a, &b}).distinct, held);  // no tile copied
+  // Same cells at the same coordinates; then both take the same scans as a dense grid grown alike.
+  OccupancyGrid2D big = dense.grown_to_include(b.origin().x() + 1e-9, b.origin().y() + 1e-9,
+                                               b.origin().x() + (b.width() - 0.5) * b.resolution(),
+                                               b.origin().y() + (b.height() - 0.5) * b.resolution());
+  ASSERT_EQ(big.width(), b.width());
+  ASSERT_EQ(big.height(), b.height());
+  ASSERT_LT((big.origin() - b.origin()).norm(), 1e-9);
+  for (int k = 0; k < 10; ++k) {
+    Scan s = random_scan(rng);
+    s.pose.head<2>() *= 2.0;
+    b.insert_rays(s.pose, s.ranges, s.angles, s.max_range);
+    big.insert_rays(s.pose, s.ranges, s.angles, s.max_range);
+  }
+  expect_same_cells(b, big);
+  expect_same_cells(a, dense);  // the original is untouched
+  expect_invalid([&] { b.grow_to_include(-1e12, 0, 1e12, 1); }, "xmax");
+  expect_invalid([&] { b.grow_to_include(std::nan(""), 0, 1, 1); }, "xmin");
+}
+
 TEST(TiledGrid2D, BadInputRaisesAndChangesNothing) {
   TiledGrid2D g(prototype());
   Eigen::VectorXd r = Eigen::VectorXd::Constant(3, 1.0), a = Eigen::VectorXd::LinSpaced(3, -1.0, 1.0);

@@ -64,6 +64,11 @@ class TiledGrid2D {
   std::size_t insert_rays(const Eigen::Vector3d& pose, const Eigen::Ref<const Eigen::VectorXd>& ranges,
                           const Eigen::Ref<const Eigen::VectorXd>& beam_angles, double max_range);
 
+  /// Grows the grid by whole tiles (it never shrinks) to cover [xmin, xmax] x [ymin, ymax] (m):
+  /// cells keep their values and tiles their sharing, new cells hold the prior, no cell is
+  /// copied. std::invalid_argument for non-finite bounds or beyond OccupancyGrid2D::kMaxCells.
+  void grow_to_include(double xmin, double ymin, double xmax, double ymax);
+
   /// The cells as a dense grid (geometry and settings as the prototype's).
   OccupancyGrid2D to_grid() const;
 
