@@ -1,0 +1,272 @@
+#pragma once
+// FastSLAM 1.0 and 2.0 (Montemerlo et al. 2002, 2003; Probabilistic Robotics ch. 13): a
+// Rao-Blackwellised particle filter whose particles each carry a path sample and one 2x2 EKF
+// per landmark, with known or unknown (per-particle maximum-likelihood) correspondences and
+// maps shared between particles in persistent trees (landmark_tree.hpp).
+#include <Eigen/Core>
+
+#include <cstdint>
+#include <limits>
+#include <memory>
+#include <vector>
+
+#include "probslam/core/object_mutex.hpp"
+#include "probslam/core/types.hpp"
+#include "probslam/fastslam/landmark_tree.hpp"
+
+namespace probslam {
+
+class WorkerPool;
+
+// Reliability limits (README "Reliability"), refused by name beyond them.
+/// Particles per filter: 2^20 particles of ~250 bytes each before any landmark.
+inline constexpr int kFastSlamMaxParticles = 1 << 20;
+/// Worker threads of one filter.
+inline constexpr int kFastSlamMaxThreads = 256;
+/// Metres: robot coordinates, ranges, signatures, one motion's length (as kEkfMaxCoordinate).
+inline constexpr double kFastSlamMaxCoordinate = 1e9;
+/// Noise covariance entries: a standard deviation of kFastSlamMaxCoordinate.
+inline constexpr double kFastSlamMaxVariance = 1e18;
+/// Landmark ids are in [0, kFastSlamMaxLandmarkId]; new ids (largest + 1) never overflow.
+inline constexpr long kFastSlamMaxLandmarkId = 1L << 62;
+/// Landmarks in one particle's map (each measurement adds at most one).
+inline constexpr long kFastSlamMaxLandmarks = 1L << 26;
+/// Smallest cell of the spatial key (m): cell indices of coordinates within a few
+/// kFastSlamMaxCoordinate then stay far inside int64.
+inline constexpr double kFastSlamMinCellSize = 1e-6;
+
+/// Options of FastSlam; every value is checked by the constructor.
+struct FastSlamOptions {
+  static constexpr int kDefaultParticles = 100;
+  static constexpr double kDefaultResampleThreshold = 0.5;
+  /// Density (per unit of the measurement space: 1 / (m rad), times 1 / signature unit with
+  /// signatures) that a measurement comes from a landmark not in the map; see p_new below.
+  static constexpr double kDefaultPNew = 1e-2;
+  static constexpr double kDefaultAssociationRadius = 2.0;  // m
+  static constexpr double kDefaultCellSize = 2.0;           // m
+
+  int num_particles = kDefaultParticles;
+  /// 1: FastSLAM 1.0 (poses sampled from the motion model); 2: FastSLAM 2.0 (from the proposal
+  /// that includes the scan's measurements).
+  int version = 1;
+  /// 3x3 pose-space covariance R of (x, y, theta), or 2x2 control-space covariance M of (v, w);
+  /// symmetric positive semi-definite (zero is allowed: a noise-free motion).
+  Eigen::MatrixXd motion_noise;
+  /// Q: covariance of (range [m], bearing [rad]), or 3x3 with the signature's variance (the
+  /// signature uncorrelated with range and bearing). Symmetric positive definite.
+  Eigen::MatrixXd measurement_noise;
+  bool use_signatures = false;
+  Eigen::Vector3d initial_pose = Eigen::Vector3d::Zero();
+  /// Particle k starts with random stream k of this seed (see FastSlam's comment).
+  std::uint64_t seed = 0;
+  /// Particles are updated by this many threads; results do not depend on it.
+  int threads = 1;
+  /// Resample when N_eff = 1 / sum w^2 < resample_threshold * num_particles; in [0, 1].
+  double resample_threshold = kDefaultResampleThreshold;
+  /// The likelihood of a new landmark. Unknown correspondences: a measurement becomes a new
+  /// landmark when no landmark's likelihood N(z - z_hat; 0, S) exceeds p_new. Both versions and
+  /// both kinds of correspondence: a particle's weight is multiplied by p_new for each new
+  /// landmark (Table 13.1 / 13.3's default importance weight p_0).
+  double p_new = kDefaultPNew;
+  /// Association candidates of a measurement: the landmarks whose mean is within
+  /// association_radius plus three standard deviations of where the measurement places it.
+  double association_radius = kDefaultAssociationRadius;
+  /// Side (m) of the square cells of the spatial key; about association_radius.
+  double cell_size = kDefaultCellSize;
+  /// Negative information in update_unknown: a landmark inside sensor_range and sensor_fov of
+  /// the particle's pose but not seen loses existence_miss from its existence counter, and is
+  /// removed when the counter falls below zero. Seen landmarks gain existence_hit; a new one
+  /// starts with existence_hit.
+  bool negative_information = false;
+  double existence_hit = 1.0;
+  double existence_miss = 1.0;
+  double sensor_range = std::numeric_limits<double>::infinity();  // m; finite for negative_information
+  double sensor_fov = 6.283185307179586;                           // rad, full opening angle
+  /// Keep every particle's path (a persistent list: shared after resampling, O(1) to copy).
+  bool record_path = true;
+};
+
+/// A fast stream of random numbers per particle (xoshiro256**, seeded by splitmix64 from the
+/// filter's seed and the stream number), with standard normal deviates by Box-Muller.
+class ParticleRng {
+ public:
+  ParticleRng() : ParticleRng(0, 0) {}
+  ParticleRng(std::uint64_t seed, std::uint64_t stream);
+  std::uint64_t next();
+  /// Uniform in [0, 1).
+  double uniform();
+  double normal();
+
+ private:
+  std::uint64_t s_[4];
+  double spare_ = 0.0;
+  bool has_spare_ = false;
+};
+
+/// A persistent list of poses (newest first): appending or copying is O(1), and a path is
+/// shared by the particles that descend from one ancestor.
+class PosePath {
+ public:
+  struct Node {
+    Eigen::Vector3d pose;
+    NodeRef<Node> prev;
+    std::size_t length;
+    mutable std::atomic<std::uint32_t> refs{1};
+    Node(const Eigen::Vector3d& p, NodeRef<Node> before)
+        : pose(p), prev(std::move(before)), length(1 + (prev ? prev->length : 0)) {}
+    // Iterative: a path of a million poses must not recurse a million deep.
+    static void destroy(const Node* n);
+  };
+  std::size_t size() const { return head_ ? head_->length : 0; }
+  void push(const Eigen::Vector3d& pose) { head_ = NodeRef<Node>::adopt(new Node(pose, std::move(head_))); }
+  /// Replaces the newest pose.
+  void replace_last(const Eigen::Vector3d& pose) {
+    NodeRef<Node> before = head_ ? head_->prev : NodeRef<Node>();
+    head_ = NodeRef<Node>::adopt(new Node(pose, std::move(before)));
+  }
+  /// Oldest first, (size, 3).
+  Poses2 poses() const;
+  std::size_t collect_nodes(std::unordered_set<const void*>& seen) const;
+
+ private:
+  NodeRef<Node> head_;
+};
+
+/// One particle: a pose sample, its log weight and its map; in version 2 also the motion prior
+/// N(prior_mean, prior_cov) of the last predict, which the next update's proposal starts from.
+struct FastSlamParticle {
+  Eigen::Vector3d pose = Eigen::Vector3d::Zero();
+  double log_weight = 0.0;
+  double last_log_likelihood = 0.0;  // of the last update: the log of the weight's factor
+  LandmarkMap map;
+  PosePath path;
+  ParticleRng rng;
+  long next_id = 0;  // unknown correspondences: the next new landmark's id
+  bool has_prior = false;
+  Eigen::Vector3d prior_mean = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d prior_cov = Eigen::Matrix3d::Zero();
+};
+
+/// What update_unknown() did, per particle and measurement (row-major num_particles x k). Rows
+/// follow the particles after the call: when it resampled, row j is particle j's ancestor's.
+struct FastSlamAssociation {
+  int num_particles = 0, num_measurements = 0;
+  std::vector<long> ids;                    // landmark used or created
+  std::vector<std::uint8_t> is_new;         // 1 where the measurement created the landmark
+  std::vector<std::vector<long>> removed;   // per particle, landmarks removed by negative information
+};
+
+/// Nodes shared between the particles' maps.
+struct MapSharing {
+  std::size_t distinct_nodes = 0;  // tree nodes reachable from some particle (allocated for the maps)
+  std::size_t total_nodes = 0;     // sum over particles of their trees' nodes (what deep copies hold)
+  std::size_t landmarks = 0;       // sum over particles of their landmark counts
+  std::size_t path_nodes = 0;      // distinct path nodes
+};
+
+/// FastSLAM 2.0's proposal for one measurement of a landmark N(landmark_mean, landmark_cov) from
+/// the pose prior N(pose_mean, pose_cov) (pose_cov may be singular): with G_x, H the Jacobians
+/// of h at (pose_mean, landmark_mean), Q_j = H landmark_cov H^T + Q and S = G_x pose_cov G_x^T + Q_j,
+///   Sigma_x = (G_x^T Q_j^-1 G_x + pose_cov^-1)^-1 = pose_cov - K S K^T,  K = pose_cov G_x^T S^-1,
+///   mu_x = pose_mean + Sigma_x G_x^T Q_j^-1 (z - z_hat) = pose_mean + K (z - z_hat),
+/// (the Kalman form on the right needs no inverse of pose_cov) and the weight factor
+/// N(z - z_hat; 0, S). The bearing innovation is wrapped, mu_x's heading too.
+struct PoseProposal {
+  Eigen::Vector3d mean;
+  Eigen::Matrix3d cov;
+  double log_likelihood;
+};
+PoseProposal fastslam2_proposal(const Eigen::Vector3d& pose_mean, const Eigen::Matrix3d& pose_cov,
+                                const Eigen::Vector2d& landmark_mean, const Eigen::Matrix2d& landmark_cov,
+                                const Eigen::Vector2d& z, const Eigen::Matrix2d& measurement_noise);
+
+/// Low-variance (systematic) resampling, Table 4.4: M = weights.size() draws at the positions
+/// (offset + m) / M, m = 0..M-1, of the cumulative normalised weights; offset in [0, 1). Each
+/// index k appears floor(M w_k) or ceil(M w_k) times. Weights need not be normalised.
+std::vector<int> low_variance_resample(const Eigen::VectorXd& weights, double offset);
+
+/// The filter. Random numbers: particle k draws from its own stream, starting as stream k of
+/// the seed; resampling gives the j-th new particle the stream (next stream number + j), and the
+/// filter's own stream (for the resampling offset) is used by the calling thread only. So a
+/// seed gives the same result for any number of threads, bit for bit.
+///
+/// Every call validates all its input first (std::invalid_argument whose message starts with
+/// the argument's name) and works on copies of the particles (O(1) each: maps and paths are
+/// persistent), committing only when every particle succeeded: when it throws, the filter is
+/// unchanged. It does not lock itself: see mutex().
+class FastSlam {
+ public:
+  explicit FastSlam(const FastSlamOptions& options);
+  FastSlam(const FastSlam& other);
+  FastSlam& operator=(const FastSlam& other);
+  FastSlam(FastSlam&&) noexcept;
+  FastSlam& operator=(FastSlam&&) noexcept;
+  ~FastSlam();
+
+  std::mutex& mutex() const noexcept { return mutex_.get(); }
+  const FastSlamOptions& options() const { return o_; }
+  int num_particles() const { return static_cast<int>(particles_.size()); }
+  int version() const { return o_.version; }
+  int landmark_dim() const { return o_.use_signatures ? 3 : 2; }
+
+  /// Samples every particle's pose from the velocity motion model for dt seconds (pose-space
+  /// noise added to g(x, u); control-space noise added to (v, w)). Version 2 also keeps the
+  /// linearised prior N(g(x, u), R_t) (R_t = V M V^T for control noise) for the next update.
+  void predict(double v, double w, double dt);
+  /// Odometry as a relative pose: x <- x (+) (delta + e), e ~ N(0, noise) in the robot frame.
+  void predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matrix3d& noise);
+
+  /// Known correspondences: measurements z (k x 2, or k x 3 with signatures) of landmarks `ids`.
+  /// Returns true when it resampled.
+  bool update(const Eigen::Ref<const RowMatrixXd>& z, const std::vector<long>& ids);
+  /// Unknown correspondences, with options().p_new or the given p_new.
+  FastSlamAssociation update_unknown(const Eigen::Ref<const RowMatrixXd>& z);
+  FastSlamAssociation update_unknown(const Eigen::Ref<const RowMatrixXd>& z, double p_new);
+  /// Low-variance resampling now, whatever N_eff.
+  void resample();
+
+  const FastSlamParticle& particle(int k) const;
+  Poses2 poses() const;
+  /// Normalised log weights (log-sum-exp 0).
+  Eigen::VectorXd log_weights() const;
+  Eigen::VectorXd last_log_likelihoods() const;
+  double effective_sample_size() const;
+  /// The particle of highest weight (the first of equals).
+  int best_index() const;
+  /// Particle k's path, oldest first ((steps + 1) x 3); empty without record_path.
+  Poses2 path(int k) const;
+  /// Weighted mean pose (heading: circular mean) and the weighted covariance about it.
+  Eigen::Vector3d mean_pose() const;
+  Eigen::Matrix3d pose_covariance() const;
+  /// Particle k's landmarks sorted by id.
+  std::vector<Landmark> landmarks(int k) const;
+  MapSharing map_sharing() const;
+  long num_resamples() const { return resamples_; }
+  bool resampled() const { return last_resampled_; }
+
+ private:
+  struct Context;
+  template <class F>
+  void for_particles(F&& f);
+  void check_measurements(const Eigen::Ref<const RowMatrixXd>& z) const;
+  void check_room(Eigen::Index added) const;
+  /// Swaps the staged particles in, normalises, resamples if N_eff is low: the ancestors, or empty.
+  std::vector<int> commit(std::vector<FastSlamParticle>& staged);
+  std::vector<int> resample_now();
+
+  FastSlamOptions o_;
+  Eigen::Matrix3d motion_factor_ = Eigen::Matrix3d::Zero();  // L with L L^T = R (pose space)
+  Eigen::Matrix2d control_factor_ = Eigen::Matrix2d::Zero();  // L with L L^T = M (control space)
+  bool control_noise_ = false;
+  Eigen::Matrix2d q2_ = Eigen::Matrix2d::Zero();
+  double q_signature_ = 0.0;
+  std::vector<FastSlamParticle> particles_;
+  ParticleRng rng_;                    // the filter's own stream (resampling offsets)
+  std::uint64_t next_stream_ = 0;      // the stream number of the next new particle
+  long resamples_ = 0;
+  bool last_resampled_ = false;
+  std::unique_ptr<WorkerPool> pool_;   // started on first use; never copied
+  ObjectMutex mutex_;
+};
+
+}  // namespace probslam

@@ -1,0 +1,367 @@
+#pragma once
+// Montemerlo's log(N) FastSLAM map sharing: a persistent (path-copying) treap whose immutable,
+// reference-counted nodes are shared between particles, and the per-particle landmark map built
+// on two of them.
+//
+// Persistence: a tree is a handle on a root node. Nodes never change after construction; an
+// insert, update or erase builds new copies of the O(log N) nodes on the path from the root to
+// the changed key and points them at the untouched subtrees of the old tree. Copying a handle
+// (resampling a particle) copies one pointer. So no change through one handle can ever show
+// through another, whatever nodes they share.
+//
+// Threads: nodes are immutable once built and their reference counts are atomic, so handles on
+// different threads may share nodes; one handle must not be changed by two threads at once.
+//
+// Balance: a treap whose priorities are a hash of the key. Its shape is the unique one of the
+// key set (independent of the order of operations), with expected depth O(log N).
+#include <Eigen/Core>
+
+#include <algorithm>
+#include <atomic>
+#include <cmath>
+#include <cstddef>
+#include <cstdint>
+#include <limits>
+#include <unordered_set>
+#include <utility>
+
+namespace probslam {
+
+/// Tree nodes alive in the process, over every tree (tests and memory reports).
+inline std::atomic<long> g_persistent_tree_nodes{0};
+
+/// splitmix64's finaliser: a bijective 64-bit mix.
+inline std::uint64_t mix64(std::uint64_t z) {
+  z += 0x9e3779b97f4a7c15ULL;
+  z = (z ^ (z >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  z = (z ^ (z >> 27)) * 0x94d049bb133111ebULL;
+  return z ^ (z >> 31);
+}
+
+/// A counted reference to an immutable node T. T has `mutable std::atomic<std::uint32_t> refs`
+/// (1 when built) and `static void destroy(const T*)`, called when the last reference goes.
+template <class T>
+class NodeRef {
+ public:
+  NodeRef() noexcept = default;
+  /// Takes over the reference a freshly built node holds.
+  static NodeRef adopt(const T* p) noexcept {
+    NodeRef r;
+    r.p_ = p;
+    return r;
+  }
+  NodeRef(const NodeRef& o) noexcept : p_(o.p_) {
+    if (p_) p_->refs.fetch_add(1, std::memory_order_relaxed);
+  }
+  NodeRef(NodeRef&& o) noexcept : p_(o.p_) { o.p_ = nullptr; }
+  NodeRef& operator=(NodeRef o) noexcept {
+    std::swap(p_, o.p_);
+    return *this;
+  }
+  ~NodeRef() { reset(); }
+  void reset() noexcept {
+    if (p_ && p_->refs.fetch_sub(1, std::memory_order_acq_rel) == 1) T::destroy(p_);
+    p_ = nullptr;
+  }
+  /// Gives up the reference without releasing it (for iterative destruction of long chains).
+  const T* detach() noexcept {
+    const T* p = p_;
+    p_ = nullptr;
+    return p;
+  }
+  const T* get() const noexcept { return p_; }
+  const T* operator->() const noexcept { return p_; }
+  const T& operator*() const noexcept { return *p_; }
+  explicit operator bool() const noexcept { return p_ != nullptr; }
+
+ private:
+  const T* p_ = nullptr;
+};
+
+/// A persistent ordered map Key -> Value (Key: strict weak order by operator<, priority by
+/// KeyHash). Every operation is O(log N) expected and copies only the nodes on one path.
+template <class Key, class Value, class KeyHash>
+class PersistentTreap {
+ public:
+  struct Node {
+    Key key;
+    Value value;
+    std::uint64_t priority;
+    std::size_t size;  // nodes in this subtree
+    NodeRef<Node> left, right;
+    mutable std::atomic<std::uint32_t> refs{1};
+
+    Node(const Key& k, const Value& v, std::uint64_t p, NodeRef<Node> l, NodeRef<Node> r)
+        : key(k), value(v), priority(p), size(1 + size_of(l) + size_of(r)), left(std::move(l)), right(std::move(r)) {
+      g_persistent_tree_nodes.fetch_add(1, std::memory_order_relaxed);
+    }
+    ~Node() { g_persistent_tree_nodes.fetch_sub(1, std::memory_order_relaxed); }
+    // Recursion through the children's destructors is as deep as the tree: O(log N).
+    static void destroy(const Node* n) { delete n; }
+  };
+  using Ref = NodeRef<Node>;
+
+  std::size_t size() const { return size_of(root_); }
+  bool empty() const { return !root_; }
+  const Node* root() const { return root_.get(); }
+
+  const Value* find(const Key& key) const {
+    const Node* t = root_.get();
+    while (t) {
+      if (key < t->key) t = t->left.get();
+      else if (t->key < key) t = t->right.get();
+      else return &t->value;
+    }
+    return nullptr;
+  }
+
+  /// Inserts key, or replaces its value.
+  void insert_or_assign(const Key& key, const Value& value) { root_ = insert(root_, key, value, KeyHash()(key)); }
+
+  /// Removes key; false (and nothing copied) if it is absent.
+  bool erase(const Key& key) {
+    bool found = false;
+    Ref r = erase(root_, key, found);
+    if (found) root_ = std::move(r);
+    return found;
+  }
+
+  /// f(key, value) for every key in [lo, hi], in order: O(k + log N).
+  template <class F>
+  void for_each_in_range(const Key& lo, const Key& hi, F&& f) const {
+    visit_range(root_.get(), lo, hi, f);
+  }
+  template <class F>
+  void for_each(F&& f) const {
+    visit_all(root_.get(), f);
+  }
+
+  /// Adds the nodes of this tree not in `seen` to it; shared subtrees are skipped, so the cost is
+  /// that of the nodes new to `seen`. Returns how many were added.
+  std::size_t collect_nodes(std::unordered_set<const void*>& seen) const { return collect(root_.get(), seen); }
+
+ private:
+  static std::size_t size_of(const Ref& r) { return r ? r->size : 0; }
+
+  static Ref make(const Node& like, Ref l, Ref r) {
+    return Ref::adopt(new Node(like.key, like.value, like.priority, std::move(l), std::move(r)));
+  }
+  // Strict order on (priority, key): the node that wins is nearer the root.
+  static bool above(std::uint64_t pa, const Key& ka, const Node& b) {
+    return pa > b.priority || (pa == b.priority && ka < b.key);
+  }
+
+  // (keys < key, keys > key) of t, which does not hold key.
+  static std::pair<Ref, Ref> split(const Ref& t, const Key& key) {
+    if (!t) return {};
+    if (t->key < key) {
+      auto [l, r] = split(t->right, key);
+      return {make(*t, t->left, std::move(l)), std::move(r)};
+    }
+    auto [l, r] = split(t->left, key);
+    return {std::move(l), make(*t, std::move(r), t->right)};
+  }
+
+  // Every key of a is below every key of b.
+  static Ref merge(const Ref& a, const Ref& b) {
+    if (!a) return b;
+    if (!b) return a;
+    if (above(a->priority, a->key, *b)) return make(*a, a->left, merge(a->right, b));
+    return make(*b, merge(a, b->left), b->right);
+  }
+
+  // An existing key lies on the search path above every node of lower priority (heap order),
+  // so it is met before the new node could be placed.
+  static Ref insert(const Ref& t, const Key& key, const Value& value, std::uint64_t priority) {
+    if (!t) return Ref::adopt(new Node(key, value, priority, Ref(), Ref()));
+    if (!(key < t->key) && !(t->key < key))
+      return Ref::adopt(new Node(key, value, priority, t->left, t->right));
+    if (above(priority, key, *t)) {
+      auto [l, r] = split(t, key);
+      return Ref::adopt(new Node(key, value, priority, std::move(l), std::move(r)));
+    }
+    if (key < t->key) return make(*t, insert(t->left, key, value, priority), t->right);
+    return make(*t, t->left, insert(t->right, key, value, priority));
+  }
+
+  static Ref erase(const Ref& t, const Key& key, bool& found) {
+    if (!t) return Ref();
+    if (key < t->key) {
+      Ref l = erase(t->left, key, found);
+      return found ? make(*t, std::move(l), t->right) : Ref();
+    }
+    if (t->key < key) {
+      Ref r = erase(t->right, key, found);
+      return found ? make(*t, t->left, std::move(r)) : Ref();
+    }
+    found = true;
+    return merge(t->left, t->right);
+  }
+
+  template <class F>
+  static void visit_range(const Node* t, const Key& lo, const Key& hi, F& f) {
+    while (t) {
+      const bool above_lo = lo < t->key, below_hi = t->key < hi;
+      if (above_lo) visit_range(t->left.get(), lo, hi, f);
+      if (!(t->key < lo) && !(hi < t->key)) f(t->key, t->value);
+      if (!below_hi) return;
+      t = t->right.get();  // the right subtree by iteration
+    }
+  }
+  template <class F>
+  static void visit_all(const Node* t, F& f) {
+    while (t) {
+      visit_all(t->left.get(), f);
+      f(t->key, t->value);
+      t = t->right.get();
+    }
+  }
+  static std::size_t collect(const Node* t, std::unordered_set<const void*>& seen) {
+    std::size_t n = 0;
+    while (t && seen.insert(t).second) {
+      ++n;
+      n += collect(t->left.get(), seen);
+      t = t->right.get();
+    }
+    return n;
+  }
+
+  Ref root_;
+};
+
+/// One landmark of a particle's map: a 2-D Gaussian (metres), an existence counter, and the
+/// signature's mean and variance when the filter uses signatures.
+struct Landmark {
+  long id = 0;
+  Eigen::Vector2d mean = Eigen::Vector2d::Zero();
+  Eigen::Matrix2d cov = Eigen::Matrix2d::Zero();  // kept symmetric to the bit
+  double existence = 1.0;
+  double signature = 0.0;
+  double signature_var = 0.0;
+};
+
+/// A particle's landmarks, keyed for both queries FastSLAM needs, in two persistent treaps:
+///  - spatial: key (cell_y, cell_x, id) of a square grid over the landmark mean -> the landmark.
+///    Ordered row by row, so the landmarks of one row of cells [cx0, cx1] are one key range and
+///    "within r of (x, y)" is (2r / cell + 2) range queries, each O(k + log N).
+///  - by id: id -> its cell, O(log N); with the cell, the spatial lookup is O(log N) too.
+/// A second tree keyed by id (rather than one tree keyed by id with a separate spatial index)
+/// keeps both lookups O(log N) and both persistent: any per-particle spatial index outside the
+/// trees would have to be copied on resampling (O(N)). The price is a second path copy, and
+/// only when a landmark changes cell (or is added or removed); a landmark updated within its
+/// cell copies one path of the spatial tree only.
+class LandmarkMap {
+ public:
+  /// Cell indices are clamped to +-2^52: far inside int64, and beyond any map (2^52 cells of
+  /// 1 um are 4.5e9 m).
+  static constexpr double kMaxCellIndex = 4503599627370496.0;
+
+  struct CellKey {
+    std::int64_t cy = 0, cx = 0;
+    long id = 0;
+    bool operator<(const CellKey& o) const {
+      if (cy != o.cy) return cy < o.cy;
+      if (cx != o.cx) return cx < o.cx;
+      return id < o.id;
+    }
+    bool operator==(const CellKey& o) const { return cy == o.cy && cx == o.cx && id == o.id; }
+  };
+  struct CellHash {
+    std::uint64_t operator()(const CellKey& k) const {
+      return mix64(mix64(mix64(static_cast<std::uint64_t>(k.id)) ^ static_cast<std::uint64_t>(k.cx)) ^
+                   static_cast<std::uint64_t>(k.cy));
+    }
+  };
+  struct IdHash {
+    std::uint64_t operator()(long id) const { return mix64(static_cast<std::uint64_t>(id) ^ 0x5bd1e9955bd1e995ULL); }
+  };
+  struct Cell {
+    std::int64_t cy = 0, cx = 0;
+  };
+  using SpatialTree = PersistentTreap<CellKey, Landmark, CellHash>;
+  using IdTree = PersistentTreap<long, Cell, IdHash>;
+
+  /// cell_size in metres, > 0 (checked by the owner).
+  explicit LandmarkMap(double cell_size = 1.0) : cell_(cell_size) {}
+
+  double cell_size() const { return cell_; }
+  std::size_t size() const { return ids_.size(); }
+
+  std::int64_t cell_of(double v) const {
+    return static_cast<std::int64_t>(std::clamp(std::floor(v / cell_), -kMaxCellIndex, kMaxCellIndex));
+  }
+  Cell cell_of(const Eigen::Vector2d& p) const { return {cell_of(p.y()), cell_of(p.x())}; }
+
+  /// The landmark with this id, or nullptr. The pointer stays valid while this map (or any copy
+  /// sharing the node) is alive and unchanged.
+  const Landmark* find(long id) const {
+    const Cell* c = ids_.find(id);
+    return c ? spatial_.find(CellKey{c->cy, c->cx, id}) : nullptr;
+  }
+
+  /// Inserts the landmark, or replaces the one with its id (moving it between cells if needed).
+  void put(const Landmark& lm) {
+    const Cell c = cell_of(lm.mean);
+    const CellKey key{c.cy, c.cx, lm.id};
+    if (const Cell* old = ids_.find(lm.id)) {
+      if (old->cy == c.cy && old->cx == c.cx) {
+        spatial_.insert_or_assign(key, lm);
+        return;
+      }
+      spatial_.erase(CellKey{old->cy, old->cx, lm.id});
+    }
+    spatial_.insert_or_assign(key, lm);
+    ids_.insert_or_assign(lm.id, c);
+  }
+
+  bool erase(long id) {
+    const Cell* c = ids_.find(id);
+    if (!c) return false;
+    spatial_.erase(CellKey{c->cy, c->cx, id});
+    ids_.erase(id);
+    return true;
+  }
+
+  /// f(landmark) for every landmark whose mean is within `radius` (m) of `center`. Visits the
+  /// rows of cells the disc covers; when there are more rows than landmarks, walks the whole map.
+  template <class F>
+  void for_each_within(const Eigen::Vector2d& center, double radius, F&& f) const {
+    if (ids_.empty() || !(radius >= 0.0)) return;
+    const double r2 = radius * radius;
+    const auto near = [&](const CellKey&, const Landmark& lm) {
+      if ((lm.mean - center).squaredNorm() <= r2) f(lm);
+    };
+    const double rows = std::floor((center.y() + radius) / cell_) - std::floor((center.y() - radius) / cell_) + 1.0;
+    if (!std::isfinite(radius) || !(rows <= static_cast<double>(size()))) {
+      spatial_.for_each(near);
+      return;
+    }
+    const std::int64_t cy0 = cell_of(center.y() - radius), cy1 = cell_of(center.y() + radius);
+    const std::int64_t cx0 = cell_of(center.x() - radius), cx1 = cell_of(center.x() + radius);
+    for (std::int64_t cy = cy0; cy <= cy1; ++cy)
+      spatial_.for_each_in_range(CellKey{cy, cx0, std::numeric_limits<long>::min()},
+                                 CellKey{cy, cx1, std::numeric_limits<long>::max()}, near);
+  }
+
+  /// f(landmark) for every landmark, in spatial key order.
+  template <class F>
+  void for_each(F&& f) const {
+    spatial_.for_each([&](const CellKey&, const Landmark& lm) { f(lm); });
+  }
+
+  /// Nodes of both trees (what a deep copy of this map would allocate).
+  std::size_t num_nodes() const { return spatial_.size() + ids_.size(); }
+  /// Adds this map's nodes to `seen`; returns how many were new.
+  std::size_t collect_nodes(std::unordered_set<const void*>& seen) const {
+    return spatial_.collect_nodes(seen) + ids_.collect_nodes(seen);
+  }
+  const SpatialTree& spatial_tree() const { return spatial_; }
+  const IdTree& id_tree() const { return ids_; }
+
+ private:
+  double cell_;
+  SpatialTree spatial_;
+  IdTree ids_;
+};
+
+}  // namespace probslam

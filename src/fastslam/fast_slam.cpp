@@ -1,0 +1,824 @@
+#include "probslam/fastslam/fast_slam.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <algorithm>
+#include <cmath>
+#include <string>
+#include <unordered_set>
+#include <utility>
+
+#include "probslam/core/angle.hpp"
+#include "probslam/core/check.hpp"
+#include "probslam/core/pose2.hpp"
+#include "probslam/core/range_bearing_model.hpp"
+#include "probslam/core/velocity_motion_model.hpp"
+#include "probslam/grid/worker_pool.hpp"
+
+namespace probslam {
+namespace {
+
+// Relative asymmetry tolerated in a user's noise matrix (rounding from a conversion).
+constexpr double kSymmetryTolerance = 1e-9;
+// Squared range below which a landmark sits on the robot: no bearing, no linearisation (as
+// core/range_bearing_model.cpp, which would refuse it).
+constexpr double kMinRangeSquared = 1e-18;
+// Association candidates: within association_radius plus this many standard deviations of where
+// the measurement places its landmark (3 sigma holds 99% of a 2-D Gaussian's mass).
+constexpr double kPlacementSigmas = 3.0;
+// Below this many particles per worker the threads' hand-off costs more than it saves.
+constexpr int kMinParticlesPerThread = 16;
+// The filter's own random stream (resampling offsets): a stream number no particle reaches.
+constexpr std::uint64_t kFilterStream = ~std::uint64_t{0};
+
+void require_psd(const Eigen::MatrixXd& m, const char* name, bool semi) {
+  require(m.size() > 0, name, "must not be empty");
+  require(m.allFinite(), name, "must contain only finite values");
+  require(m.cwiseAbs().maxCoeff() <= kFastSlamMaxVariance, name,
+          "entries must be <= 1e18 (kFastSlamMaxVariance) in magnitude");
+  const double scale = std::max(1.0, m.cwiseAbs().maxCoeff());
+  require((m - m.transpose()).cwiseAbs().maxCoeff() <= kSymmetryTolerance * scale, name, "must be symmetric");
+  const double min_eig = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(m, Eigen::EigenvaluesOnly).eigenvalues()(0);
+  if (semi) require(min_eig >= -kSymmetryTolerance * scale, name, "must be positive semi-definite");
+  else require(min_eig > 0.0, name, "must be positive definite");
+}
+
+template <int N>
+Eigen::Matrix<double, N, N> symmetric(const Eigen::Matrix<double, N, N>& m) {
+  return 0.5 * (m + m.transpose());  // exactly symmetric: a + b == b + a
+}
+
+/// L with L L^T = m for a symmetric positive semi-definite m (Cholesky, or the eigenvalue square
+/// root with rounding-negative eigenvalues clamped to zero when m is singular).
+template <int N>
+Eigen::Matrix<double, N, N> psd_factor(const Eigen::Matrix<double, N, N>& m) {
+  const Eigen::LLT<Eigen::Matrix<double, N, N>> llt(m);
+  if (llt.info() == Eigen::Success) return llt.matrixL();
+  const Eigen::SelfAdjointEigenSolver<Eigen::Matrix<double, N, N>> eig(symmetric<N>(m));
+  return eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();
+}
+
+double lambda_max(const Eigen::Matrix2d& s) {
+  const double h = 0.5 * (s(0, 0) + s(1, 1)), d = 0.5 * (s(0, 0) - s(1, 1));
+  return h + std::sqrt(d * d + s(0, 1) * s(1, 0));
+}
+
+/// log N(nu; 0, s) for a 2x2 s; NaN unless s is positive definite.
+double log_gauss2(const Eigen::Vector2d& nu, const Eigen::Matrix2d& s) {
+  const double det = s(0, 0) * s(1, 1) - s(0, 1) * s(1, 0);
+  if (!(det > 0.0) || !(s(0, 0) > 0.0)) return std::numeric_limits<double>::quiet_NaN();
+  const double m = (s(1, 1) * nu[0] * nu[0] - (s(0, 1) + s(1, 0)) * nu[0] * nu[1] + s(0, 0) * nu[1] * nu[1]) / det;
+  return -0.5 * (m + std::log(kTwoPi * kTwoPi * det));
+}
+
+double log_gauss1(double nu, double var) { return -0.5 * (nu * nu / var + std::log(kTwoPi * var)); }
+
+struct Predicted {
+  Eigen::Vector2d z_hat;
+  Eigen::Matrix<double, 2, 3> hx;
+  Eigen::Matrix2d hm;
+};
+
+/// h and its Jacobians at (pose, landmark); false for a landmark on the robot.
+bool predict_measurement(const Eigen::Vector3d& x, const Eigen::Vector2d& m, Predicted& out) {
+  if (!((m - x.head<2>()).squaredNorm() >= kMinRangeSquared)) return false;
+  out.z_hat = range_bearing(x, m);
+  const MeasurementJacobians<2> j = range_bearing_jacobians(x, m);
+  out.hx = j.pose;
+  out.hm = j.landmark;
+  return true;
+}
+
+Eigen::Vector2d innovation(const Eigen::Vector2d& z, const Eigen::Vector2d& z_hat) {
+  Eigen::Vector2d nu = z - z_hat;
+  nu[1] = wrap_angle(nu[1]);  // bearings live on the circle
+  return nu;
+}
+
+/// One step of the FastSLAM 2.0 proposal in Kalman form (see fastslam2_proposal); false for a
+/// landmark on the pose mean.
+bool proposal_step(Eigen::Vector3d& mu, Eigen::Matrix3d& p, const Landmark& lm, const Eigen::Vector2d& z,
+                   const Eigen::Matrix2d& q, double& log_likelihood) {
+  Predicted pr;
+  if (!predict_measurement(mu, lm.mean, pr)) return false;
+  const Eigen::Vector2d nu = innovation(z, pr.z_hat);
+  const Eigen::Matrix2d qj = symmetric<2>(pr.hm * lm.cov * pr.hm.transpose()) + q;
+  const Eigen::Matrix2d s = symmetric<2>(pr.hx * p * pr.hx.transpose()) + qj;
+  const Eigen::Matrix<double, 3, 2> k = p * pr.hx.transpose() * s.inverse();
+  mu += k * nu;
+  mu[2] = wrap_angle(mu[2]);
+  p = symmetric<3>(p - k * s * k.transpose());
+  log_likelihood = log_gauss2(nu, s);
+  return true;
+}
+
+struct Scan {
+  const Eigen::Ref<const RowMatrixXd>& z;
+  bool signatures;
+  Eigen::Vector2d rb(Eigen::Index i) const { return {z(i, 0), z(i, 1)}; }
+  double sig(Eigen::Index i) const { return z(i, 2); }
+};
+
+}  // namespace
+
+// ---- random streams and paths ----
+
+ParticleRng::ParticleRng(std::uint64_t seed, std::uint64_t stream) {
+  std::uint64_t x = mix64(seed) ^ mix64(stream ^ 0xd1b54a32d192ed03ULL);
+  for (std::uint64_t& s : s_) {
+    x += 0x9e3779b97f4a7c15ULL;
+    s = mix64(x);
+  }
+}
+
+std::uint64_t ParticleRng::next() {
+  const auto rotl = [](std::uint64_t v, int k) { return (v << k) | (v >> (64 - k)); };
+  const std::uint64_t result = rotl(s_[1] * 5, 7) * 9;
+  const std::uint64_t t = s_[1] << 17;
+  s_[2] ^= s_[0];
+  s_[3] ^= s_[1];
+  s_[1] ^= s_[2];
+  s_[0] ^= s_[3];
+  s_[2] ^= t;
+  s_[3] = rotl(s_[3], 45);
+  return result;
+}
+
+double ParticleRng::uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }
+
+double ParticleRng::normal() {
+  if (has_spare_) {
+    has_spare_ = false;
+    return spare_;
+  }
+  const double u1 = 1.0 - uniform();  // (0, 1]
+  const double u2 = uniform();
+  const double r = std::sqrt(-2.0 * std::log(u1));
+  spare_ = r * std::sin(kTwoPi * u2);
+  has_spare_ = true;
+  return r * std::cos(kTwoPi * u2);
+}
+
+void PosePath::Node::destroy(const Node* n) {
+  while (n) {
+    Node* owned = const_cast<Node*>(n);
+    const Node* prev = owned->prev.detach();
+    delete owned;
+    if (!prev || prev->refs.fetch_sub(1, std::memory_order_acq_rel) != 1) return;
+    n = prev;
+  }
+}
+
+Poses2 PosePath::poses() const {
+  Poses2 out(static_cast<Eigen::Index>(size()), 3);
+  Eigen::Index row = out.rows();
+  for (const Node* n = head_.get(); n; n = n->prev.get()) out.row(--row) = n->pose.transpose();
+  return out;
+}
+
+std::size_t PosePath::collect_nodes(std::unordered_set<const void*>& seen) const {
+  std::size_t added = 0;
+  for (const Node* n = head_.get(); n && seen.insert(n).second; n = n->prev.get()) ++added;
+  return added;
+}
+
+// ---- free functions ----
+
+PoseProposal fastslam2_proposal(const Eigen::Vector3d& pose_mean, const Eigen::Matrix3d& pose_cov,
+                                const Eigen::Vector2d& landmark_mean, const Eigen::Matrix2d& landmark_cov,
+                                const Eigen::Vector2d& z, const Eigen::Matrix2d& measurement_noise) {
+  require(pose_mean.allFinite() && pose_mean.head<2>().cwiseAbs().maxCoeff() <= kFastSlamMaxCoordinate,
+          "pose_mean", "must be finite with |x|, |y| <= 1e9 m (kFastSlamMaxCoordinate)");
+  require_psd(pose_cov, "pose_cov", true);
+  require(landmark_mean.allFinite() && landmark_mean.cwiseAbs().maxCoeff() <= kFastSlamMaxCoordinate,
+          "landmark_mean", "must be finite with |x|, |y| <= 1e9 m (kFastSlamMaxCoordinate)");
+  require_psd(landmark_cov, "landmark_cov", true);
+  require(z.allFinite() && z[0] >= 0.0 && z.cwiseAbs().maxCoeff() <= kFastSlamMaxCoordinate, "z",
+          "must be finite with a range in [0, 1e9]");
+  require_psd(measurement_noise, "measurement_noise", false);
+  Landmark lm;
+  lm.mean = landmark_mean;
+  lm.cov = symmetric<2>(landmark_cov);
+  PoseProposal out{pose_mean, symmetric<3>(pose_cov), 0.0};
+  out.mean[2] = wrap_angle(out.mean[2]);
+  require(proposal_step(out.mean, out.cov, lm, z, measurement_noise, out.log_likelihood), "landmark_mean",
+          "coincides with the pose (no bearing)");
+  require(out.mean.allFinite() && out.cov.allFinite() && std::isfinite(out.log_likelihood), "z",
+          "gives a proposal that is not finite");
+  return out;
+}
+
+std::vector<int> low_variance_resample(const Eigen::VectorXd& weights, double offset) {
+  require(weights.size() > 0, "weights", "must not be empty");
+  require(weights.size() <= kFastSlamMaxParticles, "weights", "must have at most 2^20 (kFastSlamMaxParticles) entries");
+  require(weights.allFinite() && (weights.array() >= 0.0).all(), "weights", "must be finite and >= 0");
+  const double total = weights.sum();
+  require(total > 0.0 && std::isfinite(total), "weights", "must have a finite positive sum");
+  require(std::isfinite(offset) && offset >= 0.0 && offset < 1.0, "offset", "must be in [0, 1)");
+  const Eigen::Index m = weights.size();
+  std::vector<int> out(static_cast<std::size_t>(m));
+  Eigen::Index i = 0;
+  double c = weights[0] / total;
+  for (Eigen::Index j = 0; j < m; ++j) {
+    const double u = (offset + static_cast<double>(j)) / static_cast<double>(m);
+    while (u > c && i < m - 1) c += weights[++i] / total;
+    out[static_cast<std::size_t>(j)] = static_cast<int>(i);
+  }
+  return out;
+}
+
+// ---- the filter ----
+
+/// What every particle's work in one call reads.
+struct FastSlam::Context {
+  const FastSlamOptions& o;
+  Eigen::Matrix2d q;   // (range, bearing) noise
+  double q_sig;        // signature variance
+  double log_p_new;
+
+  /// Signature log-likelihood of measurement i against lm (0 without signatures).
+  double sig_log_likelihood(const Scan& s, Eigen::Index i, const Landmark& lm) const {
+    return s.signatures ? log_gauss1(s.sig(i) - lm.signature, lm.signature_var + q_sig) : 0.0;
+  }
+
+  /// The landmark EKF update (version 1's, and version 2's after sampling) at pose x: returns
+  /// log N(z - z_hat; 0, Q_j) (with the signature's factor), NaN for a landmark on the robot.
+  double update_landmark(Landmark& lm, const Eigen::Vector3d& x, const Scan& s, Eigen::Index i) const {
+    Predicted pr;
+    if (!predict_measurement(x, lm.mean, pr)) return std::numeric_limits<double>::quiet_NaN();
+    const Eigen::Vector2d nu = innovation(s.rb(i), pr.z_hat);
+    const Eigen::Matrix2d qj = symmetric<2>(pr.hm * lm.cov * pr.hm.transpose()) + q;
+    const Eigen::Matrix2d k = lm.cov * pr.hm.transpose() * qj.inverse();
+    double ll = log_gauss2(nu, qj) + sig_log_likelihood(s, i, lm);
+    lm.mean += k * nu;
+    lm.cov = symmetric<2>(lm.cov - k * qj * k.transpose());
+    if (s.signatures) {
+      const double gain = lm.signature_var / (lm.signature_var + q_sig);
+      lm.signature += gain * (s.sig(i) - lm.signature);
+      lm.signature_var = (1.0 - gain) * lm.signature_var;
+    }
+    lm.existence += o.existence_hit;
+    require(lm.mean.allFinite() && lm.cov.allFinite() && std::isfinite(ll) &&
+                lm.mean.cwiseAbs().maxCoeff() <= 4.0 * kFastSlamMaxCoordinate,
+            "z", "cannot be applied: the landmark update would not be finite");
+    return ll;
+  }
+
+  /// Table 13.1's initialisation: the inverse measurement model, Sigma = H^-1 Q H^-T.
+  Landmark new_landmark(long id, const Eigen::Vector3d& x, const Scan& s, Eigen::Index i) const {
+    Landmark lm;
+    lm.id = id;
+    lm.mean = landmark_from_range_bearing(x, s.rb(i));
+    const Eigen::Matrix2d gz = landmark_from_range_bearing_jacobians(x, s.rb(i)).landmark;  // = H^-1
+    lm.cov = symmetric<2>(gz * q * gz.transpose());
+    lm.existence = o.existence_hit;
+    if (s.signatures) {
+      lm.signature = s.sig(i);
+      lm.signature_var = q_sig;
+    }
+    require(lm.cov.allFinite(), "z", "places a landmark whose covariance is not finite");
+    return lm;
+  }
+
+  /// Samples the pose from N(mu, p) when a proposal step changed the prior; the path's newest
+  /// entry (this step's motion sample) is replaced by it.
+  void take_proposal_sample(FastSlamParticle& part, const Eigen::Vector3d& mu, const Eigen::Matrix3d& p) const {
+    const Eigen::Matrix3d l = psd_factor<3>(p);
+    const Eigen::Vector3d n(part.rng.normal(), part.rng.normal(), part.rng.normal());
+    Eigen::Vector3d x = mu + l * n;
+    x[2] = wrap_angle(x[2]);
+    require(x.allFinite() && x.head<2>().cwiseAbs().maxCoeff() <= kFastSlamMaxCoordinate, "z",
+            "moves the pose beyond 1e9 m (kFastSlamMaxCoordinate)");
+    part.pose = x;
+    if (o.record_path) part.path.replace_last(x);
+  }
+
+  void add_log_likelihood(FastSlamParticle& part, double ll) const {
+    require(std::isfinite(ll), "z", "has a likelihood that is not finite");
+    part.log_weight += ll;
+    part.last_log_likelihood = ll;
+  }
+
+  // ---- known correspondences ----
+  void update_known(FastSlamParticle& part, const Scan& s, const std::vector<long>& ids) const {
+    const Eigen::Index k = s.z.rows();
+    if (k == 0) {
+      part.last_log_likelihood = 0.0;
+      return;
+    }
+    double ll = 0.0;
+    std::vector<std::uint8_t> in_proposal(static_cast<std::size_t>(k), 0);
+    if (o.version == 2 && part.has_prior) {
+      // The proposal, measurement by measurement: each step's posterior is the next one's prior.
+      Eigen::Vector3d mu = part.prior_mean;
+      Eigen::Matrix3d p = part.prior_cov;
+      std::unordered_set<long> used;
+      bool any = false;
+      for (Eigen::Index i = 0; i < k; ++i) {
+        const Landmark* lm = part.map.find(ids[static_cast<std::size_t>(i)]);
+        if (!lm || !used.insert(lm->id).second) continue;
+        double step = 0.0;
+        if (!proposal_step(mu, p, *lm, s.rb(i), q, step)) continue;
+        ll += step + sig_log_likelihood(s, i, *lm);
+        in_proposal[static_cast<std::size_t>(i)] = 1;
+        any = true;
+      }
+      if (any) take_proposal_sample(part, mu, p);
+    }
+    for (Eigen::Index i = 0; i < k; ++i) {
+      const long id = ids[static_cast<std::size_t>(i)];
+      if (const Landmark* found = part.map.find(id)) {
+        Landmark lm = *found;
+        const double step = update_landmark(lm, part.pose, s, i);
+        if (std::isnan(step)) continue;  // on the robot: no bearing, skipped
+        if (!in_proposal[static_cast<std::size_t>(i)]) ll += step;
+        part.map.put(lm);
+      } else {
+        part.map.put(new_landmark(id, part.pose, s, i));
+        ll += log_p_new;
+      }
+    }
+    part.has_prior = false;
+    add_log_likelihood(part, ll);
+  }
+
+  // ---- unknown correspondences ----
+  void update_unknown(FastSlamParticle& part, const Scan& s, double log_p_new_call, long* ids_out,
+                      std::uint8_t* new_out, std::vector<long>& removed) const {
+    const Eigen::Index k = s.z.rows();
+    const bool proposal = o.version == 2 && part.has_prior;
+    Eigen::Vector3d mu = proposal ? part.prior_mean : part.pose;
+    Eigen::Matrix3d p = proposal ? part.prior_cov : Eigen::Matrix3d::Zero();
+    // Candidate pairs whose likelihood exceeds p_new, from the landmarks near where each
+    // measurement places its landmark (version 2: the marginal likelihood at the prior mean).
+    struct Pair {
+      double ll;
+      Eigen::Index i;
+      long id;
+    };
+    std::vector<Pair> pairs;
+    for (Eigen::Index i = 0; i < k; ++i) {
+      const Eigen::Vector2d z = s.rb(i);
+      const Eigen::Vector2d placed = landmark_from_range_bearing(mu, z);
+      const MeasurementJacobians<2> j = landmark_from_range_bearing_jacobians(mu, z);
+      const Eigen::Matrix2d spread =
+          j.landmark * q * j.landmark.transpose() + j.pose * p * j.pose.transpose();
+      const double radius = o.association_radius + kPlacementSigmas * std::sqrt(std::max(0.0, lambda_max(spread)));
+      part.map.for_each_within(placed, radius, [&](const Landmark& lm) {
+        Predicted pr;
+        if (!predict_measurement(mu, lm.mean, pr)) return;
+        const Eigen::Matrix2d sm = symmetric<2>(pr.hm * lm.cov * pr.hm.transpose()) + q +
+                                   symmetric<2>(pr.hx * p * pr.hx.transpose());
+        const double ll = log_gauss2(innovation(z, pr.z_hat), sm) + sig_log_likelihood(s, i, lm);
+        if (ll > log_p_new_call) pairs.push_back({ll, i, lm.id});
+      });
+    }
+    // Maximum likelihood, best pairs first, one measurement per landmark and scan.
+    std::sort(pairs.begin(), pairs.end(), [](const Pair& a, const Pair& b) {
+      if (a.ll != b.ll) return a.ll > b.ll;
+      if (a.i != b.i) return a.i < b.i;
+      return a.id < b.id;
+    });
+    std::vector<long> assigned(static_cast<std::size_t>(k), -1);
+    std::unordered_set<long> taken;
+    for (const Pair& pr : pairs) {
+      long& a = assigned[static_cast<std::size_t>(pr.i)];
+      if (a < 0 && taken.insert(pr.id).second) a = pr.id;
+    }
+    double ll = 0.0;
+    std::vector<std::uint8_t> in_proposal(static_cast<std::size_t>(k), 0);
+    if (proposal) {
+      bool any = false;
+      for (Eigen::Index i = 0; i < k; ++i) {
+        if (assigned[static_cast<std::size_t>(i)] < 0) continue;
+        const Landmark& lm = *part.map.find(assigned[static_cast<std::size_t>(i)]);
+        double step = 0.0;
+        if (!proposal_step(mu, p, lm, s.rb(i), q, step)) continue;
+        ll += step + sig_log_likelihood(s, i, lm);
+        in_proposal[static_cast<std::size_t>(i)] = 1;
+        any = true;
+      }
+      if (any) take_proposal_sample(part, mu, p);
+    }
+    std::unordered_set<long> seen;
+    for (Eigen::Index i = 0; i < k; ++i) {
+      const long id = assigned[static_cast<std::size_t>(i)];
+      bool created = id < 0;
+      if (!created) {
+        Landmark lm = *part.map.find(id);
+        const double step = update_landmark(lm, part.pose, s, i);
+        if (std::isnan(step)) {
+          created = true;  // on the robot now: cannot be this landmark
+        } else {
+          if (!in_proposal[static_cast<std::size_t>(i)]) ll += step;
+          part.map.put(lm);
+          ids_out[i] = id;
+          new_out[i] = 0;
+          seen.insert(id);
+        }
+      }
+      if (created) {
+        const long nid = part.next_id++;
+        part.map.put(new_landmark(nid, part.pose, s, i));
+        ll += log_p_new_call;
+        ids_out[i] = nid;
+        new_out[i] = 1;
+        seen.insert(nid);
+      }
+    }
+    if (o.negative_information) {
+      // Landmarks in the perceptual field that this scan did not see lose existence.
+      std::vector<Landmark> missed;
+      const Eigen::Vector3d x = part.pose;
+      part.map.for_each_within(x.head<2>(), o.sensor_range, [&](const Landmark& lm) {
+        if (seen.count(lm.id)) return;
+        const Eigen::Vector2d d = lm.mean - x.head<2>();
+        if (std::abs(wrap_angle(std::atan2(d.y(), d.x()) - x[2])) <= 0.5 * o.sensor_fov) missed.push_back(lm);
+      });
+      for (Landmark& lm : missed) {
+        lm.existence -= o.existence_miss;
+        if (lm.existence < 0.0) {
+          part.map.erase(lm.id);
+          removed.push_back(lm.id);
+        } else {
+          part.map.put(lm);
+        }
+      }
+    }
+    if (k > 0) part.has_prior = false;
+    add_log_likelihood(part, ll);
+  }
+};
+
+FastSlam::FastSlam(const FastSlamOptions& options) : o_(options) {
+  require(o_.num_particles >= 1 && o_.num_particles <= kFastSlamMaxParticles, "num_particles",
+          "must be in [1, 2^20] (kFastSlamMaxParticles)");
+  require(o_.version == 1 || o_.version == 2, "version", "must be 1 or 2");
+  require((o_.motion_noise.rows() == 3 && o_.motion_noise.cols() == 3) ||
+              (o_.motion_noise.rows() == 2 && o_.motion_noise.cols() == 2),
+          "motion_noise", "must be 3x3 (pose space) or 2x2 (control space)");
+  require_psd(o_.motion_noise, "motion_noise", true);
+  const int md = o_.use_signatures ? 3 : 2;
+  require(o_.measurement_noise.rows() == md && o_.measurement_noise.cols() == md, "measurement_noise",
+          o_.use_signatures ? "must be 3x3 (range, bearing, signature)" : "must be 2x2 (range, bearing)");
+  require_psd(o_.measurement_noise, "measurement_noise", false);
+  if (o_.use_signatures)
+    require(o_.measurement_noise(0, 2) == 0.0 && o_.measurement_noise(1, 2) == 0.0 &&
+                o_.measurement_noise(2, 0) == 0.0 && o_.measurement_noise(2, 1) == 0.0,
+            "measurement_noise", "the signature must be uncorrelated with range and bearing (zero off-diagonal entries)");
+  require(o_.initial_pose.allFinite() && o_.initial_pose.head<2>().cwiseAbs().maxCoeff() <= kFastSlamMaxCoordinate,
+          "initial_pose", "must be finite with |x|, |y| <= 1e9 m (kFastSlamMaxCoordinate)");
+  require(o_.threads >= 1 && o_.threads <= kFastSlamMaxThreads, "threads", "must be in [1, 256] (kFastSlamMaxThreads)");
+  require(std::isfinite(o_.resample_threshold) && o_.resample_threshold >= 0.0 && o_.resample_threshold <= 1.0,
+          "resample_threshold", "must be in [0, 1]");
+  require(std::isfinite(o_.p_new) && o_.p_new > 0.0 && std::isfinite(std::log(o_.p_new)), "p_new",
+          "must be finite and > 0");
+  require(std::isfinite(o_.association_radius) && o_.association_radius >= 0.0 &&
+              o_.association_radius <= kFastSlamMaxCoordinate,
+          "association_radius", "must be in [0, 1e9] m");
+  require(std::isfinite(o_.cell_size) && o_.cell_size >= kFastSlamMinCellSize && o_.cell_size <= kFastSlamMaxCoordinate,
+          "cell_size", "must be in [1e-6, 1e9] m (kFastSlamMinCellSize)");
+  require(std::isfinite(o_.existence_hit) && o_.existence_hit >= 0.0 && o_.existence_hit <= kFastSlamMaxCoordinate,
+          "existence_hit", "must be in [0, 1e9]");
+  require(std::isfinite(o_.existence_miss) && o_.existence_miss >= 0.0 && o_.existence_miss <= kFastSlamMaxCoordinate,
+          "existence_miss", "must be in [0, 1e9]");
+  require(o_.sensor_range > 0.0 && (std::isinf(o_.sensor_range) || o_.sensor_range <= kFastSlamMaxCoordinate),
+          "sensor_range", "must be > 0 m (and at most 1e9 m, or infinite)");
+  require(!o_.negative_information || std::isfinite(o_.sensor_range), "sensor_range",
+          "must be finite with negative_information");
+  require(std::isfinite(o_.sensor_fov) && o_.sensor_fov > 0.0 && o_.sensor_fov <= kTwoPi, "sensor_fov",
+          "must be in (0, 2 pi] rad");
+
+  o_.motion_noise = symmetric<Eigen::Dynamic>(o_.motion_noise);
+  control_noise_ = o_.motion_noise.rows() == 2;
+  if (control_noise_) control_factor_ = psd_factor<2>(Eigen::Matrix2d(o_.motion_noise));
+  else motion_factor_ = psd_factor<3>(Eigen::Matrix3d(o_.motion_noise));
+  o_.measurement_noise = symmetric<Eigen::Dynamic>(o_.measurement_noise);
+  q2_ = o_.measurement_noise.topLeftCorner<2, 2>();
+  if (o_.use_signatures) q_signature_ = o_.measurement_noise(2, 2);
+  o_.initial_pose[2] = wrap_angle(o_.initial_pose[2]);
+
+  const int m = o_.num_particles;
+  particles_.resize(static_cast<std::size_t>(m));
+  for (int k = 0; k < m; ++k) {
+    FastSlamParticle& p = particles_[static_cast<std::size_t>(k)];
+    p.pose = o_.initial_pose;
+    p.log_weight = -std::log(static_cast<double>(m));
+    p.map = LandmarkMap(o_.cell_size);
+    p.rng = ParticleRng(o_.seed, static_cast<std::uint64_t>(k));
+    if (o_.record_path) p.path.push(p.pose);
+  }
+  next_stream_ = static_cast<std::uint64_t>(m);
+  rng_ = ParticleRng(o_.seed, kFilterStream);
+}
+
+FastSlam::FastSlam(const FastSlam& other)
+    : o_(other.o_),
+      motion_factor_(other.motion_factor_),
+      control_factor_(other.control_factor_),
+      control_noise_(other.control_noise_),
+      q2_(other.q2_),
+      q_signature_(other.q_signature_),
+      particles_(other.particles_),
+      rng_(other.rng_),
+      next_stream_(other.next_stream_),
+      resamples_(other.resamples_),
+      last_resampled_(other.last_resampled_) {}
+
+FastSlam& FastSlam::operator=(const FastSlam& other) {
+  if (this != &other) {
+    FastSlam copy(other);
+    *this = std::move(copy);
+  }
+  return *this;
+}
+
+FastSlam::FastSlam(FastSlam&&) noexcept = default;
+FastSlam& FastSlam::operator=(FastSlam&&) noexcept = default;
+FastSlam::~FastSlam() = default;
+
+template <class F>
+void FastSlam::for_particles(F&& f) {
+  const int m = num_particles();
+  const int workers = std::min(o_.threads, std::max(1, m / kMinParticlesPerThread));
+  if (workers <= 1) {
+    for (int k = 0; k < m; ++k) f(k);
+    return;
+  }
+  if (!pool_ || static_cast<int>(pool_->size()) != workers) pool_ = std::make_unique<WorkerPool>(workers);
+  pool_->run([&](std::size_t w) {
+    const int begin = static_cast<int>(static_cast<long>(m) * static_cast<long>(w) / workers);
+    const int end = static_cast<int>(static_cast<long>(m) * static_cast<long>(w + 1) / workers);
+    for (int k = begin; k < end; ++k) f(k);
+  });
+}
+
+std::vector<int> FastSlam::commit(std::vector<FastSlamParticle>& staged) {
+  particles_.swap(staged);
+  // Normalise the log weights (log-sum-exp), then resample when N_eff is low.
+  double top = -std::numeric_limits<double>::infinity();
+  for (const FastSlamParticle& p : particles_) top = std::max(top, p.log_weight);
+  double sum = 0.0;
+  for (const FastSlamParticle& p : particles_) sum += std::exp(p.log_weight - top);
+  const double lse = top + std::log(sum);
+  for (FastSlamParticle& p : particles_) p.log_weight -= lse;
+  last_resampled_ = false;
+  std::vector<int> ancestors;
+  if (effective_sample_size() < o_.resample_threshold * num_particles()) {
+    ancestors = resample_now();
+    last_resampled_ = true;
+  }
+  return ancestors;
+}
+
+std::vector<int> FastSlam::resample_now() {
+  const int m = num_particles();
+  Eigen::VectorXd w(m);
+  for (int k = 0; k < m; ++k) w[k] = std::exp(particles_[static_cast<std::size_t>(k)].log_weight);
+  const std::vector<int> idx = low_variance_resample(w, rng_.uniform());
+  std::vector<FastSlamParticle> next;
+  next.reserve(static_cast<std::size_t>(m));
+  const double lw = -std::log(static_cast<double>(m));
+  for (int j = 0; j < m; ++j) {
+    next.push_back(particles_[static_cast<std::size_t>(idx[static_cast<std::size_t>(j)])]);  // O(1): shared map and path
+    next.back().rng = ParticleRng(o_.seed, next_stream_ + static_cast<std::uint64_t>(j));
+    next.back().log_weight = lw;
+  }
+  next_stream_ += static_cast<std::uint64_t>(m);
+  particles_.swap(next);
+  ++resamples_;
+  return idx;
+}
+
+void FastSlam::resample() {
+  resample_now();
+  last_resampled_ = true;
+}
+
+void FastSlam::predict(double v, double w, double dt) {
+  // Validates v, w, dt (finite, dt > 0) before anything changes.
+  velocity_motion_jacobian(o_.initial_pose, v, w, dt);
+  require(std::fabs(v * dt) <= kFastSlamMaxCoordinate, "v", "* dt must be <= 1e9 m (kFastSlamMaxCoordinate)");
+  std::vector<FastSlamParticle> staged = particles_;
+  const Eigen::Matrix3d r = control_noise_ ? Eigen::Matrix3d::Zero() : Eigen::Matrix3d(o_.motion_noise);
+  const Eigen::Matrix2d mc = control_noise_ ? Eigen::Matrix2d(o_.motion_noise) : Eigen::Matrix2d::Zero();
+  for_particles([&](int k) {
+    FastSlamParticle& p = staged[static_cast<std::size_t>(k)];
+    const Eigen::Vector3d x = p.pose;
+    Eigen::Vector3d next;
+    if (control_noise_) {
+      const Eigen::Vector2d e = control_factor_ * Eigen::Vector2d(p.rng.normal(), p.rng.normal());
+      next = velocity_motion(x, v + e[0], w + e[1], dt);
+    } else {
+      const Eigen::Vector3d e = motion_factor_ * Eigen::Vector3d(p.rng.normal(), p.rng.normal(), p.rng.normal());
+      next = velocity_motion(x, v, w, dt) + e;
+      next[2] = wrap_angle(next[2]);
+    }
+    require(next.allFinite() && next.head<2>().cwiseAbs().maxCoeff() <= kFastSlamMaxCoordinate, "v",
+            "moves the robot beyond 1e9 m (kFastSlamMaxCoordinate)");
+    if (o_.version == 2) {
+      p.prior_mean = velocity_motion(x, v, w, dt);
+      if (control_noise_) {
+        const Eigen::Matrix<double, 3, 2> vj = velocity_motion_control_jacobian(x, v, w, dt);
+        p.prior_cov = symmetric<3>(vj * mc * vj.transpose());
+      } else {
+        p.prior_cov = r;
+      }
+      p.has_prior = true;
+    }
+    p.pose = next;
+    if (o_.record_path) p.path.push(next);
+  });
+  particles_.swap(staged);
+}
+
+void FastSlam::predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matrix3d& noise) {
+  require_all_finite(delta, "delta");
+  require(delta.head<2>().norm() <= kFastSlamMaxCoordinate, "delta",
+          "must be a step of at most 1e9 m (kFastSlamMaxCoordinate)");
+  require_psd(noise, "noise", true);
+  const Eigen::Matrix3d cov = symmetric<3>(noise);
+  const Eigen::Matrix3d l = psd_factor<3>(cov);
+  std::vector<FastSlamParticle> staged = particles_;
+  for_particles([&](int k) {
+    FastSlamParticle& p = staged[static_cast<std::size_t>(k)];
+    const Eigen::Vector3d x = p.pose;
+    const Eigen::Matrix2d rx = rotation_matrix(x[2]);
+    const Eigen::Vector3d d = delta + l * Eigen::Vector3d(p.rng.normal(), p.rng.normal(), p.rng.normal());
+    Eigen::Vector3d next;
+    next.head<2>() = x.head<2>() + rx * d.head<2>();
+    next[2] = wrap_angle(x[2] + d[2]);
+    require(next.allFinite() && next.head<2>().cwiseAbs().maxCoeff() <= kFastSlamMaxCoordinate, "delta",
+            "moves the robot beyond 1e9 m (kFastSlamMaxCoordinate)");
+    if (o_.version == 2) {
+      p.prior_mean.head<2>() = x.head<2>() + rx * delta.head<2>();
+      p.prior_mean[2] = wrap_angle(x[2] + delta[2]);
+      Eigen::Matrix3d j = Eigen::Matrix3d::Identity();  // d(x (+) delta) / d delta
+      j.topLeftCorner<2, 2>() = rx;
+      p.prior_cov = symmetric<3>(j * cov * j.transpose());
+      p.has_prior = true;
+    }
+    p.pose = next;
+    if (o_.record_path) p.path.push(next);
+  });
+  particles_.swap(staged);
+}
+
+void FastSlam::check_measurements(const Eigen::Ref<const RowMatrixXd>& z) const {
+  const int md = landmark_dim();
+  require(z.cols() == md, "z", md == 3 ? "must have 3 columns (range, bearing, signature)"
+                                       : "must have 2 columns (range, bearing)");
+  require(z.allFinite(), "z", "must contain only finite values");
+  require((z.col(0).array() >= 0.0).all(), "z", "ranges must be >= 0");
+  require(z.size() == 0 || z.cwiseAbs().maxCoeff() <= kFastSlamMaxCoordinate, "z",
+          "entries must be <= 1e9 (kFastSlamMaxCoordinate) in magnitude");
+}
+
+void FastSlam::check_room(Eigen::Index added) const {
+  for (const FastSlamParticle& p : particles_) {
+    require(static_cast<long>(p.map.size()) + added <= kFastSlamMaxLandmarks, "z",
+            "would grow a map beyond 2^26 landmarks (kFastSlamMaxLandmarks)");
+    require(p.next_id <= kFastSlamMaxLandmarkId - added, "z", "would need landmark ids beyond 2^62");
+  }
+}
+
+bool FastSlam::update(const Eigen::Ref<const RowMatrixXd>& z, const std::vector<long>& ids) {
+  check_measurements(z);
+  require(static_cast<Eigen::Index>(ids.size()) == z.rows(), "ids", "must have one id per measurement");
+  for (long id : ids) require(id >= 0 && id <= kFastSlamMaxLandmarkId, "ids", "must be in [0, 2^62]");
+  check_room(z.rows());
+  const Context c{o_, q2_, q_signature_, std::log(o_.p_new)};
+  const Scan s{z, o_.use_signatures};
+  std::vector<FastSlamParticle> staged = particles_;
+  for_particles([&](int k) { c.update_known(staged[static_cast<std::size_t>(k)], s, ids); });
+  commit(staged);
+  return last_resampled_;
+}
+
+FastSlamAssociation FastSlam::update_unknown(const Eigen::Ref<const RowMatrixXd>& z) {
+  return update_unknown(z, o_.p_new);
+}
+
+FastSlamAssociation FastSlam::update_unknown(const Eigen::Ref<const RowMatrixXd>& z, double p_new) {
+  check_measurements(z);
+  require(std::isfinite(p_new) && p_new > 0.0 && std::isfinite(std::log(p_new)), "p_new", "must be finite and > 0");
+  check_room(z.rows());
+  const Context c{o_, q2_, q_signature_, std::log(o_.p_new)};
+  const Scan s{z, o_.use_signatures};
+  const int m = num_particles();
+  const auto k = static_cast<std::size_t>(z.rows());
+  FastSlamAssociation out;
+  out.num_particles = m;
+  out.num_measurements = static_cast<int>(k);
+  out.ids.assign(static_cast<std::size_t>(m) * k, -1);
+  out.is_new.assign(static_cast<std::size_t>(m) * k, 0);
+  std::vector<std::vector<long>> removed(static_cast<std::size_t>(m));
+  out.removed.resize(static_cast<std::size_t>(m));
+  std::vector<FastSlamParticle> staged = particles_;
+  const double log_p_new = std::log(p_new);
+  for_particles([&](int j) {
+    const auto at = static_cast<std::size_t>(j) * k;
+    c.update_unknown(staged[static_cast<std::size_t>(j)], s, log_p_new, out.ids.data() + at, out.is_new.data() + at,
+                     removed[static_cast<std::size_t>(j)]);
+  });
+  const std::vector<int> ancestors = commit(staged);
+  if (!ancestors.empty()) {  // rows follow the particles after resampling
+    FastSlamAssociation moved = out;
+    for (int j = 0; j < m; ++j) {
+      const auto from = static_cast<std::size_t>(ancestors[static_cast<std::size_t>(j)]);
+      std::copy_n(out.ids.begin() + static_cast<std::ptrdiff_t>(from * k), k,
+                  moved.ids.begin() + static_cast<std::ptrdiff_t>(static_cast<std::size_t>(j) * k));
+      std::copy_n(out.is_new.begin() + static_cast<std::ptrdiff_t>(from * k), k,
+                  moved.is_new.begin() + static_cast<std::ptrdiff_t>(static_cast<std::size_t>(j) * k));
+      moved.removed[static_cast<std::size_t>(j)] = removed[from];
+    }
+    return moved;
+  }
+  out.removed = std::move(removed);
+  return out;
+}
+
+const FastSlamParticle& FastSlam::particle(int k) const {
+  require(k >= 0 && k < num_particles(), "index", "is not a particle index");
+  return particles_[static_cast<std::size_t>(k)];
+}
+
+Poses2 FastSlam::poses() const {
+  Poses2 out(num_particles(), 3);
+  for (int k = 0; k < num_particles(); ++k) out.row(k) = particles_[static_cast<std::size_t>(k)].pose.transpose();
+  return out;
+}
+
+Eigen::VectorXd FastSlam::log_weights() const {
+  Eigen::VectorXd out(num_particles());
+  for (int k = 0; k < num_particles(); ++k) out[k] = particles_[static_cast<std::size_t>(k)].log_weight;
+  return out;
+}
+
+Eigen::VectorXd FastSlam::last_log_likelihoods() const {
+  Eigen::VectorXd out(num_particles());
+  for (int k = 0; k < num_particles(); ++k) out[k] = particles_[static_cast<std::size_t>(k)].last_log_likelihood;
+  return out;
+}
+
+double FastSlam::effective_sample_size() const {
+  double s = 0.0;
+  for (const FastSlamParticle& p : particles_) s += std::exp(2.0 * p.log_weight);
+  return 1.0 / s;
+}
+
+int FastSlam::best_index() const {
+  int best = 0;
+  for (int k = 1; k < num_particles(); ++k)
+    if (particles_[static_cast<std::size_t>(k)].log_weight > particles_[static_cast<std::size_t>(best)].log_weight)
+      best = k;
+  return best;
+}
+
+Poses2 FastSlam::path(int k) const { return particle(k).path.poses(); }
+
+Eigen::Vector3d FastSlam::mean_pose() const {
+  double x = 0.0, y = 0.0, c = 0.0, s = 0.0;
+  for (const FastSlamParticle& p : particles_) {
+    const double w = std::exp(p.log_weight);
+    x += w * p.pose[0];
+    y += w * p.pose[1];
+    c += w * std::cos(p.pose[2]);
+    s += w * std::sin(p.pose[2]);
+  }
+  return {x, y, std::atan2(s, c)};
+}
+
+Eigen::Matrix3d FastSlam::pose_covariance() const {
+  const Eigen::Vector3d mean = mean_pose();
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+  for (const FastSlamParticle& p : particles_) {
+    Eigen::Vector3d e = p.pose - mean;
+    e[2] = wrap_angle(e[2]);
+    cov += std::exp(p.log_weight) * e * e.transpose();
+  }
+  return symmetric<3>(cov);
+}
+
+std::vector<Landmark> FastSlam::landmarks(int k) const {
+  std::vector<Landmark> out;
+  const LandmarkMap& map = particle(k).map;
+  out.reserve(map.size());
+  map.for_each([&](const Landmark& lm) { out.push_back(lm); });
+  std::sort(out.begin(), out.end(), [](const Landmark& a, const Landmark& b) { return a.id < b.id; });
+  return out;
+}
+
+MapSharing FastSlam::map_sharing() const {
+  MapSharing s;
+  std::unordered_set<const void*> seen, path_seen;
+  for (const FastSlamParticle& p : particles_) {
+    s.distinct_nodes += p.map.collect_nodes(seen);
+    s.total_nodes += p.map.num_nodes();
+    s.landmarks += p.map.size();
+    s.path_nodes += p.path.collect_nodes(path_seen);
+  }
+  return s;
+}
+
+}  // namespace probslam
