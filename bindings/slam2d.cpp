@@ -14,6 +14,7 @@
 #include "probslam/slam2d/incremental_scan_matcher.hpp"
 #include "probslam/slam2d/likelihood_field.hpp"
 #include "probslam/slam2d/range_scan.hpp"
+#include "probslam/fastslam/grid_fast_slam.hpp"
 #include "probslam/slam2d/submap_slam.hpp"
 
 namespace probslam::bindings {
@@ -145,6 +146,53 @@ SubmapSlamOptions slam_options(Kwargs& k) {
   k.get("field_cache_mb", cache_mb);
   c.field_cache_bytes = cache_mb * 1024.0 * 1024.0;
   k.get("max_rounds", o.max_rounds);
+  return o;
+}
+
+/// GridFastSlam's options by keyword (particles, proposal as a string, the rest as named).
+GridFastSlamOptions rbpf_options(Kwargs& k) {
+  GridFastSlamOptions o;
+  k.get("num_particles", o.num_particles);
+  if (const py::handle v = k.take("proposal"); v && !v.is_none()) {
+    if (!py::isinstance<py::str>(v)) throw py::type_error("proposal must be a str");
+    const std::string name = v.cast<std::string>();
+    if (name == "motion") o.proposal = GridProposal::kMotion;
+    else if (name == "scan-matching") o.proposal = GridProposal::kScanMatching;
+    else if (name == "improved-odometry") o.proposal = GridProposal::kImprovedOdometry;
+    else throw py::value_error("proposal must be 'motion', 'scan-matching' or 'improved-odometry', got '" + name + "'");
+  }
+  k.get("resolution", o.resolution);
+  k.get("max_range", o.filter.max_range);
+  k.get("min_range", o.filter.min_range);
+  k.get("max_usable_range", o.filter.max_usable_range);
+  k.get("clear_no_return", o.filter.clear_no_return);
+  k.get("min_point_spacing", o.filter.min_point_spacing);
+  if (const py::handle v = k.take("odometry_noise"); v && !v.is_none()) {
+    const DoubleArray a = vector_arg(v, "odometry_noise", 6);
+    o.odometry = {a.data()[0], a.data()[1], a.data()[2], a.data()[3], a.data()[4], a.data()[5]};
+  }
+  k.get("sigma", o.likelihood.sigma);
+  k.get("p_rand", o.likelihood.p_rand);
+  k.get("search_radius", o.likelihood.search_radius);
+  k.get("linear_step", o.matching.linear_step);
+  k.get("angular_step", o.matching.angular_step);
+  k.get("refinements", o.matching.refinements);
+  k.get("sample_linear", o.matching.sample_linear);
+  k.get("sample_angular", o.matching.sample_angular);
+  k.get("min_match_quality", o.matching.min_quality);
+  k.get("resample_threshold", o.resample_threshold);
+  k.get("update_distance", o.update_distance);
+  k.get("update_angle", o.update_angle);
+  k.get("corrector_submap_distance", o.corrector.submap_distance);
+  int seed = 0;
+  k.get("seed", seed);
+  if (seed < 0) throw py::value_error("seed must be >= 0");
+  o.seed = static_cast<std::uint64_t>(seed);
+  k.get("threads", o.threads);
+  // The corrector sees the scans as the filter does.
+  o.corrector.resolution = o.resolution;
+  o.corrector.filter = o.filter;
+  o.corrector.odometry = o.odometry;
   return o;
 }
 
@@ -393,6 +441,59 @@ void define_slam2d(py::module_& m) {
         d["closures_searched"] = s.closures_searched, d["closures_accepted"] = s.closures_accepted;
         d["closures_rejected"] = s.closures_rejected, d["closures_dissolved"] = s.closures_dissolved;
         d["rounds"] = s.rounds, d["optimizations"] = s.optimizations, d["final_chi2"] = s.final_chi2;
+        return d;
+      });
+
+  using Rbpf = GridFastSlam;
+  // The particle argument is read with the GIL held; resolved (None: the best) under the lock.
+  auto particle_arg = [](py::handle k) -> long long {
+    if (k.is_none()) return -1;
+    if (py::isinstance<py::bool_>(k) || !PyIndex_Check(k.ptr())) throw py::type_error("particle must be an int");
+    const long long i = k.cast<long long>();
+    if (i < 0) throw py::value_error("particle must be in [0, num_particles)");
+    return i;
+  };
+  auto resolve = [](const Rbpf& self, long long k) {
+    if (k < 0) return self.best_index();
+    require(k < self.num_particles(), "particle", "must be in [0, num_particles)");
+    return static_cast<int>(k);
+  };
+  py::class_<Rbpf>(m, "GridFastSlam")
+      .def(py::init([](const py::kwargs& kw) {
+        Kwargs k(kw);
+        const GridFastSlamOptions o = rbpf_options(k);
+        k.finish();
+        return std::make_unique<Rbpf>(o);
+      }))
+      .def("add_scans", &add_scans<Rbpf>, py::arg("ranges"), py::arg("beam_angles"), py::arg("odometry"),
+           py::arg("timestamps"))
+      .def_property_readonly("num_scans", getter(&Rbpf::num_scans))
+      .def_property_readonly("num_particles", getter(&Rbpf::num_particles))
+      .def_property_readonly("poses", [](const Rbpf& self) { return locked(self, [&] { return self.poses(); }); })
+      .def_property_readonly("log_weights", [](const Rbpf& self) { return locked(self, [&] { return self.log_weights(); }); })
+      .def_property_readonly("best_index", getter(&Rbpf::best_index))
+      .def_property_readonly("timestamps", [](const Rbpf& self) {
+        return locked(self, [&] { return Eigen::VectorXd(Eigen::Map<const Eigen::VectorXd>(self.timestamps().data(), self.num_scans())); });
+      })
+      .def("scan_poses", [particle_arg, resolve](const Rbpf& self, py::handle particle) {
+        const long long k = particle_arg(particle);
+        return locked(self, [&] { return self.scan_poses(resolve(self, k)); });
+      }, py::arg("particle") = py::none())
+      .def("map", [particle_arg, resolve](const Rbpf& self, py::handle particle) {
+        const long long k = particle_arg(particle);
+        return locked(self, [&] { return self.map(resolve(self, k)); });
+      }, py::arg("particle") = py::none())
+      .def_property_readonly("tile_sharing", [](const Rbpf& self) {
+        const TileSharing t = locked(self, [&] { return self.tile_sharing(); });
+        py::dict d;
+        d["references"] = t.references, d["distinct"] = t.distinct, d["bytes"] = t.bytes;
+        return d;
+      })
+      .def_property_readonly("summary", [](const Rbpf& self) {
+        const GridFastSlamSummary s = locked(self, [&] { return self.summary(); });
+        py::dict d;
+        d["scans"] = s.scans, d["updates"] = s.updates, d["resamples"] = s.resamples, d["matched"] = s.matched;
+        d["fallbacks"] = s.fallbacks, d["effective_sample_size"] = s.effective_sample_size;
         return d;
       });
 }

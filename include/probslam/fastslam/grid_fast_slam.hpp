@@ -1,0 +1,135 @@
+#pragma once
+// Grid-based FastSLAM (the lecture's "Grid-based FastSLAM"): a Rao-Blackwellised particle filter
+// whose particles each carry a pose, a log weight and an occupancy grid map built with known
+// poses (Table 9.1 with insert_rays' rules), the maps shared between particles in copy-on-write
+// tiles. Three proposals:
+//  - kMotion: the lecture's algorithm box; sample the odometry motion model, weight by
+//    p(z | x, m) (EndpointLikelihood), insert the scan;
+//  - kScanMatching: Grisetti et al. 2007 (GMapping); scan-match against the particle's own map,
+//    sample from a Gaussian fitted to p(z | x, m) p(x | x_t-1, u) around the mode, weight by its
+//    normaliser; falls back to kMotion (counted) when the match fails;
+//  - kImprovedOdometry: Haehnel et al. 2003; the odometry is first corrected by incremental scan
+//    matching over short submaps, then kMotion with the corrected motion and its covariance.
+#include <Eigen/Core>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "probslam/core/object_mutex.hpp"
+#include "probslam/core/types.hpp"
+#include "probslam/fastslam/endpoint_likelihood.hpp"
+#include "probslam/fastslam/fast_slam.hpp"
+#include "probslam/fastslam/scan_proposal.hpp"
+#include "probslam/fastslam/tiled_grid_2d.hpp"
+#include "probslam/slam2d/incremental_scan_matcher.hpp"
+#include "probslam/slam2d/range_scan.hpp"
+
+namespace probslam {
+
+class WorkerPool;
+
+enum class GridProposal : std::uint8_t { kMotion = 0, kScanMatching = 1, kImprovedOdometry = 2 };
+
+/// Particles at most: each holds a grid map's tile table; far beyond any published use (GMapping
+/// runs 30 to 100).
+inline constexpr int kGridFastSlamMaxParticles = 100000;
+
+struct GridFastSlamOptions {
+  int num_particles = 30;
+  GridProposal proposal = GridProposal::kScanMatching;
+  double resolution = 0.05;  ///< of the particles' maps, m
+  ScanFilter filter;         ///< which readings hit, and the usable range
+  OdometryNoise odometry;    ///< the odometry motion model's noise
+  EndpointLikelihoodOptions likelihood;
+  ScanProposalOptions matching;
+  /// Resample when N_eff = 1 / sum w^2 < resample_threshold * num_particles, in [0, 1].
+  double resample_threshold = 0.5;
+  /// The filter updates once the odometry has moved this far (m) or turned this much (rad)
+  /// since the last update; scans in between take the odometry's motion from it.
+  double update_distance = 0.25, update_angle = 0.25;
+  /// kImprovedOdometry's incremental scan matcher (its submaps cut every few metres).
+  IncrementalScanMatcherOptions corrector = default_corrector();
+  std::uint64_t seed = 0;
+  int threads = 1;
+
+  static IncrementalScanMatcherOptions default_corrector();
+  void validate() const;
+};
+
+struct GridFastSlamSummary {
+  long scans = 0, updates = 0, resamples = 0;
+  long matched = 0;    ///< particle updates drawn from the scan-matching proposal
+  long fallbacks = 0;  ///< particle updates whose match failed (motion model instead)
+  double effective_sample_size = 0.0;  ///< after the last update, before any resampling
+};
+
+/// Every method validates its input before it changes anything (std::invalid_argument naming
+/// the argument). Lock mutex() around calls when several threads share the object.
+class GridFastSlam {
+ public:
+  std::mutex& mutex() const noexcept { return mutex_.get(); }
+
+  explicit GridFastSlam(const GridFastSlamOptions& options);
+  ~GridFastSlam();
+  GridFastSlam(const GridFastSlam&) = delete;
+  GridFastSlam& operator=(const GridFastSlam&) = delete;
+
+  /// One scan: ranges (B,) m, beam_angles (B,) rad relative to the sensor, the sensor's odometry
+  /// pose (x, y, theta) and a timestamp (s). Returns true when the filter updated on it.
+  bool add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges, const Eigen::Ref<const Eigen::VectorXd>& beam_angles,
+                const Eigen::Vector3d& odometry, double timestamp);
+
+  const GridFastSlamOptions& options() const { return options_; }
+  int num_particles() const { return static_cast<int>(particles_.size()); }
+  int num_scans() const { return static_cast<int>(scan_step_.size()); }
+  /// Particle poses (M x 3) and normalised log weights (M,).
+  Poses2 poses() const;
+  Eigen::VectorXd log_weights() const;
+  int best_index() const;
+  /// Every scan's pose under particle k's path: its pose at the scan's update step composed
+  /// with the (corrected) odometry's motion since (N x 3).
+  Poses2 scan_poses(int k) const;
+  /// Particle k's map as a dense grid.
+  OccupancyGrid2D map(int k) const;
+  const TiledGrid2D& tiled_map(int k) const;
+  TileSharing tile_sharing() const;
+  GridFastSlamSummary summary() const;
+  const std::vector<double>& timestamps() const { return timestamps_; }
+
+ private:
+  struct Particle {
+    Eigen::Vector3d pose = Eigen::Vector3d::Zero();
+    double log_weight = 0.0;
+    std::shared_ptr<TiledGrid2D> map;  // its tiles are shared; the table is the particle's own
+    PosePath path;                     // the pose at every update step
+    ParticleRng rng;
+  };
+  void first_scan(const Eigen::VectorXd& insertion, const Eigen::Ref<const Eigen::VectorXd>& angles,
+                  const Eigen::Vector3d& odometry);
+  void update(const Points2& points, const Eigen::VectorXd& insertion, const Eigen::Ref<const Eigen::VectorXd>& angles,
+              const Eigen::Vector3d& delta, const Eigen::Matrix3d& delta_cov);
+  void update_particle(Particle& p, const Points2& points, const Eigen::VectorXd& insertion,
+                       const Eigen::Ref<const Eigen::VectorXd>& angles, const Eigen::Vector3d& delta,
+                       const Eigen::Matrix3d& delta_cov, long& matched, long& fallbacks) const;
+  void insert(Particle& p, const Eigen::VectorXd& insertion, const Eigen::Ref<const Eigen::VectorXd>& angles) const;
+  void normalise_and_resample();
+
+  GridFastSlamOptions options_;
+  EndpointLikelihood likelihood_;
+  std::unique_ptr<IncrementalScanMatcher> corrector_;
+  std::vector<Particle> particles_;
+  ParticleRng rng_;
+  std::uint64_t next_stream_ = 0;
+  // Odometry (or corrected odometry) at the last update, and the motion's covariance since then.
+  Eigen::Vector3d last_update_odometry_ = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d corrected_cov_ = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d last_corrected_ = Eigen::Vector3d::Zero();
+  std::vector<int> scan_step_;               // update step each scan hangs from
+  std::vector<Eigen::Vector3d> scan_offset_; // its odometry motion since that step
+  std::vector<double> timestamps_;
+  GridFastSlamSummary summary_;
+  std::unique_ptr<WorkerPool> pool_;  // threads > 1: started on the first update
+  ObjectMutex mutex_;
+};
+
+}  // namespace probslam
