@@ -4,6 +4,7 @@ Units: metres and radians; poses are ``(x, y, theta)`` with theta wrapped to (-p
 """
 
 from ._core import (
+    FastSlam,
     OccupancyGrid2D,
     OccupancyGrid3D,
     Pose2,
@@ -43,6 +44,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "EkfSlam",
+    "FastSlam",
     "CorrespondenceTest",
     "FeatureMerges",
     "GraphSlamResult",

@@ -193,6 +193,85 @@ class _EkfSlam:
     def pairing_likelihood(self, z: ArrayLike, id: int) -> Tuple[float, float]:
         """(NIS, log det(2 pi S)) of one measurement against landmark id, without updating."""
 
+class FastSlam:
+    """FastSLAM 1.0 / 2.0 (Montemerlo 2002, 2003; Probabilistic Robotics ch. 13) for point
+    landmarks seen by a range-bearing(-signature) sensor. Units: metres, radians, seconds.
+
+    Args:
+        num_particles: M in [1, 2^20].
+        motion_noise: (3, 3) pose-space covariance R of (x, y, theta) added to g(x, u), or (2, 2)
+            control-space covariance M of (v [m/s], w [rad/s]); positive semi-definite (zero
+            allowed: noise-free motion).
+        measurement_noise: Q, (2, 2) covariance of (range [m], bearing [rad]), or (3, 3) with the
+            signature's variance (uncorrelated with range and bearing) when ``use_signatures``.
+        version: 1 (poses from the motion model) or 2 (from the proposal that includes the scan).
+        use_signatures, initial_pose ((3,)), seed (int in [0, 2^64)), threads (results identical
+            for any count), resample_threshold (resample when N_eff < threshold * M; 0.5),
+        p_new: density (1 / (m rad)) of a measurement of a new landmark: the threshold of the
+            maximum-likelihood association and the weight factor of every new landmark (0.01).
+        association_radius, cell_size: metres (2.0 each): candidates lie within the radius plus
+            3 sigma of where a measurement places its landmark; the spatial key's cell side.
+        negative_information, existence_hit, existence_miss, sensor_range, sensor_fov: the
+            existence counter of update_unknown (seen: + hit; in range and field of view but not
+            seen: - miss; removed below zero). sensor_range must be finite to enable it.
+        record_path: keep each particle's path (persistent: shared after resampling).
+
+    Every call validates its input first and raises ValueError / TypeError naming the argument,
+    the filter unchanged. Calls release the GIL and are serialised by a per-filter lock.
+    """
+    num_particles: int
+    version: int
+    landmark_dim: int
+    poses: Array  # (M, 3) particle poses
+    log_weights: Array  # (M,) normalised (log-sum-exp 0)
+    weights: Array  # (M,) summing to 1
+    last_log_likelihoods: Array  # (M,) log of each particle's weight factor in the last update
+    effective_sample_size: float  # N_eff = 1 / sum w^2
+    best_index: int  # particle of highest weight
+    best_path: Array  # (T + 1, 3) the best particle's path, oldest first
+    mean_pose: Array  # (3,) weighted mean, heading by circular mean
+    pose_covariance: Array  # (3, 3) weighted covariance about mean_pose
+    num_resamples: int
+    resampled: bool  # whether the last update resampled
+    map_sharing: Dict[str, int]
+    """distinct_nodes (tree nodes allocated for all maps), total_nodes (sum of per-particle
+    tree nodes: what deep copies would hold), landmarks (sum of per-particle counts), path_nodes."""
+    def __init__(self, num_particles: int, motion_noise: ArrayLike, measurement_noise: ArrayLike, *,
+                 version: int = 1, use_signatures: bool = False, initial_pose: ArrayLike = ..., seed: int = 0,
+                 threads: int = 1, resample_threshold: float = 0.5, p_new: float = 0.01,
+                 association_radius: float = 2.0, cell_size: float = 2.0, negative_information: bool = False,
+                 existence_hit: float = 1.0, existence_miss: float = 1.0, sensor_range: float = ...,
+                 sensor_fov: float = ..., record_path: bool = True) -> None: ...
+    def predict(self, v: float, w: float, dt: float) -> None:
+        """Samples each particle's pose from the velocity motion model (v m/s, w rad/s, dt s)."""
+    def predict_odometry(self, delta: ArrayLike, noise: ArrayLike) -> None:
+        """x <- x (+) (delta + e), e ~ N(0, noise (3, 3)) in the robot frame."""
+    def update(self, z: ArrayLike, ids: ArrayLike) -> bool:
+        """Known correspondences: z (k, 2) or (k, 3), ids (k,) >= 0. Returns whether it resampled."""
+    def update_unknown(self, z: ArrayLike, p_new: Optional[float] = None
+                       ) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.bool_], List[npt.NDArray[np.int64]]]:
+        """Per-particle maximum-likelihood correspondences: (ids (M, k), is_new (M, k), removed ids
+        per particle); rows follow the particles after any resampling of this call."""
+    def resample(self) -> None:
+        """Low-variance resampling now, whatever N_eff."""
+    def copy(self) -> "FastSlam": ...
+    def path(self, index: int) -> Array:
+        """(T + 1, 3) particle index's path, oldest first."""
+    def num_landmarks(self, index: int) -> int: ...
+    def landmarks(self, index: int) -> Tuple[npt.NDArray[np.int64], Array, Array]:
+        """Particle index's landmarks by id: ids (K,), means (K, 2), covariances (K, 2, 2)."""
+    def landmark_details(self, index: int) -> Dict[str, Array]:
+        """existence, signature, signature_var (K,), in the order of landmarks(index)."""
+
+def low_variance_resample(weights: ArrayLike, offset: float) -> npt.NDArray[np.int32]:
+    """Systematic resampling: indices drawn at (offset + m) / M, m = 0..M-1, offset in [0, 1)."""
+def fastslam2_proposal(pose_mean: ArrayLike, pose_cov: ArrayLike, landmark_mean: ArrayLike,
+                       landmark_cov: ArrayLike, z: ArrayLike, measurement_noise: ArrayLike
+                       ) -> Tuple[Array, Array, float]:
+    """FastSLAM 2.0's proposal for one measurement: (mean (3,), cov (3, 3), log N(z - z_hat; 0,
+    G_x pose_cov G_x^T + Q_j))."""
+def _persistent_tree_nodes() -> int: ...
+
 class MultiHypothesisOptions:
     max_hypotheses: int
     max_children: int

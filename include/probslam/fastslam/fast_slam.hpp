@@ -190,6 +190,23 @@ std::vector<int> low_variance_resample(const Eigen::VectorXd& weights, double of
 /// filter's own stream (for the resampling offset) is used by the calling thread only. So a
 /// seed gives the same result for any number of threads, bit for bit.
 ///
+/// Version 2 (FastSLAM 2.0). predict() samples the pose from the motion model as version 1 does
+/// and keeps the prior N(x_hat, R_t): x_hat = g(x, u) noise-free, R_t the motion noise of that
+/// prediction in pose space (R, or V M V^T for control noise at the particle's previous pose, or
+/// J noise J^T for odometry). The next update() / update_unknown() with measurements of landmarks
+/// already in the particle's map builds the proposal from that prior one measurement at a time:
+/// measurement j's Gaussian (fastslam2_proposal, linearised at the previous step's mean) is the
+/// prior of measurement j + 1, so after the scan the proposal is the linearised posterior of the
+/// pose given every such measurement, and the weight factor is the product of the steps'
+/// N(z_j - z_hat_j; 0, G_x Sigma_{j-1} G_x^T + Q_j) (the chain rule: the scan's marginal
+/// likelihood; one measurement gives exactly the book's N(z - z_hat; 0, G_x R G_x^T + Q_j)).
+/// The pose is then sampled once from that proposal (replacing the motion sample, also in the
+/// path) and every landmark is updated at the sampled pose: sampling once per measurement would
+/// update landmarks at poses other than the particle's final one and add the proposal's spread
+/// once per measurement. New landmarks are initialised at the sampled pose (weight factor p_new).
+/// Without a prior (an update before any predict, or a second update after one predict) the
+/// prior covariance is zero and version 2 updates as version 1 does.
+///
 /// Every call validates all its input first (std::invalid_argument whose message starts with
 /// the argument's name) and works on copies of the particles (O(1) each: maps and paths are
 /// persistent), committing only when every particle succeeded: when it throws, the filter is

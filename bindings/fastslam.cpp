@@ -1,0 +1,218 @@
+// FastSLAM (fastslam/): thin conversions only. Every method runs its C++ work through locked():
+// the GIL is released, the filter's mutex taken, Python objects converted before and built after.
+#include <pybind11/stl.h>
+
+#include <cmath>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "kwargs.hpp"
+#include "numpy.hpp"
+#include "object_lock.hpp"
+#include "probslam/fastslam/fast_slam.hpp"
+
+namespace probslam::bindings {
+
+namespace {
+
+DoubleArray scan_arg(const FastSlam& f, py::handle z) {
+  const int md = f.landmark_dim();  // fixed at construction: no lock needed
+  DoubleArray a = as_array(z, "z");
+  if (a.ndim() == 1 && a.shape(0) == md) return DoubleArray(a.reshape({py::ssize_t{1}, a.shape(0)}));
+  return matrix_arg(z, "z", md);
+}
+
+std::vector<long> ids_arg(py::handle ids, py::ssize_t k) {
+  LongArray a = integer_array_arg(ids, "ids");
+  if (a.ndim() == 0) a = a.reshape({py::ssize_t{1}});
+  if (a.ndim() != 1 || a.shape(0) != k)
+    throw py::value_error("ids must have shape (" + std::to_string(k) + ",), one id per measurement");
+  return std::vector<long>(a.data(), a.data() + a.shape(0));
+}
+
+FastSlamOptions options_from(int num_particles, py::handle motion_noise, py::handle measurement_noise,
+                             const py::kwargs& kw) {
+  FastSlamOptions o;
+  o.num_particles = num_particles;
+  o.motion_noise = square_matrix_arg(motion_noise, "motion_noise");
+  o.measurement_noise = square_matrix_arg(measurement_noise, "measurement_noise");
+  Kwargs k(kw);
+  k.get("version", o.version);
+  k.get("use_signatures", o.use_signatures);
+  if (const py::handle v = k.take("initial_pose")) o.initial_pose = pose_arg(v, "initial_pose");
+  k.get("seed", o.seed);
+  k.get("threads", o.threads);
+  k.get("resample_threshold", o.resample_threshold);
+  k.get("p_new", o.p_new);
+  k.get("association_radius", o.association_radius);
+  k.get("cell_size", o.cell_size);
+  k.get("negative_information", o.negative_information);
+  k.get("existence_hit", o.existence_hit);
+  k.get("existence_miss", o.existence_miss);
+  k.get("sensor_range", o.sensor_range);
+  k.get("sensor_fov", o.sensor_fov);
+  k.get("record_path", o.record_path);
+  k.finish();
+  return o;
+}
+
+template <typename T>
+py::array_t<T> vector_out(const std::vector<T>& v) {
+  py::array_t<T> a(static_cast<py::ssize_t>(v.size()));
+  std::copy(v.begin(), v.end(), a.mutable_data());
+  return a;
+}
+
+void define_state(py::class_<FastSlam>& c) {
+  c.def_property_readonly("num_particles", getter(&FastSlam::num_particles))
+      .def_property_readonly("version", getter(&FastSlam::version))
+      .def_property_readonly("landmark_dim", getter(&FastSlam::landmark_dim))
+      .def_property_readonly("poses", getter(&FastSlam::poses))
+      .def_property_readonly("log_weights", getter(&FastSlam::log_weights))
+      .def_property_readonly("weights",
+                             [](const FastSlam& f) {
+                               return Eigen::VectorXd(locked(f, [&] { return f.log_weights(); }).array().exp());
+                             })
+      .def_property_readonly("last_log_likelihoods", getter(&FastSlam::last_log_likelihoods))
+      .def_property_readonly("effective_sample_size", getter(&FastSlam::effective_sample_size))
+      .def_property_readonly("best_index", getter(&FastSlam::best_index))
+      .def_property_readonly("best_path",
+                             [](const FastSlam& f) { return locked(f, [&] { return f.path(f.best_index()); }); })
+      .def_property_readonly("mean_pose", getter(&FastSlam::mean_pose))
+      .def_property_readonly("pose_covariance", getter(&FastSlam::pose_covariance))
+      .def_property_readonly("num_resamples", getter(&FastSlam::num_resamples))
+      .def_property_readonly("resampled", getter(&FastSlam::resampled))
+      .def_property_readonly("map_sharing",
+                             [](const FastSlam& f) {
+                               const MapSharing s = locked(f, [&] { return f.map_sharing(); });
+                               py::dict d;
+                               d["distinct_nodes"] = s.distinct_nodes;
+                               d["total_nodes"] = s.total_nodes;
+                               d["landmarks"] = s.landmarks;
+                               d["path_nodes"] = s.path_nodes;
+                               return d;
+                             })
+      .def("path", [](const FastSlam& f, int index) { return locked(f, [&] { return f.path(index); }); },
+           py::arg("index"))
+      .def("num_landmarks",
+           [](const FastSlam& f, int index) { return locked(f, [&] { return f.particle(index).map.size(); }); },
+           py::arg("index"))
+      .def(
+          "landmarks",
+          [](const FastSlam& f, int index) {
+            const std::vector<Landmark> lms = locked(f, [&] { return f.landmarks(index); });
+            const auto n = static_cast<py::ssize_t>(lms.size());
+            py::array_t<long> ids(n);
+            py::array_t<double> means({n, py::ssize_t{2}}), covs({n, py::ssize_t{2}, py::ssize_t{2}});
+            for (py::ssize_t i = 0; i < n; ++i) {
+              const Landmark& lm = lms[static_cast<std::size_t>(i)];
+              ids.mutable_at(i) = lm.id;
+              for (int a = 0; a < 2; ++a) {
+                means.mutable_at(i, a) = lm.mean[a];
+                for (int b = 0; b < 2; ++b) covs.mutable_at(i, a, b) = lm.cov(a, b);
+              }
+            }
+            return py::make_tuple(ids, means, covs);
+          },
+          py::arg("index"))
+      .def(
+          "landmark_details",
+          [](const FastSlam& f, int index) {
+            const std::vector<Landmark> lms = locked(f, [&] { return f.landmarks(index); });
+            const auto n = static_cast<py::ssize_t>(lms.size());
+            py::array_t<double> existence(n), signature(n), signature_var(n);
+            for (py::ssize_t i = 0; i < n; ++i) {
+              const Landmark& lm = lms[static_cast<std::size_t>(i)];
+              existence.mutable_at(i) = lm.existence;
+              signature.mutable_at(i) = lm.signature;
+              signature_var.mutable_at(i) = lm.signature_var;
+            }
+            py::dict d;
+            d["existence"] = existence;
+            d["signature"] = signature;
+            d["signature_var"] = signature_var;
+            return d;
+          },
+          py::arg("index"));
+}
+
+void define_calls(py::class_<FastSlam>& c) {
+  c.def(
+       "predict", [](FastSlam& f, double v, double w, double dt) { locked(f, [&] { f.predict(v, w, dt); }); },
+       py::arg("v"), py::arg("w"), py::arg("dt"))
+      .def(
+          "predict_odometry",
+          [](FastSlam& f, py::handle delta, py::handle noise) {
+            const Eigen::Vector3d d = fixed_vector<3>(delta, "delta");
+            const Eigen::Matrix3d n = square_matrix_arg(noise, "noise", 3);
+            locked(f, [&] { f.predict_odometry(d, n); });
+          },
+          py::arg("delta"), py::arg("noise"))
+      .def(
+          "update",
+          [](FastSlam& f, py::handle z, py::handle ids) {
+            DoubleArray zz = scan_arg(f, z);
+            const std::vector<long> id = ids_arg(ids, zz.shape(0));
+            return locked(f, [&] { return f.update(as_matrix(zz), id); });
+          },
+          py::arg("z"), py::arg("ids"))
+      .def(
+          "update_unknown",
+          [](FastSlam& f, py::handle z, std::optional<double> p_new) {
+            DoubleArray zz = scan_arg(f, z);
+            const FastSlamAssociation r = locked(f, [&] {
+              return p_new ? f.update_unknown(as_matrix(zz), *p_new) : f.update_unknown(as_matrix(zz));
+            });
+            const py::ssize_t m = r.num_particles, k = r.num_measurements;
+            py::array_t<long> ids({m, k});
+            py::array_t<bool> is_new({m, k});
+            std::copy(r.ids.begin(), r.ids.end(), ids.mutable_data());
+            std::copy(r.is_new.begin(), r.is_new.end(), is_new.mutable_data());
+            py::list removed;
+            for (const std::vector<long>& v : r.removed) removed.append(vector_out(v));
+            return py::make_tuple(ids, is_new, removed);
+          },
+          py::arg("z"), py::arg("p_new") = py::none())
+      .def("resample", [](FastSlam& f) { locked(f, [&] { f.resample(); }); })
+      .def("copy", [](const FastSlam& f) { return locked(f, [&] { return FastSlam(f); }); });
+}
+
+}  // namespace
+
+void define_fastslam(py::module_& m) {
+  py::class_<FastSlam> c(m, "FastSlam",
+                         "FastSLAM 1.0 / 2.0 for point landmarks (range-bearing measurements); see _core.pyi.");
+  c.def(py::init([](int num_particles, py::handle motion_noise, py::handle measurement_noise, const py::kwargs& kw) {
+          const FastSlamOptions o = options_from(num_particles, motion_noise, measurement_noise, kw);
+          py::gil_scoped_release release;
+          return std::make_unique<FastSlam>(o);
+        }),
+        py::arg("num_particles"), py::arg("motion_noise"), py::arg("measurement_noise"));
+  define_state(c);
+  define_calls(c);
+
+  m.def(
+      "low_variance_resample",
+      [](py::handle weights, double offset) {
+        const Eigen::VectorXd w = as_vector(vector_arg(weights, "weights"));
+        return vector_out(low_variance_resample(w, offset));
+      },
+      py::arg("weights"), py::arg("offset"));
+  m.def(
+      "fastslam2_proposal",
+      [](py::handle pose_mean, py::handle pose_cov, py::handle landmark_mean, py::handle landmark_cov, py::handle z,
+         py::handle measurement_noise) {
+        const PoseProposal p = fastslam2_proposal(
+            pose_arg(pose_mean, "pose_mean"), Eigen::Matrix3d(square_matrix_arg(pose_cov, "pose_cov", 3)),
+            fixed_vector<2>(landmark_mean, "landmark_mean"),
+            Eigen::Matrix2d(square_matrix_arg(landmark_cov, "landmark_cov", 2)), fixed_vector<2>(z, "z"),
+            Eigen::Matrix2d(square_matrix_arg(measurement_noise, "measurement_noise", 2)));
+        return py::make_tuple(p.mean, p.cov, p.log_likelihood);
+      },
+      py::arg("pose_mean"), py::arg("pose_cov"), py::arg("landmark_mean"), py::arg("landmark_cov"), py::arg("z"),
+      py::arg("measurement_noise"));
+  m.def("_persistent_tree_nodes", [] { return g_persistent_tree_nodes.load(); });
+}
+
+}  // namespace probslam::bindings

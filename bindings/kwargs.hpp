@@ -1,0 +1,74 @@
+#pragma once
+// Keyword options of the bindings' stateful classes (SubmapSlam2D, IncrementalScanMatcher,
+// FastSlam), parsed by name with their types checked.
+#include <pybind11/pybind11.h>
+
+#include <algorithm>
+#include <cstdint>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace probslam::bindings {
+
+namespace py = pybind11;
+
+/// Keyword options of the stateful classes: each name read once with its type checked (a bool
+/// is not a number here), and any name left over is a TypeError, as for a Python signature.
+class Kwargs {
+ public:
+  explicit Kwargs(const py::kwargs& kw) : kw_(kw) {}
+  void get(const char* name, double& target) {
+    if (const py::handle v = take(name)) {
+      if (py::isinstance<py::bool_>(v) || !PyNumber_Check(v.ptr()) || PyComplex_Check(v.ptr()))
+        throw py::type_error(std::string(name) + " must be a real number");
+      target = v.cast<double>();
+    }
+  }
+  void get(const char* name, int& target) {
+    if (const py::handle v = take(name)) {
+      if (py::isinstance<py::bool_>(v) || !PyIndex_Check(v.ptr())) throw py::type_error(std::string(name) + " must be an int");
+      const long long x = v.cast<long long>();
+      if (x < std::numeric_limits<int>::min() || x > std::numeric_limits<int>::max())
+        throw py::value_error(std::string(name) + " is out of range");
+      target = static_cast<int>(x);
+    }
+  }
+  void get(const char* name, std::uint64_t& target) {
+    if (const py::handle v = take(name)) {
+      if (py::isinstance<py::bool_>(v) || !PyIndex_Check(v.ptr())) throw py::type_error(std::string(name) + " must be an int");
+      const py::object i = py::reinterpret_steal<py::object>(PyNumber_Index(v.ptr()));
+      if (!i) throw py::error_already_set();
+      const unsigned long long x = PyLong_AsUnsignedLongLong(i.ptr());
+      if (x == static_cast<unsigned long long>(-1) && PyErr_Occurred()) {
+        PyErr_Clear();  // OverflowError: negative or beyond 64 bits
+        throw py::value_error(std::string(name) + " must be in [0, 2^64)");
+      }
+      target = static_cast<std::uint64_t>(x);
+    }
+  }
+  void get(const char* name, bool& target) {
+    if (const py::handle v = take(name)) {
+      if (!py::isinstance<py::bool_>(v)) throw py::type_error(std::string(name) + " must be a bool");
+      target = v.cast<bool>();
+    }
+  }
+  py::handle take(const char* name) {
+    if (!kw_.contains(name)) return py::handle();
+    used_.emplace_back(name);
+    return kw_[name];
+  }
+  void finish() const {
+    for (const auto& item : kw_) {
+      const std::string key = py::str(item.first);
+      if (std::find(used_.begin(), used_.end(), key) == used_.end())
+        throw py::type_error("unexpected keyword argument '" + key + "'");
+    }
+  }
+
+ private:
+  py::kwargs kw_;
+  std::vector<std::string> used_;
+};
+
+}  // namespace probslam::bindings

@@ -1,0 +1,478 @@
+"""FastSLAM 1.0 / 2.0 against independent numpy references: the landmark EKF, new landmarks and
+weights of version 1, the proposal and weights of version 2, the resampler; map sharing,
+threads, bad input, and simulated runs with known and unknown correspondences."""
+
+import numpy as np
+import pytest
+
+import probslam as ps
+from probslam import _core
+
+TWO_PI = 2 * np.pi
+
+
+# ---- numpy references (written from the equations, not from the C++) ----------------------------
+def wrap(a):
+    return (np.asarray(a) + np.pi) % TWO_PI - np.pi
+
+
+def h(x, m):
+    d = m - x[:2]
+    return np.array([np.hypot(*d), wrap(np.arctan2(d[1], d[0]) - x[2])])
+
+
+def jac_landmark(x, m):
+    d = m - x[:2]
+    q = d @ d
+    r = np.sqrt(q)
+    return np.array([[d[0] / r, d[1] / r], [-d[1] / q, d[0] / q]])
+
+
+def jac_pose(x, m):
+    return np.hstack([-jac_landmark(x, m), [[0.0], [-1.0]]])
+
+
+def log_gauss(nu, s):
+    nu = np.atleast_1d(nu)
+    s = np.atleast_2d(s)
+    return float(-0.5 * (nu @ np.linalg.solve(s, nu) + np.log(np.linalg.det(TWO_PI * s))))
+
+
+def innovation(z, zh):
+    nu = np.asarray(z, float) - zh
+    nu[1] = wrap(nu[1])
+    return nu
+
+
+def init_landmark(x, z, q):
+    """Inverse model; Sigma = H^-1 Q H^-T."""
+    r, phi = z
+    a = x[2] + phi
+    m = x[:2] + r * np.array([np.cos(a), np.sin(a)])
+    hinv = np.linalg.inv(jac_landmark(x, m)) if r > 0 else None
+    return m, hinv @ q @ hinv.T
+
+
+def ekf_update(x, m, s, z, q):
+    """Version 1's landmark update: returns (m, Sigma, log N(z - z_hat; 0, Q_j))."""
+    hm = jac_landmark(x, m)
+    qj = hm @ s @ hm.T + q
+    k = s @ hm.T @ np.linalg.inv(qj)
+    nu = innovation(z, h(x, m))
+    return m + k @ nu, (np.eye(2) - k @ hm) @ s, log_gauss(nu, qj)
+
+
+def proposal_information_form(x_hat, r, m, s, z, q):
+    """Sigma_x = (G^T Q_j^-1 G + R^-1)^-1, mu = Sigma_x G^T Q_j^-1 (z - z_hat) + x_hat, weight
+    N(z - z_hat; 0, G R G^T + Q_j)."""
+    g = jac_pose(x_hat, m)
+    hm = jac_landmark(x_hat, m)
+    qj = hm @ s @ hm.T + q
+    qinv = np.linalg.inv(qj)
+    cov = np.linalg.inv(g.T @ qinv @ g + np.linalg.inv(r))
+    nu = innovation(z, h(x_hat, m))
+    mean = cov @ g.T @ qinv @ nu + x_hat
+    return mean, cov, log_gauss(nu, g @ r @ g.T + qj)
+
+
+def state(f):
+    """Everything observable of a filter, to check that a refused call changed nothing."""
+    out = [f.poses.copy(), f.log_weights.copy(), f.num_resamples]
+    for k in range(f.num_particles):
+        ids, means, covs = f.landmarks(k)
+        out += [ids.copy(), means.copy(), covs.copy(), f.path(k).copy()]
+    return out
+
+
+def same_state(a, b):
+    return len(a) == len(b) and all(np.array_equal(x, y) for x, y in zip(a, b))
+
+
+def run_world(seed, landmarks=15, separation=2.5):
+    return ps.sim.LandmarkWorld.random(landmarks, 10.0, np.random.default_rng(seed), min_separation=separation).landmarks
+
+
+def sim_run(seed, steps=150, signatures=False, motion=np.diag([0.003, 0.0005]), clutter=0.0, landmarks=15,
+            separation=2.5):
+    rng = np.random.default_rng(seed)
+    world = ps.sim.LandmarkWorld.random(landmarks, 10.0, rng, min_separation=separation)
+    q = np.diag([0.05 ** 2, np.radians(1.0) ** 2] + ([0.05 ** 2] if signatures else []))
+    sensor = ps.sim.Sensor(q, max_range=8.0, fov=np.radians(180), signatures=signatures, clutter_rate=clutter)
+    run = ps.sim.simulate(world, ps.sim.circle_controls(steps, 1.0, 0.12), 0.2, sensor, motion, rng,
+                          initial_pose=(0, -8.3, 0))
+    return run, q
+
+
+# ---- version 1 ------------------------------------------------------------------------------------
+@pytest.mark.parametrize("signatures", [False, True])
+def test_version1_one_particle_no_noise_equals_bank_of_ekfs(signatures):
+    run, q = sim_run(1, steps=120, signatures=signatures, motion=np.zeros((3, 3)))
+    p_new = 0.05
+    f = ps.FastSlam(1, np.zeros((3, 3)), q, use_signatures=signatures, initial_pose=run.poses[0], p_new=p_new)
+    bank = {}
+    x = np.array(run.poses[0], float)
+    for (v, w), z, ids in zip(run.controls, run.measurements, run.ids):
+        f.predict(v, w, run.dt)
+        x = ps.velocity_motion(x, v, w, run.dt)
+        np.testing.assert_array_equal(f.poses[0], x)
+        np.testing.assert_allclose(x, run.poses[len(f.path(0)) - 1], atol=1e-12)  # the true path
+        f.update(z, ids)
+        ll = 0.0
+        for zi, i in zip(z, ids):
+            if i not in bank:
+                m, s = init_landmark(x, zi[:2], q[:2, :2])
+                bank[i] = [m, s, zi[2] if signatures else 0.0, q[2, 2] if signatures else 0.0]
+                ll += np.log(p_new)
+            else:
+                m, s, sig, sig_var = bank[i]
+                m, s, step = ekf_update(x, m, s, zi[:2], q[:2, :2])
+                ll += step
+                if signatures:
+                    ll += log_gauss(zi[2] - sig, sig_var + q[2, 2])
+                    gain = sig_var / (sig_var + q[2, 2])
+                    sig, sig_var = sig + gain * (zi[2] - sig), (1 - gain) * sig_var
+                bank[i] = [m, s, sig, sig_var]
+        np.testing.assert_allclose(f.last_log_likelihoods[0], ll, rtol=1e-12, atol=1e-9)
+        ids_f, means, covs = f.landmarks(0)
+        assert list(ids_f) == sorted(bank)
+        for i, m, s in zip(ids_f, means, covs):
+            np.testing.assert_allclose(m, bank[i][0], atol=1e-12, rtol=0)
+            np.testing.assert_allclose(s, bank[i][1], atol=1e-12, rtol=1e-12)
+            assert np.array_equal(s, s.T)
+        if signatures:
+            details = f.landmark_details(0)
+            np.testing.assert_allclose(details["signature"], [bank[i][2] for i in ids_f], atol=1e-12)
+            np.testing.assert_allclose(details["signature_var"], [bank[i][3] for i in ids_f], atol=1e-15)
+    assert len(bank) >= 8
+
+
+def test_version1_weights_of_every_particle():
+    run, q = sim_run(2, steps=40)
+    r = np.diag([0.01, 0.01, 0.002])
+    f = ps.FastSlam(30, r, q, initial_pose=run.poses[0], resample_threshold=0.0, seed=3)
+    for (v, w), z, ids in zip(run.controls, run.measurements, run.ids):
+        f.predict(v, w, run.dt)
+        before = [f.landmarks(k) for k in range(f.num_particles)]
+        poses, lw = f.poses.copy(), f.log_weights.copy()
+        f.update(z, ids)
+        for k in range(f.num_particles):
+            lm = {i: (m, s) for i, m, s in zip(*before[k])}
+            ll = 0.0
+            for zi, i in zip(z, ids):
+                if i in lm:
+                    m, s, step = ekf_update(poses[k], *lm[i], zi, q)
+                    lm[i] = (m, s)
+                    ll += step
+                else:
+                    lm[i] = init_landmark(poses[k], zi, q)
+                    ll += np.log(0.01)
+            np.testing.assert_allclose(f.last_log_likelihoods[k], ll, rtol=1e-10, atol=1e-9)
+            _, means, covs = f.landmarks(k)
+            np.testing.assert_allclose(means, [lm[i][0] for i in sorted(lm)], atol=1e-10)
+        expected = lw + f.last_log_likelihoods
+        expected -= np.logaddexp.reduce(expected)
+        np.testing.assert_allclose(f.log_weights, expected, atol=1e-9)
+    assert f.num_resamples == 0
+
+
+# ---- version 2 ------------------------------------------------------------------------------------
+def test_proposal_function_equals_information_form():
+    rng = np.random.default_rng(5)
+    for _ in range(50):
+        x = np.array([*rng.uniform(-5, 5, 2), rng.uniform(-np.pi, np.pi)])
+        a = rng.normal(size=(3, 3))
+        r = a @ a.T * 0.01 + np.eye(3) * 1e-3
+        m = x[:2] + rng.uniform(1, 6) * np.array([np.cos(t := rng.uniform(0, TWO_PI)), np.sin(t)])
+        b = rng.normal(size=(2, 2))
+        s = b @ b.T * 0.05 + np.eye(2) * 1e-3
+        q = np.diag([rng.uniform(0.001, 0.05), rng.uniform(1e-4, 1e-2)])
+        z = h(x, m) + rng.normal(size=2) * [0.1, 0.05]
+        z[0] = abs(z[0])
+        mean, cov, ll = _core.fastslam2_proposal(x, r, m, s, z, q)
+        ref_mean, ref_cov, ref_ll = proposal_information_form(x, r, m, s, z, q)
+        np.testing.assert_allclose(mean[:2], ref_mean[:2], atol=1e-10)
+        assert abs(wrap(mean[2] - ref_mean[2])) < 1e-10
+        np.testing.assert_allclose(cov, ref_cov, atol=1e-10)
+        assert ll == pytest.approx(ref_ll, abs=1e-9)
+
+
+@pytest.mark.parametrize("two_landmarks", [False, True])
+def test_version2_samples_from_the_proposal(two_landmarks):
+    """All particles share one prior and map, so they sample one proposal: its mean and covariance
+    are checked statistically; the weight (equal for all) exactly."""
+    q = np.diag([0.05 ** 2, 0.02 ** 2])
+    r = np.diag([0.04, 0.02, 0.01])
+    m_count = 4000
+    f = ps.FastSlam(m_count, r, q, version=2, seed=11, resample_threshold=0.0)
+    x0 = np.zeros(3)
+    landmarks = np.array([[3.0, 1.0], [1.0, -4.0]])
+    z0 = np.array([h(x0, lm) for lm in landmarks])
+    f.update(z0, [0, 1])  # no prior yet: landmarks initialised at x0 in every particle
+    s0 = [init_landmark(x0, z, q)[1] for z in z0]
+    f.predict(1.0, 0.3, 1.0)
+    x_hat = ps.velocity_motion(x0, 1.0, 0.3, 1.0)
+    z = np.array([[3.0, 0.35], [4.1, -1.6]])[: 2 if two_landmarks else 1]
+    f.update(z, [0, 1][: len(z)])
+    mean, cov, ll = proposal_information_form(x_hat, r, landmarks[0], s0[0], z[0], q)
+    if two_landmarks:  # the first proposal is the prior of the second
+        mean, cov, ll2 = proposal_information_form(mean, cov, landmarks[1], s0[1], z[1], q)
+        ll += ll2
+    np.testing.assert_allclose(f.last_log_likelihoods, ll, atol=1e-9)
+    poses = f.poses
+    e = poses - mean
+    e[:, 2] = wrap(e[:, 2])
+    sigma = np.sqrt(np.diag(cov))
+    assert np.all(np.abs(e.mean(axis=0)) < 4 * sigma / np.sqrt(m_count))
+    np.testing.assert_allclose(np.cov(e.T), cov, atol=0.08 * np.max(np.diag(cov)), rtol=0.1)
+    # Landmark updates happen at each particle's sampled pose.
+    for k in (0, 1, 2):
+        m0, s, _ = ekf_update(poses[k], landmarks[0], s0[0], z[0], q)
+        np.testing.assert_allclose(f.landmarks(k)[1][0], m0, atol=1e-10)
+        np.testing.assert_allclose(f.landmarks(k)[2][0], s, atol=1e-10)
+    # The path's last entry is the proposal sample, not the motion sample.
+    np.testing.assert_array_equal(f.path(0)[-1], poses[0])
+    assert len(f.path(0)) == 2
+
+
+def test_version2_control_noise_prior_is_singular_but_works():
+    q = np.diag([0.05 ** 2, 0.02 ** 2])
+    mctl = np.diag([0.01, 0.004])
+    f = ps.FastSlam(500, mctl, q, version=2, seed=2, resample_threshold=0.0)
+    f.update([[3.0, 0.3]], [0])
+    f.predict(1.0, 0.2, 1.0)
+    f.update([[2.2, 0.15]], [0])
+    assert np.all(np.isfinite(f.poses)) and np.all(np.isfinite(f.last_log_likelihoods))
+    x0 = np.zeros(3)
+    v = ps.velocity_motion_control_jacobian(x0, 1.0, 0.2, 1.0)
+    r = v @ mctl @ v.T
+    m, s = init_landmark(x0, [3.0, 0.3], q)
+    g = jac_pose(ps.velocity_motion(x0, 1.0, 0.2, 1.0), m)
+    hm = jac_landmark(ps.velocity_motion(x0, 1.0, 0.2, 1.0), m)
+    nu = innovation([2.2, 0.15], h(ps.velocity_motion(x0, 1.0, 0.2, 1.0), m))
+    np.testing.assert_allclose(f.last_log_likelihoods, log_gauss(nu, g @ r @ g.T + hm @ s @ hm.T + q), atol=1e-9)
+
+
+# ---- resampling and map sharing ---------------------------------------------------------------------
+def test_resampler_counts_floor_or_ceil():
+    rng = np.random.default_rng(0)
+    for m in [1, 2, 7, 50, 333]:
+        for _ in range(20):
+            w = rng.random(m) ** 4
+            w /= w.sum()
+            idx = _core.low_variance_resample(w, rng.random())
+            counts = np.bincount(idx, minlength=m)
+            assert counts.sum() == m
+            assert np.all(counts >= np.floor(m * w - 1e-9)) and np.all(counts <= np.ceil(m * w + 1e-9))
+    with pytest.raises(ValueError, match="^offset"):
+        _core.low_variance_resample([0.5, 0.5], 1.0)
+    with pytest.raises(ValueError, match="^weights"):
+        _core.low_variance_resample([np.nan, 0.5], 0.2)
+
+
+def test_resampling_copies_maps_in_constant_time():
+    run, q = sim_run(3, steps=60)
+    f = ps.FastSlam(100, np.diag([0.01, 0.01, 0.002]), q, initial_pose=run.poses[0], seed=1)
+    for (v, w), z, ids in zip(run.controls, run.measurements, run.ids):
+        f.predict(v, w, run.dt)
+        f.update(z, ids)
+    assert f.num_resamples > 0
+    sharing = f.map_sharing
+    assert sharing["total_nodes"] == 2 * sharing["landmarks"]
+    assert sharing["distinct_nodes"] < sharing["total_nodes"] / 2  # resampled particles share nodes
+    nodes = _core._persistent_tree_nodes()
+    f.resample()
+    assert _core._persistent_tree_nodes() <= nodes  # copies allocate no node
+    # No particle sees another's change: update one particle's landmarks, compare the others.
+    before = [f.landmarks(k) for k in range(f.num_particles)]
+    g = f.copy()
+    g.predict(1.0, 0.1, 0.2)
+    g.update(run.measurements[-1], run.ids[-1])
+    after = [f.landmarks(k) for k in range(f.num_particles)]
+    for a, b in zip(before, after):
+        for x, y in zip(a, b):
+            np.testing.assert_array_equal(x, y)
+
+
+def test_threads_give_identical_results():
+    run, q = sim_run(4, steps=80, clutter=0.3)
+    results = []
+    for threads in (1, 2, 3):
+        f = ps.FastSlam(64, np.diag([0.003, 0.0005]), q, version=2, threads=threads, seed=9,
+                        initial_pose=run.poses[0], negative_information=True, sensor_range=8.0,
+                        sensor_fov=np.radians(180))
+        assoc = []
+        for (v, w), z in zip(run.controls, run.measurements):
+            f.predict(v, w, run.dt)
+            assoc.append(f.update_unknown(z)[0])
+        results.append((state(f), assoc))
+    assert results[0][0][2] > 0  # it resampled
+    for other in results[1:]:
+        assert same_state(results[0][0], other[0])
+        assert all(np.array_equal(a, b) for a, b in zip(results[0][1], other[1]))
+
+
+# ---- simulated runs ---------------------------------------------------------------------------------
+@pytest.mark.parametrize("version", [1, 2])
+@pytest.mark.parametrize("unknown", [False, True])
+def test_simulated_run_tracks_the_true_pose(version, unknown):
+    run, q = sim_run(6, steps=250, landmarks=25, separation=2.0)
+    m = np.diag([0.003, 0.0005])
+    ekf = ps.EkfSlam(m, q, use_signatures=False, initial_pose=run.poses[0])
+    f = ps.FastSlam(100, m, q, version=version, seed=5, initial_pose=run.poses[0], p_new=1e-3)
+    errors, sigmas, ekf_errors = [], [], []
+    for t, ((v, w), z, ids) in enumerate(zip(run.controls, run.measurements, run.ids)):
+        f.predict(v, w, run.dt)
+        ekf.predict(v, w, run.dt)
+        ekf.update(z, ids)
+        if unknown:
+            got, is_new, _ = f.update_unknown(z)
+            assert all(len(set(row)) == len(row) for row in got)  # one measurement per landmark
+        else:
+            f.update(z, ids)
+        errors.append(ps.sim.pose_error(f.mean_pose, run.poses[t + 1]))
+        sigmas.append(np.sqrt(np.diag(f.pose_covariance)))
+        ekf_errors.append(ps.sim.pose_error(ekf.pose, run.poses[t + 1]))
+    errors, sigmas, ekf_errors = np.abs(np.array(errors)), np.array(sigmas), np.abs(np.array(ekf_errors))
+    # Within a few sigma (plus a floor: 100 particles collapse after resampling), and as close to
+    # the truth as EKF SLAM on the same run (both share the map's unobservable drift).
+    inside = np.all(errors <= 4 * sigmas + np.array([0.05, 0.05, 0.01]), axis=1)
+    assert inside.mean() > 0.85, inside.mean()
+    rms = np.sqrt(np.mean(errors[:, :2] ** 2))
+    assert rms < 2 * np.sqrt(np.mean(ekf_errors[:, :2] ** 2)) + 0.05, rms
+    assert np.max(errors[:, :2]) < 0.4
+    # The best particle's map: one landmark per landmark seen, each near its true position.
+    seen = sorted({i for ids in run.ids for i in ids})
+    ids, means, _ = f.landmarks(f.best_index)
+    assert len(ids) == len(seen)
+    world = run_world(6, 25, 2.0)
+    nearest = [int(np.argmin(np.hypot(*(world - mean).T))) for mean in means]
+    assert sorted(nearest) == seen
+    assert max(np.min(np.hypot(*(world - mean).T)) for mean in means) < 0.4
+    path = f.best_path
+    assert path.shape == (len(run.controls) + 1, 3)
+    assert np.max(np.hypot(*(path[:, :2] - run.poses[:, :2]).T)) < 0.6
+
+
+def test_version2_one_particle_localises_where_version1_drifts():
+    """Large motion noise, an accurate sensor: one particle of FastSLAM 2.0 follows the
+    measurements (its proposal is an EKF step), one of FastSLAM 1.0 is a random walk."""
+    rms = {1: [], 2: []}
+    for seed in range(4):
+        rng = np.random.default_rng(seed)
+        world = ps.sim.LandmarkWorld.random(25, 10.0, rng, min_separation=2.0)
+        q = np.diag([0.02 ** 2, np.radians(0.5) ** 2])
+        r = np.diag([0.05 ** 2, 0.05 ** 2, 0.03 ** 2])
+        sensor = ps.sim.Sensor(q, max_range=8.0, fov=np.radians(180))
+        run = ps.sim.simulate(world, ps.sim.circle_controls(100, 1.0, 0.12), 0.2, sensor, r, rng,
+                              initial_pose=(0, -8.3, 0))
+        for version in (1, 2):
+            f = ps.FastSlam(1, r, q, version=version, seed=seed, initial_pose=run.poses[0])
+            errors = []
+            for t, ((v, w), z, ids) in enumerate(zip(run.controls, run.measurements, run.ids)):
+                f.predict(v, w, run.dt)
+                f.update(z, ids)
+                errors.append(ps.sim.pose_error(f.poses[0], run.poses[t + 1]))
+            rms[version].append(np.sqrt(np.mean(np.array(errors)[:, :2] ** 2)))
+    assert np.mean(rms[2]) < 0.5 and np.mean(rms[1]) > 3 * np.mean(rms[2]), rms
+
+
+def test_negative_information_removes_a_spurious_landmark():
+    q = np.diag([0.05 ** 2, 0.02 ** 2])
+    f = ps.FastSlam(5, np.zeros((3, 3)), q, negative_information=True, sensor_range=10.0,
+                    sensor_fov=np.radians(180), p_new=1e-3)
+    real = [[4.0, 0.0]]
+    f.update_unknown(np.array(real + [[5.0, 0.8]]))  # the second is clutter
+    assert f.num_landmarks(0) == 2
+    _, _, removed = f.update_unknown(np.array(real))
+    assert f.num_landmarks(0) == 2 and len(removed[0]) == 0  # existence 1 -> 0
+    ids, is_new, removed = f.update_unknown(np.array(real))
+    assert f.num_landmarks(0) == 1 and list(removed[0]) == [1]
+    assert list(ids[:, 0]) == [0] * 5 and not is_new.any()
+    np.testing.assert_array_equal(f.landmark_details(0)["existence"], [3.0])
+    # A landmark behind the robot (outside the field of view) is not penalised.
+    g = ps.FastSlam(1, np.zeros((3, 3)), q, negative_information=True, sensor_range=10.0,
+                    sensor_fov=np.radians(180))
+    g.update_unknown(np.array([[3.0, 3.0]]))
+    for _ in range(3):
+        g.update_unknown(np.empty((0, 2)))
+    assert g.num_landmarks(0) == 1
+
+
+def test_unknown_association_takes_one_measurement_per_landmark():
+    q = np.diag([0.05 ** 2, 0.02 ** 2])
+    f = ps.FastSlam(3, np.zeros((3, 3)), q, p_new=1e-4)
+    f.update_unknown(np.array([[4.0, 0.0]]))
+    ids, is_new, _ = f.update_unknown(np.array([[4.01, 0.0], [4.0, 0.001]]))
+    # The closer measurement takes landmark 0; the other cannot and becomes new.
+    assert list(ids[0]) == [1, 0] and list(is_new[0]) == [True, False]
+
+
+# ---- bad input --------------------------------------------------------------------------------------
+def make_filter():
+    run, q = sim_run(7, steps=8)
+    f = ps.FastSlam(6, np.diag([0.01, 0.01, 0.002]), q, version=2, initial_pose=run.poses[0])
+    for (v, w), z, ids in zip(run.controls, run.measurements, run.ids):
+        f.predict(v, w, run.dt)
+        f.update(z, ids)
+    return f
+
+
+@pytest.mark.parametrize("kwargs, err, name", [
+    (dict(num_particles=0), ValueError, "num_particles"),
+    (dict(num_particles=-4), ValueError, "num_particles"),
+    (dict(motion_noise=-np.eye(3)), ValueError, "motion_noise"),
+    (dict(motion_noise=np.eye(4)), ValueError, "motion_noise"),
+    (dict(motion_noise=np.full((3, 3), np.nan)), ValueError, "motion_noise"),
+    (dict(measurement_noise=np.zeros((2, 2))), ValueError, "measurement_noise"),
+    (dict(measurement_noise=np.eye(3)), ValueError, "measurement_noise"),
+    (dict(version=3), ValueError, "version"),
+    (dict(version=0), ValueError, "version"),
+    (dict(threads=0), ValueError, "threads"),
+    (dict(seed=-1), ValueError, "seed"),
+    (dict(p_new=0.0), ValueError, "p_new"),
+    (dict(p_new=np.inf), ValueError, "p_new"),
+    (dict(initial_pose=(0, np.nan, 0)), ValueError, "initial_pose"),
+    (dict(initial_pose=(0, 0)), ValueError, "initial_pose"),
+    (dict(resample_threshold=-0.1), ValueError, "resample_threshold"),
+    (dict(cell_size=0.0), ValueError, "cell_size"),
+    (dict(negative_information=True), ValueError, "sensor_range"),
+    (dict(version="1"), TypeError, "version"),
+    (dict(use_signatures=1), TypeError, "use_signatures"),
+    (dict(bogus=1), TypeError, "unexpected keyword argument 'bogus'"),
+])
+def test_bad_construction(kwargs, err, name):
+    args = dict(num_particles=4, motion_noise=np.eye(3) * 0.01, measurement_noise=np.eye(2) * 0.01)
+    args.update(kwargs)
+    with pytest.raises(err, match="^" + name):
+        ps.FastSlam(args.pop("num_particles"), args.pop("motion_noise"), args.pop("measurement_noise"), **args)
+
+
+@pytest.mark.parametrize("call, err, name", [
+    (lambda f: f.predict(1.0, 0.0, 0.0), ValueError, "dt"),
+    (lambda f: f.predict(np.nan, 0.0, 1.0), ValueError, "v"),
+    (lambda f: f.predict(1.0, np.inf, 1.0), ValueError, "w"),
+    (lambda f: f.predict(2e9, 0.0, 1.0), ValueError, "v"),
+    (lambda f: f.predict_odometry([1.0, 0.0, np.nan], np.eye(3)), ValueError, "delta"),
+    (lambda f: f.predict_odometry([1.0, 0.0], np.eye(3)), ValueError, "delta"),
+    (lambda f: f.predict_odometry([1.0, 0.0, 0.0], -np.eye(3)), ValueError, "noise"),
+    (lambda f: f.predict_odometry([1.0, 0.0, 0.0], np.eye(2)), ValueError, "noise"),
+    (lambda f: f.update([[-1.0, 0.0]], [0]), ValueError, "z"),
+    (lambda f: f.update([[np.nan, 0.0]], [0]), ValueError, "z"),
+    (lambda f: f.update([[1.0, np.inf]], [0]), ValueError, "z"),
+    (lambda f: f.update([[1.0, 0.0, 1.0]], [0]), ValueError, "z"),
+    (lambda f: f.update([[1.0, 0.0], [2.0, 0.0]], [0]), ValueError, "ids"),
+    (lambda f: f.update([[1.0, 0.0]], [-3]), ValueError, "ids"),
+    (lambda f: f.update([[1.0, 0.0]], [1.5]), TypeError, "ids"),
+    (lambda f: f.update([[1e10, 0.0]], [0]), ValueError, "z"),
+    (lambda f: f.update_unknown([[1.0, 0.0], [-2.0, 0.0]]), ValueError, "z"),
+    (lambda f: f.update_unknown([[1.0, 0.0]], p_new=-1.0), ValueError, "p_new"),
+    (lambda f: f.update_unknown(None), TypeError, "z"),
+    (lambda f: f.path(6), ValueError, "index"),
+    (lambda f: f.landmarks(-1), ValueError, "index"),
+])
+def test_bad_calls_raise_and_change_nothing(call, err, name):
+    f = make_filter()
+    before = state(f)
+    with pytest.raises(err, match="^" + name):
+        call(f)
+    assert same_state(before, state(f))
