@@ -121,67 +121,6 @@ struct Scan {
 
 }  // namespace
 
-// ---- random streams and paths ----
-
-ParticleRng::ParticleRng(std::uint64_t seed, std::uint64_t stream) {
-  std::uint64_t x = mix64(seed) ^ mix64(stream ^ 0xd1b54a32d192ed03ULL);
-  for (std::uint64_t& s : s_) {
-    x += 0x9e3779b97f4a7c15ULL;
-    s = mix64(x);
-  }
-}
-
-std::uint64_t ParticleRng::next() {
-  const auto rotl = [](std::uint64_t v, int k) { return (v << k) | (v >> (64 - k)); };
-  const std::uint64_t result = rotl(s_[1] * 5, 7) * 9;
-  const std::uint64_t t = s_[1] << 17;
-  s_[2] ^= s_[0];
-  s_[3] ^= s_[1];
-  s_[1] ^= s_[2];
-  s_[0] ^= s_[3];
-  s_[2] ^= t;
-  s_[3] = rotl(s_[3], 45);
-  return result;
-}
-
-double ParticleRng::uniform() { return static_cast<double>(next() >> 11) * 0x1.0p-53; }
-
-double ParticleRng::normal() {
-  if (has_spare_) {
-    has_spare_ = false;
-    return spare_;
-  }
-  const double u1 = 1.0 - uniform();  // (0, 1]
-  const double u2 = uniform();
-  const double r = std::sqrt(-2.0 * std::log(u1));
-  spare_ = r * std::sin(kTwoPi * u2);
-  has_spare_ = true;
-  return r * std::cos(kTwoPi * u2);
-}
-
-void PosePath::Node::destroy(const Node* n) {
-  while (n) {
-    Node* owned = const_cast<Node*>(n);
-    const Node* prev = owned->prev.detach();
-    delete owned;
-    if (!prev || prev->refs.fetch_sub(1, std::memory_order_acq_rel) != 1) return;
-    n = prev;
-  }
-}
-
-Poses2 PosePath::poses() const {
-  Poses2 out(static_cast<Eigen::Index>(size()), 3);
-  Eigen::Index row = out.rows();
-  for (const Node* n = head_.get(); n; n = n->prev.get()) out.row(--row) = n->pose.transpose();
-  return out;
-}
-
-std::size_t PosePath::collect_nodes(std::unordered_set<const void*>& seen) const {
-  std::size_t added = 0;
-  for (const Node* n = head_.get(); n && seen.insert(n).second; n = n->prev.get()) ++added;
-  return added;
-}
-
 // ---- free functions ----
 
 PoseProposal fastslam2_proposal(const Eigen::Vector3d& pose_mean, const Eigen::Matrix3d& pose_cov,
@@ -205,25 +144,6 @@ PoseProposal fastslam2_proposal(const Eigen::Vector3d& pose_mean, const Eigen::M
           "coincides with the pose (no bearing)");
   require(out.mean.allFinite() && out.cov.allFinite() && std::isfinite(out.log_likelihood), "z",
           "gives a proposal that is not finite");
-  return out;
-}
-
-std::vector<int> low_variance_resample(const Eigen::VectorXd& weights, double offset) {
-  require(weights.size() > 0, "weights", "must not be empty");
-  require(weights.size() <= kFastSlamMaxParticles, "weights", "must have at most 2^20 (kFastSlamMaxParticles) entries");
-  require(weights.allFinite() && (weights.array() >= 0.0).all(), "weights", "must be finite and >= 0");
-  const double total = weights.sum();
-  require(total > 0.0 && std::isfinite(total), "weights", "must have a finite positive sum");
-  require(std::isfinite(offset) && offset >= 0.0 && offset < 1.0, "offset", "must be in [0, 1)");
-  const Eigen::Index m = weights.size();
-  std::vector<int> out(static_cast<std::size_t>(m));
-  Eigen::Index i = 0;
-  double c = weights[0] / total;
-  for (Eigen::Index j = 0; j < m; ++j) {
-    const double u = (offset + static_cast<double>(j)) / static_cast<double>(m);
-    while (u > c && i < m - 1) c += weights[++i] / total;
-    out[static_cast<std::size_t>(j)] = static_cast<int>(i);
-  }
   return out;
 }
 
@@ -556,12 +476,7 @@ void FastSlam::for_particles(F&& f) {
 std::vector<int> FastSlam::commit(std::vector<FastSlamParticle>& staged) {
   particles_.swap(staged);
   // Normalise the log weights (log-sum-exp), then resample when N_eff is low.
-  double top = -std::numeric_limits<double>::infinity();
-  for (const FastSlamParticle& p : particles_) top = std::max(top, p.log_weight);
-  double sum = 0.0;
-  for (const FastSlamParticle& p : particles_) sum += std::exp(p.log_weight - top);
-  const double lse = top + std::log(sum);
-  for (FastSlamParticle& p : particles_) p.log_weight -= lse;
+  normalise_log_weights(particles_);
   last_resampled_ = false;
   std::vector<int> ancestors;
   if (effective_sample_size() < o_.resample_threshold * num_particles()) {
@@ -572,20 +487,7 @@ std::vector<int> FastSlam::commit(std::vector<FastSlamParticle>& staged) {
 }
 
 std::vector<int> FastSlam::resample_now() {
-  const int m = num_particles();
-  Eigen::VectorXd w(m);
-  for (int k = 0; k < m; ++k) w[k] = std::exp(particles_[static_cast<std::size_t>(k)].log_weight);
-  const std::vector<int> idx = low_variance_resample(w, rng_.uniform());
-  std::vector<FastSlamParticle> next;
-  next.reserve(static_cast<std::size_t>(m));
-  const double lw = -std::log(static_cast<double>(m));
-  for (int j = 0; j < m; ++j) {
-    next.push_back(particles_[static_cast<std::size_t>(idx[static_cast<std::size_t>(j)])]);  // O(1): shared map and path
-    next.back().rng = ParticleRng(o_.seed, next_stream_ + static_cast<std::uint64_t>(j));
-    next.back().log_weight = lw;
-  }
-  next_stream_ += static_cast<std::uint64_t>(m);
-  particles_.swap(next);
+  const std::vector<int> idx = resample_particles(particles_, rng_, o_.seed, next_stream_);  // O(1) copies
   ++resamples_;
   return idx;
 }

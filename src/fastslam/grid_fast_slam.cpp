@@ -83,7 +83,7 @@ bool GridFastSlam::add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
                             double timestamp) {
   check_scan_shape(odometry, ranges, beam_angles);
   require(std::isfinite(timestamp), "timestamp", "must be finite");
-  require(odometry.head<2>().cwiseAbs().maxCoeff() <= kFastSlamMaxCoordinate, "odometry",
+  require(odometry.head<2>().cwiseAbs().maxCoeff() <= kGridFastSlamMaxCoordinate, "odometry",
           "coordinates must be <= 1e9 m");
 
   // The motion source: the odometry, or the odometry corrected by incremental scan matching.
@@ -243,32 +243,9 @@ void GridFastSlam::update_particle(Particle& p, const Points2& points, const Eig
 }
 
 void GridFastSlam::normalise_and_resample() {
-  double top = -std::numeric_limits<double>::infinity();
-  for (const Particle& p : particles_) top = std::max(top, p.log_weight);
-  double sum = 0.0;
-  for (const Particle& p : particles_) sum += std::exp(p.log_weight - top);
-  const double lse = top + std::log(sum);
-  double sum_sq = 0.0;
-  for (Particle& p : particles_) {
-    p.log_weight -= lse;
-    sum_sq += std::exp(2.0 * p.log_weight);
-  }
-  summary_.effective_sample_size = 1.0 / sum_sq;
-  const int m = num_particles();
-  if (!(summary_.effective_sample_size < options_.resample_threshold * m)) return;
-  Eigen::VectorXd w(m);
-  for (int k = 0; k < m; ++k) w[k] = std::exp(particles_[static_cast<std::size_t>(k)].log_weight);
-  const std::vector<int> idx = low_variance_resample(w, rng_.uniform());
-  std::vector<Particle> next;
-  next.reserve(static_cast<std::size_t>(m));
-  const double lw = -std::log(static_cast<double>(m));
-  for (int j = 0; j < m; ++j) {
-    next.push_back(particles_[static_cast<std::size_t>(idx[static_cast<std::size_t>(j)])]);  // O(1): shared map, path
-    next.back().rng = ParticleRng(options_.seed, next_stream_ + static_cast<std::uint64_t>(j));
-    next.back().log_weight = lw;
-  }
-  next_stream_ += static_cast<std::uint64_t>(m);
-  particles_.swap(next);
+  summary_.effective_sample_size = normalise_log_weights(particles_);
+  if (!(summary_.effective_sample_size < options_.resample_threshold * num_particles())) return;
+  resample_particles(particles_, rng_, options_.seed, next_stream_);  // O(1) copies: shared map and path
   ++summary_.resamples;
 }
 

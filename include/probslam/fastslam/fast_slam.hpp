@@ -13,6 +13,7 @@
 #include "probslam/core/object_mutex.hpp"
 #include "probslam/core/types.hpp"
 #include "probslam/fastslam/landmark_tree.hpp"
+#include "probslam/fastslam/particles.hpp"
 
 namespace probslam {
 
@@ -20,7 +21,7 @@ class WorkerPool;
 
 // Reliability limits (README "Reliability"), refused by name beyond them.
 /// Particles per filter: 2^20 particles of ~250 bytes each before any landmark.
-inline constexpr int kFastSlamMaxParticles = 1 << 20;
+inline constexpr int kFastSlamMaxParticles = kMaxParticles;
 /// Worker threads of one filter.
 inline constexpr int kFastSlamMaxThreads = 256;
 /// Metres: robot coordinates, ranges, signatures, one motion's length (as kEkfMaxCoordinate).
@@ -86,52 +87,6 @@ struct FastSlamOptions {
   bool record_path = true;
 };
 
-/// A fast stream of random numbers per particle (xoshiro256**, seeded by splitmix64 from the
-/// filter's seed and the stream number), with standard normal deviates by Box-Muller.
-class ParticleRng {
- public:
-  ParticleRng() : ParticleRng(0, 0) {}
-  ParticleRng(std::uint64_t seed, std::uint64_t stream);
-  std::uint64_t next();
-  /// Uniform in [0, 1).
-  double uniform();
-  double normal();
-
- private:
-  std::uint64_t s_[4];
-  double spare_ = 0.0;
-  bool has_spare_ = false;
-};
-
-/// A persistent list of poses (newest first): appending or copying is O(1), and a path is
-/// shared by the particles that descend from one ancestor.
-class PosePath {
- public:
-  struct Node {
-    Eigen::Vector3d pose;
-    NodeRef<Node> prev;
-    std::size_t length;
-    mutable std::atomic<std::uint32_t> refs{1};
-    Node(const Eigen::Vector3d& p, NodeRef<Node> before)
-        : pose(p), prev(std::move(before)), length(1 + (prev ? prev->length : 0)) {}
-    // Iterative: a path of a million poses must not recurse a million deep.
-    static void destroy(const Node* n);
-  };
-  std::size_t size() const { return head_ ? head_->length : 0; }
-  void push(const Eigen::Vector3d& pose) { head_ = NodeRef<Node>::adopt(new Node(pose, std::move(head_))); }
-  /// Replaces the newest pose.
-  void replace_last(const Eigen::Vector3d& pose) {
-    NodeRef<Node> before = head_ ? head_->prev : NodeRef<Node>();
-    head_ = NodeRef<Node>::adopt(new Node(pose, std::move(before)));
-  }
-  /// Oldest first, (size, 3).
-  Poses2 poses() const;
-  std::size_t collect_nodes(std::unordered_set<const void*>& seen) const;
-
- private:
-  NodeRef<Node> head_;
-};
-
 /// One particle: a pose sample, its log weight and its map; in version 2 also the motion prior
 /// N(prior_mean, prior_cov) of the last predict, which the next update's proposal starts from.
 struct FastSlamParticle {
@@ -179,11 +134,6 @@ struct PoseProposal {
 PoseProposal fastslam2_proposal(const Eigen::Vector3d& pose_mean, const Eigen::Matrix3d& pose_cov,
                                 const Eigen::Vector2d& landmark_mean, const Eigen::Matrix2d& landmark_cov,
                                 const Eigen::Vector2d& z, const Eigen::Matrix2d& measurement_noise);
-
-/// Low-variance (systematic) resampling, Table 4.4: M = weights.size() draws at the positions
-/// (offset + m) / M, m = 0..M-1, of the cumulative normalised weights; offset in [0, 1). Each
-/// index k appears floor(M w_k) or ceil(M w_k) times. Weights need not be normalised.
-std::vector<int> low_variance_resample(const Eigen::VectorXd& weights, double offset);
 
 /// The filter. Random numbers: particle k draws from its own stream, starting as stream k of
 /// the seed; resampling gives the j-th new particle the stream (next stream number + j), and the

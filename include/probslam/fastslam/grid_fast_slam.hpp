@@ -18,7 +18,7 @@
 #include "probslam/core/object_mutex.hpp"
 #include "probslam/core/types.hpp"
 #include "probslam/fastslam/endpoint_likelihood.hpp"
-#include "probslam/fastslam/fast_slam.hpp"
+#include "probslam/fastslam/particles.hpp"
 #include "probslam/fastslam/scan_proposal.hpp"
 #include "probslam/fastslam/tiled_grid_2d.hpp"
 #include "probslam/slam2d/incremental_scan_matcher.hpp"
@@ -33,6 +33,8 @@ enum class GridProposal : std::uint8_t { kMotion = 0, kScanMatching = 1, kImprov
 /// Particles at most: each holds a grid map's tile table; far beyond any published use (GMapping
 /// runs 30 to 100).
 inline constexpr int kGridFastSlamMaxParticles = 100000;
+/// Odometry coordinates beyond this (m) are refused: larger than any building's map.
+inline constexpr double kGridFastSlamMaxCoordinate = 1e9;
 
 struct GridFastSlamOptions {
   int num_particles = 30;
