@@ -1,5 +1,5 @@
-"""The reliability policy for the stateful scan-matching classes (IncrementalScanMatcher,
-SubmapSlam2D): odd arrays are refused with ValueError/TypeError and change nothing; several
+"""The reliability policy for the stateful laser SLAM classes (IncrementalScanMatcher,
+SubmapSlam2D, GridFastSlam): odd arrays are refused with ValueError/TypeError and change nothing; several
 threads sharing one object get the same result as one thread feeding it in order."""
 
 import numpy as np
@@ -8,10 +8,10 @@ from hypothesis import given, settings, HealthCheck
 
 import policy
 from probslam import _core
-from test_submap_slam import ANGLES, MAX_RANGE, corridor_drive
+from corridor_world import ANGLES, MAX_RANGE, corridor_drive
 
 PROPERTY = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-CLASSES = [_core.IncrementalScanMatcher, _core.SubmapSlam2D]
+CLASSES = [_core.IncrementalScanMatcher, _core.SubmapSlam2D, _core.GridFastSlam]
 
 _DRIVE = corridor_drive(laps=0.3)
 
@@ -24,8 +24,20 @@ def fed(cls, n=4):
 
 
 def state(obj):
+    if isinstance(obj, _core.GridFastSlam):
+        return {"n": obj.num_scans, "poses": obj.scan_poses() if obj.num_scans else np.zeros((0, 3)),
+                "w": obj.log_weights, "t": obj.timestamps}
     poses = obj.scan_poses if isinstance(obj, _core.SubmapSlam2D) else obj.poses
     return {"n": obj.num_scans, "poses": poses, "info": obj.scan_info, "t": obj.timestamps}
+
+
+#: Numeric options of each class (the scan matchers share the frontend's).
+FRONTEND_OPTIONS = ["resolution", "max_range", "min_range", "max_usable_range", "sigma", "p_rand", "linear_window",
+                    "angular_window", "min_travel", "min_rotation", "submap_distance", "min_match_quality",
+                    "field_refresh_distance", "field_refresh_angle"]
+RBPF_OPTIONS = ["resolution", "max_range", "min_range", "max_usable_range", "sigma", "p_rand", "search_radius",
+                "linear_step", "angular_step", "sample_linear", "sample_angular", "min_match_quality",
+                "resample_threshold", "update_distance", "update_angle"]
 
 
 @pytest.mark.parametrize("cls", CLASSES)
@@ -38,11 +50,10 @@ def test_add_scans_with_odd_arrays(cls, ranges, angles, odometry, stamps):
 
 @pytest.mark.parametrize("cls", CLASSES)
 @PROPERTY
-@given(value=policy.floats(), name=policy.st.sampled_from(
-    ["resolution", "max_range", "min_range", "max_usable_range", "sigma", "p_rand", "linear_window",
-     "angular_window", "min_travel", "min_rotation", "submap_distance", "min_match_quality",
-     "field_refresh_distance", "field_refresh_angle"]))
-def test_options_with_odd_numbers(cls, value, name):
+@given(value=policy.floats(), pick=policy.st.integers(0, 10 ** 6))
+def test_options_with_odd_numbers(cls, value, pick):
+    names = RBPF_OPTIONS if cls is _core.GridFastSlam else FRONTEND_OPTIONS
+    name = names[pick % len(names)]
     raised, _ = policy.check_call(lambda: cls(**{name: value}))
     if np.isnan(value) or (np.isinf(value) and name != "max_range"):  # max_range = inf: none stated
         assert raised, (name, value)
