@@ -50,29 +50,44 @@ def _cmd_slam(args: argparse.Namespace) -> int:
 
     path = args.log or _bundled_log(BUNDLED_RAW_LOG)
     log = io.read_carmen_log(path)
-    options = dict(resolution=args.resolution, submap_distance=args.submap_distance,
-                   loop_closures=not args.no_loop_closures)
+    if args.method == "rbpf":
+        options = dict(resolution=args.resolution, num_particles=args.particles, proposal=args.proposal)
+    else:
+        options = dict(resolution=args.resolution, submap_distance=args.submap_distance,
+                       loop_closures=not args.no_loop_closures)
     if args.max_range is not None:
         options["max_range"] = args.max_range
-    result = run_slam(log, progress=None if args.progress else False, **options)
+    result = run_slam(log, method=args.method, progress=None if args.progress else False, **options)
     io.save_ros_map(result.grid, args.output + ".yaml")
     io.write_png(result.grid, args.output + ".png", trajectory=result.poses)
     write_trajectory(args.output + "_trajectory.txt", result.timestamps, result.poses)
-    write_g2o(args.output + ".g2o", result.graph)
+    written = [f"{args.output}.yaml", f"{args.output}.pgm", f"{args.output}.png", f"{args.output}_trajectory.txt"]
+    if result.graph is not None:
+        write_g2o(args.output + ".g2o", result.graph)
+        written.append(f"{args.output}.g2o")
     s = result.summary
     grid = result.grid
     print(f"log:           {path}{' (bundled Intel Research Lab raw excerpt)' if not args.log else ''}")
-    print(f"scans:         {s['scans']} ({s['matched_scans']} scan-matched"
-          + ("" if result.odometry else "; no odometry in the log: scan matching alone") + ")"
-          + (f", {log.skipped_wide_scans} skipped: far wider than the rest" if log.skipped_wide_scans else ""))
-    print(f"submaps:       {s['submaps']}")
-    print(f"closures:      {s['closures_accepted']} accepted, {s['closures_rejected']} rejected, "
-          f"{s['closures_dissolved']} dissolved ({s['closures_searched']} searched, {s['rounds']} rounds)")
+    skipped = f", {log.skipped_wide_scans} skipped: far wider than the rest" if log.skipped_wide_scans else ""
+    if result.method == "rbpf":
+        t = result.tile_sharing
+        print(f"method:        grid-based FastSLAM, {args.particles} particles, {args.proposal} proposal")
+        print(f"scans:         {s['scans']}{skipped}; {s['updates']} filter updates, {s['resamples']} resamplings")
+        if args.proposal == "scan-matching":
+            print(f"proposal:      {s['matched']} particle updates scan-matched, {s['fallbacks']} fell back to "
+                  f"the motion model")
+        print(f"maps:          {t['distinct']} distinct tiles for {t['references']} held "
+              f"({t['bytes'] / 2 ** 20:.1f} MiB)")
+    else:
+        print(f"scans:         {s['scans']} ({s['matched_scans']} scan-matched"
+              + ("" if result.odometry else "; no odometry in the log: scan matching alone") + ")" + skipped)
+        print(f"submaps:       {s['submaps']}")
+        print(f"closures:      {s['closures_accepted']} accepted, {s['closures_rejected']} rejected, "
+              f"{s['closures_dissolved']} dissolved ({s['closures_searched']} searched, {s['rounds']} rounds)")
     print(f"map:           {grid.width} x {grid.height} cells at {grid.resolution} m, origin {grid.origin}")
     print(f"time:          {result.seconds:.1f} s for {result.log_duration:.0f} s of log "
           f"(real-time factor {result.real_time_factor:.1f})")
-    print(f"wrote:         {args.output}.yaml, {args.output}.pgm, {args.output}.png, "
-          f"{args.output}_trajectory.txt, {args.output}.g2o")
+    print(f"wrote:         {', '.join(written)}")
     return 0
 
 
@@ -229,8 +244,15 @@ def build_parser() -> argparse.ArgumentParser:
     sl.add_argument("--submap-distance", type=float, default=10.0,
                     help="travel per submap in metres (default 10; 0: one map, scan matching alone)")
     sl.add_argument("--no-loop-closures", action="store_true", help="scan matching and submaps only")
+    sl.add_argument("--method", choices=("graph", "rbpf"), default="graph",
+                    help="graph: GraphSLAM over submaps (default); rbpf: grid-based FastSLAM (particle filter)")
+    sl.add_argument("--particles", type=int, default=30, help="rbpf: number of particles (default 30)")
+    sl.add_argument("--proposal", choices=("scan-matching", "motion", "improved-odometry"), default="scan-matching",
+                    help="rbpf: scan-matching (GMapping's improved proposal, default), motion (the plain filter) "
+                         "or improved-odometry (odometry corrected by scan matching, then the plain filter)")
     sl.add_argument("-o", "--output", default="slam",
-                    help="output prefix: PREFIX.yaml/.pgm/.png, PREFIX_trajectory.txt, PREFIX.g2o (default 'slam')")
+                    help="output prefix: PREFIX.yaml/.pgm/.png, PREFIX_trajectory.txt, PREFIX.g2o (graph only; "
+                         "default 'slam')")
     sl.add_argument("--no-progress", dest="progress", action="store_false", help="never show a progress bar")
     sl.set_defaults(func=_cmd_slam)
 

@@ -64,3 +64,13 @@ def corridor_drive(laps=1.25, step=0.25, bias=0.0015, seed=5):
         odo.append(np.asarray(ps.Pose2(*odo[-1]).compose(ps.Pose2(*inc)).as_array()))
     ranges = np.stack([cast(p) for p in true]) + rng.normal(0, 0.01, (len(true), len(ANGLES)))
     return true, np.array(odo), ranges
+
+
+def scans_of(true, odo, ranges):
+    """The drive as the LaserScans a CARMEN log would give (one scan per second)."""
+    from probslam.io.carmen import LaserScans
+
+    s = len(true)
+    return LaserScans(ranges=ranges, laser_poses=odo, robot_poses=odo, start_angles=np.full(s, ANGLES[0]),
+                      angular_resolutions=np.full(s, ANGLES[1] - ANGLES[0]), max_ranges=np.full(s, MAX_RANGE),
+                      num_beams=np.full(s, len(ANGLES)), timestamps=np.arange(s, dtype=float))

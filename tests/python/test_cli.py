@@ -118,6 +118,35 @@ def test_slam_bundled_raw_log(tmp_path, capsys):
     assert (tmp_path / "s.png").read_bytes()[:4] == b"\x89PNG"
 
 
+def test_slam_rbpf_on_the_bundled_raw_log(tmp_path, capsys):
+    prefix = tmp_path / "r"
+    assert cli.main(["slam", "--method", "rbpf", "--particles", "4", "-o", str(prefix), "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    log = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_RAW_LOG))
+    assert "grid-based FastSLAM, 4 particles, scan-matching proposal" in out and "distinct tiles" in out
+    traj = np.loadtxt(tmp_path / "r_trajectory.txt")
+    assert traj.shape == (len(log.scans), 4)
+    np.testing.assert_allclose(traj[0, 1:], log.scans.laser_poses[0], atol=1e-6)
+    assert not (tmp_path / "r.g2o").exists()  # no graph: a particle filter
+    assert io.load_ros_map(tmp_path / "r.yaml").resolution == pytest.approx(0.05)
+    # The GraphSLAM trajectory of the same log: the filter's best path stays within a few cm of it
+    # over this excerpt (no loop closes in it).
+    graph = ps.run_slam(log, progress=False)
+    err = np.linalg.norm(traj[:, 1:3] - graph.poses[:, :2], axis=1)
+    assert np.median(err) < 0.1, np.median(err)
+
+
+def test_slam_rbpf_needs_odometry(tmp_path, capsys):
+    log = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_RAW_LOG))
+    scans = log.scans
+    lines = [f"FLASER {scans.ranges.shape[1]} " + " ".join(f"{r:.3f}" for r in scans.ranges[k]) + " 0 0 0 0 0 0 "
+             f"{scans.timestamps[k]:.6f} host {scans.timestamps[k]:.6f}" for k in range(30)]
+    still = tmp_path / "still.log"
+    still.write_text("\n".join(lines) + "\n")
+    assert cli.main(["slam", str(still), "--method", "rbpf", "-o", str(tmp_path / "s"), "--no-progress"]) == 2
+    assert "no odometry" in capsys.readouterr().err
+
+
 def test_slam_bad_log_is_an_error_not_a_traceback(tmp_path, capsys):
     bad = tmp_path / "bad.log"
     bad.write_text("ODOM 0 0 0 0 0 0\n")

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from probslam import _core
-from corridor_world import ANGLES, MAX_RANGE, corridor_drive
+from corridor_world import ANGLES, MAX_RANGE, corridor_drive, scans_of
 
 SIGMA, P_RAND, RADIUS = 0.05, 0.05, 0.15
 
@@ -99,6 +99,24 @@ def test_the_improved_proposal_closes_the_loop_where_the_motion_model_does_not(d
     assert plain.max() > 1.0
     corrected, _ = loop_errors(drive, num_particles=10, proposal="improved-odometry")
     assert corrected.max() < 0.35
+
+
+def test_run_slam_rbpf_equals_the_class(drive):
+    from probslam.slam import run_slam
+
+    true, odo, ranges = drive
+    scans = scans_of(true, odo, ranges)
+    result = run_slam(scans, method="rbpf", progress=False, chunk=29, num_particles=5, seed=2)
+    direct = make(num_particles=5, seed=2)
+    direct.add_scans(ranges, scans.beam_angles(), odo, scans.timestamps)  # the log's beam angles
+    np.testing.assert_array_equal(result.poses, direct.scan_poses())
+    assert result.method == "rbpf" and result.graph is None and result.frontend_poses is None
+    assert result.summary == direct.summary and result.tile_sharing == direct.tile_sharing
+    np.testing.assert_array_equal(result.grid.log_odds, direct.map().log_odds)
+    with pytest.raises(ValueError, match="method"):
+        run_slam(scans, method="particles", progress=False)
+    with pytest.raises(TypeError):
+        run_slam(scans, method="rbpf", progress=False, submap_distance=5.0)  # a GraphSLAM option
 
 
 @pytest.mark.parametrize("kwargs, name", [

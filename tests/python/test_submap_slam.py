@@ -9,7 +9,7 @@ import probslam as ps
 from probslam import _core
 from probslam.sim import cast_ranges
 
-from corridor_world import ANGLES, MAX_RANGE, corridor_drive
+from corridor_world import ANGLES, MAX_RANGE, corridor_drive, scans_of
 
 
 @pytest.fixture(scope="module")
@@ -98,15 +98,6 @@ def test_empty_and_bad_input():
     with pytest.raises(ValueError, match="odometry"):
         slam.add_scans(np.ones((1, 3)), np.zeros(3), np.full((1, 3), np.nan), np.zeros(1))
     assert slam.num_scans == 0
-
-
-def scans_of(true, odo, ranges):
-    from probslam.io.carmen import LaserScans
-
-    s = len(true)
-    return LaserScans(ranges=ranges, laser_poses=odo, robot_poses=odo, start_angles=np.full(s, ANGLES[0]),
-                      angular_resolutions=np.full(s, ANGLES[1] - ANGLES[0]), max_ranges=np.full(s, MAX_RANGE),
-                      num_beams=np.full(s, len(ANGLES)), timestamps=np.arange(s, dtype=float))
 
 
 def test_run_slam_equals_the_class(drive):
