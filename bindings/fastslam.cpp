@@ -83,6 +83,12 @@ void define_state(py::class_<FastSlam>& c) {
       .def_property_readonly("pose_covariance", getter(&FastSlam::pose_covariance))
       .def_property_readonly("num_resamples", getter(&FastSlam::num_resamples))
       .def_property_readonly("resampled", getter(&FastSlam::resampled))
+      .def_property_readonly("ancestors", [](const FastSlam& f) {
+        return locked(f, [&] {
+          const std::vector<int>& a = f.last_ancestors();
+          return Eigen::VectorXi(Eigen::Map<const Eigen::VectorXi>(a.data(), static_cast<Eigen::Index>(a.size())));
+        });
+      })
       .def_property_readonly("map_sharing",
                              [](const FastSlam& f) {
                                const MapSharing s = locked(f, [&] { return f.map_sharing(); });

@@ -137,6 +137,7 @@ GridFastSlamOptions rbpf_options(Kwargs& k) {
   k.get("sample_angular", o.matching.sample_angular);
   k.get("min_match_quality", o.matching.min_quality);
   k.get("resample_threshold", o.resample_threshold);
+  k.get("weight_scale", o.weight_scale);
   k.get("update_distance", o.update_distance);
   k.get("update_angle", o.update_angle);
   k.get("corrector_submap_distance", o.corrector.submap_distance);

@@ -233,6 +233,7 @@ class FastSlam:
     pose_covariance: Array  # (3, 3) weighted covariance about mean_pose
     num_resamples: int
     resampled: bool  # whether the last update resampled
+    ancestors: npt.NDArray[np.int32]  # (M,) after a resampling: particle j's ancestor; else (0,)
     map_sharing: Dict[str, int]
     """distinct_nodes (tree nodes allocated for all maps), total_nodes (sum of per-particle
     tree nodes: what deep copies would hold), landmarks (sum of per-particle counts), path_nodes."""

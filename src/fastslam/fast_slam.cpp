@@ -443,7 +443,8 @@ FastSlam::FastSlam(const FastSlam& other)
       rng_(other.rng_),
       next_stream_(other.next_stream_),
       resamples_(other.resamples_),
-      last_resampled_(other.last_resampled_) {}
+      last_resampled_(other.last_resampled_),
+      last_ancestors_(other.last_ancestors_) {}
 
 FastSlam& FastSlam::operator=(const FastSlam& other) {
   if (this != &other) {
@@ -483,6 +484,7 @@ std::vector<int> FastSlam::commit(std::vector<FastSlamParticle>& staged) {
     ancestors = resample_now();
     last_resampled_ = true;
   }
+  last_ancestors_ = ancestors;
   return ancestors;
 }
 
@@ -493,7 +495,7 @@ std::vector<int> FastSlam::resample_now() {
 }
 
 void FastSlam::resample() {
-  resample_now();
+  last_ancestors_ = resample_now();
   last_resampled_ = true;
 }
 

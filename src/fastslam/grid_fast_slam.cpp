@@ -57,6 +57,8 @@ void GridFastSlamOptions::validate() const {
   odometry.validate();
   likelihood.validate();
   matching.validate();
+  require(std::isfinite(weight_scale) && weight_scale > 0.0 && weight_scale <= 1.0, "weight_scale",
+          "must lie in (0, 1]");
   require(std::isfinite(resample_threshold) && resample_threshold >= 0.0 && resample_threshold <= 1.0,
           "resample_threshold", "must lie in [0, 1]");
   require(std::isfinite(update_distance) && update_distance >= 0.0, "update_distance", "must be finite and >= 0");
@@ -225,8 +227,9 @@ void GridFastSlam::update_particle(Particle& p, const Points2& points, const Eig
       // The normaliser is a sum over the 27 poses; times their spacing's volume it estimates
       // the integral of p(z | x, m) p(x | x_t-1, u), which the motion-model fallback's
       // p(z | x, m) estimates too: both weights are on one scale.
-      p.log_weight += q.log_normaliser + std::log(options_.matching.sample_linear * options_.matching.sample_linear *
-                                                  options_.matching.sample_angular);
+      p.log_weight += options_.weight_scale *
+                      (q.log_normaliser + std::log(options_.matching.sample_linear * options_.matching.sample_linear *
+                                                   options_.matching.sample_angular));
       ++matched;
       done = true;
     } else {
@@ -236,7 +239,7 @@ void GridFastSlam::update_particle(Particle& p, const Points2& points, const Eig
   if (!done) {
     Eigen::Vector3d x = compose(p.pose, delta + gaussian_offset(delta_cov, p.rng));
     p.pose = x;
-    p.log_weight += likelihood_.log_likelihood(*p.map, x, points);
+    p.log_weight += options_.weight_scale * likelihood_.log_likelihood(*p.map, x, points);
   }
   insert(p, insertion, angles);
   p.path.push(p.pose);

@@ -293,6 +293,30 @@ def test_resampling_copies_maps_in_constant_time():
             np.testing.assert_array_equal(x, y)
 
 
+def test_ancestors_follow_the_resampling():
+    run, q = sim_run(3, steps=40)
+    f = ps.FastSlam(50, np.diag([0.01, 0.01, 0.002]), q, initial_pose=run.poses[0], seed=4)
+    seen = 0
+    for (v, w), z, ids in zip(run.controls, run.measurements, run.ids):
+        f.predict(v, w, run.dt)
+        before = f.poses
+        f.update(z, ids)
+        a = f.ancestors
+        if not f.resampled:
+            assert a.shape == (0,)
+            continue
+        seen += 1
+        assert a.shape == (50,) and a.min() >= 0 and a.max() < 50 and np.all(np.diff(a) >= 0)
+        # Known correspondences in version 1 leave the poses alone: each particle is its ancestor's.
+        np.testing.assert_array_equal(f.poses, before[a])
+    assert seen > 0
+    weights = f.weights
+    f.resample()
+    assert f.resampled and f.ancestors.shape == (50,)
+    counts = np.bincount(f.ancestors, minlength=50)
+    assert np.all(np.abs(counts - 50 * weights) < 1.0 + 1e-9)  # floor or ceil of M w
+
+
 def test_threads_give_identical_results():
     run, q = sim_run(4, steps=80, clutter=0.3)
     results = []

@@ -42,16 +42,17 @@ def numpy_log_likelihood(grid, pose, ranges):
     return np.log(p).sum()
 
 
-def test_weights_equal_a_numpy_evaluation_of_the_measurement_likelihood(drive):
+@pytest.mark.parametrize("scale", [1.0, 0.25])
+def test_weights_equal_a_numpy_evaluation_of_the_measurement_likelihood(drive, scale):
     true, odo, ranges = drive
     f = make(num_particles=12, proposal="motion", resample_threshold=0.0, update_distance=0.0, update_angle=0.0,
-             sigma=SIGMA, p_rand=P_RAND, search_radius=RADIUS)
+             sigma=SIGMA, p_rand=P_RAND, search_radius=RADIUS, weight_scale=scale)
     feed(f, drive, 1)
     before = f.map(0)  # every particle's map after the first scan
     assert np.all(f.log_weights == pytest.approx(-np.log(12)))
     f.add_scans(ranges[1:2], ANGLES, odo[1:2], [1.0])
     assert f.summary["updates"] == 1 and f.summary["resamples"] == 0  # the first scan only maps
-    ll = np.array([numpy_log_likelihood(before, x, ranges[1]) for x in f.poses])
+    ll = scale * np.array([numpy_log_likelihood(before, x, ranges[1]) for x in f.poses])
     assert np.ptp(ll) > 1.0  # the particles really differ
     want = ll - (ll.max() + np.log(np.exp(ll - ll.max()).sum()))
     np.testing.assert_allclose(f.log_weights, want, rtol=0, atol=1e-9)
@@ -126,6 +127,8 @@ def test_run_slam_rbpf_equals_the_class(drive):
     (dict(p_rand=1.0), "p_rand"),
     (dict(search_radius=-1.0), "search_radius"),
     (dict(resample_threshold=1.5), "resample_threshold"),
+    (dict(weight_scale=0.0), "weight_scale"),
+    (dict(weight_scale=2.0), "weight_scale"),
     (dict(update_distance=float("nan")), "update_distance"),
     (dict(threads=0), "threads"),
     (dict(resolution=-0.05), "resolution"),

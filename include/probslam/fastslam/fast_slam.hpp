@@ -210,6 +210,9 @@ class FastSlam {
   MapSharing map_sharing() const;
   long num_resamples() const { return resamples_; }
   bool resampled() const { return last_resampled_; }
+  /// When the last update (or resample()) resampled: particle j's ancestor index before it, for
+  /// every j; empty otherwise. Lets a caller carry per-particle histories along.
+  const std::vector<int>& last_ancestors() const { return last_ancestors_; }
 
  private:
   struct Context;
@@ -232,6 +235,7 @@ class FastSlam {
   std::uint64_t next_stream_ = 0;      // the stream number of the next new particle
   long resamples_ = 0;
   bool last_resampled_ = false;
+  std::vector<int> last_ancestors_;
   std::unique_ptr<WorkerPool> pool_;   // started on first use; never copied
   ObjectMutex mutex_;
 };

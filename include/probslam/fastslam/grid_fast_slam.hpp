@@ -44,6 +44,12 @@ struct GridFastSlamOptions {
   OdometryNoise odometry;    ///< the odometry motion model's noise
   EndpointLikelihoodOptions likelihood;
   ScanProposalOptions matching;
+  /// Each update's log weight increment is multiplied by this, in (0, 1]: the beams of a scan
+  /// are not independent, so the product of their likelihoods is far more peaked than the
+  /// evidence (Thrun et al. ch. 6.4), and unscaled weights resample at nearly every update,
+  /// depleting the particles. GMapping divides by a gain times the particle count for the same
+  /// reason. 1: the textbook weights.
+  double weight_scale = 1.0;
   /// Resample when N_eff = 1 / sum w^2 < resample_threshold * num_particles, in [0, 1].
   double resample_threshold = 0.5;
   /// The filter updates once the odometry has moved this far (m) or turned this much (rad)
