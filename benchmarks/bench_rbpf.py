@@ -1,0 +1,111 @@
+"""Grid-based FastSLAM (probslam.slam.run_slam(method="rbpf")) on the raw laser logs: time per
+update step and real-time factor against the particle count, the memory the particles' maps take
+(distinct tiles) against what unshared maps would take (tiles held), and two threads against one.
+
+Table 1, particle sweep on the first SWEEP_SCANS scans of ACES (one thread, scan-matching
+proposal): updates, seconds per update step, real-time factor, tiles held / distinct and their
+memory, and the relations error of those scans (ACES relations within the excerpt).
+Table 2, each raw log whole (ACES, Intel, FR079), 30 particles, scan-matching proposal, one thread:
+time, real-time factor, memory, and the ACES relations error.
+Table 3, threads: 30 particles on the ACES excerpt with 1 and 2 threads (identical results).
+
+    .venv/bin/python benchmarks/bench_rbpf.py [--quick] [--no-record]
+
+--quick: the sweep only, on 500 scans (a smoke run; not recorded). Missing logs are skipped.
+"""
+
+import argparse
+import os
+import pathlib
+import sys
+
+import numpy as np
+
+import probslam as ps
+import probslam.eval
+import probslam.slam
+from common import heading, report
+
+HERE = pathlib.Path(__file__).resolve().parent
+SHARED = pathlib.Path(os.environ.get("PROBSLAM_SHARED_DATA", HERE.parents[1] / "shared" / "data"))
+LASER = SHARED / "laser_2d"
+LOGS = {"aces": ("ACES", "aces/aces.clf.bz2"), "intel": ("Intel", "intel/intel.clf"),
+        "fr079": ("FR079", "fr079/fr079.clf.bz2")}
+RELATIONS = LASER / "aces" / "aces.relations"
+SWEEP_SCANS = 2000
+PARTICLES = (1, 3, 10, 30, 100)
+TILE_BYTES = 32 * 32 * 12  # log-odds (double) and scan stamp (uint32) of 32 x 32 cells
+
+
+def first_scans(scans, n):
+    import dataclasses
+
+    return ps.io.LaserScans(**{f.name: getattr(scans, f.name)[:n] for f in dataclasses.fields(scans)})
+
+
+def relations(result):
+    if not RELATIONS.exists():
+        return "-"
+    try:
+        e = ps.eval.relations_error(result.timestamps, result.poses, RELATIONS)
+    except ValueError:
+        return "-"
+    return f"{e.trans_mean:.3f} +- {e.trans_std:.3f} m ({len(e.used)})"
+
+
+def row(label, result, extra=""):
+    s, t = result.summary, result.tile_sharing
+    per_update = result.seconds / max(1, s["updates"])
+    return (f"| {label} | {s['scans']} | {s['updates']} | {1e3 * per_update:.1f} | {result.seconds:.1f} | "
+            f"{result.real_time_factor:.1f}x | {t['references']} / {t['distinct']} | "
+            f"{t['references'] * TILE_BYTES / 2 ** 20:.0f} / {t['bytes'] / 2 ** 20:.0f} | {relations(result)}{extra} |")
+
+
+def main():
+    parser = argparse.ArgumentParser()
+    parser.add_argument("--quick", action="store_true", help="the particle sweep on 500 scans (not recorded)")
+    parser.add_argument("--no-record", action="store_true", help="print only; do not append to RESULTS.md")
+    args = parser.parse_args()
+    aces = LASER / LOGS["aces"][1]
+    if not aces.exists():
+        print(f"bench_rbpf: {aces} not found; nothing to run")
+        return
+    load = os.getloadavg()[0]
+    columns = ["run", "scans", "updates", "ms / update", "s", "real-time factor", "tiles held / distinct",
+               "MiB unshared / shared", "ACES relations (used)"]
+    lines = heading("Grid-based FastSLAM (rbpf)", "run_slam(method='rbpf'), scan-matching proposal, one thread "
+                    "unless stated.", columns)
+    log = ps.io.read_carmen_log(aces)
+    n = 500 if args.quick else SWEEP_SCANS
+    excerpt = first_scans(log.scans, n)
+    for m in PARTICLES:
+        print(f"bench_rbpf: ACES first {n} scans, {m} particles ...", file=sys.stderr, flush=True)
+        lines.append(row(f"ACES first {n} scans, {m} particles", ps.slam.run_slam(excerpt, method="rbpf",
+                                                                                 progress=False, num_particles=m)))
+    if not args.quick:
+        results = {}
+        for threads in (1, 2):
+            print(f"bench_rbpf: ACES excerpt, {threads} threads ...", file=sys.stderr, flush=True)
+            results[threads] = ps.slam.run_slam(excerpt, method="rbpf", progress=False, num_particles=30,
+                                                threads=threads)
+        same = np.array_equal(results[1].poses, results[2].poses)
+        lines.append(row(f"ACES first {n} scans, 30 particles, 2 threads", results[2],
+                         f"; {results[1].seconds / results[2].seconds:.2f}x one thread, "
+                         f"{'identical' if same else 'DIFFERENT'} poses"))
+        for name, (title, raw) in LOGS.items():
+            path = LASER / raw
+            if not path.exists():
+                lines.append(f"| {title} | - | - | - | - | - | - | - | not found |")
+                continue
+            print(f"bench_rbpf: {title}, 30 particles ...", file=sys.stderr, flush=True)
+            lines.append(row(f"{title} whole log, 30 particles", ps.slam.run_slam(path, method="rbpf", progress=False,
+                                                                                  num_particles=30)))
+    lines += ["", f"Load average at the start: {load:.2f} (on {os.cpu_count()} cores). ms / update: processing time "
+              "over filter updates (one every 0.25 m or 0.25 rad). Tiles held: summed over the particles (what "
+              "unshared maps would take); distinct: allocated once and shared.",
+              f"Command: `python benchmarks/bench_rbpf.py{' --quick' if args.quick else ''}`.", ""]
+    report(lines, record=not (args.quick or args.no_record))
+
+
+if __name__ == "__main__":
+    main()
