@@ -137,7 +137,7 @@ def agreement(poses: np.ndarray, reference: np.ndarray):
 
 # --- the run ----------------------------------------------------------------------------------
 
-def run_log(name, quick, figures):
+def run_log(name, quick, figures, method="graph", options=None):
     """(row of the run table, rows of the accuracy table, notes), or None when the log is absent."""
     title, raw, relations, corrected = LOGS[name]
     path = LASER / raw
@@ -147,19 +147,25 @@ def run_log(name, quick, figures):
     log = ps.io.read_carmen_log(path)
     scans = first_scans(log.scans, QUICK_SCANS) if quick else log.scans
     print(f"bench_slam_logs: {title}: {len(scans)} scans ...", file=sys.stderr, flush=True)
-    result = ps.slam.run_slam(scans, progress=False)
+    result = ps.slam.run_slam(scans, progress=False, method=method, **(options or {}))
     s = result.summary
     print(f"bench_slam_logs: {title}: {result.seconds:.1f} s", file=sys.stderr, flush=True)
-    run_row = (f"| {title} | {s['scans']} | {s['submaps']} | {s['closures_accepted']} / {s['closures_rejected']} / "
-               f"{s['closures_dissolved']} | {result.seconds:.1f} | {result.log_duration:.0f} | "
-               f"{result.real_time_factor:.1f}x |")
+    if method == "rbpf":
+        run_row = (f"| {title} | {s['scans']} | {s['updates']} updates, {s['resamples']} resamplings | "
+                   f"{s['matched']} matched / {s['fallbacks']} fallbacks | {result.seconds:.1f} | "
+                   f"{result.log_duration:.0f} | {result.real_time_factor:.1f}x |")
+    else:
+        run_row = (f"| {title} | {s['scans']} | {s['submaps']} | {s['closures_accepted']} / {s['closures_rejected']} / "
+                   f"{s['closures_dissolved']} | {result.seconds:.1f} | {result.log_duration:.0f} | "
+                   f"{result.real_time_factor:.1f}x |")
     notes = []
     if figures is not None:
-        png = figures / f"slam_{name}.png"
+        png = figures / (f"slam_{name}.png" if method == "graph" else f"rbpf_{name}.png")
         ps.io.write_png(result.grid, png, trajectory=result.poses)
         kb = png.stat().st_size / 1024
         notes.append(f"{title}: map picture {png.name} ({result.grid.width} x {result.grid.height} cells, {kb:.0f} KB).")
-    trajectories = [("GraphSLAM", result.poses), ("scan matching alone", result.frontend_poses)]
+    trajectories = ([("grid FastSLAM", result.poses)] if method == "rbpf" else
+                    [("GraphSLAM", result.poses), ("scan matching alone", result.frontend_poses)])
     acc = []
     if relations is not None:
         rel = LASER / relations
@@ -208,7 +214,17 @@ def main():
     parser.add_argument("--quick", action="store_true",
                         help=f"the first {QUICK_SCANS} scans of each log (a smoke run; not recorded)")
     parser.add_argument("--no-record", action="store_true", help="print only; do not append to RESULTS.md")
+    parser.add_argument("--method", choices=ps.slam.METHODS, default="graph",
+                        help="graph (GraphSLAM over submaps, default) or rbpf (grid-based FastSLAM)")
+    parser.add_argument("--option", action="append", default=[], metavar="NAME=VALUE",
+                        help="an option for run_slam (a Python literal), e.g. num_particles=30; repeatable")
     args = parser.parse_args()
+    import ast
+
+    options = {}
+    for o in args.option:
+        name, _, value = o.partition("=")
+        options[name.strip()] = ast.literal_eval(value.strip())
     if args.figures is not None:
         args.figures.mkdir(parents=True, exist_ok=True)
     load = os.getloadavg()[0]
@@ -220,7 +236,7 @@ def main():
             pass
     runs, acc, notes = [], [], []
     for name in args.logs:
-        out = run_log(name, args.quick, args.figures)
+        out = run_log(name, args.quick, args.figures, args.method, options)
         if out is None:
             notes.append(f"{LOGS[name][0]}: {LASER / LOGS[name][1]} not found; skipped.")
             continue
@@ -230,10 +246,13 @@ def main():
     if not runs:
         print(f"bench_slam_logs: no raw log found under {LASER}; nothing to run")
         return
-    title = "SLAM on raw laser logs" + (f" (quick: first {QUICK_SCANS} scans)" if args.quick else "")
-    lines = heading(title, "probslam.slam.run_slam with default options, one thread, logs one after the other.",
-                    ["log", "scans", "submaps", "closures accepted / rejected / dissolved", "processing (s)",
-                     "log duration (s)", "real-time factor"])
+    title = ("SLAM on raw laser logs" if args.method == "graph" else "Grid-based FastSLAM on raw laser logs") + \
+        (f" (quick: first {QUICK_SCANS} scans)" if args.quick else "")
+    shown_options = ", ".join(f"{k}={v!r}" for k, v in options.items()) or "default options"
+    columns = (["log", "scans", "submaps", "closures accepted / rejected / dissolved"] if args.method == "graph" else
+               ["log", "scans", "filter", "particle updates scan-matched / fallbacks"])
+    lines = heading(title, f"probslam.slam.run_slam(method={args.method!r}) with {shown_options}, one thread, logs "
+                    "one after the other.", columns + ["processing (s)", "log duration (s)", "real-time factor"])
     lines += runs
     if acc:
         lines += ["", "| log | trajectory | reference | compared | translational | rotational |", "|---|---|---|---|---|---|",
@@ -249,6 +268,8 @@ def main():
                  "much of the FR079 position error may be the convention)."] if any("corrected log" in r for r in acc)
                 else []),
               f"Command: `python benchmarks/bench_slam_logs.py{' --quick' if args.quick else ''}"
+              f"{' --method ' + args.method if args.method != 'graph' else ''}"
+              f"{''.join(' --option ' + o for o in args.option)}"
               f" --logs {' '.join(args.logs)}{' --figures ' + str(shown) if shown else ''}`.", ""]
     report(lines, record=not (args.quick or args.no_record))
 
