@@ -181,6 +181,22 @@ void add_scans(Mapper& self, py::handle ranges, py::handle beam_angles, py::hand
   });
 }
 
+/// The keyword constructor (options parsed by `parse`, unknown keywords a TypeError) and
+/// add_scans of a laser SLAM class.
+template <typename Mapper, typename Parse>
+py::class_<Mapper> mapper_class(py::module_& m, const char* name, Parse parse) {
+  py::class_<Mapper> c(m, name);
+  c.def(py::init([parse](const py::kwargs& kw) {
+     Kwargs k(kw);
+     const auto o = parse(k);
+     k.finish();
+     return std::make_unique<Mapper>(o);
+   }))
+      .def("add_scans", &add_scans<Mapper>, py::arg("ranges"), py::arg("beam_angles"), py::arg("odometry"),
+           py::arg("timestamps"));
+  return c;
+}
+
 /// (N, 5) per scan: matched, fallback, submap, match_quality, points.
 RowMatrixXd scan_info(const IncrementalScanMatcher& frontend) {
   RowMatrixXd info(frontend.num_scans(), 5);
@@ -328,15 +344,7 @@ void define_slam2d(py::module_& m) {
           py::arg("points"), py::arg("pose"), py::arg("prior") = py::none(), py::arg("prior_covariance") = py::none());
 
   using ISM = IncrementalScanMatcher;
-  py::class_<ISM>(m, "IncrementalScanMatcher")
-      .def(py::init([](const py::kwargs& kw) {
-        Kwargs k(kw);
-        const IncrementalScanMatcherOptions o = frontend_options(k);
-        k.finish();
-        return ISM(o);
-      }))
-      .def("add_scans", &add_scans<ISM>, py::arg("ranges"), py::arg("beam_angles"), py::arg("odometry"),
-           py::arg("timestamps"))
+  mapper_class<ISM>(m, "IncrementalScanMatcher", [](Kwargs& k) { return frontend_options(k); })
       .def_property_readonly("num_scans", getter(&ISM::num_scans))
       .def_property_readonly("poses", [](const ISM& self) { return locked(self, [&] { return estimate_poses(self); }); })
       .def_property_readonly("timestamps", [](const ISM& self) { return locked(self, [&] { return timestamps_of(self); }); })
@@ -350,15 +358,7 @@ void define_slam2d(py::module_& m) {
       }, py::arg("index"));
 
   using Slam = SubmapSlam2D;
-  py::class_<Slam>(m, "SubmapSlam2D")
-      .def(py::init([](const py::kwargs& kw) {
-        Kwargs k(kw);
-        const SubmapSlamOptions o = slam_options(k);
-        k.finish();
-        return std::make_unique<Slam>(o);
-      }))
-      .def("add_scans", &add_scans<Slam>, py::arg("ranges"), py::arg("beam_angles"), py::arg("odometry"),
-           py::arg("timestamps"))
+  mapper_class<Slam>(m, "SubmapSlam2D", slam_options)
       .def("finish", [](Slam& self) { locked(self, [&] { self.finish(); }); })
       .def_property_readonly("num_scans", getter(&Slam::num_scans))
       .def_property_readonly("num_submaps", getter(&Slam::num_submaps))
@@ -415,15 +415,7 @@ void define_slam2d(py::module_& m) {
     require(k < self.num_particles(), "particle", "must be in [0, num_particles)");
     return static_cast<int>(k);
   };
-  py::class_<Rbpf>(m, "GridFastSlam")
-      .def(py::init([](const py::kwargs& kw) {
-        Kwargs k(kw);
-        const GridFastSlamOptions o = rbpf_options(k);
-        k.finish();
-        return std::make_unique<Rbpf>(o);
-      }))
-      .def("add_scans", &add_scans<Rbpf>, py::arg("ranges"), py::arg("beam_angles"), py::arg("odometry"),
-           py::arg("timestamps"))
+  mapper_class<Rbpf>(m, "GridFastSlam", rbpf_options)
       .def_property_readonly("num_scans", getter(&Rbpf::num_scans))
       .def_property_readonly("num_particles", getter(&Rbpf::num_particles))
       .def_property_readonly("poses", [](const Rbpf& self) { return locked(self, [&] { return self.poses(); }); })

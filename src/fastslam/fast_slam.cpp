@@ -647,17 +647,9 @@ const FastSlamParticle& FastSlam::particle(int k) const {
   return particles_[static_cast<std::size_t>(k)];
 }
 
-Poses2 FastSlam::poses() const {
-  Poses2 out(num_particles(), 3);
-  for (int k = 0; k < num_particles(); ++k) out.row(k) = particles_[static_cast<std::size_t>(k)].pose.transpose();
-  return out;
-}
+Poses2 FastSlam::poses() const { return particle_poses(particles_); }
 
-Eigen::VectorXd FastSlam::log_weights() const {
-  Eigen::VectorXd out(num_particles());
-  for (int k = 0; k < num_particles(); ++k) out[k] = particles_[static_cast<std::size_t>(k)].log_weight;
-  return out;
-}
+Eigen::VectorXd FastSlam::log_weights() const { return particle_log_weights(particles_); }
 
 Eigen::VectorXd FastSlam::last_log_likelihoods() const {
   Eigen::VectorXd out(num_particles());
@@ -671,13 +663,7 @@ double FastSlam::effective_sample_size() const {
   return 1.0 / s;
 }
 
-int FastSlam::best_index() const {
-  int best = 0;
-  for (int k = 1; k < num_particles(); ++k)
-    if (particles_[static_cast<std::size_t>(k)].log_weight > particles_[static_cast<std::size_t>(best)].log_weight)
-      best = k;
-  return best;
-}
+int FastSlam::best_index() const { return heaviest_particle(particles_); }
 
 Poses2 FastSlam::path(int k) const { return particle(k).path.poses(); }
 

@@ -252,24 +252,11 @@ void GridFastSlam::normalise_and_resample() {
   ++summary_.resamples;
 }
 
-Poses2 GridFastSlam::poses() const {
-  Poses2 out(num_particles(), 3);
-  for (int k = 0; k < num_particles(); ++k) out.row(k) = particles_[static_cast<std::size_t>(k)].pose.transpose();
-  return out;
-}
+Poses2 GridFastSlam::poses() const { return particle_poses(particles_); }
 
-Eigen::VectorXd GridFastSlam::log_weights() const {
-  Eigen::VectorXd out(num_particles());
-  for (int k = 0; k < num_particles(); ++k) out[k] = particles_[static_cast<std::size_t>(k)].log_weight;
-  return out;
-}
+Eigen::VectorXd GridFastSlam::log_weights() const { return particle_log_weights(particles_); }
 
-int GridFastSlam::best_index() const {
-  int best = 0;
-  for (int k = 1; k < num_particles(); ++k)
-    if (particles_[static_cast<std::size_t>(k)].log_weight > particles_[static_cast<std::size_t>(best)].log_weight) best = k;
-  return best;
-}
+int GridFastSlam::best_index() const { return heaviest_particle(particles_); }
 
 Poses2 GridFastSlam::scan_poses(int k) const {
   require(k >= 0 && k < num_particles(), "k", "must be a particle index");

@@ -69,6 +69,32 @@ class PosePath {
 /// index k appears floor(M w_k) or ceil(M w_k) times. Weights need not be normalised.
 std::vector<int> low_variance_resample(const Eigen::VectorXd& weights, double offset);
 
+/// The particles' poses (M x 3), log weights (M,) and the index of the heaviest (the first of
+/// equals), for any particle type with `pose` and `log_weight`.
+template <class Particles>
+Poses2 particle_poses(const Particles& particles) {
+  Poses2 out(static_cast<Eigen::Index>(particles.size()), 3);
+  Eigen::Index k = 0;
+  for (const auto& p : particles) out.row(k++) = p.pose.transpose();
+  return out;
+}
+template <class Particles>
+Eigen::VectorXd particle_log_weights(const Particles& particles) {
+  Eigen::VectorXd out(static_cast<Eigen::Index>(particles.size()));
+  Eigen::Index k = 0;
+  for (const auto& p : particles) out[k++] = p.log_weight;
+  return out;
+}
+template <class Particles>
+int heaviest_particle(const Particles& particles) {
+  int best = 0, k = 0;
+  for (const auto& p : particles) {
+    if (p.log_weight > particles[static_cast<std::size_t>(best)].log_weight) best = k;
+    ++k;
+  }
+  return best;
+}
+
 /// Normalises the log weights of `particles` (anything with a `log_weight`) by log-sum-exp and
 /// returns N_eff = 1 / sum w^2.
 template <class Particles>
