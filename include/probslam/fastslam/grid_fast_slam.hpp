@@ -46,10 +46,12 @@ struct GridFastSlamOptions {
   ScanProposalOptions matching;
   /// Each update's log weight increment is multiplied by this, in (0, 1]: the beams of a scan
   /// are not independent, so the product of their likelihoods is far more peaked than the
-  /// evidence (Thrun et al. ch. 6.4), and unscaled weights resample at nearly every update,
-  /// depleting the particles. GMapping divides by a gain times the particle count for the same
-  /// reason. 1: the textbook weights.
-  double weight_scale = 1.0;
+  /// evidence (Thrun et al. ch. 6.4). Unscaled weights (1, the textbook's) resample at 3 of 4
+  /// updates and deplete the particles: ACES with 30 particles gave 0.058, 0.090 and 0.078 m
+  /// relations error for seeds 0, 1, 2 (wrong loops); 0.03 gave 0.047 m for seeds 0 and 1, with
+  /// 70 resamplings in 1278 updates. GMapping divides by a gain times the particle count for the
+  /// same reason.
+  double weight_scale = 0.03;
   /// Resample when N_eff = 1 / sum w^2 < resample_threshold * num_particles, in [0, 1].
   double resample_threshold = 0.5;
   /// The filter updates once the odometry has moved this far (m) or turned this much (rad)
