@@ -389,3 +389,31 @@ class SubmapSlam2D:
     def finish(self) -> None: ...
     def graph(self) -> PoseGraph2D: ...
     def map(self, resolution: float = 0.0) -> OccupancyGrid2D: ...
+
+class GridFastSlam:
+    """Grid-based FastSLAM from a raw log (C++ fastslam/grid_fast_slam.hpp): particles with a pose,
+    a log weight and their own occupancy grid (32 x 32 tiles shared copy-on-write). Keyword
+    options: num_particles (30), proposal ("scan-matching" (default), "motion",
+    "improved-odometry"), resolution (m, 0.05), max_range, min_range, max_usable_range (m),
+    clear_no_return, min_point_spacing, odometry_noise (6,), sigma (m, 0.05), p_rand (0.05),
+    search_radius (m, 0.15), linear_step (m), angular_step (rad), refinements, sample_linear (m),
+    sample_angular (rad), min_match_quality (0.3), weight_scale (0.03: tempered weights),
+    resample_threshold (0.5), update_distance (m, 0.25), update_angle (rad, 0.25),
+    corrector_submap_distance (m, 5), seed (int >= 0), threads. Results are identical for any
+    thread count."""
+    num_scans: int
+    num_particles: int
+    poses: Array  # (M, 3) particle poses
+    log_weights: Array  # (M,) normalised
+    best_index: int
+    timestamps: Array  # (S,)
+    tile_sharing: Dict[str, int]  # references (tiles held over all particles), distinct, bytes
+    summary: Dict[str, Union[int, float]]  # scans, updates, resamples, matched, fallbacks, effective_sample_size
+    def __init__(self, **options: Any) -> None: ...
+    def add_scans(self, ranges: ArrayLike, beam_angles: ArrayLike, odometry: ArrayLike,
+                  timestamps: ArrayLike) -> None:
+        """ranges (S, B) m, beam_angles (B,) or (S, B) rad, odometry (S, 3) sensor poses, timestamps (S,) s."""
+    def scan_poses(self, particle: Optional[int] = None) -> Array:
+        """(S, 3) every scan's pose along a particle's path (default: the heaviest)."""
+    def map(self, particle: Optional[int] = None) -> OccupancyGrid2D:
+        """A particle's map as a dense grid (default: the heaviest)."""
