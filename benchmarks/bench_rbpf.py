@@ -53,12 +53,13 @@ def relations(result):
     return f"{e.trans_mean:.3f} +- {e.trans_std:.3f} m ({len(e.used)})"
 
 
-def row(label, result, extra=""):
+def row(label, result, extra="", aces=True):
     s, t = result.summary, result.tile_sharing
     per_update = result.seconds / max(1, s["updates"])
     return (f"| {label} | {s['scans']} | {s['updates']} | {1e3 * per_update:.1f} | {result.seconds:.1f} | "
             f"{result.real_time_factor:.1f}x | {t['references']} / {t['distinct']} | "
-            f"{t['references'] * TILE_BYTES / 2 ** 20:.0f} / {t['bytes'] / 2 ** 20:.0f} | {relations(result)}{extra} |")
+            f"{t['references'] * TILE_BYTES / 2 ** 20:.0f} / {t['bytes'] / 2 ** 20:.0f} | "
+            f"{relations(result) if aces else '-'}{extra} |")
 
 
 def main():
@@ -99,7 +100,8 @@ def main():
                 continue
             print(f"bench_rbpf: {title}, 30 particles ...", file=sys.stderr, flush=True)
             lines.append(row(f"{title} whole log, 30 particles", ps.slam.run_slam(path, method="rbpf", progress=False,
-                                                                                  num_particles=30)))
+                                                                                  num_particles=30),
+                             aces=name == "aces"))
     lines += ["", f"Load average at the start: {load:.2f} (on {os.cpu_count()} cores). ms / update: processing time "
               "over filter updates (one every 0.25 m or 0.25 rad). Tiles held: summed over the particles (what "
               "unshared maps would take); distinct: allocated once and shared.",
