@@ -83,6 +83,7 @@ GridFastSlam::~GridFastSlam() = default;
 bool GridFastSlam::add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
                             const Eigen::Ref<const Eigen::VectorXd>& beam_angles, const Eigen::Vector3d& odometry,
                             double timestamp) {
+  require_all_finite(odometry, "odometry");
   check_scan_shape(odometry, ranges, beam_angles);
   require(std::isfinite(timestamp), "timestamp", "must be finite");
   require(odometry.head<2>().cwiseAbs().maxCoeff() <= kGridFastSlamMaxCoordinate, "odometry",

@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "probslam/core/angle.hpp"
+#include "probslam/fastslam/grid_fast_slam.hpp"
 #include "probslam/fastslam/scan_proposal.hpp"
 #include "probslam/fastslam/tiled_grid_2d.hpp"
 #include "test_support.hpp"
@@ -422,6 +423,27 @@ TEST(ScanProposal, FindsTheTruePoseAndFitsItsOwnSamples) {
                                                    Eigen::Vector3d(30, 30, 0), prior_cov, opt);
   EXPECT_FALSE(lost.matched);
   expect_invalid([&] { scan_matching_proposal(lik, g, room.points({2, 2, 0}), {2, 2, 0}, -prior_cov, opt); }, "prior_cov");
+}
+
+
+TEST(GridFastSlam, BadInputNamesTheArgumentAndChangesNothing) {
+  GridFastSlamOptions o;
+  o.num_particles = 3;
+  GridFastSlam f(o);
+  const Eigen::VectorXd r = Eigen::VectorXd::Constant(5, 2.0), a = Eigen::VectorXd::LinSpaced(5, -1.0, 1.0);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  expect_invalid([&] { f.add_scan(r, a, Eigen::Vector3d(nan, 0, 0), 0.0); }, "odometry");
+  expect_invalid([&] { f.add_scan(r, Eigen::VectorXd::Zero(4), Eigen::Vector3d::Zero(), 0.0); }, "beam_angles");
+  expect_invalid([&] { f.add_scan(r, a, Eigen::Vector3d::Zero(), nan); }, "timestamp");
+  expect_invalid([&] { f.add_scan(r, a, Eigen::Vector3d(2e9, 0, 0), 0.0); }, "odometry");
+  EXPECT_EQ(f.num_scans(), 0);
+  EXPECT_TRUE(f.add_scan(r, a, Eigen::Vector3d::Zero(), 0.0));
+  EXPECT_EQ(f.num_scans(), 1);
+  o.num_particles = 0;
+  expect_invalid([&] { GridFastSlam g(o); }, "num_particles");
+  o.num_particles = 3;
+  o.weight_scale = 0.0;
+  expect_invalid([&] { GridFastSlam g(o); }, "weight_scale");
 }
 
 }  // namespace
