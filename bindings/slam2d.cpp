@@ -55,24 +55,34 @@ MatchOptions match_options(double linear_window, double angular_window, double a
   return o;
 }
 
+/// The scan filter's keywords, shared by every laser SLAM class.
+void scan_filter_options(Kwargs& k, ScanFilter& f) {
+  k.get("max_range", f.max_range);
+  k.get("min_range", f.min_range);
+  k.get("max_usable_range", f.max_usable_range);
+  k.get("clear_no_return", f.clear_no_return);
+  k.get("min_point_spacing", f.min_point_spacing);
+}
+
+/// odometry_noise: the six OdometryNoise coefficients, in their declaration order.
+void odometry_noise_option(Kwargs& k, OdometryNoise& n) {
+  if (const py::handle v = k.take("odometry_noise"); v && !v.is_none()) {
+    const DoubleArray a = vector_arg(v, "odometry_noise", 6);
+    n = {a.data()[0], a.data()[1], a.data()[2], a.data()[3], a.data()[4], a.data()[5]};
+  }
+}
+
 /// The frontend's options (IncrementalScanMatcher, and SubmapSlam2D's frontend) by keyword.
 IncrementalScanMatcherOptions frontend_options(Kwargs& k, IncrementalScanMatcherOptions o = {}) {
   k.get("resolution", o.resolution);
-  k.get("max_range", o.filter.max_range);
-  k.get("min_range", o.filter.min_range);
-  k.get("max_usable_range", o.filter.max_usable_range);
-  k.get("clear_no_return", o.filter.clear_no_return);
-  k.get("min_point_spacing", o.filter.min_point_spacing);
+  scan_filter_options(k, o.filter);
   k.get("sigma", o.field.sigma);
   k.get("p_rand", o.field.p_rand);
   k.get("linear_window", o.match.window.linear);
   k.get("angular_window", o.match.window.angular);
   k.get("refine", o.match.refine);
   k.get("use_odometry_prior", o.use_odometry_prior);
-  if (const py::handle v = k.take("odometry_noise"); v && !v.is_none()) {
-    const DoubleArray a = vector_arg(v, "odometry_noise", 6);
-    o.odometry = {a.data()[0], a.data()[1], a.data()[2], a.data()[3], a.data()[4], a.data()[5]};
-  }
+  odometry_noise_option(k, o.odometry);
   k.get("min_travel", o.min_travel);
   k.get("min_rotation", o.min_rotation);
   k.get("submap_distance", o.submap_distance);
@@ -118,15 +128,8 @@ GridFastSlamOptions rbpf_options(Kwargs& k) {
     else throw py::value_error("proposal must be 'motion', 'scan-matching' or 'improved-odometry', got '" + name + "'");
   }
   k.get("resolution", o.resolution);
-  k.get("max_range", o.filter.max_range);
-  k.get("min_range", o.filter.min_range);
-  k.get("max_usable_range", o.filter.max_usable_range);
-  k.get("clear_no_return", o.filter.clear_no_return);
-  k.get("min_point_spacing", o.filter.min_point_spacing);
-  if (const py::handle v = k.take("odometry_noise"); v && !v.is_none()) {
-    const DoubleArray a = vector_arg(v, "odometry_noise", 6);
-    o.odometry = {a.data()[0], a.data()[1], a.data()[2], a.data()[3], a.data()[4], a.data()[5]};
-  }
+  scan_filter_options(k, o.filter);
+  odometry_noise_option(k, o.odometry);
   k.get("sigma", o.likelihood.sigma);
   k.get("p_rand", o.likelihood.p_rand);
   k.get("search_radius", o.likelihood.search_radius);
@@ -141,10 +144,7 @@ GridFastSlamOptions rbpf_options(Kwargs& k) {
   k.get("update_distance", o.update_distance);
   k.get("update_angle", o.update_angle);
   k.get("corrector_submap_distance", o.corrector.submap_distance);
-  int seed = 0;
-  k.get("seed", seed);
-  if (seed < 0) throw py::value_error("seed must be >= 0");
-  o.seed = static_cast<std::uint64_t>(seed);
+  k.get("seed", o.seed);
   k.get("threads", o.threads);
   // The corrector sees the scans as the filter does.
   o.corrector.resolution = o.resolution;
