@@ -99,17 +99,12 @@ bool GridFastSlam::add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
     source_matched = e.matched;
     step_cov = e.relative_covariance;
   }
-  const Points2 points = scan_hits(ranges, beam_angles, options_.filter);
-  const Eigen::VectorXd insertion = ranges_for_insertion(ranges, options_.filter);
   timestamps_.push_back(timestamp);
   ++summary_.scans;
 
   if (scan_step_.empty()) {
-    first_scan(insertion, beam_angles, source);
-    last_update_odometry_ = last_corrected_ = source;
-    corrected_cov_.setZero();
-    scan_step_.push_back(0);
-    scan_offset_.push_back(Eigen::Vector3d::Zero());
+    first_scan(ranges_for_insertion(ranges, options_.filter), beam_angles, source);
+    start_stretch(source, 0);
     return true;
   }
   if (corrector_ && source_matched) {
@@ -125,25 +120,32 @@ bool GridFastSlam::add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
     scan_offset_.push_back(delta);
     return false;
   }
-  Eigen::Matrix3d cov = options_.odometry.covariance(delta);
-  if (corrector_) {
-    // Motion since the last matched scan is the raw odometry's: its noise on top, rotated into
-    // the frame of the last update.
-    const Eigen::Vector3d rest = between(last_corrected_, source);
-    const Eigen::Matrix3d R = frame_rotation(between(last_update_odometry_, last_corrected_).z());
-    cov = corrected_cov_ + (rest.isZero() ? Eigen::Matrix3d::Zero() : Eigen::Matrix3d(R * options_.odometry.covariance(rest) * R.transpose()));
-    // A chain of perfectly matched steps may carry no rotation uncertainty at all: keep the
-    // motion model's floors so the covariance stays positive definite.
-    cov.diagonal() += Eigen::Vector3d(options_.odometry.trans_floor * options_.odometry.trans_floor,
-                                      options_.odometry.trans_floor * options_.odometry.trans_floor,
-                                      options_.odometry.rot_floor * options_.odometry.rot_floor);
-  }
-  update(points, insertion, beam_angles, delta, 0.5 * (cov + cov.transpose()));
+  const Eigen::Matrix3d cov = corrector_ ? corrected_motion_covariance(source) : options_.odometry.covariance(delta);
+  update(scan_hits(ranges, beam_angles, options_.filter), ranges_for_insertion(ranges, options_.filter), beam_angles,
+         delta, 0.5 * (cov + cov.transpose()));
+  start_stretch(source, step + 1);
+  return true;
+}
+
+Eigen::Matrix3d GridFastSlam::corrected_motion_covariance(const Eigen::Vector3d& source) const {
+  // Motion since the last matched scan is the raw odometry's: its noise on top, rotated into
+  // the frame of the last update.
+  const Eigen::Vector3d rest = between(last_corrected_, source);
+  const Eigen::Matrix3d R = frame_rotation(between(last_update_odometry_, last_corrected_).z());
+  Eigen::Matrix3d cov = corrected_cov_;
+  if (!rest.isZero()) cov += R * options_.odometry.covariance(rest) * R.transpose();
+  // A chain of perfectly matched steps may carry no rotation uncertainty at all: keep the
+  // motion model's floors so the covariance stays positive definite.
+  const OdometryNoise& n = options_.odometry;
+  cov.diagonal() += Eigen::Vector3d(n.trans_floor * n.trans_floor, n.trans_floor * n.trans_floor, n.rot_floor * n.rot_floor);
+  return cov;
+}
+
+void GridFastSlam::start_stretch(const Eigen::Vector3d& source, int step) {
   last_update_odometry_ = last_corrected_ = source;
   corrected_cov_.setZero();
-  scan_step_.push_back(step + 1);
+  scan_step_.push_back(step);
   scan_offset_.push_back(Eigen::Vector3d::Zero());
-  return true;
 }
 
 void GridFastSlam::first_scan(const Eigen::VectorXd& insertion, const Eigen::Ref<const Eigen::VectorXd>& angles,

@@ -18,6 +18,22 @@ Eigen::Vector3d pose_offset(const Eigen::Vector3d& a, const Eigen::Vector3d& b) 
   return {a.x() - b.x(), a.y() - b.y(), wrap_angle(a.z() - b.z())};
 }
 
+/// N(mean, cov) over poses, factorised once: the hill climb evaluates it at every candidate.
+class PoseGaussian {
+ public:
+  PoseGaussian(const Eigen::Vector3d& mean, const Eigen::Matrix3d& cov)
+      : mean_(mean), llt_(cov), log_norm_(-0.5 * (2.0 * llt_.matrixLLT().diagonal().array().log().sum() + 3.0 * kLog2Pi)) {}
+  /// The full log density, the heading difference wrapped.
+  double log_density(const Eigen::Vector3d& pose) const {
+    return log_norm_ - 0.5 * llt_.matrixL().solve(pose_offset(pose, mean_)).squaredNorm();
+  }
+
+ private:
+  Eigen::Vector3d mean_;
+  Eigen::LLT<Eigen::Matrix3d> llt_;
+  double log_norm_;
+};
+
 }  // namespace
 
 void ScanProposalOptions::validate() const {
@@ -32,11 +48,7 @@ void ScanProposalOptions::validate() const {
 }
 
 double log_gaussian_pose(const Eigen::Vector3d& pose, const Eigen::Vector3d& prior, const Eigen::Matrix3d& prior_cov) {
-  const Eigen::LLT<Eigen::Matrix3d> llt(prior_cov);
-  const Eigen::Vector3d d = pose_offset(pose, prior);
-  const Eigen::Vector3d u = llt.matrixL().solve(d);
-  const double log_det = 2.0 * llt.matrixL().toDenseMatrix().diagonal().array().log().sum();
-  return -0.5 * (u.squaredNorm() + log_det + 3.0 * kLog2Pi);
+  return PoseGaussian(prior, prior_cov).log_density(pose);
 }
 
 double fit_pose_gaussian(const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>& poses,
@@ -77,17 +89,13 @@ ScanProposal scan_matching_proposal(const EndpointLikelihood& likelihood, const 
   require_all_finite(points, "points");
   require(grid.resolution() == likelihood.resolution(), "grid", "must have the likelihood's resolution");
 
-  const Eigen::LLT<Eigen::Matrix3d> llt(prior_cov);
-  const double log_norm = -0.5 * (2.0 * llt.matrixL().toDenseMatrix().diagonal().array().log().sum() + 3.0 * kLog2Pi);
-  auto score = [&](const Eigen::Vector3d& x, double* quality) {
-    return likelihood.log_likelihood(grid, x, points, quality) - 0.5 * llt.matrixL().solve(pose_offset(x, prior)).squaredNorm() +
-           log_norm;
-  };
+  const PoseGaussian motion(prior, prior_cov);
+  auto score = [&](const Eigen::Vector3d& x) { return likelihood.log_likelihood(grid, x, points) + motion.log_density(x); };
 
   // Hill climbing over +-x, +-y, +-theta moves with step halving (GMapping's optimiser).
   ScanProposal p;
   Eigen::Vector3d best = prior;
-  double best_score = score(best, nullptr);
+  double best_score = score(best);
   double lin = options.linear_step, ang = options.angular_step;
   int halvings = 0;
   for (int moves = 0; moves < options.max_moves && halvings <= options.refinements;) {
@@ -97,7 +105,7 @@ ScanProposal scan_matching_proposal(const EndpointLikelihood& likelihood, const 
     for (const Eigen::Vector3d& s : steps) {
       Eigen::Vector3d cand = best + s;
       cand.z() = wrap_angle(cand.z());
-      const double sc = score(cand, nullptr);
+      const double sc = score(cand);
       if (sc > next_score) {
         next_score = sc;
         next = cand;
@@ -128,7 +136,7 @@ ScanProposal scan_matching_proposal(const EndpointLikelihood& likelihood, const 
         const Eigen::Vector3d x(best.x() + i * options.sample_linear, best.y() + j * options.sample_linear,
                                 wrap_angle(best.z() + a * options.sample_angular));
         p.samples.row(k) = x.transpose();
-        p.log_scores[k] = score(x, nullptr);
+        p.log_scores[k] = score(x);
         ++k;
       }
   const Eigen::Vector3d floor(std::pow(options.sample_linear / 4.0, 2), std::pow(options.sample_linear / 4.0, 2),

@@ -122,6 +122,11 @@ class GridFastSlam {
                        const Eigen::Ref<const Eigen::VectorXd>& angles, const Eigen::Vector3d& delta,
                        const Eigen::Matrix3d& delta_cov, long& matched, long& fallbacks) const;
   void insert(Particle& p, const Eigen::VectorXd& insertion, const Eigen::Ref<const Eigen::VectorXd>& angles) const;
+  /// kImprovedOdometry: the covariance of the corrected motion since the last update.
+  Eigen::Matrix3d corrected_motion_covariance(const Eigen::Vector3d& source) const;
+  /// After the first scan or an update at `source`: a new stretch of travel starts there; the
+  /// scan just added hangs from update `step`.
+  void start_stretch(const Eigen::Vector3d& source, int step);
   void normalise_and_resample();
 
   GridFastSlamOptions options_;
