@@ -139,6 +139,7 @@ GridFastSlamOptions rbpf_options(Kwargs& k) {
   k.get("sample_linear", o.matching.sample_linear);
   k.get("sample_angular", o.matching.sample_angular);
   k.get("min_match_quality", o.matching.min_quality);
+  k.get("corrected_start", o.corrected_start);
   k.get("resample_threshold", o.resample_threshold);
   k.get("weight_scale", o.weight_scale);
   k.get("update_distance", o.update_distance);

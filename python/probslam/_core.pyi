@@ -399,8 +399,9 @@ class GridFastSlam:
     search_radius (m, 0.15), linear_step (m), angular_step (rad), refinements, sample_linear (m),
     sample_angular (rad), min_match_quality (0.3), weight_scale (0.03: tempered weights),
     resample_threshold (0.5), update_distance (m, 0.25), update_angle (rad, 0.25),
-    corrector_submap_distance (m, 5), seed (int >= 0), threads. Results are identical for any
-    thread count."""
+    corrector_submap_distance (m, 5), corrected_start (True: the scan-matching proposal's climb
+    starts from the odometry corrected by incremental scan matching), seed (int >= 0), threads.
+    Results are identical for any thread count."""
     num_scans: int
     num_particles: int
     poses: Array  # (M, 3) particle poses

@@ -63,7 +63,7 @@ void GridFastSlamOptions::validate() const {
           "resample_threshold", "must lie in [0, 1]");
   require(std::isfinite(update_distance) && update_distance >= 0.0, "update_distance", "must be finite and >= 0");
   require(std::isfinite(update_angle) && update_angle >= 0.0, "update_angle", "must be finite and >= 0");
-  if (proposal == GridProposal::kImprovedOdometry) corrector.validate();
+  if (uses_corrector()) corrector.validate();
   require(threads >= 1 && threads <= 1024, "threads", "must lie in [1, 1024]");
 }
 
@@ -71,7 +71,7 @@ GridFastSlam::GridFastSlam(const GridFastSlamOptions& options)
     : options_((options.validate(), options)),
       likelihood_(options.likelihood, options.resolution),
       rng_(options.seed, kFilterStream) {
-  if (options_.proposal == GridProposal::kImprovedOdometry)
+  if (options_.uses_corrector())
     corrector_ = std::make_unique<IncrementalScanMatcher>(options_.corrector);
   particles_.resize(static_cast<std::size_t>(options_.num_particles));
   for (std::size_t k = 0; k < particles_.size(); ++k) particles_[k].rng = ParticleRng(options_.seed, k);
@@ -104,7 +104,7 @@ bool GridFastSlam::add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
 
   if (scan_step_.empty()) {
     first_scan(ranges_for_insertion(ranges, options_.filter), beam_angles, source);
-    start_stretch(source, 0);
+    start_stretch(source, odometry, 0);
     return true;
   }
   if (corrector_ && source_matched) {
@@ -120,10 +120,17 @@ bool GridFastSlam::add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
     scan_offset_.push_back(delta);
     return false;
   }
-  const Eigen::Matrix3d cov = corrector_ ? corrected_motion_covariance(source) : options_.odometry.covariance(delta);
+  Motion motion{delta, delta, Eigen::Matrix3d::Zero()};
+  if (options_.proposal == GridProposal::kImprovedOdometry) {
+    motion.cov = corrected_motion_covariance(source);
+  } else {
+    motion.delta = between(last_update_raw_, odometry);  // the raw odometry's motion model
+    motion.cov = options_.odometry.covariance(motion.delta);
+  }
+  motion.cov = 0.5 * (motion.cov + motion.cov.transpose());
   update(scan_hits(ranges, beam_angles, options_.filter), ranges_for_insertion(ranges, options_.filter), beam_angles,
-         delta, 0.5 * (cov + cov.transpose()));
-  start_stretch(source, step + 1);
+         motion);
+  start_stretch(source, odometry, step + 1);
   return true;
 }
 
@@ -141,8 +148,9 @@ Eigen::Matrix3d GridFastSlam::corrected_motion_covariance(const Eigen::Vector3d&
   return cov;
 }
 
-void GridFastSlam::start_stretch(const Eigen::Vector3d& source, int step) {
+void GridFastSlam::start_stretch(const Eigen::Vector3d& source, const Eigen::Vector3d& raw, int step) {
   last_update_odometry_ = last_corrected_ = source;
+  last_update_raw_ = raw;
   corrected_cov_.setZero();
   scan_step_.push_back(step);
   scan_offset_.push_back(Eigen::Vector3d::Zero());
@@ -186,8 +194,7 @@ void GridFastSlam::insert(Particle& p, const Eigen::VectorXd& insertion, const E
 }
 
 void GridFastSlam::update(const Points2& points, const Eigen::VectorXd& insertion,
-                          const Eigen::Ref<const Eigen::VectorXd>& angles, const Eigen::Vector3d& delta,
-                          const Eigen::Matrix3d& delta_cov) {
+                          const Eigen::Ref<const Eigen::VectorXd>& angles, const Motion& motion) {
   const int m = num_particles();
   const int workers = std::min(options_.threads, std::max(1, m / kMinParticlesPerThread));
   std::vector<long> matched(static_cast<std::size_t>(workers), 0), fallbacks(static_cast<std::size_t>(workers), 0);
@@ -195,7 +202,7 @@ void GridFastSlam::update(const Points2& points, const Eigen::VectorXd& insertio
     const int begin = static_cast<int>(static_cast<long>(m) * static_cast<long>(w) / workers);
     const int end = static_cast<int>(static_cast<long>(m) * static_cast<long>(w + 1) / workers);
     for (int k = begin; k < end; ++k)
-      update_particle(particles_[static_cast<std::size_t>(k)], points, insertion, angles, delta, delta_cov, matched[w],
+      update_particle(particles_[static_cast<std::size_t>(k)], points, insertion, angles, motion, matched[w],
                       fallbacks[w]);
   };
   if (workers <= 1) {
@@ -213,26 +220,23 @@ void GridFastSlam::update(const Points2& points, const Eigen::VectorXd& insertio
 }
 
 void GridFastSlam::update_particle(Particle& p, const Points2& points, const Eigen::VectorXd& insertion,
-                                   const Eigen::Ref<const Eigen::VectorXd>& angles, const Eigen::Vector3d& delta,
-                                   const Eigen::Matrix3d& delta_cov, long& matched, long& fallbacks) const {
+                                   const Eigen::Ref<const Eigen::VectorXd>& angles, const Motion& motion, long& matched,
+                                   long& fallbacks) const {
   bool done = false;
   if (options_.proposal == GridProposal::kScanMatching && points.rows() > 0) {
-    const Eigen::Vector3d predicted = compose(p.pose, delta);
+    const Eigen::Vector3d predicted = compose(p.pose, motion.delta);
     const Eigen::Matrix3d R = frame_rotation(p.pose.z());
-    const Eigen::Matrix3d prior_cov = R * delta_cov * R.transpose();
+    const Eigen::Matrix3d prior_cov = R * motion.cov * R.transpose();
     const ScanProposal q =
         scan_matching_proposal(likelihood_, *p.map, points, predicted, 0.5 * (prior_cov + prior_cov.transpose()),
-                               options_.matching);
+                               options_.matching, compose(p.pose, motion.start));
     if (q.matched) {
       Eigen::Vector3d x = q.mean + gaussian_offset(q.covariance, p.rng);
       x.z() = wrap_angle(x.z());
       p.pose = x;
-      // The normaliser is a sum over the 27 poses; times their spacing's volume it estimates
-      // the integral of p(z | x, m) p(x | x_t-1, u), which the motion-model fallback's
-      // p(z | x, m) estimates too: both weights are on one scale.
-      p.log_weight += options_.weight_scale *
-                      (q.log_normaliser + std::log(options_.matching.sample_linear * options_.matching.sample_linear *
-                                                   options_.matching.sample_angular));
+      // The normaliser estimates the integral of p(z | x, m) p(x | x_t-1, u), which the
+      // motion-model fallback's p(z | x, m) estimates too: both weights are on one scale.
+      p.log_weight += options_.weight_scale * q.log_normaliser;
       ++matched;
       done = true;
     } else {
@@ -240,7 +244,7 @@ void GridFastSlam::update_particle(Particle& p, const Points2& points, const Eig
     }
   }
   if (!done) {
-    Eigen::Vector3d x = compose(p.pose, delta + gaussian_offset(delta_cov, p.rng));
+    Eigen::Vector3d x = compose(p.pose, motion.delta + gaussian_offset(motion.cov, p.rng));
     p.pose = x;
     p.log_weight += options_.weight_scale * likelihood_.log_likelihood(*p.map, x, points);
   }

@@ -1,6 +1,8 @@
 #include "probslam/fastslam/scan_proposal.hpp"
 
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
+#include <Eigen/QR>
 #include <cmath>
 
 #include "probslam/core/angle.hpp"
@@ -51,40 +53,47 @@ double log_gaussian_pose(const Eigen::Vector3d& pose, const Eigen::Vector3d& pri
   return PoseGaussian(prior, prior_cov).log_density(pose);
 }
 
-double fit_pose_gaussian(const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>& poses,
-                         const Eigen::Ref<const Eigen::VectorXd>& log_weights, const Eigen::Vector3d& floor,
-                         Eigen::Vector3d& mean, Eigen::Matrix3d& covariance) {
-  require(poses.rows() > 0 && poses.rows() == log_weights.size(), "log_weights", "must have one entry per pose");
-  require(log_weights.allFinite(), "log_weights", "must be finite");
+double fit_pose_laplace(const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>& poses,
+                        const Eigen::Ref<const Eigen::VectorXd>& log_scores, const Eigen::Vector3d& spacing,
+                        const Eigen::Matrix3d& prior_information, Eigen::Vector3d& mean, Eigen::Matrix3d& covariance) {
+  require(poses.rows() == 27 && log_scores.size() == 27, "log_scores", "must have 27 entries, one per pose");
+  require(log_scores.allFinite(), "log_scores", "must be finite");
   require_all_finite(poses, "poses");
-  const double top = log_weights.maxCoeff();
-  const Eigen::Vector3d ref = poses.row(0).transpose();
-  double total = 0.0;
-  Eigen::Vector3d m = Eigen::Vector3d::Zero();
-  for (Eigen::Index j = 0; j < poses.rows(); ++j) {
-    const double w = std::exp(log_weights[j] - top);
-    m += w * pose_offset(poses.row(j).transpose(), ref);
-    total += w;
+  require((spacing.array() > 0.0).all() && spacing.allFinite(), "spacing", "must be positive");
+  // s(u) = c + g.u + 1/2 u^T A u in grid units u = offset / spacing: 10 unknowns.
+  const Eigen::Vector3d centre = poses.row(0).transpose();
+  Eigen::Matrix<double, 27, 10> M;
+  for (int j = 0; j < 27; ++j) {
+    const Eigen::Vector3d u = pose_offset(poses.row(j).transpose(), centre).cwiseQuotient(spacing);
+    M.row(j) << 1.0, u.x(), u.y(), u.z(), 0.5 * u.x() * u.x(), 0.5 * u.y() * u.y(), 0.5 * u.z() * u.z(),
+        u.x() * u.y(), u.x() * u.z(), u.y() * u.z();
   }
-  m /= total;
-  Eigen::Matrix3d c = Eigen::Matrix3d::Zero();
-  for (Eigen::Index j = 0; j < poses.rows(); ++j) {
-    const double w = std::exp(log_weights[j] - top);
-    const Eigen::Vector3d d = pose_offset(poses.row(j).transpose(), ref) - m;
-    c += w * d * d.transpose();
-  }
-  covariance = c / total;
-  covariance.diagonal() += floor;
+  const Eigen::Matrix<double, 10, 1> q = M.colPivHouseholderQr().solve(log_scores);
+  const Eigen::Vector3d inv = spacing.cwiseInverse();
+  const Eigen::Vector3d g = q.segment<3>(1).cwiseProduct(inv);
+  Eigen::Matrix3d A;
+  A << q[4], q[7], q[8], q[7], q[5], q[9], q[8], q[9], q[6];
+  A = inv.asDiagonal() * A * inv.asDiagonal();
+  // The measurement's part of the curvature: what is left after the prior's (-information).
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> es(A + prior_information);
+  const Eigen::Vector3d neg = es.eigenvalues().cwiseMin(0.0);
+  const Eigen::Matrix3d info = prior_information - es.eigenvectors() * neg.asDiagonal() * es.eigenvectors().transpose();
+  const Eigen::LLT<Eigen::Matrix3d> llt(0.5 * (info + info.transpose()));
+  covariance = llt.solve(Eigen::Matrix3d::Identity());
   covariance = 0.5 * (covariance + covariance.transpose());
-  mean = Eigen::Vector3d(ref.x() + m.x(), ref.y() + m.y(), wrap_angle(ref.z() + m.z()));
-  return top + std::log(total);
+  const Eigen::Vector3d step = (covariance * g).cwiseMax(-spacing).cwiseMin(spacing);
+  mean = Eigen::Vector3d(centre.x() + step.x(), centre.y() + step.y(), wrap_angle(centre.z() + step.z()));
+  const double at_mean = q[0] + g.dot(step) - 0.5 * step.dot(info * step);
+  return at_mean + 1.5 * kLog2Pi - llt.matrixLLT().diagonal().array().log().sum();
 }
 
 ScanProposal scan_matching_proposal(const EndpointLikelihood& likelihood, const TiledGrid2D& grid,
                                     const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
-                                    const Eigen::Matrix3d& prior_cov, const ScanProposalOptions& options) {
+                                    const Eigen::Matrix3d& prior_cov, const ScanProposalOptions& options,
+                                    const std::optional<Eigen::Vector3d>& start) {
   options.validate();
   require_all_finite(prior, "prior");
+  if (start) require_all_finite(*start, "start");
   require_symmetric_positive_definite(prior_cov, "prior_cov", kCovarianceSymmetry);
   require_all_finite(points, "points");
   require(grid.resolution() == likelihood.resolution(), "grid", "must have the likelihood's resolution");
@@ -94,8 +103,17 @@ ScanProposal scan_matching_proposal(const EndpointLikelihood& likelihood, const 
 
   // Hill climbing over +-x, +-y, +-theta moves with step halving (GMapping's optimiser).
   ScanProposal p;
+  // Of the two starting points, the one that explains the scan better: a stale odometry pose
+  // or a wrong correction each lose to the other.
   Eigen::Vector3d best = prior;
   double best_score = score(best);
+  if (start) {
+    const double s = score(*start);
+    if (s > best_score) {
+      best = *start;
+      best_score = s;
+    }
+  }
   double lin = options.linear_step, ang = options.angular_step;
   int halvings = 0;
   for (int moves = 0; moves < options.max_moves && halvings <= options.refinements;) {
@@ -139,9 +157,10 @@ ScanProposal scan_matching_proposal(const EndpointLikelihood& likelihood, const 
         p.log_scores[k] = score(x);
         ++k;
       }
-  const Eigen::Vector3d floor(std::pow(options.sample_linear / 4.0, 2), std::pow(options.sample_linear / 4.0, 2),
-                              std::pow(options.sample_angular / 4.0, 2));
-  p.log_normaliser = fit_pose_gaussian(p.samples, p.log_scores, floor, p.mean, p.covariance);
+  const Eigen::Vector3d spacing(options.sample_linear, options.sample_linear, options.sample_angular);
+  const Eigen::Matrix3d information = prior_cov.llt().solve(Eigen::Matrix3d::Identity());
+  p.log_normaliser = fit_pose_laplace(p.samples, p.log_scores, spacing, 0.5 * (information + information.transpose()),
+                                      p.mean, p.covariance);
   return p;
 }
 

@@ -362,33 +362,81 @@ TEST(ScanProposal, LogGaussianPoseIsTheNormalDensity) {
   EXPECT_NEAR(log_gaussian_pose(x, prior, cov), want, 1e-12);
 }
 
-TEST(ScanProposal, GaussianFitIsTheWeightedMeanAndScatter) {
-  std::mt19937 rng(4);
-  std::normal_distribution<double> n(0.0, 1.0);
-  Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> x(27, 3);
+namespace {
+using PoseRows = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
+
+/// The 27 poses of the proposal's grid around `centre`, the centre first.
+PoseRows laplace_grid(const Eigen::Vector3d& centre, const Eigen::Vector3d& spacing) {
+  PoseRows x(27, 3);
+  int k = 0;
+  for (int i : {0, -1, 1})
+    for (int j : {0, -1, 1})
+      for (int a : {0, -1, 1})
+        x.row(k++) << centre.x() + i * spacing.x(), centre.y() + j * spacing.y(), wrap_angle(centre.z() + a * spacing.z());
+  return x;
+}
+
+/// log N(d; 0, cov) for an offset d.
+double log_normal(const Eigen::Vector3d& d, const Eigen::Matrix3d& cov) {
+  return -0.5 * (d.dot(cov.inverse() * d) + std::log(std::pow(2 * M_PI, 3) * cov.determinant()));
+}
+}  // namespace
+
+TEST(ScanProposal, LaplaceFitOfAGaussianProductIsExact) {
+  // s = log N(x; mu_z, S_z) + log N(x; mu_p, S_p) is a quadratic: the fit must return the
+  // product's Gaussian, (S_z^-1 + S_p^-1)^-1 and its mean, and the integral N(mu_z; mu_p, S_z + S_p).
+  const Eigen::Vector3d spacing(0.01, 0.01, 0.005);
+  const Eigen::Vector3d centre(3.0, -1.0, M_PI - 0.002);  // the grid straddles the +-pi seam
+  Eigen::Matrix3d Sz, Sp;
+  Sz << 4e-5, 1e-5, 0.0, 1e-5, 9e-5, 2e-6, 0.0, 2e-6, 1e-5;
+  Sp << 4e-4, -5e-5, 1e-5, -5e-5, 2e-4, 0.0, 1e-5, 0.0, 1e-4;
+  const Eigen::Vector3d mu_z = centre + Eigen::Vector3d(0.003, -0.002, 0.001);
+  const Eigen::Vector3d mu_p = centre + Eigen::Vector3d(-0.02, 0.03, -0.01);
+  auto off = [](const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
+    return Eigen::Vector3d(a.x() - b.x(), a.y() - b.y(), wrap_angle(a.z() - b.z()));
+  };
+  const PoseRows x = laplace_grid(centre, spacing);
   Eigen::VectorXd s(27);
   for (int j = 0; j < 27; ++j) {
-    x.row(j) << 3 + 0.01 * n(rng), -1 + 0.01 * n(rng), wrap_angle(M_PI - 0.004 + 0.005 * n(rng));  // around the seam
-    s[j] = 500.0 + 2.0 * n(rng);  // large log scores: the fit must shift by the maximum
+    const Eigen::Vector3d xj = x.row(j).transpose();
+    s[j] = 700.0 + log_normal(off(xj, mu_z), Sz) + log_normal(off(xj, mu_p), Sp);  // large: no underflow either
   }
   Eigen::Vector3d mean;
   Eigen::Matrix3d cov;
-  const Eigen::Vector3d floor(1e-8, 2e-8, 3e-8);
-  const double log_sum = fit_pose_gaussian(x, s, floor, mean, cov);
-  // Reference: normalised weights, headings unwrapped onto a continuous branch around pi.
-  const Eigen::VectorXd w = (s.array() - s.maxCoeff()).exp().matrix() / (s.array() - s.maxCoeff()).exp().sum();
-  Eigen::MatrixXd u = x;
-  for (int j = 0; j < 27; ++j)
-    if (u(j, 2) < 0) u(j, 2) += 2 * M_PI;
-  const Eigen::Vector3d m = (u.transpose() * w);
-  Eigen::Matrix3d c = Eigen::Matrix3d::Zero();
-  for (int j = 0; j < 27; ++j) c += w[j] * (u.row(j).transpose() - m) * (u.row(j).transpose() - m).transpose();
-  c.diagonal() += floor;
-  EXPECT_NEAR(mean.x(), m.x(), 1e-12);
-  EXPECT_NEAR(mean.y(), m.y(), 1e-12);
-  EXPECT_NEAR(wrap_angle(mean.z() - m.z()), 0.0, 1e-12);
-  EXPECT_LT((cov - c).cwiseAbs().maxCoeff(), 1e-15);
-  EXPECT_NEAR(log_sum, s.maxCoeff() + std::log((s.array() - s.maxCoeff()).exp().sum()), 1e-9);
+  const double log_z = fit_pose_laplace(x, s, spacing, Sp.inverse(), mean, cov);
+  const Eigen::Matrix3d want_cov = (Sz.inverse() + Sp.inverse()).inverse();
+  const Eigen::Vector3d want_mean = centre + want_cov * (Sz.inverse() * off(mu_z, centre) + Sp.inverse() * off(mu_p, centre));
+  EXPECT_LT((cov - want_cov).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_LT(off(mean, want_mean).cwiseAbs().maxCoeff(), 1e-9);
+  EXPECT_NEAR(log_z, 700.0 + log_normal(off(mu_z, mu_p), Sz + Sp), 1e-6);
+}
+
+TEST(ScanProposal, LaplaceFitGivesAFlatMeasurementDirectionThePriorsWidth) {
+  // A corridor: the measurement constrains y and the heading, not x. Along x the proposal must be
+  // as wide as the motion prior (a scatter of poses 1 cm apart would say 1 cm); a measurement
+  // term that curves upwards (not a peak) adds nothing either.
+  const Eigen::Vector3d spacing(0.01, 0.01, 0.005), centre(1.0, 2.0, 0.5);
+  const Eigen::Matrix3d Sp = Eigen::Vector3d(0.05 * 0.05, 0.04 * 0.04, 0.02 * 0.02).asDiagonal();
+  const PoseRows x = laplace_grid(centre, spacing);
+  for (double along : {0.0, 3e3}) {  // flat, then convex along x
+    Eigen::VectorXd s(27);
+    for (int j = 0; j < 27; ++j) {
+      const Eigen::Vector3d d = x.row(j).transpose() - centre;
+      s[j] = 0.5 * along * d.x() * d.x() - 0.5 * (d.y() * d.y() / 1e-6 + d.z() * d.z() / 1e-6) +
+             log_normal(d, Sp);  // the prior centred on the grid
+    }
+    Eigen::Vector3d mean;
+    Eigen::Matrix3d cov;
+    fit_pose_laplace(x, s, spacing, Sp.inverse(), mean, cov);
+    EXPECT_NEAR(cov(0, 0), Sp(0, 0), 1e-9) << along;
+    EXPECT_NEAR(cov(1, 1), 1.0 / (1e6 + 1.0 / Sp(1, 1)), 1e-12);
+    EXPECT_LT((mean - centre).norm(), 1e-9);
+  }
+  Eigen::Vector3d mean;
+  Eigen::Matrix3d cov;
+  expect_invalid([&] { fit_pose_laplace(x.topRows(26), Eigen::VectorXd::Zero(26), spacing, Sp.inverse(), mean, cov); },
+                 "log_scores");
+  expect_invalid([&] { fit_pose_laplace(x, Eigen::VectorXd::Zero(27), -spacing, Sp.inverse(), mean, cov); }, "spacing");
 }
 
 TEST(ScanProposal, FindsTheTruePoseAndFitsItsOwnSamples) {
@@ -411,9 +459,8 @@ TEST(ScanProposal, FindsTheTruePoseAndFitsItsOwnSamples) {
     }
     Eigen::Vector3d mean;
     Eigen::Matrix3d cov;
-    const Eigen::Vector3d floor(std::pow(opt.sample_linear / 4, 2), std::pow(opt.sample_linear / 4, 2),
-                                std::pow(opt.sample_angular / 4, 2));
-    EXPECT_NEAR(fit_pose_gaussian(p.samples, p.log_scores, floor, mean, cov), p.log_normaliser, 1e-12);
+    const Eigen::Vector3d spacing(opt.sample_linear, opt.sample_linear, opt.sample_angular);
+    EXPECT_NEAR(fit_pose_laplace(p.samples, p.log_scores, spacing, prior_cov.inverse(), mean, cov), p.log_normaliser, 1e-9);
     EXPECT_LT((mean - p.mean).norm(), 1e-12);
     EXPECT_LT((cov - p.covariance).norm(), 1e-15);
     EXPECT_TRUE(Eigen::LLT<Eigen::Matrix3d>(p.covariance).info() == Eigen::Success);
@@ -425,6 +472,26 @@ TEST(ScanProposal, FindsTheTruePoseAndFitsItsOwnSamples) {
   expect_invalid([&] { scan_matching_proposal(lik, g, room.points({2, 2, 0}), {2, 2, 0}, -prior_cov, opt); }, "prior_cov");
 }
 
+
+TEST(ScanProposal, ClimbsFromTheBetterOfPriorAndStart) {
+  const Room room;
+  const TiledGrid2D g = room.mapped();
+  const EndpointLikelihood lik(EndpointLikelihoodOptions{}, g.resolution());
+  const ScanProposalOptions opt;
+  const Eigen::Matrix3d prior_cov = Eigen::Vector3d(0.3 * 0.3, 0.3 * 0.3, 0.3 * 0.3).asDiagonal();
+  const Eigen::Vector3d truth(2.5, 2.0, 0.3), near = truth + Eigen::Vector3d(0.03, -0.02, 0.01),
+                        far = truth + Eigen::Vector3d(0.6, -0.5, 0.5);
+  const Points2 pts = room.points(truth);
+  auto error = [&](const ScanProposal& p) { return (p.mode.head<2>() - truth.head<2>()).norm(); };
+  // From the far pose alone the climb stops short of the truth (the reason for a second start).
+  const ScanProposal stuck = scan_matching_proposal(lik, g, pts, far, prior_cov, opt);
+  ASSERT_GT(error(stuck), 0.1);
+  // Either way round, the start that explains the scan better wins.
+  EXPECT_LT(error(scan_matching_proposal(lik, g, pts, far, prior_cov, opt, near)), 0.05);
+  EXPECT_LT(error(scan_matching_proposal(lik, g, pts, near, prior_cov, opt, far)), 0.05);
+  expect_invalid([&] { scan_matching_proposal(lik, g, pts, near, prior_cov, opt, Eigen::Vector3d(NAN, 0, 0)); },
+                 "start");
+}
 
 TEST(GridFastSlam, BadInputNamesTheArgumentAndChangesNothing) {
   GridFastSlamOptions o;

@@ -59,11 +59,21 @@ struct GridFastSlamOptions {
   double update_distance = 0.25, update_angle = 0.25;
   /// kImprovedOdometry's incremental scan matcher (its submaps cut every few metres).
   IncrementalScanMatcherOptions corrector = default_corrector();
+  /// kScanMatching: the hill climb starts from the odometry corrected by incremental scan
+  /// matching (`corrector`) instead of the raw odometry; the proposal's target, p(z | x, m) times
+  /// the raw odometry's motion model, is unchanged. Where the odometry pose of a scan is stale
+  /// (FR079 logs it up to 0.1 rad behind the laser while turning), the climb from it can stop in
+  /// the wrong optimum; the correlative matcher's window finds the right one.
+  bool corrected_start = true;
   std::uint64_t seed = 0;
   int threads = 1;
 
   static IncrementalScanMatcherOptions default_corrector();
   void validate() const;
+  /// kImprovedOdometry, or kScanMatching with corrected_start: the corrector runs.
+  bool uses_corrector() const {
+    return proposal == GridProposal::kImprovedOdometry || (proposal == GridProposal::kScanMatching && corrected_start);
+  }
 };
 
 struct GridFastSlamSummary {
@@ -116,17 +126,23 @@ class GridFastSlam {
   };
   void first_scan(const Eigen::VectorXd& insertion, const Eigen::Ref<const Eigen::VectorXd>& angles,
                   const Eigen::Vector3d& odometry);
+  /// The motion since the last update, in the frame of the pose there: the motion model's mean
+  /// and covariance, and where the scan-matching proposal's climb starts.
+  struct Motion {
+    Eigen::Vector3d delta, start;
+    Eigen::Matrix3d cov;
+  };
   void update(const Points2& points, const Eigen::VectorXd& insertion, const Eigen::Ref<const Eigen::VectorXd>& angles,
-              const Eigen::Vector3d& delta, const Eigen::Matrix3d& delta_cov);
+              const Motion& motion);
   void update_particle(Particle& p, const Points2& points, const Eigen::VectorXd& insertion,
-                       const Eigen::Ref<const Eigen::VectorXd>& angles, const Eigen::Vector3d& delta,
-                       const Eigen::Matrix3d& delta_cov, long& matched, long& fallbacks) const;
+                       const Eigen::Ref<const Eigen::VectorXd>& angles, const Motion& motion, long& matched,
+                       long& fallbacks) const;
   void insert(Particle& p, const Eigen::VectorXd& insertion, const Eigen::Ref<const Eigen::VectorXd>& angles) const;
   /// kImprovedOdometry: the covariance of the corrected motion since the last update.
   Eigen::Matrix3d corrected_motion_covariance(const Eigen::Vector3d& source) const;
-  /// After the first scan or an update at `source`: a new stretch of travel starts there; the
+  /// After the first scan or an update at `source` (raw odometry `raw`): a new stretch of travel starts there; the
   /// scan just added hangs from update `step`.
-  void start_stretch(const Eigen::Vector3d& source, int step);
+  void start_stretch(const Eigen::Vector3d& source, const Eigen::Vector3d& raw, int step);
   void normalise_and_resample();
 
   GridFastSlamOptions options_;
@@ -137,6 +153,7 @@ class GridFastSlam {
   std::uint64_t next_stream_ = 0;
   // Odometry (or corrected odometry) at the last update, and the motion's covariance since then.
   Eigen::Vector3d last_update_odometry_ = Eigen::Vector3d::Zero();
+  Eigen::Vector3d last_update_raw_ = Eigen::Vector3d::Zero();  // the raw odometry there
   Eigen::Matrix3d corrected_cov_ = Eigen::Matrix3d::Zero();
   Eigen::Vector3d last_corrected_ = Eigen::Vector3d::Zero();
   std::vector<int> scan_step_;               // update step each scan hangs from

@@ -2,9 +2,17 @@
 // The improved proposal of grid-based FastSLAM (Grisetti et al. 2007, the lecture's "the
 // proposal adapts to the structure of the environment"): from the odometry prediction, climb to
 // the mode of p(z | x, m) p(x | x_t-1, u) on the particle's own map, evaluate that product at K
-// poses around the mode, and fit a Gaussian to them; the new pose is drawn from the Gaussian and
-// the particle's weight grows by the product's sum over the K poses (its normaliser).
+// poses around the mode, and fit a Gaussian to them (a Laplace approximation: a quadratic fitted
+// to the log of the product); the new pose is drawn from the Gaussian and the particle's weight
+// grows by the product's integral under that approximation (its normaliser).
+//
+// Why not the weighted scatter of the K poses (GMapping's fit): along a corridor p(z | x, m) is
+// flat, and the scatter of poses 1 cm apart is then about 1 cm whatever the motion model says,
+// so every particle lands within a centimetre of the odometry's guess along the corridor and the
+// filter loses the spread it needs when the corridor's end comes into view. The quadratic fit
+// gives the flat direction the motion model's width.
 #include <Eigen/Core>
+#include <optional>
 
 #include "probslam/fastslam/endpoint_likelihood.hpp"
 
@@ -29,7 +37,8 @@ struct ScanProposal {
   double quality = 0.0;
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();      ///< of the fitted Gaussian, heading wrapped
   Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
-  /// log sum_j p(z | x_j, m) p(x_j | x_t-1, u) over the K poses: the log weight increment.
+  /// log of the integral of p(z | x, m) p(x | x_t-1, u) dx under the Laplace approximation:
+  /// the log weight increment.
   double log_normaliser = 0.0;
   Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> samples;  ///< the K poses (K x 3)
   Eigen::VectorXd log_scores;  ///< log p(z | x_j, m) + log N(x_j; prior, prior_cov), (K,)
@@ -39,19 +48,23 @@ struct ScanProposal {
 /// normalising constant included). prior_cov must be symmetric positive definite.
 double log_gaussian_pose(const Eigen::Vector3d& pose, const Eigen::Vector3d& prior, const Eigen::Matrix3d& prior_cov);
 
-/// The weighted Gaussian of poses (K x 3) with log weights (K,): w_j = exp(s_j - max s),
-/// mean = sum w x / sum w (headings as offsets from the first pose's, wrapped), covariance the
-/// weighted scatter about the mean plus `floor` on the diagonal; returns log sum exp(s_j).
-double fit_pose_gaussian(const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>& poses,
-                         const Eigen::Ref<const Eigen::VectorXd>& log_weights, const Eigen::Vector3d& floor,
-                         Eigen::Vector3d& mean, Eigen::Matrix3d& covariance);
+/// The Laplace approximation of exp(s) from K = 27 poses on the 3 x 3 x 3 grid centre +
+/// (i, j, a) * spacing, i, j, a in {-1, 0, 1}, the centre first, with log scores s (K,): a quadratic fitted to s by
+/// least squares gives the gradient g and Hessian A at the centre. The part of A not explained by
+/// the motion prior (information `prior_information`, known exactly) is clamped to negative
+/// semi-definite, so covariance = (prior_information - A_z)^-1 is positive definite and never
+/// wider than the prior; mean = centre + covariance g (a Newton step, clamped to the grid's box).
+/// Returns log of the integral of exp(s): s_fit(mean) + log sqrt((2 pi)^3 det covariance).
+double fit_pose_laplace(const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>>& poses,
+                        const Eigen::Ref<const Eigen::VectorXd>& log_scores, const Eigen::Vector3d& spacing,
+                        const Eigen::Matrix3d& prior_information, Eigen::Vector3d& mean, Eigen::Matrix3d& covariance);
 
 /// The proposal for one particle: points (N, 2) in the sensor frame, prior = the odometry
-/// prediction of the sensor pose, prior_cov its covariance (symmetric positive definite).
-/// The diagonal floor of the fitted covariance is (sample_linear / 4)^2 (both axes) and
-/// (sample_angular / 4)^2: a peak narrower than the 27 poses' spacing cannot be resolved.
+/// prediction of the sensor pose, prior_cov its covariance (symmetric positive definite); the
+/// climb starts at the prior or, if given and of higher score, at `start`.
 ScanProposal scan_matching_proposal(const EndpointLikelihood& likelihood, const TiledGrid2D& grid,
                                     const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
-                                    const Eigen::Matrix3d& prior_cov, const ScanProposalOptions& options);
+                                    const Eigen::Matrix3d& prior_cov, const ScanProposalOptions& options,
+                                    const std::optional<Eigen::Vector3d>& start = std::nullopt);
 
 }  // namespace probslam
