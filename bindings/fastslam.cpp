@@ -45,6 +45,7 @@ FastSlamOptions options_from(int num_particles, py::handle motion_noise, py::han
   k.get("threads", o.threads);
   k.get("resample_threshold", o.resample_threshold);
   k.get("p_new", o.p_new);
+  k.get("outlier_density", o.outlier_density);
   k.get("association_radius", o.association_radius);
   k.get("cell_size", o.cell_size);
   k.get("negative_information", o.negative_information);
@@ -83,6 +84,8 @@ void define_state(py::class_<FastSlam>& c) {
       .def_property_readonly("pose_covariance", getter(&FastSlam::pose_covariance))
       .def_property_readonly("num_resamples", getter(&FastSlam::num_resamples))
       .def_property_readonly("resampled", getter(&FastSlam::resampled))
+      .def_property_readonly("ancestors",
+                             [](const FastSlam& f) { return vector_out(locked(f, [&]() -> std::vector<int> { return f.ancestors(); })); })
       .def_property_readonly("map_sharing",
                              [](const FastSlam& f) {
                                const MapSharing s = locked(f, [&] { return f.map_sharing(); });
