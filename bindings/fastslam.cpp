@@ -45,6 +45,7 @@ FastSlamOptions options_from(int num_particles, py::handle motion_noise, py::han
   k.get("threads", o.threads);
   k.get("resample_threshold", o.resample_threshold);
   k.get("p_new", o.p_new);
+  k.get("outlier_density", o.outlier_density);
   k.get("association_radius", o.association_radius);
   k.get("cell_size", o.cell_size);
   k.get("negative_information", o.negative_information);

@@ -209,6 +209,10 @@ class FastSlam:
             for any count), resample_threshold (resample when N_eff < threshold * M; 0.5),
         p_new: density (1 / (m rad)) of a measurement of a new landmark: the threshold of the
             maximum-likelihood association and the weight factor of every new landmark (0.01).
+        outlier_density: known correspondences, density (1 / (m rad)) of a measurement its
+            labelled landmark did not produce: the weight factor is N(z - z_hat; 0, Q_j) +
+            outlier_density, and the landmark is updated only where the Gaussian term is larger.
+            0 (default): no outlier model.
         association_radius, cell_size: metres (2.0 each): candidates lie within the radius plus
             3 sigma of where a measurement places its landmark; the spatial key's cell side.
         negative_information, existence_hit, existence_miss, sensor_range, sensor_fov: the
@@ -240,6 +244,7 @@ class FastSlam:
     def __init__(self, num_particles: int, motion_noise: ArrayLike, measurement_noise: ArrayLike, *,
                  version: int = 1, use_signatures: bool = False, initial_pose: ArrayLike = ..., seed: int = 0,
                  threads: int = 1, resample_threshold: float = 0.5, p_new: float = 0.01,
+                 outlier_density: float = 0.0,
                  association_radius: float = 2.0, cell_size: float = 2.0, negative_information: bool = False,
                  existence_hit: float = 1.0, existence_miss: float = 1.0, sensor_range: float = ...,
                  sensor_fov: float = ..., record_path: bool = True) -> None: ...

@@ -155,6 +155,7 @@ struct FastSlam::Context {
   Eigen::Matrix2d q;   // (range, bearing) noise
   double q_sig;        // signature variance
   double log_p_new;
+  double log_outlier;  // log(outlier_density); -inf without the outlier model
 
   /// Signature log-likelihood of measurement i against lm (0 without signatures).
   double sig_log_likelihood(const Scan& s, Eigen::Index i, const Landmark& lm) const {
@@ -220,6 +221,15 @@ struct FastSlam::Context {
   }
 
   // ---- known correspondences ----
+  /// log(N + outlier_density) for a Gaussian term log N: the mixture's weight factor.
+  double with_outliers(double log_gauss) const {
+    return log_outlier == -std::numeric_limits<double>::infinity() ? log_gauss
+                                                                   : std::max(log_gauss, log_outlier) +
+                                                                         std::log1p(std::exp(-std::abs(log_gauss - log_outlier)));
+  }
+  /// The outlier density explains the measurement better than its landmark's Gaussian.
+  bool is_outlier(double log_gauss) const { return log_gauss < log_outlier; }
+
   void update_known(FastSlamParticle& part, const Scan& s, const std::vector<long>& ids) const {
     const Eigen::Index k = s.z.rows();
     if (k == 0) {
@@ -227,7 +237,10 @@ struct FastSlam::Context {
       return;
     }
     double ll = 0.0;
-    std::vector<std::uint8_t> in_proposal(static_cast<std::size_t>(k), 0);
+    // Per measurement: 1 when it entered the proposal (weighted there), 2 when the outlier
+    // density claimed it (weighted, its landmark left as it was).
+    std::vector<std::uint8_t> handled(static_cast<std::size_t>(k), 0);
+    constexpr std::uint8_t kInProposal = 1, kOutlier = 2;
     if (o.version == 2 && part.has_prior) {
       // The proposal, measurement by measurement: each step's posterior is the next one's prior.
       Eigen::Vector3d mu = part.prior_mean;
@@ -237,21 +250,36 @@ struct FastSlam::Context {
       for (Eigen::Index i = 0; i < k; ++i) {
         const Landmark* lm = part.map.find(ids[static_cast<std::size_t>(i)]);
         if (!lm || !used.insert(lm->id).second) continue;
+        Eigen::Vector3d mu_next = mu;
+        Eigen::Matrix3d p_next = p;
         double step = 0.0;
-        if (!proposal_step(mu, p, *lm, s.rb(i), q, step)) continue;
-        ll += step + sig_log_likelihood(s, i, *lm);
-        in_proposal[static_cast<std::size_t>(i)] = 1;
+        if (!proposal_step(mu_next, p_next, *lm, s.rb(i), q, step)) continue;
+        step += sig_log_likelihood(s, i, *lm);
+        ll += with_outliers(step);
+        // An outlier under the marginal likelihood must not pull the proposal either.
+        if (is_outlier(step)) {
+          handled[static_cast<std::size_t>(i)] = kOutlier;
+          continue;
+        }
+        mu = mu_next;
+        p = p_next;
+        handled[static_cast<std::size_t>(i)] = kInProposal;
         any = true;
       }
       if (any) take_proposal_sample(part, mu, p);
     }
     for (Eigen::Index i = 0; i < k; ++i) {
       const long id = ids[static_cast<std::size_t>(i)];
+      const std::uint8_t how = handled[static_cast<std::size_t>(i)];
+      if (how == kOutlier) continue;
       if (const Landmark* found = part.map.find(id)) {
         Landmark lm = *found;
         const double step = update_landmark(lm, part.pose, s, i);
         if (std::isnan(step)) continue;  // on the robot: no bearing, skipped
-        if (!in_proposal[static_cast<std::size_t>(i)]) ll += step;
+        if (how != kInProposal) {
+          ll += with_outliers(step);
+          if (is_outlier(step)) continue;  // lm is a copy: the map keeps the landmark as it was
+        }
         part.map.put(lm);
       } else {
         part.map.put(new_landmark(id, part.pose, s, i));
@@ -393,6 +421,8 @@ FastSlam::FastSlam(const FastSlamOptions& options) : o_(options) {
           "resample_threshold", "must be in [0, 1]");
   require(std::isfinite(o_.p_new) && o_.p_new > 0.0 && std::isfinite(std::log(o_.p_new)), "p_new",
           "must be finite and > 0");
+  require(std::isfinite(o_.outlier_density) && o_.outlier_density >= 0.0, "outlier_density",
+          "must be finite and >= 0 (0: no outlier model)");
   require(std::isfinite(o_.association_radius) && o_.association_radius >= 0.0 &&
               o_.association_radius <= kFastSlamMaxCoordinate,
           "association_radius", "must be in [0, 1e9] m");
@@ -534,6 +564,7 @@ void FastSlam::predict(double v, double w, double dt) {
     if (o_.record_path) p.path.push(next);
   });
   particles_.swap(staged);
+  last_ancestors_.clear();
 }
 
 void FastSlam::predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matrix3d& noise) {
@@ -566,6 +597,7 @@ void FastSlam::predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matri
     if (o_.record_path) p.path.push(next);
   });
   particles_.swap(staged);
+  last_ancestors_.clear();
 }
 
 void FastSlam::check_measurements(const Eigen::Ref<const RowMatrixXd>& z) const {
@@ -591,7 +623,7 @@ bool FastSlam::update(const Eigen::Ref<const RowMatrixXd>& z, const std::vector<
   require(static_cast<Eigen::Index>(ids.size()) == z.rows(), "ids", "must have one id per measurement");
   for (long id : ids) require(id >= 0 && id <= kFastSlamMaxLandmarkId, "ids", "must be in [0, 2^62]");
   check_room(z.rows());
-  const Context c{o_, q2_, q_signature_, std::log(o_.p_new)};
+  const Context c{o_, q2_, q_signature_, std::log(o_.p_new), std::log(o_.outlier_density)};
   const Scan s{z, o_.use_signatures};
   std::vector<FastSlamParticle> staged = particles_;
   for_particles([&](int k) { c.update_known(staged[static_cast<std::size_t>(k)], s, ids); });
@@ -607,7 +639,7 @@ FastSlamAssociation FastSlam::update_unknown(const Eigen::Ref<const RowMatrixXd>
   check_measurements(z);
   require(std::isfinite(p_new) && p_new > 0.0 && std::isfinite(std::log(p_new)), "p_new", "must be finite and > 0");
   check_room(z.rows());
-  const Context c{o_, q2_, q_signature_, std::log(o_.p_new)};
+  const Context c{o_, q2_, q_signature_, std::log(o_.p_new), std::log(o_.outlier_density)};
   const Scan s{z, o_.use_signatures};
   const int m = num_particles();
   const auto k = static_cast<std::size_t>(z.rows());

@@ -339,3 +339,41 @@ TEST(FastSlam, BadInputRaisesAndKeepsState) {
   expect_invalid([&] { f.particle(8); }, "index");
   EXPECT_TRUE(same_state(f, saved));
 }
+
+TEST(FastSlam, OutlierMixtureWeightsAndSkipsTheLandmark) {
+  // One particle that never moves: a landmark first seen from the origin has Sigma = H^-1 Q H^-T,
+  // so a second sighting from the same pose has Q_j = H Sigma H^T + Q = 2 Q exactly.
+  const Eigen::Matrix2d q = Eigen::Vector2d(0.01, 0.001).asDiagonal();
+  constexpr double kDensity = 0.05;  // 1 / (m rad)
+  // Rounding of the 2x2 products against the closed form: far below any weight that matters.
+  constexpr double kTolerance = 1e-12;
+  for (const double range : {5.02, 8.0}) {
+    FastSlamOptions o;
+    o.num_particles = 1;
+    o.motion_noise = Eigen::Matrix3d::Zero();
+    o.measurement_noise = q;
+    o.outlier_density = kDensity;
+    FastSlam f(o);
+    RowMatrixXd z(1, 2);
+    z << 5.0, 0.0;
+    f.update(z, {0});
+    const Landmark first = f.landmarks(0)[0];
+    z << range, 0.01;
+    f.update(z, {0});
+    const Eigen::Vector2d nu(range - 5.0, 0.01);
+    const Eigen::Matrix2d s = 2.0 * q;
+    const double gauss = std::exp(-0.5 * nu.dot(s.inverse() * nu)) / (2.0 * M_PI * std::sqrt(s.determinant()));
+    EXPECT_NEAR(f.last_log_likelihoods()[0], std::log(gauss + kDensity), kTolerance) << range;
+    const Landmark after = f.landmarks(0)[0];
+    if (gauss < kDensity) {
+      EXPECT_TRUE(after.mean == first.mean && after.cov == first.cov) << range;
+    } else {
+      EXPECT_FALSE(after.mean == first.mean) << range;
+    }
+  }
+  FastSlamOptions o = options(4, 1);
+  o.outlier_density = -1.0;
+  expect_invalid([&] { FastSlam f(o); }, "outlier_density");
+  o.outlier_density = NAN;
+  expect_invalid([&] { FastSlam f(o); }, "outlier_density");
+}

@@ -175,6 +175,99 @@ def test_version1_weights_of_every_particle():
     assert f.num_resamples == 0
 
 
+# ---- outlier model (known correspondences) --------------------------------------------------------
+@pytest.mark.parametrize("density", [1e-3, 0.05])
+def test_outlier_mixture_version1_against_numpy(density):
+    """Weight factor N(nu; Q_j) + c per measurement; the landmark is updated only where the
+    Gaussian term is the larger one. Every 7th measurement is moved 3 m in range (a gross
+    outlier), so both branches are taken."""
+    run, q = sim_run(4, steps=80, motion=np.zeros((3, 3)))
+    f = ps.FastSlam(1, np.zeros((3, 3)), q, initial_pose=run.poses[0], p_new=0.02, outlier_density=density)
+    bank, x, count, rejected = {}, np.array(run.poses[0], float), 0, 0
+    for (v, w), z, ids in zip(run.controls, run.measurements, run.ids):
+        f.predict(v, w, run.dt)
+        x = ps.velocity_motion(x, v, w, run.dt)
+        z = np.array(z, float)
+        for j in range(len(z)):
+            count += 1
+            if count % 7 == 0:
+                z[j, 0] += 3.0
+        f.update(z, ids)
+        ll = 0.0
+        for zi, i in zip(z, ids):
+            if i not in bank:
+                bank[i] = init_landmark(x, zi, q)
+                ll += np.log(0.02)
+                continue
+            m, s, step = ekf_update(x, *bank[i], zi, q)
+            ll += np.logaddexp(step, np.log(density))
+            if step >= np.log(density):
+                bank[i] = (m, s)
+            else:
+                rejected += 1
+        np.testing.assert_allclose(f.last_log_likelihoods[0], ll, rtol=1e-12, atol=1e-9)
+        ids_f, means, covs = f.landmarks(0)
+        for i, m, s in zip(ids_f, means, covs):
+            np.testing.assert_allclose(m, bank[i][0], atol=1e-12, rtol=0)
+            np.testing.assert_allclose(s, bank[i][1], atol=1e-12, rtol=1e-12)
+    assert rejected > 0 and count > 2 * rejected
+
+
+def test_outlier_density_zero_is_the_plain_filter():
+    run, q = sim_run(6, steps=30)
+    a = ps.FastSlam(20, np.diag([0.01, 0.01, 0.002]), q, initial_pose=run.poses[0], seed=2)
+    b = ps.FastSlam(20, np.diag([0.01, 0.01, 0.002]), q, initial_pose=run.poses[0], seed=2, outlier_density=0.0)
+    for (v, w), z, ids in zip(run.controls, run.measurements, run.ids):
+        for f in (a, b):
+            f.predict(v, w, run.dt)
+            f.update(z, ids)
+    assert same_state(state(a), state(b))
+
+
+def test_outlier_mixture_version2_leaves_the_proposal_alone():
+    """Version 2: a measurement the outlier density explains better at the prior (marginal
+    likelihood N(nu; G R G^T + Q_j) < c) neither moves the proposal nor its landmark; its
+    weight factor is the mixture of the marginal likelihood and c."""
+    q = np.diag([0.05 ** 2, 0.02 ** 2])
+    r = np.diag([0.02, 0.02, 0.001])
+    density = 1e-2
+    for shift, outlier in [(0.0, False), (2.0, True)]:
+        f = ps.FastSlam(1, np.zeros((3, 3)), q, version=2, outlier_density=density, seed=1)
+        f.update([[4.0, 0.3]], [0])
+        _, means, covs = f.landmarks(0)
+        delta = np.array([0.5, 0.0, 0.05])
+        f.predict_odometry(delta, r)
+        x_hat = delta  # from the origin: x (+) delta
+        z = h(x_hat, means[0]) + np.array([0.03 + shift, 0.01])
+        sampled = f.poses[0].copy()
+        f.update([z], [0])
+        mean, cov, ll = proposal_information_form(x_hat, r, means[0], covs[0], z, q)
+        np.testing.assert_allclose(f.last_log_likelihoods[0], np.logaddexp(ll, np.log(density)), rtol=1e-10)
+        assert (ll < np.log(density)) == outlier
+        _, after, _ = f.landmarks(0)
+        if outlier:
+            np.testing.assert_array_equal(f.poses[0], sampled)  # the motion sample stays
+            np.testing.assert_array_equal(after, means)
+        else:
+            assert not np.array_equal(after, means)
+
+
+def test_ancestors_follow_resampling():
+    run, q = sim_run(3, steps=5)
+    f = ps.FastSlam(12, np.diag([0.05, 0.05, 0.01]), q, initial_pose=run.poses[0], seed=4)
+    (v, w), z, ids = run.controls[0], run.measurements[0], run.ids[0]
+    f.predict(v, w, run.dt)
+    assert len(f.ancestors) == 0
+    f.update(z, ids)
+    before = f.poses.copy()
+    f.resample()
+    a = f.ancestors
+    assert a.shape == (12,) and np.all((a >= 0) & (a < 12))
+    np.testing.assert_array_equal(f.poses, before[a])
+    f.predict(v, w, run.dt)
+    assert len(f.ancestors) == 0
+
+
 # ---- version 2 ------------------------------------------------------------------------------------
 def test_proposal_function_equals_information_form():
     rng = np.random.default_rng(5)
@@ -455,6 +548,9 @@ def make_filter():
     (dict(seed=-1), ValueError, "seed"),
     (dict(p_new=0.0), ValueError, "p_new"),
     (dict(p_new=np.inf), ValueError, "p_new"),
+    (dict(outlier_density=-1e-3), ValueError, "outlier_density"),
+    (dict(outlier_density=np.nan), ValueError, "outlier_density"),
+    (dict(outlier_density=np.inf), ValueError, "outlier_density"),
     (dict(initial_pose=(0, np.nan, 0)), ValueError, "initial_pose"),
     (dict(initial_pose=(0, 0)), ValueError, "initial_pose"),
     (dict(resample_threshold=-0.1), ValueError, "resample_threshold"),

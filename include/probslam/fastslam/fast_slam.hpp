@@ -69,6 +69,16 @@ struct FastSlamOptions {
   /// both kinds of correspondence: a particle's weight is multiplied by p_new for each new
   /// landmark (Table 13.1 / 13.3's default importance weight p_0).
   double p_new = kDefaultPNew;
+  /// Known correspondences: density (same units as p_new: 1 / (m rad), times 1 / signature unit
+  /// with signatures) of a measurement that its labelled landmark did not produce (a wrong
+  /// label, a false detection). Each measurement's weight factor is then the mixture
+  /// N(z - z_hat; 0, Q_j) + outlier_density (the scale (1 - eps) of the Gaussian is the same for
+  /// every particle and cancels), and the landmark is updated only where the Gaussian term is
+  /// the larger one, i.e. where the measurement more likely came from the landmark than from
+  /// the outlier density. Without it one gross outlier multiplies the particles' weights by
+  /// exp(-NIS / 2) with NIS in the hundreds and leaves one particle, and it drags the landmark.
+  /// 0 (the default): no outlier model, every measurement updates its landmark.
+  double outlier_density = 0.0;
   /// Association candidates of a measurement: the landmarks whose mean is within
   /// association_radius plus three standard deviations of where the measurement places it.
   double association_radius = kDefaultAssociationRadius;
@@ -210,8 +220,8 @@ class FastSlam {
   MapSharing map_sharing() const;
   long num_resamples() const { return resamples_; }
   bool resampled() const { return last_resampled_; }
-  /// When the last update (or resample()) resampled: particle j's ancestor index before it, for
-  /// every j; empty otherwise. Lets a caller carry per-particle histories along.
+  /// When the last call (predict, update or resample()) resampled: particle j's ancestor index
+  /// before it, for every j; empty otherwise. Lets a caller carry per-particle histories along.
   const std::vector<int>& last_ancestors() const { return last_ancestors_; }
 
  private:
