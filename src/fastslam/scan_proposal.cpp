@@ -36,6 +36,41 @@ class PoseGaussian {
   double log_norm_;
 };
 
+/// Hill climbing over +-x, +-y, +-theta moves with step halving (GMapping's optimiser) from
+/// `from`: the local maximum of `score`, and its score in `best_score`.
+template <class Score>
+Eigen::Vector3d climb(const Score& score, const Eigen::Vector3d& from, const ScanProposalOptions& options,
+                      double& best_score) {
+  Eigen::Vector3d best = from;
+  best_score = score(best);
+  double lin = options.linear_step, ang = options.angular_step;
+  int halvings = 0;
+  for (int moves = 0; moves < options.max_moves && halvings <= options.refinements;) {
+    const Eigen::Vector3d steps[6] = {{lin, 0, 0}, {-lin, 0, 0}, {0, lin, 0}, {0, -lin, 0}, {0, 0, ang}, {0, 0, -ang}};
+    Eigen::Vector3d next = best;
+    double next_score = best_score;
+    for (const Eigen::Vector3d& s : steps) {
+      Eigen::Vector3d cand = best + s;
+      cand.z() = wrap_angle(cand.z());
+      const double sc = score(cand);
+      if (sc > next_score) {
+        next_score = sc;
+        next = cand;
+      }
+    }
+    if (next_score > best_score) {
+      best = next;
+      best_score = next_score;
+      ++moves;
+    } else {
+      lin *= 0.5;
+      ang *= 0.5;
+      ++halvings;
+    }
+  }
+  return best;
+}
+
 }  // namespace
 
 void ScanProposalOptions::validate() const {
@@ -101,42 +136,20 @@ ScanProposal scan_matching_proposal(const EndpointLikelihood& likelihood, const 
   const PoseGaussian motion(prior, prior_cov);
   auto score = [&](const Eigen::Vector3d& x) { return likelihood.log_likelihood(grid, x, points) + motion.log_density(x); };
 
-  // Hill climbing over +-x, +-y, +-theta moves with step halving (GMapping's optimiser).
   ScanProposal p;
-  // Of the two starting points, the one that explains the scan better: a stale odometry pose
-  // or a wrong correction each lose to the other.
-  Eigen::Vector3d best = prior;
-  double best_score = score(best);
+  double best_score = 0.0;
+  Eigen::Vector3d best = climb(score, prior, options, best_score);
+  // The odometry pose of a scan may be stale; if the corrected start explains the scan better
+  // than where the climb from the odometry ended, climb from it too and keep the better mode.
   if (start) {
-    const double s = score(*start);
-    if (s > best_score) {
-      best = *start;
-      best_score = s;
-    }
-  }
-  double lin = options.linear_step, ang = options.angular_step;
-  int halvings = 0;
-  for (int moves = 0; moves < options.max_moves && halvings <= options.refinements;) {
-    const Eigen::Vector3d steps[6] = {{lin, 0, 0}, {-lin, 0, 0}, {0, lin, 0}, {0, -lin, 0}, {0, 0, ang}, {0, 0, -ang}};
-    Eigen::Vector3d next = best;
-    double next_score = best_score;
-    for (const Eigen::Vector3d& s : steps) {
-      Eigen::Vector3d cand = best + s;
-      cand.z() = wrap_angle(cand.z());
-      const double sc = score(cand);
-      if (sc > next_score) {
-        next_score = sc;
-        next = cand;
+    const double from = score(*start);
+    if (from > best_score) {
+      double other_score = 0.0;
+      const Eigen::Vector3d other = climb(score, *start, options, other_score);
+      if (other_score > best_score) {
+        best = other;
+        best_score = other_score;
       }
-    }
-    if (next_score > best_score) {
-      best = next;
-      best_score = next_score;
-      ++moves;
-    } else {
-      lin *= 0.5;
-      ang *= 0.5;
-      ++halvings;
     }
   }
   p.mode = best;

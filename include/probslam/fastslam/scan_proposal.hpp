@@ -61,7 +61,8 @@ double fit_pose_laplace(const Eigen::Ref<const Eigen::Matrix<double, Eigen::Dyna
 
 /// The proposal for one particle: points (N, 2) in the sensor frame, prior = the odometry
 /// prediction of the sensor pose, prior_cov its covariance (symmetric positive definite); the
-/// climb starts at the prior or, if given and of higher score, at `start`.
+/// climb starts at the prior; if `start` is given and scores higher than where that climb
+/// ended, a second climb starts there and the better mode is kept.
 ScanProposal scan_matching_proposal(const EndpointLikelihood& likelihood, const TiledGrid2D& grid,
                                     const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
                                     const Eigen::Matrix3d& prior_cov, const ScanProposalOptions& options,
