@@ -9,12 +9,14 @@ Table 2, each raw log whole (ACES, Intel, FR079), 30 particles, scan-matching pr
 time, real-time factor, memory, and the ACES relations error.
 Table 3, threads: 30 particles on the ACES excerpt with 1 and 2 threads (identical results).
 
-    .venv/bin/python benchmarks/bench_rbpf.py [--quick] [--no-record]
+    .venv/bin/python benchmarks/bench_rbpf.py [--quick] [--no-record] [--figures DIR]
 
 --quick: the sweep only, on 500 scans (a smoke run; not recorded). Missing logs are skipped.
+--figures DIR: the best particle's map and path of each whole log as DIR/rbpf_<log>.png.
 """
 
 import argparse
+import dataclasses
 import os
 import pathlib
 import sys
@@ -24,6 +26,8 @@ import numpy as np
 import probslam as ps
 import probslam.eval
 import probslam.slam
+from probslam.mapping import map_laser_log
+from bench_slam_logs import LOGS as CORRECTED_LOGS, agreement, pair_scans
 from common import heading, report
 
 HERE = pathlib.Path(__file__).resolve().parent
@@ -38,8 +42,6 @@ TILE_BYTES = 32 * 32 * 12  # log-odds (double) and scan stamp (uint32) of 32 x 3
 
 
 def first_scans(scans, n):
-    import dataclasses
-
     return ps.io.LaserScans(**{f.name: getattr(scans, f.name)[:n] for f in dataclasses.fields(scans)})
 
 
@@ -53,19 +55,41 @@ def relations(result):
     return f"{e.trans_mean:.3f} +- {e.trans_std:.3f} m ({len(e.used)})"
 
 
+def corrected_agreement(name, path, result):
+    """Mean position difference (m) from the log's corrected log after a rigid alignment, or "-"."""
+    corrected = CORRECTED_LOGS[name][3]
+    if corrected is None or not (LASER / corrected).exists():
+        return "-"
+    index, reference, _, note = pair_scans(path, ps.io.read_carmen_log(path).scans, LASER / corrected)
+    if index is None or len(index) < 3:
+        return "-"
+    pos, _ = agreement(result.poses[index], reference)
+    return f"corrected log: mean {pos.mean():.3f} m ({len(index)} scans)"
+
+
+def write_figure(path, result, png):
+    """The best particle's path and every scan mapped along it (no-return readings left out, as
+    the GraphSLAM map and `probslam map` do; the particles' own maps clear along them)."""
+    scans = ps.io.read_carmen_log(path).scans
+    grid, _ = map_laser_log(dataclasses.replace(scans, laser_poses=result.poses), progress=False)
+    png.parent.mkdir(parents=True, exist_ok=True)
+    ps.io.write_png(grid, png, trajectory=result.poses)
+
+
 def row(label, result, extra="", aces=True):
     s, t = result.summary, result.tile_sharing
     per_update = result.seconds / max(1, s["updates"])
     return (f"| {label} | {s['scans']} | {s['updates']} | {1e3 * per_update:.1f} | {result.seconds:.1f} | "
             f"{result.real_time_factor:.1f}x | {t['references']} / {t['distinct']} | "
             f"{t['references'] * TILE_BYTES / 2 ** 20:.0f} / {t['bytes'] / 2 ** 20:.0f} | "
-            f"{relations(result) if aces else '-'}{extra} |")
+            f"{relations(result) + extra if aces else (extra or '-')} |")
 
 
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--quick", action="store_true", help="the particle sweep on 500 scans (not recorded)")
     parser.add_argument("--no-record", action="store_true", help="print only; do not append to RESULTS.md")
+    parser.add_argument("--figures", type=pathlib.Path, help="write rbpf_<log>.png map pictures into this folder")
     args = parser.parse_args()
     aces = LASER / LOGS["aces"][1]
     if not aces.exists():
@@ -73,7 +97,7 @@ def main():
         return
     load = os.getloadavg()[0]
     columns = ["run", "scans", "updates", "ms / update", "s", "real-time factor", "tiles held / distinct",
-               "MiB unshared / shared", "ACES relations (used)"]
+               "MiB unshared / shared", "ACES relations (used); others: corrected log"]
     lines = heading("Grid-based FastSLAM (rbpf)", "run_slam(method='rbpf'), scan-matching proposal, one thread "
                     "unless stated.", columns)
     log = ps.io.read_carmen_log(aces)
@@ -99,9 +123,11 @@ def main():
                 lines.append(f"| {title} | - | - | - | - | - | - | - | not found |")
                 continue
             print(f"bench_rbpf: {title}, 30 particles ...", file=sys.stderr, flush=True)
-            lines.append(row(f"{title} whole log, 30 particles", ps.slam.run_slam(path, method="rbpf", progress=False,
-                                                                                  num_particles=30),
-                             aces=name == "aces"))
+            result = ps.slam.run_slam(path, method="rbpf", progress=False, num_particles=30)
+            lines.append(row(f"{title} whole log, 30 particles", result, aces=name == "aces",
+                             extra="" if name == "aces" else corrected_agreement(name, path, result)))
+            if args.figures is not None:
+                write_figure(path, result, args.figures / f"rbpf_{name}.png")
     lines += ["", f"Load average at the start: {load:.2f} (on {os.cpu_count()} cores). ms / update: processing time "
               "over filter updates (one every 0.25 m or 0.25 rad). Tiles held: summed over the particles (what "
               "unshared maps would take); distinct: allocated once and shared.",

@@ -89,7 +89,8 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: str = "grap
     ``method="rbpf"``: grid-based FastSLAM, ``options`` those of ``probslam._core.GridFastSlam``
     (num_particles (30), proposal ("scan-matching", "motion" or "improved-odometry"),
     resolution, max_range, max_usable_range, sigma, p_rand, search_radius, odometry_noise,
-    resample_threshold, update_distance, update_angle, seed, threads, ...). It needs odometry.
+    resample_threshold, update_distance, update_angle, corrected_start, seed, threads, ...). It
+    needs odometry.
 
     ``progress=None`` shows a bar only on a terminal.
     """
