@@ -102,12 +102,7 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
     path = pathlib.Path(args.dataset)
     t0 = time.perf_counter()
     if path.is_dir() and (path / "Barcodes.dat").exists():
-        data = io.read_mrclam(path, robot=args.robot)
-        _print_skipped(data.skipped_rows)
-        if args.seconds is not None:
-            data = ls.first_seconds(data, args.seconds)
-        if not args.raw_ranges:
-            data = data.with_euclidean_ranges()
+        data = _mrclam_data(args, path)
         motion = np.diag([args.sigma_v ** 2, args.sigma_w ** 2])
         sensor = np.diag([args.sigma_r ** 2, args.sigma_phi ** 2])
         t_load = time.perf_counter()
@@ -135,7 +130,7 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
                   f"(dead reckoning {d.path_rmse:.3f} / {d.path_rmse_aligned:.3f} m)")
             print(f"landmark RMSE: {s.landmark_rmse:.3f} m raw, {s.landmark_rmse_aligned:.3f} m aligned")
         else:
-            _print_map_score(ls, data, run, args.unknown)
+            _print_map_score(ls, data, run, ls.majority_labels(run) if args.unknown else None)
         poses, dead = run.poses, dr.poses
     else:
         data = io.read_victoria_park(path)
@@ -157,6 +152,72 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
     return 0
 
 
+def _mrclam_data(args: argparse.Namespace, path):
+    """An MRCLAM robot as the landmark commands read it: the first --seconds, ranges from depth."""
+    from . import landmark_slam as ls
+
+    data = io.read_mrclam(path, robot=args.robot)
+    _print_skipped(data.skipped_rows)
+    if args.seconds is not None:
+        data = ls.first_seconds(data, args.seconds)
+    return data if args.raw_ranges else data.with_euclidean_ranges()
+
+
+def _cmd_fastslam(args: argparse.Namespace) -> int:
+    import pathlib
+
+    import numpy as np
+
+    from . import fastslam as fs
+    from . import landmark_slam as ls
+    from .plot import fastslam_map, require_matplotlib
+
+    path = pathlib.Path(args.dataset)
+    t0 = time.perf_counter()
+    common = dict(known=not args.unknown, num_particles=args.particles, version=args.version, seed=args.seed,
+                  threads=args.threads)
+    if path.is_dir() and (path / "Barcodes.dat").exists():
+        data = _mrclam_data(args, path)
+        motion = np.diag([args.sigma_v ** 2, args.sigma_w ** 2])
+        sensor = np.diag([args.sigma_r ** 2, args.sigma_phi ** 2])
+        run = fs.run_fastslam_mrclam(data, motion, sensor, **common)
+        dr = ls.run_ekf_mrclam(data, motion, sensor, dead_reckoning=True)
+        print(f"dataset:       UTIAS MRCLAM {path} robot {args.robot}, "
+              f"{'unknown' if args.unknown else 'known'} correspondences")
+    else:
+        data = io.read_victoria_park(path)
+        _print_skipped({"unreadable records": data.skipped_rows} if data.skipped_rows else {})
+        run, dr = fs.run_fastslam_victoria_park(data, **common), None
+        print(f"dataset:       Victoria Park {path}: {len(run.poses)} poses, {len(data.xy)} observations, "
+              f"{'unknown' if args.unknown else 'known'} correspondences")
+    f = run.filter
+    print(f"filter:        FastSLAM {args.version}.0, {args.particles} particles, {f.num_resamples} resamplings; "
+          f"filter time {run.seconds:.2f} s")
+    print(f"landmarks:     {len(run.landmarks)} in the best particle's map")
+    labels = fs.majority_labels(run) if args.unknown else None
+    if args.unknown:
+        print(f"associations:  {fs.association_accuracy(run):.1%} correct (each landmark's majority label)")
+    truth = truth_lm = None
+    if isinstance(data, io.Mrclam):
+        if data.groundtruth is not None:
+            s, d = ls.score_mrclam(run, data, labels), ls.score_mrclam(dr, data)
+            truth, truth_lm = data.groundtruth[:, 1:3], data.landmark_positions
+            print(f"path RMSE:     {s.path_rmse:.3f} m raw, {s.path_rmse_aligned:.3f} m aligned "
+                  f"(dead reckoning {d.path_rmse:.3f} / {d.path_rmse_aligned:.3f} m)")
+            print(f"landmark RMSE: {s.landmark_rmse:.3f} m raw, {s.landmark_rmse_aligned:.3f} m aligned")
+        else:
+            _print_map_score(ls, data, run, labels)
+    plt = require_matplotlib()
+    fig, ax = plt.subplots(figsize=(8, 8))
+    fastslam_map(ax, f, truth_path=truth, truth_landmarks=truth_lm, dead_reckoning=None if dr is None else dr.poses)
+    fig.tight_layout()
+    fig.savefig(args.output + ".png", dpi=120)
+    np.savetxt(args.output + "_path.txt", run.poses, header="x y theta (the best particle's path)")
+    print(f"time:          {time.perf_counter() - t0:.2f} s total")
+    print(f"wrote:         {args.output}.png, {args.output}_path.txt")
+    return 0
+
+
 def _print_skipped(skipped) -> None:
     """The rows a reader skipped (a real file is read even with a few bad rows, and says so)."""
     if skipped:
@@ -166,15 +227,16 @@ def _print_skipped(skipped) -> None:
         print("skipped rows:  0")
 
 
-def _print_map_score(ls, data, run, unknown: bool) -> None:
+def _print_map_score(ls, data, run, labels) -> None:
     """MRCLAM without robot ground truth (Dataset 1): the map alone, aligned onto the survey,
-    after the survey labels that contradict the barcodes have been exchanged."""
+    after the survey labels that contradict the barcodes have been exchanged. ``labels``: filter
+    landmark id -> surveyed subject (None: the ids are the subjects)."""
     swaps = ls.survey_label_swaps(data)
     if swaps:
         print(f"survey:        positions of subjects {', '.join(f'{a}<->{b}' for a, b in swaps)} exchanged "
               f"(their surveyed distances contradict the readings of the same scans)")
     fixed = data.with_survey_swapped(swaps)
-    s = ls.score_landmarks(run.landmarks, fixed, ls.majority_labels(run) if unknown else None)
+    s = ls.score_landmarks(run.landmarks, fixed, labels)
     d = ls.score_landmarks(ls.dead_reckoning_map(data), fixed)
     print(f"landmark RMSE: {s.rmse_aligned:.3f} m after aligning the map onto the survey "
           f"(dead-reckoning map {d.rmse_aligned:.3f} m; no robot ground truth)")
@@ -216,6 +278,21 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
         written.append(args.output + ".png")
     print(f"wrote:      {', '.join(written)}")
     return 0 if report.converged else 1
+
+
+def _landmark_dataset_options(parser: argparse.ArgumentParser, output: str) -> None:
+    """The options ekf-slam and fastslam share: the MRCLAM robot and noise, the output prefix."""
+    parser.add_argument("--robot", type=int, default=1, help="MRCLAM robot number (default 1)")
+    parser.add_argument("--seconds", type=float, default=None,
+                        help="MRCLAM: use only the first SECONDS of the robot's odometry (default: all)")
+    parser.add_argument("--raw-ranges", action="store_true",
+                        help="use MRCLAM's readings as ranges (by default they are taken as the camera's depth "
+                             "and turned into distances, see io.MRCLAM_RANGE_SCALE)")
+    parser.add_argument("--sigma-v", type=float, default=0.15, help="MRCLAM odometry noise, m/s per 10 ms command")
+    parser.add_argument("--sigma-w", type=float, default=0.6, help="MRCLAM odometry noise, rad/s per 10 ms command")
+    parser.add_argument("--sigma-r", type=float, default=0.15, help="range noise, m")
+    parser.add_argument("--sigma-phi", type=float, default=0.04, help="bearing noise, rad")
+    parser.add_argument("-o", "--output", default=output, help=f"output prefix (default '{output}')")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -262,18 +339,21 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("--association", choices=("jcbb", "ml", "mht"), default="jcbb",
                    help="with --unknown: joint compatibility over each scan (default), maximum likelihood, "
                         "or a beam of filters (multiple hypotheses)")
-    e.add_argument("--robot", type=int, default=1, help="MRCLAM robot number (default 1)")
-    e.add_argument("--seconds", type=float, default=None,
-                   help="MRCLAM: use only the first SECONDS of the robot's odometry (default: all)")
-    e.add_argument("--raw-ranges", action="store_true",
-                   help="use MRCLAM's readings as ranges (by default they are taken as the camera's depth "
-                        "and turned into distances, see io.MRCLAM_RANGE_SCALE)")
-    e.add_argument("--sigma-v", type=float, default=0.15, help="MRCLAM odometry noise, m/s per 10 ms command")
-    e.add_argument("--sigma-w", type=float, default=0.6, help="MRCLAM odometry noise, rad/s per 10 ms command")
-    e.add_argument("--sigma-r", type=float, default=0.15, help="range noise, m")
-    e.add_argument("--sigma-phi", type=float, default=0.04, help="bearing noise, rad")
-    e.add_argument("-o", "--output", default="ekf_slam", help="output prefix (default 'ekf_slam')")
+    _landmark_dataset_options(e, "ekf_slam")
     e.set_defaults(func=_cmd_ekf_slam)
+
+    fsp = sub.add_parser("fastslam", help="FastSLAM 1.0 / 2.0 on a landmark dataset (MRCLAM folder or Victoria "
+                                          "Park file)")
+    fsp.add_argument("dataset", help="a UTIAS MRCLAM folder, or Victoria Park in iSAM/GTSAM text format")
+    fsp.add_argument("--unknown", action="store_true",
+                     help="hide the correspondences: each particle associates by maximum likelihood")
+    fsp.add_argument("--particles", type=int, default=100, help="number of particles (default 100)")
+    fsp.add_argument("--version", type=int, choices=(1, 2), default=1,
+                     help="1: FastSLAM 1.0 (default); 2: FastSLAM 2.0, the proposal that includes the measurements")
+    fsp.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    fsp.add_argument("--threads", type=int, default=1, help="threads (same result for any count)")
+    _landmark_dataset_options(fsp, "fastslam")
+    fsp.set_defaults(func=_cmd_fastslam)
 
     o = sub.add_parser("optimize", help="optimise a 2-D pose/landmark graph (g2o, TORO or iSAM text)")
     o.add_argument("graph", help="graph file: .g2o, TORO .graph, or iSAM .txt")
@@ -300,7 +380,7 @@ def main(argv: Optional[List[str]] = None) -> int:
     args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except (ValueError, OSError) as exc:
+    except (ValueError, TypeError, OSError, ImportError) as exc:
         print(f"probslam: error: {exc}", file=sys.stderr)
         return 2
 

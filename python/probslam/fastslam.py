@@ -77,13 +77,24 @@ def _landmarks(f: FastSlam) -> Dict[int, np.ndarray]:
     return {int(i): m for i, m in zip(ids, means)}
 
 
+def _sightings(run: FastSlamRun) -> List[Tuple[int, int]]:
+    """(true id, best particle's landmark id) of every sighting it associated (id >= 0)."""
+    return [(int(t), int(i)) for truth, ids in run.associations for t, i in zip(truth, ids) if i >= 0]
+
+
+def majority_labels(run: FastSlamRun) -> Dict[int, int]:
+    """For a run with hidden correspondences: each of the best particle's landmarks -> the true id
+    most of its sightings carry."""
+    votes: Dict[int, collections.Counter] = collections.defaultdict(collections.Counter)
+    for t, i in _sightings(run):
+        votes[i][t] += 1
+    return {i: c.most_common(1)[0][0] for i, c in votes.items()}
+
+
 def association_accuracy(run: FastSlamRun) -> float:
     """Fraction of the best particle's measurements that went to their landmark's majority true id."""
-    votes: Dict[int, collections.Counter] = collections.defaultdict(collections.Counter)
-    pairs = [(int(t), int(i)) for truth, ids in run.associations for t, i in zip(truth, ids) if i >= 0]
-    for t, i in pairs:
-        votes[i][t] += 1
-    label = {i: c.most_common(1)[0][0] for i, c in votes.items()}
+    label = majority_labels(run)
+    pairs = _sightings(run)
     return sum(label[i] == t for t, i in pairs) / len(pairs) if pairs else float("nan")
 
 
@@ -201,5 +212,5 @@ def run_fastslam_victoria_park(data: VictoriaPark, *, known: bool = False, num_p
     return run
 
 
-__all__ = ["DEFAULT_P_NEW", "VICTORIA_PARK_ODOMETRY_NOISE_SCALE", "FastSlamRun", "association_accuracy", "run_fastslam_mrclam",
-           "run_fastslam_victoria_park"]
+__all__ = ["DEFAULT_P_NEW", "VICTORIA_PARK_ODOMETRY_NOISE_SCALE", "FastSlamRun", "association_accuracy",
+           "majority_labels", "run_fastslam_mrclam", "run_fastslam_victoria_park"]

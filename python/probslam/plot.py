@@ -55,6 +55,34 @@ def landmark_map(ax, poses: np.ndarray, ekf=None, truth_path: Optional[np.ndarra
     ax.legend(loc="best", fontsize="small")
 
 
+def fastslam_map(ax, fastslam, truth_path: Optional[np.ndarray] = None,
+                 truth_landmarks: Optional[Dict[int, np.ndarray]] = None, dead_reckoning: Optional[np.ndarray] = None,
+                 n_sigma: float = 2.0) -> None:
+    """A FastSlam's particle cloud (its M poses), the best particle's path and landmarks with
+    their n-sigma ellipses, and the ground truth and dead reckoning (T, 2+) where given (metres)."""
+    best = fastslam.best_index
+    if dead_reckoning is not None:
+        ax.plot(dead_reckoning[:, 0], dead_reckoning[:, 1], color="0.6", lw=0.8, label="dead reckoning")
+    if truth_path is not None:
+        ax.plot(truth_path[:, 0], truth_path[:, 1], color="tab:green", lw=0.8, label="ground truth")
+    path = fastslam.path(best)
+    ax.plot(path[:, 0], path[:, 1], color="tab:blue", lw=0.8, label="best particle's path")
+    cloud = fastslam.poses
+    ax.plot(cloud[:, 0], cloud[:, 1], ".", color="tab:purple", ms=2, label=f"particles ({len(cloud)})")
+    if truth_landmarks:
+        xy = np.array(list(truth_landmarks.values()))
+        ax.plot(xy[:, 0], xy[:, 1], "g+", ms=9, label="surveyed landmarks")
+    _, means, covs = fastslam.landmarks(best)
+    if len(means):
+        ax.plot(means[:, 0], means[:, 1], "r.", ms=4, label="best particle's landmarks")
+        for m, c in zip(means, covs):
+            covariance_ellipse(ax, m, c, n_sigma, color="tab:red", lw=0.6)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.legend(loc="best", fontsize="small")
+
+
 def pose_graph(ax, graph, initial=None, edges: bool = True) -> None:
     """A PoseGraph2D: its poses as a path, points as dots, and (if ``edges``) every edge as a thin
     line; ``initial`` (P, 3+) draws the starting guess in grey beneath."""

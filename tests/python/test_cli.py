@@ -153,3 +153,34 @@ def test_slam_bad_log_is_an_error_not_a_traceback(tmp_path, capsys):
     assert cli.main(["slam", str(bad), "-o", str(tmp_path / "s"), "--no-progress"]) == 2
     assert "bad.log" in capsys.readouterr().err
     assert cli.main(["slam", str(tmp_path / "missing.log"), "--no-progress"]) == 2
+
+
+def test_fastslam_mrclam_prints_what_the_driver_computes(tmp_path, capsys, shared_data):
+    pytest.importorskip("matplotlib")
+    from probslam import fastslam as fs
+
+    folder = shared_data / "landmark_slam/mrclam_dataset7"
+    args = ["fastslam", str(folder), "--unknown", "--seconds", "60", "--particles", "20", "--seed", "3"]
+    assert cli.main(args + ["-o", str(tmp_path / "f")]) == 0
+    out = capsys.readouterr().out
+    # The same run through the driver: the summary's figures are its figures.
+    data = io.read_mrclam(folder, robot=1)
+    from probslam import landmark_slam as ls
+
+    data = ls.first_seconds(data, 60.0).with_euclidean_ranges()
+    run = fs.run_fastslam_mrclam(data, np.diag([0.15 ** 2, 0.6 ** 2]), np.diag([0.15 ** 2, 0.04 ** 2]), known=False,
+                                 num_particles=20, seed=3)
+    assert f"landmarks:     {len(run.landmarks)} in the best particle's map" in out
+    assert f"associations:  {fs.association_accuracy(run):.1%} correct" in out
+    assert "path RMSE:" in out and "unknown correspondences" in out
+    np.testing.assert_allclose(np.loadtxt(tmp_path / "f_path.txt"), run.poses, atol=1e-9)
+    assert (tmp_path / "f.png").read_bytes()[:4] == b"\x89PNG"
+
+
+@pytest.mark.parametrize("extra, name", [(["--particles", "0"], "num_particles"), (["--seed", "-1"], "seed"),
+                                         (["--threads", "0"], "threads")])
+def test_fastslam_bad_options_are_errors_naming_them(tmp_path, capsys, shared_data, extra, name):
+    vp = shared_data / "landmark_slam/victoria_park/victoriaPark.txt"
+    assert cli.main(["fastslam", str(vp), "-o", str(tmp_path / "x")] + extra) == 2
+    assert name in capsys.readouterr().err
+    assert cli.main(["fastslam", str(tmp_path / "missing.txt"), "-o", str(tmp_path / "x")]) == 2
