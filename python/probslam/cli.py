@@ -119,18 +119,7 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
             applied = sum(int(np.count_nonzero(r.outcome <= r.NEW_LANDMARK)) for _, r in run.associations)
             print(f"associations:  {ls.association_accuracy(run):.1%} correct (each landmark's majority barcode), "
                   f"{applied} of {len(data.measurements)} sightings applied")
-        truth = truth_lm = None
-        if data.groundtruth is not None:
-            label = None
-            if args.unknown:
-                label = ls.majority_labels(run)
-            s, d = ls.score_mrclam(run, data, label), ls.score_mrclam(dr, data)
-            truth, truth_lm = data.groundtruth[:, 1:3], data.landmark_positions
-            print(f"path RMSE:     {s.path_rmse:.3f} m raw, {s.path_rmse_aligned:.3f} m aligned "
-                  f"(dead reckoning {d.path_rmse:.3f} / {d.path_rmse_aligned:.3f} m)")
-            print(f"landmark RMSE: {s.landmark_rmse:.3f} m raw, {s.landmark_rmse_aligned:.3f} m aligned")
-        else:
-            _print_map_score(ls, data, run, ls.majority_labels(run) if args.unknown else None)
+        truth, truth_lm = _print_mrclam_score(ls, data, run, dr, ls.majority_labels(run) if args.unknown else None)
         poses, dead = run.poses, dr.poses
     else:
         data = io.read_victoria_park(path)
@@ -199,14 +188,7 @@ def _cmd_fastslam(args: argparse.Namespace) -> int:
         print(f"associations:  {fs.association_accuracy(run):.1%} correct (each landmark's majority label)")
     truth = truth_lm = None
     if isinstance(data, io.Mrclam):
-        if data.groundtruth is not None:
-            s, d = ls.score_mrclam(run, data, labels), ls.score_mrclam(dr, data)
-            truth, truth_lm = data.groundtruth[:, 1:3], data.landmark_positions
-            print(f"path RMSE:     {s.path_rmse:.3f} m raw, {s.path_rmse_aligned:.3f} m aligned "
-                  f"(dead reckoning {d.path_rmse:.3f} / {d.path_rmse_aligned:.3f} m)")
-            print(f"landmark RMSE: {s.landmark_rmse:.3f} m raw, {s.landmark_rmse_aligned:.3f} m aligned")
-        else:
-            _print_map_score(ls, data, run, labels)
+        truth, truth_lm = _print_mrclam_score(ls, data, run, dr, labels)
     plt = require_matplotlib()
     fig, ax = plt.subplots(figsize=(8, 8))
     fastslam_map(ax, f, truth_path=truth, truth_landmarks=truth_lm, dead_reckoning=None if dr is None else dr.poses)
@@ -225,6 +207,20 @@ def _print_skipped(skipped) -> None:
               f"({'; '.join(f'{reason}: {count}' for reason, count in sorted(skipped.items()))})")
     else:
         print("skipped rows:  0")
+
+
+def _print_mrclam_score(ls, data, run, dead_reckoning, labels):
+    """The path and map errors of an MRCLAM run (against the robot's ground truth, or the map alone
+    against the survey without it); returns the ground-truth path (T, 2) and landmarks to draw, or
+    (None, None). ``labels``: filter landmark id -> surveyed subject (None: the ids are)."""
+    if data.groundtruth is None:
+        _print_map_score(ls, data, run, labels)
+        return None, None
+    s, d = ls.score_mrclam(run, data, labels), ls.score_mrclam(dead_reckoning, data)
+    print(f"path RMSE:     {s.path_rmse:.3f} m raw, {s.path_rmse_aligned:.3f} m aligned "
+          f"(dead reckoning {d.path_rmse:.3f} / {d.path_rmse_aligned:.3f} m)")
+    print(f"landmark RMSE: {s.landmark_rmse:.3f} m raw, {s.landmark_rmse_aligned:.3f} m aligned")
+    return data.groundtruth[:, 1:3], data.landmark_positions
 
 
 def _print_map_score(ls, data, run, labels) -> None:
