@@ -401,7 +401,7 @@ class GridFastSlam:
     options: num_particles (30), proposal ("scan-matching" (default), "motion",
     "improved-odometry"), resolution (m, 0.05), max_range, min_range, max_usable_range (m),
     clear_no_return, min_point_spacing, odometry_noise (6,), sigma (m, 0.05), p_rand (0.05),
-    search_radius (m, 0.15), linear_step (m), angular_step (rad), refinements, sample_linear (m),
+    search_radius (m, 0.3), linear_step (m), angular_step (rad), refinements, sample_linear (m),
     sample_angular (rad), min_match_quality (0.3), weight_scale (0.03: tempered weights),
     resample_threshold (0.5), update_distance (m, 0.25), update_angle (rad, 0.25),
     corrector_submap_distance (m, 5), corrected_start (True: the scan-matching proposal's climb
