@@ -120,12 +120,13 @@ bool GridFastSlam::add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
     scan_offset_.push_back(delta);
     return false;
   }
-  Motion motion{delta, delta, Eigen::Matrix3d::Zero()};
+  Motion motion{delta, Eigen::Matrix3d::Zero(), std::nullopt};
   if (options_.proposal == GridProposal::kImprovedOdometry) {
     motion.cov = corrected_motion_covariance(source);
   } else {
     motion.delta = between(last_update_raw_, odometry);  // the raw odometry's motion model
     motion.cov = options_.odometry.covariance(motion.delta);
+    if (corrector_) motion.start = delta;
   }
   motion.cov = 0.5 * (motion.cov + motion.cov.transpose());
   update(scan_hits(ranges, beam_angles, options_.filter), ranges_for_insertion(ranges, options_.filter), beam_angles,
@@ -229,7 +230,8 @@ void GridFastSlam::update_particle(Particle& p, const Points2& points, const Eig
     const Eigen::Matrix3d prior_cov = R * motion.cov * R.transpose();
     const ScanProposal q =
         scan_matching_proposal(likelihood_, *p.map, points, predicted, 0.5 * (prior_cov + prior_cov.transpose()),
-                               options_.matching, compose(p.pose, motion.start));
+                               options_.matching,
+                               motion.start ? std::optional<Eigen::Vector3d>(compose(p.pose, *motion.start)) : std::nullopt);
     if (q.matched) {
       Eigen::Vector3d x = q.mean + gaussian_offset(q.covariance, p.rng);
       x.z() = wrap_angle(x.z());

@@ -37,12 +37,12 @@ class PoseGaussian {
 };
 
 /// Hill climbing over +-x, +-y, +-theta moves with step halving (GMapping's optimiser) from
-/// `from`: the local maximum of `score`, and its score in `best_score`.
+/// `from`, whose score the caller has: the local maximum of `score`, its score in `best_score`.
 template <class Score>
-Eigen::Vector3d climb(const Score& score, const Eigen::Vector3d& from, const ScanProposalOptions& options,
-                      double& best_score) {
+Eigen::Vector3d climb(const Score& score, const Eigen::Vector3d& from, double from_score,
+                      const ScanProposalOptions& options, double& best_score) {
   Eigen::Vector3d best = from;
-  best_score = score(best);
+  best_score = from_score;
   double lin = options.linear_step, ang = options.angular_step;
   int halvings = 0;
   for (int moves = 0; moves < options.max_moves && halvings <= options.refinements;) {
@@ -138,14 +138,14 @@ ScanProposal scan_matching_proposal(const EndpointLikelihood& likelihood, const 
 
   ScanProposal p;
   double best_score = 0.0;
-  Eigen::Vector3d best = climb(score, prior, options, best_score);
+  Eigen::Vector3d best = climb(score, prior, score(prior), options, best_score);
   // The odometry pose of a scan may be stale; if the corrected start explains the scan better
   // than where the climb from the odometry ended, climb from it too and keep the better mode.
   if (start) {
     const double from = score(*start);
     if (from > best_score) {
       double other_score = 0.0;
-      const Eigen::Vector3d other = climb(score, *start, options, other_score);
+      const Eigen::Vector3d other = climb(score, *start, from, options, other_score);
       if (other_score > best_score) {
         best = other;
         best_score = other_score;

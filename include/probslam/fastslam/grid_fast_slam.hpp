@@ -13,6 +13,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "probslam/core/object_mutex.hpp"
@@ -127,10 +128,12 @@ class GridFastSlam {
   void first_scan(const Eigen::VectorXd& insertion, const Eigen::Ref<const Eigen::VectorXd>& angles,
                   const Eigen::Vector3d& odometry);
   /// The motion since the last update, in the frame of the pose there: the motion model's mean
-  /// and covariance, and where the scan-matching proposal's climb starts.
+  /// and covariance, and (with corrected_start) the corrected odometry's motion, where the
+  /// scan-matching proposal's second climb may start.
   struct Motion {
-    Eigen::Vector3d delta, start;
+    Eigen::Vector3d delta;
     Eigen::Matrix3d cov;
+    std::optional<Eigen::Vector3d> start;
   };
   void update(const Points2& points, const Eigen::VectorXd& insertion, const Eigen::Ref<const Eigen::VectorXd>& angles,
               const Motion& motion);
