@@ -147,7 +147,8 @@ def test_bad_options_name_the_argument(kwargs, name):
         make(**kwargs)
 
 
-@pytest.mark.parametrize("kwargs", [dict(proposal=1), dict(num_particles=2.5), dict(particle_count=3)])
+@pytest.mark.parametrize("kwargs", [dict(proposal=1), dict(num_particles=2.5), dict(particle_count=3),
+                                    dict(corrected_start=1)])
 def test_option_types(kwargs):
     with pytest.raises(TypeError):
         make(**kwargs)
