@@ -176,8 +176,18 @@ void define_calls(py::class_<FastSlam>& c) {
             py::array_t<bool> is_new({m, k});
             std::copy(r.ids.begin(), r.ids.end(), ids.mutable_data());
             std::copy(r.is_new.begin(), r.is_new.end(), is_new.mutable_data());
-            py::list removed;
-            for (const std::vector<long>& v : r.removed) removed.append(vector_out(v));
+            // One (R, 2) array of (particle, landmark id) rows: a list of M arrays per scan cost
+            // more than the filter's update itself.
+            py::ssize_t count = 0;
+            for (const std::vector<long>& v : r.removed) count += static_cast<py::ssize_t>(v.size());
+            py::array_t<long> removed({count, py::ssize_t{2}});
+            long* out = removed.mutable_data();
+            for (std::size_t j = 0; j < r.removed.size(); ++j) {
+              for (long id : r.removed[j]) {
+                *out++ = static_cast<long>(j);
+                *out++ = id;
+              }
+            }
             return py::make_tuple(ids, is_new, removed);
           },
           py::arg("z"), py::arg("p_new") = py::none())

@@ -255,9 +255,10 @@ class FastSlam:
     def update(self, z: ArrayLike, ids: ArrayLike) -> bool:
         """Known correspondences: z (k, 2) or (k, 3), ids (k,) >= 0. Returns whether it resampled."""
     def update_unknown(self, z: ArrayLike, p_new: Optional[float] = None
-                       ) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.bool_], List[npt.NDArray[np.int64]]]:
-        """Per-particle maximum-likelihood correspondences: (ids (M, k), is_new (M, k), removed ids
-        per particle); rows follow the particles after any resampling of this call."""
+                       ) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.bool_], npt.NDArray[np.int64]]:
+        """Per-particle maximum-likelihood correspondences: (ids (M, k), is_new (M, k), removed (R, 2)
+        rows of (particle, landmark id) removed by negative information); particle indices and rows
+        follow the particles after any resampling of this call."""
     def resample(self) -> None:
         """Low-variance resampling now, whatever N_eff."""
     def copy(self) -> "FastSlam": ...

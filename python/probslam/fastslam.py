@@ -52,23 +52,24 @@ class FastSlamRun:
 
 
 class _Histories:
-    """Per-particle association histories as linked tuples, carried along resamplings."""
+    """Per-particle association histories, carried along resamplings: each scan's (ancestors,
+    ids (M, k), true ids) are kept, and one particle's lineage is traced back at the end, so
+    the run pays O(1) Python work per scan, not O(M)."""
 
-    def __init__(self, m: int) -> None:
-        self.heads: List[Optional[tuple]] = [None] * m
+    def __init__(self) -> None:
+        self.scans: List[Tuple[np.ndarray, np.ndarray, np.ndarray]] = []
 
     def add(self, f: FastSlam, rows: np.ndarray, truth: np.ndarray) -> None:
-        a = f.ancestors
-        if len(a):
-            self.heads = [self.heads[int(j)] for j in a]
-        self.heads = [((truth, rows[j]), self.heads[j]) for j in range(len(self.heads))]
+        # Row j of this scan's ids belongs to particle j after the scan's resampling, whose
+        # history before it is that of particle ancestors[j].
+        self.scans.append((f.ancestors, rows, truth))
 
     def of(self, k: int) -> List[Tuple[np.ndarray, np.ndarray]]:
         out = []
-        node = self.heads[k]
-        while node is not None:
-            out.append(node[0])
-            node = node[1]
+        for ancestors, rows, truth in reversed(self.scans):
+            out.append((truth, rows[k]))
+            if len(ancestors):
+                k = int(ancestors[k])
         return out[::-1]
 
 
@@ -122,7 +123,7 @@ def run_fastslam_mrclam(data: Mrclam, motion_noise, measurement_noise, *, known:
     m_rate = np.asarray(motion_noise, float) * command_period
     f = FastSlam(num_particles, np.eye(3) * 0.0, measurement_noise, version=version, seed=seed, threads=threads,
                  initial_pose=initial_pose, p_new=p_new, **options)
-    hist = _Histories(num_particles)
+    hist = _Histories()
     run = FastSlamRun(np.empty(0), np.empty((0, 3)), f, {})
     times = [odo[0, 0]]  # of the path's poses: the start, then one per prediction
     scan_rows = scans(meas)
@@ -192,7 +193,7 @@ def run_fastslam_victoria_park(data: VictoriaPark, *, known: bool = False, num_p
     bounds = np.searchsorted(observed_from[order], np.arange(len(chain) + 1))
     f = FastSlam(num_particles, np.eye(3) * 0.0, 0.5 * (q + q.T), version=version, seed=seed, threads=threads,
                  p_new=p_new, **options)
-    hist = _Histories(num_particles)
+    hist = _Histories()
     t0 = time.perf_counter()
     for k in range(len(chain)):
         if k > 0:

@@ -501,9 +501,9 @@ def test_negative_information_removes_a_spurious_landmark():
     f.update_unknown(np.array(real + [[5.0, 0.8]]))  # the second is clutter
     assert f.num_landmarks(0) == 2
     _, _, removed = f.update_unknown(np.array(real))
-    assert f.num_landmarks(0) == 2 and len(removed[0]) == 0  # existence 1 -> 0
+    assert f.num_landmarks(0) == 2 and removed.shape == (0, 2)  # existence 1 -> 0
     ids, is_new, removed = f.update_unknown(np.array(real))
-    assert f.num_landmarks(0) == 1 and list(removed[0]) == [1]
+    assert f.num_landmarks(0) == 1 and removed.tolist() == [[j, 1] for j in range(5)]
     assert list(ids[:, 0]) == [0] * 5 and not is_new.any()
     np.testing.assert_array_equal(f.landmark_details(0)["existence"], [3.0])
     # A landmark behind the robot (outside the field of view) is not penalised.

@@ -1,0 +1,108 @@
+"""Hidden barcodes on every shipped UTIAS MRCLAM robot: data association of EKF SLAM (joint
+compatibility, multiple hypotheses) and landmark FastSLAM (versions 1 and 2), one set of
+defaults for all robots (those of `probslam ekf-slam` / `probslam fastslam`).
+
+Per run: the share of sightings whose filter landmark's majority barcode is their own, the
+number of landmarks in the (best) map (15 surveyed), the map RMSE after a rigid alignment onto
+the survey (Dataset 1's exchanged survey labels corrected, as the CLI does), and the filter time.
+
+    .venv/bin/python benchmarks/bench_mrclam_association.py [--jobs 2] [--robots 1 2] [--datasets 1 7]
+        [--methods jcbb mht fastslam1 fastslam2] [--seconds S] [--no-record]
+
+Needs ../shared/data/landmark_slam (skips with a message without it).
+"""
+
+import argparse
+import concurrent.futures
+import pathlib
+import sys
+import time
+
+import numpy as np
+
+import probslam as ps
+from probslam import fastslam as fs
+from probslam import landmark_slam as ls
+from common import heading, report
+
+DATA = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data" / "landmark_slam"
+# The CLI's MRCLAM defaults (`probslam ekf-slam --help`): control noise per 10 ms command, sensor noise.
+MOTION = np.diag([0.15 ** 2, 0.6 ** 2])
+SENSOR = np.diag([0.15 ** 2, 0.04 ** 2])
+SURVEYED = 15
+METHODS = ("jcbb", "mht", "fastslam1", "fastslam2")
+
+
+def load(dataset: int, robot: int, seconds):
+    data = ps.io.read_mrclam(DATA / f"mrclam_dataset{dataset}", robot=robot)
+    if seconds is not None:
+        data = ls.first_seconds(data, seconds)
+    return data.with_euclidean_ranges()
+
+
+def run_one(job):
+    dataset, robot, method, seconds, particles = job
+    data = load(dataset, robot, seconds)
+    t0 = time.perf_counter()
+    if method in ("jcbb", "mht"):
+        run = ls.run_ekf_mrclam(data, MOTION, SENSOR, known=False, association=method)
+        correct, labels = ls.association_accuracy(run), ls.majority_labels(run)
+    else:
+        run = fs.run_fastslam_mrclam(data, MOTION, SENSOR, known=False, num_particles=particles,
+                                     version=int(method[-1]))
+        correct, labels = fs.association_accuracy(run), fs.majority_labels(run)
+    seconds_taken = time.perf_counter() - t0
+    fixed = data.with_survey_swapped(ls.survey_label_swaps(data))
+    try:
+        rmse = ls.score_landmarks(run.landmarks, fixed, labels).rmse_aligned
+    except ValueError:
+        rmse = float("nan")
+    return dict(dataset=dataset, robot=robot, method=method, correct=correct, landmarks=len(run.landmarks),
+                rmse=rmse, seconds=seconds_taken, sightings=len(data.measurements),
+                seen=len(set(data.measurements[:, 1].astype(int)) & set(data.landmark_positions)))
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--jobs", type=int, default=1)
+    parser.add_argument("--datasets", type=int, nargs="+", default=[1, 7])
+    parser.add_argument("--robots", type=int, nargs="+", default=[1, 2, 3, 4, 5])
+    parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
+    parser.add_argument("--particles", type=int, default=100, help="FastSLAM particles (default 100)")
+    parser.add_argument("--seconds", type=float, default=None, help="only the first SECONDS of each robot")
+    parser.add_argument("--no-record", action="store_true", help="print only; do not append to RESULTS.md")
+    args = parser.parse_args()
+    if not DATA.is_dir():
+        print(f"skipped: {DATA} not found")
+        return 0
+    jobs = [(d, r, m, args.seconds, args.particles) for d in args.datasets for r in args.robots for m in args.methods]
+    with concurrent.futures.ProcessPoolExecutor(max_workers=args.jobs) as pool:
+        rows = list(pool.map(run_one, jobs))
+    lines = heading("MRCLAM, barcodes hidden, every robot",
+                    f"One set of defaults (CLI: sigma_v 0.15, sigma_w 0.6, sigma_r 0.15, sigma_phi 0.04; "
+                    f"FastSLAM {args.particles} particles, seed 0); ranges from depth; "
+                    f"{'first %g s' % args.seconds if args.seconds else 'whole runs'}. "
+                    f"Correct: sightings whose landmark's majority barcode is their own; landmarks: "
+                    f"{SURVEYED} surveyed; RMSE: map aligned onto the survey. `{' '.join(sys.argv)}`",
+                    ["dataset / robot", "sightings / barcodes seen"] + [f"{m}: correct / landmarks / RMSE / s" for m in args.methods])
+    by_key = {(r["dataset"], r["robot"], r["method"]): r for r in rows}
+    for d in args.datasets:
+        for rb in args.robots:
+            cells = []
+            for m in args.methods:
+                r = by_key[(d, rb, m)]
+                cells.append(f"{r['correct']:.1%} / {r['landmarks']} / {r['rmse']:.3f} / {r['seconds']:.1f}")
+            first = by_key[(d, rb, args.methods[0])]
+            lines.append(f"| D{d} r{rb} | {first['sightings']} / {first['seen']} | " + " | ".join(cells) + " |")
+    lines.append("")
+    for m in args.methods:
+        rs = [r for r in rows if r["method"] == m]
+        ok = sum(r["correct"] >= 0.95 and abs(r["landmarks"] - r["seen"]) <= 1 for r in rs)
+        lines.append(f"- {m}: mean {np.mean([r['correct'] for r in rs]):.1%} correct, worst "
+                     f"{min(r['correct'] for r in rs):.1%}; {ok} of {len(rs)} runs at >= 95% with one landmark per barcode seen +- 1")
+    report(lines, record=not args.no_record)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
