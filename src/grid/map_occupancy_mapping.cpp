@@ -281,7 +281,7 @@ MapMappingResult map_occupancy_grid_mapping(const OccupancyGrid2D& geometry, con
   MapMappingResult result;
   result.readings = ix.log_p_none.size();
   result.index_entries = ix.entries.size();
-  std::vector<std::int32_t> field;  // Table 9.3 line 4, restricted to cells some reading sees
+  std::vector<std::int32_t>& field = result.field;  // Table 9.3 line 4, restricted to cells some reading sees
   for (std::size_t c = 0; c + 1 < ix.cell_off.size(); ++c)
     if (ix.cell_off[c + 1] > ix.cell_off[c]) field.push_back(static_cast<std::int32_t>(c));
   result.field_cells = field.size();

@@ -52,6 +52,7 @@ struct MapMappingResult {
   std::size_t evaluations = 0;         // candidate flips scored (sensitivity not counted)
   std::size_t readings = 0;            // range readings used
   std::size_t field_cells = 0;         // cells in some reading's footprint: the cells visited
+  std::vector<std::int32_t> field;     // those cells (row-major indices, increasing)
   std::size_t index_entries = 0;       // (reading, cell) pairs in the index
   /// Fig. 9.8d: the change of eq. 9.24 when each cell alone is flipped in the result (<= kMinGain
   /// at convergence); -|l0_i| outside the perceptual field. Empty unless options.sensitivity.
