@@ -193,8 +193,8 @@ class OpenDoorScenario:
         return out
 
 
-def open_door_scenario(resolution: float = 0.1, corridor_width: float = 2.0, door_width: float = 0.8,
-                       sonars: int = 24, beta: float = np.radians(25.0), max_range: float = 5.0,
+def open_door_scenario(resolution: float = 0.1, corridor_width: float = 2.0, door_width: float = 0.6,
+                       sonars: int = 24, beta: float = np.radians(60.0), max_range: float = 5.0,
                        step: float = 0.1, p_prior: float = 0.3) -> OpenDoorScenario:
     """The open-door scenario of Figs. 9.7/9.8 on a grid of ``resolution`` m cells (10 m x 6 m):
     a corridor ``corridor_width`` m wide (walls one cell thick) with a door ``door_width`` m wide
