@@ -144,6 +144,7 @@ void define_forward_model(py::module_& m) {
             DoubleArray zs = vector_arg(z, "z"), es = vector_arg(z_expected, "z_expected");
             if (zs.shape(0) != es.shape(0)) throw py::value_error("z_expected must have the same length as z");
             require_valid_ranges(as_vector(zs), "z");
+            require_all_finite(as_vector(es), "z_expected");
             Eigen::VectorXd out(zs.shape(0));
             for (py::ssize_t k = 0; k < zs.shape(0); ++k) out[k] = s.mixture().probability(zs.data()[k], es.data()[k]);
             return out;

@@ -284,3 +284,12 @@ def test_bad_mapping_input():
         run(poses, scans, angles, no_rand, grid)
     with pytest.raises(TypeError):
         run(poses, scans, angles, "sonar", grid)
+
+
+def test_mixture_probability_rejects_nan():
+    model = probslam.BeamSensorModel("laser", 2.0)
+    with pytest.raises(ValueError, match="^z_expected"):
+        model.probability([1.0], [float("nan")])
+    with pytest.raises(ValueError, match="^z"):
+        model.probability([float("nan")], [1.0])
+    np.testing.assert_allclose(model.probability([0.5, 2.0], [1.0, 1.0]), numpy_mixture([0.5, 2.0], [1.0, 1.0], model))
