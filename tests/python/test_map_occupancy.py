@@ -142,14 +142,14 @@ def test_samples_follow_the_mixture_chi_square(shape):
     assert chi2 < stats.chi2.ppf(0.999, df=len(probs) - 1), chi2
 
 
-def small_scenario(seed=5):
+def small_scenario(seed=5, shape="sonar"):
     rng = np.random.default_rng(seed)
     grid = probslam.OccupancyGrid2D(0.25, 14, 10, p_prior=0.3)
     truth = np.zeros((10, 14), dtype=bool)
     truth[[0, -1], :] = True
     truth[:, [0, -1]] = True
     truth[5, 6:8] = True
-    model = probslam.BeamSensorModel("sonar", 3.0, beta=0.4, z_hit=0.7, z_short=0.1, z_max=0.1, z_rand=0.1,
+    model = probslam.BeamSensorModel(shape, 3.0, beta=0.4, z_hit=0.7, z_short=0.1, z_max=0.1, z_rand=0.1,
                                      sigma_hit=0.1, lambda_short=0.5)
     bmap = probslam.BinaryMap2D(grid, truth)
     poses = np.array([[0.8 + 0.3 * t, 0.9 + 0.08 * t, 0.3 * t] for t in range(6)])
@@ -159,8 +159,9 @@ def small_scenario(seed=5):
     return grid, poses, scans, angles, model
 
 
-def test_table_9_3_reaches_a_local_maximum_brute_force():
-    grid, poses, scans, angles, model = small_scenario()
+@pytest.mark.parametrize("shape", ["sonar", "laser"])
+def test_table_9_3_reaches_a_local_maximum_brute_force(shape):
+    grid, poses, scans, angles, model = small_scenario(shape=shape)
     r = probslam.map_occupancy_grid_mapping(poses, scans, angles, model, grid)
     assert r.converged and r.flips > 0
     best = probslam.map_log_posterior(probslam.BinaryMap2D(grid, r.occupied), poses, scans, angles, model, 0.3)
@@ -174,8 +175,9 @@ def test_table_9_3_reaches_a_local_maximum_brute_force():
     np.testing.assert_allclose(r.sensitivity, gains, atol=OBJECTIVE_RTOL * abs(best))
 
 
-def test_incremental_objective_equals_full_evaluation_after_every_flip():
-    grid, poses, scans, angles, model = small_scenario(6)
+@pytest.mark.parametrize("shape", ["sonar", "laser"])
+def test_incremental_objective_equals_full_evaluation_after_every_flip(shape):
+    grid, poses, scans, angles, model = small_scenario(6, shape=shape)
     r = probslam.map_occupancy_grid_mapping(poses, scans, angles, model, grid, record_trace=True)
     assert len(r.trace_cells) == r.flips > 0
     m = np.zeros(r.occupied.shape, dtype=bool)
@@ -188,6 +190,14 @@ def test_incremental_objective_equals_full_evaluation_after_every_flip():
                                                    record_trace=True)
     np.testing.assert_array_equal(full_run.trace_cells, r.trace_cells)
     np.testing.assert_array_equal(full_run.occupied, r.occupied)
+
+
+def test_max_evaluations_stops_early_unconverged():
+    grid, poses, scans, angles, model = small_scenario()
+    r = probslam.map_occupancy_grid_mapping(poses, scans, angles, model, grid, max_evaluations=7)
+    assert r.evaluations == 7 and not r.converged
+    best = probslam.map_log_posterior(probslam.BinaryMap2D(grid, r.occupied), poses, scans, angles, model, 0.3)
+    assert r.objective == pytest.approx(best, rel=OBJECTIVE_RTOL)
 
 
 def classify_standard(grid):
