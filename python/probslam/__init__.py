@@ -24,7 +24,7 @@ from ._core import (
     velocity_motion_jacobian,
     wrap_angle,
 )
-from . import eval, io, sim, slam
+from . import eval, inverse_learning, io, sim, slam
 from .graph import OptimizationReport, PoseGraph2D, marginal_covariances, optimize, read_pose_graph, write_g2o
 from .graphslam import (
     CorrespondenceTest,
@@ -42,6 +42,7 @@ from .graphslam import (
 from .ekf import EkfSlam, MapManagement, MultiHypothesisEkfSlam
 from .mapping import MappingSummary, map_laser_log
 from .map_occupancy import MapOccupancyResult, map_occupancy_grid_mapping
+from .inverse_learning import LearnedInverseModel
 from .slam import SlamResult, run_slam
 
 __version__ = "0.1.0"
@@ -50,6 +51,8 @@ __all__ = [
     "BeamSensorModel",
     "BinaryMap2D",
     "MapOccupancyResult",
+    "LearnedInverseModel",
+    "inverse_learning",
     "map_log_posterior",
     "map_occupancy_grid_mapping",
     "EkfSlam",
