@@ -105,8 +105,9 @@ def field_features(grid: OccupancyGrid2D, pose: np.ndarray, ranges: np.ndarray, 
     h, w = grid.shape
     res = grid.resolution
     x0, y0 = grid.origin
-    c_lo, c_hi = max(0, int((pose[0] - max_range - x0) / res)), min(w - 1, int((pose[0] + max_range - x0) / res))
-    r_lo, r_hi = max(0, int((pose[1] - max_range - y0) / res)), min(h - 1, int((pose[1] + max_range - y0) / res))
+    key = lambda v, v0: int(np.floor((v - v0) / res))  # noqa: E731 - the lattice's cell of coordinate v
+    c_lo, c_hi = max(0, key(pose[0] - max_range, x0)), min(w - 1, key(pose[0] + max_range, x0))
+    r_lo, r_hi = max(0, key(pose[1] - max_range, y0)), min(h - 1, key(pose[1] + max_range, y0))
     if c_lo > c_hi or r_lo > r_hi:
         return np.empty(0, dtype=np.int64), np.empty((0, 2 + NEIGHBOURS))
     rows, cols = np.mgrid[r_lo:r_hi + 1, c_lo:c_hi + 1]
@@ -178,6 +179,7 @@ class LearnedInverseModel:
         self.weights: Optional[np.ndarray] = None
         self.mean = self.scale = None
         self.prior = None  # occupied fraction of the training cells: p(m_i) of the sampled maps
+        self.final_objective = None  # J(W) / n at the end of training (nats per cell)
 
     # --- the network and J(W) (eq. 9.20) ---
 
