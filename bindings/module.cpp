@@ -5,6 +5,7 @@
 namespace probslam::bindings {
 void define_core(pybind11::module_& m);
 void define_grid(pybind11::module_& m);
+void define_forward_model(pybind11::module_& m);
 void define_grid3d(pybind11::module_& m);
 void define_io(pybind11::module_& m);
 void define_ekf(pybind11::module_& m);
@@ -19,6 +20,7 @@ PYBIND11_MODULE(_core, m) {
   probslam::bindings::register_exception_translator();
   probslam::bindings::define_core(m);
   probslam::bindings::define_grid(m);
+  probslam::bindings::define_forward_model(m);
   probslam::bindings::define_grid3d(m);
   probslam::bindings::define_io(m);
   probslam::bindings::define_ekf(m);

@@ -4,6 +4,8 @@ Units: metres and radians; poses are ``(x, y, theta)`` with theta wrapped to (-p
 """
 
 from ._core import (
+    BeamSensorModel,
+    BinaryMap2D,
     FastSlam,
     OccupancyGrid2D,
     OccupancyGrid3D,
@@ -13,6 +15,7 @@ from ._core import (
     landmark_from_range_bearing,
     landmark_from_range_bearing_jacobians,
     logit,
+    map_log_posterior,
     probability_from_log_odds,
     range_bearing,
     range_bearing_jacobians,
@@ -21,7 +24,7 @@ from ._core import (
     velocity_motion_jacobian,
     wrap_angle,
 )
-from . import eval, io, sim, slam
+from . import eval, inverse_learning, io, sim, slam
 from .graph import OptimizationReport, PoseGraph2D, marginal_covariances, optimize, read_pose_graph, write_g2o
 from .graphslam import (
     CorrespondenceTest,
@@ -38,11 +41,20 @@ from .graphslam import (
 )
 from .ekf import EkfSlam, MapManagement, MultiHypothesisEkfSlam
 from .mapping import MappingSummary, map_laser_log
+from .map_occupancy import MapOccupancyResult, map_occupancy_grid_mapping
+from .inverse_learning import LearnedInverseModel
 from .slam import SlamResult, run_slam
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "BeamSensorModel",
+    "BinaryMap2D",
+    "MapOccupancyResult",
+    "LearnedInverseModel",
+    "inverse_learning",
+    "map_log_posterior",
+    "map_occupancy_grid_mapping",
     "EkfSlam",
     "FastSlam",
     "CorrespondenceTest",

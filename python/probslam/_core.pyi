@@ -135,6 +135,66 @@ class OccupancyGrid3D:
 def fuse_max(grids: Sequence[OccupancyGrid2D]) -> OccupancyGrid2D:
     """Eq. 9.9: cell-wise most pessimistic map of grids of equal geometry."""
 
+class BinaryMap2D:
+    """A binary occupancy map on an OccupancyGrid2D's lattice (what forward models see)."""
+    shape: Tuple[int, int]  # (height, width)
+    resolution: float  # m per cell
+    origin: Tuple[float, float]  # (x0, y0) m of cell (0, 0)'s lower-left corner
+    occupied: Array  # (height, width) bool, a copy
+    def __init__(self, grid: OccupancyGrid2D, occupied: ArrayLike) -> None:
+        """grid's geometry with occupied (height, width) bool (or 0/1 integers; floats: TypeError)."""
+    @staticmethod
+    def from_grid(grid: OccupancyGrid2D) -> "BinaryMap2D":
+        """grid thresholded: occupied iff p > 0.5 (log-odds > 0)."""
+
+class BeamSensorModel:
+    """Beam-based forward model p(z | x, m) of a range finder (Probabilistic Robotics ch. 6.3,
+    Table 6.1): z_hit * truncated N(z*, sigma_hit^2) on [0, max_range] + z_short * truncated
+    exponential(lambda_short) on [0, z*] + z_max * [z >= max_range] + z_rand / max_range, where
+    z* is the expected range on a binary map: for shape "laser" the distance at which the ray
+    enters the first occupied cell of the grid's exact ray walk; for "sonar" the distance to the
+    nearest occupied cell centre within beta/2 of the beam. z_max here is the *weight* of max
+    readings (the book's name); the range limit is max_range. Weights >= 0 summing to 1 (within
+    1e-9); sigma_hit (m), lambda_short (1/m), max_range (m) > 0; beta (rad) in (0, 2 pi] for a
+    sonar. ValueError naming the parameter otherwise. Maps: BinaryMap2D or OccupancyGrid2D
+    (thresholded at p > 0.5)."""
+    shape: str  # "laser" or "sonar"
+    max_range: float
+    beta: float
+    z_hit: float
+    z_short: float
+    z_max: float
+    z_rand: float
+    sigma_hit: float
+    lambda_short: float
+    def __init__(self, shape: str, max_range: float, beta: float = 0.0, z_hit: float = 0.85,
+                 z_short: float = 0.05, z_max: float = 0.05, z_rand: float = 0.05, sigma_hit: float = 0.05,
+                 lambda_short: float = 1.0) -> None: ...
+    def probability(self, z: ArrayLike, z_expected: ArrayLike) -> Array:
+        """Eq. 6.12 for readings z (n,) m given expected ranges (n,) m: densities per metre, plus the
+        max-reading indicator's weight (eq. 6.10) where z >= max_range."""
+    def expected_ranges(self, pose: ArrayLike, beam_angles: ArrayLike, map: Union["BinaryMap2D", OccupancyGrid2D]) -> Array:
+        """z* (B,) m of each beam from pose (3,) at beam_angles (B,) rad relative to the heading."""
+    def log_likelihood(self, ranges: ArrayLike, pose: ArrayLike, beam_angles: ArrayLike,
+                       map: Union["BinaryMap2D", OccupancyGrid2D]) -> Array:
+        """log p(z_k | x, m) (B,) per beam (nats). ranges (B,) m: >= 0, no NaN (ValueError); inf is a
+        max reading."""
+    def sample(self, pose: ArrayLike, beam_angles: ArrayLike, map: Union["BinaryMap2D", OccupancyGrid2D],
+               rng: Union[int, np.random.Generator]) -> Array:
+        """One reading (B,) m per beam drawn from p(z | x, m); rng: a seed >= 0 or a Generator."""
+
+def map_occupancy_grid_mapping(poses: ArrayLike, scans: ArrayLike, beam_angles: ArrayLike, model: BeamSensorModel,
+                               grid: OccupancyGrid2D, prior: Union[None, float, ArrayLike] = None, *,
+                               max_sweeps: int = 1000, scoring: str = "incremental", max_evaluations: int = 0,
+                               record_trace: bool = False, sensitivity: bool = True) -> Dict[str, Any]:
+    """Table 9.3 (see probslam.map_occupancy_grid_mapping, which wraps the dict in a dataclass)."""
+
+def map_log_posterior(map: Union[BinaryMap2D, OccupancyGrid2D], poses: ArrayLike, scans: ArrayLike,
+                      beam_angles: ArrayLike, model: BeamSensorModel, prior: Union[float, ArrayLike]) -> float:
+    """Eq. 9.24 of a binary map (nats): sum of log p(z | x, m) over readings, every expected range
+    cast from scratch, plus sum of l0_i = logit(prior_i) over occupied cells. poses (T, 3), scans
+    (T, B) m, beam_angles (B,) or (T, B) rad, prior a number or (H, W) probabilities."""
+
 def read_carmen_log(path: str) -> dict: ...
 def parse_carmen_log(text: str, source: str = "<text>") -> dict: ...
 def save_ros_map(grid: OccupancyGrid2D, yaml_path: str, occupied_thresh: float = 0.65,

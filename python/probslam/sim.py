@@ -153,3 +153,86 @@ def cast_ranges(pose: np.ndarray, angles: np.ndarray, segments) -> np.ndarray:
 #: |sin| of the angle between a beam and a wall below which they count as parallel (no hit).
 _PARALLEL = 1e-12
 
+
+
+@dataclass
+class OpenDoorScenario:
+    """The book's open-door example (Figs. 9.7, 9.8): a robot drives along a corridor past an open
+    door with a ring of noise-free sonars. Units: metres, radians.
+
+    ``grid``: an empty OccupancyGrid2D giving the lattice (and the prior ``p_prior``);
+    ``truth`` (H, W) bool: the true map; ``door`` (H, W) bool: the cells of the door opening
+    (free in ``truth``); ``poses`` (T, 3); ``beam_angles`` (B,); ``scans`` (T, B): each sonar's
+    range, the distance to the nearest occupied cell centre in its cone (``model.max_range``
+    where there is none); ``model``: the sonar's forward model (ch. 6.3), used to make the
+    readings (its expected range) and by Table 9.3 (with the prior ``grid.p_prior``);
+    ``alpha``, ``l_occ``, ``l_free``, ``standard_prior``: the inverse model of Table 9.2 and the
+    prior of the standard algorithm (Table 9.1), whose cells at the prior are "unknown"."""
+
+    grid: "OccupancyGrid2D"
+    truth: np.ndarray
+    door: np.ndarray
+    poses: np.ndarray
+    beam_angles: np.ndarray
+    scans: np.ndarray
+    model: "BeamSensorModel"
+    alpha: float
+    l_occ: float
+    l_free: float
+    standard_prior: float
+
+    def standard_map(self) -> "OccupancyGrid2D":
+        """Table 9.1 with the cone model of Table 9.2 (the textbook update, no clamping)."""
+        from ._core import OccupancyGrid2D
+
+        g = self.grid
+        out = OccupancyGrid2D(g.resolution, g.width, g.height, g.origin, p_prior=self.standard_prior, clamp=None)
+        for pose, ranges in zip(self.poses, self.scans):
+            out.insert_cone_scan(pose, ranges, self.beam_angles, self.model.max_range, self.alpha,
+                                 self.model.beta, self.l_occ, self.l_free)
+        return out
+
+
+def open_door_scenario(resolution: float = 0.1, corridor_width: float = 2.0, door_width: float = 0.6,
+                       sonars: int = 24, beta: float = np.radians(60.0), max_range: float = 5.0,
+                       step: float = 0.1, p_prior: float = 0.3) -> OpenDoorScenario:
+    """The open-door scenario of Figs. 9.7/9.8 on a grid of ``resolution`` m cells (10 m x 6 m):
+    a corridor ``corridor_width`` m wide (walls one cell thick) with a door ``door_width`` m wide
+    in its upper wall, opening on a 4 m x 2.4 m room; the robot drives along the corridor's
+    centre line from x = 1 to x = 9 m every ``step`` m, heading +x, with a ring of ``sonars``
+    sonars of cone opening ``beta`` rad and range ``max_range`` m. Readings are noise-free:
+    each is the forward model's expected range on the true map. ``p_prior``: the prior of Table
+    9.3 (eq. 9.24); the standard algorithm uses 0.5, l_occ = logit(0.7), l_free = logit(0.3) and
+    alpha = one cell."""
+    from ._core import BeamSensorModel, BinaryMap2D, OccupancyGrid2D
+
+    width, height = int(round(10.0 / resolution)), int(round(6.0 / resolution))
+    grid = OccupancyGrid2D(resolution, width, height, p_prior=p_prior, clamp=None)
+    truth = np.zeros((height, width), dtype=bool)
+    row = lambda y: int(np.floor(y / resolution + 1e-9))  # noqa: E731 - the row holding height y
+    col = lambda x: int(np.floor(x / resolution + 1e-9))  # noqa: E731
+    y_low = 1.0
+    y_high = y_low + corridor_width + resolution  # the upper wall's row starts here
+    truth[row(y_low), :] = True
+    truth[row(y_high), :] = True
+    door_x0 = 5.0 - door_width / 2
+    door = np.zeros_like(truth)
+    door[row(y_high), col(door_x0):col(door_x0 + door_width)] = True
+    truth[door] = False
+    # The room beyond the door: side walls at x = 3 and 7 m, back wall 2.4 m above the corridor.
+    room_top = row(y_high) + int(round(2.4 / resolution))
+    truth[room_top, col(3.0):col(7.0) + 1] = True
+    truth[row(y_high):room_top, col(3.0)] = True
+    truth[row(y_high):room_top, col(7.0)] = True
+
+    model = BeamSensorModel("sonar", max_range, beta=beta, z_hit=0.85, z_short=0.05, z_max=0.05, z_rand=0.05,
+                            sigma_hit=resolution / 2, lambda_short=1.0)
+    truth_map = BinaryMap2D(grid, truth)
+    y_mid = (row(y_low) + 1 + row(y_high)) * resolution / 2
+    xs = np.arange(1.0, 9.0 + step / 2, step)
+    poses = np.column_stack([xs, np.full_like(xs, y_mid), np.zeros_like(xs)])
+    angles = np.array([wrap_angle(a) for a in np.arange(sonars) * 2 * np.pi / sonars])
+    scans = np.stack([model.expected_ranges(p, angles, truth_map) for p in poses])
+    return OpenDoorScenario(grid=grid, truth=truth, door=door, poses=poses, beam_angles=angles, scans=scans,
+                            model=model, alpha=resolution, l_occ=float(np.log(0.7 / 0.3)),
+                            l_free=float(np.log(0.3 / 0.7)), standard_prior=0.5)

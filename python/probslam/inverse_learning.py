@@ -1,0 +1,285 @@
+"""Learning inverse measurement models from a forward model (ch. 9.3).
+
+9.3.2: random maps from a documented prior (:func:`random_map`), poses uniform in free space,
+readings sampled from a forward model (:class:`probslam.BeamSensorModel`, ch. 6.3), and the true
+occupancy of the cells inside the perceptual field, encoded by the invariances of 9.3.2: the
+cell's polar coordinates relative to the robot (eq. 9.14), as range and angle off the nearest
+beam's axis, and the ranges of the five adjacent beams (Fig. 9.6).
+9.3.3: a function approximator f(input, W) in [0, 1] trained by minimising J(W) of eq. 9.20
+(cross-entropy): a one-hidden-layer network (tanh, sigmoid output) in numpy with its gradient
+written out (tested against finite differences), minimised by scipy's L-BFGS.
+The learned model plugs into Table 9.1 (:meth:`LearnedInverseModel.insert_scan`).
+
+Units: metres, radians. Maps are (H, W) bool arrays on an OccupancyGrid2D's lattice.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass
+from typing import Optional, Tuple
+
+import numpy as np
+from scipy.optimize import minimize
+
+from ._core import BeamSensorModel, BinaryMap2D, OccupancyGrid2D, logit
+
+#: Beams whose readings are the input besides the cell's coordinates: the nearest and two on
+#: each side (Fig. 9.6's "five adjacent range measurements").
+NEIGHBOURS = 5
+#: Predicted probabilities are kept in [EPS, 1 - EPS] before logit and log: a saturated
+#: network would otherwise give infinite log-odds and an infinite J(W).
+EPS = 1e-6
+
+
+def random_map(grid: OccupancyGrid2D, rng: np.random.Generator, min_room: float = 2.0, door: float = 0.9,
+               clutter: int = 6) -> np.ndarray:
+    """A map drawn from the prior used for training: outer walls one cell thick; the floor split
+    recursively into rooms (a split while the part is wider than 2 ``min_room`` m, at a uniform
+    position at least ``min_room`` from its ends) by walls with one door ``door`` m wide each at
+    a uniform position; then ``clutter`` boxes of 0.2-0.6 m per side at uniform positions
+    (furniture). Returns (H, W) bool."""
+    h, w = grid.shape
+    res = grid.resolution
+    occ = np.zeros((h, w), dtype=bool)
+    occ[[0, -1], :] = True
+    occ[:, [0, -1]] = True
+    min_cells = max(2, int(round(min_room / res)))
+    door_cells = max(1, int(round(door / res)))
+
+    def split(r0, r1, c0, c1):  # the free rectangle rows [r0, r1), cols [c0, c1)
+        can_h, can_v = r1 - r0 > 2 * min_cells, c1 - c0 > 2 * min_cells
+        if not (can_h or can_v):
+            return
+        vertical = can_v and (not can_h or rng.random() < (c1 - c0) / (r1 - r0 + c1 - c0))
+        if vertical:
+            c = int(rng.integers(c0 + min_cells, c1 - min_cells))
+            occ[r0:r1, c] = True
+            d = int(rng.integers(r0, max(r0 + 1, r1 - door_cells)))
+            occ[d:d + door_cells, c] = False
+            split(r0, r1, c0, c)
+            split(r0, r1, c + 1, c1)
+        else:
+            r = int(rng.integers(r0 + min_cells, r1 - min_cells))
+            occ[r, c0:c1] = True
+            d = int(rng.integers(c0, max(c0 + 1, c1 - door_cells)))
+            occ[r, d:d + door_cells] = False
+            split(r0, r, c0, c1)
+            split(r + 1, r1, c0, c1)
+
+    split(1, h - 1, 1, w - 1)
+    for _ in range(clutter):
+        bh, bw = (rng.uniform(0.2, 0.6, 2) / res).astype(int) + 1
+        r, c = int(rng.integers(1, h - bh - 1)), int(rng.integers(1, w - bw - 1))
+        occ[r:r + bh, c:c + bw] = True
+    return occ
+
+
+def free_poses(grid: OccupancyGrid2D, occupied: np.ndarray, n: int, rng: np.random.Generator,
+               clearance: float = 0.3) -> np.ndarray:
+    """n poses (n, 3) uniform over the cells farther than ``clearance`` m from every occupied
+    cell (continuous within the cell), headings uniform in (-pi, pi]."""
+    from scipy.ndimage import distance_transform_edt
+
+    res = grid.resolution
+    far = distance_transform_edt(~occupied) * res > clearance
+    rows, cols = np.nonzero(far)
+    if rows.size == 0:
+        raise ValueError("occupied leaves no free cell farther than clearance from every obstacle")
+    k = rng.integers(0, rows.size, n)
+    x0, y0 = grid.origin
+    theta = np.pi - rng.random(n) * 2 * np.pi  # (-pi, pi]
+    return np.column_stack([x0 + (cols[k] + rng.random(n)) * res, y0 + (rows[k] + rng.random(n)) * res, theta])
+
+
+def field_features(grid: OccupancyGrid2D, pose: np.ndarray, ranges: np.ndarray, beam_angles: np.ndarray,
+                   max_range: float, half_angle: float) -> Tuple[np.ndarray, np.ndarray]:
+    """The cells inside the perceptual field of one scan and their inputs.
+
+    A cell is in the field when its centre lies closer than ``max_range`` m and within
+    ``half_angle`` rad of its nearest beam (beam_angles (B,) relative to the heading, a ring in
+    increasing order). Returns (cells (n,) row-major indices, inputs (n, 2 + NEIGHBOURS)): the
+    cell's range (m) and its angle off the nearest beam's axis (rad, eq. 9.14 in polar form,
+    relative to the beam so that identical sensors share the model), then the readings of the
+    nearest beam and its neighbours in ring order (min(z, max_range), m)."""
+    h, w = grid.shape
+    res = grid.resolution
+    x0, y0 = grid.origin
+    key = lambda v, v0: int(np.floor((v - v0) / res))  # noqa: E731 - the lattice's cell of coordinate v
+    c_lo, c_hi = max(0, key(pose[0] - max_range, x0)), min(w - 1, key(pose[0] + max_range, x0))
+    r_lo, r_hi = max(0, key(pose[1] - max_range, y0)), min(h - 1, key(pose[1] + max_range, y0))
+    if c_lo > c_hi or r_lo > r_hi:
+        return np.empty(0, dtype=np.int64), np.empty((0, 2 + NEIGHBOURS))
+    rows, cols = np.mgrid[r_lo:r_hi + 1, c_lo:c_hi + 1]
+    dx = x0 + (cols.ravel() + 0.5) * res - pose[0]
+    dy = y0 + (rows.ravel() + 0.5) * res - pose[1]
+    r = np.hypot(dx, dy)
+    bearing = np.arctan2(dy, dx) - pose[2]
+    off = np.angle(np.exp(1j * (bearing[:, None] - beam_angles[None, :])))  # wrapped, (n, B)
+    k = np.argmin(np.abs(off), axis=1)
+    phi = off[np.arange(k.size), k]
+    keep = (r < max_range) & (np.abs(phi) <= half_angle)
+    k, phi, r = k[keep], phi[keep], r[keep]
+    cells = (rows.ravel() * w + cols.ravel())[keep]
+    b = len(beam_angles)
+    z = np.minimum(np.nan_to_num(ranges, posinf=max_range), max_range)
+    near = z[(k[:, None] + np.arange(-(NEIGHBOURS // 2), NEIGHBOURS // 2 + 1)[None, :]) % b]
+    return cells, np.column_stack([r, phi, near])
+
+
+@dataclass
+class TrainingSet:
+    """inputs (n, 2 + NEIGHBOURS) as field_features; occupied (n,) bool, the true occupancy."""
+
+    inputs: np.ndarray
+    occupied: np.ndarray
+
+
+def sample_training_set(grid: OccupancyGrid2D, model: BeamSensorModel, beam_angles: np.ndarray, maps: int,
+                        poses_per_map: int, rng: np.random.Generator, cells_per_scan: int = 400,
+                        half_angle: Optional[float] = None) -> TrainingSet:
+    """9.3.2 steps 1-4: ``maps`` random maps (:func:`random_map`) on ``grid``'s lattice,
+    ``poses_per_map`` poses uniform in free space each, one scan per pose sampled from ``model``,
+    and up to ``cells_per_scan`` cells drawn uniformly from the scan's perceptual field with their
+    true occupancy. half_angle: the field's half width around a beam (rad), default beta/2 for a
+    sonar and half the beam spacing for a laser."""
+    half = _half_angle(model, beam_angles, half_angle)
+    inputs, labels = [], []
+    for _ in range(maps):
+        occ = random_map(grid, rng)
+        bmap = BinaryMap2D(grid, occ)
+        for pose in free_poses(grid, occ, poses_per_map, rng):
+            z = model.sample(pose, beam_angles, bmap, rng)
+            cells, x = field_features(grid, pose, z, beam_angles, model.max_range, half)
+            if cells.size > cells_per_scan:
+                pick = rng.choice(cells.size, cells_per_scan, replace=False)
+                cells, x = cells[pick], x[pick]
+            inputs.append(x)
+            labels.append(occ.ravel()[cells])
+    return TrainingSet(np.concatenate(inputs), np.concatenate(labels))
+
+
+def _half_angle(model: BeamSensorModel, beam_angles: np.ndarray, half_angle: Optional[float]) -> float:
+    if half_angle is not None:
+        return float(half_angle)
+    if model.shape == "sonar":
+        return model.beta / 2
+    return np.pi / len(beam_angles)  # half the spacing of a ring; a fan should pass half_angle
+
+
+class LearnedInverseModel:
+    """p(m_i = 1 | z, x) learned from samples (ch. 9.3): f(input, W) = sigmoid(v . tanh(A s(input)
+    + a) + b) with s the inputs standardised by the training set's mean and deviation.
+    Untrained until :meth:`train` or :meth:`load`."""
+
+    def __init__(self, hidden: int = 16):
+        if hidden < 1:
+            raise ValueError("hidden must be >= 1")
+        self.hidden = int(hidden)
+        self.weights: Optional[np.ndarray] = None
+        self.mean = self.scale = None
+        self.prior = None  # occupied fraction of the training cells: p(m_i) of the sampled maps
+        self.final_objective = None  # J(W) / n at the end of training (nats per cell)
+
+    # --- the network and J(W) (eq. 9.20) ---
+
+    def _unpack(self, w: np.ndarray, d: int):
+        h = self.hidden
+        a_mat = w[:h * d].reshape(h, d)
+        a = w[h * d:h * d + h]
+        v = w[h * d + h:h * d + 2 * h]
+        return a_mat, a, v, w[-1]
+
+    def n_weights(self, d: int) -> int:
+        return self.hidden * d + 2 * self.hidden + 1
+
+    def _forward(self, w: np.ndarray, s: np.ndarray):
+        a_mat, a, v, b = self._unpack(w, s.shape[1])
+        hid = np.tanh(s @ a_mat.T + a)
+        return hid, hid @ v + b  # hidden activations, output logit
+
+    def objective(self, w: np.ndarray, s: np.ndarray, y: np.ndarray) -> Tuple[float, np.ndarray]:
+        """J(W) of eq. 9.20 divided by the number of samples, and its gradient in W; s the
+        standardised inputs (n, d), y (n,) in {0, 1}."""
+        hid, u = self._forward(w, s)
+        # -[y log f + (1 - y) log(1 - f)] with f = sigmoid(u), written stably via logaddexp.
+        j = np.mean(np.logaddexp(0.0, u) - y * u)
+        g_u = (1.0 / (1.0 + np.exp(-u)) - y) / len(y)  # dJ/du
+        a_mat, a, v, b = self._unpack(w, s.shape[1])
+        g_v = hid.T @ g_u
+        g_pre = np.outer(g_u, v) * (1.0 - hid ** 2)  # through tanh
+        g_amat = g_pre.T @ s
+        g_a = g_pre.sum(axis=0)
+        return float(j), np.concatenate([g_amat.ravel(), g_a, g_v, [g_u.sum()]])
+
+    def train(self, data: TrainingSet, rng: np.random.Generator, max_iterations: int = 300) -> "LearnedInverseModel":
+        """Minimises J(W) (eq. 9.20) over ``data`` with L-BFGS from small random weights.
+        Returns self."""
+        x = np.asarray(data.inputs, dtype=float)
+        y = np.asarray(data.occupied, dtype=float)
+        if x.ndim != 2 or x.shape[0] != y.shape[0] or x.shape[0] == 0:
+            raise ValueError(f"inputs must be (n, d) with one label each, got {x.shape} and {y.shape}")
+        if not np.all(np.isfinite(x)):
+            raise ValueError("inputs must be finite")
+        if y.min() == y.max():
+            raise ValueError("occupied must hold both classes")
+        self.mean, self.scale = x.mean(axis=0), x.std(axis=0) + 1e-12
+        s = (x - self.mean) / self.scale
+        w0 = rng.normal(0.0, 0.3, self.n_weights(s.shape[1]))
+        res = minimize(self.objective, w0, args=(s, y), jac=True, method="L-BFGS-B",
+                       options={"maxiter": max_iterations})
+        self.weights = res.x
+        self.prior = float(y.mean())
+        self.final_objective = float(res.fun)
+        return self
+
+    def _check_trained(self):
+        if self.weights is None:
+            raise RuntimeError("the model is untrained: call train() or load() first")
+
+    def probability(self, inputs: np.ndarray) -> np.ndarray:
+        """f(input, W) (n,) for inputs (n, 2 + NEIGHBOURS), clipped to [EPS, 1 - EPS]."""
+        self._check_trained()
+        x = np.asarray(inputs, dtype=float)
+        if x.ndim != 2 or x.shape[1] != self.mean.shape[0]:
+            raise ValueError(f"inputs must have shape (n, {self.mean.shape[0]}), got {x.shape}")
+        _, u = self._forward(self.weights, (x - self.mean) / self.scale)
+        return np.clip(1.0 / (1.0 + np.exp(-u)), EPS, 1.0 - EPS)
+
+    def insert_scan(self, grid: OccupancyGrid2D, pose, ranges, beam_angles, max_range: float,
+                    half_angle: float) -> int:
+        """Table 9.1 lines 3-4 with this model as inverse_sensor_model: for each cell in the
+        perceptual field, l += logit(f) - logit(prior), the prior being the training maps'
+        occupied fraction (what f returns where the scan tells nothing). Writes the grid's
+        log-odds view directly, so the grid's clamp is not applied. Returns the cells changed."""
+        self._check_trained()
+        pose = np.asarray(pose, dtype=float)
+        ranges = np.asarray(ranges, dtype=float)
+        beam_angles = np.asarray(beam_angles, dtype=float)
+        if pose.shape != (3,) or not np.all(np.isfinite(pose)):
+            raise ValueError("pose must be 3 finite numbers (x, y, theta)")
+        if ranges.shape != beam_angles.shape or ranges.ndim != 1:
+            raise ValueError("ranges and beam_angles must be 1-D arrays of equal length")
+        if np.any(np.isnan(ranges)) or np.any(ranges < 0):
+            raise ValueError("ranges must be >= 0 and not NaN")
+        cells, x = field_features(grid, pose, ranges, beam_angles, max_range, half_angle)
+        if cells.size == 0:
+            return 0
+        grid.log_odds.ravel()[cells] += logit(self.probability(x)) - logit(self.prior)
+        return int(cells.size)
+
+    def save(self, path: str) -> None:
+        """The weights and standardisation as a .npz file."""
+        self._check_trained()
+        np.savez(path, weights=self.weights, mean=self.mean, scale=self.scale,
+                 meta=json.dumps({"hidden": self.hidden, "prior": self.prior}))
+
+    @classmethod
+    def load(cls, path: str) -> "LearnedInverseModel":
+        with np.load(path) as f:
+            meta = json.loads(str(f["meta"]))
+            m = cls(meta["hidden"])
+            m.weights, m.mean, m.scale, m.prior = f["weights"], f["mean"], f["scale"], meta["prior"]
+        if m.weights.shape != (m.n_weights(m.mean.shape[0]),):
+            raise ValueError(f"{path}: weights do not match hidden = {m.hidden}")
+        return m

@@ -1,0 +1,124 @@
+#include "probslam/grid/range_footprint.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+
+#include "probslam/core/angle.hpp"
+#include "probslam/core/check.hpp"
+#include "probslam/grid/ray_traversal.hpp"
+
+namespace probslam {
+namespace {
+
+// The distance along the ray o + t d (unit d) at which it enters cell (kx, ky): the largest of
+// the near-slab distances per axis, 0 for the cell holding the origin.
+double entry_distance(const GridLattice2D& lattice, const double* o, const double* d, int kx, int ky) {
+  double t = 0.0;
+  const int key[2] = {kx, ky};
+  for (int axis = 0; axis < 2; ++axis) {
+    if (d[axis] == 0.0) continue;
+    const double lo = lattice.key_to_coord(axis, key[axis]) - 0.5 * lattice.res;
+    const double near = d[axis] > 0.0 ? lo : lo + lattice.res;
+    t = std::max(t, (near - o[axis]) / d[axis]);
+  }
+  return t;
+}
+
+// Calls visit(cell, range) for the cells a laser ray crosses, in walk order (increasing range),
+// while range < max_range; visit returns false to stop.
+template <class Visit>
+void walk_laser(const GridLattice2D& lattice, int width, int height, const Eigen::Vector3d& pose, double beam_angle,
+                double max_range, Visit&& visit) {
+  const double a = pose[2] + beam_angle;
+  const double d[2] = {std::cos(a), std::sin(a)};
+  const double o[2] = {pose[0], pose[1]};
+  // Walk two cells past max_range: walk_ray leaves out the end's cell, and every cell entered
+  // before max_range lies then strictly before the end's cell.
+  const double length = max_range + 2.0 * lattice.res;
+  const double end[2] = {o[0] + length * d[0], o[1] + length * d[1]};
+  const KeyBox<2> box{{0, 0}, {width, height}};
+  walk_ray_in_box<2, double>(lattice, box, o, end, [&](const CellKey<2>& k) {
+    const double t = entry_distance(lattice, o, d, k[0], k[1]);
+    if (!(t < max_range)) return false;  // the walk is monotone: every later cell is farther
+    return visit(static_cast<std::int32_t>(k[1]) * width + k[0], t);
+  });
+}
+
+// Calls visit(cell, range) for every cell whose centre lies in the sonar cone closer than
+// max_range, in row-major order.
+template <class Visit>
+void scan_cone(const GridLattice2D& lattice, int width, int height, const Eigen::Vector3d& pose, double beam_angle,
+               const BeamGeometry& g, Visit&& visit) {
+  const double bearing = wrap_angle(pose[2] + beam_angle);
+  const double half = 0.5 * g.beta;
+  const double r = g.max_range;
+  // The cone's bounding box: its apex, its two edges' ends, and the disc's extreme points in
+  // the directions the cone contains.
+  double xmin = pose[0], xmax = pose[0], ymin = pose[1], ymax = pose[1];
+  const auto include = [&](double angle) {
+    const double x = pose[0] + r * std::cos(angle), y = pose[1] + r * std::sin(angle);
+    xmin = std::min(xmin, x), xmax = std::max(xmax, x), ymin = std::min(ymin, y), ymax = std::max(ymax, y);
+  };
+  include(bearing - half);
+  include(bearing + half);
+  for (const double axis : {0.0, 0.5 * kPi, kPi, -0.5 * kPi})
+    if (std::fabs(wrap_angle(axis - bearing)) <= half) include(axis);
+  const int row_lo = std::max(0, lattice.key(1, ymin)), row_hi = std::min(height - 1, lattice.key(1, ymax));
+  const int col_lo = std::max(0, lattice.key(0, xmin)), col_hi = std::min(width - 1, lattice.key(0, xmax));
+  for (int row = row_lo; row <= row_hi; ++row) {
+    const double dy = lattice.key_to_coord(1, row) - pose[1];
+    for (int col = col_lo; col <= col_hi; ++col) {
+      const double dx = lattice.key_to_coord(0, col) - pose[0];
+      const double range = std::sqrt(dx * dx + dy * dy);
+      if (!(range < r)) continue;
+      // A centre on the apex has no bearing: it is in every cone.
+      if (range > 0.0 && std::fabs(wrap_angle(std::atan2(dy, dx) - bearing)) > half) continue;
+      visit(static_cast<std::int32_t>(row) * width + col, range);
+    }
+  }
+}
+
+}  // namespace
+
+void BeamGeometry::validate() const {
+  require_positive(max_range, "max_range");
+  if (shape == BeamShape::kSonar)
+    require(std::isfinite(beta) && beta > 0.0 && beta <= kTwoPi, "beta", "must be a cone opening angle in (0, 2 pi] rad");
+}
+
+void beam_footprint(const GridLattice2D& lattice, int width, int height, const Eigen::Vector3d& pose,
+                    double beam_angle, const BeamGeometry& geometry, std::vector<FootprintCell>& out) {
+  out.clear();
+  if (geometry.shape == BeamShape::kLaser) {
+    walk_laser(lattice, width, height, pose, beam_angle, geometry.max_range, [&](std::int32_t cell, double t) {
+      out.push_back({cell, t});
+      return true;
+    });
+    return;
+  }
+  scan_cone(lattice, width, height, pose, beam_angle, geometry,
+            [&](std::int32_t cell, double range) { out.push_back({cell, range}); });
+  std::stable_sort(out.begin(), out.end(),
+                   [](const FootprintCell& a, const FootprintCell& b) { return a.range < b.range; });
+}
+
+double expected_range(const BinaryMap2D& map, const Eigen::Vector3d& pose, double beam_angle,
+                      const BeamGeometry& geometry) {
+  double nearest = geometry.max_range;
+  if (geometry.shape == BeamShape::kLaser) {
+    walk_laser(map.lattice(), map.width(), map.height(), pose, beam_angle, geometry.max_range,
+               [&](std::int32_t cell, double t) {
+                 if (!map.occupied(static_cast<std::size_t>(cell))) return true;
+                 nearest = t;
+                 return false;
+               });
+    return nearest;
+  }
+  scan_cone(map.lattice(), map.width(), map.height(), pose, beam_angle, geometry, [&](std::int32_t cell, double range) {
+    if (map.occupied(static_cast<std::size_t>(cell))) nearest = std::min(nearest, range);
+  });
+  return nearest;
+}
+
+}  // namespace probslam
