@@ -2,6 +2,7 @@
 
 #include <cmath>
 #include <cstdint>
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <map>
@@ -58,13 +59,13 @@ std::string stem_of(const std::string& path) {
 }
 
 double parse_number(const std::string& text, const std::string& where, const std::string& key) {
-  std::size_t used = 0;
-  double v = 0.0;
-  try {
-    v = std::stod(text, &used);
-  } catch (const std::exception&) {
-    fail(where, key + " is not a number: '" + text + "'");
-  }
+  // strtod, not stod: stod throws on underflow, so a subnormal value this writer itself wrote
+  // (e.g. free_thresh 4.9e-324) could not be read back. Overflow still fails (isfinite below).
+  const char* begin = text.c_str();
+  char* end = nullptr;
+  const double v = std::strtod(begin, &end);
+  if (end == begin) fail(where, key + " is not a number: '" + text + "'");
+  const auto used = static_cast<std::size_t>(end - begin);
   if (trim(text.substr(used)) != "" || !std::isfinite(v)) fail(where, key + " is not a finite number: '" + text + "'");
   return v;
 }

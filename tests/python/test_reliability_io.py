@@ -288,6 +288,16 @@ def test_save_ros_map_thresholds(tmp_path_factory, occupied, free):
         assert back.same_geometry(grid) and np.all(np.isfinite(back.log_odds))
 
 
+def test_ros_map_with_a_subnormal_threshold_reads_back(tmp_path):
+    """Hypothesis found it: free_thresh 5e-324 was written, then refused on loading ("not a
+    number": the reader's stod throws on underflow)."""
+    grid = ps.OccupancyGrid2D(0.1, 4, 3)
+    grid.log_odds[:] = np.linspace(-3, 3, 12).reshape(3, 4)
+    io.save_ros_map(grid, tmp_path / "m.yaml", 0.65, 5e-324)
+    back = io.load_ros_map(tmp_path / "m.yaml")
+    assert back.same_geometry(grid) and np.all(np.isfinite(back.log_odds))
+
+
 @settings(max_examples=20, deadline=None)
 @given(thresh=policy.odd_objects())
 def test_save_ros_map_odd_objects(tmp_path_factory, thresh):
