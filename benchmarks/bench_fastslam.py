@@ -16,7 +16,7 @@ SLAM and dead reckoning beside them.
 Table 4, two threads against one, same seed: speed-up and whether the results are identical,
 next to what two processes get on the machine at that moment (other jobs may hold the cores).
 
-    OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_fastslam.py [--quick] [--no-record]
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_fastslam.py [--quick] [--record]
 
 --quick: short runs, maps of 100 and 1000 landmarks, the first 500 Victoria Park poses (a smoke
 run; not recorded). Without ../shared/data (or $PROBSLAM_SHARED_DATA) Table 3 and the Victoria
@@ -518,7 +518,7 @@ def table_threads(run, vp):
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--quick", action="store_true", help="short runs, small maps (not recorded)")
-    parser.add_argument("--no-record", action="store_true", help="print only; do not append to RESULTS.md")
+    parser.add_argument("--record", action="store_true", help="write the table into benchmarks/RESULTS.md (replacing its previous run)")
     args = parser.parse_args()
     load = os.getloadavg()[0]
     run = simulated_run(200 if args.quick else 1000)
@@ -543,7 +543,7 @@ def main():
               f"cores; OPENBLAS_NUM_THREADS={os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}).",
               f"Command: `OPENBLAS_NUM_THREADS=1 python benchmarks/bench_fastslam.py{' --quick' if args.quick else ''}`.",
               ""]
-    report(lines, record=not (args.quick or args.no_record))
+    report(lines, record=args.record and not args.quick)
 
 
 if __name__ == "__main__":

@@ -1,8 +1,8 @@
 """2-D occupancy grid benchmark: insert_rays and insert_cone_scan next to plain-Python and numpy
-implementations of the same updates, in the same run. Prints a table and appends it to
-benchmarks/RESULTS.md.
+implementations of the same updates, in the same run. Prints a table; --record writes it
+into benchmarks/RESULTS.md.
 
-    .venv/bin/python benchmarks/bench_grid2d.py [--quick]
+    .venv/bin/python benchmarks/bench_grid2d.py [--quick] [--record]
 """
 
 import argparse
@@ -123,6 +123,7 @@ def cone_rows(poses, ranges, angles, z_max, res, bounds):
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--quick", action="store_true", help="fewer scans (for a smoke run)")
+    parser.add_argument("--record", action="store_true", help="write the table into benchmarks/RESULTS.md (replacing its previous run)")
     args = parser.parse_args()
     rng = np.random.default_rng(0)
     n = 20 if args.quick else 200
@@ -150,7 +151,7 @@ def main():
     lines += ["", "Ray cells: cells the exact walks visit, |dkx| + |dky| per beam (an update each, de-duplicated per scan);",
               "Disc cells: the pi (z_max / res)^2 cells of the perceptual field a Table 9.1 loop must consider;",
               "cells changed: cells whose log-odds a scan updated (each at most once per scan for insert_rays).", ""]
-    report(lines, record=not args.quick)
+    report(lines, record=args.record and not args.quick)
 
 
 if __name__ == "__main__":

@@ -5,7 +5,7 @@ Runs the C++ benchmark (benchmarks/bench_grid3d.cpp; build it with
 once per implementation, resolution and thread count, so that each peak RSS is its own, on the
 same simulated clouds (a 64-beam lidar circling a 60 x 60 m courtyard, ~100 k points per scan,
 20 m max range), checks that both maps hold the same voxels with the same log-odds
-(fingerprint), and prints a markdown table; --record appends it to RESULTS.md.
+(fingerprint), and prints a markdown table; --record writes it into RESULTS.md.
 
     python benchmarks/bench_grid3d.py [--scans 100] [--scans-fine 25] [--record]
 """
@@ -40,7 +40,7 @@ def main():
     ap.add_argument("--binary", default=str(DEFAULT_BINARY))
     ap.add_argument("--scans", type=int, default=100, help="scans at 0.1 m")
     ap.add_argument("--scans-fine", type=int, default=25, help="scans at 0.05 m (OctoMap needs ~8 s per scan)")
-    ap.add_argument("--record", action="store_true", help="append the table to RESULTS.md")
+    ap.add_argument("--record", action="store_true", help="write the table into benchmarks/RESULTS.md (replacing its previous run)")
     args = ap.parse_args()
 
     rows = []

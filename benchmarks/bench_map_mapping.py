@@ -4,10 +4,10 @@ through an index built once) against the literal table, which re-evaluates eq. 9
 scratch (every reading's cone cast again) for each candidate flip, in the same run. The literal
 version would take hours, so it is timed on a prefix of the same run's candidate flips (its
 per-candidate cost is the slope between two prefix lengths, which removes its set-up) and
-extrapolated to the incremental run's number of candidates. Prints a table and appends it to
-benchmarks/RESULTS.md.
+extrapolated to the incremental run's number of candidates. Prints a table; --record writes it
+into benchmarks/RESULTS.md.
 
-    .venv/bin/python benchmarks/bench_map_mapping.py [--quick]
+    .venv/bin/python benchmarks/bench_map_mapping.py [--quick] [--record]
 """
 
 import argparse
@@ -52,6 +52,7 @@ def free_poses(occ: np.ndarray, n: int, rng) -> np.ndarray:
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--quick", action="store_true", help="1 000 readings (for a smoke run)")
+    parser.add_argument("--record", action="store_true", help="write the table into benchmarks/RESULTS.md (replacing its previous run)")
     args = parser.parse_args()
     rng = np.random.default_rng(0)
     sonars = 16
@@ -108,7 +109,7 @@ def main():
         f"{inc.evaluations} candidates; its first {n_flips} flips are the incremental run's: {same}.",
         "",
     ]
-    report(lines, record=not args.quick)
+    report(lines, record=args.record and not args.quick)
 
 
 if __name__ == "__main__":

@@ -7,7 +7,7 @@ number of landmarks in the (best) map (15 surveyed), the map RMSE after a rigid 
 the survey (Dataset 1's exchanged survey labels corrected, as the CLI does), and the filter time.
 
     .venv/bin/python benchmarks/bench_mrclam_association.py [--jobs 2] [--robots 1 2] [--datasets 1 7]
-        [--methods jcbb mht fastslam1 fastslam2] [--seconds S] [--no-record]
+        [--methods jcbb mht fastslam1 fastslam2] [--seconds S] [--record]
 
 Needs ../shared/data/landmark_slam (skips with a message without it).
 """
@@ -70,7 +70,7 @@ def main() -> int:
     parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
     parser.add_argument("--particles", type=int, default=100, help="FastSLAM particles (default 100)")
     parser.add_argument("--seconds", type=float, default=None, help="only the first SECONDS of each robot")
-    parser.add_argument("--no-record", action="store_true", help="print only; do not append to RESULTS.md")
+    parser.add_argument("--record", action="store_true", help="write the table into benchmarks/RESULTS.md (replacing its previous run)")
     args = parser.parse_args()
     if not DATA.is_dir():
         print(f"skipped: {DATA} not found")
@@ -100,7 +100,7 @@ def main() -> int:
         ok = sum(r["correct"] >= 0.95 and abs(r["landmarks"] - r["seen"]) <= 1 for r in rs)
         lines.append(f"- {m}: mean {np.mean([r['correct'] for r in rs]):.1%} correct, worst "
                      f"{min(r['correct'] for r in rs):.1%}; {ok} of {len(rs)} runs at >= 95% with one landmark per barcode seen +- 1")
-    report(lines, record=not args.no_record)
+    report(lines, record=args.record)
     return 0
 
 

@@ -5,7 +5,7 @@ For each dataset: file-to-result time (read + optimise to convergence), time per
 is half of it; its first pose gets a tight prior, ours is held fixed: the same gauge). The median
 of `--repeat` runs is reported. g2o's command line tool is used when installed (`g2o` on PATH).
 
-    python benchmarks/bench_pose_graph.py [--repeat 5] [--quick]
+    python benchmarks/bench_pose_graph.py [--repeat 5] [--quick] [--record]
 """
 
 import argparse
@@ -200,6 +200,7 @@ def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--repeat", type=int, default=5)
     parser.add_argument("--quick", action="store_true", help="one run, Intel only, nothing recorded")
+    parser.add_argument("--record", action="store_true", help="write the table into benchmarks/RESULTS.md (replacing its previous run)")
     args = parser.parse_args()
     try:
         import gtsam  # noqa: F401
@@ -230,7 +231,7 @@ def main():
         lines += victoria_park_lines(repeat)
     if shutil.which("g2o") is None:
         lines += ["", "g2o: no `g2o` command-line tool on this machine, so no g2o column."]
-    report(lines, record=not args.quick)
+    report(lines, record=args.record and not args.quick)
 
 
 if __name__ == "__main__":

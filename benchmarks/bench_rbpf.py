@@ -9,7 +9,7 @@ Table 2, each raw log whole (ACES, Intel, FR079), 30 particles, scan-matching pr
 time, real-time factor, memory, and the ACES relations error.
 Table 3, threads: 30 particles on the ACES excerpt with 1 and 2 threads (identical results).
 
-    .venv/bin/python benchmarks/bench_rbpf.py [--quick] [--no-record] [--figures DIR]
+    .venv/bin/python benchmarks/bench_rbpf.py [--quick] [--record] [--figures DIR]
 
 --quick: the sweep only, on 500 scans (a smoke run; not recorded). Missing logs are skipped.
 --figures DIR: the best particle's map and path of each whole log as DIR/rbpf_<log>.png.
@@ -88,7 +88,7 @@ def row(label, result, extra="", aces=True):
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--quick", action="store_true", help="the particle sweep on 500 scans (not recorded)")
-    parser.add_argument("--no-record", action="store_true", help="print only; do not append to RESULTS.md")
+    parser.add_argument("--record", action="store_true", help="write the table into benchmarks/RESULTS.md (replacing its previous run)")
     parser.add_argument("--figures", type=pathlib.Path, help="write rbpf_<log>.png map pictures into this folder")
     args = parser.parse_args()
     aces = LASER / LOGS["aces"][1]
@@ -132,7 +132,7 @@ def main():
               "over filter updates (one every 0.25 m or 0.25 rad). Tiles held: summed over the particles (what "
               "unshared maps would take); distinct: allocated once and shared.",
               f"Command: `python benchmarks/bench_rbpf.py{' --quick' if args.quick else ''}`.", ""]
-    report(lines, record=not (args.quick or args.no_record))
+    report(lines, record=args.record and not args.quick)
 
 
 if __name__ == "__main__":

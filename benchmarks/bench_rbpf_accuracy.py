@@ -6,7 +6,7 @@ A particle filter's result depends on its random stream, so each cell is given f
 (mean +- std of the relation errors, m) and the seeds' mean. Runs go in parallel processes
 (--jobs): this table is about accuracy; bench_rbpf.py measures time on one core.
 
-    .venv/bin/python benchmarks/bench_rbpf_accuracy.py [--jobs 2] [--seeds 0 1] [--no-record]
+    .venv/bin/python benchmarks/bench_rbpf_accuracy.py [--jobs 2] [--seeds 0 1] [--record]
 """
 
 import argparse
@@ -46,7 +46,7 @@ def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--jobs", type=int, default=2, help="parallel processes (default 2)")
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1], help="random seeds (default 0 1)")
-    parser.add_argument("--no-record", action="store_true", help="print only; do not append to RESULTS.md")
+    parser.add_argument("--record", action="store_true", help="write the table into benchmarks/RESULTS.md (replacing its previous run)")
     args = parser.parse_args()
     if not (ACES.exists() and RELATIONS.exists()):
         print(f"bench_rbpf_accuracy: {ACES} or {RELATIONS} not found; nothing to run")
@@ -77,7 +77,7 @@ def main():
     lines += ["", "Published: GMapping-style RBPF, 50 particles, 0.060 m (Kuemmerle et al. 2009).",
               f"Command: `python benchmarks/bench_rbpf_accuracy.py --jobs {args.jobs} --seeds "
               f"{' '.join(map(str, args.seeds))}`.", ""]
-    report(lines, record=not args.no_record)
+    report(lines, record=args.record)
 
 
 if __name__ == "__main__":

@@ -3,8 +3,8 @@ modes (branch and bound without refinement, branch and bound with refinement, C+
 next to a vectorised numpy brute force of the same window in the same run: the same lattice (the
 same linear cells, the same angular steps as the C++ search reports, the same likelihood-field
 table and the same discretisation of the rotated scan). The numpy search and every C++ mode must
-find the same best lattice pose ('same best'). Prints a table and appends it to
-benchmarks/RESULTS.md.
+find the same best lattice pose ('same best'). Prints a table; --record writes it
+into benchmarks/RESULTS.md.
 
 Workloads: (a) simulated scans in a 10 x 8 m room with a pillar (as in
 tests/python/test_scan_matching.py); (b) when ../shared/data/laser_2d/aces exists, scans of the
@@ -12,7 +12,7 @@ ACES corrected log matched against a local map of the 10 scans before them, inse
 corrected poses. Each scan's prior is its true (corrected) pose perturbed by up to 0.2 m and
 0.1 rad; window +-0.3 m, +-0.35 rad, automatic angular step; no odometry prior term.
 
-    .venv/bin/python benchmarks/bench_scan_matching.py [--quick]
+    .venv/bin/python benchmarks/bench_scan_matching.py [--quick] [--record]
 """
 
 import argparse
@@ -209,6 +209,7 @@ def describe(name, problems, lattice):
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--quick", action="store_true", help="fewer scans (for a smoke run; not recorded)")
+    parser.add_argument("--record", action="store_true", help="write the table into benchmarks/RESULTS.md (replacing its previous run)")
     args = parser.parse_args()
     rng = np.random.default_rng(0)
     repeat = 1 if args.quick else 3
@@ -237,7 +238,7 @@ def main():
               "same best: scans whose best lattice pose (search_pose) equals the numpy brute force's; a tie is a",
               "different pose of equal score. Every mode also computes the response-surface covariance",
               "(343 interpolated scores); 'refinement' adds Gauss-Newton on the interpolated field.", ""]
-    report(lines, record=not args.quick)
+    report(lines, record=args.record and not args.quick)
 
 
 if __name__ == "__main__":

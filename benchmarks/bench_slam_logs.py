@@ -19,7 +19,7 @@ Accuracy, for the GraphSLAM trajectory (result.poses) and for incremental scan m
   says so.
 
     .venv/bin/python benchmarks/bench_slam_logs.py [--logs aces intel fr079 mit_csail]
-        [--figures DIR] [--quick] [--no-record]
+        [--figures DIR] [--quick] [--record]
 
 --figures DIR writes DIR/slam_<log>.png (probslam.io.write_png of the map with the GraphSLAM
 trajectory in red). --quick runs the first 1500 scans of each log (a CI-time check; not recorded).
@@ -213,7 +213,7 @@ def main():
     parser.add_argument("--figures", type=pathlib.Path, help="write DIR/slam_<log>.png for each log")
     parser.add_argument("--quick", action="store_true",
                         help=f"the first {QUICK_SCANS} scans of each log (a smoke run; not recorded)")
-    parser.add_argument("--no-record", action="store_true", help="print only; do not append to RESULTS.md")
+    parser.add_argument("--record", action="store_true", help="write the table into benchmarks/RESULTS.md (replacing its previous run)")
     parser.add_argument("--method", choices=ps.slam.METHODS, default="graph",
                         help="graph (GraphSLAM over submaps, default) or rbpf (grid-based FastSLAM)")
     parser.add_argument("--option", action="append", default=[], metavar="NAME=VALUE",
@@ -246,8 +246,10 @@ def main():
     if not runs:
         print(f"bench_slam_logs: no raw log found under {LASER}; nothing to run")
         return
+    # A run over some of the logs is its own RESULTS.md section (--record replaces by title).
+    subset = "" if set(args.logs) == set(LOGS) else f" ({', '.join(LOGS[n][0] for n in args.logs)})"
     title = ("SLAM on raw laser logs" if args.method == "graph" else "Grid-based FastSLAM on raw laser logs") + \
-        (f" (quick: first {QUICK_SCANS} scans)" if args.quick else "")
+        subset + (f" (quick: first {QUICK_SCANS} scans)" if args.quick else "")
     shown_options = ", ".join(f"{k}={v!r}" for k, v in options.items()) or "default options"
     columns = (["log", "scans", "submaps", "closures accepted / rejected / dissolved"] if args.method == "graph" else
                ["log", "scans", "filter", "particle updates scan-matched / fallbacks"])
@@ -271,7 +273,7 @@ def main():
               f"{' --method ' + args.method if args.method != 'graph' else ''}"
               f"{''.join(' --option ' + o for o in args.option)}"
               f" --logs {' '.join(args.logs)}{' --figures ' + str(shown) if shown else ''}`.", ""]
-    report(lines, record=not (args.quick or args.no_record))
+    report(lines, record=args.record and not args.quick)
 
 
 if __name__ == "__main__":

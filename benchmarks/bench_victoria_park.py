@@ -1,7 +1,7 @@
 """Victoria Park, full run with known correspondences (6 969 poses, 3 640 sightings, 151
 landmarks): probslam's EkfSlam next to a dense numpy EKF of the same equations (odometry as a
 relative pose, sequential range-bearing updates, state augmentation) in the same run. The two
-final states must agree; prints a table and, with --record, appends it to benchmarks/RESULTS.md.
+final states must agree; prints a table and, with --record, writes it into benchmarks/RESULTS.md.
 
     OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_victoria_park.py [FILE] [--record]
 """
@@ -96,7 +96,7 @@ def run(filter_, data, z, by_pose):
 def main() -> None:
     parser = argparse.ArgumentParser()
     parser.add_argument("file", nargs="?", default=str(DEFAULT))
-    parser.add_argument("--record", action="store_true")
+    parser.add_argument("--record", action="store_true", help="write the table into benchmarks/RESULTS.md (replacing its previous run)")
     args = parser.parse_args()
     data = ps.io.read_victoria_park(args.file)
     z, z_cov = ls.polar_measurements(data.xy, data.xy_cov)

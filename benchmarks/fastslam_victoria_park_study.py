@@ -3,7 +3,7 @@ negative information, over seeds. Per run: the best particle's landmark count (1
 dataset), the share of its sightings that went to their landmark's majority tree, its path RMSE
 against the GraphSLAM optimum (chi2 6184.12, bench_fastslam.graphslam_optimum) and the CPU time.
 
-    .venv/bin/python benchmarks/fastslam_victoria_park_study.py [--jobs 2] [--seeds 0 1 2 3] [--no-record]
+    .venv/bin/python benchmarks/fastslam_victoria_park_study.py [--jobs 2] [--seeds 0 1 2 3] [--record]
 
 Needs ../shared/data/landmark_slam/victoria_park (skips with a message without it).
 """
@@ -60,7 +60,7 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3])
-    parser.add_argument("--no-record", action="store_true", help="print only; do not append to RESULTS.md")
+    parser.add_argument("--record", action="store_true", help="write the table into benchmarks/RESULTS.md (replacing its previous run)")
     args = parser.parse_args()
     if not bf.VICTORIA_PARK.exists():
         print(f"skipped: {bf.VICTORIA_PARK} not found")
@@ -81,7 +81,7 @@ def main() -> int:
         rmse = " / ".join(f"{r['rmse']:.1f}" for r in rs)
         lines.append(f"| {label} | {landmarks} | {correct} | {rmse} | {np.median([r['rmse'] for r in rs]):.1f} | "
                      f"{np.mean([r['cpu'] for r in rs]):.2f} |")
-    report(lines, record=not args.no_record)
+    report(lines, record=args.record)
     return 0
 
 
