@@ -1,6 +1,7 @@
 #include <functional>
 
 #include "numpy.hpp"
+#include "repr.hpp"
 #include "probslam/core/check.hpp"
 #include "probslam/core/angle.hpp"
 #include "probslam/core/pose2.hpp"
@@ -42,16 +43,17 @@ void define_core(py::module_& m) {
       .def(py::init([](double x, double y, double theta) {
              return Pose2::from_vector(Eigen::Vector3d(x, y, theta));
            }),
-           py::arg("x") = 0.0, py::arg("y") = 0.0, py::arg("theta") = 0.0)
+           py::arg("x") = 0.0, py::arg("y") = 0.0, py::arg("theta") = 0.0,
+           "Pose at (x, y) metres with heading theta radians (wrapped to (-pi, pi]).")
       .def_static("from_array", [](py::handle a) { return Pose2::from_vector(pose_arg(a, "array")); },
                   py::arg("array"), "Pose from a (3,) array (x, y, theta).")
-      .def_readonly("x", &Pose2::x)
-      .def_readonly("y", &Pose2::y)
-      .def_readonly("theta", &Pose2::theta)
+      .def_readonly("x", &Pose2::x, "x position, metres.")
+      .def_readonly("y", &Pose2::y, "y position, metres.")
+      .def_readonly("theta", &Pose2::theta, "Heading, radians in (-pi, pi].")
       .def("as_array", &Pose2::vector, "(3,) array (x, y, theta).")
       .def("compose", &Pose2::compose, py::arg("other"), "self (+) other.")
-      .def("__mul__", &Pose2::compose)
-      .def("inverse", &Pose2::inverse)
+      .def("__mul__", &Pose2::compose, "self * other is self.compose(other).")
+      .def("inverse", &Pose2::inverse, "The pose p with self (+) p = identity.")
       .def("between", &Pose2::between, py::arg("other"), "self^-1 (+) other.")
       .def(
           "transform_from",
@@ -66,25 +68,30 @@ void define_core(py::module_& m) {
           },
           py::arg("points"), "World-frame points (2,) or (n, 2) to the body frame.")
       .def("__repr__", [](const Pose2& p) {
-        return "Pose2(x=" + std::to_string(p.x) + ", y=" + std::to_string(p.y) + ", theta=" + std::to_string(p.theta) + ")";
+        return "Pose2(x=" + num(p.x) + ", y=" + num(p.y) + ", theta=" + num(p.theta) + ")";
       });
 
   m.def(
       "velocity_motion",
       [](py::handle pose, double v, double w, double dt) { return velocity_motion(pose_arg(pose), v, w, dt); },
-      py::arg("pose"), py::arg("v"), py::arg("w"), py::arg("dt"));
+      py::arg("pose"), py::arg("v"), py::arg("w"), py::arg("dt"),
+      "Pose (3,) after driving v (m/s) and w (rad/s) for dt (s) from pose (3,) (eq. 5.9 / 10.11,\n"
+      "noise-free); exact through w = 0.");
   m.def(
       "velocity_motion_jacobian",
       [](py::handle pose, double v, double w, double dt) {
         return velocity_motion_jacobian(pose_arg(pose), v, w, dt);
       },
-      py::arg("pose"), py::arg("v"), py::arg("w"), py::arg("dt"));
+      py::arg("pose"), py::arg("v"), py::arg("w"), py::arg("dt"),
+      "(3, 3) Jacobian G = d g / d pose of velocity_motion (Table 10.1 line 4, signs corrected);\n"
+      "pose (3,), v m/s, w rad/s, dt s.");
   m.def(
       "velocity_motion_control_jacobian",
       [](py::handle pose, double v, double w, double dt) {
         return velocity_motion_control_jacobian(pose_arg(pose), v, w, dt);
       },
-      py::arg("pose"), py::arg("v"), py::arg("w"), py::arg("dt"));
+      py::arg("pose"), py::arg("v"), py::arg("w"), py::arg("dt"),
+      "(3, 2) Jacobian V = d g / d (v, w) of velocity_motion; pose (3,), v m/s, w rad/s, dt s.");
 
   m.def(
       "range_bearing",
@@ -94,7 +101,9 @@ void define_core(py::module_& m) {
         if (lm.ndim() == 1 && lm.shape(0) == 3) return py::cast(range_bearing(x, fixed_vector<3>(landmark, "landmark")));
         return py::cast(range_bearing(x, fixed_vector<2>(landmark, "landmark")));
       },
-      py::arg("pose"), py::arg("landmark"));
+      py::arg("pose"), py::arg("landmark"),
+      "Expected measurement (range m, bearing rad) (2,) of landmark (2,) m seen from pose (3,)\n"
+      "(eq. 6.40 without noise); a (3,) landmark (x, y, signature) gives (3,) with the signature.");
   m.def(
       "range_bearing_jacobians",
       [](py::handle pose, py::handle landmark) -> py::tuple {
@@ -107,7 +116,9 @@ void define_core(py::module_& m) {
         const auto j = range_bearing_jacobians(x, fixed_vector<2>(landmark, "landmark"));
         return py::make_tuple(j.pose, j.landmark);
       },
-      py::arg("pose"), py::arg("landmark"));
+      py::arg("pose"), py::arg("landmark"),
+      "(d h / d pose (2, 3), d h / d landmark (2, 2)) of range_bearing; with a (3,) landmark\n"
+      "(3, 3) and (3, 3), the signature passed through.");
   m.def(
       "landmark_from_range_bearing",
       [](py::handle pose, py::handle z) -> py::object {
@@ -121,14 +132,17 @@ void define_core(py::module_& m) {
         }
         return py::cast(landmark_from_range_bearing(x, fixed_vector<2>(z, "z")));
       },
-      py::arg("pose"), py::arg("z"));
+      py::arg("pose"), py::arg("z"),
+      "Landmark position (2,) m from pose (3,) and z = (range m, bearing rad) (Table 10.1 line 10);\n"
+      "a (3,) z (with a signature) gives (x, y, signature).");
   m.def(
       "landmark_from_range_bearing_jacobians",
       [](py::handle pose, py::handle z) {
         const auto j = landmark_from_range_bearing_jacobians(pose_arg(pose), fixed_vector<2>(z, "z"));
         return py::make_tuple(j.pose, j.landmark);
       },
-      py::arg("pose"), py::arg("z"));
+      py::arg("pose"), py::arg("z"),
+      "(d m / d pose (2, 3), d m / d z (2, 2)) of landmark_from_range_bearing; z = (range m, bearing rad).");
 }
 
 }  // namespace probslam::bindings

@@ -6,6 +6,7 @@
 
 #include "numpy.hpp"
 #include "object_lock.hpp"
+#include "repr.hpp"
 #include "probslam/core/check.hpp"
 #include "probslam/ekf/ekf_slam.hpp"
 #include "probslam/ekf/multi_hypothesis_ekf_slam.hpp"
@@ -61,49 +62,84 @@ void define_options(py::module_& m) {
   py::class_<MapManagement>(m, "MapManagement",
                             "Ch. 10.3.3 map management; every part off by default. Values are checked when the "
                             "options are given to a filter.")
-      .def(py::init<>())
-      .def_readwrite("provisional", &MapManagement::provisional)
-      .def_readwrite("min_observations", &MapManagement::min_observations)
-      .def_readwrite("provisional_max_std", &MapManagement::provisional_max_std)
-      .def_readwrite("provisional_max_age", &MapManagement::provisional_max_age)
-      .def_readwrite("existence", &MapManagement::existence)
-      .def_readwrite("existence_hit", &MapManagement::existence_hit)
-      .def_readwrite("existence_miss", &MapManagement::existence_miss)
-      .def_readwrite("existence_threshold", &MapManagement::existence_threshold)
-      .def_readwrite("sensor_range", &MapManagement::sensor_range)
-      .def_readwrite("sensor_fov", &MapManagement::sensor_fov);
+      .def(py::init<>(), "Everything off (the defaults of each field).")
+      .def_readwrite("provisional", &MapManagement::provisional,
+                     "New landmarks first wait on a provisional list (False).")
+      .def_readwrite("min_observations", &MapManagement::min_observations,
+                     "Sightings before a provisional landmark joins the map (3).")
+      .def_readwrite("provisional_max_std", &MapManagement::provisional_max_std,
+                     "... and its largest position standard deviation must be below this, metres (0.5).")
+      .def_readwrite("provisional_max_age", &MapManagement::provisional_max_age,
+                     "Scans without a sighting before a provisional landmark is forgotten (20).")
+      .def_readwrite("existence", &MapManagement::existence, "Keep a per-landmark existence log-odds o_j (False).")
+      .def_readwrite("existence_hit", &MapManagement::existence_hit, "Added to o_j when landmark j is seen (1.0).")
+      .def_readwrite("existence_miss", &MapManagement::existence_miss,
+                     "Subtracted from o_j when j is in the sensor's field but not seen (0.5).")
+      .def_readwrite("existence_threshold", &MapManagement::existence_threshold,
+                     "Landmarks with o_j below this are removed (-1.0).")
+      .def_readwrite("sensor_range", &MapManagement::sensor_range, "Range of the sensor's field, metres (inf).")
+      .def_readwrite("sensor_fov", &MapManagement::sensor_fov,
+                     "Full opening angle of the sensor's field, radians (2 pi).")
+      .def("__repr__", [](py::handle self) {
+        const MapManagement& o = self.cast<const MapManagement&>();
+        return repr_of(self, std::string("provisional ") + (o.provisional ? "on" : "off") + ", existence " +
+                                 (o.existence ? "on" : "off") + ", sensor_range " + num(o.sensor_range) +
+                                 " m, sensor_fov " + num(o.sensor_fov) + " rad");
+      });
 
   py::enum_<Association>(m, "Association", "How update_unknown pairs a scan's measurements with landmarks.")
-      .value("MAXIMUM_LIKELIHOOD", Association::kMaximumLikelihood)
-      .value("JOINT_COMPATIBILITY", Association::kJointCompatibility);
+      .value("MAXIMUM_LIKELIHOOD", Association::kMaximumLikelihood,
+             "Table 10.2: the pairs of smallest Mahalanobis distance first.")
+      .value("JOINT_COMPATIBILITY", Association::kJointCompatibility,
+             "Joint compatibility branch and bound over the scan (Neira & Tardos 2001).");
 
   py::class_<MultiHypothesisOptions>(m, "MultiHypothesisOptions",
                                      "Beam and costs (NIS units) of MultiHypothesisEkfSlam; checked when given to it.")
-      .def(py::init<>())
-      .def_readwrite("max_hypotheses", &MultiHypothesisOptions::max_hypotheses)
-      .def_readwrite("max_children", &MultiHypothesisOptions::max_children)
-      .def_readwrite("gate", &MultiHypothesisOptions::gate)
-      .def_readwrite("new_landmark_cost", &MultiHypothesisOptions::new_landmark_cost)
-      .def_readwrite("clutter_cost", &MultiHypothesisOptions::clutter_cost)
-      .def_readwrite("prune_margin", &MultiHypothesisOptions::prune_margin);
+      .def(py::init<>(), "The defaults of each field.")
+      .def_readwrite("max_hypotheses", &MultiHypothesisOptions::max_hypotheses,
+                     "Filters kept after each scan, the beam (10; at most 1000).")
+      .def_readwrite("max_children", &MultiHypothesisOptions::max_children,
+                     "Assignments of one scan tried per filter, cheapest first (4; at most 100).")
+      .def_readwrite("gate", &MultiHypothesisOptions::gate,
+                     "NIS gate of a pairing candidate (13.8155: chi-square 0.999, 2 dof).")
+      .def_readwrite("new_landmark_cost", &MultiHypothesisOptions::new_landmark_cost,
+                     "Cost of a measurement starting a landmark, NIS units (27.6).")
+      .def_readwrite("clutter_cost", &MultiHypothesisOptions::clutter_cost,
+                     "Cost of dropping a measurement as clutter, NIS units (20).")
+      .def_readwrite("prune_margin", &MultiHypothesisOptions::prune_margin,
+                     "Filters costing more than the best plus this are dropped, NIS units (40).")
+      .def("__repr__", [](py::handle self) {
+        const MultiHypothesisOptions& o = self.cast<const MultiHypothesisOptions&>();
+        return repr_of(self, "max_hypotheses " + std::to_string(o.max_hypotheses) + ", max_children " +
+                                 std::to_string(o.max_children) + ", gate " + num(o.gate) + ", new_landmark_cost " +
+                                 num(o.new_landmark_cost) + ", clutter_cost " + num(o.clutter_cost) +
+                                 ", prune_margin " + num(o.prune_margin));
+      });
 }
 
 void define_ekf_state(py::class_<EkfSlam>& c) {
-  c.def_property_readonly("state_dim", getter(&EkfSlam::state_dim))
-      .def_property_readonly("landmark_dim", getter(&EkfSlam::landmark_dim))
-      .def_property_readonly("num_landmarks", getter(&EkfSlam::num_landmarks))
-      .def_property_readonly("num_provisional", getter(&EkfSlam::num_provisional))
-      .def_property_readonly("capacity", getter(&EkfSlam::capacity))
+  c.def_property_readonly("state_dim", getter(&EkfSlam::state_dim),
+                          "Length of the state: 3 + landmark_dim * num_landmarks.")
+      .def_property_readonly("landmark_dim", getter(&EkfSlam::landmark_dim),
+                             "2 (x, y) m, or 3 with a signature.")
+      .def_property_readonly("num_landmarks", getter(&EkfSlam::num_landmarks), "Landmarks in the state.")
+      .def_property_readonly("num_provisional", getter(&EkfSlam::num_provisional),
+                             "Landmarks waiting on the provisional list (MapManagement.provisional).")
+      .def_property_readonly("capacity", getter(&EkfSlam::capacity),
+                             "State length the storage holds before it grows.")
       .def_property_readonly("landmark_ids",
                              [](const EkfSlam& e) {
                                const std::vector<long> ids = locked(e, [&] { return e.landmark_ids(); });
                                return py::array_t<long>(static_cast<py::ssize_t>(ids.size()), ids.data());
-                             })
+                             },
+                             "(N,) int64 ids of the landmarks in state order.")
       .def_property_readonly("mean",
                              [](const EkfSlam& e) {
                                auto [s, n] = storage_of(e);
                                return storage_view(s, s->mean.data(), {n}, {sizeof(double)});
-                             })
+                             },
+                             "(state_dim,) mean (x, y, theta, then each landmark), a zero-copy view of the\n"
+                             "storage (stale once the state grows).")
       .def_property_readonly("covariance",
                              [](const EkfSlam& e) {
                                auto [s, n] = storage_of(e);
@@ -112,31 +148,47 @@ void define_ekf_state(py::class_<EkfSlam>& c) {
                                return storage_view(s, s->cov.data(), {n, n},
                                                    {static_cast<py::ssize_t>(sizeof(double)),
                                                     static_cast<py::ssize_t>(cap * sizeof(double))});
-                             })
-      .def_property_readonly("pose", getter(&EkfSlam::pose))
+                             },
+                             "(state_dim, state_dim) covariance, a zero-copy view of the storage (stale once\n"
+                             "the state grows).")
+      .def_property_readonly("pose", getter(&EkfSlam::pose), "(3,) mean pose (x m, y m, theta rad), a copy.")
       .def("landmark", [](const EkfSlam& e, long id) { return locked(e, [&] { return e.landmark(id); }); },
-           py::arg("id"))
+           py::arg("id"), "Mean (landmark_dim,) of landmark id: (x, y) m[, signature].")
       .def("landmark_covariance",
            [](const EkfSlam& e, long id) { return locked(e, [&] { return e.landmark_covariance(id); }); },
-           py::arg("id"))
+           py::arg("id"), "(landmark_dim, landmark_dim) covariance of landmark id.")
       .def("existence", [](const EkfSlam& e, long id) { return locked(e, [&] { return e.existence(id); }); },
-           py::arg("id"))
+           py::arg("id"), "Existence log-odds o_j of landmark id (MapManagement.existence).")
       .def("has_landmark", [](const EkfSlam& e, long id) { return locked(e, [&] { return e.has_landmark(id); }); },
-           py::arg("id"))
+           py::arg("id"), "Whether landmark id is in the state.")
       .def_property(
           "map_management", getter(&EkfSlam::map_management),
-          [](EkfSlam& e, const MapManagement& m) { locked(e, [&] { e.set_map_management(m); }); })
+          [](EkfSlam& e, const MapManagement& m) { locked(e, [&] { e.set_map_management(m); }); },
+          "Map management of update_unknown (a copy; assign a MapManagement to change it).")
       .def_property(
           "gate_distance", getter(&EkfSlam::gate_distance),
-          [](EkfSlam& e, double metres) { locked(e, [&] { e.set_gate_distance(metres); }); })
-      .def("clone", [](const EkfSlam& e) { return locked(e, [&] { return e.clone(); }); });
+          [](EkfSlam& e, double metres) { locked(e, [&] { e.set_gate_distance(metres); }); },
+          "Association candidates: landmarks within this distance (m) of where a measurement places\n"
+          "its landmark, plus three standard deviations (5.0).")
+      .def("clone", [](const EkfSlam& e) { return locked(e, [&] { return e.clone(); }); },
+           "An independent copy with its own storage.")
+      .def("__repr__", [](py::handle self) {
+        const EkfSlam& e = self.cast<const EkfSlam&>();
+        return repr_of(self, locked(e, [&] {
+          const Eigen::Vector3d p = e.pose();
+          return std::to_string(e.num_landmarks()) + " landmarks, state " + std::to_string(e.state_dim()) +
+                 ", pose (" + num(p.x()) + ", " + num(p.y()) + ", " + num(p.z()) + ")";
+        }));
+      });
 }
 
 void define_ekf_calls(py::class_<EkfSlam>& c) {
   c.def(
        "predict",
        &predict_locked<EkfSlam>,
-       py::arg("v"), py::arg("w"), py::arg("dt"), py::arg("noise") = py::none())
+       py::arg("v"), py::arg("w"), py::arg("dt"), py::arg("noise") = py::none(),
+       "Table 10.1 lines 2-5: velocity motion v (m/s), w (rad/s) for dt (s); noise: this call's (3, 3)\n"
+       "pose-space or (2, 2) control-space covariance (default: the filter's motion noise).")
       .def(
           "predict_odometry",
           [](EkfSlam& e, py::handle delta, py::handle noise) {
@@ -144,7 +196,9 @@ void define_ekf_calls(py::class_<EkfSlam>& c) {
             const Eigen::Matrix3d n = square_matrix_arg(noise, "noise", 3);
             locked(e, [&] { e.predict_odometry(d, n); });
           },
-          py::arg("delta"), py::arg("noise"))
+          py::arg("delta"), py::arg("noise"),
+          "Odometry as a relative pose: x <- x (+) delta, delta (3,) (m, m, rad) with covariance noise\n"
+          "(3, 3) in the robot frame.")
       .def(
           "update",
           [](EkfSlam& e, py::handle z, py::handle ids, double gate) {
@@ -154,7 +208,10 @@ void define_ekf_calls(py::class_<EkfSlam>& c) {
             std::vector<bool> used(r.used.begin(), r.used.end());
             return py::make_tuple(r.nis, py::array(py::cast(used)));
           },
-          py::arg("z"), py::arg("ids"), py::arg("gate") = std::numeric_limits<double>::infinity())
+          py::arg("z"), py::arg("ids"), py::arg("gate") = std::numeric_limits<double>::infinity(),
+          "Table 10.1 lines 6-20, known correspondences: z (k, 2) (range m, bearing rad) or (k, 3) with\n"
+          "signatures, ids (k,) landmark ids; new ids are added. Measurements with NIS > gate are\n"
+          "skipped. Returns (nis (k,), NaN for first sightings; used (k,) bool).")
       .def(
           "update_unknown",
           [](EkfSlam& e, py::handle z, double alpha, double alpha_new, Association association) {
@@ -166,9 +223,14 @@ void define_ekf_calls(py::class_<EkfSlam>& c) {
                                   py::array(py::cast(r.removed)));
           },
           py::arg("z"), py::arg("alpha"), py::arg("alpha_new"),
-          py::arg("association") = Association::kMaximumLikelihood)
+          py::arg("association") = Association::kMaximumLikelihood,
+          "Table 10.2, unknown correspondences for a scan z (k, 2) or (k, 3): candidates with\n"
+          "Mahalanobis distance pi <= alpha; a measurement farther than alpha_new from every free\n"
+          "landmark starts a new one. Returns (ids (k,), -1 if none; smallest pi (k,); outcome (k,):\n"
+          "0 associated, 1 new landmark, 2 provisional, 3 discarded; removed ids).")
       .def(
-          "remove_landmark", [](EkfSlam& e, long id) { locked(e, [&] { e.remove_landmark(id); }); }, py::arg("id"))
+          "remove_landmark", [](EkfSlam& e, long id) { locked(e, [&] { e.remove_landmark(id); }); }, py::arg("id"),
+          "Marginalises landmark id out of the state.")
       .def(
           "pairing_likelihood",
           [](const EkfSlam& e, py::handle z, long id) {
@@ -178,20 +240,25 @@ void define_ekf_calls(py::class_<EkfSlam>& c) {
             const EkfSlam::PairingLikelihood p = locked(e, [&] { return e.pairing_likelihood(zi, id); });
             return py::make_tuple(p.nis, p.log_det);
           },
-          py::arg("z"), py::arg("id"));
+          py::arg("z"), py::arg("id"),
+          "(NIS, log det(2 pi S)) of one measurement z (landmark_dim,) against landmark id, without\n"
+          "updating; their sum is -2 log N(nu; 0, S).");
 }
 
 void define_multi_hypothesis(py::module_& m) {
   using Mht = MultiHypothesisEkfSlam;
-  py::class_<Mht>(m, "_MultiHypothesisEkfSlam")
+  py::class_<Mht>(m, "_MultiHypothesisEkfSlam",
+                  "A beam of EKF SLAM filters over data-association hypotheses (probslam.ekf.MultiHypothesisEkfSlam\n"
+                  "is the public face).")
       .def(py::init([](const EkfSlam& initial, const MultiHypothesisOptions& options) {
              return locked(initial, [&] { return std::make_unique<Mht>(initial, options); });
            }),
-           py::arg("initial"), py::arg("options"))
+           py::arg("initial"), py::arg("options"), "One hypothesis, a copy of initial.")
       .def(
           "predict",
           &predict_locked<Mht>,
-          py::arg("v"), py::arg("w"), py::arg("dt"), py::arg("noise") = py::none())
+          py::arg("v"), py::arg("w"), py::arg("dt"), py::arg("noise") = py::none(),
+          "EkfSlam.predict on every hypothesis: v m/s, w rad/s, dt s.")
       .def(
           "update",
           [](Mht& e, py::handle z) {
@@ -199,17 +266,29 @@ void define_multi_hypothesis(py::module_& m) {
             const std::vector<long> ids = locked(e, [&] { return e.update(as_matrix(zz)); });
             return py::array(py::cast(ids));
           },
-          py::arg("z"))
-      .def_property_readonly("best", [](const Mht& e) { return locked(e, [&] { return e.best().clone(); }); })
-      .def_property_readonly("pose", [](const Mht& e) { return locked(e, [&] { return e.best().pose(); }); })
-      .def_property_readonly("num_hypotheses", getter(&Mht::num_hypotheses))
-      .def_property_readonly("total_cost", getter(&Mht::total_cost))
-      .def_property_readonly("costs", [](const Mht& e) { return py::array(py::cast(locked(e, [&] { return e.costs(); }))); })
-      .def_property_readonly("options", getter(&Mht::options))
+          py::arg("z"),
+          "Branches every hypothesis on the assignments of scan z (k, 2) or (k, 3), keeps the beam;\n"
+          "returns the best hypothesis's landmark id per measurement (k,), -1 for clutter.")
+      .def_property_readonly("best", [](const Mht& e) { return locked(e, [&] { return e.best().clone(); }); },
+                             "A copy of the cheapest hypothesis's filter.")
+      .def_property_readonly("pose", [](const Mht& e) { return locked(e, [&] { return e.best().pose(); }); },
+                             "(3,) pose of the cheapest hypothesis.")
+      .def_property_readonly("num_hypotheses", getter(&Mht::num_hypotheses), "Hypotheses in the beam.")
+      .def_property_readonly("total_cost", getter(&Mht::total_cost), "The cheapest hypothesis's cost, NIS units.")
+      .def_property_readonly("costs", [](const Mht& e) { return py::array(py::cast(locked(e, [&] { return e.costs(); }))); },
+                             "(H,) each hypothesis's cost above the best, ascending.")
+      .def_property_readonly("options", getter(&Mht::options), "The MultiHypothesisOptions in use (a copy).")
       .def("history", [](const Mht& e) {
         py::list out;
         for (const auto& ids : locked(e, [&] { return e.history(); })) out.append(py::array(py::cast(ids)));
         return out;
+      }, "The best hypothesis's assignments, one (k,) array of landmark ids per scan so far.")
+      .def("__repr__", [](py::handle self) {
+        const Mht& e = self.cast<const Mht&>();
+        return repr_of(self, locked(e, [&] {
+          return std::to_string(e.num_hypotheses()) + " hypotheses, best " + std::to_string(e.best().num_landmarks()) +
+                 " landmarks, cost " + num(e.total_cost());
+        }));
       });
 }
 
@@ -217,7 +296,9 @@ void define_multi_hypothesis(py::module_& m) {
 
 void define_ekf(py::module_& m) {
   define_options(m);
-  py::class_<EkfSlam> c(m, "_EkfSlam");
+  py::class_<EkfSlam> c(m, "_EkfSlam",
+                        "EKF SLAM (ch. 10) with point landmarks and range-bearing measurements; the public face is\n"
+                        "probslam.ekf.EkfSlam. Units: metres, radians, seconds.");
   c.def(py::init([](py::handle motion_noise, py::handle measurement_noise, bool use_signatures, py::handle initial_pose,
                     py::handle initial_pose_cov) {
           return EkfSlam(square_matrix_arg(motion_noise, "motion_noise"),
@@ -226,7 +307,10 @@ void define_ekf(py::module_& m) {
                          Eigen::Matrix3d(square_matrix_arg(initial_pose_cov, "initial_pose_cov", 3)));
         }),
         py::arg("motion_noise"), py::arg("measurement_noise"), py::arg("use_signatures"), py::arg("initial_pose"),
-        py::arg("initial_pose_cov"));
+        py::arg("initial_pose_cov"),
+        "motion_noise: (3, 3) pose-space R or (2, 2) control-space M of (v, w); measurement_noise: Q,\n"
+        "(2, 2) of (range m, bearing rad) or (3, 3) with the signature; initial_pose (3,),\n"
+        "initial_pose_cov (3, 3).");
   define_ekf_state(c);
   define_ekf_calls(c);
   define_multi_hypothesis(m);

@@ -10,6 +10,7 @@
 #include "kwargs.hpp"
 #include "numpy.hpp"
 #include "object_lock.hpp"
+#include "repr.hpp"
 #include "probslam/fastslam/fast_slam.hpp"
 
 namespace probslam::bindings {
@@ -66,30 +67,37 @@ py::array_t<T> vector_out(const std::vector<T>& v) {
 }
 
 void define_state(py::class_<FastSlam>& c) {
-  c.def_property_readonly("num_particles", getter(&FastSlam::num_particles))
-      .def_property_readonly("version", getter(&FastSlam::version))
-      .def_property_readonly("landmark_dim", getter(&FastSlam::landmark_dim))
-      .def_property_readonly("poses", getter(&FastSlam::poses))
-      .def_property_readonly("log_weights", getter(&FastSlam::log_weights))
+  c.def_property_readonly("num_particles", getter(&FastSlam::num_particles), "M, the number of particles.")
+      .def_property_readonly("version", getter(&FastSlam::version), "1 or 2 (FastSLAM 1.0 or 2.0).")
+      .def_property_readonly("landmark_dim", getter(&FastSlam::landmark_dim),
+                             "Measurement length: 2 (range, bearing) or 3 with a signature.")
+      .def_property_readonly("poses", getter(&FastSlam::poses), "(M, 3) particle poses (x m, y m, theta rad).")
+      .def_property_readonly("log_weights", getter(&FastSlam::log_weights), "(M,) normalised log weights (log-sum-exp 0).")
       .def_property_readonly("weights",
                              [](const FastSlam& f) {
                                return Eigen::VectorXd(locked(f, [&] { return f.log_weights(); }).array().exp());
-                             })
-      .def_property_readonly("last_log_likelihoods", getter(&FastSlam::last_log_likelihoods))
-      .def_property_readonly("effective_sample_size", getter(&FastSlam::effective_sample_size))
-      .def_property_readonly("best_index", getter(&FastSlam::best_index))
+                             },
+                             "(M,) weights summing to 1.")
+      .def_property_readonly("last_log_likelihoods", getter(&FastSlam::last_log_likelihoods),
+                             "(M,) log of each particle's weight factor in the last update.")
+      .def_property_readonly("effective_sample_size", getter(&FastSlam::effective_sample_size),
+                             "N_eff = 1 / sum w^2.")
+      .def_property_readonly("best_index", getter(&FastSlam::best_index), "Index of the particle of highest weight.")
       .def_property_readonly("best_path",
-                             [](const FastSlam& f) { return locked(f, [&] { return f.path(f.best_index()); }); })
-      .def_property_readonly("mean_pose", getter(&FastSlam::mean_pose))
-      .def_property_readonly("pose_covariance", getter(&FastSlam::pose_covariance))
-      .def_property_readonly("num_resamples", getter(&FastSlam::num_resamples))
-      .def_property_readonly("resampled", getter(&FastSlam::resampled))
+                             [](const FastSlam& f) { return locked(f, [&] { return f.path(f.best_index()); }); },
+                             "(T + 1, 3) the best particle's path, oldest first.")
+      .def_property_readonly("mean_pose", getter(&FastSlam::mean_pose),
+                             "(3,) weighted mean pose, heading by circular mean.")
+      .def_property_readonly("pose_covariance", getter(&FastSlam::pose_covariance),
+                             "(3, 3) weighted covariance of the poses about mean_pose.")
+      .def_property_readonly("num_resamples", getter(&FastSlam::num_resamples), "Resamplings so far.")
+      .def_property_readonly("resampled", getter(&FastSlam::resampled), "Whether the last update resampled.")
       .def_property_readonly("ancestors", [](const FastSlam& f) {
         return locked(f, [&] {
           const std::vector<int>& a = f.last_ancestors();
           return Eigen::VectorXi(Eigen::Map<const Eigen::VectorXi>(a.data(), static_cast<Eigen::Index>(a.size())));
         });
-      })
+      }, "(M,) int32: after a resampling, particle j's ancestor index; otherwise (0,).")
       .def_property_readonly("map_sharing",
                              [](const FastSlam& f) {
                                const MapSharing s = locked(f, [&] { return f.map_sharing(); });
@@ -99,12 +107,15 @@ void define_state(py::class_<FastSlam>& c) {
                                d["landmarks"] = s.landmarks;
                                d["path_nodes"] = s.path_nodes;
                                return d;
-                             })
+                             },
+                             "Dict: distinct_nodes (tree nodes allocated for all maps), total_nodes (sum of\n"
+                             "per-particle nodes: what deep copies would hold), landmarks (sum of per-particle\n"
+                             "counts), path_nodes.")
       .def("path", [](const FastSlam& f, int index) { return locked(f, [&] { return f.path(index); }); },
-           py::arg("index"))
+           py::arg("index"), "(T + 1, 3) particle index's path, oldest first.")
       .def("num_landmarks",
            [](const FastSlam& f, int index) { return locked(f, [&] { return f.particle(index).map.size(); }); },
-           py::arg("index"))
+           py::arg("index"), "Number of landmarks in particle index's map.")
       .def(
           "landmarks",
           [](const FastSlam& f, int index) {
@@ -122,7 +133,8 @@ void define_state(py::class_<FastSlam>& c) {
             }
             return py::make_tuple(ids, means, covs);
           },
-          py::arg("index"))
+          py::arg("index"),
+          "Particle index's landmarks by id: (ids (K,), means (K, 2) m, covariances (K, 2, 2) m^2).")
       .def(
           "landmark_details",
           [](const FastSlam& f, int index) {
@@ -141,13 +153,15 @@ void define_state(py::class_<FastSlam>& c) {
             d["signature_var"] = signature_var;
             return d;
           },
-          py::arg("index"));
+          py::arg("index"),
+          "Dict of (K,) arrays existence, signature, signature_var, in the order of landmarks(index).");
 }
 
 void define_calls(py::class_<FastSlam>& c) {
   c.def(
        "predict", [](FastSlam& f, double v, double w, double dt) { locked(f, [&] { f.predict(v, w, dt); }); },
-       py::arg("v"), py::arg("w"), py::arg("dt"))
+       py::arg("v"), py::arg("w"), py::arg("dt"),
+       "Samples each particle's pose from the velocity motion model: v m/s, w rad/s, dt s.")
       .def(
           "predict_odometry",
           [](FastSlam& f, py::handle delta, py::handle noise) {
@@ -155,7 +169,8 @@ void define_calls(py::class_<FastSlam>& c) {
             const Eigen::Matrix3d n = square_matrix_arg(noise, "noise", 3);
             locked(f, [&] { f.predict_odometry(d, n); });
           },
-          py::arg("delta"), py::arg("noise"))
+          py::arg("delta"), py::arg("noise"),
+          "x <- x (+) (delta + e), e ~ N(0, noise (3, 3)) in the robot frame; delta (3,) (m, m, rad).")
       .def(
           "update",
           [](FastSlam& f, py::handle z, py::handle ids) {
@@ -163,7 +178,9 @@ void define_calls(py::class_<FastSlam>& c) {
             const std::vector<long> id = ids_arg(ids, zz.shape(0));
             return locked(f, [&] { return f.update(as_matrix(zz), id); });
           },
-          py::arg("z"), py::arg("ids"))
+          py::arg("z"), py::arg("ids"),
+          "Known correspondences: z (k, 2) (range m, bearing rad) or (k, 3), ids (k,) >= 0. Returns whether\n"
+          "it resampled.")
       .def(
           "update_unknown",
           [](FastSlam& f, py::handle z, std::optional<double> p_new) {
@@ -190,22 +207,56 @@ void define_calls(py::class_<FastSlam>& c) {
             }
             return py::make_tuple(ids, is_new, removed);
           },
-          py::arg("z"), py::arg("p_new") = py::none())
-      .def("resample", [](FastSlam& f) { locked(f, [&] { f.resample(); }); })
-      .def("copy", [](const FastSlam& f) { return locked(f, [&] { return FastSlam(f); }); });
+          py::arg("z"), py::arg("p_new") = py::none(),
+          "Per-particle maximum-likelihood correspondences for a scan z (k, 2) or (k, 3); p_new (1 / (m\n"
+          "rad)) overrides the option. Returns (ids (M, k), is_new (M, k), removed (R, 2) rows of\n"
+          "(particle, landmark id) removed by negative information), rows following the particles after\n"
+          "any resampling of this call.")
+      .def("resample", [](FastSlam& f) { locked(f, [&] { f.resample(); }); }, "Low-variance resampling now, whatever N_eff.")
+      .def("copy", [](const FastSlam& f) { return locked(f, [&] { return FastSlam(f); }); },
+           "An independent copy (maps shared copy-on-write).")
+      .def("__repr__", [](py::handle self) {
+        const FastSlam& f = self.cast<const FastSlam&>();
+        return repr_of(self, locked(f, [&] {
+          const int best = f.best_index();
+          return "version " + std::to_string(f.version()) + ", " + std::to_string(f.num_particles()) +
+                 " particles, best has " + std::to_string(f.particle(best).map.size()) + " landmarks, N_eff " +
+                 num(f.effective_sample_size());
+        }));
+      });
 }
 
 }  // namespace
 
 void define_fastslam(py::module_& m) {
   py::class_<FastSlam> c(m, "FastSlam",
-                         "FastSLAM 1.0 / 2.0 for point landmarks (range-bearing measurements); see _core.pyi.");
+                         "FastSLAM 1.0 / 2.0 (Montemerlo 2002, 2003; Probabilistic Robotics ch. 13) for point landmarks\n"
+                         "seen by a range-bearing(-signature) sensor. Units: metres, radians, seconds.\n"
+                         "\n"
+                         "FastSlam(num_particles, motion_noise, measurement_noise, **options):\n"
+                         "    num_particles: M in [1, 2^20].\n"
+                         "    motion_noise: (3, 3) pose-space covariance R of (x, y, theta) added to g(x, u), or (2, 2)\n"
+                         "        control-space covariance M of (v [m/s], w [rad/s]); positive semi-definite.\n"
+                         "    measurement_noise: Q, (2, 2) covariance of (range [m], bearing [rad]), or (3, 3) with the\n"
+                         "        signature's variance when use_signatures.\n"
+                         "Keyword options: version (1: poses from the motion model; 2: from the proposal that includes\n"
+                         "the scan), use_signatures, initial_pose (3,), seed (int in [0, 2^64)), threads (results\n"
+                         "identical for any count), resample_threshold (resample when N_eff < threshold * M; 0.5),\n"
+                         "p_new (density 1 / (m rad) of a new landmark's measurement; 0.01), outlier_density (known\n"
+                         "correspondences: density 1 / (m rad) of a measurement its labelled landmark did not produce;\n"
+                         "0: no outlier model), association_radius and cell_size (m, 2.0 each), negative_information,\n"
+                         "existence_hit, existence_miss, sensor_range (m), sensor_fov (rad) (the existence counter of\n"
+                         "update_unknown), record_path (keep each particle's path; True).\n"
+                         "\n"
+                         "Every call validates its input first and raises ValueError / TypeError naming the argument,\n"
+                         "the filter unchanged. Calls release the GIL and are serialised by a per-filter lock.");
   c.def(py::init([](int num_particles, py::handle motion_noise, py::handle measurement_noise, const py::kwargs& kw) {
           const FastSlamOptions o = options_from(num_particles, motion_noise, measurement_noise, kw);
           py::gil_scoped_release release;
           return std::make_unique<FastSlam>(o);
         }),
-        py::arg("num_particles"), py::arg("motion_noise"), py::arg("measurement_noise"));
+        py::arg("num_particles"), py::arg("motion_noise"), py::arg("measurement_noise"),
+        "See the class docstring for the arguments and keyword options.");
   define_state(c);
   define_calls(c);
 
@@ -215,7 +266,9 @@ void define_fastslam(py::module_& m) {
         const Eigen::VectorXd w = as_vector(vector_arg(weights, "weights"));
         return vector_out(low_variance_resample(w, offset));
       },
-      py::arg("weights"), py::arg("offset"));
+      py::arg("weights"), py::arg("offset"),
+      "Low-variance (systematic) resampling (Table 4.4): (M,) int32 indices drawn at (offset + m) / M,\n"
+      "m = 0 .. M - 1, over the cumulative weights (M,) (>= 0); offset in [0, 1).");
   m.def(
       "fastslam2_proposal",
       [](py::handle pose_mean, py::handle pose_cov, py::handle landmark_mean, py::handle landmark_cov, py::handle z,
@@ -228,8 +281,12 @@ void define_fastslam(py::module_& m) {
         return py::make_tuple(p.mean, p.cov, p.log_likelihood);
       },
       py::arg("pose_mean"), py::arg("pose_cov"), py::arg("landmark_mean"), py::arg("landmark_cov"), py::arg("z"),
-      py::arg("measurement_noise"));
-  m.def("_persistent_tree_nodes", [] { return g_persistent_tree_nodes.load(); });
+      py::arg("measurement_noise"),
+      "FastSLAM 2.0's proposal for one measurement z (2,) (range m, bearing rad) of a landmark with\n"
+      "landmark_mean (2,), landmark_cov (2, 2), from a pose prior pose_mean (3,), pose_cov (3, 3):\n"
+      "(mean (3,), cov (3, 3), log N(z - z_hat; 0, G_x pose_cov G_x^T + Q_j)).");
+  m.def("_persistent_tree_nodes", [] { return g_persistent_tree_nodes.load(); },
+        "Test hook: live nodes of the persistent landmark trees, over all filters.");
 }
 
 }  // namespace probslam::bindings

@@ -9,6 +9,7 @@
 
 #include "numpy.hpp"
 #include "object_lock.hpp"
+#include "repr.hpp"
 #include "probslam/core/check.hpp"
 #include "probslam/grid/beam_sensor_model.hpp"
 #include "probslam/grid/binary_map_2d.hpp"
@@ -105,20 +106,40 @@ Eigen::Map<const Poses2> poses_view(const DoubleArray& a) { return {a.data(), a.
 }  // namespace
 
 void define_forward_model(py::module_& m) {
-  py::class_<BinaryMap2D>(m, "BinaryMap2D")
+  py::class_<BinaryMap2D>(m, "BinaryMap2D",
+                          "A binary occupancy map on an OccupancyGrid2D's lattice (what forward models see).")
       .def(py::init([](const OccupancyGrid2D& grid, py::handle occupied) {
              std::vector<std::uint8_t> cells = occupancy_arg(occupied, grid);  // the shape is fixed for the grid's life
              return locked(grid, [&] { return BinaryMap2D(grid, std::move(cells)); });
            }),
-           py::arg("grid"), py::arg("occupied"))
+           py::arg("grid"), py::arg("occupied"),
+           "grid's geometry with occupied (height, width) bool (or 0/1 integers; floats: TypeError).")
       .def_static("from_grid", [](const OccupancyGrid2D& g) { return locked(g, [&] { return BinaryMap2D::thresholded(g); }); },
-                  py::arg("grid"))
-      .def_property_readonly("shape", [](const BinaryMap2D& b) { return py::make_tuple(b.height(), b.width()); })
-      .def_property_readonly("resolution", [](const BinaryMap2D& b) { return b.lattice().res; })
-      .def_property_readonly("origin", [](const BinaryMap2D& b) { return py::make_tuple(b.lattice().x0, b.lattice().y0); })
-      .def_property_readonly("occupied", [](const BinaryMap2D& b) { return occupancy_array(b.cells(), b.height(), b.width()); });
+                  py::arg("grid"), "grid thresholded: occupied iff p > 0.5 (log-odds > 0).")
+      .def_property_readonly("shape", [](const BinaryMap2D& b) { return py::make_tuple(b.height(), b.width()); },
+                             "(height, width) in cells.")
+      .def_property_readonly("resolution", [](const BinaryMap2D& b) { return b.lattice().res; }, "Cell side, metres.")
+      .def_property_readonly("origin", [](const BinaryMap2D& b) { return py::make_tuple(b.lattice().x0, b.lattice().y0); },
+                             "(x0, y0) metres of cell (0, 0)'s lower-left corner.")
+      .def_property_readonly("occupied", [](const BinaryMap2D& b) { return occupancy_array(b.cells(), b.height(), b.width()); },
+                             "(height, width) bool array, a copy.")
+      .def("__repr__", [](py::handle self) {
+        const BinaryMap2D& b = self.cast<const BinaryMap2D&>();
+        std::size_t occupied = 0;
+        for (const std::uint8_t c : b.cells()) occupied += c != 0;
+        return repr_of(self, std::to_string(b.width()) + " x " + std::to_string(b.height()) + " cells of " +
+                                 num(b.lattice().res) + " m, " + std::to_string(occupied) + " occupied");
+      });
 
-  py::class_<BeamSensorModel>(m, "BeamSensorModel")
+  py::class_<BeamSensorModel>(m, "BeamSensorModel",
+                              "Beam-based forward model p(z | x, m) of a range finder (ch. 6.3, Table 6.1): z_hit *\n"
+                              "truncated N(z*, sigma_hit^2) on [0, max_range] + z_short * truncated exponential\n"
+                              "(lambda_short) on [0, z*] + z_max * [z >= max_range] + z_rand / max_range, z* the\n"
+                              "expected range on a binary map (\"laser\": where the ray enters the first occupied\n"
+                              "cell; \"sonar\": the nearest occupied cell centre within beta / 2 of the beam). z_max\n"
+                              "is the *weight* of max readings; the range limit is max_range (m). Weights >= 0 sum\n"
+                              "to 1; sigma_hit (m), lambda_short (1/m), max_range (m) > 0; beta (rad) in (0, 2 pi]\n"
+                              "for a sonar. Maps: BinaryMap2D or OccupancyGrid2D (thresholded at p > 0.5).")
       .def(py::init([](const std::string& shape, double max_range, double beta, double z_hit, double z_short,
                        double z_max, double z_rand, double sigma_hit, double lambda_short) {
              BeamMixture mix{z_hit, z_short, z_max, z_rand, sigma_hit, lambda_short, max_range};
@@ -126,18 +147,38 @@ void define_forward_model(py::module_& m) {
            }),
            py::arg("shape"), py::arg("max_range"), py::arg("beta") = 0.0, py::arg("z_hit") = 0.85,
            py::arg("z_short") = 0.05, py::arg("z_max") = 0.05, py::arg("z_rand") = 0.05, py::arg("sigma_hit") = 0.05,
-           py::arg("lambda_short") = 1.0)
+           py::arg("lambda_short") = 1.0,
+           "shape: \"laser\" or \"sonar\"; max_range m; beta: sonar cone width rad; mixture weights;\n"
+           "sigma_hit m; lambda_short 1/m. ValueError naming the parameter when one is out of range.")
       .def_property_readonly("shape", [](const BeamSensorModel& s) {
         return std::string(s.geometry().shape == BeamShape::kLaser ? "laser" : "sonar");
+      }, "\"laser\" or \"sonar\".")
+      .def_property_readonly("max_range", [](const BeamSensorModel& s) { return s.mixture().max_range; },
+                             "Range limit, metres (readings >= it are max readings).")
+      .def_property_readonly("beta", [](const BeamSensorModel& s) { return s.geometry().beta; },
+                             "Sonar cone width, radians (0 for a laser).")
+      .def_property_readonly("z_hit", [](const BeamSensorModel& s) { return s.mixture().z_hit; },
+                             "Weight of the Gaussian hit component.")
+      .def_property_readonly("z_short", [](const BeamSensorModel& s) { return s.mixture().z_short; },
+                             "Weight of the exponential short-reading component.")
+      .def_property_readonly("z_max", [](const BeamSensorModel& s) { return s.mixture().z_max; },
+                             "Weight of the max-reading component (not a range).")
+      .def_property_readonly("z_rand", [](const BeamSensorModel& s) { return s.mixture().z_rand; },
+                             "Weight of the uniform random component.")
+      .def_property_readonly("sigma_hit", [](const BeamSensorModel& s) { return s.mixture().sigma_hit; },
+                             "Standard deviation of the hit component, metres.")
+      .def_property_readonly("lambda_short", [](const BeamSensorModel& s) { return s.mixture().lambda_short; },
+                             "Rate of the short-reading exponential, 1/metres.")
+      .def("__repr__", [](py::handle self) {
+        const BeamSensorModel& s = self.cast<const BeamSensorModel&>();
+        const BeamMixture& b = s.mixture();
+        std::string body = std::string(s.geometry().shape == BeamShape::kLaser ? "laser" : "sonar") + ", max_range " +
+                           num(b.max_range) + " m";
+        if (s.geometry().shape == BeamShape::kSonar) body += ", beta " + num(s.geometry().beta) + " rad";
+        return repr_of(self, body + ", z_hit " + num(b.z_hit) + ", z_short " + num(b.z_short) + ", z_max " +
+                                 num(b.z_max) + ", z_rand " + num(b.z_rand) + ", sigma_hit " + num(b.sigma_hit) +
+                                 " m, lambda_short " + num(b.lambda_short) + " 1/m");
       })
-      .def_property_readonly("max_range", [](const BeamSensorModel& s) { return s.mixture().max_range; })
-      .def_property_readonly("beta", [](const BeamSensorModel& s) { return s.geometry().beta; })
-      .def_property_readonly("z_hit", [](const BeamSensorModel& s) { return s.mixture().z_hit; })
-      .def_property_readonly("z_short", [](const BeamSensorModel& s) { return s.mixture().z_short; })
-      .def_property_readonly("z_max", [](const BeamSensorModel& s) { return s.mixture().z_max; })
-      .def_property_readonly("z_rand", [](const BeamSensorModel& s) { return s.mixture().z_rand; })
-      .def_property_readonly("sigma_hit", [](const BeamSensorModel& s) { return s.mixture().sigma_hit; })
-      .def_property_readonly("lambda_short", [](const BeamSensorModel& s) { return s.mixture().lambda_short; })
       .def(
           "probability",
           [](const BeamSensorModel& s, py::handle z, py::handle z_expected) {
@@ -149,7 +190,9 @@ void define_forward_model(py::module_& m) {
             for (py::ssize_t k = 0; k < zs.shape(0); ++k) out[k] = s.mixture().probability(zs.data()[k], es.data()[k]);
             return out;
           },
-          py::arg("z"), py::arg("z_expected"))
+          py::arg("z"), py::arg("z_expected"),
+          "Eq. 6.12 for readings z (n,) m given expected ranges z_expected (n,) m: densities per metre,\n"
+          "plus the max-reading indicator's weight (eq. 6.10) where z >= max_range.")
       .def(
           "expected_ranges",
           [](const BeamSensorModel& s, py::handle pose, py::handle beam_angles, py::handle map) {
@@ -159,7 +202,9 @@ void define_forward_model(py::module_& m) {
             py::gil_scoped_release release;
             return s.expected_ranges(x, as_vector(a), b);
           },
-          py::arg("pose"), py::arg("beam_angles"), py::arg("map"))
+          py::arg("pose"), py::arg("beam_angles"), py::arg("map"),
+          "Expected ranges z* (B,) m of each beam from pose (3,) at beam_angles (B,) rad relative to the\n"
+          "heading, on map (BinaryMap2D or OccupancyGrid2D).")
       .def(
           "log_likelihood",
           [](const BeamSensorModel& s, py::handle ranges, py::handle pose, py::handle beam_angles, py::handle map) {
@@ -173,7 +218,9 @@ void define_forward_model(py::module_& m) {
             py::gil_scoped_release release;
             return s.log_likelihoods(as_vector(z), x, as_vector(a), b);
           },
-          py::arg("ranges"), py::arg("pose"), py::arg("beam_angles"), py::arg("map"))
+          py::arg("ranges"), py::arg("pose"), py::arg("beam_angles"), py::arg("map"),
+          "log p(z_k | x, m) (B,) per beam, nats. ranges (B,) m (>= 0, no NaN: ValueError; inf is a max\n"
+          "reading), pose (3,), beam_angles (B,) rad.")
       .def(
           "sample",
           [](const BeamSensorModel& s, py::handle pose, py::handle beam_angles, py::handle map, py::handle rng) {
@@ -184,7 +231,9 @@ void define_forward_model(py::module_& m) {
             py::gil_scoped_release release;
             return s.sample(x, as_vector(a), b, engine);
           },
-          py::arg("pose"), py::arg("beam_angles"), py::arg("map"), py::arg("rng"));
+          py::arg("pose"), py::arg("beam_angles"), py::arg("map"), py::arg("rng"),
+          "One reading (B,) m per beam drawn from p(z | x, m); pose (3,), beam_angles (B,) rad; rng: a\n"
+          "seed >= 0 or a numpy.random.Generator.");
 
   m.def(
       "map_occupancy_grid_mapping",
@@ -235,7 +284,13 @@ void define_forward_model(py::module_& m) {
       },
       py::arg("poses"), py::arg("scans"), py::arg("beam_angles"), py::arg("model"), py::arg("grid"),
       py::arg("prior") = py::none(), py::kw_only(), py::arg("max_sweeps") = 1000, py::arg("scoring") = "incremental",
-      py::arg("max_evaluations") = 0, py::arg("record_trace") = false, py::arg("sensitivity") = true);
+      py::arg("max_evaluations") = 0, py::arg("record_trace") = false, py::arg("sensitivity") = true,
+      "Table 9.3, MAP occupancy grid mapping by coordinate ascent over binary maps on grid's lattice.\n"
+      "poses (T, 3), scans (T, B) m, beam_angles (B,) or (T, B) rad; prior: None (grid.p_prior), a\n"
+      "probability or (H, W) probabilities. Returns a dict: occupied, field (H, W) bool, sensitivity\n"
+      "(H, W) nats or None, objective (nats), sweeps, converged, flips, evaluations, readings,\n"
+      "field_cells, index_entries, trace_cells, trace_objective. probslam.map_occupancy_grid_mapping\n"
+      "wraps it in a dataclass.");
 
   m.def(
       "map_log_posterior",
@@ -248,7 +303,10 @@ void define_forward_model(py::module_& m) {
         py::gil_scoped_release release;
         return map_log_posterior(b, poses_view(s.poses), as_matrix(s.ranges), as_matrix(s.angles), model, p);
       },
-      py::arg("map"), py::arg("poses"), py::arg("scans"), py::arg("beam_angles"), py::arg("model"), py::arg("prior"));
+      py::arg("map"), py::arg("poses"), py::arg("scans"), py::arg("beam_angles"), py::arg("model"), py::arg("prior"),
+      "Eq. 9.24 of a binary map, nats: sum of log p(z | x, m) over readings plus sum of\n"
+      "logit(prior_i) over occupied cells. poses (T, 3), scans (T, B) m, beam_angles (B,) or (T, B)\n"
+      "rad, prior a probability or (H, W) probabilities.");
 }
 
 }  // namespace probslam::bindings

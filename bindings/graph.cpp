@@ -3,6 +3,7 @@
 
 #include "numpy.hpp"
 #include "object_lock.hpp"
+#include "repr.hpp"
 #include "probslam/graph/graph_initialization.hpp"
 #include "probslam/graph/graph_optimizer.hpp"
 #include "probslam/graph/pose_graph_2d.hpp"
@@ -159,84 +160,121 @@ PoseGraphFormat format_arg(const std::string& format) {
 
 void define_graph(py::module_& m) {
   // Every method runs its C++ work under the graph's lock with the GIL released (object_lock.hpp).
-  py::class_<PoseGraph2D>(m, "PoseGraph2D")
-      .def(py::init<>())
+  py::class_<PoseGraph2D>(m, "PoseGraph2D",
+                          "A planar pose/landmark graph (GraphSLAM's constraints, ch. 11): pose vertices (x m, y m,\n"
+                          "theta rad), point vertices (x, y) m, pose edges (relative pose of `to` in `from`'s frame,\n"
+                          "(3, 3) information) and point edges (the point (x, y) m in the pose's frame, (2, 2)\n"
+                          "information), as in g2o's EDGE_SE2 / EDGE_SE2_XY. Vertex ids are ints shared by poses and\n"
+                          "points. Every add_* refuses repeated or unknown ids, non-finite values and information\n"
+                          "that is not symmetric positive definite (ValueError, graph unchanged).")
+      .def(py::init<>(), "An empty graph.")
       .def("add_pose",
            [](PoseGraph2D& g, int id, py::handle pose) {
              const Eigen::Vector3d p = pose_arg(pose);
              locked(g, [&] { g.add_pose(id, p); });
            },
-           py::arg("id"), py::arg("pose"))
+           py::arg("id"), py::arg("pose"), "Adds pose vertex id with value pose (3,) (x m, y m, theta rad).")
       .def("add_point",
            [](PoseGraph2D& g, int id, py::handle point) {
              const Eigen::Vector2d p = fixed_vector<2>(point, "point");
              locked(g, [&] { g.add_point(id, p); });
            },
-           py::arg("id"), py::arg("point"))
+           py::arg("id"), py::arg("point"), "Adds point (landmark) vertex id with value point (2,) m.")
       .def("add_pose_edge",
            [](PoseGraph2D& g, int from, int to, py::handle z, py::handle info) {
              const Eigen::Vector3d zv = fixed_vector<3>(z, "measurement");
              const Eigen::Matrix3d omega = square_matrix_arg(info, "information", 3);
              locked(g, [&] { g.add_pose_edge(from, to, zv, omega); });
            },
-           py::arg("from_id"), py::arg("to_id"), py::arg("measurement"), py::arg("information"))
+           py::arg("from_id"), py::arg("to_id"), py::arg("measurement"), py::arg("information"),
+           "Adds a pose-pose edge: measurement (3,) the pose of to_id in from_id's frame (m, m, rad),\n"
+           "information (3, 3) its inverse covariance.")
       .def("add_point_edge",
            [](PoseGraph2D& g, int pose, int point, py::handle z, py::handle info) {
              const Eigen::Vector2d zv = fixed_vector<2>(z, "measurement");
              const Eigen::Matrix2d omega = square_matrix_arg(info, "information", 2);
              locked(g, [&] { g.add_point_edge(pose, point, zv, omega); });
            },
-           py::arg("pose_id"), py::arg("point_id"), py::arg("measurement"), py::arg("information"))
+           py::arg("pose_id"), py::arg("point_id"), py::arg("measurement"), py::arg("information"),
+           "Adds a pose-point edge: measurement (2,) the point in pose_id's frame (m), information (2, 2).")
       .def("set_fixed", [](PoseGraph2D& g, int id, bool fixed) { locked(g, [&] { g.set_fixed(id, fixed); }); },
-           py::arg("id"), py::arg("fixed") = true)
+           py::arg("id"), py::arg("fixed") = true,
+           "A fixed vertex keeps its value when optimising (the gauge); with none fixed, optimisers hold\n"
+           "the first pose.")
       .def("is_fixed", [](const PoseGraph2D& g, int id) { return locked(g, [&] { return g.vertex(g.index_of(id)).fixed; }); },
-           py::arg("id"))
+           py::arg("id"), "Whether vertex id is fixed.")
       .def("set_poses", [](PoseGraph2D& g, py::handle ids, py::handle v) { set_values(g, ids, v, 3); },
-           py::arg("ids"), py::arg("poses"))
+           py::arg("ids"), py::arg("poses"),
+           "Replaces the values of pose vertices ids (N,) with poses (N, 3), all or nothing.")
       .def("set_points", [](PoseGraph2D& g, py::handle ids, py::handle v) { set_values(g, ids, v, 2); },
-           py::arg("ids"), py::arg("points"))
+           py::arg("ids"), py::arg("points"),
+           "Replaces the values of point vertices ids (N,) with points (N, 2) m, all or nothing.")
       .def("has_vertex", [](const PoseGraph2D& g, int id) { return locked(g, [&] { return g.has_vertex(id); }); },
-           py::arg("id"))
-      .def_property_readonly("num_vertices", getter(&PoseGraph2D::num_vertices))
+           py::arg("id"), "Whether a pose or point vertex has this id.")
+      .def_property_readonly("num_vertices", getter(&PoseGraph2D::num_vertices), "Poses plus points.")
       .def_property_readonly("num_pose_edges",
-                             [](const PoseGraph2D& g) { return locked(g, [&] { return g.pose_edges().size(); }); })
+                             [](const PoseGraph2D& g) { return locked(g, [&] { return g.pose_edges().size(); }); },
+                             "Number of pose-pose edges.")
       .def_property_readonly("num_point_edges",
-                             [](const PoseGraph2D& g) { return locked(g, [&] { return g.point_edges().size(); }); })
-      .def_property_readonly("pose_ids", [](const PoseGraph2D& g) { return ids_of(g, VertexKind::kPose); })
-      .def_property_readonly("point_ids", [](const PoseGraph2D& g) { return ids_of(g, VertexKind::kPoint); })
+                             [](const PoseGraph2D& g) { return locked(g, [&] { return g.point_edges().size(); }); },
+                             "Number of pose-point edges.")
+      .def_property_readonly("pose_ids", [](const PoseGraph2D& g) { return ids_of(g, VertexKind::kPose); },
+                             "(P,) int64 ids of the pose vertices, in the order they were added.")
+      .def_property_readonly("point_ids", [](const PoseGraph2D& g) { return ids_of(g, VertexKind::kPoint); },
+                             "(L,) int64 ids of the point vertices, in the order they were added.")
       .def_property_readonly(
           "landmark_ids", [](const PoseGraph2D& g) { return ids_of(g, VertexKind::kPoint, true); },
           "Each point's id among the landmarks (iSAM's LANDMARK numbers, an id space apart from the "
           "poses'): equal to point_ids unless read_pose_graph moved an iSAM landmark whose number a pose "
           "uses; write_isam writes these.")
-      .def_property_readonly("poses", [](const PoseGraph2D& g) { return values_of(g, VertexKind::kPose); })
-      .def_property_readonly("points", [](const PoseGraph2D& g) { return values_of(g, VertexKind::kPoint); })
-      .def("edge_ids", &all_edge_ids)
+      .def_property_readonly("poses", [](const PoseGraph2D& g) { return values_of(g, VertexKind::kPose); },
+                             "(P, 3) pose values (x m, y m, theta rad) in the order of pose_ids, a copy.")
+      .def_property_readonly("points", [](const PoseGraph2D& g) { return values_of(g, VertexKind::kPoint); },
+                             "(L, 2) point values (x, y) m in the order of point_ids, a copy.")
+      .def("edge_ids", &all_edge_ids,
+           "(E, 2) int64 end ids of every edge: pose edges (from, to) first, then point edges (pose, point).")
       .def("pose_edges",
            [](const PoseGraph2D& g) {
              return edge_arrays<3>(g, g.pose_edges(), [](const PoseEdge& e) { return std::pair{e.from, e.to}; });
-           })
+           },
+           "(ids (E, 2) (from, to), measurements (E, 3) (m, m, rad), information (E, 3, 3)) of the pose edges.")
       .def("point_edges",
            [](const PoseGraph2D& g) {
              return edge_arrays<2>(g, g.point_edges(), [](const PointEdge& e) { return std::pair{e.pose, e.point}; });
-           })
-      .def("chi2", getter(&PoseGraph2D::chi2))
-      .def("copy", [](const PoseGraph2D& g) { return locked(g, [&] { return PoseGraph2D(g); }); });
+           },
+           "(ids (E, 2) (pose, point), measurements (E, 2) m, information (E, 2, 2)) of the point edges.")
+      .def("chi2", getter(&PoseGraph2D::chi2),
+           "Sum over edges of e^T Omega e at the current values (g2o's chi2); ValueError if not finite.")
+      .def("copy", [](const PoseGraph2D& g) { return locked(g, [&] { return PoseGraph2D(g); }); },
+           "An independent deep copy.")
+      .def("__repr__", [](py::handle self) {
+        const PoseGraph2D& g = self.cast<const PoseGraph2D&>();
+        return repr_of(self, locked(g, [&] {
+          std::size_t points = 0;
+          for (const GraphVertex& v : g.vertices()) points += v.kind == VertexKind::kPoint;
+          const std::size_t poses = g.vertices().size() - points;
+          return std::to_string(poses) + " poses, " + std::to_string(points) + " landmarks, " +
+                 std::to_string(g.pose_edges().size() + g.point_edges().size()) + " edges";
+        }));
+      });
 
-  py::class_<OptimizationReport>(m, "OptimizationReport")
-      .def_readonly("iterations", &OptimizationReport::iterations)
-      .def_readonly("initial_chi2", &OptimizationReport::initial_chi2)
-      .def_readonly("chi2", &OptimizationReport::chi2)
-      .def_readonly("objective", &OptimizationReport::objective)
-      .def_readonly("converged", &OptimizationReport::converged)
-      .def_readonly("stop_reason", &OptimizationReport::stop_reason)
-      .def_readonly("chi2_history", &OptimizationReport::chi2_history)
-      .def_readonly("iteration_seconds", &OptimizationReport::iteration_seconds)
-      .def_readonly("factor_nonzeros", &OptimizationReport::factor_nonzeros)
-      .def("__repr__", [](const OptimizationReport& r) {
-        return "OptimizationReport(iterations=" + std::to_string(r.iterations) +
-               ", initial_chi2=" + std::to_string(r.initial_chi2) + ", chi2=" + std::to_string(r.chi2) +
-               ", converged=" + (r.converged ? "True" : "False") + ", stop_reason='" + r.stop_reason + "')";
+  py::class_<OptimizationReport>(m, "OptimizationReport", "What optimize did.")
+      .def_readonly("iterations", &OptimizationReport::iterations, "Iterations run.")
+      .def_readonly("initial_chi2", &OptimizationReport::initial_chi2, "chi2 at the start.")
+      .def_readonly("chi2", &OptimizationReport::chi2, "Sum of e^T Omega e at the end (g2o's chi2).")
+      .def_readonly("objective", &OptimizationReport::objective,
+                    "The robust objective at the end (equals chi2 without a kernel).")
+      .def_readonly("converged", &OptimizationReport::converged, "Whether a tolerance was met.")
+      .def_readonly("stop_reason", &OptimizationReport::stop_reason, "Why it stopped, in words.")
+      .def_readonly("chi2_history", &OptimizationReport::chi2_history, "chi2 after each iteration (list).")
+      .def_readonly("iteration_seconds", &OptimizationReport::iteration_seconds,
+                    "Seconds of each iteration (linearise, factorise, solve, update).")
+      .def_readonly("factor_nonzeros", &OptimizationReport::factor_nonzeros, "Non-zeros of the Cholesky factor.")
+      .def("__repr__", [](py::handle self) {
+        const OptimizationReport& r = self.cast<const OptimizationReport&>();
+        return repr_of(self, std::to_string(r.iterations) + " iterations, chi2 " + num(r.initial_chi2) + " -> " +
+                                 num(r.chi2) + (r.converged ? ", converged" : ", not converged") + " (" +
+                                 r.stop_reason + ")");
       });
 
   m.def("optimize",
@@ -250,23 +288,35 @@ void define_graph(py::module_& m) {
         py::arg("graph"), py::arg("algorithm") = "gauss-newton", py::arg("max_iterations") = 100,
         py::arg("relative_tolerance") = 1e-10, py::arg("step_tolerance") = 1e-10, py::arg("kernel") = "none",
         py::arg("kernel_width") = 1.0, py::arg("linear_solver") = "simplicial", py::arg("ordering") = "amd",
-        py::arg("damping") = "marquardt");
+        py::arg("damping") = "marquardt",
+        "Minimises the graph's objective in place from its current values and returns an\n"
+        "OptimizationReport. Fixed vertices keep their values; with none fixed the first pose is held.\n"
+        "algorithm: \"gauss-newton\" or \"levenberg-marquardt\" (damping \"marquardt\": D = diag(H), or\n"
+        "\"levenberg\": D = I); stops after max_iterations, when an iteration lowers the objective by\n"
+        "less than relative_tolerance of it, or when the largest step entry is below step_tolerance\n"
+        "(m / rad). kernel: \"none\", \"huber\" or \"cauchy\" with kernel_width in units of sqrt(chi2).\n"
+        "linear_solver: CHOLMOD \"simplicial\", \"supernodal\" or \"auto\"; ordering: \"amd\" or \"metis\"."
+        "\nValueError for an empty graph or a part not connected to a fixed vertex.");
 
-  py::class_<IncrementalReport>(m, "IncrementalReport")
-      .def_readonly("steps", &IncrementalReport::steps)
-      .def_readonly("iterations", &IncrementalReport::iterations)
-      .def_readonly("chi2", &IncrementalReport::chi2)
-      .def_readonly("step_chi2", &IncrementalReport::step_chi2)
-      .def("__repr__", [](const IncrementalReport& r) {
-        return "IncrementalReport(steps=" + std::to_string(r.steps) + ", iterations=" + std::to_string(r.iterations) +
-               ", chi2=" + std::to_string(r.chi2) + ")";
+  py::class_<IncrementalReport>(m, "IncrementalReport", "What optimize_incremental did.")
+      .def_readonly("steps", &IncrementalReport::steps, "Optimisations run (one per poses_per_step poses).")
+      .def_readonly("iterations", &IncrementalReport::iterations, "Iterations summed over the steps.")
+      .def_readonly("chi2", &IncrementalReport::chi2, "chi2 of the whole graph at the end.")
+      .def_readonly("step_chi2", &IncrementalReport::step_chi2, "chi2 of the optimised part after each step (list).")
+      .def("__repr__", [](py::handle self) {
+        const IncrementalReport& r = self.cast<const IncrementalReport&>();
+        return repr_of(self, std::to_string(r.steps) + " steps, " + std::to_string(r.iterations) + " iterations, chi2 " +
+                                 num(r.chi2));
       });
 
   m.def("initialize_odometry",
         [](PoseGraph2D& graph) {
           locked(graph, [&] { initialize_odometry(graph); });
         },
-        py::arg("graph"));
+        py::arg("graph"),
+        "Initial values by composing pose edges outward from the fixed vertices (or the first pose)\n"
+        "along a breadth-first spanning tree; a point is placed by its first edge from a reached pose.\n"
+        "For an odometry chain this is dead reckoning. Unreached vertices keep their values.");
   m.def("optimize_incremental",
         [](PoseGraph2D& graph, int poses_per_step, const std::string& algorithm, int max_iterations,
            double relative_tolerance, double step_tolerance, const std::string& kernel, double kernel_width,
@@ -280,7 +330,11 @@ void define_graph(py::module_& m) {
         py::arg("graph"), py::arg("poses_per_step") = 100, py::arg("algorithm") = "gauss-newton",
         py::arg("max_iterations") = 10, py::arg("relative_tolerance") = 1e-6, py::arg("step_tolerance") = 1e-10,
         py::arg("kernel") = "none", py::arg("kernel_width") = 1.0, py::arg("linear_solver") = "simplicial",
-        py::arg("ordering") = "amd", py::arg("damping") = "marquardt");
+        py::arg("ordering") = "amd", py::arg("damping") = "marquardt",
+        "Incremental batch optimisation: poses join in the order they were added (each composed from\n"
+        "its first edge to an earlier pose, each point from its first observation), and after every\n"
+        "poses_per_step poses the part seen so far is optimised with the options of optimize.\n"
+        "Returns an IncrementalReport.");
 
   m.def("marginal_covariances",
         [](const PoseGraph2D& graph, const std::vector<int>& ids, const std::string& linear_solver,
@@ -292,7 +346,10 @@ void define_graph(py::module_& m) {
           for (const auto& b : blocks) out.append(py::cast(b));
           return out;
         },
-        py::arg("graph"), py::arg("ids"), py::arg("linear_solver") = "simplicial", py::arg("ordering") = "amd");
+        py::arg("graph"), py::arg("ids"), py::arg("linear_solver") = "simplicial", py::arg("ordering") = "amd",
+        "Marginal covariances at the current values, one per id: (3, 3) for a pose (m, m, rad), (2, 2)\n"
+        "for a point (m), from the sparse inverse of the information matrix; a fixed vertex has zero\n"
+        "covariance. Returns a list of arrays.");
 
   m.def("read_pose_graph",
         [](const std::string& path, const std::string& format) {
@@ -300,9 +357,13 @@ void define_graph(py::module_& m) {
           py::gil_scoped_release release;  // a new graph: nothing else can see it yet
           return read_pose_graph(path, f);
         },
-        py::arg("path"), py::arg("format") = "auto");
+        py::arg("path"), py::arg("format") = "auto",
+        "Reads a pose graph file into a PoseGraph2D: format \"g2o\" (VERTEX_SE2 / VERTEX_XY /\n"
+        "EDGE_SE2 / EDGE_SE2_XY), \"toro\" (VERTEX2 / EDGE2), \"isam\" (ODOMETRY / LANDMARK), or \"auto\"\n"
+        "(from the first record). Errors name the file and line.");
   m.def("write_g2o", [](const std::string& path, const PoseGraph2D& g) { locked(g, [&] { write_g2o(path, g); }); },
-        py::arg("path"), py::arg("graph"));
+        py::arg("path"), py::arg("graph"),
+        "Writes graph to path as g2o text: vertices with their current values, FIX lines, edges.");
   m.def("write_isam", [](const std::string& path, const PoseGraph2D& g) { locked(g, [&] { write_isam(path, g); }); },
         py::arg("path"), py::arg("graph"),
         "iSAM text: pose edges, then LANDMARK edges under each point's landmark id (see "

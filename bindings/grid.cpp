@@ -7,6 +7,7 @@
 
 #include "numpy.hpp"
 #include "object_lock.hpp"
+#include "repr.hpp"
 #include "probslam/core/check.hpp"
 #include "probslam/grid/inverse_range_sensor_model.hpp"
 #include "probslam/grid/occupancy_grid_2d.hpp"
@@ -49,7 +50,12 @@ void define_grid(py::module_& m) {
   using Grid = OccupancyGrid2D;
   // Every call runs under the grid's lock with the GIL released (object_lock.hpp): arguments are
   // converted before, Python results built after. Only the zero-copy log_odds view is unguarded.
-  py::class_<Grid>(m, "OccupancyGrid2D")
+  py::class_<Grid>(m, "OccupancyGrid2D",
+                   "2-D occupancy grid in log-odds (Probabilistic Robotics ch. 9.2). Cell (row i, col j)\n"
+                   "covers x in [x0 + j res, x0 + (j + 1) res), y in [y0 + i res, y0 + (i + 1) res), metres;\n"
+                   "arrays are (height, width), row 0 at the lowest y. Updates are clamped to `clamp`\n"
+                   "(probabilities) unless it is None; p_hit / p_miss are the laser update's probabilities.\n"
+                   "OccupancyGrid2D.max_cells: the largest number of cells a grid may have.")
       .def(py::init([](double resolution, int width, int height, py::handle origin, double p_prior,
                        py::handle clamp, double p_hit, double p_miss) {
              Grid g(resolution, width, height, fixed_vector<2>(origin, "origin"), p_prior, clamp_arg(clamp));
@@ -58,7 +64,10 @@ void define_grid(py::module_& m) {
            }),
            py::arg("resolution"), py::arg("width"), py::arg("height"),
            py::arg("origin") = py::make_tuple(0.0, 0.0), py::arg("p_prior") = 0.5,
-           py::arg("clamp") = py::make_tuple(0.1192, 0.971), py::arg("p_hit") = 0.7, py::arg("p_miss") = 0.4)
+           py::arg("clamp") = py::make_tuple(0.1192, 0.971), py::arg("p_hit") = 0.7, py::arg("p_miss") = 0.4,
+           "resolution: cell side (m); width, height: cells; origin (2,): (x0, y0) m of cell (0, 0)'s\n"
+           "lower-left corner; p_prior: prior occupancy probability (log-odds l0 = logit(p_prior));\n"
+           "clamp: (p_min, p_max) probabilities or None; p_hit, p_miss: probabilities of insert_rays.")
       .def_static(
           "covering",
           [](py::handle bounds, double resolution, double p_prior, py::handle clamp, double p_hit, double p_miss) {
@@ -68,34 +77,40 @@ void define_grid(py::module_& m) {
             return g;
           },
           py::arg("bounds"), py::arg("resolution"), py::arg("p_prior") = 0.5,
-          py::arg("clamp") = py::make_tuple(0.1192, 0.971), py::arg("p_hit") = 0.7, py::arg("p_miss") = 0.4)
+          py::arg("clamp") = py::make_tuple(0.1192, 0.971), py::arg("p_hit") = 0.7, py::arg("p_miss") = 0.4,
+          "A grid of the given resolution (m) covering bounds (xmin, ymin, xmax, ymax) m; other\n"
+          "arguments as for the constructor.")
       .def_property_readonly_static("max_cells", [](py::object) { return Grid::kMaxCells; },
                                     "Largest number of cells a grid may have (constructor, covering, grown, project_2d).")
-      .def_property_readonly("resolution", getter(&Grid::resolution))
-      .def_property_readonly("width", getter(&Grid::width))
-      .def_property_readonly("height", getter(&Grid::height))
+      .def_property_readonly("resolution", getter(&Grid::resolution), "Cell side, metres.")
+      .def_property_readonly("width", getter(&Grid::width), "Number of columns (cells along x).")
+      .def_property_readonly("height", getter(&Grid::height), "Number of rows (cells along y).")
       .def_property_readonly("shape", [](const Grid& g) {
         const auto [h, w] = locked(g, [&] { return std::make_pair(g.height(), g.width()); });
         return py::make_tuple(h, w);
-      })
+      }, "(height, width) in cells, the shape of log_odds.")
       .def_property_readonly("origin", [](const Grid& g) {
         const Eigen::Vector2d o = locked(g, [&] { return g.origin(); });
         return py::make_tuple(o.x(), o.y());
-      })
-      .def_property_readonly("p_prior", getter(&Grid::p_prior))
-      .def_property_readonly("l0", getter(&Grid::prior_log_odds))
+      }, "(x0, y0) metres: the lower-left corner of cell (0, 0).")
+      .def_property_readonly("p_prior", getter(&Grid::p_prior), "Prior occupancy probability of every cell.")
+      .def_property_readonly("l0", getter(&Grid::prior_log_odds), "Prior log-odds logit(p_prior) (eq. 9.7).")
       .def_property(
           "clamp", [](const Grid& g) { return clamp_value(locked(g, [&] { return g.clamp(); })); },
           [](Grid& g, py::handle c) {
             const LogOddsClamp clamp = clamp_arg(c);
             locked(g, [&] { g.set_clamp(clamp); });
-          })
+          },
+          "(p_min, p_max) probabilities that updates clamp the log-odds to, or None (the textbook\n"
+          "update, unbounded). Settable.")
       .def_property(
           "p_hit", [](const Grid& g) { return locked(g, [&] { return g.beam_model().p_hit; }); },
-          [](Grid& g, double p) { locked(g, [&] { g.set_beam_model({p, g.beam_model().p_miss}); }); })
+          [](Grid& g, double p) { locked(g, [&] { g.set_beam_model({p, g.beam_model().p_miss}); }); },
+          "Probability of occupancy at a beam's end point in insert_rays / insert_scans. Settable.")
       .def_property(
           "p_miss", [](const Grid& g) { return locked(g, [&] { return g.beam_model().p_miss; }); },
-          [](Grid& g, double p) { locked(g, [&] { g.set_beam_model({g.beam_model().p_hit, p}); }); })
+          [](Grid& g, double p) { locked(g, [&] { g.set_beam_model({g.beam_model().p_hit, p}); }); },
+          "Probability of occupancy of the cells a beam passes through in insert_rays. Settable.")
       .def_property_readonly(
           "log_odds",
           [](py::object self) {
@@ -103,8 +118,11 @@ void define_grid(py::module_& m) {
             const py::ssize_t w = g.width(), h = g.height();  // fixed for the grid's life
             return py::array_t<double>({h, w}, {w * static_cast<py::ssize_t>(sizeof(double)), static_cast<py::ssize_t>(sizeof(double))},
                                        g.data(), self);
-          })
-      .def("probability", getter(&Grid::probability))
+          },
+          "(height, width) float64 log-odds, a writable zero-copy view of the grid's cells (alive as\n"
+          "long as the grid); not guarded by the grid's lock.")
+      .def("probability", getter(&Grid::probability),
+           "(height, width) occupancy probabilities 1 - 1 / (1 + exp(l)) (eq. 9.6), a copy.")
       .def(
           "cell_of",
           [](const Grid& g, py::handle points) {
@@ -129,7 +147,8 @@ void define_grid(py::module_& m) {
                    out.row(static_cast<Eigen::Index>(r) * g.width() + c) = g.cell_center(r, c).transpose();
                return out;
              });
-           })
+           },
+           "(height * width, 2) centres (x, y) m of every cell, row-major (row 0 first).")
       .def(
           "insert_cone_scan",
           [](Grid& g, py::handle pose, py::handle ranges, py::handle beam_angles, double z_max, double alpha,
@@ -200,16 +219,16 @@ void define_grid(py::module_& m) {
           },
           py::arg("bounds"),
           "An enlarged copy on the same lattice covering bounds (xmin, ymin, xmax, ymax) m.")
-      .def("copy", [](const Grid& g) { return locked(g, [&] { return Grid(g); }); })
+      .def("copy", [](const Grid& g) { return locked(g, [&] { return Grid(g); }); }, "An independent deep copy.")
       .def(
           "same_geometry", [](const Grid& g, const Grid& other) { return locked(g, other, [&] { return g.same_geometry(other); }); },
-          py::arg("other"))
-      .def("__repr__", [](const Grid& g) {
-        return locked(g, [&] {
-          return "OccupancyGrid2D(resolution=" + std::to_string(g.resolution()) + ", width=" + std::to_string(g.width()) +
-                 ", height=" + std::to_string(g.height()) + ", origin=(" + std::to_string(g.origin().x()) + ", " +
-                 std::to_string(g.origin().y()) + "))";
-        });
+          py::arg("other"), "Whether other has the same resolution, origin, width and height.")
+      .def("__repr__", [](py::handle self) {
+        const Grid& g = self.cast<const Grid&>();
+        return repr_of(self, locked(g, [&] {
+          return std::to_string(g.width()) + " x " + std::to_string(g.height()) + " cells of " + num(g.resolution()) +
+                 " m, origin (" + num(g.origin().x()) + ", " + num(g.origin().y()) + ") m";
+        }));
       });
 
   m.def(
@@ -250,7 +269,11 @@ void define_grid(py::module_& m) {
         return py::cast(std::move(out));
       },
       py::arg("cells_xy"), py::arg("pose"), py::arg("ranges"), py::arg("beam_angles"), py::arg("z_max"),
-      py::arg("alpha"), py::arg("beta"), py::arg("l0"), py::arg("l_occ"), py::arg("l_free"));
+      py::arg("alpha"), py::arg("beta"), py::arg("l0"), py::arg("l_occ"), py::arg("l_free"),
+      "Table 9.2's inverse range sensor model (cone model) for cell centres cells_xy (n, 2) m ->\n"
+      "(n,) log-odds, or one (2,) cell -> float. pose (3,); ranges (k,) m and beam_angles (k,) rad\n"
+      "relative to the heading; z_max, alpha (obstacle thickness) m; beta (beam width) rad;\n"
+      "l0, l_occ, l_free log-odds.");
 
   m.def("logit", py::vectorize(&logit), py::arg("p"), "log(p / (1 - p)), eq. 9.5.");
   m.def("probability_from_log_odds", py::vectorize(&probability_from_log_odds), py::arg("l"), "Eq. 9.6.");

@@ -6,6 +6,7 @@
 
 #include "numpy.hpp"
 #include "object_lock.hpp"
+#include "repr.hpp"
 #include "probslam/grid/occupancy_grid_3d.hpp"
 #include "probslam/grid/worker_pool.hpp"
 #include "probslam/io/octomap_bt.hpp"
@@ -134,25 +135,29 @@ void define_grid3d(py::module_& m) {
            py::arg("clamp_max") = 0.971, py::arg("occupancy_threshold") = 0.5,
            "resolution: voxel edge (m). Probabilities: hit and miss of the sensor model, the\n"
            "clamping bounds, and the occupancy threshold (OctoMap's defaults).")
-      .def_property_readonly("resolution", getter(&Grid::resolution))
-      .def_property_readonly("p_hit", [](const Grid& g) { return locked(g, [&] { return g.params().p_hit; }); })
-      .def_property_readonly("p_miss", [](const Grid& g) { return locked(g, [&] { return g.params().p_miss; }); })
+      .def_property_readonly("resolution", getter(&Grid::resolution), "Voxel edge, metres.")
+      .def_property_readonly("p_hit", [](const Grid& g) { return locked(g, [&] { return g.params().p_hit; }); },
+                             "Occupancy probability of the voxel holding an end point.")
+      .def_property_readonly("p_miss", [](const Grid& g) { return locked(g, [&] { return g.params().p_miss; }); },
+                             "Occupancy probability of the voxels a ray passes through.")
       .def_property_readonly("clamp", [](const Grid& g) {
         const OccupancyParams3D p = locked(g, [&] { return g.params(); });
         return py::make_tuple(p.clamp_min, p.clamp_max);
-      })
+      }, "(clamp_min, clamp_max) probabilities the log-odds are clamped to.")
       .def_property_readonly("occupancy_threshold",
-                             [](const Grid& g) { return locked(g, [&] { return g.params().occupancy_threshold; }); })
-      .def_property_readonly("log_odds_hit", getter(&Grid::hit_log_odds))
-      .def_property_readonly("log_odds_miss", getter(&Grid::miss_log_odds))
+                             [](const Grid& g) { return locked(g, [&] { return g.params().occupancy_threshold; }); },
+                             "Probability at or above which a known voxel is occupied.")
+      .def_property_readonly("log_odds_hit", getter(&Grid::hit_log_odds), "float32 logit(p_hit), added per hit.")
+      .def_property_readonly("log_odds_miss", getter(&Grid::miss_log_odds), "float32 logit(p_miss), added per miss.")
       .def_property_readonly("log_odds_clamp", [](const Grid& g) {
         const auto [lo, hi] = locked(g, [&] { return std::make_pair(g.clamp_min_log_odds(), g.clamp_max_log_odds()); });
         return py::make_tuple(lo, hi);
-      })
-      .def_property_readonly("num_known_voxels", getter(&Grid::num_known_voxels))
-      .def_property_readonly("num_occupied_voxels", getter(&Grid::num_occupied_voxels))
-      .def_property_readonly("num_blocks", getter(&Grid::num_blocks))
-      .def_property_readonly("memory_bytes", getter(&Grid::memory_bytes))
+      }, "(min, max) float32 log-odds of the clamp.")
+      .def_property_readonly("num_known_voxels", getter(&Grid::num_known_voxels), "Voxels updated at least once.")
+      .def_property_readonly("num_occupied_voxels", getter(&Grid::num_occupied_voxels),
+                             "Known voxels with log-odds >= logit(occupancy_threshold).")
+      .def_property_readonly("num_blocks", getter(&Grid::num_blocks), "Allocated 8 x 8 x 8-voxel blocks.")
+      .def_property_readonly("memory_bytes", getter(&Grid::memory_bytes), "Bytes held by the map's blocks and hash table.")
       .def(
           "insert_point_cloud",
           [](Grid& g, py::handle points, py::handle origin, double max_range, int threads) {
@@ -222,12 +227,13 @@ void define_grid3d(py::module_& m) {
           py::arg("clamp_max") = 0.971, py::arg("occupancy_threshold") = 0.5,
           "Reads an OctoMap .bt file (OcTree). The format stores occupancy only: voxels get the\n"
           "clamped log-odds logit(clamp_max) or logit(clamp_min). Raises ValueError on a bad file.")
-      .def("clear", [](Grid& g) { locked(g, [&] { g.clear(); }); })
-      .def("__repr__", [](const Grid& g) {
-        return locked(g, [&] {
-          return "OccupancyGrid3D(resolution=" + std::to_string(g.resolution()) +
-                 ", known_voxels=" + std::to_string(g.num_known_voxels()) + ")";
-        });
+      .def("clear", [](Grid& g) { locked(g, [&] { g.clear(); }); }, "Forgets every voxel (all unknown again).")
+      .def("__repr__", [](py::handle self) {
+        const Grid& g = self.cast<const Grid&>();
+        return repr_of(self, locked(g, [&] {
+          return num(g.resolution()) + " m voxels, " + std::to_string(g.num_known_voxels()) + " known, " +
+                 std::to_string(g.num_occupied_voxels()) + " occupied, " + std::to_string(g.num_blocks()) + " blocks";
+        }));
       });
 }
 

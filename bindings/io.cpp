@@ -66,7 +66,9 @@ void define_io(py::module_& m) {
         }
         return log_to_dict(std::move(log));
       },
-      py::arg("path"));
+      py::arg("path"),
+      "Reads a CARMEN log (FLASER, ROBOTLASER1, ODOM, PARAM lines; .gz read transparently).\n"
+      "Returns a dict: scans (ranges (S, B) m, laser_poses and robot_poses (S, 3), start_angles and\nangular_resolutions (S,) rad, max_ranges (S,) m, num_beams (S,), timestamps (S,) s), odometry\n(poses (K, 3), velocities (K, 2) (v m/s, w rad/s), timestamps (K,) s), params\n(PARAM lines, str -> str), skipped_wide_scans, skipped_rows, and the first\nCARMEN_MAX_REPORTED_LINES skipped_lines with their skipped_reasons. probslam.io.read_carmen_log\nwraps it in dataclasses.");
   m.def(
       "parse_carmen_log",
       [](const std::string& text, const std::string& source) {  // text: str or bytes
@@ -78,24 +80,33 @@ void define_io(py::module_& m) {
         }
         return log_to_dict(std::move(log));
       },
-      py::arg("text"), py::arg("source") = "<text>");
+      py::arg("text"), py::arg("source") = "<text>",
+      "As read_carmen_log for the log's text (str or bytes); source names it in error messages.\n"
+      "Returns a dict: scans (ranges (S, B) m, laser_poses and robot_poses (S, 3), start_angles and\nangular_resolutions (S,) rad, max_ranges (S,) m, num_beams (S,), timestamps (S,) s), odometry\n(poses (K, 3), velocities (K, 2) (v m/s, w rad/s), timestamps (K,) s), params\n(PARAM lines, str -> str), skipped_wide_scans, skipped_rows, and the first\nCARMEN_MAX_REPORTED_LINES skipped_lines with their skipped_reasons. probslam.io.read_carmen_log\nwraps it in dataclasses.");
   m.def(
       "save_ros_map",
       [](const OccupancyGrid2D& grid, const std::string& yaml_path, double occupied_thresh, double free_thresh) {
         locked(grid, [&] { save_ros_map(grid, yaml_path, {occupied_thresh, free_thresh}); });
       },
-      py::arg("grid"), py::arg("yaml_path"), py::arg("occupied_thresh") = 0.65, py::arg("free_thresh") = 0.196);
+      py::arg("grid"), py::arg("yaml_path"), py::arg("occupied_thresh") = 0.65, py::arg("free_thresh") = 0.196,
+      "Writes grid as a ROS map_server map: yaml_path and a trinary PGM beside it (same stem):\n"
+      "occupied where p > occupied_thresh, free where p < free_thresh, unknown between.");
   m.def(
       "load_ros_map",
       [](const std::string& yaml_path) {
         py::gil_scoped_release release;
         return load_ros_map(yaml_path);
       },
-      py::arg("yaml_path"));
+      py::arg("yaml_path"),
+      "Reads a ROS map_server map (YAML + PGM; modes trinary and scale) into an OccupancyGrid2D:\n"
+      "resolution and origin (m) from the YAML; occupied and free cells get logit(0.971) and\n"
+      "logit(0.1192), unknown ones the prior (p = 0.5). Errors name the file and line.");
   m.def(
       "save_grid", [](const OccupancyGrid2D& grid, const std::string& path) { locked(grid, [&] { save_grid(grid, path); }); },
-      py::arg("grid"), py::arg("path"));
-  m.def("load_grid", &load_grid, py::arg("path"));
+      py::arg("grid"), py::arg("path"),
+      "Writes grid losslessly to path (binary: geometry, prior, clamp, beam model, every float64\n"
+      "log-odds).");
+  m.def("load_grid", &load_grid, py::arg("path"), "Reads a grid written by save_grid; the same grid back, bit for bit.");
 }
 
 }  // namespace probslam::bindings

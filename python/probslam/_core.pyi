@@ -72,6 +72,7 @@ class OccupancyGrid2D:
     p_hit: float
     p_miss: float
     log_odds: Array  # zero-copy, writable (height, width) view
+    max_cells: int  # class attribute: the largest number of cells a grid may have
     def __init__(self, resolution: float, width: int, height: int, origin: ArrayLike = (0.0, 0.0),
                  p_prior: float = 0.5, clamp: Optional[Tuple[float, float]] = (0.1192, 0.971),
                  p_hit: float = 0.7, p_miss: float = 0.4) -> None: ...
@@ -195,6 +196,7 @@ def map_log_posterior(map: Union[BinaryMap2D, OccupancyGrid2D], poses: ArrayLike
     cast from scratch, plus sum of l0_i = logit(prior_i) over occupied cells. poses (T, 3), scans
     (T, B) m, beam_angles (B,) or (T, B) rad, prior a number or (H, W) probabilities."""
 
+CARMEN_MAX_REPORTED_LINES: int  # skipped lines a log reader reports by number and reason
 def read_carmen_log(path: str) -> dict: ...
 def parse_carmen_log(text: str, source: str = "<text>") -> dict: ...
 def save_ros_map(grid: OccupancyGrid2D, yaml_path: str, occupied_thresh: float = 0.65,
@@ -222,6 +224,10 @@ class Association:
     """How update_unknown pairs a scan's measurements with landmarks."""
     MAXIMUM_LIKELIHOOD: "Association"  # Table 10.2, the best pairs first
     JOINT_COMPATIBILITY: "Association"  # JCBB over the scan (Neira & Tardos 2001)
+    name: str
+    value: int
+    def __init__(self, value: int) -> None: ...
+    def __int__(self) -> int: ...
 
 class _EkfSlam:
     state_dim: int
@@ -360,10 +366,75 @@ class _MultiHypothesisEkfSlam:
     def update(self, z: ArrayLike) -> npt.NDArray[np.int64]: ...
     def history(self) -> List[npt.NDArray[np.int64]]: ...
 
+# --- graph/: pose graphs (ch. 11); the public face is probslam.graph ---------------------------
 class PoseGraph2D:
-    """A planar pose/landmark graph (graph/); its full stub is left to issue 17."""
+    """A planar pose/landmark graph: pose vertices (x m, y m, theta rad), point vertices (x, y) m,
+    pose edges (relative pose of `to` in `from`'s frame) and point edges (the point in the pose's
+    frame), each with an information matrix (g2o's EDGE_SE2 / EDGE_SE2_XY). Ids are shared by
+    poses and points."""
     num_vertices: int
-    def __getattr__(self, name: str) -> Any: ...
+    num_pose_edges: int
+    num_point_edges: int
+    pose_ids: npt.NDArray[np.int64]  # (P,) in the order added
+    point_ids: npt.NDArray[np.int64]  # (L,)
+    landmark_ids: npt.NDArray[np.int64]  # (L,) iSAM's LANDMARK numbers
+    poses: Array  # (P, 3) m, m, rad
+    points: Array  # (L, 2) m
+    def __init__(self) -> None: ...
+    def add_pose(self, id: int, pose: ArrayLike) -> None: ...
+    def add_point(self, id: int, point: ArrayLike) -> None: ...
+    def add_pose_edge(self, from_id: int, to_id: int, measurement: ArrayLike, information: ArrayLike) -> None:
+        """measurement (3,) to_id's pose in from_id's frame; information (3, 3)."""
+    def add_point_edge(self, pose_id: int, point_id: int, measurement: ArrayLike, information: ArrayLike) -> None:
+        """measurement (2,) m the point in pose_id's frame; information (2, 2)."""
+    def set_fixed(self, id: int, fixed: bool = True) -> None: ...
+    def is_fixed(self, id: int) -> bool: ...
+    def set_poses(self, ids: ArrayLike, poses: ArrayLike) -> None: ...  # (N,), (N, 3)
+    def set_points(self, ids: ArrayLike, points: ArrayLike) -> None: ...  # (N,), (N, 2)
+    def has_vertex(self, id: int) -> bool: ...
+    def edge_ids(self) -> npt.NDArray[np.int64]: ...  # (E, 2): pose edges, then point edges
+    def pose_edges(self) -> Tuple[npt.NDArray[np.int64], Array, Array]: ...  # (E, 2), (E, 3), (E, 3, 3)
+    def point_edges(self) -> Tuple[npt.NDArray[np.int64], Array, Array]: ...  # (E, 2), (E, 2), (E, 2, 2)
+    def chi2(self) -> float: ...
+    def copy(self) -> "PoseGraph2D": ...
+
+class OptimizationReport:
+    iterations: int
+    initial_chi2: float
+    chi2: float  # g2o's chi2 at the end
+    objective: float  # the robust objective (chi2 without a kernel)
+    converged: bool
+    stop_reason: str
+    chi2_history: List[float]
+    iteration_seconds: List[float]
+    factor_nonzeros: int
+
+class IncrementalReport:
+    steps: int
+    iterations: int
+    chi2: float
+    step_chi2: List[float]
+
+def optimize(graph: PoseGraph2D, algorithm: str = "gauss-newton", max_iterations: int = 100,
+             relative_tolerance: float = 1e-10, step_tolerance: float = 1e-10, kernel: str = "none",
+             kernel_width: float = 1.0, linear_solver: str = "simplicial", ordering: str = "amd",
+             damping: str = "marquardt") -> OptimizationReport:
+    """In place from the current values; algorithm "gauss-newton" / "levenberg-marquardt", kernel
+    "none" / "huber" / "cauchy", linear_solver "simplicial" / "supernodal" / "auto", ordering
+    "amd" / "metis", damping "marquardt" / "levenberg"."""
+def optimize_incremental(graph: PoseGraph2D, poses_per_step: int = 100, algorithm: str = "gauss-newton",
+                         max_iterations: int = 10, relative_tolerance: float = 1e-6, step_tolerance: float = 1e-10,
+                         kernel: str = "none", kernel_width: float = 1.0, linear_solver: str = "simplicial",
+                         ordering: str = "amd", damping: str = "marquardt") -> IncrementalReport: ...
+def initialize_odometry(graph: PoseGraph2D) -> None:
+    """Composes pose edges outward along a breadth-first spanning tree (dead reckoning)."""
+def marginal_covariances(graph: PoseGraph2D, ids: Sequence[int], linear_solver: str = "simplicial",
+                         ordering: str = "amd") -> List[Array]:
+    """(3, 3) per pose id, (2, 2) per point id; zero for a fixed vertex."""
+def read_pose_graph(path: str, format: str = "auto") -> PoseGraph2D:
+    """format "auto", "g2o", "toro" or "isam"."""
+def write_g2o(path: str, graph: PoseGraph2D) -> None: ...
+def write_isam(path: str, graph: PoseGraph2D) -> None: ...
 
 # --- slam2d/: scan matching and GraphSLAM over submaps (ch. 11.7) ---------------------------
 
@@ -371,8 +442,9 @@ def scan_hits(ranges: ArrayLike, beam_angles: ArrayLike, max_range: float = ...,
               max_usable_range: float = 30.0, min_point_spacing: float = 0.0) -> Array:
     """(N, 2) hit points in the sensor frame, metres; no-return readings (>= max_range, inf, NaN) never hit."""
 def ranges_for_insertion(ranges: ArrayLike, max_range: float = ..., min_range: float = 0.0,
-                         max_usable_range: float = 30.0, clear_no_return: bool = True) -> Array:
-    """(B,) ranges for OccupancyGrid2D.insert_rays(max_range=usable range): no-return beams clear only."""
+                         max_usable_range: float = 30.0, clear_no_return: bool = True) -> Tuple[Array, float]:
+    """((B,) ranges, usable_range m) for OccupancyGrid2D.insert_rays(max_range=usable_range): no-return
+    beams clear only."""
 
 class LikelihoodField:
     """The blurred likelihood field of a grid: log((1 - p_rand) exp(-d^2 / 2 sigma^2) + p_rand)."""

@@ -22,11 +22,15 @@ ASSOCIATIONS = {"ml": Association.MAXIMUM_LIKELIHOOD, "jcbb": Association.JOINT_
 
 
 class UpdateResult(NamedTuple):
+    """What EkfSlam.update did with each of its k measurements."""
+
     nis: np.ndarray  # (k,) normalised innovation squared, NaN for first sightings
     used: np.ndarray  # (k,) bool, False where the gate rejected the measurement
 
 
 class AssociationResult(NamedTuple):
+    """What EkfSlam.update_unknown did with each of its k measurements."""
+
     ids: np.ndarray  # (k,) landmark id used or created, -1 if none
     mahalanobis: np.ndarray  # (k,) smallest pi over the candidates
     outcome: np.ndarray  # (k,) 0 associated, 1 new landmark, 2 provisional, 3 discarded
@@ -57,6 +61,7 @@ def _flag(value, name: str) -> bool:
 
 
 def chi2_quantile(probability: float, dof: int) -> float:
+    """The chi-square quantile of `probability` with `dof` degrees of freedom (a Mahalanobis gate)."""
     from scipy.stats import chi2
 
     return float(chi2.ppf(probability, dof))
@@ -98,6 +103,10 @@ class EkfSlam:
         f.gate_distance = _number(gate_distance, "gate_distance")
         self._f = f
 
+    def __repr__(self) -> str:
+        # The C++ filter formats it (bindings/ekf.cpp); shown under this class's name.
+        return "<EkfSlam: " + repr(self._f).split(": ", 1)[1]
+
     def copy(self) -> "EkfSlam":
         """An independent copy of the filter: state, map, ids, options."""
         c = object.__new__(type(self))
@@ -122,6 +131,7 @@ class EkfSlam:
 
     @property
     def pose(self) -> np.ndarray:
+        """(3,) mean pose (x m, y m, theta rad), a copy."""
         return self._f.pose
 
     @property
@@ -137,22 +147,27 @@ class EkfSlam:
 
     @property
     def num_landmarks(self) -> int:
+        """Landmarks in the state."""
         return self._f.num_landmarks
 
     @property
     def num_provisional(self) -> int:
+        """Landmarks waiting on the provisional list (ch. 10.3.3)."""
         return self._f.num_provisional
 
     @property
     def state_dim(self) -> int:
+        """Length of the state vector: 3 + (2 or 3) per landmark."""
         return self._f.state_dim
 
     @property
     def use_signatures(self) -> bool:
+        """Whether landmarks and measurements carry a signature (3 values instead of 2)."""
         return self._f.landmark_dim == 3
 
     @property
     def map_management(self) -> MapManagement:
+        """Ch. 10.3.3 options of update_unknown (a copy; assign a MapManagement to change them)."""
         return self._f.map_management
 
     @map_management.setter
@@ -162,6 +177,7 @@ class EkfSlam:
         self._f.map_management = value
 
     def landmark(self, id: int) -> np.ndarray:
+        """Mean of landmark id: (x, y) m, or (x, y, signature)."""
         return self._f.landmark(int(id))
 
     def landmark_covariance(self, id: int) -> np.ndarray:
@@ -173,6 +189,7 @@ class EkfSlam:
         return self._f.existence(int(id))
 
     def remove_landmark(self, id: int) -> None:
+        """Marginalises landmark id out of the state."""
         self._f.remove_landmark(int(id))
 
     # --- filter ------------------------------------------------------------------------
@@ -281,6 +298,9 @@ class MultiHypothesisEkfSlam:
         o.clutter_cost = chi2_quantile(MHT_CLUTTER_PROBABILITY, d) if clutter_cost is None else clutter_cost
         self._m = _core._MultiHypothesisEkfSlam(ekf._f, o)
 
+    def __repr__(self) -> str:
+        return "<MultiHypothesisEkfSlam: " + repr(self._m).split(": ", 1)[1]
+
     def predict(self, v: float, w: float, dt: float, noise=None) -> None:
         """Table 10.1 lines 2-5 on every filter (see ``EkfSlam.predict``)."""
         self._m.predict(_number(v, "v"), _number(w, "w"), _number(dt, "dt"), noise)
@@ -304,6 +324,7 @@ class MultiHypothesisEkfSlam:
 
     @property
     def num_hypotheses(self) -> int:
+        """Hypotheses (filters) in the beam."""
         return self._m.num_hypotheses
 
     @property
@@ -318,6 +339,7 @@ class MultiHypothesisEkfSlam:
 
     @property
     def options(self):
+        """The MultiHypothesisOptions in use (a copy)."""
         return self._m.options
 
     def history(self) -> list:

@@ -26,6 +26,10 @@ class Measurements(NamedTuple):
 
 
 class GraphSlamResult(NamedTuple):
+    """GraphSLAM's estimate: poses (T + 1, 3), features (N, d), pose covariances (T + 1, 3, 3),
+    the iterations, convergence and objective; with unknown correspondences also the
+    correspondences, merges and rounds of Table 11.9."""
+
     poses: np.ndarray  # (T + 1, 3)
     features: np.ndarray  # (N, d)
     pose_covariances: np.ndarray  # (T + 1, 3, 3), zeros for the anchored x_0

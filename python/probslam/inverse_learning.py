@@ -191,6 +191,7 @@ class LearnedInverseModel:
         return a_mat, a, v, w[-1]
 
     def n_weights(self, d: int) -> int:
+        """Number of network weights for d input features (one hidden layer, one output)."""
         return self.hidden * d + 2 * self.hidden + 1
 
     def _forward(self, w: np.ndarray, s: np.ndarray):

@@ -21,6 +21,8 @@ MRCLAM_OUTLIER_PROBABILITY = 0.999
 
 @dataclass
 class EkfRun:
+    """An EKF SLAM run over a dataset: times (T,) s, filtered poses (T, 3), the final filter."""
+
     times: np.ndarray  # (T,) seconds
     poses: np.ndarray  # (T, 3) filtered poses
     ekf: EkfSlam
@@ -42,6 +44,7 @@ def align_rigid(estimate: np.ndarray, truth: np.ndarray):
 
 
 def rmse(a: np.ndarray, b: np.ndarray) -> float:
+    """Root mean square of the Euclidean distances between rows of a and b (N, 2 or 3)."""
     return float(np.sqrt(np.mean(np.sum((np.asarray(a) - np.asarray(b)) ** 2, axis=1))))
 
 
@@ -140,6 +143,8 @@ def _history_results(associations, history):
 
 @dataclass
 class MrclamScore:
+    """Accuracy of an MRCLAM run against ground truth: path and landmark RMSE (m)."""
+
     path_rmse: float  # m, raw
     path_rmse_aligned: float  # m, after the best rigid alignment of the path to ground truth
     landmark_rmse: float  # m, against the surveyed positions (same frame as the path)
@@ -283,6 +288,8 @@ def survey_label_swaps(data: Mrclam, limit: float = SURVEY_RESIDUAL_LIMIT) -> Li
 
 @dataclass
 class LandmarkScore:
+    """A landmark map against the survey: RMSE (m) as estimated and after rigid alignment."""
+
     rmse: float  # m, map against the survey as estimated (frames may differ)
     rmse_aligned: float  # m, after the best rigid alignment of the map onto the survey
     errors: Dict[int, float]  # surveyed subject -> aligned error, m

@@ -14,6 +14,8 @@ from .io.carmen import LaserScans
 
 @dataclass
 class MappingSummary:
+    """What map_laser_log integrated: scans, valid readings (beams), cell updates, seconds."""
+
     scans: int
     beams: int  # valid readings integrated
     cells_updated: int

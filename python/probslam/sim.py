@@ -18,6 +18,8 @@ CLUTTER_ID = -1  # id of a false detection
 
 @dataclass
 class LandmarkWorld:
+    """Point landmarks (N, 2) m with a signature (N,) each."""
+
     landmarks: np.ndarray  # (N, 2) metres
     signatures: np.ndarray  # (N,)
 
@@ -34,6 +36,9 @@ class LandmarkWorld:
 
 @dataclass
 class Sensor:
+    """A range-bearing sensor: noise (2, 2) of (range m, bearing rad) or (3, 3) with the
+    signature, max_range m, fov rad (full opening angle), optional clutter."""
+
     measurement_noise: np.ndarray  # (2, 2) or (3, 3) with the signature's variance
     max_range: float = 10.0
     fov: float = 2 * np.pi  # full opening angle
@@ -43,6 +48,8 @@ class Sensor:
 
 @dataclass
 class SimRun:
+    """One simulated run: true poses, commanded controls, dt s, and the measurements."""
+
     poses: np.ndarray  # (T + 1, 3) true poses
     controls: np.ndarray  # (T, 2) commanded (v, w)
     dt: float
