@@ -57,7 +57,9 @@ def main():
             f"{int(one['voxels']) / 1e6:.2f} M | {'yes' if same else '**NO**'} |")
 
     lines = [
-        f"## 3-D occupancy insertion vs OctoMap 1.9.7 (C++), {datetime.date.today().isoformat()}",
+        # The scan counts are part of the title: runs of other sizes keep their own RESULTS.md sections.
+        f"## 3-D occupancy insertion vs OctoMap 1.9.7 (C++, {args.scans} + {args.scans_fine} scans), "
+        f"{datetime.date.today().isoformat()}",
         "",
         f"Machine: {machine()}.",
         "",
