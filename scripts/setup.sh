@@ -39,5 +39,37 @@ if ! "$py" -c "import atheris" 2>/dev/null; then
   "$py" -m pip install -q --disable-pip-version-check --only-binary=:all: "$FUZZ_PACKAGE" ||
     echo "setup: atheris has no wheel here; scripts/fuzz.sh will skip"
 fi
-echo "setup: building and installing probslam into $venv"
-PATH="$(cd "$venv/bin" && pwd):$PATH" "$py" -m pip install -q --disable-pip-version-check --no-build-isolation .
+# One CMake build directory per environment: two venvs installed from one clone would otherwise
+# share build/{wheel_tag} and rebuild each other from scratch. The name is the venv's, plus a hash
+# of its absolute path (two venvs of one name in different places stay apart).
+venv_abs="$(cd "$venv" && pwd)"
+venv_name="$(basename "$venv_abs" | sed 's/^\.*//')"
+venv_hash="$(printf '%s' "$venv_abs" | sha1sum | cut -c1-8)"
+build_dir="build/${venv_name:-venv}-$venv_hash/{wheel_tag}"
+echo "setup: building and installing probslam into $venv (CMake build directory $build_dir; a first"
+echo "setup: build compiles for several minutes: progress below, the full log in the file named at the end)"
+build_log="$(mktemp "${TMPDIR:-/tmp}/probslam-build.XXXXXX")"
+# Progress: ninja's "[n/N] ..." lines as they come (paths shortened), or a line after every 30 s
+# of silence. A foreground pipeline, so that Ctrl-C stops the build too.
+progress() {
+  local line status start=$SECONDS
+  while :; do
+    if IFS= read -r -t 30 line; then
+      if [[ "$line" =~ ^\ *\[[0-9]+/[0-9]+\]\  ]]; then
+        echo "setup:   $(sed -E 's/^ *//; s# [^ ]*/([^/ ]+\.(cpp|o))# \1#g' <<<"$line" | cut -c1-100)"
+      fi
+    else
+      status=$?
+      ((status > 128)) || break  # end of the build's output
+      echo "setup:   still building ($((SECONDS - start)) s)"
+    fi
+  done
+}
+start=$SECONDS
+if ! PATH="$venv_abs/bin:$PATH" "$py" -m pip install -v --disable-pip-version-check --no-build-isolation \
+    --config-settings=build-dir="$build_dir" . 2>&1 | tee "$build_log" | progress; then
+  tail -n 40 "$build_log" >&2
+  echo "setup: building probslam failed after $((SECONDS - start)) s; full log: $build_log" >&2
+  exit 1
+fi
+echo "setup: probslam installed into $venv in $((SECONDS - start)) s (log: $build_log)"
