@@ -46,9 +46,10 @@ venv_abs="$(cd "$venv" && pwd)"
 venv_name="$(basename "$venv_abs" | sed 's/^\.*//')"
 venv_hash="$(printf '%s' "$venv_abs" | sha1sum | cut -c1-8)"
 build_dir="build/${venv_name:-venv}-$venv_hash/{wheel_tag}"
+mkdir -p "build/${venv_name:-venv}-$venv_hash"
+build_log="build/${venv_name:-venv}-$venv_hash/pip-install.log"  # the last build's full output
 echo "setup: building and installing probslam into $venv (CMake build directory $build_dir; a first"
-echo "setup: build compiles for several minutes: progress below, the full log in the file named at the end)"
-build_log="$(mktemp "${TMPDIR:-/tmp}/probslam-build.XXXXXX")"
+echo "setup: build compiles for several minutes; progress below, the full log in $build_log)"
 # Progress: ninja's "[n/N] ..." lines as they come (paths shortened), or a line after every 30 s
 # of silence. A foreground pipeline, so that Ctrl-C stops the build too.
 progress() {
