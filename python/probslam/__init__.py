@@ -24,7 +24,7 @@ from ._core import (
     velocity_motion_jacobian,
     wrap_angle,
 )
-from . import eval, inverse_learning, io, sim, slam
+from . import data, eval, inverse_learning, io, sim, slam
 from .graph import OptimizationReport, PoseGraph2D, marginal_covariances, optimize, read_pose_graph, write_g2o
 from .graphslam import (
     CorrespondenceTest,
@@ -81,6 +81,7 @@ __all__ = [
     "EkfSlam",
     "FastSlam",
     "CorrespondenceTest",
+    "data",
     "FeatureMerges",
     "GraphSlamResult",
     "Measurements",
