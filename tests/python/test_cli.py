@@ -297,3 +297,28 @@ def test_without_matplotlib_plots_are_skipped(tmp_path):
     run = _run(["-m", "probslam", "ekf-slam", "-o", "e"], tmp_path, env)
     assert run.returncode == 0 and "plot skipped" in run.stderr and "Traceback" not in run.stderr
     assert (tmp_path / "e_path.txt").exists() and not (tmp_path / "e.png").exists()
+
+
+def test_an_unexpected_error_is_one_line_and_exit_1(monkeypatch, capsys):
+    def broken(args):
+        raise RuntimeError("something the code did not expect")
+
+    monkeypatch.setattr(cli, "_cmd_map", broken)
+    monkeypatch.delenv("PROBSLAM_DEBUG", raising=False)
+    assert cli.main(["map"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "unexpected error: RuntimeError: something the code did not expect" in err
+    monkeypatch.setenv("PROBSLAM_DEBUG", "1")
+    with pytest.raises(RuntimeError):
+        cli.main(["map"])
+
+
+def test_a_mrclam_folder_missing_a_robot_file_is_named(tmp_path, capsys):
+    import shutil
+
+    folder = tmp_path / "mrclam"
+    shutil.copytree(data.path("mrclam7_robot1_120s"), folder)
+    (folder / "Robot1_Odometry.dat.gz").unlink()
+    assert cli.main(["ekf-slam", str(folder), "-o", str(tmp_path / "e")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Robot1_Odometry.dat" in err and "expected a UTIAS MRCLAM folder" in err
