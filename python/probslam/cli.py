@@ -8,6 +8,7 @@ import os
 import stat
 import sys
 import time
+import warnings
 from typing import Iterator, List, Optional
 
 from . import __version__, io
@@ -503,6 +504,9 @@ def main(argv: Optional[List[str]] = None) -> int:
     error). Set PROBSLAM_DEBUG=1 to see the traceback of an unexpected error."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    format_warning = warnings.formatwarning
+    # A reader's warning (a few malformed lines skipped) as one line, without the source line.
+    warnings.formatwarning = lambda message, category, *rest, **kw: f"probslam: warning: {message}\n"
     try:
         return args.func(args)
     except KeyboardInterrupt:
@@ -518,6 +522,8 @@ def main(argv: Optional[List[str]] = None) -> int:
         print(f"probslam: unexpected error: {type(exc).__name__}: {_one_line(exc)} "
               "(a bug: please report it; PROBSLAM_DEBUG=1 shows the traceback)", file=sys.stderr)
         return 1
+    finally:
+        warnings.formatwarning = format_warning
 
 
 if __name__ == "__main__":

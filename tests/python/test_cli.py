@@ -322,3 +322,12 @@ def test_a_mrclam_folder_missing_a_robot_file_is_named(tmp_path, capsys):
     assert cli.main(["ekf-slam", str(folder), "-o", str(tmp_path / "e")]) == 2
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "Robot1_Odometry.dat" in err and "expected a UTIAS MRCLAM folder" in err
+
+
+def test_a_skipped_line_is_a_one_line_warning(tmp_path):
+    log = tmp_path / "log.log"
+    log.write_text("FLASER 3 1 2 1 0 0 0 0 0 0\nFLASER 3 1 2\nFLASER 3 1 2 1 0.1 0 0 0.1 0 0\n")
+    run = _run(["-m", "probslam", "map", str(log), "--no-progress", "-o", "m"], tmp_path)
+    assert run.returncode == 0, run.stderr
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"probslam: warning: {log}: skipped 1 malformed line (line 2: ")
