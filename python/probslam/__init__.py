@@ -57,13 +57,14 @@ def _read_bt_with_file_check():
 
     compiled = OccupancyGrid3D.read_bt
 
-    def read_bt(path, *args, **kwargs):
+    def read_bt(path: str, p_hit: float = 0.7, p_miss: float = 0.4, clamp_min: float = 0.1192,
+                clamp_max: float = 0.971, occupancy_threshold: float = 0.5) -> "OccupancyGrid3D":
         path = os.fspath(path)
         require_existing(path)
-        return compiled(path, *args, **kwargs)
+        return compiled(path, p_hit, p_miss, clamp_min, clamp_max, occupancy_threshold)
 
     read_bt.__doc__ = (compiled.__doc__ or "") + "\nA missing file raises FileNotFoundError."
-    read_bt.__name__ = read_bt.__qualname__ = "read_bt"
+    read_bt.__name__, read_bt.__qualname__ = "read_bt", "OccupancyGrid3D.read_bt"
     return staticmethod(read_bt)
 
 
