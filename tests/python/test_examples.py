@@ -13,11 +13,6 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 EXAMPLES = sorted((ROOT / "examples").glob("*.py"))
 
 
-def _readme_python_blocks():
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
-    return re.findall(r"^```python\n(.*?)^```", text, flags=re.S | re.M)
-
-
 def test_there_are_examples():
     assert len(EXAMPLES) >= 4
 
@@ -31,15 +26,18 @@ def test_example_runs(example, tmp_path):
     assert "Traceback" not in run.stderr
 
 
-def test_every_readme_python_block_is_an_example_file():
-    """Each block is the text of an examples/ file (its lines after the leading comment) and the
-    README names that file just above the block."""
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
+@pytest.mark.parametrize("page", ["README.md"] + sorted(p.name for p in (ROOT / "docs").glob("*.md")))
+def test_every_python_block_is_an_example_file(page):
+    """Each block of the README and of the docs/ pages is the text of an examples/ file (its
+    lines after the leading comment) and the page names that file just above the block."""
+    path = ROOT / page if page == "README.md" else ROOT / "docs" / page
+    text = path.read_text(encoding="utf-8")
     bodies = {p.name: p.read_text(encoding="utf-8") for p in EXAMPLES}
-    blocks = _readme_python_blocks()
-    assert blocks
+    blocks = re.findall(r"^```python\n(.*?)^```", text, flags=re.S | re.M)
+    if page == "README.md":
+        assert blocks
     for block in blocks:
         owners = [name for name, body in bodies.items() if block.strip() in body]
-        assert owners, f"README block not in any examples/*.py:\n{block}"
+        assert owners, f"{page}: block not in any examples/*.py:\n{block}"
         before = text[:text.index(block)]
-        assert f"examples/{owners[0]}" in before[-400:], f"the README does not name examples/{owners[0]}"
+        assert f"examples/{owners[0]}" in before[-400:], f"{page} does not name examples/{owners[0]}"
