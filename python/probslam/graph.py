@@ -2,7 +2,7 @@
 on CHOLMOD), marginal covariances, writing. The math is in C++; this module only names things
 and drives the EKF for the EKF initialisation.
 
-Reliability (README "Reliability"): every call on a PoseGraph2D takes the graph's lock, so
+Reliability (docs/reliability.md): every call on a PoseGraph2D takes the graph's lock, so
 threads may share a graph; mutations and optimisations are all or nothing (a call that raises
 leaves the graph as it was); results are finite or the call raises. A part of the graph not
 connected to a fixed vertex (or to the first pose, held when none is fixed) is refused by name
