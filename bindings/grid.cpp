@@ -212,6 +212,20 @@ void define_grid(py::module_& m) {
           "Cells whose centre is within radius (m) of the pose are free: l += l_free - l0\n"
           "(default l_free: the lower clamp, else logit(0.05)). Returns the cells changed.")
       .def(
+          "add_log_odds",
+          [](Grid& g, py::handle cells, py::handle deltas) {
+            LongArray c = integer_array_arg(cells, "cells");
+            DoubleArray d = vector_arg(deltas, "deltas");
+            if (c.ndim() != 1) throw py::value_error("cells must be a 1-D array of flat cell indices");
+            const std::vector<long> index(c.data(), c.data() + c.shape(0));
+            const Eigen::Map<const Eigen::VectorXd> delta(d.data(), d.shape(0));
+            return locked(g, [&] { return g.add_log_odds(index, delta); });
+          },
+          py::arg("cells"), py::arg("deltas"),
+          "Table 9.1 line 4 with an inverse model evaluated elsewhere (ch. 9.3): l += deltas (n,) at\n"
+          "the flat cell indices cells (n,) (row * width + col), clamped; all checked first.\n"
+          "Returns the cells updated.")
+      .def(
           "grown",
           [](const Grid& g, py::handle bounds) {
             const Eigen::Vector4d b = fixed_vector<4>(bounds, "bounds");

@@ -3,28 +3,114 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
+import os
+import stat
 import sys
 import time
-from importlib import resources
-from typing import List, Optional
+import warnings
+from typing import Iterator, List, Optional
 
-from . import io
+from . import __version__, io
+from .data import path as _data_path
 from .mapping import map_laser_log
 
 BUNDLED_LOG = "intel_excerpt.log.gz"
 #: A raw log (odometry and scans, no corrected poses) for ``probslam slam``: the Intel Research
 #: Lab's first loop.
 BUNDLED_RAW_LOG = "intel_raw_loop.log.gz"
+#: The default of ``probslam optimize``: the first 400 poses of the Intel Research Lab graph.
+BUNDLED_GRAPH = "intel_400.g2o"
+#: The default of ``probslam ekf-slam`` / ``fastslam``: MRCLAM Dataset 7, robot 1, 120 s.
+BUNDLED_LANDMARKS = "mrclam7_robot1_120s"
+
+#: What each kind of input file must be, for the error messages.
+CARMEN_LOG = "a CARMEN laser log (.log/.clf, optionally .gz/.bz2)"
+LANDMARK_DATASET = ("a UTIAS MRCLAM folder (Barcodes.dat, Landmark_Groundtruth.dat, RobotN_Odometry.dat, "
+                    "RobotN_Measurement.dat) or a Victoria Park file in iSAM/GTSAM text format")
+POSE_GRAPH = "a 2-D pose graph: g2o (VERTEX_SE2/EDGE_SE2), TORO .graph (VERTEX2/EDGE2) or iSAM text"
+
+EPILOG = """exit status:
+  0  success
+  1  an unexpected error (a bug: please report it), or optimize did not converge
+  2  a user or input error: a bad option, a missing, empty or unreadable file (one line on stderr)
+
+Without a dataset argument every command runs on small excerpts of public datasets bundled with
+the package (probslam.data.path(NAME) gives their paths). Plots need matplotlib (optional: pip
+install 'probslam[plot]'); without it they are skipped with a notice."""
+
+
+class UserError(Exception):
+    """An input or usage error: printed as one line on stderr, exit status 2."""
 
 
 def _bundled_log(name: str = BUNDLED_LOG) -> str:
-    return str(resources.files("probslam") / "data" / name)
+    return _data_path(name)
+
+
+def _one_line(exc: BaseException) -> str:
+    text = str(exc) or type(exc).__name__
+    return " ".join(part.strip() for part in text.splitlines() if part.strip())
+
+
+def _check_input(path: str, expected: str, folder: bool = False) -> None:
+    """UserError naming ``path`` when it is missing, empty, or not a regular file (or a folder,
+    with ``folder``)."""
+    try:
+        mode = os.stat(path).st_mode
+    except FileNotFoundError:
+        raise UserError(f"{path}: no such file; expected {expected}") from None
+    except OSError as exc:
+        raise UserError(f"{path}: cannot read it ({exc.strerror}); expected {expected}") from None
+    if stat.S_ISDIR(mode):
+        if not folder:
+            raise UserError(f"{path}: is a directory; expected {expected}")
+        return
+    if not stat.S_ISREG(mode):
+        raise UserError(f"{path}: not a regular file; expected {expected}")
+    if os.path.getsize(path) == 0:
+        raise UserError(f"{path}: empty file; expected {expected}")
+
+
+@contextlib.contextmanager
+def _reading(path: str, expected: str) -> Iterator[None]:
+    """Turn a reader's error into a UserError that names ``path`` and what was expected."""
+    try:
+        yield
+    except UserError:
+        raise
+    except (ValueError, OSError, EOFError, UnicodeError, IndexError) as exc:
+        message = _one_line(exc)
+        if path not in message:
+            message = f"{path}: {message}"
+        raise UserError(f"{message}; expected {expected}") from None
+
+
+def _pyplot():
+    """matplotlib.pyplot, or None after a one-line notice on stderr when it is not installed."""
+    from .plot import require_matplotlib
+
+    try:
+        return require_matplotlib()
+    except ImportError:
+        print("probslam: plot skipped: matplotlib is not installed (pip install 'probslam[plot]')",
+              file=sys.stderr)
+        return None
+
+
+def _read_log(path: str):
+    _check_input(path, CARMEN_LOG)
+    with _reading(path, CARMEN_LOG):
+        log = io.read_carmen_log(path)
+    if len(log.scans) == 0:
+        raise UserError(f"{path}: no laser scans (FLASER or ROBOTLASER1 lines); expected {CARMEN_LOG}")
+    return log
 
 
 def _cmd_map(args: argparse.Namespace) -> int:
     path = args.log or _bundled_log()
     t0 = time.perf_counter()
-    log = io.read_carmen_log(path)
+    log = _read_log(path)
     grid, summary = map_laser_log(log.scans, resolution=args.resolution, max_range=args.max_range,
                                   robot_radius=args.robot_radius,
                                   skip_no_return=not args.keep_no_return, progress=None if args.progress else False)
@@ -49,7 +135,7 @@ def _cmd_slam(args: argparse.Namespace) -> int:
     from .slam import run_slam, write_trajectory
 
     path = args.log or _bundled_log(BUNDLED_RAW_LOG)
-    log = io.read_carmen_log(path)
+    log = _read_log(path)
     if args.method == "rbpf":
         options = dict(resolution=args.resolution, num_particles=args.particles, proposal=args.proposal)
     else:
@@ -63,7 +149,7 @@ def _cmd_slam(args: argparse.Namespace) -> int:
     write_trajectory(args.output + "_trajectory.txt", result.timestamps, result.poses)
     written = [f"{args.output}.yaml", f"{args.output}.pgm", f"{args.output}.png", f"{args.output}_trajectory.txt"]
     if result.graph is not None:
-        write_g2o(args.output + ".g2o", result.graph)
+        write_g2o(result.graph, args.output + ".g2o")
         written.append(f"{args.output}.g2o")
     s = result.summary
     grid = result.grid
@@ -92,16 +178,14 @@ def _cmd_slam(args: argparse.Namespace) -> int:
 
 
 def _cmd_ekf_slam(args: argparse.Namespace) -> int:
-    import pathlib
-
     import numpy as np
 
     from . import landmark_slam as ls
-    from .plot import landmark_map, require_matplotlib
+    from .plot import landmark_map
 
-    path = pathlib.Path(args.dataset)
+    path, mrclam = _landmark_dataset(args)
     t0 = time.perf_counter()
-    if path.is_dir() and (path / "Barcodes.dat").exists():
+    if mrclam:
         data = _mrclam_data(args, path)
         motion = np.diag([args.sigma_v ** 2, args.sigma_w ** 2])
         sensor = np.diag([args.sigma_r ** 2, args.sigma_phi ** 2])
@@ -122,30 +206,60 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
         truth, truth_lm = _print_mrclam_score(ls, data, run, dr, ls.majority_labels(run) if args.unknown else None)
         poses, dead = run.poses, dr.poses
     else:
-        data = io.read_victoria_park(path)
-        _print_skipped({"unreadable records": data.skipped_rows} if data.skipped_rows else {})
+        data = _victoria_park_data(path)
         t_load = time.perf_counter()
         run = ls.run_ekf_victoria_park(data)
         t_run = time.perf_counter() - t_load
         print(f"dataset:       Victoria Park {path}: {len(run.poses)} poses, {len(data.xy)} observations")
         print(f"landmarks:     {run.ekf.num_landmarks}; filter time {t_run:.3f} s")
         poses, dead, truth, truth_lm = run.poses, None, None, None
-    plt = require_matplotlib()
-    fig, ax = plt.subplots(figsize=(8, 8))
-    landmark_map(ax, poses, run.ekf, truth_path=truth, truth_landmarks=truth_lm, dead_reckoning=dead)
-    fig.tight_layout()
-    fig.savefig(args.output + ".png", dpi=120)
+    written = [args.output + "_path.txt"]
     np.savetxt(args.output + "_path.txt", poses, header="x y theta (filtered)")
+    plt = _pyplot()
+    if plt is not None:
+        fig, ax = plt.subplots(figsize=(8, 8))
+        landmark_map(ax, poses, run.ekf, truth_path=truth, truth_landmarks=truth_lm, dead_reckoning=dead)
+        fig.tight_layout()
+        fig.savefig(args.output + ".png", dpi=120)
+        plt.close(fig)
+        written.insert(0, args.output + ".png")
     print(f"time:          {time.perf_counter() - t0:.2f} s total")
-    print(f"wrote:         {args.output}.png, {args.output}_path.txt")
+    print(f"wrote:         {', '.join(written)}")
     return 0
+
+
+def _landmark_dataset(args: argparse.Namespace):
+    """(path, is_mrclam) of the ekf-slam / fastslam dataset argument (default: the bundled MRCLAM
+    excerpt), checked: UserError for a missing or empty file or a folder that is not MRCLAM."""
+    import pathlib
+
+    path = args.dataset or _data_path(BUNDLED_LANDMARKS)
+    _check_input(path, LANDMARK_DATASET, folder=True)
+    path = pathlib.Path(path)
+    if path.is_dir():
+        if not (path / "Barcodes.dat").exists():
+            raise UserError(f"{path}: a folder without Barcodes.dat; expected {LANDMARK_DATASET}")
+        return path, True
+    return path, False
+
+
+def _victoria_park_data(path):
+    with _reading(str(path), LANDMARK_DATASET):
+        vp = io.read_victoria_park(path)
+    if len(vp.pose_from) == 0:
+        raise UserError(f"{path}: no ODOMETRY records; expected {LANDMARK_DATASET}")
+    _print_skipped({"unreadable records": vp.skipped_rows} if vp.skipped_rows else {})
+    return vp
 
 
 def _mrclam_data(args: argparse.Namespace, path):
     """An MRCLAM robot as the landmark commands read it: the first --seconds, ranges from depth."""
     from . import landmark_slam as ls
 
-    data = io.read_mrclam(path, robot=args.robot)
+    with _reading(str(path), LANDMARK_DATASET):
+        data = io.read_mrclam(path, robot=args.robot)
+    if len(data.odometry) == 0:
+        raise UserError(f"{path}: no odometry rows for robot {args.robot}; expected {LANDMARK_DATASET}")
     _print_skipped(data.skipped_rows)
     if args.seconds is not None:
         data = ls.first_seconds(data, args.seconds)
@@ -153,19 +267,17 @@ def _mrclam_data(args: argparse.Namespace, path):
 
 
 def _cmd_fastslam(args: argparse.Namespace) -> int:
-    import pathlib
-
     import numpy as np
 
     from . import fastslam as fs
     from . import landmark_slam as ls
-    from .plot import fastslam_map, require_matplotlib
+    from .plot import fastslam_map
 
-    path = pathlib.Path(args.dataset)
+    path, mrclam = _landmark_dataset(args)
     t0 = time.perf_counter()
     common = dict(known=not args.unknown, num_particles=args.particles, version=args.version, seed=args.seed,
                   threads=args.threads)
-    if path.is_dir() and (path / "Barcodes.dat").exists():
+    if mrclam:
         data = _mrclam_data(args, path)
         motion = np.diag([args.sigma_v ** 2, args.sigma_w ** 2])
         sensor = np.diag([args.sigma_r ** 2, args.sigma_phi ** 2])
@@ -174,8 +286,7 @@ def _cmd_fastslam(args: argparse.Namespace) -> int:
         print(f"dataset:       UTIAS MRCLAM {path} robot {args.robot}, "
               f"{'unknown' if args.unknown else 'known'} correspondences")
     else:
-        data = io.read_victoria_park(path)
-        _print_skipped({"unreadable records": data.skipped_rows} if data.skipped_rows else {})
+        data = _victoria_park_data(path)
         run, dr = fs.run_fastslam_victoria_park(data, **common), None
         print(f"dataset:       Victoria Park {path}: {len(run.poses)} poses, {len(data.xy)} observations, "
               f"{'unknown' if args.unknown else 'known'} correspondences")
@@ -189,14 +300,19 @@ def _cmd_fastslam(args: argparse.Namespace) -> int:
     truth = truth_lm = None
     if isinstance(data, io.Mrclam):
         truth, truth_lm = _print_mrclam_score(ls, data, run, dr, labels)
-    plt = require_matplotlib()
-    fig, ax = plt.subplots(figsize=(8, 8))
-    fastslam_map(ax, f, truth_path=truth, truth_landmarks=truth_lm, dead_reckoning=None if dr is None else dr.poses)
-    fig.tight_layout()
-    fig.savefig(args.output + ".png", dpi=120)
+    written = [args.output + "_path.txt"]
     np.savetxt(args.output + "_path.txt", run.poses, header="x y theta (the best particle's path)")
+    plt = _pyplot()
+    if plt is not None:
+        fig, ax = plt.subplots(figsize=(8, 8))
+        fastslam_map(ax, f, truth_path=truth, truth_landmarks=truth_lm,
+                     dead_reckoning=None if dr is None else dr.poses)
+        fig.tight_layout()
+        fig.savefig(args.output + ".png", dpi=120)
+        plt.close(fig)
+        written.insert(0, args.output + ".png")
     print(f"time:          {time.perf_counter() - t0:.2f} s total")
-    print(f"wrote:         {args.output}.png, {args.output}_path.txt")
+    print(f"wrote:         {', '.join(written)}")
     return 0
 
 
@@ -241,10 +357,15 @@ def _print_map_score(ls, data, run, labels) -> None:
 def _cmd_optimize(args: argparse.Namespace) -> int:
     from . import graph as pg
 
+    path = args.graph or _data_path(BUNDLED_GRAPH)
+    _check_input(path, POSE_GRAPH)
     t0 = time.perf_counter()
-    g = pg.read_pose_graph(args.graph, format=args.format)
+    with _reading(path, POSE_GRAPH):
+        g = pg.read_pose_graph(path, format=args.format)
+    if g.num_vertices == 0:
+        raise UserError(f"{path}: no vertices; expected {POSE_GRAPH}")
     t_read = time.perf_counter() - t0
-    print(f"graph:      {args.graph}: {len(g.pose_ids)} poses, {len(g.point_ids)} points, "
+    print(f"graph:      {path}{' (bundled Intel Research Lab excerpt)' if not args.graph else ''}: {len(g.pose_ids)} poses, {len(g.point_ids)} points, "
           f"{g.num_pose_edges} pose edges, {g.num_point_edges} point edges (read in {t_read:.3f} s)")
     if args.init != "file":
         t_init = time.perf_counter()
@@ -260,17 +381,18 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
         print(f"  iteration {i:3d}: chi2 {chi2:.6f}  ({seconds * 1e3:.2f} ms)")
     print(f"result:     chi2 {report.chi2:.6f} after {report.iterations} iterations ({report.stop_reason}); "
           f"optimisation {t_opt:.3f} s, file to result {time.perf_counter() - t0:.3f} s")
-    pg.write_g2o(args.output + ".g2o", g)
+    pg.write_g2o(g, args.output + ".g2o")
     written = [args.output + ".g2o"]
-    if not args.no_plot:
-        from .plot import pose_graph, require_matplotlib
+    plt = None if args.no_plot else _pyplot()
+    if plt is not None:
+        from .plot import pose_graph
 
-        plt = require_matplotlib()
         fig, ax = plt.subplots(figsize=(8, 8))
         pose_graph(ax, g, initial=initial, edges=args.edges)
-        ax.set_title(f"{args.graph.split('/')[-1]}: chi2 {report.chi2:.4f}")
+        ax.set_title(f"{os.path.basename(path)}: chi2 {report.chi2:.4f}")
         fig.tight_layout()
         fig.savefig(args.output + ".png", dpi=120)
+        plt.close(fig)
         written.append(args.output + ".png")
     print(f"wrote:      {', '.join(written)}")
     return 0 if report.converged else 1
@@ -292,7 +414,9 @@ def _landmark_dataset_options(parser: argparse.ArgumentParser, output: str) -> N
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="probslam", description="Probabilistic robot mapping and SLAM.")
+    parser = argparse.ArgumentParser(prog="probslam", description="Probabilistic robot mapping and SLAM.",
+                                     epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--version", action="version", version=f"probslam {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("map", help="occupancy grid map of a CARMEN laser log with known (corrected) poses")
     p.add_argument("log", nargs="?", help="CARMEN log (.log/.clf, optionally .gz/.bz2); "
@@ -330,7 +454,8 @@ def build_parser() -> argparse.ArgumentParser:
     sl.set_defaults(func=_cmd_slam)
 
     e = sub.add_parser("ekf-slam", help="EKF SLAM on a landmark dataset (MRCLAM folder or Victoria Park file)")
-    e.add_argument("dataset", help="a UTIAS MRCLAM folder, or Victoria Park in iSAM/GTSAM text format")
+    e.add_argument("dataset", nargs="?", help="a UTIAS MRCLAM folder, or Victoria Park in iSAM/GTSAM text format; "
+                                              "default: a bundled MRCLAM excerpt (Dataset 7, robot 1, 120 s)")
     e.add_argument("--unknown", action="store_true", help="hide the correspondences (Table 10.2)")
     e.add_argument("--association", choices=("jcbb", "ml", "mht"), default="jcbb",
                    help="with --unknown: joint compatibility over each scan (default), maximum likelihood, "
@@ -340,7 +465,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     fsp = sub.add_parser("fastslam", help="FastSLAM 1.0 / 2.0 on a landmark dataset (MRCLAM folder or Victoria "
                                           "Park file)")
-    fsp.add_argument("dataset", help="a UTIAS MRCLAM folder, or Victoria Park in iSAM/GTSAM text format")
+    fsp.add_argument("dataset", nargs="?", help="a UTIAS MRCLAM folder, or Victoria Park in iSAM/GTSAM text "
+                                                "format; default: a bundled MRCLAM excerpt (Dataset 7, robot 1, "
+                                                "120 s)")
     fsp.add_argument("--unknown", action="store_true",
                      help="hide the correspondences: each particle associates by maximum likelihood")
     fsp.add_argument("--particles", type=int, default=100, help="number of particles (default 100)")
@@ -352,7 +479,8 @@ def build_parser() -> argparse.ArgumentParser:
     fsp.set_defaults(func=_cmd_fastslam)
 
     o = sub.add_parser("optimize", help="optimise a 2-D pose/landmark graph (g2o, TORO or iSAM text)")
-    o.add_argument("graph", help="graph file: .g2o, TORO .graph, or iSAM .txt")
+    o.add_argument("graph", nargs="?", help="graph file: .g2o, TORO .graph, or iSAM .txt; default: a bundled "
+                                            "excerpt of the Intel Research Lab graph (400 poses)")
     o.add_argument("--format", default="auto", choices=["auto", "g2o", "toro", "isam"])
     o.add_argument("--algorithm", default="gauss-newton", choices=["gauss-newton", "levenberg-marquardt"])
     o.add_argument("--init", default="file", choices=["file", "odometry", "ekf", "incremental"],
@@ -372,13 +500,30 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Optional[List[str]] = None) -> int:
+    """Run the command line; returns the exit status (0 ok, 2 user or input error, 1 unexpected
+    error). Set PROBSLAM_DEBUG=1 to see the traceback of an unexpected error."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    format_warning = warnings.formatwarning
+    # A reader's warning (a few malformed lines skipped) as one line, without the source line.
+    warnings.formatwarning = lambda message, category, *rest, **kw: f"probslam: warning: {message}\n"
     try:
         return args.func(args)
-    except (ValueError, TypeError, OSError, ImportError) as exc:
-        print(f"probslam: error: {exc}", file=sys.stderr)
+    except KeyboardInterrupt:
+        print("probslam: interrupted", file=sys.stderr)
+        return 130
+    except (UserError, ValueError, TypeError, OSError, ImportError) as exc:
+        # Bad options (the library names the argument), unreadable or unwritable files.
+        print(f"probslam: error: {_one_line(exc)}", file=sys.stderr)
         return 2
+    except Exception as exc:  # noqa: BLE001 - the last resort: one line, not a traceback
+        if os.environ.get("PROBSLAM_DEBUG"):
+            raise
+        print(f"probslam: unexpected error: {type(exc).__name__}: {_one_line(exc)} "
+              "(a bug: please report it; PROBSLAM_DEBUG=1 shows the traceback)", file=sys.stderr)
+        return 1
+    finally:
+        warnings.formatwarning = format_warning
 
 
 if __name__ == "__main__":

@@ -82,7 +82,7 @@ class EkfSlam:
         gate_distance: metres; association candidates are the landmarks within it of where
             the measurement places its landmark.
 
-    Reliability (README): every call validates all its input first and raises ValueError or
+    Reliability (docs/reliability.md): every call validates all its input first and raises ValueError or
     TypeError naming the argument, with the filter unchanged; a call whose result would not be
     finite raises too, and changes nothing. Named limits (``ekf_slam.hpp``): coordinates,
     ranges, signatures and one motion's length within 1e9 m (``kEkfMaxCoordinate``); noise

@@ -2,7 +2,7 @@
 on CHOLMOD), marginal covariances, writing. The math is in C++; this module only names things
 and drives the EKF for the EKF initialisation.
 
-Reliability (README "Reliability"): every call on a PoseGraph2D takes the graph's lock, so
+Reliability (docs/reliability.md): every call on a PoseGraph2D takes the graph's lock, so
 threads may share a graph; mutations and optimisations are all or nothing (a call that raises
 leaves the graph as it was); results are finite or the call raises. A part of the graph not
 connected to a fixed vertex (or to the first pose, held when none is fixed) is refused by name
@@ -13,10 +13,58 @@ report plus a per-variable pivot test, not a cut on the condition number, so inf
 
 from __future__ import annotations
 
-from typing import Optional
+import os
+import warnings
+from typing import Optional, Union
 
+from . import _core
+from .io._files import require_existing
 from ._core import (IncrementalReport, OptimizationReport, PoseGraph2D, initialize_odometry, marginal_covariances,
-                    optimize, optimize_incremental, read_pose_graph, write_g2o, write_isam)
+                    optimize, optimize_incremental)
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+
+def read_pose_graph(path: PathLike, format: str = "auto") -> PoseGraph2D:
+    """Read a 2-D pose/landmark graph: ``format`` 'g2o' (VERTEX_SE2 / EDGE_SE2 / VERTEX_XY /
+    EDGE_SE2_XY), 'toro' (VERTEX2 / EDGE2), 'isam' (ODOMETRY / EDGE2 / LANDMARK, vertices
+    dead-reckoned) or 'auto' (by extension and content).
+
+    A missing file raises ``FileNotFoundError`` naming it (as every reader of the package does);
+    a malformed file ``ValueError("file:line: ...")``."""
+    path = os.fspath(path)
+    require_existing(path)
+    return _core.read_pose_graph(path, format)
+
+
+def _writer_arguments(name: str, graph, path):
+    """(graph, path) of a writer called as ``name(graph, path)``, or in the old order
+    ``name(path, graph)`` (deprecated: a DeprecationWarning)."""
+    if isinstance(path, PoseGraph2D) and not isinstance(graph, PoseGraph2D):
+        warnings.warn(f"{name}(path, graph) is deprecated: call {name}(graph, path), the order of every writer "
+                      "(save_ros_map(grid, path), grid.write_bt(path))", DeprecationWarning, stacklevel=3)
+        graph, path = path, graph
+    if not isinstance(graph, PoseGraph2D):
+        raise TypeError(f"graph: expected a PoseGraph2D, got {type(graph).__name__}")
+    if not isinstance(path, (str, os.PathLike)):
+        raise TypeError(f"path: expected a str or os.PathLike, got {type(path).__name__}")
+    return graph, os.fspath(path)
+
+
+def write_g2o(graph: PoseGraph2D, path: PathLike) -> None:
+    """Write ``graph`` to ``path`` in g2o text (VERTEX_SE2, VERTEX_XY, EDGE_SE2, EDGE_SE2_XY, FIX).
+    The old argument order ``write_g2o(path, graph)`` still works, with a DeprecationWarning."""
+    graph, path = _writer_arguments("write_g2o", graph, path)
+    _core.write_g2o(path, graph)
+
+
+def write_isam(graph: PoseGraph2D, path: PathLike) -> None:
+    """Write ``graph`` to ``path`` in iSAM text: pose edges, then LANDMARK edges under each point's
+    landmark id (see ``PoseGraph2D.landmark_ids``); no vertex values (reading back dead-reckons
+    them). The old argument order ``write_isam(path, graph)`` still works, with a
+    DeprecationWarning."""
+    graph, path = _writer_arguments("write_isam", graph, path)
+    _core.write_isam(path, graph)
 
 #: The starting points ``initialize`` offers (ch. 11.3): dead reckoning, the EKF SLAM estimate,
 #: and incremental optimisation pose by pose.

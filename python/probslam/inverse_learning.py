@@ -251,8 +251,8 @@ class LearnedInverseModel:
                     half_angle: float) -> int:
         """Table 9.1 lines 3-4 with this model as inverse_sensor_model: for each cell in the
         perceptual field, l += logit(f) - logit(prior), the prior being the training maps'
-        occupied fraction (what f returns where the scan tells nothing). Writes the grid's
-        log-odds view directly, so the grid's clamp is not applied. Returns the cells changed."""
+        occupied fraction (what f returns where the scan tells nothing). Updates the grid
+        through ``add_log_odds`` (clamped, under the grid's lock). Returns the cells changed."""
         self._check_trained()
         pose = np.asarray(pose, dtype=float)
         ranges = np.asarray(ranges, dtype=float)
@@ -266,8 +266,7 @@ class LearnedInverseModel:
         cells, x = field_features(grid, pose, ranges, beam_angles, max_range, half_angle)
         if cells.size == 0:
             return 0
-        grid.log_odds.ravel()[cells] += logit(self.probability(x)) - logit(self.prior)
-        return int(cells.size)
+        return grid.add_log_odds(cells, logit(self.probability(x)) - logit(self.prior))
 
     def save(self, path: str) -> None:
         """The weights and standardisation as a .npz file."""

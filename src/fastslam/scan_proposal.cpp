@@ -29,6 +29,11 @@ class PoseGaussian {
   double log_density(const Eigen::Vector3d& pose) const {
     return log_norm_ - 0.5 * llt_.matrixL().solve(pose_offset(pose, mean_)).squaredNorm();
   }
+  /// cov^-1, symmetrised, from the same factor.
+  Eigen::Matrix3d information() const {
+    const Eigen::Matrix3d i = llt_.solve(Eigen::Matrix3d::Identity());
+    return 0.5 * (i + i.transpose());
+  }
 
  private:
   Eigen::Vector3d mean_;
@@ -167,13 +172,11 @@ ScanProposal scan_matching_proposal(const EndpointLikelihood& likelihood, const 
         const Eigen::Vector3d x(best.x() + i * options.sample_linear, best.y() + j * options.sample_linear,
                                 wrap_angle(best.z() + a * options.sample_angular));
         p.samples.row(k) = x.transpose();
-        p.log_scores[k] = score(x);
+        p.log_scores[k] = k == 0 ? best_score : score(x);  // the mode's score is known
         ++k;
       }
   const Eigen::Vector3d spacing(options.sample_linear, options.sample_linear, options.sample_angular);
-  const Eigen::Matrix3d information = prior_cov.llt().solve(Eigen::Matrix3d::Identity());
-  p.log_normaliser = fit_pose_laplace(p.samples, p.log_scores, spacing, 0.5 * (information + information.transpose()),
-                                      p.mean, p.covariance);
+  p.log_normaliser = fit_pose_laplace(p.samples, p.log_scores, spacing, motion.information(), p.mean, p.covariance);
   return p;
 }
 

@@ -244,6 +244,18 @@ std::size_t OccupancyGrid2D::insert_scans(const Eigen::Ref<const Poses2>& poses,
   return updated;
 }
 
+std::size_t OccupancyGrid2D::add_log_odds(const std::vector<long>& cells, const Eigen::Ref<const Eigen::VectorXd>& deltas) {
+  require(static_cast<Eigen::Index>(cells.size()) == deltas.size(), "deltas", "must have one value per cell");
+  const long count = static_cast<long>(log_odds_.size());
+  for (std::size_t k = 0; k < cells.size(); ++k) {
+    require(cells[k] >= 0 && cells[k] < count, "cells", "must be flat cell indices in [0, width * height)");
+    require_log_odds(deltas[static_cast<Eigen::Index>(k)], "deltas");
+  }
+  for (std::size_t k = 0; k < cells.size(); ++k)
+    update_cell(static_cast<std::size_t>(cells[k]), deltas[static_cast<Eigen::Index>(k)]);
+  return cells.size();
+}
+
 std::size_t OccupancyGrid2D::clear_footprint(const Eigen::Vector3d& pose, double radius, double l_free) {
   require_all_finite(pose, "pose");
   require(std::isfinite(radius) && radius >= 0.0, "radius", "must be finite and >= 0");

@@ -1,4 +1,4 @@
-"""The reliability policy (README "Reliability") as reusable test pieces.
+"""The reliability policy (docs/reliability.md) as reusable test pieces.
 
 Property tests (hypothesis) feed public calls odd arrays and check the policy: the call either
 returns a finite result or raises ValueError/TypeError (IndexError/KeyError where the API says so),

@@ -57,7 +57,7 @@ def test_optimize_writes_the_optimised_graph(tmp_path, capsys):
         c, s = np.cos(a[2]), np.sin(a[2])
         z = np.r_[np.array([[c, s], [-s, c]]) @ (b[:2] - a[:2]), ps.wrap_angle(b[2] - a[2])]
         g.add_pose_edge(i, (i + 1) % 4, z, np.eye(3))
-    ps.write_g2o(str(tmp_path / "square.g2o"), g)
+    ps.write_g2o(g, str(tmp_path / "square.g2o"))
     assert cli.main(["optimize", str(tmp_path / "square.g2o"), "-o", str(tmp_path / "out")]) == 0
     out = capsys.readouterr().out
     assert "4 poses" in out and "iteration   1" in out and "chi2 0.000000 after" in out
@@ -72,7 +72,7 @@ def test_optimize_with_an_initialisation(tmp_path, capsys):
         g.add_pose(i, [0.0, 0.0, 0.0])
         if i:
             g.add_pose_edge(i - 1, i, [1.0, 0.0, 0.5], np.eye(3))
-    ps.write_g2o(str(tmp_path / "chain.g2o"), g)
+    ps.write_g2o(g, str(tmp_path / "chain.g2o"))
     args = ["optimize", str(tmp_path / "chain.g2o"), "--no-plot", "-o", str(tmp_path / "o")]
     assert cli.main(args + ["--init", "odometry"]) == 0
     out = capsys.readouterr().out
@@ -184,3 +184,150 @@ def test_fastslam_bad_options_are_errors_naming_them(tmp_path, capsys, shared_da
     assert cli.main(["fastslam", str(vp), "-o", str(tmp_path / "x")] + extra) == 2
     assert name in capsys.readouterr().err
     assert cli.main(["fastslam", str(tmp_path / "missing.txt"), "-o", str(tmp_path / "x")]) == 2
+
+
+# ------------------------------------------------------------------ bundled data, errors, no matplotlib
+
+import gzip
+import os
+import subprocess
+import sys
+
+from probslam import data
+
+
+def test_every_bundled_file_is_there():
+    for name in data.FILES:
+        assert os.path.exists(data.path(name)), name
+    with pytest.raises(ValueError, match="no bundled data called 'nope'.*intel_400.g2o"):
+        data.path("nope")
+
+
+def test_optimize_bundled_graph(tmp_path, capsys):
+    assert cli.main(["optimize", "--no-plot", "-o", str(tmp_path / "o")]) == 0
+    out = capsys.readouterr().out
+    assert "intel_400.g2o (bundled" in out and "400 poses, 0 points, 513 pose edges" in out
+    result = ps.read_pose_graph(str(tmp_path / "o.g2o"))
+    direct = ps.read_pose_graph(data.path("intel_400.g2o"))
+    report = ps.optimize(direct)
+    np.testing.assert_allclose(result.poses, direct.poses, atol=1e-6)
+    assert f"chi2 {report.chi2:.6f} after {report.iterations} iterations" in out
+    assert report.chi2 < report.initial_chi2
+
+
+def test_ekf_slam_bundled_mrclam(tmp_path, capsys):
+    assert cli.main(["ekf-slam", "-o", str(tmp_path / "e")]) == 0
+    out = capsys.readouterr().out
+    folder = data.path("mrclam7_robot1_120s")
+    assert f"UTIAS MRCLAM {folder} robot 1" in out and "path RMSE:" in out
+    mr = io.read_mrclam(folder)
+    assert mr.groundtruth is not None and 115 < mr.odometry[-1, 0] - mr.odometry[0, 0] <= 120
+    assert f"odometry:      {len(mr.odometry)} controls" in out
+    path = np.loadtxt(tmp_path / "e_path.txt")
+    assert path.shape[1] == 3 and len(path) > 100
+
+
+def test_ekf_slam_bundled_victoria_park(tmp_path, capsys):
+    assert cli.main(["ekf-slam", data.path("victoria_park_1000.txt"), "-o", str(tmp_path / "v")]) == 0
+    out = capsys.readouterr().out
+    assert "1000 poses, 613 observations" in out
+    assert np.loadtxt(tmp_path / "v_path.txt").shape == (1000, 3)
+
+
+def test_fastslam_bundled_mrclam(tmp_path, capsys):
+    assert cli.main(["fastslam", "--particles", "20", "-o", str(tmp_path / "f")]) == 0
+    out = capsys.readouterr().out
+    assert "FastSLAM 1.0, 20 particles" in out and "path RMSE:" in out
+    assert np.loadtxt(tmp_path / "f_path.txt").shape[1] == 3
+
+
+def _bad_inputs(tmp_path):
+    """(name, path) of the inputs no command can read."""
+    (tmp_path / "empty.txt").write_bytes(b"")
+    (tmp_path / "garbage.txt").write_bytes(bytes(range(256)) * 8)
+    (tmp_path / "corrupt.log.gz").write_bytes(gzip.compress(b"FLASER 3 1 2 3 0 0 0 0 0 0\n" * 50)[:40])
+    (tmp_path / "folder").mkdir()
+    return [("missing", tmp_path / "missing.txt"), ("directory", tmp_path / "folder"),
+            ("empty", tmp_path / "empty.txt"), ("garbage", tmp_path / "garbage.txt"),
+            ("corrupt .gz", tmp_path / "corrupt.log.gz")]
+
+
+@pytest.mark.parametrize("command", ["map", "slam", "ekf-slam", "fastslam", "optimize"])
+def test_bad_inputs_give_one_line_naming_the_file(tmp_path, capsys, command):
+    for kind, path in _bad_inputs(tmp_path):
+        status = cli.main([command, str(path), "-o", str(tmp_path / "out")]
+                          + (["--no-progress"] if command in ("map", "slam") else []))
+        err = capsys.readouterr().err
+        assert status == 2, (kind, err)
+        lines = err.strip().splitlines()
+        assert len(lines) == 1 and str(path) in lines[0] and "expected" in lines[0], (kind, err)
+        assert "Traceback" not in err
+
+
+def _run(args, tmp_path, env_extra=None):
+    env = dict(os.environ, MPLBACKEND="Agg", **(env_extra or {}))
+    return subprocess.run([sys.executable] + args, cwd=tmp_path, env=env, capture_output=True, text=True,
+                          timeout=300)
+
+
+def test_subprocess_bad_file_has_no_traceback(tmp_path):
+    run = _run(["-m", "probslam", "ekf-slam", str(tmp_path / "missing")], tmp_path)
+    assert run.returncode == 2 and "Traceback" not in run.stderr
+    assert run.stderr.strip() == f"probslam: error: {tmp_path / 'missing'}: no such file; expected " \
+                                 f"{cli.LANDMARK_DATASET}"
+
+
+def test_version_and_python_m(tmp_path):
+    run = _run(["-m", "probslam", "--version"], tmp_path)
+    assert run.returncode == 0 and run.stdout.strip() == f"probslam {ps.__version__}"
+    run = _run(["-m", "probslam", "--help"], tmp_path)
+    assert run.returncode == 0 and "exit status:" in run.stdout and "2  a user or input error" in run.stdout
+
+
+def test_without_matplotlib_plots_are_skipped(tmp_path):
+    shim = tmp_path / "shim"
+    (shim / "matplotlib").mkdir(parents=True)
+    (shim / "matplotlib" / "__init__.py").write_text("raise ImportError('matplotlib hidden by the test')\n")
+    env = {"PYTHONPATH": str(shim) + os.pathsep + os.environ.get("PYTHONPATH", "")}
+    run = _run(["-m", "probslam", "optimize", "-o", "g"], tmp_path, env)
+    assert run.returncode == 0, run.stderr
+    assert "Traceback" not in run.stderr
+    assert run.stderr.strip() == "probslam: plot skipped: matplotlib is not installed (pip install 'probslam[plot]')"
+    assert (tmp_path / "g.g2o").exists() and not (tmp_path / "g.png").exists()
+    run = _run(["-m", "probslam", "ekf-slam", "-o", "e"], tmp_path, env)
+    assert run.returncode == 0 and "plot skipped" in run.stderr and "Traceback" not in run.stderr
+    assert (tmp_path / "e_path.txt").exists() and not (tmp_path / "e.png").exists()
+
+
+def test_an_unexpected_error_is_one_line_and_exit_1(monkeypatch, capsys):
+    def broken(args):
+        raise RuntimeError("something the code did not expect")
+
+    monkeypatch.setattr(cli, "_cmd_map", broken)
+    monkeypatch.delenv("PROBSLAM_DEBUG", raising=False)
+    assert cli.main(["map"]) == 1
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "unexpected error: RuntimeError: something the code did not expect" in err
+    monkeypatch.setenv("PROBSLAM_DEBUG", "1")
+    with pytest.raises(RuntimeError):
+        cli.main(["map"])
+
+
+def test_a_mrclam_folder_missing_a_robot_file_is_named(tmp_path, capsys):
+    import shutil
+
+    folder = tmp_path / "mrclam"
+    shutil.copytree(data.path("mrclam7_robot1_120s"), folder)
+    (folder / "Robot1_Odometry.dat.gz").unlink()
+    assert cli.main(["ekf-slam", str(folder), "-o", str(tmp_path / "e")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "Robot1_Odometry.dat" in err and "expected a UTIAS MRCLAM folder" in err
+
+
+def test_a_skipped_line_is_a_one_line_warning(tmp_path):
+    log = tmp_path / "log.log"
+    log.write_text("FLASER 3 1 2 1 0 0 0 0 0 0\nFLASER 3 1 2\nFLASER 3 1 2 1 0.1 0 0 0.1 0 0\n")
+    run = _run(["-m", "probslam", "map", str(log), "--no-progress", "-o", "m"], tmp_path)
+    assert run.returncode == 0, run.stderr
+    lines = run.stderr.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith(f"probslam: warning: {log}: skipped 1 malformed line (line 2: ")

@@ -1,6 +1,8 @@
 """Landmark FastSLAM drivers (probslam.fastslam) on Victoria Park, against the EKF on the same
 data (skipped without ../shared/data)."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -113,3 +115,35 @@ def test_association_history_backtracking_equals_forward_lists():
         for (t1, r1), (t2, r2) in zip(back, forward[::-1]):
             np.testing.assert_array_equal(t1, t2)
             np.testing.assert_array_equal(r1, r2)
+
+
+@pytest.fixture(scope="module")
+def mrclam_d1r1():
+    folder = SHARED_DATA / "landmark_slam/mrclam_dataset1"
+    if not folder.is_dir():
+        pytest.skip(f"MRCLAM Dataset 1 not present at {folder}")
+    return ls.first_seconds(ps.io.read_mrclam(folder, robot=1), 300.0).with_euclidean_ranges()
+
+
+def test_mrclam_perceptual_field_is_the_sightings_quantiles(mrclam_d1r1):
+    m = mrclam_d1r1.measurements
+    field_range, fov = fs.mrclam_perceptual_field(mrclam_d1r1)
+    inside = (m[:, 2] <= field_range) & (np.abs(m[:, 3]) <= fov / 2)
+    # Each limit leaves out 10% of the sightings, so between 80% and 90% lie inside both.
+    assert 0.8 <= inside.mean() <= 0.9 + 1e-9
+    assert field_range == pytest.approx(np.sort(m[:, 2])[int(0.9 * (len(m) - 1))], abs=0.5)
+    with pytest.raises(ValueError, match="^data"):
+        fs.mrclam_perceptual_field(dataclasses.replace(mrclam_d1r1, measurements=m[:0]))
+
+
+def test_mrclam_hidden_negative_information_removes_duplicates(mrclam_d1r1):
+    """Hidden barcodes, first 300 s of Dataset 1 robot 1 (14 barcodes seen; 14 landmarks with,
+    16 without negative information), version 1: with the
+    default negative information the best map holds no more landmarks than without it, and no
+    fewer than the barcodes it saw minus one (it must not empty the map)."""
+    motion, sensor = np.diag([0.15 ** 2, 0.6 ** 2]), np.diag([0.15 ** 2, 0.04 ** 2])
+    seen = len(set(mrclam_d1r1.measurements[:, 1].astype(int)) & set(mrclam_d1r1.landmark_positions))
+    with_ni = fs.run_fastslam_mrclam(mrclam_d1r1, motion, sensor, known=False)
+    without = fs.run_fastslam_mrclam(mrclam_d1r1, motion, sensor, known=False, negative_information=False)
+    assert seen - 1 <= len(with_ni.landmarks) <= len(without.landmarks)
+    assert fs.association_accuracy(with_ni) >= 0.9

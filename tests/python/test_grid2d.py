@@ -242,3 +242,34 @@ def test_reference_walk_agrees_with_exact_crossing():
     cells = walk((0.05, 0.05), (0.35, 0.25), 0.0, 0.0, 0.1)
     # crossings at t = 1/6 (x), 1/4 (y), 1/2 (x), 3/4 (y); the end cell (3, 2) is excluded
     assert cells == [(0, 0), (1, 0), (1, 1), (2, 1), (2, 2)]
+
+
+def test_add_log_odds_matches_a_clamped_numpy_loop():
+    """add_log_odds against a plain loop: each delta added in order and clamped after each
+    (repeated cells accumulate), other cells untouched."""
+    grid = ps.OccupancyGrid2D(0.1, 5, 4)  # default clamp
+    lo, hi = (float(ps.logit(p)) for p in grid.clamp)  # the clamp is given as probabilities
+    rng = np.random.default_rng(2)
+    cells = rng.integers(0, 20, 60)
+    deltas = rng.normal(0.0, 2.0, 60)
+    expected = grid.log_odds.copy().ravel()
+    for c, d in zip(cells, deltas):
+        expected[c] = min(max(expected[c] + d, lo), hi)
+    assert grid.add_log_odds(cells, deltas) == 60
+    np.testing.assert_allclose(grid.log_odds.ravel(), expected, rtol=0, atol=1e-12)
+
+
+@pytest.mark.parametrize("cells, deltas, err, name", [
+    ([0, 20], [0.1, 0.1], ValueError, "cells"),
+    ([0, -1], [0.1, 0.1], ValueError, "cells"),
+    ([0.0, 1.0], [0.1, 0.1], TypeError, "cells"),
+    ([0, 1], [0.1], ValueError, "deltas"),
+    ([0, 1], [0.1, np.nan], ValueError, "deltas"),
+    ([[0, 1]], [0.1, 0.1], ValueError, "cells"),
+])
+def test_add_log_odds_refuses_bad_input_and_changes_nothing(cells, deltas, err, name):
+    grid = ps.OccupancyGrid2D(0.1, 5, 4)
+    before = grid.log_odds.copy()
+    with pytest.raises(err, match=f"^{name}"):
+        grid.add_log_odds(np.asarray(cells), np.asarray(deltas))
+    np.testing.assert_array_equal(grid.log_odds, before)

@@ -154,7 +154,7 @@ def test_corrupt_bt_raises(tmp_path, content):
 
 
 def test_missing_bt_raises(tmp_path):
-    with pytest.raises(ValueError, match="path"):
+    with pytest.raises(FileNotFoundError, match="none.bt"):
         probslam.OccupancyGrid3D.read_bt(str(tmp_path / "none.bt"))
 
 

@@ -161,7 +161,7 @@ def test_g2o_round_trip_is_lossless(tmp_path):
     g, _, _ = random_graph()
     g.set_fixed(3)
     path = tmp_path / "g.g2o"
-    probslam.write_g2o(str(path), g)
+    probslam.write_g2o(g, str(path))
     back = probslam.read_pose_graph(str(path))
     np.testing.assert_array_equal(back.poses, g.poses)
     np.testing.assert_array_equal(back.points, g.points)

@@ -1,4 +1,4 @@
-"""The reliability policy (README "Reliability", issue 12) for the 2-D and 3-D occupancy grids:
+"""The reliability policy (docs/reliability.md, issue 12) for the 2-D and 3-D occupancy grids:
 threads, worker-thread limits, bounded walks, bounded sizes, all-or-nothing updates, cell indices
 that never wrap, and property tests of the whole public grid API."""
 
@@ -14,7 +14,7 @@ import policy
 import probslam as ps
 from reference import cone_update, rays_update
 
-# The public grid calls the property tests below exercise (cited by the README's table).
+# The public grid calls the property tests below exercise (cited by docs/reliability.md's table).
 COVERED = (
     "OccupancyGrid2D(resolution, width, height, origin, p_prior, clamp, p_hit, p_miss)",
     "OccupancyGrid2D.covering",

@@ -123,6 +123,12 @@ class OccupancyGrid2D {
   /// space: l += l_free - l0 there (ch. 9.2). Returns the number of cells changed.
   std::size_t clear_footprint(const Eigen::Vector3d& pose, double radius, double l_free);
 
+  /// Table 9.1 line 4 with an inverse sensor model evaluated elsewhere (e.g. a learned one,
+  /// ch. 9.3): l_i += deltas[k] for the cell of flat index cells[k] (row * width + col), clamped
+  /// as every update. Every index and delta is checked before any cell changes. Returns the
+  /// number of cells updated.
+  std::size_t add_log_odds(const std::vector<long>& cells, const Eigen::Ref<const Eigen::VectorXd>& deltas);
+
   /// A copy enlarged, on the same lattice, to cover [xmin, xmax] x [ymin, ymax]; new cells
   /// hold the prior. The grid never shrinks.
   OccupancyGrid2D grown_to_include(double xmin, double ymin, double xmax, double ymax) const;

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import bz2
 import gzip
+import io
 import os
 import stat
 import zlib
@@ -14,6 +15,13 @@ from typing import Iterator, Tuple
 #: The most bytes read from a compressed log. The largest shipped log (fr079.clf.bz2) expands
 #: to 10 MB; a few megabytes of crafted .gz/.bz2 data could otherwise expand to gigabytes.
 MAX_DECOMPRESSED_BYTES = 512 << 20
+
+
+def require_existing(path: str, arg: str = "path") -> None:
+    """FileNotFoundError naming ``path`` when nothing is there: the one exception every reader
+    of the package raises for a missing file (the C++ readers check the rest)."""
+    if not os.path.lexists(path):
+        raise FileNotFoundError(f"{arg}: no such file: {path!r}")
 
 
 def require_regular_file(path: str, arg: str = "path") -> None:
@@ -30,7 +38,12 @@ def require_regular_file(path: str, arg: str = "path") -> None:
 
 
 def text_lines(path: str) -> Iterator[Tuple[int, str]]:
-    """(line number, text) of a UTF-8 text file; invalid bytes appear as ``\\xNN`` escapes."""
+    """(line number, text) of a UTF-8 text file, plain or ``.gz`` / ``.bz2`` (see
+    ``read_compressed``); invalid bytes appear as ``\\xNN`` escapes."""
+    if path.endswith((".gz", ".bz2")):
+        text = read_compressed(path).decode("utf-8", errors="backslashreplace")
+        yield from enumerate(io.StringIO(text, newline=None), 1)  # line ends as open() reads them
+        return
     with open(path, encoding="utf-8", errors="backslashreplace") as f:
         yield from enumerate(f, 1)
 

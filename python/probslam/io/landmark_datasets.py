@@ -143,6 +143,15 @@ class Mrclam:
         return dataclasses.replace(self, measurements=m)
 
 
+def _data_file(folder: pathlib.Path, name: str) -> pathlib.Path:
+    """``folder/name``, or ``folder/name.gz`` / ``.bz2`` when only a compressed copy is there (the
+    bundled excerpt, ``probslam.data.path("mrclam")``)."""
+    for candidate in (name, name + ".gz", name + ".bz2"):
+        if (folder / candidate).exists():
+            return folder / candidate
+    return folder / name
+
+
 def read_mrclam(folder: PathLike, robot: int = 1) -> Mrclam:
     """Robot ``robot`` (1-5) of the MRCLAM dataset in ``folder``.
 
@@ -152,6 +161,8 @@ def read_mrclam(folder: PathLike, robot: int = 1) -> Mrclam:
     ``Mrclam.skipped_rows``): a few unreadable rows of the odometry, measurement or ground-truth
     files (wrong field count, not a finite number), and measurements of barcodes missing from
     Barcodes.dat (Dataset 1 robots 3 and 5, Dataset 7 robot 3 hold a few).
+
+    The robot's data files may be compressed (``Robot1_Odometry.dat.gz`` or ``.bz2``).
     """
     folder = pathlib.Path(folder)
     if isinstance(robot, bool) or not isinstance(robot, (int, np.integer)) or not 1 <= robot <= 5:
@@ -160,7 +171,7 @@ def read_mrclam(folder: PathLike, robot: int = 1) -> Mrclam:
     skipped: Dict[str, int] = {}
 
     def data_table(name: str, columns: int) -> np.ndarray:
-        table, bad = _table(folder / name, columns)
+        table, bad = _table(_data_file(folder, name), columns)
         if bad:
             skipped[f"{name}: unreadable"] = bad
         return table
@@ -175,7 +186,7 @@ def read_mrclam(folder: PathLike, robot: int = 1) -> Mrclam:
     is_landmark = np.isin(subjects, list(MRCLAM_LANDMARK_SUBJECTS))
     measurements = np.column_stack([raw[:, 0], subjects, raw[:, 2], raw[:, 3]])[is_landmark]
     gt_name = f"Robot{robot}_Groundtruth.dat"
-    groundtruth = data_table(gt_name, 4) if (folder / gt_name).exists() else None
+    groundtruth = data_table(gt_name, 4) if _data_file(folder, gt_name).exists() else None
     landmarks = _table(folder / "Landmark_Groundtruth.dat", 5, strict=True)[0][:, :3]
     order = np.argsort(odometry[:, 0], kind="stable")
     return Mrclam(odometry[order], measurements[np.argsort(measurements[:, 0], kind="stable")], groundtruth,
