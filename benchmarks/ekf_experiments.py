@@ -22,15 +22,22 @@ M = np.diag([0.01, 0.002])
 WINDOW = 50  # steps of the moving average used to call the filter inconsistent
 
 
-def consistency(runs, steps):
+def consistency_run(k, steps):
+    """Monte-Carlo run k of the consistency study (also used by fastslam_consistency.py): one
+    world for every run, run k's noise from seed 1000 + k. A shorter run is a prefix of a longer
+    one (the noise is drawn step by step)."""
     world = ps.sim.LandmarkWorld.random(15, 10.0, np.random.default_rng(1), min_separation=2.0)
     sensor = ps.sim.Sensor(Q, max_range=8.0, fov=np.radians(180))
+    rng = np.random.default_rng(1000 + k)
+    return ps.sim.simulate(world, ps.sim.circle_controls(steps, 1.0, 0.12), 0.2, sensor, M, rng,
+                           initial_pose=(0, -8.3, 0))
+
+
+def consistency(runs, steps):
     nees = np.zeros((runs, steps))
     nis = np.full((runs, steps), np.nan)
     for k in range(runs):
-        rng = np.random.default_rng(1000 + k)
-        run = ps.sim.simulate(world, ps.sim.circle_controls(steps, 1.0, 0.12), 0.2, sensor, M, rng,
-                              initial_pose=(0, -8.3, 0))
+        run = consistency_run(k, steps)
         nees[k], step_nis = ps.sim.filter_known(run, M, Q)
         for t, values in enumerate(step_nis):
             if len(values):

@@ -135,6 +135,30 @@ def filter_known(run: SimRun, motion_noise: np.ndarray, measurement_noise: np.nd
     return nees, nis
 
 
+def fastslam_known(run: SimRun, motion_noise: np.ndarray, measurement_noise: np.ndarray, num_particles: int,
+                   version: int = 1, seed: int = 0, threads: int = 1):
+    """FastSLAM (``probslam.FastSlam``, version 1 or 2) with known correspondences over a simulated
+    run without signatures or clutter, started at its true initial pose (every particle there).
+
+    Returns, after each step (predict, then the scan's update and any resampling), T steps:
+    poses (T, 3): the particles' weighted mean (heading by circular mean, ``FastSlam.mean_pose``);
+    covariances (T, 3, 3): their weighted covariance about it (``pose_covariance``; singular when
+    the particles collapse onto fewer than three distinct poses); n_eff (T,): the effective sample
+    size. The pose NEES is ``probslam.eval.nees(pose_error(poses, run.poses[1:]), covariances)``."""
+    from ._core import FastSlam
+
+    f = FastSlam(num_particles, motion_noise, measurement_noise, version=version, initial_pose=run.poses[0],
+                 seed=seed, threads=threads, record_path=False)
+    steps = len(run.controls)
+    poses, covariances, n_eff = np.zeros((steps, 3)), np.zeros((steps, 3, 3)), np.zeros(steps)
+    for t, ((v, w), z, ids) in enumerate(zip(run.controls, run.measurements, run.ids)):
+        f.predict(v, w, run.dt)
+        if len(z):
+            f.update(z, ids)
+        poses[t], covariances[t], n_eff[t] = f.mean_pose, f.pose_covariance, f.effective_sample_size
+    return poses, covariances, n_eff
+
+
 def cast_ranges(pose: np.ndarray, angles: np.ndarray, segments) -> np.ndarray:
     """A simulated laser scan: the range (metres) from ``pose`` (x, y, theta) along each beam
     ``angles`` (B,) radians relative to the heading to the nearest of ``segments`` (an iterable
