@@ -414,6 +414,7 @@ def _landmark_dataset_options(parser: argparse.ArgumentParser, output: str) -> N
 
 
 def build_parser() -> argparse.ArgumentParser:
+    """The ``probslam`` command line: one subcommand per pipeline, each with its options."""
     parser = argparse.ArgumentParser(prog="probslam", description="Probabilistic robot mapping and SLAM.",
                                      epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"probslam {__version__}")

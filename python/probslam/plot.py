@@ -8,6 +8,8 @@ import numpy as np
 
 
 def require_matplotlib():
+    """matplotlib.pyplot (the Agg backend unless one is already chosen); ImportError with an
+    install hint when matplotlib is missing."""
     try:
         import matplotlib
 

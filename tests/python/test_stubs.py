@@ -172,9 +172,9 @@ def _public_members(module):
     return names
 
 
-# io and plot are left to issue 17's CLI branch, which edits them (add them once it has merged).
 @pytest.mark.parametrize("module", ["graph", "ekf", "fastslam", "sim", "slam", "eval", "graphslam", "mapping",
-                                    "map_occupancy", "inverse_learning", "landmark_slam"])
+                                    "map_occupancy", "inverse_learning", "landmark_slam", "io", "plot", "cli",
+                                    "data"])
 def test_python_modules_and_their_public_names_have_docstrings(module):
     import importlib
     m = importlib.import_module(f"probslam.{module}")

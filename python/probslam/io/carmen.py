@@ -57,6 +57,10 @@ class Odometry:
 
 @dataclass
 class CarmenLog:
+    """A CARMEN log as read by ``read_carmen_log``: the laser scans (with their odometry and,
+    in corrected logs, laser poses; metres, radians, seconds), the ODOM records, the PARAM
+    lines, and what was skipped (counts, and the first malformed lines with their numbers)."""
+
     scans: LaserScans
     odometry: Odometry
     params: Dict[str, str] = field(default_factory=dict)

@@ -112,6 +112,7 @@ class Mrclam:
 
     @property
     def landmark_positions(self) -> Dict[int, np.ndarray]:
+        """Surveyed landmark positions: subject id -> (2,) x, y in metres (Landmark_Groundtruth.dat)."""
         return {int(s): xy for s, xy in zip(self.landmarks[:, 0], self.landmarks[:, 1:3])}
 
     def with_survey_swapped(self, pairs) -> "Mrclam":
