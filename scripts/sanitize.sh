@@ -20,9 +20,9 @@ cmake --build "$build" -j "$jobs"
 # Leak checking stays off: CPython and numpy keep allocations alive until exit by design.
 export ASAN_OPTIONS="detect_leaks=0:abort_on_error=1:strict_init_order=1:detect_stack_use_after_return=1"
 export UBSAN_OPTIONS="print_stacktrace=1:halt_on_error=1"
-# The installed-package consumer test links without the sanitizer runtime: it is covered by
-# scripts/test.sh.
-ctest --test-dir "$build" --output-on-failure -j "$jobs" -E consumer_project
+# The installed-package consumer and C++ example tests link without the sanitizer runtime: they
+# are covered by scripts/test.sh.
+ctest --test-dir "$build" --output-on-failure -j "$jobs" -E "consumer_project|cpp_example"
 
 [ "${1:-}" = "--cpp" ] && exit 0
 
