@@ -114,6 +114,8 @@ MRCLAM_PERCEPTUAL_FIELD_QUANTILE = 0.9
 def mrclam_perceptual_field(data: Mrclam, quantile: float = MRCLAM_PERCEPTUAL_FIELD_QUANTILE) -> Tuple[float, float]:
     """(range m, full field-of-view angle rad) of the camera, from the robot's own sightings:
     the ``quantile`` of their ranges, and twice that of their absolute bearings."""
+    if not (isinstance(quantile, (int, float)) and 0.0 < quantile <= 1.0):
+        raise ValueError(f"quantile must be in (0, 1], got {quantile!r}")
     m = data.measurements
     if len(m) == 0:
         raise ValueError("data: the robot has no landmark measurements")

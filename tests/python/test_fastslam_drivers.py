@@ -134,6 +134,9 @@ def test_mrclam_perceptual_field_is_the_sightings_quantiles(mrclam_d1r1):
     assert field_range == pytest.approx(np.sort(m[:, 2])[int(0.9 * (len(m) - 1))], abs=0.5)
     with pytest.raises(ValueError, match="^data"):
         fs.mrclam_perceptual_field(dataclasses.replace(mrclam_d1r1, measurements=m[:0]))
+    for bad in (0.0, 1.5, float("nan"), "0.9"):
+        with pytest.raises(ValueError, match="^quantile"):
+            fs.mrclam_perceptual_field(mrclam_d1r1, bad)
 
 
 def test_mrclam_hidden_negative_information_removes_duplicates(mrclam_d1r1):
