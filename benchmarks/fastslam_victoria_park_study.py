@@ -38,22 +38,22 @@ KNOWN = [("known, v1, scale 3", dict(version=1, odometry_noise_scale=3.0)),
          ("known, v1, scale 7", dict(version=1, odometry_noise_scale=7.0)),
          ("known, v2, scale 7", dict(version=2, odometry_noise_scale=7.0))]
 
-_optimum = None
+_cache = {}  # per worker process: the file and the GraphSLAM optimum, read and solved once
 
 
 def run_one(job):
-    global _optimum
     label, options, seed = job
-    data = ps.io.read_victoria_park(str(bf.VICTORIA_PARK))
-    if _optimum is None:
-        _optimum = bf.graphslam_optimum(bf.VictoriaPark(str(bf.VICTORIA_PARK)))
+    if not _cache:
+        _cache["data"] = ps.io.read_victoria_park(str(bf.VICTORIA_PARK))
+        _cache["optimum"] = bf.graphslam_optimum(bf.VictoriaPark(str(bf.VICTORIA_PARK)))
+    data, optimum = _cache["data"], _cache["optimum"]
     t0 = time.process_time()
     known = label.startswith("known")
     run = fs.run_fastslam_victoria_park(data, known=known, seed=seed, **options)
     cpu = time.process_time() - t0
     return dict(label=label, seed=seed, landmarks=len(run.landmarks),
                 correct=1.0 if known else fs.association_accuracy(run),
-                rmse=bf.path_rmse(run.poses, _optimum), cpu=cpu)
+                rmse=bf.path_rmse(run.poses, optimum), cpu=cpu)
 
 
 def main() -> int:
