@@ -6,6 +6,8 @@
 #include <stdexcept>
 #include <system_error>
 
+#include "probslam/core/check.hpp"
+
 namespace probslam::bindings {
 
 namespace py = pybind11;
@@ -37,6 +39,8 @@ void register_exception_translator() {
       set_error(PyExc_MemoryError, "out of memory");
     } catch (const std::system_error& e) {  // e.g. a worker thread that could not be started
       set_error(PyExc_RuntimeError, e.what());
+    } catch (const FileNotFound& e) {  // before its base, std::invalid_argument
+      set_error(PyExc_FileNotFoundError, e.what());
     } catch (const std::invalid_argument& e) {
       set_error(PyExc_ValueError, e.what());
     } catch (const std::domain_error& e) {

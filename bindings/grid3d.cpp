@@ -1,8 +1,11 @@
 #include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <limits>
 #include <string>
 #include <vector>
+
+#include <pybind11/stl/filesystem.h>
 
 #include "numpy.hpp"
 #include "object_lock.hpp"
@@ -211,22 +214,25 @@ void define_grid3d(py::module_& m) {
           "voxels with centre z in [z_min, z_max] (eq. 9.9); unobserved columns hold 0.")
       .def(
           "write_bt",
-          [](const Grid& g, const std::string& path) { return locked(g, [&] { return write_octomap_bt(g, path); }); },
+          [](const Grid& g, const std::filesystem::path& path) {
+            return locked(g, [&] { return write_octomap_bt(g, path.string()); });
+          },
           py::arg("path"),
           "Writes an OctoMap .bt file (maximum-likelihood: occupied or free per voxel). Returns the\n"
           "number of tree nodes.")
       .def_static(
           "read_bt",
-          [](const std::string& path, double p_hit, double p_miss, double clamp_min, double clamp_max,
+          [](const std::filesystem::path& path, double p_hit, double p_miss, double clamp_min, double clamp_max,
              double occupancy_threshold) {
             const OccupancyParams3D params = params_of(p_hit, p_miss, clamp_min, clamp_max, occupancy_threshold);
             py::gil_scoped_release release;
-            return new Grid(read_octomap_bt(path, params));
+            return new Grid(read_octomap_bt(path.string(), params));
           },
           py::arg("path"), py::arg("p_hit") = 0.7, py::arg("p_miss") = 0.4, py::arg("clamp_min") = 0.1192,
           py::arg("clamp_max") = 0.971, py::arg("occupancy_threshold") = 0.5,
           "Reads an OctoMap .bt file (OcTree). The format stores occupancy only: voxels get the\n"
-          "clamped log-odds logit(clamp_max) or logit(clamp_min). Raises ValueError on a bad file.")
+          "clamped log-odds logit(clamp_max) or logit(clamp_min). A missing file raises FileNotFoundError,\n"
+          "a malformed one ValueError.")
       .def("clear", [](Grid& g) { locked(g, [&] { g.clear(); }); }, "Forgets every voxel (all unknown again).")
       .def("__repr__", [](py::handle self) {
         const Grid& g = self.cast<const Grid&>();

@@ -48,29 +48,6 @@ from .slam import SlamResult, run_slam
 __version__ = "0.1.0"
 
 
-def _read_bt_with_file_check():
-    """OccupancyGrid3D.read_bt, raising FileNotFoundError for a missing file as every reader of
-    the package does (the compiled reader raises ValueError for it)."""
-    import os
-
-    from .io._files import require_existing
-
-    compiled = OccupancyGrid3D.read_bt
-
-    def read_bt(path: str, p_hit: float = 0.7, p_miss: float = 0.4, clamp_min: float = 0.1192,
-                clamp_max: float = 0.971, occupancy_threshold: float = 0.5) -> "OccupancyGrid3D":
-        path = os.fspath(path)
-        require_existing(path)
-        return compiled(path, p_hit, p_miss, clamp_min, clamp_max, occupancy_threshold)
-
-    read_bt.__doc__ = (compiled.__doc__ or "") + "\nA missing file raises FileNotFoundError."
-    read_bt.__name__, read_bt.__qualname__ = "read_bt", "OccupancyGrid3D.read_bt"
-    return staticmethod(read_bt)
-
-
-OccupancyGrid3D.read_bt = _read_bt_with_file_check()
-del _read_bt_with_file_check
-
 __all__ = [
     "BeamSensorModel",
     "BinaryMap2D",

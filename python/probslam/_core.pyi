@@ -1,5 +1,6 @@
 """Type stubs for probslam's C++ core. Units: metres, radians; poses are (x, y, theta)."""
 
+import os
 from typing import Any, Dict, List, Optional, Sequence, Tuple, Union, overload
 
 import numpy as np
@@ -128,10 +129,10 @@ class OccupancyGrid3D:
     def occupied_voxels(self) -> Tuple[Array, npt.NDArray[np.float32]]: ...
     def project_2d(self, z_min: float = ..., z_max: float = ...) -> OccupancyGrid2D:
         """Column-wise maximum log-odds of known voxels with centre z in [z_min, z_max]."""
-    def write_bt(self, path: str) -> int:
+    def write_bt(self, path: Union[str, os.PathLike[str]]) -> int:
         """OctoMap .bt file (occupancy bits only); returns the number of tree nodes."""
     @staticmethod
-    def read_bt(path: str, p_hit: float = 0.7, p_miss: float = 0.4, clamp_min: float = 0.1192,
+    def read_bt(path: Union[str, os.PathLike[str]], p_hit: float = 0.7, p_miss: float = 0.4, clamp_min: float = 0.1192,
                 clamp_max: float = 0.971, occupancy_threshold: float = 0.5) -> "OccupancyGrid3D":
         """OctoMap .bt file; voxels get the clamped log-odds. ValueError on a bad file."""
     def clear(self) -> None: ...

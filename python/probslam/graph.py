@@ -18,7 +18,6 @@ import warnings
 from typing import Optional, Union
 
 from . import _core
-from .io._files import require_existing
 from ._core import (IncrementalReport, OptimizationReport, PoseGraph2D, initialize_odometry, marginal_covariances,
                     optimize, optimize_incremental)
 
@@ -32,9 +31,7 @@ def read_pose_graph(path: PathLike, format: str = "auto") -> PoseGraph2D:
 
     A missing file raises ``FileNotFoundError`` naming it (as every reader of the package does);
     a malformed file ``ValueError("file:line: ...")``."""
-    path = os.fspath(path)
-    require_existing(path)
-    return _core.read_pose_graph(path, format)
+    return _core.read_pose_graph(os.fspath(path), format)
 
 
 def _writer_arguments(name: str, graph, path):

@@ -103,7 +103,7 @@ struct Pgm {
 };
 
 Pgm read_pgm(const std::string& path) {
-  io_detail::require_regular_file(path, "image");
+  io_detail::require_regular_file(path, "image", io_detail::NamedBy::kFile);
   std::ifstream in(path, std::ios::binary);
   if (!in) fail(path, "cannot open the map image");
   std::string magic(2, '\0');

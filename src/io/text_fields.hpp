@@ -13,20 +13,29 @@
 #include <string_view>
 #include <vector>
 
+#include "probslam/core/check.hpp"
+
 namespace probslam::io_detail {
 
 // A count larger than this in one message is corrupt, not data.
 constexpr long kMaxCount = 1'000'000;
 
-/// Throws std::invalid_argument "ARG: '<path>' ..." unless `path` names an existing regular file
-/// (or a link to one). Checked before opening: opening a fifo blocks until a writer comes, and a
-/// device such as /dev/zero never ends. A missing file gives "ARG: cannot open '<path>'", the
-/// readers' message before this check existed.
-inline void require_regular_file(const std::string& path, const char* arg) {
+/// Who names a file: the caller (a missing one is FileNotFound) or a file being read (a missing
+/// one makes that file wrong: std::invalid_argument, as any other bad field).
+enum class NamedBy { kCaller, kFile };
+
+/// Throws unless `path` names an existing regular file (or a link to one): "ARG: cannot open
+/// '<path>' (no such file)" when nothing is there, "ARG: '<path>' is not a regular file"
+/// otherwise. Checked before opening: opening a fifo blocks until a writer comes, and a device
+/// such as /dev/zero never ends.
+inline void require_regular_file(const std::string& path, const char* arg, NamedBy named_by = NamedBy::kCaller) {
   std::error_code ec;
   const std::filesystem::file_status st = std::filesystem::status(path, ec);
-  if (ec || !std::filesystem::exists(st))
-    throw std::invalid_argument(std::string(arg) + ": cannot open '" + path + "' (no such file)");
+  if (ec || !std::filesystem::exists(st)) {
+    const std::string what = std::string(arg) + ": cannot open '" + path + "' (no such file)";
+    if (named_by == NamedBy::kCaller) throw FileNotFound(what);
+    throw std::invalid_argument(what);
+  }
   if (!std::filesystem::is_regular_file(st))
     throw std::invalid_argument(std::string(arg) + ": '" + path + "' is not a regular file");
 }

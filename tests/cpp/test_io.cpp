@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "probslam/core/angle.hpp"
+#include "probslam/core/check.hpp"
 #include "probslam/io/carmen_log.hpp"
 #include "probslam/io/grid_file.hpp"
 #include "probslam/io/ros_map.hpp"
@@ -176,6 +177,25 @@ TEST(RosMap, MalformedYamlNamesTheLine) {
   EXPECT_NE(expect_invalid([&] { load_ros_map(yaml.string()); }).find("bad.yaml:2"), std::string::npos);
   std::ofstream(yaml) << "image: x.pgm\nresolution: 0.1\norigin: [0, 0]\noccupied_thresh: 0.65\nfree_thresh: 0.2\n";
   EXPECT_NE(expect_invalid([&] { load_ros_map(yaml.string()); }).find("bad.yaml:3"), std::string::npos);
+}
+
+// A missing file named by the caller is FileNotFound (an std::invalid_argument, for handlers of
+// that); a missing file named inside a file being read makes that file invalid instead.
+TEST(Readers, MissingFileIsFileNotFoundMissingReferenceIsInvalid) {
+  const std::string missing = (scratch("none") / "nothing.here").string();
+  EXPECT_THROW(read_carmen_log(missing), FileNotFound);
+  EXPECT_THROW(load_ros_map(missing), FileNotFound);
+  EXPECT_THROW(load_grid(missing), FileNotFound);
+  const fs::path yaml = scratch("no_image.yaml");
+  std::ofstream(yaml) << "image: absent.pgm\nresolution: 0.1\norigin: [0, 0, 0]\noccupied_thresh: 0.65\nfree_thresh: 0.2\n";
+  try {
+    load_ros_map(yaml.string());
+    ADD_FAILURE() << "no exception";
+  } catch (const FileNotFound&) {
+    ADD_FAILURE() << "the yaml exists: a missing image is a bad yaml, not FileNotFound";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("absent.pgm"), std::string::npos) << e.what();
+  }
 }
 
 TEST(GridFile, LosslessRoundTripAndCorruptFiles) {

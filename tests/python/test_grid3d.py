@@ -136,6 +136,9 @@ def test_bt_round_trip(tmp_path):
     centres, lo = g.known_voxels()
     expected = np.where(lo >= 0, r.log_odds_clamp[1], r.log_odds_clamp[0]).astype(np.float32)
     assert np.array_equal(r.log_odds_at(centres), expected)
+    # pathlib paths as well as strings, both ways
+    assert g.write_bt(tmp_path / "again.bt") > 0
+    assert probslam.OccupancyGrid3D.read_bt(tmp_path / "again.bt").num_known_voxels == g.num_known_voxels
 
 
 @pytest.mark.parametrize("content", [

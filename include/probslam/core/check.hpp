@@ -4,9 +4,17 @@
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <cmath>
+#include <stdexcept>
 #include <string>
 
 namespace probslam {
+
+/// A file named by an argument does not exist. It is an std::invalid_argument (a missing input
+/// is a bad argument, and handlers of that keep working); the bindings raise FileNotFoundError.
+class FileNotFound : public std::invalid_argument {
+ public:
+  using std::invalid_argument::invalid_argument;
+};
 
 [[noreturn]] void throw_invalid_argument(const std::string& name, const std::string& what);
 

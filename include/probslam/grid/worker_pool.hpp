@@ -1,11 +1,18 @@
 #pragma once
-// A fixed set of worker threads for one multi-threaded call (OccupancyGrid3D::insert_point_cloud).
+// A fixed set of worker threads for one multi-threaded call (OccupancyGrid3D::insert_point_cloud,
+// the particle filters' per-particle work).
+//
+// The filters hand out many short jobs (tens of microseconds: one step of 100 particles), where a
+// sleeping thread's wake-up (a futex round trip, 10-50 us) costs as much as the job. So a worker
+// that has finished spins for a short while (kSpinBudget) on the job counter before it sleeps,
+// and the caller spins the same way on the workers' completion.
 //
 // Every thread is started in the constructor, before the caller changes anything: when the system
 // refuses one (std::system_error), the threads already started are stopped and joined and the
 // error propagates, so the call raises with its object untouched instead of aborting the process
 // (a joinable std::thread destroyed during unwinding calls std::terminate).
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
 #include <cstddef>
 #include <cstdint>
@@ -50,14 +57,17 @@ class WorkerPool {
     {
       std::lock_guard<std::mutex> lock(mutex_);
       job_ = &work;
-      pending_ = threads_.size();
+      pending_.store(threads_.size(), std::memory_order_relaxed);
       error_ = nullptr;
-      ++generation_;
+      generation_.fetch_add(1, std::memory_order_release);  // publishes job_ to spinning workers
     }
     wake_.notify_all();
     execute(work, 0);
-    std::unique_lock<std::mutex> lock(mutex_);
-    done_.wait(lock, [this] { return pending_ == 0; });
+    if (!spin_until([this] { return pending_.load(std::memory_order_acquire) == 0; })) {
+      std::unique_lock<std::mutex> lock(mutex_);
+      done_.wait(lock, [this] { return pending_.load(std::memory_order_acquire) == 0; });
+    }
+    std::lock_guard<std::mutex> lock(mutex_);
     job_ = nullptr;
     if (error_) std::rethrow_exception(error_);
   }
@@ -85,40 +95,75 @@ class WorkerPool {
     }
   }
 
+  /// Tells the core this is a busy-wait (x86's pause: the sibling hyperthread gets the pipeline).
+  static void cpu_relax() noexcept {
+#if defined(__x86_64__) || defined(__i386__)
+    __builtin_ia32_pause();
+#endif
+  }
+
+  /// Polls `ready` for up to kSpinBudget; true when it held.
+  template <class Ready>
+  static bool spin_until(Ready&& ready) {
+    const auto until = std::chrono::steady_clock::now() + kSpinBudget;
+    for (;;) {
+      for (int i = 0; i < kPollsPerClockRead; ++i) {
+        if (ready()) return true;
+        cpu_relax();
+      }
+      if (std::chrono::steady_clock::now() >= until) return ready();
+    }
+  }
+
   void serve(std::size_t w) {
     std::uint64_t seen = 0;
     for (;;) {
+      const bool fresh = spin_until([&] {
+        return generation_.load(std::memory_order_acquire) != seen || quit_.load(std::memory_order_acquire);
+      });
       const std::function<void(std::size_t)>* job;
       {
         std::unique_lock<std::mutex> lock(mutex_);
-        wake_.wait(lock, [&] { return quit_ || generation_ != seen; });
-        if (quit_) return;
-        seen = generation_;
+        if (!fresh) {
+          wake_.wait(lock, [&] {
+            return quit_.load(std::memory_order_relaxed) || generation_.load(std::memory_order_relaxed) != seen;
+          });
+        }
+        if (quit_.load(std::memory_order_relaxed)) return;
+        seen = generation_.load(std::memory_order_relaxed);
         job = job_;
       }
       execute(*job, w);
-      std::lock_guard<std::mutex> lock(mutex_);
-      if (--pending_ == 0) done_.notify_one();
+      if (pending_.fetch_sub(1, std::memory_order_acq_rel) == 1) {
+        std::lock_guard<std::mutex> lock(mutex_);  // so a caller between its check and its wait hears it
+        done_.notify_one();
+      }
     }
   }
 
   void stop() noexcept {
     {
       std::lock_guard<std::mutex> lock(mutex_);
-      quit_ = true;
+      quit_.store(true, std::memory_order_release);
     }
     wake_.notify_all();
     for (std::thread& t : threads_) t.join();
     threads_.clear();
   }
 
+  // How long an idle worker (or the waiting caller) polls before it sleeps: longer than the gap
+  // between two calls of a filter's step loop in Python (10-100 us), short enough that an idle
+  // pool gives its core back at once to anyone who needs it.
+  static constexpr std::chrono::microseconds kSpinBudget{200};
+  static constexpr int kPollsPerClockRead = 64;
+
   std::vector<std::thread> threads_;
   std::mutex mutex_;
   std::condition_variable wake_, done_;
-  const std::function<void(std::size_t)>* job_ = nullptr;
-  std::uint64_t generation_ = 0;
-  std::size_t pending_ = 0;
-  bool quit_ = false;
+  const std::function<void(std::size_t)>* job_ = nullptr;  // written under mutex_, before generation_
+  std::atomic<std::uint64_t> generation_{0};
+  std::atomic<std::size_t> pending_{0};
+  std::atomic<bool> quit_{false};
   std::exception_ptr error_;
 };
 

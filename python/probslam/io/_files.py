@@ -17,13 +17,6 @@ from typing import Iterator, Tuple
 MAX_DECOMPRESSED_BYTES = 512 << 20
 
 
-def require_existing(path: str, arg: str = "path") -> None:
-    """FileNotFoundError naming ``path`` when nothing is there: the one exception every reader
-    of the package raises for a missing file (the C++ readers check the rest)."""
-    if not os.path.lexists(path):
-        raise FileNotFoundError(f"{arg}: no such file: {path!r}")
-
-
 def require_regular_file(path: str, arg: str = "path") -> None:
     """FileNotFoundError for a missing path; ValueError for anything but a regular file (a
     directory, a device such as /dev/zero that never ends, a fifo that blocks on open)."""

@@ -10,7 +10,6 @@ from typing import Optional, Union
 import numpy as np
 
 from .. import _core
-from ._files import require_existing
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -24,7 +23,6 @@ def save_ros_map(grid: _core.OccupancyGrid2D, yaml_path: PathLike,
 def load_ros_map(yaml_path: PathLike) -> _core.OccupancyGrid2D:
     """Read a map_server map (modes trinary and scale) into an OccupancyGrid2D. A missing file
     raises FileNotFoundError, a malformed one ValueError naming it."""
-    require_existing(os.fspath(yaml_path), "yaml_path")
     return _core.load_ros_map(os.fspath(yaml_path))
 
 
@@ -36,7 +34,6 @@ def save_grid(grid: _core.OccupancyGrid2D, path: PathLike) -> None:
 def load_grid(path: PathLike) -> _core.OccupancyGrid2D:
     """Read a grid written by ``save_grid``. A missing file raises FileNotFoundError, a malformed
     one ValueError naming it."""
-    require_existing(os.fspath(path))
     return _core.load_grid(os.fspath(path))
 
 
