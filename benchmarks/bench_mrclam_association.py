@@ -33,6 +33,13 @@ SURVEYED = 15
 METHODS = ("jcbb", "mht", "fastslam1", "fastslam2")
 # Barcodes as correspondences, for reference (`--methods ekf-known fastslam1-known ...`).
 KNOWN_METHODS = ("ekf-known", "fastslam1-known", "fastslam2-known")
+# FastSLAM with the scan's bearing offset as a particle state (`--methods fastslam1-offset
+# fastslam2-offset`): the offset's size and scan-to-scan correlation as measured on Dataset 7
+# against Vicon (docs/ekf_slam.md: 0.025 rad shared by a scan, lag-one correlation 0.84), the
+# sensor noise then the part not shared (0.05 m, 0.01 rad), p_new 0.1.
+OFFSET_METHODS = ("fastslam1-offset", "fastslam2-offset")
+OFFSET_SENSOR = np.diag([0.05 ** 2, 0.01 ** 2])
+OFFSET_OPTIONS = dict(bearing_offset_sigma=0.025, bearing_offset_correlation=0.84, p_new=0.1)
 
 
 def load(dataset: int, robot: int, seconds):
@@ -53,6 +60,10 @@ def run_one(job):
     elif method in ("jcbb", "mht"):
         run = ls.run_ekf_mrclam(data, MOTION, SENSOR, known=False, association=method)
         correct, labels = ls.association_accuracy(run), ls.majority_labels(run)
+    elif method in OFFSET_METHODS:
+        run = fs.run_fastslam_mrclam(data, MOTION, OFFSET_SENSOR, known=False, num_particles=particles,
+                                     version=int(method.split("-")[0][-1]), **OFFSET_OPTIONS)
+        correct, labels = fs.association_accuracy(run), fs.majority_labels(run)
     else:
         run = fs.run_fastslam_mrclam(data, MOTION, SENSOR, known=known, num_particles=particles,
                                      version=int(method.split("-")[0][-1]))
@@ -73,7 +84,8 @@ def main() -> int:
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--datasets", type=int, nargs="+", default=[1, 7])
     parser.add_argument("--robots", type=int, nargs="+", default=[1, 2, 3, 4, 5])
-    parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS + KNOWN_METHODS)
+    parser.add_argument("--methods", nargs="+", default=list(METHODS),
+                        choices=METHODS + KNOWN_METHODS + OFFSET_METHODS)
     parser.add_argument("--particles", type=int, default=100, help="FastSLAM particles (default 100)")
     parser.add_argument("--seconds", type=float, default=None, help="only the first SECONDS of each robot")
     parser.add_argument("--record", action="store_true", help="write the table into benchmarks/RESULTS.md (replacing its previous run)")
@@ -84,8 +96,12 @@ def main() -> int:
     jobs = [(d, r, m, args.seconds, args.particles) for d in args.datasets for r in args.robots for m in args.methods]
     with concurrent.futures.ProcessPoolExecutor(max_workers=args.jobs) as pool:
         rows = list(pool.map(run_one, jobs))
-    lines = heading("MRCLAM, barcodes hidden, every robot",
-                    f"One set of defaults (CLI: sigma_v 0.15, sigma_w 0.6, sigma_r 0.15, sigma_phi 0.04; "
+    offset_only = all(m in OFFSET_METHODS for m in args.methods)
+    title = "MRCLAM, barcodes hidden, every robot" + (", FastSLAM with the bearing offset model" if offset_only else "")
+    sensor = ("sensor: bearing offset 0.025 rad, correlation 0.84, sigma_r 0.05, sigma_phi 0.01, p_new 0.1" if offset_only
+              else "sigma_r 0.15, sigma_phi 0.04")
+    lines = heading(title,
+                    f"One set of defaults (CLI: sigma_v 0.15, sigma_w 0.6, {sensor}; "
                     f"FastSLAM {args.particles} particles, seed 0); ranges from depth; "
                     f"{'first %g s' % args.seconds if args.seconds else 'whole runs'}. "
                     f"Correct: sightings whose landmark's majority barcode is their own; landmarks: "

@@ -55,6 +55,8 @@ FastSlamOptions options_from(int num_particles, py::handle motion_noise, py::han
   k.get("sensor_range", o.sensor_range);
   k.get("sensor_fov", o.sensor_fov);
   k.get("record_path", o.record_path);
+  k.get("bearing_offset_sigma", o.bearing_offset_sigma);
+  k.get("bearing_offset_correlation", o.bearing_offset_correlation);
   k.finish();
   return o;
 }
@@ -78,6 +80,9 @@ void define_state(py::class_<FastSlam>& c) {
                                return Eigen::VectorXd(locked(f, [&] { return f.log_weights(); }).array().exp());
                              },
                              "(M,) weights summing to 1.")
+      .def_property_readonly("bearing_offsets", getter(&FastSlam::bearing_offsets),
+                             "(M,) each particle's bearing offset (rad) of its last update (bearing_offset_sigma);\n"
+                             "zeros without the offset model.")
       .def_property_readonly("last_log_likelihoods", getter(&FastSlam::last_log_likelihoods),
                              "(M,) log of each particle's weight factor in the last update.")
       .def_property_readonly("effective_sample_size", getter(&FastSlam::effective_sample_size),
@@ -246,7 +251,9 @@ void define_fastslam(py::module_& m) {
                          "correspondences: density 1 / (m rad) of a measurement its labelled landmark did not produce;\n"
                          "0: no outlier model), association_radius and cell_size (m, 2.0 each), negative_information,\n"
                          "existence_hit, existence_miss, sensor_range (m), sensor_fov (rad) (the existence counter of\n"
-                         "update_unknown), record_path (keep each particle's path; True).\n"
+                         "update_unknown), record_path (keep each particle's path; True), bearing_offset_sigma (rad;\n"
+                         "a bearing offset shared by one scan's measurements, carried per particle; 0: none) and\n"
+                         "bearing_offset_correlation (its correlation from one update to the next, in [0, 1)).\n"
                          "\n"
                          "Every call validates its input first and raises ValueError / TypeError naming the argument,\n"
                          "the filter unchanged. Calls release the GIL and are serialised by a per-filter lock.");

@@ -299,6 +299,7 @@ class FastSlam:
     poses: Array  # (M, 3) particle poses
     log_weights: Array  # (M,) normalised (log-sum-exp 0)
     weights: Array  # (M,) summing to 1
+    bearing_offsets: Array  # (M,) each particle's bearing offset (rad) of its last update
     last_log_likelihoods: Array  # (M,) log of each particle's weight factor in the last update
     effective_sample_size: float  # N_eff = 1 / sum w^2
     best_index: int  # particle of highest weight
@@ -317,7 +318,8 @@ class FastSlam:
                  outlier_density: float = 0.0,
                  association_radius: float = 2.0, cell_size: float = 2.0, negative_information: bool = False,
                  existence_hit: float = 1.0, existence_miss: float = 1.0, sensor_range: float = ...,
-                 sensor_fov: float = ..., record_path: bool = True) -> None: ...
+                 sensor_fov: float = ..., record_path: bool = True, bearing_offset_sigma: float = 0.0,
+                 bearing_offset_correlation: float = 0.0) -> None: ...
     def predict(self, v: float, w: float, dt: float) -> None:
         """Samples each particle's pose from the velocity motion model (v m/s, w rad/s, dt s)."""
     def predict_odometry(self, delta: ArrayLike, noise: ArrayLike) -> None:

@@ -214,6 +214,18 @@ struct FastSlam::Context {
     if (o.record_path) part.path.replace_last(x);
   }
 
+  /// With a bearing offset model: samples the particle's offset for this scan from its
+  /// transition and returns the scan's measurements with their bearings corrected by it (in
+  /// `storage`); without, the measurements as given.
+  Eigen::Ref<const RowMatrixXd> offset_corrected(FastSlamParticle& part, const Scan& s, RowMatrixXd& storage) const {
+    if (o.bearing_offset_sigma == 0.0 || s.z.rows() == 0) return s.z;
+    const double rho = o.bearing_offset_correlation;
+    part.bearing_offset = rho * part.bearing_offset + std::sqrt(1.0 - rho * rho) * o.bearing_offset_sigma * part.rng.normal();
+    storage = s.z;
+    for (Eigen::Index i = 0; i < storage.rows(); ++i) storage(i, 1) = wrap_angle(storage(i, 1) - part.bearing_offset);
+    return storage;
+  }
+
   void add_log_likelihood(FastSlamParticle& part, double ll) const {
     require(std::isfinite(ll), "z", "has a likelihood that is not finite");
     part.log_weight += ll;
@@ -230,7 +242,10 @@ struct FastSlam::Context {
   /// The outlier density explains the measurement better than its landmark's Gaussian.
   bool is_outlier(double log_gauss) const { return log_gauss < log_outlier; }
 
-  void update_known(FastSlamParticle& part, const Scan& s, const std::vector<long>& ids) const {
+  void update_known(FastSlamParticle& part, const Scan& given, const std::vector<long>& ids) const {
+    RowMatrixXd storage;
+    const Eigen::Ref<const RowMatrixXd> z = offset_corrected(part, given, storage);
+    const Scan s{z, given.signatures};
     const Eigen::Index k = s.z.rows();
     if (k == 0) {
       part.last_log_likelihood = 0.0;
@@ -291,8 +306,11 @@ struct FastSlam::Context {
   }
 
   // ---- unknown correspondences ----
-  void update_unknown(FastSlamParticle& part, const Scan& s, double log_p_new_call, long* ids_out,
+  void update_unknown(FastSlamParticle& part, const Scan& given, double log_p_new_call, long* ids_out,
                       std::uint8_t* new_out, std::vector<long>& removed) const {
+    RowMatrixXd storage;
+    const Eigen::Ref<const RowMatrixXd> z = offset_corrected(part, given, storage);
+    const Scan s{z, given.signatures};
     const Eigen::Index k = s.z.rows();
     const bool proposal = o.version == 2 && part.has_prior;
     Eigen::Vector3d mu = proposal ? part.prior_mean : part.pose;
@@ -438,6 +456,11 @@ FastSlam::FastSlam(const FastSlamOptions& options) : o_(options) {
           "must be finite with negative_information");
   require(std::isfinite(o_.sensor_fov) && o_.sensor_fov > 0.0 && o_.sensor_fov <= kTwoPi, "sensor_fov",
           "must be in (0, 2 pi] rad");
+  require(std::isfinite(o_.bearing_offset_sigma) && o_.bearing_offset_sigma >= 0.0 && o_.bearing_offset_sigma <= kPi,
+          "bearing_offset_sigma", "must be in [0, pi] rad");
+  require(std::isfinite(o_.bearing_offset_correlation) && o_.bearing_offset_correlation >= 0.0 &&
+              o_.bearing_offset_correlation < 1.0,
+          "bearing_offset_correlation", "must be in [0, 1)");
 
   o_.motion_noise = symmetric<Eigen::Dynamic>(o_.motion_noise);
   control_noise_ = o_.motion_noise.rows() == 2;
@@ -456,6 +479,7 @@ FastSlam::FastSlam(const FastSlamOptions& options) : o_(options) {
     p.log_weight = -std::log(static_cast<double>(m));
     p.map = LandmarkMap(o_.cell_size);
     p.rng = ParticleRng(o_.seed, static_cast<std::uint64_t>(k));
+    if (o_.bearing_offset_sigma > 0.0) p.bearing_offset = o_.bearing_offset_sigma * p.rng.normal();  // stationary
     if (o_.record_path) p.path.push(p.pose);
   }
   next_stream_ = static_cast<std::uint64_t>(m);
@@ -686,6 +710,12 @@ Eigen::VectorXd FastSlam::log_weights() const { return particle_log_weights(part
 Eigen::VectorXd FastSlam::last_log_likelihoods() const {
   Eigen::VectorXd out(num_particles());
   for (int k = 0; k < num_particles(); ++k) out[k] = particles_[static_cast<std::size_t>(k)].last_log_likelihood;
+  return out;
+}
+
+Eigen::VectorXd FastSlam::bearing_offsets() const {
+  Eigen::VectorXd out(num_particles());
+  for (int k = 0; k < num_particles(); ++k) out[k] = particles_[static_cast<std::size_t>(k)].bearing_offset;
   return out;
 }
 

@@ -95,6 +95,15 @@ struct FastSlamOptions {
   double sensor_fov = 6.283185307179586;                           // rad, full opening angle
   /// Keep every particle's path (a persistent list: shared after resampling, O(1) to copy).
   bool record_path = true;
+  /// A bearing offset b shared by the measurements of one scan (a camera's timing or mounting
+  /// error; measured bearing = true bearing + b + noise), carried by each particle as a state:
+  /// stationary standard deviation (rad; 0, the default: no offset), and its correlation from
+  /// one update to the next (b' = rho b + sqrt(1 - rho^2) sigma n; 0: independent per scan).
+  /// Each update samples b' from that transition and explains the scan with the bearings
+  /// corrected by it, so the weights pick the offsets that fit. measurement_noise is then the
+  /// part of the bearing noise that is not shared.
+  double bearing_offset_sigma = 0.0;
+  double bearing_offset_correlation = 0.0;
 };
 
 /// One particle: a pose sample, its log weight and its map; in version 2 also the motion prior
@@ -110,6 +119,7 @@ struct FastSlamParticle {
   bool has_prior = false;
   Eigen::Vector3d prior_mean = Eigen::Vector3d::Zero();
   Eigen::Matrix3d prior_cov = Eigen::Matrix3d::Zero();
+  double bearing_offset = 0.0;  // rad; see FastSlamOptions::bearing_offset_sigma
 };
 
 /// What update_unknown() did, per particle and measurement (row-major num_particles x k). Rows
@@ -205,6 +215,8 @@ class FastSlam {
   const FastSlamParticle& particle(int k) const;
   Poses2 poses() const;
   /// Normalised log weights (log-sum-exp 0).
+  /// (M,) each particle's bearing offset (rad) of its last update; zeros without the model.
+  Eigen::VectorXd bearing_offsets() const;
   Eigen::VectorXd log_weights() const;
   Eigen::VectorXd last_log_likelihoods() const;
   double effective_sample_size() const;
