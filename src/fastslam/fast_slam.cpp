@@ -4,6 +4,7 @@
 #include <Eigen/Eigenvalues>
 #include <algorithm>
 #include <cmath>
+#include <iterator>
 #include <string>
 #include <unordered_set>
 #include <utility>
@@ -528,8 +529,35 @@ void FastSlam::for_particles(F&& f) {
   });
 }
 
-std::vector<int> FastSlam::commit(std::vector<FastSlamParticle>& staged) {
-  particles_.swap(staged);
+template <class F>
+std::vector<FastSlamParticle> FastSlam::staged(F&& work) {
+  // Each worker copies its own particles (the copies' reference counts and the work's path
+  // copies on the same thread) and first lets go of its share of the retired ones, so one
+  // hand-off to the workers per call does it all and nothing per particle is left to the caller.
+  std::vector<FastSlamParticle> out(particles_.size());
+  const std::size_t m = particles_.size(), retired = retired_.size();
+  struct ClearRetired {
+    std::vector<FastSlamParticle>& v;
+    ~ClearRetired() { v.clear(); }
+  } clear_after{retired_};
+  for_particles([&](int k) {
+    for (std::size_t i = static_cast<std::size_t>(k); i < retired; i += m) retired_[i] = FastSlamParticle();
+    FastSlamParticle& p = out[static_cast<std::size_t>(k)];
+    p = particles_[static_cast<std::size_t>(k)];
+    work(k, p);
+  });
+  return out;
+}
+
+void FastSlam::release(std::vector<FastSlamParticle>& old) {
+  // With worker threads, the next call's workers free the nodes only these particles held.
+  if (pool_ && o_.threads > 1) std::move(old.begin(), old.end(), std::back_inserter(retired_));
+  old.clear();
+}
+
+std::vector<int> FastSlam::commit(std::vector<FastSlamParticle>& updated) {
+  particles_.swap(updated);
+  release(updated);
   // Normalise the log weights (log-sum-exp), then resample when N_eff is low.
   normalise_log_weights(particles_);
   last_resampled_ = false;
@@ -543,7 +571,9 @@ std::vector<int> FastSlam::commit(std::vector<FastSlamParticle>& staged) {
 }
 
 std::vector<int> FastSlam::resample_now() {
-  const std::vector<int> idx = resample_particles(particles_, rng_, o_.seed, next_stream_);  // O(1) copies
+  std::vector<FastSlamParticle> dropped;
+  const std::vector<int> idx = resample_particles(particles_, rng_, o_.seed, next_stream_, &dropped);  // O(1) copies
+  release(dropped);
   ++resamples_;
   return idx;
 }
@@ -557,22 +587,20 @@ void FastSlam::predict(double v, double w, double dt) {
   // Validates v, w, dt (finite, dt > 0) before anything changes.
   velocity_motion_jacobian(o_.initial_pose, v, w, dt);
   require(std::fabs(v * dt) <= kFastSlamMaxCoordinate, "v", "* dt must be <= 1e9 m (kFastSlamMaxCoordinate)");
-  std::vector<FastSlamParticle> staged = particles_;
   const Eigen::Matrix3d r = control_noise_ ? Eigen::Matrix3d::Zero() : Eigen::Matrix3d(o_.motion_noise);
   const Eigen::Matrix2d mc = control_noise_ ? Eigen::Matrix2d(o_.motion_noise) : Eigen::Matrix2d::Zero();
-  for_particles([&](int k) {
-    FastSlamParticle& p = staged[static_cast<std::size_t>(k)];
+  std::vector<FastSlamParticle> moved = staged([&](int, FastSlamParticle& p) {
     const Eigen::Vector3d x = p.pose;
-    Eigen::Vector3d next;
+    Eigen::Vector3d next_pose;
     if (control_noise_) {
       const Eigen::Vector2d e = control_factor_ * Eigen::Vector2d(p.rng.normal(), p.rng.normal());
-      next = velocity_motion(x, v + e[0], w + e[1], dt);
+      next_pose = velocity_motion(x, v + e[0], w + e[1], dt);
     } else {
       const Eigen::Vector3d e = motion_factor_ * Eigen::Vector3d(p.rng.normal(), p.rng.normal(), p.rng.normal());
-      next = velocity_motion(x, v, w, dt) + e;
-      next[2] = wrap_angle(next[2]);
+      next_pose = velocity_motion(x, v, w, dt) + e;
+      next_pose[2] = wrap_angle(next_pose[2]);
     }
-    require(next.allFinite() && next.head<2>().cwiseAbs().maxCoeff() <= kFastSlamMaxCoordinate, "v",
+    require(next_pose.allFinite() && next_pose.head<2>().cwiseAbs().maxCoeff() <= kFastSlamMaxCoordinate, "v",
             "moves the robot beyond 1e9 m (kFastSlamMaxCoordinate)");
     if (o_.version == 2) {
       p.prior_mean = velocity_motion(x, v, w, dt);
@@ -584,10 +612,11 @@ void FastSlam::predict(double v, double w, double dt) {
       }
       p.has_prior = true;
     }
-    p.pose = next;
-    if (o_.record_path) p.path.push(next);
+    p.pose = next_pose;
+    if (o_.record_path) p.path.push(next_pose);
   });
-  particles_.swap(staged);
+  particles_.swap(moved);
+  release(moved);
   last_ancestors_.clear();
 }
 
@@ -598,16 +627,14 @@ void FastSlam::predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matri
   require_psd(noise, "noise", true);
   const Eigen::Matrix3d cov = symmetric<3>(noise);
   const Eigen::Matrix3d l = psd_factor<3>(cov);
-  std::vector<FastSlamParticle> staged = particles_;
-  for_particles([&](int k) {
-    FastSlamParticle& p = staged[static_cast<std::size_t>(k)];
+  std::vector<FastSlamParticle> moved = staged([&](int, FastSlamParticle& p) {
     const Eigen::Vector3d x = p.pose;
     const Eigen::Matrix2d rx = rotation_matrix(x[2]);
     const Eigen::Vector3d d = delta + l * Eigen::Vector3d(p.rng.normal(), p.rng.normal(), p.rng.normal());
-    Eigen::Vector3d next;
-    next.head<2>() = x.head<2>() + rx * d.head<2>();
-    next[2] = wrap_angle(x[2] + d[2]);
-    require(next.allFinite() && next.head<2>().cwiseAbs().maxCoeff() <= kFastSlamMaxCoordinate, "delta",
+    Eigen::Vector3d next_pose;
+    next_pose.head<2>() = x.head<2>() + rx * d.head<2>();
+    next_pose[2] = wrap_angle(x[2] + d[2]);
+    require(next_pose.allFinite() && next_pose.head<2>().cwiseAbs().maxCoeff() <= kFastSlamMaxCoordinate, "delta",
             "moves the robot beyond 1e9 m (kFastSlamMaxCoordinate)");
     if (o_.version == 2) {
       p.prior_mean.head<2>() = x.head<2>() + rx * delta.head<2>();
@@ -617,10 +644,11 @@ void FastSlam::predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matri
       p.prior_cov = symmetric<3>(j * cov * j.transpose());
       p.has_prior = true;
     }
-    p.pose = next;
-    if (o_.record_path) p.path.push(next);
+    p.pose = next_pose;
+    if (o_.record_path) p.path.push(next_pose);
   });
-  particles_.swap(staged);
+  particles_.swap(moved);
+  release(moved);
   last_ancestors_.clear();
 }
 
@@ -649,9 +677,8 @@ bool FastSlam::update(const Eigen::Ref<const RowMatrixXd>& z, const std::vector<
   check_room(z.rows());
   const Context c{o_, q2_, q_signature_, std::log(o_.p_new), std::log(o_.outlier_density)};
   const Scan s{z, o_.use_signatures};
-  std::vector<FastSlamParticle> staged = particles_;
-  for_particles([&](int k) { c.update_known(staged[static_cast<std::size_t>(k)], s, ids); });
-  commit(staged);
+  std::vector<FastSlamParticle> updated = staged([&](int, FastSlamParticle& p) { c.update_known(p, s, ids); });
+  commit(updated);
   return last_resampled_;
 }
 
@@ -674,14 +701,12 @@ FastSlamAssociation FastSlam::update_unknown(const Eigen::Ref<const RowMatrixXd>
   out.is_new.assign(static_cast<std::size_t>(m) * k, 0);
   std::vector<std::vector<long>> removed(static_cast<std::size_t>(m));
   out.removed.resize(static_cast<std::size_t>(m));
-  std::vector<FastSlamParticle> staged = particles_;
   const double log_p_new = std::log(p_new);
-  for_particles([&](int j) {
+  std::vector<FastSlamParticle> updated = staged([&](int j, FastSlamParticle& p) {
     const auto at = static_cast<std::size_t>(j) * k;
-    c.update_unknown(staged[static_cast<std::size_t>(j)], s, log_p_new, out.ids.data() + at, out.is_new.data() + at,
-                     removed[static_cast<std::size_t>(j)]);
+    c.update_unknown(p, s, log_p_new, out.ids.data() + at, out.is_new.data() + at, removed[static_cast<std::size_t>(j)]);
   });
-  const std::vector<int> ancestors = commit(staged);
+  const std::vector<int> ancestors = commit(updated);
   if (!ancestors.empty()) {  // rows follow the particles after resampling
     FastSlamAssociation moved = out;
     for (int j = 0; j < m; ++j) {

@@ -240,10 +240,16 @@ class FastSlam {
   struct Context;
   template <class F>
   void for_particles(F&& f);
+  /// Copies of the particles with work(k, copy) applied, made by the workers (see for_particles).
+  template <class F>
+  std::vector<FastSlamParticle> staged(F&& work);
+  /// Lets go of particles no longer used, empties `old`: at once with one thread, else kept in
+  /// retired_ for the next call's workers to free.
+  void release(std::vector<FastSlamParticle>& old);
   void check_measurements(const Eigen::Ref<const RowMatrixXd>& z) const;
   void check_room(Eigen::Index added) const;
-  /// Swaps the staged particles in, normalises, resamples if N_eff is low: the ancestors, or empty.
-  std::vector<int> commit(std::vector<FastSlamParticle>& staged);
+  /// Swaps the updated particles in, normalises, resamples if N_eff is low: the ancestors, or empty.
+  std::vector<int> commit(std::vector<FastSlamParticle>& updated);
   std::vector<int> resample_now();
 
   FastSlamOptions o_;
@@ -253,6 +259,7 @@ class FastSlam {
   Eigen::Matrix2d q2_ = Eigen::Matrix2d::Zero();
   double q_signature_ = 0.0;
   std::vector<FastSlamParticle> particles_;
+  std::vector<FastSlamParticle> retired_;  // see release()
   ParticleRng rng_;                    // the filter's own stream (resampling offsets)
   std::uint64_t next_stream_ = 0;      // the stream number of the next new particle
   long resamples_ = 0;

@@ -25,12 +25,13 @@
 #include <unordered_set>
 #include <utility>
 
+#include "probslam/fastslam/node_pool.hpp"
 #include "probslam/fastslam/node_ref.hpp"
 
 namespace probslam {
 
 /// Tree nodes alive in the process, over every tree (tests and memory reports).
-inline std::atomic<long> g_persistent_tree_nodes{0};
+inline ShardedCounter g_persistent_tree_nodes;
 
 /// A persistent ordered map Key -> Value (Key: strict weak order by operator<, priority by
 /// KeyHash). Every operation is O(log N) expected and copies only the nodes on one path.
@@ -47,9 +48,11 @@ class PersistentTreap {
 
     Node(const Key& k, const Value& v, std::uint64_t p, NodeRef<Node> l, NodeRef<Node> r)
         : key(k), value(v), priority(p), size(1 + size_of(l) + size_of(r)), left(std::move(l)), right(std::move(r)) {
-      g_persistent_tree_nodes.fetch_add(1, std::memory_order_relaxed);
+      g_persistent_tree_nodes.add(1);
     }
-    ~Node() { g_persistent_tree_nodes.fetch_sub(1, std::memory_order_relaxed); }
+    ~Node() { g_persistent_tree_nodes.add(-1); }
+    static void* operator new(std::size_t) { return NodePool<Node>::allocate(); }
+    static void operator delete(void* p) noexcept { NodePool<Node>::release(p); }
     // Recursion through the children's destructors is as deep as the tree: O(log N).
     static void destroy(const Node* n) { delete n; }
   };

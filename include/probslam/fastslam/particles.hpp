@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "probslam/core/types.hpp"
+#include "probslam/fastslam/node_pool.hpp"
 #include "probslam/fastslam/node_ref.hpp"
 
 namespace probslam {
@@ -46,6 +47,8 @@ class PosePath {
     mutable std::atomic<std::uint32_t> refs{1};
     Node(const Eigen::Vector3d& p, NodeRef<Node> before)
         : pose(p), prev(std::move(before)), length(1 + (prev ? prev->length : 0)) {}
+    static void* operator new(std::size_t) { return NodePool<Node>::allocate(); }
+    static void operator delete(void* p) noexcept { NodePool<Node>::release(p); }
     // Iterative: a path of a million poses must not recurse a million deep.
     static void destroy(const Node* n);
   };
@@ -115,10 +118,11 @@ double normalise_log_weights(Particles& particles) {
 /// Low-variance resampling of `particles` (each with `log_weight` and `rng`): the offset comes
 /// from `filter_rng`, copies are O(1) when a particle shares its map and path, the j-th new
 /// particle takes random stream next_stream + j of `seed` (so a seed gives the same result for
-/// any number of threads) and every weight becomes 1 / M. Returns the ancestors' indices.
+/// any number of threads) and every weight becomes 1 / M. Returns the ancestors' indices; the
+/// particles before resampling go to `dropped` when given (for the caller to release).
 template <class Particle>
 std::vector<int> resample_particles(std::vector<Particle>& particles, ParticleRng& filter_rng, std::uint64_t seed,
-                                    std::uint64_t& next_stream) {
+                                    std::uint64_t& next_stream, std::vector<Particle>* dropped = nullptr) {
   const Eigen::Index m = static_cast<Eigen::Index>(particles.size());
   Eigen::VectorXd w(m);
   for (Eigen::Index k = 0; k < m; ++k) w[k] = std::exp(particles[static_cast<std::size_t>(k)].log_weight);
@@ -133,6 +137,7 @@ std::vector<int> resample_particles(std::vector<Particle>& particles, ParticleRn
   }
   next_stream += static_cast<std::uint64_t>(m);
   particles.swap(next);
+  if (dropped) dropped->swap(next);
   return idx;
 }
 

@@ -102,14 +102,20 @@ class WorkerPool {
 #endif
   }
 
-  /// Polls `ready` for up to kSpinBudget; true when it held.
+  /// Polls `ready` for up to kSpinBudget; true when it held. After the first kPausePolls polls
+  /// it yields between polls: on a machine with more runnable threads than cores the
+  /// thread it waits for may need this core.
   template <class Ready>
   static bool spin_until(Ready&& ready) {
+    for (int i = 0; i < kPausePolls; ++i) {
+      if (ready()) return true;
+      cpu_relax();
+    }
     const auto until = std::chrono::steady_clock::now() + kSpinBudget;
     for (;;) {
-      for (int i = 0; i < kPollsPerClockRead; ++i) {
+      for (int i = 0; i < kYieldsPerClockRead; ++i) {
         if (ready()) return true;
-        cpu_relax();
+        std::this_thread::yield();
       }
       if (std::chrono::steady_clock::now() >= until) return ready();
     }
@@ -155,7 +161,8 @@ class WorkerPool {
   // between two calls of a filter's step loop in Python (10-100 us), short enough that an idle
   // pool gives its core back at once to anyone who needs it.
   static constexpr std::chrono::microseconds kSpinBudget{200};
-  static constexpr int kPollsPerClockRead = 64;
+  static constexpr int kPausePolls = 64;          // about a microsecond of pause polls first
+  static constexpr int kYieldsPerClockRead = 8;
 
   std::vector<std::thread> threads_;
   std::mutex mutex_;
