@@ -134,7 +134,8 @@ class OccupancyGrid3D:
     @staticmethod
     def read_bt(path: Union[str, os.PathLike[str]], p_hit: float = 0.7, p_miss: float = 0.4, clamp_min: float = 0.1192,
                 clamp_max: float = 0.971, occupancy_threshold: float = 0.5) -> "OccupancyGrid3D":
-        """OctoMap .bt file; voxels get the clamped log-odds. ValueError on a bad file."""
+        """OctoMap .bt file; voxels get the clamped log-odds. FileNotFoundError for a missing file,
+        ValueError for a bad one."""
     def clear(self) -> None: ...
 
 def fuse_max(grids: Sequence[OccupancyGrid2D]) -> OccupancyGrid2D:

@@ -551,7 +551,7 @@ std::vector<FastSlamParticle> FastSlam::staged(F&& work) {
 
 void FastSlam::release(std::vector<FastSlamParticle>& old) {
   // With worker threads, the next call's workers free the nodes only these particles held.
-  if (pool_ && o_.threads > 1) std::move(old.begin(), old.end(), std::back_inserter(retired_));
+  if (pool_) std::move(old.begin(), old.end(), std::back_inserter(retired_));  // a pool: workers > 1
   old.clear();
 }
 
@@ -732,17 +732,15 @@ Poses2 FastSlam::poses() const { return particle_poses(particles_); }
 
 Eigen::VectorXd FastSlam::log_weights() const { return particle_log_weights(particles_); }
 
-Eigen::VectorXd FastSlam::last_log_likelihoods() const {
+Eigen::VectorXd FastSlam::per_particle(double FastSlamParticle::*field) const {
   Eigen::VectorXd out(num_particles());
-  for (int k = 0; k < num_particles(); ++k) out[k] = particles_[static_cast<std::size_t>(k)].last_log_likelihood;
+  for (int k = 0; k < num_particles(); ++k) out[k] = particles_[static_cast<std::size_t>(k)].*field;
   return out;
 }
 
-Eigen::VectorXd FastSlam::bearing_offsets() const {
-  Eigen::VectorXd out(num_particles());
-  for (int k = 0; k < num_particles(); ++k) out[k] = particles_[static_cast<std::size_t>(k)].bearing_offset;
-  return out;
-}
+Eigen::VectorXd FastSlam::last_log_likelihoods() const { return per_particle(&FastSlamParticle::last_log_likelihood); }
+
+Eigen::VectorXd FastSlam::bearing_offsets() const { return per_particle(&FastSlamParticle::bearing_offset); }
 
 double FastSlam::effective_sample_size() const {
   double s = 0.0;

@@ -214,9 +214,9 @@ class FastSlam {
 
   const FastSlamParticle& particle(int k) const;
   Poses2 poses() const;
-  /// Normalised log weights (log-sum-exp 0).
   /// (M,) each particle's bearing offset (rad) of its last update; zeros without the model.
   Eigen::VectorXd bearing_offsets() const;
+  /// Normalised log weights (log-sum-exp 0).
   Eigen::VectorXd log_weights() const;
   Eigen::VectorXd last_log_likelihoods() const;
   double effective_sample_size() const;
@@ -246,6 +246,8 @@ class FastSlam {
   /// Lets go of particles no longer used, empties `old`: at once with one thread, else kept in
   /// retired_ for the next call's workers to free.
   void release(std::vector<FastSlamParticle>& old);
+  /// (M,) the field of every particle.
+  Eigen::VectorXd per_particle(double FastSlamParticle::*field) const;
   void check_measurements(const Eigen::Ref<const RowMatrixXd>& z) const;
   void check_room(Eigen::Index added) const;
   /// Swaps the updated particles in, normalises, resamples if N_eff is low: the ancestors, or empty.

@@ -73,6 +73,7 @@ class NodePool {
         ::operator delete(head);
         head = next;
       }
+      size = kMaxCached;  // a node freed later on this thread (a static's) goes straight back
     }
   };
   static List& local() {
