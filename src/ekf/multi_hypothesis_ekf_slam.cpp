@@ -160,8 +160,14 @@ std::vector<long> MultiHypothesisEkfSlam::update(const Eigen::Ref<const RowMatri
           "(kMhtMaxBranchBytes): lower max_hypotheses or max_children");
   std::vector<Hypothesis> children;
   for (const Hypothesis& h : beam_) branch(h, z, children);
+  // Children of better parents first among equal costs (the sort is stable and the parents are in
+  // beam order). Costs are compared on a grid of kMhtCostResolution: alternatives that differ from
+  // their parent by the same decisions (say, one measurement a new landmark rather than clutter)
+  // cost the same but for the last bits, which the order of the sums decides; compared exactly,
+  // an old alternative could win such a tie against the best parent's fresh one by 1e-15.
+  const auto bucket = [](double cost) { return std::floor(cost / kMhtCostResolution); };
   std::stable_sort(children.begin(), children.end(),
-                   [](const Hypothesis& a, const Hypothesis& b) { return a.cost < b.cost; });
+                   [&](const Hypothesis& a, const Hypothesis& b) { return bucket(a.cost) < bucket(b.cost); });
   const double best_cost = children.front().cost;
   for (const Hypothesis& c : children)
     require(std::isfinite(c.cost) && std::isfinite(offset_ + best_cost), "z", "gives a hypothesis a non-finite cost");

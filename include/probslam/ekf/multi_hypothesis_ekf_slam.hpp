@@ -31,6 +31,9 @@ inline constexpr int kMhtMaxChildren = 100;
 /// Costs and the prune margin, in NIS units: chi-square quantiles of any probability a double
 /// resolves are far below this.
 inline constexpr double kMhtMaxCost = 1e6;
+/// Costs closer than this (NIS units) rank as equal when the beam is chosen: far above the
+/// rounding of sums of costs below kMhtMaxCost, far below any difference a decision makes.
+inline constexpr double kMhtCostResolution = 1e-6;
 /// Bytes of covariance the children of one scan may hold together (beam x children x state^2).
 inline constexpr double kMhtMaxBranchBytes = 4.0 * (1 << 30);
 
