@@ -530,57 +530,113 @@ void FastSlam::for_particles(F&& f) {
 }
 
 template <class F>
-std::vector<FastSlamParticle> FastSlam::staged(F&& work) {
-  // Each worker copies its own particles (the copies' reference counts and the work's path
-  // copies on the same thread) and first lets go of its share of the retired ones, so one
-  // hand-off to the workers per call does it all and nothing per particle is left to the caller.
-  std::vector<FastSlamParticle> out(particles_.size());
-  const std::size_t m = particles_.size(), retired = retired_.size();
-  struct ClearRetired {
-    std::vector<FastSlamParticle>& v;
-    ~ClearRetired() { v.clear(); }
-  } clear_after{retired_};
+void FastSlam::staged(F&& work) {
+  // Double buffering: worker k overwrites spare_[k] (a particle no longer used, which it thereby
+  // lets go of) with a copy of particles_[k], works on that copy and leaves its log weight in
+  // weights_. So one hand-off per call does it all, each particle's memory and reference counts
+  // stay with the thread that owns it, and the caller neither allocates, constructs, moves nor
+  // reads particles. particles_ changes only when every worker is done.
+  const std::size_t m = particles_.size();
+  if (spare_.size() != m) spare_.resize(m);
+  weights_.resize(m);
   for_particles([&](int k) {
-    for (std::size_t i = static_cast<std::size_t>(k); i < retired; i += m) retired_[i] = FastSlamParticle();
-    FastSlamParticle& p = out[static_cast<std::size_t>(k)];
-    p = particles_[static_cast<std::size_t>(k)];
+    const auto i = static_cast<std::size_t>(k);
+    FastSlamParticle& p = spare_[i];
+    p = particles_[i];
     work(k, p);
+    weights_[i] = p.log_weight;
   });
-  return out;
+  particles_.swap(spare_);
+  drop_spare_if_serial();
 }
 
-void FastSlam::release(std::vector<FastSlamParticle>& old) {
-  // With worker threads, the next call's workers free the nodes only these particles held.
-  if (pool_) std::move(old.begin(), old.end(), std::back_inserter(retired_));  // a pool: workers > 1
-  old.clear();
+void FastSlam::drop_spare_if_serial() {
+  // With workers, the next call's workers let go of spare_ as they overwrite it; alone, at once.
+  if (!pool_)
+    for (FastSlamParticle& p : spare_) p.drop_shared();
 }
 
-std::vector<int> FastSlam::commit(std::vector<FastSlamParticle>& updated) {
-  particles_.swap(updated);
-  release(updated);
-  // Normalise the log weights (log-sum-exp), then resample when N_eff is low.
-  normalise_log_weights(particles_);
-  last_resampled_ = false;
+std::vector<int> FastSlam::commit() {
+  // Table 4.4's resampling when N_eff is low; the weights normalised by log-sum-exp.
+  const double n_eff = normalise_log_weights(weights_);
   std::vector<int> ancestors;
-  if (effective_sample_size() < o_.resample_threshold * num_particles()) {
-    ancestors = resample_now();
-    last_resampled_ = true;
-  }
-  last_ancestors_ = ancestors;
+  if (n_eff < o_.resample_threshold * num_particles()) ancestors = resampling_ancestors(weights_, rng_);
+  settle(ancestors);
   return ancestors;
 }
 
-std::vector<int> FastSlam::resample_now() {
-  std::vector<FastSlamParticle> dropped;
-  const std::vector<int> idx = resample_particles(particles_, rng_, o_.seed, next_stream_, &dropped);  // O(1) copies
-  release(dropped);
+void FastSlam::settle(const std::vector<int>& ancestors) {
+  last_ancestors_ = ancestors;
+  last_resampled_ = !ancestors.empty();
+  if (ancestors.empty()) {
+    for_particles([&](int k) { particles_[static_cast<std::size_t>(k)].log_weight = weights_[static_cast<std::size_t>(k)]; });
+    return;
+  }
+  // Copies share their ancestor's map and path: O(1) each. The j-th new particle takes random
+  // stream next_stream_ + j, so a seed gives the same result for any number of threads.
+  const double log_weight = -std::log(static_cast<double>(num_particles()));
+  const std::uint64_t first_stream = next_stream_;
+  for_particles([&](int k) {
+    const auto i = static_cast<std::size_t>(k);
+    FastSlamParticle& p = spare_[i];
+    p = particles_[static_cast<std::size_t>(ancestors[i])];
+    p.rng = ParticleRng(o_.seed, first_stream + static_cast<std::uint64_t>(k));
+    p.log_weight = log_weight;
+  });
+  particles_.swap(spare_);
+  drop_spare_if_serial();
+  next_stream_ += static_cast<std::uint64_t>(num_particles());
   ++resamples_;
-  return idx;
 }
 
 void FastSlam::resample() {
-  last_ancestors_ = resample_now();
-  last_resampled_ = true;
+  weights_.resize(particles_.size());
+  for (std::size_t k = 0; k < particles_.size(); ++k) weights_[k] = particles_[k].log_weight;
+  if (spare_.size() != particles_.size()) spare_.resize(particles_.size());
+  settle(resampling_ancestors(weights_, rng_));
+}
+
+template <class Sample>
+void FastSlam::move_particles(Sample&& sample) {
+  // One pass, in place (no particle is copied, so no shared node's count changes): worker k
+  // keeps particle k's state in moves_[k], stamped with this call, before it moves the particle.
+  // A sample that throws leaves its particle untouched; every particle already moved is then put
+  // back from moves_ (its new path node dropped), so the call changes nothing.
+  moves_.resize(particles_.size());
+  const std::uint64_t stamp = ++move_calls_;
+  try {
+    for_particles([&](int k) {
+      const auto i = static_cast<std::size_t>(k);
+      FastSlamParticle& p = particles_[i];
+      Motion next;
+      ParticleRng rng = p.rng;
+      sample(p.pose, rng, next);
+      Move& kept = moves_[i];
+      kept = Move{p.pose, p.prior_mean, p.prior_cov, p.rng, p.has_prior, stamp};
+      p.rng = rng;
+      p.pose = next.pose;
+      if (o_.version == 2) {
+        p.prior_mean = next.prior_mean;
+        p.prior_cov = next.prior_cov;
+        p.has_prior = true;
+      }
+      if (o_.record_path) p.path.push(next.pose);
+    });
+  } catch (...) {
+    for (std::size_t i = 0; i < particles_.size(); ++i) {
+      const Move& kept = moves_[i];
+      if (kept.stamp != stamp) continue;
+      FastSlamParticle& p = particles_[i];
+      p.pose = kept.pose;
+      p.prior_mean = kept.prior_mean;
+      p.prior_cov = kept.prior_cov;
+      p.rng = kept.rng;
+      p.has_prior = kept.has_prior;
+      if (o_.record_path) p.path.pop();
+    }
+    throw;
+  }
+  last_ancestors_.clear();
 }
 
 void FastSlam::predict(double v, double w, double dt) {
@@ -589,35 +645,27 @@ void FastSlam::predict(double v, double w, double dt) {
   require(std::fabs(v * dt) <= kFastSlamMaxCoordinate, "v", "* dt must be <= 1e9 m (kFastSlamMaxCoordinate)");
   const Eigen::Matrix3d r = control_noise_ ? Eigen::Matrix3d::Zero() : Eigen::Matrix3d(o_.motion_noise);
   const Eigen::Matrix2d mc = control_noise_ ? Eigen::Matrix2d(o_.motion_noise) : Eigen::Matrix2d::Zero();
-  std::vector<FastSlamParticle> moved = staged([&](int, FastSlamParticle& p) {
-    const Eigen::Vector3d x = p.pose;
-    Eigen::Vector3d next_pose;
+  move_particles([&](const Eigen::Vector3d& x, ParticleRng& rng, Motion& mv) {
     if (control_noise_) {
-      const Eigen::Vector2d e = control_factor_ * Eigen::Vector2d(p.rng.normal(), p.rng.normal());
-      next_pose = velocity_motion(x, v + e[0], w + e[1], dt);
+      const Eigen::Vector2d e = control_factor_ * Eigen::Vector2d(rng.normal(), rng.normal());
+      mv.pose = velocity_motion(x, v + e[0], w + e[1], dt);
     } else {
-      const Eigen::Vector3d e = motion_factor_ * Eigen::Vector3d(p.rng.normal(), p.rng.normal(), p.rng.normal());
-      next_pose = velocity_motion(x, v, w, dt) + e;
-      next_pose[2] = wrap_angle(next_pose[2]);
+      const Eigen::Vector3d e = motion_factor_ * Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal());
+      mv.pose = velocity_motion(x, v, w, dt) + e;
+      mv.pose[2] = wrap_angle(mv.pose[2]);
     }
-    require(next_pose.allFinite() && next_pose.head<2>().cwiseAbs().maxCoeff() <= kFastSlamMaxCoordinate, "v",
+    require(mv.pose.allFinite() && mv.pose.head<2>().cwiseAbs().maxCoeff() <= kFastSlamMaxCoordinate, "v",
             "moves the robot beyond 1e9 m (kFastSlamMaxCoordinate)");
     if (o_.version == 2) {
-      p.prior_mean = velocity_motion(x, v, w, dt);
+      mv.prior_mean = velocity_motion(x, v, w, dt);
       if (control_noise_) {
         const Eigen::Matrix<double, 3, 2> vj = velocity_motion_control_jacobian(x, v, w, dt);
-        p.prior_cov = symmetric<3>(vj * mc * vj.transpose());
+        mv.prior_cov = symmetric<3>(vj * mc * vj.transpose());
       } else {
-        p.prior_cov = r;
+        mv.prior_cov = r;
       }
-      p.has_prior = true;
     }
-    p.pose = next_pose;
-    if (o_.record_path) p.path.push(next_pose);
   });
-  particles_.swap(moved);
-  release(moved);
-  last_ancestors_.clear();
 }
 
 void FastSlam::predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matrix3d& noise) {
@@ -627,29 +675,21 @@ void FastSlam::predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matri
   require_psd(noise, "noise", true);
   const Eigen::Matrix3d cov = symmetric<3>(noise);
   const Eigen::Matrix3d l = psd_factor<3>(cov);
-  std::vector<FastSlamParticle> moved = staged([&](int, FastSlamParticle& p) {
-    const Eigen::Vector3d x = p.pose;
+  move_particles([&](const Eigen::Vector3d& x, ParticleRng& rng, Motion& mv) {
     const Eigen::Matrix2d rx = rotation_matrix(x[2]);
-    const Eigen::Vector3d d = delta + l * Eigen::Vector3d(p.rng.normal(), p.rng.normal(), p.rng.normal());
-    Eigen::Vector3d next_pose;
-    next_pose.head<2>() = x.head<2>() + rx * d.head<2>();
-    next_pose[2] = wrap_angle(x[2] + d[2]);
-    require(next_pose.allFinite() && next_pose.head<2>().cwiseAbs().maxCoeff() <= kFastSlamMaxCoordinate, "delta",
+    const Eigen::Vector3d d = delta + l * Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal());
+    mv.pose.head<2>() = x.head<2>() + rx * d.head<2>();
+    mv.pose[2] = wrap_angle(x[2] + d[2]);
+    require(mv.pose.allFinite() && mv.pose.head<2>().cwiseAbs().maxCoeff() <= kFastSlamMaxCoordinate, "delta",
             "moves the robot beyond 1e9 m (kFastSlamMaxCoordinate)");
     if (o_.version == 2) {
-      p.prior_mean.head<2>() = x.head<2>() + rx * delta.head<2>();
-      p.prior_mean[2] = wrap_angle(x[2] + delta[2]);
+      mv.prior_mean.head<2>() = x.head<2>() + rx * delta.head<2>();
+      mv.prior_mean[2] = wrap_angle(x[2] + delta[2]);
       Eigen::Matrix3d j = Eigen::Matrix3d::Identity();  // d(x (+) delta) / d delta
       j.topLeftCorner<2, 2>() = rx;
-      p.prior_cov = symmetric<3>(j * cov * j.transpose());
-      p.has_prior = true;
+      mv.prior_cov = symmetric<3>(j * cov * j.transpose());
     }
-    p.pose = next_pose;
-    if (o_.record_path) p.path.push(next_pose);
   });
-  particles_.swap(moved);
-  release(moved);
-  last_ancestors_.clear();
 }
 
 void FastSlam::check_measurements(const Eigen::Ref<const RowMatrixXd>& z) const {
@@ -662,23 +702,23 @@ void FastSlam::check_measurements(const Eigen::Ref<const RowMatrixXd>& z) const 
           "entries must be <= 1e9 (kFastSlamMaxCoordinate) in magnitude");
 }
 
-void FastSlam::check_room(Eigen::Index added) const {
-  for (const FastSlamParticle& p : particles_) {
-    require(static_cast<long>(p.map.size()) + added <= kFastSlamMaxLandmarks, "z",
-            "would grow a map beyond 2^26 landmarks (kFastSlamMaxLandmarks)");
-    require(p.next_id <= kFastSlamMaxLandmarkId - added, "z", "would need landmark ids beyond 2^62");
-  }
+void FastSlam::check_room(const FastSlamParticle& p, Eigen::Index added) {
+  require(static_cast<long>(p.map.size()) + added <= kFastSlamMaxLandmarks, "z",
+          "would grow a map beyond 2^26 landmarks (kFastSlamMaxLandmarks)");
+  require(p.next_id <= kFastSlamMaxLandmarkId - added, "z", "would need landmark ids beyond 2^62");
 }
 
 bool FastSlam::update(const Eigen::Ref<const RowMatrixXd>& z, const std::vector<long>& ids) {
   check_measurements(z);
   require(static_cast<Eigen::Index>(ids.size()) == z.rows(), "ids", "must have one id per measurement");
   for (long id : ids) require(id >= 0 && id <= kFastSlamMaxLandmarkId, "ids", "must be in [0, 2^62]");
-  check_room(z.rows());
   const Context c{o_, q2_, q_signature_, std::log(o_.p_new), std::log(o_.outlier_density)};
   const Scan s{z, o_.use_signatures};
-  std::vector<FastSlamParticle> updated = staged([&](int, FastSlamParticle& p) { c.update_known(p, s, ids); });
-  commit(updated);
+  staged([&](int, FastSlamParticle& p) {
+    check_room(p, z.rows());  // in the workers: the caller reads no particle
+    c.update_known(p, s, ids);
+  });
+  commit();
   return last_resampled_;
 }
 
@@ -689,7 +729,6 @@ FastSlamAssociation FastSlam::update_unknown(const Eigen::Ref<const RowMatrixXd>
 FastSlamAssociation FastSlam::update_unknown(const Eigen::Ref<const RowMatrixXd>& z, double p_new) {
   check_measurements(z);
   require(std::isfinite(p_new) && p_new > 0.0 && std::isfinite(std::log(p_new)), "p_new", "must be finite and > 0");
-  check_room(z.rows());
   const Context c{o_, q2_, q_signature_, std::log(o_.p_new), std::log(o_.outlier_density)};
   const Scan s{z, o_.use_signatures};
   const int m = num_particles();
@@ -702,11 +741,12 @@ FastSlamAssociation FastSlam::update_unknown(const Eigen::Ref<const RowMatrixXd>
   std::vector<std::vector<long>> removed(static_cast<std::size_t>(m));
   out.removed.resize(static_cast<std::size_t>(m));
   const double log_p_new = std::log(p_new);
-  std::vector<FastSlamParticle> updated = staged([&](int j, FastSlamParticle& p) {
+  staged([&](int j, FastSlamParticle& p) {
+    check_room(p, z.rows());
     const auto at = static_cast<std::size_t>(j) * k;
     c.update_unknown(p, s, log_p_new, out.ids.data() + at, out.is_new.data() + at, removed[static_cast<std::size_t>(j)]);
   });
-  const std::vector<int> ancestors = commit(updated);
+  const std::vector<int> ancestors = commit();
   if (!ancestors.empty()) {  // rows follow the particles after resampling
     FastSlamAssociation moved = out;
     for (int j = 0; j < m; ++j) {

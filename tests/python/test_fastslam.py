@@ -683,3 +683,26 @@ def test_bearing_offset_is_tracked_and_improves_the_map():
     assert np.corrcoef(rel_truth, rel_est)[0, 1] > 0.8  # 0.89 - 0.97 over seeds 11 - 14
     e_model, e_plain = (np.array(err[id(f)][10:]) for f in (with_model, plain))
     assert np.std(e_model) < 0.7 * np.std(e_plain)  # 0.46 - 0.51 over seeds 11 - 14
+
+
+@pytest.mark.parametrize("threads", [1, 2])
+@pytest.mark.parametrize("version", [1, 2])
+def test_a_motion_some_particles_cannot_take_changes_nothing(threads, version):
+    """Particles move in place; when one particle's sample would leave the +-1e9 m world, the call
+    raises and every particle already moved is put back (pose, prior, random stream, path): the
+    filter then continues exactly as an untouched copy does. Several seeds, so that particles
+    before the first refused one have moved (with one thread, the first particle may be it)."""
+    edge = 1e9 - 0.5
+    for seed in range(4, 10):
+        f = ps.FastSlam(64, np.eye(3) * 1e-4, np.diag([0.01, 0.001]), version=version, threads=threads,
+                        initial_pose=(edge, 0.0, 0.0), seed=seed)
+        f.predict_odometry([0.1, 0.0, 0.0], np.diag([1e-4, 1e-4, 1e-4]))
+        g = f.copy()
+        with pytest.raises(ValueError, match="^delta.*beyond"):
+            f.predict_odometry([0.3, 0.0, 0.0], np.diag([0.09, 1e-4, 1e-4]))  # about half cross the edge
+        with pytest.raises(ValueError, match="^v.*beyond"):
+            f.predict(0.4, 0.0, 1.0)  # additive pose noise 1e-2 m: some particles cross, some do not
+        for h in (f, g):
+            h.predict_odometry([-0.2, 0.0, 0.01], np.diag([1e-4, 1e-4, 1e-4]))
+            h.update([[5.0, 0.2]], [3])
+        assert same_state(state(f), state(g)), seed

@@ -120,6 +120,13 @@ struct FastSlamParticle {
   Eigen::Vector3d prior_mean = Eigen::Vector3d::Zero();
   Eigen::Matrix3d prior_cov = Eigen::Matrix3d::Zero();
   double bearing_offset = 0.0;  // rad; see FastSlamOptions::bearing_offset_sigma
+
+  /// Lets go of the map and path this particle shares, keeping the rest (cheaper than
+  /// constructing a particle, whose random stream is seeded).
+  void drop_shared() {
+    map = LandmarkMap(map.cell_size());
+    path = PosePath();
+  }
 };
 
 /// What update_unknown() did, per particle and measurement (row-major num_particles x k). Rows
@@ -240,19 +247,39 @@ class FastSlam {
   struct Context;
   template <class F>
   void for_particles(F&& f);
-  /// Copies of the particles with work(k, copy) applied, made by the workers (see for_particles).
+  /// Replaces the particles by copies with work(k, copy) applied, made by the workers (see
+  /// for_particles); when work throws, the particles are unchanged.
   template <class F>
-  std::vector<FastSlamParticle> staged(F&& work);
-  /// Lets go of particles no longer used, empties `old`: at once with one thread, else kept in
-  /// retired_ for the next call's workers to free.
-  void release(std::vector<FastSlamParticle>& old);
+  void staged(F&& work);
+  void drop_spare_if_serial();
+  /// A particle's sampled motion: its new pose, and for version 2 the prior of the proposal.
+  struct Motion {
+    Eigen::Vector3d pose = Eigen::Vector3d::Zero();
+    Eigen::Vector3d prior_mean = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d prior_cov = Eigen::Matrix3d::Zero();
+  };
+  /// A particle's state before move_particles() moved it (in call number `stamp`).
+  struct Move {
+    Eigen::Vector3d pose = Eigen::Vector3d::Zero();
+    Eigen::Vector3d prior_mean = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d prior_cov = Eigen::Matrix3d::Zero();
+    ParticleRng rng;
+    bool has_prior = false;
+    std::uint64_t stamp = 0;
+  };
+  /// Moves every particle by sample(pose, rng, motion), which fills `motion` drawing from rng
+  /// (a copy of the particle's stream); in place, and not at all when a sample throws.
+  template <class Sample>
+  void move_particles(Sample&& sample);
   /// (M,) the field of every particle.
   Eigen::VectorXd per_particle(double FastSlamParticle::*field) const;
   void check_measurements(const Eigen::Ref<const RowMatrixXd>& z) const;
-  void check_room(Eigen::Index added) const;
-  /// Swaps the updated particles in, normalises, resamples if N_eff is low: the ancestors, or empty.
-  std::vector<int> commit(std::vector<FastSlamParticle>& updated);
-  std::vector<int> resample_now();
+  static void check_room(const FastSlamParticle& p, Eigen::Index added);
+  /// Normalises the weights staged() left, resamples if N_eff is low: the ancestors, or empty.
+  std::vector<int> commit();
+  /// Writes the normalised weights_ into the particles, or, given ancestors, replaces the
+  /// particles by copies of them (weights 1 / M); on the workers.
+  void settle(const std::vector<int>& ancestors);
 
   FastSlamOptions o_;
   Eigen::Matrix3d motion_factor_ = Eigen::Matrix3d::Zero();  // L with L L^T = R (pose space)
@@ -261,7 +288,10 @@ class FastSlam {
   Eigen::Matrix2d q2_ = Eigen::Matrix2d::Zero();
   double q_signature_ = 0.0;
   std::vector<FastSlamParticle> particles_;
-  std::vector<FastSlamParticle> retired_;  // see release()
+  std::vector<FastSlamParticle> spare_;  // see staged(): particles no longer used, or empty ones
+  std::vector<double> weights_;          // see staged(): log weights the workers left
+  std::vector<Move> moves_;              // see move_particles()
+  std::uint64_t move_calls_ = 0;
   ParticleRng rng_;                    // the filter's own stream (resampling offsets)
   std::uint64_t next_stream_ = 0;      // the stream number of the next new particle
   long resamples_ = 0;

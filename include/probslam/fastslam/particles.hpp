@@ -54,6 +54,10 @@ class PosePath {
   };
   std::size_t size() const { return head_ ? head_->length : 0; }
   void push(const Eigen::Vector3d& pose) { head_ = NodeRef<Node>::adopt(new Node(pose, std::move(head_))); }
+  /// Drops the newest pose (none: no-op).
+  void pop() {
+    if (head_) head_ = NodeRef<Node>(head_->prev);
+  }
   /// Replaces the newest pose.
   void replace_last(const Eigen::Vector3d& pose) {
     NodeRef<Node> before = head_ ? head_->prev : NodeRef<Node>();
@@ -98,46 +102,63 @@ int heaviest_particle(const Particles& particles) {
   return best;
 }
 
-/// Normalises the log weights of `particles` (anything with a `log_weight`) by log-sum-exp and
-/// returns N_eff = 1 / sum w^2.
-template <class Particles>
-double normalise_log_weights(Particles& particles) {
+/// Normalises log weights in place by log-sum-exp and returns N_eff = 1 / sum w^2.
+inline double normalise_log_weights(std::vector<double>& log_weights) {
   double top = -std::numeric_limits<double>::infinity();
-  for (const auto& p : particles) top = std::max(top, p.log_weight);
+  for (double lw : log_weights) top = std::max(top, lw);
   double sum = 0.0;
-  for (const auto& p : particles) sum += std::exp(p.log_weight - top);
+  for (double lw : log_weights) sum += std::exp(lw - top);
   const double lse = top + std::log(sum);
   double sum_sq = 0.0;
-  for (auto& p : particles) {
-    p.log_weight -= lse;
-    sum_sq += std::exp(2.0 * p.log_weight);
+  for (double& lw : log_weights) {
+    lw -= lse;
+    sum_sq += std::exp(2.0 * lw);
   }
   return 1.0 / sum_sq;
 }
 
-/// Low-variance resampling of `particles` (each with `log_weight` and `rng`): the offset comes
-/// from `filter_rng`, copies are O(1) when a particle shares its map and path, the j-th new
-/// particle takes random stream next_stream + j of `seed` (so a seed gives the same result for
-/// any number of threads) and every weight becomes 1 / M. Returns the ancestors' indices; the
-/// particles before resampling go to `dropped` when given (for the caller to release).
+/// The same for the `log_weight` of `particles`.
+template <class Particles>
+double normalise_log_weights(Particles& particles) {
+  std::vector<double> lw;
+  lw.reserve(particles.size());
+  for (const auto& p : particles) lw.push_back(p.log_weight);
+  const double n_eff = normalise_log_weights(lw);
+  std::size_t k = 0;
+  for (auto& p : particles) p.log_weight = lw[k++];
+  return n_eff;
+}
+
+/// Low-variance resampling on log weights: the ancestor of each of the M new particles, the
+/// offset drawn from `filter_rng`.
+inline std::vector<int> resampling_ancestors(const std::vector<double>& log_weights, ParticleRng& filter_rng) {
+  Eigen::VectorXd w(static_cast<Eigen::Index>(log_weights.size()));
+  for (Eigen::Index k = 0; k < w.size(); ++k) w[k] = std::exp(log_weights[static_cast<std::size_t>(k)]);
+  return low_variance_resample(w, filter_rng.uniform());
+}
+
+/// Low-variance resampling of `particles` (each with `log_weight` and `rng`): copies are O(1)
+/// when a particle shares its map and path, the j-th new particle takes random stream
+/// next_stream + j of `seed` (so a seed gives the same result for any number of threads) and
+/// every weight becomes 1 / M. Returns the ancestors' indices.
 template <class Particle>
 std::vector<int> resample_particles(std::vector<Particle>& particles, ParticleRng& filter_rng, std::uint64_t seed,
-                                    std::uint64_t& next_stream, std::vector<Particle>* dropped = nullptr) {
+                                    std::uint64_t& next_stream) {
   const Eigen::Index m = static_cast<Eigen::Index>(particles.size());
-  Eigen::VectorXd w(m);
-  for (Eigen::Index k = 0; k < m; ++k) w[k] = std::exp(particles[static_cast<std::size_t>(k)].log_weight);
-  const std::vector<int> idx = low_variance_resample(w, filter_rng.uniform());
+  std::vector<double> lw;
+  lw.reserve(particles.size());
+  for (const auto& p : particles) lw.push_back(p.log_weight);
+  const std::vector<int> idx = resampling_ancestors(lw, filter_rng);
   std::vector<Particle> next;
   next.reserve(particles.size());
-  const double lw = -std::log(static_cast<double>(m));
+  const double log_weight = -std::log(static_cast<double>(m));
   for (Eigen::Index j = 0; j < m; ++j) {
     next.push_back(particles[static_cast<std::size_t>(idx[static_cast<std::size_t>(j)])]);
     next.back().rng = ParticleRng(seed, next_stream + static_cast<std::uint64_t>(j));
-    next.back().log_weight = lw;
+    next.back().log_weight = log_weight;
   }
   next_stream += static_cast<std::uint64_t>(m);
   particles.swap(next);
-  if (dropped) dropped->swap(next);
   return idx;
 }
 
