@@ -418,9 +418,11 @@ def test_threads_give_identical_results():
                         initial_pose=run.poses[0], negative_information=True, sensor_range=8.0,
                         sensor_fov=np.radians(180))
         assoc = []
-        for (v, w), z in zip(run.controls, run.measurements):
+        for t, ((v, w), z) in enumerate(zip(run.controls, run.measurements)):
             f.predict(v, w, run.dt)
             assoc.append(f.update_unknown(z)[0])
+            if t % 20 == 19:
+                f.resample()  # the explicit resampling, on the workers too
         results.append((state(f), assoc))
     assert results[0][0][2] > 0  # it resampled
     for other in results[1:]:
