@@ -612,7 +612,7 @@ void FastSlam::move_particles(Sample&& sample) {
       ParticleRng rng = p.rng;
       sample(p.pose, rng, next);
       Move& kept = moves_[i];
-      kept = Move{p.pose, p.prior_mean, p.prior_cov, p.rng, p.has_prior, stamp};
+      kept = Move{Motion{p.pose, p.prior_mean, p.prior_cov}, p.rng, p.has_prior, stamp};
       p.rng = rng;
       p.pose = next.pose;
       if (o_.version == 2) {
@@ -627,9 +627,9 @@ void FastSlam::move_particles(Sample&& sample) {
       const Move& kept = moves_[i];
       if (kept.stamp != stamp) continue;
       FastSlamParticle& p = particles_[i];
-      p.pose = kept.pose;
-      p.prior_mean = kept.prior_mean;
-      p.prior_cov = kept.prior_cov;
+      p.pose = kept.before.pose;
+      p.prior_mean = kept.before.prior_mean;
+      p.prior_cov = kept.before.prior_cov;
       p.rng = kept.rng;
       p.has_prior = kept.has_prior;
       if (o_.record_path) p.path.pop();

@@ -260,9 +260,7 @@ class FastSlam {
   };
   /// A particle's state before move_particles() moved it (in call number `stamp`).
   struct Move {
-    Eigen::Vector3d pose = Eigen::Vector3d::Zero();
-    Eigen::Vector3d prior_mean = Eigen::Vector3d::Zero();
-    Eigen::Matrix3d prior_cov = Eigen::Matrix3d::Zero();
+    Motion before;
     ParticleRng rng;
     bool has_prior = false;
     std::uint64_t stamp = 0;
