@@ -108,6 +108,10 @@ void define_options(py::module_& m) {
                      "Cost of dropping a measurement as clutter, NIS units (20).")
       .def_readwrite("prune_margin", &MultiHypothesisOptions::prune_margin,
                      "Filters costing more than the best plus this are dropped, NIS units (40).")
+      .def_readwrite("detection_probability", &MultiHypothesisOptions::detection_probability,
+                     "P_D of a landmark in the sensor's view; 0 (default) turns missed-detection costs off.")
+      .def_readwrite("sensor_range", &MultiHypothesisOptions::sensor_range, "Sensor range, m (with P_D > 0).")
+      .def_readwrite("sensor_fov", &MultiHypothesisOptions::sensor_fov, "Field of view, rad (with P_D > 0).")
       .def("__repr__", [](py::handle self) {
         const MultiHypothesisOptions& o = self.cast<const MultiHypothesisOptions&>();
         return repr_of(self, "max_hypotheses " + std::to_string(o.max_hypotheses) + ", max_children " +

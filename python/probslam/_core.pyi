@@ -359,6 +359,9 @@ class MultiHypothesisOptions:
     new_landmark_cost: float  # NIS units
     clutter_cost: float  # NIS units
     prune_margin: float  # NIS units
+    detection_probability: float  # P_D in [0, 1); 0: no missed-detection costs
+    sensor_range: float  # m
+    sensor_fov: float  # rad
     def __init__(self) -> None: ...
 
 class _MultiHypothesisEkfSlam:

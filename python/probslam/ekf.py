@@ -273,16 +273,23 @@ class MultiHypothesisEkfSlam:
     Args:
         ekf: the starting filter (copied): noise, pose, any landmarks already mapped.
         gate: NIS gate of a pairing candidate (default: chi-square quantile 0.999).
+        detection_probability: P_D of a landmark inside the sensor's view (``sensor_range`` m,
+            ``sensor_fov`` rad centred ahead) from a filter's pose before the scan: each such
+            landmark costs -2 ln P_D when a measurement of the scan goes to it and -2 ln(1 - P_D)
+            when none does, so alternatives holding landmarks that are never seen again (a
+            clutter point taken for a landmark, a duplicate) fall behind. 0 (default): off.
 
     Limits (``multi_hypothesis_ekf_slam.hpp``): max_hypotheses in [1, 1000], max_children in
-    [1, 100], gate, costs and prune_margin in (0, 1e6]; a scan whose children would hold more
+    [1, 100], gate, costs and prune_margin in (0, 1e6], detection_probability in [0, 1) (with
+    P_D > 0: sensor_range > 0, sensor_fov in (0, 2 pi]); a scan whose children would hold more
     than 4 GiB of covariance is refused. ``predict`` and ``update`` change every filter of the
     beam or, when they raise, none.
     """
 
     def __init__(self, ekf: EkfSlam, max_hypotheses: int = 10, max_children: int = 4, gate: Optional[float] = None,
                  new_landmark_cost: Optional[float] = None, clutter_cost: Optional[float] = None,
-                 prune_margin: float = 40.0):
+                 prune_margin: float = 40.0, detection_probability: float = 0.0, sensor_range: float = 0.0,
+                 sensor_fov: float = 0.0):
         if not isinstance(ekf, EkfSlam):
             raise TypeError(f"ekf must be an EkfSlam, got {type(ekf).__name__}")
         d = ekf._f.landmark_dim
@@ -290,6 +297,9 @@ class MultiHypothesisEkfSlam:
         o.max_hypotheses = _count(max_hypotheses, "max_hypotheses")
         o.max_children = _count(max_children, "max_children")
         o.prune_margin = _number(prune_margin, "prune_margin")
+        o.detection_probability = _number(detection_probability, "detection_probability")
+        o.sensor_range = _number(sensor_range, "sensor_range")
+        o.sensor_fov = _number(sensor_fov, "sensor_fov")
         gate, new_landmark_cost, clutter_cost = (None if v is None else _number(v, name) for v, name in (
             (gate, "gate"), (new_landmark_cost, "new_landmark_cost"), (clutter_cost, "clutter_cost")))
         o.gate = chi2_quantile(MHT_GATE_PROBABILITY, d) if gate is None else gate

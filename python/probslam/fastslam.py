@@ -16,7 +16,8 @@ import numpy as np
 
 from ._core import FastSlam, velocity_motion, velocity_motion_control_jacobian
 from .io.landmark_datasets import Mrclam, VictoriaPark
-from .landmark_slam import MRCLAM_OUTLIER_PROBABILITY, polar_measurements, scans  # noqa: F401 (re-used names)
+from .landmark_slam import (MRCLAM_OUTLIER_PROBABILITY, MRCLAM_PERCEPTUAL_FIELD_QUANTILE,  # noqa: F401 (re-used names)
+                            mrclam_perceptual_field, polar_measurements, scans)
 
 #: p_new of the hidden-correspondence runs: the density (1 / (m rad)) a measurement of a new
 #: landmark is given; a known landmark must explain the measurement better than this.
@@ -103,23 +104,6 @@ def association_accuracy(run: FastSlamRun) -> float:
     return sum(label[i] == t for t, i in pairs) / len(pairs) if pairs else float("nan")
 
 
-#: The share of a robot's sightings inside the perceptual field that negative information uses
-#: with hidden correspondences (``mrclam_perceptual_field``). A landmark is penalised for not
-#: being seen only where the camera nearly always sees one: 10% of the sightings lie beyond
-#: this field's range or bearing limits, where detection is unreliable (MRCLAM's camera sees
-#: landmarks up to 7-9 m, but half its sightings are within 3.3 m).
-MRCLAM_PERCEPTUAL_FIELD_QUANTILE = 0.9
-
-
-def mrclam_perceptual_field(data: Mrclam, quantile: float = MRCLAM_PERCEPTUAL_FIELD_QUANTILE) -> Tuple[float, float]:
-    """(range m, full field-of-view angle rad) of the camera, from the robot's own sightings:
-    the ``quantile`` of their ranges, and twice that of their absolute bearings."""
-    if not (isinstance(quantile, (int, float)) and 0.0 < quantile <= 1.0):
-        raise ValueError(f"quantile must be in (0, 1], got {quantile!r}")
-    m = data.measurements
-    if len(m) == 0:
-        raise ValueError("data: the robot has no landmark measurements")
-    return float(np.quantile(m[:, 2], quantile)), float(2.0 * np.quantile(np.abs(m[:, 3]), quantile))
 
 
 def run_fastslam_mrclam(data: Mrclam, motion_noise, measurement_noise, *, known: bool = True,

@@ -54,6 +54,34 @@ def interpolate_poses(groundtruth: np.ndarray, times: np.ndarray) -> np.ndarray:
                             np.interp(times, groundtruth[:, 0], groundtruth[:, 2])])
 
 
+#: The share of a robot's sightings inside the perceptual field that negative information uses
+#: with hidden correspondences (``mrclam_perceptual_field``). A landmark is penalised for not
+#: being seen only where the camera nearly always sees one: 10% of the sightings lie beyond
+#: this field's range or bearing limits, where detection is unreliable (MRCLAM's camera sees
+#: landmarks up to 7-9 m, but half its sightings are within 3.3 m).
+MRCLAM_PERCEPTUAL_FIELD_QUANTILE = 0.9
+
+
+def mrclam_perceptual_field(data: Mrclam, quantile: float = MRCLAM_PERCEPTUAL_FIELD_QUANTILE) -> Tuple[float, float]:
+    """(range m, full field-of-view angle rad) of the camera, from the robot's own sightings:
+    the ``quantile`` of their ranges, and twice that of their absolute bearings."""
+    if not (isinstance(quantile, (int, float)) and 0.0 < quantile <= 1.0):
+        raise ValueError(f"quantile must be in (0, 1], got {quantile!r}")
+    m = data.measurements
+    if len(m) == 0:
+        raise ValueError("data: the robot has no landmark measurements")
+    return float(np.quantile(m[:, 2], quantile)), float(2.0 * np.quantile(np.abs(m[:, 3]), quantile))
+
+
+#: The multiple-hypothesis EKF on MRCLAM (``run_ekf_mrclam(association="mht")``): a landmark in
+#: the camera's perceptual field (``mrclam_perceptual_field``) is seen with this probability, so
+#: a hypothesis pays -2 ln(1 - P_D) = 1.39 for each such landmark a scan misses; and a new
+#: landmark costs this much (NIS units, below the library's 27.6). Chosen over all ten shipped
+#: robots (benchmarks/bench_mrclam_association.py; docs/landmark_fastslam.md has the sweep).
+MRCLAM_MHT_DETECTION_PROBABILITY = 0.5
+MRCLAM_MHT_NEW_LANDMARK_COST = 21.0
+
+
 def run_ekf_mrclam(data: Mrclam, motion_noise, measurement_noise, known: bool = True,
                    gate: Optional[float] = None, alpha: Optional[float] = None, alpha_new: Optional[float] = None,
                    initial_pose=None, map_management: Optional[MapManagement] = None,
@@ -67,8 +95,10 @@ def run_ekf_mrclam(data: Mrclam, motion_noise, measurement_noise, known: bool = 
     linearly with time whatever the stamps. ``known``: the barcodes give the correspondences (gated by
     ``gate``, default the chi-square 0.999 quantile); else Table 10.2 (barcodes hidden) with
     ``association``: "jcbb" or "ml" (see ``EkfSlam.update_unknown``), or "mht", a beam of
-    filters (``MultiHypothesisEkfSlam``, options from ``hypotheses``) whose best one is
-    returned, its assignments in ``associations`` (clutter as DISCARDED).
+    filters (``MultiHypothesisEkfSlam``, options from ``hypotheses``, by default with missed
+    detections in the camera's perceptual field, MRCLAM_MHT_DETECTION_PROBABILITY, and
+    MRCLAM_MHT_NEW_LANDMARK_COST) whose best one is returned, its assignments in
+    ``associations`` (clutter as DISCARDED).
     ``dead_reckoning``: predictions only. The start pose defaults to the ground truth's."""
     odo, meas = data.odometry, data.measurements
     if len(odo) == 0:
@@ -85,7 +115,14 @@ def run_ekf_mrclam(data: Mrclam, motion_noise, measurement_noise, known: bool = 
                   map_management=map_management, gate_distance=gate_distance)
     mht = None
     if not known and association == "mht":
-        mht = MultiHypothesisEkfSlam(ekf, **(hypotheses or {}))
+        options = dict(new_landmark_cost=MRCLAM_MHT_NEW_LANDMARK_COST,
+                       detection_probability=MRCLAM_MHT_DETECTION_PROBABILITY)
+        if len(meas):
+            options["sensor_range"], options["sensor_fov"] = mrclam_perceptual_field(data)
+        else:
+            options["detection_probability"] = 0.0
+        options.update(hypotheses or {})
+        mht = MultiHypothesisEkfSlam(ekf, **options)
         ekf = mht  # predict() goes to every filter
     run = EkfRun(np.empty(0), np.empty((0, 3)), ekf, {})
     times, poses = np.empty(len(odo)), np.empty((len(odo), 3))

@@ -84,6 +84,13 @@ void validate(const MultiHypothesisOptions& o) {
   cost(o.new_landmark_cost, "new_landmark_cost");
   cost(o.clutter_cost, "clutter_cost");
   cost(o.prune_margin, "prune_margin");
+  require(std::isfinite(o.detection_probability) && o.detection_probability >= 0.0 && o.detection_probability < 1.0,
+          "detection_probability", "must be in [0, 1)");
+  if (o.detection_probability > 0.0) {
+    require(std::isfinite(o.sensor_range) && o.sensor_range > 0.0, "sensor_range", "must be finite and > 0");
+    require(std::isfinite(o.sensor_fov) && o.sensor_fov > 0.0 && o.sensor_fov <= 2.0 * kPi, "sensor_fov",
+            "must be in (0, 2 pi]");
+  }
 }
 
 MultiHypothesisEkfSlam::MultiHypothesisEkfSlam(const EkfSlam& initial, const MultiHypothesisOptions& options)
@@ -121,8 +128,23 @@ void MultiHypothesisEkfSlam::branch(const Hypothesis& parent, const Eigen::Ref<c
     }
     std::sort(options[i].begin(), options[i].end());
   }
+  // Landmarks the sensor should have seen from the pose before the scan.
+  std::vector<long> in_view;
+  if (options_.detection_probability > 0.0) {
+    const Eigen::Vector3d x = parent.filter.pose();
+    for (const long id : parent.filter.landmark_ids()) {
+      const Eigen::Vector2d d = parent.filter.landmark(id).head<2>() - x.head<2>();
+      if (d.norm() <= options_.sensor_range &&
+          std::fabs(wrap_angle(std::atan2(d.y(), d.x()) - x[2])) <= 0.5 * options_.sensor_fov)
+        in_view.push_back(id);
+    }
+  }
+  const double detect_cost = -2.0 * std::log(std::max(options_.detection_probability, 1e-300));
+  const double miss_cost = -2.0 * std::log1p(-options_.detection_probability);
   for (const Assignment& a : AssignmentSearch(options, options_.max_children).run()) {
     Hypothesis child{parent.filter.clone(), parent.cost, parent.next_id, nullptr};
+    for (const long id : in_view)
+      child.cost += std::find(a.targets.begin(), a.targets.end(), id) != a.targets.end() ? detect_cost : miss_cost;
     auto node = std::make_shared<HistoryNode>();
     node->parent = parent.history;
     node->ids.assign(k, kClutter);

@@ -134,6 +134,14 @@ def test_copy_is_independent():
     (dict(new_landmark_cost=-1.0), ValueError, "new_landmark_cost"),
     (dict(clutter_cost=np.inf), ValueError, "clutter_cost"),
     (dict(prune_margin=0.0), ValueError, "prune_margin"),
+    (dict(detection_probability=1.0, sensor_range=5.0, sensor_fov=1.0), ValueError, "detection_probability"),
+    (dict(detection_probability=-0.1), ValueError, "detection_probability"),
+    (dict(detection_probability=np.nan), ValueError, "detection_probability"),
+    (dict(detection_probability="high"), TypeError, "detection_probability"),
+    (dict(detection_probability=0.5, sensor_range=0.0, sensor_fov=1.0), ValueError, "sensor_range"),
+    (dict(detection_probability=0.5, sensor_range=np.inf, sensor_fov=1.0), ValueError, "sensor_range"),
+    (dict(detection_probability=0.5, sensor_range=5.0, sensor_fov=7.0), ValueError, "sensor_fov"),
+    (dict(detection_probability=0.5, sensor_range=5.0), ValueError, "sensor_fov"),
 ])
 def test_bad_options(kwargs, err, name):
     ekf = ps.EkfSlam(np.eye(2) * 0.01, np.eye(2) * 0.01, use_signatures=False)
@@ -159,3 +167,70 @@ def test_bad_input_raises_and_leaves_the_beam_unchanged():
     after = (mht.num_hypotheses, mht.total_cost, mht.best.mean, len(mht.history()))
     assert before[:2] == after[:2] and before[3] == after[3]
     np.testing.assert_array_equal(before[2], after[2])
+
+
+# ---- missed detections ---------------------------------------------------------------------------
+def mapped_filter(landmarks):
+    """An EKF at the origin facing +x with the given landmarks ((id, x, y)), each from one sighting."""
+    q = np.diag([0.05 ** 2, np.radians(1.0) ** 2])
+    ekf = ps.EkfSlam(np.diag([0.003, 0.0005]), q, use_signatures=False)
+    for i, x, y in landmarks:
+        ekf.update(np.array([[np.hypot(x, y), np.arctan2(y, x)]]), [i])
+    return ekf, q
+
+
+def test_missed_detection_costs_equal_hand_computation():
+    """Landmark 0 ahead (in view), landmark 1 behind (out of the 180 deg field), landmark 2
+    beyond range. A scan of one far outlier: every child misses landmark 0 only, so the best
+    (clutter) costs clutter_cost - 2 ln(1 - P_D). A scan that sees landmark 0 exactly: its
+    pairing cost - 2 ln P_D, the pairing cost from the dense numpy reference."""
+    p_d = 0.8
+    ekf, q = mapped_filter([(0, 3.0, 0.5), (1, -2.0, 0.0), (2, 9.0, 0.0)])
+    ref = DenseEkfSlam(np.diag([0.003, 0.0005]), q, False)
+    for i, x, y in [(0, 3.0, 0.5), (1, -2.0, 0.0), (2, 9.0, 0.0)]:
+        ref.update(np.array([[np.hypot(x, y), np.arctan2(y, x)]]), [i])
+    mht = ps.MultiHypothesisEkfSlam(ekf, detection_probability=p_d, sensor_range=6.0, sensor_fov=np.pi)
+    o = mht.options
+    mht.update(np.array([[5.0, -1.2]]))  # far from every landmark: clutter or new
+    assert mht.total_cost == pytest.approx(o.clutter_cost - 2 * np.log(1 - p_d), rel=1e-12)
+    before = mht.total_cost
+    z = np.array([np.hypot(3.0, 0.5), np.arctan2(0.5, 3.0)])
+    nis, log_det = dense_pairing(ref, z, 0)
+    mht.update(z[None])
+    log_det_q = np.log(np.linalg.det(2 * np.pi * q))
+    assert mht.total_cost - before == pytest.approx(nis + log_det - log_det_q - 2 * np.log(p_d), rel=1e-9, abs=1e-9)
+    assert list(mht.history()[-1]) == [0]
+
+
+def test_missed_detections_off_by_default_and_costless_out_of_view():
+    ekf, _ = mapped_filter([(0, -3.0, 0.5)])  # behind the robot
+    on = ps.MultiHypothesisEkfSlam(ekf, detection_probability=0.9, sensor_range=6.0, sensor_fov=np.pi)
+    off = ps.MultiHypothesisEkfSlam(ekf)
+    for m in (on, off):
+        m.update(np.array([[5.0, 1.0]]))
+    assert on.total_cost == off.total_cost == off.options.clutter_cost
+
+
+def test_missed_detections_retire_alternatives_nobody_sees_again():
+    """The clutter run with the simulator's sensor field and P_D 0.9: every real landmark once,
+    clutter dropped, and the beam's alternatives no longer sit at the same cost as the fresh
+    ones (a landmark made of a clutter point pays for every scan that misses it)."""
+    run, m, q = clutter_run(5)
+    tied = {}
+    for p_d in (0.0, 0.9):
+        mht = ps.MultiHypothesisEkfSlam(ps.EkfSlam(m, q, use_signatures=False, initial_pose=(0, -8.3, 0)),
+                                        detection_probability=p_d, sensor_range=8.0, sensor_fov=np.radians(180))
+        one_new = mht.options.new_landmark_cost - mht.options.clutter_cost
+        tied[p_d] = 0
+        for (v, w), z in zip(run.controls, run.measurements):
+            mht.predict(v, w, run.dt)
+            if len(z):
+                mht.update(z)
+                tied[p_d] += int(np.count_nonzero(np.abs(mht.costs[1:] - one_new) < 1e-6))
+    assert tied[0.9] < 0.5 * tied[0.0]  # alternatives "one more landmark, never seen again" retire
+    precision, recall, clutter_kept, n_landmarks = association_scores(run, mht.history())
+    n_clutter = sum(int(np.count_nonzero(ids == ps.sim.CLUTTER_ID)) for ids in run.ids)
+    seen = {int(i) for ids in run.ids for i in ids if i != ps.sim.CLUTTER_ID}
+    assert precision > 0.999 and recall > 0.99
+    assert clutter_kept <= 0.05 * n_clutter
+    assert n_landmarks == len(seen)

@@ -23,6 +23,12 @@ struct MultiHypothesisOptions {
   double new_landmark_cost = 27.6;  // a measurement starting a landmark (about chi-square 1 - 1e-6)
   double clutter_cost = 20.0;       // a measurement dropped as a false detection or outlier
   double prune_margin = 40.0;       // filters costing more than the best plus this are dropped
+  // Missed detections (0: off): a landmark of a filter within sensor_range (m) and sensor_fov
+  // (rad, centred ahead) of its pose before the scan costs -2 ln P_D when a measurement of the
+  // scan goes to it and -2 ln(1 - P_D) when none does.
+  double detection_probability = 0.0;
+  double sensor_range = 0.0;
+  double sensor_fov = 0.0;
 };
 
 /// Reliability limits: the beam and the children per filter, each a full copy of a filter.
