@@ -11,6 +11,7 @@
 #include "probslam/core/angle.hpp"
 #include "probslam/core/check.hpp"
 #include "probslam/core/gaussian.hpp"
+#include "probslam/core/range_bearing_model.hpp"
 
 namespace probslam {
 namespace {
@@ -89,7 +90,7 @@ void validate(const MultiHypothesisOptions& o) {
   if (o.detection_probability > 0.0) {
     require(std::isfinite(o.sensor_range) && o.sensor_range > 0.0, "sensor_range", "must be finite and > 0");
     require(std::isfinite(o.sensor_fov) && o.sensor_fov > 0.0 && o.sensor_fov <= 2.0 * kPi, "sensor_fov",
-            "must be in (0, 2 pi]");
+            "must be in (0, 2 pi] rad");
   }
 }
 
@@ -128,19 +129,17 @@ void MultiHypothesisEkfSlam::branch(const Hypothesis& parent, const Eigen::Ref<c
     }
     std::sort(options[i].begin(), options[i].end());
   }
-  // Landmarks the sensor should have seen from the pose before the scan.
+  // Landmarks the sensor should have seen from the pose before the scan, and what seeing or
+  // missing one costs (no landmark is in view when P_D is 0: the costs are then unused).
+  const double p_d = options_.detection_probability;
   std::vector<long> in_view;
-  if (options_.detection_probability > 0.0) {
-    const Eigen::Vector3d x = parent.filter.pose();
-    for (const long id : parent.filter.landmark_ids()) {
-      const Eigen::Vector2d d = parent.filter.landmark(id).head<2>() - x.head<2>();
-      if (d.norm() <= options_.sensor_range &&
-          std::fabs(wrap_angle(std::atan2(d.y(), d.x()) - x[2])) <= 0.5 * options_.sensor_fov)
+  if (p_d > 0.0)
+    for (const long id : parent.filter.landmark_ids())
+      if (in_sensor_field(parent.filter.pose(), parent.filter.landmark(id).head<2>(), options_.sensor_range,
+                          options_.sensor_fov))
         in_view.push_back(id);
-    }
-  }
-  const double detect_cost = -2.0 * std::log(std::max(options_.detection_probability, 1e-300));
-  const double miss_cost = -2.0 * std::log1p(-options_.detection_probability);
+  const double detect_cost = p_d > 0.0 ? -2.0 * std::log(p_d) : 0.0;
+  const double miss_cost = -2.0 * std::log1p(-p_d);
   for (const Assignment& a : AssignmentSearch(options, options_.max_children).run()) {
     Hypothesis child{parent.filter.clone(), parent.cost, parent.next_id, nullptr};
     for (const long id : in_view)

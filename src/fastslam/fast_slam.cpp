@@ -398,9 +398,7 @@ struct FastSlam::Context {
       std::vector<Landmark> missed;
       const Eigen::Vector3d x = part.pose;
       part.map.for_each_within(x.head<2>(), o.sensor_range, [&](const Landmark& lm) {
-        if (seen.count(lm.id)) return;
-        const Eigen::Vector2d d = lm.mean - x.head<2>();
-        if (std::abs(wrap_angle(std::atan2(d.y(), d.x()) - x[2])) <= 0.5 * o.sensor_fov) missed.push_back(lm);
+        if (!seen.count(lm.id) && in_sensor_field(x, lm.mean, o.sensor_range, o.sensor_fov)) missed.push_back(lm);
       });
       for (Landmark& lm : missed) {
         lm.existence -= o.existence_miss;
