@@ -708,3 +708,36 @@ def test_a_motion_some_particles_cannot_take_changes_nothing(threads, version):
             h.predict_odometry([-0.2, 0.0, 0.01], np.diag([1e-4, 1e-4, 1e-4]))
             h.update([[5.0, 0.2]], [3])
         assert same_state(state(f), state(g)), seed
+
+
+def test_python_threads_sharing_one_filter_lose_no_call():
+    """Four Python threads call one filter (with its own two workers) at once: every call is
+    serialised by the filter's lock, so each particle's path holds exactly one pose per motion
+    and the weights stay normalised; reads in between see whole states."""
+    import threading
+    f = ps.FastSlam(40, np.diag([0.003, 0.0005]), np.diag([0.05 ** 2, 0.01 ** 2]), threads=2, seed=3)
+    errors, motions = [], 40
+
+    def work(t):
+        try:
+            rng = np.random.default_rng(t)
+            for _ in range(motions):
+                f.predict(1.0, 0.1, 0.1)
+                z = np.column_stack([rng.uniform(1, 8, 2), rng.uniform(-1, 1, 2)])
+                if t % 2:
+                    f.update(z, [10 * t, 10 * t + 1])
+                else:
+                    f.update_unknown(z)
+                poses, lw = f.poses, f.log_weights
+                assert poses.shape == (40, 3) and np.isclose(np.logaddexp.reduce(lw), 0.0)
+        except Exception as e:  # noqa: BLE001 (reported below)
+            errors.append(repr(e))
+
+    threads = [threading.Thread(target=work, args=(t,)) for t in range(4)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    assert not errors, errors
+    assert all(len(f.path(k)) == 1 + 4 * motions for k in range(40))
+    assert np.isclose(np.logaddexp.reduce(f.log_weights), 0.0)
