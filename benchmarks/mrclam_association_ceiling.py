@@ -6,8 +6,11 @@ with the scan's assignment (the bearing errors of one scan share an offset: 0.02
 against 0.004 rad within the scan, measured here), (3) lone sightings borrowing the offset fitted
 in neighbouring scans (the offset drifts slowly: lag-1 correlation 0.84). Prints the fractions,
 for the raw readings (the camera's depth) and for distances (``Mrclam.with_euclidean_ranges``).
+Then, for every robot of the folder, what a filter has instead of the truth: EKF SLAM with the
+barcodes as correspondences (the CLI's noise), and, before each scan, the most likely landmark
+of its own map for each sighting (NIS + log det S over all its landmarks).
 
-    .venv/bin/python benchmarks/mrclam_association_ceiling.py [DATASET7_FOLDER]
+    .venv/bin/python benchmarks/mrclam_association_ceiling.py [DATASET_FOLDER]
 """
 
 from __future__ import annotations
@@ -70,11 +73,46 @@ def fit_scan(points_at, pose, n, landmarks, range_sd, offset_sd):
     return best
 
 
+#: The CLI's MRCLAM noise (`probslam ekf-slam --help`): control per 10 ms command, sensor.
+MOTION = np.diag([0.15 ** 2, 0.6 ** 2])
+SENSOR = np.diag([0.15 ** 2, 0.04 ** 2])
+
+
 def main(folder) -> None:
     raw = ps.io.read_mrclam(folder)
-    for name, data in (("raw depth readings", raw), ("distances (with_euclidean_ranges)", raw.with_euclidean_ranges())):
-        print(f"--- {name}")
-        ceiling(data)
+    if raw.groundtruth is not None:
+        for name, data in (("raw depth readings", raw), ("distances (with_euclidean_ranges)", raw.with_euclidean_ranges())):
+            print(f"--- {name}")
+            ceiling(data)
+    print("--- the filter's own map and pose (barcodes known), distances: most likely landmark per sighting")
+    for robot in range(1, 6):
+        try:
+            data = ps.io.read_mrclam(folder, robot=robot).with_euclidean_ranges()
+        except (ValueError, OSError):
+            continue
+        good, total, lone = own_map(data)
+        print(f"robot {robot}: {good} / {total} = {good / total:.3f} (sightings alone in their scan: {lone:.3f})")
+
+
+def own_map(data):
+    """(right, judged, share right among lone sightings): sightings of a mapped landmark whose most
+    likely landmark in the known-correspondence filter's map, just before the scan, is their own."""
+    counts = {"all": [0, 0], "lone": [0, 0]}
+
+    def judge(ekf, rows):
+        mapped = list(ekf.landmark_ids)
+        if len(mapped) < 2:
+            return
+        for z, truth in zip(rows[:, 2:4], rows[:, 1].astype(int)):
+            if truth not in mapped:
+                continue
+            best = min(mapped, key=lambda j: sum(ekf.pairing_likelihood(z, j)))
+            for key in ("all",) + (("lone",) if len(rows) == 1 else ()):
+                counts[key][0] += int(best == truth)
+                counts[key][1] += 1
+
+    ls.run_ekf_mrclam(data, MOTION, SENSOR, known=True, before_scan=judge)
+    return counts["all"][0], counts["all"][1], counts["lone"][0] / max(1, counts["lone"][1])
 
 
 def ceiling(data) -> None:

@@ -112,6 +112,10 @@ void define_options(py::module_& m) {
                      "P_D of a landmark in the sensor's view; 0 (default) turns missed-detection costs off.")
       .def_readwrite("sensor_range", &MultiHypothesisOptions::sensor_range, "Sensor range, m (with P_D > 0).")
       .def_readwrite("sensor_fov", &MultiHypothesisOptions::sensor_fov, "Field of view, rad (with P_D > 0).")
+      .def_readwrite("bearing_offset_sigma", &MultiHypothesisOptions::bearing_offset_sigma,
+                     "Standard deviation (rad) of a bearing offset shared by one scan's measurements; 0 (default): none.")
+      .def_readwrite("bearing_offset_correlation", &MultiHypothesisOptions::bearing_offset_correlation,
+                     "The offset's correlation from one scan to the next, in [0, 1) (0: afresh per scan).")
       .def("__repr__", [](py::handle self) {
         const MultiHypothesisOptions& o = self.cast<const MultiHypothesisOptions&>();
         return repr_of(self, "max_hypotheses " + std::to_string(o.max_hypotheses) + ", max_children " +

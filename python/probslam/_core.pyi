@@ -362,6 +362,8 @@ class MultiHypothesisOptions:
     detection_probability: float  # P_D in [0, 1); 0: no missed-detection costs
     sensor_range: float  # m
     sensor_fov: float  # rad
+    bearing_offset_sigma: float  # rad; 0: no shared offset
+    bearing_offset_correlation: float  # in [0, 1), from one scan to the next
     def __init__(self) -> None: ...
 
 class _MultiHypothesisEkfSlam:

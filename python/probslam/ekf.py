@@ -278,10 +278,18 @@ class MultiHypothesisEkfSlam:
             landmark costs -2 ln P_D when a measurement of the scan goes to it and -2 ln(1 - P_D)
             when none does, so alternatives holding landmarks that are never seen again (a
             clutter point taken for a landmark, a duplicate) fall behind. 0 (default): off.
+        bearing_offset_sigma: standard deviation (rad) of a bearing offset b shared by the
+            measurements of one scan (bearing = atan2(dy, dx) - theta - b + noise; a camera that
+            misreads a frame as a whole); ``ekf``'s measurement noise is then the part not
+            shared. Each filter carries b's mean, variance and covariance with its state, so a
+            scan is judged by its sightings' joint geometry and by the offset earlier scans
+            left. 0 (default): off.
+        bearing_offset_correlation: rho of b's AR(1) from one scan to the next (b' = rho b + w,
+            stationary standard deviation ``bearing_offset_sigma``); 0 (default): afresh per scan.
 
     Limits (``multi_hypothesis_ekf_slam.hpp``): max_hypotheses in [1, 1000], max_children in
     [1, 100], gate, costs and prune_margin in (0, 1e6], detection_probability in [0, 1) (with
-    P_D > 0: sensor_range > 0, sensor_fov in (0, 2 pi]); a scan whose children would hold more
+    P_D > 0: sensor_range > 0, sensor_fov in (0, 2 pi]), bearing_offset_sigma in [0, pi], bearing_offset_correlation in [0, 1); a scan whose children would hold more
     than 4 GiB of covariance is refused. ``predict`` and ``update`` change every filter of the
     beam or, when they raise, none.
     """
@@ -289,7 +297,8 @@ class MultiHypothesisEkfSlam:
     def __init__(self, ekf: EkfSlam, max_hypotheses: int = 10, max_children: int = 4, gate: Optional[float] = None,
                  new_landmark_cost: Optional[float] = None, clutter_cost: Optional[float] = None,
                  prune_margin: float = 40.0, detection_probability: float = 0.0, sensor_range: float = 0.0,
-                 sensor_fov: float = 0.0):
+                 sensor_fov: float = 0.0, bearing_offset_sigma: float = 0.0,
+                 bearing_offset_correlation: float = 0.0):
         if not isinstance(ekf, EkfSlam):
             raise TypeError(f"ekf must be an EkfSlam, got {type(ekf).__name__}")
         d = ekf._f.landmark_dim
@@ -300,6 +309,8 @@ class MultiHypothesisEkfSlam:
         o.detection_probability = _number(detection_probability, "detection_probability")
         o.sensor_range = _number(sensor_range, "sensor_range")
         o.sensor_fov = _number(sensor_fov, "sensor_fov")
+        o.bearing_offset_sigma = _number(bearing_offset_sigma, "bearing_offset_sigma")
+        o.bearing_offset_correlation = _number(bearing_offset_correlation, "bearing_offset_correlation")
         gate, new_landmark_cost, clutter_cost = (None if v is None else _number(v, name) for v, name in (
             (gate, "gate"), (new_landmark_cost, "new_landmark_cost"), (clutter_cost, "clutter_cost")))
         o.gate = chi2_quantile(MHT_GATE_PROBABILITY, d) if gate is None else gate

@@ -87,7 +87,7 @@ def run_ekf_mrclam(data: Mrclam, motion_noise, measurement_noise, known: bool = 
                    initial_pose=None, map_management: Optional[MapManagement] = None,
                    gate_distance: float = 1.0, dead_reckoning: bool = False,
                    command_period: float = 0.01, association: str = "jcbb",
-                   hypotheses: Optional[dict] = None) -> EkfRun:
+                   hypotheses: Optional[dict] = None, before_scan=None) -> EkfRun:
     """EKF SLAM over an MRCLAM robot: odometry (v, w) between stamps, the measurements of one
     time stamp as one scan. ``motion_noise`` (2, 2) is the control noise of one command
     period (MRCLAM's ~10 ms); the stamps are irregular (gaps up to 1 s), so it is applied as a
@@ -99,7 +99,9 @@ def run_ekf_mrclam(data: Mrclam, motion_noise, measurement_noise, known: bool = 
     detections in the camera's perceptual field, MRCLAM_MHT_DETECTION_PROBABILITY, and
     MRCLAM_MHT_NEW_LANDMARK_COST) whose best one is returned, its assignments in
     ``associations`` (clutter as DISCARDED).
-    ``dead_reckoning``: predictions only. The start pose defaults to the ground truth's."""
+    ``dead_reckoning``: predictions only. The start pose defaults to the ground truth's.
+    ``before_scan(filter, rows)``, if given, sees the filter (the EkfSlam, or the
+    MultiHypothesisEkfSlam) and each scan's measurement rows (k, 4) just before it takes them."""
     odo, meas = data.odometry, data.measurements
     if len(odo) == 0:
         raise ValueError("data: the robot has no odometry")
@@ -139,6 +141,8 @@ def run_ekf_mrclam(data: Mrclam, motion_noise, measurement_noise, known: bool = 
             if rows[0, 0] > t_now:
                 ekf.predict(v, w, rows[0, 0] - t_now, m_rate / (rows[0, 0] - t_now))
                 t_now = rows[0, 0]
+            if before_scan is not None:
+                before_scan(ekf, rows)
             if known:
                 report = ekf.update(rows[:, 2:4], rows[:, 1].astype(np.int64), gate)
                 rejected += int(np.count_nonzero(~report.used))

@@ -184,7 +184,7 @@ EkfSlam::Motion EkfSlam::plan_motion(const Eigen::Vector3d& new_pose, const Eige
                                      const Eigen::Matrix3d& r) const {
   const Eigen::MatrixXd& p = s_->cov;
   const Eigen::Matrix3d prr = g * p.topLeftCorner<3, 3>() * g.transpose() + r;
-  Motion m{new_pose, 0.5 * (prr + prr.transpose()), g * p.block(0, 3, 3, n_ - 3)};
+  Motion m{new_pose, 0.5 * (prr + prr.transpose()), g * p.block(0, 3, 3, n_ - 3), g};
   require(m.prr.allFinite() && m.prm.allFinite() && m.prr.cwiseAbs().maxCoeff() <= kMaxCovarianceEntry, "noise",
           "and the motion would make the covariance too large to stay finite");
   return m;

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <queue>
 #include <utility>
 
@@ -92,15 +93,29 @@ void validate(const MultiHypothesisOptions& o) {
     require(std::isfinite(o.sensor_fov) && o.sensor_fov > 0.0 && o.sensor_fov <= 2.0 * kPi, "sensor_fov",
             "must be in (0, 2 pi] rad");
   }
+  require(std::isfinite(o.bearing_offset_sigma) && o.bearing_offset_sigma >= 0.0 && o.bearing_offset_sigma <= kPi,
+          "bearing_offset_sigma", "must be in [0, pi] rad");
+  require(std::isfinite(o.bearing_offset_correlation) && o.bearing_offset_correlation >= 0.0 &&
+              o.bearing_offset_correlation < 1.0,
+          "bearing_offset_correlation", "must be in [0, 1)");
 }
 
 MultiHypothesisEkfSlam::MultiHypothesisEkfSlam(const EkfSlam& initial, const MultiHypothesisOptions& options)
     : options_(options) {
   validate(options);
-  log_det_q_ = log_det_2pi(Eigen::LLT<Eigen::MatrixXd>(initial.measurement_noise()));
+  // Costs are relative to one measurement's whole noise, the offset's share included, so that
+  // moving noise from Q into the offset leaves the new-landmark and clutter costs' meaning.
+  Eigen::MatrixXd q = initial.measurement_noise();
+  q(1, 1) += options.bearing_offset_sigma * options.bearing_offset_sigma;
+  log_det_q_ = log_det_2pi(Eigen::LLT<Eigen::MatrixXd>(q));
   long next_id = 0;
   for (const long id : initial.landmark_ids()) next_id = std::max(next_id, id + 1);
-  beam_.push_back({initial.clone(), 0.0, next_id, nullptr});
+  beam_.push_back({initial.clone(), 0.0, next_id, nullptr, {}});
+  if (has_offset()) {  // b's stationary distribution, independent of the start
+    ScanOffset& b = beam_.front().offset;
+    b.var = options.bearing_offset_sigma * options.bearing_offset_sigma;
+    b.cov = Eigen::VectorXd::Zero(initial.state_dim());
+  }
 }
 
 // Every filter's motion is planned (and checked) before any is applied.
@@ -113,18 +128,75 @@ void MultiHypothesisEkfSlam::predict(double v, double w, double dt, const Eigen:
   std::vector<EkfSlam::Motion> planned;
   planned.reserve(beam_.size());
   for (const Hypothesis& h : beam_) planned.push_back(h.filter.plan_predict(v, w, dt, noise));
-  for (std::size_t i = 0; i < beam_.size(); ++i) beam_[i].filter.apply(planned[i]);
+  for (std::size_t i = 0; i < beam_.size(); ++i) {
+    beam_[i].filter.apply(planned[i]);
+    // Cov(pose, b) moves with the pose, as the landmarks' cross rows do (G P_rm).
+    if (has_offset()) beam_[i].offset.cov.head<3>() = planned[i].g * beam_[i].offset.cov.head<3>();
+  }
+}
+
+// The joint Gaussian of the filter's state u (heading theta + b) and the offset b is updated as
+// one: b is not measured, so a measurement with Jacobian H, innovation nu and covariance S moves
+// it by Cov(b, u) H^T S^-1 nu, and Cov(u, b) by -P H^T S^-1 H Cov(u, b) (the Kalman update of
+// the augmented state, its b rows written out).
+void MultiHypothesisEkfSlam::condition_offset(const EkfSlam& f, const Eigen::VectorXd& z, long id, ScanOffset& b) {
+  const int index = f.index_of(id);
+  Eigen::VectorXd nu, z_hat;
+  Eigen::MatrixXd s, pht, hx, hm;
+  if (!f.innovation_at(z, index, nu, s, pht)) return;  // a landmark on the robot: no update
+  f.measurement_jacobian(f.pose(), f.s_->mean.segment(index, f.ld_), z_hat, hx, hm);
+  const Eigen::VectorXd hd = hx * b.cov.head<3>() + hm * b.cov.segment(index, f.ld_);
+  const Eigen::VectorXd s_inv_hd = Eigen::LLT<Eigen::MatrixXd>(s).solve(hd);
+  b.mean += s_inv_hd.dot(nu);
+  b.var -= hd.dot(s_inv_hd);
+  b.cov -= pht * s_inv_hd;
+}
+
+// Table 10.1 line 10's new rows, m = f(pose, z): Cov(m, b) = G_x Cov(pose, b).
+void MultiHypothesisEkfSlam::extend_offset(const EkfSlam& f, const Eigen::VectorXd& z, ScanOffset& b) {
+  Eigen::VectorXd m;
+  Eigen::MatrixXd gx, gz;
+  f.inverse_measurement(f.pose(), z, m, gx, gz);
+  const Eigen::VectorXd rows = gx * b.cov.head<3>();
+  b.cov.conservativeResize(b.cov.size() + rows.size());
+  b.cov.tail(rows.size()) = rows;
+}
+
+// u = s + sign e_theta b: Cov(u, .) = Cov(s, .) + sign e_theta Cov(b, .), Var(u_theta) adds
+// 2 sign Cov(theta, b) + Var(b), and Cov(u, b) = Cov(s, b) + sign e_theta Var(b).
+void MultiHypothesisEkfSlam::shift_heading(EkfSlam& f, ScanOffset& b, double sign) {
+  f.s_->mean[2] = wrap_angle(f.s_->mean[2] + sign * b.mean);
+  auto p = f.covariance();
+  p.col(2) += sign * b.cov;
+  p.row(2) += sign * b.cov.transpose();
+  p(2, 2) += b.var;
+  b.cov[2] += sign * b.var;
 }
 
 void MultiHypothesisEkfSlam::branch(const Hypothesis& parent, const Eigen::Ref<const RowMatrixXd>& z,
                                     std::vector<Hypothesis>& out) const {
   const Eigen::Index k = z.rows();
+  // Bearings depend on theta + b only: with an offset, the scan is taken by a filter whose
+  // heading stands for theta + b (after b's AR(1) step), b's covariance with it tracked alongside
+  // by every child, and the heading is moved back to theta afterwards.
+  std::optional<Hypothesis> shifted;
+  if (has_offset()) {
+    shifted.emplace(Hypothesis{parent.filter.clone(), parent.cost, parent.next_id, parent.history, parent.offset});
+    ScanOffset& b = shifted->offset;
+    const double rho = options_.bearing_offset_correlation, sigma = options_.bearing_offset_sigma;
+    b.mean *= rho;
+    b.cov *= rho;
+    b.var = rho * rho * b.var + (1.0 - rho * rho) * sigma * sigma;
+    shift_heading(shifted->filter, b, 1.0);
+  }
+  const Hypothesis& scan_parent = shifted ? *shifted : parent;
+  const EkfSlam& scan_filter = scan_parent.filter;
   std::vector<std::vector<Option>> options(k);
   for (Eigen::Index i = 0; i < k; ++i) {
     const Eigen::VectorXd zi = z.row(i).transpose();
     options[i] = {{options_.new_landmark_cost, kNewLandmark}, {options_.clutter_cost, kClutter}};
-    for (const long id : parent.filter.nearby_landmarks(zi)) {
-      const EkfSlam::PairingLikelihood p = parent.filter.pairing_likelihood(zi, id);
+    for (const long id : scan_filter.nearby_landmarks(zi)) {
+      const EkfSlam::PairingLikelihood p = scan_filter.pairing_likelihood(zi, id);
       if (p.nis <= options_.gate) options[i].push_back({p.nis + p.log_det - log_det_q_, id});
     }
     std::sort(options[i].begin(), options[i].end());
@@ -141,7 +213,8 @@ void MultiHypothesisEkfSlam::branch(const Hypothesis& parent, const Eigen::Ref<c
   const double detect_cost = p_d > 0.0 ? -2.0 * std::log(p_d) : 0.0;
   const double miss_cost = -2.0 * std::log1p(-p_d);
   for (const Assignment& a : AssignmentSearch(options, options_.max_children).run()) {
-    Hypothesis child{parent.filter.clone(), parent.cost, parent.next_id, nullptr};
+    Hypothesis child{scan_filter.clone(), parent.cost, parent.next_id, nullptr, scan_parent.offset};
+    ScanOffset& offset = child.offset;
     for (const long id : in_view)
       child.cost += std::find(a.targets.begin(), a.targets.end(), id) != a.targets.end() ? detect_cost : miss_cost;
     auto node = std::make_shared<HistoryNode>();
@@ -154,16 +227,20 @@ void MultiHypothesisEkfSlam::branch(const Hypothesis& parent, const Eigen::Ref<c
         continue;
       }
       long id = target;
+      const Eigen::VectorXd zi = z.row(i).transpose();
       if (target == kNewLandmark) {
         id = child.next_id++;
         child.cost += options_.new_landmark_cost;
+        if (shifted) extend_offset(child.filter, zi, offset);
       } else {  // exact: the filter has taken this scan's earlier measurements
-        const EkfSlam::PairingLikelihood p = child.filter.pairing_likelihood(z.row(i).transpose(), id);
+        const EkfSlam::PairingLikelihood p = child.filter.pairing_likelihood(zi, id);
         child.cost += p.nis + p.log_det - log_det_q_;
+        if (shifted) condition_offset(child.filter, zi, id, offset);
       }
       child.filter.update(z.row(i), {id});
       node->ids[i] = id;
     }
+    if (shifted) shift_heading(child.filter, offset, -1.0);
     child.history = std::move(node);
     out.push_back(std::move(child));
   }

@@ -128,11 +128,20 @@ TEST(ReliabilityEkf, StateSizeAndOptionsAreBounded) {
   o = MultiHypothesisOptions{};
   o.gate = std::nan("");
   expect_invalid([&] { MultiHypothesisEkfSlam(ekf, o); }, "gate");
+  o = MultiHypothesisOptions{};
+  o.bearing_offset_sigma = -1e-3;
+  expect_invalid([&] { MultiHypothesisEkfSlam(ekf, o); }, "bearing_offset_sigma");
+  o.bearing_offset_sigma = 0.05;
+  o.bearing_offset_correlation = 1.0;
+  expect_invalid([&] { MultiHypothesisEkfSlam(ekf, o); }, "bearing_offset_correlation");
 }
 
 TEST(ReliabilityEkf, MultiHypothesisMotionIsAllOrNothing) {
   EkfSlam ekf = make();
-  MultiHypothesisEkfSlam mht(ekf, MultiHypothesisOptions{});
+  MultiHypothesisOptions with_offset;  // the offset's state must be left as unchanged as the beam
+  with_offset.bearing_offset_sigma = 0.05;
+  with_offset.bearing_offset_correlation = 0.8;
+  MultiHypothesisEkfSlam mht(ekf, with_offset);
   mht.update(rows({{2.0, 0.3}, {4.0, -1.0}}));
   const Eigen::Vector3d pose = mht.best().pose();
   const double cost = mht.total_cost();

@@ -317,3 +317,19 @@ def test_cli_ekf_slam_mrclam(tmp_path, capsys, shared_data):
     out = capsys.readouterr().out
     assert "raw depth readings" in out and "12 gated as outliers" in out
     assert np.loadtxt(tmp_path / "d7_path.txt").shape == (58598, 3)
+
+
+def test_before_scan_sees_each_scan_and_the_filter_before_it_takes_it():
+    d = depth_mrclam(1.0)
+    seen = []
+
+    def hook(ekf, rows):
+        seen.append((rows[0, 0], len(rows), ekf.num_landmarks))
+
+    run = ls.run_ekf_mrclam(d, MRCLAM_MOTION, MRCLAM_SENSOR, before_scan=hook)
+    # three scans of four landmarks, the first ahead of any landmark, the filter the run's own
+    assert seen == [(0.0, 4, 0), (1.0, 4, 4), (2.0, 4, 4)] and run.ekf.num_landmarks == 4
+    mht_seen = []
+    ls.run_ekf_mrclam(d, MRCLAM_MOTION, MRCLAM_SENSOR, known=False, association="mht",
+                      before_scan=lambda f, rows: mht_seen.append(type(f).__name__))
+    assert mht_seen == ["MultiHypothesisEkfSlam"] * 3

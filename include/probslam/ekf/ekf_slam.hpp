@@ -178,6 +178,7 @@ class EkfSlam {
     Eigen::Vector3d pose;
     Eigen::Matrix3d prr;
     Eigen::MatrixXd prm;
+    Eigen::Matrix3d g;  // the motion's Jacobian (Table 10.1 line 4)
   };
   /// The motion's result, checked finite; std::invalid_argument otherwise. Changes nothing.
   Motion plan_motion(const Eigen::Vector3d& new_pose, const Eigen::Matrix3d& g, const Eigen::Matrix3d& r) const;

@@ -15,7 +15,8 @@
 namespace probslam {
 
 /// Costs are -2 log-likelihoods relative to a pairing with zero innovation and S = Q, so they
-/// read as NIS values: a pairing costs NIS + log det(S Q^-1).
+/// read as NIS values: a pairing costs NIS + log det(S Q^-1) (Q's bearing variance plus the
+/// bearing offset's, when there is one).
 struct MultiHypothesisOptions {
   int max_hypotheses = 10;          // filters kept after each scan (the beam)
   int max_children = 4;             // assignments of one scan tried per filter, cheapest first
@@ -29,6 +30,14 @@ struct MultiHypothesisOptions {
   double detection_probability = 0.0;
   double sensor_range = 0.0;
   double sensor_fov = 0.0;
+  // A bearing offset b shared by the measurements of one scan (0: off): bearing = atan2(dy, dx) -
+  // theta - b + noise, a camera that misreads a frame as a whole. b is stationary with standard
+  // deviation bearing_offset_sigma (rad) and an AR(1) from scan to scan (b' = rho b + w,
+  // rho = bearing_offset_correlation in [0, 1); 0: afresh per scan). Each filter carries b's
+  // mean, variance and covariance with its state: a scan's sightings are judged by their joint
+  // geometry and by the offset the earlier scans left (measurement_noise is then the part not shared).
+  double bearing_offset_sigma = 0.0;
+  double bearing_offset_correlation = 0.0;
 };
 
 /// Reliability limits: the beam and the children per filter, each a full copy of a filter.
@@ -81,13 +90,29 @@ class MultiHypothesisEkfSlam {
     std::shared_ptr<const HistoryNode> parent;
     std::vector<long> ids;
   };
+  // The bearing offset b: its mean, variance and covariance with the filter's state (n,), whose
+  // heading is theta, or theta + b while a scan is taken (see branch()).
+  struct ScanOffset {
+    double mean = 0.0;
+    double var = 0.0;
+    Eigen::VectorXd cov;
+  };
   struct Hypothesis {
     EkfSlam filter;
     double cost;
     long next_id;
     std::shared_ptr<const HistoryNode> history;
+    ScanOffset offset;  // unused when bearing_offset_sigma is 0
   };
   void branch(const Hypothesis& parent, const Eigen::Ref<const RowMatrixXd>& z, std::vector<Hypothesis>& out) const;
+  /// Conditions the offset on measurement z of landmark `id`, as the update the filter is about to make.
+  static void condition_offset(const EkfSlam& f, const Eigen::VectorXd& z, long id, ScanOffset& b);
+  /// Extends the offset's covariance by the landmark that z is about to start.
+  static void extend_offset(const EkfSlam& f, const Eigen::VectorXd& z, ScanOffset& b);
+  /// Moves the heading by +b (sign 1, to theta + b) or -b (sign -1, back to theta), the
+  /// covariances with it: the linear map u = s + sign e_theta b of the joint Gaussian.
+  static void shift_heading(EkfSlam& f, ScanOffset& b, double sign);
+  bool has_offset() const { return options_.bearing_offset_sigma > 0.0; }
 
   MultiHypothesisOptions options_;
   std::vector<Hypothesis> beam_;  // best first
