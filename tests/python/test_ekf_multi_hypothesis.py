@@ -304,12 +304,11 @@ class DenseOffsetEkf:
         self.ids.append(j)
 
 
-def offset_run(seed, steps, sigma_b, rho, separation=2.0, clutter=0.0):
-    """The clutter run's robot with an AR(1) bearing offset added to every scan's bearings."""
-    rng = np.random.default_rng(seed)
-    world = ps.sim.LandmarkWorld.random(15, 10.0, rng, min_separation=separation)
+def offset_drive(world, rng, steps, sigma_b, rho):
+    """The clutter run's robot through `world`, 0.5 deg bearing noise, with an AR(1) bearing
+    offset (stationary sigma_b, rho per step) added to every scan's bearings."""
     q = np.diag([0.05 ** 2, np.radians(0.5) ** 2])
-    sensor = ps.sim.Sensor(q, max_range=8.0, fov=np.radians(180), clutter_rate=clutter)
+    sensor = ps.sim.Sensor(q, max_range=8.0, fov=np.radians(180))
     m = np.diag([0.003, 0.0005])
     run = ps.sim.simulate(world, ps.sim.circle_controls(steps, 1.0, 0.12), 0.2, sensor, m, rng,
                           initial_pose=(0, -8.3, 0))
@@ -319,6 +318,12 @@ def offset_run(seed, steps, sigma_b, rho, separation=2.0, clutter=0.0):
         if len(z):
             z[:, 1] = wrap(z[:, 1] - b)
     return run, m, q
+
+
+def offset_run(seed, steps, sigma_b, rho):
+    """Fifteen landmarks at least 2 m apart."""
+    rng = np.random.default_rng(seed)
+    return offset_drive(ps.sim.LandmarkWorld.random(15, 10.0, rng, min_separation=2.0), rng, steps, sigma_b, rho)
 
 
 def test_bearing_offset_filter_equals_dense_reference_with_the_offset_in_the_state():
@@ -375,17 +380,7 @@ def pair_run(seed, sigma_b, rho, gap, steps=250):
     turn = rng.uniform(0, np.pi, len(centres))
     d = 0.5 * gap * np.column_stack([np.cos(turn), np.sin(turn)])
     world = ps.sim.LandmarkWorld(np.vstack([centres - d, centres + d]), np.arange(16.0))
-    q = np.diag([0.05 ** 2, np.radians(0.5) ** 2])
-    sensor = ps.sim.Sensor(q, max_range=8.0, fov=np.radians(180))
-    m = np.diag([0.003, 0.0005])
-    run = ps.sim.simulate(world, ps.sim.circle_controls(steps, 1.0, 0.12), 0.2, sensor, m, rng,
-                          initial_pose=(0, -8.3, 0))
-    b = rng.normal(0.0, sigma_b)
-    for z in run.measurements:
-        b = rho * b + np.sqrt(1 - rho ** 2) * rng.normal(0.0, sigma_b)
-        if len(z):
-            z[:, 1] = wrap(z[:, 1] - b)
-    return run, m, q
+    return offset_drive(world, rng, steps, sigma_b, rho)
 
 
 def share_correct(run, history):
