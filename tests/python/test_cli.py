@@ -331,3 +331,24 @@ def test_a_skipped_line_is_a_one_line_warning(tmp_path):
     assert run.returncode == 0, run.stderr
     lines = run.stderr.strip().splitlines()
     assert len(lines) == 1 and lines[0].startswith(f"probslam: warning: {log}: skipped 1 malformed line (line 2: ")
+
+
+def test_ekf_slam_bearing_offset_on_the_bundled_mrclam(tmp_path, capsys):
+    """--bearing-offset runs the multiple hypotheses with the scan's offset: the printed share of
+    correct sightings is the library's for the same run; misuse is a one-line error."""
+    from probslam import landmark_slam as ls
+
+    args = ["ekf-slam", "--unknown", "--association", "mht", "--sigma-phi", "0.02", "--bearing-offset", "0.03"]
+    assert cli.main(args + ["-o", str(tmp_path / "e")]) == 0
+    out = capsys.readouterr().out
+    assert "unknown (mht) correspondences, bearing offset 0.03 rad per scan" in out
+    robot = io.read_mrclam(data.path("mrclam7_robot1_120s")).with_euclidean_ranges()
+    run = ls.run_ekf_mrclam(robot, np.diag([0.15 ** 2, 0.6 ** 2]), np.diag([0.15 ** 2, 0.02 ** 2]), known=False,
+                            association="mht", hypotheses=dict(bearing_offset_sigma=0.03))
+    assert f"associations:  {ls.association_accuracy(run):.1%} correct" in out
+    for bad, message in [(["ekf-slam", "--unknown", "--bearing-offset", "0.03"], "needs --unknown --association mht"),
+                         (["ekf-slam", "--unknown", "--association", "mht", "--bearing-offset", "-0.1"], "finite angle"),
+                         (["ekf-slam", "--unknown", "--association", "mht", "--bearing-offset", "nan"], "finite angle"),
+                         (["ekf-slam", data.path("victoria_park_1000.txt"), "--bearing-offset", "0.03"], "MRCLAM")]:
+        assert cli.main(bad + ["-o", str(tmp_path / "x")]) == 2
+        assert message in capsys.readouterr().err
