@@ -8,13 +8,18 @@ in neighbouring scans (the offset drifts slowly: lag-1 correlation 0.84). Prints
 for the raw readings (the camera's depth) and for distances (``Mrclam.with_euclidean_ranges``).
 Then, for every robot of the folder, what a filter has instead of the truth: EKF SLAM with the
 barcodes as correspondences (the CLI's noise), and, before each scan, the most likely landmark
-of its own map for each sighting (NIS + log det S over all its landmarks).
+of its own map for each sighting (NIS + log det S over all its landmarks). With --vicon-motion,
+also the multiple-hypothesis EKF (the CLI's costs, with and without the scan's bearing offset)
+driven by controls taken from the Vicon track instead of the odometry: what association gains
+from a nearly true motion.
 
-    .venv/bin/python benchmarks/mrclam_association_ceiling.py [DATASET_FOLDER]
+    .venv/bin/python benchmarks/mrclam_association_ceiling.py [DATASET_FOLDER] [--vicon-motion]
 """
 
 from __future__ import annotations
 
+import argparse
+import dataclasses
 import itertools
 import pathlib
 import sys
@@ -78,7 +83,7 @@ MOTION = np.diag([0.15 ** 2, 0.6 ** 2])
 SENSOR = np.diag([0.15 ** 2, 0.04 ** 2])
 
 
-def main(folder) -> None:
+def main(folder, vicon_motion=False) -> None:
     raw = ps.io.read_mrclam(folder)
     if raw.groundtruth is not None:
         for name, data in (("raw depth readings", raw), ("distances (with_euclidean_ranges)", raw.with_euclidean_ranges())):
@@ -92,6 +97,33 @@ def main(folder) -> None:
             continue
         good, total, lone = own_map(data)
         print(f"robot {robot}: {good} / {total} = {good / total:.3f} (sightings alone in their scan: {lone:.3f})")
+        if vicon_motion and data.groundtruth is not None:
+            for name, sensor, options in (("multiple hypotheses", SENSOR, {}),
+                                          ("with the bearing offset", OFFSET_SENSOR, OFFSET_OPTIONS)):
+                run = ls.run_ekf_mrclam(with_vicon_motion(data), VICON_MOTION_NOISE, sensor, known=False,
+                                        association="mht", hypotheses=options)
+                print(f"  Vicon motion, {name}: {ls.association_accuracy(run):.3f} correct, "
+                      f"{len(run.landmarks)} landmarks")
+
+
+#: --vicon-motion: control noise (per 10 ms command) of controls taken from the Vicon track, and the
+#: bench's multiple-hypothesis settings with the bearing offset (bench_mrclam_association.py).
+VICON_MOTION_NOISE = np.diag([0.02 ** 2, 0.04 ** 2])
+OFFSET_SENSOR = np.diag([0.15 ** 2, 0.02 ** 2])
+OFFSET_OPTIONS = dict(bearing_offset_sigma=0.03)
+
+
+def with_vicon_motion(data):
+    """The robot with its controls (v, w) replaced by the Vicon track's between the same stamps."""
+    g, t = data.groundtruth, data.odometry[:, 0]
+    x, y, h = (np.interp(t, g[:, 0], c) for c in (g[:, 1], g[:, 2], np.unwrap(g[:, 3])))
+    dt = np.maximum(np.diff(t), 1e-3)
+    mid = h[:-1] + np.diff(h) / 2
+    odometry = data.odometry.copy()
+    odometry[:-1, 1] = (np.diff(x) * np.cos(mid) + np.diff(y) * np.sin(mid)) / dt
+    odometry[:-1, 2] = np.diff(h) / dt
+    odometry[-1, 1:] = 0.0
+    return dataclasses.replace(data, odometry=odometry)
 
 
 def own_map(data):
@@ -165,4 +197,8 @@ def ceiling(data) -> None:
 
 
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else DEFAULT)
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("folder", nargs="?", default=DEFAULT)
+    parser.add_argument("--vicon-motion", action="store_true")
+    args = parser.parse_args()
+    main(args.folder, args.vicon_motion)
