@@ -37,15 +37,8 @@ MATCH_OPTIONS = dict(use_odometry_prior=False, min_travel=0.0, min_rotation=0.0,
 
 
 def relative(a, b):
-    """b in a's frame: (x, y, theta)."""
-    c, s = np.cos(a[2]), np.sin(a[2])
-    d = b[:2] - a[:2]
-    return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1], np.angle(np.exp(1j * (b[2] - a[2])))])
-
-
-def compose(a, d):
-    c, s = np.cos(a[2]), np.sin(a[2])
-    return np.array([a[0] + c * d[0] - s * d[1], a[1] + s * d[0] + c * d[1], a[2] + d[2]])
+    """Pose b (3,) in pose a's frame: (x, y, theta)."""
+    return ps.Pose2.from_array(a).between(ps.Pose2.from_array(b)).as_array()
 
 
 def laser_relation(scans, i, j, start):
@@ -53,7 +46,8 @@ def laser_relation(scans, i, j, start):
     angles = scans.start_angles[i] + scans.angular_resolutions[i] * np.arange(scans.ranges.shape[1])
     matcher = _core.IncrementalScanMatcher(**MATCH_OPTIONS)
     p0 = scans.robot_poses[i]
-    matcher.add_scans(scans.ranges[[i, j]], angles, np.array([p0, compose(p0, start)]), scans.timestamps[[i, j]])
+    guess = ps.Pose2.from_array(p0).compose(ps.Pose2.from_array(start)).as_array()
+    matcher.add_scans(scans.ranges[[i, j]], angles, np.array([p0, guess]), scans.timestamps[[i, j]])
     poses = matcher.poses
     return relative(poses[0], poses[1])
 

@@ -28,6 +28,8 @@ import numpy as np
 
 import probslam as ps
 from probslam import landmark_slam as ls
+# The CLI's MRCLAM noise, and the bench's multiple-hypothesis settings with the bearing offset.
+from bench_mrclam_association import MHT_OFFSET_OPTIONS, MHT_OFFSET_SENSOR, MOTION, SENSOR
 
 DEFAULT = pathlib.Path(__file__).resolve().parents[2] / "shared/data/landmark_slam/mrclam_dataset7"
 #: Offsets tried per scan (rad): the common bearing error stays within +-0.1 rad.
@@ -78,9 +80,6 @@ def fit_scan(points_at, pose, n, landmarks, range_sd, offset_sd):
     return best
 
 
-#: The CLI's MRCLAM noise (`probslam ekf-slam --help`): control per 10 ms command, sensor.
-MOTION = np.diag([0.15 ** 2, 0.6 ** 2])
-SENSOR = np.diag([0.15 ** 2, 0.04 ** 2])
 
 
 def main(folder, vicon_motion=False) -> None:
@@ -99,18 +98,15 @@ def main(folder, vicon_motion=False) -> None:
         print(f"robot {robot}: {good} / {total} = {good / total:.3f} (sightings alone in their scan: {lone:.3f})")
         if vicon_motion and data.groundtruth is not None:
             for name, sensor, options in (("multiple hypotheses", SENSOR, {}),
-                                          ("with the bearing offset", OFFSET_SENSOR, OFFSET_OPTIONS)):
+                                          ("with the bearing offset", MHT_OFFSET_SENSOR, MHT_OFFSET_OPTIONS)):
                 run = ls.run_ekf_mrclam(with_vicon_motion(data), VICON_MOTION_NOISE, sensor, known=False,
                                         association="mht", hypotheses=options)
                 print(f"  Vicon motion, {name}: {ls.association_accuracy(run):.3f} correct, "
                       f"{len(run.landmarks)} landmarks")
 
 
-#: --vicon-motion: control noise (per 10 ms command) of controls taken from the Vicon track, and the
-#: bench's multiple-hypothesis settings with the bearing offset (bench_mrclam_association.py).
+#: --vicon-motion: control noise (per 10 ms command) of controls taken from the Vicon track.
 VICON_MOTION_NOISE = np.diag([0.02 ** 2, 0.04 ** 2])
-OFFSET_SENSOR = np.diag([0.15 ** 2, 0.02 ** 2])
-OFFSET_OPTIONS = dict(bearing_offset_sigma=0.03)
 
 
 def with_vicon_motion(data):

@@ -104,8 +104,6 @@ def association_accuracy(run: FastSlamRun) -> float:
     return sum(label[i] == t for t, i in pairs) / len(pairs) if pairs else float("nan")
 
 
-
-
 def run_fastslam_mrclam(data: Mrclam, motion_noise, measurement_noise, *, known: bool = True,
                         num_particles: int = 100, version: int = 1, seed: int = 0, threads: int = 1,
                         p_new: float = DEFAULT_P_NEW, initial_pose=None, command_period: float = 0.01,

@@ -179,18 +179,17 @@ void MultiHypothesisEkfSlam::branch(const Hypothesis& parent, const Eigen::Ref<c
   // Bearings depend on theta + b only: with an offset, the scan is taken by a filter whose
   // heading stands for theta + b (after b's AR(1) step), b's covariance with it tracked alongside
   // by every child, and the heading is moved back to theta afterwards.
-  std::optional<Hypothesis> shifted;
+  ScanOffset scan_offset = parent.offset;
+  std::optional<EkfSlam> shifted;
   if (has_offset()) {
-    shifted.emplace(Hypothesis{parent.filter.clone(), parent.cost, parent.next_id, parent.history, parent.offset});
-    ScanOffset& b = shifted->offset;
     const double rho = options_.bearing_offset_correlation, sigma = options_.bearing_offset_sigma;
-    b.mean *= rho;
-    b.cov *= rho;
-    b.var = rho * rho * b.var + (1.0 - rho * rho) * sigma * sigma;
-    shift_heading(shifted->filter, b, 1.0);
+    scan_offset.mean *= rho;
+    scan_offset.cov *= rho;
+    scan_offset.var = rho * rho * scan_offset.var + (1.0 - rho * rho) * sigma * sigma;
+    shifted.emplace(parent.filter.clone());
+    shift_heading(*shifted, scan_offset, 1.0);
   }
-  const Hypothesis& scan_parent = shifted ? *shifted : parent;
-  const EkfSlam& scan_filter = scan_parent.filter;
+  const EkfSlam& scan_filter = shifted ? *shifted : parent.filter;
   std::vector<std::vector<Option>> options(k);
   for (Eigen::Index i = 0; i < k; ++i) {
     const Eigen::VectorXd zi = z.row(i).transpose();
@@ -213,7 +212,7 @@ void MultiHypothesisEkfSlam::branch(const Hypothesis& parent, const Eigen::Ref<c
   const double detect_cost = p_d > 0.0 ? -2.0 * std::log(p_d) : 0.0;
   const double miss_cost = -2.0 * std::log1p(-p_d);
   for (const Assignment& a : AssignmentSearch(options, options_.max_children).run()) {
-    Hypothesis child{scan_filter.clone(), parent.cost, parent.next_id, nullptr, scan_parent.offset};
+    Hypothesis child{scan_filter.clone(), parent.cost, parent.next_id, nullptr, scan_offset};
     ScanOffset& offset = child.offset;
     for (const long id : in_view)
       child.cost += std::find(a.targets.begin(), a.targets.end(), id) != a.targets.end() ? detect_cost : miss_cost;
