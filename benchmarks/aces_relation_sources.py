@@ -37,10 +37,10 @@ from common import heading, report
 ACES = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data" / "laser_2d" / "aces"
 #: Relations shorter than this (s) are "short", as in bench_slam_logs.py.
 SHORT_RELATION = 1.0
-#: The laser-only match: the frontend's defaults, a window wide enough for either start.
 #: A reference translation within this of odometry's (m, each axis) is odometry's: the file
 #: prints five decimals, so a translation of its own would differ by more than rounding (5e-6).
 SAME_AS_ODOMETRY = 1e-4
+#: The laser-only match: the frontend's defaults, a window wide enough for either start.
 MATCH_OPTIONS = dict(use_odometry_prior=False, min_travel=0.0, min_rotation=0.0, submap_distance=0.0,
                      linear_window=0.3, angular_window=0.2, field_refresh_distance=0.0, field_refresh_angle=0.0)
 
@@ -75,19 +75,13 @@ def slam_relations(relations):
                      for t1, t2, *_ in relations])
 
 
-def slam_table(relations, short, same):
-    """run_slam's error on the short relations whose reference is odometry's, the other short
-    ones and the long ones, beside odometry's."""
-    scans = ps.io.read_carmen_log(ACES / "aces.clf.bz2").scans
-    index = {round(t, 4): k for k, t in enumerate(scans.timestamps)}
+def slam_table(relations, odo, short, same):
+    """run_slam's error on the short relations whose reference is odometry's (`same`), the other
+    short ones and the long ones, beside odometry's relative poses `odo` (R, 3)."""
     expected = relations[:, [2, 3, 7]]
-    odo = np.array([relative(scans.robot_poses[index[round(t1, 4)]], scans.robot_poses[index[round(t2, 4)]])
-                    for t1, t2, *_ in relations])
     slam = slam_relations(relations)
-    same_all = np.zeros(len(relations), bool)
-    same_all[np.flatnonzero(short)[same]] = True
-    parts = {"all": np.ones(len(relations), bool), "short, reference = odometry": same_all,
-             "short, reference not odometry": short & ~same_all, "long": ~short}
+    parts = {"all": np.ones(len(relations), bool), "short, reference = odometry": short & same,
+             "short, reference not odometry": short & ~same, "long": ~short}
     lines = ["| run_slam (defaults) on ACES: mean translational error (m) | " +
              " | ".join(f"{k} ({m.sum()})" for k, m in parts.items()) + " |",
              "|---|" + "---|" * len(parts)]
@@ -102,10 +96,6 @@ def dist(a, b):
     return np.hypot(a[:, 0] - b[:, 0], a[:, 1] - b[:, 1])
 
 
-def wrap(a):
-    return (a + np.pi) % (2 * np.pi) - np.pi
-
-
 def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--slam", action="store_true",
@@ -118,19 +108,19 @@ def main() -> int:
     scans = ps.io.read_carmen_log(ACES / "aces.clf.bz2").scans
     relations = np.loadtxt(ACES / "aces.relations")
     index = {round(t, 4): k for k, t in enumerate(scans.timestamps)}
-    t0 = time.perf_counter()
-    ref, odo, from_odo, from_ref = [], [], [], []
+    scan_pairs = np.array([(index[round(t1, 4)], index[round(t2, 4)]) for t1, t2, *_ in relations])
+    odo_all = np.array([relative(scans.robot_poses[i], scans.robot_poses[j]) for i, j in scan_pairs])
+    same_all = np.all(np.abs(relations[:, [2, 3]] - odo_all[:, :2]) < SAME_AS_ODOMETRY, axis=1)
     short = relations[:, 1] - relations[:, 0] < SHORT_RELATION
-    for t1, t2, x, y, _, _, _, yaw in relations[short]:
-        i, j = index[round(t1, 4)], index[round(t2, 4)]
-        ref.append(np.array([x, y, yaw]))
-        odo.append(relative(scans.robot_poses[i], scans.robot_poses[j]))
-        from_odo.append(laser_relation(scans, i, j, odo[-1]))
-        from_ref.append(laser_relation(scans, i, j, ref[-1]))
+    ref, odo, same = relations[short][:, [2, 3, 7]], odo_all[short], same_all[short]
+    t0 = time.perf_counter()
+    from_odo, from_ref = [], []
+    for (i, j), o, r in zip(scan_pairs[short], odo, ref):
+        from_odo.append(laser_relation(scans, i, j, o))
+        from_ref.append(laser_relation(scans, i, j, r))
     seconds = time.perf_counter() - t0
-    ref, odo, from_odo, from_ref = map(np.array, (ref, odo, from_odo, from_ref))
+    from_odo, from_ref = np.array(from_odo), np.array(from_ref)
 
-    same = np.all(np.abs(ref[:, :2] - odo[:, :2]) < SAME_AS_ODOMETRY, axis=1)
     parts = {"all": np.ones(len(ref), bool), "reference = odometry": same, "reference not odometry": ~same}
     pairs = {("reference", "odometry"): dist(ref, odo), ("reference", "laser"): dist(ref, from_odo),
              ("odometry", "laser"): dist(odo, from_odo)}
@@ -139,15 +129,14 @@ def main() -> int:
                     f"refinement, no odometry in the score ({seconds:.1f} s for {2 * len(ref)} matches). "
                     f"reference = odometry: the reference's translation is odometry's within "
                     f"{SAME_AS_ODOMETRY:g} m on each axis ({same.sum()} relations; their rotations differ by "
-                    f"{np.median(np.abs(wrap(ref[same, 2] - odo[same, 2]))):.4f} rad in the median). "
+                    f"{np.median(np.abs(ps.wrap_angle(ref[same, 2] - odo[same, 2]))):.4f} rad in the median). "
                     f"`{' '.join(sys.argv)}`",
                     ["pair: mean / RMS distance (m)"] + [f"{k} ({m.sum()})" for k, m in parts.items()])
-    for (a, b), v in pairs.items():
-        lines.append(f"| {a} / {b} | " + " | ".join(f"{v[m].mean():.4f} / {np.sqrt(np.mean(v[m] ** 2)):.4f}"
-                                                     for m in parts.values()) + " |")
-    v = dist(from_odo, from_ref)
-    lines.append("| laser from odometry's start / laser from the reference's | " +
-                 " | ".join(f"{v[m].mean():.4f} / {np.sqrt(np.mean(v[m] ** 2)):.4f}" for m in parts.values()) + " |")
+    rows = {f"{a} / {b}": v for (a, b), v in pairs.items()}
+    rows["laser from odometry's start / laser from the reference's"] = dist(from_odo, from_ref)
+    for name, v in rows.items():
+        lines.append(f"| {name} | " + " | ".join(f"{v[m].mean():.4f} / {np.sqrt(np.mean(v[m] ** 2)):.4f}"
+                                                 for m in parts.values()) + " |")
     lines.append("")
     for name, m in parts.items():
         if name == "reference = odometry":
@@ -156,7 +145,7 @@ def main() -> int:
         lines.append(f"Each source's RMS share if the three erred independently (the triangle of squared distances), "
                      f"{name}: " + ", ".join(f"{k} {np.sqrt(max(x, 0.0)):.4f} m" for k, x in shares.items()) + ".")
     if args.slam:
-        lines += ["", slam_table(relations, short, same)]
+        lines += ["", slam_table(relations, odo_all, short, same_all)]
     report(lines, record=args.record)
     return 0
 
