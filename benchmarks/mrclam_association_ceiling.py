@@ -47,11 +47,24 @@ CANDIDATES = 3
 WINDOW = 1.0
 
 
+def at_times(times, stamps, poses):
+    """Poses (K, 3) interpolated at `times` (heading unwrapped first)."""
+    heading = np.unwrap(poses[:, 2])
+    return np.column_stack([np.interp(times, stamps, poses[:, 0]), np.interp(times, stamps, poses[:, 1]),
+                            ps.wrap_angle(np.interp(times, stamps, heading))])
+
+
 def vicon_poses(data, times):
-    g = data.groundtruth
-    heading = np.unwrap(g[:, 3])
-    return np.column_stack([np.interp(times, g[:, 0], g[:, k]) for k in (1, 2)] +
-                           [np.interp(times, g[:, 0], heading)])
+    return at_times(times, data.groundtruth[:, 0], data.groundtruth[:, 1:4])
+
+
+def scan_points(m, idx):
+    """points_at(pose, offset) -> (n, 2): the sightings m[idx] placed from `pose` with their
+    bearings turned by `offset` (rad), as fit_scan takes them."""
+    def points_at(pose, off):
+        a = pose[2] + m[idx, 3] + off
+        return pose[:2] + m[idx, 2:3] * np.column_stack([np.cos(a), np.sin(a)])
+    return points_at
 
 
 def residual_spread(data, poses):
@@ -166,10 +179,7 @@ def ceiling(data) -> None:
     for rows in ls.scans(m):
         idx = np.arange(rows.start, rows.stop)
 
-        def points_at(pose, off, idx=idx):
-            a = pose[2] + m[idx, 3] + off
-            return pose[:2] + m[idx, 2:3] * np.column_stack([np.cos(a), np.sin(a)])
-
+        points_at = scan_points(m, idx)
         pose, truth = poses[rows.start], m[idx, 1]
         nearest = subjects[np.argmin(np.linalg.norm(points_at(pose, 0.0)[:, None] - landmarks[None], axis=2), 1)]
         counts["alone"][0] += int(np.sum(nearest == truth))
@@ -235,13 +245,6 @@ def relative_motion(p, q):
     d = q[:, :2] - p[:, :2]
     c, s = np.cos(p[:, 2]), np.sin(p[:, 2])
     return np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], ps.wrap_angle(q[:, 2] - p[:, 2])])
-
-
-def at_times(times, stamps, poses):
-    """Poses (K, 3) interpolated at `times` (heading unwrapped first)."""
-    heading = np.unwrap(poses[:, 2])
-    return np.column_stack([np.interp(times, stamps, poses[:, 0]), np.interp(times, stamps, poses[:, 1]),
-                            ps.wrap_angle(np.interp(times, stamps, heading))])
 
 
 class Smoother:
@@ -311,15 +314,16 @@ class Smoother:
         """Levenberg-Marquardt from (states (S, 4), landmarks (L, 2)); labels (M,), -1 unused.
         Returns the states and landmarks."""
         labelled = np.flatnonzero(labels >= 0)
+        of_labelled = labels[labelled]
         S = len(states)
         x = np.concatenate([states.ravel(), landmarks.ravel()])
         unpack = lambda v: (v[:4 * S].reshape(S, 4), v[4 * S:].reshape(-1, 2))  # noqa: E731
-        r, j = self._system(*unpack(x), labelled, labels[labelled])
+        r, j = self._system(*unpack(x), labelled, of_labelled)
         cost, damping = r @ r, 1e-6
         for _ in range(SMOOTH_ITERATIONS):
             h = (j.T @ j).tocsc()
             step = spla.spsolve(h + damping * sp.diags(h.diagonal()), -(j.T @ r))
-            r_new, j_new = self._system(*unpack(x + step), labelled, labels[labelled])
+            r_new, j_new = self._system(*unpack(x + step), labelled, of_labelled)
             if r_new @ r_new < cost:
                 done = cost - r_new @ r_new < SMOOTH_TOLERANCE * cost
                 x, r, j, cost, damping = x + step, r_new, j_new, r_new @ r_new, max(damping / 10, 1e-12)
@@ -336,11 +340,7 @@ def place_scans(m, scan_rows, poses, landmarks):
     labels = np.empty(len(m), np.int64)
     for s, rows in enumerate(scan_rows):
         idx = np.arange(rows.start, rows.stop)
-
-        def points_at(pose, off, idx=idx):
-            a = pose[2] + m[idx, 3] + off
-            return pose[:2] + m[idx, 2:3] * np.column_stack([np.cos(a), np.sin(a)])
-
+        points_at = scan_points(m, idx)
         off, combo = 0.0, None
         if len(idx) > 1:
             _, off, combo = fit_scan(points_at, poses[s], len(idx), landmarks, PLACE_SD, OFFSET_SD)
