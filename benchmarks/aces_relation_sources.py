@@ -45,11 +45,6 @@ MATCH_OPTIONS = dict(use_odometry_prior=False, min_travel=0.0, min_rotation=0.0,
                      linear_window=0.3, angular_window=0.2, field_refresh_distance=0.0, field_refresh_angle=0.0)
 
 
-def relative(a, b):
-    """Pose b (3,) in pose a's frame: (x, y, theta)."""
-    return ps.Pose2.from_array(a).between(ps.Pose2.from_array(b)).as_array()
-
-
 def laser_relation(scans, i, j, start):
     """Scan j matched against a map of scan i, from relative pose `start`."""
     angles = scans.start_angles[i] + scans.angular_resolutions[i] * np.arange(scans.ranges.shape[1])
@@ -58,7 +53,7 @@ def laser_relation(scans, i, j, start):
     guess = ps.Pose2.from_array(p0).compose(ps.Pose2.from_array(start)).as_array()
     matcher.add_scans(scans.ranges[[i, j]], angles, np.array([p0, guess]), scans.timestamps[[i, j]])
     poses = matcher.poses
-    return relative(poses[0], poses[1])
+    return ps.eval.relative_poses(poses[0], poses[1])
 
 
 def triangle(ms):
@@ -71,8 +66,8 @@ def slam_relations(relations):
     """run_slam's defaults on the whole log: each relation's relative pose (x, y, theta), (R, 3)."""
     result = ps.slam.run_slam(ACES / "aces.clf.bz2", progress=False)
     at = {round(t, 4): k for k, t in enumerate(result.timestamps)}
-    return np.array([relative(result.poses[at[round(t1, 4)]], result.poses[at[round(t2, 4)]])
-                     for t1, t2, *_ in relations])
+    pairs = np.array([(at[round(t1, 4)], at[round(t2, 4)]) for t1, t2, *_ in relations])
+    return ps.eval.relative_poses(result.poses[pairs[:, 0]], result.poses[pairs[:, 1]])
 
 
 def slam_table(relations, odo, short, same):
@@ -109,7 +104,7 @@ def main() -> int:
     relations = np.loadtxt(ACES / "aces.relations")
     index = {round(t, 4): k for k, t in enumerate(scans.timestamps)}
     scan_pairs = np.array([(index[round(t1, 4)], index[round(t2, 4)]) for t1, t2, *_ in relations])
-    odo_all = np.array([relative(scans.robot_poses[i], scans.robot_poses[j]) for i, j in scan_pairs])
+    odo_all = ps.eval.relative_poses(scans.robot_poses[scan_pairs[:, 0]], scans.robot_poses[scan_pairs[:, 1]])
     same_all = np.all(np.abs(relations[:, [2, 3]] - odo_all[:, :2]) < SAME_AS_ODOMETRY, axis=1)
     short = relations[:, 1] - relations[:, 0] < SHORT_RELATION
     ref, odo, same = relations[short][:, [2, 3, 7]], odo_all[short], same_all[short]

@@ -148,13 +148,6 @@ def range_bearing(pose, points):
     return np.column_stack([np.hypot(d[:, 0], d[:, 1]), wrap(np.arctan2(d[:, 1], d[:, 0]) - pose[2])])
 
 
-def relative_pose(a, b):
-    """b in the frame of a: the odometry from pose a to pose b."""
-    c, s = np.cos(a[2]), np.sin(a[2])
-    d = b[:2] - a[:2]
-    return np.array([c * d[0] + s * d[1], -s * d[0] + c * d[1], wrap(b[2] - a[2])])
-
-
 class MapSweep:
     """A robot over a grid of landmarks, driving one FastSlam of PARTICLES particles whose
     resampling is explicit (resample_threshold 0): every step resamples."""
@@ -174,7 +167,7 @@ class MapSweep:
         return to, ids, z
 
     def step(self, to, ids, z):
-        self.filter.predict_odometry(relative_pose(self.pose, to), MAP_R)
+        self.filter.predict_odometry(ps.eval.relative_poses(self.pose, to), MAP_R)
         self.pose = to
         self.filter.update(z, ids)
         self.filter.resample()
@@ -186,7 +179,7 @@ class MapSweep:
         for start in range(0, n, size):
             ids = np.arange(start, min(n, start + size))
             centre = np.r_[self.points[ids].mean(axis=0), 0.0]
-            self.filter.predict_odometry(relative_pose(self.pose, centre), MAP_R)
+            self.filter.predict_odometry(ps.eval.relative_poses(self.pose, centre), MAP_R)
             self.pose = centre
             self.filter.update(range_bearing(centre, self.points[ids]), ids)
             for _ in range(5):
@@ -198,11 +191,13 @@ class MapSweep:
         best, created = np.inf, []
         for _ in range(REPEATS):
             plans = [self.plan(len(self.points)) for _ in range(steps)]
+            tos = np.array([to for to, _, _ in plans])
+            odometry = ps.eval.relative_poses(np.vstack([self.pose, tos[:-1]]), tos)  # computed before the clock
+            self.pose = tos[-1]
             elapsed = 0.0
-            for to, ids, z in plans:
+            for (to, ids, z), delta in zip(plans, odometry):
                 t0 = time.perf_counter()
-                self.filter.predict_odometry(relative_pose(self.pose, to), MAP_R)
-                self.pose = to
+                self.filter.predict_odometry(delta, MAP_R)
                 before = _core._persistent_tree_nodes()
                 self.filter.update(z, ids)
                 created.append((_core._persistent_tree_nodes() - before) / (PARTICLES * len(ids)))

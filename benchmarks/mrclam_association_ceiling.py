@@ -1,22 +1,26 @@
 """How well can MRCLAM Dataset 7's sightings be told apart at all, with barcodes hidden?
 
-Upper bounds that no filter can beat: each sighting is placed from the Vicon pose and matched
-to the nearest surveyed landmark, (1) alone, (2) with one bearing offset per scan fitted jointly
-with the scan's assignment (the bearing errors of one scan share an offset: 0.025 rad common
-against 0.004 rad within the scan, measured here), (3) lone sightings borrowing the offset fitted
-in neighbouring scans (the offset drifts slowly: lag-1 correlation 0.84). Prints the fractions,
-for the raw readings (the camera's depth) and for distances (``Mrclam.with_euclidean_ranges``).
-Then, for every robot of the folder, what a filter has instead of the truth: EKF SLAM with the
-barcodes as correspondences (the CLI's noise), and, before each scan, the most likely landmark
-of its own map for each sighting (NIS + log det S over all its landmarks). With --vicon-motion,
-also the multiple-hypothesis EKF (the CLI's costs, with and without the scan's bearing offset)
-driven by controls taken from the Vicon track instead of the odometry: what association gains
-from a nearly true motion. With --smoothed, what a batch method (smoothing the whole run, then
-placing each scan again) can reach: the run smoothed with the barcodes as labels, then every
-scan's sightings placed on the smoothed map from the smoothed pose with the offset fitted as
-above (the ceiling of a batch method: its own estimate instead of Vicon and the survey); and
-the same alternation started from the multiple-hypothesis EKF's labels (with the bearing
-offset), smoothing and re-placing until the labels settle.
+Upper bounds that no filter can beat, for each robot with Vicon: each sighting is placed from the
+Vicon pose and matched to the nearest surveyed landmark, (1) alone, (2) with one bearing offset
+per scan fitted jointly with the scan's assignment (the bearing errors of one scan share an
+offset: 0.025 rad common against 0.004 rad within the scan on robot 1, measured here), (3) lone
+sightings borrowing the offset fitted in neighbouring scans (the offset drifts slowly: lag-1
+correlation 0.84). Printed for the raw readings (the camera's depth), for distances
+(``Mrclam.with_euclidean_ranges``, whose scale was fitted on robot 1) and, as an oracle, for
+distances with each robot's constant range and bearing error against Vicon taken off (what a
+camera calibrated per robot would add). Then, for every robot of the folder, what a filter has
+instead of the truth: EKF SLAM with the barcodes as correspondences (the CLI's noise), and,
+before each scan, the most likely landmark of its own map for each sighting (NIS + log det S
+over all its landmarks). With --vicon-motion, also the multiple-hypothesis EKF (the CLI's
+costs, with and without the scan's bearing offset) driven by controls taken from the Vicon
+track instead of the odometry: what association gains from a nearly true motion. With
+--smoothed, what a batch method (smoothing the whole run, then placing each scan again) can
+reach: the run smoothed with the barcodes as labels, then every scan's sightings placed on the
+smoothed map from the smoothed pose with the offset fitted as above; the same with the lone
+sightings withheld from the smoothing (placed, never smoothed: whether the right labels of lone
+sightings are found from the rest of the run or only held by their own pull on the path); and
+the alternation started from the multiple-hypothesis EKF's labels (with the bearing offset),
+smoothing and re-placing until the labels settle.
 
     .venv/bin/python benchmarks/mrclam_association_ceiling.py [DATASET_FOLDER] [--vicon-motion] [--smoothed]
 """
@@ -67,19 +71,14 @@ def scan_points(m, idx):
     return points_at
 
 
-def residual_spread(data, poses):
+def residual_spread(data):
     """Bearing and range errors from the Vicon pose, split into per-scan mean and the rest."""
-    surveyed = data.landmark_positions
-    m = data.measurements
-    true = np.array([surveyed[int(s)] for s in m[:, 1]])
-    delta = true - poses[:, :2]
-    bearing = np.angle(np.exp(1j * (m[:, 3] - (np.arctan2(delta[:, 1], delta[:, 0]) - poses[:, 2]))))
-    rng = m[:, 2] - np.hypot(delta[:, 0], delta[:, 1])
+    rng_error, bearing_error = sighting_errors(data)
     common, within = {"bearing": [], "range": []}, {"bearing": [], "range": []}
-    for rows in ls.scans(m):
+    for rows in ls.scans(data.measurements):
         if rows.stop - rows.start < 2:
             continue
-        for name, e in (("bearing", bearing[rows]), ("range", rng[rows])):
+        for name, e in (("bearing", bearing_error[rows]), ("range", rng_error[rows])):
             common[name].append(e.mean())
             within[name].extend(e - e.mean())
     return {k: (float(np.std(common[k])), float(np.std(within[k]))) for k in common}
@@ -106,11 +105,25 @@ def main(folder, vicon_motion=False, smoothed=False) -> None:
     if smoothed:
         smoothed_ceiling(folder)
         return
-    raw = ps.io.read_mrclam(folder)
-    if raw.groundtruth is not None:
-        for name, data in (("raw depth readings", raw), ("distances (with_euclidean_ranges)", raw.with_euclidean_ranges())):
-            print(f"--- {name}")
-            ceiling(data)
+    print("robot | readings | each alone | scans of 2+, offset fitted | lone, offset borrowed | "
+          "all (lone alone) | all (lone borrowing)")
+    for robot in range(1, 6):
+        try:
+            raw = ps.io.read_mrclam(folder, robot=robot)
+        except (ValueError, OSError):
+            continue
+        if raw.groundtruth is None:
+            continue
+        spread = residual_spread(raw.with_euclidean_ranges())
+        print(f"robot {robot}: camera errors against Vicon, distances: bearing std per scan (common) "
+              f"{spread['bearing'][0]:.4f} rad, within a scan {spread['bearing'][1]:.4f} rad; range "
+              f"{spread['range'][0]:.3f} m / {spread['range'][1]:.3f} m; constant (median): "
+              + ", ".join(f"{name} range {b[0]:+.3f} m, bearing {b[1]:+.4f} rad" for name, b in
+                          (("depth", camera_bias(raw)), ("distances", camera_bias(raw.with_euclidean_ranges())))))
+        for name, data in (("depth", raw), ("distances", raw.with_euclidean_ranges()),
+                           ("distances, biases removed", without_camera_bias(raw.with_euclidean_ranges()))):
+            counts = ceiling(data)
+            print(f"robot {robot} | {name} | " + " | ".join(f"{counts[k][0] / counts[k][1]:.3f}" for k in counts))
     print("--- the filter's own map and pose (barcodes known), distances: most likely landmark per sighting")
     for robot in range(1, 6):
         try:
@@ -126,6 +139,30 @@ def main(folder, vicon_motion=False, smoothed=False) -> None:
                                         association="mht", hypotheses=options)
                 print(f"  Vicon motion, {name}: {ls.association_accuracy(run):.3f} correct, "
                       f"{len(run.landmarks)} landmarks")
+
+
+def sighting_errors(data):
+    """Range (m) and bearing (rad) errors (M,) of every sighting against the Vicon pose and the survey."""
+    m = data.measurements
+    poses = vicon_poses(data, m[:, 0])
+    delta = np.array([data.landmark_positions[int(s)] for s in m[:, 1]]) - poses[:, :2]
+    bearing = ps.wrap_angle(m[:, 3] - (np.arctan2(delta[:, 1], delta[:, 0]) - poses[:, 2]))
+    return m[:, 2] - np.hypot(delta[:, 0], delta[:, 1]), bearing
+
+
+def camera_bias(data):
+    """The camera's constant range (m) and bearing (rad) error: medians against Vicon."""
+    rng, bearing = sighting_errors(data)
+    return float(np.median(rng)), float(np.median(bearing))
+
+
+def without_camera_bias(data):
+    """`data` with camera_bias taken off every reading: an oracle (it needs Vicon), showing how
+    much of the ceiling a calibrated camera would add against the survey."""
+    bias = camera_bias(data)
+    m = data.measurements.copy()
+    m[:, 2:4] -= bias
+    return dataclasses.replace(data, measurements=m)
 
 
 #: --vicon-motion: control noise (per 10 ms command) of controls taken from the Vicon track.
@@ -166,14 +203,15 @@ def own_map(data):
     return counts["all"][0], counts["all"][1], counts["lone"][0] / max(1, counts["lone"][1])
 
 
-def ceiling(data) -> None:
+def ceiling(data):
+    """Sightings placed from the Vicon pose on the survey: {case: [correct, total]} for every
+    sighting alone, scans of two or more with their offset fitted, the lone sightings borrowing
+    nearby scans' offsets, and all sightings (lone ones alone / borrowing)."""
     m = data.measurements
     subjects = np.array(sorted(data.landmark_positions))
     landmarks = np.array([data.landmark_positions[s] for s in subjects])
     poses = vicon_poses(data, m[:, 0])
-    spread = residual_spread(data, poses)
-    print(f"bearing error std per scan (common) {spread['bearing'][0]:.4f} rad, within a scan "
-          f"{spread['bearing'][1]:.4f} rad; range {spread['range'][0]:.3f} m / {spread['range'][1]:.3f} m")
+    spread = residual_spread(data)
     counts = {k: [0, 0] for k in ("alone", "lone", "multi, offset fitted", "lone, offset borrowed")}
     fitted = []  # (time, offset) of multi-sighting scans
     for rows in ls.scans(m):
@@ -204,12 +242,10 @@ def ceiling(data) -> None:
         counts["lone, offset borrowed"][0] += int(subjects[np.argmin(np.linalg.norm(landmarks - point, axis=1))] ==
                                                   m[rows.start, 1])
         counts["lone, offset borrowed"][1] += 1
-    for name, (good, total) in counts.items():
-        print(f"{name:24s} {good:5d} / {total:5d} = {good / total:.3f}")
     multi = counts["multi, offset fitted"]
-    for lone in ("lone", "lone, offset borrowed"):
-        good = multi[0] + counts[lone][0]
-        print(f"all sightings, multi fitted + {lone}: {good / (multi[1] + counts[lone][1]):.3f}")
+    return {"alone": counts["alone"], "multi": multi, "lone, offset borrowed": counts["lone, offset borrowed"],
+            "all, lone alone": [multi[0] + counts["lone"][0], multi[1] + counts["lone"][1]],
+            "all, lone borrowing": [multi[0] + counts["lone, offset borrowed"][0], multi[1] + counts["lone"][1]]}
 
 
 # ---- --smoothed: batch smoothing and re-association -------------------------------------------
@@ -240,13 +276,6 @@ ANCHOR_WEIGHT = 1e3
 MIN_GAP, MIN_POSITION_VAR, MIN_HEADING_VAR = 1e-3, 1e-8, 1e-10
 
 
-def relative_motion(p, q):
-    """Poses q (K, 3) in the frames of p (K, 3)."""
-    d = q[:, :2] - p[:, :2]
-    c, s = np.cos(p[:, 2]), np.sin(p[:, 2])
-    return np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], ps.wrap_angle(q[:, 2] - p[:, 2])])
-
-
 class Smoother:
     """The run as a least-squares problem over the scan states (x, y, theta, b: the pose and the
     scan's bearing offset) and the labelled landmarks: odometry between consecutive scans (dead
@@ -259,7 +288,7 @@ class Smoother:
         odo = data.odometry
         dead = at_times(times, odo[:, 0], ls.dead_reckoning(odo, start))
         self.start, self.scan_of, self.z = dead[0], scan_of, data.measurements[:, 2:4]
-        self.odometry = relative_motion(dead[:-1], dead[1:])
+        self.odometry = ps.eval.relative_poses(dead[:-1], dead[1:])
         gap, d = np.maximum(np.diff(times), MIN_GAP), np.abs(self.odometry[:, 0])
         qv, qw = VELOCITY_NOISE_RATE
         cov = np.zeros((len(gap), 3, 3))
@@ -275,7 +304,7 @@ class Smoother:
         a, b = states[:-1, :3], states[1:, :3]
         d = b[:, :2] - a[:, :2]
         c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
-        r_odo = relative_motion(a, b) - self.odometry
+        r_odo = ps.eval.relative_poses(a, b) - self.odometry
         r_odo[:, 2] = ps.wrap_angle(r_odo[:, 2])
         j_odo = np.zeros((S - 1, 3, 8))  # d r / d (state a, state b)
         j_odo[:, 0, :3] = np.column_stack([-c, -s, -s * d[:, 0] + c * d[:, 1]])
@@ -350,24 +379,33 @@ def place_scans(m, scan_rows, poses, landmarks):
     return labels
 
 
+def majority_right(labels, truth):
+    """(M,) bool: the sightings whose label's most frequent true landmark is their own."""
+    right = np.zeros(len(labels), bool)
+    for label in np.unique(labels):
+        mine = labels == label
+        right[mine] = truth[mine] == np.bincount(truth[mine]).argmax()
+    return right
+
+
 def majority_correct(labels, truth):
     """Share of the sightings whose label's most frequent true landmark is their own."""
-    good = 0
-    for label in np.unique(labels):
-        good += np.bincount(truth[labels == label]).max()
-    return good / len(labels)
+    return float(np.mean(majority_right(labels, truth)))
 
 
-def alternate(smoother, m, scan_rows, scan_of, poses, labels):
+def alternate(smoother, m, scan_rows, scan_of, poses, labels, withheld=None):
     """From poses (S, 3) and labels (M,; -1 unused): smooth, re-place every scan, until the
-    labels settle or ROUNDS. Returns the labels and the rounds taken."""
+    labels settle or ROUNDS. Sightings `withheld` (M, bool) are placed but never smoothed: their
+    labels cannot hold the path to themselves. Returns the labels and the rounds taken."""
+    kept = np.ones(len(labels), bool) if withheld is None else ~np.asarray(withheld, bool)
     states = np.column_stack([poses, np.zeros(len(poses))])
     for rounds in range(1, ROUNDS + 1):
-        used = np.unique(labels[labels >= 0])
-        labels = np.where(labels >= 0, np.searchsorted(used, labels), -1)
+        used = np.unique(labels[(labels >= 0) & kept])
+        labels = np.where(np.isin(labels, used), np.searchsorted(used, labels), -1)
+        given = np.where(kept, labels, -1)
         points = sighted_points(m, scan_of, states)
-        landmarks = np.array([points[labels == k].mean(0) for k in range(len(used))])
-        states, landmarks = smoother.solve(states, landmarks, labels)
+        landmarks = np.array([points[given == k].mean(0) for k in range(len(used))])
+        states, landmarks = smoother.solve(states, landmarks, given)
         new = place_scans(m, scan_rows, states[:, :3], landmarks)
         settled = np.array_equal(new, labels)
         labels = new
@@ -382,9 +420,15 @@ def sighted_points(m, scan_of, states):
     return states[scan_of, :2] + m[:, 2:3] * np.column_stack([np.cos(a), np.sin(a)])
 
 
+def described(labels, truth, lone):
+    """'correct / landmarks (lone: correct among the lone sightings)'."""
+    right = majority_right(labels, truth)
+    return f"{right.mean():.3f} / {len(np.unique(labels))} (lone {right[lone].mean():.3f})"
+
+
 def smoothed_ceiling(folder) -> None:
-    print("robot | barcodes as labels: smoothed, re-placed | from the multiple-hypothesis EKF (offset): "
-          "its own, alternated (correct / landmarks)")
+    print("robot | barcodes as labels: smoothed, re-placed | the same, lone sightings withheld from the smoothing | "
+          "from the multiple-hypothesis EKF (offset): its own, alternated (correct / landmarks)")
     for robot in range(1, 6):
         try:
             data = ps.io.read_mrclam(folder, robot=robot).with_euclidean_ranges()
@@ -402,8 +446,12 @@ def smoothed_ceiling(folder) -> None:
         truth = np.searchsorted(subjects, m[:, 1].astype(int))
         known = ls.run_ekf_mrclam(data, MOTION, SENSOR, known=True)
         smoother = Smoother(data, times, scan_of, known.poses[0], SMOOTHER_SENSOR_SD, OFFSET_SD)
-        labels, _ = alternate(smoother, m, scan_rows, scan_of, at_times(times, known.times, known.poses), truth)
-        cells = [f"{majority_correct(labels, truth):.3f} / {len(np.unique(labels))}"]
+        cells = []
+        lone = np.bincount(scan_of)[scan_of] == 1
+        for withheld in (None, lone):
+            labels, _ = alternate(smoother, m, scan_rows, scan_of, at_times(times, known.times, known.poses), truth,
+                                  withheld)
+            cells.append(described(labels, truth, lone))
         mht = ls.run_ekf_mrclam(data, MOTION, MHT_OFFSET_SENSOR, known=False, association="mht",
                                 hypotheses=MHT_OFFSET_OPTIONS)
         own = np.concatenate([np.where(np.isin(r.outcome, (ls.AssociationResult.ASSOCIATED, ls.AssociationResult.NEW_LANDMARK)),
@@ -411,7 +459,7 @@ def smoothed_ceiling(folder) -> None:
         own = np.where(np.isin(own, list(mht.landmarks)), own, -1)
         cells.append(f"{ls.association_accuracy(mht):.3f} / {len(mht.landmarks)}")
         labels, rounds = alternate(smoother, m, scan_rows, scan_of, at_times(times, mht.times, mht.poses), own)
-        cells.append(f"{majority_correct(labels, truth):.3f} / {len(np.unique(labels))} ({rounds} rounds)")
+        cells.append(described(labels, truth, lone) + f" ({rounds} rounds)")
         print(f"robot {robot} | " + " | ".join(cells), flush=True)
 
 

@@ -314,6 +314,35 @@ def _between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.column_stack([c * dx + s * dy, -s * dx + c * dy, wrap(b[:, 2] - a[:, 2])])
 
 
+def relative_poses(a: object, b: object) -> np.ndarray:
+    """Poses ``b`` expressed in the frames of poses ``a``: ``a^-1 (+) b``, row by row, as
+    ``Pose2.between`` does for one pair (the odometry that takes a robot from a to b).
+
+    a, b: (K, 3) ``(x m, y m, theta rad)``, or both (3,) for one pair (then (3,) is returned).
+    Returns (K, 3): x, y in metres in a's frame and the heading change wrapped to (-pi, pi].
+
+    Errors: non-numeric arrays raise ``TypeError``; shapes other than (K, 3) / (3,), differing
+    K, NaN or inf raise ``ValueError`` naming the argument.
+    """
+    pa, one_a = _pose_rows(a, "a")
+    pb, one_b = _pose_rows(b, "b")
+    if pa.shape != pb.shape or one_a != one_b:
+        raise ValueError(f"b: expected the shape of a, {np.shape(a)}, got {np.shape(b)}")
+    out = _between(pa, pb)
+    return out[0] if one_a else out
+
+
+def _pose_rows(value: object, name: str) -> Tuple[np.ndarray, bool]:
+    """``value`` as checked (K, 3) pose rows, and whether it was a single (3,) pose."""
+    try:
+        ndim = np.ndim(value)
+    except ValueError as exc:  # ragged nested lists
+        raise ValueError(f"{name}: not an array of numbers: {exc}") from None
+    if ndim == 1:
+        return _real_array(value, name, (3,))[None], True
+    return _real_array(value, name, (None, 3)), False
+
+
 def _checked_relations(relations: Relations) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
     """t1, t2, delta of a Relations built by hand, checked as read_relations would."""
     t1 = _real_array(relations.t1, "relations.t1", (None,))

@@ -130,3 +130,26 @@ def test_majority_correct_by_hand(study):
     labels = np.array([5, 5, 5, 7, 7, 7])  # label 5: two of 0, one of 1; label 7: two of 1, one of 2
     assert study.majority_correct(labels, truth) == pytest.approx(4 / 6)
 
+
+
+def test_withheld_sightings_are_placed_but_not_smoothed(study):
+    """A landmark seen only by withheld sightings gets no place in the smoothed map, so they
+    are placed on the others; withheld sightings whose landmark the rest also see keep it."""
+    rng = np.random.default_rng(5)
+    data, times, scan_of, poses, landmarks = _simulated_run(rng, noise=(0.005, 0.002))
+    truth = data.measurements[:, 1].astype(np.int64)
+    start = study.at_times(times, data.odometry[:, 0], poses)
+    smoother = study.Smoother(data, times, scan_of, poses[0], SENSOR_SD, OFFSET_SD)
+    scan_rows = ps.landmark_slam.scans(data.measurements)
+    alone = truth == 3  # every sighting of landmark 3
+    out, _ = study.alternate(smoother, data.measurements, scan_rows, scan_of, start, truth, withheld=alone)
+    assert len(np.unique(out)) == 3 and (out[~alone] == truth[~alone]).all()
+    some = (truth == 2) & (scan_of % 2 == 0)  # landmark 2's sightings in every other scan
+    out, _ = study.alternate(smoother, data.measurements, scan_rows, scan_of, start, truth, withheld=some)
+    assert len(np.unique(out)) == 4 and study.majority_right(out, truth).all()
+
+
+def test_majority_right_marks_each_sighting(study):
+    truth = np.array([0, 0, 1, 1, 1, 2])
+    labels = np.array([5, 5, 5, 7, 7, 7])
+    assert study.majority_right(labels, truth).tolist() == [True, True, False, True, True, False]

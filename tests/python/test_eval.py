@@ -232,3 +232,35 @@ def test_relations_error_bad_relations():
         ev.relations_error(TS, POSES, ev.Relations(np.array([0.0]), np.array([np.nan]), np.zeros((1, 3))))
     with pytest.raises(FileNotFoundError):
         ev.relations_error(TS, POSES, "/nonexistent/x.relations")
+
+
+def test_relative_poses_equal_pose2_between_and_compose_back():
+    rng = np.random.default_rng(11)
+    a = np.column_stack([rng.normal(0, 5, (40, 2)), rng.uniform(-np.pi, np.pi, 40)])
+    b = np.column_stack([rng.normal(0, 5, (40, 2)), rng.uniform(-np.pi, np.pi, 40)])
+    got = ev.relative_poses(a, b)
+    want = np.array([ps.Pose2.from_array(p).between(ps.Pose2.from_array(q)).as_array() for p, q in zip(a, b)])
+    np.testing.assert_allclose(got, want, atol=1e-12)
+    assert np.all((got[:, 2] > -np.pi) & (got[:, 2] <= np.pi))
+    back = np.array([ps.Pose2.from_array(p).compose(ps.Pose2.from_array(d)).as_array() for p, d in zip(a, got)])
+    np.testing.assert_allclose(back[:, :2], b[:, :2], atol=1e-12)
+    np.testing.assert_allclose(ev.wrap(back[:, 2] - b[:, 2]), 0.0, atol=1e-12)
+    # one pair in, one pose out; a robot at (1, 1) facing +y sees (1, 3) 2 m straight ahead
+    np.testing.assert_allclose(ev.relative_poses([1.0, 1.0, np.pi / 2], [1.0, 3.0, np.pi]), [2.0, 0.0, np.pi / 2],
+                               atol=1e-12)
+    assert ev.relative_poses(np.zeros((0, 3)), np.zeros((0, 3))).shape == (0, 3)
+
+
+@pytest.mark.parametrize("a, b, exc, message", [
+    (np.zeros((4, 2)), np.zeros((4, 3)), ValueError, r"a: expected shape \(N, 3\)"),
+    (np.zeros((4, 3)), np.zeros((3, 3)), ValueError, r"b: expected the shape of a"),
+    (np.zeros(3), np.zeros((1, 3)), ValueError, r"b: expected the shape of a"),
+    (np.zeros(4), np.zeros(4), ValueError, r"a: expected shape \(3\), got \(4,\)"),
+    ([0.0, np.nan, 0.0], [0.0, 0.0, 0.0], ValueError, r"a: contains NaN or inf"),
+    (np.zeros((2, 3)), np.full((2, 3), np.inf), ValueError, r"b: contains NaN or inf"),
+    (["x", "y", "z"], [0.0, 0.0, 0.0], TypeError, r"a: expected real numbers"),
+    ([[0, 0, 0], [1, 1]], np.zeros((2, 3)), ValueError, r"a: not an array of numbers"),
+])
+def test_relative_poses_bad_input(a, b, exc, message):
+    with pytest.raises(exc, match=message):
+        ev.relative_poses(a, b)
