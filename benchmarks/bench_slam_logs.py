@@ -106,9 +106,7 @@ def relations_breakdown(timestamps, poses, rel):
     e = ps.eval.relations_error(timestamps, poses, rel)
     t1, t2, ref = rel.t1[e.used], rel.t2[e.used], rel.delta[e.used]
     x1, x2 = (ps.eval.interpolate_poses(timestamps, poses, t) for t in (t1, t2))
-    c, s = np.cos(x1[:, 2]), np.sin(x1[:, 2])
-    dx, dy = x2[:, 0] - x1[:, 0], x2[:, 1] - x1[:, 1]
-    err = np.column_stack([c * dx + s * dy, -s * dx + c * dy]) - ref[:, :2]
+    err = ps.eval.relative_poses(x1, x2)[:, :2] - ref[:, :2]
     u = ref[:, :2] / np.maximum(np.linalg.norm(ref[:, :2], axis=1, keepdims=True), 1e-12)
     along, across = np.abs(np.sum(err * u, axis=1)), np.abs(err[:, 1] * u[:, 0] - err[:, 0] * u[:, 1])
     short = np.abs(t2 - t1) < SHORT_RELATION
