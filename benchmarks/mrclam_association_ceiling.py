@@ -51,24 +51,21 @@ CANDIDATES = 3
 WINDOW = 1.0
 
 
-def at_times(times, stamps, poses):
-    """Poses (K, 3) interpolated at `times` (heading unwrapped first)."""
-    heading = np.unwrap(poses[:, 2])
-    return np.column_stack([np.interp(times, stamps, poses[:, 0]), np.interp(times, stamps, poses[:, 1]),
-                            ps.wrap_angle(np.interp(times, stamps, heading))])
-
-
 def vicon_poses(data, times):
-    return at_times(times, data.groundtruth[:, 0], data.groundtruth[:, 1:4])
+    return ps.eval.interpolate_poses(data.groundtruth[:, 0], data.groundtruth[:, 1:4], times)
+
+
+def placed(readings, poses, offsets):
+    """Sightings (n, 2): readings (n, 4) (time, id, range, bearing) placed from poses (n, 3), or
+    one (3,), with their bearings turned by offsets (rad; (n,) or one)."""
+    a = poses[..., 2] + readings[:, 3] + offsets
+    return poses[..., :2] + readings[:, 2:3] * np.column_stack([np.cos(a), np.sin(a)])
 
 
 def scan_points(m, idx):
     """points_at(pose, offset) -> (n, 2): the sightings m[idx] placed from `pose` with their
     bearings turned by `offset` (rad), as fit_scan takes them."""
-    def points_at(pose, off):
-        a = pose[2] + m[idx, 3] + off
-        return pose[:2] + m[idx, 2:3] * np.column_stack([np.cos(a), np.sin(a)])
-    return points_at
+    return lambda pose, off: placed(m[idx], pose, off)
 
 
 def residual_spread(data):
@@ -114,14 +111,16 @@ def main(folder, vicon_motion=False, smoothed=False) -> None:
             continue
         if raw.groundtruth is None:
             continue
-        spread = residual_spread(raw.with_euclidean_ranges())
+        distances = raw.with_euclidean_ranges()
+        bias = camera_bias(distances)
+        spread = residual_spread(distances)
         print(f"robot {robot}: camera errors against Vicon, distances: bearing std per scan (common) "
               f"{spread['bearing'][0]:.4f} rad, within a scan {spread['bearing'][1]:.4f} rad; range "
               f"{spread['range'][0]:.3f} m / {spread['range'][1]:.3f} m; constant (median): "
               + ", ".join(f"{name} range {b[0]:+.3f} m, bearing {b[1]:+.4f} rad" for name, b in
-                          (("depth", camera_bias(raw)), ("distances", camera_bias(raw.with_euclidean_ranges())))))
-        for name, data in (("depth", raw), ("distances", raw.with_euclidean_ranges()),
-                           ("distances, biases removed", without_camera_bias(raw.with_euclidean_ranges()))):
+                          (("depth", camera_bias(raw)), ("distances", bias))))
+        for name, data in (("depth", raw), ("distances", distances),
+                           ("distances, biases removed", without_camera_bias(distances, bias))):
             counts = ceiling(data)
             print(f"robot {robot} | {name} | " + " | ".join(f"{counts[k][0] / counts[k][1]:.3f}" for k in counts))
     print("--- the filter's own map and pose (barcodes known), distances: most likely landmark per sighting")
@@ -156,10 +155,9 @@ def camera_bias(data):
     return float(np.median(rng)), float(np.median(bearing))
 
 
-def without_camera_bias(data):
-    """`data` with camera_bias taken off every reading: an oracle (it needs Vicon), showing how
-    much of the ceiling a calibrated camera would add against the survey."""
-    bias = camera_bias(data)
+def without_camera_bias(data, bias):
+    """`data` with its camera_bias (range m, bearing rad) taken off every reading: an oracle (it
+    needs Vicon), showing how much of the ceiling a calibrated camera would add against the survey."""
     m = data.measurements.copy()
     m[:, 2:4] -= bias
     return dataclasses.replace(data, measurements=m)
@@ -286,7 +284,7 @@ class Smoother:
 
     def __init__(self, data, times, scan_of, start, sensor_sd, offset_sd):
         odo = data.odometry
-        dead = at_times(times, odo[:, 0], ls.dead_reckoning(odo, start))
+        dead = ps.eval.interpolate_poses(odo[:, 0], ls.dead_reckoning(odo, start), times)
         self.start, self.scan_of, self.z = dead[0], scan_of, data.measurements[:, 2:4]
         self.odometry = ps.eval.relative_poses(dead[:-1], dead[1:])
         gap, d = np.maximum(np.diff(times), MIN_GAP), np.abs(self.odometry[:, 0])
@@ -416,8 +414,7 @@ def alternate(smoother, m, scan_rows, scan_of, poses, labels, withheld=None):
 
 def sighted_points(m, scan_of, states):
     """The sightings (M, 2) placed from their scan's state (x, y, theta, b)."""
-    a = states[scan_of, 2] + m[:, 3] + states[scan_of, 3]
-    return states[scan_of, :2] + m[:, 2:3] * np.column_stack([np.cos(a), np.sin(a)])
+    return placed(m, states[scan_of, :3], states[scan_of, 3])
 
 
 def described(labels, truth, lone):
@@ -448,9 +445,9 @@ def smoothed_ceiling(folder) -> None:
         smoother = Smoother(data, times, scan_of, known.poses[0], SMOOTHER_SENSOR_SD, OFFSET_SD)
         cells = []
         lone = np.bincount(scan_of)[scan_of] == 1
+        known_poses = ps.eval.interpolate_poses(known.times, known.poses, times)
         for withheld in (None, lone):
-            labels, _ = alternate(smoother, m, scan_rows, scan_of, at_times(times, known.times, known.poses), truth,
-                                  withheld)
+            labels, _ = alternate(smoother, m, scan_rows, scan_of, known_poses, truth, withheld)
             cells.append(described(labels, truth, lone))
         mht = ls.run_ekf_mrclam(data, MOTION, MHT_OFFSET_SENSOR, known=False, association="mht",
                                 hypotheses=MHT_OFFSET_OPTIONS)
@@ -458,7 +455,8 @@ def smoothed_ceiling(folder) -> None:
                                        r.ids, -1) for _, r in mht.associations])
         own = np.where(np.isin(own, list(mht.landmarks)), own, -1)
         cells.append(f"{ls.association_accuracy(mht):.3f} / {len(mht.landmarks)}")
-        labels, rounds = alternate(smoother, m, scan_rows, scan_of, at_times(times, mht.times, mht.poses), own)
+        mht_poses = ps.eval.interpolate_poses(mht.times, mht.poses, times)
+        labels, rounds = alternate(smoother, m, scan_rows, scan_of, mht_poses, own)
         cells.append(described(labels, truth, lone) + f" ({rounds} rounds)")
         print(f"robot {robot} | " + " | ".join(cells), flush=True)
 

@@ -56,7 +56,7 @@ def test_smoother_jacobian_matches_finite_differences(study):
     rng = np.random.default_rng(0)
     data, times, scan_of, poses, landmarks = _simulated_run(rng)
     smoother = study.Smoother(data, times, scan_of, poses[0], SENSOR_SD, OFFSET_SD)
-    at = np.column_stack([study.at_times(times, data.odometry[:, 0], poses), np.zeros(len(times))])
+    at = np.column_stack([ps.eval.interpolate_poses(data.odometry[:, 0], poses, times), np.zeros(len(times))])
     # At the noise-free solution every residual is zero, so the Cauchy weight, held fixed in the
     # analytic Jacobian (iteratively reweighted least squares), adds nothing to the derivative.
     lm = landmarks.copy()
@@ -80,12 +80,12 @@ def test_smoother_recovers_path_map_and_offsets_from_noisy_odometry(study):
     rng = np.random.default_rng(1)
     offsets = rng.normal(0, 0.02, 20)  # each scan's common bearing error
     data, times, scan_of, poses, landmarks = _simulated_run(rng, offsets=offsets)
-    truth = study.at_times(times, data.odometry[:, 0], poses)
+    truth = ps.eval.interpolate_poses(data.odometry[:, 0], poses, times)
     noisy = data.odometry.copy()
     noisy[:, 1:] += rng.normal(0, [0.05, 0.05], (len(noisy), 2))  # odometry off by a drift
     data.odometry = noisy
     smoother = study.Smoother(data, times, scan_of, poses[0], SENSOR_SD, OFFSET_SD)
-    start = study.at_times(times, noisy[:, 0], ps.landmark_slam.dead_reckoning(noisy, poses[0]))
+    start = ps.eval.interpolate_poses(noisy[:, 0], ps.landmark_slam.dead_reckoning(noisy, poses[0]), times)
     labels = data.measurements[:, 1].astype(np.int64)
     states, out_lm = smoother.solve(np.column_stack([start, np.zeros(len(start))]), landmarks + 0.3, labels)
     before = np.abs(start[:, :2] - truth[:, :2]).max()
@@ -114,7 +114,7 @@ def test_alternation_recovers_cluster_labels(study):
     noisy = data.odometry.copy()
     noisy[:, 1:] += rng.normal(0, [0.05, 0.05], (len(noisy), 2))
     data.odometry = noisy
-    start = study.at_times(times, noisy[:, 0], ps.landmark_slam.dead_reckoning(noisy, poses[0]))
+    start = ps.eval.interpolate_poses(noisy[:, 0], ps.landmark_slam.dead_reckoning(noisy, poses[0]), times)
     labels = truth.copy()
     flip = rng.random(len(labels)) < 0.2
     labels[flip] ^= 1  # 0 <-> 1, 2 <-> 3
@@ -138,7 +138,7 @@ def test_withheld_sightings_are_placed_but_not_smoothed(study):
     rng = np.random.default_rng(5)
     data, times, scan_of, poses, landmarks = _simulated_run(rng, noise=(0.005, 0.002))
     truth = data.measurements[:, 1].astype(np.int64)
-    start = study.at_times(times, data.odometry[:, 0], poses)
+    start = ps.eval.interpolate_poses(data.odometry[:, 0], poses, times)
     smoother = study.Smoother(data, times, scan_of, poses[0], SENSOR_SD, OFFSET_SD)
     scan_rows = ps.landmark_slam.scans(data.measurements)
     alone = truth == 3  # every sighting of landmark 3
