@@ -8,6 +8,7 @@ the survey (Dataset 1's exchanged survey labels corrected, as the CLI does), and
 
     .venv/bin/python benchmarks/bench_mrclam_association.py [--jobs 2] [--robots 1 2] [--datasets 1 7]
         [--methods jcbb mht fastslam1 fastslam2] [--seconds S] [--record]
+        [--particles M] [--seed S] [--existence-miss C]   (FastSLAM only)
         (also: --methods ekf-known fastslam1-known fastslam2-known, fastslam1-offset fastslam2-offset, mht-offset)
 
 Needs ../shared/data/landmark_slam (skips with a message without it).
@@ -56,7 +57,10 @@ def load(dataset: int, robot: int, seconds):
 
 
 def run_one(job):
-    dataset, robot, method, seconds, particles = job
+    dataset, robot, method, seconds, particles, seed, existence_miss = job
+    fastslam = dict(num_particles=particles, seed=seed)
+    if existence_miss is not None:
+        fastslam["existence_miss"] = existence_miss
     data = load(dataset, robot, seconds)
     t0 = time.perf_counter()
     known = method.endswith("-known")
@@ -71,12 +75,12 @@ def run_one(job):
                                 hypotheses=MHT_OFFSET_OPTIONS)
         correct, labels = ls.association_accuracy(run), ls.majority_labels(run)
     elif method in OFFSET_METHODS:
-        run = fs.run_fastslam_mrclam(data, MOTION, OFFSET_SENSOR, known=False, num_particles=particles,
-                                     version=int(method.split("-")[0][-1]), **OFFSET_OPTIONS)
+        run = fs.run_fastslam_mrclam(data, MOTION, OFFSET_SENSOR, known=False,
+                                     version=int(method.split("-")[0][-1]), **fastslam, **OFFSET_OPTIONS)
         correct, labels = fs.association_accuracy(run), fs.majority_labels(run)
     else:
-        run = fs.run_fastslam_mrclam(data, MOTION, SENSOR, known=known, num_particles=particles,
-                                     version=int(method.split("-")[0][-1]))
+        run = fs.run_fastslam_mrclam(data, MOTION, SENSOR, known=known, version=int(method.split("-")[0][-1]),
+                                     **fastslam)
         correct, labels = (1.0, None) if known else (fs.association_accuracy(run), fs.majority_labels(run))
     seconds_taken = time.perf_counter() - t0
     fixed = data.with_survey_swapped(ls.survey_label_swaps(data))
@@ -97,13 +101,21 @@ def main() -> int:
     parser.add_argument("--methods", nargs="+", default=list(METHODS),
                         choices=METHODS + KNOWN_METHODS + OFFSET_METHODS + ("mht-offset",))
     parser.add_argument("--particles", type=int, default=100, help="FastSLAM particles (default 100)")
+    parser.add_argument("--seed", type=int, default=0, help="FastSLAM random seed (default 0)")
+    parser.add_argument("--existence-miss", type=float, default=None,
+                        help="FastSLAM: existence lost by a landmark in the camera's field that a scan misses "
+                             "(default: the library's, 1)")
     parser.add_argument("--seconds", type=float, default=None, help="only the first SECONDS of each robot")
     parser.add_argument("--record", action="store_true", help="write the table into benchmarks/RESULTS.md (replacing its previous run)")
     args = parser.parse_args()
     if not DATA.is_dir():
         print(f"skipped: {DATA} not found")
         return 0
-    jobs = [(d, r, m, args.seconds, args.particles) for d in args.datasets for r in args.robots for m in args.methods]
+    if args.particles < 1:
+        parser.error("--particles must be >= 1")
+    if args.existence_miss is not None and not (np.isfinite(args.existence_miss) and args.existence_miss >= 0):
+        parser.error("--existence-miss must be finite and >= 0")
+    jobs = [(d, r, m, args.seconds, args.particles, args.seed, args.existence_miss) for d in args.datasets for r in args.robots for m in args.methods]
     with concurrent.futures.ProcessPoolExecutor(max_workers=args.jobs) as pool:
         rows = list(pool.map(run_one, jobs))
     offset_only = all(m in OFFSET_METHODS for m in args.methods)
@@ -116,7 +128,8 @@ def main() -> int:
               else "sigma_r 0.15, sigma_phi 0.04")
     lines = heading(title,
                     f"One set of defaults (CLI: sigma_v 0.15, sigma_w 0.6, {sensor}; "
-                    f"FastSLAM {args.particles} particles, seed 0); ranges from depth; "
+                    f"FastSLAM {args.particles} particles, seed {args.seed}"
+                    f"{'' if args.existence_miss is None else ', existence miss %g' % args.existence_miss}); ranges from depth; "
                     f"{'first %g s' % args.seconds if args.seconds else 'whole runs'}. "
                     f"Correct: sightings whose landmark's majority barcode is their own; landmarks: "
                     f"{SURVEYED} surveyed; RMSE: map aligned onto the survey. `{' '.join(sys.argv)}`",
