@@ -187,9 +187,8 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
     path, mrclam = _landmark_dataset(args)
     t0 = time.perf_counter()
     if mrclam:
+        motion, sensor = _mrclam_noise(args)
         data = _mrclam_data(args, path)
-        motion = np.diag([args.sigma_v ** 2, args.sigma_w ** 2])
-        sensor = np.diag([args.sigma_r ** 2, args.sigma_phi ** 2])
         hypotheses = None
         if args.bearing_offset:
             if not (math.isfinite(args.bearing_offset) and args.bearing_offset > 0):
@@ -278,6 +277,19 @@ def _mrclam_data(args: argparse.Namespace, path):
     return data if args.raw_ranges else data.with_euclidean_ranges()
 
 
+def _mrclam_noise(args: argparse.Namespace):
+    """(motion (2, 2), sensor (2, 2)) covariances from the --sigma-* options, each checked to be a
+    finite standard deviation > 0 (squared, a negative one would pass unnoticed)."""
+    import numpy as np
+
+    sigmas = {"--sigma-v": args.sigma_v, "--sigma-w": args.sigma_w, "--sigma-r": args.sigma_r,
+              "--sigma-phi": args.sigma_phi}
+    for option, value in sigmas.items():
+        if not (math.isfinite(value) and value > 0):
+            raise UserError(f"{option} must be a finite standard deviation > 0, got {value}")
+    return (np.diag([args.sigma_v ** 2, args.sigma_w ** 2]), np.diag([args.sigma_r ** 2, args.sigma_phi ** 2]))
+
+
 def _cmd_fastslam(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -290,9 +302,8 @@ def _cmd_fastslam(args: argparse.Namespace) -> int:
     common = dict(known=not args.unknown, num_particles=args.particles, version=args.version, seed=args.seed,
                   threads=args.threads)
     if mrclam:
+        motion, sensor = _mrclam_noise(args)
         data = _mrclam_data(args, path)
-        motion = np.diag([args.sigma_v ** 2, args.sigma_w ** 2])
-        sensor = np.diag([args.sigma_r ** 2, args.sigma_phi ** 2])
         run = fs.run_fastslam_mrclam(data, motion, sensor, **common)
         dr = ls.run_ekf_mrclam(data, motion, sensor, dead_reckoning=True)
         print(f"dataset:       UTIAS MRCLAM {path} robot {args.robot}, "

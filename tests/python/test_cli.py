@@ -241,6 +241,19 @@ def test_fastslam_bundled_mrclam(tmp_path, capsys):
     assert np.loadtxt(tmp_path / "f_path.txt").shape[1] == 3
 
 
+@pytest.mark.parametrize("command", ["ekf-slam", "fastslam"])
+@pytest.mark.parametrize("option, value", [("--sigma-v", "-0.15"), ("--sigma-w", "0"), ("--sigma-r", "nan"),
+                                           ("--sigma-phi", "inf")])
+def test_mrclam_noise_options_must_be_positive_sigmas(tmp_path, capsys, command, option, value):
+    """A negative sigma squared would pass as a positive one: each is refused by name, before the
+    data is read, and nothing is written."""
+    assert cli.main([command, option, value, "-o", str(tmp_path / "x")]) == 2
+    captured = capsys.readouterr()
+    assert f"probslam: error: {option} must be a finite standard deviation > 0" in captured.err
+    assert "dataset:" not in captured.out and "skipped" not in captured.out
+    assert not list(tmp_path.iterdir())
+
+
 def _bad_inputs(tmp_path):
     """(name, path) of the inputs no command can read."""
     (tmp_path / "empty.txt").write_bytes(b"")
