@@ -19,7 +19,7 @@ from typing import Iterable, List, Optional, Tuple, Union
 
 import numpy as np
 
-from .io._files import read_compressed, require_regular_file, text_lines
+from .io._files import file_path, read_compressed, require_regular_file, text_lines
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -204,7 +204,7 @@ def read_relations(path: PathLike) -> Relations:
     t2 < t1 are skipped, counted in ``skipped_rows`` and announced by a warning naming the first
     line numbers (a real file is read even with a few bad rows).
     """
-    path = os.fspath(path)
+    path = file_path(path)
     require_regular_file(path)
     rows: List[List[float]] = []
     bad_lines: List[int] = []
@@ -364,6 +364,9 @@ def relations_error(timestamps: object, poses: object,
     counted; if none is left, ``ValueError``. Argument errors are as for ``interpolate_poses``.
     """
     if not isinstance(relations, Relations):
+        if not isinstance(relations, (str, bytes, os.PathLike)):
+            raise TypeError(f"relations: expected a Relations or the path of a relations file, "
+                            f"got {type(relations).__name__}")
         relations = read_relations(relations)
     ts, ps = _trajectory(timestamps, poses)
     t1, t2, delta = _checked_relations(relations)

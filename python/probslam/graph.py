@@ -18,6 +18,7 @@ import warnings
 from typing import Optional, Union
 
 from . import _core
+from .io._files import file_path
 from ._core import (IncrementalReport, OptimizationReport, PoseGraph2D, initialize_odometry, marginal_covariances,
                     optimize, optimize_incremental)
 
@@ -31,7 +32,7 @@ def read_pose_graph(path: PathLike, format: str = "auto") -> PoseGraph2D:
 
     A missing file raises ``FileNotFoundError`` naming it (as every reader of the package does);
     a malformed file ``ValueError("file:line: ...")``."""
-    return _core.read_pose_graph(os.fspath(path), format)
+    return _core.read_pose_graph(file_path(path), format)
 
 
 def _writer_arguments(name: str, graph, path):

@@ -17,6 +17,7 @@ import numpy as np
 from tqdm import tqdm
 
 from . import _core
+from .io._files import file_path
 from .io.carmen import CarmenLog, LaserScans, read_carmen_log
 from .mapping import no_return_range
 
@@ -151,7 +152,7 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: str = "grap
 def write_trajectory(path: PathLike, timestamps: np.ndarray, poses: np.ndarray) -> None:
     """One line per scan: ``timestamp x y theta`` (s, m, m, rad), the TUM-like text layout."""
     data = np.column_stack([timestamps, poses])
-    np.savetxt(os.fspath(path), data, fmt="%.6f", header="timestamp x y theta")
+    np.savetxt(file_path(path), data, fmt="%.6f", header="timestamp x y theta")
 
 
 __all__ = ["METHODS", "SlamResult", "has_odometry", "run_slam", "write_trajectory", "NO_ODOMETRY_MOTION"]

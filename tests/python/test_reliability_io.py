@@ -156,6 +156,21 @@ def test_missing_files_raise_file_not_found_naming_the_file(tmp_path):
         io.read_mrclam(tmp_path)
 
 
+@pytest.mark.parametrize("value", [None, 3.5, ["a.log"]])
+def test_readers_and_writers_name_a_path_argument_that_is_not_a_path(tmp_path, value):
+    grid = ps.OccupancyGrid2D(0.1, 4, 4)
+    calls = [("path", io.read_carmen_log), ("path", io.read_victoria_park), ("folder", io.read_mrclam),
+             ("yaml_path", io.load_ros_map), ("path", io.load_grid), ("path", ps.graph.read_pose_graph),
+             ("path", ps.eval.read_relations), ("yaml_path", lambda p: io.save_ros_map(grid, p)),
+             ("path", lambda p: io.save_grid(grid, p)), ("path", lambda p: io.write_png(grid, p)),
+             ("path", lambda p: ps.slam.write_trajectory(p, np.zeros(1), np.zeros((1, 3)))),
+             ("relations", lambda r: ps.eval.relations_error(np.arange(2.0), np.zeros((2, 3)), r))]
+    for name, call in calls:
+        with pytest.raises(TypeError, match=f"^{name}: expected a"):
+            call(value)
+    assert not list(tmp_path.iterdir())
+
+
 # --- 3. unclear errors: any bytes give ValueError("file:line: ...") --------------------------
 
 BAD_BYTES = b"\xff\xfe\x80"

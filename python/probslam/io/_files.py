@@ -17,6 +17,14 @@ from typing import Iterator, Tuple
 MAX_DECOMPRESSED_BYTES = 512 << 20
 
 
+def file_path(value: object, arg: str = "path") -> str:
+    """The str of a file path given as str, bytes or os.PathLike; anything else a TypeError
+    naming the argument (os.fspath's own message names none)."""
+    if not isinstance(value, (str, bytes, os.PathLike)):
+        raise TypeError(f"{arg}: expected a file path (str or os.PathLike), got {type(value).__name__}")
+    return os.fsdecode(value)
+
+
 def require_regular_file(path: str, arg: str = "path") -> None:
     """FileNotFoundError for a missing path; ValueError for anything but a regular file (a
     directory, a device such as /dev/zero that never ends, a fifo that blocks on open)."""

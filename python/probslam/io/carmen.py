@@ -10,7 +10,7 @@ from typing import Dict, List, Union
 import numpy as np
 
 from .. import _core
-from ._files import read_compressed, require_regular_file
+from ._files import file_path, read_compressed, require_regular_file
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -91,7 +91,7 @@ def read_carmen_log(path: PathLike) -> CarmenLog:
     numbers; other message types are ignored; scans so much wider than the rest that padding to
     them would exceed 4x the beams read are skipped, counted in ``skipped_wide_scans``.
     """
-    path = os.fspath(path)
+    path = file_path(path)
     require_regular_file(path)
     if os.path.splitext(path)[1] in (".gz", ".bz2"):
         raw = _core.parse_carmen_log(read_compressed(path), path)

@@ -11,7 +11,7 @@ from typing import Dict, List, Optional, Tuple, Union
 
 import numpy as np
 
-from ._files import require_regular_file, text_lines
+from ._files import file_path, require_regular_file, text_lines
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -66,7 +66,7 @@ def _numbers(fields: List[str]) -> Optional[List[float]]:
 def _table(path: PathLike, columns: int, strict: bool = False) -> Tuple[np.ndarray, int]:
     """Rows of `columns` finite numbers from a text file ('#' starts a comment) and the number of
     rows skipped as unreadable; ``strict``: any unreadable row is an error naming its line."""
-    path = os.fspath(path)
+    path = file_path(path)
     require_regular_file(path)
     rows = _Rows(path)
     for number, line in text_lines(path):
@@ -165,7 +165,7 @@ def read_mrclam(folder: PathLike, robot: int = 1) -> Mrclam:
 
     The robot's data files may be compressed (``Robot1_Odometry.dat.gz`` or ``.bz2``).
     """
-    folder = pathlib.Path(folder)
+    folder = pathlib.Path(file_path(folder, "folder"))
     if isinstance(robot, bool) or not isinstance(robot, (int, np.integer)) or not 1 <= robot <= 5:
         raise ValueError(f"robot: MRCLAM robots are numbered 1 to 5, got {robot!r}")
     subject_of = _subject_of(folder)
@@ -258,7 +258,7 @@ def read_victoria_park(path: PathLike, noise: str = "auto") -> VictoriaPark:
     first). Row-level (skipped, counted in ``VictoriaPark.skipped_rows``): a few records of an
     unknown type, with the wrong field count, numbers that are not finite, ids that are not
     integers, or a noise matrix that is not positive definite."""
-    path = os.fspath(path)
+    path = file_path(path)
     if noise == "auto":
         noise = "covariance" if "gtsam" in os.path.basename(path).lower() else "sqrt_information"
     if noise not in ("sqrt_information", "covariance"):

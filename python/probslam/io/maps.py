@@ -10,6 +10,7 @@ from typing import Optional, Union
 import numpy as np
 
 from .. import _core
+from ._files import file_path
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -17,24 +18,24 @@ PathLike = Union[str, "os.PathLike[str]"]
 def save_ros_map(grid: _core.OccupancyGrid2D, yaml_path: PathLike,
                  occupied_thresh: float = 0.65, free_thresh: float = 0.196) -> None:
     """Write ``yaml_path`` and a trinary PGM beside it (map_saver's conventions)."""
-    _core.save_ros_map(grid, os.fspath(yaml_path), occupied_thresh, free_thresh)
+    _core.save_ros_map(grid, file_path(yaml_path, "yaml_path"), occupied_thresh, free_thresh)
 
 
 def load_ros_map(yaml_path: PathLike) -> _core.OccupancyGrid2D:
     """Read a map_server map (modes trinary and scale) into an OccupancyGrid2D. A missing file
     raises FileNotFoundError, a malformed one ValueError naming it."""
-    return _core.load_ros_map(os.fspath(yaml_path))
+    return _core.load_ros_map(file_path(yaml_path, "yaml_path"))
 
 
 def save_grid(grid: _core.OccupancyGrid2D, path: PathLike) -> None:
     """Lossless save: log-odds and every grid parameter."""
-    _core.save_grid(grid, os.fspath(path))
+    _core.save_grid(grid, file_path(path))
 
 
 def load_grid(path: PathLike) -> _core.OccupancyGrid2D:
     """Read a grid written by ``save_grid``. A missing file raises FileNotFoundError, a malformed
     one ValueError naming it."""
-    return _core.load_grid(os.fspath(path))
+    return _core.load_grid(file_path(path))
 
 
 def _png(pixels: np.ndarray) -> bytes:
@@ -64,5 +65,5 @@ def write_png(grid: _core.OccupancyGrid2D, path: PathLike, trajectory: Optional[
         inside = (cells[:, 0] >= 0) & (cells[:, 0] < grid.height) & (cells[:, 1] >= 0) & (cells[:, 1] < grid.width)
         rows, cols = grid.height - 1 - cells[inside, 0], cells[inside, 1]
         pixels[rows, cols] = (220, 30, 30)
-    with open(os.fspath(path), "wb") as f:
+    with open(file_path(path), "wb") as f:
         f.write(_png(np.ascontiguousarray(pixels)))
