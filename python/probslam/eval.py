@@ -19,6 +19,7 @@ from typing import Iterable, List, Optional, Tuple, Union
 
 import numpy as np
 
+from ._args import real_array
 from .io._files import file_path, read_compressed, require_regular_file, text_lines
 
 PathLike = Union[str, "os.PathLike[str]"]
@@ -237,28 +238,10 @@ def read_relations(path: PathLike) -> Relations:
 # Interpolation and the metric
 
 
-def _real_array(value: object, name: str, shape: Tuple[Optional[int], ...]) -> np.ndarray:
-    """``value`` as a finite float array of ``shape`` (None: any length); TypeError for anything
-    but real numbers, ValueError for a wrong shape or NaN / inf, both naming ``name``."""
-    try:
-        a = np.asarray(value)
-    except ValueError as exc:  # ragged nested lists
-        raise ValueError(f"{name}: not an array of numbers: {exc}") from None
-    if a.dtype.kind not in "iuf":
-        raise TypeError(f"{name}: expected real numbers, got dtype {a.dtype}")
-    want = "(" + ", ".join("N" if n is None else str(n) for n in shape) + ")"
-    if a.ndim != len(shape) or any(n is not None and n != m for n, m in zip(shape, a.shape)):
-        raise ValueError(f"{name}: expected shape {want}, got {a.shape}")
-    a = a.astype(float, copy=False)
-    if not np.all(np.isfinite(a)):
-        raise ValueError(f"{name}: contains NaN or inf")
-    return a
-
-
 def _trajectory(timestamps: object, poses: object) -> Tuple[np.ndarray, np.ndarray]:
     """Checked (N,) timestamps and (N, 3) poses: non-empty, same length, non-decreasing."""
-    ts = _real_array(timestamps, "timestamps", (None,))
-    ps = _real_array(poses, "poses", (None, 3))
+    ts = real_array(timestamps, "timestamps", (None,))
+    ps = real_array(poses, "poses", (None, 3))
     if ts.shape[0] == 0:
         raise ValueError("timestamps: empty trajectory")
     if ps.shape[0] != ts.shape[0]:
@@ -298,7 +281,7 @@ def interpolate_poses(timestamps: object, poses: object, query_times: object) ->
     the argument.
     """
     ts, ps = _trajectory(timestamps, poses)
-    q = _real_array(query_times, "query_times", (None,))
+    q = real_array(query_times, "query_times", (None,))
     outside = np.flatnonzero((q < ts[0]) | (q > ts[-1]))
     if outside.size:
         k = int(outside[0])
@@ -339,15 +322,15 @@ def _pose_rows(value: object, name: str) -> Tuple[np.ndarray, bool]:
     except ValueError as exc:  # ragged nested lists
         raise ValueError(f"{name}: not an array of numbers: {exc}") from None
     if ndim == 1:
-        return _real_array(value, name, (3,))[None], True
-    return _real_array(value, name, (None, 3)), False
+        return real_array(value, name, (3,))[None], True
+    return real_array(value, name, (None, 3)), False
 
 
 def _checked_relations(relations: Relations) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
     """t1, t2, delta of a Relations built by hand, checked as read_relations would."""
-    t1 = _real_array(relations.t1, "relations.t1", (None,))
-    t2 = _real_array(relations.t2, "relations.t2", (t1.shape[0],))
-    delta = _real_array(relations.delta, "relations.delta", (t1.shape[0], 3))
+    t1 = real_array(relations.t1, "relations.t1", (None,))
+    t2 = real_array(relations.t2, "relations.t2", (t1.shape[0],))
+    delta = real_array(relations.delta, "relations.delta", (t1.shape[0], 3))
     return t1, t2, delta
 
 

@@ -14,6 +14,7 @@ from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
+from ._args import require_instance
 from ._core import FastSlam, velocity_motion, velocity_motion_control_jacobian
 from .io.landmark_datasets import Mrclam, VictoriaPark
 from .landmark_slam import (MRCLAM_OUTLIER_PROBABILITY, MRCLAM_PERCEPTUAL_FIELD_QUANTILE,  # noqa: F401 (re-used names)
@@ -91,6 +92,7 @@ def _sightings(run: FastSlamRun) -> List[Tuple[int, int]]:
 def majority_labels(run: FastSlamRun) -> Dict[int, int]:
     """For a run with hidden correspondences: each of the best particle's landmarks -> the true id
     most of its sightings carry."""
+    require_instance(run, FastSlamRun, "run")
     votes: Dict[int, collections.Counter] = collections.defaultdict(collections.Counter)
     for t, i in _sightings(run):
         votes[i][t] += 1
@@ -99,6 +101,7 @@ def majority_labels(run: FastSlamRun) -> Dict[int, int]:
 
 def association_accuracy(run: FastSlamRun) -> float:
     """Fraction of the best particle's measurements that went to their landmark's majority true id."""
+    require_instance(run, FastSlamRun, "run")
     label = majority_labels(run)
     pairs = _sightings(run)
     return sum(label[i] == t for t, i in pairs) / len(pairs) if pairs else float("nan")
@@ -117,6 +120,7 @@ def run_fastslam_mrclam(data: Mrclam, motion_noise, measurement_noise, *, known:
     ``sensor_range`` / ``sensor_fov`` are given): a landmark there that a scan does not see loses
     existence, and a particle's duplicates, never seen again, are removed.
     ``options`` go to ``FastSlam``. The start pose defaults to the ground truth's."""
+    require_instance(data, Mrclam, "data")
     import time
 
     if not known and negative_information and len(data.measurements):
@@ -187,6 +191,7 @@ def run_fastslam_victoria_park(data: VictoriaPark, *, known: bool = False, num_p
     ``odometry_noise_scale`` ** 2 (see VICTORIA_PARK_ODOMETRY_NOISE_SCALE), landmark points as
     range-bearing (Q_t: their polar covariance at the median range unless given, as
     ``run_ekf_victoria_park``). ``known=False`` hides the associations."""
+    require_instance(data, VictoriaPark, "data")
     import time
 
     if isinstance(odometry_noise_scale, bool) or not isinstance(odometry_noise_scale, (int, float, np.floating)):

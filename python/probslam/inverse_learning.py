@@ -23,6 +23,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from ._core import BeamSensorModel, BinaryMap2D, OccupancyGrid2D, logit
+from ._args import real_array, require_instance
 
 #: Beams whose readings are the input besides the cell's coordinates: the nearest and two on
 #: each side (Fig. 9.6's "five adjacent range measurements").
@@ -39,6 +40,8 @@ def random_map(grid: OccupancyGrid2D, rng: np.random.Generator, min_room: float 
     position at least ``min_room`` from its ends) by walls with one door ``door`` m wide each at
     a uniform position; then ``clutter`` boxes of 0.2-0.6 m per side at uniform positions
     (furniture). Returns (H, W) bool."""
+    require_instance(grid, OccupancyGrid2D, "grid")
+    require_instance(rng, np.random.Generator, "rng")
     h, w = grid.shape
     res = grid.resolution
     occ = np.zeros((h, w), dtype=bool)
@@ -79,6 +82,12 @@ def free_poses(grid: OccupancyGrid2D, occupied: np.ndarray, n: int, rng: np.rand
                clearance: float = 0.3) -> np.ndarray:
     """n poses (n, 3) uniform over the cells farther than ``clearance`` m from every occupied
     cell (continuous within the cell), headings uniform in (-pi, pi]."""
+    require_instance(grid, OccupancyGrid2D, "grid")
+    require_instance(rng, np.random.Generator, "rng")
+    occupied = np.asarray(occupied)
+    if occupied.dtype != bool or occupied.shape != tuple(grid.shape):
+        raise ValueError(f"occupied: expected a bool array of the grid's shape {tuple(grid.shape)}, "
+                         f"got {occupied.dtype} {occupied.shape}")
     from scipy.ndimage import distance_transform_edt
 
     res = grid.resolution
@@ -102,6 +111,8 @@ def field_features(grid: OccupancyGrid2D, pose: np.ndarray, ranges: np.ndarray, 
     cell's range (m) and its angle off the nearest beam's axis (rad, eq. 9.14 in polar form,
     relative to the beam so that identical sensors share the model), then the readings of the
     nearest beam and its neighbours in ring order (min(z, max_range), m)."""
+    require_instance(grid, OccupancyGrid2D, "grid")
+    pose = real_array(pose, "pose", (3,))
     h, w = grid.shape
     res = grid.resolution
     x0, y0 = grid.origin
@@ -143,6 +154,9 @@ def sample_training_set(grid: OccupancyGrid2D, model: BeamSensorModel, beam_angl
     and up to ``cells_per_scan`` cells drawn uniformly from the scan's perceptual field with their
     true occupancy. half_angle: the field's half width around a beam (rad), default beta/2 for a
     sonar and half the beam spacing for a laser."""
+    require_instance(grid, OccupancyGrid2D, "grid")
+    require_instance(model, BeamSensorModel, "model")
+    require_instance(rng, np.random.Generator, "rng")
     half = _half_angle(model, beam_angles, half_angle)
     inputs, labels = [], []
     for _ in range(maps):

@@ -10,9 +10,10 @@ from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
-from ._core import velocity_motion
+from ._core import PoseGraph2D, velocity_motion
 from .ekf import AssociationResult, EkfSlam, MapManagement, MultiHypothesisEkfSlam, chi2_quantile
 from .io.landmark_datasets import Mrclam, VictoriaPark
+from ._args import real_array, require_fields, require_instance
 
 #: Outlier gate on the NIS of known-correspondence updates: the chi-square quantile at this
 #: probability (2 dof). MRCLAM holds 0.5-3.6% gross outliers (wrong barcodes, reflections).
@@ -36,6 +37,10 @@ class EkfRun:
 
 def align_rigid(estimate: np.ndarray, truth: np.ndarray):
     """Best-fit rotation R (2, 2) and translation t (2,) with R @ estimate + t ~ truth (Kabsch)."""
+    estimate = real_array(estimate, "estimate", (None, 2))
+    truth = real_array(truth, "truth", (len(estimate), 2))
+    if len(estimate) == 0:
+        raise ValueError("estimate: no points to align")
     mu_e, mu_t = estimate.mean(0), truth.mean(0)
     u, _, vt = np.linalg.svd((estimate - mu_e).T @ (truth - mu_t))
     d = np.sign(np.linalg.det(vt.T @ u.T))
@@ -50,6 +55,10 @@ def rmse(a: np.ndarray, b: np.ndarray) -> float:
 
 def interpolate_poses(groundtruth: np.ndarray, times: np.ndarray) -> np.ndarray:
     """(T, 2) ground-truth positions at `times` (linear interpolation of (t, x, y, ...) rows)."""
+    groundtruth = np.asarray(groundtruth)
+    if groundtruth.ndim != 2 or groundtruth.shape[1] < 3 or len(groundtruth) == 0:
+        raise ValueError(f"groundtruth: expected (T, 3 or more) rows (t, x, y, ...), got shape {groundtruth.shape}")
+    times = real_array(times, "times", (None,))
     return np.column_stack([np.interp(times, groundtruth[:, 0], groundtruth[:, 1]),
                             np.interp(times, groundtruth[:, 0], groundtruth[:, 2])])
 
@@ -65,6 +74,7 @@ MRCLAM_PERCEPTUAL_FIELD_QUANTILE = 0.9
 def mrclam_perceptual_field(data: Mrclam, quantile: float = MRCLAM_PERCEPTUAL_FIELD_QUANTILE) -> Tuple[float, float]:
     """(range m, full field-of-view angle rad) of the camera, from the robot's own sightings:
     the ``quantile`` of their ranges, and twice that of their absolute bearings."""
+    require_instance(data, Mrclam, "data")
     if not (isinstance(quantile, (int, float)) and 0.0 < quantile <= 1.0):
         raise ValueError(f"quantile must be in (0, 1], got {quantile!r}")
     m = data.measurements
@@ -102,6 +112,7 @@ def run_ekf_mrclam(data: Mrclam, motion_noise, measurement_noise, known: bool = 
     ``dead_reckoning``: predictions only. The start pose defaults to the ground truth's.
     ``before_scan(filter, rows)``, if given, sees the filter (the EkfSlam, or the
     MultiHypothesisEkfSlam) and each scan's measurement rows (k, 4) just before it takes them."""
+    require_instance(data, Mrclam, "data")
     odo, meas = data.odometry, data.measurements
     if len(odo) == 0:
         raise ValueError("data: the robot has no odometry")
@@ -193,7 +204,10 @@ class MrclamScore:
 
 
 def score_mrclam(run: EkfRun, data: Mrclam, landmark_map: Optional[Dict[int, int]] = None) -> MrclamScore:
-    """``landmark_map``: filter id -> surveyed subject (identity when correspondences were known)."""
+    """``run``: an EkfRun or FastSlamRun (times (T,), poses (T, 3), landmarks {id: (2,)});
+    ``landmark_map``: filter id -> surveyed subject (identity when correspondences were known)."""
+    require_fields(run, ("times", "poses", "landmarks"), "run", "a run (EkfRun or FastSlamRun)")
+    require_instance(data, Mrclam, "data")
     truth = interpolate_poses(data.groundtruth, run.times)
     r, t = align_rigid(run.poses[:, :2], truth)
     aligned = run.poses[:, :2] @ r.T + t
@@ -217,6 +231,7 @@ def _applied_sightings(run: EkfRun):
 
 def majority_labels(run: EkfRun) -> Dict[int, int]:
     """For a run with hidden correspondences: each filter landmark's most frequent true id."""
+    require_instance(run, EkfRun, "run")
     votes: Dict[int, collections.Counter] = collections.defaultdict(collections.Counter)
     for t, i in _applied_sightings(run):
         votes[i][t] += 1
@@ -226,6 +241,7 @@ def majority_labels(run: EkfRun) -> Dict[int, int]:
 def primary_landmarks(run: EkfRun) -> Dict[int, int]:
     """For a run with hidden correspondences: true id -> the filter landmark holding most of its
     sightings (duplicates left out), among the landmarks still in the map."""
+    require_instance(run, EkfRun, "run")
     votes: Dict[int, collections.Counter] = collections.defaultdict(collections.Counter)
     for t, i in _applied_sightings(run):
         if i in run.landmarks:
@@ -235,6 +251,7 @@ def primary_landmarks(run: EkfRun) -> Dict[int, int]:
 
 def association_accuracy(run: EkfRun) -> float:
     """Fraction of the measurements applied to the map that went to their landmark's majority id."""
+    require_instance(run, EkfRun, "run")
     label = majority_labels(run)
     pairs = list(_applied_sightings(run))
     return sum(label[i] == t for t, i in pairs) / len(pairs) if pairs else float("nan")
@@ -252,6 +269,7 @@ def fit_range_scale(data: Mrclam) -> float:
     ``io.MRCLAM_RANGE_SCALE``) fitted against the ground truth: the median over the sightings of
     true distance * cos(bearing) / range, the true distance measured from the interpolated
     ground-truth pose to the surveyed landmark."""
+    require_instance(data, Mrclam, "data")
     if data.groundtruth is None:
         raise ValueError("data: fitting the range scale needs the robot's ground truth")
     surveyed = data.landmark_positions
@@ -290,6 +308,7 @@ def same_scan_residuals(data: Mrclam) -> Dict[int, np.ndarray]:
     """A check of the survey against the barcodes that needs no robot pose: for two landmarks
     sighted in one scan, their distance computed from the two range-bearing readings minus their
     surveyed distance. Returns subject -> residuals (m) of the pairs it is part of."""
+    require_instance(data, Mrclam, "data")
     surveyed = data.landmark_positions
     out: Dict[int, list] = {s: [] for s in surveyed}
     for rows in scans(data.measurements):
@@ -310,6 +329,7 @@ def survey_label_swaps(data: Mrclam, limit: float = SURVEY_RESIDUAL_LIMIT) -> Li
     |residual| > ``limit``) that make both pass, the one with the smallest sum of medians; a
     wrong label spoils its partners' pairs too, so the whole map is rechecked each round.
     MRCLAM Dataset 1: [(11, 17)]."""
+    require_instance(data, Mrclam, "data")
     def median_error(swaps: List[Tuple[int, int]]) -> Dict[int, float]:
         residuals = same_scan_residuals(data.with_survey_swapped(swaps))
         return {s: float(np.median(np.abs(r))) if len(r) else 0.0 for s, r in residuals.items()}
@@ -342,6 +362,8 @@ def score_landmarks(landmarks: Dict[int, np.ndarray], data: Mrclam,
     the filter starts at (0, 0, 0), so its frame is the start pose's, and the map is rigidly
     aligned onto the surveyed landmarks. ``landmark_map``: filter id -> subject (identity by
     default). Needs at least two landmarks."""
+    require_instance(landmarks, dict, "landmarks")
+    require_instance(data, Mrclam, "data")
     surveyed = data.landmark_positions
     pairs = [(i, (landmark_map or {}).get(i, i)) for i in landmarks]
     pairs = [(i, s) for i, s in pairs if s in surveyed]
@@ -358,6 +380,7 @@ def score_landmarks(landmarks: Dict[int, np.ndarray], data: Mrclam,
 def dead_reckoning_map(data: Mrclam, initial_pose=(0.0, 0.0, 0.0)) -> Dict[int, np.ndarray]:
     """Subject -> mean of the points where its sightings land from the dead-reckoned pose: the map
     odometry alone would draw, the baseline for EKF SLAM's map when there is no robot ground truth."""
+    require_instance(data, Mrclam, "data")
     odo, meas = data.odometry, data.measurements
     poses = dead_reckoning(odo, initial_pose)
     placed: Dict[int, list] = {}
@@ -373,6 +396,10 @@ def dead_reckoning_map(data: Mrclam, initial_pose=(0.0, 0.0, 0.0)) -> Dict[int, 
 def polar_measurements(xy: np.ndarray, xy_cov: np.ndarray):
     """Robot-frame points (L, 2) with covariances (L, 2, 2) as range-bearing (L, 2) with
     covariances (L, 2, 2), through the Jacobian of (r, phi) = (|p|, atan2(p_y, p_x))."""
+    xy = real_array(xy, "xy", (None, 2))
+    xy_cov = real_array(xy_cov, "xy_cov", (len(xy), 2, 2))
+    if np.any(np.hypot(xy[:, 0], xy[:, 1]) == 0.0):
+        raise ValueError("xy: a point at the origin has no bearing")
     r = np.hypot(xy[:, 0], xy[:, 1])
     z = np.column_stack([r, np.arctan2(xy[:, 1], xy[:, 0])])
     j = np.stack([np.column_stack([xy[:, 0] / r, xy[:, 1] / r]),
@@ -410,6 +437,7 @@ def run_ekf_victoria_park(data: VictoriaPark, measurement_noise=None) -> EkfRun:
     landmark points converted to range-bearing. The file's per-observation covariances are
     constant (0.4 m^2 per axis); their polar form at each range would change Q_t per
     measurement, so Q_t is the polar covariance at the median range unless given."""
+    require_instance(data, VictoriaPark, "data")
     chain = np.r_[data.pose_from[0], data.pose_to]
     if np.any(data.pose_from[1:] != data.pose_to[:-1]):
         raise ValueError("data: the odometry edges do not form one chain")
@@ -426,6 +454,7 @@ def run_ekf_on_graph(graph, measurement_noise=None) -> EkfRun:
     observations, converted to range-bearing. Other pose edges (loop closures) are ignored.
     The filter starts, certain, at the first pose's current value.
     ``EkfRun.poses`` follows ``graph.pose_ids``; ``landmarks`` maps point ids to positions."""
+    require_instance(graph, PoseGraph2D, "graph")
     chain = np.asarray(graph.pose_ids)
     if len(chain) < 2 or graph.num_point_edges == 0:
         raise ValueError("graph: the EKF needs at least two poses and one point edge")

@@ -10,6 +10,7 @@ import numpy as np
 
 from ._core import OccupancyGrid2D
 from .io.carmen import LaserScans
+from ._args import require_instance
 
 
 @dataclass
@@ -25,6 +26,7 @@ class MappingSummary:
 def scan_bounds(scans: LaserScans, max_range: float, margin: float = 1.0) -> Tuple[float, float, float, float]:
     """(xmin, ymin, xmax, ymax) metres covering every pose and every beam end point (readings
     beyond max_range cut to it), widened by margin metres."""
+    require_instance(scans, LaserScans, "scans")
     poses = scans.laser_poses
     ranges = np.where(np.isfinite(scans.ranges) & (scans.ranges >= 0), scans.ranges, 0.0)
     reach = np.minimum(ranges, max_range)
@@ -38,6 +40,7 @@ def no_return_range(scans: LaserScans) -> float:
     """The sensor's "no return" reading: the smallest maximum range the log states, else the
     largest reading if it recurs (SICK scanners report 81.83 / 81.91 m, simulators 50 m),
     else infinity."""
+    require_instance(scans, LaserScans, "scans")
     stated = scans.max_ranges[np.isfinite(scans.max_ranges)]
     if stated.size:
         return float(stated.min())
@@ -60,6 +63,7 @@ def map_laser_log(scans: LaserScans, resolution: float = 0.05, max_range: float 
     seen" (often glass), not free space. With ``robot_radius`` > 0 the robot's footprint
     around each robot pose is cleared too. ``progress=None`` shows a bar only on a terminal.
     """
+    require_instance(scans, LaserScans, "scans")
     # All or nothing: everything is checked before the first chunk changes the grid, so that a
     # bad pose in the last chunk is reported by name, not as a bound or a half-built map.
     if len(scans) == 0:

@@ -12,6 +12,7 @@ from typing import List, Optional
 import numpy as np
 
 from ._core import velocity_motion, wrap_angle
+from ._args import real_array, require_instance
 
 CLUTTER_ID = -1  # id of a false detection
 
@@ -64,6 +65,10 @@ def circle_controls(steps: int, v: float = 1.0, w: float = 0.2) -> np.ndarray:
 
 def observe(pose: np.ndarray, world: LandmarkWorld, sensor: Sensor, rng: np.random.Generator):
     """Noisy measurements (k, 2/3) and ids (k,) of the landmarks in range and field of view."""
+    pose = real_array(pose, "pose", (3,))
+    require_instance(world, LandmarkWorld, "world")
+    require_instance(sensor, Sensor, "sensor")
+    require_instance(rng, np.random.Generator, "rng")
     d = world.landmarks - pose[:2]
     r = np.hypot(d[:, 0], d[:, 1])
     phi = wrap_angle(np.arctan2(d[:, 1], d[:, 0]) - pose[2])
@@ -113,6 +118,12 @@ def simulate(world: LandmarkWorld, controls: np.ndarray, dt: float, sensor: Sens
 
 def pose_error(estimate: np.ndarray, truth: np.ndarray) -> np.ndarray:
     """estimate - truth with the heading difference wrapped, (..., 3)."""
+    estimate, truth = np.asarray(estimate), np.asarray(truth)
+    for name, a in (("estimate", estimate), ("truth", truth)):
+        if a.dtype.kind not in "iuf":
+            raise TypeError(f"{name}: expected real numbers, got dtype {a.dtype}")
+        if a.ndim == 0 or a.shape[-1] != 3:
+            raise ValueError(f"{name}: expected shape (..., 3), got {a.shape}")
     e = np.asarray(estimate, float) - np.asarray(truth, float)
     e[..., 2] = wrap_angle(e[..., 2])
     return e
@@ -122,6 +133,7 @@ def filter_known(run: SimRun, motion_noise: np.ndarray, measurement_noise: np.nd
     """EKF SLAM with known correspondences over a simulated run (without signatures), started at
     its true initial pose with zero covariance. Returns the pose NEES after each step (T,) and
     each step's finite NIS values (a list of T arrays, empty where nothing was updated)."""
+    require_instance(run, SimRun, "run")
     from .ekf import EkfSlam
 
     ekf = EkfSlam(motion_noise, measurement_noise, use_signatures=False, initial_pose=run.poses[0])
@@ -145,6 +157,7 @@ def fastslam_known(run: SimRun, motion_noise: np.ndarray, measurement_noise: np.
     covariances (T, 3, 3): their weighted covariance about it (``pose_covariance``; singular when
     the particles collapse onto fewer than three distinct poses); n_eff (T,): the effective sample
     size. The pose NEES is ``probslam.eval.nees(pose_error(poses, run.poses[1:]), covariances)``."""
+    require_instance(run, SimRun, "run")
     from ._core import FastSlam
 
     f = FastSlam(num_particles, motion_noise, measurement_noise, version=version, initial_pose=run.poses[0],
@@ -163,8 +176,8 @@ def cast_ranges(pose: np.ndarray, angles: np.ndarray, segments) -> np.ndarray:
     """A simulated laser scan: the range (metres) from ``pose`` (x, y, theta) along each beam
     ``angles`` (B,) radians relative to the heading to the nearest of ``segments`` (an iterable
     of ((x0, y0), (x1, y1)) walls, metres), inf where a beam meets none. Vectorised over beams."""
-    pose = np.asarray(pose, dtype=float)
-    angles = np.asarray(angles, dtype=float)
+    pose = real_array(pose, "pose", (3,))
+    angles = real_array(angles, "angles", (None,))
     d = np.stack([np.cos(pose[2] + angles), np.sin(pose[2] + angles)], axis=1)  # (B, 2)
     out = np.full(len(angles), np.inf)
     for p, q in segments:

@@ -20,6 +20,7 @@ from . import _core
 from .io._files import file_path
 from .io.carmen import CarmenLog, LaserScans, read_carmen_log
 from .mapping import no_return_range
+from ._args import require_instance
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -66,6 +67,7 @@ class SlamResult:
 
 def has_odometry(scans: LaserScans) -> bool:
     """Whether the laser poses of the log move at all (some logs repeat one pose throughout)."""
+    require_instance(scans, LaserScans, "scans")
     p = scans.laser_poses
     return bool(len(p) > 1 and np.ptp(p, axis=0).max() > NO_ODOMETRY_MOTION)
 

@@ -1,0 +1,41 @@
+"""Argument checks shared by the Python modules: a wrong type or shape raises TypeError or
+ValueError naming the argument, before any work (and before an AttributeError or IndexError
+deep inside could say less)."""
+
+from __future__ import annotations
+
+from typing import Optional, Tuple, Union
+
+import numpy as np
+
+
+def require_instance(value: object, types: Union[type, Tuple[type, ...]], name: str) -> None:
+    """TypeError naming ``name`` unless ``value`` is one of ``types``."""
+    if not isinstance(value, types):
+        expected = " or ".join(t.__name__ for t in (types if isinstance(types, tuple) else (types,)))
+        raise TypeError(f"{name}: expected {expected}, got {type(value).__name__}")
+
+
+def require_fields(value: object, fields: Tuple[str, ...], name: str, what: str) -> None:
+    """TypeError naming ``name`` unless ``value`` has every attribute in ``fields`` (for the
+    functions that take any of several run types, e.g. an EkfRun or a FastSlamRun)."""
+    if not all(hasattr(value, f) for f in fields):
+        raise TypeError(f"{name}: expected {what}, got {type(value).__name__}")
+
+
+def real_array(value: object, name: str, shape: Tuple[Optional[int], ...]) -> np.ndarray:
+    """``value`` as a finite float array of ``shape`` (None: any length); TypeError for anything
+    but real numbers, ValueError for a wrong shape or NaN / inf, both naming ``name``."""
+    try:
+        a = np.asarray(value)
+    except ValueError as exc:  # ragged nested lists
+        raise ValueError(f"{name}: not an array of numbers: {exc}") from None
+    if a.dtype.kind not in "iuf":
+        raise TypeError(f"{name}: expected real numbers, got dtype {a.dtype}")
+    want = "(" + ", ".join("N" if n is None else str(n) for n in shape) + ")"
+    if a.ndim != len(shape) or any(n is not None and n != m for n, m in zip(shape, a.shape)):
+        raise ValueError(f"{name}: expected shape {want}, got {a.shape}")
+    a = a.astype(float, copy=False)
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{name}: contains NaN or inf")
+    return a

@@ -1,0 +1,107 @@
+"""The Python modules' public functions name a wrong argument: TypeError for a wrong type,
+ValueError for a wrong shape or value, raised before any work (an AttributeError or IndexError
+from deep inside would name nothing)."""
+
+import numpy as np
+import pytest
+
+import probslam as ps
+from probslam import fastslam as fs
+from probslam import inverse_learning as il
+from probslam import landmark_slam as ls
+from probslam import mapping, sim
+from probslam import slam as sl
+
+RNG = np.random.default_rng(0)
+GRID = ps.OccupancyGrid2D(0.1, 20, 20)
+Q = np.diag([0.01, 0.001])
+
+# (call, argument it must name) with an object of the wrong type in that argument.
+WRONG_TYPES = [
+    (lambda: ls.mrclam_perceptual_field(None), "data"),
+    (lambda: ls.run_ekf_mrclam("folder", Q, Q), "data"),
+    (lambda: ls.score_mrclam(object(), None), "run"),
+    (lambda: ls.majority_labels({}), "run"),
+    (lambda: ls.primary_landmarks([]), "run"),
+    (lambda: ls.association_accuracy(None), "run"),
+    (lambda: ls.fit_range_scale(3), "data"),
+    (lambda: ls.same_scan_residuals(None), "data"),
+    (lambda: ls.survey_label_swaps(None), "data"),
+    (lambda: ls.score_landmarks([(0, 0)], None), "landmarks"),
+    (lambda: ls.dead_reckoning_map(None), "data"),
+    (lambda: ls.run_ekf_victoria_park(None), "data"),
+    (lambda: ls.run_ekf_on_graph("graph.g2o"), "graph"),
+    (lambda: ls.polar_measurements([["a", "b"]], np.eye(2)[None]), "xy"),
+    (lambda: fs.majority_labels(None), "run"),
+    (lambda: fs.association_accuracy(None), "run"),
+    (lambda: fs.run_fastslam_mrclam(None, Q, Q), "data"),
+    (lambda: fs.run_fastslam_victoria_park(None), "data"),
+    (lambda: mapping.scan_bounds(None, 10.0), "scans"),
+    (lambda: mapping.no_return_range("scans"), "scans"),
+    (lambda: ps.map_laser_log("log.clf"), "scans"),
+    (lambda: sl.has_odometry(None), "scans"),
+    (lambda: sim.observe(np.zeros(3), None, sim.Sensor(Q), RNG), "world"),
+    (lambda: sim.observe(np.zeros(3), sim.LandmarkWorld(np.zeros((1, 2)), np.zeros(1)), None, RNG), "sensor"),
+    (lambda: sim.observe(np.zeros(3), sim.LandmarkWorld(np.zeros((1, 2)), np.zeros(1)), sim.Sensor(Q), 0), "rng"),
+    (lambda: sim.pose_error("abc", np.zeros(3)), "estimate"),
+    (lambda: sim.filter_known(None, Q, Q), "run"),
+    (lambda: sim.fastslam_known(None, Q, Q, 10), "run"),
+    (lambda: il.random_map(None, RNG), "grid"),
+    (lambda: il.random_map(GRID, 0), "rng"),
+    (lambda: il.free_poses(None, np.zeros((20, 20), bool), 3, RNG), "grid"),
+    (lambda: il.field_features(None, np.zeros(3), np.ones(4), np.zeros(4), 5.0, 0.1), "grid"),
+    (lambda: il.sample_training_set(GRID, None, np.zeros(4), 1, 1, RNG), "model"),
+]
+
+
+@pytest.mark.parametrize("call, name", WRONG_TYPES)
+def test_a_wrong_type_is_a_type_error_naming_the_argument(call, name):
+    with pytest.raises(TypeError, match=f"^{name}: expected"):
+        call()
+
+
+# (call, argument it must name) with a value of the right type but the wrong shape or value.
+WRONG_VALUES = [
+    (lambda: ls.align_rigid(np.zeros((3, 2)), np.zeros((4, 2))), "truth"),
+    (lambda: ls.align_rigid(np.zeros((0, 2)), np.zeros((0, 2))), "estimate"),
+    (lambda: ls.align_rigid(np.full((3, 2), np.nan), np.zeros((3, 2))), "estimate"),
+    (lambda: ls.interpolate_poses(np.zeros((5, 2)), np.zeros(3)), "groundtruth"),
+    (lambda: ls.interpolate_poses(np.zeros((0, 3)), np.zeros(3)), "groundtruth"),
+    (lambda: ls.interpolate_poses(np.zeros((5, 3)), np.zeros((3, 1))), "times"),
+    (lambda: ls.polar_measurements(np.zeros((2, 2)), np.tile(np.eye(2), (2, 1, 1))), "xy"),
+    (lambda: ls.polar_measurements(np.ones((2, 2)), np.eye(2)), "xy_cov"),
+    (lambda: sim.pose_error(np.zeros(2), np.zeros(3)), "estimate"),
+    (lambda: sim.pose_error(np.zeros(3), np.zeros((4, 2))), "truth"),
+    (lambda: sim.cast_ranges(np.zeros(2), np.zeros(3), []), "pose"),
+    (lambda: sim.cast_ranges(np.zeros(3), np.full(3, np.inf), []), "angles"),
+    (lambda: sim.observe(np.array([0.0, np.nan, 0.0]), sim.LandmarkWorld(np.zeros((1, 2)), np.zeros(1)),
+                         sim.Sensor(Q), RNG), "pose"),
+    (lambda: il.free_poses(GRID, np.zeros((20, 21), bool), 3, RNG), "occupied"),
+    (lambda: il.free_poses(GRID, np.zeros((20, 20)), 3, RNG), "occupied"),
+    (lambda: il.field_features(GRID, np.zeros(4), np.ones(4), np.zeros(4), 5.0, 0.1), "pose"),
+]
+
+
+@pytest.mark.parametrize("call, name", WRONG_VALUES)
+def test_a_wrong_shape_or_value_is_a_value_error_naming_the_argument(call, name):
+    with pytest.raises(ValueError, match=f"^{name}: "):
+        call()
+
+
+def test_checked_functions_still_compute_what_they_did():
+    """The checks change no result: Kabsch recovers a known motion, polar_measurements equals
+    the hand conversion, pose_error wraps the heading, cast_ranges hits a wall at its distance."""
+    rng = np.random.default_rng(1)
+    points = rng.normal(size=(6, 2))
+    angle, shift = 0.3, np.array([1.0, -2.0])
+    rot = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
+    r, t = ls.align_rigid(points, points @ rot.T + shift)
+    np.testing.assert_allclose(r, rot, atol=1e-12)
+    np.testing.assert_allclose(t, shift, atol=1e-12)
+    z, cov = ls.polar_measurements(np.array([[3.0, 4.0]]), np.eye(2)[None] * 0.01)
+    np.testing.assert_allclose(z, [[5.0, np.arctan2(4.0, 3.0)]])
+    np.testing.assert_allclose(cov[0], np.diag([0.01, 0.01 / 25.0]), atol=1e-15)
+    np.testing.assert_allclose(sim.pose_error([0, 0, 3.0], [0, 0, -3.0]), [0, 0, 6.0 - 2 * np.pi])
+    np.testing.assert_allclose(sim.cast_ranges([0, 0, 0], [0.0], [((2.0, -1.0), (2.0, 1.0))]), [2.0])
+    truth = np.column_stack([[0.0, 1.0], [0.0, 2.0], [0.0, 4.0]])
+    np.testing.assert_allclose(ls.interpolate_poses(truth, [0.5]), [[1.0, 2.0]])
