@@ -13,6 +13,23 @@ namespace probslam::bindings {
 
 namespace py = pybind11;
 
+/// An int argument (a Python int or anything with __index__, such as numpy.int64; not a bool)
+/// as a long long: TypeError "<name> must be an int" for anything else (an array of several
+/// numbers has __index__ but refuses it), ValueError "<name> is out of range" beyond 64 bits.
+inline long long index_value(py::handle v, const std::string& name) {
+  if (py::isinstance<py::bool_>(v) || !PyIndex_Check(v.ptr())) throw py::type_error(name + " must be an int");
+  const py::object i = py::reinterpret_steal<py::object>(PyNumber_Index(v.ptr()));
+  if (!i) {
+    PyErr_Clear();  // TypeError of a non-scalar array
+    throw py::type_error(name + " must be an int");
+  }
+  int overflow = 0;
+  const long long x = PyLong_AsLongLongAndOverflow(i.ptr(), &overflow);
+  if (overflow != 0) throw py::value_error(name + " is out of range");
+  if (x == -1 && PyErr_Occurred()) throw py::error_already_set();
+  return x;
+}
+
 /// Keyword options of the stateful classes: each name read once with its type checked (a bool
 /// is not a number here), and any name left over is a TypeError, as for a Python signature.
 class Kwargs {
@@ -27,8 +44,7 @@ class Kwargs {
   }
   void get(const char* name, int& target) {
     if (const py::handle v = take(name)) {
-      if (py::isinstance<py::bool_>(v) || !PyIndex_Check(v.ptr())) throw py::type_error(std::string(name) + " must be an int");
-      const long long x = v.cast<long long>();
+      const long long x = index_value(v, name);
       if (x < std::numeric_limits<int>::min() || x > std::numeric_limits<int>::max())
         throw py::value_error(std::string(name) + " is out of range");
       target = static_cast<int>(x);
@@ -38,7 +54,10 @@ class Kwargs {
     if (const py::handle v = take(name)) {
       if (py::isinstance<py::bool_>(v) || !PyIndex_Check(v.ptr())) throw py::type_error(std::string(name) + " must be an int");
       const py::object i = py::reinterpret_steal<py::object>(PyNumber_Index(v.ptr()));
-      if (!i) throw py::error_already_set();
+      if (!i) {
+        PyErr_Clear();  // TypeError of a non-scalar array
+        throw py::type_error(std::string(name) + " must be an int");
+      }
       const unsigned long long x = PyLong_AsUnsignedLongLong(i.ptr());
       if (x == static_cast<unsigned long long>(-1) && PyErr_Occurred()) {
         PyErr_Clear();  // OverflowError: negative or beyond 64 bits

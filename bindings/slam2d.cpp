@@ -486,8 +486,7 @@ void define_slam2d(py::module_& m) {
   // The particle argument is read with the GIL held; resolved (None: the best) under the lock.
   auto particle_arg = [](py::handle k) -> long long {
     if (k.is_none()) return -1;
-    if (py::isinstance<py::bool_>(k) || !PyIndex_Check(k.ptr())) throw py::type_error("particle must be an int");
-    const long long i = k.cast<long long>();
+    const long long i = index_value(k, "particle");
     if (i < 0) throw py::value_error("particle must be in [0, num_particles)");
     return i;
   };

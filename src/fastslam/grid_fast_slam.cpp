@@ -267,9 +267,9 @@ Eigen::VectorXd GridFastSlam::log_weights() const { return particle_log_weights(
 
 int GridFastSlam::best_index() const { return heaviest_particle(particles_); }
 
-Poses2 GridFastSlam::scan_poses(int k) const {
-  require(k >= 0 && k < num_particles(), "k", "must be a particle index");
-  const Poses2 steps = particles_[static_cast<std::size_t>(k)].path.poses();
+Poses2 GridFastSlam::scan_poses(int particle) const {
+  require(particle >= 0 && particle < num_particles(), "particle", "must be a particle index");
+  const Poses2 steps = particles_[static_cast<std::size_t>(particle)].path.poses();
   Poses2 out(num_scans(), 3);
   for (int s = 0; s < num_scans(); ++s) {
     const Eigen::Vector3d at = steps.row(scan_step_[static_cast<std::size_t>(s)]).transpose();
@@ -278,13 +278,13 @@ Poses2 GridFastSlam::scan_poses(int k) const {
   return out;
 }
 
-const TiledGrid2D& GridFastSlam::tiled_map(int k) const {
-  require(k >= 0 && k < num_particles(), "k", "must be a particle index");
-  require(particles_[static_cast<std::size_t>(k)].map != nullptr, "k", "has no map before the first scan");
-  return *particles_[static_cast<std::size_t>(k)].map;
+const TiledGrid2D& GridFastSlam::tiled_map(int particle) const {
+  require(particle >= 0 && particle < num_particles(), "particle", "must be a particle index");
+  require(particles_[static_cast<std::size_t>(particle)].map != nullptr, "particle", "has no map before the first scan");
+  return *particles_[static_cast<std::size_t>(particle)].map;
 }
 
-OccupancyGrid2D GridFastSlam::map(int k) const { return tiled_map(k).to_grid(); }
+OccupancyGrid2D GridFastSlam::map(int particle) const { return tiled_map(particle).to_grid(); }
 
 TileSharing GridFastSlam::tile_sharing() const {
   std::vector<const TiledGrid2D*> grids;

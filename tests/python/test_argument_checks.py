@@ -105,3 +105,39 @@ def test_checked_functions_still_compute_what_they_did():
     np.testing.assert_allclose(sim.cast_ranges([0, 0, 0], [0.0], [((2.0, -1.0), (2.0, 1.0))]), [2.0])
     truth = np.column_stack([[0.0, 1.0], [0.0, 2.0], [0.0, 4.0]])
     np.testing.assert_allclose(ls.interpolate_poses(truth, [0.5]), [[1.0, 2.0]])
+
+
+# Integer options read by the bindings' keyword parser and GridFastSlam's particle argument:
+# an array of several numbers (which has __index__ but refuses it) or an int beyond 64 bits
+# was a RuntimeError ("Unable to cast Python instance ...") from pybind11's cast.
+INT_OPTIONS = [
+    (lambda v: ps.FastSlam(5, np.eye(2) * 0.01, Q, threads=v), "threads"),
+    (lambda v: ps.FastSlam(5, np.eye(2) * 0.01, Q, version=v), "version"),
+    (lambda v: ps.FastSlam(5, np.eye(2) * 0.01, Q, seed=v), "seed"),
+    (lambda v: ps._core.GridFastSlam(num_particles=v), "num_particles"),
+    (lambda v: ps._core.GridFastSlam(threads=v), "threads"),
+    (lambda v: ps._core.SubmapSlam2D(max_rounds=v), "max_rounds"),
+    (lambda v: ps._core.GridFastSlam(num_particles=2).map(v), "particle"),
+    (lambda v: ps._core.GridFastSlam(num_particles=2).scan_poses(v), "particle"),
+]
+
+
+@pytest.mark.parametrize("call, name", INT_OPTIONS)
+def test_int_options_refuse_arrays_and_out_of_range_ints_by_name(call, name):
+    for value in (np.array([1, 2]), np.zeros(3), True, 2.0, "2"):
+        with pytest.raises(TypeError, match=f"^{name} must be an int"):
+            call(value)
+    for value in (10 ** 30, -10 ** 30):
+        with pytest.raises(ValueError, match=f"^{name} "):
+            call(value)
+
+
+def test_int_options_take_numpy_integers():
+    f = ps.FastSlam(5, np.eye(2) * 0.01, Q, threads=np.int64(2), seed=np.uint8(3))
+    assert f.num_particles == 5
+    g = ps._core.GridFastSlam(num_particles=np.int32(2))
+    assert g.num_particles == 2
+    with pytest.raises(ValueError, match="^particle has no map before the first scan"):
+        g.map(np.int64(1))
+    with pytest.raises(ValueError, match="^particle must be in"):
+        g.map(2)

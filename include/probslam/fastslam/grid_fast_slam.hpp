@@ -107,12 +107,13 @@ class GridFastSlam {
   Poses2 poses() const;
   Eigen::VectorXd log_weights() const;
   int best_index() const;
-  /// Every scan's pose under particle k's path: its pose at the scan's update step composed
-  /// with the (corrected) odometry's motion since (N x 3).
-  Poses2 scan_poses(int k) const;
-  /// Particle k's map as a dense grid.
-  OccupancyGrid2D map(int k) const;
-  const TiledGrid2D& tiled_map(int k) const;
+  /// Every scan's pose under the particle's path: its pose at the scan's update step composed
+  /// with the (corrected) odometry's motion since (N x 3). std::invalid_argument naming
+  /// `particle` outside [0, num_particles()).
+  Poses2 scan_poses(int particle) const;
+  /// The particle's map as a dense grid (std::invalid_argument before the first scan).
+  OccupancyGrid2D map(int particle) const;
+  const TiledGrid2D& tiled_map(int particle) const;
   TileSharing tile_sharing() const;
   GridFastSlamSummary summary() const;
   const std::vector<double>& timestamps() const { return timestamps_; }
