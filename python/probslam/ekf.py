@@ -54,6 +54,16 @@ def _count(value, name: str) -> int:
     return int(value)
 
 
+def _landmark_id(value) -> int:
+    """A landmark id: an integer (not a bool, nor a float that int() would truncate) within the
+    C++ side's 64-bit range; TypeError / ValueError naming ``id``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"id must be an integer, got {type(value).__name__}")
+    if not -2**63 <= value < 2**63:
+        raise ValueError(f"id is out of range: {value}")
+    return int(value)
+
+
 def _flag(value, name: str) -> bool:
     if not isinstance(value, (bool, np.bool_)):
         raise TypeError(f"{name} must be a bool, got {type(value).__name__}")
@@ -178,19 +188,19 @@ class EkfSlam:
 
     def landmark(self, id: int) -> np.ndarray:
         """Mean of landmark id: (x, y) m, or (x, y, signature)."""
-        return self._f.landmark(int(id))
+        return self._f.landmark(_landmark_id(id))
 
     def landmark_covariance(self, id: int) -> np.ndarray:
         """(2, 2) (or (3, 3) with signatures) covariance of landmark ``id``."""
-        return self._f.landmark_covariance(int(id))
+        return self._f.landmark_covariance(_landmark_id(id))
 
     def existence(self, id: int) -> float:
         """Existence log-odds o_j of landmark ``id`` (ch. 10.3.3)."""
-        return self._f.existence(int(id))
+        return self._f.existence(_landmark_id(id))
 
     def remove_landmark(self, id: int) -> None:
         """Marginalises landmark id out of the state."""
-        self._f.remove_landmark(int(id))
+        self._f.remove_landmark(_landmark_id(id))
 
     # --- filter ------------------------------------------------------------------------
     def predict(self, v: float, w: float, dt: float, noise=None) -> None:

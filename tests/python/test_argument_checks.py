@@ -141,3 +141,18 @@ def test_int_options_take_numpy_integers():
         g.map(np.int64(1))
     with pytest.raises(ValueError, match="^particle must be in"):
         g.map(2)
+
+
+@pytest.mark.parametrize("method", ["landmark", "landmark_covariance", "existence", "remove_landmark"])
+def test_ekf_landmark_ids_are_integers(method):
+    """int() truncated a float id (2.7 read landmark 2) and raised OverflowError on inf."""
+    ekf = ps.EkfSlam(np.eye(2) * 0.01, Q, use_signatures=False)
+    ekf.update(np.array([[2.0, 0.1]]), [2])
+    call = getattr(ekf, method)
+    for value in (2.7, 2.0, float("inf"), float("nan"), True, "2", None):
+        with pytest.raises(TypeError, match="^id must be an integer"):
+            call(value)
+    for value in (2 ** 63, -2 ** 70):
+        with pytest.raises(ValueError, match="^id is out of range"):
+            call(value)
+    call(np.int64(2))  # numpy integers are ids
