@@ -187,6 +187,8 @@ class LearnedInverseModel:
     Untrained until :meth:`train` or :meth:`load`."""
 
     def __init__(self, hidden: int = 16):
+        if isinstance(hidden, (bool, np.bool_)) or not isinstance(hidden, (int, np.integer)):
+            raise TypeError(f"hidden must be an integer, got {type(hidden).__name__}")
         if hidden < 1:
             raise ValueError("hidden must be >= 1")
         self.hidden = int(hidden)

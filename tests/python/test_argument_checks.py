@@ -156,3 +156,12 @@ def test_ekf_landmark_ids_are_integers(method):
         with pytest.raises(ValueError, match="^id is out of range"):
             call(value)
     call(np.int64(2))  # numpy integers are ids
+
+
+def test_learned_inverse_model_hidden_units_are_an_integer():
+    for value in (2.5, "16", None, True):
+        with pytest.raises(TypeError, match="^hidden must be an integer"):
+            il.LearnedInverseModel(value)
+    with pytest.raises(ValueError, match="^hidden must be >= 1"):
+        il.LearnedInverseModel(0)
+    assert il.LearnedInverseModel(np.int64(3)).hidden == 3
