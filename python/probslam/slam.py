@@ -20,7 +20,7 @@ from . import _core
 from .io._files import file_path
 from .io.carmen import CarmenLog, LaserScans, read_carmen_log
 from .mapping import no_return_range
-from ._args import require_instance
+from ._args import real_array, require_instance
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -152,7 +152,10 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: str = "grap
 
 
 def write_trajectory(path: PathLike, timestamps: np.ndarray, poses: np.ndarray) -> None:
-    """One line per scan: ``timestamp x y theta`` (s, m, m, rad), the TUM-like text layout."""
+    """One line per scan: ``timestamp x y theta`` (s, m, m, rad), the TUM-like text layout.
+    timestamps (N,), poses (N, 3), finite (TypeError / ValueError naming them)."""
+    timestamps = real_array(timestamps, "timestamps", (None,))
+    poses = real_array(poses, "poses", (len(timestamps), 3))
     data = np.column_stack([timestamps, poses])
     np.savetxt(file_path(path), data, fmt="%.6f", header="timestamp x y theta")
 

@@ -165,3 +165,22 @@ def test_learned_inverse_model_hidden_units_are_an_integer():
     with pytest.raises(ValueError, match="^hidden must be >= 1"):
         il.LearnedInverseModel(0)
     assert il.LearnedInverseModel(np.int64(3)).hidden == 3
+
+
+def test_writers_check_what_they_write(tmp_path):
+    out = tmp_path / "x"
+    with pytest.raises(TypeError, match="^grid: expected OccupancyGrid2D"):
+        ps.io.write_png("map", out)
+    for bad in (np.zeros((4, 4)), np.zeros(3), np.zeros((2, 3, 1))):
+        with pytest.raises(ValueError, match="^trajectory: expected shape"):
+            ps.io.write_png(GRID, out, trajectory=bad)
+    with pytest.raises(TypeError, match="^trajectory: expected real numbers"):
+        ps.io.write_png(GRID, out, trajectory=[["a", "b"]])
+    with pytest.raises(ValueError, match="^poses: expected shape"):
+        sl.write_trajectory(out, np.arange(3.0), np.zeros((2, 3)))
+    with pytest.raises(ValueError, match="^timestamps: contains NaN"):
+        sl.write_trajectory(out, np.array([0.0, np.nan]), np.zeros((2, 3)))
+    assert not out.exists()
+    ps.io.write_png(GRID, out, trajectory=np.array([[0.05, 0.25], [np.nan, 0.0]]))  # non-finite rows left out
+    sl.write_trajectory(tmp_path / "t.txt", np.arange(2.0), np.ones((2, 3)))
+    np.testing.assert_allclose(np.loadtxt(tmp_path / "t.txt"), np.column_stack([np.arange(2.0), np.ones((2, 3))]))

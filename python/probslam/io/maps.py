@@ -10,6 +10,7 @@ from typing import Optional, Union
 import numpy as np
 
 from .. import _core
+from .._args import require_instance
 from ._files import file_path
 
 PathLike = Union[str, "os.PathLike[str]"]
@@ -54,13 +55,21 @@ def _png(pixels: np.ndarray) -> bytes:
 
 def write_png(grid: _core.OccupancyGrid2D, path: PathLike, trajectory: Optional[np.ndarray] = None) -> None:
     """Picture of the map: occupancy probability as grey (black occupied, white free), the
-    top of the image at the largest y; ``trajectory`` (n, 2 or 3) metres is drawn in red."""
+    top of the image at the largest y; ``trajectory`` (n, 2 or 3) metres is drawn in red (rows
+    that are not finite are left out)."""
+    require_instance(grid, _core.OccupancyGrid2D, "grid")
+    if trajectory is not None:
+        trajectory = np.asarray(trajectory)
+        if trajectory.dtype.kind not in "iuf":
+            raise TypeError(f"trajectory: expected real numbers, got dtype {trajectory.dtype}")
+        if trajectory.ndim != 2 or trajectory.shape[1] not in (2, 3):
+            raise ValueError(f"trajectory: expected shape (n, 2) or (n, 3), got {trajectory.shape}")
     grey = np.round(255.0 * (1.0 - grid.probability())).astype(np.uint8)[::-1]
     if trajectory is None:
         pixels = grey
     else:
         pixels = np.repeat(grey[:, :, None], 3, axis=2)
-        xy = np.asarray(trajectory, dtype=float).reshape(-1, np.shape(trajectory)[-1])[:, :2]
+        xy = trajectory.astype(float)[:, :2]
         cells = grid.cell_of(xy[np.isfinite(xy).all(axis=1)])
         inside = (cells[:, 0] >= 0) & (cells[:, 0] < grid.height) & (cells[:, 1] >= 0) & (cells[:, 1] < grid.width)
         rows, cols = grid.height - 1 - cells[inside, 0], cells[inside, 1]
