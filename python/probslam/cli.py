@@ -229,7 +229,8 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
     plt = _pyplot()
     if plt is not None:
         fig, ax = plt.subplots(figsize=(8, 8))
-        landmark_map(ax, poses, run.ekf, truth_path=truth, truth_landmarks=truth_lm, dead_reckoning=dead)
+        landmark_map(ax, poses, run.ekf, truth_path=truth, truth_landmarks=truth_lm, dead_reckoning=dead,
+                     truth_landmarks_label=_survey_label(data))
         fig.tight_layout()
         fig.savefig(args.output + ".png", dpi=120)
         plt.close(fig)
@@ -328,7 +329,7 @@ def _cmd_fastslam(args: argparse.Namespace) -> int:
     plt = _pyplot()
     if plt is not None:
         fig, ax = plt.subplots(figsize=(8, 8))
-        fastslam_map(ax, f, truth_path=truth, truth_landmarks=truth_lm,
+        fastslam_map(ax, f, truth_path=truth, truth_landmarks=truth_lm, truth_landmarks_label=_survey_label(data),
                      dead_reckoning=None if dr is None else dr.poses)
         fig.tight_layout()
         fig.savefig(args.output + ".png", dpi=120)
@@ -350,11 +351,11 @@ def _print_skipped(skipped) -> None:
 
 def _print_mrclam_score(ls, data, run, dead_reckoning, labels):
     """The path and map errors of an MRCLAM run (against the robot's ground truth, or the map alone
-    against the survey without it); returns the ground-truth path (T, 2) and landmarks to draw, or
-    (None, None). ``labels``: filter landmark id -> surveyed subject (None: the ids are)."""
+    against the survey without it); returns the ground-truth path (T, 2) and landmarks to draw
+    (without robot ground truth: no path, and the survey aligned onto the map). ``labels``: filter
+    landmark id -> surveyed subject (None: the ids are)."""
     if data.groundtruth is None:
-        _print_map_score(ls, data, run, labels)
-        return None, None
+        return None, _print_map_score(ls, data, run, labels)
     s, d = ls.score_mrclam(run, data, labels), ls.score_mrclam(dead_reckoning, data)
     print(f"path RMSE:     {s.path_rmse:.3f} m raw, {s.path_rmse_aligned:.3f} m aligned "
           f"(dead reckoning {d.path_rmse:.3f} / {d.path_rmse_aligned:.3f} m)")
@@ -362,10 +363,19 @@ def _print_mrclam_score(ls, data, run, dead_reckoning, labels):
     return data.groundtruth[:, 1:3], data.landmark_positions
 
 
-def _print_map_score(ls, data, run, labels) -> None:
+def _survey_label(data) -> str:
+    """The picture's legend for the survey: as surveyed, or (no robot ground truth to share a
+    frame with) moved onto the map by the alignment the landmark RMSE used."""
+    if isinstance(data, io.Mrclam) and data.groundtruth is None:
+        return "surveyed landmarks (aligned onto the map)"
+    return "surveyed landmarks"
+
+
+def _print_map_score(ls, data, run, labels):
     """MRCLAM without robot ground truth (Dataset 1): the map alone, aligned onto the survey,
     after the survey labels that contradict the barcodes have been exchanged. ``labels``: filter
-    landmark id -> surveyed subject (None: the ids are the subjects)."""
+    landmark id -> surveyed subject (None: the ids are the subjects). Returns the survey in the
+    map's frame (subject -> (2,) m) for the picture."""
     swaps = ls.survey_label_swaps(data)
     if swaps:
         print(f"survey:        positions of subjects {', '.join(f'{a}<->{b}' for a, b in swaps)} exchanged "
@@ -375,6 +385,7 @@ def _print_map_score(ls, data, run, labels) -> None:
     d = ls.score_landmarks(ls.dead_reckoning_map(data), fixed)
     print(f"landmark RMSE: {s.rmse_aligned:.3f} m after aligning the map onto the survey "
           f"(dead-reckoning map {d.rmse_aligned:.3f} m; no robot ground truth)")
+    return s.survey_in_map_frame(fixed)
 
 
 def _cmd_optimize(args: argparse.Namespace) -> int:

@@ -354,6 +354,14 @@ class LandmarkScore:
     rmse: float  # m, map against the survey as estimated (frames may differ)
     rmse_aligned: float  # m, after the best rigid alignment of the map onto the survey
     errors: Dict[int, float]  # surveyed subject -> aligned error, m
+    rotation: np.ndarray = field(default_factory=lambda: np.eye(2))  # (2, 2) R of R m + t ~ survey
+    translation: np.ndarray = field(default_factory=lambda: np.zeros(2))  # (2,) t, m
+
+    def survey_in_map_frame(self, data: Mrclam) -> Dict[int, np.ndarray]:
+        """Every surveyed landmark of ``data`` brought into the map's frame by the inverse of the
+        alignment (subject -> (2,) m), to draw the survey over the map it was compared with."""
+        require_instance(data, Mrclam, "data")
+        return {s: (np.asarray(p) - self.translation) @ self.rotation for s, p in data.landmark_positions.items()}
 
 
 def score_landmarks(landmarks: Dict[int, np.ndarray], data: Mrclam,
@@ -374,7 +382,7 @@ def score_landmarks(landmarks: Dict[int, np.ndarray], data: Mrclam,
     r, t = align_rigid(est, sur)
     errors = np.hypot(*(est @ r.T + t - sur).T)
     return LandmarkScore(rmse(est, sur), float(np.sqrt(np.mean(errors ** 2))),
-                         {s: float(e) for (_, s), e in zip(pairs, errors)})
+                         {s: float(e) for (_, s), e in zip(pairs, errors)}, r, t)
 
 
 def dead_reckoning_map(data: Mrclam, initial_pose=(0.0, 0.0, 0.0)) -> Dict[int, np.ndarray]:

@@ -35,7 +35,7 @@ def covariance_ellipse(ax, mean, cov, n_sigma: float = 2.0, **style):
 
 def landmark_map(ax, poses: np.ndarray, ekf=None, truth_path: Optional[np.ndarray] = None,
                  truth_landmarks: Optional[Dict[int, np.ndarray]] = None, dead_reckoning: Optional[np.ndarray] = None,
-                 n_sigma: float = 2.0) -> None:
+                 n_sigma: float = 2.0, truth_landmarks_label: str = "surveyed landmarks") -> None:
     """Estimated path (T, 3+), landmarks with their n-sigma ellipses from an EkfSlam, and the
     ground truth and dead reckoning where given."""
     if dead_reckoning is not None:
@@ -45,7 +45,7 @@ def landmark_map(ax, poses: np.ndarray, ekf=None, truth_path: Optional[np.ndarra
     ax.plot(poses[:, 0], poses[:, 1], color="tab:blue", lw=0.8, label="EKF SLAM")
     if truth_landmarks:
         xy = np.array(list(truth_landmarks.values()))
-        ax.plot(xy[:, 0], xy[:, 1], "g+", ms=9, label="surveyed landmarks")
+        ax.plot(xy[:, 0], xy[:, 1], "g+", ms=9, label=truth_landmarks_label)
     if ekf is not None and ekf.num_landmarks:
         xy = ekf.landmarks
         ax.plot(xy[:, 0], xy[:, 1], "r.", ms=4, label="estimated landmarks")
@@ -59,7 +59,7 @@ def landmark_map(ax, poses: np.ndarray, ekf=None, truth_path: Optional[np.ndarra
 
 def fastslam_map(ax, fastslam, truth_path: Optional[np.ndarray] = None,
                  truth_landmarks: Optional[Dict[int, np.ndarray]] = None, dead_reckoning: Optional[np.ndarray] = None,
-                 n_sigma: float = 2.0) -> None:
+                 n_sigma: float = 2.0, truth_landmarks_label: str = "surveyed landmarks") -> None:
     """A FastSlam's particle cloud (its M poses), the best particle's path and landmarks with
     their n-sigma ellipses, and the ground truth and dead reckoning (T, 2+) where given (metres)."""
     best = fastslam.best_index
@@ -73,7 +73,7 @@ def fastslam_map(ax, fastslam, truth_path: Optional[np.ndarray] = None,
     ax.plot(cloud[:, 0], cloud[:, 1], ".", color="tab:purple", ms=2, label=f"particles ({len(cloud)})")
     if truth_landmarks:
         xy = np.array(list(truth_landmarks.values()))
-        ax.plot(xy[:, 0], xy[:, 1], "g+", ms=9, label="surveyed landmarks")
+        ax.plot(xy[:, 0], xy[:, 1], "g+", ms=9, label=truth_landmarks_label)
     _, means, covs = fastslam.landmarks(best)
     if len(means):
         ax.plot(means[:, 0], means[:, 1], "r.", ms=4, label="best particle's landmarks")

@@ -206,6 +206,26 @@ def test_score_landmarks_aligns_the_map_onto_the_survey():
         ls.score_landmarks({6: np.zeros(2)}, d)
 
 
+def test_survey_in_map_frame_inverts_the_alignment():
+    """The survey drawn over a Dataset 1 map: each surveyed landmark moved by the inverse of the
+    alignment lies on its map landmark when the map is exact, and in general as far from it as
+    the aligned error says (a rigid motion keeps distances)."""
+    d = synthetic_mrclam()
+    c, s = np.cos(-1.2), np.sin(-1.2)
+    moved = {int(i): np.array([[c, -s], [s, c]]) @ xy + [-2.0, 5.0] for i, xy in d.landmark_positions.items()}
+    survey = ls.score_landmarks(moved, d).survey_in_map_frame(d)
+    assert set(survey) == set(d.landmark_positions)
+    for i, xy in moved.items():
+        np.testing.assert_allclose(survey[i], xy, atol=1e-12)
+    moved[6] = moved[6] + [0.3, -0.1]
+    score = ls.score_landmarks(moved, d)
+    survey = score.survey_in_map_frame(d)
+    for i, error in score.errors.items():
+        assert np.hypot(*(survey[i] - moved[i])) == pytest.approx(error, abs=1e-12)
+    with pytest.raises(TypeError, match="^data: expected Mrclam"):
+        score.survey_in_map_frame(None)
+
+
 def mrclam_dataset(shared_data, number):
     folder = shared_data / f"landmark_slam/mrclam_dataset{number}"
     if not folder.is_dir():
