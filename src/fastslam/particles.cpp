@@ -45,26 +45,28 @@ double ParticleRng::normal() {
   return r * std::cos(kTwoPi * u2);
 }
 
-void PosePath::Node::destroy(const Node* n) {
-  while (n) {
-    Node* owned = const_cast<Node*>(n);
-    const Node* prev = owned->prev.detach();
+void PosePath::Chunk::destroy(const Chunk* c) {
+  while (c) {
+    Chunk* owned = const_cast<Chunk*>(c);
+    const Chunk* prev = owned->prev.detach();
     delete owned;
     if (!prev || prev->refs.fetch_sub(1, std::memory_order_acq_rel) != 1) return;
-    n = prev;
+    c = prev;
   }
 }
 
 Poses2 PosePath::poses() const {
   Poses2 out(static_cast<Eigen::Index>(size()), 3);
   Eigen::Index row = out.rows();
-  for (const Node* n = head_.get(); n; n = n->prev.get()) out.row(--row) = n->pose.transpose();
+  int used = used_;
+  for (const Chunk* c = head_.get(); c; used = c->prev_used, c = c->prev.get())
+    for (int i = used - 1; i >= 0; --i) out.row(--row) = c->poses[i].transpose();
   return out;
 }
 
 std::size_t PosePath::collect_nodes(std::unordered_set<const void*>& seen) const {
   std::size_t added = 0;
-  for (const Node* n = head_.get(); n && seen.insert(n).second; n = n->prev.get()) ++added;
+  for (const Chunk* c = head_.get(); c && seen.insert(c).second; c = c->prev.get()) ++added;
   return added;
 }
 

@@ -5,6 +5,7 @@
 #include <map>
 #include <random>
 #include <thread>
+#include <unordered_set>
 #include <vector>
 
 #include "probslam/core/range_bearing_model.hpp"
@@ -216,6 +217,101 @@ TEST(LandmarkTree, LongPathsAreFreedWithoutRecursion) {
   EXPECT_EQ(copy.size(), 2000000u);
   copy = PosePath();  // must not overflow the stack
   EXPECT_EQ(copy.size(), 0u);
+}
+
+// Chunked pose paths against a plain vector per path: random pushes, pops, replacements, copies
+// and resets over 12 paths sharing chunks, every path compared after every operation.
+TEST(PosePathChunks, MatchVectorsUnderRandomCopiesAndEdits) {
+  std::mt19937 rng(11);
+  constexpr int kPaths = 12;
+  std::vector<PosePath> paths(kPaths);
+  std::vector<std::vector<Eigen::Vector3d>> reference(kPaths);
+  auto pose = [&] { return Eigen::Vector3d(std::uniform_real_distribution<double>(-9.0, 9.0)(rng), 0.5, -0.25); };
+  for (int step = 0; step < 6000; ++step) {
+    const int i = static_cast<int>(rng() % kPaths), j = static_cast<int>(rng() % kPaths);
+    switch (rng() % 10) {
+      case 0: case 1: case 2: case 3: {
+        const Eigen::Vector3d x = pose();
+        paths[i].push(x);
+        reference[i].push_back(x);
+        break;
+      }
+      case 4:
+        paths[i].pop();
+        if (!reference[i].empty()) reference[i].pop_back();
+        break;
+      case 5: {
+        const Eigen::Vector3d x = pose();
+        paths[i].replace_last(x);
+        if (reference[i].empty()) reference[i].push_back(x);
+        else reference[i].back() = x;
+        break;
+      }
+      case 6: case 7: case 8:
+        paths[j] = paths[i];  // a resampled copy
+        reference[j] = reference[i];
+        break;
+      default:
+        if (rng() % 20 == 0) {
+          paths[i] = PosePath();
+          reference[i].clear();
+        }
+    }
+    for (int k = 0; k < kPaths; ++k) {
+      ASSERT_EQ(paths[k].size(), reference[k].size());
+      const Poses2 got = paths[k].poses();
+      for (std::size_t r = 0; r < reference[k].size(); ++r)
+        ASSERT_EQ(Eigen::Vector3d(got.row(static_cast<Eigen::Index>(r)).transpose()), reference[k][r]) << "step " << step;
+    }
+  }
+}
+
+TEST(PosePathChunks, CopiesShareChunksAndAppendOneChunkPerSixteenPoses) {
+  PosePath path;
+  for (int i = 0; i < 1000; ++i) path.push(Eigen::Vector3d(i, 0.0, 0.0));
+  std::vector<PosePath> copies(100, path);
+  std::unordered_set<const void*> seen;
+  std::size_t chunks = 0;
+  for (const PosePath& c : copies) chunks += c.collect_nodes(seen);
+  EXPECT_EQ(chunks, static_cast<std::size_t>((1000 + PosePath::kChunkPoses - 1) / PosePath::kChunkPoses));
+  // The first copy to append takes the free slot of the shared chunk; each other starts a chunk.
+  for (PosePath& c : copies) c.push(Eigen::Vector3d(-1.0, 0.0, 0.0));
+  for (const PosePath& c : copies) chunks += c.collect_nodes(seen);
+  EXPECT_LE(chunks, 63u + 100u);
+  for (const PosePath& c : copies) {
+    const Poses2 p = c.poses();
+    ASSERT_EQ(p.rows(), 1001);
+    EXPECT_EQ(p(999, 0), 999.0);
+    EXPECT_EQ(p(1000, 0), -1.0);
+  }
+}
+
+// Two threads append to copies of one path at once, as two workers do after a resampling: one
+// claims the shared chunk's free slot, the other starts a chunk, and neither sees the other's.
+TEST(PosePathChunks, ConcurrentAppendsToSharedCopiesStayApart) {
+  for (int trial = 0; trial < 300; ++trial) {
+    PosePath base;
+    for (int i = 0; i < 5 + trial % 20; ++i) base.push(Eigen::Vector3d(i, 0.0, 0.0));
+    PosePath a = base, b = base;
+    std::thread ta([&] {
+      for (int i = 0; i < 40; ++i) a.push(Eigen::Vector3d(100.0 + i, 1.0, 0.0));
+    });
+    std::thread tb([&] {
+      for (int i = 0; i < 40; ++i) b.push(Eigen::Vector3d(200.0 + i, 2.0, 0.0));
+    });
+    ta.join();
+    tb.join();
+    const Poses2 pa = a.poses(), pb = b.poses(), p0 = base.poses();
+    const Eigen::Index n = p0.rows();
+    ASSERT_EQ(pa.rows(), n + 40);
+    ASSERT_EQ(pb.rows(), n + 40);
+    EXPECT_EQ(pa.topRows(n), p0);
+    EXPECT_EQ(pb.topRows(n), p0);
+    for (int i = 0; i < 40; ++i) {
+      ASSERT_EQ(pa(n + i, 0), 100.0 + i);
+      ASSERT_EQ(pb(n + i, 0), 200.0 + i);
+    }
+  }
 }
 
 TEST(FastSlam, ResamplerCountsAreFloorOrCeil) {

@@ -143,7 +143,7 @@ struct MapSharing {
   std::size_t distinct_nodes = 0;  // tree nodes reachable from some particle (allocated for the maps)
   std::size_t total_nodes = 0;     // sum over particles of their trees' nodes (what deep copies hold)
   std::size_t landmarks = 0;       // sum over particles of their landmark counts
-  std::size_t path_nodes = 0;      // distinct path nodes
+  std::size_t path_nodes = 0;      // distinct path chunks (PosePath::kChunkPoses poses each)
 };
 
 /// FastSLAM 2.0's proposal for one measurement of a landmark N(landmark_mean, landmark_cov) from

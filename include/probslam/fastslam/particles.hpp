@@ -3,6 +3,7 @@
 // particle, persistent pose paths, low-variance resampling and the log-weight bookkeeping.
 #include <Eigen/Core>
 #include <algorithm>
+#include <atomic>
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
@@ -36,39 +37,74 @@ class ParticleRng {
   bool has_spare_ = false;
 };
 
-/// A persistent list of poses (newest first): appending or copying is O(1), and a path is
-/// shared by the particles that descend from one ancestor.
+/// A persistent list of poses: appending or copying is O(1), and a path is shared by the
+/// particles that descend from one ancestor.
+///
+/// Poses are stored in chunks of kChunkPoses, newest chunk first. A path is its newest chunk and
+/// how many of that chunk's poses are its own (`used_`); each chunk records how many poses of
+/// the chunk before it precede it. Slots of a chunk are taken in order, by an atomic claim: a
+/// path appends in place when the next slot is the first free one (no path holding the chunk
+/// reads a slot at or beyond its own count, so nobody else can see the write), and starts a new
+/// chunk otherwise (another path already took that slot). So a chunk's taken slots never change,
+/// and a particle's copies (resampling) share all poses while appending costs one allocation per
+/// kChunkPoses poses of a lineage, not one per pose. A pose path of a whole MRCLAM robot (100
+/// particles, 100 000 steps) spent a third of the run allocating and freeing one node per pose.
 class PosePath {
  public:
-  struct Node {
-    Eigen::Vector3d pose;
-    NodeRef<Node> prev;
-    std::size_t length;
+  /// Poses per chunk: 16 x 24 bytes, so a chunk is a few cache lines and its header a tenth.
+  static constexpr int kChunkPoses = 16;
+  struct Chunk {
+    NodeRef<Chunk> prev;      // the older poses
+    std::size_t before = 0;   // poses on any path before this chunk's first
+    int prev_used = 0;        // poses of prev on the paths through this chunk
+    mutable std::atomic<int> claimed{1};  // slots taken (slot 0 by the path that made the chunk)
     mutable std::atomic<std::uint32_t> refs{1};
-    Node(const Eigen::Vector3d& p, NodeRef<Node> before)
-        : pose(p), prev(std::move(before)), length(1 + (prev ? prev->length : 0)) {}
-    static void* operator new(std::size_t) { return NodePool<Node>::allocate(); }
-    static void operator delete(void* p) noexcept { NodePool<Node>::release(p); }
-    // Iterative: a path of a million poses must not recurse a million deep.
-    static void destroy(const Node* n);
+    mutable Eigen::Vector3d poses[kChunkPoses];  // written once each, by the path that claimed it
+    Chunk(NodeRef<Chunk> older, int older_used, const Eigen::Vector3d& first)
+        : prev(std::move(older)), before(prev ? prev->before + static_cast<std::size_t>(older_used) : 0),
+          prev_used(older_used) {
+      poses[0] = first;
+    }
+    static void* operator new(std::size_t) { return NodePool<Chunk>::allocate(); }
+    static void operator delete(void* p) noexcept { NodePool<Chunk>::release(p); }
+    // Iterative: a path of a million poses must not recurse through its chunks.
+    static void destroy(const Chunk* c);
   };
-  std::size_t size() const { return head_ ? head_->length : 0; }
-  void push(const Eigen::Vector3d& pose) { head_ = NodeRef<Node>::adopt(new Node(pose, std::move(head_))); }
-  /// Drops the newest pose (none: no-op).
+  std::size_t size() const { return head_ ? head_->before + static_cast<std::size_t>(used_) : 0; }
+  void push(const Eigen::Vector3d& pose) {
+    if (head_ && used_ < kChunkPoses) {
+      int expected = used_;
+      if (head_->claimed.compare_exchange_strong(expected, used_ + 1, std::memory_order_acq_rel)) {
+        head_->poses[used_++] = pose;
+        return;
+      }
+    }
+    head_ = NodeRef<Chunk>::adopt(new Chunk(std::move(head_), used_, pose));
+    used_ = 1;
+  }
+  /// Drops the newest pose (none: no-op). Its slot stays taken: a copy may still hold it.
   void pop() {
-    if (head_) head_ = NodeRef<Node>(head_->prev);
+    if (!head_) return;
+    if (used_ > 1) {
+      --used_;
+      return;
+    }
+    used_ = head_->prev_used;
+    head_ = NodeRef<Chunk>(head_->prev);
   }
   /// Replaces the newest pose.
   void replace_last(const Eigen::Vector3d& pose) {
-    NodeRef<Node> before = head_ ? head_->prev : NodeRef<Node>();
-    head_ = NodeRef<Node>::adopt(new Node(pose, std::move(before)));
+    pop();
+    push(pose);
   }
   /// Oldest first, (size, 3).
   Poses2 poses() const;
+  /// Adds this path's chunks to `seen`; returns how many were new.
   std::size_t collect_nodes(std::unordered_set<const void*>& seen) const;
 
  private:
-  NodeRef<Node> head_;
+  NodeRef<Chunk> head_;
+  int used_ = 0;  // poses of head_ on this path
 };
 
 /// Low-variance (systematic) resampling, Table 4.4: M = weights.size() draws at the positions
