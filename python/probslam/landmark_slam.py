@@ -330,6 +330,7 @@ def survey_label_swaps(data: Mrclam, limit: float = SURVEY_RESIDUAL_LIMIT) -> Li
     wrong label spoils its partners' pairs too, so the whole map is rechecked each round.
     MRCLAM Dataset 1: [(11, 17)]."""
     require_instance(data, Mrclam, "data")
+
     def median_error(swaps: List[Tuple[int, int]]) -> Dict[int, float]:
         residuals = same_scan_residuals(data.with_survey_swapped(swaps))
         return {s: float(np.median(np.abs(r))) if len(r) else 0.0 for s, r in residuals.items()}
