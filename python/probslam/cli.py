@@ -135,6 +135,7 @@ def _cmd_slam(args: argparse.Namespace) -> int:
     from .graph import write_g2o
     from .slam import run_slam, write_trajectory
 
+    _require_count(args.particles, "--particles", 1)
     path = args.log or _bundled_log(BUNDLED_RAW_LOG)
     log = _read_log(path)
     if args.method == "rbpf":
@@ -278,6 +279,17 @@ def _mrclam_data(args: argparse.Namespace, path):
     return data if args.raw_ranges else data.with_euclidean_ranges()
 
 
+#: The largest count an int option may take: the library's counts are C ints.
+MAX_INT_OPTION = 2 ** 31 - 1
+
+
+def _require_count(value: int, option: str, lowest: int) -> None:
+    """UserError naming the option unless lowest <= value <= MAX_INT_OPTION (argparse has made it
+    an int; beyond 32 bits the bindings would answer with their whole signature)."""
+    if not lowest <= value <= MAX_INT_OPTION:
+        raise UserError(f"{option} must be an integer in [{lowest}, {MAX_INT_OPTION}], got {value}")
+
+
 def _mrclam_noise(args: argparse.Namespace):
     """(motion (2, 2), sensor (2, 2)) covariances from the --sigma-* options, each checked to be a
     finite standard deviation > 0 (squared, a negative one would pass unnoticed)."""
@@ -298,6 +310,8 @@ def _cmd_fastslam(args: argparse.Namespace) -> int:
     from . import landmark_slam as ls
     from .plot import fastslam_map
 
+    _require_count(args.particles, "--particles", 1)
+    _require_count(args.threads, "--threads", 1)
     path, mrclam = _landmark_dataset(args)
     t0 = time.perf_counter()
     common = dict(known=not args.unknown, num_particles=args.particles, version=args.version, seed=args.seed,
@@ -391,6 +405,8 @@ def _print_map_score(ls, data, run, labels):
 def _cmd_optimize(args: argparse.Namespace) -> int:
     from . import graph as pg
 
+    _require_count(args.max_iterations, "--max-iterations", 0)
+    _require_count(args.poses_per_step, "--poses-per-step", 1)
     path = args.graph or _data_path(BUNDLED_GRAPH)
     _check_input(path, POSE_GRAPH)
     t0 = time.perf_counter()

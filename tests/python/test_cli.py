@@ -78,7 +78,10 @@ def test_optimize_with_an_initialisation(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "init:       odometry" in out and "chi2 0.000000 after" in out
     assert cli.main(args + ["--init", "incremental", "--poses-per-step", "0"]) == 2
-    assert "poses_per_step" in capsys.readouterr().err
+    assert "--poses-per-step must be an integer in [1, " in capsys.readouterr().err
+    for option, value in (("--max-iterations", 2 ** 64), ("--max-iterations", -1), ("--poses-per-step", 2 ** 40)):
+        assert cli.main(args + [option, str(value)]) == 2
+        assert f"probslam: error: {option} must be an integer in [" in capsys.readouterr().err
 
 
 def test_optimize_bad_file_reports_line(tmp_path, capsys):
@@ -177,8 +180,9 @@ def test_fastslam_mrclam_prints_what_the_driver_computes(tmp_path, capsys, share
     assert (tmp_path / "f.png").read_bytes()[:4] == b"\x89PNG"
 
 
-@pytest.mark.parametrize("extra, name", [(["--particles", "0"], "num_particles"), (["--seed", "-1"], "seed"),
-                                         (["--threads", "0"], "threads")])
+@pytest.mark.parametrize("extra, name", [(["--particles", "0"], "--particles"), (["--seed", "-1"], "seed"),
+                                         (["--threads", "0"], "--threads"), (["--particles", str(2 ** 64)], "--particles"),
+                                         (["--threads", str(2 ** 40)], "--threads")])
 def test_fastslam_bad_options_are_errors_naming_them(tmp_path, capsys, shared_data, extra, name):
     vp = shared_data / "landmark_slam/victoria_park/victoriaPark.txt"
     assert cli.main(["fastslam", str(vp), "-o", str(tmp_path / "x")] + extra) == 2
@@ -365,3 +369,11 @@ def test_ekf_slam_bearing_offset_on_the_bundled_mrclam(tmp_path, capsys):
                          (["ekf-slam", data.path("victoria_park_1000.txt"), "--bearing-offset", "0.03"], "MRCLAM")]:
         assert cli.main(bad + ["-o", str(tmp_path / "x")]) == 2
         assert message in capsys.readouterr().err
+
+
+def test_slam_particle_count_is_checked_by_name_before_reading(tmp_path, capsys):
+    for value in ("0", str(2 ** 64)):
+        assert cli.main(["slam", "--method", "rbpf", "--particles", value, "-o", str(tmp_path / "s"), "--no-progress"]) == 2
+        err = capsys.readouterr()
+        assert "probslam: error: --particles must be an integer in [1, " in err.err and "scans" not in err.out
+    assert not list(tmp_path.iterdir())
