@@ -14,15 +14,21 @@ namespace probslam::bindings {
 namespace py = pybind11;
 
 /// An int argument (a Python int or anything with __index__, such as numpy.int64; not a bool)
-/// as a long long: TypeError "<name> must be an int" for anything else (an array of several
-/// numbers has __index__ but refuses it), ValueError "<name> is out of range" beyond 64 bits.
-inline long long index_value(py::handle v, const std::string& name) {
+/// as a Python int: TypeError "<name> must be an int" for anything else (an array of several
+/// numbers has __index__ but refuses it).
+inline py::object index_object(py::handle v, const std::string& name) {
   if (py::isinstance<py::bool_>(v) || !PyIndex_Check(v.ptr())) throw py::type_error(name + " must be an int");
-  const py::object i = py::reinterpret_steal<py::object>(PyNumber_Index(v.ptr()));
+  py::object i = py::reinterpret_steal<py::object>(PyNumber_Index(v.ptr()));
   if (!i) {
     PyErr_Clear();  // TypeError of a non-scalar array
     throw py::type_error(name + " must be an int");
   }
+  return i;
+}
+
+/// index_object as a long long: ValueError "<name> is out of range" beyond 64 bits.
+inline long long index_value(py::handle v, const std::string& name) {
+  const py::object i = index_object(v, name);
   int overflow = 0;
   const long long x = PyLong_AsLongLongAndOverflow(i.ptr(), &overflow);
   if (overflow != 0) throw py::value_error(name + " is out of range");
@@ -52,12 +58,7 @@ class Kwargs {
   }
   void get(const char* name, std::uint64_t& target) {
     if (const py::handle v = take(name)) {
-      if (py::isinstance<py::bool_>(v) || !PyIndex_Check(v.ptr())) throw py::type_error(std::string(name) + " must be an int");
-      const py::object i = py::reinterpret_steal<py::object>(PyNumber_Index(v.ptr()));
-      if (!i) {
-        PyErr_Clear();  // TypeError of a non-scalar array
-        throw py::type_error(std::string(name) + " must be an int");
-      }
+      const py::object i = index_object(v, name);
       const unsigned long long x = PyLong_AsUnsignedLongLong(i.ptr());
       if (x == static_cast<unsigned long long>(-1) && PyErr_Occurred()) {
         PyErr_Clear();  // OverflowError: negative or beyond 64 bits

@@ -16,6 +16,16 @@ def require_instance(value: object, types: Union[type, Tuple[type, ...]], name: 
         raise TypeError(f"{name}: expected {expected}, got {type(value).__name__}")
 
 
+def require_integer(value: object, name: str, lowest: Optional[int] = None, highest: Optional[int] = None) -> int:
+    """``value`` as an int: a Python or numpy integer (not a bool, nor a float that int() would
+    truncate), TypeError naming ``name`` otherwise; ValueError outside [lowest, highest]."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name} must be an integer, got {type(value).__name__}")
+    if (lowest is not None and value < lowest) or (highest is not None and value > highest):
+        raise ValueError(f"{name} is out of range: {value}")
+    return int(value)
+
+
 def require_fields(value: object, fields: Tuple[str, ...], name: str, what: str) -> None:
     """TypeError naming ``name`` unless ``value`` has every attribute in ``fields`` (for the
     functions that take any of several run types, e.g. an EkfRun or a FastSlamRun)."""

@@ -7,6 +7,7 @@ from typing import NamedTuple, Optional
 import numpy as np
 
 from . import _core
+from ._args import require_integer
 from ._core import Association, MapManagement
 
 #: Association gate: the chi-square quantile at this probability, with the measurement's
@@ -47,21 +48,12 @@ def _number(value, name: str) -> float:
 
 
 def _count(value, name: str) -> int:
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"{name} must be an integer, got {type(value).__name__}")
-    if not -2**31 <= value < 2**31:
-        raise ValueError(f"{name} is out of range: {value}")
-    return int(value)
+    return require_integer(value, name, -2**31, 2**31 - 1)
 
 
 def _landmark_id(value) -> int:
-    """A landmark id: an integer (not a bool, nor a float that int() would truncate) within the
-    C++ side's 64-bit range; TypeError / ValueError naming ``id``."""
-    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
-        raise TypeError(f"id must be an integer, got {type(value).__name__}")
-    if not -2**63 <= value < 2**63:
-        raise ValueError(f"id is out of range: {value}")
-    return int(value)
+    """A landmark id: an integer within the C++ side's 64-bit range, named ``id`` in errors."""
+    return require_integer(value, "id", -2**63, 2**63 - 1)
 
 
 def _flag(value, name: str) -> bool:

@@ -347,10 +347,7 @@ def relations_error(timestamps: object, poses: object,
     counted; if none is left, ``ValueError``. Argument errors are as for ``interpolate_poses``.
     """
     if not isinstance(relations, Relations):
-        if not isinstance(relations, (str, bytes, os.PathLike)):
-            raise TypeError(f"relations: expected a Relations or the path of a relations file, "
-                            f"got {type(relations).__name__}")
-        relations = read_relations(relations)
+        relations = read_relations(file_path(relations, "relations", "a Relations or the path of a relations file"))
     ts, ps = _trajectory(timestamps, poses)
     t1, t2, delta = _checked_relations(relations)
     inside = (np.minimum(t1, t2) >= ts[0]) & (np.maximum(t1, t2) <= ts[-1])

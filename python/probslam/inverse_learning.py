@@ -23,7 +23,7 @@ import numpy as np
 from scipy.optimize import minimize
 
 from ._core import BeamSensorModel, BinaryMap2D, OccupancyGrid2D, logit
-from ._args import real_array, require_instance
+from ._args import real_array, require_instance, require_integer
 
 #: Beams whose readings are the input besides the cell's coordinates: the nearest and two on
 #: each side (Fig. 9.6's "five adjacent range measurements").
@@ -187,9 +187,7 @@ class LearnedInverseModel:
     Untrained until :meth:`train` or :meth:`load`."""
 
     def __init__(self, hidden: int = 16):
-        if isinstance(hidden, (bool, np.bool_)) or not isinstance(hidden, (int, np.integer)):
-            raise TypeError(f"hidden must be an integer, got {type(hidden).__name__}")
-        if hidden < 1:
+        if require_integer(hidden, "hidden") < 1:
             raise ValueError("hidden must be >= 1")
         self.hidden = int(hidden)
         self.weights: Optional[np.ndarray] = None

@@ -407,9 +407,9 @@ def polar_measurements(xy: np.ndarray, xy_cov: np.ndarray):
     covariances (L, 2, 2), through the Jacobian of (r, phi) = (|p|, atan2(p_y, p_x))."""
     xy = real_array(xy, "xy", (None, 2))
     xy_cov = real_array(xy_cov, "xy_cov", (len(xy), 2, 2))
-    if np.any(np.hypot(xy[:, 0], xy[:, 1]) == 0.0):
-        raise ValueError("xy: a point at the origin has no bearing")
     r = np.hypot(xy[:, 0], xy[:, 1])
+    if np.any(r == 0.0):
+        raise ValueError("xy: a point at the origin has no bearing")
     z = np.column_stack([r, np.arctan2(xy[:, 1], xy[:, 0])])
     j = np.stack([np.column_stack([xy[:, 0] / r, xy[:, 1] / r]),
                   np.column_stack([-xy[:, 1] / r ** 2, xy[:, 0] / r ** 2])], axis=1)

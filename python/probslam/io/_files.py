@@ -17,11 +17,11 @@ from typing import Iterator, Tuple
 MAX_DECOMPRESSED_BYTES = 512 << 20
 
 
-def file_path(value: object, arg: str = "path") -> str:
+def file_path(value: object, arg: str = "path", expected: str = "a file path (str or os.PathLike)") -> str:
     """The str of a file path given as str, bytes or os.PathLike; anything else a TypeError
-    naming the argument (os.fspath's own message names none)."""
+    naming the argument and what it takes (os.fspath's own message names neither)."""
     if not isinstance(value, (str, bytes, os.PathLike)):
-        raise TypeError(f"{arg}: expected a file path (str or os.PathLike), got {type(value).__name__}")
+        raise TypeError(f"{arg}: expected {expected}, got {type(value).__name__}")
     return os.fsdecode(value)
 
 
