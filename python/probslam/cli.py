@@ -99,6 +99,14 @@ def _pyplot():
         return None
 
 
+def _save_figure(plt, fig, path: str) -> str:
+    """Writes `fig` to `path` (120 dpi) and closes it; returns the path."""
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
 def _read_log(path: str):
     _check_input(path, CARMEN_LOG)
     with _reading(path, CARMEN_LOG):
@@ -232,10 +240,7 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
         fig, ax = plt.subplots(figsize=(8, 8))
         landmark_map(ax, poses, run.ekf, truth_path=truth, truth_landmarks=truth_lm, dead_reckoning=dead,
                      truth_landmarks_label=_survey_label(data))
-        fig.tight_layout()
-        fig.savefig(args.output + ".png", dpi=120)
-        plt.close(fig)
-        written.insert(0, args.output + ".png")
+        written.insert(0, _save_figure(plt, fig, args.output + ".png"))
     print(f"time:          {time.perf_counter() - t0:.2f} s total")
     print(f"wrote:         {', '.join(written)}")
     return 0
@@ -345,10 +350,7 @@ def _cmd_fastslam(args: argparse.Namespace) -> int:
         fig, ax = plt.subplots(figsize=(8, 8))
         fastslam_map(ax, f, truth_path=truth, truth_landmarks=truth_lm, truth_landmarks_label=_survey_label(data),
                      dead_reckoning=None if dr is None else dr.poses)
-        fig.tight_layout()
-        fig.savefig(args.output + ".png", dpi=120)
-        plt.close(fig)
-        written.insert(0, args.output + ".png")
+        written.insert(0, _save_figure(plt, fig, args.output + ".png"))
     print(f"time:          {time.perf_counter() - t0:.2f} s total")
     print(f"wrote:         {', '.join(written)}")
     return 0
@@ -440,10 +442,7 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
         fig, ax = plt.subplots(figsize=(8, 8))
         pose_graph(ax, g, initial=initial, edges=args.edges)
         ax.set_title(f"{os.path.basename(path)}: chi2 {report.chi2:.4f}")
-        fig.tight_layout()
-        fig.savefig(args.output + ".png", dpi=120)
-        plt.close(fig)
-        written.append(args.output + ".png")
+        written.append(_save_figure(plt, fig, args.output + ".png"))
     print(f"wrote:      {', '.join(written)}")
     return 0 if report.converged else 1
 
