@@ -515,8 +515,8 @@ def table_threads(run, vp):
     if vp is not None:
         workloads += [("Victoria Park, version 1, known", lambda t: run_victoria_cpp(vp, True, t)),
                       ("Victoria Park, version 1, hidden", lambda t: run_victoria_cpp(vp, False, t))]
-    lines = ["| threads, workload | 1 thread (s) | 2 threads (s) | speed-up | 2-thread runs, fastest - slowest (s) | results |",
-             "|---|---|---|---|---|---|"]
+    lines = ["| threads, workload | 1 thread (s) | 2 threads (s) | speed-up | 2-thread runs, fastest - slowest (s) "
+             "| results |", "|---|---|---|---|---|---|"]
     for name, fn in workloads:
         print(f"bench_fastslam: threads, {name} ...", file=sys.stderr, flush=True)
         (t1, f1, _), (t2, f2, all2) = interleaved_best_times(fn)
@@ -527,8 +527,8 @@ def table_threads(run, vp):
     return lines + ["", f"Best of {THREAD_REPEATS} runs each, 1 and 2 threads alternating. Same seed; identical: every "
                     "particle's pose, log weight and map equal bit for bit. The simulated workloads are Table 1's; "
                     "Victoria Park: Table 3's C++ runs. On this virtual machine two-thread runs fall into spells "
-                    "about twice as slow, lasting seconds to minutes, which one-thread runs do not show; a spell over all of a workload's runs shows in its speed-up (see "
-                    "docs/landmark_fastslam.md).", ""]
+                    "about twice as slow, lasting seconds to minutes, which one-thread runs do not show; a spell "
+                    "over all of a workload's runs shows in its speed-up (see docs/landmark_fastslam.md).", ""]
 
 
 # ---- main ------------------------------------------------------------------------------------------
