@@ -187,9 +187,10 @@ class LearnedInverseModel:
     Untrained until :meth:`train` or :meth:`load`."""
 
     def __init__(self, hidden: int = 16):
-        if require_integer(hidden, "hidden") < 1:
+        hidden = require_integer(hidden, "hidden")
+        if hidden < 1:
             raise ValueError("hidden must be >= 1")
-        self.hidden = int(hidden)
+        self.hidden = hidden
         self.weights: Optional[np.ndarray] = None
         self.mean = self.scale = None
         self.prior = None  # occupied fraction of the training cells: p(m_i) of the sampled maps
