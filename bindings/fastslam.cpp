@@ -116,14 +116,22 @@ void define_state(py::class_<FastSlam>& c) {
                              "Dict: distinct_nodes (tree nodes allocated for all maps), total_nodes (sum of\n"
                              "per-particle nodes: what deep copies would hold), landmarks (sum of per-particle\n"
                              "counts), path_nodes.")
-      .def("path", [](const FastSlam& f, int index) { return locked(f, [&] { return f.path(index); }); },
+      .def("path",
+           [](const FastSlam& f, IntArg index) {
+             const int k = index.get("index");
+             return locked(f, [&] { return f.path(k); });
+           },
            py::arg("index"), "(T + 1, 3) particle index's path, oldest first.")
       .def("num_landmarks",
-           [](const FastSlam& f, int index) { return locked(f, [&] { return f.particle(index).map.size(); }); },
+           [](const FastSlam& f, IntArg index) {
+             const int k = index.get("index");
+             return locked(f, [&] { return f.particle(k).map.size(); });
+           },
            py::arg("index"), "Number of landmarks in particle index's map.")
       .def(
           "landmarks",
-          [](const FastSlam& f, int index) {
+          [](const FastSlam& f, IntArg index_arg) {
+            const int index = index_arg.get("index");
             const std::vector<Landmark> lms = locked(f, [&] { return f.landmarks(index); });
             const auto n = static_cast<py::ssize_t>(lms.size());
             py::array_t<long> ids(n);
@@ -142,7 +150,8 @@ void define_state(py::class_<FastSlam>& c) {
           "Particle index's landmarks by id: (ids (K,), means (K, 2) m, covariances (K, 2, 2) m^2).")
       .def(
           "landmark_details",
-          [](const FastSlam& f, int index) {
+          [](const FastSlam& f, IntArg index_arg) {
+            const int index = index_arg.get("index");
             const std::vector<Landmark> lms = locked(f, [&] { return f.landmarks(index); });
             const auto n = static_cast<py::ssize_t>(lms.size());
             py::array_t<double> existence(n), signature(n), signature_var(n);
@@ -258,7 +267,8 @@ void define_fastslam(py::module_& m) {
                          "\n"
                          "Every call validates its input first and raises ValueError / TypeError naming the argument,\n"
                          "the filter unchanged. Calls release the GIL and are serialised by a per-filter lock.");
-  c.def(py::init([](int num_particles, py::handle motion_noise, py::handle measurement_noise, const py::kwargs& kw) {
+  c.def(py::init([](IntArg num_particles_arg, py::handle motion_noise, py::handle measurement_noise, const py::kwargs& kw) {
+          const int num_particles = num_particles_arg.get("num_particles");
           const FastSlamOptions o = options_from(num_particles, motion_noise, measurement_noise, kw);
           py::gil_scoped_release release;
           return std::make_unique<FastSlam>(o);

@@ -7,6 +7,8 @@
 #include <utility>
 #include <vector>
 
+#include "interrupt.hpp"
+#include "kwargs.hpp"
 #include "numpy.hpp"
 #include "object_lock.hpp"
 #include "repr.hpp"
@@ -32,7 +34,13 @@ std::vector<std::uint8_t> occupancy_arg(py::handle obj, const OccupancyGrid2D& g
                           std::to_string(grid.width()) + "), got " + shape_of(raw));
   const py::array_t<std::int64_t, py::array::c_style | py::array::forcecast> a(raw);
   std::vector<std::uint8_t> out(static_cast<std::size_t>(a.size()));
-  for (py::ssize_t i = 0; i < a.size(); ++i) out[static_cast<std::size_t>(i)] = a.data()[i] != 0;
+  for (py::ssize_t i = 0; i < a.size(); ++i) {
+    const std::int64_t v = a.data()[i];
+    // 2 or -1 is no occupancy: reading it as "occupied" would hide a wrong array (a label map).
+    if (v != 0 && v != 1)
+      throw py::value_error("occupied must hold only 0 and 1 (or booleans), got " + std::to_string(v));
+    out[static_cast<std::size_t>(i)] = static_cast<std::uint8_t>(v);
+  }
   return out;
 }
 
@@ -238,8 +246,9 @@ void define_forward_model(py::module_& m) {
   m.def(
       "map_occupancy_grid_mapping",
       [](py::handle poses, py::handle scans, py::handle beam_angles, const BeamSensorModel& model,
-         const OccupancyGrid2D& grid, py::handle prior, int max_sweeps, const std::string& scoring,
+         const OccupancyGrid2D& grid, py::handle prior, IntArg max_sweeps_arg, const std::string& scoring,
          std::size_t max_evaluations, bool record_trace, bool sensitivity) {
+        const int max_sweeps = max_sweeps_arg.get("max_sweeps");
         const Scans s = scans_args(poses, scans, beam_angles);
         MapMappingOptions o;
         o.max_sweeps = max_sweeps;
@@ -249,6 +258,7 @@ void define_forward_model(py::module_& m) {
         o.max_evaluations = max_evaluations;
         o.record_trace = record_trace;
         o.sensitivity = sensitivity;
+        o.interrupt = python_interrupt();
         const OccupancyGrid2D geometry = locked(grid, [&] { return OccupancyGrid2D(grid); });
         const RowMatrixXd p = prior_arg(prior, geometry.height(), geometry.width(), geometry.p_prior());
         MapMappingResult r;

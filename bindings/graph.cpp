@@ -1,6 +1,7 @@
 #include <pybind11/stl.h>
 
 
+#include "kwargs.hpp"
 #include "numpy.hpp"
 #include "object_lock.hpp"
 #include "repr.hpp"
@@ -169,19 +170,23 @@ void define_graph(py::module_& m) {
                           "that is not symmetric positive definite (ValueError, graph unchanged).")
       .def(py::init<>(), "An empty graph.")
       .def("add_pose",
-           [](PoseGraph2D& g, int id, py::handle pose) {
+           [](PoseGraph2D& g, IntArg id_arg, py::handle pose) {
+             const int id = id_arg.get("id");
              const Eigen::Vector3d p = pose_arg(pose);
              locked(g, [&] { g.add_pose(id, p); });
            },
            py::arg("id"), py::arg("pose"), "Adds pose vertex id with value pose (3,) (x m, y m, theta rad).")
       .def("add_point",
-           [](PoseGraph2D& g, int id, py::handle point) {
+           [](PoseGraph2D& g, IntArg id_arg, py::handle point) {
+             const int id = id_arg.get("id");
              const Eigen::Vector2d p = fixed_vector<2>(point, "point");
              locked(g, [&] { g.add_point(id, p); });
            },
            py::arg("id"), py::arg("point"), "Adds point (landmark) vertex id with value point (2,) m.")
       .def("add_pose_edge",
-           [](PoseGraph2D& g, int from, int to, py::handle z, py::handle info) {
+           [](PoseGraph2D& g, IntArg from_id, IntArg to_id, py::handle z, py::handle info) {
+             const int from = from_id.get("from_id");
+             const int to = to_id.get("to_id");
              const Eigen::Vector3d zv = fixed_vector<3>(z, "measurement");
              const Eigen::Matrix3d omega = square_matrix_arg(info, "information", 3);
              locked(g, [&] { g.add_pose_edge(from, to, zv, omega); });
@@ -190,18 +195,28 @@ void define_graph(py::module_& m) {
            "Adds a pose-pose edge: measurement (3,) the pose of to_id in from_id's frame (m, m, rad),\n"
            "information (3, 3) its inverse covariance.")
       .def("add_point_edge",
-           [](PoseGraph2D& g, int pose, int point, py::handle z, py::handle info) {
+           [](PoseGraph2D& g, IntArg pose_id, IntArg point_id, py::handle z, py::handle info) {
+             const int pose = pose_id.get("pose_id");
+             const int point = point_id.get("point_id");
              const Eigen::Vector2d zv = fixed_vector<2>(z, "measurement");
              const Eigen::Matrix2d omega = square_matrix_arg(info, "information", 2);
              locked(g, [&] { g.add_point_edge(pose, point, zv, omega); });
            },
            py::arg("pose_id"), py::arg("point_id"), py::arg("measurement"), py::arg("information"),
            "Adds a pose-point edge: measurement (2,) the point in pose_id's frame (m), information (2, 2).")
-      .def("set_fixed", [](PoseGraph2D& g, int id, bool fixed) { locked(g, [&] { g.set_fixed(id, fixed); }); },
+      .def("set_fixed",
+           [](PoseGraph2D& g, IntArg id, bool fixed) {
+             const int i = id.get("id");
+             locked(g, [&] { g.set_fixed(i, fixed); });
+           },
            py::arg("id"), py::arg("fixed") = true,
            "A fixed vertex keeps its value when optimising (the gauge); with none fixed, optimisers hold\n"
            "the first pose.")
-      .def("is_fixed", [](const PoseGraph2D& g, int id) { return locked(g, [&] { return g.vertex(g.index_of(id)).fixed; }); },
+      .def("is_fixed",
+           [](const PoseGraph2D& g, IntArg id) {
+             const int i = id.get("id");
+             return locked(g, [&] { return g.vertex(g.index_of(i)).fixed; });
+           },
            py::arg("id"), "Whether vertex id is fixed.")
       .def("set_poses", [](PoseGraph2D& g, py::handle ids, py::handle v) { set_values(g, ids, v, 3); },
            py::arg("ids"), py::arg("poses"),
@@ -209,7 +224,11 @@ void define_graph(py::module_& m) {
       .def("set_points", [](PoseGraph2D& g, py::handle ids, py::handle v) { set_values(g, ids, v, 2); },
            py::arg("ids"), py::arg("points"),
            "Replaces the values of point vertices ids (N,) with points (N, 2) m, all or nothing.")
-      .def("has_vertex", [](const PoseGraph2D& g, int id) { return locked(g, [&] { return g.has_vertex(id); }); },
+      .def("has_vertex",
+           [](const PoseGraph2D& g, IntArg id) {
+             const int i = id.get("id");
+             return locked(g, [&] { return g.has_vertex(i); });
+           },
            py::arg("id"), "Whether a pose or point vertex has this id.")
       .def_property_readonly("num_vertices", getter(&PoseGraph2D::num_vertices), "Poses plus points.")
       .def_property_readonly("num_pose_edges",
@@ -278,9 +297,10 @@ void define_graph(py::module_& m) {
       });
 
   m.def("optimize",
-        [](PoseGraph2D& graph, const std::string& algorithm, int max_iterations, double relative_tolerance,
+        [](PoseGraph2D& graph, const std::string& algorithm, IntArg max_iterations_arg, double relative_tolerance,
            double step_tolerance, const std::string& kernel, double kernel_width,
            const std::string& linear_solver, const std::string& ordering, const std::string& damping) {
+          const int max_iterations = max_iterations_arg.get("max_iterations");
           const OptimizerOptions o = optimizer_options(algorithm, max_iterations, relative_tolerance, step_tolerance,
                                                        kernel, kernel_width, linear_solver, ordering, damping);
           return locked(graph, [&] { return optimize(graph, o); });
@@ -318,9 +338,11 @@ void define_graph(py::module_& m) {
         "along a breadth-first spanning tree; a point is placed by its first edge from a reached pose.\n"
         "For an odometry chain this is dead reckoning. Unreached vertices keep their values.");
   m.def("optimize_incremental",
-        [](PoseGraph2D& graph, int poses_per_step, const std::string& algorithm, int max_iterations,
+        [](PoseGraph2D& graph, IntArg poses_per_step_arg, const std::string& algorithm, IntArg max_iterations_arg,
            double relative_tolerance, double step_tolerance, const std::string& kernel, double kernel_width,
            const std::string& linear_solver, const std::string& ordering, const std::string& damping) {
+          const int poses_per_step = poses_per_step_arg.get("poses_per_step");
+          const int max_iterations = max_iterations_arg.get("max_iterations");
           IncrementalOptions o;
           o.poses_per_step = poses_per_step;
           o.step = optimizer_options(algorithm, max_iterations, relative_tolerance, step_tolerance, kernel,

@@ -5,6 +5,7 @@
 #include <utility>
 #include <vector>
 
+#include "kwargs.hpp"
 #include "numpy.hpp"
 #include "object_lock.hpp"
 #include "repr.hpp"
@@ -56,8 +57,10 @@ void define_grid(py::module_& m) {
                    "arrays are (height, width), row 0 at the lowest y. Updates are clamped to `clamp`\n"
                    "(probabilities) unless it is None; p_hit / p_miss are the laser update's probabilities.\n"
                    "OccupancyGrid2D.max_cells: the largest number of cells a grid may have.")
-      .def(py::init([](double resolution, int width, int height, py::handle origin, double p_prior,
+      .def(py::init([](double resolution, IntArg width_arg, IntArg height_arg, py::handle origin, double p_prior,
                        py::handle clamp, double p_hit, double p_miss) {
+             const int width = width_arg.get("width");
+             const int height = height_arg.get("height");
              Grid g(resolution, width, height, fixed_vector<2>(origin, "origin"), p_prior, clamp_arg(clamp));
              g.set_beam_model({p_hit, p_miss});
              return g;

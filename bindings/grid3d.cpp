@@ -7,6 +7,7 @@
 
 #include <pybind11/stl/filesystem.h>
 
+#include "kwargs.hpp"
 #include "numpy.hpp"
 #include "object_lock.hpp"
 #include "repr.hpp"
@@ -36,6 +37,7 @@ FloatArray float_points(const DoubleArray& d) {
 /// else is converted (OctoMap's points are float, so coordinates are rounded to float anyway).
 FloatArray points_arg(py::handle obj, const char* name) {
   if (obj.is_none()) throw py::type_error(std::string(name) + " must be an array of numbers, not None");
+  if (is_complex(obj)) throw py::type_error(std::string(name) + " must hold real numbers, got complex values");
   const bool is_float32 = py::isinstance<py::array_t<float>>(obj);
   const DoubleArray d = is_float32 ? DoubleArray() : DoubleArray::ensure(obj);
   const FloatArray a = is_float32 ? FloatArray::ensure(obj) : FloatArray();
@@ -51,6 +53,7 @@ FloatArray points_arg(py::handle obj, const char* name) {
 /// beyond float range becomes a far point, outside the key range, rather than an error).
 FloatArray query_arg(py::handle obj, bool& single) {
   if (obj.is_none()) throw py::type_error("points must be an array of numbers, not None");
+  if (is_complex(obj)) throw py::type_error("points must hold real numbers, got complex values");
   DoubleArray d = DoubleArray::ensure(obj);
   if (!d) throw py::type_error("points must be an array of numbers");
   single = d.ndim() == 1;
@@ -163,7 +166,8 @@ void define_grid3d(py::module_& m) {
       .def_property_readonly("memory_bytes", getter(&Grid::memory_bytes), "Bytes held by the map's blocks and hash table.")
       .def(
           "insert_point_cloud",
-          [](Grid& g, py::handle points, py::handle origin, double max_range, int threads) {
+          [](Grid& g, py::handle points, py::handle origin, double max_range, IntArg threads_arg) {
+            const int threads = threads_arg.get("threads");
             const FloatArray p = points_arg(points, "points");
             const Eigen::Vector3d o = fixed_vector<3>(origin, "origin");
             if (!o.allFinite()) throw py::value_error("origin must contain only finite values");

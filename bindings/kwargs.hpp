@@ -36,6 +36,27 @@ inline long long index_value(py::handle v, const std::string& name) {
   return x;
 }
 
+/// index_value within [lo, hi]: ValueError "<name> must lie in [lo, hi], got x".
+inline int int_value(py::handle v, const std::string& name, int lo = std::numeric_limits<int>::min(),
+                     int hi = std::numeric_limits<int>::max()) {
+  const long long x = index_value(v, name);
+  if (x < lo || x > hi)
+    throw py::value_error(name + " must lie in [" + std::to_string(lo) + ", " + std::to_string(hi) + "], got " +
+                          std::to_string(x));
+  return static_cast<int>(x);
+}
+
+/// A positional int argument as the caller passed it, checked in the function body by
+/// `.get(name)`: pybind11's own int caster refuses 2**40 by failing overload resolution, a
+/// multi-line TypeError listing every signature that never names the argument. Signatures still
+/// show `int`.
+struct IntArg {
+  py::object value;
+  int get(const char* name, int lo = std::numeric_limits<int>::min(), int hi = std::numeric_limits<int>::max()) const {
+    return int_value(value, name, lo, hi);
+  }
+};
+
 /// Keyword options of the stateful classes: each name read once with its type checked (a bool
 /// is not a number here), and any name left over is a TypeError, as for a Python signature.
 class Kwargs {
@@ -50,10 +71,7 @@ class Kwargs {
   }
   void get(const char* name, int& target) {
     if (const py::handle v = take(name)) {
-      const long long x = index_value(v, name);
-      if (x < std::numeric_limits<int>::min() || x > std::numeric_limits<int>::max())
-        throw py::value_error(std::string(name) + " is out of range");
-      target = static_cast<int>(x);
+      target = int_value(v, name);
     }
   }
   void get(const char* name, std::uint64_t& target) {
@@ -92,3 +110,15 @@ class Kwargs {
 };
 
 }  // namespace probslam::bindings
+
+namespace pybind11::detail {
+template <>
+struct type_caster<probslam::bindings::IntArg> {
+  PYBIND11_TYPE_CASTER(probslam::bindings::IntArg, const_name("int"));
+  bool load(handle src, bool) {
+    value.value = reinterpret_borrow<object>(src);
+    return true;
+  }
+  static handle cast(const probslam::bindings::IntArg& v, return_value_policy, handle) { return v.value.inc_ref(); }
+};
+}  // namespace pybind11::detail

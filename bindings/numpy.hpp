@@ -16,9 +16,21 @@ using ConstVectorMap = Eigen::Map<const Eigen::VectorXd>;
 using ConstRowMatrixMap =
     Eigen::Map<const Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor>>;
 
-/// A C-contiguous float64 view of obj (copied only if it is not one already).
+/// True when obj is, or converts to, a numpy array of complex numbers: forcecast would keep only
+/// the real part (numpy's ComplexWarning), silently wrong input.
+inline bool is_complex(py::handle obj) {
+  if (py::isinstance<py::array>(obj)) return py::reinterpret_borrow<py::array>(obj).dtype().kind() == 'c';
+  if (PyComplex_Check(obj.ptr())) return true;
+  if (!py::isinstance<py::sequence>(obj) || py::isinstance<py::str>(obj) || py::isinstance<py::bytes>(obj)) return false;
+  const py::array converted = py::array::ensure(obj);  // clears numpy's error when it fails
+  return converted && converted.dtype().kind() == 'c';
+}
+
+/// A C-contiguous float64 view of obj (copied only if it is not one already). Complex values
+/// are a TypeError, not their real part.
 inline DoubleArray as_array(py::handle obj, const char* name) {
   if (obj.is_none()) throw py::type_error(std::string(name) + " must be an array of numbers, not None");
+  if (is_complex(obj)) throw py::type_error(std::string(name) + " must hold real numbers, got complex values");
   DoubleArray array = DoubleArray::ensure(obj);
   if (!array) throw py::type_error(std::string(name) + " must be an array of numbers");
   return array;

@@ -339,7 +339,8 @@ void define_slam2d(py::module_& m) {
   py::class_<CorrelativeScanMatcher>(m, "CorrelativeScanMatcher",
                                      "Correlative scan matching (Olson 2009): branch and bound over a max-pooled pyramid of\n"
                                      "a LikelihoodField (Hess 2016). Immutable once built.")
-      .def(py::init([](const LikelihoodField& field, int max_level) {
+      .def(py::init([](const LikelihoodField& field, IntArg max_level_arg) {
+             const int max_level = max_level_arg.get("max_level");
              py::gil_scoped_release release;
              return CorrelativeScanMatcher(field, max_level);
            }),
@@ -405,7 +406,8 @@ void define_slam2d(py::module_& m) {
           return std::to_string(s.num_scans()) + " scans, " + std::to_string(s.submaps().size()) + " submaps";
         }));
       })
-      .def("submap_grid", [](const ISM& self, int k) {
+      .def("submap_grid", [](const ISM& self, IntArg k_arg) {
+        const int k = k_arg.get("index");
         return locked(self, [&] {
           require(k >= 0 && k < static_cast<int>(self.submaps().size()), "index", "is not a submap index");
           return self.submaps()[k].grid;

@@ -29,6 +29,10 @@ Eigen::VectorXd BeamSensorModel::expected_ranges(const Eigen::Vector3d& pose,
                                                  const Eigen::Ref<const Eigen::VectorXd>& beam_angles,
                                                  const BinaryMap2D& map) const {
   check_beams(pose, beam_angles);
+  double visits = 0.0;
+  for (Eigen::Index k = 0; k < beam_angles.size(); ++k)
+    visits += beam_footprint_visits(map.lattice(), map.width(), map.height(), pose, beam_angles[k], geometry_);
+  require_footprint_budget(visits, "beam_angles");
   Eigen::VectorXd out(beam_angles.size());
   for (Eigen::Index k = 0; k < beam_angles.size(); ++k) out[k] = expected_range(map, pose, beam_angles[k], geometry_);
   return out;

@@ -38,6 +38,18 @@ double beam_angle(const Eigen::Ref<const RowMatrixXd>& beam_angles, Eigen::Index
   return beam_angles(beam_angles.rows() == 1 ? 0 : t, b);
 }
 
+// Every reading's footprint within kMaxFootprintVisits, before any is cast.
+void check_footprints(const GridLattice2D& lattice, int width, int height, const Eigen::Ref<const Poses2>& poses,
+                      const Eigen::Ref<const RowMatrixXd>& beam_angles, Eigen::Index beams,
+                      const BeamGeometry& geometry) {
+  double visits = 0.0;
+  for (Eigen::Index t = 0; t < poses.rows(); ++t)
+    for (Eigen::Index b = 0; b < beams; ++b)
+      visits += beam_footprint_visits(lattice, width, height, poses.row(t).transpose(), beam_angle(beam_angles, t, b),
+                                      geometry);
+  require_footprint_budget(visits, "scans");
+}
+
 // Eq. 9.24 from scratch: every reading's expected range cast on `map`.
 double log_posterior(const BinaryMap2D& map, const Eigen::Ref<const Poses2>& poses,
                      const Eigen::Ref<const RowMatrixXd>& ranges, const Eigen::Ref<const RowMatrixXd>& beam_angles,
@@ -113,6 +125,7 @@ FootprintIndex build_index(const OccupancyGrid2D& grid, const Eigen::Ref<const P
 // The incremental scorer: each reading's first occupied footprint position and log-likelihood.
 class IncrementalScorer {
  public:
+  static constexpr std::size_t kInterruptEvery = 4096;  // a few milliseconds of flips
   IncrementalScorer(const FootprintIndex& ix, std::vector<std::uint8_t>& occupied, const std::vector<double>& l0)
       : ix_(ix), occ_(occupied), l0_(l0) {
     const std::size_t n = ix.log_p_none.size();
@@ -189,6 +202,7 @@ class IncrementalScorer {
 // The literal scorer: eq. 9.24 from scratch for the flipped map.
 class FullScorer {
  public:
+  static constexpr std::size_t kInterruptEvery = 1;  // each flip casts every reading again
   FullScorer(const OccupancyGrid2D& grid, std::vector<std::uint8_t>& occupied, const Eigen::Ref<const Poses2>& poses,
              const Eigen::Ref<const RowMatrixXd>& ranges, const Eigen::Ref<const RowMatrixXd>& beam_angles,
              const BeamSensorModel& model, const std::vector<double>& l0)
@@ -236,6 +250,7 @@ void climb(Scorer& scorer, const std::vector<std::int32_t>& field, const std::ve
         stopped = true;
         break;
       }
+      if (options.interrupt && result.evaluations % Scorer::kInterruptEvery == 0) options.interrupt();
       const double d = scorer.delta(static_cast<std::size_t>(c));  // line 5
       ++result.evaluations;
       if (!(d > MapMappingOptions::kMinGain)) continue;
@@ -258,7 +273,10 @@ void climb(Scorer& scorer, const std::vector<std::int32_t>& field, const std::ve
   // Fig. 9.8d: each cell flipped alone; outside the field only its prior term changes.
   result.sensitivity.assign(l0.size(), 0.0);
   for (std::size_t c = 0; c < l0.size(); ++c) result.sensitivity[c] = -std::fabs(l0[c]);
-  for (const std::int32_t c : field) result.sensitivity[static_cast<std::size_t>(c)] = scorer.delta(static_cast<std::size_t>(c));
+  for (std::size_t k = 0; k < field.size(); ++k) {
+    if (options.interrupt && k % Scorer::kInterruptEvery == 0) options.interrupt();
+    result.sensitivity[static_cast<std::size_t>(field[k])] = scorer.delta(static_cast<std::size_t>(field[k]));
+  }
 }
 
 }  // namespace
@@ -276,6 +294,8 @@ MapMappingResult map_occupancy_grid_mapping(const OccupancyGrid2D& geometry, con
           "must be > 0 for MAP mapping: a map that leaves a reading unexplained would score -inf");
   require(model.mixture().z_max > 0.0, "z_max",
           "must be > 0 for MAP mapping: a max reading would score -inf where a cell returns");
+  check_footprints(geometry.lattice(), geometry.width(), geometry.height(), poses, beam_angles, ranges.cols(),
+                   model.geometry());
   const FootprintIndex ix = build_index(geometry, poses, ranges, beam_angles, model);
 
   MapMappingResult result;
@@ -303,6 +323,7 @@ double map_log_posterior(const BinaryMap2D& map, const Eigen::Ref<const Poses2>&
                          const Eigen::Ref<const RowMatrixXd>& ranges, const Eigen::Ref<const RowMatrixXd>& beam_angles,
                          const BeamSensorModel& model, const Eigen::Ref<const RowMatrixXd>& prior) {
   const std::vector<double> l0 = check_inputs(map.width(), map.height(), poses, ranges, beam_angles, prior);
+  check_footprints(map.lattice(), map.width(), map.height(), poses, beam_angles, ranges.cols(), model.geometry());
   return log_posterior(map, poses, ranges, beam_angles, model, l0);
 }
 

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <string>
 
 #include "probslam/core/angle.hpp"
 #include "probslam/core/check.hpp"
@@ -45,16 +46,18 @@ void walk_laser(const GridLattice2D& lattice, int width, int height, const Eigen
   });
 }
 
-// Calls visit(cell, range) for every cell whose centre lies in the sonar cone closer than
-// max_range, in row-major order.
-template <class Visit>
-void scan_cone(const GridLattice2D& lattice, int width, int height, const Eigen::Vector3d& pose, double beam_angle,
-               const BeamGeometry& g, Visit&& visit) {
-  const double bearing = wrap_angle(pose[2] + beam_angle);
+// The rows and columns of the grid a sonar cone can reach (inclusive; empty when lo > hi): its
+// bounding box, from its apex, its two edges' ends and the disc's extreme points in the
+// directions the cone contains, clipped to the grid.
+struct CellBox {
+  int row_lo, row_hi, col_lo, col_hi;
+  double cells() const { return row_hi < row_lo || col_hi < col_lo ? 0.0 : double(row_hi - row_lo + 1) * (col_hi - col_lo + 1); }
+};
+
+CellBox cone_box(const GridLattice2D& lattice, int width, int height, const Eigen::Vector3d& pose, double bearing,
+                 const BeamGeometry& g) {
   const double half = 0.5 * g.beta;
   const double r = g.max_range;
-  // The cone's bounding box: its apex, its two edges' ends, and the disc's extreme points in
-  // the directions the cone contains.
   double xmin = pose[0], xmax = pose[0], ymin = pose[1], ymax = pose[1];
   const auto include = [&](double angle) {
     const double x = pose[0] + r * std::cos(angle), y = pose[1] + r * std::sin(angle);
@@ -64,11 +67,22 @@ void scan_cone(const GridLattice2D& lattice, int width, int height, const Eigen:
   include(bearing + half);
   for (const double axis : {0.0, 0.5 * kPi, kPi, -0.5 * kPi})
     if (std::fabs(wrap_angle(axis - bearing)) <= half) include(axis);
-  const int row_lo = std::max(0, lattice.key(1, ymin)), row_hi = std::min(height - 1, lattice.key(1, ymax));
-  const int col_lo = std::max(0, lattice.key(0, xmin)), col_hi = std::min(width - 1, lattice.key(0, xmax));
-  for (int row = row_lo; row <= row_hi; ++row) {
+  return {std::max(0, lattice.key(1, ymin)), std::min(height - 1, lattice.key(1, ymax)),
+          std::max(0, lattice.key(0, xmin)), std::min(width - 1, lattice.key(0, xmax))};
+}
+
+// Calls visit(cell, range) for every cell whose centre lies in the sonar cone closer than
+// max_range, in row-major order.
+template <class Visit>
+void scan_cone(const GridLattice2D& lattice, int width, int height, const Eigen::Vector3d& pose, double beam_angle,
+               const BeamGeometry& g, Visit&& visit) {
+  const double bearing = wrap_angle(pose[2] + beam_angle);
+  const double half = 0.5 * g.beta;
+  const double r = g.max_range;
+  const CellBox box = cone_box(lattice, width, height, pose, bearing, g);
+  for (int row = box.row_lo; row <= box.row_hi; ++row) {
     const double dy = lattice.key_to_coord(1, row) - pose[1];
-    for (int col = col_lo; col <= col_hi; ++col) {
+    for (int col = box.col_lo; col <= box.col_hi; ++col) {
       const double dx = lattice.key_to_coord(0, col) - pose[0];
       const double range = std::sqrt(dx * dx + dy * dy);
       if (!(range < r)) continue;
@@ -85,6 +99,25 @@ void BeamGeometry::validate() const {
   require_positive(max_range, "max_range");
   if (shape == BeamShape::kSonar)
     require(std::isfinite(beta) && beta > 0.0 && beta <= kTwoPi, "beta", "must be a cone opening angle in (0, 2 pi] rad");
+}
+
+double beam_footprint_visits(const GridLattice2D& lattice, int width, int height, const Eigen::Vector3d& pose,
+                             double beam_angle, const BeamGeometry& geometry) {
+  if (geometry.shape == BeamShape::kSonar)
+    return cone_box(lattice, width, height, pose, wrap_angle(pose[2] + beam_angle), geometry).cells();
+  // A walk crosses at most one cell per cell side travelled on each axis, plus the start's,
+  // and never more than the grid's rows plus columns.
+  const double a = pose[2] + beam_angle;
+  const double reach = geometry.max_range / lattice.res;
+  const double crossed = reach * (std::fabs(std::cos(a)) + std::fabs(std::sin(a))) + 4.0;
+  return std::min(crossed, static_cast<double>(width) + height + 2.0);
+}
+
+void require_footprint_budget(double visits, const char* name) {
+  if (!(visits <= kMaxFootprintVisits))
+    throw_invalid_argument(name, "would test " + std::to_string(static_cast<long long>(visits)) +
+              " footprint cells, more than kMaxFootprintVisits (2^28): use fewer beams or poses, a shorter "
+              "max_range, a narrower cone or a coarser grid");
 }
 
 void beam_footprint(const GridLattice2D& lattice, int width, int height, const Eigen::Vector3d& pose,

@@ -4,6 +4,7 @@
 #include <Eigen/Core>
 #include <cstddef>
 #include <cstdint>
+#include <functional>
 #include <vector>
 
 #include "probslam/core/types.hpp"
@@ -34,6 +35,10 @@ struct MapMappingOptions {
   bool record_trace = false;
   /// Compute MapMappingResult::sensitivity (Fig. 9.8d) at the end.
   bool sensitivity = true;
+  /// Called every few candidate flips (and before each when every flip rescans all readings);
+  /// a caller that wants to stop a long run (the bindings, on Ctrl-C) makes it throw, and the
+  /// exception leaves the call with nothing changed. Empty: never called.
+  std::function<void()> interrupt;
   /// A flip is made only when it raises eq. 9.24 by more than this: the incremental deltas are
   /// sums of up to thousands of terms of magnitude ~10 with rounding ~1e-13 each, so a smaller
   /// "gain" is noise and could make two maps alternate for ever.

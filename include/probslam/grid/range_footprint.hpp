@@ -41,6 +41,20 @@ struct FootprintCell {
 void beam_footprint(const GridLattice2D& lattice, int width, int height, const Eigen::Vector3d& pose,
                     double beam_angle, const BeamGeometry& geometry, std::vector<FootprintCell>& out);
 
+/// Footprint cells one call may test at most, summed over its beams: a sonar cone of 2 pi tests
+/// its whole disc, so 1000 such beams over a 4000 x 4000 grid would test 1.6e10 cells (minutes,
+/// and for Table 9.3's index hundreds of GB). 2^28 tests take seconds and index in about 5 GiB.
+inline constexpr double kMaxFootprintVisits = 268435456.0;
+
+/// An upper bound of the cells beam_footprint (or expected_range) tests for one beam: a laser's
+/// cells crossed within max_range, a sonar cone's bounding box, both clipped to the grid.
+double beam_footprint_visits(const GridLattice2D& lattice, int width, int height, const Eigen::Vector3d& pose,
+                             double beam_angle, const BeamGeometry& geometry);
+
+/// std::invalid_argument naming `name` when `visits` (a sum of beam_footprint_visits) exceeds
+/// kMaxFootprintVisits; called before the work starts.
+void require_footprint_budget(double visits, const char* name);
+
 /// The range of the first occupied cell of the beam's footprint on `map`, max_range if none:
 /// the z* of eq. 6.4. Computed directly (the laser walk stops at the first occupied cell).
 double expected_range(const BinaryMap2D& map, const Eigen::Vector3d& pose, double beam_angle,
