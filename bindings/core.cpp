@@ -1,9 +1,11 @@
 #include <functional>
 
+#include "kwargs.hpp"
 #include "numpy.hpp"
 #include "repr.hpp"
 #include "probslam/core/check.hpp"
 #include "probslam/core/angle.hpp"
+#include "probslam/core/chi_square.hpp"
 #include "probslam/core/pose2.hpp"
 #include "probslam/core/range_bearing_model.hpp"
 #include "probslam/core/velocity_motion_model.hpp"
@@ -26,6 +28,14 @@ py::array points_through(py::handle points, const char* name,
 }  // namespace
 
 void define_core(py::module_& m) {
+  m.def(
+      "chi_square_quantile", [](double p, IntArg dof) { return chi_square_quantile(p, dof.get("dof")); }, py::arg("p"),
+      py::arg("dof"),
+      "The x with P(X <= x) = p for X chi-square with dof >= 1 degrees of freedom, 0 < p < 1: the\n"
+      "Mahalanobis gate that keeps a fraction p of correct associations.");
+  m.def(
+      "chi_square_cdf", [](double x, IntArg dof) { return chi_square_cdf(x, dof.get("dof")); }, py::arg("x"),
+      py::arg("dof"), "P(X <= x) for X chi-square with dof >= 1 degrees of freedom (0 for x <= 0).");
   m.def(
       "wrap_angle",
       [](py::handle angle) -> py::object {

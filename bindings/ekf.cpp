@@ -178,7 +178,7 @@ void define_ekf_state(py::class_<EkfSlam>& c) {
           [](EkfSlam& e, double metres) { locked(e, [&] { e.set_gate_distance(metres); }); },
           "Association candidates: landmarks within this distance (m) of where a measurement places\n"
           "its landmark, plus three standard deviations (5.0).")
-      .def("clone", [](const EkfSlam& e) { return locked(e, [&] { return e.clone(); }); },
+      .def("copy", [](const EkfSlam& e) { return locked(e, [&] { return EkfSlam(e); }); },
            "An independent copy with its own storage.")
       .def("__repr__", [](py::handle self) {
         const EkfSlam& e = self.cast<const EkfSlam&>();
@@ -199,11 +199,7 @@ void define_ekf_calls(py::class_<EkfSlam>& c) {
        "pose-space or (2, 2) control-space covariance (default: the filter's motion noise).")
       .def(
           "predict_odometry",
-          [](EkfSlam& e, py::handle delta, py::handle noise) {
-            const Eigen::Vector3d d = fixed_vector<3>(delta, "delta");
-            const Eigen::Matrix3d n = square_matrix_arg(noise, "noise", 3);
-            locked(e, [&] { e.predict_odometry(d, n); });
-          },
+          &predict_odometry_locked<EkfSlam>,
           py::arg("delta"), py::arg("noise"),
           "Odometry as a relative pose: x <- x (+) delta, delta (3,) (m, m, rad) with covariance noise\n"
           "(3, 3) in the robot frame.")
@@ -277,7 +273,7 @@ void define_multi_hypothesis(py::module_& m) {
           py::arg("z"),
           "Branches every hypothesis on the assignments of scan z (k, 2) or (k, 3), keeps the beam;\n"
           "returns the best hypothesis's landmark id per measurement (k,), -1 for clutter.")
-      .def_property_readonly("best", [](const Mht& e) { return locked(e, [&] { return e.best().clone(); }); },
+      .def_property_readonly("best", [](const Mht& e) { return locked(e, [&] { return EkfSlam(e.best()); }); },
                              "A copy of the cheapest hypothesis's filter.")
       .def_property_readonly("pose", [](const Mht& e) { return locked(e, [&] { return e.best().pose(); }); },
                              "(3,) pose of the cheapest hypothesis.")

@@ -178,11 +178,7 @@ void define_calls(py::class_<FastSlam>& c) {
        "Samples each particle's pose from the velocity motion model: v m/s, w rad/s, dt s.")
       .def(
           "predict_odometry",
-          [](FastSlam& f, py::handle delta, py::handle noise) {
-            const Eigen::Vector3d d = fixed_vector<3>(delta, "delta");
-            const Eigen::Matrix3d n = square_matrix_arg(noise, "noise", 3);
-            locked(f, [&] { f.predict_odometry(d, n); });
-          },
+          &predict_odometry_locked<FastSlam>,
           py::arg("delta"), py::arg("noise"),
           "x <- x (+) (delta + e), e ~ N(0, noise (3, 3)) in the robot frame; delta (3,) (m, m, rad).")
       .def(

@@ -12,7 +12,7 @@
 #include "object_lock.hpp"
 #include "repr.hpp"
 #include "probslam/grid/occupancy_grid_3d.hpp"
-#include "probslam/grid/worker_pool.hpp"
+#include "probslam/core/worker_pool.hpp"
 #include "probslam/io/octomap_bt.hpp"
 
 namespace probslam::bindings {

@@ -10,6 +10,8 @@
 
 #include <mutex>
 
+#include "numpy.hpp"
+
 namespace probslam::bindings {
 
 template <typename T, typename F>
@@ -36,6 +38,15 @@ decltype(auto) locked(const A& a, const B& b, F&& f) {
   }
   std::scoped_lock lock(a.mutex(), b.mutex());
   return f();
+}
+
+/// predict_odometry(delta, noise) of a landmark filter (EkfSlam, FastSlam): the arguments
+/// converted with the GIL held, the call under the filter's lock.
+template <typename Filter>
+void predict_odometry_locked(Filter& f, py::handle delta, py::handle noise) {
+  const Eigen::Vector3d d = fixed_vector<3>(delta, "delta");
+  const Eigen::Matrix3d n = square_matrix_arg(noise, "noise", 3);
+  locked(f, [&] { f.predict_odometry(d, n); });
 }
 
 }  // namespace probslam::bindings

@@ -11,6 +11,10 @@ Array = npt.NDArray[np.float64]
 Bounds = Tuple[float, float, float, float]  # (xmin, ymin, xmax, ymax), metres
 
 @overload
+def chi_square_quantile(p: float, dof: int) -> float:
+    """The x with P(X <= x) = p, X chi-square with dof degrees of freedom (a Mahalanobis gate)."""
+def chi_square_cdf(x: float, dof: int) -> float:
+    """P(X <= x) for X chi-square with dof degrees of freedom."""
 def wrap_angle(angle: float) -> float: ...
 @overload
 def wrap_angle(angle: ArrayLike) -> Array: ...
@@ -260,7 +264,8 @@ class _EkfSlam:
                                                                 npt.NDArray[np.int64], npt.NDArray[np.int64]]:
         """(ids, smallest pi, outcome, removed ids) for a scan z (k, 2) or (k, 3)."""
     def remove_landmark(self, id: int) -> None: ...
-    def clone(self) -> "_EkfSlam": ...
+    def copy(self) -> "_EkfSlam":
+        """An independent copy with its own storage."""
     def pairing_likelihood(self, z: ArrayLike, id: int) -> Tuple[float, float]:
         """(NIS, log det(2 pi S)) of one measurement against landmark id, without updating."""
 

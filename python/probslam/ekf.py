@@ -8,7 +8,7 @@ import numpy as np
 
 from . import _core
 from ._args import require_integer
-from ._core import Association, MapManagement
+from ._core import Association, MapManagement, chi_square_quantile
 
 #: Association gate: the chi-square quantile at this probability, with the measurement's
 #: degrees of freedom, is the default Mahalanobis threshold alpha of Table 10.2.
@@ -62,13 +62,6 @@ def _flag(value, name: str) -> bool:
     return bool(value)
 
 
-def chi2_quantile(probability: float, dof: int) -> float:
-    """The chi-square quantile of `probability` with `dof` degrees of freedom (a Mahalanobis gate)."""
-    from scipy.stats import chi2
-
-    return float(chi2.ppf(probability, dof))
-
-
 class EkfSlam:
     """Online SLAM with the extended Kalman filter (Tables 10.1, 10.2).
 
@@ -112,7 +105,7 @@ class EkfSlam:
     def copy(self) -> "EkfSlam":
         """An independent copy of the filter: state, map, ids, options."""
         c = object.__new__(type(self))
-        c._f = self._f.clone()
+        c._f = self._f.copy()
         return c
 
     __copy__ = copy
@@ -243,9 +236,9 @@ class EkfSlam:
         alpha = None if alpha is None else _number(alpha, "alpha")
         alpha_new = None if alpha_new is None else _number(alpha_new, "alpha_new")
         d = self._f.landmark_dim
-        alpha = chi2_quantile(DEFAULT_ASSOCIATION_PROBABILITY, d) if alpha is None else alpha
+        alpha = chi_square_quantile(DEFAULT_ASSOCIATION_PROBABILITY, d) if alpha is None else alpha
         if alpha_new is None:
-            alpha_new = max(alpha, chi2_quantile(DEFAULT_NEW_LANDMARK_PROBABILITY, d))
+            alpha_new = max(alpha, chi_square_quantile(DEFAULT_NEW_LANDMARK_PROBABILITY, d))
         ids, pi, outcome, removed = self._f.update_unknown(z, alpha, alpha_new, ASSOCIATIONS[association])
         return AssociationResult(ids.astype(np.int64), pi, outcome.astype(np.int8), np.asarray(removed, np.int64))
 
@@ -315,10 +308,10 @@ class MultiHypothesisEkfSlam:
         o.bearing_offset_correlation = _number(bearing_offset_correlation, "bearing_offset_correlation")
         gate, new_landmark_cost, clutter_cost = (None if v is None else _number(v, name) for v, name in (
             (gate, "gate"), (new_landmark_cost, "new_landmark_cost"), (clutter_cost, "clutter_cost")))
-        o.gate = chi2_quantile(MHT_GATE_PROBABILITY, d) if gate is None else gate
-        o.new_landmark_cost = (chi2_quantile(DEFAULT_NEW_LANDMARK_PROBABILITY, d) if new_landmark_cost is None
+        o.gate = chi_square_quantile(MHT_GATE_PROBABILITY, d) if gate is None else gate
+        o.new_landmark_cost = (chi_square_quantile(DEFAULT_NEW_LANDMARK_PROBABILITY, d) if new_landmark_cost is None
                                else new_landmark_cost)
-        o.clutter_cost = chi2_quantile(MHT_CLUTTER_PROBABILITY, d) if clutter_cost is None else clutter_cost
+        o.clutter_cost = chi_square_quantile(MHT_CLUTTER_PROBABILITY, d) if clutter_cost is None else clutter_cost
         self._m = _core._MultiHypothesisEkfSlam(ekf._f, o)
 
     def __repr__(self) -> str:

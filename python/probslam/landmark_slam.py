@@ -11,7 +11,8 @@ from typing import Dict, List, Optional, Tuple
 import numpy as np
 
 from ._core import PoseGraph2D, velocity_motion
-from .ekf import AssociationResult, EkfSlam, MapManagement, MultiHypothesisEkfSlam, chi2_quantile
+from ._core import chi_square_quantile
+from .ekf import AssociationResult, EkfSlam, MapManagement, MultiHypothesisEkfSlam
 from .io.landmark_datasets import Mrclam, VictoriaPark
 from ._args import real_array, require_fields, require_instance
 
@@ -123,7 +124,7 @@ def run_ekf_mrclam(data: Mrclam, motion_noise, measurement_noise, known: bool = 
             g = data.groundtruth
             k = int(np.searchsorted(g[:, 0], odo[0, 0]))
             initial_pose = g[min(k, len(g) - 1), 1:4]
-    gate = chi2_quantile(MRCLAM_OUTLIER_PROBABILITY, 2) if gate is None else gate
+    gate = chi_square_quantile(MRCLAM_OUTLIER_PROBABILITY, 2) if gate is None else gate
     ekf = EkfSlam(motion_noise, measurement_noise, use_signatures=False, initial_pose=initial_pose,
                   map_management=map_management, gate_distance=gate_distance)
     mht = None

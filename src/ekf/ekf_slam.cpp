@@ -12,6 +12,7 @@
 #include "probslam/core/angle.hpp"
 #include "probslam/core/chi_square.hpp"
 #include "probslam/core/check.hpp"
+#include "probslam/core/filter_limits.hpp"
 #include "probslam/core/gaussian.hpp"
 #include "probslam/core/pose2.hpp"
 #include "probslam/core/range_bearing_model.hpp"
@@ -22,46 +23,20 @@
 namespace probslam {
 namespace {
 
-// Relative asymmetry tolerated in a user's noise matrix (written out by hand, it may carry
-// rounding from a conversion); larger asymmetry is a mistake.
-constexpr double kSymmetryTolerance = 1e-9;
-// Squared range below which a landmark sits on the robot: no bearing, no linearisation.
-constexpr double kMinRangeSquared = 1e-18;
 constexpr Eigen::Index kInitialLandmarkCapacity = 16;
-// Association candidates: within gate_distance plus this many standard deviations of where
-// the measurement places its landmark (3 sigma holds 99% of a 2-D Gaussian's mass).
-constexpr double kPlacementSigmas = 3.0;
 // Largest covariance entry (and squared gain row) a call may produce: the square root of the
 // double range, so that the products of the next call (G P G^T, H P H^T) still fit.
 constexpr double kMaxCovarianceEntry = 1e150;
-// Smallest association gate distance (m): it is also the spatial hash's cell size, and smaller
-// cells would make cell indices of far landmarks overflow.
-constexpr double kMinGateDistance = 1e-6;
 // Existence log-odds are clamped to this magnitude (a thousand of the largest increments).
 constexpr double kMaxExistence = 1e3 * kEkfMaxLogOdds;
-
-// Refused with the argument's name unless finite, symmetric, positive (semi-)definite and with
-// entries within kEkfMaxVariance.
-void require_spd(const Eigen::MatrixXd& m, const char* name, bool semi = false) {
-  require(m.size() > 0, name, "must not be empty");
-  require(m.allFinite(), name, "must contain only finite values");
-  require(m.cwiseAbs().maxCoeff() <= kEkfMaxVariance, name, "entries must be <= 1e18 (kEkfMaxVariance) in magnitude");
-  const double scale = std::max(1.0, m.cwiseAbs().maxCoeff());
-  require((m - m.transpose()).cwiseAbs().maxCoeff() <= kSymmetryTolerance * scale, name, "must be symmetric");
-  const double min_eig = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(m, Eigen::EigenvaluesOnly).eigenvalues()(0);
-  if (semi) require(min_eig >= -kSymmetryTolerance * scale, name, "must be positive semi-definite");
-  else require(min_eig > 0.0, name, "must be positive definite");
-}
 
 void require_motion_noise(const Eigen::MatrixXd& noise, const char* name, bool semi) {
   require((noise.rows() == 3 && noise.cols() == 3) || (noise.rows() == 2 && noise.cols() == 2), name,
           "must be 3x3 (pose space) or 2x2 (control space)");
-  require_spd(noise, name, semi);
+  require_covariance(noise, name, semi);
 }
 
-void require_on_map(const Eigen::Vector3d& pose, const char* name, const char* what) {
-  require(pose.allFinite() && pose.head<2>().cwiseAbs().maxCoeff() <= kEkfMaxCoordinate, name, what);
-}
+void require_on_map(const Eigen::Vector3d& pose, const char* name, const char* what) { require(on_map(pose), name, what); }
 
 }  // namespace
 
@@ -122,10 +97,10 @@ EkfSlam::EkfSlam(const Eigen::MatrixXd& motion_noise, const Eigen::MatrixXd& mea
   else r_pose_ = motion_noise;
   require(measurement_noise.rows() == md_ && measurement_noise.cols() == md_, "measurement_noise",
           use_signatures ? "must be 3x3 (range, bearing, signature)" : "must be 2x2 (range, bearing)");
-  require_spd(measurement_noise, "measurement_noise");
+  require_covariance(measurement_noise, "measurement_noise", false);
   Q_ = measurement_noise;
-  require_on_map(initial_pose, "initial_pose", "must be finite with |x|, |y| <= 1e9 m (kEkfMaxCoordinate)");
-  require_spd(initial_pose_cov, "initial_pose_cov", true);
+  require_on_map(initial_pose, "initial_pose", "must be finite with |x|, |y| <= 1e9 m (kMaxCoordinate)");
+  require_covariance(initial_pose_cov, "initial_pose_cov", true);
   s_ = std::make_shared<EkfSlamStorage>();
   const Eigen::Index cap = 3 + kInitialLandmarkCapacity * ld_;
   s_->mean = Eigen::VectorXd::Zero(cap);
@@ -154,12 +129,26 @@ double EkfSlam::existence(long id) const {
   return existence_[(index_of(id) - 3) / ld_];
 }
 
-EkfSlam EkfSlam::clone() const {
-  EkfSlam c = *this;
-  c.s_ = std::make_shared<EkfSlamStorage>();
-  c.s_->mean = s_->mean.head(n_);
-  c.s_->cov = s_->cov.topLeftCorner(n_, n_);
+namespace {
+// The used part of a filter's storage, copied: no spare capacity (it grows again on demand).
+std::shared_ptr<EkfSlamStorage> trimmed_copy(const EkfSlamStorage& s, Eigen::Index n) {
+  auto c = std::make_shared<EkfSlamStorage>();
+  c->mean = s.mean.head(n);
+  c->cov = s.cov.topLeftCorner(n, n);
   return c;
+}
+}  // namespace
+
+// Every member as the default copy would, but the storage: a new one (EkfSlamTest.CopiesAreDeep
+// compares every observable field, so a member added later and forgotten here shows).
+EkfSlam::EkfSlam(const EkfSlam& o)
+    : r_pose_(o.r_pose_), m_control_(o.m_control_), control_noise_(o.control_noise_), Q_(o.Q_), md_(o.md_),
+      ld_(o.ld_), s_(trimmed_copy(*o.s_, o.n_)), n_(o.n_), ids_(o.ids_), index_(o.index_), existence_(o.existence_),
+      provisional_(o.provisional_), next_id_(o.next_id_), gate_distance_(o.gate_distance_), mm_(o.mm_) {}
+
+EkfSlam& EkfSlam::operator=(const EkfSlam& o) {
+  if (this != &o) *this = EkfSlam(o);
+  return *this;
 }
 
 void EkfSlam::require_state_room(Eigen::Index added_landmarks) const {
@@ -210,7 +199,7 @@ void EkfSlam::predict(double v, double w, double dt, const Eigen::MatrixXd& nois
 EkfSlam::Motion EkfSlam::plan_predict(double v, double w, double dt, const Eigen::MatrixXd& noise) const {
   const Eigen::Vector3d x = pose();
   const Eigen::Matrix3d g = velocity_motion_jacobian(x, v, w, dt);  // validates v, w, dt
-  require(std::fabs(v * dt) <= kEkfMaxCoordinate, "v", "* dt must be <= 1e9 m (kEkfMaxCoordinate)");
+  require(std::fabs(v * dt) <= kMaxCoordinate, "v", "* dt must be <= 1e9 m (kMaxCoordinate)");
   require_motion_noise(noise, "noise", true);
   Eigen::Matrix3d r = noise.rows() == 3 ? Eigen::Matrix3d(noise) : Eigen::Matrix3d::Zero();
   if (noise.rows() == 2) {
@@ -218,14 +207,14 @@ EkfSlam::Motion EkfSlam::plan_predict(double v, double w, double dt, const Eigen
     r = vj * noise * vj.transpose();
   }
   const Eigen::Vector3d next = velocity_motion(x, v, w, dt);
-  require_on_map(next, "v", "moves the robot beyond 1e9 m (kEkfMaxCoordinate)");
+  require_on_map(next, "v", "moves the robot beyond 1e9 m (kMaxCoordinate)");
   return plan_motion(next, g, r);
 }
 
 void EkfSlam::predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matrix3d& noise) {
   require_all_finite(delta, "delta");
-  require(delta.head<2>().norm() <= kEkfMaxCoordinate, "delta", "must be a step of at most 1e9 m (kEkfMaxCoordinate)");
-  require_spd(noise, "noise", true);
+  require(delta.head<2>().norm() <= kMaxCoordinate, "delta", "must be a step of at most 1e9 m (kMaxCoordinate)");
+  require_covariance(noise, "noise", true);
   const Eigen::Vector3d x = pose();
   const Eigen::Matrix2d rx = rotation_matrix(x[2]);
   const Eigen::Vector2d t = x.head<2>() + rx * delta.head<2>();
@@ -236,22 +225,15 @@ void EkfSlam::predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matrix
   Eigen::Matrix3d j = Eigen::Matrix3d::Identity();  // d(x (+) delta) / d delta
   j.topLeftCorner<2, 2>() = rx;
   const Eigen::Vector3d next(t.x(), t.y(), wrap_angle(x[2] + delta[2]));
-  require_on_map(next, "delta", "moves the robot beyond 1e9 m (kEkfMaxCoordinate)");
+  require_on_map(next, "delta", "moves the robot beyond 1e9 m (kMaxCoordinate)");
   apply(plan_motion(next, g, j * noise * j.transpose()));
 }
 
-void EkfSlam::check_measurements(const Eigen::Ref<const RowMatrixXd>& z) const {
-  require(z.cols() == md_, "z", md_ == 3 ? "must have 3 columns (range, bearing, signature)"
-                                         : "must have 2 columns (range, bearing)");
-  require(z.allFinite(), "z", "must contain only finite values");
-  require((z.col(0).array() >= 0.0).all(), "z", "ranges must be >= 0");
-  require(z.size() == 0 || z.cwiseAbs().maxCoeff() <= kEkfMaxCoordinate, "z",
-          "entries must be <= 1e9 (kEkfMaxCoordinate) in magnitude");
-}
+void EkfSlam::check_measurements(const Eigen::Ref<const RowMatrixXd>& z) const { require_measurement_rows(z, md_); }
 
 void EkfSlam::measurement_jacobian(const Eigen::Vector3d& x, const Eigen::VectorXd& lm, Eigen::VectorXd& z_hat,
                                    Eigen::MatrixXd& hx, Eigen::MatrixXd& hm) const {
-  // Coordinates are within a few kEkfMaxCoordinate, so q cannot overflow.
+  // Coordinates are within a few kMaxCoordinate, so q cannot overflow.
   const double dx = lm[0] - x[0], dy = lm[1] - x[1], q = dx * dx + dy * dy;
   const double r = std::sqrt(q);
   z_hat.resize(md_);
@@ -456,7 +438,7 @@ void EkfSlam::restore(Saved& saved) {
 UpdateReport EkfSlam::update(const Eigen::Ref<const RowMatrixXd>& z, const std::vector<long>& ids, double gate) {
   check_measurements(z);
   require(static_cast<Eigen::Index>(ids.size()) == z.rows(), "ids", "must have one id per measurement");
-  for (const long id : ids) require(id >= 0 && id <= kEkfMaxLandmarkId, "ids", "must be in [0, 2^62]");
+  for (const long id : ids) require(id >= 0 && id <= kMaxLandmarkId, "ids", "must be in [0, 2^62]");
   require(!std::isnan(gate) && gate > 0.0, "gate", "must be > 0");
   // Which measurements correct a landmark (the others are first sightings).
   std::unordered_map<long, int> fresh;
@@ -771,7 +753,7 @@ void EkfSlam::set_map_management(const MapManagement& m) {
 }
 
 void EkfSlam::set_gate_distance(double metres) {
-  require(std::isfinite(metres) && metres >= kMinGateDistance && metres <= kEkfMaxCoordinate, "gate_distance",
+  require(std::isfinite(metres) && metres >= kMinHashCellSize && metres <= kMaxCoordinate, "gate_distance",
           "must be in [1e-6, 1e9] m");
   gate_distance_ = metres;
 }

@@ -110,7 +110,7 @@ MultiHypothesisEkfSlam::MultiHypothesisEkfSlam(const EkfSlam& initial, const Mul
   log_det_q_ = log_det_2pi(Eigen::LLT<Eigen::MatrixXd>(q));
   long next_id = 0;
   for (const long id : initial.landmark_ids()) next_id = std::max(next_id, id + 1);
-  beam_.push_back({initial.clone(), 0.0, next_id, nullptr, {}});
+  beam_.push_back({initial, 0.0, next_id, nullptr, {}});
   if (has_offset()) {  // b's stationary distribution, independent of the start
     ScanOffset& b = beam_.front().offset;
     b.var = options.bearing_offset_sigma * options.bearing_offset_sigma;
@@ -186,7 +186,7 @@ void MultiHypothesisEkfSlam::branch(const Hypothesis& parent, const Eigen::Ref<c
     scan_offset.mean *= rho;
     scan_offset.cov *= rho;
     scan_offset.var = rho * rho * scan_offset.var + (1.0 - rho * rho) * sigma * sigma;
-    shifted.emplace(parent.filter.clone());
+    shifted.emplace(parent.filter);
     shift_heading(*shifted, scan_offset, 1.0);
   }
   const EkfSlam& scan_filter = shifted ? *shifted : parent.filter;
@@ -212,7 +212,7 @@ void MultiHypothesisEkfSlam::branch(const Hypothesis& parent, const Eigen::Ref<c
   const double detect_cost = p_d > 0.0 ? -2.0 * std::log(p_d) : 0.0;
   const double miss_cost = -2.0 * std::log1p(-p_d);
   for (const Assignment& a : AssignmentSearch(options, options_.max_children).run()) {
-    Hypothesis child{scan_filter.clone(), parent.cost, parent.next_id, nullptr, scan_offset};
+    Hypothesis child{scan_filter, parent.cost, parent.next_id, nullptr, scan_offset};
     ScanOffset& offset = child.offset;
     for (const long id : in_view)
       child.cost += std::find(a.targets.begin(), a.targets.end(), id) != a.targets.end() ? detect_cost : miss_cost;

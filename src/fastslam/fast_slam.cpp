@@ -12,37 +12,18 @@
 #include "probslam/core/angle.hpp"
 #include "probslam/core/check.hpp"
 #include "probslam/core/pose2.hpp"
+#include "probslam/core/filter_limits.hpp"
 #include "probslam/core/range_bearing_model.hpp"
 #include "probslam/core/velocity_motion_model.hpp"
-#include "probslam/grid/worker_pool.hpp"
+#include "probslam/core/worker_pool.hpp"
 
 namespace probslam {
 namespace {
 
-// Relative asymmetry tolerated in a user's noise matrix (rounding from a conversion).
-constexpr double kSymmetryTolerance = 1e-9;
-// Squared range below which a landmark sits on the robot: no bearing, no linearisation (as
-// core/range_bearing_model.cpp, which would refuse it).
-constexpr double kMinRangeSquared = 1e-18;
-// Association candidates: within association_radius plus this many standard deviations of where
-// the measurement places its landmark (3 sigma holds 99% of a 2-D Gaussian's mass).
-constexpr double kPlacementSigmas = 3.0;
 // Below this many particles per worker the threads' hand-off costs more than it saves.
 constexpr int kMinParticlesPerThread = 16;
 // The filter's own random stream (resampling offsets): a stream number no particle reaches.
 constexpr std::uint64_t kFilterStream = ~std::uint64_t{0};
-
-void require_psd(const Eigen::MatrixXd& m, const char* name, bool semi) {
-  require(m.size() > 0, name, "must not be empty");
-  require(m.allFinite(), name, "must contain only finite values");
-  require(m.cwiseAbs().maxCoeff() <= kFastSlamMaxVariance, name,
-          "entries must be <= 1e18 (kFastSlamMaxVariance) in magnitude");
-  const double scale = std::max(1.0, m.cwiseAbs().maxCoeff());
-  require((m - m.transpose()).cwiseAbs().maxCoeff() <= kSymmetryTolerance * scale, name, "must be symmetric");
-  const double min_eig = Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd>(m, Eigen::EigenvaluesOnly).eigenvalues()(0);
-  if (semi) require(min_eig >= -kSymmetryTolerance * scale, name, "must be positive semi-definite");
-  else require(min_eig > 0.0, name, "must be positive definite");
-}
 
 template <int N>
 Eigen::Matrix<double, N, N> symmetric(const Eigen::Matrix<double, N, N>& m) {
@@ -127,15 +108,14 @@ struct Scan {
 PoseProposal fastslam2_proposal(const Eigen::Vector3d& pose_mean, const Eigen::Matrix3d& pose_cov,
                                 const Eigen::Vector2d& landmark_mean, const Eigen::Matrix2d& landmark_cov,
                                 const Eigen::Vector2d& z, const Eigen::Matrix2d& measurement_noise) {
-  require(pose_mean.allFinite() && pose_mean.head<2>().cwiseAbs().maxCoeff() <= kFastSlamMaxCoordinate,
-          "pose_mean", "must be finite with |x|, |y| <= 1e9 m (kFastSlamMaxCoordinate)");
-  require_psd(pose_cov, "pose_cov", true);
-  require(landmark_mean.allFinite() && landmark_mean.cwiseAbs().maxCoeff() <= kFastSlamMaxCoordinate,
-          "landmark_mean", "must be finite with |x|, |y| <= 1e9 m (kFastSlamMaxCoordinate)");
-  require_psd(landmark_cov, "landmark_cov", true);
-  require(z.allFinite() && z[0] >= 0.0 && z.cwiseAbs().maxCoeff() <= kFastSlamMaxCoordinate, "z",
+  require(on_map(pose_mean), "pose_mean", "must be finite with |x|, |y| <= 1e9 m (kMaxCoordinate)");
+  require_covariance(pose_cov, "pose_cov", true);
+  require(landmark_mean.allFinite() && landmark_mean.cwiseAbs().maxCoeff() <= kMaxCoordinate,
+          "landmark_mean", "must be finite with |x|, |y| <= 1e9 m (kMaxCoordinate)");
+  require_covariance(landmark_cov, "landmark_cov", true);
+  require(z.allFinite() && z[0] >= 0.0 && z.cwiseAbs().maxCoeff() <= kMaxCoordinate, "z",
           "must be finite with a range in [0, 1e9]");
-  require_psd(measurement_noise, "measurement_noise", false);
+  require_covariance(measurement_noise, "measurement_noise", false);
   Landmark lm;
   lm.mean = landmark_mean;
   lm.cov = symmetric<2>(landmark_cov);
@@ -181,7 +161,7 @@ struct FastSlam::Context {
     }
     lm.existence += o.existence_hit;
     require(lm.mean.allFinite() && lm.cov.allFinite() && std::isfinite(ll) &&
-                lm.mean.cwiseAbs().maxCoeff() <= 4.0 * kFastSlamMaxCoordinate,
+                lm.mean.cwiseAbs().maxCoeff() <= 4.0 * kMaxCoordinate,
             "z", "cannot be applied: the landmark update would not be finite");
     return ll;
   }
@@ -209,8 +189,7 @@ struct FastSlam::Context {
     const Eigen::Vector3d n(part.rng.normal(), part.rng.normal(), part.rng.normal());
     Eigen::Vector3d x = mu + l * n;
     x[2] = wrap_angle(x[2]);
-    require(x.allFinite() && x.head<2>().cwiseAbs().maxCoeff() <= kFastSlamMaxCoordinate, "z",
-            "moves the pose beyond 1e9 m (kFastSlamMaxCoordinate)");
+    require(on_map(x), "z", "moves the pose beyond 1e9 m (kMaxCoordinate)");
     part.pose = x;
     if (o.record_path) part.path.replace_last(x);
   }
@@ -422,17 +401,16 @@ FastSlam::FastSlam(const FastSlamOptions& options) : o_(options) {
   require((o_.motion_noise.rows() == 3 && o_.motion_noise.cols() == 3) ||
               (o_.motion_noise.rows() == 2 && o_.motion_noise.cols() == 2),
           "motion_noise", "must be 3x3 (pose space) or 2x2 (control space)");
-  require_psd(o_.motion_noise, "motion_noise", true);
+  require_covariance(o_.motion_noise, "motion_noise", true);
   const int md = o_.use_signatures ? 3 : 2;
   require(o_.measurement_noise.rows() == md && o_.measurement_noise.cols() == md, "measurement_noise",
           o_.use_signatures ? "must be 3x3 (range, bearing, signature)" : "must be 2x2 (range, bearing)");
-  require_psd(o_.measurement_noise, "measurement_noise", false);
+  require_covariance(o_.measurement_noise, "measurement_noise", false);
   if (o_.use_signatures)
     require(o_.measurement_noise(0, 2) == 0.0 && o_.measurement_noise(1, 2) == 0.0 &&
                 o_.measurement_noise(2, 0) == 0.0 && o_.measurement_noise(2, 1) == 0.0,
             "measurement_noise", "the signature must be uncorrelated with range and bearing (zero off-diagonal entries)");
-  require(o_.initial_pose.allFinite() && o_.initial_pose.head<2>().cwiseAbs().maxCoeff() <= kFastSlamMaxCoordinate,
-          "initial_pose", "must be finite with |x|, |y| <= 1e9 m (kFastSlamMaxCoordinate)");
+  require(on_map(o_.initial_pose), "initial_pose", "must be finite with |x|, |y| <= 1e9 m (kMaxCoordinate)");
   require(o_.threads >= 1 && o_.threads <= kFastSlamMaxThreads, "threads", "must be in [1, 256] (kFastSlamMaxThreads)");
   require(std::isfinite(o_.resample_threshold) && o_.resample_threshold >= 0.0 && o_.resample_threshold <= 1.0,
           "resample_threshold", "must be in [0, 1]");
@@ -441,15 +419,15 @@ FastSlam::FastSlam(const FastSlamOptions& options) : o_(options) {
   require(std::isfinite(o_.outlier_density) && o_.outlier_density >= 0.0, "outlier_density",
           "must be finite and >= 0 (0: no outlier model)");
   require(std::isfinite(o_.association_radius) && o_.association_radius >= 0.0 &&
-              o_.association_radius <= kFastSlamMaxCoordinate,
+              o_.association_radius <= kMaxCoordinate,
           "association_radius", "must be in [0, 1e9] m");
-  require(std::isfinite(o_.cell_size) && o_.cell_size >= kFastSlamMinCellSize && o_.cell_size <= kFastSlamMaxCoordinate,
-          "cell_size", "must be in [1e-6, 1e9] m (kFastSlamMinCellSize)");
-  require(std::isfinite(o_.existence_hit) && o_.existence_hit >= 0.0 && o_.existence_hit <= kFastSlamMaxCoordinate,
+  require(std::isfinite(o_.cell_size) && o_.cell_size >= kMinHashCellSize && o_.cell_size <= kMaxCoordinate,
+          "cell_size", "must be in [1e-6, 1e9] m (kMinHashCellSize)");
+  require(std::isfinite(o_.existence_hit) && o_.existence_hit >= 0.0 && o_.existence_hit <= kMaxCoordinate,
           "existence_hit", "must be in [0, 1e9]");
-  require(std::isfinite(o_.existence_miss) && o_.existence_miss >= 0.0 && o_.existence_miss <= kFastSlamMaxCoordinate,
+  require(std::isfinite(o_.existence_miss) && o_.existence_miss >= 0.0 && o_.existence_miss <= kMaxCoordinate,
           "existence_miss", "must be in [0, 1e9]");
-  require(o_.sensor_range > 0.0 && (std::isinf(o_.sensor_range) || o_.sensor_range <= kFastSlamMaxCoordinate),
+  require(o_.sensor_range > 0.0 && (std::isinf(o_.sensor_range) || o_.sensor_range <= kMaxCoordinate),
           "sensor_range", "must be > 0 m (and at most 1e9 m, or infinite)");
   require(!o_.negative_information || std::isfinite(o_.sensor_range), "sensor_range",
           "must be finite with negative_information");
@@ -640,7 +618,7 @@ void FastSlam::move_particles(Sample&& sample) {
 void FastSlam::predict(double v, double w, double dt) {
   // Validates v, w, dt (finite, dt > 0) before anything changes.
   velocity_motion_jacobian(o_.initial_pose, v, w, dt);
-  require(std::fabs(v * dt) <= kFastSlamMaxCoordinate, "v", "* dt must be <= 1e9 m (kFastSlamMaxCoordinate)");
+  require(std::fabs(v * dt) <= kMaxCoordinate, "v", "* dt must be <= 1e9 m (kMaxCoordinate)");
   const Eigen::Matrix3d r = control_noise_ ? Eigen::Matrix3d::Zero() : Eigen::Matrix3d(o_.motion_noise);
   const Eigen::Matrix2d mc = control_noise_ ? Eigen::Matrix2d(o_.motion_noise) : Eigen::Matrix2d::Zero();
   move_particles([&](const Eigen::Vector3d& x, ParticleRng& rng, Motion& mv) {
@@ -652,8 +630,7 @@ void FastSlam::predict(double v, double w, double dt) {
       mv.pose = velocity_motion(x, v, w, dt) + e;
       mv.pose[2] = wrap_angle(mv.pose[2]);
     }
-    require(mv.pose.allFinite() && mv.pose.head<2>().cwiseAbs().maxCoeff() <= kFastSlamMaxCoordinate, "v",
-            "moves the robot beyond 1e9 m (kFastSlamMaxCoordinate)");
+    require(on_map(mv.pose), "v", "moves the robot beyond 1e9 m (kMaxCoordinate)");
     if (o_.version == 2) {
       mv.prior_mean = velocity_motion(x, v, w, dt);
       if (control_noise_) {
@@ -668,9 +645,9 @@ void FastSlam::predict(double v, double w, double dt) {
 
 void FastSlam::predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matrix3d& noise) {
   require_all_finite(delta, "delta");
-  require(delta.head<2>().norm() <= kFastSlamMaxCoordinate, "delta",
-          "must be a step of at most 1e9 m (kFastSlamMaxCoordinate)");
-  require_psd(noise, "noise", true);
+  require(delta.head<2>().norm() <= kMaxCoordinate, "delta",
+          "must be a step of at most 1e9 m (kMaxCoordinate)");
+  require_covariance(noise, "noise", true);
   const Eigen::Matrix3d cov = symmetric<3>(noise);
   const Eigen::Matrix3d l = psd_factor<3>(cov);
   move_particles([&](const Eigen::Vector3d& x, ParticleRng& rng, Motion& mv) {
@@ -678,8 +655,7 @@ void FastSlam::predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matri
     const Eigen::Vector3d d = delta + l * Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal());
     mv.pose.head<2>() = x.head<2>() + rx * d.head<2>();
     mv.pose[2] = wrap_angle(x[2] + d[2]);
-    require(mv.pose.allFinite() && mv.pose.head<2>().cwiseAbs().maxCoeff() <= kFastSlamMaxCoordinate, "delta",
-            "moves the robot beyond 1e9 m (kFastSlamMaxCoordinate)");
+    require(on_map(mv.pose), "delta", "moves the robot beyond 1e9 m (kMaxCoordinate)");
     if (o_.version == 2) {
       mv.prior_mean.head<2>() = x.head<2>() + rx * delta.head<2>();
       mv.prior_mean[2] = wrap_angle(x[2] + delta[2]);
@@ -691,25 +667,19 @@ void FastSlam::predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matri
 }
 
 void FastSlam::check_measurements(const Eigen::Ref<const RowMatrixXd>& z) const {
-  const int md = landmark_dim();
-  require(z.cols() == md, "z", md == 3 ? "must have 3 columns (range, bearing, signature)"
-                                       : "must have 2 columns (range, bearing)");
-  require(z.allFinite(), "z", "must contain only finite values");
-  require((z.col(0).array() >= 0.0).all(), "z", "ranges must be >= 0");
-  require(z.size() == 0 || z.cwiseAbs().maxCoeff() <= kFastSlamMaxCoordinate, "z",
-          "entries must be <= 1e9 (kFastSlamMaxCoordinate) in magnitude");
+  require_measurement_rows(z, landmark_dim());
 }
 
 void FastSlam::check_room(const FastSlamParticle& p, Eigen::Index added) {
   require(static_cast<long>(p.map.size()) + added <= kFastSlamMaxLandmarks, "z",
           "would grow a map beyond 2^26 landmarks (kFastSlamMaxLandmarks)");
-  require(p.next_id <= kFastSlamMaxLandmarkId - added, "z", "would need landmark ids beyond 2^62");
+  require(p.next_id <= kMaxLandmarkId - added, "z", "would need landmark ids beyond 2^62");
 }
 
 bool FastSlam::update(const Eigen::Ref<const RowMatrixXd>& z, const std::vector<long>& ids) {
   check_measurements(z);
   require(static_cast<Eigen::Index>(ids.size()) == z.rows(), "ids", "must have one id per measurement");
-  for (long id : ids) require(id >= 0 && id <= kFastSlamMaxLandmarkId, "ids", "must be in [0, 2^62]");
+  for (long id : ids) require(id >= 0 && id <= kMaxLandmarkId, "ids", "must be in [0, 2^62]");
   const Context c{o_, q2_, q_signature_, std::log(o_.p_new), std::log(o_.outlier_density)};
   const Scan s{z, o_.use_signatures};
   staged([&](int, FastSlamParticle& p) {

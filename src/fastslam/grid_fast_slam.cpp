@@ -10,7 +10,7 @@
 #include "probslam/core/check.hpp"
 #include "probslam/core/pose2.hpp"
 #include "probslam/core/pose2_covariance.hpp"
-#include "probslam/grid/worker_pool.hpp"
+#include "probslam/core/worker_pool.hpp"
 
 namespace probslam {
 namespace {

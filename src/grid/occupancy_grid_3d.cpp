@@ -9,7 +9,7 @@
 #include "probslam/core/check.hpp"
 #include "probslam/grid/log_odds.hpp"
 #include "probslam/grid/scan_update.hpp"
-#include "probslam/grid/worker_pool.hpp"
+#include "probslam/core/worker_pool.hpp"
 
 namespace probslam {
 namespace {

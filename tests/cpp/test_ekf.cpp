@@ -58,20 +58,61 @@ TEST(EkfSlam, RejectsBadInputAndKeepsState) {
   EXPECT_EQ(ekf.mean(), mean);
 }
 
-TEST(EkfSlam, PairingLikelihoodIsTheUpdatesNisAndCloneIsIndependent) {
+TEST(EkfSlam, PairingLikelihoodIsTheUpdatesNisAndACopyIsIndependent) {
   EkfSlam ekf = make();
   RowMatrixXd z(1, 2);
   z << 3.0, 0.4;
   ekf.update(z, {4});
   ekf.predict(0.5, 0.1, 1.0);
   z << 2.6, 0.35;
-  const EkfSlam copy = ekf.clone();
+  const EkfSlam copy = ekf;
   const EkfSlam::PairingLikelihood p = ekf.pairing_likelihood(z.row(0).transpose(), 4);
   const UpdateReport r = ekf.update(z, {4});
   EXPECT_NEAR(p.nis, r.nis[0], 1e-12);
   EXPECT_TRUE(std::isfinite(p.log_det));
   EXPECT_NE(copy.pose(), ekf.pose());  // the update moved only the original
   EXPECT_THROW(ekf.pairing_likelihood(z.row(0).transpose(), 7), std::invalid_argument);
+}
+
+// A copy (constructor or assignment) holds everything the original held, in its own storage:
+// the implicit copy used to share it, so an update of one moved the other's mean too.
+TEST(EkfSlam, CopiesAreDeep) {
+  EkfSlam ekf = make();
+  MapManagement mm;
+  mm.provisional = true;
+  ekf.set_map_management(mm);
+  RowMatrixXd z(2, 2);
+  z << 3.0, 0.4, 2.0, -1.0;
+  ekf.update(z, {4, 9});
+  ekf.update_unknown(z, 0.5, 0.9);
+  ekf.predict(0.5, 0.1, 1.0);
+  EkfSlam assigned = make();
+  assigned = ekf;
+  for (const EkfSlam* c : {&assigned}) {
+    const EkfSlam copy = ekf;
+    for (const EkfSlam& x : {copy, *c}) {
+      EXPECT_NE(x.storage(), ekf.storage());
+      EXPECT_EQ(x.state_dim(), ekf.state_dim());
+      EXPECT_EQ(x.landmark_ids(), ekf.landmark_ids());
+      EXPECT_EQ(x.num_provisional(), ekf.num_provisional());
+      EXPECT_EQ(x.map_management().provisional, ekf.map_management().provisional);
+      EXPECT_EQ(x.gate_distance(), ekf.gate_distance());
+      EXPECT_EQ(x.measurement_noise(), ekf.measurement_noise());
+      EXPECT_EQ(Eigen::VectorXd(x.storage()->mean.head(x.state_dim())),
+                Eigen::VectorXd(ekf.storage()->mean.head(ekf.state_dim())));
+      for (const long id : ekf.landmark_ids()) EXPECT_EQ(x.existence(id), ekf.existence(id));
+    }
+  }
+  // The same calls on a copy and on the original give the same results; neither moves the other.
+  EkfSlam copy = ekf;
+  const Eigen::Vector3d before = ekf.pose();
+  copy.predict(1.0, 0.2, 1.0);
+  EXPECT_EQ(ekf.pose(), before);
+  ekf.predict(1.0, 0.2, 1.0);
+  EXPECT_EQ(ekf.pose(), copy.pose());
+  const AssociationReport a = ekf.update_unknown(z, 0.5, 0.9), b = copy.update_unknown(z, 0.5, 0.9);
+  EXPECT_EQ(a.ids, b.ids);
+  EXPECT_EQ(Eigen::VectorXd(ekf.mean()), Eigen::VectorXd(copy.mean()));
 }
 
 TEST(MultiHypothesisEkfSlam, KeepsTheCheapestBranchAndValidates) {

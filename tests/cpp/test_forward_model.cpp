@@ -211,5 +211,57 @@ TEST(MapOccupancyGridMapping, RejectsBadInput) {
   expect_invalid([&] { map_occupancy_grid_mapping(s.grid, s.poses, s.ranges, s.angles, m, s.prior); }, "z_rand");
 }
 
+// beam_footprint_visits bounds the work before it starts: it must never be below the cells the
+// footprint really holds (lasers, and sonar cones of any width, on and off the grid).
+TEST(BeamFootprint, VisitsBoundTheFootprint) {
+  const OccupancyGrid2D grid(0.1, 50, 40);
+  std::mt19937_64 rng(3);
+  std::uniform_real_distribution<double> x(-1.0, 6.0), y(-1.0, 5.0), a(-kPi, kPi), beta(0.01, kTwoPi);
+  std::vector<FootprintCell> cells;
+  for (int k = 0; k < 400; ++k) {
+    const Eigen::Vector3d pose(x(rng), y(rng), a(rng));
+    const BeamGeometry g =
+        k % 2 ? BeamGeometry{BeamShape::kLaser, 3.0, 0.0} : BeamGeometry{BeamShape::kSonar, 3.0, beta(rng)};
+    const double angle = a(rng);
+    beam_footprint(grid.lattice(), grid.width(), grid.height(), pose, angle, g, cells);
+    EXPECT_GE(beam_footprint_visits(grid.lattice(), grid.width(), grid.height(), pose, angle, g),
+              static_cast<double>(cells.size())) << k;
+  }
+}
+
+TEST(BeamFootprint, AWholeDiscSonarOverALargeGridIsRefusedBeforeTheWork) {
+  const OccupancyGrid2D grid(0.05, 4000, 4000);
+  const BinaryMap2D map(grid, std::vector<std::uint8_t>(4000u * 4000u, 0));
+  BeamMixture m = mixture(200.0);
+  const BeamSensorModel sonar(m, BeamShape::kSonar, kTwoPi);
+  const Eigen::VectorXd angles = Eigen::VectorXd::LinSpaced(1000, -3.0, 3.0);
+  expect_invalid([&] { sonar.expected_ranges(Eigen::Vector3d(100.0, 100.0, 0.0), angles, map); }, "beam_angles");
+  const Poses2 poses = Eigen::RowVector3d(100.0, 100.0, 0.0);
+  const RowMatrixXd ranges = RowMatrixXd::Constant(1, 1000, 5.0);
+  const RowMatrixXd prior = RowMatrixXd::Constant(4000, 4000, 0.3);
+  expect_invalid([&] { map_occupancy_grid_mapping(grid, poses, ranges, angles.transpose(), sonar, prior); }, "scans");
+}
+
+// The interrupt hook is called during the climb, and what it throws leaves the call.
+TEST(MapOccupancyGridMapping, InterruptHookStopsTheClimb) {
+  const Scenario s = sonar_scenario();
+  struct Stop {};
+  for (const FlipScoring scoring : {FlipScoring::kIncremental, FlipScoring::kFull}) {
+    MapMappingOptions o;
+    o.scoring = scoring;
+    int calls = 0;
+    o.interrupt = [&] {
+      if (++calls == 2) throw Stop{};
+    };
+    EXPECT_THROW(map_occupancy_grid_mapping(s.grid, s.poses, s.ranges, s.angles, s.model, s.prior, o), Stop);
+    EXPECT_EQ(calls, 2);
+    o.interrupt = [&] { ++calls; };
+    calls = 0;
+    const MapMappingResult r = map_occupancy_grid_mapping(s.grid, s.poses, s.ranges, s.angles, s.model, s.prior, o);
+    EXPECT_GT(calls, 0);
+    EXPECT_TRUE(r.converged);
+  }
+}
+
 }  // namespace
 }  // namespace probslam

@@ -13,7 +13,7 @@
 #include "probslam/grid/occupancy_grid_2d.hpp"
 #include "probslam/grid/occupancy_grid_3d.hpp"
 #include "probslam/grid/ray_traversal.hpp"
-#include "probslam/grid/worker_pool.hpp"
+#include "probslam/core/worker_pool.hpp"
 #include "test_support.hpp"
 
 namespace probslam {

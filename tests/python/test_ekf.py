@@ -245,7 +245,7 @@ def test_joint_compatibility_equals_brute_force(seed):
 
     rng = np.random.default_rng(seed)
     ekf, z, q = clustered_scan(rng, int(rng.integers(2, 7)), int(rng.integers(1, 5)))
-    alpha, alpha_new = ps.ekf.chi2_quantile(0.99, 2), ps.ekf.chi2_quantile(1 - 1e-6, 2)
+    alpha, alpha_new = ps.chi_square_quantile(0.99, 2), ps.chi_square_quantile(1 - 1e-6, 2)
     mu, sigma, ids = ekf.mean.copy(), ekf.covariance.copy(), ekf.landmark_ids.copy()
     target, _, pi = joint_compatibility_brute_force(z, mu, sigma, q, 2, alpha)
     result = ekf.update_unknown(z, association="jcbb")
@@ -272,3 +272,16 @@ def test_joint_compatibility_cases_differ_from_maximum_likelihood():
         differ += not (np.array_equal(results[0].ids, results[1].ids)
                        and np.array_equal(results[0].outcome, results[1].outcome))
     assert differ >= 5
+
+
+def test_chi_square_quantile_is_scipys():
+    from scipy.stats import chi2
+
+    for dof in (1, 2, 3, 7):
+        for p in (1e-6, 0.05, 0.5, 0.95, 0.99, 1 - 1e-6):
+            assert ps.chi_square_quantile(p, dof) == pytest.approx(chi2.ppf(p, dof), rel=1e-10)
+            assert ps.chi_square_cdf(chi2.ppf(p, dof), dof) == pytest.approx(p, rel=1e-10)
+    with pytest.raises(ValueError, match="^p "):
+        ps.chi_square_quantile(1.0, 2)
+    with pytest.raises(ValueError, match="^dof "):
+        ps.chi_square_quantile(0.5, 0)

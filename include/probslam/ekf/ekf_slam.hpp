@@ -9,25 +9,17 @@
 #include <unordered_map>
 #include <vector>
 
+#include "probslam/core/filter_limits.hpp"
 #include "probslam/core/object_mutex.hpp"
 #include "probslam/core/types.hpp"
 
 namespace probslam {
 
-// Reliability limits (README "Reliability"): input beyond them is refused by name, so that the
-// filter's products (r^2 times a variance, G P G^T, K S K^T) stay far inside the double range.
-/// Metres: robot coordinates, measured ranges and signatures, one motion's length. Larger than
-/// any planar map (the Earth's circumference is 4e7 m).
-inline constexpr double kEkfMaxCoordinate = 1e9;
-/// Entries of a noise or initial covariance: a standard deviation of kEkfMaxCoordinate metres,
-/// beyond which a measurement or motion carries no information at all.
-inline constexpr double kEkfMaxVariance = 1e18;
+// Reliability limits beside the shared ones of core/filter_limits.hpp (kMaxCoordinate,
+// kMaxVariance, kMaxLandmarkId), refused by name beyond them.
 /// State dimension (3 + landmarks x landmark_dim): a dense covariance of 2 GiB, whose O(n^2)
 /// update takes about a second. Larger maps need a sparse method (graph SLAM).
 inline constexpr int kEkfMaxStateDimension = 16384;
-/// Landmark ids are in [0, kEkfMaxLandmarkId]: negative ids mark "no landmark" in the reports,
-/// and new ids (largest + 1) must never overflow.
-inline constexpr long kEkfMaxLandmarkId = 1L << 62;
 /// Existence log-odds increments and threshold: far beyond any probability a double can hold.
 inline constexpr double kEkfMaxLogOdds = 1e6;
 /// Sighting and age counts of the provisional list.
@@ -102,8 +94,12 @@ class EkfSlam {
   Eigen::MatrixXd landmark_covariance(long id) const;
   double existence(long id) const;
   std::shared_ptr<EkfSlamStorage> storage() const { return s_; }
-  /// An independent copy: its own storage (the copy constructor would share it).
-  EkfSlam clone() const;
+  /// Copies are deep: a copy has its own storage (the views handed out before keep the
+  /// original's), so two filters never alias one mean and covariance.
+  EkfSlam(const EkfSlam& other);
+  EkfSlam& operator=(const EkfSlam& other);
+  EkfSlam(EkfSlam&&) noexcept = default;
+  EkfSlam& operator=(EkfSlam&&) noexcept = default;
   Eigen::Index capacity() const { return s_->mean.size(); }
   const Eigen::MatrixXd& measurement_noise() const { return Q_; }
 
@@ -121,7 +117,7 @@ class EkfSlam {
                       double gate = std::numeric_limits<double>::infinity());
 
   /// std::invalid_argument naming "z" unless z is k x landmark_dim() of finite values with
-  /// ranges in [0, kEkfMaxCoordinate] and |bearing|, |signature| <= kEkfMaxCoordinate.
+  /// ranges in [0, kMaxCoordinate] and |bearing|, |signature| <= kMaxCoordinate.
   void check_measurements(const Eigen::Ref<const RowMatrixXd>& z) const;
   /// Table 10.1 lines 12-16 for one measurement z against landmark `id`, without updating:
   /// the normalised innovation squared and log det(2 pi S), whose sum is -2 log N(nu; 0, S).

@@ -10,6 +10,7 @@
 #include <memory>
 #include <vector>
 
+#include "probslam/core/filter_limits.hpp"
 #include "probslam/core/object_mutex.hpp"
 #include "probslam/core/types.hpp"
 #include "probslam/fastslam/landmark_tree.hpp"
@@ -19,22 +20,13 @@ namespace probslam {
 
 class WorkerPool;
 
-// Reliability limits (README "Reliability"), refused by name beyond them.
+// Reliability limits beside the shared ones of core/filter_limits.hpp, refused by name beyond them.
 /// Particles per filter: 2^20 particles of ~250 bytes each before any landmark.
 inline constexpr int kFastSlamMaxParticles = kMaxParticles;
 /// Worker threads of one filter.
 inline constexpr int kFastSlamMaxThreads = 256;
-/// Metres: robot coordinates, ranges, signatures, one motion's length (as kEkfMaxCoordinate).
-inline constexpr double kFastSlamMaxCoordinate = 1e9;
-/// Noise covariance entries: a standard deviation of kFastSlamMaxCoordinate.
-inline constexpr double kFastSlamMaxVariance = 1e18;
-/// Landmark ids are in [0, kFastSlamMaxLandmarkId]; new ids (largest + 1) never overflow.
-inline constexpr long kFastSlamMaxLandmarkId = 1L << 62;
 /// Landmarks in one particle's map (each measurement adds at most one).
 inline constexpr long kFastSlamMaxLandmarks = 1L << 26;
-/// Smallest cell of the spatial key (m): cell indices of coordinates within a few
-/// kFastSlamMaxCoordinate then stay far inside int64.
-inline constexpr double kFastSlamMinCellSize = 1e-6;
 
 /// Options of FastSlam; every value is checked by the constructor.
 struct FastSlamOptions {
