@@ -1,4 +1,4 @@
-"""The batch smoother and re-placement of benchmarks/mrclam_association_ceiling.py --smoothed
+"""The batch smoother and re-placement of studies/mrclam_association_ceiling.py --smoothed
 (issue 14's study of what smoothing a whole MRCLAM run can associate), on simulated runs."""
 
 import importlib.util
@@ -16,13 +16,13 @@ ROOT = pathlib.Path(__file__).resolve().parents[2]
 
 @pytest.fixture(scope="module")
 def study():
-    sys.path.insert(0, str(ROOT / "benchmarks"))  # the study imports its sibling bench module
+    saved = list(sys.path)  # the study puts benchmarks/ on the path to import a bench module
     try:
-        spec = importlib.util.spec_from_file_location("association_ceiling", ROOT / "benchmarks" / "mrclam_association_ceiling.py")
+        spec = importlib.util.spec_from_file_location("association_ceiling", ROOT / "studies" / "mrclam_association_ceiling.py")
         module = importlib.util.module_from_spec(spec)
         spec.loader.exec_module(module)
     finally:
-        sys.path.remove(str(ROOT / "benchmarks"))
+        sys.path[:] = saved
     return module
 
 

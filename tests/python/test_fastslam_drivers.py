@@ -67,7 +67,7 @@ def test_victoria_park_hidden_closes_its_loops(victoria):
     VICTORIA_PARK_ODOMETRY_NOISE_SCALE), version 2, seed 0: the path stays near the EKF's and
     the map near the dataset's 151 trees. With scale 3 the particles cannot follow the heading
     drift to the loop closures: 323 landmarks and a path 170 m from the GraphSLAM optimum
-    (benchmarks/fastslam_victoria_park_study.py; seeds 0-3 at scale 7: 141-230 landmarks,
+    (studies/fastslam_victoria_park_study.py; seeds 0-3 at scale 7: 141-230 landmarks,
     4.9-35 m). Seed 0 is a deterministic run, the bounds sit between the two regimes."""
     data, ekf = victoria
     run = fs.run_fastslam_victoria_park(data, known=False, version=2, seed=0)

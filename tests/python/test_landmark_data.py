@@ -269,7 +269,7 @@ def test_ekf_on_mrclam_unknown_correspondences(shared_data):
     sighting: even placed from the Vicon pose, 13% of the sightings fall nearer another landmark
     than their own (15% with the raw depth readings), and fitting each scan's common bearing
     offset with the true pose and map still leaves 4.5% wrong, so the issue's 95% is beyond a
-    filter here (benchmarks/mrclam_association_ceiling.py). Joint compatibility over each scan
+    filter here (studies/mrclam_association_ceiling.py). Joint compatibility over each scan
     does better than maximum likelihood and keeps the clusters apart (15 landmarks); these are
     the figures reached, kept from regressing."""
     raw = mrclam_dataset(shared_data, 7)
