@@ -102,6 +102,7 @@ def test_smoother_recovers_path_map_and_offsets_from_noisy_odometry(study):
     assert np.abs(states[:, 3] - offsets).max() < 0.03
 
 
+@pytest.mark.slow
 def test_alternation_recovers_cluster_labels(study):
     """Two pairs of landmarks 0.18 m apart (MRCLAM's clusters); a fifth of the sightings start on
     their pair's other member and the poses from drifted odometry: smoothing and re-placing

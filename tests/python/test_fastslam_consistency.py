@@ -97,6 +97,7 @@ def _monte_carlo(version):
 
 
 @pytest.mark.parametrize("version", [1, 2])
+@pytest.mark.slow
 def test_short_runs_many_particles_are_consistent(version):
     nees = _monte_carlo(version)
     assert NEES_LO < nees[:, SKIP:].mean() < NEES_HI

@@ -29,6 +29,7 @@ def victoria():
 
 
 @pytest.mark.parametrize("version", [1, 2])
+@pytest.mark.slow
 def test_victoria_park_known_follows_the_ekf(victoria, version):
     data, ekf = victoria
     run = fs.run_fastslam_victoria_park(data, known=True, version=version)
@@ -37,6 +38,7 @@ def test_victoria_park_known_follows_the_ekf(victoria, version):
     assert ls.rmse(run.poses[:, :2], ekf.poses[:, :2]) < VP_PATH_TOLERANCE
 
 
+@pytest.mark.slow
 def test_victoria_park_file_noise_diverges(victoria):
     """The cause of the old divergence: with the file's noise (scale 1) the particles cannot
     follow the odometry's heading bias; the bound above tells the two apart."""
@@ -62,6 +64,7 @@ def test_association_histories_follow_resampling(victoria):
     assert 0.0 <= fs.association_accuracy(run) <= 1.0
 
 
+@pytest.mark.slow
 def test_victoria_park_hidden_closes_its_loops(victoria):
     """Hidden associations with the driver's defaults (odometry noise scale 7, see
     VICTORIA_PARK_ODOMETRY_NOISE_SCALE), version 2, seed 0: the path stays near the EKF's and
@@ -139,6 +142,7 @@ def test_mrclam_perceptual_field_is_the_sightings_quantiles(mrclam_d1r1):
             fs.mrclam_perceptual_field(mrclam_d1r1, bad)
 
 
+@pytest.mark.slow
 def test_mrclam_hidden_negative_information_removes_duplicates(mrclam_d1r1):
     """Hidden barcodes, first 300 s of Dataset 1 robot 1 (14 barcodes seen; 14 landmarks with,
     16 without negative information), version 1: with the
@@ -152,6 +156,7 @@ def test_mrclam_hidden_negative_information_removes_duplicates(mrclam_d1r1):
     assert fs.association_accuracy(with_ni) >= 0.9
 
 
+@pytest.mark.slow
 def test_mrclam_benchmark_passes_the_fastslam_options():
     """benchmarks/bench_mrclam_association.py's --particles / --seed / --existence-miss reach the
     filter: each job equals the driver called with those options (first 300 s of Dataset 1
