@@ -1,7 +1,7 @@
 # SLAM from a raw CARMEN log (odometry and scans): scan matching into submaps, GraphSLAM over them.
 import probslam as ps
 
-log = ps.data.path("intel_raw_loop.log.gz")  # or e.g. "aces.clf.bz2" (see the README's data section)
+log = ps.data.path("intel_raw_loop.log.gz")  # or e.g. "aces.clf.bz2" (datasets: docs/cli.md)
 result = ps.run_slam(log, progress=False)    # a path, a CarmenLog or LaserScans
 result.poses, result.grid, result.graph      # (S, 3) laser poses, OccupancyGrid2D, PoseGraph2D
 print(f"{len(result.poses)} scans, {result.graph.num_vertices} submaps, "

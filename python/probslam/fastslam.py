@@ -36,7 +36,7 @@ DEFAULT_P_NEW = 1e-3
 #: 100 steps: the particles then cover the heading error accumulated between loop closures,
 #: which is what hidden associations need (a particle that drifted beyond the association gate
 #: starts a duplicate instead of closing the loop). Measured on this file only, the one it is
-#: for (benchmarks/fastslam_victoria_park_study.py, 100 particles, seeds 0-3, hidden
+#: for (studies/fastslam_victoria_park_study.py, 100 particles, seeds 0-3, hidden
 #: associations, median path RMSE from the optimum): scale 3: 180 m (version 1) / 181 m
 #: (version 2); 5: 45 / 13 m; 7: 10 / 8.8 m; 10: 24 / 24 m. Known associations: 3: 4.8-21 m;
 #: 7: 8-14 m.

@@ -47,6 +47,7 @@ def test_map_matches_direct_api(tmp_path):
     assert summary.scans == 180
 
 
+@pytest.mark.slow
 def test_optimize_writes_the_optimised_graph(tmp_path, capsys):
     g = ps.PoseGraph2D()
     truth = np.array([[0, 0, 0], [1, 0, np.pi / 2], [1, 1, np.pi], [0, 1, -np.pi / 2]])
@@ -91,6 +92,7 @@ def test_optimize_bad_file_reports_line(tmp_path, capsys):
     assert "bad.g2o:2:" in capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_ekf_slam_unknown_correspondences(tmp_path, capsys, shared_data):
     import pytest
 
@@ -102,6 +104,7 @@ def test_ekf_slam_unknown_correspondences(tmp_path, capsys, shared_data):
     assert (tmp_path / "e.png").read_bytes()[:4] == b"\x89PNG"
 
 
+@pytest.mark.slow
 def test_slam_bundled_raw_log(tmp_path, capsys):
     prefix = tmp_path / "s"
     assert cli.main(["slam", "-o", str(prefix), "--no-progress"]) == 0
@@ -121,6 +124,7 @@ def test_slam_bundled_raw_log(tmp_path, capsys):
     assert (tmp_path / "s.png").read_bytes()[:4] == b"\x89PNG"
 
 
+@pytest.mark.slow
 def test_slam_rbpf_on_the_bundled_raw_log(tmp_path, capsys):
     prefix = tmp_path / "r"
     assert cli.main(["slam", "--method", "rbpf", "--particles", "4", "-o", str(prefix), "--no-progress"]) == 0
@@ -158,6 +162,7 @@ def test_slam_bad_log_is_an_error_not_a_traceback(tmp_path, capsys):
     assert cli.main(["slam", str(tmp_path / "missing.log"), "--no-progress"]) == 2
 
 
+@pytest.mark.slow
 def test_fastslam_mrclam_prints_what_the_driver_computes(tmp_path, capsys, shared_data):
     pytest.importorskip("matplotlib")
     from probslam import fastslam as fs
@@ -287,6 +292,7 @@ def _run(args, tmp_path, env_extra=None):
                           timeout=300)
 
 
+@pytest.mark.slow
 def test_subprocess_bad_file_has_no_traceback(tmp_path):
     run = _run(["-m", "probslam", "ekf-slam", str(tmp_path / "missing")], tmp_path)
     assert run.returncode == 2 and "Traceback" not in run.stderr
@@ -294,6 +300,7 @@ def test_subprocess_bad_file_has_no_traceback(tmp_path):
                                  f"{cli.LANDMARK_DATASET}"
 
 
+@pytest.mark.slow
 def test_version_and_python_m(tmp_path):
     run = _run(["-m", "probslam", "--version"], tmp_path)
     assert run.returncode == 0 and run.stdout.strip() == f"probslam {ps.__version__}"
@@ -301,6 +308,7 @@ def test_version_and_python_m(tmp_path):
     assert run.returncode == 0 and "exit status:" in run.stdout and "2  a user or input error" in run.stdout
 
 
+@pytest.mark.slow
 def test_without_matplotlib_plots_are_skipped(tmp_path):
     shim = tmp_path / "shim"
     (shim / "matplotlib").mkdir(parents=True)
@@ -341,6 +349,7 @@ def test_a_mrclam_folder_missing_a_robot_file_is_named(tmp_path, capsys):
     assert len(err.splitlines()) == 1 and "Robot1_Odometry.dat" in err and "expected a UTIAS MRCLAM folder" in err
 
 
+@pytest.mark.slow
 def test_a_skipped_line_is_a_one_line_warning(tmp_path):
     log = tmp_path / "log.log"
     log.write_text("FLASER 3 1 2 1 0 0 0 0 0 0\nFLASER 3 1 2\nFLASER 3 1 2 1 0.1 0 0 0.1 0 0\n")
@@ -350,6 +359,7 @@ def test_a_skipped_line_is_a_one_line_warning(tmp_path):
     assert len(lines) == 1 and lines[0].startswith(f"probslam: warning: {log}: skipped 1 malformed line (line 2: ")
 
 
+@pytest.mark.slow
 def test_ekf_slam_bearing_offset_on_the_bundled_mrclam(tmp_path, capsys):
     """--bearing-offset runs the multiple hypotheses with the scan's offset: the printed share of
     correct sightings is the library's for the same run; misuse is a one-line error."""

@@ -54,6 +54,7 @@ def test_missing_pose_graph_and_bt_raise_file_not_found(tmp_path):
         ps.io.read_mrclam(tmp_path)
 
 
+@pytest.mark.slow
 def test_mrclam_reads_compressed_data_files(tmp_path, shared_data):
     import gzip
     import shutil

@@ -1,9 +1,12 @@
 """Monte-Carlo consistency of EKF SLAM with known correspondences on simulated runs."""
 
 import numpy as np
+import pytest
 from scipy.stats import chi2
 
 import probslam as ps
+
+pytestmark = pytest.mark.slow  # 50 Monte-Carlo runs
 
 RUNS = 50
 STEPS = 150

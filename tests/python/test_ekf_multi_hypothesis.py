@@ -394,6 +394,7 @@ def share_correct(run, history):
 
 
 @pytest.mark.parametrize("new_landmark_cost", [None, 21.0])
+@pytest.mark.slow
 def test_bearing_offset_keeps_close_pairs_apart_whatever_the_new_landmark_cost(new_landmark_cost):
     """Pairs 0.3 m apart, a 3 deg scan-wide offset (rho 0.8), 0.5 deg noise of each sighting,
     missed detections charged (P_D 0.9). The filter carrying the offset sees a scan's sharp

@@ -18,6 +18,7 @@ def test_there_are_examples():
 
 
 @pytest.mark.parametrize("example", EXAMPLES, ids=lambda p: p.name)
+@pytest.mark.slow
 def test_example_runs(example, tmp_path):
     env = dict(os.environ, MPLBACKEND="Agg")
     run = subprocess.run([sys.executable, str(example)], cwd=tmp_path, env=env, capture_output=True, text=True,

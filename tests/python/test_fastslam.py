@@ -146,6 +146,7 @@ def test_version1_one_particle_no_noise_equals_bank_of_ekfs(signatures):
     assert len(bank) >= 8
 
 
+@pytest.mark.slow
 def test_version1_weights_of_every_particle():
     run, q = sim_run(2, steps=40)
     r = np.diag([0.01, 0.01, 0.002])
@@ -410,6 +411,7 @@ def test_ancestors_follow_the_resampling():
     assert np.all(np.abs(counts - 50 * weights) < 1.0 + 1e-9)  # floor or ceil of M w
 
 
+@pytest.mark.slow
 def test_threads_give_identical_results():
     run, q = sim_run(4, steps=80, clutter=0.3)
     results = []
@@ -648,6 +650,7 @@ def test_bearing_offset_follows_its_ar1_transition():
     assert np.all(g.bearing_offsets == 0.0)  # without the model: no offset, no random draw
 
 
+@pytest.mark.slow
 def test_bearing_offset_is_tracked_and_improves_the_map():
     """A robot turning on the spot sees 6 landmarks; every scan's bearings share an AR(1) offset
     (0.03 rad, rho 0.9) on top of 0.002 rad noise. With the model the particles' weighted

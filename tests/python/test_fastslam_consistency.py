@@ -1,4 +1,4 @@
-"""Pose NEES of landmark FastSLAM (issue 14's consistency study, benchmarks/fastslam_consistency.py):
+"""Pose NEES of landmark FastSLAM (issue 14's consistency study, studies/fastslam_consistency.py):
 the NEES helper against numpy, the filter's pose summary against its particles, and a short
 Monte-Carlo check that versions 1 and 2 with 1000 particles stay near consistent over half a lap."""
 
@@ -16,7 +16,7 @@ SKIP = 5  # the first control-space predictions leave a nearly rank-2 particle c
 # Generous band for the mean over RUNS runs and steps SKIP..STEPS of the pose NEES (3 for a
 # consistent filter). Over 150 steps (about half a lap, no loop closed) 1000 particles sampled
 # from the true motion model with known correspondences still represent the posterior fairly
-# well (the 50-run study, benchmarks/fastslam_consistency.py, shows them degenerating later:
+# well (the 50-run study, studies/fastslam_consistency.py, shows them degenerating later:
 # hundreds after a lap; 100 particles are near 100 already here). The steps of one run are strongly
 # correlated, so 10 runs are worth about 10 independent chi2(3) draws: the 95% range of their
 # mean is [1.6, 4.8] (chi2.ppf([0.025, 0.975], 30) / 10); the band leaves room above it for the
@@ -97,6 +97,7 @@ def _monte_carlo(version):
 
 
 @pytest.mark.parametrize("version", [1, 2])
+@pytest.mark.slow
 def test_short_runs_many_particles_are_consistent(version):
     nees = _monte_carlo(version)
     assert NEES_LO < nees[:, SKIP:].mean() < NEES_HI

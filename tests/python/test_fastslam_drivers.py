@@ -29,6 +29,7 @@ def victoria():
 
 
 @pytest.mark.parametrize("version", [1, 2])
+@pytest.mark.slow
 def test_victoria_park_known_follows_the_ekf(victoria, version):
     data, ekf = victoria
     run = fs.run_fastslam_victoria_park(data, known=True, version=version)
@@ -37,6 +38,7 @@ def test_victoria_park_known_follows_the_ekf(victoria, version):
     assert ls.rmse(run.poses[:, :2], ekf.poses[:, :2]) < VP_PATH_TOLERANCE
 
 
+@pytest.mark.slow
 def test_victoria_park_file_noise_diverges(victoria):
     """The cause of the old divergence: with the file's noise (scale 1) the particles cannot
     follow the odometry's heading bias; the bound above tells the two apart."""
@@ -62,12 +64,13 @@ def test_association_histories_follow_resampling(victoria):
     assert 0.0 <= fs.association_accuracy(run) <= 1.0
 
 
+@pytest.mark.slow
 def test_victoria_park_hidden_closes_its_loops(victoria):
     """Hidden associations with the driver's defaults (odometry noise scale 7, see
     VICTORIA_PARK_ODOMETRY_NOISE_SCALE), version 2, seed 0: the path stays near the EKF's and
     the map near the dataset's 151 trees. With scale 3 the particles cannot follow the heading
     drift to the loop closures: 323 landmarks and a path 170 m from the GraphSLAM optimum
-    (benchmarks/fastslam_victoria_park_study.py; seeds 0-3 at scale 7: 141-230 landmarks,
+    (studies/fastslam_victoria_park_study.py; seeds 0-3 at scale 7: 141-230 landmarks,
     4.9-35 m). Seed 0 is a deterministic run, the bounds sit between the two regimes."""
     data, ekf = victoria
     run = fs.run_fastslam_victoria_park(data, known=False, version=2, seed=0)
@@ -139,6 +142,7 @@ def test_mrclam_perceptual_field_is_the_sightings_quantiles(mrclam_d1r1):
             fs.mrclam_perceptual_field(mrclam_d1r1, bad)
 
 
+@pytest.mark.slow
 def test_mrclam_hidden_negative_information_removes_duplicates(mrclam_d1r1):
     """Hidden barcodes, first 300 s of Dataset 1 robot 1 (14 barcodes seen; 14 landmarks with,
     16 without negative information), version 1: with the
@@ -152,6 +156,7 @@ def test_mrclam_hidden_negative_information_removes_duplicates(mrclam_d1r1):
     assert fs.association_accuracy(with_ni) >= 0.9
 
 
+@pytest.mark.slow
 def test_mrclam_benchmark_passes_the_fastslam_options():
     """benchmarks/bench_mrclam_association.py's --particles / --seed / --existence-miss reach the
     filter: each job equals the driver called with those options (first 300 s of Dataset 1

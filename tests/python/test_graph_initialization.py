@@ -29,6 +29,7 @@ def victoria_park(shared_data):
     return path
 
 
+@pytest.mark.slow
 def test_victoria_park_reads_as_a_landmark_graph(victoria_park):
     g = pg.read_pose_graph(str(victoria_park))
     assert (len(g.pose_ids), len(g.point_ids), g.num_pose_edges, g.num_point_edges) == (6969, 151, 6968, 3640)
@@ -62,6 +63,7 @@ def test_ekf_initialisation_reaches_the_optimum(victoria_park):
     assert report.chi2 == pytest.approx(VICTORIA_PARK_OPTIMUM, rel=CONVERGED)
 
 
+@pytest.mark.slow
 def test_incremental_optimisation_reaches_the_optimum(victoria_park):
     g = pg.read_pose_graph(str(victoria_park))
     report = pg.initialize(g, "incremental", poses_per_step=300)

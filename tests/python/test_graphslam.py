@@ -82,6 +82,7 @@ def test_reduce_then_solve_equals_direct_sparse_and_dense_solves(signatures):
 
 
 @pytest.mark.parametrize("signatures", [False, True])
+@pytest.mark.slow
 def test_graph_slam_converges_to_the_dense_gauss_newton_minimum(signatures):
     controls, dt, meas, _, _, Q = problem(signatures, steps=16)  # small: the reference is slow
     result = probslam.graph_slam(controls, dt, meas, R, Q)

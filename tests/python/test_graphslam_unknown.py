@@ -94,6 +94,7 @@ def simulated_run(seed, signatures):
 
 
 @pytest.mark.parametrize("signatures", [False, True])
+@pytest.mark.slow
 def test_merges_recover_the_simulated_correspondences(signatures):
     for seed in range(3):
         run, (time, z, truth), q = simulated_run(seed, signatures)
@@ -111,6 +112,7 @@ def test_merges_recover_the_simulated_correspondences(signatures):
         assert len(pairs) == len(time)
 
 
+@pytest.mark.slow
 def test_the_unknown_result_is_the_known_solution_of_its_correspondences():
     run, (time, z, _), q = simulated_run(5, False)
     dt = np.full(len(run.controls), run.dt)

@@ -58,6 +58,7 @@ def test_weights_equal_a_numpy_evaluation_of_the_measurement_likelihood(drive, s
     np.testing.assert_allclose(f.log_weights, want, rtol=0, atol=1e-9)
 
 
+@pytest.mark.slow
 def test_threads_give_the_same_result_bit_for_bit(drive):
     one = feed(make(num_particles=8, threads=1), drive, 120)
     two = feed(make(num_particles=8, threads=2), drive, 120)
@@ -68,6 +69,7 @@ def test_threads_give_the_same_result_bit_for_bit(drive):
     assert not np.array_equal(one.poses, other_seed.poses)
 
 
+@pytest.mark.slow
 def test_maps_share_tiles(drive):
     f = feed(make(num_particles=20, weight_scale=1.0), drive, 150)  # untempered: frequent resampling
     t = f.tile_sharing
@@ -84,6 +86,7 @@ def loop_errors(drive, **kw):
     return np.linalg.norm(f.scan_poses()[:, :2] - true[:, :2], axis=1), f.summary
 
 
+@pytest.mark.slow
 def test_the_improved_proposal_closes_the_loop_where_the_motion_model_does_not(drive):
     # The odometry's heading bias drifts about 2 m over the lap. Largest position error over the
     # run for seeds 1, 2, 3 (measured; particles: errors in m), default weight_scale 0.03:
@@ -108,6 +111,7 @@ def test_the_improved_proposal_closes_the_loop_where_the_motion_model_does_not(d
     assert corrected.max() < 0.35
 
 
+@pytest.mark.slow
 def test_run_slam_rbpf_equals_the_class(drive):
     from probslam.slam import run_slam
 
@@ -175,6 +179,7 @@ def test_bad_scans_change_nothing_and_invalid_readings_never_hit(drive):
         f.scan_poses(4)
 
 
+@pytest.mark.slow
 def test_fr079_climb_starts_from_the_corrected_odometry(shared_data):
     # FR079's odometry pose of a scan lags the laser by up to 0.1 rad while turning: the climb
     # from it stops in the wrong optimum and one particle's map bends (about 1 m off the

@@ -78,6 +78,7 @@ def trained():
     return il.LearnedInverseModel(hidden=8).train(data, rng, max_iterations=200), data
 
 
+@pytest.mark.slow
 def test_learned_model_has_table_9_2_shape(trained):
     m, data = trained
     assert 0.02 < m.prior < 0.3
@@ -92,6 +93,7 @@ def test_learned_model_has_table_9_2_shape(trained):
     assert m.prior / 3 < beyond < 2 * m.prior  # about the prior beyond
 
 
+@pytest.mark.slow
 def test_learned_model_inserts_into_table_9_1_and_round_trips(trained, tmp_path):
     m, _ = trained
     model, angles = sonar()
@@ -127,6 +129,7 @@ def test_untrained_and_bad_input():
         m.train(il.TrainingSet(np.ones((5, 7)), np.zeros(4, dtype=bool)), np.random.default_rng(0))
 
 
+@pytest.mark.slow
 def test_insert_scan_rejects_bad_readings(trained):
     m, _ = trained
     model, angles = sonar()

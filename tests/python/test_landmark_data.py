@@ -17,6 +17,7 @@ MRCLAM_MOTION = np.diag([0.15 ** 2, 0.6 ** 2])
 MRCLAM_SENSOR = np.diag([0.15 ** 2, 0.04 ** 2])
 
 
+@pytest.mark.slow
 def test_mrclam_reader(tmp_path, shared_data):
     d = ps.io.read_mrclam(shared_data / "landmark_slam/mrclam_dataset7")
     assert d.odometry.shape == (58598, 3) and d.groundtruth.shape == (58389, 4)
@@ -42,6 +43,7 @@ def test_mrclam_reader_errors(tmp_path):
         ps.io.read_mrclam(tmp_path / "missing")
 
 
+@pytest.mark.slow
 def test_victoria_park_files_agree(shared_data):
     isam = ps.io.read_victoria_park(shared_data / "landmark_slam/victoria_park/victoriaPark.txt")
     gtsam = ps.io.read_victoria_park(shared_data / "landmark_slam/victoria_park/victoria_park_gtsam.txt")
@@ -64,6 +66,7 @@ def test_victoria_park_reader_errors(tmp_path):
         ps.io.read_victoria_park(bad, noise="information")
 
 
+@pytest.mark.slow
 def test_ekf_on_mrclam_known_correspondences_beats_reference(shared_data):
     d = ps.io.read_mrclam(shared_data / "landmark_slam/mrclam_dataset7")
     run = ls.run_ekf_mrclam(d, MRCLAM_MOTION, MRCLAM_SENSOR)
@@ -155,6 +158,7 @@ def robust_std(e):
     return 1.4826 * np.median(np.abs(e - np.median(e)))
 
 
+@pytest.mark.slow
 def test_mrclam_ranges_are_camera_depths(shared_data):
     """MRCLAM's ranges are depths: against Vicon, the raw reading is short at the image edges and
     long at its centre; scale * range / cos(bearing) removes that and two thirds of the error.
@@ -175,6 +179,7 @@ def test_mrclam_ranges_are_camera_depths(shared_data):
     assert same_scan_error(d1.with_euclidean_ranges()) < same_scan_error(d1) / 2.5
 
 
+@pytest.mark.slow
 def test_mrclam_cameras_differ_in_range_scale(shared_data):
     """MRCLAM_RANGE_SCALE is robot 1's: each Dataset 7 robot's camera has its own scale against
     Vicon, and robots 2 and 4's converted ranges read 6-8 cm long, enough to put sightings nearer
@@ -241,6 +246,7 @@ DATASET1_LANDMARK_ERROR = 0.3  # m
 DATASET1_MAP_RMSE_DISTANCES = 0.05  # m
 
 
+@pytest.mark.slow
 def test_mrclam_dataset1_survey_labels_and_known_correspondences(shared_data):
     """Dataset 1 has no robot ground truth; its map is scored against the survey. The survey's
     subjects 11 and 17 carry each other's positions (the readings of one scan contradict their
@@ -264,12 +270,13 @@ def test_mrclam_dataset1_survey_labels_and_known_correspondences(shared_data):
     assert ls.score_landmarks(run.landmarks, d.with_survey_swapped([(11, 17)])).rmse_aligned < DATASET1_MAP_RMSE_DISTANCES
 
 
+@pytest.mark.slow
 def test_ekf_on_mrclam_unknown_correspondences(shared_data):
     """Barcodes hidden. The landmarks stand in clusters 0.18 m apart, about the error of one
     sighting: even placed from the Vicon pose, 13% of the sightings fall nearer another landmark
     than their own (15% with the raw depth readings), and fitting each scan's common bearing
     offset with the true pose and map still leaves 4.5% wrong, so the issue's 95% is beyond a
-    filter here (benchmarks/mrclam_association_ceiling.py). Joint compatibility over each scan
+    filter here (studies/mrclam_association_ceiling.py). Joint compatibility over each scan
     does better than maximum likelihood and keeps the clusters apart (15 landmarks); these are
     the figures reached, kept from regressing."""
     raw = mrclam_dataset(shared_data, 7)
@@ -287,6 +294,7 @@ def test_ekf_on_mrclam_unknown_correspondences(shared_data):
     assert ls.association_accuracy(run) < accuracy["jcbb"] - 0.05
 
 
+@pytest.mark.slow
 def test_mrclam_dataset1_unknown_correspondences_multiple_hypotheses(shared_data):
     """Dataset 1, barcodes hidden: the issue's 95% correct with 15 +- 1 landmarks. Its landmarks
     stand 1-10 m apart, but the robot goes up to 37 s without one and comes back with its heading
@@ -317,6 +325,7 @@ def test_mrclam_dataset1_unknown_correspondences_multiple_hypotheses(shared_data
     assert len(primary) == 15 and score.rmse_aligned < DATASET1_MAP_RMSE
 
 
+@pytest.mark.slow
 def test_ekf_on_victoria_park(shared_data):
     data = ps.io.read_victoria_park(shared_data / "landmark_slam/victoria_park/victoriaPark.txt")
     run = ls.run_ekf_victoria_park(data)
@@ -328,6 +337,7 @@ def test_ekf_on_victoria_park(shared_data):
     assert steps.sum() > 3000
 
 
+@pytest.mark.slow
 def test_cli_ekf_slam(tmp_path, capsys, shared_data):
     from probslam import cli
 
@@ -340,6 +350,7 @@ def test_cli_ekf_slam(tmp_path, capsys, shared_data):
     assert cli.main(["ekf-slam", str(tmp_path / "missing.txt"), "-o", str(tmp_path / "x")]) == 2
 
 
+@pytest.mark.slow
 def test_cli_ekf_slam_mrclam(tmp_path, capsys, shared_data):
     """MRCLAM through the CLI: distances by default, the logged depth readings on request."""
     from probslam import cli

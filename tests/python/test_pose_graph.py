@@ -112,6 +112,7 @@ def dense_gauss_newton(g, pose_edges, point_edges, iterations=50):
 @pytest.mark.parametrize("algorithm, damping", [("gauss-newton", "marquardt"), ("levenberg-marquardt", "marquardt"),
                                                 ("levenberg-marquardt", "levenberg")])
 @pytest.mark.parametrize("solver", ["simplicial", "supernodal"])
+@pytest.mark.slow
 def test_optimum_equals_dense_gauss_newton(algorithm, damping, solver):
     g, pose_edges, point_edges = random_graph()
     reference, ref_chi2, hessian, offset = dense_gauss_newton(g, pose_edges, point_edges)
@@ -283,6 +284,7 @@ LM_MAX_ITERATIONS = 1000
 
 
 @pytest.mark.parametrize("name", sorted(GAUSS_NEWTON_MINIMA))
+@pytest.mark.slow
 def test_levenberg_marquardt_reaches_the_gauss_newton_minimum(shared_data, name):
     if not (shared_data / name).exists():
         pytest.skip(f"{name} not present")

@@ -225,6 +225,7 @@ def test_views_still_see_updates_in_place():
     np.testing.assert_array_equal(cov, ekf.covariance)
 
 
+@pytest.mark.slow
 def test_joint_compatibility_on_a_dense_cluster_ends():
     """JCBB is exponential in the worst case: 16 measurements of 25 landmarks packed within the
     noise ran for minutes. The search is now bounded (kJcbbMaxNodes) and returns its best
@@ -268,6 +269,7 @@ def run(targets):
 """
 
 
+@pytest.mark.slow
 def test_threads_updating_one_filter_equal_a_serial_replay():
     """With a robot whose covariance is exactly zero and stays so (no motion noise, no motion),
     landmarks are uncorrelated: an update of one landmark changes only that landmark's entries,
@@ -317,6 +319,7 @@ print("ok")
     assert "ok" in result.stdout
 
 
+@pytest.mark.slow
 def test_threads_mixing_every_call_keep_the_filter_consistent():
     """update_unknown, motion, removal, copies and reads from several threads on one filter and
     one multi-hypothesis filter: no crash, and the state stays finite, symmetric and positive

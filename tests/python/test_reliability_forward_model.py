@@ -137,6 +137,7 @@ def test_binary_map_takes_only_zero_and_one(value):
     assert _core.BinaryMap2D(grid, ones).occupied[3, 4]
 
 
+@pytest.mark.slow
 def test_a_sonar_over_a_large_grid_is_refused_before_the_work():
     # 1000 beams of a 2 pi cone reaching over a 4000 x 4000 grid: 1.6e10 cells to test (minutes
     # before the bound; Table 9.3's index alone would need hundreds of GB).

@@ -54,6 +54,7 @@ def run_python(code: str, timeout: float = 120) -> subprocess.CompletedProcess:
 
 # ---------------------------------------------------------------- threads
 
+@pytest.mark.slow
 def test_concurrent_optimize_and_mutation_on_one_graph_do_not_crash():
     # A crash kills the interpreter, so the race runs in a child process.
     result = run_python("""

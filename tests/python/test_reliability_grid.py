@@ -495,6 +495,7 @@ def near_arrays(shape):
 @settings(max_examples=150, deadline=None)
 @given(poses=near_arrays((3, 3)), ranges=near_arrays((3, 4)), angles=near_arrays((4,)),
        max_range=near_values())
+@pytest.mark.slow
 def test_property_insert_scans_all_or_nothing(poses, ranges, angles, max_range):
     grid = small_grid()
     raised, _ = policy.check_call(lambda: grid.insert_scans(poses, ranges, angles, max_range),

@@ -269,6 +269,7 @@ def test_carmen_bad_lines_with_non_utf8_bytes_are_skipped_and_reported_escaped(t
 MRCLAM_SKIPPED = {("mrclam_dataset1", 3): 2, ("mrclam_dataset1", 5): 1, ("mrclam_dataset7", 3): 9}
 
 
+@pytest.mark.slow
 def test_cli_ekf_slam_runs_on_every_mrclam_robot(shared_data, tmp_path, capsys):
     """Every robot of every shipped MRCLAM dataset, the first 30 s of each (the whole file is
     read, so the stray barcodes are all counted), reporting the rows skipped."""

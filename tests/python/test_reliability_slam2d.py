@@ -43,6 +43,7 @@ RBPF_OPTIONS = ["resolution", "max_range", "min_range", "max_usable_range", "sig
 @pytest.mark.parametrize("cls", CLASSES)
 @PROPERTY
 @given(ranges=policy.arrays(), angles=policy.arrays(), odometry=policy.arrays(), stamps=policy.arrays())
+@pytest.mark.slow
 def test_add_scans_with_odd_arrays(cls, ranges, angles, odometry, stamps):
     obj = fed(cls)
     policy.check_call(lambda: obj.add_scans(ranges, angles, odometry, stamps), snapshot=lambda: state(obj))
@@ -62,6 +63,7 @@ def test_options_with_odd_numbers(cls, value, pick):
 @pytest.mark.parametrize("cls", CLASSES)
 @PROPERTY
 @given(odd=policy.odd_objects())
+@pytest.mark.slow
 def test_odd_objects(cls, odd):
     obj = fed(cls)
     policy.check_call(lambda: obj.add_scans(odd, ANGLES, np.zeros((1, 3)), np.zeros(1)), snapshot=lambda: state(obj))
@@ -69,6 +71,7 @@ def test_odd_objects(cls, odd):
 
 
 @pytest.mark.parametrize("cls", CLASSES)
+@pytest.mark.slow
 def test_threads_sharing_one_object(cls):
     true, odo, ranges = _DRIVE
     n = len(true)

@@ -185,6 +185,7 @@ AXIS_WALLS = WALLS[:8]  # the room and the pillar: all on one lattice offset (in
 
 
 @pytest.mark.parametrize("noise", [0.005, 0.015, 0.03])
+@pytest.mark.slow
 def test_covariance_is_calibrated_nees(noise):
     # Range noise from a third of the field's sigma to below it: the sandwich follows the points'
     # scatter, not sigma. Measured (mean, per-axis x y theta): 0.005: 2.61 (0.94 0.91 0.76);
@@ -198,6 +199,7 @@ def test_covariance_is_calibrated_nees(noise):
                    "0.90 0.70 2.26. Its offset on the lattice is its own, not the room's; the covariance models one "
                    "offset shared by all walls (no residual shows it), and a wall whose offset differs tilts the "
                    "pose by an amount no residual shows either. Walls at arbitrary positions (real maps) do the same.")
+@pytest.mark.slow
 def test_covariance_is_calibrated_nees_with_an_offset_wall():
     mean, ratios = match_nees(WALLS, 0.015)
     print(f"mean NEES {mean:.3f} band {NEES_BAND.round(3)} per-axis err^2/var {ratios.round(3)}")

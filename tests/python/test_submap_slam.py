@@ -29,6 +29,7 @@ def position_errors(poses, true):
     return np.linalg.norm(poses[:, :2] - true[:, :2], axis=1)
 
 
+@pytest.mark.slow
 def test_loop_closes_with_odometry_only_frontend(drive):
     # min_match_quality 1 turns the frontend's matches down: submaps are built on odometry alone,
     # so only the loop closures can remove the drift.
@@ -48,6 +49,7 @@ def test_loop_closes_with_odometry_only_frontend(drive):
     assert position_errors(open_loop.scan_poses, true).max() > 1.0
 
 
+@pytest.mark.slow
 def test_full_pipeline_on_the_loop(drive):
     true, odo, _ = drive
     slam = run(drive)
@@ -100,6 +102,7 @@ def test_empty_and_bad_input():
     assert slam.num_scans == 0
 
 
+@pytest.mark.slow
 def test_run_slam_equals_the_class(drive):
     from probslam.slam import run_slam
 

@@ -22,7 +22,7 @@ sightings are found from the rest of the run or only held by their own pull on t
 the alternation started from the multiple-hypothesis EKF's labels (with the bearing offset),
 smoothing and re-placing until the labels settle.
 
-    .venv/bin/python benchmarks/mrclam_association_ceiling.py [DATASET_FOLDER] [--vicon-motion] [--smoothed]
+    .venv/bin/python studies/mrclam_association_ceiling.py [DATASET_FOLDER] [--vicon-motion] [--smoothed]
 """
 
 from __future__ import annotations
@@ -39,6 +39,7 @@ import scipy.sparse.linalg as spla
 
 import probslam as ps
 from probslam import landmark_slam as ls
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "benchmarks"))  # common.py and the benchmarks reused here
 # The CLI's MRCLAM noise, and the bench's multiple-hypothesis settings with the bearing offset.
 from bench_mrclam_association import MHT_OFFSET_OPTIONS, MHT_OFFSET_SENSOR, MOTION, SENSOR
 

@@ -4,19 +4,22 @@ held-out maps of the same prior. Every model maps the same readings with Table 9
 same prior (the training maps' occupied fraction); the score is over the cells some reading's
 perceptual field covers: the per-cell cross-entropy of the final map against the true map
 (probabilities clipped to [1e-6, 1 - 1e-6], so one wrong cell costs at most 13.8 nats) and the
-classification accuracy (p > 0.5 means occupied). Prints a table; --record writes it
-into benchmarks/RESULTS.md.
+classification accuracy (p > 0.5 means occupied). Prints a table (the last full run:
+studies/README.md).
 
-    .venv/bin/python benchmarks/eval_inverse_models.py [--quick] [--record]
+    .venv/bin/python studies/eval_inverse_models.py [--quick]
 """
 
 import argparse
+import pathlib
+import sys
 import time
 
 import numpy as np
 
 import probslam as ps
 from probslam import inverse_learning as il
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "benchmarks"))  # common.py and the benchmarks reused here
 from common import heading, report
 
 RES, SIZE = 0.1, 100  # 10 m x 10 m maps
@@ -65,7 +68,6 @@ def evaluate(name, model, angles, half, learned, maps, poses_per_map, rng):
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--quick", action="store_true", help="small training and test sets (smoke run)")
-    parser.add_argument("--record", action="store_true", help="write the table into benchmarks/RESULTS.md (replacing its previous run)")
     args = parser.parse_args()
     train_maps, train_poses, test_maps, test_poses = (3, 15, 2, 10) if args.quick else (12, 40, 6, 60)
     lines = heading("Learned inverse sensor models (ch. 9.3)",
@@ -87,7 +89,7 @@ def main():
         for row in evaluate(name, model, angles, half, learned, test_maps, test_poses, np.random.default_rng(1)):
             lines.append(f"| {row[0]} | {row[1]} | {row[2]:.3f} | {row[3]:.3f} |")
     lines += [""] + notes + [""]
-    report(lines, record=args.record and not args.quick)
+    report(lines, record=False)
 
 
 if __name__ == "__main__":

@@ -18,7 +18,7 @@ reference shares odometry's error. The script counts those relations, scores the
 trajectory (run_slam's defaults, with --slam) on each part, and repeats the triangle on the
 relations whose reference is not odometry's.
 
-    .venv/bin/python benchmarks/aces_relation_sources.py [--slam] [--record]
+    .venv/bin/python studies/aces_relation_sources.py [--slam]
 
 Needs ../shared/data/laser_2d/aces (skips with a message without it).
 """
@@ -32,6 +32,7 @@ import numpy as np
 
 import probslam as ps
 from probslam import _core
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "benchmarks"))  # common.py and the benchmarks reused here
 from common import heading, report
 
 ACES = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data" / "laser_2d" / "aces"
@@ -95,7 +96,6 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--slam", action="store_true",
                         help="also run run_slam on the log (about 20 s) and score it on each part")
-    parser.add_argument("--record", action="store_true", help="write the table into benchmarks/RESULTS.md")
     args = parser.parse_args()
     if not (ACES / "aces.clf.bz2").exists():
         print(f"skipped: {ACES} not found")
@@ -141,7 +141,7 @@ def main() -> int:
                      f"{name}: " + ", ".join(f"{k} {np.sqrt(max(x, 0.0)):.4f} m" for k, x in shares.items()) + ".")
     if args.slam:
         lines += ["", slam_table(relations, odo_all, short, same_all)]
-    report(lines, record=args.record)
+    report(lines, record=False)
     return 0
 
 

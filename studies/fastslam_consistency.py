@@ -2,28 +2,30 @@
 ekf_experiments.py's consistency study (same world, same seeds): known correspondences, the
 average pose NEES over time across the runs for the EKF and for FastSLAM versions 1 and 2 with 100
 and 1000 particles, its 95% band, and the step after which a WINDOW-step moving average of it
-leaves the band for good. Prints a table; --record writes it into benchmarks/RESULTS.md (not with
---quick); draws docs/fastslam_nees.png with --figure.
+leaves the band for good. Prints a table (the last full run:
+studies/README.md); draws docs/fastslam_nees.png with --figure.
 
 FastSLAM's pose estimate is the particles' weighted mean (heading by circular mean) with their
 weighted covariance (``FastSlam.mean_pose`` / ``pose_covariance``); the NEES is
 ``probslam.eval.nees``; where that covariance is singular the NEES is counted as inf and reported
 (never replaced by a pseudo-inverse). The EKF's is ``probslam.sim.filter_known``'s, as in the EKF study.
 
-    .venv/bin/python benchmarks/fastslam_consistency.py [--quick] [--jobs 2] [--figure] [--record]
-    .venv/bin/python benchmarks/fastslam_consistency.py --coalescence   (run 0's particle paths)
+    .venv/bin/python studies/fastslam_consistency.py [--quick] [--jobs 2] [--figure]
+    .venv/bin/python studies/fastslam_consistency.py --coalescence   (run 0's particle paths)
 """
 
 import argparse
 import concurrent.futures
 import datetime
 import pathlib
+import sys
 import time
 
 import numpy as np
 from scipy.stats import chi2
 
 import probslam as ps
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "benchmarks"))  # common.py and the benchmarks reused here
 from common import machine, report
 from ekf_experiments import M, Q, WINDOW, consistency_run
 
@@ -109,23 +111,21 @@ def describe(step):
 
 def main():
     parser = argparse.ArgumentParser()
-    parser.add_argument("--quick", action="store_true", help="10 runs of 400 steps (no record)")
+    parser.add_argument("--quick", action="store_true", help="10 runs of 400 steps")
     parser.add_argument("--runs", type=int, default=50)
     parser.add_argument("--steps", type=int, default=3000, help="steps of the EKF and 100-particle runs")
     parser.add_argument("--steps-1000", type=int, default=None,
                         help="steps of the 1000-particle runs (a prefix of the same runs; default --steps)")
     parser.add_argument("--jobs", type=int, default=1, help="worker processes over runs (2 at most here)")
     parser.add_argument("--figure", action="store_true", help=f"draw {FIGURE.relative_to(FIGURE.parents[1])}")
-    parser.add_argument("--record", action="store_true", help="write the table into benchmarks/RESULTS.md (replacing its previous run)")
     parser.add_argument("--coalescence", action="store_true",
-                        help="only: distinct poses along the final particles' paths, run 0, 1000 steps "
-                        "(its own RESULTS.md section with --record)")
+                        help="only: distinct poses along the final particles' paths, run 0, 1000 steps")
     args = parser.parse_args()
     if args.coalescence:
         report([f"## FastSLAM path coalescence, {datetime.date.today()}", "",
-                "FastSLAM path coalescence (`benchmarks/fastslam_consistency.py --coalescence`): distinct poses "
+                "FastSLAM path coalescence (`studies/fastslam_consistency.py --coalescence`): distinct poses "
                 "at each step among the final particles' paths, run 0 of the consistency study, 1000 steps, seed 0.",
-                ""] + coalescence(1000), record=args.record)
+                ""] + coalescence(1000), record=False)
         return
     runs, steps = (10, 400) if args.quick else (args.runs, args.steps)
     steps_1000 = min(args.steps_1000 or steps, steps)
@@ -151,7 +151,7 @@ def main():
         summary[name] = (anees, *leaves(anees, lo, hi))
 
     lines = [f"## FastSLAM consistency beside EKF SLAM (simulated), {datetime.date.today()}", "",
-             f"Machine: {machine()}. `benchmarks/fastslam_consistency.py --jobs {args.jobs}"
+             f"Machine: {machine()}. `studies/fastslam_consistency.py --jobs {args.jobs}"
              f"{' --quick' if args.quick else ''}{f' --steps-1000 {steps_1000}' if steps_1000 != steps else ''}`, "
              f"{wall:.0f} s wall.", "",
              f"Known correspondences, {runs} Monte-Carlo runs of ekf_experiments.py's consistency study (same "
@@ -185,7 +185,7 @@ def main():
         lines.append(f"| {name} | {describe(first)} | {describe(onset)} | {side or '-'} | "
                      f"{singular} of {nees[name].size} | {mean_eff} | {seconds[name] / runs:.1f} |")
     lines.append("")
-    report(lines, record=args.record and not args.quick)
+    report(lines, record=False)
 
     if args.figure:
         draw(summary, nees, lo, hi, runs)

@@ -3,13 +3,14 @@ negative information, over seeds. Per run: the best particle's landmark count (1
 dataset), the share of its sightings that went to their landmark's majority tree, its path RMSE
 against the GraphSLAM optimum (chi2 6184.12, bench_fastslam.graphslam_optimum) and the CPU time.
 
-    .venv/bin/python benchmarks/fastslam_victoria_park_study.py [--jobs 2] [--seeds 0 1 2 3] [--record]
+    .venv/bin/python studies/fastslam_victoria_park_study.py [--jobs 2] [--seeds 0 1 2 3]
 
 Needs ../shared/data/landmark_slam/victoria_park (skips with a message without it).
 """
 
 import argparse
 import concurrent.futures
+import pathlib
 import sys
 import time
 
@@ -17,6 +18,7 @@ import numpy as np
 
 import probslam as ps
 from probslam import fastslam as fs
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "benchmarks"))  # common.py and the benchmarks reused here
 import bench_fastslam as bf
 from common import heading, report
 
@@ -60,7 +62,6 @@ def main() -> int:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--jobs", type=int, default=1)
     parser.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2, 3])
-    parser.add_argument("--record", action="store_true", help="write the table into benchmarks/RESULTS.md (replacing its previous run)")
     args = parser.parse_args()
     if not bf.VICTORIA_PARK.exists():
         print(f"skipped: {bf.VICTORIA_PARK} not found")
@@ -81,7 +82,7 @@ def main() -> int:
         rmse = " / ".join(f"{r['rmse']:.1f}" for r in rs)
         lines.append(f"| {label} | {landmarks} | {correct} | {rmse} | {np.median([r['rmse'] for r in rs]):.1f} | "
                      f"{np.mean([r['cpu'] for r in rs]):.2f} |")
-    report(lines, record=args.record)
+    report(lines, record=False)
     return 0
 
 

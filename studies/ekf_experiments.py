@@ -2,19 +2,22 @@
 which the filter becomes inconsistent; (2) unknown correspondences with clutter: association
 precision/recall and spurious landmarks, with and without the ch. 10.3.3 map management, for
 maximum-likelihood and joint-compatibility association.
-Prints the tables; --record writes them into benchmarks/RESULTS.md.
+Prints the tables (the last full run: studies/README.md).
 
-    .venv/bin/python benchmarks/ekf_experiments.py [--quick] [--record]
+    .venv/bin/python studies/ekf_experiments.py [--quick]
 """
 
 import argparse
 import collections
 import datetime
+import pathlib
+import sys
 
 import numpy as np
 from scipy.stats import chi2
 
 import probslam as ps
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "benchmarks"))  # common.py and the benchmarks reused here
 from common import machine, report
 
 Q = np.diag([0.05 ** 2, np.radians(1.0) ** 2])
@@ -89,7 +92,6 @@ def association(runs, steps, management, clutter, method="ml"):
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--quick", action="store_true")
-    parser.add_argument("--record", action="store_true", help="write the table into benchmarks/RESULTS.md (replacing its previous run)")
     args = parser.parse_args()
     runs, steps = (10, 400) if args.quick else (50, 3000)
     anees, anis = consistency(runs, steps)
@@ -125,7 +127,7 @@ def main():
         for name, mm in configs:
             p, r, s, d, n = association(max(4, runs // 5), 1500 if not args.quick else 400, mm, 0.5, method)
             lines.append(f"| {method} | {name} | {p:.3f} | {r:.3f} | {s:.1f} | {d:.1f} | {n:.1f} |")
-    report(lines, record=args.record and not args.quick)
+    report(lines, record=False)
 
 
 if __name__ == "__main__":
