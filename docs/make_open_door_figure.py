@@ -1,7 +1,7 @@
 """Renders docs/map_open_door.png, the book's open-door example (Figs. 9.7/9.8): (a) the true map
 with the noise-free sonar readings, (b) the standard algorithm (Table 9.1 with the cone model
 of Table 9.2), (c) the MAP map of Table 9.3, (d) its residual uncertainty (Fig. 9.8d: how much
-eq. 9.24 drops when each cell alone is flipped). Prints the cell counts quoted in the README.
+eq. 9.24 drops when each cell alone is flipped). Prints the cell counts quoted in docs/occupancy_mapping.md.
 
     .venv/bin/python docs/make_open_door_figure.py
 """

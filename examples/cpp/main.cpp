@@ -1,4 +1,4 @@
-// The README's C++ example, complete: one laser scan into a 2-D occupancy grid, a small point
+// The C++ example of docs/install.md, complete: one laser scan into a 2-D occupancy grid, a small point
 // cloud into a 3-D grid written as an OctoMap .bt file, and a pose graph optimised. Exits 1 if a
 // result is not what it must be.
 #include <cmath>
