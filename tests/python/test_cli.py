@@ -488,3 +488,13 @@ def test_bad_option_values_are_one_line_naming_the_flag_before_reading(tmp_path,
     assert status == 2
     captured = _one_line_error(capsys, flag)
     assert missing not in captured.err and not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("command", ["ekf-slam", "fastslam"])
+def test_victoria_park_distances_beyond_max_coordinate_are_one_line(tmp_path, capsys, command):
+    """1e300 in a LANDMARK record ended in a numpy overflow warning and "measurement_noise must be
+    positive definite" (an internal name)."""
+    path = tmp_path / "vp.txt"
+    path.write_text("ODOMETRY 0 1 1 0 0 10 0 0 10 0 31.6\nLANDMARK 1 7 1e300 1 1.6 0 1.6\n")
+    assert cli.main([command, str(path), "-o", str(tmp_path / "x")]) == 2
+    _one_line_error(capsys, str(path), "LANDMARK records with distances beyond 1e+09 m (MAX_COORDINATE)")
