@@ -39,6 +39,10 @@ NEIGHBOURS = 5
 #: Predicted probabilities are kept in [EPS, 1 - EPS] before logit and log: a saturated
 #: network would otherwise give infinite log-odds and an infinite J(W).
 EPS = 1e-6
+#: The most (cell, beam) pairs field_features holds at once: each cell's nearest beam is found
+#: over all beams, at 16 bytes (complex) per pair in each of a few temporaries, so 2^20 pairs keep
+#: the peak near 50 MB whatever the scan (one 180-beam 30 m scan on a 5 cm grid asked for 3.9 GiB).
+FIELD_CHUNK_PAIRS = 1 << 20
 
 
 def random_map(grid: OccupancyGrid2D, rng: np.random.Generator, min_room: float = 2.0, door: float = 0.9,
@@ -141,12 +145,6 @@ def field_features(grid: OccupancyGrid2D, pose: np.ndarray, ranges: np.ndarray, 
     z = np.minimum(np.nan_to_num(ranges, posinf=max_range), max_range)
     near = z[(k[:, None] + np.arange(-(NEIGHBOURS // 2), NEIGHBOURS // 2 + 1)[None, :]) % b]
     return cells, np.column_stack([r, phi, near])
-
-
-#: The most (cell, beam) pairs field_features holds at once: each cell's nearest beam is found
-#: over all beams, at 16 bytes (complex) per pair in each of a few temporaries, so 2^20 pairs keep
-#: the peak near 50 MB whatever the scan (one 180-beam 30 m scan on a 5 cm grid asked for 3.9 GiB).
-FIELD_CHUNK_PAIRS = 1 << 20
 
 
 def _scan_arguments(grid, pose, ranges, beam_angles, max_range, half_angle):
