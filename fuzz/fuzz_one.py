@@ -20,7 +20,9 @@ from targets import TARGETS, Workspace, check  # noqa: E402
 
 with atheris.instrument_imports(include=["probslam"]):
     import probslam  # noqa: F401
+    import probslam.eval  # noqa: F401
     import probslam.graph  # noqa: F401
+    import probslam.inverse_learning  # noqa: F401
     import probslam.io  # noqa: F401
 
 

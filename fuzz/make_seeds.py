@@ -62,6 +62,11 @@ MRCLAM = [b"# Subject # Barcode #\n1 5\n2 14\n6 9\n7 25\n8 88\n",
           b"# Time # Barcode # Range # Bearing\n100.2 9 2.1 0.3\n100.2 25 3.0 -0.2\n100.7 14 1.0 0.0\n"
           b"100.8 77 1.0 0.0\n",
           b"# Time # x # y # theta\n100.0 0 0 0\n101.0 0.1 0 0.05\n"]
+RELATIONS = b"""# t1 t2 x y z roll pitch yaw
+90.239599 90.719599 0.422330 -0.000750 0.000000 0.000000 0.000000 0.017260
+90.719599 91.321399 0.213430 -0.014750 0.000000 0.000000 0.000000 -0.405780
+94.3996 94.7596 0.2771 0.06383 0 0 0 0.09774  # a comment
+"""
 YAML = b"image: map.pgm\nmode: trinary\nresolution: 0.05\norigin: [-1.0, 2.0, 0.0]\nnegate: 0\n" \
        b"occupied_thresh: 0.65\nfree_thresh: 0.196\n"
 
@@ -93,6 +98,11 @@ def _library_files(out: pathlib.Path) -> None:
         g3.insert_point_cloud(np.array([[3.0, 0.0, 0.0]]), np.zeros(3))
         g3.write_bt(os.path.join(tmp, "t.bt"))
         _write(out / "octomap_bt", "line.bt", pathlib.Path(tmp, "t.bt").read_bytes())
+        model = ps.LearnedInverseModel(hidden=2)
+        model.weights = np.linspace(-1.0, 1.0, model.n_weights(7))
+        model.mean, model.scale, model.prior = np.zeros(7), np.ones(7), 0.25
+        model.save(os.path.join(tmp, "m.npz"))
+        _write(out / "learned_model", "hidden2.npz", pathlib.Path(tmp, "m.npz").read_bytes())
 
 
 def committed(out: pathlib.Path = HERE / "seeds") -> None:
@@ -103,6 +113,9 @@ def committed(out: pathlib.Path = HERE / "seeds") -> None:
     _write(out / "isam", "tiny.txt", ISAM)
     _write(out / "victoria_park", "tiny.txt", VICTORIA)
     _write(out / "mrclam", "tiny.bin", SEPARATOR.join(MRCLAM))
+    _write(out / "relations", "tiny.relations", RELATIONS)
+    _write(out / "relations", "tiny.relations.gz", gzip.compress(RELATIONS, mtime=0))
+    _write(out / "relations", "tiny.relations.bz2", bz2.compress(RELATIONS))
     _library_files(out)
 
 
@@ -140,6 +153,8 @@ def shared(out: pathlib.Path, data: pathlib.Path) -> int:
         target = {".g2o": "g2o", ".graph": "toro"}.get(graph.suffix)
         if target:
             add(target, graph.name, _head(_open(graph)))
+    for rel in sorted(data.glob("laser_2d/*/*.relations")):
+        add("relations", rel.name, _head(_open(rel)))
     vp = data / "landmark_slam/victoria_park"
     for name in ("victoriaPark.txt", "victoria_park_gtsam.txt"):
         if (vp / name).exists():

@@ -6,6 +6,9 @@ where the reader documents it); ``UnicodeError`` is a ``ValueError`` subclass bu
 (the readers must name the file and line instead). Anything else escaping a target is a
 finding: atheris reports it as a crash and saves the input.
 
+``relations`` names its file ``.gz`` / ``.bz2`` when the input starts with that format's magic
+bytes; ``learned_model`` feeds ``LearnedInverseModel.load`` (a .npz archive).
+
 Multi-file formats take one input split at SEPARATOR lines: map_server is YAML + PGM, MRCLAM is
 Barcodes + Landmark_Groundtruth + Odometry + Measurement (+ Groundtruth).
 """
@@ -95,6 +98,20 @@ def victoria_park(ws: Workspace, data: bytes) -> None:
     io.read_victoria_park(ws.write("victoriaPark.txt", data))
 
 
+def relations(ws: Workspace, data: bytes) -> None:
+    from probslam import eval as ev
+    # The reader picks plain, .gz or .bz2 by the name: name the file after the input's magic bytes
+    # so that mutations of a compressed seed reach the decompressors.
+    suffix = ".gz" if data.startswith(b"\x1f\x8b") else ".bz2" if data.startswith(b"BZh") else ""
+    ws.clear()
+    ev.read_relations(ws.write("log.relations" + suffix, data))
+
+
+def learned_model(ws: Workspace, data: bytes) -> None:
+    import probslam as ps
+    ps.LearnedInverseModel.load(ws.write("model.npz", data))
+
+
 TARGETS: Dict[str, Callable[[Workspace, bytes], None]] = {
     "carmen": carmen,
     "carmen_gz": carmen_gz,
@@ -106,6 +123,8 @@ TARGETS: Dict[str, Callable[[Workspace, bytes], None]] = {
     "octomap_bt": octomap_bt,
     "mrclam": mrclam,
     "victoria_park": victoria_park,
+    "relations": relations,
+    "learned_model": learned_model,
 }
 
 

@@ -33,19 +33,36 @@ def require_fields(value: object, fields: Tuple[str, ...], name: str, what: str)
         raise TypeError(f"{name}: expected {what}, got {type(value).__name__}")
 
 
-def real_array(value: object, name: str, shape: Tuple[Optional[int], ...]) -> np.ndarray:
-    """``value`` as a finite float array of ``shape`` (None: any length); TypeError for anything
-    but real numbers, ValueError for a wrong shape or NaN / inf, both naming ``name``."""
+def real_array(value: object, name: str, shape: Optional[Tuple[Optional[int], ...]]) -> np.ndarray:
+    """``value`` as a finite float array of ``shape`` (None in it: any length; None for it: any
+    shape); TypeError for anything but real numbers, ValueError for a wrong shape or NaN / inf,
+    both naming ``name``."""
     try:
         a = np.asarray(value)
     except ValueError as exc:  # ragged nested lists
         raise ValueError(f"{name}: not an array of numbers: {exc}") from None
     if a.dtype.kind not in "iuf":
         raise TypeError(f"{name}: expected real numbers, got dtype {a.dtype}")
+    if shape is None:
+        shape = (None,) * a.ndim
     want = "(" + ", ".join("N" if n is None else str(n) for n in shape) + ")"
     if a.ndim != len(shape) or any(n is not None and n != m for n, m in zip(shape, a.shape)):
         raise ValueError(f"{name}: expected shape {want}, got {a.shape}")
     a = a.astype(float, copy=False)
     if not np.all(np.isfinite(a)):
-        raise ValueError(f"{name}: contains NaN or inf")
+        raise ValueError(f"{name}: contains NaN or inf (expected finite numbers)")
     return a
+
+
+def positive_real(value: object, name: str) -> float:
+    """``value`` as a float that is finite and > 0: TypeError naming ``name`` for anything but a
+    real number (a bool included), ValueError naming it for NaN, inf, 0 or a negative value."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{name} must be a real number, got {type(value).__name__}")
+    try:
+        number = float(value)
+    except OverflowError:  # a Python int beyond a double's range
+        number = float("inf")
+    if not (np.isfinite(number) and number > 0):
+        raise ValueError(f"{name} must be finite and > 0, got {value!r}")
+    return number

@@ -45,6 +45,14 @@ class UserError(Exception):
     """An input or usage error: printed as one line on stderr, exit status 2."""
 
 
+class _Parser(argparse.ArgumentParser):
+    """argparse with its usage errors as one line on stderr (exit status 2, as argparse's own),
+    like every other user error; ``-h`` still shows the usage."""
+
+    def error(self, message: str):
+        self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} -h')\n")
+
+
 def _bundled_log(name: str = BUNDLED_LOG) -> str:
     return _data_path(name)
 
@@ -117,6 +125,9 @@ def _read_log(path: str):
 
 
 def _cmd_map(args: argparse.Namespace) -> int:
+    _require_length(args.resolution, "--resolution")
+    _require_length(args.max_range, "--max-range")
+    _require_length(args.robot_radius, "--robot-radius", zero=True)
     path = args.log or _bundled_log()
     t0 = time.perf_counter()
     log = _read_log(path)
@@ -144,6 +155,9 @@ def _cmd_slam(args: argparse.Namespace) -> int:
     from .slam import run_slam, write_trajectory
 
     _require_count(args.particles, "--particles", 1)
+    _require_length(args.resolution, "--resolution")
+    _require_length(args.max_range, "--max-range")
+    _require_length(args.submap_distance, "--submap-distance", zero=True)
     path = args.log or _bundled_log(BUNDLED_RAW_LOG)
     log = _read_log(path)
     if args.method == "rbpf":
@@ -193,6 +207,8 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
     from . import landmark_slam as ls
     from .plot import landmark_map
 
+    _check_landmark_options(args)
+    _require_length(args.bearing_offset, "--bearing-offset", zero=True, what="angle (rad)")
     path, mrclam = _landmark_dataset(args)
     t0 = time.perf_counter()
     if mrclam:
@@ -200,8 +216,6 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
         data = _mrclam_data(args, path)
         hypotheses = None
         if args.bearing_offset:
-            if not (math.isfinite(args.bearing_offset) and args.bearing_offset > 0):
-                raise UserError(f"--bearing-offset must be a finite angle >= 0 rad, got {args.bearing_offset}")
             if not (args.unknown and args.association == "mht"):
                 raise UserError("--bearing-offset needs --unknown --association mht")
             hypotheses = dict(bearing_offset_sigma=args.bearing_offset)
@@ -261,11 +275,25 @@ def _landmark_dataset(args: argparse.Namespace):
     return path, False
 
 
+#: The largest distance (m) a Victoria Park record may hold: the filters refuse coordinates beyond
+#: 1e9 m (the EKF's kEkfMaxCoordinate), and the squares of larger ones overflow in the conversion
+#: to range and bearing, which then fails with a message about an internal noise matrix.
+MAX_COORDINATE = 1e9
+
+
 def _victoria_park_data(path):
+    import numpy as np
+
     with _reading(str(path), LANDMARK_DATASET):
         vp = io.read_victoria_park(path)
     if len(vp.pose_from) == 0:
         raise UserError(f"{path}: no ODOMETRY records; expected {LANDMARK_DATASET}")
+    if len(vp.xy) == 0:
+        raise UserError(f"{path}: no LANDMARK records; expected {LANDMARK_DATASET}")
+    for records, values in (("ODOMETRY", vp.delta[:, :2]), ("LANDMARK", vp.xy)):
+        if np.max(np.abs(values)) > MAX_COORDINATE:
+            raise UserError(f"{path}: {records} records with distances beyond {MAX_COORDINATE:g} m "
+                            f"(MAX_COORDINATE); expected {LANDMARK_DATASET}")
     _print_skipped({"unreadable records": vp.skipped_rows} if vp.skipped_rows else {})
     return vp
 
@@ -279,8 +307,17 @@ def _mrclam_data(args: argparse.Namespace, path):
     if len(data.odometry) == 0:
         raise UserError(f"{path}: no odometry rows for robot {args.robot}; expected {LANDMARK_DATASET}")
     _print_skipped(data.skipped_rows)
+    within = ""
     if args.seconds is not None:
         data = ls.first_seconds(data, args.seconds)
+        within = f" within the first --seconds {args.seconds:g}"
+    if not data.landmark_positions:
+        raise UserError(f"{path}: Landmark_Groundtruth.dat lists no landmark; expected {LANDMARK_DATASET}")
+    if len(data.measurements) == 0:
+        raise UserError(f"{path}: no landmark measurements for robot {args.robot}{within}; expected {LANDMARK_DATASET}")
+    if data.groundtruth is not None and len(data.groundtruth) == 0:
+        raise UserError(f"{path}: Robot{args.robot}_Groundtruth has no row{within or ' within the odometry'}; "
+                        f"expected {LANDMARK_DATASET}")
     return data if args.raw_ranges else data.with_euclidean_ranges()
 
 
@@ -288,24 +325,49 @@ def _mrclam_data(args: argparse.Namespace, path):
 MAX_INT_OPTION = 2 ** 31 - 1
 
 
-def _require_count(value: int, option: str, lowest: int) -> None:
-    """UserError naming the option unless lowest <= value <= MAX_INT_OPTION (argparse has made it
-    an int; beyond 32 bits the bindings would answer with their whole signature)."""
-    if not lowest <= value <= MAX_INT_OPTION:
-        raise UserError(f"{option} must be an integer in [{lowest}, {MAX_INT_OPTION}], got {value}")
+def _require_count(value: int, option: str, lowest: int, highest: int = MAX_INT_OPTION) -> None:
+    """UserError naming the option unless lowest <= value <= highest (argparse has made it an
+    int; beyond 32 bits the bindings would answer with their whole signature)."""
+    if not lowest <= value <= highest:
+        raise UserError(f"{option} must be an integer in [{lowest}, {highest}], got {value}")
+
+
+#: The largest --seed: the filters' seeds are unsigned 64-bit integers.
+MAX_SEED = 2 ** 64 - 1
 
 
 def _mrclam_noise(args: argparse.Namespace):
     """(motion (2, 2), sensor (2, 2)) covariances from the --sigma-* options, each checked to be a
-    finite standard deviation > 0 (squared, a negative one would pass unnoticed)."""
+    finite standard deviation > 0 whose square (the variance) is finite and > 0 too (squared, a
+    negative one would pass unnoticed, 1e300 would overflow and 1e-200 vanish)."""
     import numpy as np
 
     sigmas = {"--sigma-v": args.sigma_v, "--sigma-w": args.sigma_w, "--sigma-r": args.sigma_r,
               "--sigma-phi": args.sigma_phi}
     for option, value in sigmas.items():
-        if not (math.isfinite(value) and value > 0):
-            raise UserError(f"{option} must be a finite standard deviation > 0, got {value}")
+        if not (math.isfinite(value) and value > 0 and 0 < value * value < math.inf):
+            raise UserError(f"{option} must be a finite standard deviation > 0 with a finite variance > 0, "
+                            f"got {value}")
     return (np.diag([args.sigma_v ** 2, args.sigma_w ** 2]), np.diag([args.sigma_r ** 2, args.sigma_phi ** 2]))
+
+
+def _require_length(value: Optional[float], option: str, zero: bool = False, what: str = "number") -> None:
+    """UserError naming the option unless value (metres, seconds, radians; None: not given) is
+    finite and > 0 (>= 0 with ``zero``): checked before any data is read."""
+    if value is not None and not (math.isfinite(value) and (value >= 0 if zero else value > 0)):
+        raise UserError(f"{option} must be a finite {what} {'>= 0' if zero else '> 0'}, got {value}")
+
+
+def _check_landmark_options(args: argparse.Namespace) -> None:
+    """The options ekf-slam and fastslam share, before the dataset is read."""
+    if not 1 <= args.robot <= MRCLAM_ROBOTS:
+        raise UserError(f"--robot must be an MRCLAM robot number 1 to {MRCLAM_ROBOTS}, got {args.robot}")
+    _require_length(args.seconds, "--seconds")
+    _mrclam_noise(args)
+
+
+#: MRCLAM datasets hold robots 1 to 5.
+MRCLAM_ROBOTS = 5
 
 
 def _cmd_fastslam(args: argparse.Namespace) -> int:
@@ -317,6 +379,8 @@ def _cmd_fastslam(args: argparse.Namespace) -> int:
 
     _require_count(args.particles, "--particles", 1)
     _require_count(args.threads, "--threads", 1)
+    _require_count(args.seed, "--seed", 0, MAX_SEED)
+    _check_landmark_options(args)
     path, mrclam = _landmark_dataset(args)
     t0 = time.perf_counter()
     common = dict(known=not args.unknown, num_particles=args.particles, version=args.version, seed=args.seed,
@@ -372,11 +436,23 @@ def _print_mrclam_score(ls, data, run, dead_reckoning, labels):
     landmark id -> surveyed subject (None: the ids are)."""
     if data.groundtruth is None:
         return None, _print_map_score(ls, data, run, labels)
-    s, d = ls.score_mrclam(run, data, labels), ls.score_mrclam(dead_reckoning, data)
+    import numpy as np
+
+    with np.errstate(over="ignore", invalid="ignore"):  # huge coordinates: refused just below
+        s, d = ls.score_mrclam(run, data, labels), ls.score_mrclam(dead_reckoning, data)
+    _require_finite_scores(s.path_rmse, s.path_rmse_aligned, s.landmark_rmse, s.landmark_rmse_aligned)
     print(f"path RMSE:     {s.path_rmse:.3f} m raw, {s.path_rmse_aligned:.3f} m aligned "
           f"(dead reckoning {d.path_rmse:.3f} / {d.path_rmse_aligned:.3f} m)")
     print(f"landmark RMSE: {s.landmark_rmse:.3f} m raw, {s.landmark_rmse_aligned:.3f} m aligned")
     return data.groundtruth[:, 1:3], data.landmark_positions
+
+
+def _require_finite_scores(*scores: float) -> None:
+    """UserError when a score is NaN or inf: no mapped landmark is in the survey, or the survey or
+    ground truth holds coordinates too large to square (the run went through, the files did not fit)."""
+    if not all(math.isfinite(v) for v in scores):
+        raise UserError("the MRCLAM scores are not finite numbers: no landmark of the map is in "
+                        "Landmark_Groundtruth.dat, or its or the ground truth's coordinates are too large")
 
 
 def _survey_label(data) -> str:
@@ -397,8 +473,12 @@ def _print_map_score(ls, data, run, labels):
         print(f"survey:        positions of subjects {', '.join(f'{a}<->{b}' for a, b in swaps)} exchanged "
               f"(their surveyed distances contradict the readings of the same scans)")
     fixed = data.with_survey_swapped(swaps)
-    s = ls.score_landmarks(run.landmarks, fixed, labels)
-    d = ls.score_landmarks(ls.dead_reckoning_map(data), fixed)
+    import numpy as np
+
+    with np.errstate(over="ignore", invalid="ignore"):  # huge coordinates: refused just below
+        s = ls.score_landmarks(run.landmarks, fixed, labels)
+        d = ls.score_landmarks(ls.dead_reckoning_map(data), fixed)
+    _require_finite_scores(s.rmse_aligned)
     print(f"landmark RMSE: {s.rmse_aligned:.3f} m after aligning the map onto the survey "
           f"(dead-reckoning map {d.rmse_aligned:.3f} m; no robot ground truth)")
     return s.survey_in_map_frame(fixed)
@@ -409,6 +489,7 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
 
     _require_count(args.max_iterations, "--max-iterations", 0)
     _require_count(args.poses_per_step, "--poses-per-step", 1)
+    _require_length(args.kernel_width, "--kernel-width")
     path = args.graph or _data_path(BUNDLED_GRAPH)
     _check_input(path, POSE_GRAPH)
     t0 = time.perf_counter()
@@ -464,7 +545,7 @@ def _landmark_dataset_options(parser: argparse.ArgumentParser, output: str) -> N
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``probslam`` command line: one subcommand per pipeline, each with its options."""
-    parser = argparse.ArgumentParser(prog="probslam", description="Probabilistic robot mapping and SLAM.",
+    parser = _Parser(prog="probslam", description="Probabilistic robot mapping and SLAM.",
                                      epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"probslam {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)

@@ -102,8 +102,14 @@ class RelationsError:
 
 
 def wrap(angle: np.ndarray) -> np.ndarray:
-    """Angles wrapped to (-pi, pi], elementwise (``probslam.wrap_angle`` for arrays)."""
-    r = np.pi - np.mod(np.pi - np.asarray(angle, dtype=float), 2.0 * np.pi)
+    """Angles wrapped to (-pi, pi], elementwise (``probslam.wrap_angle`` for arrays); any shape.
+    TypeError for anything but real numbers, ValueError for NaN or inf (they have no angle)."""
+    return _wrap(real_array(angle, "angle", None))
+
+
+def _wrap(angle: np.ndarray) -> np.ndarray:
+    """wrap without the checks, for the arithmetic inside (NaN or inf give NaN)."""
+    r = np.pi - np.mod(np.pi - angle, 2.0 * np.pi)
     # np.mod rounds a tiny negative argument up to 2pi, giving -pi for angles just above pi.
     return np.where(r <= -np.pi, r + 2.0 * np.pi, r)
 
@@ -142,15 +148,17 @@ def nees(error: object, covariance: object) -> np.ndarray:
         then unbounded; no pseudo-inverse is taken, as it would drop exactly the error the filter
         says is impossible and make an overconfident filter look consistent. A caller studying
         consistency counts these cases itself (e.g. as infinite NEES).
-        ValueError for non-finite input, mismatched shapes or an asymmetric covariance.
+        ValueError naming the argument for non-finite input, an empty state (n = 0),
+        mismatched shapes, an asymmetric covariance, or a NEES too large for a double;
+        TypeError for anything but real numbers.
     """
-    e = np.asarray(error, dtype=float)
-    p = np.asarray(covariance, dtype=float)
-    if e.ndim < 1 or p.shape != e.shape + e.shape[-1:]:
+    e = real_array(error, "error", None)
+    p = real_array(covariance, "covariance", None)
+    if e.ndim < 1 or e.shape[-1] == 0:
+        raise ValueError(f"error: expected shape (..., n) with n >= 1, got {e.shape}")
+    if p.shape != e.shape + e.shape[-1:]:
         raise ValueError(f"covariance must have shape error.shape + (n,) = {e.shape + e.shape[-1:]}, "
                          f"got error {e.shape} and covariance {p.shape}")
-    if not (np.all(np.isfinite(e)) and np.all(np.isfinite(p))):
-        raise ValueError("error and covariance must be finite")
     scale = np.max(np.abs(p), axis=(-2, -1), keepdims=True)
     if np.any(np.abs(p - np.swapaxes(p, -1, -2)) > _SYMMETRY_RTOL * scale):
         raise ValueError("covariance must be symmetric")
@@ -162,7 +170,17 @@ def nees(error: object, covariance: object) -> np.ndarray:
         raise SingularCovarianceError(f"covariance{list(where) if where else ''} is singular (eigenvalues "
                                       f"{values[where].tolist()}): the NEES is unbounded")
     projected = np.einsum("...ji,...j->...i", vectors, e)  # V^T e
-    return np.sum(projected ** 2 / values, axis=-1)
+    with np.errstate(over="ignore", invalid="ignore"):
+        result = np.sum(projected ** 2 / values, axis=-1)
+    _require_finite(result, "error and covariance: the NEES")
+    return result
+
+
+def _require_finite(result: np.ndarray, what: str) -> None:
+    """ValueError unless every number of a result is finite (inputs near the largest double
+    can overflow in the arithmetic; the policy is finite or raise)."""
+    if not np.all(np.isfinite(result)):
+        raise ValueError(f"{what} overflows a double (inputs too large)")
 
 # --------------------------------------------------------------------------------------------
 # Reading relations files
@@ -254,7 +272,13 @@ def _trajectory(timestamps: object, poses: object) -> Tuple[np.ndarray, np.ndarr
 
 
 def _interpolate(ts: np.ndarray, ps: np.ndarray, q: np.ndarray) -> np.ndarray:
-    """Interpolation on a checked trajectory, queries known to lie within its span."""
+    """Interpolation on a checked trajectory, queries known to lie within its span (inputs near
+    the largest double can overflow: the callers check the result)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        return _interpolate_unchecked(ts, ps, q)
+
+
+def _interpolate_unchecked(ts: np.ndarray, ps: np.ndarray, q: np.ndarray) -> np.ndarray:
     n = ts.shape[0]
     # side="right": a query at a repeated timestamp starts from the last pose stamped with it.
     i = np.clip(np.searchsorted(ts, q, side="right") - 1, 0, max(n - 2, 0))
@@ -263,7 +287,7 @@ def _interpolate(ts: np.ndarray, ps: np.ndarray, q: np.ndarray) -> np.ndarray:
     # dt is 0 only at the end (repeated last timestamp, or one pose): take the later pose.
     frac = np.where(dt > 0, (q - ts[i]) / np.where(dt > 0, dt, 1.0), 1.0)
     xy = ps[i, :2] + frac[:, None] * (ps[j, :2] - ps[i, :2])
-    theta = wrap(ps[i, 2] + frac * wrap(ps[j, 2] - ps[i, 2]))
+    theta = _wrap(ps[i, 2] + frac * _wrap(ps[j, 2] - ps[i, 2]))
     return np.column_stack([xy, theta])
 
 
@@ -277,8 +301,8 @@ def interpolate_poses(timestamps: object, poses: object, query_times: object) ->
     them is used. An empty query gives an empty (0, 3) result.
 
     Errors: non-numeric arrays raise ``TypeError``; wrong shapes, NaN / inf, an empty
-    trajectory, decreasing timestamps or a query outside the span raise ``ValueError`` naming
-    the argument.
+    trajectory, decreasing timestamps, a query outside the span or coordinates so large that the
+    interpolation overflows raise ``ValueError`` naming the argument.
     """
     ts, ps = _trajectory(timestamps, poses)
     q = real_array(query_times, "query_times", (None,))
@@ -287,14 +311,18 @@ def interpolate_poses(timestamps: object, poses: object, query_times: object) ->
         k = int(outside[0])
         raise ValueError(f"query_times: {outside.size} outside the trajectory span "
                          f"[{ts[0]:g}, {ts[-1]:g}], first at index {k} ({q[k]:g})")
-    return _interpolate(ts, ps, q)
+    out = _interpolate(ts, ps, q)
+    _require_finite(out, "timestamps and poses: the interpolation")
+    return out
 
 
 def _between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``a^-1 (+) b`` for (K, 3) SE(2) poses: b expressed in the frame of a."""
-    c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
-    dx, dy = b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]
-    return np.column_stack([c * dx + s * dy, -s * dx + c * dy, wrap(b[:, 2] - a[:, 2])])
+    """``a^-1 (+) b`` for (K, 3) SE(2) poses: b expressed in the frame of a (may overflow near
+    the largest double: the callers check the result)."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
+        dx, dy = b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]
+        return np.column_stack([c * dx + s * dy, -s * dx + c * dy, _wrap(b[:, 2] - a[:, 2])])
 
 
 def relative_poses(a: object, b: object) -> np.ndarray:
@@ -305,13 +333,15 @@ def relative_poses(a: object, b: object) -> np.ndarray:
     Returns (K, 3): x, y in metres in a's frame and the heading change wrapped to (-pi, pi].
 
     Errors: non-numeric arrays raise ``TypeError``; shapes other than (K, 3) / (3,), differing
-    K, NaN or inf raise ``ValueError`` naming the argument.
+    K, NaN or inf, or coordinates so large that the difference overflows raise ``ValueError``
+    naming the argument.
     """
     pa, one_a = _pose_rows(a, "a")
     pb, one_b = _pose_rows(b, "b")
     if pa.shape != pb.shape or one_a != one_b:
         raise ValueError(f"b: expected the shape of a, {np.shape(a)}, got {np.shape(b)}")
     out = _between(pa, pb)
+    _require_finite(out, "a and b: the relative poses")
     return out[0] if one_a else out
 
 
@@ -331,6 +361,13 @@ def _checked_relations(relations: Relations) -> Tuple[np.ndarray, np.ndarray, np
     t1 = real_array(relations.t1, "relations.t1", (None,))
     t2 = real_array(relations.t2, "relations.t2", (t1.shape[0],))
     delta = real_array(relations.delta, "relations.delta", (t1.shape[0], 3))
+    if t1.shape[0] == 0:
+        raise ValueError("relations: empty (no relation to score)")
+    backwards = np.flatnonzero(t2 < t1)
+    if backwards.size:
+        i = int(backwards[0])
+        raise ValueError(f"relations: {backwards.size} rows with t2 < t1 (read_relations skips such rows), "
+                         f"first row {i} (t1 {t1[i]:g}, t2 {t2[i]:g})")
     return t1, t2, delta
 
 
@@ -344,7 +381,9 @@ def relations_error(timestamps: object, poses: object,
     estimated relative pose is ``d_est = x1^-1 (+) x2`` and the error ``e = d_ref^-1 (+) d_est``;
     translational error ``|e_xy|`` (which equals ``|d_est_xy - d_ref_xy|``), rotational
     ``|wrap(e_theta)|``. Relations with t1 or t2 outside the trajectory's span are skipped and
-    counted; if none is left, ``ValueError``. Argument errors are as for ``interpolate_poses``.
+    counted; if none is left, ``ValueError``. Argument errors are as for ``interpolate_poses``;
+    a hand-built ``Relations`` is checked as ``read_relations`` checks a file's rows (finite,
+    t2 >= t1; one bad row refuses the whole call, naming it), and must not be empty.
     """
     if not isinstance(relations, Relations):
         relations = read_relations(file_path(relations, "relations", "a Relations or the path of a relations file"))
@@ -357,5 +396,6 @@ def relations_error(timestamps: object, poses: object,
                          f"span [{ts[0]:g}, {ts[-1]:g}]")
     d_est = _between(_interpolate(ts, ps, t1[used]), _interpolate(ts, ps, t2[used]))
     e = _between(delta[used], d_est)
-    return RelationsError(np.hypot(e[:, 0], e[:, 1]), np.abs(wrap(e[:, 2])), used,
-                          int(len(t1) - used.size))
+    translational = np.hypot(e[:, 0], e[:, 1])
+    _require_finite(translational, "poses and relations: the relations error")
+    return RelationsError(translational, np.abs(_wrap(e[:, 2])), used, int(len(t1) - used.size))

@@ -15,7 +15,14 @@ Units: metres, radians. Maps are (H, W) bool arrays on an OccupancyGrid2D's latt
 
 from __future__ import annotations
 
+import io
 import json
+import lzma
+import math
+import os
+import struct
+import zipfile
+import zlib
 from dataclasses import dataclass
 from typing import Optional, Tuple
 
@@ -23,7 +30,8 @@ import numpy as np
 from scipy.optimize import minimize
 
 from ._core import BeamSensorModel, BinaryMap2D, OccupancyGrid2D, logit
-from ._args import real_array, require_instance, require_integer
+from .io._files import file_path, require_regular_file
+from ._args import positive_real, real_array, require_fields, require_instance, require_integer
 
 #: Beams whose readings are the input besides the cell's coordinates: the nearest and two on
 #: each side (Fig. 9.6's "five adjacent range measurements").
@@ -31,6 +39,10 @@ NEIGHBOURS = 5
 #: Predicted probabilities are kept in [EPS, 1 - EPS] before logit and log: a saturated
 #: network would otherwise give infinite log-odds and an infinite J(W).
 EPS = 1e-6
+#: The most (cell, beam) pairs field_features holds at once: each cell's nearest beam is found
+#: over all beams, at 16 bytes (complex) per pair in each of a few temporaries, so 2^20 pairs keep
+#: the peak near 50 MB whatever the scan (one 180-beam 30 m scan on a 5 cm grid asked for 3.9 GiB).
+FIELD_CHUNK_PAIRS = 1 << 20
 
 
 def random_map(grid: OccupancyGrid2D, rng: np.random.Generator, min_room: float = 2.0, door: float = 0.9,
@@ -110,32 +122,83 @@ def field_features(grid: OccupancyGrid2D, pose: np.ndarray, ranges: np.ndarray, 
     increasing order). Returns (cells (n,) row-major indices, inputs (n, 2 + NEIGHBOURS)): the
     cell's range (m) and its angle off the nearest beam's axis (rad, eq. 9.14 in polar form,
     relative to the beam so that identical sensors share the model), then the readings of the
-    nearest beam and its neighbours in ring order (min(z, max_range), m)."""
-    require_instance(grid, OccupancyGrid2D, "grid")
-    pose = real_array(pose, "pose", (3,))
+    nearest beam and its neighbours in ring order (min(z, max_range), m).
+
+    Errors: TypeError or ValueError naming the argument for a grid of the wrong class, a pose
+    that is not 3 finite numbers, beam angles that are empty or not finite, ranges of another
+    length or NaN or negative (inf: no return), max_range or half_angle not finite and > 0.
+    Memory: the cells are visited in chunks of at most FIELD_CHUNK_PAIRS (cell, beam) pairs."""
+    pose, ranges, beam_angles, max_range, half_angle = _scan_arguments(grid, pose, ranges, beam_angles,
+                                                                       max_range, half_angle)
     h, w = grid.shape
-    res = grid.resolution
-    x0, y0 = grid.origin
-    key = lambda v, v0: int(np.floor((v - v0) / res))  # noqa: E731 - the lattice's cell of coordinate v
-    c_lo, c_hi = max(0, key(pose[0] - max_range, x0)), min(w - 1, key(pose[0] + max_range, x0))
-    r_lo, r_hi = max(0, key(pose[1] - max_range, y0)), min(h - 1, key(pose[1] + max_range, y0))
+    c_lo, c_hi = _cells_within(pose[0], max_range, grid.origin[0], grid.resolution, w)
+    r_lo, r_hi = _cells_within(pose[1], max_range, grid.origin[1], grid.resolution, h)
     if c_lo > c_hi or r_lo > r_hi:
         return np.empty(0, dtype=np.int64), np.empty((0, 2 + NEIGHBOURS))
-    rows, cols = np.mgrid[r_lo:r_hi + 1, c_lo:c_hi + 1]
-    dx = x0 + (cols.ravel() + 0.5) * res - pose[0]
-    dy = y0 + (rows.ravel() + 0.5) * res - pose[1]
-    r = np.hypot(dx, dy)
-    bearing = np.arctan2(dy, dx) - pose[2]
-    off = np.angle(np.exp(1j * (bearing[:, None] - beam_angles[None, :])))  # wrapped, (n, B)
-    k = np.argmin(np.abs(off), axis=1)
-    phi = off[np.arange(k.size), k]
-    keep = (r < max_range) & (np.abs(phi) <= half_angle)
-    k, phi, r = k[keep], phi[keep], r[keep]
-    cells = (rows.ravel() * w + cols.ravel())[keep]
+    box = (r_lo, c_lo, c_hi - c_lo + 1)
+    count = (r_hi - r_lo + 1) * box[2]
+    step = max(1, FIELD_CHUNK_PAIRS // beam_angles.size)
+    parts = [_field_chunk(grid, pose, beam_angles, max_range, half_angle, box, np.arange(i, min(i + step, count)))
+             for i in range(0, count, step)]
+    cells, k, phi, r = (np.concatenate(p) for p in zip(*parts))
     b = len(beam_angles)
     z = np.minimum(np.nan_to_num(ranges, posinf=max_range), max_range)
     near = z[(k[:, None] + np.arange(-(NEIGHBOURS // 2), NEIGHBOURS // 2 + 1)[None, :]) % b]
     return cells, np.column_stack([r, phi, near])
+
+
+def _scan_arguments(grid, pose, ranges, beam_angles, max_range, half_angle):
+    """The arguments of field_features / insert_scan, checked and converted (see field_features)."""
+    require_instance(grid, OccupancyGrid2D, "grid")
+    pose = real_array(pose, "pose", (3,))
+    beam_angles = _beam_angles(beam_angles)
+    try:
+        ranges = np.asarray(ranges)
+    except ValueError as exc:  # ragged nested lists
+        raise ValueError(f"ranges: not an array of numbers: {exc}") from None
+    if ranges.dtype.kind not in "iuf":
+        raise TypeError(f"ranges: expected real numbers, got dtype {ranges.dtype}")
+    if ranges.shape != beam_angles.shape:
+        raise ValueError(f"ranges and beam_angles must be 1-D arrays of equal length, got {ranges.shape} "
+                         f"and {beam_angles.shape}")
+    ranges = ranges.astype(float, copy=False)
+    if np.any(np.isnan(ranges)) or np.any(ranges < 0):
+        raise ValueError("ranges must be >= 0 and not NaN (inf: no return)")
+    return pose, ranges, beam_angles, positive_real(max_range, "max_range"), positive_real(half_angle, "half_angle")
+
+
+def _beam_angles(value: object) -> np.ndarray:
+    """beam_angles as a checked (B,) float array, B >= 1."""
+    beam_angles = real_array(value, "beam_angles", (None,))
+    if beam_angles.size == 0:
+        raise ValueError("beam_angles: expected at least one beam")
+    return beam_angles
+
+
+def _cells_within(v: float, reach: float, v0: float, res: float, n: int) -> Tuple[int, int]:
+    """The first and last of the n lattice cells (origin v0, size res) that [v - reach, v + reach]
+    touches along one axis, clipped to [0, n - 1] (first > last: none); never overflows."""
+    lo = np.clip(np.floor(((v - reach) - v0) / res), 0, n)
+    hi = np.clip(np.floor(((v + reach) - v0) / res), -1, n - 1)
+    return int(lo), int(hi)
+
+
+def _field_chunk(grid, pose, beam_angles, max_range, half_angle, box, idx):
+    """field_features over the cells ``idx`` (row-major positions in the box (first row, first
+    column, width)): (cells, nearest beam, angle off it, range) of those inside the field."""
+    r0, c0, box_w = box
+    rows, cols = r0 + idx // box_w, c0 + idx % box_w
+    res = grid.resolution
+    x0, y0 = grid.origin
+    dx = x0 + (cols + 0.5) * res - pose[0]
+    dy = y0 + (rows + 0.5) * res - pose[1]
+    r = np.hypot(dx, dy)
+    bearing = np.arctan2(dy, dx) - pose[2]
+    off = np.angle(np.exp(1j * (bearing[:, None] - beam_angles[None, :])))  # wrapped, (chunk, B)
+    k = np.argmin(np.abs(off), axis=1)
+    phi = off[np.arange(k.size), k]
+    keep = (r < max_range) & (np.abs(phi) <= half_angle)
+    return (rows * grid.shape[1] + cols)[keep], k[keep], phi[keep], r[keep]
 
 
 @dataclass
@@ -157,6 +220,9 @@ def sample_training_set(grid: OccupancyGrid2D, model: BeamSensorModel, beam_angl
     require_instance(grid, OccupancyGrid2D, "grid")
     require_instance(model, BeamSensorModel, "model")
     require_instance(rng, np.random.Generator, "rng")
+    maps, poses_per_map = require_integer(maps, "maps", 1), require_integer(poses_per_map, "poses_per_map", 1)
+    cells_per_scan = require_integer(cells_per_scan, "cells_per_scan", 1)
+    beam_angles = _beam_angles(beam_angles)
     half = _half_angle(model, beam_angles, half_angle)
     inputs, labels = [], []
     for _ in range(maps):
@@ -175,7 +241,7 @@ def sample_training_set(grid: OccupancyGrid2D, model: BeamSensorModel, beam_angl
 
 def _half_angle(model: BeamSensorModel, beam_angles: np.ndarray, half_angle: Optional[float]) -> float:
     if half_angle is not None:
-        return float(half_angle)
+        return positive_real(half_angle, "half_angle")
     if model.shape == "sonar":
         return model.beta / 2
     return np.pi / len(beam_angles)  # half the spacing of a ring; a fan should pass half_angle
@@ -230,21 +296,36 @@ class LearnedInverseModel:
 
     def train(self, data: TrainingSet, rng: np.random.Generator, max_iterations: int = 300) -> "LearnedInverseModel":
         """Minimises J(W) (eq. 9.20) over ``data`` with L-BFGS from small random weights.
-        Returns self."""
-        x = np.asarray(data.inputs, dtype=float)
-        y = np.asarray(data.occupied, dtype=float)
-        if x.ndim != 2 or x.shape[0] != y.shape[0] or x.shape[0] == 0:
+        Returns self; on an error the model is left as it was.
+
+        Errors: TypeError naming ``data`` (not a TrainingSet), ``rng`` (not a numpy Generator) or
+        ``max_iterations`` (not an integer >= 1); ValueError for inputs that are not (n, d) finite
+        numbers with one bool label each, or labels of one class only."""
+        require_fields(data, ("inputs", "occupied"), "data", "a TrainingSet")
+        require_instance(rng, np.random.Generator, "rng")
+        max_iterations = require_integer(max_iterations, "max_iterations", 1)
+        x = real_array(data.inputs, "inputs", (None, None))
+        y = np.asarray(data.occupied)
+        if x.shape[0] == 0 or x.shape[1] == 0 or y.shape != (x.shape[0],):
             raise ValueError(f"inputs must be (n, d) with one label each, got {x.shape} and {y.shape}")
-        if not np.all(np.isfinite(x)):
-            raise ValueError("inputs must be finite")
+        if y.dtype.kind not in "biuf":
+            raise TypeError(f"occupied: expected bool labels, got dtype {y.dtype}")
+        y = y.astype(float)
+        if not np.all((y == 0) | (y == 1)):
+            raise ValueError("occupied: expected bool labels (0 or 1)")
         if y.min() == y.max():
             raise ValueError("occupied must hold both classes")
-        self.mean, self.scale = x.mean(axis=0), x.std(axis=0) + 1e-12
-        s = (x - self.mean) / self.scale
+        with np.errstate(over="ignore", invalid="ignore"):
+            mean, scale = x.mean(axis=0), x.std(axis=0) + 1e-12
+        if not (np.all(np.isfinite(mean)) and np.all(np.isfinite(scale))):
+            raise ValueError("inputs: too large to standardise (their mean or deviation overflows)")
+        s = (x - mean) / scale
         w0 = rng.normal(0.0, 0.3, self.n_weights(s.shape[1]))
         res = minimize(self.objective, w0, args=(s, y), jac=True, method="L-BFGS-B",
                        options={"maxiter": max_iterations})
-        self.weights = res.x
+        if not (np.all(np.isfinite(res.x)) and np.isfinite(res.fun)):
+            raise ValueError("inputs: training diverged (non-finite weights)")
+        self.mean, self.scale, self.weights = mean, scale, res.x
         self.prior = float(y.mean())
         self.final_objective = float(res.fun)
         return self
@@ -267,34 +348,128 @@ class LearnedInverseModel:
         """Table 9.1 lines 3-4 with this model as inverse_sensor_model: for each cell in the
         perceptual field, l += logit(f) - logit(prior), the prior being the training maps'
         occupied fraction (what f returns where the scan tells nothing). Updates the grid
-        through ``add_log_odds`` (clamped, under the grid's lock). Returns the cells changed."""
+        through ``add_log_odds`` (clamped, under the grid's lock). Returns the cells changed.
+        Arguments are checked as by :func:`field_features`, before the grid is touched."""
         self._check_trained()
-        pose = np.asarray(pose, dtype=float)
-        ranges = np.asarray(ranges, dtype=float)
-        beam_angles = np.asarray(beam_angles, dtype=float)
-        if pose.shape != (3,) or not np.all(np.isfinite(pose)):
-            raise ValueError("pose must be 3 finite numbers (x, y, theta)")
-        if ranges.shape != beam_angles.shape or ranges.ndim != 1:
-            raise ValueError("ranges and beam_angles must be 1-D arrays of equal length")
-        if np.any(np.isnan(ranges)) or np.any(ranges < 0):
-            raise ValueError("ranges must be >= 0 and not NaN")
+        if self.mean.shape[0] != 2 + NEIGHBOURS:
+            raise ValueError(f"insert_scan needs a model of {2 + NEIGHBOURS} inputs (field_features), this one "
+                             f"has {self.mean.shape[0]}")
         cells, x = field_features(grid, pose, ranges, beam_angles, max_range, half_angle)
         if cells.size == 0:
             return 0
         return grid.add_log_odds(cells, logit(self.probability(x)) - logit(self.prior))
 
     def save(self, path: str) -> None:
-        """The weights and standardisation as a .npz file."""
+        """The weights and standardisation as a .npz file (numpy adds ``.npz`` to a str path
+        without it): the float arrays ``weights``, ``mean`` and ``scale`` and the JSON text
+        ``meta`` = {"hidden": int, "prior": float}, what :meth:`load` checks."""
         self._check_trained()
-        np.savez(path, weights=self.weights, mean=self.mean, scale=self.scale,
+        np.savez(file_path(path), weights=self.weights, mean=self.mean, scale=self.scale,
                  meta=json.dumps({"hidden": self.hidden, "prior": self.prior}))
 
     @classmethod
     def load(cls, path: str) -> "LearnedInverseModel":
-        with np.load(path) as f:
-            meta = json.loads(str(f["meta"]))
-            m = cls(meta["hidden"])
-            m.weights, m.mean, m.scale, m.prior = f["weights"], f["mean"], f["scale"], meta["prior"]
-        if m.weights.shape != (m.n_weights(m.mean.shape[0]),):
-            raise ValueError(f"{path}: weights do not match hidden = {m.hidden}")
+        """A model written by :meth:`save`.
+
+        Errors: TypeError for a path that is no path; FileNotFoundError for a missing file;
+        ValueError("path: ...") for anything but a regular file, and for every file that is not
+        what save writes: not a .npz archive (or larger than MAX_MODEL_BYTES), a missing or extra
+        array, a wrong dtype or shape, non-finite weights or standardisation, a deviation <= 0,
+        hidden not an integer >= 1, a prior outside (0, 1)."""
+        path = file_path(path)
+        require_regular_file(path)
+        arrays = _read_model_arrays(path)
+        hidden, prior = _model_meta(path, arrays.pop("meta"))
+        m = cls(hidden)
+        d = arrays["mean"].shape[0]
+        if d == 0 or arrays["scale"].shape != (d,) or arrays["weights"].shape != (m.n_weights(d),):
+            raise ValueError(f"{path}: weights do not match hidden = {hidden}: weights "
+                             f"{arrays['weights'].shape}, mean {arrays['mean'].shape}, scale {arrays['scale'].shape}")
+        for name, values in arrays.items():
+            if not np.all(np.isfinite(values)):
+                raise ValueError(f"{path}: {name} holds NaN or inf")
+        if np.any(arrays["scale"] <= 0):
+            raise ValueError(f"{path}: scale holds a deviation <= 0")
+        m.weights, m.mean, m.scale, m.prior = arrays["weights"], arrays["mean"], arrays["scale"], prior
         return m
+
+
+#: The largest model file :meth:`LearnedInverseModel.load` reads, and the most bytes one of its
+#: arrays may decompress to: a model of d inputs and h hidden units holds (d + 2) h + 1 + 2 d
+#: doubles, so 64 MiB leave room for ~8 million weights (the models here have a few hundred),
+#: while a crafted header could otherwise make numpy allocate any shape it claims.
+MAX_MODEL_BYTES = 64 << 20
+#: The arrays save writes (each a ``NAME.npy`` member of the archive): dtype kind and dimensions.
+_MODEL_ARRAYS = {"weights": ("f", 1), "mean": ("f", 1), "scale": ("f", 1), "meta": ("U", 0)}
+#: What a damaged archive raises inside zipfile and its decompressors.
+_ARCHIVE_ERRORS = (zipfile.BadZipFile, zlib.error, lzma.LZMAError, struct.error, EOFError, OSError,
+                   NotImplementedError, RuntimeError, ValueError)
+
+
+class _MalformedModel(ValueError):
+    """A model file that is not what save writes (raised with the path and the reason)."""
+
+
+def _read_model_arrays(path: str) -> dict:
+    """The arrays of a model file, each checked against _MODEL_ARRAYS before it is read."""
+    size = os.path.getsize(path)
+    if size > MAX_MODEL_BYTES:
+        raise ValueError(f"{path}: {size} bytes, larger than a model file (MAX_MODEL_BYTES = {MAX_MODEL_BYTES})")
+    try:
+        with zipfile.ZipFile(path) as archive:
+            names, expected = sorted(archive.namelist()), sorted(f"{k}.npy" for k in _MODEL_ARRAYS)
+            if names != expected:
+                raise _MalformedModel(f"{path}: expected the arrays {expected}, got {names[:10]}")
+            return {k: _read_model_array(path, archive, k) for k in _MODEL_ARRAYS}
+    except _MalformedModel:
+        raise
+    except _ARCHIVE_ERRORS as exc:
+        raise ValueError(f"{path}: not a model file ({type(exc).__name__}: {_first_line(exc)})") from None
+
+
+def _first_line(exc: BaseException) -> str:
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else "no detail"
+
+
+def _read_model_array(path: str, archive: zipfile.ZipFile, name: str) -> np.ndarray:
+    """One .npy member: its header checked (dtype kind, dimensions, data length) before numpy
+    allocates the array it describes."""
+    with archive.open(f"{name}.npy") as f:
+        data = f.read(MAX_MODEL_BYTES + 1)
+    if len(data) > MAX_MODEL_BYTES:
+        raise _MalformedModel(f"{path}: {name} decompresses to more than MAX_MODEL_BYTES = {MAX_MODEL_BYTES}")
+    buffer = io.BytesIO(data)
+    try:
+        version = np.lib.format.read_magic(buffer)
+        if version not in ((1, 0), (2, 0)):
+            raise ValueError(f".npy version {version}")
+        read_header = np.lib.format.read_array_header_1_0 if version == (1, 0) else np.lib.format.read_array_header_2_0
+        shape, _, dtype = read_header(buffer)
+    except ValueError as exc:
+        raise _MalformedModel(f"{path}: {name}: not a numpy array ({_first_line(exc)})") from None
+    kind, ndim = _MODEL_ARRAYS[name]
+    if dtype.kind != kind or len(shape) != ndim:
+        raise _MalformedModel(f"{path}: {name}: expected a {ndim}-D array of dtype kind '{kind}', "
+                              f"got {dtype} {shape}")
+    if math.prod(shape) * dtype.itemsize != len(data) - buffer.tell():
+        raise _MalformedModel(f"{path}: {name}: the data do not fill the shape {shape} (truncated or padded)")
+    buffer.seek(0)
+    values = np.lib.format.read_array(buffer, allow_pickle=False)
+    return values if kind == "U" else values.astype(float)
+
+
+def _model_meta(path: str, meta: np.ndarray) -> Tuple[int, float]:
+    """(hidden, prior) from a model file's meta text, checked."""
+    try:
+        fields = json.loads(str(meta))
+    except (ValueError, RecursionError) as exc:
+        raise ValueError(f"{path}: meta: not JSON ({_first_line(exc)})") from None
+    if not isinstance(fields, dict) or set(fields) != {"hidden", "prior"}:
+        raise ValueError(f"{path}: meta: expected {{\"hidden\": ..., \"prior\": ...}}, got {str(meta)[:80]!r}")
+    hidden, prior = fields["hidden"], fields["prior"]
+    if isinstance(hidden, bool) or not isinstance(hidden, int) or hidden < 1:
+        raise ValueError(f"{path}: meta: hidden must be an integer >= 1, got {hidden!r}")
+    if isinstance(prior, bool) or not isinstance(prior, (int, float)) or not 0 < prior < 1:
+        raise ValueError(f"{path}: meta: prior must lie in (0, 1), got {prior!r}")
+    return hidden, float(prior)

@@ -1,5 +1,7 @@
 """The probslam command line, end to end."""
 
+import contextlib
+
 import numpy as np
 import pytest
 
@@ -374,8 +376,8 @@ def test_ekf_slam_bearing_offset_on_the_bundled_mrclam(tmp_path, capsys):
                             association="mht", hypotheses=dict(bearing_offset_sigma=0.03))
     assert f"associations:  {ls.association_accuracy(run):.1%} correct" in out
     for bad, message in [(["ekf-slam", "--unknown", "--bearing-offset", "0.03"], "needs --unknown --association mht"),
-                         (["ekf-slam", "--unknown", "--association", "mht", "--bearing-offset", "-0.1"], "finite angle"),
-                         (["ekf-slam", "--unknown", "--association", "mht", "--bearing-offset", "nan"], "finite angle"),
+                         (["ekf-slam", "--unknown", "--association", "mht", "--bearing-offset", "-0.1"], "finite angle (rad) >= 0"),
+                         (["ekf-slam", "--unknown", "--association", "mht", "--bearing-offset", "nan"], "finite angle (rad) >= 0"),
                          (["ekf-slam", data.path("victoria_park_1000.txt"), "--bearing-offset", "0.03"], "MRCLAM")]:
         assert cli.main(bad + ["-o", str(tmp_path / "x")]) == 2
         assert message in capsys.readouterr().err
@@ -387,3 +389,122 @@ def test_slam_particle_count_is_checked_by_name_before_reading(tmp_path, capsys)
         err = capsys.readouterr()
         assert "probslam: error: --particles must be an integer in [1, " in err.err and "scans" not in err.out
     assert not list(tmp_path.iterdir())
+
+
+# --- issue 33: every user error one line and exit 2, options checked before the data ---------
+
+def _mrclam_folder(folder, odometry=True, measurements=True, survey=True, groundtruth=None):
+    """A copy of the bundled MRCLAM excerpt, uncompressed, with some files emptied or replaced."""
+    import gzip
+    import shutil
+
+    shutil.copytree(ps.data.path(cli.BUNDLED_LANDMARKS), folder)
+    for packed in list(folder.glob("*.gz")):
+        packed.with_suffix("").write_bytes(gzip.decompress(packed.read_bytes()))
+        packed.unlink()
+    for keep, name in ((odometry, "Robot1_Odometry.dat"), (measurements, "Robot1_Measurement.dat"),
+                       (survey, "Landmark_Groundtruth.dat")):
+        if not keep:
+            (folder / name).write_text("# nothing\n")
+    if groundtruth is not None:
+        (folder / "Robot1_Groundtruth.dat").write_text(groundtruth)
+    return folder
+
+
+def _one_line_error(capsys, *needles):
+    captured = capsys.readouterr()
+    lines = captured.err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("probslam"), captured.err
+    for needle in needles:
+        assert needle in lines[0], lines[0]
+    return captured
+
+
+@pytest.mark.parametrize("command", ["ekf-slam", "fastslam"])
+@pytest.mark.parametrize("value", ["1e300", "1e-200"])
+def test_a_sigma_whose_square_is_not_a_finite_variance_is_refused_by_flag(tmp_path, capsys, command, value):
+    """--sigma-v 1e300 ended in an OverflowError (exit 1, "a bug"); 1e-200 squared is 0."""
+    assert cli.main([command, "--sigma-v", value, "-o", str(tmp_path / "x")]) == 2
+    captured = _one_line_error(capsys, "--sigma-v", "finite variance")
+    assert "dataset:" not in captured.out and not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("command", ["ekf-slam", "fastslam"])
+def test_mrclam_ground_truth_with_no_row_inside_seconds_is_one_line(tmp_path, capsys, command):
+    """It was an IndexError (exit 1) from the driver."""
+    folder = _mrclam_folder(tmp_path / "d", groundtruth="# Time x y theta\n2e9 0 0 0\n")
+    assert cli.main([command, str(folder), "--seconds", "5", "--particles", "5", "-o", str(tmp_path / "x")]
+                    if command == "fastslam" else [command, str(folder), "--seconds", "5", "-o", str(tmp_path / "x")]) == 2
+    _one_line_error(capsys, "Groundtruth has no row within the first --seconds 5")
+
+
+@pytest.mark.parametrize("command", ["ekf-slam", "fastslam"])
+def test_an_empty_mrclam_measurement_file_is_one_line_not_a_nan_rmse(tmp_path, capsys, command):
+    folder = _mrclam_folder(tmp_path / "d", measurements=False)
+    assert cli.main([command, str(folder), "-o", str(tmp_path / "x")]) == 2
+    captured = _one_line_error(capsys, str(folder), "no landmark measurements for robot 1")
+    assert "RMSE" not in captured.out and "filter" not in captured.out
+
+
+def test_an_empty_mrclam_survey_is_one_line_not_a_nan_rmse(tmp_path, capsys):
+    folder = _mrclam_folder(tmp_path / "d", survey=False)
+    assert cli.main(["ekf-slam", str(folder), "-o", str(tmp_path / "x")]) == 2
+    assert "nan" not in _one_line_error(capsys, "Landmark_Groundtruth.dat lists no landmark").out
+
+
+def test_a_survey_too_large_to_score_is_one_line_without_warnings(tmp_path, capsys):
+    folder = _mrclam_folder(tmp_path / "d")
+    survey = folder / "Landmark_Groundtruth.dat"
+    survey.write_text("".join(line if line.startswith("#") else " ".join([line.split()[0]] + ["1e300"] * 4) + "\n"
+                              for line in survey.read_text().splitlines(keepends=True) if line.strip()))
+    assert cli.main(["ekf-slam", str(folder), "-o", str(tmp_path / "x")]) == 2
+    assert "inf" not in _one_line_error(capsys, "scores are not finite").out
+
+
+@pytest.mark.parametrize("command", ["ekf-slam", "fastslam"])
+def test_a_victoria_park_file_without_landmark_lines_is_one_line(tmp_path, capsys, command):
+    """It ended in three lines (two numpy warnings and "measurement_noise must contain only
+    finite values")."""
+    path = tmp_path / "vp.txt"
+    path.write_text("".join(line for line in open(ps.data.path("victoria_park_1000.txt"))
+                            if not line.startswith("LANDMARK")))
+    assert cli.main([command, str(path), "-o", str(tmp_path / "x")]) == 2
+    _one_line_error(capsys, str(path), "no LANDMARK records")
+
+
+@pytest.mark.parametrize("argv, flag", [
+    (["map", "--resolution", "0"], "--resolution"),
+    (["map", "--max-range", "inf"], "--max-range"),
+    (["map", "--robot-radius", "nan"], "--robot-radius"),
+    (["slam", "--resolution", "nan"], "--resolution"),
+    (["slam", "--max-range", "-1"], "--max-range"),
+    (["slam", "--submap-distance", "inf"], "--submap-distance"),
+    (["ekf-slam", "--seconds", "nan"], "--seconds"),
+    (["ekf-slam", "--robot", "7"], "--robot"),
+    (["ekf-slam", "--bearing-offset", "inf"], "--bearing-offset"),
+    (["fastslam", "--seed", "-1"], "--seed"),
+    (["fastslam", "--seed", str(2 ** 64)], "--seed"),
+    (["fastslam", "--robot", "0"], "--robot"),
+    (["optimize", "--kernel-width", "nan"], "--kernel-width"),
+    (["map", "--resolution", "abc"], "--resolution"),  # argparse's own errors are one line too
+    (["ekf-slam", "--seconds", "-inf"], "--seconds"),
+    (["fastslam", "--version", "3"], "--version"),
+])
+def test_bad_option_values_are_one_line_naming_the_flag_before_reading(tmp_path, capsys, argv, flag):
+    missing = str(tmp_path / "missing")  # checked before the data: the missing file is never named
+    with pytest.raises(SystemExit) if argv[-1] in ("abc", "-inf", "3") else contextlib.nullcontext() as exit_info:
+        status = cli.main(argv[:1] + [missing] + argv[1:] + ["-o", str(tmp_path / "x")])
+    status = exit_info.value.code if exit_info else status
+    assert status == 2
+    captured = _one_line_error(capsys, flag)
+    assert missing not in captured.err and not list(tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("command", ["ekf-slam", "fastslam"])
+def test_victoria_park_distances_beyond_max_coordinate_are_one_line(tmp_path, capsys, command):
+    """1e300 in a LANDMARK record ended in a numpy overflow warning and "measurement_noise must be
+    positive definite" (an internal name)."""
+    path = tmp_path / "vp.txt"
+    path.write_text("ODOMETRY 0 1 1 0 0 10 0 0 10 0 31.6\nLANDMARK 1 7 1e300 1 1.6 0 1.6\n")
+    assert cli.main([command, str(path), "-o", str(tmp_path / "x")]) == 2
+    _one_line_error(capsys, str(path), "LANDMARK records with distances beyond 1e+09 m (MAX_COORDINATE)")

@@ -264,3 +264,55 @@ def test_relative_poses_equal_pose2_between_and_compose_back():
 def test_relative_poses_bad_input(a, b, exc, message):
     with pytest.raises(exc, match=message):
         ev.relative_poses(a, b)
+
+
+# --- issue 33: hand-built relations checked as the reader checks rows; empty and huge input ---
+
+def test_relations_error_refuses_a_hand_built_relation_with_t2_before_t1():
+    """read_relations skips such rows, but a hand-built Relations with one was scored."""
+    rel = ev.Relations(np.array([0.5, 2.0, 1.5]), np.array([1.0, 1.0, 1.0]), np.zeros((3, 3)))
+    with pytest.raises(ValueError, match=r"relations: 2 rows with t2 < t1 .*first row 1 \(t1 2, t2 1\)"):
+        ev.relations_error(TS, POSES, rel)
+    np.testing.assert_array_equal(rel.t2, [1.0, 1.0, 1.0])  # the argument is left as it was
+
+
+def test_relations_error_refuses_empty_relations_by_name():
+    with pytest.raises(ValueError, match="relations: empty"):
+        ev.relations_error(TS, POSES, ev.Relations(np.zeros(0), np.zeros(0), np.zeros((0, 3))))
+
+
+@pytest.mark.parametrize("error, covariance, exc, message", [
+    (np.zeros(0), np.zeros((0, 0)), ValueError, r"error: expected shape \(\.\.\., n\) with n >= 1"),
+    (np.zeros((4, 0)), np.zeros((4, 0, 0)), ValueError, r"error: expected shape \(\.\.\., n\) with n >= 1"),
+    (np.float64(1.0), np.ones((1, 1)), ValueError, r"error: expected shape \(\.\.\., n\)"),
+    ([[0.1, 0.1], [0.2]], np.eye(2), ValueError, "error: not an array of numbers"),
+    (["a", "b"], np.eye(2), TypeError, "error: expected real numbers"),
+    (np.zeros(2), [[1, 0], [0, "x"]], TypeError, "covariance: expected real numbers"),
+    (np.zeros(2) + 1j, np.eye(2), TypeError, "error: expected real numbers"),
+    (np.zeros(2), np.diag([np.nan, 1.0]), ValueError, "covariance: contains NaN or inf"),
+    ([1e200, 0.0], np.eye(2), ValueError, "error and covariance: the NEES overflows"),
+])
+def test_nees_bad_input_names_the_argument(error, covariance, exc, message):
+    """nees([], ...) raised numpy's "zero-size array to reduction operation maximum"."""
+    with pytest.raises(exc, match=message):
+        ev.nees(error, covariance)
+
+
+def test_nees_of_no_estimates_is_empty():
+    assert ev.nees(np.zeros((0, 3)), np.zeros((0, 3, 3))).shape == (0,)
+
+
+@pytest.mark.parametrize("call, message", [
+    (lambda: ev.relative_poses([-1e308, 0, 0], [1e308, 0, 0]), "a and b: the relative poses overflow"),
+    (lambda: ev.interpolate_poses([0.0, 1.0], [[-1e308, 0, 0], [1e308, 0, 0]], [0.5]),
+     "timestamps and poses: the interpolation overflows"),
+    (lambda: ev.relations_error([0.0, 1.0], [[-1e308, 0, 0], [1e308, 0, 0]],
+                                ev.Relations(np.array([0.0]), np.array([1.0]), np.zeros((1, 3)))),
+     "the relations error overflows"),
+    (lambda: ev.wrap([0.0, np.inf]), "angle: contains NaN or inf"),
+    (lambda: ev.wrap("x"), "angle: expected real numbers"),
+])
+def test_eval_results_are_finite_or_refused(call, message):
+    """Coordinates near the largest double gave inf or NaN results."""
+    with pytest.raises((ValueError, TypeError), match=message):
+        call()

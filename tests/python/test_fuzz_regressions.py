@@ -1,8 +1,10 @@
 """Inputs the fuzz harness (fuzz/, scripts/fuzz.sh) found failing, each run again through the
 same target: it must now give a result or a documented ValueError / FileNotFoundError."""
 
+import io
 import pathlib
 import sys
+import zipfile
 
 import pytest
 
@@ -35,6 +37,40 @@ CLASSES = [
     ("mrclam", targets.SEPARATOR.join([b"1 5\n6 inf\n", b"6 1 2 0 0\n", b"100 0.1 0\n", b"100.2 9 1 0\n"]),
      "OverflowError: int(inf) of a barcode"),
     ("victoria_park", b"ODOMETRY 0 1 1 0 0 10 0 0 10 0 31.6\n\xff\n", "UnicodeDecodeError"),
+]
+
+
+
+def _zip(members):
+    """The bytes of a zip archive holding ``members`` (name -> bytes)."""
+    out = io.BytesIO()
+    with zipfile.ZipFile(out, "w") as z:
+        for name, data in members.items():
+            z.writestr(name, data)
+    return out.getvalue()
+
+
+def _npy(header, data=b""):
+    """A .npy member with a hand-written version 1.0 header."""
+    text = repr(header).encode()
+    pad = 64 - (10 + len(text) + 1) % 64
+    return b"\x93NUMPY\x01\x00" + (len(text) + pad + 1).to_bytes(2, "little") + text + b" " * pad + b"\n" + data
+
+
+# Issue 33: the learned-model loader, added to the harness (the relations reader, added too, had
+# no finding).
+CLASSES += [
+    ("learned_model", b"", "BadZipFile from np.load"),
+    ("learned_model", b"PK\x03\x04" + bytes(40), "BadZipFile from np.load"),
+    ("learned_model", _zip({"weights.npy": _npy({"descr": "<f8", "fortran_order": False, "shape": (3,)}, bytes(24))}),
+     "KeyError: 'meta is not a file in the archive'"),
+    ("learned_model", _zip({k + ".npy": _npy({"descr": "<f8", "fortran_order": False, "shape": (1 << 40,)})
+                            for k in ("weights", "mean", "scale", "meta")}),
+     "numpy allocating the 8 TiB array the header claims"),
+    ("learned_model", _zip({"meta.npy": _npy({"descr": "<U3", "fortran_order": False, "shape": ()}, "[1]".encode("utf-32-le")),
+                            **{k + ".npy": _npy({"descr": "<f8", "fortran_order": False, "shape": (1,)}, bytes(8))
+                               for k in ("weights", "mean", "scale")}}),
+     "TypeError indexing a meta that is JSON but no dict"),
 ]
 
 
