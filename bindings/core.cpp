@@ -6,6 +6,7 @@
 #include "probslam/core/check.hpp"
 #include "probslam/core/angle.hpp"
 #include "probslam/core/chi_square.hpp"
+#include "probslam/core/filter_limits.hpp"
 #include "probslam/core/pose2.hpp"
 #include "probslam/core/range_bearing_model.hpp"
 #include "probslam/core/velocity_motion_model.hpp"
@@ -28,6 +29,8 @@ py::array points_through(py::handle points, const char* name,
 }  // namespace
 
 void define_core(py::module_& m) {
+  // The filters' coordinate limit (core/filter_limits.hpp), for readers that check data before a run.
+  m.attr("MAX_COORDINATE") = kMaxCoordinate;
   m.def(
       "chi_square_quantile", [](double p, IntArg dof) { return chi_square_quantile(p, dof.get("dof")); }, py::arg("p"),
       py::arg("dof"),

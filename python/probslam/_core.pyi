@@ -10,11 +10,13 @@ ArrayLike = npt.ArrayLike
 Array = npt.NDArray[np.float64]
 Bounds = Tuple[float, float, float, float]  # (xmin, ymin, xmax, ymax), metres
 
-@overload
+MAX_COORDINATE: float  # m: the filters refuse coordinates beyond it (C++ kMaxCoordinate)
+
 def chi_square_quantile(p: float, dof: int) -> float:
     """The x with P(X <= x) = p, X chi-square with dof degrees of freedom (a Mahalanobis gate)."""
 def chi_square_cdf(x: float, dof: int) -> float:
     """P(X <= x) for X chi-square with dof degrees of freedom."""
+@overload
 def wrap_angle(angle: float) -> float: ...
 @overload
 def wrap_angle(angle: ArrayLike) -> Array: ...

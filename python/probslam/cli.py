@@ -12,7 +12,7 @@ import time
 import warnings
 from typing import Iterator, List, Optional
 
-from . import __version__, io
+from . import __version__, _core, io
 from .data import path as _data_path
 from .mapping import map_laser_log
 
@@ -276,9 +276,9 @@ def _landmark_dataset(args: argparse.Namespace):
 
 
 #: The largest distance (m) a Victoria Park record may hold: the filters refuse coordinates beyond
-#: 1e9 m (the EKF's kEkfMaxCoordinate), and the squares of larger ones overflow in the conversion
-#: to range and bearing, which then fails with a message about an internal noise matrix.
-MAX_COORDINATE = 1e9
+#: it (C++ kMaxCoordinate), and the squares of larger ones overflow in the conversion to range and
+#: bearing, which then fails with a message about an internal noise matrix.
+MAX_COORDINATE = _core.MAX_COORDINATE
 
 
 def _victoria_park_data(path):
