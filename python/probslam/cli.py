@@ -33,8 +33,10 @@ POSE_GRAPH = "a 2-D pose graph: g2o (VERTEX_SE2/EDGE_SE2), TORO .graph (VERTEX2/
 
 EPILOG = """exit status:
   0  success
-  1  an unexpected error (a bug: please report it), or optimize did not converge
-  2  a user or input error: a bad option, a missing, empty or unreadable file (one line on stderr)
+  1  an unexpected error (a bug: please report it)
+  2  a user or input error: a bad option, a missing, empty or unreadable file, an output folder
+     that does not exist or cannot be written (one line on stderr)
+  3  optimize did not converge within --max-iterations (the result is written all the same)
 
 Without a dataset argument every command runs on small excerpts of public datasets bundled with
 the package (probslam.data.path(NAME) gives their paths). Plots need matplotlib (optional: pip
@@ -124,10 +126,34 @@ def _read_log(path: str):
     return log
 
 
+#: The exit status of a run that finished but did not converge (optimize).
+EXIT_NOT_CONVERGED = 3
+
+
+def _check_output(prefix: str) -> None:
+    """UserError naming -o when the output prefix's folder is missing or not writable: checked
+    before the run, which may take minutes, rather than when the first file is written."""
+    folder = os.path.dirname(prefix) or "."
+    if not os.path.isdir(folder):
+        raise UserError(f"-o {prefix}: folder {folder} does not exist")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise UserError(f"-o {prefix}: folder {folder} is not writable")
+
+
+def _write_trajectory(prefix: str, times, poses, written: List[str]) -> None:
+    """PREFIX_trajectory.txt: one line per pose, ``timestamp x y theta`` (every command's
+    trajectory, one format)."""
+    from .slam import write_trajectory
+
+    write_trajectory(times, poses, prefix + "_trajectory.txt")
+    written.append(prefix + "_trajectory.txt")
+
+
 def _cmd_map(args: argparse.Namespace) -> int:
     _require_length(args.resolution, "--resolution")
     _require_length(args.max_range, "--max-range")
     _require_length(args.robot_radius, "--robot-radius", zero=True)
+    _check_output(args.output)
     path = args.log or _bundled_log()
     t0 = time.perf_counter()
     log = _read_log(path)
@@ -135,7 +161,10 @@ def _cmd_map(args: argparse.Namespace) -> int:
                                   robot_radius=args.robot_radius,
                                   skip_no_return=not args.keep_no_return, progress=None if args.progress else False)
     io.save_ros_map(grid, args.output + ".yaml")
-    io.write_png(grid, args.output + ".png", trajectory=log.scans.laser_poses)
+    written = [f"{args.output}.yaml", f"{args.output}.pgm"]
+    if args.plot:
+        io.write_png(grid, args.output + ".png", trajectory=log.scans.laser_poses)
+        written.append(f"{args.output}.png")
     total = time.perf_counter() - t0
     rate = summary.beams / summary.seconds / 1e6 if summary.seconds > 0 else float("inf")
     print(f"log:           {path}{' (bundled Intel Research Lab excerpt)' if not args.log else ''}")
@@ -146,18 +175,19 @@ def _cmd_map(args: argparse.Namespace) -> int:
     print(f"cells updated: {summary.cells_updated}")
     print(f"map:           {grid.width} x {grid.height} cells at {grid.resolution} m, origin {grid.origin}")
     print(f"time:          {total:.2f} s total, {summary.seconds:.3f} s mapping ({rate:.2f} M beams/s)")
-    print(f"wrote:         {args.output}.yaml, {args.output}.pgm, {args.output}.png")
+    print(f"wrote:         {', '.join(written)}")
     return 0
 
 
 def _cmd_slam(args: argparse.Namespace) -> int:
     from .graph import write_g2o
-    from .slam import run_slam, write_trajectory
+    from .slam import run_slam
 
     _require_count(args.particles, "--particles", 1)
     _require_length(args.resolution, "--resolution")
     _require_length(args.max_range, "--max-range")
     _require_length(args.submap_distance, "--submap-distance", zero=True)
+    _check_output(args.output)
     path = args.log or _bundled_log(BUNDLED_RAW_LOG)
     log = _read_log(path)
     if args.method == "rbpf":
@@ -169,9 +199,11 @@ def _cmd_slam(args: argparse.Namespace) -> int:
         options["max_range"] = args.max_range
     result = run_slam(log, method=args.method, progress=None if args.progress else False, **options)
     io.save_ros_map(result.grid, args.output + ".yaml")
-    io.write_png(result.grid, args.output + ".png", trajectory=result.poses)
-    write_trajectory(args.output + "_trajectory.txt", result.timestamps, result.poses)
-    written = [f"{args.output}.yaml", f"{args.output}.pgm", f"{args.output}.png", f"{args.output}_trajectory.txt"]
+    written = [f"{args.output}.yaml", f"{args.output}.pgm"]
+    if args.plot:
+        io.write_png(result.grid, args.output + ".png", trajectory=result.poses)
+        written.append(f"{args.output}.png")
+    _write_trajectory(args.output, result.timestamps, result.poses, written)
     if result.graph is not None:
         write_g2o(result.graph, args.output + ".g2o")
         written.append(f"{args.output}.g2o")
@@ -209,6 +241,7 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
 
     _check_landmark_options(args)
     _require_length(args.bearing_offset, "--bearing-offset", zero=True, what="angle (rad)")
+    _check_output(args.output)
     path, mrclam = _landmark_dataset(args)
     t0 = time.perf_counter()
     if mrclam:
@@ -236,7 +269,7 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
             print(f"associations:  {ls.association_accuracy(run):.1%} correct (each landmark's majority barcode), "
                   f"{applied} of {len(data.measurements)} sightings applied")
         truth, truth_lm = _print_mrclam_score(ls, data, run, dr, ls.majority_labels(run) if args.unknown else None)
-        poses, dead = run.poses, dr.poses
+        dead = dr.poses
     else:
         if args.bearing_offset:
             raise UserError("--bearing-offset applies to MRCLAM folders (with --unknown --association mht)")
@@ -246,13 +279,13 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
         t_run = time.perf_counter() - t_load
         print(f"dataset:       Victoria Park {path}: {len(run.poses)} poses, {len(data.xy)} observations")
         print(f"landmarks:     {run.ekf.num_landmarks}; filter time {t_run:.3f} s")
-        poses, dead, truth, truth_lm = run.poses, None, None, None
-    written = [args.output + "_path.txt"]
-    np.savetxt(args.output + "_path.txt", poses, header="x y theta (filtered)")
-    plt = _pyplot()
+        dead, truth, truth_lm = None, None, None
+    written: List[str] = []
+    _write_trajectory(args.output, run.times, run.poses, written)
+    plt = _pyplot() if args.plot else None
     if plt is not None:
         fig, ax = plt.subplots(figsize=(8, 8))
-        landmark_map(ax, poses, run.ekf, truth_path=truth, truth_landmarks=truth_lm, dead_reckoning=dead,
+        landmark_map(ax, run.poses, run.ekf, truth_path=truth, truth_landmarks=truth_lm, dead_reckoning=dead,
                      truth_landmarks_label=_survey_label(data))
         written.insert(0, _save_figure(plt, fig, args.output + ".png"))
     print(f"time:          {time.perf_counter() - t0:.2f} s total")
@@ -381,9 +414,10 @@ def _cmd_fastslam(args: argparse.Namespace) -> int:
     _require_count(args.threads, "--threads", 1)
     _require_count(args.seed, "--seed", 0, MAX_SEED)
     _check_landmark_options(args)
+    _check_output(args.output)
     path, mrclam = _landmark_dataset(args)
     t0 = time.perf_counter()
-    common = dict(known=not args.unknown, num_particles=args.particles, version=args.version, seed=args.seed,
+    common = dict(known=not args.unknown, num_particles=args.particles, version=args.variant, seed=args.seed,
                   threads=args.threads)
     if mrclam:
         motion, sensor = _mrclam_noise(args)
@@ -398,7 +432,7 @@ def _cmd_fastslam(args: argparse.Namespace) -> int:
         print(f"dataset:       Victoria Park {path}: {len(run.poses)} poses, {len(data.xy)} observations, "
               f"{'unknown' if args.unknown else 'known'} correspondences")
     f = run.filter
-    print(f"filter:        FastSLAM {args.version}.0, {args.particles} particles, {f.num_resamples} resamplings; "
+    print(f"filter:        FastSLAM {args.variant}.0, {args.particles} particles, {f.num_resamples} resamplings; "
           f"filter time {run.seconds:.2f} s")
     print(f"landmarks:     {len(run.landmarks)} in the best particle's map")
     labels = fs.majority_labels(run) if args.unknown else None
@@ -407,9 +441,9 @@ def _cmd_fastslam(args: argparse.Namespace) -> int:
     truth = truth_lm = None
     if isinstance(data, io.Mrclam):
         truth, truth_lm = _print_mrclam_score(ls, data, run, dr, labels)
-    written = [args.output + "_path.txt"]
-    np.savetxt(args.output + "_path.txt", run.poses, header="x y theta (the best particle's path)")
-    plt = _pyplot()
+    written: List[str] = []
+    _write_trajectory(args.output, run.times, run.poses, written)
+    plt = _pyplot() if args.plot else None
     if plt is not None:
         fig, ax = plt.subplots(figsize=(8, 8))
         fastslam_map(ax, f, truth_path=truth, truth_landmarks=truth_lm, truth_landmarks_label=_survey_label(data),
@@ -490,6 +524,7 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     _require_count(args.max_iterations, "--max-iterations", 0)
     _require_count(args.poses_per_step, "--poses-per-step", 1)
     _require_length(args.kernel_width, "--kernel-width")
+    _check_output(args.output)
     path = args.graph or _data_path(BUNDLED_GRAPH)
     _check_input(path, POSE_GRAPH)
     t0 = time.perf_counter()
@@ -516,7 +551,7 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
           f"optimisation {t_opt:.3f} s, file to result {time.perf_counter() - t0:.3f} s")
     pg.write_g2o(g, args.output + ".g2o")
     written = [args.output + ".g2o"]
-    plt = None if args.no_plot else _pyplot()
+    plt = _pyplot() if args.plot else None
     if plt is not None:
         from .plot import pose_graph
 
@@ -525,7 +560,17 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
         ax.set_title(f"{os.path.basename(path)}: chi2 {report.chi2:.4f}")
         written.append(_save_figure(plt, fig, args.output + ".png"))
     print(f"wrote:      {', '.join(written)}")
-    return 0 if report.converged else 1
+    return 0 if report.converged else EXIT_NOT_CONVERGED
+
+
+def _no_plot_option(parser: argparse.ArgumentParser) -> None:
+    """--no-plot, on every command that writes a picture."""
+    parser.add_argument("--no-plot", dest="plot", action="store_false", help="write no picture")
+
+
+def _no_progress_option(parser: argparse.ArgumentParser) -> None:
+    """--no-progress, on every command that shows a progress bar."""
+    parser.add_argument("--no-progress", dest="progress", action="store_false", help="never show a progress bar")
 
 
 def _landmark_dataset_options(parser: argparse.ArgumentParser, output: str) -> None:
@@ -540,7 +585,9 @@ def _landmark_dataset_options(parser: argparse.ArgumentParser, output: str) -> N
     parser.add_argument("--sigma-w", type=float, default=0.6, help="MRCLAM odometry noise, rad/s per 10 ms command")
     parser.add_argument("--sigma-r", type=float, default=0.15, help="range noise, m")
     parser.add_argument("--sigma-phi", type=float, default=0.04, help="bearing noise, rad")
-    parser.add_argument("-o", "--output", default=output, help=f"output prefix (default '{output}')")
+    parser.add_argument("-o", "--output", default=output,
+                        help=f"output prefix: PREFIX_trajectory.txt, PREFIX.png (default '{output}')")
+    _no_plot_option(parser)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -559,7 +606,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--keep-no-return", action="store_true",
                    help="let readings at the sensor maximum clear space (default: skip them)")
     p.add_argument("-o", "--output", default="map", help="output prefix: PREFIX.yaml/.pgm/.png (default 'map')")
-    p.add_argument("--no-progress", dest="progress", action="store_false", help="never show a progress bar")
+    _no_progress_option(p)
+    _no_plot_option(p)
     p.set_defaults(func=_cmd_map)
 
     sl = sub.add_parser("slam", help="map a raw CARMEN laser log (odometry and scans): scan matching into "
@@ -581,7 +629,8 @@ def build_parser() -> argparse.ArgumentParser:
     sl.add_argument("-o", "--output", default="slam",
                     help="output prefix: PREFIX.yaml/.pgm/.png, PREFIX_trajectory.txt, PREFIX.g2o (graph only; "
                          "default 'slam')")
-    sl.add_argument("--no-progress", dest="progress", action="store_false", help="never show a progress bar")
+    _no_progress_option(sl)
+    _no_plot_option(sl)
     sl.set_defaults(func=_cmd_slam)
 
     e = sub.add_parser("ekf-slam", help="EKF SLAM on a landmark dataset (MRCLAM folder or Victoria Park file)")
@@ -607,7 +656,7 @@ def build_parser() -> argparse.ArgumentParser:
     fsp.add_argument("--unknown", action="store_true",
                      help="hide the correspondences: each particle associates by maximum likelihood")
     fsp.add_argument("--particles", type=int, default=100, help="number of particles (default 100)")
-    fsp.add_argument("--version", type=int, choices=(1, 2), default=1,
+    fsp.add_argument("--variant", type=int, choices=(1, 2), default=1,
                      help="1: FastSLAM 1.0 (default); 2: FastSLAM 2.0, the proposal that includes the measurements")
     fsp.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     fsp.add_argument("--threads", type=int, default=1, help="threads (same result for any count)")
@@ -629,7 +678,7 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("--linear-solver", default="simplicial", choices=["simplicial", "supernodal", "auto"])
     o.add_argument("--ordering", default="amd", choices=["amd", "metis"])
     o.add_argument("--edges", action="store_true", help="draw every edge in the picture")
-    o.add_argument("--no-plot", action="store_true", help="write no picture")
+    _no_plot_option(o)
     o.add_argument("-o", "--output", default="optimized", help="output prefix: PREFIX.g2o/.png (default 'optimized')")
     o.set_defaults(func=_cmd_optimize)
     return parser

@@ -151,9 +151,11 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: str = "grap
                       odometry=odometry, options=opts, method=method)
 
 
-def write_trajectory(path: PathLike, timestamps: np.ndarray, poses: np.ndarray) -> None:
-    """One line per scan: ``timestamp x y theta`` (s, m, m, rad), the TUM-like text layout.
-    timestamps (N,), poses (N, 3), finite (TypeError / ValueError naming them)."""
+def write_trajectory(timestamps: np.ndarray, poses: np.ndarray, path: PathLike) -> None:
+    """One line per pose: ``timestamp x y theta`` (s, m, m, rad), the TUM-like text layout that
+    every ``probslam`` command writes its trajectory in. timestamps (N,), poses (N, 3), finite
+    (TypeError / ValueError naming them); the trajectory first and the path last, as every writer
+    (``write_g2o(graph, path)``)."""
     timestamps = real_array(timestamps, "timestamps", (None,))
     poses = real_array(poses, "poses", (len(timestamps), 3))
     data = np.column_stack([timestamps, poses])

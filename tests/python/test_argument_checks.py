@@ -177,10 +177,10 @@ def test_writers_check_what_they_write(tmp_path):
     with pytest.raises(TypeError, match="^trajectory: expected real numbers"):
         ps.io.write_png(GRID, out, trajectory=[["a", "b"]])
     with pytest.raises(ValueError, match="^poses: expected shape"):
-        sl.write_trajectory(out, np.arange(3.0), np.zeros((2, 3)))
+        sl.write_trajectory(np.arange(3.0), np.zeros((2, 3)), out)
     with pytest.raises(ValueError, match="^timestamps: contains NaN"):
-        sl.write_trajectory(out, np.array([0.0, np.nan]), np.zeros((2, 3)))
+        sl.write_trajectory(np.array([0.0, np.nan]), np.zeros((2, 3)), out)
     assert not out.exists()
     ps.io.write_png(GRID, out, trajectory=np.array([[0.05, 0.25], [np.nan, 0.0]]))  # non-finite rows left out
-    sl.write_trajectory(tmp_path / "t.txt", np.arange(2.0), np.ones((2, 3)))
+    sl.write_trajectory(np.arange(2.0), np.ones((2, 3)), tmp_path / "t.txt")
     np.testing.assert_allclose(np.loadtxt(tmp_path / "t.txt"), np.column_stack([np.arange(2.0), np.ones((2, 3))]))

@@ -1,6 +1,8 @@
 """The probslam command line, end to end."""
 
 import contextlib
+import os
+import time
 
 import numpy as np
 import pytest
@@ -183,7 +185,9 @@ def test_fastslam_mrclam_prints_what_the_driver_computes(tmp_path, capsys, share
     assert f"landmarks:     {len(run.landmarks)} in the best particle's map" in out
     assert f"associations:  {fs.association_accuracy(run):.1%} correct" in out
     assert "path RMSE:" in out and "unknown correspondences" in out
-    np.testing.assert_allclose(np.loadtxt(tmp_path / "f_path.txt"), run.poses, atol=1e-9)
+    trajectory = np.loadtxt(tmp_path / "f_trajectory.txt")  # timestamp x y theta, as every command
+    np.testing.assert_allclose(trajectory[:, 1:], run.poses, atol=1e-6)
+    np.testing.assert_allclose(trajectory[:, 0], run.times, atol=1e-6)
     assert (tmp_path / "f.png").read_bytes()[:4] == b"\x89PNG"
 
 
@@ -234,22 +238,22 @@ def test_ekf_slam_bundled_mrclam(tmp_path, capsys):
     mr = io.read_mrclam(folder)
     assert mr.groundtruth is not None and 115 < mr.odometry[-1, 0] - mr.odometry[0, 0] <= 120
     assert f"odometry:      {len(mr.odometry)} controls" in out
-    path = np.loadtxt(tmp_path / "e_path.txt")
-    assert path.shape[1] == 3 and len(path) > 100
+    path = np.loadtxt(tmp_path / "e_trajectory.txt")
+    assert path.shape[1] == 4 and len(path) > 100
 
 
 def test_ekf_slam_bundled_victoria_park(tmp_path, capsys):
     assert cli.main(["ekf-slam", data.path("victoria_park_1000.txt"), "-o", str(tmp_path / "v")]) == 0
     out = capsys.readouterr().out
     assert "1000 poses, 613 observations" in out
-    assert np.loadtxt(tmp_path / "v_path.txt").shape == (1000, 3)
+    assert np.loadtxt(tmp_path / "v_trajectory.txt").shape == (1000, 4)
 
 
 def test_fastslam_bundled_mrclam(tmp_path, capsys):
     assert cli.main(["fastslam", "--particles", "20", "-o", str(tmp_path / "f")]) == 0
     out = capsys.readouterr().out
     assert "FastSLAM 1.0, 20 particles" in out and "path RMSE:" in out
-    assert np.loadtxt(tmp_path / "f_path.txt").shape[1] == 3
+    assert np.loadtxt(tmp_path / "f_trajectory.txt").shape[1] == 4
 
 
 @pytest.mark.parametrize("command", ["ekf-slam", "fastslam"])
@@ -323,7 +327,7 @@ def test_without_matplotlib_plots_are_skipped(tmp_path):
     assert (tmp_path / "g.g2o").exists() and not (tmp_path / "g.png").exists()
     run = _run(["-m", "probslam", "ekf-slam", "-o", "e"], tmp_path, env)
     assert run.returncode == 0 and "plot skipped" in run.stderr and "Traceback" not in run.stderr
-    assert (tmp_path / "e_path.txt").exists() and not (tmp_path / "e.png").exists()
+    assert (tmp_path / "e_trajectory.txt").exists() and not (tmp_path / "e.png").exists()
 
 
 def test_an_unexpected_error_is_one_line_and_exit_1(monkeypatch, capsys):
@@ -488,7 +492,7 @@ def test_a_victoria_park_file_without_landmark_lines_is_one_line(tmp_path, capsy
     (["optimize", "--kernel-width", "nan"], "--kernel-width"),
     (["map", "--resolution", "abc"], "--resolution"),  # argparse's own errors are one line too
     (["ekf-slam", "--seconds", "-inf"], "--seconds"),
-    (["fastslam", "--version", "3"], "--version"),
+    (["fastslam", "--variant", "3"], "--variant"),
 ])
 def test_bad_option_values_are_one_line_naming_the_flag_before_reading(tmp_path, capsys, argv, flag):
     missing = str(tmp_path / "missing")  # checked before the data: the missing file is never named
@@ -508,3 +512,41 @@ def test_victoria_park_distances_beyond_max_coordinate_are_one_line(tmp_path, ca
     path.write_text("ODOMETRY 0 1 1 0 0 10 0 0 10 0 31.6\nLANDMARK 1 7 1e300 1 1.6 0 1.6\n")
     assert cli.main([command, str(path), "-o", str(tmp_path / "x")]) == 2
     _one_line_error(capsys, str(path), "LANDMARK records with distances beyond 1e+09 m (MAX_COORDINATE)")
+
+
+def test_every_command_checks_its_output_folder_before_the_run(tmp_path, capsys):
+    """`probslam slam -o /missing/dir/x` ran the whole log, then failed writing."""
+    missing = str(tmp_path / "missing" / "x")
+    for command in (["map"], ["slam"], ["ekf-slam"], ["fastslam"], ["optimize"]):
+        start = time.perf_counter()
+        assert cli.main(command + ["-o", missing]) == 2
+        err = capsys.readouterr().err
+        assert err == f"probslam: error: -o {missing}: folder {os.path.dirname(missing)} does not exist\n", err
+        assert time.perf_counter() - start < 5.0  # refused before any data is read
+
+
+@pytest.mark.parametrize("command", [["map"], ["slam"], ["ekf-slam"], ["fastslam", "--particles", "5"],
+                                     ["optimize"]])
+def test_no_plot_everywhere_a_picture_is_written(tmp_path, command, capsys):
+    prefix = str(tmp_path / "o")
+    assert cli.main(command + ["--no-plot", "-o", prefix]) == 0
+    assert not (tmp_path / "o.png").exists()
+    assert ".png" not in capsys.readouterr().out
+
+
+def test_every_trajectory_is_one_format(tmp_path):
+    """slam wrote PREFIX_trajectory.txt (timestamp x y theta), ekf-slam / fastslam PREFIX_path.txt
+    (x y theta): one name and one layout now."""
+    for command in (["slam"], ["ekf-slam"], ["fastslam", "--particles", "5"]):
+        assert cli.main(command + ["--no-plot", "-o", str(tmp_path / command[0])]) == 0
+        with open(tmp_path / f"{command[0]}_trajectory.txt") as f:
+            assert f.readline() == "# timestamp x y theta\n"
+        rows = np.loadtxt(tmp_path / f"{command[0]}_trajectory.txt")
+        assert rows.shape[1] == 4 and len(rows) > 10 and np.all(np.isfinite(rows))
+
+
+def test_a_run_that_does_not_converge_exits_3_not_1(tmp_path, capsys):
+    """Exit 1 meant both "a bug" and "optimize did not converge"."""
+    assert cli.main(["optimize", "--max-iterations", "1", "--no-plot", "-o", str(tmp_path / "o")]) == 3
+    assert (tmp_path / "o.g2o").exists()  # the result is written all the same
+    assert "exit status" in cli.build_parser().format_help() and "3  optimize did not converge" in cli.EPILOG

@@ -163,7 +163,7 @@ def test_readers_and_writers_name_a_path_argument_that_is_not_a_path(tmp_path, v
              ("yaml_path", io.load_ros_map), ("path", io.load_grid), ("path", ps.graph.read_pose_graph),
              ("path", ps.eval.read_relations), ("yaml_path", lambda p: io.save_ros_map(grid, p)),
              ("path", lambda p: io.save_grid(grid, p)), ("path", lambda p: io.write_png(grid, p)),
-             ("path", lambda p: ps.slam.write_trajectory(p, np.zeros(1), np.zeros((1, 3)))),
+             ("path", lambda p: ps.slam.write_trajectory(np.zeros(1), np.zeros((1, 3)), p)),
              ("relations", lambda r: ps.eval.relations_error(np.arange(2.0), np.zeros((2, 3)), r))]
     for name, call in calls:
         with pytest.raises(TypeError, match=f"^{name}: expected a"):
