@@ -54,8 +54,9 @@ def rmse(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum((np.asarray(a) - np.asarray(b)) ** 2, axis=1))))
 
 
-def interpolate_poses(groundtruth: np.ndarray, times: np.ndarray) -> np.ndarray:
-    """(T, 2) ground-truth positions at `times` (linear interpolation of (t, x, y, ...) rows)."""
+def truth_positions(groundtruth: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """(T, 2) ground-truth positions at `times` (linear interpolation of (t, x, y, ...) rows, held
+    at the ends; `probslam.eval.interpolate_poses` is the whole pose, within the span only)."""
     groundtruth = np.asarray(groundtruth)
     if groundtruth.ndim != 2 or groundtruth.shape[1] < 3 or len(groundtruth) == 0:
         raise ValueError(f"groundtruth: expected (T, 3 or more) rows (t, x, y, ...), got shape {groundtruth.shape}")
@@ -209,7 +210,7 @@ def score_mrclam(run: EkfRun, data: Mrclam, landmark_map: Optional[Dict[int, int
     ``landmark_map``: filter id -> surveyed subject (identity when correspondences were known)."""
     require_fields(run, ("times", "poses", "landmarks"), "run", "a run (EkfRun or FastSlamRun)")
     require_instance(data, Mrclam, "data")
-    truth = interpolate_poses(data.groundtruth, run.times)
+    truth = truth_positions(data.groundtruth, run.times)
     r, t = align_rigid(run.poses[:, :2], truth)
     aligned = run.poses[:, :2] @ r.T + t
     surveyed = data.landmark_positions
@@ -279,7 +280,7 @@ def fit_range_scale(data: Mrclam) -> float:
     if len(m) == 0:
         raise ValueError("data: no sightings of surveyed landmarks with a positive range")
     truth = np.array([surveyed[int(s)] for s in m[:, 1]])
-    distance = np.hypot(*(truth - interpolate_poses(data.groundtruth, m[:, 0])).T)
+    distance = np.hypot(*(truth - truth_positions(data.groundtruth, m[:, 0])).T)
     return float(np.median(distance * np.cos(m[:, 3]) / m[:, 2]))
 
 

@@ -65,9 +65,9 @@ WRONG_VALUES = [
     (lambda: ls.align_rigid(np.zeros((3, 2)), np.zeros((4, 2))), "truth"),
     (lambda: ls.align_rigid(np.zeros((0, 2)), np.zeros((0, 2))), "estimate"),
     (lambda: ls.align_rigid(np.full((3, 2), np.nan), np.zeros((3, 2))), "estimate"),
-    (lambda: ls.interpolate_poses(np.zeros((5, 2)), np.zeros(3)), "groundtruth"),
-    (lambda: ls.interpolate_poses(np.zeros((0, 3)), np.zeros(3)), "groundtruth"),
-    (lambda: ls.interpolate_poses(np.zeros((5, 3)), np.zeros((3, 1))), "times"),
+    (lambda: ls.truth_positions(np.zeros((5, 2)), np.zeros(3)), "groundtruth"),
+    (lambda: ls.truth_positions(np.zeros((0, 3)), np.zeros(3)), "groundtruth"),
+    (lambda: ls.truth_positions(np.zeros((5, 3)), np.zeros((3, 1))), "times"),
     (lambda: ls.polar_measurements(np.zeros((2, 2)), np.tile(np.eye(2), (2, 1, 1))), "xy"),
     (lambda: ls.polar_measurements(np.ones((2, 2)), np.eye(2)), "xy_cov"),
     (lambda: sim.pose_error(np.zeros(2), np.zeros(3)), "estimate"),
@@ -104,7 +104,7 @@ def test_checked_functions_still_compute_what_they_did():
     np.testing.assert_allclose(sim.pose_error([0, 0, 3.0], [0, 0, -3.0]), [0, 0, 6.0 - 2 * np.pi])
     np.testing.assert_allclose(sim.cast_ranges([0, 0, 0], [0.0], [((2.0, -1.0), (2.0, 1.0))]), [2.0])
     truth = np.column_stack([[0.0, 1.0], [0.0, 2.0], [0.0, 4.0]])
-    np.testing.assert_allclose(ls.interpolate_poses(truth, [0.5]), [[1.0, 2.0]])
+    np.testing.assert_allclose(ls.truth_positions(truth, [0.5]), [[1.0, 2.0]])
 
 
 # Integer options read by the bindings' keyword parser and GridFastSlam's particle argument:

@@ -151,7 +151,7 @@ def range_errors(data):
     """Reading minus the distance from the Vicon pose to the surveyed landmark, and the bearings."""
     m = data.measurements
     truth = np.array([data.landmark_positions[int(s)] for s in m[:, 1]])
-    return m[:, 2] - np.hypot(*(truth - ls.interpolate_poses(data.groundtruth, m[:, 0])).T), m[:, 3]
+    return m[:, 2] - np.hypot(*(truth - ls.truth_positions(data.groundtruth, m[:, 0])).T), m[:, 3]
 
 
 def robust_std(e):
