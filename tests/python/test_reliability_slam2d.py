@@ -245,3 +245,16 @@ def test_grid_fastslam_update_over_the_memory_bound_keeps_nothing():
     twin.add_scans(*rows(1, 2))
     assert obj.summary["updates"] == 1
     assert_same(full_state(obj), full_state(twin))
+
+
+@pytest.mark.parametrize("kind", MAKERS)
+def test_a_failed_first_batch_leaves_an_empty_object(kind):
+    obj, twin = MAKERS[kind](), MAKERS[kind]()
+    r, a, o, t = rows(0, 4)
+    o[-1, 0] = 1e8
+    with pytest.raises(ValueError, match="^odometry"):
+        obj.add_scans(r, a, o, t)
+    assert obj.num_scans == 0 and len(obj.timestamps) == 0
+    obj.add_scans(*rows(0, 5))
+    twin.add_scans(*rows(0, 5))
+    assert_same(full_state(obj), full_state(twin))
