@@ -148,6 +148,7 @@ GridFastSlamOptions rbpf_options(Kwargs& k) {
   k.get("corrector_submap_distance", o.corrector.submap_distance);
   k.get("seed", o.seed);
   k.get("threads", o.threads);
+  k.get("max_map_bytes", o.max_map_bytes);
   // The corrector sees the scans as the filter does.
   o.corrector.resolution = o.resolution;
   o.corrector.filter = o.filter;
@@ -155,8 +156,8 @@ GridFastSlamOptions rbpf_options(Kwargs& k) {
   return o;
 }
 
-/// add_scans of IncrementalScanMatcher and SubmapSlam2D: every row is checked before the first
-/// scan is added, so a bad batch changes nothing.
+/// add_scans of the laser SLAM classes: shapes checked here, then the class's own add_scans
+/// checks every row (check_scan) before the first is added, so a bad batch changes nothing.
 template <typename Mapper>
 void add_scans(Mapper& self, py::handle ranges, py::handle beam_angles, py::handle odometry, py::handle timestamps) {
   const DoubleArray r = matrix_arg(ranges, "ranges");
@@ -172,15 +173,8 @@ void add_scans(Mapper& self, py::handle ranges, py::handle beam_angles, py::hand
                           ", " + std::to_string(B) + "), got " + shape_of(a));
   const auto R = as_matrix(r), O = as_matrix(o);
   const auto T = as_vector(t);
-  if (!O.allFinite()) throw py::value_error("odometry must contain only finite values");
-  if (!as_vector(a).allFinite()) throw py::value_error("beam_angles must contain only finite values");
-  if (T.hasNaN()) throw py::value_error("timestamps must not contain NaN");
-  locked(self, [&] {
-    for (py::ssize_t k = 0; k < S; ++k) {
-      const Eigen::Map<const Eigen::VectorXd> ang(a.data() + (per_scan ? k * B : 0), B);
-      self.add_scan(R.row(k).transpose(), ang, O.row(k).transpose(), T[k]);
-    }
-  });
+  const Eigen::Map<const RowMatrixXd> A(a.data(), per_scan ? S : 1, B);
+  locked(self, [&] { self.add_scans(R, A, O, T); });
 }
 
 /// The keyword constructor (options parsed by `parse`, unknown keywords a TypeError) and
@@ -506,7 +500,9 @@ void define_slam2d(py::module_& m) {
                      "angular_step (rad), refinements, sample_linear (m), sample_angular (rad), min_match_quality\n"
                      "(0.3), weight_scale (0.03: tempered weights), resample_threshold (0.5), update_distance (m,\n"
                      "0.25), update_angle (rad, 0.25), corrector_submap_distance (m, 5), corrected_start (True), seed\n"
-                     "(int >= 0), threads. Results are identical for any thread count.",
+                     "(int >= 0), threads, max_map_bytes (bytes, 8 GiB: the particles' maps with the worst case of the\n"
+                     "next update; a num_particles or an update that could exceed it raises ValueError). Results are\n"
+                     "identical for any thread count. A failed call (add_scans included) changes nothing.",
                      rbpf_options)
       .def_property_readonly("num_scans", getter(&Rbpf::num_scans), "Scans added.")
       .def_property_readonly("num_particles", getter(&Rbpf::num_particles), "M, the number of particles.")

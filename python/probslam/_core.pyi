@@ -558,8 +558,11 @@ class GridFastSlam:
     sample_angular (rad), min_match_quality (0.3), weight_scale (0.03: tempered weights),
     resample_threshold (0.5), update_distance (m, 0.25), update_angle (rad, 0.25),
     corrector_submap_distance (m, 5), corrected_start (True: the scan-matching proposal's climb
-    starts from the odometry corrected by incremental scan matching), seed (int >= 0), threads.
-    Results are identical for any thread count."""
+    starts from the odometry corrected by incremental scan matching), seed (int >= 0), threads,
+    max_map_bytes (bytes, default 8 GiB: the particles' maps plus the worst case of the next
+    update; a num_particles or an update that could exceed it raises ValueError naming
+    num_particles). Results are identical for any thread count. A failed call changes nothing:
+    add_scans checks every row first and undoes a batch whose row fails on the filter's state."""
     num_scans: int
     num_particles: int
     poses: Array  # (M, 3) particle poses

@@ -4,13 +4,16 @@
 #include <algorithm>
 #include <atomic>
 #include <cmath>
+#include <cstdio>
 #include <limits>
+#include <string>
 
 #include "probslam/core/angle.hpp"
 #include "probslam/core/check.hpp"
 #include "probslam/core/pose2.hpp"
 #include "probslam/core/pose2_covariance.hpp"
 #include "probslam/core/worker_pool.hpp"
+#include "probslam/slam2d/scan_batch.hpp"
 
 namespace probslam {
 namespace {
@@ -23,6 +26,16 @@ constexpr double kGrowMargin = 10.0;
 constexpr std::uint64_t kFilterStream = std::uint64_t{1} << 63;
 /// Fewer particles than this per worker do not pay for waking a thread.
 constexpr int kMinParticlesPerThread = 2;
+/// Memory of one tile (its cells and stamps, and its control block: vtable, two counts, the
+/// counting allocator's pointer pair) and of one tile-table slot, bytes: what the memory bound counts.
+constexpr std::size_t kTileBytes = sizeof(TiledGrid2D::Tile) + 5 * sizeof(void*);
+constexpr std::size_t kTableSlotBytes = sizeof(std::shared_ptr<TiledGrid2D::Tile>);
+
+std::string gib(double bytes) {
+  char text[32];
+  std::snprintf(text, sizeof text, "%.3g GiB", bytes / (1024.0 * 1024.0 * 1024.0));
+  return text;
+}
 
 Eigen::Vector3d compose(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return Pose2::from_vector(a).compose(Pose2::from_vector(b)).vector();
@@ -65,12 +78,14 @@ void GridFastSlamOptions::validate() const {
   require(std::isfinite(update_angle) && update_angle >= 0.0, "update_angle", "must be finite and >= 0");
   if (uses_corrector()) corrector.validate();
   require(threads >= 1 && threads <= 1024, "threads", "must lie in [1, 1024]");
+  require_positive(max_map_bytes, "max_map_bytes");
 }
 
 GridFastSlam::GridFastSlam(const GridFastSlamOptions& options)
     : options_((options.validate(), options)),
       likelihood_(options.likelihood, options.resolution),
       rng_(options.seed, kFilterStream) {
+  check_particle_budget();  // before any particle is allocated
   if (options_.uses_corrector())
     corrector_ = std::make_unique<IncrementalScanMatcher>(options_.corrector);
   particles_.resize(static_cast<std::size_t>(options_.num_particles));
@@ -78,69 +93,140 @@ GridFastSlam::GridFastSlam(const GridFastSlamOptions& options)
   next_stream_ = particles_.size();
 }
 
+double GridFastSlam::check_particle_budget() {
+  // Rule: bounded sizes. One update may clone, per particle, every tile of the usable-range disc
+  // around its pose (rays end inside it) and copy its tile table: refuse a particle count whose
+  // first update alone could exceed max_map_bytes, before any map exists.
+  const double tile_m = TiledGrid2D::kTileSize * options_.resolution;
+  const double reach = options_.filter.usable_range() + 1.0;
+  const double disc_tiles = std::pow(std::ceil(2.0 * reach / tile_m) + 1.0, 2);
+  footprint_bytes_ = disc_tiles * static_cast<double>(kTileBytes);
+  const double side = 2.0 * (options_.filter.usable_range() + kGrowMargin) / tile_m + 1.0;
+  const double per_particle = footprint_bytes_ + side * side * static_cast<double>(kTableSlotBytes);
+  const double allowed = std::floor(options_.max_map_bytes / per_particle);
+  if (static_cast<double>(options_.num_particles) > allowed)
+    throw_invalid_argument("num_particles", "= " + std::to_string(options_.num_particles) +
+                                                " could need " + gib(per_particle * options_.num_particles) +
+                                                " of map tiles in one update (at this resolution and usable range), more "
+                                                "than max_map_bytes = " + gib(options_.max_map_bytes) +
+                                                ": lower num_particles (at most " + std::to_string(static_cast<long long>(allowed)) +
+                                                " here) or max_usable_range / max_range, or raise resolution or max_map_bytes");
+  return per_particle;
+}
+
 GridFastSlam::~GridFastSlam() = default;
+
+void GridFastSlam::check_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
+                              const Eigen::Ref<const Eigen::VectorXd>& beam_angles, const Eigen::Vector3d& odometry,
+                              double timestamp, long row) const {
+  check_scan_input(ranges, beam_angles, odometry, timestamp, row);
+}
+
+void GridFastSlam::add_scans(const Eigen::Ref<const RowMatrixXd>& ranges, const Eigen::Ref<const RowMatrixXd>& beam_angles,
+                             const Eigen::Ref<const RowMatrixXd>& odometry,
+                             const Eigen::Ref<const Eigen::VectorXd>& timestamps) {
+  add_scan_rows(*this, ranges, beam_angles, odometry, timestamps);
+}
+
+GridFastSlam::Snapshot GridFastSlam::snapshot() const {
+  Snapshot s;
+  if (corrector_) s.corrector = corrector_->snapshot();
+  s.particles = particles_;
+  s.rng = rng_;
+  s.next_stream = next_stream_;
+  s.last_update_odometry = last_update_odometry_;
+  s.last_update_raw = last_update_raw_;
+  s.last_corrected = last_corrected_;
+  s.corrected_cov = corrected_cov_;
+  s.scans = scan_step_.size();
+  s.summary = summary_;
+  return s;
+}
+
+void GridFastSlam::restore(Snapshot&& s) {
+  if (corrector_ && s.corrector) corrector_->restore(std::move(*s.corrector));
+  particles_ = std::move(s.particles);
+  rng_ = s.rng;
+  next_stream_ = s.next_stream;
+  last_update_odometry_ = s.last_update_odometry;
+  last_update_raw_ = s.last_update_raw;
+  last_corrected_ = s.last_corrected;
+  corrected_cov_ = s.corrected_cov;
+  scan_step_.resize(s.scans);
+  scan_offset_.resize(s.scans);
+  timestamps_.resize(s.scans);
+  summary_ = s.summary;
+}
 
 bool GridFastSlam::add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
                             const Eigen::Ref<const Eigen::VectorXd>& beam_angles, const Eigen::Vector3d& odometry,
                             double timestamp) {
-  require_all_finite(odometry, "odometry");
-  check_scan_shape(odometry, ranges, beam_angles);
-  require(std::isfinite(timestamp), "timestamp", "must be finite");
-  require(odometry.head<2>().cwiseAbs().maxCoeff() <= kGridFastSlamMaxCoordinate, "odometry",
-          "coordinates must be <= 1e9 m");
-
-  // The motion source: the odometry, or the odometry corrected by incremental scan matching.
+  check_scan(ranges, beam_angles, odometry, timestamp);
+  // Phase 1, into temporaries: the object is unchanged should anything below throw.
+  // The motion source: the odometry, or the odometry corrected by incremental scan matching
+  // (prepared, committed with the update).
+  std::optional<IncrementalScanMatcher::PendingScan> corrected;
   Eigen::Vector3d source = odometry;
-  bool source_matched = false;
-  Eigen::Matrix3d step_cov = Eigen::Matrix3d::Zero();
   if (corrector_) {
-    const ScanEstimate e = corrector_->add_scan(ranges, beam_angles, odometry, timestamp);
-    source = e.pose;
-    source_matched = e.matched;
-    step_cov = e.relative_covariance;
+    corrected = corrector_->prepare(ranges, beam_angles, odometry, timestamp);
+    source = corrected->est.pose;
   }
-  timestamps_.push_back(timestamp);
-  ++summary_.scans;
-
+  const Eigen::VectorXd insertion = ranges_for_insertion(ranges, options_.filter);
+  auto commit_scan = [&] {
+    if (corrector_) corrector_->commit(std::move(*corrected));
+    timestamps_.push_back(timestamp);
+    ++summary_.scans;
+  };
   if (scan_step_.empty()) {
-    first_scan(ranges_for_insertion(ranges, options_.filter), beam_angles, source);
+    std::shared_ptr<TiledGrid2D> map = first_map(source);
+    commit_scan();
+    first_scan(std::move(map), insertion, beam_angles, source);
     start_stretch(source, odometry, 0);
     return true;
   }
-  if (corrector_ && source_matched) {
+  Eigen::Matrix3d chain_cov = corrected_cov_;
+  Eigen::Vector3d last_corrected = last_corrected_;
+  if (corrector_ && corrected->est.matched) {
     // The chain of scan-matched steps since the last update, and its composed covariance.
-    corrected_cov_ = compose_covariance(between(last_update_odometry_, last_corrected_), corrected_cov_,
-                                        between(last_corrected_, source), step_cov);
-    last_corrected_ = source;
+    chain_cov = compose_covariance(between(last_update_odometry_, last_corrected_), corrected_cov_,
+                                   between(last_corrected_, source), corrected->est.relative_covariance);
+    last_corrected = source;
   }
   const Eigen::Vector3d delta = between(last_update_odometry_, source);
   const int step = static_cast<int>(summary_.updates);
   if (delta.head<2>().norm() < options_.update_distance && std::fabs(delta.z()) < options_.update_angle) {
+    commit_scan();
+    corrected_cov_ = chain_cov;
+    last_corrected_ = last_corrected;
     scan_step_.push_back(step);
     scan_offset_.push_back(delta);
     return false;
   }
   Motion motion{delta, Eigen::Matrix3d::Zero(), std::nullopt};
   if (options_.proposal == GridProposal::kImprovedOdometry) {
-    motion.cov = corrected_motion_covariance(source);
+    motion.cov = corrected_motion_covariance(source, chain_cov, last_corrected);
   } else {
     motion.delta = between(last_update_raw_, odometry);  // the raw odometry's motion model
     motion.cov = options_.odometry.covariance(motion.delta);
     if (corrector_) motion.start = delta;
   }
   motion.cov = 0.5 * (motion.cov + motion.cov.transpose());
-  update(scan_hits(ranges, beam_angles, options_.filter), ranges_for_insertion(ranges, options_.filter), beam_angles,
-         motion);
+  std::vector<Sampled> sampled = sample(scan_hits(ranges, beam_angles, options_.filter), motion);
+  check_update(sampled);
+  // Phase 2: commit; nothing below throws.
+  commit_scan();
+  commit_update(std::move(sampled), insertion, beam_angles);
   start_stretch(source, odometry, step + 1);
   return true;
 }
 
-Eigen::Matrix3d GridFastSlam::corrected_motion_covariance(const Eigen::Vector3d& source) const {
+Eigen::Matrix3d GridFastSlam::corrected_motion_covariance(const Eigen::Vector3d& source, const Eigen::Matrix3d& chain_cov,
+                                                          const Eigen::Vector3d& last_corrected) const {
   // Motion since the last matched scan is the raw odometry's: its noise on top, rotated into
   // the frame of the last update.
-  const Eigen::Vector3d rest = between(last_corrected_, source);
-  const Eigen::Matrix3d R = frame_rotation(between(last_update_odometry_, last_corrected_).z());
-  Eigen::Matrix3d cov = corrected_cov_;
+  const Eigen::Vector3d rest = between(last_corrected, source);
+  const Eigen::Matrix3d R = frame_rotation(between(last_update_odometry_, last_corrected).z());
+  Eigen::Matrix3d cov = chain_cov;
   if (!rest.isZero()) cov += R * options_.odometry.covariance(rest) * R.transpose();
   // A chain of perfectly matched steps may carry no rotation uncertainty at all: keep the
   // motion model's floors so the covariance stays positive definite.
@@ -157,14 +243,18 @@ void GridFastSlam::start_stretch(const Eigen::Vector3d& source, const Eigen::Vec
   scan_offset_.push_back(Eigen::Vector3d::Zero());
 }
 
-void GridFastSlam::first_scan(const Eigen::VectorXd& insertion, const Eigen::Ref<const Eigen::VectorXd>& angles,
-                              const Eigen::Vector3d& odometry) {
+std::shared_ptr<TiledGrid2D> GridFastSlam::first_map(const Eigen::Vector3d& odometry) const {
   const double r = options_.filter.usable_range() + kGrowMargin;
   const OccupancyGrid2D prototype = OccupancyGrid2D::covering(odometry.x() - r, odometry.y() - r, odometry.x() + r,
                                                               odometry.y() + r, options_.resolution);
+  return std::make_shared<TiledGrid2D>(prototype);
+}
+
+void GridFastSlam::first_scan(std::shared_ptr<TiledGrid2D> map, const Eigen::VectorXd& insertion,
+                              const Eigen::Ref<const Eigen::VectorXd>& angles, const Eigen::Vector3d& odometry) {
   Particle& first = particles_.front();
   first.pose = odometry;
-  first.map = std::make_shared<TiledGrid2D>(prototype);
+  first.map = std::move(map);
   insert(first, insertion, angles);
   first.path.push(odometry);
   const double lw = -std::log(static_cast<double>(particles_.size()));
@@ -178,52 +268,102 @@ void GridFastSlam::first_scan(const Eigen::VectorXd& insertion, const Eigen::Ref
   }
 }
 
+bool GridFastSlam::needs_growth(const TiledGrid2D& map, const Eigen::Vector3d& pose, Eigen::Vector4d& bounds) const {
+  const double r = options_.filter.usable_range() + 1.0;
+  const Eigen::Vector2d lo = map.origin();
+  const Eigen::Vector2d hi = lo + map.resolution() * Eigen::Vector2d(map.width(), map.height());
+  if (pose.x() - r >= lo.x() && pose.y() - r >= lo.y() && pose.x() + r <= hi.x() && pose.y() + r <= hi.y())
+    return false;
+  const double m = r + kGrowMargin;
+  bounds << pose.x() - m, pose.y() - m, pose.x() + m, pose.y() + m;
+  return true;
+}
+
 void GridFastSlam::insert(Particle& p, const Eigen::VectorXd& insertion, const Eigen::Ref<const Eigen::VectorXd>& angles) const {
   if (p.map.use_count() > 1) {
     p.map = std::make_shared<TiledGrid2D>(*p.map);  // its own tile table; the tiles stay shared
   } else {
     std::atomic_thread_fence(std::memory_order_acquire);  // see TiledGrid2D::writable_tile
   }
-  const double r = options_.filter.usable_range() + 1.0;
-  const Eigen::Vector2d lo = p.map->origin();
-  const Eigen::Vector2d hi = lo + p.map->resolution() * Eigen::Vector2d(p.map->width(), p.map->height());
-  if (p.pose.x() - r < lo.x() || p.pose.y() - r < lo.y() || p.pose.x() + r > hi.x() || p.pose.y() + r > hi.y()) {
-    const double m = r + kGrowMargin;
-    p.map->grow_to_include(p.pose.x() - m, p.pose.y() - m, p.pose.x() + m, p.pose.y() + m);
-  }
+  Eigen::Vector4d b;
+  if (needs_growth(*p.map, p.pose, b)) p.map->grow_to_include(b[0], b[1], b[2], b[3]);  // checked by check_update
   p.map->insert_rays(p.pose, insertion, angles, options_.filter.usable_range());
 }
 
-void GridFastSlam::update(const Points2& points, const Eigen::VectorXd& insertion,
-                          const Eigen::Ref<const Eigen::VectorXd>& angles, const Motion& motion) {
+template <typename Body>
+void GridFastSlam::for_each_particle(const Body& body) {
   const int m = num_particles();
   const int workers = std::min(options_.threads, std::max(1, m / kMinParticlesPerThread));
-  std::vector<long> matched(static_cast<std::size_t>(workers), 0), fallbacks(static_cast<std::size_t>(workers), 0);
   auto run = [&](std::size_t w) {
     const int begin = static_cast<int>(static_cast<long>(m) * static_cast<long>(w) / workers);
     const int end = static_cast<int>(static_cast<long>(m) * static_cast<long>(w + 1) / workers);
-    for (int k = begin; k < end; ++k)
-      update_particle(particles_[static_cast<std::size_t>(k)], points, insertion, angles, motion, matched[w],
-                      fallbacks[w]);
+    for (int k = begin; k < end; ++k) body(static_cast<std::size_t>(k));
   };
   if (workers <= 1) {
     run(0);
-  } else {
-    if (!pool_ || static_cast<int>(pool_->size()) != workers) pool_ = std::make_unique<WorkerPool>(workers);
-    pool_->run(run);
+    return;
   }
-  for (int w = 0; w < workers; ++w) {
-    summary_.matched += matched[static_cast<std::size_t>(w)];
-    summary_.fallbacks += fallbacks[static_cast<std::size_t>(w)];
+  if (!pool_ || static_cast<int>(pool_->size()) != workers) pool_ = std::make_unique<WorkerPool>(workers);
+  pool_->run(run);
+}
+
+std::vector<GridFastSlam::Sampled> GridFastSlam::sample(const Points2& points, const Motion& motion) {
+  std::vector<Sampled> out(particles_.size());
+  for_each_particle([&](std::size_t k) { out[k] = sample_particle(particles_[k], points, motion); });
+  return out;
+}
+
+void GridFastSlam::check_update(const std::vector<Sampled>& sampled) const {
+  double tables = 0.0, added = 0.0;
+  for (std::size_t k = 0; k < particles_.size(); ++k) {
+    const TiledGrid2D& map = *particles_[k].map;
+    const double slots = static_cast<double>(map.tiles_x()) * map.tiles_y();
+    double new_slots = particles_[k].map.use_count() > 1 ? slots : 0.0;  // the table copied
+    Eigen::Vector4d b;
+    if (needs_growth(map, sampled[k].pose, b)) {
+      // Rule: bounded sizes, checked before the commit (a pure size computation, no allocation).
+      if (map.cells_after_growth(b[0], b[1], b[2], b[3]) > static_cast<double>(OccupancyGrid2D::kMaxCells))
+        throw_invalid_argument("odometry", "moves particle " + std::to_string(k) +
+                                               " so far that its map would grow beyond OccupancyGrid2D.max_cells = " +
+                                               std::to_string(OccupancyGrid2D::kMaxCells) + " cells");
+      new_slots = map.tiles_after_growth(b[0], b[1], b[2], b[3]);
+    }
+    tables += slots * kTableSlotBytes;
+    added += new_slots * kTableSlotBytes + footprint_bytes_;
+  }
+  // Tiles alive (the particles' maps are one family: copies of the first) plus every table,
+  // plus what this update can add.
+  const double live = static_cast<double>(particles_.front().map->live_tiles()) * kTileBytes + tables;
+  if (live + added > options_.max_map_bytes)
+    throw_invalid_argument("num_particles", "= " + std::to_string(num_particles()) + ": the particles' maps hold " +
+                                                gib(live) + " and this update could add " + gib(added) +
+                                                ", more than max_map_bytes = " + gib(options_.max_map_bytes) +
+                                                ": lower num_particles or max_usable_range, or raise resolution or "
+                                                "max_map_bytes");
+}
+
+void GridFastSlam::commit_update(std::vector<Sampled>&& sampled, const Eigen::VectorXd& insertion,
+                                 const Eigen::Ref<const Eigen::VectorXd>& angles) {
+  for_each_particle([&](std::size_t k) {
+    Particle& p = particles_[k];
+    p.pose = sampled[k].pose;
+    p.log_weight = sampled[k].log_weight;
+    p.rng = sampled[k].rng;
+    insert(p, insertion, angles);
+    p.path.push(p.pose);
+  });
+  for (const Sampled& s : sampled) {
+    summary_.matched += s.matched;
+    summary_.fallbacks += s.fallback;
   }
   ++summary_.updates;
   normalise_and_resample();
 }
 
-void GridFastSlam::update_particle(Particle& p, const Points2& points, const Eigen::VectorXd& insertion,
-                                   const Eigen::Ref<const Eigen::VectorXd>& angles, const Motion& motion, long& matched,
-                                   long& fallbacks) const {
-  bool done = false;
+GridFastSlam::Sampled GridFastSlam::sample_particle(const Particle& p, const Points2& points, const Motion& motion) const {
+  Sampled s;
+  s.rng = p.rng;
+  s.log_weight = p.log_weight;
   if (options_.proposal == GridProposal::kScanMatching && points.rows() > 0) {
     const Eigen::Vector3d predicted = compose(p.pose, motion.delta);
     const Eigen::Matrix3d R = frame_rotation(p.pose.z());
@@ -233,25 +373,20 @@ void GridFastSlam::update_particle(Particle& p, const Points2& points, const Eig
                                options_.matching,
                                motion.start ? std::optional<Eigen::Vector3d>(compose(p.pose, *motion.start)) : std::nullopt);
     if (q.matched) {
-      Eigen::Vector3d x = q.mean + gaussian_offset(q.covariance, p.rng);
+      Eigen::Vector3d x = q.mean + gaussian_offset(q.covariance, s.rng);
       x.z() = wrap_angle(x.z());
-      p.pose = x;
+      s.pose = x;
       // The normaliser estimates the integral of p(z | x, m) p(x | x_t-1, u), which the
       // motion-model fallback's p(z | x, m) estimates too: both weights are on one scale.
-      p.log_weight += options_.weight_scale * q.log_normaliser;
-      ++matched;
-      done = true;
-    } else {
-      ++fallbacks;
+      s.log_weight += options_.weight_scale * q.log_normaliser;
+      s.matched = true;
+      return s;
     }
+    s.fallback = true;
   }
-  if (!done) {
-    Eigen::Vector3d x = compose(p.pose, motion.delta + gaussian_offset(motion.cov, p.rng));
-    p.pose = x;
-    p.log_weight += options_.weight_scale * likelihood_.log_likelihood(*p.map, x, points);
-  }
-  insert(p, insertion, angles);
-  p.path.push(p.pose);
+  s.pose = compose(p.pose, motion.delta + gaussian_offset(motion.cov, s.rng));
+  s.log_weight += options_.weight_scale * likelihood_.log_likelihood(*p.map, s.pose, points);
+  return s;
 }
 
 void GridFastSlam::normalise_and_resample() {

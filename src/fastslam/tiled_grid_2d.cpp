@@ -67,11 +67,11 @@ TiledGrid2D::TiledGrid2D(const OccupancyGrid2D& prototype)
 TiledGrid2D::Tile& TiledGrid2D::writable_tile(std::size_t index) {
   std::shared_ptr<Tile>& slot = tiles_[index];
   if (!slot) {
-    slot = std::make_shared<Tile>();
+    slot = std::allocate_shared<Tile>(CountingAllocator<Tile>(tile_count_));
     slot->log_odds.fill(l0_);
     slot->stamp.fill(0u);
   } else if (slot.use_count() > 1) {
-    slot = std::make_shared<Tile>(*slot);
+    slot = std::allocate_shared<Tile>(CountingAllocator<Tile>(tile_count_), *slot);
   } else {
     // Sole owner: the other holders' reads of this tile (before they let go of it, a release
     // decrement) happen before the writes that follow.
@@ -90,17 +90,37 @@ std::size_t TiledGrid2D::insert_rays(const Eigen::Vector3d& pose, const Eigen::R
   return apply_scan<2, double>(lattice_, store, segments.view());
 }
 
-void TiledGrid2D::grow_to_include(double xmin, double ymin, double xmax, double ymax) {
+TiledGrid2D::Growth TiledGrid2D::plan_growth(double xmin, double ymin, double xmax, double ymax) const {
   require(std::isfinite(xmin) && std::isfinite(xmax) && xmin <= xmax, "xmin", "must be finite and <= xmax");
   require(std::isfinite(ymin) && std::isfinite(ymax) && ymin <= ymax, "ymin", "must be finite and <= ymax");
   const double tile_m = kTileSize * lattice_.res;
+  Growth g;
   // Tiles to add on each side, as doubles first: far bounds must be refused, not overflow.
-  const double add_left = std::max(0.0, std::ceil((lattice_.x0 - xmin) / tile_m));
-  const double add_down = std::max(0.0, std::ceil((lattice_.y0 - ymin) / tile_m));
+  g.add_left = std::max(0.0, std::ceil((lattice_.x0 - xmin) / tile_m));
+  g.add_down = std::max(0.0, std::ceil((lattice_.y0 - ymin) / tile_m));
+  const double new_x0 = lattice_.x0 - g.add_left * tile_m, new_y0 = lattice_.y0 - g.add_down * tile_m;
+  g.width = std::max(g.add_left * kTileSize + width_, std::ceil((xmax - new_x0) / lattice_.res) + 1.0);
+  g.height = std::max(g.add_down * kTileSize + height_, std::ceil((ymax - new_y0) / lattice_.res) + 1.0);
+  g.none = g.add_left == 0.0 && g.add_down == 0.0 && g.width == width_ && g.height == height_;
+  return g;
+}
+
+double TiledGrid2D::cells_after_growth(double xmin, double ymin, double xmax, double ymax) const {
+  const Growth g = plan_growth(xmin, ymin, xmax, ymax);
+  return g.width * g.height;
+}
+
+double TiledGrid2D::tiles_after_growth(double xmin, double ymin, double xmax, double ymax) const {
+  const Growth g = plan_growth(xmin, ymin, xmax, ymax);
+  return std::ceil(g.width / kTileSize) * std::ceil(g.height / kTileSize);
+}
+
+void TiledGrid2D::grow_to_include(double xmin, double ymin, double xmax, double ymax) {
+  const Growth g = plan_growth(xmin, ymin, xmax, ymax);
+  if (g.none) return;
+  const double add_left = g.add_left, add_down = g.add_down, width = g.width, height = g.height;
+  const double tile_m = kTileSize * lattice_.res;
   const double new_x0 = lattice_.x0 - add_left * tile_m, new_y0 = lattice_.y0 - add_down * tile_m;
-  const double width = std::max(add_left * kTileSize + width_, std::ceil((xmax - new_x0) / lattice_.res) + 1.0);
-  const double height = std::max(add_down * kTileSize + height_, std::ceil((ymax - new_y0) / lattice_.res) + 1.0);
-  if (add_left == 0.0 && add_down == 0.0 && width == width_ && height == height_) return;
   if (width * height > static_cast<double>(OccupancyGrid2D::kMaxCells))
     throw_invalid_argument("xmax", "would grow the grid beyond OccupancyGrid2D.max_cells = " +
                                        std::to_string(OccupancyGrid2D::kMaxCells));

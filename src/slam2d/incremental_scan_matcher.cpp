@@ -2,11 +2,13 @@
 
 #include <algorithm>
 #include <cmath>
+#include <string>
 
 #include "probslam/core/angle.hpp"
 #include "probslam/core/check.hpp"
 #include "probslam/core/pose2.hpp"
 #include "probslam/core/pose2_covariance.hpp"
+#include "probslam/slam2d/scan_batch.hpp"
 
 namespace probslam {
 
@@ -60,33 +62,30 @@ IncrementalScanMatcher::IncrementalScanMatcher(const IncrementalScanMatcherOptio
   options_.validate();
 }
 
-Submap& IncrementalScanMatcher::open_submap(const Eigen::Vector3d& origin) {
+OccupancyGrid2D IncrementalScanMatcher::new_submap_grid(const Eigen::Vector3d& origin) const {
   const double r = options_.filter.usable_range() + kGrowMargin;
-  submaps_.push_back(Submap{OccupancyGrid2D::covering(origin.x() - r, origin.y() - r, origin.x() + r,
-                                                      origin.y() + r, options_.resolution),
-                            origin, {}, 0.0, 0});
-  return submaps_.back();
+  return OccupancyGrid2D::covering(origin.x() - r, origin.y() - r, origin.x() + r, origin.y() + r, options_.resolution);
 }
 
-void IncrementalScanMatcher::insert(Submap& submap, int scan, const Eigen::Ref<const Eigen::VectorXd>& ranges,
-                                    const Eigen::Ref<const Eigen::VectorXd>& beam_angles,
-                                    const Eigen::Vector3d& pose) {
-  const Eigen::VectorXd r = ranges_for_insertion(ranges, options_.filter);
+std::optional<OccupancyGrid2D> IncrementalScanMatcher::grown_for(const Submap& submap, const Eigen::Vector3d& pose) const {
   // Every ray ends within the usable range: grow the grid to hold that disc, with room to spare.
   const double reach = options_.filter.usable_range();
   const Eigen::Vector2d lo = submap.grid.origin();
   const Eigen::Vector2d hi = lo + submap.grid.resolution() * Eigen::Vector2d(submap.grid.width(), submap.grid.height());
-  if (pose.x() - reach < lo.x() || pose.y() - reach < lo.y() || pose.x() + reach > hi.x() || pose.y() + reach > hi.y()) {
-    const double m = reach + kGrowMargin;
-    submap.grid = submap.grid.grown_to_include(std::min(lo.x(), pose.x() - m), std::min(lo.y(), pose.y() - m),
-                                               std::max(hi.x(), pose.x() + m), std::max(hi.y(), pose.y() + m));
+  if (pose.x() - reach >= lo.x() && pose.y() - reach >= lo.y() && pose.x() + reach <= hi.x() && pose.y() + reach <= hi.y())
+    return std::nullopt;
+  const double m = reach + kGrowMargin;
+  try {
+    return submap.grid.grown_to_include(std::min(lo.x(), pose.x() - m), std::min(lo.y(), pose.y() - m),
+                                        std::max(hi.x(), pose.x() + m), std::max(hi.y(), pose.y() + m));
+  } catch (const std::invalid_argument& e) {
+    // The grid's own message names its bounds; the user passed the odometry that led there.
+    throw_invalid_argument("odometry", std::string("moves the scan so far that its submap grid ") + e.what());
   }
-  submap.grid.insert_rays(pose, r, beam_angles, reach);
-  submap.scans.push_back(scan);
 }
 
 MatchResult IncrementalScanMatcher::match(const Submap& submap, const Points2& points, const Eigen::Vector3d& prior,
-                                          const Eigen::Matrix3d& prior_cov) {
+                                          const Eigen::Matrix3d& prior_cov, FieldCache& cache) const {
   MatchOptions m = options_.match;
   m.use_prior = options_.use_odometry_prior;
   m.prior_covariance = prior_cov;
@@ -105,13 +104,12 @@ MatchResult IncrementalScanMatcher::match(const Submap& submap, const Points2& p
   const double bulge = points.rowwise().norm().maxCoeff() * (1.0 - std::cos(0.5 * m.window.angular));
   const double margin = m.window.linear + bulge + options_.field.truncation() + 2 * options_.resolution;
   const Eigen::Vector4d region(lo.x() - margin, lo.y() - margin, hi.x() + margin, hi.y() + margin);
-  return matcher_for(submap, region, prior).match(points, prior, m);
+  return matcher_for(submap, region, prior, cache).match(points, prior, m);
 }
 
 const CorrelativeScanMatcher& IncrementalScanMatcher::matcher_for(const Submap& submap, const Eigen::Vector4d& region,
-                                                                  const Eigen::Vector3d& prior) {
+                                                                  const Eigen::Vector3d& prior, FieldCache& c) const {
   const int index = static_cast<int>(&submap - submaps_.data());
-  FieldCache& c = field_cache_;
   const bool near = (prior.head<2>() - c.built_at.head<2>()).norm() < options_.field_refresh_distance &&
                     std::abs(wrap_angle(prior.z() - c.built_at.z())) < options_.field_refresh_angle;
   const bool fresh = c.matcher && near && c.submap == index && c.grid_origin == submap.grid.origin() &&
@@ -135,67 +133,124 @@ const CorrelativeScanMatcher& IncrementalScanMatcher::matcher_for(const Submap& 
   return *c.matcher;
 }
 
+void IncrementalScanMatcher::check_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
+                                        const Eigen::Ref<const Eigen::VectorXd>& beam_angles,
+                                        const Eigen::Vector3d& odometry, double timestamp, long row) const {
+  check_scan_input(ranges, beam_angles, odometry, timestamp, row);
+}
+
 ScanEstimate IncrementalScanMatcher::add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
                                               const Eigen::Ref<const Eigen::VectorXd>& beam_angles,
                                               const Eigen::Vector3d& odometry, double timestamp) {
-  require(ranges.size() == beam_angles.size(), "beam_angles", "must have one angle per range");
-  require_all_finite(beam_angles, "beam_angles");
-  require_all_finite(odometry, "odometry");
-  require(!std::isnan(timestamp), "timestamp", "must not be NaN");
-  const int index = num_scans();
-  ScanEstimate est;
+  check_scan(ranges, beam_angles, odometry, timestamp);
+  return commit(prepare(ranges, beam_angles, odometry, timestamp));
+}
+
+void IncrementalScanMatcher::add_scans(const Eigen::Ref<const RowMatrixXd>& ranges,
+                                       const Eigen::Ref<const RowMatrixXd>& beam_angles,
+                                       const Eigen::Ref<const RowMatrixXd>& odometry,
+                                       const Eigen::Ref<const Eigen::VectorXd>& timestamps) {
+  add_scan_rows(*this, ranges, beam_angles, odometry, timestamps);
+}
+
+IncrementalScanMatcher::PendingScan IncrementalScanMatcher::prepare(const Eigen::Ref<const Eigen::VectorXd>& ranges,
+                                                                    const Eigen::Ref<const Eigen::VectorXd>& beam_angles,
+                                                                    const Eigen::Vector3d& odometry,
+                                                                    double timestamp) const {
+  PendingScan p;
+  p.odometry = odometry;
+  p.timestamp = timestamp;
+  p.insertion = ranges_for_insertion(ranges, options_.filter);
+  p.angles = beam_angles;
+  ScanEstimate& est = p.est;
   const Points2 points = scan_hits(ranges, beam_angles, options_.filter);
   est.points = static_cast<int>(points.rows());
-
-  if (index == 0) {  // the map's frame is the first scan's odometry frame
+  if (submaps_.empty()) {  // the map's frame is the first scan's odometry frame
     est.pose = odometry;
     est.pose.z() = wrap_angle(est.pose.z());
     est.matched = true;
-    Submap& s = open_submap(est.pose);
-    insert(s, index, ranges, beam_angles, est.pose);
-    est.submap = static_cast<int>(submaps_.size()) - 1;
-    matched_odometry_ = odometry;
-    matched_pose_ = est.pose;
-  } else {
-    const Eigen::Vector3d delta = Pose2::from_vector(matched_odometry_).between(Pose2::from_vector(odometry)).vector();
-    const Eigen::Vector3d prior = Pose2::from_vector(matched_pose_).compose(Pose2::from_vector(delta)).vector();
-    const Eigen::Matrix3d rel_cov = options_.odometry.covariance(delta);
-    est.pose = prior;
-    est.relative_covariance = rel_cov;
-    const bool moved = delta.head<2>().norm() >= options_.min_travel || std::abs(delta.z()) >= options_.min_rotation;
-    if (moved) {
-      Submap& cur = submaps_.back();
-      const Eigen::Matrix3d J = frame_rotation(matched_pose_.z());
-      if (points.rows() > 0 && static_cast<int>(cur.scans.size()) >= options_.warmup_scans) {
-        const MatchResult r = match(cur, points, prior, J * rel_cov * J.transpose());
-        est.match_quality = r.match_quality;
-        if (r.match_quality >= options_.min_match_quality) {
-          est.pose = r.pose;
-          est.relative_covariance = J.transpose() * r.covariance * J;  // into the earlier pose's frame
-          est.matched = true;
-        } else {
-          est.fallback = true;
-        }
-      }
-      // Travel as estimated, not as the odometry says: a log without odometry still moves.
-      cur.travel += (est.pose.head<2>() - matched_pose_.head<2>()).norm();
-      cur.matched += est.matched;
-      insert(cur, index, ranges, beam_angles, est.pose);
-      est.submap = static_cast<int>(submaps_.size()) - 1;
-      const bool full = (options_.submap_distance > 0.0 && cur.travel >= options_.submap_distance) ||
-                        (options_.submap_scans > 0 && cur.matched >= options_.submap_scans);
-      if (full) {
-        // The next submap starts here, with this scan in both: consecutive submaps overlap.
-        Submap& next = open_submap(est.pose);
-        insert(next, index, ranges, beam_angles, est.pose);
-      }
-      matched_odometry_ = odometry;
-      matched_pose_ = est.pose;
+    p.next = new_submap_grid(est.pose);
+    est.submap = 0;
+    return p;
+  }
+  const Eigen::Vector3d delta = Pose2::from_vector(matched_odometry_).between(Pose2::from_vector(odometry)).vector();
+  const Eigen::Vector3d prior = Pose2::from_vector(matched_pose_).compose(Pose2::from_vector(delta)).vector();
+  const Eigen::Matrix3d rel_cov = options_.odometry.covariance(delta);
+  est.pose = prior;
+  est.relative_covariance = rel_cov;
+  p.moved = delta.head<2>().norm() >= options_.min_travel || std::abs(delta.z()) >= options_.min_rotation;
+  if (!p.moved) return p;
+  const Submap& cur = submaps_.back();
+  const Eigen::Matrix3d J = frame_rotation(matched_pose_.z());
+  if (points.rows() > 0 && static_cast<int>(cur.scans.size()) >= options_.warmup_scans) {
+    auto cache = std::make_shared<FieldCache>(*field_cache_);
+    const MatchResult r = match(cur, points, prior, J * rel_cov * J.transpose(), *cache);
+    p.cache = std::move(cache);
+    est.match_quality = r.match_quality;
+    if (r.match_quality >= options_.min_match_quality) {
+      est.pose = r.pose;
+      est.relative_covariance = J.transpose() * r.covariance * J;  // into the earlier pose's frame
+      est.matched = true;
+    } else {
+      est.fallback = true;
     }
   }
-  estimates_.push_back(est);
-  timestamps_.push_back(timestamp);
-  return est;
+  // Travel as estimated, not as the odometry says: a log without odometry still moves.
+  p.travel = cur.travel + (est.pose.head<2>() - matched_pose_.head<2>()).norm();
+  p.grid = grown_for(cur, est.pose);
+  est.submap = static_cast<int>(submaps_.size()) - 1;
+  p.open_next = (options_.submap_distance > 0.0 && p.travel >= options_.submap_distance) ||
+                (options_.submap_scans > 0 && cur.matched + est.matched >= options_.submap_scans);
+  // The next submap starts here, with this scan in both: consecutive submaps overlap.
+  if (p.open_next) p.next = new_submap_grid(est.pose);
+  return p;
+}
+
+ScanEstimate IncrementalScanMatcher::commit(PendingScan&& p) {
+  const int index = num_scans();
+  const double reach = options_.filter.usable_range();
+  if (p.cache) field_cache_ = std::move(p.cache);
+  if (p.moved) {
+    Submap& cur = submaps_.back();
+    if (p.grid) cur.grid = std::move(*p.grid);
+    cur.travel = p.travel;
+    cur.matched += p.est.matched;
+    cur.grid.insert_rays(p.est.pose, p.insertion, p.angles, reach);
+    cur.scans.push_back(index);
+  }
+  if (p.next) {
+    submaps_.push_back(Submap{std::move(*p.next), p.est.pose, {}, 0.0, 0});
+    submaps_.back().grid.insert_rays(p.est.pose, p.insertion, p.angles, reach);
+    submaps_.back().scans.push_back(index);
+  }
+  if (p.moved || index == 0) {
+    matched_odometry_ = p.odometry;
+    matched_pose_ = p.est.pose;
+  }
+  estimates_.push_back(p.est);
+  timestamps_.push_back(p.timestamp);
+  return p.est;
+}
+
+IncrementalScanMatcher::Snapshot IncrementalScanMatcher::snapshot() const {
+  Snapshot s;
+  s.scans = estimates_.size();
+  s.submaps = submaps_.size();
+  if (!submaps_.empty()) s.open = submaps_.back();
+  s.matched_odometry = matched_odometry_;
+  s.matched_pose = matched_pose_;
+  s.cache = field_cache_;
+  return s;
+}
+
+void IncrementalScanMatcher::restore(Snapshot&& s) {
+  estimates_.resize(s.scans);
+  timestamps_.resize(s.scans);
+  submaps_.erase(submaps_.begin() + static_cast<std::ptrdiff_t>(s.submaps), submaps_.end());
+  if (s.open) submaps_.back() = std::move(*s.open);
+  matched_odometry_ = s.matched_odometry;
+  matched_pose_ = s.matched_pose;
+  field_cache_ = std::move(s.cache);
 }
 
 }  // namespace probslam

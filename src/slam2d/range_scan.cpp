@@ -1,6 +1,7 @@
 #include "probslam/slam2d/range_scan.hpp"
 
 #include <cmath>
+#include <string>
 #include <vector>
 
 #include "probslam/core/check.hpp"
@@ -28,6 +29,25 @@ void require_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
 }
 
 }  // namespace
+
+std::string scan_arg_name(const char* single, const char* batch, long row) {
+  return row < 0 ? std::string(single) : std::string(batch) + "[" + std::to_string(row) + "]";
+}
+
+void check_scan_input(const Eigen::Ref<const Eigen::VectorXd>& ranges, const Eigen::Ref<const Eigen::VectorXd>& beam_angles,
+                      const Eigen::Vector3d& odometry, double timestamp, long row) {
+  if (ranges.size() == 0) throw_invalid_argument(scan_arg_name("ranges", "ranges", row), "must not be empty");
+  if (ranges.size() != beam_angles.size())
+    throw_invalid_argument(scan_arg_name("beam_angles", "beam_angles", row), "must have one angle per range");
+  if (!beam_angles.allFinite())
+    throw_invalid_argument(scan_arg_name("beam_angles", "beam_angles", row), "must contain only finite values");
+  const std::string odo = scan_arg_name("odometry", "odometry", row);
+  if (!odometry.allFinite()) throw_invalid_argument(odo, "must contain only finite values");
+  // Rule: bounded sizes; a pose beyond this would grow a map (or a covariance) past its limit.
+  if (odometry.head<2>().cwiseAbs().maxCoeff() > kMaxCoordinate)
+    throw_invalid_argument(odo, "coordinates must be <= 1e9 m");
+  if (!std::isfinite(timestamp)) throw_invalid_argument(scan_arg_name("timestamp", "timestamps", row), "must be finite");
+}
 
 Points2 scan_hits(const Eigen::Ref<const Eigen::VectorXd>& ranges,
                   const Eigen::Ref<const Eigen::VectorXd>& beam_angles, const ScanFilter& filter) {

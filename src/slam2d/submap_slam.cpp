@@ -13,6 +13,7 @@
 #include "probslam/core/check.hpp"
 #include "probslam/core/pose2.hpp"
 #include "probslam/core/pose2_covariance.hpp"
+#include "probslam/slam2d/scan_batch.hpp"
 
 namespace probslam {
 
@@ -65,6 +66,19 @@ class SubmapSlam2D::FieldCache {
       entries_.erase(victim);
     }
     return *matcher;
+  }
+
+  /// Forgets the fields of submaps `first` and later (a batch undone: they may change again).
+  void forget_from(int first) {
+    for (auto it = order_.begin(); it != order_.end();) {
+      if (*it < first) {
+        ++it;
+        continue;
+      }
+      used_ -= entries_[*it].bytes;
+      entries_.erase(*it);
+      it = order_.erase(it);
+    }
   }
 
  private:
@@ -128,8 +142,27 @@ SubmapSlam2D::~SubmapSlam2D() = default;
 void SubmapSlam2D::add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
                             const Eigen::Ref<const Eigen::VectorXd>& beam_angles, const Eigen::Vector3d& odometry,
                             double timestamp) {
+  check_scan(ranges, beam_angles, odometry, timestamp);
+  IncrementalScanMatcher::PendingScan scan = frontend_.prepare(ranges, beam_angles, odometry, timestamp);
+  if (!scan.open_next) {
+    add_prepared(std::move(scan), ranges, beam_angles);
+    return;
+  }
+  // This scan finishes a submap: the search and optimisation that follow may fail on the
+  // graph's state; undone from a snapshot taken once per submap, not per scan.
+  Snapshot before = snapshot();
+  try {
+    add_prepared(std::move(scan), ranges, beam_angles);
+  } catch (...) {
+    restore(std::move(before));
+    throw;
+  }
+}
+
+void SubmapSlam2D::add_prepared(IncrementalScanMatcher::PendingScan&& scan, const Eigen::Ref<const Eigen::VectorXd>& ranges,
+                                const Eigen::Ref<const Eigen::VectorXd>& beam_angles) {
   const std::size_t submaps_before = frontend_.submaps().size();
-  const ScanEstimate est = frontend_.add_scan(ranges, beam_angles, odometry, timestamp);  // validates
+  const ScanEstimate est = frontend_.commit(std::move(scan));
   points_.push_back(scan_hits(ranges, beam_angles, frontend_.options().filter));
   ranges_.emplace_back(ranges);
   angles_.emplace_back(beam_angles);
@@ -156,6 +189,34 @@ void SubmapSlam2D::add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
     chain_cov_.setZero();
     chain_submap_ = static_cast<int>(submaps_before);
   }
+}
+
+void SubmapSlam2D::add_scans(const Eigen::Ref<const RowMatrixXd>& ranges, const Eigen::Ref<const RowMatrixXd>& beam_angles,
+                             const Eigen::Ref<const RowMatrixXd>& odometry,
+                             const Eigen::Ref<const Eigen::VectorXd>& timestamps) {
+  add_scan_rows(*this, ranges, beam_angles, odometry, timestamps);
+}
+
+SubmapSlam2D::Snapshot SubmapSlam2D::snapshot() const {
+  return Snapshot{frontend_.snapshot(), points_.size(), nodes_, constraints_, chain_pose_, chain_cov_, chain_submap_,
+                  attempts_, counts_};
+}
+
+void SubmapSlam2D::restore(Snapshot&& s) {
+  const int open = static_cast<int>(s.frontend.submaps) - 1;
+  frontend_.restore(std::move(s.frontend));
+  points_.resize(s.scans);
+  offset_cov_.resize(s.scans);
+  ranges_.resize(s.scans);
+  angles_.resize(s.scans);
+  nodes_ = std::move(s.nodes);
+  constraints_ = std::move(s.constraints);
+  chain_pose_ = s.chain_pose;
+  chain_cov_ = s.chain_cov;
+  chain_submap_ = s.chain_submap;
+  attempts_ = std::move(s.attempts);
+  counts_ = s.counts;
+  fields_->forget_from(std::max(0, open));  // the open submap and later ones may be rebuilt differently
 }
 
 void SubmapSlam2D::link_finished_submap(int j) {
@@ -359,8 +420,10 @@ std::vector<Eigen::Vector3d> SubmapSlam2D::scan_poses() const {
 }
 
 OccupancyGrid2D SubmapSlam2D::map(double resolution) const {
+  // Rule: finite or raise; NaN or a negative value was read as "the default" before.
+  require(std::isfinite(resolution) && resolution >= 0.0, "resolution",
+          "must be finite and >= 0 (0: the submaps' resolution)");
   const double res = resolution > 0.0 ? resolution : options_.frontend.resolution;
-  require(std::isfinite(res), "resolution", "must be finite");
   require(num_scans() > 0, "scans", "none added: nothing to map");
   const std::vector<Eigen::Vector3d> poses = scan_poses();
   // No-return beams (glass, open doors, the sky) and hits beyond the usable range say little

@@ -2,6 +2,8 @@
 SubmapSlam2D, GridFastSlam): odd arrays are refused with ValueError/TypeError and change nothing; several
 threads sharing one object get the same result as one thread feeding it in order."""
 
+import re
+
 import numpy as np
 import pytest
 from hypothesis import given, settings, HealthCheck
@@ -104,3 +106,158 @@ def test_threads_sharing_one_object(cls):
     errors = policy.run_threads([feeder, feeder, reader, reader])
     assert not errors, errors
     np.testing.assert_array_equal(state(shared)["poses"], state(alone)["poses"])
+
+
+# Issue 33: a failed call keeps nothing (a bad last row, a jump the maps cannot hold, a batch
+# that fails on the object's state), and the next valid scan matches a twin that never saw it.
+
+def full_state(obj):
+    """Every observable field, compared one by one."""
+    s = state(obj)
+    if isinstance(obj, _core.GridFastSlam):
+        s.update(pose=obj.poses, summary=obj.summary, scans=[obj.scan_poses(k) for k in range(obj.num_particles)],
+                 maps=[obj.map(k).log_odds.copy() for k in range(obj.num_particles)] if obj.num_scans else [])
+    elif isinstance(obj, _core.SubmapSlam2D):
+        s.update(frontend=obj.frontend_poses, submaps=obj.submap_poses, summary=obj.summary,
+                 map=obj.map().log_odds.copy() if obj.num_scans else None)
+    else:
+        s.update(submaps=obj.num_submaps, grids=[obj.submap_grid(k).log_odds.copy() for k in range(obj.num_submaps)])
+    return s
+
+
+def assert_same(a, b):
+    assert a.keys() == b.keys()
+    for key in a:
+        x, y = a[key], b[key]
+        if isinstance(x, dict):
+            assert x == y, key
+        elif isinstance(x, list):
+            assert len(x) == len(y), key
+            for u, v in zip(x, y):
+                np.testing.assert_array_equal(u, v, err_msg=key)
+        else:
+            np.testing.assert_array_equal(x, y, err_msg=key)
+
+
+MAKERS = {
+    "scan-matcher": lambda: _core.IncrementalScanMatcher(max_range=MAX_RANGE, submap_distance=2.0),
+    "submap-slam": lambda: _core.SubmapSlam2D(max_range=MAX_RANGE, submap_distance=2.0),
+    "rbpf-motion": lambda: _core.GridFastSlam(max_range=MAX_RANGE, num_particles=4, proposal="motion", seed=3),
+    "rbpf-scan-matching": lambda: _core.GridFastSlam(max_range=MAX_RANGE, num_particles=4, seed=3),
+    "rbpf-improved-odometry": lambda: _core.GridFastSlam(max_range=MAX_RANGE, num_particles=4,
+                                                         proposal="improved-odometry", seed=3),
+}
+
+
+def rows(a, b):
+    _, odo, ranges = _DRIVE
+    return ranges[a:b].copy(), ANGLES, odo[a:b].copy(), np.arange(a, b, dtype=float)
+
+
+@pytest.mark.parametrize("kind", MAKERS)
+@pytest.mark.parametrize("bad", ["inf-timestamp", "far-odometry", "jump-1e8"])
+def test_bad_last_row_of_a_batch_keeps_nothing(kind, bad):
+    obj, twin = MAKERS[kind](), MAKERS[kind]()
+    obj.add_scans(*rows(0, 4))
+    twin.add_scans(*rows(0, 4))
+    before = full_state(obj)
+    r, a, o, t = rows(4, 7)
+    if bad == "inf-timestamp":
+        t[-1], name = np.inf, "timestamps[2]"
+    elif bad == "far-odometry":
+        o[-1, 0], name = 2e9, "odometry[2]"
+    else:  # passes the row checks, fails on the maps' limit: a state-dependent failure
+        o[-1, 0], name = 1e8, "odometry"
+    with pytest.raises(ValueError, match=r"^" + re.escape(name)):
+        obj.add_scans(r, a, o, t)
+    assert_same(before, full_state(obj))
+    obj.add_scans(*rows(4, 7))
+    twin.add_scans(*rows(4, 7))
+    assert_same(full_state(obj), full_state(twin))
+
+
+@pytest.mark.parametrize("kind", MAKERS)
+def test_a_1e8_jump_keeps_nothing(kind):
+    obj, twin = MAKERS[kind](), MAKERS[kind]()
+    obj.add_scans(*rows(0, 4))
+    twin.add_scans(*rows(0, 4))
+    before = full_state(obj)
+    r, a, o, t = rows(4, 5)
+    o[0, 0] += 1e8
+    with pytest.raises(ValueError, match="^odometry"):
+        obj.add_scans(r, a, o, t)
+    assert_same(before, full_state(obj))
+    obj.add_scans(*rows(4, 6))
+    twin.add_scans(*rows(4, 6))
+    assert_same(full_state(obj), full_state(twin))
+
+
+def test_submap_slam_map_refuses_bad_resolution():
+    obj = fed(_core.SubmapSlam2D)
+    for bad in [np.nan, -1.0, np.inf]:
+        with pytest.raises(ValueError, match="^resolution"):
+            obj.map(bad)
+    assert obj.map(0).resolution == obj.map().resolution
+    assert obj.map(0.1).resolution == 0.1
+
+
+def test_grid_fastslam_particle_count_beyond_the_memory_bound_fails_at_once():
+    with pytest.raises(ValueError, match="^num_particles.*max_map_bytes"):
+        _core.GridFastSlam(num_particles=100000)
+    with pytest.raises(ValueError, match="^num_particles"):
+        _core.GridFastSlam(num_particles=30, max_map_bytes=1e6)
+    for bad in [0.0, -1.0, np.nan]:
+        with pytest.raises(ValueError, match="^max_map_bytes"):
+            _core.GridFastSlam(max_map_bytes=bad)
+    # A normal run is unaffected by the default bound.
+    obj = fed(_core.GridFastSlam, n=8)
+    assert obj.num_scans == 8
+
+
+def smallest_budget(**options):
+    """The least max_map_bytes GridFastSlam(**options) accepts (within 1%): construction refuses
+    before allocating, so the search is quick."""
+    lo, hi = 1e5, 1e11
+    while hi / lo > 1.01:
+        mid = (lo * hi) ** 0.5
+        try:
+            _core.GridFastSlam(max_map_bytes=mid, **options)
+            hi = mid
+        except ValueError:
+            lo = mid
+    return hi
+
+
+def test_grid_fastslam_update_over_the_memory_bound_keeps_nothing():
+    # A bound the first update fits (one shared map) but the second does not (each particle then
+    # holds its own tiles): a batch of both is undone whole.
+    options = dict(max_range=MAX_RANGE, num_particles=10, seed=1)
+    smallest = smallest_budget(**options)
+    probe = _core.GridFastSlam(max_map_bytes=smallest, **options)
+    probe.add_scans(*rows(0, 1))
+    budget = smallest + 2 * probe.tile_sharing["bytes"] + 2e6
+    obj = _core.GridFastSlam(max_map_bytes=budget, **options)
+    twin = _core.GridFastSlam(max_map_bytes=budget, **options)
+    obj.add_scans(*rows(0, 1))
+    twin.add_scans(*rows(0, 1))
+    before = full_state(obj)
+    with pytest.raises(ValueError, match="^num_particles.*max_map_bytes"):
+        obj.add_scans(*rows(1, 8))
+    assert_same(before, full_state(obj))
+    obj.add_scans(*rows(1, 2))
+    twin.add_scans(*rows(1, 2))
+    assert obj.summary["updates"] == 1
+    assert_same(full_state(obj), full_state(twin))
+
+
+@pytest.mark.parametrize("kind", MAKERS)
+def test_a_failed_first_batch_leaves_an_empty_object(kind):
+    obj, twin = MAKERS[kind](), MAKERS[kind]()
+    r, a, o, t = rows(0, 4)
+    o[-1, 0] = 1e8
+    with pytest.raises(ValueError, match="^odometry"):
+        obj.add_scans(r, a, o, t)
+    assert obj.num_scans == 0 and len(obj.timestamps) == 0
+    obj.add_scans(*rows(0, 5))
+    twin.add_scans(*rows(0, 5))
+    assert_same(full_state(obj), full_state(twin))

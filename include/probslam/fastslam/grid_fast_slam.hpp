@@ -34,8 +34,9 @@ enum class GridProposal : std::uint8_t { kMotion = 0, kScanMatching = 1, kImprov
 /// Particles at most: each holds a grid map's tile table; far beyond any published use (GMapping
 /// runs 30 to 100).
 inline constexpr int kGridFastSlamMaxParticles = 100000;
-/// Odometry coordinates beyond this (m) are refused: larger than any building's map.
-inline constexpr double kGridFastSlamMaxCoordinate = 1e9;
+/// max_map_bytes' default: 8 GiB, a third of a 24 GiB machine, leaving the rest to the log, the
+/// dense maps drawn from the particles and the rest of the process.
+inline constexpr double kGridFastSlamDefaultMapBytes = 8.0 * 1024 * 1024 * 1024;
 
 struct GridFastSlamOptions {
   int num_particles = 30;
@@ -68,6 +69,11 @@ struct GridFastSlamOptions {
   bool corrected_start = true;
   std::uint64_t seed = 0;
   int threads = 1;
+  /// Bound on the particles' maps (bytes): the tiles alive and every particle's tile table, plus
+  /// the worst case one update can add (each particle copies its table and clones every tile in
+  /// the usable-range disc around its pose). An update over it is refused before it changes
+  /// anything, and so is a num_particles whose first update could exceed it.
+  double max_map_bytes = kGridFastSlamDefaultMapBytes;
 
   static IncrementalScanMatcherOptions default_corrector();
   void validate() const;
@@ -84,8 +90,16 @@ struct GridFastSlamSummary {
   double effective_sample_size = 0.0;  ///< after the last update, before any resampling
 };
 
-/// Every method validates its input before it changes anything (std::invalid_argument naming
-/// the argument). Lock mutex() around calls when several threads share the object.
+/// Every call is all or nothing (std::invalid_argument naming the argument, the object unchanged).
+/// add_scan works in two phases: it checks its input (check_scan), has the corrector prepare its
+/// estimate without committing it, samples every particle's pose, weight and random stream into
+/// temporaries, checks that every particle's map can grow to hold its pose (a size computation,
+/// OccupancyGrid2D::kMaxCells) and that the maps stay within max_map_bytes; only then does it
+/// commit (corrector, rays, paths, counters). No map is copied for this: the tiles stay shared.
+/// Batches (add_scans): every row is checked first; a row refused on the filter's state (map
+/// limit, memory bound) restores the state of before the batch from a snapshot taken once per
+/// batch (the particles' map pointers, paths and streams, the corrector's open submap): a batch is
+/// applied whole or not at all. Lock mutex() around calls when several threads share the object.
 class GridFastSlam {
  public:
   std::mutex& mutex() const noexcept { return mutex_.get(); }
@@ -99,6 +113,17 @@ class GridFastSlam {
   /// pose (x, y, theta) and a timestamp (s). Returns true when the filter updated on it.
   bool add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges, const Eigen::Ref<const Eigen::VectorXd>& beam_angles,
                 const Eigen::Vector3d& odometry, double timestamp);
+
+  /// Every input check add_scan makes (check_scan_input); row >= 0 names add_scans' row.
+  void check_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges, const Eigen::Ref<const Eigen::VectorXd>& beam_angles,
+                  const Eigen::Vector3d& odometry, double timestamp, long row = -1) const;
+  /// S scans: ranges (S, B), beam_angles (1, B) or (S, B), odometry (S, 3), timestamps (S): all
+  /// rows or none.
+  void add_scans(const Eigen::Ref<const RowMatrixXd>& ranges, const Eigen::Ref<const RowMatrixXd>& beam_angles,
+                 const Eigen::Ref<const RowMatrixXd>& odometry, const Eigen::Ref<const Eigen::VectorXd>& timestamps);
+  struct Snapshot;
+  Snapshot snapshot() const;
+  void restore(Snapshot&& s);
 
   const GridFastSlamOptions& options() const { return options_; }
   int num_particles() const { return static_cast<int>(particles_.size()); }
@@ -126,8 +151,16 @@ class GridFastSlam {
     PosePath path;                     // the pose at every update step
     ParticleRng rng;
   };
-  void first_scan(const Eigen::VectorXd& insertion, const Eigen::Ref<const Eigen::VectorXd>& angles,
-                  const Eigen::Vector3d& odometry);
+  /// A particle's new pose, weight and stream, before they are committed.
+  struct Sampled {
+    Eigen::Vector3d pose = Eigen::Vector3d::Zero();
+    double log_weight = 0.0;
+    ParticleRng rng;
+    bool matched = false, fallback = false;
+  };
+  std::shared_ptr<TiledGrid2D> first_map(const Eigen::Vector3d& odometry) const;
+  void first_scan(std::shared_ptr<TiledGrid2D> map, const Eigen::VectorXd& insertion,
+                  const Eigen::Ref<const Eigen::VectorXd>& angles, const Eigen::Vector3d& odometry);
   /// The motion since the last update, in the frame of the pose there: the motion model's mean
   /// and covariance, and (with corrected_start) the corrected odometry's motion, where the
   /// scan-matching proposal's second climb may start.
@@ -136,18 +169,29 @@ class GridFastSlam {
     Eigen::Matrix3d cov;
     std::optional<Eigen::Vector3d> start;
   };
-  void update(const Points2& points, const Eigen::VectorXd& insertion, const Eigen::Ref<const Eigen::VectorXd>& angles,
-              const Motion& motion);
-  void update_particle(Particle& p, const Points2& points, const Eigen::VectorXd& insertion,
-                       const Eigen::Ref<const Eigen::VectorXd>& angles, const Motion& motion, long& matched,
-                       long& fallbacks) const;
+  /// Runs body(k) for every particle, split over the worker threads.
+  template <typename Body>
+  void for_each_particle(const Body& body);
+  std::vector<Sampled> sample(const Points2& points, const Motion& motion);
+  Sampled sample_particle(const Particle& p, const Points2& points, const Motion& motion) const;
+  /// Throws (nothing changed) when a particle's map could not grow to hold its sampled pose, or
+  /// the maps could exceed max_map_bytes after the update.
+  void check_update(const std::vector<Sampled>& sampled) const;
+  void commit_update(std::vector<Sampled>&& sampled, const Eigen::VectorXd& insertion,
+                     const Eigen::Ref<const Eigen::VectorXd>& angles);
+  /// Does a map around `pose` need to grow, and to which bounds (xmin, ymin, xmax, ymax)?
+  bool needs_growth(const TiledGrid2D& map, const Eigen::Vector3d& pose, Eigen::Vector4d& bounds) const;
   void insert(Particle& p, const Eigen::VectorXd& insertion, const Eigen::Ref<const Eigen::VectorXd>& angles) const;
-  /// kImprovedOdometry: the covariance of the corrected motion since the last update.
-  Eigen::Matrix3d corrected_motion_covariance(const Eigen::Vector3d& source) const;
+  /// kImprovedOdometry: the covariance of the corrected motion since the last update, given the
+  /// chain's covariance and last matched pose after this scan.
+  Eigen::Matrix3d corrected_motion_covariance(const Eigen::Vector3d& source, const Eigen::Matrix3d& chain_cov,
+                                              const Eigen::Vector3d& last_corrected) const;
   /// After the first scan or an update at `source` (raw odometry `raw`): a new stretch of travel starts there; the
   /// scan just added hangs from update `step`.
   void start_stretch(const Eigen::Vector3d& source, const Eigen::Vector3d& raw, int step);
   void normalise_and_resample();
+  /// Refuses a num_particles whose first update could exceed max_map_bytes; sets footprint_bytes_.
+  double check_particle_budget();
 
   GridFastSlamOptions options_;
   EndpointLikelihood likelihood_;
@@ -164,8 +208,20 @@ class GridFastSlam {
   std::vector<Eigen::Vector3d> scan_offset_; // its odometry motion since that step
   std::vector<double> timestamps_;
   GridFastSlamSummary summary_;
+  double footprint_bytes_ = 0.0;  // worst case one particle's update clones (its usable-range disc)
   std::unique_ptr<WorkerPool> pool_;  // threads > 1: started on the first update
   ObjectMutex mutex_;
+};
+
+struct GridFastSlam::Snapshot {
+  std::optional<IncrementalScanMatcher::Snapshot> corrector;
+  std::vector<Particle> particles;  // map pointers, paths and streams: no tile is copied
+  ParticleRng rng;
+  std::uint64_t next_stream = 0;
+  Eigen::Vector3d last_update_odometry, last_update_raw, last_corrected;
+  Eigen::Matrix3d corrected_cov;
+  std::size_t scans = 0;
+  GridFastSlamSummary summary;
 };
 
 }  // namespace probslam

@@ -4,6 +4,7 @@
 // write to a tile another grid still holds clones that tile. A grid never sees another's change.
 #include <Eigen/Core>
 #include <array>
+#include <atomic>
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -30,6 +31,32 @@ class TiledGrid2D {
   struct Tile {
     std::array<double, kTileCells> log_odds;  // row-major within the tile
     std::array<std::uint32_t, kTileCells> stamp;  // scan counter of each cell's last update
+  };
+  /// Tiles alive in a family of grids (one grid and its copies): a counter, so that a memory
+  /// bound costs one load rather than a walk over every tile.
+  using TileCount = std::shared_ptr<std::atomic<std::int64_t>>;
+  /// Allocates tiles (with their shared_ptr control block) and keeps the family's count: its
+  /// copy in each control block keeps the counter alive as long as any tile.
+  template <typename T>
+  struct CountingAllocator {
+    using value_type = T;
+    TileCount count;
+    explicit CountingAllocator(TileCount c) : count(std::move(c)) {}
+    template <typename U>
+    CountingAllocator(const CountingAllocator<U>& o) : count(o.count) {}  // NOLINT: rebinding
+    T* allocate(std::size_t n) {
+      T* p = std::allocator<T>().allocate(n);
+      count->fetch_add(1, std::memory_order_relaxed);
+      return p;
+    }
+    void deallocate(T* p, std::size_t n) {
+      count->fetch_sub(1, std::memory_order_relaxed);
+      std::allocator<T>().deallocate(p, n);
+    }
+    template <typename U>
+    bool operator==(const CountingAllocator<U>& o) const { return count == o.count; }
+    template <typename U>
+    bool operator!=(const CountingAllocator<U>& o) const { return count != o.count; }
   };
 
   /// The geometry, prior, clamp, beam model and cells of `prototype` (a grid with only prior
@@ -69,6 +96,14 @@ class TiledGrid2D {
   /// copied. std::invalid_argument for non-finite bounds or beyond OccupancyGrid2D::kMaxCells.
   void grow_to_include(double xmin, double ymin, double xmax, double ymax);
 
+  /// Cells of the grid grow_to_include would make (as a double; this grid's when no growth is
+  /// needed): a pure size computation, nothing allocated, for checks before a commit.
+  double cells_after_growth(double xmin, double ymin, double xmax, double ymax) const;
+  /// Tile table slots after that growth.
+  double tiles_after_growth(double xmin, double ymin, double xmax, double ymax) const;
+  /// Tiles alive in this grid's family (it and every grid copied from it, directly or not).
+  std::int64_t live_tiles() const { return tile_count_->load(std::memory_order_relaxed); }
+
   /// The cells as a dense grid (geometry and settings as the prototype's).
   OccupancyGrid2D to_grid() const;
 
@@ -92,12 +127,18 @@ class TiledGrid2D {
   }
   /// The tile at `index`, this grid's alone: allocated at the prior, or cloned if shared.
   Tile& writable_tile(std::size_t index);
+  struct Growth {
+    double add_left = 0, add_down = 0, width = 0, height = 0;  // tiles added, cells after
+    bool none = true;
+  };
+  Growth plan_growth(double xmin, double ymin, double xmax, double ymax) const;
 
   GridLattice2D lattice_;
   int width_ = 0, height_ = 0, tiles_x_ = 0, tiles_y_ = 0;
   double p_prior_ = 0.5, l0_ = 0.0;
   LogOddsClamp clamp_;
   BeamModel beam_;
+  TileCount tile_count_ = std::make_shared<std::atomic<std::int64_t>>(0);
   std::vector<std::shared_ptr<Tile>> tiles_;  // row-major tile table; nullptr: all prior
   std::uint32_t scan_counter_ = 0;
 };

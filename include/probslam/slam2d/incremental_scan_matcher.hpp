@@ -5,6 +5,7 @@
 // submaps (ch. 11.7's "local submaps from scan matching"), each starting at a scan's pose.
 #include <Eigen/Core>
 #include <memory>
+#include <optional>
 #include <vector>
 
 #include "probslam/core/object_mutex.hpp"
@@ -76,7 +77,14 @@ struct ScanEstimate {
   int points = 0;
 };
 
+/// Every call is all or nothing: add_scan checks its input (check_scan), then works out the scan's
+/// estimate and any grown or new grid into a PendingScan, and changes the object only in commit,
+/// which cannot fail. add_scans checks every row first; a row refused on the object's state (a
+/// submap grid beyond OccupancyGrid2D::kMaxCells) restores the state of before the batch from a
+/// snapshot (the open submap's grid copied once per batch, not per scan).
 class IncrementalScanMatcher {
+  struct FieldCache;  // the last likelihood field built, reused while the robot stays near
+
  public:
   std::mutex& mutex() const noexcept { return mutex_.get(); }
 
@@ -84,11 +92,48 @@ class IncrementalScanMatcher {
 
   /// Adds one scan: ranges (B,) metres, beam_angles (B,) rad relative to the sensor, the
   /// sensor's odometry pose (x, y, theta) and a timestamp (s). Returns its estimate. Throws
-  /// std::invalid_argument (nothing changed) for mismatched lengths, non-finite odometry or
-  /// angles.
+  /// std::invalid_argument (nothing changed) for the inputs check_scan refuses, or a submap
+  /// grid that would grow beyond OccupancyGrid2D::kMaxCells.
   ScanEstimate add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
                         const Eigen::Ref<const Eigen::VectorXd>& beam_angles, const Eigen::Vector3d& odometry,
                         double timestamp);
+  /// Every input check add_scan makes (check_scan_input); row >= 0 names add_scans' row.
+  void check_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges, const Eigen::Ref<const Eigen::VectorXd>& beam_angles,
+                  const Eigen::Vector3d& odometry, double timestamp, long row = -1) const;
+  /// S scans: ranges (S, B), beam_angles (1, B) or (S, B), odometry (S, 3), timestamps (S):
+  /// every row checked before the first is added; all rows or none.
+  void add_scans(const Eigen::Ref<const RowMatrixXd>& ranges, const Eigen::Ref<const RowMatrixXd>& beam_angles,
+                 const Eigen::Ref<const RowMatrixXd>& odometry, const Eigen::Ref<const Eigen::VectorXd>& timestamps);
+
+  /// One scan's work, computed without changing the object (prepare), applied by commit.
+  struct PendingScan {
+    ScanEstimate est;
+    Eigen::Vector3d odometry = Eigen::Vector3d::Zero();
+    double timestamp = 0.0;
+    Eigen::VectorXd insertion, angles;   // ranges_for_insertion and the beam angles
+    bool moved = false, open_next = false;
+    double travel = 0.0;                 // the open submap's travel after this scan
+    std::optional<OccupancyGrid2D> grid; // the open submap's grid grown for this scan
+    std::optional<OccupancyGrid2D> next; // a new submap's grid (first scan, or the one this scan opens)
+    std::shared_ptr<const FieldCache> cache;  // the field cache after matching
+  };
+  /// The estimate of a scan that passed check_scan, and every grid it needs: throws (nothing
+  /// changed) when a grid would exceed its limit.
+  PendingScan prepare(const Eigen::Ref<const Eigen::VectorXd>& ranges,
+                      const Eigen::Ref<const Eigen::VectorXd>& beam_angles, const Eigen::Vector3d& odometry,
+                      double timestamp) const;
+  /// Applies a prepared scan (cannot fail). The object must not have changed since prepare.
+  ScanEstimate commit(PendingScan&& scan);
+
+  /// The state a batch may change, and its restoration (add_scans, and the classes that own one).
+  struct Snapshot {
+    std::size_t scans = 0, submaps = 0;
+    std::optional<Submap> open;  // the open submap as it was (the only one a scan changes in place)
+    Eigen::Vector3d matched_odometry = Eigen::Vector3d::Zero(), matched_pose = Eigen::Vector3d::Zero();
+    std::shared_ptr<const FieldCache> cache;
+  };
+  Snapshot snapshot() const;
+  void restore(Snapshot&& s);
 
   const IncrementalScanMatcherOptions& options() const { return options_; }
   const std::vector<ScanEstimate>& estimates() const { return estimates_; }
@@ -97,14 +142,6 @@ class IncrementalScanMatcher {
   int num_scans() const { return static_cast<int>(estimates_.size()); }
 
  private:
-  Submap& open_submap(const Eigen::Vector3d& origin);
-  void insert(Submap& submap, int scan, const Eigen::Ref<const Eigen::VectorXd>& ranges,
-              const Eigen::Ref<const Eigen::VectorXd>& beam_angles, const Eigen::Vector3d& pose);
-  MatchResult match(const Submap& submap, const Points2& points, const Eigen::Vector3d& prior,
-                    const Eigen::Matrix3d& prior_cov);
-  const CorrelativeScanMatcher& matcher_for(const Submap& submap, const Eigen::Vector4d& region,
-                                            const Eigen::Vector3d& prior);
-
   struct FieldCache {
     std::shared_ptr<const CorrelativeScanMatcher> matcher;
     int submap = -1, grid_width = 0, grid_height = 0;
@@ -112,7 +149,15 @@ class IncrementalScanMatcher {
     Eigen::Vector4d region = Eigen::Vector4d::Zero();
     Eigen::Vector2d grid_origin = Eigen::Vector2d::Zero();
   };
-  FieldCache field_cache_;
+  OccupancyGrid2D new_submap_grid(const Eigen::Vector3d& origin) const;
+  /// The open submap's grid grown to hold a scan at `pose`, or nothing when it holds it already.
+  std::optional<OccupancyGrid2D> grown_for(const Submap& submap, const Eigen::Vector3d& pose) const;
+  MatchResult match(const Submap& submap, const Points2& points, const Eigen::Vector3d& prior,
+                    const Eigen::Matrix3d& prior_cov, FieldCache& cache) const;
+  const CorrelativeScanMatcher& matcher_for(const Submap& submap, const Eigen::Vector4d& region,
+                                            const Eigen::Vector3d& prior, FieldCache& cache) const;
+
+  std::shared_ptr<const FieldCache> field_cache_ = std::make_shared<FieldCache>();
 
   IncrementalScanMatcherOptions options_;
   std::vector<ScanEstimate> estimates_;

@@ -3,7 +3,9 @@
 // and the ranges the grid update takes, with every invalid reading made "no return".
 #include <Eigen/Core>
 #include <limits>
+#include <string>
 
+#include "probslam/core/filter_limits.hpp"
 #include "probslam/core/types.hpp"
 
 namespace probslam {
@@ -28,6 +30,16 @@ struct ScanFilter {
   void validate() const;
   double usable_range() const { return max_range < max_usable_range ? max_range : max_usable_range; }
 };
+
+/// The per-scan checks every laser SLAM class's add_scan makes: ranges non-empty and as long as
+/// beam_angles, beam_angles finite, odometry finite with |x|, |y| <= kMaxCoordinate (core/filter_limits.hpp), timestamp
+/// finite. std::invalid_argument naming the argument: add_scan's (`odometry`), or with row >= 0
+/// add_scans' row (`odometry[3]`, `timestamps[3]`).
+void check_scan_input(const Eigen::Ref<const Eigen::VectorXd>& ranges, const Eigen::Ref<const Eigen::VectorXd>& beam_angles,
+                      const Eigen::Vector3d& odometry, double timestamp, long row = -1);
+
+/// The name of a scan argument in a message: `single` for add_scan, `batch[row]` for add_scans.
+std::string scan_arg_name(const char* single, const char* batch, long row);
 
 /// Hit points of one scan in the sensor frame, (N, 2) metres, after the filter.
 /// ranges and beam_angles (rad, relative to the sensor heading) have equal length.

@@ -80,6 +80,11 @@ struct SubmapSlamSummary {
   double final_chi2 = 0.0;
 };
 
+/// Every call is all or nothing. add_scan checks its input first (check_scan) and the frontend
+/// adds the scan whole or not at all. add_scans checks every row first; a row refused on the
+/// object's state (a submap grid beyond OccupancyGrid2D::kMaxCells, an optimisation that fails)
+/// restores the state of before the batch from a snapshot taken once per batch (the open submap's
+/// grid, the graph's nodes, constraints and search history).
 class SubmapSlam2D {
  public:
   std::mutex& mutex() const noexcept { return mutex_.get(); }
@@ -91,6 +96,17 @@ class SubmapSlam2D {
   /// linked to the graph and searched for loop closures at once.
   void add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges, const Eigen::Ref<const Eigen::VectorXd>& beam_angles,
                 const Eigen::Vector3d& odometry, double timestamp);
+  /// Every input check add_scan makes; row >= 0 names add_scans' row.
+  void check_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges, const Eigen::Ref<const Eigen::VectorXd>& beam_angles,
+                  const Eigen::Vector3d& odometry, double timestamp, long row = -1) const {
+    frontend_.check_scan(ranges, beam_angles, odometry, timestamp, row);
+  }
+  /// S scans (see IncrementalScanMatcher::add_scans): all rows or none.
+  void add_scans(const Eigen::Ref<const RowMatrixXd>& ranges, const Eigen::Ref<const RowMatrixXd>& beam_angles,
+                 const Eigen::Ref<const RowMatrixXd>& odometry, const Eigen::Ref<const Eigen::VectorXd>& timestamps);
+  struct Snapshot;
+  Snapshot snapshot() const;
+  void restore(Snapshot&& s);
   /// Closes the last submap and repeats search, optimisation and dissolution until no
   /// constraint changes (or max_rounds). Adding scans afterwards starts a new finish.
   void finish();
@@ -108,13 +124,16 @@ class SubmapSlam2D {
   /// The graph as optimised: one pose per submap (id = submap index), the consecutive edges
   /// and the active closures.
   PoseGraph2D graph() const;
-  /// An occupancy grid of every scan at scan_poses() (resolution in metres; <= 0: the
-  /// frontend's).
+  /// An occupancy grid of every scan at scan_poses(): resolution in metres, 0 for the
+  /// frontend's; std::invalid_argument naming `resolution` when negative or not finite.
   OccupancyGrid2D map(double resolution = 0.0) const;
   SubmapSlamSummary summary() const;
 
  private:
   class FieldCache;
+  /// add_scan after the frontend prepared the scan.
+  void add_prepared(IncrementalScanMatcher::PendingScan&& scan, const Eigen::Ref<const Eigen::VectorXd>& ranges,
+                    const Eigen::Ref<const Eigen::VectorXd>& beam_angles);
   void link_finished_submap(int j);
   int search_closures(int j);
   bool try_closure(int scan, int i, const std::vector<Eigen::Matrix3d>& marginals);
@@ -139,6 +158,18 @@ class SubmapSlam2D {
   std::unique_ptr<FieldCache> fields_;
   SubmapSlamSummary counts_;
   ObjectMutex mutex_;
+};
+
+struct SubmapSlam2D::Snapshot {
+  IncrementalScanMatcher::Snapshot frontend;
+  std::size_t scans = 0;
+  std::vector<Eigen::Vector3d> nodes;
+  std::vector<SubmapConstraint> constraints;
+  Eigen::Vector3d chain_pose = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d chain_cov = Eigen::Matrix3d::Zero();
+  int chain_submap = 0;
+  std::map<std::pair<int, int>, Eigen::Vector3d> attempts;
+  SubmapSlamSummary counts;
 };
 
 }  // namespace probslam
