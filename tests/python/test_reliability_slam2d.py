@@ -15,6 +15,19 @@ from corridor_world import ANGLES, MAX_RANGE, corridor_drive
 PROPERTY = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 CLASSES = [_core.IncrementalScanMatcher, _core.SubmapSlam2D, _core.GridFastSlam]
 
+COVERED = (
+    "IncrementalScanMatcher(**options)",
+    "IncrementalScanMatcher.add_scans",
+    "IncrementalScanMatcher.submap_grid",
+    "SubmapSlam2D(**options)",
+    "SubmapSlam2D.add_scans",
+    "SubmapSlam2D.map",
+    "GridFastSlam(**options)",
+    "GridFastSlam.add_scans",
+    "GridFastSlam.scan_poses",
+    "GridFastSlam.map",
+)
+
 _DRIVE = corridor_drive(laps=0.3)
 
 
@@ -33,6 +46,20 @@ def state(obj):
     return {"n": obj.num_scans, "poses": poses, "info": obj.scan_info, "t": obj.timestamps}
 
 
+def full_state(obj):
+    """Every observable field, compared one by one."""
+    s = state(obj)
+    if isinstance(obj, _core.GridFastSlam):
+        s.update(pose=obj.poses, summary=obj.summary, scans=[obj.scan_poses(k) for k in range(obj.num_particles)],
+                 maps=[obj.map(k).log_odds.copy() for k in range(obj.num_particles)] if obj.num_scans else [])
+    elif isinstance(obj, _core.SubmapSlam2D):
+        s.update(frontend=obj.frontend_poses, submaps=obj.submap_poses, summary=obj.summary,
+                 map=obj.map().log_odds.copy() if obj.num_scans else None)
+    else:
+        s.update(submaps=obj.num_submaps, grids=[obj.submap_grid(k).log_odds.copy() for k in range(obj.num_submaps)])
+    return s
+
+
 #: Numeric options of each class (the scan matchers share the frontend's).
 FRONTEND_OPTIONS = ["resolution", "max_range", "min_range", "max_usable_range", "sigma", "p_rand", "linear_window",
                     "angular_window", "min_travel", "min_rotation", "submap_distance", "min_match_quality",
@@ -48,7 +75,8 @@ RBPF_OPTIONS = ["resolution", "max_range", "min_range", "max_usable_range", "sig
 @pytest.mark.slow
 def test_add_scans_with_odd_arrays(cls, ranges, angles, odometry, stamps):
     obj = fed(cls)
-    policy.check_call(lambda: obj.add_scans(ranges, angles, odometry, stamps), snapshot=lambda: state(obj))
+    # Field by field (issue 33): poses, weights, summaries, every particle's or submap's cells.
+    policy.check_call(lambda: obj.add_scans(ranges, angles, odometry, stamps), snapshot=lambda: full_state(obj))
 
 
 @pytest.mark.parametrize("cls", CLASSES)
@@ -70,6 +98,17 @@ def test_odd_objects(cls, odd):
     obj = fed(cls)
     policy.check_call(lambda: obj.add_scans(odd, ANGLES, np.zeros((1, 3)), np.zeros(1)), snapshot=lambda: state(obj))
     policy.check_call(lambda: cls(resolution=odd))
+
+
+@PROPERTY
+@given(value=policy.st.one_of(policy.floats(), policy.odd_objects()))
+def test_queries_with_odd_arguments(value):
+    """The calls that take a number or an index: a bad one is refused and changes nothing."""
+    slam, rbpf, matcher = fed(_core.SubmapSlam2D), fed(_core.GridFastSlam), fed(_core.IncrementalScanMatcher)
+    policy.check_call(lambda: slam.map(value), snapshot=lambda: full_state(slam))
+    for call in (rbpf.scan_poses, rbpf.map):
+        policy.check_call(lambda: call(value), snapshot=lambda: full_state(rbpf))
+    policy.check_call(lambda: matcher.submap_grid(value), snapshot=lambda: full_state(matcher))
 
 
 @pytest.mark.parametrize("cls", CLASSES)
@@ -110,20 +149,6 @@ def test_threads_sharing_one_object(cls):
 
 # Issue 33: a failed call keeps nothing (a bad last row, a jump the maps cannot hold, a batch
 # that fails on the object's state), and the next valid scan matches a twin that never saw it.
-
-def full_state(obj):
-    """Every observable field, compared one by one."""
-    s = state(obj)
-    if isinstance(obj, _core.GridFastSlam):
-        s.update(pose=obj.poses, summary=obj.summary, scans=[obj.scan_poses(k) for k in range(obj.num_particles)],
-                 maps=[obj.map(k).log_odds.copy() for k in range(obj.num_particles)] if obj.num_scans else [])
-    elif isinstance(obj, _core.SubmapSlam2D):
-        s.update(frontend=obj.frontend_poses, submaps=obj.submap_poses, summary=obj.summary,
-                 map=obj.map().log_odds.copy() if obj.num_scans else None)
-    else:
-        s.update(submaps=obj.num_submaps, grids=[obj.submap_grid(k).log_odds.copy() for k in range(obj.num_submaps)])
-    return s
-
 
 def assert_same(a, b):
     assert a.keys() == b.keys()
