@@ -328,6 +328,34 @@ TEST(PoseGraphRows, SkipAndCountSkipsCountsAndNamesBadRows) {
             0u);
 }
 
+TEST(PoseGraphRows, AllSkippedRowsAreCountedTheFirstListed) {
+  std::string text = odometry_lines(3000);
+  for (int k = 0; k < 25; ++k) text += "LANDMARK 5 " + std::to_string(k) + " 1\n";  // 25 of 3025: 0.8 %
+  const PoseGraphRead read = read_text(text, PoseGraphFormat::kIsam, NoiseFormat::kDefault, RowPolicy::kSkipAndCount);
+  EXPECT_EQ(read.report.skipped_rows, 25u);
+  ASSERT_EQ(read.report.skipped_lines.size(), kPoseGraphMaxReportedLines);
+  EXPECT_EQ(read.report.skipped_lines.front().line, 3001);
+  EXPECT_EQ(read.report.skipped_lines.back().line, 3000 + static_cast<long>(kPoseGraphMaxReportedLines));
+}
+
+TEST(PoseGraphRows, BuildTimeErrorsAreRowLevelToo) {
+  // g2o: an edge naming a vertex the file does not list, and a FIX of one, are skipped
+  std::string text;
+  for (int k = 0; k <= 150; ++k) text += "VERTEX_SE2 " + std::to_string(k) + " " + std::to_string(k) + " 0 0\n";
+  for (int k = 0; k < 150; ++k)
+    text += "EDGE_SE2 " + std::to_string(k) + " " + std::to_string(k + 1) + " 1 0 0 " + kOmegaUpper + "\n";
+  text += "EDGE_SE2 3 999 1 0 0 " + std::string(kOmegaUpper) + "\nFIX 998\n";  // lines 302, 303
+  const PoseGraphRead read = read_text(text, PoseGraphFormat::kG2o, NoiseFormat::kDefault, RowPolicy::kSkipAndCount);
+  EXPECT_EQ(read.report.rows, 303u);
+  ASSERT_EQ(read.report.skipped_rows, 2u);
+  EXPECT_EQ(read.report.skipped_lines[0].line, 302);
+  EXPECT_NE(read.report.skipped_lines[0].reason.find("999"), std::string::npos) << read.report.skipped_lines[0].reason;
+  EXPECT_EQ(read.report.skipped_lines[1].line, 303);
+  EXPECT_EQ(read.graph.pose_edges().size(), 150u);
+  const std::string what = expect_invalid([&] { read_text(text, PoseGraphFormat::kG2o, NoiseFormat::kDefault); });
+  EXPECT_NE(what.find("g.txt:302:"), std::string::npos) << what;
+}
+
 TEST(PoseGraphRows, MoreThanTheFractionIsFatalNamingTheFirstBadLine) {
   // 3 bad of 203 (1.5 %): the first bad line, and the counts, in the message
   const std::string text = odometry_lines(100) + "LANDMARK 3 7 2 x 1 0 1\n" +
