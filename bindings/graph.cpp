@@ -405,7 +405,8 @@ void define_graph(py::module_& m) {
 
   py::class_<PoseGraphReadReport>(m, "PoseGraphReadReport",
                                   "What read_pose_graph_with_report did with the file's records.")
-      .def_readonly("rows", &PoseGraphReadReport::rows, "Records read (lines neither blank nor '#'), skipped ones included.")
+      .def_readonly("rows", &PoseGraphReadReport::rows,
+                    "Records read (lines neither blank nor '#'), skipped ones included.")
       .def_readonly("skipped_rows", &PoseGraphReadReport::skipped_rows, "Records skipped (0 under rows=\"strict\").")
       .def_property_readonly(
           "skipped_lines",

@@ -35,7 +35,7 @@ enum class RowPolicy {
 
 /// Under RowPolicy::kSkipAndCount, a file with more than this fraction of its records skipped is
 /// not in the format asked for (or is damaged beyond a few cut lines): it is refused, naming its
-/// first bad line. Also the MRCLAM readers' limit (Python: probslam.io.MAX_BAD_ROW_FRACTION).
+/// first bad line. Also the MRCLAM reader's limit (Python: probslam.graph.MAX_BAD_ROW_FRACTION).
 constexpr double kMaxBadRowFraction = 0.01;
 /// How many skipped lines a PoseGraphReadReport lists (all are counted); as eval.MAX_REPORTED_LINES.
 constexpr std::size_t kPoseGraphMaxReportedLines = 20;

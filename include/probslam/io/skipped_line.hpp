@@ -21,7 +21,8 @@ constexpr std::size_t kMaxSkipReasonBytes = 200;
 inline void list_skipped_line(std::vector<SkippedLine>& lines, std::size_t max_lines, long line,
                               const std::string& reason) {
   if (lines.size() >= max_lines) return;
-  lines.push_back({line, reason.size() <= kMaxSkipReasonBytes ? reason : reason.substr(0, kMaxSkipReasonBytes) + "..."});
+  const bool whole = reason.size() <= kMaxSkipReasonBytes;
+  lines.push_back({line, whole ? reason : reason.substr(0, kMaxSkipReasonBytes) + "..."});
 }
 
 }  // namespace probslam
