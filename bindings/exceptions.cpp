@@ -27,6 +27,12 @@ void set_error(PyObject* type, const char* message) {
 
 }  // namespace
 
+py::str escaped_text(const std::string& s) {
+  PyObject* o = PyUnicode_DecodeUTF8(s.data(), static_cast<Py_ssize_t>(s.size()), "backslashreplace");
+  if (o == nullptr) throw py::error_already_set();
+  return py::reinterpret_steal<py::str>(o);
+}
+
 void register_exception_translator() {
   py::register_exception_translator([](std::exception_ptr p) {
     try {

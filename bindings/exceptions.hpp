@@ -9,4 +9,8 @@ namespace probslam::bindings {
 /// reaches Python as the usual ValueError("file:line: ...") and never as UnicodeDecodeError.
 void register_exception_translator();
 
+/// Text from a file (a skipped line's reason, a PARAM value) as a Python str: bytes that are not
+/// UTF-8 become \xNN escapes rather than a UnicodeDecodeError.
+pybind11::str escaped_text(const std::string& s);
+
 }  // namespace probslam::bindings

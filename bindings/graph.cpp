@@ -1,6 +1,7 @@
 #include <pybind11/stl.h>
 
 
+#include "exceptions.hpp"
 #include "kwargs.hpp"
 #include "numpy.hpp"
 #include "object_lock.hpp"
@@ -156,6 +157,35 @@ PoseGraphFormat format_arg(const std::string& format) {
                                   {"toro", PoseGraphFormat::kToro},
                                   {"isam", PoseGraphFormat::kIsam}});
 }
+
+PoseGraphReadOptions read_options(const std::string& format, const std::string& noise, const std::string& rows) {
+  PoseGraphReadOptions o;
+  o.format = format_arg(format);
+  o.noise = choice<NoiseFormat>(noise, "noise",
+                                {{"default", NoiseFormat::kDefault},
+                                 {"information", NoiseFormat::kInformation},
+                                 {"sqrt_information", NoiseFormat::kSquareRootInformation},
+                                 {"covariance", NoiseFormat::kCovariance}});
+  o.rows = choice<RowPolicy>(rows, "rows", {{"strict", RowPolicy::kStrict}, {"skip", RowPolicy::kSkipAndCount}});
+  return o;
+}
+
+PoseGraphRead read_graph(const std::string& path, const std::string& format, const std::string& noise,
+                         const std::string& rows) {
+  const PoseGraphReadOptions options = read_options(format, noise, rows);
+  py::gil_scoped_release release;  // a new graph: nothing else can see it yet
+  return read_pose_graph(path, options);
+}
+
+constexpr const char* kReadDoc =
+    "format: \"g2o\" (VERTEX_SE2 / VERTEX_XY / EDGE_SE2 / EDGE_SE2_XY), \"toro\" (VERTEX2 / EDGE2),\n"
+    "\"isam\" (ODOMETRY / EDGE2 / LANDMARK), or \"auto\" (from the first record). noise: what the\n"
+    "edges' noise entries hold: \"default\" (the format's own: information for g2o and TORO,\n"
+    "square-root information for iSAM), \"information\", \"sqrt_information\" (upper-triangular R,\n"
+    "information R^T R) or \"covariance\". rows: \"strict\" (a malformed record raises\n"
+    "ValueError(\"file:line: ...\")) or \"skip\" (skipped and counted; more than\n"
+    "MAX_BAD_ROW_FRACTION of the records skipped raises, naming the first). A missing file raises\n"
+    "FileNotFoundError.";
 
 }  // namespace
 
@@ -373,16 +403,51 @@ void define_graph(py::module_& m) {
         "for a point (m), from the sparse inverse of the information matrix; a fixed vertex has zero\n"
         "covariance. Returns a list of arrays.");
 
+  py::class_<PoseGraphReadReport>(m, "PoseGraphReadReport",
+                                  "What read_pose_graph_with_report did with the file's records.")
+      .def_readonly("rows", &PoseGraphReadReport::rows,
+                    "Records read (lines neither blank nor '#'), skipped ones included.")
+      .def_readonly("skipped_rows", &PoseGraphReadReport::skipped_rows, "Records skipped (0 under rows=\"strict\").")
+      .def_property_readonly(
+          "skipped_lines",
+          [](const PoseGraphReadReport& r) {
+            std::vector<long> lines;
+            for (const SkippedLine& s : r.skipped_lines) lines.push_back(s.line);
+            return lines;
+          },
+          "Line numbers (1-based) of the first POSE_GRAPH_MAX_REPORTED_LINES skipped records.")
+      .def_property_readonly(
+          "skipped_reasons",
+          [](const PoseGraphReadReport& r) {
+            py::list reasons;
+            for (const SkippedLine& s : r.skipped_lines) reasons.append(escaped_text(s.reason));
+            return reasons;
+          },
+          "Why each of skipped_lines was skipped.")
+      .def("__repr__", [](py::handle self) {
+        const PoseGraphReadReport& r = self.cast<const PoseGraphReadReport&>();
+        return repr_of(self, std::to_string(r.rows) + " rows, " + std::to_string(r.skipped_rows) + " skipped");
+      });
+  m.attr("MAX_BAD_ROW_FRACTION") = kMaxBadRowFraction;
+  // static: pybind11 keeps the docstrings' pointers
+  static const std::string graph_doc = std::string("Reads a pose graph file into a PoseGraph2D. ") + kReadDoc;
+  static const std::string report_doc =
+      std::string("Reads a pose graph file: (PoseGraph2D, PoseGraphReadReport). ") + kReadDoc;
+  m.attr("POSE_GRAPH_MAX_REPORTED_LINES") = kPoseGraphMaxReportedLines;
+
   m.def("read_pose_graph",
-        [](const std::string& path, const std::string& format) {
-          const PoseGraphFormat f = format_arg(format);
-          py::gil_scoped_release release;  // a new graph: nothing else can see it yet
-          return read_pose_graph(path, f);
+        [](const std::string& path, const std::string& format, const std::string& noise, const std::string& rows) {
+          return std::move(read_graph(path, format, noise, rows).graph);
         },
-        py::arg("path"), py::arg("format") = "auto",
-        "Reads a pose graph file into a PoseGraph2D: format \"g2o\" (VERTEX_SE2 / VERTEX_XY /\n"
-        "EDGE_SE2 / EDGE_SE2_XY), \"toro\" (VERTEX2 / EDGE2), \"isam\" (ODOMETRY / LANDMARK), or \"auto\"\n"
-        "(from the first record). Errors name the file and line.");
+        py::arg("path"), py::arg("format") = "auto", py::arg("noise") = "default", py::arg("rows") = "strict",
+        graph_doc.c_str());
+  m.def("read_pose_graph_with_report",
+        [](const std::string& path, const std::string& format, const std::string& noise, const std::string& rows) {
+          PoseGraphRead read = read_graph(path, format, noise, rows);
+          return py::make_tuple(std::move(read.graph), std::move(read.report));
+        },
+        py::arg("path"), py::arg("format") = "auto", py::arg("noise") = "default", py::arg("rows") = "skip",
+        report_doc.c_str());
   m.def("write_g2o", [](const std::string& path, const PoseGraph2D& g) { locked(g, [&] { write_g2o(path, g); }); },
         py::arg("path"), py::arg("graph"),
         "Writes graph to path as g2o text: vertices with their current values, FIX lines, edges.");

@@ -2,6 +2,7 @@
 
 #include <sstream>
 
+#include "exceptions.hpp"
 #include "numpy.hpp"
 #include "object_lock.hpp"
 #include "probslam/io/carmen_log.hpp"
@@ -11,14 +12,6 @@
 namespace probslam::bindings {
 
 namespace {
-
-// A log's PARAM values are bytes from the file: bytes that are not UTF-8 become \xNN escapes
-// rather than a UnicodeDecodeError when the dict is built.
-py::str escaped_text(const std::string& s) {
-  PyObject* o = PyUnicode_DecodeUTF8(s.data(), static_cast<Py_ssize_t>(s.size()), "backslashreplace");
-  if (o == nullptr) throw py::error_already_set();
-  return py::reinterpret_steal<py::str>(o);
-}
 
 py::dict log_to_dict(CarmenLog&& log) {
   py::dict scans;

@@ -94,6 +94,8 @@ def mrclam(ws: Workspace, data: bytes) -> None:
 
 
 def victoria_park(ws: Workspace, data: bytes) -> None:
+    """The C++ iSAM reader under rows="skip" (read_victoria_park has no parser of its own since
+    issue 34), and the arrays built from the graph."""
     from probslam import io
     io.read_victoria_park(ws.write("victoriaPark.txt", data))
 

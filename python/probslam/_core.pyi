@@ -451,8 +451,20 @@ def initialize_odometry(graph: PoseGraph2D) -> None:
 def marginal_covariances(graph: PoseGraph2D, ids: Sequence[int], linear_solver: str = "simplicial",
                          ordering: str = "amd") -> List[Array]:
     """(3, 3) per pose id, (2, 2) per point id; zero for a fixed vertex."""
-def read_pose_graph(path: str, format: str = "auto") -> PoseGraph2D:
-    """format "auto", "g2o", "toro" or "isam"."""
+class PoseGraphReadReport:
+    """What read_pose_graph_with_report did with the file's records."""
+    rows: int  # records read, skipped ones included
+    skipped_rows: int  # 0 under rows="strict"
+    skipped_lines: List[int]  # the first POSE_GRAPH_MAX_REPORTED_LINES skipped, 1-based
+    skipped_reasons: List[str]  # why each of skipped_lines was skipped
+MAX_BAD_ROW_FRACTION: float  # rows="skip": more than this fraction of records skipped is fatal
+POSE_GRAPH_MAX_REPORTED_LINES: int  # skipped records a PoseGraphReadReport lists by line and reason
+def read_pose_graph(path: str, format: str = "auto", noise: str = "default", rows: str = "strict") -> PoseGraph2D:
+    """format "auto", "g2o", "toro" or "isam"; noise "default", "information", "sqrt_information" or
+    "covariance"; rows "strict" or "skip"."""
+def read_pose_graph_with_report(path: str, format: str = "auto", noise: str = "default",
+                                rows: str = "skip") -> Tuple[PoseGraph2D, PoseGraphReadReport]:
+    """As read_pose_graph, with what was skipped."""
 def write_g2o(path: str, graph: PoseGraph2D) -> None: ...
 def write_isam(path: str, graph: PoseGraph2D) -> None: ...
 

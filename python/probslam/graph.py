@@ -15,24 +15,54 @@ from __future__ import annotations
 
 import os
 import warnings
+from dataclasses import dataclass
 from typing import Optional, Union
 
 from . import _core
 from .io._files import file_path
-from ._core import (IncrementalReport, OptimizationReport, PoseGraph2D, initialize_odometry, marginal_covariances,
-                    optimize, optimize_incremental)
+from ._core import (IncrementalReport, OptimizationReport, PoseGraph2D, PoseGraphReadReport, initialize_odometry,
+                    marginal_covariances, optimize, optimize_incremental)
 
 PathLike = Union[str, "os.PathLike[str]"]
 
+#: rows="skip": a file with more than this fraction of its records skipped is refused, naming the
+#: first bad line (the C++ reader's kMaxBadRowFraction).
+MAX_BAD_ROW_FRACTION = _core.MAX_BAD_ROW_FRACTION
 
-def read_pose_graph(path: PathLike, format: str = "auto") -> PoseGraph2D:
+
+def read_pose_graph(path: PathLike, format: str = "auto", *, noise: str = "default",
+                    rows: str = "strict") -> PoseGraph2D:
     """Read a 2-D pose/landmark graph: ``format`` 'g2o' (VERTEX_SE2 / EDGE_SE2 / VERTEX_XY /
     EDGE_SE2_XY), 'toro' (VERTEX2 / EDGE2), 'isam' (ODOMETRY / EDGE2 / LANDMARK, vertices
-    dead-reckoned) or 'auto' (by extension and content).
+    dead-reckoned) or 'auto' (from the first record).
 
-    A missing file raises ``FileNotFoundError`` naming it (as every reader of the package does);
-    a malformed file ``ValueError("file:line: ...")``."""
-    return _core.read_pose_graph(file_path(path), format)
+    ``noise``: what the edges' noise entries (upper triangle, in the format's order) hold, as
+    GTSAM's NoiseFormat: 'default' (the format's own: information for g2o and TORO, square-root
+    information for iSAM), 'information', 'sqrt_information' (upper-triangular R, information
+    R^T R) or 'covariance' (information by Cholesky inverse). The graph keeps information.
+
+    ``rows``: 'strict' (a malformed record raises ``ValueError("file:line: ...")``) or 'skip'
+    (skipped and counted; more than ``MAX_BAD_ROW_FRACTION`` of the records raises, naming the
+    first; ``read_pose_graph_with_report`` tells which were skipped). A missing file raises
+    ``FileNotFoundError`` naming it (as every reader of the package does)."""
+    return _core.read_pose_graph(file_path(path), format, noise, rows)
+
+
+@dataclass(frozen=True)
+class PoseGraphRead:
+    """A graph read from a file and what the reader skipped (``report.skipped_rows``,
+    ``report.skipped_lines``, ``report.skipped_reasons``)."""
+
+    graph: PoseGraph2D
+    report: PoseGraphReadReport
+
+
+def read_pose_graph_with_report(path: PathLike, format: str = "auto", *, noise: str = "default",
+                                rows: str = "skip") -> PoseGraphRead:
+    """``read_pose_graph`` for real data: by default malformed records are skipped and reported
+    (docs/reliability.md), the first ``_core.POSE_GRAPH_MAX_REPORTED_LINES`` by line and reason."""
+    graph, report = _core.read_pose_graph_with_report(file_path(path), format, noise, rows)
+    return PoseGraphRead(graph, report)
 
 
 def _writer_arguments(name: str, graph, path):
@@ -108,13 +138,17 @@ __all__ = [
     "INITIALIZATIONS",
     "IncrementalReport",
     "OptimizationReport",
+    "MAX_BAD_ROW_FRACTION",
     "PoseGraph2D",
+    "PoseGraphRead",
+    "PoseGraphReadReport",
     "initialize",
     "initialize_odometry",
     "marginal_covariances",
     "optimize",
     "optimize_incremental",
     "read_pose_graph",
+    "read_pose_graph_with_report",
     "write_g2o",
     "write_isam",
 ]

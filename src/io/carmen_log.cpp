@@ -30,8 +30,6 @@ constexpr double kDegree = kPi / 180.0;
 // 60000-beam scan among thousands of empty ones) asked for 1.9 GB.
 constexpr double kMaxPaddingFactor = 4.0;
 constexpr double kPaddingAllowance = double(1 << 20);  // cells: 8 MiB of doubles
-// A skipped line's reason quotes the field that failed; a field of a corrupt line can be long.
-constexpr std::size_t kMaxReasonBytes = 200;
 
 /// A CARMEN message name: an upper-case letter, then upper-case letters, digits, '_' or '-'
 /// (ODOM, FLASER, ROBOTLASER1, RAWLASER1, NMEAGGA, ...). A line starting with anything else is
@@ -58,8 +56,7 @@ struct Builder {
 
   void skip(long line, const std::string& reason) {
     ++skipped_rows;
-    if (skipped_lines.size() < kCarmenMaxReportedLines)
-      skipped_lines.push_back({line, reason.size() <= kMaxReasonBytes ? reason : reason.substr(0, kMaxReasonBytes) + "..."});
+    list_skipped_line(skipped_lines, kCarmenMaxReportedLines, line, reason);
   }
 
   double flaser_step(long n) const {

@@ -20,6 +20,7 @@ namespace {
 
 using io_detail::Fields;
 using io_detail::LineError;
+using io_detail::LineParseError;
 
 // The longest line read: a g2o / TORO / iSAM record is a few hundred bytes (a FIX line listing
 // ids may be longer); a longer line is a corrupt or foreign file, refused before it is buffered.
@@ -39,13 +40,65 @@ struct EdgeRecord {
   Eigen::Vector3d measurement;  // (dx, dy, dtheta) or (dx, dy, 0)
   Eigen::Matrix3d information;  // top-left 2x2 for point edges
   int landmark = 0;  // the file's own id of the point, for point edges
+  bool skipped = false;  // dead reckoning could not place it (RowPolicy::kSkipAndCount)
 };
 
 struct Records {
   std::vector<VertexRecord> vertices;
   std::vector<EdgeRecord> edges;
-  std::vector<std::pair<int, long>> fixed;  // id, line
+  std::vector<std::pair<long, std::vector<int>>> fixed;  // line, ids of one FIX record
 };
+
+// The row policy at work: a record's LineParseError is rethrown (strict) or counted, listed
+// and remembered for the fatal message when there are too many (skip and count).
+class RowLog {
+ public:
+  RowLog(RowPolicy policy, PoseGraphReadReport& report) : policy_(policy), report_(report) {}
+
+  // Runs read(); false when it failed and the record was skipped.
+  template <class Read>
+  bool row(Read&& read) {
+    try {
+      read();
+      return true;
+    } catch (const LineParseError& e) {
+      if (policy_ == RowPolicy::kStrict) throw;
+      ++report_.skipped_rows;
+      list_skipped_line(report_.skipped_lines, kPoseGraphMaxReportedLines, e.line(), e.reason());
+      if (first_line_ == 0 || e.line() < first_line_) {
+        first_line_ = e.line();
+        first_what_ = e.what();
+      }
+      return false;
+    }
+  }
+
+  void require_few_skipped() const {
+    if (static_cast<double>(report_.skipped_rows) <= kMaxBadRowFraction * static_cast<double>(report_.rows)) return;
+    std::ostringstream what;
+    what << first_what_ << " (" << report_.skipped_rows << " of " << report_.rows
+         << " rows unreadable, more than kMaxBadRowFraction = " << kMaxBadRowFraction << ")";
+    throw std::invalid_argument(what.str());
+  }
+
+ private:
+  RowPolicy policy_;
+  PoseGraphReadReport& report_;
+  long first_line_ = 0;  // the first bad line in the file (build-time errors come after parse-time ones)
+  std::string first_what_;
+};
+
+// Runs add() for the record of `line`: an error it raises names that line (after `context`).
+template <class Add>
+void at_line(const std::string& source, long line, const std::string& context, Add&& add) {
+  try {
+    add();
+  } catch (const LineParseError&) {
+    throw;  // already names its line
+  } catch (const std::invalid_argument& e) {
+    LineError(source, line).fail(context + e.what());
+  }
+}
 
 Eigen::Matrix3d symmetric3(double a11, double a12, double a13, double a22, double a23, double a33) {
   Eigen::Matrix3d m;
@@ -53,10 +106,46 @@ Eigen::Matrix3d symmetric3(double a11, double a12, double a13, double a22, doubl
   return m;
 }
 
-// iSAM stores the upper-triangular square root R of the information R^T R.
-Eigen::Matrix3d from_square_root(const Eigen::Matrix3d& upper) {
-  const Eigen::Matrix3d r = upper.triangularView<Eigen::Upper>();
-  return r.transpose() * r;
+Eigen::Matrix2d symmetric2(double a11, double a12, double a22) {
+  Eigen::Matrix2d m;
+  m << a11, a12, a12, a22;
+  return m;
+}
+
+NoiseFormat own_noise(NoiseFormat noise, PoseGraphFormat format) {
+  if (noise != NoiseFormat::kDefault) return noise;
+  return format == PoseGraphFormat::kIsam ? NoiseFormat::kSquareRootInformation : NoiseFormat::kInformation;
+}
+
+// The information an edge's noise entries stand for. `entries` is symmetric, built from the
+// upper triangle the file gives; a square root uses that triangle only.
+template <int N>
+Eigen::Matrix<double, N, N> information_from(const Eigen::Matrix<double, N, N>& entries, NoiseFormat noise,
+                                             const LineError& err) {
+  using Matrix = Eigen::Matrix<double, N, N>;
+  if (!entries.allFinite()) err.fail("noise entries must be finite");
+  if (noise == NoiseFormat::kInformation) return entries;
+  if (noise == NoiseFormat::kSquareRootInformation) {
+    const Matrix r = entries.template triangularView<Eigen::Upper>();
+    return r.transpose() * r;  // exactly symmetric: (i, j) and (j, i) sum the same products
+  }
+  const Eigen::LLT<Matrix> llt(entries);
+  if (llt.info() != Eigen::Success) err.fail("covariance is not positive definite");
+  const Matrix information = llt.solve(Matrix::Identity());
+  return 0.5 * (information + information.transpose());
+}
+
+// The checks PoseGraph2D makes when the edge is added, made on the record so that a skip-and-
+// count read can skip the line before dead reckoning uses it. The information is built
+// symmetric, so no symmetry tolerance.
+template <class Measurement, class Information>
+void check_edge(const Measurement& z, const Information& information, const LineError& err) {
+  try {
+    require_all_finite(z, "measurement");
+    require_symmetric_positive_definite(information, "information", 0.0);
+  } catch (const std::invalid_argument& e) {
+    err.fail(e.what());
+  }
 }
 
 int vertex_id(const Fields& f, std::size_t i, const LineError& err) {
@@ -72,17 +161,24 @@ PoseGraphFormat detect(const std::string& tag) {
   return PoseGraphFormat::kG2o;
 }
 
-void parse_line(const Fields& f, const std::string& tag, PoseGraphFormat format, long line,
+void parse_line(const Fields& f, const std::string& tag, PoseGraphFormat format, NoiseFormat noise, long line,
                 const LineError& err, Records& out) {
-  auto pose_edge = [&](const Eigen::Matrix3d& information) {
-    out.edges.push_back({line, false, vertex_id(f, 1, err), vertex_id(f, 2, err),
-                         {f.number(3), f.number(4), f.number(5)}, information});
+  // noise: the entries as the file orders them, made a symmetric matrix
+  auto pose_edge = [&](const Eigen::Matrix3d& noise_entries) {
+    const int from = vertex_id(f, 1, err), to = vertex_id(f, 2, err);
+    const Eigen::Vector3d z(f.number(3), f.number(4), f.number(5));
+    const Eigen::Matrix3d information = information_from<3>(noise_entries, noise, err);
+    check_edge(z, information, err);
+    out.edges.push_back({line, false, from, to, z, information});
   };
-  auto point_edge = [&](const Eigen::Matrix2d& information) {
+  auto point_edge = [&](const Eigen::Matrix2d& noise_entries) {
+    const int pose = vertex_id(f, 1, err), point = vertex_id(f, 2, err);
+    const Eigen::Vector2d z(f.number(3), f.number(4));
+    const Eigen::Matrix2d information = information_from<2>(noise_entries, noise, err);
+    check_edge(z, information, err);
     Eigen::Matrix3d info = Eigen::Matrix3d::Identity();
     info.topLeftCorner<2, 2>() = information;
-    const int point = vertex_id(f, 2, err);
-    out.edges.push_back({line, true, vertex_id(f, 1, err), point, {f.number(3), f.number(4), 0.0}, info, point});
+    out.edges.push_back({line, true, pose, point, {z[0], z[1], 0.0}, info, point});
   };
   if (format == PoseGraphFormat::kG2o) {
     if (tag == "VERTEX_SE2") {
@@ -93,16 +189,16 @@ void parse_line(const Fields& f, const std::string& tag, PoseGraphFormat format,
       f.need(4, "id x y");
       out.vertices.push_back({line, vertex_id(f, 1, err), VertexKind::kPoint, {f.number(2), f.number(3), 0.0}});
     } else if (tag == "EDGE_SE2") {
-      f.need(12, "i j dx dy dtheta and 6 information entries");
+      f.need(12, "i j dx dy dtheta and 6 noise entries");
       pose_edge(symmetric3(f.number(6), f.number(7), f.number(8), f.number(9), f.number(10), f.number(11)));
     } else if (tag == "EDGE_SE2_XY") {
-      f.need(8, "i j dx dy and 3 information entries");
-      Eigen::Matrix2d info;
-      info << f.number(5), f.number(6), f.number(6), f.number(7);
-      point_edge(info);
+      f.need(8, "i j dx dy and 3 noise entries");
+      point_edge(symmetric2(f.number(5), f.number(6), f.number(7)));
     } else if (tag == "FIX") {
       f.need(2, "vertex ids");
-      for (std::size_t i = 1; i < f.size(); ++i) out.fixed.emplace_back(vertex_id(f, i, err), line);
+      std::vector<int> ids;
+      for (std::size_t i = 1; i < f.size(); ++i) ids.push_back(vertex_id(f, i, err));
+      out.fixed.emplace_back(line, std::move(ids));
     } else {
       err.fail("unsupported g2o record '" + tag + "' (2-D SE2 / XY graphs only)");
     }
@@ -112,7 +208,7 @@ void parse_line(const Fields& f, const std::string& tag, PoseGraphFormat format,
       out.vertices.push_back({line, vertex_id(f, 1, err), VertexKind::kPose,
                               {f.number(2), f.number(3), f.number(4)}});
     } else if (tag == "EDGE2") {
-      f.need(12, "i j dx dy dtheta and 6 information entries");
+      f.need(12, "i j dx dy dtheta and 6 noise entries");
       // TORO order: xx xy yy tt xt yt.
       pose_edge(symmetric3(f.number(6), f.number(7), f.number(10), f.number(8), f.number(11), f.number(9)));
     } else {
@@ -120,14 +216,11 @@ void parse_line(const Fields& f, const std::string& tag, PoseGraphFormat format,
     }
   } else {
     if (tag == "ODOMETRY" || tag == "EDGE2") {
-      f.need(12, "i j dx dy dtheta and 6 square-root information entries");
-      pose_edge(from_square_root(
-          symmetric3(f.number(6), f.number(7), f.number(8), f.number(9), f.number(10), f.number(11))));
+      f.need(12, "i j dx dy dtheta and 6 noise entries");
+      pose_edge(symmetric3(f.number(6), f.number(7), f.number(8), f.number(9), f.number(10), f.number(11)));
     } else if (tag == "LANDMARK") {
-      f.need(8, "i j dx dy and 3 square-root information entries");
-      const Eigen::Matrix3d info =
-          from_square_root(symmetric3(f.number(5), f.number(6), 0.0, f.number(7), 0.0, 1.0));
-      point_edge(info.topLeftCorner<2, 2>());
+      f.need(8, "i j dx dy and 3 noise entries");
+      point_edge(symmetric2(f.number(5), f.number(6), f.number(7)));
     } else {
       err.fail("unsupported iSAM record '" + tag + "' (ODOMETRY, EDGE2, LANDMARK only)");
     }
@@ -154,17 +247,13 @@ void add_missing_end(const EdgeRecord& e, PoseGraph2D& graph, const LineError& e
     graph.add_pose(e.to, from.compose(Pose2::from_vector(e.measurement)).vector());
 }
 
-// Vertices the file did not list, from the edges in order: the dead-reckoning guess.
-void add_missing_vertices(const Records& records, PoseGraph2D& graph, const std::string& source) {
-  for (const EdgeRecord& e : records.edges) {
-    const LineError err(source, e.line);
-    try {
-      add_missing_end(e, graph, err);
-    } catch (const std::invalid_argument& ex) {
-      const std::string what = ex.what();
-      if (what.rfind(source + ":", 0) == 0) throw;  // already names the line
-      err.fail("dead reckoning: " + what);
-    }
+// Vertices the file did not list, from the edges in order: the dead-reckoning guess. An edge
+// that cannot be placed is skipped under kSkipAndCount (and later edges from its end with it).
+void add_missing_vertices(Records& records, PoseGraph2D& graph, const std::string& source, RowLog& rows) {
+  for (EdgeRecord& e : records.edges) {
+    e.skipped = !rows.row([&] {
+      at_line(source, e.line, "dead reckoning: ", [&] { add_missing_end(e, graph, LineError(source, e.line)); });
+    });
   }
 }
 
@@ -188,61 +277,83 @@ void separate_landmark_ids(Records& records, const std::string& source) {
     if (e.to_point) e.to = static_cast<int>(e.landmark + offset);
 }
 
-PoseGraph2D build(Records& records, PoseGraphFormat format, const std::string& source) {
+PoseGraph2D build(Records& records, PoseGraphFormat format, const std::string& source, RowLog& rows) {
   if (format == PoseGraphFormat::kIsam) separate_landmark_ids(records, source);
   PoseGraph2D graph;
   for (const VertexRecord& v : records.vertices) {
-    try {
-      if (v.kind == VertexKind::kPose)
-        graph.add_pose(v.id, v.value);
-      else
-        graph.add_point(v.id, v.value.head<2>());
-    } catch (const std::invalid_argument& e) {
-      LineError(source, v.line).fail("vertex " + std::to_string(v.id) + ": " + e.what());
-    }
+    rows.row([&] {
+      at_line(source, v.line, "vertex " + std::to_string(v.id) + ": ", [&] {
+        if (v.kind == VertexKind::kPose)
+          graph.add_pose(v.id, v.value);
+        else
+          graph.add_point(v.id, v.value.head<2>());
+      });
+    });
   }
   // A file that lists vertices must list all of them: an unknown id in an edge is an error.
-  if (records.vertices.empty()) add_missing_vertices(records, graph, source);
+  if (records.vertices.empty()) add_missing_vertices(records, graph, source, rows);
   for (const EdgeRecord& e : records.edges) {
-    try {
-      if (e.to_point)
-        graph.add_point_edge(e.from, e.to, e.measurement.head<2>(),
-                             e.information.topLeftCorner<2, 2>());
-      else
-        graph.add_pose_edge(e.from, e.to, e.measurement, e.information);
-    } catch (const std::invalid_argument& ex) {
-      LineError(source, e.line).fail(ex.what());
-    }
+    if (e.skipped) continue;
+    rows.row([&] {
+      at_line(source, e.line, "", [&] {
+        if (e.to_point)
+          graph.add_point_edge(e.from, e.to, e.measurement.head<2>(), e.information.topLeftCorner<2, 2>());
+        else
+          graph.add_pose_edge(e.from, e.to, e.measurement, e.information);
+      });
+    });
   }
-  for (const auto& [id, line] : records.fixed) {
-    if (!graph.has_vertex(id)) LineError(source, line).fail("FIX names unknown vertex " + std::to_string(id));
-    graph.set_fixed(id);
+  for (const auto& fix : records.fixed) {
+    rows.row([&] {
+      for (const int id : fix.second)
+        if (!graph.has_vertex(id)) LineError(source, fix.first).fail("FIX names unknown vertex " + std::to_string(id));
+      for (const int id : fix.second) graph.set_fixed(id);
+    });
   }
   return graph;
 }
 
 }  // namespace
 
-PoseGraph2D parse_pose_graph(std::istream& in, PoseGraphFormat format, const std::string& source) {
+PoseGraphRead parse_pose_graph(std::istream& in, const PoseGraphReadOptions& options, const std::string& source) {
+  PoseGraphReadReport report;
+  RowLog rows(options.rows, report);
   Records records;
+  PoseGraphFormat format = options.format;
   io_detail::for_each_record(
       in, source,
       [&](const Fields& fields, const LineError& err, long line) {
+        ++report.rows;
         const std::string tag(fields.token(0));
         if (format == PoseGraphFormat::kAuto) format = detect(tag);
-        parse_line(fields, tag, format, line, err, records);
+        rows.row([&] { parse_line(fields, tag, format, own_noise(options.noise, format), line, err, records); });
       },
       kMaxLineBytes);
+  rows.require_few_skipped();
   if (records.edges.empty() && records.vertices.empty())
     throw std::invalid_argument(source + ": no vertices or edges");
-  return build(records, format, source);
+  PoseGraph2D graph = build(records, format, source, rows);
+  rows.require_few_skipped();  // again: building may have skipped more
+  return {std::move(graph), std::move(report)};
 }
 
-PoseGraph2D read_pose_graph(const std::string& path, PoseGraphFormat format) {
+PoseGraph2D parse_pose_graph(std::istream& in, PoseGraphFormat format, const std::string& source) {
+  PoseGraphReadOptions options;
+  options.format = format;
+  return std::move(parse_pose_graph(in, options, source).graph);
+}
+
+PoseGraphRead read_pose_graph(const std::string& path, const PoseGraphReadOptions& options) {
   io_detail::require_regular_file(path, "path");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::invalid_argument("path: cannot open '" + path + "'");
-  return parse_pose_graph(in, format, path);
+  return parse_pose_graph(in, options, path);
+}
+
+PoseGraph2D read_pose_graph(const std::string& path, PoseGraphFormat format) {
+  PoseGraphReadOptions options;
+  options.format = format;
+  return std::move(read_pose_graph(path, options).graph);
 }
 
 void write_g2o(std::ostream& out, const PoseGraph2D& graph) {

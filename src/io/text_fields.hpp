@@ -86,7 +86,7 @@ class Fields {
   void need(std::size_t n, const char* what) const {
     if (t_.size() < n)
       err_.fail(std::string(t_[0]) + " has " + std::to_string(t_.size()) + " fields, expected at least " +
-                std::to_string(n) + " (" + what + ")");
+                std::to_string(n) + " fields (" + what + ")");
   }
   double number(std::size_t i) const {
     double v = 0.0;

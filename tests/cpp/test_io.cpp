@@ -10,6 +10,7 @@
 #include "probslam/core/check.hpp"
 #include "probslam/io/carmen_log.hpp"
 #include "probslam/io/grid_file.hpp"
+#include "probslam/io/pose_graph_file.hpp"
 #include "probslam/io/ros_map.hpp"
 
 using namespace probslam;
@@ -214,4 +215,164 @@ TEST(GridFile, LosslessRoundTripAndCorruptFiles) {
   EXPECT_THROW(load_grid(path.string()), std::invalid_argument);
   std::ofstream(scratch("junk.psgrid")) << "not a grid";
   EXPECT_THROW(load_grid(scratch("junk.psgrid").string()), std::invalid_argument);
+}
+
+// --- pose graph files: the noise convention and the row policy --------------------------------
+
+namespace {
+
+// One noise by hand: R upper triangular, information Omega = R^T R, covariance C = Omega^-1
+// (det Omega = det(R)^2 = 1600; C = adj(Omega) / 1600). 2-D: R2, Omega2, C2 (det 64).
+//   R = [2 1 0; 0 4 2; 0 0 5]   Omega = [4 2 0; 2 17 8; 0 8 29]
+//   C = [429 -58 16; -58 116 -32; 16 -32 64] / 1600
+//   R2 = [2 1; 0 4]   Omega2 = [4 2; 2 17]   C2 = [17 -2; -2 4] / 64
+const Eigen::Matrix3d kOmega = (Eigen::Matrix3d() << 4, 2, 0, 2, 17, 8, 0, 8, 29).finished();
+const Eigen::Matrix2d kOmega2 = (Eigen::Matrix2d() << 4, 2, 2, 17).finished();
+const char* kR = "2 1 0 4 2 5";
+const char* kOmegaUpper = "4 2 0 17 8 29";
+const char* kOmegaToro = "4 2 17 29 0 8";  // xx xy yy tt xt yt
+const char* kC = "0.268125 -0.03625 0.01 0.0725 -0.02 0.04";
+const char* kR2 = "2 1 4";
+const char* kOmega2Upper = "4 2 17";
+const char* kC2 = "0.265625 -0.03125 0.0625";
+
+PoseGraphRead read_text(const std::string& text, PoseGraphFormat format, NoiseFormat noise,
+                        RowPolicy rows = RowPolicy::kStrict) {
+  std::istringstream in(text);
+  PoseGraphReadOptions options;
+  options.format = format;
+  options.noise = noise;
+  options.rows = rows;
+  return parse_pose_graph(in, options, "g.txt");
+}
+
+void expect_information(const PoseGraph2D& g, const std::string& what) {
+  ASSERT_EQ(g.pose_edges().size(), 1u) << what;
+  EXPECT_LE((g.pose_edges()[0].information - kOmega).norm(), 1e-12 * kOmega.norm()) << what;
+  if (g.point_edges().empty()) return;
+  EXPECT_LE((g.point_edges()[0].information - kOmega2).norm(), 1e-12 * kOmega2.norm()) << what;
+}
+
+std::string odometry_lines(int n) {
+  std::string text;
+  for (int k = 0; k < n; ++k)
+    text += "ODOMETRY " + std::to_string(k) + " " + std::to_string(k + 1) + " 1 0 0 10 0 0 10 0 31.6\n";
+  return text;
+}
+
+}  // namespace
+
+TEST(PoseGraphNoise, EveryNoiseFormatReadsTheSameInformation) {
+  using F = PoseGraphFormat;
+  using N = NoiseFormat;
+  const std::string isam_edges[][2] = {{kR, kR2}, {kOmegaUpper, kOmega2Upper}, {kC, kC2}};
+  const N isam_noise[] = {N::kSquareRootInformation, N::kInformation, N::kCovariance};
+  for (int k = 0; k < 3; ++k) {
+    const std::string text = "ODOMETRY 0 1 1 0 0 " + isam_edges[k][0] + "\nLANDMARK 1 7 2 1 " + isam_edges[k][1] + "\n";
+    expect_information(read_text(text, F::kIsam, isam_noise[k]).graph, "isam " + std::to_string(k));
+    if (k == 0) expect_information(read_text(text, F::kAuto, N::kDefault).graph, "isam default");
+  }
+  const std::string g2o_edges[][2] = {{kOmegaUpper, kOmega2Upper}, {kR, kR2}, {kC, kC2}};
+  const N g2o_noise[] = {N::kInformation, N::kSquareRootInformation, N::kCovariance};
+  for (int k = 0; k < 3; ++k) {
+    const std::string text = "VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nVERTEX_XY 7 3 1\nEDGE_SE2 0 1 1 0 0 " +
+                             g2o_edges[k][0] + "\nEDGE_SE2_XY 1 7 2 1 " + g2o_edges[k][1] + "\n";
+    expect_information(read_text(text, F::kG2o, g2o_noise[k]).graph, "g2o " + std::to_string(k));
+    if (k == 0) expect_information(read_text(text, F::kAuto, N::kDefault).graph, "g2o default");
+  }
+  const std::string toro = "VERTEX2 0 0 0 0\nVERTEX2 1 1 0 0\nEDGE2 0 1 1 0 0 " + std::string(kOmegaToro) + "\n";
+  expect_information(read_text(toro, F::kToro, N::kDefault).graph, "toro default");
+  expect_information(read_text(toro, F::kToro, N::kInformation).graph, "toro information");
+}
+
+TEST(PoseGraphNoise, CovarianceThatIsNotPositiveDefiniteNamesTheLine) {
+  const std::string what = expect_invalid([] {
+    read_text("ODOMETRY 0 1 1 0 0 1 0 0 -1 0 1\n", PoseGraphFormat::kIsam, NoiseFormat::kCovariance);
+  });
+  EXPECT_NE(what.find("g.txt:1: covariance is not positive definite"), std::string::npos) << what;
+}
+
+TEST(PoseGraphRows, StrictIsTheDefaultAndNamesTheFirstBadLine) {
+  const std::string text = odometry_lines(200) + "LANDMARK 3 7 2 x 1 0 1\n";
+  const std::string what = expect_invalid([&] { read_text(text, PoseGraphFormat::kIsam, NoiseFormat::kDefault); });
+  EXPECT_NE(what.find("g.txt:201: field 5 ('x') is not a number"), std::string::npos) << what;
+  std::istringstream in(text);
+  EXPECT_THROW(parse_pose_graph(in, PoseGraphFormat::kIsam, "g.txt"), std::invalid_argument);
+}
+
+TEST(PoseGraphRows, SkipAndCountSkipsCountsAndNamesBadRows) {
+  const std::string good = odometry_lines(200) + "LANDMARK 3 7 2 1 1 0 1\nLANDMARK 3 7 2 1 0 0 1.6\n";
+  const PoseGraphRead read = read_text(good, PoseGraphFormat::kIsam, NoiseFormat::kDefault, RowPolicy::kSkipAndCount);
+  EXPECT_EQ(read.report.rows, 202u);
+  EXPECT_EQ(read.report.skipped_rows, 1u);
+  ASSERT_EQ(read.report.skipped_lines.size(), 1u);
+  EXPECT_EQ(read.report.skipped_lines[0].line, 202);
+  EXPECT_NE(read.report.skipped_lines[0].reason.find("information"), std::string::npos)
+      << read.report.skipped_lines[0].reason;  // R singular: R^T R is not positive definite
+  EXPECT_EQ(read.graph.pose_edges().size(), 200u);
+  EXPECT_EQ(read.graph.point_edges().size(), 1u);
+
+  std::string mixed = odometry_lines(200);
+  mixed += "LANDMARK 3 7 2\nBOGUS 1 2\n";  // 2 bad records of 202: within kMaxBadRowFraction (1 %)
+  const PoseGraphRead two = read_text(mixed, PoseGraphFormat::kIsam, NoiseFormat::kDefault, RowPolicy::kSkipAndCount);
+  EXPECT_EQ(two.report.rows, 202u);
+  EXPECT_EQ(two.report.skipped_rows, 2u);
+  ASSERT_EQ(two.report.skipped_lines.size(), 2u);
+  EXPECT_EQ(two.report.skipped_lines[0].line, 201);
+  EXPECT_NE(two.report.skipped_lines[0].reason.find("LANDMARK has 4 fields, expected at least 8 fields"),
+            std::string::npos);
+  EXPECT_EQ(two.report.skipped_lines[1].line, 202);
+  EXPECT_NE(two.report.skipped_lines[1].reason.find("unsupported iSAM record 'BOGUS'"), std::string::npos);
+  EXPECT_EQ(read_text(odometry_lines(3), PoseGraphFormat::kIsam, NoiseFormat::kDefault, RowPolicy::kSkipAndCount)
+                .report.skipped_rows,
+            0u);
+}
+
+TEST(PoseGraphRows, AllSkippedRowsAreCountedTheFirstListed) {
+  std::string text = odometry_lines(3000);
+  for (int k = 0; k < 25; ++k) text += "LANDMARK 5 " + std::to_string(k) + " 1\n";  // 25 of 3025: 0.8 %
+  const PoseGraphRead read = read_text(text, PoseGraphFormat::kIsam, NoiseFormat::kDefault, RowPolicy::kSkipAndCount);
+  EXPECT_EQ(read.report.skipped_rows, 25u);
+  ASSERT_EQ(read.report.skipped_lines.size(), kPoseGraphMaxReportedLines);
+  EXPECT_EQ(read.report.skipped_lines.front().line, 3001);
+  EXPECT_EQ(read.report.skipped_lines.back().line, 3000 + static_cast<long>(kPoseGraphMaxReportedLines));
+}
+
+TEST(PoseGraphRows, BuildTimeErrorsAreRowLevelToo) {
+  // g2o: an edge naming a vertex the file does not list, and a FIX of one, are skipped
+  std::string text;
+  for (int k = 0; k <= 150; ++k) text += "VERTEX_SE2 " + std::to_string(k) + " " + std::to_string(k) + " 0 0\n";
+  for (int k = 0; k < 150; ++k)
+    text += "EDGE_SE2 " + std::to_string(k) + " " + std::to_string(k + 1) + " 1 0 0 " + kOmegaUpper + "\n";
+  text += "EDGE_SE2 3 999 1 0 0 " + std::string(kOmegaUpper) + "\nFIX 998\n";  // lines 302, 303
+  const PoseGraphRead read = read_text(text, PoseGraphFormat::kG2o, NoiseFormat::kDefault, RowPolicy::kSkipAndCount);
+  EXPECT_EQ(read.report.rows, 303u);
+  ASSERT_EQ(read.report.skipped_rows, 2u);
+  EXPECT_EQ(read.report.skipped_lines[0].line, 302);
+  EXPECT_NE(read.report.skipped_lines[0].reason.find("999"), std::string::npos) << read.report.skipped_lines[0].reason;
+  EXPECT_EQ(read.report.skipped_lines[1].line, 303);
+  EXPECT_EQ(read.graph.pose_edges().size(), 150u);
+  const std::string what = expect_invalid([&] { read_text(text, PoseGraphFormat::kG2o, NoiseFormat::kDefault); });
+  EXPECT_NE(what.find("g.txt:302:"), std::string::npos) << what;
+}
+
+TEST(PoseGraphRows, MoreThanTheFractionIsFatalNamingTheFirstBadLine) {
+  // 3 bad of 203 (1.5 %): the first bad line, and the counts, in the message
+  const std::string text = odometry_lines(100) + "LANDMARK 3 7 2 x 1 0 1\n" +
+                           odometry_lines(200).substr(odometry_lines(100).size()) + "BOGUS\nLANDMARK 1 9 1\n";
+  const std::string what = expect_invalid(
+      [&] { read_text(text, PoseGraphFormat::kIsam, NoiseFormat::kDefault, RowPolicy::kSkipAndCount); });
+  EXPECT_NE(what.find("g.txt:101: field 5 ('x') is not a number"), std::string::npos) << what;
+  EXPECT_NE(what.find("3 of 203 rows unreadable, more than kMaxBadRowFraction = 0.01"), std::string::npos) << what;
+}
+
+TEST(PoseGraphRows, AnOdometryGapLeavesTheRestUnreachable) {
+  // dead reckoning cannot place pose 51 once 50 -> 51 is skipped: every later edge is skipped too
+  std::string text = odometry_lines(200);
+  const std::string cut = "ODOMETRY 50 51 1 0 0 10 0 0 10 0 31.6\n";
+  text.replace(text.find(cut), cut.size(), "ODOMETRY 50 51 1\n");
+  const std::string what = expect_invalid(
+      [&] { read_text(text, PoseGraphFormat::kIsam, NoiseFormat::kDefault, RowPolicy::kSkipAndCount); });
+  EXPECT_NE(what.find("g.txt:51:"), std::string::npos) << what;
+  EXPECT_NE(what.find("150 of 200 rows unreadable"), std::string::npos) << what;
 }

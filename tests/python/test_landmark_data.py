@@ -54,6 +54,81 @@ def test_victoria_park_files_agree(shared_data):
     np.testing.assert_allclose(isam.xy_cov, gtsam.xy_cov, rtol=1e-6)
 
 
+def _victoria_park_reference(path, noise):
+    """The line format read directly, as the Python reader before the C++ one (issue 34) did for
+    well-formed files: ODOMETRY i j dx dy dth + 6 and LANDMARK i l dx dy + 3 upper-triangle
+    entries, square-root information R (covariance (R^T R)^-1) or a covariance."""
+    odometry, sightings = [], []
+    for line in open(path):
+        f = line.split()
+        if not f or f[0].startswith("#"):
+            continue
+        n = 3 if f[0] == "ODOMETRY" else 2
+        values = [float(x) for x in f[1:]]
+        upper = np.zeros((n, n))
+        upper[np.triu_indices(n)] = values[2 + n:]
+        cov = upper + np.triu(upper, 1).T if noise == "covariance" else np.linalg.inv(upper.T @ upper)
+        (odometry if n == 3 else sightings).append((values[:2 + n], cov))
+    return odometry, sightings
+
+
+# The previous Python reader's arrays (recorded 2026-11-26 at 599bf33 before it was replaced):
+# (len(delta), len(xy), delta_cov.sum(), xy_cov.sum(), landmark.sum())
+OLD_READER = {
+    "victoriaPark.txt": (6968, 3640, 0.7525440000000001, 2911.999374128633, 4639589),
+    "victoria_park_gtsam.txt": (6968, 3640, 0.7525440000000001, 2912.0000000000005, 4639589),
+    "victoria_park_1000.txt": (999, 613, 0.10789200000000002, 490.3998945991352, 171333),
+}
+
+
+def _check_against_reference(path, noise):
+    data = ps.io.read_victoria_park(path)
+    odometry, sightings = _victoria_park_reference(path, noise)
+    ids = np.array([v[:2] for v, _ in odometry])
+    np.testing.assert_array_equal(data.pose_from, ids[:, 0])
+    np.testing.assert_array_equal(data.pose_to, ids[:, 1])
+    np.testing.assert_array_equal(data.delta, [v[2:5] for v, _ in odometry])
+    np.testing.assert_allclose(data.delta_cov, [c for _, c in odometry], rtol=1e-12, atol=0)
+    ids = np.array([v[:2] for v, _ in sightings])
+    np.testing.assert_array_equal(data.pose, ids[:, 0])
+    np.testing.assert_array_equal(data.landmark, ids[:, 1])
+    np.testing.assert_array_equal(data.xy, [v[2:4] for v, _ in sightings])
+    np.testing.assert_allclose(data.xy_cov, [c for _, c in sightings], rtol=1e-12, atol=0)
+    assert data.skipped_rows == 0
+    assert all(a.dtype == np.int64 for a in (data.pose_from, data.pose_to, data.pose, data.landmark))
+    n_odo, n_obs, delta_cov_sum, xy_cov_sum, landmark_sum = OLD_READER[path.name]
+    assert (len(data.delta), len(data.xy), int(data.landmark.sum())) == (n_odo, n_obs, landmark_sum)
+    assert data.delta_cov.sum() == pytest.approx(delta_cov_sum, rel=1e-12)
+    assert data.xy_cov.sum() == pytest.approx(xy_cov_sum, rel=1e-12)
+    np.testing.assert_array_equal(data.delta_cov, np.swapaxes(data.delta_cov, 1, 2))
+    np.testing.assert_array_equal(data.xy_cov, np.swapaxes(data.xy_cov, 1, 2))
+
+
+def test_bundled_victoria_park_equals_the_line_format():
+    import pathlib
+    _check_against_reference(pathlib.Path(ps.data.path("victoria_park_1000.txt")), "sqrt_information")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name, noise", [("victoriaPark.txt", "sqrt_information"),
+                                         ("victoria_park_gtsam.txt", "covariance")])
+def test_shared_victoria_park_equals_the_line_format(shared_data, name, noise):
+    _check_against_reference(shared_data / "landmark_slam/victoria_park" / name, noise)
+
+
+def test_victoria_park_noise_is_explicit(tmp_path):
+    # the same text as square-root information and as covariance (R = 2 I: covariance I / 4)
+    (tmp_path / "vp.txt").write_text("ODOMETRY 0 1 1 0 0 2 0 0 2 0 2\nLANDMARK 1 7 2 1 2 0 2\n")
+    (tmp_path / "vp_gtsam.txt").write_text((tmp_path / "vp.txt").read_text())
+    root = ps.io.read_victoria_park(tmp_path / "vp.txt")
+    np.testing.assert_allclose(root.delta_cov[0], np.eye(3) / 4, rtol=1e-15)
+    np.testing.assert_allclose(root.xy_cov[0], np.eye(2) / 4, rtol=1e-15)
+    for data in (ps.io.read_victoria_park(tmp_path / "vp_gtsam.txt"),  # auto: 'gtsam' in the name
+                 ps.io.read_victoria_park(tmp_path / "vp.txt", noise="covariance")):
+        np.testing.assert_allclose(data.delta_cov[0], 2 * np.eye(3), rtol=1e-15)
+        np.testing.assert_allclose(data.xy_cov[0], 2 * np.eye(2), rtol=1e-15)
+
+
 def test_victoria_park_reader_errors(tmp_path):
     bad = tmp_path / "vp.txt"
     bad.write_text("ODOMETRY 0 1 0.1 0 0 100 0 0 500 0 500\nLANDMARK 1 5 2.0 x 1 0 1\n")

@@ -192,6 +192,75 @@ def test_toro_and_isam_information_conventions(tmp_path):
     assert isam_graph.chi2() == pytest.approx(expected)
 
 
+# One noise by hand (as in tests/cpp/test_io.cpp): R upper triangular, information OMEGA = R^T R,
+# covariance C = OMEGA^-1 = adj(OMEGA) / det(OMEGA), det(OMEGA) = det(R)^2 = 1600.
+R = np.array([[2.0, 1, 0], [0, 4, 2], [0, 0, 5]])
+OMEGA = np.array([[4.0, 2, 0], [2, 17, 8], [0, 8, 29]])
+C = np.array([[429.0, -58, 16], [-58, 116, -32], [16, -32, 64]]) / 1600
+
+
+def _upper(m):
+    return " ".join(repr(float(m[i, j])) for i in range(len(m)) for j in range(i, len(m)))
+
+
+def test_hand_written_noise_is_consistent():
+    np.testing.assert_array_equal(R.T @ R, OMEGA)
+    np.testing.assert_allclose(OMEGA @ C, np.eye(3), atol=1e-15)
+
+
+@pytest.mark.parametrize("fmt, noise, entries", [
+    ("isam", "default", R), ("isam", "sqrt_information", R), ("isam", "information", OMEGA), ("isam", "covariance", C),
+    ("g2o", "default", OMEGA), ("g2o", "information", OMEGA), ("g2o", "sqrt_information", R), ("g2o", "covariance", C),
+])
+def test_every_noise_format_reads_the_same_information(tmp_path, fmt, noise, entries):
+    path = tmp_path / "one.txt"
+    if fmt == "isam":
+        path.write_text(f"ODOMETRY 0 1 1 0 0 {_upper(entries)}\nLANDMARK 1 7 2 1 {_upper(entries[:2, :2])}\n")
+    else:
+        path.write_text("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nVERTEX_XY 7 3 1\n"
+                        f"EDGE_SE2 0 1 1 0 0 {_upper(entries)}\nEDGE_SE2_XY 1 7 2 1 {_upper(entries[:2, :2])}\n")
+    g = probslam.read_pose_graph(path, fmt, noise=noise)
+    np.testing.assert_allclose(g.pose_edges()[2][0], OMEGA, rtol=0, atol=1e-12 * 29)  # to rounding of the largest
+    # the 2-D noise is the top-left block of each: R2^T R2 = OMEGA[:2, :2] (R is triangular), and
+    # the covariance block C[:2, :2] stands for its own inverse (a marginal, not OMEGA's block)
+    expected = np.linalg.inv(C[:2, :2]) if noise == "covariance" else OMEGA[:2, :2]
+    np.testing.assert_allclose(g.point_edges()[2][0], expected, rtol=0, atol=1e-12 * 17)
+
+
+def test_read_options_are_keywords_and_checked(tmp_path):
+    import inspect
+    params = inspect.signature(probslam.graph.read_pose_graph).parameters
+    assert params["noise"].default == "default" and params["noise"].kind is inspect.Parameter.KEYWORD_ONLY
+    assert params["rows"].default == "strict" and params["rows"].kind is inspect.Parameter.KEYWORD_ONLY
+    assert inspect.signature(probslam.graph.read_pose_graph_with_report).parameters["rows"].default == "skip"
+    path = tmp_path / "a.txt"
+    path.write_text("ODOMETRY 0 1 1 0 0 10 0 0 10 0 31.6\n")
+    with pytest.raises(ValueError, match="^noise must be one of"):
+        probslam.graph.read_pose_graph(path, noise="sqrt")
+    with pytest.raises(ValueError, match="^rows must be one of"):
+        probslam.graph.read_pose_graph(path, rows="lenient")
+
+
+def _odometry(n):
+    return "".join(f"ODOMETRY {k} {k + 1} 1 0 0 10 0 0 10 0 31.6\n" for k in range(n))
+
+
+def test_skip_rows_are_counted_and_named(tmp_path):
+    path = tmp_path / "vp.txt"
+    path.write_text(_odometry(200) + "LANDMARK 3 7 2 x 1 0 1\n")
+    with pytest.raises(ValueError, match=r"vp\.txt:201: field 5 \('x'\) is not a number"):
+        probslam.graph.read_pose_graph(path)  # strict by default
+    assert probslam.graph.read_pose_graph(path, rows="skip").num_pose_edges == 200
+    read = probslam.graph.read_pose_graph_with_report(path)
+    assert (read.report.rows, read.report.skipped_rows, read.report.skipped_lines) == (201, 1, [201])
+    assert "is not a number" in read.report.skipped_reasons[0]
+    assert read.graph.num_pose_edges == 200 and read.graph.num_point_edges == 0
+    path.write_text(_odometry(200) + "LANDMARK 3 7 2 x 1 0 1\nLANDMARK 3 7\nBOGUS\n")  # 3 of 203
+    with pytest.raises(ValueError, match=r"vp\.txt:201: .*3 of 203 rows unreadable, more than kMaxBadRowFraction"):
+        probslam.graph.read_pose_graph_with_report(path)
+    assert probslam.graph.MAX_BAD_ROW_FRACTION == probslam.io.landmark_datasets.MAX_BAD_ROW_FRACTION == 0.01
+
+
 @pytest.mark.parametrize(
     "text, message",
     [

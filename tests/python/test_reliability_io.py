@@ -256,6 +256,26 @@ def test_victoria_park_singular_noise_record_skipped(tmp_path):
     assert data.skipped_rows == 1 and len(data.pose_from) == 200 and len(data.xy) == 0
 
 
+def test_victoria_park_skips_records_through_the_graph_reader(tmp_path):
+    good = "".join(f"ODOMETRY {k} {k + 1} 1 0 0 10 0 0 10 0 31.6\n" for k in range(200))
+    path = tmp_path / "vp.txt"
+    path.write_text(good + "LANDMARK 3 7 2 1 1 0 1\nLANDMARK 3 8 2\nVERTEX2 1 2\n")  # cut line, foreign record
+    data = io.read_victoria_park(path)
+    assert data.skipped_rows == 2 and len(data.pose_from) == 200 and list(data.landmark) == [7]
+    path.write_text(good + "LANDMARK 3 8 2\nVERTEX2 1 2\nLANDMARK 1 1\n")  # 3 of 203: too many
+    with pytest.raises(ValueError, match=r"vp\.txt:201: .*3 of 203 rows unreadable"):
+        io.read_victoria_park(path)
+
+
+def test_pose_graph_skipped_rows_with_non_utf8_bytes_are_reported_escaped(tmp_path):
+    path = tmp_path / "g.txt"
+    path.write_bytes(b"".join(b"ODOMETRY %d %d 1 0 0 10 0 0 10 0 31.6\n" % (k, k + 1) for k in range(200))
+                     + b"LANDMARK 1 " + BAD_BYTES + b" 2 1 1.6 0 1.6\n")
+    read = ps.graph.read_pose_graph_with_report(path)
+    assert read.report.skipped_rows == 1 and read.report.skipped_lines == [201]
+    assert "\\xff\\xfe\\x80" in read.report.skipped_reasons[0] and read.graph.num_point_edges == 0
+
+
 def test_carmen_bad_lines_with_non_utf8_bytes_are_skipped_and_reported_escaped(tmp_path):
     path = tmp_path / "log.clf"
     path.write_bytes(_flaser(3).encode() + b"FLASER 2 1 " + BAD_BYTES + b" 0 0 0 0 0 0 2\n" + BAD_BYTES + b" 1 2\n"

@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "probslam/io/skipped_line.hpp"
+
 namespace probslam {
 
 /// Laser scans of a log, one row per scan. Rows with fewer beams than the widest scan are
@@ -28,12 +30,6 @@ struct Odometry {
   Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> poses;  // (M, 3)
   Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor> velocities;  // (M, 2): tv m/s, rv rad/s
   Eigen::VectorXd timestamps;  // (M,)
-};
-
-/// A line the reader skipped: its number (1-based) and why.
-struct SkippedLine {
-  long line = 0;
-  std::string reason;
 };
 
 /// How many skipped lines a CarmenLog lists (all are counted); as eval.MAX_REPORTED_LINES.

@@ -1,10 +1,13 @@
 #pragma once
 // Readers and a writer for 2-D pose/landmark graph files: g2o, TORO and iSAM text.
+#include <cstddef>
 #include <istream>
 #include <ostream>
 #include <string>
+#include <vector>
 
 #include "probslam/graph/pose_graph_2d.hpp"
+#include "probslam/io/skipped_line.hpp"
 
 namespace probslam {
 
@@ -13,6 +16,46 @@ enum class PoseGraphFormat {
   kG2o,   ///< VERTEX_SE2, VERTEX_XY, EDGE_SE2, EDGE_SE2_XY (information, upper triangle), FIX
   kToro,  ///< VERTEX2, EDGE2 with information in TORO order (xx xy yy tt xt yt)
   kIsam,  ///< ODOMETRY / EDGE2 / LANDMARK with square-root information, upper triangle
+};
+
+/// What an edge's noise entries (the upper triangle, in the format's order) hold; the graph
+/// keeps information. GTSAM's NoiseFormat is the model: the same text reads as different noise.
+enum class NoiseFormat {
+  kDefault,                ///< the format's own: information for g2o and TORO, kSquareRootInformation for iSAM
+  kInformation,            ///< the information matrix Omega = C^-1
+  kSquareRootInformation,  ///< the upper-triangular R with R^T R = Omega (iSAM's files)
+  kCovariance,             ///< the covariance C (GTSAM's copy of Victoria Park); Omega = C^-1 by Cholesky
+};
+
+/// What a malformed row does.
+enum class RowPolicy {
+  kStrict,        ///< the first one is fatal: std::invalid_argument "source:LINE: reason"
+  kSkipAndCount,  ///< skipped and counted (real data, docs/reliability.md); too many are fatal
+};
+
+/// Under RowPolicy::kSkipAndCount, a file with more than this fraction of its records skipped is
+/// not in the format asked for (or is damaged beyond a few cut lines): it is refused, naming its
+/// first bad line. Also the MRCLAM reader's limit (Python: probslam.graph.MAX_BAD_ROW_FRACTION).
+constexpr double kMaxBadRowFraction = 0.01;
+/// How many skipped lines a PoseGraphReadReport lists (all are counted); as eval.MAX_REPORTED_LINES.
+constexpr std::size_t kPoseGraphMaxReportedLines = 20;
+
+struct PoseGraphReadOptions {
+  PoseGraphFormat format = PoseGraphFormat::kAuto;
+  NoiseFormat noise = NoiseFormat::kDefault;
+  RowPolicy rows = RowPolicy::kStrict;
+};
+
+/// What the reader did with the file's records (lines that are neither blank nor '#' comments).
+struct PoseGraphReadReport {
+  std::size_t rows = 0;          ///< records read, skipped ones included
+  std::size_t skipped_rows = 0;  ///< records skipped (always 0 under RowPolicy::kStrict)
+  std::vector<SkippedLine> skipped_lines;  ///< the first kPoseGraphMaxReportedLines of them
+};
+
+struct PoseGraphRead {
+  PoseGraph2D graph;
+  PoseGraphReadReport report;
 };
 
 /// Parses a graph; `source` names it in errors, which are std::invalid_argument
@@ -25,9 +68,21 @@ enum class PoseGraphFormat {
 /// in one (g2o's): when an iSAM file's landmark numbers meet its pose numbers, every landmark
 /// becomes vertex (landmark + max pose id + 1 - min landmark id); its own number stays the
 /// point's `landmark_id`. A file whose numbers do not meet (Victoria Park) keeps them as ids.
+///
+/// options.noise says what the edges' noise entries are (NoiseFormat). options.rows: under
+/// kSkipAndCount a record that cannot be read (too few fields, a field that is not a number or
+/// not an id, an unknown tag, a non-finite value, noise that is not positive definite, an
+/// unknown vertex, an edge dead reckoning cannot reach because the rows before it were skipped)
+/// is skipped and counted in the report; more than kMaxBadRowFraction of the records skipped is
+/// fatal, naming the first. A line longer than 1 MiB, a file with no record, and iSAM landmark
+/// ids that cannot be moved past the poses' are fatal under both policies.
+PoseGraphRead parse_pose_graph(std::istream& in, const PoseGraphReadOptions& options,
+                               const std::string& source = "<stream>");
+/// Strict, with the format's own noise convention: the graph alone.
 PoseGraph2D parse_pose_graph(std::istream& in, PoseGraphFormat format = PoseGraphFormat::kAuto,
                              const std::string& source = "<stream>");
 /// As parse_pose_graph; `path` must name a regular file (a directory or a device is refused).
+PoseGraphRead read_pose_graph(const std::string& path, const PoseGraphReadOptions& options);
 PoseGraph2D read_pose_graph(const std::string& path,
                             PoseGraphFormat format = PoseGraphFormat::kAuto);
 

@@ -11,6 +11,7 @@ from typing import Dict, List, Optional, Tuple, Union
 
 import numpy as np
 
+from .. import _core
 from ._files import file_path, require_regular_file, text_lines
 
 PathLike = Union[str, "os.PathLike[str]"]
@@ -29,8 +30,9 @@ MRCLAM_RANGE_SCALE = 0.971
 
 #: A data file (odometry, measurements, ground truth) may hold a few unreadable rows (a line cut
 #: short when the logger stopped, a corrupt number): they are skipped and counted. More than this
-#: fraction of a file's rows means it is not in the format we read, and the file is refused.
-MAX_BAD_ROW_FRACTION = 0.01
+#: fraction of a file's rows means it is not in the format we read, and the file is refused. One
+#: limit for every reader, the C++ ones included (kMaxBadRowFraction).
+MAX_BAD_ROW_FRACTION = _core.MAX_BAD_ROW_FRACTION
 
 
 class _Rows:
@@ -214,78 +216,46 @@ class VictoriaPark:
     skipped_rows: int = 0  # unreadable records skipped (see read_victoria_park)
 
 
-def _upper(values: List[float], n: int) -> np.ndarray:
-    m = np.zeros((n, n))
-    m[np.triu_indices(n)] = values
-    return m
+def _covariances(information: np.ndarray) -> np.ndarray:
+    """Covariances (E, n, n) of a stack of information matrices: C = L^-T L^-1 from the Cholesky
+    factor L (better conditioned than a general inverse), made exactly symmetric."""
+    n = information.shape[-1]
+    if len(information) == 0:
+        return np.zeros((0, n, n))
+    lower_inverse = np.linalg.solve(np.linalg.cholesky(information), np.broadcast_to(np.eye(n), information.shape))
+    covariance = np.swapaxes(lower_inverse, -1, -2) @ lower_inverse
+    return 0.5 * (covariance + np.swapaxes(covariance, -1, -2))
 
 
-#: Largest |id| accepted for a pose or landmark: ids become int64 and are compared exactly, so
-#: they must be integers a float64 holds exactly.
-MAX_ID = 2 ** 53
-
-
-def _victoria_row(fields: List[str], covariance) -> Tuple[Optional[list], str]:
-    """(values + covariance, "") of one ODOMETRY / LANDMARK record, or (None, reason)."""
-    kind, expected = fields[0], {"ODOMETRY": 12, "LANDMARK": 8}.get(fields[0])
-    if expected is None:
-        return None, f"unknown record {kind[:40]!r}"
-    if len(fields) != expected:
-        return None, f"{kind} needs {expected} fields, got {len(fields)}"
-    values = _numbers(fields[1:])
-    if values is None:
-        return None, f"{kind} fields are not all finite numbers"
-    if not all(v == int(v) and abs(v) <= MAX_ID for v in values[:2]):
-        return None, f"{kind} ids must be integers of at most 2^53"
-    n = 3 if kind == "ODOMETRY" else 2
-    with np.errstate(all="ignore"):
-        try:
-            cov = covariance(_upper(values[2 + n:], n))
-            np.linalg.cholesky(cov)
-        except np.linalg.LinAlgError:
-            return None, f"{kind} noise is not positive definite"
-    if not np.all(np.isfinite(cov)):
-        return None, f"{kind} noise is not finite"
-    return [kind] + values[:2 + n] + [cov], ""
+def _landmark_numbers(graph, points: np.ndarray) -> np.ndarray:
+    """The file's own LANDMARK number of each point vertex id in ``points`` (the graph moves
+    landmark numbers that meet pose numbers to ids of their own; see PoseGraph2D.landmark_ids)."""
+    ids, numbers = graph.point_ids, graph.landmark_ids
+    order = np.argsort(ids, kind="stable")
+    return numbers[order][np.searchsorted(ids[order], points)].astype(np.int64)
 
 
 def read_victoria_park(path: PathLike, noise: str = "auto") -> VictoriaPark:
     """``noise``: 'sqrt_information' (iSAM's file: upper-triangular R, covariance (R^T R)^-1),
     'covariance' (GTSAM's copy), or 'auto' (covariance if the file name contains 'gtsam').
 
-    Fatal: a missing file (``FileNotFoundError``), a path that is not a regular file, and more
-    than ``MAX_BAD_ROW_FRACTION`` unreadable records (``ValueError("file:line: ...")`` naming the
-    first). Row-level (skipped, counted in ``VictoriaPark.skipped_rows``): a few records of an
-    unknown type, with the wrong field count, numbers that are not finite, ids that are not
-    integers, or a noise matrix that is not positive definite."""
+    Read by the C++ iSAM reader (``probslam.graph.read_pose_graph_with_report``, format 'isam',
+    rows 'skip'), the edges in file order; EDGE2 records (loop closures) would come out among
+    the odometry. Fatal: a missing file (``FileNotFoundError``), a path that is not a regular
+    file, and more than ``MAX_BAD_ROW_FRACTION`` unreadable records (``ValueError("file:line:
+    ...")`` naming the first). Row-level (skipped, counted in ``VictoriaPark.skipped_rows``): a
+    few records of an unknown type, with too few fields, numbers that are not finite, ids that
+    are not int32 integers, or a noise matrix that is not positive definite. A skipped ODOMETRY
+    record leaves the poses after it unreachable: their records are skipped too (so, usually,
+    fatal)."""
     path = file_path(path)
     if noise == "auto":
         noise = "covariance" if "gtsam" in os.path.basename(path).lower() else "sqrt_information"
     if noise not in ("sqrt_information", "covariance"):
         raise ValueError(f"noise must be 'sqrt_information', 'covariance' or 'auto', got {noise!r}")
-
-    def covariance(upper: np.ndarray) -> np.ndarray:
-        if noise == "covariance":
-            return upper + np.triu(upper, 1).T
-        return np.linalg.inv(upper.T @ upper)
-
-    require_regular_file(path)
-    rows = _Rows(path)
-    for number, line in text_lines(path):
-        fields = line.split()
-        if not fields or fields[0].startswith("#"):
-            continue
-        row, reason = _victoria_row(fields, covariance)
-        if row is None:
-            rows.skip(number, reason)
-        else:
-            rows.rows.append(row)
-    rows.check(strict=False)
-    odo = [r[1:] for r in rows.rows if r[0] == "ODOMETRY"]
-    obs = [r[1:] for r in rows.rows if r[0] == "LANDMARK"]
-    o = np.array([r[:5] for r in odo], float).reshape(-1, 5)
-    b = np.array([r[:4] for r in obs], float).reshape(-1, 4)
-    return VictoriaPark(o[:, 0].astype(np.int64), o[:, 1].astype(np.int64), o[:, 2:5],
-                        np.array([r[5] for r in odo]).reshape(-1, 3, 3),
-                        b[:, 0].astype(np.int64), b[:, 1].astype(np.int64), b[:, 2:4],
-                        np.array([r[4] for r in obs]).reshape(-1, 2, 2), rows.bad)
+    graph, report = _core.read_pose_graph_with_report(path, "isam", noise, "skip")
+    ends, delta, information = graph.pose_edges()
+    points, xy, xy_information = graph.point_edges()
+    return VictoriaPark(ends[:, 0].astype(np.int64), ends[:, 1].astype(np.int64), delta, _covariances(information),
+                        points[:, 0].astype(np.int64), _landmark_numbers(graph, points[:, 1]), xy,
+                        _covariances(xy_information), int(report.skipped_rows))
