@@ -27,7 +27,8 @@ from ._core import (
     wrap_angle,
 )
 from . import data, eval, inverse_learning, io, sim, slam
-from .graph import OptimizationReport, PoseGraph2D, marginal_covariances, optimize, read_pose_graph, write_g2o
+from .graph import (OptimizationReport, PoseGraph2D, marginal_covariances, optimize, read_pose_graph,
+                    read_pose_graph_with_report, write_g2o)
 from .graphslam import (
     CorrespondenceTest,
     FeatureMerges,
@@ -81,6 +82,7 @@ __all__ = [
     "marginal_covariances",
     "optimize",
     "read_pose_graph",
+    "read_pose_graph_with_report",
     "write_g2o",
     "MapManagement",
     "MultiHypothesisEkfSlam",
