@@ -33,10 +33,11 @@ def require_fields(value: object, fields: Tuple[str, ...], name: str, what: str)
         raise TypeError(f"{name}: expected {what}, got {type(value).__name__}")
 
 
-def real_array(value: object, name: str, shape: Optional[Tuple[Optional[int], ...]]) -> np.ndarray:
-    """``value`` as a finite float array of ``shape`` (None in it: any length; None for it: any
-    shape); TypeError for anything but real numbers, ValueError for a wrong shape or NaN / inf,
-    both naming ``name``."""
+def real_array(value: object, name: str, shape: Optional[Tuple[Optional[int], ...]],
+               finite: bool = True) -> np.ndarray:
+    """``value`` as a float array of ``shape`` (None in it: any length; None for it: any shape),
+    finite unless ``finite`` is False (then NaN and inf are the caller's to judge); TypeError for
+    anything but real numbers, ValueError for a wrong shape or NaN / inf, both naming ``name``."""
     try:
         a = np.asarray(value)
     except ValueError as exc:  # ragged nested lists
@@ -49,7 +50,7 @@ def real_array(value: object, name: str, shape: Optional[Tuple[Optional[int], ..
     if a.ndim != len(shape) or any(n is not None and n != m for n, m in zip(shape, a.shape)):
         raise ValueError(f"{name}: expected shape {want}, got {a.shape}")
     a = a.astype(float, copy=False)
-    if not np.all(np.isfinite(a)):
+    if finite and not np.all(np.isfinite(a)):
         raise ValueError(f"{name}: contains NaN or inf (expected finite numbers)")
     return a
 

@@ -152,16 +152,7 @@ def _scan_arguments(grid, pose, ranges, beam_angles, max_range, half_angle):
     require_instance(grid, OccupancyGrid2D, "grid")
     pose = real_array(pose, "pose", (3,))
     beam_angles = _beam_angles(beam_angles)
-    try:
-        ranges = np.asarray(ranges)
-    except ValueError as exc:  # ragged nested lists
-        raise ValueError(f"ranges: not an array of numbers: {exc}") from None
-    if ranges.dtype.kind not in "iuf":
-        raise TypeError(f"ranges: expected real numbers, got dtype {ranges.dtype}")
-    if ranges.shape != beam_angles.shape:
-        raise ValueError(f"ranges and beam_angles must be 1-D arrays of equal length, got {ranges.shape} "
-                         f"and {beam_angles.shape}")
-    ranges = ranges.astype(float, copy=False)
+    ranges = real_array(ranges, "ranges", beam_angles.shape, finite=False)  # inf: no return
     if np.any(np.isnan(ranges)) or np.any(ranges < 0):
         raise ValueError("ranges must be >= 0 and not NaN (inf: no return)")
     return pose, ranges, beam_angles, positive_real(max_range, "max_range"), positive_real(half_angle, "half_angle")

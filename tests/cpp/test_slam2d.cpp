@@ -30,31 +30,9 @@ using probslam::test_support::expect_invalid;
 
 namespace {
 
-using Segment = std::pair<Eigen::Vector2d, Eigen::Vector2d>;
-
-std::vector<Segment> room_walls() {
-  const double w[][4] = {{-5, -4, 5, -4}, {5, -4, 5, 4}, {5, 4, -5, 4}, {-5, 4, -5, -4}, {1, 1, 2, 1},
-                         {2, 1, 2, 2},    {2, 2, 1, 2},  {1, 2, 1, 1},  {-3, -2, -1, -3}};
-  std::vector<Segment> out;
-  for (const auto& s : w) out.push_back({{s[0], s[1]}, {s[2], s[3]}});
-  return out;
-}
-
-Eigen::VectorXd cast(const Eigen::Vector3d& pose, const Eigen::VectorXd& angles, const std::vector<Segment>& walls) {
-  Eigen::VectorXd out = Eigen::VectorXd::Constant(angles.size(), std::numeric_limits<double>::infinity());
-  for (Eigen::Index k = 0; k < angles.size(); ++k) {
-    const Eigen::Vector2d d(std::cos(pose.z() + angles[k]), std::sin(pose.z() + angles[k]));
-    for (const auto& [p, q] : walls) {
-      const Eigen::Vector2d e = q - p, w = p - pose.head<2>();
-      const double det = d.x() * -e.y() - d.y() * -e.x();
-      if (std::abs(det) < 1e-12) continue;
-      const double t = (w.x() * -e.y() - w.y() * -e.x()) / det;
-      const double u = (d.x() * w.y() - d.y() * w.x()) / det;
-      if (t > 0 && u >= 0 && u <= 1) out[k] = std::min(out[k], t);
-    }
-  }
-  return out;
-}
+using test_support::Segment;
+using test_support::cast;
+using test_support::room_walls;
 
 Eigen::VectorXd fan() { return Eigen::VectorXd::LinSpaced(181, -kPi / 2, kPi / 2); }
 

@@ -2,15 +2,51 @@
 // Helpers shared by the C++ test files.
 #include <gtest/gtest.h>
 
+#include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
 #include <functional>
+#include <limits>
 #include <random>
 #include <stdexcept>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "probslam/grid/occupancy_grid_3d.hpp"
 
 namespace probslam::test_support {
+
+/// A wall of a simulated world: its two end points (m).
+using Segment = std::pair<Eigen::Vector2d, Eigen::Vector2d>;
+
+/// A 10 x 8 m room with a box and a slanted wall, so that scans pin the pose.
+inline std::vector<Segment> room_walls() {
+  const double w[][4] = {{-5, -4, 5, -4}, {5, -4, 5, 4}, {5, 4, -5, 4}, {-5, 4, -5, -4}, {1, 1, 2, 1},
+                         {2, 1, 2, 2},    {2, 2, 1, 2},  {1, 2, 1, 1},  {-3, -2, -1, -3}};
+  std::vector<Segment> out;
+  for (const auto& s : w) out.push_back({{s[0], s[1]}, {s[2], s[3]}});
+  return out;
+}
+
+/// The exact range from `pose` along each beam (heading + angles[k]) to the nearest of `walls`;
+/// inf where a beam meets none: a laser scan of a polygon world, for the scan matchers' tests.
+inline Eigen::VectorXd cast(const Eigen::Vector3d& pose, const Eigen::VectorXd& angles,
+                            const std::vector<Segment>& walls) {
+  Eigen::VectorXd out = Eigen::VectorXd::Constant(angles.size(), std::numeric_limits<double>::infinity());
+  for (Eigen::Index k = 0; k < angles.size(); ++k) {
+    const Eigen::Vector2d d(std::cos(pose.z() + angles[k]), std::sin(pose.z() + angles[k]));
+    for (const auto& [p, q] : walls) {
+      const Eigen::Vector2d e = q - p, w = p - pose.head<2>();
+      const double det = d.x() * -e.y() - d.y() * -e.x();
+      if (std::abs(det) < 1e-12) continue;  // a beam parallel to the wall
+      const double t = (w.x() * -e.y() - w.y() * -e.x()) / det;
+      const double u = (d.x() * w.y() - d.y() * w.x()) / det;
+      if (t > 0 && u >= 0 && u <= 1) out[k] = std::min(out[k], t);
+    }
+  }
+  return out;
+}
 
 /// Expects std::invalid_argument whose message starts with the argument's name.
 inline void expect_invalid(const std::function<void()>& call, const std::string& name) {
