@@ -80,7 +80,7 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: str = "grap
              chunk: int = 200, **options: Any) -> SlamResult:
     """Turns a raw log (a CARMEN path, a ``CarmenLog`` or its ``LaserScans``) into a consistent map.
 
-    ``method="graph"`` (default): ``options`` are those of ``probslam._core.SubmapSlam2D``: the
+    ``method="graph"`` (default): ``options`` are those of ``probslam.SubmapSlam2D``: the
     frontend's (resolution (m), max_range (m; default: the log's no-return reading),
     max_usable_range, sigma, p_rand, linear_window, angular_window, min_travel, min_rotation,
     submap_distance, submap_scans, min_match_quality, odometry_noise, use_odometry_prior) and the
@@ -89,7 +89,7 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: str = "grap
     dissolve_chi2, max_rounds, field_cache_mb). A log without odometry runs on scan matching
     alone (no odometry prior, every scan matched, wider windows).
 
-    ``method="rbpf"``: grid-based FastSLAM, ``options`` those of ``probslam._core.GridFastSlam``
+    ``method="rbpf"``: grid-based FastSLAM, ``options`` those of ``probslam.GridFastSlam``
     (num_particles (30), proposal ("scan-matching", "motion" or "improved-odometry"),
     resolution, max_range, max_usable_range, sigma, p_rand, search_radius, odometry_noise,
     resample_threshold, update_distance, update_angle, corrected_start, seed, threads, ...). It
