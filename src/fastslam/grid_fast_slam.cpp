@@ -93,7 +93,7 @@ GridFastSlam::GridFastSlam(const GridFastSlamOptions& options)
   next_stream_ = particles_.size();
 }
 
-double GridFastSlam::check_particle_budget() {
+void GridFastSlam::check_particle_budget() {
   // Rule: bounded sizes. One update may clone, per particle, every tile of the usable-range disc
   // around its pose (rays end inside it) and copy its tile table: refuse a particle count whose
   // first update alone could exceed max_map_bytes, before any map exists.
@@ -111,7 +111,6 @@ double GridFastSlam::check_particle_budget() {
                                                 "than max_map_bytes = " + gib(options_.max_map_bytes) +
                                                 ": lower num_particles (at most " + std::to_string(static_cast<long long>(allowed)) +
                                                 " here) or max_usable_range / max_range, or raise resolution or max_map_bytes");
-  return per_particle;
 }
 
 GridFastSlam::~GridFastSlam() = default;

@@ -191,7 +191,7 @@ class GridFastSlam {
   void start_stretch(const Eigen::Vector3d& source, const Eigen::Vector3d& raw, int step);
   void normalise_and_resample();
   /// Refuses a num_particles whose first update could exceed max_map_bytes; sets footprint_bytes_.
-  double check_particle_budget();
+  void check_particle_budget();
 
   GridFastSlamOptions options_;
   EndpointLikelihood likelihood_;
