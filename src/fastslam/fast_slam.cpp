@@ -182,6 +182,32 @@ struct FastSlam::Context {
     return lm;
   }
 
+  /// Moves the path poses of the motions since the last update so that the newest becomes x:
+  /// pose i of n shifted by i / n of (x - the newest), the correction spread along the stretch
+  /// the proposal conditioned on (a linear bridge) instead of a jump at its end.
+  void bridge_path(FastSlamParticle& part, const Eigen::Vector3d& x) const {
+    const std::size_t n = static_cast<std::size_t>(std::max(1, part.moves_since_update));
+    const std::vector<Eigen::Vector3d> moved = part.path.newest(n);
+    if (moved.empty() || moved.back() == x) return;
+    Eigen::Vector3d shift = x - moved.back();
+    shift[2] = wrap_angle(shift[2]);
+    for (std::size_t i = 0; i < moved.size(); ++i) part.path.pop();
+    for (std::size_t i = 0; i + 1 < moved.size(); ++i) {
+      Eigen::Vector3d y = moved[i] + shift * (static_cast<double>(i + 1) / static_cast<double>(moved.size()));
+      y[2] = wrap_angle(y[2]);
+      part.path.push(y);
+    }
+    part.path.push(x);
+  }
+
+  /// An update ends the motion since the last one: version 2's path is bridged to the pose (the
+  /// proposal's sample, or the motion sample where no measurement entered the proposal).
+  void end_motion(FastSlamParticle& part) const {
+    if (o.version == 2 && part.has_prior && o.record_path) bridge_path(part, part.pose);
+    part.has_prior = false;
+    part.moves_since_update = 0;
+  }
+
   /// Samples the pose from N(mu, p) when a proposal step changed the prior; the path's newest
   /// entry (this step's motion sample) is replaced by it.
   void take_proposal_sample(FastSlamParticle& part, const Eigen::Vector3d& mu, const Eigen::Matrix3d& p) const {
@@ -190,8 +216,8 @@ struct FastSlam::Context {
     Eigen::Vector3d x = mu + l * n;
     x[2] = wrap_angle(x[2]);
     require(on_map(x), "z", "moves the pose beyond 1e9 m (kMaxCoordinate)");
+    if (o.record_path) bridge_path(part, x);
     part.pose = x;
-    if (o.record_path) part.path.replace_last(x);
   }
 
   /// With a bearing offset model: samples the particle's offset for this scan from its
@@ -281,7 +307,7 @@ struct FastSlam::Context {
         ll += log_p_new;
       }
     }
-    part.has_prior = false;
+    end_motion(part);
     add_log_likelihood(part, ll);
   }
 
@@ -389,7 +415,7 @@ struct FastSlam::Context {
         }
       }
     }
-    if (k > 0) part.has_prior = false;
+    if (k > 0) end_motion(part);
     add_log_likelihood(part, ll);
   }
 };
@@ -586,17 +612,23 @@ void FastSlam::move_particles(Sample&& sample) {
       FastSlamParticle& p = particles_[i];
       Motion next;
       ParticleRng rng = p.rng;
-      sample(p.pose, rng, next);
+      // Version 2: the motion prior composes from the last update's pose (has_prior: no update
+      // since), so the proposal covers every motion between two updates.
+      const Motion prior{p.pose, p.prior_mean, p.prior_cov};
+      sample(p.pose, rng, next, o_.version == 2 && p.has_prior ? &prior : nullptr);
       Move& kept = moves_[i];
-      kept = Move{Motion{p.pose, p.prior_mean, p.prior_cov}, p.rng, p.has_prior, stamp};
+      kept = Move{Motion{p.pose, p.prior_mean, p.prior_cov}, p.rng, p.has_prior, p.moves_since_update, stamp};
       p.rng = rng;
       p.pose = next.pose;
       if (o_.version == 2) {
         p.prior_mean = next.prior_mean;
         p.prior_cov = next.prior_cov;
+        p.moves_since_update = p.has_prior ? p.moves_since_update + 1 : 1;
         p.has_prior = true;
       }
-      if (o_.record_path) p.path.push(next.pose);
+      // Version 2's path holds the motion prior's mean: an update draws the pose and bridges the
+      // poses since the last one to it (bridge_path), so they carry no noise of their own.
+      if (o_.record_path) p.path.push(o_.version == 2 ? next.prior_mean : next.pose);
     });
   } catch (...) {
     for (std::size_t i = 0; i < particles_.size(); ++i) {
@@ -608,6 +640,7 @@ void FastSlam::move_particles(Sample&& sample) {
       p.prior_cov = kept.before.prior_cov;
       p.rng = kept.rng;
       p.has_prior = kept.has_prior;
+      p.moves_since_update = kept.moves_since_update;
       if (o_.record_path) p.path.pop();
     }
     throw;
@@ -621,7 +654,7 @@ void FastSlam::predict(double v, double w, double dt) {
   require(std::fabs(v * dt) <= kMaxCoordinate, "v", "* dt must be <= 1e9 m (kMaxCoordinate)");
   const Eigen::Matrix3d r = control_noise_ ? Eigen::Matrix3d::Zero() : Eigen::Matrix3d(o_.motion_noise);
   const Eigen::Matrix2d mc = control_noise_ ? Eigen::Matrix2d(o_.motion_noise) : Eigen::Matrix2d::Zero();
-  move_particles([&](const Eigen::Vector3d& x, ParticleRng& rng, Motion& mv) {
+  move_particles([&](const Eigen::Vector3d& x, ParticleRng& rng, Motion& mv, const Motion* since) {
     if (control_noise_) {
       const Eigen::Vector2d e = control_factor_ * Eigen::Vector2d(rng.normal(), rng.normal());
       mv.pose = velocity_motion(x, v + e[0], w + e[1], dt);
@@ -632,12 +665,17 @@ void FastSlam::predict(double v, double w, double dt) {
     }
     require(on_map(mv.pose), "v", "moves the robot beyond 1e9 m (kMaxCoordinate)");
     if (o_.version == 2) {
-      mv.prior_mean = velocity_motion(x, v, w, dt);
+      const Eigen::Vector3d& from = since ? since->prior_mean : x;
+      mv.prior_mean = velocity_motion(from, v, w, dt);
       if (control_noise_) {
-        const Eigen::Matrix<double, 3, 2> vj = velocity_motion_control_jacobian(x, v, w, dt);
+        const Eigen::Matrix<double, 3, 2> vj = velocity_motion_control_jacobian(from, v, w, dt);
         mv.prior_cov = symmetric<3>(vj * mc * vj.transpose());
       } else {
         mv.prior_cov = r;
+      }
+      if (since) {
+        const Eigen::Matrix3d g = velocity_motion_jacobian(from, v, w, dt);
+        mv.prior_cov = symmetric<3>(g * since->prior_cov * g.transpose() + mv.prior_cov);
       }
     }
   });
@@ -650,18 +688,27 @@ void FastSlam::predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matri
   require_covariance(noise, "noise", true);
   const Eigen::Matrix3d cov = symmetric<3>(noise);
   const Eigen::Matrix3d l = psd_factor<3>(cov);
-  move_particles([&](const Eigen::Vector3d& x, ParticleRng& rng, Motion& mv) {
+  move_particles([&](const Eigen::Vector3d& x, ParticleRng& rng, Motion& mv, const Motion* since) {
     const Eigen::Matrix2d rx = rotation_matrix(x[2]);
     const Eigen::Vector3d d = delta + l * Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal());
     mv.pose.head<2>() = x.head<2>() + rx * d.head<2>();
     mv.pose[2] = wrap_angle(x[2] + d[2]);
     require(on_map(mv.pose), "delta", "moves the robot beyond 1e9 m (kMaxCoordinate)");
     if (o_.version == 2) {
-      mv.prior_mean.head<2>() = x.head<2>() + rx * delta.head<2>();
-      mv.prior_mean[2] = wrap_angle(x[2] + delta[2]);
-      Eigen::Matrix3d j = Eigen::Matrix3d::Identity();  // d(x (+) delta) / d delta
-      j.topLeftCorner<2, 2>() = rx;
+      const Eigen::Vector3d& from = since ? since->prior_mean : x;
+      const Eigen::Matrix2d rf = rotation_matrix(from[2]);
+      const Eigen::Vector2d step = rf * delta.head<2>();
+      mv.prior_mean.head<2>() = from.head<2>() + step;
+      mv.prior_mean[2] = wrap_angle(from[2] + delta[2]);
+      Eigen::Matrix3d j = Eigen::Matrix3d::Identity();  // d(from (+) delta) / d delta
+      j.topLeftCorner<2, 2>() = rf;
       mv.prior_cov = symmetric<3>(j * cov * j.transpose());
+      if (since) {
+        Eigen::Matrix3d g = Eigen::Matrix3d::Identity();  // d(from (+) delta) / d from
+        g(0, 2) = -step[1];
+        g(1, 2) = step[0];
+        mv.prior_cov = symmetric<3>(g * since->prior_cov * g.transpose() + mv.prior_cov);
+      }
     }
   });
 }

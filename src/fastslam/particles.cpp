@@ -1,3 +1,4 @@
+#include <algorithm>
 #include "probslam/fastslam/particles.hpp"
 
 #include "probslam/core/check.hpp"
@@ -61,6 +62,16 @@ Poses2 PosePath::poses() const {
   int used = used_;
   for (const Chunk* c = head_.get(); c; used = c->prev_used, c = c->prev.get())
     for (int i = used - 1; i >= 0; --i) out.row(--row) = c->poses[i].transpose();
+  return out;
+}
+
+std::vector<Eigen::Vector3d> PosePath::newest(std::size_t n) const {
+  std::vector<Eigen::Vector3d> out;
+  out.reserve(std::min(n, size()));
+  int used = used_;
+  for (const Chunk* c = head_.get(); c && out.size() < n; used = c->prev_used, c = c->prev.get())
+    for (int i = used - 1; i >= 0 && out.size() < n; --i) out.push_back(c->poses[i]);
+  std::reverse(out.begin(), out.end());
   return out;
 }
 

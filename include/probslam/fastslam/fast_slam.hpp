@@ -40,7 +40,11 @@ struct FastSlamOptions {
 
   int num_particles = kDefaultParticles;
   /// 1: FastSLAM 1.0 (poses sampled from the motion model); 2: FastSLAM 2.0 (from the proposal
-  /// that includes the scan's measurements).
+  /// that includes the scan's measurements). Version 2's proposal covers every motion since the
+  /// last update (their means composed from that update's pose, the covariance propagated
+  /// through each), and its path between updates is that chain of means bridged to the pose the
+  /// update draws: with many odometry rows per scan (MRCLAM: ~25) a proposal over the last
+  /// motion alone leaves the noise of the others to the weights.
   int version = 1;
   /// 3x3 pose-space covariance R of (x, y, theta), or 2x2 control-space covariance M of (v, w);
   /// symmetric positive semi-definite (zero is allowed: a noise-free motion).
@@ -109,6 +113,7 @@ struct FastSlamParticle {
   ParticleRng rng;
   long next_id = 0;  // unknown correspondences: the next new landmark's id
   bool has_prior = false;
+  int moves_since_update = 0;  // version 2: motions since the last update (path poses the proposal moves)
   Eigen::Vector3d prior_mean = Eigen::Vector3d::Zero();
   Eigen::Matrix3d prior_cov = Eigen::Matrix3d::Zero();
   double bearing_offset = 0.0;  // rad; see FastSlamOptions::bearing_offset_sigma
@@ -197,7 +202,8 @@ class FastSlam {
 
   /// Samples every particle's pose from the velocity motion model for dt seconds (pose-space
   /// noise added to g(x, u); control-space noise added to (v, w)). Version 2 also keeps the
-  /// linearised prior N(g(x, u), R_t) (R_t = V M V^T for control noise) for the next update.
+  /// linearised prior for the next update: N(g(x, u), R_t) (R_t = V M V^T for control noise)
+  /// after an update, composed with the previous prior (G P G^T + R_t) when no update came since.
   void predict(double v, double w, double dt);
   /// Odometry as a relative pose: x <- x (+) (delta + e), e ~ N(0, noise) in the robot frame.
   void predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matrix3d& noise);
@@ -255,6 +261,7 @@ class FastSlam {
     Motion before;
     ParticleRng rng;
     bool has_prior = false;
+    int moves_since_update = 0;
     std::uint64_t stamp = 0;
   };
   /// Moves every particle by sample(pose, rng, motion), which fills `motion` drawing from rng

@@ -92,6 +92,8 @@ class PosePath {
     used_ = head_->prev_used;
     head_ = NodeRef<Chunk>(head_->prev);
   }
+  /// The newest n poses (at most size()), oldest first.
+  std::vector<Eigen::Vector3d> newest(std::size_t n) const;
   /// Replaces the newest pose.
   void replace_last(const Eigen::Vector3d& pose) {
     pop();
