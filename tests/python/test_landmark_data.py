@@ -535,7 +535,8 @@ def test_load_landmark_dataset_says_what_a_path_is(tmp_path):
     short = ps.datasets.load_landmark_dataset(ps.data.path("mrclam7_robot1_120s"), seconds=30.0, raw_ranges=True)
     assert short.odometry[-1, 0] - short.odometry[0, 0] <= 30.0
     raw = ps.io.read_mrclam(ps.data.path("mrclam7_robot1_120s"))
-    np.testing.assert_array_equal(short.measurements, raw.measurements[raw.measurements[:, 0] <= short.odometry[0, 0] + 30])
+    within = raw.measurements[raw.measurements[:, 0] <= short.odometry[0, 0] + 30]
+    np.testing.assert_array_equal(short.measurements, within)
 
 
 def _hand_run(truth, ids, landmarks):

@@ -395,8 +395,8 @@ def dead_reckoning_map(data: Mrclam, initial_pose=(0.0, 0.0, 0.0)) -> Dict[int, 
     return {s: np.mean(p, axis=0) for s, p in placed.items()}
 
 
-__all__ = ["COMMAND_PERIOD", "MEASUREMENT_NOISE", "MEASUREMENT_SIGMA", "MHT_DETECTION_PROBABILITY", "MHT_NEW_LANDMARK_COST",
-           "MOTION_NOISE", "MOTION_SIGMA",
+__all__ = ["COMMAND_PERIOD", "MEASUREMENT_NOISE", "MEASUREMENT_SIGMA", "MHT_DETECTION_PROBABILITY",
+           "MHT_NEW_LANDMARK_COST", "MOTION_NOISE", "MOTION_SIGMA",
            "OUTLIER_PROBABILITY", "PERCEPTUAL_FIELD_QUANTILE", "ROBOTS", "SURVEY_RESIDUAL_LIMIT", "dead_reckoning",
            "dead_reckoning_map", "first_seconds", "fit_range_scale", "load", "perceptual_field", "run_ekf",
            "run_fastslam", "same_scan_residuals", "scans", "start_pose", "survey_label_swaps"]
