@@ -16,7 +16,7 @@ from typing import Iterator, List, Optional
 from . import __version__, io
 from . import eval as evaluation
 from .data import path as _data_path
-from .datasets import carmen, load_landmark_dataset, mrclam, run_landmark_slam
+from .datasets import carmen, landmark_dataset_kind, load_landmark_dataset, mrclam, run_landmark_slam
 from .mapping import map_laser_log
 
 BUNDLED_LOG = "intel_excerpt.log.gz"
@@ -245,15 +245,16 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
 
     _check_landmark_options(args)
     _require_length(args.bearing_offset, "--bearing-offset", zero=True, what="angle (rad)")
-    mht = args.unknown and args.association == "mht"
-    if args.bearing_offset and not mht:
-        raise UserError("--bearing-offset needs --unknown --association mht")
     _check_output(args.output)
     t0 = time.perf_counter()
-    path, data = _landmark_data(args)
-    is_mrclam = isinstance(data, io.Mrclam)
-    if args.bearing_offset and not is_mrclam:
+    path, kind = _landmark_path(args)
+    mht = args.unknown and args.association == "mht"
+    if args.bearing_offset and kind != "mrclam":
         raise UserError("--bearing-offset applies to MRCLAM folders (with --unknown --association mht)")
+    if args.bearing_offset and not mht:
+        raise UserError("--bearing-offset needs --unknown --association mht")
+    data = _landmark_data(args, path)
+    is_mrclam = kind == "mrclam"
     hypotheses = dict(bearing_offset_sigma=args.bearing_offset) if args.bearing_offset else None
     # Victoria Park: the EKF takes the file's correspondences, with or without --unknown.
     run = run_landmark_slam(data, "mht" if mht else "ekf", known=not (args.unknown and is_mrclam),
@@ -290,7 +291,8 @@ def _cmd_fastslam(args: argparse.Namespace) -> int:
     _check_landmark_options(args)
     _check_output(args.output)
     t0 = time.perf_counter()
-    path, data = _landmark_data(args)
+    path, _ = _landmark_path(args)
+    data = _landmark_data(args, path)
     run = run_landmark_slam(data, "fastslam", known=not args.unknown, num_particles=args.particles,
                             version=args.variant, seed=args.seed, threads=args.threads, **_landmark_noise(args, data))
     correspondences = "unknown" if args.unknown else "known"
@@ -313,21 +315,27 @@ def _cmd_fastslam(args: argparse.Namespace) -> int:
     return _landmark_outputs(args, run, draw, t0)
 
 
-def _landmark_data(args: argparse.Namespace):
-    """(path, data) of the ekf-slam / fastslam dataset argument (default: the bundled MRCLAM
-    excerpt), read with the --robot, --seconds and --raw-ranges options (MRCLAM only); the rows
-    the reader skipped are printed. UserError for a missing or empty file, a folder that is not
-    MRCLAM, or data with nothing to run."""
+def _landmark_path(args: argparse.Namespace):
+    """(path, kind) of the ekf-slam / fastslam dataset argument (default: the bundled MRCLAM
+    excerpt): "mrclam" or "victoria_park". UserError for a missing or empty file or a folder that
+    is not MRCLAM."""
     path = args.dataset or _data_path(BUNDLED_LANDMARKS)
     _check_input(path, LANDMARK_DATASET, folder=True)
     path = pathlib.Path(path)
+    with _reading(str(path), LANDMARK_DATASET):
+        return path, landmark_dataset_kind(path)
+
+
+def _landmark_data(args: argparse.Namespace, path: pathlib.Path):
+    """The dataset at ``path`` read with the --robot, --seconds and --raw-ranges options (MRCLAM
+    only); the rows the reader skipped are printed. UserError for data with nothing to run."""
     with _reading(str(path), LANDMARK_DATASET):
         data = load_landmark_dataset(path, robot=args.robot, seconds=args.seconds, raw_ranges=args.raw_ranges)
     if isinstance(data, io.Mrclam):
         _print_skipped(data.skipped_rows)
     else:
         _print_skipped({"unreadable records": data.skipped_rows} if data.skipped_rows else {})
-    return path, data
+    return data
 
 
 def _landmark_noise(args: argparse.Namespace, data) -> dict:

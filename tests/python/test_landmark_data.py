@@ -521,6 +521,8 @@ def test_run_landmark_slam_refuses_what_it_cannot_run():
 
 
 def test_load_landmark_dataset_says_what_a_path_is(tmp_path):
+    assert ps.datasets.landmark_dataset_kind(ps.data.path("mrclam7_robot1_120s")) == "mrclam"
+    assert ps.datasets.landmark_dataset_kind(ps.data.path("victoria_park_1000.txt")) == "victoria_park"
     assert isinstance(_bundled_mrclam(), ps.io.Mrclam)
     assert isinstance(ps.datasets.load_landmark_dataset(ps.data.path("victoria_park_1000.txt")), ps.io.VictoriaPark)
     (tmp_path / "folder").mkdir()

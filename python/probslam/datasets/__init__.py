@@ -30,25 +30,35 @@ PathLike = Union[str, "os.PathLike[str]"]
 EKF_ASSOCIATIONS = ("jcbb", "ml")
 
 
-def load_landmark_dataset(path: PathLike, *, robot: int = 1, seconds: Optional[float] = None,
-                          raw_ranges: bool = False) -> Union[Mrclam, VictoriaPark]:
-    """The landmark dataset at ``path``, read and checked: a folder is UTIAS MRCLAM (it must hold
-    Barcodes.dat; robot ``robot``, its first ``seconds`` (None: all), readings as distances
-    unless ``raw_ranges``: ``mrclam.load``), a file Victoria Park in iSAM / GTSAM text
-    (``victoria_park.load``; ``robot``, ``seconds`` and ``raw_ranges`` are MRCLAM's only).
-
-    Errors: a missing path raises ``FileNotFoundError``; a folder without Barcodes.dat, an empty
-    file, a file that is neither, and data with nothing to run (no odometry, no sighting) raise
-    ``ValueError`` naming the path."""
+def landmark_dataset_kind(path: PathLike) -> str:
+    """What the path holds, judged before reading it: "mrclam" for a folder (it must hold
+    Barcodes.dat), "victoria_park" for a file (not empty). A missing path raises
+    ``FileNotFoundError``, a folder without Barcodes.dat or an empty file ``ValueError`` naming
+    the path."""
     path = pathlib.Path(file_path(path))
     if not path.exists():
         raise FileNotFoundError(f"path: no such file or folder: {str(path)!r}")
     if path.is_dir():
         if not (path / "Barcodes.dat").exists():
             raise ValueError(f"{path}: a folder without Barcodes.dat")
-        return mrclam.load(path, robot, seconds, raw_ranges)
+        return "mrclam"
     if path.is_file() and path.stat().st_size == 0:
         raise ValueError(f"{path}: empty file")
+    return "victoria_park"
+
+
+def load_landmark_dataset(path: PathLike, *, robot: int = 1, seconds: Optional[float] = None,
+                          raw_ranges: bool = False) -> Union[Mrclam, VictoriaPark]:
+    """The landmark dataset at ``path`` (``landmark_dataset_kind``), read and checked: UTIAS
+    MRCLAM's robot ``robot``, its first ``seconds`` (None: all), readings as distances unless
+    ``raw_ranges`` (``mrclam.load``), or Victoria Park in iSAM / GTSAM text
+    (``victoria_park.load``; ``robot``, ``seconds`` and ``raw_ranges`` are MRCLAM's only).
+
+    Errors: those of ``landmark_dataset_kind``, the readers' (``FileNotFoundError`` for a
+    missing file, ``ValueError`` naming the file and line), and ``ValueError`` naming the path
+    for data with nothing to run (no odometry, no sighting)."""
+    if landmark_dataset_kind(path) == "mrclam":
+        return mrclam.load(path, robot, seconds, raw_ranges)
     return victoria_park.load(path)
 
 
@@ -113,5 +123,5 @@ def run_landmark_slam(dataset: Union[Mrclam, VictoriaPark, PathLike], method: st
     return victoria_park.run_ekf(dataset, measurement_noise, dead_reckoning=method == "dead-reckoning")
 
 
-__all__ = ["Associations", "EKF_ASSOCIATIONS", "LandmarkSlamResult", "carmen", "load_landmark_dataset", "mrclam",
-           "run_landmark_slam", "victoria_park"]
+__all__ = ["Associations", "EKF_ASSOCIATIONS", "LandmarkSlamResult", "carmen", "landmark_dataset_kind",
+           "load_landmark_dataset", "mrclam", "run_landmark_slam", "victoria_park"]
