@@ -36,9 +36,9 @@ import numpy as np
 import probslam as ps
 from common import machine, report
 from probslam import _core
-from probslam import fastslam as fs
 from probslam import graph as pg
 from probslam import landmark_slam as ls
+from probslam.datasets import victoria_park
 
 HERE = pathlib.Path(__file__).resolve().parent
 SHARED = pathlib.Path(os.environ.get("PROBSLAM_SHARED_DATA", HERE.parents[1] / "shared" / "data"))
@@ -258,7 +258,7 @@ class VictoriaPark:
         self.chain = np.r_[data.pose_from[0], data.pose_to][:poses]
         self.delta, self.delta_cov = data.delta[:len(self.chain) - 1], data.delta_cov[:len(self.chain) - 1]
         z, z_cov = ls.polar_measurements(data.xy, data.xy_cov)
-        q = np.median(z_cov, axis=0)  # as bench_victoria_park / landmark_slam.run_ekf_victoria_park
+        q = np.median(z_cov, axis=0)  # as bench_victoria_park / datasets.victoria_park.run_ekf
         self.q = 0.5 * (q + q.T)
         position = {int(p): k for k, p in enumerate(self.chain)}
         at = np.array([position.get(int(p), -1) for p in data.pose])
@@ -278,9 +278,9 @@ class VictoriaPark:
 
 def run_victoria_cpp(vp, known, threads=1):
     """Hidden associations: the odometry noise inflated as `probslam fastslam` does
-    (fs.VICTORIA_PARK_ODOMETRY_NOISE_SCALE), which lets the particles close the park's loops."""
+    (victoria_park.ODOMETRY_NOISE_SCALE), which lets the particles close the park's loops."""
     f = ps.FastSlam(PARTICLES, np.eye(3) * 1e-6, vp.q, version=1, seed=11, threads=threads)
-    inflate = 1.0 if known else fs.VICTORIA_PARK_ODOMETRY_NOISE_SCALE ** 2
+    inflate = 1.0 if known else victoria_park.ODOMETRY_NOISE_SCALE ** 2
     for _, odometry, rows in vp.scans():
         if odometry is not None:
             f.predict_odometry(odometry[0], odometry[1] * inflate)
@@ -462,7 +462,7 @@ def table_victoria_park(vp):
                     "vectorised over the particles (arrays (M, L, 2) and (M, L, 2, 2)); its own random numbers, so "
                     "its run differs from the C++ one by sampling only. Hidden: `update_unknown` with the default "
                     "options (maximum likelihood against p_new = 0.01, 2 m association radius, no negative "
-                    f"information) and the odometry covariances times {fs.VICTORIA_PARK_ODOMETRY_NOISE_SCALE:g}^2 "
+                    f"information) and the odometry covariances times {victoria_park.ODOMETRY_NOISE_SCALE:g}^2 "
                     "(VICTORIA_PARK_ODOMETRY_NOISE_SCALE, as `probslam fastslam`); the dataset has 151 landmarks. GraphSLAM optimum: EKF start and Gauss-Newton "
                     "(chi2 6184.12), the same file; the filters' best-particle paths and the EKF's filtered poses "
                     "are compared with it, position only, no alignment (all start at the first pose).", ""]

@@ -61,8 +61,7 @@ def main():
     truth = office_map(grid)
     model = ps.BeamSensorModel("sonar", MAX_RANGE, beta=BETA, z_hit=0.8, z_short=0.1, z_max=0.05, z_rand=0.05,
                                sigma_hit=0.05, lambda_short=0.5)
-    angles = np.arange(sonars) * 2 * np.pi / sonars
-    angles = np.where(angles > np.pi, angles - 2 * np.pi, angles)
+    angles = ps.wrap_angle(np.arange(sonars) * 2 * np.pi / sonars)
     poses = free_poses(truth, n_poses, rng)
     truth_map = ps.BinaryMap2D(grid, truth)
     scans = np.stack([model.sample(p, angles, truth_map, rng) for p in poses])

@@ -23,14 +23,14 @@ import time
 import numpy as np
 
 import probslam as ps
-from probslam import fastslam as fs
-from probslam import landmark_slam as ls
+from probslam import eval as ev
+from probslam.datasets import mrclam
 from common import heading, report
 
 DATA = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data" / "landmark_slam"
-# The CLI's MRCLAM defaults (`probslam ekf-slam --help`): control noise per 10 ms command, sensor noise.
-MOTION = np.diag([0.15 ** 2, 0.6 ** 2])
-SENSOR = np.diag([0.15 ** 2, 0.04 ** 2])
+# The library's (and the CLI's) MRCLAM defaults: control noise per 10 ms command, sensor noise.
+MOTION = mrclam.MOTION_NOISE
+SENSOR = mrclam.MEASUREMENT_NOISE
 SURVEYED = 15
 METHODS = ("jcbb", "mht", "fastslam1", "fastslam2")
 # Barcodes as correspondences, for reference (`--methods ekf-known fastslam1-known ...`).
@@ -41,7 +41,8 @@ KNOWN_METHODS = ("ekf-known", "fastslam1-known", "fastslam2-known")
 # sensor noise then the part not shared (0.05 m, 0.01 rad), p_new 0.1.
 OFFSET_METHODS = ("fastslam1-offset", "fastslam2-offset")
 OFFSET_SENSOR = np.diag([0.05 ** 2, 0.01 ** 2])
-OFFSET_OPTIONS = dict(bearing_offset_sigma=0.025, bearing_offset_correlation=0.84, p_new=0.1)
+OFFSET_OPTIONS = dict(bearing_offset_sigma=0.025, bearing_offset_correlation=0.84)
+OFFSET_P_NEW = 0.1
 # The multiple-hypothesis EKF with the scan's bearing offset in each filter (`--methods mht-offset`):
 # the CLI's MHT costs, 0.03 rad of the bearing noise moved into an offset drawn afresh per scan
 # (the best of the sweep in docs/landmark_fastslam.md; rho 0.84 made duplicates on Dataset 1).
@@ -50,42 +51,37 @@ MHT_OFFSET_OPTIONS = dict(bearing_offset_sigma=0.03, bearing_offset_correlation=
 
 
 def load(dataset: int, robot: int, seconds):
-    data = ps.io.read_mrclam(DATA / f"mrclam_dataset{dataset}", robot=robot)
-    if seconds is not None:
-        data = ls.first_seconds(data, seconds)
-    return data.with_euclidean_ranges()
+    return mrclam.load(DATA / f"mrclam_dataset{dataset}", robot, seconds)
 
 
 def run_one(job):
     dataset, robot, method, seconds, particles, seed, existence_miss = job
-    fastslam = dict(num_particles=particles, seed=seed)
-    if existence_miss is not None:
-        fastslam["existence_miss"] = existence_miss
+    options = {} if existence_miss is None else {"existence_miss": existence_miss}
+    fastslam = dict(num_particles=particles, seed=seed, filter_options=options)
     data = load(dataset, robot, seconds)
     t0 = time.perf_counter()
     known = method.endswith("-known")
     if method == "ekf-known":
-        run = ls.run_ekf_mrclam(data, MOTION, SENSOR, known=True)
-        correct, labels = 1.0, None
-    elif method in ("jcbb", "mht"):
-        run = ls.run_ekf_mrclam(data, MOTION, SENSOR, known=False, association=method)
-        correct, labels = ls.association_accuracy(run), ls.majority_labels(run)
-    elif method == "mht-offset":
-        run = ls.run_ekf_mrclam(data, MOTION, MHT_OFFSET_SENSOR, known=False, association="mht",
-                                hypotheses=MHT_OFFSET_OPTIONS)
-        correct, labels = ls.association_accuracy(run), ls.majority_labels(run)
+        run = ps.run_landmark_slam(data, "ekf", motion_noise=MOTION, measurement_noise=SENSOR)
+    elif method == "jcbb":
+        run = ps.run_landmark_slam(data, "ekf", known=False, motion_noise=MOTION, measurement_noise=SENSOR)
+    elif method in ("mht", "mht-offset"):
+        offset = method == "mht-offset"
+        run = ps.run_landmark_slam(data, "mht", known=False, motion_noise=MOTION,
+                                   measurement_noise=MHT_OFFSET_SENSOR if offset else SENSOR,
+                                   hypotheses=MHT_OFFSET_OPTIONS if offset else None)
     elif method in OFFSET_METHODS:
-        run = fs.run_fastslam_mrclam(data, MOTION, OFFSET_SENSOR, known=False,
-                                     version=int(method.split("-")[0][-1]), **fastslam, **OFFSET_OPTIONS)
-        correct, labels = fs.association_accuracy(run), fs.majority_labels(run)
+        fastslam["filter_options"] = {**options, **OFFSET_OPTIONS}
+        run = ps.run_landmark_slam(data, "fastslam", known=False, motion_noise=MOTION, measurement_noise=OFFSET_SENSOR,
+                                   version=int(method.split("-")[0][-1]), p_new=OFFSET_P_NEW, **fastslam)
     else:
-        run = fs.run_fastslam_mrclam(data, MOTION, SENSOR, known=known, version=int(method.split("-")[0][-1]),
-                                     **fastslam)
-        correct, labels = (1.0, None) if known else (fs.association_accuracy(run), fs.majority_labels(run))
+        run = ps.run_landmark_slam(data, "fastslam", known=known, motion_noise=MOTION, measurement_noise=SENSOR,
+                                   version=int(method.split("-")[0][-1]), **fastslam)
+    correct, labels = (1.0, None) if known else (ev.association_accuracy(run), ev.majority_labels(run))
     seconds_taken = time.perf_counter() - t0
-    fixed = data.with_survey_swapped(ls.survey_label_swaps(data))
+    fixed = data.with_survey_swapped(mrclam.survey_label_swaps(data))
     try:
-        rmse = ls.score_landmarks(run.landmarks, fixed, labels).rmse_aligned
+        rmse = ev.score_landmarks(run.landmarks, fixed, labels).rmse_aligned
     except ValueError:
         rmse = float("nan")
     return dict(dataset=dataset, robot=robot, method=method, correct=correct, landmarks=len(run.landmarks),

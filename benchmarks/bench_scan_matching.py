@@ -133,7 +133,7 @@ def numpy_brute_force(field, points, prior, linear_cells, angular_steps, step):
 def lattice_of(result, prior, res, A):
     """(a, cx, cy) of a MatchResult's search_pose on the lattice around prior."""
     sp = np.asarray(result.search_pose)
-    dth = (sp[2] - prior[2] + np.pi) % (2 * np.pi) - np.pi
+    dth = ps.wrap_angle(sp[2] - prior[2])
     return (int(round(dth / result.angular_step)) + A, int(round((sp[0] - prior[0]) / res)),
             int(round((sp[1] - prior[1]) / res)))
 

@@ -115,21 +115,11 @@ def relations_breakdown(timestamps, poses, rel):
             f"across {mean(across[short]):.3f}); longer ({(~short).sum()}): {mean(e.translational[~short]):.3f} m")
 
 
-def align_2d(src: np.ndarray, dst: np.ndarray):
-    """Rotation angle phi and translation t minimising sum |R(phi) src + t - dst|^2 (Kabsch)."""
-    ms, md = src.mean(axis=0), dst.mean(axis=0)
-    a, b = src - ms, dst - md
-    phi = np.arctan2(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]), np.sum(a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1]))
-    R = np.array([[np.cos(phi), -np.sin(phi)], [np.sin(phi), np.cos(phi)]])
-    return phi, md - R @ ms
-
-
 def agreement(poses: np.ndarray, reference: np.ndarray):
     """Position errors (m) and absolute heading errors (rad) after the best rigid alignment."""
-    phi, t = align_2d(poses[:, :2], reference[:, :2])
-    R = np.array([[np.cos(phi), -np.sin(phi)], [np.sin(phi), np.cos(phi)]])
-    pos = np.linalg.norm(poses[:, :2] @ R.T + t - reference[:, :2], axis=1)
-    head = np.abs(ps.eval.wrap(poses[:, 2] + phi - reference[:, 2]))
+    r, t = ps.eval.align_rigid(poses[:, :2], reference[:, :2])
+    pos = np.linalg.norm(poses[:, :2] @ r.T + t - reference[:, :2], axis=1)
+    head = np.abs(ps.wrap_angle(poses[:, 2] + np.arctan2(r[1, 0], r[0, 0]) - reference[:, 2]))
     return pos, head
 
 

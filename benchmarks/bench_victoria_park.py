@@ -82,7 +82,7 @@ class DenseEkf:
 
 
 def run(filter_, data, z, by_pose):
-    """The loop of landmark_slam.run_ekf_victoria_park, for either filter."""
+    """The loop of datasets.victoria_park.run_ekf, for either filter."""
     rows = by_pose.get(int(data.pose_from[0]))
     if rows is not None:
         filter_.update(z[rows], data.landmark[rows])

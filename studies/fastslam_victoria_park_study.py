@@ -17,15 +17,16 @@ import time
 import numpy as np
 
 import probslam as ps
-from probslam import fastslam as fs
+from probslam import eval as ev
+from probslam.datasets import victoria_park
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "benchmarks"))  # common.py and the benchmarks reused here
 import bench_fastslam as bf
 from common import heading, report
 
-# (label, options of run_fastslam_victoria_park)
+# (label, options of datasets.victoria_park.run_fastslam)
 CONFIGS = [
-    ("v1, scale 3 (driver default)", dict(version=1)),
-    ("v2, scale 3", dict(version=2)),
+    ("v1, scale 3", dict(version=1, odometry_noise_scale=3.0)),
+    ("v2, scale 3", dict(version=2, odometry_noise_scale=3.0)),
     ("v1, scale 5", dict(version=1, odometry_noise_scale=5.0)),
     ("v2, scale 5", dict(version=2, odometry_noise_scale=5.0)),
     ("v1, scale 7", dict(version=1, odometry_noise_scale=7.0)),
@@ -33,7 +34,8 @@ CONFIGS = [
     ("v1, scale 10", dict(version=1, odometry_noise_scale=10.0)),
     ("v2, scale 10", dict(version=2, odometry_noise_scale=10.0)),
     ("v2, scale 5, negative information (20 m, 180 deg)",
-     dict(version=2, odometry_noise_scale=5.0, negative_information=True, sensor_range=20.0, sensor_fov=np.pi)),
+     dict(version=2, odometry_noise_scale=5.0,
+          filter_options=dict(negative_information=True, sensor_range=20.0, sensor_fov=np.pi))),
 ]
 # Known associations, for reference: what the noise scale costs when association is not at stake.
 KNOWN = [("known, v1, scale 3", dict(version=1, odometry_noise_scale=3.0)),
@@ -51,10 +53,10 @@ def run_one(job):
     data, optimum = _cache["data"], _cache["optimum"]
     t0 = time.process_time()
     known = label.startswith("known")
-    run = fs.run_fastslam_victoria_park(data, known=known, seed=seed, **options)
+    run = victoria_park.run_fastslam(data, known=known, seed=seed, **options)
     cpu = time.process_time() - t0
     return dict(label=label, seed=seed, landmarks=len(run.landmarks),
-                correct=1.0 if known else fs.association_accuracy(run),
+                correct=1.0 if known else ev.association_accuracy(run),
                 rmse=bf.path_rmse(run.poses, optimum), cpu=cpu)
 
 
@@ -70,7 +72,7 @@ def main() -> int:
     with concurrent.futures.ProcessPoolExecutor(max_workers=args.jobs) as pool:
         rows = list(pool.map(run_one, jobs))
     lines = heading("Landmark FastSLAM, Victoria Park, hidden associations",
-                    "100 particles, p_new 1e-3 (`probslam.fastslam.run_fastslam_victoria_park`); odometry covariance "
+                    "100 particles, p_new 1e-3 (`probslam.datasets.victoria_park.run_fastslam`); odometry covariance "
                     "times scale^2; per cell the values of seeds " + " / ".join(map(str, args.seeds)) +
                     ". RMSE: best particle's path against the GraphSLAM optimum; correct: sightings whose landmark's "
                     f"majority tree is their own. `{' '.join(sys.argv)}`",

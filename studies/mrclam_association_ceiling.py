@@ -13,16 +13,10 @@ instead of the truth: EKF SLAM with the barcodes as correspondences (the CLI's n
 before each scan, the most likely landmark of its own map for each sighting (NIS + log det S
 over all its landmarks). With --vicon-motion, also the multiple-hypothesis EKF (the CLI's
 costs, with and without the scan's bearing offset) driven by controls taken from the Vicon
-track instead of the odometry: what association gains from a nearly true motion. With
---smoothed, what a batch method (smoothing the whole run, then placing each scan again) can
-reach: the run smoothed with the barcodes as labels, then every scan's sightings placed on the
-smoothed map from the smoothed pose with the offset fitted as above; the same with the lone
-sightings withheld from the smoothing (placed, never smoothed: whether the right labels of lone
-sightings are found from the rest of the run or only held by their own pull on the path); and
-the alternation started from the multiple-hypothesis EKF's labels (with the bearing offset),
-smoothing and re-placing until the labels settle.
+track instead of the odometry: what association gains from a nearly true motion. (What a batch
+smoother reached, the former --smoothed, is recorded in studies/README.md.)
 
-    .venv/bin/python studies/mrclam_association_ceiling.py [DATASET_FOLDER] [--vicon-motion] [--smoothed]
+    .venv/bin/python studies/mrclam_association_ceiling.py [DATASET_FOLDER] [--vicon-motion]
 """
 
 from __future__ import annotations
@@ -34,11 +28,10 @@ import pathlib
 import sys
 
 import numpy as np
-import scipy.sparse as sp
-import scipy.sparse.linalg as spla
 
 import probslam as ps
-from probslam import landmark_slam as ls
+from probslam import eval as ev
+from probslam.datasets import mrclam
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "benchmarks"))  # common.py and the benchmarks reused here
 # The CLI's MRCLAM noise, and the bench's multiple-hypothesis settings with the bearing offset.
 from bench_mrclam_association import MHT_OFFSET_OPTIONS, MHT_OFFSET_SENSOR, MOTION, SENSOR
@@ -73,7 +66,7 @@ def residual_spread(data):
     """Bearing and range errors from the Vicon pose, split into per-scan mean and the rest."""
     rng_error, bearing_error = sighting_errors(data)
     common, within = {"bearing": [], "range": []}, {"bearing": [], "range": []}
-    for rows in ls.scans(data.measurements):
+    for rows in mrclam.scans(data.measurements):
         if rows.stop - rows.start < 2:
             continue
         for name, e in (("bearing", bearing_error[rows]), ("range", rng_error[rows])):
@@ -99,10 +92,7 @@ def fit_scan(points_at, pose, n, landmarks, range_sd, offset_sd):
 
 
 
-def main(folder, vicon_motion=False, smoothed=False) -> None:
-    if smoothed:
-        smoothed_ceiling(folder)
-        return
+def main(folder, vicon_motion=False) -> None:
     print("robot | readings | each alone | scans of 2+, offset fitted | lone, offset borrowed | "
           "all (lone alone) | all (lone borrowing)")
     for robot in range(1, 6):
@@ -135,9 +125,9 @@ def main(folder, vicon_motion=False, smoothed=False) -> None:
         if vicon_motion and data.groundtruth is not None:
             for name, sensor, options in (("multiple hypotheses", SENSOR, {}),
                                           ("with the bearing offset", MHT_OFFSET_SENSOR, MHT_OFFSET_OPTIONS)):
-                run = ls.run_ekf_mrclam(with_vicon_motion(data), VICON_MOTION_NOISE, sensor, known=False,
+                run = mrclam.run_ekf(with_vicon_motion(data), VICON_MOTION_NOISE, sensor, known=False,
                                         association="mht", hypotheses=options)
-                print(f"  Vicon motion, {name}: {ls.association_accuracy(run):.3f} correct, "
+                print(f"  Vicon motion, {name}: {ev.association_accuracy(run):.3f} correct, "
                       f"{len(run.landmarks)} landmarks")
 
 
@@ -198,7 +188,7 @@ def own_map(data):
                 counts[key][0] += int(best == truth)
                 counts[key][1] += 1
 
-    ls.run_ekf_mrclam(data, MOTION, SENSOR, known=True, before_scan=judge)
+    mrclam.run_ekf(data, MOTION, SENSOR, known=True, before_scan=judge)
     return counts["all"][0], counts["all"][1], counts["lone"][0] / max(1, counts["lone"][1])
 
 
@@ -213,7 +203,7 @@ def ceiling(data):
     spread = residual_spread(data)
     counts = {k: [0, 0] for k in ("alone", "lone", "multi, offset fitted", "lone, offset borrowed")}
     fitted = []  # (time, offset) of multi-sighting scans
-    for rows in ls.scans(m):
+    for rows in mrclam.scans(m):
         idx = np.arange(rows.start, rows.stop)
 
         points_at = scan_points(m, idx)
@@ -230,7 +220,7 @@ def ceiling(data):
         counts["multi, offset fitted"][0] += int(np.sum(subjects[combo] == truth))
         counts["multi, offset fitted"][1] += len(idx)
     fitted = np.array(fitted)
-    for rows in ls.scans(m):
+    for rows in mrclam.scans(m):
         if rows.stop - rows.start != 1:
             continue
         t, (_, _, r, phi) = m[rows.start, 0], m[rows.start]
@@ -247,225 +237,9 @@ def ceiling(data):
             "all, lone borrowing": [multi[0] + counts["lone, offset borrowed"][0], multi[1] + counts["lone"][1]]}
 
 
-# ---- --smoothed: batch smoothing and re-association -------------------------------------------
-
-#: Per-second variances of the velocity noise (m^2/s, rad^2/s): the CLI's MOTION per 10 ms
-#: command, as run_ekf_mrclam applies it.
-VELOCITY_NOISE_RATE = np.diag(MOTION) * 0.01
-#: Cauchy scale (whitened units) of a sighting's residual in the smoother: a sighting given the
-#: wrong label must not bend the path.
-SIGHTING_ROBUST_SCALE = 2.0
-#: Spreads of the re-association (fit_scan): position of a sighting within its scan (m; the
-#: within-scan range spread measured above is 0.019 m) and the scan's bearing offset (rad; the
-#: bench's offset sigma). Fixed, not measured from Vicon, as a method would have to.
-PLACE_SD, OFFSET_SD = 0.02, 0.03
-#: The smoother's sighting noise (m, rad): the camera's within-scan spread (range 0.02-0.035 m,
-#: bearing 0.004-0.005 rad on robots 1-4 against Vicon, printed above), the scan's common bearing
-#: error being the offset b.
-SMOOTHER_SENSOR_SD = (0.03, 0.005)
-#: Rounds of smoothing and re-association (on Dataset 7 under 0.5% of the labels still change in
-#: the 6th; Dataset 1's robots 1-4 settle within 4).
-ROUNDS = 6
-#: Levenberg-Marquardt iterations of one smoothing, and the relative change of the cost that ends it.
-SMOOTH_ITERATIONS, SMOOTH_TOLERANCE = 60, 1e-9
-#: Weight (1/m, 1/rad) holding the first pose at the start: the gauge, far stiffer than any factor.
-ANCHOR_WEIGHT = 1e3
-#: Shortest gap between scans (s) and variance floors (m^2, rad^2) of the odometry factor: scans
-#: stamped together, and a standstill, must still give an invertible covariance.
-MIN_GAP, MIN_POSITION_VAR, MIN_HEADING_VAR = 1e-3, 1e-8, 1e-10
-
-
-class Smoother:
-    """The run as a least-squares problem over the scan states (x, y, theta, b: the pose and the
-    scan's bearing offset) and the labelled landmarks: odometry between consecutive scans (dead
-    reckoning's relative pose, covariance of a white velocity noise over the gap: along track
-    qv T, heading qw T, across d^2 qw T / 3 and its covariance with the heading d qw T / 2),
-    every labelled sighting (noise sd `sensor_sd` (m, rad), Cauchy-weighted, its bearing turned
-    by b) and b's prior N(0, offset_sd^2); the first pose held at the start."""
-
-    def __init__(self, data, times, scan_of, start, sensor_sd, offset_sd):
-        odo = data.odometry
-        dead = ps.eval.interpolate_poses(odo[:, 0], ls.dead_reckoning(odo, start), times)
-        self.start, self.scan_of, self.z = dead[0], scan_of, data.measurements[:, 2:4]
-        self.odometry = ps.eval.relative_poses(dead[:-1], dead[1:])
-        gap, d = np.maximum(np.diff(times), MIN_GAP), np.abs(self.odometry[:, 0])
-        qv, qw = VELOCITY_NOISE_RATE
-        cov = np.zeros((len(gap), 3, 3))
-        cov[:, 0, 0] = qv * gap + MIN_POSITION_VAR
-        cov[:, 1, 1] = qw * gap * d ** 2 / 3 + MIN_POSITION_VAR
-        cov[:, 1, 2] = cov[:, 2, 1] = qw * gap * d / 2
-        cov[:, 2, 2] = qw * gap + MIN_HEADING_VAR
-        self.whiten = np.transpose(np.linalg.cholesky(np.linalg.inv(cov)), (0, 2, 1))
-        self.sd, self.offset_sd = np.asarray(sensor_sd, float), float(offset_sd)
-
-    def _system(self, states, landmarks, labelled, labels):
-        S, L = len(states), len(landmarks)
-        a, b = states[:-1, :3], states[1:, :3]
-        d = b[:, :2] - a[:, :2]
-        c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
-        r_odo = ps.eval.relative_poses(a, b) - self.odometry
-        r_odo[:, 2] = ps.wrap_angle(r_odo[:, 2])
-        j_odo = np.zeros((S - 1, 3, 8))  # d r / d (state a, state b)
-        j_odo[:, 0, :3] = np.column_stack([-c, -s, -s * d[:, 0] + c * d[:, 1]])
-        j_odo[:, 1, :3] = np.column_stack([s, -c, -c * d[:, 0] - s * d[:, 1]])
-        j_odo[:, 2, 2] = -1.0
-        j_odo[:, 0, 4:6] = np.column_stack([c, s])
-        j_odo[:, 1, 4:6] = np.column_stack([-s, c])
-        j_odo[:, 2, 6] = 1.0
-        j_odo = self.whiten @ j_odo
-        cols_odo = 4 * np.arange(S - 1)[:, None] + np.arange(8)
-        p, m = states[self.scan_of[labelled]], landmarks[labels]
-        q = m - p[:, :2]
-        r2 = np.sum(q * q, axis=1)
-        r = np.sqrt(r2)
-        bearing = np.arctan2(q[:, 1], q[:, 0]) - p[:, 2] - p[:, 3]
-        res = np.column_stack([r - self.z[labelled, 0], ps.wrap_angle(bearing - self.z[labelled, 1])]) / self.sd
-        weight = 1.0 / np.sqrt(1.0 + np.sum(res * res, axis=1) / SIGHTING_ROBUST_SCALE ** 2)
-        dr, db = q / r[:, None], np.column_stack([-q[:, 1], q[:, 0]]) / r2[:, None]
-        j_see = np.zeros((len(labels), 2, 6))  # d r / d (state, landmark)
-        j_see[:, 0, :2], j_see[:, 0, 4:] = -dr, dr
-        j_see[:, 1, :2], j_see[:, 1, 2:4], j_see[:, 1, 4:] = -db, -1.0, db
-        j_see *= (weight[:, None] / self.sd)[:, :, None]
-        k = self.scan_of[labelled]
-        cols_see = np.column_stack([4 * k, 4 * k + 1, 4 * k + 2, 4 * k + 3, 4 * S + 2 * labels, 4 * S + 2 * labels + 1])
-        residual = np.concatenate([ANCHOR_WEIGHT * (states[0, :3] - self.start), states[:, 3] / self.offset_sd,
-                                   np.einsum("kij,kj->ki", self.whiten, r_odo).ravel(), (res * weight[:, None]).ravel()])
-        rows = np.concatenate([np.arange(3 + S), 3 + S + np.repeat(np.arange(3 * (S - 1)), 8),
-                               3 + S + 3 * (S - 1) + np.repeat(np.arange(2 * len(labels)), 6)])
-        cols = np.concatenate([np.arange(3), 4 * np.arange(S) + 3, np.repeat(cols_odo, 3, axis=0).ravel(),
-                               np.repeat(cols_see, 2, axis=0).ravel()])
-        values = np.concatenate([np.full(3, ANCHOR_WEIGHT), np.full(S, 1.0 / self.offset_sd), j_odo.ravel(), j_see.ravel()])
-        jacobian = sp.csc_matrix((values, (rows, cols)), shape=(len(residual), 4 * S + 2 * L))
-        return residual, jacobian
-
-    def solve(self, states, landmarks, labels):
-        """Levenberg-Marquardt from (states (S, 4), landmarks (L, 2)); labels (M,), -1 unused.
-        Returns the states and landmarks."""
-        labelled = np.flatnonzero(labels >= 0)
-        of_labelled = labels[labelled]
-        S = len(states)
-        x = np.concatenate([states.ravel(), landmarks.ravel()])
-        unpack = lambda v: (v[:4 * S].reshape(S, 4), v[4 * S:].reshape(-1, 2))  # noqa: E731
-        r, j = self._system(*unpack(x), labelled, of_labelled)
-        cost, damping = r @ r, 1e-6
-        for _ in range(SMOOTH_ITERATIONS):
-            h = (j.T @ j).tocsc()
-            step = spla.spsolve(h + damping * sp.diags(h.diagonal()), -(j.T @ r))
-            r_new, j_new = self._system(*unpack(x + step), labelled, of_labelled)
-            if r_new @ r_new < cost:
-                done = cost - r_new @ r_new < SMOOTH_TOLERANCE * cost
-                x, r, j, cost, damping = x + step, r_new, j_new, r_new @ r_new, max(damping / 10, 1e-12)
-                if done:
-                    break
-            else:
-                damping *= 10
-        return unpack(x)
-
-
-def place_scans(m, scan_rows, poses, landmarks):
-    """Labels (M,): each scan's sightings on `landmarks` from its pose, the offset fitted with
-    the assignment (fit_scan; a lone sighting: the nearest landmark)."""
-    labels = np.empty(len(m), np.int64)
-    for s, rows in enumerate(scan_rows):
-        idx = np.arange(rows.start, rows.stop)
-        points_at = scan_points(m, idx)
-        off, combo = 0.0, None
-        if len(idx) > 1:
-            _, off, combo = fit_scan(points_at, poses[s], len(idx), landmarks, PLACE_SD, OFFSET_SD)
-        if combo is None:  # lone, or more sightings than distinct candidates
-            combo = np.argmin(np.linalg.norm(points_at(poses[s], off)[:, None] - landmarks[None], axis=2), axis=1)
-        labels[idx] = combo
-    return labels
-
-
-def majority_right(labels, truth):
-    """(M,) bool: the sightings whose label's most frequent true landmark is their own."""
-    right = np.zeros(len(labels), bool)
-    for label in np.unique(labels):
-        mine = labels == label
-        right[mine] = truth[mine] == np.bincount(truth[mine]).argmax()
-    return right
-
-
-def majority_correct(labels, truth):
-    """Share of the sightings whose label's most frequent true landmark is their own."""
-    return float(np.mean(majority_right(labels, truth)))
-
-
-def alternate(smoother, m, scan_rows, scan_of, poses, labels, withheld=None):
-    """From poses (S, 3) and labels (M,; -1 unused): smooth, re-place every scan, until the
-    labels settle or ROUNDS. Sightings `withheld` (M, bool) are placed but never smoothed: their
-    labels cannot hold the path to themselves. Returns the labels and the rounds taken."""
-    kept = np.ones(len(labels), bool) if withheld is None else ~np.asarray(withheld, bool)
-    states = np.column_stack([poses, np.zeros(len(poses))])
-    for rounds in range(1, ROUNDS + 1):
-        used = np.unique(labels[(labels >= 0) & kept])
-        labels = np.where(np.isin(labels, used), np.searchsorted(used, labels), -1)
-        given = np.where(kept, labels, -1)
-        points = sighted_points(m, scan_of, states)
-        landmarks = np.array([points[given == k].mean(0) for k in range(len(used))])
-        states, landmarks = smoother.solve(states, landmarks, given)
-        new = place_scans(m, scan_rows, states[:, :3], landmarks)
-        settled = np.array_equal(new, labels)
-        labels = new
-        if settled:
-            break
-    return labels, rounds
-
-
-def sighted_points(m, scan_of, states):
-    """The sightings (M, 2) placed from their scan's state (x, y, theta, b)."""
-    return placed(m, states[scan_of, :3], states[scan_of, 3])
-
-
-def described(labels, truth, lone):
-    """'correct / landmarks (lone: correct among the lone sightings)'."""
-    right = majority_right(labels, truth)
-    return f"{right.mean():.3f} / {len(np.unique(labels))} (lone {right[lone].mean():.3f})"
-
-
-def smoothed_ceiling(folder) -> None:
-    print("robot | barcodes as labels: smoothed, re-placed | the same, lone sightings withheld from the smoothing | "
-          "from the multiple-hypothesis EKF (offset): its own, alternated (correct / landmarks)")
-    for robot in range(1, 6):
-        try:
-            data = ps.io.read_mrclam(folder, robot=robot).with_euclidean_ranges()
-        except (ValueError, OSError):
-            continue
-        scan_rows = ls.scans(data.measurements)
-        # run_ekf_mrclam skips the scans outside the odometry's time span
-        inside = [r for r in scan_rows if data.odometry[0, 0] <= data.measurements[r.start, 0] < data.odometry[-1, 0]]
-        data = dataclasses.replace(data, measurements=data.measurements[inside[0].start:inside[-1].stop])
-        m = data.measurements
-        scan_rows = ls.scans(m)
-        times = np.array([m[r.start, 0] for r in scan_rows])
-        scan_of = np.repeat(np.arange(len(scan_rows)), [r.stop - r.start for r in scan_rows])
-        subjects = np.array(sorted(data.landmark_positions))
-        truth = np.searchsorted(subjects, m[:, 1].astype(int))
-        known = ls.run_ekf_mrclam(data, MOTION, SENSOR, known=True)
-        smoother = Smoother(data, times, scan_of, known.poses[0], SMOOTHER_SENSOR_SD, OFFSET_SD)
-        cells = []
-        lone = np.bincount(scan_of)[scan_of] == 1
-        known_poses = ps.eval.interpolate_poses(known.times, known.poses, times)
-        for withheld in (None, lone):
-            labels, _ = alternate(smoother, m, scan_rows, scan_of, known_poses, truth, withheld)
-            cells.append(described(labels, truth, lone))
-        mht = ls.run_ekf_mrclam(data, MOTION, MHT_OFFSET_SENSOR, known=False, association="mht",
-                                hypotheses=MHT_OFFSET_OPTIONS)
-        own = np.concatenate([np.where(np.isin(r.outcome, (ls.AssociationResult.ASSOCIATED, ls.AssociationResult.NEW_LANDMARK)),
-                                       r.ids, -1) for _, r in mht.associations])
-        own = np.where(np.isin(own, list(mht.landmarks)), own, -1)
-        cells.append(f"{ls.association_accuracy(mht):.3f} / {len(mht.landmarks)}")
-        mht_poses = ps.eval.interpolate_poses(mht.times, mht.poses, times)
-        labels, rounds = alternate(smoother, m, scan_rows, scan_of, mht_poses, own)
-        cells.append(described(labels, truth, lone) + f" ({rounds} rounds)")
-        print(f"robot {robot} | " + " | ".join(cells), flush=True)
-
-
 if __name__ == "__main__":
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("folder", nargs="?", default=DEFAULT)
     parser.add_argument("--vicon-motion", action="store_true")
-    parser.add_argument("--smoothed", action="store_true")
     args = parser.parse_args()
-    main(args.folder, args.vicon_motion, args.smoothed)
+    main(args.folder, args.vicon_motion)

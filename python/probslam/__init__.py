@@ -29,7 +29,7 @@ from ._core import (
     velocity_motion_jacobian,
     wrap_angle,
 )
-from . import data, eval, inverse_learning, io, sim, slam
+from . import data, datasets, eval, inverse_learning, io, sim, slam
 from .graph import (OptimizationReport, PoseGraph2D, marginal_covariances, optimize, read_pose_graph,
                     read_pose_graph_with_report, write_g2o)
 from .graphslam import (
@@ -50,6 +50,7 @@ from .mapping import MappingSummary, map_laser_log
 from .map_occupancy import MapOccupancyResult, map_occupancy_grid_mapping
 from .inverse_learning import LearnedInverseModel
 from .slam import SlamResult, run_slam
+from .datasets import LandmarkSlamResult, run_landmark_slam
 
 __version__ = "0.1.0"
 
@@ -69,6 +70,7 @@ __all__ = [
     "SubmapSlam2D",
     "CorrespondenceTest",
     "data",
+    "datasets",
     "FeatureMerges",
     "GraphSlamResult",
     "Measurements",
@@ -83,6 +85,8 @@ __all__ = [
     "eval",
     "SlamResult",
     "run_slam",
+    "LandmarkSlamResult",
+    "run_landmark_slam",
     "slam",
     "graph_slam",
     "marginal_covariances",

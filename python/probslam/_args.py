@@ -28,7 +28,7 @@ def require_integer(value: object, name: str, lowest: Optional[int] = None, high
 
 def require_fields(value: object, fields: Tuple[str, ...], name: str, what: str) -> None:
     """TypeError naming ``name`` unless ``value`` has every attribute in ``fields`` (for the
-    functions that take any of several run types, e.g. an EkfRun or a FastSlamRun)."""
+    functions that take any object with those fields, e.g. a LandmarkSlamResult)."""
     if not all(hasattr(value, f) for f in fields):
         raise TypeError(f"{name}: expected {what}, got {type(value).__name__}")
 

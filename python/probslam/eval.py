@@ -1,6 +1,8 @@
-"""The relations metric of Kümmerle et al. 2009, "On measuring the accuracy of SLAM algorithms".
+"""How good is a SLAM result: the relations metric of Kümmerle et al. 2009, "On measuring the
+accuracy of SLAM algorithms", the NEES, and the scores of landmark SLAM runs (path and map
+against ground truth or a survey, data association against a dataset's labels).
 
-A SLAM result is scored by the relative poses it implies between pairs of timestamps, compared
+A laser SLAM result is scored by the relative poses it implies between pairs of timestamps, compared
 with reference relations (the Freiburg SLAM benchmark's ``*.relations`` files, hand-checked scan
 alignments). Relative poses do not depend on where the map is anchored, so no global alignment
 is needed, and an error in one place is counted once rather than carried along the trajectory.
@@ -10,17 +12,20 @@ Units: metres, radians and seconds; poses are ``(x, y, theta)`` with theta in (-
 
 from __future__ import annotations
 
+import collections
 import io as _io
 import math
 import os
 import warnings
 from dataclasses import dataclass, field
-from typing import Iterable, List, Optional, Tuple, Union
+from typing import Dict, Iterable, Iterator, List, Optional, Tuple, Union
 
 import numpy as np
 
-from ._args import real_array
+from ._args import real_array, require_fields, require_instance
+from ._core import wrap_angle
 from .io._files import file_path, read_compressed, require_regular_file, text_lines
+from .io.landmark_datasets import Mrclam
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -101,17 +106,12 @@ class RelationsError:
                 f"{self.rot_mean_deg:.2f} +- {self.rot_std_deg:.2f} deg")
 
 
-def wrap(angle: np.ndarray) -> np.ndarray:
-    """Angles wrapped to (-pi, pi], elementwise (``probslam.wrap_angle`` for arrays); any shape.
-    TypeError for anything but real numbers, ValueError for NaN or inf (they have no angle)."""
-    return _wrap(real_array(angle, "angle", None))
-
-
-def _wrap(angle: np.ndarray) -> np.ndarray:
-    """wrap without the checks, for the arithmetic inside (NaN or inf give NaN)."""
-    r = np.pi - np.mod(np.pi - angle, 2.0 * np.pi)
-    # np.mod rounds a tiny negative argument up to 2pi, giving -pi for angles just above pi.
-    return np.where(r <= -np.pi, r + 2.0 * np.pi, r)
+def _wrap(angle: np.ndarray, what: str) -> np.ndarray:
+    """``probslam.wrap_angle`` of angles the arithmetic here computed, which may have overflowed
+    for inputs near the largest double: then a ValueError naming ``what`` (the bound function
+    would name its own argument, ``angle``)."""
+    _require_finite(angle, what)
+    return wrap_angle(angle)
 
 
 #: ``nees`` treats a covariance as singular when its smallest eigenvalue is at most this times its
@@ -271,14 +271,15 @@ def _trajectory(timestamps: object, poses: object) -> Tuple[np.ndarray, np.ndarr
     return ts, ps
 
 
-def _interpolate(ts: np.ndarray, ps: np.ndarray, q: np.ndarray) -> np.ndarray:
+def _interpolate(ts: np.ndarray, ps: np.ndarray, q: np.ndarray, what: str) -> np.ndarray:
     """Interpolation on a checked trajectory, queries known to lie within its span (inputs near
-    the largest double can overflow: the callers check the result)."""
+    the largest double can overflow: an overflowing heading raises naming ``what``, the callers
+    check the positions)."""
     with np.errstate(over="ignore", invalid="ignore"):
-        return _interpolate_unchecked(ts, ps, q)
+        return _interpolate_unchecked(ts, ps, q, what)
 
 
-def _interpolate_unchecked(ts: np.ndarray, ps: np.ndarray, q: np.ndarray) -> np.ndarray:
+def _interpolate_unchecked(ts: np.ndarray, ps: np.ndarray, q: np.ndarray, what: str) -> np.ndarray:
     n = ts.shape[0]
     # side="right": a query at a repeated timestamp starts from the last pose stamped with it.
     i = np.clip(np.searchsorted(ts, q, side="right") - 1, 0, max(n - 2, 0))
@@ -287,7 +288,7 @@ def _interpolate_unchecked(ts: np.ndarray, ps: np.ndarray, q: np.ndarray) -> np.
     # dt is 0 only at the end (repeated last timestamp, or one pose): take the later pose.
     frac = np.where(dt > 0, (q - ts[i]) / np.where(dt > 0, dt, 1.0), 1.0)
     xy = ps[i, :2] + frac[:, None] * (ps[j, :2] - ps[i, :2])
-    theta = _wrap(ps[i, 2] + frac * _wrap(ps[j, 2] - ps[i, 2]))
+    theta = _wrap(ps[i, 2] + frac * _wrap(ps[j, 2] - ps[i, 2], what), what)
     return np.column_stack([xy, theta])
 
 
@@ -311,18 +312,20 @@ def interpolate_poses(timestamps: object, poses: object, query_times: object) ->
         k = int(outside[0])
         raise ValueError(f"query_times: {outside.size} outside the trajectory span "
                          f"[{ts[0]:g}, {ts[-1]:g}], first at index {k} ({q[k]:g})")
-    out = _interpolate(ts, ps, q)
-    _require_finite(out, "timestamps and poses: the interpolation")
+    what = "timestamps and poses: the interpolation"
+    out = _interpolate(ts, ps, q, what)
+    _require_finite(out, what)
     return out
 
 
-def _between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """``a^-1 (+) b`` for (K, 3) SE(2) poses: b expressed in the frame of a (may overflow near
-    the largest double: the callers check the result)."""
+def _between(a: np.ndarray, b: np.ndarray, what: str) -> np.ndarray:
+    """``a^-1 (+) b`` for (K, 3) SE(2) poses, ``Pose2.between`` row by row: b expressed in the
+    frame of a (may overflow near the largest double: a heading raises naming ``what``, the
+    callers check the positions)."""
     with np.errstate(over="ignore", invalid="ignore"):
         c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
         dx, dy = b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]
-        return np.column_stack([c * dx + s * dy, -s * dx + c * dy, _wrap(b[:, 2] - a[:, 2])])
+        return np.column_stack([c * dx + s * dy, -s * dx + c * dy, _wrap(b[:, 2] - a[:, 2], what)])
 
 
 def relative_poses(a: object, b: object) -> np.ndarray:
@@ -340,8 +343,9 @@ def relative_poses(a: object, b: object) -> np.ndarray:
     pb, one_b = _pose_rows(b, "b")
     if pa.shape != pb.shape or one_a != one_b:
         raise ValueError(f"b: expected the shape of a, {np.shape(a)}, got {np.shape(b)}")
-    out = _between(pa, pb)
-    _require_finite(out, "a and b: the relative poses")
+    what = "a and b: the relative poses"
+    out = _between(pa, pb, what)
+    _require_finite(out, what)
     return out[0] if one_a else out
 
 
@@ -394,8 +398,150 @@ def relations_error(timestamps: object, poses: object,
     if used.size == 0:
         raise ValueError(f"relations: none of the {len(t1)} relations lies within the trajectory "
                          f"span [{ts[0]:g}, {ts[-1]:g}]")
-    d_est = _between(_interpolate(ts, ps, t1[used]), _interpolate(ts, ps, t2[used]))
-    e = _between(delta[used], d_est)
+    what = "poses and relations: the relations error"
+    d_est = _between(_interpolate(ts, ps, t1[used], what), _interpolate(ts, ps, t2[used], what), what)
+    e = _between(delta[used], d_est, what)
     translational = np.hypot(e[:, 0], e[:, 1])
-    _require_finite(translational, "poses and relations: the relations error")
-    return RelationsError(translational, np.abs(_wrap(e[:, 2])), used, int(len(t1) - used.size))
+    _require_finite(translational, what)
+    return RelationsError(translational, np.abs(e[:, 2]), used, int(len(t1) - used.size))
+
+
+# --------------------------------------------------------------------------------------------
+# Landmark SLAM: a path and a map against ground truth, data association against labels
+
+
+def align_rigid(estimate: np.ndarray, truth: np.ndarray):
+    """Best-fit rotation R (2, 2) and translation t (2,) with R @ estimate + t ~ truth (Kabsch)."""
+    estimate = real_array(estimate, "estimate", (None, 2))
+    truth = real_array(truth, "truth", (len(estimate), 2))
+    if len(estimate) == 0:
+        raise ValueError("estimate: no points to align")
+    mu_e, mu_t = estimate.mean(0), truth.mean(0)
+    u, _, vt = np.linalg.svd((estimate - mu_e).T @ (truth - mu_t))
+    d = np.sign(np.linalg.det(vt.T @ u.T))
+    r = vt.T @ np.diag([1.0, d]) @ u.T
+    return r, mu_t - r @ mu_e
+
+
+def rmse(a: np.ndarray, b: np.ndarray) -> float:
+    """Root mean square of the Euclidean distances between rows of a and b (N, 2 or 3)."""
+    return float(np.sqrt(np.mean(np.sum((np.asarray(a) - np.asarray(b)) ** 2, axis=1))))
+
+
+def truth_positions(groundtruth: np.ndarray, times: np.ndarray) -> np.ndarray:
+    """(T, 2) ground-truth positions at `times` (linear interpolation of (t, x, y, ...) rows, held
+    at the ends; ``interpolate_poses`` is the whole pose, within the span only)."""
+    groundtruth = np.asarray(groundtruth)
+    if groundtruth.ndim != 2 or groundtruth.shape[1] < 3 or len(groundtruth) == 0:
+        raise ValueError(f"groundtruth: expected (T, 3 or more) rows (t, x, y, ...), got shape {groundtruth.shape}")
+    times = real_array(times, "times", (None,))
+    return np.column_stack([np.interp(times, groundtruth[:, 0], groundtruth[:, 1]),
+                            np.interp(times, groundtruth[:, 0], groundtruth[:, 2])])
+
+
+#: The fields a landmark SLAM result (``probslam.LandmarkSlamResult``) must have to be scored.
+_RESULT_FIELDS = ("times", "poses", "landmarks", "associations")
+
+
+@dataclass
+class MrclamScore:
+    """Accuracy of an MRCLAM run against ground truth: path and landmark RMSE (m)."""
+
+    path_rmse: float  # m, raw
+    path_rmse_aligned: float  # m, after the best rigid alignment of the path to ground truth
+    landmark_rmse: float  # m, against the surveyed positions (same frame as the path)
+    landmark_rmse_aligned: float  # m, after the path's alignment
+
+
+def score_mrclam(result, data: Mrclam, landmark_map: Optional[Dict[int, int]] = None) -> MrclamScore:
+    """``result``: a ``LandmarkSlamResult`` of an MRCLAM robot with ground truth (times (T,),
+    poses (T, 3), landmarks {id: (2,)}); ``landmark_map``: filter id -> surveyed subject
+    (identity when correspondences were known, e.g. ``majority_labels(result)`` when hidden)."""
+    require_fields(result, _RESULT_FIELDS, "result", "a LandmarkSlamResult")
+    require_instance(data, Mrclam, "data")
+    truth = truth_positions(data.groundtruth, result.times)
+    r, t = align_rigid(result.poses[:, :2], truth)
+    aligned = result.poses[:, :2] @ r.T + t
+    surveyed = data.landmark_positions
+    pairs = [(xy, surveyed[(landmark_map or {}).get(i, i)]) for i, xy in result.landmarks.items()
+             if (landmark_map or {}).get(i, i) in surveyed]
+    est = np.array([p[0] for p in pairs]).reshape(-1, 2)
+    sur = np.array([p[1] for p in pairs]).reshape(-1, 2)
+    return MrclamScore(rmse(result.poses[:, :2], truth), rmse(aligned, truth),
+                       rmse(est, sur) if len(est) else float("nan"),
+                       rmse(est @ r.T + t, sur) if len(est) else float("nan"))
+
+
+@dataclass
+class LandmarkScore:
+    """A landmark map against the survey: RMSE (m) as estimated and after rigid alignment."""
+
+    rmse: float  # m, map against the survey as estimated (frames may differ)
+    rmse_aligned: float  # m, after the best rigid alignment of the map onto the survey
+    errors: Dict[int, float]  # surveyed subject -> aligned error, m
+    rotation: np.ndarray = field(default_factory=lambda: np.eye(2))  # (2, 2) R of R m + t ~ survey
+    translation: np.ndarray = field(default_factory=lambda: np.zeros(2))  # (2,) t, m
+
+    def survey_in_map_frame(self, data: Mrclam) -> Dict[int, np.ndarray]:
+        """Every surveyed landmark of ``data`` brought into the map's frame by the inverse of the
+        alignment (subject -> (2,) m), to draw the survey over the map it was compared with."""
+        require_instance(data, Mrclam, "data")
+        return {s: (np.asarray(p) - self.translation) @ self.rotation for s, p in data.landmark_positions.items()}
+
+
+def score_landmarks(landmarks: Dict[int, np.ndarray], data: Mrclam,
+                    landmark_map: Optional[Dict[int, int]] = None) -> LandmarkScore:
+    """The map alone against the survey, for data without robot ground truth (MRCLAM Dataset 1):
+    the filter starts at (0, 0, 0), so its frame is the start pose's, and the map is rigidly
+    aligned onto the surveyed landmarks. ``landmark_map``: filter id -> subject (identity by
+    default). Needs at least two landmarks."""
+    require_instance(landmarks, dict, "landmarks")
+    require_instance(data, Mrclam, "data")
+    surveyed = data.landmark_positions
+    pairs = [(i, (landmark_map or {}).get(i, i)) for i in landmarks]
+    pairs = [(i, s) for i, s in pairs if s in surveyed]
+    if len(pairs) < 2:
+        raise ValueError(f"landmarks: need at least two surveyed landmarks to align, got {len(pairs)}")
+    est = np.array([landmarks[i] for i, _ in pairs])
+    sur = np.array([surveyed[s] for _, s in pairs])
+    r, t = align_rigid(est, sur)
+    errors = np.hypot(*(est @ r.T + t - sur).T)
+    return LandmarkScore(rmse(est, sur), float(np.sqrt(np.mean(errors ** 2))),
+                         {s: float(e) for (_, s), e in zip(pairs, errors)}, r, t)
+
+
+def _applied_sightings(result) -> Iterator[Tuple[int, int]]:
+    """(true id, filter landmark id) of every sighting a hidden-correspondence run put in its map."""
+    require_fields(result, _RESULT_FIELDS, "result", "a LandmarkSlamResult")
+    if result.associations is None:
+        raise ValueError("result: a run with known correspondences has no associations to score")
+    record = result.associations
+    applied = record.ids >= 0
+    return zip(record.truth[applied].tolist(), record.ids[applied].tolist())
+
+
+def majority_labels(result) -> Dict[int, int]:
+    """For a run with hidden correspondences: each filter landmark -> the true id (the dataset's
+    label) most of its sightings carry."""
+    votes: Dict[int, collections.Counter] = collections.defaultdict(collections.Counter)
+    for t, i in _applied_sightings(result):
+        votes[i][t] += 1
+    return {i: c.most_common(1)[0][0] for i, c in votes.items()}
+
+
+def primary_landmarks(result) -> Dict[int, int]:
+    """For a run with hidden correspondences: true id -> the filter landmark holding most of its
+    sightings (duplicates left out), among the landmarks still in the map."""
+    votes: Dict[int, collections.Counter] = collections.defaultdict(collections.Counter)
+    for t, i in _applied_sightings(result):
+        if i in result.landmarks:
+            votes[t][i] += 1
+    return {t: c.most_common(1)[0][0] for t, c in votes.items()}
+
+
+def association_accuracy(result) -> float:
+    """Fraction of the sightings put in the map that went to a landmark whose majority true id
+    (``majority_labels``) is their own; NaN when none was."""
+    pairs = list(_applied_sightings(result))
+    label = majority_labels(result)
+    return sum(label[i] == t for t, i in pairs) / len(pairs) if pairs else float("nan")

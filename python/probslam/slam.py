@@ -18,15 +18,12 @@ from tqdm import tqdm
 
 from . import _core
 from .io._files import file_path
-from .io.carmen import CarmenLog, LaserScans, read_carmen_log
+from .datasets import carmen
+from .io.carmen import CarmenLog, LaserScans
 from .mapping import no_return_range
-from ._args import real_array, require_instance
+from ._args import real_array
 
 PathLike = Union[str, "os.PathLike[str]"]
-
-#: Laser poses that move less than this over a whole log (metres, radians) mean the log carries
-#: no odometry (MIT CSAIL's FLASER lines repeat one pose): scan matching alone then.
-NO_ODOMETRY_MOTION = 1e-6
 
 
 @dataclass
@@ -65,13 +62,6 @@ class SlamResult:
         return self.log_duration / self.seconds if self.seconds > 0 else float("inf")
 
 
-def has_odometry(scans: LaserScans) -> bool:
-    """Whether the laser poses of the log move at all (some logs repeat one pose throughout)."""
-    require_instance(scans, LaserScans, "scans")
-    p = scans.laser_poses
-    return bool(len(p) > 1 and np.ptp(p, axis=0).max() > NO_ODOMETRY_MOTION)
-
-
 #: The methods of ``run_slam``.
 METHODS = ("graph", "rbpf")
 
@@ -100,7 +90,7 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: str = "grap
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if isinstance(log, (str, os.PathLike)):
-        log = read_carmen_log(log)
+        log = carmen.load(log)
     scans = log.scans if isinstance(log, CarmenLog) else log
     if not isinstance(scans, LaserScans):
         raise TypeError("log must be a path, a CarmenLog or LaserScans")
@@ -108,7 +98,7 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: str = "grap
         raise ValueError("log has no laser scans")
     if int(chunk) != chunk or chunk < 1:
         raise ValueError("chunk must be an integer >= 1")
-    odometry = has_odometry(scans)
+    odometry = carmen.has_odometry(scans)
     opts: Dict[str, Any] = {}
     no_return = no_return_range(scans)
     if np.isfinite(no_return):
@@ -162,4 +152,4 @@ def write_trajectory(timestamps: np.ndarray, poses: np.ndarray, path: PathLike) 
     np.savetxt(file_path(path), data, fmt="%.6f", header="timestamp x y theta")
 
 
-__all__ = ["METHODS", "SlamResult", "has_odometry", "run_slam", "write_trajectory", "NO_ODOMETRY_MOTION"]
+__all__ = ["METHODS", "SlamResult", "run_slam", "write_trajectory"]

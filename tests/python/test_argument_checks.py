@@ -6,11 +6,12 @@ import numpy as np
 import pytest
 
 import probslam as ps
-from probslam import fastslam as fs
+from probslam import eval as ev
 from probslam import inverse_learning as il
 from probslam import landmark_slam as ls
 from probslam import mapping, sim
 from probslam import slam as sl
+from probslam.datasets import carmen, mrclam, victoria_park
 
 RNG = np.random.default_rng(0)
 GRID = ps.OccupancyGrid2D(0.1, 20, 20)
@@ -18,28 +19,27 @@ Q = np.diag([0.01, 0.001])
 
 # (call, argument it must name) with an object of the wrong type in that argument.
 WRONG_TYPES = [
-    (lambda: ls.mrclam_perceptual_field(None), "data"),
-    (lambda: ls.run_ekf_mrclam("folder", Q, Q), "data"),
-    (lambda: ls.score_mrclam(object(), None), "run"),
-    (lambda: ls.majority_labels({}), "run"),
-    (lambda: ls.primary_landmarks([]), "run"),
-    (lambda: ls.association_accuracy(None), "run"),
-    (lambda: ls.fit_range_scale(3), "data"),
-    (lambda: ls.same_scan_residuals(None), "data"),
-    (lambda: ls.survey_label_swaps(None), "data"),
-    (lambda: ls.score_landmarks([(0, 0)], None), "landmarks"),
-    (lambda: ls.dead_reckoning_map(None), "data"),
-    (lambda: ls.run_ekf_victoria_park(None), "data"),
+    (lambda: mrclam.perceptual_field(None), "data"),
+    (lambda: mrclam.run_ekf("folder", Q, Q), "data"),
+    (lambda: ev.score_mrclam(object(), None), "result"),
+    (lambda: ev.majority_labels({}), "result"),
+    (lambda: ev.primary_landmarks([]), "result"),
+    (lambda: ev.association_accuracy(None), "result"),
+    (lambda: mrclam.fit_range_scale(3), "data"),
+    (lambda: mrclam.same_scan_residuals(None), "data"),
+    (lambda: mrclam.survey_label_swaps(None), "data"),
+    (lambda: ev.score_landmarks([(0, 0)], None), "landmarks"),
+    (lambda: mrclam.dead_reckoning_map(None), "data"),
+    (lambda: victoria_park.run_ekf(None), "data"),
     (lambda: ls.run_ekf_on_graph("graph.g2o"), "graph"),
     (lambda: ls.polar_measurements([["a", "b"]], np.eye(2)[None]), "xy"),
-    (lambda: fs.majority_labels(None), "run"),
-    (lambda: fs.association_accuracy(None), "run"),
-    (lambda: fs.run_fastslam_mrclam(None, Q, Q), "data"),
-    (lambda: fs.run_fastslam_victoria_park(None), "data"),
+    (lambda: mrclam.run_fastslam(None, Q, Q), "data"),
+    (lambda: victoria_park.run_fastslam(None), "data"),
+    (lambda: ps.run_landmark_slam(3), "dataset"),
     (lambda: mapping.scan_bounds(None, 10.0), "scans"),
     (lambda: mapping.no_return_range("scans"), "scans"),
     (lambda: ps.map_laser_log("log.clf"), "scans"),
-    (lambda: sl.has_odometry(None), "scans"),
+    (lambda: carmen.has_odometry(None), "scans"),
     (lambda: sim.observe(np.zeros(3), None, sim.Sensor(Q), RNG), "world"),
     (lambda: sim.observe(np.zeros(3), sim.LandmarkWorld(np.zeros((1, 2)), np.zeros(1)), None, RNG), "sensor"),
     (lambda: sim.observe(np.zeros(3), sim.LandmarkWorld(np.zeros((1, 2)), np.zeros(1)), sim.Sensor(Q), 0), "rng"),
@@ -62,12 +62,12 @@ def test_a_wrong_type_is_a_type_error_naming_the_argument(call, name):
 
 # (call, argument it must name) with a value of the right type but the wrong shape or value.
 WRONG_VALUES = [
-    (lambda: ls.align_rigid(np.zeros((3, 2)), np.zeros((4, 2))), "truth"),
-    (lambda: ls.align_rigid(np.zeros((0, 2)), np.zeros((0, 2))), "estimate"),
-    (lambda: ls.align_rigid(np.full((3, 2), np.nan), np.zeros((3, 2))), "estimate"),
-    (lambda: ls.truth_positions(np.zeros((5, 2)), np.zeros(3)), "groundtruth"),
-    (lambda: ls.truth_positions(np.zeros((0, 3)), np.zeros(3)), "groundtruth"),
-    (lambda: ls.truth_positions(np.zeros((5, 3)), np.zeros((3, 1))), "times"),
+    (lambda: ev.align_rigid(np.zeros((3, 2)), np.zeros((4, 2))), "truth"),
+    (lambda: ev.align_rigid(np.zeros((0, 2)), np.zeros((0, 2))), "estimate"),
+    (lambda: ev.align_rigid(np.full((3, 2), np.nan), np.zeros((3, 2))), "estimate"),
+    (lambda: ev.truth_positions(np.zeros((5, 2)), np.zeros(3)), "groundtruth"),
+    (lambda: ev.truth_positions(np.zeros((0, 3)), np.zeros(3)), "groundtruth"),
+    (lambda: ev.truth_positions(np.zeros((5, 3)), np.zeros((3, 1))), "times"),
     (lambda: ls.polar_measurements(np.zeros((2, 2)), np.tile(np.eye(2), (2, 1, 1))), "xy"),
     (lambda: ls.polar_measurements(np.ones((2, 2)), np.eye(2)), "xy_cov"),
     (lambda: sim.pose_error(np.zeros(2), np.zeros(3)), "estimate"),
@@ -95,7 +95,7 @@ def test_checked_functions_still_compute_what_they_did():
     points = rng.normal(size=(6, 2))
     angle, shift = 0.3, np.array([1.0, -2.0])
     rot = np.array([[np.cos(angle), -np.sin(angle)], [np.sin(angle), np.cos(angle)]])
-    r, t = ls.align_rigid(points, points @ rot.T + shift)
+    r, t = ev.align_rigid(points, points @ rot.T + shift)
     np.testing.assert_allclose(r, rot, atol=1e-12)
     np.testing.assert_allclose(t, shift, atol=1e-12)
     z, cov = ls.polar_measurements(np.array([[3.0, 4.0]]), np.eye(2)[None] * 0.01)
@@ -104,7 +104,7 @@ def test_checked_functions_still_compute_what_they_did():
     np.testing.assert_allclose(sim.pose_error([0, 0, 3.0], [0, 0, -3.0]), [0, 0, 6.0 - 2 * np.pi])
     np.testing.assert_allclose(sim.cast_ranges([0, 0, 0], [0.0], [((2.0, -1.0), (2.0, 1.0))]), [2.0])
     truth = np.column_stack([[0.0, 1.0], [0.0, 2.0], [0.0, 4.0]])
-    np.testing.assert_allclose(ls.truth_positions(truth, [0.5]), [[1.0, 2.0]])
+    np.testing.assert_allclose(ev.truth_positions(truth, [0.5]), [[1.0, 2.0]])
 
 
 # Integer options read by the bindings' keyword parser and GridFastSlam's particle argument:

@@ -169,7 +169,7 @@ def test_slam_bad_log_is_an_error_not_a_traceback(tmp_path, capsys):
 @pytest.mark.slow
 def test_fastslam_mrclam_prints_what_the_driver_computes(tmp_path, capsys, shared_data):
     pytest.importorskip("matplotlib")
-    from probslam import fastslam as fs
+    from probslam.datasets import mrclam
 
     folder = shared_data / "landmark_slam/mrclam_dataset7"
     args = ["fastslam", str(folder), "--unknown", "--seconds", "60", "--particles", "20", "--seed", "3"]
@@ -177,13 +177,11 @@ def test_fastslam_mrclam_prints_what_the_driver_computes(tmp_path, capsys, share
     out = capsys.readouterr().out
     # The same run through the driver: the summary's figures are its figures.
     data = io.read_mrclam(folder, robot=1)
-    from probslam import landmark_slam as ls
-
-    data = ls.first_seconds(data, 60.0).with_euclidean_ranges()
-    run = fs.run_fastslam_mrclam(data, np.diag([0.15 ** 2, 0.6 ** 2]), np.diag([0.15 ** 2, 0.04 ** 2]), known=False,
+    data = mrclam.first_seconds(data, 60.0).with_euclidean_ranges()
+    run = mrclam.run_fastslam(data, np.diag([0.15 ** 2, 0.6 ** 2]), np.diag([0.15 ** 2, 0.04 ** 2]), known=False,
                                  num_particles=20, seed=3)
     assert f"landmarks:     {len(run.landmarks)} in the best particle's map" in out
-    assert f"associations:  {fs.association_accuracy(run):.1%} correct" in out
+    assert f"associations:  {ps.eval.association_accuracy(run):.1%} correct" in out
     assert "path RMSE:" in out and "unknown correspondences" in out
     trajectory = np.loadtxt(tmp_path / "f_trajectory.txt")  # timestamp x y theta, as every command
     np.testing.assert_allclose(trajectory[:, 1:], run.poses, atol=1e-6)
@@ -369,16 +367,16 @@ def test_a_skipped_line_is_a_one_line_warning(tmp_path):
 def test_ekf_slam_bearing_offset_on_the_bundled_mrclam(tmp_path, capsys):
     """--bearing-offset runs the multiple hypotheses with the scan's offset: the printed share of
     correct sightings is the library's for the same run; misuse is a one-line error."""
-    from probslam import landmark_slam as ls
+    from probslam.datasets import mrclam
 
     args = ["ekf-slam", "--unknown", "--association", "mht", "--sigma-phi", "0.02", "--bearing-offset", "0.03"]
     assert cli.main(args + ["-o", str(tmp_path / "e")]) == 0
     out = capsys.readouterr().out
     assert "unknown (mht) correspondences, bearing offset 0.03 rad per scan" in out
     robot = io.read_mrclam(data.path("mrclam7_robot1_120s")).with_euclidean_ranges()
-    run = ls.run_ekf_mrclam(robot, np.diag([0.15 ** 2, 0.6 ** 2]), np.diag([0.15 ** 2, 0.02 ** 2]), known=False,
+    run = mrclam.run_ekf(robot, np.diag([0.15 ** 2, 0.6 ** 2]), np.diag([0.15 ** 2, 0.02 ** 2]), known=False,
                             association="mht", hypotheses=dict(bearing_offset_sigma=0.03))
-    assert f"associations:  {ls.association_accuracy(run):.1%} correct" in out
+    assert f"associations:  {ps.eval.association_accuracy(run):.1%} correct" in out
     for bad, message in [(["ekf-slam", "--unknown", "--bearing-offset", "0.03"], "needs --unknown --association mht"),
                          (["ekf-slam", "--unknown", "--association", "mht", "--bearing-offset", "-0.1"], "finite angle (rad) >= 0"),
                          (["ekf-slam", "--unknown", "--association", "mht", "--bearing-offset", "nan"], "finite angle (rad) >= 0"),
@@ -439,7 +437,7 @@ def test_mrclam_ground_truth_with_no_row_inside_seconds_is_one_line(tmp_path, ca
     folder = _mrclam_folder(tmp_path / "d", groundtruth="# Time x y theta\n2e9 0 0 0\n")
     assert cli.main([command, str(folder), "--seconds", "5", "--particles", "5", "-o", str(tmp_path / "x")]
                     if command == "fastslam" else [command, str(folder), "--seconds", "5", "-o", str(tmp_path / "x")]) == 2
-    _one_line_error(capsys, "Groundtruth has no row within the first --seconds 5")
+    _one_line_error(capsys, "Groundtruth has no row within the first 5 s")
 
 
 @pytest.mark.parametrize("command", ["ekf-slam", "fastslam"])

@@ -244,7 +244,7 @@ def test_relative_poses_equal_pose2_between_and_compose_back():
     assert np.all((got[:, 2] > -np.pi) & (got[:, 2] <= np.pi))
     back = np.array([ps.Pose2.from_array(p).compose(ps.Pose2.from_array(d)).as_array() for p, d in zip(a, got)])
     np.testing.assert_allclose(back[:, :2], b[:, :2], atol=1e-12)
-    np.testing.assert_allclose(ev.wrap(back[:, 2] - b[:, 2]), 0.0, atol=1e-12)
+    np.testing.assert_allclose(ps.wrap_angle(back[:, 2] - b[:, 2]), 0.0, atol=1e-12)
     # one pair in, one pose out; a robot at (1, 1) facing +y sees (1, 3) 2 m straight ahead
     np.testing.assert_allclose(ev.relative_poses([1.0, 1.0, np.pi / 2], [1.0, 3.0, np.pi]), [2.0, 0.0, np.pi / 2],
                                atol=1e-12)
@@ -309,8 +309,9 @@ def test_nees_of_no_estimates_is_empty():
     (lambda: ev.relations_error([0.0, 1.0], [[-1e308, 0, 0], [1e308, 0, 0]],
                                 ev.Relations(np.array([0.0]), np.array([1.0]), np.zeros((1, 3)))),
      "the relations error overflows"),
-    (lambda: ev.wrap([0.0, np.inf]), "angle: contains NaN or inf"),
-    (lambda: ev.wrap("x"), "angle: expected real numbers"),
+    (lambda: ev.relative_poses([0, 0, -1e308], [0, 0, 1e308]), "a and b: the relative poses overflow"),
+    (lambda: ev.interpolate_poses([0.0, 1.0], [[0, 0, -1e308], [0, 0, 1e308]], [0.5]),
+     "timestamps and poses: the interpolation overflows"),
 ])
 def test_eval_results_are_finite_or_refused(call, message):
     """Coordinates near the largest double gave inf or NaN results."""

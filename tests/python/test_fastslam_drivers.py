@@ -1,5 +1,5 @@
-"""Landmark FastSLAM drivers (probslam.fastslam) on Victoria Park, against the EKF on the same
-data (skipped without ../shared/data)."""
+"""Landmark FastSLAM drivers (probslam.datasets.victoria_park / mrclam, probslam.fastslam) on
+Victoria Park, against the EKF on the same data, and on MRCLAM (skipped without ../shared/data)."""
 
 import dataclasses
 
@@ -8,8 +8,9 @@ import pytest
 
 import probslam as ps
 from conftest import SHARED_DATA
+from probslam import eval as ev
 from probslam import fastslam as fs
-from probslam import landmark_slam as ls
+from probslam.datasets import mrclam, victoria_park
 
 #: Victoria Park, 100 particles, known correspondences: the best particle's path against the
 #: EKF's. The EKF itself lies 10.2 m RMS from the GraphSLAM optimum, and FastSLAM's best path
@@ -25,17 +26,17 @@ def victoria():
     if not path.is_file():
         pytest.skip(f"Victoria Park not present at {path}")
     data = ps.io.read_victoria_park(path)
-    return data, ls.run_ekf_victoria_park(data)
+    return data, victoria_park.run_ekf(data)
 
 
 @pytest.mark.parametrize("version", [1, 2])
 @pytest.mark.slow
 def test_victoria_park_known_follows_the_ekf(victoria, version):
     data, ekf = victoria
-    run = fs.run_fastslam_victoria_park(data, known=True, version=version)
+    run = victoria_park.run_fastslam(data, known=True, version=version)
     assert run.poses.shape == ekf.poses.shape
     assert sorted(run.landmarks) == sorted(ekf.landmarks)
-    assert ls.rmse(run.poses[:, :2], ekf.poses[:, :2]) < VP_PATH_TOLERANCE
+    assert ev.rmse(run.poses[:, :2], ekf.poses[:, :2]) < VP_PATH_TOLERANCE
 
 
 @pytest.mark.slow
@@ -43,45 +44,49 @@ def test_victoria_park_file_noise_diverges(victoria):
     """The cause of the old divergence: with the file's noise (scale 1) the particles cannot
     follow the odometry's heading bias; the bound above tells the two apart."""
     data, ekf = victoria
-    run = fs.run_fastslam_victoria_park(data, known=True, odometry_noise_scale=1.0)
-    assert ls.rmse(run.poses[:, :2], ekf.poses[:, :2]) > VP_PATH_TOLERANCE
+    run = victoria_park.run_fastslam(data, known=True, odometry_noise_scale=1.0)
+    assert ev.rmse(run.poses[:, :2], ekf.poses[:, :2]) > VP_PATH_TOLERANCE
 
 
 @pytest.mark.parametrize("value, err", [(0.0, ValueError), (np.nan, ValueError), ("3", TypeError), (True, TypeError)])
 def test_victoria_park_bad_noise_scale(victoria, value, err):
     with pytest.raises(err, match="^odometry_noise_scale"):
-        fs.run_fastslam_victoria_park(victoria[0], known=True, odometry_noise_scale=value)
+        victoria_park.run_fastslam(victoria[0], known=True, odometry_noise_scale=value)
 
 
 def test_association_histories_follow_resampling(victoria):
-    """Hidden correspondences: the best particle's history has one row per scan, one id per
-    measurement, and every id it names is in that particle's map or was removed."""
+    """Hidden correspondences: the best particle's record covers every scan, one entry per
+    sighting with the file's landmark number, and every landmark of its map was started by one
+    of its sightings."""
     data, _ = victoria
-    run = fs.run_fastslam_victoria_park(data, known=False, num_particles=20)
+    run = victoria_park.run_fastslam(data, known=False, num_particles=20)
     rows = np.unique(data.pose).size
-    assert len(run.associations) == rows
-    assert sum(len(t) for t, _ in run.associations) == len(data.landmark)
-    assert 0.0 <= fs.association_accuracy(run) <= 1.0
+    assert np.unique(run.associations.times).size == rows
+    assert len(run.associations) == len(data.landmark)
+    np.testing.assert_array_equal(np.sort(run.associations.truth), np.sort(data.landmark))
+    mapped = set(run.associations.ids[run.associations.ids >= 0].tolist())
+    assert set(run.landmarks) <= mapped
+    assert 0.0 <= ev.association_accuracy(run) <= 1.0
 
 
 @pytest.mark.slow
 def test_victoria_park_hidden_closes_its_loops(victoria):
     """Hidden associations with the driver's defaults (odometry noise scale 7, see
-    VICTORIA_PARK_ODOMETRY_NOISE_SCALE), version 2, seed 0: the path stays near the EKF's and
+    victoria_park.ODOMETRY_NOISE_SCALE), version 2, seed 0: the path stays near the EKF's and
     the map near the dataset's 151 trees. With scale 3 the particles cannot follow the heading
     drift to the loop closures: 323 landmarks and a path 170 m from the GraphSLAM optimum
     (studies/fastslam_victoria_park_study.py; seeds 0-3 at scale 7: 141-230 landmarks,
     4.9-35 m). Seed 0 is a deterministic run, the bounds sit between the two regimes."""
     data, ekf = victoria
-    run = fs.run_fastslam_victoria_park(data, known=False, version=2, seed=0)
-    assert ls.rmse(run.poses[:, :2], ekf.poses[:, :2]) < VP_PATH_TOLERANCE
+    run = victoria_park.run_fastslam(data, known=False, version=2, seed=0)
+    assert ev.rmse(run.poses[:, :2], ekf.poses[:, :2]) < VP_PATH_TOLERANCE
     assert len(run.landmarks) < 200
-    stale = fs.run_fastslam_victoria_park(data, known=False, version=2, seed=0, odometry_noise_scale=3.0)
+    stale = victoria_park.run_fastslam(data, known=False, version=2, seed=0, odometry_noise_scale=3.0)
     assert len(stale.landmarks) > 250
 
 
 def test_association_history_backtracking_equals_forward_lists():
-    """_Histories traces one particle's lineage back through each scan's ancestors; the forward
+    """AssociationHistories traces one particle's lineage back through each scan's ancestors; the forward
     construction (every particle's list rebuilt after each resampling) is the reference, for
     every particle of a run that resamples often."""
     rng = np.random.default_rng(4)
@@ -92,32 +97,32 @@ def test_association_history_backtracking_equals_forward_lists():
     sim = ps.sim.simulate(world, ps.sim.circle_controls(150, 1.0, 0.15), 0.2, sensor, m_noise, rng,
                           initial_pose=(0, -6.5, 0))
     f = ps.FastSlam(15, m_noise, q, seed=3, initial_pose=(0, -6.5, 0), p_new=1e-2)
-    hist = fs._Histories()
+    hist = fs.AssociationHistories()
     heads = [None] * f.num_particles
     resamplings = 0
-    for (v, w), z, ids in zip(sim.controls, sim.measurements, sim.ids):
+    for step, ((v, w), z, ids) in enumerate(zip(sim.controls, sim.measurements, sim.ids)):
         f.predict(v, w, sim.dt)
         if not len(z):
             continue
         rows, _, _ = f.update_unknown(z)
         truth = np.asarray(ids, np.int64)
-        hist.add(f, rows, truth)
+        hist.add(f, rows, truth, float(step))
         a = f.ancestors
         resamplings += len(a) > 0
         if len(a):
             heads = [heads[int(j)] for j in a]
-        heads = [((truth, rows[j]), heads[j]) for j in range(len(heads))]
+        heads = [((step, truth, rows[j]), heads[j]) for j in range(len(heads))]
     assert resamplings >= 5
     for k in range(f.num_particles):
         forward, node = [], heads[k]
         while node is not None:
             forward.append(node[0])
             node = node[1]
+        forward.reverse()
         back = hist.of(k)
-        assert len(back) == len(forward[::-1])
-        for (t1, r1), (t2, r2) in zip(back, forward[::-1]):
-            np.testing.assert_array_equal(t1, t2)
-            np.testing.assert_array_equal(r1, r2)
+        np.testing.assert_array_equal(back.times, np.concatenate([np.full(len(t), s) for s, t, _ in forward]))
+        np.testing.assert_array_equal(back.truth, np.concatenate([t for _, t, _ in forward]))
+        np.testing.assert_array_equal(back.ids, np.concatenate([r for _, _, r in forward]))
 
 
 @pytest.fixture(scope="module")
@@ -125,21 +130,21 @@ def mrclam_d1r1():
     folder = SHARED_DATA / "landmark_slam/mrclam_dataset1"
     if not folder.is_dir():
         pytest.skip(f"MRCLAM Dataset 1 not present at {folder}")
-    return ls.first_seconds(ps.io.read_mrclam(folder, robot=1), 300.0).with_euclidean_ranges()
+    return mrclam.first_seconds(ps.io.read_mrclam(folder, robot=1), 300.0).with_euclidean_ranges()
 
 
 def test_mrclam_perceptual_field_is_the_sightings_quantiles(mrclam_d1r1):
     m = mrclam_d1r1.measurements
-    field_range, fov = fs.mrclam_perceptual_field(mrclam_d1r1)
+    field_range, fov = mrclam.perceptual_field(mrclam_d1r1)
     inside = (m[:, 2] <= field_range) & (np.abs(m[:, 3]) <= fov / 2)
     # Each limit leaves out 10% of the sightings, so between 80% and 90% lie inside both.
     assert 0.8 <= inside.mean() <= 0.9 + 1e-9
     assert field_range == pytest.approx(np.sort(m[:, 2])[int(0.9 * (len(m) - 1))], abs=0.5)
     with pytest.raises(ValueError, match="^data"):
-        fs.mrclam_perceptual_field(dataclasses.replace(mrclam_d1r1, measurements=m[:0]))
+        mrclam.perceptual_field(dataclasses.replace(mrclam_d1r1, measurements=m[:0]))
     for bad in (0.0, 1.5, float("nan"), "0.9"):
         with pytest.raises(ValueError, match="^quantile"):
-            fs.mrclam_perceptual_field(mrclam_d1r1, bad)
+            mrclam.perceptual_field(mrclam_d1r1, bad)
 
 
 @pytest.mark.slow
@@ -150,10 +155,10 @@ def test_mrclam_hidden_negative_information_removes_duplicates(mrclam_d1r1):
     fewer than the barcodes it saw minus one (it must not empty the map)."""
     motion, sensor = np.diag([0.15 ** 2, 0.6 ** 2]), np.diag([0.15 ** 2, 0.04 ** 2])
     seen = len(set(mrclam_d1r1.measurements[:, 1].astype(int)) & set(mrclam_d1r1.landmark_positions))
-    with_ni = fs.run_fastslam_mrclam(mrclam_d1r1, motion, sensor, known=False)
-    without = fs.run_fastslam_mrclam(mrclam_d1r1, motion, sensor, known=False, negative_information=False)
+    with_ni = mrclam.run_fastslam(mrclam_d1r1, motion, sensor, known=False)
+    without = mrclam.run_fastslam(mrclam_d1r1, motion, sensor, known=False, negative_information=False)
     assert seen - 1 <= len(with_ni.landmarks) <= len(without.landmarks)
-    assert fs.association_accuracy(with_ni) >= 0.9
+    assert ev.association_accuracy(with_ni) >= 0.9
 
 
 @pytest.mark.slow
@@ -181,9 +186,10 @@ def test_mrclam_benchmark_passes_the_fastslam_options():
     for miss in (None, 1.0, 0.0):
         row = rows[miss] = bench.run_one((1, 1, "fastslam1", 300.0, 20, 3, miss))
         options = {} if miss is None else {"existence_miss": miss}
-        run = fs.run_fastslam_mrclam(data, bench.MOTION, bench.SENSOR, known=False, num_particles=20, seed=3, **options)
+        run = mrclam.run_fastslam(data, bench.MOTION, bench.SENSOR, known=False, num_particles=20, seed=3,
+                                  filter_options=options)
         assert row["landmarks"] == len(run.landmarks)
-        assert row["correct"] == fs.association_accuracy(run)
+        assert row["correct"] == ev.association_accuracy(run)
         assert run.filter.num_particles == 20
     assert (rows[None]["landmarks"], rows[None]["correct"]) == (rows[1.0]["landmarks"], rows[1.0]["correct"])
     assert rows[0.0]["landmarks"] != rows[None]["landmarks"]  # so the option is not dropped on the way

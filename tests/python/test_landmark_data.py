@@ -6,7 +6,8 @@ import numpy as np
 import pytest
 
 import probslam as ps
-from probslam import landmark_slam as ls
+from probslam import eval as ev
+from probslam.datasets import mrclam, victoria_park
 
 # Noise measured on MRCLAM Dataset 7 against its Vicon ground truth (see README): odometry
 # sigma_v 0.11 m/s, sigma_w 0.43 rad/s per 10 ms command, inflated ~1.4x for its turn-rate
@@ -144,18 +145,18 @@ def test_victoria_park_reader_errors(tmp_path):
 @pytest.mark.slow
 def test_ekf_on_mrclam_known_correspondences_beats_reference(shared_data):
     d = ps.io.read_mrclam(shared_data / "landmark_slam/mrclam_dataset7")
-    run = ls.run_ekf_mrclam(d, MRCLAM_MOTION, MRCLAM_SENSOR)
-    score = ls.score_mrclam(run, d)
+    run = mrclam.run_ekf(d, MRCLAM_MOTION, MRCLAM_SENSOR)
+    score = ev.score_mrclam(run, d)
     assert len(run.landmarks) == 15
     assert run.rejected / len(d.measurements) < 0.036  # the gate only takes gross outliers
     # a careful numpy EKF of Table 10.1 reaches about 0.30 m and 0.26 m on this data
     assert score.path_rmse_aligned < 0.30
     assert score.landmark_rmse_aligned < 0.26
-    dr = ls.score_mrclam(ls.run_ekf_mrclam(d, MRCLAM_MOTION, MRCLAM_SENSOR, dead_reckoning=True), d)
+    dr = ev.score_mrclam(mrclam.run_ekf(d, MRCLAM_MOTION, MRCLAM_SENSOR, dead_reckoning=True), d)
     assert dr.path_rmse_aligned > 5 * score.path_rmse_aligned
     # distances instead of depth readings: the map (0.19 -> 0.07 m aligned) and the global
     # rotation (2.9 -> 0.9 m raw) both shrink; the aligned path stays within the reference
-    fixed = ls.score_mrclam(ls.run_ekf_mrclam(d.with_euclidean_ranges(), MRCLAM_MOTION, MRCLAM_SENSOR), d)
+    fixed = ev.score_mrclam(mrclam.run_ekf(d.with_euclidean_ranges(), MRCLAM_MOTION, MRCLAM_SENSOR), d)
     assert fixed.path_rmse_aligned < 0.30
     assert fixed.landmark_rmse_aligned < score.landmark_rmse_aligned / 2
     assert fixed.landmark_rmse < score.landmark_rmse / 2
@@ -175,11 +176,11 @@ def synthetic_mrclam(survey_swap=()):
 
 
 def test_survey_label_swaps_finds_exchanged_positions():
-    assert ls.survey_label_swaps(synthetic_mrclam()) == []
+    assert mrclam.survey_label_swaps(synthetic_mrclam()) == []
     swapped = synthetic_mrclam([(7, 9)])
-    assert ls.survey_label_swaps(swapped) == [(7, 9)]
+    assert mrclam.survey_label_swaps(swapped) == [(7, 9)]
     np.testing.assert_array_equal(swapped.landmark_positions[7], [5.0, 5.5])
-    residuals = ls.same_scan_residuals(synthetic_mrclam())
+    residuals = mrclam.same_scan_residuals(synthetic_mrclam())
     assert all(np.allclose(r, 0.0, atol=1e-12) for r in residuals.values())
     with pytest.raises(ValueError, match="pairs"):
         synthetic_mrclam([(7, 42)])
@@ -201,12 +202,12 @@ def depth_mrclam(scale):
 
 def test_euclidean_ranges_from_depth_readings():
     d = depth_mrclam(0.97)
-    assert ls.fit_range_scale(d) == pytest.approx(0.97, rel=1e-12)
+    assert mrclam.fit_range_scale(d) == pytest.approx(0.97, rel=1e-12)
     fixed = d.with_euclidean_ranges(0.97)
     np.testing.assert_array_equal(fixed.measurements[:, [0, 1, 3]], d.measurements[:, [0, 1, 3]])
     # distances now: the pose-free same-scan check closes exactly, and did not before
-    assert all(np.allclose(r, 0.0, atol=1e-12) for r in ls.same_scan_residuals(fixed).values())
-    assert max(np.abs(r).max() for r in ls.same_scan_residuals(d).values()) > 0.1
+    assert all(np.allclose(r, 0.0, atol=1e-12) for r in mrclam.same_scan_residuals(fixed).values())
+    assert max(np.abs(r).max() for r in mrclam.same_scan_residuals(d).values()) > 0.1
     assert d.measurements[0, 2] != fixed.measurements[0, 2]  # the original is left alone
     for bad in (0.0, -1.0, np.nan, np.inf):
         with pytest.raises(ValueError, match="scale"):
@@ -216,9 +217,9 @@ def test_euclidean_ranges_from_depth_readings():
     with pytest.raises(ValueError, match="measurements"):
         dataclasses.replace(d, measurements=behind).with_euclidean_ranges()
     with pytest.raises(ValueError, match="data"):
-        ls.fit_range_scale(dataclasses.replace(d, groundtruth=None))
+        mrclam.fit_range_scale(dataclasses.replace(d, groundtruth=None))
     with pytest.raises(ValueError, match="data"):
-        ls.fit_range_scale(dataclasses.replace(d, measurements=np.empty((0, 4))))
+        mrclam.fit_range_scale(dataclasses.replace(d, measurements=np.empty((0, 4))))
     assert len(dataclasses.replace(d, measurements=np.empty((0, 4))).with_euclidean_ranges().measurements) == 0
 
 
@@ -226,7 +227,7 @@ def range_errors(data):
     """Reading minus the distance from the Vicon pose to the surveyed landmark, and the bearings."""
     m = data.measurements
     truth = np.array([data.landmark_positions[int(s)] for s in m[:, 1]])
-    return m[:, 2] - np.hypot(*(truth - ls.truth_positions(data.groundtruth, m[:, 0])).T), m[:, 3]
+    return m[:, 2] - np.hypot(*(truth - ev.truth_positions(data.groundtruth, m[:, 0])).T), m[:, 3]
 
 
 def robust_std(e):
@@ -239,7 +240,7 @@ def test_mrclam_ranges_are_camera_depths(shared_data):
     long at its centre; scale * range / cos(bearing) removes that and two thirds of the error.
     Dataset 1 (no Vicon) confirms the same constant pose-free, by the same-scan distances."""
     d7 = mrclam_dataset(shared_data, 7)
-    assert ls.fit_range_scale(d7) == pytest.approx(ps.io.MRCLAM_RANGE_SCALE, abs=0.002)
+    assert mrclam.fit_range_scale(d7) == pytest.approx(ps.io.MRCLAM_RANGE_SCALE, abs=0.002)
     raw, bearing = range_errors(d7)
     fixed, _ = range_errors(d7.with_euclidean_ranges())
     edge, centre = np.abs(bearing) > 0.4, np.abs(bearing) < 0.1
@@ -249,7 +250,7 @@ def test_mrclam_ranges_are_camera_depths(shared_data):
     d1 = mrclam_dataset(shared_data, 1).with_survey_swapped([(11, 17)])
 
     def same_scan_error(data):
-        return np.median(np.abs(np.concatenate(list(ls.same_scan_residuals(data).values()))))
+        return np.median(np.abs(np.concatenate(list(mrclam.same_scan_residuals(data).values()))))
 
     assert same_scan_error(d1.with_euclidean_ranges()) < same_scan_error(d1) / 2.5
 
@@ -264,7 +265,7 @@ def test_mrclam_cameras_differ_in_range_scale(shared_data):
     scale, bias = {}, {}
     for robot in range(1, 6):
         d = ps.io.read_mrclam(folder, robot=robot)
-        scale[robot] = ls.fit_range_scale(d)
+        scale[robot] = mrclam.fit_range_scale(d)
         bias[robot] = float(np.median(range_errors(d.with_euclidean_ranges())[0]))
         own, _ = range_errors(d.with_euclidean_ranges(scale[robot]))
         assert abs(np.median(own)) < 0.01  # its own scale removes the constant error
@@ -277,13 +278,13 @@ def test_score_landmarks_aligns_the_map_onto_the_survey():
     c, s = np.cos(0.7), np.sin(0.7)
     # the survey seen from a frame rotated by 0.7 rad and shifted: aligned error zero
     moved = {int(i): np.array([[c, -s], [s, c]]) @ xy + [3.0, -1.0] for i, xy in d.landmark_positions.items()}
-    score = ls.score_landmarks(moved, d)
+    score = ev.score_landmarks(moved, d)
     assert score.rmse > 1.0 and score.rmse_aligned < 1e-12
     moved[6] = moved[6] + 0.4  # one landmark off: it carries most of the error
-    score = ls.score_landmarks(moved, d)
+    score = ev.score_landmarks(moved, d)
     assert max(score.errors, key=score.errors.get) == 6
     with pytest.raises(ValueError, match="landmarks"):
-        ls.score_landmarks({6: np.zeros(2)}, d)
+        ev.score_landmarks({6: np.zeros(2)}, d)
 
 
 def test_survey_in_map_frame_inverts_the_alignment():
@@ -293,12 +294,12 @@ def test_survey_in_map_frame_inverts_the_alignment():
     d = synthetic_mrclam()
     c, s = np.cos(-1.2), np.sin(-1.2)
     moved = {int(i): np.array([[c, -s], [s, c]]) @ xy + [-2.0, 5.0] for i, xy in d.landmark_positions.items()}
-    survey = ls.score_landmarks(moved, d).survey_in_map_frame(d)
+    survey = ev.score_landmarks(moved, d).survey_in_map_frame(d)
     assert set(survey) == set(d.landmark_positions)
     for i, xy in moved.items():
         np.testing.assert_allclose(survey[i], xy, atol=1e-12)
     moved[6] = moved[6] + [0.3, -0.1]
-    score = ls.score_landmarks(moved, d)
+    score = ev.score_landmarks(moved, d)
     survey = score.survey_in_map_frame(d)
     for i, error in score.errors.items():
         assert np.hypot(*(survey[i] - moved[i])) == pytest.approx(error, abs=1e-12)
@@ -327,22 +328,22 @@ def test_mrclam_dataset1_survey_labels_and_known_correspondences(shared_data):
     subjects 11 and 17 carry each other's positions (the readings of one scan contradict their
     surveyed distances by metres, pose-free evidence), which once looked like a 2.2 m divergence."""
     d = mrclam_dataset(shared_data, 1)
-    assert ls.survey_label_swaps(d) == [(11, 17)]
-    assert ls.survey_label_swaps(mrclam_dataset(shared_data, 7)) == []
-    run = ls.run_ekf_mrclam(d, MRCLAM_MOTION, MRCLAM_SENSOR)
+    assert mrclam.survey_label_swaps(d) == [(11, 17)]
+    assert mrclam.survey_label_swaps(mrclam_dataset(shared_data, 7)) == []
+    run = mrclam.run_ekf(d, MRCLAM_MOTION, MRCLAM_SENSOR)
     assert len(run.landmarks) == 15 and run.rejected / len(d.measurements) < 0.036
-    as_labelled = ls.score_landmarks(run.landmarks, d)
+    as_labelled = ev.score_landmarks(run.landmarks, d)
     assert as_labelled.errors[11] > 5 and as_labelled.errors[17] > 5  # each at the other's place
-    score = ls.score_landmarks(run.landmarks, d.with_survey_swapped([(11, 17)]))
+    score = ev.score_landmarks(run.landmarks, d.with_survey_swapped([(11, 17)]))
     assert score.rmse_aligned < DATASET1_MAP_RMSE
     assert max(score.errors.values()) < DATASET1_LANDMARK_ERROR
     # innovations: the used NIS average below 2 (2 dof), the noise being inflated on purpose
     used = run.innovations[(run.innovations[:, 3] > 0) & np.isfinite(run.innovations[:, 2])]
     assert len(used) == len(d.measurements) - run.rejected - 15 and used[:, 2].mean() < 2.0
-    dead = ls.score_landmarks(ls.dead_reckoning_map(d), d.with_survey_swapped([(11, 17)]))
+    dead = ev.score_landmarks(mrclam.dead_reckoning_map(d), d.with_survey_swapped([(11, 17)]))
     assert dead.rmse_aligned > 10 * score.rmse_aligned
-    run = ls.run_ekf_mrclam(d.with_euclidean_ranges(), MRCLAM_MOTION, MRCLAM_SENSOR)
-    assert ls.score_landmarks(run.landmarks, d.with_survey_swapped([(11, 17)])).rmse_aligned < DATASET1_MAP_RMSE_DISTANCES
+    run = mrclam.run_ekf(d.with_euclidean_ranges(), MRCLAM_MOTION, MRCLAM_SENSOR)
+    assert ev.score_landmarks(run.landmarks, d.with_survey_swapped([(11, 17)])).rmse_aligned < DATASET1_MAP_RMSE_DISTANCES
 
 
 @pytest.mark.slow
@@ -357,16 +358,15 @@ def test_ekf_on_mrclam_unknown_correspondences(shared_data):
     raw = mrclam_dataset(shared_data, 7)
     accuracy, count = {}, {}
     for method in ("ml", "jcbb"):
-        run = ls.run_ekf_mrclam(raw.with_euclidean_ranges(), MRCLAM_MOTION, MRCLAM_SENSOR, known=False,
+        run = mrclam.run_ekf(raw.with_euclidean_ranges(), MRCLAM_MOTION, MRCLAM_SENSOR, known=False,
                                 association=method)
-        accuracy[method], count[method] = ls.association_accuracy(run), len(run.landmarks)
-        applied = sum(int(np.count_nonzero(r.outcome <= r.NEW_LANDMARK)) for _, r in run.associations)
-        assert applied > 0.97 * len(raw.measurements)  # almost nothing is discarded
+        accuracy[method], count[method] = ev.association_accuracy(run), len(run.landmarks)
+        assert run.associations.applied > 0.97 * len(raw.measurements)  # almost nothing is discarded
     assert accuracy["jcbb"] >= 0.85 and abs(count["jcbb"] - 15) <= 1
     assert accuracy["jcbb"] > accuracy["ml"] + 0.03
     assert abs(count["ml"] - 15) <= 1  # no cluster collapse: a landmark explains one sighting per scan
-    run = ls.run_ekf_mrclam(raw, MRCLAM_MOTION, MRCLAM_SENSOR, known=False)  # depth readings: worse
-    assert ls.association_accuracy(run) < accuracy["jcbb"] - 0.05
+    run = mrclam.run_ekf(raw, MRCLAM_MOTION, MRCLAM_SENSOR, known=False)  # depth readings: worse
+    assert ev.association_accuracy(run) < accuracy["jcbb"] - 0.05
 
 
 @pytest.mark.slow
@@ -381,21 +381,20 @@ def test_mrclam_dataset1_unknown_correspondences_multiple_hypotheses(shared_data
     raw = mrclam_dataset(shared_data, 1)
     d = raw.with_euclidean_ranges()
     survey = d.with_survey_swapped([(11, 17)])
-    single = ls.run_ekf_mrclam(d, MRCLAM_MOTION, MRCLAM_SENSOR, known=False, association="jcbb")
-    run = ls.run_ekf_mrclam(d, MRCLAM_MOTION, MRCLAM_SENSOR, known=False, association="mht")
-    applied = sum(int(np.count_nonzero(r.outcome <= r.NEW_LANDMARK)) for _, r in run.associations)
-    assert applied > 0.99 * len(d.measurements)  # under 1% dropped as clutter
-    assert ls.association_accuracy(run) >= 0.99 and ls.association_accuracy(single) < 0.95
+    single = mrclam.run_ekf(d, MRCLAM_MOTION, MRCLAM_SENSOR, known=False, association="jcbb")
+    run = mrclam.run_ekf(d, MRCLAM_MOTION, MRCLAM_SENSOR, known=False, association="mht")
+    assert run.associations.applied > 0.99 * len(d.measurements)  # under 1% dropped as clutter
+    assert ev.association_accuracy(run) >= 0.99 and ev.association_accuracy(single) < 0.95
     assert abs(len(run.landmarks) - 15) <= 1 < len(single.landmarks) - 15
-    labels = ls.majority_labels(run)
+    labels = ev.majority_labels(run)
     assert sorted(labels[i] for i in run.landmarks) == list(range(6, 21))  # one landmark per barcode
-    score = ls.score_landmarks(run.landmarks, survey, labels)
+    score = ev.score_landmarks(run.landmarks, survey, labels)
     assert score.rmse_aligned < DATASET1_MAP_RMSE_DISTANCES
     # raw readings: duplicates, but each barcode's landmark with the most sightings maps well
-    split = ls.run_ekf_mrclam(raw, MRCLAM_MOTION, MRCLAM_SENSOR, known=False, association="mht")
-    assert len(split.landmarks) > 16 and ls.association_accuracy(split) >= 0.95
-    primary = ls.primary_landmarks(split)
-    score = ls.score_landmarks({i: split.landmarks[i] for i in primary.values()}, survey,
+    split = mrclam.run_ekf(raw, MRCLAM_MOTION, MRCLAM_SENSOR, known=False, association="mht")
+    assert len(split.landmarks) > 16 and ev.association_accuracy(split) >= 0.95
+    primary = ev.primary_landmarks(split)
+    score = ev.score_landmarks({i: split.landmarks[i] for i in primary.values()}, survey,
                                {i: t for t, i in primary.items()})
     assert len(primary) == 15 and score.rmse_aligned < DATASET1_MAP_RMSE
 
@@ -403,9 +402,9 @@ def test_mrclam_dataset1_unknown_correspondences_multiple_hypotheses(shared_data
 @pytest.mark.slow
 def test_ekf_on_victoria_park(shared_data):
     data = ps.io.read_victoria_park(shared_data / "landmark_slam/victoria_park/victoriaPark.txt")
-    run = ls.run_ekf_victoria_park(data)
-    assert run.ekf.num_landmarks == 151 and len(run.poses) == 6969
-    cov = run.ekf.covariance
+    run = victoria_park.run_ekf(data)
+    assert run.filter.num_landmarks == 151 and len(run.poses) == 6969
+    cov = run.filter.covariance
     assert np.array_equal(cov, cov.T) and np.linalg.eigvalsh(cov).min() > 0
     # the car drives about 3.5 km around the park and comes back near its start
     steps = np.hypot(*np.diff(run.poses[:, :2], axis=0).T)
@@ -449,10 +448,115 @@ def test_before_scan_sees_each_scan_and_the_filter_before_it_takes_it():
     def hook(ekf, rows):
         seen.append((rows[0, 0], len(rows), ekf.num_landmarks))
 
-    run = ls.run_ekf_mrclam(d, MRCLAM_MOTION, MRCLAM_SENSOR, before_scan=hook)
+    run = mrclam.run_ekf(d, MRCLAM_MOTION, MRCLAM_SENSOR, before_scan=hook)
     # three scans of four landmarks, the first ahead of any landmark, the filter the run's own
-    assert seen == [(0.0, 4, 0), (1.0, 4, 4), (2.0, 4, 4)] and run.ekf.num_landmarks == 4
+    assert seen == [(0.0, 4, 0), (1.0, 4, 4), (2.0, 4, 4)] and run.filter.num_landmarks == 4
     mht_seen = []
-    ls.run_ekf_mrclam(d, MRCLAM_MOTION, MRCLAM_SENSOR, known=False, association="mht",
+    mrclam.run_ekf(d, MRCLAM_MOTION, MRCLAM_SENSOR, known=False, association="mht",
                       before_scan=lambda f, rows: mht_seen.append(type(f).__name__))
     assert mht_seen == ["MultiHypothesisEkfSlam"] * 3
+
+
+# --- issue 34: one front door (run_landmark_slam), one result type, the scores in eval ----------
+
+def _bundled_mrclam():
+    return ps.datasets.load_landmark_dataset(ps.data.path("mrclam7_robot1_120s"))
+
+
+@pytest.mark.parametrize("method, known, driver", [
+    ("ekf", True, lambda d: mrclam.run_ekf(d, MRCLAM_MOTION, MRCLAM_SENSOR)),
+    ("ekf", False, lambda d: mrclam.run_ekf(d, MRCLAM_MOTION, MRCLAM_SENSOR, known=False, association="jcbb")),
+    ("mht", False, lambda d: mrclam.run_ekf(d, MRCLAM_MOTION, MRCLAM_SENSOR, known=False, association="mht")),
+    ("fastslam", False, lambda d: mrclam.run_fastslam(d, MRCLAM_MOTION, MRCLAM_SENSOR, known=False,
+                                                      num_particles=10)),
+    ("dead-reckoning", True, lambda d: mrclam.run_ekf(d, MRCLAM_MOTION, MRCLAM_SENSOR, dead_reckoning=True)),
+])
+def test_run_landmark_slam_is_the_dataset_driver(method, known, driver):
+    """The front door runs the dataset's driver with the dataset's defaults (MRCLAM's are the
+    noise this file measured), and a path is read as load_landmark_dataset reads it."""
+    data = _bundled_mrclam()
+    options = dict(num_particles=10) if method == "fastslam" else {}
+    run = ps.run_landmark_slam(data, method, known=known, **options)
+    direct = driver(data)
+    assert run.method == method == direct.method
+    np.testing.assert_array_equal(run.poses, direct.poses)
+    np.testing.assert_array_equal(run.times, direct.times)
+    assert run.landmarks.keys() == direct.landmarks.keys()
+    assert (run.associations is None) == known
+    if not known:
+        np.testing.assert_array_equal(run.associations.ids, direct.associations.ids)
+        assert len(run.associations) == len(data.measurements)  # every sighting, in the order taken
+    from_path = ps.run_landmark_slam(ps.data.path("mrclam7_robot1_120s"), method, known=known, **options)
+    np.testing.assert_array_equal(from_path.poses, run.poses)
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        run.poses = None
+
+
+def test_dead_reckoning_follows_the_odometry():
+    """The baseline method against dead_reckoning's own integration of the (t, v, w) rows: the
+    run's pose after control k is dead reckoning's pose at the next stamp."""
+    data = _bundled_mrclam()
+    run = ps.run_landmark_slam(data, "dead-reckoning")
+    reference = mrclam.dead_reckoning(data.odometry, mrclam.start_pose(data))
+    np.testing.assert_allclose(run.poses[:-1, :2], reference[1:, :2], atol=1e-9)
+    assert run.landmarks == {} and run.associations is None
+
+
+def test_run_landmark_slam_refuses_what_it_cannot_run():
+    data = _bundled_mrclam()
+    park = ps.io.read_victoria_park(ps.data.path("victoria_park_1000.txt"))
+    for call, exc, message in [
+        (lambda: ps.run_landmark_slam(data, "graph"), ValueError, "^method must be one of"),
+        (lambda: ps.run_landmark_slam(data, "mht"), ValueError, "^known: method 'mht'"),
+        (lambda: ps.run_landmark_slam(data, known=False, association="mht"), ValueError, "^association"),
+        (lambda: ps.run_landmark_slam(data, known=1), TypeError, "^known"),
+        (lambda: ps.run_landmark_slam(data, hypotheses={}), ValueError, "^hypotheses"),
+        (lambda: ps.run_landmark_slam(park, "mht", known=False), ValueError, "MRCLAM only"),
+        (lambda: ps.run_landmark_slam(park, known=False), ValueError, "^known"),
+        (lambda: ps.run_landmark_slam(park, motion_noise=MRCLAM_MOTION), ValueError, "^motion_noise"),
+        (lambda: ps.run_landmark_slam(None), TypeError, "^dataset"),
+    ]:
+        with pytest.raises(exc, match=message):
+            call()
+
+
+def test_load_landmark_dataset_says_what_a_path_is(tmp_path):
+    assert ps.datasets.landmark_dataset_kind(ps.data.path("mrclam7_robot1_120s")) == "mrclam"
+    assert ps.datasets.landmark_dataset_kind(ps.data.path("victoria_park_1000.txt")) == "victoria_park"
+    assert isinstance(_bundled_mrclam(), ps.io.Mrclam)
+    assert isinstance(ps.datasets.load_landmark_dataset(ps.data.path("victoria_park_1000.txt")), ps.io.VictoriaPark)
+    (tmp_path / "folder").mkdir()
+    (tmp_path / "empty.txt").write_text("")
+    (tmp_path / "odometry_only.txt").write_text("ODOMETRY 0 1 1 0 0 2 0 0 2 0 2\n")
+    for path, exc, message in [(tmp_path / "folder", ValueError, "folder without Barcodes.dat"),
+                               (tmp_path / "empty.txt", ValueError, "empty file"),
+                               (tmp_path / "odometry_only.txt", ValueError, "no LANDMARK records"),
+                               (tmp_path / "missing", FileNotFoundError, "no such file")]:
+        with pytest.raises(exc, match=message):
+            ps.datasets.load_landmark_dataset(path)
+    short = ps.datasets.load_landmark_dataset(ps.data.path("mrclam7_robot1_120s"), seconds=30.0, raw_ranges=True)
+    assert short.odometry[-1, 0] - short.odometry[0, 0] <= 30.0
+    raw = ps.io.read_mrclam(ps.data.path("mrclam7_robot1_120s"))
+    within = raw.measurements[raw.measurements[:, 0] <= short.odometry[0, 0] + 30]
+    np.testing.assert_array_equal(short.measurements, within)
+
+
+def _hand_run(truth, ids, landmarks):
+    """A hidden-correspondence result built by hand: sightings (true label, filter id)."""
+    record = ps.datasets.Associations(np.zeros(len(truth)), np.array(truth, np.int64), np.array(ids, np.int64))
+    return ps.LandmarkSlamResult("ekf", np.zeros(1), np.zeros((1, 3)), {i: np.zeros(2) for i in landmarks}, None,
+                                 associations=record)
+
+
+def test_association_scores_by_hand():
+    """Filter landmark 0 took labels 6, 6, 7; landmark 1 took 7, 7; landmark 2 took 8 and
+    was later removed; one sighting was discarded (-1): 6 of the 6 applied sightings but one
+    (the 7 on landmark 0) went to their majority label."""
+    run = _hand_run([6, 6, 7, 7, 7, 8, 9], [0, 0, 0, 1, 1, 2, -1], landmarks=[0, 1])
+    assert ev.majority_labels(run) == {0: 6, 1: 7, 2: 8}
+    assert ev.association_accuracy(run) == pytest.approx(5 / 6)
+    assert ev.primary_landmarks(run) == {6: 0, 7: 1}  # label 7: two sightings on 1, one on 0
+    assert run.associations.applied == 6
+    assert np.isnan(ev.association_accuracy(_hand_run([6], [-1], landmarks=[])))
+    with pytest.raises(ValueError, match="^result: a run with known correspondences"):
+        ev.association_accuracy(ps.run_landmark_slam(_bundled_mrclam()))

@@ -15,7 +15,7 @@ from hypothesis import strategies as st
 import policy
 import probslam as ps
 from probslam import cli, io
-from probslam import landmark_slam as ls
+from probslam.datasets import mrclam
 
 #: io calls the property tests below drive with odd arguments.
 COVERED = (
@@ -25,7 +25,7 @@ COVERED = (
     "io.read_mrclam(folder, robot)",
     "Mrclam.with_euclidean_ranges(scale)",
     "Mrclam.with_survey_swapped(pairs)",
-    "landmark_slam.first_seconds(data, seconds)",
+    "datasets.mrclam.first_seconds(data, seconds)",
     "_core.parse_carmen_log(text)",
 )
 
@@ -378,7 +378,7 @@ def test_with_survey_swapped_odd_pairs(pairs):
 @given(seconds=st.one_of(policy.floats(), policy.odd_objects()))
 def test_first_seconds_odd_windows(seconds):
     data = _small_mrclam()
-    policy.check_call(lambda: ls.first_seconds(data, seconds).odometry,
+    policy.check_call(lambda: mrclam.first_seconds(data, seconds).odometry,
                       snapshot=lambda: policy.state_of(data, "odometry", "measurements"))
 
 

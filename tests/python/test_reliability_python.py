@@ -19,7 +19,6 @@ COVERED = (
     "LearnedInverseModel.probability(inputs)",
     "LearnedInverseModel.train(data, rng, max_iterations)",
     "eval.nees(error, covariance)",
-    "eval.wrap(angle)",
     "eval.interpolate_poses(timestamps, poses, query_times)",
     "eval.relative_poses(a, b)",
     "eval.relations_error(timestamps, poses, relations)",
@@ -137,16 +136,6 @@ def test_nees_of_matching_shapes_is_finite_or_refused(e, scale):
     raised, out = policy.check_call(lambda: ev.nees(e, p))
     if raised:
         names_one_of(out, "error", "covariance")
-
-
-@PROPERTY
-@given(angle=st.one_of(policy.arrays(), policy.odd_objects()))
-def test_wrap_is_finite_or_refused(angle):
-    raised, out = policy.check_call(lambda: ev.wrap(angle))
-    if raised:
-        names_one_of(out, "angle")
-    else:
-        assert np.all((out > -np.pi) & (out <= np.pi))
 
 
 def sometimes_ordinary(shape):

@@ -23,7 +23,7 @@ MRCLAM_LANDMARK_SUBJECTS = range(6, 21)
 #: its distance from the robot: against Dataset 7's Vicon poses the distance is
 #: MRCLAM_RANGE_SCALE * range / cos(bearing). The raw range is 0.09 m long at the image centre
 #: and 0.31 m short at its edges; corrected, the robust std-dev of the range error falls from
-#: 0.067 m to 0.021 m. Fitted by ``landmark_slam.fit_range_scale`` on Dataset 7, robot 1; on
+#: 0.067 m to 0.021 m. Fitted by ``datasets.mrclam.fit_range_scale`` on Dataset 7, robot 1; on
 #: Dataset 1 it shrinks the pose-free same-scan distance residuals from 0.091 m to 0.035 m.
 MRCLAM_RANGE_SCALE = 0.971
 
@@ -120,7 +120,7 @@ class Mrclam:
     def with_survey_swapped(self, pairs) -> "Mrclam":
         """A copy whose surveyed positions of each subject pair ``(a, b)`` are exchanged, for data
         whose survey labels disagree with the barcodes (Dataset 1: subjects 11 and 17, see
-        ``landmark_slam.survey_label_swaps``). Measurements are left as the robot saw them."""
+        ``datasets.mrclam.survey_label_swaps``). Measurements are left as the robot saw them."""
         landmarks = self.landmarks.copy()
         row = {int(s): k for k, s in enumerate(landmarks[:, 0])}
         for a, b in pairs:

@@ -1,0 +1,127 @@
+"""The public datasets the package runs on, one module each: what is particular to a dataset
+(its defaults, its checks, how its records drive a filter, its forensics) lives here, the file
+readers in ``probslam.io``, the scores in ``probslam.eval``.
+
+- ``mrclam``: UTIAS MRCLAM, one robot's odometry, sightings and ground truth;
+- ``victoria_park``: Victoria Park as iSAM / GTSAM text, a chain of odometry edges and sightings;
+- ``carmen``: CARMEN laser logs, what ``probslam.run_slam`` reads.
+
+``run_landmark_slam`` runs a landmark filter (EKF, multiple-hypothesis EKF, FastSLAM) over an
+MRCLAM robot or Victoria Park, given as read (``load_landmark_dataset``) or as a path.
+"""
+
+from __future__ import annotations
+
+import os
+import pathlib
+from typing import Mapping, Optional, Union
+
+from .._args import require_instance
+from ..fastslam import DEFAULT_P_NEW
+from ..io._files import file_path
+from ..io.landmark_datasets import Mrclam, VictoriaPark
+from ..landmark_slam import METHODS, Associations, LandmarkSlamResult
+from . import carmen, mrclam, victoria_park
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+#: The associations of ``run_landmark_slam(method="ekf", known=False)``: joint compatibility over
+#: each scan, or maximum likelihood per sighting (``EkfSlam.update_unknown``).
+EKF_ASSOCIATIONS = ("jcbb", "ml")
+
+
+def landmark_dataset_kind(path: PathLike) -> str:
+    """What the path holds, judged before reading it: "mrclam" for a folder (it must hold
+    Barcodes.dat), "victoria_park" for a file (not empty). A missing path raises
+    ``FileNotFoundError``, a folder without Barcodes.dat or an empty file ``ValueError`` naming
+    the path."""
+    path = pathlib.Path(file_path(path))
+    if not path.exists():
+        raise FileNotFoundError(f"path: no such file or folder: {str(path)!r}")
+    if path.is_dir():
+        if not (path / "Barcodes.dat").exists():
+            raise ValueError(f"{path}: a folder without Barcodes.dat")
+        return "mrclam"
+    if path.is_file() and path.stat().st_size == 0:
+        raise ValueError(f"{path}: empty file")
+    return "victoria_park"
+
+
+def load_landmark_dataset(path: PathLike, *, robot: int = 1, seconds: Optional[float] = None,
+                          raw_ranges: bool = False) -> Union[Mrclam, VictoriaPark]:
+    """The landmark dataset at ``path`` (``landmark_dataset_kind``), read and checked: UTIAS
+    MRCLAM's robot ``robot``, its first ``seconds`` (None: all), readings as distances unless
+    ``raw_ranges`` (``mrclam.load``), or Victoria Park in iSAM / GTSAM text
+    (``victoria_park.load``; ``robot``, ``seconds`` and ``raw_ranges`` are MRCLAM's only).
+
+    Errors: those of ``landmark_dataset_kind``, the readers' (``FileNotFoundError`` for a
+    missing file, ``ValueError`` naming the file and line), and ``ValueError`` naming the path
+    for data with nothing to run (no odometry, no sighting)."""
+    if landmark_dataset_kind(path) == "mrclam":
+        return mrclam.load(path, robot, seconds, raw_ranges)
+    return victoria_park.load(path)
+
+
+def run_landmark_slam(dataset: Union[Mrclam, VictoriaPark, PathLike], method: str = "ekf", *, known: bool = True,
+                      motion_noise=None, measurement_noise=None, association: str = "jcbb",
+                      hypotheses: Optional[Mapping] = None, num_particles: int = 100, version: int = 1, seed: int = 0,
+                      threads: int = 1, p_new: float = DEFAULT_P_NEW,
+                      filter_options: Optional[Mapping] = None) -> LandmarkSlamResult:
+    """A landmark SLAM run over a dataset: an ``Mrclam`` robot or ``VictoriaPark`` as read, or a
+    path (read with ``load_landmark_dataset``'s defaults).
+
+    ``method``:
+      * ``"ekf"``: EKF SLAM (Tables 10.1 / 10.2); with ``known=False`` the correspondences are
+        hidden and found by ``association`` (``EKF_ASSOCIATIONS``: "jcbb" joint compatibility over
+        each scan, "ml" maximum likelihood). On Victoria Park known correspondences only.
+      * ``"mht"``: the multiple-hypothesis EKF, a beam of filters (hidden correspondences,
+        ``known=False``; MRCLAM only); ``hypotheses``: options of ``MultiHypothesisEkfSlam``
+        over the dataset's (``mrclam.run_ekf``).
+      * ``"fastslam"``: FastSLAM with ``num_particles``, ``version`` (1 or 2), ``seed``,
+        ``threads`` (the result is the same for any count), ``p_new`` (the density of a new
+        landmark, hidden correspondences); ``filter_options`` go to ``FastSlam``.
+      * ``"dead-reckoning"``: the odometry alone (the baseline the maps are compared with).
+
+    Noise: ``motion_noise`` (2, 2), MRCLAM's control noise of one 10 ms command (default
+    ``mrclam.MOTION_NOISE``; Victoria Park takes its file's odometry noise, scaled by
+    ``victoria_park.ODOMETRY_NOISE_SCALE`` for FastSLAM); ``measurement_noise`` (2, 2) range and
+    bearing (default: MRCLAM ``mrclam.MEASUREMENT_NOISE``, Victoria Park the file's noise in
+    polar form at the median range).
+
+    Returns a ``LandmarkSlamResult``; ``probslam.eval`` scores it (``score_mrclam``,
+    ``score_landmarks``, ``association_accuracy``). The dataset modules' ``run_ekf`` /
+    ``run_fastslam`` take further options (gates, hooks, start pose)."""
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {', '.join(map(repr, METHODS))}, got {method!r}")
+    if not isinstance(known, bool):
+        raise TypeError(f"known must be a bool, got {type(known).__name__}")
+    if isinstance(dataset, (str, bytes, os.PathLike)):
+        dataset = load_landmark_dataset(dataset)
+    require_instance(dataset, (Mrclam, VictoriaPark), "dataset")
+    if method == "mht" and known:
+        raise ValueError("known: method 'mht' finds the correspondences itself; pass known=False")
+    if method == "ekf" and not known and association not in EKF_ASSOCIATIONS:
+        raise ValueError(f"association must be one of {', '.join(map(repr, EKF_ASSOCIATIONS))}, got {association!r}")
+    if hypotheses is not None and method != "mht":
+        raise ValueError(f"hypotheses: options of method 'mht', not of {method!r}")
+    fastslam = dict(num_particles=num_particles, version=version, seed=seed, threads=threads, p_new=p_new,
+                    filter_options=filter_options)
+    if isinstance(dataset, Mrclam):
+        if method == "fastslam":
+            return mrclam.run_fastslam(dataset, motion_noise, measurement_noise, known=known, **fastslam)
+        return mrclam.run_ekf(dataset, motion_noise, measurement_noise, known=known or method == "dead-reckoning",
+                              association="mht" if method == "mht" else association, hypotheses=hypotheses,
+                              dead_reckoning=method == "dead-reckoning")
+    if motion_noise is not None:
+        raise ValueError("motion_noise: Victoria Park's odometry noise is its file's")
+    if method == "fastslam":
+        return victoria_park.run_fastslam(dataset, measurement_noise, known=known, **fastslam)
+    if method == "mht":
+        raise ValueError("method 'mht' runs on MRCLAM only")
+    if method == "ekf" and not known:
+        raise ValueError("known: on Victoria Park the EKF runs with the file's correspondences only (known=True)")
+    return victoria_park.run_ekf(dataset, measurement_noise, dead_reckoning=method == "dead-reckoning")
+
+
+__all__ = ["Associations", "EKF_ASSOCIATIONS", "LandmarkSlamResult", "carmen", "landmark_dataset_kind",
+           "load_landmark_dataset", "mrclam", "run_landmark_slam", "victoria_park"]

@@ -1,0 +1,41 @@
+"""CARMEN laser logs (the Freiburg / Radish logs: FLASER / ROBOTLASER1 / ODOM lines, plain or
+compressed), as ``probslam.run_slam`` and ``map_laser_log`` take them: read (``load``), and
+what a log carries (``has_odometry``). The line reader is ``probslam.io.read_carmen_log``.
+"""
+
+from __future__ import annotations
+
+import os
+from typing import Union
+
+import numpy as np
+
+from .._args import require_instance
+from ..io._files import file_path
+from ..io.carmen import CarmenLog, LaserScans, read_carmen_log
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+#: Laser poses that move less than this over a whole log (metres, radians) mean the log carries
+#: no odometry (MIT CSAIL's FLASER lines repeat one pose): scan matching alone then.
+NO_ODOMETRY_MOTION = 1e-6
+
+
+def load(path: PathLike) -> CarmenLog:
+    """The log at ``path``, which must hold laser scans: besides the reader's errors
+    (``io.read_carmen_log``), a ValueError naming the file when it has none."""
+    path = file_path(path)
+    log = read_carmen_log(path)
+    if len(log.scans) == 0:
+        raise ValueError(f"{path}: no laser scans (FLASER or ROBOTLASER1 lines)")
+    return log
+
+
+def has_odometry(scans: LaserScans) -> bool:
+    """Whether the laser poses of the log move at all (some logs repeat one pose throughout)."""
+    require_instance(scans, LaserScans, "scans")
+    p = scans.laser_poses
+    return bool(len(p) > 1 and np.ptp(p, axis=0).max() > NO_ODOMETRY_MOTION)
+
+
+__all__ = ["NO_ODOMETRY_MOTION", "has_odometry", "load"]

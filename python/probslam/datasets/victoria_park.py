@@ -1,0 +1,117 @@
+"""Victoria Park (Guivant and Nebot's car in Sydney's park, as iSAM / GTSAM text): read
+(``load``), and driven through EKF SLAM or FastSLAM along its chain of odometry edges
+(``run_ekf``, ``run_fastslam``), the landmark points it records turned into range and bearing.
+
+The file reader is ``probslam.io.read_victoria_park``. Units: metres, radians.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import pathlib
+from typing import Mapping, Optional, Tuple, Union
+
+import numpy as np
+
+from .. import _core
+from .._args import positive_real, require_instance
+from ..fastslam import DEFAULT_P_NEW, fastslam_along_chain
+from ..io._files import file_path
+from ..io.landmark_datasets import VictoriaPark, read_victoria_park
+from ..landmark_slam import LandmarkSlamResult, ekf_along_chain, polar_measurements
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+#: The largest distance (m) a record may hold: the filters refuse coordinates beyond it (C++
+#: kMaxCoordinate), and the squares of larger ones overflow in the conversion to range and
+#: bearing, which then fails with a message about an internal noise matrix.
+MAX_COORDINATE = _core.MAX_COORDINATE
+
+#: FastSLAM: the standard deviations of the file's odometry noise are multiplied by this.
+#: The file gives every step the same noise (0.01 m, 0.002 m, 0.002 rad), but the odometry's
+#: heading error is not white: at the GraphSLAM optimum (chi2 6184.12) the per-step heading
+#: residuals have mean +0.54 sigma (7.5 rad accumulated over the run, more than a full turn), so
+#: the error over n steps grows like n, not sqrt(n): its RMS is 0.79, 2.5, 4.3 and 7.2 times
+#: sigma sqrt(n) for n = 1, 10, 30, 100. An EKF corrects such a drift through its pose-landmark
+#: correlations; a particle filter can only select among the poses it sampled, so with the
+#: file's noise the particles cannot follow it (one noise-free particle equals dead reckoning,
+#: 156 m RMS from the optimum; the best of 100 particles ends 157 m from it). 7 is that ratio at
+#: 100 steps: the particles then cover the heading error accumulated between loop closures,
+#: which is what hidden associations need (a particle that drifted beyond the association gate
+#: starts a duplicate instead of closing the loop). Measured on this file only, the one it is
+#: for (studies/fastslam_victoria_park_study.py, 100 particles, seeds 0-3, hidden
+#: associations, median path RMSE from the optimum): scale 3: 180 m (version 1) / 181 m
+#: (version 2); 5: 45 / 13 m; 7: 10 / 8.8 m; 10: 24 / 24 m. Known associations: 3: 4.8-21 m;
+#: 7: 8-14 m.
+ODOMETRY_NOISE_SCALE = 7.0
+
+
+def load(path: PathLike) -> VictoriaPark:
+    """The file at ``path``, ready to run. Besides the reader's errors
+    (``io.read_victoria_park``), a ValueError naming the file when it holds no ODOMETRY or no
+    LANDMARK record, or distances beyond ``MAX_COORDINATE``."""
+    path = pathlib.Path(file_path(path))
+    data = read_victoria_park(path)
+    if len(data.pose_from) == 0:
+        raise ValueError(f"{path}: no ODOMETRY records")
+    if len(data.xy) == 0:
+        raise ValueError(f"{path}: no LANDMARK records")
+    for records, values in (("ODOMETRY", data.delta[:, :2]), ("LANDMARK", data.xy)):
+        if np.max(np.abs(values)) > MAX_COORDINATE:
+            raise ValueError(f"{path}: {records} records with distances beyond {MAX_COORDINATE:g} m "
+                             f"(MAX_COORDINATE)")
+    return data
+
+
+def chain(data: VictoriaPark) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The run as a chain of poses: (observed_from (L,), z (L, 2), z_cov (L, 2, 2)), the chain
+    position each landmark point was recorded from and the point as range-bearing with its polar
+    covariance; the odometry edges must link the poses one after the other."""
+    require_instance(data, VictoriaPark, "data")
+    if np.any(data.pose_from[1:] != data.pose_to[:-1]):
+        raise ValueError("data: the odometry edges do not form one chain")
+    poses = np.r_[data.pose_from[0], data.pose_to]
+    z, z_cov = polar_measurements(data.xy, data.xy_cov)
+    position = {int(p): k for k, p in enumerate(poses)}
+    return np.array([position[int(p)] for p in data.pose], dtype=np.int64), z, z_cov
+
+
+def _sensor_noise(z_cov: np.ndarray, measurement_noise) -> np.ndarray:
+    """Q_t: the given (2, 2) covariance, or the points' polar covariance at the median range."""
+    q = np.median(z_cov, axis=0) if measurement_noise is None else np.asarray(measurement_noise, float)
+    return 0.5 * (q + q.T)
+
+
+def run_ekf(data: VictoriaPark, measurement_noise=None, dead_reckoning: bool = False) -> LandmarkSlamResult:
+    """EKF SLAM with known correspondences (the file's landmark numbers) along the odometry
+    edges, as relative poses with the file's covariances; the landmark points converted to
+    range-bearing. The file's per-observation covariances are constant (0.4 m^2 per axis); their
+    polar form at each range would change Q_t per measurement, so Q_t is the polar covariance at
+    the median range unless given. ``dead_reckoning``: the odometry alone (method
+    "dead-reckoning")."""
+    observed_from, z, z_cov = chain(data)
+    q = _sensor_noise(z_cov, measurement_noise)
+    if dead_reckoning:
+        observed_from = observed_from[:0]
+    result = ekf_along_chain(data.delta, data.delta_cov, observed_from, z, z_cov, data.landmark, q)
+    return dataclasses.replace(result, method="dead-reckoning") if dead_reckoning else result
+
+
+def run_fastslam(data: VictoriaPark, measurement_noise=None, *, known: bool = True, num_particles: int = 100,
+                 version: int = 1, seed: int = 0, threads: int = 1, p_new: float = DEFAULT_P_NEW,
+                 odometry_noise_scale: float = ODOMETRY_NOISE_SCALE,
+                 filter_options: Optional[Mapping] = None) -> LandmarkSlamResult:
+    """FastSLAM along the odometry edges, as relative poses with their covariances times
+    ``odometry_noise_scale`` ** 2 (see ``ODOMETRY_NOISE_SCALE``), the landmark points as
+    range-bearing (Q_t as ``run_ekf``). ``known=False`` hides the associations: each particle
+    associates by maximum likelihood. ``filter_options`` go to ``FastSlam``."""
+    require_instance(data, VictoriaPark, "data")
+    scale = positive_real(odometry_noise_scale, "odometry_noise_scale")
+    observed_from, z, z_cov = chain(data)
+    f = _core.FastSlam(num_particles, np.eye(3) * 0.0, _sensor_noise(z_cov, measurement_noise), version=version,
+                       seed=seed, threads=threads, p_new=p_new, **dict(filter_options or {}))
+    return fastslam_along_chain(f, data.delta, scale ** 2 * data.delta_cov, observed_from, z, data.landmark, known)
+
+
+__all__ = ["MAX_COORDINATE", "ODOMETRY_NOISE_SCALE", "chain", "load", "run_ekf", "run_fastslam"]
