@@ -25,7 +25,9 @@ Eigen::Vector2d offset(const Eigen::Vector3d& pose, const Eigen::Ref<const Eigen
 
 Eigen::Vector2d range_bearing(const Eigen::Vector3d& pose, const Eigen::Vector2d& landmark) {
   const Eigen::Vector2d d = offset(pose, landmark);
-  return {std::hypot(d.x(), d.y()), wrap_angle(std::atan2(d.y(), d.x()) - pose[2])};
+  const double r = std::hypot(d.x(), d.y());  // overflows where both offsets are near the double maximum
+  require(std::isfinite(r), "landmark", "is beyond the double range from the pose");
+  return {r, wrap_angle(std::atan2(d.y(), d.x()) - pose[2])};
 }
 
 Eigen::Vector3d range_bearing(const Eigen::Vector3d& pose, const Eigen::Vector3d& landmark) {

@@ -498,6 +498,7 @@ def test_models_property(pose, other, v, w, dt, angles):
     (lambda: ps.velocity_motion([0, 0, 0], 1e308, 0.0, 1e308), "v"),
     (lambda: ps.velocity_motion_control_jacobian([0, 0, 0], 1e308, 1.0, 1e308), "v"),
     (lambda: ps.range_bearing([-1e308, 0, 0], [1e308, 0]), "landmark"),
+    (lambda: ps.range_bearing([0, 0, 0], [1.7e308, 1.7e308]), "landmark"),  # each offset finite, the range not
     (lambda: ps.landmark_from_range_bearing([1e308, 0, 0], [1e308, 0.0]), "z"),
     (lambda: ps.Pose2(1e308, 0, 0).compose(ps.Pose2(1e308, 0, 0)), "pose"),
     (lambda: ps.Pose2(1e308, 0, np.pi).inverse().compose(ps.Pose2(-1e308, 0, 0)), "pose"),
