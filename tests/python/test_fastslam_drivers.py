@@ -193,3 +193,18 @@ def test_mrclam_benchmark_passes_the_fastslam_options():
         assert run.filter.num_particles == 20
     assert (rows[None]["landmarks"], rows[None]["correct"]) == (rows[1.0]["landmarks"], rows[1.0]["correct"])
     assert rows[0.0]["landmarks"] != rows[None]["landmarks"]  # so the option is not dropped on the way
+
+
+def test_known_mrclam_outlier_density_is_the_ekf_gate():
+    """FastSLAM's outlier density for known MRCLAM correspondences equals the Gaussian density
+    of Q on the EKF gate's chi-square contour (scipy as the reference), so both filters call the
+    same measurements outliers."""
+    from scipy import stats
+
+    from probslam.datasets import mrclam
+
+    q = np.array([[0.15 ** 2, 0.001], [0.001, 0.04 ** 2]])
+    gate = stats.chi2.ppf(mrclam.OUTLIER_PROBABILITY, 2)
+    point = np.linalg.cholesky(q) @ np.array([np.sqrt(gate), 0.0])  # Mahalanobis^2 = gate
+    expected = stats.multivariate_normal(mean=[0.0, 0.0], cov=q).pdf(point)
+    assert mrclam.outlier_density(q) == pytest.approx(expected, rel=1e-9)

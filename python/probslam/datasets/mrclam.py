@@ -257,6 +257,16 @@ def _applied_ids(history) -> List[np.ndarray]:
     return [np.where(np.asarray(ids) >= 0, ids, -1) for ids in history]
 
 
+def outlier_density(measurement_noise) -> float:
+    """FastSLAM's outlier density (1 / (m rad)) for known correspondences that rejects what
+    ``run_ekf``'s gate rejects: the Gaussian density N(z - z_hat; 0, Q) on the chi-square
+    ``OUTLIER_PROBABILITY`` contour of Q (the landmark's own covariance, small after a few
+    sightings, left out), so a measurement beyond the EKF's gate is more likely an outlier."""
+    q = np.asarray(measurement_noise, float)[:2, :2]
+    gate = chi_square_quantile(OUTLIER_PROBABILITY, 2)
+    return float(np.exp(-0.5 * gate) / (2 * np.pi * np.sqrt(np.linalg.det(q))))
+
+
 def run_fastslam(data: Mrclam, motion_noise=None, measurement_noise=None, *, known: bool = True,
                  num_particles: int = 100, version: int = 1, seed: int = 0, threads: int = 1,
                  p_new: float = DEFAULT_P_NEW, initial_pose=None, command_period: float = COMMAND_PERIOD,
@@ -269,7 +279,8 @@ def run_fastslam(data: Mrclam, motion_noise=None, measurement_noise=None, *, kno
     (``FastSlam.update_unknown``), with ``negative_information`` in the camera's field
     (``perceptual_field``, unless ``filter_options`` give ``sensor_range`` / ``sensor_fov``): a
     landmark there that a scan does not see loses existence, and a particle's duplicates, never
-    seen again, are removed. ``filter_options`` go to ``FastSlam`` (e.g. ``existence_miss``,
+    seen again, are removed. Known correspondences reject outliers as ``run_ekf`` does
+    (``outlier_density``) unless ``filter_options`` set one. ``filter_options`` go to ``FastSlam`` (e.g. ``existence_miss``,
     ``bearing_offset_sigma``). The start pose defaults to ``start_pose(data)``. ``times`` are
     the stamps of the best particle's path: the start, then one per prediction."""
     _require_odometry(data)
@@ -279,6 +290,8 @@ def run_fastslam(data: Mrclam, motion_noise=None, measurement_noise=None, *, kno
     if not known and negative_information and len(data.measurements):
         field_range, field_fov = perceptual_field(data)
         options = {"negative_information": True, "sensor_range": field_range, "sensor_fov": field_fov, **options}
+    if known and "outlier_density" not in options:
+        options["outlier_density"] = outlier_density(measurement_noise)
     initial_pose = start_pose(data) if initial_pose is None else initial_pose
     m_rate = np.asarray(motion_noise, float) * command_period
     f = FastSlam(num_particles, np.eye(3) * 0.0, measurement_noise, version=version, seed=seed, threads=threads,
@@ -397,6 +410,6 @@ def dead_reckoning_map(data: Mrclam, initial_pose=(0.0, 0.0, 0.0)) -> Dict[int, 
 
 __all__ = ["COMMAND_PERIOD", "MEASUREMENT_NOISE", "MEASUREMENT_SIGMA", "MHT_DETECTION_PROBABILITY",
            "MHT_NEW_LANDMARK_COST", "MOTION_NOISE", "MOTION_SIGMA",
-           "OUTLIER_PROBABILITY", "PERCEPTUAL_FIELD_QUANTILE", "ROBOTS", "SURVEY_RESIDUAL_LIMIT", "dead_reckoning",
+           "OUTLIER_PROBABILITY", "PERCEPTUAL_FIELD_QUANTILE", "outlier_density", "ROBOTS", "SURVEY_RESIDUAL_LIMIT", "dead_reckoning",
            "dead_reckoning_map", "first_seconds", "fit_range_scale", "load", "perceptual_field", "run_ekf",
            "run_fastslam", "same_scan_residuals", "scans", "start_pose", "survey_label_swaps"]
