@@ -399,3 +399,18 @@ def relations_error(timestamps: object, poses: object,
     translational = np.hypot(e[:, 0], e[:, 1])
     _require_finite(translational, "poses and relations: the relations error")
     return RelationsError(translational, np.abs(_wrap(e[:, 2])), used, int(len(t1) - used.size))
+
+
+__all__ = [
+    "MAX_REPORTED_LINES",
+    "NEES_SINGULAR_RTOL",
+    "Relations",
+    "RelationsError",
+    "SingularCovarianceError",
+    "interpolate_poses",
+    "nees",
+    "read_relations",
+    "relations_error",
+    "relative_poses",
+    "wrap",
+]

@@ -80,8 +80,8 @@ class _Histories:
 
 
 def _landmarks(f: FastSlam) -> Dict[int, np.ndarray]:
-    ids, means, _ = f.landmarks(f.best_index)
-    return {int(i): m for i, m in zip(ids, means)}
+    landmarks = f.landmarks()
+    return {int(i): m for i, m in zip(landmarks.ids, landmarks.means)}
 
 
 def _sightings(run: FastSlamRun) -> List[Tuple[int, int]]:
@@ -168,14 +168,14 @@ def run_fastslam_mrclam(data: Mrclam, motion_noise, measurement_noise, *, known:
             if known:
                 f.update(rows[:, 2:4], truth)
             else:
-                ids, _, _ = f.update_unknown(rows[:, 2:4])
+                ids = f.update_unknown(rows[:, 2:4]).ids
                 hist.add(f, ids, truth)
             s += 1
         if t_next > t_now:
             move(v, w, t_next - t_now)
             t_now = t_next
     run.seconds = time.perf_counter() - t0
-    run.times, run.poses = np.array(times), f.best_path
+    run.times, run.poses = np.array(times), f.path()
     run.landmarks = _landmarks(f)
     if not known:
         run.associations = hist.of(f.best_index)
@@ -221,9 +221,9 @@ def run_fastslam_victoria_park(data: VictoriaPark, *, known: bool = False, num_p
             if known:
                 f.update(z[rows], truth)
             else:
-                ids, _, _ = f.update_unknown(z[rows])
+                ids = f.update_unknown(z[rows]).ids
                 hist.add(f, ids, truth)
-    run = FastSlamRun(np.arange(len(chain), dtype=float), f.best_path, f, _landmarks(f),
+    run = FastSlamRun(np.arange(len(chain), dtype=float), f.path(), f, _landmarks(f),
                       seconds=time.perf_counter() - t0)
     if not known:
         run.associations = hist.of(f.best_index)

@@ -177,7 +177,7 @@ def run_ekf_mrclam(data: Mrclam, motion_noise, measurement_noise, known: bool = 
     run.times, run.poses, run.rejected = times, poses, rejected
     if innovations:
         run.innovations = np.vstack(innovations)
-    run.landmarks = {int(i): ekf.landmark(i)[:2] for i in ekf.landmark_ids}
+    run.landmarks = {int(i): ekf.landmark(i)[:2] for i in ekf.landmarks().ids}
     return run
 
 
@@ -439,7 +439,7 @@ def _ekf_along_chain(delta: np.ndarray, delta_cov: np.ndarray, observed_from: np
             ekf.update(z[rows], landmark[rows])
         poses[k] = ekf.pose
     run = EkfRun(np.arange(len(poses), dtype=float), poses, ekf, {})
-    run.landmarks = {int(i): ekf.landmark(i)[:2] for i in ekf.landmark_ids}
+    run.landmarks = {int(i): ekf.landmark(i)[:2] for i in ekf.landmarks().ids}
     return run
 
 
