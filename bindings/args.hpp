@@ -13,6 +13,8 @@
 #include <limits>
 #include <string>
 
+#include "probslam/core/check.hpp"
+
 namespace probslam::bindings {
 
 namespace py = pybind11;
@@ -103,6 +105,25 @@ struct StrArg {
   std::string get(const char* name) const {
     if (!py::isinstance<py::str>(value)) throw py::type_error(std::string(name) + " must be a str");
     return value.cast<std::string>();
+  }
+};
+
+/// The `particle` argument of a particle filter's per-particle calls (FastSlam, GridFastSlam):
+/// None is the best particle, resolved under the filter's lock; anything else an index in
+/// [0, num_particles), its type and sign checked with the GIL held.
+struct ParticleChoice {
+  long long index = -1;  // -1: the best
+  static ParticleChoice from(py::handle k) {
+    if (k.is_none()) return {};
+    const long long i = index_value(k, "particle");
+    if (i < 0) throw py::value_error("particle must be in [0, num_particles)");
+    return {i};
+  }
+  template <typename Filter>
+  int resolve(const Filter& f) const {
+    if (index < 0) return f.best_index();
+    require(index < f.num_particles(), "particle", "must be in [0, num_particles)");
+    return static_cast<int>(index);
   }
 };
 

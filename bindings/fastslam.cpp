@@ -53,24 +53,6 @@ struct LandmarkDetails {
   py::array_t<double> existence, signature, signature_var;
 };
 
-/// The particle argument of FastSlam's per-particle calls: None is the best particle, resolved
-/// under the lock; anything else an index in [0, num_particles).
-struct ParticleChoice {
-  long long index = -1;  // -1: the best
-  int resolve(const FastSlam& f) const {
-    if (index < 0) return f.best_index();
-    require(index < f.num_particles(), "particle", "must be in [0, num_particles)");
-    return static_cast<int>(index);
-  }
-};
-
-ParticleChoice particle_arg(py::handle k) {
-  if (k.is_none()) return {};
-  const long long i = index_value(k, "particle");
-  if (i < 0) throw py::value_error("particle must be in [0, num_particles)");
-  return {i};
-}
-
 template <typename T>
 py::array_t<T> vector_out(const std::vector<T>& v) {
   py::array_t<T> a(static_cast<py::ssize_t>(v.size()));
@@ -172,7 +154,7 @@ void define_state(py::class_<FastSlam>& c) {
                              "Landmarks in the best particle's map (landmarks(particle) for another's).")
       .def("path",
            [](const FastSlam& f, py::handle particle) {
-             const ParticleChoice k = particle_arg(particle);
+             const ParticleChoice k = ParticleChoice::from(particle);
              return locked(f, [&] { return f.path(k.resolve(f)); });
            },
            py::arg("particle") = py::none(),
@@ -181,7 +163,7 @@ void define_state(py::class_<FastSlam>& c) {
       .def(
           "landmarks",
           [](const FastSlam& f, py::handle particle) {
-            const ParticleChoice k = particle_arg(particle);
+            const ParticleChoice k = ParticleChoice::from(particle);
             std::vector<LandmarkEntry> entries;
             locked(f, [&] {
               for (const Landmark& lm : f.landmarks(k.resolve(f))) entries.push_back({lm.id, lm.mean, lm.cov});
@@ -194,7 +176,7 @@ void define_state(py::class_<FastSlam>& c) {
       .def(
           "landmark_details",
           [](const FastSlam& f, py::handle particle) {
-            const ParticleChoice k = particle_arg(particle);
+            const ParticleChoice k = ParticleChoice::from(particle);
             const std::vector<Landmark> lms = locked(f, [&] { return f.landmarks(k.resolve(f)); });
             const auto n = static_cast<py::ssize_t>(lms.size());
             LandmarkDetails d{py::array_t<long>(n), py::array_t<double>(n), py::array_t<double>(n), py::array_t<double>(n)};

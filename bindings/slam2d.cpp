@@ -668,18 +668,6 @@ void define_slam2d(py::module_& m) {
                              "rejected / dissolved, rounds, optimizations, final_chi2.");
 
   using Rbpf = GridFastSlam;
-  // The particle argument is read with the GIL held; resolved (None: the best) under the lock.
-  auto particle_arg = [](py::handle k) -> long long {
-    if (k.is_none()) return -1;
-    const long long i = index_value(k, "particle");
-    if (i < 0) throw py::value_error("particle must be in [0, num_particles)");
-    return i;
-  };
-  auto resolve = [](const Rbpf& self, long long k) {
-    if (k < 0) return self.best_index();
-    require(k < self.num_particles(), "particle", "must be in [0, num_particles)");
-    return static_cast<int>(k);
-  };
   const GridFastSlamOptions rbpf_defaults;
   auto rbpf = mapper_class<Rbpf>(
       m, "GridFastSlam",
@@ -792,14 +780,14 @@ void define_slam2d(py::module_& m) {
       .def_property_readonly("scan_poses", [](const Rbpf& self) {
         return locked(self, [&] { return self.scan_poses(self.best_index()); });
       }, "(S, 3) every scan's pose along the best particle's path (path(particle) for another's).")
-      .def("path", [particle_arg, resolve](const Rbpf& self, py::handle particle) {
-        const long long k = particle_arg(particle);
-        return locked(self, [&] { return self.scan_poses(resolve(self, k)); });
+      .def("path", [](const Rbpf& self, py::handle particle) {
+        const ParticleChoice k = ParticleChoice::from(particle);
+        return locked(self, [&] { return self.scan_poses(k.resolve(self)); });
       }, py::arg("particle") = py::none(),
          "(S, 3) every scan's pose along a particle's path (default: the best particle's).")
-      .def("map", [particle_arg, resolve](const Rbpf& self, py::handle particle) {
-        const long long k = particle_arg(particle);
-        return locked(self, [&] { return self.map(resolve(self, k)); });
+      .def("map", [](const Rbpf& self, py::handle particle) {
+        const ParticleChoice k = ParticleChoice::from(particle);
+        return locked(self, [&] { return self.map(k.resolve(self)); });
       }, py::arg("particle") = py::none(), "A particle's map as a dense OccupancyGrid2D (default: the best particle's).")
       .def_property_readonly("tile_sharing", getter(&Rbpf::tile_sharing),
                              "TileSharing: references (tiles held over all particles), distinct (allocated), bytes.")

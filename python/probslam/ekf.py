@@ -287,7 +287,7 @@ class MultiHypothesisEkfSlam:
     beam or, when they raise, none.
     """
 
-    def __init__(self, ekf: EkfSlam, max_hypotheses: int = 10, max_children: int = 4, gate: Optional[float] = None,
+    def __init__(self, ekf: EkfSlam, *, max_hypotheses: int = 10, max_children: int = 4, gate: Optional[float] = None,
                  new_landmark_cost: Optional[float] = None, clutter_cost: Optional[float] = None,
                  prune_margin: float = 40.0, detection_probability: float = 0.0, sensor_range: float = 0.0,
                  sensor_fov: float = 0.0, bearing_offset_sigma: float = 0.0,

@@ -109,45 +109,34 @@ def class_members(cls):
 
 # --- signatures from pybind11 docstrings --------------------------------------------------------
 
-def _split_top(text: str, sep: str = ","):
-    """text split at `sep` outside brackets and quotes."""
-    parts, depth, quote, start = [], 0, None, 0
+def _outside_quotes(text: str):
+    """(index, character, bracket depth) of each character of text outside quotes; a bracket
+    stands at the depth it opens from or closes to."""
+    depth, quote = 0, None
     for i, c in enumerate(text):
         if quote:
-            if c == quote:
-                quote = None
-        elif c in "'\"":
+            quote = None if c == quote else quote
+            continue
+        if c in "'\"":
             quote = c
-        elif c in "([{":
-            depth += 1
-        elif c in ")]}":
-            depth -= 1
-        elif c == sep and depth == 0:
-            parts.append(text[start:i])
-            start = i + 1
-    parts.append(text[start:])
-    return [p.strip() for p in parts if p.strip()]
+            continue
+        depth -= c in ")]}"
+        yield i, c, depth
+        depth += c in "([{"
+
+
+def _split_top(text: str):
+    """text split at the commas outside brackets and quotes."""
+    cuts = [i for i, c, depth in _outside_quotes(text) if c == "," and depth == 0]
+    return [p.strip() for p in (text[a + 1:b] for a, b in zip([-1] + cuts, cuts + [len(text)])) if p.strip()]
 
 
 def _params_text(line: str, name: str):
     """The text between the parentheses of `name(...) -> ...`, or None."""
     if not line.startswith(name + "("):
         return None
-    depth, quote = 0, None
-    for i in range(len(name), len(line)):
-        c = line[i]
-        if quote:
-            if c == quote:
-                quote = None
-        elif c in "'\"":
-            quote = c
-        elif c in "([{":
-            depth += 1
-        elif c in ")]}":
-            depth -= 1
-            if depth == 0:
-                return line[len(name) + 1:i]
-    return None
+    ends = [i for i, c, depth in _outside_quotes(line) if c == ")" and depth == 0 and i > len(name)]
+    return line[len(name) + 1:ends[0]] if ends else None
 
 
 def _parse_param(text: str, keyword_only: bool):
@@ -157,20 +146,8 @@ def _parse_param(text: str, keyword_only: bool):
     if text.startswith("*"):
         return (text[1:].split(":")[0].strip(), "var_positional", None)
     head, _, rest = text.partition(":")
-    default, depth, quote = None, 0, None
-    for i, c in enumerate(rest):
-        if quote:
-            if c == quote:
-                quote = None
-        elif c in "'\"":
-            quote = c
-        elif c in "([{":
-            depth += 1
-        elif c in ")]}":
-            depth -= 1
-        elif depth == 0 and rest.startswith(" = ", i):
-            default = rest[i + 3:].strip()
-            break
+    equals = [i for i, _, depth in _outside_quotes(rest) if depth == 0 and rest.startswith(" = ", i)]
+    default = rest[equals[0] + 3:].strip() if equals else None
     return (head.strip(), "keyword_only" if keyword_only else "positional", default)
 
 

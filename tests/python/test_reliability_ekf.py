@@ -452,8 +452,9 @@ def test_queries_and_removal_property(z, id, value):
        z=policy.arrays(max_side=4, max_dims=2), motion=st.lists(policy.floats(), min_size=3, max_size=3))
 def test_multi_hypothesis_property(max_hypotheses, max_children, costs, z, motion):
     gate, new_cost, clutter, margin = costs
-    raised, mht = policy.check_call(lambda: ps.MultiHypothesisEkfSlam(filled(), max_hypotheses, max_children, gate,
-                                                                      new_cost, clutter, margin), finite=False)
+    raised, mht = policy.check_call(lambda: ps.MultiHypothesisEkfSlam(
+        filled(), max_hypotheses=max_hypotheses, max_children=max_children, gate=gate, new_landmark_cost=new_cost,
+        clutter_cost=clutter, prune_margin=margin), finite=False)
     if raised:
         return
 
