@@ -83,8 +83,8 @@ def same_state(a, b):
     """Whether two filters hold bit-identical particles: poses, weights and every map."""
     if not (np.array_equal(a.poses, b.poses) and np.array_equal(a.log_weights, b.log_weights)):
         return False
-    return all(np.array_equal(x, y) for k in range(a.num_particles)
-               for x, y in zip(a.landmarks(k), b.landmarks(k)))
+    return all(np.array_equal(getattr(a.landmarks(k), name), getattr(b.landmarks(k), name))
+               for k in range(a.num_particles) for name in ("ids", "means", "covariances"))
 
 
 # ---- Table 1: particle-landmark updates per second ---------------------------------------------
@@ -230,8 +230,8 @@ def table_map_sizes(sizes, steps):
         s = sweep.filter.map_sharing
         ratio = f"{per_step / previous:.2f}x" if previous else "-"
         lines.append(f"| {n} | {built:.1f} | {per_step * 1e3:.3f} | {ratio} | {created:.1f} | {np.log2(n):.1f} | "
-                     f"{s['distinct_nodes']} / {s['total_nodes']} | {s['distinct_nodes'] * NODE_BYTES / 2 ** 20:.1f} / "
-                     f"{s['total_nodes'] * NODE_BYTES / 2 ** 20:.0f} | {rss_mib():.0f} |")
+                     f"{s.distinct_nodes} / {s.total_nodes} | {s.distinct_nodes * NODE_BYTES / 2 ** 20:.1f} / "
+                     f"{s.total_nodes * NODE_BYTES / 2 ** 20:.0f} | {rss_mib():.0f} |")
         previous = per_step
         del sweep
     return lines + ["", f"Step: odometry to a random pose in the map, an update with the {SEEN_PER_STEP} landmarks "
@@ -437,19 +437,19 @@ def table_victoria_park(vp):
     t_np, npf = best_time(lambda: run_victoria_numpy(vp))
     print("bench_fastslam: Victoria Park, C++ hidden ...", file=sys.stderr, flush=True)
     t_unk, unk = best_time(lambda: run_victoria_cpp(vp, known=False))
-    counts = [unk.num_landmarks(k) for k in range(unk.num_particles)]
+    counts = [len(unk.landmarks(k)) for k in range(unk.num_particles)]
     lines = [
         f"| Victoria Park, {len(vp.chain)} poses, {len(vp.z)} sightings | s | us per pose | landmarks (best "
         "particle) | resamplings | best path RMSE vs GraphSLAM optimum (m) | speed-up vs numpy |",
         "|---|---|---|---|---|---|---|",
         f"| C++ `FastSlam`, version 1, known | {t_cpp:.3f} | {t_cpp / len(vp.chain) * 1e6:.0f} | "
-        f"{cpp.num_landmarks(cpp.best_index)} | {cpp.num_resamples} | {path_rmse(cpp.best_path, optimum):.2f} | "
+        f"{cpp.num_landmarks} | {cpp.num_resamples} | {path_rmse(cpp.path(), optimum):.2f} | "
         f"**{t_np / t_cpp:.1f}x** |",
         f"| numpy FastSLAM 1.0 (below), known | {t_np:.3f} | {t_np / len(vp.chain) * 1e6:.0f} | "
         f"{int(npf.seen.sum())} | {npf.num_resamples} | {path_rmse(npf.best_path(), optimum):.2f} | 1.0x |",
         f"| C++ `FastSlam`, version 1, hidden (`update_unknown`) | **{t_unk:.3f}** | {t_unk / len(vp.chain) * 1e6:.0f} | "
-        f"**{unk.num_landmarks(unk.best_index)}** (particles: {min(counts)} - {max(counts)}) | {unk.num_resamples} | "
-        f"{path_rmse(unk.best_path, optimum):.2f} | - |",
+        f"**{unk.num_landmarks}** (particles: {min(counts)} - {max(counts)}) | {unk.num_resamples} | "
+        f"{path_rmse(unk.path(), optimum):.2f} | - |",
     ]
     t_ekf, ekf_path = best_time(lambda: run_victoria_ekf(vp))
     lines += [f"| for reference: EKF SLAM (`EkfSlam`), known | {t_ekf:.3f} | {t_ekf / len(vp.chain) * 1e6:.0f} | "

@@ -78,10 +78,10 @@ def write_figure(path, result, png):
 
 def row(label, result, extra="", aces=True):
     s, t = result.summary, result.tile_sharing
-    per_update = result.seconds / max(1, s["updates"])
-    return (f"| {label} | {s['scans']} | {s['updates']} | {1e3 * per_update:.1f} | {result.seconds:.1f} | "
-            f"{result.real_time_factor:.1f}x | {t['references']} / {t['distinct']} | "
-            f"{t['references'] * TILE_BYTES / 2 ** 20:.0f} / {t['bytes'] / 2 ** 20:.0f} | "
+    per_update = result.seconds / max(1, s.updates)
+    return (f"| {label} | {s.scans} | {s.updates} | {1e3 * per_update:.1f} | {result.seconds:.1f} | "
+            f"{result.real_time_factor:.1f}x | {t.references} / {t.distinct} | "
+            f"{t.references * TILE_BYTES / 2 ** 20:.0f} / {t.bytes / 2 ** 20:.0f} | "
             f"{relations(result) + extra if aces else (extra or '-')} |")
 
 

@@ -139,12 +139,12 @@ def run_log(name, quick, figures, method="graph", options=None):
     s = result.summary
     print(f"bench_slam_logs: {title}: {result.seconds:.1f} s", file=sys.stderr, flush=True)
     if method == "rbpf":
-        run_row = (f"| {title} | {s['scans']} | {s['updates']} updates, {s['resamples']} resamplings | "
-                   f"{s['matched']} matched / {s['fallbacks']} fallbacks | {result.seconds:.1f} | "
+        run_row = (f"| {title} | {s.scans} | {s.updates} updates, {s.resamples} resamplings | "
+                   f"{s.matched} matched / {s.fallbacks} fallbacks | {result.seconds:.1f} | "
                    f"{result.log_duration:.0f} | {result.real_time_factor:.1f}x |")
     else:
-        run_row = (f"| {title} | {s['scans']} | {s['submaps']} | {s['closures_accepted']} / {s['closures_rejected']} / "
-                   f"{s['closures_dissolved']} | {result.seconds:.1f} | {result.log_duration:.0f} | "
+        run_row = (f"| {title} | {s.scans} | {s.submaps} | {s.closures_accepted} / {s.closures_rejected} / "
+                   f"{s.closures_dissolved} | {result.seconds:.1f} | {result.log_duration:.0f} | "
                    f"{result.real_time_factor:.1f}x |")
     notes = []
     if figures is not None:

@@ -1,6 +1,6 @@
 #include <functional>
 
-#include "kwargs.hpp"
+#include "args.hpp"
 #include "numpy.hpp"
 #include "repr.hpp"
 #include "probslam/core/check.hpp"

@@ -6,6 +6,7 @@
 
 #include "numpy.hpp"
 #include "object_lock.hpp"
+#include "landmarks.hpp"
 #include "repr.hpp"
 #include "probslam/core/check.hpp"
 #include "probslam/ekf/ekf_slam.hpp"
@@ -135,12 +136,19 @@ void define_ekf_state(py::class_<EkfSlam>& c) {
                              "Landmarks waiting on the provisional list (MapManagement.provisional).")
       .def_property_readonly("capacity", getter(&EkfSlam::capacity),
                              "State length the storage holds before it grows.")
-      .def_property_readonly("landmark_ids",
-                             [](const EkfSlam& e) {
-                               const std::vector<long> ids = locked(e, [&] { return e.landmark_ids(); });
-                               return py::array_t<long>(static_cast<py::ssize_t>(ids.size()), ids.data());
-                             },
-                             "(N,) int64 ids of the landmarks in state order.")
+      .def("landmarks",
+           [](const EkfSlam& e) {
+             std::vector<LandmarkEntry> entries;
+             locked(e, [&] {
+               for (const long id : e.landmark_ids()) {
+                 const Eigen::VectorXd mean = e.landmark(id);
+                 const Eigen::MatrixXd cov = e.landmark_covariance(id);
+                 entries.push_back({id, mean.head<2>(), cov.topLeftCorner<2, 2>()});
+               }
+             });
+             return landmark_arrays(entries);
+           },
+           "The map as Landmarks (ids, means (N, 2) m, covariances (N, 2, 2) m^2), in state order.")
       .def_property_readonly("mean",
                              [](const EkfSlam& e) {
                                auto [s, n] = storage_of(e);

@@ -7,10 +7,12 @@
 #include <string>
 #include <vector>
 
-#include "kwargs.hpp"
+#include "args.hpp"
 #include "numpy.hpp"
 #include "object_lock.hpp"
 #include "repr.hpp"
+#include "landmarks.hpp"
+#include "probslam/core/check.hpp"
 #include "probslam/fastslam/fast_slam.hpp"
 
 namespace probslam::bindings {
@@ -32,34 +34,24 @@ std::vector<long> ids_arg(py::handle ids, py::ssize_t k) {
   return std::vector<long>(a.data(), a.data() + a.shape(0));
 }
 
-FastSlamOptions options_from(int num_particles, py::handle motion_noise, py::handle measurement_noise,
-                             const py::kwargs& kw) {
-  FastSlamOptions o;
-  o.num_particles = num_particles;
-  o.motion_noise = square_matrix_arg(motion_noise, "motion_noise");
-  o.measurement_noise = square_matrix_arg(measurement_noise, "measurement_noise");
-  Kwargs k(kw);
-  k.get("version", o.version);
-  k.get("use_signatures", o.use_signatures);
-  if (const py::handle v = k.take("initial_pose")) o.initial_pose = pose_arg(v, "initial_pose");
-  k.get("seed", o.seed);
-  k.get("threads", o.threads);
-  k.get("resample_threshold", o.resample_threshold);
-  k.get("p_new", o.p_new);
-  k.get("outlier_density", o.outlier_density);
-  k.get("association_radius", o.association_radius);
-  k.get("cell_size", o.cell_size);
-  k.get("negative_information", o.negative_information);
-  k.get("existence_hit", o.existence_hit);
-  k.get("existence_miss", o.existence_miss);
-  k.get("sensor_range", o.sensor_range);
-  k.get("sensor_fov", o.sensor_fov);
-  k.get("record_path", o.record_path);
-  k.get("bearing_offset_sigma", o.bearing_offset_sigma);
-  k.get("bearing_offset_correlation", o.bearing_offset_correlation);
-  k.finish();
-  return o;
-}
+/// The result of FastSlam.update (known correspondences).
+struct FastSlamUpdateResult {
+  bool resampled = false;
+};
+
+/// The result of FastSlam.update_unknown: rows follow the particles after the call.
+struct FastSlamAssociationResult {
+  py::array_t<long> ids;      // (M, k) landmark used or created
+  py::array_t<bool> is_new;   // (M, k)
+  py::array_t<long> removed;  // (R, 2) rows of (particle, landmark id)
+  bool resampled = false;
+};
+
+/// Particle k's landmarks' existence counters and signatures, in landmarks(k)'s order.
+struct LandmarkDetails {
+  py::array_t<long> ids;
+  py::array_t<double> existence, signature, signature_var;
+};
 
 template <typename T>
 py::array_t<T> vector_out(const std::vector<T>& v) {
@@ -68,11 +60,64 @@ py::array_t<T> vector_out(const std::vector<T>& v) {
   return a;
 }
 
+void define_results(py::module_& m) {
+  py::class_<FastSlamUpdateResult>(m, "FastSlamUpdateResult", "What FastSlam.update did.")
+      .def_readonly("resampled", &FastSlamUpdateResult::resampled, "Whether the update resampled the particles.")
+      .def("__repr__", [](py::handle self) {
+        return repr_of(self, std::string("resampled ") + (self.cast<const FastSlamUpdateResult&>().resampled ? "True" : "False"));
+      });
+  py::class_<FastSlamAssociationResult>(m, "FastSlamAssociationResult",
+                                        "What FastSlam.update_unknown did with the k measurements of a scan, per\n"
+                                        "particle; row j is particle j after any resampling of the call.")
+      .def_readonly("ids", &FastSlamAssociationResult::ids, "(M, k) int64 landmark id used or created.")
+      .def_readonly("is_new", &FastSlamAssociationResult::is_new, "(M, k) bool, True where the measurement created it.")
+      .def_readonly("removed", &FastSlamAssociationResult::removed,
+                    "(R, 2) int64 rows (particle, landmark id) removed by negative information.")
+      .def_readonly("resampled", &FastSlamAssociationResult::resampled, "Whether the update resampled the particles.")
+      .def("__repr__", [](py::handle self) {
+        const auto& r = self.cast<const FastSlamAssociationResult&>();
+        return repr_of(self, std::to_string(r.ids.shape(0)) + " particles x " + std::to_string(r.ids.shape(1)) +
+                                 " measurements, " + std::to_string(r.removed.shape(0)) + " removed, resampled " +
+                                 (r.resampled ? "True" : "False"));
+      });
+  py::class_<LandmarkDetails>(m, "LandmarkDetails",
+                              "A particle's landmarks beyond their position (FastSlam.landmark_details), in the\n"
+                              "order of FastSlam.landmarks.")
+      .def_readonly("ids", &LandmarkDetails::ids, "(N,) int64 landmark ids.")
+      .def_readonly("existence", &LandmarkDetails::existence,
+                    "(N,) existence counters (negative_information; removed below zero).")
+      .def_readonly("signature", &LandmarkDetails::signature, "(N,) signature means (use_signatures; else 0).")
+      .def_readonly("signature_var", &LandmarkDetails::signature_var, "(N,) signature variances.")
+      .def("__len__", [](const LandmarkDetails& d) { return d.ids.shape(0); })
+      .def("__repr__", [](py::handle self) {
+        return repr_of(self, std::to_string(self.cast<const LandmarkDetails&>().ids.shape(0)) + " landmarks");
+      });
+  py::class_<MapSharing>(m, "MapSharing", "How much of the particles' maps and paths is shared (FastSlam.map_sharing).")
+      .def_readonly("distinct_nodes", &MapSharing::distinct_nodes, "Tree nodes allocated for all the maps.")
+      .def_readonly("total_nodes", &MapSharing::total_nodes,
+                    "Sum of the per-particle tree nodes: what deep copies of the maps would hold.")
+      .def_readonly("landmarks", &MapSharing::landmarks, "Sum of the per-particle landmark counts.")
+      .def_readonly("path_nodes", &MapSharing::path_nodes, "Distinct path chunks.")
+      .def("__repr__", [](py::handle self) {
+        const MapSharing& s = self.cast<const MapSharing&>();
+        return repr_of(self, std::to_string(s.distinct_nodes) + " of " + std::to_string(s.total_nodes) +
+                                 " tree nodes distinct, " + std::to_string(s.landmarks) + " landmarks, " +
+                                 std::to_string(s.path_nodes) + " path chunks");
+      });
+}
+
 void define_state(py::class_<FastSlam>& c) {
   c.def_property_readonly("num_particles", getter(&FastSlam::num_particles), "M, the number of particles.")
       .def_property_readonly("version", getter(&FastSlam::version), "1 or 2 (FastSLAM 1.0 or 2.0).")
       .def_property_readonly("landmark_dim", getter(&FastSlam::landmark_dim),
                              "Measurement length: 2 (range, bearing) or 3 with a signature.")
+      .def_property_readonly("use_signatures", [](const FastSlam& f) { return f.landmark_dim() == 3; },
+                             "Whether landmarks and measurements carry a signature (3 values instead of 2).")
+      .def_property_readonly("pose",
+                             [](const FastSlam& f) {
+                               return locked(f, [&] { return Eigen::Vector3d(f.particle(f.best_index()).pose); });
+                             },
+                             "(3,) the best particle's pose (x m, y m, theta rad).")
       .def_property_readonly("poses", getter(&FastSlam::poses), "(M, 3) particle poses (x m, y m, theta rad).")
       .def_property_readonly("log_weights", getter(&FastSlam::log_weights), "(M,) normalised log weights (log-sum-exp 0).")
       .def_property_readonly("weights",
@@ -88,9 +133,6 @@ void define_state(py::class_<FastSlam>& c) {
       .def_property_readonly("effective_sample_size", getter(&FastSlam::effective_sample_size),
                              "N_eff = 1 / sum w^2.")
       .def_property_readonly("best_index", getter(&FastSlam::best_index), "Index of the particle of highest weight.")
-      .def_property_readonly("best_path",
-                             [](const FastSlam& f) { return locked(f, [&] { return f.path(f.best_index()); }); },
-                             "(T + 1, 3) the best particle's path, oldest first.")
       .def_property_readonly("mean_pose", getter(&FastSlam::mean_pose),
                              "(3,) weighted mean pose, heading by circular mean.")
       .def_property_readonly("pose_covariance", getter(&FastSlam::pose_covariance),
@@ -103,72 +145,53 @@ void define_state(py::class_<FastSlam>& c) {
           return Eigen::VectorXi(Eigen::Map<const Eigen::VectorXi>(a.data(), static_cast<Eigen::Index>(a.size())));
         });
       }, "(M,) int32: after a resampling, particle j's ancestor index; otherwise (0,).")
-      .def_property_readonly("map_sharing",
+      .def_property_readonly("map_sharing", getter(&FastSlam::map_sharing),
+                             "MapSharing: tree nodes and path chunks shared between the particles.")
+      .def_property_readonly("num_landmarks",
                              [](const FastSlam& f) {
-                               const MapSharing s = locked(f, [&] { return f.map_sharing(); });
-                               py::dict d;
-                               d["distinct_nodes"] = s.distinct_nodes;
-                               d["total_nodes"] = s.total_nodes;
-                               d["landmarks"] = s.landmarks;
-                               d["path_nodes"] = s.path_nodes;
-                               return d;
+                               return locked(f, [&] { return f.particle(f.best_index()).map.size(); });
                              },
-                             "Dict: distinct_nodes (tree nodes allocated for all maps), total_nodes (sum of\n"
-                             "per-particle nodes: what deep copies would hold), landmarks (sum of per-particle\n"
-                             "counts), path_nodes.")
+                             "Landmarks in the best particle's map (landmarks(particle) for another's).")
       .def("path",
-           [](const FastSlam& f, IntArg index) {
-             const int k = index.get("index");
-             return locked(f, [&] { return f.path(k); });
+           [](const FastSlam& f, py::handle particle) {
+             const ParticleChoice k = ParticleChoice::from(particle);
+             return locked(f, [&] { return f.path(k.resolve(f)); });
            },
-           py::arg("index"), "(T + 1, 3) particle index's path, oldest first.")
-      .def("num_landmarks",
-           [](const FastSlam& f, IntArg index) {
-             const int k = index.get("index");
-             return locked(f, [&] { return f.particle(k).map.size(); });
-           },
-           py::arg("index"), "Number of landmarks in particle index's map.")
+           py::arg("particle") = py::none(),
+           "(T + 1, 3) a particle's path, oldest first (default: the best particle's); (0, 3) without\n"
+           "record_path.")
       .def(
           "landmarks",
-          [](const FastSlam& f, IntArg index_arg) {
-            const int index = index_arg.get("index");
-            const std::vector<Landmark> lms = locked(f, [&] { return f.landmarks(index); });
-            const auto n = static_cast<py::ssize_t>(lms.size());
-            py::array_t<long> ids(n);
-            py::array_t<double> means({n, py::ssize_t{2}}), covs({n, py::ssize_t{2}, py::ssize_t{2}});
-            for (py::ssize_t i = 0; i < n; ++i) {
-              const Landmark& lm = lms[static_cast<std::size_t>(i)];
-              ids.mutable_at(i) = lm.id;
-              for (int a = 0; a < 2; ++a) {
-                means.mutable_at(i, a) = lm.mean[a];
-                for (int b = 0; b < 2; ++b) covs.mutable_at(i, a, b) = lm.cov(a, b);
-              }
-            }
-            return py::make_tuple(ids, means, covs);
+          [](const FastSlam& f, py::handle particle) {
+            const ParticleChoice k = ParticleChoice::from(particle);
+            std::vector<LandmarkEntry> entries;
+            locked(f, [&] {
+              for (const Landmark& lm : f.landmarks(k.resolve(f))) entries.push_back({lm.id, lm.mean, lm.cov});
+            });
+            return landmark_arrays(entries);
           },
-          py::arg("index"),
-          "Particle index's landmarks by id: (ids (K,), means (K, 2) m, covariances (K, 2, 2) m^2).")
+          py::arg("particle") = py::none(),
+          "A particle's map as Landmarks (ids, means (N, 2) m, covariances (N, 2, 2) m^2), sorted by id\n"
+          "(default: the best particle's).")
       .def(
           "landmark_details",
-          [](const FastSlam& f, IntArg index_arg) {
-            const int index = index_arg.get("index");
-            const std::vector<Landmark> lms = locked(f, [&] { return f.landmarks(index); });
+          [](const FastSlam& f, py::handle particle) {
+            const ParticleChoice k = ParticleChoice::from(particle);
+            const std::vector<Landmark> lms = locked(f, [&] { return f.landmarks(k.resolve(f)); });
             const auto n = static_cast<py::ssize_t>(lms.size());
-            py::array_t<double> existence(n), signature(n), signature_var(n);
+            LandmarkDetails d{py::array_t<long>(n), py::array_t<double>(n), py::array_t<double>(n), py::array_t<double>(n)};
             for (py::ssize_t i = 0; i < n; ++i) {
               const Landmark& lm = lms[static_cast<std::size_t>(i)];
-              existence.mutable_at(i) = lm.existence;
-              signature.mutable_at(i) = lm.signature;
-              signature_var.mutable_at(i) = lm.signature_var;
+              d.ids.mutable_at(i) = lm.id;
+              d.existence.mutable_at(i) = lm.existence;
+              d.signature.mutable_at(i) = lm.signature;
+              d.signature_var.mutable_at(i) = lm.signature_var;
             }
-            py::dict d;
-            d["existence"] = existence;
-            d["signature"] = signature;
-            d["signature_var"] = signature_var;
             return d;
           },
-          py::arg("index"),
-          "Dict of (K,) arrays existence, signature, signature_var, in the order of landmarks(index).");
+          py::arg("particle") = py::none(),
+          "LandmarkDetails (existence, signature, signature_var) of a particle's landmarks, in the order\n"
+          "of landmarks(particle) (default: the best particle's).");
 }
 
 void define_calls(py::class_<FastSlam>& c) {
@@ -186,42 +209,42 @@ void define_calls(py::class_<FastSlam>& c) {
           [](FastSlam& f, py::handle z, py::handle ids) {
             DoubleArray zz = scan_arg(f, z);
             const std::vector<long> id = ids_arg(ids, zz.shape(0));
-            return locked(f, [&] { return f.update(as_matrix(zz), id); });
+            return FastSlamUpdateResult{locked(f, [&] { return f.update(as_matrix(zz), id); })};
           },
           py::arg("z"), py::arg("ids"),
-          "Known correspondences: z (k, 2) (range m, bearing rad) or (k, 3), ids (k,) >= 0. Returns whether\n"
-          "it resampled.")
+          "Known correspondences: z (k, 2) (range m, bearing rad) or (k, 3), ids (k,) >= 0. Returns a\n"
+          "FastSlamUpdateResult.")
       .def(
           "update_unknown",
           [](FastSlam& f, py::handle z, std::optional<double> p_new) {
             DoubleArray zz = scan_arg(f, z);
-            const FastSlamAssociation r = locked(f, [&] {
-              return p_new ? f.update_unknown(as_matrix(zz), *p_new) : f.update_unknown(as_matrix(zz));
+            const auto [r, resampled] = locked(f, [&] {
+              FastSlamAssociation a = p_new ? f.update_unknown(as_matrix(zz), *p_new) : f.update_unknown(as_matrix(zz));
+              return std::make_pair(std::move(a), f.resampled());
             });
             const py::ssize_t m = r.num_particles, k = r.num_measurements;
-            py::array_t<long> ids({m, k});
-            py::array_t<bool> is_new({m, k});
-            std::copy(r.ids.begin(), r.ids.end(), ids.mutable_data());
-            std::copy(r.is_new.begin(), r.is_new.end(), is_new.mutable_data());
+            FastSlamAssociationResult out{py::array_t<long>({m, k}), py::array_t<bool>({m, k}), py::array_t<long>(), resampled};
+            std::copy(r.ids.begin(), r.ids.end(), out.ids.mutable_data());
+            std::copy(r.is_new.begin(), r.is_new.end(), out.is_new.mutable_data());
             // One (R, 2) array of (particle, landmark id) rows: a list of M arrays per scan cost
             // more than the filter's update itself.
             py::ssize_t count = 0;
             for (const std::vector<long>& v : r.removed) count += static_cast<py::ssize_t>(v.size());
-            py::array_t<long> removed({count, py::ssize_t{2}});
-            long* out = removed.mutable_data();
+            out.removed = py::array_t<long>({count, py::ssize_t{2}});
+            long* removed = out.removed.mutable_data();
             for (std::size_t j = 0; j < r.removed.size(); ++j) {
               for (long id : r.removed[j]) {
-                *out++ = static_cast<long>(j);
-                *out++ = id;
+                *removed++ = static_cast<long>(j);
+                *removed++ = id;
               }
             }
-            return py::make_tuple(ids, is_new, removed);
+            return out;
           },
           py::arg("z"), py::arg("p_new") = py::none(),
           "Per-particle maximum-likelihood correspondences for a scan z (k, 2) or (k, 3); p_new (1 / (m\n"
-          "rad)) overrides the option. Returns (ids (M, k), is_new (M, k), removed (R, 2) rows of\n"
-          "(particle, landmark id) removed by negative information), rows following the particles after\n"
-          "any resampling of this call.")
+          "rad)) overrides the option. Returns a FastSlamAssociationResult (ids (M, k), is_new (M, k),\n"
+          "removed (R, 2) rows of (particle, landmark id) removed by negative information, resampled),\n"
+          "rows following the particles after any resampling of this call.")
       .def("resample", [](FastSlam& f) { locked(f, [&] { f.resample(); }); }, "Low-variance resampling now, whatever N_eff.")
       .def("copy", [](const FastSlam& f) { return locked(f, [&] { return FastSlam(f); }); },
            "An independent copy (maps shared copy-on-write).")
@@ -239,37 +262,86 @@ void define_calls(py::class_<FastSlam>& c) {
 }  // namespace
 
 void define_fastslam(py::module_& m) {
+  define_results(m);
+  const FastSlamOptions d;  // every keyword's default
   py::class_<FastSlam> c(m, "FastSlam",
                          "FastSLAM 1.0 / 2.0 (Montemerlo 2002, 2003; Probabilistic Robotics ch. 13) for point landmarks\n"
                          "seen by a range-bearing(-signature) sensor. Units: metres, radians, seconds.\n"
                          "\n"
-                         "FastSlam(num_particles, motion_noise, measurement_noise, **options):\n"
+                         "FastSlam(num_particles, motion_noise, measurement_noise, *, options):\n"
                          "    num_particles: M in [1, 2^20].\n"
                          "    motion_noise: (3, 3) pose-space covariance R of (x, y, theta) added to g(x, u), or (2, 2)\n"
                          "        control-space covariance M of (v [m/s], w [rad/s]); positive semi-definite.\n"
                          "    measurement_noise: Q, (2, 2) covariance of (range [m], bearing [rad]), or (3, 3) with the\n"
                          "        signature's variance when use_signatures.\n"
-                         "Keyword options: version (1: poses from the motion model; 2: from the proposal that includes\n"
-                         "the scan), use_signatures, initial_pose (3,), seed (int in [0, 2^64)), threads (results\n"
-                         "identical for any count; two threads run 100 particles 1.5-1.85x faster on idle cores),\n"
-                         "resample_threshold (resample when N_eff < threshold * M; 0.5),\n"
-                         "p_new (density 1 / (m rad) of a new landmark's measurement; 0.01), outlier_density (known\n"
-                         "correspondences: density 1 / (m rad) of a measurement its labelled landmark did not produce;\n"
-                         "0: no outlier model), association_radius and cell_size (m, 2.0 each), negative_information,\n"
-                         "existence_hit, existence_miss, sensor_range (m), sensor_fov (rad) (the existence counter of\n"
-                         "update_unknown), record_path (keep each particle's path; True), bearing_offset_sigma (rad;\n"
-                         "a bearing offset shared by one scan's measurements, carried per particle; 0: none) and\n"
-                         "bearing_offset_correlation (its correlation from one update to the next, in [0, 1)).\n"
+                         "Keyword options (defaults in the signature):\n"
+                         "    version: 1 (poses from the motion model) or 2 (from the proposal that includes the scan).\n"
+                         "    use_signatures: measurements and landmarks carry a signature (3 values instead of 2).\n"
+                         "    initial_pose: (3,) every particle's start pose (m, m, rad).\n"
+                         "    seed: int in [0, 2^64); particle k starts with random stream k of it.\n"
+                         "    threads: worker threads; results identical for any count (two threads run 100\n"
+                         "        particles 1.5-1.85x faster on idle cores).\n"
+                         "    resample_threshold: resample when N_eff < resample_threshold * M, in [0, 1].\n"
+                         "    p_new: density (1 / (m rad)) of a new landmark's measurement.\n"
+                         "    outlier_density: known correspondences: density (1 / (m rad)) of a measurement its\n"
+                         "        labelled landmark did not produce; 0: no outlier model.\n"
+                         "    association_radius: m; association candidates lie within it plus three standard\n"
+                         "        deviations of where the measurement places its landmark.\n"
+                         "    cell_size: m, the side of the landmarks' spatial key cells (about association_radius).\n"
+                         "    negative_information: update_unknown's existence counter: a landmark inside sensor_range\n"
+                         "        (m) and sensor_fov (rad, full opening angle) that is not seen loses existence_miss,\n"
+                         "        a seen one gains existence_hit; below zero it is removed.\n"
+                         "    existence_hit, existence_miss: the counter's steps.\n"
+                         "    sensor_range: m; sensor_fov: rad.\n"
+                         "    record_path: keep each particle's path (path()).\n"
+                         "    bearing_offset_sigma: rad; a bearing offset shared by one scan's measurements, carried\n"
+                         "        per particle; 0: none.\n"
+                         "    bearing_offset_correlation: its correlation from one update to the next, in [0, 1).\n"
                          "\n"
                          "Every call validates its input first and raises ValueError / TypeError naming the argument,\n"
                          "the filter unchanged. Calls release the GIL and are serialised by a per-filter lock.");
-  c.def(py::init([](IntArg num_particles_arg, py::handle motion_noise, py::handle measurement_noise, const py::kwargs& kw) {
-          const int num_particles = num_particles_arg.get("num_particles");
-          const FastSlamOptions o = options_from(num_particles, motion_noise, measurement_noise, kw);
+  c.def(py::init([](IntArg num_particles, py::handle motion_noise, py::handle measurement_noise, IntArg version,
+                    BoolArg use_signatures, py::handle initial_pose, UInt64Arg seed, IntArg threads,
+                    RealArg resample_threshold, RealArg p_new, RealArg outlier_density, RealArg association_radius,
+                    RealArg cell_size, BoolArg negative_information, RealArg existence_hit, RealArg existence_miss,
+                    RealArg sensor_range, RealArg sensor_fov, BoolArg record_path, RealArg bearing_offset_sigma,
+                    RealArg bearing_offset_correlation) {
+          FastSlamOptions o;
+          o.num_particles = num_particles.get("num_particles");
+          o.motion_noise = square_matrix_arg(motion_noise, "motion_noise");
+          o.measurement_noise = square_matrix_arg(measurement_noise, "measurement_noise");
+          o.version = version.get("version");
+          o.use_signatures = use_signatures.get("use_signatures");
+          o.initial_pose = pose_arg(initial_pose, "initial_pose");
+          o.seed = seed.get("seed");
+          o.threads = threads.get("threads");
+          o.resample_threshold = resample_threshold.get("resample_threshold");
+          o.p_new = p_new.get("p_new");
+          o.outlier_density = outlier_density.get("outlier_density");
+          o.association_radius = association_radius.get("association_radius");
+          o.cell_size = cell_size.get("cell_size");
+          o.negative_information = negative_information.get("negative_information");
+          o.existence_hit = existence_hit.get("existence_hit");
+          o.existence_miss = existence_miss.get("existence_miss");
+          o.sensor_range = sensor_range.get("sensor_range");
+          o.sensor_fov = sensor_fov.get("sensor_fov");
+          o.record_path = record_path.get("record_path");
+          o.bearing_offset_sigma = bearing_offset_sigma.get("bearing_offset_sigma");
+          o.bearing_offset_correlation = bearing_offset_correlation.get("bearing_offset_correlation");
           py::gil_scoped_release release;
           return std::make_unique<FastSlam>(o);
         }),
-        py::arg("num_particles"), py::arg("motion_noise"), py::arg("measurement_noise"),
+        py::arg("num_particles"), py::arg("motion_noise"), py::arg("measurement_noise"), py::kw_only(),
+        py::arg("version") = d.version, py::arg("use_signatures") = d.use_signatures,
+        py::arg("initial_pose") = py::make_tuple(d.initial_pose.x(), d.initial_pose.y(), d.initial_pose.z()),
+        py::arg("seed") = d.seed, py::arg("threads") = d.threads,
+        real_arg("resample_threshold", d.resample_threshold), real_arg("p_new", d.p_new),
+        real_arg("outlier_density", d.outlier_density), real_arg("association_radius", d.association_radius),
+        real_arg("cell_size", d.cell_size), py::arg("negative_information") = d.negative_information,
+        real_arg("existence_hit", d.existence_hit), real_arg("existence_miss", d.existence_miss),
+        real_arg("sensor_range", d.sensor_range), real_arg("sensor_fov", d.sensor_fov),
+        py::arg("record_path") = d.record_path, real_arg("bearing_offset_sigma", d.bearing_offset_sigma),
+        real_arg("bearing_offset_correlation", d.bearing_offset_correlation),
         "See the class docstring for the arguments and keyword options.");
   define_state(c);
   define_calls(c);

@@ -8,7 +8,7 @@
 #include <vector>
 
 #include "interrupt.hpp"
-#include "kwargs.hpp"
+#include "args.hpp"
 #include "numpy.hpp"
 #include "object_lock.hpp"
 #include "repr.hpp"

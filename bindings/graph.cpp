@@ -2,7 +2,7 @@
 
 
 #include "exceptions.hpp"
-#include "kwargs.hpp"
+#include "args.hpp"
 #include "numpy.hpp"
 #include "object_lock.hpp"
 #include "repr.hpp"

@@ -5,7 +5,7 @@
 #include <utility>
 #include <vector>
 
-#include "kwargs.hpp"
+#include "args.hpp"
 #include "numpy.hpp"
 #include "object_lock.hpp"
 #include "repr.hpp"

@@ -7,10 +7,11 @@
 
 #include <pybind11/stl/filesystem.h>
 
-#include "kwargs.hpp"
+#include "args.hpp"
 #include "numpy.hpp"
 #include "object_lock.hpp"
 #include "repr.hpp"
+#include "probslam/core/check.hpp"
 #include "probslam/grid/occupancy_grid_3d.hpp"
 #include "probslam/core/worker_pool.hpp"
 #include "probslam/io/octomap_bt.hpp"
@@ -83,16 +84,6 @@ py::object per_point(const OccupancyGrid3D& g, py::handle points, Query&& query)
   return std::move(out);
 }
 
-py::dict stats_dict(const InsertStats3D& s) {
-  py::dict d;
-  d["points"] = s.points;
-  d["skipped_nonfinite"] = s.skipped_nonfinite;
-  d["out_of_bounds"] = s.out_of_bounds;
-  d["max_range_cut"] = s.max_range_cut;
-  d["voxels_updated"] = s.voxels_updated;
-  return d;
-}
-
 py::tuple voxels(const OccupancyGrid3D& g, bool occupied_only) {
   // Collected under the lock (the count and the walk must see the same map), copied out after.
   std::vector<double> c;
@@ -117,8 +108,13 @@ py::tuple voxels(const OccupancyGrid3D& g, bool occupied_only) {
   return py::make_tuple(centres, values);
 }
 
-OccupancyParams3D params_of(double p_hit, double p_miss, double clamp_min, double clamp_max, double threshold) {
-  return {p_hit, p_miss, clamp_min, clamp_max, threshold};
+/// The sensor model's probabilities, with clamp = (p_min, p_max) as OccupancyGrid2D takes it.
+OccupancyParams3D params_of(double p_hit, double p_miss, py::handle clamp, double occupancy_threshold) {
+  const Eigen::Vector2d c = fixed_vector<2>(clamp, "clamp");
+  require_probability(c[0], "clamp");
+  require_probability(c[1], "clamp");
+  require(c[0] < c[1], "clamp", "must be (p_min, p_max) with p_min < p_max");
+  return {p_hit, p_miss, c[0], c[1], occupancy_threshold};
 }
 
 }  // namespace
@@ -130,17 +126,34 @@ void define_grid3d(py::module_& m) {
       py::arg("successes"),
       "Test hook: after `successes` more worker-thread starts the next one fails as if the system\n"
       "refused it (std::system_error -> RuntimeError); negative turns it off.");
+  py::class_<InsertStats3D>(m, "InsertStats3D", "What one OccupancyGrid3D.insert_point_cloud did with its points.")
+      .def_readonly("points", &InsertStats3D::points, "Points given.")
+      .def_readonly("skipped_nonfinite", &InsertStats3D::skipped_nonfinite,
+                    "Points with a NaN or infinite coordinate: left out entirely.")
+      .def_readonly("out_of_bounds", &InsertStats3D::out_of_bounds,
+                    "Points whose end (or max-range cut) voxel lies outside OctoMap's key range.")
+      .def_readonly("max_range_cut", &InsertStats3D::max_range_cut,
+                    "Points beyond max_range: they only clear their ray, up to max_range.")
+      .def_readonly("voxels_updated", &InsertStats3D::voxels_updated, "Voxels this scan changed (each at most once).")
+      .def("__repr__", [](py::handle self) {
+        const InsertStats3D& s = self.cast<const InsertStats3D&>();
+        return repr_of(self, std::to_string(s.points) + " points, " + std::to_string(s.voxels_updated) +
+                                 " voxels updated, " + std::to_string(s.skipped_nonfinite) + " non-finite, " +
+                                 std::to_string(s.out_of_bounds) + " out of bounds, " + std::to_string(s.max_range_cut) +
+                                 " cut at max_range");
+      });
+  const OccupancyParams3D d;  // the sensor model's defaults (OctoMap's)
   py::class_<Grid>(m, "OccupancyGrid3D",
                    "Sparse 3-D occupancy grid (ch. 9.2 in 3-D) updated with OctoMap 1.9.7's\n"
                    "OcTree::insertPointCloud rules: same voxel keys, same float log-odds.")
-      .def(py::init([](double resolution, double p_hit, double p_miss, double clamp_min, double clamp_max,
-                       double occupancy_threshold) {
-             return new Grid(resolution, params_of(p_hit, p_miss, clamp_min, clamp_max, occupancy_threshold));
+      .def(py::init([](double resolution, double p_hit, double p_miss, py::handle clamp, double occupancy_threshold) {
+             return new Grid(resolution, params_of(p_hit, p_miss, clamp, occupancy_threshold));
            }),
-           py::arg("resolution"), py::arg("p_hit") = 0.7, py::arg("p_miss") = 0.4, py::arg("clamp_min") = 0.1192,
-           py::arg("clamp_max") = 0.971, py::arg("occupancy_threshold") = 0.5,
-           "resolution: voxel edge (m). Probabilities: hit and miss of the sensor model, the\n"
-           "clamping bounds, and the occupancy threshold (OctoMap's defaults).")
+           py::arg("resolution"), py::arg("p_hit") = d.p_hit, py::arg("p_miss") = d.p_miss,
+           py::arg("clamp") = py::make_tuple(d.clamp_min, d.clamp_max), py::arg("occupancy_threshold") = d.occupancy_threshold,
+           "resolution: voxel edge (m). Probabilities: hit and miss of the sensor model, clamp (p_min,\n"
+           "p_max) the bounds the log-odds are clamped to, and the occupancy threshold (OctoMap's\n"
+           "defaults).")
       .def_property_readonly("resolution", getter(&Grid::resolution), "Voxel edge, metres.")
       .def_property_readonly("p_hit", [](const Grid& g) { return locked(g, [&] { return g.params().p_hit; }); },
                              "Occupancy probability of the voxel holding an end point.")
@@ -149,7 +162,7 @@ void define_grid3d(py::module_& m) {
       .def_property_readonly("clamp", [](const Grid& g) {
         const OccupancyParams3D p = locked(g, [&] { return g.params(); });
         return py::make_tuple(p.clamp_min, p.clamp_max);
-      }, "(clamp_min, clamp_max) probabilities the log-odds are clamped to.")
+      }, "(p_min, p_max) probabilities the log-odds are clamped to.")
       .def_property_readonly("occupancy_threshold",
                              [](const Grid& g) { return locked(g, [&] { return g.params().occupancy_threshold; }); },
                              "Probability at or above which a known voxel is occupied.")
@@ -175,14 +188,14 @@ void define_grid3d(py::module_& m) {
             const InsertStats3D s = locked(g, [&] {
               return g.insert_point_cloud(p.data(), static_cast<std::size_t>(p.shape(0)), of, max_range, threads);
             });
-            return stats_dict(s);
+            return s;
           },
           py::arg("points"), py::arg("origin"), py::arg("max_range") = -1.0, py::arg("threads") = 1,
           "One scan: points (n, 3) m and the sensor origin (3,) m in the map frame, both rounded to\n"
           "float32. Points within max_range (m; < 0: unlimited) clear their ray and hit their voxel;\n"
           "farther ones clear the ray up to max_range only. Each voxel changes at most once per\n"
           "scan, a hit beating a miss. NaN/inf points are skipped and counted. threads > 1 walks the\n"
-          "rays concurrently with an identical result. Returns a dict of counts.")
+          "rays concurrently with an identical result. Returns an InsertStats3D of counts.")
       .def(
           "log_odds_at",
           [](const Grid& g, py::handle points) {
@@ -226,16 +239,15 @@ void define_grid3d(py::module_& m) {
           "number of tree nodes.")
       .def_static(
           "read_bt",
-          [](const std::filesystem::path& path, double p_hit, double p_miss, double clamp_min, double clamp_max,
-             double occupancy_threshold) {
-            const OccupancyParams3D params = params_of(p_hit, p_miss, clamp_min, clamp_max, occupancy_threshold);
+          [](const std::filesystem::path& path, double p_hit, double p_miss, py::handle clamp, double occupancy_threshold) {
+            const OccupancyParams3D params = params_of(p_hit, p_miss, clamp, occupancy_threshold);
             py::gil_scoped_release release;
             return new Grid(read_octomap_bt(path.string(), params));
           },
-          py::arg("path"), py::arg("p_hit") = 0.7, py::arg("p_miss") = 0.4, py::arg("clamp_min") = 0.1192,
-          py::arg("clamp_max") = 0.971, py::arg("occupancy_threshold") = 0.5,
+          py::arg("path"), py::arg("p_hit") = d.p_hit, py::arg("p_miss") = d.p_miss,
+          py::arg("clamp") = py::make_tuple(d.clamp_min, d.clamp_max), py::arg("occupancy_threshold") = d.occupancy_threshold,
           "Reads an OctoMap .bt file (OcTree). The format stores occupancy only: voxels get the\n"
-          "clamped log-odds logit(clamp_max) or logit(clamp_min). A missing file raises FileNotFoundError,\n"
+          "clamped log-odds logit(p_max) or logit(p_min) of clamp. A missing file raises FileNotFoundError,\n"
           "a malformed one ValueError.")
       .def("clear", [](Grid& g) { locked(g, [&] { g.clear(); }); }, "Forgets every voxel (all unknown again).")
       .def("__repr__", [](py::handle self) {

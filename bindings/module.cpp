@@ -8,6 +8,7 @@ void define_grid(pybind11::module_& m);
 void define_forward_model(pybind11::module_& m);
 void define_grid3d(pybind11::module_& m);
 void define_io(pybind11::module_& m);
+void define_landmarks(pybind11::module_& m);
 void define_ekf(pybind11::module_& m);
 void define_fastslam(pybind11::module_& m);
 void define_graph(pybind11::module_& m);
@@ -23,6 +24,7 @@ PYBIND11_MODULE(_core, m) {
   probslam::bindings::define_forward_model(m);
   probslam::bindings::define_grid3d(m);
   probslam::bindings::define_io(m);
+  probslam::bindings::define_landmarks(m);
   probslam::bindings::define_ekf(m);
   probslam::bindings::define_fastslam(m);
   probslam::bindings::define_graph(m);

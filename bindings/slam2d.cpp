@@ -6,8 +6,10 @@
 #include <limits>
 #include <memory>
 #include <string>
+#include <tuple>
+#include <utility>
 
-#include "kwargs.hpp"
+#include "args.hpp"
 #include "numpy.hpp"
 #include "probslam/core/check.hpp"
 #include "object_lock.hpp"
@@ -57,103 +59,142 @@ MatchOptions match_options(double linear_window, double angular_window, double a
 }
 
 /// The scan filter's keywords, shared by every laser SLAM class.
-void scan_filter_options(Kwargs& k, ScanFilter& f) {
-  k.get("max_range", f.max_range);
-  k.get("min_range", f.min_range);
-  k.get("max_usable_range", f.max_usable_range);
-  k.get("clear_no_return", f.clear_no_return);
-  k.get("min_point_spacing", f.min_point_spacing);
+struct FilterArgs {
+  RealArg max_range, min_range, max_usable_range;
+  BoolArg clear_no_return;
+  RealArg min_point_spacing;
+  ScanFilter get() const {
+    return {max_range.get("max_range"), min_range.get("min_range"), max_usable_range.get("max_usable_range"),
+            clear_no_return.get("clear_no_return"), min_point_spacing.get("min_point_spacing")};
+  }
+};
+
+auto filter_keywords(const ScanFilter& d) {
+  return std::make_tuple(real_arg("max_range", d.max_range), real_arg("min_range", d.min_range),
+                         real_arg("max_usable_range", d.max_usable_range),
+                         py::arg_v("clear_no_return", d.clear_no_return), real_arg("min_point_spacing", d.min_point_spacing));
 }
 
 /// odometry_noise: the six OdometryNoise coefficients, in their declaration order.
-void odometry_noise_option(Kwargs& k, OdometryNoise& n) {
-  if (const py::handle v = k.take("odometry_noise"); v && !v.is_none()) {
-    const DoubleArray a = vector_arg(v, "odometry_noise", 6);
-    n = {a.data()[0], a.data()[1], a.data()[2], a.data()[3], a.data()[4], a.data()[5]};
+OdometryNoise odometry_noise_arg(py::handle v) {
+  const DoubleArray a = vector_arg(v, "odometry_noise", 6);
+  return {a.data()[0], a.data()[1], a.data()[2], a.data()[3], a.data()[4], a.data()[5]};
+}
+
+py::tuple odometry_noise_default(const OdometryNoise& n) {
+  return py::make_tuple(n.trans_per_metre, n.trans_per_radian, n.trans_floor, n.rot_per_radian, n.rot_per_metre,
+                        n.rot_floor);
+}
+
+/// The frontend's keywords (IncrementalScanMatcher, and SubmapSlam2D's frontend), in signature order.
+struct FrontendArgs {
+  RealArg resolution;
+  FilterArgs filter;
+  RealArg sigma, p_rand, linear_window, angular_window;
+  BoolArg refine, use_odometry_prior;
+  py::handle odometry_noise;
+  RealArg min_travel, min_rotation, submap_distance;
+  IntArg submap_scans;
+  RealArg min_match_quality;
+  IntArg warmup_scans;
+  RealArg field_refresh_distance, field_refresh_angle;
+
+  IncrementalScanMatcherOptions get(IncrementalScanMatcherOptions o) const {
+    o.resolution = resolution.get("resolution");
+    o.filter = filter.get();
+    o.field.sigma = sigma.get("sigma");
+    o.field.p_rand = p_rand.get("p_rand");
+    o.match.window.linear = linear_window.get("linear_window");
+    o.match.window.angular = angular_window.get("angular_window");
+    o.match.refine = refine.get("refine");
+    o.use_odometry_prior = use_odometry_prior.get("use_odometry_prior");
+    o.odometry = odometry_noise_arg(odometry_noise);
+    o.min_travel = min_travel.get("min_travel");
+    o.min_rotation = min_rotation.get("min_rotation");
+    o.submap_distance = submap_distance.get("submap_distance");
+    o.submap_scans = submap_scans.get("submap_scans");
+    o.min_match_quality = min_match_quality.get("min_match_quality");
+    o.warmup_scans = warmup_scans.get("warmup_scans");
+    o.field_refresh_distance = field_refresh_distance.get("field_refresh_distance");
+    o.field_refresh_angle = field_refresh_angle.get("field_refresh_angle");
+    return o;
+  }
+};
+
+auto frontend_keywords(const IncrementalScanMatcherOptions& d) {
+  return std::tuple_cat(
+      std::make_tuple(real_arg("resolution", d.resolution)), filter_keywords(d.filter),
+      std::make_tuple(real_arg("sigma", d.field.sigma), real_arg("p_rand", d.field.p_rand),
+                      real_arg("linear_window", d.match.window.linear), real_arg("angular_window", d.match.window.angular),
+                      py::arg_v("refine", d.match.refine), py::arg_v("use_odometry_prior", d.use_odometry_prior),
+                      py::arg_v("odometry_noise", odometry_noise_default(d.odometry)),
+                      real_arg("min_travel", d.min_travel), real_arg("min_rotation", d.min_rotation),
+                      real_arg("submap_distance", d.submap_distance), py::arg_v("submap_scans", d.submap_scans),
+                      real_arg("min_match_quality", d.min_match_quality), py::arg_v("warmup_scans", d.warmup_scans),
+                      real_arg("field_refresh_distance", d.field_refresh_distance),
+                      real_arg("field_refresh_angle", d.field_refresh_angle)));
+}
+
+constexpr double kBytesPerMiB = 1024.0 * 1024.0;
+
+/// The loop closures' keywords of SubmapSlam2D (field_cache_mb in MiB; the C++ option is bytes).
+struct ClosureArgs {
+  BoolArg loop_closures;
+  IntArg closure_scans_per_submap;
+  RealArg closure_min_match_quality, closure_window_sigmas, closure_min_linear_window, closure_max_linear_window,
+      closure_min_angular_window, closure_max_angular_window, closure_max_distance, dissolve_chi2, field_cache_mb;
+  IntArg max_rounds;
+
+  void get(SubmapSlamOptions& o) const {
+    LoopClosureOptions& c = o.closures;
+    c.enabled = loop_closures.get("loop_closures");
+    c.scans_per_submap = closure_scans_per_submap.get("closure_scans_per_submap");
+    c.min_match_quality = closure_min_match_quality.get("closure_min_match_quality");
+    c.window_sigmas = closure_window_sigmas.get("closure_window_sigmas");
+    c.min_linear_window = closure_min_linear_window.get("closure_min_linear_window");
+    c.max_linear_window = closure_max_linear_window.get("closure_max_linear_window");
+    c.min_angular_window = closure_min_angular_window.get("closure_min_angular_window");
+    c.max_angular_window = closure_max_angular_window.get("closure_max_angular_window");
+    c.max_distance = closure_max_distance.get("closure_max_distance");
+    c.dissolve_chi2 = dissolve_chi2.get("dissolve_chi2");
+    c.field_cache_bytes = field_cache_mb.get("field_cache_mb") * kBytesPerMiB;
+    o.max_rounds = max_rounds.get("max_rounds");
+  }
+};
+
+auto closure_keywords(const SubmapSlamOptions& d) {
+  const LoopClosureOptions& c = d.closures;
+  return std::make_tuple(
+      py::arg_v("loop_closures", c.enabled), py::arg_v("closure_scans_per_submap", c.scans_per_submap),
+      real_arg("closure_min_match_quality", c.min_match_quality), real_arg("closure_window_sigmas", c.window_sigmas),
+      real_arg("closure_min_linear_window", c.min_linear_window),
+      real_arg("closure_max_linear_window", c.max_linear_window),
+      real_arg("closure_min_angular_window", c.min_angular_window),
+      real_arg("closure_max_angular_window", c.max_angular_window), real_arg("closure_max_distance", c.max_distance),
+      real_arg("dissolve_chi2", c.dissolve_chi2), real_arg("field_cache_mb", c.field_cache_bytes / kBytesPerMiB),
+      py::arg_v("max_rounds", d.max_rounds));
+}
+
+GridProposal proposal_arg(const StrArg& v) {
+  const std::string name = v.get("proposal");
+  if (name == "motion") return GridProposal::kMotion;
+  if (name == "scan-matching") return GridProposal::kScanMatching;
+  if (name == "improved-odometry") return GridProposal::kImprovedOdometry;
+  throw py::value_error("proposal must be 'motion', 'scan-matching' or 'improved-odometry', got '" + name + "'");
+}
+
+const char* proposal_name(GridProposal p) {
+  switch (p) {
+    case GridProposal::kMotion: return "motion";
+    case GridProposal::kImprovedOdometry: return "improved-odometry";
+    default: return "scan-matching";
   }
 }
 
-/// The frontend's options (IncrementalScanMatcher, and SubmapSlam2D's frontend) by keyword.
-IncrementalScanMatcherOptions frontend_options(Kwargs& k, IncrementalScanMatcherOptions o = {}) {
-  k.get("resolution", o.resolution);
-  scan_filter_options(k, o.filter);
-  k.get("sigma", o.field.sigma);
-  k.get("p_rand", o.field.p_rand);
-  k.get("linear_window", o.match.window.linear);
-  k.get("angular_window", o.match.window.angular);
-  k.get("refine", o.match.refine);
-  k.get("use_odometry_prior", o.use_odometry_prior);
-  odometry_noise_option(k, o.odometry);
-  k.get("min_travel", o.min_travel);
-  k.get("min_rotation", o.min_rotation);
-  k.get("submap_distance", o.submap_distance);
-  k.get("submap_scans", o.submap_scans);
-  k.get("min_match_quality", o.min_match_quality);
-  k.get("warmup_scans", o.warmup_scans);
-  k.get("field_refresh_distance", o.field_refresh_distance);
-  k.get("field_refresh_angle", o.field_refresh_angle);
-  return o;
-}
-
-SubmapSlamOptions slam_options(Kwargs& k) {
-  SubmapSlamOptions o;
-  o.frontend = frontend_options(k, o.frontend);
-  LoopClosureOptions& c = o.closures;
-  k.get("loop_closures", c.enabled);
-  k.get("closure_scans_per_submap", c.scans_per_submap);
-  k.get("closure_min_match_quality", c.min_match_quality);
-  k.get("closure_window_sigmas", c.window_sigmas);
-  k.get("closure_min_linear_window", c.min_linear_window);
-  k.get("closure_max_linear_window", c.max_linear_window);
-  k.get("closure_min_angular_window", c.min_angular_window);
-  k.get("closure_max_angular_window", c.max_angular_window);
-  k.get("closure_max_distance", c.max_distance);
-  k.get("dissolve_chi2", c.dissolve_chi2);
-  double cache_mb = c.field_cache_bytes / (1024.0 * 1024.0);
-  k.get("field_cache_mb", cache_mb);
-  c.field_cache_bytes = cache_mb * 1024.0 * 1024.0;
-  k.get("max_rounds", o.max_rounds);
-  return o;
-}
-
-/// GridFastSlam's options by keyword (particles, proposal as a string, the rest as named).
-GridFastSlamOptions rbpf_options(Kwargs& k) {
-  GridFastSlamOptions o;
-  k.get("num_particles", o.num_particles);
-  if (const py::handle v = k.take("proposal"); v && !v.is_none()) {
-    if (!py::isinstance<py::str>(v)) throw py::type_error("proposal must be a str");
-    const std::string name = v.cast<std::string>();
-    if (name == "motion") o.proposal = GridProposal::kMotion;
-    else if (name == "scan-matching") o.proposal = GridProposal::kScanMatching;
-    else if (name == "improved-odometry") o.proposal = GridProposal::kImprovedOdometry;
-    else throw py::value_error("proposal must be 'motion', 'scan-matching' or 'improved-odometry', got '" + name + "'");
-  }
-  k.get("resolution", o.resolution);
-  scan_filter_options(k, o.filter);
-  odometry_noise_option(k, o.odometry);
-  k.get("sigma", o.likelihood.sigma);
-  k.get("p_rand", o.likelihood.p_rand);
-  k.get("search_radius", o.likelihood.search_radius);
-  k.get("linear_step", o.matching.linear_step);
-  k.get("angular_step", o.matching.angular_step);
-  k.get("refinements", o.matching.refinements);
-  k.get("sample_linear", o.matching.sample_linear);
-  k.get("sample_angular", o.matching.sample_angular);
-  k.get("min_match_quality", o.matching.min_quality);
-  k.get("corrected_start", o.corrected_start);
-  k.get("resample_threshold", o.resample_threshold);
-  k.get("weight_scale", o.weight_scale);
-  k.get("update_distance", o.update_distance);
-  k.get("update_angle", o.update_angle);
-  k.get("corrector_submap_distance", o.corrector.submap_distance);
-  k.get("seed", o.seed);
-  k.get("threads", o.threads);
-  k.get("max_map_bytes", o.max_map_bytes);
-  // The corrector sees the scans as the filter does.
-  o.corrector.resolution = o.resolution;
-  o.corrector.filter = o.filter;
-  o.corrector.odometry = o.odometry;
-  return o;
+/// Defines a constructor whose keywords are the tuple `keywords` (py::arg_v each), after py::kw_only().
+template <typename Class, typename Init, typename Keywords>
+void keyword_init(Class& c, Init&& init, const Keywords& keywords, const char* doc) {
+  std::apply([&](const auto&... k) { c.def(std::forward<Init>(init), py::kw_only(), k..., doc); }, keywords);
 }
 
 /// add_scans of the laser SLAM classes: shapes checked here, then the class's own add_scans
@@ -177,23 +218,106 @@ void add_scans(Mapper& self, py::handle ranges, py::handle beam_angles, py::hand
   locked(self, [&] { self.add_scans(R, A, O, T); });
 }
 
-/// The keyword constructor (options parsed by `parse`, unknown keywords a TypeError) and
-/// add_scans of a laser SLAM class.
-template <typename Mapper, typename Parse>
-py::class_<Mapper> mapper_class(py::module_& m, const char* name, const char* doc, Parse parse) {
+/// A laser SLAM class with its add_scans; the constructor is defined by the caller.
+template <typename Mapper>
+py::class_<Mapper> mapper_class(py::module_& m, const char* name, const char* doc) {
   py::class_<Mapper> c(m, name, doc);
-  c.def(py::init([parse](const py::kwargs& kw) {
-     Kwargs k(kw);
-     const auto o = parse(k);
-     k.finish();
-     return std::make_unique<Mapper>(o);
-   }), "Keyword options only: see the class docstring.")
-      .def("add_scans", &add_scans<Mapper>, py::arg("ranges"), py::arg("beam_angles"), py::arg("odometry"),
-           py::arg("timestamps"),
-           "Adds scans in order: ranges (S, B) m, beam_angles (B,) or (S, B) rad relative to the sensor's\n"
-           "heading, odometry (S, 3) sensor poses (m, m, rad), timestamps (S,) s. Every row is checked\n"
-           "before the first is used.");
+  c.def("add_scans", &add_scans<Mapper>, py::arg("ranges"), py::arg("beam_angles"), py::arg("odometry"),
+        py::arg("timestamps"),
+        "Adds scans in order: ranges (S, B) m, beam_angles (B,) or (S, B) rad relative to the sensor's\n"
+        "heading, odometry (S, 3) sensor poses (m, m, rad), timestamps (S,) s. Every row is checked\n"
+        "before the first is used.")
+      .def("copy", [](const Mapper& self) { return locked(self, [&] { return std::make_unique<Mapper>(self); }); },
+           "An independent deep copy: options, scans, maps and random streams (the same scans then give\n"
+           "the same results).");
   return c;
+}
+
+/// SubmapSlam2D.constraints: one row per constraint between submaps.
+struct SubmapConstraintArrays {
+  py::array_t<int> from_submap, to_submap, scan;
+  py::array_t<double> measurement, covariance, match_quality;
+  py::array_t<bool> loop, active;
+};
+
+SubmapConstraintArrays constraint_arrays(const std::vector<SubmapConstraint>& cs) {
+  const auto n = static_cast<py::ssize_t>(cs.size());
+  SubmapConstraintArrays out{py::array_t<int>(n), py::array_t<int>(n), py::array_t<int>(n),
+                             py::array_t<double>({n, py::ssize_t(3)}), py::array_t<double>({n, py::ssize_t(3), py::ssize_t(3)}),
+                             py::array_t<double>(n), py::array_t<bool>(n), py::array_t<bool>(n)};
+  for (py::ssize_t k = 0; k < n; ++k) {
+    const SubmapConstraint& c = cs[static_cast<std::size_t>(k)];
+    out.from_submap.mutable_at(k) = c.from, out.to_submap.mutable_at(k) = c.to, out.scan.mutable_at(k) = c.scan;
+    out.loop.mutable_at(k) = c.loop, out.active.mutable_at(k) = c.active;
+    out.match_quality.mutable_at(k) = c.match_quality;
+    for (int i = 0; i < 3; ++i) {
+      out.measurement.mutable_at(k, i) = c.measurement[i];
+      for (int j = 0; j < 3; ++j) out.covariance.mutable_at(k, i, j) = c.covariance(i, j);
+    }
+  }
+  return out;
+}
+
+void define_laser_results(py::module_& m) {
+  using C = SubmapConstraintArrays;
+  py::class_<C>(m, "SubmapConstraints",
+                "SubmapSlam2D.constraints: the constraints between submaps, row k one constraint (C rows).")
+      .def_readonly("from_submap", &C::from_submap, "(C,) int32 submap the measurement is taken from.")
+      .def_readonly("to_submap", &C::to_submap, "(C,) int32 submap whose origin is measured.")
+      .def_readonly("measurement", &C::measurement, "(C, 3) to_submap's origin in from_submap's frame (m, m, rad).")
+      .def_readonly("covariance", &C::covariance, "(C, 3, 3) covariance of the measurement.")
+      .def_readonly("loop", &C::loop, "(C,) bool: a loop closure (else consecutive submaps).")
+      .def_readonly("scan", &C::scan, "(C,) int32 loop closures: the scan matched against from_submap; -1 otherwise.")
+      .def_readonly("match_quality", &C::match_quality, "(C,) mean hit likelihood of the match, 0 .. 1.")
+      .def_readonly("active", &C::active, "(C,) bool: False once dissolved.")
+      .def("__len__", [](const C& c) { return c.loop.shape(0); })
+      .def("__repr__", [](py::handle self) {
+        const C& c = self.cast<const C&>();
+        long loops = 0;
+        for (py::ssize_t k = 0; k < c.loop.shape(0); ++k) loops += c.loop.at(k) && c.active.at(k);
+        return repr_of(self, std::to_string(c.loop.shape(0)) + " constraints, " + std::to_string(loops) +
+                                 " active loop closures");
+      });
+  using S = SubmapSlamSummary;
+  py::class_<S>(m, "SubmapSlamSummary", "SubmapSlam2D.summary: counts of the run so far.")
+      .def_readonly("scans", &S::scans, "Scans added.")
+      .def_readonly("submaps", &S::submaps, "Submaps (pose graph nodes).")
+      .def_readonly("matched_scans", &S::matched_scans, "Scans placed by scan matching (else by odometry).")
+      .def_readonly("closures_searched", &S::closures_searched, "Scan-submap pairs searched for a loop closure.")
+      .def_readonly("closures_accepted", &S::closures_accepted, "Closures added to the graph and still active.")
+      .def_readonly("closures_rejected", &S::closures_rejected, "Closures that failed the quality or consistency test.")
+      .def_readonly("closures_dissolved", &S::closures_dissolved, "Closures added, then undone by the optimised graph.")
+      .def_readonly("rounds", &S::rounds, "Rounds of search, optimisation and dissolution in finish().")
+      .def_readonly("optimizations", &S::optimizations, "Graph optimisations run.")
+      .def_readonly("final_chi2", &S::final_chi2, "chi2 of the optimised graph.")
+      .def("__repr__", [](py::handle self) {
+        const S& s = self.cast<const S&>();
+        return repr_of(self, std::to_string(s.scans) + " scans, " + std::to_string(s.submaps) + " submaps, " +
+                                 std::to_string(s.closures_accepted) + " loop closures, chi2 " + num(s.final_chi2));
+      });
+  using G = GridFastSlamSummary;
+  py::class_<G>(m, "GridFastSlamSummary", "GridFastSlam.summary: counts of the run so far.")
+      .def_readonly("scans", &G::scans, "Scans added.")
+      .def_readonly("updates", &G::updates, "Filter updates (scans after update_distance / update_angle of travel).")
+      .def_readonly("resamples", &G::resamples, "Resamplings.")
+      .def_readonly("matched", &G::matched, "Particle updates drawn from the scan-matching proposal.")
+      .def_readonly("fallbacks", &G::fallbacks, "Particle updates whose match failed (motion model instead).")
+      .def_readonly("effective_sample_size", &G::effective_sample_size,
+                    "N_eff after the last update, before any resampling.")
+      .def("__repr__", [](py::handle self) {
+        const G& s = self.cast<const G&>();
+        return repr_of(self, std::to_string(s.scans) + " scans, " + std::to_string(s.updates) + " updates, " +
+                                 std::to_string(s.resamples) + " resamples, N_eff " + num(s.effective_sample_size));
+      });
+  py::class_<TileSharing>(m, "TileSharing", "GridFastSlam.tile_sharing: map tiles held and allocated.")
+      .def_readonly("references", &TileSharing::references, "Tiles held over all particles (a shared tile once per holder).")
+      .def_readonly("distinct", &TileSharing::distinct, "Tiles allocated.")
+      .def_readonly("bytes", &TileSharing::bytes, "Bytes of the distinct tiles.")
+      .def("__repr__", [](py::handle self) {
+        const TileSharing& t = self.cast<const TileSharing&>();
+        return repr_of(self, std::to_string(t.distinct) + " distinct tiles of " + std::to_string(t.references) +
+                                 " held, " + std::to_string(t.bytes) + " bytes");
+      });
 }
 
 /// (N, 5) per scan: matched, fallback, submap, match_quality, points.
@@ -376,17 +500,60 @@ void define_slam2d(py::module_& m) {
           py::arg("points"), py::arg("pose"), py::arg("prior") = py::none(), py::arg("prior_covariance") = py::none(),
           "Score (sum of log p over points (N, 2) m, plus the prior term) at pose (3,) on the bilinear field.");
 
+  define_laser_results(m);
+
   using ISM = IncrementalScanMatcher;
-  mapper_class<ISM>(m, "IncrementalScanMatcher",
-                    "Each scan matched against the map built so far (incremental scan matching into local\n"
-                    "submaps). Keyword options: resolution (m), max_range, min_range, max_usable_range (m),\n"
-                    "clear_no_return, min_point_spacing (m), sigma (m), p_rand, linear_window (m), angular_window\n"
-                    "(rad), refine, use_odometry_prior, odometry_noise (6,), min_travel (m), min_rotation (rad),\n"
-                    "submap_distance (m), submap_scans, min_match_quality, warmup_scans, field_refresh_distance (m),\n"
-                    "field_refresh_angle (rad).",
-                    [](Kwargs& k) { return frontend_options(k); })
-      .def_property_readonly("num_scans", getter(&ISM::num_scans), "Scans added.")
-      .def_property_readonly("poses", [](const ISM& self) { return locked(self, [&] { return estimate_poses(self); }); },
+  const IncrementalScanMatcherOptions ism_defaults;
+  auto ism = mapper_class<ISM>(
+      m, "IncrementalScanMatcher",
+      "Each scan matched against the map built so far (incremental scan matching into local submaps).\n"
+      "\n"
+      "IncrementalScanMatcher(*, options), every option a keyword (defaults in the signature):\n"
+      "    resolution: cell side of the local maps, m.\n"
+      "    max_range: the sensor's maximum, m (readings at or beyond it are no-returns).\n"
+      "    min_range: closer readings (the robot's own body) are dropped, m.\n"
+      "    max_usable_range: farther hits are not used; they clear free space up to it, m.\n"
+      "    clear_no_return: no-return beams clear free space up to the usable range.\n"
+      "    min_point_spacing: hits closer than this to the last kept one are dropped, m (0: keep all).\n"
+      "    sigma: standard deviation of a hit around the nearest obstacle in the likelihood field, m.\n"
+      "    p_rand: weight of the field's uniform part.\n"
+      "    linear_window: half-width of the search window, m; angular_window: rad.\n"
+      "    refine: Gauss-Newton on the interpolated field after the search.\n"
+      "    use_odometry_prior: the odometry motion model enters the score.\n"
+      "    odometry_noise: (6,) trans_per_metre (m/m), trans_per_radian (m/rad), trans_floor (m),\n"
+      "        rot_per_radian (rad/rad), rot_per_metre (rad/m), rot_floor (rad) of the odometry model.\n"
+      "    min_travel: m; min_rotation: rad; a scan is matched once the odometry moved or turned this\n"
+      "        much since the last matched scan.\n"
+      "    submap_distance: a new submap starts after this much travel, m (0: one map);\n"
+      "        submap_scans: ... or this many matched scans (0: no limit).\n"
+      "    min_match_quality: matches below this mean hit likelihood (0 .. 1) fall back to odometry.\n"
+      "    warmup_scans: scans inserted into a new local map before matching starts against it.\n"
+      "    field_refresh_distance: m; field_refresh_angle: rad; the local map's likelihood field is\n"
+      "        rebuilt once the robot moved or turned this much since it was built (0: every scan).\n"
+      "A failed call (add_scans included) changes nothing.");
+  keyword_init(
+      ism,
+      py::init([](RealArg resolution, RealArg max_range, RealArg min_range, RealArg max_usable_range,
+                  BoolArg clear_no_return, RealArg min_point_spacing, RealArg sigma, RealArg p_rand,
+                  RealArg linear_window, RealArg angular_window, BoolArg refine, BoolArg use_odometry_prior,
+                  py::handle odometry_noise, RealArg min_travel, RealArg min_rotation, RealArg submap_distance,
+                  IntArg submap_scans, RealArg min_match_quality, IntArg warmup_scans, RealArg field_refresh_distance,
+                  RealArg field_refresh_angle) {
+        const FrontendArgs a{resolution, {max_range, min_range, max_usable_range, clear_no_return, min_point_spacing},
+                             sigma, p_rand, linear_window, angular_window, refine, use_odometry_prior,
+                             odometry_noise, min_travel, min_rotation, submap_distance, submap_scans,
+                             min_match_quality, warmup_scans, field_refresh_distance, field_refresh_angle};
+        const IncrementalScanMatcherOptions o = a.get(IncrementalScanMatcherOptions{});
+        return std::make_unique<ISM>(o);
+      }),
+      frontend_keywords(ism_defaults), "Keyword options only: see the class docstring.");
+  ism.def_property_readonly("num_scans", getter(&ISM::num_scans), "Scans added.")
+      .def_property_readonly("pose", [](const ISM& self) {
+        return locked(self, [&] {
+          return self.num_scans() ? Eigen::Vector3d(self.estimates().back().pose) : Eigen::Vector3d::Zero().eval();
+        });
+      }, "(3,) the last scan's estimated pose (m, m, rad); zeros before the first scan.")
+      .def_property_readonly("scan_poses", [](const ISM& self) { return locked(self, [&] { return estimate_poses(self); }); },
                              "(S, 3) estimated pose of every scan (m, m, rad).")
       .def_property_readonly("timestamps", [](const ISM& self) { return locked(self, [&] { return timestamps_of(self); }); },
                              "(S,) scan timestamps, seconds.")
@@ -409,17 +576,64 @@ void define_slam2d(py::module_& m) {
       }, py::arg("index"), "A copy of submap index's OccupancyGrid2D.");
 
   using Slam = SubmapSlam2D;
-  mapper_class<Slam>(m, "SubmapSlam2D",
-                     "GraphSLAM over scan-matched submaps with correlative loop closures (ch. 11.7): the\n"
-                     "IncrementalScanMatcher's keyword options (submap_distance default 10 m) and loop_closures,\n"
-                     "closure_scans_per_submap, closure_min_match_quality, closure_window_sigmas,\n"
-                     "closure_{min,max}_{linear,angular}_window (m, rad), closure_max_distance (m), dissolve_chi2,\n"
-                     "max_rounds, field_cache_mb. probslam.slam.run_slam drives it from a log.",
-                     slam_options)
-      .def("finish", [](Slam& self) { locked(self, [&] { self.finish(); }); },
+  const SubmapSlamOptions slam_defaults;
+  auto slam = mapper_class<Slam>(
+      m, "SubmapSlam2D",
+      "GraphSLAM over scan-matched submaps with correlative loop closures (ch. 11.7).\n"
+      "probslam.slam.run_slam drives it from a log.\n"
+      "\n"
+      "SubmapSlam2D(*, options), every option a keyword (defaults in the signature): the\n"
+      "IncrementalScanMatcher's (the frontend; submap_distance 10 m here) and the loop closures':\n"
+      "    loop_closures: search for loop closures at all.\n"
+      "    closure_scans_per_submap: scans of each finished submap matched against the older ones.\n"
+      "    closure_min_match_quality: a closure needs this mean hit likelihood (0 .. 1).\n"
+      "    closure_window_sigmas: the search window is this many standard deviations of the\n"
+      "        predicted relative pose, within closure_min_linear_window .. closure_max_linear_window\n"
+      "        (m) and closure_min_angular_window .. closure_max_angular_window (rad).\n"
+      "    closure_max_distance: submaps predicted farther apart are not searched, m.\n"
+      "    dissolve_chi2: a closure whose error in the optimised graph exceeds this chi2 (3 dof) is\n"
+      "        dissolved.\n"
+      "    field_cache_mb: MiB of submap likelihood fields kept for the search (least recently used\n"
+      "        rebuilt).\n"
+      "    max_rounds: rounds of search, optimisation and dissolution in finish().\n"
+      "A failed call (add_scans included) changes nothing.");
+  keyword_init(
+      slam,
+      py::init([](RealArg resolution, RealArg max_range, RealArg min_range, RealArg max_usable_range,
+                  BoolArg clear_no_return, RealArg min_point_spacing, RealArg sigma, RealArg p_rand,
+                  RealArg linear_window, RealArg angular_window, BoolArg refine, BoolArg use_odometry_prior,
+                  py::handle odometry_noise, RealArg min_travel, RealArg min_rotation, RealArg submap_distance,
+                  IntArg submap_scans, RealArg min_match_quality, IntArg warmup_scans, RealArg field_refresh_distance,
+                  RealArg field_refresh_angle, BoolArg loop_closures, IntArg closure_scans_per_submap,
+                  RealArg closure_min_match_quality, RealArg closure_window_sigmas, RealArg closure_min_linear_window,
+                  RealArg closure_max_linear_window, RealArg closure_min_angular_window,
+                  RealArg closure_max_angular_window, RealArg closure_max_distance, RealArg dissolve_chi2,
+                  RealArg field_cache_mb, IntArg max_rounds) {
+        const FrontendArgs a{resolution, {max_range, min_range, max_usable_range, clear_no_return, min_point_spacing},
+                             sigma, p_rand, linear_window, angular_window, refine, use_odometry_prior,
+                             odometry_noise, min_travel, min_rotation, submap_distance, submap_scans,
+                             min_match_quality, warmup_scans, field_refresh_distance, field_refresh_angle};
+        const ClosureArgs c{loop_closures, closure_scans_per_submap, closure_min_match_quality,
+                            closure_window_sigmas, closure_min_linear_window, closure_max_linear_window,
+                            closure_min_angular_window, closure_max_angular_window, closure_max_distance,
+                            dissolve_chi2, field_cache_mb, max_rounds};
+        SubmapSlamOptions o;
+        o.frontend = a.get(o.frontend);
+        c.get(o);
+        return std::make_unique<Slam>(o);
+      }),
+      std::tuple_cat(frontend_keywords(slam_defaults.frontend), closure_keywords(slam_defaults)),
+      "Keyword options only: see the class docstring.");
+  slam.def("finish", [](Slam& self) { locked(self, [&] { self.finish(); }); },
            "Closes the last submap, searches its loop closures and optimises the graph.")
       .def_property_readonly("num_scans", getter(&Slam::num_scans), "Scans added.")
       .def_property_readonly("num_submaps", getter(&Slam::num_submaps), "Submaps so far.")
+      .def_property_readonly("pose", [](const Slam& self) {
+        return locked(self, [&] {
+          const std::vector<Eigen::Vector3d> p = self.scan_poses();
+          return p.empty() ? Eigen::Vector3d::Zero().eval() : p.back();
+        });
+      }, "(3,) the last scan's optimised pose (m, m, rad); zeros before the first scan.")
       .def_property_readonly("scan_poses", [](const Slam& self) { return locked(self, [&] { return rows_of(self.scan_poses()); }); },
                              "(S, 3) optimised pose of every scan (m, m, rad).")
       .def_property_readonly("frontend_poses",
@@ -433,8 +647,10 @@ void define_slam2d(py::module_& m) {
                              "(S, 5) per scan: matched, fallback, submap, match_quality, points.")
       .def("graph", [](const Slam& self) { return locked(self, [&] { return self.graph(); }); },
            "A copy of the submap pose graph (PoseGraph2D).")
-      .def("map", [](const Slam& self, double resolution) { return locked(self, [&] { return self.map(resolution); }); },
-           py::arg("resolution") = 0.0,
+      .def("map", [](const Slam& self, RealArg resolution_arg) {
+        const double resolution = resolution_arg.get("resolution");
+        return locked(self, [&] { return self.map(resolution); });
+      }, py::arg("resolution") = 0.0,
            "Occupancy grid of every scan at its optimised pose; resolution m (0: the submaps').")
       .def("__repr__", [](py::handle self) {
         const Slam& s = self.cast<const Slam&>();
@@ -445,67 +661,114 @@ void define_slam2d(py::module_& m) {
         }));
       })
       .def_property_readonly("constraints", [](const Slam& self) {
-        const std::vector<SubmapConstraint> cs = locked(self, [&] { return self.constraints(); });
-        const auto n = static_cast<py::ssize_t>(cs.size());
-        py::array_t<int> from(n), to(n), scan(n);
-        py::array_t<bool> loop(n), active(n);
-        py::array_t<double> z({n, py::ssize_t(3)}), cov({n, py::ssize_t(3), py::ssize_t(3)}), quality(n);
-        for (py::ssize_t k = 0; k < n; ++k) {
-          const SubmapConstraint& c = cs[static_cast<std::size_t>(k)];
-          from.mutable_at(k) = c.from, to.mutable_at(k) = c.to, scan.mutable_at(k) = c.scan;
-          loop.mutable_at(k) = c.loop, active.mutable_at(k) = c.active, quality.mutable_at(k) = c.match_quality;
-          for (int i = 0; i < 3; ++i) {
-            z.mutable_at(k, i) = c.measurement[i];
-            for (int j = 0; j < 3; ++j) cov.mutable_at(k, i, j) = c.covariance(i, j);
-          }
-        }
-        py::dict d;
-        d["from"] = from, d["to"] = to, d["measurement"] = z, d["covariance"] = cov, d["loop"] = loop;
-        d["scan"] = scan, d["match_quality"] = quality, d["active"] = active;
-        return d;
-      },
-      "Dict of (C,) arrays over the constraints between submaps: from, to, measurement (C, 3),\n"
-      "covariance (C, 3, 3), loop, scan, match_quality, active.")
-      .def_property_readonly("summary", [](const Slam& self) {
-        const SubmapSlamSummary s = locked(self, [&] { return self.summary(); });
-        py::dict d;
-        d["scans"] = s.scans, d["submaps"] = s.submaps, d["matched_scans"] = s.matched_scans;
-        d["closures_searched"] = s.closures_searched, d["closures_accepted"] = s.closures_accepted;
-        d["closures_rejected"] = s.closures_rejected, d["closures_dissolved"] = s.closures_dissolved;
-        d["rounds"] = s.rounds, d["optimizations"] = s.optimizations, d["final_chi2"] = s.final_chi2;
-        return d;
-      },
-      "Dict: scans, submaps, matched_scans, closures_searched / accepted / rejected / dissolved, rounds,\n"
-      "optimizations, final_chi2.");
+        return constraint_arrays(locked(self, [&] { return self.constraints(); }));
+      }, "SubmapConstraints: the constraints between submaps (C,) (measurement, covariance, loop, ...).")
+      .def_property_readonly("summary", getter(&Slam::summary),
+                             "SubmapSlamSummary: scans, submaps, matched_scans, closures searched / accepted /\n"
+                             "rejected / dissolved, rounds, optimizations, final_chi2.");
 
   using Rbpf = GridFastSlam;
-  // The particle argument is read with the GIL held; resolved (None: the best) under the lock.
-  auto particle_arg = [](py::handle k) -> long long {
-    if (k.is_none()) return -1;
-    const long long i = index_value(k, "particle");
-    if (i < 0) throw py::value_error("particle must be in [0, num_particles)");
-    return i;
-  };
-  auto resolve = [](const Rbpf& self, long long k) {
-    if (k < 0) return self.best_index();
-    require(k < self.num_particles(), "particle", "must be in [0, num_particles)");
-    return static_cast<int>(k);
-  };
-  mapper_class<Rbpf>(m, "GridFastSlam",
-                     "Grid-based FastSLAM from a raw laser log: particles with a pose, a log weight and their own\n"
-                     "occupancy grid (32 x 32-cell tiles shared copy-on-write). Keyword options: num_particles (30),\n"
-                     "proposal (\"scan-matching\" (default), \"motion\", \"improved-odometry\"), resolution (m, 0.05),\n"
-                     "max_range, min_range, max_usable_range (m), clear_no_return, min_point_spacing (m),\n"
-                     "odometry_noise (6,), sigma (m, 0.05), p_rand (0.05), search_radius (m, 0.3), linear_step (m),\n"
-                     "angular_step (rad), refinements, sample_linear (m), sample_angular (rad), min_match_quality\n"
-                     "(0.3), weight_scale (0.03: tempered weights), resample_threshold (0.5), update_distance (m,\n"
-                     "0.25), update_angle (rad, 0.25), corrector_submap_distance (m, 5), corrected_start (True), seed\n"
-                     "(int >= 0), threads, max_map_bytes (bytes, 8 GiB: the particles' maps with the worst case of the\n"
-                     "next update; a num_particles or an update that could exceed it raises ValueError). Results are\n"
-                     "identical for any thread count. A failed call (add_scans included) changes nothing.",
-                     rbpf_options)
-      .def_property_readonly("num_scans", getter(&Rbpf::num_scans), "Scans added.")
+  const GridFastSlamOptions rbpf_defaults;
+  auto rbpf = mapper_class<Rbpf>(
+      m, "GridFastSlam",
+      "Grid-based FastSLAM from a raw laser log: particles with a pose, a log weight and their own\n"
+      "occupancy grid (32 x 32-cell tiles shared copy-on-write).\n"
+      "\n"
+      "GridFastSlam(*, options), every option a keyword (defaults in the signature):\n"
+      "    num_particles: M.\n"
+      "    proposal: \"scan-matching\" (Grisetti et al. 2007), \"motion\" (the odometry motion model) or\n"
+      "        \"improved-odometry\" (Haehnel et al. 2003).\n"
+      "    resolution: cell side of the particles' maps, m.\n"
+      "    max_range, min_range, max_usable_range (m), clear_no_return, min_point_spacing (m): the scan\n"
+      "        filter, as IncrementalScanMatcher's.\n"
+      "    odometry_noise: (6,) the odometry model's coefficients, as IncrementalScanMatcher's.\n"
+      "    sigma: standard deviation of a hit around the nearest obstacle, m; p_rand: weight of the\n"
+      "        uniform part; search_radius: obstacles farther than this count as none, m.\n"
+      "    linear_step (m), angular_step (rad): the proposal's first hill-climbing steps; refinements:\n"
+      "        step halvings; sample_linear (m), sample_angular (rad): spacing of its evaluation poses.\n"
+      "    min_match_quality: a match below this mean hit likelihood (0 .. 1) falls back to the motion\n"
+      "        model.\n"
+      "    corrected_start: the climb starts from the odometry corrected by incremental scan matching.\n"
+      "    resample_threshold: resample when N_eff < resample_threshold * M, in [0, 1].\n"
+      "    weight_scale: each update's log weight increment is multiplied by this, in (0, 1] (tempered\n"
+      "        weights: a scan's beams are not independent).\n"
+      "    update_distance (m), update_angle (rad): the filter updates once the odometry moved or\n"
+      "        turned this much since the last update.\n"
+      "    corrector_submap_distance: submap length of the odometry corrector, m.\n"
+      "    seed: int in [0, 2^64); threads: worker threads (results identical for any count).\n"
+      "    max_map_bytes: bytes; the particles' maps with the worst case of the next update; a\n"
+      "        num_particles or an update that could exceed it raises ValueError.\n"
+      "A failed call (add_scans included) changes nothing.");
+  keyword_init(
+      rbpf,
+      py::init([](IntArg num_particles, StrArg proposal, RealArg resolution, RealArg max_range, RealArg min_range,
+                  RealArg max_usable_range, BoolArg clear_no_return, RealArg min_point_spacing,
+                  py::handle odometry_noise, RealArg sigma, RealArg p_rand, RealArg search_radius, RealArg linear_step,
+                  RealArg angular_step, IntArg refinements, RealArg sample_linear, RealArg sample_angular,
+                  RealArg min_match_quality, BoolArg corrected_start, RealArg resample_threshold, RealArg weight_scale,
+                  RealArg update_distance, RealArg update_angle, RealArg corrector_submap_distance, UInt64Arg seed,
+                  IntArg threads, RealArg max_map_bytes) {
+        GridFastSlamOptions o;
+        o.num_particles = num_particles.get("num_particles");
+        o.proposal = proposal_arg(proposal);
+        o.resolution = resolution.get("resolution");
+        o.filter = FilterArgs{max_range, min_range, max_usable_range, clear_no_return, min_point_spacing}.get();
+        o.odometry = odometry_noise_arg(odometry_noise);
+        o.likelihood.sigma = sigma.get("sigma");
+        o.likelihood.p_rand = p_rand.get("p_rand");
+        o.likelihood.search_radius = search_radius.get("search_radius");
+        o.matching.linear_step = linear_step.get("linear_step");
+        o.matching.angular_step = angular_step.get("angular_step");
+        o.matching.refinements = refinements.get("refinements");
+        o.matching.sample_linear = sample_linear.get("sample_linear");
+        o.matching.sample_angular = sample_angular.get("sample_angular");
+        o.matching.min_quality = min_match_quality.get("min_match_quality");
+        o.corrected_start = corrected_start.get("corrected_start");
+        o.resample_threshold = resample_threshold.get("resample_threshold");
+        o.weight_scale = weight_scale.get("weight_scale");
+        o.update_distance = update_distance.get("update_distance");
+        o.update_angle = update_angle.get("update_angle");
+        o.corrector.submap_distance = corrector_submap_distance.get("corrector_submap_distance");
+        o.seed = seed.get("seed");
+        o.threads = threads.get("threads");
+        o.max_map_bytes = max_map_bytes.get("max_map_bytes");
+        // The corrector sees the scans as the filter does.
+        o.corrector.resolution = o.resolution;
+        o.corrector.filter = o.filter;
+        o.corrector.odometry = o.odometry;
+        return std::make_unique<Rbpf>(o);
+      }),
+      std::make_tuple(
+          py::arg_v("num_particles", rbpf_defaults.num_particles),
+          py::arg_v("proposal", std::string(proposal_name(rbpf_defaults.proposal))),
+          real_arg("resolution", rbpf_defaults.resolution), real_arg("max_range", rbpf_defaults.filter.max_range),
+          real_arg("min_range", rbpf_defaults.filter.min_range),
+          real_arg("max_usable_range", rbpf_defaults.filter.max_usable_range),
+          py::arg_v("clear_no_return", rbpf_defaults.filter.clear_no_return),
+          real_arg("min_point_spacing", rbpf_defaults.filter.min_point_spacing),
+          py::arg_v("odometry_noise", odometry_noise_default(rbpf_defaults.odometry)),
+          real_arg("sigma", rbpf_defaults.likelihood.sigma), real_arg("p_rand", rbpf_defaults.likelihood.p_rand),
+          real_arg("search_radius", rbpf_defaults.likelihood.search_radius),
+          real_arg("linear_step", rbpf_defaults.matching.linear_step),
+          real_arg("angular_step", rbpf_defaults.matching.angular_step),
+          py::arg_v("refinements", rbpf_defaults.matching.refinements),
+          real_arg("sample_linear", rbpf_defaults.matching.sample_linear),
+          real_arg("sample_angular", rbpf_defaults.matching.sample_angular),
+          real_arg("min_match_quality", rbpf_defaults.matching.min_quality),
+          py::arg_v("corrected_start", rbpf_defaults.corrected_start),
+          real_arg("resample_threshold", rbpf_defaults.resample_threshold),
+          real_arg("weight_scale", rbpf_defaults.weight_scale),
+          real_arg("update_distance", rbpf_defaults.update_distance),
+          real_arg("update_angle", rbpf_defaults.update_angle),
+          real_arg("corrector_submap_distance", rbpf_defaults.corrector.submap_distance),
+          py::arg_v("seed", rbpf_defaults.seed), py::arg_v("threads", rbpf_defaults.threads),
+          real_arg("max_map_bytes", rbpf_defaults.max_map_bytes)),
+      "Keyword options only: see the class docstring.");
+  rbpf.def_property_readonly("num_scans", getter(&Rbpf::num_scans), "Scans added.")
       .def_property_readonly("num_particles", getter(&Rbpf::num_particles), "M, the number of particles.")
+      .def_property_readonly("pose", [](const Rbpf& self) {
+        return locked(self, [&] { return Eigen::Vector3d(self.poses().row(self.best_index()).transpose()); });
+      }, "(3,) the best particle's pose (m, m, rad).")
       .def_property_readonly("poses", [](const Rbpf& self) { return locked(self, [&] { return self.poses(); }); },
                              "(M, 3) particle poses (m, m, rad).")
       .def_property_readonly("log_weights", [](const Rbpf& self) { return locked(self, [&] { return self.log_weights(); }); },
@@ -514,28 +777,22 @@ void define_slam2d(py::module_& m) {
       .def_property_readonly("timestamps", [](const Rbpf& self) {
         return locked(self, [&] { return Eigen::VectorXd(Eigen::Map<const Eigen::VectorXd>(self.timestamps().data(), self.num_scans())); });
       }, "(S,) scan timestamps, seconds.")
-      .def("scan_poses", [particle_arg, resolve](const Rbpf& self, py::handle particle) {
-        const long long k = particle_arg(particle);
-        return locked(self, [&] { return self.scan_poses(resolve(self, k)); });
+      .def_property_readonly("scan_poses", [](const Rbpf& self) {
+        return locked(self, [&] { return self.scan_poses(self.best_index()); });
+      }, "(S, 3) every scan's pose along the best particle's path (path(particle) for another's).")
+      .def("path", [](const Rbpf& self, py::handle particle) {
+        const ParticleChoice k = ParticleChoice::from(particle);
+        return locked(self, [&] { return self.scan_poses(k.resolve(self)); });
       }, py::arg("particle") = py::none(),
-         "(S, 3) every scan's pose along a particle's path (default: the heaviest).")
-      .def("map", [particle_arg, resolve](const Rbpf& self, py::handle particle) {
-        const long long k = particle_arg(particle);
-        return locked(self, [&] { return self.map(resolve(self, k)); });
-      }, py::arg("particle") = py::none(), "A particle's map as a dense OccupancyGrid2D (default: the heaviest).")
-      .def_property_readonly("tile_sharing", [](const Rbpf& self) {
-        const TileSharing t = locked(self, [&] { return self.tile_sharing(); });
-        py::dict d;
-        d["references"] = t.references, d["distinct"] = t.distinct, d["bytes"] = t.bytes;
-        return d;
-      }, "Dict: references (tiles held over all particles), distinct (allocated), bytes (of the distinct).")
-      .def_property_readonly("summary", [](const Rbpf& self) {
-        const GridFastSlamSummary s = locked(self, [&] { return self.summary(); });
-        py::dict d;
-        d["scans"] = s.scans, d["updates"] = s.updates, d["resamples"] = s.resamples, d["matched"] = s.matched;
-        d["fallbacks"] = s.fallbacks, d["effective_sample_size"] = s.effective_sample_size;
-        return d;
-      }, "Dict: scans, updates, resamples, matched, fallbacks, effective_sample_size.")
+         "(S, 3) every scan's pose along a particle's path (default: the best particle's).")
+      .def("map", [](const Rbpf& self, py::handle particle) {
+        const ParticleChoice k = ParticleChoice::from(particle);
+        return locked(self, [&] { return self.map(k.resolve(self)); });
+      }, py::arg("particle") = py::none(), "A particle's map as a dense OccupancyGrid2D (default: the best particle's).")
+      .def_property_readonly("tile_sharing", getter(&Rbpf::tile_sharing),
+                             "TileSharing: references (tiles held over all particles), distinct (allocated), bytes.")
+      .def_property_readonly("summary", getter(&Rbpf::summary),
+                             "GridFastSlamSummary: scans, updates, resamples, matched, fallbacks, effective_sample_size.")
       .def("__repr__", [](py::handle self) {
         const Rbpf& s = self.cast<const Rbpf&>();
         return repr_of(self, locked(s, [&] {

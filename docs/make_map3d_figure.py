@@ -29,7 +29,7 @@ def main():
     grid = probslam.OccupancyGrid3D(0.1)
     stats = grid.insert_point_cloud(points, (0.0, 0.0, 0.0))
     centres, _ = grid.occupied_voxels()
-    print(f"{stats['points']} points -> {grid.num_known_voxels} known, {len(centres)} occupied voxels, "
+    print(f"{stats.points} points -> {grid.num_known_voxels} known, {len(centres)} occupied voxels, "
           f"{grid.memory_bytes / 2**20:.1f} MiB")
 
     fig = plt.figure(figsize=(10, 6.5))

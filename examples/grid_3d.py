@@ -12,7 +12,7 @@ points = np.column_stack([x, y, z])                          # (n, 3) metres
 
 grid = ps.OccupancyGrid3D(0.1)                 # p_hit=0.7, p_miss=0.4, clamp 0.1192..0.971
 stats = grid.insert_point_cloud(points, origin=(0, 0, 1.8), max_range=20.0, threads=2)
-stats["skipped_nonfinite"]                     # NaN/inf points are skipped and counted
+stats.skipped_nonfinite                        # NaN/inf points are skipped and counted
 centres, log_odds = grid.occupied_voxels()     # (n, 3) m, (n,) float32
 grid.write_bt("map.bt")                        # opens in octovis; OccupancyGrid3D.read_bt reads it
 floor_plan = grid.project_2d(z_min=0.2, z_max=2.0)   # an OccupancyGrid2D

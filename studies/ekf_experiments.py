@@ -81,7 +81,7 @@ def association(runs, steps, management, clutter, method="ml"):
                         recall_total += 1
                         recall_hits += o == 0 and label.get(int(i)) == t
                     first_seen.add(t)
-        final = [label.get(int(i), ps.sim.CLUTTER_ID) for i in ekf.landmark_ids]
+        final = [label.get(int(i), ps.sim.CLUTTER_ID) for i in ekf.landmarks().ids]
         spurious.append(sum(1 for t in final if t == ps.sim.CLUTTER_ID))
         duplicates.append(len(final) - len(set(final) - {ps.sim.CLUTTER_ID}) - spurious[-1])
         landmarks.append(len(final))

@@ -177,7 +177,7 @@ def own_map(data):
     counts = {"all": [0, 0], "lone": [0, 0]}
 
     def judge(ekf, rows):
-        mapped = list(ekf.landmark_ids)
+        mapped = list(ekf.landmarks().ids)
         if len(mapped) < 2:
             return
         for z, truth in zip(rows[:, 2:4], rows[:, 1].astype(int)):

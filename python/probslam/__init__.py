@@ -4,34 +4,54 @@ Units: metres and radians; poses are ``(x, y, theta)`` with theta wrapped to (-p
 """
 
 from ._core import (
+    Association,
     BeamSensorModel,
     BinaryMap2D,
+    CorrelativeScanMatcher,
     FastSlam,
+    FastSlamAssociationResult,
+    FastSlamUpdateResult,
     GridFastSlam,
+    GridFastSlamSummary,
     IncrementalScanMatcher,
+    InsertStats3D,
+    LandmarkDetails,
+    Landmarks,
+    LikelihoodField,
+    MapSharing,
+    MatchResult,
+    MultiHypothesisOptions,
     OccupancyGrid2D,
     OccupancyGrid3D,
     Pose2,
+    SubmapConstraints,
     SubmapSlam2D,
+    SubmapSlamSummary,
+    TileSharing,
     chi_square_cdf,
     chi_square_quantile,
+    fastslam2_proposal,
     fuse_max,
     inverse_range_sensor_model,
     landmark_from_range_bearing,
     landmark_from_range_bearing_jacobians,
     logit,
+    low_variance_resample,
     map_log_posterior,
     probability_from_log_odds,
     range_bearing,
     range_bearing_jacobians,
+    ranges_for_insertion,
+    scan_hits,
     velocity_motion,
     velocity_motion_control_jacobian,
     velocity_motion_jacobian,
     wrap_angle,
 )
 from . import data, datasets, eval, inverse_learning, io, sim, slam
-from .graph import (OptimizationReport, PoseGraph2D, marginal_covariances, optimize, read_pose_graph,
-                    read_pose_graph_with_report, write_g2o)
+from .graph import (IncrementalReport, OptimizationReport, PoseGraph2D, PoseGraphReadReport, initialize_odometry,
+                    marginal_covariances, optimize, optimize_incremental, read_pose_graph, read_pose_graph_with_report,
+                    write_g2o, write_isam)
 from .graphslam import (
     CorrespondenceTest,
     FeatureMerges,
@@ -45,7 +65,7 @@ from .graphslam import (
     eif_solve,
     graph_slam,
 )
-from .ekf import EkfSlam, MapManagement, MultiHypothesisEkfSlam
+from .ekf import AssociationResult, EkfSlam, MapManagement, MultiHypothesisEkfSlam, UpdateResult
 from .mapping import MappingSummary, map_laser_log
 from .map_occupancy import MapOccupancyResult, map_occupancy_grid_mapping
 from .inverse_learning import LearnedInverseModel
@@ -56,6 +76,32 @@ __version__ = "0.1.0"
 
 
 __all__ = [
+    "Association",
+    "AssociationResult",
+    "CorrelativeScanMatcher",
+    "FastSlamAssociationResult",
+    "FastSlamUpdateResult",
+    "GridFastSlamSummary",
+    "IncrementalReport",
+    "InsertStats3D",
+    "LandmarkDetails",
+    "Landmarks",
+    "LikelihoodField",
+    "MapSharing",
+    "MatchResult",
+    "MultiHypothesisOptions",
+    "PoseGraphReadReport",
+    "SubmapConstraints",
+    "SubmapSlamSummary",
+    "TileSharing",
+    "UpdateResult",
+    "fastslam2_proposal",
+    "initialize_odometry",
+    "low_variance_resample",
+    "optimize_incremental",
+    "ranges_for_insertion",
+    "scan_hits",
+    "write_isam",
     "BeamSensorModel",
     "BinaryMap2D",
     "MapOccupancyResult",

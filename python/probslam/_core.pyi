@@ -1,5 +1,6 @@
 """Type stubs for probslam's C++ core. Units: metres, radians; poses are (x, y, theta)."""
 
+import math
 import os
 from typing import Any, Dict, List, Optional, Sequence, Tuple, Union, overload
 
@@ -109,7 +110,7 @@ class OccupancyGrid3D:
     resolution: float  # voxel edge, m
     p_hit: float
     p_miss: float
-    clamp: Tuple[float, float]  # (clamp_min, clamp_max) probabilities
+    clamp: Tuple[float, float]  # (p_min, p_max) probabilities
     occupancy_threshold: float
     log_odds_hit: float  # float32 logit(p_hit)
     log_odds_miss: float
@@ -118,12 +119,12 @@ class OccupancyGrid3D:
     num_occupied_voxels: int
     num_blocks: int
     memory_bytes: int
-    def __init__(self, resolution: float, p_hit: float = 0.7, p_miss: float = 0.4, clamp_min: float = 0.1192,
-                 clamp_max: float = 0.971, occupancy_threshold: float = 0.5) -> None: ...
+    def __init__(self, resolution: float, p_hit: float = 0.7, p_miss: float = 0.4,
+                 clamp: Tuple[float, float] = (0.1192, 0.971), occupancy_threshold: float = 0.5) -> None: ...
     def insert_point_cloud(self, points: ArrayLike, origin: ArrayLike, max_range: float = -1.0,
-                           threads: int = 1) -> dict:
+                           threads: int = 1) -> "InsertStats3D":
         """points (n, 3) m, origin (3,) m (rounded to float32); max_range m, < 0 unlimited. Returns
-        counts: points, skipped_nonfinite, out_of_bounds, max_range_cut, voxels_updated."""
+        the counts (InsertStats3D)."""
     @overload
     def log_odds_at(self, points: ArrayLike) -> npt.NDArray[np.float32]: ...  # (n, 3) -> (n,), NaN unknown
     @overload
@@ -133,16 +134,25 @@ class OccupancyGrid3D:
         """Centre (3,) of the first occupied voxel within max_range m, or None."""
     def known_voxels(self) -> Tuple[Array, npt.NDArray[np.float32]]: ...  # centres (n, 3), log-odds (n,)
     def occupied_voxels(self) -> Tuple[Array, npt.NDArray[np.float32]]: ...
-    def project_2d(self, z_min: float = ..., z_max: float = ...) -> OccupancyGrid2D:
+    def project_2d(self, z_min: float = -1.7976931348623157e+308,
+                   z_max: float = 1.7976931348623157e+308) -> OccupancyGrid2D:
         """Column-wise maximum log-odds of known voxels with centre z in [z_min, z_max]."""
     def write_bt(self, path: Union[str, os.PathLike[str]]) -> int:
         """OctoMap .bt file (occupancy bits only); returns the number of tree nodes."""
     @staticmethod
-    def read_bt(path: Union[str, os.PathLike[str]], p_hit: float = 0.7, p_miss: float = 0.4, clamp_min: float = 0.1192,
-                clamp_max: float = 0.971, occupancy_threshold: float = 0.5) -> "OccupancyGrid3D":
+    def read_bt(path: Union[str, os.PathLike[str]], p_hit: float = 0.7, p_miss: float = 0.4,
+                clamp: Tuple[float, float] = (0.1192, 0.971), occupancy_threshold: float = 0.5) -> "OccupancyGrid3D":
         """OctoMap .bt file; voxels get the clamped log-odds. FileNotFoundError for a missing file,
         ValueError for a bad one."""
     def clear(self) -> None: ...
+
+class InsertStats3D:
+    """What one OccupancyGrid3D.insert_point_cloud did with its points."""
+    points: int  # given
+    skipped_nonfinite: int  # NaN or infinite coordinates: left out
+    out_of_bounds: int  # end voxel outside OctoMap's key range
+    max_range_cut: int  # beyond max_range: they only clear, up to it
+    voxels_updated: int  # changed by this scan, each at most once
 
 def fuse_max(grids: Sequence[OccupancyGrid2D]) -> OccupancyGrid2D:
     """Eq. 9.9: cell-wise most pessimistic map of grids of equal geometry."""
@@ -240,13 +250,19 @@ class Association:
     def __init__(self, value: int) -> None: ...
     def __int__(self) -> int: ...
 
+class Landmarks:
+    """One map's landmarks (EkfSlam.landmarks(), FastSlam.landmarks(particle)); len() is N."""
+    ids: npt.NDArray[np.int64]  # (N,)
+    means: Array  # (N, 2) positions, m
+    covariances: Array  # (N, 2, 2) position covariances, m^2
+    def __len__(self) -> int: ...
+
 class _EkfSlam:
     state_dim: int
     landmark_dim: int
     num_landmarks: int
     num_provisional: int
     capacity: int
-    landmark_ids: npt.NDArray[np.int64]
     mean: Array  # (state_dim,) zero-copy view
     covariance: Array  # (state_dim, state_dim) zero-copy view
     pose: Array  # (3,)
@@ -254,15 +270,17 @@ class _EkfSlam:
     gate_distance: float  # m
     def __init__(self, motion_noise: ArrayLike, measurement_noise: ArrayLike, use_signatures: bool,
                  initial_pose: ArrayLike, initial_pose_cov: ArrayLike) -> None: ...
+    def landmarks(self) -> Landmarks:
+        """The map, in state order."""
     def landmark(self, id: int) -> Array: ...
     def landmark_covariance(self, id: int) -> Array: ...
     def existence(self, id: int) -> float: ...
     def has_landmark(self, id: int) -> bool: ...
     def predict(self, v: float, w: float, dt: float, noise: Optional[ArrayLike] = None) -> None: ...
     def predict_odometry(self, delta: ArrayLike, noise: ArrayLike) -> None: ...
-    def update(self, z: ArrayLike, ids: ArrayLike, gate: float = ...) -> Tuple[Array, npt.NDArray[np.bool_]]: ...
+    def update(self, z: ArrayLike, ids: ArrayLike, gate: float = math.inf) -> Tuple[Array, npt.NDArray[np.bool_]]: ...
     def update_unknown(self, z: ArrayLike, alpha: float, alpha_new: float,
-                       association: Association = ...) -> Tuple[npt.NDArray[np.int64], Array,
+                       association: Association = Association.MAXIMUM_LIKELIHOOD) -> Tuple[npt.NDArray[np.int64], Array,
                                                                 npt.NDArray[np.int64], npt.NDArray[np.int64]]:
         """(ids, smallest pi, outcome, removed ids) for a scan z (k, 2) or (k, 3)."""
     def remove_landmark(self, id: int) -> None: ...
@@ -270,6 +288,33 @@ class _EkfSlam:
         """An independent copy with its own storage."""
     def pairing_likelihood(self, z: ArrayLike, id: int) -> Tuple[float, float]:
         """(NIS, log det(2 pi S)) of one measurement against landmark id, without updating."""
+
+class FastSlamUpdateResult:
+    """What FastSlam.update did."""
+    resampled: bool
+
+class FastSlamAssociationResult:
+    """What FastSlam.update_unknown did with a scan's k measurements; row j is particle j after
+    any resampling of the call."""
+    ids: npt.NDArray[np.int64]  # (M, k) landmark used or created
+    is_new: npt.NDArray[np.bool_]  # (M, k)
+    removed: npt.NDArray[np.int64]  # (R, 2) rows (particle, landmark id) removed by negative information
+    resampled: bool
+
+class LandmarkDetails:
+    """A particle's landmarks beyond their position, in the order of FastSlam.landmarks."""
+    ids: npt.NDArray[np.int64]  # (N,)
+    existence: Array  # (N,) existence counters
+    signature: Array  # (N,)
+    signature_var: Array  # (N,)
+    def __len__(self) -> int: ...
+
+class MapSharing:
+    """How much of FastSlam's particle maps and paths is shared."""
+    distinct_nodes: int  # tree nodes allocated for all maps
+    total_nodes: int  # sum of per-particle tree nodes: what deep copies would hold
+    landmarks: int  # sum of per-particle landmark counts
+    path_nodes: int  # distinct path chunks
 
 class FastSlam:
     """FastSLAM 1.0 / 2.0 (Montemerlo 2002, 2003; Probabilistic Robotics ch. 13) for point
@@ -282,22 +327,26 @@ class FastSlam:
             allowed: noise-free motion).
         measurement_noise: Q, (2, 2) covariance of (range [m], bearing [rad]), or (3, 3) with the
             signature's variance (uncorrelated with range and bearing) when ``use_signatures``.
+    Keyword options:
         version: 1 (poses from the motion model) or 2 (from the proposal that includes the scan).
         use_signatures, initial_pose ((3,)), seed (int in [0, 2^64)), threads (results identical
             for any count; two threads run 100 particles 1.5-1.85x faster on idle cores),
-            resample_threshold (resample when N_eff < threshold * M; 0.5),
+            resample_threshold (resample when N_eff < threshold * M),
         p_new: density (1 / (m rad)) of a measurement of a new landmark: the threshold of the
-            maximum-likelihood association and the weight factor of every new landmark (0.01).
+            maximum-likelihood association and the weight factor of every new landmark.
         outlier_density: known correspondences, density (1 / (m rad)) of a measurement its
             labelled landmark did not produce: the weight factor is N(z - z_hat; 0, Q_j) +
             outlier_density, and the landmark is updated only where the Gaussian term is larger.
-            0 (default): no outlier model.
-        association_radius, cell_size: metres (2.0 each): candidates lie within the radius plus
-            3 sigma of where a measurement places its landmark; the spatial key's cell side.
-        negative_information, existence_hit, existence_miss, sensor_range, sensor_fov: the
-            existence counter of update_unknown (seen: + hit; in range and field of view but not
-            seen: - miss; removed below zero). sensor_range must be finite to enable it.
+            0: no outlier model.
+        association_radius, cell_size: metres: candidates lie within the radius plus 3 sigma of
+            where a measurement places its landmark; the spatial key's cell side.
+        negative_information, existence_hit, existence_miss, sensor_range (m), sensor_fov (rad):
+            the existence counter of update_unknown (seen: + hit; in range and field of view but
+            not seen: - miss; removed below zero). sensor_range must be finite to enable it.
         record_path: keep each particle's path (persistent: shared after resampling).
+        bearing_offset_sigma (rad), bearing_offset_correlation: a bearing offset shared by one
+            scan's measurements, carried per particle (0: none), and its correlation from one
+            update to the next.
 
     Every call validates its input first and raises ValueError / TypeError naming the argument,
     the filter unchanged. Calls release the GIL and are serialised by a per-filter lock.
@@ -305,6 +354,8 @@ class FastSlam:
     num_particles: int
     version: int
     landmark_dim: int
+    use_signatures: bool
+    pose: Array  # (3,) the best particle's pose
     poses: Array  # (M, 3) particle poses
     log_weights: Array  # (M,) normalised (log-sum-exp 0)
     weights: Array  # (M,) summing to 1
@@ -312,44 +363,37 @@ class FastSlam:
     last_log_likelihoods: Array  # (M,) log of each particle's weight factor in the last update
     effective_sample_size: float  # N_eff = 1 / sum w^2
     best_index: int  # particle of highest weight
-    best_path: Array  # (T + 1, 3) the best particle's path, oldest first
     mean_pose: Array  # (3,) weighted mean, heading by circular mean
     pose_covariance: Array  # (3, 3) weighted covariance about mean_pose
     num_resamples: int
     resampled: bool  # whether the last update resampled
     ancestors: npt.NDArray[np.int32]  # (M,) after a resampling: particle j's ancestor; else (0,)
-    map_sharing: Dict[str, int]
-    """distinct_nodes (tree nodes allocated for all maps), total_nodes (sum of per-particle
-    tree nodes: what deep copies would hold), landmarks (sum of per-particle counts), path_nodes."""
+    map_sharing: MapSharing
+    num_landmarks: int  # in the best particle's map
     def __init__(self, num_particles: int, motion_noise: ArrayLike, measurement_noise: ArrayLike, *,
-                 version: int = 1, use_signatures: bool = False, initial_pose: ArrayLike = ..., seed: int = 0,
-                 threads: int = 1, resample_threshold: float = 0.5, p_new: float = 0.01,
-                 outlier_density: float = 0.0,
-                 association_radius: float = 2.0, cell_size: float = 2.0, negative_information: bool = False,
-                 existence_hit: float = 1.0, existence_miss: float = 1.0, sensor_range: float = ...,
-                 sensor_fov: float = ..., record_path: bool = True, bearing_offset_sigma: float = 0.0,
-                 bearing_offset_correlation: float = 0.0) -> None: ...
+                 version: int = 1, use_signatures: bool = False, initial_pose: ArrayLike = (0.0, 0.0, 0.0),
+                 seed: int = 0, threads: int = 1, resample_threshold: float = 0.5, p_new: float = 0.01,
+                 outlier_density: float = 0.0, association_radius: float = 2.0, cell_size: float = 2.0,
+                 negative_information: bool = False, existence_hit: float = 1.0, existence_miss: float = 1.0,
+                 sensor_range: float = math.inf, sensor_fov: float = 6.283185307179586, record_path: bool = True,
+                 bearing_offset_sigma: float = 0.0, bearing_offset_correlation: float = 0.0) -> None: ...
     def predict(self, v: float, w: float, dt: float) -> None:
         """Samples each particle's pose from the velocity motion model (v m/s, w rad/s, dt s)."""
     def predict_odometry(self, delta: ArrayLike, noise: ArrayLike) -> None:
         """x <- x (+) (delta + e), e ~ N(0, noise (3, 3)) in the robot frame."""
-    def update(self, z: ArrayLike, ids: ArrayLike) -> bool:
-        """Known correspondences: z (k, 2) or (k, 3), ids (k,) >= 0. Returns whether it resampled."""
-    def update_unknown(self, z: ArrayLike, p_new: Optional[float] = None
-                       ) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.bool_], npt.NDArray[np.int64]]:
-        """Per-particle maximum-likelihood correspondences: (ids (M, k), is_new (M, k), removed (R, 2)
-        rows of (particle, landmark id) removed by negative information); particle indices and rows
-        follow the particles after any resampling of this call."""
+    def update(self, z: ArrayLike, ids: ArrayLike) -> FastSlamUpdateResult:
+        """Known correspondences: z (k, 2) or (k, 3), ids (k,) >= 0."""
+    def update_unknown(self, z: ArrayLike, p_new: Optional[float] = None) -> FastSlamAssociationResult:
+        """Per-particle maximum-likelihood correspondences for a scan z (k, 2) or (k, 3)."""
     def resample(self) -> None:
         """Low-variance resampling now, whatever N_eff."""
     def copy(self) -> "FastSlam": ...
-    def path(self, index: int) -> Array:
-        """(T + 1, 3) particle index's path, oldest first."""
-    def num_landmarks(self, index: int) -> int: ...
-    def landmarks(self, index: int) -> Tuple[npt.NDArray[np.int64], Array, Array]:
-        """Particle index's landmarks by id: ids (K,), means (K, 2), covariances (K, 2, 2)."""
-    def landmark_details(self, index: int) -> Dict[str, Array]:
-        """existence, signature, signature_var (K,), in the order of landmarks(index)."""
+    def path(self, particle: Optional[int] = None) -> Array:
+        """(T + 1, 3) a particle's path, oldest first (default: the best particle's)."""
+    def landmarks(self, particle: Optional[int] = None) -> Landmarks:
+        """A particle's map, sorted by id (default: the best particle's)."""
+    def landmark_details(self, particle: Optional[int] = None) -> LandmarkDetails:
+        """existence, signature, signature_var of a particle's landmarks, in landmarks()'s order."""
 
 def low_variance_resample(weights: ArrayLike, offset: float) -> npt.NDArray[np.int32]:
     """Systematic resampling: indices drawn at (offset + m) / M, m = 0..M-1, offset in [0, 1)."""
@@ -470,10 +514,10 @@ def write_isam(path: str, graph: PoseGraph2D) -> None: ...
 
 # --- slam2d/: scan matching and GraphSLAM over submaps (ch. 11.7) ---------------------------
 
-def scan_hits(ranges: ArrayLike, beam_angles: ArrayLike, max_range: float = ..., min_range: float = 0.0,
+def scan_hits(ranges: ArrayLike, beam_angles: ArrayLike, max_range: float = math.inf, min_range: float = 0.0,
               max_usable_range: float = 30.0, min_point_spacing: float = 0.0) -> Array:
     """(N, 2) hit points in the sensor frame, metres; no-return readings (>= max_range, inf, NaN) never hit."""
-def ranges_for_insertion(ranges: ArrayLike, max_range: float = ..., min_range: float = 0.0,
+def ranges_for_insertion(ranges: ArrayLike, max_range: float = math.inf, min_range: float = 0.0,
                          max_usable_range: float = 30.0, clear_no_return: bool = True) -> Tuple[Array, float]:
     """((B,) ranges, usable_range m) for OccupancyGrid2D.insert_rays(max_range=usable_range): no-return
     beams clear only."""
@@ -517,77 +561,153 @@ class CorrelativeScanMatcher:
     def match(self, points: ArrayLike, prior: ArrayLike, linear_window: float = 0.3, angular_window: float = 0.35,
               angular_step: float = 0.0, prior_covariance: Optional[ArrayLike] = None, refine: bool = True,
               brute_force: bool = False, min_translation_std: float = 0.0, min_rotation_std: float = 0.0,
-              min_score: float = ...) -> MatchResult: ...
+              min_score: float = -math.inf) -> MatchResult: ...
     def smooth_score(self, points: ArrayLike, pose: ArrayLike, prior: Optional[ArrayLike] = None,
                      prior_covariance: Optional[ArrayLike] = None) -> float: ...
 
 class IncrementalScanMatcher:
-    """Each scan matched against the map so far (the lecture's scan matching). Keyword options:
-    resolution, max_range, min_range, max_usable_range, clear_no_return, min_point_spacing, sigma,
-    p_rand, linear_window, angular_window, refine, use_odometry_prior, odometry_noise (6,),
-    min_travel, min_rotation, submap_distance, submap_scans, min_match_quality, warmup_scans,
-    field_refresh_distance, field_refresh_angle."""
+    """Each scan matched against the map so far (the lecture's scan matching), into local submaps.
+    Keyword options (units in the runtime docstring): resolution (m), the scan filter (max_range,
+    min_range, max_usable_range (m), clear_no_return, min_point_spacing (m)), the likelihood field
+    (sigma (m), p_rand), the search window (linear_window (m), angular_window (rad), refine),
+    use_odometry_prior, odometry_noise (6,), min_travel (m), min_rotation (rad), submap_distance
+    (m), submap_scans, min_match_quality, warmup_scans, field_refresh_distance (m),
+    field_refresh_angle (rad)."""
     num_scans: int
     num_submaps: int
-    poses: Array  # (S, 3)
+    pose: Array  # (3,) the last scan's pose
+    scan_poses: Array  # (S, 3)
     timestamps: Array  # (S,)
     scan_info: Array  # (S, 5): matched, fallback, submap, match_quality, points
-    def __init__(self, **options: Any) -> None: ...
+    def __init__(self, *, resolution: float = 0.05, max_range: float = math.inf, min_range: float = 0.0,
+                 max_usable_range: float = 30.0, clear_no_return: bool = True, min_point_spacing: float = 0.0,
+                 sigma: float = 0.05, p_rand: float = 0.05, linear_window: float = 0.3, angular_window: float = 0.35,
+                 refine: bool = True, use_odometry_prior: bool = True,
+                 odometry_noise: ArrayLike = (0.1, 0.02, 0.01, 0.1, 0.05, 0.005), min_travel: float = 0.05,
+                 min_rotation: float = 0.05, submap_distance: float = 5.0, submap_scans: int = 0,
+                 min_match_quality: float = 0.1, warmup_scans: int = 1, field_refresh_distance: float = 0.3,
+                 field_refresh_angle: float = 0.3) -> None: ...
     def add_scans(self, ranges: ArrayLike, beam_angles: ArrayLike, odometry: ArrayLike,
                   timestamps: ArrayLike) -> None:
         """ranges (S, B) m, beam_angles (B,) or (S, B) rad, odometry (S, 3) laser poses, timestamps (S,) s."""
+    def copy(self) -> "IncrementalScanMatcher": ...
     def submap_grid(self, index: int) -> OccupancyGrid2D: ...
+
+class SubmapConstraints:
+    """SubmapSlam2D.constraints: one row per constraint between submaps (C rows)."""
+    from_submap: npt.NDArray[np.int32]  # (C,)
+    to_submap: npt.NDArray[np.int32]  # (C,)
+    measurement: Array  # (C, 3) to_submap's origin in from_submap's frame
+    covariance: Array  # (C, 3, 3)
+    loop: npt.NDArray[np.bool_]  # (C,) a loop closure (else consecutive submaps)
+    scan: npt.NDArray[np.int32]  # (C,) loop closures: the scan matched; -1 otherwise
+    match_quality: Array  # (C,)
+    active: npt.NDArray[np.bool_]  # (C,) False once dissolved
+    def __len__(self) -> int: ...
+
+class SubmapSlamSummary:
+    """SubmapSlam2D.summary: counts of the run so far."""
+    scans: int
+    submaps: int
+    matched_scans: int
+    closures_searched: int
+    closures_accepted: int
+    closures_rejected: int
+    closures_dissolved: int
+    rounds: int
+    optimizations: int
+    final_chi2: float
 
 class SubmapSlam2D:
     """GraphSLAM over scan-matched submaps with correlative loop closures (ch. 11.7). Keyword
-    options: the IncrementalScanMatcher's (submap_distance default 10 m) and loop_closures,
-    closure_scans_per_submap, closure_min_match_quality, closure_window_sigmas,
-    closure_{min,max}_{linear,angular}_window, closure_max_distance, dissolve_chi2, max_rounds,
-    field_cache_mb."""
+    options: the IncrementalScanMatcher's (submap_distance 10 m here) and the loop closures'
+    (loop_closures, closure_scans_per_submap, closure_min_match_quality, closure_window_sigmas,
+    closure_{min,max}_{linear,angular}_window (m, rad), closure_max_distance (m), dissolve_chi2,
+    field_cache_mb (MiB), max_rounds)."""
     num_scans: int
     num_submaps: int
+    pose: Array  # (3,) the last scan's optimised pose
     scan_poses: Array  # (S, 3) optimised
     frontend_poses: Array  # (S, 3) scan matching alone
     submap_poses: Array  # (N, 3)
     timestamps: Array  # (S,)
     scan_info: Array  # (S, 5)
-    constraints: Dict[str, npt.NDArray[Any]]  # from, to, measurement, covariance, loop, scan, match_quality, active
-    summary: Dict[str, Union[int, float]]
-    def __init__(self, **options: Any) -> None: ...
+    constraints: SubmapConstraints
+    summary: SubmapSlamSummary
+    def __init__(self, *, resolution: float = 0.05, max_range: float = math.inf, min_range: float = 0.0,
+                 max_usable_range: float = 30.0, clear_no_return: bool = True, min_point_spacing: float = 0.0,
+                 sigma: float = 0.05, p_rand: float = 0.05, linear_window: float = 0.3, angular_window: float = 0.35,
+                 refine: bool = True, use_odometry_prior: bool = True,
+                 odometry_noise: ArrayLike = (0.1, 0.02, 0.01, 0.1, 0.05, 0.005), min_travel: float = 0.05,
+                 min_rotation: float = 0.05, submap_distance: float = 10.0, submap_scans: int = 0,
+                 min_match_quality: float = 0.1, warmup_scans: int = 1, field_refresh_distance: float = 0.3,
+                 field_refresh_angle: float = 0.3, loop_closures: bool = True, closure_scans_per_submap: int = 3,
+                 closure_min_match_quality: float = 0.6, closure_window_sigmas: float = 3.0,
+                 closure_min_linear_window: float = 0.3, closure_max_linear_window: float = 4.0,
+                 closure_min_angular_window: float = 0.1, closure_max_angular_window: float = 0.7,
+                 closure_max_distance: float = 20.0, dissolve_chi2: float = 16.27, field_cache_mb: float = 512.0,
+                 max_rounds: int = 10) -> None: ...
     def add_scans(self, ranges: ArrayLike, beam_angles: ArrayLike, odometry: ArrayLike,
                   timestamps: ArrayLike) -> None: ...
+    def copy(self) -> "SubmapSlam2D": ...
     def finish(self) -> None: ...
     def graph(self) -> PoseGraph2D: ...
     def map(self, resolution: float = 0.0) -> OccupancyGrid2D: ...
 
+class GridFastSlamSummary:
+    """GridFastSlam.summary: counts of the run so far."""
+    scans: int
+    updates: int
+    resamples: int
+    matched: int  # particle updates from the scan-matching proposal
+    fallbacks: int  # particle updates whose match failed
+    effective_sample_size: float  # after the last update, before any resampling
+
+class TileSharing:
+    """GridFastSlam.tile_sharing: map tiles held and allocated."""
+    references: int  # tiles held over all particles
+    distinct: int  # allocated
+    bytes: int  # of the distinct tiles
+
 class GridFastSlam:
     """Grid-based FastSLAM from a raw log (C++ fastslam/grid_fast_slam.hpp): particles with a pose,
     a log weight and their own occupancy grid (32 x 32 tiles shared copy-on-write). Keyword
-    options: num_particles (30), proposal ("scan-matching" (default), "motion",
-    "improved-odometry"), resolution (m, 0.05), max_range, min_range, max_usable_range (m),
-    clear_no_return, min_point_spacing, odometry_noise (6,), sigma (m, 0.05), p_rand (0.05),
-    search_radius (m, 0.3), linear_step (m), angular_step (rad), refinements, sample_linear (m),
-    sample_angular (rad), min_match_quality (0.3), weight_scale (0.03: tempered weights),
-    resample_threshold (0.5), update_distance (m, 0.25), update_angle (rad, 0.25),
-    corrector_submap_distance (m, 5), corrected_start (True: the scan-matching proposal's climb
-    starts from the odometry corrected by incremental scan matching), seed (int >= 0), threads,
-    max_map_bytes (bytes, default 8 GiB: the particles' maps plus the worst case of the next
-    update; a num_particles or an update that could exceed it raises ValueError naming
-    num_particles). Results are identical for any thread count. A failed call changes nothing:
-    add_scans checks every row first and undoes a batch whose row fails on the filter's state."""
+    options (units in the runtime docstring): num_particles, proposal ("scan-matching", "motion",
+    "improved-odometry"), resolution (m), the scan filter as IncrementalScanMatcher's,
+    odometry_noise (6,), sigma (m), p_rand, search_radius (m), linear_step (m), angular_step
+    (rad), refinements, sample_linear (m), sample_angular (rad), min_match_quality,
+    corrected_start, resample_threshold, weight_scale (tempered weights), update_distance (m),
+    update_angle (rad), corrector_submap_distance (m), seed, threads, max_map_bytes (bytes: the
+    particles' maps plus the worst case of the next update; a num_particles or an update that
+    could exceed it raises ValueError). Results are identical for any thread count. A failed
+    call changes nothing: add_scans checks every row first and undoes a batch whose row fails on
+    the filter's state."""
     num_scans: int
     num_particles: int
+    pose: Array  # (3,) the best particle's pose
     poses: Array  # (M, 3) particle poses
     log_weights: Array  # (M,) normalised
     best_index: int
     timestamps: Array  # (S,)
-    tile_sharing: Dict[str, int]  # references (tiles held over all particles), distinct, bytes
-    summary: Dict[str, Union[int, float]]  # scans, updates, resamples, matched, fallbacks, effective_sample_size
-    def __init__(self, **options: Any) -> None: ...
+    scan_poses: Array  # (S, 3) along the best particle's path
+    tile_sharing: TileSharing
+    summary: GridFastSlamSummary
+    def __init__(self, *, num_particles: int = 30, proposal: str = "scan-matching", resolution: float = 0.05,
+                 max_range: float = math.inf, min_range: float = 0.0, max_usable_range: float = 30.0,
+                 clear_no_return: bool = True, min_point_spacing: float = 0.0,
+                 odometry_noise: ArrayLike = (0.1, 0.02, 0.01, 0.1, 0.05, 0.005), sigma: float = 0.05,
+                 p_rand: float = 0.05, search_radius: float = 0.3, linear_step: float = 0.05,
+                 angular_step: float = 0.05, refinements: int = 5, sample_linear: float = 0.01,
+                 sample_angular: float = 0.005, min_match_quality: float = 0.3, corrected_start: bool = True,
+                 resample_threshold: float = 0.5, weight_scale: float = 0.03, update_distance: float = 0.25,
+                 update_angle: float = 0.25, corrector_submap_distance: float = 5.0, seed: int = 0,
+                 threads: int = 1, max_map_bytes: float = 8589934592.0) -> None: ...
     def add_scans(self, ranges: ArrayLike, beam_angles: ArrayLike, odometry: ArrayLike,
                   timestamps: ArrayLike) -> None:
         """ranges (S, B) m, beam_angles (B,) or (S, B) rad, odometry (S, 3) sensor poses, timestamps (S,) s."""
-    def scan_poses(self, particle: Optional[int] = None) -> Array:
-        """(S, 3) every scan's pose along a particle's path (default: the heaviest)."""
+    def copy(self) -> "GridFastSlam":
+        """A deep copy: the particles' map tiles are cloned into a family of their own."""
+    def path(self, particle: Optional[int] = None) -> Array:
+        """(S, 3) every scan's pose along a particle's path (default: the best particle's)."""
     def map(self, particle: Optional[int] = None) -> OccupancyGrid2D:
-        """A particle's map as a dense grid (default: the heaviest)."""
+        """A particle's map as a dense grid (default: the best particle's)."""

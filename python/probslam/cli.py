@@ -221,18 +221,18 @@ def _cmd_slam(args: argparse.Namespace) -> int:
     if result.method == "rbpf":
         t = result.tile_sharing
         print(f"method:        grid-based FastSLAM, {args.particles} particles, {args.proposal} proposal")
-        print(f"scans:         {s['scans']}{skipped}; {s['updates']} filter updates, {s['resamples']} resamplings")
+        print(f"scans:         {s.scans}{skipped}; {s.updates} filter updates, {s.resamples} resamplings")
         if args.proposal == "scan-matching":
-            print(f"proposal:      {s['matched']} particle updates scan-matched, {s['fallbacks']} fell back to "
+            print(f"proposal:      {s.matched} particle updates scan-matched, {s.fallbacks} fell back to "
                   f"the motion model")
-        print(f"maps:          {t['distinct']} distinct tiles for {t['references']} held "
-              f"({t['bytes'] / 2 ** 20:.1f} MiB)")
+        print(f"maps:          {t.distinct} distinct tiles for {t.references} held "
+              f"({t.bytes / 2 ** 20:.1f} MiB)")
     else:
-        print(f"scans:         {s['scans']} ({s['matched_scans']} scan-matched"
+        print(f"scans:         {s.scans} ({s.matched_scans} scan-matched"
               + ("" if result.odometry else "; no odometry in the log: scan matching alone") + ")" + skipped)
-        print(f"submaps:       {s['submaps']}")
-        print(f"closures:      {s['closures_accepted']} accepted, {s['closures_rejected']} rejected, "
-              f"{s['closures_dissolved']} dissolved ({s['closures_searched']} searched, {s['rounds']} rounds)")
+        print(f"submaps:       {s.submaps}")
+        print(f"closures:      {s.closures_accepted} accepted, {s.closures_rejected} rejected, "
+              f"{s.closures_dissolved} dissolved ({s.closures_searched} searched, {s.rounds} rounds)")
     print(f"map:           {grid.width} x {grid.height} cells at {grid.resolution} m, origin {grid.origin}")
     print(f"time:          {result.seconds:.1f} s for {result.log_duration:.0f} s of log "
           f"(real-time factor {result.real_time_factor:.1f})")

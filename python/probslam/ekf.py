@@ -8,7 +8,7 @@ import numpy as np
 
 from . import _core
 from ._args import require_integer
-from ._core import Association, MapManagement, chi_square_quantile
+from ._core import Association, Landmarks, MapManagement, chi_square_quantile
 
 #: Association gate: the chi-square quantile at this probability, with the measurement's
 #: degrees of freedom, is the default Mahalanobis threshold alpha of Table 10.2.
@@ -72,6 +72,10 @@ class EkfSlam:
             control-space covariance M of (v [m/s], w [rad/s]) mapped through dg/du.
         measurement_noise: Q_t, (2, 2) variances of (range [m^2], bearing [rad^2]), or (3, 3)
             with the signature's variance when ``use_signatures``.
+
+    Keyword options:
+        use_signatures: measurements ``(range, bearing, signature)`` and landmarks with a
+            signature (False: ``(range, bearing)``), as ``FastSlam``'s.
         initial_pose: (3,) ``(x, y, theta)``; initial_pose_cov: (3, 3), zeros by default.
         map_management: ch. 10.3.3 options (``MapManagement``) for ``update_unknown``.
         gate_distance: metres; association candidates are the landmarks within it of where
@@ -87,7 +91,7 @@ class EkfSlam:
     lock guards (copy them while other threads update the filter).
     """
 
-    def __init__(self, motion_noise, measurement_noise, use_signatures: bool = True, initial_pose=(0.0, 0.0, 0.0),
+    def __init__(self, motion_noise, measurement_noise, *, use_signatures: bool = False, initial_pose=(0.0, 0.0, 0.0),
                  initial_pose_cov=None, map_management: Optional[MapManagement] = None, gate_distance: float = 5.0):
         if map_management is not None and not isinstance(map_management, MapManagement):
             raise TypeError(f"map_management must be a MapManagement, got {type(map_management).__name__}")
@@ -129,16 +133,10 @@ class EkfSlam:
         """(3,) mean pose (x m, y m, theta rad), a copy."""
         return self._f.pose
 
-    @property
-    def landmark_ids(self) -> np.ndarray:
-        """(N,) external ids, in state order."""
-        return self._f.landmark_ids
-
-    @property
-    def landmarks(self) -> np.ndarray:
-        """(N, 2) landmark positions in metres, in state order."""
-        d = self._f.landmark_dim
-        return self._f.mean[3:].reshape(-1, d)[:, :2].copy()
+    def landmarks(self) -> Landmarks:
+        """The map as ``Landmarks``: ids (N,) int64, means (N, 2) m, covariances (N, 2, 2) m^2
+        (the position part, without a signature), in state order."""
+        return self._f.landmarks()
 
     @property
     def num_landmarks(self) -> int:
@@ -289,7 +287,7 @@ class MultiHypothesisEkfSlam:
     beam or, when they raise, none.
     """
 
-    def __init__(self, ekf: EkfSlam, max_hypotheses: int = 10, max_children: int = 4, gate: Optional[float] = None,
+    def __init__(self, ekf: EkfSlam, *, max_hypotheses: int = 10, max_children: int = 4, gate: Optional[float] = None,
                  new_landmark_cost: Optional[float] = None, clutter_cost: Optional[float] = None,
                  prune_margin: float = 40.0, detection_probability: float = 0.0, sensor_range: float = 0.0,
                  sensor_fov: float = 0.0, bearing_offset_sigma: float = 0.0,

@@ -545,3 +545,27 @@ def association_accuracy(result) -> float:
     pairs = list(_applied_sightings(result))
     label = majority_labels(result)
     return sum(label[i] == t for t, i in pairs) / len(pairs) if pairs else float("nan")
+
+
+__all__ = [
+    "MAX_REPORTED_LINES",
+    "NEES_SINGULAR_RTOL",
+    "LandmarkScore",
+    "MrclamScore",
+    "Relations",
+    "RelationsError",
+    "SingularCovarianceError",
+    "align_rigid",
+    "association_accuracy",
+    "interpolate_poses",
+    "majority_labels",
+    "nees",
+    "primary_landmarks",
+    "read_relations",
+    "relations_error",
+    "relative_poses",
+    "rmse",
+    "score_landmarks",
+    "score_mrclam",
+    "truth_positions",
+]

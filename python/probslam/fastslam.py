@@ -51,15 +51,15 @@ class AssociationHistories:
 
 def best_landmarks(f: FastSlam) -> Dict[int, np.ndarray]:
     """The best particle's map: landmark id -> (2,) position."""
-    ids, means, _ = f.landmarks(f.best_index)
-    return {int(i): m for i, m in zip(ids, means)}
+    landmarks = f.landmarks()
+    return {int(i): m for i, m in zip(landmarks.ids, landmarks.means)}
 
 
 def result_of(f: FastSlam, times: np.ndarray, seconds: float, histories=None) -> LandmarkSlamResult:
     """The run's result at its end: the best particle's path at ``times`` and its map, with its
     association record when ``histories`` (an ``AssociationHistories``) were kept."""
     associations = None if histories is None else histories.of(f.best_index)
-    return LandmarkSlamResult("fastslam", np.asarray(times, float), f.best_path, best_landmarks(f), f, seconds,
+    return LandmarkSlamResult("fastslam", np.asarray(times, float), f.path(), best_landmarks(f), f, seconds,
                               associations)
 
 
@@ -83,7 +83,7 @@ def fastslam_along_chain(f: FastSlam, delta: np.ndarray, delta_cov: np.ndarray, 
             if known:
                 f.update(z[rows], truth)
             else:
-                ids, _, _ = f.update_unknown(z[rows])
+                ids = f.update_unknown(z[rows]).ids
                 histories.add(f, ids, truth, float(k))
     return result_of(f, np.arange(len(delta) + 1, dtype=float), time.perf_counter() - t0, histories)
 

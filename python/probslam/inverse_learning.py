@@ -464,3 +464,17 @@ def _model_meta(path: str, meta: np.ndarray) -> Tuple[int, float]:
     if isinstance(prior, bool) or not isinstance(prior, (int, float)) or not 0 < prior < 1:
         raise ValueError(f"{path}: meta: prior must lie in (0, 1), got {prior!r}")
     return hidden, float(prior)
+
+
+__all__ = [
+    "EPS",
+    "FIELD_CHUNK_PAIRS",
+    "MAX_MODEL_BYTES",
+    "NEIGHBOURS",
+    "LearnedInverseModel",
+    "TrainingSet",
+    "field_features",
+    "free_poses",
+    "random_map",
+    "sample_training_set",
+]

@@ -75,7 +75,7 @@ class LandmarkSlamResult:
 
 def ekf_landmarks(ekf: EkfSlam) -> Dict[int, np.ndarray]:
     """An EkfSlam's map: landmark id -> (2,) position."""
-    return {int(i): ekf.landmark(i)[:2] for i in ekf.landmark_ids}
+    return {int(i): ekf.landmark(i)[:2] for i in ekf.landmarks().ids}
 
 
 def polar_measurements(xy: np.ndarray, xy_cov: np.ndarray):

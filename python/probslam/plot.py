@@ -47,10 +47,11 @@ def landmark_map(ax, poses: np.ndarray, ekf=None, truth_path: Optional[np.ndarra
         xy = np.array(list(truth_landmarks.values()))
         ax.plot(xy[:, 0], xy[:, 1], "g+", ms=9, label=truth_landmarks_label)
     if ekf is not None and ekf.num_landmarks:
-        xy = ekf.landmarks
+        landmarks = ekf.landmarks()
+        xy = landmarks.means
         ax.plot(xy[:, 0], xy[:, 1], "r.", ms=4, label="estimated landmarks")
-        for i, m in zip(ekf.landmark_ids, xy):
-            covariance_ellipse(ax, m, ekf.landmark_covariance(i), n_sigma, color="tab:red", lw=0.6)
+        for m, cov in zip(xy, landmarks.covariances):
+            covariance_ellipse(ax, m, cov, n_sigma, color="tab:red", lw=0.6)
     ax.set_aspect("equal")
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
@@ -74,7 +75,8 @@ def fastslam_map(ax, fastslam, truth_path: Optional[np.ndarray] = None,
     if truth_landmarks:
         xy = np.array(list(truth_landmarks.values()))
         ax.plot(xy[:, 0], xy[:, 1], "g+", ms=9, label=truth_landmarks_label)
-    _, means, covs = fastslam.landmarks(best)
+    landmarks = fastslam.landmarks(best)
+    means, covs = landmarks.means, landmarks.covariances
     if len(means):
         ax.plot(means[:, 0], means[:, 1], "r.", ms=4, label="best particle's landmarks")
         for m, c in zip(means, covs):

@@ -280,3 +280,20 @@ def open_door_scenario(resolution: float = 0.1, corridor_width: float = 2.0, doo
     return OpenDoorScenario(grid=grid, truth=truth, door=door, poses=poses, beam_angles=angles, scans=scans,
                             model=model, alpha=resolution, l_occ=float(np.log(0.7 / 0.3)),
                             l_free=float(np.log(0.3 / 0.7)), standard_prior=0.5)
+
+
+__all__ = [
+    "CLUTTER_ID",
+    "LandmarkWorld",
+    "OpenDoorScenario",
+    "Sensor",
+    "SimRun",
+    "cast_ranges",
+    "circle_controls",
+    "fastslam_known",
+    "filter_known",
+    "observe",
+    "open_door_scenario",
+    "pose_error",
+    "simulate",
+]

@@ -32,13 +32,13 @@ class SlamResult:
 
     timestamps (S,) s; poses (S, 3) laser poses (GraphSLAM: optimised; rbpf: the best particle's
     path); grid the occupancy map (GraphSLAM: every scan at ``poses``; rbpf: the best particle's
-    map); summary counts; seconds of processing; log_duration in s; odometry whether the log had
-    it; method "graph" or "rbpf".
+    map); summary the counts (``SubmapSlamSummary`` or ``GridFastSlamSummary``); seconds of
+    processing; log_duration in s; odometry whether the log had it; method "graph" or "rbpf".
     GraphSLAM only (None for rbpf): frontend_poses (S, 3) from incremental scan matching alone;
     submap_poses (N, 3) the graph's nodes; graph the optimised ``PoseGraph2D`` (one pose per
-    submap); constraints the graph's edges (dict of arrays: from, to, measurement (M, 3),
-    covariance (M, 3, 3), loop, scan, match_quality, active).
-    rbpf only: tile_sharing, the particles' map tiles (references, distinct, bytes).
+    submap); constraints the graph's edges (``SubmapConstraints``: from_submap, to_submap,
+    measurement (M, 3), covariance (M, 3, 3), loop, scan, match_quality, active).
+    rbpf only: tile_sharing, the particles' map tiles (``TileSharing``: references, distinct, bytes).
     """
 
     timestamps: np.ndarray
@@ -47,14 +47,14 @@ class SlamResult:
     submap_poses: Optional[np.ndarray]
     grid: _core.OccupancyGrid2D
     graph: Optional[_core.PoseGraph2D]
-    constraints: Optional[Dict[str, np.ndarray]]
-    summary: Dict[str, Any]
+    constraints: Optional[_core.SubmapConstraints]
+    summary: Union[_core.SubmapSlamSummary, _core.GridFastSlamSummary]
     seconds: float
     log_duration: float
     odometry: bool
     options: Dict[str, Any] = field(default_factory=dict)
     method: str = "graph"
-    tile_sharing: Optional[Dict[str, int]] = None
+    tile_sharing: Optional[_core.TileSharing] = None
 
     @property
     def real_time_factor(self) -> float:
@@ -127,7 +127,7 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: str = "grap
     if method == "rbpf":
         grid = mapper.map()
         seconds = time.perf_counter() - t0
-        return SlamResult(timestamps=mapper.timestamps, poses=mapper.scan_poses(), frontend_poses=None,
+        return SlamResult(timestamps=mapper.timestamps, poses=mapper.scan_poses, frontend_poses=None,
                           submap_poses=None, grid=grid, graph=None, constraints=None, summary=mapper.summary,
                           seconds=seconds, log_duration=duration, odometry=odometry, options=opts, method=method,
                           tile_sharing=mapper.tile_sharing)

@@ -113,6 +113,29 @@ void GridFastSlam::check_particle_budget() {
                                                 " here) or max_usable_range / max_range, or raise resolution or max_map_bytes");
 }
 
+GridFastSlam::GridFastSlam(const GridFastSlam& other)
+    : options_(other.options_),
+      likelihood_(other.likelihood_),
+      corrector_(other.corrector_ ? std::make_unique<IncrementalScanMatcher>(*other.corrector_) : nullptr),
+      particles_(other.particles_),
+      rng_(other.rng_),
+      next_stream_(other.next_stream_),
+      last_update_odometry_(other.last_update_odometry_),
+      last_update_raw_(other.last_update_raw_),
+      corrected_cov_(other.corrected_cov_),
+      last_corrected_(other.last_corrected_),
+      scan_step_(other.scan_step_),
+      scan_offset_(other.scan_offset_),
+      timestamps_(other.timestamps_),
+      summary_(other.summary_),
+      footprint_bytes_(other.footprint_bytes_) {
+  std::vector<std::shared_ptr<TiledGrid2D>> maps;
+  maps.reserve(particles_.size());
+  for (const Particle& p : particles_) maps.push_back(p.map);
+  maps = TiledGrid2D::deep_copy(maps);
+  for (std::size_t k = 0; k < particles_.size(); ++k) particles_[k].map = std::move(maps[k]);
+}
+
 GridFastSlam::~GridFastSlam() = default;
 
 void GridFastSlam::check_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,

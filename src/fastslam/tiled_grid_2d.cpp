@@ -4,6 +4,7 @@
 #include <atomic>
 #include <cmath>
 #include <string>
+#include <unordered_map>
 #include <unordered_set>
 
 #include "probslam/core/check.hpp"
@@ -169,6 +170,33 @@ TileSharing TiledGrid2D::sharing(const std::vector<const TiledGrid2D*>& grids) {
   s.distinct = distinct.size();
   s.bytes = s.distinct * sizeof(Tile);
   return s;
+}
+
+std::vector<std::shared_ptr<TiledGrid2D>> TiledGrid2D::deep_copy(const std::vector<std::shared_ptr<TiledGrid2D>>& grids) {
+  const TileCount count = std::make_shared<std::atomic<std::int64_t>>(0);
+  std::unordered_map<const TiledGrid2D*, std::shared_ptr<TiledGrid2D>> grid_copies;
+  std::unordered_map<const Tile*, std::shared_ptr<Tile>> tile_copies;
+  std::vector<std::shared_ptr<TiledGrid2D>> out;
+  out.reserve(grids.size());
+  for (const std::shared_ptr<TiledGrid2D>& g : grids) {
+    if (!g) {
+      out.emplace_back();
+      continue;
+    }
+    std::shared_ptr<TiledGrid2D>& copy = grid_copies[g.get()];
+    if (!copy) {
+      copy = std::make_shared<TiledGrid2D>(*g);  // the table, still pointing at g's tiles
+      copy->tile_count_ = count;
+      for (std::shared_ptr<Tile>& t : copy->tiles_) {
+        if (!t) continue;
+        std::shared_ptr<Tile>& clone = tile_copies[t.get()];
+        if (!clone) clone = std::allocate_shared<Tile>(CountingAllocator<Tile>(count), *t);
+        t = clone;
+      }
+    }
+    out.push_back(copy);
+  }
+  return out;
 }
 
 }  // namespace probslam

@@ -137,6 +137,22 @@ SubmapSlam2D::SubmapSlam2D(const SubmapSlamOptions& options)
       frontend_(options.frontend),
       fields_(std::make_unique<FieldCache>(options.closures.field_cache_bytes)) {}
 
+SubmapSlam2D::SubmapSlam2D(const SubmapSlam2D& other)
+    : options_(other.options_),
+      frontend_(other.frontend_),
+      points_(other.points_),
+      offset_cov_(other.offset_cov_),
+      nodes_(other.nodes_),
+      constraints_(other.constraints_),
+      ranges_(other.ranges_),
+      angles_(other.angles_),
+      chain_pose_(other.chain_pose_),
+      chain_cov_(other.chain_cov_),
+      chain_submap_(other.chain_submap_),
+      attempts_(other.attempts_),
+      fields_(std::make_unique<FieldCache>(other.options_.closures.field_cache_bytes)),
+      counts_(other.counts_) {}
+
 SubmapSlam2D::~SubmapSlam2D() = default;
 
 void SubmapSlam2D::add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,

@@ -514,6 +514,45 @@ TEST(Slam2dSubmapSlam, LoopClosuresRemoveTheOdometryDrift) {
   }
 }
 
+TEST(Slam2dSubmapSlam, CopyIsDeepAndContinuesAsTheOriginalDoes) {
+  // A copy made halfway (two submaps closed, one open) and the original, fed the same scans and
+  // finished, end with the same graph; the copy's scans never reach the original.
+  const LoopDrive d = loop_drive(80);
+  SubmapSlamOptions o;
+  o.frontend.filter.max_range = 30.0;
+  o.frontend.submap_distance = 4.0;
+  SubmapSlam2D original(o);
+  IncrementalScanMatcher frontend(o.frontend);
+  const std::size_t half = d.truth.size() / 2;
+  for (std::size_t k = 0; k < half; ++k) {
+    original.add_scan(d.ranges[k], fan(), d.odometry[k], double(k));
+    frontend.add_scan(d.ranges[k], fan(), d.odometry[k], double(k));
+  }
+  SubmapSlam2D copy(original);
+  IncrementalScanMatcher frontend_copy(frontend);
+  ASSERT_GE(copy.num_submaps(), 2);
+  for (std::size_t k = half; k < d.truth.size(); ++k) {
+    copy.add_scan(d.ranges[k], fan(), d.odometry[k], double(k));
+    frontend_copy.add_scan(d.ranges[k], fan(), d.odometry[k], double(k));
+  }
+  EXPECT_EQ(original.num_scans(), static_cast<int>(half));
+  EXPECT_EQ(frontend.num_scans(), static_cast<int>(half));
+  for (std::size_t k = half; k < d.truth.size(); ++k) {
+    original.add_scan(d.ranges[k], fan(), d.odometry[k], double(k));
+    frontend.add_scan(d.ranges[k], fan(), d.odometry[k], double(k));
+  }
+  original.finish();
+  copy.finish();
+  EXPECT_EQ(copy.scan_poses(), original.scan_poses());
+  EXPECT_EQ(copy.submap_poses(), original.submap_poses());
+  ASSERT_EQ(copy.constraints().size(), original.constraints().size());
+  for (std::size_t c = 0; c < copy.constraints().size(); ++c)
+    EXPECT_TRUE(copy.constraints()[c].measurement == original.constraints()[c].measurement) << "constraint " << c;
+  EXPECT_EQ(copy.summary().closures_accepted, original.summary().closures_accepted);
+  for (int k = 0; k < frontend.num_scans(); ++k)
+    EXPECT_TRUE(frontend_copy.estimates()[k].pose == frontend.estimates()[k].pose) << "scan " << k;
+}
+
 TEST(Slam2dSubmapSlam, BadOptionsAndEmptyInput) {
   SubmapSlamOptions o;
   o.closures.scans_per_submap = 0;

@@ -169,6 +169,42 @@ TEST(TiledGrid2D, CopyingSharesEveryTileAndAnUpdateClonesOnlyTheTilesItTouches) 
   EXPECT_FALSE(a.shares_tile(b, touched));
 }
 
+TEST(TiledGrid2D, DeepCopySharesNothingWithTheOriginalsAndKeepsTheirSharing) {
+  std::mt19937 rng(5);
+  auto a = std::make_shared<TiledGrid2D>(prototype());
+  for (int k = 0; k < 20; ++k) {
+    const Scan s = random_scan(rng);
+    a->insert_rays(s.pose, s.ranges, s.angles, s.max_range);
+  }
+  auto b = std::make_shared<TiledGrid2D>(*a);  // shares every tile of a
+  const Scan extra = random_scan(rng);
+  b->insert_rays(extra.pose, extra.ranges, extra.angles, extra.max_range);  // clones a few
+  const std::int64_t live_before = a->live_tiles();
+
+  // a listed twice (two particles holding one grid), a null slot (a particle before its first scan).
+  const std::vector<std::shared_ptr<TiledGrid2D>> copies = TiledGrid2D::deep_copy({a, b, a, nullptr});
+  ASSERT_EQ(copies.size(), 4u);
+  EXPECT_EQ(copies[0], copies[2]);
+  EXPECT_EQ(copies[3], nullptr);
+  const TiledGrid2D &ca = *copies[0], &cb = *copies[1];
+  expect_same_cells(ca, a->to_grid());
+  expect_same_cells(cb, b->to_grid());
+  const auto slots = static_cast<std::size_t>(a->tiles_x() * a->tiles_y());
+  for (std::size_t t = 0; t < slots; ++t) {
+    EXPECT_FALSE(ca.shares_tile(*a, t) || ca.shares_tile(*b, t) || cb.shares_tile(*a, t) || cb.shares_tile(*b, t))
+        << "tile " << t;
+    EXPECT_EQ(ca.shares_tile(cb, t), a->shares_tile(*b, t)) << "tile " << t;
+  }
+  // The copies count their own tiles: the distinct tiles of the two grids, and the originals' count
+  // is unchanged.
+  EXPECT_EQ(static_cast<std::size_t>(ca.live_tiles()), TiledGrid2D::sharing({a.get(), b.get()}).distinct);
+  EXPECT_EQ(a->live_tiles(), live_before);
+  // Writing to a copy leaves the originals alone.
+  const OccupancyGrid2D before = a->to_grid();
+  copies[0]->insert_rays(extra.pose, extra.ranges, extra.angles, extra.max_range);
+  expect_same_cells(*a, before);
+}
+
 TEST(TiledGrid2D, GrowingKeepsCellsAndSharingAndMatchesTheDenseGrid) {
   std::mt19937 rng(9);
   OccupancyGrid2D dense = prototype();
@@ -491,6 +527,54 @@ TEST(ScanProposal, ClimbsFromTheBetterOfPriorAndStart) {
   EXPECT_LT(error(scan_matching_proposal(lik, g, pts, near, prior_cov, opt, far)), 0.05);
   expect_invalid([&] { scan_matching_proposal(lik, g, pts, near, prior_cov, opt, Eigen::Vector3d(NAN, 0, 0)); },
                  "start");
+}
+
+TEST(GridFastSlam, CopyIsDeepAndContinuesAsTheOriginalDoes) {
+  // Three particles through the room of test_support with noisy odometry: a copy made after 15
+  // scans and the original, fed the same 15 more scans, end bit for bit equal, and equal to a
+  // filter that was never copied (copying does not disturb the original).
+  const std::vector<test_support::Segment> walls = test_support::room_walls();
+  const Eigen::VectorXd angles = Eigen::VectorXd::LinSpaced(91, -kPi / 2, kPi / 2);
+  std::mt19937 rng(11);
+  std::normal_distribution<double> noise(0.0, 0.02);
+  std::vector<Eigen::Vector3d> odometry;
+  std::vector<Eigen::VectorXd> ranges;
+  for (int k = 0; k < 30; ++k) {
+    const Eigen::Vector3d truth(-3.0 + 0.15 * k, -1.0 + 0.05 * k, 0.02 * k);
+    odometry.push_back(truth + Eigen::Vector3d(noise(rng), noise(rng), 0.1 * noise(rng)));
+    ranges.push_back(test_support::cast(truth, angles, walls));
+  }
+  GridFastSlamOptions o;
+  o.num_particles = 3;
+  o.resolution = 0.1;
+  o.update_distance = 0.1;
+  o.resample_threshold = 1.0;  // resample at every update: the filter's own stream is copied too
+  o.seed = 4;
+  GridFastSlam original(o), reference(o);
+  for (int k = 0; k < 15; ++k) {
+    original.add_scan(ranges[k], angles, odometry[k], k);
+    reference.add_scan(ranges[k], angles, odometry[k], k);
+  }
+  GridFastSlam copy(original);
+  for (int k = 15; k < 30; ++k) {
+    copy.add_scan(ranges[k], angles, odometry[k], k);
+    original.add_scan(ranges[k], angles, odometry[k], k);
+    reference.add_scan(ranges[k], angles, odometry[k], k);
+  }
+  ASSERT_GT(copy.summary().updates, 10);
+  ASSERT_GT(copy.summary().resamples, 10);
+  for (const GridFastSlam* f : {&copy, &reference}) {
+    EXPECT_TRUE(f->poses() == original.poses());
+    EXPECT_TRUE(f->log_weights() == original.log_weights());
+    for (int p = 0; p < 3; ++p) {
+      EXPECT_TRUE(f->scan_poses(p) == original.scan_poses(p)) << "particle " << p;
+      const OccupancyGrid2D a = f->map(p), b = original.map(p);
+      EXPECT_TRUE(a.width() == b.width() && a.height() == b.height() && a.log_odds() == b.log_odds()) << "particle " << p;
+    }
+  }
+  for (int p = 0; p < 3; ++p)
+    for (std::size_t t = 0; t < static_cast<std::size_t>(copy.tiled_map(p).tiles_x() * copy.tiled_map(p).tiles_y()); ++t)
+      EXPECT_FALSE(copy.tiled_map(p).shares_tile(original.tiled_map(p), t)) << "particle " << p << " tile " << t;
 }
 
 TEST(GridFastSlam, BadInputNamesTheArgumentAndChangesNothing) {

@@ -11,6 +11,7 @@ and an object is exactly as it was after a call that raised. Use:
 """
 from __future__ import annotations
 
+import inspect
 import threading
 from typing import Any, Callable, Iterable
 
@@ -69,7 +70,27 @@ def state_of(obj: Any, *attributes: str) -> dict[str, Any]:
     return out
 
 
+def _is_record(value: Any) -> bool:
+    """A bound result struct of probslam._core (Landmarks, SubmapSlamSummary, ...): its fields are
+    read-only properties, compared field by field."""
+    t = type(value)
+    return t.__module__ == "probslam._core" and t.__name__ in RECORD_TYPES
+
+
+#: The result structs of probslam._core whose fields a snapshot compares.
+RECORD_TYPES = {"Landmarks", "LandmarkDetails", "MapSharing", "FastSlamUpdateResult", "FastSlamAssociationResult",
+                "SubmapConstraints", "SubmapSlamSummary", "GridFastSlamSummary", "TileSharing", "InsertStats3D"}
+
+
+def record_fields(value: Any) -> dict[str, Any]:
+    """A bound result struct's fields as a dict (arrays copied)."""
+    return {n: _copy(getattr(value, n)) for n in dir(type(value))
+            if not n.startswith("_") and isinstance(inspect.getattr_static(type(value), n), property)}
+
+
 def _copy(value: Any) -> Any:
+    if _is_record(value):
+        return record_fields(value)
     if isinstance(value, (list, tuple)):
         return type(value)(_copy(v) for v in value)
     if isinstance(value, dict):
@@ -85,6 +106,10 @@ def same_state(a: dict[str, Any], b: dict[str, Any]) -> bool:
 
 
 def _same(x: Any, y: Any) -> bool:
+    if _is_record(x) or _is_record(y):
+        x, y = (record_fields(v) if _is_record(v) else v for v in (x, y))
+    if isinstance(x, dict) and isinstance(y, dict):
+        return x.keys() == y.keys() and all(_same(x[k], y[k]) for k in x)
     if isinstance(x, np.ndarray) or isinstance(y, np.ndarray):
         x, y = np.asarray(x), np.asarray(y)
         return x.shape == y.shape and x.dtype == y.dtype and np.array_equal(x, y, equal_nan=x.dtype.kind in "fc")
@@ -107,6 +132,8 @@ def all_finite(result: Any) -> bool:
         return all(all_finite(r) for r in result)
     if isinstance(result, dict):
         return all(all_finite(r) for r in result.values())
+    if _is_record(result):
+        return all_finite(record_fields(result))
     return True  # an object (a grid, a report): checked by its own snapshot
 
 

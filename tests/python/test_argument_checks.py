@@ -118,7 +118,9 @@ INT_OPTIONS = [
     (lambda v: ps._core.GridFastSlam(threads=v), "threads"),
     (lambda v: ps._core.SubmapSlam2D(max_rounds=v), "max_rounds"),
     (lambda v: ps._core.GridFastSlam(num_particles=2).map(v), "particle"),
-    (lambda v: ps._core.GridFastSlam(num_particles=2).scan_poses(v), "particle"),
+    (lambda v: ps._core.GridFastSlam(num_particles=2).path(v), "particle"),
+    (lambda v: ps.FastSlam(5, np.eye(2) * 0.01, Q).path(v), "particle"),
+    (lambda v: ps.FastSlam(5, np.eye(2) * 0.01, Q).landmarks(v), "particle"),
 ]
 
 

@@ -38,7 +38,7 @@ def test_filter_equals_dense_numpy_table_10_1(signatures, noise, seed):
             ref.update(z, ids)
         np.testing.assert_allclose(ekf.mean, ref.mu, atol=EXACT, rtol=0)
         np.testing.assert_allclose(ekf.covariance, ref.sigma, atol=EXACT, rtol=0)
-    assert list(ekf.landmark_ids) == ref.ids
+    assert list(ekf.landmarks().ids) == ref.ids
     assert np.array_equal(ekf.covariance, ekf.covariance.T)  # symmetric to the bit
 
 
@@ -85,11 +85,11 @@ def test_views_are_zero_copy_and_survive_growth():
 def test_landmark_accessors():
     ekf = ps.EkfSlam(np.eye(3) * 0.01, np.diag([0.01, 0.001, 0.1]), use_signatures=True)
     ekf.update([[2.0, 0.0, 7.0], [3.0, np.pi / 2, 9.0]], [10, 20])
-    np.testing.assert_allclose(ekf.landmarks, [[2.0, 0.0], [0.0, 3.0]], atol=1e-12)
+    np.testing.assert_allclose(ekf.landmarks().means, [[2.0, 0.0], [0.0, 3.0]], atol=1e-12)
     assert ekf.landmark(20)[2] == 9.0
     assert ekf.landmark_covariance(10).shape == (3, 3)
     ekf.remove_landmark(10)
-    assert list(ekf.landmark_ids) == [20] and ekf.state_dim == 6
+    assert list(ekf.landmarks().ids) == [20] and ekf.state_dim == 6
     np.testing.assert_allclose(ekf.landmark(20)[:2], [0.0, 3.0], atol=1e-12)
 
 
@@ -246,7 +246,7 @@ def test_joint_compatibility_equals_brute_force(seed):
     rng = np.random.default_rng(seed)
     ekf, z, q = clustered_scan(rng, int(rng.integers(2, 7)), int(rng.integers(1, 5)))
     alpha, alpha_new = ps.chi_square_quantile(0.99, 2), ps.chi_square_quantile(1 - 1e-6, 2)
-    mu, sigma, ids = ekf.mean.copy(), ekf.covariance.copy(), ekf.landmark_ids.copy()
+    mu, sigma, ids = ekf.mean.copy(), ekf.covariance.copy(), ekf.landmarks().ids.copy()
     target, _, pi = joint_compatibility_brute_force(z, mu, sigma, q, 2, alpha)
     result = ekf.update_unknown(z, association="jcbb")
     paired = target >= 0

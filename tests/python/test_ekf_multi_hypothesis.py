@@ -82,7 +82,7 @@ def test_best_history_replayed_densely_gives_its_cost_and_state():
             ref.update(zi[None], [lid])
     best = mht.best
     assert mht.total_cost == pytest.approx(cost, rel=1e-9)
-    assert list(best.landmark_ids) == ref.ids
+    assert list(best.landmarks().ids) == ref.ids
     np.testing.assert_allclose(best.mean, ref.mu, atol=1e-8)
     np.testing.assert_allclose(best.covariance, ref.sigma, atol=1e-8)
     assert mht.costs[0] == 0.0 and np.all(np.diff(mht.costs) >= 0) and mht.num_hypotheses <= o.max_hypotheses
@@ -367,7 +367,7 @@ def test_bearing_offset_filter_equals_dense_reference_with_the_offset_in_the_sta
     assert kinds == {"pairing", "new"} and len(ref.ids) >= 5
     keep = np.r_[0:3, 4:len(ref.mu)]  # b marginalised out
     best = mht.best
-    assert list(best.landmark_ids) == ref.ids
+    assert list(best.landmarks().ids) == ref.ids
     np.testing.assert_allclose(best.mean, ref.mu[keep], atol=1e-8)
     np.testing.assert_allclose(best.covariance, ref.sigma[np.ix_(keep, keep)], atol=1e-10)
     assert mht.total_cost == pytest.approx(cost, rel=1e-9)

@@ -104,7 +104,7 @@ def test_association_history_backtracking_equals_forward_lists():
         f.predict(v, w, sim.dt)
         if not len(z):
             continue
-        rows, _, _ = f.update_unknown(z)
+        rows = f.update_unknown(z).ids
         truth = np.asarray(ids, np.int64)
         hist.add(f, rows, truth, float(step))
         a = f.ancestors

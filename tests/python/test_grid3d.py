@@ -33,8 +33,10 @@ def test_defaults_are_octomaps():
     (dict(resolution=0.1, p_hit=0.4), "p_hit"),
     (dict(resolution=0.1, p_miss=0.0), "p_miss"),
     (dict(resolution=0.1, p_miss=0.6), "p_miss"),
-    (dict(resolution=0.1, clamp_min=0.9, clamp_max=0.2), "clamp_min"),
-    (dict(resolution=0.1, clamp_max=1.2), "clamp_max"),
+    (dict(resolution=0.1, clamp=(0.9, 0.2)), "clamp"),
+    (dict(resolution=0.1, clamp=(0.12, 1.2)), "clamp"),
+    (dict(resolution=0.1, clamp=(0.0, 0.9)), "clamp"),
+    (dict(resolution=0.1, clamp=(0.1, 0.5, 0.9)), "clamp"),
     (dict(resolution=0.1, occupancy_threshold=0.0), "occupancy_threshold"),
 ])
 def test_bad_parameters_raise_naming_the_argument(kwargs, name):
@@ -67,7 +69,7 @@ def test_nonfinite_points_are_skipped_and_counted():
     g = probslam.OccupancyGrid3D(0.1)
     pts = np.array([[1.05, 0.05, 0.05], [np.nan, 0, 0], [0, np.inf, 0], [0, 0, -np.inf]])
     stats = g.insert_point_cloud(pts, (0.05, 0.05, 0.05))
-    assert stats["points"] == 4 and stats["skipped_nonfinite"] == 3
+    assert stats.points == 4 and stats.skipped_nonfinite == 3
     assert g.num_known_voxels == 11  # the one finite ray: 10 free voxels and its hit
     assert g.log_odds_at((1.05, 0.05, 0.05)) == pytest.approx(g.log_odds_hit)
 
@@ -169,7 +171,7 @@ def test_octomap_sample_data(shared_data):
     assert pts.shape == (88206, 3)
     g = probslam.OccupancyGrid3D(0.2)
     stats = g.insert_point_cloud(pts, (0, 0, 0), max_range=15.0)
-    assert stats["skipped_nonfinite"] == 0 and stats["max_range_cut"] > 0
+    assert stats.skipped_nonfinite == 0 and stats.max_range_cut > 0
     assert g.num_occupied_voxels > 1000
     geb = probslam.OccupancyGrid3D.read_bt(str(folder / "geb079.bt"))
     assert geb.resolution == 0.08 and geb.num_occupied_voxels > 10000

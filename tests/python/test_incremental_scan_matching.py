@@ -39,7 +39,7 @@ def test_matched_trajectory_beats_drifting_odometry():
     true, odo, ranges = drive()
     ism = _core.IncrementalScanMatcher(max_range=30.0, submap_distance=0.0, min_travel=0.0, min_rotation=0.0)
     ism.add_scans(ranges, ANGLES, odo, np.arange(len(true), dtype=float))
-    err = np.linalg.norm(ism.poses[:, :2] - true[:, :2], axis=1)
+    err = np.linalg.norm(ism.scan_poses[:, :2] - true[:, :2], axis=1)
     odo_err = np.linalg.norm(odo[:, :2] - true[:, :2], axis=1)
     info = ism.scan_info
     assert info[:, 0].all()  # every scan matched
@@ -51,7 +51,7 @@ def test_submaps_cut_by_travel():
     true, odo, ranges = drive()
     ism = _core.IncrementalScanMatcher(max_range=30.0, submap_distance=5.0, min_travel=0.0, min_rotation=0.0)
     ism.add_scans(ranges, ANGLES, odo, np.arange(len(true), dtype=float))
-    travel = np.linalg.norm(np.diff(ism.poses[:, :2], axis=0), axis=1).sum()
+    travel = np.linalg.norm(np.diff(ism.scan_poses[:, :2], axis=0), axis=1).sum()
     assert ism.num_submaps == int(travel // 5.0) + 1 or ism.num_submaps == int(travel // 5.0)
     assert isinstance(ism.submap_grid(0), ps.OccupancyGrid2D)
     with pytest.raises(ValueError, match="index"):
@@ -64,7 +64,7 @@ def test_scans_without_motion_are_not_matched():
     ism = _core.IncrementalScanMatcher(max_range=30.0)
     ism.add_scans(ranges[:5], ANGLES, still, np.arange(5.0))
     assert ism.scan_info[1:, 0].sum() == 0
-    np.testing.assert_allclose(ism.poses, still)
+    np.testing.assert_allclose(ism.scan_poses, still)
 
 
 @pytest.mark.parametrize("kwargs, name", [

@@ -45,7 +45,7 @@ def filled(signatures=False):
 
 
 def snapshot(ekf):
-    return policy.state_of(ekf, "mean", "covariance", "landmark_ids", "pose", "num_provisional")
+    return policy.state_of(ekf, "mean", "covariance", "landmarks", "pose", "num_provisional")
 
 
 def assert_unchanged_after(ekf, call, err=ValueError, match=None):
@@ -294,7 +294,7 @@ def apply(e, op):
     elif op[0] == "predict":
         e.predict(0.0, 0.0, 1.0, noise=np.zeros((3, 3)))
     else:
-        e.landmark(op[1]); e.landmark_covariance(op[1]); e.pose; e.landmark_ids
+        e.landmark(op[1]); e.landmark_covariance(op[1]); e.pose; e.landmarks().ids
 scripts = [script(t, np.random.default_rng(t)) for t in range(4)]
 shared = make()
 run([lambda s=s: [apply(shared, op) for op in s] for s in scripts])
@@ -302,8 +302,8 @@ serial = make()
 for s in scripts:
     for op in s:
         apply(serial, op)
-assert sorted(shared.landmark_ids) == sorted(serial.landmark_ids)
-for i in serial.landmark_ids:
+assert sorted(shared.landmarks().ids) == sorted(serial.landmarks().ids)
+for i in serial.landmarks().ids:
     assert np.array_equal(shared.landmark(i), serial.landmark(i)), i
     assert np.array_equal(shared.landmark_covariance(i), serial.landmark_covariance(i)), i
 assert np.array_equal(shared.pose, serial.pose)
@@ -343,7 +343,7 @@ def known(seed):
         ekf.update(scan(rng)[:2], [1000 + rng.integers(5), 2000 + rng.integers(5)])
 def remover(seed):
     for _ in range(200):
-        ids = ekf.landmark_ids
+        ids = ekf.landmarks().ids
         if len(ids):
             try:
                 ekf.remove_landmark(int(ids[-1]))
@@ -362,7 +362,7 @@ cov, mean = ekf.covariance, ekf.mean
 assert np.all(np.isfinite(cov)) and np.all(np.isfinite(mean))
 assert np.allclose(cov, cov.T, atol=1e-9)
 assert np.linalg.eigvalsh(0.5 * (cov + cov.T)).min() > -1e-6
-assert len(mean) == 3 + 2 * ekf.num_landmarks == 3 + 2 * len(set(ekf.landmark_ids))
+assert len(mean) == 3 + 2 * ekf.num_landmarks == 3 + 2 * len(set(ekf.landmarks().ids))
 print("ok")
 """)
     assert result.returncode == 0, result.stderr[-3000:]
@@ -382,7 +382,8 @@ matrices = policy.arrays(max_side=4, max_dims=3)
        signatures=st.booleans())
 def test_construction_property(motion, measurement, pose, cov, signatures):
     policy.check_call(lambda: _core._EkfSlam(motion, measurement, signatures, pose, cov))
-    policy.check_call(lambda: ps.EkfSlam(motion, measurement, signatures, pose, cov))
+    policy.check_call(lambda: ps.EkfSlam(motion, measurement, use_signatures=signatures, initial_pose=pose,
+                                         initial_pose_cov=cov))
 
 
 @PROPERTY
@@ -451,8 +452,9 @@ def test_queries_and_removal_property(z, id, value):
        z=policy.arrays(max_side=4, max_dims=2), motion=st.lists(policy.floats(), min_size=3, max_size=3))
 def test_multi_hypothesis_property(max_hypotheses, max_children, costs, z, motion):
     gate, new_cost, clutter, margin = costs
-    raised, mht = policy.check_call(lambda: ps.MultiHypothesisEkfSlam(filled(), max_hypotheses, max_children, gate,
-                                                                      new_cost, clutter, margin), finite=False)
+    raised, mht = policy.check_call(lambda: ps.MultiHypothesisEkfSlam(
+        filled(), max_hypotheses=max_hypotheses, max_children=max_children, gate=gate, new_landmark_cost=new_cost,
+        clutter_cost=clutter, prune_margin=margin), finite=False)
     if raised:
         return
 

@@ -26,7 +26,7 @@ COVERED = (
     "OccupancyGrid2D.probability",
     "OccupancyGrid2D.grown",
     "fuse_max",
-    "OccupancyGrid3D(resolution, p_hit, p_miss, clamp_min, clamp_max, occupancy_threshold)",
+    "OccupancyGrid3D(resolution, p_hit, p_miss, clamp, occupancy_threshold)",
     "OccupancyGrid3D.insert_point_cloud",
     "OccupancyGrid3D.log_odds_at",
     "OccupancyGrid3D.is_occupied",
@@ -341,7 +341,7 @@ def test_2d_clipped_walks_equal_the_unclipped_reference(seed):
 def test_3d_points_beyond_the_key_range_are_dropped_at_once():
     grid = ps.OccupancyGrid3D(0.1)
     stats = grid.insert_point_cloud([[1e12, 0, 0], [0, -1e12, 3], [1.05, 0.05, 0.05]], (0.05, 0.05, 0.05))
-    assert stats["out_of_bounds"] == 2 and grid.num_known_voxels == 11
+    assert stats.out_of_bounds == 2 and grid.num_known_voxels == 11
 
 
 # --- Bounded sizes -------------------------------------------------------------------------------
@@ -545,7 +545,7 @@ def test_property_setters_and_fuse_max(clamp, p_hit, other):
 @PROPERTY
 @given(resolution=policy.floats(), p=st.lists(policy.floats(), min_size=5, max_size=5))
 def test_property_grid3d_constructor(resolution, p):
-    raised, grid = policy.check_call(lambda: ps.OccupancyGrid3D(resolution, *p))
+    raised, grid = policy.check_call(lambda: ps.OccupancyGrid3D(resolution, p[0], p[1], (p[2], p[3]), p[4]))
     if not raised:
         grid.insert_point_cloud([[1.0, 2.0, 3.0]], (0.0, 0.0, 0.0))
         centres, values = grid.known_voxels()
@@ -560,7 +560,7 @@ def test_property_insert_point_cloud(points, origin, max_range, threads):
     raised, stats = policy.check_call(lambda: grid.insert_point_cloud(points, origin, max_range, threads),
                                       lambda: grid3d_state(grid))
     if not raised:
-        assert stats["points"] == len(points)
+        assert stats.points == len(points)
         centres, values = grid.known_voxels()
         assert np.all(np.isfinite(centres)) and np.all(np.isfinite(values))
 

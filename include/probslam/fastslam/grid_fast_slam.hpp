@@ -106,7 +106,12 @@ class GridFastSlam {
 
   explicit GridFastSlam(const GridFastSlamOptions& options);
   ~GridFastSlam();
-  GridFastSlam(const GridFastSlam&) = delete;
+  /// A deep copy: the particles' maps are cloned into a family of their own (TiledGrid2D::
+  /// deep_copy: the tiles the particles share stay shared among the copy's particles, none with
+  /// the original, so each filter's max_map_bytes counts its own tiles); paths, random streams
+  /// and the corrector are copied. The copy starts its own worker threads when it needs them.
+  /// The same scans then give both filters the same results.
+  GridFastSlam(const GridFastSlam& other);
   GridFastSlam& operator=(const GridFastSlam&) = delete;
 
   /// One scan: ranges (B,) m, beam_angles (B,) rad relative to the sensor, the sensor's odometry

@@ -116,6 +116,10 @@ class TiledGrid2D {
     return tiles_[tile] != nullptr && tiles_[tile] == other.tiles_[tile];
   }
   static TileSharing sharing(const std::vector<const TiledGrid2D*>& grids);
+  /// Deep copies of `grids` (entry k's copy at k; null stays null) in a new family: each distinct
+  /// tile is cloned once, so tiles (and grids) shared among `grids` are shared among the copies
+  /// as they were, and no copy shares a tile or a tile count with an original.
+  static std::vector<std::shared_ptr<TiledGrid2D>> deep_copy(const std::vector<std::shared_ptr<TiledGrid2D>>& grids);
 
  private:
   friend class TiledScanStore;

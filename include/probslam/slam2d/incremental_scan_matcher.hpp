@@ -89,6 +89,8 @@ class IncrementalScanMatcher {
   std::mutex& mutex() const noexcept { return mutex_.get(); }
 
   explicit IncrementalScanMatcher(const IncrementalScanMatcherOptions& options = {});
+  // Copies are deep: submaps and estimates are values, and the field cache they share is
+  // immutable (a scan replaces it, never changes it).
 
   /// Adds one scan: ranges (B,) metres, beam_angles (B,) rad relative to the sensor, the
   /// sensor's odometry pose (x, y, theta) and a timestamp (s). Returns its estimate. Throws

@@ -90,6 +90,11 @@ class SubmapSlam2D {
   std::mutex& mutex() const noexcept { return mutex_.get(); }
 
   explicit SubmapSlam2D(const SubmapSlamOptions& options = {});
+  /// A deep copy (scans, submaps, graph, search history). It starts with an empty cache of
+  /// likelihood fields: the closure search rebuilds the same fields from the same submaps, so
+  /// the copy's results are the original's.
+  SubmapSlam2D(const SubmapSlam2D& other);
+  SubmapSlam2D& operator=(const SubmapSlam2D&) = delete;
   ~SubmapSlam2D();
 
   /// Adds one scan (see IncrementalScanMatcher::add_scan); a submap that this scan completes is

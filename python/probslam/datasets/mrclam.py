@@ -314,7 +314,7 @@ def run_fastslam(data: Mrclam, motion_noise=None, measurement_noise=None, *, kno
             if known:
                 f.update(rows[:, 2:4], truth)
             else:
-                ids, _, _ = f.update_unknown(rows[:, 2:4])
+                ids = f.update_unknown(rows[:, 2:4]).ids
                 histories.add(f, ids, truth, rows[0, 0])
     return result_of(f, np.array(times), time.perf_counter() - t0, histories)
 
