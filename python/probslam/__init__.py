@@ -46,6 +46,7 @@ from .graphslam import (
     graph_slam,
 )
 from .ekf import EkfSlam, MapManagement, MultiHypothesisEkfSlam
+from .landmark_refine import LandmarkRefinement, refine_landmarks, refine_run
 from .mapping import MappingSummary, map_laser_log
 from .map_occupancy import MapOccupancyResult, map_occupancy_grid_mapping
 from .inverse_learning import LearnedInverseModel
@@ -71,6 +72,7 @@ __all__ = [
     "data",
     "FeatureMerges",
     "GraphSlamResult",
+    "LandmarkRefinement",
     "Measurements",
     "OptimizationReport",
     "PoseGraph2D",
@@ -85,6 +87,8 @@ __all__ = [
     "run_slam",
     "slam",
     "graph_slam",
+    "refine_landmarks",
+    "refine_run",
     "marginal_covariances",
     "optimize",
     "read_pose_graph",
