@@ -10,7 +10,7 @@ ground truth), the map RMSE after a rigid alignment onto the survey (Dataset 1's
 survey labels corrected), and the refinement's time and rounds.
 
     .venv/bin/python benchmarks/bench_landmark_refine.py [--jobs 2] [--datasets 1 7] [--robots 1 2]
-        [--methods jcbb mht fastslam] [--record]
+        [--methods jcbb mht fastslam] [--new-landmarks] [--record]
 
 Needs ../shared/data/landmark_slam (skips with a message without it).
 """
@@ -53,7 +53,7 @@ def map_rmse(landmarks, data, labels) -> float:
 
 
 def run_one(job):
-    dataset, robot, method = job
+    dataset, robot, method, new_landmarks = job
     data = ps.io.read_mrclam(DATA / f"mrclam_dataset{dataset}", robot=robot).with_euclidean_ranges()
     fixed = data.with_survey_swapped(ls.survey_label_swaps(data))
     if method == "fastslam":
@@ -61,7 +61,7 @@ def run_one(job):
     else:
         run = ls.run_ekf_mrclam(data, MOTION, SENSOR, known=False, association=method)
     t0 = time.perf_counter()
-    refined = lr.refine_run(run, data, MOTION, SENSOR)
+    refined = lr.refine_run(run, data, MOTION, SENSOR, new_landmarks=new_landmarks)
     seconds = time.perf_counter() - t0
     start, result = refined.input, refined.result
     labelled = start.labels != lr.UNASSIGNED
@@ -86,12 +86,14 @@ def main() -> int:
     parser.add_argument("--datasets", type=int, nargs="+", default=[1, 7])
     parser.add_argument("--robots", type=int, nargs="+", default=[1, 2, 3, 4, 5])
     parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
+    parser.add_argument("--new-landmarks", action="store_true",
+                        help="a sighting that fits no landmark founds one (refine_landmarks(new_landmarks=True))")
     parser.add_argument("--record", action="store_true", help="write the table into benchmarks/RESULTS.md")
     args = parser.parse_args()
     if not DATA.is_dir():
         print(f"skipped: {DATA} not found")
         return 0
-    jobs = [(d, r, m) for d in args.datasets for r in args.robots for m in args.methods]
+    jobs = [(d, r, m, args.new_landmarks) for d in args.datasets for r in args.robots for m in args.methods]
     with concurrent.futures.ProcessPoolExecutor(max_workers=args.jobs) as pool:
         rows = list(pool.map(run_one, jobs))
     lines = heading("MRCLAM, barcodes hidden, GraphSLAM refinement after each filter",
