@@ -107,9 +107,10 @@ def main() -> int:
                     ["run", "method", "correct before -> after", "landmarks before -> after",
                      "path m before -> after", "map m before -> after", "refine s (rounds, merges, splits)"])
     for r in rows:
-        lines.append(f"| D{r['dataset']} r{r['robot']} | {r['method']} | {r['before']:.1%} -> {r['after']:.1%} | "
+        lines.append(f"| D{r['dataset']} r{r['robot']} | {r['method']} | {r['before']:.2%} -> {r['after']:.2%} | "
                      f"{r['map_size']} / {r['labels_before']} -> {r['landmarks_after']} | "
-                     f"{r['path_before']:.3f} -> {r['path_after']:.3f} | {r['map_before']:.3f} -> {r['map_after']:.3f} | "
+                     f"{r['path_before']:.3f} -> {r['path_after']:.3f} | "
+                     f"{r['map_before']:.3f} -> {r['map_after']:.3f} | "
                      f"{r['seconds']:.2f} ({r['iterations']}, {r['merges']}, {r['splits']}) |")
     lines.append("")
     for m in args.methods:

@@ -1,28 +1,43 @@
 """GraphSLAM's correspondence test (Probabilistic Robotics ch. 11.6, Tables 11.8 and 11.9) as a
 refinement of any landmark filter's result: the filter's poses, sightings and landmark labels
-start a GraphSLAM over all sightings, which then
+start a GraphSLAM over all sightings (pose vertices only where sightings were taken, the
+odometry composed between them), which then, round by round:
 
+0. (first round, ``estimate_noise``) rescales the odometry, range and bearing noise to the
+   residuals of the optimum by variance component estimation: a filter's noise is set for the
+   filter, often several times the sensor's, and a test against it sees nothing;
 1. tests landmark pairs for identity with the full posterior: the joint (4, 4) marginal of the
    pair, cross-covariance included (``graph.joint_marginal_covariances``), gives Table 11.8's
    difference Delta = m_j - m_k and its covariance; a pair merges when the Mahalanobis distance
    of Delta from 0 is within the chi-square quantile ``MERGE_PROBABILITY`` (2 dof), unless the two
-   were seen in one scan (one scan sees distinct landmarks, ch. 11.6's refinement);
-2. tests each sighting against its own landmark (the undo of 11.6): the leave-one-out innovation
-   of the sighting, i.e. its residual at the optimum weighed by the residual's covariance
+   were seen in one scan (one scan sees distinct landmarks, ch. 11.6's refinement); groups join
+   only when every pair across them passed;
+2. (the undo of 11.6) tests each sighting against its own landmark: the leave-one-out innovation
+   of the sighting, its residual at the optimum weighed by the residual's covariance
    Q - H Sigma H^T (equal to the innovation of the sighting against the posterior of all the
-   other sightings); a sighting beyond the split gate leaves its landmark for the other landmark
-   with the smallest leave-one-out innovation within the gate, or for a new landmark;
-3. optimises again and repeats until no pair merges and no sighting moves, or ``max_iterations``.
+   other sightings); the sightings beyond the split gate leave by backward elimination (worst
+   first, the posterior updated after each) for the most likely other landmark within the gate,
+   else for a new landmark (``new_landmarks``) or none (UNASSIGNED);
+3. moves each sighting that another landmark explains better than its own (maximum likelihood,
+   each under the posterior of the others; UNASSIGNED sightings join the most likely landmark
+   within the gate);
+
+a round makes the first kind of change that has any (merges, else splits, else moves),
+optimises again, and the refinement stops when a round changes nothing, or at
+``max_iterations``. Every test is exact for the linearised problem at the round's minimum; the
+tests in tests/python/test_landmark_refine.py repeat each round by brute force on the dense
+inverse.
 
 Units: metres, radians. Poses (x, y, theta) with theta wrapped to (-pi, pi]. Sightings are
 range-bearing; the graph holds each as the point in the pose's frame with the information of its
 range-bearing noise carried through the polar-to-Cartesian Jacobian (GraphSLAM's linearisation;
-tests/python/test_landmark_refine.py measures what the Cartesian form changes against exact
-range-bearing residuals).
+the tests measure what the Cartesian form changes against exact range-bearing residuals: 0.02
+standard deviations of a landmark).
 
 ``refine_landmarks`` works on arrays; ``refinement_input`` builds them from a filter run over a
 dataset (``landmark_slam.run_ekf_mrclam``, ``fastslam.run_fastslam_mrclam`` /
-``run_fastslam_victoria_park``), and ``refine_run`` does both.
+``run_fastslam_victoria_park``), and ``refine_run`` does both: the one entry point for a run.
+``sighting_accuracy`` and ``majority_truth`` score a labelling against the dataset's ids.
 """
 
 from __future__ import annotations
@@ -30,7 +45,7 @@ from __future__ import annotations
 import collections
 import time
 from dataclasses import dataclass
-from typing import Dict, List, Optional, Sequence, Tuple
+from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -93,6 +108,10 @@ MINIMUM_STEP = 1e-9
 #: Gauss-Newton iterations tried before falling back to Levenberg-Marquardt (from a filter's
 #: poses or the last round's minimum it converges in 3-8 on MRCLAM).
 GAUSS_NEWTON_ITERATIONS = 20
+
+#: A covariance given whose transpose differs by more than this fraction of its largest entry
+#: is refused as not symmetric (rounding in a computed covariance is ~1e-16 relative).
+COVARIANCE_SYMMETRY = 1e-9
 
 UNASSIGNED = -1  # label of a sighting that belongs to no landmark
 
@@ -277,6 +296,17 @@ class _Graph:
     def point_id(self, label) -> int:
         return self.num_poses + self.slot[int(label)]
 
+    def point_ids(self, labels: np.ndarray) -> np.ndarray:
+        """``point_id`` of each of an array of held labels."""
+        return self.num_poses + np.searchsorted(self.labels, labels)
+
+    def landmark_marginals(self) -> np.ndarray:
+        """(L, 2, 2) marginal covariances of the landmarks in ``labels`` order, computed once."""
+        if getattr(self, "_marginals", None) is None:
+            ids = [self.point_id(x) for x in self.labels]
+            self._marginals = np.array(marginal_covariances(self.graph, ids)).reshape(-1, 2, 2)
+        return self._marginals
+
     def optimize(self, problem: _Problem) -> float:
         try:  # from the previous round's minimum, Gauss-Newton takes a few steps
             report = optimize(self.graph, algorithm="gauss-newton", relative_tolerance=0.0,
@@ -286,6 +316,7 @@ class _Graph:
         except ValueError:  # a start far off (a filter that went astray): damped steps
             report = optimize(self.graph, algorithm="levenberg-marquardt", relative_tolerance=0.0,
                               step_tolerance=MINIMUM_STEP)
+        self._marginals = None
         problem.poses = self.graph.poses
         points = self.graph.points
         problem.landmarks = {int(label): points[k].copy() for k, label in enumerate(self.labels)}
@@ -318,7 +349,7 @@ def _candidate_pairs(g: _Graph, problem: _Problem, gate: float, excluded: set) -
     labels = g.labels
     if len(labels) < 2:
         return []
-    cov = np.array(marginal_covariances(g.graph, [g.point_id(x) for x in labels]))
+    cov = g.landmark_marginals()
     s = np.sqrt(np.linalg.eigvalsh(cov)[:, -1])
     m = np.array([problem.landmarks[int(x)] for x in labels])
     root = np.sqrt(gate)
@@ -384,6 +415,7 @@ class _SightingTests:
     inverse: np.ndarray
     ok: np.ndarray
     stats: np.ndarray
+    joint: np.ndarray  # (n, 5, 5) of (pose, landmark)
 
 
 def _sighting_statistics(g: _Graph, problem: _Problem, counts: Dict[int, int]) -> _SightingTests:
@@ -395,11 +427,13 @@ def _sighting_statistics(g: _Graph, problem: _Problem, counts: Dict[int, int]) -
     rows = np.array([i for i in g.rows if counts[int(problem.labels[i])] >= 2], dtype=np.int64)
     if len(rows) == 0:
         empty = np.empty((0, 2, 2))
-        return _SightingTests(rows, np.empty((0, 2)), np.empty((0, 2, 5)), empty, empty, np.zeros(0, bool), stats)
+        return _SightingTests(rows, np.empty((0, 2)), np.empty((0, 2, 5)), empty, empty, np.zeros(0, bool), stats,
+                              np.empty((0, 5, 5)))
     t = problem.pose_index[rows]
-    joint = np.array(joint_marginal_covariances(g.graph, [[int(a), g.point_id(problem.labels[i])]
-                                                          for a, i in zip(t, rows)]))
-    m = np.array([problem.landmarks[int(problem.labels[i])] for i in rows])
+    groups = np.column_stack([t, g.point_ids(problem.labels[rows])]).tolist()
+    joint = np.array(joint_marginal_covariances(g.graph, groups))
+    marks = np.array([problem.landmarks[int(c)] for c in g.labels])
+    m = marks[np.searchsorted(g.labels, problem.labels[rows])]
     e, j_pose, j_point = point_residuals(problem.poses[t], m, problem.z[rows])
     h = np.concatenate([j_pose, j_point], axis=2)  # (n, 2, 5)
     residual_cov = problem.z_covariance[rows] - h @ joint @ h.transpose(0, 2, 1)
@@ -410,7 +444,7 @@ def _sighting_statistics(g: _Graph, problem: _Problem, counts: Dict[int, int]) -
     inv = np.full_like(residual_cov, np.nan)
     inv[ok] = np.linalg.inv(residual_cov[ok])
     stats[rows[ok]] = np.einsum("ni,nij,nj->n", e[ok], inv[ok], e[ok])
-    return _SightingTests(rows, e, h, residual_cov, inv, ok, stats)
+    return _SightingTests(rows, e, h, residual_cov, inv, ok, stats, joint)
 
 
 def pose_edge_residuals(a: np.ndarray, b: np.ndarray, z: np.ndarray):
@@ -493,8 +527,8 @@ def _split_moves(g: _Graph, problem: _Problem, tests: _SightingTests, gate: floa
     innovation covariance S = Q + H Sigma' H^T under the posterior without the round's leavers)
     within the gate that no other sighting of its scan holds and that it has not left before (a
     sighting that left a landmark never returns: the moves cannot cycle, and a move decided on
-    one linearisation is not undone on the next by a statistic a little over the gate), else to a new landmark of its own (``new_landmarks``) or
-    to none (UNASSIGNED)."""
+    one linearisation is not undone on the next by a statistic a little over the gate), else to a
+    new landmark of its own (``new_landmarks``) or to none (UNASSIGNED)."""
     stats = tests.stats
     suspects = [int(i) for i in np.argsort(-np.nan_to_num(stats, nan=-np.inf), kind="stable") if stats[i] > gate]
     suspects = suspects[:MAX_SUSPECTS_PER_ROUND]
@@ -525,7 +559,8 @@ def _split_moves(g: _Graph, problem: _Problem, tests: _SightingTests, gate: floa
             v = tests.e[at[i]] + h @ delta[c]
             m = problem.z_covariance[i] - h @ sigma[np.ix_(c, c)] @ h.T
             m = 0.5 * (m + m.T)
-            if np.linalg.eigvalsh(m)[0] <= LEAVE_ONE_OUT_RANK_TOLERANCE * np.linalg.eigvalsh(problem.z_covariance[i])[-1]:
+            scale = np.linalg.eigvalsh(problem.z_covariance[i])[-1]
+            if np.linalg.eigvalsh(m)[0] <= LEAVE_ONE_OUT_RANK_TOLERANCE * scale:
                 remaining.remove(i)  # its landmark now rests on it alone: not testable
                 continue
             x = float(v @ np.linalg.solve(m, v))
@@ -586,7 +621,8 @@ def _reassociation_distances(g: _Graph, problem: _Problem, queries: List[Tuple[i
         return np.empty(0)
     rows = np.array([i for i, _ in queries], dtype=np.int64)
     t = problem.pose_index[rows]
-    groups = [[int(a), g.point_id(problem.labels[i]), g.point_id(c)] for (i, c), a in zip(queries, t)]
+    candidates = np.array([c for _, c in queries], dtype=np.int64)
+    groups = np.column_stack([t, g.point_ids(problem.labels[rows]), g.point_ids(candidates)]).tolist()
     joint = np.array(joint_marginal_covariances(g.graph, groups))  # (n, 7, 7): candidate, pose, own
     n = len(queries)
     at = np.searchsorted(tests.rows, rows)
@@ -596,7 +632,8 @@ def _reassociation_distances(g: _Graph, problem: _Problem, queries: List[Tuple[i
     a = joint @ j_own.transpose(0, 2, 1)  # Sigma J^T (n, 7, 2)
     shift = np.einsum("nij,nj->ni", a, np.einsum("nij,nj->ni", w, e))
     loo = joint + a @ w @ a.transpose(0, 2, 1)
-    m = np.array([problem.landmarks[c] for _, c in queries])
+    marks = np.array([problem.landmarks[int(c)] for c in g.labels])
+    m = marks[np.searchsorted(g.labels, candidates)]
     e_c, j_pose, j_point = point_residuals(problem.poses[t], m, problem.z[rows])
     h = np.zeros((n, 2, 7))
     h[:, :, 0:3] = j_pose
@@ -613,8 +650,8 @@ def _likelihood_moves(g: _Graph, problem: _Problem, tests: _SightingTests, gate:
     H^T; its distance is the leave-one-out statistic), against a candidate S_c; a sighting moves
     when -2 log of the likelihood ratio, (d_own + ln det S_own) - (d_c + ln det S_c), exceeds
     REASSOCIATION_MARGIN and the candidate passes the split gate, best ratio first, never onto a
-    landmark another sighting of its scan holds nor one it has left before. A sighting on no landmark (UNASSIGNED) joins the
-    most likely landmark within the gate.
+    landmark another sighting of its scan holds nor one it has left before. A sighting on no
+    landmark (UNASSIGNED) joins the most likely landmark within the gate.
 
     Candidates are only the landmarks that can win: a winner has d_c below the gate and below
     the budget d_own + ln det S_own - ln det Q - margin (as S_c >= Q). With the leave-one-out
@@ -636,13 +673,14 @@ def _likelihood_moves(g: _Graph, problem: _Problem, tests: _SightingTests, gate:
     t = problem.pose_index[rows]
     q = problem.z_covariance[rows]
     # The posterior without the sighting: its pose's covariance and the shift of its mean.
-    pose_cov = np.array(marginal_covariances(g.graph, [int(a) for a in t])).reshape(-1, 3, 3)
+    pose_cov = np.zeros((len(rows), 3, 3))
+    if len(lone):
+        pose_cov[n_own:] = np.array(marginal_covariances(g.graph, [int(a) for a in t[n_own:]])).reshape(-1, 3, 3)
     shift_x = np.zeros((len(rows), 3))
     lmax_p, lmax_w, e_w = (np.zeros(len(rows)) for _ in range(3))
     if n_own:
         e, h, w = tests.e[labelled_at], tests.h[labelled_at], tests.inverse[labelled_at]
-        joint = np.array(joint_marginal_covariances(g.graph, [[int(a), g.point_id(problem.labels[i])]
-                                                              for a, i in zip(t[:n_own], rows[:n_own])]))
+        joint = tests.joint[labelled_at]
         a_ = joint @ h.transpose(0, 2, 1)  # Sigma J^T (n, 5, 2)
         shift_x[:n_own] = np.einsum("nij,nj->ni", a_, np.einsum("nij,nj->ni", w, e))[:, :3]
         pose_cov[:n_own] = (joint + a_ @ w @ a_.transpose(0, 2, 1))[:, :3, :3]
@@ -665,7 +703,7 @@ def _likelihood_moves(g: _Graph, problem: _Problem, tests: _SightingTests, gate:
     reach = np.linalg.norm(np.einsum("nij,nj->ni", hx, shift_x), axis=1) + root * (sigma_q + sigma_x)
     per_sigma = np.sqrt(lmax_p) * e_w + root * np.sqrt(1.0 + lmax_p * lmax_w)
     reach[budget <= 0.0] = -np.inf  # nothing can beat its own landmark
-    marginal = np.array(marginal_covariances(g.graph, [g.point_id(c) for c in g.labels]))
+    marginal = g.landmark_marginals()
     sigma_c = np.sqrt(np.linalg.eigvalsh(marginal)[:, -1])
     marks = np.array([problem.landmarks[int(c)] for c in g.labels])
     placed = _placed(problem, rows)
@@ -760,7 +798,8 @@ def _check_input(poses, odometry, odometry_covariances, pose_index, measurements
     elif q.shape != (k, 2, 2):
         raise ValueError(f"measurement_noise: expected shape (2, 2) or ({k}, 2, 2), got {q.shape}")
     for name, covs in (("odometry_covariances", odometry_covariances), ("measurement_noise", q)):
-        if len(covs) and np.any(np.abs(covs - covs.transpose(0, 2, 1)) > 1e-9 * np.abs(covs).max(axis=(1, 2))[:, None, None]):
+        largest = np.abs(covs).max(axis=(1, 2))[:, None, None] if len(covs) else 0.0
+        if len(covs) and np.any(np.abs(covs - covs.transpose(0, 2, 1)) > COVARIANCE_SYMMETRY * largest):
             raise ValueError(f"{name}: must be symmetric")
         if len(covs) and np.any(np.linalg.eigvalsh(covs)[:, 0] <= 0):
             raise ValueError(f"{name}: must be positive definite")

@@ -107,8 +107,9 @@ Eigen::MatrixXd dense_covariance(const PoseGraph2D& g, int held, std::vector<int
           h.block(rows[s], rows[t], dims[s], dims[t]) += jtoj.block(s ? da : 0, t ? da : 0, dims[s], dims[t]);
   };
   for (const PoseEdge& e : g.pose_edges())
-    add(e.from, e.to, 3, e.information,
-        [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b) -> Eigen::VectorXd { return pose_error(a, b, e.measurement); });
+    add(e.from, e.to, 3, e.information, [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b) -> Eigen::VectorXd {
+      return pose_error(a, b, e.measurement);
+    });
   for (const PointEdge& e : g.point_edges())
     add(e.pose, e.point, 2, e.information, [&](const Eigen::Vector3d& a, const Eigen::Vector3d& b) -> Eigen::VectorXd {
       return point_error(a, b.head<2>(), e.measurement);
