@@ -4,10 +4,10 @@ multiple-hypothesis EKF and FastSLAM 1.0, each before and after ``probslam.refin
 of defaults for all (the CLI's noise; the refinement's gates are its named constants).
 
 Per run: the share of sightings whose landmark's majority barcode is their own, the landmarks
-(the filter's map / the labels holding sightings before; after), the path RMSE after a rigid
-alignment onto Vicon at the refinement's pose times (Dataset 7; Dataset 1 ships no robot
-ground truth), the map RMSE after a rigid alignment onto the survey (Dataset 1's exchanged
-survey labels corrected), and the refinement's time and rounds.
+(the filter's map / the labels holding sightings before; after), the sightings on no landmark,
+the path RMSE after a rigid alignment onto Vicon at the refinement's pose times (Dataset 7;
+Dataset 1 ships no robot ground truth), the map RMSE after a rigid alignment onto the survey
+(Dataset 1's exchanged survey labels corrected), and the refinement's time and rounds.
 
     .venv/bin/python benchmarks/bench_landmark_refine.py [--jobs 2] [--datasets 1 7] [--robots 1 2]
         [--methods jcbb mht fastslam] [--new-landmarks] [--record]
@@ -77,7 +77,8 @@ def run_one(job):
                                     before_labels),
                 map_after=map_rmse(result.landmarks, fixed, lr.majority_truth(result.labels, start.truth)),
                 seconds=seconds, iterations=result.iterations, merges=len(result.merges), splits=len(result.splits),
-                sightings=int(labelled.sum()))
+                sightings=len(start.labels), unassigned_before=int(np.count_nonzero(~labelled)),
+                unassigned_after=int(np.count_nonzero(result.labels == lr.UNASSIGNED)), converged=result.converged)
 
 
 def main() -> int:
@@ -102,16 +103,20 @@ def main() -> int:
                     f"chi2_2({lr.MERGE_PROBABILITY}) for merges, Sidak {lr.SPLIT_RUN_PROBABILITY} over the run's "
                     "sightings for splits. Correct: sightings whose landmark's majority barcode is their own; "
                     "landmarks: the filter's map / labels holding sightings -> after (15 surveyed); path: RMSE "
-                    "aligned onto Vicon at the scans (Dataset 7); map: RMSE aligned onto the survey. "
+                    "aligned onto Vicon at the scans (Dataset 7); map: RMSE aligned onto the survey; "
+                    "unassigned: sightings on no landmark (the filter's discards; after: also those that left "
+                    "their landmark and passed no other); rounds marked * reached max_iterations. "
                     f"`{' '.join(sys.argv)}`",
-                    ["run", "method", "correct before -> after", "landmarks before -> after",
-                     "path m before -> after", "map m before -> after", "refine s (rounds, merges, splits)"])
+                    ["run", "method", "correct before -> after", "landmarks before -> after", "unassigned",
+                     "path m before -> after", "map m before -> after", "refine s (rounds, merges, moves)"])
     for r in rows:
         lines.append(f"| D{r['dataset']} r{r['robot']} | {r['method']} | {r['before']:.2%} -> {r['after']:.2%} | "
                      f"{r['map_size']} / {r['labels_before']} -> {r['landmarks_after']} | "
+                     f"{r['unassigned_before']} -> {r['unassigned_after']} of {r['sightings']} | "
                      f"{r['path_before']:.3f} -> {r['path_after']:.3f} | "
                      f"{r['map_before']:.3f} -> {r['map_after']:.3f} | "
-                     f"{r['seconds']:.2f} ({r['iterations']}, {r['merges']}, {r['splits']}) |")
+                     f"{r['seconds']:.2f} ({r['iterations']}{'' if r['converged'] else '*'}, {r['merges']}, "
+                     f"{r['splits']}) |")
     lines.append("")
     for m in args.methods:
         rs = [r for r in rows if r["method"] == m]
