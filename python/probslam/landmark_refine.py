@@ -1159,7 +1159,10 @@ def refinement_input(run, data, motion_noise=None, measurement_noise=None, *,
     ``command_period`` of control, as the runs take it): the poses are the start (held) and one
     per scan, the odometry between them the controls integrated as the filters predict them.
     Victoria Park: the file's odometry and observation covariances (the noise arguments unused),
-    poses the start and the chain poses with sightings."""
+    poses the start and the chain poses with sightings. A run with known correspondences gives
+    the true ids as labels (less an EKF's gated outliers): geometry alone then has nothing to
+    add, and in MRCLAM Dataset 7's 0.18 m clusters its moves cost 3% of the sightings (first
+    200 s of robot 1): refine runs with hidden correspondences."""
     from .io.landmark_datasets import Mrclam, VictoriaPark
 
     require_fields(run, ("times", "poses", "landmarks", "associations"), "run", "a run (EkfRun or FastSlamRun)")
