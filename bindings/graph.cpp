@@ -403,6 +403,23 @@ void define_graph(py::module_& m) {
         "for a point (m), from the sparse inverse of the information matrix; a fixed vertex has zero\n"
         "covariance. Returns a list of arrays.");
 
+  m.def("joint_marginal_covariances",
+        [](const PoseGraph2D& graph, const std::vector<std::vector<int>>& groups, const std::string& linear_solver,
+           const std::string& ordering) {
+          const SparseCholeskyOptions o = solver_options(linear_solver, ordering);
+          const std::vector<Eigen::MatrixXd> blocks =
+              locked(graph, [&] { return joint_marginal_covariances(graph, groups, o); });
+          py::list out;
+          for (const auto& b : blocks) out.append(py::cast(b));
+          return out;
+        },
+        py::arg("graph"), py::arg("groups"), py::arg("linear_solver") = "simplicial", py::arg("ordering") = "amd",
+        "Joint marginal covariances at the current values, one per group of vertex ids: the covariance\n"
+        "of the group's variables stacked in the order given (3 per pose, 2 per point), cross-covariances\n"
+        "included, from one factorisation (e.g. a landmark pair's (4, 4) for ch. 11.6's correspondence\n"
+        "test). A fixed vertex's rows and columns are zero. ValueError for an unknown id or a group\n"
+        "naming a vertex twice. Returns a list of arrays.");
+
   py::class_<PoseGraphReadReport>(m, "PoseGraphReadReport",
                                   "What read_pose_graph_with_report did with the file's records.")
       .def_readonly("rows", &PoseGraphReadReport::rows,

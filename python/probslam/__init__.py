@@ -49,9 +49,10 @@ from ._core import (
     wrap_angle,
 )
 from . import data, datasets, eval, inverse_learning, io, sim, slam
-from .graph import (IncrementalReport, OptimizationReport, PoseGraph2D, PoseGraphReadReport, initialize_odometry,
-                    marginal_covariances, optimize, optimize_incremental, read_pose_graph, read_pose_graph_with_report,
-                    write_g2o, write_isam)
+from .graph import (IncrementalReport, OptimizationReport, PoseGraph2D, PoseGraphReadReport,
+                    initialize_odometry, joint_marginal_covariances, marginal_covariances, optimize,
+                    optimize_incremental, read_pose_graph, read_pose_graph_with_report, write_g2o,
+                    write_isam)
 from .graphslam import (
     CorrespondenceTest,
     FeatureMerges,
@@ -66,6 +67,7 @@ from .graphslam import (
     graph_slam,
 )
 from .ekf import AssociationResult, EkfSlam, MapManagement, MultiHypothesisEkfSlam, UpdateResult
+from .landmark_refine import LandmarkRefinement, refine_landmarks, refine_run
 from .mapping import MappingSummary, map_laser_log
 from .map_occupancy import MapOccupancyResult, map_occupancy_grid_mapping
 from .inverse_learning import LearnedInverseModel
@@ -119,6 +121,7 @@ __all__ = [
     "datasets",
     "FeatureMerges",
     "GraphSlamResult",
+    "LandmarkRefinement",
     "Measurements",
     "OptimizationReport",
     "PoseGraph2D",
@@ -135,6 +138,9 @@ __all__ = [
     "run_landmark_slam",
     "slam",
     "graph_slam",
+    "refine_landmarks",
+    "refine_run",
+    "joint_marginal_covariances",
     "marginal_covariances",
     "optimize",
     "read_pose_graph",

@@ -495,6 +495,10 @@ def initialize_odometry(graph: PoseGraph2D) -> None:
 def marginal_covariances(graph: PoseGraph2D, ids: Sequence[int], linear_solver: str = "simplicial",
                          ordering: str = "amd") -> List[Array]:
     """(3, 3) per pose id, (2, 2) per point id; zero for a fixed vertex."""
+def joint_marginal_covariances(graph: PoseGraph2D, groups: Sequence[Sequence[int]], linear_solver: str = "simplicial",
+                               ordering: str = "amd") -> List[Array]:
+    """Per group, the joint covariance of its vertices stacked in order (3 per pose, 2 per point),
+    cross-covariances included; zero rows and columns for a fixed vertex."""
 class PoseGraphReadReport:
     """What read_pose_graph_with_report did with the file's records."""
     rows: int  # records read, skipped ones included

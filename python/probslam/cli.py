@@ -17,6 +17,7 @@ from . import __version__, io
 from . import eval as evaluation
 from .data import path as _data_path
 from .datasets import carmen, landmark_dataset_kind, load_landmark_dataset, mrclam, run_landmark_slam
+from .landmark_refine import refine_run
 from .mapping import map_laser_log
 
 BUNDLED_LOG = "intel_excerpt.log.gz"
@@ -248,6 +249,7 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
     _check_output(args.output)
     t0 = time.perf_counter()
     path, kind = _landmark_path(args)
+    _check_refine(args, kind, "ekf-slam")
     mht = args.unknown and args.association == "mht"
     if args.bearing_offset and kind != "mrclam":
         raise UserError("--bearing-offset applies to MRCLAM folders (with --unknown --association mht)")
@@ -273,6 +275,7 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
     if run.associations is not None:
         print(f"associations:  {evaluation.association_accuracy(run):.1%} correct (each landmark's majority barcode), "
               f"{run.associations.applied} of {len(data.measurements)} sightings applied")
+    run = _refined(args, data, run)
     dead, truth, truth_lm = _landmark_score(args, data, run)
 
     def draw(ax):
@@ -291,7 +294,8 @@ def _cmd_fastslam(args: argparse.Namespace) -> int:
     _check_landmark_options(args)
     _check_output(args.output)
     t0 = time.perf_counter()
-    path, _ = _landmark_path(args)
+    path, kind = _landmark_path(args)
+    _check_refine(args, kind, "fastslam")
     data = _landmark_data(args, path)
     run = run_landmark_slam(data, "fastslam", known=not args.unknown, num_particles=args.particles,
                             version=args.variant, seed=args.seed, threads=args.threads, **_landmark_noise(args, data))
@@ -306,6 +310,7 @@ def _cmd_fastslam(args: argparse.Namespace) -> int:
     print(f"landmarks:     {len(run.landmarks)} in the best particle's map")
     if run.associations is not None:
         print(f"associations:  {evaluation.association_accuracy(run):.1%} correct (each landmark's majority label)")
+    run = _refined(args, data, run)
     dead, truth, truth_lm = _landmark_score(args, data, run)
 
     def draw(ax):
@@ -336,6 +341,36 @@ def _landmark_data(args: argparse.Namespace, path: pathlib.Path):
     else:
         _print_skipped({"unreadable records": data.skipped_rows} if data.skipped_rows else {})
     return data
+
+
+def _check_refine(args: argparse.Namespace, kind: str, command: str) -> None:
+    """--refine graphslam needs hidden correspondences (with known ones the labels are the
+    dataset's), and a run with a sighting record (not ekf-slam on Victoria Park, which takes the
+    file's correspondences)."""
+    if args.refine == "none":
+        return
+    if not args.unknown:
+        raise UserError("--refine graphslam needs --unknown (with known correspondences there is nothing to refine)")
+    if command == "ekf-slam" and kind != "mrclam":
+        raise UserError("--refine graphslam applies to MRCLAM folders with ekf-slam (Victoria Park's EKF takes "
+                        "the file's correspondences); use fastslam --unknown for Victoria Park")
+
+
+def _refined(args: argparse.Namespace, data, run):
+    """The run after GraphSLAM's correspondence test (--refine graphslam), its summary printed;
+    the run itself without --refine."""
+    if args.refine == "none":
+        return run
+    noise = _landmark_noise(args, data)
+    refined = refine_run(run, data, noise.get("motion_noise"), noise.get("measurement_noise"))
+    r = refined.result
+    result = refined.as_landmark_slam_result(run)
+    print(f"refinement:    GraphSLAM correspondence test (ch. 11.6): {evaluation.association_accuracy(result):.1%} "
+          f"correct, {len(r.landmarks)} landmarks, {len(r.merges)} merges, {len(r.splits)} sightings moved, "
+          f"{int((r.labels < 0).sum())} unassigned, {r.iterations} rounds, {r.seconds:.2f} s"
+          f"{'' if r.converged else ' (stopped at the round limit)'}; the scores, path and picture below are the "
+          f"refined ones (the picture's ellipses the filter's)")
+    return result
 
 
 def _landmark_noise(args: argparse.Namespace, data) -> dict:
@@ -550,6 +585,9 @@ def _landmark_dataset_options(parser: argparse.ArgumentParser, output: str) -> N
     parser.add_argument("--sigma-phi", type=float, default=mrclam.MEASUREMENT_SIGMA[1], help="bearing noise, rad")
     parser.add_argument("-o", "--output", default=output,
                         help=f"output prefix: PREFIX_trajectory.txt, PREFIX.png (default '{output}')")
+    parser.add_argument("--refine", choices=("none", "graphslam"), default="none",
+                        help="with --unknown: after the filter, GraphSLAM over all sightings with the correspondence "
+                             "test of ch. 11.6 (merge, split, re-associate until stable; docs/landmark_refine.md)")
     _no_plot_option(parser)
 
 

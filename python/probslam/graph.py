@@ -21,7 +21,7 @@ from typing import Optional, Union
 from . import _core
 from .io._files import file_path
 from ._core import (IncrementalReport, OptimizationReport, PoseGraph2D, PoseGraphReadReport, initialize_odometry,
-                    marginal_covariances, optimize, optimize_incremental)
+                    joint_marginal_covariances, marginal_covariances, optimize, optimize_incremental)
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -144,6 +144,7 @@ __all__ = [
     "PoseGraphReadReport",
     "initialize",
     "initialize_odometry",
+    "joint_marginal_covariances",
     "marginal_covariances",
     "optimize",
     "optimize_incremental",

@@ -366,35 +366,62 @@ OptimizationReport optimize(PoseGraph2D& graph, const OptimizerOptions& options)
 std::vector<Eigen::MatrixXd> marginal_covariances(const PoseGraph2D& graph,
                                                   const std::vector<int>& ids,
                                                   const SparseCholeskyOptions& linear_solver) {
-  for (const int id : ids) graph.index_of(id);  // unknown ids first, before any work
+  std::vector<std::vector<int>> groups;
+  groups.reserve(ids.size());
+  for (const int id : ids) groups.push_back({id});
+  return joint_marginal_covariances(graph, groups, linear_solver);
+}
+
+std::vector<Eigen::MatrixXd> joint_marginal_covariances(const PoseGraph2D& graph,
+                                                        const std::vector<std::vector<int>>& groups,
+                                                        const SparseCholeskyOptions& linear_solver) {
+  for (size_t g = 0; g < groups.size(); ++g) {  // unknown or repeated ids first, before any work
+    for (size_t a = 0; a < groups[g].size(); ++a) {
+      graph.index_of(groups[g][a]);
+      for (size_t b = 0; b < a; ++b)
+        if (groups[g][b] == groups[g][a])
+          throw_invalid_argument("groups", "group " + std::to_string(g) + " names vertex " +
+                                               std::to_string(groups[g][a]) + " twice");
+    }
+  }
   validate(graph, {});
   require_anchored(graph);
   NormalEquations equations(graph);
   require_finite_objective(equations.assemble(graph, RobustKernel::kNone, 1.0), "at the current values");
-  SparseCholesky cholesky(linear_solver);
+  const BlockSystem& system = equations.system();
+  // One request per pair of free members (upper blocks only: the inverse is symmetric).
   std::vector<InverseBlock> requests;
-  std::vector<int> request_of(ids.size(), -1);
-  for (size_t k = 0; k < ids.size(); ++k) {
-    const int v = graph.index_of(ids[k]);
-    const int size = equations.system().size(v);
-    if (size == 0) continue;
-    const int offset = equations.system().offset(v);
-    request_of[k] = static_cast<int>(requests.size());
-    requests.push_back({offset, size, offset, size});
-  }
+  for (const std::vector<int>& group : groups)
+    for (size_t a = 0; a < group.size(); ++a)
+      for (size_t b = a; b < group.size(); ++b) {
+        const int va = graph.index_of(group[a]), vb = graph.index_of(group[b]);
+        if (system.size(va) > 0 && system.size(vb) > 0)
+          requests.push_back({system.offset(va), system.size(va), system.offset(vb), system.size(vb)});
+      }
   std::vector<Eigen::MatrixXd> blocks;
   if (!requests.empty()) {
-    factorize(cholesky, graph, equations.system());
+    SparseCholesky cholesky(linear_solver);
+    factorize(cholesky, graph, system);
     blocks = cholesky.inverse_blocks(requests);
   }
   for (const Eigen::MatrixXd& b : blocks)
     require(b.allFinite(), "graph", "marginal covariances are not finite (information too small or too large?)");
   std::vector<Eigen::MatrixXd> out;
-  for (size_t k = 0; k < ids.size(); ++k) {
-    const int v = graph.index_of(ids[k]);
-    const int size = graph.vertex(v).kind == VertexKind::kPose ? 3 : 2;
-    out.push_back(request_of[k] < 0 ? Eigen::MatrixXd::Zero(size, size)
-                                    : blocks[request_of[k]]);
+  out.reserve(groups.size());
+  size_t next = 0;
+  for (const std::vector<int>& group : groups) {
+    std::vector<int> start(group.size() + 1, 0);  // each member's first row in the group's matrix
+    for (size_t a = 0; a < group.size(); ++a)
+      start[a + 1] = start[a] + (graph.vertex(graph.index_of(group[a])).kind == VertexKind::kPose ? 3 : 2);
+    Eigen::MatrixXd joint = Eigen::MatrixXd::Zero(start.back(), start.back());
+    for (size_t a = 0; a < group.size(); ++a)
+      for (size_t b = a; b < group.size(); ++b) {
+        if (system.size(graph.index_of(group[a])) == 0 || system.size(graph.index_of(group[b])) == 0) continue;
+        const Eigen::MatrixXd& block = blocks[next++];
+        joint.block(start[a], start[b], block.rows(), block.cols()) = block;
+        if (b != a) joint.block(start[b], start[a], block.cols(), block.rows()) = block.transpose();
+      }
+    out.push_back(std::move(joint));
   }
   return out;
 }

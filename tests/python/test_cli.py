@@ -548,3 +548,31 @@ def test_a_run_that_does_not_converge_exits_3_not_1(tmp_path, capsys):
     assert cli.main(["optimize", "--max-iterations", "1", "--no-plot", "-o", str(tmp_path / "o")]) == 3
     assert (tmp_path / "o.g2o").exists()  # the result is written all the same
     assert "exit status" in cli.build_parser().format_help() and "3  optimize did not converge" in cli.EPILOG
+
+
+@pytest.mark.parametrize("command", ["ekf-slam", "fastslam"])
+def test_refine_graphslam_prints_and_writes_what_the_library_computes(tmp_path, capsys, command):
+    """--unknown --refine graphslam on the bundled MRCLAM excerpt: the refinement line and the
+    trajectory file are refine_run's on the same run."""
+    assert cli.main([command, "--unknown", "--refine", "graphslam", "--no-plot", "-o", str(tmp_path / "r")]) == 0
+    out = capsys.readouterr().out
+    data = ps.datasets.load_landmark_dataset(ps.data.path("mrclam7_robot1_120s"))
+    run = ps.run_landmark_slam(data, "ekf" if command == "ekf-slam" else "fastslam", known=False)
+    refined = ps.refine_run(run, data, ps.datasets.mrclam.MOTION_NOISE, ps.datasets.mrclam.MEASUREMENT_NOISE)
+    result = refined.as_landmark_slam_result(run)
+    accuracy = ps.eval.association_accuracy(result)
+    assert f"GraphSLAM correspondence test (ch. 11.6): {accuracy:.1%} correct, {len(result.landmarks)} landmarks" in out
+    assert accuracy >= ps.eval.association_accuracy(run)
+    written = np.loadtxt(tmp_path / "r_trajectory.txt")
+    np.testing.assert_allclose(written[:, 1:], refined.result.poses, atol=1e-6)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["ekf-slam", "--refine", "graphslam"], "--refine graphslam needs --unknown"),
+    (["fastslam", "--refine", "graphslam"], "--refine graphslam needs --unknown"),
+    (["ekf-slam", "VICTORIA", "--unknown", "--refine", "graphslam"], "--refine graphslam applies to MRCLAM folders"),
+])
+def test_refine_graphslam_refuses_what_it_cannot_refine(tmp_path, capsys, argv, message):
+    argv = [a if a != "VICTORIA" else ps.data.path("victoria_park_1000.txt") for a in argv]
+    assert cli.main(argv + ["--no-plot", "-o", str(tmp_path / "x")]) == 2
+    assert message in capsys.readouterr().err

@@ -63,4 +63,16 @@ std::vector<Eigen::MatrixXd> marginal_covariances(const PoseGraph2D& graph,
                                                   const std::vector<int>& ids,
                                                   const SparseCholeskyOptions& linear_solver = {});
 
+/// Joint marginal covariances of groups of vertices at the current values: for each group (ids),
+/// the covariance of its vertices' variables stacked in the order given (3 per pose, 2 per
+/// point), the cross-covariances between them included, from one factorisation of the
+/// information matrix (entries inside the factor's pattern from the sparse inverse, the others
+/// by solves; ch. 11.6 tests landmark pairs on these). A fixed vertex's rows and columns are
+/// zero. Throws std::invalid_argument, before any work, for an unknown id or a group naming a
+/// vertex twice (its joint covariance would be singular by construction), and as
+/// marginal_covariances does for the graph.
+std::vector<Eigen::MatrixXd> joint_marginal_covariances(const PoseGraph2D& graph,
+                                                        const std::vector<std::vector<int>>& groups,
+                                                        const SparseCholeskyOptions& linear_solver = {});
+
 }  // namespace probslam
