@@ -775,6 +775,16 @@ def _scaled_polar(noise: np.ndarray, variance: np.ndarray) -> np.ndarray:
     return noise * np.outer(s, s)[None]
 
 
+def _integer_vector(value, name: str, k: int) -> np.ndarray:
+    """value as a (k,) integer array: TypeError naming it for other dtypes, ValueError for another shape."""
+    a = np.asarray(value)
+    if a.dtype.kind not in "iu":
+        raise TypeError(f"{name}: expected integers, got dtype {a.dtype}")
+    if a.shape != (k,):
+        raise ValueError(f"{name}: expected shape ({k},), got {a.shape}")
+    return a
+
+
 def _check_input(poses, odometry, odometry_covariances, pose_index, measurements, labels, measurement_noise,
                  landmarks):
     poses = real_array(poses, "poses", (None, 3))
@@ -787,18 +797,10 @@ def _check_input(poses, odometry, odometry_covariances, pose_index, measurements
     k = len(measurements)
     if np.any(measurements[:, 0] <= 0):
         raise ValueError(f"measurements: ranges must be > 0 (row {int(np.argmax(measurements[:, 0] <= 0))})")
-    index = np.asarray(pose_index)
-    if index.dtype.kind not in "iu":
-        raise TypeError(f"pose_index: expected integers, got dtype {index.dtype}")
-    if index.shape != (k,):
-        raise ValueError(f"pose_index: expected shape ({k},), got {index.shape}")
+    index = _integer_vector(pose_index, "pose_index", k)
     if k and (index.min() < 0 or index.max() >= t):
         raise ValueError(f"pose_index: must lie in [0, {t - 1}] (the rows of poses)")
-    lab = np.asarray(labels)
-    if lab.dtype.kind not in "iu":
-        raise TypeError(f"labels: expected integers, got dtype {lab.dtype}")
-    if lab.shape != (k,):
-        raise ValueError(f"labels: expected shape ({k},), got {lab.shape}")
+    lab = _integer_vector(labels, "labels", k)
     if k and lab.min() < UNASSIGNED:
         raise ValueError(f"labels: a landmark label is >= 0, {UNASSIGNED} marks a sighting of none; got {lab.min()}")
     q = real_array(measurement_noise, "measurement_noise", None)
