@@ -188,7 +188,7 @@ struct FastSlam::Context {
   void bridge_path(FastSlamParticle& part, const Eigen::Vector3d& x) const {
     const std::size_t n = static_cast<std::size_t>(std::max(1, part.moves_since_update));
     const std::vector<Eigen::Vector3d> moved = part.path.newest(n);
-    if (moved.empty() || moved.back() == x) return;
+    if (moved.empty() || moved.back() == x) return;  // a noise-free motion: nothing to move
     Eigen::Vector3d shift = x - moved.back();
     shift[2] = wrap_angle(shift[2]);
     for (std::size_t i = 0; i < moved.size(); ++i) part.path.pop();
@@ -208,15 +208,14 @@ struct FastSlam::Context {
     part.moves_since_update = 0;
   }
 
-  /// Samples the pose from N(mu, p) when a proposal step changed the prior; the path's newest
-  /// entry (this step's motion sample) is replaced by it.
+  /// Samples the pose from N(mu, p) when a proposal step changed the prior; the update's
+  /// end_motion bridges the path to it.
   void take_proposal_sample(FastSlamParticle& part, const Eigen::Vector3d& mu, const Eigen::Matrix3d& p) const {
     const Eigen::Matrix3d l = psd_factor<3>(p);
     const Eigen::Vector3d n(part.rng.normal(), part.rng.normal(), part.rng.normal());
     Eigen::Vector3d x = mu + l * n;
     x[2] = wrap_angle(x[2]);
     require(on_map(x), "z", "moves the pose beyond 1e9 m (kMaxCoordinate)");
-    if (o.record_path) bridge_path(part, x);
     part.pose = x;
   }
 
@@ -614,10 +613,10 @@ void FastSlam::move_particles(Sample&& sample) {
       ParticleRng rng = p.rng;
       // Version 2: the motion prior composes from the last update's pose (has_prior: no update
       // since), so the proposal covers every motion between two updates.
-      const Motion prior{p.pose, p.prior_mean, p.prior_cov};
-      sample(p.pose, rng, next, o_.version == 2 && p.has_prior ? &prior : nullptr);
+      const Motion before{p.pose, p.prior_mean, p.prior_cov};
+      sample(p.pose, rng, next, o_.version == 2 && p.has_prior ? &before : nullptr);
       Move& kept = moves_[i];
-      kept = Move{Motion{p.pose, p.prior_mean, p.prior_cov}, p.rng, p.has_prior, p.moves_since_update, stamp};
+      kept = Move{before, p.rng, p.has_prior, p.moves_since_update, stamp};
       p.rng = rng;
       p.pose = next.pose;
       if (o_.version == 2) {

@@ -1,5 +1,6 @@
-#include <algorithm>
 #include "probslam/fastslam/particles.hpp"
+
+#include <algorithm>
 
 #include "probslam/core/check.hpp"
 
