@@ -510,23 +510,56 @@ def score_landmarks(landmarks: Dict[int, np.ndarray], data: Mrclam,
                          {s: float(e) for (_, s), e in zip(pairs, errors)}, r, t)
 
 
-def _applied_sightings(result) -> Iterator[Tuple[int, int]]:
-    """(true id, filter landmark id) of every sighting a hidden-correspondence run put in its map."""
+def _record(result):
+    """The association record of a hidden-correspondence run."""
     require_fields(result, _RESULT_FIELDS, "result", "a LandmarkSlamResult")
     if result.associations is None:
         raise ValueError("result: a run with known correspondences has no associations to score")
-    record = result.associations
+    return result.associations
+
+
+def _applied_sightings(result) -> Iterator[Tuple[int, int]]:
+    """(true id, filter landmark id) of every sighting a hidden-correspondence run put in its map."""
+    record = _record(result)
     applied = record.ids >= 0
     return zip(record.truth[applied].tolist(), record.ids[applied].tolist())
+
+
+def _labelling(labels, truth) -> Tuple[np.ndarray, np.ndarray]:
+    """(labels, truth) of the labelled sightings (label != -1), checked to be two (K,) arrays."""
+    labels, truth = np.asarray(labels), np.asarray(truth)
+    if labels.shape != truth.shape or labels.ndim != 1:
+        raise ValueError(f"labels, truth: expected two (K,) arrays, got {labels.shape} and {truth.shape}")
+    keep = labels != -1
+    return labels[keep], truth[keep]
+
+
+def majority_truth(labels, truth) -> Dict[int, int]:
+    """A labelling of sightings against their true ids, on arrays: labels (K,) (the landmark each
+    sighting went to, -1 for none), truth (K,): each label -> the true id most of its sightings
+    carry."""
+    labels, truth = _labelling(labels, truth)
+    votes: Dict[int, collections.Counter] = collections.defaultdict(collections.Counter)
+    for lab, t in zip(labels.tolist(), truth.tolist()):
+        votes[int(lab)][int(t)] += 1
+    return {lab: c.most_common(1)[0][0] for lab, c in votes.items()}
+
+
+def sighting_accuracy(labels, truth) -> float:
+    """Fraction of the labelled sightings (label != -1) whose label's majority true id
+    (``majority_truth``) is their own; NaN when none is labelled."""
+    labels, truth = _labelling(labels, truth)
+    if len(labels) == 0:
+        return float("nan")
+    major = majority_truth(labels, truth)
+    return float(np.mean([major[int(lab)] == int(t) for lab, t in zip(labels.tolist(), truth.tolist())]))
 
 
 def majority_labels(result) -> Dict[int, int]:
     """For a run with hidden correspondences: each filter landmark -> the true id (the dataset's
     label) most of its sightings carry."""
-    votes: Dict[int, collections.Counter] = collections.defaultdict(collections.Counter)
-    for t, i in _applied_sightings(result):
-        votes[i][t] += 1
-    return {i: c.most_common(1)[0][0] for i, c in votes.items()}
+    record = _record(result)
+    return majority_truth(record.ids, record.truth)
 
 
 def primary_landmarks(result) -> Dict[int, int]:
@@ -542,9 +575,8 @@ def primary_landmarks(result) -> Dict[int, int]:
 def association_accuracy(result) -> float:
     """Fraction of the sightings put in the map that went to a landmark whose majority true id
     (``majority_labels``) is their own; NaN when none was."""
-    pairs = list(_applied_sightings(result))
-    label = majority_labels(result)
-    return sum(label[i] == t for t, i in pairs) / len(pairs) if pairs else float("nan")
+    record = _record(result)
+    return sighting_accuracy(record.ids, record.truth)
 
 
 __all__ = [
@@ -559,6 +591,7 @@ __all__ = [
     "association_accuracy",
     "interpolate_poses",
     "majority_labels",
+    "majority_truth",
     "nees",
     "primary_landmarks",
     "read_relations",
@@ -567,5 +600,6 @@ __all__ = [
     "rmse",
     "score_landmarks",
     "score_mrclam",
+    "sighting_accuracy",
     "truth_positions",
 ]

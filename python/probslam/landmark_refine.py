@@ -37,7 +37,8 @@ standard deviations of a landmark).
 ``refine_landmarks`` works on arrays; ``refinement_input`` builds them from a filter run over a
 dataset (``probslam.run_landmark_slam``),
 and ``refine_run`` does both: the one entry point for a run.
-``sighting_accuracy`` and ``majority_truth`` score a labelling against the dataset's ids.
+``sighting_accuracy`` and ``majority_truth`` (from ``probslam.eval``) score a labelling against
+the dataset's ids.
 """
 
 from __future__ import annotations
@@ -51,6 +52,7 @@ import numpy as np
 
 from ._args import positive_real, real_array, require_fields, require_instance, require_integer
 from ._core import PoseGraph2D, chi_square_quantile, joint_marginal_covariances, marginal_covariances, optimize
+from .eval import majority_truth, relative_poses, sighting_accuracy  # noqa: F401 (re-exported)
 
 #: A landmark pair merges when the Mahalanobis distance of their difference from 0 is within the
 #: chi-square quantile at this probability (2 dof): a true duplicate pair passes with this
@@ -1016,14 +1018,6 @@ def _compose_pose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
-def _between(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a^-1 (+) b for poses (n, 3): b in a's frame."""
-    c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
-    d = b[:, :2] - a[:, :2]
-    th = b[:, 2] - a[:, 2]
-    return np.column_stack([c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], np.arctan2(np.sin(th), np.cos(th))])
-
-
 @dataclass(frozen=True)
 class RefinementInput:
     """The arrays ``refine_landmarks`` takes, built from a run over a dataset, and what scoring
@@ -1074,7 +1068,7 @@ def _start_pose(times: np.ndarray, poses: np.ndarray, chain_times: np.ndarray, c
     k = np.searchsorted(times, chain_times + 1e-9, side="right") - 1
     k = np.clip(k, 0, len(times) - 1)
     node = np.clip(np.searchsorted(chain_times, times[k] + 1e-9, side="right") - 1, 0, len(chain_times) - 1)
-    return _compose_pose(poses[k], _between(chain[node], chain))
+    return _compose_pose(poses[k], relative_poses(chain[node], chain))
 
 
 def _mrclam_input(run, data, motion_noise, measurement_noise, command_period: float) -> RefinementInput:
@@ -1186,32 +1180,6 @@ def refine_run(run, data, motion_noise=None, measurement_noise=None, *, command_
     go to ``refine_landmarks`` (merge_probability, split_probability, max_iterations)."""
     start = refinement_input(run, data, motion_noise, measurement_noise, command_period=command_period)
     return RunRefinement(start, refine_landmarks(**start.arguments(), **options))
-
-
-def sighting_accuracy(labels, truth) -> float:
-    """Fraction of the labelled sightings (label != UNASSIGNED) whose landmark's most frequent
-    true id is their own (``eval.association_accuracy``'s score, on arrays)."""
-    labels = np.asarray(labels)
-    truth = np.asarray(truth)
-    if labels.shape != truth.shape or labels.ndim != 1:
-        raise ValueError(f"labels, truth: expected two (K,) arrays, got {labels.shape} and {truth.shape}")
-    keep = labels != UNASSIGNED
-    if not keep.any():
-        return float("nan")
-    votes: Dict[int, collections.Counter] = collections.defaultdict(collections.Counter)
-    for lab, t in zip(labels[keep], truth[keep]):
-        votes[int(lab)][int(t)] += 1
-    major = {lab: c.most_common(1)[0][0] for lab, c in votes.items()}
-    return float(np.mean([major[int(lab)] == int(t) for lab, t in zip(labels[keep], truth[keep])]))
-
-
-def majority_truth(labels, truth) -> Dict[int, int]:
-    """Each label's most frequent true id (for scoring a refined map against a survey)."""
-    votes: Dict[int, collections.Counter] = collections.defaultdict(collections.Counter)
-    for lab, t in zip(np.asarray(labels), np.asarray(truth)):
-        if lab != UNASSIGNED:
-            votes[int(lab)][int(t)] += 1
-    return {lab: c.most_common(1)[0][0] for lab, c in votes.items()}
 
 
 __all__ = ["LEAVE_ONE_OUT_RANK_TOLERANCE", "MAX_ITERATIONS", "MERGE_PROBABILITY", "ODOMETRY_COVARIANCE_FLOOR",
