@@ -287,6 +287,10 @@ void define_fastslam(py::module_& m) {
                          "        labelled landmark did not produce; 0: no outlier model.\n"
                          "    association_radius: m; association candidates lie within it plus three standard\n"
                          "        deviations of where the measurement places its landmark.\n"
+                         "    joint_association: update_unknown assigns a scan's measurements jointly (the\n"
+                         "        maximum-likelihood assignment to distinct landmarks or new ones; version 2 with the\n"
+                         "        pose's uncertainty shared by the scan, as JCBB); False: each measurement its most\n"
+                         "        likely landmark, best pairs first.\n"
                          "    cell_size: m, the side of the landmarks' spatial key cells (about association_radius).\n"
                          "    negative_information: update_unknown's existence counter: a landmark inside sensor_range\n"
                          "        (m) and sensor_fov (rad, full opening angle) that is not seen loses existence_miss,\n"
@@ -303,7 +307,8 @@ void define_fastslam(py::module_& m) {
   c.def(py::init([](IntArg num_particles, py::handle motion_noise, py::handle measurement_noise, IntArg version,
                     BoolArg use_signatures, py::handle initial_pose, UInt64Arg seed, IntArg threads,
                     RealArg resample_threshold, RealArg p_new, RealArg outlier_density, RealArg association_radius,
-                    RealArg cell_size, BoolArg negative_information, RealArg existence_hit, RealArg existence_miss,
+                    BoolArg joint_association, RealArg cell_size, BoolArg negative_information,
+                    RealArg existence_hit, RealArg existence_miss,
                     RealArg sensor_range, RealArg sensor_fov, BoolArg record_path, RealArg bearing_offset_sigma,
                     RealArg bearing_offset_correlation) {
           FastSlamOptions o;
@@ -319,6 +324,7 @@ void define_fastslam(py::module_& m) {
           o.p_new = p_new.get("p_new");
           o.outlier_density = outlier_density.get("outlier_density");
           o.association_radius = association_radius.get("association_radius");
+          o.joint_association = joint_association.get("joint_association");
           o.cell_size = cell_size.get("cell_size");
           o.negative_information = negative_information.get("negative_information");
           o.existence_hit = existence_hit.get("existence_hit");
@@ -337,7 +343,8 @@ void define_fastslam(py::module_& m) {
         py::arg("seed") = d.seed, py::arg("threads") = d.threads,
         real_arg("resample_threshold", d.resample_threshold), real_arg("p_new", d.p_new),
         real_arg("outlier_density", d.outlier_density), real_arg("association_radius", d.association_radius),
-        real_arg("cell_size", d.cell_size), py::arg("negative_information") = d.negative_information,
+        py::arg("joint_association") = d.joint_association, real_arg("cell_size", d.cell_size),
+        py::arg("negative_information") = d.negative_information,
         real_arg("existence_hit", d.existence_hit), real_arg("existence_miss", d.existence_miss),
         real_arg("sensor_range", d.sensor_range), real_arg("sensor_fov", d.sensor_fov),
         py::arg("record_path") = d.record_path, real_arg("bearing_offset_sigma", d.bearing_offset_sigma),

@@ -39,17 +39,21 @@ if ! "$py" -c "import atheris" 2>/dev/null; then
   "$py" -m pip install -q --disable-pip-version-check --only-binary=:all: "$FUZZ_PACKAGE" ||
     echo "setup: atheris has no wheel here; scripts/fuzz.sh will skip"
 fi
-# One CMake build directory per environment: two venvs installed from one clone would otherwise
-# share build/{wheel_tag} and rebuild each other from scratch. The name is the venv's, plus a hash
-# of its absolute path (two venvs of one name in different places stay apart).
+# One CMake build directory per environment (scripts/build_root.sh says why).
+source scripts/build_root.sh
 venv_abs="$(cd "$venv" && pwd)"
-venv_name="$(basename "$venv_abs" | sed 's/^\.*//')"
-venv_hash="$(printf '%s' "$venv_abs" | sha1sum | cut -c1-8)"
-build_dir="build/${venv_name:-venv}-$venv_hash/{wheel_tag}"
-mkdir -p "build/${venv_name:-venv}-$venv_hash"
-build_log="build/${venv_name:-venv}-$venv_hash/pip-install.log"  # the last build's full output
+root="$(build_root "$venv")"
+build_dir="$root/{wheel_tag}"
+mkdir -p "$root"
+build_log="$root/pip-install.log"  # the last build's full output
+# PROBSLAM_BUILD_TESTS=1 (scripts/test.sh sets it): the same CMake tree also builds the C++ tests,
+# which ctest then runs there, so the library is compiled once for the wheel and the tests.
+tests_define=()
+if [ "${PROBSLAM_BUILD_TESTS:-0}" = 1 ]; then
+  tests_define=(--config-settings=cmake.define.PROBSLAM_BUILD_TESTS=ON)
+fi
 echo "setup: building and installing probslam into $venv (CMake build directory $build_dir; a first"
-echo "setup: build compiles for several minutes; progress below, the full log in $build_log)"
+echo "setup: build compiles for about 15 minutes on 2 cores; progress below, the full log in $build_log)"
 # Progress: ninja's "[n/N] ..." lines as they come (paths shortened), or a line after every 30 s
 # of silence. A foreground pipeline, so that Ctrl-C stops the build too.
 progress() {
@@ -68,7 +72,7 @@ progress() {
 }
 start=$SECONDS
 if ! PATH="$venv_abs/bin:$PATH" "$py" -m pip install -v --disable-pip-version-check --no-build-isolation \
-    --config-settings=build-dir="$build_dir" . 2>&1 | tee "$build_log" | progress; then
+    --config-settings=build-dir="$build_dir" ${tests_define[@]+"${tests_define[@]}"} . 2>&1 | tee "$build_log" | progress; then
   tail -n 40 "$build_log" >&2
   echo "setup: building probslam failed after $((SECONDS - start)) s; full log: $build_log" >&2
   exit 1

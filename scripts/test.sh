@@ -3,12 +3,18 @@
 # through ctest, then pytest. Exits non-zero on any failure.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/.."
-bash scripts/setup.sh
+# One compile: setup.sh builds the wheel and the C++ tests in one CMake tree (its build
+# directory, build/<venv>-<hash>/<wheel tag>), and ctest runs there.
+PROBSLAM_BUILD_TESTS=1 bash scripts/setup.sh
 venv="$(cd "${PROBSLAM_VENV:-.venv}" && pwd)"
 export PATH="$venv/bin:$PATH"
 jobs="${PROBSLAM_JOBS:-2}"
-
-cmake -S . -B build/ctest -G Ninja -DCMAKE_BUILD_TYPE=Release -DPROBSLAM_BUILD_TESTS=ON >/dev/null
-cmake --build build/ctest -j "$jobs"
-ctest --test-dir build/ctest --output-on-failure -j "$jobs"
+source scripts/build_root.sh
+root="$(build_root "$venv")"
+caches=("$root"/*/CMakeCache.txt)
+if [ ! -f "${caches[0]}" ] || [ "${#caches[@]}" -ne 1 ]; then
+  echo "test: expected one CMake tree under $root, found: ${caches[*]}" >&2
+  exit 1
+fi
+ctest --test-dir "$(dirname "${caches[0]}")" --output-on-failure -j "$jobs"
 "$venv/bin/python" -m pytest tests/python -q -p no:cacheprovider

@@ -340,6 +340,10 @@ class FastSlam:
             0: no outlier model.
         association_radius, cell_size: metres: candidates lie within the radius plus 3 sigma of
             where a measurement places its landmark; the spatial key's cell side.
+        joint_association: update_unknown assigns a scan's measurements jointly, the
+            maximum-likelihood assignment to distinct landmarks or new ones (version 2 with the
+            pose's uncertainty shared by the scan, as JCBB); False: each measurement its most
+            likely landmark, best pairs first.
         negative_information, existence_hit, existence_miss, sensor_range (m), sensor_fov (rad):
             the existence counter of update_unknown (seen: + hit; in range and field of view but
             not seen: - miss; removed below zero). sensor_range must be finite to enable it.
@@ -373,8 +377,8 @@ class FastSlam:
     def __init__(self, num_particles: int, motion_noise: ArrayLike, measurement_noise: ArrayLike, *,
                  version: int = 1, use_signatures: bool = False, initial_pose: ArrayLike = (0.0, 0.0, 0.0),
                  seed: int = 0, threads: int = 1, resample_threshold: float = 0.5, p_new: float = 0.01,
-                 outlier_density: float = 0.0, association_radius: float = 2.0, cell_size: float = 2.0,
-                 negative_information: bool = False, existence_hit: float = 1.0, existence_miss: float = 1.0,
+                 outlier_density: float = 0.0, association_radius: float = 2.0,
+                 joint_association: bool = True, cell_size: float = 2.0, negative_information: bool = False, existence_hit: float = 1.0, existence_miss: float = 1.0,
                  sensor_range: float = math.inf, sensor_fov: float = 6.283185307179586, record_path: bool = True,
                  bearing_offset_sigma: float = 0.0, bearing_offset_correlation: float = 0.0) -> None: ...
     def predict(self, v: float, w: float, dt: float) -> None:

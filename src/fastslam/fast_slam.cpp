@@ -101,6 +101,31 @@ struct Scan {
   double sig(Eigen::Index i) const { return z(i, 2); }
 };
 
+/// An association candidate of one scan: measurement i and a landmark of the particle's map,
+/// with the measurement's log-likelihood under the landmark at the pose prior (its marginal).
+struct Pair {
+  double ll;
+  Eigen::Index i;
+  long id;
+  const Landmark* lm;
+};
+
+/// The joint association's answer: a landmark id per measurement (-1: a new landmark); for
+/// version 2 the proposal after the matched measurements and their joint log-likelihood.
+struct JointAssignment {
+  std::vector<long> ids;
+  double match_log_likelihood = 0.0;
+  bool any = false;
+  Eigen::Vector3d mu = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d p = Eigen::Matrix3d::Zero();
+};
+
+// The joint association's search stops after this many nodes per particle and scan and keeps
+// the best assignment found (its first descent is the per-measurement best, in order of
+// confidence): a scan of k measurements with c candidates each has (c + 1)^k assignments, and a
+// cluttered scan must not stall the filter. MRCLAM's and Victoria Park's scans stay far below.
+constexpr long kJointAssociationMaxNodes = 1L << 14;
+
 }  // namespace
 
 // ---- free functions ----
@@ -311,6 +336,90 @@ struct FastSlam::Context {
   }
 
   // ---- unknown correspondences ----
+  /// Per-scan joint maximum-likelihood association (JCBB's search, for one particle): the
+  /// assignment of measurements to distinct candidate landmarks or to new ones that maximises
+  /// the scan's log-likelihood, each new landmark counted at log p_new. Version 2 scores an
+  /// assignment by the proposal's chain rule (measurement j under the pose conditioned on the
+  /// matched measurements before it), so sightings that share the pose's error are judged
+  /// together; version 1 (the pose known) by the sum of the independent terms. Depth-first,
+  /// measurements in order of their best candidate, candidates best first, pruned by a bound:
+  /// no measurement's term exceeds max(log p_new, the log density of N(0, Q) at its mean),
+  /// since every innovation covariance is Q plus positive semi-definite terms.
+  JointAssignment joint_association(const Scan& s, const std::vector<Pair>& pairs, const Eigen::Vector3d& mu0,
+                                    const Eigen::Matrix3d& p0, bool proposal, double log_p_new_call) const {
+    const Eigen::Index k = s.z.rows();
+    std::vector<std::vector<const Pair*>> cands(static_cast<std::size_t>(k));
+    for (const Pair& pr : pairs) cands[static_cast<std::size_t>(pr.i)].push_back(&pr);
+    const auto better = [](const Pair* a, const Pair* b) { return a->ll != b->ll ? a->ll > b->ll : a->id < b->id; };
+    for (auto& c : cands) std::sort(c.begin(), c.end(), better);
+    JointAssignment best;
+    if (!proposal) {
+      // The pose known, the terms are independent: when no two measurements' best candidates
+      // coincide, each taking its best is the optimum (the common case, at no search).
+      best.ids.assign(static_cast<std::size_t>(k), -1);
+      std::unordered_set<long> firsts;
+      bool distinct = true;
+      for (Eigen::Index i = 0; i < k && distinct; ++i) {
+        const auto& c = cands[static_cast<std::size_t>(i)];
+        if (c.empty()) continue;
+        distinct = firsts.insert(c.front()->id).second;
+        best.ids[static_cast<std::size_t>(i)] = c.front()->id;
+      }
+      if (distinct) return best;
+    }
+    std::vector<Eigen::Index> order(static_cast<std::size_t>(k));
+    for (Eigen::Index i = 0; i < k; ++i) order[static_cast<std::size_t>(i)] = i;
+    const auto best_ll = [&](Eigen::Index i) {
+      const auto& c = cands[static_cast<std::size_t>(i)];
+      return c.empty() ? log_p_new_call : c.front()->ll;
+    };
+    std::stable_sort(order.begin(), order.end(), [&](Eigen::Index a, Eigen::Index b) { return best_ll(a) > best_ll(b); });
+    const double sig_peak = s.signatures ? -0.5 * std::log(kTwoPi * q_sig) : 0.0;
+    const double peak = std::max(log_p_new_call, -0.5 * std::log(kTwoPi * kTwoPi * q.determinant()) + sig_peak);
+    // bound[d]: the most the measurements order[d..] can add.
+    std::vector<double> bound(static_cast<std::size_t>(k) + 1, 0.0);
+    for (Eigen::Index d = k - 1; d >= 0; --d) {
+      const bool matchable = !cands[static_cast<std::size_t>(order[static_cast<std::size_t>(d)])].empty();
+      bound[static_cast<std::size_t>(d)] = bound[static_cast<std::size_t>(d) + 1] + (matchable ? peak : log_p_new_call);
+    }
+    double best_score = -std::numeric_limits<double>::infinity();
+    std::vector<long> current(static_cast<std::size_t>(k), -1);
+    long nodes = 0;
+    // score: the total so far; match: its matched part.
+    const auto search = [&](const auto& self, std::size_t d, const Eigen::Vector3d& mu, const Eigen::Matrix3d& p,
+                            double score, double match, bool any) -> void {
+      if (++nodes > kJointAssociationMaxNodes && best_score > -std::numeric_limits<double>::infinity()) return;
+      if (!(score + bound[d] > best_score)) return;
+      if (d == static_cast<std::size_t>(k)) {
+        best_score = score;
+        best.ids = current;
+        best.match_log_likelihood = match;
+        best.any = any;
+        best.mu = mu;
+        best.p = p;
+        return;
+      }
+      const Eigen::Index i = order[d];
+      for (const Pair* c : cands[static_cast<std::size_t>(i)]) {
+        if (std::find(current.begin(), current.end(), c->id) != current.end()) continue;
+        Eigen::Vector3d mu_next = mu;
+        Eigen::Matrix3d p_next = p;
+        double step = c->ll;
+        if (proposal) {
+          if (!proposal_step(mu_next, p_next, *c->lm, s.rb(i), q, step)) continue;
+          step += sig_log_likelihood(s, i, *c->lm);
+          if (!std::isfinite(step)) continue;
+        }
+        current[static_cast<std::size_t>(i)] = c->id;
+        self(self, d + 1, mu_next, p_next, score + step, match + step, true);
+        current[static_cast<std::size_t>(i)] = -1;
+      }
+      self(self, d + 1, mu, p, score + log_p_new_call, match, any);
+    };
+    search(search, 0, mu0, p0, 0.0, 0.0, false);
+    return best;
+  }
+
   void update_unknown(FastSlamParticle& part, const Scan& given, double log_p_new_call, long* ids_out,
                       std::uint8_t* new_out, std::vector<long>& removed) const {
     RowMatrixXd storage;
@@ -322,11 +431,6 @@ struct FastSlam::Context {
     Eigen::Matrix3d p = proposal ? part.prior_cov : Eigen::Matrix3d::Zero();
     // Candidate pairs whose likelihood exceeds p_new, from the landmarks near where each
     // measurement places its landmark (version 2: the marginal likelihood at the prior mean).
-    struct Pair {
-      double ll;
-      Eigen::Index i;
-      long id;
-    };
     std::vector<Pair> pairs;
     for (Eigen::Index i = 0; i < k; ++i) {
       const Eigen::Vector2d z = s.rb(i);
@@ -341,35 +445,45 @@ struct FastSlam::Context {
         const Eigen::Matrix2d sm = symmetric<2>(pr.hm * lm.cov * pr.hm.transpose()) + q +
                                    symmetric<2>(pr.hx * p * pr.hx.transpose());
         const double ll = log_gauss2(innovation(z, pr.z_hat), sm) + sig_log_likelihood(s, i, lm);
-        if (ll > log_p_new_call) pairs.push_back({ll, i, lm.id});
+        if (ll > log_p_new_call) pairs.push_back({ll, i, lm.id, &lm});
       });
     }
-    // Maximum likelihood, best pairs first, one measurement per landmark and scan.
-    std::sort(pairs.begin(), pairs.end(), [](const Pair& a, const Pair& b) {
-      if (a.ll != b.ll) return a.ll > b.ll;
-      if (a.i != b.i) return a.i < b.i;
-      return a.id < b.id;
-    });
     std::vector<long> assigned(static_cast<std::size_t>(k), -1);
-    std::unordered_set<long> taken;
-    for (const Pair& pr : pairs) {
-      long& a = assigned[static_cast<std::size_t>(pr.i)];
-      if (a < 0 && taken.insert(pr.id).second) a = pr.id;
-    }
     double ll = 0.0;
     std::vector<std::uint8_t> in_proposal(static_cast<std::size_t>(k), 0);
-    if (proposal) {
-      bool any = false;
-      for (Eigen::Index i = 0; i < k; ++i) {
-        if (assigned[static_cast<std::size_t>(i)] < 0) continue;
-        const Landmark& lm = *part.map.find(assigned[static_cast<std::size_t>(i)]);
-        double step = 0.0;
-        if (!proposal_step(mu, p, lm, s.rb(i), q, step)) continue;
-        ll += step + sig_log_likelihood(s, i, lm);
-        in_proposal[static_cast<std::size_t>(i)] = 1;
-        any = true;
+    if (o.joint_association) {
+      const JointAssignment best = joint_association(s, pairs, mu, p, proposal, log_p_new_call);
+      assigned = best.ids;
+      if (proposal && best.any) {
+        for (Eigen::Index i = 0; i < k; ++i) in_proposal[static_cast<std::size_t>(i)] = assigned[static_cast<std::size_t>(i)] >= 0;
+        ll += best.match_log_likelihood;
+        take_proposal_sample(part, best.mu, best.p);
       }
-      if (any) take_proposal_sample(part, mu, p);
+    } else {
+      // Maximum likelihood, best pairs first, one measurement per landmark and scan.
+      std::sort(pairs.begin(), pairs.end(), [](const Pair& a, const Pair& b) {
+        if (a.ll != b.ll) return a.ll > b.ll;
+        if (a.i != b.i) return a.i < b.i;
+        return a.id < b.id;
+      });
+      std::unordered_set<long> taken;
+      for (const Pair& pr : pairs) {
+        long& a = assigned[static_cast<std::size_t>(pr.i)];
+        if (a < 0 && taken.insert(pr.id).second) a = pr.id;
+      }
+      if (proposal) {
+        bool any = false;
+        for (Eigen::Index i = 0; i < k; ++i) {
+          if (assigned[static_cast<std::size_t>(i)] < 0) continue;
+          const Landmark& lm = *part.map.find(assigned[static_cast<std::size_t>(i)]);
+          double step = 0.0;
+          if (!proposal_step(mu, p, lm, s.rb(i), q, step)) continue;
+          ll += step + sig_log_likelihood(s, i, lm);
+          in_proposal[static_cast<std::size_t>(i)] = 1;
+          any = true;
+        }
+        if (any) take_proposal_sample(part, mu, p);
+      }
     }
     std::unordered_set<long> seen;
     for (Eigen::Index i = 0; i < k; ++i) {

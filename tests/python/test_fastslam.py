@@ -602,6 +602,87 @@ def test_unknown_association_takes_one_measurement_per_landmark():
     assert list(ids[0]) == [1, 0] and list(is_new[0]) == [True, False]
 
 
+
+def brute_force_association(x, p, landmarks, z, q, log_p_new):
+    """Every assignment of the scan's measurements to distinct landmarks (those whose marginal
+    log-likelihood at the prior exceeds log p_new) or to new ones, scored as the filter defines
+    it: version 2 (p != 0) by the chain rule, measurements taken in order of their best marginal
+    (the proposal of each the prior of the next, proposal_information_form); version 1 (p = 0) by
+    the sum of the independent terms. Returns (best ids with -1 for new, best score)."""
+    import itertools
+    means, covs = landmarks
+    marginal = np.full((len(z), len(means)), -np.inf)
+    for i, zi in enumerate(z):
+        for j, (m, s) in enumerate(zip(means, covs)):
+            hm, g = jac_landmark(x, m), jac_pose(x, m)
+            marginal[i, j] = log_gauss(innovation(zi, h(x, m)), hm @ s @ hm.T + q + g @ p @ g.T)
+    options = [[-1] + [j for j in range(len(means)) if marginal[i, j] > log_p_new] for i in range(len(z))]
+    best_first = np.array([max([log_p_new] + [marginal[i, j] for j in options[i][1:]]) for i in range(len(z))])
+    order = sorted(range(len(z)), key=lambda i: -best_first[i])  # stable, as the filter's
+    best, best_score = None, -np.inf
+    for choice in itertools.product(*options):
+        used = [j for j in choice if j >= 0]
+        if len(used) != len(set(used)):
+            continue
+        mean, cov, score = x.copy(), p.copy(), 0.0
+        for i in order:
+            j = choice[i]
+            if j < 0:
+                score += log_p_new
+            elif not p.any():
+                score += marginal[i, j]
+            else:
+                mean, cov, ll = proposal_information_form(mean, cov, means[j], covs[j], z[i], q)
+                score += ll
+        if score > best_score + 1e-12:
+            best, best_score = choice, score
+    return list(best), best_score
+
+
+def clustered_scan(rng, landmarks, x, q, k):
+    """k measurements of landmarks drawn (with repeats: two sightings may claim one landmark)
+    from a cluster, with the sensor's noise doubled so that assignments conflict."""
+    picks = rng.choice(len(landmarks), size=k)
+    return np.array([h(x, landmarks[j]) + 2 * rng.normal(size=2) * np.sqrt(np.diag(q)) for j in picks])
+
+
+@pytest.mark.parametrize("version", [1, 2])
+def test_joint_association_is_the_brute_force_optimum(version):
+    """update_unknown's joint association against an exhaustive search written from its
+    definition: on scans of a tight cluster (landmarks 0.2 m apart, three to five sightings, some
+    of one landmark) the ids chosen and the weight factor equal the brute-force optimum's; the
+    greedy association (best pairs first) differs on some of them, so the test can tell."""
+    q = np.diag([0.1 ** 2, 0.03 ** 2])
+    r = np.diag([0.01, 0.01, 0.002])
+    log_p_new = np.log(1e-2)
+    rng = np.random.default_rng(4)
+    cluster = np.array([[4.0, 0.0], [4.0, 0.2], [4.2, 0.1], [3.8, -0.2], [4.3, -0.15]])
+    x0 = np.zeros(3)
+    differs = 0
+    for trial in range(25):
+        made = []
+        for joint in (True, False):
+            f = ps.FastSlam(1, r if version == 2 else np.zeros((3, 3)), q, version=version, seed=trial,
+                            p_new=1e-2, joint_association=joint)
+            f.update_unknown(np.array([h(x0, m) for m in cluster]))  # ids 0-4 at the cluster, exactly
+            if version == 2:
+                f.predict(0.0, 0.0, 1.0)  # the prior N(x0, r): the proposal's uncertainty
+            made.append(f)
+        lm = made[0].landmarks()
+        z = clustered_scan(rng, cluster, x0, q, int(rng.integers(3, 6)))
+        results = [g.update_unknown(z) for g in made]
+        ids, score = brute_force_association(x0, r if version == 2 else np.zeros((3, 3)), (lm.means, lm.covariances),
+                                             z, q, log_p_new)
+        got = [int(i) if not new else -1 for i, new in zip(results[0].ids[0], results[0].is_new[0])]
+        assert got == ids, trial
+        # The weight factor: the matched sightings' log-likelihood (version 2: the chain's) plus
+        # log p_new per new landmark.
+        np.testing.assert_allclose(made[0].last_log_likelihoods[0], score, atol=1e-9)
+        greedy = [int(i) if not new else -1 for i, new in zip(results[1].ids[0], results[1].is_new[0])]
+        differs += greedy != ids
+    assert differs >= 3, differs
+
+
 # ---- bad input --------------------------------------------------------------------------------------
 def make_filter():
     run, q = sim_run(7, steps=8)

@@ -78,6 +78,11 @@ struct FastSlamOptions {
   /// Association candidates of a measurement: the landmarks whose mean is within
   /// association_radius plus three standard deviations of where the measurement places it.
   double association_radius = kDefaultAssociationRadius;
+  /// update_unknown's association of a scan: true, the joint maximum-likelihood assignment of
+  /// the scan's measurements to distinct landmarks or new ones (per particle; version 2 scores
+  /// it with the pose's uncertainty shared by the scan, as JCBB does); false, each measurement
+  /// its most likely landmark, best pairs first, one measurement per landmark.
+  bool joint_association = true;
   /// Side (m) of the square cells of the spatial key; about association_radius.
   double cell_size = kDefaultCellSize;
   /// Negative information in update_unknown: a landmark inside sensor_range and sensor_fov of
