@@ -415,35 +415,56 @@ class TrajectoryError:
     @property
     def statistics(self) -> Dict[str, float]:
         """{name: value} of the statistics evo prints (max, mean, median, min, rmse, sse, std)."""
-        return {name: getattr(self, name) for name in ("max", "mean", "median", "min", "rmse", "sse", "std")}
+        return {name: getattr(self, name) for name in STATISTICS}
 
     def title(self) -> str:
         """evo's title of the result: what was measured and how."""
         if self.metric == "ATE":
             head = "APE w.r.t. translation part (m)"
         else:
-            unit = {"frames": "frames", "m": "m", "s": "s"}[self.delta_unit or "frames"]
-            head = (f"RPE w.r.t. translation part (m)\nfor delta = {self.delta:g} ({unit}) using consecutive "
-                    f"pairs")
+            head = f"RPE w.r.t. translation part (m)\nfor delta = {self.delta:g} ({self.delta_unit}) using consecutive pairs"
         return head + ("\n(with SE(2) Umeyama alignment)" if self.align == "se2" else "\n(not aligned)")
 
     def __str__(self) -> str:
-        """The title and the statistics table, laid out as evo's ``Result.pretty_str``."""
-        return self.title() + "\n\n" + "".join(f"{name:>10}\t{value:.6f}\n" for name, value in self.statistics.items())
+        return statistics_table(self.title(), self.statistics)
+
+
+#: The statistics of errors that evo prints, in its order (alphabetical).
+STATISTICS = ("max", "mean", "median", "min", "rmse", "sse", "std")
+
+
+def error_statistics(errors: object) -> Dict[str, float]:
+    """evo's statistics of errors (K,) >= 0, K >= 1: max, mean, median, min, rmse (root mean
+    square), sse (sum of squares), std (population, ddof=0)."""
+    e = real_array(errors, "errors", (None,))
+    if e.size == 0:
+        raise ValueError("errors: empty (no statistic of nothing)")
+    squares = e ** 2
+    return dict(max=float(np.max(e)), mean=float(np.mean(e)), median=float(np.median(e)), min=float(np.min(e)),
+                rmse=float(np.sqrt(np.mean(squares))), sse=float(np.sum(squares)), std=float(np.std(e)))
+
+
+def statistics_table(title: str, statistics: Dict[str, float]) -> str:
+    """``title``, a blank line and one ``name<TAB>value`` row per statistic, laid out as evo's
+    ``Result.pretty_str`` (names right-aligned in 10 characters, six decimals)."""
+    return title + "\n\n" + "".join(f"{name:>10}\t{value:.6f}\n" for name, value in statistics.items())
 
 
 def _trajectory_error(metric: str, errors: np.ndarray, **fields: Any) -> TrajectoryError:
-    squares = errors ** 2
-    return TrajectoryError(metric, errors, float(np.sqrt(np.mean(squares))), float(np.mean(errors)),
-                           float(np.median(errors)), float(np.std(errors)), float(np.min(errors)),
-                           float(np.max(errors)), float(np.sum(squares)), int(errors.size), **fields)
+    return TrajectoryError(metric, errors, count=int(errors.size), **error_statistics(errors), **fields)
+
+
+#: ``associate`` compares at most this many pairs of times at once when the longer trajectory's
+#: times are not sorted (a search over all of them per time): 2^22 pairs, 32 MiB of doubles.
+ASSOCIATE_CHUNK_PAIRS = 1 << 22
 
 
 def associate(times_a: object, times_b: object, max_time_difference: float = MAX_TIME_DIFFERENCE):
     """Pairs of poses at the same time, as evo's ``sync.associate_trajectories`` makes them:
     each time of the trajectory with fewer poses (``times_b`` when both have as many) is paired
     with the nearest time of the other, if that is at most ``max_time_difference`` (s) away (a
-    tie goes to the earlier). times_a (N,), times_b (M,): seconds, non-decreasing.
+    tie goes to the earlier). times_a (N,), times_b (M,): seconds, in any order (a log's clock
+    may jump back; unsorted times are searched in full, as evo does).
 
     Returns (ia, ib): int64 index arrays of equal length into times_a and times_b, in the
     order of the shorter trajectory's times (an index of the longer one may repeat when it is
@@ -451,36 +472,50 @@ def associate(times_a: object, times_b: object, max_time_difference: float = MAX
     ta = real_array(times_a, "times_a", (None,))
     tb = real_array(times_b, "times_b", (None,))
     limit = positive_real(max_time_difference, "max_time_difference")
-    for name, t in (("times_a", ta), ("times_b", tb)):
-        decreasing = np.flatnonzero(np.diff(t) < 0)
-        if decreasing.size:
-            raise ValueError(f"{name}: decrease at index {int(decreasing[0]) + 1}")
     b_longer = len(tb) > len(ta)
     short, long = (ta, tb) if b_longer else (tb, ta)
     if len(short) == 0 or len(long) == 0:
         return np.empty(0, np.int64), np.empty(0, np.int64)
-    above = np.minimum(np.searchsorted(long, short, side="right"), len(long) - 1)
-    after = long[above] - short
-    before = np.where(above > 0, short - long[np.maximum(above - 1, 0)], np.inf)
-    take_after = (after <= limit) & (after < before)
-    take_before = ~take_after & (before <= limit) & (before <= after)
-    inside = (short >= long[0] - limit) & (short <= long[-1] + limit)
-    keep = inside & (take_after | take_before)
+    if np.all(np.diff(long) >= 0):
+        above = np.minimum(np.searchsorted(long, short, side="right"), len(long) - 1)
+        after = long[above] - short
+        before = np.where(above > 0, short - long[np.maximum(above - 1, 0)], np.inf)
+        take_after = (after <= limit) & (after < before)
+        take_before = ~take_after & (before <= limit) & (before <= after)
+        inside = (short >= long[0] - limit) & (short <= long[-1] + limit)
+        keep = inside & (take_after | take_before)
+        nearest = np.where(take_after, above, above - 1)
+    else:
+        nearest = np.empty(len(short), np.int64)
+        step = max(1, ASSOCIATE_CHUNK_PAIRS // len(long))
+        for a in range(0, len(short), step):
+            nearest[a:a + step] = np.argmin(np.abs(long[None, :] - short[a:a + step, None]), axis=1)
+        keep = np.abs(long[nearest] - short) <= limit
     i_short = np.flatnonzero(keep)
-    i_long = np.where(take_after, above, above - 1)[keep]
+    i_long = nearest[keep].astype(np.int64)
     return (i_short, i_long) if b_longer else (i_long, i_short)
+
+
+def _poses_at_times(times: object, poses: object, which: str) -> Tuple[np.ndarray, np.ndarray]:
+    """Checked (N,) times in any order and (N, 3) poses, N >= 1 (``which``: "est" or "ref")."""
+    ts = real_array(times, f"times_{which}", (None,))
+    ps = real_array(poses, f"poses_{which}", (len(ts), 3))
+    if len(ts) == 0:
+        raise ValueError(f"times_{which}: empty trajectory")
+    return ts, ps
 
 
 def _associated(times_est, poses_est, times_ref, poses_ref, max_time_difference, align):
     """The estimate's and reference's poses at the associated times, the estimate aligned."""
-    te, pe = _trajectory(times_est, poses_est)
-    tr, pr = _trajectory(times_ref, poses_ref)
+    te, pe = _poses_at_times(times_est, poses_est, "est")
+    tr, pr = _poses_at_times(times_ref, poses_ref, "ref")
     if align not in ALIGNMENTS:
         raise ValueError(f"align must be one of {', '.join(map(repr, ALIGNMENTS))}, got {align!r}")
     ie, ir = associate(te, tr, max_time_difference)
     if ie.size == 0:
         raise ValueError(f"times_est: no pose within max_time_difference {max_time_difference:g} s of a reference "
-                         f"pose (estimate [{te[0]:.9g}, {te[-1]:.9g}] s, reference [{tr[0]:.9g}, {tr[-1]:.9g}] s)")
+                         f"pose (estimate [{te.min():.9g}, {te.max():.9g}] s, reference [{tr.min():.9g}, "
+                         f"{tr.max():.9g}] s)")
     est, ref = pe[ie], pr[ir]
     rotation, translation = np.eye(2), np.zeros(2)
     if align == "se2":
@@ -497,15 +532,15 @@ def ate(times_est: object, poses_est: object, times_ref: object, poses_ref: obje
         max_time_difference: float = MAX_TIME_DIFFERENCE) -> TrajectoryError:
     """Absolute trajectory error: evo's APE w.r.t. the translation part.
 
-    times_est (N,), poses_est (N, 3); times_ref (M,), poses_ref (M, 3): seconds (non-decreasing),
-    ``(x m, y m, theta rad)``. Poses are associated by time (``associate``, nearest within
-    ``max_time_difference`` s); with ``align="se2"`` (default) the estimate is moved by the
+    times_est (N,), poses_est (N, 3); times_ref (M,), poses_ref (M, 3): seconds (in any order, as
+    a log with a clock jump has them), ``(x m, y m, theta rad)``. Poses are associated by time
+    (``associate``, nearest within ``max_time_difference`` s); with ``align="se2"`` (default) the estimate is moved by the
     rotation and translation that minimise the squared position errors (``align_rigid``:
     Umeyama without scale, evo's ``--align``), with "none" it is compared as it is. The error of
     a pose is the distance between its position and the reference's.
 
     Returns a ``TrajectoryError`` (metric "ATE"). Errors: ``TypeError`` / ``ValueError`` naming
-    the argument for arrays of the wrong type or shape, NaN or inf, decreasing times, an unknown
+    the argument for arrays of the wrong type or shape, empty, NaN or inf, an unknown
     ``align``, a ``max_time_difference`` that is not finite and > 0, or no pose associated."""
     est, ref, fields = _associated(times_est, poses_est, times_ref, poses_ref, max_time_difference, align)
     errors = np.hypot(est[:, 0] - ref[:, 0], est[:, 1] - ref[:, 1])
@@ -742,18 +777,21 @@ __all__ = [
     "ALIGNMENTS",
     "DELTA_UNITS",
     "MAX_REPORTED_LINES",
+    "ASSOCIATE_CHUNK_PAIRS",
     "MAX_TIME_DIFFERENCE",
     "NEES_SINGULAR_RTOL",
     "LandmarkScore",
     "MrclamScore",
     "Relations",
     "RelationsError",
+    "STATISTICS",
     "SingularCovarianceError",
     "TrajectoryError",
     "align_rigid",
     "associate",
     "ate",
     "association_accuracy",
+    "error_statistics",
     "interpolate_poses",
     "majority_labels",
     "majority_truth",
@@ -766,6 +804,7 @@ __all__ = [
     "rpe",
     "score_landmarks",
     "score_mrclam",
+    "statistics_table",
     "sighting_accuracy",
     "truth_positions",
 ]

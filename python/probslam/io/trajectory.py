@@ -190,8 +190,11 @@ def read_trajectory(path: PathLike, format: str = "auto", times_path: Optional[P
     index, ``times_from_index``, with a warning); the times file must have one time per row of
     the poses file.
 
-    Errors: a missing file raises ``FileNotFoundError``; a path that is not a regular file, a
-    file with no readable row, or timestamps that decrease raise ``ValueError`` naming the file.
+    Timestamps that decrease (a clock jump in a real log) are kept in the file's order, with a
+    warning.
+
+    Errors: a missing file raises ``FileNotFoundError``; a path that is not a regular file or a
+    file with no readable row raises ``ValueError`` naming the file.
     Row-level, as the other readers: rows with another field count, words, NaN or inf, a
     quaternion whose norm is not 1 (within ``QUATERNION_NORM_TOLERANCE``) or a KITTI matrix that
     is not a rotation are skipped, counted in ``skipped_rows`` and announced by one warning
@@ -227,9 +230,11 @@ def read_trajectory(path: PathLike, format: str = "auto", times_path: Optional[P
                       f"{PLANAR_TOLERANCE:g}): read as their 2-D projection (x, y and the yaw)", stacklevel=2)
     decreasing = np.flatnonzero(np.diff(ts) < 0)
     if decreasing.size:
+        # Real logs have clock jumps (the bundled Intel log steps back 1 s); evo reads such files
+        # and associates them by a linear search, as ``eval.associate`` does.
         i = int(decreasing[0])
-        raise ValueError(f"{path}: timestamps decrease at line {read.lines[i + 1]} ({ts[i]:.9g} then "
-                         f"{ts[i + 1]:.9g})")
+        warnings.warn(f"{path}: timestamps decrease {decreasing.size} times, first at line {read.lines[i + 1]} "
+                      f"({ts[i]:.9g} then {ts[i + 1]:.9g}); kept in the file's order", stacklevel=2)
     ps[:, 2] = wrap_angle(ps[:, 2])
     return Trajectory(np.ascontiguousarray(ts, dtype=float), np.ascontiguousarray(ps), kind, projected,
                       read.skipped, read.skipped_lines, from_index)
