@@ -122,11 +122,31 @@ def _pyplot():
 
 
 def _save_figure(plt, fig, path: str) -> str:
-    """Writes `fig` to `path` (120 dpi) and closes it; returns the path."""
+    """Writes `fig` to `path` (120 dpi) and closes it; returns the path. The bounding box is
+    fitted to what is drawn, a legend beside the axes included."""
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    fig.savefig(path, dpi=120, bbox_inches="tight")
     plt.close(fig)
     return path
+
+
+def _map_picture(grid, path: str, trajectory, label: str, title: str) -> str:
+    """PATH.png: the map on metre axes, cropped to its walls with a margin, the trajectory and a
+    legend (``plot.occupancy_map``); without matplotlib the plain picture of ``io.write_png``
+    (one pixel a cell), after a notice. Returns the path."""
+    plt = _pyplot()
+    if plt is None:
+        io.write_png(grid, path, trajectory=trajectory)
+        return path
+    from .plot import crop_bounds, occupancy_map
+
+    r0, r1, c0, c1 = crop_bounds(grid)
+    # Nine inches for the map's longer side and room for the legend beside it.
+    scale = 9.0 / max(r1 - r0, c1 - c0)
+    fig, ax = plt.subplots(figsize=(max((c1 - c0) * scale, 4.0) + 1.0, max((r1 - r0) * scale, 4.0) + 0.8))
+    occupancy_map(ax, grid, trajectory, trajectory_label=label)
+    ax.set_title(title, fontsize="medium")
+    return _save_figure(plt, fig, path)
 
 
 def _read_log(path: str):
@@ -171,8 +191,8 @@ def _cmd_map(args: argparse.Namespace) -> int:
     io.save_ros_map(grid, args.output + ".yaml")
     written = [f"{args.output}.yaml", f"{args.output}.pgm"]
     if args.plot:
-        io.write_png(grid, args.output + ".png", trajectory=log.scans.laser_poses)
-        written.append(f"{args.output}.png")
+        written.append(_map_picture(grid, args.output + ".png", log.scans.laser_poses, "laser poses (the log's)",
+                                    f"probslam map: {os.path.basename(path)}\noccupancy grid at the log's poses"))
     total = time.perf_counter() - t0
     rate = summary.beams / summary.seconds / 1e6 if summary.seconds > 0 else float("inf")
     print(f"log:           {path}{' (bundled Intel Research Lab excerpt)' if not args.log else ''}")
@@ -209,8 +229,10 @@ def _cmd_slam(args: argparse.Namespace) -> int:
     io.save_ros_map(result.grid, args.output + ".yaml")
     written = [f"{args.output}.yaml", f"{args.output}.pgm"]
     if args.plot:
-        io.write_png(result.grid, args.output + ".png", trajectory=result.poses)
-        written.append(f"{args.output}.png")
+        how = ("grid-based FastSLAM, best of " + str(args.particles) + " particles" if args.method == "rbpf" else
+               "GraphSLAM over submaps")
+        written.append(_map_picture(result.grid, args.output + ".png", result.poses, "SLAM laser poses",
+                                    f"probslam slam --method {args.method}: {os.path.basename(path)}\n{how}"))
     _write_trajectory(args, result.timestamps, result.poses, written)
     if result.graph is not None:
         write_g2o(result.graph, args.output + ".g2o")
@@ -282,6 +304,8 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
     def draw(ax):
         landmark_map(ax, run.poses, run.filter, truth_path=truth, truth_landmarks=truth_lm,
                      dead_reckoning=None if dead is None else dead.poses, truth_landmarks_label=_survey_label(data))
+        how = f"unknown correspondences, {args.association}" if args.unknown and is_mrclam else "known correspondences"
+        ax.set_title(f"probslam ekf-slam: {_dataset_name(args, path, data)}\nEKF SLAM, {how}", fontsize="medium")
 
     return _landmark_outputs(args, run, draw, t0)
 
@@ -318,8 +342,17 @@ def _cmd_fastslam(args: argparse.Namespace) -> int:
     def draw(ax):
         fastslam_map(ax, run.filter, truth_path=truth, truth_landmarks=truth_lm,
                      truth_landmarks_label=_survey_label(data), dead_reckoning=None if dead is None else dead.poses)
+        ax.set_title(f"probslam fastslam: {_dataset_name(args, path, data)}\nFastSLAM {args.variant}.0, "
+                     f"{args.particles} particles, {correspondences} correspondences", fontsize="medium")
 
     return _landmark_outputs(args, run, draw, t0)
+
+
+def _dataset_name(args: argparse.Namespace, path: pathlib.Path, data) -> str:
+    """The data a landmark picture shows, for its title."""
+    if isinstance(data, io.Mrclam):
+        return f"UTIAS MRCLAM {path.name} robot {args.robot}" + (f", {args.seconds:g} s" if args.seconds else "")
+    return f"Victoria Park {path.name}"
 
 
 def _landmark_path(args: argparse.Namespace):
@@ -401,6 +434,10 @@ def _landmark_outputs(args: argparse.Namespace, run, draw, t0: float) -> int:
     if plt is not None:
         fig, ax = plt.subplots(figsize=(8, 8))
         draw(ax)
+        (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+        # Eight inches of map in the data's own shape (Victoria Park is five times as wide as tall;
+        # 3 to 10 inches tall), and 3.5 beside it for the legend.
+        fig.set_size_inches(11.5, min(max(8 * (y1 - y0) / max(x1 - x0, 1e-9), 3.0), 10.0) + 1.0)
         written.insert(0, _save_figure(plt, fig, args.output + ".png"))
     print(f"time:          {time.perf_counter() - t0:.2f} s total")
     print(f"wrote:         {', '.join(written)}")
@@ -559,7 +596,8 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
 
         fig, ax = plt.subplots(figsize=(8, 8))
         pose_graph(ax, g, initial=initial, edges=args.edges)
-        ax.set_title(f"{os.path.basename(path)}: chi2 {report.chi2:.4f}")
+        ax.set_title(f"probslam optimize: {os.path.basename(path)}\n{args.algorithm}, chi2 {report.initial_chi2:.4g} "
+                     f"-> {report.chi2:.4g} in {report.iterations} iterations", fontsize="medium")
         written.append(_save_figure(plt, fig, args.output + ".png"))
     print(f"wrote:      {', '.join(written)}")
     return 0 if report.converged else EXIT_NOT_CONVERGED
