@@ -828,9 +828,9 @@ def build_parser() -> argparse.ArgumentParser:
 
     ev = sub.add_parser("eval", help="score a trajectory against a ground truth: absolute or relative trajectory "
                                      "error (as evo_ape / evo_rpe print them), or the relations error")
-    ev.add_argument("estimate", help="the trajectory to score: TUM, KITTI (times in NAME_times.txt) or 't x y theta' "
+    ev.add_argument("estimate", metavar="EST", help="the trajectory to score: TUM, KITTI (times in NAME_times.txt) or 't x y theta' "
                                      "rows, as the commands write it (PREFIX_trajectory.tum)")
-    ev.add_argument("reference", help="the ground truth: a trajectory file as EST, or a relations file (a name with "
+    ev.add_argument("reference", metavar="REF", help="the ground truth: a trajectory file as EST, or a relations file (a name with "
                                       "'.relations', e.g. aces.relations; scored as 'slam' scores its logs)")
     ev.add_argument("--reference-format", choices=("auto",) + TRAJECTORY_FORMATS + ("relations",), default="auto",
                     help="what REF is (default: relations when its name has '.relations', else the trajectory "
