@@ -109,6 +109,16 @@ def relations(ws: Workspace, data: bytes) -> None:
     ev.read_relations(ws.write("log.relations" + suffix, data))
 
 
+def trajectory(ws: Workspace, data: bytes) -> None:
+    """A trajectory file in any of its formats (the field count decides); KITTI rows read their
+    times from a times file that the input's second part fills."""
+    from probslam import io
+    poses, times = _parts(data, 2)
+    ws.clear()
+    ws.write("traj_times.txt", times)
+    io.read_trajectory(ws.write("traj.txt", poses))
+
+
 def learned_model(ws: Workspace, data: bytes) -> None:
     import probslam as ps
     ps.LearnedInverseModel.load(ws.write("model.npz", data))
@@ -127,6 +137,7 @@ TARGETS: Dict[str, Callable[[Workspace, bytes], None]] = {
     "victoria_park": victoria_park,
     "relations": relations,
     "learned_model": learned_model,
+    "trajectory": trajectory,
 }
 
 

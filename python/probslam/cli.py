@@ -18,6 +18,7 @@ from . import eval as evaluation
 from .data import path as _data_path
 from .datasets import carmen, landmark_dataset_kind, load_landmark_dataset, mrclam, run_landmark_slam
 from .landmark_refine import refine_run
+from .io.trajectory import EXTENSIONS, TRAJECTORY_FORMATS
 from .mapping import map_laser_log
 
 BUNDLED_LOG = "intel_excerpt.log.gz"
@@ -121,11 +122,31 @@ def _pyplot():
 
 
 def _save_figure(plt, fig, path: str) -> str:
-    """Writes `fig` to `path` (120 dpi) and closes it; returns the path."""
+    """Writes `fig` to `path` (120 dpi) and closes it; returns the path. The bounding box is
+    fitted to what is drawn, a legend beside the axes included."""
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    fig.savefig(path, dpi=120, bbox_inches="tight")
     plt.close(fig)
     return path
+
+
+def _map_picture(grid, path: str, trajectory, label: str, title: str) -> str:
+    """PATH.png: the map on metre axes, cropped to its walls with a margin, the trajectory and a
+    legend (``plot.occupancy_map``); without matplotlib the plain picture of ``io.write_png``
+    (one pixel a cell), after a notice. Returns the path."""
+    plt = _pyplot()
+    if plt is None:
+        io.write_png(grid, path, trajectory=trajectory)
+        return path
+    from .plot import crop_bounds, occupancy_map
+
+    r0, r1, c0, c1 = crop_bounds(grid)
+    # Nine inches for the map's longer side and room for the legend beside it.
+    scale = 9.0 / max(r1 - r0, c1 - c0)
+    fig, ax = plt.subplots(figsize=(max((c1 - c0) * scale, 4.0) + 1.0, max((r1 - r0) * scale, 4.0) + 0.8))
+    occupancy_map(ax, grid, trajectory, trajectory_label=label)
+    ax.set_title(title, fontsize="medium")
+    return _save_figure(plt, fig, path)
 
 
 def _read_log(path: str):
@@ -148,13 +169,12 @@ def _check_output(prefix: str) -> None:
         raise UserError(f"-o {prefix}: folder {folder} is not writable")
 
 
-def _write_trajectory(prefix: str, times, poses, written: List[str]) -> None:
-    """PREFIX_trajectory.txt: one line per pose, ``timestamp x y theta`` (every command's
-    trajectory, one format)."""
-    from .slam import write_trajectory
-
-    write_trajectory(times, poses, prefix + "_trajectory.txt")
-    written.append(prefix + "_trajectory.txt")
+def _write_trajectory(args: argparse.Namespace, times, poses, written: List[str]) -> None:
+    """PREFIX_trajectory.tum (or .kitti with PREFIX_trajectory_times.txt, or .txt as ``timestamp
+    x y theta``: --trajectory-format): every command's trajectory, with its timestamps, through
+    one writer (``io.write_trajectory``)."""
+    fmt = args.trajectory_format
+    written.extend(io.write_trajectory(times, poses, args.output + "_trajectory" + EXTENSIONS[fmt], format=fmt))
 
 
 def _cmd_map(args: argparse.Namespace) -> int:
@@ -171,8 +191,8 @@ def _cmd_map(args: argparse.Namespace) -> int:
     io.save_ros_map(grid, args.output + ".yaml")
     written = [f"{args.output}.yaml", f"{args.output}.pgm"]
     if args.plot:
-        io.write_png(grid, args.output + ".png", trajectory=log.scans.laser_poses)
-        written.append(f"{args.output}.png")
+        written.append(_map_picture(grid, args.output + ".png", log.scans.laser_poses, "laser poses (the log's)",
+                                    f"probslam map: {os.path.basename(path)}\noccupancy grid at the log's poses"))
     total = time.perf_counter() - t0
     rate = summary.beams / summary.seconds / 1e6 if summary.seconds > 0 else float("inf")
     print(f"log:           {path}{' (bundled Intel Research Lab excerpt)' if not args.log else ''}")
@@ -209,9 +229,11 @@ def _cmd_slam(args: argparse.Namespace) -> int:
     io.save_ros_map(result.grid, args.output + ".yaml")
     written = [f"{args.output}.yaml", f"{args.output}.pgm"]
     if args.plot:
-        io.write_png(result.grid, args.output + ".png", trajectory=result.poses)
-        written.append(f"{args.output}.png")
-    _write_trajectory(args.output, result.timestamps, result.poses, written)
+        how = ("grid-based FastSLAM, best of " + str(args.particles) + " particles" if args.method == "rbpf" else
+               "GraphSLAM over submaps")
+        written.append(_map_picture(result.grid, args.output + ".png", result.poses, "SLAM laser poses",
+                                    f"probslam slam --method {args.method}: {os.path.basename(path)}\n{how}"))
+    _write_trajectory(args, result.timestamps, result.poses, written)
     if result.graph is not None:
         write_g2o(result.graph, args.output + ".g2o")
         written.append(f"{args.output}.g2o")
@@ -260,7 +282,8 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
     hypotheses = dict(bearing_offset_sigma=args.bearing_offset) if args.bearing_offset else None
     # Victoria Park: the EKF takes the file's correspondences, with or without --unknown.
     run = run_landmark_slam(data, "mht" if mht else "ekf", known=not (args.unknown and is_mrclam),
-                            association=args.association, hypotheses=hypotheses, **_landmark_noise(args, data))
+                            association=args.association, hypotheses=hypotheses, progress=_progress(args),
+                            **_landmark_noise(args, data))
     if is_mrclam:
         print(f"dataset:       UTIAS MRCLAM {path} robot {args.robot}, "
               f"{'unknown (' + args.association + ')' if args.unknown else 'known'} correspondences, "
@@ -281,6 +304,8 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
     def draw(ax):
         landmark_map(ax, run.poses, run.filter, truth_path=truth, truth_landmarks=truth_lm,
                      dead_reckoning=None if dead is None else dead.poses, truth_landmarks_label=_survey_label(data))
+        how = f"unknown correspondences, {args.association}" if args.unknown and is_mrclam else "known correspondences"
+        ax.set_title(f"probslam ekf-slam: {_dataset_name(args, path, data)}\nEKF SLAM, {how}", fontsize="medium")
 
     return _landmark_outputs(args, run, draw, t0)
 
@@ -298,7 +323,8 @@ def _cmd_fastslam(args: argparse.Namespace) -> int:
     _check_refine(args, kind, "fastslam")
     data = _landmark_data(args, path)
     run = run_landmark_slam(data, "fastslam", known=not args.unknown, num_particles=args.particles,
-                            version=args.variant, seed=args.seed, threads=args.threads, **_landmark_noise(args, data))
+                            version=args.variant, seed=args.seed, threads=args.threads, progress=_progress(args),
+                            **_landmark_noise(args, data))
     correspondences = "unknown" if args.unknown else "known"
     if isinstance(data, io.Mrclam):
         print(f"dataset:       UTIAS MRCLAM {path} robot {args.robot}, {correspondences} correspondences")
@@ -316,8 +342,17 @@ def _cmd_fastslam(args: argparse.Namespace) -> int:
     def draw(ax):
         fastslam_map(ax, run.filter, truth_path=truth, truth_landmarks=truth_lm,
                      truth_landmarks_label=_survey_label(data), dead_reckoning=None if dead is None else dead.poses)
+        ax.set_title(f"probslam fastslam: {_dataset_name(args, path, data)}\nFastSLAM {args.variant}.0, "
+                     f"{args.particles} particles, {correspondences} correspondences", fontsize="medium")
 
     return _landmark_outputs(args, run, draw, t0)
+
+
+def _dataset_name(args: argparse.Namespace, path: pathlib.Path, data) -> str:
+    """The data a landmark picture shows, for its title."""
+    if isinstance(data, io.Mrclam):
+        return f"UTIAS MRCLAM {path.name} robot {args.robot}" + (f", {args.seconds:g} s" if args.seconds else "")
+    return f"Victoria Park {path.name}"
 
 
 def _landmark_path(args: argparse.Namespace):
@@ -386,19 +421,23 @@ def _landmark_score(args: argparse.Namespace, data, run):
     reckoning run, ground-truth path (T, 2), landmarks) to draw (None where there is none)."""
     if not isinstance(data, io.Mrclam):
         return None, None, None
-    dead = run_landmark_slam(data, "dead-reckoning", **_landmark_noise(args, data))
+    dead = run_landmark_slam(data, "dead-reckoning", progress=False, **_landmark_noise(args, data))
     labels = evaluation.majority_labels(run) if run.associations is not None else None
     return (dead,) + _print_mrclam_score(data, run, dead, labels)
 
 
 def _landmark_outputs(args: argparse.Namespace, run, draw, t0: float) -> int:
-    """PREFIX_trajectory.txt, and PREFIX.png drawn by ``draw(ax)`` unless --no-plot; the time."""
+    """PREFIX_trajectory.tum (--trajectory-format), and PREFIX.png drawn by ``draw(ax)`` unless --no-plot; the time."""
     written: List[str] = []
-    _write_trajectory(args.output, run.times, run.poses, written)
+    _write_trajectory(args, run.times, run.poses, written)
     plt = _pyplot() if args.plot else None
     if plt is not None:
         fig, ax = plt.subplots(figsize=(8, 8))
         draw(ax)
+        (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+        # Eight inches of map in the data's own shape (Victoria Park is five times as wide as tall;
+        # 3 to 10 inches tall), and 3.5 beside it for the legend.
+        fig.set_size_inches(11.5, min(max(8 * (y1 - y0) / max(x1 - x0, 1e-9), 3.0), 10.0) + 1.0)
         written.insert(0, _save_figure(plt, fig, args.output + ".png"))
     print(f"time:          {time.perf_counter() - t0:.2f} s total")
     print(f"wrote:         {', '.join(written)}")
@@ -515,6 +554,8 @@ def _print_map_score(data, run, labels):
 
 
 def _cmd_optimize(args: argparse.Namespace) -> int:
+    import numpy as np
+
     from . import graph as pg
 
     _require_count(args.max_iterations, "--max-iterations", 0)
@@ -547,16 +588,92 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
           f"optimisation {t_opt:.3f} s, file to result {time.perf_counter() - t0:.3f} s")
     pg.write_g2o(g, args.output + ".g2o")
     written = [args.output + ".g2o"]
+    order = np.argsort(g.pose_ids, kind="stable")
+    _write_trajectory(args, np.asarray(g.pose_ids, dtype=float)[order], g.poses[order], written)
     plt = _pyplot() if args.plot else None
     if plt is not None:
         from .plot import pose_graph
 
         fig, ax = plt.subplots(figsize=(8, 8))
         pose_graph(ax, g, initial=initial, edges=args.edges)
-        ax.set_title(f"{os.path.basename(path)}: chi2 {report.chi2:.4f}")
+        ax.set_title(f"probslam optimize: {os.path.basename(path)}\n{args.algorithm}, chi2 {report.initial_chi2:.4g} "
+                     f"-> {report.chi2:.4g} in {report.iterations} iterations", fontsize="medium")
         written.append(_save_figure(plt, fig, args.output + ".png"))
     print(f"wrote:      {', '.join(written)}")
     return 0 if report.converged else EXIT_NOT_CONVERGED
+
+
+#: What ``probslam eval`` reads.
+TRAJECTORY_FILE = "a trajectory: TUM (t x y z qx qy qz qw), KITTI (12 numbers a row) or 't x y theta' rows"
+RELATIONS_FILE = "a Freiburg relations file (t1 t2 x y z roll pitch yaw rows)"
+
+
+def _read_trajectory_file(path: str, role: str):
+    """A trajectory file read for ``eval``, what was skipped or projected printed."""
+    _check_input(path, TRAJECTORY_FILE)
+    with _reading(path, TRAJECTORY_FILE):
+        trajectory = io.read_trajectory(path)
+    notes = [f"{trajectory.skipped_rows} unreadable rows skipped"] if trajectory.skipped_rows else []
+    if trajectory.projected_rows:
+        notes.append(f"{trajectory.projected_rows} non-planar rows read as their 2-D projection")
+    if trajectory.times_from_index:
+        notes.append("no times file: the row index is the time")
+    print(f"{role:<15}{path}: {len(trajectory)} poses ({trajectory.format.upper()}"
+          f"{'; ' + '; '.join(notes) if notes else ''})")
+    return trajectory
+
+
+def _is_relations(path: str, ref_format: str) -> bool:
+    if ref_format != "auto":
+        return ref_format == "relations"
+    name = os.path.basename(path).lower()
+    return ".relations" in name
+
+
+def _cmd_eval(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    _require_length(args.max_time_difference, "--max-time-difference")
+    _require_length(args.delta, "--delta")
+    if args.delta_unit == "frames" and args.delta != int(args.delta):
+        raise UserError(f"--delta must be a whole number of frames with --delta-unit frames, got {args.delta:g}")
+    est = _read_trajectory_file(args.estimate, "estimate:")
+    if _is_relations(args.reference, args.reference_format):
+        if args.rpe or args.align:
+            raise UserError("--rpe and --align apply to a reference trajectory, not to relations (relative poses "
+                            "need no alignment)")
+        _check_input(args.reference, RELATIONS_FILE)
+        with _reading(args.reference, RELATIONS_FILE):
+            relations = evaluation.read_relations(args.reference)
+            error = evaluation.relations_error(est.timestamps, est.poses, relations)
+        print(f"{'reference:':<15}{args.reference}: {len(relations)} relations"
+              + (f" ({relations.skipped_rows} unreadable rows skipped)" if relations.skipped_rows else ""))
+        print(f"{'relations:':<15}{len(error.used)} used, {error.skipped} outside the estimate's time span\n")
+        print(evaluation.statistics_table("relations error w.r.t. translation part (m)",
+                                          evaluation.error_statistics(error.translational)))
+        print(evaluation.statistics_table("relations error w.r.t. rotation angle in degrees (deg)",
+                                          evaluation.error_statistics(np.degrees(error.rotational))), end="")
+        return 0
+    if args.reference_format != "auto":
+        _check_input(args.reference, TRAJECTORY_FILE)
+        with _reading(args.reference, TRAJECTORY_FILE):
+            ref = io.read_trajectory(args.reference, format=args.reference_format)
+        print(f"{'reference:':<15}{args.reference}: {len(ref)} poses ({ref.format.upper()})")
+    else:
+        ref = _read_trajectory_file(args.reference, "reference:")
+    align = "se2" if (args.align if args.align is not None else not args.rpe) else "none"
+    with _reading(args.estimate, TRAJECTORY_FILE):
+        if args.rpe:
+            result = evaluation.rpe(est.timestamps, est.poses, ref.timestamps, ref.poses, delta=args.delta,
+                                    delta_unit=args.delta_unit, align=align,
+                                    max_time_difference=args.max_time_difference)
+        else:
+            result = evaluation.ate(est.timestamps, est.poses, ref.timestamps, ref.poses, align=align,
+                                    max_time_difference=args.max_time_difference)
+    print(f"{'associated:':<15}{result.matched} of {min(len(est), len(ref))} possible pose pairs within "
+          f"{args.max_time_difference:g} s" + (f"; {result.count} relative pairs" if args.rpe else "") + "\n")
+    print(result, end="")
+    return 0
 
 
 def _no_plot_option(parser: argparse.ArgumentParser) -> None:
@@ -564,9 +681,23 @@ def _no_plot_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-plot", dest="plot", action="store_false", help="write no picture")
 
 
+def _progress(args: argparse.Namespace) -> Optional[bool]:
+    """The drivers' ``progress``: a bar on a terminal (None) unless --no-progress."""
+    return None if args.progress else False
+
+
 def _no_progress_option(parser: argparse.ArgumentParser) -> None:
     """--no-progress, on every command that shows a progress bar."""
     parser.add_argument("--no-progress", dest="progress", action="store_false", help="never show a progress bar")
+
+
+def _trajectory_format_option(parser: argparse.ArgumentParser, times: str) -> None:
+    """--trajectory-format, on every command that writes a path; ``times`` says what its
+    timestamps are."""
+    parser.add_argument("--trajectory-format", choices=TRAJECTORY_FORMATS, default="tum",
+                        help="PREFIX_trajectory.tum: TUM rows 't x y z qx qy qz qw' (default; evo reads it), "
+                             "PREFIX_trajectory.kitti: KITTI 3x4 [R|t] rows with the times in "
+                             f"PREFIX_trajectory_times.txt, or PREFIX_trajectory.txt: 't x y theta'; {times}")
 
 
 def _landmark_dataset_options(parser: argparse.ArgumentParser, output: str) -> None:
@@ -584,10 +715,13 @@ def _landmark_dataset_options(parser: argparse.ArgumentParser, output: str) -> N
     parser.add_argument("--sigma-r", type=float, default=mrclam.MEASUREMENT_SIGMA[0], help="range noise, m")
     parser.add_argument("--sigma-phi", type=float, default=mrclam.MEASUREMENT_SIGMA[1], help="bearing noise, rad")
     parser.add_argument("-o", "--output", default=output,
-                        help=f"output prefix: PREFIX_trajectory.txt, PREFIX.png (default '{output}')")
+                        help=f"output prefix: PREFIX_trajectory.tum, PREFIX.png (default '{output}')")
+    _trajectory_format_option(parser, "times in seconds (MRCLAM) or the pose's index (Victoria Park, whose file has "
+                                      "no times)")
     parser.add_argument("--refine", choices=("none", "graphslam"), default="none",
                         help="with --unknown: after the filter, GraphSLAM over all sightings with the correspondence "
                              "test of ch. 11.6 (merge, split, re-associate until stable; docs/landmark_refine.md)")
+    _no_progress_option(parser)
     _no_plot_option(parser)
 
 
@@ -632,8 +766,9 @@ def build_parser() -> argparse.ArgumentParser:
                     help="rbpf: scan-matching (GMapping's improved proposal, default), motion (the plain filter) "
                          "or improved-odometry (odometry corrected by scan matching, then the plain filter)")
     sl.add_argument("-o", "--output", default="slam",
-                    help="output prefix: PREFIX.yaml/.pgm/.png, PREFIX_trajectory.txt, PREFIX.g2o (graph only; "
+                    help="output prefix: PREFIX.yaml/.pgm/.png, PREFIX_trajectory.tum, PREFIX.g2o (graph only; "
                          "default 'slam')")
+    _trajectory_format_option(sl, "the laser poses at the log's scan times (s)")
     _no_progress_option(sl)
     _no_plot_option(sl)
     sl.set_defaults(func=_cmd_slam)
@@ -686,8 +821,32 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("--ordering", default="amd", choices=["amd", "metis"])
     o.add_argument("--edges", action="store_true", help="draw every edge in the picture")
     _no_plot_option(o)
-    o.add_argument("-o", "--output", default="optimized", help="output prefix: PREFIX.g2o/.png (default 'optimized')")
+    o.add_argument("-o", "--output", default="optimized",
+                   help="output prefix: PREFIX.g2o/.png, PREFIX_trajectory.tum (default 'optimized')")
+    _trajectory_format_option(o, "a graph file has no times: each pose's vertex id is its time")
     o.set_defaults(func=_cmd_optimize)
+
+    ev = sub.add_parser("eval", help="score a trajectory against a ground truth: absolute or relative trajectory "
+                                     "error (as evo_ape / evo_rpe print them), or the relations error")
+    ev.add_argument("estimate", metavar="EST", help="the trajectory to score: TUM, KITTI (times in NAME_times.txt) or 't x y theta' "
+                                     "rows, as the commands write it (PREFIX_trajectory.tum)")
+    ev.add_argument("reference", metavar="REF", help="the ground truth: a trajectory file as EST, or a relations file (a name with "
+                                      "'.relations', e.g. aces.relations; scored as 'slam' scores its logs)")
+    ev.add_argument("--reference-format", choices=("auto",) + TRAJECTORY_FORMATS + ("relations",), default="auto",
+                    help="what REF is (default: relations when its name has '.relations', else the trajectory "
+                         "format its rows show)")
+    ev.add_argument("--rpe", action="store_true",
+                    help="relative pose error over consecutive pairs --delta apart (default: absolute error)")
+    ev.add_argument("--delta", type=float, default=1.0, help="with --rpe: the pairs' distance (default 1)")
+    ev.add_argument("--delta-unit", choices=("frames", "m", "s"), default="frames",
+                    help="with --rpe: delta in poses (default), metres travelled or seconds")
+    ev.add_argument("--align", action=argparse.BooleanOptionalAction, default=None,
+                    help="move the estimate onto the reference by the best rotation and translation (Umeyama "
+                         "without scale) first; default: aligned for the absolute error, not for --rpe (as evo)")
+    ev.add_argument("--max-time-difference", type=float, default=0.01,
+                    help="poses are paired with the nearest reference pose at most this far in time, s (default "
+                         "0.01, evo's)")
+    ev.set_defaults(func=_cmd_eval)
     return parser
 
 

@@ -13,24 +13,19 @@ Units: metres, radians and seconds; poses are ``(x, y, theta)`` with theta in (-
 from __future__ import annotations
 
 import collections
-import io as _io
 import math
 import os
-import warnings
 from dataclasses import dataclass, field
-from typing import Dict, Iterable, Iterator, List, Optional, Tuple, Union
+from typing import Any, Dict, Iterator, List, Optional, Tuple, Union
 
 import numpy as np
 
-from ._args import real_array, require_fields, require_instance
+from ._args import positive_real, real_array, require_fields, require_instance
 from ._core import wrap_angle
-from .io._files import file_path, read_compressed, require_regular_file, text_lines
+from .io._files import MAX_REPORTED_LINES, file_path, numeric_rows, require_regular_file
 from .io.landmark_datasets import Mrclam
 
 PathLike = Union[str, "os.PathLike[str]"]
-
-#: How many line numbers of skipped rows a ``Relations`` keeps (and a warning names).
-MAX_REPORTED_LINES = 20
 
 #: Fields of a relations row: ``t1 t2 x y z roll pitch yaw``.
 _RELATION_FIELDS = 8
@@ -186,29 +181,9 @@ def _require_finite(result: np.ndarray, what: str) -> None:
 # Reading relations files
 
 
-def _lines(path: str) -> Iterable[Tuple[int, str]]:
-    """(line number, text) of a plain, .gz or .bz2 file, line ends as ``open`` splits them."""
-    if os.path.splitext(path)[1] in (".gz", ".bz2"):
-        text = _io.TextIOWrapper(_io.BytesIO(read_compressed(path)), encoding="utf-8",
-                                 errors="backslashreplace")
-        return enumerate(text, 1)
-    return text_lines(path)
-
-
-def _parse_relation(fields: List[str]) -> Tuple[Optional[List[float]], str]:
-    """The row's numbers, or None and why it cannot be used."""
-    if len(fields) != _RELATION_FIELDS:
-        return None, f"expected {_RELATION_FIELDS} fields, got {len(fields)}"
-    try:
-        values = [float(x) for x in fields]
-    except ValueError:
-        return None, "not numbers"
-    # float() also takes 'nan', 'inf' and '1_0'; none of them belongs in a relations file.
-    if not all(map(math.isfinite, values)) or any("_" in x for x in fields):
-        return None, "not finite numbers"
-    if values[1] < values[0]:
-        return None, "t2 < t1"
-    return values, ""
+def _relation_check(values: List[float]) -> str:
+    """Why a relations row of numbers cannot be used ("" if it can)."""
+    return "t2 < t1" if values[1] < values[0] else ""
 
 
 def read_relations(path: PathLike) -> Relations:
@@ -225,31 +200,11 @@ def read_relations(path: PathLike) -> Relations:
     """
     path = file_path(path)
     require_regular_file(path)
-    rows: List[List[float]] = []
-    bad_lines: List[int] = []
-    bad = 0
-    first_reason = ""
-    for number, line in _lines(path):
-        fields = line.split("#", 1)[0].split()
-        if not fields:
-            continue
-        values, reason = _parse_relation(fields)
-        if values is not None:
-            rows.append(values)
-            continue
-        bad += 1
-        if len(bad_lines) < MAX_REPORTED_LINES:
-            bad_lines.append(number)
-        first_reason = first_reason or reason
-    if not rows:
-        detail = f"first bad line {bad_lines[0]}: {first_reason}" if bad else "empty or only comments"
-        raise ValueError(f"{path}: no valid relation rows ({detail})")
-    if bad:
-        warnings.warn(f"{path}: skipped {bad} unreadable relation rows (lines "
-                      f"{', '.join(map(str, bad_lines))}{', ...' if bad > len(bad_lines) else ''}; "
-                      f"first: {first_reason})", stacklevel=2)
-    table = np.array(rows, dtype=float)
-    return Relations(table[:, 0].copy(), table[:, 1].copy(), table[:, [2, 3, 7]].copy(), bad, bad_lines)
+    read = numeric_rows(path, (_RELATION_FIELDS,), "relation", _relation_check)
+    read.warn(path, "relation")
+    table = read.table
+    return Relations(table[:, 0].copy(), table[:, 1].copy(), table[:, [2, 3, 7]].copy(), read.skipped,
+                     read.skipped_lines)
 
 
 # --------------------------------------------------------------------------------------------
@@ -404,6 +359,245 @@ def relations_error(timestamps: object, poses: object,
     translational = np.hypot(e[:, 0], e[:, 1])
     _require_finite(translational, what)
     return RelationsError(translational, np.abs(e[:, 2]), used, int(len(t1) - used.size))
+
+
+# --------------------------------------------------------------------------------------------
+# Trajectories against a ground-truth trajectory: ATE and RPE, as evo computes them
+
+
+#: ``ate`` / ``rpe``'s default ``max_time_difference`` (s): evo's (``evo_ape --t_max_diff``).
+MAX_TIME_DIFFERENCE = 0.01
+
+#: The alignments of ``ate`` and ``rpe``: "se2", the rotation and translation that minimise the
+#: squared position errors (Umeyama without scale, as evo's ``--align``), or "none".
+ALIGNMENTS = ("se2", "none")
+
+#: The units of ``rpe``'s ``delta``: poses, metres travelled, seconds.
+DELTA_UNITS = ("frames", "m", "s")
+
+
+@dataclass(frozen=True)
+class TrajectoryError:
+    """Translational errors of a trajectory against a reference, with evo's statistics.
+
+    metric: "ATE" (absolute: the distance between each estimated position, after the
+    alignment, and the reference's at the same time) or "RPE" (relative: the translation of
+    ``(ref_i^-1 ref_j)^-1 (est_i^-1 est_j)`` for each pair ``(i, j)`` of associated poses);
+    errors (K,) metres; count K; rmse, mean, median, std (population, ddof=0), min, max (m) and
+    sse (m^2, the sum of squares) as ``evo_ape`` / ``evo_rpe`` print them; matched: how many
+    poses were associated by time (K for ATE); est_indices, ref_indices (matched,): the
+    associated rows of each trajectory; pairs (K, 2): RPE's pairs of indices into the
+    associated poses (empty for ATE); rotation (2, 2), translation (2,): the alignment applied
+    to the estimate (identity and zero with ``align="none"``); align, delta, delta_unit: the
+    options (delta None for ATE).
+    """
+
+    metric: str
+    errors: np.ndarray
+    rmse: float
+    mean: float
+    median: float
+    std: float
+    min: float
+    max: float
+    sse: float
+    count: int
+    matched: int
+    est_indices: np.ndarray
+    ref_indices: np.ndarray
+    pairs: np.ndarray
+    rotation: np.ndarray
+    translation: np.ndarray
+    align: str
+    delta: Optional[float] = None
+    delta_unit: Optional[str] = None
+
+    @property
+    def statistics(self) -> Dict[str, float]:
+        """{name: value} of the statistics evo prints (max, mean, median, min, rmse, sse, std)."""
+        return {name: getattr(self, name) for name in STATISTICS}
+
+    def title(self) -> str:
+        """evo's title of the result: what was measured and how."""
+        if self.metric == "ATE":
+            head = "APE w.r.t. translation part (m)"
+        else:
+            head = f"RPE w.r.t. translation part (m)\nfor delta = {self.delta:g} ({self.delta_unit}) using consecutive pairs"
+        return head + ("\n(with SE(2) Umeyama alignment)" if self.align == "se2" else "\n(not aligned)")
+
+    def __str__(self) -> str:
+        return statistics_table(self.title(), self.statistics)
+
+
+#: The statistics of errors that evo prints, in its order (alphabetical).
+STATISTICS = ("max", "mean", "median", "min", "rmse", "sse", "std")
+
+
+def error_statistics(errors: object) -> Dict[str, float]:
+    """evo's statistics of errors (K,) >= 0, K >= 1: max, mean, median, min, rmse (root mean
+    square), sse (sum of squares), std (population, ddof=0)."""
+    e = real_array(errors, "errors", (None,))
+    if e.size == 0:
+        raise ValueError("errors: empty (no statistic of nothing)")
+    squares = e ** 2
+    return dict(max=float(np.max(e)), mean=float(np.mean(e)), median=float(np.median(e)), min=float(np.min(e)),
+                rmse=float(np.sqrt(np.mean(squares))), sse=float(np.sum(squares)), std=float(np.std(e)))
+
+
+def statistics_table(title: str, statistics: Dict[str, float]) -> str:
+    """``title``, a blank line and one ``name<TAB>value`` row per statistic, laid out as evo's
+    ``Result.pretty_str`` (names right-aligned in 10 characters, six decimals)."""
+    return title + "\n\n" + "".join(f"{name:>10}\t{value:.6f}\n" for name, value in statistics.items())
+
+
+def _trajectory_error(metric: str, errors: np.ndarray, **fields: Any) -> TrajectoryError:
+    return TrajectoryError(metric, errors, count=int(errors.size), **error_statistics(errors), **fields)
+
+
+#: ``associate`` compares at most this many pairs of times at once when the longer trajectory's
+#: times are not sorted (a search over all of them per time): 2^22 pairs, 32 MiB of doubles.
+ASSOCIATE_CHUNK_PAIRS = 1 << 22
+
+
+def associate(times_a: object, times_b: object, max_time_difference: float = MAX_TIME_DIFFERENCE):
+    """Pairs of poses at the same time, as evo's ``sync.associate_trajectories`` makes them:
+    each time of the trajectory with fewer poses (``times_b`` when both have as many) is paired
+    with the nearest time of the other, if that is at most ``max_time_difference`` (s) away (a
+    tie goes to the earlier). times_a (N,), times_b (M,): seconds, in any order (a log's clock
+    may jump back; unsorted times are searched in full, as evo does).
+
+    Returns (ia, ib): int64 index arrays of equal length into times_a and times_b, in the
+    order of the shorter trajectory's times (an index of the longer one may repeat when it is
+    the nearest to two times)."""
+    ta = real_array(times_a, "times_a", (None,))
+    tb = real_array(times_b, "times_b", (None,))
+    limit = positive_real(max_time_difference, "max_time_difference")
+    b_longer = len(tb) > len(ta)
+    short, long = (ta, tb) if b_longer else (tb, ta)
+    if len(short) == 0 or len(long) == 0:
+        return np.empty(0, np.int64), np.empty(0, np.int64)
+    if np.all(np.diff(long) >= 0):
+        above = np.minimum(np.searchsorted(long, short, side="right"), len(long) - 1)
+        after = long[above] - short
+        before = np.where(above > 0, short - long[np.maximum(above - 1, 0)], np.inf)
+        take_after = (after <= limit) & (after < before)
+        take_before = ~take_after & (before <= limit) & (before <= after)
+        inside = (short >= long[0] - limit) & (short <= long[-1] + limit)
+        keep = inside & (take_after | take_before)
+        nearest = np.where(take_after, above, above - 1)
+    else:
+        nearest = np.empty(len(short), np.int64)
+        step = max(1, ASSOCIATE_CHUNK_PAIRS // len(long))
+        for a in range(0, len(short), step):
+            nearest[a:a + step] = np.argmin(np.abs(long[None, :] - short[a:a + step, None]), axis=1)
+        keep = np.abs(long[nearest] - short) <= limit
+    i_short = np.flatnonzero(keep)
+    i_long = nearest[keep].astype(np.int64)
+    return (i_short, i_long) if b_longer else (i_long, i_short)
+
+
+def _poses_at_times(times: object, poses: object, which: str) -> Tuple[np.ndarray, np.ndarray]:
+    """Checked (N,) times in any order and (N, 3) poses, N >= 1 (``which``: "est" or "ref")."""
+    ts = real_array(times, f"times_{which}", (None,))
+    ps = real_array(poses, f"poses_{which}", (len(ts), 3))
+    if len(ts) == 0:
+        raise ValueError(f"times_{which}: empty trajectory")
+    return ts, ps
+
+
+def _associated(times_est, poses_est, times_ref, poses_ref, max_time_difference, align):
+    """The estimate's and reference's poses at the associated times, the estimate aligned."""
+    te, pe = _poses_at_times(times_est, poses_est, "est")
+    tr, pr = _poses_at_times(times_ref, poses_ref, "ref")
+    if align not in ALIGNMENTS:
+        raise ValueError(f"align must be one of {', '.join(map(repr, ALIGNMENTS))}, got {align!r}")
+    ie, ir = associate(te, tr, max_time_difference)
+    if ie.size == 0:
+        raise ValueError(f"times_est: no pose within max_time_difference {max_time_difference:g} s of a reference "
+                         f"pose (estimate [{te.min():.9g}, {te.max():.9g}] s, reference [{tr.min():.9g}, "
+                         f"{tr.max():.9g}] s)")
+    est, ref = pe[ie], pr[ir]
+    rotation, translation = np.eye(2), np.zeros(2)
+    if align == "se2":
+        with np.errstate(over="ignore", invalid="ignore"):
+            rotation, translation = align_rigid(est[:, :2], ref[:, :2])
+        _require_finite(np.concatenate([rotation.ravel(), translation]), "poses_est and poses_ref: the alignment")
+        turn = math.atan2(rotation[1, 0], rotation[0, 0])
+        est = np.column_stack([est[:, :2] @ rotation.T + translation, _wrap(est[:, 2] + turn, "poses_est")])
+    return est, ref, dict(matched=int(ie.size), est_indices=ie, ref_indices=ir, rotation=rotation,
+                          translation=translation, align=align)
+
+
+def ate(times_est: object, poses_est: object, times_ref: object, poses_ref: object, *, align: str = "se2",
+        max_time_difference: float = MAX_TIME_DIFFERENCE) -> TrajectoryError:
+    """Absolute trajectory error: evo's APE w.r.t. the translation part.
+
+    times_est (N,), poses_est (N, 3); times_ref (M,), poses_ref (M, 3): seconds (in any order, as
+    a log with a clock jump has them), ``(x m, y m, theta rad)``. Poses are associated by time
+    (``associate``, nearest within ``max_time_difference`` s); with ``align="se2"`` (default) the estimate is moved by the
+    rotation and translation that minimise the squared position errors (``align_rigid``:
+    Umeyama without scale, evo's ``--align``), with "none" it is compared as it is. The error of
+    a pose is the distance between its position and the reference's.
+
+    Returns a ``TrajectoryError`` (metric "ATE"). Errors: ``TypeError`` / ``ValueError`` naming
+    the argument for arrays of the wrong type or shape, empty, NaN or inf, an unknown
+    ``align``, a ``max_time_difference`` that is not finite and > 0, or no pose associated."""
+    est, ref, fields = _associated(times_est, poses_est, times_ref, poses_ref, max_time_difference, align)
+    errors = np.hypot(est[:, 0] - ref[:, 0], est[:, 1] - ref[:, 1])
+    _require_finite(errors, "poses_est and poses_ref: the errors")
+    return _trajectory_error("ATE", errors, pairs=np.empty((0, 2), np.int64), **fields)
+
+
+def _pairs(poses: np.ndarray, times: np.ndarray, delta: float, delta_unit: str) -> np.ndarray:
+    """(K, 2) consecutive pairs of indices ``delta`` apart, as evo's ``id_pairs_from_delta``
+    (all_pairs off): every ``delta``-th pose, or the next pose once the path travelled
+    (metres) or the time passed (seconds) since the last one reaches ``delta``."""
+    if delta_unit == "frames":
+        ids = np.arange(0, len(poses), int(delta))
+    else:
+        steps = np.hypot(*np.diff(poses[:, :2], axis=0).T) if delta_unit == "m" else np.diff(times)
+        ids, since = [0], 0.0
+        for i, step in enumerate(steps, 1):
+            since += float(step)
+            if since >= delta:
+                ids.append(i)
+                since = 0.0
+        ids = np.array(ids)
+    return np.column_stack([ids[:-1], ids[1:]]).astype(np.int64)
+
+
+def rpe(times_est: object, poses_est: object, times_ref: object, poses_ref: object, *, delta: float = 1,
+        delta_unit: str = "frames", align: str = "none",
+        max_time_difference: float = MAX_TIME_DIFFERENCE) -> TrajectoryError:
+    """Relative pose error: evo's RPE w.r.t. the translation part, over consecutive pairs.
+
+    Arguments as ``ate``'s. After the association by time, pairs ``(i, j)`` of associated poses
+    are taken on the estimate as evo takes them: ``delta_unit="frames"``, every ``delta``-th pose
+    (``delta`` an integer >= 1); "m", the next pose once the estimate has travelled ``delta``
+    metres since the last; "s" (not in evo), the next pose once ``delta`` seconds have passed.
+    The error of a pair is the length of the translation of ``(ref_i^-1 ref_j)^-1 (est_i^-1
+    est_j)``. An alignment (default none, as ``evo_rpe``'s) moves both poses of a pair alike and
+    so changes no error beyond rounding.
+
+    Returns a ``TrajectoryError`` (metric "RPE"). Errors: those of ``ate``, a ``delta`` that is not
+    finite and > 0 (an integer for frames), an unknown ``delta_unit``, or no pair."""
+    if delta_unit not in DELTA_UNITS:
+        raise ValueError(f"delta_unit must be one of {', '.join(map(repr, DELTA_UNITS))}, got {delta_unit!r}")
+    step = positive_real(delta, "delta")
+    if delta_unit == "frames" and step != int(step):
+        raise ValueError(f"delta must be an integer number of frames, got {delta!r}")
+    est, ref, fields = _associated(times_est, poses_est, times_ref, poses_ref, max_time_difference, align)
+    matched_times = real_array(times_est, "times_est", (None,))[fields["est_indices"]]
+    pairs = _pairs(est, matched_times, step, delta_unit)
+    if len(pairs) == 0:
+        raise ValueError(f"delta: {delta:g} {delta_unit} gives no pair among the {len(est)} associated poses")
+    what = "poses_est and poses_ref: the relative errors"
+    moved_ref = _between(ref[pairs[:, 0]], ref[pairs[:, 1]], what)
+    moved_est = _between(est[pairs[:, 0]], est[pairs[:, 1]], what)
+    e = _between(moved_ref, moved_est, what)
+    errors = np.hypot(e[:, 0], e[:, 1])
+    _require_finite(errors, what)
+    return _trajectory_error("RPE", errors, pairs=pairs, delta=step, delta_unit=delta_unit, **fields)
 
 
 # --------------------------------------------------------------------------------------------
@@ -580,15 +774,24 @@ def association_accuracy(result) -> float:
 
 
 __all__ = [
+    "ALIGNMENTS",
+    "DELTA_UNITS",
     "MAX_REPORTED_LINES",
+    "ASSOCIATE_CHUNK_PAIRS",
+    "MAX_TIME_DIFFERENCE",
     "NEES_SINGULAR_RTOL",
     "LandmarkScore",
     "MrclamScore",
     "Relations",
     "RelationsError",
+    "STATISTICS",
     "SingularCovarianceError",
+    "TrajectoryError",
     "align_rigid",
+    "associate",
+    "ate",
     "association_accuracy",
+    "error_statistics",
     "interpolate_poses",
     "majority_labels",
     "majority_truth",
@@ -598,8 +801,10 @@ __all__ = [
     "relations_error",
     "relative_poses",
     "rmse",
+    "rpe",
     "score_landmarks",
     "score_mrclam",
+    "statistics_table",
     "sighting_accuracy",
     "truth_positions",
 ]

@@ -8,11 +8,12 @@ against a dataset's own labels. The dataset drivers (UTIAS MRCLAM, Victoria Park
 from __future__ import annotations
 
 import time
-from typing import Dict, List, Tuple
+from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
 from ._core import FastSlam
+from ._progress import progress_range
 from .landmark_slam import Associations, LandmarkSlamResult
 
 #: p_new of the hidden-correspondence runs: the density (1 / (m rad)) a measurement of a new
@@ -64,17 +65,19 @@ def result_of(f: FastSlam, times: np.ndarray, seconds: float, histories=None) ->
 
 
 def fastslam_along_chain(f: FastSlam, delta: np.ndarray, delta_cov: np.ndarray, observed_from: np.ndarray,
-                         z: np.ndarray, landmark: np.ndarray, known: bool) -> LandmarkSlamResult:
+                         z: np.ndarray, landmark: np.ndarray, known: bool,
+                         progress: Optional[bool] = False) -> LandmarkSlamResult:
     """FastSLAM ``f`` along a chain of P poses: ``delta`` (P-1, 3) relative poses with covariances
     (P-1, 3, 3); sighting k (robot-frame range-bearing ``z[k]``, dataset label ``landmark[k]``)
     is made from chain pose ``observed_from[k]``. ``known``: the labels are the correspondences;
     else each particle associates by maximum likelihood (``FastSlam.update_unknown``) and the best
-    one's record is returned. ``times`` are the chain positions."""
+    one's record is returned. ``times`` are the chain positions. ``progress``: a bar over the
+    poses (None: on a terminal only)."""
     order = np.argsort(observed_from, kind="stable")
     bounds = np.searchsorted(observed_from[order], np.arange(len(delta) + 2))
     histories = None if known else AssociationHistories()
     t0 = time.perf_counter()
-    for k in range(len(delta) + 1):
+    for k in progress_range(len(delta) + 1, f"FastSLAM {f.version}.0", "pose", progress):
         if k > 0:
             f.predict_odometry(delta[k - 1], delta_cov[k - 1])
         rows = order[bounds[k]:bounds[k + 1]]

@@ -15,6 +15,7 @@ from typing import Any, Dict, Optional
 import numpy as np
 
 from ._args import real_array, require_instance
+from ._progress import progress_range
 from ._core import PoseGraph2D
 from .ekf import EkfSlam
 
@@ -94,19 +95,20 @@ def polar_measurements(xy: np.ndarray, xy_cov: np.ndarray):
 
 def ekf_along_chain(delta: np.ndarray, delta_cov: np.ndarray, observed_from: np.ndarray, z: np.ndarray,
                     z_cov: np.ndarray, landmark: np.ndarray, measurement_noise=None,
-                    initial_pose=(0.0, 0.0, 0.0)) -> LandmarkSlamResult:
+                    initial_pose=(0.0, 0.0, 0.0), progress: Optional[bool] = False) -> LandmarkSlamResult:
     """EKF SLAM with known correspondences along a chain of P poses: ``delta`` (P-1, 3) relative
     poses with covariances (P-1, 3, 3); observation k (robot-frame range-bearing ``z[k]``, polar
     covariance ``z_cov[k]``) of landmark ``landmark[k]`` is made from chain pose
     ``observed_from[k]``. The filter takes one Q_t: the median of ``z_cov`` unless given; the
-    chain starts at ``initial_pose``, known exactly. ``times`` are the chain positions."""
+    chain starts at ``initial_pose``, known exactly. ``times`` are the chain positions.
+    ``progress``: a bar over the poses (None: on a terminal only)."""
     t0 = time.perf_counter()
     q = np.median(z_cov, axis=0) if measurement_noise is None else np.asarray(measurement_noise, float)
     ekf = EkfSlam(np.eye(3) * 1e-6, 0.5 * (q + q.T), use_signatures=False, initial_pose=initial_pose)
     order = np.argsort(observed_from, kind="stable")
     bounds = np.searchsorted(observed_from[order], np.arange(len(delta) + 2))
     poses = np.empty((len(delta) + 1, 3))
-    for k in range(len(delta) + 1):
+    for k in progress_range(len(delta) + 1, "EKF SLAM", "pose", progress):
         if k > 0:
             ekf.predict_odometry(delta[k - 1], delta_cov[k - 1])
         rows = order[bounds[k]:bounds[k + 1]]

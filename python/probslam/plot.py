@@ -2,9 +2,23 @@
 
 from __future__ import annotations
 
-from typing import Dict, Optional
+import math
+from typing import Dict, Optional, Tuple
 
 import numpy as np
+
+#: The confidence of the covariance ellipses the figures draw: the ellipse holds this much of
+#: the 2-D Gaussian's probability, its radii sqrt(chi2(2).ppf(0.95)) = 2.45 standard deviations
+#: (a "2 sigma" ellipse holds 1 - exp(-2) = 86.5% in 2-D, not 95%).
+ELLIPSE_CONFIDENCE = 0.95
+
+#: What ``occupancy_map`` keeps around the cells it crops to, metres: room for the walls'
+#: outer faces and the legend without the empty margin of a grid grown for stray rays.
+MAP_MARGIN = 1.0
+
+#: ``occupancy_map``'s crop="occupied" keeps the cells whose occupancy probability is above this:
+#: map_saver's occupied threshold, what a ROS user's map shows as a wall.
+OCCUPIED_PROBABILITY = 0.65
 
 
 def require_matplotlib():
@@ -20,24 +34,65 @@ def require_matplotlib():
     return plt
 
 
-def covariance_ellipse(ax, mean, cov, n_sigma: float = 2.0, **style):
-    """Draw the n-sigma ellipse of a 2-D Gaussian (mean (2,), cov (2, 2), metres)."""
+def ellipse_scale(confidence: float = ELLIPSE_CONFIDENCE) -> float:
+    """How many standard deviations the ellipse holding ``confidence`` of a 2-D Gaussian
+    reaches: sqrt of the chi-square quantile with 2 degrees of freedom, which has the closed form
+    -2 ln(1 - confidence) (0.95: 2.448)."""
+    if not 0.0 < confidence < 1.0:
+        raise ValueError(f"confidence must lie in (0, 1), got {confidence!r}")
+    return math.sqrt(-2.0 * math.log1p(-confidence))
+
+
+def ellipse_label(confidence: float = ELLIPSE_CONFIDENCE) -> str:
+    """The legend text of covariance ellipses: their confidence and how it is computed."""
+    return f"{confidence:.0%} confidence ellipses (chi2, 2 dof: {ellipse_scale(confidence):.2f} sigma)"
+
+
+def covariance_ellipse(ax, mean, cov, n_sigma: Optional[float] = None, *, confidence: float = ELLIPSE_CONFIDENCE,
+                       **style):
+    """Draw the ellipse of a 2-D Gaussian (mean (2,), cov (2, 2), metres) that holds
+    ``confidence`` of its probability (``ellipse_scale``), or, given ``n_sigma``, the n-sigma
+    ellipse (which holds 1 - exp(-n_sigma^2 / 2): 86.5% for 2)."""
     from matplotlib.patches import Ellipse
 
+    scale = ellipse_scale(confidence) if n_sigma is None else n_sigma
     values, vectors = np.linalg.eigh(np.asarray(cov)[:2, :2])
     values = np.clip(values, 0.0, None)
     angle = np.degrees(np.arctan2(vectors[1, 1], vectors[0, 1]))
-    ellipse = Ellipse(mean[:2], 2 * n_sigma * np.sqrt(values[1]), 2 * n_sigma * np.sqrt(values[0]), angle=angle,
+    ellipse = Ellipse(mean[:2], 2 * scale * np.sqrt(values[1]), 2 * scale * np.sqrt(values[0]), angle=angle,
                       fill=False, **style)
     ax.add_patch(ellipse)
     return ellipse
 
 
+def _ellipses(ax, means, covariances, n_sigma: Optional[float], confidence: float) -> None:
+    """Red covariance ellipses, and one legend entry saying their confidence."""
+    from matplotlib.lines import Line2D
+
+    for m, c in zip(means, covariances):
+        covariance_ellipse(ax, m, c, n_sigma, confidence=confidence, color="tab:red", lw=0.6)
+    if len(means):
+        label = (ellipse_label(confidence) if n_sigma is None else
+                 f"{n_sigma:g}-sigma ellipses ({1 - math.exp(-0.5 * n_sigma ** 2):.1%} confidence)")
+        # A proxy: patches do not enter a legend one by one.
+        ax.add_line(Line2D([], [], color="tab:red", lw=0.6, label=label))
+
+
+def _metre_axes(ax) -> None:
+    """Equal metre axes and the legend beside them (a landmark map has no empty corner)."""
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small")
+
+
 def landmark_map(ax, poses: np.ndarray, ekf=None, truth_path: Optional[np.ndarray] = None,
                  truth_landmarks: Optional[Dict[int, np.ndarray]] = None, dead_reckoning: Optional[np.ndarray] = None,
-                 n_sigma: float = 2.0, truth_landmarks_label: str = "surveyed landmarks") -> None:
-    """Estimated path (T, 3+), landmarks with their n-sigma ellipses from an EkfSlam, and the
-    ground truth and dead reckoning where given."""
+                 n_sigma: Optional[float] = None, truth_landmarks_label: str = "surveyed landmarks", *,
+                 confidence: float = ELLIPSE_CONFIDENCE) -> None:
+    """Estimated path (T, 3+), landmarks with their ``confidence`` ellipses (or n-sigma ones,
+    given ``n_sigma``) from an EkfSlam, and the ground truth and dead reckoning where given;
+    metre axes and a legend naming each line, marker and the ellipses' confidence."""
     if dead_reckoning is not None:
         ax.plot(dead_reckoning[:, 0], dead_reckoning[:, 1], color="0.6", lw=0.8, label="dead reckoning")
     if truth_path is not None:
@@ -50,19 +105,17 @@ def landmark_map(ax, poses: np.ndarray, ekf=None, truth_path: Optional[np.ndarra
         landmarks = ekf.landmarks()
         xy = landmarks.means
         ax.plot(xy[:, 0], xy[:, 1], "r.", ms=4, label="estimated landmarks")
-        for m, cov in zip(xy, landmarks.covariances):
-            covariance_ellipse(ax, m, cov, n_sigma, color="tab:red", lw=0.6)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.legend(loc="best", fontsize="small")
+        _ellipses(ax, xy, landmarks.covariances, n_sigma, confidence)
+    _metre_axes(ax)
 
 
 def fastslam_map(ax, fastslam, truth_path: Optional[np.ndarray] = None,
                  truth_landmarks: Optional[Dict[int, np.ndarray]] = None, dead_reckoning: Optional[np.ndarray] = None,
-                 n_sigma: float = 2.0, truth_landmarks_label: str = "surveyed landmarks") -> None:
+                 n_sigma: Optional[float] = None, truth_landmarks_label: str = "surveyed landmarks", *,
+                 confidence: float = ELLIPSE_CONFIDENCE) -> None:
     """A FastSlam's particle cloud (its M poses), the best particle's path and landmarks with
-    their n-sigma ellipses, and the ground truth and dead reckoning (T, 2+) where given (metres)."""
+    their ``confidence`` ellipses (or n-sigma ones, given ``n_sigma``), and the ground truth and
+    dead reckoning (T, 2+) where given (metres), with a legend as ``landmark_map``'s."""
     best = fastslam.best_index
     if dead_reckoning is not None:
         ax.plot(dead_reckoning[:, 0], dead_reckoning[:, 1], color="0.6", lw=0.8, label="dead reckoning")
@@ -79,12 +132,8 @@ def fastslam_map(ax, fastslam, truth_path: Optional[np.ndarray] = None,
     means, covs = landmarks.means, landmarks.covariances
     if len(means):
         ax.plot(means[:, 0], means[:, 1], "r.", ms=4, label="best particle's landmarks")
-        for m, c in zip(means, covs):
-            covariance_ellipse(ax, m, c, n_sigma, color="tab:red", lw=0.6)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x [m]")
-    ax.set_ylabel("y [m]")
-    ax.legend(loc="best", fontsize="small")
+        _ellipses(ax, means, covs, n_sigma, confidence)
+    _metre_axes(ax)
 
 
 def pose_graph(ax, graph, initial=None, edges: bool = True) -> None:
@@ -106,3 +155,58 @@ def pose_graph(ax, graph, initial=None, edges: bool = True) -> None:
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     ax.legend(loc="best", fontsize="small")
+
+
+#: The crops of ``occupancy_map``.
+CROPS = ("occupied", "known", "none")
+
+
+def crop_bounds(grid, crop: str = "occupied", margin: float = MAP_MARGIN) -> Tuple[int, int, int, int]:
+    """(row0, row1, col0, col1), the half-open cell block ``occupancy_map`` shows: the cells that
+    are occupied (probability above ``OCCUPIED_PROBABILITY``; rays that leave a building through
+    a window or door clear cells far outside it) or known (log-odds other than the prior's), and
+    ``margin`` metres around them, within the grid; the whole grid for "none" or a grid with no
+    such cell."""
+    if crop not in CROPS:
+        raise ValueError(f"crop must be one of {', '.join(map(repr, CROPS))}, got {crop!r}")
+    if crop == "occupied":
+        keep = grid.probability() > OCCUPIED_PROBABILITY
+    else:
+        keep = grid.log_odds != grid.l0
+    if crop == "none" or not keep.any():
+        return 0, grid.height, 0, grid.width
+    rows, cols = np.flatnonzero(keep.any(axis=1)), np.flatnonzero(keep.any(axis=0))
+    pad = int(math.ceil(margin / grid.resolution))
+    return (max(int(rows[0]) - pad, 0), min(int(rows[-1]) + 1 + pad, grid.height),
+            max(int(cols[0]) - pad, 0), min(int(cols[-1]) + 1 + pad, grid.width))
+
+
+def occupancy_map(ax, grid, trajectory: Optional[np.ndarray] = None, *, crop: str = "occupied",
+                  margin: float = MAP_MARGIN, trajectory_label: str = "trajectory") -> Tuple[float, float, float, float]:
+    """An OccupancyGrid2D as grey (black occupied, white free, mid grey unknown) on metre axes,
+    cropped to ``crop_bounds(grid, crop, margin)``, with ``trajectory`` (n, 2 or 3; metres) in red
+    and a legend naming the trajectory and the three shades. Returns the extent shown, (x_min,
+    x_max, y_min, y_max) in metres."""
+    from matplotlib.patches import Patch
+
+    r0, r1, c0, c1 = crop_bounds(grid, crop, margin)
+    res, (x0, y0) = grid.resolution, grid.origin
+    extent = (x0 + c0 * res, x0 + c1 * res, y0 + r0 * res, y0 + r1 * res)
+    ax.imshow(1.0 - grid.probability()[r0:r1, c0:c1], cmap="gray", vmin=0.0, vmax=1.0, origin="lower",
+              extent=extent, interpolation="nearest")
+    if trajectory is not None and len(trajectory):
+        xy = np.asarray(trajectory, dtype=float)[:, :2]
+        ax.plot(xy[:, 0], xy[:, 1], color="tab:red", lw=0.8, label=trajectory_label)
+    ax.set_xlim(extent[0], extent[1])
+    ax.set_ylim(extent[2], extent[3])
+    ax.set_aspect("equal")
+    ax.set_xlabel("x [m]")
+    ax.set_ylabel("y [m]")
+    handles, labels = ax.get_legend_handles_labels()
+    shade = 1.0 - grid.p_prior
+    for label, colour in (("occupied", "black"), ("free", "white"), ("unknown", (shade, shade, shade))):
+        handles.append(Patch(facecolor=colour, edgecolor="0.4", lw=0.5))
+        labels.append(label)
+    # Outside the axes: a map has no empty corner to spare.
+    ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small")
+    return extent

@@ -17,11 +17,10 @@ import numpy as np
 from tqdm import tqdm
 
 from . import _core
-from .io._files import file_path
+from .io.trajectory import write_trajectory as write_trajectory_file
 from .datasets import carmen
 from .io.carmen import CarmenLog, LaserScans
 from .mapping import no_return_range
-from ._args import real_array
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -142,14 +141,11 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: str = "grap
 
 
 def write_trajectory(timestamps: np.ndarray, poses: np.ndarray, path: PathLike) -> None:
-    """One line per pose: ``timestamp x y theta`` (s, m, m, rad), the TUM-like text layout that
-    every ``probslam`` command writes its trajectory in. timestamps (N,), poses (N, 3), finite
-    (TypeError / ValueError naming them); the trajectory first and the path last, as every writer
-    (``write_g2o(graph, path)``)."""
-    timestamps = real_array(timestamps, "timestamps", (None,))
-    poses = real_array(poses, "poses", (len(timestamps), 3))
-    data = np.column_stack([timestamps, poses])
-    np.savetxt(file_path(path), data, fmt="%.6f", header="timestamp x y theta")
+    """One line per pose: ``timestamp x y theta`` (s, m, m, rad) after a ``#`` header, the layout
+    ``probslam`` commands wrote before TUM (``io.write_trajectory(..., format="xyt")``, which this
+    calls; TUM and KITTI are there too). timestamps (N,), poses (N, 3), finite (TypeError /
+    ValueError naming them); the trajectory first and the path last, as every writer."""
+    write_trajectory_file(timestamps, poses, path, format="xyt")
 
 
 __all__ = ["METHODS", "SlamResult", "run_slam", "write_trajectory"]

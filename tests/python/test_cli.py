@@ -115,11 +115,11 @@ def test_slam_bundled_raw_log(tmp_path, capsys):
     out = capsys.readouterr().out
     log = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_RAW_LOG))
     assert f"scans:         {len(log.scans)} (" in out and "closures:" in out and "real-time factor" in out
-    traj = np.loadtxt(tmp_path / "s_trajectory.txt")
-    assert traj.shape == (len(log.scans), 4)
-    np.testing.assert_allclose(traj[:, 0], log.scans.timestamps, atol=1e-6)
+    traj = io.read_trajectory(tmp_path / "s_trajectory.tum")
+    assert traj.format == "tum" and traj.poses.shape == (len(log.scans), 3)
+    np.testing.assert_allclose(traj.timestamps, log.scans.timestamps, atol=1e-6)
     # The first scan is the map frame's origin: its raw odometry pose.
-    np.testing.assert_allclose(traj[0, 1:], log.scans.laser_poses[0], atol=1e-6)
+    np.testing.assert_allclose(traj.poses[0], log.scans.laser_poses[0], atol=1e-6)
     graph = ps.read_pose_graph(str(tmp_path / "s.g2o"))
     submaps = int(out.split("submaps:")[1].split()[0])
     assert graph.num_vertices == submaps >= 2
@@ -135,15 +135,15 @@ def test_slam_rbpf_on_the_bundled_raw_log(tmp_path, capsys):
     out = capsys.readouterr().out
     log = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_RAW_LOG))
     assert "grid-based FastSLAM, 4 particles, scan-matching proposal" in out and "distinct tiles" in out
-    traj = np.loadtxt(tmp_path / "r_trajectory.txt")
-    assert traj.shape == (len(log.scans), 4)
-    np.testing.assert_allclose(traj[0, 1:], log.scans.laser_poses[0], atol=1e-6)
+    traj = io.read_trajectory(tmp_path / "r_trajectory.tum")
+    assert traj.poses.shape == (len(log.scans), 3)
+    np.testing.assert_allclose(traj.poses[0], log.scans.laser_poses[0], atol=1e-6)
     assert not (tmp_path / "r.g2o").exists()  # no graph: a particle filter
     assert io.load_ros_map(tmp_path / "r.yaml").resolution == pytest.approx(0.05)
     # The GraphSLAM trajectory of the same log: the filter's best path stays within a few cm of it
     # over this excerpt (no loop closes in it).
     graph = ps.run_slam(log, progress=False)
-    err = np.linalg.norm(traj[:, 1:3] - graph.poses[:, :2], axis=1)
+    err = np.linalg.norm(traj.poses[:, :2] - graph.poses[:, :2], axis=1)
     assert np.median(err) < 0.1, np.median(err)
 
 
@@ -183,9 +183,9 @@ def test_fastslam_mrclam_prints_what_the_driver_computes(tmp_path, capsys, share
     assert f"landmarks:     {len(run.landmarks)} in the best particle's map" in out
     assert f"associations:  {ps.eval.association_accuracy(run):.1%} correct" in out
     assert "path RMSE:" in out and "unknown correspondences" in out
-    trajectory = np.loadtxt(tmp_path / "f_trajectory.txt")  # timestamp x y theta, as every command
-    np.testing.assert_allclose(trajectory[:, 1:], run.poses, atol=1e-6)
-    np.testing.assert_allclose(trajectory[:, 0], run.times, atol=1e-6)
+    trajectory = io.read_trajectory(tmp_path / "f_trajectory.tum")  # TUM with times, as every command
+    np.testing.assert_allclose(trajectory.poses, run.poses, atol=1e-6)
+    np.testing.assert_allclose(trajectory.timestamps, run.times, atol=1e-6)
     assert (tmp_path / "f.png").read_bytes()[:4] == b"\x89PNG"
 
 
@@ -236,22 +236,24 @@ def test_ekf_slam_bundled_mrclam(tmp_path, capsys):
     mr = io.read_mrclam(folder)
     assert mr.groundtruth is not None and 115 < mr.odometry[-1, 0] - mr.odometry[0, 0] <= 120
     assert f"odometry:      {len(mr.odometry)} controls" in out
-    path = np.loadtxt(tmp_path / "e_trajectory.txt")
-    assert path.shape[1] == 4 and len(path) > 100
+    path = io.read_trajectory(tmp_path / "e_trajectory.tum")
+    assert path.format == "tum" and len(path) > 100
 
 
 def test_ekf_slam_bundled_victoria_park(tmp_path, capsys):
     assert cli.main(["ekf-slam", data.path("victoria_park_1000.txt"), "-o", str(tmp_path / "v")]) == 0
     out = capsys.readouterr().out
     assert "1000 poses, 613 observations" in out
-    assert np.loadtxt(tmp_path / "v_trajectory.txt").shape == (1000, 4)
+    path = io.read_trajectory(tmp_path / "v_trajectory.tum")
+    assert path.poses.shape == (1000, 3)
+    np.testing.assert_array_equal(path.timestamps, np.arange(1000.0))  # Victoria Park: the pose index
 
 
 def test_fastslam_bundled_mrclam(tmp_path, capsys):
     assert cli.main(["fastslam", "--particles", "20", "-o", str(tmp_path / "f")]) == 0
     out = capsys.readouterr().out
     assert "FastSLAM 1.0, 20 particles" in out and "path RMSE:" in out
-    assert np.loadtxt(tmp_path / "f_trajectory.txt").shape[1] == 4
+    assert len(io.read_trajectory(tmp_path / "f_trajectory.tum")) > 100
 
 
 @pytest.mark.parametrize("command", ["ekf-slam", "fastslam"])
@@ -325,7 +327,7 @@ def test_without_matplotlib_plots_are_skipped(tmp_path):
     assert (tmp_path / "g.g2o").exists() and not (tmp_path / "g.png").exists()
     run = _run(["-m", "probslam", "ekf-slam", "-o", "e"], tmp_path, env)
     assert run.returncode == 0 and "plot skipped" in run.stderr and "Traceback" not in run.stderr
-    assert (tmp_path / "e_trajectory.txt").exists() and not (tmp_path / "e.png").exists()
+    assert (tmp_path / "e_trajectory.tum").exists() and not (tmp_path / "e.png").exists()
 
 
 def test_an_unexpected_error_is_one_line_and_exit_1(monkeypatch, capsys):
@@ -532,15 +534,34 @@ def test_no_plot_everywhere_a_picture_is_written(tmp_path, command, capsys):
     assert ".png" not in capsys.readouterr().out
 
 
-def test_every_trajectory_is_one_format(tmp_path):
-    """slam wrote PREFIX_trajectory.txt (timestamp x y theta), ekf-slam / fastslam PREFIX_path.txt
-    (x y theta): one name and one layout now."""
-    for command in (["slam"], ["ekf-slam"], ["fastslam", "--particles", "5"]):
-        assert cli.main(command + ["--no-plot", "-o", str(tmp_path / command[0])]) == 0
-        with open(tmp_path / f"{command[0]}_trajectory.txt") as f:
-            assert f.readline() == "# timestamp x y theta\n"
-        rows = np.loadtxt(tmp_path / f"{command[0]}_trajectory.txt")
-        assert rows.shape[1] == 4 and len(rows) > 10 and np.all(np.isfinite(rows))
+@pytest.mark.parametrize("fmt", ["tum", "kitti", "xyt"])
+def test_every_trajectory_is_one_format_with_timestamps(tmp_path, fmt):
+    """slam wrote 'timestamp x y theta' rows evo refuses, ekf-slam / fastslam wrote no times
+    (issue 36); optimize wrote no path. Now one writer and --trajectory-format: the times are the
+    run's (scan times, MRCLAM seconds; a graph's vertex ids)."""
+    runs = {"slam": ["slam", "--no-progress"], "ekf-slam": ["ekf-slam", "--no-progress"],
+            "fastslam": ["fastslam", "--particles", "5", "--no-progress"],
+            "optimize": ["optimize", "--max-iterations", "3"]}
+    for name, command in runs.items():
+        prefix = str(tmp_path / name)
+        assert cli.main(command + ["--no-plot",
+                                   "--trajectory-format", fmt, "-o", prefix]) in (0, cli.EXIT_NOT_CONVERGED)
+        path = prefix + "_trajectory" + io.trajectory.EXTENSIONS[fmt]
+        trajectory = io.read_trajectory(path)
+        assert trajectory.format == fmt and not trajectory.times_from_index and len(trajectory) > 10
+        assert np.all(np.isfinite(trajectory.poses))
+        if name == "slam":  # the scans' times (the Intel log's clock steps back once: kept as logged)
+            log = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_RAW_LOG))
+            np.testing.assert_allclose(trajectory.timestamps, log.scans.timestamps, rtol=0, atol=1e-9)
+        else:
+            assert np.all(np.diff(trajectory.timestamps) >= 0)
+        if name == "ekf-slam":  # MRCLAM seconds: Unix time of 2009
+            assert trajectory.timestamps[0] > 1.2e9
+        if name == "optimize":
+            graph = ps.read_pose_graph(prefix + ".g2o")
+            np.testing.assert_array_equal(trajectory.timestamps, np.sort(graph.pose_ids).astype(float))
+        if fmt == "kitti":
+            assert os.path.exists(prefix + "_trajectory_times.txt")
 
 
 def test_a_run_that_does_not_converge_exits_3_not_1(tmp_path, capsys):
@@ -563,8 +584,8 @@ def test_refine_graphslam_prints_and_writes_what_the_library_computes(tmp_path, 
     accuracy = ps.eval.association_accuracy(result)
     assert f"GraphSLAM correspondence test (ch. 11.6): {accuracy:.1%} correct, {len(result.landmarks)} landmarks" in out
     assert accuracy >= ps.eval.association_accuracy(run)
-    written = np.loadtxt(tmp_path / "r_trajectory.txt")
-    np.testing.assert_allclose(written[:, 1:], refined.result.poses, atol=1e-6)
+    written = io.read_trajectory(tmp_path / "r_trajectory.tum")
+    np.testing.assert_allclose(written.poses, refined.result.poses, atol=1e-6)
 
 
 @pytest.mark.parametrize("argv, message", [

@@ -420,7 +420,7 @@ def test_cli_ekf_slam(tmp_path, capsys, shared_data):
     out = capsys.readouterr().out
     assert "landmarks:     151" in out
     assert (tmp_path / "vp.png").read_bytes()[:4] == b"\x89PNG"
-    assert np.loadtxt(tmp_path / "vp_trajectory.txt").shape == (6969, 4)
+    assert ps.io.read_trajectory(tmp_path / "vp_trajectory.tum").poses.shape == (6969, 3)
     assert cli.main(["ekf-slam", str(tmp_path / "missing.txt"), "-o", str(tmp_path / "x")]) == 2
 
 
@@ -438,7 +438,7 @@ def test_cli_ekf_slam_mrclam(tmp_path, capsys, shared_data):
     assert cli.main(["ekf-slam", d7, "--raw-ranges", "-o", str(tmp_path / "d7")]) == 0
     out = capsys.readouterr().out
     assert "raw depth readings" in out and "12 gated as outliers" in out
-    assert np.loadtxt(tmp_path / "d7_trajectory.txt").shape == (58598, 4)
+    assert ps.io.read_trajectory(tmp_path / "d7_trajectory.tum").poses.shape == (58598, 3)
 
 
 def test_before_scan_sees_each_scan_and_the_filter_before_it_takes_it():

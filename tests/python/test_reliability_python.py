@@ -22,6 +22,9 @@ COVERED = (
     "eval.interpolate_poses(timestamps, poses, query_times)",
     "eval.relative_poses(a, b)",
     "eval.relations_error(timestamps, poses, relations)",
+    "eval.ate(times_est, poses_est, times_ref, poses_ref, align, max_time_difference)",
+    "eval.rpe(times_est, poses_est, times_ref, poses_ref, delta, delta_unit, align, max_time_difference)",
+    "io.write_trajectory(timestamps, poses, path, format) and io.read_trajectory(path)",
 )
 
 PROPERTY = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -176,3 +179,44 @@ def test_relations_error_is_finite_or_refused_and_leaves_the_relations(traj, t1,
     else:
         assert np.all(np.isfinite(out.translational)) and np.all(np.isfinite(out.rotational))
         assert np.all(t2[out.used] >= t1[out.used])
+
+
+def _fields(result):
+    """A TrajectoryError's numbers, for the finiteness check."""
+    return {name: getattr(result, name) for name in ("errors", "rotation", "translation")} | result.statistics
+
+
+@PROPERTY
+@given(est=trajectory, ref=trajectory, align=st.sampled_from(ev.ALIGNMENTS + ("odd",)),
+       limit=st.sampled_from([0.01, 1e300, 0.0, float("nan"), -1.0]),
+       delta=st.sampled_from([(1, "frames"), (2, "frames"), (0.5, "m"), (1.0, "s"), (1.5, "frames"), (0, "s")]))
+def test_ate_and_rpe_are_finite_or_refused(est, ref, align, limit, delta):
+    """Times in any order (a clock jump is read, not refused), odd poses and options."""
+    raised, out = policy.check_call(lambda: _fields(ev.ate(est[0], est[1], ref[0], ref[1], align=align,
+                                                           max_time_difference=limit)))
+    if raised:
+        names_one_of(out, "times_est", "poses_est", "times_ref", "poses_ref", "align", "max_time_difference")
+    raised, out = policy.check_call(lambda: _fields(ev.rpe(est[0], est[1], ref[0], ref[1], delta=delta[0],
+                                                           delta_unit=delta[1], align=align,
+                                                           max_time_difference=limit)))
+    if raised:
+        names_one_of(out, "times_est", "poses_est", "times_ref", "poses_ref", "align", "max_time_difference",
+                     "delta")
+
+
+@PROPERTY
+@given(traj=trajectory, fmt=st.sampled_from(ps.io.TRAJECTORY_FORMATS))
+def test_trajectory_files_are_written_finite_and_read_back_or_refused(tmp_path_factory, traj, fmt):
+    path = tmp_path_factory.mktemp("traj") / f"t.{fmt}"
+    raised, out = policy.check_call(lambda: ps.io.write_trajectory(traj[0], traj[1], path, format=fmt))
+    if raised:
+        names_one_of(out, "timestamps", "poses")
+        assert not path.exists()
+        return
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # times in any order are read with a warning
+        read = ps.io.read_trajectory(path)
+    assert read.format == fmt and len(read) == len(traj[0])
+    assert np.all(np.isfinite(read.poses)) and np.all(np.isfinite(read.timestamps))

@@ -66,7 +66,7 @@ def run_landmark_slam(dataset: Union[Mrclam, VictoriaPark, PathLike], method: st
                       motion_noise=None, measurement_noise=None, association: str = "jcbb",
                       hypotheses: Optional[Mapping] = None, num_particles: int = 100, version: int = 1, seed: int = 0,
                       threads: int = 1, p_new: float = DEFAULT_P_NEW,
-                      filter_options: Optional[Mapping] = None) -> LandmarkSlamResult:
+                      filter_options: Optional[Mapping] = None, progress: Optional[bool] = None) -> LandmarkSlamResult:
     """A landmark SLAM run over a dataset: an ``Mrclam`` robot or ``VictoriaPark`` as read, or a
     path (read with ``load_landmark_dataset``'s defaults).
 
@@ -88,6 +88,9 @@ def run_landmark_slam(dataset: Union[Mrclam, VictoriaPark, PathLike], method: st
     bearing (default: MRCLAM ``mrclam.MEASUREMENT_NOISE``, Victoria Park the file's noise in
     polar form at the median range).
 
+    ``progress``: a bar over the dataset's steps (MRCLAM's controls, Victoria Park's poses), as
+    ``run_slam``'s: None shows it only on a terminal, True always, False never.
+
     Returns a ``LandmarkSlamResult``; ``probslam.eval`` scores it (``score_mrclam``,
     ``score_landmarks``, ``association_accuracy``). The dataset modules' ``run_ekf`` /
     ``run_fastslam`` take further options (gates, hooks, start pose)."""
@@ -108,19 +111,21 @@ def run_landmark_slam(dataset: Union[Mrclam, VictoriaPark, PathLike], method: st
                     filter_options=filter_options)
     if isinstance(dataset, Mrclam):
         if method == "fastslam":
-            return mrclam.run_fastslam(dataset, motion_noise, measurement_noise, known=known, **fastslam)
+            return mrclam.run_fastslam(dataset, motion_noise, measurement_noise, known=known, progress=progress,
+                                       **fastslam)
         return mrclam.run_ekf(dataset, motion_noise, measurement_noise, known=known or method == "dead-reckoning",
                               association="mht" if method == "mht" else association, hypotheses=hypotheses,
-                              dead_reckoning=method == "dead-reckoning")
+                              dead_reckoning=method == "dead-reckoning", progress=progress)
     if motion_noise is not None:
         raise ValueError("motion_noise: Victoria Park's odometry noise is its file's")
     if method == "fastslam":
-        return victoria_park.run_fastslam(dataset, measurement_noise, known=known, **fastslam)
+        return victoria_park.run_fastslam(dataset, measurement_noise, known=known, progress=progress, **fastslam)
     if method == "mht":
         raise ValueError("method 'mht' runs on MRCLAM only")
     if method == "ekf" and not known:
         raise ValueError("known: on Victoria Park the EKF runs with the file's correspondences only (known=True)")
-    return victoria_park.run_ekf(dataset, measurement_noise, dead_reckoning=method == "dead-reckoning")
+    return victoria_park.run_ekf(dataset, measurement_noise, dead_reckoning=method == "dead-reckoning",
+                                 progress=progress)
 
 
 __all__ = ["Associations", "EKF_ASSOCIATIONS", "LandmarkSlamResult", "carmen", "landmark_dataset_kind",

@@ -20,6 +20,7 @@ from typing import Dict, Iterator, List, Mapping, Optional, Tuple, Union
 import numpy as np
 
 from .._args import require_instance
+from .._progress import progress_bar
 from .._core import FastSlam, chi_square_quantile, velocity_motion, velocity_motion_control_jacobian
 from ..ekf import AssociationResult, EkfSlam, MapManagement, MultiHypothesisEkfSlam
 from ..eval import truth_positions
@@ -141,11 +142,22 @@ def start_pose(data: Mrclam) -> np.ndarray:
     return g[min(k, len(g) - 1), 1:4]
 
 
-def _timeline(data: Mrclam, with_scans: bool = True) -> Iterator[tuple]:
+def _timeline(data: Mrclam, with_scans: bool = True, progress: Optional[bool] = False,
+              desc: str = "") -> Iterator[tuple]:
     """The run in the order a filter takes it: ``("move", v, w, t, dt)``, the command (v, w) held
     for dt seconds from t; ``("scan", rows)``, the measurement rows (k, 4) of one stamp; and
     ``("control", k, t)`` once control k has been applied up to t (the next control's stamp).
-    Scans before the first control are skipped; without ``with_scans``, all of them."""
+    Scans before the first control are skipped; without ``with_scans``, all of them. A progress
+    bar ``desc`` counts the controls (``progress`` as ``run_slam``'s)."""
+    with progress_bar(len(data.odometry), desc, "control", progress) as bar:
+        for event in _events(data, with_scans):
+            yield event
+            if event[0] == "control":
+                bar.update(1)
+
+
+def _events(data: Mrclam, with_scans: bool) -> Iterator[tuple]:
+    """``_timeline``'s events, without the bar."""
     odo, meas = data.odometry, data.measurements
     scan_rows = scans(meas)
     starts = np.array([r.start for r in scan_rows], dtype=np.int64)
@@ -177,7 +189,8 @@ def run_ekf(data: Mrclam, motion_noise=None, measurement_noise=None, *, known: b
             gate: Optional[float] = None, alpha: Optional[float] = None, alpha_new: Optional[float] = None,
             initial_pose=None, map_management: Optional[MapManagement] = None, gate_distance: float = 1.0,
             dead_reckoning: bool = False, command_period: float = COMMAND_PERIOD, association: str = "jcbb",
-            hypotheses: Optional[Mapping] = None, before_scan=None) -> LandmarkSlamResult:
+            hypotheses: Optional[Mapping] = None, before_scan=None,
+            progress: Optional[bool] = False) -> LandmarkSlamResult:
     """EKF SLAM over an MRCLAM robot: odometry (v, w) between stamps, the measurements of one
     time stamp as one scan. ``motion_noise`` (2, 2; default ``MOTION_NOISE``) is the control
     noise of one command period (MRCLAM's ~10 ms); the stamps are irregular (gaps up to 1 s), so
@@ -193,7 +206,8 @@ def run_ekf(data: Mrclam, motion_noise=None, measurement_noise=None, *, known: b
     ``dead_reckoning``: predictions only (method "dead-reckoning"). The start pose defaults to
     ``start_pose(data)``. ``before_scan(filter, rows)``, if given, sees the filter (the EkfSlam,
     or the MultiHypothesisEkfSlam) and each scan's measurement rows (k, 4) just before it takes
-    them. ``times`` (one per control) are the stamps up to which each control was applied."""
+    them. ``times`` (one per control) are the stamps up to which each control was applied.
+    ``progress``: a bar over the controls (None: on a terminal only)."""
     _require_odometry(data)
     motion_noise = MOTION_NOISE if motion_noise is None else motion_noise
     measurement_noise = MEASUREMENT_NOISE if measurement_noise is None else measurement_noise
@@ -216,7 +230,8 @@ def run_ekf(data: Mrclam, motion_noise=None, measurement_noise=None, *, known: b
     times, poses = np.empty(len(odo)), np.empty((len(odo), 3))
     m_rate = np.asarray(motion_noise, float) * command_period
     rejected, innovations, sighted, results = 0, [], [], []
-    for event in _timeline(data, with_scans=not dead_reckoning):
+    desc = "dead reckoning" if dead_reckoning else ("EKF SLAM" if mht is None else "MHT EKF SLAM")
+    for event in _timeline(data, with_scans=not dead_reckoning, progress=progress, desc=desc):
         if event[0] == "move":
             _, v, w, _, dt = event
             ekf.predict(v, w, dt, m_rate / dt)
@@ -270,7 +285,8 @@ def outlier_density(measurement_noise) -> float:
 def run_fastslam(data: Mrclam, motion_noise=None, measurement_noise=None, *, known: bool = True,
                  num_particles: int = 100, version: int = 1, seed: int = 0, threads: int = 1,
                  p_new: float = DEFAULT_P_NEW, initial_pose=None, command_period: float = COMMAND_PERIOD,
-                 negative_information: bool = True, filter_options: Optional[Mapping] = None) -> LandmarkSlamResult:
+                 negative_information: bool = True, filter_options: Optional[Mapping] = None,
+                 progress: Optional[bool] = False) -> LandmarkSlamResult:
     """FastSLAM over an MRCLAM robot, as ``run_ekf`` runs the EKF: odometry (v, w) between
     stamps; the control noise ``motion_noise`` (2, 2; default ``MOTION_NOISE``) is that of one
     command period, applied as white velocity noise (pose noise V (M period / dt) V^T for a step
@@ -282,7 +298,8 @@ def run_fastslam(data: Mrclam, motion_noise=None, measurement_noise=None, *, kno
     seen again, are removed. Known correspondences reject outliers as ``run_ekf`` does
     (``outlier_density``) unless ``filter_options`` set one. ``filter_options`` go to ``FastSlam`` (e.g. ``existence_miss``,
     ``bearing_offset_sigma``). The start pose defaults to ``start_pose(data)``. ``times`` are
-    the stamps of the best particle's path: the start, then one per prediction."""
+    the stamps of the best particle's path: the start, then one per prediction. ``progress``: a
+    bar over the controls (None: on a terminal only)."""
     _require_odometry(data)
     motion_noise = MOTION_NOISE if motion_noise is None else motion_noise
     measurement_noise = MEASUREMENT_NOISE if measurement_noise is None else measurement_noise
@@ -300,7 +317,7 @@ def run_fastslam(data: Mrclam, motion_noise=None, measurement_noise=None, *, kno
     times = [data.odometry[0, 0]]  # of the path's poses: the start, then one per prediction
     zero = np.zeros(3)
     t0 = time.perf_counter()
-    for event in _timeline(data):
+    for event in _timeline(data, progress=progress, desc=f"FastSLAM {version}.0"):
         if event[0] == "move":
             # Robot-frame motion and its covariance: V (M period / dt) V^T at the origin.
             _, v, w, t, dt = event

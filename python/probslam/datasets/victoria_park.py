@@ -83,35 +83,39 @@ def _sensor_noise(z_cov: np.ndarray, measurement_noise) -> np.ndarray:
     return 0.5 * (q + q.T)
 
 
-def run_ekf(data: VictoriaPark, measurement_noise=None, dead_reckoning: bool = False) -> LandmarkSlamResult:
+def run_ekf(data: VictoriaPark, measurement_noise=None, dead_reckoning: bool = False,
+            progress: Optional[bool] = False) -> LandmarkSlamResult:
     """EKF SLAM with known correspondences (the file's landmark numbers) along the odometry
     edges, as relative poses with the file's covariances; the landmark points converted to
     range-bearing. The file's per-observation covariances are constant (0.4 m^2 per axis); their
     polar form at each range would change Q_t per measurement, so Q_t is the polar covariance at
     the median range unless given. ``dead_reckoning``: the odometry alone (method
-    "dead-reckoning")."""
+    "dead-reckoning"). ``progress``: a bar over the poses (None: on a terminal only)."""
     observed_from, z, z_cov = chain(data)
     q = _sensor_noise(z_cov, measurement_noise)
     if dead_reckoning:
         observed_from = observed_from[:0]
-    result = ekf_along_chain(data.delta, data.delta_cov, observed_from, z, z_cov, data.landmark, q)
+    result = ekf_along_chain(data.delta, data.delta_cov, observed_from, z, z_cov, data.landmark, q,
+                             progress=progress)
     return dataclasses.replace(result, method="dead-reckoning") if dead_reckoning else result
 
 
 def run_fastslam(data: VictoriaPark, measurement_noise=None, *, known: bool = True, num_particles: int = 100,
                  version: int = 1, seed: int = 0, threads: int = 1, p_new: float = DEFAULT_P_NEW,
                  odometry_noise_scale: float = ODOMETRY_NOISE_SCALE,
-                 filter_options: Optional[Mapping] = None) -> LandmarkSlamResult:
+                 filter_options: Optional[Mapping] = None, progress: Optional[bool] = False) -> LandmarkSlamResult:
     """FastSLAM along the odometry edges, as relative poses with their covariances times
     ``odometry_noise_scale`` ** 2 (see ``ODOMETRY_NOISE_SCALE``), the landmark points as
     range-bearing (Q_t as ``run_ekf``). ``known=False`` hides the associations: each particle
-    associates by maximum likelihood. ``filter_options`` go to ``FastSlam``."""
+    associates by maximum likelihood. ``filter_options`` go to ``FastSlam``. ``progress``: a bar
+    over the poses (None: on a terminal only)."""
     require_instance(data, VictoriaPark, "data")
     scale = positive_real(odometry_noise_scale, "odometry_noise_scale")
     observed_from, z, z_cov = chain(data)
     f = _core.FastSlam(num_particles, np.eye(3) * 0.0, _sensor_noise(z_cov, measurement_noise), version=version,
                        seed=seed, threads=threads, p_new=p_new, **dict(filter_options or {}))
-    return fastslam_along_chain(f, data.delta, scale ** 2 * data.delta_cov, observed_from, z, data.landmark, known)
+    return fastslam_along_chain(f, data.delta, scale ** 2 * data.delta_cov, observed_from, z, data.landmark, known,
+                                progress=progress)
 
 
 __all__ = ["MAX_COORDINATE", "ODOMETRY_NOISE_SCALE", "chain", "load", "run_ekf", "run_fastslam"]

@@ -7,10 +7,15 @@ from __future__ import annotations
 import bz2
 import gzip
 import io
+import math
 import os
 import stat
+import warnings
 import zlib
-from typing import Iterator, Tuple
+from dataclasses import dataclass, field
+from typing import Callable, Iterator, List, Optional, Tuple
+
+import numpy as np
 
 #: The most bytes read from a compressed log. The largest shipped log (fr079.clf.bz2) expands
 #: to 10 MB; a few megabytes of crafted .gz/.bz2 data could otherwise expand to gigabytes.
@@ -62,3 +67,83 @@ def read_compressed(path: str) -> bytes:
         raise ValueError(f"{path}: decompresses to more than {MAX_DECOMPRESSED_BYTES} bytes "
                          "(MAX_DECOMPRESSED_BYTES)")
     return data
+
+
+#: How many line numbers of skipped rows a reader of numeric text rows keeps (and its warning
+#: names); every skipped row is counted.
+MAX_REPORTED_LINES = 20
+
+
+@dataclass
+class NumericRows:
+    """What ``numeric_rows`` read: ``table`` (n, k) the readable rows, ``lines`` (n,) their line
+    numbers, ``ordinals`` (n,) their places among the file's rows (comments and blank lines not
+    counted, skipped rows counted); ``skipped`` the unreadable rows, ``skipped_lines`` the line numbers of the first
+    ``MAX_REPORTED_LINES`` of them and ``first_reason`` why the first was skipped."""
+
+    table: np.ndarray
+    lines: np.ndarray
+    ordinals: np.ndarray
+    skipped: int = 0
+    skipped_lines: List[int] = field(default_factory=list)
+    first_reason: str = ""
+
+    def warn(self, path: str, what: str) -> None:
+        """One warning naming the file, the count and the first skipped lines (none if nothing
+        was skipped)."""
+        if self.skipped:
+            more = ", ..." if self.skipped > len(self.skipped_lines) else ""
+            warnings.warn(f"{path}: skipped {self.skipped} unreadable {what} rows (lines "
+                          f"{', '.join(map(str, self.skipped_lines))}{more}; first: {self.first_reason})",
+                          stacklevel=3)
+
+
+def numeric_rows(path: str, field_counts: Tuple[int, ...], what: str,
+                 check: Optional[Callable[[List[float]], str]] = None) -> NumericRows:
+    """The rows of whitespace-separated finite numbers of a text file (plain, ``.gz`` or
+    ``.bz2``; ``#`` starts a comment, blank lines are ignored), as a real file is read: a row that
+    cannot be used is skipped and counted, not fatal.
+
+    The first row of numbers whose field count is one of ``field_counts`` fixes the count; later
+    rows with another count, with words, 'nan', 'inf' or '1_0' (which ``float`` takes), or for
+    which ``check(values)`` returns a reason, are skipped. ``ValueError`` naming the file when no
+    row is readable (``"no valid {what} rows"``)."""
+    rows: List[List[float]] = []
+    numbers: List[int] = []
+    ordinals: List[int] = []
+    result = NumericRows(np.empty((0, 0)), np.empty(0, np.int64), np.empty(0, np.int64))
+    width = 0
+    for number, line in text_lines(path):
+        fields = line.split("#", 1)[0].split()
+        if not fields:
+            continue
+        reason = ""
+        if len(fields) != width and (width or len(fields) not in field_counts):
+            counts = " or ".join(map(str, (width,) if width else field_counts))
+            reason = f"expected {counts} fields, got {len(fields)}"
+        else:
+            try:
+                values = [float(x) for x in fields]
+            except ValueError:
+                values, reason = [], "not numbers"
+            if values and (not all(map(math.isfinite, values)) or any("_" in x for x in fields)):
+                reason = "not finite numbers"
+            reason = reason or (check(values) if check else "")
+        if not reason:
+            width = len(fields)
+            ordinals.append(len(rows) + result.skipped)
+            rows.append(values)
+            numbers.append(number)
+            continue
+        result.skipped += 1
+        if len(result.skipped_lines) < MAX_REPORTED_LINES:
+            result.skipped_lines.append(number)
+        result.first_reason = result.first_reason or reason
+    if not rows:
+        detail = (f"first bad line {result.skipped_lines[0]}: {result.first_reason}" if result.skipped
+                  else "empty or only comments")
+        raise ValueError(f"{path}: no valid {what} rows ({detail})")
+    result.table = np.array(rows, dtype=float)
+    result.lines = np.array(numbers, dtype=np.int64)
+    result.ordinals = np.array(ordinals, dtype=np.int64)
+    return result
