@@ -1,0 +1,756 @@
+"""ROS bags in and out: ROS 1 ``.bag``, ROS 2 folders (sqlite3 ``.db3`` or ``.mcap`` storage),
+read into the ``CarmenLog`` shape that ``run_slam`` and ``map_laser_log`` take, and written from
+one. Built on the ``rosbags`` package (pure Python, no ROS installation; ``pip install rosbags``
+or ``pip install 'probslam[ros]'``), imported only when a bag is read or written.
+
+Frames: the robot pose is the transform ``odom_frame -> base_frame`` (from ``nav_msgs/Odometry``
+messages, or composed along ``tf`` through any intermediate frames), the laser pose that pose
+composed with the offset ``base_frame -> laser frame`` (``tf_static``, or ``laser_offset``).
+Poses are projected on the plane: ``(x, y, yaw)``.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import warnings
+from dataclasses import dataclass, field
+from typing import Any, Callable, Dict, Iterator, List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+
+from ._files import file_path
+from .carmen import CarmenLog, LaserScans, Odometry
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+SCAN_TYPES = ("sensor_msgs/msg/LaserScan",)
+ODOMETRY_TYPES = ("nav_msgs/msg/Odometry",)
+TF_TYPES = ("tf2_msgs/msg/TFMessage", "tf/msg/tfMessage")
+POSE_TYPES = ("geometry_msgs/msg/PoseStamped", "geometry_msgs/msg/PoseWithCovarianceStamped",
+              "nav_msgs/msg/Odometry")
+#: The file names of a bag: a ROS 1 file, a ROS 2 storage file (read through its folder).
+BAG_SUFFIXES = (".bag", ".db3", ".mcap")
+#: ``write_rosbag``'s formats.
+FORMATS = ("rosbag1", "rosbag2", "mcap")
+
+#: The most skipped messages a ``RosbagLog`` lists with their reasons (all are counted), as
+#: ``io.carmen.MAX_REPORTED_LINES`` for a CARMEN log.
+MAX_REPORTED_MESSAGES = 10
+
+#: ``write_rosbag`` refuses a log whose laser sits at offsets from the robot pose that differ by
+#: more than this (metres, radians): tf_static holds one offset. CARMEN logs print poses with
+#: 3 to 6 decimals, so offsets computed from them vary by up to about 1e-3 from rounding alone.
+OFFSET_SPREAD_TOL = 2e-3
+
+INSTALL_HINT = "reading or writing ROS bags needs the rosbags package: pip install rosbags (or 'probslam[ros]')"
+
+
+def _rosbags():
+    """The rosbags modules used here; ImportError saying how to install them."""
+    try:
+        from rosbags import highlevel, rosbag1, rosbag2, typesys  # noqa: F401
+    except ImportError as exc:
+        raise ImportError(INSTALL_HINT) from exc
+    import rosbags
+
+    return rosbags
+
+
+@dataclass
+class RosbagLog(CarmenLog):
+    """A bag as ``read_rosbag`` reads it: a ``CarmenLog`` (scans, odometry, skipped counts; its
+    ``skipped_lines`` are message numbers in reading order) and what it was read from.
+
+    path; scan_topic; pose_source, where the robot poses came from ("odometry TOPIC", "tf
+    ODOM->BASE", "poses TOPIC" or "none"); laser_offset (x, y, theta) and laser_offset_source
+    ("tf_static", "given" or "none"); topics {name: message type}; backward_stamps, scans
+    stamped earlier than the scan recorded before them (kept in recording order unless
+    ``sort_by_stamp``); index_note, set when a ROS 1 bag's index could not be used and its chunks
+    were walked instead.
+    """
+
+    path: str = ""
+    scan_topic: str = ""
+    pose_source: str = "none"
+    laser_offset: Tuple[float, float, float] = (0.0, 0.0, 0.0)
+    laser_offset_source: str = "none"
+    topics: Dict[str, str] = field(default_factory=dict)
+    backward_stamps: int = 0
+    index_note: str = ""
+
+    def describe(self) -> str:
+        """One line: topics and sources read, counts skipped."""
+        parts = [f"scans from {self.scan_topic}", f"poses from {self.pose_source}"]
+        if self.laser_offset_source != "none":
+            x, y, t = self.laser_offset
+            parts.append(f"laser offset ({x:g}, {y:g}, {t:g}) from {self.laser_offset_source}")
+        if self.skipped_rows:
+            parts.append(f"{self.skipped_rows} messages skipped")
+        if self.backward_stamps:
+            parts.append(f"{self.backward_stamps} scans stamped before the previous one")
+        if self.index_note:
+            parts.append(self.index_note)
+        return "; ".join(parts)
+
+
+def is_bag(path: PathLike) -> bool:
+    """Whether ``path`` names a bag: a ``.bag`` / ``.db3`` / ``.mcap`` file or a folder with a
+    ROS 2 ``metadata.yaml``."""
+    path = os.fsdecode(path)
+    if os.path.isdir(path):
+        return os.path.isfile(os.path.join(path, "metadata.yaml"))
+    return path.lower().endswith(BAG_SUFFIXES)
+
+
+# --- message sources ---------------------------------------------------------------------------
+
+@dataclass
+class _Source:
+    """An opened bag: topics {name: type}, and messages(topics) yielding (topic, record time ns,
+    decode()) in recording order, where decode() raises on a message that cannot be read."""
+
+    topics: Dict[str, str]
+    messages: Callable[[Sequence[str]], Iterator[Tuple[str, int, Callable[[], Any]]]]
+    index_note: str = ""
+    problems: List[str] = field(default_factory=list)
+
+
+def _ros2_folder(path: str) -> str:
+    """The ROS 2 bag folder of ``path`` (a folder, or a .db3 / .mcap file inside one)."""
+    if os.path.isdir(path):
+        if not os.path.isfile(os.path.join(path, "metadata.yaml")):
+            raise ValueError(f"{path}: a folder without metadata.yaml is not a ROS 2 bag")
+        return path
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isfile(os.path.join(folder, "metadata.yaml")):
+        raise ValueError(f"{path}: a ROS 2 storage file is read with its bag folder's metadata.yaml, "
+                         f"and {folder} has none")
+    return folder
+
+
+def _open_any(path: str, rosbags) -> _Source:
+    """The bag read through rosbags' AnyReader (its index for ROS 1)."""
+    from pathlib import Path
+
+    from rosbags.highlevel import AnyReader
+
+    target = Path(path if path.lower().endswith(".bag") else _ros2_folder(path))
+    reader = AnyReader([target])
+    reader.open()
+    try:
+        topics = {name: info.msgtype for name, info in reader.topics.items()}
+    except BaseException:
+        reader.close()
+        raise
+
+    def messages(names: Sequence[str]):
+        conns = [c for c in reader.connections if c.topic in names]
+        try:
+            if not conns:
+                return
+            for conn, t, raw in reader.messages(connections=conns):
+                yield conn.topic, t, (lambda raw=raw, typ=conn.msgtype: reader.deserialize(raw, typ))
+        finally:
+            pass
+
+    src = _Source(topics, messages)
+    src.close = reader.close  # type: ignore[attr-defined]
+    return src
+
+
+def _typestore_for(definitions: Dict[str, str]):
+    """A typestore holding the bag's own message definitions (ROS 1 text); old bags define their
+    header as ``roslib/Header``, which the text names ``Header``: std_msgs/Header is given too."""
+    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
+
+    types: Dict[str, Any] = {}
+    for msgtype, text in definitions.items():
+        types.update(get_types_from_msg(text, msgtype))
+    if "std_msgs/msg/Header" not in types:
+        types["std_msgs/msg/Header"] = types.get("roslib/msg/Header") or \
+            get_typestore(Stores.ROS1_NOETIC).fielddefs["std_msgs/msg/Header"]
+    store = get_typestore(Stores.EMPTY)
+    store.register(types)
+    return store
+
+
+def _open_chunks(path: str, note: str) -> _Source:
+    """A ROS 1 bag read by walking its chunks (its index unusable)."""
+    from ._rosbag1_chunks import walk_chunks
+    from ._files import require_regular_file
+
+    require_regular_file(path)
+    with open(path, "rb") as f:
+        walk = walk_chunks(f.read())
+    conns = walk.connections
+    store = _typestore_for({c.msgtype: c.msgdef for c in conns.values()})
+    topics = {c.topic: c.msgtype for c in conns.values()}
+    # Recording order: the chunks are walked in file order; a stable sort on the record time
+    # puts a message written late (out of order) back in its place.
+    ordered = sorted((m for m in walk.messages if m[0] in conns), key=lambda m: m[1])
+
+    def messages(names: Sequence[str]):
+        for cid, t, raw in ordered:
+            conn = conns[cid]
+            if conn.topic in names:
+                yield conn.topic, t, (lambda raw=raw, typ=conn.msgtype: store.deserialize_ros1(raw, typ))
+
+    src = _Source(topics, messages, note, list(walk.problems))
+    src.close = lambda: None  # type: ignore[attr-defined]
+    return src
+
+
+def _open(path: str) -> _Source:
+    rosbags = _rosbags()
+    if not os.path.exists(path):
+        raise FileNotFoundError(f"path: no such file or folder: {path!r}")
+    try:
+        return _open_any(path, rosbags)
+    except FileNotFoundError:
+        raise
+    except (AssertionError, Exception) as exc:  # noqa: BLE001 - rosbags' errors have no common base
+        if not path.lower().endswith(".bag"):
+            raise ValueError(f"{path}: cannot read the bag: {type(exc).__name__}: {exc}") from None
+        reason = str(exc) or type(exc).__name__
+        return _open_chunks(path, f"index unusable ({reason}): chunks walked")
+
+
+# --- geometry ----------------------------------------------------------------------------------
+
+def _yaw(q) -> float:
+    """Heading of a quaternion (x, y, z, w) projected on the plane."""
+    return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
+
+
+def _compose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a (+) b row by row for (N, 3) poses (b broadcast when (3,)): b in a's frame."""
+    from .._core import wrap_angle
+
+    b = np.broadcast_to(b, a.shape)
+    c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
+    return np.column_stack([a[:, 0] + c * b[:, 0] - s * b[:, 1], a[:, 1] + s * b[:, 0] + c * b[:, 1],
+                            wrap_angle(a[:, 2] + b[:, 2])])
+
+
+def _stamp(header) -> float:
+    return header.stamp.sec + header.stamp.nanosec * 1e-9
+
+
+def _frame(name: str) -> str:
+    """A tf frame id without its leading slash (ROS 1 bags often have one, tf2 none)."""
+    return name.lstrip("/")
+
+
+@dataclass
+class _Track:
+    """Poses (N, 3) at timestamps (N,), sorted by time; velocities (N, 2) where known."""
+
+    timestamps: np.ndarray
+    poses: np.ndarray
+    velocities: np.ndarray
+
+    @staticmethod
+    def of(rows: List[Tuple[float, float, float, float, float, float]]) -> "_Track":
+        data = np.array(sorted(rows, key=lambda r: r[0]), dtype=float).reshape(-1, 6)
+        return _Track(data[:, 0], data[:, 1:4], data[:, 4:6])
+
+    def at(self, times: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        """(poses at the times inside the track's span, mask of those times)."""
+        from ..eval import interpolate_poses
+
+        if len(self.timestamps) == 0:
+            return np.zeros((0, 3)), np.zeros(len(times), bool)
+        inside = (times >= self.timestamps[0]) & (times <= self.timestamps[-1])
+        return interpolate_poses(self.timestamps, self.poses, times[inside]), inside
+
+
+class _TfTree:
+    """tf edges parent -> child: each dynamic one a track, each static one a pose."""
+
+    def __init__(self) -> None:
+        self.dynamic: Dict[Tuple[str, str], List[Tuple[float, float, float, float, float, float]]] = {}
+        self.static: Dict[Tuple[str, str], np.ndarray] = {}
+        self.parent: Dict[str, str] = {}
+
+    def add(self, msg, static: bool) -> None:
+        for tr in msg.transforms:
+            parent, child = _frame(tr.header.frame_id), _frame(tr.child_frame_id)
+            t = tr.transform.translation
+            pose = (t.x, t.y, _yaw(tr.transform.rotation))
+            if not all(math.isfinite(v) for v in pose):
+                raise ValueError(f"transform {parent} -> {child} is not finite")
+            self.parent[child] = parent
+            if static:
+                self.static[(parent, child)] = np.array(pose)
+            else:
+                self.dynamic.setdefault((parent, child), []).append((_stamp(tr.header), *pose, math.nan, math.nan))
+
+    def root(self, frame: str) -> Optional[str]:
+        """The top of the tree above ``frame`` (None when tf does not know it)."""
+        if frame not in self.parent:
+            return None
+        seen = {frame}
+        while frame in self.parent and self.parent[frame] not in seen:
+            frame = self.parent[frame]
+            seen.add(frame)
+        return frame
+
+    def frames(self) -> List[str]:
+        return sorted(set(self.parent) | set(self.parent.values()))
+
+    def chain(self, top: str, bottom: str) -> Optional[List[Tuple[str, str]]]:
+        """The edges from ``top`` down to ``bottom``, or None when bottom is not below top."""
+        edges: List[Tuple[str, str]] = []
+        node = bottom
+        seen = set()
+        while node != top:
+            if node not in self.parent or node in seen:
+                return None
+            seen.add(node)
+            edges.append((self.parent[node], node))
+            node = self.parent[node]
+        return edges[::-1]
+
+    def is_static(self, edge: Tuple[str, str]) -> bool:
+        return edge in self.static and edge not in self.dynamic
+
+    def evaluate(self, edges: List[Tuple[str, str]], times: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+        """The composed transform of ``edges`` at ``times`` and the mask of the times every
+        dynamic edge covers (each interpolated within its own messages)."""
+        poses = np.zeros((len(times), 3))
+        ok = np.ones(len(times), bool)
+        for edge in edges:
+            if self.is_static(edge):
+                poses = _compose(poses, self.static[edge])
+                continue
+            track = _Track.of(self.dynamic[edge])
+            step = np.zeros((len(times), 3))
+            at, inside = track.at(times)
+            step[inside] = at
+            ok &= inside
+            poses = _compose(poses, step)
+        return poses, ok
+
+
+# --- reading -----------------------------------------------------------------------------------
+
+def _pick(topics: Dict[str, str], types: Sequence[str], named: Optional[str], option: str,
+          what: str, required: bool) -> Optional[str]:
+    """The topic named (checked: present, of one of ``types``), or the only candidate."""
+    if named is not None:
+        if not isinstance(named, str):
+            raise TypeError(f"{option}: expected a topic name (str), got {type(named).__name__}")
+        if named not in topics:
+            raise ValueError(f"{option}: no topic {named!r} in the bag (topics: "
+                             f"{', '.join(f'{t} [{m}]' for t, m in sorted(topics.items())) or 'none'})")
+        if topics[named] not in types:
+            raise ValueError(f"{option}: topic {named!r} has message type {topics[named]}, "
+                             f"expected {' or '.join(types)}")
+        return named
+    found = sorted(t for t, m in topics.items() if m in types)
+    if len(found) > 1:
+        raise ValueError(f"several {what} topics: {', '.join(found)}; name one with {option}")
+    if not found and required:
+        raise ValueError(f"no {what} topic ({' or '.join(types)}) in the bag (topics: "
+                         f"{', '.join(f'{t} [{m}]' for t, m in sorted(topics.items())) or 'none'})")
+    return found[0] if found else None
+
+
+def _offset_arg(value) -> Optional[np.ndarray]:
+    if value is None:
+        return None
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise TypeError("laser_offset: expected (x, y, theta) numbers") from None
+    if arr.shape != (3,):
+        raise ValueError(f"laser_offset: expected (x, y, theta), got shape {arr.shape}")
+    if not np.all(np.isfinite(arr)):
+        raise ValueError("laser_offset: must contain only finite values")
+    from .._core import wrap_angle
+
+    arr = arr.copy()
+    arr[2] = wrap_angle(float(arr[2]))
+    return arr
+
+
+class _Skips:
+    """Messages skipped: counted, the first MAX_REPORTED_MESSAGES listed with their reasons."""
+
+    def __init__(self) -> None:
+        self.count = 0
+        self.numbers: List[int] = []
+        self.reasons: List[str] = []
+
+    def add(self, number: int, reason: str) -> None:
+        self.count += 1
+        if len(self.numbers) < MAX_REPORTED_MESSAGES:
+            self.numbers.append(number)
+            self.reasons.append(reason)
+
+
+def _scan_arrays(msg) -> Tuple[np.ndarray, float, float, float, float]:
+    """(ranges, start angle, increment, range_max, stamp) of a LaserScan: NaN, +inf and readings
+    beyond range_max become range_max (no return: the value a CARMEN log holds for it, which
+    ``mapping.no_return_range`` and ``run_slam`` read from ``max_ranges``); -inf and readings
+    below range_min (too close, or an error) become NaN, no reading at all."""
+    ranges = np.asarray(msg.ranges, dtype=float)
+    lo, hi = float(msg.range_min), float(msg.range_max)
+    values = (lo, hi, float(msg.angle_min), float(msg.angle_increment))
+    if not all(math.isfinite(v) for v in values) or hi <= 0 or ranges.size == 0:
+        raise ValueError(f"bad LaserScan fields (range_min {lo}, range_max {hi}, angle_min "
+                         f"{msg.angle_min}, angle_increment {msg.angle_increment}, {ranges.size} ranges)")
+    out = ranges.copy()
+    out[np.isnan(ranges) | (ranges > hi)] = hi
+    out[ranges < lo] = np.nan
+    return out, float(msg.angle_min), float(msg.angle_increment), hi, _stamp(msg.header)
+
+
+def read_rosbag(path: PathLike, *, scan_topic: Optional[str] = None, odom_topic: Optional[str] = None,
+                pose_topic: Optional[str] = None, odom_frame: Optional[str] = None,
+                base_frame: Optional[str] = None, laser_offset: Optional[Sequence[float]] = None,
+                sort_by_stamp: bool = False) -> RosbagLog:
+    """Read the laser scans of a ROS bag, located by odometry, tf or a pose topic.
+
+    path: a ROS 1 ``.bag``, a ROS 2 bag folder, or a ``.db3`` / ``.mcap`` file in one. Topics
+    are found by type when there is one candidate: ``sensor_msgs/LaserScan`` (scan_topic),
+    ``nav_msgs/Odometry`` (odom_topic). ``pose_topic`` (a ``PoseStamped``,
+    ``PoseWithCovarianceStamped`` or ``Odometry`` topic of corrected poses, e.g. for
+    ``map_laser_log``) replaces odometry as the source of the robot poses. Without an odometry
+    topic, the robot pose is ``odom_frame -> base_frame`` along ``tf`` (composed through any
+    intermediate frames; frame ids with or without a leading slash); odom_frame defaults to
+    "odom" (else the root of the laser frame's tree), base_frame to the frame below which the
+    tree down to the laser is static. The laser offset is ``base_frame -> the scan's frame_id``
+    from ``tf_static`` (or ``/tf``), unless ``laser_offset=(x, y, theta)`` is given; none found:
+    the laser sits at the robot pose. A bag with neither odometry nor tf gives scans whose
+    poses are all zero: ``run_slam`` then runs on scan matching alone.
+
+    Poses are interpolated (``eval.interpolate_poses``) to each scan's header stamp; a scan
+    outside the poses' time span is skipped. Scans keep their recording order (as ``rosbag
+    play`` delivers them); those stamped before the previous scan are counted in
+    ``backward_stamps`` and, with ``sort_by_stamp``, put in stamp order. Ranges: see the
+    returned ``LaserScans``; NaN, inf and readings beyond range_max are the no-return value
+    range_max (``max_ranges``), readings below range_min NaN.
+
+    Errors: rosbags not installed: ImportError saying ``pip install rosbags``. A missing path:
+    FileNotFoundError. A topic named and absent or of another type, several candidates for one
+    option, no scan topic or a scan topic without a readable message: ValueError naming the
+    topic or the option. Messages that cannot be decoded (or hold non-finite fields) are
+    skipped, counted in ``skipped_rows`` with the first numbers and reasons listed, and one
+    warning names them; a ROS 1 bag whose index is damaged is read by walking its chunks
+    (``index_note``).
+    """
+    path = file_path(path)
+    offset = _offset_arg(laser_offset)
+    for name, value in (("odom_frame", odom_frame), ("base_frame", base_frame)):
+        if value is not None and not isinstance(value, str):
+            raise TypeError(f"{name}: expected a frame id (str), got {type(value).__name__}")
+    source = _open(path)
+    try:
+        return _read(source, path, scan_topic, odom_topic, pose_topic, odom_frame, base_frame, offset,
+                     bool(sort_by_stamp))
+    finally:
+        source.close()  # type: ignore[attr-defined]
+
+
+def _read(source: _Source, path: str, scan_topic, odom_topic, pose_topic, odom_frame, base_frame,
+          offset, sort_by_stamp) -> RosbagLog:
+    topics = source.topics
+    scan_topic = _pick(topics, SCAN_TYPES, scan_topic, "scan_topic", "sensor_msgs/LaserScan", True)
+    pose_topic = _pick(topics, POSE_TYPES, pose_topic, "pose_topic", "pose", False) if pose_topic else None
+    if odom_topic is not None or pose_topic is None:
+        odom_topic = _pick(topics, ODOMETRY_TYPES, odom_topic, "odom_topic", "nav_msgs/Odometry", False)
+    if pose_topic is not None:
+        odom_topic = None
+    tf_topics = [t for t, m in topics.items() if m in TF_TYPES]
+    wanted = [scan_topic] + [t for t in (odom_topic, pose_topic) if t] + tf_topics
+
+    skips = _Skips()
+    scans: List[Tuple[np.ndarray, float, float, float, float, str]] = []
+    track_rows: List[Tuple[float, float, float, float, float, float]] = []
+    tree = _TfTree()
+    child_frames: List[str] = []
+    for number, (topic, _, decode) in enumerate(source.messages(wanted), 1):
+        try:
+            msg = decode()
+            if topic == scan_topic:
+                ranges, start, step, hi, stamp = _scan_arrays(msg)
+                scans.append((ranges, start, step, hi, stamp, _frame(msg.header.frame_id)))
+            elif topic in (odom_topic, pose_topic):
+                pose = msg.pose.pose if hasattr(msg.pose, "pose") else msg.pose
+                vel = (msg.twist.twist.linear.x, msg.twist.twist.angular.z) if hasattr(msg, "twist") \
+                    else (math.nan, math.nan)
+                row = (_stamp(msg.header), pose.position.x, pose.position.y, _yaw(pose.orientation), *vel)
+                if not all(math.isfinite(v) for v in row[:4]):
+                    raise ValueError("pose is not finite")
+                track_rows.append(row)
+                if hasattr(msg, "child_frame_id") and msg.child_frame_id and not child_frames:
+                    child_frames.append(_frame(msg.child_frame_id))
+            else:
+                tree.add(msg, static=topic.rstrip("/").endswith("tf_static"))
+        except Exception as exc:  # noqa: BLE001 - a message that cannot be decoded or used
+            skips.add(number, f"{topic}: {type(exc).__name__}: {exc}".rstrip(": "))
+    for problem in source.problems:
+        skips.add(-1, problem)
+    if not scans:
+        extra = f" ({skips.count} of its messages could not be read)" if skips.count else ""
+        raise ValueError(f"{path}: topic {scan_topic} holds no readable LaserScan{extra}")
+
+    stamps = np.array([s[4] for s in scans])
+    backward = int(np.count_nonzero(np.diff(stamps) < 0))
+    order = np.argsort(stamps, kind="stable") if sort_by_stamp else np.arange(len(scans))
+    stamps = stamps[order]
+    scans = [scans[i] for i in order]
+
+    laser_frame = scans[0][5]
+    robot = np.zeros((len(scans), 3))
+    usable = np.ones(len(scans), bool)
+    source_name = "none"
+    odometry = Odometry(np.zeros((0, 3)), np.zeros((0, 2)), np.zeros(0))
+    base = _frame(base_frame) if base_frame is not None else None
+    if track_rows:
+        track = _Track.of(track_rows)
+        at, usable = track.at(stamps)
+        robot[usable] = at
+        source_name = f"{'poses' if pose_topic else 'odometry'} {pose_topic or odom_topic}"
+        odometry = Odometry(track.poses, track.velocities, track.timestamps)
+        if base is None and child_frames:
+            base = child_frames[0]
+    else:
+        top = _frame(odom_frame) if odom_frame is not None else ("odom" if "odom" in tree.frames() else
+                                                               tree.root(laser_frame))
+        if base is None and top is not None:
+            chain = tree.chain(top, laser_frame) or []
+            # The robot's frame: below the last moving edge on the way down to the laser.
+            moving = [e for e in chain if not tree.is_static(e)]
+            base = moving[-1][1] if moving else None
+        chain = tree.chain(top, base) if top is not None and base is not None else None
+        if chain is None and (odom_frame is not None or base_frame is not None):
+            raise ValueError(f"{'base_frame' if base_frame is not None else 'odom_frame'}: no tf chain from "
+                             f"{top} to {base} (frames: {', '.join(tree.frames()) or 'none'})")
+        if chain and any(not tree.is_static(e) for e in chain):
+            robot, usable = tree.evaluate(chain, stamps)
+            source_name = f"tf {top}->{base}"
+            times = np.unique([row[0] for e in chain if not tree.is_static(e) for row in tree.dynamic[e]])
+            poses, ok = tree.evaluate(chain, times)
+            odometry = Odometry(poses[ok], np.full((int(ok.sum()), 2), np.nan), times[ok])
+    found_offset = None
+    offset_source = "none"
+    if offset is not None:
+        found_offset, offset_source = offset, "given"
+    elif base is not None:
+        chain = [] if base == laser_frame else tree.chain(base, laser_frame)
+        if chain and all(tree.is_static(e) for e in chain):
+            found_offset = tree.evaluate(chain, np.zeros(1))[0][0]
+            offset_source = "tf_static"
+    if found_offset is None:
+        found_offset = np.zeros(3)
+    laser = _compose(robot, found_offset)
+
+    for i in np.flatnonzero(~usable):
+        skips.add(-1, f"{scan_topic}: scan stamped {stamps[i]:.9f} outside the poses' time span "
+                      f"({source_name})")
+    keep = np.flatnonzero(usable)
+    if keep.size == 0:
+        raise ValueError(f"{path}: no scan of {scan_topic} lies within the time span of its poses "
+                         f"({source_name})")
+    width = max(len(scans[i][0]) for i in keep)
+    ranges = np.full((keep.size, width), np.nan)
+    for row, i in enumerate(keep):
+        ranges[row, :len(scans[i][0])] = scans[i][0]
+    laser_scans = LaserScans(
+        ranges=ranges, laser_poses=laser[keep], robot_poses=robot[keep],
+        start_angles=np.array([scans[i][1] for i in keep]),
+        angular_resolutions=np.array([scans[i][2] for i in keep]),
+        max_ranges=np.array([scans[i][3] for i in keep]),
+        num_beams=np.array([len(scans[i][0]) for i in keep]), timestamps=stamps[keep])
+    log = RosbagLog(laser_scans, odometry, {}, 0, skips.count, skips.numbers, skips.reasons,
+                    path=path, scan_topic=scan_topic, pose_source=source_name,
+                    laser_offset=tuple(float(v) for v in found_offset), laser_offset_source=offset_source,
+                    topics=dict(topics), backward_stamps=backward, index_note=source.index_note)
+    if skips.count:
+        first = f"{'message ' + str(skips.numbers[0]) + ': ' if skips.numbers[0] > 0 else ''}{skips.reasons[0]}"
+        warnings.warn(f"{path}: skipped {skips.count} message{'s' if skips.count > 1 else ''} (first: {first})",
+                      stacklevel=3)
+    return log
+
+
+# --- writing -----------------------------------------------------------------------------------
+
+class _Messages:
+    """Builds the messages of one typestore (ROS 1 headers carry a ``seq``, ROS 2 ones do not)."""
+
+    def __init__(self, store) -> None:
+        self.store = store
+        self.t = store.types
+        self.seq = "seq" in self.t["std_msgs/msg/Header"].__dataclass_fields__
+
+    def header(self, stamp_ns: int, frame: str, seq: int = 0):
+        sec, nsec = divmod(int(stamp_ns), 1_000_000_000)
+        stamp = self.t["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec)
+        if self.seq:
+            return self.t["std_msgs/msg/Header"](seq=seq, stamp=stamp, frame_id=frame)
+        return self.t["std_msgs/msg/Header"](stamp=stamp, frame_id=frame)
+
+    def pose(self, p):
+        q = self.t["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=math.sin(p[2] / 2), w=math.cos(p[2] / 2))
+        return self.t["geometry_msgs/msg/Pose"](position=self.t["geometry_msgs/msg/Point"](x=float(p[0]), y=float(p[1]), z=0.0),
+                                                orientation=q)
+
+    def transform(self, header, child: str, p):
+        pose = self.pose(p)
+        vec = self.t["geometry_msgs/msg/Vector3"](x=pose.position.x, y=pose.position.y, z=0.0)
+        return self.t["geometry_msgs/msg/TransformStamped"](
+            header=header, child_frame_id=child,
+            transform=self.t["geometry_msgs/msg/Transform"](translation=vec, rotation=pose.orientation))
+
+    def tf(self, transforms):
+        return self.t["tf2_msgs/msg/TFMessage"](transforms=list(transforms))
+
+    def odometry(self, header, child: str, p):
+        zero = self.t["geometry_msgs/msg/Vector3"](x=0.0, y=0.0, z=0.0)
+        twist = self.t["geometry_msgs/msg/Twist"](linear=zero, angular=zero)
+        return self.t["nav_msgs/msg/Odometry"](
+            header=header, child_frame_id=child,
+            pose=self.t["geometry_msgs/msg/PoseWithCovariance"](pose=self.pose(p), covariance=np.zeros(36)),
+            twist=self.t["geometry_msgs/msg/TwistWithCovariance"](twist=twist, covariance=np.zeros(36)))
+
+    def pose_stamped(self, header, p):
+        return self.t["geometry_msgs/msg/PoseStamped"](header=header, pose=self.pose(p))
+
+    def scan(self, header, ranges: np.ndarray, start: float, step: float, range_max: float):
+        return self.t["sensor_msgs/msg/LaserScan"](
+            header=header, angle_min=float(start), angle_max=float(start + step * (len(ranges) - 1)),
+            angle_increment=float(step), time_increment=0.0, scan_time=0.0, range_min=0.0,
+            range_max=float(range_max), ranges=np.asarray(ranges, dtype=np.float32),
+            intensities=np.zeros(0, dtype=np.float32))
+
+
+def _laser_offset_of(scans: LaserScans) -> np.ndarray:
+    """The laser's pose in the robot's frame, one for the whole log (the mean over the scans);
+    ValueError when the scans' offsets differ by more than OFFSET_SPREAD_TOL."""
+    from ..eval import relative_poses
+
+    rel = relative_poses(scans.robot_poses, scans.laser_poses)
+    heading = math.atan2(np.sin(rel[:, 2]).mean(), np.cos(rel[:, 2]).mean())
+    offset = np.array([rel[:, 0].mean(), rel[:, 1].mean(), heading])
+    spread = np.abs(relative_poses(np.broadcast_to(offset, rel.shape), rel)).max(axis=0)
+    if spread.max() > OFFSET_SPREAD_TOL:
+        raise ValueError(f"log: the laser's offset from the robot pose varies by up to ({spread[0]:.3g} m, "
+                         f"{spread[1]:.3g} m, {spread[2]:.3g} rad) over the scans, more than tf_static's one "
+                         f"offset can hold (OFFSET_SPREAD_TOL {OFFSET_SPREAD_TOL}); write with "
+                         "laser_offset_in_tf_static=False and poses='laser'")
+    return offset
+
+
+def _stamp_ns(t: float) -> int:
+    """Seconds as integer nanoseconds (a ROS time), rounded to the nearest."""
+    sec = math.floor(t)
+    return int(sec) * 1_000_000_000 + int(round((t - sec) * 1e9))
+
+
+def write_rosbag(log: Union[CarmenLog, LaserScans], path: PathLike, *, format: str = "rosbag1",
+                 odometry: str = "odometry", laser_offset_in_tf_static: bool = True, poses: str = "robot",
+                 pose_topic: Optional[str] = None, scan_topic: str = "/scan", odom_topic: str = "/odom",
+                 odom_frame: str = "odom", base_frame: str = "base_link", laser_frame: str = "laser") -> None:
+    """Write a log's scans and poses as a ROS bag (for users converting CARMEN logs, and tests).
+
+    format: "rosbag1" (a ``.bag`` file), "rosbag2" (a folder with sqlite3 storage) or "mcap" (a
+    ROS 2 folder with mcap storage). Per scan: a ``sensor_msgs/LaserScan`` on ``scan_topic``
+    (frame ``laser_frame``; ranges as float32, the message's type; range_max the log's no-return
+    reading, ``mapping.no_return_range``, else just above its largest reading) and the robot
+    pose at the scan's stamp, as ``nav_msgs/Odometry`` on ``odom_topic`` (odometry="odometry")
+    or as ``tf`` ``odom_frame -> base_frame`` (odometry="tf"). ``poses="robot"`` writes the
+    scans' robot poses and the laser's offset from them once in ``tf_static`` (``base_frame ->
+    laser_frame``; with ``laser_offset_in_tf_static=False`` it is left out, and a reader needs
+    ``laser_offset``); ``poses="laser"`` writes the laser poses as the robot's (offset zero).
+    ``pose_topic``: the same poses as ``geometry_msgs/PoseStamped`` there too (frame "map"), for
+    ``map_laser_log`` of a corrected log. Record times are the stamps made non-decreasing (a
+    recorder's clock does not go back; stamps that do are kept in the headers).
+
+    Errors: rosbags missing: ImportError; an existing ``path``: FileExistsError; a bad option
+    or a log whose laser offset varies (see ``OFFSET_SPREAD_TOL``): ValueError. A failed write
+    leaves nothing at ``path``.
+    """
+    import shutil
+
+    from ..mapping import no_return_range
+
+    _rosbags()
+    from rosbags.rosbag1 import Writer as Writer1
+    from rosbags.rosbag2 import StoragePlugin, Writer as Writer2
+    from rosbags.typesys import Stores, get_typestore
+
+    scans = log.scans if isinstance(log, CarmenLog) else log
+    if not isinstance(scans, LaserScans):
+        raise TypeError(f"log: expected a CarmenLog or LaserScans, got {type(log).__name__}")
+    path = file_path(path)
+    for name, value, allowed in (("format", format, FORMATS), ("odometry", odometry, ("odometry", "tf")),
+                                 ("poses", poses, ("robot", "laser"))):
+        if value not in allowed:
+            raise ValueError(f"{name} must be one of {allowed}, got {value!r}")
+    if len(scans) == 0:
+        raise ValueError("log: no scans to write")
+    for name in ("laser_poses", "robot_poses", "timestamps", "start_angles", "angular_resolutions"):
+        if not np.all(np.isfinite(getattr(scans, name))):
+            raise ValueError(f"log: scans.{name} must contain only finite values")
+    if os.path.lexists(path):
+        raise FileExistsError(f"path: {path!r} exists already (a bag is never overwritten)")
+    robot = scans.robot_poses if poses == "robot" else scans.laser_poses
+    offset = _laser_offset_of(scans) if poses == "robot" else np.zeros(3)
+    no_return = no_return_range(scans)
+    if not math.isfinite(no_return):
+        top = np.nanmax(np.where(np.isfinite(scans.ranges), scans.ranges, np.nan)) if np.isfinite(scans.ranges).any() else 1.0
+        no_return = float(np.nextafter(np.float32(top), np.float32(np.inf)))
+
+    ros1 = format == "rosbag1"
+    store = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
+    if "tf2_msgs/msg/TFMessage" not in store.types:
+        # rosbags' Noetic store leaves out tf2_msgs; its one-line definition is ROS's own.
+        from rosbags.typesys import get_types_from_msg
+
+        store.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage"))
+    build = _Messages(store)
+    serialize = store.serialize_ros1 if ros1 else store.serialize_cdr
+    if ros1:
+        writer = Writer1(path)
+    else:
+        plugin = StoragePlugin.MCAP if format == "mcap" else StoragePlugin.SQLITE3
+        writer = Writer2(path, version=9, storage_plugin=plugin)
+    try:
+        with writer:
+            def connection(topic: str, msgtype: str):
+                return writer.add_connection(topic, msgtype, typestore=store)
+
+            c_scan = connection(scan_topic, "sensor_msgs/msg/LaserScan")
+            c_odom = connection(odom_topic, "nav_msgs/msg/Odometry") if odometry == "odometry" else None
+            c_tf = connection("/tf", "tf2_msgs/msg/TFMessage") if odometry == "tf" else None
+            c_pose = connection(pose_topic, "geometry_msgs/msg/PoseStamped") if pose_topic else None
+            record = _stamp_ns(float(scans.timestamps.min()))
+            if laser_offset_in_tf_static:
+                c_static = connection("/tf_static", "tf2_msgs/msg/TFMessage")
+                static = build.tf([build.transform(build.header(record, base_frame), laser_frame, offset)])
+                writer.write(c_static, record, serialize(static, "tf2_msgs/msg/TFMessage"))
+            for i in range(len(scans)):
+                stamp = _stamp_ns(float(scans.timestamps[i]))
+                record = max(record, stamp)
+                if c_odom is not None:
+                    msg = build.odometry(build.header(stamp, odom_frame, i), base_frame, robot[i])
+                    writer.write(c_odom, record, serialize(msg, "nav_msgs/msg/Odometry"))
+                else:
+                    msg = build.tf([build.transform(build.header(stamp, odom_frame, i), base_frame, robot[i])])
+                    writer.write(c_tf, record, serialize(msg, "tf2_msgs/msg/TFMessage"))
+                if c_pose is not None:
+                    msg = build.pose_stamped(build.header(stamp, "map", i), robot[i])
+                    writer.write(c_pose, record, serialize(msg, "geometry_msgs/msg/PoseStamped"))
+                n = int(scans.num_beams[i])
+                msg = build.scan(build.header(stamp, laser_frame, i), scans.ranges[i, :n], scans.start_angles[i],
+                                 scans.angular_resolutions[i], no_return)
+                writer.write(c_scan, record, serialize(msg, "sensor_msgs/msg/LaserScan"))
+    except BaseException:
+        if os.path.isdir(path):
+            shutil.rmtree(path, ignore_errors=True)
+        elif os.path.lexists(path):
+            os.remove(path)
+        raise
