@@ -390,21 +390,41 @@ class _Skips:
             self.reasons.append(reason)
 
 
-def _scan_arrays(msg) -> Tuple[np.ndarray, float, float, float, float]:
-    """(ranges, start angle, increment, range_max, stamp) of a LaserScan: NaN, +inf and readings
-    beyond range_max become range_max (no return: the value a CARMEN log holds for it, which
-    ``mapping.no_return_range`` and ``run_slam`` read from ``max_ranges``); -inf and readings
-    below range_min (too close, or an error) become NaN, no reading at all."""
-    ranges = np.asarray(msg.ranges, dtype=float)
-    lo, hi = float(msg.range_min), float(msg.range_max)
-    values = (lo, hi, float(msg.angle_min), float(msg.angle_increment))
-    if not all(math.isfinite(v) for v in values) or hi <= 0 or ranges.size == 0:
-        raise ValueError(f"bad LaserScan fields (range_min {lo}, range_max {hi}, angle_min "
+def _scan_fields(msg) -> Tuple[np.ndarray, float, float, float, float, float]:
+    """(float32 ranges, start angle, increment, range_min, range_max, stamp) of a LaserScan;
+    ValueError for fields that cannot describe a scan."""
+    ranges = np.asarray(msg.ranges, dtype=np.float32)
+    values = (float(msg.range_min), float(msg.range_max), float(msg.angle_min), float(msg.angle_increment))
+    if not all(math.isfinite(v) for v in values) or values[1] <= 0 or ranges.ndim != 1 or ranges.size == 0:
+        raise ValueError(f"bad LaserScan fields (range_min {msg.range_min}, range_max {msg.range_max}, angle_min "
                          f"{msg.angle_min}, angle_increment {msg.angle_increment}, {ranges.size} ranges)")
+    return ranges, values[2], values[3], values[0], values[1], _stamp(msg.header)
+
+
+def widen_float32(values: np.ndarray) -> np.ndarray:
+    """float32 values as the float64 of their shortest decimal form (numpy's repr of a float32):
+    a reading of 1.07 m stored as float32 comes back as 1.07, not 1.0700000524520874. LaserScan
+    ranges are float32, and the sensors (and CARMEN logs) report them in mm or cm: this recovers
+    the reported value exactly, where a plain cast adds up to 3e-8 of relative noise."""
+    values = np.asarray(values, dtype=np.float32)
+    unique, inverse = np.unique(values, return_inverse=True)  # far fewer distinct readings than beams
+    return unique.astype(str).astype(float)[inverse].reshape(values.shape)
+
+
+def _no_return(ranges: np.ndarray, num_beams: np.ndarray, range_min: np.ndarray,
+               range_max: np.ndarray) -> np.ndarray:
+    """Ranges (S, B), NaN-padded after each row's num_beams, with NaN, +inf and readings beyond
+    range_max set to range_max: no return, the value a CARMEN log holds for it
+    (``mapping.no_return_range`` and ``run_slam`` read it from ``max_ranges``); -inf and readings
+    below range_min (too close, or an error: REP 117) set to NaN, no reading, as the padding."""
+    beam = np.arange(ranges.shape[1])[None, :] < num_beams[:, None]
     out = ranges.copy()
-    out[np.isnan(ranges) | (ranges > hi)] = hi
-    out[ranges < lo] = np.nan
-    return out, float(msg.angle_min), float(msg.angle_increment), hi, _stamp(msg.header)
+    with np.errstate(invalid="ignore"):
+        none = beam & (np.isnan(ranges) | (ranges > range_max[:, None]))
+        close = beam & (ranges < range_min[:, None])
+    out[none] = np.broadcast_to(range_max[:, None], out.shape)[none]
+    out[close] = np.nan
+    return out
 
 
 def read_rosbag(path: PathLike, *, scan_topic: Optional[str] = None, odom_topic: Optional[str] = None,
@@ -475,8 +495,8 @@ def _read(source: _Source, path: str, scan_topic, odom_topic, pose_topic, odom_f
         try:
             msg = decode()
             if topic == scan_topic:
-                ranges, start, step, hi, stamp = _scan_arrays(msg)
-                scans.append((ranges, start, step, hi, stamp, _frame(msg.header.frame_id)))
+                ranges, start, step, lo, hi, stamp = _scan_fields(msg)
+                scans.append((ranges, start, step, lo, hi, stamp, _frame(msg.header.frame_id)))
             elif topic in (odom_topic, pose_topic):
                 pose = msg.pose.pose if hasattr(msg.pose, "pose") else msg.pose
                 vel = (msg.twist.twist.linear.x, msg.twist.twist.angular.z) if hasattr(msg, "twist") \
@@ -497,13 +517,13 @@ def _read(source: _Source, path: str, scan_topic, odom_topic, pose_topic, odom_f
         extra = f" ({skips.count} of its messages could not be read)" if skips.count else ""
         raise ValueError(f"{path}: topic {scan_topic} holds no readable LaserScan{extra}")
 
-    stamps = np.array([s[4] for s in scans])
+    stamps = np.array([s[5] for s in scans])
     backward = int(np.count_nonzero(np.diff(stamps) < 0))
     order = np.argsort(stamps, kind="stable") if sort_by_stamp else np.arange(len(scans))
     stamps = stamps[order]
     scans = [scans[i] for i in order]
 
-    laser_frame = scans[0][5]
+    laser_frame = scans[0][6]
     robot = np.zeros((len(scans), 3))
     usable = np.ones(len(scans), bool)
     source_name = "none"
@@ -555,17 +575,27 @@ def _read(source: _Source, path: str, scan_topic, odom_topic, pose_topic, odom_f
     if keep.size == 0:
         raise ValueError(f"{path}: no scan of {scan_topic} lies within the time span of its poses "
                          f"({source_name})")
-    width = max(len(scans[i][0]) for i in keep)
-    ranges = np.full((keep.size, width), np.nan)
+    num_beams = np.array([len(scans[i][0]) for i in keep])
+    # Bounded sizes, as the CARMEN reader: scans so much wider than the rest that padding every
+    # scan to them would hold more than 4x the beams read are skipped (counted).
+    wide = 0
+    while num_beams.size > 1 and num_beams.size * int(num_beams.max()) > 4 * int(num_beams.sum()):
+        widest = int(np.argmax(num_beams))
+        keep, num_beams = np.delete(keep, widest), np.delete(num_beams, widest)
+        wide += 1
+    raw = np.full((keep.size, int(num_beams.max())), np.nan, dtype=np.float32)
     for row, i in enumerate(keep):
-        ranges[row, :len(scans[i][0])] = scans[i][0]
+        raw[row, :num_beams[row]] = scans[i][0]
+    range_max = widen_float32([scans[i][4] for i in keep])
+    ranges = _no_return(widen_float32(raw), num_beams, widen_float32([scans[i][3] for i in keep]), range_max)
     laser_scans = LaserScans(
         ranges=ranges, laser_poses=laser[keep], robot_poses=robot[keep],
+        # Angles stay the float32 values the message holds: unlike ranges in mm, an increment
+        # such as 2 pi / 1024 has no short decimal form to recover.
         start_angles=np.array([scans[i][1] for i in keep]),
-        angular_resolutions=np.array([scans[i][2] for i in keep]),
-        max_ranges=np.array([scans[i][3] for i in keep]),
-        num_beams=np.array([len(scans[i][0]) for i in keep]), timestamps=stamps[keep])
-    log = RosbagLog(laser_scans, odometry, {}, 0, skips.count, skips.numbers, skips.reasons,
+        angular_resolutions=np.array([scans[i][2] for i in keep]), max_ranges=range_max,
+        num_beams=num_beams, timestamps=stamps[keep])
+    log = RosbagLog(laser_scans, odometry, {}, wide, skips.count, skips.numbers, skips.reasons,
                     path=path, scan_topic=scan_topic, pose_source=source_name,
                     laser_offset=tuple(float(v) for v in found_offset), laser_offset_source=offset_source,
                     topics=dict(topics), backward_stamps=backward, index_note=source.index_note)
