@@ -212,8 +212,8 @@ def _open(path: str) -> _Source:
     except (AssertionError, Exception) as exc:  # noqa: BLE001 - rosbags' errors have no common base
         if not path.lower().endswith(".bag"):
             raise ValueError(f"{path}: cannot read the bag: {type(exc).__name__}: {exc}") from None
-        reason = str(exc) or type(exc).__name__
-        return _open_chunks(path, f"index unusable ({reason}): chunks walked")
+        reason = f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__
+        return _open_chunks(path, f"index unreadable by rosbags ({reason}): read by walking its chunks")
 
 
 # --- geometry ----------------------------------------------------------------------------------
