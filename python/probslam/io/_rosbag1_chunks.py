@@ -156,12 +156,13 @@ class ChunkWalk:
     problems: List[str]
 
 
-def walk_chunks(raw: bytes) -> ChunkWalk:
-    """Every connection and message record of the chunks of a ROS 1 bag held in ``raw``. A chunk
+def walk_chunks(raw) -> ChunkWalk:
+    """Every connection and message record of the chunks of a ROS 1 bag held in ``raw`` (bytes
+    or a read-only mmap). A chunk
     that cannot be decompressed is skipped (a problem listed); a record cut off ends the walk of
     its chunk (or of the file) there. A file that is not a ROS 1 2.0 bag raises ValueError."""
     magic = b"#ROSBAG V2.0\n"
-    if not raw.startswith(magic):
+    if raw[:len(magic)] != magic:
         raise ValueError("not a ROS 1 bag (format 2.0): the file does not start with '#ROSBAG V2.0'")
     connections: Dict[int, Connection] = {}
     messages: List[Tuple[int, int, bytes]] = []

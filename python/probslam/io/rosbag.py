@@ -12,6 +12,7 @@ Poses are projected on the plane: ``(x, y, yaw)``.
 from __future__ import annotations
 
 import math
+import mmap
 import os
 import warnings
 from dataclasses import dataclass, field
@@ -182,7 +183,11 @@ def _open_chunks(path: str, note: str) -> _Source:
 
     require_regular_file(path)
     with open(path, "rb") as f:
-        walk = walk_chunks(f.read())
+        if os.fstat(f.fileno()).st_size == 0:
+            raise ValueError(f"{path}: empty file")
+        # Mapped, not read: the walk touches each chunk once, and a bag may be gigabytes.
+        with mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as raw:
+            walk = walk_chunks(raw)
     conns = walk.connections
     store = _typestore_for({c.msgtype: c.msgdef for c in conns.values()})
     topics = {c.topic: c.msgtype for c in conns.values()}
@@ -707,15 +712,15 @@ def write_rosbag(log: Union[CarmenLog, LaserScans], path: PathLike, *, format: s
 
     from ..mapping import no_return_range
 
+    scans = log.scans if isinstance(log, CarmenLog) else log
+    if not isinstance(scans, LaserScans):
+        raise TypeError(f"log: expected a CarmenLog or LaserScans, got {type(log).__name__}")
+    path = file_path(path)
     _rosbags()
     from rosbags.rosbag1 import Writer as Writer1
     from rosbags.rosbag2 import StoragePlugin, Writer as Writer2
     from rosbags.typesys import Stores, get_typestore
 
-    scans = log.scans if isinstance(log, CarmenLog) else log
-    if not isinstance(scans, LaserScans):
-        raise TypeError(f"log: expected a CarmenLog or LaserScans, got {type(log).__name__}")
-    path = file_path(path)
     for name, value, allowed in (("format", format, FORMATS), ("odometry", odometry, ("odometry", "tf")),
                                  ("poses", poses, ("robot", "laser"))):
         if value not in allowed:
