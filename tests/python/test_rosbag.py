@@ -438,12 +438,17 @@ def test_slam_on_the_bag_equals_slam_on_the_log(tmp_path, raw_log, fmt):
     assert on_bag.summary.submaps == on_log.summary.submaps and on_bag.odometry
 
 
-@needs_rosbags
-def test_real_bag_with_a_broken_index(shared_data):
-    path = shared_data / DEMO_BAG
+def _real_bag(shared_data, name):
+    """The real bag ``name`` of the shared data as read_rosbag reads it (skips when absent)."""
+    path = shared_data / name
     if not path.exists():
         pytest.skip(f"{path} not present")
-    log = io.read_rosbag(path)
+    return io.read_rosbag(path)
+
+
+@needs_rosbags
+def test_real_bag_with_a_broken_index(shared_data):
+    log = _real_bag(shared_data, DEMO_BAG)
     assert len(log.scans) == 360 and log.skipped_rows == 0
     assert "AssertionError" in log.index_note
     assert log.scans.ranges.shape == (360, 681) and log.pose_source == "none"
@@ -456,10 +461,7 @@ def test_real_bag_with_a_broken_index(shared_data):
 
 @needs_rosbags
 def test_real_stationary_bag(shared_data):
-    path = shared_data / STATIONARY_BAG
-    if not path.exists():
-        pytest.skip(f"{path} not present")
-    log = io.read_rosbag(path)
+    log = _real_bag(shared_data, STATIONARY_BAG)
     assert len(log.scans) == 1265 and log.index_note == "" and log.skipped_rows == 0
     assert log.scans.ranges.shape == (1265, 512)
     assert np.all(np.diff(log.scans.timestamps) > 0)
