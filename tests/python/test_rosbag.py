@@ -533,3 +533,48 @@ def test_aces_bag_gives_the_relations_error_of_the_clf(shared_data, tmp_path):
               for r in (ps.run_slam(log, progress=False), ps.run_slam(tmp_path / "aces.bag", progress=False))]
     assert errors[0].skipped == errors[1].skipped == 0
     assert abs(errors[0].trans_mean - errors[1].trans_mean) <= ACES_RELATIONS_TOL
+
+
+@needs_rosbags
+@pytest.mark.parametrize("fmt", ["rosbag1", "rosbag2"])
+def test_a_damaged_chunk_or_storage_is_read_as_far_as_it_can_be(tmp_path, raw_log, fmt):
+    """ROS 1: one chunk's bytes overwritten; the index still opens, rosbags stops at the chunk,
+    the walk skips it and reads the others. ROS 2: the sqlite3 file cut short: an error naming
+    the bag, never a traceback of the storage layer."""
+    path = tmp_path / f"a{_suffix(fmt)}"
+    from rosbags.rosbag1 import Writer
+
+    if fmt == "rosbag1":
+        original = Writer.__init__
+
+        def small_chunks(self, p):  # several chunks, so that one can be damaged
+            original(self, p)
+            self.chunk_threshold = 64 << 10
+
+        with pytest.MonkeyPatch.context() as mp:
+            mp.setattr(Writer, "__init__", small_chunks)
+            io.write_rosbag(raw_log, path)
+        data = bytearray(path.read_bytes())
+        chunks = [i for i in range(len(data)) if data.startswith(b"op=\x05", i)]
+        assert len(chunks) >= 4
+        # 4 kB in the middle of a chunk's data overwritten: a few message records, not the chunk's
+        # own header (which rosbags reads when it opens the bag).
+        middle = chunks[len(chunks) // 2] + 32 * 1024
+        data[middle:middle + 4096] = b"\xff" * 4096
+        path.write_bytes(bytes(data))
+        with pytest.warns(UserWarning, match="skipped"):
+            log = io.read_rosbag(path)
+        assert log.index_note.startswith("rosbags stopped reading")
+        assert 500 < len(log.scans) < 630
+        # Every scan read is one of the log's, with its ranges; its pose is the log's, or where
+        # the odometry message of its stamp was lost, interpolated between its neighbours.
+        rows = [int(np.flatnonzero(raw_log.scans.timestamps == t)[0]) for t in log.scans.timestamps]
+        np.testing.assert_array_equal(log.scans.ranges, raw_log.scans.ranges[rows])
+        exact = np.all(log.scans.robot_poses[:, :2] == raw_log.scans.robot_poses[rows, :2], axis=1)
+        assert exact.mean() > 0.95
+    else:
+        io.write_rosbag(raw_log, path, format=fmt)
+        db3 = next(path.glob("*.db3"))
+        db3.write_bytes(db3.read_bytes()[:4096])
+        with pytest.raises(ValueError, match=str(path.name)):
+            io.read_rosbag(path)

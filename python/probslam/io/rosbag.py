@@ -115,6 +115,13 @@ class _Source:
     messages: Callable[[Sequence[str]], Iterator[Tuple[str, int, Callable[[], Any]]]]
     index_note: str = ""
     problems: List[str] = field(default_factory=list)
+    close: Callable[[], None] = lambda: None
+    #: a ROS 1 bag read through its index: when reading stops, walking the chunks may read on
+    chunks_may_read_on: bool = False
+
+
+class _ReadingStopped(Exception):
+    """The source stopped yielding messages (a damaged chunk, a truncated file)."""
 
 
 def _ros2_folder(path: str) -> str:
@@ -130,7 +137,7 @@ def _ros2_folder(path: str) -> str:
     return folder
 
 
-def _open_any(path: str, rosbags) -> _Source:
+def _open_any(path: str) -> _Source:
     """The bag read through rosbags' AnyReader (its index for ROS 1)."""
     from pathlib import Path
 
@@ -147,17 +154,11 @@ def _open_any(path: str, rosbags) -> _Source:
 
     def messages(names: Sequence[str]):
         conns = [c for c in reader.connections if c.topic in names]
-        try:
-            if not conns:
-                return
+        if conns:
             for conn, t, raw in reader.messages(connections=conns):
                 yield conn.topic, t, (lambda raw=raw, typ=conn.msgtype: reader.deserialize(raw, typ))
-        finally:
-            pass
 
-    src = _Source(topics, messages)
-    src.close = reader.close  # type: ignore[attr-defined]
-    return src
+    return _Source(topics, messages, close=reader.close, chunks_may_read_on=target.suffix.lower() == ".bag")
 
 
 def _typestore_for(definitions: Dict[str, str]):
@@ -189,7 +190,11 @@ def _open_chunks(path: str, note: str) -> _Source:
         with mmap.mmap(f.fileno(), 0, access=mmap.ACCESS_READ) as raw:
             walk = walk_chunks(raw)
     conns = walk.connections
-    store = _typestore_for({c.msgtype: c.msgdef for c in conns.values()})
+    try:
+        store = _typestore_for({c.msgtype: c.msgdef for c in conns.values()})
+    except Exception as exc:  # noqa: BLE001 - rosbags' parser errors have no common base
+        raise ValueError(f"{path}: the bag's message definitions cannot be read: {type(exc).__name__}: {exc}") \
+            from None
     topics = {c.topic: c.msgtype for c in conns.values()}
     # Recording order: the chunks are walked in file order; a stable sort on the record time
     # puts a message written late (out of order) back in its place.
@@ -201,17 +206,15 @@ def _open_chunks(path: str, note: str) -> _Source:
             if conn.topic in names:
                 yield conn.topic, t, (lambda raw=raw, typ=conn.msgtype: store.deserialize_ros1(raw, typ))
 
-    src = _Source(topics, messages, note, list(walk.problems))
-    src.close = lambda: None  # type: ignore[attr-defined]
-    return src
+    return _Source(topics, messages, note, list(walk.problems))
 
 
 def _open(path: str) -> _Source:
-    rosbags = _rosbags()
+    _rosbags()
     if not os.path.exists(path):
         raise FileNotFoundError(f"path: no such file or folder: {path!r}")
     try:
-        return _open_any(path, rosbags)
+        return _open_any(path)
     except FileNotFoundError:
         raise
     except (AssertionError, Exception) as exc:  # noqa: BLE001 - rosbags' errors have no common base
@@ -475,8 +478,13 @@ def read_rosbag(path: PathLike, *, scan_topic: Optional[str] = None, odom_topic:
     try:
         return _read(source, path, scan_topic, odom_topic, pose_topic, odom_frame, base_frame, offset,
                      bool(sort_by_stamp))
+    except _ReadingStopped as stopped:
+        note = f"rosbags stopped reading ({stopped}): read by walking its chunks"
     finally:
-        source.close()  # type: ignore[attr-defined]
+        source.close()
+    # A ROS 1 bag whose index opened but whose messages could not all be read through it.
+    return _read(_open_chunks(path, note), path, scan_topic, odom_topic, pose_topic, odom_frame, base_frame,
+                 offset, bool(sort_by_stamp))
 
 
 def _read(source: _Source, path: str, scan_topic, odom_topic, pose_topic, odom_frame, base_frame,
@@ -496,7 +504,20 @@ def _read(source: _Source, path: str, scan_topic, odom_topic, pose_topic, odom_f
     track_rows: List[Tuple[float, float, float, float, float, float]] = []
     tree = _TfTree()
     child_frames: List[str] = []
-    for number, (topic, _, decode) in enumerate(source.messages(wanted), 1):
+    stream = source.messages(wanted)
+    number = 0
+    while True:
+        try:
+            topic, _, decode = next(stream)
+        except StopIteration:
+            break
+        except Exception as exc:  # noqa: BLE001 - a damaged chunk or a truncated file
+            reason = f"{type(exc).__name__}: {exc}" if str(exc) else type(exc).__name__
+            if source.chunks_may_read_on:
+                raise _ReadingStopped(reason) from None
+            skips.add(-1, f"reading stopped after message {number}: {reason}")
+            break
+        number += 1
         try:
             msg = decode()
             if topic == scan_topic:
