@@ -198,6 +198,9 @@ def _cmd_map(args: argparse.Namespace) -> int:
     path = args.log or _bundled_log()
     t0 = time.perf_counter()
     log = _read_log(path, args)
+    if isinstance(log, io.RosbagLog) and log.pose_source == "none":
+        raise UserError(f"{path}: no poses to map with (no odometry, tf or --pose-topic in the bag); "
+                        "'probslam slam' maps a bag of scans alone")
     grid, summary = map_laser_log(log.scans, resolution=args.resolution, max_range=args.max_range,
                                   robot_radius=args.robot_radius,
                                   skip_no_return=not args.keep_no_return, progress=None if args.progress else False)

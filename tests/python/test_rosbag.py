@@ -512,6 +512,12 @@ def test_cli_bag_errors_exit_2(tmp_path, raw_log, capsys):
     assert "--laser-offset must be three finite numbers" in capsys.readouterr().err
     assert cli.main(["slam", str(tmp_path / "missing.bag"), "-o", out]) == 2
     assert "missing.bag: no such file" in capsys.readouterr().err
+    scans_only = tmp_path / "scans_only.bag"
+    bag = _Bag(scans_only)
+    bag.scan("/scan", 1.0, [1.0, 2.0])
+    bag.close()
+    assert cli.main(["map", str(scans_only), "-o", out, "--no-progress"]) == 2
+    assert "no poses to map with" in capsys.readouterr().err
 
 
 #: ACES as a bag against ACES as a .clf, mean translational relations error: the bag's float32 beam

@@ -82,7 +82,9 @@ class RosbagLog(CarmenLog):
 
     def describe(self) -> str:
         """One line: topics and sources read, counts skipped."""
-        parts = [f"scans from {self.scan_topic}", f"poses from {self.pose_source}"]
+        parts = [f"scans from {self.scan_topic}",
+                 f"poses from {self.pose_source}" if self.pose_source != "none"
+                 else "no odometry, tf or pose topic (poses all zero)"]
         if self.laser_offset_source != "none":
             x, y, t = self.laser_offset
             parts.append(f"laser offset ({x:g}, {y:g}, {t:g}) from {self.laser_offset_source}")
