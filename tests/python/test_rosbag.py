@@ -102,15 +102,17 @@ def _moving(t):
     return np.array([0.5 * t, 0.2 * math.sin(t), 0.3 * t - 0.1])
 
 
-def _scan_with_tf(path, slash):
+def _scan_with_tf(path, slash, fixed_on_tf=False):
     """Scans at 1..5 s; odom -> base_footprint moving (tf at 0.5 s steps), base_footprint ->
-    base_link and base_link -> laser static; frame ids with or without a leading slash."""
+    base_link and base_link -> laser fixed (in tf_static, or repeated on /tf as ROS 1 bags from
+    before tf_static have them); frame ids with or without a leading slash."""
     s = "/" if slash else ""
     bag = _Bag(path)
-    bag.tf(0.0, s + "base_footprint", s + "base_link", (0.1, 0.0, 0.0), static=True)
-    bag.tf(0.0, s + "base_link", s + "laser", (0.2, -0.05, 0.3), static=True)
     for k in range(13):
         t = 0.5 * k
+        if k == 0 or fixed_on_tf:
+            bag.tf(t, s + "base_footprint", s + "base_link", (0.1, 0.0, 0.0), static=not fixed_on_tf)
+            bag.tf(t, s + "base_link", s + "laser", (0.2, -0.05, 0.3), static=not fixed_on_tf)
         bag.tf(t, s + "odom", s + "base_footprint", _moving(t))
         if 1 <= t <= 5 and t == int(t):
             bag.scan("/scan", t + 1e-3, [1.0, 2.0, 3.0], frame=s + "laser")
@@ -120,10 +122,11 @@ def _scan_with_tf(path, slash):
 # --- reader paths ----------------------------------------------------------------------------------
 
 @needs_rosbags
-@pytest.mark.parametrize("slash", [False, True], ids=["tf2 frames", "leading slashes"])
-def test_tf_chain_through_an_intermediate_frame(tmp_path, slash):
+@pytest.mark.parametrize("slash,fixed_on_tf", [(False, False), (True, False), (True, True)],
+                         ids=["tf2 frames", "leading slashes", "fixed transforms on /tf"])
+def test_tf_chain_through_an_intermediate_frame(tmp_path, slash, fixed_on_tf):
     path = tmp_path / "tf.bag"
-    _scan_with_tf(path, slash)
+    _scan_with_tf(path, slash, fixed_on_tf)
     log = io.read_rosbag(path)
     t = log.scans.timestamps
     np.testing.assert_allclose(t, [1.001, 2.001, 3.001, 4.001, 5.001], atol=1e-9)
@@ -139,6 +142,7 @@ def test_tf_chain_through_an_intermediate_frame(tmp_path, slash):
     assert log.laser_offset_source == "tf_static"
     np.testing.assert_allclose(log.laser_offset, base_to_laser, atol=1e-15)
     assert len(log.odometry.timestamps) == 13
+    np.testing.assert_allclose(log.odometry.poses, [_moving(0.5 * k) for k in range(13)], atol=1e-15)
 
 
 @needs_rosbags

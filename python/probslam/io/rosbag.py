@@ -323,7 +323,16 @@ class _TfTree:
         return edges[::-1]
 
     def is_static(self, edge: Tuple[str, str]) -> bool:
-        return edge in self.static and edge not in self.dynamic
+        """Whether the edge never moves: from tf_static, or on /tf with one value throughout (ROS 1
+        bags from before tf_static repeat their fixed transforms there)."""
+        if edge not in self.dynamic:
+            return edge in self.static
+        rows = self.dynamic[edge]
+        return all(r[1:4] == rows[0][1:4] for r in rows)
+
+    def constant(self, edge: Tuple[str, str]) -> np.ndarray:
+        """The value of a static edge."""
+        return self.static[edge] if edge not in self.dynamic else np.array(self.dynamic[edge][0][1:4])
 
     def evaluate(self, edges: List[Tuple[str, str]], times: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """The composed transform of ``edges`` at ``times`` and the mask of the times every
@@ -332,7 +341,7 @@ class _TfTree:
         ok = np.ones(len(times), bool)
         for edge in edges:
             if self.is_static(edge):
-                poses = _compose(poses, self.static[edge])
+                poses = _compose(poses, self.constant(edge))
                 continue
             track = _Track.of(self.dynamic[edge])
             step = np.zeros((len(times), 3))
@@ -489,6 +498,51 @@ def read_rosbag(path: PathLike, *, scan_topic: Optional[str] = None, odom_topic:
                  offset, bool(sort_by_stamp))
 
 
+def _poses_of_track(track: _Track, stamps: np.ndarray, name: str):
+    """(robot poses at the stamps, mask of the stamps inside the track, Odometry, source name)."""
+    robot = np.zeros((len(stamps), 3))
+    at, usable = track.at(stamps)
+    robot[usable] = at
+    return robot, usable, Odometry(track.poses, track.velocities, track.timestamps), name
+
+
+def _poses_of_tf(tree: _TfTree, stamps: np.ndarray, laser_frame: str, odom_frame: Optional[str],
+                 base: Optional[str]):
+    """(robot poses, mask, Odometry, source name, base frame) from tf: ``odom_frame`` ("odom",
+    else the root above the laser) to ``base`` (by default the frame below the last moving edge
+    on the way down to the laser). No tf: zero poses, source "none"."""
+    robot = np.zeros((len(stamps), 3))
+    usable = np.ones(len(stamps), bool)
+    odometry = Odometry(np.zeros((0, 3)), np.zeros((0, 2)), np.zeros(0))
+    top = _frame(odom_frame) if odom_frame is not None else ("odom" if "odom" in tree.frames() else
+                                                           tree.root(laser_frame))
+    named = base is not None
+    if base is None and top is not None:
+        moving = [e for e in tree.chain(top, laser_frame) or [] if not tree.is_static(e)]
+        base = moving[-1][1] if moving else None
+    chain = tree.chain(top, base) if top is not None and base is not None else None
+    if chain is None and (odom_frame is not None or named):
+        raise ValueError(f"{'base_frame' if named else 'odom_frame'}: no tf chain from {top} to {base} "
+                         f"(frames: {', '.join(tree.frames()) or 'none'})")
+    if not chain or all(tree.is_static(e) for e in chain):
+        return robot, usable, odometry, "none", base
+    robot, usable = tree.evaluate(chain, stamps)
+    times = np.unique([row[0] for e in chain if not tree.is_static(e) for row in tree.dynamic[e]])
+    poses, ok = tree.evaluate(chain, times)
+    odometry = Odometry(poses[ok], np.full((int(ok.sum()), 2), np.nan), times[ok])
+    return robot, usable, odometry, f"tf {top}->{base}", base
+
+
+def _static_offset(tree: _TfTree, base: Optional[str], laser_frame: str) -> Tuple[np.ndarray, str]:
+    """(the laser's pose in the base frame, "tf_static"), or (zeros, "none") when tf has no fixed
+    chain from the base to the laser."""
+    if base is not None and base != laser_frame:
+        chain = tree.chain(base, laser_frame)
+        if chain and all(tree.is_static(e) for e in chain):
+            return tree.evaluate(chain, np.zeros(1))[0][0], "tf_static"
+    return np.zeros(3), "none"
+
+
 def _read(source: _Source, path: str, scan_topic, odom_topic, pose_topic, odom_frame, base_frame,
           offset, sort_by_stamp) -> RosbagLog:
     topics = source.topics
@@ -552,48 +606,19 @@ def _read(source: _Source, path: str, scan_topic, odom_topic, pose_topic, odom_f
     scans = [scans[i] for i in order]
 
     laser_frame = scans[0][6]
-    robot = np.zeros((len(scans), 3))
-    usable = np.ones(len(scans), bool)
-    source_name = "none"
-    odometry = Odometry(np.zeros((0, 3)), np.zeros((0, 2)), np.zeros(0))
     base = _frame(base_frame) if base_frame is not None else None
     if track_rows:
-        track = _Track.of(track_rows)
-        at, usable = track.at(stamps)
-        robot[usable] = at
-        source_name = f"{'poses' if pose_topic else 'odometry'} {pose_topic or odom_topic}"
-        odometry = Odometry(track.poses, track.velocities, track.timestamps)
+        robot, usable, odometry, source_name = _poses_of_track(_Track.of(track_rows), stamps,
+                                                               f"{'poses' if pose_topic else 'odometry'} "
+                                                               f"{pose_topic or odom_topic}")
         if base is None and child_frames:
             base = child_frames[0]
     else:
-        top = _frame(odom_frame) if odom_frame is not None else ("odom" if "odom" in tree.frames() else
-                                                               tree.root(laser_frame))
-        if base is None and top is not None:
-            chain = tree.chain(top, laser_frame) or []
-            # The robot's frame: below the last moving edge on the way down to the laser.
-            moving = [e for e in chain if not tree.is_static(e)]
-            base = moving[-1][1] if moving else None
-        chain = tree.chain(top, base) if top is not None and base is not None else None
-        if chain is None and (odom_frame is not None or base_frame is not None):
-            raise ValueError(f"{'base_frame' if base_frame is not None else 'odom_frame'}: no tf chain from "
-                             f"{top} to {base} (frames: {', '.join(tree.frames()) or 'none'})")
-        if chain and any(not tree.is_static(e) for e in chain):
-            robot, usable = tree.evaluate(chain, stamps)
-            source_name = f"tf {top}->{base}"
-            times = np.unique([row[0] for e in chain if not tree.is_static(e) for row in tree.dynamic[e]])
-            poses, ok = tree.evaluate(chain, times)
-            odometry = Odometry(poses[ok], np.full((int(ok.sum()), 2), np.nan), times[ok])
-    found_offset = None
-    offset_source = "none"
+        robot, usable, odometry, source_name, base = _poses_of_tf(tree, stamps, laser_frame, odom_frame, base)
     if offset is not None:
         found_offset, offset_source = offset, "given"
-    elif base is not None:
-        chain = [] if base == laser_frame else tree.chain(base, laser_frame)
-        if chain and all(tree.is_static(e) for e in chain):
-            found_offset = tree.evaluate(chain, np.zeros(1))[0][0]
-            offset_source = "tf_static"
-    if found_offset is None:
-        found_offset = np.zeros(3)
+    else:
+        found_offset, offset_source = _static_offset(tree, base, laser_frame)
     laser = _compose(robot, found_offset)
 
     for i in np.flatnonzero(~usable):
