@@ -588,3 +588,18 @@ def test_a_damaged_chunk_or_storage_is_read_as_far_as_it_can_be(tmp_path, raw_lo
         db3.write_bytes(db3.read_bytes()[:4096])
         with pytest.raises(ValueError, match=str(path.name)):
             io.read_rosbag(path)
+
+
+@needs_rosbags
+def test_odometry_without_child_frame_takes_the_offset_above_the_laser(tmp_path):
+    path = tmp_path / "nochild.bag"
+    bag = _Bag(path)
+    bag.tf(0.0, "base_link", "laser", (0.3, 0.0, 0.1), static=True)
+    for t in (1.0, 2.0, 3.0):
+        bag.odometry("/odom", t, _moving(t), child="")
+        bag.scan("/scan", t, [1.0, 2.0])
+    bag.close()
+    log = io.read_rosbag(path)
+    assert log.laser_offset_source == "tf_static"
+    np.testing.assert_allclose(log.scans.laser_poses, _compose_all([_moving(t) for t in (1, 2, 3)], (0.3, 0, 0.1)),
+                               atol=1e-12)

@@ -535,8 +535,14 @@ def _poses_of_tf(tree: _TfTree, stamps: np.ndarray, laser_frame: str, odom_frame
 
 def _static_offset(tree: _TfTree, base: Optional[str], laser_frame: str) -> Tuple[np.ndarray, str]:
     """(the laser's pose in the base frame, "tf_static"), or (zeros, "none") when tf has no fixed
-    chain from the base to the laser."""
-    if base is not None and base != laser_frame:
+    chain from the base to the laser. Base unknown (odometry without a child frame): the top of
+    the fixed chain above the laser."""
+    if base is None:
+        node = laser_frame
+        while node in tree.parent and tree.is_static((tree.parent[node], node)) and tree.parent[node] != laser_frame:
+            node = tree.parent[node]
+        base = node
+    if base != laser_frame:
         chain = tree.chain(base, laser_frame)
         if chain and all(tree.is_static(e) for e in chain):
             return tree.evaluate(chain, np.zeros(1))[0][0], "tf_static"
