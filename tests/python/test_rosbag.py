@@ -332,9 +332,21 @@ def test_no_return_and_too_close_readings(tmp_path):
 
 
 @needs_rosbags
-def test_truncated_index_is_read_by_walking_the_chunks(tmp_path, raw_log):
+@pytest.mark.parametrize("compression", ["none", "bz2", "lz4"])
+def test_truncated_index_is_read_by_walking_the_chunks(tmp_path, raw_log, monkeypatch, compression):
+    from rosbags.rosbag1 import Writer
+
+    if compression != "none":
+        plain_open = Writer.open
+
+        def compressed_open(self):
+            self.set_compression(Writer.CompressionFormat[compression.upper()])
+            plain_open(self)
+
+        monkeypatch.setattr(Writer, "open", compressed_open)
     path = tmp_path / "a.bag"
     io.write_rosbag(raw_log, path)
+    monkeypatch.undo()
     whole = io.read_rosbag(path)
     data = path.read_bytes()
     index_pos = int.from_bytes(data[data.index(b"index_pos=") + 10:][:8], "little")

@@ -135,15 +135,23 @@ def _top_records(data: bytes, start: int, problems: List[str]) -> Iterator[Tuple
 
 
 def _decompress(compression: str, data: bytes, size: int) -> bytes:
+    """The chunk's records; at most ``size`` bytes (what its header states) are expanded, so a
+    crafted chunk cannot expand to gigabytes, and a different length is an error."""
+    if size > MAX_RECORD_BYTES:
+        raise ValueError(f"chunk size {size} exceeds MAX_RECORD_BYTES")
     if compression == "none":
-        return data
-    if compression == "bz2":
-        return bz2.decompress(data)
-    if compression == "lz4":
+        out = bytes(data)
+    elif compression == "bz2":
+        out = bz2.BZ2Decompressor().decompress(data, max_length=size + 1)
+    elif compression == "lz4":
         import lz4.frame  # a dependency of rosbags
 
-        return lz4.frame.decompress(data)
-    raise ValueError(f"unknown chunk compression {compression!r}")
+        out = lz4.frame.LZ4FrameDecompressor().decompress(data, max_length=size + 1)
+    else:
+        raise ValueError(f"unknown chunk compression {compression!r}")
+    if len(out) != size:
+        raise ValueError(f"chunk holds {len(out)}{'+' if len(out) > size else ''} bytes, its header states {size}")
+    return out
 
 
 @dataclass
