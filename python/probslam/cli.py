@@ -648,7 +648,7 @@ def build_parser() -> argparse.ArgumentParser:
                                      epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"probslam {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
-    p = sub.add_parser("map", help="occupancy grid map of a CARMEN laser log with known (corrected) poses")
+    p = sub.add_parser("map", help="occupancy grid map of a CARMEN laser log or ROS bag with known (corrected) poses")
     p.add_argument("log", nargs="?", help="CARMEN log (.log/.clf, optionally .gz/.bz2) or ROS bag (.bag, a ROS 2 "
                                           "folder, .db3, .mcap); default: a bundled excerpt of the Intel "
                                           "Research Lab log")
@@ -664,7 +664,7 @@ def build_parser() -> argparse.ArgumentParser:
     _no_plot_option(p)
     p.set_defaults(func=_cmd_map)
 
-    sl = sub.add_parser("slam", help="map a raw CARMEN laser log (odometry and scans): scan matching into "
+    sl = sub.add_parser("slam", help="map a raw CARMEN laser log or ROS bag (odometry and scans): scan matching into "
                                      "submaps, GraphSLAM over them with loop closures (ch. 11.7)")
     sl.add_argument("log", nargs="?", help="CARMEN log (.log/.clf, optionally .gz/.bz2) or ROS bag (.bag, a ROS 2 "
                                            "folder, .db3, .mcap); default: a bundled raw excerpt of the Intel "
