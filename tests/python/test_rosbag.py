@@ -15,7 +15,7 @@ import pytest
 import probslam as ps
 from probslam import cli, io
 from probslam.datasets import carmen
-from probslam.io import rosbag
+from probslam.io import rosbag_writer
 
 needs_rosbags = pytest.mark.skipif(importlib.util.find_spec("rosbags") is None,
                                    reason="rosbags is not installed (pip install rosbags)")
@@ -69,7 +69,7 @@ class _Bag:
 
         self.store = get_typestore(Stores.ROS1_NOETIC)
         self.store.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage"))
-        self.build = rosbag._Messages(self.store)
+        self.build = rosbag_writer._Messages(self.store)
         self.writer = Writer(path)
         self.writer.open()
         self.connections = {}
@@ -396,7 +396,7 @@ def test_import_does_not_need_rosbags():
 
 @needs_rosbags
 @pytest.mark.parametrize("odometry", ["odometry", "tf"])
-@pytest.mark.parametrize("fmt", list(rosbag.FORMATS))
+@pytest.mark.parametrize("fmt", list(rosbag_writer.FORMATS))
 def test_round_trip(tmp_path, raw_log, fmt, odometry):
     path = tmp_path / f"intel{_suffix(fmt)}"
     io.write_rosbag(raw_log, path, format=fmt, odometry=odometry)
