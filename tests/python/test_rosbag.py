@@ -615,3 +615,37 @@ def test_odometry_without_child_frame_takes_the_offset_above_the_laser(tmp_path)
     assert log.laser_offset_source == "tf_static"
     np.testing.assert_allclose(log.scans.laser_poses, _compose_all([_moving(t) for t in (1, 2, 3)], (0.3, 0, 0.1)),
                                atol=1e-12)
+
+
+@needs_rosbags
+@pytest.mark.parametrize("yaw", [0.0, 0.3])
+def test_a_laser_mounted_upside_down_has_its_beams_mirrored(tmp_path, yaw):
+    """Reference: the beam end points rotated in 3-D by scipy from the tf quaternion (laser
+    turned by yaw about z, then by pi about its x axis), against the planar end points of the
+    scans read (laser pose + beam angle)."""
+    from scipy.spatial.transform import Rotation
+
+    mount = Rotation.from_euler("z", yaw) * Rotation.from_euler("x", np.pi)
+    qx, qy, qz, qw = mount.as_quat()
+    path = tmp_path / "flipped.bag"
+    bag = _Bag(path)
+    header = bag.build.header(0, "base_link")
+    tf = bag.build.transform(header, "laser", (0.2, 0.1, 0.0))
+    rotation = bag.store.types["geometry_msgs/msg/Quaternion"](x=qx, y=qy, z=qz, w=qw)
+    tf = dataclasses.replace(tf, transform=dataclasses.replace(tf.transform, rotation=rotation))
+    bag.write("/tf_static", "tf2_msgs/msg/TFMessage", 0.0, bag.build.tf([tf]))
+    ranges = [1.0, 2.0, 3.0]
+    for t in (1.0, 2.0):
+        bag.odometry("/odom", t, (0.0, 0.0, 0.0))
+        bag.scan("/scan", t, ranges, start=-0.5, step=0.5)
+    bag.close()
+    log = io.read_rosbag(path)
+    assert log.laser_upside_down and "upside down" in log.describe()
+    s = log.scans
+    angles = s.beam_angles()[0]
+    planar = s.laser_poses[0, :2] + np.column_stack([np.cos(s.laser_poses[0, 2] + angles),
+                                                     np.sin(s.laser_poses[0, 2] + angles)]) * np.array(ranges)[:, None]
+    beams = F32([-0.5, 0.0, 0.5])
+    in_laser = np.column_stack([np.cos(beams), np.sin(beams), np.zeros(3)]) * np.array(ranges)[:, None]
+    in_base = mount.apply(in_laser) + [0.2, 0.1, 0.0]
+    np.testing.assert_allclose(planar, in_base[:, :2], atol=1e-12)

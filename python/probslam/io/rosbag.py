@@ -61,7 +61,9 @@ class RosbagLog(CarmenLog):
     ODOM->BASE", "poses TOPIC" or "none"); laser_offset (x, y, theta) and laser_offset_source
     ("tf_static", "given" or "none"); topics {name: message type}; backward_stamps, scans
     stamped earlier than the scan recorded before them (kept in recording order unless
-    ``sort_by_stamp``); index_note, set when a ROS 1 bag's index could not be used and its chunks
+    ``sort_by_stamp``); laser_upside_down, when tf_static mounts the laser upside down (its beam
+    angles are then mirrored: ``start_angles`` and ``angular_resolutions`` negated); index_note,
+    set when a ROS 1 bag's index could not be used and its chunks
     were walked instead.
     """
 
@@ -73,6 +75,7 @@ class RosbagLog(CarmenLog):
     topics: Dict[str, str] = field(default_factory=dict)
     backward_stamps: int = 0
     index_note: str = ""
+    laser_upside_down: bool = False
 
     def describe(self) -> str:
         """One line: topics and sources read, counts skipped."""
@@ -81,7 +84,8 @@ class RosbagLog(CarmenLog):
                  else "no odometry, tf or pose topic (poses all zero)"]
         if self.laser_offset_source != "none":
             x, y, t = self.laser_offset
-            parts.append(f"laser offset ({x:g}, {y:g}, {t:g}) from {self.laser_offset_source}")
+            parts.append(f"laser offset ({x:g}, {y:g}, {t:g}) from {self.laser_offset_source}"
+                         + (", upside down (beam angles mirrored)" if self.laser_upside_down else ""))
         if self.skipped_rows:
             parts.append(f"{self.skipped_rows} messages skipped")
         if self.backward_stamps:
@@ -227,6 +231,18 @@ def _yaw(q) -> float:
     return math.atan2(2.0 * (q.w * q.z + q.x * q.y), 1.0 - 2.0 * (q.y * q.y + q.z * q.z))
 
 
+def _rotation(q) -> np.ndarray:
+    """The 3 x 3 rotation of a quaternion (x, y, z, w), normalised."""
+    x, y, z, w = q.x, q.y, q.z, q.w
+    n = math.sqrt(x * x + y * y + z * z + w * w)
+    if not (n > 0 and math.isfinite(n)):
+        raise ValueError("quaternion of zero or non-finite length")
+    x, y, z, w = x / n, y / n, z / n, w / n
+    return np.array([[1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+                     [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+                     [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
+
+
 def _compose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a (+) b row by row for (N, 3) poses (b broadcast when (3,)): b in a's frame."""
     from .._core import wrap_angle
@@ -275,6 +291,8 @@ class _TfTree:
     def __init__(self) -> None:
         self.dynamic: Dict[Tuple[str, str], List[Tuple[float, float, float, float, float, float]]] = {}
         self.static: Dict[Tuple[str, str], np.ndarray] = {}
+        #: each edge's rotation (the first message's), 3 x 3: the laser's mounting (upside down?)
+        self.rotation: Dict[Tuple[str, str], np.ndarray] = {}
         self.parent: Dict[str, str] = {}
 
     def add(self, msg, static: bool) -> None:
@@ -285,6 +303,8 @@ class _TfTree:
             if not all(math.isfinite(v) for v in pose):
                 raise ValueError(f"transform {parent} -> {child} is not finite")
             self.parent[child] = parent
+            if static or (parent, child) not in self.rotation:
+                self.rotation[(parent, child)] = _rotation(tr.transform.rotation)
             if static:
                 self.static[(parent, child)] = np.array(pose)
             else:
@@ -527,10 +547,12 @@ def _poses_of_tf(tree: _TfTree, stamps: np.ndarray, laser_frame: str, odom_frame
     return robot, usable, odometry, f"tf {top}->{base}", base
 
 
-def _static_offset(tree: _TfTree, base: Optional[str], laser_frame: str) -> Tuple[np.ndarray, str]:
-    """(the laser's pose in the base frame, "tf_static"), or (zeros, "none") when tf has no fixed
-    chain from the base to the laser. Base unknown (odometry without a child frame): the top of
-    the fixed chain above the laser."""
+def _static_offset(tree: _TfTree, base: Optional[str], laser_frame: str) -> Tuple[np.ndarray, str, bool]:
+    """(the laser's pose in the base frame, "tf_static", upside down), or (zeros, "none", False)
+    when tf has no fixed chain from the base to the laser. Base unknown (odometry without a
+    child frame): the top of the fixed chain above the laser. Upside down: the laser's z axis
+    points down in the base frame (a scanner mounted under a plate), so its beams sweep the
+    other way round: the reader mirrors their angles."""
     if base is None:
         node = laser_frame
         while node in tree.parent and tree.is_static((tree.parent[node], node)) and tree.parent[node] != laser_frame:
@@ -539,8 +561,15 @@ def _static_offset(tree: _TfTree, base: Optional[str], laser_frame: str) -> Tupl
     if base != laser_frame:
         chain = tree.chain(base, laser_frame)
         if chain and all(tree.is_static(e) for e in chain):
-            return tree.evaluate(chain, np.zeros(1))[0][0], "tf_static"
-    return np.zeros(3), "none"
+            rotation = np.eye(3)
+            for edge in chain:
+                rotation = rotation @ tree.rotation[edge]
+            offset = tree.evaluate(chain, np.zeros(1))[0][0]
+            # The planar heading of the laser's x axis (the per-edge yaws compose to it only when
+            # every edge is a rotation about z).
+            offset[2] = math.atan2(rotation[1, 0], rotation[0, 0])
+            return offset, "tf_static", bool(rotation[2, 2] < 0)
+    return np.zeros(3), "none", False
 
 
 def _read(source: _Source, path: str, scan_topic, odom_topic, pose_topic, odom_frame, base_frame,
@@ -616,9 +645,10 @@ def _read(source: _Source, path: str, scan_topic, odom_topic, pose_topic, odom_f
     else:
         robot, usable, odometry, source_name, base = _poses_of_tf(tree, stamps, laser_frame, odom_frame, base)
     if offset is not None:
-        found_offset, offset_source = offset, "given"
+        found_offset, offset_source, upside_down = offset, "given", False
     else:
-        found_offset, offset_source = _static_offset(tree, base, laser_frame)
+        found_offset, offset_source, upside_down = _static_offset(tree, base, laser_frame)
+    mirror = -1.0 if upside_down else 1.0
     laser = _compose(robot, found_offset)
 
     for i in np.flatnonzero(~usable):
@@ -645,12 +675,13 @@ def _read(source: _Source, path: str, scan_topic, odom_topic, pose_topic, odom_f
         ranges=ranges, laser_poses=laser[keep], robot_poses=robot[keep],
         # Angles stay the float32 values the message holds: unlike ranges in mm, an increment
         # such as 2 pi / 1024 has no short decimal form to recover.
-        start_angles=np.array([scans[i][1] for i in keep]),
-        angular_resolutions=np.array([scans[i][2] for i in keep]), max_ranges=range_max,
+        start_angles=mirror * np.array([scans[i][1] for i in keep]),
+        angular_resolutions=mirror * np.array([scans[i][2] for i in keep]), max_ranges=range_max,
         num_beams=num_beams, timestamps=stamps[keep])
     log = RosbagLog(laser_scans, odometry, {}, wide, skips.count, skips.numbers, skips.reasons,
                     path=path, scan_topic=scan_topic, pose_source=source_name,
                     laser_offset=tuple(float(v) for v in found_offset), laser_offset_source=offset_source,
+                    laser_upside_down=upside_down,
                     topics=dict(topics), backward_stamps=backward, index_note=source.index_note)
     if skips.count:
         first = f"{'message ' + str(skips.numbers[0]) + ': ' if skips.numbers[0] > 0 else ''}{skips.reasons[0]}"
