@@ -39,6 +39,7 @@ FASTSLAM_PARTICLES = 100
 
 #: What each kind of input file must be, for the error messages.
 CARMEN_LOG = "a CARMEN laser log (.log/.clf, optionally .gz/.bz2)"
+ROS_BAG = "a ROS bag (ROS 1 .bag, a ROS 2 bag folder, or its .db3 / .mcap)"
 LANDMARK_DATASET = ("a UTIAS MRCLAM folder (Barcodes.dat, Landmark_Groundtruth.dat, RobotN_Odometry.dat, "
                     "RobotN_Measurement.dat) or a Victoria Park file in iSAM/GTSAM text format")
 POSE_GRAPH = "a 2-D pose graph: g2o (VERTEX_SE2/EDGE_SE2), TORO .graph (VERTEX2/EDGE2) or iSAM text"
@@ -149,10 +150,42 @@ def _map_picture(grid, path: str, trajectory, label: str, title: str) -> str:
     return _save_figure(plt, fig, path)
 
 
-def _read_log(path: str):
+def _read_log(path: str, args: Optional[argparse.Namespace] = None):
+    """The CARMEN log or ROS bag at ``path`` (a bag with the topic and offset options of
+    ``args``); UserError naming the file, or the option given for a CARMEN log."""
+    bag_options = _bag_options(args)
+    if io.rosbag.is_bag(path):
+        _check_input(path, ROS_BAG, folder=True)
+        with _reading(path, ROS_BAG):
+            return io.read_rosbag(path, **bag_options)
+    if bag_options:
+        raise UserError(f"{_bag_option_name(next(iter(bag_options)))} applies to ROS bags; {path} is read as "
+                        f"{CARMEN_LOG}")
     _check_input(path, CARMEN_LOG)
     with _reading(path, CARMEN_LOG):
         return carmen.load(path)
+
+
+def _bag_option_name(name: str) -> str:
+    return "--" + name.replace("_", "-")
+
+
+def _bag_options(args: Optional[argparse.Namespace]) -> dict:
+    """The read_rosbag options given on the command line (topics, --laser-offset), checked."""
+    if args is None:
+        return {}
+    options = {name: getattr(args, name, None) for name in ("scan_topic", "odom_topic", "pose_topic", "laser_offset")}
+    options = {name: value for name, value in options.items() if value is not None}
+    if "laser_offset" in options and not all(math.isfinite(v) for v in options["laser_offset"]):
+        raise UserError(f"--laser-offset must be three finite numbers X Y THETA (m, m, rad), "
+                        f"got {' '.join(map(str, options['laser_offset']))}")
+    return options
+
+
+def _print_bag(log) -> None:
+    """What a bag gave (topics, sources, counts skipped), for the summaries of map and slam."""
+    if isinstance(log, io.RosbagLog):
+        print(f"bag:           {log.describe()}")
 
 
 #: The exit status of a run that finished but did not converge (optimize).
@@ -184,7 +217,10 @@ def _cmd_map(args: argparse.Namespace) -> int:
     _check_output(args.output)
     path = args.log or _bundled_log()
     t0 = time.perf_counter()
-    log = _read_log(path)
+    log = _read_log(path, args)
+    if isinstance(log, io.RosbagLog) and log.pose_source == "none":
+        raise UserError(f"{path}: no poses to map with (no odometry, tf or --pose-topic in the bag); "
+                        "'probslam slam' maps a bag of scans alone")
     grid, summary = map_laser_log(log.scans, resolution=args.resolution, max_range=args.max_range,
                                   robot_radius=args.robot_radius,
                                   skip_no_return=not args.keep_no_return, progress=None if args.progress else False)
@@ -196,9 +232,11 @@ def _cmd_map(args: argparse.Namespace) -> int:
     total = time.perf_counter() - t0
     rate = summary.beams / summary.seconds / 1e6 if summary.seconds > 0 else float("inf")
     print(f"log:           {path}{' (bundled Intel Research Lab excerpt)' if not args.log else ''}")
+    _print_bag(log)
     print(f"scans:         {summary.scans}"
           + (f" ({log.skipped_wide_scans} skipped: far wider than the rest)" if log.skipped_wide_scans else "")
-          + (f" ({log.skipped_rows} malformed log lines skipped)" if log.skipped_rows else ""))
+          + (f" ({log.skipped_rows} malformed log lines skipped)"
+             if log.skipped_rows and not isinstance(log, io.RosbagLog) else ""))
     print(f"beams:         {summary.beams}")
     print(f"cells updated: {summary.cells_updated}")
     print(f"map:           {grid.width} x {grid.height} cells at {grid.resolution} m, origin {grid.origin}")
@@ -217,7 +255,7 @@ def _cmd_slam(args: argparse.Namespace) -> int:
     _require_length(args.submap_distance, "--submap-distance", zero=True)
     _check_output(args.output)
     path = args.log or _bundled_log(BUNDLED_RAW_LOG)
-    log = _read_log(path)
+    log = _read_log(path, args)
     if args.method == "rbpf":
         options = dict(resolution=args.resolution, num_particles=args.particles, proposal=args.proposal)
     else:
@@ -240,6 +278,7 @@ def _cmd_slam(args: argparse.Namespace) -> int:
     s = result.summary
     grid = result.grid
     print(f"log:           {path}{' (bundled Intel Research Lab raw excerpt)' if not args.log else ''}")
+    _print_bag(log)
     skipped = f", {log.skipped_wide_scans} skipped: far wider than the rest" if log.skipped_wide_scans else ""
     if result.method == "rbpf":
         t = result.tile_sharing
@@ -676,6 +715,18 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     return 0
 
 
+def _bag_input_options(parser: argparse.ArgumentParser, poses: bool) -> None:
+    """The options of a ROS bag input (map and slam): topics and the laser's offset."""
+    parser.add_argument("--scan-topic", help="ROS bag: the sensor_msgs/LaserScan topic (default: the only one)")
+    parser.add_argument("--odom-topic", help="ROS bag: the nav_msgs/Odometry topic (default: the only one; "
+                                             "none: tf odom -> base)")
+    if poses:
+        parser.add_argument("--pose-topic", help="ROS bag: a topic of corrected poses (PoseStamped, "
+                                                 "PoseWithCovarianceStamped or Odometry) to map with")
+    parser.add_argument("--laser-offset", type=float, nargs=3, metavar=("X", "Y", "THETA"),
+                        help="ROS bag: the laser's pose on the robot (m, m, rad; default: from tf_static)")
+
+
 def _no_plot_option(parser: argparse.ArgumentParser) -> None:
     """--no-plot, on every command that writes a picture."""
     parser.add_argument("--no-plot", dest="plot", action="store_false", help="write no picture")
@@ -731,9 +782,10 @@ def build_parser() -> argparse.ArgumentParser:
                                      epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--version", action="version", version=f"probslam {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
-    p = sub.add_parser("map", help="occupancy grid map of a CARMEN laser log with known (corrected) poses")
-    p.add_argument("log", nargs="?", help="CARMEN log (.log/.clf, optionally .gz/.bz2); "
-                                          "default: a bundled excerpt of the Intel Research Lab log")
+    p = sub.add_parser("map", help="occupancy grid map of a CARMEN laser log or ROS bag with known (corrected) poses")
+    p.add_argument("log", nargs="?", help="CARMEN log (.log/.clf, optionally .gz/.bz2) or ROS bag (.bag, a ROS 2 "
+                                          "folder, .db3, .mcap); default: a bundled excerpt of the Intel "
+                                          "Research Lab log")
     p.add_argument("--resolution", type=float, default=0.05, help="cell size in metres (default 0.05)")
     p.add_argument("--max-range", type=float, default=30.0,
                    help="readings at or beyond this (metres) only clear space (default 30)")
@@ -741,14 +793,16 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--keep-no-return", action="store_true",
                    help="let readings at the sensor maximum clear space (default: skip them)")
     p.add_argument("-o", "--output", default="map", help="output prefix: PREFIX.yaml/.pgm/.png (default 'map')")
+    _bag_input_options(p, poses=True)
     _no_progress_option(p)
     _no_plot_option(p)
     p.set_defaults(func=_cmd_map)
 
-    sl = sub.add_parser("slam", help="map a raw CARMEN laser log (odometry and scans): scan matching into "
+    sl = sub.add_parser("slam", help="map a raw CARMEN laser log or ROS bag (odometry and scans): scan matching into "
                                      "submaps, GraphSLAM over them with loop closures (ch. 11.7)")
-    sl.add_argument("log", nargs="?", help="CARMEN log (.log/.clf, optionally .gz/.bz2); "
-                                           "default: a bundled raw excerpt of the Intel Research Lab log")
+    sl.add_argument("log", nargs="?", help="CARMEN log (.log/.clf, optionally .gz/.bz2) or ROS bag (.bag, a ROS 2 "
+                                           "folder, .db3, .mcap); default: a bundled raw excerpt of the Intel "
+                                           "Research Lab log")
     sl.add_argument("--resolution", type=float, default=0.05, help="cell size in metres (default 0.05)")
     sl.add_argument("--max-range", type=float, default=None,
                     help="the sensor's no-return reading in metres (default: from the log)")
@@ -769,6 +823,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="output prefix: PREFIX.yaml/.pgm/.png, PREFIX_trajectory.tum, PREFIX.g2o (graph only; "
                          "default 'slam')")
     _trajectory_format_option(sl, "the laser poses at the log's scan times (s)")
+    _bag_input_options(sl, poses=False)
     _no_progress_option(sl)
     _no_plot_option(sl)
     sl.set_defaults(func=_cmd_slam)

@@ -20,6 +20,7 @@ from . import _core
 from .io.trajectory import write_trajectory as write_trajectory_file
 from .datasets import carmen
 from .io.carmen import CarmenLog, LaserScans
+from .io.rosbag import is_bag, read_rosbag
 from .mapping import no_return_range
 
 PathLike = Union[str, "os.PathLike[str]"]
@@ -67,7 +68,8 @@ METHODS = ("graph", "rbpf")
 
 def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: str = "graph", progress: Optional[bool] = None,
              chunk: int = 200, **options: Any) -> SlamResult:
-    """Turns a raw log (a CARMEN path, a ``CarmenLog`` or its ``LaserScans``) into a consistent map.
+    """Turns a raw log (a CARMEN or ROS bag path, a ``CarmenLog`` such as ``io.read_rosbag``'s, or
+    its ``LaserScans``) into a consistent map.
 
     ``method="graph"`` (default): ``options`` are those of ``probslam.SubmapSlam2D``: the
     frontend's (resolution (m), max_range (m; default: the log's no-return reading),
@@ -89,7 +91,7 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: str = "grap
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if isinstance(log, (str, os.PathLike)):
-        log = carmen.load(log)
+        log = read_rosbag(log) if is_bag(log) else carmen.load(log)
     scans = log.scans if isinstance(log, CarmenLog) else log
     if not isinstance(scans, LaserScans):
         raise TypeError("log must be a path, a CarmenLog or LaserScans")

@@ -164,7 +164,8 @@ def test_readers_and_writers_name_a_path_argument_that_is_not_a_path(tmp_path, v
              ("path", ps.eval.read_relations), ("yaml_path", lambda p: io.save_ros_map(grid, p)),
              ("path", lambda p: io.save_grid(grid, p)), ("path", lambda p: io.write_png(grid, p)),
              ("path", lambda p: ps.slam.write_trajectory(np.zeros(1), np.zeros((1, 3)), p)),
-             ("relations", lambda r: ps.eval.relations_error(np.arange(2.0), np.zeros((2, 3)), r))]
+             ("relations", lambda r: ps.eval.relations_error(np.arange(2.0), np.zeros((2, 3)), r)),
+             ("path", io.read_rosbag), ("path", lambda p: io.write_rosbag(io.LaserScans(*[np.zeros((1, 3))] * 8), p))]
     for name, call in calls:
         with pytest.raises(TypeError, match=f"^{name}: expected a"):
             call(value)

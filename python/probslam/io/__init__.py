@@ -1,10 +1,13 @@
-"""Readers and writers: CARMEN laser logs, ROS map_server maps, lossless grids, PNG pictures,
-trajectories (TUM, KITTI)."""
+"""Readers and writers: CARMEN laser logs, ROS bags (``rosbags`` needed only for them), ROS
+map_server maps, lossless grids, PNG pictures, trajectories (TUM, KITTI)."""
 
 from .carmen import CarmenLog, LaserScans, Odometry, read_carmen_log
 from .landmark_datasets import MRCLAM_RANGE_SCALE, Mrclam, VictoriaPark, read_mrclam, read_victoria_park
 from .maps import load_grid, load_ros_map, save_grid, save_ros_map, write_png
 from .trajectory import TRAJECTORY_FORMATS, Trajectory, kitti_times_path, read_trajectory, write_trajectory
+from . import rosbag
+from .rosbag import RosbagLog, read_rosbag
+from .rosbag_writer import write_rosbag
 
 __all__ = [
     "MRCLAM_RANGE_SCALE",
@@ -12,6 +15,7 @@ __all__ = [
     "LaserScans",
     "Mrclam",
     "Odometry",
+    "RosbagLog",
     "TRAJECTORY_FORMATS",
     "Trajectory",
     "VictoriaPark",
@@ -20,10 +24,12 @@ __all__ = [
     "load_ros_map",
     "read_carmen_log",
     "read_mrclam",
+    "read_rosbag",
     "read_trajectory",
     "read_victoria_park",
     "save_grid",
     "save_ros_map",
     "write_png",
     "write_trajectory",
+    "write_rosbag",
 ]
