@@ -56,7 +56,7 @@ PayloadView unframe_state(const std::string& framed, const std::string& tag, con
     fail("state format version " + std::to_string(version) + " is not supported (this build reads version " +
          std::to_string(kStateFormatVersion) + ")");
   const std::uint64_t tag_size = r.u64();
-  if (tag_size > kMaxTagBytes || tag_size > r.remaining()) fail("corrupt class tag");
+  if (tag_size > kMaxTagBytes || tag_size > r.remaining()) fail("truncated or corrupt class tag");
   std::string found(framed.data() + (framed.size() - r.remaining()), static_cast<std::size_t>(tag_size));
   for (std::uint64_t k = 0; k < tag_size; ++k) r.u8();
   if (found != tag) fail("holds a " + found + ", not a " + tag);
