@@ -102,6 +102,12 @@ class OccupancyGrid2D:
     def grown(self, bounds: Bounds) -> "OccupancyGrid2D": ...
     def copy(self) -> "OccupancyGrid2D": ...
     def same_geometry(self, other: "OccupancyGrid2D") -> bool: ...
+    def save(self, path: Union[str, os.PathLike[str]]) -> None:
+        """Writes the whole state to path (docs/file_format.md), bit for bit."""
+    @staticmethod
+    def load(path: Union[str, os.PathLike[str]]) -> "OccupancyGrid2D":
+        """The object saved at path; ValueError naming the path for any other or damaged file."""
+
 
 class OccupancyGrid3D:
     """Sparse 3-D occupancy grid (ch. 9.2 in 3-D), hashed 8x8x8-voxel blocks, unbounded within
@@ -288,10 +294,22 @@ class _EkfSlam:
         """An independent copy with its own storage."""
     def pairing_likelihood(self, z: ArrayLike, id: int) -> Tuple[float, float]:
         """(NIS, log det(2 pi S)) of one measurement against landmark id, without updating."""
+    def save(self, path: Union[str, os.PathLike[str]]) -> None:
+        """Writes the whole state to path (docs/file_format.md), bit for bit."""
+    @staticmethod
+    def load(path: Union[str, os.PathLike[str]]) -> "_EkfSlam":
+        """The object saved at path; ValueError naming the path for any other or damaged file."""
+
 
 class FastSlamUpdateResult:
     """What FastSlam.update did."""
     resampled: bool
+    def save(self, path: Union[str, os.PathLike[str]]) -> None:
+        """Writes the whole state to path (docs/file_format.md), bit for bit."""
+    @staticmethod
+    def load(path: Union[str, os.PathLike[str]]) -> "FastSlam":
+        """The object saved at path; ValueError naming the path for any other or damaged file."""
+
 
 class FastSlamAssociationResult:
     """What FastSlam.update_unknown did with a scan's k measurements; row j is particle j after
@@ -431,6 +449,12 @@ class _MultiHypothesisEkfSlam:
     def history(self) -> List[npt.NDArray[np.int64]]: ...
 
 # --- graph/: pose graphs (ch. 11); the public face is probslam.graph ---------------------------
+    def save(self, path: Union[str, os.PathLike[str]]) -> None:
+        """Writes the whole state to path (docs/file_format.md), bit for bit."""
+    @staticmethod
+    def load(path: Union[str, os.PathLike[str]]) -> "_MultiHypothesisEkfSlam":
+        """The object saved at path; ValueError naming the path for any other or damaged file."""
+
 class PoseGraph2D:
     """A planar pose/landmark graph: pose vertices (x m, y m, theta rad), point vertices (x, y) m,
     pose edges (relative pose of `to` in `from`'s frame) and point edges (the point in the pose's
@@ -461,6 +485,12 @@ class PoseGraph2D:
     def point_edges(self) -> Tuple[npt.NDArray[np.int64], Array, Array]: ...  # (E, 2), (E, 2), (E, 2, 2)
     def chi2(self) -> float: ...
     def copy(self) -> "PoseGraph2D": ...
+    def save(self, path: Union[str, os.PathLike[str]]) -> None:
+        """Writes the whole state to path (docs/file_format.md), bit for bit."""
+    @staticmethod
+    def load(path: Union[str, os.PathLike[str]]) -> "PoseGraph2D":
+        """The object saved at path; ValueError naming the path for any other or damaged file."""
+
 
 class OptimizationReport:
     iterations: int
@@ -657,6 +687,12 @@ class SubmapSlam2D:
     def finish(self) -> None: ...
     def graph(self) -> PoseGraph2D: ...
     def map(self, resolution: float = 0.0) -> OccupancyGrid2D: ...
+    def save(self, path: Union[str, os.PathLike[str]]) -> None:
+        """Writes the whole state to path (docs/file_format.md), bit for bit."""
+    @staticmethod
+    def load(path: Union[str, os.PathLike[str]]) -> "SubmapSlam2D":
+        """The object saved at path; ValueError naming the path for any other or damaged file."""
+
 
 class GridFastSlamSummary:
     """GridFastSlam.summary: counts of the run so far."""
@@ -666,6 +702,12 @@ class GridFastSlamSummary:
     matched: int  # particle updates from the scan-matching proposal
     fallbacks: int  # particle updates whose match failed
     effective_sample_size: float  # after the last update, before any resampling
+    def save(self, path: Union[str, os.PathLike[str]]) -> None:
+        """Writes the whole state to path (docs/file_format.md), bit for bit."""
+    @staticmethod
+    def load(path: Union[str, os.PathLike[str]]) -> "GridFastSlam":
+        """The object saved at path; ValueError naming the path for any other or damaged file."""
+
 
 class TileSharing:
     """GridFastSlam.tile_sharing: map tiles held and allocated."""
