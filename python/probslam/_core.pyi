@@ -304,12 +304,6 @@ class _EkfSlam:
 class FastSlamUpdateResult:
     """What FastSlam.update did."""
     resampled: bool
-    def save(self, path: Union[str, os.PathLike[str]]) -> None:
-        """Writes the whole state to path (docs/file_format.md), bit for bit."""
-    @staticmethod
-    def load(path: Union[str, os.PathLike[str]]) -> "FastSlam":
-        """The object saved at path; ValueError naming the path for any other or damaged file."""
-
 
 class FastSlamAssociationResult:
     """What FastSlam.update_unknown did with a scan's k measurements; row j is particle j after
@@ -406,6 +400,11 @@ class FastSlam:
     def resample(self) -> None:
         """Low-variance resampling now, whatever N_eff."""
     def copy(self) -> "FastSlam": ...
+    def save(self, path: Union[str, os.PathLike[str]]) -> None:
+        """Writes the whole state to path (docs/file_format.md), bit for bit."""
+    @staticmethod
+    def load(path: Union[str, os.PathLike[str]]) -> "FastSlam":
+        """The object saved at path; ValueError naming the path for any other or damaged file."""
     def path(self, particle: Optional[int] = None) -> Array:
         """(T + 1, 3) a particle's path, oldest first (default: the best particle's)."""
     def landmarks(self, particle: Optional[int] = None) -> Landmarks:
@@ -702,12 +701,6 @@ class GridFastSlamSummary:
     matched: int  # particle updates from the scan-matching proposal
     fallbacks: int  # particle updates whose match failed
     effective_sample_size: float  # after the last update, before any resampling
-    def save(self, path: Union[str, os.PathLike[str]]) -> None:
-        """Writes the whole state to path (docs/file_format.md), bit for bit."""
-    @staticmethod
-    def load(path: Union[str, os.PathLike[str]]) -> "GridFastSlam":
-        """The object saved at path; ValueError naming the path for any other or damaged file."""
-
 
 class TileSharing:
     """GridFastSlam.tile_sharing: map tiles held and allocated."""
@@ -753,6 +746,11 @@ class GridFastSlam:
         """ranges (S, B) m, beam_angles (B,) or (S, B) rad, odometry (S, 3) sensor poses, timestamps (S,) s."""
     def copy(self) -> "GridFastSlam":
         """A deep copy: the particles' map tiles are cloned into a family of their own."""
+    def save(self, path: Union[str, os.PathLike[str]]) -> None:
+        """Writes the whole state to path (docs/file_format.md), bit for bit."""
+    @staticmethod
+    def load(path: Union[str, os.PathLike[str]]) -> "GridFastSlam":
+        """The object saved at path; ValueError naming the path for any other or damaged file."""
     def path(self, particle: Optional[int] = None) -> Array:
         """(S, 3) every scan's pose along a particle's path (default: the best particle's)."""
     def map(self, particle: Optional[int] = None) -> OccupancyGrid2D:
