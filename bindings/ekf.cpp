@@ -6,6 +6,7 @@
 
 #include "numpy.hpp"
 #include "object_lock.hpp"
+#include "persistence.hpp"
 #include "landmarks.hpp"
 #include "repr.hpp"
 #include "probslam/core/check.hpp"
@@ -259,7 +260,7 @@ void define_ekf_calls(py::class_<EkfSlam>& c) {
 
 void define_multi_hypothesis(py::module_& m) {
   using Mht = MultiHypothesisEkfSlam;
-  py::class_<Mht>(m, "_MultiHypothesisEkfSlam",
+  auto mht_class = py::class_<Mht>(m, "_MultiHypothesisEkfSlam",
                   "A beam of EKF SLAM filters over data-association hypotheses (probslam.ekf.MultiHypothesisEkfSlam\n"
                   "is the public face).")
       .def(py::init([](const EkfSlam& initial, const MultiHypothesisOptions& options) {
@@ -302,6 +303,7 @@ void define_multi_hypothesis(py::module_& m) {
                  " landmarks, cost " + num(e.total_cost());
         }));
       });
+  define_persistence<Mht>(mht_class);
 }
 
 }  // namespace
@@ -325,6 +327,7 @@ void define_ekf(py::module_& m) {
         "initial_pose_cov (3, 3).");
   define_ekf_state(c);
   define_ekf_calls(c);
+  define_persistence<EkfSlam>(c);
   define_multi_hypothesis(m);
 }
 

@@ -10,6 +10,7 @@
 #include "args.hpp"
 #include "numpy.hpp"
 #include "object_lock.hpp"
+#include "persistence.hpp"
 #include "repr.hpp"
 #include "landmarks.hpp"
 #include "probslam/core/check.hpp"
@@ -352,6 +353,7 @@ void define_fastslam(py::module_& m) {
         "See the class docstring for the arguments and keyword options.");
   define_state(c);
   define_calls(c);
+  define_persistence<FastSlam>(c);
 
   m.def(
       "low_variance_resample",

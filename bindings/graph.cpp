@@ -5,6 +5,7 @@
 #include "args.hpp"
 #include "numpy.hpp"
 #include "object_lock.hpp"
+#include "persistence.hpp"
 #include "repr.hpp"
 #include "probslam/graph/graph_initialization.hpp"
 #include "probslam/graph/graph_optimizer.hpp"
@@ -191,7 +192,7 @@ constexpr const char* kReadDoc =
 
 void define_graph(py::module_& m) {
   // Every method runs its C++ work under the graph's lock with the GIL released (object_lock.hpp).
-  py::class_<PoseGraph2D>(m, "PoseGraph2D",
+  auto graph_class = py::class_<PoseGraph2D>(m, "PoseGraph2D",
                           "A planar pose/landmark graph (GraphSLAM's constraints, ch. 11): pose vertices (x m, y m,\n"
                           "theta rad), point vertices (x, y) m, pose edges (relative pose of `to` in `from`'s frame,\n"
                           "(3, 3) information) and point edges (the point (x, y) m in the pose's frame, (2, 2)\n"
@@ -306,6 +307,7 @@ void define_graph(py::module_& m) {
                  std::to_string(g.pose_edges().size() + g.point_edges().size()) + " edges";
         }));
       });
+  define_persistence<PoseGraph2D>(graph_class);
 
   py::class_<OptimizationReport>(m, "OptimizationReport", "What optimize did.")
       .def_readonly("iterations", &OptimizationReport::iterations, "Iterations run.")

@@ -8,6 +8,7 @@
 #include "args.hpp"
 #include "numpy.hpp"
 #include "object_lock.hpp"
+#include "persistence.hpp"
 #include "repr.hpp"
 #include "probslam/core/check.hpp"
 #include "probslam/grid/inverse_range_sensor_model.hpp"
@@ -51,7 +52,7 @@ void define_grid(py::module_& m) {
   using Grid = OccupancyGrid2D;
   // Every call runs under the grid's lock with the GIL released (object_lock.hpp): arguments are
   // converted before, Python results built after. Only the zero-copy log_odds view is unguarded.
-  py::class_<Grid>(m, "OccupancyGrid2D",
+  auto grid_class = py::class_<Grid>(m, "OccupancyGrid2D",
                    "2-D occupancy grid in log-odds (Probabilistic Robotics ch. 9.2). Cell (row i, col j)\n"
                    "covers x in [x0 + j res, x0 + (j + 1) res), y in [y0 + i res, y0 + (i + 1) res), metres;\n"
                    "arrays are (height, width), row 0 at the lowest y. Updates are clamped to `clamp`\n"
@@ -247,6 +248,7 @@ void define_grid(py::module_& m) {
                  " m, origin (" + num(g.origin().x()) + ", " + num(g.origin().y()) + ") m";
         }));
       });
+  define_persistence<Grid>(grid_class);
 
   m.def(
       "fuse_max",

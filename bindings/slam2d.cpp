@@ -13,6 +13,7 @@
 #include "numpy.hpp"
 #include "probslam/core/check.hpp"
 #include "object_lock.hpp"
+#include "persistence.hpp"
 #include "repr.hpp"
 #include "probslam/slam2d/correlative_scan_matcher.hpp"
 #include "probslam/slam2d/incremental_scan_matcher.hpp"
@@ -624,6 +625,7 @@ void define_slam2d(py::module_& m) {
       }),
       std::tuple_cat(frontend_keywords(slam_defaults.frontend), closure_keywords(slam_defaults)),
       "Keyword options only: see the class docstring.");
+  define_persistence<Slam>(slam);
   slam.def("finish", [](Slam& self) { locked(self, [&] { self.finish(); }); },
            "Closes the last submap, searches its loop closures and optimises the graph.")
       .def_property_readonly("num_scans", getter(&Slam::num_scans), "Scans added.")
@@ -764,6 +766,7 @@ void define_slam2d(py::module_& m) {
           py::arg_v("seed", rbpf_defaults.seed), py::arg_v("threads", rbpf_defaults.threads),
           real_arg("max_map_bytes", rbpf_defaults.max_map_bytes)),
       "Keyword options only: see the class docstring.");
+  define_persistence<Rbpf>(rbpf);
   rbpf.def_property_readonly("num_scans", getter(&Rbpf::num_scans), "Scans added.")
       .def_property_readonly("num_particles", getter(&Rbpf::num_particles), "M, the number of particles.")
       .def_property_readonly("pose", [](const Rbpf& self) {

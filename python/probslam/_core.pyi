@@ -102,6 +102,12 @@ class OccupancyGrid2D:
     def grown(self, bounds: Bounds) -> "OccupancyGrid2D": ...
     def copy(self) -> "OccupancyGrid2D": ...
     def same_geometry(self, other: "OccupancyGrid2D") -> bool: ...
+    def save(self, path: Union[str, os.PathLike[str]]) -> None:
+        """Writes the whole state to path (docs/file_format.md), bit for bit."""
+    @staticmethod
+    def load(path: Union[str, os.PathLike[str]]) -> "OccupancyGrid2D":
+        """The object saved at path; ValueError naming the path for any other or damaged file."""
+
 
 class OccupancyGrid3D:
     """Sparse 3-D occupancy grid (ch. 9.2 in 3-D), hashed 8x8x8-voxel blocks, unbounded within
@@ -288,6 +294,12 @@ class _EkfSlam:
         """An independent copy with its own storage."""
     def pairing_likelihood(self, z: ArrayLike, id: int) -> Tuple[float, float]:
         """(NIS, log det(2 pi S)) of one measurement against landmark id, without updating."""
+    def save(self, path: Union[str, os.PathLike[str]]) -> None:
+        """Writes the whole state to path (docs/file_format.md), bit for bit."""
+    @staticmethod
+    def load(path: Union[str, os.PathLike[str]]) -> "_EkfSlam":
+        """The object saved at path; ValueError naming the path for any other or damaged file."""
+
 
 class FastSlamUpdateResult:
     """What FastSlam.update did."""
@@ -392,6 +404,11 @@ class FastSlam:
     def resample(self) -> None:
         """Low-variance resampling now, whatever N_eff."""
     def copy(self) -> "FastSlam": ...
+    def save(self, path: Union[str, os.PathLike[str]]) -> None:
+        """Writes the whole state to path (docs/file_format.md), bit for bit."""
+    @staticmethod
+    def load(path: Union[str, os.PathLike[str]]) -> "FastSlam":
+        """The object saved at path; ValueError naming the path for any other or damaged file."""
     def path(self, particle: Optional[int] = None) -> Array:
         """(T + 1, 3) a particle's path, oldest first (default: the best particle's)."""
     def landmarks(self, particle: Optional[int] = None) -> Landmarks:
@@ -435,6 +452,12 @@ class _MultiHypothesisEkfSlam:
     def history(self) -> List[npt.NDArray[np.int64]]: ...
 
 # --- graph/: pose graphs (ch. 11); the public face is probslam.graph ---------------------------
+    def save(self, path: Union[str, os.PathLike[str]]) -> None:
+        """Writes the whole state to path (docs/file_format.md), bit for bit."""
+    @staticmethod
+    def load(path: Union[str, os.PathLike[str]]) -> "_MultiHypothesisEkfSlam":
+        """The object saved at path; ValueError naming the path for any other or damaged file."""
+
 class PoseGraph2D:
     """A planar pose/landmark graph: pose vertices (x m, y m, theta rad), point vertices (x, y) m,
     pose edges (relative pose of `to` in `from`'s frame) and point edges (the point in the pose's
@@ -465,6 +488,12 @@ class PoseGraph2D:
     def point_edges(self) -> Tuple[npt.NDArray[np.int64], Array, Array]: ...  # (E, 2), (E, 2), (E, 2, 2)
     def chi2(self) -> float: ...
     def copy(self) -> "PoseGraph2D": ...
+    def save(self, path: Union[str, os.PathLike[str]]) -> None:
+        """Writes the whole state to path (docs/file_format.md), bit for bit."""
+    @staticmethod
+    def load(path: Union[str, os.PathLike[str]]) -> "PoseGraph2D":
+        """The object saved at path; ValueError naming the path for any other or damaged file."""
+
 
 class OptimizationReport:
     iterations: int
@@ -661,6 +690,12 @@ class SubmapSlam2D:
     def finish(self) -> None: ...
     def graph(self) -> PoseGraph2D: ...
     def map(self, resolution: float = 0.0) -> OccupancyGrid2D: ...
+    def save(self, path: Union[str, os.PathLike[str]]) -> None:
+        """Writes the whole state to path (docs/file_format.md), bit for bit."""
+    @staticmethod
+    def load(path: Union[str, os.PathLike[str]]) -> "SubmapSlam2D":
+        """The object saved at path; ValueError naming the path for any other or damaged file."""
+
 
 class GridFastSlamSummary:
     """GridFastSlam.summary: counts of the run so far."""
@@ -715,6 +750,11 @@ class GridFastSlam:
         """ranges (S, B) m, beam_angles (B,) or (S, B) rad, odometry (S, 3) sensor poses, timestamps (S,) s."""
     def copy(self) -> "GridFastSlam":
         """A deep copy: the particles' map tiles are cloned into a family of their own."""
+    def save(self, path: Union[str, os.PathLike[str]]) -> None:
+        """Writes the whole state to path (docs/file_format.md), bit for bit."""
+    @staticmethod
+    def load(path: Union[str, os.PathLike[str]]) -> "GridFastSlam":
+        """The object saved at path; ValueError naming the path for any other or damaged file."""
     def path(self, particle: Optional[int] = None) -> Array:
         """(S, 3) every scan's pose along a particle's path (default: the best particle's)."""
     def map(self, particle: Optional[int] = None) -> OccupancyGrid2D:

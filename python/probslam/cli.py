@@ -263,7 +263,14 @@ def _cmd_slam(args: argparse.Namespace) -> int:
                        loop_closures=not args.no_loop_closures)
     if args.max_range is not None:
         options["max_range"] = args.max_range
-    result = run_slam(log, method=args.method, progress=None if args.progress else False, **options)
+    if args.save is not None:
+        _check_output(args.save)
+    if args.resume is not None:
+        # The saved run's method and options go on; the command line's are not used.
+        result = run_slam(log, resume=args.resume, save=args.save, progress=None if args.progress else False)
+    else:
+        result = run_slam(log, method=args.method, progress=None if args.progress else False, save=args.save,
+                          **options)
     io.save_ros_map(result.grid, args.output + ".yaml")
     written = [f"{args.output}.yaml", f"{args.output}.pgm"]
     if args.plot:
@@ -280,11 +287,15 @@ def _cmd_slam(args: argparse.Namespace) -> int:
     print(f"log:           {path}{' (bundled Intel Research Lab raw excerpt)' if not args.log else ''}")
     _print_bag(log)
     skipped = f", {log.skipped_wide_scans} skipped: far wider than the rest" if log.skipped_wide_scans else ""
+    if args.resume is not None:
+        print(f"resumed:       {args.resume} ({result.method}, its saved options)")
     if result.method == "rbpf":
         t = result.tile_sharing
-        print(f"method:        grid-based FastSLAM, {args.particles} particles, {args.proposal} proposal")
+        particles = result.options.get("num_particles", args.particles)
+        proposal = result.options.get("proposal", args.proposal)
+        print(f"method:        grid-based FastSLAM, {particles} particles, {proposal} proposal")
         print(f"scans:         {s.scans}{skipped}; {s.updates} filter updates, {s.resamples} resamplings")
-        if args.proposal == "scan-matching":
+        if proposal == "scan-matching":
             print(f"proposal:      {s.matched} particle updates scan-matched, {s.fallbacks} fell back to "
                   f"the motion model")
         print(f"maps:          {t.distinct} distinct tiles for {t.references} held "
@@ -298,6 +309,8 @@ def _cmd_slam(args: argparse.Namespace) -> int:
     print(f"map:           {grid.width} x {grid.height} cells at {grid.resolution} m, origin {grid.origin}")
     print(f"time:          {result.seconds:.1f} s for {result.log_duration:.0f} s of log "
           f"(real-time factor {result.real_time_factor:.1f})")
+    if args.save is not None:
+        written.append(args.save)
     print(f"wrote:         {', '.join(written)}")
     return 0
 
@@ -824,6 +837,12 @@ def build_parser() -> argparse.ArgumentParser:
                          "default 'slam')")
     _trajectory_format_option(sl, "the laser poses at the log's scan times (s)")
     _bag_input_options(sl, poses=False)
+    sl.add_argument("--save", default=None, metavar="RUN.psl",
+                    help="write the run's state (the SLAM object and the scans processed) to RUN.psl at the end, "
+                         "or on Ctrl-C, for --resume (docs/cli.md)")
+    sl.add_argument("--resume", default=None, metavar="RUN.psl",
+                    help="continue a run saved with --save from the next scan of the same LOG (its method and "
+                         "options are the saved ones); the result equals a run that never stopped")
     _no_progress_option(sl)
     _no_plot_option(sl)
     sl.set_defaults(func=_cmd_slam)

@@ -117,6 +117,24 @@ class EkfSlam:
     def __deepcopy__(self, memo) -> "EkfSlam":
         return self.copy()
 
+    def save(self, path) -> None:
+        """Writes the whole filter to path (docs/file_format.md), bit for bit: ``EkfSlam.load(path)``
+        equals this filter and continues exactly as it would."""
+        self._f.save(path)
+
+    @classmethod
+    def load(cls, path) -> "EkfSlam":
+        """The filter saved at path; ValueError naming the path for any other or damaged file."""
+        e = object.__new__(cls)
+        e._f = _core._EkfSlam.load(path)
+        return e
+
+    def __getstate__(self):
+        return {"_f": self._f}
+
+    def __setstate__(self, state) -> None:
+        self._f = state["_f"]
+
     # --- state -------------------------------------------------------------------------
     @property
     def mean(self) -> np.ndarray:
@@ -323,6 +341,24 @@ class MultiHypothesisEkfSlam:
         """One scan z (k, 2) or (k, 3). Returns the best filter's landmark id per measurement
         (k,), -1 for clutter; later scans may still change the best filter's earlier choices."""
         return self._m.update(z).astype(np.int64)
+
+    def save(self, path) -> None:
+        """Writes the whole beam to path (docs/file_format.md), bit for bit:
+        ``MultiHypothesisEkfSlam.load(path)`` equals it and continues exactly as it would."""
+        self._m.save(path)
+
+    @classmethod
+    def load(cls, path) -> "MultiHypothesisEkfSlam":
+        """The beam saved at path; ValueError naming the path for any other or damaged file."""
+        m = object.__new__(cls)
+        m._m = _core._MultiHypothesisEkfSlam.load(path)
+        return m
+
+    def __getstate__(self):
+        return {"_m": self._m}
+
+    def __setstate__(self, state) -> None:
+        self._m = state["_m"]
 
     @property
     def best(self) -> EkfSlam:

@@ -8,7 +8,9 @@ scan's odometry pose.
 
 from __future__ import annotations
 
+import json
 import os
+import struct
 import time
 from dataclasses import dataclass, field
 from typing import Any, Dict, Optional, Union
@@ -17,6 +19,7 @@ import numpy as np
 from tqdm import tqdm
 
 from . import _core
+from .io._files import file_path, require_regular_file
 from .io.trajectory import write_trajectory as write_trajectory_file
 from .datasets import carmen
 from .io.carmen import CarmenLog, LaserScans
@@ -66,8 +69,114 @@ class SlamResult:
 METHODS = ("graph", "rbpf")
 
 
-def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: str = "graph", progress: Optional[bool] = None,
-             chunk: int = 200, **options: Any) -> SlamResult:
+#: The first bytes of a run file (``run_slam(save=...)``, ``probslam slam --save``), its layout's version.
+RUN_MAGIC = b"PSLRUN\0\0"
+RUN_FORMAT_VERSION = 1
+#: Metadata larger than this is a damaged file, not a run's few fields.
+MAX_RUN_METADATA_BYTES = 1 << 20
+_RUN_CLASSES = {"graph": "SubmapSlam2D", "rbpf": "GridFastSlam"}
+
+
+@dataclass
+class SlamRun:
+    """A run file's content: the SLAM object (``SubmapSlam2D`` before its final ``finish``, or
+    ``GridFastSlam``), its method, how many scans of the log it has processed (scans_done), the
+    timestamps of the log's first scan and of the last processed one (to check that a resumed
+    log is the same), the log's number of scans and the options of the run."""
+
+    mapper: Any
+    method: str
+    scans_done: int
+    first_timestamp: float
+    last_timestamp: float
+    log_scans: int
+    options: Dict[str, Any] = field(default_factory=dict)
+
+
+def _json_options(options: Dict[str, Any]) -> Dict[str, Any]:
+    out: Dict[str, Any] = {}
+    for k, v in options.items():
+        v = v.tolist() if isinstance(v, np.ndarray) else v.item() if isinstance(v, np.generic) else v
+        try:
+            json.dumps(v, allow_nan=True)
+        except (TypeError, ValueError):
+            v = repr(v)
+        out[k] = list(v) if isinstance(v, tuple) else v
+    return out
+
+
+def save_run(run: SlamRun, path: PathLike) -> None:
+    """Writes run to path (docs/file_format.md, "Run files"): the magic, the layout version, the
+    metadata as JSON, then the SLAM object's state file, bit for bit."""
+    path = file_path(path)
+    meta = dict(format=RUN_FORMAT_VERSION, method=run.method, scans_done=int(run.scans_done),
+                first_timestamp=float(run.first_timestamp), last_timestamp=float(run.last_timestamp),
+                log_scans=int(run.log_scans), options=_json_options(run.options))
+    head = json.dumps(meta, allow_nan=True).encode("utf-8")
+    state = run.mapper.__getstate__()
+    tmp = path + ".tmp"
+    with open(tmp, "wb") as f:
+        f.write(RUN_MAGIC + struct.pack("<II", RUN_FORMAT_VERSION, len(head)) + head + state)
+    os.replace(tmp, path)
+
+
+def load_run(path: PathLike) -> SlamRun:
+    """The run saved at path; ValueError naming the path for anything but a complete, undamaged
+    run file (the object's state is checked as its class's ``load`` checks it)."""
+    path = file_path(path)
+    require_regular_file(path)
+    with open(path, "rb") as f:
+        data = f.read()
+    if not data.startswith(RUN_MAGIC):
+        raise ValueError(f"{path}: not a probslam run file (no PSLRUN magic)")
+    if len(data) < len(RUN_MAGIC) + 8:
+        raise ValueError(f"{path}: truncated run file")
+    version, size = struct.unpack_from("<II", data, len(RUN_MAGIC))
+    if version != RUN_FORMAT_VERSION:
+        raise ValueError(f"{path}: run file version {version} is not supported (this build reads version "
+                         f"{RUN_FORMAT_VERSION})")
+    start = len(RUN_MAGIC) + 8
+    if size > MAX_RUN_METADATA_BYTES or start + size > len(data):
+        raise ValueError(f"{path}: truncated or corrupt run metadata")
+    try:
+        meta = json.loads(data[start:start + size].decode("utf-8"))
+        method = meta["method"]
+        scans_done = meta["scans_done"]
+        first, last, log_scans = float(meta["first_timestamp"]), float(meta["last_timestamp"]), meta["log_scans"]
+        options = meta.get("options", {})
+    except (ValueError, KeyError, TypeError, UnicodeDecodeError) as e:
+        raise ValueError(f"{path}: corrupt run metadata ({e})") from None
+    if method not in _RUN_CLASSES or not isinstance(scans_done, int) or not isinstance(log_scans, int) \
+            or not 1 <= scans_done <= log_scans or not isinstance(options, dict):
+        raise ValueError(f"{path}: corrupt run metadata")
+    cls = getattr(_core, _RUN_CLASSES[method])
+    mapper = cls.__new__(cls)
+    try:
+        mapper.__setstate__(data[start + size:])
+    except ValueError as e:
+        raise ValueError(f"{path}: {str(e).split(': ', 1)[-1]}") from None
+    if mapper.num_scans != scans_done:
+        raise ValueError(f"{path}: the run's object holds {mapper.num_scans} scans, its metadata {scans_done}")
+    return SlamRun(mapper=mapper, method=method, scans_done=scans_done, first_timestamp=first, last_timestamp=last,
+                   log_scans=log_scans, options=options)
+
+
+def _check_resume(run: SlamRun, scans: LaserScans, source: str) -> None:
+    """ValueError unless scans is the log run was made from (same first scan, the same scan at
+    the last processed index)."""
+    t = scans.timestamps
+    n = run.scans_done
+    same = len(scans) >= n and t[0] == run.first_timestamp and t[n - 1] == run.last_timestamp
+    if not same:
+        got = f"{len(scans)} scans from t={t[0]:.6f}" if len(scans) else "no scans"
+        raise ValueError(f"{source}: the saved run processed {n} scans of a log of {run.log_scans} scans from "
+                         f"t={run.first_timestamp:.6f} (scan {n - 1} at t={run.last_timestamp:.6f}); this log has "
+                         f"{got}: not the log the run was made from")
+
+
+def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: Optional[str] = None,
+             progress: Optional[bool] = None, chunk: int = 200, resume: Optional[PathLike] = None,
+             save: Optional[PathLike] = None, **options: Any) -> SlamResult:
     """Turns a raw log (a CARMEN or ROS bag path, a ``CarmenLog`` such as ``io.read_rosbag``'s, or
     its ``LaserScans``) into a consistent map.
 
@@ -87,7 +196,26 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: str = "grap
     needs odometry.
 
     ``progress=None`` shows a bar only on a terminal.
+
+    ``save``: a path; the run's state (the SLAM object before GraphSLAM's final ``finish``, the
+    number of scans processed, see ``save_run``) is written there at the end, or when the run is
+    interrupted (KeyboardInterrupt: the scans of the chunks completed so far). ``resume``: a run
+    file; the run continues with the log's next scan, with the saved object and its options
+    (``options`` must then be empty; ``method`` defaults to the saved one). A resumed run gives
+    the uninterrupted run's result bit for bit.
     """
+    run: Optional[SlamRun] = None
+    if resume is not None:
+        run = load_run(resume)
+        if method is not None and method != run.method:
+            raise ValueError(f"resume: {file_path(resume)} holds a {run.method!r} run, not {method!r}")
+        if options:
+            raise ValueError(f"options: a resumed run keeps its saved options; got {sorted(options)}")
+        method = run.method
+    if save is not None:
+        save = file_path(save, "save")
+    if method is None:
+        method = "graph"
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
     if isinstance(log, (str, os.PathLike)):
@@ -113,16 +241,35 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: str = "grap
         opts.update(use_odometry_prior=False, min_travel=0.0, min_rotation=0.0, linear_window=0.5,
                     angular_window=0.5)
     opts.update(options)
-    mapper = _core.GridFastSlam(**opts) if method == "rbpf" else _core.SubmapSlam2D(**opts)
+    start = 0
+    if run is not None:
+        _check_resume(run, scans, str(file_path(resume)))
+        mapper, start, opts = run.mapper, run.scans_done, dict(run.options)
+    else:
+        mapper = _core.GridFastSlam(**opts) if method == "rbpf" else _core.SubmapSlam2D(**opts)
     angles = scans.beam_angles()
     t0 = time.perf_counter()
+
+    def save_state(done: int) -> None:
+        if save is not None and done > 0:
+            save_run(SlamRun(mapper=mapper, method=method, scans_done=done, first_timestamp=float(scans.timestamps[0]),
+                             last_timestamp=float(scans.timestamps[done - 1]), log_scans=len(scans), options=opts),
+                     save)
+
+    done = start
     # As map_laser_log: disable=None lets tqdm show the bar only on a terminal.
-    with tqdm(total=len(scans), unit="scan", desc=method,
-              disable=(None if progress is None else not progress)) as bar:
-        for a in range(0, len(scans), chunk):
-            b = min(len(scans), a + chunk)
-            mapper.add_scans(scans.ranges[a:b], angles[a:b], scans.laser_poses[a:b], scans.timestamps[a:b])
-            bar.update(b - a)
+    try:
+        with tqdm(total=len(scans), initial=start, unit="scan", desc=method,
+                  disable=(None if progress is None else not progress)) as bar:
+            for a in range(start, len(scans), chunk):
+                b = min(len(scans), a + chunk)
+                mapper.add_scans(scans.ranges[a:b], angles[a:b], scans.laser_poses[a:b], scans.timestamps[a:b])
+                done = b
+                bar.update(b - a)
+    except KeyboardInterrupt:
+        save_state(done)  # add_scans is all or nothing: the state holds exactly `done` scans
+        raise
+    save_state(done)
     t = scans.timestamps
     duration = float(np.nanmax(t) - np.nanmin(t)) if np.isfinite(t).any() else 0.0
     if method == "rbpf":
@@ -150,4 +297,4 @@ def write_trajectory(timestamps: np.ndarray, poses: np.ndarray, path: PathLike) 
     write_trajectory_file(timestamps, poses, path, format="xyt")
 
 
-__all__ = ["METHODS", "SlamResult", "run_slam", "write_trajectory"]
+__all__ = ["METHODS", "SlamResult", "SlamRun", "load_run", "run_slam", "save_run", "write_trajectory"]

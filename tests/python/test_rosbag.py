@@ -494,7 +494,7 @@ def test_cli_slam_and_map_on_bags(tmp_path, raw_log, capsys):
     assert cli.main(["slam", str(raw), "-o", str(tmp_path / "s"), "--no-progress", "--no-plot"]) == 0
     out = capsys.readouterr().out
     assert "bag:           scans from /scan; poses from odometry /odom" in out and "34 scans stamped" in out
-    assert (tmp_path / "s.yaml").exists() and (tmp_path / "s_trajectory.txt").exists()
+    assert (tmp_path / "s.yaml").exists() and (tmp_path / "s_trajectory.tum").exists()
     corrected = io.read_carmen_log(ps.data.path("intel_excerpt.log.gz"))
     folder = tmp_path / "corrected"
     io.write_rosbag(corrected, folder, format="mcap", pose_topic="/pose")

@@ -5,6 +5,7 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
+#include <string>
 #include <tuple>
 #include <unordered_map>
 #include <vector>
@@ -14,6 +15,9 @@
 #include "probslam/core/types.hpp"
 
 namespace probslam {
+
+class StateWriter;
+class StateReader;
 
 // Reliability limits beside the shared ones of core/filter_limits.hpp (kMaxCoordinate,
 // kMaxVariance, kMaxLandmarkId), refused by name beyond them.
@@ -150,6 +154,15 @@ class EkfSlam {
   int num_provisional() const { return static_cast<int>(provisional_.size()); }
   /// Marginalises landmark `id` out of the state.
   void remove_landmark(long id);
+
+  /// Saves the filter (noise, mean, covariance, landmark ids and slots, existence, provisional
+  /// list, map management, counters) bit for bit (docs/file_format.md). A loaded filter's
+  /// storage has no spare capacity, as a copy's.
+  static constexpr const char* kStateTag = "EkfSlam";
+  void save(const std::string& path) const;
+  static EkfSlam load(const std::string& path);
+  void write_state(StateWriter& w) const;
+  static EkfSlam read_state(StateReader& r);
 
  private:
   struct Provisional {

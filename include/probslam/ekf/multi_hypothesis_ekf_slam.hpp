@@ -6,6 +6,7 @@
 // overtaken by the branch that did not make it.
 #include <Eigen/Core>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "probslam/core/object_mutex.hpp"
@@ -84,6 +85,14 @@ class MultiHypothesisEkfSlam {
   /// The best filter's assignment of every scan so far: landmark id per measurement, -1 clutter.
   std::vector<std::vector<long>> history() const;
   const MultiHypothesisOptions& options() const { return options_; }
+
+  /// Saves the beam (every filter, its cost, next id, bearing offset and assignment history,
+  /// the histories' shared prefixes kept shared) bit for bit (docs/file_format.md).
+  static constexpr const char* kStateTag = "MultiHypothesisEkfSlam";
+  void save(const std::string& path) const;
+  static MultiHypothesisEkfSlam load(const std::string& path);
+  void write_state(StateWriter& w) const;
+  static MultiHypothesisEkfSlam read_state(StateReader& r);
 
  private:
   struct HistoryNode {

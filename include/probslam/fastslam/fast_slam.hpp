@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <limits>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "probslam/core/filter_limits.hpp"
@@ -245,6 +246,16 @@ class FastSlam {
   /// When the last call (predict, update or resample()) resampled: particle j's ancestor index
   /// before it, for every j; empty otherwise. Lets a caller carry per-particle histories along.
   const std::vector<int>& last_ancestors() const { return last_ancestors_; }
+
+  /// Saves the filter (options, every particle's pose, weight, map, path, random stream and
+  /// version 2's pending motion prior, the filter's stream and counters) bit for bit
+  /// (docs/file_format.md): a loaded filter continues exactly as this one would. Maps and paths
+  /// are saved per particle and loaded unshared (as deep copies: more memory, same results).
+  static constexpr const char* kStateTag = "FastSlam";
+  void save(const std::string& path) const;
+  static FastSlam load(const std::string& path);
+  void write_state(StateWriter& w) const;
+  static FastSlam read_state(StateReader& r);
 
  private:
   struct Context;

@@ -14,6 +14,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "probslam/core/object_mutex.hpp"
@@ -147,6 +148,16 @@ class GridFastSlam {
   TileSharing tile_sharing() const;
   GridFastSlamSummary summary() const;
   const std::vector<double>& timestamps() const { return timestamps_; }
+
+  /// Saves the filter (options, particles' poses, weights, paths and random streams, their maps
+  /// with the tiles they share kept shared, the corrector, the odometry since the last update,
+  /// every scan's step and counters) bit for bit (docs/file_format.md): a loaded filter continues
+  /// exactly as this one would. Paths are loaded unshared (one copy per particle).
+  static constexpr const char* kStateTag = "GridFastSlam";
+  void save(const std::string& path) const;
+  static GridFastSlam load(const std::string& path);
+  void write_state(StateWriter& w) const;
+  static GridFastSlam read_state(StateReader& r);
 
  private:
   struct Particle {

@@ -30,6 +30,9 @@
 
 namespace probslam {
 
+class StateWriter;
+class StateReader;
+
 /// Tree nodes alive in the process, over every tree (tests and memory reports).
 inline ShardedCounter g_persistent_tree_nodes;
 
@@ -312,6 +315,10 @@ class LandmarkMap {
   std::size_t collect_nodes(std::unordered_set<const void*>& seen) const {
     return spatial_.collect_nodes(seen) + ids_.collect_nodes(seen);
   }
+  /// The cell size and every landmark. The trees' shapes depend on their key sets alone, so
+  /// read_state rebuilds them as they were (in nodes of its own: sharing is not saved).
+  void write_state(StateWriter& w) const;
+  static LandmarkMap read_state(StateReader& r);
   const SpatialTree& spatial_tree() const { return spatial_; }
   const IdTree& id_tree() const { return ids_; }
 

@@ -17,6 +17,9 @@
 
 namespace probslam {
 
+class StateWriter;
+class StateReader;
+
 /// Particles per filter: 2^20 particles of ~250 bytes each before any map.
 inline constexpr int kMaxParticles = 1 << 20;
 
@@ -30,6 +33,9 @@ class ParticleRng {
   /// Uniform in [0, 1).
   double uniform();
   double normal();
+  /// The stream's whole state (four words and the spare normal deviate), bit for bit.
+  void write_state(StateWriter& w) const;
+  static ParticleRng read_state(StateReader& r);
 
  private:
   std::uint64_t s_[4];
@@ -103,6 +109,10 @@ class PosePath {
   Poses2 poses() const;
   /// Adds this path's chunks to `seen`; returns how many were new.
   std::size_t collect_nodes(std::unordered_set<const void*>& seen) const;
+  /// The poses, oldest first; read_state rebuilds a path of its own (no chunk shared with
+  /// another path: the sharing between particles is not saved).
+  void write_state(StateWriter& w) const;
+  static PosePath read_state(StateReader& r);
 
  private:
   NodeRef<Chunk> head_;

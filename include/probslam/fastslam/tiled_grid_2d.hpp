@@ -14,6 +14,9 @@
 
 namespace probslam {
 
+class StateWriter;
+class StateReader;
+
 /// Tiles held by a set of grids: `references` counts a tile once per grid holding it,
 /// `distinct` once in all (references - distinct tiles are shared, not copied).
 struct TileSharing {
@@ -120,6 +123,12 @@ class TiledGrid2D {
   /// tile is cloned once, so tiles (and grids) shared among `grids` are shared among the copies
   /// as they were, and no copy shares a tile or a tile count with an original.
   static std::vector<std::shared_ptr<TiledGrid2D>> deep_copy(const std::vector<std::shared_ptr<TiledGrid2D>>& grids);
+  /// `grids` as state: each distinct grid and each distinct tile once, so read_family gives
+  /// deep_copy's result (the same sharing, in a family of its own). Null entries stay null. The
+  /// per-scan cell stamps are not saved: they only keep one scan from updating a cell twice, and
+  /// the loaded grids start a fresh count with the same effect.
+  static void write_family(StateWriter& w, const std::vector<std::shared_ptr<TiledGrid2D>>& grids);
+  static std::vector<std::shared_ptr<TiledGrid2D>> read_family(StateReader& r);
 
  private:
   friend class TiledScanStore;

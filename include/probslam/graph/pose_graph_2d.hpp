@@ -2,12 +2,16 @@
 // A planar pose/landmark graph: the data of the full SLAM problem as g2o, TORO and iSAM files
 // hold it. Optimised by graph_optimizer.hpp.
 #include <Eigen/Core>
+#include <string>
 #include <unordered_map>
 #include <vector>
 
 #include "probslam/core/object_mutex.hpp"
 
 namespace probslam {
+
+class StateWriter;
+class StateReader;
 
 enum class VertexKind { kPose, kPoint };
 
@@ -81,6 +85,14 @@ class PoseGraph2D {
   /// Their sum (g2o's chi2); throws std::invalid_argument when it is not finite (values or
   /// information so large that the squares overflow).
   double chi2() const;
+
+  /// Saves every vertex (id, kind, value, fixed, landmark id) and edge, bit for bit
+  /// (docs/file_format.md); load refuses anything but a complete, undamaged, consistent graph.
+  static constexpr const char* kStateTag = "PoseGraph2D";
+  void save(const std::string& path) const;
+  static PoseGraph2D load(const std::string& path);
+  void write_state(StateWriter& w) const;
+  static PoseGraph2D read_state(StateReader& r);
 
  private:
   int add_vertex(int id, VertexKind kind, const Eigen::Vector3d& value);

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <cstddef>
 #include <cstdint>
+#include <string>
 #include <vector>
 
 #include "probslam/core/object_mutex.hpp"
@@ -15,6 +16,9 @@
 #include "probslam/grid/scan_update.hpp"
 
 namespace probslam {
+
+class StateWriter;
+class StateReader;
 
 /// Regular lattice of a 2-D grid: axis 0 is x (columns), axis 1 is y (rows). Cell (i, j)
 /// covers [x0 + j res, x0 + (j + 1) res) x [y0 + i res, y0 + (i + 1) res). Keys saturate at
@@ -134,6 +138,16 @@ class OccupancyGrid2D {
   OccupancyGrid2D grown_to_include(double xmin, double ymin, double xmax, double ymax) const;
 
   bool same_geometry(const OccupancyGrid2D& other) const;
+
+  /// Saves every parameter and cell, bit for bit (docs/file_format.md); load refuses anything
+  /// but a complete, undamaged OccupancyGrid2D state (std::invalid_argument naming the path).
+  /// The laser-beam update's per-scan cell stamps are not saved: they only keep one scan from
+  /// updating a cell twice, and a loaded grid starts a fresh count with the same effect.
+  static constexpr const char* kStateTag = "OccupancyGrid2D";
+  void save(const std::string& path) const;
+  static OccupancyGrid2D load(const std::string& path);
+  void write_state(StateWriter& w) const;
+  static OccupancyGrid2D read_state(StateReader& r);
 
  private:
   friend class GridScanStore;

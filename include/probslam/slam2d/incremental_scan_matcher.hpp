@@ -16,6 +16,9 @@
 
 namespace probslam {
 
+class StateWriter;
+class StateReader;
+
 /// The odometry motion model's noise (Thrun et al. Table 5.6 in spirit): the standard
 /// deviations of the odometry-predicted relative motion grow with the distance travelled (d)
 /// and the angle turned (a): sd_xy = trans_per_metre d + trans_per_radian a + trans_floor,
@@ -142,6 +145,11 @@ class IncrementalScanMatcher {
   const std::vector<double>& timestamps() const { return timestamps_; }
   const std::vector<Submap>& submaps() const { return submaps_; }
   int num_scans() const { return static_cast<int>(estimates_.size()); }
+
+  /// Options, estimates, submaps and the likelihood field the next scans are matched against
+  /// (built from an earlier state of the map, so it is saved, not rebuilt): bit for bit.
+  void write_state(StateWriter& w) const;
+  static IncrementalScanMatcher read_state(StateReader& r);
 
  private:
   struct FieldCache {

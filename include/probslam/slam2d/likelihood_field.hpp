@@ -10,6 +10,9 @@
 
 namespace probslam {
 
+class StateWriter;
+class StateReader;
+
 struct LikelihoodFieldOptions {
   double sigma = 0.05;            ///< std of a hit around the nearest obstacle, m
   double p_rand = 0.05;           ///< weight of the uniform part: bounds a stray point's cost
@@ -75,6 +78,10 @@ class LikelihoodField {
   /// Integer cell (col, row) of a point, saturating (see GridLattice2D).
   int col_of(double x) const;
   int row_of(double y) const;
+
+  /// Every value of the field (its lookup tables are rebuilt from the options on reading).
+  void write_state(StateWriter& w) const;
+  static LikelihoodField read_state(StateReader& r);
 
  private:
   LikelihoodField() = default;

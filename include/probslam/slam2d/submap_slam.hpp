@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 #include <map>
 #include <memory>
+#include <string>
 #include <utility>
 #include <vector>
 
@@ -133,6 +134,16 @@ class SubmapSlam2D {
   /// frontend's; std::invalid_argument naming `resolution` when negative or not finite.
   OccupancyGrid2D map(double resolution = 0.0) const;
   SubmapSlamSummary summary() const;
+
+  /// Saves everything the next scans depend on (options, the frontend with its open submap and
+  /// likelihood field, every scan, the graph, constraints and search history) bit for bit
+  /// (docs/file_format.md): a loaded object continues exactly as this one would. The closure
+  /// search's field cache is not saved (rebuilt from the same submaps, as in a copy).
+  static constexpr const char* kStateTag = "SubmapSlam2D";
+  void save(const std::string& path) const;
+  static SubmapSlam2D load(const std::string& path);
+  void write_state(StateWriter& w) const;
+  static SubmapSlam2D read_state(StateReader& r);
 
  private:
   class FieldCache;

@@ -1,0 +1,126 @@
+// FastSlam's state (docs/file_format.md).
+#include "probslam/core/state_file.hpp"
+#include "probslam/fastslam/fast_slam.hpp"
+
+namespace probslam {
+namespace {
+
+void write_options(StateWriter& w, const FastSlamOptions& o) {
+  w.i32(o.num_particles);
+  w.i32(o.version);
+  w.matrix(o.motion_noise);
+  w.matrix(o.measurement_noise);
+  w.boolean(o.use_signatures);
+  w.matrix(o.initial_pose);
+  w.u64(o.seed);
+  w.i32(o.threads);
+  for (double v : {o.resample_threshold, o.p_new, o.outlier_density, o.association_radius, o.cell_size}) w.f64(v);
+  w.boolean(o.joint_association);
+  w.boolean(o.negative_information);
+  for (double v : {o.existence_hit, o.existence_miss, o.sensor_range, o.sensor_fov}) w.f64(v);
+  w.boolean(o.record_path);
+  w.f64(o.bearing_offset_sigma);
+  w.f64(o.bearing_offset_correlation);
+}
+
+FastSlamOptions read_options(StateReader& r) {
+  FastSlamOptions o;
+  o.num_particles = r.i32();
+  o.version = r.i32();
+  o.motion_noise = r.matrix<Eigen::MatrixXd>();
+  o.measurement_noise = r.matrix<Eigen::MatrixXd>();
+  o.use_signatures = r.boolean();
+  o.initial_pose = r.matrix<Eigen::Vector3d>();
+  o.seed = r.u64();
+  o.threads = r.i32();
+  for (double* v : {&o.resample_threshold, &o.p_new, &o.outlier_density, &o.association_radius, &o.cell_size})
+    *v = r.f64();
+  o.joint_association = r.boolean();
+  o.negative_information = r.boolean();
+  for (double* v : {&o.existence_hit, &o.existence_miss, &o.sensor_range, &o.sensor_fov}) *v = r.f64();
+  o.record_path = r.boolean();
+  o.bearing_offset_sigma = r.f64();
+  o.bearing_offset_correlation = r.f64();
+  return o;
+}
+
+// Fewest bytes a saved particle takes (its fixed fields, an empty map and path).
+constexpr double kMinParticleBytes = 200.0;
+
+}  // namespace
+
+void FastSlam::write_state(StateWriter& w) const {
+  write_options(w, o_);
+  w.matrix(motion_factor_);
+  w.matrix(control_factor_);
+  w.boolean(control_noise_);
+  w.matrix(q2_);
+  w.f64(q_signature_);
+  w.count(particles_.size());
+  for (const FastSlamParticle& p : particles_) {
+    w.matrix(p.pose);
+    w.f64(p.log_weight);
+    w.f64(p.last_log_likelihood);
+    p.map.write_state(w);
+    p.path.write_state(w);
+    p.rng.write_state(w);
+    w.i64(p.next_id);
+    w.boolean(p.has_prior);
+    w.i32(p.moves_since_update);
+    w.matrix(p.prior_mean);
+    w.matrix(p.prior_cov);
+    w.f64(p.bearing_offset);
+  }
+  rng_.write_state(w);
+  w.u64(next_stream_);
+  w.i64(resamples_);
+  w.boolean(last_resampled_);
+  w.ints(last_ancestors_);
+}
+
+FastSlam FastSlam::read_state(StateReader& r) {
+  const FastSlamOptions o = read_options(r);
+  if (o.num_particles >= 1) r.require_bytes(kMinParticleBytes * o.num_particles, "the particles");
+  // The constructor checks every option; its particles are then replaced by the saved ones.
+  FastSlam f = validated(r, "options", [&] { return FastSlam(o); });
+  f.motion_factor_ = r.matrix<Eigen::Matrix3d>();
+  f.control_factor_ = r.matrix<Eigen::Matrix2d>();
+  f.control_noise_ = r.boolean();
+  f.q2_ = r.matrix<Eigen::Matrix2d>();
+  f.q_signature_ = r.f64();
+  if (f.control_noise_ != (f.o_.motion_noise.rows() == 2)) r.fail("the motion noise's kind does not match the options");
+  const std::size_t m = r.count(static_cast<std::size_t>(kMinParticleBytes));
+  if (m != f.particles_.size()) r.fail("holds " + std::to_string(m) + " particles, its options " + std::to_string(f.particles_.size()));
+  for (FastSlamParticle& p : f.particles_) {
+    p.pose = r.matrix<Eigen::Vector3d>();
+    p.log_weight = r.f64();
+    p.last_log_likelihood = r.f64();
+    p.map = LandmarkMap::read_state(r);
+    p.path = PosePath::read_state(r);
+    p.rng = ParticleRng::read_state(r);
+    p.next_id = static_cast<long>(r.i64());
+    p.has_prior = r.boolean();
+    p.moves_since_update = r.i32();
+    p.prior_mean = r.matrix<Eigen::Vector3d>();
+    p.prior_cov = r.matrix<Eigen::Matrix3d>();
+    p.bearing_offset = r.f64();
+    if (!p.pose.allFinite() || !std::isfinite(p.log_weight) || !p.prior_mean.allFinite() || !p.prior_cov.allFinite() ||
+        !std::isfinite(p.bearing_offset) || p.moves_since_update < 0)
+      r.fail("a particle holds a value that is not finite or out of range");
+    if (p.map.cell_size() != f.o_.cell_size) r.fail("a particle's map has another cell size than the options");
+    if (f.o_.record_path && p.path.size() == 0) r.fail("a particle's path is empty although paths are recorded");
+  }
+  f.rng_ = ParticleRng::read_state(r);
+  f.next_stream_ = r.u64();
+  f.resamples_ = static_cast<long>(r.i64());
+  f.last_resampled_ = r.boolean();
+  f.last_ancestors_ = r.ints();
+  for (int a : f.last_ancestors_)
+    if (a < 0 || static_cast<std::size_t>(a) >= m) r.fail("an ancestor index is out of range");
+  return f;
+}
+
+void FastSlam::save(const std::string& path) const { save_state(*this, path); }
+FastSlam FastSlam::load(const std::string& path) { return load_state<FastSlam>(path); }
+
+}  // namespace probslam

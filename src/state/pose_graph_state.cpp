@@ -1,0 +1,99 @@
+// PoseGraph2D's state (docs/file_format.md).
+#include "probslam/core/check.hpp"
+#include "probslam/core/state_file.hpp"
+#include "probslam/graph/pose_graph_2d.hpp"
+
+namespace probslam {
+namespace {
+
+// The information matrices were symmetrised when added; a stored one that is not SPD at this
+// tolerance was not written by save.
+constexpr double kStoredSymmetryTolerance = 1e-6;
+
+}  // namespace
+
+void PoseGraph2D::write_state(StateWriter& w) const {
+  w.count(vertices_.size());
+  for (const GraphVertex& v : vertices_) {
+    w.i32(v.id);
+    w.u8(v.kind == VertexKind::kPose ? 0 : 1);
+    w.matrix(v.value);
+    w.boolean(v.fixed);
+    w.i32(v.landmark_id);
+  }
+  w.count(pose_edges_.size());
+  for (const PoseEdge& e : pose_edges_) {
+    w.i32(e.from);
+    w.i32(e.to);
+    w.matrix(e.measurement);
+    w.matrix(e.information);
+  }
+  w.count(point_edges_.size());
+  for (const PointEdge& e : point_edges_) {
+    w.i32(e.pose);
+    w.i32(e.point);
+    w.matrix(e.measurement);
+    w.matrix(e.information);
+  }
+}
+
+PoseGraph2D PoseGraph2D::read_state(StateReader& r) {
+  PoseGraph2D g;
+  const std::size_t nv = r.count(4 + 1 + 16 + 24 + 1 + 4);
+  g.vertices_.reserve(nv);
+  for (std::size_t k = 0; k < nv; ++k) {
+    GraphVertex v{};
+    v.id = r.i32();
+    const std::uint8_t kind = r.u8();
+    if (kind > 1) r.fail("a vertex kind is " + std::to_string(kind));
+    v.kind = kind == 0 ? VertexKind::kPose : VertexKind::kPoint;
+    v.value = r.matrix<Eigen::Vector3d>();
+    v.fixed = r.boolean();
+    v.landmark_id = r.i32();
+    if (!v.value.allFinite()) r.fail("vertex " + std::to_string(v.id) + " has a value that is not finite");
+    if (!g.index_.emplace(v.id, static_cast<int>(k)).second) r.fail("vertex id " + std::to_string(v.id) + " is repeated");
+    g.vertices_.push_back(v);
+  }
+  const int n = static_cast<int>(nv);
+  const auto vertex = [&](VertexKind kind, const char* what) {
+    const int index = r.i32();
+    if (index < 0 || index >= n || g.vertices_[static_cast<std::size_t>(index)].kind != kind)
+      r.fail(std::string("an edge's ") + what + " index " + std::to_string(index) + " names no " + what);
+    return index;
+  };
+  const std::size_t npe = r.count(8 + 16 + 24 + 16 + 72);
+  g.pose_edges_.reserve(npe);
+  for (std::size_t k = 0; k < npe; ++k) {
+    PoseEdge e{};
+    e.from = vertex(VertexKind::kPose, "pose");
+    e.to = vertex(VertexKind::kPose, "pose");
+    e.measurement = r.matrix<Eigen::Vector3d>();
+    e.information = r.matrix<Eigen::Matrix3d>();
+    if (e.from == e.to) r.fail("a pose edge joins a vertex to itself");
+    validated(r, "pose edge", [&] {
+      require_all_finite(e.measurement, "measurement");
+      require_symmetric_positive_definite(e.information, "information", kStoredSymmetryTolerance);
+    });
+    g.pose_edges_.push_back(e);
+  }
+  const std::size_t nqe = r.count(8 + 16 + 16 + 16 + 32);
+  g.point_edges_.reserve(nqe);
+  for (std::size_t k = 0; k < nqe; ++k) {
+    PointEdge e{};
+    e.pose = vertex(VertexKind::kPose, "pose");
+    e.point = vertex(VertexKind::kPoint, "point");
+    e.measurement = r.matrix<Eigen::Vector2d>();
+    e.information = r.matrix<Eigen::Matrix2d>();
+    validated(r, "point edge", [&] {
+      require_all_finite(e.measurement, "measurement");
+      require_symmetric_positive_definite(e.information, "information", kStoredSymmetryTolerance);
+    });
+    g.point_edges_.push_back(e);
+  }
+  return g;
+}
+
+void PoseGraph2D::save(const std::string& path) const { save_state(*this, path); }
+PoseGraph2D PoseGraph2D::load(const std::string& path) { return load_state<PoseGraph2D>(path); }
+
+}  // namespace probslam

@@ -1,0 +1,227 @@
+// Scan matching's options, likelihood fields and IncrementalScanMatcher as state
+// (docs/file_format.md).
+#include <cmath>
+
+#include "options_state.hpp"
+#include "probslam/slam2d/likelihood_field.hpp"
+
+namespace probslam {
+namespace state_detail {
+
+void write(StateWriter& w, const ScanFilter& o) {
+  for (double v : {o.max_range, o.min_range, o.max_usable_range}) w.f64(v);
+  w.boolean(o.clear_no_return);
+  w.f64(o.min_point_spacing);
+}
+void read(StateReader& r, ScanFilter& o) {
+  for (double* v : {&o.max_range, &o.min_range, &o.max_usable_range}) *v = r.f64();
+  o.clear_no_return = r.boolean();
+  o.min_point_spacing = r.f64();
+}
+
+void write(StateWriter& w, const LikelihoodFieldOptions& o) {
+  for (double v : {o.sigma, o.p_rand, o.occupied_probability, o.max_distance}) w.f64(v);
+}
+void read(StateReader& r, LikelihoodFieldOptions& o) {
+  for (double* v : {&o.sigma, &o.p_rand, &o.occupied_probability, &o.max_distance}) *v = r.f64();
+}
+
+void write(StateWriter& w, const MatchOptions& o) {
+  for (double v : {o.window.linear, o.window.angular, o.window.angular_step}) w.f64(v);
+  w.boolean(o.use_prior);
+  w.matrix(o.prior_covariance);
+  w.boolean(o.refine);
+  w.boolean(o.brute_force);
+  for (double v : {o.min_translation_std, o.min_rotation_std, o.min_score}) w.f64(v);
+}
+void read(StateReader& r, MatchOptions& o) {
+  for (double* v : {&o.window.linear, &o.window.angular, &o.window.angular_step}) *v = r.f64();
+  o.use_prior = r.boolean();
+  o.prior_covariance = r.matrix<Eigen::Matrix3d>();
+  o.refine = r.boolean();
+  o.brute_force = r.boolean();
+  for (double* v : {&o.min_translation_std, &o.min_rotation_std, &o.min_score}) *v = r.f64();
+}
+
+void write(StateWriter& w, const OdometryNoise& o) {
+  for (double v : {o.trans_per_metre, o.trans_per_radian, o.trans_floor, o.rot_per_radian, o.rot_per_metre, o.rot_floor})
+    w.f64(v);
+}
+void read(StateReader& r, OdometryNoise& o) {
+  for (double* v : {&o.trans_per_metre, &o.trans_per_radian, &o.trans_floor, &o.rot_per_radian, &o.rot_per_metre,
+                    &o.rot_floor})
+    *v = r.f64();
+}
+
+void write(StateWriter& w, const IncrementalScanMatcherOptions& o) {
+  w.f64(o.resolution);
+  write(w, o.filter);
+  write(w, o.field);
+  write(w, o.match);
+  write(w, o.odometry);
+  w.boolean(o.use_odometry_prior);
+  for (double v : {o.min_travel, o.min_rotation, o.submap_distance}) w.f64(v);
+  w.i32(o.submap_scans);
+  w.f64(o.min_match_quality);
+  w.i32(o.warmup_scans);
+  w.f64(o.field_refresh_distance);
+  w.f64(o.field_refresh_angle);
+}
+void read(StateReader& r, IncrementalScanMatcherOptions& o) {
+  o.resolution = r.f64();
+  read(r, o.filter);
+  read(r, o.field);
+  read(r, o.match);
+  read(r, o.odometry);
+  o.use_odometry_prior = r.boolean();
+  for (double* v : {&o.min_travel, &o.min_rotation, &o.submap_distance}) *v = r.f64();
+  o.submap_scans = r.i32();
+  o.min_match_quality = r.f64();
+  o.warmup_scans = r.i32();
+  o.field_refresh_distance = r.f64();
+  o.field_refresh_angle = r.f64();
+}
+
+void write(StateWriter& w, const OptimizerOptions& o) {
+  write_enum(w, o.algorithm);
+  write_enum(w, o.damping);
+  w.i32(o.max_iterations);
+  w.f64(o.relative_tolerance);
+  w.f64(o.step_tolerance);
+  write_enum(w, o.kernel);
+  w.f64(o.kernel_width);
+  write_enum(w, o.linear_solver.method);
+  write_enum(w, o.linear_solver.ordering);
+}
+void read(StateReader& r, OptimizerOptions& o) {
+  o.algorithm = read_enum(r, OptimizerAlgorithm::kLevenbergMarquardt, "the optimiser");
+  o.damping = read_enum(r, Damping::kLevenberg, "the damping");
+  o.max_iterations = r.i32();
+  o.relative_tolerance = r.f64();
+  o.step_tolerance = r.f64();
+  o.kernel = read_enum(r, RobustKernel::kCauchy, "the robust kernel");
+  o.kernel_width = r.f64();
+  o.linear_solver.method = read_enum(r, FactorMethod::kAuto, "the factorisation");
+  o.linear_solver.ordering = read_enum(r, FillOrdering::kMetis, "the fill ordering");
+}
+
+}  // namespace state_detail
+
+void LikelihoodField::write_state(StateWriter& w) const {
+  for (double v : {x0_, y0_, res_, inv_res_}) w.f64(v);
+  w.i32(width_);
+  w.i32(height_);
+  w.i32(num_occupied_);
+  state_detail::write(w, options_);
+  w.f32(floor_);
+  w.floats(distance_);
+  w.floats(log_likelihood_);
+}
+
+LikelihoodField LikelihoodField::read_state(StateReader& r) {
+  LikelihoodField f;
+  for (double* v : {&f.x0_, &f.y0_, &f.res_, &f.inv_res_}) *v = r.f64();
+  f.width_ = r.i32();
+  f.height_ = r.i32();
+  f.num_occupied_ = r.i32();
+  state_detail::read(r, f.options_);
+  f.floor_ = r.f32();
+  validated(r, "likelihood field options", [&] { f.options_.validate(); });
+  f.distance_ = r.floats();
+  f.log_likelihood_ = r.floats();
+  const double cells = static_cast<double>(f.width_) * static_cast<double>(f.height_);
+  if (f.width_ < 0 || f.height_ < 0 || static_cast<double>(f.distance_.size()) != cells ||
+      f.log_likelihood_.size() != f.distance_.size() || !(f.res_ > 0.0) || !std::isfinite(f.x0_) || !std::isfinite(f.y0_))
+    r.fail("a likelihood field's size or lattice is inconsistent");
+  f.build_tables();
+  return f;
+}
+
+void IncrementalScanMatcher::write_state(StateWriter& w) const {
+  state_detail::write(w, options_);
+  w.count(estimates_.size());
+  for (const ScanEstimate& e : estimates_) {
+    w.matrix(e.pose);
+    w.matrix(e.relative_covariance);
+    w.f64(e.match_quality);
+    w.boolean(e.matched);
+    w.boolean(e.fallback);
+    w.i32(e.submap);
+    w.i32(e.points);
+  }
+  w.doubles(timestamps_);
+  w.count(submaps_.size());
+  for (const Submap& s : submaps_) {
+    s.grid.write_state(w);
+    w.matrix(s.origin);
+    w.ints(s.scans);
+    w.f64(s.travel);
+    w.i32(s.matched);
+  }
+  w.matrix(matched_odometry_);
+  w.matrix(matched_pose_);
+  const FieldCache& c = *field_cache_;
+  w.boolean(c.matcher != nullptr);
+  if (c.matcher) {
+    c.matcher->field().write_state(w);
+    w.i32(c.matcher->max_level());
+  }
+  w.i32(c.submap);
+  w.i32(c.grid_width);
+  w.i32(c.grid_height);
+  w.matrix(c.built_at);
+  w.matrix(c.region);
+  w.matrix(c.grid_origin);
+}
+
+IncrementalScanMatcher IncrementalScanMatcher::read_state(StateReader& r) {
+  IncrementalScanMatcherOptions o;
+  state_detail::read(r, o);
+  IncrementalScanMatcher m = validated(r, "scan matcher options", [&] { return IncrementalScanMatcher(o); });
+  const std::size_t n = r.count(24 + 88 + 8 + 2 + 8);
+  m.estimates_.reserve(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    ScanEstimate e;
+    e.pose = r.matrix<Eigen::Vector3d>();
+    e.relative_covariance = r.matrix<Eigen::Matrix3d>();
+    e.match_quality = r.f64();
+    e.matched = r.boolean();
+    e.fallback = r.boolean();
+    e.submap = r.i32();
+    e.points = r.i32();
+    m.estimates_.push_back(e);
+  }
+  m.timestamps_ = r.doubles();
+  if (m.timestamps_.size() != n) r.fail("the scan matcher holds a timestamp per scan");
+  const std::size_t ns = r.count(100);
+  for (std::size_t k = 0; k < ns; ++k) {
+    OccupancyGrid2D grid = OccupancyGrid2D::read_state(r);
+    Submap s{std::move(grid), r.matrix<Eigen::Vector3d>(), r.ints(), 0.0, 0};
+    s.travel = r.f64();
+    s.matched = r.i32();
+    for (int scan : s.scans)
+      if (scan < 0 || static_cast<std::size_t>(scan) >= n) r.fail("a submap names a scan out of range");
+    m.submaps_.push_back(std::move(s));
+  }
+  for (const ScanEstimate& e : m.estimates_)
+    if (e.submap < -1 || e.submap >= static_cast<int>(ns)) r.fail("a scan names a submap out of range");
+  m.matched_odometry_ = r.matrix<Eigen::Vector3d>();
+  m.matched_pose_ = r.matrix<Eigen::Vector3d>();
+  auto cache = std::make_shared<FieldCache>();
+  if (r.boolean()) {
+    LikelihoodField field = LikelihoodField::read_state(r);
+    const int levels = r.int_in(0, CorrelativeScanMatcher::kMaxLevel, "the matcher's pyramid levels");
+    cache->matcher = std::make_shared<const CorrelativeScanMatcher>(std::move(field), levels);
+  }
+  cache->submap = r.i32();
+  cache->grid_width = r.i32();
+  cache->grid_height = r.i32();
+  cache->built_at = r.matrix<Eigen::Vector3d>();
+  cache->region = r.matrix<Eigen::Vector4d>();
+  cache->grid_origin = r.matrix<Eigen::Vector2d>();
+  if (cache->submap < -1 || cache->submap >= static_cast<int>(ns)) r.fail("the field cache names a submap out of range");
+  m.field_cache_ = std::move(cache);
+  return m;
+}
+
+}  // namespace probslam

@@ -1,0 +1,131 @@
+// SubmapSlam2D's state (docs/file_format.md).
+#include <cmath>
+
+#include "options_state.hpp"
+#include "probslam/slam2d/submap_slam.hpp"
+
+namespace probslam {
+namespace {
+
+void write_closures(StateWriter& w, const LoopClosureOptions& o) {
+  w.boolean(o.enabled);
+  w.i32(o.scans_per_submap);
+  for (double v : {o.min_match_quality, o.window_sigmas, o.min_linear_window, o.max_linear_window, o.min_angular_window,
+                   o.max_angular_window, o.max_distance, o.dissolve_chi2, o.field_cache_bytes})
+    w.f64(v);
+}
+void read_closures(StateReader& r, LoopClosureOptions& o) {
+  o.enabled = r.boolean();
+  o.scans_per_submap = r.i32();
+  for (double* v : {&o.min_match_quality, &o.window_sigmas, &o.min_linear_window, &o.max_linear_window,
+                    &o.min_angular_window, &o.max_angular_window, &o.max_distance, &o.dissolve_chi2, &o.field_cache_bytes})
+    *v = r.f64();
+}
+
+}  // namespace
+
+void SubmapSlam2D::write_state(StateWriter& w) const {
+  state_detail::write(w, options_.frontend);
+  write_closures(w, options_.closures);
+  state_detail::write(w, options_.optimizer);
+  w.i32(options_.max_rounds);
+  frontend_.write_state(w);
+  w.count(points_.size());
+  for (const Points2& p : points_) w.matrix(p);
+  w.count(offset_cov_.size());
+  for (const Eigen::Matrix3d& c : offset_cov_) w.matrix(c);
+  w.count(nodes_.size());
+  for (const Eigen::Vector3d& n : nodes_) w.matrix(n);
+  w.count(constraints_.size());
+  for (const SubmapConstraint& c : constraints_) {
+    w.i32(c.from);
+    w.i32(c.to);
+    w.matrix(c.measurement);
+    w.matrix(c.covariance);
+    w.boolean(c.loop);
+    w.i32(c.scan);
+    w.f64(c.match_quality);
+    w.boolean(c.active);
+  }
+  w.count(ranges_.size());
+  for (std::size_t k = 0; k < ranges_.size(); ++k) {
+    w.matrix(ranges_[k]);
+    w.matrix(angles_[k]);
+  }
+  w.matrix(chain_pose_);
+  w.matrix(chain_cov_);
+  w.i32(chain_submap_);
+  w.count(attempts_.size());
+  for (const auto& [key, pose] : attempts_) {
+    w.i32(key.first);
+    w.i32(key.second);
+    w.matrix(pose);
+  }
+  const SubmapSlamSummary& s = counts_;
+  for (int v : {s.scans, s.submaps, s.matched_scans, s.closures_searched, s.closures_accepted, s.closures_rejected,
+                s.closures_dissolved, s.rounds, s.optimizations})
+    w.i32(v);
+  w.f64(s.final_chi2);
+}
+
+SubmapSlam2D SubmapSlam2D::read_state(StateReader& r) {
+  SubmapSlamOptions o;
+  state_detail::read(r, o.frontend);
+  read_closures(r, o.closures);
+  state_detail::read(r, o.optimizer);
+  o.max_rounds = r.i32();
+  SubmapSlam2D s = validated(r, "options", [&] { return SubmapSlam2D(o); });
+  s.frontend_ = IncrementalScanMatcher::read_state(r);
+  const std::size_t scans = static_cast<std::size_t>(s.frontend_.num_scans());
+  const std::size_t np = r.count(16);
+  for (std::size_t k = 0; k < np; ++k) s.points_.push_back(r.matrix<Points2>());
+  const std::size_t nc = r.count(88);
+  for (std::size_t k = 0; k < nc; ++k) s.offset_cov_.push_back(r.matrix<Eigen::Matrix3d>());
+  const std::size_t nn = r.count(40);
+  for (std::size_t k = 0; k < nn; ++k) s.nodes_.push_back(r.matrix<Eigen::Vector3d>());
+  const int nodes = static_cast<int>(nn);
+  const std::size_t ne = r.count(150);
+  for (std::size_t k = 0; k < ne; ++k) {
+    SubmapConstraint c;
+    c.from = r.i32();
+    c.to = r.i32();
+    c.measurement = r.matrix<Eigen::Vector3d>();
+    c.covariance = r.matrix<Eigen::Matrix3d>();
+    c.loop = r.boolean();
+    c.scan = r.i32();
+    c.match_quality = r.f64();
+    c.active = r.boolean();
+    if (c.from < 0 || c.from >= nodes || c.to < 0 || c.to >= nodes || c.scan < -1 || c.scan >= static_cast<int>(scans))
+      r.fail("a constraint names a submap or scan out of range");
+    s.constraints_.push_back(c);
+  }
+  const std::size_t ns = r.count(32);
+  if (ns != scans) r.fail("the scans stored do not match the frontend's");
+  for (std::size_t k = 0; k < ns; ++k) {
+    s.ranges_.push_back(r.matrix<Eigen::VectorXd>());
+    s.angles_.push_back(r.matrix<Eigen::VectorXd>());
+    if (s.ranges_.back().size() != s.angles_.back().size()) r.fail("a scan has not one angle per range");
+  }
+  s.chain_pose_ = r.matrix<Eigen::Vector3d>();
+  s.chain_cov_ = r.matrix<Eigen::Matrix3d>();
+  s.chain_submap_ = r.i32();
+  const std::size_t na = r.count(48);
+  for (std::size_t k = 0; k < na; ++k) {
+    const int scan = r.i32(), submap = r.i32();
+    s.attempts_.emplace(std::make_pair(scan, submap), r.matrix<Eigen::Vector3d>());
+  }
+  SubmapSlamSummary& c = s.counts_;
+  for (int* v : {&c.scans, &c.submaps, &c.matched_scans, &c.closures_searched, &c.closures_accepted,
+                 &c.closures_rejected, &c.closures_dissolved, &c.rounds, &c.optimizations})
+    *v = r.i32();
+  c.final_chi2 = r.f64();
+  if (nn > s.frontend_.submaps().size() || s.chain_submap_ < 0 ||
+      static_cast<std::size_t>(s.chain_submap_) > s.frontend_.submaps().size())
+    r.fail("the graph's nodes or the open chain do not match the frontend's submaps");
+  return s;
+}
+
+void SubmapSlam2D::save(const std::string& path) const { save_state(*this, path); }
+SubmapSlam2D SubmapSlam2D::load(const std::string& path) { return load_state<SubmapSlam2D>(path); }
+
+}  // namespace probslam

@@ -1,0 +1,365 @@
+// State files (core/state_file.hpp, docs/file_format.md): every class round-trips bit for bit,
+// a loaded object continues exactly as the saved one, and damaged files are refused by name.
+#include <gtest/gtest.h>
+
+#include <Eigen/Dense>
+#include <cmath>
+#include <cstdio>
+#include <fstream>
+#include <random>
+#include <string>
+#include <vector>
+
+#include "probslam/core/check.hpp"
+#include "probslam/core/range_bearing_model.hpp"
+#include "probslam/core/state_file.hpp"
+#include "probslam/ekf/ekf_slam.hpp"
+#include "probslam/ekf/multi_hypothesis_ekf_slam.hpp"
+#include "probslam/fastslam/fast_slam.hpp"
+#include "probslam/fastslam/grid_fast_slam.hpp"
+#include "probslam/graph/pose_graph_2d.hpp"
+#include "probslam/grid/occupancy_grid_2d.hpp"
+#include "probslam/slam2d/submap_slam.hpp"
+#include "test_support.hpp"
+
+namespace probslam {
+namespace {
+
+using test_support::cast;
+using test_support::room_walls;
+
+std::string temp_path(const std::string& name) { return ::testing::TempDir() + "probslam_state_" + name; }
+
+std::string read_bytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  return std::string(std::istreambuf_iterator<char>(in), {});
+}
+void write_bytes(const std::string& path, const std::string& bytes) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+}
+
+// A refused load: std::invalid_argument whose message starts with the path and contains `what`.
+template <typename T>
+void expect_refused(const std::string& path, const std::string& what) {
+  try {
+    T::load(path);
+    ADD_FAILURE() << "loaded a damaged " << T::kStateTag << " (" << what << ")";
+  } catch (const std::invalid_argument& e) {
+    const std::string msg = e.what();
+    EXPECT_EQ(msg.rfind(path, 0), 0u) << msg;
+    EXPECT_NE(msg.find(what), std::string::npos) << msg;
+  }
+}
+
+// Saves obj, loads it back: the loaded state's bytes equal the saved ones; then truncated,
+// damaged, wrong-class and wrong-version files are refused and obj is unchanged.
+template <typename T, typename Other>
+T round_trip(const T& obj, const std::string& name) {
+  const std::string path = temp_path(name);
+  const std::string before = state_bytes(obj);
+  obj.save(path);
+  EXPECT_EQ(read_bytes(path), before);
+  T loaded = T::load(path);
+  EXPECT_EQ(state_bytes(loaded), before);
+
+  const std::string bad = temp_path(name + "_bad");
+  for (std::size_t cut : {std::size_t{0}, std::size_t{5}, std::size_t{30}, before.size() / 2, before.size() - 1}) {
+    write_bytes(bad, before.substr(0, cut));
+    expect_refused<T>(bad, cut < 8 ? "not a probslam state file" : "truncated");
+  }
+  std::string flipped = before;
+  flipped[flipped.size() - 3] ^= 0x10;
+  write_bytes(bad, flipped);
+  expect_refused<T>(bad, "checksum");
+  write_bytes(bad, before + "x");
+  expect_refused<T>(bad, "padded");
+  std::string version = before;
+  version[8] = 7;
+  write_bytes(bad, version);
+  expect_refused<T>(bad, "version 7");
+  // A file of another class names both.
+  write_bytes(bad, frame_state(Other::kStateTag, ""));
+  expect_refused<T>(bad, std::string("holds a ") + Other::kStateTag);
+  EXPECT_THROW(T::load(temp_path(name + "_missing")), FileNotFound);
+  EXPECT_EQ(state_bytes(obj), before);
+  std::remove(path.c_str());
+  std::remove(bad.c_str());
+  return loaded;
+}
+
+// A corrupt length inside a valid frame (the checksum recomputed) is refused before allocation.
+TEST(StateFile, CorruptLengthIsCheckedAgainstTheBytesLeft) {
+  StateWriter w;
+  w.count(std::size_t{1} << 60);  // a vector of 2^60 doubles, none present
+  const std::string framed = frame_state("PoseGraph2D", w.payload());
+  EXPECT_THROW(object_from_state<PoseGraph2D>(framed, "state"), StateError);
+  StateReader r(w.payload().data(), w.payload().size(), "state");
+  try {
+    r.doubles();
+    FAIL();
+  } catch (const StateError& e) {
+    EXPECT_NE(std::string(e.what()).find("exceeds the 0 bytes left"), std::string::npos) << e.what();
+  }
+  // A matrix whose dimensions claim more than is there.
+  StateWriter m;
+  m.i64(1 << 20);
+  m.i64(1 << 20);
+  StateReader rm(m.payload().data(), m.payload().size(), "state");
+  EXPECT_THROW(rm.matrix<Eigen::MatrixXd>(), StateError);
+}
+
+TEST(StateFile, OccupancyGrid2D) {
+  OccupancyGrid2D g(0.1, 40, 30, {-2.0, -1.5}, 0.4, LogOddsClamp::none());
+  g.set_beam_model({0.8, 0.3});
+  Eigen::VectorXd angles = Eigen::VectorXd::LinSpaced(90, -1.5, 1.5);
+  g.insert_rays({0.1, 0.2, 0.3}, Eigen::VectorXd::Constant(90, 1.2), angles, 3.0);
+  OccupancyGrid2D h = round_trip<OccupancyGrid2D, PoseGraph2D>(g, "grid");
+  EXPECT_TRUE(h.same_geometry(g));
+  EXPECT_EQ(h.p_prior(), g.p_prior());
+  EXPECT_EQ(h.clamp().enabled, false);
+  EXPECT_EQ(h.beam_model().p_hit, 0.8);
+  EXPECT_TRUE((h.log_odds().array() == g.log_odds().array()).all());
+  // Both continue alike: the reset scan stamps keep their meaning.
+  g.insert_rays({0.5, 0.1, -0.2}, Eigen::VectorXd::Constant(90, 0.9), angles, 3.0);
+  h.insert_rays({0.5, 0.1, -0.2}, Eigen::VectorXd::Constant(90, 0.9), angles, 3.0);
+  EXPECT_TRUE((h.log_odds().array() == g.log_odds().array()).all());
+}
+
+TEST(StateFile, PoseGraph2D) {
+  PoseGraph2D g;
+  g.add_pose(3, {0, 0, 0});
+  g.add_pose(7, {1, 0.1, 0.2});
+  g.add_point(9, {2, 1}, 42);
+  g.set_fixed(3);
+  g.add_pose_edge(3, 7, {1, 0, 0.2}, Eigen::Matrix3d::Identity() * 4);
+  g.add_point_edge(7, 9, {1, 1}, Eigen::Matrix2d::Identity());
+  g.vertex(1).value[2] = 4.0;  // an optimiser's unwrapped angle survives as it is
+  const PoseGraph2D h = round_trip<PoseGraph2D, OccupancyGrid2D>(g, "graph");
+  ASSERT_EQ(h.num_vertices(), 3);
+  EXPECT_EQ(h.vertex(1).value[2], 4.0);
+  EXPECT_TRUE(h.vertex(0).fixed);
+  EXPECT_EQ(h.vertex(2).landmark_id, 42);
+  EXPECT_EQ(h.index_of(9), 2);
+  EXPECT_EQ(h.chi2(), g.chi2());
+  // An edge naming a vertex out of range is refused, though the frame is intact.
+  StateWriter w;
+  w.count(0);
+  w.count(1);
+  w.i32(0);
+  w.i32(5);
+  w.matrix(Eigen::Vector3d::Zero());
+  w.matrix(Eigen::Matrix3d::Identity());
+  w.count(0);
+  EXPECT_THROW(object_from_state<PoseGraph2D>(frame_state("PoseGraph2D", w.payload()), "state"), StateError);
+}
+
+// Landmark world for the filters: a ring of landmarks, a robot circling inside.
+struct LandmarkWorld {
+  std::vector<Eigen::Vector2d> landmarks;
+  LandmarkWorld() {
+    for (int k = 0; k < 12; ++k) landmarks.emplace_back(6 * std::cos(0.5 * k), 6 * std::sin(0.5 * k));
+  }
+  void scan(const Eigen::Vector3d& x, std::mt19937& rng, RowMatrixXd& z, std::vector<long>& ids) const {
+    std::normal_distribution<double> n(0.0, 0.05);
+    std::vector<Eigen::Vector2d> rows;
+    ids.clear();
+    for (std::size_t i = 0; i < landmarks.size(); ++i) {
+      Eigen::Vector2d m = range_bearing(x, landmarks[i]);
+      if (m[0] > 7.0) continue;
+      rows.emplace_back(m[0] + n(rng), m[1] + 0.1 * n(rng));
+      ids.push_back(static_cast<long>(i));
+    }
+    z.resize(static_cast<Eigen::Index>(rows.size()), 2);
+    for (std::size_t k = 0; k < rows.size(); ++k) z.row(static_cast<Eigen::Index>(k)) = rows[k].transpose();
+  }
+};
+
+// Steps [from, to) of the circling robot on any filter with predict and a per-step update.
+template <typename Step>
+void drive(int from, int to, Step&& step) {
+  LandmarkWorld w;
+  std::mt19937 rng(11);
+  for (int t = 0; t < to; ++t) {
+    const Eigen::Vector3d x(3 * std::cos(0.1 * t), 3 * std::sin(0.1 * t), 0.1 * t + 1.5707963);
+    RowMatrixXd z;
+    std::vector<long> ids;
+    w.scan(x, rng, z, ids);
+    if (t >= from) step(t, z, ids);
+  }
+}
+
+void expect_same_fastslam(const FastSlam& a, const FastSlam& b) {
+  EXPECT_EQ(state_bytes(a), state_bytes(b));
+  EXPECT_TRUE((a.poses().array() == b.poses().array()).all());
+  EXPECT_TRUE((a.log_weights().array() == b.log_weights().array()).all());
+  for (int k = 0; k < a.num_particles(); ++k) {
+    const auto la = a.landmarks(k), lb = b.landmarks(k);
+    ASSERT_EQ(la.size(), lb.size());
+    for (std::size_t i = 0; i < la.size(); ++i) {
+      EXPECT_EQ(la[i].id, lb[i].id);
+      EXPECT_TRUE((la[i].mean.array() == lb[i].mean.array()).all());
+      EXPECT_TRUE((la[i].cov.array() == lb[i].cov.array()).all());
+    }
+    EXPECT_TRUE((a.path(k).array() == b.path(k).array()).all());
+  }
+}
+
+// Run N steps, save, load, run M more == N + M straight, for both versions and both kinds of
+// correspondence. Version 2 is saved between two predicts (a pending composed prior).
+TEST(StateFile, FastSlamResumedEqualsUninterrupted) {
+  for (int version : {1, 2})
+    for (bool known : {true, false}) {
+      FastSlamOptions o;
+      o.num_particles = 20;
+      o.version = version;
+      o.motion_noise = Eigen::Vector3d(0.01, 0.01, 0.002).asDiagonal();
+      o.measurement_noise = Eigen::Vector2d(0.0025, 0.0001).asDiagonal();
+      o.seed = 5;
+      FastSlam first(o);
+      const auto step = [&](FastSlam& f) {
+        return [&f, known](int t, const RowMatrixXd& z, const std::vector<long>& ids) {
+          f.predict(0.3, 0.1, 1.0);
+          f.predict(0.05, 0.0, 1.0);
+          if (t % 3 == 2) return;  // updates skipped: the prior composes over several moves
+          if (known) f.update(z, ids);
+          else f.update_unknown(z);
+        };
+      };
+      drive(0, 14, step(first));
+      first.predict(0.3, 0.1, 1.0);  // pending motion at the save
+      FastSlam resumed = round_trip<FastSlam, EkfSlam>(first, "fastslam");
+      expect_same_fastslam(resumed, first);
+      drive(14, 30, step(resumed));
+      // The uninterrupted run: the same calls without the save and load.
+      FastSlam reference(o);
+      drive(0, 14, step(reference));
+      reference.predict(0.3, 0.1, 1.0);
+      drive(14, 30, step(reference));
+      expect_same_fastslam(resumed, reference);
+    }
+}
+
+TEST(StateFile, EkfSlamResumedEqualsUninterrupted) {
+  const Eigen::Matrix3d r = Eigen::Vector3d(0.01, 0.01, 0.002).asDiagonal();
+  const Eigen::Matrix2d q = Eigen::Vector2d(0.0025, 0.0001).asDiagonal();
+  for (bool known : {true, false}) {
+    EkfSlam a(r, q, false, {3, 0, 1.5707963}, Eigen::Matrix3d::Zero()), b = a;
+    MapManagement mm;
+    mm.provisional = true;
+    mm.existence = true;
+    a.set_map_management(mm);
+    b.set_map_management(mm);
+    const auto step = [&](EkfSlam& f) {
+      return [&f, known](int, const RowMatrixXd& z, const std::vector<long>& ids) {
+        f.predict(0.3, 0.1, 1.0);
+        if (known) f.update(z, ids);
+        else f.update_unknown(z, 9.0, 20.0);
+      };
+    };
+    drive(0, 25, step(a));
+    drive(0, 10, step(b));
+    EkfSlam c = round_trip<EkfSlam, FastSlam>(b, "ekf");
+    EXPECT_EQ(c.num_provisional(), b.num_provisional());
+    drive(10, 25, step(c));
+    EXPECT_TRUE((c.mean().array() == a.mean().array()).all());
+    EXPECT_TRUE((c.covariance().array() == a.covariance().array()).all());
+    EXPECT_EQ(c.landmark_ids(), a.landmark_ids());
+    EXPECT_EQ(c.num_provisional(), a.num_provisional());
+  }
+}
+
+TEST(StateFile, MultiHypothesisEkfSlamResumedEqualsUninterrupted) {
+  const Eigen::Matrix3d r = Eigen::Vector3d(0.01, 0.01, 0.002).asDiagonal();
+  const Eigen::Matrix2d q = Eigen::Vector2d(0.0025, 0.0001).asDiagonal();
+  const EkfSlam e(r, q, false, {3, 0, 1.5707963}, Eigen::Matrix3d::Zero());
+  MultiHypothesisOptions o;
+  o.bearing_offset_sigma = 0.01;
+  MultiHypothesisEkfSlam a(e, o), b(e, o);
+  const auto step = [](MultiHypothesisEkfSlam& f) {
+    return [&f](int, const RowMatrixXd& z, const std::vector<long>&) {
+      f.predict(0.3, 0.1, 1.0);
+      f.update(z);
+    };
+  };
+  drive(0, 16, step(a));
+  drive(0, 8, step(b));
+  MultiHypothesisEkfSlam c = round_trip<MultiHypothesisEkfSlam, EkfSlam>(b, "mht");
+  EXPECT_EQ(c.history(), b.history());
+  drive(8, 16, step(c));
+  EXPECT_EQ(state_bytes(c), state_bytes(a));
+  EXPECT_EQ(c.costs(), a.costs());
+  EXPECT_EQ(c.history(), a.history());
+  EkfSlam best_c = c.best(), best_a = a.best();
+  EXPECT_TRUE((best_c.mean().array() == best_a.mean().array()).all());
+}
+
+// Laser scans of the room along a loop, with odometry that drifts.
+struct RoomRun {
+  Eigen::VectorXd angles = Eigen::VectorXd::LinSpaced(181, -1.5707963, 1.5707963);
+  std::vector<Eigen::Vector3d> truth, odometry;
+  RoomRun() {
+    std::mt19937 rng(3);
+    std::normal_distribution<double> n(0.0, 0.01);
+    Eigen::Vector3d odo(0, 0, 0);
+    for (int t = 0; t < 120; ++t) {
+      const double a = 0.06 * t;
+      truth.emplace_back(2.5 * std::cos(a) - 2.5, 2.0 * std::sin(a), a + 1.5707963);
+      if (t > 0) odo += truth[t] - truth[t - 1] + Eigen::Vector3d(n(rng), n(rng), 0.2 * n(rng));
+      odometry.push_back(odo);
+    }
+  }
+  template <typename Mapper>
+  void feed(Mapper& m, int from, int to) const {
+    for (int t = from; t < to; ++t)
+      m.add_scan(cast(truth[t], angles, room_walls()), angles, odometry[t], 0.1 * t);
+  }
+};
+
+TEST(StateFile, SubmapSlam2DResumedEqualsUninterrupted) {
+  SubmapSlamOptions o;
+  o.frontend.submap_distance = 3.0;
+  o.frontend.filter.max_usable_range = 8.0;
+  const RoomRun run;
+  SubmapSlam2D straight(o), first(o);
+  run.feed(straight, 0, 120);
+  run.feed(first, 0, 70);
+  SubmapSlam2D resumed = round_trip<SubmapSlam2D, GridFastSlam>(first, "submaps");
+  run.feed(resumed, 70, 120);
+  EXPECT_EQ(state_bytes(resumed), state_bytes(straight));
+  straight.finish();
+  resumed.finish();
+  const auto a = straight.scan_poses(), b = resumed.scan_poses();
+  ASSERT_EQ(a.size(), b.size());
+  for (std::size_t k = 0; k < a.size(); ++k) EXPECT_TRUE((a[k].array() == b[k].array()).all());
+  EXPECT_TRUE((straight.map().log_odds().array() == resumed.map().log_odds().array()).all());
+}
+
+TEST(StateFile, GridFastSlamResumedEqualsUninterrupted) {
+  for (GridProposal proposal : {GridProposal::kScanMatching, GridProposal::kImprovedOdometry}) {
+    GridFastSlamOptions o;
+    o.num_particles = 6;
+    o.proposal = proposal;
+    o.resolution = 0.1;
+    o.filter.max_usable_range = 8.0;
+    o.update_distance = 0.2;
+    o.seed = 4;
+    const RoomRun run;
+    GridFastSlam straight(o), first(o);
+    run.feed(straight, 0, 90);
+    run.feed(first, 0, 45);
+    GridFastSlam resumed = round_trip<GridFastSlam, SubmapSlam2D>(first, "rbpf");
+    EXPECT_EQ(resumed.tile_sharing().distinct, first.tile_sharing().distinct);
+    EXPECT_EQ(resumed.tile_sharing().references, first.tile_sharing().references);
+    run.feed(resumed, 45, 90);
+    EXPECT_EQ(state_bytes(resumed), state_bytes(straight));
+    EXPECT_TRUE((resumed.poses().array() == straight.poses().array()).all());
+    EXPECT_TRUE((resumed.log_weights().array() == straight.log_weights().array()).all());
+    const int k = straight.best_index();
+    EXPECT_TRUE((resumed.scan_poses(k).array() == straight.scan_poses(k).array()).all());
+    EXPECT_TRUE((resumed.map(k).log_odds().array() == straight.map(k).log_odds().array()).all());
+  }
+}
+
+}  // namespace
+}  // namespace probslam
