@@ -350,14 +350,20 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
     if run.associations is not None:
         print(f"associations:  {evaluation.association_accuracy(run):.1%} correct (each landmark's majority barcode), "
               f"{run.associations.applied} of {len(data.measurements)} sightings applied")
-    run = _refined(args, data, run)
+    run, refinement = _refined(args, data, run)
     dead, truth, truth_lm = _landmark_score(args, data, run)
 
     def draw(ax):
-        landmark_map(ax, run.poses, run.filter, truth_path=truth, truth_landmarks=truth_lm,
-                     dead_reckoning=None if dead is None else dead.poses, truth_landmarks_label=_survey_label(data))
+        dead_poses = None if dead is None else dead.poses
+        if refinement is not None:
+            _draw_refined(ax, run, refinement, truth, truth_lm, data, dead_poses)
+        else:
+            landmark_map(ax, run.poses, run.filter, truth_path=truth, truth_landmarks=truth_lm,
+                         dead_reckoning=dead_poses, truth_landmarks_label=_survey_label(data))
         how = f"unknown correspondences, {args.association}" if args.unknown and is_mrclam else "known correspondences"
-        ax.set_title(f"probslam ekf-slam: {_dataset_name(args, path, data)}\nEKF SLAM, {how}", fontsize="medium")
+        refined = ", GraphSLAM refinement (ch. 11.6)" if refinement is not None else ""
+        ax.set_title(f"probslam ekf-slam: {_dataset_name(args, path, data)}\nEKF SLAM, {how}{refined}",
+                     fontsize="medium")
 
     return _landmark_outputs(args, run, draw, t0)
 
@@ -388,14 +394,19 @@ def _cmd_fastslam(args: argparse.Namespace) -> int:
     print(f"landmarks:     {len(run.landmarks)} in the best particle's map")
     if run.associations is not None:
         print(f"associations:  {evaluation.association_accuracy(run):.1%} correct (each landmark's majority label)")
-    run = _refined(args, data, run)
+    run, refinement = _refined(args, data, run)
     dead, truth, truth_lm = _landmark_score(args, data, run)
 
     def draw(ax):
-        fastslam_map(ax, run.filter, truth_path=truth, truth_landmarks=truth_lm,
-                     truth_landmarks_label=_survey_label(data), dead_reckoning=None if dead is None else dead.poses)
+        dead_poses = None if dead is None else dead.poses
+        if refinement is not None:
+            _draw_refined(ax, run, refinement, truth, truth_lm, data, dead_poses)
+        else:
+            fastslam_map(ax, run.filter, truth_path=truth, truth_landmarks=truth_lm,
+                         truth_landmarks_label=_survey_label(data), dead_reckoning=dead_poses)
+        refined = ", GraphSLAM refinement (ch. 11.6)" if refinement is not None else ""
         ax.set_title(f"probslam fastslam: {_dataset_name(args, path, data)}\nFastSLAM {args.variant}.0, "
-                     f"{args.particles} particles, {correspondences} correspondences", fontsize="medium")
+                     f"{args.particles} particles, {correspondences} correspondences{refined}", fontsize="medium")
 
     return _landmark_outputs(args, run, draw, t0)
 
@@ -444,10 +455,10 @@ def _check_refine(args: argparse.Namespace, kind: str, command: str) -> None:
 
 
 def _refined(args: argparse.Namespace, data, run):
-    """The run after GraphSLAM's correspondence test (--refine graphslam), its summary printed;
-    the run itself without --refine."""
+    """(the run after GraphSLAM's correspondence test (--refine graphslam), the refinement), its
+    summary printed; (the run itself, None) without --refine."""
     if args.refine == "none":
-        return run
+        return run, None
     noise = _landmark_noise(args, data)
     refined = refine_run(run, data, noise.get("motion_noise"), noise.get("measurement_noise"))
     r = refined.result
@@ -456,8 +467,23 @@ def _refined(args: argparse.Namespace, data, run):
           f"correct, {len(r.landmarks)} landmarks, {len(r.merges)} merges, {len(r.splits)} sightings moved, "
           f"{int((r.labels < 0).sum())} unassigned, {r.iterations} rounds, {r.seconds:.2f} s"
           f"{'' if r.converged else ' (stopped at the round limit)'}; the scores, path and picture below are the "
-          f"refined ones (the picture's ellipses the filter's)")
-    return result
+          f"refined ones")
+    return result, r
+
+
+def _draw_refined(ax, run, refinement, truth, truth_lm, data, dead) -> None:
+    """The picture of a refined run: its path and map, each landmark's ellipse from the final
+    GraphSLAM's marginal covariance."""
+    import numpy as np
+
+    from .plot import landmark_map
+
+    labels = sorted(refinement.landmarks)
+    means = np.array([refinement.landmarks[k] for k in labels]).reshape(-1, 2)
+    covariances = np.array([refinement.landmark_covariances[k] for k in labels]).reshape(-1, 2, 2)
+    landmark_map(ax, run.poses, truth_path=truth, truth_landmarks=truth_lm, dead_reckoning=dead,
+                 truth_landmarks_label=_survey_label(data), path_label="GraphSLAM refinement",
+                 landmarks=(means, covariances))
 
 
 def _landmark_noise(args: argparse.Namespace, data) -> dict:

@@ -185,7 +185,8 @@ class LandmarkRefinement:
     run (``iterations``; ``converged``: the last one changed nothing), the gates used
     (``merge_gate``, ``split_gate``: squared Mahalanobis distances), the final chi2, seconds, and
     the noise of the final solution (``noise_scale`` (3,): standard deviations of odometry,
-    range and bearing over the given ones; ones without ``estimate_noise``)."""
+    range and bearing over the given ones; ones without ``estimate_noise``) and each landmark's
+    marginal covariance there (``landmark_covariances``)."""
 
     poses: np.ndarray
     landmarks: Dict[int, np.ndarray]
@@ -200,6 +201,8 @@ class LandmarkRefinement:
     seconds: float
     rounds: Tuple[RefinementRound, ...]
     noise_scale: np.ndarray
+    #: {label: (2, 2)} each landmark's marginal covariance at the final optimum (m^2).
+    landmark_covariances: Dict[int, np.ndarray]
 
 
 def merge_gate(probability: float = MERGE_PROBABILITY) -> float:
@@ -935,10 +938,13 @@ def refine_landmarks(poses, odometry, odometry_covariances, pose_index, measurem
             converged = True
             break
     held = {int(x) for x in problem.labels[problem.labels != UNASSIGNED]}
+    # The last graph is the one of the final labels (a round that changed them is followed by a
+    # new graph before the loop ends), optimised: its marginals are the final map's.
+    covariances = {} if g is None else {int(k): c for k, c in zip(g.labels, g.landmark_marginals())}
     return LandmarkRefinement(problem.poses.copy(), {k: problem.landmarks[k].copy() for k in sorted(held)},
                               problem.labels.copy(), tuple(merges), tuple(splits), len(rounds), converged,
                               gate_merge, gate_split, chi2, time.perf_counter() - start, tuple(rounds),
-                              np.sqrt(variance))
+                              np.sqrt(variance), {k: covariances[k] for k in sorted(held)})
 
 
 # ---------------------------------------------------------------------------------------------

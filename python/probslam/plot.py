@@ -89,23 +89,28 @@ def _metre_axes(ax) -> None:
 def landmark_map(ax, poses: np.ndarray, ekf=None, truth_path: Optional[np.ndarray] = None,
                  truth_landmarks: Optional[Dict[int, np.ndarray]] = None, dead_reckoning: Optional[np.ndarray] = None,
                  n_sigma: Optional[float] = None, truth_landmarks_label: str = "surveyed landmarks", *,
-                 confidence: float = ELLIPSE_CONFIDENCE) -> None:
-    """Estimated path (T, 3+), landmarks with their ``confidence`` ellipses (or n-sigma ones,
-    given ``n_sigma``) from an EkfSlam, and the ground truth and dead reckoning where given;
-    metre axes and a legend naming each line, marker and the ellipses' confidence."""
+                 confidence: float = ELLIPSE_CONFIDENCE, path_label: str = "EKF SLAM",
+                 landmarks: Optional[Tuple[np.ndarray, np.ndarray]] = None) -> None:
+    """Estimated path (T, 3+) named ``path_label``, landmarks with their ``confidence`` ellipses
+    (or n-sigma ones, given ``n_sigma``) from an EkfSlam, or ``landmarks`` = (means (N, 2),
+    covariances (N, 2, 2)) given instead (a GraphSLAM refinement's), and the ground truth and
+    dead reckoning where given; metre axes and a legend naming each line, marker and the
+    ellipses' confidence."""
     if dead_reckoning is not None:
         ax.plot(dead_reckoning[:, 0], dead_reckoning[:, 1], color="0.6", lw=0.8, label="dead reckoning")
     if truth_path is not None:
         ax.plot(truth_path[:, 0], truth_path[:, 1], color="tab:green", lw=0.8, label="ground truth")
-    ax.plot(poses[:, 0], poses[:, 1], color="tab:blue", lw=0.8, label="EKF SLAM")
+    ax.plot(poses[:, 0], poses[:, 1], color="tab:blue", lw=0.8, label=path_label)
     if truth_landmarks:
         xy = np.array(list(truth_landmarks.values()))
         ax.plot(xy[:, 0], xy[:, 1], "g+", ms=9, label=truth_landmarks_label)
-    if ekf is not None and ekf.num_landmarks:
-        landmarks = ekf.landmarks()
-        xy = landmarks.means
+    if landmarks is None and ekf is not None and ekf.num_landmarks:
+        found = ekf.landmarks()
+        landmarks = (found.means, found.covariances)
+    if landmarks is not None and len(landmarks[0]):
+        xy = np.asarray(landmarks[0])
         ax.plot(xy[:, 0], xy[:, 1], "r.", ms=4, label="estimated landmarks")
-        _ellipses(ax, xy, landmarks.covariances, n_sigma, confidence)
+        _ellipses(ax, xy, np.asarray(landmarks[1]), n_sigma, confidence)
     _metre_axes(ax)
 
 

@@ -142,6 +142,30 @@ def test_landmark_pictures(tmp_path, figures):
         assert (fig["xlabel"], fig["ylabel"]) == ("x [m]", "y [m]")
 
 
+def test_refined_landmark_picture_draws_the_refinement(tmp_path, figures, monkeypatch):
+    """--refine graphslam: the picture is the refinement's path and map, one ellipse per refined
+    landmark from the final GraphSLAM's marginal covariance (not the filter's)."""
+    drawn = {}
+    draw = cli._draw_refined
+
+    def spy(ax, run, refinement, *rest):
+        drawn["refinement"] = refinement
+        draw(ax, run, refinement, *rest)
+        drawn["ellipses"] = [p for p in ax.patches if p.get_edgecolor()[:3] == plt.matplotlib.colors.to_rgb("tab:red")]
+
+    monkeypatch.setattr(cli, "_draw_refined", spy)
+    assert cli.main(["fastslam", "--unknown", "--refine", "graphslam", "--particles", "10", "--no-progress",
+                     "-o", str(tmp_path / "r")]) == 0
+    (fig,) = figures
+    assert fig["title"].endswith("unknown correspondences, GraphSLAM refinement (ch. 11.6)")
+    assert fig["legend"] == ["dead reckoning", "ground truth", "GraphSLAM refinement", "surveyed landmarks",
+                             "estimated landmarks", "95% confidence ellipses (chi2, 2 dof: 2.45 sigma)"]
+    r = drawn["refinement"]
+    assert sorted(r.landmark_covariances) == sorted(r.landmarks) and len(drawn["ellipses"]) == len(r.landmarks)
+    for label, cov in r.landmark_covariances.items():
+        assert np.array_equal(cov, cov.T) and np.all(np.linalg.eigvalsh(cov) > 0), label
+
+
 def test_optimize_picture(tmp_path, figures):
     assert cli.main(["optimize", "--edges", "-o", str(tmp_path / "o")]) == 0
     (o,) = figures
