@@ -24,10 +24,10 @@ import struct
 import zipfile
 import zlib
 from dataclasses import dataclass
-from typing import Optional, Tuple
+from typing import Callable, List, Optional, Sequence, Tuple
 
 import numpy as np
-from scipy.optimize import minimize
+from scipy.optimize import minimize, minimize_scalar
 
 from ._core import BeamSensorModel, BinaryMap2D, OccupancyGrid2D, logit
 from .io._files import file_path, require_regular_file
@@ -88,6 +88,40 @@ def random_map(grid: OccupancyGrid2D, rng: np.random.Generator, min_room: float 
         r, c = int(rng.integers(1, h - bh - 1)), int(rng.integers(1, w - bw - 1))
         occ[r:r + bh, c:c + bw] = True
     return occ
+
+
+def pillar_map(grid: OccupancyGrid2D, rng: np.random.Generator, walls: int = 5, pillars: int = 8) -> np.ndarray:
+    """A second prior, unlike :func:`random_map`'s axis-aligned rooms: outer walls one cell
+    thick, ``walls`` straight walls 1.5-4 m long at uniform positions and uniform angles (slanted
+    against the lattice), and ``pillars`` round pillars of radius 0.1-0.4 m (a cell is occupied
+    when its centre lies inside the disc or the wall's segment passes through the cell).
+    Returns (H, W) bool."""
+    require_instance(grid, OccupancyGrid2D, "grid")
+    require_instance(rng, np.random.Generator, "rng")
+    walls, pillars = require_integer(walls, "walls", 0), require_integer(pillars, "pillars", 0)
+    h, w = grid.shape
+    res = grid.resolution
+    occ = np.zeros((h, w), dtype=bool)
+    occ[[0, -1], :] = True
+    occ[:, [0, -1]] = True
+    for _ in range(walls):
+        length, angle = rng.uniform(1.5, 4.0), rng.uniform(-np.pi, np.pi)
+        cx, cy = rng.uniform(0, w * res), rng.uniform(0, h * res)
+        t = np.linspace(-length / 2, length / 2, int(np.ceil(4 * length / res)) + 1)  # 4 points per cell
+        cols = np.floor((cx + t * np.cos(angle)) / res).astype(int)
+        rows = np.floor((cy + t * np.sin(angle)) / res).astype(int)
+        ok = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+        occ[rows[ok], cols[ok]] = True
+    yy, xx = (np.mgrid[0:h, 0:w] + 0.5) * res
+    for _ in range(pillars):
+        radius = rng.uniform(0.1, 0.4)
+        cx, cy = rng.uniform(radius, w * res - radius), rng.uniform(radius, h * res - radius)
+        occ |= np.hypot(xx - cx, yy - cy) <= max(radius, res / 2)
+    return occ
+
+
+#: The world priors by name (studies and the sampling functions take any callable (grid, rng) -> map).
+WORLDS = {"rooms": random_map, "pillars": pillar_map}
 
 
 def free_poses(grid: OccupancyGrid2D, occupied: np.ndarray, n: int, rng: np.random.Generator,
@@ -184,12 +218,35 @@ def _field_chunk(grid, pose, beam_angles, max_range, half_angle, box, idx):
     dx = x0 + (cols + 0.5) * res - pose[0]
     dy = y0 + (rows + 0.5) * res - pose[1]
     r = np.hypot(dx, dy)
+    inside = r < max_range  # cells beyond the range never enter the field: skip their beam search
+    rows, cols, dx, dy, r = rows[inside], cols[inside], dx[inside], dy[inside], r[inside]
     bearing = np.arctan2(dy, dx) - pose[2]
-    off = np.angle(np.exp(1j * (bearing[:, None] - beam_angles[None, :])))  # wrapped, (chunk, B)
-    k = np.argmin(np.abs(off), axis=1)
-    phi = off[np.arange(k.size), k]
-    keep = (r < max_range) & (np.abs(phi) <= half_angle)
+    k, phi = _nearest_beam(bearing, beam_angles)
+    keep = np.abs(phi) <= half_angle
     return (rows * grid.shape[1] + cols)[keep], k[keep], phi[keep], r[keep]
+
+
+def _nearest_beam(bearing: np.ndarray, beam_angles: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """For each bearing (rad, relative to the heading) the index of the beam nearest on the
+    circle (the lowest index on a tie) and the wrapped angle off that beam's axis. The nearest
+    beam on the circle is one of the two that enclose the bearing in the beams' circular order,
+    so a sorted search replaces the comparison with every beam (O(log B) per cell, not O(B));
+    beams whose wrapped angles repeat fall back to comparing every beam (ties by index)."""
+    order = np.argsort(np.angle(np.exp(1j * beam_angles)), kind="stable")
+    sorted_wrapped = np.angle(np.exp(1j * beam_angles[order]))
+    b = beam_angles.size
+    if b > 1 and np.any(np.diff(sorted_wrapped) == 0):
+        off = np.angle(np.exp(1j * (bearing[:, None] - beam_angles[None, :])))
+        k = np.argmin(np.abs(off), axis=1)
+        return k, off[np.arange(k.size), k]
+    pos = np.searchsorted(sorted_wrapped, np.angle(np.exp(1j * bearing)))
+    lo, hi = order[(pos - 1) % b], order[pos % b]
+    # the same expression as over every beam, so that the angles are bit for bit those of the comparison
+    off_lo = np.angle(np.exp(1j * (bearing - beam_angles[lo])))
+    off_hi = np.angle(np.exp(1j * (bearing - beam_angles[hi])))
+    a_lo, a_hi = np.abs(off_lo), np.abs(off_hi)
+    take_lo = (a_lo < a_hi) | ((a_lo == a_hi) & (lo < hi))
+    return np.where(take_lo, lo, hi), np.where(take_lo, off_lo, off_hi)
 
 
 @dataclass
@@ -202,12 +259,13 @@ class TrainingSet:
 
 def sample_training_set(grid: OccupancyGrid2D, model: BeamSensorModel, beam_angles: np.ndarray, maps: int,
                         poses_per_map: int, rng: np.random.Generator, cells_per_scan: int = 400,
-                        half_angle: Optional[float] = None) -> TrainingSet:
+                        half_angle: Optional[float] = None, world: Callable = random_map) -> TrainingSet:
     """9.3.2 steps 1-4: ``maps`` random maps (:func:`random_map`) on ``grid``'s lattice,
     ``poses_per_map`` poses uniform in free space each, one scan per pose sampled from ``model``,
     and up to ``cells_per_scan`` cells drawn uniformly from the scan's perceptual field with their
     true occupancy. half_angle: the field's half width around a beam (rad), default beta/2 for a
-    sonar and half the beam spacing for a laser."""
+    sonar and half the beam spacing for a laser. world: the prior the maps are drawn from, a
+    callable (grid, rng) -> (H, W) bool such as :func:`random_map` (default) or :func:`pillar_map`."""
     require_instance(grid, OccupancyGrid2D, "grid")
     require_instance(model, BeamSensorModel, "model")
     require_instance(rng, np.random.Generator, "rng")
@@ -216,8 +274,10 @@ def sample_training_set(grid: OccupancyGrid2D, model: BeamSensorModel, beam_angl
     beam_angles = _beam_angles(beam_angles)
     half = _half_angle(model, beam_angles, half_angle)
     inputs, labels = [], []
+    if not callable(world):
+        raise TypeError(f"world: expected a callable (grid, rng) -> map, got {type(world).__name__}")
     for _ in range(maps):
-        occ = random_map(grid, rng)
+        occ = world(grid, rng)
         bmap = BinaryMap2D(grid, occ)
         for pose in free_poses(grid, occ, poses_per_map, rng):
             z = model.sample(pose, beam_angles, bmap, rng)
@@ -238,6 +298,37 @@ def _half_angle(model: BeamSensorModel, beam_angles: np.ndarray, half_angle: Opt
     return np.pi / len(beam_angles)  # half the spacing of a ring; a fan should pass half_angle
 
 
+def sample_scans(grid: OccupancyGrid2D, model: BeamSensorModel, beam_angles: np.ndarray, maps: int,
+                 poses_per_map: int, rng: np.random.Generator, world: Callable = random_map) -> List[tuple]:
+    """``maps`` worlds drawn from ``world`` (as in :func:`sample_training_set`), each with
+    ``poses_per_map`` poses uniform in free space and one scan sampled from ``model`` at each:
+    a list of (occupied (H, W) bool, poses (n, 3), ranges (n, B)). What :meth:`LearnedInverseModel.
+    fit_evidence_scale` and the studies map."""
+    require_instance(grid, OccupancyGrid2D, "grid")
+    require_instance(model, BeamSensorModel, "model")
+    require_instance(rng, np.random.Generator, "rng")
+    maps, poses_per_map = require_integer(maps, "maps", 1), require_integer(poses_per_map, "poses_per_map", 1)
+    beam_angles = _beam_angles(beam_angles)
+    if not callable(world):
+        raise TypeError(f"world: expected a callable (grid, rng) -> map, got {type(world).__name__}")
+    out = []
+    for _ in range(maps):
+        occ = world(grid, rng)
+        bmap = BinaryMap2D(grid, occ)
+        poses = free_poses(grid, occ, poses_per_map, rng)
+        out.append((occ, poses, np.array([model.sample(p, beam_angles, bmap, rng) for p in poses])))
+    return out
+
+
+def map_cross_entropy(log_odds: np.ndarray, occupied: np.ndarray) -> float:
+    """Mean cross-entropy (nats per cell) of occupancy log-odds (n,) against the true occupancy
+    (n,) bool: -mean(y log p + (1 - y) log(1 - p)), p = sigmoid(l), computed from l without
+    rounding p to 0 or 1."""
+    l = np.asarray(log_odds, dtype=float)
+    y = np.asarray(occupied, dtype=float)
+    return float(np.mean(np.logaddexp(0.0, l) - y * l))
+
+
 class LearnedInverseModel:
     """p(m_i = 1 | z, x) learned from samples (ch. 9.3): f(input, W) = sigmoid(v . tanh(A s(input)
     + a) + b) with s the inputs standardised by the training set's mean and deviation.
@@ -252,6 +343,10 @@ class LearnedInverseModel:
         self.mean = self.scale = None
         self.prior = None  # occupied fraction of the training cells: p(m_i) of the sampled maps
         self.final_objective = None  # J(W) / n at the end of training (nats per cell)
+        # The factor on each scan's log-odds in Table 9.1 (1: the single-scan model as trained);
+        # fit_evidence_scale chooses it on training worlds, so that many overlapping scans, added
+        # as if independent, do not make the map overconfident (docs/occupancy_mapping.md).
+        self.evidence_scale = 1.0
 
     # --- the network and J(W) (eq. 9.20) ---
 
@@ -334,29 +429,77 @@ class LearnedInverseModel:
         _, u = self._forward(self.weights, (x - self.mean) / self.scale)
         return np.clip(1.0 / (1.0 + np.exp(-u)), EPS, 1.0 - EPS)
 
-    def insert_scan(self, grid: OccupancyGrid2D, pose, ranges, beam_angles, max_range: float,
-                    half_angle: float) -> int:
-        """Table 9.1 lines 3-4 with this model as inverse_sensor_model: for each cell in the
-        perceptual field, l += logit(f) - logit(prior), the prior being the training maps'
-        occupied fraction (what f returns where the scan tells nothing). Updates the grid
-        through ``add_log_odds`` (clamped, under the grid's lock). Returns the cells changed.
-        Arguments are checked as by :func:`field_features`, before the grid is touched."""
+    def scan_evidence(self, grid: OccupancyGrid2D, pose, ranges, beam_angles, max_range: float,
+                      half_angle: float) -> Tuple[np.ndarray, np.ndarray]:
+        """The cells of one scan's perceptual field (:func:`field_features`) and the single-scan
+        evidence logit(f) - logit(prior) of each (before evidence_scale): the term Table 9.1 adds
+        for this model, the prior being the training maps' occupied fraction (what f returns
+        where the scan tells nothing). Arguments are checked as by field_features."""
         self._check_trained()
         if self.mean.shape[0] != 2 + NEIGHBOURS:
             raise ValueError(f"insert_scan needs a model of {2 + NEIGHBOURS} inputs (field_features), this one "
                              f"has {self.mean.shape[0]}")
         cells, x = field_features(grid, pose, ranges, beam_angles, max_range, half_angle)
         if cells.size == 0:
+            return cells, np.empty(0)
+        return cells, logit(self.probability(x)) - logit(self.prior)
+
+    def insert_scan(self, grid: OccupancyGrid2D, pose, ranges, beam_angles, max_range: float,
+                    half_angle: float) -> int:
+        """Table 9.1 lines 3-4 with this model as inverse_sensor_model: for each cell in the
+        perceptual field, l += evidence_scale (logit(f) - logit(prior)) (:meth:`scan_evidence`).
+        Updates the grid through ``add_log_odds`` (clamped, under the grid's lock). Returns the
+        cells changed. Arguments are checked as by :func:`field_features`, before the grid is
+        touched. Time and memory per scan: linear in the cells within max_range of the pose
+        (each cell's nearest beam by a sorted search), in chunks (FIELD_CHUNK_PAIRS)."""
+        cells, evidence = self.scan_evidence(grid, pose, ranges, beam_angles, max_range, half_angle)
+        if cells.size == 0:
             return 0
-        return grid.add_log_odds(cells, logit(self.probability(x)) - logit(self.prior))
+        return grid.add_log_odds(cells, self.evidence_scale * evidence)
+
+    def fit_evidence_scale(self, worlds: Sequence[tuple], grid: OccupancyGrid2D, beam_angles: np.ndarray,
+                           max_range: float, half_angle: float, bounds: Tuple[float, float] = (0.0, 2.0)) -> float:
+        """Chooses evidence_scale s to minimise the cross-entropy of the maps Table 9.1 makes
+        from many scans: over ``worlds`` (as :func:`sample_scans` returns; training worlds, never
+        the test ones), each cell's map log-odds is logit(prior) + s * (sum of its scans'
+        evidence), scored against the truth over the cells some scan covers. The cross-entropy
+        is convex in s, so a bounded scalar search finds its minimum. Sets and returns s; on an
+        error the model is left as it was."""
+        self._check_trained()
+        require_instance(grid, OccupancyGrid2D, "grid")
+        lo, hi = (float(b) for b in bounds)
+        if not (np.isfinite(lo) and np.isfinite(hi) and 0 <= lo < hi):
+            raise ValueError(f"bounds: expected 0 <= low < high, got {bounds}")
+        totals, labels = [], []
+        for occupied, poses, scans in worlds:
+            truth = np.asarray(occupied, dtype=bool).ravel()
+            if truth.size != grid.shape[0] * grid.shape[1]:
+                raise ValueError(f"worlds: a map of {truth.size} cells on a grid of shape {tuple(grid.shape)}")
+            total, seen = np.zeros(truth.size), np.zeros(truth.size, dtype=bool)
+            for pose, z in zip(poses, scans):
+                cells, evidence = self.scan_evidence(grid, pose, z, beam_angles, max_range, half_angle)
+                np.add.at(total, cells, evidence)
+                seen[cells] = True
+            totals.append(total[seen])
+            labels.append(truth[seen])
+        total, truth = np.concatenate(totals), np.concatenate(labels)
+        if total.size == 0:
+            raise ValueError("worlds: no scan covers any cell")
+        l0 = float(logit(self.prior))
+        res = minimize_scalar(lambda k: map_cross_entropy(l0 + k * total, truth), bounds=(lo, hi), method="bounded",
+                              options={"xatol": 1e-4})
+        self.evidence_scale = float(res.x)
+        return self.evidence_scale
 
     def save(self, path: str) -> None:
         """The weights and standardisation as a .npz file (numpy adds ``.npz`` to a str path
         without it): the float arrays ``weights``, ``mean`` and ``scale`` and the JSON text
-        ``meta`` = {"hidden": int, "prior": float}, what :meth:`load` checks."""
+        ``meta`` = {"hidden": int, "prior": float, "evidence_scale": float}, what :meth:`load`
+        checks (files without evidence_scale, written before it existed, load with 1)."""
         self._check_trained()
         np.savez(file_path(path), weights=self.weights, mean=self.mean, scale=self.scale,
-                 meta=json.dumps({"hidden": self.hidden, "prior": self.prior}))
+                 meta=json.dumps({"hidden": self.hidden, "prior": self.prior,
+                                  "evidence_scale": self.evidence_scale}))
 
     @classmethod
     def load(cls, path: str) -> "LearnedInverseModel":
@@ -370,7 +513,7 @@ class LearnedInverseModel:
         path = file_path(path)
         require_regular_file(path)
         arrays = _read_model_arrays(path)
-        hidden, prior = _model_meta(path, arrays.pop("meta"))
+        hidden, prior, evidence_scale = _model_meta(path, arrays.pop("meta"))
         m = cls(hidden)
         d = arrays["mean"].shape[0]
         if d == 0 or arrays["scale"].shape != (d,) or arrays["weights"].shape != (m.n_weights(d),):
@@ -382,6 +525,7 @@ class LearnedInverseModel:
         if np.any(arrays["scale"] <= 0):
             raise ValueError(f"{path}: scale holds a deviation <= 0")
         m.weights, m.mean, m.scale, m.prior = arrays["weights"], arrays["mean"], arrays["scale"], prior
+        m.evidence_scale = evidence_scale
         return m
 
 
@@ -450,20 +594,24 @@ def _read_model_array(path: str, archive: zipfile.ZipFile, name: str) -> np.ndar
     return values if kind == "U" else values.astype(float)
 
 
-def _model_meta(path: str, meta: np.ndarray) -> Tuple[int, float]:
-    """(hidden, prior) from a model file's meta text, checked."""
+def _model_meta(path: str, meta: np.ndarray) -> Tuple[int, float, float]:
+    """(hidden, prior, evidence_scale) from a model file's meta text, checked (evidence_scale 1
+    when absent: files written before it existed)."""
     try:
         fields = json.loads(str(meta))
     except (ValueError, RecursionError) as exc:
         raise ValueError(f"{path}: meta: not JSON ({_first_line(exc)})") from None
-    if not isinstance(fields, dict) or set(fields) != {"hidden", "prior"}:
-        raise ValueError(f"{path}: meta: expected {{\"hidden\": ..., \"prior\": ...}}, got {str(meta)[:80]!r}")
-    hidden, prior = fields["hidden"], fields["prior"]
+    if not isinstance(fields, dict) or not {"hidden", "prior"} <= set(fields) <= {"hidden", "prior", "evidence_scale"}:
+        raise ValueError(f"{path}: meta: expected {{\"hidden\": ..., \"prior\": ..., \"evidence_scale\": ...}}, "
+                         f"got {str(meta)[:80]!r}")
+    hidden, prior, scale = fields["hidden"], fields["prior"], fields.get("evidence_scale", 1.0)
     if isinstance(hidden, bool) or not isinstance(hidden, int) or hidden < 1:
         raise ValueError(f"{path}: meta: hidden must be an integer >= 1, got {hidden!r}")
     if isinstance(prior, bool) or not isinstance(prior, (int, float)) or not 0 < prior < 1:
         raise ValueError(f"{path}: meta: prior must lie in (0, 1), got {prior!r}")
-    return hidden, float(prior)
+    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not 0 <= scale < math.inf:
+        raise ValueError(f"{path}: meta: evidence_scale must be finite and >= 0, got {scale!r}")
+    return hidden, float(prior), float(scale)
 
 
 __all__ = [
@@ -473,8 +621,12 @@ __all__ = [
     "NEIGHBOURS",
     "LearnedInverseModel",
     "TrainingSet",
+    "WORLDS",
     "field_features",
     "free_poses",
+    "map_cross_entropy",
+    "pillar_map",
     "random_map",
+    "sample_scans",
     "sample_training_set",
 ]
