@@ -329,6 +329,54 @@ def map_cross_entropy(log_odds: np.ndarray, occupied: np.ndarray) -> float:
     return float(np.mean(np.logaddexp(0.0, l) - y * l))
 
 
+#: A cell of a known map built from a log (:func:`known_map`) is decided when its log-odds differs
+#: from the prior by at least this much: more than one hit (insert_rays adds logit(0.7) = 0.85
+#: per hit) or about three passes, so that one stray beam never labels a cell for training.
+KNOWN_LOG_ODDS = 1.5
+
+
+def known_map(scans, resolution: float, max_range: float, grid: Optional[OccupancyGrid2D] = None):
+    """ch. 9.3.4's known map: the scans of a corrected log (:class:`probslam.io.LaserScans`, poses
+    taken as true) mapped with Table 9.1 and the ray model (:func:`probslam.mapping.map_laser_log`,
+    readings at the sensor's no-return value skipped). Returns (grid, occupied (H, W) bool: the
+    log-odds above the prior, known (H, W) bool: decided by KNOWN_LOG_ODDS); a given grid is
+    grown to fit and mapped into, else one is sized from the data."""
+    from .mapping import map_laser_log
+
+    grid, _ = map_laser_log(scans, resolution=resolution, max_range=max_range, grid=grid, progress=False)
+    l = np.asarray(grid.log_odds)
+    return grid, l > grid.l0, np.abs(l - grid.l0) >= KNOWN_LOG_ODDS
+
+
+def real_training_set(grid: OccupancyGrid2D, occupied: np.ndarray, known: np.ndarray, poses: np.ndarray,
+                      ranges: np.ndarray, beam_angles: np.ndarray, max_range: float, half_angle: float,
+                      no_return: float = math.inf) -> TrainingSet:
+    """9.3.4, training from real data: for each scan (poses (S, 3) from a corrected log, ranges
+    (S, B), NaN for a missing beam, beam_angles (B,)) the cells of its perceptual field
+    (:func:`field_features`) that the known map decides, labelled with the known map's
+    occupancy. Readings >= ``no_return`` and NaN mean no return (inf, then max_range in the
+    inputs), as the forward model's max readings do in simulation."""
+    require_instance(grid, OccupancyGrid2D, "grid")
+    occupied, known = np.asarray(occupied), np.asarray(known)
+    for name, a in (("occupied", occupied), ("known", known)):
+        if a.dtype != bool or a.shape != tuple(grid.shape):
+            raise ValueError(f"{name}: expected a bool array of the grid's shape {tuple(grid.shape)}, got "
+                             f"{a.dtype} {a.shape}")
+    poses = real_array(poses, "poses", (None, 3))
+    beam_angles = _beam_angles(beam_angles)
+    ranges = real_array(ranges, "ranges", (poses.shape[0], beam_angles.size), finite=False)
+    inputs, labels = [], []
+    for pose, z in zip(poses, ranges):
+        z = np.where(np.isnan(z) | (z >= no_return), np.inf, z)
+        cells, x = field_features(grid, pose, z, beam_angles, max_range, half_angle)
+        keep = known.ravel()[cells]
+        inputs.append(x[keep])
+        labels.append(occupied.ravel()[cells[keep]])
+    if not inputs:
+        return TrainingSet(np.empty((0, 2 + NEIGHBOURS)), np.empty(0, dtype=bool))
+    return TrainingSet(np.concatenate(inputs), np.concatenate(labels))
+
+
 class LearnedInverseModel:
     """p(m_i = 1 | z, x) learned from samples (ch. 9.3): f(input, W) = sigmoid(v . tanh(A s(input)
     + a) + b) with s the inputs standardised by the training set's mean and deviation.
@@ -462,7 +510,8 @@ class LearnedInverseModel:
         """Chooses evidence_scale s to minimise the cross-entropy of the maps Table 9.1 makes
         from many scans: over ``worlds`` (as :func:`sample_scans` returns; training worlds, never
         the test ones), each cell's map log-odds is logit(prior) + s * (sum of its scans'
-        evidence), scored against the truth over the cells some scan covers. The cross-entropy
+        evidence), scored against the truth over the cells some scan covers (and, when a world
+        is given as (occupied, poses, ranges, known), that ``known`` marks). The cross-entropy
         is convex in s, so a bounded scalar search finds its minimum. Sets and returns s; on an
         error the model is left as it was."""
         self._check_trained()
@@ -471,7 +520,8 @@ class LearnedInverseModel:
         if not (np.isfinite(lo) and np.isfinite(hi) and 0 <= lo < hi):
             raise ValueError(f"bounds: expected 0 <= low < high, got {bounds}")
         totals, labels = [], []
-        for occupied, poses, scans in worlds:
+        for world in worlds:
+            occupied, poses, scans = world[:3]
             truth = np.asarray(occupied, dtype=bool).ravel()
             if truth.size != grid.shape[0] * grid.shape[1]:
                 raise ValueError(f"worlds: a map of {truth.size} cells on a grid of shape {tuple(grid.shape)}")
@@ -480,6 +530,8 @@ class LearnedInverseModel:
                 cells, evidence = self.scan_evidence(grid, pose, z, beam_angles, max_range, half_angle)
                 np.add.at(total, cells, evidence)
                 seen[cells] = True
+            if len(world) > 3:  # a mask of the cells the truth decides (a known map built from a log)
+                seen &= np.asarray(world[3], dtype=bool).ravel()
             totals.append(total[seen])
             labels.append(truth[seen])
         total, truth = np.concatenate(totals), np.concatenate(labels)
@@ -617,6 +669,7 @@ def _model_meta(path: str, meta: np.ndarray) -> Tuple[int, float, float]:
 __all__ = [
     "EPS",
     "FIELD_CHUNK_PAIRS",
+    "KNOWN_LOG_ODDS",
     "MAX_MODEL_BYTES",
     "NEIGHBOURS",
     "LearnedInverseModel",
@@ -624,6 +677,8 @@ __all__ = [
     "WORLDS",
     "field_features",
     "free_poses",
+    "known_map",
+    "real_training_set",
     "map_cross_entropy",
     "pillar_map",
     "random_map",
