@@ -465,3 +465,31 @@ def test_pillar_map_has_outer_walls_and_round_pillars():
     assert np.ptp(rows) == pytest.approx(np.ptp(cols), abs=1)  # round: as tall as wide
     slanted = il.pillar_map(grid, np.random.default_rng(3), walls=3, pillars=0)
     assert slanted[1:-1, 1:-1].sum() > 3 * 10  # three walls of 1.5 m or more (clipped at the border)
+
+
+def test_map_command_uses_a_saved_learned_model(tmp_path, capsys):
+    """probslam map LOG --inverse-model MODEL.npz: the same grid as inserting every scan of the
+    log with insert_scan by hand (no-return readings as inf, half a beam spacing either side)."""
+    from probslam import cli, io
+
+    m = untrained_free_model()
+    m.evidence_scale = 0.5
+    m.save(tmp_path / "model.npz")
+    scans = io.read_carmen_log(cli._bundled_log()).scans
+    grid, summary = il.map_laser_log_learned(m, scans, resolution=0.2, max_range=4.0, progress=False)
+    by_hand = probslam.OccupancyGrid2D(0.2, grid.width, grid.height, origin=grid.origin, p_prior=0.2)
+    angles = scans.beam_angles()
+    for pose, z, a, step in zip(scans.laser_poses, scans.ranges, angles, scans.angular_resolutions):
+        m.insert_scan(by_hand, pose, np.where(z >= 81.83, np.inf, z), a, 4.0, abs(step) / 2)  # 81.83: no return
+    np.testing.assert_array_equal(grid.log_odds, by_hand.log_odds)
+    assert summary.scans == len(scans)
+    args = ["map", "--inverse-model", str(tmp_path / "model.npz"), "--resolution", "0.2", "--max-range", "4",
+            "-o", str(tmp_path / "m"), "--no-progress", "--no-plot"]
+    assert cli.main(args) == 0
+    assert f"cells updated: {summary.cells_updated}" in capsys.readouterr().out
+    saved = io.load_ros_map(tmp_path / "m.yaml")
+    assert saved.same_geometry(grid)
+    (tmp_path / "bad.npz").write_text("not a model")
+    args[2] = str(tmp_path / "bad.npz")
+    assert cli.main(args) == 2
+    assert "--inverse-model" in capsys.readouterr().err
