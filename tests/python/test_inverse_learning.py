@@ -69,13 +69,19 @@ def test_field_features_encode_relative_polar_coordinates_and_neighbours():
     np.testing.assert_allclose(x[:, 2], ranges[(k - 2) % 16])
 
 
+def train_sonar(seed, cells, maps, poses_per_map, cells_per_scan, hidden, iterations):
+    """A sonar model trained on sampled rooms of cells x cells at 0.1 m: (model, training set, grid)."""
+    rng = np.random.default_rng(seed)
+    grid = probslam.OccupancyGrid2D(0.1, cells, cells)
+    model, angles = sonar()
+    data = il.sample_training_set(grid, model, angles, maps=maps, poses_per_map=poses_per_map, rng=rng,
+                                  cells_per_scan=cells_per_scan)
+    return il.LearnedInverseModel(hidden=hidden).train(data, rng, max_iterations=iterations), data, grid
+
+
 @pytest.fixture(scope="module")
 def trained():
-    rng = np.random.default_rng(4)
-    grid = probslam.OccupancyGrid2D(0.1, 80, 80)
-    model, angles = sonar()
-    data = il.sample_training_set(grid, model, angles, maps=4, poses_per_map=25, rng=rng, cells_per_scan=250)
-    return il.LearnedInverseModel(hidden=8).train(data, rng, max_iterations=200), data
+    return train_sonar(4, 80, 4, 25, 250, 8, 200)[:2]
 
 
 @pytest.mark.slow
@@ -367,11 +373,8 @@ def expected_calibration_error(p, y, bins=10):
 @pytest.fixture(scope="module")
 def small_sonar_model():
     """A sonar model trained in a few seconds (2 maps x 12 poses, 4 hidden units)."""
-    rng = np.random.default_rng(11)
-    grid = probslam.OccupancyGrid2D(0.1, 60, 60)
-    model, angles = sonar()
-    data = il.sample_training_set(grid, model, angles, maps=2, poses_per_map=12, rng=rng, cells_per_scan=300)
-    return il.LearnedInverseModel(hidden=4).train(data, rng, max_iterations=150), grid, model, angles
+    m, _, grid = train_sonar(11, 60, 2, 12, 300, 4, 150)
+    return (m, grid) + sonar()
 
 
 def test_single_scan_probabilities_are_calibrated_on_held_out_scans(small_sonar_model):
