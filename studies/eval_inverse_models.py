@@ -29,7 +29,7 @@ import probslam as ps
 from probslam import inverse_learning as il
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent))
-import real_floor_plan  # noqa: E402  (the Intel floor plan as a world; studies/real_floor_plan.py)
+from eval_inverse_real import intel_floor_plan  # noqa: E402  (the Intel floor plan as a world)
 
 RES, SIZE = 0.1, 100  # 10 m x 10 m maps
 BINS = 10  # reliability table: 10 equal-width bins of the predicted probability
@@ -110,7 +110,7 @@ def main():
     args = parser.parse_args()
     train_maps, train_poses, fit_maps, test_maps, test_poses = (3, 15, 2, 2, 20) if args.quick else (8, 40, 3, 3, 60)
     grid = ps.OccupancyGrid2D(RES, SIZE, SIZE)
-    plan = real_floor_plan.intel_floor_plan(RES)  # None without /work/shared/data
+    plan = intel_floor_plan(RES)  # None without /work/shared/data
     print(f"# Learned inverse sensor models (ch. 9.3): {SIZE} x {SIZE} maps of {RES} m; training {train_maps} maps x "
           f"{train_poses} poses (300 cells per scan), scale fitted on {fit_maps} other training maps x {test_poses} "
           f"scans; test {test_maps} held-out maps x {test_poses} scans per world kind\n")
