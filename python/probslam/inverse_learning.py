@@ -21,6 +21,7 @@ import lzma
 import math
 import os
 import struct
+import time
 import zipfile
 import zlib
 from dataclasses import dataclass
@@ -590,8 +591,6 @@ def map_laser_log_learned(model: LearnedInverseModel, scans, resolution: float =
     meaning no return (inf), each scan's field half a beam spacing either side of its beams.
     Returns (grid, :class:`probslam.mapping.MappingSummary`). Memory: the grid plus one scan's
     field in chunks (FIELD_CHUNK_PAIRS); time linear in the cells within max_range of each pose."""
-    import time
-
     from tqdm import tqdm
 
     from .io.carmen import LaserScans
