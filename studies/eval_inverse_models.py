@@ -141,10 +141,11 @@ def main():
             for lo, hi, n, pm, ym in table:
                 print(f"| [{lo:.1f}, {hi:.1f}) | {n} | {pm:.3f} | {ym:.3f} |")
             print("\nmap cross-entropy (accuracy) by number of scans per world:")
-            print("| model | " + " | ".join(f"{c} scans" for c in COUNTS + (test_poses,)) + " |")
-            print("|---|" + "---|" * (len(COUNTS) + 1))
+            counts = tuple(c for c in COUNTS if c < test_poses) + (test_poses,)
+            print("| model | " + " | ".join(f"{c} scans" for c in counts) + " |")
+            print("|---|" + "---|" * len(counts))
             res = [average([map_scores(learned, o, e, c, SCALES + (scale,), mask) for o, e in zip(occs, evs)])
-                   for c in COUNTS + (test_poses,)]
+                   for c in counts]
             for k in res[0]:
                 label = k + (" (fitted)" if k == f"learned x {scale:.3g}" else "")
                 print(f"| {label} | " + " | ".join(f"{r[k][0]:.3f} ({r[k][1]:.3f})" for r in res) + " |")
