@@ -221,9 +221,19 @@ def _cmd_map(args: argparse.Namespace) -> int:
     if isinstance(log, io.RosbagLog) and log.pose_source == "none":
         raise UserError(f"{path}: no poses to map with (no odometry, tf or --pose-topic in the bag); "
                         "'probslam slam' maps a bag of scans alone")
-    grid, summary = map_laser_log(log.scans, resolution=args.resolution, max_range=args.max_range,
-                                  robot_radius=args.robot_radius,
-                                  skip_no_return=not args.keep_no_return, progress=None if args.progress else False)
+    if args.inverse_model is not None:
+        from .inverse_learning import LearnedInverseModel, map_laser_log_learned
+
+        try:
+            model = LearnedInverseModel.load(args.inverse_model)
+        except (OSError, ValueError, TypeError) as exc:
+            raise UserError(f"--inverse-model: {exc}") from None
+        grid, summary = map_laser_log_learned(model, log.scans, resolution=args.resolution, max_range=args.max_range,
+                                              progress=None if args.progress else False)
+    else:
+        grid, summary = map_laser_log(log.scans, resolution=args.resolution, max_range=args.max_range,
+                                      robot_radius=args.robot_radius,
+                                      skip_no_return=not args.keep_no_return, progress=None if args.progress else False)
     io.save_ros_map(grid, args.output + ".yaml")
     written = [f"{args.output}.yaml", f"{args.output}.pgm"]
     if args.plot:
@@ -831,6 +841,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--robot-radius", type=float, default=0.0, help="clear the robot's footprint (metres)")
     p.add_argument("--keep-no-return", action="store_true",
                    help="let readings at the sensor maximum clear space (default: skip them)")
+    p.add_argument("--inverse-model", default=None, metavar="MODEL.npz",
+                   help="map with a learned inverse sensor model (ch. 9.3; probslam.inverse_learning, saved with "
+                        "LearnedInverseModel.save) instead of the ray model")
     p.add_argument("-o", "--output", default="map", help="output prefix: PREFIX.yaml/.pgm/.png (default 'map')")
     _bag_input_options(p, poses=True)
     _no_progress_option(p)

@@ -21,13 +21,14 @@ import lzma
 import math
 import os
 import struct
+import time
 import zipfile
 import zlib
 from dataclasses import dataclass
-from typing import Optional, Tuple
+from typing import Callable, List, Optional, Sequence, Tuple
 
 import numpy as np
-from scipy.optimize import minimize
+from scipy.optimize import minimize, minimize_scalar
 
 from ._core import BeamSensorModel, BinaryMap2D, OccupancyGrid2D, logit
 from .io._files import file_path, require_regular_file
@@ -88,6 +89,40 @@ def random_map(grid: OccupancyGrid2D, rng: np.random.Generator, min_room: float 
         r, c = int(rng.integers(1, h - bh - 1)), int(rng.integers(1, w - bw - 1))
         occ[r:r + bh, c:c + bw] = True
     return occ
+
+
+def pillar_map(grid: OccupancyGrid2D, rng: np.random.Generator, walls: int = 5, pillars: int = 8) -> np.ndarray:
+    """A second prior, unlike :func:`random_map`'s axis-aligned rooms: outer walls one cell
+    thick, ``walls`` straight walls 1.5-4 m long at uniform positions and uniform angles (slanted
+    against the lattice), and ``pillars`` round pillars of radius 0.1-0.4 m (a cell is occupied
+    when its centre lies inside the disc or the wall's segment passes through the cell).
+    Returns (H, W) bool."""
+    require_instance(grid, OccupancyGrid2D, "grid")
+    require_instance(rng, np.random.Generator, "rng")
+    walls, pillars = require_integer(walls, "walls", 0), require_integer(pillars, "pillars", 0)
+    h, w = grid.shape
+    res = grid.resolution
+    occ = np.zeros((h, w), dtype=bool)
+    occ[[0, -1], :] = True
+    occ[:, [0, -1]] = True
+    for _ in range(walls):
+        length, angle = rng.uniform(1.5, 4.0), rng.uniform(-np.pi, np.pi)
+        cx, cy = rng.uniform(0, w * res), rng.uniform(0, h * res)
+        t = np.linspace(-length / 2, length / 2, int(np.ceil(4 * length / res)) + 1)  # 4 points per cell
+        cols = np.floor((cx + t * np.cos(angle)) / res).astype(int)
+        rows = np.floor((cy + t * np.sin(angle)) / res).astype(int)
+        ok = (rows >= 0) & (rows < h) & (cols >= 0) & (cols < w)
+        occ[rows[ok], cols[ok]] = True
+    yy, xx = (np.mgrid[0:h, 0:w] + 0.5) * res
+    for _ in range(pillars):
+        radius = rng.uniform(0.1, 0.4)
+        cx, cy = rng.uniform(radius, w * res - radius), rng.uniform(radius, h * res - radius)
+        occ |= np.hypot(xx - cx, yy - cy) <= max(radius, res / 2)
+    return occ
+
+
+#: The world priors by name (studies and the sampling functions take any callable (grid, rng) -> map).
+WORLDS = {"rooms": random_map, "pillars": pillar_map}
 
 
 def free_poses(grid: OccupancyGrid2D, occupied: np.ndarray, n: int, rng: np.random.Generator,
@@ -184,12 +219,35 @@ def _field_chunk(grid, pose, beam_angles, max_range, half_angle, box, idx):
     dx = x0 + (cols + 0.5) * res - pose[0]
     dy = y0 + (rows + 0.5) * res - pose[1]
     r = np.hypot(dx, dy)
+    inside = r < max_range  # cells beyond the range never enter the field: skip their beam search
+    rows, cols, dx, dy, r = rows[inside], cols[inside], dx[inside], dy[inside], r[inside]
     bearing = np.arctan2(dy, dx) - pose[2]
-    off = np.angle(np.exp(1j * (bearing[:, None] - beam_angles[None, :])))  # wrapped, (chunk, B)
-    k = np.argmin(np.abs(off), axis=1)
-    phi = off[np.arange(k.size), k]
-    keep = (r < max_range) & (np.abs(phi) <= half_angle)
+    k, phi = _nearest_beam(bearing, beam_angles)
+    keep = np.abs(phi) <= half_angle
     return (rows * grid.shape[1] + cols)[keep], k[keep], phi[keep], r[keep]
+
+
+def _nearest_beam(bearing: np.ndarray, beam_angles: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """For each bearing (rad, relative to the heading) the index of the beam nearest on the
+    circle (the lowest index on a tie) and the wrapped angle off that beam's axis. The nearest
+    beam on the circle is one of the two that enclose the bearing in the beams' circular order,
+    so a sorted search replaces the comparison with every beam (O(log B) per cell, not O(B));
+    beams whose wrapped angles repeat fall back to comparing every beam (ties by index)."""
+    order = np.argsort(np.angle(np.exp(1j * beam_angles)), kind="stable")
+    sorted_wrapped = np.angle(np.exp(1j * beam_angles[order]))
+    b = beam_angles.size
+    if b > 1 and np.any(np.diff(sorted_wrapped) == 0):
+        off = np.angle(np.exp(1j * (bearing[:, None] - beam_angles[None, :])))
+        k = np.argmin(np.abs(off), axis=1)
+        return k, off[np.arange(k.size), k]
+    pos = np.searchsorted(sorted_wrapped, np.angle(np.exp(1j * bearing)))
+    lo, hi = order[(pos - 1) % b], order[pos % b]
+    # the same expression as over every beam, so that the angles are bit for bit those of the comparison
+    off_lo = np.angle(np.exp(1j * (bearing - beam_angles[lo])))
+    off_hi = np.angle(np.exp(1j * (bearing - beam_angles[hi])))
+    a_lo, a_hi = np.abs(off_lo), np.abs(off_hi)
+    take_lo = (a_lo < a_hi) | ((a_lo == a_hi) & (lo < hi))
+    return np.where(take_lo, lo, hi), np.where(take_lo, off_lo, off_hi)
 
 
 @dataclass
@@ -202,12 +260,13 @@ class TrainingSet:
 
 def sample_training_set(grid: OccupancyGrid2D, model: BeamSensorModel, beam_angles: np.ndarray, maps: int,
                         poses_per_map: int, rng: np.random.Generator, cells_per_scan: int = 400,
-                        half_angle: Optional[float] = None) -> TrainingSet:
+                        half_angle: Optional[float] = None, world: Callable = random_map) -> TrainingSet:
     """9.3.2 steps 1-4: ``maps`` random maps (:func:`random_map`) on ``grid``'s lattice,
     ``poses_per_map`` poses uniform in free space each, one scan per pose sampled from ``model``,
     and up to ``cells_per_scan`` cells drawn uniformly from the scan's perceptual field with their
     true occupancy. half_angle: the field's half width around a beam (rad), default beta/2 for a
-    sonar and half the beam spacing for a laser."""
+    sonar and half the beam spacing for a laser. world: the prior the maps are drawn from, a
+    callable (grid, rng) -> (H, W) bool such as :func:`random_map` (default) or :func:`pillar_map`."""
     require_instance(grid, OccupancyGrid2D, "grid")
     require_instance(model, BeamSensorModel, "model")
     require_instance(rng, np.random.Generator, "rng")
@@ -216,8 +275,10 @@ def sample_training_set(grid: OccupancyGrid2D, model: BeamSensorModel, beam_angl
     beam_angles = _beam_angles(beam_angles)
     half = _half_angle(model, beam_angles, half_angle)
     inputs, labels = [], []
+    if not callable(world):
+        raise TypeError(f"world: expected a callable (grid, rng) -> map, got {type(world).__name__}")
     for _ in range(maps):
-        occ = random_map(grid, rng)
+        occ = world(grid, rng)
         bmap = BinaryMap2D(grid, occ)
         for pose in free_poses(grid, occ, poses_per_map, rng):
             z = model.sample(pose, beam_angles, bmap, rng)
@@ -238,6 +299,85 @@ def _half_angle(model: BeamSensorModel, beam_angles: np.ndarray, half_angle: Opt
     return np.pi / len(beam_angles)  # half the spacing of a ring; a fan should pass half_angle
 
 
+def sample_scans(grid: OccupancyGrid2D, model: BeamSensorModel, beam_angles: np.ndarray, maps: int,
+                 poses_per_map: int, rng: np.random.Generator, world: Callable = random_map) -> List[tuple]:
+    """``maps`` worlds drawn from ``world`` (as in :func:`sample_training_set`), each with
+    ``poses_per_map`` poses uniform in free space and one scan sampled from ``model`` at each:
+    a list of (occupied (H, W) bool, poses (n, 3), ranges (n, B)). What :meth:`LearnedInverseModel.
+    fit_evidence_scale` and the studies map."""
+    require_instance(grid, OccupancyGrid2D, "grid")
+    require_instance(model, BeamSensorModel, "model")
+    require_instance(rng, np.random.Generator, "rng")
+    maps, poses_per_map = require_integer(maps, "maps", 1), require_integer(poses_per_map, "poses_per_map", 1)
+    beam_angles = _beam_angles(beam_angles)
+    if not callable(world):
+        raise TypeError(f"world: expected a callable (grid, rng) -> map, got {type(world).__name__}")
+    out = []
+    for _ in range(maps):
+        occ = world(grid, rng)
+        bmap = BinaryMap2D(grid, occ)
+        poses = free_poses(grid, occ, poses_per_map, rng)
+        out.append((occ, poses, np.array([model.sample(p, beam_angles, bmap, rng) for p in poses])))
+    return out
+
+
+def map_cross_entropy(log_odds: np.ndarray, occupied: np.ndarray) -> float:
+    """Mean cross-entropy (nats per cell) of occupancy log-odds (n,) against the true occupancy
+    (n,) bool: -mean(y log p + (1 - y) log(1 - p)), p = sigmoid(l), computed from l without
+    rounding p to 0 or 1."""
+    l = np.asarray(log_odds, dtype=float)
+    y = np.asarray(occupied, dtype=float)
+    return float(np.mean(np.logaddexp(0.0, l) - y * l))
+
+
+#: A cell of a known map built from a log (:func:`known_map`) is decided when its log-odds differs
+#: from the prior by at least this much: more than one hit (insert_rays adds logit(0.7) = 0.85
+#: per hit) or about three passes, so that one stray beam never labels a cell for training.
+KNOWN_LOG_ODDS = 1.5
+
+
+def known_map(scans, resolution: float, max_range: float, grid: Optional[OccupancyGrid2D] = None):
+    """ch. 9.3.4's known map: the scans of a corrected log (:class:`probslam.io.LaserScans`, poses
+    taken as true) mapped with Table 9.1 and the ray model (:func:`probslam.mapping.map_laser_log`,
+    readings at the sensor's no-return value skipped). Returns (grid, occupied (H, W) bool: the
+    log-odds above the prior, known (H, W) bool: decided by KNOWN_LOG_ODDS); a given grid is
+    grown to fit and mapped into, else one is sized from the data."""
+    from .mapping import map_laser_log
+
+    grid, _ = map_laser_log(scans, resolution=resolution, max_range=max_range, grid=grid, progress=False)
+    l = np.asarray(grid.log_odds)
+    return grid, l > grid.l0, np.abs(l - grid.l0) >= KNOWN_LOG_ODDS
+
+
+def real_training_set(grid: OccupancyGrid2D, occupied: np.ndarray, known: np.ndarray, poses: np.ndarray,
+                      ranges: np.ndarray, beam_angles: np.ndarray, max_range: float, half_angle: float,
+                      no_return: float = math.inf) -> TrainingSet:
+    """9.3.4, training from real data: for each scan (poses (S, 3) from a corrected log, ranges
+    (S, B), NaN for a missing beam, beam_angles (B,)) the cells of its perceptual field
+    (:func:`field_features`) that the known map decides, labelled with the known map's
+    occupancy. Readings >= ``no_return`` and NaN mean no return (inf, then max_range in the
+    inputs), as the forward model's max readings do in simulation."""
+    require_instance(grid, OccupancyGrid2D, "grid")
+    occupied, known = np.asarray(occupied), np.asarray(known)
+    for name, a in (("occupied", occupied), ("known", known)):
+        if a.dtype != bool or a.shape != tuple(grid.shape):
+            raise ValueError(f"{name}: expected a bool array of the grid's shape {tuple(grid.shape)}, got "
+                             f"{a.dtype} {a.shape}")
+    poses = real_array(poses, "poses", (None, 3))
+    beam_angles = _beam_angles(beam_angles)
+    ranges = real_array(ranges, "ranges", (poses.shape[0], beam_angles.size), finite=False)
+    inputs, labels = [], []
+    for pose, z in zip(poses, ranges):
+        z = np.where(np.isnan(z) | (z >= no_return), np.inf, z)
+        cells, x = field_features(grid, pose, z, beam_angles, max_range, half_angle)
+        keep = known.ravel()[cells]
+        inputs.append(x[keep])
+        labels.append(occupied.ravel()[cells[keep]])
+    if not inputs:
+        return TrainingSet(np.empty((0, 2 + NEIGHBOURS)), np.empty(0, dtype=bool))
+    return TrainingSet(np.concatenate(inputs), np.concatenate(labels))
+
+
 class LearnedInverseModel:
     """p(m_i = 1 | z, x) learned from samples (ch. 9.3): f(input, W) = sigmoid(v . tanh(A s(input)
     + a) + b) with s the inputs standardised by the training set's mean and deviation.
@@ -252,6 +392,10 @@ class LearnedInverseModel:
         self.mean = self.scale = None
         self.prior = None  # occupied fraction of the training cells: p(m_i) of the sampled maps
         self.final_objective = None  # J(W) / n at the end of training (nats per cell)
+        # The factor on each scan's log-odds in Table 9.1 (1: the single-scan model as trained);
+        # fit_evidence_scale chooses it on training worlds, so that many overlapping scans, added
+        # as if independent, do not make the map overconfident (docs/occupancy_mapping.md).
+        self.evidence_scale = 1.0
 
     # --- the network and J(W) (eq. 9.20) ---
 
@@ -334,29 +478,81 @@ class LearnedInverseModel:
         _, u = self._forward(self.weights, (x - self.mean) / self.scale)
         return np.clip(1.0 / (1.0 + np.exp(-u)), EPS, 1.0 - EPS)
 
-    def insert_scan(self, grid: OccupancyGrid2D, pose, ranges, beam_angles, max_range: float,
-                    half_angle: float) -> int:
-        """Table 9.1 lines 3-4 with this model as inverse_sensor_model: for each cell in the
-        perceptual field, l += logit(f) - logit(prior), the prior being the training maps'
-        occupied fraction (what f returns where the scan tells nothing). Updates the grid
-        through ``add_log_odds`` (clamped, under the grid's lock). Returns the cells changed.
-        Arguments are checked as by :func:`field_features`, before the grid is touched."""
+    def scan_evidence(self, grid: OccupancyGrid2D, pose, ranges, beam_angles, max_range: float,
+                      half_angle: float) -> Tuple[np.ndarray, np.ndarray]:
+        """The cells of one scan's perceptual field (:func:`field_features`) and the single-scan
+        evidence logit(f) - logit(prior) of each (before evidence_scale): the term Table 9.1 adds
+        for this model, the prior being the training maps' occupied fraction (what f returns
+        where the scan tells nothing). Arguments are checked as by field_features."""
         self._check_trained()
         if self.mean.shape[0] != 2 + NEIGHBOURS:
             raise ValueError(f"insert_scan needs a model of {2 + NEIGHBOURS} inputs (field_features), this one "
                              f"has {self.mean.shape[0]}")
         cells, x = field_features(grid, pose, ranges, beam_angles, max_range, half_angle)
         if cells.size == 0:
+            return cells, np.empty(0)
+        return cells, logit(self.probability(x)) - logit(self.prior)
+
+    def insert_scan(self, grid: OccupancyGrid2D, pose, ranges, beam_angles, max_range: float,
+                    half_angle: float) -> int:
+        """Table 9.1 lines 3-4 with this model as inverse_sensor_model: for each cell in the
+        perceptual field, l += evidence_scale (logit(f) - logit(prior)) (:meth:`scan_evidence`).
+        Updates the grid through ``add_log_odds`` (clamped, under the grid's lock). Returns the
+        cells changed. Arguments are checked as by :func:`field_features`, before the grid is
+        touched. Time and memory per scan: linear in the cells within max_range of the pose
+        (each cell's nearest beam by a sorted search), in chunks (FIELD_CHUNK_PAIRS)."""
+        cells, evidence = self.scan_evidence(grid, pose, ranges, beam_angles, max_range, half_angle)
+        if cells.size == 0:
             return 0
-        return grid.add_log_odds(cells, logit(self.probability(x)) - logit(self.prior))
+        return grid.add_log_odds(cells, self.evidence_scale * evidence)
+
+    def fit_evidence_scale(self, worlds: Sequence[tuple], grid: OccupancyGrid2D, beam_angles: np.ndarray,
+                           max_range: float, half_angle: float, bounds: Tuple[float, float] = (0.0, 2.0)) -> float:
+        """Chooses evidence_scale s to minimise the cross-entropy of the maps Table 9.1 makes
+        from many scans: over ``worlds`` (as :func:`sample_scans` returns; training worlds, never
+        the test ones), each cell's map log-odds is logit(prior) + s * (sum of its scans'
+        evidence), scored against the truth over the cells some scan covers (and, when a world
+        is given as (occupied, poses, ranges, known), that ``known`` marks). The cross-entropy
+        is convex in s, so a bounded scalar search finds its minimum. Sets and returns s; on an
+        error the model is left as it was."""
+        self._check_trained()
+        require_instance(grid, OccupancyGrid2D, "grid")
+        lo, hi = (float(b) for b in bounds)
+        if not (np.isfinite(lo) and np.isfinite(hi) and 0 <= lo < hi):
+            raise ValueError(f"bounds: expected 0 <= low < high, got {bounds}")
+        totals, labels = [], []
+        for world in worlds:
+            occupied, poses, scans = world[:3]
+            truth = np.asarray(occupied, dtype=bool).ravel()
+            if truth.size != grid.shape[0] * grid.shape[1]:
+                raise ValueError(f"worlds: a map of {truth.size} cells on a grid of shape {tuple(grid.shape)}")
+            total, seen = np.zeros(truth.size), np.zeros(truth.size, dtype=bool)
+            for pose, z in zip(poses, scans):
+                cells, evidence = self.scan_evidence(grid, pose, z, beam_angles, max_range, half_angle)
+                np.add.at(total, cells, evidence)
+                seen[cells] = True
+            if len(world) > 3:  # a mask of the cells the truth decides (a known map built from a log)
+                seen &= np.asarray(world[3], dtype=bool).ravel()
+            totals.append(total[seen])
+            labels.append(truth[seen])
+        total, truth = np.concatenate(totals), np.concatenate(labels)
+        if total.size == 0:
+            raise ValueError("worlds: no scan covers any cell")
+        l0 = float(logit(self.prior))
+        res = minimize_scalar(lambda k: map_cross_entropy(l0 + k * total, truth), bounds=(lo, hi), method="bounded",
+                              options={"xatol": 1e-4})
+        self.evidence_scale = float(res.x)
+        return self.evidence_scale
 
     def save(self, path: str) -> None:
         """The weights and standardisation as a .npz file (numpy adds ``.npz`` to a str path
         without it): the float arrays ``weights``, ``mean`` and ``scale`` and the JSON text
-        ``meta`` = {"hidden": int, "prior": float}, what :meth:`load` checks."""
+        ``meta`` = {"hidden": int, "prior": float, "evidence_scale": float}, what :meth:`load`
+        checks (files without evidence_scale, written before it existed, load with 1)."""
         self._check_trained()
         np.savez(file_path(path), weights=self.weights, mean=self.mean, scale=self.scale,
-                 meta=json.dumps({"hidden": self.hidden, "prior": self.prior}))
+                 meta=json.dumps({"hidden": self.hidden, "prior": self.prior,
+                                  "evidence_scale": self.evidence_scale}))
 
     @classmethod
     def load(cls, path: str) -> "LearnedInverseModel":
@@ -370,7 +566,7 @@ class LearnedInverseModel:
         path = file_path(path)
         require_regular_file(path)
         arrays = _read_model_arrays(path)
-        hidden, prior = _model_meta(path, arrays.pop("meta"))
+        hidden, prior, evidence_scale = _model_meta(path, arrays.pop("meta"))
         m = cls(hidden)
         d = arrays["mean"].shape[0]
         if d == 0 or arrays["scale"].shape != (d,) or arrays["weights"].shape != (m.n_weights(d),):
@@ -382,7 +578,47 @@ class LearnedInverseModel:
         if np.any(arrays["scale"] <= 0):
             raise ValueError(f"{path}: scale holds a deviation <= 0")
         m.weights, m.mean, m.scale, m.prior = arrays["weights"], arrays["mean"], arrays["scale"], prior
+        m.evidence_scale = evidence_scale
         return m
+
+
+def map_laser_log_learned(model: LearnedInverseModel, scans, resolution: float = 0.05, max_range: float = 30.0,
+                          progress: Optional[bool] = None):
+    """Table 9.1 over a laser log (:class:`probslam.io.LaserScans`, poses taken as true) with a
+    learned inverse model (:meth:`LearnedInverseModel.insert_scan`), the counterpart of
+    :func:`probslam.mapping.map_laser_log`: a grid sized from the data with the model's prior
+    (clamped as OccupancyGrid2D's default), readings at the sensor's no-return value and NaN
+    meaning no return (inf), each scan's field half a beam spacing either side of its beams.
+    Returns (grid, :class:`probslam.mapping.MappingSummary`). Memory: the grid plus one scan's
+    field in chunks (FIELD_CHUNK_PAIRS); time linear in the cells within max_range of each pose."""
+    from tqdm import tqdm
+
+    from .io.carmen import LaserScans
+    from .mapping import MappingSummary, no_return_range, scan_bounds
+
+    model._check_trained()
+    require_instance(scans, LaserScans, "scans")
+    if len(scans) == 0:
+        raise ValueError("scans must not be empty")
+    resolution, max_range = positive_real(resolution, "resolution"), positive_real(max_range, "max_range")
+    if not np.all(np.isfinite(scans.laser_poses)):
+        raise ValueError("scans.laser_poses must contain only finite values")
+    angles = scans.beam_angles()
+    if not np.all(np.isfinite(angles)):
+        raise ValueError("scans.start_angles and angular_resolutions must be finite")
+    no_return = no_return_range(scans)
+    grid = OccupancyGrid2D.covering(scan_bounds(scans, max_range), resolution, p_prior=model.prior)
+    updated, seconds, beams = 0, 0.0, 0
+    for i in tqdm(range(len(scans)), unit="scan", disable=(None if progress is None else not progress)):
+        n = int(scans.num_beams[i])
+        z = scans.ranges[i, :n]
+        valid = np.isfinite(z) & (z >= 0) & (z < no_return)
+        beams += int(valid.sum())
+        t0 = time.perf_counter()
+        updated += model.insert_scan(grid, scans.laser_poses[i], np.where(valid, z, np.inf), angles[i, :n], max_range,
+                                     abs(float(scans.angular_resolutions[i])) / 2)
+        seconds += time.perf_counter() - t0
+    return grid, MappingSummary(len(scans), beams, updated, seconds)
 
 
 #: The largest model file :meth:`LearnedInverseModel.load` reads, and the most bytes one of its
@@ -450,31 +686,43 @@ def _read_model_array(path: str, archive: zipfile.ZipFile, name: str) -> np.ndar
     return values if kind == "U" else values.astype(float)
 
 
-def _model_meta(path: str, meta: np.ndarray) -> Tuple[int, float]:
-    """(hidden, prior) from a model file's meta text, checked."""
+def _model_meta(path: str, meta: np.ndarray) -> Tuple[int, float, float]:
+    """(hidden, prior, evidence_scale) from a model file's meta text, checked (evidence_scale 1
+    when absent: files written before it existed)."""
     try:
         fields = json.loads(str(meta))
     except (ValueError, RecursionError) as exc:
         raise ValueError(f"{path}: meta: not JSON ({_first_line(exc)})") from None
-    if not isinstance(fields, dict) or set(fields) != {"hidden", "prior"}:
-        raise ValueError(f"{path}: meta: expected {{\"hidden\": ..., \"prior\": ...}}, got {str(meta)[:80]!r}")
-    hidden, prior = fields["hidden"], fields["prior"]
+    if not isinstance(fields, dict) or not {"hidden", "prior"} <= set(fields) <= {"hidden", "prior", "evidence_scale"}:
+        raise ValueError(f"{path}: meta: expected {{\"hidden\": ..., \"prior\": ..., \"evidence_scale\": ...}}, "
+                         f"got {str(meta)[:80]!r}")
+    hidden, prior, scale = fields["hidden"], fields["prior"], fields.get("evidence_scale", 1.0)
     if isinstance(hidden, bool) or not isinstance(hidden, int) or hidden < 1:
         raise ValueError(f"{path}: meta: hidden must be an integer >= 1, got {hidden!r}")
     if isinstance(prior, bool) or not isinstance(prior, (int, float)) or not 0 < prior < 1:
         raise ValueError(f"{path}: meta: prior must lie in (0, 1), got {prior!r}")
-    return hidden, float(prior)
+    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not 0 <= scale < math.inf:
+        raise ValueError(f"{path}: meta: evidence_scale must be finite and >= 0, got {scale!r}")
+    return hidden, float(prior), float(scale)
 
 
 __all__ = [
     "EPS",
     "FIELD_CHUNK_PAIRS",
+    "KNOWN_LOG_ODDS",
     "MAX_MODEL_BYTES",
     "NEIGHBOURS",
     "LearnedInverseModel",
     "TrainingSet",
+    "WORLDS",
     "field_features",
     "free_poses",
+    "known_map",
+    "real_training_set",
+    "map_cross_entropy",
+    "map_laser_log_learned",
+    "pillar_map",
     "random_map",
+    "sample_scans",
     "sample_training_set",
 ]
