@@ -887,10 +887,10 @@ def build_parser() -> argparse.ArgumentParser:
                     help="write the run's state (the SLAM object and the scans processed) to RUN.psl at the end, "
                          "or on Ctrl-C, for --resume (docs/cli.md)")
     sl.add_argument("--map", default=None, metavar="MAP",
-                    help="graph only: start from a saved map (MAP.yaml as map and slam write it, or an "
-                         "OccupancyGrid2D state file): the map is the graph's fixed first submap, the run's frame "
-                         "is the map's, its first scans are matched against it and loop closures can close onto "
-                         "it; the written map is MAP with the log drawn in (docs/cli.md)")
+                    help="start from a saved map (MAP.yaml as map and slam write it, or an OccupancyGrid2D state "
+                         "file); the run's frame is the map's and the first scan is matched against it. graph: the "
+                         "map is the fixed first submap that loop closures can close onto; rbpf: every particle's "
+                         "map starts as it. The written map is MAP with the log drawn in (docs/cli.md)")
     sl.add_argument("--initial-pose", type=float, nargs=3, default=None, metavar=("X", "Y", "THETA"),
                     help="with --map: where the log's first scan is in the map (m, m, rad; default 0 0 0), a guess "
                          "within the scan matcher's window (0.3 m, 0.35 rad by default)")
