@@ -331,16 +331,34 @@ void define_graph(py::module_& m) {
   m.def("optimize",
         [](PoseGraph2D& graph, const std::string& algorithm, IntArg max_iterations_arg, double relative_tolerance,
            double step_tolerance, const std::string& kernel, double kernel_width,
-           const std::string& linear_solver, const std::string& ordering, const std::string& damping) {
+           const std::string& linear_solver, const std::string& ordering, const std::string& damping,
+           const py::object& callback) {
           const int max_iterations = max_iterations_arg.get("max_iterations");
           const OptimizerOptions o = optimizer_options(algorithm, max_iterations, relative_tolerance, step_tolerance,
                                                        kernel, kernel_width, linear_solver, ordering, damping);
-          return locked(graph, [&] { return optimize(graph, o); });
+          if (!callback.is_none() && !PyCallable_Check(callback.ptr()))
+            throw py::type_error("callback must be a callable (iteration, chi2) -> bool or None, got " +
+                                 std::string(py::str(py::type::of(callback).attr("__name__"))));
+          IterationCallback on_iteration;
+          if (!callback.is_none()) {
+            // The optimiser runs with the GIL released; the callback takes it only for its call.
+            // Signals are checked there too, so Ctrl-C stops even a callback that never returns False.
+            on_iteration = [&callback](int iteration, double chi2) {
+              py::gil_scoped_acquire gil;
+              if (PyErr_CheckSignals() != 0) throw py::error_already_set();
+              const py::object go_on = callback(iteration, chi2);
+              if (go_on.is_none()) return true;
+              const int truth = PyObject_IsTrue(go_on.ptr());
+              if (truth < 0) throw py::error_already_set();
+              return truth == 1;
+            };
+          }
+          return locked(graph, [&] { return optimize(graph, o, on_iteration); });
         },
         py::arg("graph"), py::arg("algorithm") = "gauss-newton", py::arg("max_iterations") = 100,
         py::arg("relative_tolerance") = 1e-10, py::arg("step_tolerance") = 1e-10, py::arg("kernel") = "none",
         py::arg("kernel_width") = 1.0, py::arg("linear_solver") = "simplicial", py::arg("ordering") = "amd",
-        py::arg("damping") = "marquardt",
+        py::arg("damping") = "marquardt", py::arg("callback") = py::none(),
         "Minimises the graph's objective in place from its current values and returns an\n"
         "OptimizationReport. Fixed vertices keep their values; with none fixed the first pose is held.\n"
         "algorithm: \"gauss-newton\" or \"levenberg-marquardt\" (damping \"marquardt\": D = diag(H), or\n"
@@ -348,6 +366,10 @@ void define_graph(py::module_& m) {
         "less than relative_tolerance of it, or when the largest step entry is below step_tolerance\n"
         "(m / rad). kernel: \"none\", \"huber\" or \"cauchy\" with kernel_width in units of sqrt(chi2).\n"
         "linear_solver: CHOLMOD \"simplicial\", \"supernodal\" or \"auto\"; ordering: \"amd\" or \"metis\"."
+        "\ncallback(iteration, chi2), optional: called after each completed iteration (1 for the first)\n"
+        "with the chi2 after it, on the calling thread; returning False stops there (stop_reason \"stopped\n"
+        "by the callback\"). An exception it raises (KeyboardInterrupt on Ctrl-C) propagates with the graph\n"
+        "at the last completed iteration's values."
         "\nValueError for an empty graph or a part not connected to a fixed vertex.");
 
   py::class_<IncrementalReport>(m, "IncrementalReport", "What optimize_incremental did.")

@@ -10,6 +10,7 @@
 #include "args.hpp"
 #include "numpy.hpp"
 #include "object_lock.hpp"
+#include "persistence.hpp"
 #include "repr.hpp"
 #include "probslam/core/check.hpp"
 #include "probslam/grid/occupancy_grid_3d.hpp"
@@ -143,7 +144,7 @@ void define_grid3d(py::module_& m) {
                                  " cut at max_range");
       });
   const OccupancyParams3D d;  // the sensor model's defaults (OctoMap's)
-  py::class_<Grid>(m, "OccupancyGrid3D",
+  auto grid_class = py::class_<Grid>(m, "OccupancyGrid3D",
                    "Sparse 3-D occupancy grid (ch. 9.2 in 3-D) updated with OctoMap 1.9.7's\n"
                    "OcTree::insertPointCloud rules: same voxel keys, same float log-odds.")
       .def(py::init([](double resolution, double p_hit, double p_miss, py::handle clamp, double occupancy_threshold) {
@@ -257,6 +258,7 @@ void define_grid3d(py::module_& m) {
                  std::to_string(g.num_occupied_voxels()) + " occupied, " + std::to_string(g.num_blocks()) + " blocks";
         }));
       });
+  define_persistence<Grid>(grid_class);
 }
 
 }  // namespace probslam::bindings

@@ -6,7 +6,6 @@
 #include "numpy.hpp"
 #include "object_lock.hpp"
 #include "probslam/io/carmen_log.hpp"
-#include "probslam/io/grid_file.hpp"
 #include "probslam/io/ros_map.hpp"
 
 namespace probslam::bindings {
@@ -94,12 +93,6 @@ void define_io(py::module_& m) {
       "Reads a ROS map_server map (YAML + PGM; modes trinary and scale) into an OccupancyGrid2D:\n"
       "resolution and origin (m) from the YAML; occupied and free cells get logit(0.971) and\n"
       "logit(0.1192), unknown ones the prior (p = 0.5). Errors name the file and line.");
-  m.def(
-      "save_grid", [](const OccupancyGrid2D& grid, const std::string& path) { locked(grid, [&] { save_grid(grid, path); }); },
-      py::arg("grid"), py::arg("path"),
-      "Writes grid losslessly to path (binary: geometry, prior, clamp, beam model, every float64\n"
-      "log-odds).");
-  m.def("load_grid", &load_grid, py::arg("path"), "Reads a grid written by save_grid; the same grid back, bit for bit.");
 }
 
 }  // namespace probslam::bindings

@@ -5,6 +5,7 @@
 #include <algorithm>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <string>
 #include <tuple>
 #include <utility>
@@ -348,6 +349,34 @@ Poses2 rows_of(const std::vector<Eigen::Vector3d>& poses) {
   return p;
 }
 
+// The map argument of start_from_map: an OccupancyGrid2D, else TypeError naming it.
+const OccupancyGrid2D& grid_arg(py::handle map, const char* name) {
+  if (!py::isinstance<OccupancyGrid2D>(map))
+    throw py::type_error(std::string(name) + ": expected an OccupancyGrid2D, got " +
+                         std::string(py::str(py::type::of(map).attr("__name__"))));
+  return map.cast<const OccupancyGrid2D&>();
+}
+
+// start_from_map(map, initial_pose) of a SLAM class: the arguments checked by name with the GIL
+// held, the call under both objects' locks.
+template <typename T>
+auto start_from_map_method() {
+  return [](T& self, py::handle map, py::handle initial_pose) {
+    const OccupancyGrid2D& grid = grid_arg(map, "map");
+    const Eigen::Vector3d pose = fixed_vector<3>(initial_pose, "initial_pose");
+    locked(self, grid, [&] { self.start_from_map(grid, pose); });
+  };
+}
+
+// A copy of the map a run started from, or None.
+template <typename T>
+std::optional<OccupancyGrid2D> start_map_of(const T& self) {
+  return locked(self, [&]() -> std::optional<OccupancyGrid2D> {
+    if (const OccupancyGrid2D* m = self.start_map()) return *m;
+    return std::nullopt;
+  });
+}
+
 }  // namespace
 
 void define_slam2d(py::module_& m) {
@@ -626,7 +655,19 @@ void define_slam2d(py::module_& m) {
       std::tuple_cat(frontend_keywords(slam_defaults.frontend), closure_keywords(slam_defaults)),
       "Keyword options only: see the class docstring.");
   define_persistence<Slam>(slam);
-  slam.def("finish", [](Slam& self) { locked(self, [&] { self.finish(); }); },
+  slam.def("start_from_map",
+           start_from_map_method<Slam>(),
+           py::arg("map"), py::arg("initial_pose") = py::make_tuple(0.0, 0.0, 0.0),
+           "Starts the run on a saved map, before the first scan: the map is submap 0, its node fixed\n"
+           "at the map's origin (the run's frame is the map's); the first scan is matched against it\n"
+           "around initial_pose (x, y, theta in the map's frame; a guess within the match window), the\n"
+           "scans of the first stretch are matched against and inserted into a copy of it, and loop\n"
+           "closures search it over its whole extent; map() draws every scan into it. ValueError\n"
+           "naming map (scans already added, another resolution than the scan matcher's, no occupied\n"
+           "cell) or initial_pose (not finite, outside the map); nothing changed then.")
+      .def_property_readonly("start_map", [](const Slam& self) { return start_map_of(self); },
+                             "A copy of the saved map the run started from (start_from_map), or None.")
+      .def("finish", [](Slam& self) { locked(self, [&] { self.finish(); }); },
            "Closes the last submap, searches its loop closures and optimises the graph.")
       .def_property_readonly("num_scans", getter(&Slam::num_scans), "Scans added.")
       .def_property_readonly("num_submaps", getter(&Slam::num_submaps), "Submaps so far.")
@@ -788,6 +829,16 @@ void define_slam2d(py::module_& m) {
         return locked(self, [&] { return self.scan_poses(k.resolve(self)); });
       }, py::arg("particle") = py::none(),
          "(S, 3) every scan's pose along a particle's path (default: the best particle's).")
+      .def("start_from_map",
+           start_from_map_method<Rbpf>(),
+           py::arg("map"), py::arg("initial_pose") = py::make_tuple(0.0, 0.0, 0.0),
+           "Starts the filter on a saved map, before the first scan: the run's frame is the map's; the\n"
+           "first scan is placed by correlative matching against the map within the default window\n"
+           "(0.3 m, 0.35 rad) around initial_pose (x, y, theta), and every particle's map starts as the\n"
+           "saved map with that scan drawn in (tiles shared). ValueError naming map (scans already added,\n"
+           "another resolution, no occupied cell) or initial_pose (not finite, outside the map).")
+      .def_property_readonly("start_map", [](const Rbpf& self) { return start_map_of(self); },
+                             "A copy of the saved map the filter started from (start_from_map), or None.")
       .def("map", [](const Rbpf& self, py::handle particle) {
         const ParticleChoice k = ParticleChoice::from(particle);
         return locked(self, [&] { return self.map(k.resolve(self)); });

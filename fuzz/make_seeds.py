@@ -77,14 +77,14 @@ def _write(folder: pathlib.Path, name: str, data: bytes) -> None:
 
 
 def _library_files(out: pathlib.Path) -> None:
-    """Seeds the library writes itself: a grid file, a map_server map, two .bt trees."""
+    """Seeds the library writes itself: a grid state file, a map_server map, two .bt trees."""
     import probslam as ps
     from probslam import io
     with tempfile.TemporaryDirectory() as tmp:
         grid = ps.OccupancyGrid2D(0.1, 5, 3, origin=(-0.2, 0.3))
         grid.log_odds[:] = np.arange(15.0).reshape(3, 5) - 7
-        io.save_grid(grid, os.path.join(tmp, "g.grid"))
-        _write(out / "grid_file", "small.grid", pathlib.Path(tmp, "g.grid").read_bytes())
+        grid.save(os.path.join(tmp, "g.psl"))
+        _write(out / "state_file", "small_grid.psl", pathlib.Path(tmp, "g.psl").read_bytes())
         io.save_ros_map(grid, os.path.join(tmp, "m.yaml"))
         yaml = pathlib.Path(tmp, "m.yaml").read_bytes().replace(b"m.pgm", b"map.pgm")
         _write(out / "ros_map", "trinary.bin", yaml + SEPARATOR + pathlib.Path(tmp, "m.pgm").read_bytes())

@@ -70,9 +70,9 @@ def ros_map(ws: Workspace, data: bytes) -> None:
     io.load_ros_map(ws.write("map.yaml", yaml))
 
 
-def grid_file(ws: Workspace, data: bytes) -> None:
-    from probslam import io
-    io.load_grid(ws.write("map.grid", data))
+def state_file(ws: Workspace, data: bytes) -> None:
+    import probslam as ps
+    ps.OccupancyGrid2D.load(ws.write("map.psl", data))
 
 
 def octomap_bt(ws: Workspace, data: bytes) -> None:
@@ -131,7 +131,7 @@ TARGETS: Dict[str, Callable[[Workspace, bytes], None]] = {
     "toro": _pose_graph("graph.graph", "toro"),
     "isam": _pose_graph("graph.txt", "isam"),
     "ros_map": ros_map,
-    "grid_file": grid_file,
+    "state_file": state_file,
     "octomap_bt": octomap_bt,
     "mrclam": mrclam,
     "victoria_park": victoria_park,

@@ -2,7 +2,7 @@
 
 import math
 import os
-from typing import Any, Dict, List, Optional, Sequence, Tuple, Union, overload
+from typing import Any, Callable, Dict, List, Optional, Sequence, Tuple, Union, overload
 
 import numpy as np
 import numpy.typing as npt
@@ -151,6 +151,12 @@ class OccupancyGrid3D:
         """OctoMap .bt file; voxels get the clamped log-odds. FileNotFoundError for a missing file,
         ValueError for a bad one."""
     def clear(self) -> None: ...
+    def save(self, path: Union[str, os.PathLike[str]]) -> None:
+        """Writes the whole state to path (docs/file_format.md), bit for bit (every block's float
+        log-odds, unlike write_bt's occupancy bits)."""
+    @staticmethod
+    def load(path: Union[str, os.PathLike[str]]) -> "OccupancyGrid3D":
+        """The object saved at path; ValueError naming the path for any other or damaged file."""
 
 class InsertStats3D:
     """What one OccupancyGrid3D.insert_point_cloud did with its points."""
@@ -229,8 +235,6 @@ def parse_carmen_log(text: str, source: str = "<text>") -> dict: ...
 def save_ros_map(grid: OccupancyGrid2D, yaml_path: str, occupied_thresh: float = 0.65,
                  free_thresh: float = 0.196) -> None: ...
 def load_ros_map(yaml_path: str) -> OccupancyGrid2D: ...
-def save_grid(grid: OccupancyGrid2D, path: str) -> None: ...
-def load_grid(path: str) -> OccupancyGrid2D: ...
 
 # --- EKF SLAM (ch. 10); the public face is probslam.ekf.EkfSlam -------------------------------
 class MapManagement:
@@ -515,10 +519,13 @@ class IncrementalReport:
 def optimize(graph: PoseGraph2D, algorithm: str = "gauss-newton", max_iterations: int = 100,
              relative_tolerance: float = 1e-10, step_tolerance: float = 1e-10, kernel: str = "none",
              kernel_width: float = 1.0, linear_solver: str = "simplicial", ordering: str = "amd",
-             damping: str = "marquardt") -> OptimizationReport:
+             damping: str = "marquardt",
+             callback: Optional[Callable[[int, float], Optional[bool]]] = None) -> OptimizationReport:
     """In place from the current values; algorithm "gauss-newton" / "levenberg-marquardt", kernel
     "none" / "huber" / "cauchy", linear_solver "simplicial" / "supernodal" / "auto", ordering
-    "amd" / "metis", damping "marquardt" / "levenberg"."""
+    "amd" / "metis", damping "marquardt" / "levenberg". callback(iteration, chi2) after each
+    completed iteration: False stops; an exception it raises leaves the graph at the last completed
+    iteration."""
 def optimize_incremental(graph: PoseGraph2D, poses_per_step: int = 100, algorithm: str = "gauss-newton",
                          max_iterations: int = 10, relative_tolerance: float = 1e-6, step_tolerance: float = 1e-10,
                          kernel: str = "none", kernel_width: float = 1.0, linear_solver: str = "simplicial",
@@ -671,6 +678,7 @@ class SubmapSlam2D:
     scan_info: Array  # (S, 5)
     constraints: SubmapConstraints
     summary: SubmapSlamSummary
+    start_map: Optional[OccupancyGrid2D]  # a copy of the map started from (start_from_map), or None
     def __init__(self, *, resolution: float = 0.05, max_range: float = math.inf, min_range: float = 0.0,
                  max_usable_range: float = 30.0, clear_no_return: bool = True, min_point_spacing: float = 0.0,
                  sigma: float = 0.05, p_rand: float = 0.05, linear_window: float = 0.3, angular_window: float = 0.35,
@@ -687,6 +695,9 @@ class SubmapSlam2D:
     def add_scans(self, ranges: ArrayLike, beam_angles: ArrayLike, odometry: ArrayLike,
                   timestamps: ArrayLike) -> None: ...
     def copy(self) -> "SubmapSlam2D": ...
+    def start_from_map(self, map: OccupancyGrid2D, initial_pose: ArrayLike = (0.0, 0.0, 0.0)) -> None:
+        """Before the first scan: the map is the fixed first submap (the run's frame is the map's),
+        the first scan matched against it around initial_pose (x, y, theta)."""
     def finish(self) -> None: ...
     def graph(self) -> PoseGraph2D: ...
     def map(self, resolution: float = 0.0) -> OccupancyGrid2D: ...
@@ -757,5 +768,9 @@ class GridFastSlam:
         """The object saved at path; ValueError naming the path for any other or damaged file."""
     def path(self, particle: Optional[int] = None) -> Array:
         """(S, 3) every scan's pose along a particle's path (default: the best particle's)."""
+    def start_from_map(self, map: OccupancyGrid2D, initial_pose: ArrayLike = (0.0, 0.0, 0.0)) -> None:
+        """Before the first scan: every particle's map starts as map (tiles shared), the first scan
+        matched against it around initial_pose (x, y, theta); the run's frame is the map's."""
+    start_map: Optional[OccupancyGrid2D]  # a copy of the map started from, or None
     def map(self, particle: Optional[int] = None) -> OccupancyGrid2D:
         """A particle's map as a dense grid (default: the best particle's)."""

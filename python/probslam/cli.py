@@ -20,6 +20,7 @@ from .datasets import carmen, landmark_dataset_kind, load_landmark_dataset, mrcl
 from .landmark_refine import refine_run
 from .io.trajectory import EXTENSIONS, TRAJECTORY_FORMATS
 from .mapping import map_laser_log
+from ._progress import progress_bar
 
 BUNDLED_LOG = "intel_excerpt.log.gz"
 #: A raw log (odometry and scans, no corrected poses) for ``probslam slam``: the Intel Research
@@ -35,6 +36,8 @@ BUNDLED_LANDMARKS = "mrclam7_robot1_120s"
 #: 100 cost 3.5-4x the time and memory for the same relations error), while a landmark
 #: FastSLAM particle (``fastslam``) holds a few landmarks and 100 cost seconds.
 RBPF_PARTICLES = 30
+#: slam's cell size (m) without --resolution or --map.
+DEFAULT_RESOLUTION = 0.05
 FASTSLAM_PARTICLES = 100
 
 #: What each kind of input file must be, for the error messages.
@@ -50,6 +53,7 @@ EPILOG = """exit status:
   2  a user or input error: a bad option, a missing, empty or unreadable file, an output folder
      that does not exist or cannot be written (one line on stderr)
   3  optimize did not converge within --max-iterations (the result is written all the same)
+  130  interrupted (Ctrl-C); optimize writes the graph of its last completed iteration first
 
 Without a dataset argument every command runs on small excerpts of public datasets bundled with
 the package (probslam.data.path(NAME) gives their paths). Plots need matplotlib (optional: pip
@@ -190,6 +194,8 @@ def _print_bag(log) -> None:
 
 #: The exit status of a run that finished but did not converge (optimize).
 EXIT_NOT_CONVERGED = 3
+#: The exit status after Ctrl-C (128 + SIGINT, as shells report it).
+EXIT_INTERRUPTED = 130
 
 
 def _check_output(prefix: str) -> None:
@@ -257,7 +263,7 @@ def _cmd_map(args: argparse.Namespace) -> int:
 
 def _cmd_slam(args: argparse.Namespace) -> int:
     from .graph import write_g2o
-    from .slam import run_slam
+    from .slam import INITIAL_MAP, run_slam
 
     _require_count(args.particles, "--particles", 1)
     _require_length(args.resolution, "--resolution")
@@ -267,12 +273,23 @@ def _cmd_slam(args: argparse.Namespace) -> int:
     path = args.log or _bundled_log(BUNDLED_RAW_LOG)
     log = _read_log(path, args)
     if args.method == "rbpf":
-        options = dict(resolution=args.resolution, num_particles=args.particles, proposal=args.proposal)
+        options = dict(num_particles=args.particles, proposal=args.proposal)
     else:
-        options = dict(resolution=args.resolution, submap_distance=args.submap_distance,
-                       loop_closures=not args.no_loop_closures)
+        options = dict(submap_distance=args.submap_distance, loop_closures=not args.no_loop_closures)
+    if args.resolution is not None:
+        options["resolution"] = args.resolution
+    elif args.map is None:
+        options["resolution"] = DEFAULT_RESOLUTION
     if args.max_range is not None:
         options["max_range"] = args.max_range
+    start = {}
+    if args.map is not None:
+        if args.resume is not None:
+            raise UserError("--map: a resumed run continues on the map its run file holds")
+        _check_input(args.map, INITIAL_MAP)
+        start = dict(initial_map=args.map, initial_pose=args.initial_pose)
+    elif args.initial_pose is not None:
+        raise UserError("--initial-pose: only with --map (where the log starts in the saved map)")
     if args.save is not None:
         _check_output(args.save)
     if args.resume is not None:
@@ -280,7 +297,7 @@ def _cmd_slam(args: argparse.Namespace) -> int:
         result = run_slam(log, resume=args.resume, save=args.save, progress=None if args.progress else False)
     else:
         result = run_slam(log, method=args.method, progress=None if args.progress else False, save=args.save,
-                          **options)
+                          **start, **options)
     io.save_ros_map(result.grid, args.output + ".yaml")
     written = [f"{args.output}.yaml", f"{args.output}.pgm"]
     if args.plot:
@@ -299,6 +316,11 @@ def _cmd_slam(args: argparse.Namespace) -> int:
     skipped = f", {log.skipped_wide_scans} skipped: far wider than the rest" if log.skipped_wide_scans else ""
     if args.resume is not None:
         print(f"resumed:       {args.resume} ({result.method}, its saved options)")
+    if args.map is not None:
+        x, y, theta = args.initial_pose or (0.0, 0.0, 0.0)
+        role = "every particle's first map" if result.method == "rbpf" else "the graph's fixed first submap"
+        print(f"started from:  {args.map} ({role}; the log's first scan guessed at {x:g} {y:g} {theta:g}, "
+              f"matched at {result.poses[0][0]:.3f} {result.poses[0][1]:.3f} {result.poses[0][2]:.3f})")
     if result.method == "rbpf":
         t = result.tile_sharing
         particles = result.options.get("num_particles", args.particles)
@@ -665,15 +687,34 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
         pg.initialize(g, args.init, poses_per_step=args.poses_per_step)
         print(f"init:       {args.init} in {time.perf_counter() - t_init:.3f} s, chi2 {g.chi2():.6f}")
     initial = g.poses
+    initial_chi2 = g.chi2()
     t1 = time.perf_counter()
-    report = pg.optimize(g, algorithm=args.algorithm, max_iterations=args.max_iterations, kernel=args.kernel,
-                         kernel_width=args.kernel_width, linear_solver=args.linear_solver, ordering=args.ordering)
+    chi2_after: List[float] = []
+    report = None
+    with progress_bar(args.max_iterations, "optimize", "it", _progress(args)) as bar:
+        def on_iteration(iteration: int, chi2: float) -> bool:
+            chi2_after.append(chi2)
+            bar.set_postfix_str(f"chi2 {chi2:.6g}", refresh=False)
+            bar.update(1)
+            return True
+
+        try:
+            report = pg.optimize(g, algorithm=args.algorithm, max_iterations=args.max_iterations, kernel=args.kernel,
+                                 kernel_width=args.kernel_width, linear_solver=args.linear_solver,
+                                 ordering=args.ordering, callback=on_iteration)
+        except KeyboardInterrupt:
+            pass  # Ctrl-C: the graph holds the last completed iteration's values, written below
     t_opt = time.perf_counter() - t1
-    print(f"chi2:       {report.initial_chi2:.6f} initially")
-    for i, (chi2, seconds) in enumerate(zip(report.chi2_history, report.iteration_seconds), 1):
-        print(f"  iteration {i:3d}: chi2 {chi2:.6f}  ({seconds * 1e3:.2f} ms)")
-    print(f"result:     chi2 {report.chi2:.6f} after {report.iterations} iterations ({report.stop_reason}); "
-          f"optimisation {t_opt:.3f} s, file to result {time.perf_counter() - t0:.3f} s")
+    print(f"chi2:       {initial_chi2:.6f} initially")
+    seconds = report.iteration_seconds if report is not None else [math.nan] * len(chi2_after)
+    for i, (chi2, sec) in enumerate(zip(chi2_after, seconds), 1):
+        print(f"  iteration {i:3d}: chi2 {chi2:.6f}" + (f"  ({sec * 1e3:.2f} ms)" if math.isfinite(sec) else ""))
+    if report is None:
+        print(f"result:     interrupted: chi2 {g.chi2():.6f} after {len(chi2_after)} completed iterations (written "
+              f"as it is); optimisation {t_opt:.3f} s")
+    else:
+        print(f"result:     chi2 {report.chi2:.6f} after {report.iterations} iterations ({report.stop_reason}); "
+              f"optimisation {t_opt:.3f} s, file to result {time.perf_counter() - t0:.3f} s")
     pg.write_g2o(g, args.output + ".g2o")
     written = [args.output + ".g2o"]
     order = np.argsort(g.pose_ids, kind="stable")
@@ -684,10 +725,14 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
 
         fig, ax = plt.subplots(figsize=(8, 8))
         pose_graph(ax, g, initial=initial, edges=args.edges)
-        ax.set_title(f"probslam optimize: {os.path.basename(path)}\n{args.algorithm}, chi2 {report.initial_chi2:.4g} "
-                     f"-> {report.chi2:.4g} in {report.iterations} iterations", fontsize="medium")
+        ax.set_title(f"probslam optimize: {os.path.basename(path)}\n{args.algorithm}, chi2 {initial_chi2:.4g} "
+                     f"-> {g.chi2():.4g} in {len(chi2_after)} iterations"
+                     + (" (interrupted)" if report is None else ""), fontsize="medium")
         written.append(_save_figure(plt, fig, args.output + ".png"))
     print(f"wrote:      {', '.join(written)}")
+    if report is None:
+        print("probslam: interrupted", file=sys.stderr)
+        return EXIT_INTERRUPTED
     return 0 if report.converged else EXIT_NOT_CONVERGED
 
 
@@ -855,7 +900,8 @@ def build_parser() -> argparse.ArgumentParser:
     sl.add_argument("log", nargs="?", help="CARMEN log (.log/.clf, optionally .gz/.bz2) or ROS bag (.bag, a ROS 2 "
                                            "folder, .db3, .mcap); default: a bundled raw excerpt of the Intel "
                                            "Research Lab log")
-    sl.add_argument("--resolution", type=float, default=0.05, help="cell size in metres (default 0.05)")
+    sl.add_argument("--resolution", type=float, default=None,
+                    help=f"cell size in metres (default {DEFAULT_RESOLUTION}, with --map the map's)")
     sl.add_argument("--max-range", type=float, default=None,
                     help="the sensor's no-return reading in metres (default: from the log)")
     sl.add_argument("--submap-distance", type=float, default=10.0,
@@ -879,6 +925,14 @@ def build_parser() -> argparse.ArgumentParser:
     sl.add_argument("--save", default=None, metavar="RUN.psl",
                     help="write the run's state (the SLAM object and the scans processed) to RUN.psl at the end, "
                          "or on Ctrl-C, for --resume (docs/cli.md)")
+    sl.add_argument("--map", default=None, metavar="MAP",
+                    help="start from a saved map (MAP.yaml as map and slam write it, or an OccupancyGrid2D state "
+                         "file); the run's frame is the map's and the first scan is matched against it. graph: the "
+                         "map is the fixed first submap that loop closures can close onto; rbpf: every particle's "
+                         "map starts as it. The written map is MAP with the log drawn in (docs/cli.md)")
+    sl.add_argument("--initial-pose", type=float, nargs=3, default=None, metavar=("X", "Y", "THETA"),
+                    help="with --map: where the log's first scan is in the map (m, m, rad; default 0 0 0), a guess "
+                         "within the scan matcher's window (0.3 m, 0.35 rad by default)")
     sl.add_argument("--resume", default=None, metavar="RUN.psl",
                     help="continue a run saved with --save from the next scan of the same LOG (its method and "
                          "options are the saved ones); the result equals a run that never stopped")
@@ -934,6 +988,7 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("--ordering", default="amd", choices=["amd", "metis"])
     o.add_argument("--edges", action="store_true", help="draw every edge in the picture")
     _no_plot_option(o)
+    _no_progress_option(o)
     o.add_argument("-o", "--output", default="optimized",
                    help="output prefix: PREFIX.g2o/.png, PREFIX_trajectory.tum (default 'optimized')")
     _trajectory_format_option(o, "a graph file has no times: each pose's vertex id is its time")
@@ -975,7 +1030,7 @@ def main(argv: Optional[List[str]] = None) -> int:
         return args.func(args)
     except KeyboardInterrupt:
         print("probslam: interrupted", file=sys.stderr)
-        return 130
+        return EXIT_INTERRUPTED
     except (UserError, ValueError, TypeError, OSError, ImportError) as exc:
         # Bad options (the library names the argument), unreadable or unwritable files.
         print(f"probslam: error: {_one_line(exc)}", file=sys.stderr)

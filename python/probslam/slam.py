@@ -174,9 +174,32 @@ def _check_resume(run: SlamRun, scans: LaserScans, source: str) -> None:
                          f"{got}: not the log the run was made from")
 
 
+#: What ``initial_map`` / ``probslam slam --map`` read.
+INITIAL_MAP = "a saved map: a map_server .yaml (with its image), as map and slam write, or an OccupancyGrid2D state file"
+
+
+def load_initial_map(source: Union[PathLike, _core.OccupancyGrid2D]) -> _core.OccupancyGrid2D:
+    """The map a run starts from: an ``OccupancyGrid2D``, a map_server ``.yaml`` (with its image;
+    ``io.load_ros_map``) or an ``OccupancyGrid2D`` state file (``OccupancyGrid2D.save``).
+    FileNotFoundError for a missing file, ValueError for one that is neither."""
+    if isinstance(source, _core.OccupancyGrid2D):
+        return source
+    path = file_path(source, "initial_map")
+    if path.lower().endswith((".yaml", ".yml")):
+        from .io.maps import load_ros_map
+
+        return load_ros_map(path)
+    require_regular_file(path, "initial_map")
+    try:
+        return _core.OccupancyGrid2D.load(path)
+    except ValueError as e:
+        raise ValueError(f"initial_map: {e} (expected {INITIAL_MAP})") from None
+
+
 def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: Optional[str] = None,
              progress: Optional[bool] = None, chunk: int = 200, resume: Optional[PathLike] = None,
-             save: Optional[PathLike] = None, **options: Any) -> SlamResult:
+             save: Optional[PathLike] = None, initial_map: Optional[Union[PathLike, _core.OccupancyGrid2D]] = None,
+             initial_pose: Optional[Any] = None, **options: Any) -> SlamResult:
     """Turns a raw log (a CARMEN or ROS bag path, a ``CarmenLog`` such as ``io.read_rosbag``'s, or
     its ``LaserScans``) into a consistent map.
 
@@ -203,7 +226,25 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: Optional[st
     file; the run continues with the log's next scan, with the saved object and its options
     (``options`` must then be empty; ``method`` defaults to the saved one). A resumed run gives
     the uninterrupted run's result bit for bit.
+
+    ``initial_map``: start from a saved map (``load_initial_map``: an ``OccupancyGrid2D``, a
+    map_server ``.yaml`` or a grid state file); the run's frame is the map's, and the log's
+    first scan is matched against the map around ``initial_pose`` (x, y, theta in the map's
+    frame, default (0, 0, 0); a guess within the scan matcher's window, 0.3 m and 0.35 rad by
+    default). ``method="graph"``: the map is the graph's first submap, its node fixed at the
+    map's origin; the scans of the first ``submap_distance`` of travel are matched against and
+    drawn into it, and later loop closures search it whole. ``method="rbpf"``: every particle's
+    map starts as the saved map (its tiles shared) with the first scan drawn in. Either way the
+    result's grid is the saved map with the log drawn in, on its lattice; ``resolution``
+    defaults to the map's. ``SubmapSlam2D.start_from_map`` / ``GridFastSlam.start_from_map`` say
+    what is refused. A saved run (``save``) holds the map; ``resume`` takes neither argument.
     """
+    if initial_pose is not None and initial_map is None:
+        raise ValueError("initial_pose: only with initial_map (where the log starts in the saved map)")
+    if initial_map is not None:
+        if resume is not None:
+            raise ValueError("initial_map: a resumed run continues on the map its run file holds")
+        initial_map = load_initial_map(initial_map)
     run: Optional[SlamRun] = None
     if resume is not None:
         run = load_run(resume)
@@ -240,6 +281,8 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: Optional[st
         # window wide enough for the motion between two scans.
         opts.update(use_odometry_prior=False, min_travel=0.0, min_rotation=0.0, linear_window=0.5,
                     angular_window=0.5)
+    if initial_map is not None:
+        opts["resolution"] = initial_map.resolution
     opts.update(options)
     start = 0
     if run is not None:
@@ -247,6 +290,8 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: Optional[st
         mapper, start, opts = run.mapper, run.scans_done, dict(run.options)
     else:
         mapper = _core.GridFastSlam(**opts) if method == "rbpf" else _core.SubmapSlam2D(**opts)
+        if initial_map is not None:
+            mapper.start_from_map(initial_map, (0.0, 0.0, 0.0) if initial_pose is None else initial_pose)
     angles = scans.beam_angles()
     t0 = time.perf_counter()
 
@@ -297,4 +342,5 @@ def write_trajectory(timestamps: np.ndarray, poses: np.ndarray, path: PathLike) 
     write_trajectory_file(timestamps, poses, path, format="xyt")
 
 
-__all__ = ["METHODS", "SlamResult", "SlamRun", "load_run", "run_slam", "save_run", "write_trajectory"]
+__all__ = ["INITIAL_MAP", "METHODS", "SlamResult", "SlamRun", "load_initial_map", "load_run", "run_slam", "save_run",
+           "write_trajectory"]

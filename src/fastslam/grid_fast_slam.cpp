@@ -13,7 +13,10 @@
 #include "probslam/core/pose2.hpp"
 #include "probslam/core/pose2_covariance.hpp"
 #include "probslam/core/worker_pool.hpp"
+#include "probslam/slam2d/correlative_scan_matcher.hpp"
+#include "probslam/slam2d/likelihood_field.hpp"
 #include "probslam/slam2d/scan_batch.hpp"
+#include "probslam/slam2d/start_map.hpp"
 
 namespace probslam {
 namespace {
@@ -128,7 +131,9 @@ GridFastSlam::GridFastSlam(const GridFastSlam& other)
       scan_offset_(other.scan_offset_),
       timestamps_(other.timestamps_),
       summary_(other.summary_),
-      footprint_bytes_(other.footprint_bytes_) {
+      footprint_bytes_(other.footprint_bytes_),
+      start_map_(other.start_map_),
+      initial_pose_(other.initial_pose_) {
   std::vector<std::shared_ptr<TiledGrid2D>> maps;
   maps.reserve(particles_.size());
   for (const Particle& p : particles_) maps.push_back(p.map);
@@ -200,9 +205,14 @@ bool GridFastSlam::add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
     ++summary_.scans;
   };
   if (scan_step_.empty()) {
-    std::shared_ptr<TiledGrid2D> map = first_map(source);
+    // On a start map the first pose is in the map's frame; the motion after it is relative.
+    const Eigen::Vector3d first_pose =
+        start_map_ ? pose_on_start_map(scan_hits(ranges, beam_angles, options_.filter)) : source;
+    std::shared_ptr<TiledGrid2D> map = start_map_ ? std::make_shared<TiledGrid2D>(*start_map_) : first_map(source);
+    Eigen::Vector4d b;
+    if (needs_growth(*map, first_pose, b)) map->grow_to_include(b[0], b[1], b[2], b[3]);  // before anything changes
     commit_scan();
-    first_scan(std::move(map), insertion, beam_angles, source);
+    first_scan(std::move(map), insertion, beam_angles, first_pose);
     start_stretch(source, odometry, 0);
     return true;
   }
@@ -263,6 +273,32 @@ void GridFastSlam::start_stretch(const Eigen::Vector3d& source, const Eigen::Vec
   corrected_cov_.setZero();
   scan_step_.push_back(step);
   scan_offset_.push_back(Eigen::Vector3d::Zero());
+}
+
+void GridFastSlam::start_from_map(const OccupancyGrid2D& map, const Eigen::Vector3d& initial_pose) {
+  require(scan_step_.empty() && !start_map_, "map", "is given before the first scan, and only once");
+  check_start_map(map, options_.resolution, initial_pose);
+  start_map_ = map;
+  initial_pose_ = initial_pose;
+  initial_pose_.z() = wrap_angle(initial_pose_.z());
+}
+
+Eigen::Vector3d GridFastSlam::pose_on_start_map(const Points2& points) const {
+  if (points.rows() == 0) return initial_pose_;
+  const MatchOptions m{};  // the default window; no prior: initial_pose is a guess within it
+  LikelihoodFieldOptions f;
+  f.sigma = options_.likelihood.sigma;
+  f.p_rand = options_.likelihood.p_rand;
+  // The field where the scan can land: its reach around the guess, widened by the window.
+  const double reach = points.rowwise().norm().maxCoeff() + m.window.linear + f.truncation();
+  const Eigen::Vector4d region(initial_pose_.x() - reach, initial_pose_.y() - reach, initial_pose_.x() + reach,
+                               initial_pose_.y() + reach);
+  int levels = 0;
+  const double cells = 2.0 * std::ceil(m.window.linear / options_.resolution) + 1.0;
+  while (levels < CorrelativeScanMatcher::kMaxLevel && (1 << levels) < cells) ++levels;
+  const CorrelativeScanMatcher matcher(LikelihoodField::from_grid(*start_map_, region, f), levels);
+  const MatchResult r = matcher.match(points, initial_pose_, m);
+  return r.found ? r.pose : initial_pose_;
 }
 
 std::shared_ptr<TiledGrid2D> GridFastSlam::first_map(const Eigen::Vector3d& odometry) const {

@@ -254,7 +254,8 @@ double seconds_since(Clock::time_point start) {
 }
 
 // The iterations, on a graph the caller may throw away (optimize() passes a copy).
-OptimizationReport optimize_in_place(PoseGraph2D& graph, const OptimizerOptions& options) {
+OptimizationReport optimize_in_place(PoseGraph2D& graph, const OptimizerOptions& options,
+                                     const IterationCallback& on_iteration) {
   NormalEquations equations(graph);
   OptimizationReport report;
   if (equations.system().dim() == 0) {
@@ -333,6 +334,10 @@ OptimizationReport optimize_in_place(PoseGraph2D& graph, const OptimizerOptions&
     report.iterations = iteration + 1;
     const double decrease = current.robust - next.robust;
     current = next;
+    if (on_iteration && !on_iteration(report.iterations, current.chi2)) {
+      report.stop_reason = "stopped by the callback";
+      break;
+    }
     if (dx.lpNorm<Eigen::Infinity>() < options.step_tolerance) {
       report.converged = true;
       report.stop_reason = "step below step_tolerance";
@@ -352,11 +357,32 @@ OptimizationReport optimize_in_place(PoseGraph2D& graph, const OptimizerOptions&
 
 }  // namespace
 
-OptimizationReport optimize(PoseGraph2D& graph, const OptimizerOptions& options) {
+OptimizationReport optimize(PoseGraph2D& graph, const OptimizerOptions& options,
+                            const IterationCallback& on_iteration) {
   validate(graph, options);
   require_anchored(graph);
   PoseGraph2D work = graph;  // the graph changes only when a finite result is committed
-  const OptimizationReport report = optimize_in_place(work, options);
+  OptimizationReport report;
+  if (!on_iteration) {
+    report = optimize_in_place(work, options, on_iteration);
+  } else {
+    // An exception from the callback comes after an iteration completed (its values are finite
+    // and in `work`): keep them, as a callback returning false does. Any other failure (singular
+    // system, non-finite step) happens before the callback is reached and leaves graph unchanged.
+    bool in_callback = false;
+    const IterationCallback guarded = [&](int iteration, double chi2) {
+      in_callback = true;
+      const bool go_on = on_iteration(iteration, chi2);
+      in_callback = false;
+      return go_on;
+    };
+    try {
+      report = optimize_in_place(work, options, guarded);
+    } catch (...) {
+      if (in_callback) graph.assign_values(work.values());
+      throw;
+    }
+  }
   require(std::isfinite(report.chi2) && std::isfinite(report.objective), "graph",
           "chi2 is not finite at the result (values or information too large?)");
   graph.assign_values(work.values());

@@ -9,6 +9,7 @@
 #include "probslam/core/pose2.hpp"
 #include "probslam/core/pose2_covariance.hpp"
 #include "probslam/slam2d/scan_batch.hpp"
+#include "probslam/slam2d/start_map.hpp"
 
 namespace probslam {
 
@@ -85,9 +86,9 @@ std::optional<OccupancyGrid2D> IncrementalScanMatcher::grown_for(const Submap& s
 }
 
 MatchResult IncrementalScanMatcher::match(const Submap& submap, const Points2& points, const Eigen::Vector3d& prior,
-                                          const Eigen::Matrix3d& prior_cov, FieldCache& cache) const {
+                                          const Eigen::Matrix3d& prior_cov, FieldCache& cache, bool use_prior) const {
   MatchOptions m = options_.match;
-  m.use_prior = options_.use_odometry_prior;
+  m.use_prior = use_prior;
   m.prior_covariance = prior_cov;
   // The field only where the scan can land: its points at the prior heading and at both ends
   // of the angular window (the arcs between bulge by at most r (1 - cos(window / 2))), widened
@@ -173,30 +174,36 @@ IncrementalScanMatcher::PendingScan IncrementalScanMatcher::prepare(const Eigen:
     est.submap = 0;
     return p;
   }
-  const Eigen::Vector3d delta = Pose2::from_vector(matched_odometry_).between(Pose2::from_vector(odometry)).vector();
+  // The first scan on a saved map: matched_pose_ holds the start pose, and the odometry has not
+  // moved from anything yet.
+  const bool on_map = awaits_first_scan_on_map();
+  const Eigen::Vector3d delta = on_map ? Eigen::Vector3d::Zero()
+                                       : Pose2::from_vector(matched_odometry_).between(Pose2::from_vector(odometry)).vector();
   const Eigen::Vector3d prior = Pose2::from_vector(matched_pose_).compose(Pose2::from_vector(delta)).vector();
   const Eigen::Matrix3d rel_cov = options_.odometry.covariance(delta);
   est.pose = prior;
   est.relative_covariance = rel_cov;
-  p.moved = delta.head<2>().norm() >= options_.min_travel || std::abs(delta.z()) >= options_.min_rotation;
+  p.moved = on_map || delta.head<2>().norm() >= options_.min_travel || std::abs(delta.z()) >= options_.min_rotation;
   if (!p.moved) return p;
   const Submap& cur = submaps_.back();
   const Eigen::Matrix3d J = frame_rotation(matched_pose_.z());
-  if (points.rows() > 0 && static_cast<int>(cur.scans.size()) >= options_.warmup_scans) {
+  if (points.rows() > 0 && (on_map || static_cast<int>(cur.scans.size()) >= options_.warmup_scans)) {
     auto cache = std::make_shared<FieldCache>(*field_cache_);
-    const MatchResult r = match(cur, points, prior, J * rel_cov * J.transpose(), *cache);
+    const MatchResult r = match(cur, points, prior, J * rel_cov * J.transpose(), *cache,
+                                options_.use_odometry_prior && !on_map);
     p.cache = std::move(cache);
     est.match_quality = r.match_quality;
     if (r.match_quality >= options_.min_match_quality) {
       est.pose = r.pose;
-      est.relative_covariance = J.transpose() * r.covariance * J;  // into the earlier pose's frame
+      // Into the earlier pose's frame; the first scan on a map has none: the map's frame.
+      est.relative_covariance = on_map ? r.covariance : Eigen::Matrix3d(J.transpose() * r.covariance * J);
       est.matched = true;
     } else {
       est.fallback = true;
     }
   }
   // Travel as estimated, not as the odometry says: a log without odometry still moves.
-  p.travel = cur.travel + (est.pose.head<2>() - matched_pose_.head<2>()).norm();
+  p.travel = on_map ? 0.0 : cur.travel + (est.pose.head<2>() - matched_pose_.head<2>()).norm();
   p.grid = grown_for(cur, est.pose);
   est.submap = static_cast<int>(submaps_.size()) - 1;
   p.open_next = (options_.submap_distance > 0.0 && p.travel >= options_.submap_distance) ||
@@ -230,6 +237,14 @@ ScanEstimate IncrementalScanMatcher::commit(PendingScan&& p) {
   estimates_.push_back(p.est);
   timestamps_.push_back(p.timestamp);
   return p.est;
+}
+
+void IncrementalScanMatcher::start_from_map(const OccupancyGrid2D& map, const Eigen::Vector3d& initial_pose) {
+  require(estimates_.empty() && submaps_.empty(), "map", "is given before the first scan, and only once");
+  check_start_map(map, options_.resolution, initial_pose);
+  submaps_.push_back(Submap{map, Eigen::Vector3d::Zero(), {}, 0.0, 0});
+  matched_pose_ = initial_pose;
+  matched_pose_.z() = wrap_angle(matched_pose_.z());
 }
 
 IncrementalScanMatcher::Snapshot IncrementalScanMatcher::snapshot() const {

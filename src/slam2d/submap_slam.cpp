@@ -14,6 +14,7 @@
 #include "probslam/core/pose2.hpp"
 #include "probslam/core/pose2_covariance.hpp"
 #include "probslam/slam2d/scan_batch.hpp"
+#include "probslam/slam2d/start_map.hpp"
 
 namespace probslam {
 
@@ -151,9 +152,21 @@ SubmapSlam2D::SubmapSlam2D(const SubmapSlam2D& other)
       chain_submap_(other.chain_submap_),
       attempts_(other.attempts_),
       fields_(std::make_unique<FieldCache>(other.options_.closures.field_cache_bytes)),
-      counts_(other.counts_) {}
+      counts_(other.counts_),
+      start_map_(other.start_map_),
+      start_map_bounds_(other.start_map_bounds_) {}
 
 SubmapSlam2D::~SubmapSlam2D() = default;
+
+void SubmapSlam2D::start_from_map(const OccupancyGrid2D& map, const Eigen::Vector3d& initial_pose) {
+  frontend_.start_from_map(map, initial_pose);  // checks everything first; nothing changed if it throws
+  set_start_map(map);
+}
+
+void SubmapSlam2D::set_start_map(const OccupancyGrid2D& map) {
+  start_map_ = map;
+  start_map_bounds_ = occupied_bounds(map);  // where a scan can close a loop onto the map
+}
 
 void SubmapSlam2D::add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
                             const Eigen::Ref<const Eigen::VectorXd>& beam_angles, const Eigen::Vector3d& odometry,
@@ -190,6 +203,8 @@ void SubmapSlam2D::add_prepared(IncrementalScanMatcher::PendingScan&& scan, cons
     const Eigen::Vector3d prev = pose_of(origin).between(pose_of(chain_pose_)).vector();
     const Eigen::Vector3d step = pose_of(chain_pose_).between(pose_of(est.pose)).vector();
     cov = compose_covariance(prev, chain_cov_, step, est.relative_covariance);
+  } else if (index == 0 && start_map_) {
+    cov = est.relative_covariance;  // matched against the map, whose origin is submap 0's
   }
   offset_cov_.push_back(cov);
   if (est.submap >= 0) {
@@ -287,6 +302,11 @@ bool SubmapSlam2D::try_closure(int s, int i, const std::vector<Eigen::Matrix3d>&
   double nearest = std::numeric_limits<double>::infinity();
   for (int k : submaps[i].scans)
     nearest = std::min(nearest, (Ti.transform_from(est[k].pose.head<2>()) - W.head<2>()).norm());
+  if (i == 0 && start_map_) {  // the saved map reaches beyond the scans of its stretch
+    const Eigen::Vector2d w = Ti.inverse().transform_from(W.head<2>());
+    const Eigen::Vector2d out = (start_map_bounds_.head<2>() - w).cwiseMax(w - start_map_bounds_.tail<2>()).cwiseMax(0.0);
+    nearest = std::min(nearest, out.norm());
+  }
   const double lever = (W.head<2>() - nodes_[i].head<2>()).squaredNorm();
   const double lin_sd = std::sqrt(std::max(0.0, largest_eigenvalue(SW.topLeftCorner<2, 2>()) +
                                                     largest_eigenvalue(Si.topLeftCorner<2, 2>()) + Si(2, 2) * lever));
@@ -355,6 +375,10 @@ CorrelativeScanMatcher SubmapSlam2D::build_matcher(int i) const {
   const Submap& sub = frontend_.submaps()[i];
   const std::vector<ScanEstimate>& est = frontend_.estimates();
   Eigen::Vector2d lo = sub.origin.head<2>(), hi = lo;
+  if (i == 0 && start_map_) {  // the saved map's occupied extent
+    lo = lo.cwiseMin(start_map_bounds_.head<2>());
+    hi = hi.cwiseMax(start_map_bounds_.tail<2>());
+  }
   for (int k : sub.scans) {
     const Pose2 p = pose_of(est[k].pose);
     for (Eigen::Index n = 0; n < points_[k].rows(); ++n) {
@@ -440,6 +464,9 @@ OccupancyGrid2D SubmapSlam2D::map(double resolution) const {
   require(std::isfinite(resolution) && resolution >= 0.0, "resolution",
           "must be finite and >= 0 (0: the submaps' resolution)");
   const double res = resolution > 0.0 ? resolution : options_.frontend.resolution;
+  if (start_map_ && res != start_map_->resolution())
+    throw_invalid_argument("resolution", "a run started from a map is drawn into that map: 0 or its resolution " +
+                                             std::to_string(start_map_->resolution()) + " m");
   require(num_scans() > 0, "scans", "none added: nothing to map");
   const std::vector<Eigen::Vector3d> poses = scan_poses();
   // No-return beams (glass, open doors, the sky) and hits beyond the usable range say little
@@ -464,7 +491,8 @@ OccupancyGrid2D SubmapSlam2D::map(double resolution) const {
     lo = lo.cwiseMin(p.translation());
     hi = hi.cwiseMax(p.translation());
   }
-  OccupancyGrid2D grid = OccupancyGrid2D::covering(lo.x() - res, lo.y() - res, hi.x() + res, hi.y() + res, res);
+  OccupancyGrid2D grid = start_map_ ? start_map_->grown_to_include(lo.x() - res, lo.y() - res, hi.x() + res, hi.y() + res)
+                                    : OccupancyGrid2D::covering(lo.x() - res, lo.y() - res, hi.x() + res, hi.y() + res, res);
   for (std::size_t s = 0; s < poses.size(); ++s) grid.insert_rays(poses[s], ranges[s], angles_[s], reach);
   return grid;
 }

@@ -175,6 +175,11 @@ void GridFastSlam::write_state(StateWriter& w) const {
   const GridFastSlamSummary& s = summary_;
   for (long v : {s.scans, s.updates, s.resamples, s.matched, s.fallbacks}) w.i64(v);
   w.f64(s.effective_sample_size);
+  w.boolean(start_map_.has_value());
+  if (start_map_) {
+    start_map_->write_state(w);
+    w.matrix(initial_pose_);
+  }
 }
 
 GridFastSlam GridFastSlam::read_state(StateReader& r) {
@@ -218,6 +223,11 @@ GridFastSlam GridFastSlam::read_state(StateReader& r) {
   GridFastSlamSummary& s = f.summary_;
   for (long* v : {&s.scans, &s.updates, &s.resamples, &s.matched, &s.fallbacks}) *v = static_cast<long>(r.i64());
   s.effective_sample_size = r.f64();
+  if (r.boolean()) {
+    f.start_map_ = OccupancyGrid2D::read_state(r);
+    f.initial_pose_ = r.matrix<Eigen::Vector3d>();
+    if (!f.initial_pose_.allFinite()) r.fail("the initial pose on the start map is not finite");
+  }
   return f;
 }
 

@@ -66,6 +66,8 @@ void SubmapSlam2D::write_state(StateWriter& w) const {
                 s.closures_dissolved, s.rounds, s.optimizations})
     w.i32(v);
   w.f64(s.final_chi2);
+  w.boolean(start_map_.has_value());
+  if (start_map_) start_map_->write_state(w);
 }
 
 SubmapSlam2D SubmapSlam2D::read_state(StateReader& r) {
@@ -119,6 +121,9 @@ SubmapSlam2D SubmapSlam2D::read_state(StateReader& r) {
                  &c.closures_rejected, &c.closures_dissolved, &c.rounds, &c.optimizations})
     *v = r.i32();
   c.final_chi2 = r.f64();
+  if (r.boolean()) s.set_start_map(OccupancyGrid2D::read_state(r));
+  if (s.frontend_.awaits_first_scan_on_map() && !s.start_map_)
+    r.fail("the frontend waits for its first scan on a map the state does not hold");
   if (nn > s.frontend_.submaps().size() || s.chain_submap_ < 0 ||
       static_cast<std::size_t>(s.chain_submap_) > s.frontend_.submaps().size())
     r.fail("the graph's nodes or the open chain do not match the frontend's submaps");

@@ -9,7 +9,6 @@
 #include "probslam/core/angle.hpp"
 #include "probslam/core/check.hpp"
 #include "probslam/io/carmen_log.hpp"
-#include "probslam/io/grid_file.hpp"
 #include "probslam/io/pose_graph_file.hpp"
 #include "probslam/io/ros_map.hpp"
 
@@ -186,7 +185,7 @@ TEST(Readers, MissingFileIsFileNotFoundMissingReferenceIsInvalid) {
   const std::string missing = (scratch("none") / "nothing.here").string();
   EXPECT_THROW(read_carmen_log(missing), FileNotFound);
   EXPECT_THROW(load_ros_map(missing), FileNotFound);
-  EXPECT_THROW(load_grid(missing), FileNotFound);
+  EXPECT_THROW(OccupancyGrid2D::load(missing), FileNotFound);
   const fs::path yaml = scratch("no_image.yaml");
   std::ofstream(yaml) << "image: absent.pgm\nresolution: 0.1\norigin: [0, 0, 0]\noccupied_thresh: 0.65\nfree_thresh: 0.2\n";
   try {
@@ -197,24 +196,6 @@ TEST(Readers, MissingFileIsFileNotFoundMissingReferenceIsInvalid) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("absent.pgm"), std::string::npos) << e.what();
   }
-}
-
-TEST(GridFile, LosslessRoundTripAndCorruptFiles) {
-  OccupancyGrid2D g(0.07, 9, 4, {0.3, -0.2}, 0.42, LogOddsClamp::none());
-  g.set_beam_model({0.8, 0.35});
-  for (int i = 0; i < 36; ++i) g.data()[i] = std::sin(i * 1.7) * 3;
-  const fs::path path = scratch("g.psgrid");
-  save_grid(g, path.string());
-  const OccupancyGrid2D back = load_grid(path.string());
-  EXPECT_TRUE(back.same_geometry(g));
-  EXPECT_EQ(back.p_prior(), 0.42);
-  EXPECT_FALSE(back.clamp().enabled);
-  EXPECT_EQ(back.beam_model().p_hit, 0.8);
-  EXPECT_EQ((Eigen::MatrixXd(back.log_odds()) - Eigen::MatrixXd(g.log_odds())).norm(), 0.0);
-  fs::resize_file(path, fs::file_size(path) - 8);
-  EXPECT_THROW(load_grid(path.string()), std::invalid_argument);
-  std::ofstream(scratch("junk.psgrid")) << "not a grid";
-  EXPECT_THROW(load_grid(scratch("junk.psgrid").string()), std::invalid_argument);
 }
 
 // --- pose graph files: the noise convention and the row policy --------------------------------

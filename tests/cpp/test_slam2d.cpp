@@ -22,6 +22,7 @@
 #include "probslam/slam2d/likelihood_field.hpp"
 #include "probslam/slam2d/range_scan.hpp"
 #include "probslam/slam2d/submap_slam.hpp"
+#include "probslam/fastslam/grid_fast_slam.hpp"
 #include "probslam/core/pose2.hpp"
 #include "test_support.hpp"
 
@@ -567,4 +568,95 @@ TEST(Slam2dSubmapSlam, BadOptionsAndEmptyInput) {
   empty.finish();
   EXPECT_EQ(empty.num_scans(), 0);
   expect_invalid([&] { empty.map(); }, "scans");
+}
+
+TEST(Slam2dSubmapSlam, StartsFromASavedMapInTheMapsFrame) {
+  // The loop drive with its odometry in a frame of its own (rotated and shifted from the
+  // room's): started on the room's map with a start pose 0.1 m and 0.03 rad off, the scans land
+  // in the map's frame, near the truth.
+  const LoopDrive d = loop_drive(80);
+  const Pose2 odom_frame(5.0, -3.0, 1.0);
+  SubmapSlamOptions o;
+  o.frontend.filter.max_range = 30.0;
+  o.frontend.submap_distance = 4.0;
+  SubmapSlam2D slam(o);
+  const OccupancyGrid2D room = room_map();
+  slam.start_from_map(room, d.truth[0] + Eigen::Vector3d(0.1, -0.1, 0.03));
+  for (std::size_t k = 0; k < d.truth.size(); ++k)
+    slam.add_scan(d.ranges[k], fan(), odom_frame.compose(Pose2::from_vector(d.odometry[k])).vector(), double(k));
+  slam.finish();
+  // Scan matching in a known room: each pose within this of the truth (the matcher's accuracy
+  // at 5 cm cells with 1 cm range noise is a cell or two; the odometry's drift is removed).
+  constexpr double kOnTheMap = 0.1;
+  const std::vector<Eigen::Vector3d> poses = slam.scan_poses();
+  for (std::size_t k = 0; k < poses.size(); ++k)
+    EXPECT_LT((poses[k] - d.truth[k]).head<2>().norm(), kOnTheMap) << "scan " << k;
+  EXPECT_EQ(slam.submap_poses()[0], Eigen::Vector3d::Zero());  // the map's node stays at its origin
+  ASSERT_NE(slam.start_map(), nullptr);
+  EXPECT_TRUE(slam.start_map()->same_geometry(room));  // the saved map itself is not changed
+  EXPECT_EQ(Eigen::MatrixXd(slam.start_map()->log_odds()), Eigen::MatrixXd(room.log_odds()));
+  const OccupancyGrid2D drawn = slam.map();
+  EXPECT_EQ(drawn.resolution(), room.resolution());
+  // Drawn on the map's lattice: the same cell centres.
+  const Eigen::Vector2d shift = (drawn.origin() - room.origin()) / room.resolution();
+  EXPECT_LT((shift - shift.array().round().matrix()).norm(), 1e-9);
+  // Saved and loaded (a copy too) it continues as the original.
+  SubmapSlam2D copy(slam);
+  EXPECT_EQ(copy.scan_poses(), slam.scan_poses());
+  ASSERT_NE(copy.start_map(), nullptr);
+}
+
+TEST(Slam2dSubmapSlam, StartFromMapRefusesBadInput) {
+  SubmapSlamOptions o;
+  o.frontend.filter.max_range = 30.0;
+  const OccupancyGrid2D room = room_map();
+  const LoopDrive d = loop_drive(10);
+  {
+    SubmapSlam2D s(o);
+    s.add_scan(d.ranges[0], fan(), d.odometry[0], 0.0);
+    expect_invalid([&] { s.start_from_map(room, Eigen::Vector3d::Zero()); }, "map");
+  }
+  SubmapSlam2D s(o);
+  const OccupancyGrid2D unknown = OccupancyGrid2D::covering(-1, -1, 1, 1, 0.05);
+  expect_invalid([&] { s.start_from_map(unknown, Eigen::Vector3d::Zero()); }, "map");
+  const OccupancyGrid2D coarse = OccupancyGrid2D::covering(-1, -1, 1, 1, 0.1);
+  expect_invalid([&] { s.start_from_map(coarse, Eigen::Vector3d::Zero()); }, "map");
+  expect_invalid([&] { s.start_from_map(room, Eigen::Vector3d(40.0, 0.0, 0.0)); }, "initial_pose");
+  expect_invalid([&] { s.start_from_map(room, Eigen::Vector3d(0.0, std::nan(""), 0.0)); }, "initial_pose");
+  EXPECT_EQ(s.start_map(), nullptr);  // nothing changed by the refusals
+  s.start_from_map(room, Eigen::Vector3d::Zero());
+  expect_invalid([&] { s.start_from_map(room, Eigen::Vector3d::Zero()); }, "map");
+  s.add_scan(d.ranges[0], fan(), d.odometry[0], 0.0);
+  expect_invalid([&] { s.map(0.1); }, "resolution");
+}
+
+TEST(Slam2dGridFastSlam, StartsFromASavedMapInTheMapsFrame) {
+  // The loop drive's odometry in a frame of its own; started on the room's map 0.1 m and 0.03
+  // rad off the truth, every particle's map is the room's and the best path lies in its frame.
+  const LoopDrive d = loop_drive(80);
+  const Pose2 odom_frame(5.0, -3.0, 1.0);
+  GridFastSlamOptions o;
+  o.num_particles = 5;
+  o.filter.max_range = 30.0;
+  GridFastSlam rbpf(o);
+  const OccupancyGrid2D room = room_map();
+  rbpf.start_from_map(room, d.truth[0] + Eigen::Vector3d(0.1, -0.1, 0.03));
+  expect_invalid([&] { rbpf.start_from_map(room, d.truth[0]); }, "map");
+  for (std::size_t k = 0; k < d.truth.size(); ++k)
+    rbpf.add_scan(d.ranges[k], fan(), odom_frame.compose(Pose2::from_vector(d.odometry[k])).vector(), double(k));
+  // The first scan is matched against the room's map, the rest against maps that hold it:
+  // within two cells of the truth, as the graph run above.
+  constexpr double kOnTheMap = 0.1;
+  const Poses2 poses = rbpf.scan_poses(rbpf.best_index());
+  for (Eigen::Index k = 0; k < poses.rows(); ++k)
+    EXPECT_LT((poses.row(k).head<2>().transpose() - d.truth[k].head<2>()).norm(), kOnTheMap) << "scan " << k;
+  ASSERT_NE(rbpf.start_map(), nullptr);
+  const OccupancyGrid2D drawn = rbpf.map(rbpf.best_index());
+  const Eigen::Vector2d shift = (drawn.origin() - room.origin()) / room.resolution();
+  EXPECT_LT((shift - shift.array().round().matrix()).norm(), 1e-9);  // on the map's lattice
+  GridFastSlam refused(o);
+  expect_invalid([&] { refused.start_from_map(room, Eigen::Vector3d(40.0, 0.0, 0.0)); }, "initial_pose");
+  expect_invalid([&] { refused.start_from_map(OccupancyGrid2D::covering(-1, -1, 1, 1, 0.05), Eigen::Vector3d::Zero()); },
+                 "map");
+  EXPECT_EQ(refused.start_map(), nullptr);
 }

@@ -19,6 +19,7 @@
 #include "probslam/fastslam/grid_fast_slam.hpp"
 #include "probslam/graph/pose_graph_2d.hpp"
 #include "probslam/grid/occupancy_grid_2d.hpp"
+#include "probslam/grid/occupancy_grid_3d.hpp"
 #include "probslam/slam2d/submap_slam.hpp"
 #include "test_support.hpp"
 
@@ -359,6 +360,101 @@ TEST(StateFile, GridFastSlamResumedEqualsUninterrupted) {
     EXPECT_TRUE((resumed.scan_poses(k).array() == straight.scan_poses(k).array()).all());
     EXPECT_TRUE((resumed.map(k).log_odds().array() == straight.map(k).log_odds().array()).all());
   }
+}
+
+// The room mapped from a few poses: a saved map to start runs from.
+OccupancyGrid2D room_map(double resolution) {
+  const Eigen::VectorXd angles = Eigen::VectorXd::LinSpaced(361, -3.1415926, 3.1415926);
+  OccupancyGrid2D g = OccupancyGrid2D::covering(-6.0, -4.0, 2.0, 4.0, resolution);
+  for (const Eigen::Vector3d& p : {Eigen::Vector3d(-2.5, 0.0, 0.0), Eigen::Vector3d(-4.0, 1.0, 1.0),
+                                   Eigen::Vector3d(-1.0, -1.0, 2.0)})
+    g.insert_rays(p, cast(p, angles, room_walls()), angles, 30.0);
+  return g;
+}
+
+TEST(StateFile, RunsFromASavedMapResumeAsUninterrupted) {
+  // The saved map travels in the state, before and after the first scan.
+  const RoomRun run;
+  {
+    SubmapSlamOptions o;
+    o.frontend.submap_distance = 3.0;
+    o.frontend.filter.max_usable_range = 8.0;
+    SubmapSlam2D straight(o), first(o);
+    straight.start_from_map(room_map(o.frontend.resolution), run.truth[0]);
+    first.start_from_map(room_map(o.frontend.resolution), run.truth[0]);
+    SubmapSlam2D empty = round_trip<SubmapSlam2D, GridFastSlam>(first, "submaps_map0");  // before any scan
+    ASSERT_NE(empty.start_map(), nullptr);
+    run.feed(straight, 0, 120);
+    run.feed(empty, 0, 60);
+    SubmapSlam2D resumed = round_trip<SubmapSlam2D, GridFastSlam>(empty, "submaps_map");
+    run.feed(resumed, 60, 120);
+    EXPECT_EQ(state_bytes(resumed), state_bytes(straight));
+  }
+  {
+    GridFastSlamOptions o;
+    o.num_particles = 4;
+    o.filter.max_usable_range = 8.0;
+    o.seed = 2;
+    GridFastSlam straight(o), first(o);
+    straight.start_from_map(room_map(o.resolution), run.truth[0]);
+    first.start_from_map(room_map(o.resolution), run.truth[0]);
+    run.feed(straight, 0, 60);
+    run.feed(first, 0, 30);
+    GridFastSlam resumed = round_trip<GridFastSlam, SubmapSlam2D>(first, "rbpf_map");
+    ASSERT_NE(resumed.start_map(), nullptr);
+    run.feed(resumed, 30, 60);
+    EXPECT_EQ(state_bytes(resumed), state_bytes(straight));
+  }
+}
+
+TEST(StateFile, OccupancyGrid3D) {
+  OccupancyGrid3D g(0.2, {0.75, 0.35, 0.1, 0.95, 0.55});
+  std::mt19937 rng(8);
+  std::uniform_real_distribution<double> u(-3.0, 3.0);
+  auto cloud = [&] {
+    Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> pts(200, 3);
+    for (Eigen::Index i = 0; i < pts.rows(); ++i) pts.row(i) << u(rng), u(rng), 0.3 * u(rng);
+    return pts;
+  };
+  g.insert_point_cloud(cloud(), Eigen::Vector3d(0.1, -0.2, 0.3));
+  g.set_log_odds(g.key_of(9.0, 9.0, 9.0), 1.0f);
+  g.set_log_odds(g.key_of(9.0, 9.0, 9.0), std::nanf(""));  // a block with no known voxel
+  OccupancyGrid3D h = round_trip<OccupancyGrid3D, OccupancyGrid2D>(g, "grid3d");
+  EXPECT_EQ(h.resolution(), g.resolution());
+  EXPECT_EQ(h.params().occupancy_threshold, 0.55);
+  EXPECT_EQ(h.num_blocks(), g.num_blocks());
+  EXPECT_EQ(h.num_known_voxels(), g.num_known_voxels());
+  // Both continue alike: the same voxels in the same blocks after the next scan.
+  const auto next = cloud();
+  g.insert_point_cloud(next, Eigen::Vector3d::Zero());
+  h.insert_point_cloud(next, Eigen::Vector3d::Zero());
+  EXPECT_EQ(state_bytes(h), state_bytes(g));
+  // Damaged payloads inside a valid frame: a key beyond the range, a repeated key, a voxel
+  // outside the clamp bounds.
+  auto payload = [&](std::uint64_t key1, std::uint64_t key2, float value) {
+    StateWriter w;
+    w.f64(0.2);
+    for (double v : {0.7, 0.4, 0.1192, 0.971, 0.5}) w.f64(v);
+    w.count(2);
+    for (std::uint64_t key : {key1, key2}) {
+      w.u64(key);
+      for (int i = 0; i < OccupancyGrid3D::kBlockVoxels; ++i) w.f32(i == 3 ? value : std::nanf(""));
+    }
+    return frame_state(OccupancyGrid3D::kStateTag, w.payload());
+  };
+  auto refused = [](const std::string& bytes, const std::string& what) {
+    try {
+      object_from_state<OccupancyGrid3D>(bytes, "state");
+      ADD_FAILURE() << "accepted " << what;
+    } catch (const StateError& e) {
+      EXPECT_NE(std::string(e.what()).find(what), std::string::npos) << e.what();
+    }
+  };
+  EXPECT_NO_THROW(object_from_state<OccupancyGrid3D>(payload(1, 2, 0.5f), "state"));
+  refused(payload(1, std::uint64_t{1} << 50, 0.5f), "key outside");
+  refused(payload(1, 8192, 0.5f), "key outside");  // a block coordinate beyond 65536 / 8
+  refused(payload(1, 1, 0.5f), "repeats");
+  refused(payload(1, 2, 9.0f), "clamp bounds");
 }
 
 }  // namespace

@@ -46,7 +46,7 @@ def test_writer_arguments_are_checked_by_name(tmp_path):
 
 
 def test_missing_pose_graph_and_bt_raise_file_not_found(tmp_path):
-    for call in (ps.read_pose_graph, ps.OccupancyGrid3D.read_bt, ps.io.load_ros_map, ps.io.load_grid,
+    for call in (ps.read_pose_graph, ps.OccupancyGrid3D.read_bt, ps.io.load_ros_map, ps.OccupancyGrid2D.load,
                  ps.io.read_carmen_log, ps.io.read_victoria_park):
         with pytest.raises(FileNotFoundError, match="nothing.here"):
             call(tmp_path / "nothing.here")

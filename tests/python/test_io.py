@@ -129,20 +129,20 @@ def test_ros_map_malformed(tmp_path):
         io.load_ros_map(yaml)
 
 
-def test_lossless_grid_round_trip_and_corrupt_files(tmp_path):
+def test_lossless_grid_file_is_the_state_file(tmp_path):
+    # One lossless grid format (issue 36): OccupancyGrid2D.save / load; every parameter comes back.
     grid = ps.OccupancyGrid2D(0.07, 9, 5, origin=(0.3, -0.2), p_prior=0.4, clamp=None, p_hit=0.8, p_miss=0.3)
     grid.log_odds[:] = np.random.default_rng(0).normal(size=(5, 9))
-    io.save_grid(grid, tmp_path / "g.grid")
-    back = io.load_grid(tmp_path / "g.grid")
+    grid.save(tmp_path / "g.psl")
+    back = ps.OccupancyGrid2D.load(tmp_path / "g.psl")
     np.testing.assert_array_equal(back.log_odds, grid.log_odds)
     assert (back.p_prior, back.clamp, back.p_hit, back.p_miss) == (0.4, None, 0.8, 0.3)
-    data = (tmp_path / "g.grid").read_bytes()
-    (tmp_path / "cut.grid").write_bytes(data[:-3])
-    with pytest.raises(ValueError, match="cut.grid"):
-        io.load_grid(tmp_path / "cut.grid")
-    (tmp_path / "huge.grid").write_bytes(data[:12] + struct.pack("<ii", 2**30, 2**30) + data[20:])
-    with pytest.raises(ValueError, match="huge.grid"):
-        io.load_grid(tmp_path / "huge.grid")
+    assert back.same_geometry(grid)
+    data = (tmp_path / "g.psl").read_bytes()
+    (tmp_path / "cut.psl").write_bytes(data[:-3])
+    with pytest.raises(ValueError, match="cut.psl"):
+        ps.OccupancyGrid2D.load(tmp_path / "cut.psl")
+    assert not hasattr(io, "save_grid") and not hasattr(io, "load_grid")
 
 
 def test_png_is_a_valid_image(tmp_path):

@@ -286,7 +286,7 @@ def export_problems():
             if not n.startswith("_") and defined_here and (inspect.isfunction(obj) or inspect.isclass(obj)) \
                     and n not in names:
                 problems.append(f"{module.__name__}.{n} is public but not in __all__")
-    # By name: a Python function of the same name (read_pose_graph, load_grid) is the export.
+    # By name: a Python function of the same name (read_pose_graph) is the export.
     exported = {n for module in modules() for n in getattr(module, "__all__", [])}
     problems += [f"_core.{n} is exported neither from probslam nor from a subpackage" for n in dir(_core)
                  if not n.startswith("_") and n not in CORE_INTERNAL and n not in exported]

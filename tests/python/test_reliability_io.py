@@ -20,7 +20,7 @@ from probslam.datasets import mrclam
 #: io calls the property tests below drive with odd arguments.
 COVERED = (
     "io.save_ros_map(grid, yaml_path, occupied_thresh, free_thresh)",
-    "io.save_grid(grid, path)",
+    "OccupancyGrid2D.save(path)",
     "OccupancyGrid3D.write_bt(path)",
     "io.read_mrclam(folder, robot)",
     "Mrclam.with_euclidean_ranges(scale)",
@@ -117,7 +117,7 @@ def _readers(tmp_path, bad):
         ("carmen_gz", lambda: io.read_carmen_log(_link(tmp_path, bad, "x.log.gz"))),
         ("ros_map_yaml", lambda: io.load_ros_map(bad)),
         ("ros_map_image", lambda: io.load_ros_map(yaml)),
-        ("grid_file", lambda: io.load_grid(bad)),
+        ("state_file", lambda: ps.OccupancyGrid2D.load(bad)),
         ("octomap_bt", lambda: ps.OccupancyGrid3D.read_bt(bad)),
         ("mrclam", lambda: io.read_mrclam(mrclam)),
         ("victoria_park", lambda: io.read_victoria_park(bad)),
@@ -148,7 +148,7 @@ def test_readers_refuse_what_is_not_a_regular_file(tmp_path, kind):
 
 def test_missing_files_raise_file_not_found_naming_the_file(tmp_path):
     missing = tmp_path / "missing.xyz"
-    for call in [io.read_carmen_log, io.read_victoria_park, io.load_ros_map, io.load_grid, ps.read_pose_graph,
+    for call in [io.read_carmen_log, io.read_victoria_park, io.load_ros_map, ps.OccupancyGrid2D.load, ps.read_pose_graph,
                  ps.graph.read_pose_graph, ps.OccupancyGrid3D.read_bt, lambda p: ps.OccupancyGrid3D.read_bt(str(p))]:
         with pytest.raises(FileNotFoundError, match="missing.xyz"):
             call(missing)
@@ -160,9 +160,9 @@ def test_missing_files_raise_file_not_found_naming_the_file(tmp_path):
 def test_readers_and_writers_name_a_path_argument_that_is_not_a_path(tmp_path, value):
     grid = ps.OccupancyGrid2D(0.1, 4, 4)
     calls = [("path", io.read_carmen_log), ("path", io.read_victoria_park), ("folder", io.read_mrclam),
-             ("yaml_path", io.load_ros_map), ("path", io.load_grid), ("path", ps.graph.read_pose_graph),
+             ("yaml_path", io.load_ros_map), ("path", ps.OccupancyGrid2D.load), ("path", ps.graph.read_pose_graph),
              ("path", ps.eval.read_relations), ("yaml_path", lambda p: io.save_ros_map(grid, p)),
-             ("path", lambda p: io.save_grid(grid, p)), ("path", lambda p: io.write_png(grid, p)),
+             ("path", lambda p: grid.save(p)), ("path", lambda p: io.write_png(grid, p)),
              ("path", lambda p: ps.slam.write_trajectory(np.zeros(1), np.zeros((1, 3)), p)),
              ("relations", lambda r: ps.eval.relations_error(np.arange(2.0), np.zeros((2, 3)), r)),
              ("path", io.read_rosbag), ("path", lambda p: io.write_rosbag(io.LaserScans(*[np.zeros((1, 3))] * 8), p))]
@@ -346,7 +346,7 @@ def test_writers_with_bad_paths_raise_cleanly(tmp_path, where):
     (tmp_path / "adir").mkdir()
     path = str(tmp_path / where) if where and not where.startswith("/") else where
     grid, grid3 = ps.OccupancyGrid2D(0.1, 2, 2), ps.OccupancyGrid3D(0.1)
-    for call in (lambda: io.save_grid(grid, path), lambda: io.save_ros_map(grid, path),
+    for call in (lambda: grid.save(path), lambda: io.save_ros_map(grid, path),
                  lambda: grid3.write_bt(str(path))):
         with pytest.raises((ValueError, OSError, RuntimeError)):
             call()

@@ -187,3 +187,18 @@ def test_cli_slam_save_then_resume_equals_one_run(tmp_path, capsys):
     # The wrong log: one line, exit 2.
     assert cli.main(["slam", str(tmp_path / "part.log"), "--resume", str(tmp_path / "one.yaml"),
                      "-o", str(tmp_path / "x")] + opts) == 2
+
+
+def test_grid3d_round_trip(tmp_path):
+    g = ps.OccupancyGrid3D(0.2, p_hit=0.75, clamp=(0.1, 0.95))
+    rng = np.random.default_rng(4)
+    g.insert_point_cloud(rng.uniform(-3, 3, (300, 3)), (0.1, 0.0, 0.2))
+    h = round_trip(g, ps.OccupancyGrid3D, tmp_path)
+    for a, b in zip(h.known_voxels(), g.known_voxels()):
+        assert np.array_equal(a, b)
+    assert (h.p_hit, h.clamp, h.num_blocks) == (g.p_hit, g.clamp, g.num_blocks)
+    # Both continue alike.
+    more = rng.uniform(-3, 3, (300, 3))
+    g.insert_point_cloud(more, (0.0, 0.0, 0.0))
+    h.insert_point_cloud(more, (0.0, 0.0, 0.0))
+    assert state_bytes(h) == state_bytes(g)

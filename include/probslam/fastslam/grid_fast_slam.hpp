@@ -131,6 +131,14 @@ class GridFastSlam {
   Snapshot snapshot() const;
   void restore(Snapshot&& s);
 
+  /// Starts the filter on a saved map, before the first scan (check_start_map says what is
+  /// refused; also refused after a scan; nothing changed then): the run's frame is the map's.
+  /// The first scan is placed by correlative matching against the map within the default search
+  /// window (0.3 m, 0.35 rad) around initial_pose (the pose itself when the match fails), and
+  /// every particle's map starts as the saved map with that scan drawn in, its tiles shared.
+  void start_from_map(const OccupancyGrid2D& map, const Eigen::Vector3d& initial_pose);
+  /// The saved map the filter started from, or nullptr.
+  const OccupancyGrid2D* start_map() const { return start_map_ ? &*start_map_ : nullptr; }
   const GridFastSlamOptions& options() const { return options_; }
   int num_particles() const { return static_cast<int>(particles_.size()); }
   int num_scans() const { return static_cast<int>(scan_step_.size()); }
@@ -175,6 +183,8 @@ class GridFastSlam {
     bool matched = false, fallback = false;
   };
   std::shared_ptr<TiledGrid2D> first_map(const Eigen::Vector3d& odometry) const;
+  /// The first scan's pose on the start map: matched around initial_pose_.
+  Eigen::Vector3d pose_on_start_map(const Points2& points) const;
   void first_scan(std::shared_ptr<TiledGrid2D> map, const Eigen::VectorXd& insertion,
                   const Eigen::Ref<const Eigen::VectorXd>& angles, const Eigen::Vector3d& odometry);
   /// The motion since the last update, in the frame of the pose there: the motion model's mean
@@ -226,6 +236,8 @@ class GridFastSlam {
   GridFastSlamSummary summary_;
   double footprint_bytes_ = 0.0;  // worst case one particle's update clones (its usable-range disc)
   std::unique_ptr<WorkerPool> pool_;  // threads > 1: started on the first update
+  std::optional<OccupancyGrid2D> start_map_;  // start_from_map's map, unchanged
+  Eigen::Vector3d initial_pose_ = Eigen::Vector3d::Zero();
   ObjectMutex mutex_;
 };
 

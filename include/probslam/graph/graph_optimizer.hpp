@@ -2,6 +2,7 @@
 // Gauss-Newton and Levenberg-Marquardt for PoseGraph2D on the shared sparse path
 // (BlockSystem assembly, SparseCholesky solve with the analysis reused across iterations).
 #include <Eigen/Core>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -50,11 +51,21 @@ struct OptimizationReport {
   long factor_nonzeros = 0;
 };
 
+/// Called on the calling thread after each completed iteration with its number (1 for the
+/// first) and the chi2 after it; returning false stops the optimisation there. It lets a caller
+/// show progress or stop a long run (Ctrl-C) without the optimiser knowing who is asking.
+using IterationCallback = std::function<bool(int iteration, double chi2)>;
+
 /// Minimises the graph's objective in place from its current values. Fixed vertices keep
 /// their values; with none fixed the first pose is held (the gauge). Throws
 /// std::invalid_argument for an empty graph, or a singular system (a part of the graph not
-/// connected to a fixed vertex).
-OptimizationReport optimize(PoseGraph2D& graph, const OptimizerOptions& options = {});
+/// connected to a fixed vertex); the graph is then unchanged.
+/// on_iteration (optional, see IterationCallback): false stops with stop_reason "stopped by the
+/// callback" and the graph at that iteration's values. An exception it throws (a Python
+/// KeyboardInterrupt) is rethrown after the graph is set to the last completed iteration's
+/// values: an interrupted run keeps the work done, as a stopped one does.
+OptimizationReport optimize(PoseGraph2D& graph, const OptimizerOptions& options = {},
+                            const IterationCallback& on_iteration = {});
 
 /// Marginal covariances (3x3 for poses, 2x2 for points) of the given vertex ids at the
 /// current values, from the sparse inverse of the information matrix. A fixed vertex has zero

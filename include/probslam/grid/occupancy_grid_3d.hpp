@@ -8,6 +8,7 @@
 #include <cstdint>
 #include <memory>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "probslam/core/object_mutex.hpp"
@@ -16,6 +17,8 @@
 
 namespace probslam {
 
+class StateWriter;
+class StateReader;
 template <bool Concurrent>
 class VoxelStoreT;
 template <int Dim, typename Real>
@@ -157,6 +160,18 @@ class OccupancyGrid3D {
   /// Refused (std::invalid_argument naming OccupancyGrid2D.max_cells) before anything is
   /// allocated when the covered area has more cells than OccupancyGrid2D::kMaxCells.
   OccupancyGrid2D project_2d(double z_min, double z_max) const;
+
+  /// Saves the resolution, the sensor parameters and every allocated block of voxels (their
+  /// float log-odds, NaN for unknown) in block order, bit for bit (docs/file_format.md): a
+  /// loaded grid holds the same voxels in the same blocks, so it iterates and updates as this
+  /// one would. The hash table is rebuilt, not saved (it only finds blocks). Load refuses a
+  /// damaged file (std::invalid_argument naming the path): a block key outside the key range or
+  /// given twice, a voxel's log-odds outside the clamp bounds.
+  static constexpr const char* kStateTag = "OccupancyGrid3D";
+  void save(const std::string& path) const;
+  static OccupancyGrid3D load(const std::string& path);
+  void write_state(StateWriter& w) const;
+  static OccupancyGrid3D read_state(StateReader& r);
 
  private:
   template <bool Concurrent>

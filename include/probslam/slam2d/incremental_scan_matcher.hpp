@@ -140,6 +140,16 @@ class IncrementalScanMatcher {
   Snapshot snapshot() const;
   void restore(Snapshot&& s);
 
+  /// Starts the run on a saved map (before the first scan; std::invalid_argument naming `map`
+  /// or `initial_pose` otherwise, nothing changed): the map becomes submap 0, in its own frame
+  /// (origin (0, 0, 0)), and the run's frame is the map's. The first scan is matched against it
+  /// around initial_pose (no motion prior: initial_pose is a guess within the match window) and,
+  /// like every later scan of that stretch, inserted into it; its relative_covariance is the
+  /// match's, in the map's frame. The map must have the frontend's resolution, at least one cell
+  /// more likely occupied than free, and hold initial_pose's position.
+  void start_from_map(const OccupancyGrid2D& map, const Eigen::Vector3d& initial_pose);
+  /// Whether the next scan is the first of a run started from a map.
+  bool awaits_first_scan_on_map() const { return estimates_.empty() && !submaps_.empty(); }
   const IncrementalScanMatcherOptions& options() const { return options_; }
   const std::vector<ScanEstimate>& estimates() const { return estimates_; }
   const std::vector<double>& timestamps() const { return timestamps_; }
@@ -163,7 +173,7 @@ class IncrementalScanMatcher {
   /// The open submap's grid grown to hold a scan at `pose`, or nothing when it holds it already.
   std::optional<OccupancyGrid2D> grown_for(const Submap& submap, const Eigen::Vector3d& pose) const;
   MatchResult match(const Submap& submap, const Points2& points, const Eigen::Vector3d& prior,
-                    const Eigen::Matrix3d& prior_cov, FieldCache& cache) const;
+                    const Eigen::Matrix3d& prior_cov, FieldCache& cache, bool use_prior) const;
   const CorrelativeScanMatcher& matcher_for(const Submap& submap, const Eigen::Vector4d& region,
                                             const Eigen::Vector3d& prior, FieldCache& cache) const;
 

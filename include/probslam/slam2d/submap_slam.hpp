@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 #include <map>
 #include <memory>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
@@ -113,6 +114,15 @@ class SubmapSlam2D {
   struct Snapshot;
   Snapshot snapshot() const;
   void restore(Snapshot&& s);
+  /// Starts the run on a saved map (before the first scan; see
+  /// IncrementalScanMatcher::start_from_map for what is refused): the map is submap 0, its node
+  /// fixed at the map's origin, so the run's frame is the map's; the first scan is matched
+  /// against it around initial_pose, the scans of the first stretch (submap_distance) are matched
+  /// against and inserted into (a copy of) it, and later submaps' loop-closure search includes
+  /// it over its whole extent. map() draws every scan into the saved map, on its lattice.
+  void start_from_map(const OccupancyGrid2D& map, const Eigen::Vector3d& initial_pose);
+  /// The saved map the run started from, or nullptr.
+  const OccupancyGrid2D* start_map() const { return start_map_ ? &*start_map_ : nullptr; }
   /// Closes the last submap and repeats search, optimisation and dissolution until no
   /// constraint changes (or max_rounds). Adding scans afterwards starts a new finish.
   void finish();
@@ -131,7 +141,8 @@ class SubmapSlam2D {
   /// and the active closures.
   PoseGraph2D graph() const;
   /// An occupancy grid of every scan at scan_poses(): resolution in metres, 0 for the
-  /// frontend's; std::invalid_argument naming `resolution` when negative or not finite.
+  /// frontend's; std::invalid_argument naming `resolution` when negative or not finite. A run
+  /// started from a map draws into that map (grown as needed), so only 0 or its resolution.
   OccupancyGrid2D map(double resolution = 0.0) const;
   SubmapSlamSummary summary() const;
 
@@ -173,6 +184,9 @@ class SubmapSlam2D {
   std::map<std::pair<int, int>, Eigen::Vector3d> attempts_;
   std::unique_ptr<FieldCache> fields_;
   SubmapSlamSummary counts_;
+  std::optional<OccupancyGrid2D> start_map_;  // the saved map the run started from, unchanged
+  Eigen::Vector4d start_map_bounds_ = Eigen::Vector4d::Zero();  // its occupied cells' (xmin, ymin, xmax, ymax)
+  void set_start_map(const OccupancyGrid2D& map);
   ObjectMutex mutex_;
 };
 

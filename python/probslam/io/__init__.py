@@ -1,9 +1,9 @@
 """Readers and writers: CARMEN laser logs, ROS bags (``rosbags`` needed only for them), ROS
-map_server maps, lossless grids, PNG pictures, trajectories (TUM, KITTI)."""
+map_server maps, PNG pictures, trajectories (TUM, KITTI)."""
 
 from .carmen import CarmenLog, LaserScans, Odometry, read_carmen_log
 from .landmark_datasets import MRCLAM_RANGE_SCALE, Mrclam, VictoriaPark, read_mrclam, read_victoria_park
-from .maps import load_grid, load_ros_map, save_grid, save_ros_map, write_png
+from .maps import load_ros_map, save_ros_map, write_png
 from .trajectory import TRAJECTORY_FORMATS, Trajectory, kitti_times_path, read_trajectory, write_trajectory
 from . import rosbag
 from .rosbag import RosbagLog, read_rosbag
@@ -20,14 +20,12 @@ __all__ = [
     "Trajectory",
     "VictoriaPark",
     "kitti_times_path",
-    "load_grid",
     "load_ros_map",
     "read_carmen_log",
     "read_mrclam",
     "read_rosbag",
     "read_trajectory",
     "read_victoria_park",
-    "save_grid",
     "save_ros_map",
     "write_png",
     "write_trajectory",

@@ -1,4 +1,5 @@
-"""Map files: ROS map_server (YAML + PGM), lossless grids, and PNG pictures."""
+"""Map files: ROS map_server (YAML + PGM) and PNG pictures. The library's lossless grid file is
+``OccupancyGrid2D.save`` / ``load`` (a state file, docs/file_format.md)."""
 
 from __future__ import annotations
 
@@ -26,17 +27,6 @@ def load_ros_map(yaml_path: PathLike) -> _core.OccupancyGrid2D:
     """Read a map_server map (modes trinary and scale) into an OccupancyGrid2D. A missing file
     raises FileNotFoundError, a malformed one ValueError naming it."""
     return _core.load_ros_map(file_path(yaml_path, "yaml_path"))
-
-
-def save_grid(grid: _core.OccupancyGrid2D, path: PathLike) -> None:
-    """Lossless save: log-odds and every grid parameter."""
-    _core.save_grid(grid, file_path(path))
-
-
-def load_grid(path: PathLike) -> _core.OccupancyGrid2D:
-    """Read a grid written by ``save_grid``. A missing file raises FileNotFoundError, a malformed
-    one ValueError naming it."""
-    return _core.load_grid(file_path(path))
 
 
 def _png(pixels: np.ndarray) -> bytes:
