@@ -15,6 +15,7 @@ simulated rooms, and (a second row) on part A's real scans; a few fixed scales f
 """
 
 import argparse
+import os
 import pathlib
 import time
 
@@ -25,7 +26,9 @@ from probslam import inverse_learning as il
 from probslam import io
 
 RES = 0.1
-INTEL = pathlib.Path("/work/shared/data/laser_2d/intel/intel-corrected.log.gz")
+# ../shared/data beside the repository, or $PROBSLAM_SHARED_DATA (as the other benchmarks).
+SHARED = pathlib.Path(os.environ.get("PROBSLAM_SHARED_DATA", pathlib.Path(__file__).resolve().parents[2] / "shared" / "data"))
+INTEL = SHARED / "laser_2d" / "intel" / "intel-corrected.log.gz"
 MAX_RANGE = 10.0  # the readings used (m): beyond, the SICK's 1 deg beams spread over 17 cm
 CELLS_PER_SCAN = 300
 
