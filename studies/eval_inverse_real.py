@@ -53,6 +53,9 @@ def intel_floor_plan(resolution):
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--quick", action="store_true")
+    parser.add_argument("--save-model", metavar="PATH",
+                        help="save the real-data model (its scale fitted on part A) to PATH and stop; the bundled "
+                             "python/probslam/data/intel_laser_inverse.npz is made so")
     args = parser.parse_args()
     scans = intel_scans()
     if scans is None:
@@ -79,6 +82,11 @@ def main():
     real = il.LearnedInverseModel(16).train(data, rng, max_iterations=100 if args.quick else 300)
     real_scale = real.fit_evidence_scale([(occ, poses[a], ranges[a], known)], grid, angles, MAX_RANGE, hw)
     t1 = time.perf_counter()
+    if args.save_model:
+        real.save(args.save_model)
+        print(f"saved {args.save_model}: trained on the first {half} scans ({t1 - t0:.0f} s), evidence scale "
+              f"{real_scale:.3f}")
+        return
     print(f"known map (part A, {half} scans): {grid.shape}, {known.sum()} decided cells, "
           f"{100 * occ[known].mean():.1f}% occupied; real training set {data.occupied.size} cells, J = "
           f"{real.final_objective:.4f}, scale {real_scale:.3f} ({t1 - t0:.0f} s)")

@@ -30,6 +30,8 @@ BUNDLED_RAW_LOG = "intel_raw_loop.log.gz"
 BUNDLED_GRAPH = "intel_400.g2o"
 #: The default of ``probslam ekf-slam`` / ``fastslam``: MRCLAM Dataset 7, robot 1, 120 s.
 BUNDLED_LANDMARKS = "mrclam7_robot1_120s"
+#: ``map --inverse-model bundled``: a learned inverse model of the Intel laser (studies/eval_inverse_real.py).
+BUNDLED_INVERSE_MODEL = "intel_laser_inverse.npz"
 
 #: The --particles defaults. They differ because the particles do: a particle of grid-based
 #: FastSLAM (``slam --method rbpf``) carries a grid map, and 30 meet the ACES target (0.047 m;
@@ -230,8 +232,9 @@ def _cmd_map(args: argparse.Namespace) -> int:
     if args.inverse_model is not None:
         from .inverse_learning import LearnedInverseModel, map_laser_log_learned
 
+        model_path = _data_path(BUNDLED_INVERSE_MODEL) if args.inverse_model == "bundled" else args.inverse_model
         try:
-            model = LearnedInverseModel.load(args.inverse_model)
+            model = LearnedInverseModel.load(model_path)
         except (OSError, ValueError, TypeError) as exc:
             raise UserError(f"--inverse-model: {exc}") from None
         grid, summary = map_laser_log_learned(model, log.scans, resolution=args.resolution, max_range=args.max_range,
@@ -888,7 +891,8 @@ def build_parser() -> argparse.ArgumentParser:
                    help="let readings at the sensor maximum clear space (default: skip them)")
     p.add_argument("--inverse-model", default=None, metavar="MODEL.npz",
                    help="map with a learned inverse sensor model (ch. 9.3; probslam.inverse_learning, saved with "
-                        "LearnedInverseModel.save) instead of the ray model")
+                        "LearnedInverseModel.save) instead of the ray model; 'bundled': the model trained on the "
+                        "first half of the Intel corrected log (a 1-degree, 180-beam laser)")
     p.add_argument("-o", "--output", default="map", help="output prefix: PREFIX.yaml/.pgm/.png (default 'map')")
     _bag_input_options(p, poses=True)
     _no_progress_option(p)

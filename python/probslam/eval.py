@@ -451,7 +451,11 @@ def statistics_table(title: str, statistics: Dict[str, float]) -> str:
 
 
 def _trajectory_error(metric: str, errors: np.ndarray, **fields: Any) -> TrajectoryError:
-    return TrajectoryError(metric, errors, count=int(errors.size), **error_statistics(errors), **fields)
+    with np.errstate(over="ignore", invalid="ignore"):
+        statistics = error_statistics(errors)
+    # Errors near 1e154 m are finite but their squares are not (sse, rmse, std).
+    _require_finite(np.array(list(statistics.values()), float), "poses_est and poses_ref: the error statistics")
+    return TrajectoryError(metric, errors, count=int(errors.size), **statistics, **fields)
 
 
 #: ``associate`` compares at most this many pairs of times at once when the longer trajectory's

@@ -582,12 +582,27 @@ class LearnedInverseModel:
         return m
 
 
+#: OccupancyGrid2D's default clamp (probabilities), and how far in log-odds its lower bound lies
+#: below the 0.5 prior it is made for.
+DEFAULT_CLAMP = (0.1192, 0.971)
+CLAMP_BELOW_PRIOR = 2.0
+
+
+def learned_map_clamp(prior: float) -> Tuple[float, float]:
+    """The clamp of a map with a learned model's prior: OccupancyGrid2D's default, its lower
+    bound moved to CLAMP_BELOW_PRIOR log-odds below the prior when the prior lies near or below
+    it (a real laser's prior is ~0.09: the default's 0.119 would hold every free cell above the
+    prior, more occupied than unknown)."""
+    lower = 1.0 / (1.0 + math.exp(CLAMP_BELOW_PRIOR - math.log(prior / (1.0 - prior))))
+    return min(DEFAULT_CLAMP[0], lower), DEFAULT_CLAMP[1]
+
+
 def map_laser_log_learned(model: LearnedInverseModel, scans, resolution: float = 0.05, max_range: float = 30.0,
                           progress: Optional[bool] = None):
     """Table 9.1 over a laser log (:class:`probslam.io.LaserScans`, poses taken as true) with a
     learned inverse model (:meth:`LearnedInverseModel.insert_scan`), the counterpart of
     :func:`probslam.mapping.map_laser_log`: a grid sized from the data with the model's prior
-    (clamped as OccupancyGrid2D's default), readings at the sensor's no-return value and NaN
+    (clamped by :func:`learned_map_clamp`), readings at the sensor's no-return value and NaN
     meaning no return (inf), each scan's field half a beam spacing either side of its beams.
     Returns (grid, :class:`probslam.mapping.MappingSummary`). Memory: the grid plus one scan's
     field in chunks (FIELD_CHUNK_PAIRS); time linear in the cells within max_range of each pose."""
@@ -607,7 +622,8 @@ def map_laser_log_learned(model: LearnedInverseModel, scans, resolution: float =
     if not np.all(np.isfinite(angles)):
         raise ValueError("scans.start_angles and angular_resolutions must be finite")
     no_return = no_return_range(scans)
-    grid = OccupancyGrid2D.covering(scan_bounds(scans, max_range), resolution, p_prior=model.prior)
+    grid = OccupancyGrid2D.covering(scan_bounds(scans, max_range), resolution, p_prior=model.prior,
+                                    clamp=learned_map_clamp(model.prior))
     updated, seconds, beams = 0, 0.0, 0
     for i in tqdm(range(len(scans)), unit="scan", disable=(None if progress is None else not progress)):
         n = int(scans.num_beams[i])
@@ -707,6 +723,8 @@ def _model_meta(path: str, meta: np.ndarray) -> Tuple[int, float, float]:
 
 
 __all__ = [
+    "CLAMP_BELOW_PRIOR",
+    "DEFAULT_CLAMP",
     "EPS",
     "FIELD_CHUNK_PAIRS",
     "KNOWN_LOG_ODDS",
@@ -718,6 +736,7 @@ __all__ = [
     "field_features",
     "free_poses",
     "known_map",
+    "learned_map_clamp",
     "real_training_set",
     "map_cross_entropy",
     "map_laser_log_learned",

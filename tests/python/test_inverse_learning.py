@@ -480,7 +480,8 @@ def test_map_command_uses_a_saved_learned_model(tmp_path, capsys):
     m.save(tmp_path / "model.npz")
     scans = io.read_carmen_log(cli._bundled_log()).scans
     grid, summary = il.map_laser_log_learned(m, scans, resolution=0.2, max_range=4.0, progress=False)
-    by_hand = probslam.OccupancyGrid2D(0.2, grid.width, grid.height, origin=grid.origin, p_prior=0.2)
+    by_hand = probslam.OccupancyGrid2D(0.2, grid.width, grid.height, origin=grid.origin, p_prior=0.2,
+                                       clamp=il.learned_map_clamp(0.2))
     angles = scans.beam_angles()
     for pose, z, a, step in zip(scans.laser_poses, scans.ranges, angles, scans.angular_resolutions):
         m.insert_scan(by_hand, pose, np.where(z >= 81.83, np.inf, z), a, 4.0, abs(step) / 2)  # 81.83: no return
@@ -496,3 +497,42 @@ def test_map_command_uses_a_saved_learned_model(tmp_path, capsys):
     args[2] = str(tmp_path / "bad.npz")
     assert cli.main(args) == 2
     assert "--inverse-model" in capsys.readouterr().err
+
+
+def test_bundled_model_maps_the_bundled_log_as_the_ray_model_where_it_is_sure(tmp_path):
+    """`probslam map --inverse-model bundled`: the model shipped in probslam.data (trained on the
+    first half of the Intel corrected log, studies/eval_inverse_real.py --save-model) loads and
+    maps; on the bundled Intel excerpt its map agrees with the ray model's where the latter is
+    sure (beyond p = 0.88 either way: walls above the prior, free space below it)."""
+    from probslam import cli, io
+
+    model = il.LearnedInverseModel.load(probslam.data.path(cli.BUNDLED_INVERSE_MODEL))
+    assert 0.0 < model.evidence_scale < 1.0  # fitted for Table 9.1's overlapping scans
+    assert cli.main(["map", "--inverse-model", "bundled", "--resolution", "0.1", "--max-range", "10",
+                     "-o", str(tmp_path / "learned"), "--no-progress", "--no-plot"]) == 0
+    assert (tmp_path / "learned.yaml").exists()
+    scans = io.read_carmen_log(cli._bundled_log()).scans
+    learned, _ = il.map_laser_log_learned(model, scans, resolution=0.1, max_range=10.0, progress=False)
+    rays, _ = probslam.map_laser_log(scans, resolution=0.1, max_range=10.0, progress=False)
+    # The two grids are bounded differently: the learned map's cell at each sure ray cell's centre.
+    rows, cols = np.nonzero(np.abs(rays.log_odds) > 2.0)
+    x = rays.origin[0] + (cols + 0.5) * rays.resolution
+    y = rays.origin[1] + (rows + 0.5) * rays.resolution
+    c = np.floor((x - learned.origin[0]) / learned.resolution).astype(int)
+    r = np.floor((y - learned.origin[1]) / learned.resolution).astype(int)
+    inside = (r >= 0) & (r < learned.height) & (c >= 0) & (c < learned.width)
+    ours = learned.log_odds[r[inside], c[inside]] - probslam.logit(model.prior)
+    agree = np.sign(ours) == np.sign(rays.log_odds[rows[inside], cols[inside]])
+    assert inside.sum() > 1000 and agree.mean() > 0.9, (inside.sum(), agree.mean())
+
+
+def test_learned_map_clamp_lies_below_the_prior():
+    """A real laser's prior (~0.09) lies below OccupancyGrid2D's default lower clamp (0.119):
+    the learned map's clamp moves it to CLAMP_BELOW_PRIOR log-odds below the prior, so free
+    cells can fall below unknown; a prior of 0.5 keeps the default."""
+    for prior in (0.0876, 0.02, 0.3):
+        lo, hi = il.learned_map_clamp(prior)
+        assert lo < prior and hi == il.DEFAULT_CLAMP[1]
+        if prior < 0.3:
+            np.testing.assert_allclose(probslam.logit(prior) - probslam.logit(lo), il.CLAMP_BELOW_PRIOR)
+    assert il.learned_map_clamp(0.5) == il.DEFAULT_CLAMP

@@ -23,6 +23,8 @@ FILES: Dict[str, str] = {
                               "fastslam with a file; read_pose_graph)",
     "mrclam7_robot1_120s": "UTIAS MRCLAM Dataset 7 folder, robot 1's first 120 s with Vicon ground truth "
                            "(probslam ekf-slam / fastslam by default)",
+    "intel_laser_inverse.npz": "learned inverse sensor model (ch. 9.3) of the Intel Research Lab's laser, trained "
+                               "on the first half of its corrected log (probslam map --inverse-model bundled)",
 }
 
 
