@@ -184,7 +184,7 @@ def run(args):
         kidnap_rows.append(f"| {title} | {jump:.1f} m | {'yes' if before_ok else 'no'} | {rec} | "
                            f"{int(kr.num_particles.max())} |")
     lines = heading("Monte Carlo localization on raw laser logs",
-                    "probslam.localize with default options (likelihood field, KLD sampling 200-20000 "
+                    "probslam.localize with default options (likelihood field, KLD sampling 500-20000 "
                     "particles, augmented MCL), one thread; maps and reference trajectories from `probslam slam`.",
                     ["log", "scans", "ATE rmse / median / max (m)", "median heading error (deg)",
                      "particles median / max / last", "processing (s)", "log duration (s)", "real-time factor"])

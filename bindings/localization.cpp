@@ -226,6 +226,9 @@ void define_localization(py::module_& m) {
       .def_property_readonly("weights", getter(&Mcl::weights), "(M,) normalised weights.")
       .def_property_readonly("num_particles", getter(&Mcl::num_particles), "M, the number of particles.")
       .def_property_readonly("num_updates", getter(&Mcl::num_updates), "Updates since the last initialisation.")
+      .def_property_readonly("w_slow", getter(&Mcl::w_slow),
+                             "Augmented MCL's long-term average of the per-beam likelihood (Table 8.3).")
+      .def_property_readonly("w_fast", getter(&Mcl::w_fast), "Its short-term average.")
       .def("copy", [](const Mcl& self) { return locked(self, [&] { return std::make_unique<Mcl>(self); }); },
            "An independent deep copy (particles, random streams, averages).")
       .def("__repr__", [](py::handle self) {

@@ -791,6 +791,8 @@ class MonteCarloLocalization:
     weights: Array  # (M,) normalised
     num_particles: int
     num_updates: int
+    w_slow: float  # augmented MCL's long-term average of the per-beam likelihood
+    w_fast: float  # its short-term average
     def __init__(self, map: OccupancyGrid2D, *, initial_pose: Optional[ArrayLike] = None,
                  initial_covariance: Optional[ArrayLike] = None, sensor_model: str = "likelihood-field",
                  odometry_noise: ArrayLike = (0.2, 0.2, 0.2, 0.2), occupied_threshold: float = 0.65,

@@ -106,7 +106,8 @@ MonteCarloLocalization::MonteCarloLocalization(const MonteCarloLocalization& o)
       free_cells_(o.free_cells_), field_(o.field_), binary_map_(o.binary_map_), beam_model_(o.beam_model_),
       poses_(o.poses_), log_weights_(o.log_weights_), rngs_(o.rngs_), filter_rng_(o.filter_rng_),
       next_stream_(o.next_stream_), pending_(o.pending_), travel_d_(o.travel_d_), travel_a_(o.travel_a_),
-      w_slow_(o.w_slow_), w_fast_(o.w_fast_), random_fraction_(o.random_fraction_), num_updates_(o.num_updates_),
+      w_slow_(o.w_slow_), w_fast_(o.w_fast_), slow_raw_(o.slow_raw_), fast_raw_(o.fast_raw_),
+      slow_mass_(o.slow_mass_), fast_mass_(o.fast_mass_), random_fraction_(o.random_fraction_), num_updates_(o.num_updates_),
       estimate_(o.estimate_), covariance_(o.covariance_) {}
 
 MonteCarloLocalization::~MonteCarloLocalization() = default;
@@ -144,7 +145,7 @@ void MonteCarloLocalization::reset_particles(int n) {
   next_stream_ += static_cast<std::uint64_t>(n);
   pending_.setZero();
   travel_d_ = travel_a_ = 0.0;
-  w_slow_ = w_fast_ = 0.0;
+  w_slow_ = w_fast_ = slow_raw_ = fast_raw_ = slow_mass_ = fast_mass_ = 0.0;
   random_fraction_ = 0.0;
   num_updates_ = 0;
 }
@@ -302,17 +303,21 @@ MclUpdate MonteCarloLocalization::update(const Eigen::Ref<const Eigen::VectorXd>
     double w_avg = 0.0;
     for (double l : ll) w_avg += std::exp(l * inv_beams);
     w_avg /= static_cast<double>(ll.size());
-    if (w_slow_ == 0.0) {
-      w_slow_ = w_fast_ = w_avg;
-    } else {
-      w_slow_ += options_.alpha_slow * (w_avg - w_slow_);
-      w_fast_ += options_.alpha_fast * (w_avg - w_fast_);
-    }
+    // Table 8.3 lines 8-9, each average divided by the weight its updates have had so far
+    // (1 - (1 - alpha)^n): started from 0, w_slow would stay near 0 for ~1 / alpha_slow updates
+    // (no recovery in that time); started from the first w_avg, it would keep the low
+    // likelihood of the initial spread cloud as long.
+    slow_raw_ += options_.alpha_slow * (w_avg - slow_raw_);
+    fast_raw_ += options_.alpha_fast * (w_avg - fast_raw_);
+    slow_mass_ += options_.alpha_slow * (1.0 - slow_mass_);
+    fast_mass_ += options_.alpha_fast * (1.0 - fast_mass_);
+    w_slow_ = slow_mass_ > 0.0 ? slow_raw_ / slow_mass_ : 0.0;
+    w_fast_ = fast_mass_ > 0.0 ? fast_raw_ / fast_mass_ : 0.0;
   }
   const double n_eff = normalise_log_weights(log_weights_);
   out.effective_sample_size = n_eff;
   if (n_eff < options_.resample_threshold * static_cast<double>(num_particles())) {
-    const bool augmented = options_.alpha_fast > 0.0 && w_slow_ > 0.0;
+    const bool augmented = options_.alpha_slow > 0.0 && w_slow_ > 0.0;
     resample(augmented ? std::max(0.0, 1.0 - w_fast_ / w_slow_) : 0.0);
     out.resampled = true;
   }
@@ -375,21 +380,16 @@ void MonteCarloLocalization::resample(double random_probability) {
     next_poses.push_back(x);
   }
   const int count = static_cast<int>(next_poses.size());
-  const Eigen::Vector3d keep_pending = pending_;
-  const double keep_d = travel_d_, keep_a = travel_a_, keep_slow = w_slow_, keep_fast = w_fast_;
-  const int keep_updates = num_updates_;
-  reset_particles(count);
+  // New particles, uniform weights and fresh streams; the odometry pending and the averages
+  // of augmented MCL go on (Table 8.3 keeps them: the filter injects for as long as the short-term
+  // average stays below the long-term one).
   poses_.swap(next_poses);
-  pending_ = keep_pending;
-  travel_d_ = keep_d;
-  travel_a_ = keep_a;
-  w_slow_ = keep_slow;
-  w_fast_ = keep_fast;
-  num_updates_ = keep_updates;
+  log_weights_.assign(static_cast<std::size_t>(count), -std::log(static_cast<double>(count)));
+  rngs_.clear();
+  rngs_.reserve(static_cast<std::size_t>(count));
+  for (int j = 0; j < count; ++j) rngs_.emplace_back(options_.seed, next_stream_ + static_cast<std::uint64_t>(j));
+  next_stream_ += static_cast<std::uint64_t>(count);
   random_fraction_ = static_cast<double>(injected) / static_cast<double>(count);
-  // Table 8.3: after injecting random particles the averages restart, or the filter would keep
-  // injecting while the new particles settle.
-  if (injected > 0) w_slow_ = w_fast_ = 0.0;
 }
 
 void MonteCarloLocalization::compute_estimate() {

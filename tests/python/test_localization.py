@@ -356,3 +356,21 @@ def test_localize_driver_checks_its_arguments(corridor):
         ps.localize(scans, grid, stop=10 ** 6, progress=False)
     with pytest.raises(ValueError, match="start"):
         ps.localize(scans, grid, start=5, stop=5, progress=False)
+
+
+def test_kidnapped_robot_recovers(corridor):
+    """The drive cut after 100 scans and resumed at scan 150: the odometry continues smoothly
+    (the second piece re-expressed from the first's end) while the robot jumps; augmented MCL
+    injects particles in free space and finds it again."""
+    true, odo, ranges, grid = corridor
+    a, b = np.arange(0, 100), np.arange(150, len(true))
+    start = ps.Pose2(*odo[b[0]])
+    joined = [ps.Pose2(*odo[a[-1]]).compose(start.between(ps.Pose2(*p))).as_array() for p in odo[b]]
+    odo2 = np.vstack([odo[a], np.array(joined)])
+    truth = np.vstack([true[a], true[b]])
+    scans = scans_of(truth, odo2, np.vstack([ranges[a], ranges[b]]))
+    r = ps.localize(scans, grid, initial_pose=truth[0], progress=False, seed=5)
+    err = _position_errors(r.poses, truth)
+    assert np.median(err[:100]) < 0.1
+    assert err[100] > 2.0  # the jump (about 12 m of corridor)
+    assert np.max(err[-30:]) < 0.3, err[100::10]

@@ -52,7 +52,7 @@ struct MonteCarloLocalizationOptions {
   double kld_z = 2.326;       ///< z_{1-delta}: the upper 1 - delta quantile of N(0, 1) (delta = 0.01)
   double bin_xy = 0.5;        ///< histogram bin side, m
   double bin_theta = 0.1745329251994330;  ///< histogram bin width, rad (10 degrees)
-  // ---- augmented MCL (Table 8.3); alpha_slow = alpha_fast = 0 turns it off ----
+  // ---- augmented MCL (Table 8.3); alpha_slow = 0 turns it off ----
   double alpha_slow = 0.001;
   double alpha_fast = 0.1;
   // ---- when to update and resample ----
@@ -117,6 +117,9 @@ class MonteCarloLocalization {
   Eigen::Vector3d pose() const;
   Eigen::Matrix3d covariance() const { return covariance_; }
   int num_updates() const { return num_updates_; }
+  /// Augmented MCL's long- and short-term averages of the per-beam likelihood (Table 8.3).
+  double w_slow() const { return w_slow_; }
+  double w_fast() const { return w_fast_; }
   const LikelihoodField* likelihood_field() const { return field_.get(); }
 
   /// Fox 2003 eq. (the Wilson-Hilferty approximation of the chi-square quantile): particles
@@ -156,6 +159,7 @@ class MonteCarloLocalization {
   Eigen::Vector3d pending_ = Eigen::Vector3d::Zero();  // odometry since the last update
   double travel_d_ = 0.0, travel_a_ = 0.0;
   double w_slow_ = 0.0, w_fast_ = 0.0;
+  double slow_raw_ = 0.0, fast_raw_ = 0.0, slow_mass_ = 0.0, fast_mass_ = 0.0;  // before bias correction
   double random_fraction_ = 0.0;
   int num_updates_ = 0;
   Eigen::Vector3d estimate_ = Eigen::Vector3d::Zero();
