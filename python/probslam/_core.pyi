@@ -802,7 +802,8 @@ class MonteCarloLocalization:
                  max_range: float = 30.0, min_range: float = 0.0, max_beams: int = 60, weight_scale: float = 0.1,
                  min_particles: int = 500, max_particles: int = 20000, kld_epsilon: float = 0.05,
                  kld_z: float = 2.326, bin_xy: float = 0.5, bin_theta: float = 0.174532925199433,
-                 alpha_slow: float = 0.001, alpha_fast: float = 0.1, resample_threshold: float = 0.5,
+                 alpha_slow: float = 0.001, alpha_fast: float = 0.1, recovery_ratio: float = 0.5,
+                 resample_threshold: float = 0.5,
                  update_min_d: float = 0.2, update_min_a: float = 0.5235987755982988, seed: int = 0,
                  threads: int = 1) -> None: ...
     def initialize_global(self) -> None:

@@ -52,6 +52,8 @@ void MonteCarloLocalizationOptions::validate() const {
   require(std::isfinite(alpha_slow) && alpha_slow >= 0.0 && alpha_slow <= 1.0, "alpha_slow", "must lie in [0, 1]");
   require(std::isfinite(alpha_fast) && alpha_fast >= alpha_slow && alpha_fast <= 1.0, "alpha_fast",
           "must lie in [alpha_slow, 1]");
+  require(std::isfinite(recovery_ratio) && recovery_ratio > 0.0 && recovery_ratio <= 1.0, "recovery_ratio",
+          "must lie in (0, 1]");
   require(std::isfinite(resample_threshold) && resample_threshold >= 0.0 && resample_threshold <= 1.0,
           "resample_threshold", "must lie in [0, 1]");
   require(std::isfinite(update_min_d) && update_min_d >= 0.0, "update_min_d", "must be finite and >= 0");
@@ -318,7 +320,7 @@ MclUpdate MonteCarloLocalization::update(const Eigen::Ref<const Eigen::VectorXd>
   out.effective_sample_size = n_eff;
   if (n_eff < options_.resample_threshold * static_cast<double>(num_particles())) {
     const bool augmented = options_.alpha_slow > 0.0 && w_slow_ > 0.0;
-    resample(augmented ? std::max(0.0, 1.0 - w_fast_ / w_slow_) : 0.0);
+    resample(augmented ? std::max(0.0, 1.0 - w_fast_ / (options_.recovery_ratio * w_slow_)) : 0.0);
     out.resampled = true;
   }
   compute_estimate();

@@ -55,6 +55,11 @@ struct MonteCarloLocalizationOptions {
   // ---- augmented MCL (Table 8.3); alpha_slow = 0 turns it off ----
   double alpha_slow = 0.001;
   double alpha_fast = 0.1;
+  /// Particles are injected with probability max(0, 1 - w_fast / (recovery_ratio w_slow)), in
+  /// (0, 1]: 1 is Table 8.3, where every dip of the short-term average (a person in front of
+  /// the laser, a part of the map drawn poorly) injects a few; a tracked robot then jumped to a
+  /// similar-looking place on ACES and FR079. At 0.5 only a halving of the likelihood injects.
+  double recovery_ratio = 0.5;
   // ---- when to update and resample ----
   double resample_threshold = 0.5;  ///< resample when N_eff < this * M, in [0, 1]
   double update_min_d = 0.2;        ///< travel (m) before an update
