@@ -14,6 +14,7 @@ void define_fastslam(pybind11::module_& m);
 void define_graph(pybind11::module_& m);
 void define_information_form(pybind11::module_& m);
 void define_slam2d(pybind11::module_& m);
+void define_localization(pybind11::module_& m);
 }  // namespace probslam::bindings
 
 PYBIND11_MODULE(_core, m) {
@@ -30,4 +31,5 @@ PYBIND11_MODULE(_core, m) {
   probslam::bindings::define_graph(m);
   probslam::bindings::define_information_form(m);
   probslam::bindings::define_slam2d(m);
+  probslam::bindings::define_localization(m);
 }

@@ -49,6 +49,7 @@ from ._core import (
     wrap_angle,
 )
 from . import data, datasets, eval, inverse_learning, io, sim, slam
+from . import localization
 from .graph import (IncrementalReport, OptimizationReport, PoseGraph2D, PoseGraphReadReport,
                     initialize_odometry, joint_marginal_covariances, marginal_covariances, optimize,
                     optimize_incremental, read_pose_graph, read_pose_graph_with_report, write_g2o,
@@ -72,6 +73,9 @@ from .mapping import MappingSummary, map_laser_log
 from .map_occupancy import MapOccupancyResult, map_occupancy_grid_mapping
 from .inverse_learning import LearnedInverseModel
 from .slam import SlamResult, run_slam
+from ._core import (MclUpdate, MonteCarloLocalization, odometry_motion, odometry_motion_log_density,
+                    sample_odometry_motion)
+from .localization import LocalizationResult, localize
 from .datasets import LandmarkSlamResult, run_landmark_slam
 
 __version__ = "0.1.0"
@@ -169,4 +173,12 @@ __all__ = [
     "velocity_motion_control_jacobian",
     "velocity_motion_jacobian",
     "wrap_angle",
+    "MclUpdate",
+    "MonteCarloLocalization",
+    "LocalizationResult",
+    "localize",
+    "localization",
+    "odometry_motion",
+    "odometry_motion_log_density",
+    "sample_odometry_motion",
 ]

@@ -774,3 +774,66 @@ class GridFastSlam:
     start_map: Optional[OccupancyGrid2D]  # a copy of the map started from, or None
     def map(self, particle: Optional[int] = None) -> OccupancyGrid2D:
         """A particle's map as a dense grid (default: the best particle's)."""
+
+
+# ---- localization (C++ localization/, core/odometry_motion_model.hpp) ----
+
+def odometry_motion(previous: ArrayLike, current: ArrayLike) -> Tuple[float, float, float]:
+    """(rot1, trans, rot2) between two odometry poses (Table 5.5 lines 2-4)."""
+def sample_odometry_motion(pose: ArrayLike, previous: ArrayLike, current: ArrayLike, noise: ArrayLike, *,
+                           num_samples: int = 1, seed: int = 0) -> Array:
+    """(num_samples, 3) draws of Table 5.6 from pose; noise (4,) alpha1..alpha4."""
+def odometry_motion_log_density(pose: ArrayLike, next_pose: ArrayLike, previous: ArrayLike, current: ArrayLike,
+                                noise: ArrayLike) -> float:
+    """Table 5.5: log p(next_pose | u, pose) over (rot1, trans, rot2)."""
+
+class MclUpdate:
+    """MonteCarloLocalization.update's report."""
+    updated: bool
+    resampled: bool
+    num_particles: int
+    effective_sample_size: float
+    random_fraction: float
+
+class MonteCarloLocalization:
+    """Monte Carlo localization in an OccupancyGrid2D (Table 8.2 / 8.3, KLD sampling of Fox 2003)
+    with the odometry motion model (Table 5.6) and the likelihood field (Table 6.3) or beam model
+    (Table 6.1). initial_pose None: global start (max_particles uniform over free cells). Results
+    are identical for any thread count. A failed call changes nothing."""
+    pose: Array  # (3,) weighted mean of the largest cluster, moved by pending odometry
+    covariance: Array  # (3, 3) that cluster's covariance
+    particles: Array  # (M, 3)
+    weights: Array  # (M,) normalised
+    num_particles: int
+    num_updates: int
+    w_slow: float  # augmented MCL's long-term average of the per-beam likelihood
+    w_fast: float  # its short-term average
+    def __init__(self, map: OccupancyGrid2D, *, initial_pose: Optional[ArrayLike] = None,
+                 initial_covariance: Optional[ArrayLike] = None, sensor_model: str = "likelihood-field",
+                 odometry_noise: ArrayLike = (0.2, 0.2, 0.2, 0.2), occupied_threshold: float = 0.65,
+                 free_threshold: float = 0.25, sigma_hit: float = 0.1, p_rand: float = 0.05,
+                 beam_z_hit: float = 0.85, beam_z_short: float = 0.05, beam_z_max: float = 0.05,
+                 beam_z_rand: float = 0.05, beam_sigma_hit: float = 0.05, beam_lambda_short: float = 1.0,
+                 max_range: float = 30.0, min_range: float = 0.0, max_beams: int = 60, weight_scale: float = 0.1,
+                 min_particles: int = 500, max_particles: int = 20000, kld_epsilon: float = 0.05,
+                 kld_z: float = 2.326, bin_xy: float = 0.5, bin_theta: float = 0.174532925199433,
+                 alpha_slow: float = 0.001, alpha_fast: float = 0.1, recovery_ratio: float = 0.5,
+                 resample_threshold: float = 0.5,
+                 update_min_d: float = 0.2, update_min_a: float = 0.5235987755982988, seed: int = 0,
+                 threads: int = 1) -> None: ...
+    def initialize_global(self) -> None:
+        """Restart: max_particles uniform over the free cells."""
+    def initialize_pose(self, pose: ArrayLike, covariance: ArrayLike) -> None:
+        """Restart: max_particles from N(pose, covariance)."""
+    def predict_odometry(self, delta: Optional[ArrayLike] = None, *, previous: Optional[ArrayLike] = None,
+                         current: Optional[ArrayLike] = None) -> None:
+        """Accumulate odometry: delta (3,) in the previous odometry frame, or previous= and current= poses."""
+    def update(self, ranges: ArrayLike, angles: ArrayLike, *, force: bool = False) -> MclUpdate:
+        """One scan; updates after update_min_d / update_min_a of travel."""
+    def measurement_log_likelihood(self, pose: ArrayLike, ranges: ArrayLike, angles: ArrayLike) -> float:
+        """log p(z | pose, map) of the sensor model (scan subsampled as update does)."""
+    @staticmethod
+    def kld_bound(k: int, epsilon: float, z: float) -> float:
+        """Fox 2003's particle count for k occupied bins."""
+    def copy(self) -> "MonteCarloLocalization":
+        """An independent deep copy."""

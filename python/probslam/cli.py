@@ -54,7 +54,8 @@ EPILOG = """exit status:
   1  an unexpected error (a bug: please report it)
   2  a user or input error: a bad option, a missing, empty or unreadable file, an output folder
      that does not exist or cannot be written (one line on stderr)
-  3  optimize did not converge within --max-iterations (the result is written all the same)
+  3  optimize did not converge within --max-iterations, or localize's estimate never converged
+     (the result is written all the same)
   130  interrupted (Ctrl-C); optimize writes the graph of its last completed iteration first
 
 Without a dataset argument every command runs on small excerpts of public datasets bundled with
@@ -348,6 +349,91 @@ def _cmd_slam(args: argparse.Namespace) -> int:
         written.append(args.save)
     print(f"wrote:         {', '.join(written)}")
     return 0
+
+
+def _cmd_localize(args: argparse.Namespace) -> int:
+    import numpy as np
+
+    from .localization import CONVERGED_THETA_STD, CONVERGED_XY_STD, localize
+
+    if args.initial_pose is not None and args.global_:
+        raise UserError("--initial-pose and --global exclude each other")
+    if args.initial_pose is None and not args.global_:
+        raise UserError("say where the robot starts: --initial-pose X Y THETA, or --global (anywhere in free space)")
+    if args.initial_pose is not None and not all(math.isfinite(v) for v in args.initial_pose):
+        raise UserError("--initial-pose: X Y THETA must be finite numbers")
+    _require_count(args.min_particles, "--min-particles", 1, 1 << 20)
+    _require_count(args.max_particles, "--max-particles", args.min_particles, 1 << 20)
+    _require_count(args.threads, "--threads", 1, 1024)
+    if not 0 <= args.seed <= MAX_SEED:
+        raise UserError(f"--seed must lie in [0, {MAX_SEED}]")
+    _check_output(args.output)
+    _check_input(args.map, "a map_server map (YAML with its image)")
+    with _reading(args.map, "a map_server map (YAML with its image)"):
+        grid = io.load_ros_map(args.map)
+    log = _read_log(args.log, args)
+    options = dict(min_particles=args.min_particles, max_particles=args.max_particles, seed=args.seed,
+                   threads=args.threads, sensor_model=args.sensor_model)
+    if args.max_range is not None:
+        _require_length(args.max_range, "--max-range")
+        options["max_range"] = args.max_range
+    scans = log.scans
+    t = scans.timestamps
+    snaps = [float(t[0] + f * (t[-1] - t[0])) for f in (0.0, 0.02, 0.1, 1.0)] if len(t) else []
+    result = localize(log, grid, initial_pose=args.initial_pose, snapshot_times=snaps, progress=_progress(args),
+                      **options)
+    written: List[str] = []
+    _write_trajectory(args, result.timestamps, result.poses, written)
+    if args.plot:
+        written.append(_localization_picture(grid, result, args.output + ".png",
+                                             f"probslam localize: {os.path.basename(args.log)} in "
+                                             f"{os.path.basename(args.map)}"))
+    start = "global (uniform over free space)" if args.global_ else "from x={:.2f} y={:.2f} theta={:.3f}".format(
+        *args.initial_pose)
+    n = result.num_particles
+    print(f"log:           {args.log}")
+    _print_bag(log)
+    print(f"map:           {args.map}: {grid.width} x {grid.height} cells at {grid.resolution} m")
+    print(f"start:         {start}")
+    print(f"scans:         {len(result.timestamps)}; {int(result.updated.sum())} filter updates")
+    print(f"particles:     {int(n.min())} to {int(n.max())} (median {int(np.median(n))}, last {int(n[-1])})")
+    if result.convergence_time is None:
+        print("converged:     no (the largest cluster never stayed below "
+              f"{CONVERGED_XY_STD} m / {CONVERGED_THETA_STD} rad)")
+    else:
+        print(f"converged:     after {result.convergence_time:.1f} s of log, {result.travel_to_converge:.1f} m of travel")
+    print(f"time:          {result.seconds:.1f} s for {result.log_duration:.0f} s of log "
+          f"(real-time factor {result.real_time_factor:.0f})")
+    print(f"wrote:         {', '.join(written)}")
+    return 0 if result.convergence_time is not None else EXIT_NOT_CONVERGED
+
+
+def _localization_picture(grid, result, path: str, title: str) -> str:
+    """PATH.png: the map, the estimated path and the particle clouds recorded (plot.occupancy_map)
+    beside the particle count over time; without matplotlib the plain picture of io.write_png."""
+    plt = _pyplot()
+    if plt is None:
+        io.write_png(grid, path, trajectory=result.poses)
+        return path
+    from .plot import occupancy_map
+
+    fig, (ax, bx) = plt.subplots(1, 2, figsize=(14, 6.5), gridspec_kw=dict(width_ratios=(2, 1)))
+    occupancy_map(ax, grid, result.poses, trajectory_label="MCL estimate")
+    colours = ("tab:blue", "tab:orange", "tab:green", "tab:purple")
+    t0 = result.timestamps[0]
+    for (t, particles), colour in zip(result.snapshots, colours):
+        ax.scatter(particles[:, 0], particles[:, 1], s=0.5, color=colour, alpha=0.4,
+                   label=f"particles at {t - t0:.0f} s ({len(particles)})")
+    ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize="small", markerscale=8)
+    ax.set_title(title, fontsize="medium")
+    bx.plot(result.timestamps - t0, result.num_particles, color="tab:blue")
+    bx.set_yscale("log")
+    bx.set_xlabel("log time [s]")
+    bx.set_ylabel("particles (KLD sampling)")
+    if result.convergence_time is not None:
+        bx.axvline(result.convergence_time, color="tab:red", lw=0.8, label="converged")
+        bx.legend(fontsize="small")
+    return _save_figure(plt, fig, path)
 
 
 def _cmd_ekf_slam(args: argparse.Namespace) -> int:
@@ -943,6 +1029,31 @@ def build_parser() -> argparse.ArgumentParser:
     _no_progress_option(sl)
     _no_plot_option(sl)
     sl.set_defaults(func=_cmd_slam)
+
+    lo = sub.add_parser("localize", help="Monte Carlo localization of a raw CARMEN log or ROS bag in a map "
+                                         "(ch. 8.3: KLD sampling, augmented MCL), tracking or global")
+    lo.add_argument("log", help=f"{CARMEN_LOG} or {ROS_BAG}")
+    lo.add_argument("--map", required=True, help="the map: a map_server YAML (e.g. probslam slam's PREFIX.yaml)")
+    lo.add_argument("--initial-pose", type=float, nargs=3, metavar=("X", "Y", "THETA"), default=None,
+                    help="the start in the map's frame (m, m, rad): tracking")
+    lo.add_argument("--global", dest="global_", action="store_true",
+                    help="no start: particles uniform over free space (global localization)")
+    lo.add_argument("--sensor-model", choices=("likelihood-field", "beam"), default="likelihood-field",
+                    help="likelihood-field (Table 6.3, default) or beam (Table 6.1)")
+    lo.add_argument("--min-particles", type=int, default=500, help="KLD sampling's lower bound (default 500)")
+    lo.add_argument("--max-particles", type=int, default=20000,
+                    help="KLD sampling's upper bound, and the global start's count (default 20000)")
+    lo.add_argument("--max-range", type=float, default=None,
+                    help="readings at or beyond this (m) are skipped (default: the log's no-return reading)")
+    lo.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    lo.add_argument("--threads", type=int, default=1, help="worker threads (results identical for any count)")
+    lo.add_argument("-o", "--output", default="localize",
+                    help="output prefix: PREFIX_trajectory.tum, PREFIX.png (default 'localize')")
+    _trajectory_format_option(lo, "the laser poses at the log's scan times (s)")
+    _bag_input_options(lo, poses=False)
+    _no_progress_option(lo)
+    _no_plot_option(lo)
+    lo.set_defaults(func=_cmd_localize)
 
     e = sub.add_parser("ekf-slam", help="EKF SLAM on a landmark dataset (MRCLAM folder or Victoria Park file)")
     e.add_argument("dataset", nargs="?", help="a UTIAS MRCLAM folder, or Victoria Park in iSAM/GTSAM text format; "

@@ -1,0 +1,278 @@
+// Monte Carlo localization (localization/) and the odometry motion model kernel
+// (core/odometry_motion_model.hpp): conversions only; every call on the filter runs under its lock
+// with the GIL released.
+#include <pybind11/eigen.h>
+#include <pybind11/stl.h>
+
+#include <memory>
+#include <string>
+#include <tuple>
+#include <utility>
+
+#include "args.hpp"
+#include "numpy.hpp"
+#include "object_lock.hpp"
+#include "repr.hpp"
+#include "probslam/core/check.hpp"
+#include "probslam/core/odometry_motion_model.hpp"
+#include "probslam/fastslam/particles.hpp"
+#include "probslam/localization/monte_carlo_localization.hpp"
+
+namespace probslam::bindings {
+
+namespace {
+
+using Mcl = MonteCarloLocalization;
+
+MclSensorModel sensor_model_arg(const StrArg& s) {
+  const std::string v = s.get("sensor_model");
+  if (v == "likelihood-field") return MclSensorModel::kLikelihoodField;
+  if (v == "beam") return MclSensorModel::kBeam;
+  throw py::value_error("sensor_model must be \"likelihood-field\" or \"beam\", got \"" + v + "\"");
+}
+
+const char* sensor_model_name(MclSensorModel m) { return m == MclSensorModel::kBeam ? "beam" : "likelihood-field"; }
+
+OdometryMotionNoise noise_arg(py::handle obj, const char* name) {
+  const Eigen::Vector4d a = fixed_vector<4>(obj, name);
+  OdometryMotionNoise n{a[0], a[1], a[2], a[3]};
+  if (!a.allFinite() || (a.array() < 0.0).any())
+    throw py::value_error(std::string(name) + " must hold four finite coefficients >= 0 (alpha1..alpha4)");
+  return n;
+}
+
+/// The Python form of the initial covariance: None is the default diag(0.25 m, 0.25 m, 15 deg)^2.
+Eigen::Matrix3d initial_covariance_arg(py::handle obj) {
+  if (obj.is_none()) {
+    Eigen::Matrix3d c = Eigen::Matrix3d::Zero();
+    c.diagonal() << 0.25 * 0.25, 0.25 * 0.25, 0.2617993877991494 * 0.2617993877991494;
+    return c;
+  }
+  return square_matrix_arg(obj, "initial_covariance", 3);
+}
+
+}  // namespace
+
+void define_localization(py::module_& m) {
+  py::class_<MclUpdate>(m, "MclUpdate", "MonteCarloLocalization.update's report.")
+      .def_readonly("updated", &MclUpdate::updated, "Whether the filter updated (enough travel, first scan, force).")
+      .def_readonly("resampled", &MclUpdate::resampled, "Whether it resampled (N_eff below the threshold).")
+      .def_readonly("num_particles", &MclUpdate::num_particles, "M after the call.")
+      .def_readonly("effective_sample_size", &MclUpdate::effective_sample_size, "N_eff before resampling (0 without update).")
+      .def_readonly("random_fraction", &MclUpdate::random_fraction,
+                    "Share of random particles injected by augmented MCL at the last resampling.")
+      .def("__repr__", [](const MclUpdate& u) {
+        return "MclUpdate(updated=" + std::string(u.updated ? "True" : "False") + ", resampled=" +
+               (u.resampled ? "True" : "False") + ", num_particles=" + std::to_string(u.num_particles) + ")";
+      });
+
+  const MonteCarloLocalizationOptions d;
+  py::class_<Mcl> c(m, "MonteCarloLocalization",
+      "Monte Carlo localization in a known occupancy grid (Probabilistic Robotics Table 8.2 / 8.3, Fox 2003).\n"
+      "\n"
+      "MonteCarloLocalization(map, *, options): map is an OccupancyGrid2D (copied). Keywords:\n"
+      "    initial_pose: (3,) (m, m, rad) or None for a global start (uniform over free cells);\n"
+      "    initial_covariance: (3, 3) of the start (default diag(0.25 m, 0.25 m, 15 deg)^2).\n"
+      "    sensor_model: \"likelihood-field\" (Table 6.3) or \"beam\" (Table 6.1).\n"
+      "    odometry_noise: (4,) alpha1..alpha4 of Table 5.6.\n"
+      "    occupied_threshold / free_threshold: cell probabilities above / below which a cell is an\n"
+      "        obstacle / free space.\n"
+      "    sigma_hit (m), p_rand: the likelihood field's std and uniform weight.\n"
+      "    beam_z_hit, beam_z_short, beam_z_max, beam_z_rand, beam_sigma_hit (m), beam_lambda_short (1/m):\n"
+      "        the beam model's mixture.\n"
+      "    max_range, min_range (m): readings outside are skipped (the beam model scores max readings);\n"
+      "        max_beams: beams used per scan; weight_scale in (0, 1]: tempering of a scan's log-likelihood.\n"
+      "    min_particles, max_particles, kld_epsilon, kld_z (z_{1-delta}), bin_xy (m), bin_theta (rad):\n"
+      "        KLD sampling.\n"
+      "    alpha_slow, alpha_fast: augmented MCL's averages (alpha_slow 0 turns it off); recovery_ratio in\n"
+      "        (0, 1]: inject with probability max(0, 1 - w_fast / (recovery_ratio w_slow)).\n"
+      "    resample_threshold: resample when N_eff < resample_threshold * M.\n"
+      "    update_min_d (m), update_min_a (rad): travel before an update.\n"
+      "    seed: int in [0, 2^64); threads: worker threads (results identical for any count).\n"
+      "A failed call changes nothing.");
+  c.def(py::init([](py::handle map, py::handle initial_pose, py::handle initial_covariance, StrArg sensor_model,
+                    py::handle odometry_noise, RealArg occupied_threshold, RealArg free_threshold, RealArg sigma_hit,
+                    RealArg p_rand, RealArg beam_z_hit, RealArg beam_z_short, RealArg beam_z_max, RealArg beam_z_rand,
+                    RealArg beam_sigma_hit, RealArg beam_lambda_short, RealArg max_range, RealArg min_range,
+                    IntArg max_beams, RealArg weight_scale, IntArg min_particles, IntArg max_particles,
+                    RealArg kld_epsilon, RealArg kld_z, RealArg bin_xy, RealArg bin_theta, RealArg alpha_slow,
+                    RealArg alpha_fast, RealArg recovery_ratio, RealArg resample_threshold, RealArg update_min_d, RealArg update_min_a,
+                    UInt64Arg seed, IntArg threads) {
+          if (!py::isinstance<OccupancyGrid2D>(map)) throw py::type_error("map must be an OccupancyGrid2D");
+          const OccupancyGrid2D& grid = map.cast<const OccupancyGrid2D&>();
+          MonteCarloLocalizationOptions o;
+          o.sensor_model = sensor_model_arg(sensor_model);
+          o.odometry = noise_arg(odometry_noise, "odometry_noise");
+          o.occupied_threshold = occupied_threshold.get("occupied_threshold");
+          o.free_threshold = free_threshold.get("free_threshold");
+          o.sigma_hit = sigma_hit.get("sigma_hit");
+          o.p_rand = p_rand.get("p_rand");
+          o.beam.z_hit = beam_z_hit.get("beam_z_hit");
+          o.beam.z_short = beam_z_short.get("beam_z_short");
+          o.beam.z_max = beam_z_max.get("beam_z_max");
+          o.beam.z_rand = beam_z_rand.get("beam_z_rand");
+          o.beam.sigma_hit = beam_sigma_hit.get("beam_sigma_hit");
+          o.beam.lambda_short = beam_lambda_short.get("beam_lambda_short");
+          o.max_range = max_range.get("max_range");
+          o.min_range = min_range.get("min_range");
+          o.max_beams = max_beams.get("max_beams");
+          o.weight_scale = weight_scale.get("weight_scale");
+          o.min_particles = min_particles.get("min_particles");
+          o.max_particles = max_particles.get("max_particles");
+          o.kld_epsilon = kld_epsilon.get("kld_epsilon");
+          o.kld_z = kld_z.get("kld_z");
+          o.bin_xy = bin_xy.get("bin_xy");
+          o.bin_theta = bin_theta.get("bin_theta");
+          o.alpha_slow = alpha_slow.get("alpha_slow");
+          o.alpha_fast = alpha_fast.get("alpha_fast");
+          o.recovery_ratio = recovery_ratio.get("recovery_ratio");
+          o.resample_threshold = resample_threshold.get("resample_threshold");
+          o.update_min_d = update_min_d.get("update_min_d");
+          o.update_min_a = update_min_a.get("update_min_a");
+          o.seed = seed.get("seed");
+          o.threads = threads.get("threads");
+          const bool global = initial_pose.is_none();
+          Eigen::Vector3d pose = Eigen::Vector3d::Zero();
+          if (!global) pose = pose_arg(initial_pose, "initial_pose");
+          const Eigen::Matrix3d cov = initial_covariance_arg(initial_covariance);
+          return locked(grid, [&] {
+            auto f = std::make_unique<Mcl>(grid, o);
+            if (!global) {
+              try {
+                f->initialize_pose(pose, cov);
+              } catch (const std::invalid_argument& e) {
+                // Name the constructor's keywords, not initialize_pose's arguments.
+                std::string what = e.what();
+                if (what.rfind("pose", 0) == 0) what = "initial_" + what;
+                else if (what.rfind("covariance", 0) == 0) what = "initial_" + what;
+                throw std::invalid_argument(what);
+              }
+            }
+            return f;
+          });
+        }),
+        py::arg("map"), py::kw_only(), py::arg("initial_pose") = py::none(), py::arg("initial_covariance") = py::none(),
+        py::arg_v("sensor_model", std::string(sensor_model_name(d.sensor_model))),
+        py::arg_v("odometry_noise",
+                  py::make_tuple(d.odometry.alpha1, d.odometry.alpha2, d.odometry.alpha3, d.odometry.alpha4)),
+        real_arg("occupied_threshold", d.occupied_threshold), real_arg("free_threshold", d.free_threshold),
+        real_arg("sigma_hit", d.sigma_hit), real_arg("p_rand", d.p_rand), real_arg("beam_z_hit", d.beam.z_hit),
+        real_arg("beam_z_short", d.beam.z_short), real_arg("beam_z_max", d.beam.z_max),
+        real_arg("beam_z_rand", d.beam.z_rand), real_arg("beam_sigma_hit", d.beam.sigma_hit),
+        real_arg("beam_lambda_short", d.beam.lambda_short), real_arg("max_range", d.max_range),
+        real_arg("min_range", d.min_range), py::arg_v("max_beams", d.max_beams),
+        real_arg("weight_scale", d.weight_scale), py::arg_v("min_particles", d.min_particles),
+        py::arg_v("max_particles", d.max_particles), real_arg("kld_epsilon", d.kld_epsilon),
+        real_arg("kld_z", d.kld_z), real_arg("bin_xy", d.bin_xy), real_arg("bin_theta", d.bin_theta),
+        real_arg("alpha_slow", d.alpha_slow), real_arg("alpha_fast", d.alpha_fast),
+        real_arg("recovery_ratio", d.recovery_ratio),
+        real_arg("resample_threshold", d.resample_threshold), real_arg("update_min_d", d.update_min_d),
+        real_arg("update_min_a", d.update_min_a), py::arg_v("seed", d.seed), py::arg_v("threads", d.threads),
+        "Keyword options only: see the class docstring.");
+  c.def("initialize_global", [](Mcl& self) { locked(self, [&] { self.initialize_global(); }); },
+        "Restarts with max_particles poses uniform over the free cells.")
+      .def("initialize_pose", [](Mcl& self, py::handle pose, py::handle covariance) {
+        const Eigen::Vector3d p = pose_arg(pose, "pose");
+        const Eigen::Matrix3d cov = square_matrix_arg(covariance, "covariance", 3);
+        locked(self, [&] { self.initialize_pose(p, cov); });
+      }, py::arg("pose"), py::arg("covariance"),
+         "Restarts with max_particles poses drawn from N(pose, covariance); pose must lie in a free cell.")
+      .def("predict_odometry", [](Mcl& self, py::handle delta, py::handle previous, py::handle current) {
+        Eigen::Vector3d dlt;
+        if (!delta.is_none()) {
+          if (!previous.is_none() || !current.is_none())
+            throw py::value_error("delta: give either delta or previous and current, not both");
+          dlt = fixed_vector<3>(delta, "delta");
+        } else {
+          if (previous.is_none() || current.is_none())
+            throw py::value_error("delta: give delta, or both previous and current odometry poses");
+          const Eigen::Vector3d a = pose_arg(previous, "previous"), b = pose_arg(current, "current");
+          require_all_finite(a, "previous");
+          require_all_finite(b, "current");
+          const double c0 = std::cos(a.z()), s0 = std::sin(a.z());
+          const double dx = b.x() - a.x(), dy = b.y() - a.y();
+          dlt = Eigen::Vector3d(c0 * dx + s0 * dy, -s0 * dx + c0 * dy, wrap_angle(b.z() - a.z()));
+        }
+        locked(self, [&] { self.predict_odometry(dlt); });
+      }, py::arg("delta") = py::none(), py::kw_only(), py::arg("previous") = py::none(), py::arg("current") = py::none(),
+         "Accumulates an odometry motion: delta (3,) = (dx, dy, dtheta) in the previous odometry pose's frame,\n"
+         "or the two odometry poses previous= and current=. Particles move at the next update.")
+      .def("update", [](Mcl& self, py::handle ranges, py::handle angles, BoolArg force) {
+        const DoubleArray r = vector_arg(ranges, "ranges");
+        const DoubleArray a = vector_arg(angles, "angles");
+        const bool f = force.get("force");
+        return locked(self, [&] { return self.update(as_vector(r), as_vector(a), f); });
+      }, py::arg("ranges"), py::arg("angles"), py::kw_only(), py::arg_v("force", false),
+         "One scan: ranges (B,) m (finite, >= 0), angles (B,) rad relative to the sensor heading. Updates\n"
+         "after update_min_d / update_min_a of travel (or on the first scan, or with force=True).\n"
+         "Returns an MclUpdate.")
+      .def("measurement_log_likelihood", [](const Mcl& self, py::handle pose, py::handle ranges, py::handle angles) {
+        const Eigen::Vector3d p = pose_arg(pose, "pose");
+        const DoubleArray r = vector_arg(ranges, "ranges");
+        const DoubleArray a = vector_arg(angles, "angles");
+        return locked(self, [&] { return self.measurement_log_likelihood(p, as_vector(r), as_vector(a)); });
+      }, py::arg("pose"), py::arg("ranges"), py::arg("angles"),
+         "log p(z | pose, map) of the sensor model with the scan subsampled as update does (before weight_scale).")
+      .def_static("kld_bound", [](IntArg k, RealArg epsilon, RealArg z) {
+        const int kk = k.get("k", 0);
+        const double e = epsilon.get("epsilon"), zz = z.get("z");
+        require_positive(e, "epsilon");
+        require_finite(zz, "z");
+        return Mcl::kld_bound(kk, e, zz);
+      }, py::arg("k"), py::arg("epsilon"), py::arg("z"),
+         "Fox 2003: particles needed for k occupied bins, (k - 1) / (2 epsilon) (1 - 2 / (9 (k - 1)) +\n"
+         "sqrt(2 / (9 (k - 1))) z)^3 (0 for k <= 1), before the min / max bounds.")
+      .def_property_readonly("pose", getter(&Mcl::pose),
+                             "(3,) the weighted mean of the largest particle cluster, moved by pending odometry.")
+      .def_property_readonly("covariance", getter(&Mcl::covariance), "(3, 3) that cluster's covariance.")
+      .def_property_readonly("particles", getter(&Mcl::particles), "(M, 3) particle poses (m, m, rad).")
+      .def_property_readonly("weights", getter(&Mcl::weights), "(M,) normalised weights.")
+      .def_property_readonly("num_particles", getter(&Mcl::num_particles), "M, the number of particles.")
+      .def_property_readonly("num_updates", getter(&Mcl::num_updates), "Updates since the last initialisation.")
+      .def_property_readonly("w_slow", getter(&Mcl::w_slow),
+                             "Augmented MCL's long-term average of the per-beam likelihood (Table 8.3).")
+      .def_property_readonly("w_fast", getter(&Mcl::w_fast), "Its short-term average.")
+      .def("copy", [](const Mcl& self) { return locked(self, [&] { return std::make_unique<Mcl>(self); }); },
+           "An independent deep copy (particles, random streams, averages).")
+      .def("__repr__", [](py::handle self) {
+        const Mcl& s = self.cast<const Mcl&>();
+        return repr_of(self, locked(s, [&] {
+          return std::to_string(s.num_particles()) + " particles, " + std::to_string(s.num_updates()) + " updates";
+        }));
+      });
+
+  m.def("odometry_motion", [](py::handle previous, py::handle current) {
+    const Eigen::Vector3d a = pose_arg(previous, "previous"), b = pose_arg(current, "current");
+    const OdometryMotion u = OdometryMotion::between(a, b);
+    return std::make_tuple(u.rot1, u.trans, u.rot2);
+  }, py::arg("previous"), py::arg("current"),
+     "(rot1, trans, rot2) of the motion between two odometry poses (Table 5.5 lines 2-4).");
+  m.def("sample_odometry_motion", [](py::handle pose, py::handle previous, py::handle current, py::handle noise,
+                                     IntArg num_samples, UInt64Arg seed) {
+    const Eigen::Vector3d x = pose_arg(pose, "pose");
+    require_all_finite(x, "pose");
+    const Eigen::Vector3d a = pose_arg(previous, "previous"), b = pose_arg(current, "current");
+    const OdometryMotionNoise n = noise_arg(noise, "noise");
+    const int count = num_samples.get("num_samples", 1, kMaxParticles);
+    ParticleRng rng(seed.get("seed"), 0);
+    const OdometryMotion u = OdometryMotion::between(a, b);
+    Poses2 out(count, 3);
+    for (int i = 0; i < count; ++i) out.row(i) = sample_odometry_motion(x, u, n, rng).transpose();
+    return out;
+  }, py::arg("pose"), py::arg("previous"), py::arg("current"), py::arg("noise"), py::kw_only(),
+     py::arg_v("num_samples", 1), py::arg_v("seed", 0),
+     "(num_samples, 3) poses drawn from Table 5.6's p(x_t | u_t, pose), u_t read between the odometry\n"
+     "poses previous and current; noise (4,) alpha1..alpha4.");
+  m.def("odometry_motion_log_density", [](py::handle pose, py::handle next_pose, py::handle previous,
+                                          py::handle current, py::handle noise) {
+    const Eigen::Vector3d x0 = pose_arg(pose, "pose"), x1 = pose_arg(next_pose, "next_pose");
+    require_all_finite(x0, "pose");
+    require_all_finite(x1, "next_pose");
+    const Eigen::Vector3d a = pose_arg(previous, "previous"), b = pose_arg(current, "current");
+    const OdometryMotionNoise n = noise_arg(noise, "noise");
+    return odometry_motion_log_density(x0, x1, OdometryMotion::between(a, b), n);
+  }, py::arg("pose"), py::arg("next_pose"), py::arg("previous"), py::arg("current"), py::arg("noise"),
+     "Table 5.5: log p(next_pose | u_t, pose) over (rot1, trans, rot2), u_t read between the odometry poses.");
+}
+
+}  // namespace probslam::bindings

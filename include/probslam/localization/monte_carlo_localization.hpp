@@ -1,0 +1,176 @@
+#pragma once
+// Monte Carlo localization in a known occupancy grid (Probabilistic Robotics ch. 8.3): Table 8.2
+// with the odometry motion model (Table 5.6) and the likelihood-field (Table 6.3) or beam
+// (Table 6.1) measurement model; augmented MCL (Table 8.3: random particles in free space when
+// the short-term average weight drops below the long-term one); KLD sampling (Fox 2003) for the
+// particle count; resampling when N_eff is low; an update only after a minimum travel, as
+// ROS AMCL's update_min_d / update_min_a.
+#include <Eigen/Core>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "probslam/core/object_mutex.hpp"
+#include "probslam/core/odometry_motion_model.hpp"
+#include "probslam/core/types.hpp"
+#include "probslam/fastslam/particles.hpp"
+#include "probslam/grid/beam_mixture.hpp"
+#include "probslam/grid/beam_sensor_model.hpp"
+#include "probslam/grid/binary_map_2d.hpp"
+#include "probslam/grid/occupancy_grid_2d.hpp"
+#include "probslam/slam2d/likelihood_field.hpp"
+
+namespace probslam {
+
+class WorkerPool;
+
+enum class MclSensorModel { kLikelihoodField, kBeam };
+
+struct MonteCarloLocalizationOptions {
+  MclSensorModel sensor_model = MclSensorModel::kLikelihoodField;
+  OdometryMotionNoise odometry;  ///< alpha1..alpha4 of Table 5.6
+  // ---- the map ----
+  double occupied_threshold = 0.65;  ///< cells above this probability are obstacles
+  double free_threshold = 0.25;      ///< cells below this probability are free (where a robot can be)
+  // ---- the measurement ----
+  double sigma_hit = 0.1;   ///< likelihood field: std of a hit around the nearest obstacle, m
+  double p_rand = 0.05;     ///< likelihood field: weight of the uniform part (z_rand / z_max)
+  BeamMixture beam;         ///< beam model: the mixture of Table 6.1 (its max_range too)
+  double max_range = 30.0;  ///< readings >= this are max readings, skipped (Table 6.3 line 3), m
+  double min_range = 0.0;   ///< readings <= this are skipped, m
+  int max_beams = 60;       ///< beams used per scan, evenly spaced (beams of one scan are not independent)
+  /// Each scan's log-likelihood is multiplied by this, in (0, 1]: a tempered weight. The beams'
+  /// errors are correlated (the map's cells, the scan's own distortion), so their product
+  /// overstates the evidence: at 1 a global start on the Intel excerpt collapses onto a wrong
+  /// place at the first scan and an ACES corridor's small bumps drag the track metres along it;
+  /// 0.1 localizes both (docs/localization.md).
+  double weight_scale = 0.1;
+  // ---- particles: KLD sampling (Fox 2003) ----
+  int min_particles = 500;  ///< a tracked cloud fills few bins: below ~500 it loses the track in corridors
+  int max_particles = 20000;
+  double kld_epsilon = 0.05;  ///< bound on the K-L divergence between the sample and the posterior
+  double kld_z = 2.326;       ///< z_{1-delta}: the upper 1 - delta quantile of N(0, 1) (delta = 0.01)
+  double bin_xy = 0.5;        ///< histogram bin side, m
+  double bin_theta = 0.1745329251994330;  ///< histogram bin width, rad (10 degrees)
+  // ---- augmented MCL (Table 8.3); alpha_slow = 0 turns it off ----
+  double alpha_slow = 0.001;
+  double alpha_fast = 0.1;
+  /// Particles are injected with probability max(0, 1 - w_fast / (recovery_ratio w_slow)), in
+  /// (0, 1]: 1 is Table 8.3, where every dip of the short-term average (a person in front of
+  /// the laser, a part of the map drawn poorly) injects a few; a tracked robot then jumped to a
+  /// similar-looking place on ACES and FR079. At 0.5 only a halving of the likelihood injects.
+  double recovery_ratio = 0.5;
+  // ---- when to update and resample ----
+  double resample_threshold = 0.5;  ///< resample when N_eff < this * M, in [0, 1]
+  double update_min_d = 0.2;        ///< travel (m) before an update
+  double update_min_a = 0.5235987755982988;  ///< turn (rad) before an update (30 degrees)
+  std::uint64_t seed = 0;
+  int threads = 1;
+  /// std::invalid_argument naming the first bad option.
+  void validate() const;
+};
+
+/// One entry of update(): whether the filter updated, and its state after.
+struct MclUpdate {
+  bool updated = false;
+  bool resampled = false;
+  int num_particles = 0;
+  double effective_sample_size = 0.0;
+  double random_fraction = 0.0;  ///< augmented MCL's share of random particles at the last resampling
+};
+
+class MonteCarloLocalization {
+ public:
+  /// `map` is copied. Starts with a global initialisation (max_particles uniform over free cells).
+  /// Throws std::invalid_argument for bad options or a map with no free cell.
+  MonteCarloLocalization(const OccupancyGrid2D& map, const MonteCarloLocalizationOptions& options = {});
+  /// A deep copy (particles, random streams, averages); it starts its own worker threads.
+  MonteCarloLocalization(const MonteCarloLocalization& other);
+  ~MonteCarloLocalization();
+  MonteCarloLocalization& operator=(const MonteCarloLocalization&) = delete;
+
+  const MonteCarloLocalizationOptions& options() const { return options_; }
+  const OccupancyGrid2D& map() const { return map_; }
+
+  /// max_particles poses uniform over the free cells, headings uniform.
+  void initialize_global();
+  /// max_particles poses from N(pose, covariance) (3x3, symmetric positive semi-definite).
+  /// Throws when pose lies outside the map or in a cell that is not free.
+  void initialize_pose(const Eigen::Vector3d& pose, const Eigen::Matrix3d& covariance);
+
+  /// Accumulates an odometry motion: delta = (dx, dy, dtheta) in the frame of the previous
+  /// odometry pose. The particles move at the next update (the whole motion since the last one
+  /// is one Table 5.6 step, as AMCL does).
+  void predict_odometry(const Eigen::Vector3d& delta);
+  /// A scan: ranges (B,) m, beam angles (B,) rad relative to the sensor's heading (the poses are
+  /// the sensor's). Updates when the travel since the last update reaches update_min_d or
+  /// update_min_a, or on the first scan, or when `force`. Ranges must be finite or +inf (a max
+  /// reading) and >= 0; at least one must be usable. Changes nothing when it throws.
+  MclUpdate update(const Eigen::Ref<const Eigen::VectorXd>& ranges, const Eigen::Ref<const Eigen::VectorXd>& angles,
+                   bool force = false);
+
+  /// log p(z | pose, m) of the configured model with the scan subsampled as update() does
+  /// (before weight_scale): the weight of one particle.
+  double measurement_log_likelihood(const Eigen::Vector3d& pose, const Eigen::Ref<const Eigen::VectorXd>& ranges,
+                                    const Eigen::Ref<const Eigen::VectorXd>& angles) const;
+
+  int num_particles() const { return static_cast<int>(poses_.size()); }
+  Poses2 particles() const;
+  Eigen::VectorXd weights() const;  ///< normalised
+  /// The weighted mean of the largest cluster (connected occupied bins of the KLD histogram,
+  /// by weight), moved by the odometry not yet applied; and that cluster's covariance.
+  Eigen::Vector3d pose() const;
+  Eigen::Matrix3d covariance() const { return covariance_; }
+  int num_updates() const { return num_updates_; }
+  /// Augmented MCL's long- and short-term averages of the per-beam likelihood (Table 8.3).
+  double w_slow() const { return w_slow_; }
+  double w_fast() const { return w_fast_; }
+  const LikelihoodField* likelihood_field() const { return field_.get(); }
+
+  /// Fox 2003 eq. (the Wilson-Hilferty approximation of the chi-square quantile): particles
+  /// needed for `k` occupied bins, before the min/max bounds.
+  static double kld_bound(int k, double epsilon, double z);
+
+  std::mutex& mutex() const noexcept { return mutex_.get(); }
+
+ private:
+  void check_pose_free(const Eigen::Vector3d& pose, const char* name) const;
+  bool is_free(const Eigen::Vector3d& pose) const;
+  bool is_occupied_or_outside(const Eigen::Vector3d& pose) const;
+  Eigen::Vector3d random_free_pose(ParticleRng& rng) const;
+  void reset_particles(int n);
+  void resample(double random_probability);
+  void compute_estimate();
+  std::vector<int> used_beams(const Eigen::Ref<const Eigen::VectorXd>& ranges) const;
+  double scan_log_likelihood(const Eigen::Vector3d& pose, const Eigen::Ref<const Eigen::VectorXd>& ranges,
+                             const Eigen::Ref<const Eigen::VectorXd>& angles, const std::vector<int>& beams) const;
+  template <class F>
+  void for_particles(F&& f);
+
+  MonteCarloLocalizationOptions options_;
+  OccupancyGrid2D map_;
+  std::vector<std::uint8_t> cell_free_, cell_occupied_;
+  std::vector<int> free_cells_;
+  std::shared_ptr<const LikelihoodField> field_;    // immutable: shared by copies
+  std::shared_ptr<const BinaryMap2D> binary_map_;
+  std::shared_ptr<const BeamSensorModel> beam_model_;
+
+  std::vector<Eigen::Vector3d> poses_;
+  std::vector<double> log_weights_;
+  std::vector<ParticleRng> rngs_;
+  ParticleRng filter_rng_;
+  std::uint64_t next_stream_ = 0;
+
+  Eigen::Vector3d pending_ = Eigen::Vector3d::Zero();  // odometry since the last update
+  double travel_d_ = 0.0, travel_a_ = 0.0;
+  double w_slow_ = 0.0, w_fast_ = 0.0;
+  double slow_raw_ = 0.0, fast_raw_ = 0.0, slow_mass_ = 0.0, fast_mass_ = 0.0;  // before bias correction
+  double random_fraction_ = 0.0;
+  int num_updates_ = 0;
+  Eigen::Vector3d estimate_ = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d covariance_ = Eigen::Matrix3d::Zero();
+  std::unique_ptr<WorkerPool> pool_;  // threads > 1: started on the first update
+  ObjectMutex mutex_;
+};
+
+}  // namespace probslam

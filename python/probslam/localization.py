@@ -1,0 +1,162 @@
+"""Monte Carlo localization of a raw laser log in a known map (C++ ``MonteCarloLocalization``):
+the driver that feeds a log's odometry and scans to the filter and records its estimate.
+
+Units: metres, radians, seconds. Poses are laser poses ``(x, y, theta)`` in the map's frame.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass, field
+from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
+
+import numpy as np
+from tqdm import tqdm
+
+from . import _core
+from .datasets import carmen
+from .io.carmen import CarmenLog, LaserScans
+from .io.rosbag import is_bag, read_rosbag
+from .mapping import no_return_range
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+# The estimate counts as converged when the largest cluster's position standard deviation (its
+# covariance's larger x-y eigenvalue, square-rooted) and heading standard deviation fall below
+# these: a tracked robot's cloud spans a few decimetres and a few degrees; a global cloud that
+# has not settled spans metres.
+CONVERGED_XY_STD = 0.5
+CONVERGED_THETA_STD = 0.25
+
+
+@dataclass
+class LocalizationResult:
+    """What ``localize`` returns.
+
+    timestamps (S,) s; poses (S, 3) the estimate at every scan (the largest cluster's weighted
+    mean, moved by odometry between updates); covariances (S, 3, 3); num_particles (S,);
+    converged (S,) bool (``CONVERGED_XY_STD`` / ``CONVERGED_THETA_STD``); updated (S,) bool (the
+    filter updated at this scan); convergence_time: seconds of log from the first scan until the
+    estimate converged for good (None if it never did); travel_to_converge: metres of odometry
+    travel until then; seconds of processing; log_duration s; snapshots: (timestamp, particles
+    (M, 3)) at the requested times; options the filter's keywords.
+    """
+
+    timestamps: np.ndarray
+    poses: np.ndarray
+    covariances: np.ndarray
+    num_particles: np.ndarray
+    converged: np.ndarray
+    updated: np.ndarray
+    convergence_time: Optional[float]
+    travel_to_converge: Optional[float]
+    seconds: float
+    log_duration: float
+    snapshots: List[Tuple[float, np.ndarray]] = field(default_factory=list)
+    options: Dict[str, Any] = field(default_factory=dict)
+
+    @property
+    def real_time_factor(self) -> float:
+        """Seconds of log per second of processing."""
+        return self.log_duration / self.seconds if self.seconds > 0 else float("inf")
+
+
+def is_converged(covariance: np.ndarray) -> bool:
+    """Whether a cluster covariance (3, 3) is below ``CONVERGED_XY_STD`` / ``CONVERGED_THETA_STD``."""
+    cov = np.asarray(covariance, dtype=float)
+    xy = float(np.linalg.eigvalsh(cov[:2, :2])[-1])
+    return bool(np.sqrt(max(xy, 0.0)) < CONVERGED_XY_STD and np.sqrt(max(cov[2, 2], 0.0)) < CONVERGED_THETA_STD)
+
+
+def _scans_of(log: Union[PathLike, CarmenLog, LaserScans]) -> LaserScans:
+    if isinstance(log, (str, os.PathLike)):
+        log = read_rosbag(log) if is_bag(log) else carmen.load(log)
+    scans = log.scans if isinstance(log, CarmenLog) else log
+    if not isinstance(scans, LaserScans):
+        raise TypeError("log must be a path, a CarmenLog or LaserScans")
+    if len(scans) == 0:
+        raise ValueError("log has no laser scans")
+    return scans
+
+
+def localize(log: Union[PathLike, CarmenLog, LaserScans], map: _core.OccupancyGrid2D, *,
+             initial_pose: Optional[Sequence[float]] = None, initial_covariance: Optional[np.ndarray] = None,
+             start: int = 0, stop: Optional[int] = None, snapshot_times: Sequence[float] = (),
+             progress: Optional[bool] = None, **options: Any) -> LocalizationResult:
+    """Localizes the scans ``start:stop`` of a raw log (a CARMEN or ROS bag path, a ``CarmenLog``
+    or its ``LaserScans``) in ``map`` (an ``OccupancyGrid2D``, e.g. ``io.load_ros_map``'s).
+
+    ``initial_pose`` (x, y, theta) in the map's frame with ``initial_covariance`` (3, 3; default
+    diag(0.25 m, 0.25 m, 15 deg)^2) for tracking; None for global localization (particles
+    uniform over the free cells). ``options`` are ``MonteCarloLocalization``'s keywords
+    (max_range defaults to the log's no-return reading). ``snapshot_times``: log times (s) at
+    which the particle cloud is recorded (the first scan at or after each). ``progress=None``
+    shows a bar only on a terminal.
+    """
+    if not isinstance(map, _core.OccupancyGrid2D):
+        raise TypeError("map must be an OccupancyGrid2D")
+    scans = _scans_of(log)
+    n = len(scans)
+    for name, v in (("start", start), ("stop", stop)):
+        if v is not None and (isinstance(v, bool) or int(v) != v or not 0 <= v <= n):
+            raise ValueError(f"{name} must be an integer in [0, {n}], got {v!r}")
+    stop = n if stop is None else int(stop)
+    start = int(start)
+    if stop - start < 1:
+        raise ValueError("start, stop: the range holds no scan")
+    opts: Dict[str, Any] = {}
+    no_return = no_return_range(scans)
+    if np.isfinite(no_return):
+        opts["max_range"] = no_return
+    opts.update(options)
+    mcl = _core.MonteCarloLocalization(map, initial_pose=initial_pose, initial_covariance=initial_covariance,
+                                       **opts)
+    skip = float(opts.get("max_range", 30.0)) + 1.0  # a value the filter skips (at or beyond max_range)
+    angles = scans.beam_angles()
+    odom = scans.laser_poses
+    times = np.asarray(snapshot_times, dtype=float)
+    m = stop - start
+    poses = np.empty((m, 3))
+    covs = np.empty((m, 3, 3))
+    counts = np.empty(m, dtype=np.int64)
+    updated = np.zeros(m, dtype=bool)
+    snapshots: List[Tuple[float, np.ndarray]] = []
+    pending = sorted(times.tolist())
+    t0 = time.perf_counter()
+    with tqdm(total=m, unit="scan", desc="localize", disable=(None if progress is None else not progress)) as bar:
+        for i, k in enumerate(range(start, stop)):
+            if i > 0:
+                mcl.predict_odometry(previous=odom[k - 1], current=odom[k])
+            b = int(scans.num_beams[k])
+            r = scans.ranges[k, :b]
+            r = np.where(np.isfinite(r) & (r >= 0), r, skip)
+            u = mcl.update(r, angles[k, :b])
+            updated[i] = u.updated
+            poses[i] = mcl.pose
+            covs[i] = mcl.covariance
+            counts[i] = mcl.num_particles
+            while pending and scans.timestamps[k] >= pending[0]:
+                pending.pop(0)
+                snapshots.append((float(scans.timestamps[k]), mcl.particles))
+            if i % 100 == 99:
+                bar.update(100)
+        bar.update(m - bar.n)
+    seconds = time.perf_counter() - t0
+    t = scans.timestamps[start:stop]
+    duration = float(t[-1] - t[0]) if m > 1 else 0.0
+    conv = np.array([is_converged(c) for c in covs])
+    never = np.flatnonzero(~conv)
+    first_good = 0 if never.size == 0 else int(never[-1]) + 1
+    conv_time = travel = None
+    if first_good < m:
+        conv_time = float(t[first_good] - t[0])
+        steps = np.diff(odom[start:start + first_good + 1, :2], axis=0)
+        travel = float(np.sum(np.hypot(steps[:, 0], steps[:, 1])))
+    return LocalizationResult(timestamps=np.array(t, dtype=float), poses=poses, covariances=covs, num_particles=counts,
+                              converged=conv, updated=updated, convergence_time=conv_time,
+                              travel_to_converge=travel, seconds=seconds, log_duration=duration,
+                              snapshots=snapshots, options=opts)
+
+
+__all__ = ["CONVERGED_THETA_STD", "CONVERGED_XY_STD", "LocalizationResult", "is_converged", "localize"]
