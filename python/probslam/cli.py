@@ -32,6 +32,8 @@ BUNDLED_GRAPH = "intel_400.g2o"
 BUNDLED_LANDMARKS = "mrclam7_robot1_120s"
 #: ``map --inverse-model bundled``: a learned inverse model of the Intel laser (studies/eval_inverse_real.py).
 BUNDLED_INVERSE_MODEL = "intel_laser_inverse.npz"
+#: ``probslam localize`` without a LOG: the bundled raw loop in its map made by ``probslam slam``.
+BUNDLED_LOCALIZATION_MAP = "intel_raw_loop_map.yaml"
 
 #: The --particles defaults. They differ because the particles do: a particle of grid-based
 #: FastSLAM (``slam --method rbpf``) carries a grid map, and 30 meet the ACES target (0.047 m;
@@ -368,6 +370,12 @@ def _cmd_localize(args: argparse.Namespace) -> int:
     if not 0 <= args.seed <= MAX_SEED:
         raise UserError(f"--seed must lie in [0, {MAX_SEED}]")
     _check_output(args.output)
+    if args.log is None and args.map is None:
+        args.log, args.map = _data_path(BUNDLED_RAW_LOG), _data_path(BUNDLED_LOCALIZATION_MAP)
+    elif args.map is None:
+        raise UserError("--map: give the map to localize in (a map_server YAML, e.g. probslam slam's PREFIX.yaml)")
+    elif args.log is None:
+        raise UserError("--map given without a LOG: name the log to localize")
     _check_input(args.map, "a map_server map (YAML with its image)")
     with _reading(args.map, "a map_server map (YAML with its image)"):
         grid = io.load_ros_map(args.map)
@@ -1032,8 +1040,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     lo = sub.add_parser("localize", help="Monte Carlo localization of a raw CARMEN log or ROS bag in a map "
                                          "(ch. 8.3: KLD sampling, augmented MCL), tracking or global")
-    lo.add_argument("log", help=f"{CARMEN_LOG} or {ROS_BAG}")
-    lo.add_argument("--map", required=True, help="the map: a map_server YAML (e.g. probslam slam's PREFIX.yaml)")
+    lo.add_argument("log", nargs="?", help=f"{CARMEN_LOG} or {ROS_BAG}; default: the bundled raw Intel loop "
+                                           f"(that of 'probslam slam') in its bundled map")
+    lo.add_argument("--map", default=None, help="the map: a map_server YAML (e.g. probslam slam's PREFIX.yaml); "
+                                                "needed with a LOG")
     lo.add_argument("--initial-pose", type=float, nargs=3, metavar=("X", "Y", "THETA"), default=None,
                     help="the start in the map's frame (m, m, rad): tracking")
     lo.add_argument("--global", dest="global_", action="store_true",

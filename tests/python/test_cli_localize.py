@@ -56,3 +56,23 @@ def test_localize_options_are_checked(slam_map, tmp_path, capsys):
     assert "--max-particles" in capsys.readouterr().err
     assert cli.main(["localize", log, "--map", str(tmp_path / "missing.yaml"), "--global"]) == 2
     assert "missing.yaml" in capsys.readouterr().err
+
+
+def test_localize_without_arguments_uses_the_bundled_loop_and_map(tmp_path, capsys):
+    """`probslam localize --global`: the bundled raw Intel loop in its bundled map (made by
+    probslam slam from the same log); the global start converges, and the converged part of the
+    path agrees with the SLAM trajectory the map came from."""
+    from probslam import data, io
+
+    assert cli.main(["localize", "--global", "--no-progress", "--no-plot", "-o", str(tmp_path / "g")]) == 0
+    assert "converged:     after" in capsys.readouterr().out
+    ours = io.read_trajectory(tmp_path / "g_trajectory.tum")
+    slam = ps.run_slam(data.path("intel_raw_loop.log.gz"), resolution=0.1, progress=False)
+    late = ours.timestamps >= ours.timestamps[len(ours) // 2]  # well after convergence
+    idx = np.searchsorted(slam.timestamps, ours.timestamps[late])
+    err = np.hypot(*(ours.poses[late, :2] - slam.poses[idx, :2]).T)
+    assert np.median(err) < 0.2, np.median(err)
+    for args, message in ((["localize", data.path("intel_raw_loop.log.gz"), "--global"], "--map: give the map"),
+                          (["localize", "--map", data.path("intel_raw_loop_map.yaml"), "--global"], "without a LOG")):
+        assert cli.main(args + ["--no-progress", "--no-plot", "-o", str(tmp_path / "x")]) == 2
+        assert message in capsys.readouterr().err

@@ -23,6 +23,9 @@ FILES: Dict[str, str] = {
                               "fastslam with a file; read_pose_graph)",
     "mrclam7_robot1_120s": "UTIAS MRCLAM Dataset 7 folder, robot 1's first 120 s with Vicon ground truth "
                            "(probslam ekf-slam / fastslam by default)",
+    "intel_raw_loop_map.yaml": "map_server map (0.1 m, with intel_raw_loop_map.pgm) of the bundled raw Intel loop, "
+                               "made by probslam slam (probslam localize by default)",
+    "intel_raw_loop_map.pgm": "the image of intel_raw_loop_map.yaml",
     "intel_laser_inverse.npz": "learned inverse sensor model (ch. 9.3) of the Intel Research Lab's laser, trained "
                                "on the first half of its corrected log (probslam map --inverse-model bundled)",
 }
