@@ -15,10 +15,9 @@ import numpy as np
 from tqdm import tqdm
 
 from . import _core
-from .datasets import carmen
 from .io.carmen import CarmenLog, LaserScans
-from .io.rosbag import is_bag, read_rosbag
 from .mapping import no_return_range
+from .slam import scans_of
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -69,17 +68,6 @@ def is_converged(covariance: np.ndarray) -> bool:
     return bool(np.sqrt(max(xy, 0.0)) < CONVERGED_XY_STD and np.sqrt(max(cov[2, 2], 0.0)) < CONVERGED_THETA_STD)
 
 
-def _scans_of(log: Union[PathLike, CarmenLog, LaserScans]) -> LaserScans:
-    if isinstance(log, (str, os.PathLike)):
-        log = read_rosbag(log) if is_bag(log) else carmen.load(log)
-    scans = log.scans if isinstance(log, CarmenLog) else log
-    if not isinstance(scans, LaserScans):
-        raise TypeError("log must be a path, a CarmenLog or LaserScans")
-    if len(scans) == 0:
-        raise ValueError("log has no laser scans")
-    return scans
-
-
 def localize(log: Union[PathLike, CarmenLog, LaserScans], map: _core.OccupancyGrid2D, *,
              initial_pose: Optional[Sequence[float]] = None, initial_covariance: Optional[np.ndarray] = None,
              start: int = 0, stop: Optional[int] = None, snapshot_times: Sequence[float] = (),
@@ -96,7 +84,7 @@ def localize(log: Union[PathLike, CarmenLog, LaserScans], map: _core.OccupancyGr
     """
     if not isinstance(map, _core.OccupancyGrid2D):
         raise TypeError("map must be an OccupancyGrid2D")
-    scans = _scans_of(log)
+    scans = scans_of(log)
     n = len(scans)
     for name, v in (("start", start), ("stop", stop)):
         if v is not None and (isinstance(v, bool) or int(v) != v or not 0 <= v <= n):

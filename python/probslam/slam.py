@@ -196,6 +196,19 @@ def load_initial_map(source: Union[PathLike, _core.OccupancyGrid2D]) -> _core.Oc
         raise ValueError(f"initial_map: {e} (expected {INITIAL_MAP})") from None
 
 
+def scans_of(log: Union[PathLike, CarmenLog, LaserScans]) -> LaserScans:
+    """The laser scans of a log given as a path (CARMEN log or ROS bag), a ``CarmenLog`` or its
+    ``LaserScans``: TypeError for anything else, ValueError for a log without scans."""
+    if isinstance(log, (str, os.PathLike)):
+        log = read_rosbag(log) if is_bag(log) else carmen.load(log)
+    scans = log.scans if isinstance(log, CarmenLog) else log
+    if not isinstance(scans, LaserScans):
+        raise TypeError("log must be a path, a CarmenLog or LaserScans")
+    if len(scans) == 0:
+        raise ValueError("log has no laser scans")
+    return scans
+
+
 def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: Optional[str] = None,
              progress: Optional[bool] = None, chunk: int = 200, resume: Optional[PathLike] = None,
              save: Optional[PathLike] = None, initial_map: Optional[Union[PathLike, _core.OccupancyGrid2D]] = None,
@@ -259,13 +272,7 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: Optional[st
         method = "graph"
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
-    if isinstance(log, (str, os.PathLike)):
-        log = read_rosbag(log) if is_bag(log) else carmen.load(log)
-    scans = log.scans if isinstance(log, CarmenLog) else log
-    if not isinstance(scans, LaserScans):
-        raise TypeError("log must be a path, a CarmenLog or LaserScans")
-    if len(scans) == 0:
-        raise ValueError("log has no laser scans")
+    scans = scans_of(log)
     if int(chunk) != chunk or chunk < 1:
         raise ValueError("chunk must be an integer >= 1")
     odometry = carmen.has_odometry(scans)
@@ -342,5 +349,5 @@ def write_trajectory(timestamps: np.ndarray, poses: np.ndarray, path: PathLike) 
     write_trajectory_file(timestamps, poses, path, format="xyt")
 
 
-__all__ = ["INITIAL_MAP", "METHODS", "SlamResult", "SlamRun", "load_initial_map", "load_run", "run_slam", "save_run",
+__all__ = ["INITIAL_MAP", "METHODS", "SlamResult", "SlamRun", "load_initial_map", "load_run", "run_slam", "save_run", "scans_of",
            "write_trajectory"]
