@@ -349,5 +349,5 @@ def write_trajectory(timestamps: np.ndarray, poses: np.ndarray, path: PathLike) 
     write_trajectory_file(timestamps, poses, path, format="xyt")
 
 
-__all__ = ["INITIAL_MAP", "METHODS", "SlamResult", "SlamRun", "load_initial_map", "load_run", "run_slam", "save_run", "scans_of",
-           "write_trajectory"]
+__all__ = ["INITIAL_MAP", "METHODS", "SlamResult", "SlamRun", "load_initial_map", "load_run", "run_slam", "save_run",
+           "scans_of", "write_trajectory"]
