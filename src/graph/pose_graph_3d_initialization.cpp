@@ -25,17 +25,6 @@ std::vector<char> held_vertices(const PoseGraph3D& graph) {
   return held;
 }
 
-// Solves the normal equations of `assembler` (a linear least-squares problem posed at zero for
-// the free variables, so that its Gauss-Newton step is the solution).
-Eigen::VectorXd solve_linear(const PoseGraph3D& graph, graph_detail::EdgeAssembler& assembler,
-                             const SparseCholeskyOptions& linear_solver) {
-  SparseCholesky cholesky(linear_solver);
-  graph_detail::factorize(cholesky, graph, assembler.system());
-  const Eigen::VectorXd x = cholesky.solve(assembler.system().rhs());
-  require(x.allFinite(), "graph", "chordal initialisation is not finite (information too large?)");
-  return x;
-}
-
 }  // namespace
 
 void initialize_odometry(PoseGraph3D& target) {
@@ -85,38 +74,42 @@ void initialize_chordal(PoseGraph3D& target, const SparseCholeskyOptions& linear
   };
   Objective unused;
 
-  // 1. Rotations. With r = vec(R) (column-major), vec(R_from R_z) = (R_z^T kron I3) r_from: the
-  // residual r_to - (R_z^T kron I3) r_from is linear. It is posed at r = 0 for the free vertices
-  // (their stored rotations are not used), so that the Gauss-Newton step is the solution.
-  EdgeAssembler rotations(sizes(9), couplings);
-  using Vector9d = Eigen::Matrix<double, 9, 1>;
-  using Matrix9d = Eigen::Matrix<double, 9, 9>;
-  auto vec = [&](int v) -> Vector9d {
-    if (!held[v]) return Vector9d::Zero();
-    const Eigen::Matrix3d r = graph.vertex(v).value.rotation.toRotationMatrix();
-    return Eigen::Map<const Vector9d>(r.data());
-  };
-  for (const Pose3Edge& e : edges) {
-    const Eigen::Matrix3d rz = e.measurement.rotation.toRotationMatrix();
-    Matrix9d d_from = Matrix9d::Zero();
-    for (int c = 0; c < 3; ++c)
-      for (int k = 0; k < 3; ++k) d_from.block<3, 3>(3 * c, 3 * k) = -rz(k, c) * Eigen::Matrix3d::Identity();
-    const Matrix9d d_to = Matrix9d::Identity();
-    const Vector9d residual = d_from * vec(e.from) + d_to * vec(e.to);
-    const double kappa = e.information.bottomRightCorner<3, 3>().trace() / 3.0;
-    rotations.add_edge(rotations.handles(e.from, e.to), e.from, e.to, residual, d_from, d_to,
-                       Matrix9d(kappa * Matrix9d::Identity()), RobustKernel::kNone, 1.0, unused);
+  // 1. Rotations. R_to = R_from R_z row by row: row a of R_to is row a of R_from times R_z, so
+  // with rho_a(v) row a of R_v as a column vector the residual
+  // rho_a(to) - R_z^T rho_a(from) is linear, and the three rows a are three independent problems
+  // with one matrix (3x3 blocks, not the 9x9 of vec(R): a 27th of the factorisation's work).
+  // Each is posed at rho = 0 for the free vertices (their stored rotations are not used), so
+  // that the Gauss-Newton step is the solution.
+  EdgeAssembler system(sizes(3), couplings);
+  SparseCholesky cholesky(linear_solver);
+  std::vector<Eigen::Matrix3d> rotation(n, Eigen::Matrix3d::Zero());
+  for (int v = 0; v < n; ++v)
+    if (held[v]) rotation[v] = graph.vertex(v).value.rotation.toRotationMatrix();
+  std::vector<Eigen::Matrix3d> solved(n, Eigen::Matrix3d::Zero());
+  for (int a = 0; a < 3; ++a) {
+    system.system().set_zero();
+    for (const Pose3Edge& e : edges) {
+      const Eigen::Matrix3d rz_t = e.measurement.rotation.conjugate().toRotationMatrix();
+      const Eigen::Matrix3d d_from = -rz_t, d_to = Eigen::Matrix3d::Identity();
+      const Eigen::Vector3d residual =
+          d_from * rotation[e.from].row(a).transpose() + rotation[e.to].row(a).transpose();
+      const double kappa = e.information.bottomRightCorner<3, 3>().trace() / 3.0;
+      system.add_edge(system.handles(e.from, e.to), e.from, e.to, residual, d_from, d_to,
+                      Eigen::Matrix3d(kappa * Eigen::Matrix3d::Identity()), RobustKernel::kNone, 1.0, unused);
+    }
+    if (a == 0) graph_detail::factorize(cholesky, graph, system.system());
+    const Eigen::VectorXd rows = cholesky.solve(system.system().rhs());
+    require(rows.allFinite(), "graph", "chordal initialisation is not finite (information too large?)");
+    for (int v = 0; v < n; ++v)
+      if (!held[v]) solved[v].row(a) = rows.segment<3>(system.system().offset(v)).transpose();
   }
-  const Eigen::VectorXd r = solve_linear(graph, rotations, linear_solver);
-  for (int v = 0; v < n; ++v) {
-    if (held[v]) continue;
-    const Eigen::Matrix3d m = Eigen::Map<const Eigen::Matrix3d>(r.data() + rotations.system().offset(v));
-    graph.vertex(v).value.rotation = Eigen::Quaterniond(project_to_rotation(m)).normalized();
-  }
+  for (int v = 0; v < n; ++v)
+    if (!held[v]) graph.vertex(v).value.rotation = Eigen::Quaterniond(project_to_rotation(solved[v])).normalized();
 
   // 2. Translations, rotations fixed: e_t = R_z^T (R_from^T (t_to - t_from) - t_z) is linear in
   // the translations; posed at t = 0 for the free vertices as above.
-  EdgeAssembler translations(sizes(3), couplings);
+  EdgeAssembler& translations = system;  // the same pattern: CHOLMOD's analysis is reused
+  translations.system().set_zero();
   auto position = [&](int v) -> Eigen::Vector3d {
     return held[v] ? graph.vertex(v).value.translation : Eigen::Vector3d::Zero();
   };
@@ -130,7 +123,9 @@ void initialize_chordal(PoseGraph3D& target, const SparseCholeskyOptions& linear
     translations.add_edge(translations.handles(e.from, e.to), e.from, e.to, residual, d_from, d_to, omega,
                           RobustKernel::kNone, 1.0, unused);
   }
-  const Eigen::VectorXd t = solve_linear(graph, translations, linear_solver);
+  graph_detail::factorize(cholesky, graph, translations.system());
+  const Eigen::VectorXd t = cholesky.solve(translations.system().rhs());
+  require(t.allFinite(), "graph", "chordal initialisation is not finite (information too large?)");
   for (int v = 0; v < n; ++v)
     if (!held[v]) graph.vertex(v).value.translation = t.segment<3>(translations.system().offset(v));
   target.assign_values(graph.values());

@@ -16,11 +16,13 @@ void initialize_odometry(PoseGraph3D& graph);
 
 /// Chordal initialisation, in two linear solves on the sparse Cholesky path:
 ///  1. rotations: minimise sum over edges of kappa ||R_to - R_from R_z||_F^2 over unconstrained
-///     3x3 matrices (9 unknowns per free vertex, the held vertices' rotations kept), kappa the
-///     mean diagonal entry of the edge's rotational information; then each matrix is projected
-///     onto SO(3) (nearest rotation, by SVD);
+///     3x3 matrices (the held vertices' rotations kept), kappa the mean diagonal entry of the
+///     edge's rotational information; the three rows of the matrices are independent problems
+///     with one normal matrix (3 unknowns per free vertex each, one factorisation); then each
+///     matrix is projected onto SO(3) (nearest rotation, by SVD);
 ///  2. translations: with those rotations fixed the edges' translation errors are linear in the
-///     translations; their information-weighted least squares is solved exactly.
+///     translations; their information-weighted least squares is solved exactly (on the same
+///     pattern, CHOLMOD's analysis reused).
 /// Noise-free edges give back the exact poses. Held vertices keep their values. Throws
 /// std::invalid_argument, graph unchanged, for a graph with no edges or a part not connected to
 /// a held vertex.
