@@ -2,6 +2,7 @@
 
 
 #include "exceptions.hpp"
+#include "graph_options.hpp"
 #include "args.hpp"
 #include "numpy.hpp"
 #include "object_lock.hpp"
@@ -65,49 +66,6 @@ void set_values(PoseGraph2D& g, py::handle ids_obj, py::handle values_obj, int d
   for (size_t k = 0; k < ids.size(); ++k)
     for (int d = 0; d < dim; ++d) rows[k][d] = values.at(static_cast<py::ssize_t>(k), d);
   locked(g, [&] { g.set_values(ids, rows, dim == 3 ? VertexKind::kPose : VertexKind::kPoint); });
-}
-
-template <typename Enum>
-Enum choice(const std::string& value, const char* name,
-            std::initializer_list<std::pair<const char*, Enum>> options) {
-  std::string allowed;
-  for (const auto& [key, e] : options) {
-    if (value == key) return e;
-    allowed += std::string(allowed.empty() ? "" : ", ") + "'" + key + "'";
-  }
-  throw py::value_error(std::string(name) + " must be one of " + allowed + ", got '" + value + "'");
-}
-
-SparseCholeskyOptions solver_options(const std::string& method, const std::string& ordering) {
-  SparseCholeskyOptions o;
-  o.method = choice<FactorMethod>(method, "linear_solver",
-                                  {{"simplicial", FactorMethod::kSimplicial},
-                                   {"supernodal", FactorMethod::kSupernodal},
-                                   {"auto", FactorMethod::kAuto}});
-  o.ordering = choice<FillOrdering>(ordering, "ordering",
-                                    {{"amd", FillOrdering::kAmd}, {"metis", FillOrdering::kMetis}});
-  return o;
-}
-
-OptimizerOptions optimizer_options(const std::string& algorithm, int max_iterations, double relative_tolerance,
-                                   double step_tolerance, const std::string& kernel, double kernel_width,
-                                   const std::string& linear_solver, const std::string& ordering,
-                                   const std::string& damping) {
-  OptimizerOptions o;
-  o.damping = choice<Damping>(damping, "damping", {{"marquardt", Damping::kMarquardt}, {"levenberg", Damping::kLevenberg}});
-  o.algorithm = choice<OptimizerAlgorithm>(algorithm, "algorithm",
-                                           {{"gauss-newton", OptimizerAlgorithm::kGaussNewton},
-                                            {"levenberg-marquardt", OptimizerAlgorithm::kLevenbergMarquardt}});
-  o.kernel = choice<RobustKernel>(kernel, "kernel",
-                                  {{"none", RobustKernel::kNone},
-                                   {"huber", RobustKernel::kHuber},
-                                   {"cauchy", RobustKernel::kCauchy}});
-  o.max_iterations = max_iterations;
-  o.relative_tolerance = relative_tolerance;
-  o.step_tolerance = step_tolerance;
-  o.kernel_width = kernel_width;
-  o.linear_solver = solver_options(linear_solver, ordering);
-  return o;
 }
 
 // Every edge's end ids (E, 2), measurement (E, dim) and information (E, dim, dim) as arrays,
@@ -336,23 +294,7 @@ void define_graph(py::module_& m) {
           const int max_iterations = max_iterations_arg.get("max_iterations");
           const OptimizerOptions o = optimizer_options(algorithm, max_iterations, relative_tolerance, step_tolerance,
                                                        kernel, kernel_width, linear_solver, ordering, damping);
-          if (!callback.is_none() && !PyCallable_Check(callback.ptr()))
-            throw py::type_error("callback must be a callable (iteration, chi2) -> bool or None, got " +
-                                 std::string(py::str(py::type::of(callback).attr("__name__"))));
-          IterationCallback on_iteration;
-          if (!callback.is_none()) {
-            // The optimiser runs with the GIL released; the callback takes it only for its call.
-            // Signals are checked there too, so Ctrl-C stops even a callback that never returns False.
-            on_iteration = [&callback](int iteration, double chi2) {
-              py::gil_scoped_acquire gil;
-              if (PyErr_CheckSignals() != 0) throw py::error_already_set();
-              const py::object go_on = callback(iteration, chi2);
-              if (go_on.is_none()) return true;
-              const int truth = PyObject_IsTrue(go_on.ptr());
-              if (truth < 0) throw py::error_already_set();
-              return truth == 1;
-            };
-          }
+          const IterationCallback on_iteration = iteration_callback(callback);
           return locked(graph, [&] { return optimize(graph, o, on_iteration); });
         },
         py::arg("graph"), py::arg("algorithm") = "gauss-newton", py::arg("max_iterations") = 100,

@@ -12,6 +12,7 @@ void define_landmarks(pybind11::module_& m);
 void define_ekf(pybind11::module_& m);
 void define_fastslam(pybind11::module_& m);
 void define_graph(pybind11::module_& m);
+void define_graph3d(pybind11::module_& m);
 void define_information_form(pybind11::module_& m);
 void define_slam2d(pybind11::module_& m);
 void define_localization(pybind11::module_& m);
@@ -29,6 +30,7 @@ PYBIND11_MODULE(_core, m) {
   probslam::bindings::define_ekf(m);
   probslam::bindings::define_fastslam(m);
   probslam::bindings::define_graph(m);
+  probslam::bindings::define_graph3d(m);
   probslam::bindings::define_information_form(m);
   probslam::bindings::define_slam2d(m);
   probslam::bindings::define_localization(m);

@@ -50,8 +50,8 @@ from ._core import (
 )
 from . import data, datasets, eval, inverse_learning, io, sim, slam
 from . import localization
-from .graph import (IncrementalReport, OptimizationReport, PoseGraph2D, PoseGraphReadReport,
-                    initialize_odometry, joint_marginal_covariances, marginal_covariances, optimize,
+from .graph import (IncrementalReport, OptimizationReport, PoseGraph2D, PoseGraph3D, PoseGraphReadReport,
+                    initialize_chordal, initialize_odometry, joint_marginal_covariances, marginal_covariances, optimize,
                     optimize_incremental, read_pose_graph, read_pose_graph_with_report, write_g2o,
                     write_isam)
 from .graphslam import (
@@ -102,6 +102,7 @@ __all__ = [
     "TileSharing",
     "UpdateResult",
     "fastslam2_proposal",
+    "initialize_chordal",
     "initialize_odometry",
     "low_variance_resample",
     "optimize_incremental",
@@ -129,6 +130,7 @@ __all__ = [
     "Measurements",
     "OptimizationReport",
     "PoseGraph2D",
+    "PoseGraph3D",
     "eif_construct",
     "eif_correspondence_test",
     "eif_initialize",

@@ -499,6 +499,31 @@ class PoseGraph2D:
         """The object saved at path; ValueError naming the path for any other or damaged file."""
 
 
+class PoseGraph3D:
+    """A 3-D pose graph: poses (7,) [x, y, z, qx, qy, qz, qw] (m, unit quaternion; g2o's
+    VERTEX_SE3:QUAT order), edges the pose of `to` in `from`'s frame with (6, 6) information in
+    g2o's EDGE_SE3:QUAT order [translation, rotation]; error [t_e, Log(R_e)] of
+    z^-1 x_from^-1 x_to."""
+    QUATERNION_NORM_TOLERANCE: float
+    num_vertices: int
+    num_pose_edges: int
+    pose_ids: npt.NDArray[np.int64]  # (P,) in the order added
+    poses: Array  # (P, 7) x, y, z m, qx, qy, qz, qw
+    def __init__(self) -> None: ...
+    def add_pose(self, id: int, pose: ArrayLike) -> None: ...
+    def add_pose_edge(self, from_id: int, to_id: int, measurement: ArrayLike, information: ArrayLike) -> None:
+        """measurement (7,) to_id's pose in from_id's frame; information (6, 6)."""
+    def set_fixed(self, id: int, fixed: bool = True) -> None: ...
+    def is_fixed(self, id: int) -> bool: ...
+    def set_poses(self, ids: ArrayLike, poses: ArrayLike) -> None: ...  # (N,), (N, 7)
+    def has_vertex(self, id: int) -> bool: ...
+    def edge_ids(self) -> npt.NDArray[np.int64]: ...  # (E, 2)
+    def pose_edges(self) -> Tuple[npt.NDArray[np.int64], Array, Array]: ...  # (E, 2), (E, 7), (E, 6, 6)
+    def edge_chi2(self) -> Array: ...  # (E,)
+    def chi2(self) -> float: ...
+    def copy(self) -> "PoseGraph3D": ...
+
+
 class OptimizationReport:
     iterations: int
     initial_chi2: float
@@ -516,6 +541,7 @@ class IncrementalReport:
     chi2: float
     step_chi2: List[float]
 
+@overload
 def optimize(graph: PoseGraph2D, algorithm: str = "gauss-newton", max_iterations: int = 100,
              relative_tolerance: float = 1e-10, step_tolerance: float = 1e-10, kernel: str = "none",
              kernel_width: float = 1.0, linear_solver: str = "simplicial", ordering: str = "amd",
@@ -526,19 +552,40 @@ def optimize(graph: PoseGraph2D, algorithm: str = "gauss-newton", max_iterations
     "amd" / "metis", damping "marquardt" / "levenberg". callback(iteration, chi2) after each
     completed iteration: False stops; an exception it raises leaves the graph at the last completed
     iteration."""
+@overload
+def optimize(graph: PoseGraph3D, algorithm: str = "gauss-newton", max_iterations: int = 100,
+             relative_tolerance: float = 1e-10, step_tolerance: float = 1e-10, kernel: str = "none",
+             kernel_width: float = 1.0, linear_solver: str = "simplicial", ordering: str = "amd",
+             damping: str = "marquardt",
+             callback: Optional[Callable[[int, float], Optional[bool]]] = None) -> OptimizationReport:
+    """The same for a 3-D graph; the step is x (+) [v, w] = (R Exp(w), t + R v)."""
 def optimize_incremental(graph: PoseGraph2D, poses_per_step: int = 100, algorithm: str = "gauss-newton",
                          max_iterations: int = 10, relative_tolerance: float = 1e-6, step_tolerance: float = 1e-10,
                          kernel: str = "none", kernel_width: float = 1.0, linear_solver: str = "simplicial",
                          ordering: str = "amd", damping: str = "marquardt") -> IncrementalReport: ...
+@overload
 def initialize_odometry(graph: PoseGraph2D) -> None:
     """Composes pose edges outward along a breadth-first spanning tree (dead reckoning)."""
+@overload
+def initialize_odometry(graph: PoseGraph3D) -> None: ...
+def initialize_chordal(graph: PoseGraph3D, linear_solver: str = "simplicial", ordering: str = "amd") -> None:
+    """Rotations by the chordal relaxation (projected onto SO(3)), then translations: exact without noise."""
+@overload
 def marginal_covariances(graph: PoseGraph2D, ids: Sequence[int], linear_solver: str = "simplicial",
                          ordering: str = "amd") -> List[Array]:
     """(3, 3) per pose id, (2, 2) per point id; zero for a fixed vertex."""
+@overload
+def marginal_covariances(graph: PoseGraph3D, ids: Sequence[int], linear_solver: str = "simplicial",
+                         ordering: str = "amd") -> List[Array]:
+    """(6, 6) per pose id in its tangent [translation, rotation vector]; zero for a fixed vertex."""
+@overload
 def joint_marginal_covariances(graph: PoseGraph2D, groups: Sequence[Sequence[int]], linear_solver: str = "simplicial",
                                ordering: str = "amd") -> List[Array]:
     """Per group, the joint covariance of its vertices stacked in order (3 per pose, 2 per point),
     cross-covariances included; zero rows and columns for a fixed vertex."""
+@overload
+def joint_marginal_covariances(graph: PoseGraph3D, groups: Sequence[Sequence[int]], linear_solver: str = "simplicial",
+                               ordering: str = "amd") -> List[Array]: ...
 class PoseGraphReadReport:
     """What read_pose_graph_with_report did with the file's records."""
     rows: int  # records read, skipped ones included

@@ -1,5 +1,6 @@
-"""2-D pose/landmark graphs: reading, initialising, optimising (Gauss-Newton / Levenberg-Marquardt
-on CHOLMOD), marginal covariances, writing. The math is in C++; this module only names things
+"""2-D pose/landmark graphs and 3-D pose graphs (``PoseGraph3D``): reading (2-D), initialising,
+optimising (Gauss-Newton / Levenberg-Marquardt on CHOLMOD, one optimiser for both), marginal
+covariances, writing (2-D). The math is in C++; this module only names things
 and drives the EKF for the EKF initialisation.
 
 Reliability (docs/reliability.md): every call on a PoseGraph2D takes the graph's lock, so
@@ -20,8 +21,9 @@ from typing import Optional, Union
 
 from . import _core
 from .io._files import file_path
-from ._core import (IncrementalReport, OptimizationReport, PoseGraph2D, PoseGraphReadReport, initialize_odometry,
-                    joint_marginal_covariances, marginal_covariances, optimize, optimize_incremental)
+from ._core import (IncrementalReport, OptimizationReport, PoseGraph2D, PoseGraph3D, PoseGraphReadReport,
+                    initialize_chordal, initialize_odometry, joint_marginal_covariances, marginal_covariances,
+                    optimize, optimize_incremental)
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -140,9 +142,11 @@ __all__ = [
     "OptimizationReport",
     "MAX_BAD_ROW_FRACTION",
     "PoseGraph2D",
+    "PoseGraph3D",
     "PoseGraphRead",
     "PoseGraphReadReport",
     "initialize",
+    "initialize_chordal",
     "initialize_odometry",
     "joint_marginal_covariances",
     "marginal_covariances",

@@ -1,12 +1,15 @@
 #pragma once
-// Gauss-Newton and Levenberg-Marquardt for PoseGraph2D on the shared sparse path
-// (BlockSystem assembly, SparseCholesky solve with the analysis reused across iterations).
+// Gauss-Newton and Levenberg-Marquardt for PoseGraph2D and PoseGraph3D on one shared sparse path
+// (BlockSystem assembly, SparseCholesky solve with the analysis reused across iterations): the
+// iterations are written once, the graphs differ only in their edges' linearisation and their
+// vertices' update.
 #include <Eigen/Core>
 #include <functional>
 #include <string>
 #include <vector>
 
 #include "probslam/graph/pose_graph_2d.hpp"
+#include "probslam/graph/pose_graph_3d.hpp"
 #include "probslam/graph/sparse_cholesky.hpp"
 
 namespace probslam {
@@ -32,7 +35,8 @@ struct OptimizerOptions {
   int max_iterations = 100;
   /// Stop when an iteration lowers the objective by less than this fraction of it.
   double relative_tolerance = 1e-10;
-  /// Stop when the largest entry of the update is below this (metres / radians).
+  /// Stop when the largest entry of the update is below this (metres / radians; for 3-D poses
+  /// the tangent of pose_graph_3d.hpp).
   double step_tolerance = 1e-10;
   RobustKernel kernel = RobustKernel::kNone;
   double kernel_width = 1.0;  ///< in units of sqrt(chi2), e.g. 1.345 or chi2 quantiles' roots
@@ -83,6 +87,20 @@ std::vector<Eigen::MatrixXd> marginal_covariances(const PoseGraph2D& graph,
 /// vertex twice (its joint covariance would be singular by construction), and as
 /// marginal_covariances does for the graph.
 std::vector<Eigen::MatrixXd> joint_marginal_covariances(const PoseGraph2D& graph,
+                                                        const std::vector<std::vector<int>>& groups,
+                                                        const SparseCholeskyOptions& linear_solver = {});
+
+/// The same for a 3-D pose graph: the update is right-multiplicative (pose_graph_3d.hpp's tangent
+/// convention), the first pose is held when none is fixed, errors and failures as for 2-D.
+OptimizationReport optimize(PoseGraph3D& graph, const OptimizerOptions& options = {},
+                            const IterationCallback& on_iteration = {});
+
+/// 6x6 marginal covariances of 3-D poses in the tangent at each pose ([translation m in the pose's
+/// frame, rotation vector rad], right perturbation); a fixed vertex has zero covariance.
+std::vector<Eigen::MatrixXd> marginal_covariances(const PoseGraph3D& graph, const std::vector<int>& ids,
+                                                  const SparseCholeskyOptions& linear_solver = {});
+/// Joint marginal covariances of groups of 3-D poses (6 rows per pose), as for 2-D.
+std::vector<Eigen::MatrixXd> joint_marginal_covariances(const PoseGraph3D& graph,
                                                         const std::vector<std::vector<int>>& groups,
                                                         const SparseCholeskyOptions& linear_solver = {});
 

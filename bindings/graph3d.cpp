@@ -1,0 +1,241 @@
+// probslam.PoseGraph3D and the optimiser's, marginals' and initialisers' overloads for it.
+#include <pybind11/eigen.h>
+#include <pybind11/numpy.h>
+#include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
+
+#include "args.hpp"
+#include "graph_options.hpp"
+#include "numpy.hpp"
+#include "object_lock.hpp"
+#include "repr.hpp"
+#include "probslam/graph/graph_optimizer.hpp"
+#include "probslam/graph/pose_graph_3d.hpp"
+#include "probslam/graph/pose_graph_3d_initialization.hpp"
+
+namespace probslam::bindings {
+
+namespace {
+
+// A pose as Python sees it: (7,) [x, y, z, qx, qy, qz, qw], g2o's VERTEX_SE3:QUAT order.
+constexpr int kPoseWidth = 7;
+
+Pose3 pose_of(const double* p) {
+  return {Eigen::Quaterniond(p[6], p[3], p[4], p[5]), Eigen::Vector3d(p[0], p[1], p[2])};
+}
+
+void write_pose(const Pose3& pose, double* out) {
+  for (int k = 0; k < 3; ++k) out[k] = pose.translation[k];
+  out[3] = pose.rotation.x();
+  out[4] = pose.rotation.y();
+  out[5] = pose.rotation.z();
+  out[6] = pose.rotation.w();
+}
+
+Pose3 pose3_arg(py::handle obj, const char* name) {
+  const Eigen::Matrix<double, kPoseWidth, 1> v = fixed_vector<kPoseWidth>(obj, name);
+  return pose_of(v.data());
+}
+
+py::array_t<double> pose_rows(const std::vector<Pose3>& poses) {
+  py::array_t<double> out({static_cast<py::ssize_t>(poses.size()), py::ssize_t{kPoseWidth}});
+  for (size_t k = 0; k < poses.size(); ++k) write_pose(poses[k], out.mutable_data() + kPoseWidth * k);
+  return out;
+}
+
+std::vector<int> ids_arg(py::handle obj, const char* name) {
+  const LongArray ids = integer_array_arg(obj, name);
+  if (ids.ndim() != 1) throw py::value_error(std::string(name) + " must be a 1-D array of integers");
+  return int_entries(ids, name, "vertex id");
+}
+
+py::list matrices(const std::vector<Eigen::MatrixXd>& blocks) {
+  py::list out;
+  for (const auto& b : blocks) out.append(py::cast(b));
+  return out;
+}
+
+}  // namespace
+
+void define_graph3d(py::module_& m) {
+  // Every method runs its C++ work under the graph's lock (object_lock.hpp).
+  auto graph_class = py::class_<PoseGraph3D>(
+      m, "PoseGraph3D",
+      "A 3-D pose graph: pose vertices (7,) [x, y, z, qx, qy, qz, qw] (m; a unit quaternion, g2o's\n"
+      "VERTEX_SE3:QUAT order) and pose edges (the pose of `to` in `from`'s frame, same layout, with\n"
+      "(6, 6) information in g2o's EDGE_SE3:QUAT order [translation, rotation]). The error of an\n"
+      "edge is [t_e, Log(R_e)] of z^-1 x_from^-1 x_to (m, rad); optimisers perturb poses on the right,\n"
+      "x (+) [v, w] = (R Exp(w), t + R v). Every add_* refuses repeated or unknown ids, non-finite\n"
+      "values, quaternions whose norm is not 1 within QUATERNION_NORM_TOLERANCE (stored normalised) and\n"
+      "information that is not symmetric positive definite (ValueError, graph unchanged).")
+      .def(py::init<>(), "An empty graph.")
+      .def("add_pose",
+           [](PoseGraph3D& g, IntArg id_arg, py::handle pose) {
+             const int id = id_arg.get("id");
+             const Pose3 p = pose3_arg(pose, "pose");
+             locked(g, [&] { g.add_pose(id, p); });
+           },
+           py::arg("id"), py::arg("pose"), "Adds pose vertex id with value pose (7,) [x, y, z, qx, qy, qz, qw].")
+      .def("add_pose_edge",
+           [](PoseGraph3D& g, IntArg from_id, IntArg to_id, py::handle z, py::handle info) {
+             const int from = from_id.get("from_id");
+             const int to = to_id.get("to_id");
+             const Pose3 zv = pose3_arg(z, "measurement");
+             const Matrix6d omega = square_matrix_arg(info, "information", 6);
+             locked(g, [&] { g.add_pose_edge(from, to, zv, omega); });
+           },
+           py::arg("from_id"), py::arg("to_id"), py::arg("measurement"), py::arg("information"),
+           "Adds a pose-pose edge: measurement (7,) the pose of to_id in from_id's frame, information\n"
+           "(6, 6) in the order [x, y, z, rotation vector].")
+      .def("set_fixed",
+           [](PoseGraph3D& g, IntArg id, bool fixed) {
+             const int i = id.get("id");
+             locked(g, [&] { g.set_fixed(i, fixed); });
+           },
+           py::arg("id"), py::arg("fixed") = true,
+           "A fixed vertex keeps its value when optimising (the gauge); with none fixed, optimisers hold\n"
+           "the first pose.")
+      .def("is_fixed",
+           [](const PoseGraph3D& g, IntArg id) {
+             const int i = id.get("id");
+             return locked(g, [&] { return g.vertex(g.index_of(i)).fixed; });
+           },
+           py::arg("id"), "Whether vertex id is fixed.")
+      .def("set_poses",
+           [](PoseGraph3D& g, py::handle ids_obj, py::handle poses_obj) {
+             const std::vector<int> ids = ids_arg(ids_obj, "ids");
+             const DoubleArray rows = matrix_arg(poses_obj, "poses", kPoseWidth);
+             if (rows.shape(0) != static_cast<py::ssize_t>(ids.size()))
+               throw py::value_error("poses must have one row per id");
+             std::vector<Pose3> poses;
+             for (size_t k = 0; k < ids.size(); ++k) poses.push_back(pose_of(rows.data() + kPoseWidth * k));
+             locked(g, [&] { g.set_poses(ids, poses); });
+           },
+           py::arg("ids"), py::arg("poses"),
+           "Replaces the values of pose vertices ids (N,) with poses (N, 7), all or nothing.")
+      .def("has_vertex",
+           [](const PoseGraph3D& g, IntArg id) {
+             const int i = id.get("id");
+             return locked(g, [&] { return g.has_vertex(i); });
+           },
+           py::arg("id"), "Whether a vertex has this id.")
+      .def_property_readonly("num_vertices", getter(&PoseGraph3D::num_vertices), "Number of poses.")
+      .def_property_readonly("num_pose_edges",
+                             [](const PoseGraph3D& g) { return locked(g, [&] { return g.pose_edges().size(); }); },
+                             "Number of pose-pose edges.")
+      .def_property_readonly(
+          "pose_ids",
+          [](const PoseGraph3D& g) {
+            const std::vector<long> ids = locked(g, [&] {
+              std::vector<long> out;
+              for (const Pose3Vertex& v : g.vertices()) out.push_back(v.id);
+              return out;
+            });
+            return py::array_t<long>(static_cast<py::ssize_t>(ids.size()), ids.data());
+          },
+          "(P,) int64 ids of the pose vertices, in the order they were added.")
+      .def_property_readonly(
+          "poses", [](const PoseGraph3D& g) { return pose_rows(locked(g, [&] { return g.values(); })); },
+          "(P, 7) pose values [x, y, z, qx, qy, qz, qw] in the order of pose_ids, a copy.")
+      .def("edge_ids",
+           [](const PoseGraph3D& g) {
+             const std::vector<long> flat = locked(g, [&] {
+               std::vector<long> out;
+               for (const Pose3Edge& e : g.pose_edges()) out.insert(out.end(), {g.vertex(e.from).id, g.vertex(e.to).id});
+               return out;
+             });
+             py::array_t<long> out({static_cast<py::ssize_t>(flat.size() / 2), py::ssize_t{2}});
+             std::copy(flat.begin(), flat.end(), out.mutable_data());
+             return out;
+           },
+           "(E, 2) int64 end ids (from, to) of every edge.")
+      .def("pose_edges",
+           [](const PoseGraph3D& g) {
+             std::vector<long> ends;
+             const std::vector<Pose3Edge> edges = locked(g, [&] {
+               for (const Pose3Edge& e : g.pose_edges()) ends.insert(ends.end(), {g.vertex(e.from).id, g.vertex(e.to).id});
+               return g.pose_edges();
+             });
+             const auto n = static_cast<py::ssize_t>(edges.size());
+             py::array_t<long> ids({n, py::ssize_t{2}});
+             std::copy(ends.begin(), ends.end(), ids.mutable_data());
+             py::array_t<double> z({n, py::ssize_t{kPoseWidth}}), info({n, py::ssize_t{6}, py::ssize_t{6}});
+             for (py::ssize_t k = 0; k < n; ++k) {
+               write_pose(edges[k].measurement, z.mutable_data() + kPoseWidth * k);
+               for (int r = 0; r < 6; ++r)
+                 for (int c = 0; c < 6; ++c) info.mutable_data()[36 * k + 6 * r + c] = edges[k].information(r, c);
+             }
+             return py::make_tuple(ids, z, info);
+           },
+           "(ids (E, 2) (from, to), measurements (E, 7), information (E, 6, 6)) of the edges.")
+      .def("edge_chi2",
+           [](const PoseGraph3D& g) { return locked(g, [&] { return Eigen::VectorXd(g.edge_chi2()); }); },
+           "(E,) e^T Omega e of each edge at the current values.")
+      .def("chi2", getter(&PoseGraph3D::chi2),
+           "Sum over edges of e^T Omega e at the current values; ValueError if not finite.")
+      .def("copy", [](const PoseGraph3D& g) { return locked(g, [&] { return PoseGraph3D(g); }); },
+           "An independent deep copy.")
+      .def("__repr__", [](py::handle self) {
+        const PoseGraph3D& g = self.cast<const PoseGraph3D&>();
+        return repr_of(self, locked(g, [&] {
+          return std::to_string(g.num_vertices()) + " poses, " + std::to_string(g.pose_edges().size()) + " edges";
+        }));
+      });
+  graph_class.attr("QUATERNION_NORM_TOLERANCE") = PoseGraph3D::kQuaternionNormTolerance;
+
+  m.def("optimize",
+        [](PoseGraph3D& graph, const std::string& algorithm, IntArg max_iterations_arg, double relative_tolerance,
+           double step_tolerance, const std::string& kernel, double kernel_width,
+           const std::string& linear_solver, const std::string& ordering, const std::string& damping,
+           const py::object& callback) {
+          const int max_iterations = max_iterations_arg.get("max_iterations");
+          const OptimizerOptions o = optimizer_options(algorithm, max_iterations, relative_tolerance, step_tolerance,
+                                                       kernel, kernel_width, linear_solver, ordering, damping);
+          const IterationCallback on_iteration = iteration_callback(callback);
+          return locked(graph, [&] { return optimize(graph, o, on_iteration); });
+        },
+        py::arg("graph"), py::arg("algorithm") = "gauss-newton", py::arg("max_iterations") = 100,
+        py::arg("relative_tolerance") = 1e-10, py::arg("step_tolerance") = 1e-10, py::arg("kernel") = "none",
+        py::arg("kernel_width") = 1.0, py::arg("linear_solver") = "simplicial", py::arg("ordering") = "amd",
+        py::arg("damping") = "marquardt", py::arg("callback") = py::none(),
+        "The same for a PoseGraph3D: options, callback, report and errors as for a PoseGraph2D; the\n"
+        "step is on the manifold (x (+) [v, w] = (R Exp(w), t + R v)), step_tolerance in m / rad.");
+
+  m.def("marginal_covariances",
+        [](const PoseGraph3D& graph, const std::vector<int>& ids, const std::string& linear_solver,
+           const std::string& ordering) {
+          const SparseCholeskyOptions o = solver_options(linear_solver, ordering);
+          return matrices(locked(graph, [&] { return marginal_covariances(graph, ids, o); }));
+        },
+        py::arg("graph"), py::arg("ids"), py::arg("linear_solver") = "simplicial", py::arg("ordering") = "amd",
+        "For a PoseGraph3D: (6, 6) per id in the pose's tangent [translation m in its own frame,\n"
+        "rotation vector rad] (right perturbation); a fixed vertex has zero covariance.");
+
+  m.def("joint_marginal_covariances",
+        [](const PoseGraph3D& graph, const std::vector<std::vector<int>>& groups, const std::string& linear_solver,
+           const std::string& ordering) {
+          const SparseCholeskyOptions o = solver_options(linear_solver, ordering);
+          return matrices(locked(graph, [&] { return joint_marginal_covariances(graph, groups, o); }));
+        },
+        py::arg("graph"), py::arg("groups"), py::arg("linear_solver") = "simplicial", py::arg("ordering") = "amd",
+        "For a PoseGraph3D: 6 rows per pose, in the tangent of marginal_covariances.");
+
+  m.def("initialize_odometry", [](PoseGraph3D& graph) { locked(graph, [&] { initialize_odometry(graph); }); },
+        py::arg("graph"),
+        "For a PoseGraph3D: poses composed outward from the fixed vertices (or the first pose) along a\n"
+        "breadth-first spanning tree of the edges.");
+
+  m.def("initialize_chordal",
+        [](PoseGraph3D& graph, const std::string& linear_solver, const std::string& ordering) {
+          const SparseCholeskyOptions o = solver_options(linear_solver, ordering);
+          locked(graph, [&] { initialize_chordal(graph, o); });
+        },
+        py::arg("graph"), py::arg("linear_solver") = "simplicial", py::arg("ordering") = "amd",
+        "Chordal initialisation of a PoseGraph3D (Carlone et al. 2015): the rotations from the linear\n"
+        "least-squares relaxation of R_to = R_from R_z (each 3x3 then projected onto SO(3)), then the\n"
+        "translations by a second linear solve with those rotations. Exact for noise-free edges; the\n"
+        "held vertices (fixed, or the first) keep their values. ValueError for a part of the graph not\n"
+        "connected to a held vertex.");
+}
+
+}  // namespace probslam::bindings

@@ -1,0 +1,104 @@
+#pragma once
+// A 3-D pose graph (SE(3) vertices, relative-pose edges with 6x6 information): the data of
+// sphere2500, parking-garage, torus3D and GTSAM's pose3example as g2o EDGE_SE3:QUAT holds it.
+// Optimised by graph_optimizer.hpp on the same sparse path as PoseGraph2D.
+//
+// Tangent convention (used by the error, the information, the Jacobians and the optimiser's
+// step): a 6-vector [v; w], translation first and rotation second as in g2o's EDGE_SE3:QUAT, with
+// the pose perturbed on the right, x (+) [v; w] = (R Exp(w), t + R v): v in metres in the pose's
+// own frame, w a rotation vector in radians (g2o's quaternion-vector update, with the rotation
+// vector in place of g2o's quaternion vector part).
+#include <Eigen/Core>
+#include <Eigen/Geometry>
+#include <unordered_map>
+#include <vector>
+
+#include "probslam/core/object_mutex.hpp"
+#include "probslam/core/so3.hpp"
+
+namespace probslam {
+
+using Matrix6d = Eigen::Matrix<double, 6, 6>;
+using Vector6d = Eigen::Matrix<double, 6, 1>;
+
+/// A rigid transform: rotation (unit quaternion) and translation (m).
+struct Pose3 {
+  Eigen::Quaterniond rotation = Eigen::Quaterniond::Identity();
+  Eigen::Vector3d translation = Eigen::Vector3d::Zero();
+};
+
+struct Pose3Vertex {
+  int id;
+  Pose3 value;
+  bool fixed = false;
+};
+
+/// x_to measured in the frame of x_from (g2o EDGE_SE3:QUAT). Error, in the tangent convention
+/// above: with (R_e, t_e) = z^-1 x_from^-1 x_to, e = [t_e; Log(R_e)] (Log the rotation vector of
+/// angle in [0, pi]); chi2 = e^T information e.
+struct Pose3Edge {
+  int from, to;  ///< vertex indices (not ids)
+  Pose3 measurement;
+  Matrix6d information;
+};
+
+class PoseGraph3D {
+ public:
+  /// Lock it around every call when several threads share this object (core/object_mutex.hpp).
+  std::mutex& mutex() const noexcept { return mutex_.get(); }
+
+  /// Adds pose vertex `id`. Throws std::invalid_argument for a repeated id, a non-finite value or
+  /// a quaternion whose norm is not 1 within kQuaternionNormTolerance (it is stored normalised);
+  /// the graph is then unchanged.
+  void add_pose(int id, const Pose3& pose);
+  /// Throws std::invalid_argument for an unknown id, from == to, a non-finite or non-unit
+  /// measurement, or information that is not symmetric positive definite; graph unchanged.
+  void add_pose_edge(int from_id, int to_id, const Pose3& measurement, const Matrix6d& information);
+  /// A fixed vertex keeps its value (the gauge); with none fixed, optimisers fix the first pose.
+  void set_fixed(int id, bool fixed = true);
+  /// Replaces the values of several vertices, all or nothing (checked as add_pose checks).
+  void set_poses(const std::vector<int>& ids, const std::vector<Pose3>& poses);
+  /// Replaces every vertex's value (optimisers commit their result this way); one entry per
+  /// vertex in index order, finite with unit quaternions, or std::invalid_argument and no change.
+  void assign_values(const std::vector<Pose3>& values);
+  std::vector<Pose3> values() const;
+
+  int num_vertices() const { return static_cast<int>(vertices_.size()); }
+  bool has_vertex(int id) const { return index_.count(id) != 0; }
+  /// The index of a vertex id; throws std::invalid_argument for an unknown id.
+  int index_of(int id) const;
+  const Pose3Vertex& vertex(int index) const { return vertices_[index]; }
+  /// Unchecked write access for the optimisers, which work on a copy and commit through
+  /// assign_values().
+  Pose3Vertex& vertex(int index) { return vertices_[index]; }
+  const std::vector<Pose3Vertex>& vertices() const { return vertices_; }
+  const std::vector<Pose3Edge>& pose_edges() const { return edges_; }
+
+  /// e^T Omega e of every edge at the current values.
+  Eigen::VectorXd edge_chi2() const;
+  /// Their sum; throws std::invalid_argument when it is not finite.
+  double chi2() const;
+
+  /// |norm - 1| allowed of a quaternion handed in: files print quaternions with six to nine
+  /// significant digits, so their norms are off by up to ~1e-6; a larger error is not a rotation.
+  static constexpr double kQuaternionNormTolerance = 1e-5;
+
+ private:
+  std::vector<Pose3Vertex> vertices_;
+  std::unordered_map<int, int> index_;
+  std::vector<Pose3Edge> edges_;
+  ObjectMutex mutex_;
+};
+
+/// x (+) delta in the tangent convention above.
+Pose3 retract(const Pose3& x, const Vector6d& delta);
+
+/// The error of an edge and its Jacobians with respect to the tangent perturbations of both
+/// ends.
+struct Pose3EdgeLinearization {
+  Vector6d error;
+  Matrix6d d_from, d_to;
+};
+Pose3EdgeLinearization linearize_pose3_edge(const Pose3& from, const Pose3& to, const Pose3& measurement);
+
+}  // namespace probslam

@@ -1,0 +1,56 @@
+#pragma once
+// Private to src/graph: PoseGraph3D on the shared optimiser (optimizer_core.hpp): only the
+// linearisation, the 6-wide blocks and the manifold update are its own.
+#include "optimizer_core.hpp"
+#include "probslam/graph/pose_graph_3d.hpp"
+
+namespace probslam {
+namespace graph_detail {
+
+template <>
+struct GraphTraits<PoseGraph3D> {
+  static std::vector<std::pair<int, int>> couplings(const PoseGraph3D& graph) {
+    std::vector<std::pair<int, int>> pairs;
+    pairs.reserve(graph.pose_edges().size());
+    for (const Pose3Edge& e : graph.pose_edges()) pairs.emplace_back(e.from, e.to);
+    return pairs;
+  }
+  static bool holdable(const PoseGraph3D&, int) { return true; }
+  static int tangent_size(const PoseGraph3D&, int) { return 6; }
+  static bool has_edges(const PoseGraph3D& graph) { return !graph.pose_edges().empty(); }
+
+  class Equations : public EdgeAssembler {
+   public:
+    explicit Equations(const PoseGraph3D& graph) : EdgeAssembler(variable_sizes(graph), couplings(graph)) {
+      for (const Pose3Edge& e : graph.pose_edges()) handles_.push_back(handles(e.from, e.to));
+    }
+
+    Objective assemble(const PoseGraph3D& graph, RobustKernel kernel, double width) {
+      system().set_zero();
+      Objective total;
+      const auto& vertices = graph.vertices();
+      for (size_t k = 0; k < graph.pose_edges().size(); ++k) {
+        const Pose3Edge& e = graph.pose_edges()[k];
+        const auto lin = linearize_pose3_edge(vertices[e.from].value, vertices[e.to].value, e.measurement);
+        add_edge(handles_[k], e.from, e.to, lin.error, lin.d_from, lin.d_to, e.information, kernel, width, total);
+      }
+      return total;
+    }
+
+    // x <- x (+) dx, right-multiplicative (pose_graph_3d.hpp's tangent convention).
+    void apply(PoseGraph3D& graph, const Eigen::VectorXd& dx) const {
+      for (int v = 0; v < graph.num_vertices(); ++v) {
+        if (system().size(v) == 0) continue;
+        Pose3& value = graph.vertex(v).value;
+        value = retract(value, dx.segment<6>(system().offset(v)));
+      }
+    }
+
+   private:
+    std::vector<std::array<BlockHandle, 3>> handles_;
+  };
+};
+
+}  // namespace graph_detail
+
+}  // namespace probslam
