@@ -209,6 +209,17 @@ TEST(PoseGraphFile3D, MalformedRecordsNameTheirLine) {
   }
 }
 
+TEST(PoseGraphFile3D, IsamRecordsAreNamedAsIsam) {
+  const std::string edge = "EDGE3 0 1 0 0 0 0 0 0" + kIdentityInformation + "\n";
+  std::string what = expect_invalid([&] { parse(edge + "POINT3 0 1 2 3\n"); });
+  EXPECT_NE(what.find("<stream>:2: unsupported 3-D iSAM record 'POINT3' (VERTEX3 and EDGE3 only)"), std::string::npos)
+      << what;
+  what = expect_invalid([&] { parse(edge + "EDGE3 1 2 0 0 0 0 0 0 1\n"); });
+  EXPECT_NE(what.find("<stream>:2: EDGE3 has 10 fields, expected at least 30"), std::string::npos) << what;
+  what = expect_invalid([&] { parse("VERTEX3 0 0 0 0 0 0 0\nPOINT3 0 1 2 3\n"); });
+  EXPECT_NE(what.find("<stream>:2: unsupported 3-D TORO record 'POINT3'"), std::string::npos) << what;
+}
+
 TEST(PoseGraphFile3D, PriorIsKeptAsAPrior) {
   const PoseGraph3DData g = parse("VERTEX_SE3:QUAT 4 0 0 0 0 0 0 1\nPARAMS_SE3OFFSET 0 0 0 0 0 0 0 1\n"
                                   "EDGE_SE3_PRIOR 4 0 1 2 3 0 0 0 1" + numbered_information() + "\n")
