@@ -12,6 +12,7 @@
 #include "probslam/graph/graph_optimizer.hpp"
 #include "probslam/graph/pose_graph_2d.hpp"
 #include "probslam/io/pose_graph_file.hpp"
+#include "pose_graph_options.hpp"
 
 namespace probslam::bindings {
 
@@ -109,6 +110,25 @@ py::array_t<long> all_edge_ids(const PoseGraph2D& g) {
   return out;
 }
 
+PoseGraphRead read_graph(const std::string& path, const std::string& format, const std::string& noise,
+                         const std::string& rows) {
+  const PoseGraphReadOptions options = read_options(format, noise, rows);
+  py::gil_scoped_release release;  // a new graph: nothing else can see it yet
+  return read_pose_graph(path, options);
+}
+
+constexpr const char* kReadDoc =
+    "format: \"g2o\" (VERTEX_SE2 / VERTEX_XY / EDGE_SE2 / EDGE_SE2_XY), \"toro\" (VERTEX2 / EDGE2),\n"
+    "\"isam\" (ODOMETRY / EDGE2 / LANDMARK), or \"auto\" (from the first record). noise: what the\n"
+    "edges' noise entries hold: \"default\" (the format's own: information for g2o and TORO,\n"
+    "square-root information for iSAM), \"information\", \"sqrt_information\" (upper-triangular R,\n"
+    "information R^T R) or \"covariance\". rows: \"strict\" (a malformed record raises\n"
+    "ValueError(\"file:line: ...\")) or \"skip\" (skipped and counted; more than\n"
+    "MAX_BAD_ROW_FRACTION of the records skipped raises, naming the first). A missing file raises\n"
+    "FileNotFoundError.";
+
+}  // namespace
+
 PoseGraphFormat format_arg(const std::string& format) {
   return choice<PoseGraphFormat>(format, "format",
                                  {{"auto", PoseGraphFormat::kAuto},
@@ -128,25 +148,6 @@ PoseGraphReadOptions read_options(const std::string& format, const std::string& 
   o.rows = choice<RowPolicy>(rows, "rows", {{"strict", RowPolicy::kStrict}, {"skip", RowPolicy::kSkipAndCount}});
   return o;
 }
-
-PoseGraphRead read_graph(const std::string& path, const std::string& format, const std::string& noise,
-                         const std::string& rows) {
-  const PoseGraphReadOptions options = read_options(format, noise, rows);
-  py::gil_scoped_release release;  // a new graph: nothing else can see it yet
-  return read_pose_graph(path, options);
-}
-
-constexpr const char* kReadDoc =
-    "format: \"g2o\" (VERTEX_SE2 / VERTEX_XY / EDGE_SE2 / EDGE_SE2_XY), \"toro\" (VERTEX2 / EDGE2),\n"
-    "\"isam\" (ODOMETRY / EDGE2 / LANDMARK), or \"auto\" (from the first record). noise: what the\n"
-    "edges' noise entries hold: \"default\" (the format's own: information for g2o and TORO,\n"
-    "square-root information for iSAM), \"information\", \"sqrt_information\" (upper-triangular R,\n"
-    "information R^T R) or \"covariance\". rows: \"strict\" (a malformed record raises\n"
-    "ValueError(\"file:line: ...\")) or \"skip\" (skipped and counted; more than\n"
-    "MAX_BAD_ROW_FRACTION of the records skipped raises, naming the first). A missing file raises\n"
-    "FileNotFoundError.";
-
-}  // namespace
 
 void define_graph(py::module_& m) {
   // Every method runs its C++ work under the graph's lock with the GIL released (object_lock.hpp).

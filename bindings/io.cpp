@@ -1,11 +1,15 @@
 #include <pybind11/stl.h>
 
+#include <cmath>
+#include <limits>
 #include <sstream>
 
 #include "exceptions.hpp"
 #include "numpy.hpp"
 #include "object_lock.hpp"
+#include "pose_graph_options.hpp"
 #include "probslam/io/carmen_log.hpp"
+#include "probslam/io/pose_graph_file_3d.hpp"
 #include "probslam/io/ros_map.hpp"
 
 namespace probslam::bindings {
@@ -44,9 +48,163 @@ py::dict log_to_dict(CarmenLog&& log) {
   return out;
 }
 
+// Quaternions cross to Python as (x, y, z, w) rows: the order of g2o files and of
+// scipy.spatial.transform.Rotation.from_quat.
+py::dict graph_3d_to_dict(const PoseGraph3DData& g) {
+  const auto nv = static_cast<py::ssize_t>(g.vertices.size());
+  const auto ne = static_cast<py::ssize_t>(g.edges.size());
+  const auto np = static_cast<py::ssize_t>(g.priors.size());
+  py::array_t<long> ids(nv), edges({ne, py::ssize_t{2}}), prior_ids(np);
+  py::array_t<bool> fixed(nv);
+  py::array_t<double> q({nv, py::ssize_t{4}}), t({nv, py::ssize_t{3}}), eq({ne, py::ssize_t{4}}),
+      et({ne, py::ssize_t{3}}), info({ne, py::ssize_t{6}, py::ssize_t{6}}), pq({np, py::ssize_t{4}}),
+      pt({np, py::ssize_t{3}}), pinfo({np, py::ssize_t{6}, py::ssize_t{6}});
+  auto put_pose = [](double* qo, double* to, const Eigen::Quaterniond& qi, const Eigen::Vector3d& ti) {
+    qo[0] = qi.x(), qo[1] = qi.y(), qo[2] = qi.z(), qo[3] = qi.w();
+    to[0] = ti.x(), to[1] = ti.y(), to[2] = ti.z();
+  };
+  auto put_information = [](double* out, const Matrix6d& m) {
+    for (int i = 0; i < 6; ++i)
+      for (int j = 0; j < 6; ++j) out[6 * i + j] = m(i, j);
+  };
+  for (py::ssize_t i = 0; i < nv; ++i) {
+    const Vertex3D& v = g.vertices[i];
+    ids.mutable_data()[i] = v.id;
+    fixed.mutable_data()[i] = v.fixed;
+    put_pose(q.mutable_data() + 4 * i, t.mutable_data() + 3 * i, v.q, v.t);
+  }
+  for (py::ssize_t i = 0; i < ne; ++i) {
+    const Edge3D& e = g.edges[i];
+    edges.mutable_data()[2 * i] = e.from_id;
+    edges.mutable_data()[2 * i + 1] = e.to_id;
+    put_pose(eq.mutable_data() + 4 * i, et.mutable_data() + 3 * i, e.q, e.t);
+    put_information(info.mutable_data() + 36 * i, e.information);
+  }
+  for (py::ssize_t i = 0; i < np; ++i) {
+    const Prior3D& p = g.priors[i];
+    prior_ids.mutable_data()[i] = p.id;
+    put_pose(pq.mutable_data() + 4 * i, pt.mutable_data() + 3 * i, p.q, p.t);
+    put_information(pinfo.mutable_data() + 36 * i, p.information);
+  }
+  py::dict out;
+  out["vertex_ids"] = ids;
+  out["quaternions"] = q;
+  out["translations"] = t;
+  out["fixed"] = fixed;
+  out["edges"] = edges;
+  out["edge_quaternions"] = eq;
+  out["edge_translations"] = et;
+  out["information"] = info;
+  out["prior_ids"] = prior_ids;
+  out["prior_quaternions"] = pq;
+  out["prior_translations"] = pt;
+  out["prior_information"] = pinfo;
+  return out;
+}
+
+// An int array of `rows` entries, or of shape (rows, cols) when cols > 0: ValueError naming it.
+py::array_t<long, py::array::c_style | py::array::forcecast> ids_arg(py::handle obj, const char* name, py::ssize_t cols) {
+  auto a = py::array_t<long, py::array::c_style | py::array::forcecast>::ensure(obj);
+  if (!a) throw py::type_error(std::string(name) + " must be an array of integers");
+  if (cols > 0 ? (a.ndim() != 2 || a.shape(1) != cols) : a.ndim() != 1)
+    throw py::value_error(std::string(name) + " must have shape " + (cols > 0 ? "(n, " + std::to_string(cols) + ")" : "(n,)") +
+                          ", got " + shape_of(a));
+  return a;
+}
+
+void require_rows(const py::array& a, py::ssize_t rows, const char* name, const char* of) {
+  if (a.shape(0) != rows)
+    throw py::value_error(std::string(name) + " has " + std::to_string(a.shape(0)) + " rows, " + of + " has " +
+                          std::to_string(rows));
+}
+
+int id_value(long id, const char* name) {
+  if (id < std::numeric_limits<int>::min() || id > std::numeric_limits<int>::max())
+    throw py::value_error(std::string(name) + ": id " + std::to_string(id) + " out of range");
+  return static_cast<int>(id);
+}
+
+Eigen::Quaterniond quaternion_row(const double* xyzw, const char* name) {
+  const Eigen::Quaterniond q(xyzw[3], xyzw[0], xyzw[1], xyzw[2]);
+  if (!q.coeffs().allFinite() || std::abs(q.norm() - 1.0) > kQuaternionNormTolerance)
+    throw py::value_error(std::string(name) + " must hold finite unit quaternions (x, y, z, w)");
+  return q;
+}
+
+Matrix6d information_block(const double* m, const char* name) {
+  const Matrix6d info = Eigen::Map<const Eigen::Matrix<double, 6, 6, Eigen::RowMajor>>(m);
+  if (!info.allFinite() || info != info.transpose())
+    throw py::value_error(std::string(name) + " must hold finite symmetric (6, 6) matrices");
+  return info;
+}
+
+DoubleArray stack_arg(py::handle obj, const char* name) {
+  DoubleArray a = as_array(obj, name);
+  if (a.ndim() != 3 || a.shape(1) != 6 || a.shape(2) != 6)
+    throw py::value_error(std::string(name) + " must have shape (n, 6, 6), got " + shape_of(a));
+  return a;
+}
+
+PoseGraph3DData graph_3d_from_arrays(const py::dict& d) {
+  PoseGraph3DData g;
+  auto ids = ids_arg(d["vertex_ids"], "vertex_ids", 0);
+  const py::ssize_t nv = ids.shape(0);
+  DoubleArray q = matrix_arg(d["quaternions"], "quaternions", 4), t = matrix_arg(d["translations"], "translations", 3);
+  auto fixed = py::array_t<bool, py::array::c_style | py::array::forcecast>::ensure(d["fixed"]);
+  if (!fixed || fixed.ndim() != 1) throw py::value_error("fixed must be a 1-D array of booleans");
+  require_rows(q, nv, "quaternions", "vertex_ids");
+  require_rows(t, nv, "translations", "vertex_ids");
+  require_rows(fixed, nv, "fixed", "vertex_ids");
+  for (py::ssize_t i = 0; i < nv; ++i) {
+    Vertex3D v;
+    v.id = id_value(ids.data()[i], "vertex_ids");
+    v.q = quaternion_row(q.data() + 4 * i, "quaternions");
+    v.t = Eigen::Map<const Eigen::Vector3d>(t.data() + 3 * i);
+    if (!v.t.allFinite()) throw py::value_error("translations must be finite");
+    v.fixed = fixed.data()[i];
+    g.vertices.push_back(v);
+  }
+  auto edges = ids_arg(d["edges"], "edges", 2);
+  const py::ssize_t ne = edges.shape(0);
+  DoubleArray eq = matrix_arg(d["edge_quaternions"], "edge_quaternions", 4),
+              et = matrix_arg(d["edge_translations"], "edge_translations", 3), info = stack_arg(d["information"], "information");
+  require_rows(eq, ne, "edge_quaternions", "edges");
+  require_rows(et, ne, "edge_translations", "edges");
+  require_rows(info, ne, "information", "edges");
+  for (py::ssize_t i = 0; i < ne; ++i) {
+    Edge3D e;
+    e.from_id = id_value(edges.data()[2 * i], "edges");
+    e.to_id = id_value(edges.data()[2 * i + 1], "edges");
+    e.q = quaternion_row(eq.data() + 4 * i, "edge_quaternions");
+    e.t = Eigen::Map<const Eigen::Vector3d>(et.data() + 3 * i);
+    if (!e.t.allFinite()) throw py::value_error("edge_translations must be finite");
+    e.information = information_block(info.data() + 36 * i, "information");
+    g.edges.push_back(e);
+  }
+  auto prior_ids = ids_arg(d["prior_ids"], "prior_ids", 0);
+  const py::ssize_t np = prior_ids.shape(0);
+  DoubleArray pq = matrix_arg(d["prior_quaternions"], "prior_quaternions", 4),
+              pt = matrix_arg(d["prior_translations"], "prior_translations", 3),
+              pinfo = stack_arg(d["prior_information"], "prior_information");
+  require_rows(pq, np, "prior_quaternions", "prior_ids");
+  require_rows(pt, np, "prior_translations", "prior_ids");
+  require_rows(pinfo, np, "prior_information", "prior_ids");
+  for (py::ssize_t i = 0; i < np; ++i) {
+    Prior3D p;
+    p.id = id_value(prior_ids.data()[i], "prior_ids");
+    p.q = quaternion_row(pq.data() + 4 * i, "prior_quaternions");
+    p.t = Eigen::Map<const Eigen::Vector3d>(pt.data() + 3 * i);
+    if (!p.t.allFinite()) throw py::value_error("prior_translations must be finite");
+    p.information = information_block(pinfo.data() + 36 * i, "prior_information");
+    g.priors.push_back(p);
+  }
+  return g;
+}
+
 }  // namespace
 
 void define_io(py::module_& m) {
+  m.attr("QUATERNION_NORM_TOLERANCE") = kQuaternionNormTolerance;
   m.attr("CARMEN_MAX_REPORTED_LINES") = kCarmenMaxReportedLines;
   m.def(
       "read_carmen_log",
@@ -93,6 +251,33 @@ void define_io(py::module_& m) {
       "Reads a ROS map_server map (YAML + PGM; modes trinary and scale) into an OccupancyGrid2D:\n"
       "resolution and origin (m) from the YAML; occupied and free cells get logit(0.971) and\n"
       "logit(0.1192), unknown ones the prior (p = 0.5). Errors name the file and line.");
+  m.def(
+      "read_pose_graph_3d",
+      [](const std::string& path, const std::string& format, const std::string& noise, const std::string& rows) {
+        const PoseGraphReadOptions options = read_options(format, noise, rows);
+        PoseGraph3DRead read;
+        {
+          py::gil_scoped_release release;
+          read = read_pose_graph_3d(path, options);
+        }
+        return py::make_tuple(graph_3d_to_dict(read.graph), std::move(read.report));
+      },
+      py::arg("path"), py::arg("format") = "auto", py::arg("noise") = "default", py::arg("rows") = "strict",
+      "Reads a 3-D pose graph: (dict of numpy arrays, PoseGraphReadReport). format: \"g2o\"\n"
+      "(VERTEX_SE3:QUAT / EDGE_SE3:QUAT / EDGE_SE3_PRIOR / FIX), \"isam\" (EDGE3 with roll pitch yaw,\n"
+      "square-root information by default; VERTEX3), \"toro\" (VERTEX3 / EDGE3, information) or \"auto\".\n"
+      "noise and rows as read_pose_graph. Quaternions are rows (x, y, z, w); information (E, 6, 6) in\n"
+      "the order [translation, rotation].");
+  m.def(
+      "write_g2o_3d",
+      [](const std::string& path, const py::dict& arrays) {
+        const PoseGraph3DData graph = graph_3d_from_arrays(arrays);
+        py::gil_scoped_release release;
+        write_g2o_3d(path, graph);
+      },
+      py::arg("path"), py::arg("arrays"),
+      "Writes a 3-D graph given as read_pose_graph_3d's dict of arrays to path as g2o text\n"
+      "(17 significant digits: it reads back bit for bit).");
 }
 
 }  // namespace probslam::bindings

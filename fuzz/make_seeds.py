@@ -51,6 +51,17 @@ LANDMARK 1 5 2 1 1.6 0 1.6
 LANDMARK 2 5 1 1 1.6 0 1.6
 LANDMARK 2 1 1 -1 1.6 0 1.6
 """
+G2O_3D = b"""VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1
+VERTEX_SE3:QUAT 1 1 0 0 0 0 0.0998334 0.9950042
+FIX 0
+PARAMS_SE3OFFSET 0 0 0 0 0 0 0 1
+EDGE_SE3_PRIOR 1 0 1 0 0 0 0 0.0998334 0.9950042 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 4 0 0 4 0 4
+EDGE_SE3:QUAT 0 1 1 0 0 0 0 0.0998334 0.9950042 100 0 0 0 0 0 100 0 0 0 0 100 0 0 0 400 0 0 400 0 400
+"""
+ISAM_3D = b"""EDGE3 0 1 1 0 0 0 0 0.2 10 0 0 0 0 0 10 0 0 0 0 10 0 0 0 100 0 0 100 0 25
+EDGE3 1 2 1 0 0 0.01 0 0.2 10 0 0 0 0 0 10 0 0 0 0 10 0 0 0 100 0 0 100 0 25
+EDGE3 0 2 2 0 0.1 0 0 0.4 10 0 0 0 0 0 10 0 0 0 0 10 0 0 0 100 0 0 100 0 25
+"""
 VICTORIA = b"""ODOMETRY 0 1 1 0 0 10 0 0 10 0 31.6
 ODOMETRY 1 2 1 0 0.1 10 0 0 10 0 31.6
 LANDMARK 1 7 2 1 1.6 0 1.6
@@ -111,6 +122,8 @@ def committed(out: pathlib.Path = HERE / "seeds") -> None:
     _write(out / "g2o", "tiny.g2o", G2O)
     _write(out / "toro", "tiny.graph", TORO)
     _write(out / "isam", "tiny.txt", ISAM)
+    _write(out / "g2o_3d", "tiny.g2o", G2O_3D)
+    _write(out / "isam_3d", "tiny.txt", ISAM_3D)
     _write(out / "victoria_park", "tiny.txt", VICTORIA)
     _write(out / "mrclam", "tiny.bin", SEPARATOR.join(MRCLAM))
     _write(out / "relations", "tiny.relations", RELATIONS)
@@ -153,6 +166,11 @@ def shared(out: pathlib.Path, data: pathlib.Path) -> int:
         target = {".g2o": "g2o", ".graph": "toro"}.get(graph.suffix)
         if target:
             add(target, graph.name, _head(_open(graph)))
+        head = _head(_open(graph)) if graph.suffix in (".g2o", ".txt") else b""
+        if head.startswith(b"VERTEX_SE3:QUAT"):  # 3-D g2o (pose3example.txt among them)
+            add("g2o_3d", graph.name, head)
+        elif head.startswith(b"EDGE3"):  # iSAM 3-D (sphere2500.txt)
+            add("isam_3d", graph.name, head)
     for rel in sorted(data.glob("laser_2d/*/*.relations")):
         add("relations", rel.name, _head(_open(rel)))
     vp = data / "landmark_slam/victoria_park"

@@ -63,6 +63,13 @@ def _pose_graph(name: str, fmt: str):
     return target
 
 
+def _pose_graph_3d(name: str, fmt: str):
+    def target(ws: Workspace, data: bytes) -> None:
+        from probslam import io
+        io.read_pose_graph_3d(ws.write(name, data), format=fmt)
+    return target
+
+
 def ros_map(ws: Workspace, data: bytes) -> None:
     from probslam import io
     yaml, pgm = _parts(data, 2)
@@ -130,6 +137,8 @@ TARGETS: Dict[str, Callable[[Workspace, bytes], None]] = {
     "g2o": _pose_graph("graph.g2o", "g2o"),
     "toro": _pose_graph("graph.graph", "toro"),
     "isam": _pose_graph("graph.txt", "isam"),
+    "g2o_3d": _pose_graph_3d("graph3d.g2o", "g2o"),
+    "isam_3d": _pose_graph_3d("graph3d.txt", "isam"),
     "ros_map": ros_map,
     "state_file": state_file,
     "octomap_bt": octomap_bt,

@@ -13,6 +13,7 @@
 
 #include "probslam/core/check.hpp"
 #include "probslam/core/pose2.hpp"
+#include "pose_graph_row_log.hpp"
 #include "text_fields.hpp"
 
 namespace probslam {
@@ -21,6 +22,7 @@ namespace {
 using io_detail::Fields;
 using io_detail::LineError;
 using io_detail::LineParseError;
+using io_detail::RowLog;
 
 // The longest line read: a g2o / TORO / iSAM record is a few hundred bytes (a FIX line listing
 // ids may be longer); a longer line is a corrupt or foreign file, refused before it is buffered.
@@ -47,45 +49,6 @@ struct Records {
   std::vector<VertexRecord> vertices;
   std::vector<EdgeRecord> edges;
   std::vector<std::pair<long, std::vector<int>>> fixed;  // line, ids of one FIX record
-};
-
-// The row policy at work: a record's LineParseError is rethrown (strict) or counted, listed
-// and remembered for the fatal message when there are too many (skip and count).
-class RowLog {
- public:
-  RowLog(RowPolicy policy, PoseGraphReadReport& report) : policy_(policy), report_(report) {}
-
-  // Runs read(); false when it failed and the record was skipped.
-  template <class Read>
-  bool row(Read&& read) {
-    try {
-      read();
-      return true;
-    } catch (const LineParseError& e) {
-      if (policy_ == RowPolicy::kStrict) throw;
-      ++report_.skipped_rows;
-      list_skipped_line(report_.skipped_lines, kPoseGraphMaxReportedLines, e.line(), e.reason());
-      if (first_line_ == 0 || e.line() < first_line_) {
-        first_line_ = e.line();
-        first_what_ = e.what();
-      }
-      return false;
-    }
-  }
-
-  void require_few_skipped() const {
-    if (static_cast<double>(report_.skipped_rows) <= kMaxBadRowFraction * static_cast<double>(report_.rows)) return;
-    std::ostringstream what;
-    what << first_what_ << " (" << report_.skipped_rows << " of " << report_.rows
-         << " rows unreadable, more than kMaxBadRowFraction = " << kMaxBadRowFraction << ")";
-    throw std::invalid_argument(what.str());
-  }
-
- private:
-  RowPolicy policy_;
-  PoseGraphReadReport& report_;
-  long first_line_ = 0;  // the first bad line in the file (build-time errors come after parse-time ones)
-  std::string first_what_;
 };
 
 // Runs add() for the record of `line`: an error it raises names that line (after `context`).
@@ -153,6 +116,14 @@ int vertex_id(const Fields& f, std::size_t i, const LineError& err) {
   if (id < std::numeric_limits<int>::min() || id > std::numeric_limits<int>::max())
     err.fail("vertex id " + std::to_string(id) + " out of range");
   return static_cast<int>(id);
+}
+
+// Records of 3-D graphs (g2o SE3, iSAM / TORO 3-D): a 2-D reader given one says so and names the
+// 3-D reader, rather than calling a well-formed file unsupported.
+bool is_3d_tag(const std::string& tag) {
+  static const std::set<std::string> tags = {"VERTEX_SE3:QUAT", "EDGE_SE3:QUAT", "EDGE_SE3_PRIOR", "PARAMS_SE3OFFSET",
+                                             "VERTEX_TRACKXYZ", "EDGE_SE3_TRACKXYZ", "VERTEX3", "EDGE3"};
+  return tags.count(tag) != 0;
 }
 
 PoseGraphFormat detect(const std::string& tag) {
@@ -325,6 +296,10 @@ PoseGraphRead parse_pose_graph(std::istream& in, const PoseGraphReadOptions& opt
       [&](const Fields& fields, const LineError& err, long line) {
         ++report.rows;
         const std::string tag(fields.token(0));
+        // Fatal under both row policies: no line of the file can be read as 2-D.
+        if (is_3d_tag(tag))
+          throw std::invalid_argument(source + ":" + std::to_string(line) + ": this is a 3-D graph (" + tag +
+                                      "): use read_pose_graph_3d (Python: probslam.io.read_pose_graph_3d)");
         if (format == PoseGraphFormat::kAuto) format = detect(tag);
         rows.row([&] { parse_line(fields, tag, format, own_noise(options.noise, format), line, err, records); });
       },

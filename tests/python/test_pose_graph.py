@@ -270,7 +270,7 @@ def test_skip_rows_are_counted_and_named(tmp_path):
         ("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 0 0 0\nEDGE_SE2 0 1 1 0 0 1 0 0 -1 0 1\n", r":3: information must be positive definite"),
         ("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 0 0 0\nEDGE_SE2 0 1 nan 0 0 1 0 0 1 0 1\n", r":3: measurement must contain only finite"),
         ("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 0 1 0 0\n", r"id is already used: 0"),
-        ("VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\n", r":1: unsupported g2o record"),
+        ("VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\n", r":1: this is a 3-D graph \(VERTEX_SE3:QUAT\): use read_pose_graph_3d"),
         ("# only a comment\n", r"no vertices or edges"),
         # issue 12: non-finite values, ids beyond int, overflowing dead reckoning
         ("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 inf 0 0\n", r":2: .*finite"),

@@ -1,9 +1,11 @@
 """Readers and writers: CARMEN laser logs, ROS bags (``rosbags`` needed only for them), ROS
-map_server maps, PNG pictures, trajectories (TUM, KITTI)."""
+map_server maps, PNG pictures, trajectories (TUM, KITTI), 3-D pose graph files (g2o SE3, iSAM
+EDGE3, TORO 3-D)."""
 
 from .carmen import CarmenLog, LaserScans, Odometry, read_carmen_log
 from .landmark_datasets import MRCLAM_RANGE_SCALE, Mrclam, VictoriaPark, read_mrclam, read_victoria_park
 from .maps import load_ros_map, save_ros_map, write_png
+from .pose_graph_3d import QUATERNION_NORM_TOLERANCE, PoseGraph3DFile, read_pose_graph_3d, write_g2o_3d
 from .trajectory import TRAJECTORY_FORMATS, Trajectory, kitti_times_path, read_trajectory, write_trajectory
 from . import rosbag
 from .rosbag import RosbagLog, read_rosbag
@@ -15,6 +17,8 @@ __all__ = [
     "LaserScans",
     "Mrclam",
     "Odometry",
+    "PoseGraph3DFile",
+    "QUATERNION_NORM_TOLERANCE",
     "RosbagLog",
     "TRAJECTORY_FORMATS",
     "Trajectory",
@@ -23,10 +27,12 @@ __all__ = [
     "load_ros_map",
     "read_carmen_log",
     "read_mrclam",
+    "read_pose_graph_3d",
     "read_rosbag",
     "read_trajectory",
     "read_victoria_park",
     "save_ros_map",
+    "write_g2o_3d",
     "write_png",
     "write_trajectory",
     "write_rosbag",
