@@ -16,8 +16,13 @@ frame, so no alignment is applied.
   the first's end, so odometry does not see the jump) while the true pose jumps; the filter tracks
   from the true start; time (s of log) and travel to recover (the same criterion after the jump).
 
+- Beam model: the tracking run again with sensor_model="beam" (Table 6.1 on the ray walk).
+
     .venv/bin/python benchmarks/bench_localization.py [--logs aces intel fr079] [--maps DIR]
-        [--segments 20] [--segment-seconds 120] [--record]
+        [--segments 20] [--segment-seconds 120] [--option KEY=VALUE ...] [--record]
+
+``--option`` passes a MonteCarloLocalization keyword to every run (e.g. recovery_ratio=0.7), for
+comparing settings on the same runs; the last line printed sums a run up for such comparisons.
 
 Missing logs are skipped with a message.
 """
@@ -114,7 +119,17 @@ def run(args):
     maps = pathlib.Path(args.maps)
     maps.mkdir(parents=True, exist_ok=True)
     rng = np.random.default_rng(args.seed)
-    track_rows, global_rows, kidnap_rows, notes = [], [], [], []
+    track_rows, beam_rows, global_rows, kidnap_rows, notes, summary = [], [], [], [], [], []
+    opts = {}
+    for kv in args.option:
+        key, _, value = kv.partition("=")
+        try:
+            opts[key] = int(value)
+        except ValueError:
+            try:
+                opts[key] = float(value)
+            except ValueError:
+                opts[key] = value
     load0 = os.getloadavg()[0]
     for name in args.logs:
         title, rel = LOGS[name]
@@ -129,20 +144,31 @@ def run(args):
             continue
         t = scans.timestamps
         # ---- tracking ----
-        r = ps.localize(scans, grid, initial_pose=ref[0], progress=False, seed=1)
+        r = ps.localize(scans, grid, initial_pose=ref[0], progress=False, seed=1, **opts)
         ate = probslam.eval.ate(r.timestamps, r.poses, t, ref, align="none")
         pos, head = errors(r.poses, ref)
         n = r.num_particles
         track_rows.append(f"| {title} | {len(scans)} | {ate.rmse:.3f} / {np.median(pos):.3f} / {pos.max():.3f} | "
                           f"{np.degrees(np.median(head)):.2f} | {int(np.median(n))} / {int(n.max())} / {int(n[-1])} | "
                           f"{r.seconds:.1f} | {r.log_duration:.0f} | {r.real_time_factor:.0f}x |")
+        summary.append(f"{title}: track max {pos.max():.2f}")
+        # ---- the beam model (Table 6.1), same run ----
+        if not args.no_beam:
+            rb = ps.localize(scans, grid, initial_pose=ref[0], progress=False, seed=1,
+                             **{"sensor_model": "beam", **opts})
+            ateb = probslam.eval.ate(rb.timestamps, rb.poses, t, ref, align="none")
+            posb, headb = errors(rb.poses, ref)
+            nb = rb.num_particles
+            beam_rows.append(f"| {title} | {ateb.rmse:.3f} / {np.median(posb):.3f} / {posb.max():.3f} | "
+                             f"{np.degrees(np.median(headb)):.2f} | {int(np.median(nb))} / {int(nb.max())} | "
+                             f"{rb.seconds:.1f} | {rb.real_time_factor:.0f}x |")
         # ---- global, from random segments ----
         starts = rng.integers(0, max(1, len(scans) - 50), args.segments)
         done, times, travels, secs, log_secs = 0, [], [], 0.0, 0.0
         for s in starts:
             e = span_end(t, int(s), args.segment_seconds)
             idx = np.arange(int(s), e)
-            g = ps.localize(subset(scans, idx), grid, progress=False, seed=int(s))
+            g = ps.localize(subset(scans, idx), grid, progress=False, seed=int(s), **opts)
             secs += g.seconds
             log_secs += g.log_duration
             pos, head = errors(g.poses, ref[idx])
@@ -153,6 +179,7 @@ def run(args):
                 travels.append(travel(scans.laser_poses[idx], k))
         med = f"{np.median(times):.1f} / {max(times):.1f}" if times else "-"
         medt = f"{np.median(travels):.1f} / {max(travels):.1f}" if travels else "-"
+        summary.append(f"global {done}/{args.segments}")
         global_rows.append(f"| {title} | {args.segments} x {args.segment_seconds:.0f} s | {done} / {args.segments} "
                            f"({100.0 * done / args.segments:.0f}%) | {med} | {medt} | "
                            f"{log_secs / secs if secs else 0:.0f}x |")
@@ -171,7 +198,7 @@ def run(args):
         spliced.robot_poses[len(i1):] = odo2
         spliced.timestamps[len(i1):] = t2
         truth = np.concatenate([ref[i1], ref[i2]])
-        kr = ps.localize(spliced, grid, initial_pose=truth[0], progress=False, seed=3)
+        kr = ps.localize(spliced, grid, initial_pose=truth[0], progress=False, seed=3, **opts)
         pos, head = errors(kr.poses, truth)
         jump = float(np.hypot(*(truth[len(i1)] - truth[len(i1) - 1])[:2]))
         before_ok = bool(np.median(pos[:len(i1)]) < CONVERGED_ERROR)
@@ -181,6 +208,7 @@ def run(args):
         else:
             rec = (f"{kr.timestamps[len(i1) + k] - kr.timestamps[len(i1)]:.1f} s, "
                    f"{travel(odo2, k):.1f} m")
+        summary.append(f"kidnap {rec}")
         kidnap_rows.append(f"| {title} | {jump:.1f} m | {'yes' if before_ok else 'no'} | {rec} | "
                            f"{int(kr.num_particles.max())} |")
     lines = heading("Monte Carlo localization on raw laser logs",
@@ -189,6 +217,11 @@ def run(args):
                     ["log", "scans", "ATE rmse / median / max (m)", "median heading error (deg)",
                      "particles median / max / last", "processing (s)", "log duration (s)", "real-time factor"])
     lines += track_rows
+    if beam_rows:
+        lines += ["", "Beam model (`sensor_model=\"beam\"`), the tracking runs above:", "",
+                  "| log | ATE rmse / median / max (m) | median heading error (deg) | particles median / max | "
+                  "processing (s) | real-time factor |", "|---|---|---|---|---|---|"]
+        lines += beam_rows
     lines += ["", "| log | global runs | converged | time to converge median / max (s) | "
               "travel to converge median / max (m) | real-time factor |", "|---|---|---|---|---|---|"]
     lines += global_rows
@@ -202,8 +235,10 @@ def run(args):
         f"segments start at random scans (seed {args.seed}). Kidnapping: scans at 1/5 and 3/5 of the log, "
         f"{args.segment_seconds:.0f} s each, the second piece's odometry continued from the first's end.",
         f"Command: `python benchmarks/bench_localization.py --logs {' '.join(args.logs)} --segments {args.segments} "
-        f"--segment-seconds {args.segment_seconds:g}`."]
+        f"--segment-seconds {args.segment_seconds:g}"
+        + "".join(f" --option {kv}" for kv in args.option) + "`."]
     report(lines, args.record)
+    print("summary:", " ".join(args.option) or "defaults", "|", "; ".join(summary))
 
 
 def main():
@@ -214,6 +249,9 @@ def main():
     p.add_argument("--segments", type=int, default=20)
     p.add_argument("--segment-seconds", type=float, default=120.0)
     p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--option", action="append", default=[], metavar="KEY=VALUE",
+                   help="a MonteCarloLocalization keyword for every run (repeatable)")
+    p.add_argument("--no-beam", action="store_true", help="skip the beam model's tracking run")
     p.add_argument("--record", action="store_true")
     run(p.parse_args())
 

@@ -85,7 +85,9 @@ void define_localization(py::module_& m) {
       "    min_particles, max_particles, kld_epsilon, kld_z (z_{1-delta}), bin_xy (m), bin_theta (rad):\n"
       "        KLD sampling.\n"
       "    alpha_slow, alpha_fast: augmented MCL's averages (alpha_slow 0 turns it off); recovery_ratio in\n"
-      "        (0, 1]: inject with probability max(0, 1 - w_fast / (recovery_ratio w_slow)).\n"
+      "        (0, 1]: inject with probability max(0, 1 - w_fast / (recovery_ratio w_slow)), once that ratio\n"
+      "        has held at recovery_updates consecutive updates; recovery_candidates: injected particles\n"
+      "        are drawn from this many uniform free poses in proportion to the scan's likelihood (0: uniform).\n"
       "    resample_threshold: resample when N_eff < resample_threshold * M.\n"
       "    update_min_d (m), update_min_a (rad): travel before an update.\n"
       "    seed: int in [0, 2^64); threads: worker threads (results identical for any count).\n"
@@ -96,7 +98,8 @@ void define_localization(py::module_& m) {
                     RealArg beam_sigma_hit, RealArg beam_lambda_short, RealArg max_range, RealArg min_range,
                     IntArg max_beams, RealArg weight_scale, IntArg min_particles, IntArg max_particles,
                     RealArg kld_epsilon, RealArg kld_z, RealArg bin_xy, RealArg bin_theta, RealArg alpha_slow,
-                    RealArg alpha_fast, RealArg recovery_ratio, RealArg resample_threshold, RealArg update_min_d, RealArg update_min_a,
+                    RealArg alpha_fast, RealArg recovery_ratio, IntArg recovery_updates, IntArg recovery_candidates,
+                    RealArg resample_threshold, RealArg update_min_d, RealArg update_min_a,
                     UInt64Arg seed, IntArg threads) {
           if (!py::isinstance<OccupancyGrid2D>(map)) throw py::type_error("map must be an OccupancyGrid2D");
           const OccupancyGrid2D& grid = map.cast<const OccupancyGrid2D&>();
@@ -126,6 +129,8 @@ void define_localization(py::module_& m) {
           o.alpha_slow = alpha_slow.get("alpha_slow");
           o.alpha_fast = alpha_fast.get("alpha_fast");
           o.recovery_ratio = recovery_ratio.get("recovery_ratio");
+          o.recovery_updates = recovery_updates.get("recovery_updates");
+          o.recovery_candidates = recovery_candidates.get("recovery_candidates");
           o.resample_threshold = resample_threshold.get("resample_threshold");
           o.update_min_d = update_min_d.get("update_min_d");
           o.update_min_a = update_min_a.get("update_min_a");
@@ -165,7 +170,8 @@ void define_localization(py::module_& m) {
         py::arg_v("max_particles", d.max_particles), real_arg("kld_epsilon", d.kld_epsilon),
         real_arg("kld_z", d.kld_z), real_arg("bin_xy", d.bin_xy), real_arg("bin_theta", d.bin_theta),
         real_arg("alpha_slow", d.alpha_slow), real_arg("alpha_fast", d.alpha_fast),
-        real_arg("recovery_ratio", d.recovery_ratio),
+        real_arg("recovery_ratio", d.recovery_ratio), py::arg_v("recovery_updates", d.recovery_updates),
+        py::arg_v("recovery_candidates", d.recovery_candidates),
         real_arg("resample_threshold", d.resample_threshold), real_arg("update_min_d", d.update_min_d),
         real_arg("update_min_a", d.update_min_a), py::arg_v("seed", d.seed), py::arg_v("threads", d.threads),
         "Keyword options only: see the class docstring.");

@@ -875,6 +875,7 @@ class MonteCarloLocalization:
                  min_particles: int = 500, max_particles: int = 20000, kld_epsilon: float = 0.05,
                  kld_z: float = 2.326, bin_xy: float = 0.5, bin_theta: float = 0.174532925199433,
                  alpha_slow: float = 0.001, alpha_fast: float = 0.1, recovery_ratio: float = 0.5,
+                 recovery_updates: int = 1, recovery_candidates: int = 0,
                  resample_threshold: float = 0.5,
                  update_min_d: float = 0.2, update_min_a: float = 0.5235987755982988, seed: int = 0,
                  threads: int = 1) -> None: ...

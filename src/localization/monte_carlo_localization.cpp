@@ -54,6 +54,9 @@ void MonteCarloLocalizationOptions::validate() const {
           "must lie in [alpha_slow, 1]");
   require(std::isfinite(recovery_ratio) && recovery_ratio > 0.0 && recovery_ratio <= 1.0, "recovery_ratio",
           "must lie in (0, 1]");
+  require(recovery_updates >= 1 && recovery_updates <= 1000000, "recovery_updates", "must lie in [1, 10^6]");
+  require(recovery_candidates >= 0 && recovery_candidates <= kMaxParticles, "recovery_candidates",
+          "must lie in [0, 2^20]");
   require(std::isfinite(resample_threshold) && resample_threshold >= 0.0 && resample_threshold <= 1.0,
           "resample_threshold", "must lie in [0, 1]");
   require(std::isfinite(update_min_d) && update_min_d >= 0.0, "update_min_d", "must be finite and >= 0");
@@ -109,7 +112,8 @@ MonteCarloLocalization::MonteCarloLocalization(const MonteCarloLocalization& o)
       poses_(o.poses_), log_weights_(o.log_weights_), rngs_(o.rngs_), filter_rng_(o.filter_rng_),
       next_stream_(o.next_stream_), pending_(o.pending_), travel_d_(o.travel_d_), travel_a_(o.travel_a_),
       w_slow_(o.w_slow_), w_fast_(o.w_fast_), slow_raw_(o.slow_raw_), fast_raw_(o.fast_raw_),
-      slow_mass_(o.slow_mass_), fast_mass_(o.fast_mass_), random_fraction_(o.random_fraction_), num_updates_(o.num_updates_),
+      slow_mass_(o.slow_mass_), fast_mass_(o.fast_mass_), random_fraction_(o.random_fraction_), low_updates_(o.low_updates_),
+      num_updates_(o.num_updates_),
       estimate_(o.estimate_), covariance_(o.covariance_) {}
 
 MonteCarloLocalization::~MonteCarloLocalization() = default;
@@ -149,6 +153,7 @@ void MonteCarloLocalization::reset_particles(int n) {
   travel_d_ = travel_a_ = 0.0;
   w_slow_ = w_fast_ = slow_raw_ = fast_raw_ = slow_mass_ = fast_mass_ = 0.0;
   random_fraction_ = 0.0;
+  low_updates_ = 0;
   num_updates_ = 0;
 }
 
@@ -256,7 +261,11 @@ double MonteCarloLocalization::measurement_log_likelihood(const Eigen::Vector3d&
 
 template <class F>
 void MonteCarloLocalization::for_particles(F&& f) {
-  const int m = num_particles();
+  for_range(num_particles(), std::forward<F>(f));
+}
+
+template <class F>
+void MonteCarloLocalization::for_range(int m, F&& f) {
   const int workers = std::min(options_.threads, std::max(1, m / kMinParticlesPerWorker));
   if (workers <= 1) {
     for (int j = 0; j < m; ++j) f(j);
@@ -280,7 +289,8 @@ MclUpdate MonteCarloLocalization::update(const Eigen::Ref<const Eigen::VectorXd>
   const bool due = force || num_updates_ == 0 || travel_d_ >= options_.update_min_d ||
                    travel_a_ >= options_.update_min_a;
   if (!due) return out;
-  if (options_.threads > 1 && !pool_ && num_particles() >= 2 * kMinParticlesPerWorker)
+  if (options_.threads > 1 && !pool_ &&
+      std::max(num_particles(), options_.recovery_candidates) >= 2 * kMinParticlesPerWorker)
     pool_ = std::make_unique<WorkerPool>(static_cast<std::size_t>(options_.threads));  // may throw: nothing changed yet
   const std::vector<int> beams = used_beams(ranges);
   const OdometryMotion u = OdometryMotion::of_delta(pending_);
@@ -316,11 +326,16 @@ MclUpdate MonteCarloLocalization::update(const Eigen::Ref<const Eigen::VectorXd>
     w_slow_ = slow_mass_ > 0.0 ? slow_raw_ / slow_mass_ : 0.0;
     w_fast_ = fast_mass_ > 0.0 ? fast_raw_ / fast_mass_ : 0.0;
   }
+  const bool augmented = options_.alpha_slow > 0.0 && w_slow_ > 0.0;
+  const double p_random = augmented ? std::max(0.0, 1.0 - w_fast_ / (options_.recovery_ratio * w_slow_)) : 0.0;
+  if (!beams.empty()) low_updates_ = p_random > 0.0 ? low_updates_ + 1 : 0;
   const double n_eff = normalise_log_weights(log_weights_);
   out.effective_sample_size = n_eff;
   if (n_eff < options_.resample_threshold * static_cast<double>(num_particles())) {
-    const bool augmented = options_.alpha_slow > 0.0 && w_slow_ > 0.0;
-    resample(augmented ? std::max(0.0, 1.0 - w_fast_ / (options_.recovery_ratio * w_slow_)) : 0.0);
+    auto scan = [&](const Eigen::Vector3d& x) {
+      return options_.weight_scale * scan_log_likelihood(x, ranges, angles, beams);
+    };
+    resample(low_updates_ >= options_.recovery_updates ? p_random : 0.0, scan);
     out.resampled = true;
   }
   compute_estimate();
@@ -329,8 +344,33 @@ MclUpdate MonteCarloLocalization::update(const Eigen::Ref<const Eigen::VectorXd>
   return out;
 }
 
-void MonteCarloLocalization::resample(double random_probability) {
+template <class Scan>
+void MonteCarloLocalization::resample(double random_probability, const Scan& scan) {
   const int m = num_particles();
+  // Recovery candidates, made on the first injection: poses uniform over the free cells and
+  // the cumulative sum of their scan likelihoods, from which injected particles are drawn.
+  std::vector<Eigen::Vector3d> candidates;
+  std::vector<double> candidate_cdf;
+  auto recovery_pose = [&]() -> Eigen::Vector3d {
+    const int c = options_.recovery_candidates;
+    if (c == 0) return random_free_pose(filter_rng_);
+    if (candidates.empty()) {
+      candidates.resize(static_cast<std::size_t>(c));
+      for (auto& x : candidates) x = random_free_pose(filter_rng_);
+      std::vector<double> ll(static_cast<std::size_t>(c));
+      for_range(c, [&](int i) {
+        const auto k = static_cast<std::size_t>(i);
+        ll[k] = scan(candidates[k]);
+      });
+      const double top = *std::max_element(ll.begin(), ll.end());
+      candidate_cdf.resize(ll.size());
+      double sum = 0.0;
+      for (std::size_t i = 0; i < ll.size(); ++i) candidate_cdf[i] = sum += std::exp(ll[i] - top);
+    }
+    const double u = filter_rng_.uniform() * candidate_cdf.back();
+    const auto it = std::upper_bound(candidate_cdf.begin(), candidate_cdf.end(), u);
+    return candidates[std::min(candidates.size() - 1, static_cast<std::size_t>(it - candidate_cdf.begin()))];
+  };
   Eigen::VectorXd w(m);
   for (int j = 0; j < m; ++j) w[j] = std::exp(log_weights_[static_cast<std::size_t>(j)]);
   // Draws come from a low-variance pass over M ancestors, visited in a random order (so that
@@ -373,7 +413,7 @@ void MonteCarloLocalization::resample(double random_probability) {
       break;
     Eigen::Vector3d x;
     if (random_probability > 0.0 && filter_rng_.uniform() < random_probability) {
-      x = random_free_pose(filter_rng_);
+      x = recovery_pose();
       ++injected;
     } else {
       x = poses_[static_cast<std::size_t>(draw_ancestor())];

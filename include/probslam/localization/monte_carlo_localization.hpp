@@ -60,6 +60,15 @@ struct MonteCarloLocalizationOptions {
   /// the laser, a part of the map drawn poorly) injects a few; a tracked robot then jumped to a
   /// similar-looking place on ACES and FR079. At 0.5 only a halving of the likelihood injects.
   double recovery_ratio = 0.5;
+  /// Injection starts once w_fast < recovery_ratio w_slow has held at this many consecutive
+  /// updates (>= 1; 1 is Table 8.3): a person in front of the laser dims a scan or two, a
+  /// kidnapping every scan after it.
+  int recovery_updates = 1;
+  /// Injected particles are drawn from this many candidate poses uniform over the free cells,
+  /// each in proportion to the current scan's tempered likelihood there (sensor resetting,
+  /// Lenser & Veloso 2000; Mixture MCL's dual proposal, Thrun et al. 2001): a uniform pose rarely
+  /// lands near the right one in a large map. 0 draws them uniformly (Table 8.3).
+  int recovery_candidates = 0;
   // ---- when to update and resample ----
   double resample_threshold = 0.5;  ///< resample when N_eff < this * M, in [0, 1]
   double update_min_d = 0.2;        ///< travel (m) before an update
@@ -139,7 +148,11 @@ class MonteCarloLocalization {
   bool is_occupied_or_outside(const Eigen::Vector3d& pose) const;
   Eigen::Vector3d random_free_pose(ParticleRng& rng) const;
   void reset_particles(int n);
-  void resample(double random_probability);
+  /// `scan` gives the current scan's tempered log-likelihood of a pose (for recovery candidates).
+  template <class Scan>
+  void resample(double random_probability, const Scan& scan);
+  template <class F>
+  void for_range(int n, F&& f);
   void compute_estimate();
   std::vector<int> used_beams(const Eigen::Ref<const Eigen::VectorXd>& ranges) const;
   double scan_log_likelihood(const Eigen::Vector3d& pose, const Eigen::Ref<const Eigen::VectorXd>& ranges,
@@ -166,6 +179,7 @@ class MonteCarloLocalization {
   double w_slow_ = 0.0, w_fast_ = 0.0;
   double slow_raw_ = 0.0, fast_raw_ = 0.0, slow_mass_ = 0.0, fast_mass_ = 0.0;  // before bias correction
   double random_fraction_ = 0.0;
+  int low_updates_ = 0;  // consecutive updates with w_fast < recovery_ratio w_slow
   int num_updates_ = 0;
   Eigen::Vector3d estimate_ = Eigen::Vector3d::Zero();
   Eigen::Matrix3d covariance_ = Eigen::Matrix3d::Zero();
