@@ -21,6 +21,9 @@ readings invalid is needed, and not written yet.)
         [--scans N] [--record]
 
 --scans N runs the first N scans of each log (a smoke run; not recorded). Missing logs are skipped.
+--runs FILE appends each run's measurements to FILE (JSON lines) and takes the runs FILE holds
+already instead of running them again: runs split over several invocations (e.g. one per log, at
+the same time on a machine with cores to spare) make one table.
 """
 
 import argparse
@@ -99,6 +102,7 @@ def main():
     parser.add_argument("--methods", nargs="+", choices=list(METHODS), default=list(METHODS))
     parser.add_argument("--scans", type=int, default=0, help="the first N scans of each log (not recorded)")
     parser.add_argument("--record", action="store_true", help="write the tables into benchmarks/RESULTS.md")
+    parser.add_argument("--runs", type=pathlib.Path, help="JSON lines of runs: taken when present, appended otherwise")
     parser.add_argument("--child", nargs=3, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.child:
@@ -108,15 +112,28 @@ def main():
     from common import heading, report
 
     load = os.getloadavg()[0]
-    rows, graph_rows, rbpf_rows, memory_rows, notes = [], [], [], [], []
+    saved = {}
+    if args.runs is not None and args.runs.exists():
+        for line in args.runs.read_text().splitlines():
+            if line.strip():
+                r = json.loads(line)
+                saved[(r["log"], r["method"], r["scans_asked"])] = r
+    rows, graph_rows, rbpf_rows, memory_rows, notes, run_loads = [], [], [], [], [], []
     for name in args.logs:
         title, raw = LOGS[name]
         if not (LASER / raw).exists():
             notes.append(f"{title}: {LASER / raw} not found; skipped.")
             continue
         for method in args.methods:
-            print(f"bench_slam_cost: {title} {method} ...", file=sys.stderr, flush=True)
-            r = run(name, method, args.scans)
+            r = saved.get((name, method, args.scans))
+            if r is None:
+                print(f"bench_slam_cost: {title} {method} ...", file=sys.stderr, flush=True)
+                r = dict(run(name, method, args.scans), log=name, method=method, scans_asked=args.scans,
+                         load=os.getloadavg()[0])
+                if args.runs is not None:
+                    with open(args.runs, "a") as f:
+                        f.write(json.dumps(r) + "\n")
+            run_loads.append(r.get("load", load))
             t = r["timings"]
             rel = f"{r['relations'][0]:.3f} m" if r["relations"] else "-"
             label = "GraphSLAM" if method == "graph" else "grid FastSLAM, 30 particles"
@@ -160,7 +177,8 @@ def main():
     lines += ["", "What holds the memory at the end (MiB):", "", "| log | method | held |", "|---|---|---|",
               *memory_rows]
     lines += ["", *notes,
-              f"Load average at the start: {load:.2f} (on {os.cpu_count()} cores); CPU s is processor time, "
+              f"Load average at the start: {load:.2f} (on {os.cpu_count()} cores; of the runs: "
+              f"{', '.join(f'{v:.1f}' for v in run_loads)}); CPU s is processor time, "
               "which a shared machine's load inflates less than wall time. Real time per core = log duration / "
               "CPU s. Peak RSS: the whole process (Python, numpy, the log read: the column after it).",
               f"Command: `python benchmarks/bench_slam_cost.py --logs {' '.join(args.logs)} "
