@@ -163,7 +163,8 @@ def main():
         notes.append("MRPT: `icp-slam` is on PATH, but the CARMEN-to-rawlog converter its runs need is not "
                      "written yet (see the script's docstring): skipped.")
     title = "SLAM cost on raw laser logs" + (f" (first {args.scans} scans)" if args.scans else "")
-    lines = heading(title, "Each run in a fresh process, logs and methods one after the other, one thread.",
+    lines = heading(title, "Each run in a fresh process, one thread (runs gathered with --runs may have run side by "
+                    "side; CPU s is each process's own).",
                     ["log", "method", "scans", "CPU s", "real time per core", "peak RSS",
                      "RSS after reading the log", "ACES relations error"])
     lines += rows
