@@ -735,6 +735,8 @@ class SubmapSlam2D:
     scan_info: Array  # (S, 5)
     constraints: SubmapConstraints
     summary: SubmapSlamSummary
+    timings: Dict[str, float]  # processor seconds per stage (and counts) since construction or loading
+    memory: Dict[str, float]  # bytes: scans, submap_grids, closure_cells, closure_fields, start_map, total
     start_map: Optional[OccupancyGrid2D]  # a copy of the map started from (start_from_map), or None
     def __init__(self, *, resolution: float = 0.05, max_range: float = math.inf, min_range: float = 0.0,
                  max_usable_range: float = 30.0, clear_no_return: bool = True, min_point_spacing: float = 0.0,
@@ -747,7 +749,7 @@ class SubmapSlam2D:
                  closure_min_match_quality: float = 0.6, closure_window_sigmas: float = 3.0,
                  closure_min_linear_window: float = 0.3, closure_max_linear_window: float = 4.0,
                  closure_min_angular_window: float = 0.1, closure_max_angular_window: float = 0.7,
-                 closure_max_distance: float = 20.0, dissolve_chi2: float = 16.27, field_cache_mb: float = 512.0,
+                 closure_max_distance: float = 20.0, dissolve_chi2: float = 16.27, field_cache_mb: float = 128.0,
                  max_rounds: int = 10) -> None: ...
     def add_scans(self, ranges: ArrayLike, beam_angles: ArrayLike, odometry: ArrayLike,
                   timestamps: ArrayLike) -> None: ...
@@ -803,6 +805,7 @@ class GridFastSlam:
     scan_poses: Array  # (S, 3) along the best particle's path
     tile_sharing: TileSharing
     summary: GridFastSlamSummary
+    timings: Dict[str, float]  # processor seconds per stage since construction or loading
     def __init__(self, *, num_particles: int = 30, proposal: str = "scan-matching", resolution: float = 0.05,
                  max_range: float = math.inf, min_range: float = 0.0, max_usable_range: float = 30.0,
                  clear_no_return: bool = True, min_point_spacing: float = 0.0,

@@ -42,6 +42,9 @@ class SlamResult:
     submap); constraints the graph's edges (``SubmapConstraints``: from_submap, to_submap,
     measurement (M, 3), covariance (M, 3, 3), loop, scan, match_quality, active).
     rbpf only: tile_sharing, the particles' map tiles (``TileSharing``: references, distinct, bytes).
+    timings: processor seconds per stage of the SLAM object (``SubmapSlam2D.timings`` or
+    ``GridFastSlam.timings``; a resumed run's count from its loading); memory (GraphSLAM only):
+    the bytes its large buffers hold at the end (``SubmapSlam2D.memory``).
     """
 
     timestamps: np.ndarray
@@ -58,6 +61,8 @@ class SlamResult:
     options: Dict[str, Any] = field(default_factory=dict)
     method: str = "graph"
     tile_sharing: Optional[_core.TileSharing] = None
+    timings: Optional[Dict[str, float]] = None
+    memory: Optional[Dict[str, float]] = None
 
     @property
     def real_time_factor(self) -> float:
@@ -330,7 +335,7 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: Optional[st
         return SlamResult(timestamps=mapper.timestamps, poses=mapper.scan_poses, frontend_poses=None,
                           submap_poses=None, grid=grid, graph=None, constraints=None, summary=mapper.summary,
                           seconds=seconds, log_duration=duration, odometry=odometry, options=opts, method=method,
-                          tile_sharing=mapper.tile_sharing)
+                          tile_sharing=mapper.tile_sharing, timings=mapper.timings)
     frontend = mapper.frontend_poses
     mapper.finish()
     grid = mapper.map()
@@ -338,7 +343,7 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: Optional[st
     return SlamResult(timestamps=mapper.timestamps, poses=mapper.scan_poses, frontend_poses=frontend,
                       submap_poses=mapper.submap_poses, grid=grid, graph=mapper.graph(),
                       constraints=mapper.constraints, summary=mapper.summary, seconds=seconds, log_duration=duration,
-                      odometry=odometry, options=opts, method=method)
+                      odometry=odometry, options=opts, method=method, timings=mapper.timings, memory=mapper.memory)
 
 
 def write_trajectory(timestamps: np.ndarray, poses: np.ndarray, path: PathLike) -> None:

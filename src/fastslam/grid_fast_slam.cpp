@@ -14,6 +14,7 @@
 #include "probslam/core/pose2_covariance.hpp"
 #include "probslam/core/worker_pool.hpp"
 #include "probslam/slam2d/correlative_scan_matcher.hpp"
+#include "probslam/slam2d/cpu_clock.hpp"
 #include "probslam/slam2d/likelihood_field.hpp"
 #include "probslam/slam2d/scan_batch.hpp"
 #include "probslam/slam2d/start_map.hpp"
@@ -131,6 +132,8 @@ GridFastSlam::GridFastSlam(const GridFastSlam& other)
       scan_offset_(other.scan_offset_),
       timestamps_(other.timestamps_),
       summary_(other.summary_),
+      timings_(other.timings_),
+      map_seconds_(other.map_seconds_),
       footprint_bytes_(other.footprint_bytes_),
       start_map_(other.start_map_),
       initial_pose_(other.initial_pose_) {
@@ -194,15 +197,24 @@ bool GridFastSlam::add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
   // (prepared, committed with the update).
   std::optional<IncrementalScanMatcher::PendingScan> corrected;
   Eigen::Vector3d source = odometry;
+  double t0 = cpu_seconds();
   if (corrector_) {
     corrected = corrector_->prepare(ranges, beam_angles, odometry, timestamp);
     source = corrected->est.pose;
   }
+  double t1 = cpu_seconds();
+  double corrector_seconds = t1 - t0;
   const Eigen::VectorXd insertion = ranges_for_insertion(ranges, options_.filter);
+  timings_.filter += cpu_seconds() - t1;
   auto commit_scan = [&] {
-    if (corrector_) corrector_->commit(std::move(*corrected));
+    const double c0 = cpu_seconds();
+    if (corrector_) {
+      corrector_->commit(std::move(*corrected));
+      release_corrector_grids();
+    }
     timestamps_.push_back(timestamp);
     ++summary_.scans;
+    timings_.corrector += corrector_seconds + cpu_seconds() - c0;
   };
   if (scan_step_.empty()) {
     // On a start map the first pose is in the map's frame; the motion after it is relative.
@@ -243,8 +255,19 @@ bool GridFastSlam::add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
     if (corrector_) motion.start = delta;
   }
   motion.cov = 0.5 * (motion.cov + motion.cov.transpose());
-  std::vector<Sampled> sampled = sample(scan_hits(ranges, beam_angles, options_.filter), motion);
+  t0 = cpu_seconds();
+  // The corrector filtered the scan already: with the same filter (as the bindings set it), its
+  // hits, not a second pass (clear_no_return does not change which readings hit).
+  const ScanFilter& f = options_.filter;
+  const ScanFilter* cf = corrector_ ? &options_.corrector.filter : nullptr;
+  const bool same = cf && cf->max_range == f.max_range && cf->min_range == f.min_range &&
+                    cf->max_usable_range == f.max_usable_range && cf->min_point_spacing == f.min_point_spacing;
+  const Points2 hits = same ? std::move(corrected->hits) : scan_hits(ranges, beam_angles, f);
+  t1 = cpu_seconds();
+  timings_.filter += t1 - t0;
+  std::vector<Sampled> sampled = sample(hits, motion);
   check_update(sampled);
+  timings_.proposal += cpu_seconds() - t1;
   // Phase 2: commit; nothing below throws.
   commit_scan();
   commit_update(std::move(sampled), insertion, beam_angles);
@@ -337,15 +360,29 @@ bool GridFastSlam::needs_growth(const TiledGrid2D& map, const Eigen::Vector3d& p
   return true;
 }
 
-void GridFastSlam::insert(Particle& p, const Eigen::VectorXd& insertion, const Eigen::Ref<const Eigen::VectorXd>& angles) const {
+void GridFastSlam::release_corrector_grids() {
+  const int finished = static_cast<int>(corrector_->submaps().size()) - 1;
+  for (int k = finished - 1; k >= 0; --k) {  // the newest first: older ones are released already
+    const OccupancyGrid2D& g = corrector_->submaps()[static_cast<std::size_t>(k)].grid;
+    if (g.width() == 1 && g.height() == 1) break;
+    corrector_->release_grid(k);
+  }
+}
+
+double GridFastSlam::insert(Particle& p, const Eigen::VectorXd& insertion,
+                            const Eigen::Ref<const Eigen::VectorXd>& angles) const {
+  double copy_seconds = 0.0;
   if (p.map.use_count() > 1) {
+    const double t0 = cpu_seconds();
     p.map = std::make_shared<TiledGrid2D>(*p.map);  // its own tile table; the tiles stay shared
+    copy_seconds = cpu_seconds() - t0;
   } else {
     std::atomic_thread_fence(std::memory_order_acquire);  // see TiledGrid2D::writable_tile
   }
   Eigen::Vector4d b;
   if (needs_growth(*p.map, p.pose, b)) p.map->grow_to_include(b[0], b[1], b[2], b[3]);  // checked by check_update
   p.map->insert_rays(p.pose, insertion, angles, options_.filter.usable_range());
+  return copy_seconds;
 }
 
 template <typename Body>
@@ -402,20 +439,26 @@ void GridFastSlam::check_update(const std::vector<Sampled>& sampled) const {
 
 void GridFastSlam::commit_update(std::vector<Sampled>&& sampled, const Eigen::VectorXd& insertion,
                                  const Eigen::Ref<const Eigen::VectorXd>& angles) {
+  const double t0 = cpu_seconds();
+  std::vector<double> copies(particles_.size(), 0.0);  // per particle: the workers write their own
   for_each_particle([&](std::size_t k) {
     Particle& p = particles_[k];
     p.pose = sampled[k].pose;
     p.log_weight = sampled[k].log_weight;
     p.rng = sampled[k].rng;
-    insert(p, insertion, angles);
+    copies[k] = insert(p, insertion, angles);
     p.path.push(p.pose);
   });
+  const double t1 = cpu_seconds();
+  timings_.map_update += t1 - t0;
+  for (double c : copies) timings_.table_copies += c;
   for (const Sampled& s : sampled) {
     summary_.matched += s.matched;
     summary_.fallbacks += s.fallback;
   }
   ++summary_.updates;
   normalise_and_resample();
+  timings_.resample += cpu_seconds() - t1;
 }
 
 GridFastSlam::Sampled GridFastSlam::sample_particle(const Particle& p, const Points2& points, const Motion& motion) const {
@@ -477,7 +520,18 @@ const TiledGrid2D& GridFastSlam::tiled_map(int particle) const {
   return *particles_[static_cast<std::size_t>(particle)].map;
 }
 
-OccupancyGrid2D GridFastSlam::map(int particle) const { return tiled_map(particle).to_grid(); }
+OccupancyGrid2D GridFastSlam::map(int particle) const {
+  const double t0 = cpu_seconds();
+  OccupancyGrid2D grid = tiled_map(particle).to_grid();
+  map_seconds_ += cpu_seconds() - t0;
+  return grid;
+}
+
+GridFastSlamTimings GridFastSlam::timings() const {
+  GridFastSlamTimings t = timings_;
+  t.final_map = map_seconds_;
+  return t;
+}
 
 TileSharing GridFastSlam::tile_sharing() const {
   std::vector<const TiledGrid2D*> grids;

@@ -8,6 +8,7 @@
 #include "probslam/core/check.hpp"
 #include "probslam/core/pose2.hpp"
 #include "probslam/core/pose2_covariance.hpp"
+#include "probslam/slam2d/cpu_clock.hpp"
 #include "probslam/slam2d/scan_batch.hpp"
 #include "probslam/slam2d/start_map.hpp"
 
@@ -161,10 +162,13 @@ IncrementalScanMatcher::PendingScan IncrementalScanMatcher::prepare(const Eigen:
   PendingScan p;
   p.odometry = odometry;
   p.timestamp = timestamp;
+  const double t0 = cpu_seconds();
   p.insertion = ranges_for_insertion(ranges, options_.filter);
   p.angles = beam_angles;
   ScanEstimate& est = p.est;
-  const Points2 points = scan_hits(ranges, beam_angles, options_.filter);
+  p.hits = scan_hits(ranges, beam_angles, options_.filter);
+  const Points2& points = p.hits;
+  p.filter_seconds = cpu_seconds() - t0;
   est.points = static_cast<int>(points.rows());
   if (submaps_.empty()) {  // the map's frame is the first scan's odometry frame
     est.pose = odometry;
@@ -188,10 +192,13 @@ IncrementalScanMatcher::PendingScan IncrementalScanMatcher::prepare(const Eigen:
   const Submap& cur = submaps_.back();
   const Eigen::Matrix3d J = frame_rotation(matched_pose_.z());
   if (points.rows() > 0 && (on_map || static_cast<int>(cur.scans.size()) >= options_.warmup_scans)) {
+    const double t1 = cpu_seconds();
     auto cache = std::make_shared<FieldCache>(*field_cache_);
     const MatchResult r = match(cur, points, prior, J * rel_cov * J.transpose(), *cache,
                                 options_.use_odometry_prior && !on_map);
+    p.field_built = cache->matcher != field_cache_->matcher;
     p.cache = std::move(cache);
+    p.match_seconds = cpu_seconds() - t1;
     est.match_quality = r.match_quality;
     if (r.match_quality >= options_.min_match_quality) {
       est.pose = r.pose;
@@ -216,6 +223,10 @@ IncrementalScanMatcher::PendingScan IncrementalScanMatcher::prepare(const Eigen:
 ScanEstimate IncrementalScanMatcher::commit(PendingScan&& p) {
   const int index = num_scans();
   const double reach = options_.filter.usable_range();
+  const double t0 = cpu_seconds();
+  timings_.filter += p.filter_seconds;
+  timings_.match += p.match_seconds;
+  timings_.fields_built += p.field_built;
   if (p.cache) field_cache_ = std::move(p.cache);
   if (p.moved) {
     Submap& cur = submaps_.back();
@@ -236,7 +247,26 @@ ScanEstimate IncrementalScanMatcher::commit(PendingScan&& p) {
   }
   estimates_.push_back(p.est);
   timestamps_.push_back(p.timestamp);
+  timings_.insert += cpu_seconds() - t0;
   return p.est;
+}
+
+void IncrementalScanMatcher::release_grid(int k) {
+  require(k >= 0 && k + 1 < static_cast<int>(submaps_.size()), "index", "is not a finished submap");
+  const OccupancyGrid2D& g = submaps_[static_cast<std::size_t>(k)].grid;
+  submaps_[static_cast<std::size_t>(k)].grid = OccupancyGrid2D(g.resolution(), 1, 1, g.origin(), g.p_prior(), g.clamp());
+}
+
+void IncrementalScanMatcher::replace_grid(int k, OccupancyGrid2D grid) {
+  require(k >= 0 && k + 1 < static_cast<int>(submaps_.size()), "index", "is not a finished submap");
+  submaps_[static_cast<std::size_t>(k)].grid = std::move(grid);
+}
+
+double IncrementalScanMatcher::grid_bytes() const {
+  double b = 0.0;
+  for (const Submap& s : submaps_)
+    b += static_cast<double>(s.grid.width()) * s.grid.height() * (sizeof(double) + sizeof(std::uint32_t));
+  return b;
 }
 
 void IncrementalScanMatcher::start_from_map(const OccupancyGrid2D& map, const Eigen::Vector3d& initial_pose) {

@@ -65,6 +65,12 @@ LikelihoodField LikelihoodField::from_grid(const OccupancyGrid2D& grid, const Li
 LikelihoodField LikelihoodField::from_grid(const OccupancyGrid2D& grid, const Eigen::Vector4d& region,
                                            const LikelihoodFieldOptions& options) {
   options.validate();
+  return from_obstacles(obstacles_of(grid, region, options.occupied_probability), options);
+}
+
+ObstacleCells LikelihoodField::obstacles_of(const OccupancyGrid2D& grid, const Eigen::Vector4d& region,
+                                            double occupied_probability) {
+  require_probability(occupied_probability, "occupied_probability");
   require_all_finite(region, "region");
   require(region[0] <= region[2] && region[1] <= region[3], "region", "must be (xmin, ymin, xmax, ymax)");
   const GridLattice2D& lat = grid.lattice();
@@ -73,27 +79,43 @@ LikelihoodField LikelihoodField::from_grid(const OccupancyGrid2D& grid, const Ei
   const int c1 = std::clamp(lat.key(0, region[2]) + 1, 0, grid.width());
   const int r0 = std::clamp(lat.key(1, region[1]), 0, grid.height());
   const int r1 = std::clamp(lat.key(1, region[3]) + 1, 0, grid.height());
+  ObstacleCells out;
+  out.resolution = grid.resolution();
+  out.x0 = lat.x0 + c0 * out.resolution;
+  out.y0 = lat.y0 + r0 * out.resolution;
+  out.width = std::max(0, c1 - c0);
+  out.height = std::max(0, r1 - r0);
+  out.cells.resize(static_cast<std::size_t>(out.width) * out.height);
+  const double occupied = logit(occupied_probability);
+  for (int r = 0; r < out.height; ++r) {
+    const double* row = grid.data() + static_cast<std::size_t>(r0 + r) * grid.width() + c0;
+    for (int c = 0; c < out.width; ++c) out.cells[static_cast<std::size_t>(r) * out.width + c] = row[c] > occupied;
+  }
+  return out;
+}
 
+LikelihoodField LikelihoodField::from_obstacles(const ObstacleCells& obstacles, const LikelihoodFieldOptions& options) {
+  options.validate();
+  require(obstacles.width >= 0 && obstacles.height >= 0 &&
+              obstacles.cells.size() == static_cast<std::size_t>(obstacles.width) * obstacles.height,
+          "obstacles", "must hold width x height cells");
+  require_positive(obstacles.resolution, "resolution");
   LikelihoodField field;
   field.options_ = options;
-  field.res_ = grid.resolution();
+  field.res_ = obstacles.resolution;
   field.inv_res_ = 1.0 / field.res_;
-  field.x0_ = lat.x0 + c0 * field.res_;
-  field.y0_ = lat.y0 + r0 * field.res_;
-  field.width_ = std::max(0, c1 - c0);
-  field.height_ = std::max(0, r1 - r0);
+  field.x0_ = obstacles.x0;
+  field.y0_ = obstacles.y0;
+  field.width_ = obstacles.width;
+  field.height_ = obstacles.height;
   field.floor_ = static_cast<float>(std::log(options.p_rand));
   const std::size_t n = static_cast<std::size_t>(field.width_) * field.height_;
 
-  const double occupied = logit(options.occupied_probability);
   std::vector<float> sq(n);
-  for (int r = 0; r < field.height_; ++r) {
-    const double* row = grid.data() + static_cast<std::size_t>(r0 + r) * grid.width() + c0;
-    for (int c = 0; c < field.width_; ++c) {
-      const bool obstacle = row[c] > occupied;
-      field.num_occupied_ += obstacle;
-      sq[static_cast<std::size_t>(r) * field.width_ + c] = obstacle ? 0.0f : kFar;
-    }
+  for (std::size_t i = 0; i < n; ++i) {
+    const bool obstacle = obstacles.cells[i] != 0;
+    field.num_occupied_ += obstacle;
+    sq[i] = obstacle ? 0.0f : kFar;
   }
   // Separable exact EDT: columns, then rows (squared distances in cells).
   std::vector<float> tmp(n);

@@ -13,6 +13,7 @@
 #include "probslam/core/check.hpp"
 #include "probslam/core/pose2.hpp"
 #include "probslam/core/pose2_covariance.hpp"
+#include "probslam/slam2d/cpu_clock.hpp"
 #include "probslam/slam2d/scan_batch.hpp"
 #include "probslam/slam2d/start_map.hpp"
 
@@ -49,25 +50,29 @@ class SubmapSlam2D::FieldCache {
  public:
   explicit FieldCache(double budget) : budget_(budget) {}
 
-  const CorrelativeScanMatcher& get(int submap, const std::function<CorrelativeScanMatcher()>& build) {
+  /// The field of `submap`, built by `build` unless cached; `bytes` is what it holds.
+  const CorrelativeScanMatcher& get(int submap, double bytes, const std::function<CorrelativeScanMatcher()>& build) {
     const auto it = entries_.find(submap);
     if (it != entries_.end()) {
       order_.splice(order_.begin(), order_, it->second.position);
       return *it->second.matcher;
     }
-    auto matcher = std::make_shared<CorrelativeScanMatcher>(build());
-    const double bytes = 4.0 * matcher->field().width() * matcher->field().height() * (matcher->max_level() + 2);
-    order_.push_front(submap);
-    entries_[submap] = Entry{matcher, bytes, order_.begin()};
-    used_ += bytes;
-    while (used_ > budget_ && order_.size() > 1) {
+    // Room is made before the build, so that the cache never holds more than its budget and
+    // the field being built (the field's size is known from the cells it is built from).
+    while (used_ + bytes > budget_ && !order_.empty()) {
       const int victim = order_.back();
       order_.pop_back();
       used_ -= entries_[victim].bytes;
       entries_.erase(victim);
     }
+    auto matcher = std::make_shared<CorrelativeScanMatcher>(build());
+    order_.push_front(submap);
+    entries_[submap] = Entry{matcher, bytes, order_.begin()};
+    used_ += bytes;
     return *matcher;
   }
+
+  double used() const { return used_; }
 
   /// Forgets the fields of submaps `first` and later (a batch undone: they may change again).
   void forget_from(int first) {
@@ -147,6 +152,9 @@ SubmapSlam2D::SubmapSlam2D(const SubmapSlam2D& other)
       constraints_(other.constraints_),
       ranges_(other.ranges_),
       angles_(other.angles_),
+      closure_cells_(other.closure_cells_),
+      timings_(other.timings_),
+      map_seconds_(other.map_seconds_),
       chain_pose_(other.chain_pose_),
       chain_cov_(other.chain_cov_),
       chain_submap_(other.chain_submap_),
@@ -191,8 +199,9 @@ void SubmapSlam2D::add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
 void SubmapSlam2D::add_prepared(IncrementalScanMatcher::PendingScan&& scan, const Eigen::Ref<const Eigen::VectorXd>& ranges,
                                 const Eigen::Ref<const Eigen::VectorXd>& beam_angles) {
   const std::size_t submaps_before = frontend_.submaps().size();
+  Points2 hits = std::move(scan.hits);  // the frontend's filtering, not repeated
   const ScanEstimate est = frontend_.commit(std::move(scan));
-  points_.push_back(scan_hits(ranges, beam_angles, frontend_.options().filter));
+  points_.push_back(std::move(hits));
   ranges_.emplace_back(ranges);
   angles_.emplace_back(beam_angles);
   // The scan's offset from its submap's origin, and its covariance along the chain of matches.
@@ -236,6 +245,7 @@ SubmapSlam2D::Snapshot SubmapSlam2D::snapshot() const {
 void SubmapSlam2D::restore(Snapshot&& s) {
   const int open = static_cast<int>(s.frontend.submaps) - 1;
   frontend_.restore(std::move(s.frontend));
+  closure_cells_.resize(static_cast<std::size_t>(std::max(0, open)));  // the open one's grid is back
   points_.resize(s.scans);
   offset_cov_.resize(s.scans);
   ranges_.resize(s.scans);
@@ -262,11 +272,29 @@ void SubmapSlam2D::link_finished_submap(int j) {
   c.covariance = chain_cov_ + kMinConstraintVariance * Eigen::Matrix3d::Identity();
   constraints_.push_back(c);
   nodes_.push_back(pose_of(nodes_[j]).compose(pose_of(z)).vector());
+  keep_closure_cells(j);
   if (options_.closures.enabled && search_closures(j) > 0) optimize_and_dissolve();
+}
+
+void SubmapSlam2D::keep_closure_cells(int j) {
+  // A finished submap's grid (12 bytes a cell, sized for the sensor's reach around every scan)
+  // is only read again to build its loop-closure field, which needs one bit of each cell in its
+  // region: keeping that (a byte a cell) and freeing the grid takes a long log from gigabytes
+  // to megabytes (docs/performance.md). The field built from it is from_grid's, value for value.
+  closure_cells_.resize(static_cast<std::size_t>(j));  // one link per submap, in order: a no-op
+  closure_cells_.push_back(LikelihoodField::obstacles_of(frontend_.submaps()[j].grid, closure_region(j),
+                                                         options_.frontend.field.occupied_probability));
+  frontend_.release_grid(j);
 }
 
 int SubmapSlam2D::search_closures(int j) {
   if (j < 2) return 0;
+  const double t0 = cpu_seconds();
+  struct Count {  // the time however the search ends
+    double t0;
+    double& total;
+    ~Count() { total += cpu_seconds() - t0; }
+  } count{t0, timings_.closure_search};
   const std::vector<ScanEstimate>& est = frontend_.estimates();
   std::vector<int> candidates;
   for (int s : frontend_.submaps()[j].scans)
@@ -279,15 +307,24 @@ int SubmapSlam2D::search_closures(int j) {
   for (const Eigen::MatrixXd& m : marginal_covariances(g, ids, options_.optimizer.linear_solver))
     marginals.push_back(m);
   const int n = std::min<int>(options_.closures.scans_per_submap, static_cast<int>(candidates.size()));
+  // Submap by submap, so that each field is wanted once per search, not once per scan (a cache
+  // smaller than the submaps searched would rebuild every field n times); the closures found
+  // are added scan by scan, the order of old, which the optimiser's sums depend on.
+  std::vector<std::vector<SubmapConstraint>> found(static_cast<std::size_t>(n));
+  for (int i = 0; i + 2 <= j; ++i)
+    for (int q = 0; q < n; ++q) {
+      const int s = candidates[static_cast<std::size_t>((q + 0.5) * candidates.size() / n)];
+      if (auto c = try_closure(s, i, marginals)) found[static_cast<std::size_t>(q)].push_back(*c);
+    }
   int added = 0;
-  for (int q = 0; q < n; ++q) {
-    const int s = candidates[static_cast<std::size_t>((q + 0.5) * candidates.size() / n)];
-    for (int i = 0; i + 2 <= j; ++i) added += try_closure(s, i, marginals);
+  for (const std::vector<SubmapConstraint>& f : found) {
+    constraints_.insert(constraints_.end(), f.begin(), f.end());
+    added += static_cast<int>(f.size());
   }
   return added;
 }
 
-bool SubmapSlam2D::try_closure(int s, int i, const std::vector<Eigen::Matrix3d>& marginals) {
+std::optional<SubmapConstraint> SubmapSlam2D::try_closure(int s, int i, const std::vector<Eigen::Matrix3d>& marginals) {
   const LoopClosureOptions& lc = options_.closures;
   const std::vector<Submap>& submaps = frontend_.submaps();
   const std::vector<ScanEstimate>& est = frontend_.estimates();
@@ -316,7 +353,7 @@ bool SubmapSlam2D::try_closure(int s, int i, const std::vector<Eigen::Matrix3d>&
   m.refine = true;
   m.window.linear = std::clamp(lc.window_sigmas * lin_sd, lc.min_linear_window, lc.max_linear_window);
   m.window.angular = std::clamp(lc.window_sigmas * ang_sd, lc.min_angular_window, lc.max_angular_window);
-  if (nearest > lc.max_distance + m.window.linear) return false;
+  if (nearest > lc.max_distance + m.window.linear) return std::nullopt;
 
   // Where the graph puts the scan in submap i's grid; skip a pair already searched there.
   const Eigen::Vector3d predicted = Ti.inverse().compose(pose_of(W)).vector();
@@ -325,20 +362,24 @@ bool SubmapSlam2D::try_closure(int s, int i, const std::vector<Eigen::Matrix3d>&
   if (seen != attempts_.end()) {
     const Eigen::Vector3d d = seen->second - predicted;
     if (d.head<2>().norm() < 0.5 * lc.min_linear_window && std::abs(wrap_angle(d.z())) < 0.5 * lc.min_angular_window)
-      return false;
+      return std::nullopt;
   }
   attempts_[key] = predicted;
 
-  const CorrelativeScanMatcher& matcher = fields_->get(i, [&] { return build_matcher(i); });
+  const ObstacleCells& cells = closure_cells_[static_cast<std::size_t>(i)];
+  // The field's distances and log p, and the pyramid's levels: a float each per cell.
+  const double bytes = 4.0 * cells.width * cells.height * (kSearchLevels + 2);
+  const CorrelativeScanMatcher& matcher = fields_->get(i, bytes, [&] { return build_matcher(i); });
   // log p >= (1 - h) log p_rand for a hit share h (log p is concave in h): a pose whose mean h
   // reaches min_match_quality scores at least this, and the search prunes everything below.
   m.min_score = kClosureScoreSlack * static_cast<double>(points_[s].rows()) * (1.0 - lc.min_match_quality) *
                 std::log(options_.frontend.field.p_rand);
   const MatchResult r = matcher.match(points_[s], predicted, m);
   ++counts_.closures_searched;
+  ++timings_.closure_matches;
   if (!r.found) {
     ++counts_.closures_rejected;
-    return false;
+    return std::nullopt;
   }
   const double res = matcher.field().resolution();
   const Eigen::Vector3d off = r.search_pose - predicted;
@@ -349,7 +390,7 @@ bool SubmapSlam2D::try_closure(int s, int i, const std::vector<Eigen::Matrix3d>&
        std::abs(wrap_angle(off.z())) > m.window.angular - kEdgeCells * r.angular_step);
   if (r.match_quality < lc.min_match_quality || at_edge) {
     ++counts_.closures_rejected;
-    return false;
+    return std::nullopt;
   }
   // The scan in submap i's frame (a), and submap j's origin seen from the scan (b = o^-1).
   const Eigen::Vector3d a = origin_i.between(pose_of(r.pose)).vector();
@@ -366,11 +407,10 @@ bool SubmapSlam2D::try_closure(int s, int i, const std::vector<Eigen::Matrix3d>&
   c.measurement = pose_of(a).compose(pose_of(b)).vector();
   c.covariance = compose_covariance(a, Sa, b, Jinv * offset_cov_[s] * Jinv.transpose()) +
                  kMinConstraintVariance * Eigen::Matrix3d::Identity();
-  constraints_.push_back(c);
-  return true;
+  return c;
 }
 
-CorrelativeScanMatcher SubmapSlam2D::build_matcher(int i) const {
+Eigen::Vector4d SubmapSlam2D::closure_region(int i) const {
   // The field over the submap's hits only (a submap grid is sized for the sensor's full reach).
   const Submap& sub = frontend_.submaps()[i];
   const std::vector<ScanEstimate>& est = frontend_.estimates();
@@ -388,8 +428,17 @@ CorrelativeScanMatcher SubmapSlam2D::build_matcher(int i) const {
     }
   }
   const double margin = options_.frontend.field.truncation() + 2.0 * options_.frontend.resolution;
-  const Eigen::Vector4d region(lo.x() - margin, lo.y() - margin, hi.x() + margin, hi.y() + margin);
-  return CorrelativeScanMatcher(LikelihoodField::from_grid(sub.grid, region, options_.frontend.field), kSearchLevels);
+  return Eigen::Vector4d(lo.x() - margin, lo.y() - margin, hi.x() + margin, hi.y() + margin);
+}
+
+CorrelativeScanMatcher SubmapSlam2D::build_matcher(int i) {
+  const double t0 = cpu_seconds();
+  CorrelativeScanMatcher matcher(LikelihoodField::from_obstacles(closure_cells_[static_cast<std::size_t>(i)],
+                                                                 options_.frontend.field),
+                                 kSearchLevels);
+  timings_.closure_fields += cpu_seconds() - t0;
+  ++timings_.closure_fields_built;
+  return matcher;
 }
 
 PoseGraph2D SubmapSlam2D::graph() const {
@@ -408,6 +457,12 @@ double SubmapSlam2D::constraint_chi2(const SubmapConstraint& c) const {
 
 void SubmapSlam2D::optimize_and_dissolve() {
   if (nodes_.size() < 2) return;  // one submap: nothing to optimise
+  const double t0 = cpu_seconds();
+  struct Count {  // the time however the loop ends
+    double t0;
+    double& total;
+    ~Count() { total += cpu_seconds() - t0; }
+  } count{t0, timings_.optimize};
   for (;;) {
     PoseGraph2D g = graph();
     optimize(g, options_.optimizer);
@@ -468,6 +523,7 @@ OccupancyGrid2D SubmapSlam2D::map(double resolution) const {
     throw_invalid_argument("resolution", "a run started from a map is drawn into that map: 0 or its resolution " +
                                              std::to_string(start_map_->resolution()) + " m");
   require(num_scans() > 0, "scans", "none added: nothing to map");
+  const double t0 = cpu_seconds();
   const std::vector<Eigen::Vector3d> poses = scan_poses();
   // No-return beams (glass, open doors, the sky) and hits beyond the usable range say little
   // about the cells they cross: the final map leaves them out, as `probslam map` does.
@@ -494,7 +550,31 @@ OccupancyGrid2D SubmapSlam2D::map(double resolution) const {
   OccupancyGrid2D grid = start_map_ ? start_map_->grown_to_include(lo.x() - res, lo.y() - res, hi.x() + res, hi.y() + res)
                                     : OccupancyGrid2D::covering(lo.x() - res, lo.y() - res, hi.x() + res, hi.y() + res, res);
   for (std::size_t s = 0; s < poses.size(); ++s) grid.insert_rays(poses[s], ranges[s], angles_[s], reach);
+  map_seconds_ += cpu_seconds() - t0;
   return grid;
+}
+
+SubmapSlamTimings SubmapSlam2D::timings() const {
+  SubmapSlamTimings t = timings_;
+  const ScanMatcherTimings& f = frontend_.timings();
+  t.filter = f.filter;
+  t.match = f.match;
+  t.insert = f.insert;
+  t.frontend_fields = f.fields_built;
+  t.final_map = map_seconds_;
+  return t;
+}
+
+SubmapSlamMemory SubmapSlam2D::memory() const {
+  SubmapSlamMemory m;
+  for (std::size_t k = 0; k < ranges_.size(); ++k)
+    m.scans += 8.0 * static_cast<double>(ranges_[k].size() + angles_[k].size() + points_[k].size());
+  m.scans += static_cast<double>(offset_cov_.size() * sizeof(Eigen::Matrix3d));
+  m.submap_grids = frontend_.grid_bytes();
+  for (const ObstacleCells& c : closure_cells_) m.closure_cells += static_cast<double>(c.bytes());
+  m.closure_fields = fields_->used();
+  if (start_map_) m.start_map = 12.0 * start_map_->width() * start_map_->height();
+  return m;
 }
 
 SubmapSlamSummary SubmapSlam2D::summary() const {

@@ -29,7 +29,31 @@ void SubmapSlam2D::write_state(StateWriter& w) const {
   write_closures(w, options_.closures);
   state_detail::write(w, options_.optimizer);
   w.i32(options_.max_rounds);
-  frontend_.write_state(w);
+  if (closure_cells_.empty()) {
+    frontend_.write_state(w);
+  } else {
+    // The finished submaps' grids were released (keep_closure_cells): each is written as what was
+    // kept of it, a grid over its closure region whose obstacle cells hold the clamp's maximum and
+    // the rest the prior. read_state takes the same cells from it, so the format is unchanged and
+    // a loaded object searches the same fields.
+    IncrementalScanMatcher frontend = frontend_;
+    for (std::size_t k = 0; k < closure_cells_.size(); ++k) {
+      const ObstacleCells& c = closure_cells_[k];
+      const OccupancyGrid2D& released = frontend_.submaps()[k].grid;
+      if (c.width == 0 || c.height == 0) continue;  // nothing kept (a region off the grid): the 1 x 1 grid
+      OccupancyGrid2D g(c.resolution, c.width, c.height, Eigen::Vector2d(c.x0, c.y0), released.p_prior(),
+                        released.clamp());
+      const double occupied = logit(options_.frontend.field.occupied_probability);
+      const double high = released.clamp().enabled && std::isfinite(released.clamp().max) &&
+                                  released.clamp().max > occupied
+                              ? released.clamp().max
+                              : occupied + 1.0;
+      for (std::size_t i = 0; i < c.cells.size(); ++i)
+        if (c.cells[i]) g.data()[i] = high;
+      frontend.replace_grid(static_cast<int>(k), std::move(g));
+    }
+    frontend.write_state(w);
+  }
   w.count(points_.size());
   for (const Points2& p : points_) w.matrix(p);
   w.count(offset_cov_.size());
@@ -127,6 +151,10 @@ SubmapSlam2D SubmapSlam2D::read_state(StateReader& r) {
   if (nn > s.frontend_.submaps().size() || s.chain_submap_ < 0 ||
       static_cast<std::size_t>(s.chain_submap_) > s.frontend_.submaps().size())
     r.fail("the graph's nodes or the open chain do not match the frontend's submaps");
+  if (s.points_.size() != scans) r.fail("the hits stored do not match the frontend's scans");
+  // The finished submaps' obstacle cells, as add_scan keeps them (a file written before they were
+  // kept holds the whole grids: the same cells).
+  for (int k = 0; k + 1 < static_cast<int>(nn); ++k) s.keep_closure_cells(k);
   return s;
 }
 

@@ -91,6 +91,18 @@ struct GridFastSlamSummary {
   double effective_sample_size = 0.0;  ///< after the last update, before any resampling
 };
 
+/// Processor seconds (slam2d/cpu_clock.hpp: every thread of the process) per stage since
+/// construction or loading; not saved, a copy carries them, a batch undone by restore keeps its time.
+struct GridFastSlamTimings {
+  double filter = 0.0;     ///< the scan's hits and insertion ranges
+  double corrector = 0.0;  ///< the odometry corrector's scan matching and insertion
+  double proposal = 0.0;   ///< sampling every particle: its scan match, Gaussian fit and weight
+  double resample = 0.0;   ///< normalising the weights and resampling
+  double map_update = 0.0; ///< the scan's rays into every particle's map, tile clones included
+  double table_copies = 0.0;  ///< of which copying shared maps' tile tables (before the rays)
+  double final_map = 0.0;  ///< map(): a particle's tiles drawn into a dense grid
+};
+
 /// Every call is all or nothing (std::invalid_argument naming the argument, the object unchanged).
 /// add_scan works in two phases: it checks its input (check_scan), has the corrector prepare its
 /// estimate without committing it, samples every particle's pose, weight and random stream into
@@ -155,6 +167,7 @@ class GridFastSlam {
   const TiledGrid2D& tiled_map(int particle) const;
   TileSharing tile_sharing() const;
   GridFastSlamSummary summary() const;
+  GridFastSlamTimings timings() const;
   const std::vector<double>& timestamps() const { return timestamps_; }
 
   /// Saves the filter (options, particles' poses, weights, paths and random streams, their maps
@@ -207,7 +220,10 @@ class GridFastSlam {
                      const Eigen::Ref<const Eigen::VectorXd>& angles);
   /// Does a map around `pose` need to grow, and to which bounds (xmin, ymin, xmax, ymax)?
   bool needs_growth(const TiledGrid2D& map, const Eigen::Vector3d& pose, Eigen::Vector4d& bounds) const;
-  void insert(Particle& p, const Eigen::VectorXd& insertion, const Eigen::Ref<const Eigen::VectorXd>& angles) const;
+  /// Returns the processor seconds spent copying a shared map's tile table.
+  double insert(Particle& p, const Eigen::VectorXd& insertion, const Eigen::Ref<const Eigen::VectorXd>& angles) const;
+  /// Frees the corrector's finished submap grids: it only matches against its open submap.
+  void release_corrector_grids();
   /// kImprovedOdometry: the covariance of the corrected motion since the last update, given the
   /// chain's covariance and last matched pose after this scan.
   Eigen::Matrix3d corrected_motion_covariance(const Eigen::Vector3d& source, const Eigen::Matrix3d& chain_cov,
@@ -234,6 +250,8 @@ class GridFastSlam {
   std::vector<Eigen::Vector3d> scan_offset_; // its odometry motion since that step
   std::vector<double> timestamps_;
   GridFastSlamSummary summary_;
+  GridFastSlamTimings timings_;
+  mutable double map_seconds_ = 0.0;
   double footprint_bytes_ = 0.0;  // worst case one particle's update clones (its usable-range disc)
   std::unique_ptr<WorkerPool> pool_;  // threads > 1: started on the first update
   std::optional<OccupancyGrid2D> start_map_;  // start_from_map's map, unchanged

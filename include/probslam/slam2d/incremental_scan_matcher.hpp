@@ -80,6 +80,15 @@ struct ScanEstimate {
   int points = 0;
 };
 
+/// Processor seconds (cpu_clock.hpp) the frontend spent per stage since construction (or
+/// loading): a batch undone by restore keeps its time counted. Not saved.
+struct ScanMatcherTimings {
+  double filter = 0.0;  ///< the scan's hits and insertion ranges (ScanFilter)
+  double match = 0.0;   ///< correlative matching, the likelihood fields built for it included
+  double insert = 0.0;  ///< rays into the submap grids, their growth and new submaps included
+  long fields_built = 0;  ///< likelihood fields built for matching
+};
+
 /// Every call is all or nothing: add_scan checks its input (check_scan), then works out the scan's
 /// estimate and any grown or new grid into a PendingScan, and changes the object only in commit,
 /// which cannot fail. add_scans checks every row first; a row refused on the object's state (a
@@ -116,11 +125,14 @@ class IncrementalScanMatcher {
     Eigen::Vector3d odometry = Eigen::Vector3d::Zero();
     double timestamp = 0.0;
     Eigen::VectorXd insertion, angles;   // ranges_for_insertion and the beam angles
+    Points2 hits;                        // scan_hits, sensor frame (for owners that keep them)
     bool moved = false, open_next = false;
     double travel = 0.0;                 // the open submap's travel after this scan
     std::optional<OccupancyGrid2D> grid; // the open submap's grid grown for this scan
     std::optional<OccupancyGrid2D> next; // a new submap's grid (first scan, or the one this scan opens)
     std::shared_ptr<const FieldCache> cache;  // the field cache after matching
+    double filter_seconds = 0.0, match_seconds = 0.0;  // spent in prepare, added by commit
+    bool field_built = false;
   };
   /// The estimate of a scan that passed check_scan, and every grid it needs: throws (nothing
   /// changed) when a grid would exceed its limit.
@@ -155,6 +167,16 @@ class IncrementalScanMatcher {
   const std::vector<double>& timestamps() const { return timestamps_; }
   const std::vector<Submap>& submaps() const { return submaps_; }
   int num_scans() const { return static_cast<int>(estimates_.size()); }
+  const ScanMatcherTimings& timings() const { return timings_; }
+  /// Replaces finished submap k's grid (k < submaps().size() - 1: the frontend only matches
+  /// against the open one) by a 1 x 1 grid on its lattice's origin, freeing it: SubmapSlam2D
+  /// keeps what the loop-closure search needs of it (ObstacleCells), GridFastSlam's corrector
+  /// needs none of it. std::invalid_argument naming `index` otherwise.
+  void release_grid(int k);
+  /// Puts a grid back into finished submap k (SubmapSlam2D's save, from what it kept).
+  void replace_grid(int k, OccupancyGrid2D grid);
+  /// Bytes the submap grids hold (log-odds and scan stamps).
+  double grid_bytes() const;
 
   /// Options, estimates, submaps and the likelihood field the next scans are matched against
   /// (built from an earlier state of the map, so it is saved, not rebuilt): bit for bit.
@@ -185,6 +207,7 @@ class IncrementalScanMatcher {
   std::vector<Submap> submaps_;
   Eigen::Vector3d matched_odometry_ = Eigen::Vector3d::Zero();  // of the last matched scan
   Eigen::Vector3d matched_pose_ = Eigen::Vector3d::Zero();
+  ScanMatcherTimings timings_;
   ObjectMutex mutex_;
 };
 

@@ -4,6 +4,7 @@
 // nearest occupied cell has p(d) = (1 - p_rand) exp(-d^2 / 2 sigma^2) + p_rand.
 #include <Eigen/Core>
 #include <algorithm>
+#include <cstdint>
 #include <vector>
 
 #include "probslam/grid/occupancy_grid_2d.hpp"
@@ -25,6 +26,16 @@ struct LikelihoodFieldOptions {
   double truncation() const { return max_distance > 0.0 ? max_distance : 6.0 * sigma; }
 };
 
+/// What a likelihood field is built from: which cells of a window of a grid's lattice hold an
+/// obstacle (1 byte a cell, against the grid's 12). SubmapSlam2D keeps this of each finished
+/// submap instead of its grid, and builds the loop-closure field from it when needed.
+struct ObstacleCells {
+  double x0 = 0.0, y0 = 0.0, resolution = 1.0;  ///< lower-left corner of cell (0, 0), cell side (m)
+  int width = 0, height = 0;
+  std::vector<std::uint8_t> cells;  ///< row-major (height x width), 1 = obstacle
+  std::size_t bytes() const { return cells.capacity() + sizeof(*this); }
+};
+
 class LikelihoodField {
  public:
   /// The field of `grid` restricted to [xmin, xmax] x [ymin, ymax] (metres; clipped to the
@@ -33,6 +44,12 @@ class LikelihoodField {
   static LikelihoodField from_grid(const OccupancyGrid2D& grid, const LikelihoodFieldOptions& options = {});
   static LikelihoodField from_grid(const OccupancyGrid2D& grid, const Eigen::Vector4d& region,
                                    const LikelihoodFieldOptions& options = {});
+  /// The cells of `grid` that meet `region` (clipped to the grid), marked where their occupancy
+  /// exceeds occupied_probability: from_obstacles of it is from_grid(grid, region, options),
+  /// value for value (from_grid is built that way).
+  static ObstacleCells obstacles_of(const OccupancyGrid2D& grid, const Eigen::Vector4d& region,
+                                    double occupied_probability);
+  static LikelihoodField from_obstacles(const ObstacleCells& obstacles, const LikelihoodFieldOptions& options = {});
 
   double resolution() const { return res_; }
   Eigen::Vector2d origin() const { return {x0_, y0_}; }

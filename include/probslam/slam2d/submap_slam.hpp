@@ -16,6 +16,7 @@
 #include "probslam/graph/graph_optimizer.hpp"
 #include "probslam/graph/pose_graph_2d.hpp"
 #include "probslam/slam2d/incremental_scan_matcher.hpp"
+#include "probslam/slam2d/likelihood_field.hpp"
 
 namespace probslam {
 
@@ -38,8 +39,11 @@ struct LoopClosureOptions {
   /// A closure whose error in the optimised graph exceeds this chi2 (3 dof) is dissolved
   /// (ch. 11.6 item 3); 16.27 is the 99.9% quantile.
   double dissolve_chi2 = 16.27;
-  /// Fields of submaps kept for the search (bytes); the least recently used are rebuilt.
-  double field_cache_bytes = 512.0 * 1024 * 1024;
+  /// Fields of submaps kept for the search (bytes); the least recently used are rebuilt. A field
+  /// with its search pyramid takes 40 bytes a cell (an ACES submap's about 25 MB): 128 MB keeps
+  /// the few submaps a stretch of travel is searched against; the run's results do not depend
+  /// on it, only its time and memory do (docs/performance.md).
+  double field_cache_bytes = 128.0 * 1024 * 1024;
 
   void validate() const;
 };
@@ -80,6 +84,27 @@ struct SubmapSlamSummary {
   int closures_dissolved = 0;  ///< added, then undone by the optimised graph
   int rounds = 0, optimizations = 0;
   double final_chi2 = 0.0;
+};
+
+/// Processor seconds (cpu_clock.hpp) per stage since construction or loading (not saved; a
+/// copy carries them; a batch undone by restore keeps its time counted).
+struct SubmapSlamTimings {
+  double filter = 0.0, match = 0.0, insert = 0.0;  ///< the frontend's (ScanMatcherTimings)
+  double closure_search = 0.0;  ///< the loop-closure search, its fields and marginals included
+  double closure_fields = 0.0;  ///< of which building likelihood fields and their pyramids
+  double optimize = 0.0;        ///< pose-graph optimisation and dissolution
+  double final_map = 0.0;       ///< map()
+  long frontend_fields = 0, closure_fields_built = 0, closure_matches = 0;
+};
+
+/// What the object holds (bytes, approximate: the large buffers, not the bookkeeping).
+struct SubmapSlamMemory {
+  double scans = 0.0;           ///< every scan's ranges, beam angles and hits (for the map and the search)
+  double submap_grids = 0.0;    ///< the frontend's grids (the open submap's; finished ones are released)
+  double closure_cells = 0.0;   ///< the obstacle cells kept of each finished submap
+  double closure_fields = 0.0;  ///< the loop-closure search's cache of fields and pyramids
+  double start_map = 0.0;
+  double total() const { return scans + submap_grids + closure_cells + closure_fields + start_map; }
 };
 
 /// Every call is all or nothing. add_scan checks its input first (check_scan) and the frontend
@@ -145,6 +170,8 @@ class SubmapSlam2D {
   /// started from a map draws into that map (grown as needed), so only 0 or its resolution.
   OccupancyGrid2D map(double resolution = 0.0) const;
   SubmapSlamSummary summary() const;
+  SubmapSlamTimings timings() const;
+  SubmapSlamMemory memory() const;
 
   /// Saves everything the next scans depend on (options, the frontend with its open submap and
   /// likelihood field, every scan, the graph, constraints and search history) bit for bit
@@ -163,9 +190,15 @@ class SubmapSlam2D {
                     const Eigen::Ref<const Eigen::VectorXd>& beam_angles);
   void link_finished_submap(int j);
   int search_closures(int j);
-  bool try_closure(int scan, int i, const std::vector<Eigen::Matrix3d>& marginals);
+  /// The closure a scan of submap j makes with submap i, if it passes every test (counted).
+  std::optional<SubmapConstraint> try_closure(int scan, int i, const std::vector<Eigen::Matrix3d>& marginals);
   void optimize_and_dissolve();
-  CorrelativeScanMatcher build_matcher(int submap) const;
+  CorrelativeScanMatcher build_matcher(int submap);
+  /// Where the loop-closure field of a finished submap lies: its hits, widened by the field's
+  /// reach (and the saved map's occupied extent for a run started from one).
+  Eigen::Vector4d closure_region(int submap) const;
+  /// Keeps the obstacle cells of finished submap j in closure_region(j) and releases its grid.
+  void keep_closure_cells(int j);
   double constraint_chi2(const SubmapConstraint& c) const;
 
   SubmapSlamOptions options_;
@@ -175,6 +208,10 @@ class SubmapSlam2D {
   std::vector<Eigen::Vector3d> nodes_;      // optimised submap origins
   std::vector<SubmapConstraint> constraints_;
   std::vector<Eigen::VectorXd> ranges_, angles_;  // every scan, for the final map
+  // Of each finished submap: what its loop-closure field is built from (its grid is released).
+  std::vector<ObstacleCells> closure_cells_;
+  SubmapSlamTimings timings_;
+  mutable double map_seconds_ = 0.0;
   // The chain of matched scans in the open submap: last pose (frontend frame), its covariance
   // from the submap's origin.
   Eigen::Vector3d chain_pose_ = Eigen::Vector3d::Zero();
