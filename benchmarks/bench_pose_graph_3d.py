@@ -10,7 +10,7 @@ chi2 convention: sum over edges of e^T Omega e (no 1/2: twice GTSAM's error), e 
 in SE(3)'s exponential coordinates (GTSAM's Pose3 chart), the file's information applied to
 [translation, rotation vector] as GTSAM's readG2o and SE-Sync read it (g2o's own EdgeSE3 puts the
 rotation block on the error quaternion's vector part, half the angle: g2o's chi2 of the same poses
-weights rotation errors 4x less). tests/python/test_pose_graph_3d.py checks a dense numpy version
+weights rotation errors 4x less). tests/python/test_pose_graph_file_3d.py checks a dense numpy version
 of this chi2 against GTSAM's on the initial values.
 
 SE-Sync (Rosen et al., IJRR 2019) minimises F = sum kappa_ij ||R_j - R_i R_ij||_F^2
