@@ -523,15 +523,25 @@ class PoseGraph3D:
     def add_pose(self, id: int, pose: ArrayLike) -> None: ...
     def add_pose_edge(self, from_id: int, to_id: int, measurement: ArrayLike, information: ArrayLike) -> None:
         """measurement (7,) to_id's pose in from_id's frame; information (6, 6)."""
+    def add_pose_prior(self, id: int, measurement: ArrayLike, information: ArrayLike) -> None:
+        """g2o's EDGE_SE3_PRIOR: error [t_e, Log(R_e)] of z^-1 x; information (6, 6)."""
     def set_fixed(self, id: int, fixed: bool = True) -> None: ...
     def is_fixed(self, id: int) -> bool: ...
     def set_poses(self, ids: ArrayLike, poses: ArrayLike) -> None: ...  # (N,), (N, 7)
     def has_vertex(self, id: int) -> bool: ...
     def edge_ids(self) -> npt.NDArray[np.int64]: ...  # (E, 2)
     def pose_edges(self) -> Tuple[npt.NDArray[np.int64], Array, Array]: ...  # (E, 2), (E, 7), (E, 6, 6)
+    num_pose_priors: int
+    def pose_priors(self) -> Tuple[npt.NDArray[np.int64], Array, Array]: ...  # (P,), (P, 7), (P, 6, 6)
+    def prior_chi2(self) -> Array: ...  # (P,)
     def edge_chi2(self) -> Array: ...  # (E,)
-    def chi2(self) -> float: ...
+    def chi2(self) -> float: ...  # edges and priors
     def copy(self) -> "PoseGraph3D": ...
+
+
+def read_pose_graph_3d_graph(path: str, format: str = "auto", noise: str = "default",
+                             rows: str = "strict") -> Tuple[PoseGraph3D, "PoseGraphReadReport"]: ...
+def write_g2o_3d_graph(path: str, graph: PoseGraph3D) -> None: ...
 
 
 class OptimizationReport:
