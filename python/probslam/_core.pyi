@@ -575,7 +575,7 @@ def optimize(graph: PoseGraph2D, algorithm: str = "gauss-newton", max_iterations
 @overload
 def optimize(graph: PoseGraph3D, algorithm: str = "gauss-newton", max_iterations: int = 100,
              relative_tolerance: float = 1e-10, step_tolerance: float = 1e-10, kernel: str = "none",
-             kernel_width: float = 1.0, linear_solver: str = "simplicial", ordering: str = "amd",
+             kernel_width: float = 1.0, linear_solver: str = "auto", ordering: str = "metis",
              damping: str = "marquardt",
              callback: Optional[Callable[[int, float], Optional[bool]]] = None) -> OptimizationReport:
     """The same for a 3-D graph; the step is x (+) [v, w] = (R Exp(w), t + R v)."""
@@ -588,15 +588,15 @@ def initialize_odometry(graph: PoseGraph2D) -> None:
     """Composes pose edges outward along a breadth-first spanning tree (dead reckoning)."""
 @overload
 def initialize_odometry(graph: PoseGraph3D) -> None: ...
-def initialize_chordal(graph: PoseGraph3D, linear_solver: str = "simplicial", ordering: str = "amd") -> None:
+def initialize_chordal(graph: PoseGraph3D, linear_solver: str = "auto", ordering: str = "metis") -> None:
     """Rotations by the chordal relaxation (projected onto SO(3)), then translations: exact without noise."""
 @overload
 def marginal_covariances(graph: PoseGraph2D, ids: Sequence[int], linear_solver: str = "simplicial",
                          ordering: str = "amd") -> List[Array]:
     """(3, 3) per pose id, (2, 2) per point id; zero for a fixed vertex."""
 @overload
-def marginal_covariances(graph: PoseGraph3D, ids: Sequence[int], linear_solver: str = "simplicial",
-                         ordering: str = "amd") -> List[Array]:
+def marginal_covariances(graph: PoseGraph3D, ids: Sequence[int], linear_solver: str = "auto",
+                         ordering: str = "metis") -> List[Array]:
     """(6, 6) per pose id in its tangent [translation, rotation vector]; zero for a fixed vertex."""
 @overload
 def joint_marginal_covariances(graph: PoseGraph2D, groups: Sequence[Sequence[int]], linear_solver: str = "simplicial",
@@ -604,8 +604,8 @@ def joint_marginal_covariances(graph: PoseGraph2D, groups: Sequence[Sequence[int
     """Per group, the joint covariance of its vertices stacked in order (3 per pose, 2 per point),
     cross-covariances included; zero rows and columns for a fixed vertex."""
 @overload
-def joint_marginal_covariances(graph: PoseGraph3D, groups: Sequence[Sequence[int]], linear_solver: str = "simplicial",
-                               ordering: str = "amd") -> List[Array]: ...
+def joint_marginal_covariances(graph: PoseGraph3D, groups: Sequence[Sequence[int]], linear_solver: str = "auto",
+                               ordering: str = "metis") -> List[Array]: ...
 class PoseGraphReadReport:
     """What read_pose_graph_with_report did with the file's records."""
     rows: int  # records read, skipped ones included

@@ -805,10 +805,13 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     else:
         print(f"graph:      {path}{bundled}: {len(g.pose_ids)} poses, {len(g.point_ids)} points, "
               f"{g.num_pose_edges} pose edges, {g.num_point_edges} point edges (read in {t_read:.3f} s)")
+    # The solver options given; the others are the library's defaults for the graph's dimension.
+    solver = {name: value for name, value in (("linear_solver", args.linear_solver), ("ordering", args.ordering))
+              if value is not None}
     if init != "file":
         t_init = time.perf_counter()
         if init == "chordal":
-            pg.initialize_chordal(g, linear_solver=args.linear_solver, ordering=args.ordering)
+            pg.initialize_chordal(g, **solver)
         elif dimension == 3:
             pg.initialize_odometry(g)
         else:
@@ -828,8 +831,7 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
 
         try:
             report = pg.optimize(g, algorithm=args.algorithm, max_iterations=args.max_iterations, kernel=args.kernel,
-                                 kernel_width=args.kernel_width, linear_solver=args.linear_solver,
-                                 ordering=args.ordering, callback=on_iteration)
+                                 kernel_width=args.kernel_width, callback=on_iteration, **solver)
         except KeyboardInterrupt:
             pass  # Ctrl-C: the graph holds the last completed iteration's values, written below
     t_opt = time.perf_counter() - t1
@@ -1155,8 +1157,10 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("--max-iterations", type=int, default=100)
     o.add_argument("--kernel", default="none", choices=["none", "huber", "cauchy"], help="robust kernel")
     o.add_argument("--kernel-width", type=float, default=1.0, help="kernel width, in units of sqrt(chi2)")
-    o.add_argument("--linear-solver", default="simplicial", choices=["simplicial", "supernodal", "auto"])
-    o.add_argument("--ordering", default="amd", choices=["amd", "metis"])
+    o.add_argument("--linear-solver", default=None, choices=["simplicial", "supernodal", "auto"],
+                   help="sparse Cholesky: default simplicial for 2-D, auto (supernodal for large factors) for 3-D")
+    o.add_argument("--ordering", default=None, choices=["amd", "metis"],
+                   help="fill-reducing ordering: default amd for 2-D, metis for 3-D")
     o.add_argument("--edges", action="store_true", help="draw every edge in the picture")
     _no_plot_option(o)
     _no_progress_option(o)

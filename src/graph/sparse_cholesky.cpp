@@ -216,6 +216,11 @@ Eigen::MatrixXd SparseCholesky::solve(const Eigen::MatrixXd& b) const {
   Impl& m = *impl_;
   require(factorized(), "solve", "needs a successful factorize() first");
   require(b.rows() == rows(), "b", "must have as many rows as the matrix");
+  if (m.numeric && m.factor->is_super) {
+    Eigen::MatrixXd x = b;
+    m.numeric->solve(static_cast<const double*>(m.factor->x), x);
+    return x;
+  }
   cholmod_dense rhs{};
   rhs.nrow = static_cast<size_t>(b.rows());
   rhs.ncol = static_cast<size_t>(b.cols());

@@ -2,8 +2,9 @@
 
 #include <cholmod.h>
 
-#include <Eigen/Cholesky>
 #include <algorithm>
+#include <cstdlib>
+#include <cstring>
 
 namespace probslam::graph_detail {
 
@@ -22,15 +23,36 @@ SupernodalNumeric::SupernodalNumeric(const cholmod_factor& symbolic, const Spars
   std::vector<int> owner(n_);
   for (int k = 0; k < nsuper; ++k)
     for (int j = super[k]; j < super[k + 1]; ++j) owner[j] = k;
-  children_.assign(nsuper, {});
+  std::vector<int> parent(nsuper, -1);
+  child_start_.assign(nsuper + 1, 0);
   for (int k = 0; k < nsuper; ++k) {
     const int below = pi[k] + (super[k + 1] - super[k]);
-    if (below < pi[k + 1]) children_[owner[s[below]]].push_back(k);
+    if (below < pi[k + 1]) ++child_start_[(parent[k] = owner[s[below]]) + 1];
   }
+  for (int k = 0; k < nsuper; ++k) child_start_[k + 1] += child_start_[k];
+  child_list_.resize(child_start_[nsuper]);
+  std::vector<int> next_child(child_start_.begin(), child_start_.end() - 1);
+  for (int k = 0; k < nsuper; ++k)  // children in increasing order, as they are factored
+    if (parent[k] >= 0) child_list_[next_child[parent[k]]++] = k;
+#ifdef PROBSLAM_AVX2_KERNELS
+  const char* forced = std::getenv("PROBSLAM_SUPERNODAL_KERNELS");
+  avx2_ = __builtin_cpu_supports("avx2") && __builtin_cpu_supports("fma") &&
+          !(forced && std::strcmp(forced, "generic") == 0);
+#endif
+  factorize_ = kernels_generic::factorize;
+  solve_ = kernels_generic::solve;
+#ifdef PROBSLAM_AVX2_KERNELS
+  if (avx2_) {
+    factorize_ = kernels_avx2::factorize;
+    solve_ = kernels_avx2::solve;
+  }
+#endif
   // The lower triangle of P A P^T, column by column, as indices into upper's values.
   const int* perm = static_cast<const int*>(symbolic.Perm);
+  perm_.resize(n_);
+  for (int k = 0; k < n_; ++k) perm_[k] = perm ? perm[k] : k;
   std::vector<int> inverse(n_);
-  for (int k = 0; k < n_; ++k) inverse[perm ? perm[k] : k] = k;
+  for (int k = 0; k < n_; ++k) inverse[perm_[k]] = k;
   std::vector<int> count(n_ + 1, 0);
   for (int c = 0; c < upper.cols(); ++c)
     for (int k = upper.outerIndexPtr()[c]; k < upper.outerIndexPtr()[c + 1]; ++k) {
@@ -54,43 +76,29 @@ SupernodalNumeric::SupernodalNumeric(const cholmod_factor& symbolic, const Spars
     }
 }
 
+SupernodalPlanView SupernodalNumeric::view() const {
+  SupernodalPlanView v;
+  v.n = n_;
+  v.nsuper = static_cast<int>(super_.size()) - 1;
+  v.perm = perm_.data();
+  v.super = super_.data();
+  v.pi = pi_.data();
+  v.px = px_.data();
+  v.rows = rows_.data();
+  v.child_start = child_start_.data();
+  v.child_list = child_list_.data();
+  v.a_start = a_start_.data();
+  v.a_row = a_row_.data();
+  v.a_value = a_value_.data();
+  return v;
+}
+
 int SupernodalNumeric::factorize(const SparseMatrixd& upper, double* lx) const {
-  const int nsuper = static_cast<int>(children_.size());
-  const double* values = upper.valuePtr();
-  std::vector<Eigen::MatrixXd> updates(nsuper);  // each supernode's Schur complement, for its parent
-  std::vector<int> local(n_, -1);                // row of the current front holding a factor row
-  for (int k = 0; k < nsuper; ++k) {
-    const int first = super_[k], cols = super_[k + 1] - first;
-    const int* rows = rows_.data() + pi_[k];
-    const int nrows = pi_[k + 1] - pi_[k], below = nrows - cols;
-    for (int r = 0; r < nrows; ++r) local[rows[r]] = r;
-    Eigen::MatrixXd front = Eigen::MatrixXd::Zero(nrows, nrows);  // lower triangle used
-    for (int j = first; j < first + cols; ++j)
-      for (int e = a_start_[j]; e < a_start_[j + 1]; ++e) front(local[a_row_[e]], j - first) += values[a_value_[e]];
-    for (const int child : children_[k]) {  // extend-add: rows sorted in both, so lower stays lower
-      const int* child_rows = rows_.data() + pi_[child] + (super_[child + 1] - super_[child]);
-      Eigen::MatrixXd& u = updates[child];
-      const int m = static_cast<int>(u.rows());
-      for (int b = 0; b < m; ++b) {
-        const int column = local[child_rows[b]];
-        for (int a = b; a < m; ++a) front(local[child_rows[a]], column) += u(a, b);
-      }
-      u.resize(0, 0);
-    }
-    Eigen::Ref<Eigen::MatrixXd> diagonal = front.topLeftCorner(cols, cols);
-    const Eigen::Index failed = Eigen::internal::llt_inplace<double, Eigen::Lower>::blocked(diagonal);
-    if (failed >= 0) return first + static_cast<int>(failed);
-    if (below > 0) {
-      auto lower = front.bottomLeftCorner(below, cols);
-      diagonal.triangularView<Eigen::Lower>().transpose().solveInPlace<Eigen::OnTheRight>(lower);
-      Eigen::MatrixXd update = front.bottomRightCorner(below, below);
-      update.selfadjointView<Eigen::Lower>().rankUpdate(lower, -1.0);
-      updates[k] = std::move(update);
-    }
-    front.topLeftCorner(cols, cols).triangularView<Eigen::StrictlyUpper>().setZero();
-    Eigen::Map<Eigen::MatrixXd>(lx + px_[k], nrows, cols) = front.leftCols(cols);
-  }
-  return -1;
+  return factorize_(view(), upper.valuePtr(), lx);
+}
+
+void SupernodalNumeric::solve(const double* lx, Eigen::MatrixXd& b) const {
+  solve_(view(), lx, b.data(), static_cast<int>(b.cols()));
 }
 
 }  // namespace probslam::graph_detail
