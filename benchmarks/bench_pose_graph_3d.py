@@ -105,18 +105,19 @@ def run_gtsam(path, initialisation):
     return seconds, optimizer.iterations(), 2 * graph.error(result), 2 * graph.error(initial), poses, graph
 
 
-def run_probslam(path, initialisation):
+def run_probslam(path, initialisation, algorithm):
     """(seconds file to result, iterations, chi2 of the result, chi2 of the start, the graph at the
     result, {phase: seconds}): the file read into a PoseGraph3D in C++, probslam's chordal
-    initialisation (Carlone et al. 2015) when asked, Levenberg-Marquardt with GTSAM's tolerances.
-    The first pose is held (fixed), as GTSAM's tight prior holds it."""
+    initialisation (Carlone et al. 2015) when asked, then `algorithm` with GTSAM's tolerances and
+    the 3-D defaults (CHOLMOD's analysis, METIS, supernodal factorisation). The first pose is
+    held (fixed), as GTSAM's tight prior holds it."""
     t0 = time.perf_counter()
     graph = probslam.graph.read_pose_graph_3d(path)
     t_read = time.perf_counter()
     if initialisation == "chordal":
         probslam.graph.initialize_chordal(graph)
     t_init = time.perf_counter()
-    r = probslam.graph.optimize(graph, algorithm="levenberg-marquardt", relative_tolerance=RELATIVE_TOLERANCE,
+    r = probslam.graph.optimize(graph, algorithm=algorithm, relative_tolerance=RELATIVE_TOLERANCE,
                                 max_iterations=MAX_ITERATIONS)
     t_end = time.perf_counter()
     phases = {"read": t_read - t0, "init": t_init - t_read, "optimise": t_end - t_init,
@@ -142,9 +143,9 @@ def in_gtsam_objective(factors, graph):
     return 2 * factors.error(values)
 
 
-def median_run(fn, path, initialisation, repeat):
+def median_run(fn, repeat, *args):
     """The run with the median time (its result and chi2 with it)."""
-    runs = sorted((fn(path, initialisation) for _ in range(repeat)), key=lambda r: r[0])
+    runs = sorted((fn(*args) for _ in range(repeat)), key=lambda r: r[0])
     return runs[len(runs) // 2]
 
 
@@ -167,36 +168,42 @@ def main():
         datasets = dict(list(datasets.items())[:2])
     repeat = 1 if args.quick else args.repeat
     lines = [f"## 3-D pose-graph optimisation against GTSAM, {datetime.date.today()}", "",
-             f"Machine: {machine()}; gtsam {importlib.metadata.version('gtsam')} (pip). Both Levenberg-Marquardt "
-             f"(relative tolerance {RELATIVE_TOLERANCE:g}), run one after the other in one process; the run of "
-             f"median time of {repeat}. File to result = read + initialise + optimise. chi2 in each "
-             "objective: probslam's, e = [t, Log R] of z^-1 x_i^-1 x_j, and GTSAM's, e = Log(z^-1 x_i^-1 x_j) "
-             "in SE(3)'s exponential coordinates (2 x its error, gauge prior left out); each result is "
-             "evaluated in both.", "",
-             "| dataset | start | probslam file-to-result | GTSAM file-to-result | ratio | iterations (ours / "
-             "GTSAM) | chi2 probslam's objective: ours / GTSAM's result | chi2 GTSAM's objective: ours / GTSAM's "
-             "result | SE-Sync optimum |",
-             "|---|---|---|---|---|---|---|---|---|"]
-    phase_lines = ["", "Where probslam's time goes (same runs): read the file into a PoseGraph3D, initialise, "
-                   "optimise (of which the iterations' own time).", "",
-                   "| dataset | start | read | initialise | optimise | iterations | chi2 at start (ours) |",
-                   "|---|---|---|---|---|---|---|"]
+             f"Machine: {machine()}, shared with other jobs (times vary by about 20 % from run to run); "
+             f"gtsam {importlib.metadata.version('gtsam')} (pip). probslam's Gauss-Newton (its default) and "
+             f"Levenberg-Marquardt, GTSAM's Levenberg-Marquardt, relative tolerance {RELATIVE_TOLERANCE:g}, at "
+             f"most {MAX_ITERATIONS} iterations, run one after the other in one process; of {repeat} runs the one "
+             "of median time. File to result = read + initialise + optimise. chi2 in each objective: probslam's, "
+             "e = [t, Log R] of z^-1 x_i^-1 x_j, and GTSAM's, e = Log(z^-1 x_i^-1 x_j) in SE(3)'s exponential "
+             "coordinates (2 x its error, gauge prior left out); every result is evaluated in both.", "",
+             "| dataset | start | file to result: probslam GN / LM / GTSAM LM | ratio to GTSAM: GN / LM | "
+             "iterations: GN / LM / GTSAM | chi2, probslam's objective: GN / LM / GTSAM's result | "
+             "chi2, GTSAM's objective: GN / LM / GTSAM's result |",
+             "|---|---|---|---|---|---|---|"]
+    phase_lines = ["", "Where probslam's time goes (the Gauss-Newton runs): read the file into a PoseGraph3D, "
+                   "initialise, optimise (of which the iterations' own time: factor, solve, update, linearise; "
+                   "the first also makes CHOLMOD's analysis, the ordering; the rest is the first linearisation "
+                   "and the copy the optimiser works on).", "",
+                   "| dataset | start | read | initialise | optimise | iterations | per iteration | chi2 at start |",
+                   "|---|---|---|---|---|---|---|---|"]
     for name, path in datasets.items():
         for initialisation in ("file", "chordal"):
-            theirs = median_run(run_gtsam, path, initialisation, repeat)
-            ours = median_run(run_probslam, path, initialisation, repeat)
-            optimum = SE_SYNC_OPTIMA.get(name)
-            theirs_in_ours = in_probslam_objective(ours[4], theirs[4])
-            ours_in_theirs = in_gtsam_objective(theirs[5], ours[4])
-            lines.append(f"| {name} | {initialisation} | {ours[0] * 1e3:.1f} ms | {theirs[0] * 1e3:.1f} ms | "
-                         f"{ours[0] / theirs[0]:.3f}x | {ours[1]} / {theirs[1]} | {ours[2]:.6f} / "
-                         f"{theirs_in_ours:.6f} | {ours_in_theirs:.6f} / {theirs[2]:.6f} | "
-                         f"{optimum if optimum is not None else '-'} |")
-            p = ours[5]
+            theirs = median_run(run_gtsam, repeat, path, initialisation)
+            gn = median_run(run_probslam, repeat, path, initialisation, "gauss-newton")
+            lm = median_run(run_probslam, repeat, path, initialisation, "levenberg-marquardt")
+            theirs_in_ours = in_probslam_objective(gn[4], theirs[4])
+            ours_in_theirs = [in_gtsam_objective(theirs[5], r[4]) for r in (gn, lm)]
+            lines.append(f"| {name} | {initialisation} | {gn[0] * 1e3:.1f} / {lm[0] * 1e3:.1f} / "
+                         f"{theirs[0] * 1e3:.1f} ms | {gn[0] / theirs[0]:.2f}x / {lm[0] / theirs[0]:.2f}x | "
+                         f"{gn[1]} / {lm[1]} / {theirs[1]} | {gn[2]:.6f} / {lm[2]:.6f} / {theirs_in_ours:.6f} | "
+                         f"{ours_in_theirs[0]:.6f} / {ours_in_theirs[1]:.6f} / {theirs[2]:.6f} |")
+            p = gn[5]
             phase_lines.append(f"| {name} | {initialisation} | {p['read'] * 1e3:.1f} ms | {p['init'] * 1e3:.1f} ms | "
-                               f"{p['optimise'] * 1e3:.1f} ms | {p['iterations'] * 1e3:.1f} ms | {ours[3]:.6g} |")
+                               f"{p['optimise'] * 1e3:.1f} ms | {p['iterations'] * 1e3:.1f} ms | "
+                               f"{p['iterations'] / max(gn[1], 1) * 1e3:.2f} ms | {gn[3]:.6g} |")
             print(lines[-1], flush=True)
-    lines += phase_lines
+    optima = [f"{k}: {v}" for k, v in SE_SYNC_OPTIMA.items() if v is not None]
+    lines += phase_lines + ["", "SE-Sync's certified optima: " + ("; ".join(optima) if optima else
+                                                                  "not known here (see SE_SYNC_OPTIMA).")]
     report(lines, record=args.record and not args.quick)
 
 
