@@ -77,15 +77,15 @@ template <typename Graph>
 std::vector<int> variable_sizes(const Graph& graph) {
   using Traits = GraphTraits<Graph>;
   std::vector<int> sizes(graph.num_vertices());
-  bool any_fixed = !Traits::anchors(graph).empty();
+  bool any_held = !Traits::anchors(graph).empty();  // a prior holds the gauge
   int first_pose = -1;
   for (int v = 0; v < graph.num_vertices(); ++v) {
     const bool fixed = graph.vertex(v).fixed;
     sizes[v] = fixed ? 0 : Traits::tangent_size(graph, v);
-    any_fixed = any_fixed || fixed;
+    any_held = any_held || fixed;
     if (first_pose < 0 && Traits::holdable(graph, v)) first_pose = v;
   }
-  if (!any_fixed && first_pose >= 0) sizes[first_pose] = 0;
+  if (!any_held && first_pose >= 0) sizes[first_pose] = 0;
   return sizes;
 }
 
