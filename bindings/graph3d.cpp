@@ -12,10 +12,20 @@
 #include "probslam/graph/graph_optimizer.hpp"
 #include "probslam/graph/pose_graph_3d.hpp"
 #include "probslam/graph/pose_graph_3d_initialization.hpp"
+#include "probslam/io/pose_graph_3d_graph.hpp"
+#include "pose_graph_options.hpp"
 
 namespace probslam::bindings {
 
 namespace {
+
+// The sparse solver a 3-D graph gets by default: its 6x6 blocks fill the factor (sphere2500:
+// 1.5e6 nonzeros for 15 000 unknowns), where the supernodal factorisation's dense kernels win
+// (CHOLMOD's "auto" still takes the simplicial one for small factors), and nested dissection
+// orders sphere2500 and torus3D with less fill than AMD (torus3D: 1.0e9 flops against 1.35e9 a
+// factorisation; parking-garage: a little more, 3e7 against 2.2e7).
+constexpr const char* kLinearSolver = "auto";
+constexpr const char* kOrdering = "metis";
 
 // A pose as Python sees it: (7,) [x, y, z, qx, qy, qz, qw], g2o's VERTEX_SE3:QUAT order.
 constexpr int kPoseWidth = 7;
@@ -87,6 +97,17 @@ void define_graph3d(py::module_& m) {
            py::arg("from_id"), py::arg("to_id"), py::arg("measurement"), py::arg("information"),
            "Adds a pose-pose edge: measurement (7,) the pose of to_id in from_id's frame, information\n"
            "(6, 6) in the order [x, y, z, rotation vector].")
+      .def("add_pose_prior",
+           [](PoseGraph3D& g, IntArg id_arg, py::handle z, py::handle info) {
+             const int id = id_arg.get("id");
+             const Pose3 zv = pose3_arg(z, "measurement");
+             const Matrix6d omega = square_matrix_arg(info, "information", 6);
+             locked(g, [&] { g.add_pose_prior(id, zv, omega); });
+           },
+           py::arg("id"), py::arg("measurement"), py::arg("information"),
+           "Adds a prior on pose id (g2o's EDGE_SE3_PRIOR): error [t_e, Log(R_e)] of z^-1 x, information\n"
+           "(6, 6) in the order [x, y, z, rotation vector]. A vertex with a prior holds its part of the\n"
+           "graph as a fixed vertex does (softly): with any prior, optimisers no longer hold the first pose.")
       .def("set_fixed",
            [](PoseGraph3D& g, IntArg id, bool fixed) {
              const int i = id.get("id");
@@ -168,11 +189,36 @@ void define_graph3d(py::module_& m) {
              return py::make_tuple(ids, z, info);
            },
            "(ids (E, 2) (from, to), measurements (E, 7), information (E, 6, 6)) of the edges.")
+      .def_property_readonly("num_pose_priors",
+                             [](const PoseGraph3D& g) { return locked(g, [&] { return g.pose_priors().size(); }); },
+                             "Number of priors.")
+      .def("pose_priors",
+           [](const PoseGraph3D& g) {
+             std::vector<long> ids;
+             const std::vector<Pose3Prior> priors = locked(g, [&] {
+               for (const Pose3Prior& p : g.pose_priors()) ids.push_back(g.vertex(p.vertex).id);
+               return g.pose_priors();
+             });
+             const auto n = static_cast<py::ssize_t>(priors.size());
+             py::array_t<long> id_array(n);
+             std::copy(ids.begin(), ids.end(), id_array.mutable_data());
+             py::array_t<double> z({n, py::ssize_t{kPoseWidth}}), info({n, py::ssize_t{6}, py::ssize_t{6}});
+             for (py::ssize_t k = 0; k < n; ++k) {
+               write_pose(priors[k].measurement, z.mutable_data() + kPoseWidth * k);
+               for (int r = 0; r < 6; ++r)
+                 for (int c = 0; c < 6; ++c) info.mutable_data()[36 * k + 6 * r + c] = priors[k].information(r, c);
+             }
+             return py::make_tuple(id_array, z, info);
+           },
+           "(ids (P,), measurements (P, 7), information (P, 6, 6)) of the priors.")
+      .def("prior_chi2",
+           [](const PoseGraph3D& g) { return locked(g, [&] { return Eigen::VectorXd(g.prior_chi2()); }); },
+           "(P,) e^T Omega e of each prior at the current values.")
       .def("edge_chi2",
            [](const PoseGraph3D& g) { return locked(g, [&] { return Eigen::VectorXd(g.edge_chi2()); }); },
            "(E,) e^T Omega e of each edge at the current values.")
       .def("chi2", getter(&PoseGraph3D::chi2),
-           "Sum over edges of e^T Omega e at the current values; ValueError if not finite.")
+           "Sum over edges and priors of e^T Omega e at the current values; ValueError if not finite.")
       .def("copy", [](const PoseGraph3D& g) { return locked(g, [&] { return PoseGraph3D(g); }); },
            "An independent deep copy.")
       .def("__repr__", [](py::handle self) {
@@ -182,6 +228,29 @@ void define_graph3d(py::module_& m) {
         }));
       });
   graph_class.attr("QUATERNION_NORM_TOLERANCE") = PoseGraph3D::kQuaternionNormTolerance;
+
+  m.def("read_pose_graph_3d_graph",
+        [](const std::string& path, const std::string& format, const std::string& noise, const std::string& rows) {
+          const PoseGraphReadOptions options = read_options(format, noise, rows);
+          PoseGraph3DFileRead read;
+          {
+            py::gil_scoped_release release;  // a new graph: nothing else can see it yet
+            read = read_pose_graph_3d_graph(path, options);
+          }
+          return py::make_tuple(std::move(read.graph), std::move(read.report));
+        },
+        py::arg("path"), py::arg("format") = "auto", py::arg("noise") = "default", py::arg("rows") = "strict",
+        "Reads a 3-D pose graph file (formats and options as read_pose_graph_3d) into a PoseGraph3D:\n"
+        "(PoseGraph3D, PoseGraphReadReport); FIX records fix vertices, EDGE_SE3_PRIOR records are priors.");
+  m.def("write_g2o_3d_graph",
+        [](const std::string& path, const PoseGraph3D& graph) {
+          const PoseGraph3DData data = locked(graph, [&] { return pose_graph_3d_data(graph); });
+          py::gil_scoped_release release;
+          write_g2o_3d(path, data);
+        },
+        py::arg("path"), py::arg("graph"),
+        "Writes a PoseGraph3D at its current values as g2o text (VERTEX_SE3:QUAT, FIX, EDGE_SE3:QUAT,\n"
+        "EDGE_SE3_PRIOR; 17 significant digits).");
 
   m.def("optimize",
         [](PoseGraph3D& graph, const std::string& algorithm, IntArg max_iterations_arg, double relative_tolerance,
@@ -196,7 +265,7 @@ void define_graph3d(py::module_& m) {
         },
         py::arg("graph"), py::arg("algorithm") = "gauss-newton", py::arg("max_iterations") = 100,
         py::arg("relative_tolerance") = 1e-10, py::arg("step_tolerance") = 1e-10, py::arg("kernel") = "none",
-        py::arg("kernel_width") = 1.0, py::arg("linear_solver") = "simplicial", py::arg("ordering") = "amd",
+        py::arg("kernel_width") = 1.0, py::arg("linear_solver") = kLinearSolver, py::arg("ordering") = kOrdering,
         py::arg("damping") = "marquardt", py::arg("callback") = py::none(),
         "The same for a PoseGraph3D: options, callback, report and errors as for a PoseGraph2D; the\n"
         "step is on the manifold (x (+) [v, w] = (R Exp(w), t + R v)), step_tolerance in m / rad.");
@@ -207,7 +276,7 @@ void define_graph3d(py::module_& m) {
           const SparseCholeskyOptions o = solver_options(linear_solver, ordering);
           return matrices(locked(graph, [&] { return marginal_covariances(graph, ids, o); }));
         },
-        py::arg("graph"), py::arg("ids"), py::arg("linear_solver") = "simplicial", py::arg("ordering") = "amd",
+        py::arg("graph"), py::arg("ids"), py::arg("linear_solver") = kLinearSolver, py::arg("ordering") = kOrdering,
         "For a PoseGraph3D: (6, 6) per id in the pose's tangent [translation m in its own frame,\n"
         "rotation vector rad] (right perturbation); a fixed vertex has zero covariance.");
 
@@ -217,7 +286,7 @@ void define_graph3d(py::module_& m) {
           const SparseCholeskyOptions o = solver_options(linear_solver, ordering);
           return matrices(locked(graph, [&] { return joint_marginal_covariances(graph, groups, o); }));
         },
-        py::arg("graph"), py::arg("groups"), py::arg("linear_solver") = "simplicial", py::arg("ordering") = "amd",
+        py::arg("graph"), py::arg("groups"), py::arg("linear_solver") = kLinearSolver, py::arg("ordering") = kOrdering,
         "For a PoseGraph3D: 6 rows per pose, in the tangent of marginal_covariances.");
 
   m.def("initialize_odometry", [](PoseGraph3D& graph) { locked(graph, [&] { initialize_odometry(graph); }); },
@@ -230,7 +299,7 @@ void define_graph3d(py::module_& m) {
           const SparseCholeskyOptions o = solver_options(linear_solver, ordering);
           locked(graph, [&] { initialize_chordal(graph, o); });
         },
-        py::arg("graph"), py::arg("linear_solver") = "simplicial", py::arg("ordering") = "amd",
+        py::arg("graph"), py::arg("linear_solver") = kLinearSolver, py::arg("ordering") = kOrdering,
         "Chordal initialisation of a PoseGraph3D (Carlone et al. 2015): the rotations from the linear\n"
         "least-squares relaxation of R_to = R_from R_z (each 3x3 then projected onto SO(3)), then the\n"
         "translations by a second linear solve with those rotations. Exact for noise-free edges; the\n"

@@ -52,8 +52,8 @@ from . import data, datasets, eval, inverse_learning, io, sim, slam
 from . import localization
 from .graph import (IncrementalReport, OptimizationReport, PoseGraph2D, PoseGraph3D, PoseGraphReadReport,
                     initialize_chordal, initialize_odometry, joint_marginal_covariances, marginal_covariances, optimize,
-                    optimize_incremental, read_pose_graph, read_pose_graph_with_report, write_g2o,
-                    write_isam)
+                    optimize_incremental, read_pose_graph, read_pose_graph_3d, read_pose_graph_3d_with_report,
+                    read_pose_graph_with_report, write_g2o, write_g2o_3d, write_isam)
 from .graphslam import (
     CorrespondenceTest,
     FeatureMerges,
@@ -150,8 +150,11 @@ __all__ = [
     "marginal_covariances",
     "optimize",
     "read_pose_graph",
+    "read_pose_graph_3d",
+    "read_pose_graph_3d_with_report",
     "read_pose_graph_with_report",
     "write_g2o",
+    "write_g2o_3d",
     "MapManagement",
     "MultiHypothesisEkfSlam",
     "MappingSummary",

@@ -523,15 +523,25 @@ class PoseGraph3D:
     def add_pose(self, id: int, pose: ArrayLike) -> None: ...
     def add_pose_edge(self, from_id: int, to_id: int, measurement: ArrayLike, information: ArrayLike) -> None:
         """measurement (7,) to_id's pose in from_id's frame; information (6, 6)."""
+    def add_pose_prior(self, id: int, measurement: ArrayLike, information: ArrayLike) -> None:
+        """g2o's EDGE_SE3_PRIOR: error [t_e, Log(R_e)] of z^-1 x; information (6, 6)."""
     def set_fixed(self, id: int, fixed: bool = True) -> None: ...
     def is_fixed(self, id: int) -> bool: ...
     def set_poses(self, ids: ArrayLike, poses: ArrayLike) -> None: ...  # (N,), (N, 7)
     def has_vertex(self, id: int) -> bool: ...
     def edge_ids(self) -> npt.NDArray[np.int64]: ...  # (E, 2)
     def pose_edges(self) -> Tuple[npt.NDArray[np.int64], Array, Array]: ...  # (E, 2), (E, 7), (E, 6, 6)
+    num_pose_priors: int
+    def pose_priors(self) -> Tuple[npt.NDArray[np.int64], Array, Array]: ...  # (P,), (P, 7), (P, 6, 6)
+    def prior_chi2(self) -> Array: ...  # (P,)
     def edge_chi2(self) -> Array: ...  # (E,)
-    def chi2(self) -> float: ...
+    def chi2(self) -> float: ...  # edges and priors
     def copy(self) -> "PoseGraph3D": ...
+
+
+def read_pose_graph_3d_graph(path: str, format: str = "auto", noise: str = "default",
+                             rows: str = "strict") -> Tuple[PoseGraph3D, "PoseGraphReadReport"]: ...
+def write_g2o_3d_graph(path: str, graph: PoseGraph3D) -> None: ...
 
 
 class OptimizationReport:
@@ -565,7 +575,7 @@ def optimize(graph: PoseGraph2D, algorithm: str = "gauss-newton", max_iterations
 @overload
 def optimize(graph: PoseGraph3D, algorithm: str = "gauss-newton", max_iterations: int = 100,
              relative_tolerance: float = 1e-10, step_tolerance: float = 1e-10, kernel: str = "none",
-             kernel_width: float = 1.0, linear_solver: str = "simplicial", ordering: str = "amd",
+             kernel_width: float = 1.0, linear_solver: str = "auto", ordering: str = "metis",
              damping: str = "marquardt",
              callback: Optional[Callable[[int, float], Optional[bool]]] = None) -> OptimizationReport:
     """The same for a 3-D graph; the step is x (+) [v, w] = (R Exp(w), t + R v)."""
@@ -578,15 +588,15 @@ def initialize_odometry(graph: PoseGraph2D) -> None:
     """Composes pose edges outward along a breadth-first spanning tree (dead reckoning)."""
 @overload
 def initialize_odometry(graph: PoseGraph3D) -> None: ...
-def initialize_chordal(graph: PoseGraph3D, linear_solver: str = "simplicial", ordering: str = "amd") -> None:
+def initialize_chordal(graph: PoseGraph3D, linear_solver: str = "auto", ordering: str = "metis") -> None:
     """Rotations by the chordal relaxation (projected onto SO(3)), then translations: exact without noise."""
 @overload
 def marginal_covariances(graph: PoseGraph2D, ids: Sequence[int], linear_solver: str = "simplicial",
                          ordering: str = "amd") -> List[Array]:
     """(3, 3) per pose id, (2, 2) per point id; zero for a fixed vertex."""
 @overload
-def marginal_covariances(graph: PoseGraph3D, ids: Sequence[int], linear_solver: str = "simplicial",
-                         ordering: str = "amd") -> List[Array]:
+def marginal_covariances(graph: PoseGraph3D, ids: Sequence[int], linear_solver: str = "auto",
+                         ordering: str = "metis") -> List[Array]:
     """(6, 6) per pose id in its tangent [translation, rotation vector]; zero for a fixed vertex."""
 @overload
 def joint_marginal_covariances(graph: PoseGraph2D, groups: Sequence[Sequence[int]], linear_solver: str = "simplicial",
@@ -594,8 +604,8 @@ def joint_marginal_covariances(graph: PoseGraph2D, groups: Sequence[Sequence[int
     """Per group, the joint covariance of its vertices stacked in order (3 per pose, 2 per point),
     cross-covariances included; zero rows and columns for a fixed vertex."""
 @overload
-def joint_marginal_covariances(graph: PoseGraph3D, groups: Sequence[Sequence[int]], linear_solver: str = "simplicial",
-                               ordering: str = "amd") -> List[Array]: ...
+def joint_marginal_covariances(graph: PoseGraph3D, groups: Sequence[Sequence[int]], linear_solver: str = "auto",
+                               ordering: str = "metis") -> List[Array]: ...
 class PoseGraphReadReport:
     """What read_pose_graph_with_report did with the file's records."""
     rows: int  # records read, skipped ones included

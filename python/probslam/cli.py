@@ -50,6 +50,16 @@ ROS_BAG = "a ROS bag (ROS 1 .bag, a ROS 2 bag folder, or its .db3 / .mcap)"
 LANDMARK_DATASET = ("a UTIAS MRCLAM folder (Barcodes.dat, Landmark_Groundtruth.dat, RobotN_Odometry.dat, "
                     "RobotN_Measurement.dat) or a Victoria Park file in iSAM/GTSAM text format")
 POSE_GRAPH = "a 2-D pose graph: g2o (VERTEX_SE2/EDGE_SE2), TORO .graph (VERTEX2/EDGE2) or iSAM text"
+POSE_GRAPH_3D = ("a 3-D pose graph: g2o (VERTEX_SE3:QUAT/EDGE_SE3:QUAT), iSAM/GTSAM text (EDGE3) or TORO 3-D "
+                 "(VERTEX3/EDGE3)")
+ANY_POSE_GRAPH = "a 2-D or 3-D pose graph (g2o, TORO or iSAM text)"
+#: optimize's starting points that only one dimension has, and the default of each dimension
+#: (3-D: the chordal relaxation of the rotations, since Gauss-Newton from the values in a file
+#: such as torus3D's, or from dead reckoning on noisier graphs, stalls in a wrong minimum).
+INITS_2D_ONLY = ("ekf", "incremental")
+INITS_3D_ONLY = ("chordal",)
+DEFAULT_INIT = {2: "file", 3: "chordal"}
+INITIALIZATIONS = ("file", "odometry", "ekf", "incremental", "chordal")
 
 EPILOG = """exit status:
   0  success
@@ -770,19 +780,43 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     _require_length(args.kernel_width, "--kernel-width")
     _check_output(args.output)
     path = args.graph or _data_path(BUNDLED_GRAPH)
-    _check_input(path, POSE_GRAPH)
+    _check_input(path, ANY_POSE_GRAPH)
+    with _reading(path, ANY_POSE_GRAPH):
+        dimension = pg.pose_graph_dimension(path)
+    init = args.init or DEFAULT_INIT[dimension]
+    other_only = INITS_2D_ONLY if dimension == 3 else INITS_3D_ONLY
+    if init in other_only:
+        choices = ", ".join(i for i in INITIALIZATIONS if i not in other_only)
+        raise UserError(f"--init {init} applies to {5 - dimension}-D graphs; {path} is a {dimension}-D graph "
+                        f"(its starting points: {choices})")
+    if dimension == 3 and args.trajectory_format == "xyt":
+        raise UserError("--trajectory-format xyt ('t x y theta') cannot hold a 3-D pose: use tum or kitti")
+    expected = POSE_GRAPH_3D if dimension == 3 else POSE_GRAPH
     t0 = time.perf_counter()
-    with _reading(path, POSE_GRAPH):
-        g = pg.read_pose_graph(path, format=args.format)
+    with _reading(path, expected):
+        g = (pg.read_pose_graph_3d if dimension == 3 else pg.read_pose_graph)(path, format=args.format)
     if g.num_vertices == 0:
-        raise UserError(f"{path}: no vertices; expected {POSE_GRAPH}")
+        raise UserError(f"{path}: no vertices; expected {expected}")
     t_read = time.perf_counter() - t0
-    print(f"graph:      {path}{' (bundled Intel Research Lab excerpt)' if not args.graph else ''}: {len(g.pose_ids)} poses, {len(g.point_ids)} points, "
-          f"{g.num_pose_edges} pose edges, {g.num_point_edges} point edges (read in {t_read:.3f} s)")
-    if args.init != "file":
+    bundled = " (bundled Intel Research Lab excerpt)" if not args.graph else ""
+    if dimension == 3:
+        print(f"graph:      {path}: 3-D, {g.num_vertices} poses, {g.num_pose_edges} edges, {g.num_pose_priors} "
+              f"priors (read in {t_read:.3f} s)")
+    else:
+        print(f"graph:      {path}{bundled}: {len(g.pose_ids)} poses, {len(g.point_ids)} points, "
+              f"{g.num_pose_edges} pose edges, {g.num_point_edges} point edges (read in {t_read:.3f} s)")
+    # The solver options given; the others are the library's defaults for the graph's dimension.
+    solver = {name: value for name, value in (("linear_solver", args.linear_solver), ("ordering", args.ordering))
+              if value is not None}
+    if init != "file":
         t_init = time.perf_counter()
-        pg.initialize(g, args.init, poses_per_step=args.poses_per_step)
-        print(f"init:       {args.init} in {time.perf_counter() - t_init:.3f} s, chi2 {g.chi2():.6f}")
+        if init == "chordal":
+            pg.initialize_chordal(g, **solver)
+        elif dimension == 3:
+            pg.initialize_odometry(g)
+        else:
+            pg.initialize(g, init, poses_per_step=args.poses_per_step)
+        print(f"init:       {init} in {time.perf_counter() - t_init:.3f} s, chi2 {g.chi2():.6f}")
     initial = g.poses
     initial_chi2 = g.chi2()
     t1 = time.perf_counter()
@@ -797,8 +831,7 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
 
         try:
             report = pg.optimize(g, algorithm=args.algorithm, max_iterations=args.max_iterations, kernel=args.kernel,
-                                 kernel_width=args.kernel_width, linear_solver=args.linear_solver,
-                                 ordering=args.ordering, callback=on_iteration)
+                                 kernel_width=args.kernel_width, callback=on_iteration, **solver)
         except KeyboardInterrupt:
             pass  # Ctrl-C: the graph holds the last completed iteration's values, written below
     t_opt = time.perf_counter() - t1
@@ -812,19 +845,31 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     else:
         print(f"result:     chi2 {report.chi2:.6f} after {report.iterations} iterations ({report.stop_reason}); "
               f"optimisation {t_opt:.3f} s, file to result {time.perf_counter() - t0:.3f} s")
-    pg.write_g2o(g, args.output + ".g2o")
+    (pg.write_g2o_3d if dimension == 3 else pg.write_g2o)(g, args.output + ".g2o")
     written = [args.output + ".g2o"]
     order = np.argsort(g.pose_ids, kind="stable")
-    _write_trajectory(args, np.asarray(g.pose_ids, dtype=float)[order], g.poses[order], written)
+    times = np.asarray(g.pose_ids, dtype=float)[order]
+    if dimension == 3:
+        written.extend(io.write_trajectory_3d(times, g.poses[order], args.output + "_trajectory"
+                                              + EXTENSIONS[args.trajectory_format], format=args.trajectory_format))
+    else:
+        _write_trajectory(args, times, g.poses[order], written)
     plt = _pyplot() if args.plot else None
     if plt is not None:
-        from .plot import pose_graph
+        title = (f"probslam optimize: {os.path.basename(path)}\n{args.algorithm}{'' if init == 'file' else ' from ' + init}, chi2 {initial_chi2:.4g} "
+                 f"-> {g.chi2():.4g} in {len(chi2_after)} iterations" + (" (interrupted)" if report is None else ""))
+        if dimension == 3:
+            from .plot import pose_graph_3d
 
-        fig, ax = plt.subplots(figsize=(8, 8))
-        pose_graph(ax, g, initial=initial, edges=args.edges)
-        ax.set_title(f"probslam optimize: {os.path.basename(path)}\n{args.algorithm}, chi2 {initial_chi2:.4g} "
-                     f"-> {g.chi2():.4g} in {len(chi2_after)} iterations"
-                     + (" (interrupted)" if report is None else ""), fontsize="medium")
+            fig, (top, side) = plt.subplots(1, 2, figsize=(14, 7))
+            pose_graph_3d(top, side, g, initial=initial, edges=args.edges)
+            fig.suptitle(title, fontsize="medium")
+        else:
+            from .plot import pose_graph
+
+            fig, ax = plt.subplots(figsize=(8, 8))
+            pose_graph(ax, g, initial=initial, edges=args.edges)
+            ax.set_title(title, fontsize="medium")
         written.append(_save_figure(plt, fig, args.output + ".png"))
     print(f"wrote:      {', '.join(written)}")
     if report is None:
@@ -1097,20 +1142,25 @@ def build_parser() -> argparse.ArgumentParser:
     _landmark_dataset_options(fsp, "fastslam")
     fsp.set_defaults(func=_cmd_fastslam)
 
-    o = sub.add_parser("optimize", help="optimise a 2-D pose/landmark graph (g2o, TORO or iSAM text)")
-    o.add_argument("graph", nargs="?", help="graph file: .g2o, TORO .graph, or iSAM .txt; default: a bundled "
-                                            "excerpt of the Intel Research Lab graph (400 poses)")
+    o = sub.add_parser("optimize", help="optimise a 2-D pose/landmark graph or a 3-D pose graph (g2o, TORO or "
+                                        "iSAM text; the dimension is read from the file)")
+    o.add_argument("graph", nargs="?", help="graph file: .g2o, TORO .graph, or iSAM .txt, 2-D or 3-D; default: a "
+                                            "bundled excerpt of the Intel Research Lab graph (400 poses; a 3-D one: "
+                                            "probslam.data.path('parking_garage_400.g2o'))")
     o.add_argument("--format", default="auto", choices=["auto", "g2o", "toro", "isam"])
     o.add_argument("--algorithm", default="gauss-newton", choices=["gauss-newton", "levenberg-marquardt"])
-    o.add_argument("--init", default="file", choices=["file", "odometry", "ekf", "incremental"],
-                   help="starting point: the file's values (default; dead reckoning for iSAM files), "
-                        "dead reckoning, the EKF SLAM estimate, or incremental optimisation")
+    o.add_argument("--init", default=None, choices=list(INITIALIZATIONS),
+                   help="starting point: the file's values (the default for 2-D; dead reckoning for iSAM files), "
+                        "dead reckoning, the EKF SLAM estimate (2-D), incremental optimisation (2-D), or the "
+                        "chordal relaxation of the rotations (3-D, its default)")
     o.add_argument("--poses-per-step", type=int, default=100, help="with --init incremental: poses per step")
     o.add_argument("--max-iterations", type=int, default=100)
     o.add_argument("--kernel", default="none", choices=["none", "huber", "cauchy"], help="robust kernel")
     o.add_argument("--kernel-width", type=float, default=1.0, help="kernel width, in units of sqrt(chi2)")
-    o.add_argument("--linear-solver", default="simplicial", choices=["simplicial", "supernodal", "auto"])
-    o.add_argument("--ordering", default="amd", choices=["amd", "metis"])
+    o.add_argument("--linear-solver", default=None, choices=["simplicial", "supernodal", "auto"],
+                   help="sparse Cholesky: default simplicial for 2-D, auto (supernodal for large factors) for 3-D")
+    o.add_argument("--ordering", default=None, choices=["amd", "metis"],
+                   help="fill-reducing ordering: default amd for 2-D, metis for 3-D")
     o.add_argument("--edges", action="store_true", help="draw every edge in the picture")
     _no_plot_option(o)
     _no_progress_option(o)

@@ -1,6 +1,6 @@
-"""2-D pose/landmark graphs and 3-D pose graphs (``PoseGraph3D``): reading (2-D), initialising,
+"""2-D pose/landmark graphs and 3-D pose graphs (``PoseGraph3D``): reading, initialising,
 optimising (Gauss-Newton / Levenberg-Marquardt on CHOLMOD, one optimiser for both), marginal
-covariances, writing (2-D). The math is in C++; this module only names things
+covariances, writing. The math is in C++; this module only names things
 and drives the EKF for the EKF initialisation.
 
 Reliability (docs/reliability.md): every call on a PoseGraph2D takes the graph's lock, so
@@ -65,6 +65,69 @@ def read_pose_graph_with_report(path: PathLike, format: str = "auto", *, noise: 
     (docs/reliability.md), the first ``_core.POSE_GRAPH_MAX_REPORTED_LINES`` by line and reason."""
     graph, report = _core.read_pose_graph_with_report(file_path(path), format, noise, rows)
     return PoseGraphRead(graph, report)
+
+
+@dataclass(frozen=True)
+class PoseGraph3DRead:
+    """A 3-D graph read from a file and what the reader skipped (as ``PoseGraphRead``)."""
+
+    graph: PoseGraph3D
+    report: PoseGraphReadReport
+
+
+def read_pose_graph_3d(path: PathLike, format: str = "auto", *, noise: str = "default",
+                       rows: str = "strict") -> PoseGraph3D:
+    """Read a 3-D pose graph file straight into a ``PoseGraph3D`` (in C++, no per-record Python):
+    formats, ``noise`` and ``rows`` as ``probslam.io.read_pose_graph_3d`` (which returns the
+    file's arrays instead). FIX records fix their vertices; ``EDGE_SE3_PRIOR`` records become
+    priors (``PoseGraph3D.add_pose_prior``), whose rotation block weighs the rotation vector as
+    the graph's edges do. A 2-D file raises ``ValueError`` naming ``read_pose_graph``."""
+    return _core.read_pose_graph_3d_graph(file_path(path), format, noise, rows)[0]
+
+
+def read_pose_graph_3d_with_report(path: PathLike, format: str = "auto", *, noise: str = "default",
+                                   rows: str = "skip") -> PoseGraph3DRead:
+    """``read_pose_graph_3d`` for real data: malformed records skipped and reported by default."""
+    graph, report = _core.read_pose_graph_3d_graph(file_path(path), format, noise, rows)
+    return PoseGraph3DRead(graph, report)
+
+
+def write_g2o_3d(graph: PoseGraph3D, path: PathLike) -> None:
+    """Write ``graph`` at its current values to ``path`` as g2o text (VERTEX_SE3:QUAT, FIX,
+    EDGE_SE3:QUAT, and priors as EDGE_SE3_PRIOR through one identity PARAMS_SE3OFFSET), 17
+    significant digits: ``read_pose_graph_3d`` gives the same graph back."""
+    if not isinstance(graph, PoseGraph3D):
+        raise TypeError(f"graph: expected a PoseGraph3D, got {type(graph).__name__}")
+    if not isinstance(path, (str, os.PathLike)):
+        raise TypeError(f"path: expected a str or os.PathLike, got {type(path).__name__}")
+    _core.write_g2o_3d_graph(os.fspath(path), graph)
+
+
+#: Records that tell a 3-D graph file from a 2-D one (the first of either kind decides).
+_TAGS_3D = frozenset({b"VERTEX_SE3:QUAT", b"EDGE_SE3:QUAT", b"EDGE_SE3_PRIOR", b"PARAMS_SE3OFFSET", b"VERTEX3",
+                      b"EDGE3"})
+_TAGS_2D = frozenset({b"VERTEX_SE2", b"VERTEX_XY", b"EDGE_SE2", b"EDGE_SE2_XY", b"VERTEX2", b"EDGE2", b"ODOMETRY",
+                      b"LANDMARK"})
+#: Bytes of a line looked at for its tag: a record's tag is its first word, well within this.
+_TAG_BYTES = 64
+
+
+def pose_graph_dimension(path: PathLike) -> int:
+    """2 or 3: the dimension of the graph in ``path``, from its first record that only one of the
+    readers takes (``FIX``, comments and unknown tags are passed over). A file with none of them
+    is 2 (the 2-D reader then names what is wrong with it)."""
+    path = file_path(path)
+    start_of_line = True
+    with open(path, "rb") as f:
+        # Bounded reads: a file of one endless line costs _TAG_BYTES at a time, not its size.
+        while chunk := f.readline(_TAG_BYTES):
+            head, start_of_line = start_of_line, chunk.endswith(b"\n")
+            words = chunk.split(None, 1) if head else []
+            if words and words[0] in _TAGS_3D:
+                return 3
+            if words and words[0] in _TAGS_2D:
+                return 2
+    return 2
 
 
 def _writer_arguments(name: str, graph, path):
@@ -143,6 +206,7 @@ __all__ = [
     "MAX_BAD_ROW_FRACTION",
     "PoseGraph2D",
     "PoseGraph3D",
+    "PoseGraph3DRead",
     "PoseGraphRead",
     "PoseGraphReadReport",
     "initialize",
@@ -152,8 +216,12 @@ __all__ = [
     "marginal_covariances",
     "optimize",
     "optimize_incremental",
+    "pose_graph_dimension",
     "read_pose_graph",
+    "read_pose_graph_3d",
+    "read_pose_graph_3d_with_report",
     "read_pose_graph_with_report",
     "write_g2o",
+    "write_g2o_3d",
     "write_isam",
 ]

@@ -162,6 +162,53 @@ def pose_graph(ax, graph, initial=None, edges: bool = True) -> None:
     ax.legend(loc="best", fontsize="small")
 
 
+#: The side view of a flat 3-D graph (a garage's levels, metres apart over hundreds of metres)
+#: stretches z until its extent is at least this fraction of x's, by a round factor it names.
+SIDE_VIEW_MIN_HEIGHT = 0.25
+_ROUND_FACTORS = (1, 2, 5, 10, 20, 50, 100, 200, 500, 1000)
+
+
+def side_view_exaggeration(x: np.ndarray, z: np.ndarray) -> int:
+    """The factor ``pose_graph_3d`` stretches z by in the side view: 1 unless z's extent is below
+    ``SIDE_VIEW_MIN_HEIGHT`` of x's (and not zero), then the smallest round factor that lifts it
+    there (at most 1000)."""
+    x_span, z_span = float(np.ptp(x)) if len(x) else 0.0, float(np.ptp(z)) if len(z) else 0.0
+    if x_span == 0.0 or z_span == 0.0 or z_span >= SIDE_VIEW_MIN_HEIGHT * x_span:
+        return 1  # drawn to scale (a planar graph too: a line stretched is still a line)
+    needed = SIDE_VIEW_MIN_HEIGHT * x_span / z_span
+    return next((k for k in _ROUND_FACTORS if k >= needed), _ROUND_FACTORS[-1])
+
+
+def pose_graph_3d(top, side, graph, initial=None, edges: bool = False) -> None:
+    """A PoseGraph3D as two projections on metre axes: ``top`` the view from above (x-y, equal
+    scales) and ``side`` the view from the side (x-z, equal scales, or z stretched by the round
+    factor of ``side_view_exaggeration`` when the graph is flat, said in the title); the poses as
+    a path in id order, ``initial`` (P, 3+) the starting guess in grey beneath, and (if
+    ``edges``) every edge as a thin line (loop closures show the graph's structure)."""
+    from matplotlib.collections import LineCollection
+
+    order = np.argsort(graph.pose_ids, kind="stable")
+    poses = graph.poses[order]
+    index = {int(i): k for k, i in enumerate(graph.pose_ids)}
+    stretch = side_view_exaggeration(poses[:, 0], poses[:, 2])
+    side_title = "side view (x-z)" + (f", z stretched {stretch}x" if stretch > 1 else "")
+    for ax, (a, b), view in ((top, (0, 1), "top view (x-y)"), (side, (0, 2), side_title)):
+        if initial is not None:
+            start = np.asarray(initial)[order]
+            ax.plot(start[:, a], start[:, b], color="0.7", lw=0.5, label="initial guess")
+        if edges:
+            ends = np.array([(index[int(i)], index[int(j)]) for i, j in graph.edge_ids()], dtype=int).reshape(-1, 2)
+            p = graph.poses[:, (a, b)]
+            ax.add_collection(LineCollection(np.stack([p[ends[:, 0]], p[ends[:, 1]]], axis=1), colors="tab:orange",
+                                             linewidths=0.3, alpha=0.5, label="edges"))
+        ax.plot(poses[:, a], poses[:, b], color="tab:blue", lw=0.7, label="optimised poses")
+        ax.set_aspect(stretch if ax is side else 1.0, adjustable="datalim")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("yz"[b - 1] + " [m]")
+        ax.set_title(view, fontsize="medium")
+    top.legend(loc="best", fontsize="small")
+
+
 #: The crops of ``occupancy_map``.
 CROPS = ("occupied", "known", "none")
 

@@ -18,6 +18,8 @@ struct GraphTraits<PoseGraph2D> {
   }
   static bool holdable(const PoseGraph2D& graph, int v) { return graph.vertex(v).kind == VertexKind::kPose; }
   static int tangent_size(const PoseGraph2D& graph, int v) { return holdable(graph, v) ? 3 : 2; }
+  static std::vector<int> anchors(const PoseGraph2D&) { return {}; }  // no unary terms
+  static Eigen::VectorXd term_chi2(const PoseGraph2D& graph) { return graph.edge_chi2(); }
   static bool has_edges(const PoseGraph2D& graph) {
     return !graph.pose_edges().empty() || !graph.point_edges().empty();
   }

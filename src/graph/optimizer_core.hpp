@@ -6,10 +6,14 @@
 //                        width) -> Objective, apply(graph, dx) (the manifold update)
 //   couplings(graph)     pairs of vertex indices sharing an edge
 //   holdable(graph, v)   whether v may hold the gauge when nothing is fixed (a pose)
+//   anchors(graph)       vertices a unary term (a prior) holds in place: they anchor their part of
+//                        the graph as a fixed vertex does, and with any of them the first pose is
+//                        not held (the prior, not the first pose, sets the gauge)
+//   term_chi2(graph)     e^T Omega e of every term of the objective (edges and priors)
 //   tangent_size(graph, v)
 //   has_edges(graph)
 // Vertices expose .id, .fixed and .value; graphs num_vertices(), vertex(v), vertices(),
-// edge_chi2(), values() and assign_values().
+// values() and assign_values().
 #include <Eigen/Core>
 #include <algorithm>
 #include <array>
@@ -68,20 +72,20 @@ struct Objective {
 };
 
 // Variable sizes for the solver: the tangent size per vertex, 0 for a fixed vertex (and for the
-// first holdable vertex when nothing is fixed: the gauge).
+// first holdable vertex when nothing is fixed and nothing is anchored by a prior: the gauge).
 template <typename Graph>
 std::vector<int> variable_sizes(const Graph& graph) {
   using Traits = GraphTraits<Graph>;
   std::vector<int> sizes(graph.num_vertices());
-  bool any_fixed = false;
+  bool any_held = !Traits::anchors(graph).empty();  // a prior holds the gauge
   int first_pose = -1;
   for (int v = 0; v < graph.num_vertices(); ++v) {
     const bool fixed = graph.vertex(v).fixed;
     sizes[v] = fixed ? 0 : Traits::tangent_size(graph, v);
-    any_fixed = any_fixed || fixed;
+    any_held = any_held || fixed;
     if (first_pose < 0 && Traits::holdable(graph, v)) first_pose = v;
   }
-  if (!any_fixed && first_pose >= 0) sizes[first_pose] = 0;
+  if (!any_held && first_pose >= 0) sizes[first_pose] = 0;
   return sizes;
 }
 
@@ -119,6 +123,20 @@ class EdgeAssembler {
     system_.add_rhs(b, -r.weight * (jb.transpose() * we));
   }
 
+  // A unary term (a prior) on variable a, as add_edge with one end; `h` is block(a, a).
+  template <int E, int A>
+  void add_unary(BlockHandle h, int a, const Eigen::Matrix<double, E, 1>& error, const Eigen::Matrix<double, E, A>& ja,
+                 const Eigen::Matrix<double, E, E>& information, RobustKernel kernel, double width, Objective& total) {
+    const Eigen::Matrix<double, E, 1> we = information * error;
+    const double s = error.dot(we);
+    const RobustValue r = robust(s, kernel, width);
+    total.robust += r.rho;
+    total.chi2 += s;
+    const Eigen::Matrix<double, A, E> a_t_omega = r.weight * (ja.transpose() * information);
+    system_.add(h, a_t_omega * ja);
+    system_.add_rhs(a, -r.weight * (ja.transpose() * we));
+  }
+
  private:
   BlockSystem system_;
 };
@@ -126,7 +144,7 @@ class EdgeAssembler {
 template <typename Graph>
 Objective evaluate(const Graph& graph, RobustKernel kernel, double width) {
   Objective total;
-  for (const double s : graph.edge_chi2()) {
+  for (const double s : GraphTraits<Graph>::term_chi2(graph)) {
     total.robust += robust(s, kernel, width).rho;
     total.chi2 += s;
   }
@@ -173,6 +191,7 @@ void require_anchored(const Graph& graph) {
   bool any_fixed = false;
   for (int v = 0; v < n; ++v)
     if (graph.vertex(v).fixed) anchored[find_root(parent, v)] = any_fixed = true;
+  for (const int v : Traits::anchors(graph)) anchored[find_root(parent, v)] = any_fixed = true;
   for (int v = 0; v < n && !any_fixed; ++v)
     if (Traits::holdable(graph, v)) {
       anchored[find_root(parent, v)] = any_fixed = true;
@@ -196,8 +215,8 @@ void require_anchored(const Graph& graph) {
   for (size_t k = 0; k < ids.size() && k < kListedVertices; ++k) names += (k ? ", " : "") + std::to_string(ids[k]);
   if (ids.size() > kListedVertices) names += " and " + std::to_string(ids.size() - kListedVertices) + " more";
   throw_invalid_argument(
-      "graph", "vertices " + names + " form a part of the graph not connected to a fixed vertex (nor to " +
-                   "the first pose, held when none is fixed): its information matrix is singular; fix one " +
+      "graph", "vertices " + names + " form a part of the graph not connected to a fixed vertex or a prior " +
+                   "(nor to the first pose, held when there are none): its information matrix is singular; fix one " +
                    "of its vertices or connect it" +
                    (others ? " (" + std::to_string(others) + " more such parts)" : ""));
 }

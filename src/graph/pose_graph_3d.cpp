@@ -57,6 +57,14 @@ void PoseGraph3D::add_pose_edge(int from_id, int to_id, const Pose3& measurement
   edges_.push_back({from_it->second, to_it->second, z, 0.5 * (information + information.transpose())});
 }
 
+void PoseGraph3D::add_pose_prior(int id, const Pose3& measurement, const Matrix6d& information) {
+  const auto it = index_.find(id);
+  if (it == index_.end()) throw_invalid_argument("id", "unknown vertex id " + std::to_string(id));
+  const Pose3 z = checked_pose(measurement, "measurement");
+  require_symmetric_positive_definite(information, "information", kSymmetryTolerance);
+  priors_.push_back({it->second, z, 0.5 * (information + information.transpose())});
+}
+
 void PoseGraph3D::set_fixed(int id, bool fixed) { vertices_[index_of(id)].fixed = fixed; }
 
 void PoseGraph3D::set_poses(const std::vector<int>& ids, const std::vector<Pose3>& poses) {
@@ -99,8 +107,18 @@ Eigen::VectorXd PoseGraph3D::edge_chi2() const {
   return out;
 }
 
+Eigen::VectorXd PoseGraph3D::prior_chi2() const {
+  Eigen::VectorXd out(priors_.size());
+  for (size_t k = 0; k < priors_.size(); ++k) {
+    const Pose3Prior& p = priors_[k];
+    const Vector6d r = linearize_pose3_prior(vertices_[p.vertex].value, p.measurement).error;
+    out[static_cast<Eigen::Index>(k)] = r.dot(p.information * r);
+  }
+  return out;
+}
+
 double PoseGraph3D::chi2() const {
-  const double sum = edge_chi2().sum();
+  const double sum = edge_chi2().sum() + prior_chi2().sum();
   require(std::isfinite(sum), "graph", "chi2 is not finite at the current values (values or information too large?)");
   return sum;
 }
@@ -135,6 +153,20 @@ Pose3EdgeLinearization linearize_pose3_edge(const Pose3& from, const Pose3& to, 
   out.d_to.setZero();
   out.d_to.topLeftCorner<3, 3>() = rz_t * ri_t * to.rotation.toRotationMatrix();
   out.d_to.bottomRightCorner<3, 3>() = j;
+  return out;
+}
+
+// The prior is the edge from the world origin (R_i = I, t_i = 0) to the pose: its error and
+// d_to above with R_i = I, d = t.
+Pose3PriorLinearization linearize_pose3_prior(const Pose3& pose, const Pose3& measurement) {
+  const Eigen::Matrix3d rz_t = measurement.rotation.toRotationMatrix().transpose();
+  const Eigen::Quaterniond qe = measurement.rotation.conjugate() * pose.rotation;
+  Pose3PriorLinearization out;
+  out.error.head<3>() = rz_t * (pose.translation - measurement.translation);
+  out.error.tail<3>() = so3_log(qe);
+  out.d_pose.setZero();
+  out.d_pose.topLeftCorner<3, 3>() = rz_t * pose.rotation.toRotationMatrix();
+  out.d_pose.bottomRightCorner<3, 3>() = so3_right_jacobian_inverse(out.error.tail<3>());
   return out;
 }
 

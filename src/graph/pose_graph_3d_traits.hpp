@@ -18,11 +18,23 @@ struct GraphTraits<PoseGraph3D> {
   static bool holdable(const PoseGraph3D&, int) { return true; }
   static int tangent_size(const PoseGraph3D&, int) { return 6; }
   static bool has_edges(const PoseGraph3D& graph) { return !graph.pose_edges().empty(); }
+  static std::vector<int> anchors(const PoseGraph3D& graph) {
+    std::vector<int> out;
+    for (const Pose3Prior& p : graph.pose_priors()) out.push_back(p.vertex);
+    return out;
+  }
+  static Eigen::VectorXd term_chi2(const PoseGraph3D& graph) {
+    const Eigen::VectorXd edges = graph.edge_chi2(), priors = graph.prior_chi2();
+    Eigen::VectorXd out(edges.size() + priors.size());
+    out << edges, priors;
+    return out;
+  }
 
   class Equations : public EdgeAssembler {
    public:
     explicit Equations(const PoseGraph3D& graph) : EdgeAssembler(variable_sizes(graph), couplings(graph)) {
       for (const Pose3Edge& e : graph.pose_edges()) handles_.push_back(handles(e.from, e.to));
+      for (const Pose3Prior& p : graph.pose_priors()) prior_handles_.push_back(system().block(p.vertex, p.vertex));
     }
 
     Objective assemble(const PoseGraph3D& graph, RobustKernel kernel, double width) {
@@ -33,6 +45,11 @@ struct GraphTraits<PoseGraph3D> {
         const Pose3Edge& e = graph.pose_edges()[k];
         const auto lin = linearize_pose3_edge(vertices[e.from].value, vertices[e.to].value, e.measurement);
         add_edge(handles_[k], e.from, e.to, lin.error, lin.d_from, lin.d_to, e.information, kernel, width, total);
+      }
+      for (size_t k = 0; k < graph.pose_priors().size(); ++k) {
+        const Pose3Prior& p = graph.pose_priors()[k];
+        const auto lin = linearize_pose3_prior(vertices[p.vertex].value, p.measurement);
+        add_unary(prior_handles_[k], p.vertex, lin.error, lin.d_pose, p.information, kernel, width, total);
       }
       return total;
     }
@@ -48,6 +65,7 @@ struct GraphTraits<PoseGraph3D> {
 
    private:
     std::vector<std::array<BlockHandle, 3>> handles_;
+    std::vector<BlockHandle> prior_handles_;
   };
 };
 

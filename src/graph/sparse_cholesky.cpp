@@ -9,6 +9,7 @@
 #include <string>
 
 #include "probslam/core/check.hpp"
+#include "supernodal_numeric.hpp"
 
 namespace probslam {
 namespace {
@@ -72,6 +73,8 @@ struct SparseCholesky::Impl {
   std::vector<int> outer, inner;
   bool reused = false;
   int singular_column = -1;  // of A, when the last factorize() failed there
+  // A supernodal factor's numbers come from Eigen's kernels (supernodal_numeric.hpp).
+  std::unique_ptr<graph_detail::SupernodalNumeric> numeric;
 
   // Sparse inverse on the pattern of L (computed on demand, dropped at each factorisation).
   mutable bool have_inverse = false;
@@ -173,9 +176,26 @@ void SparseCholesky::factorize(const SparseMatrixd& upper) {
     if (!m.factor) throw std::runtime_error("CHOLMOD analysis failed (out of memory?)");
     m.outer.assign(upper.outerIndexPtr(), upper.outerIndexPtr() + upper.cols() + 1);
     m.inner.assign(upper.innerIndexPtr(), upper.innerIndexPtr() + upper.nonZeros());
+    m.numeric.reset();
+    if (m.factor->is_super) m.numeric = std::make_unique<graph_detail::SupernodalNumeric>(*m.factor, upper);
   }
   m.singular_column = -1;
-  cholmod_factorize(&a, m.factor, &m.common);
+  bool done = false;
+  if (m.numeric) {
+    if (m.factor->xtype == CHOLMOD_PATTERN &&
+        !cholmod_change_factor(CHOLMOD_REAL, /*to_ll=*/1, /*to_super=*/1, /*to_packed=*/1, /*to_monotonic=*/1,
+                               m.factor, &m.common))
+      throw std::runtime_error("CHOLMOD factor allocation failed (out of memory?)");
+    // A pivot that is not positive: CHOLMOD's own factorisation below then reports where, as
+    // the simplicial path does, so both paths fail alike.
+    done = m.numeric->factorize(upper, static_cast<double*>(m.factor->x)) < 0;
+    if (done) {
+      m.factor->is_ll = 1;
+      m.factor->minor = m.factor->n;
+      m.common.status = CHOLMOD_OK;
+    }
+  }
+  if (!done) cholmod_factorize(&a, m.factor, &m.common);
   const bool not_positive = m.common.status == CHOLMOD_NOT_POSDEF || m.factor->minor < m.factor->n;
   const int pivot = not_positive ? static_cast<int>(m.factor->minor) : first_negligible_pivot(m.factor, upper);
   if (pivot >= 0) {
@@ -196,6 +216,11 @@ Eigen::MatrixXd SparseCholesky::solve(const Eigen::MatrixXd& b) const {
   Impl& m = *impl_;
   require(factorized(), "solve", "needs a successful factorize() first");
   require(b.rows() == rows(), "b", "must have as many rows as the matrix");
+  if (m.numeric && m.factor->is_super) {
+    Eigen::MatrixXd x = b;
+    m.numeric->solve(static_cast<const double*>(m.factor->x), x);
+    return x;
+  }
   cholmod_dense rhs{};
   rhs.nrow = static_cast<size_t>(b.rows());
   rhs.ncol = static_cast<size_t>(b.cols());

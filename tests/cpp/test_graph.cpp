@@ -2,6 +2,8 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Dense>
+#include <Eigen/SparseCore>
+#include <cstdlib>
 #include <random>
 #include <stdexcept>
 
@@ -113,6 +115,67 @@ TEST(SparseCholesky, RefusesSingularAndIndefiniteMatrices) {
   a.coeffRef(3, 3) = 2.0;  // now positive definite, and the same pattern
   EXPECT_NO_THROW(cholesky.factorize(a));
   EXPECT_TRUE(cholesky.analysis_reused());
+}
+
+// A 6x6-block system the size of a small 3-D pose graph (a loop with random chords), with enough
+// fill for CHOLMOD to make many supernodes of several columns: the supernodal path (Eigen's
+// kernels on CHOLMOD's analysis, supernodal_numeric.hpp) against CHOLMOD's simplicial one.
+SparseMatrixd random_pose_graph_system(std::mt19937& rng, int n, Eigen::MatrixXd& dense) {
+  std::uniform_int_distribution<int> pick(0, n - 1);
+  std::normal_distribution<double> normal;
+  dense = Eigen::MatrixXd::Identity(6 * n, 6 * n);
+  auto couple = [&](int i, int j) {
+    Eigen::MatrixXd ji(6, 6), jj(6, 6);
+    for (int k = 0; k < 36; ++k) ji.data()[k] = normal(rng), jj.data()[k] = normal(rng);
+    dense.block(6 * i, 6 * i, 6, 6) += ji.transpose() * ji;
+    dense.block(6 * j, 6 * j, 6, 6) += jj.transpose() * jj;
+    dense.block(6 * i, 6 * j, 6, 6) += ji.transpose() * jj;
+    dense.block(6 * j, 6 * i, 6, 6) += jj.transpose() * ji;
+  };
+  for (int i = 0; i < n; ++i) couple(i, (i + 1) % n);
+  for (int k = 0; k < n; ++k) {
+    const int i = pick(rng), j = pick(rng);
+    if (i != j) couple(i, j);
+  }
+  const Eigen::MatrixXd upper = dense.triangularView<Eigen::Upper>();
+  return upper.sparseView();
+}
+
+TEST(SparseCholesky, SupernodalKernelsMatchCholmodsSimplicialFactor) {
+  constexpr int kPoses = 120;
+  // Both copies of the dense kernels: this CPU's (AVX2 + FMA where it has them) and the baseline
+  // (src/graph/supernodal_kernels.hpp), chosen when a supernodal analysis is made.
+  for (const char* kernels : {"", "generic"})
+  for (FillOrdering ordering : {FillOrdering::kAmd, FillOrdering::kMetis}) {
+    setenv("PROBSLAM_SUPERNODAL_KERNELS", kernels, 1);
+    std::mt19937 rng(7);
+    Eigen::MatrixXd dense;
+    SparseMatrixd upper = random_pose_graph_system(rng, kPoses, dense);
+    upper.makeCompressed();
+    SparseCholesky supernodal({FactorMethod::kSupernodal, ordering}), simplicial({FactorMethod::kSimplicial, ordering});
+    supernodal.factorize(upper);
+    simplicial.factorize(upper);
+    const Eigen::VectorXd b = Eigen::VectorXd::LinSpaced(6 * kPoses, -1.0, 2.0);
+    const Eigen::VectorXd x = dense.llt().solve(b);
+    EXPECT_LT((supernodal.solve(b) - x).cwiseAbs().maxCoeff(), kTolerance);
+    EXPECT_LT((simplicial.solve(b) - x).cwiseAbs().maxCoeff(), kTolerance);
+    const std::vector<InverseBlock> blocks = {{0, 6, 0, 6}, {6 * 17, 6, 6 * 90, 6}};
+    const auto a = supernodal.inverse_blocks(blocks), c = simplicial.inverse_blocks(blocks);
+    for (size_t k = 0; k < blocks.size(); ++k) EXPECT_LT((a[k] - c[k]).cwiseAbs().maxCoeff(), kTolerance);
+    // New values on the same pattern: the plan is reused and follows them.
+    for (int k = 0; k < upper.outerSize(); ++k) upper.coeffRef(k, k) += 3.0;
+    dense.diagonal().array() += 3.0;
+    supernodal.factorize(upper);
+    EXPECT_TRUE(supernodal.analysis_reused());
+    EXPECT_LT((supernodal.solve(b) - dense.llt().solve(b)).cwiseAbs().maxCoeff(), kTolerance);
+    // An indefinite matrix: refused at the same column as the simplicial path refuses it.
+    upper.coeffRef(6 * 50 + 2, 6 * 50 + 2) = -1e3;
+    EXPECT_THROW(supernodal.factorize(upper), std::invalid_argument);
+    EXPECT_THROW(simplicial.factorize(upper), std::invalid_argument);
+    EXPECT_EQ(supernodal.singular_column(), simplicial.singular_column());
+    EXPECT_FALSE(supernodal.factorized());
+    unsetenv("PROBSLAM_SUPERNODAL_KERNELS");
+  }
 }
 
 }  // namespace

@@ -91,6 +91,64 @@ TEST(PoseGraph3D, EdgeJacobiansMatchCentralDifferences) {
   }
 }
 
+TEST(PoseGraph3D, PriorJacobianMatchesCentralDifferences) {
+  std::mt19937 rng(12);
+  for (int trial = 0; trial < 50; ++trial) {
+    const double angle = trial < 25 ? 0.05 : 0.6;
+    const Pose3 x = random_pose(rng, 3.0, 1.0);
+    const Pose3 z = compose(x, random_pose(rng, 0.5, angle));
+    const Pose3PriorLinearization lin = linearize_pose3_prior(x, z);
+    // The prior is the edge from the world origin: the same error as that edge's.
+    EXPECT_LE((lin.error - linearize_pose3_edge(Pose3{}, x, z).error).norm(), 1e-12) << "trial " << trial;
+    Matrix6d d_pose;
+    for (int k = 0; k < 6; ++k) {
+      const Vector6d h = kFiniteDifferenceStep * Vector6d::Unit(k);
+      d_pose.col(k) = (linearize_pose3_prior(retract(x, h), z).error - linearize_pose3_prior(retract(x, -h), z).error) /
+                      (2.0 * kFiniteDifferenceStep);
+    }
+    EXPECT_LE((lin.d_pose - d_pose).cwiseAbs().maxCoeff(), kJacobianTolerance) << "trial " << trial;
+  }
+}
+
+TEST(PoseGraph3D, PriorsHoldTheGraphInsteadOfTheFirstPose) {
+  // Two poses, an edge saying they coincide, priors at z = 0 and z = 2 (identity rotations, unit
+  // information): the optimum of a^2 + (b - a)^2 + (b - 2)^2 is a = 2/3, b = 4/3, chi2 = 4/3; the
+  // first pose moves (it is not held when there are priors).
+  for (const auto algorithm : {OptimizerAlgorithm::kGaussNewton, OptimizerAlgorithm::kLevenbergMarquardt}) {
+    PoseGraph3D g;
+    g.add_pose(0, {});
+    g.add_pose(1, {});
+    g.add_pose_edge(0, 1, {}, Matrix6d::Identity());
+    Pose3 up;
+    up.translation.z() = 2.0;
+    g.add_pose_prior(0, {}, Matrix6d::Identity());
+    g.add_pose_prior(1, up, Matrix6d::Identity());
+    EXPECT_NEAR(g.chi2(), 4.0, 1e-15);
+    ASSERT_EQ(g.prior_chi2().size(), 2);
+    OptimizerOptions options;
+    options.algorithm = algorithm;
+    const OptimizationReport report = optimize(g, options);
+    EXPECT_TRUE(report.converged) << report.stop_reason;
+    EXPECT_NEAR(report.chi2, 4.0 / 3.0, kExactTolerance);
+    EXPECT_LE((g.vertex(0).value.translation - Eigen::Vector3d(0, 0, 2.0 / 3.0)).norm(), kExactTolerance);
+    EXPECT_LE((g.vertex(1).value.translation - Eigen::Vector3d(0, 0, 4.0 / 3.0)).norm(), kExactTolerance);
+    EXPECT_LE(rotation_distance(g.vertex(1).value.rotation, Eigen::Quaterniond::Identity()), kExactTolerance);
+  }
+}
+
+TEST(PoseGraph3D, PriorBadInputIsRefused) {
+  PoseGraph3D g;
+  g.add_pose(0, {});
+  EXPECT_THROW(g.add_pose_prior(3, {}, Matrix6d::Identity()), std::invalid_argument);  // unknown id
+  Matrix6d indefinite = Matrix6d::Identity();
+  indefinite(5, 5) = -1.0;
+  EXPECT_THROW(g.add_pose_prior(0, {}, indefinite), std::invalid_argument);
+  Pose3 bad;
+  bad.rotation = Eigen::Quaterniond(2.0, 0, 0, 0);
+  EXPECT_THROW(g.add_pose_prior(0, bad, Matrix6d::Identity()), std::invalid_argument);
+  EXPECT_TRUE(g.pose_priors().empty());
+}
+
 // A loop of n poses with a few chords, edges the exact relative poses of `truth`.
 PoseGraph3D exact_graph(const std::vector<Pose3>& truth, std::mt19937& rng) {
   PoseGraph3D g;

@@ -10,6 +10,7 @@
 
 #include "probslam/io/pose_graph_file.hpp"
 #include "probslam/io/pose_graph_file_3d.hpp"
+#include "probslam/io/pose_graph_3d_graph.hpp"
 
 using namespace probslam;
 namespace fs = std::filesystem;
@@ -315,6 +316,50 @@ TEST(PoseGraphFile3D, G2oRoundTripIsExact) {
   const std::string what = expect_invalid([&] { write_g2o_3d(refused, g); });
   EXPECT_NE(what.find("unknown vertex 99"), std::string::npos) << what;
   EXPECT_TRUE(refused.str().empty());
+}
+
+TEST(PoseGraphFile3D, FileToGraphAndBack) {
+  // A file's records become the graph's vertices (FIX kept), edges and priors, and the graph
+  // written and read again is the same graph: values to the rounding of one normalisation.
+  constexpr double kNormalisationTolerance = 1e-15;
+  const std::string text =
+      "VERTEX_SE3:QUAT 7 1 2 3 0 0 0.6 0.8\nVERTEX_SE3:QUAT 9 -1 0.5 2 0.5 0.5 0.5 0.5\nFIX 9\n"
+      "EDGE_SE3:QUAT 7 9 0.25 0 -1 0 0.6 0 0.8" + numbered_information() + "\n"
+      "PARAMS_SE3OFFSET 0 0 0 0 0 0 0 1\nEDGE_SE3_PRIOR 7 0 1 2 3.5 0 0 0.6 0.8" + kIdentityInformation + "\n";
+  const PoseGraph3DData data = parse(text).graph;
+  const PoseGraph3D g = pose_graph_3d_from_data(data);
+  ASSERT_EQ(g.num_vertices(), 2);
+  EXPECT_FALSE(g.vertex(g.index_of(7)).fixed);
+  EXPECT_TRUE(g.vertex(g.index_of(9)).fixed);
+  ASSERT_EQ(g.pose_edges().size(), 1u);
+  EXPECT_EQ(g.pose_edges()[0].information, data.edges[0].information);
+  ASSERT_EQ(g.pose_priors().size(), 1u);
+  EXPECT_EQ(g.vertex(g.pose_priors()[0].vertex).id, 7);
+  // The prior holds pose 7 0.5 m above its value (same rotation, about z), unit information:
+  // chi2 0.25.
+  EXPECT_NEAR(g.prior_chi2()[0], 0.25, kRoundingTolerance);
+
+  std::ostringstream out;
+  write_g2o_3d(out, pose_graph_3d_data(g));
+  const PoseGraph3D back = pose_graph_3d_from_data(parse(out.str()).graph);
+  ASSERT_EQ(back.num_vertices(), g.num_vertices());
+  for (int v = 0; v < g.num_vertices(); ++v) {
+    EXPECT_EQ(back.vertex(v).id, g.vertex(v).id);
+    EXPECT_EQ(back.vertex(v).fixed, g.vertex(v).fixed);
+    EXPECT_LE((back.vertex(v).value.rotation.coeffs() - g.vertex(v).value.rotation.coeffs()).norm(),
+              kNormalisationTolerance);
+    EXPECT_EQ(back.vertex(v).value.translation, g.vertex(v).value.translation);
+  }
+  ASSERT_EQ(back.pose_edges().size(), 1u);
+  EXPECT_EQ(back.pose_edges()[0].information, g.pose_edges()[0].information);
+  ASSERT_EQ(back.pose_priors().size(), 1u);
+  EXPECT_EQ(back.pose_priors()[0].measurement.translation, g.pose_priors()[0].measurement.translation);
+  EXPECT_NEAR(back.chi2(), g.chi2(), kRoundingTolerance);
+
+  PoseGraph3DData twice = data;
+  twice.vertices.push_back(twice.vertices[0]);
+  const std::string what = expect_invalid([&] { pose_graph_3d_from_data(twice); });
+  EXPECT_NE(what.find("7"), std::string::npos) << what;
 }
 
 TEST(PoseGraphFile3D, ShippedGraphsHaveTheirReadmeCounts) {

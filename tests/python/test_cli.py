@@ -228,6 +228,47 @@ def test_optimize_bundled_graph(tmp_path, capsys):
     assert report.chi2 < report.initial_chi2
 
 
+def test_optimize_bundled_3d_graph(tmp_path, capsys):
+    """A 3-D file is told by its records: read into a PoseGraph3D, chordal initialisation by
+    default, the same optimiser, a g2o SE3 file and a TUM trajectory written."""
+    path = data.path("parking_garage_400.g2o")
+    assert cli.main(["optimize", path, "--no-plot", "--no-progress", "-o", str(tmp_path / "o")]) == 0
+    out = capsys.readouterr().out
+    assert "3-D, 400 poses, 500 edges, 0 priors" in out and "init:       chordal" in out
+    direct = ps.graph.read_pose_graph_3d(path)
+    ps.initialize_chordal(direct)
+    report = ps.optimize(direct)
+    assert f"chi2 {report.chi2:.6f} after {report.iterations} iterations" in out
+    result = ps.graph.read_pose_graph_3d(tmp_path / "o.g2o")
+    np.testing.assert_allclose(result.poses, direct.poses, atol=1e-9)
+    rows = np.loadtxt(tmp_path / "o_trajectory.tum")
+    np.testing.assert_allclose(rows[:, 0], direct.pose_ids)
+    np.testing.assert_allclose(rows[:, 1:], direct.poses, atol=1e-8)
+
+
+def test_optimize_3d_options(tmp_path, capsys):
+    path = data.path("parking_garage_400.g2o")
+    base = ["optimize", path, "--no-plot", "--no-progress", "-o", str(tmp_path / "o")]
+    assert cli.main(base + ["--init", "file", "--algorithm", "levenberg-marquardt", "--kernel", "huber",
+                            "--trajectory-format", "kitti"]) == 0
+    out = capsys.readouterr().out
+    assert "init:" not in out and "result:     chi2" in out
+    assert (tmp_path / "o_trajectory.kitti").is_file() and (tmp_path / "o_trajectory_times.txt").is_file()
+    assert cli.main(base + ["--init", "odometry", "--max-iterations", "2"]) in (0, 3)
+    assert "init:       odometry" in capsys.readouterr().out
+    assert cli.main(base + ["--init", "ekf"]) == 2
+    assert "--init ekf applies to 2-D graphs" in capsys.readouterr().err
+    assert cli.main(base + ["--trajectory-format", "xyt"]) == 2
+    assert "--trajectory-format xyt" in capsys.readouterr().err
+    assert cli.main(["optimize", data.path("intel_400.g2o"), "--init", "chordal", "--no-plot", "-o",
+                     str(tmp_path / "o")]) == 2
+    assert "--init chordal applies to 3-D graphs" in capsys.readouterr().err
+    bad = tmp_path / "bad.g2o"
+    bad.write_text("VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nVERTEX_SE3:QUAT 1 0 0 0 0 0 0 2\n")
+    assert cli.main(["optimize", str(bad), "--no-plot", "-o", str(tmp_path / "o")]) == 2
+    assert "bad.g2o:2: quaternion" in capsys.readouterr().err
+
+
 def test_ekf_slam_bundled_mrclam(tmp_path, capsys):
     assert cli.main(["ekf-slam", "-o", str(tmp_path / "e")]) == 0
     out = capsys.readouterr().out

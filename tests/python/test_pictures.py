@@ -28,7 +28,8 @@ def figures(monkeypatch):
     def record(plt_, fig, path):
         ax = fig.axes[0]
         seen.append(dict(title=ax.get_title(), xlabel=ax.get_xlabel(), ylabel=ax.get_ylabel(),
-                         legend=legend_texts(ax), xlim=ax.get_xlim(), ylim=ax.get_ylim(), path=path))
+                         legend=legend_texts(ax), xlim=ax.get_xlim(), ylim=ax.get_ylim(), path=path,
+                         suptitle=fig.get_suptitle(), axes=list(fig.axes)))
         return save(plt_, fig, path)
 
     monkeypatch.setattr(cli, "_save_figure", record)
@@ -172,3 +173,36 @@ def test_optimize_picture(tmp_path, figures):
     assert o["title"].startswith("probslam optimize: intel_400.g2o\ngauss-newton, chi2 ")
     assert o["legend"] == ["initial guess", "edges", "optimised poses"]
     assert (o["xlabel"], o["ylabel"]) == ("x [m]", "y [m]")
+
+
+def test_optimize_3d_picture_is_a_top_and_a_side_view(tmp_path, figures):
+    path = ps.data.path("parking_garage_400.g2o")
+    assert cli.main(["optimize", path, "--edges", "--no-progress", "-o", str(tmp_path / "o")]) == 0
+    (o,) = figures
+    assert o["suptitle"].startswith("probslam optimize: parking_garage_400.g2o\ngauss-newton from chordal, chi2 ")
+    top, side = o["axes"]
+    assert (top.get_title(), top.get_xlabel(), top.get_ylabel()) == ("top view (x-y)", "x [m]", "y [m]")
+    g = ps.graph.read_pose_graph_3d(tmp_path / "o.g2o")
+    stretch = plot.side_view_exaggeration(g.poses[:, 0], g.poses[:, 2])
+    assert stretch > 1  # a garage: metres of height over a hundred metres of floor
+    assert (side.get_title(), side.get_xlabel(), side.get_ylabel()) == (
+        f"side view (x-z), z stretched {stretch}x", "x [m]", "z [m]")
+    assert side.get_aspect() == stretch and top.get_aspect() == 1.0
+    assert legend_texts(top) == ["initial guess", "edges", "optimised poses"]
+    # Both views show every pose: the garage's levels (z spans metres) are inside the side view.
+    for ax, column in ((top, 1), (side, 2)):
+        (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+        assert x0 <= g.poses[:, 0].min() and g.poses[:, 0].max() <= x1
+        assert y0 <= g.poses[:, column].min() and g.poses[:, column].max() <= y1
+    assert np.ptp(g.poses[:, 2]) > 5.0
+    assert (tmp_path / "o.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_side_view_is_stretched_only_when_flat():
+    x = np.array([0.0, 100.0])
+    assert plot.side_view_exaggeration(x, np.array([0.0, 30.0])) == 1  # 30 % of x: drawn to scale
+    assert plot.side_view_exaggeration(x, np.array([0.0, 8.0])) == 5  # 8 m -> 40 m >= 25 m
+    assert plot.side_view_exaggeration(x, np.array([0.0, 2.6])) == 10
+    assert plot.side_view_exaggeration(x, np.array([0.0, 1e-4])) == 1000  # at most 1000
+    assert plot.side_view_exaggeration(x, np.zeros(2)) == 1  # a planar graph: nothing to stretch
+    assert plot.side_view_exaggeration(np.zeros(2), np.zeros(2)) == 1

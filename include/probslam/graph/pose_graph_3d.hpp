@@ -42,6 +42,16 @@ struct Pose3Edge {
   Matrix6d information;
 };
 
+/// A unary measurement z of a pose itself (g2o's EDGE_SE3_PRIOR with the identity offset):
+/// e = [t_e; Log(R_e)] of z^-1 x, the error of a Pose3Edge from the world origin, in the same
+/// units as the edge's (the rotation vector where g2o's own EdgeSE3Prior takes the quaternion's
+/// vector part, as GTSAM's PriorFactor<Pose3> and Pose3Edge do: one convention in the graph).
+struct Pose3Prior {
+  int vertex;  ///< vertex index (not id)
+  Pose3 measurement;
+  Matrix6d information;
+};
+
 class PoseGraph3D {
  public:
   /// Lock it around every call when several threads share this object (core/object_mutex.hpp).
@@ -54,7 +64,12 @@ class PoseGraph3D {
   /// Throws std::invalid_argument for an unknown id, from == to, a non-finite or non-unit
   /// measurement, or information that is not symmetric positive definite; graph unchanged.
   void add_pose_edge(int from_id, int to_id, const Pose3& measurement, const Matrix6d& information);
-  /// A fixed vertex keeps its value (the gauge); with none fixed, optimisers fix the first pose.
+  /// Adds a prior on vertex `id` (see Pose3Prior). A vertex with a prior holds its part of the
+  /// graph in place, as a fixed vertex does, but softly. Throws std::invalid_argument as
+  /// add_pose_edge does; graph unchanged.
+  void add_pose_prior(int id, const Pose3& measurement, const Matrix6d& information);
+  /// A fixed vertex keeps its value (the gauge); with none fixed and no prior, optimisers fix the
+  /// first pose.
   void set_fixed(int id, bool fixed = true);
   /// Replaces the values of several vertices, all or nothing (checked as add_pose checks).
   void set_poses(const std::vector<int>& ids, const std::vector<Pose3>& poses);
@@ -73,10 +88,14 @@ class PoseGraph3D {
   Pose3Vertex& vertex(int index) { return vertices_[index]; }
   const std::vector<Pose3Vertex>& vertices() const { return vertices_; }
   const std::vector<Pose3Edge>& pose_edges() const { return edges_; }
+  const std::vector<Pose3Prior>& pose_priors() const { return priors_; }
 
   /// e^T Omega e of every edge at the current values.
   Eigen::VectorXd edge_chi2() const;
-  /// Their sum; throws std::invalid_argument when it is not finite.
+  /// e^T Omega e of every prior at the current values.
+  Eigen::VectorXd prior_chi2() const;
+  /// The objective: the sum over edges and priors; throws std::invalid_argument when it is not
+  /// finite.
   double chi2() const;
 
   /// |norm - 1| allowed of a quaternion handed in: files print quaternions with six to nine
@@ -87,6 +106,7 @@ class PoseGraph3D {
   std::vector<Pose3Vertex> vertices_;
   std::unordered_map<int, int> index_;
   std::vector<Pose3Edge> edges_;
+  std::vector<Pose3Prior> priors_;
   ObjectMutex mutex_;
 };
 
@@ -100,5 +120,12 @@ struct Pose3EdgeLinearization {
   Matrix6d d_from, d_to;
 };
 Pose3EdgeLinearization linearize_pose3_edge(const Pose3& from, const Pose3& to, const Pose3& measurement);
+
+/// The error of a prior and its Jacobian with respect to the pose's tangent perturbation.
+struct Pose3PriorLinearization {
+  Vector6d error;
+  Matrix6d d_pose;
+};
+Pose3PriorLinearization linearize_pose3_prior(const Pose3& pose, const Pose3& measurement);
 
 }  // namespace probslam

@@ -11,8 +11,8 @@ namespace probslam {
 using SparseMatrixd = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
 
 enum class FactorMethod {
-  kSimplicial,  ///< column by column; fastest here, as Debian's CHOLMOD links reference BLAS
-  kSupernodal,  ///< dense BLAS-3 blocks; wins on large, fill-heavy systems with a tuned BLAS
+  kSimplicial,  ///< column by column: small or sparse factors (2-D pose graphs)
+  kSupernodal,  ///< dense blocks, factored with Eigen's kernels: large, fill-heavy factors (3-D)
   kAuto,        ///< CHOLMOD's choice from the flop count per nonzero
 };
 

@@ -19,6 +19,8 @@ FILES: Dict[str, str] = {
                              "(probslam slam)",
     "intel_400.g2o": "g2o 2-D pose graph, the first 400 poses of the Intel Research Lab graph: 513 edges, "
                      "114 of them loop closures (probslam optimize)",
+    "parking_garage_400.g2o": "g2o 3-D pose graph, the first 400 poses of the parking-garage graph: 500 edges, "
+                              "101 of them loop closures, over three levels (probslam optimize FILE)",
     "victoria_park_1000.txt": "Victoria Park in iSAM's text format, the first 1000 poses (probslam ekf-slam / "
                               "fastslam with a file; read_pose_graph)",
     "mrclam7_robot1_120s": "UTIAS MRCLAM Dataset 7 folder, robot 1's first 120 s with Vicon ground truth "

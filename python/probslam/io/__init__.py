@@ -6,7 +6,8 @@ from .carmen import CarmenLog, LaserScans, Odometry, read_carmen_log
 from .landmark_datasets import MRCLAM_RANGE_SCALE, Mrclam, VictoriaPark, read_mrclam, read_victoria_park
 from .maps import load_ros_map, save_ros_map, write_png
 from .pose_graph_3d import QUATERNION_NORM_TOLERANCE, PoseGraph3DFile, read_pose_graph_3d, write_g2o_3d
-from .trajectory import TRAJECTORY_FORMATS, Trajectory, kitti_times_path, read_trajectory, write_trajectory
+from .trajectory import (TRAJECTORY_FORMATS, Trajectory, kitti_times_path, read_trajectory, write_trajectory,
+                         write_trajectory_3d)
 from . import rosbag
 from .rosbag import RosbagLog, read_rosbag
 from .rosbag_writer import write_rosbag
@@ -35,5 +36,6 @@ __all__ = [
     "write_g2o_3d",
     "write_png",
     "write_trajectory",
+    "write_trajectory_3d",
     "write_rosbag",
 ]

@@ -129,6 +129,35 @@ def write_trajectory(timestamps: object, poses: object, path: PathLike, format: 
     return [path, times]
 
 
+def write_trajectory_3d(timestamps: object, poses: object, path: PathLike, format: str = "tum") -> List[str]:
+    """Write a 3-D trajectory: timestamps (N,) s, poses (N, 7) ``(x, y, z, qx, qy, qz, qw)`` (m, a
+    unit quaternion; ``PoseGraph3D.poses``), as TUM rows or KITTI [R | t] rows with the times
+    file beside them (``format`` "tum" or "kitti"; "xyt" has no room for a 3-D pose: ValueError).
+    Returns the files written. Errors as ``write_trajectory``, and ValueError naming ``poses`` for
+    a quaternion further than ``QUATERNION_NORM_TOLERANCE`` from unit norm."""
+    if format not in ("tum", "kitti"):
+        raise ValueError(f"format must be 'tum' or 'kitti' for a 3-D trajectory, got {format!r}")
+    ts = real_array(timestamps, "timestamps", (None,))
+    ps = real_array(poses, "poses", (len(ts), 7))
+    q = ps[:, 3:7]
+    norms = np.linalg.norm(q, axis=1)
+    if len(ps) and np.max(np.abs(norms - 1.0)) > QUATERNION_NORM_TOLERANCE:
+        raise ValueError("poses must hold unit quaternions (columns 3-6, x y z w)")
+    path = file_path(path)
+    if format == "tum":
+        np.savetxt(path, np.column_stack([ts, ps]), fmt=_FORMAT, header="timestamp x y z qx qy qz qw")
+        return [path]
+    x, y, z, w = (q / norms[:, None]).T
+    r = np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w),
+                  2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w),
+                  2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], axis=1).reshape(-1, 3, 3)
+    matrices = np.concatenate([r, ps[:, :3, None]], axis=2)
+    np.savetxt(path, matrices.reshape(len(ts), 12), fmt=_FORMAT)
+    times = kitti_times_path(path)
+    np.savetxt(times, ts, fmt=_FORMAT)
+    return [path, times]
+
+
 def _quaternion_check(values: List[float]) -> str:
     norm = float(np.linalg.norm(values[4:8]))
     return "" if abs(norm - 1.0) <= QUATERNION_NORM_TOLERANCE else f"quaternion norm {norm:g}, not 1"
