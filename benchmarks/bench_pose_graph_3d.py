@@ -58,7 +58,7 @@ DATASETS = {
 # SE-Sync's certified optimal objective values on these graphs (its paper's results table), to be
 # filled in with the source cited beside each: the search for them here found the paper but not
 # its table's numbers, and a value that cannot be cited is not put in. None: not known here.
-SE_SYNC_OPTIMA = {name: None for name in DATASETS}
+SE_SYNC_OPTIMA = {}
 
 # Levenberg-Marquardt stops when an iteration changes the error by less than this fraction
 # (bench_pose_graph.py's value).
@@ -161,6 +161,10 @@ def main():
     except ImportError:
         sys.exit("bench_pose_graph_3d: needs `pip install gtsam`")
     datasets = {k: v for k, v in DATASETS.items() if v.exists()}
+    # A graph from the peer's own package, never used to tune anything here.
+    grid = pathlib.Path(gtsam.__file__).parent / "Data" / "pose3example-grid.txt"
+    if grid.exists():
+        datasets["pose3example-grid (GTSAM's Data)"] = grid
     if not datasets:
         print(f"bench_pose_graph_3d: no datasets under {DATA}; nothing to do")
         return

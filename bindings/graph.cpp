@@ -287,34 +287,6 @@ void define_graph(py::module_& m) {
                                  r.stop_reason + ")");
       });
 
-  m.def("optimize",
-        [](PoseGraph2D& graph, const std::string& algorithm, IntArg max_iterations_arg, double relative_tolerance,
-           double step_tolerance, const std::string& kernel, double kernel_width,
-           const std::string& linear_solver, const std::string& ordering, const std::string& damping,
-           const py::object& callback) {
-          const int max_iterations = max_iterations_arg.get("max_iterations");
-          const OptimizerOptions o = optimizer_options(algorithm, max_iterations, relative_tolerance, step_tolerance,
-                                                       kernel, kernel_width, linear_solver, ordering, damping);
-          const IterationCallback on_iteration = iteration_callback(callback);
-          return locked(graph, [&] { return optimize(graph, o, on_iteration); });
-        },
-        py::arg("graph"), py::arg("algorithm") = "gauss-newton", py::arg("max_iterations") = 100,
-        py::arg("relative_tolerance") = 1e-10, py::arg("step_tolerance") = 1e-10, py::arg("kernel") = "none",
-        py::arg("kernel_width") = 1.0, py::arg("linear_solver") = "simplicial", py::arg("ordering") = "amd",
-        py::arg("damping") = "marquardt", py::arg("callback") = py::none(),
-        "Minimises the graph's objective in place from its current values and returns an\n"
-        "OptimizationReport. Fixed vertices keep their values; with none fixed the first pose is held.\n"
-        "algorithm: \"gauss-newton\" or \"levenberg-marquardt\" (damping \"marquardt\": D = diag(H), or\n"
-        "\"levenberg\": D = I); stops after max_iterations, when an iteration lowers the objective by\n"
-        "less than relative_tolerance of it, or when the largest step entry is below step_tolerance\n"
-        "(m / rad). kernel: \"none\", \"huber\" or \"cauchy\" with kernel_width in units of sqrt(chi2).\n"
-        "linear_solver: CHOLMOD \"simplicial\", \"supernodal\" or \"auto\"; ordering: \"amd\" or \"metis\"."
-        "\ncallback(iteration, chi2), optional: called after each completed iteration (1 for the first)\n"
-        "with the chi2 after it, on the calling thread; returning False stops there (stop_reason \"stopped\n"
-        "by the callback\"). An exception it raises (KeyboardInterrupt on Ctrl-C) propagates with the graph\n"
-        "at the last completed iteration's values."
-        "\nValueError for an empty graph or a part not connected to a fixed vertex.");
-
   py::class_<IncrementalReport>(m, "IncrementalReport", "What optimize_incremental did.")
       .def_readonly("steps", &IncrementalReport::steps, "Optimisations run (one per poses_per_step poses).")
       .def_readonly("iterations", &IncrementalReport::iterations, "Iterations summed over the steps.")
@@ -326,6 +298,32 @@ void define_graph(py::module_& m) {
                                  num(r.chi2));
       });
 
+  def_optimizer<PoseGraph2D>(m, "supernodal", "amd",
+                              {"Minimises the graph's objective in place from its current values and returns an\n"
+                               "OptimizationReport. Fixed vertices keep their values; with none fixed the first pose is held.\n"
+                               "algorithm: \"gauss-newton\" or \"levenberg-marquardt\" (damping \"marquardt\": D = diag(H), or\n"
+                               "\"levenberg\": D = I); stops after max_iterations, when an iteration lowers the objective by\n"
+                               "less than relative_tolerance of it, or when the largest step entry is below step_tolerance\n"
+                               "(m / rad). kernel: \"none\", \"huber\" or \"cauchy\" with kernel_width in units of sqrt(chi2).\n"
+                               "linear_solver: CHOLMOD \"simplicial\", \"supernodal\" or \"auto\"; ordering: \"amd\" or \"metis\"."
+                               "\ncallback(iteration, chi2), optional: called after each completed iteration (1 for the first)\n"
+                               "with the chi2 after it, on the calling thread; returning False stops there (stop_reason \"stopped\n"
+                               "by the callback\"). An exception it raises (KeyboardInterrupt on Ctrl-C) propagates with the graph\n"
+                               "at the last completed iteration's values."
+                               "\nValueError for an empty graph or a part not connected to a fixed vertex.",
+                               "Marginal covariances at the current values, one per id: (3, 3) for a pose (m, m, rad), (2, 2)\n"
+                               "for a point (m), from the sparse inverse of the information matrix; a fixed vertex has zero\n"
+                               "covariance. Returns a list of arrays.",
+                               "Joint marginal covariances at the current values, one per group of vertex ids: the covariance\n"
+                               "of the group's variables stacked in the order given (3 per pose, 2 per point), cross-covariances\n"
+                               "included, from one factorisation (e.g. a landmark pair's (4, 4) for ch. 11.6's correspondence\n"
+                               "test). A fixed vertex's rows and columns are zero. ValueError for an unknown id or a group\n"
+                               "naming a vertex twice. Returns a list of arrays.",
+                               "Incremental batch optimisation: poses join in the order they were added (each composed from\n"
+                               "its first edge to an earlier pose, each point from its first observation), and after every\n"
+                               "poses_per_step poses the part seen so far is optimised with the options of optimize.\n"
+                               "Returns an IncrementalReport."});
+
   m.def("initialize_odometry",
         [](PoseGraph2D& graph) {
           locked(graph, [&] { initialize_odometry(graph); });
@@ -334,59 +332,6 @@ void define_graph(py::module_& m) {
         "Initial values by composing pose edges outward from the fixed vertices (or the first pose)\n"
         "along a breadth-first spanning tree; a point is placed by its first edge from a reached pose.\n"
         "For an odometry chain this is dead reckoning. Unreached vertices keep their values.");
-  m.def("optimize_incremental",
-        [](PoseGraph2D& graph, IntArg poses_per_step_arg, const std::string& algorithm, IntArg max_iterations_arg,
-           double relative_tolerance, double step_tolerance, const std::string& kernel, double kernel_width,
-           const std::string& linear_solver, const std::string& ordering, const std::string& damping) {
-          const int poses_per_step = poses_per_step_arg.get("poses_per_step");
-          const int max_iterations = max_iterations_arg.get("max_iterations");
-          IncrementalOptions o;
-          o.poses_per_step = poses_per_step;
-          o.step = optimizer_options(algorithm, max_iterations, relative_tolerance, step_tolerance, kernel,
-                                     kernel_width, linear_solver, ordering, damping);
-          return locked(graph, [&] { return optimize_incremental(graph, o); });
-        },
-        py::arg("graph"), py::arg("poses_per_step") = 100, py::arg("algorithm") = "gauss-newton",
-        py::arg("max_iterations") = 10, py::arg("relative_tolerance") = 1e-6, py::arg("step_tolerance") = 1e-10,
-        py::arg("kernel") = "none", py::arg("kernel_width") = 1.0, py::arg("linear_solver") = "simplicial",
-        py::arg("ordering") = "amd", py::arg("damping") = "marquardt",
-        "Incremental batch optimisation: poses join in the order they were added (each composed from\n"
-        "its first edge to an earlier pose, each point from its first observation), and after every\n"
-        "poses_per_step poses the part seen so far is optimised with the options of optimize.\n"
-        "Returns an IncrementalReport.");
-
-  m.def("marginal_covariances",
-        [](const PoseGraph2D& graph, const std::vector<int>& ids, const std::string& linear_solver,
-           const std::string& ordering) {
-          const SparseCholeskyOptions o = solver_options(linear_solver, ordering);
-          const std::vector<Eigen::MatrixXd> blocks =
-              locked(graph, [&] { return marginal_covariances(graph, ids, o); });
-          py::list out;
-          for (const auto& b : blocks) out.append(py::cast(b));
-          return out;
-        },
-        py::arg("graph"), py::arg("ids"), py::arg("linear_solver") = "simplicial", py::arg("ordering") = "amd",
-        "Marginal covariances at the current values, one per id: (3, 3) for a pose (m, m, rad), (2, 2)\n"
-        "for a point (m), from the sparse inverse of the information matrix; a fixed vertex has zero\n"
-        "covariance. Returns a list of arrays.");
-
-  m.def("joint_marginal_covariances",
-        [](const PoseGraph2D& graph, const std::vector<std::vector<int>>& groups, const std::string& linear_solver,
-           const std::string& ordering) {
-          const SparseCholeskyOptions o = solver_options(linear_solver, ordering);
-          const std::vector<Eigen::MatrixXd> blocks =
-              locked(graph, [&] { return joint_marginal_covariances(graph, groups, o); });
-          py::list out;
-          for (const auto& b : blocks) out.append(py::cast(b));
-          return out;
-        },
-        py::arg("graph"), py::arg("groups"), py::arg("linear_solver") = "simplicial", py::arg("ordering") = "amd",
-        "Joint marginal covariances at the current values, one per group of vertex ids: the covariance\n"
-        "of the group's variables stacked in the order given (3 per pose, 2 per point), cross-covariances\n"
-        "included, from one factorisation (e.g. a landmark pair's (4, 4) for ch. 11.6's correspondence\n"
-        "test). A fixed vertex's rows and columns are zero. ValueError for an unknown id or a group\n"
-        "naming a vertex twice. Returns a list of arrays.");
-
   py::class_<PoseGraphReadReport>(m, "PoseGraphReadReport",
                                   "What read_pose_graph_with_report did with the file's records.")
       .def_readonly("rows", &PoseGraphReadReport::rows,

@@ -19,12 +19,11 @@ namespace probslam::bindings {
 
 namespace {
 
-// The sparse solver a 3-D graph gets by default: its 6x6 blocks fill the factor (sphere2500:
-// 1.5e6 nonzeros for 15 000 unknowns), where the supernodal factorisation's dense kernels win
-// (CHOLMOD's "auto" still takes the simplicial one for small factors), and nested dissection
-// orders sphere2500 and torus3D with less fill than AMD (torus3D: 1.0e9 flops against 1.35e9 a
-// factorisation; parking-garage: a little more, 3e7 against 2.2e7).
-constexpr const char* kLinearSolver = "auto";
+// The fill ordering a 3-D graph gets by default: nested dissection orders sphere2500 and torus3D
+// with less fill than AMD (torus3D: 1.0e9 flops against 1.35e9 a factorisation; parking-garage a
+// little more, 3e7 against 2.2e7); 2-D graphs keep AMD, faster on every one measured
+// (docs/pose_graphs.md).
+constexpr const char* kLinearSolver = "supernodal";
 constexpr const char* kOrdering = "metis";
 
 // A pose as Python sees it: (7,) [x, y, z, qx, qy, qz, qw], g2o's VERTEX_SE3:QUAT order.
@@ -57,12 +56,6 @@ std::vector<int> ids_arg(py::handle obj, const char* name) {
   const LongArray ids = integer_array_arg(obj, name);
   if (ids.ndim() != 1) throw py::value_error(std::string(name) + " must be a 1-D array of integers");
   return int_entries(ids, name, "vertex id");
-}
-
-py::list matrices(const std::vector<Eigen::MatrixXd>& blocks) {
-  py::list out;
-  for (const auto& b : blocks) out.append(py::cast(b));
-  return out;
 }
 
 }  // namespace
@@ -227,7 +220,7 @@ void define_graph3d(py::module_& m) {
           return std::to_string(g.num_vertices()) + " poses, " + std::to_string(g.pose_edges().size()) + " edges";
         }));
       });
-  graph_class.attr("QUATERNION_NORM_TOLERANCE") = PoseGraph3D::kQuaternionNormTolerance;
+  graph_class.attr("QUATERNION_NORM_TOLERANCE") = kQuaternionNormTolerance;
 
   m.def("read_pose_graph_3d_graph",
         [](const std::string& path, const std::string& format, const std::string& noise, const std::string& rows) {
@@ -252,42 +245,15 @@ void define_graph3d(py::module_& m) {
         "Writes a PoseGraph3D at its current values as g2o text (VERTEX_SE3:QUAT, FIX, EDGE_SE3:QUAT,\n"
         "EDGE_SE3_PRIOR; 17 significant digits).");
 
-  m.def("optimize",
-        [](PoseGraph3D& graph, const std::string& algorithm, IntArg max_iterations_arg, double relative_tolerance,
-           double step_tolerance, const std::string& kernel, double kernel_width,
-           const std::string& linear_solver, const std::string& ordering, const std::string& damping,
-           const py::object& callback) {
-          const int max_iterations = max_iterations_arg.get("max_iterations");
-          const OptimizerOptions o = optimizer_options(algorithm, max_iterations, relative_tolerance, step_tolerance,
-                                                       kernel, kernel_width, linear_solver, ordering, damping);
-          const IterationCallback on_iteration = iteration_callback(callback);
-          return locked(graph, [&] { return optimize(graph, o, on_iteration); });
-        },
-        py::arg("graph"), py::arg("algorithm") = "gauss-newton", py::arg("max_iterations") = 100,
-        py::arg("relative_tolerance") = 1e-10, py::arg("step_tolerance") = 1e-10, py::arg("kernel") = "none",
-        py::arg("kernel_width") = 1.0, py::arg("linear_solver") = kLinearSolver, py::arg("ordering") = kOrdering,
-        py::arg("damping") = "marquardt", py::arg("callback") = py::none(),
-        "The same for a PoseGraph3D: options, callback, report and errors as for a PoseGraph2D; the\n"
-        "step is on the manifold (x (+) [v, w] = (R Exp(w), t + R v)), step_tolerance in m / rad.");
-
-  m.def("marginal_covariances",
-        [](const PoseGraph3D& graph, const std::vector<int>& ids, const std::string& linear_solver,
-           const std::string& ordering) {
-          const SparseCholeskyOptions o = solver_options(linear_solver, ordering);
-          return matrices(locked(graph, [&] { return marginal_covariances(graph, ids, o); }));
-        },
-        py::arg("graph"), py::arg("ids"), py::arg("linear_solver") = kLinearSolver, py::arg("ordering") = kOrdering,
-        "For a PoseGraph3D: (6, 6) per id in the pose's tangent [translation m in its own frame,\n"
-        "rotation vector rad] (right perturbation); a fixed vertex has zero covariance.");
-
-  m.def("joint_marginal_covariances",
-        [](const PoseGraph3D& graph, const std::vector<std::vector<int>>& groups, const std::string& linear_solver,
-           const std::string& ordering) {
-          const SparseCholeskyOptions o = solver_options(linear_solver, ordering);
-          return matrices(locked(graph, [&] { return joint_marginal_covariances(graph, groups, o); }));
-        },
-        py::arg("graph"), py::arg("groups"), py::arg("linear_solver") = kLinearSolver, py::arg("ordering") = kOrdering,
-        "For a PoseGraph3D: 6 rows per pose, in the tangent of marginal_covariances.");
+  def_optimizer<PoseGraph3D>(m, kLinearSolver, kOrdering,
+                              {"The same for a PoseGraph3D: options, callback, report and errors as for a PoseGraph2D; the\n"
+                               "step is on the manifold (x (+) [v, w] = (R Exp(w), t + R v)), step_tolerance in m / rad.",
+                               "For a PoseGraph3D: (6, 6) per id in the pose's tangent [translation m in its own frame,\n"
+                               "rotation vector rad] (right perturbation); a fixed vertex has zero covariance.",
+                               "For a PoseGraph3D: 6 rows per pose, in the tangent of marginal_covariances.",
+                               "For a PoseGraph3D: poses join in the order they were added, each composed from its first edge\n"
+                               "to an earlier pose; after every poses_per_step poses the graph of the poses so far (their edges\n"
+                               "and priors) is optimised with the options of optimize. Returns an IncrementalReport."});
 
   m.def("initialize_odometry", [](PoseGraph3D& graph) { locked(graph, [&] { initialize_odometry(graph); }); },
         py::arg("graph"),

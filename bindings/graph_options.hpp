@@ -1,11 +1,17 @@
 #pragma once
 // The graph optimisers' options from Python strings, shared by the 2-D and 3-D graph bindings.
+#include <pybind11/eigen.h>
 #include <pybind11/pybind11.h>
+#include <pybind11/stl.h>
 
 #include <initializer_list>
 #include <string>
 #include <utility>
+#include <vector>
 
+#include "args.hpp"
+#include "object_lock.hpp"
+#include "probslam/graph/graph_initialization.hpp"  // IncrementalOptions
 #include "probslam/graph/graph_optimizer.hpp"
 
 namespace probslam::bindings {
@@ -76,6 +82,71 @@ inline IterationCallback iteration_callback(const py::object& callback) {
     };
   }
   return on_iteration;
+}
+
+/// The docstrings of one graph type's optimize / marginal_covariances / joint_marginal_covariances.
+struct OptimizerDocs {
+  const char* optimize;
+  const char* marginals;
+  const char* joint_marginals;
+  const char* optimize_incremental;
+};
+
+/// optimize, optimize_incremental, marginal_covariances and joint_marginal_covariances for one graph type: the same
+/// arguments for PoseGraph2D and PoseGraph3D, each with its own default linear solver and
+/// ordering (graph3d.cpp says why 3-D's differ).
+template <class Graph>
+void def_optimizer(py::module_& m, const char* linear_solver, const char* ordering, const OptimizerDocs& doc) {
+  auto list_of = [](const std::vector<Eigen::MatrixXd>& blocks) {
+    py::list out;
+    for (const auto& b : blocks) out.append(py::cast(b));
+    return out;
+  };
+  m.def("optimize",
+        [](Graph& graph, const std::string& algorithm, IntArg max_iterations_arg, double relative_tolerance,
+           double step_tolerance, const std::string& kernel, double kernel_width,
+           const std::string& linear_solver, const std::string& ordering, const std::string& damping,
+           const py::object& callback) {
+          const int max_iterations = max_iterations_arg.get("max_iterations");
+          const OptimizerOptions o = optimizer_options(algorithm, max_iterations, relative_tolerance, step_tolerance,
+                                                       kernel, kernel_width, linear_solver, ordering, damping);
+          const IterationCallback on_iteration = iteration_callback(callback);
+          return locked(graph, [&] { return optimize(graph, o, on_iteration); });
+        },
+        py::arg("graph"), py::arg("algorithm") = "gauss-newton", py::arg("max_iterations") = 100,
+        py::arg("relative_tolerance") = 1e-10, py::arg("step_tolerance") = 1e-10, py::arg("kernel") = "none",
+        py::arg("kernel_width") = 1.0, py::arg("linear_solver") = linear_solver, py::arg("ordering") = ordering,
+        py::arg("damping") = "marquardt", py::arg("callback") = py::none(), doc.optimize);
+  m.def("optimize_incremental",
+        [](Graph& graph, IntArg poses_per_step_arg, const std::string& algorithm, IntArg max_iterations_arg,
+           double relative_tolerance, double step_tolerance, const std::string& kernel, double kernel_width,
+           const std::string& linear_solver, const std::string& ordering, const std::string& damping) {
+          IncrementalOptions o;
+          o.poses_per_step = poses_per_step_arg.get("poses_per_step");
+          o.step = optimizer_options(algorithm, max_iterations_arg.get("max_iterations"), relative_tolerance,
+                                     step_tolerance, kernel, kernel_width, linear_solver, ordering, damping);
+          return locked(graph, [&] { return optimize_incremental(graph, o); });
+        },
+        py::arg("graph"), py::arg("poses_per_step") = 100, py::arg("algorithm") = "gauss-newton",
+        py::arg("max_iterations") = 10, py::arg("relative_tolerance") = 1e-6, py::arg("step_tolerance") = 1e-10,
+        py::arg("kernel") = "none", py::arg("kernel_width") = 1.0, py::arg("linear_solver") = linear_solver,
+        py::arg("ordering") = ordering, py::arg("damping") = "marquardt", doc.optimize_incremental);
+  m.def("marginal_covariances",
+        [list_of](const Graph& graph, const std::vector<int>& ids, const std::string& linear_solver,
+                  const std::string& ordering) {
+          const SparseCholeskyOptions o = solver_options(linear_solver, ordering);
+          return list_of(locked(graph, [&] { return marginal_covariances(graph, ids, o); }));
+        },
+        py::arg("graph"), py::arg("ids"), py::arg("linear_solver") = linear_solver, py::arg("ordering") = ordering,
+        doc.marginals);
+  m.def("joint_marginal_covariances",
+        [list_of](const Graph& graph, const std::vector<std::vector<int>>& groups, const std::string& linear_solver,
+                  const std::string& ordering) {
+          const SparseCholeskyOptions o = solver_options(linear_solver, ordering);
+          return list_of(locked(graph, [&] { return joint_marginal_covariances(graph, groups, o); }));
+        },
+        py::arg("graph"), py::arg("groups"), py::arg("linear_solver") = linear_solver, py::arg("ordering") = ordering,
+        doc.joint_marginals);
 }
 
 }  // namespace probslam::bindings

@@ -145,56 +145,64 @@ DoubleArray stack_arg(py::handle obj, const char* name) {
   return a;
 }
 
+// The pose of each row of one kind (vertices, edges or priors): an (n, 4) quaternion array and an
+// (n, 3) translation array, as many rows as `of` has; ValueError naming the array at fault.
+class PoseColumns {
+ public:
+  PoseColumns(const py::dict& d, const char* q_name, const char* t_name, py::ssize_t rows, const char* of)
+      : q_(matrix_arg(d[q_name], q_name, 4)), t_(matrix_arg(d[t_name], t_name, 3)), q_name_(q_name), t_name_(t_name) {
+    require_rows(q_, rows, q_name, of);
+    require_rows(t_, rows, t_name, of);
+  }
+  void get(py::ssize_t i, Eigen::Quaterniond& q, Eigen::Vector3d& t) const {
+    q = quaternion_row(q_.data() + 4 * i, q_name_);
+    t = Eigen::Map<const Eigen::Vector3d>(t_.data() + 3 * i);
+    if (!t.allFinite()) throw py::value_error(std::string(t_name_) + " must be finite");
+  }
+
+ private:
+  DoubleArray q_, t_;
+  const char* q_name_;
+  const char* t_name_;
+};
+
 PoseGraph3DData graph_3d_from_arrays(const py::dict& d) {
   PoseGraph3DData g;
   auto ids = ids_arg(d["vertex_ids"], "vertex_ids", 0);
   const py::ssize_t nv = ids.shape(0);
-  DoubleArray q = matrix_arg(d["quaternions"], "quaternions", 4), t = matrix_arg(d["translations"], "translations", 3);
+  const PoseColumns poses(d, "quaternions", "translations", nv, "vertex_ids");
   auto fixed = py::array_t<bool, py::array::c_style | py::array::forcecast>::ensure(d["fixed"]);
   if (!fixed || fixed.ndim() != 1) throw py::value_error("fixed must be a 1-D array of booleans");
-  require_rows(q, nv, "quaternions", "vertex_ids");
-  require_rows(t, nv, "translations", "vertex_ids");
   require_rows(fixed, nv, "fixed", "vertex_ids");
   for (py::ssize_t i = 0; i < nv; ++i) {
     Vertex3D v;
     v.id = id_value(ids.data()[i], "vertex_ids");
-    v.q = quaternion_row(q.data() + 4 * i, "quaternions");
-    v.t = Eigen::Map<const Eigen::Vector3d>(t.data() + 3 * i);
-    if (!v.t.allFinite()) throw py::value_error("translations must be finite");
+    poses.get(i, v.q, v.t);
     v.fixed = fixed.data()[i];
     g.vertices.push_back(v);
   }
   auto edges = ids_arg(d["edges"], "edges", 2);
   const py::ssize_t ne = edges.shape(0);
-  DoubleArray eq = matrix_arg(d["edge_quaternions"], "edge_quaternions", 4),
-              et = matrix_arg(d["edge_translations"], "edge_translations", 3), info = stack_arg(d["information"], "information");
-  require_rows(eq, ne, "edge_quaternions", "edges");
-  require_rows(et, ne, "edge_translations", "edges");
+  const PoseColumns measurements(d, "edge_quaternions", "edge_translations", ne, "edges");
+  const DoubleArray info = stack_arg(d["information"], "information");
   require_rows(info, ne, "information", "edges");
   for (py::ssize_t i = 0; i < ne; ++i) {
     Edge3D e;
     e.from_id = id_value(edges.data()[2 * i], "edges");
     e.to_id = id_value(edges.data()[2 * i + 1], "edges");
-    e.q = quaternion_row(eq.data() + 4 * i, "edge_quaternions");
-    e.t = Eigen::Map<const Eigen::Vector3d>(et.data() + 3 * i);
-    if (!e.t.allFinite()) throw py::value_error("edge_translations must be finite");
+    measurements.get(i, e.q, e.t);
     e.information = information_block(info.data() + 36 * i, "information");
     g.edges.push_back(e);
   }
   auto prior_ids = ids_arg(d["prior_ids"], "prior_ids", 0);
   const py::ssize_t np = prior_ids.shape(0);
-  DoubleArray pq = matrix_arg(d["prior_quaternions"], "prior_quaternions", 4),
-              pt = matrix_arg(d["prior_translations"], "prior_translations", 3),
-              pinfo = stack_arg(d["prior_information"], "prior_information");
-  require_rows(pq, np, "prior_quaternions", "prior_ids");
-  require_rows(pt, np, "prior_translations", "prior_ids");
+  const PoseColumns prior_poses(d, "prior_quaternions", "prior_translations", np, "prior_ids");
+  const DoubleArray pinfo = stack_arg(d["prior_information"], "prior_information");
   require_rows(pinfo, np, "prior_information", "prior_ids");
   for (py::ssize_t i = 0; i < np; ++i) {
     Prior3D p;
     p.id = id_value(prior_ids.data()[i], "prior_ids");
-    p.q = quaternion_row(pq.data() + 4 * i, "prior_quaternions");
-    p.t = Eigen::Map<const Eigen::Vector3d>(pt.data() + 3 * i);
-    if (!p.t.allFinite()) throw py::value_error("prior_translations must be finite");
+    prior_poses.get(i, p.q, p.t);
     p.information = information_block(pinfo.data() + 36 * i, "prior_information");
     g.priors.push_back(p);
   }

@@ -564,47 +564,54 @@ class IncrementalReport:
 @overload
 def optimize(graph: PoseGraph2D, algorithm: str = "gauss-newton", max_iterations: int = 100,
              relative_tolerance: float = 1e-10, step_tolerance: float = 1e-10, kernel: str = "none",
-             kernel_width: float = 1.0, linear_solver: str = "simplicial", ordering: str = "amd",
+             kernel_width: float = 1.0, linear_solver: str = "supernodal", ordering: str = "amd",
              damping: str = "marquardt",
              callback: Optional[Callable[[int, float], Optional[bool]]] = None) -> OptimizationReport:
     """In place from the current values; algorithm "gauss-newton" / "levenberg-marquardt", kernel
-    "none" / "huber" / "cauchy", linear_solver "simplicial" / "supernodal" / "auto", ordering
+    "none" / "huber" / "cauchy", linear_solver "supernodal" / "simplicial" / "auto", ordering
     "amd" / "metis", damping "marquardt" / "levenberg". callback(iteration, chi2) after each
     completed iteration: False stops; an exception it raises leaves the graph at the last completed
     iteration."""
 @overload
 def optimize(graph: PoseGraph3D, algorithm: str = "gauss-newton", max_iterations: int = 100,
              relative_tolerance: float = 1e-10, step_tolerance: float = 1e-10, kernel: str = "none",
-             kernel_width: float = 1.0, linear_solver: str = "auto", ordering: str = "metis",
+             kernel_width: float = 1.0, linear_solver: str = "supernodal", ordering: str = "metis",
              damping: str = "marquardt",
              callback: Optional[Callable[[int, float], Optional[bool]]] = None) -> OptimizationReport:
     """The same for a 3-D graph; the step is x (+) [v, w] = (R Exp(w), t + R v)."""
+@overload
 def optimize_incremental(graph: PoseGraph2D, poses_per_step: int = 100, algorithm: str = "gauss-newton",
                          max_iterations: int = 10, relative_tolerance: float = 1e-6, step_tolerance: float = 1e-10,
-                         kernel: str = "none", kernel_width: float = 1.0, linear_solver: str = "simplicial",
+                         kernel: str = "none", kernel_width: float = 1.0, linear_solver: str = "supernodal",
                          ordering: str = "amd", damping: str = "marquardt") -> IncrementalReport: ...
+@overload
+def optimize_incremental(graph: PoseGraph3D, poses_per_step: int = 100, algorithm: str = "gauss-newton",
+                         max_iterations: int = 10, relative_tolerance: float = 1e-6, step_tolerance: float = 1e-10,
+                         kernel: str = "none", kernel_width: float = 1.0, linear_solver: str = "supernodal",
+                         ordering: str = "metis", damping: str = "marquardt") -> IncrementalReport:
+    """Poses join in the order added; the graph so far is optimised every poses_per_step poses."""
 @overload
 def initialize_odometry(graph: PoseGraph2D) -> None:
     """Composes pose edges outward along a breadth-first spanning tree (dead reckoning)."""
 @overload
 def initialize_odometry(graph: PoseGraph3D) -> None: ...
-def initialize_chordal(graph: PoseGraph3D, linear_solver: str = "auto", ordering: str = "metis") -> None:
+def initialize_chordal(graph: PoseGraph3D, linear_solver: str = "supernodal", ordering: str = "metis") -> None:
     """Rotations by the chordal relaxation (projected onto SO(3)), then translations: exact without noise."""
 @overload
-def marginal_covariances(graph: PoseGraph2D, ids: Sequence[int], linear_solver: str = "simplicial",
+def marginal_covariances(graph: PoseGraph2D, ids: Sequence[int], linear_solver: str = "supernodal",
                          ordering: str = "amd") -> List[Array]:
     """(3, 3) per pose id, (2, 2) per point id; zero for a fixed vertex."""
 @overload
-def marginal_covariances(graph: PoseGraph3D, ids: Sequence[int], linear_solver: str = "auto",
+def marginal_covariances(graph: PoseGraph3D, ids: Sequence[int], linear_solver: str = "supernodal",
                          ordering: str = "metis") -> List[Array]:
     """(6, 6) per pose id in its tangent [translation, rotation vector]; zero for a fixed vertex."""
 @overload
-def joint_marginal_covariances(graph: PoseGraph2D, groups: Sequence[Sequence[int]], linear_solver: str = "simplicial",
+def joint_marginal_covariances(graph: PoseGraph2D, groups: Sequence[Sequence[int]], linear_solver: str = "supernodal",
                                ordering: str = "amd") -> List[Array]:
     """Per group, the joint covariance of its vertices stacked in order (3 per pose, 2 per point),
     cross-covariances included; zero rows and columns for a fixed vertex."""
 @overload
-def joint_marginal_covariances(graph: PoseGraph3D, groups: Sequence[Sequence[int]], linear_solver: str = "auto",
+def joint_marginal_covariances(graph: PoseGraph3D, groups: Sequence[Sequence[int]], linear_solver: str = "supernodal",
                                ordering: str = "metis") -> List[Array]: ...
 class PoseGraphReadReport:
     """What read_pose_graph_with_report did with the file's records."""

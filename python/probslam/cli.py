@@ -1158,7 +1158,7 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("--kernel", default="none", choices=["none", "huber", "cauchy"], help="robust kernel")
     o.add_argument("--kernel-width", type=float, default=1.0, help="kernel width, in units of sqrt(chi2)")
     o.add_argument("--linear-solver", default=None, choices=["simplicial", "supernodal", "auto"],
-                   help="sparse Cholesky: default simplicial for 2-D, auto (supernodal for large factors) for 3-D")
+                   help="sparse Cholesky: default supernodal")
     o.add_argument("--ordering", default=None, choices=["amd", "metis"],
                    help="fill-reducing ordering: default amd for 2-D, metis for 3-D")
     o.add_argument("--edges", action="store_true", help="draw every edge in the picture")

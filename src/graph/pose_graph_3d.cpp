@@ -17,9 +17,9 @@ Pose3 checked_pose(const Pose3& pose, const char* name) {
   require_all_finite(pose.translation, name);
   require_all_finite(pose.rotation.coeffs(), name);
   const double norm = pose.rotation.norm();
-  if (!(std::abs(norm - 1.0) <= PoseGraph3D::kQuaternionNormTolerance))
+  if (!(std::abs(norm - 1.0) <= kQuaternionNormTolerance))
     throw_invalid_argument(name, "quaternion must have norm 1 (within " +
-                                     std::to_string(PoseGraph3D::kQuaternionNormTolerance) + "), got norm " +
+                                     std::to_string(kQuaternionNormTolerance) + "), got norm " +
                                      std::to_string(norm));
   Pose3 out = pose;
   out.rotation.normalize();

@@ -1,6 +1,10 @@
 #include "probslam/graph/pose_graph_3d_initialization.hpp"
 
+#include <algorithm>
 #include <deque>
+
+#include "probslam/core/check.hpp"
+#include "probslam/graph/graph_optimizer.hpp"
 
 #include "pose_graph_3d_traits.hpp"
 
@@ -25,6 +29,27 @@ std::vector<char> held_vertices(const PoseGraph3D& graph) {
   return held;
 }
 
+// The value of `other`, an end of edge e, composed from its other end's value.
+Pose3 propagate(const PoseGraph3D& graph, const Pose3Edge& e, int other) {
+  return other == e.to ? compose(graph.vertex(e.from).value, e.measurement)
+                       : compose(graph.vertex(e.to).value, inverse(e.measurement));
+}
+
+// The first `count` vertices (indices kept) with the edges and priors among them.
+PoseGraph3D prefix_of(const PoseGraph3D& graph, int count) {
+  PoseGraph3D part;
+  for (int v = 0; v < count; ++v) {
+    part.add_pose(graph.vertex(v).id, graph.vertex(v).value);
+    if (graph.vertex(v).fixed) part.set_fixed(graph.vertex(v).id);
+  }
+  for (const Pose3Edge& e : graph.pose_edges())
+    if (e.from < count && e.to < count)
+      part.add_pose_edge(graph.vertex(e.from).id, graph.vertex(e.to).id, e.measurement, e.information);
+  for (const Pose3Prior& p : graph.pose_priors())
+    if (p.vertex < count) part.add_pose_prior(graph.vertex(p.vertex).id, p.measurement, p.information);
+  return part;
+}
+
 }  // namespace
 
 void initialize_odometry(PoseGraph3D& target) {
@@ -47,8 +72,7 @@ void initialize_odometry(PoseGraph3D& target) {
       const int other = e.from == v ? e.to : e.from;
       if (reached[other]) continue;
       reached[other] = 1;
-      graph.vertex(other).value = other == e.to ? compose(graph.vertex(v).value, e.measurement)
-                                                : compose(graph.vertex(v).value, inverse(e.measurement));
+      graph.vertex(other).value = propagate(graph, e, other);
       queue.push_back(other);
     }
   }
@@ -129,6 +153,36 @@ void initialize_chordal(PoseGraph3D& target, const SparseCholeskyOptions& linear
   for (int v = 0; v < n; ++v)
     if (!held[v]) graph.vertex(v).value.translation = t.segment<3>(translations.system().offset(v));
   target.assign_values(graph.values());
+}
+
+IncrementalReport optimize_incremental(PoseGraph3D& target, const IncrementalOptions& options) {
+  require(options.poses_per_step >= 1, "poses_per_step", "must be >= 1");
+  require(target.num_vertices() > 0, "graph", "has no poses");
+  PoseGraph3D graph = target;  // committed only when every step succeeded
+  const int n = graph.num_vertices();
+  // Each pose's seed: its first edge (in the order added) to an earlier pose.
+  std::vector<int> parent(n, -1);
+  for (int k = 0; k < static_cast<int>(graph.pose_edges().size()); ++k) {
+    const Pose3Edge& e = graph.pose_edges()[k];
+    const int later = std::max(e.from, e.to);
+    if (parent[later] < 0) parent[later] = k;
+  }
+  IncrementalReport report;
+  for (int start = 0; start < n; start += options.poses_per_step) {
+    const int end = std::min(n, start + options.poses_per_step);
+    for (int v = start; v < end; ++v)
+      if (!graph.vertex(v).fixed && parent[v] >= 0) graph.vertex(v).value = propagate(graph, graph.pose_edges()[parent[v]], v);
+    PoseGraph3D part = prefix_of(graph, end);
+    if (part.pose_edges().empty() && part.pose_priors().empty()) continue;  // a lone first pose
+    const OptimizationReport r = optimize(part, options.step);
+    for (int v = 0; v < end; ++v) graph.vertex(v).value = part.vertex(v).value;
+    ++report.steps;
+    report.iterations += r.iterations;
+    report.step_chi2.push_back(r.chi2);
+  }
+  report.chi2 = graph.chi2();
+  target.assign_values(graph.values());
+  return report;
 }
 
 }  // namespace probslam

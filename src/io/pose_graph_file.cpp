@@ -24,10 +24,6 @@ using io_detail::LineError;
 using io_detail::LineParseError;
 using io_detail::RowLog;
 
-// The longest line read: a g2o / TORO / iSAM record is a few hundred bytes (a FIX line listing
-// ids may be longer); a longer line is a corrupt or foreign file, refused before it is buffered.
-constexpr std::size_t kMaxLineBytes = std::size_t{1} << 20;
-
 struct VertexRecord {
   long line;
   int id;
@@ -290,23 +286,12 @@ PoseGraphRead parse_pose_graph(std::istream& in, const PoseGraphReadOptions& opt
   PoseGraphReadReport report;
   RowLog rows(options.rows, report);
   Records records;
-  PoseGraphFormat format = options.format;
-  io_detail::for_each_record(
-      in, source,
-      [&](const Fields& fields, const LineError& err, long line) {
-        ++report.rows;
-        const std::string tag(fields.token(0));
-        // Fatal under both row policies: no line of the file can be read as 2-D.
-        if (is_3d_tag(tag))
-          throw std::invalid_argument(source + ":" + std::to_string(line) + ": this is a 3-D graph (" + tag +
-                                      "): use read_pose_graph_3d (Python: probslam.io.read_pose_graph_3d)");
-        if (format == PoseGraphFormat::kAuto) format = detect(tag);
-        rows.row([&] { parse_line(fields, tag, format, own_noise(options.noise, format), line, err, records); });
-      },
-      kMaxLineBytes);
-  rows.require_few_skipped();
-  if (records.edges.empty() && records.vertices.empty())
-    throw std::invalid_argument(source + ": no vertices or edges");
+  const PoseGraphFormat format = io_detail::read_graph_records(
+      in, source, options.format, report, rows, records, "3-D",
+      "use read_pose_graph_3d (Python: probslam.io.read_pose_graph_3d)", is_3d_tag, detect,
+      [&](const Fields& fields, const std::string& tag, PoseGraphFormat f, long line, const LineError& err) {
+        parse_line(fields, tag, f, own_noise(options.noise, f), line, err, records);
+      });
   PoseGraph2D graph = build(records, format, source, rows);
   rows.require_few_skipped();  // again: building may have skipped more
   return {std::move(graph), std::move(report)};

@@ -21,8 +21,6 @@ using io_detail::LineError;
 using io_detail::LineParseError;
 using io_detail::RowLog;
 
-// As the 2-D reader: a record is a few hundred bytes; a longer line is corrupt or foreign.
-constexpr std::size_t kMaxLineBytes = std::size_t{1} << 20;
 // Squared norm of a quaternion that is unit to rounding: a few ulps of 1. Such a quaternion is
 // kept as it is, so that a graph written with 17 digits reads back bit for bit.
 constexpr double kUnitSquaredNormSlack = 8 * std::numeric_limits<double>::epsilon();
@@ -308,23 +306,12 @@ PoseGraph3DRead parse_pose_graph_3d(std::istream& in, const PoseGraphReadOptions
   PoseGraphReadReport report;
   RowLog rows(options.rows, report);
   Records records;
-  PoseGraphFormat format = options.format;
-  io_detail::for_each_record(
-      in, source,
-      [&](const Fields& fields, const LineError& err, long line) {
-        ++report.rows;
-        const std::string tag(fields.token(0));
-        // Fatal under both row policies: no line of the file can be read as 3-D.
-        if (is_2d_tag(tag))
-          throw std::invalid_argument(source + ":" + std::to_string(line) + ": this is a 2-D graph (" + tag +
-                                      "): use read_pose_graph (Python: probslam.graph.read_pose_graph)");
-        if (format == PoseGraphFormat::kAuto) format = detect(tag);
-        rows.row([&] { parse_line(fields, tag, format, own_noise(options.noise, format), line, err, records); });
-      },
-      kMaxLineBytes);
-  rows.require_few_skipped();
-  if (records.edges.empty() && records.vertices.empty())
-    throw std::invalid_argument(source + ": no vertices or edges");
+  const PoseGraphFormat format = io_detail::read_graph_records(
+      in, source, options.format, report, rows, records, "2-D",
+      "use read_pose_graph (Python: probslam.graph.read_pose_graph)", is_2d_tag, detect,
+      [&](const Fields& fields, const std::string& tag, PoseGraphFormat f, long line, const LineError& err) {
+        parse_line(fields, tag, f, own_noise(options.noise, f), line, err, records);
+      });
   PoseGraph3DData graph = build(records, source, rows);
   rows.require_few_skipped();  // again: building may have skipped more
   return {std::move(graph), std::move(report)};

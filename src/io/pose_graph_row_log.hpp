@@ -1,6 +1,9 @@
 #pragma once
 // The row policy of the pose graph readers (2-D and 3-D) at work: a record's error is rethrown
-// (RowPolicy::kStrict) or counted and listed in the report (kSkipAndCount).
+// (RowPolicy::kStrict) or counted and listed in the report (kSkipAndCount); and the record loop
+// both readers run under it.
+#include <cstddef>
+#include <istream>
 #include <sstream>
 #include <stdexcept>
 #include <string>
@@ -48,5 +51,37 @@ class RowLog {
   long first_line_ = 0;  // the first bad line in the file (build-time errors come after parse-time ones)
   std::string first_what_;
 };
+
+// The longest line read: a g2o / TORO / iSAM record is a few hundred bytes (a FIX line listing
+// ids may be longer); a longer line is a corrupt or foreign file, refused before it is buffered.
+constexpr std::size_t kPoseGraphMaxLineBytes = std::size_t{1} << 20;
+
+// The record loop of both pose-graph readers: every record counted and read by
+// parse(fields, tag, format, line, err) under the row policy, the format detected from the first
+// tag when it is kAuto. A record of the other dimension (is_other(tag)) is fatal under both
+// policies, since no line of the file can be read: the message says "this is a <other> graph
+// (TAG): <use>". Afterwards: too many bad rows, or a file without vertices and edges, throw.
+// Returns the format.
+template <class Records, class IsOther, class Detect, class Parse>
+PoseGraphFormat read_graph_records(std::istream& in, const std::string& source, PoseGraphFormat format,
+                                   PoseGraphReadReport& report, RowLog& rows, const Records& records,
+                                   const char* other, const char* use, IsOther&& is_other, Detect&& detect,
+                                   Parse&& parse) {
+  for_each_record(
+      in, source,
+      [&](const Fields& fields, const LineError& err, long line) {
+        ++report.rows;
+        const std::string tag(fields.token(0));
+        if (is_other(tag))
+          throw std::invalid_argument(source + ":" + std::to_string(line) + ": this is a " + other + " graph (" +
+                                      tag + "): " + use);
+        if (format == PoseGraphFormat::kAuto) format = detect(tag);
+        rows.row([&] { parse(fields, tag, format, line, err); });
+      },
+      kPoseGraphMaxLineBytes);
+  rows.require_few_skipped();
+  if (records.edges.empty() && records.vertices.empty()) throw std::invalid_argument(source + ": no vertices or edges");
+  return format;
+}
 
 }  // namespace probslam::io_detail

@@ -193,3 +193,39 @@ def test_bad_input_is_refused_and_leaves_the_graph_unchanged():
         probslam.initialize_chordal(g)
     assert np.array_equal(g.poses, before)
     assert "3 poses, 1 edges" in repr(g)
+
+
+def test_incremental_optimisation_reaches_the_batch_optimum_from_dead_reckoning():
+    """Poses join a few at a time, each seeded from its first edge to an earlier pose: the last
+    step optimises the whole graph, so with a tight last step the result is the batch optimum."""
+    truth, edges = random_graph(8, n=12)
+    rng = np.random.default_rng(9)
+    scrambled = [truth[0]] + [(Rotation.random(random_state=rng), rng.normal(size=3)) for _ in truth[1:]]
+    batch = build(truth, edges)
+    probslam.optimize(batch, relative_tolerance=0.0, step_tolerance=1e-12)
+    g = build(scrambled, edges)
+    report = probslam.optimize_incremental(g, poses_per_step=5, max_iterations=50, relative_tolerance=0.0,
+                                           step_tolerance=1e-12)
+    assert report.steps == 3 and len(report.step_chi2) == 3  # 12 poses, 5 a step
+    assert report.chi2 == pytest.approx(batch.chi2(), rel=1e-12)
+    assert report.step_chi2[-1] == pytest.approx(report.chi2, rel=1e-12)
+    assert np.abs(g.poses - batch.poses).max() < POSE_TOLERANCE
+
+
+def test_incremental_optimisation_of_an_exact_graph_is_exact_and_refuses_bad_input():
+    truth, edges = random_graph(10, n=9, noise=0.0)
+    rng = np.random.default_rng(11)
+    g = build([truth[0]] + [(Rotation.random(random_state=rng), rng.normal(size=3)) for _ in truth[1:]], edges)
+    before = g.poses
+    with pytest.raises(ValueError, match="poses_per_step"):
+        probslam.optimize_incremental(g, poses_per_step=0)
+    with pytest.raises(ValueError, match="algorithm"):
+        probslam.optimize_incremental(g, algorithm="newton")
+    assert np.array_equal(g.poses, before)
+    report = probslam.optimize_incremental(g, poses_per_step=2)
+    assert report.steps == 5
+    assert report.chi2 < 1e-16
+    for k, row in enumerate(g.poses):
+        r, t = from_row(row)
+        assert (r.inv() * truth[k][0]).magnitude() < EXACT_TOLERANCE
+        assert np.abs(t - truth[k][1]).max() < EXACT_TOLERANCE

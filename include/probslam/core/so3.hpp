@@ -7,6 +7,13 @@
 
 namespace probslam {
 
+/// |norm - 1| allowed of a quaternion handed in (a file, an array), which is then normalised:
+/// files print quaternions with 5-9 significant digits, and half a unit in the 5th decimal on each
+/// of four components moves the norm by at most 5e-6 * sum|q_i| <= 1e-5. Anything further is not
+/// a rotation (a raw rotation vector, a scale of 2 or 0.5, a zero quaternion). One value for the
+/// readers, PoseGraph3D and the bindings.
+constexpr double kQuaternionNormTolerance = 1e-5;
+
 /// The rotation by angle |w| about w / |w|.
 Eigen::Quaterniond so3_exp(const Eigen::Vector3d& w);
 /// The rotation vector of q, angle in [0, pi] (q and -q give the same).

@@ -58,7 +58,7 @@ class PoseGraph3D {
   std::mutex& mutex() const noexcept { return mutex_.get(); }
 
   /// Adds pose vertex `id`. Throws std::invalid_argument for a repeated id, a non-finite value or
-  /// a quaternion whose norm is not 1 within kQuaternionNormTolerance (it is stored normalised);
+  /// a quaternion whose norm is not 1 within kQuaternionNormTolerance (core/so3.hpp; it is stored normalised);
   /// the graph is then unchanged.
   void add_pose(int id, const Pose3& pose);
   /// Throws std::invalid_argument for an unknown id, from == to, a non-finite or non-unit
@@ -97,10 +97,6 @@ class PoseGraph3D {
   /// The objective: the sum over edges and priors; throws std::invalid_argument when it is not
   /// finite.
   double chi2() const;
-
-  /// |norm - 1| allowed of a quaternion handed in: files print quaternions with six to nine
-  /// significant digits, so their norms are off by up to ~1e-6; a larger error is not a rotation.
-  static constexpr double kQuaternionNormTolerance = 1e-5;
 
  private:
   std::vector<Pose3Vertex> vertices_;

@@ -4,6 +4,7 @@
 // rotations are what makes the problem non-convex, and a convex relaxation of them alone
 // (Carlone, Tron, Daniilidis and Dellaert, ICRA 2015, "chordal" initialisation) lands in the
 // right basin.
+#include "probslam/graph/graph_initialization.hpp"  // IncrementalOptions, IncrementalReport
 #include "probslam/graph/pose_graph_3d.hpp"
 #include "probslam/graph/sparse_cholesky.hpp"
 
@@ -27,5 +28,11 @@ void initialize_odometry(PoseGraph3D& graph);
 /// std::invalid_argument, graph unchanged, for a graph with no edges or a part not connected to
 /// a held vertex.
 void initialize_chordal(PoseGraph3D& graph, const SparseCholeskyOptions& linear_solver = {});
+
+/// Incremental batch optimisation, as for a PoseGraph2D (graph_initialization.hpp): poses join in
+/// the order they were added, each composed from its first edge to an earlier pose, and after
+/// every poses_per_step poses the graph of the poses so far (their edges and priors) is optimised
+/// with options.step. Throws std::invalid_argument, graph unchanged, as optimize does.
+IncrementalReport optimize_incremental(PoseGraph3D& graph, const IncrementalOptions& options = {});
 
 }  // namespace probslam

@@ -8,17 +8,12 @@
 #include <string>
 #include <vector>
 
+#include "probslam/core/so3.hpp"  // kQuaternionNormTolerance
 #include "probslam/io/pose_graph_file.hpp"  // PoseGraphReadOptions, PoseGraphReadReport, RowPolicy
 
 namespace probslam {
 
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
-
-/// Files print quaternions with 6-9 digits: half a unit in the 6th decimal on each of four
-/// components moves the norm by at most 5e-7 * sum|q_i| <= 1e-6, and the writer's own rounding
-/// before printing adds a little; twice that bound separates a rounded unit quaternion from a
-/// wrong one (a raw rotation vector, a scale of 2 or 0.5, a zero quaternion).
-constexpr double kQuaternionNormTolerance = 2e-6;
 
 /// A pose x = (q, t): world <- body, p_world = q * p_body + t. q is unit (normalised on reading).
 struct Vertex3D {
