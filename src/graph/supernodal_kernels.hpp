@@ -8,7 +8,10 @@
 // The AVX2 copy compiles Eigen under another namespace name (supernodal_kernels_avx2.cpp), so no
 // Eigen function compiled with AVX2 can stand in for the SSE2 one elsewhere in the program (the
 // linker keeps one copy of each inline function, whichever object it comes from); it uses no
-// std:: template the rest of the library instantiates, for the same reason.
+// std:: template the rest of the library instantiates, for the same reason. What remains: the
+// small std:: helpers Eigen calls (std::min, std::max), inlined at -O1 and above; an -O0 build
+// might emit them out of line with AVX encodings and have the linker pick those, which matters
+// only on a CPU without AVX2 running a debug build.
 namespace probslam::graph_detail {
 
 /// CHOLMOD's supernodal analysis and the lower triangle of P A P^T, as arrays.
