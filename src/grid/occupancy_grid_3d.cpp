@@ -45,9 +45,10 @@ std::size_t hash_slot(std::uint64_t packed, std::size_t mask) {
 /// Hits are applied as they come; misses only claim their voxels (a bit each), and
 /// OccupancyGrid3D::apply_claimed_misses updates the claimed voxels once every ray is walked:
 /// a voxel hit or claimed once is left alone by the rest of the scan, as in OctoMap, where a
-/// voxel both hit and crossed counts as hit. Serial flavour: creates blocks on demand. Concurrent flavour: never creates a block (the
-/// block table is read-only while several walk), claims voxels with atomic bit operations, and
-/// reports rays that reached a missing block so that the caller re-walks them serially.
+/// voxel both hit and crossed counts as hit. Serial flavour: creates blocks on demand.
+/// Concurrent flavour: never creates a block (the block table is read-only while several walk),
+/// claims voxels with atomic bit operations, and reports rays that reached a missing block so
+/// that the caller re-walks them serially.
 template <bool Concurrent>
 class VoxelStoreT {
  public:
@@ -72,7 +73,8 @@ class VoxelStoreT {
     const std::uint64_t packed = (key >> b) & (field | (field << 16) | (field << 32));
     if (packed != cached_) select(packed);
     constexpr std::uint64_t m = OccupancyGrid3D::kBlockSide - 1;
-    const int x = static_cast<int>(key & m), y = static_cast<int>((key >> 16) & m), z = static_cast<int>((key >> 32) & m);
+    const int x = static_cast<int>(key & m), y = static_cast<int>((key >> 16) & m);
+    const int z = static_cast<int>((key >> 32) & m);
     return update_in_block(CellKey<3>{x, y, z}, false);
   }
 
@@ -119,9 +121,9 @@ class VoxelStoreT {
   ///
   /// Where both ends lie in the key range (every ray of a lidar scan but the rare one leaving
   /// the 6.5 km range), the walk is walk_ray's, with its arithmetic step for step (so the same
-  /// voxels, OctoMap's), fused with the update: the axis to step is selected without a branch,
-  /// the key range is checked per step rather than through a box, and the voxel's block is only
-  /// looked up again when the step crosses a block face. Other rays take walk_ray_in_box.
+  /// voxels, OctoMap's), specialised: the axis to step is selected without a branch, the key
+  /// range is checked per step rather than through a box, and the keys are claimed in batches,
+  /// their block looked up only when it changes. Other rays take walk_ray_in_box.
   std::size_t miss_ray(const float* origin, const float* end) {
     const OctreeLattice& lat = g_.lattice_;
     int k[3], key_end[3];

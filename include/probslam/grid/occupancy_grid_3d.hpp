@@ -204,7 +204,8 @@ class OccupancyGrid3D {
   /// The miss update of every voxel a scan's ray walks claimed in these blocks: their changed
   /// bits but those in hit_words (the words of the first blocks as the hits left them). Returns
   /// the number of voxels updated.
-  std::size_t apply_claimed_misses(const std::vector<std::uint32_t>& touched, const std::vector<std::uint64_t>& hit_words);
+  std::size_t apply_claimed_misses(const std::vector<std::uint32_t>& touched,
+                                   const std::vector<std::uint64_t>& hit_words);
   /// Clears the per-scan "changed" bits of the blocks a scan touched.
   void end_scan(const std::vector<std::uint32_t>& touched);
   /// Ends a scan (end_scan) when it goes out of scope, on an exception too: marks left set would
