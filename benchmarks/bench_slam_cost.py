@@ -10,15 +10,21 @@ scan to the final map, and reports. CPU s: the process's processor time over run
 duration over that. Stage columns: processor seconds from the object's timings (the stages do not
 add up to CPU s: the bindings, Python and the summary are outside them).
 
-MRPT (icp-slam, rbpf-slam from Debian's mrpt-apps) is compared only when `icp-slam` is on PATH; it
-is not installed here, so those rows are skipped with a note. (MRPT 2.5.8's carmen2rawlog does not
-serve for that comparison: it stamps every observation with the same time, assumes 0.5 degree beams
-and an 81 m maximum range, and writes observation-only rawlogs rbpf-slam cannot read; a converter
-writing action / sensory-frame pairs with the FLASER timestamps, 1 degree beams and max-range
-readings invalid is needed, and not written yet.)
+MRPT (Debian's mrpt-apps 2.5.8) runs beside probslam when `icp-slam` / `rbpf-slam` are on PATH
+(methods mrpt-icp, mrpt-rbpf; skipped with a note otherwise): icp-slam with its shipped
+icp-slam_demo_classic.ini (no loop closure), rbpf-slam with gridmapping_optimal_sampling.ini and
+30 particles, each only with its input, output directory and no windows / images / 3-D scenes
+changed. Their input is written by mrpt_rawlog.py (beside this script): MRPT 2.5.8's own
+carmen2rawlog does not serve, as it stamps every observation with the conversion time, assumes
+0.5 degree beams and an 81 m maximum range, and writes an observations-only rawlog rbpf-slam
+cannot read; mrpt_rawlog.py writes action / sensory-frame pairs (the odometry increment, the
+scan) with the FLASER timestamps, the log's 1 degree beams and max-range readings invalid. CPU s
+and peak RSS are the MRPT process's own (os.wait4's resource usage; the conversion excluded);
+the relations error scores MRPT's log_estimated_path.txt (its pose after each scan; for the RBPF
+the particles' estimate at that step, as MRPT writes it).
 
-    .venv/bin/python benchmarks/bench_slam_cost.py [--logs aces intel fr079] [--methods graph rbpf]
-        [--scans N] [--record]
+    .venv/bin/python benchmarks/bench_slam_cost.py [--logs aces intel fr079]
+        [--methods graph rbpf mrpt-icp mrpt-rbpf] [--scans N] [--record]
 
 --scans N runs the first N scans of each log (a smoke run; not recorded). Missing logs are skipped.
 --runs FILE appends each run's measurements to FILE (JSON lines) and takes the runs FILE holds
@@ -92,6 +98,100 @@ def run(name: str, method: str, scans: int):
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
+MRPT_CONFIGS = pathlib.Path(os.environ.get("MRPT_CONFIG_FILES", "/usr/share/mrpt/config_files"))
+#: MRPT's runs: (binary, shipped config, the settings changed besides input and output, label).
+MRPT = {"mrpt-icp": ("icp-slam", "icp-slam/icp-slam_demo_classic.ini", {}, "MRPT icp-slam (no loop closure)"),
+        "mrpt-rbpf": ("rbpf-slam", "rbpf-slam/gridmapping_optimal_sampling.ini",
+                      {"sampleSize": 30, "verbosity_level": "INFO"},
+                      "MRPT rbpf-slam, optimal sampling, 30 particles")}
+#: Display and output switches turned off where a config has them: no windows, images or 3-D
+#: scenes (the apps' own work is what is timed).
+MRPT_QUIET = {"SHOW_PROGRESS_3D_REAL_TIME": 0, "SHOW_PROGRESS_IN_WINDOW": 0, "SAVE_3D_SCENE": 0,
+              "SAVE_MAP_IMAGES": 0, "SAVE_POSE_LOG": 0, "LOG_FREQUENCY": 0}
+
+
+def mrpt_config(template: pathlib.Path, out: pathlib.Path, values: dict, required=()) -> None:
+    """Copy an MRPT .ini, setting the [MappingApplication] keys in `values` that it has (those in
+    `required` must be there)."""
+    import re
+
+    lines, section, seen = [], None, set()
+    for line in template.read_text().splitlines():
+        head = re.match(r"\s*\[(.*)\]", line)
+        key = re.match(r"\s*([A-Za-z_0-9]+)\s*=", line)
+        if head:
+            section = head.group(1)
+        elif section == "MappingApplication" and key and key.group(1) in values:
+            line = f"{key.group(1)}={values[key.group(1)]}"
+            seen.add(key.group(1))
+        lines.append(line)
+    missing = set(required) - seen
+    if missing:
+        raise SystemExit(f"bench_slam_cost: {template} has no {sorted(missing)} in [MappingApplication]")
+    out.write_text("\n".join(lines) + "\n")
+
+
+def mrpt_available(method: str):
+    """None if MRPT's `method` can run here, else why not."""
+    binary, config = MRPT[method][:2]
+    if shutil.which(binary) is None:
+        return f"`{binary}` is not on PATH (Debian's mrpt-apps is not installed)"
+    if not (MRPT_CONFIGS / config).exists():
+        return f"{MRPT_CONFIGS / config} not found (Debian's mrpt-common holds MRPT's shipped configs)"
+    return None
+
+
+def mrpt_run(name: str, method: str, scans: int):
+    """One MRPT run on the log converted by mrpt_rawlog.py; the measurements as run() returns."""
+    import dataclasses
+    import tempfile
+
+    import numpy as np
+
+    import probslam as ps
+    import probslam.eval
+    from mrpt_rawlog import compose, laser_mount, write_rawlog
+
+    log = ps.io.read_carmen_log(LASER / LOGS[name][1]).scans
+    if scans:
+        log = ps.io.LaserScans(**{f.name: getattr(log, f.name)[:scans] for f in dataclasses.fields(log)})
+    binary, config, settings, _ = MRPT[method]
+    with tempfile.TemporaryDirectory(prefix="bench_slam_cost_mrpt_") as tmp:
+        tmp = pathlib.Path(tmp)
+        rawlog, ini, output = tmp / f"{name}.rawlog", tmp / "config.ini", tmp / "out"
+        with open(rawlog, "wb") as f:
+            write_rawlog(log, f)
+        mrpt_config(MRPT_CONFIGS / config, ini, dict(MRPT_QUIET, rawlog_file=rawlog, logOutput_dir=output, **settings),
+                    required=["rawlog_file", "logOutput_dir", *settings])
+        with open(tmp / "console.txt", "wb") as console:
+            w0 = time.perf_counter()
+            child = subprocess.Popen([binary, str(ini)], stdout=console, stderr=subprocess.STDOUT, cwd=tmp)
+            # The child's own resource usage (its CPU time and peak RSS), not the sum over this
+            # script's children that RUSAGE_CHILDREN would give.
+            _, status, usage = os.wait4(child.pid, 0)
+            wall = time.perf_counter() - w0
+        child.returncode = os.waitstatus_to_exitcode(status)
+        if child.returncode != 0:
+            print((tmp / "console.txt").read_text(errors="replace")[-3000:], file=sys.stderr)
+            raise SystemExit(f"bench_slam_cost: {binary} on {name} failed ({child.returncode})")
+        # Rows: step (the rawlog's action / sensory-frame pair, i.e. the scan), x, y, heading
+        # (icp-slam: step x y phi; rbpf-slam: step x y z yaw pitch roll time).
+        path = np.loadtxt(output / "log_estimated_path.txt", ndmin=2)
+    steps = path[:, 0].astype(int)
+    robot = path[:, [1, 2, 3 if path.shape[1] == 4 else 4]]
+    out = dict(scans=len(log), cpu=usage.ru_utime + usage.ru_stime, wall=wall,
+               duration=float(log.timestamps[-1] - log.timestamps[0]), rss_read=None,
+               rss_peak=usage.ru_maxrss / 1024.0, relations=None, path_rows=len(steps))
+    if name == "aces" and RELATIONS.exists():
+        try:
+            poses = compose(robot, laser_mount(log))
+            e = ps.eval.relations_error(log.timestamps[steps], poses, ps.eval.read_relations(RELATIONS))
+            out["relations"] = [e.trans_mean, e.trans_std, len(e.used)]
+        except ValueError:
+            pass
+    return out
+
+
 GRAPH_STAGES = ("filter", "match", "insert", "closure_search", "closure_fields", "optimize", "final_map")
 RBPF_STAGES = ("filter", "corrector", "proposal", "resample", "map_update", "table_copies", "final_map")
 
@@ -99,7 +199,7 @@ RBPF_STAGES = ("filter", "corrector", "proposal", "resample", "map_update", "tab
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--logs", nargs="+", choices=list(LOGS), default=list(LOGS))
-    parser.add_argument("--methods", nargs="+", choices=list(METHODS), default=list(METHODS))
+    parser.add_argument("--methods", nargs="+", choices=[*METHODS, *MRPT], default=[*METHODS, *MRPT])
     parser.add_argument("--scans", type=int, default=0, help="the first N scans of each log (not recorded)")
     parser.add_argument("--record", action="store_true", help="write the tables into benchmarks/RESULTS.md")
     parser.add_argument("--runs", type=pathlib.Path, help="JSON lines of runs: taken when present, appended otherwise")
@@ -119,6 +219,7 @@ def main():
                 r = json.loads(line)
                 saved[(r["log"], r["method"], r["scans_asked"])] = r
     rows, graph_rows, rbpf_rows, memory_rows, notes, run_loads = [], [], [], [], [], []
+    mrpt_skipped = set()
     for name in args.logs:
         title, raw = LOGS[name]
         if not (LASER / raw).exists():
@@ -126,16 +227,25 @@ def main():
             continue
         for method in args.methods:
             r = saved.get((name, method, args.scans))
+            if r is None and method in MRPT and method not in mrpt_skipped and mrpt_available(method):
+                mrpt_skipped.add(method)
+                notes.append(f"{MRPT[method][3]}: {mrpt_available(method)}; its rows are skipped.")
+            if r is None and method in mrpt_skipped:
+                continue
             if r is None:
                 print(f"bench_slam_cost: {title} {method} ...", file=sys.stderr, flush=True)
-                r = dict(run(name, method, args.scans), log=name, method=method, scans_asked=args.scans,
-                         load=os.getloadavg()[0])
+                measured = mrpt_run(name, method, args.scans) if method in MRPT else run(name, method, args.scans)
+                r = dict(measured, log=name, method=method, scans_asked=args.scans, load=os.getloadavg()[0])
                 if args.runs is not None:
                     with open(args.runs, "a") as f:
                         f.write(json.dumps(r) + "\n")
             run_loads.append(r.get("load", load))
-            t = r["timings"]
             rel = f"{r['relations'][0]:.3f} m" if r["relations"] else "-"
+            if method in MRPT:
+                rows.append(f"| {title} | {MRPT[method][3]} | {r['scans']} | {r['cpu']:.1f} | "
+                            f"{r['duration'] / r['cpu']:.0f}x | {r['rss_peak']:.0f} MB | - | {rel} |")
+                continue
+            t = r["timings"]
             label = "GraphSLAM" if method == "graph" else "grid FastSLAM, 30 particles"
             rows.append(f"| {title} | {label} | {r['scans']} | {r['cpu']:.1f} | {r['duration'] / r['cpu']:.0f}x | "
                         f"{r['rss_peak']:.0f} MB | {r['rss_read']:.0f} MB | {rel} |")
@@ -155,13 +265,6 @@ def main():
     if not rows:
         print(f"bench_slam_cost: no raw log found under {LASER}; nothing to run")
         return
-    if shutil.which("icp-slam") is None:
-        notes.append("MRPT: `icp-slam` is not on PATH (Debian's mrpt-apps is not installed here): its rows are "
-                     "skipped. issue 40's figures on ACES, measured elsewhere: icp-slam 2.8 CPU s (488x), "
-                     "rbpf-slam 30 particles 19.5 CPU s (70x), 1.3 GB.")
-    else:
-        notes.append("MRPT: `icp-slam` is on PATH, but the CARMEN-to-rawlog converter its runs need is not "
-                     "written yet (see the script's docstring): skipped.")
     title = "SLAM cost on raw laser logs" + (f" (first {args.scans} scans)" if args.scans else "")
     lines = heading(title, "Each run in a fresh process, one thread (runs gathered with --runs may have run side by "
                     "side; CPU s is each process's own).",
@@ -175,13 +278,15 @@ def main():
     if rbpf_rows:
         lines += ["", "Grid FastSLAM, processor seconds per stage (table_copies is part of map_update):", "",
                   "| log | " + " | ".join(RBPF_STAGES) + " |", "|" + "---|" * (len(RBPF_STAGES) + 1), *rbpf_rows]
-    lines += ["", "What holds the memory at the end (MiB):", "", "| log | method | held |", "|---|---|---|",
-              *memory_rows]
+    if memory_rows:
+        lines += ["", "What holds the memory at the end (MiB):", "", "| log | method | held |", "|---|---|---|",
+                  *memory_rows]
     lines += ["", *notes,
               f"Load average at the start: {load:.2f} (on {os.cpu_count()} cores; of the runs: "
               f"{', '.join(f'{v:.1f}' for v in run_loads)}); CPU s is processor time, "
               "which a shared machine's load inflates less than wall time. Real time per core = log duration / "
-              "CPU s. Peak RSS: the whole process (Python, numpy, the log read: the column after it).",
+              "CPU s. Peak RSS: the whole process (Python, numpy, the log read: the column after it; MRPT's rows: "
+              "the MRPT process, which reads the rawlog mrpt_rawlog.py wrote).",
               f"Command: `python benchmarks/bench_slam_cost.py --logs {' '.join(args.logs)} "
               f"--methods {' '.join(args.methods)}{f' --scans {args.scans}' if args.scans else ''}`.", ""]
     report(lines, record=args.record and not args.scans)

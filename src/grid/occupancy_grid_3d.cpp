@@ -41,10 +41,14 @@ std::size_t hash_slot(std::uint64_t packed, std::size_t mask) {
 
 }  // namespace
 
-/// The grid as apply_scan sees it: OctoMap's key range, voxels that change once per scan.
-/// Serial flavour: creates blocks on demand. Concurrent flavour: never creates a block (the
-/// block table is read-only while several walk), claims voxels with atomic bit operations, and
-/// reports rays that reached a missing block so that the caller re-walks them serially.
+/// The grid as a scan's update sees it: OctoMap's key range, voxels that change once per scan.
+/// Hits are applied as they come; misses only claim their voxels (a bit each), and
+/// OccupancyGrid3D::apply_claimed_misses updates the claimed voxels once every ray is walked:
+/// a voxel hit or claimed once is left alone by the rest of the scan, as in OctoMap, where a
+/// voxel both hit and crossed counts as hit. Serial flavour: creates blocks on demand.
+/// Concurrent flavour: never creates a block (the block table is read-only while several walk),
+/// claims voxels with atomic bit operations, and reports rays that reached a missing block so
+/// that the caller re-walks them serially.
 template <bool Concurrent>
 class VoxelStoreT {
  public:
@@ -53,9 +57,28 @@ class VoxelStoreT {
   bool contains(const CellKey<3>& k) const { return OctreeLattice::valid(k); }
   KeyBox<3> box() const { return OctreeLattice::key_box(); }
 
+  /// A hit updates the voxel now; a miss claims it (see update_in_block).
   bool update_once(const CellKey<3>& k, bool hit) {
     const std::uint64_t packed = OccupancyGrid3D::pack(k);
     if (packed != cached_) select(packed);
+    return update_in_block(k, hit);
+  }
+
+ private:
+  /// update_once(k, false) for miss_ray's keys, packed 16 bits per axis: the block key and the
+  /// voxel index come out of the packed key with a few shifts and masks.
+  bool claim(std::uint64_t key) {
+    constexpr int b = OccupancyGrid3D::kBlockBits;
+    constexpr std::uint64_t field = (std::uint64_t{1} << (16 - b)) - 1;  // a block coordinate
+    const std::uint64_t packed = (key >> b) & (field | (field << 16) | (field << 32));
+    if (packed != cached_) select(packed);
+    constexpr std::uint64_t m = OccupancyGrid3D::kBlockSide - 1;
+    const int x = static_cast<int>(key & m), y = static_cast<int>((key >> 16) & m);
+    const int z = static_cast<int>((key >> 32) & m);
+    return update_in_block(CellKey<3>{x, y, z}, false);
+  }
+
+  bool update_in_block(const CellKey<3>& k, bool hit) {
     if (Concurrent && values_ == nullptr) {
       missing_ = true;
       return false;
@@ -72,6 +95,10 @@ class VoxelStoreT {
       if (*word & bit) return false;
       *word |= bit;
     }
+    // A miss only claims the voxel: the claimed voxels' values are updated after the walk, block
+    // by block (apply_claimed_misses), so that the walk reads one bit per voxel and not its value
+    // (the values of a scan's voxels are far more than the cache holds).
+    if (!hit) return true;
     float& l = values_[v];
     float x = l;
     if (x != x) {  // unknown: OctoMap creates the node with log-odds 0
@@ -79,11 +106,106 @@ class VoxelStoreT {
       if constexpr (Concurrent) __atomic_fetch_add(known_, 1u, __ATOMIC_RELAXED);
       else ++*known_;
     }
-    x += hit ? g_.hit_ : g_.miss_;
+    x += g_.hit_;
     if (x < g_.lo_) x = g_.lo_;
     else if (x > g_.hi_) x = g_.hi_;
     l = x;
     return true;
+  }
+
+ public:
+  /// The miss half of one ray (apply_misses for a single segment): every voxel the ray from
+  /// origin to end crosses, origin's included and end's excluded, is claimed for the miss update
+  /// unless it changed already in this scan (OccupancyGrid3D::apply_claimed_misses updates the
+  /// claimed voxels). Returns the number of voxels claimed.
+  ///
+  /// Where both ends lie in the key range (every ray of a lidar scan but the rare one leaving
+  /// the 6.5 km range), the walk is walk_ray's, with its arithmetic step for step (so the same
+  /// voxels, OctoMap's), specialised: the axis to step is selected without a branch, the key
+  /// range is checked per step rather than through a box, and the keys are claimed in batches,
+  /// their block looked up only when it changes. Other rays take walk_ray_in_box.
+  std::size_t miss_ray(const float* origin, const float* end) {
+    const OctreeLattice& lat = g_.lattice_;
+    int k[3], key_end[3];
+    for (int i = 0; i < 3; ++i) {
+      k[i] = lat.key(i, origin[i]);
+      key_end[i] = lat.key(i, end[i]);
+    }
+    if (!OctreeLattice::valid({k[0], k[1], k[2]}) || !OctreeLattice::valid({key_end[0], key_end[1], key_end[2]})) {
+      std::size_t updated = 0;
+      walk_ray_in_box<3, float>(lat, OctreeLattice::key_box(), origin, end, [&](const CellKey<3>& key) {
+        updated += update_once(key, false);
+        return true;
+      });
+      return updated;
+    }
+    if (k[0] == key_end[0] && k[1] == key_end[1] && k[2] == key_end[2]) return 0;
+    // The origin's voxel: its block is looked up (the last ray may have ended in another).
+    std::size_t updated = update_once({k[0], k[1], k[2]}, false);
+
+    // walk_ray's set-up, operation for operation (float direction and length, double steps).
+    float direction[3];
+    float length_sq = 0;
+    for (int i = 0; i < 3; ++i) {
+      direction[i] = end[i] - origin[i];
+      length_sq += direction[i] * direction[i];
+    }
+    const float length = static_cast<float>(std::sqrt(static_cast<double>(length_sq)));
+    for (int i = 0; i < 3; ++i) direction[i] /= length;
+    int step[3];
+    double t_max[3], t_delta[3];
+    const double res = lat.resolution();
+    for (int i = 0; i < 3; ++i) {
+      step[i] = direction[i] > 0 ? 1 : (direction[i] < 0 ? -1 : 0);
+      if (step[i] != 0) {
+        double border = lat.key_to_coord(i, k[i]);
+        border += static_cast<float>(step[i] * res * 0.5);
+        t_max[i] = (border - origin[i]) / direction[i];
+        t_delta[i] = res / std::fabs(direction[i]);
+      } else {
+        t_max[i] = std::numeric_limits<double>::max();
+        t_delta[i] = std::numeric_limits<double>::max();
+      }
+    }
+    // The walk's state in scalars, stepped in batches into a buffer of voxel keys which is then
+    // claimed: a loop without calls keeps the state in registers and selects the axis with
+    // conditional moves (a call inside, to the block lookup, made the compiler keep the state
+    // in memory; arrays indexed by the axis did too).
+    int kx = k[0], ky = k[1], kz = k[2];
+    const int ex = key_end[0], ey = key_end[1], ez = key_end[2];
+    const int sx = step[0], sy = step[1], sz = step[2];
+    double tx = t_max[0], ty = t_max[1], tz = t_max[2];
+    const double dx = t_delta[0], dy = t_delta[1], dz = t_delta[2];
+    const double limit = length;
+    constexpr int kBatch = 256;
+    std::uint64_t batch[kBatch];  // keys packed 16 bits per axis (they are in the key range)
+    for (bool done = false; !done;) {
+      int n = 0;
+      while (n < kBatch) {
+        // walk_ray's choice: the lowest t_max, ties to the higher axis. Adding 0 leaves the
+        // other axes' t_max as they are (DBL_MAX included).
+        const bool x_before_y = tx < ty;
+        const bool along_z = !((x_before_y ? tx : ty) < tz);
+        const bool along_x = x_before_y && !along_z, along_y = !x_before_y && !along_z;
+        kx += along_x ? sx : 0;
+        ky += along_y ? sy : 0;
+        kz += along_z ? sz : 0;
+        tx += along_x ? dx : 0.0;
+        ty += along_y ? dy : 0.0;
+        tz += along_z ? dz : 0.0;
+        const double txy = ty < tx ? ty : tx;  // min by value (std::min's references spill)
+        if ((kx == ex && ky == ey && kz == ez) || (tz < txy ? tz : txy) > limit) {
+          done = true;
+          break;
+        }
+        // Rounding may carry the walk a voxel past the end's key on an axis: the range is checked.
+        if (!OctreeLattice::valid({kx, ky, kz})) continue;
+        batch[n++] = static_cast<std::uint64_t>(kx) | (static_cast<std::uint64_t>(ky) << 16) |
+                     (static_cast<std::uint64_t>(kz) << 32);
+      }
+      for (int i = 0; i < n; ++i) updated += claim(batch[i]);
+    }
+    return updated;
   }
 
   bool missing() const { return missing_; }
@@ -94,8 +216,14 @@ class VoxelStoreT {
  private:
   void select(std::uint64_t packed) {
     cached_ = packed;
+    // The blocks found lately, by their key's low bits: neighbouring rays cross the same blocks,
+    // and the hash table is too large to stay in cache (its probes were a tenth of a scan's time).
+    const std::size_t slot = (packed & kRecentMask) | (((packed >> 16) & kRecentMask) << kRecentBits) |
+                             (((packed >> 32) & kRecentMask) << (2 * kRecentBits));
     std::size_t b;
-    if constexpr (Concurrent) {
+    if (recent_key_[slot] == packed) {
+      b = recent_block_[slot];
+    } else if constexpr (Concurrent) {
       const std::int64_t found = g_.find_block(packed);
       if (found < 0) {
         values_ = nullptr;
@@ -103,22 +231,38 @@ class VoxelStoreT {
         return;
       }
       b = static_cast<std::size_t>(found);
-      if (__atomic_exchange_n(&g_.listed_[b], std::uint8_t{1}, __ATOMIC_RELAXED) == 0)
-        touched_.push_back(static_cast<std::uint32_t>(b));
     } else {
       b = g_.find_or_create_block(packed);
-      if (!g_.listed_[b]) {
-        g_.listed_[b] = 1;
+    }
+    recent_key_[slot] = packed;
+    recent_block_[slot] = static_cast<std::uint32_t>(b);
+    if constexpr (Concurrent) {
+      if (__atomic_exchange_n(&g_.listed_[b], std::uint8_t{1}, __ATOMIC_RELAXED) == 0)
         touched_.push_back(static_cast<std::uint32_t>(b));
-      }
+    } else if (!g_.listed_[b]) {
+      g_.listed_[b] = 1;
+      touched_.push_back(static_cast<std::uint32_t>(b));
     }
     values_ = g_.block_values(b);
     changed_ = g_.changed_.data() + b * OccupancyGrid3D::kWordsPerBlock;
     known_ = g_.known_.data() + b;
   }
 
+  // Blocks are indices into the grid's arrays, which only grow while a scan is applied (and not
+  // at all while the concurrent flavour walks): a remembered index stays valid.
+  static constexpr int kRecentBits = 3;  // per axis: the last 8 x 8 x 8 block neighbourhood
+  static constexpr std::uint64_t kRecentMask = (1u << kRecentBits) - 1;
+  static constexpr std::size_t kRecentSlots = std::size_t{1} << (3 * kRecentBits);
+
   OccupancyGrid3D& g_;
   std::vector<std::uint32_t>& touched_;
+  std::array<std::uint64_t, kRecentSlots> recent_key_ = filled_keys();
+  std::array<std::uint32_t, kRecentSlots> recent_block_{};
+  static std::array<std::uint64_t, kRecentSlots> filled_keys() {
+    std::array<std::uint64_t, kRecentSlots> keys;
+    keys.fill(~std::uint64_t{0});  // no packed key (48 bits) has all bits set
+    return keys;
+  }
   std::uint64_t cached_ = ~std::uint64_t{0};
   float* values_ = nullptr;
   std::uint64_t* changed_ = nullptr;
@@ -226,6 +370,44 @@ void OccupancyGrid3D::end_scan(const std::vector<std::uint32_t>& touched) {
   }
 }
 
+std::vector<std::uint64_t> OccupancyGrid3D::changed_words(const std::vector<std::uint32_t>& blocks) const {
+  std::vector<std::uint64_t> words(blocks.size() * kWordsPerBlock);
+  for (std::size_t j = 0; j < blocks.size(); ++j)
+    std::copy_n(changed_.data() + static_cast<std::size_t>(blocks[j]) * kWordsPerBlock, kWordsPerBlock,
+                words.data() + j * kWordsPerBlock);
+  return words;
+}
+
+std::size_t OccupancyGrid3D::apply_claimed_misses(const std::vector<std::uint32_t>& touched,
+                                                  const std::vector<std::uint64_t>& hit_words) {
+  const std::size_t hit_blocks = hit_words.size() / kWordsPerBlock;
+  std::size_t updated = 0;
+  for (std::size_t j = 0; j < touched.size(); ++j) {
+    const std::size_t b = touched[j];
+    float* values = block_values(b);
+    const std::uint64_t* changed = changed_.data() + b * kWordsPerBlock;
+    std::uint32_t became_known = 0;
+    for (int w = 0; w < kWordsPerBlock; ++w) {
+      std::uint64_t bits = changed[w] & ~(j < hit_blocks ? hit_words[j * kWordsPerBlock + w] : 0);
+      for (; bits != 0; bits &= bits - 1) {
+        float& l = values[64 * w + __builtin_ctzll(bits)];
+        float x = l;
+        if (x != x) {  // unknown: OctoMap creates the node with log-odds 0
+          x = 0.0f;
+          ++became_known;
+        }
+        x += miss_;
+        if (x < lo_) x = lo_;
+        else if (x > hi_) x = hi_;
+        l = x;
+        ++updated;
+      }
+    }
+    known_[b] += became_known;
+  }
+  return updated;
+}
+
 InsertStats3D OccupancyGrid3D::insert_point_cloud(const float* xyz, std::size_t n, const float origin[3],
                                                   double max_range, int threads) {
   require(std::isfinite(origin[0]) && std::isfinite(origin[1]) && std::isfinite(origin[2]), "origin",
@@ -282,7 +464,11 @@ InsertStats3D OccupancyGrid3D::insert_point_cloud(const float* xyz, std::size_t 
     ScanEnd guard(*this, touched);
     stats.voxels_updated = apply_hits(lattice_, store, scan);
     // computeRayKeys refuses a ray whose origin is outside the key range; the hits remain.
-    if (origin_valid) stats.voxels_updated += apply_misses(lattice_, store, scan, 0, scan.n);
+    if (origin_valid) {
+      const std::vector<std::uint64_t> hit_words = changed_words(touched);
+      for (std::size_t i = 0; i < scan.n; ++i) store.miss_ray(origin, scan.ends + 3 * i);
+      stats.voxels_updated += apply_claimed_misses(touched, hit_words);
+    }
     return stats;
   }
   // Every thread is started before anything changes: a refused thread leaves the map as it was.
@@ -339,7 +525,7 @@ std::size_t OccupancyGrid3D::insert_concurrently(WorkerPool& pool, const ScanSeg
         const std::size_t i = items[j];
         lookup.reset_missing();
         if (hits) updated += apply_hits(lattice_, lookup, ScanSegments<3, float>{origin, scan.ends + 3 * i, scan.is_hit + i, 1});
-        else updated += apply_misses(lattice_, lookup, scan, i, i + 1);
+        else lookup.miss_ray(origin, scan.ends + 3 * i);  // counted when applied
         if (lookup.missing() && !second_pass) deferred_by[w].push_back(static_cast<std::uint32_t>(i));
       }
       updated_by[w] += updated;
@@ -358,9 +544,16 @@ std::size_t OccupancyGrid3D::insert_concurrently(WorkerPool& pool, const ScanSeg
   };
   run(hit_points, true, false);
   finish(true);
+  // The voxels hit so far are the changed ones of the blocks each thread has listed.
+  std::vector<std::vector<std::uint64_t>> hit_words_by(workers);
+  for (std::size_t w = 0; w < workers; ++w) hit_words_by[w] = changed_words(touched_by[w]);
   run(order, false, false);
   finish(false);
+  // Each block is in one thread's list: the threads update disjoint blocks.
+  std::vector<std::size_t> applied_by(workers, 0);
+  pool.run([&](std::size_t w) { applied_by[w] = apply_claimed_misses(touched_by[w], hit_words_by[w]); });
   std::size_t updated = 0;
+  for (const std::size_t u : applied_by) updated += u;
   for (const std::size_t u : updated_by) updated += u;
   return updated;
 }

@@ -199,6 +199,13 @@ class OccupancyGrid3D {
   std::int64_t find_block(std::uint64_t packed) const;
   std::size_t find_or_create_block(std::uint64_t packed);
   void grow_table();
+  /// The "changed in this scan" words of these blocks, in their order (kWordsPerBlock each).
+  std::vector<std::uint64_t> changed_words(const std::vector<std::uint32_t>& blocks) const;
+  /// The miss update of every voxel a scan's ray walks claimed in these blocks: their changed
+  /// bits but those in hit_words (the words of the first blocks as the hits left them). Returns
+  /// the number of voxels updated.
+  std::size_t apply_claimed_misses(const std::vector<std::uint32_t>& touched,
+                                   const std::vector<std::uint64_t>& hit_words);
   /// Clears the per-scan "changed" bits of the blocks a scan touched.
   void end_scan(const std::vector<std::uint32_t>& touched);
   /// Ends a scan (end_scan) when it goes out of scope, on an exception too: marks left set would
