@@ -193,7 +193,7 @@ class SubmapSlam2D {
   /// The closure a scan of submap j makes with submap i, if it passes every test (counted).
   std::optional<SubmapConstraint> try_closure(int scan, int i, const std::vector<Eigen::Matrix3d>& marginals);
   void optimize_and_dissolve();
-  CorrelativeScanMatcher build_matcher(int submap);
+  CorrelativeScanMatcher build_matcher(int submap, int levels);
   /// Where the loop-closure field of a finished submap lies: its hits, widened by the field's
   /// reach (and the saved map's occupied extent for a run started from one).
   Eigen::Vector4d closure_region(int submap) const;
@@ -224,6 +224,7 @@ class SubmapSlam2D {
   std::optional<OccupancyGrid2D> start_map_;  // the saved map the run started from, unchanged
   Eigen::Vector4d start_map_bounds_ = Eigen::Vector4d::Zero();  // its occupied cells' (xmin, ymin, xmax, ymax)
   void set_start_map(const OccupancyGrid2D& map);
+  bool in_batch_ = false;  // add_scans' snapshot covers every scan it adds
   ObjectMutex mutex_;
 };
 
