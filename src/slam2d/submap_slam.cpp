@@ -222,7 +222,7 @@ void SubmapSlam2D::add_prepared(IncrementalScanMatcher::PendingScan&& scan, cons
   const ScanEstimate est = frontend_.commit(std::move(scan));
   points_.push_back(std::move(hits));
   ranges_.emplace_back(ranges);
-  angles_.emplace_back(beam_angles);
+  keep_angles(beam_angles);
   // The scan's offset from its submap's origin, and its covariance along the chain of matches.
   const int index = frontend_.num_scans() - 1;
   Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
@@ -247,6 +247,14 @@ void SubmapSlam2D::add_prepared(IncrementalScanMatcher::PendingScan&& scan, cons
     chain_pose_ = est.pose;
     chain_cov_.setZero();
     chain_submap_ = static_cast<int>(submaps_before);
+  }
+}
+
+void SubmapSlam2D::keep_angles(const Eigen::Ref<const Eigen::VectorXd>& beam_angles) {
+  if (!angles_.empty() && *angles_.back() == beam_angles) {
+    angles_.push_back(angles_.back());
+  } else {
+    angles_.push_back(std::make_shared<const Eigen::VectorXd>(beam_angles));
   }
 }
 
@@ -560,16 +568,17 @@ OccupancyGrid2D SubmapSlam2D::map(double resolution) const {
   ScanFilter filter = options_.frontend.filter;
   filter.clear_no_return = false;
   const double reach = filter.usable_range();
-  std::vector<Eigen::VectorXd> ranges(poses.size());
+  // The filtered ranges are computed again for the insertion rather than kept for every scan
+  // (they are cheap; all of them would be as large as the scans themselves).
   Eigen::Vector2d lo = poses[0].head<2>(), hi = lo;
   for (std::size_t s = 0; s < poses.size(); ++s) {
     // The extent of what the scan saw (hits and cleared space), not of the sensor's reach.
-    ranges[s] = ranges_for_insertion(ranges_[s], filter);
-    const Eigen::VectorXd& r = ranges[s];
+    const Eigen::VectorXd r = ranges_for_insertion(ranges_[s], filter);
+    const Eigen::VectorXd& angles = *angles_[s];
     const Pose2 p = pose_of(poses[s]);
     for (Eigen::Index b = 0; b < r.size(); ++b) {
       if (!std::isfinite(r[b])) continue;
-      const double a = p.theta + angles_[s][b];
+      const double a = p.theta + angles[b];
       const Eigen::Vector2d q(p.x + r[b] * std::cos(a), p.y + r[b] * std::sin(a));
       lo = lo.cwiseMin(q);
       hi = hi.cwiseMax(q);
@@ -579,7 +588,8 @@ OccupancyGrid2D SubmapSlam2D::map(double resolution) const {
   }
   OccupancyGrid2D grid = start_map_ ? start_map_->grown_to_include(lo.x() - res, lo.y() - res, hi.x() + res, hi.y() + res)
                                     : OccupancyGrid2D::covering(lo.x() - res, lo.y() - res, hi.x() + res, hi.y() + res, res);
-  for (std::size_t s = 0; s < poses.size(); ++s) grid.insert_rays(poses[s], ranges[s], angles_[s], reach);
+  for (std::size_t s = 0; s < poses.size(); ++s)
+    grid.insert_rays(poses[s], ranges_for_insertion(ranges_[s], filter), *angles_[s], reach);
   map_seconds_ += cpu_seconds() - t0;
   return grid;
 }
@@ -597,8 +607,10 @@ SubmapSlamTimings SubmapSlam2D::timings() const {
 
 SubmapSlamMemory SubmapSlam2D::memory() const {
   SubmapSlamMemory m;
-  for (std::size_t k = 0; k < ranges_.size(); ++k)
-    m.scans += 8.0 * static_cast<double>(ranges_[k].size() + angles_[k].size() + points_[k].size());
+  for (std::size_t k = 0; k < ranges_.size(); ++k) {
+    const bool shared = k > 0 && angles_[k] == angles_[k - 1];
+    m.scans += 8.0 * static_cast<double>(ranges_[k].size() + (shared ? 0 : angles_[k]->size()) + points_[k].size());
+  }
   m.scans += static_cast<double>(offset_cov_.size() * sizeof(Eigen::Matrix3d));
   m.submap_grids = frontend_.grid_bytes();
   for (const ObstacleCells& c : closure_cells_) m.closure_cells += static_cast<double>(c.bytes());

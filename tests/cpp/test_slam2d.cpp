@@ -189,6 +189,19 @@ TEST(Slam2dMatcher, BranchAndBoundEqualsBruteForce) {
   }
 }
 
+TEST(Slam2dMatcher, LevelsForWindowAsTheSearchPicksItsTopLevel) {
+  // +-0.3 m at 5 cm: 13 cells, spanned by a level-4 node (16); +-4 m: 161 cells, level 8 (256).
+  EXPECT_EQ(CorrelativeScanMatcher::levels_for_window(0.3, 0.05), 4);
+  EXPECT_EQ(CorrelativeScanMatcher::levels_for_window(4.0, 0.05), 8);
+  EXPECT_EQ(CorrelativeScanMatcher::levels_for_window(0.0, 0.05), 0);
+  EXPECT_EQ(CorrelativeScanMatcher::levels_for_window(1e6, 0.05), CorrelativeScanMatcher::kMaxLevel);
+  EXPECT_THROW(CorrelativeScanMatcher::levels_for_window(-1.0, 0.05), std::invalid_argument);
+  EXPECT_THROW(CorrelativeScanMatcher::levels_for_window(0.3, 0.0), std::invalid_argument);
+  CorrelativeScanMatcher m(LikelihoodField::from_grid(room_map()), 2);
+  EXPECT_THROW(m.extend_levels(CorrelativeScanMatcher::kMaxLevel + 1), std::invalid_argument);
+  EXPECT_EQ(m.max_level(), 2);
+}
+
 TEST(Slam2dMatcher, RecoversPoseInSimulatedRoom) {
   const CorrelativeScanMatcher m(LikelihoodField::from_grid(room_map()));
   std::mt19937 rng(3);
