@@ -766,7 +766,7 @@ class SubmapSlam2D:
                  closure_min_match_quality: float = 0.6, closure_window_sigmas: float = 3.0,
                  closure_min_linear_window: float = 0.3, closure_max_linear_window: float = 4.0,
                  closure_min_angular_window: float = 0.1, closure_max_angular_window: float = 0.7,
-                 closure_max_distance: float = 20.0, dissolve_chi2: float = 16.27, field_cache_mb: float = 128.0,
+                 closure_max_distance: float = 20.0, dissolve_chi2: float = 16.27, field_cache_mb: float = 48.0,
                  max_rounds: int = 10) -> None: ...
     def add_scans(self, ranges: ArrayLike, beam_angles: ArrayLike, odometry: ArrayLike,
                   timestamps: ArrayLike) -> None: ...

@@ -11,6 +11,7 @@
 #include "probslam/core/angle.hpp"
 #include "probslam/core/check.hpp"
 #include "probslam/core/pose2.hpp"
+#include "probslam/grid/ray_traversal.hpp"
 
 namespace probslam {
 
@@ -130,12 +131,38 @@ void MatchOptions::validate() const {
 CorrelativeScanMatcher::CorrelativeScanMatcher(LikelihoodField field, int max_level) : field_(std::move(field)) {
   require(max_level >= 0 && max_level <= kMaxLevel, "max_level", "must be in [0, 10]");
   floor_ = field_.floor_value();
-  pyramid_.resize(static_cast<std::size_t>(max_level) + 1);
+  pyramid_.resize(1);
   Level& base = pyramid_[0];
   base.width = field_.width();
   base.height = field_.height();
-  base.values.assign(field_.log_likelihood().data(), field_.log_likelihood().data() + field_.log_likelihood().size());
-  for (int k = 1; k <= max_level; ++k) {
+  extend_levels(max_level);
+}
+
+int CorrelativeScanMatcher::levels_for_window(double linear_window, double resolution) {
+  require(std::isfinite(linear_window) && linear_window >= 0.0, "linear_window", "must be finite and >= 0");
+  require_positive(resolution, "resolution");
+  // As match() picks its top level: the first whose node spans the 2W + 1 cells of the window.
+  const double cells = 2.0 * std::ceil(linear_window / resolution) + 1.0;
+  int levels = 0;
+  while (levels < kMaxLevel && (1 << levels) < cells) ++levels;
+  return levels;
+}
+
+double CorrelativeScanMatcher::bytes_for(int width, int height, int max_level) {
+  double b = 2.0 * sizeof(float) * width * height;  // the field's distances and log p
+  for (int k = 1; k <= max_level; ++k) b += sizeof(float) * double(width + (1 << k) - 1) * (height + (1 << k) - 1);
+  return b;
+}
+
+double CorrelativeScanMatcher::bytes() const { return bytes_for(field_.width(), field_.height(), max_level()); }
+
+void CorrelativeScanMatcher::extend_levels(int max_level) {
+  require(max_level >= 0 && max_level <= kMaxLevel, "max_level", "must be in [0, 10]");
+  const int built = static_cast<int>(pyramid_.size()) - 1;
+  if (max_level <= built) return;
+  pyramid_.resize(static_cast<std::size_t>(max_level) + 1);
+  const Level& base = pyramid_[0];
+  for (int k = built + 1; k <= max_level; ++k) {
     // Level k at (r, c): the maximum over rows [r, r + 2^k) and cols [c, c + 2^k), stored for
     // every window that meets the table (r, c >= -(2^k - 1)), from four level k-1 windows.
     Level& L = pyramid_[static_cast<std::size_t>(k)];
@@ -145,16 +172,25 @@ CorrelativeScanMatcher::CorrelativeScanMatcher(LikelihoodField field, int max_le
     L.height = base.height + L.pad;
     L.values.resize(static_cast<std::size_t>(L.width) * L.height);
     // In stored indices level k's (i, j) is the maximum of level k-1's (i - half | i, j - half | j)
-    // (the pads differ by half); outside level k-1 the floor. Rows first, then the column pair.
-    const Level& P = pyramid_[static_cast<std::size_t>(k - 1)];
-    std::vector<float> pair(static_cast<std::size_t>(P.width));
+    // (the pads differ by half); outside level k-1 the floor. Rows first, then the column pair,
+    // each a branch-free loop over a row padded with the floor on both sides (it vectorises).
+    const LevelView P = level_view(k - 1);
+    std::vector<float> pair(static_cast<std::size_t>(P.width) + 2 * half, floor_);
+    float* mid = pair.data() + half;
     for (int i = 0; i < L.height; ++i) {
-      const float* a = i - half >= 0 ? &P.values[static_cast<std::size_t>(i - half) * P.width] : nullptr;
-      const float* b = i < P.height ? &P.values[static_cast<std::size_t>(i) * P.width] : nullptr;
-      for (int j = 0; j < P.width; ++j) pair[j] = std::max(a ? a[j] : floor_, b ? b[j] : floor_);
+      const float* a = i - half >= 0 ? P.values + static_cast<std::size_t>(i - half) * P.width : nullptr;
+      const float* b = i < P.height ? P.values + static_cast<std::size_t>(i) * P.width : nullptr;
+      if (a && b) {
+        for (int j = 0; j < P.width; ++j) mid[j] = std::max(a[j], b[j]);
+      } else if (a || b) {
+        const float* one = a ? a : b;
+        for (int j = 0; j < P.width; ++j) mid[j] = std::max(one[j], floor_);
+      } else {  // an empty field
+        std::fill(mid, mid + P.width, floor_);
+      }
       float* out = &L.values[static_cast<std::size_t>(i) * L.width];
-      for (int j = 0; j < L.width; ++j)
-        out[j] = std::max(j - half >= 0 ? pair[j - half] : floor_, j < P.width ? pair[j] : floor_);
+      // out[j] = max(pair[j - half], pair[j]) with pair the floor outside [0, P.width).
+      for (int j = 0; j < L.width; ++j) out[j] = std::max(pair[j], mid[j]);
     }
   }
 }
@@ -444,13 +480,17 @@ MatchResult CorrelativeScanMatcher::match(const Eigen::Ref<const Points2>& point
   // Rotate once per angle and discretise once (at the prior translation).
   const int num_angles = 2 * sp.angular_steps + 1;
   sp.scans.resize(static_cast<std::size_t>(num_angles));
+  // The field's col_of / row_of, inlined: this runs for every point at every rotation.
+  const Eigen::Vector2d field_origin = field_.origin();
+  const double inv_res = 1.0 / res;
   for (int a = 0; a < num_angles; ++a) {
     const Eigen::Matrix2d R = rotation_matrix(prior.z() + sp.theta_offset(a));
     auto& cells = sp.scans[static_cast<std::size_t>(a)];
     cells.resize(static_cast<std::size_t>(points.rows()));
     for (Eigen::Index i = 0; i < points.rows(); ++i) {
       const Eigen::Vector2d q = R * points.row(i).transpose() + prior.head<2>();
-      cells[static_cast<std::size_t>(i)] = {field_.col_of(q.x()), field_.row_of(q.y())};
+      cells[static_cast<std::size_t>(i)] = {saturated_key((q.x() - field_origin.x()) * inv_res),
+                                            saturated_key((q.y() - field_origin.y()) * inv_res)};
     }
   }
 
@@ -458,7 +498,8 @@ MatchResult CorrelativeScanMatcher::match(const Eigen::Ref<const Points2>& point
   auto score_at = [&](int level, int a, int cx, int cy) {
     ++scored;
     double sum = 0.0;
-    for (const Cell& p : sp.scans[static_cast<std::size_t>(a)]) sum += level_value(level, p.row + cy, p.col + cx);
+    const LevelView L = level_view(level);
+    for (const Cell& p : sp.scans[static_cast<std::size_t>(a)]) sum += level_value(L, p.row + cy, p.col + cx);
     if (level == 0) return sum + sp.prior_term(a, cx, cy);
     const double bound = sum + sp.prior_bound(a, cx, cy, 1 << level);
     return bound + kBoundSlack * std::abs(bound);

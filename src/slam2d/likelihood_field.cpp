@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 
 #include "probslam/core/check.hpp"
@@ -52,6 +53,80 @@ void distance_transform_1d(const float* f, float* out, int n, int stride, std::v
     const float d = float(q - v[j]);
     out[static_cast<std::size_t>(q) * stride] = d * d + f[static_cast<std::size_t>(v[j]) * stride];
   }
+}
+
+/// Beyond this many cells of truncation the windowed transform below does more work per cell
+/// than the exact transform of the whole lattice (2K + 1 operations a cell against a few dozen).
+constexpr int kMaxWindowCells = 32;
+
+/// Squared distance (cells) from each cell to the nearest obstacle cell, exact wherever it is
+/// below `distinct`; elsewhere some value >= distinct (the field maps all of those to its
+/// truncation). A squared distance below distinct has both offsets within K = ceil(sqrt(distinct))
+/// cells, so the minimum over that window is exact there, and at least distinct wherever the
+/// true one is: a column sweep (vertical distance to the nearest obstacle, capped at K + 1)
+/// and a row pass over 2K + 1 offsets, both over contiguous rows (the separable exact
+/// transform walks columns with a stride, cache line by cache line: several times slower).
+std::vector<std::int32_t> squared_cell_distances(const ObstacleCells& obstacles, std::size_t distinct) {
+  const int W = obstacles.width, H = obstacles.height;
+  const std::size_t n = static_cast<std::size_t>(W) * H;
+  const int K = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(distinct))));
+  std::vector<std::int32_t> out(n);
+  if (K > kMaxWindowCells) {  // a long truncation: the exact transform (Felzenszwalb & Huttenlocher)
+    std::vector<float> sq(n), tmp(n);
+    for (std::size_t i = 0; i < n; ++i) sq[i] = obstacles.cells[i] != 0 ? 0.0f : kFar;
+    const int longest = std::max(W, H);
+    std::vector<int> v(static_cast<std::size_t>(longest) + 1);
+    std::vector<double> z(static_cast<std::size_t>(longest) + 2);
+    for (int c = 0; c < W; ++c) distance_transform_1d(sq.data() + c, tmp.data() + c, H, W, v, z);
+    for (int r = 0; r < H; ++r) {
+      const std::size_t off = static_cast<std::size_t>(r) * W;
+      distance_transform_1d(tmp.data() + off, sq.data() + off, W, 1, v, z);
+    }
+    const double limit = std::min(static_cast<double>(distinct), double(std::numeric_limits<std::int32_t>::max()));
+    for (std::size_t i = 0; i < n; ++i)
+      out[i] = static_cast<std::int32_t>(std::min(static_cast<double>(sq[i]), limit));  // inf -> limit
+    return out;
+  }
+  // Vertical distance to the nearest obstacle of the column, K + 1 for none within K.
+  const std::uint8_t none = static_cast<std::uint8_t>(K + 1);
+  std::vector<std::uint8_t> g(n);
+  const std::uint8_t* cells = obstacles.cells.data();
+  for (int r = 0; r < H; ++r) {
+    std::uint8_t* row = g.data() + static_cast<std::size_t>(r) * W;
+    const std::uint8_t* occ = cells + static_cast<std::size_t>(r) * W;
+    if (r == 0) {
+      for (int c = 0; c < W; ++c) row[c] = occ[c] != 0 ? 0 : none;
+      continue;
+    }
+    const std::uint8_t* above = row - W;
+    for (int c = 0; c < W; ++c)
+      row[c] = occ[c] != 0 ? 0 : std::min<std::uint8_t>(static_cast<std::uint8_t>(above[c] + 1), none);
+  }
+  for (int r = H - 2; r >= 0; --r) {
+    std::uint8_t* row = g.data() + static_cast<std::size_t>(r) * W;
+    const std::uint8_t* below = row + W;
+    for (int c = 0; c < W; ++c) row[c] = std::min<std::uint8_t>(row[c], static_cast<std::uint8_t>(below[c] + 1));
+  }
+  // Along each row: min over |dx| <= K of dx^2 + g^2, with `far` standing for no obstacle (far
+  // plus any dx^2 stays >= distinct). 16 bits: distinct + K^2 < 2^15 for K <= kMaxWindowCells,
+  // and eight cells a vector instruction.
+  const std::int16_t far = static_cast<std::int16_t>(distinct);
+  std::vector<std::int16_t> padded(static_cast<std::size_t>(W) + 2 * K, far), o(static_cast<std::size_t>(W));
+  for (int r = 0; r < H; ++r) {
+    const std::uint8_t* row = g.data() + static_cast<std::size_t>(r) * W;
+    std::int16_t* gsq = padded.data() + K;
+    for (int c = 0; c < W; ++c) gsq[c] = row[c] < none ? static_cast<std::int16_t>(row[c] * row[c]) : far;
+    for (int c = 0; c < W; ++c) o[c] = gsq[c];
+    for (int dx = 1; dx <= K; ++dx) {
+      const std::int16_t d2 = static_cast<std::int16_t>(dx * dx);
+      const std::int16_t* left = gsq - dx;
+      const std::int16_t* right = gsq + dx;
+      for (int c = 0; c < W; ++c)
+        o[c] = std::min(o[c], static_cast<std::int16_t>(std::min(left[c], right[c]) + d2));
+    }
+    std::copy(o.begin(), o.end(), out.begin() + static_cast<std::ptrdiff_t>(r) * W);
+  }
+  return out;
 }
 
 }  // namespace
@@ -111,29 +186,16 @@ LikelihoodField LikelihoodField::from_obstacles(const ObstacleCells& obstacles, 
   field.floor_ = static_cast<float>(std::log(options.p_rand));
   const std::size_t n = static_cast<std::size_t>(field.width_) * field.height_;
 
-  std::vector<float> sq(n);
-  for (std::size_t i = 0; i < n; ++i) {
-    const bool obstacle = obstacles.cells[i] != 0;
-    field.num_occupied_ += obstacle;
-    sq[i] = obstacle ? 0.0f : kFar;
-  }
-  // Separable exact EDT: columns, then rows (squared distances in cells).
-  std::vector<float> tmp(n);
-  const int longest = std::max(field.width_, field.height_);
-  std::vector<int> v(static_cast<std::size_t>(longest) + 1);
-  std::vector<double> z(static_cast<std::size_t>(longest) + 2);
-  for (int c = 0; c < field.width_; ++c)
-    distance_transform_1d(sq.data() + c, tmp.data() + c, field.height_, field.width_, v, z);
-  for (int r = 0; r < field.height_; ++r) {
-    const std::size_t off = static_cast<std::size_t>(r) * field.width_;
-    distance_transform_1d(tmp.data() + off, sq.data() + off, field.width_, 1, v, z);
-  }
-
+  field.num_occupied_ = static_cast<int>(n - static_cast<std::size_t>(std::count(obstacles.cells.begin(),
+                                                                                   obstacles.cells.end(), 0)));
   // Squared distances are whole numbers of cells, and every one beyond the truncation maps to
-  // it: the distance and log p of each are computed once, for the few below it.
+  // it: only the `distinct` values below it need be told apart (see the tables below).
   const double cap = options.truncation();
   const double cap_cells = cap * field.inv_res_ + 0.5;
   const std::size_t distinct = static_cast<std::size_t>(std::ceil(cap_cells * cap_cells)) + 1;
+  const std::vector<std::int32_t> sq = squared_cell_distances(obstacles, distinct);
+
+  // The distance and log p of each of those are computed once.
   std::vector<float> dist_of(distinct), logp_of(distinct);
   auto distance_of = [&](double sq_cells) {
     return std::min(cap, std::max(0.0, (std::sqrt(sq_cells) - 0.5) * field.res_));  // inf -> cap
@@ -146,7 +208,7 @@ LikelihoodField LikelihoodField::from_obstacles(const ObstacleCells& obstacles, 
   field.distance_.resize(n);
   field.log_likelihood_.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
-    const bool near = sq[i] < static_cast<float>(distinct);
+    const bool near = static_cast<std::size_t>(sq[i]) < distinct;
     const std::size_t k = near ? static_cast<std::size_t>(sq[i]) : 0;
     field.distance_[i] = near ? dist_of[k] : far_d;
     field.log_likelihood_[i] = near ? logp_of[k] : far_logp;
@@ -172,6 +234,7 @@ double LikelihoodField::log_likelihood_of_distance(double d) const {
   const double s = options_.sigma;
   return std::log((1.0 - options_.p_rand) * std::exp(-0.5 * d * d / (s * s)) + options_.p_rand);
 }
+
 
 int LikelihoodField::col_of(double x) const { return saturated_key((x - x0_) * inv_res_); }
 int LikelihoodField::row_of(double y) const { return saturated_key((y - y0_) * inv_res_); }

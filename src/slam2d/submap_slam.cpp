@@ -50,22 +50,28 @@ class SubmapSlam2D::FieldCache {
  public:
   explicit FieldCache(double budget) : budget_(budget) {}
 
-  /// The field of `submap`, built by `build` unless cached; `bytes` is what it holds.
-  const CorrelativeScanMatcher& get(int submap, double bytes, const std::function<CorrelativeScanMatcher()>& build) {
+  /// The field of `submap` with pyramid levels up to `levels` at least: built by `build(levels)`
+  /// unless cached, a cached one deepened when it has fewer.
+  CorrelativeScanMatcher& get(int submap, int levels, int width, int height,
+                              const std::function<CorrelativeScanMatcher(int)>& build) {
     const auto it = entries_.find(submap);
     if (it != entries_.end()) {
       order_.splice(order_.begin(), order_, it->second.position);
-      return *it->second.matcher;
+      Entry& e = it->second;
+      if (e.matcher->max_level() < levels) {
+        const double bytes = CorrelativeScanMatcher::bytes_for(width, height, levels);
+        make_room(bytes - e.bytes, submap);
+        e.matcher->extend_levels(levels);
+        used_ += bytes - e.bytes;
+        e.bytes = bytes;
+      }
+      return *e.matcher;
     }
     // Room is made before the build, so that the cache never holds more than its budget and
     // the field being built (the field's size is known from the cells it is built from).
-    while (used_ + bytes > budget_ && !order_.empty()) {
-      const int victim = order_.back();
-      order_.pop_back();
-      used_ -= entries_[victim].bytes;
-      entries_.erase(victim);
-    }
-    auto matcher = std::make_shared<CorrelativeScanMatcher>(build());
+    const double bytes = CorrelativeScanMatcher::bytes_for(width, height, levels);
+    make_room(bytes, -1);
+    auto matcher = std::make_shared<CorrelativeScanMatcher>(build(levels));
     order_.push_front(submap);
     entries_[submap] = Entry{matcher, bytes, order_.begin()};
     used_ += bytes;
@@ -73,6 +79,17 @@ class SubmapSlam2D::FieldCache {
   }
 
   double used() const { return used_; }
+
+  /// Evicts the least recently used fields (never `keep`) until `bytes` more fit the budget.
+  void make_room(double bytes, int keep) {
+    for (auto it = order_.end(); used_ + bytes > budget_ && it != order_.begin();) {
+      --it;
+      if (*it == keep) continue;
+      used_ -= entries_[*it].bytes;
+      entries_.erase(*it);
+      it = order_.erase(it);
+    }
+  }
 
   /// Forgets the fields of submaps `first` and later (a batch undone: they may change again).
   void forget_from(int first) {
@@ -181,7 +198,9 @@ void SubmapSlam2D::add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
                             double timestamp) {
   check_scan(ranges, beam_angles, odometry, timestamp);
   IncrementalScanMatcher::PendingScan scan = frontend_.prepare(ranges, beam_angles, odometry, timestamp);
-  if (!scan.open_next) {
+  // Within add_scans the batch's snapshot restores this scan too: a second copy of the open
+  // submap's grid would only raise the peak memory.
+  if (!scan.open_next || in_batch_) {
     add_prepared(std::move(scan), ranges, beam_angles);
     return;
   }
@@ -203,7 +222,7 @@ void SubmapSlam2D::add_prepared(IncrementalScanMatcher::PendingScan&& scan, cons
   const ScanEstimate est = frontend_.commit(std::move(scan));
   points_.push_back(std::move(hits));
   ranges_.emplace_back(ranges);
-  angles_.emplace_back(beam_angles);
+  keep_angles(beam_angles);
   // The scan's offset from its submap's origin, and its covariance along the chain of matches.
   const int index = frontend_.num_scans() - 1;
   Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
@@ -231,9 +250,22 @@ void SubmapSlam2D::add_prepared(IncrementalScanMatcher::PendingScan&& scan, cons
   }
 }
 
+void SubmapSlam2D::keep_angles(const Eigen::Ref<const Eigen::VectorXd>& beam_angles) {
+  if (!angles_.empty() && *angles_.back() == beam_angles) {
+    angles_.push_back(angles_.back());
+  } else {
+    angles_.push_back(std::make_shared<const Eigen::VectorXd>(beam_angles));
+  }
+}
+
 void SubmapSlam2D::add_scans(const Eigen::Ref<const RowMatrixXd>& ranges, const Eigen::Ref<const RowMatrixXd>& beam_angles,
                              const Eigen::Ref<const RowMatrixXd>& odometry,
                              const Eigen::Ref<const Eigen::VectorXd>& timestamps) {
+  struct Batch {  // reset however the batch ends
+    bool& flag;
+    ~Batch() { flag = false; }
+  } batch{in_batch_};
+  in_batch_ = ranges.rows() > 1;  // one row: add_scan alone, no batch snapshot (add_scan_rows)
   add_scan_rows(*this, ranges, beam_angles, odometry, timestamps);
 }
 
@@ -367,9 +399,15 @@ std::optional<SubmapConstraint> SubmapSlam2D::try_closure(int s, int i, const st
   attempts_[key] = predicted;
 
   const ObstacleCells& cells = closure_cells_[static_cast<std::size_t>(i)];
-  // The field's distances and log p, and the pyramid's levels: a float each per cell.
-  const double bytes = 4.0 * cells.width * cells.height * (kSearchLevels + 2);
-  const CorrelativeScanMatcher& matcher = fields_->get(i, bytes, [&] { return build_matcher(i); });
+  // The pyramid only as deep as this window needs (a search of a deeper one is the same
+  // search): most windows are a few decimetres, and the deep levels, padded by their span,
+  // are most of a field's bytes and build time.
+  const int levels =
+      std::min(kSearchLevels, CorrelativeScanMatcher::levels_for_window(m.window.linear, cells.resolution));
+  const double fields_before = timings_.closure_fields, t_field = cpu_seconds();
+  const CorrelativeScanMatcher& matcher =
+      fields_->get(i, levels, cells.width, cells.height, [&](int depth) { return build_matcher(i, depth); });
+  timings_.closure_fields = fields_before + (cpu_seconds() - t_field);  // a build's or a deepening's
   // log p >= (1 - h) log p_rand for a hit share h (log p is concave in h): a pose whose mean h
   // reaches min_match_quality scores at least this, and the search prunes everything below.
   m.min_score = kClosureScoreSlack * static_cast<double>(points_[s].rows()) * (1.0 - lc.min_match_quality) *
@@ -431,11 +469,11 @@ Eigen::Vector4d SubmapSlam2D::closure_region(int i) const {
   return Eigen::Vector4d(lo.x() - margin, lo.y() - margin, hi.x() + margin, hi.y() + margin);
 }
 
-CorrelativeScanMatcher SubmapSlam2D::build_matcher(int i) {
+CorrelativeScanMatcher SubmapSlam2D::build_matcher(int i, int levels) {
   const double t0 = cpu_seconds();
   CorrelativeScanMatcher matcher(LikelihoodField::from_obstacles(closure_cells_[static_cast<std::size_t>(i)],
                                                                  options_.frontend.field),
-                                 kSearchLevels);
+                                 levels);
   timings_.closure_fields += cpu_seconds() - t0;
   ++timings_.closure_fields_built;
   return matcher;
@@ -530,16 +568,17 @@ OccupancyGrid2D SubmapSlam2D::map(double resolution) const {
   ScanFilter filter = options_.frontend.filter;
   filter.clear_no_return = false;
   const double reach = filter.usable_range();
-  std::vector<Eigen::VectorXd> ranges(poses.size());
+  // The filtered ranges are computed again for the insertion rather than kept for every scan
+  // (they are cheap; all of them would be as large as the scans themselves).
   Eigen::Vector2d lo = poses[0].head<2>(), hi = lo;
   for (std::size_t s = 0; s < poses.size(); ++s) {
     // The extent of what the scan saw (hits and cleared space), not of the sensor's reach.
-    ranges[s] = ranges_for_insertion(ranges_[s], filter);
-    const Eigen::VectorXd& r = ranges[s];
+    const Eigen::VectorXd r = ranges_for_insertion(ranges_[s], filter);
+    const Eigen::VectorXd& angles = *angles_[s];
     const Pose2 p = pose_of(poses[s]);
     for (Eigen::Index b = 0; b < r.size(); ++b) {
       if (!std::isfinite(r[b])) continue;
-      const double a = p.theta + angles_[s][b];
+      const double a = p.theta + angles[b];
       const Eigen::Vector2d q(p.x + r[b] * std::cos(a), p.y + r[b] * std::sin(a));
       lo = lo.cwiseMin(q);
       hi = hi.cwiseMax(q);
@@ -549,7 +588,8 @@ OccupancyGrid2D SubmapSlam2D::map(double resolution) const {
   }
   OccupancyGrid2D grid = start_map_ ? start_map_->grown_to_include(lo.x() - res, lo.y() - res, hi.x() + res, hi.y() + res)
                                     : OccupancyGrid2D::covering(lo.x() - res, lo.y() - res, hi.x() + res, hi.y() + res, res);
-  for (std::size_t s = 0; s < poses.size(); ++s) grid.insert_rays(poses[s], ranges[s], angles_[s], reach);
+  for (std::size_t s = 0; s < poses.size(); ++s)
+    grid.insert_rays(poses[s], ranges_for_insertion(ranges_[s], filter), *angles_[s], reach);
   map_seconds_ += cpu_seconds() - t0;
   return grid;
 }
@@ -567,8 +607,10 @@ SubmapSlamTimings SubmapSlam2D::timings() const {
 
 SubmapSlamMemory SubmapSlam2D::memory() const {
   SubmapSlamMemory m;
-  for (std::size_t k = 0; k < ranges_.size(); ++k)
-    m.scans += 8.0 * static_cast<double>(ranges_[k].size() + angles_[k].size() + points_[k].size());
+  for (std::size_t k = 0; k < ranges_.size(); ++k) {
+    const bool shared = k > 0 && angles_[k] == angles_[k - 1];
+    m.scans += 8.0 * static_cast<double>(ranges_[k].size() + (shared ? 0 : angles_[k]->size()) + points_[k].size());
+  }
   m.scans += static_cast<double>(offset_cov_.size() * sizeof(Eigen::Matrix3d));
   m.submap_grids = frontend_.grid_bytes();
   for (const ObstacleCells& c : closure_cells_) m.closure_cells += static_cast<double>(c.bytes());

@@ -74,7 +74,7 @@ void SubmapSlam2D::write_state(StateWriter& w) const {
   w.count(ranges_.size());
   for (std::size_t k = 0; k < ranges_.size(); ++k) {
     w.matrix(ranges_[k]);
-    w.matrix(angles_[k]);
+    w.matrix(*angles_[k]);
   }
   w.matrix(chain_pose_);
   w.matrix(chain_cov_);
@@ -129,8 +129,8 @@ SubmapSlam2D SubmapSlam2D::read_state(StateReader& r) {
   if (ns != scans) r.fail("the scans stored do not match the frontend's");
   for (std::size_t k = 0; k < ns; ++k) {
     s.ranges_.push_back(r.matrix<Eigen::VectorXd>());
-    s.angles_.push_back(r.matrix<Eigen::VectorXd>());
-    if (s.ranges_.back().size() != s.angles_.back().size()) r.fail("a scan has not one angle per range");
+    s.keep_angles(r.matrix<Eigen::VectorXd>());
+    if (s.ranges_.back().size() != s.angles_.back()->size()) r.fail("a scan has not one angle per range");
   }
   s.chain_pose_ = r.matrix<Eigen::Vector3d>();
   s.chain_cov_ = r.matrix<Eigen::Matrix3d>();

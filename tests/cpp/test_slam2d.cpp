@@ -86,38 +86,42 @@ TEST(Slam2dLikelihoodField, EdtEqualsBruteForceWithCropAndEmpty) {
       const double x = u(rng);
       g.log_odds()(r, c) = x < 0.03 ? 2.0 : (x < 0.05 ? 0.3 : (x < 0.5 ? -1.0 : 0.0));
     }
-  for (const double occ : {0.5, 0.6}) {
-    LikelihoodFieldOptions o;
-    o.sigma = 0.08;
-    o.occupied_probability = occ;
-    const double thr = logit(occ);
-    for (int crop = 0; crop < 2; ++crop) {
-      const LikelihoodField f = crop ? LikelihoodField::from_grid(g, Eigen::Vector4d(-1.31, 1.52, 1.77, 3.0), o)
-                                     : LikelihoodField::from_grid(g, o);
-      const int c0 = static_cast<int>(std::lround((f.origin().x() - g.origin().x()) / g.resolution()));
-      const int r0 = static_cast<int>(std::lround((f.origin().y() - g.origin().y()) / g.resolution()));
-      if (crop) {
-        EXPECT_EQ(c0, 7);
-        EXPECT_EQ(r0, 4);
-        EXPECT_EQ(f.width(), g.lattice().key(0, 1.77) + 1 - c0);
-        EXPECT_EQ(f.height(), g.lattice().key(1, 3.0) + 1 - r0);
-      } else {
-        EXPECT_EQ(f.width(), g.width());
-        EXPECT_EQ(f.height(), g.height());
-      }
-      int occupied = 0;
-      for (int r = 0; r < f.height(); ++r)
-        for (int c = 0; c < f.width(); ++c) {
-          occupied += g.log_odds()(r + r0, c + c0) > thr;
-          const double expected = brute_distance(g, r0, r0 + f.height(), c0, c0 + f.width(),
-                                                 g.cell_center(r + r0, c + c0), thr, o.truncation());
-          ASSERT_NEAR(f.distance()(r, c), expected, 1e-5) << r << " " << c << " crop " << crop;
-          ASSERT_NEAR(f.log_likelihood()(r, c), f.log_likelihood_of_distance(expected), 1e-5);
+  // 0.08 m sigma: 0.48 m truncation (the windowed transform); 4 m: 40 cells (the exact
+  // transform of the whole lattice, see likelihood_field.cpp).
+  for (const double occ : {0.5, 0.6})
+    for (const double max_distance : {0.0, 4.0}) {
+      LikelihoodFieldOptions o;
+      o.sigma = 0.08;
+      o.max_distance = max_distance;
+      o.occupied_probability = occ;
+      const double thr = logit(occ);
+      for (int crop = 0; crop < 2; ++crop) {
+        const LikelihoodField f = crop ? LikelihoodField::from_grid(g, Eigen::Vector4d(-1.31, 1.52, 1.77, 3.0), o)
+                                       : LikelihoodField::from_grid(g, o);
+        const int c0 = static_cast<int>(std::lround((f.origin().x() - g.origin().x()) / g.resolution()));
+        const int r0 = static_cast<int>(std::lround((f.origin().y() - g.origin().y()) / g.resolution()));
+        if (crop) {
+          EXPECT_EQ(c0, 7);
+          EXPECT_EQ(r0, 4);
+          EXPECT_EQ(f.width(), g.lattice().key(0, 1.77) + 1 - c0);
+          EXPECT_EQ(f.height(), g.lattice().key(1, 3.0) + 1 - r0);
+        } else {
+          EXPECT_EQ(f.width(), g.width());
+          EXPECT_EQ(f.height(), g.height());
         }
-      EXPECT_EQ(f.num_occupied(), occupied);
-      EXPECT_GT(occupied, 0);
+        int occupied = 0;
+        for (int r = 0; r < f.height(); ++r)
+          for (int c = 0; c < f.width(); ++c) {
+            occupied += g.log_odds()(r + r0, c + c0) > thr;
+            const double expected = brute_distance(g, r0, r0 + f.height(), c0, c0 + f.width(),
+                                                   g.cell_center(r + r0, c + c0), thr, o.truncation());
+            ASSERT_NEAR(f.distance()(r, c), expected, 1e-5) << r << " " << c << " crop " << crop;
+            ASSERT_NEAR(f.log_likelihood()(r, c), f.log_likelihood_of_distance(expected), 1e-5);
+          }
+        EXPECT_EQ(f.num_occupied(), occupied);
+        EXPECT_GT(occupied, 0);
+      }
     }
-  }
   OccupancyGrid2D empty(0.1, 20, 10);
   LikelihoodFieldOptions o;
   o.max_distance = 0.37;
@@ -137,6 +141,12 @@ TEST(Slam2dMatcher, BranchAndBoundEqualsBruteForce) {
   const Eigen::Matrix3d cov = L * L.transpose();
   for (const int level : {0, 1, 3, 6}) {
     const CorrelativeScanMatcher m(field, level);
+    // A pyramid deepened after construction is the one built at once.
+    CorrelativeScanMatcher deepened(field, 0);
+    deepened.extend_levels(level);
+    deepened.extend_levels(0);  // never shrinks
+    ASSERT_EQ(deepened.max_level(), level);
+    EXPECT_EQ(deepened.bytes(), CorrelativeScanMatcher::bytes_for(field.width(), field.height(), level));
     for (int trial = 0; trial < 8; ++trial) {
       const Eigen::Vector3d truth = random_truth(rng);
       Points2 full = noisy_scan(rng, truth, 0.01);
@@ -149,6 +159,10 @@ TEST(Slam2dMatcher, BranchAndBoundEqualsBruteForce) {
       o.use_prior = trial % 2;
       o.prior_covariance = cov;
       const MatchResult bb = m.match(pts, prior, o);
+      const MatchResult bb_deepened = deepened.match(pts, prior, o);
+      ASSERT_EQ(bb_deepened.search_score, bb.search_score);
+      ASSERT_EQ(bb_deepened.search_pose, bb.search_pose);
+      ASSERT_EQ(bb_deepened.candidates_scored, bb.candidates_scored);
       o.brute_force = true;
       const MatchResult bf = m.match(pts, prior, o);
       ASSERT_EQ(bb.search_score, bf.search_score) << "level " << level << " trial " << trial;
@@ -173,6 +187,19 @@ TEST(Slam2dMatcher, BranchAndBoundEqualsBruteForce) {
       EXPECT_NEAR(s, bb.search_score, 1e-6 * std::abs(s));
     }
   }
+}
+
+TEST(Slam2dMatcher, LevelsForWindowAsTheSearchPicksItsTopLevel) {
+  // +-0.3 m at 5 cm: 13 cells, spanned by a level-4 node (16); +-4 m: 161 cells, level 8 (256).
+  EXPECT_EQ(CorrelativeScanMatcher::levels_for_window(0.3, 0.05), 4);
+  EXPECT_EQ(CorrelativeScanMatcher::levels_for_window(4.0, 0.05), 8);
+  EXPECT_EQ(CorrelativeScanMatcher::levels_for_window(0.0, 0.05), 0);
+  EXPECT_EQ(CorrelativeScanMatcher::levels_for_window(1e6, 0.05), CorrelativeScanMatcher::kMaxLevel);
+  EXPECT_THROW(CorrelativeScanMatcher::levels_for_window(-1.0, 0.05), std::invalid_argument);
+  EXPECT_THROW(CorrelativeScanMatcher::levels_for_window(0.3, 0.0), std::invalid_argument);
+  CorrelativeScanMatcher m(LikelihoodField::from_grid(room_map()), 2);
+  EXPECT_THROW(m.extend_levels(CorrelativeScanMatcher::kMaxLevel + 1), std::invalid_argument);
+  EXPECT_EQ(m.max_level(), 2);
 }
 
 TEST(Slam2dMatcher, RecoversPoseInSimulatedRoom) {

@@ -96,16 +96,35 @@ class CorrelativeScanMatcher {
   /// 2^10 cells is wider than any search window at a sensible resolution.
   static constexpr int kMaxLevel = 10;
   int max_level() const { return static_cast<int>(pyramid_.size()) - 1; }
+  /// The lowest pyramid level whose nodes span a window of +-linear_window (m) on this lattice
+  /// (resolution, m), at most kMaxLevel: a deeper pyramid changes nothing in a search of it.
+  static int levels_for_window(double linear_window, double resolution);
+  /// Adds pyramid levels up to max_level (those built are kept; nothing happens when it has
+  /// them already): a field built for small windows, then asked for a large one. Not
+  /// thread-safe, unlike match(). std::invalid_argument unless max_level <= kMaxLevel.
+  void extend_levels(int max_level);
+  /// Bytes held: the field's two tables and the pyramid's levels above the base.
+  double bytes() const;
+  /// What bytes() would be with levels up to max_level (for a cache's budget before it builds).
+  static double bytes_for(int width, int height, int max_level);
 
  private:
   struct Level {
     int pad = 0;  // stored rows/cols start at -pad
     int width = 0, height = 0;
-    std::vector<float> values;
+    std::vector<float> values;  // empty for level 0: the field's own table (not copied)
   };
-  // In the header so that the search's inner loop inlines it (it is most of a match's time).
-  float level_value(int k, int row, int col) const {
+  /// One level's values, read in place (level 0 is the field's table).
+  struct LevelView {
+    const float* values;
+    int pad, width, height;
+  };
+  LevelView level_view(int k) const {
     const Level& L = pyramid_[static_cast<std::size_t>(k)];
+    return {k == 0 ? field_.log_likelihood().data() : L.values.data(), L.pad, L.width, L.height};
+  }
+  // In the header so that the search's inner loop inlines it (it is most of a match's time).
+  float level_value(const LevelView& L, int row, int col) const {
     const int i = row + L.pad, j = col + L.pad;
     if (static_cast<unsigned>(i) >= static_cast<unsigned>(L.height) ||
         static_cast<unsigned>(j) >= static_cast<unsigned>(L.width))
