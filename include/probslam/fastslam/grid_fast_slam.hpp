@@ -46,7 +46,12 @@ struct GridFastSlamOptions {
   ScanFilter filter;         ///< which readings hit, and the usable range
   OdometryNoise odometry;    ///< the odometry motion model's noise
   EndpointLikelihoodOptions likelihood;
-  ScanProposalOptions matching;
+  /// The proposal's climb halves its steps 3 times (last steps 6 mm and 6 mrad), not
+  /// ScanProposalOptions' 5: the Gaussian fit that follows samples +-1 cm and +-5 mrad around the
+  /// mode and moves its mean by a Newton step, so a finer climb changes little (ACES, 30
+  /// particles, updates every 0.5 m: 0.0469 m relations error against 0.0468 with 5) for a
+  /// quarter more evaluations.
+  ScanProposalOptions matching = default_matching();
   /// Each update's log weight increment is multiplied by this, in (0, 1]: the beams of a scan
   /// are not independent, so the product of their likelihoods is far more peaked than the
   /// evidence (Thrun et al. ch. 6.4). Unscaled weights (1, the textbook's) resample at 3 of 4
@@ -58,7 +63,11 @@ struct GridFastSlamOptions {
   /// Resample when N_eff = 1 / sum w^2 < resample_threshold * num_particles, in [0, 1].
   double resample_threshold = 0.5;
   /// The filter updates once the odometry has moved this far (m) or turned this much (rad)
-  /// since the last update; scans in between take the odometry's motion from it.
+  /// since the last update; scans in between take the odometry's motion from it. GMapping's
+  /// 0.5 m / 0.5 rad would halve the updates (ACES, 30 particles: 688 instead of 1278, 0.0468 m
+  /// relations error against 0.0458), but the scans between updates then follow the odometry
+  /// over twice the distance: on the bundled excerpt with 4 particles the best path's median
+  /// distance from GraphSLAM's grows from under 0.1 m to 0.2 m.
   double update_distance = 0.25, update_angle = 0.25;
   /// kImprovedOdometry's incremental scan matcher (its submaps cut every few metres).
   IncrementalScanMatcherOptions corrector = default_corrector();
@@ -77,6 +86,7 @@ struct GridFastSlamOptions {
   double max_map_bytes = kGridFastSlamDefaultMapBytes;
 
   static IncrementalScanMatcherOptions default_corrector();
+  static ScanProposalOptions default_matching();
   void validate() const;
   /// kImprovedOdometry, or kScanMatching with corrected_start: the corrector runs.
   bool uses_corrector() const {
@@ -212,7 +222,11 @@ class GridFastSlam {
   template <typename Body>
   void for_each_particle(const Body& body);
   std::vector<Sampled> sample(const Points2& points, const Motion& motion);
-  Sampled sample_particle(const Particle& p, const Points2& points, const Motion& motion) const;
+  /// kScanMatching: the particle's proposal (its climb, Gaussian fit and normaliser).
+  ScanProposal propose(const Particle& p, const Points2& points, const Motion& motion) const;
+  /// The particle's new pose and weight: drawn from its proposal `q`, or from the motion model
+  /// when q is null (kMotion, kImprovedOdometry, a scan without hits) or failed.
+  Sampled sample_particle(const Particle& p, const ScanProposal* q, const Points2& points, const Motion& motion) const;
   /// Throws (nothing changed) when a particle's map could not grow to hold its sampled pose, or
   /// the maps could exceed max_map_bytes after the update.
   void check_update(const std::vector<Sampled>& sampled) const;
