@@ -64,12 +64,6 @@ IncrementalScanMatcherOptions GridFastSlamOptions::default_corrector() {
   return o;
 }
 
-ScanProposalOptions GridFastSlamOptions::default_matching() {
-  ScanProposalOptions o;
-  o.refinements = 3;
-  return o;
-}
-
 void GridFastSlamOptions::validate() const {
   require(num_particles >= 1 && num_particles <= kGridFastSlamMaxParticles, "num_particles",
           "must lie in [1, 100000]");

@@ -46,12 +46,7 @@ struct GridFastSlamOptions {
   ScanFilter filter;         ///< which readings hit, and the usable range
   OdometryNoise odometry;    ///< the odometry motion model's noise
   EndpointLikelihoodOptions likelihood;
-  /// The proposal's climb halves its steps 3 times (last steps 6 mm and 6 mrad), not
-  /// ScanProposalOptions' 5: the Gaussian fit that follows samples +-1 cm and +-5 mrad around the
-  /// mode and moves its mean by a Newton step, so a finer climb changes little (ACES, 30
-  /// particles, updates every 0.5 m: 0.0469 m relations error against 0.0468 with 5) for a
-  /// quarter more evaluations.
-  ScanProposalOptions matching = default_matching();
+  ScanProposalOptions matching;
   /// Each update's log weight increment is multiplied by this, in (0, 1]: the beams of a scan
   /// are not independent, so the product of their likelihoods is far more peaked than the
   /// evidence (Thrun et al. ch. 6.4). Unscaled weights (1, the textbook's) resample at 3 of 4
@@ -86,7 +81,6 @@ struct GridFastSlamOptions {
   double max_map_bytes = kGridFastSlamDefaultMapBytes;
 
   static IncrementalScanMatcherOptions default_corrector();
-  static ScanProposalOptions default_matching();
   void validate() const;
   /// kImprovedOdometry, or kScanMatching with corrected_start: the corrector runs.
   bool uses_corrector() const {
