@@ -7,6 +7,7 @@
 #include <cstdio>
 #include <limits>
 #include <string>
+#include <tuple>
 
 #include "probslam/core/angle.hpp"
 #include "probslam/core/check.hpp"
@@ -30,7 +31,7 @@ constexpr double kGrowMargin = 10.0;
 constexpr std::uint64_t kFilterStream = std::uint64_t{1} << 63;
 /// Fewer particles than this per worker do not pay for waking a thread.
 constexpr int kMinParticlesPerThread = 2;
-/// Memory of one tile (its cells and stamps, and its control block: vtable, two counts, the
+/// Memory of one tile (its cells, and its control block: vtable, two counts, the
 /// counting allocator's pointer pair) and of one tile-table slot, bytes: what the memory bound counts.
 constexpr std::size_t kTileBytes = sizeof(TiledGrid2D::Tile) + 5 * sizeof(void*);
 constexpr std::size_t kTableSlotBytes = sizeof(std::shared_ptr<TiledGrid2D::Tile>);
@@ -403,8 +404,33 @@ void GridFastSlam::for_each_particle(const Body& body) {
 }
 
 std::vector<GridFastSlam::Sampled> GridFastSlam::sample(const Points2& points, const Motion& motion) {
-  std::vector<Sampled> out(particles_.size());
-  for_each_particle([&](std::size_t k) { out[k] = sample_particle(particles_[k], points, motion); });
+  const std::size_t n = particles_.size();
+  std::vector<Sampled> out(n);
+  if (options_.proposal != GridProposal::kScanMatching || points.rows() == 0) {
+    for_each_particle([&](std::size_t k) { out[k] = sample_particle(particles_[k], nullptr, points, motion); });
+    return out;
+  }
+  // Particles resampled from one parent hold its map and its pose until they update: their
+  // proposals (a deterministic climb and fit on that map from that pose) are one, computed once
+  // by the first of them (`source`); each then draws from it with its own stream.
+  std::vector<std::size_t> order(n), source(n);
+  for (std::size_t k = 0; k < n; ++k) order[k] = k;
+  auto key = [&](std::size_t k) {
+    const Particle& p = particles_[k];
+    return std::make_tuple(p.map.get(), p.pose.x(), p.pose.y(), p.pose.z(), k);
+  };
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return key(a) < key(b); });
+  for (std::size_t i = 0; i < n; ++i) {
+    const std::size_t k = order[i];
+    const bool same = i > 0 && particles_[order[i - 1]].map == particles_[k].map &&
+                      particles_[order[i - 1]].pose == particles_[k].pose;
+    source[k] = same ? source[order[i - 1]] : k;
+  }
+  std::vector<ScanProposal> proposals(n);
+  for_each_particle([&](std::size_t k) {
+    if (source[k] == k) proposals[k] = propose(particles_[k], points, motion);
+  });
+  for_each_particle([&](std::size_t k) { out[k] = sample_particle(particles_[k], &proposals[source[k]], points, motion); });
   return out;
 }
 
@@ -461,25 +487,28 @@ void GridFastSlam::commit_update(std::vector<Sampled>&& sampled, const Eigen::Ve
   timings_.resample += cpu_seconds() - t1;
 }
 
-GridFastSlam::Sampled GridFastSlam::sample_particle(const Particle& p, const Points2& points, const Motion& motion) const {
+ScanProposal GridFastSlam::propose(const Particle& p, const Points2& points, const Motion& motion) const {
+  const Eigen::Vector3d predicted = compose(p.pose, motion.delta);
+  const Eigen::Matrix3d R = frame_rotation(p.pose.z());
+  const Eigen::Matrix3d prior_cov = R * motion.cov * R.transpose();
+  return scan_matching_proposal(likelihood_, *p.map, points, predicted, 0.5 * (prior_cov + prior_cov.transpose()),
+                                options_.matching,
+                                motion.start ? std::optional<Eigen::Vector3d>(compose(p.pose, *motion.start)) : std::nullopt);
+}
+
+GridFastSlam::Sampled GridFastSlam::sample_particle(const Particle& p, const ScanProposal* q, const Points2& points,
+                                                    const Motion& motion) const {
   Sampled s;
   s.rng = p.rng;
   s.log_weight = p.log_weight;
-  if (options_.proposal == GridProposal::kScanMatching && points.rows() > 0) {
-    const Eigen::Vector3d predicted = compose(p.pose, motion.delta);
-    const Eigen::Matrix3d R = frame_rotation(p.pose.z());
-    const Eigen::Matrix3d prior_cov = R * motion.cov * R.transpose();
-    const ScanProposal q =
-        scan_matching_proposal(likelihood_, *p.map, points, predicted, 0.5 * (prior_cov + prior_cov.transpose()),
-                               options_.matching,
-                               motion.start ? std::optional<Eigen::Vector3d>(compose(p.pose, *motion.start)) : std::nullopt);
-    if (q.matched) {
-      Eigen::Vector3d x = q.mean + gaussian_offset(q.covariance, s.rng);
+  if (q) {
+    if (q->matched) {
+      Eigen::Vector3d x = q->mean + gaussian_offset(q->covariance, s.rng);
       x.z() = wrap_angle(x.z());
       s.pose = x;
       // The normaliser estimates the integral of p(z | x, m) p(x | x_t-1, u), which the
       // motion-model fallback's p(z | x, m) estimates too: both weights are on one scale.
-      s.log_weight += options_.weight_scale * q.log_normaliser;
+      s.log_weight += options_.weight_scale * q->log_normaliser;
       s.matched = true;
       return s;
     }

@@ -50,24 +50,32 @@ Eigen::Vector3d climb(const Score& score, const Eigen::Vector3d& from, double fr
   best_score = from_score;
   double lin = options.linear_step, ang = options.angular_step;
   int halvings = 0;
+  // The move just made, or -1: its reverse leads back to where the climb came from, which scored
+  // lower than `best`, so it is not evaluated again (steps 2i and 2i + 1 are opposite).
+  int last = -1;
   for (int moves = 0; moves < options.max_moves && halvings <= options.refinements;) {
     const Eigen::Vector3d steps[6] = {{lin, 0, 0}, {-lin, 0, 0}, {0, lin, 0}, {0, -lin, 0}, {0, 0, ang}, {0, 0, -ang}};
     Eigen::Vector3d next = best;
     double next_score = best_score;
-    for (const Eigen::Vector3d& s : steps) {
-      Eigen::Vector3d cand = best + s;
+    int chosen = -1;
+    for (int k = 0; k < 6; ++k) {
+      if (last >= 0 && k == (last ^ 1)) continue;
+      Eigen::Vector3d cand = best + steps[k];
       cand.z() = wrap_angle(cand.z());
       const double sc = score(cand);
       if (sc > next_score) {
         next_score = sc;
         next = cand;
+        chosen = k;
       }
     }
     if (next_score > best_score) {
       best = next;
       best_score = next_score;
+      last = chosen;
       ++moves;
     } else {
+      last = -1;
       lin *= 0.5;
       ang *= 0.5;
       ++halvings;

@@ -11,39 +11,43 @@
 
 namespace probslam {
 
-/// The tiled grid as apply_scan sees it (OccupancyGrid2D's GridScanStore over tiles).
+/// The tiled grid as apply_scan sees it (OccupancyGrid2D's GridScanStore over tiles). The cells
+/// this scan updated are marked in a bitmap per touched tile, held by the store alone: tiles carry
+/// no per-cell stamp (a third of their memory), and a finished tile is its log-odds only.
 class TiledScanStore {
  public:
   explicit TiledScanStore(TiledGrid2D& grid)
       : grid_(grid),
         hit_delta_(logit(grid.beam_.p_hit) - grid.l0_),
-        miss_delta_(logit(grid.beam_.p_miss) - grid.l0_) {
-    if (++grid_.scan_counter_ == 0) forget_stamps();
-  }
+        miss_delta_(logit(grid.beam_.p_miss) - grid.l0_),
+        slot_(grid.tiles_.size(), -1) {}
   bool contains(const CellKey<2>& key) const { return grid_.contains(key[1], key[0]); }
   KeyBox<2> box() const { return {{0, 0}, {grid_.width_, grid_.height_}}; }
   bool update_once(const CellKey<2>& key, bool hit) {
     const int row = key[1], col = key[0];
     const std::size_t t = grid_.tile_index(row, col);
     const int c = TiledGrid2D::cell_in_tile(row, col);
-    // Read before writing: a cell already updated in this scan needs no private tile.
-    const TiledGrid2D::Tile* seen = grid_.tiles_[t].get();
-    if (seen && seen->stamp[c] == grid_.scan_counter_) return false;
+    int& slot = slot_[t];
+    if (slot < 0) {
+      slot = static_cast<int>(seen_.size());
+      seen_.emplace_back();
+      seen_.back().fill(0u);
+    }
+    // Checked before writing: a cell already updated in this scan needs no private tile.
+    std::uint64_t& word = seen_[static_cast<std::size_t>(slot)][static_cast<std::size_t>(c >> 6)];
+    const std::uint64_t bit = std::uint64_t{1} << (c & 63);
+    if (word & bit) return false;
+    word |= bit;
     TiledGrid2D::Tile& tile = grid_.writable_tile(t);
-    tile.stamp[c] = grid_.scan_counter_;
     tile.log_odds[c] = grid_.clamp_.apply(tile.log_odds[c] + (hit ? hit_delta_ : miss_delta_));
     return true;
   }
 
  private:
-  // After 2^32 scans the counter wraps: old stamps could then read as this scan's.
-  void forget_stamps() {
-    for (std::size_t t = 0; t < grid_.tiles_.size(); ++t)
-      if (grid_.tiles_[t]) grid_.writable_tile(t).stamp.fill(0u);
-    grid_.scan_counter_ = 1;
-  }
   TiledGrid2D& grid_;
   double hit_delta_, miss_delta_;
+  std::vector<int> slot_;  // per tile-table slot: its bitmap in seen_, or -1 (untouched)
+  std::vector<std::array<std::uint64_t, TiledGrid2D::kTileCells / 64>> seen_;  // cells updated, per touched tile
 };
 
 TiledGrid2D::TiledGrid2D(const OccupancyGrid2D& prototype)
@@ -70,7 +74,6 @@ TiledGrid2D::Tile& TiledGrid2D::writable_tile(std::size_t index) {
   if (!slot) {
     slot = std::allocate_shared<Tile>(CountingAllocator<Tile>(tile_count_));
     slot->log_odds.fill(l0_);
-    slot->stamp.fill(0u);
   } else if (slot.use_count() > 1) {
     slot = std::allocate_shared<Tile>(CountingAllocator<Tile>(tile_count_), *slot);
   } else {

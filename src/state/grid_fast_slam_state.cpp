@@ -51,7 +51,6 @@ std::vector<std::shared_ptr<TiledGrid2D>> TiledGrid2D::read_family(StateReader& 
       v = r.f64();
       if (!(std::abs(v) <= kMaxLogOddsValue)) r.fail("a tile's log-odds is not finite or out of range");
     }
-    t->stamp.fill(0u);
     tiles.push_back(std::move(t));
   }
   const std::size_t ng = r.count(100);
@@ -83,7 +82,6 @@ std::vector<std::shared_ptr<TiledGrid2D>> TiledGrid2D::read_family(StateReader& 
       if (t < -1 || t >= static_cast<std::int64_t>(nt)) r.fail("a tile index is out of range");
       if (t >= 0) slot = tiles[static_cast<std::size_t>(t)];
     }
-    g->scan_counter_ = 0;
     distinct.push_back(std::move(g));
   }
   const std::size_t n = r.count(8);

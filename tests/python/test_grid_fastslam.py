@@ -76,7 +76,7 @@ def test_maps_share_tiles(drive):
     t = f.tile_sharing
     assert t.references >= 20 * 4
     assert t.distinct < t.references / 3, t  # resampled particles share most tiles
-    assert t.bytes == t.distinct * (32 * 32 * 12)
+    assert t.bytes == t.distinct * (32 * 32 * 8)  # a tile: 32 x 32 log-odds (double)
     s = f.summary
     assert s.scans == 150 and s.updates >= 50 and s.resamples >= 1
 

@@ -58,7 +58,11 @@ struct GridFastSlamOptions {
   /// Resample when N_eff = 1 / sum w^2 < resample_threshold * num_particles, in [0, 1].
   double resample_threshold = 0.5;
   /// The filter updates once the odometry has moved this far (m) or turned this much (rad)
-  /// since the last update; scans in between take the odometry's motion from it.
+  /// since the last update; scans in between take the odometry's motion from it. GMapping's
+  /// 0.5 m / 0.5 rad would halve the updates (ACES, 30 particles: 688 instead of 1278, 0.0468 m
+  /// relations error against 0.0458), but the scans between updates then follow the odometry
+  /// over twice the distance: on the bundled excerpt with 4 particles the best path's median
+  /// distance from GraphSLAM's grows from under 0.1 m to 0.2 m.
   double update_distance = 0.25, update_angle = 0.25;
   /// kImprovedOdometry's incremental scan matcher (its submaps cut every few metres).
   IncrementalScanMatcherOptions corrector = default_corrector();
@@ -212,7 +216,11 @@ class GridFastSlam {
   template <typename Body>
   void for_each_particle(const Body& body);
   std::vector<Sampled> sample(const Points2& points, const Motion& motion);
-  Sampled sample_particle(const Particle& p, const Points2& points, const Motion& motion) const;
+  /// kScanMatching: the particle's proposal (its climb, Gaussian fit and normaliser).
+  ScanProposal propose(const Particle& p, const Points2& points, const Motion& motion) const;
+  /// The particle's new pose and weight: drawn from its proposal `q`, or from the motion model
+  /// when q is null (kMotion, kImprovedOdometry, a scan without hits) or failed.
+  Sampled sample_particle(const Particle& p, const ScanProposal* q, const Points2& points, const Motion& motion) const;
   /// Throws (nothing changed) when a particle's map could not grow to hold its sampled pose, or
   /// the maps could exceed max_map_bytes after the update.
   void check_update(const std::vector<Sampled>& sampled) const;

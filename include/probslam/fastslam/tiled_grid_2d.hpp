@@ -33,7 +33,6 @@ class TiledGrid2D {
 
   struct Tile {
     std::array<double, kTileCells> log_odds;  // row-major within the tile
-    std::array<std::uint32_t, kTileCells> stamp;  // scan counter of each cell's last update
   };
   /// Tiles alive in a family of grids (one grid and its copies): a counter, so that a memory
   /// bound costs one load rather than a walk over every tile.
@@ -124,9 +123,7 @@ class TiledGrid2D {
   /// as they were, and no copy shares a tile or a tile count with an original.
   static std::vector<std::shared_ptr<TiledGrid2D>> deep_copy(const std::vector<std::shared_ptr<TiledGrid2D>>& grids);
   /// `grids` as state: each distinct grid and each distinct tile once, so read_family gives
-  /// deep_copy's result (the same sharing, in a family of its own). Null entries stay null. The
-  /// per-scan cell stamps are not saved: they only keep one scan from updating a cell twice, and
-  /// the loaded grids start a fresh count with the same effect.
+  /// deep_copy's result (the same sharing, in a family of its own). Null entries stay null.
   static void write_family(StateWriter& w, const std::vector<std::shared_ptr<TiledGrid2D>>& grids);
   static std::vector<std::shared_ptr<TiledGrid2D>> read_family(StateReader& r);
 
@@ -153,7 +150,6 @@ class TiledGrid2D {
   BeamModel beam_;
   TileCount tile_count_ = std::make_shared<std::atomic<std::int64_t>>(0);
   std::vector<std::shared_ptr<Tile>> tiles_;  // row-major tile table; nullptr: all prior
-  std::uint32_t scan_counter_ = 0;
 };
 
 }  // namespace probslam
