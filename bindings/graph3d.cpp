@@ -52,6 +52,22 @@ py::array_t<double> pose_rows(const std::vector<Pose3>& poses) {
   return out;
 }
 
+// The (n, 7) measurements and the (n, 6, 6) information matrices of edges or priors.
+template <class Factor>
+py::array_t<double> measurements(const std::vector<Factor>& factors) {
+  py::array_t<double> out({static_cast<py::ssize_t>(factors.size()), py::ssize_t{kPoseWidth}});
+  for (size_t k = 0; k < factors.size(); ++k) write_pose(factors[k].measurement, out.mutable_data() + kPoseWidth * k);
+  return out;
+}
+
+template <class Factor>
+py::array_t<double> informations(const std::vector<Factor>& factors) {
+  py::array_t<double> out({static_cast<py::ssize_t>(factors.size()), py::ssize_t{6}, py::ssize_t{6}});
+  for (size_t k = 0; k < factors.size(); ++k)
+    Eigen::Map<Eigen::Matrix<double, 6, 6, Eigen::RowMajor>>(out.mutable_data() + 36 * k) = factors[k].information;
+  return out;
+}
+
 std::vector<int> ids_arg(py::handle obj, const char* name) {
   const LongArray ids = integer_array_arg(obj, name);
   if (ids.ndim() != 1) throw py::value_error(std::string(name) + " must be a 1-D array of integers");
@@ -173,13 +189,7 @@ void define_graph3d(py::module_& m) {
              const auto n = static_cast<py::ssize_t>(edges.size());
              py::array_t<long> ids({n, py::ssize_t{2}});
              std::copy(ends.begin(), ends.end(), ids.mutable_data());
-             py::array_t<double> z({n, py::ssize_t{kPoseWidth}}), info({n, py::ssize_t{6}, py::ssize_t{6}});
-             for (py::ssize_t k = 0; k < n; ++k) {
-               write_pose(edges[k].measurement, z.mutable_data() + kPoseWidth * k);
-               for (int r = 0; r < 6; ++r)
-                 for (int c = 0; c < 6; ++c) info.mutable_data()[36 * k + 6 * r + c] = edges[k].information(r, c);
-             }
-             return py::make_tuple(ids, z, info);
+             return py::make_tuple(ids, measurements(edges), informations(edges));
            },
            "(ids (E, 2) (from, to), measurements (E, 7), information (E, 6, 6)) of the edges.")
       .def_property_readonly("num_pose_priors",
@@ -195,13 +205,7 @@ void define_graph3d(py::module_& m) {
              const auto n = static_cast<py::ssize_t>(priors.size());
              py::array_t<long> id_array(n);
              std::copy(ids.begin(), ids.end(), id_array.mutable_data());
-             py::array_t<double> z({n, py::ssize_t{kPoseWidth}}), info({n, py::ssize_t{6}, py::ssize_t{6}});
-             for (py::ssize_t k = 0; k < n; ++k) {
-               write_pose(priors[k].measurement, z.mutable_data() + kPoseWidth * k);
-               for (int r = 0; r < 6; ++r)
-                 for (int c = 0; c < 6; ++c) info.mutable_data()[36 * k + 6 * r + c] = priors[k].information(r, c);
-             }
-             return py::make_tuple(id_array, z, info);
+             return py::make_tuple(id_array, measurements(priors), informations(priors));
            },
            "(ids (P,), measurements (P, 7), information (P, 6, 6)) of the priors.")
       .def("prior_chi2",

@@ -156,11 +156,8 @@ IncrementalReport optimize_incremental(PoseGraph2D& target, const IncrementalOpt
       if (!graph.vertex(v).fixed) graph.vertex(v).value = place_point(graph, graph.point_edges()[first[v]]);
     PoseGraph2D part = part_of(graph, joins, step, full_index);
     if (part.pose_edges().empty() && part.point_edges().empty()) continue;  // a lone first pose
-    const OptimizationReport r = optimize(part, options.step);
+    report.add_step(optimize(part, options.step));
     for (int j = 0; j < part.num_vertices(); ++j) graph.vertex(full_index[j]).value = part.vertex(j).value;
-    ++report.steps;
-    report.iterations += r.iterations;
-    report.step_chi2.push_back(r.chi2);
   }
   report.chi2 = graph.chi2();
   target.assign_values(graph.values());

@@ -171,14 +171,12 @@ IncrementalReport optimize_incremental(PoseGraph3D& target, const IncrementalOpt
   for (int start = 0; start < n; start += options.poses_per_step) {
     const int end = std::min(n, start + options.poses_per_step);
     for (int v = start; v < end; ++v)
-      if (!graph.vertex(v).fixed && parent[v] >= 0) graph.vertex(v).value = propagate(graph, graph.pose_edges()[parent[v]], v);
+      if (!graph.vertex(v).fixed && parent[v] >= 0)
+        graph.vertex(v).value = propagate(graph, graph.pose_edges()[parent[v]], v);
     PoseGraph3D part = prefix_of(graph, end);
     if (part.pose_edges().empty() && part.pose_priors().empty()) continue;  // a lone first pose
-    const OptimizationReport r = optimize(part, options.step);
+    report.add_step(optimize(part, options.step));
     for (int v = 0; v < end; ++v) graph.vertex(v).value = part.vertex(v).value;
-    ++report.steps;
-    report.iterations += r.iterations;
-    report.step_chi2.push_back(r.chi2);
   }
   report.chi2 = graph.chi2();
   target.assign_values(graph.values());

@@ -31,6 +31,13 @@ struct IncrementalReport {
   int iterations = 0;            ///< summed over the steps
   double chi2 = 0.0;             ///< of the whole graph at the end
   std::vector<double> step_chi2; ///< of the optimised part after each step
+
+  /// Counts one step's optimisation.
+  void add_step(const OptimizationReport& step) {
+    ++steps;
+    iterations += step.iterations;
+    step_chi2.push_back(step.chi2);
+  }
 };
 
 /// Incremental batch optimisation: poses join in the order they were added, each new pose
