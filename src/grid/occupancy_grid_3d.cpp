@@ -143,30 +143,12 @@ class VoxelStoreT {
     // The origin's voxel: its block is looked up (the last ray may have ended in another).
     std::size_t updated = update_once({k[0], k[1], k[2]}, false);
 
-    // walk_ray's set-up, operation for operation (float direction and length, double steps).
-    float direction[3];
-    float length_sq = 0;
-    for (int i = 0; i < 3; ++i) {
-      direction[i] = end[i] - origin[i];
-      length_sq += direction[i] * direction[i];
-    }
-    const float length = static_cast<float>(std::sqrt(static_cast<double>(length_sq)));
-    for (int i = 0; i < 3; ++i) direction[i] /= length;
-    int step[3];
-    double t_max[3], t_delta[3];
-    const double res = lat.resolution();
-    for (int i = 0; i < 3; ++i) {
-      step[i] = direction[i] > 0 ? 1 : (direction[i] < 0 ? -1 : 0);
-      if (step[i] != 0) {
-        double border = lat.key_to_coord(i, k[i]);
-        border += static_cast<float>(step[i] * res * 0.5);
-        t_max[i] = (border - origin[i]) / direction[i];
-        t_delta[i] = res / std::fabs(direction[i]);
-      } else {
-        t_max[i] = std::numeric_limits<double>::max();
-        t_delta[i] = std::numeric_limits<double>::max();
-      }
-    }
+    // walk_ray's start, operation for operation (float direction and length, double steps).
+    const RayStart<3, float> start = ray_start<3>(lat, origin, end, k);
+    const int* const step = start.step;
+    const double* const t_max = start.t_max;
+    const double* const t_delta = start.t_delta;
+    const float length = start.length;
     // The walk's state in scalars, stepped in batches into a buffer of voxel keys which is then
     // claimed: a loop without calls keeps the state in registers and selects the axis with
     // conditional moves (a call inside, to the block lookup, made the compiler keep the state

@@ -35,6 +35,44 @@ struct KeyBox {
   }
 };
 
+/// The start of walk_ray, shared with the grids' specialised walks: per axis the step (+1, -1 or
+/// 0), the ray parameter at the first cell border (t_max) and between borders (t_delta), and the
+/// segment's length; OctoMap's arithmetic (a Real direction and length, double distances). `key`
+/// is the origin's cell.
+template <int Dim, typename Real>
+struct RayStart {
+  int step[Dim];
+  double t_max[Dim], t_delta[Dim];
+  Real length;
+};
+
+template <int Dim, typename Real, class Lattice>
+RayStart<Dim, Real> ray_start(const Lattice& lattice, const Real* origin, const Real* end, const int* key) {
+  RayStart<Dim, Real> s;
+  Real direction[Dim];
+  Real length_sq = 0;
+  for (int i = 0; i < Dim; ++i) {
+    direction[i] = end[i] - origin[i];
+    length_sq += direction[i] * direction[i];
+  }
+  s.length = static_cast<Real>(std::sqrt(static_cast<double>(length_sq)));
+  for (int i = 0; i < Dim; ++i) direction[i] /= s.length;
+  const double res = lattice.resolution();
+  for (int i = 0; i < Dim; ++i) {
+    s.step[i] = direction[i] > 0 ? 1 : (direction[i] < 0 ? -1 : 0);
+    if (s.step[i] != 0) {
+      double border = lattice.key_to_coord(i, key[i]);
+      border += static_cast<Real>(s.step[i] * res * 0.5);
+      s.t_max[i] = (border - origin[i]) / direction[i];
+      s.t_delta[i] = res / std::fabs(direction[i]);
+    } else {
+      s.t_max[i] = std::numeric_limits<double>::max();
+      s.t_delta[i] = std::numeric_limits<double>::max();
+    }
+  }
+  return s;
+}
+
 /// Walks the cells a segment crosses, with OctoMap 1.9's computeRayKeys arithmetic: the
 /// origin's cell is visited first, the end's cell is not visited, a segment inside one cell
 /// visits nothing, ties step along the higher axis, and the walk stops once the distance
@@ -55,30 +93,11 @@ void walk_ray(const Lattice& lattice, const Real* origin, const Real* end, Visit
   if (key == key_end) return;
   if (!visit(key)) return;
 
-  Real direction[Dim];
-  Real length_sq = 0;
-  for (int i = 0; i < Dim; ++i) {
-    direction[i] = end[i] - origin[i];
-    length_sq += direction[i] * direction[i];
-  }
-  const Real length = static_cast<Real>(std::sqrt(static_cast<double>(length_sq)));
-  for (int i = 0; i < Dim; ++i) direction[i] /= length;
-
-  int step[Dim];
-  double t_max[Dim], t_delta[Dim];
-  const double res = lattice.resolution();
-  for (int i = 0; i < Dim; ++i) {
-    step[i] = direction[i] > 0 ? 1 : (direction[i] < 0 ? -1 : 0);
-    if (step[i] != 0) {
-      double border = lattice.key_to_coord(i, key[i]);
-      border += static_cast<Real>(step[i] * res * 0.5);
-      t_max[i] = (border - origin[i]) / direction[i];
-      t_delta[i] = res / std::fabs(direction[i]);
-    } else {
-      t_max[i] = std::numeric_limits<double>::max();
-      t_delta[i] = std::numeric_limits<double>::max();
-    }
-  }
+  RayStart<Dim, Real> start = ray_start<Dim>(lattice, origin, end, key.data());
+  const int* const step = start.step;
+  double* const t_max = start.t_max;
+  const double* const t_delta = start.t_delta;
+  const Real length = start.length;
 
   if constexpr (Dim == 2) {
     // The same steps with scalar state: the compiler keeps it in registers and selects the
