@@ -321,12 +321,7 @@ void SubmapSlam2D::keep_closure_cells(int j) {
 
 int SubmapSlam2D::search_closures(int j) {
   if (j < 2) return 0;
-  const double t0 = cpu_seconds();
-  struct Count {  // the time however the search ends
-    double t0;
-    double& total;
-    ~Count() { total += cpu_seconds() - t0; }
-  } count{t0, timings_.closure_search};
+  const ScopedCpuTimer timer(timings_.closure_search);
   const std::vector<ScanEstimate>& est = frontend_.estimates();
   std::vector<int> candidates;
   for (int s : frontend_.submaps()[j].scans)
@@ -495,12 +490,7 @@ double SubmapSlam2D::constraint_chi2(const SubmapConstraint& c) const {
 
 void SubmapSlam2D::optimize_and_dissolve() {
   if (nodes_.size() < 2) return;  // one submap: nothing to optimise
-  const double t0 = cpu_seconds();
-  struct Count {  // the time however the loop ends
-    double t0;
-    double& total;
-    ~Count() { total += cpu_seconds() - t0; }
-  } count{t0, timings_.optimize};
+  const ScopedCpuTimer timer(timings_.optimize);
   for (;;) {
     PoseGraph2D g = graph();
     optimize(g, options_.optimizer);

@@ -9,4 +9,17 @@ namespace probslam {
 /// process's CPU-time clock (all its threads; microsecond steps).
 inline double cpu_seconds() { return static_cast<double>(std::clock()) / CLOCKS_PER_SEC; }
 
+/// Adds the processor time of its scope to `total`, however the scope ends (return or throw).
+class ScopedCpuTimer {
+ public:
+  explicit ScopedCpuTimer(double& total) : total_(total), start_(cpu_seconds()) {}
+  ~ScopedCpuTimer() { total_ += cpu_seconds() - start_; }
+  ScopedCpuTimer(const ScopedCpuTimer&) = delete;
+  ScopedCpuTimer& operator=(const ScopedCpuTimer&) = delete;
+
+ private:
+  double& total_;
+  double start_;
+};
+
 }  // namespace probslam
