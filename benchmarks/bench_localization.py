@@ -67,6 +67,15 @@ def errors(poses, ref):
     return pos, head
 
 
+def track(scans, grid, ref, t, opts):
+    """Tracking from the SLAM trajectory's first pose: the result, its ATE against the SLAM
+    trajectory (no alignment), position and heading errors per scan, particles per update."""
+    r = ps.localize(scans, grid, initial_pose=ref[0], progress=False, seed=1, **opts)
+    ate = probslam.eval.ate(r.timestamps, r.poses, t, ref, align="none")
+    pos, head = errors(r.poses, ref)
+    return r, ate, pos, head, r.num_particles
+
+
 def settled_index(pos, head):
     """First index from which the estimate stays right to the end; None if the last is wrong."""
     bad = np.flatnonzero((pos >= CONVERGED_ERROR) | (head >= CONVERGED_HEADING))
@@ -144,21 +153,14 @@ def run(args):
             continue
         t = scans.timestamps
         # ---- tracking ----
-        r = ps.localize(scans, grid, initial_pose=ref[0], progress=False, seed=1, **opts)
-        ate = probslam.eval.ate(r.timestamps, r.poses, t, ref, align="none")
-        pos, head = errors(r.poses, ref)
-        n = r.num_particles
+        r, ate, pos, head, n = track(scans, grid, ref, t, opts)
         track_rows.append(f"| {title} | {len(scans)} | {ate.rmse:.3f} / {np.median(pos):.3f} / {pos.max():.3f} | "
                           f"{np.degrees(np.median(head)):.2f} | {int(np.median(n))} / {int(n.max())} / {int(n[-1])} | "
                           f"{r.seconds:.1f} | {r.log_duration:.0f} | {r.real_time_factor:.0f}x |")
         summary.append(f"{title}: track max {pos.max():.2f}")
         # ---- the beam model (Table 6.1), same run ----
         if not args.no_beam:
-            rb = ps.localize(scans, grid, initial_pose=ref[0], progress=False, seed=1,
-                             **{"sensor_model": "beam", **opts})
-            ateb = probslam.eval.ate(rb.timestamps, rb.poses, t, ref, align="none")
-            posb, headb = errors(rb.poses, ref)
-            nb = rb.num_particles
+            rb, ateb, posb, headb, nb = track(scans, grid, ref, t, {"sensor_model": "beam", **opts})
             beam_rows.append(f"| {title} | {ateb.rmse:.3f} / {np.median(posb):.3f} / {posb.max():.3f} | "
                              f"{np.degrees(np.median(headb)):.2f} | {int(np.median(nb))} / {int(nb.max())} | "
                              f"{rb.seconds:.1f} | {rb.real_time_factor:.0f}x |")
