@@ -111,8 +111,8 @@ py::array_t<long> all_edge_ids(const PoseGraph2D& g) {
 }
 
 PoseGraphRead read_graph(const std::string& path, const std::string& format, const std::string& noise,
-                         const std::string& rows) {
-  const PoseGraphReadOptions options = read_options(format, noise, rows);
+                         const std::string& rows, const std::string& equivalences) {
+  const PoseGraphReadOptions options = read_options(format, noise, rows, equivalences);
   py::gil_scoped_release release;  // a new graph: nothing else can see it yet
   return read_pose_graph(path, options);
 }
@@ -124,8 +124,9 @@ constexpr const char* kReadDoc =
     "square-root information for iSAM), \"information\", \"sqrt_information\" (upper-triangular R,\n"
     "information R^T R) or \"covariance\". rows: \"strict\" (a malformed record raises\n"
     "ValueError(\"file:line: ...\")) or \"skip\" (skipped and counted; more than\n"
-    "MAX_BAD_ROW_FRACTION of the records skipped raises, naming the first). A missing file raises\n"
-    "FileNotFoundError.";
+    "MAX_BAD_ROW_FRACTION of the records skipped raises, naming the first). equivalences: what\n"
+    "TORO EQUIV i j records do: \"merge\" (one vertex, the smaller id; edges between them dropped) or\n"
+    "\"ignore\" (counted only, as GTSAM's load2D). A missing file raises FileNotFoundError.";
 
 }  // namespace
 
@@ -137,7 +138,8 @@ PoseGraphFormat format_arg(const std::string& format) {
                                   {"isam", PoseGraphFormat::kIsam}});
 }
 
-PoseGraphReadOptions read_options(const std::string& format, const std::string& noise, const std::string& rows) {
+PoseGraphReadOptions read_options(const std::string& format, const std::string& noise, const std::string& rows,
+                                  const std::string& equivalences) {
   PoseGraphReadOptions o;
   o.format = format_arg(format);
   o.noise = choice<NoiseFormat>(noise, "noise",
@@ -146,6 +148,8 @@ PoseGraphReadOptions read_options(const std::string& format, const std::string& 
                                  {"sqrt_information", NoiseFormat::kSquareRootInformation},
                                  {"covariance", NoiseFormat::kCovariance}});
   o.rows = choice<RowPolicy>(rows, "rows", {{"strict", RowPolicy::kStrict}, {"skip", RowPolicy::kSkipAndCount}});
+  o.equivalences = choice<Equivalences>(equivalences, "equivalences",
+                                        {{"merge", Equivalences::kMerge}, {"ignore", Equivalences::kIgnore}});
   return o;
 }
 
@@ -337,6 +341,12 @@ void define_graph(py::module_& m) {
       .def_readonly("rows", &PoseGraphReadReport::rows,
                     "Records read (lines neither blank nor '#'), skipped ones included.")
       .def_readonly("skipped_rows", &PoseGraphReadReport::skipped_rows, "Records skipped (0 under rows=\"strict\").")
+      .def_readonly("equivalences", &PoseGraphReadReport::equivalences,
+                    "TORO EQUIV records read (applied under equivalences=\"merge\" only).")
+      .def_readonly("merged_vertices", &PoseGraphReadReport::merged_vertices,
+                    "Vertex ids merged into another by EQUIV records.")
+      .def_readonly("collapsed_edges", &PoseGraphReadReport::collapsed_edges,
+                    "Edges dropped because EQUIV records made their two ends one vertex.")
       .def_property_readonly(
           "skipped_lines",
           [](const PoseGraphReadReport& r) {
@@ -365,18 +375,20 @@ void define_graph(py::module_& m) {
   m.attr("POSE_GRAPH_MAX_REPORTED_LINES") = kPoseGraphMaxReportedLines;
 
   m.def("read_pose_graph",
-        [](const std::string& path, const std::string& format, const std::string& noise, const std::string& rows) {
-          return std::move(read_graph(path, format, noise, rows).graph);
+        [](const std::string& path, const std::string& format, const std::string& noise, const std::string& rows,
+           const std::string& equivalences) {
+          return std::move(read_graph(path, format, noise, rows, equivalences).graph);
         },
         py::arg("path"), py::arg("format") = "auto", py::arg("noise") = "default", py::arg("rows") = "strict",
-        graph_doc.c_str());
+        py::arg("equivalences") = "merge", graph_doc.c_str());
   m.def("read_pose_graph_with_report",
-        [](const std::string& path, const std::string& format, const std::string& noise, const std::string& rows) {
-          PoseGraphRead read = read_graph(path, format, noise, rows);
+        [](const std::string& path, const std::string& format, const std::string& noise, const std::string& rows,
+           const std::string& equivalences) {
+          PoseGraphRead read = read_graph(path, format, noise, rows, equivalences);
           return py::make_tuple(std::move(read.graph), std::move(read.report));
         },
         py::arg("path"), py::arg("format") = "auto", py::arg("noise") = "default", py::arg("rows") = "skip",
-        report_doc.c_str());
+        py::arg("equivalences") = "merge", report_doc.c_str());
   m.def("write_g2o", [](const std::string& path, const PoseGraph2D& g) { locked(g, [&] { write_g2o(path, g); }); },
         py::arg("path"), py::arg("graph"),
         "Writes graph to path as g2o text: vertices with their current values, FIX lines, edges.");

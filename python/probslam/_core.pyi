@@ -619,13 +619,17 @@ class PoseGraphReadReport:
     skipped_rows: int  # 0 under rows="strict"
     skipped_lines: List[int]  # the first POSE_GRAPH_MAX_REPORTED_LINES skipped, 1-based
     skipped_reasons: List[str]  # why each of skipped_lines was skipped
+    equivalences: int  # TORO EQUIV records read (applied under equivalences="merge" only)
+    merged_vertices: int  # vertex ids merged into another by them
+    collapsed_edges: int  # edges dropped because both their ends became one vertex
 MAX_BAD_ROW_FRACTION: float  # rows="skip": more than this fraction of records skipped is fatal
 POSE_GRAPH_MAX_REPORTED_LINES: int  # skipped records a PoseGraphReadReport lists by line and reason
-def read_pose_graph(path: str, format: str = "auto", noise: str = "default", rows: str = "strict") -> PoseGraph2D:
+def read_pose_graph(path: str, format: str = "auto", noise: str = "default", rows: str = "strict",
+                    equivalences: str = "merge") -> PoseGraph2D:
     """format "auto", "g2o", "toro" or "isam"; noise "default", "information", "sqrt_information" or
-    "covariance"; rows "strict" or "skip"."""
+    "covariance"; rows "strict" or "skip"; equivalences (TORO EQUIV) "merge" or "ignore"."""
 def read_pose_graph_with_report(path: str, format: str = "auto", noise: str = "default",
-                                rows: str = "skip") -> Tuple[PoseGraph2D, PoseGraphReadReport]:
+                                rows: str = "skip", equivalences: str = "merge") -> Tuple[PoseGraph2D, PoseGraphReadReport]:
     """As read_pose_graph, with what was skipped."""
 def write_g2o(path: str, graph: PoseGraph2D) -> None: ...
 def write_isam(path: str, graph: PoseGraph2D) -> None: ...

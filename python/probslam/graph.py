@@ -33,7 +33,7 @@ MAX_BAD_ROW_FRACTION = _core.MAX_BAD_ROW_FRACTION
 
 
 def read_pose_graph(path: PathLike, format: str = "auto", *, noise: str = "default",
-                    rows: str = "strict") -> PoseGraph2D:
+                    rows: str = "strict", equivalences: str = "merge") -> PoseGraph2D:
     """Read a 2-D pose/landmark graph: ``format`` 'g2o' (VERTEX_SE2 / EDGE_SE2 / VERTEX_XY /
     EDGE_SE2_XY), 'toro' (VERTEX2 / EDGE2), 'isam' (ODOMETRY / EDGE2 / LANDMARK, vertices
     dead-reckoned) or 'auto' (from the first record).
@@ -46,8 +46,12 @@ def read_pose_graph(path: PathLike, format: str = "auto", *, noise: str = "defau
     ``rows``: 'strict' (a malformed record raises ``ValueError("file:line: ...")``) or 'skip'
     (skipped and counted; more than ``MAX_BAD_ROW_FRACTION`` of the records raises, naming the
     first; ``read_pose_graph_with_report`` tells which were skipped). A missing file raises
-    ``FileNotFoundError`` naming it (as every reader of the package does)."""
-    return _core.read_pose_graph(file_path(path), format, noise, rows)
+    ``FileNotFoundError`` naming it (as every reader of the package does).
+
+    ``equivalences``: what TORO's ``EQUIV i j`` records (i and j are one node) do: 'merge' (each
+    chain of equivalent ids becomes its smallest id, edges between them are dropped: TORO's
+    collapse) or 'ignore' (the VERTEX2 / EDGE2 records alone, as GTSAM's ``load2D`` reads)."""
+    return _core.read_pose_graph(file_path(path), format, noise, rows, equivalences)
 
 
 @dataclass(frozen=True)
@@ -60,10 +64,10 @@ class PoseGraphRead:
 
 
 def read_pose_graph_with_report(path: PathLike, format: str = "auto", *, noise: str = "default",
-                                rows: str = "skip") -> PoseGraphRead:
+                                rows: str = "skip", equivalences: str = "merge") -> PoseGraphRead:
     """``read_pose_graph`` for real data: by default malformed records are skipped and reported
     (docs/reliability.md), the first ``_core.POSE_GRAPH_MAX_REPORTED_LINES`` by line and reason."""
-    graph, report = _core.read_pose_graph_with_report(file_path(path), format, noise, rows)
+    graph, report = _core.read_pose_graph_with_report(file_path(path), format, noise, rows, equivalences)
     return PoseGraphRead(graph, report)
 
 

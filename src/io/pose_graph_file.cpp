@@ -45,6 +45,7 @@ struct Records {
   std::vector<VertexRecord> vertices;
   std::vector<EdgeRecord> edges;
   std::vector<std::pair<long, std::vector<int>>> fixed;  // line, ids of one FIX record
+  std::vector<std::pair<long, std::pair<int, int>>> equivalences;  // line, ids of one TORO EQUIV
 };
 
 // Runs add() for the record of `line`: an error it raises names that line (after `context`).
@@ -178,8 +179,13 @@ void parse_line(const Fields& f, const std::string& tag, PoseGraphFormat format,
       f.need(12, "i j dx dy dtheta and 6 noise entries");
       // TORO order: xx xy yy tt xt yt.
       pose_edge(symmetric3(f.number(6), f.number(7), f.number(10), f.number(8), f.number(11), f.number(9)));
+    } else if (tag == "EQUIV") {
+      f.need(3, "i j");
+      const int a = vertex_id(f, 1, err), b = vertex_id(f, 2, err);
+      if (a == b) err.fail("EQUIV names vertex " + std::to_string(a) + " twice");
+      out.equivalences.push_back({line, {a, b}});
     } else {
-      err.fail("unsupported TORO record '" + tag + "' (VERTEX2 and EDGE2 only)");
+      err.fail("unsupported TORO record '" + tag + "' (VERTEX2, EDGE2 and EQUIV only)");
     }
   } else {
     if (tag == "ODOMETRY" || tag == "EDGE2") {
@@ -244,6 +250,53 @@ void separate_landmark_ids(Records& records, const std::string& source) {
     if (e.to_point) e.to = static_cast<int>(e.landmark + offset);
 }
 
+// TORO's EQUIV records under Equivalences::kMerge: each chain of equivalent ids becomes its
+// smallest id (pose_graph_file.hpp), before any vertex is added.
+void merge_equivalences(Records& records, Equivalences mode, PoseGraphReadReport& report, const std::string& source,
+                        RowLog& rows) {
+  report.equivalences = records.equivalences.size();
+  if (mode == Equivalences::kIgnore || records.equivalences.empty()) return;
+  std::set<int> used;
+  for (const VertexRecord& v : records.vertices) used.insert(v.id);
+  for (const EdgeRecord& e : records.edges) used.insert({e.from, e.to});
+  std::unordered_map<int, int> parent;
+  auto root = [&](int id) {
+    auto it = parent.find(id);
+    while (it != parent.end() && it->second != id) {
+      id = it->second;
+      it = parent.find(id);
+    }
+    return id;
+  };
+  for (const auto& [line, pair] : records.equivalences) {
+    rows.row([&, line = line, pair = pair] {
+      for (const int id : {pair.first, pair.second})
+        if (!used.count(id)) LineError(source, line).fail("EQUIV names unknown vertex " + std::to_string(id));
+      const int a = root(pair.first), b = root(pair.second);
+      if (a != b) parent[std::max(a, b)] = std::min(a, b);
+    });
+  }
+  std::unordered_map<int, int> merged_into;  // every merged id -> its chain's smallest id
+  for (const auto& entry : parent) merged_into[entry.first] = root(entry.first);
+  report.merged_vertices = merged_into.size();
+  auto target = [&](int id) {
+    const auto it = merged_into.find(id);
+    return it == merged_into.end() ? id : it->second;
+  };
+  records.vertices.erase(std::remove_if(records.vertices.begin(), records.vertices.end(),
+                                        [&](const VertexRecord& v) { return merged_into.count(v.id) != 0; }),
+                         records.vertices.end());
+  for (EdgeRecord& e : records.edges) {
+    e.from = target(e.from);
+    e.to = target(e.to);
+  }
+  const std::size_t before = records.edges.size();
+  records.edges.erase(std::remove_if(records.edges.begin(), records.edges.end(),
+                                     [](const EdgeRecord& e) { return e.from == e.to; }),
+                      records.edges.end());
+  report.collapsed_edges = before - records.edges.size();
+}
+
 PoseGraph2D build(Records& records, PoseGraphFormat format, const std::string& source, RowLog& rows) {
   if (format == PoseGraphFormat::kIsam) separate_landmark_ids(records, source);
   PoseGraph2D graph;
@@ -292,6 +345,7 @@ PoseGraphRead parse_pose_graph(std::istream& in, const PoseGraphReadOptions& opt
       [&](const Fields& fields, const std::string& tag, PoseGraphFormat f, long line, const LineError& err) {
         parse_line(fields, tag, f, own_noise(options.noise, f), line, err, records);
       });
+  merge_equivalences(records, options.equivalences, report, source, rows);
   PoseGraph2D graph = build(records, format, source, rows);
   rows.require_few_skipped();  // again: building may have skipped more
   return {std::move(graph), std::move(report)};

@@ -241,6 +241,82 @@ def test_read_options_are_keywords_and_checked(tmp_path):
         probslam.graph.read_pose_graph(path, rows="lenient")
 
 
+def _toro_records(text):
+    """A TORO file's VERTEX2 ids, EDGE2 (i, j, measurement) and EQUIV pairs, parsed here."""
+    vertices, edges, equiv = [], [], []
+    for line in text.splitlines():
+        f = line.split()
+        if f and f[0] == "VERTEX2":
+            vertices.append(int(f[1]))
+        elif f and f[0] == "EDGE2":
+            edges.append((int(f[1]), int(f[2]), tuple(float(x) for x in f[3:6])))
+        elif f and f[0] == "EQUIV":
+            equiv.append((int(f[1]), int(f[2])))
+    return vertices, edges, equiv
+
+
+def _merged_by_brute_force(vertices, edges, equiv):
+    """TORO's collapse written plainly: repeat until no pair is left, each id mapped to the
+    smallest id it is (transitively) equivalent to."""
+    rep = {v: v for v in vertices}
+    for i, j, _ in edges:
+        rep.setdefault(i, i)
+        rep.setdefault(j, j)
+    changed = True
+    while changed:
+        changed = False
+        for a, b in equiv:
+            low = min(rep[a], rep[b])
+            for v in rep:
+                if rep[v] in (rep[a], rep[b]) and rep[v] != low:
+                    rep[v], changed = low, True
+    kept = sorted({rep[v] for v in vertices})
+    kept_edges = [(rep[i], rep[j], z) for i, j, z in edges if rep[i] != rep[j]]
+    return kept, kept_edges
+
+
+def test_toro_equivalences_merge_as_toro_collapses(tmp_path):
+    text = ("VERTEX2 0 0 0 0\nVERTEX2 1 1 0 0\nVERTEX2 2 2 0 0\nVERTEX2 3 0.1 0 0\nVERTEX2 4 1.1 0 0\n"
+            "EDGE2 0 1 1 0 0 1 0 1 1 0 0\nEDGE2 1 2 1 0 0 1 0 1 1 0 0\nEDGE2 2 3 -2 0 0 1 0 1 1 0 0\n"
+            "EDGE2 3 4 1 0 0 1 0 1 1 0 0\nEDGE2 4 1 0.05 0 0 1 0 1 1 0 0\nEQUIV 3 0\nEQUIV 4 1\n")
+    path = tmp_path / "loop.graph"
+    path.write_text(text)
+    read = probslam.graph.read_pose_graph_with_report(path)
+    kept, kept_edges = _merged_by_brute_force(*_toro_records(text))
+    assert sorted(read.graph.pose_ids) == kept == [0, 1, 2]
+    assert (read.report.equivalences, read.report.merged_vertices, read.report.collapsed_edges) == (2, 2, 1)
+    got = [(int(a), int(b)) for a, b in read.graph.edge_ids()]
+    assert got == [(i, j) for i, j, _ in kept_edges]
+    ignored = probslam.graph.read_pose_graph_with_report(path, equivalences="ignore")
+    assert ignored.graph.num_vertices == 5 and ignored.graph.num_pose_edges == 5
+    assert (ignored.report.equivalences, ignored.report.merged_vertices) == (2, 0)
+    path.write_text(text + "EQUIV 9 0\n")
+    with pytest.raises(ValueError, match=r"loop\.graph:13: EQUIV names unknown vertex 9"):
+        probslam.graph.read_pose_graph(path)
+    path.write_text(text + "EQUIV 2 2\n")
+    with pytest.raises(ValueError, match=r":13: EQUIV names vertex 2 twice"):
+        probslam.graph.read_pose_graph(path)
+    with pytest.raises(ValueError, match="^equivalences must be one of"):
+        probslam.graph.read_pose_graph(path, equivalences="collapse")
+
+
+def test_w100_equivalences_match_a_brute_force_merge(shared_data):
+    path = shared_data / "pose_graphs/gtsam_examples/w100.graph"
+    if not path.exists():
+        pytest.skip("w100.graph not present")
+    vertices, edges, equiv = _toro_records(path.read_text())
+    kept, kept_edges = _merged_by_brute_force(vertices, edges, equiv)
+    read = probslam.graph.read_pose_graph_with_report(path)
+    assert sorted(read.graph.pose_ids) == kept
+    assert read.report.equivalences == len(equiv) == 40
+    assert read.report.merged_vertices == len(vertices) - len(kept)
+    assert read.report.collapsed_edges == len(edges) - len(kept_edges)
+    assert [(int(a), int(b)) for a, b in read.graph.edge_ids()] == [(i, j) for i, j, _ in kept_edges]
+    measurements = np.array([z for _, _, z in kept_edges])
+    np.testing.assert_array_equal(read.graph.pose_edges()[1], measurements)
+    assert probslam.optimize(read.graph).converged
+
+
 def _odometry(n):
     return "".join(f"ODOMETRY {k} {k + 1} 1 0 0 10 0 0 10 0 31.6\n" for k in range(n))
 

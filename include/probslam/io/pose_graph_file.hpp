@@ -14,7 +14,7 @@ namespace probslam {
 enum class PoseGraphFormat {
   kAuto,  ///< from the first record: g2o tags, TORO VERTEX2, or iSAM ODOMETRY / LANDMARK / EDGE2
   kG2o,   ///< VERTEX_SE2, VERTEX_XY, EDGE_SE2, EDGE_SE2_XY (information, upper triangle), FIX
-  kToro,  ///< VERTEX2, EDGE2 with information in TORO order (xx xy yy tt xt yt)
+  kToro,  ///< VERTEX2, EDGE2 with information in TORO order (xx xy yy tt xt yt), EQUIV
   kIsam,  ///< ODOMETRY / EDGE2 / LANDMARK with square-root information, upper triangle
 };
 
@@ -40,10 +40,18 @@ constexpr double kMaxBadRowFraction = 0.01;
 /// How many skipped lines a PoseGraphReadReport lists (all are counted); as eval.MAX_REPORTED_LINES.
 constexpr std::size_t kPoseGraphMaxReportedLines = 20;
 
+/// What a TORO `EQUIV i j` record (i and j are one node: TORO's loader collapses them) does.
+enum class Equivalences {
+  kMerge,   ///< the two ids become one vertex, the smaller id (TORO keeps the lower id); edges
+            ///< between them are dropped, the others re-attached to it
+  kIgnore,  ///< counted and otherwise ignored (GTSAM's load2D skips the records)
+};
+
 struct PoseGraphReadOptions {
   PoseGraphFormat format = PoseGraphFormat::kAuto;
   NoiseFormat noise = NoiseFormat::kDefault;
   RowPolicy rows = RowPolicy::kStrict;
+  Equivalences equivalences = Equivalences::kMerge;
 };
 
 /// What the reader did with the file's records (lines that are neither blank nor '#' comments).
@@ -51,6 +59,9 @@ struct PoseGraphReadReport {
   std::size_t rows = 0;          ///< records read, skipped ones included
   std::size_t skipped_rows = 0;  ///< records skipped (always 0 under RowPolicy::kStrict)
   std::vector<SkippedLine> skipped_lines;  ///< the first kPoseGraphMaxReportedLines of them
+  std::size_t equivalences = 0;     ///< TORO EQUIV records read (applied or not: options.equivalences)
+  std::size_t merged_vertices = 0;  ///< vertices merged into another by them
+  std::size_t collapsed_edges = 0;  ///< edges dropped because both their ends became one vertex
 };
 
 struct PoseGraphRead {
@@ -68,6 +79,12 @@ struct PoseGraphRead {
 /// in one (g2o's): when an iSAM file's landmark numbers meet its pose numbers, every landmark
 /// becomes vertex (landmark + max pose id + 1 - min landmark id); its own number stays the
 /// point's `landmark_id`. A file whose numbers do not meet (Victoria Park) keeps them as ids.
+///
+/// TORO `EQUIV i j` (Olson's w100 / w10000): under Equivalences::kMerge every id of a chain of
+/// equivalences becomes its smallest one (the others' VERTEX2 values are dropped, their edges
+/// re-attached, edges inside a chain dropped), whether or not an edge joins them; an EQUIV naming
+/// an id no record uses is an error of its line. kIgnore keeps the graph as the VERTEX2 / EDGE2
+/// records alone give it (what GTSAM's loader reads).
 ///
 /// options.noise says what the edges' noise entries are (NoiseFormat). options.rows: under
 /// kSkipAndCount a record that cannot be read (too few fields, a field that is not a number or
