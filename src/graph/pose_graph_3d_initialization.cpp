@@ -20,13 +20,32 @@ Pose3 inverse(const Pose3& a) {
   return {r, -(r * a.translation)};
 }
 
-// The vertices held when nothing else is: the fixed ones, or the first when none is fixed.
+bool is_point(const PoseGraph3D& graph, int v) { return graph.vertex(v).kind == VertexKind::kPoint; }
+
+// The vertices held when nothing else is: the fixed ones, or the first pose when none is fixed
+// (the optimiser's gauge, optimizer_core.hpp's variable_sizes).
 std::vector<char> held_vertices(const PoseGraph3D& graph) {
   std::vector<char> held(graph.num_vertices(), 0);
   bool any = false;
   for (int v = 0; v < graph.num_vertices(); ++v) any = (held[v] = graph.vertex(v).fixed) || any;
-  if (!any && graph.num_vertices() > 0) held[0] = 1;
+  for (int v = 0; v < graph.num_vertices() && !any; ++v)
+    if (!is_point(graph, v)) {
+      held[v] = 1;
+      any = true;
+    }
   return held;
+}
+
+// Places every free point not yet placed (placed[v] == 0) through its first edge, in the order
+// added, from a pose already placed: p = x * offset * z.
+void place_points(PoseGraph3D& graph, std::vector<char>& placed) {
+  for (const Point3Edge& e : graph.point_edges()) {
+    if (placed[e.point] || !placed[e.pose] || graph.vertex(e.point).fixed) continue;
+    const Pose3& x = graph.vertex(e.pose).value;
+    graph.vertex(e.point).value.translation =
+        x.translation + x.rotation * (e.offset.translation + e.offset.rotation * e.measurement);
+    placed[e.point] = 1;
+  }
 }
 
 // The value of `other`, an end of edge e, composed from its other end's value.
@@ -76,6 +95,7 @@ void initialize_odometry(PoseGraph3D& target) {
       queue.push_back(other);
     }
   }
+  place_points(graph, reached);
   target.assign_values(graph.values());
 }
 
@@ -83,11 +103,15 @@ void initialize_chordal(PoseGraph3D& target, const SparseCholeskyOptions& linear
   using graph_detail::EdgeAssembler;
   using graph_detail::Objective;
   require(target.num_vertices() > 0, "graph", "has no vertices");
-  require(!target.pose_edges().empty(), "graph", "has no edges");
+  require(!target.pose_edges().empty(), "graph", "has no pose edges");
   graph_detail::require_anchored(target);
   PoseGraph3D graph = target;  // committed only when every value is finite
   const int n = graph.num_vertices();
-  const std::vector<char> held = held_vertices(graph);
+  const std::vector<char> held_or_fixed = held_vertices(graph);
+  // Points take no part in the two solves (they have no rotation, and are placed from their
+  // poses at the end): to the solves they are held, outside the system.
+  std::vector<char> held = held_or_fixed;
+  for (int v = 0; v < n; ++v) held[v] = held[v] || is_point(graph, v);
   const auto& edges = graph.pose_edges();
   std::vector<std::pair<int, int>> couplings;
   for (const Pose3Edge& e : edges) couplings.emplace_back(e.from, e.to);
@@ -152,12 +176,19 @@ void initialize_chordal(PoseGraph3D& target, const SparseCholeskyOptions& linear
   require(t.allFinite(), "graph", "chordal initialisation is not finite (information too large?)");
   for (int v = 0; v < n; ++v)
     if (!held[v]) graph.vertex(v).value.translation = t.segment<3>(translations.system().offset(v));
+  std::vector<char> placed(n, 1);  // every pose is placed now; the free points are not
+  for (int v = 0; v < n; ++v)
+    if (is_point(graph, v) && !held_or_fixed[v]) placed[v] = 0;
+  place_points(graph, placed);
   target.assign_values(graph.values());
 }
 
 IncrementalReport optimize_incremental(PoseGraph3D& target, const IncrementalOptions& options) {
   require(options.poses_per_step >= 1, "poses_per_step", "must be >= 1");
   require(target.num_vertices() > 0, "graph", "has no poses");
+  require(target.num_points() == 0, "graph",
+          "has point landmarks: incremental optimisation of a 3-D graph supports poses only; use optimize "
+          "(after initialize_odometry or initialize_chordal)");
   PoseGraph3D graph = target;  // committed only when every step succeeded
   const int n = graph.num_vertices();
   // Each pose's seed: its first edge (in the order added) to an earlier pose.
