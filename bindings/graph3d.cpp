@@ -346,8 +346,8 @@ void define_graph3d(py::module_& m) {
                                "For a PoseGraph3D: 6 rows per pose and 3 per point, in the tangent of marginal_covariances.",
                                "For a PoseGraph3D: poses join in the order they were added, each composed from its first edge\n"
                                "to an earlier pose; after every poses_per_step poses the graph of the poses so far (their edges\n"
-                               "and priors) is optimised with the options of optimize. Returns an IncrementalReport. A graph\n"
-                               "with points is refused (ValueError): optimise it in one batch."});
+                               "and priors) is optimised with the options of optimize; each point joins with the earliest pose\n"
+                               "that sees it, placed by that pose's first edge to it. Returns an IncrementalReport."});
 
   m.def("initialize_odometry", [](PoseGraph3D& graph) { locked(graph, [&] { initialize_odometry(graph); }); },
         py::arg("graph"),

@@ -245,9 +245,26 @@ TEST(PoseGraph3DPoints, BadInputIsRefusedAndLeavesTheGraphUnchanged) {
   EXPECT_THROW(g.set_points({5, 6}, {z, z}), std::invalid_argument);
   EXPECT_THROW(g.set_points({5}, {Eigen::Vector3d(NAN, 0, 0)}), std::invalid_argument);
   EXPECT_TRUE(same());
-  // Points cannot hold the gauge; a graph with points refuses the incremental optimiser.
-  EXPECT_THROW(optimize_incremental(g), std::invalid_argument);
-  EXPECT_TRUE(same());
+}
+
+TEST(PoseGraph3DPoints, IncrementalOptimisationOfAnExactGraphIsExact) {
+  std::mt19937 rng(25);
+  const Truth t = random_truth(rng, 9, 6);
+  const Pose3 offset = random_pose(rng, 0.3, 0.5);
+  PoseGraph3D g = exact_graph(t, offset, rng);
+  std::vector<int> point_ids;
+  std::vector<Eigen::Vector3d> far;
+  for (int k = 0; k < 6; ++k) {
+    point_ids.push_back(100 + k);
+    far.emplace_back(50.0, -40.0, 30.0);
+  }
+  g.set_points(point_ids, far);
+  IncrementalOptions options;
+  options.poses_per_step = 2;
+  const IncrementalReport report = optimize_incremental(g, options);
+  EXPECT_EQ(report.steps, 5);
+  EXPECT_LE(report.chi2, 1e-18);
+  expect_at_truth(g, t);
 }
 
 TEST(PoseGraph3DPoints, APointSeenOnceFromAFixedPoseIsSolvedExactly) {

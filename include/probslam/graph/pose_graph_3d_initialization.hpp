@@ -34,10 +34,11 @@ void initialize_odometry(PoseGraph3D& graph);
 void initialize_chordal(PoseGraph3D& graph, const SparseCholeskyOptions& linear_solver = {});
 
 /// Incremental batch optimisation, as for a PoseGraph2D (graph_initialization.hpp): poses join in
-/// the order they were added, each composed from its first edge to an earlier pose, and after
-/// every poses_per_step poses the graph of the poses so far (their edges and priors) is optimised
-/// with options.step. Throws std::invalid_argument, graph unchanged, as optimize does, and for a
-/// graph with points (not supported here: optimize it in one batch).
+/// the order they were added, each composed from its first edge to an earlier pose; each point
+/// joins with the earliest pose that sees it, placed by that pose's first edge to it (p = x *
+/// offset * z); after every poses_per_step poses the graph of the vertices so far (their edges
+/// and priors) is optimised with options.step. Throws std::invalid_argument, graph unchanged, as
+/// optimize does.
 IncrementalReport optimize_incremental(PoseGraph3D& graph, const IncrementalOptions& options = {});
 
 }  // namespace probslam
