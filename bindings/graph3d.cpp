@@ -68,6 +68,26 @@ py::array_t<double> informations(const std::vector<Factor>& factors) {
   return out;
 }
 
+// The ids of the vertices of one kind, and their values, in index order.
+py::array_t<long> ids_of(const PoseGraph3D& g, VertexKind kind) {
+  const std::vector<long> ids = locked(g, [&] {
+    std::vector<long> out;
+    for (const Pose3Vertex& v : g.vertices())
+      if (v.kind == kind) out.push_back(v.id);
+    return out;
+  });
+  return py::array_t<long>(static_cast<py::ssize_t>(ids.size()), ids.data());
+}
+
+std::vector<Pose3> values_of(const PoseGraph3D& g, VertexKind kind) {
+  return locked(g, [&] {
+    std::vector<Pose3> out;
+    for (const Pose3Vertex& v : g.vertices())
+      if (v.kind == kind) out.push_back(v.value);
+    return out;
+  });
+}
+
 std::vector<int> ids_arg(py::handle obj, const char* name) {
   const LongArray ids = integer_array_arg(obj, name);
   if (ids.ndim() != 1) throw py::value_error(std::string(name) + " must be a 1-D array of integers");
@@ -86,7 +106,10 @@ void define_graph3d(py::module_& m) {
       "edge is [t_e, Log(R_e)] of z^-1 x_from^-1 x_to (m, rad); optimisers perturb poses on the right,\n"
       "x (+) [v, w] = (R Exp(w), t + R v). Every add_* refuses repeated or unknown ids, non-finite\n"
       "values, quaternions whose norm is not 1 within QUATERNION_NORM_TOLERANCE (stored normalised) and\n"
-      "information that is not symmetric positive definite (ValueError, graph unchanged).")
+      "information that is not symmetric positive definite (ValueError, graph unchanged).\n"
+      "Point landmarks (3,) [x, y, z] m share the poses' id space; a point edge (g2o EDGE_SE3_TRACKXYZ)\n"
+      "measures the point in the frame of a sensor at `offset` on its pose: error\n"
+      "(x_pose * offset)^-1 p - z (m), (3, 3) information; points move additively.")
       .def(py::init<>(), "An empty graph.")
       .def("add_pose",
            [](PoseGraph3D& g, IntArg id_arg, py::handle pose) {
@@ -95,6 +118,27 @@ void define_graph3d(py::module_& m) {
              locked(g, [&] { g.add_pose(id, p); });
            },
            py::arg("id"), py::arg("pose"), "Adds pose vertex id with value pose (7,) [x, y, z, qx, qy, qz, qw].")
+      .def("add_point",
+           [](PoseGraph3D& g, IntArg id_arg, py::handle point) {
+             const int id = id_arg.get("id");
+             const Eigen::Vector3d p = fixed_vector<3>(point, "point");
+             locked(g, [&] { g.add_point(id, p); });
+           },
+           py::arg("id"), py::arg("point"), "Adds point (landmark) vertex id at point (3,) [x, y, z] m.")
+      .def("add_point_edge",
+           [](PoseGraph3D& g, IntArg pose_id, IntArg point_id, py::handle z, py::handle info, py::handle offset) {
+             const int pose = pose_id.get("pose_id");
+             const int point = point_id.get("point_id");
+             const Eigen::Vector3d zv = fixed_vector<3>(z, "measurement");
+             const Eigen::Matrix3d omega = square_matrix_arg(info, "information", 3);
+             const Pose3 sensor = offset.is_none() ? Pose3{} : pose3_arg(offset, "offset");
+             locked(g, [&] { g.add_point_edge(pose, point, zv, omega, sensor); });
+           },
+           py::arg("pose_id"), py::arg("point_id"), py::arg("measurement"), py::arg("information"),
+           py::arg("offset") = py::none(),
+           "Adds a pose-point edge (g2o EDGE_SE3_TRACKXYZ): measurement (3,) the point in the frame of the\n"
+           "sensor at offset (7,) [x, y, z, qx, qy, qz, qw] in pose_id's frame (None: the pose itself), m;\n"
+           "information (3, 3). Error (x_pose * offset)^-1 p - z.")
       .def("add_pose_edge",
            [](PoseGraph3D& g, IntArg from_id, IntArg to_id, py::handle z, py::handle info) {
              const int from = from_id.get("from_id");
@@ -143,30 +187,49 @@ void define_graph3d(py::module_& m) {
            },
            py::arg("ids"), py::arg("poses"),
            "Replaces the values of pose vertices ids (N,) with poses (N, 7), all or nothing.")
+      .def("set_points",
+           [](PoseGraph3D& g, py::handle ids_obj, py::handle points_obj) {
+             const std::vector<int> ids = ids_arg(ids_obj, "ids");
+             const DoubleArray rows = matrix_arg(points_obj, "points", 3);
+             if (rows.shape(0) != static_cast<py::ssize_t>(ids.size()))
+               throw py::value_error("points must have one row per id");
+             std::vector<Eigen::Vector3d> points;
+             for (size_t k = 0; k < ids.size(); ++k) points.emplace_back(Eigen::Map<const Eigen::Vector3d>(rows.data() + 3 * k));
+             locked(g, [&] { g.set_points(ids, points); });
+           },
+           py::arg("ids"), py::arg("points"),
+           "Replaces the values of point vertices ids (N,) with points (N, 3) m, all or nothing.")
       .def("has_vertex",
            [](const PoseGraph3D& g, IntArg id) {
              const int i = id.get("id");
              return locked(g, [&] { return g.has_vertex(i); });
            },
            py::arg("id"), "Whether a vertex has this id.")
-      .def_property_readonly("num_vertices", getter(&PoseGraph3D::num_vertices), "Number of poses.")
+      .def_property_readonly("num_vertices", getter(&PoseGraph3D::num_vertices), "Poses plus points.")
+      .def_property_readonly("num_points", getter(&PoseGraph3D::num_points), "Number of point vertices.")
+      .def_property_readonly("num_point_edges",
+                             [](const PoseGraph3D& g) { return locked(g, [&] { return g.point_edges().size(); }); },
+                             "Number of pose-point edges.")
       .def_property_readonly("num_pose_edges",
                              [](const PoseGraph3D& g) { return locked(g, [&] { return g.pose_edges().size(); }); },
                              "Number of pose-pose edges.")
+      .def_property_readonly("pose_ids", [](const PoseGraph3D& g) { return ids_of(g, VertexKind::kPose); },
+                             "(P,) int64 ids of the pose vertices, in the order they were added.")
       .def_property_readonly(
-          "pose_ids",
-          [](const PoseGraph3D& g) {
-            const std::vector<long> ids = locked(g, [&] {
-              std::vector<long> out;
-              for (const Pose3Vertex& v : g.vertices()) out.push_back(v.id);
-              return out;
-            });
-            return py::array_t<long>(static_cast<py::ssize_t>(ids.size()), ids.data());
-          },
-          "(P,) int64 ids of the pose vertices, in the order they were added.")
-      .def_property_readonly(
-          "poses", [](const PoseGraph3D& g) { return pose_rows(locked(g, [&] { return g.values(); })); },
+          "poses", [](const PoseGraph3D& g) { return pose_rows(values_of(g, VertexKind::kPose)); },
           "(P, 7) pose values [x, y, z, qx, qy, qz, qw] in the order of pose_ids, a copy.")
+      .def_property_readonly("point_ids", [](const PoseGraph3D& g) { return ids_of(g, VertexKind::kPoint); },
+                             "(L,) int64 ids of the point vertices, in the order they were added.")
+      .def_property_readonly(
+          "points",
+          [](const PoseGraph3D& g) {
+            const std::vector<Pose3> points = values_of(g, VertexKind::kPoint);
+            py::array_t<double> out({static_cast<py::ssize_t>(points.size()), py::ssize_t{3}});
+            for (size_t k = 0; k < points.size(); ++k)
+              Eigen::Map<Eigen::Vector3d>(out.mutable_data() + 3 * k) = points[k].translation;
+            return out;
+          },
+          "(L, 3) point values [x, y, z] m in the order of point_ids, a copy.")
       .def("edge_ids",
            [](const PoseGraph3D& g) {
              const std::vector<long> flat = locked(g, [&] {
@@ -178,7 +241,7 @@ void define_graph3d(py::module_& m) {
              std::copy(flat.begin(), flat.end(), out.mutable_data());
              return out;
            },
-           "(E, 2) int64 end ids (from, to) of every edge.")
+           "(E, 2) int64 end ids (from, to) of every pose edge (point_edges() gives the point edges').")
       .def("pose_edges",
            [](const PoseGraph3D& g) {
              std::vector<long> ends;
@@ -192,6 +255,28 @@ void define_graph3d(py::module_& m) {
              return py::make_tuple(ids, measurements(edges), informations(edges));
            },
            "(ids (E, 2) (from, to), measurements (E, 7), information (E, 6, 6)) of the edges.")
+      .def("point_edges",
+           [](const PoseGraph3D& g) {
+             std::vector<long> ends;
+             const std::vector<Point3Edge> edges = locked(g, [&] {
+               for (const Point3Edge& e : g.point_edges())
+                 ends.insert(ends.end(), {g.vertex(e.pose).id, g.vertex(e.point).id});
+               return g.point_edges();
+             });
+             const auto n = static_cast<py::ssize_t>(edges.size());
+             py::array_t<long> ids({n, py::ssize_t{2}});
+             std::copy(ends.begin(), ends.end(), ids.mutable_data());
+             py::array_t<double> z({n, py::ssize_t{3}}), info({n, py::ssize_t{3}, py::ssize_t{3}}),
+                 offsets({n, py::ssize_t{kPoseWidth}});
+             for (py::ssize_t k = 0; k < n; ++k) {
+               Eigen::Map<Eigen::Vector3d>(z.mutable_data() + 3 * k) = edges[k].measurement;
+               Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(info.mutable_data() + 9 * k) = edges[k].information;
+               write_pose(edges[k].offset, offsets.mutable_data() + kPoseWidth * k);
+             }
+             return py::make_tuple(ids, z, info, offsets);
+           },
+           "(ids (E, 2) (pose, point), measurements (E, 3) m, information (E, 3, 3), offsets (E, 7)) of the\n"
+           "point edges.")
       .def_property_readonly("num_pose_priors",
                              [](const PoseGraph3D& g) { return locked(g, [&] { return g.pose_priors().size(); }); },
                              "Number of priors.")
@@ -213,7 +298,7 @@ void define_graph3d(py::module_& m) {
            "(P,) e^T Omega e of each prior at the current values.")
       .def("edge_chi2",
            [](const PoseGraph3D& g) { return locked(g, [&] { return Eigen::VectorXd(g.edge_chi2()); }); },
-           "(E,) e^T Omega e of each edge at the current values.")
+           "(E,) e^T Omega e of each edge at the current values: pose edges, then point edges.")
       .def("chi2", getter(&PoseGraph3D::chi2),
            "Sum over edges and priors of e^T Omega e at the current values; ValueError if not finite.")
       .def("copy", [](const PoseGraph3D& g) { return locked(g, [&] { return PoseGraph3D(g); }); },
@@ -221,7 +306,9 @@ void define_graph3d(py::module_& m) {
       .def("__repr__", [](py::handle self) {
         const PoseGraph3D& g = self.cast<const PoseGraph3D&>();
         return repr_of(self, locked(g, [&] {
-          return std::to_string(g.num_vertices()) + " poses, " + std::to_string(g.pose_edges().size()) + " edges";
+          std::string text = std::to_string(g.num_vertices() - g.num_points()) + " poses, ";
+          if (g.num_points() > 0) text += std::to_string(g.num_points()) + " points, ";
+          return text + std::to_string(g.pose_edges().size() + g.point_edges().size()) + " edges";
         }));
       });
   graph_class.attr("QUATERNION_NORM_TOLERANCE") = kQuaternionNormTolerance;
@@ -238,7 +325,8 @@ void define_graph3d(py::module_& m) {
         },
         py::arg("path"), py::arg("format") = "auto", py::arg("noise") = "default", py::arg("rows") = "strict",
         "Reads a 3-D pose graph file (formats and options as read_pose_graph_3d) into a PoseGraph3D:\n"
-        "(PoseGraph3D, PoseGraphReadReport); FIX records fix vertices, EDGE_SE3_PRIOR records are priors.");
+        "(PoseGraph3D, PoseGraphReadReport); FIX records fix vertices, EDGE_SE3_PRIOR records are priors,\n"
+        "VERTEX_TRACKXYZ / EDGE_SE3_TRACKXYZ points and point edges.");
   m.def("write_g2o_3d_graph",
         [](const std::string& path, const PoseGraph3D& graph) {
           const PoseGraph3DData data = locked(graph, [&] { return pose_graph_3d_data(graph); });
@@ -246,23 +334,26 @@ void define_graph3d(py::module_& m) {
           write_g2o_3d(path, data);
         },
         py::arg("path"), py::arg("graph"),
-        "Writes a PoseGraph3D at its current values as g2o text (VERTEX_SE3:QUAT, FIX, EDGE_SE3:QUAT,\n"
-        "EDGE_SE3_PRIOR; 17 significant digits).");
+        "Writes a PoseGraph3D at its current values as g2o text (VERTEX_SE3:QUAT, VERTEX_TRACKXYZ, FIX,\n"
+        "EDGE_SE3:QUAT, PARAMS_SE3OFFSET, EDGE_SE3_PRIOR, EDGE_SE3_TRACKXYZ; 17 significant digits).");
 
   def_optimizer<PoseGraph3D>(m, kLinearSolver, kOrdering,
                               {"The same for a PoseGraph3D: options, callback, report and errors as for a PoseGraph2D; the\n"
                                "step is on the manifold (x (+) [v, w] = (R Exp(w), t + R v)), step_tolerance in m / rad.",
                                "For a PoseGraph3D: (6, 6) per id in the pose's tangent [translation m in its own frame,\n"
-                               "rotation vector rad] (right perturbation); a fixed vertex has zero covariance.",
-                               "For a PoseGraph3D: 6 rows per pose, in the tangent of marginal_covariances.",
+                               "rotation vector rad] (right perturbation), (3, 3) per point (m, world frame); a fixed vertex\n"
+                               "has zero covariance.",
+                               "For a PoseGraph3D: 6 rows per pose and 3 per point, in the tangent of marginal_covariances.",
                                "For a PoseGraph3D: poses join in the order they were added, each composed from its first edge\n"
                                "to an earlier pose; after every poses_per_step poses the graph of the poses so far (their edges\n"
-                               "and priors) is optimised with the options of optimize. Returns an IncrementalReport."});
+                               "and priors) is optimised with the options of optimize; each point joins with the earliest pose\n"
+                               "that sees it, placed by that pose's first edge to it. Returns an IncrementalReport."});
 
   m.def("initialize_odometry", [](PoseGraph3D& graph) { locked(graph, [&] { initialize_odometry(graph); }); },
         py::arg("graph"),
         "For a PoseGraph3D: poses composed outward from the fixed vertices (or the first pose) along a\n"
-        "breadth-first spanning tree of the edges.");
+        "breadth-first spanning tree of the edges; then each free point placed by its first edge from a\n"
+        "reached pose (p = x * offset * z).");
 
   m.def("initialize_chordal",
         [](PoseGraph3D& graph, const std::string& linear_solver, const std::string& ordering) {
@@ -272,7 +363,8 @@ void define_graph3d(py::module_& m) {
         py::arg("graph"), py::arg("linear_solver") = kLinearSolver, py::arg("ordering") = kOrdering,
         "Chordal initialisation of a PoseGraph3D (Carlone et al. 2015): the rotations from the linear\n"
         "least-squares relaxation of R_to = R_from R_z (each 3x3 then projected onto SO(3)), then the\n"
-        "translations by a second linear solve with those rotations. Exact for noise-free edges; the\n"
+        "translations by a second linear solve with those rotations; then each free point placed by its\n"
+        "first edge (p = x * offset * z). Exact for noise-free edges; the\n"
         "held vertices (fixed, or the first) keep their values. ValueError for a part of the graph not\n"
         "connected to a held vertex.");
 }

@@ -99,6 +99,33 @@ py::dict graph_3d_to_dict(const PoseGraph3DData& g) {
   out["prior_quaternions"] = pq;
   out["prior_translations"] = pt;
   out["prior_information"] = pinfo;
+  const auto nl = static_cast<py::ssize_t>(g.points.size());
+  const auto nm = static_cast<py::ssize_t>(g.point_edges.size());
+  py::array_t<long> point_ids(nl), point_edges({nm, py::ssize_t{2}});
+  py::array_t<bool> point_fixed(nl);
+  py::array_t<double> points({nl, py::ssize_t{3}}), z({nm, py::ssize_t{3}}),
+      zinfo({nm, py::ssize_t{3}, py::ssize_t{3}}), oq({nm, py::ssize_t{4}}), ot({nm, py::ssize_t{3}});
+  for (py::ssize_t i = 0; i < nl; ++i) {
+    point_ids.mutable_data()[i] = g.points[i].id;
+    point_fixed.mutable_data()[i] = g.points[i].fixed;
+    Eigen::Map<Eigen::Vector3d>(points.mutable_data() + 3 * i) = g.points[i].p;
+  }
+  for (py::ssize_t i = 0; i < nm; ++i) {
+    const PointEdge3D& e = g.point_edges[i];
+    point_edges.mutable_data()[2 * i] = e.pose_id;
+    point_edges.mutable_data()[2 * i + 1] = e.point_id;
+    Eigen::Map<Eigen::Vector3d>(z.mutable_data() + 3 * i) = e.z;
+    Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(zinfo.mutable_data() + 9 * i) = e.information;
+    put_pose(oq.mutable_data() + 4 * i, ot.mutable_data() + 3 * i, e.offset_q, e.offset_t);
+  }
+  out["point_ids"] = point_ids;
+  out["points"] = points;
+  out["point_fixed"] = point_fixed;
+  out["point_edges"] = point_edges;
+  out["point_measurements"] = z;
+  out["point_information"] = zinfo;
+  out["point_offset_quaternions"] = oq;
+  out["point_offset_translations"] = ot;
   return out;
 }
 
@@ -206,6 +233,43 @@ PoseGraph3DData graph_3d_from_arrays(const py::dict& d) {
     p.information = information_block(pinfo.data() + 36 * i, "prior_information");
     g.priors.push_back(p);
   }
+  if (!d.contains("point_ids")) return g;  // a pose graph without points
+  auto point_ids = ids_arg(d["point_ids"], "point_ids", 0);
+  const py::ssize_t nl = point_ids.shape(0);
+  const DoubleArray points = matrix_arg(d["points"], "points", 3);
+  require_rows(points, nl, "points", "point_ids");
+  auto point_fixed = py::array_t<bool, py::array::c_style | py::array::forcecast>::ensure(d["point_fixed"]);
+  if (!point_fixed || point_fixed.ndim() != 1) throw py::value_error("point_fixed must be a 1-D array of booleans");
+  require_rows(point_fixed, nl, "point_fixed", "point_ids");
+  for (py::ssize_t i = 0; i < nl; ++i) {
+    Point3D p;
+    p.id = id_value(point_ids.data()[i], "point_ids");
+    p.p = Eigen::Map<const Eigen::Vector3d>(points.data() + 3 * i);
+    if (!p.p.allFinite()) throw py::value_error("points must be finite");
+    p.fixed = point_fixed.data()[i];
+    g.points.push_back(p);
+  }
+  auto point_edges = ids_arg(d["point_edges"], "point_edges", 2);
+  const py::ssize_t nm = point_edges.shape(0);
+  const DoubleArray z = matrix_arg(d["point_measurements"], "point_measurements", 3);
+  require_rows(z, nm, "point_measurements", "point_edges");
+  const PoseColumns offsets(d, "point_offset_quaternions", "point_offset_translations", nm, "point_edges");
+  DoubleArray zinfo = as_array(d["point_information"], "point_information");
+  if (zinfo.ndim() != 3 || zinfo.shape(1) != 3 || zinfo.shape(2) != 3)
+    throw py::value_error("point_information must have shape (n, 3, 3), got " + shape_of(zinfo));
+  require_rows(zinfo, nm, "point_information", "point_edges");
+  for (py::ssize_t i = 0; i < nm; ++i) {
+    PointEdge3D e;
+    e.pose_id = id_value(point_edges.data()[2 * i], "point_edges");
+    e.point_id = id_value(point_edges.data()[2 * i + 1], "point_edges");
+    e.z = Eigen::Map<const Eigen::Vector3d>(z.data() + 3 * i);
+    if (!e.z.allFinite()) throw py::value_error("point_measurements must be finite");
+    e.information = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(zinfo.data() + 9 * i);
+    if (!e.information.allFinite() || e.information != e.information.transpose())
+      throw py::value_error("point_information must hold finite symmetric (3, 3) matrices");
+    offsets.get(i, e.offset_q, e.offset_t);
+    g.point_edges.push_back(e);
+  }
   return g;
 }
 
@@ -275,7 +339,10 @@ void define_io(py::module_& m) {
       "(VERTEX_SE3:QUAT / EDGE_SE3:QUAT / EDGE_SE3_PRIOR / FIX), \"isam\" (EDGE3 with roll pitch yaw,\n"
       "square-root information by default; VERTEX3), \"toro\" (VERTEX3 / EDGE3, information) or \"auto\".\n"
       "noise and rows as read_pose_graph. Quaternions are rows (x, y, z, w); information (E, 6, 6) in\n"
-      "the order [translation, rotation].");
+      "the order [translation, rotation]. g2o's VERTEX_TRACKXYZ / EDGE_SE3_TRACKXYZ give point_ids,\n"
+      "points (L, 3), point_fixed, point_edges (M, 2) (pose, point), point_measurements (M, 3),\n"
+      "point_information (M, 3, 3) and the sensor offsets point_offset_quaternions (M, 4) and\n"
+      "point_offset_translations (M, 3).");
   m.def(
       "write_g2o_3d",
       [](const std::string& path, const py::dict& arrays) {

@@ -513,14 +513,24 @@ class PoseGraph3D:
     """A 3-D pose graph: poses (7,) [x, y, z, qx, qy, qz, qw] (m, unit quaternion; g2o's
     VERTEX_SE3:QUAT order), edges the pose of `to` in `from`'s frame with (6, 6) information in
     g2o's EDGE_SE3:QUAT order [translation, rotation]; error [t_e, Log(R_e)] of
-    z^-1 x_from^-1 x_to."""
+    z^-1 x_from^-1 x_to. Points (3,) m share the poses' id space; a point edge (g2o
+    EDGE_SE3_TRACKXYZ) has error (x_pose * offset)^-1 p - z and (3, 3) information."""
     QUATERNION_NORM_TOLERANCE: float
-    num_vertices: int
+    num_vertices: int  # poses plus points
+    num_points: int
     num_pose_edges: int
+    num_point_edges: int
     pose_ids: npt.NDArray[np.int64]  # (P,) in the order added
     poses: Array  # (P, 7) x, y, z m, qx, qy, qz, qw
+    point_ids: npt.NDArray[np.int64]  # (L,) in the order added
+    points: Array  # (L, 3) m
     def __init__(self) -> None: ...
     def add_pose(self, id: int, pose: ArrayLike) -> None: ...
+    def add_point(self, id: int, point: ArrayLike) -> None: ...  # (3,) m
+    def add_point_edge(self, pose_id: int, point_id: int, measurement: ArrayLike, information: ArrayLike,
+                       offset: Optional[ArrayLike] = None) -> None:
+        """measurement (3,) the point in the frame of the sensor at offset (7,) on the pose (None: the
+        pose itself); information (3, 3)."""
     def add_pose_edge(self, from_id: int, to_id: int, measurement: ArrayLike, information: ArrayLike) -> None:
         """measurement (7,) to_id's pose in from_id's frame; information (6, 6)."""
     def add_pose_prior(self, id: int, measurement: ArrayLike, information: ArrayLike) -> None:
@@ -528,13 +538,15 @@ class PoseGraph3D:
     def set_fixed(self, id: int, fixed: bool = True) -> None: ...
     def is_fixed(self, id: int) -> bool: ...
     def set_poses(self, ids: ArrayLike, poses: ArrayLike) -> None: ...  # (N,), (N, 7)
+    def set_points(self, ids: ArrayLike, points: ArrayLike) -> None: ...  # (N,), (N, 3)
     def has_vertex(self, id: int) -> bool: ...
-    def edge_ids(self) -> npt.NDArray[np.int64]: ...  # (E, 2)
+    def edge_ids(self) -> npt.NDArray[np.int64]: ...  # (E, 2) of the pose edges
     def pose_edges(self) -> Tuple[npt.NDArray[np.int64], Array, Array]: ...  # (E, 2), (E, 7), (E, 6, 6)
+    def point_edges(self) -> Tuple[npt.NDArray[np.int64], Array, Array, Array]: ...  # (M, 2), (M, 3), (M, 3, 3), (M, 7)
     num_pose_priors: int
     def pose_priors(self) -> Tuple[npt.NDArray[np.int64], Array, Array]: ...  # (P,), (P, 7), (P, 6, 6)
     def prior_chi2(self) -> Array: ...  # (P,)
-    def edge_chi2(self) -> Array: ...  # (E,)
+    def edge_chi2(self) -> Array: ...  # (E + M,) pose edges, then point edges
     def chi2(self) -> float: ...  # edges and priors
     def copy(self) -> "PoseGraph3D": ...
 

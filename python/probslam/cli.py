@@ -800,8 +800,9 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     t_read = time.perf_counter() - t0
     bundled = " (bundled Intel Research Lab excerpt)" if not args.graph else ""
     if dimension == 3:
-        print(f"graph:      {path}: 3-D, {g.num_vertices} poses, {g.num_pose_edges} edges, {g.num_pose_priors} "
-              f"priors (read in {t_read:.3f} s)")
+        points = f"{g.num_points} points, {g.num_point_edges} point edges, " if g.num_points else ""
+        print(f"graph:      {path}: 3-D, {len(g.pose_ids)} poses, {g.num_pose_edges} edges, {points}"
+              f"{g.num_pose_priors} priors (read in {t_read:.3f} s)")
     else:
         print(f"graph:      {path}{bundled}: {len(g.pose_ids)} poses, {len(g.point_ids)} points, "
               f"{g.num_pose_edges} pose edges, {g.num_point_edges} point edges (read in {t_read:.3f} s)")

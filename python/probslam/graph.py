@@ -109,7 +109,7 @@ def write_g2o_3d(graph: PoseGraph3D, path: PathLike) -> None:
 
 #: Records that tell a 3-D graph file from a 2-D one (the first of either kind decides).
 _TAGS_3D = frozenset({b"VERTEX_SE3:QUAT", b"EDGE_SE3:QUAT", b"EDGE_SE3_PRIOR", b"PARAMS_SE3OFFSET", b"VERTEX3",
-                      b"EDGE3"})
+                      b"EDGE3", b"VERTEX_TRACKXYZ", b"EDGE_SE3_TRACKXYZ"})
 _TAGS_2D = frozenset({b"VERTEX_SE2", b"VERTEX_XY", b"EDGE_SE2", b"EDGE_SE2_XY", b"VERTEX2", b"EDGE2", b"ODOMETRY",
                       b"LANDMARK"})
 #: Bytes of a line looked at for its tag: a record's tag is its first word, well within this.

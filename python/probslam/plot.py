@@ -183,8 +183,9 @@ def pose_graph_3d(top, side, graph, initial=None, edges: bool = False) -> None:
     """A PoseGraph3D as two projections on metre axes: ``top`` the view from above (x-y, equal
     scales) and ``side`` the view from the side (x-z, equal scales, or z stretched by the round
     factor of ``side_view_exaggeration`` when the graph is flat, said in the title); the poses as
-    a path in id order, ``initial`` (P, 3+) the starting guess in grey beneath, and (if
-    ``edges``) every edge as a thin line (loop closures show the graph's structure)."""
+    a path in id order, its points (landmarks) as small dots, ``initial`` (P, 3+) the starting
+    guess of the poses in grey beneath, and (if ``edges``) every pose edge as a thin line (loop
+    closures show the graph's structure)."""
     from matplotlib.collections import LineCollection
 
     order = np.argsort(graph.pose_ids, kind="stable")
@@ -197,11 +198,15 @@ def pose_graph_3d(top, side, graph, initial=None, edges: bool = False) -> None:
             start = np.asarray(initial)[order]
             ax.plot(start[:, a], start[:, b], color="0.7", lw=0.5, label="initial guess")
         if edges:
-            ends = np.array([(index[int(i)], index[int(j)]) for i, j in graph.edge_ids()], dtype=int).reshape(-1, 2)
+            ends = np.array([(index[int(i)], index[int(j)]) for i, j in graph.pose_edges()[0]],
+                            dtype=int).reshape(-1, 2)
             p = graph.poses[:, (a, b)]
             ax.add_collection(LineCollection(np.stack([p[ends[:, 0]], p[ends[:, 1]]], axis=1), colors="tab:orange",
                                              linewidths=0.3, alpha=0.5, label="edges"))
         ax.plot(poses[:, a], poses[:, b], color="tab:blue", lw=0.7, label="optimised poses")
+        points = graph.points
+        if len(points):
+            ax.scatter(points[:, a], points[:, b], s=3, color="tab:red", linewidths=0, label="points")
         ax.set_aspect(stretch if ax is side else 1.0, adjustable="datalim")
         ax.set_xlabel("x [m]")
         ax.set_ylabel("yz"[b - 1] + " [m]")

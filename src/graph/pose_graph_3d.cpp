@@ -28,17 +28,38 @@ Pose3 checked_pose(const Pose3& pose, const char* name) {
 
 }  // namespace
 
-void PoseGraph3D::add_pose(int id, const Pose3& pose) {
+int PoseGraph3D::add_vertex(int id, const Pose3& value, VertexKind kind) {
   if (has_vertex(id)) throw_invalid_argument("id", "is already used: " + std::to_string(id));
-  const Pose3 value = checked_pose(pose, "pose");
   const int index = num_vertices();
   index_.emplace(id, index);
   try {
-    vertices_.push_back({id, value, false});
+    vertices_.push_back({id, value, false, kind});
   } catch (...) {  // out of memory: the graph stays as it was
     index_.erase(id);
     throw;
   }
+  return index;
+}
+
+void PoseGraph3D::add_pose(int id, const Pose3& pose) {
+  if (has_vertex(id)) throw_invalid_argument("id", "is already used: " + std::to_string(id));
+  add_vertex(id, checked_pose(pose, "pose"), VertexKind::kPose);
+}
+
+void PoseGraph3D::add_point(int id, const Eigen::Vector3d& point) {
+  if (has_vertex(id)) throw_invalid_argument("id", "is already used: " + std::to_string(id));
+  require_all_finite(point, "point");
+  add_vertex(id, {Eigen::Quaterniond::Identity(), point}, VertexKind::kPoint);
+  ++num_points_;
+}
+
+int PoseGraph3D::require_vertex(int id, VertexKind kind, const char* argument) const {
+  const auto it = index_.find(id);
+  if (it == index_.end()) throw_invalid_argument(argument, "unknown vertex id " + std::to_string(id));
+  if (vertices_[it->second].kind != kind)
+    throw_invalid_argument(argument, "vertex " + std::to_string(id) + " is a " +
+                                         (kind == VertexKind::kPose ? "point, not a pose" : "pose, not a point"));
+  return it->second;
 }
 
 int PoseGraph3D::index_of(int id) const {
@@ -48,21 +69,29 @@ int PoseGraph3D::index_of(int id) const {
 }
 
 void PoseGraph3D::add_pose_edge(int from_id, int to_id, const Pose3& measurement, const Matrix6d& information) {
-  const auto from_it = index_.find(from_id), to_it = index_.find(to_id);
-  if (from_it == index_.end()) throw_invalid_argument("from", "unknown vertex id " + std::to_string(from_id));
-  if (to_it == index_.end()) throw_invalid_argument("to", "unknown vertex id " + std::to_string(to_id));
+  const int from = require_vertex(from_id, VertexKind::kPose, "from");
+  const int to = require_vertex(to_id, VertexKind::kPose, "to");
   require(from_id != to_id, "to", "must differ from the edge's first vertex");
   const Pose3 z = checked_pose(measurement, "measurement");
   require_symmetric_positive_definite(information, "information", kSymmetryTolerance);
-  edges_.push_back({from_it->second, to_it->second, z, 0.5 * (information + information.transpose())});
+  edges_.push_back({from, to, z, 0.5 * (information + information.transpose())});
+}
+
+void PoseGraph3D::add_point_edge(int pose_id, int point_id, const Eigen::Vector3d& measurement,
+                                 const Eigen::Matrix3d& information, const Pose3& offset) {
+  const int pose = require_vertex(pose_id, VertexKind::kPose, "pose_id");
+  const int point = require_vertex(point_id, VertexKind::kPoint, "point_id");
+  require_all_finite(measurement, "measurement");
+  const Pose3 sensor = checked_pose(offset, "offset");
+  require_symmetric_positive_definite(information, "information", kSymmetryTolerance);
+  point_edges_.push_back({pose, point, measurement, 0.5 * (information + information.transpose()), sensor});
 }
 
 void PoseGraph3D::add_pose_prior(int id, const Pose3& measurement, const Matrix6d& information) {
-  const auto it = index_.find(id);
-  if (it == index_.end()) throw_invalid_argument("id", "unknown vertex id " + std::to_string(id));
+  const int vertex = require_vertex(id, VertexKind::kPose, "id");
   const Pose3 z = checked_pose(measurement, "measurement");
   require_symmetric_positive_definite(information, "information", kSymmetryTolerance);
-  priors_.push_back({it->second, z, 0.5 * (information + information.transpose())});
+  priors_.push_back({vertex, z, 0.5 * (information + information.transpose())});
 }
 
 void PoseGraph3D::set_fixed(int id, bool fixed) { vertices_[index_of(id)].fixed = fixed; }
@@ -72,10 +101,19 @@ void PoseGraph3D::set_poses(const std::vector<int>& ids, const std::vector<Pose3
   std::vector<Pose3> checked;
   checked.reserve(poses.size());
   for (size_t k = 0; k < ids.size(); ++k) {  // everything checked before anything is written
-    index_of(ids[k]);
+    require_vertex(ids[k], VertexKind::kPose, "ids");
     checked.push_back(checked_pose(poses[k], "poses"));
   }
   for (size_t k = 0; k < ids.size(); ++k) vertices_[index_of(ids[k])].value = checked[k];
+}
+
+void PoseGraph3D::set_points(const std::vector<int>& ids, const std::vector<Eigen::Vector3d>& points) {
+  require(ids.size() == points.size(), "points", "must have one entry per id");
+  for (size_t k = 0; k < ids.size(); ++k) {  // everything checked before anything is written
+    require_vertex(ids[k], VertexKind::kPoint, "ids");
+    require_all_finite(points[k], "points");
+  }
+  for (size_t k = 0; k < ids.size(); ++k) vertices_[index_of(ids[k])].value.translation = points[k];
 }
 
 void PoseGraph3D::assign_values(const std::vector<Pose3>& values) {
@@ -98,11 +136,18 @@ std::vector<Pose3> PoseGraph3D::values() const {
 }
 
 Eigen::VectorXd PoseGraph3D::edge_chi2() const {
-  Eigen::VectorXd out(edges_.size());
+  Eigen::VectorXd out(edges_.size() + point_edges_.size());
   for (size_t k = 0; k < edges_.size(); ++k) {
     const Pose3Edge& e = edges_[k];
     const Vector6d r = linearize_pose3_edge(vertices_[e.from].value, vertices_[e.to].value, e.measurement).error;
     out[static_cast<Eigen::Index>(k)] = r.dot(e.information * r);
+  }
+  for (size_t k = 0; k < point_edges_.size(); ++k) {
+    const Point3Edge& e = point_edges_[k];
+    const Eigen::Vector3d r =
+        linearize_point3_edge(vertices_[e.pose].value, vertices_[e.point].value.translation, e.measurement, e.offset)
+            .error;
+    out[static_cast<Eigen::Index>(edges_.size() + k)] = r.dot(e.information * r);
   }
   return out;
 }
@@ -167,6 +212,23 @@ Pose3PriorLinearization linearize_pose3_prior(const Pose3& pose, const Pose3& me
   out.d_pose.setZero();
   out.d_pose.topLeftCorner<3, 3>() = rz_t * pose.rotation.toRotationMatrix();
   out.d_pose.bottomRightCorner<3, 3>() = so3_right_jacobian_inverse(out.error.tail<3>());
+  return out;
+}
+
+// With the sensor s = x * offset (R_s = R_x R_o, t_s = t_x + R_x t_o) and q = R_x^T (p - t_x),
+// e = R_s^T (p - t_s) - z = R_o^T (q - t_o) - z. Perturbing x = (R_x Exp(w), t_x + R_x v):
+// q -> Exp(-w) (q - v) = q - v + [q]x w to first order, so de/dv = -R_o^T, de/dw = R_o^T [q]x;
+// the point moves additively: de/dp = R_o^T R_x^T.
+Point3EdgeLinearization linearize_point3_edge(const Pose3& pose, const Eigen::Vector3d& point,
+                                              const Eigen::Vector3d& measurement, const Pose3& offset) {
+  const Eigen::Matrix3d rx_t = pose.rotation.toRotationMatrix().transpose();
+  const Eigen::Matrix3d ro_t = offset.rotation.toRotationMatrix().transpose();
+  const Eigen::Vector3d q = rx_t * (point - pose.translation);
+  Point3EdgeLinearization out;
+  out.error = ro_t * (q - offset.translation) - measurement;
+  out.d_pose.leftCols<3>() = -ro_t;
+  out.d_pose.rightCols<3>() = ro_t * skew(q);
+  out.d_point = ro_t * rx_t;
   return out;
 }
 

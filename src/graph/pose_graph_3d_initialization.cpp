@@ -20,13 +20,40 @@ Pose3 inverse(const Pose3& a) {
   return {r, -(r * a.translation)};
 }
 
-// The vertices held when nothing else is: the fixed ones, or the first when none is fixed.
+constexpr int kNone = -1;
+
+bool is_point(const PoseGraph3D& graph, int v) { return graph.vertex(v).kind == VertexKind::kPoint; }
+
+// The vertices held when nothing else is: the fixed ones, or the first pose when none is fixed
+// (the optimiser's gauge, optimizer_core.hpp's variable_sizes).
 std::vector<char> held_vertices(const PoseGraph3D& graph) {
   std::vector<char> held(graph.num_vertices(), 0);
   bool any = false;
   for (int v = 0; v < graph.num_vertices(); ++v) any = (held[v] = graph.vertex(v).fixed) || any;
-  if (!any && graph.num_vertices() > 0) held[0] = 1;
+  for (int v = 0; v < graph.num_vertices() && !any; ++v)
+    if (!is_point(graph, v)) {
+      held[v] = 1;
+      any = true;
+    }
   return held;
+}
+
+// p = x * offset * z: where a point edge puts its point, from its pose's value.
+Eigen::Vector3d point_from(const PoseGraph3D& graph, const Point3Edge& e) {
+  const Pose3& x = graph.vertex(e.pose).value;
+  return x.translation + x.rotation * (e.offset.translation + e.offset.rotation * e.measurement);
+}
+
+// Places every free point not yet placed (placed[v] == 0) from a pose already placed: through
+// edge only[v] when given (not kNone), otherwise through its first such edge in the order added.
+void place_points(PoseGraph3D& graph, std::vector<char>& placed, const std::vector<int>& only = {}) {
+  for (int k = 0; k < static_cast<int>(graph.point_edges().size()); ++k) {
+    const Point3Edge& e = graph.point_edges()[k];
+    if (placed[e.point] || !placed[e.pose] || graph.vertex(e.point).fixed) continue;
+    if (!only.empty() && only[e.point] != k) continue;
+    graph.vertex(e.point).value.translation = point_from(graph, e);
+    placed[e.point] = 1;
+  }
 }
 
 // The value of `other`, an end of edge e, composed from its other end's value.
@@ -35,18 +62,30 @@ Pose3 propagate(const PoseGraph3D& graph, const Pose3Edge& e, int other) {
                        : compose(graph.vertex(e.to).value, inverse(e.measurement));
 }
 
-// The first `count` vertices (indices kept) with the edges and priors among them.
-PoseGraph3D prefix_of(const PoseGraph3D& graph, int count) {
+// The vertices that joined by `step` (joins[v] <= step) with the edges and priors among them, the
+// fixed vertices fixed; `full_index` maps the part's vertex indices to the graph's.
+PoseGraph3D part_of(const PoseGraph3D& graph, const std::vector<int>& joins, int step, std::vector<int>& full_index) {
   PoseGraph3D part;
-  for (int v = 0; v < count; ++v) {
-    part.add_pose(graph.vertex(v).id, graph.vertex(v).value);
-    if (graph.vertex(v).fixed) part.set_fixed(graph.vertex(v).id);
+  full_index.clear();
+  auto active = [&](int v) { return joins[v] != kNone && joins[v] <= step; };
+  for (int v = 0; v < graph.num_vertices(); ++v) {
+    if (!active(v)) continue;
+    const Pose3Vertex& vertex = graph.vertex(v);
+    if (vertex.kind == VertexKind::kPoint)
+      part.add_point(vertex.id, vertex.value.translation);
+    else
+      part.add_pose(vertex.id, vertex.value);
+    if (vertex.fixed) part.set_fixed(vertex.id);
+    full_index.push_back(v);
   }
   for (const Pose3Edge& e : graph.pose_edges())
-    if (e.from < count && e.to < count)
+    if (active(e.from) && active(e.to))
       part.add_pose_edge(graph.vertex(e.from).id, graph.vertex(e.to).id, e.measurement, e.information);
   for (const Pose3Prior& p : graph.pose_priors())
-    if (p.vertex < count) part.add_pose_prior(graph.vertex(p.vertex).id, p.measurement, p.information);
+    if (active(p.vertex)) part.add_pose_prior(graph.vertex(p.vertex).id, p.measurement, p.information);
+  for (const Point3Edge& e : graph.point_edges())
+    if (active(e.pose) && active(e.point))
+      part.add_point_edge(graph.vertex(e.pose).id, graph.vertex(e.point).id, e.measurement, e.information, e.offset);
   return part;
 }
 
@@ -76,6 +115,7 @@ void initialize_odometry(PoseGraph3D& target) {
       queue.push_back(other);
     }
   }
+  place_points(graph, reached);
   target.assign_values(graph.values());
 }
 
@@ -83,11 +123,15 @@ void initialize_chordal(PoseGraph3D& target, const SparseCholeskyOptions& linear
   using graph_detail::EdgeAssembler;
   using graph_detail::Objective;
   require(target.num_vertices() > 0, "graph", "has no vertices");
-  require(!target.pose_edges().empty(), "graph", "has no edges");
+  require(!target.pose_edges().empty(), "graph", "has no pose edges");
   graph_detail::require_anchored(target);
   PoseGraph3D graph = target;  // committed only when every value is finite
   const int n = graph.num_vertices();
-  const std::vector<char> held = held_vertices(graph);
+  const std::vector<char> held_or_fixed = held_vertices(graph);
+  // Points take no part in the two solves (they have no rotation, and are placed from their
+  // poses at the end): to the solves they are held, outside the system.
+  std::vector<char> held = held_or_fixed;
+  for (int v = 0; v < n; ++v) held[v] = held[v] || is_point(graph, v);
   const auto& edges = graph.pose_edges();
   std::vector<std::pair<int, int>> couplings;
   for (const Pose3Edge& e : edges) couplings.emplace_back(e.from, e.to);
@@ -152,31 +196,65 @@ void initialize_chordal(PoseGraph3D& target, const SparseCholeskyOptions& linear
   require(t.allFinite(), "graph", "chordal initialisation is not finite (information too large?)");
   for (int v = 0; v < n; ++v)
     if (!held[v]) graph.vertex(v).value.translation = t.segment<3>(translations.system().offset(v));
+  std::vector<char> placed(n, 1);  // every pose is placed now; the free points are not
+  for (int v = 0; v < n; ++v)
+    if (is_point(graph, v) && !held_or_fixed[v]) placed[v] = 0;
+  place_points(graph, placed);
   target.assign_values(graph.values());
 }
 
 IncrementalReport optimize_incremental(PoseGraph3D& target, const IncrementalOptions& options) {
   require(options.poses_per_step >= 1, "poses_per_step", "must be >= 1");
-  require(target.num_vertices() > 0, "graph", "has no poses");
   PoseGraph3D graph = target;  // committed only when every step succeeded
   const int n = graph.num_vertices();
+  // The poses in the order added, poses_per_step to a step.
+  std::vector<int> order, position(n, kNone), joins(n, kNone);
+  for (int v = 0; v < n; ++v) {
+    if (is_point(graph, v)) continue;
+    position[v] = static_cast<int>(order.size());
+    joins[v] = position[v] / options.poses_per_step;
+    order.push_back(v);
+  }
+  require(!order.empty(), "graph", "has no poses");
   // Each pose's seed: its first edge (in the order added) to an earlier pose.
-  std::vector<int> parent(n, -1);
+  std::vector<int> parent(n, kNone);
   for (int k = 0; k < static_cast<int>(graph.pose_edges().size()); ++k) {
     const Pose3Edge& e = graph.pose_edges()[k];
-    const int later = std::max(e.from, e.to);
-    if (parent[later] < 0) parent[later] = k;
+    const int later = position[e.from] > position[e.to] ? e.from : e.to;
+    if (parent[later] == kNone) parent[later] = k;
+  }
+  // Each point joins with the earliest pose that sees it, placed by that pose's first edge to it
+  // (a point never seen never joins and keeps its value).
+  std::vector<int> first(n, kNone);
+  for (int k = 0; k < static_cast<int>(graph.point_edges().size()); ++k) {
+    const Point3Edge& e = graph.point_edges()[k];
+    if (first[e.point] == kNone || position[e.pose] < position[graph.point_edges()[first[e.point]].pose])
+      first[e.point] = k;
+  }
+  const int steps = joins[order.back()] + 1;
+  std::vector<std::vector<int>> points_joining(steps);
+  for (int v = 0; v < n; ++v) {
+    if (!is_point(graph, v) || first[v] == kNone) continue;
+    joins[v] = joins[graph.point_edges()[first[v]].pose];
+    points_joining[joins[v]].push_back(v);
   }
   IncrementalReport report;
-  for (int start = 0; start < n; start += options.poses_per_step) {
-    const int end = std::min(n, start + options.poses_per_step);
-    for (int v = start; v < end; ++v)
-      if (!graph.vertex(v).fixed && parent[v] >= 0)
+  std::vector<int> full_index;
+  for (int step = 0; step < steps; ++step) {
+    const int end = std::min<int>((step + 1) * options.poses_per_step, static_cast<int>(order.size()));
+    for (int i = step * options.poses_per_step; i < end; ++i) {
+      const int v = order[i];
+      if (!graph.vertex(v).fixed && parent[v] != kNone)
         graph.vertex(v).value = propagate(graph, graph.pose_edges()[parent[v]], v);
-    PoseGraph3D part = prefix_of(graph, end);
-    if (part.pose_edges().empty() && part.pose_priors().empty()) continue;  // a lone first pose
+    }
+    std::vector<char> placed(n, 1);
+    for (const int v : points_joining[step]) placed[v] = 0;
+    place_points(graph, placed, first);
+    PoseGraph3D part = part_of(graph, joins, step, full_index);
+    if (part.pose_edges().empty() && part.pose_priors().empty() && part.point_edges().empty())
+      continue;  // a lone first pose
     report.add_step(optimize(part, options.step));
-    for (int v = 0; v < end; ++v) graph.vertex(v).value = part.vertex(v).value;
+    for (int j = 0; j < part.num_vertices(); ++j) graph.vertex(full_index[j]).value = part.vertex(j).value;
   }
   report.chi2 = graph.chi2();
   target.assign_values(graph.values());

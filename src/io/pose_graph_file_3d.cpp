@@ -1,6 +1,7 @@
 #include "probslam/io/pose_graph_file_3d.hpp"
 
 #include <Eigen/Cholesky>
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <limits>
@@ -39,8 +40,19 @@ struct PriorRecord {
   int param;
   Prior3D prior;
 };
+struct PointRecord {
+  long line;
+  Point3D point;
+};
+struct PointEdgeRecord {
+  long line;
+  int param;
+  PointEdge3D edge;
+};
 struct Records {
   std::vector<VertexRecord> vertices;
+  std::vector<PointRecord> points;
+  std::vector<PointEdgeRecord> point_edges;
   std::vector<EdgeRecord> edges;
   std::vector<PriorRecord> priors;
   std::vector<std::pair<long, std::vector<int>>> fixed;  // line, ids of one FIX record
@@ -112,26 +124,29 @@ Eigen::Quaterniond from_roll_pitch_yaw(const Fields& f, std::size_t first, const
   return q;
 }
 
-// The information the 21 upper-triangle entries (row-major, from field `first`) stand for.
-Matrix6d information(const Fields& f, std::size_t first, NoiseFormat noise, const LineError& err) {
-  Matrix6d entries = Matrix6d::Zero();
+// The information the N (N + 1) / 2 upper-triangle entries (row-major, from field `first`) stand
+// for.
+template <int N>
+Eigen::Matrix<double, N, N> information(const Fields& f, std::size_t first, NoiseFormat noise, const LineError& err) {
+  using Matrix = Eigen::Matrix<double, N, N>;
+  Matrix entries = Matrix::Zero();
   std::size_t k = first;
-  for (int i = 0; i < 6; ++i)
-    for (int j = i; j < 6; ++j) entries(i, j) = entries(j, i) = f.number(k++);
+  for (int i = 0; i < N; ++i)
+    for (int j = i; j < N; ++j) entries(i, j) = entries(j, i) = f.number(k++);
   if (!entries.allFinite()) err.fail("noise entries must be finite");
-  Matrix6d info;
+  Matrix info;
   if (noise == NoiseFormat::kSquareRootInformation) {
-    const Matrix6d r = entries.triangularView<Eigen::Upper>();
+    const Matrix r = entries.template triangularView<Eigen::Upper>();
     info = r.transpose() * r;  // exactly symmetric: (i, j) and (j, i) sum the same products
   } else if (noise == NoiseFormat::kCovariance) {
-    const Eigen::LLT<Matrix6d> llt(entries);
+    const Eigen::LLT<Matrix> llt(entries);
     if (llt.info() != Eigen::Success) err.fail("covariance is not positive definite");
-    info = llt.solve(Matrix6d::Identity());
+    info = llt.solve(Matrix::Identity());
     info = 0.5 * (info + info.transpose());
   } else {
     info = entries;
   }
-  const Eigen::LLT<Matrix6d> llt(info);
+  const Eigen::LLT<Matrix> llt(info);
   if (llt.info() != Eigen::Success || !info.allFinite()) err.fail("information is not positive definite");
   return info;
 }
@@ -157,7 +172,7 @@ void parse_line(const Fields& f, const std::string& tag, PoseGraphFormat format,
       edge_ends(e);
       e.t = vector3(f, 3, "translation", err);
       e.q = quaternion(f, 6, err);
-      e.information = information(f, 10, noise, err);
+      e.information = information<6>(f, 10, noise, err);
       out.edges.push_back({line, e});
     } else if (tag == "EDGE_SE3_PRIOR") {
       f.need(31, "id param x y z qx qy qz qw and 21 information entries");
@@ -165,8 +180,25 @@ void parse_line(const Fields& f, const std::string& tag, PoseGraphFormat format,
       p.prior.id = vertex_id(f, 1, err);
       p.prior.t = vector3(f, 3, "translation", err);
       p.prior.q = quaternion(f, 6, err);
-      p.prior.information = information(f, 10, noise, err);
+      p.prior.information = information<6>(f, 10, noise, err);
       out.priors.push_back(p);
+    } else if (tag == "VERTEX_TRACKXYZ") {
+      f.need(5, "id x y z");
+      Point3D p;
+      p.id = vertex_id(f, 1, err);
+      p.p = vector3(f, 2, "point", err);
+      out.points.push_back({line, p});
+    } else if (tag == "EDGE_SE3_TRACKXYZ") {
+      f.need(13, "pose point param x y z and 6 information entries");
+      PointEdgeRecord r{line, vertex_id(f, 3, err), {}};
+      r.edge.pose_id = vertex_id(f, 1, err);
+      r.edge.point_id = vertex_id(f, 2, err);
+      if (r.edge.pose_id == r.edge.point_id) err.fail("edge from vertex " + std::to_string(r.edge.pose_id) + " to itself");
+      r.edge.z = vector3(f, 4, "measurement", err);
+      // g2o's own convention for these records: the entries are the information (the NoiseFormat
+      // option describes the pose records of the formats that differ).
+      r.edge.information = information<3>(f, 7, NoiseFormat::kInformation, err);
+      out.point_edges.push_back(r);
     } else if (tag == "PARAMS_SE3OFFSET") {
       f.need(9, "id x y z qx qy qz qw");
       const int id = vertex_id(f, 1, err);
@@ -182,7 +214,8 @@ void parse_line(const Fields& f, const std::string& tag, PoseGraphFormat format,
       out.fixed.emplace_back(line, std::move(ids));
     } else {
       err.fail("unsupported g2o 3-D record '" + tag +
-               "' (VERTEX_SE3:QUAT, EDGE_SE3:QUAT, EDGE_SE3_PRIOR, PARAMS_SE3OFFSET, FIX)");
+               "' (VERTEX_SE3:QUAT, EDGE_SE3:QUAT, EDGE_SE3_PRIOR, PARAMS_SE3OFFSET, VERTEX_TRACKXYZ, "
+               "EDGE_SE3_TRACKXYZ, FIX)");
     }
     return;
   }
@@ -200,7 +233,7 @@ void parse_line(const Fields& f, const std::string& tag, PoseGraphFormat format,
     edge_ends(e);
     e.t = vector3(f, 3, "translation", err);
     e.q = from_roll_pitch_yaw(f, 6, err);
-    e.information = information(f, 9, noise, err);
+    e.information = information<6>(f, 9, noise, err);
     out.edges.push_back({line, e});
   } else {
     err.fail(std::string("unsupported ") + format_name(format) + " record '" + tag + "' (VERTEX3 and EDGE3 only)");
@@ -247,12 +280,19 @@ void dead_reckon(Records& records, PoseGraph3DData& graph, const std::string& so
 
 PoseGraph3DData build(Records& records, const std::string& source, RowLog& rows) {
   PoseGraph3DData graph;
-  std::unordered_map<int, std::size_t> index;
+  std::unordered_map<int, std::size_t> index, point_index;  // one id space: an id is in one of them
   for (const VertexRecord& r : records.vertices) {
     rows.row([&] {
       if (!index.emplace(r.vertex.id, graph.vertices.size()).second)
         LineError(source, r.line).fail("vertex " + std::to_string(r.vertex.id) + " given twice");
       graph.vertices.push_back(r.vertex);
+    });
+  }
+  for (const PointRecord& r : records.points) {
+    rows.row([&] {
+      if (index.count(r.point.id) != 0 || !point_index.emplace(r.point.id, graph.points.size()).second)
+        LineError(source, r.line).fail("vertex " + std::to_string(r.point.id) + " given twice");
+      graph.points.push_back(r.point);
     });
   }
   // A file that lists vertices must list all of them: an unknown id in an edge is an error.
@@ -262,7 +302,12 @@ PoseGraph3DData build(Records& records, const std::string& source, RowLog& rows)
     for (std::size_t i = 0; i < graph.vertices.size(); ++i) index.emplace(graph.vertices[i].id, i);
   }
   auto require_vertex = [&](int id, const LineError& err) {
+    if (point_index.count(id) != 0) err.fail("vertex " + std::to_string(id) + " is a point (VERTEX_TRACKXYZ), not a pose");
     if (index.count(id) == 0) err.fail("unknown vertex " + std::to_string(id));
+  };
+  auto require_point = [&](int id, const LineError& err) {
+    if (index.count(id) != 0) err.fail("vertex " + std::to_string(id) + " is a pose, not a point (VERTEX_TRACKXYZ)");
+    if (point_index.count(id) == 0) err.fail("unknown point vertex " + std::to_string(id));
   };
   for (const EdgeRecord& r : records.edges) {
     if (r.skipped) continue;
@@ -289,12 +334,33 @@ PoseGraph3DData build(Records& records, const std::string& source, RowLog& rows)
       graph.priors.push_back(r.prior);
     });
   }
+  for (const PointEdgeRecord& r : records.point_edges) {
+    rows.row([&] {
+      const LineError err(source, r.line);
+      require_vertex(r.edge.pose_id, err);
+      require_point(r.edge.point_id, err);
+      const auto param = records.params.find(r.param);
+      if (param == records.params.end())
+        err.fail("EDGE_SE3_TRACKXYZ names parameter " + std::to_string(r.param) +
+                 ", which no PARAMS_SE3OFFSET defines");
+      PointEdge3D e = r.edge;
+      const Eigen::Matrix<double, 7, 1>& offset = param->second.second;
+      e.offset_t = offset.head<3>();
+      e.offset_q.coeffs() = offset.tail<4>();  // x y z w, as stored
+      graph.point_edges.push_back(e);
+    });
+  }
   for (const auto& fix : records.fixed) {
     rows.row([&] {
       const LineError err(source, fix.first);
       for (const int id : fix.second)
-        if (index.count(id) == 0) err.fail("FIX names unknown vertex " + std::to_string(id));
-      for (const int id : fix.second) graph.vertices[index.at(id)].fixed = true;
+        if (index.count(id) == 0 && point_index.count(id) == 0) err.fail("FIX names unknown vertex " + std::to_string(id));
+      for (const int id : fix.second) {
+        if (index.count(id) != 0)
+          graph.vertices[index.at(id)].fixed = true;
+        else
+          graph.points[point_index.at(id)].fixed = true;
+      }
     });
   }
   return graph;
@@ -330,9 +396,23 @@ void write_pose(std::ostream& out, const Eigen::Quaterniond& q, const Eigen::Vec
   out << t.x() << ' ' << t.y() << ' ' << t.z() << ' ' << q.x() << ' ' << q.y() << ' ' << q.z() << ' ' << q.w();
 }
 
-void write_information(std::ostream& out, const Matrix6d& information) {
-  for (int i = 0; i < 6; ++i)
-    for (int j = i; j < 6; ++j) out << ' ' << information(i, j);
+template <int N>
+void write_information(std::ostream& out, const Eigen::Matrix<double, N, N>& information) {
+  for (int i = 0; i < N; ++i)
+    for (int j = i; j < N; ++j) out << ' ' << information(i, j);
+}
+
+// The sensor offsets to write as PARAMS_SE3OFFSET records, as (x y z qx qy qz qw): the identity
+// first (parameter 0, the priors'), then each distinct offset of a point edge in order.
+std::vector<Eigen::Matrix<double, 7, 1>> offsets_of(const PoseGraph3DData& graph) {
+  std::vector<Eigen::Matrix<double, 7, 1>> out(1);
+  out[0] << 0, 0, 0, 0, 0, 0, 1;
+  for (const PointEdge3D& e : graph.point_edges) {
+    Eigen::Matrix<double, 7, 1> o;
+    o << e.offset_t, e.offset_q.coeffs();
+    if (std::find(out.begin(), out.end(), o) == out.end()) out.push_back(o);
+  }
+  return out;
 }
 
 void check_writable(const PoseGraph3DData& graph) {
@@ -348,6 +428,18 @@ void check_writable(const PoseGraph3DData& graph) {
     known(e.to_id, "an edge");
   }
   for (const Prior3D& p : graph.priors) known(p.id, "a prior");
+  std::set<int> points;
+  for (const Point3D& p : graph.points)
+    if (ids.count(p.id) != 0 || !points.insert(p.id).second)
+      throw_invalid_argument("graph", "has vertex " + std::to_string(p.id) + " twice");
+  for (const PointEdge3D& e : graph.point_edges) {
+    known(e.pose_id, "a point edge");
+    if (points.count(e.point_id) == 0)
+      throw_invalid_argument("graph", "has a point edge naming unknown point " + std::to_string(e.point_id));
+    if (!e.offset_q.coeffs().allFinite() || !e.offset_t.allFinite() ||
+        !(std::abs(e.offset_q.norm() - 1.0) <= kQuaternionNormTolerance))
+      throw_invalid_argument("graph", "has a point edge whose sensor offset is not finite with a unit quaternion");
+  }
 }
 
 }  // namespace
@@ -360,19 +452,38 @@ void write_g2o_3d(std::ostream& out, const PoseGraph3DData& graph) {
     write_pose(out, v.q, v.t);
     out << '\n';
   }
+  for (const Point3D& p : graph.points)
+    out << "VERTEX_TRACKXYZ " << p.id << ' ' << p.p.x() << ' ' << p.p.y() << ' ' << p.p.z() << '\n';
   for (const Vertex3D& v : graph.vertices)
     if (v.fixed) out << "FIX " << v.id << '\n';
+  for (const Point3D& p : graph.points)
+    if (p.fixed) out << "FIX " << p.id << '\n';
   for (const Edge3D& e : graph.edges) {
     out << "EDGE_SE3:QUAT " << e.from_id << ' ' << e.to_id << ' ';
     write_pose(out, e.q, e.t);
     write_information(out, e.information);
     out << '\n';
   }
-  if (!graph.priors.empty()) out << "PARAMS_SE3OFFSET 0 0 0 0 0 0 0 1\n";
+  const std::vector<Eigen::Matrix<double, 7, 1>> offsets = offsets_of(graph);
+  if (!graph.priors.empty() || !graph.point_edges.empty())
+    for (size_t k = 0; k < offsets.size(); ++k) {
+      out << "PARAMS_SE3OFFSET " << k;
+      for (int i = 0; i < 7; ++i) out << ' ' << offsets[k][i];
+      out << '\n';
+    }
   for (const Prior3D& p : graph.priors) {
     out << "EDGE_SE3_PRIOR " << p.id << " 0 ";
     write_pose(out, p.q, p.t);
     write_information(out, p.information);
+    out << '\n';
+  }
+  for (const PointEdge3D& e : graph.point_edges) {
+    Eigen::Matrix<double, 7, 1> o;
+    o << e.offset_t, e.offset_q.coeffs();
+    const auto param = std::find(offsets.begin(), offsets.end(), o) - offsets.begin();
+    out << "EDGE_SE3_TRACKXYZ " << e.pose_id << ' ' << e.point_id << ' ' << param << ' ' << e.z.x() << ' ' << e.z.y()
+        << ' ' << e.z.z();
+    write_information(out, e.information);
     out << '\n';
   }
 }

@@ -7,13 +7,12 @@
 #include <vector>
 
 #include "probslam/core/object_mutex.hpp"
+#include "probslam/graph/vertex_kind.hpp"
 
 namespace probslam {
 
 class StateWriter;
 class StateReader;
-
-enum class VertexKind { kPose, kPoint };
 
 /// A pose (x, y, theta) or a point (x, y, unused 0); ids are the user's, in one id space (g2o's).
 /// iSAM files number landmarks apart from poses: a point keeps that number as `landmark_id`,

@@ -1,13 +1,16 @@
 #pragma once
-// A 3-D pose graph (SE(3) vertices, relative-pose edges with 6x6 information): the data of
-// sphere2500, parking-garage, torus3D and GTSAM's pose3example as g2o EDGE_SE3:QUAT holds it.
+// A 3-D pose graph (SE(3) vertices, relative-pose edges with 6x6 information, and optional 3-D
+// point landmarks seen from the poses): the data of sphere2500, parking-garage, torus3D and
+// GTSAM's pose3example as g2o EDGE_SE3:QUAT holds it, and g2o's VERTEX_TRACKXYZ /
+// EDGE_SE3_TRACKXYZ. Poses and points share one vertex list and one id space, as in PoseGraph2D.
 // Optimised by graph_optimizer.hpp on the same sparse path as PoseGraph2D.
 //
 // Tangent convention (used by the error, the information, the Jacobians and the optimiser's
 // step): a 6-vector [v; w], translation first and rotation second as in g2o's EDGE_SE3:QUAT, with
 // the pose perturbed on the right, x (+) [v; w] = (R Exp(w), t + R v): v in metres in the pose's
 // own frame, w a rotation vector in radians (g2o's quaternion-vector update, with the rotation
-// vector in place of g2o's quaternion vector part).
+// vector in place of g2o's quaternion vector part). A point's tangent is 3-D and additive,
+// p (+) d = p + d, in world metres.
 #include <Eigen/Core>
 #include <Eigen/Geometry>
 #include <unordered_map>
@@ -15,6 +18,7 @@
 
 #include "probslam/core/object_mutex.hpp"
 #include "probslam/core/so3.hpp"
+#include "probslam/graph/vertex_kind.hpp"
 
 namespace probslam {
 
@@ -27,10 +31,13 @@ struct Pose3 {
   Eigen::Vector3d translation = Eigen::Vector3d::Zero();
 };
 
+/// A pose, or a point landmark whose position is `value.translation` (its rotation is the
+/// identity and unused).
 struct Pose3Vertex {
   int id;
   Pose3 value;
   bool fixed = false;
+  VertexKind kind = VertexKind::kPose;
 };
 
 /// x_to measured in the frame of x_from (g2o EDGE_SE3:QUAT). Error, in the tangent convention
@@ -52,6 +59,16 @@ struct Pose3Prior {
   Matrix6d information;
 };
 
+/// A point measured in the frame of a sensor on a pose (g2o EDGE_SE3_TRACKXYZ, the sensor at
+/// `offset` in the pose's frame, the identity when it is the pose itself):
+/// e = (x_pose * offset)^-1 p - z (m); chi2 = e^T information e.
+struct Point3Edge {
+  int pose, point;  ///< vertex indices (not ids)
+  Eigen::Vector3d measurement;
+  Eigen::Matrix3d information;
+  Pose3 offset;
+};
+
 class PoseGraph3D {
  public:
   /// Lock it around every call when several threads share this object (core/object_mutex.hpp).
@@ -61,9 +78,18 @@ class PoseGraph3D {
   /// a quaternion whose norm is not 1 within kQuaternionNormTolerance (core/so3.hpp; it is stored normalised);
   /// the graph is then unchanged.
   void add_pose(int id, const Pose3& pose);
+  /// Adds point vertex `id` at `point` (m); the same id space as the poses. Throws
+  /// std::invalid_argument for a repeated id or a non-finite point; graph unchanged.
+  void add_point(int id, const Eigen::Vector3d& point);
   /// Throws std::invalid_argument for an unknown id, from == to, a non-finite or non-unit
   /// measurement, or information that is not symmetric positive definite; graph unchanged.
   void add_pose_edge(int from_id, int to_id, const Pose3& measurement, const Matrix6d& information);
+  /// Adds a pose-to-point edge (see Point3Edge). Throws std::invalid_argument for an unknown id,
+  /// a pose_id that names a point or a point_id that names a pose, a non-finite measurement, a
+  /// non-finite or non-unit offset, or information that is not symmetric positive definite;
+  /// graph unchanged.
+  void add_point_edge(int pose_id, int point_id, const Eigen::Vector3d& measurement,
+                      const Eigen::Matrix3d& information, const Pose3& offset = Pose3{});
   /// Adds a prior on vertex `id` (see Pose3Prior). A vertex with a prior holds its part of the
   /// graph in place, as a fixed vertex does, but softly. Throws std::invalid_argument as
   /// add_pose_edge does; graph unchanged.
@@ -71,14 +97,20 @@ class PoseGraph3D {
   /// A fixed vertex keeps its value (the gauge); with none fixed and no prior, optimisers fix the
   /// first pose.
   void set_fixed(int id, bool fixed = true);
-  /// Replaces the values of several vertices, all or nothing (checked as add_pose checks).
+  /// Replaces the values of several pose vertices, all or nothing (checked as add_pose checks;
+  /// an id naming a point is refused).
   void set_poses(const std::vector<int>& ids, const std::vector<Pose3>& poses);
+  /// Replaces the values of several point vertices, all or nothing (finite; an id naming a pose
+  /// is refused).
+  void set_points(const std::vector<int>& ids, const std::vector<Eigen::Vector3d>& points);
   /// Replaces every vertex's value (optimisers commit their result this way); one entry per
   /// vertex in index order, finite with unit quaternions, or std::invalid_argument and no change.
   void assign_values(const std::vector<Pose3>& values);
   std::vector<Pose3> values() const;
 
+  /// Poses plus points.
   int num_vertices() const { return static_cast<int>(vertices_.size()); }
+  int num_points() const { return num_points_; }
   bool has_vertex(int id) const { return index_.count(id) != 0; }
   /// The index of a vertex id; throws std::invalid_argument for an unknown id.
   int index_of(int id) const;
@@ -89,8 +121,9 @@ class PoseGraph3D {
   const std::vector<Pose3Vertex>& vertices() const { return vertices_; }
   const std::vector<Pose3Edge>& pose_edges() const { return edges_; }
   const std::vector<Pose3Prior>& pose_priors() const { return priors_; }
+  const std::vector<Point3Edge>& point_edges() const { return point_edges_; }
 
-  /// e^T Omega e of every edge at the current values.
+  /// e^T Omega e of every edge at the current values: pose edges, then point edges.
   Eigen::VectorXd edge_chi2() const;
   /// e^T Omega e of every prior at the current values.
   Eigen::VectorXd prior_chi2() const;
@@ -99,10 +132,17 @@ class PoseGraph3D {
   double chi2() const;
 
  private:
+  int add_vertex(int id, const Pose3& value, VertexKind kind);
+  // The index of `id`, which must name a vertex of `kind` (std::invalid_argument naming
+  // `argument` otherwise).
+  int require_vertex(int id, VertexKind kind, const char* argument) const;
+
   std::vector<Pose3Vertex> vertices_;
   std::unordered_map<int, int> index_;
   std::vector<Pose3Edge> edges_;
   std::vector<Pose3Prior> priors_;
+  std::vector<Point3Edge> point_edges_;
+  int num_points_ = 0;
   ObjectMutex mutex_;
 };
 
@@ -123,5 +163,15 @@ struct Pose3PriorLinearization {
   Matrix6d d_pose;
 };
 Pose3PriorLinearization linearize_pose3_prior(const Pose3& pose, const Pose3& measurement);
+
+/// The error of a point edge and its Jacobians with respect to the pose's tangent perturbation
+/// (right, [v; w]) and the point's (additive).
+struct Point3EdgeLinearization {
+  Eigen::Vector3d error;
+  Eigen::Matrix<double, 3, 6> d_pose;
+  Eigen::Matrix3d d_point;
+};
+Point3EdgeLinearization linearize_point3_edge(const Pose3& pose, const Eigen::Vector3d& point,
+                                              const Eigen::Vector3d& measurement, const Pose3& offset = Pose3{});
 
 }  // namespace probslam

@@ -12,7 +12,9 @@ namespace probslam {
 
 /// Dead reckoning: every vertex reachable from the held ones (the fixed vertices, or the first
 /// pose when none is fixed) gets the value of composing edges outward along a breadth-first
-/// spanning tree, edges taken in the order they were added. Unreached vertices keep their values.
+/// spanning tree, edges taken in the order they were added; then each free point is placed by its
+/// first edge (in the order added) from a reached pose, p = x * offset * z. Unreached vertices
+/// keep their values.
 void initialize_odometry(PoseGraph3D& graph);
 
 /// Chordal initialisation, in two linear solves on the sparse Cholesky path:
@@ -24,15 +26,19 @@ void initialize_odometry(PoseGraph3D& graph);
 ///  2. translations: with those rotations fixed the edges' translation errors are linear in the
 ///     translations; their information-weighted least squares is solved exactly (on the same
 ///     pattern, CHOLMOD's analysis reused).
+/// Points take no part in the solves: afterwards each free point is placed by its first edge (in
+/// the order added) from its pose, p = x * offset * z.
 /// Noise-free edges give back the exact poses. Held vertices keep their values. Throws
 /// std::invalid_argument, graph unchanged, for a graph with no edges or a part not connected to
 /// a held vertex.
 void initialize_chordal(PoseGraph3D& graph, const SparseCholeskyOptions& linear_solver = {});
 
 /// Incremental batch optimisation, as for a PoseGraph2D (graph_initialization.hpp): poses join in
-/// the order they were added, each composed from its first edge to an earlier pose, and after
-/// every poses_per_step poses the graph of the poses so far (their edges and priors) is optimised
-/// with options.step. Throws std::invalid_argument, graph unchanged, as optimize does.
+/// the order they were added, each composed from its first edge to an earlier pose; each point
+/// joins with the earliest pose that sees it, placed by that pose's first edge to it (p = x *
+/// offset * z); after every poses_per_step poses the graph of the vertices so far (their edges
+/// and priors) is optimised with options.step. Throws std::invalid_argument, graph unchanged, as
+/// optimize does.
 IncrementalReport optimize_incremental(PoseGraph3D& graph, const IncrementalOptions& options = {});
 
 }  // namespace probslam

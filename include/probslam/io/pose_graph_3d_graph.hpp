@@ -9,15 +9,16 @@
 
 namespace probslam {
 
-/// The graph of a file's data: vertices in data order (FIX flags kept), edges, and priors as
+/// The graph of a file's data: vertices in data order, then points (FIX flags kept), edges, point
+/// edges, and priors as
 /// PoseGraph3D priors (g2o's EDGE_SE3_PRIOR, read with the graph's rotation-vector convention as
 /// its edges are). Throws std::invalid_argument (nothing built) for data a reader would refuse:
 /// a repeated vertex id, an edge or prior naming an unknown vertex, a non-unit quaternion,
 /// information that is not symmetric positive definite.
 PoseGraph3D pose_graph_3d_from_data(const PoseGraph3DData& data);
 
-/// The data of a graph at its current values (for write_g2o_3d): vertices in index order with
-/// their fixed flags, edges and priors with their ends' ids.
+/// The data of a graph at its current values (for write_g2o_3d): poses and points each in index
+/// order with their fixed flags, edges, priors and point edges with their ends' ids.
 PoseGraph3DData pose_graph_3d_data(const PoseGraph3D& graph);
 
 struct PoseGraph3DFileRead {

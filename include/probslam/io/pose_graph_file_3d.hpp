@@ -49,12 +49,35 @@ struct Prior3D {
   Matrix6d information = Matrix6d::Identity();
 };
 
+/// A 3-D point landmark (g2o VERTEX_TRACKXYZ), in the poses' id space.
+struct Point3D {
+  int id = 0;
+  Eigen::Vector3d p = Eigen::Vector3d::Zero();
+  bool fixed = false;  ///< named by a g2o FIX record
+};
+
+/// g2o's EDGE_SE3_TRACKXYZ: point `point_id` measured at z (m) in the frame of a sensor at
+/// (offset_q, offset_t) in the frame of pose `pose_id` (the file's PARAMS_SE3OFFSET):
+/// error (x_pose * offset)^-1 p - z, information 3x3 over [x y z] (g2o's convention: the file's 6
+/// upper-triangle entries are the information, whatever the NoiseFormat of the pose records).
+struct PointEdge3D {
+  int pose_id = 0;
+  int point_id = 0;
+  Eigen::Vector3d z = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d information = Eigen::Matrix3d::Identity();
+  Eigen::Quaterniond offset_q = Eigen::Quaterniond::Identity();
+  Eigen::Vector3d offset_t = Eigen::Vector3d::Zero();
+};
+
 /// A 3-D pose graph as a file holds it: vertices in file order (or, for a file that lists
-/// none, in the order dead reckoning placed them), edges and priors in file order.
+/// none, in the order dead reckoning placed them), edges and priors in file order; points and
+/// their edges in file order.
 struct PoseGraph3DData {
   std::vector<Vertex3D> vertices;
   std::vector<Edge3D> edges;
   std::vector<Prior3D> priors;
+  std::vector<Point3D> points;
+  std::vector<PointEdge3D> point_edges;
 };
 
 struct PoseGraph3DRead {
@@ -69,7 +92,11 @@ struct PoseGraph3DRead {
 /// - kG2o: `VERTEX_SE3:QUAT id x y z qx qy qz qw`, `EDGE_SE3:QUAT i j x y z qx qy qz qw` + the 21
 ///   upper-triangle (row-major) entries of the 6x6 information over [x y z, rotation],
 ///   `EDGE_SE3_PRIOR id param x y z qx qy qz qw` + 21 (param: a `PARAMS_SE3OFFSET param x y z qx
-///   qy qz qw` record, which must be the identity: an offset sensor is not supported), `FIX ids`.
+///   qy qz qw` record, which must be the identity: an offset sensor is not supported), `FIX ids`;
+///   3-D points: `VERTEX_TRACKXYZ id x y z` (the poses' id space) and `EDGE_SE3_TRACKXYZ pose
+///   point param x y z` + the 6 upper-triangle (row-major) entries of the 3x3 information (param:
+///   a PARAMS_SE3OFFSET, the sensor's pose in the pose's frame; any offset). An edge whose ends
+///   are of the wrong kind (a point as a pose or the reverse) is an error naming the line.
 /// - kIsam (iSAM, and GTSAM's load3D): `EDGE3 i j x y z roll pitch yaw` + 21 upper-triangle
 ///   entries, by default square-root information (iSAM's convention; GTSAM's load3D reads the
 ///   same numbers as information: pass NoiseFormat::kInformation to match it), over
@@ -94,9 +121,9 @@ PoseGraph3DRead parse_pose_graph_3d(std::istream& in, const PoseGraphReadOptions
 /// As parse_pose_graph_3d; `path` must name a regular file (FileNotFound when nothing is there).
 PoseGraph3DRead read_pose_graph_3d(const std::string& path, const PoseGraphReadOptions& options = {});
 
-/// Writes g2o text (VERTEX_SE3:QUAT, FIX, EDGE_SE3:QUAT, and for priors one identity
-/// PARAMS_SE3OFFSET and EDGE_SE3_PRIOR) with 17 significant digits: it reads back to the same
-/// graph bit for bit. Vertex ids are checked unique and edge ends known first; std::invalid_argument
+/// Writes g2o text (VERTEX_SE3:QUAT, VERTEX_TRACKXYZ, FIX, EDGE_SE3:QUAT, one PARAMS_SE3OFFSET
+/// per distinct offset (0 the identity), EDGE_SE3_PRIOR and EDGE_SE3_TRACKXYZ) with 17
+/// significant digits: it reads back to the same graph bit for bit. Vertex ids are checked unique and edge ends known first; std::invalid_argument
 /// (and nothing written) otherwise.
 void write_g2o_3d(std::ostream& out, const PoseGraph3DData& graph);
 void write_g2o_3d(const std::string& path, const PoseGraph3DData& graph);

@@ -11,13 +11,17 @@ Conventions, the same for every format:
 - an edge (i, j) measures x_i^-1 x_j;
 - information is (6, 6) in g2o's tangent order [translation, rotation]. The numbers are the
   file's: g2o's own EdgeSE3 applies the rotation block to the error quaternion's vector part
-  (half the angle), GTSAM's readG2o and SE-Sync to the rotation vector (the whole angle).
+  (half the angle), GTSAM's readG2o and SE-Sync to the rotation vector (the whole angle);
+- 3-D points (g2o ``VERTEX_TRACKXYZ``) share the poses' id space; a point edge
+  (``EDGE_SE3_TRACKXYZ pose point param x y z`` + 6 information entries) measures the point in the
+  frame of the sensor at the ``PARAMS_SE3OFFSET`` ``param`` on the pose: error
+  (x_pose * offset)^-1 p - z, (3, 3) information (always information, g2o's convention).
 """
 
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Union
 
 import numpy as np
@@ -32,7 +36,13 @@ PathLike = Union[str, "os.PathLike[str]"]
 QUATERNION_NORM_TOLERANCE: float = _core.QUATERNION_NORM_TOLERANCE
 
 _ARRAYS = ("vertex_ids", "quaternions", "translations", "fixed", "edges", "edge_quaternions", "edge_translations",
-           "information", "prior_ids", "prior_quaternions", "prior_translations", "prior_information")
+           "information", "prior_ids", "prior_quaternions", "prior_translations", "prior_information", "point_ids",
+           "points", "point_fixed", "point_edges", "point_measurements", "point_information",
+           "point_offset_quaternions", "point_offset_translations")
+
+
+def _empty(*shape, dtype=float):
+    return field(default_factory=lambda: np.zeros((0,) + shape, dtype=dtype))
 
 
 @dataclass(frozen=True)
@@ -53,12 +63,21 @@ class PoseGraph3DFile:
     prior_translations: np.ndarray  #: (P, 3)
     prior_information: np.ndarray  #: (P, 6, 6)
     report: "_core.PoseGraphReadReport"  #: rows read and skipped (rows="skip")
+    point_ids: np.ndarray = _empty(dtype=np.int64)  #: (L,) int64: g2o VERTEX_TRACKXYZ, the poses' id space
+    points: np.ndarray = _empty(3)  #: (L, 3) m
+    point_fixed: np.ndarray = _empty(dtype=bool)  #: (L,) bool: named by a g2o FIX record
+    point_edges: np.ndarray = _empty(2, dtype=np.int64)  #: (M, 2) int64 (pose id, point id)
+    point_measurements: np.ndarray = _empty(3)  #: (M, 3) m, the point in the sensor's frame
+    point_information: np.ndarray = _empty(3, 3)  #: (M, 3, 3)
+    point_offset_quaternions: np.ndarray = field(  #: (M, 4) the sensor's rotation on the pose (x, y, z, w)
+        default_factory=lambda: np.zeros((0, 4)))
+    point_offset_translations: np.ndarray = _empty(3)  #: (M, 3) the sensor's position on the pose
 
 
 def read_pose_graph_3d(path: PathLike, format: str = "auto", *, noise: str = "default",
                        rows: str = "strict") -> PoseGraph3DFile:
     """Read a 3-D pose graph: ``format`` 'g2o' (VERTEX_SE3:QUAT, EDGE_SE3:QUAT, EDGE_SE3_PRIOR
-    through an identity PARAMS_SE3OFFSET, FIX), 'isam' (EDGE3 i j x y z roll pitch yaw + 21;
+    through an identity PARAMS_SE3OFFSET, VERTEX_TRACKXYZ, EDGE_SE3_TRACKXYZ, FIX), 'isam' (EDGE3 i j x y z roll pitch yaw + 21;
     VERTEX3 id x y z roll pitch yaw as GTSAM's load3D), 'toro' (VERTEX3 / EDGE3) or 'auto' (from
     the first record: VERTEX3 is TORO, EDGE3 iSAM, anything else g2o). Euler angles give
     R = Rz(yaw) Ry(pitch) Rx(roll).
