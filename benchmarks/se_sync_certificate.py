@@ -32,11 +32,12 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 from scipy.spatial.transform import Rotation
 
-#: The certificate's tolerance eta = ETA_RELATIVE * ||S||_inf. Rounding in S (sums of products of
-#: weights and unit-scale rotations) is ~1e-16 ||S|| per entry and a refined critical point's
-#: gradient leaves S X^T ~1e-12 ||S||: both far below 1e-6. A wrong critical point's negative
-#: curvature is of the order of an edge weight (a few 1e-3 ||S|| and up on the shipped graphs), far
-#: above it. SE-Sync's own default is an absolute 1e-5 on lambda_min.
+#: The certificate's tolerance eta = ETA_RELATIVE * ||S||_inf. What moves S's null eigenvalues off
+#: zero: rounding in S's entries (~1e-16 ||S||), the refined point's residual stationarity
+#: (||S X^T|| / (||S|| ||X||) measured 3e-17 to 5e-12 on the shipped graphs), and the LDL^T's
+#: backward error (~N u ||S||, below 2e-12 ||S|| for N = 20 000): all at least 20x below 1e-10.
+#: Measured null eigenvalues: |lambda| <= 1e-14 ||S||. A wrong local minimum's negative eigenvalue
+#: is of the order of an edge weight (-8.4 at ||S|| ~ 400 in the test's loop), far above eta.
 ETA_RELATIVE = 1e-10
 
 #: The refinement stops when an iteration lowers F by less than this fraction of it: about
@@ -203,7 +204,7 @@ def _retract(R, t, step):
     w = s[:, 3:]
     theta = np.linalg.norm(w, axis=1)
     K = np.einsum("nk,kab->nab", w, _GENERATORS)
-    small = theta < 1e-8
+    small = theta < 1e-8  # below it the series' next terms (theta^4) are under rounding
     th = np.where(small, 1.0, theta)
     a = np.where(small, 1.0 - theta ** 2 / 6, np.sin(th) / th)
     b = np.where(small, 0.5 - theta ** 2 / 24, (1 - np.cos(th)) / th ** 2)

@@ -214,3 +214,16 @@ def test_poses_rows_round_trip():
     rows = sc.poses_rows(R, t)
     np.testing.assert_allclose(sc.quaternion_to_rotation(rows[:, 3:]), R, atol=ROUNDING)
     np.testing.assert_allclose(rows[:, :3], t)
+
+
+def test_benchmark_certifies_pose3example_and_the_rerun_returns(shared_data):
+    """bench_pose_graph_3d.py --certify's per-graph step on the smallest shipped graph."""
+    path = shared_data / "pose_graphs" / "gtsam_examples" / "pose3example.txt"
+    if not path.is_file():
+        pytest.skip(f"dataset not present: {path}")
+    import bench_pose_graph_3d as bench
+
+    r = bench.certify_graph(path)
+    assert r["cert"].certified
+    assert r["F"] <= r["F_ours"]
+    assert r["chi2_rerun"] == pytest.approx(r["chi2"], rel=bench.SAME_OPTIMUM)
