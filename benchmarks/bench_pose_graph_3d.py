@@ -39,7 +39,6 @@ that certified point, and its chi2 compared with the one from the chordal start.
 is for SE-Sync's objective, not probslam's: the link is that re-run.
 
     python benchmarks/bench_pose_graph_3d.py [--repeat 3] [--quick] [--record] [--certify]
-    python benchmarks/bench_pose_graph_3d.py [--repeat 3] [--quick] [--record]
 """
 
 import argparse
