@@ -794,7 +794,9 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     expected = POSE_GRAPH_3D if dimension == 3 else POSE_GRAPH
     t0 = time.perf_counter()
     with _reading(path, expected):
-        g = (pg.read_pose_graph_3d if dimension == 3 else pg.read_pose_graph)(path, format=args.format)
+        read = (pg.read_pose_graph_3d_with_report if dimension == 3 else pg.read_pose_graph_with_report)(
+            path, format=args.format, rows="strict")
+    g, read_report = read.graph, read.report
     if g.num_vertices == 0:
         raise UserError(f"{path}: no vertices; expected {expected}")
     t_read = time.perf_counter() - t0
@@ -806,6 +808,9 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     else:
         print(f"graph:      {path}{bundled}: {len(g.pose_ids)} poses, {len(g.point_ids)} points, "
               f"{g.num_pose_edges} pose edges, {g.num_point_edges} point edges (read in {t_read:.3f} s)")
+        if read_report.equivalences:
+            print(f"            {read_report.equivalences} TORO EQUIV records: {read_report.merged_vertices} vertices "
+                  f"merged into others, {read_report.collapsed_edges} edges between them dropped")
     # The solver options given; the others are the library's defaults for the graph's dimension.
     solver = {name: value for name, value in (("linear_solver", args.linear_solver), ("ordering", args.ordering))
               if value is not None}

@@ -89,6 +89,17 @@ def test_optimize_with_an_initialisation(tmp_path, capsys):
         assert f"probslam: error: {option} must be an integer in [" in capsys.readouterr().err
 
 
+def test_optimize_says_what_toro_equivalences_merged(tmp_path, capsys):
+    loop = tmp_path / "loop.graph"  # 4 poses round a unit square, the fifth the first again
+    loop.write_text("".join(f"VERTEX2 {i} 0 0 0\n" for i in range(5))
+                    + "".join(f"EDGE2 {i} {i + 1} 1 0 1.5707963267948966 1 0 1 1 0 0\n" for i in range(4))
+                    + "EQUIV 4 0\n")
+    assert cli.main(["optimize", str(loop), "--no-plot", "-o", str(tmp_path / "o"), "--init", "odometry"]) == 0
+    out = capsys.readouterr().out
+    assert "4 poses" in out and "1 TORO EQUIV records: 1 vertices merged into others, 0 edges" in out
+    assert "chi2 0.000000 after" in out
+
+
 def test_optimize_bad_file_reports_line(tmp_path, capsys):
     bad = tmp_path / "bad.g2o"
     bad.write_text("VERTEX_SE2 0 0 0 0\nEDGE_SE2 0 1 1 0 0\n")
