@@ -116,11 +116,18 @@ class EdgeAssembler {
     total.chi2 += s;
     const Eigen::Matrix<double, E, E> omega = r.weight * information;
     const Eigen::Matrix<double, A, E> a_t_omega = ja.transpose() * omega;
-    system_.add(h[0], a_t_omega * ja);
-    system_.add(h[1], jb.transpose() * omega * jb);
-    system_.add(h[2], a_t_omega * jb);
-    system_.add_rhs(a, -r.weight * (ja.transpose() * we));
-    system_.add_rhs(b, -r.weight * (jb.transpose() * we));
+    // Evaluated into fixed-size blocks first: a product expression bound to add()'s Ref would be
+    // evaluated into a heap-allocated temporary, three per edge and iteration.
+    const Eigen::Matrix<double, A, A> haa = a_t_omega * ja;
+    const Eigen::Matrix<double, B, B> hbb = jb.transpose() * omega * jb;
+    const Eigen::Matrix<double, A, B> hab = a_t_omega * jb;
+    system_.add(h[0], haa);
+    system_.add(h[1], hbb);
+    system_.add(h[2], hab);
+    const Eigen::Matrix<double, A, 1> ba = -r.weight * (ja.transpose() * we);
+    const Eigen::Matrix<double, B, 1> bb = -r.weight * (jb.transpose() * we);
+    system_.add_rhs(a, ba);
+    system_.add_rhs(b, bb);
   }
 
   // A unary term (a prior) on variable a, as add_edge with one end; `h` is block(a, a).
@@ -133,8 +140,10 @@ class EdgeAssembler {
     total.robust += r.rho;
     total.chi2 += s;
     const Eigen::Matrix<double, A, E> a_t_omega = r.weight * (ja.transpose() * information);
-    system_.add(h, a_t_omega * ja);
-    system_.add_rhs(a, -r.weight * (ja.transpose() * we));
+    const Eigen::Matrix<double, A, A> haa = a_t_omega * ja;  // fixed-size, as in add_edge
+    const Eigen::Matrix<double, A, 1> ba = -r.weight * (ja.transpose() * we);
+    system_.add(h, haa);
+    system_.add_rhs(a, ba);
   }
 
  private:
