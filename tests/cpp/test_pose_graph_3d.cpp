@@ -14,9 +14,14 @@
 #include "probslam/graph/graph_optimizer.hpp"
 #include "probslam/graph/pose_graph_3d.hpp"
 #include "probslam/graph/pose_graph_3d_initialization.hpp"
+#include "pose3_test_support.hpp"
 
 namespace probslam {
 namespace {
+
+using test_support::between;
+using test_support::compose;
+using test_support::random_pose;
 
 // Central differences with step h have truncation error O(h^2) ~ 1e-12 and rounding error
 // ~ 1e-16 / h ~ 1e-10 for these O(1) functions: 1e-7 leaves a wide margin for both.
@@ -24,21 +29,6 @@ constexpr double kFiniteDifferenceStep = 1e-6;
 constexpr double kJacobianTolerance = 1e-7;
 // Exact data solved exactly: what is left is rounding in a few dozen operations per pose.
 constexpr double kExactTolerance = 1e-9;
-
-Pose3 random_pose(std::mt19937& rng, double translation_scale, double angle_scale) {
-  std::normal_distribution<double> normal;
-  const Eigen::Vector3d w(normal(rng), normal(rng), normal(rng));
-  return {so3_exp(angle_scale * w), translation_scale * Eigen::Vector3d(normal(rng), normal(rng), normal(rng))};
-}
-
-Pose3 compose(const Pose3& a, const Pose3& b) {
-  return {(a.rotation * b.rotation).normalized(), a.translation + a.rotation * b.translation};
-}
-
-Pose3 between(const Pose3& a, const Pose3& b) {
-  const Eigen::Quaterniond ra = a.rotation.conjugate();
-  return {(ra * b.rotation).normalized(), ra * (b.translation - a.translation)};
-}
 
 double rotation_distance(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b) {
   return so3_log(a.conjugate() * b).norm();

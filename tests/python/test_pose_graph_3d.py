@@ -7,6 +7,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import probslam
+from se3_reference import between, from_row, pose_error as error, retract, to_row
 
 #: The reference's central differences: truncation O(h^2) ~ 1e-12 and rounding ~ 1e-16 / h ~ 1e-10
 #: in its Jacobians shift neither its fixed point nor its marginals beyond ~1e-9 relative.
@@ -16,32 +17,6 @@ POSE_TOLERANCE = 1e-8
 MARGINAL_TOLERANCE = 1e-6
 #: Exact data solved exactly: rounding in a few dozen operations per pose.
 EXACT_TOLERANCE = 1e-9
-
-
-def to_row(rotation, t):
-    return np.concatenate([t, rotation.as_quat()])  # scipy's quaternion order is (x, y, z, w) too
-
-
-def from_row(row):
-    return Rotation.from_quat(row[3:]), np.asarray(row[:3], dtype=float)
-
-
-def between(a, b):
-    (ra, ta), (rb, tb) = a, b
-    return ra.inv() * rb, ra.inv().apply(tb - ta)
-
-
-def error(xi, xj, z):
-    """[t_e, Log(R_e)] of z^-1 xi^-1 xj."""
-    (ri, ti), (rj, tj), (rz, tz) = xi, xj, z
-    t_e = rz.inv().apply(ri.inv().apply(tj - ti) - tz)
-    r_e = (rz.inv() * ri.inv() * rj).as_rotvec()
-    return np.concatenate([t_e, r_e])
-
-
-def retract(x, d):
-    r, t = x
-    return r * Rotation.from_rotvec(d[3:]), t + r.apply(d[:3])
 
 
 def random_graph(seed, n=8, noise=0.05):

@@ -13,6 +13,7 @@ from scipy.spatial.transform import Rotation
 import probslam
 from probslam import graph as pg
 from probslam.io import read_pose_graph_3d, write_g2o_3d
+from se3_reference import between, compose, from_row, pose_error, retract, to_row
 
 #: The reference's central differences: truncation O(h^2) ~ 1e-12 and rounding ~ 1e-16 / h ~ 1e-10
 #: in its Jacobians shift neither its fixed point nor its marginals beyond ~1e-9 relative.
@@ -23,35 +24,6 @@ MARGINAL_TOLERANCE = 1e-6
 #: Exact data solved exactly: rounding in a few dozen operations per vertex.
 EXACT_TOLERANCE = 1e-9
 IDENTITY = np.array([0, 0, 0, 0, 0, 0, 1.0])
-
-
-def to_row(rotation, t):
-    return np.concatenate([t, rotation.as_quat()])  # scipy's quaternion order is (x, y, z, w) too
-
-
-def from_row(row):
-    return Rotation.from_quat(row[3:]), np.asarray(row[:3], dtype=float)
-
-
-def compose(a, b):
-    (ra, ta), (rb, tb) = a, b
-    return ra * rb, ta + ra.apply(tb)
-
-
-def between(a, b):
-    (ra, ta), (rb, tb) = a, b
-    return ra.inv() * rb, ra.inv().apply(tb - ta)
-
-
-def retract(x, d):
-    r, t = x
-    return r * Rotation.from_rotvec(d[3:]), t + r.apply(d[:3])
-
-
-def pose_error(xi, xj, z):
-    """[t_e, Log(R_e)] of z^-1 xi^-1 xj."""
-    (ri, ti), (rj, tj), (rz, tz) = xi, xj, z
-    return np.concatenate([rz.inv().apply(ri.inv().apply(tj - ti) - tz), (rz.inv() * ri.inv() * rj).as_rotvec()])
 
 
 def observe(x, offset, p):
