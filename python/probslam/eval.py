@@ -523,9 +523,13 @@ def _associated(times_est, poses_est, times_ref, poses_ref, max_time_difference,
     est, ref = pe[ie], pr[ir]
     rotation, translation = np.eye(2), np.zeros(2)
     if align == "se2":
-        with np.errstate(over="ignore", invalid="ignore"):
-            rotation, translation = align_rigid(est[:, :2], ref[:, :2])
-        _require_finite(np.concatenate([rotation.ravel(), translation]), "poses_est and poses_ref: the alignment")
+        what = "poses_est and poses_ref: the alignment"
+        try:
+            with np.errstate(over="ignore", invalid="ignore"):
+                rotation, translation = align_rigid(est[:, :2], ref[:, :2])
+        except ValueError:  # the cross-covariance overflows: named by this call's arguments
+            raise ValueError(f"{what} overflows a double (inputs too large)") from None
+        _require_finite(np.concatenate([rotation.ravel(), translation]), what)
         turn = math.atan2(rotation[1, 0], rotation[0, 0])
         est = np.column_stack([est[:, :2] @ rotation.T + translation, _wrap(est[:, 2] + turn, "poses_est")])
     return est, ref, dict(matched=int(ie.size), est_indices=ie, ref_indices=ir, rotation=rotation,
@@ -614,8 +618,11 @@ def align_rigid(estimate: np.ndarray, truth: np.ndarray):
     truth = real_array(truth, "truth", (len(estimate), 2))
     if len(estimate) == 0:
         raise ValueError("estimate: no points to align")
-    mu_e, mu_t = estimate.mean(0), truth.mean(0)
-    u, _, vt = np.linalg.svd((estimate - mu_e).T @ (truth - mu_t))
+    with np.errstate(over="ignore", invalid="ignore"):
+        mu_e, mu_t = estimate.mean(0), truth.mean(0)
+        cross = (estimate - mu_e).T @ (truth - mu_t)
+    _require_finite(cross, "estimate and truth: the cross-covariance")  # an SVD of inf or NaN fails
+    u, _, vt = np.linalg.svd(cross)
     d = np.sign(np.linalg.det(vt.T @ u.T))
     r = vt.T @ np.diag([1.0, d]) @ u.T
     return r, mu_t - r @ mu_e

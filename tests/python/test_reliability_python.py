@@ -4,6 +4,7 @@ or a ValueError / TypeError naming the argument, and a call that raised leaves t
 exactly as it was. The calls covered are listed in ``COVERED``."""
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
@@ -184,6 +185,16 @@ def test_relations_error_is_finite_or_refused_and_leaves_the_relations(traj, t1,
 def _fields(result):
     """A TrajectoryError's numbers, for the finiteness check."""
     return {name: getattr(result, name) for name in ("errors", "rotation", "translation")} | result.statistics
+
+
+def test_an_alignment_that_overflows_is_refused_by_name():
+    """Found by the property below: reference positions near the largest double made the
+    cross-covariance inf - inf = NaN, and numpy's SVD raised LinAlgError."""
+    times, zeros, huge = np.arange(4.0), np.zeros((4, 3)), np.full((4, 3), 1e308)
+    with pytest.raises(ValueError, match="^poses_est and poses_ref: the alignment overflows"):
+        ev.ate(times, zeros, times, huge)
+    with pytest.raises(ValueError, match="^estimate and truth: the cross-covariance overflows"):
+        ev.align_rigid(zeros[:, :2], huge[:, :2])
 
 
 @PROPERTY
