@@ -6,6 +6,7 @@
 #include "probslam/core/check.hpp"
 #include "probslam/graph/graph_optimizer.hpp"
 
+#include "graph_growth.hpp"
 #include "pose_graph_3d_traits.hpp"
 
 namespace probslam {
@@ -20,7 +21,7 @@ Pose3 inverse(const Pose3& a) {
   return {r, -(r * a.translation)};
 }
 
-constexpr int kNone = -1;
+using graph_detail::joined;
 
 bool is_point(const PoseGraph3D& graph, int v) { return graph.vertex(v).kind == VertexKind::kPoint; }
 
@@ -38,22 +39,11 @@ std::vector<char> held_vertices(const PoseGraph3D& graph) {
   return held;
 }
 
-// p = x * offset * z: where a point edge puts its point, from its pose's value.
-Eigen::Vector3d point_from(const PoseGraph3D& graph, const Point3Edge& e) {
+// p = x * offset * z: the point of edge `e` where its pose's sensor sees it.
+void place_point(PoseGraph3D& graph, const Point3Edge& e) {
   const Pose3& x = graph.vertex(e.pose).value;
-  return x.translation + x.rotation * (e.offset.translation + e.offset.rotation * e.measurement);
-}
-
-// Places every free point not yet placed (placed[v] == 0) from a pose already placed: through
-// edge only[v] when given (not kNone), otherwise through its first such edge in the order added.
-void place_points(PoseGraph3D& graph, std::vector<char>& placed, const std::vector<int>& only = {}) {
-  for (int k = 0; k < static_cast<int>(graph.point_edges().size()); ++k) {
-    const Point3Edge& e = graph.point_edges()[k];
-    if (placed[e.point] || !placed[e.pose] || graph.vertex(e.point).fixed) continue;
-    if (!only.empty() && only[e.point] != k) continue;
-    graph.vertex(e.point).value.translation = point_from(graph, e);
-    placed[e.point] = 1;
-  }
+  graph.vertex(e.point).value.translation =
+      x.translation + x.rotation * (e.offset.translation + e.offset.rotation * e.measurement);
 }
 
 // The value of `other`, an end of edge e, composed from its other end's value.
@@ -67,7 +57,7 @@ Pose3 propagate(const PoseGraph3D& graph, const Pose3Edge& e, int other) {
 PoseGraph3D part_of(const PoseGraph3D& graph, const std::vector<int>& joins, int step, std::vector<int>& full_index) {
   PoseGraph3D part;
   full_index.clear();
-  auto active = [&](int v) { return joins[v] != kNone && joins[v] <= step; };
+  auto active = [&](int v) { return joined(joins, v, step); };
   for (int v = 0; v < graph.num_vertices(); ++v) {
     if (!active(v)) continue;
     const Pose3Vertex& vertex = graph.vertex(v);
@@ -98,24 +88,8 @@ void initialize_odometry(PoseGraph3D& target) {
   std::deque<int> queue;
   for (int v = 0; v < n; ++v)
     if (reached[v]) queue.push_back(v);
-  std::vector<std::vector<int>> incident(n);
-  for (int k = 0; k < static_cast<int>(graph.pose_edges().size()); ++k) {
-    incident[graph.pose_edges()[k].from].push_back(k);
-    incident[graph.pose_edges()[k].to].push_back(k);
-  }
-  while (!queue.empty()) {
-    const int v = queue.front();
-    queue.pop_front();
-    for (const int k : incident[v]) {
-      const Pose3Edge& e = graph.pose_edges()[k];
-      const int other = e.from == v ? e.to : e.from;
-      if (reached[other]) continue;
-      reached[other] = 1;
-      graph.vertex(other).value = propagate(graph, e, other);
-      queue.push_back(other);
-    }
-  }
-  place_points(graph, reached);
+  graph_detail::spread_along_pose_edges(graph, reached, std::move(queue), propagate);
+  graph_detail::place_points(graph, reached, place_point);
   target.assign_values(graph.values());
 }
 
@@ -199,66 +173,12 @@ void initialize_chordal(PoseGraph3D& target, const SparseCholeskyOptions& linear
   std::vector<char> placed(n, 1);  // every pose is placed now; the free points are not
   for (int v = 0; v < n; ++v)
     if (is_point(graph, v) && !held_or_fixed[v]) placed[v] = 0;
-  place_points(graph, placed);
+  graph_detail::place_points(graph, placed, place_point);
   target.assign_values(graph.values());
 }
 
 IncrementalReport optimize_incremental(PoseGraph3D& target, const IncrementalOptions& options) {
-  require(options.poses_per_step >= 1, "poses_per_step", "must be >= 1");
-  PoseGraph3D graph = target;  // committed only when every step succeeded
-  const int n = graph.num_vertices();
-  // The poses in the order added, poses_per_step to a step.
-  std::vector<int> order, position(n, kNone), joins(n, kNone);
-  for (int v = 0; v < n; ++v) {
-    if (is_point(graph, v)) continue;
-    position[v] = static_cast<int>(order.size());
-    joins[v] = position[v] / options.poses_per_step;
-    order.push_back(v);
-  }
-  require(!order.empty(), "graph", "has no poses");
-  // Each pose's seed: its first edge (in the order added) to an earlier pose.
-  std::vector<int> parent(n, kNone);
-  for (int k = 0; k < static_cast<int>(graph.pose_edges().size()); ++k) {
-    const Pose3Edge& e = graph.pose_edges()[k];
-    const int later = position[e.from] > position[e.to] ? e.from : e.to;
-    if (parent[later] == kNone) parent[later] = k;
-  }
-  // Each point joins with the earliest pose that sees it, placed by that pose's first edge to it
-  // (a point never seen never joins and keeps its value).
-  std::vector<int> first(n, kNone);
-  for (int k = 0; k < static_cast<int>(graph.point_edges().size()); ++k) {
-    const Point3Edge& e = graph.point_edges()[k];
-    if (first[e.point] == kNone || position[e.pose] < position[graph.point_edges()[first[e.point]].pose])
-      first[e.point] = k;
-  }
-  const int steps = joins[order.back()] + 1;
-  std::vector<std::vector<int>> points_joining(steps);
-  for (int v = 0; v < n; ++v) {
-    if (!is_point(graph, v) || first[v] == kNone) continue;
-    joins[v] = joins[graph.point_edges()[first[v]].pose];
-    points_joining[joins[v]].push_back(v);
-  }
-  IncrementalReport report;
-  std::vector<int> full_index;
-  for (int step = 0; step < steps; ++step) {
-    const int end = std::min<int>((step + 1) * options.poses_per_step, static_cast<int>(order.size()));
-    for (int i = step * options.poses_per_step; i < end; ++i) {
-      const int v = order[i];
-      if (!graph.vertex(v).fixed && parent[v] != kNone)
-        graph.vertex(v).value = propagate(graph, graph.pose_edges()[parent[v]], v);
-    }
-    std::vector<char> placed(n, 1);
-    for (const int v : points_joining[step]) placed[v] = 0;
-    place_points(graph, placed, first);
-    PoseGraph3D part = part_of(graph, joins, step, full_index);
-    if (part.pose_edges().empty() && part.pose_priors().empty() && part.point_edges().empty())
-      continue;  // a lone first pose
-    report.add_step(optimize(part, options.step));
-    for (int j = 0; j < part.num_vertices(); ++j) graph.vertex(full_index[j]).value = part.vertex(j).value;
-  }
-  report.chi2 = graph.chi2();
-  target.assign_values(graph.values());
-  return report;
+  return graph_detail::optimize_incremental_graph(target, options, propagate, place_point, part_of);
 }
 
 }  // namespace probslam

@@ -204,3 +204,19 @@ def test_incremental_optimisation_of_an_exact_graph_is_exact_and_refuses_bad_inp
         r, t = from_row(row)
         assert (r.inv() * truth[k][0]).magnitude() < EXACT_TOLERANCE
         assert np.abs(t - truth[k][1]).max() < EXACT_TOLERANCE
+
+
+def test_incremental_optimisation_with_a_prior_on_the_first_pose():
+    """A prior on the first pose is no edge: its first step (the lone pose) is skipped, not
+    handed to the optimiser, which refused it ("graph has no edges"); the steps after it hold
+    the prior, and the end is the batch optimum."""
+    truth, edges = random_graph(12, n=8, noise=0.05)
+    g = build([truth[0]] * len(truth), edges)
+    g.add_pose_prior(100, to_row(*truth[0]), np.eye(6))
+    batch = g.copy()
+    probslam.optimize(batch, relative_tolerance=0.0, step_tolerance=1e-12)
+    report = probslam.optimize_incremental(g, poses_per_step=1, max_iterations=50, relative_tolerance=0.0,
+                                           step_tolerance=1e-12)
+    assert report.steps == len(truth) - 1
+    assert report.chi2 == pytest.approx(batch.chi2(), rel=1e-12)
+    assert np.abs(g.poses - batch.poses).max() < POSE_TOLERANCE
