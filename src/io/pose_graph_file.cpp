@@ -13,6 +13,7 @@
 
 #include "probslam/core/check.hpp"
 #include "probslam/core/pose2.hpp"
+#include "noise_information.hpp"
 #include "pose_graph_row_log.hpp"
 #include "text_fields.hpp"
 
@@ -22,6 +23,8 @@ namespace {
 using io_detail::Fields;
 using io_detail::LineError;
 using io_detail::LineParseError;
+using io_detail::information_from;
+using io_detail::own_noise;
 using io_detail::RowLog;
 
 struct VertexRecord {
@@ -70,29 +73,6 @@ Eigen::Matrix2d symmetric2(double a11, double a12, double a22) {
   Eigen::Matrix2d m;
   m << a11, a12, a12, a22;
   return m;
-}
-
-NoiseFormat own_noise(NoiseFormat noise, PoseGraphFormat format) {
-  if (noise != NoiseFormat::kDefault) return noise;
-  return format == PoseGraphFormat::kIsam ? NoiseFormat::kSquareRootInformation : NoiseFormat::kInformation;
-}
-
-// The information an edge's noise entries stand for. `entries` is symmetric, built from the
-// upper triangle the file gives; a square root uses that triangle only.
-template <int N>
-Eigen::Matrix<double, N, N> information_from(const Eigen::Matrix<double, N, N>& entries, NoiseFormat noise,
-                                             const LineError& err) {
-  using Matrix = Eigen::Matrix<double, N, N>;
-  if (!entries.allFinite()) err.fail("noise entries must be finite");
-  if (noise == NoiseFormat::kInformation) return entries;
-  if (noise == NoiseFormat::kSquareRootInformation) {
-    const Matrix r = entries.template triangularView<Eigen::Upper>();
-    return r.transpose() * r;  // exactly symmetric: (i, j) and (j, i) sum the same products
-  }
-  const Eigen::LLT<Matrix> llt(entries);
-  if (llt.info() != Eigen::Success) err.fail("covariance is not positive definite");
-  const Matrix information = llt.solve(Matrix::Identity());
-  return 0.5 * (information + information.transpose());
 }
 
 // The checks PoseGraph2D makes when the edge is added, made on the record so that a skip-and-

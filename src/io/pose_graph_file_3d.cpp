@@ -11,6 +11,7 @@
 #include <unordered_map>
 #include <vector>
 
+#include "noise_information.hpp"
 #include "pose_graph_row_log.hpp"
 #include "text_fields.hpp"
 
@@ -20,6 +21,7 @@ namespace {
 using io_detail::Fields;
 using io_detail::LineError;
 using io_detail::LineParseError;
+using io_detail::own_noise;
 using io_detail::RowLog;
 
 // Squared norm of a quaternion that is unit to rounding: a few ulps of 1. Such a quaternion is
@@ -80,11 +82,6 @@ PoseGraphFormat detect(const std::string& tag) {
   return PoseGraphFormat::kG2o;
 }
 
-NoiseFormat own_noise(NoiseFormat noise, PoseGraphFormat format) {
-  if (noise != NoiseFormat::kDefault) return noise;
-  return format == PoseGraphFormat::kIsam ? NoiseFormat::kSquareRootInformation : NoiseFormat::kInformation;
-}
-
 int vertex_id(const Fields& f, std::size_t i, const LineError& err) {
   const long id = f.integer(i);
   if (id < std::numeric_limits<int>::min() || id > std::numeric_limits<int>::max())
@@ -125,7 +122,7 @@ Eigen::Quaterniond from_roll_pitch_yaw(const Fields& f, std::size_t first, const
 }
 
 // The information the N (N + 1) / 2 upper-triangle entries (row-major, from field `first`) stand
-// for.
+// for, positive definite.
 template <int N>
 Eigen::Matrix<double, N, N> information(const Fields& f, std::size_t first, NoiseFormat noise, const LineError& err) {
   using Matrix = Eigen::Matrix<double, N, N>;
@@ -133,19 +130,7 @@ Eigen::Matrix<double, N, N> information(const Fields& f, std::size_t first, Nois
   std::size_t k = first;
   for (int i = 0; i < N; ++i)
     for (int j = i; j < N; ++j) entries(i, j) = entries(j, i) = f.number(k++);
-  if (!entries.allFinite()) err.fail("noise entries must be finite");
-  Matrix info;
-  if (noise == NoiseFormat::kSquareRootInformation) {
-    const Matrix r = entries.template triangularView<Eigen::Upper>();
-    info = r.transpose() * r;  // exactly symmetric: (i, j) and (j, i) sum the same products
-  } else if (noise == NoiseFormat::kCovariance) {
-    const Eigen::LLT<Matrix> llt(entries);
-    if (llt.info() != Eigen::Success) err.fail("covariance is not positive definite");
-    info = llt.solve(Matrix::Identity());
-    info = 0.5 * (info + info.transpose());
-  } else {
-    info = entries;
-  }
+  const Matrix info = io_detail::information_from<N>(entries, noise, err);
   const Eigen::LLT<Matrix> llt(info);
   if (llt.info() != Eigen::Success || !info.allFinite()) err.fail("information is not positive definite");
   return info;
@@ -372,7 +357,7 @@ PoseGraph3DRead parse_pose_graph_3d(std::istream& in, const PoseGraphReadOptions
   PoseGraphReadReport report;
   RowLog rows(options.rows, report);
   Records records;
-  const PoseGraphFormat format = io_detail::read_graph_records(
+  io_detail::read_graph_records(
       in, source, options.format, report, rows, records, "2-D",
       "use read_pose_graph (Python: probslam.graph.read_pose_graph)", is_2d_tag, detect,
       [&](const Fields& fields, const std::string& tag, PoseGraphFormat f, long line, const LineError& err) {
