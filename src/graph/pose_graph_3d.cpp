@@ -28,8 +28,9 @@ Pose3 checked_pose(const Pose3& pose, const char* name) {
 
 }  // namespace
 
+// The callers have refused a repeated id first (before checking the value, as the error order
+// of add_pose has always been).
 int PoseGraph3D::add_vertex(int id, const Pose3& value, VertexKind kind) {
-  if (has_vertex(id)) throw_invalid_argument("id", "is already used: " + std::to_string(id));
   const int index = num_vertices();
   index_.emplace(id, index);
   try {

@@ -387,14 +387,20 @@ void write_information(std::ostream& out, const Eigen::Matrix<double, N, N>& inf
     for (int j = i; j < N; ++j) out << ' ' << information(i, j);
 }
 
-// The sensor offsets to write as PARAMS_SE3OFFSET records, as (x y z qx qy qz qw): the identity
-// first (parameter 0, the priors'), then each distinct offset of a point edge in order.
+// A point edge's sensor offset as a PARAMS_SE3OFFSET record holds it: x y z qx qy qz qw.
+Eigen::Matrix<double, 7, 1> offset_record(const PointEdge3D& e) {
+  Eigen::Matrix<double, 7, 1> o;
+  o << e.offset_t, e.offset_q.coeffs();
+  return o;
+}
+
+// The sensor offsets to write as PARAMS_SE3OFFSET records: the identity first (parameter 0, the
+// priors'), then each distinct offset of a point edge in order.
 std::vector<Eigen::Matrix<double, 7, 1>> offsets_of(const PoseGraph3DData& graph) {
   std::vector<Eigen::Matrix<double, 7, 1>> out(1);
   out[0] << 0, 0, 0, 0, 0, 0, 1;
   for (const PointEdge3D& e : graph.point_edges) {
-    Eigen::Matrix<double, 7, 1> o;
-    o << e.offset_t, e.offset_q.coeffs();
+    const Eigen::Matrix<double, 7, 1> o = offset_record(e);
     if (std::find(out.begin(), out.end(), o) == out.end()) out.push_back(o);
   }
   return out;
@@ -463,9 +469,7 @@ void write_g2o_3d(std::ostream& out, const PoseGraph3DData& graph) {
     out << '\n';
   }
   for (const PointEdge3D& e : graph.point_edges) {
-    Eigen::Matrix<double, 7, 1> o;
-    o << e.offset_t, e.offset_q.coeffs();
-    const auto param = std::find(offsets.begin(), offsets.end(), o) - offsets.begin();
+    const auto param = std::find(offsets.begin(), offsets.end(), offset_record(e)) - offsets.begin();
     out << "EDGE_SE3_TRACKXYZ " << e.pose_id << ' ' << e.point_id << ' ' << param << ' ' << e.z.x() << ' ' << e.z.y()
         << ' ' << e.z.z();
     write_information(out, e.information);
