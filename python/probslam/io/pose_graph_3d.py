@@ -69,8 +69,7 @@ class PoseGraph3DFile:
     point_edges: np.ndarray = _empty(2, dtype=np.int64)  #: (M, 2) int64 (pose id, point id)
     point_measurements: np.ndarray = _empty(3)  #: (M, 3) m, the point in the sensor's frame
     point_information: np.ndarray = _empty(3, 3)  #: (M, 3, 3)
-    point_offset_quaternions: np.ndarray = field(  #: (M, 4) the sensor's rotation on the pose (x, y, z, w)
-        default_factory=lambda: np.zeros((0, 4)))
+    point_offset_quaternions: np.ndarray = _empty(4)  #: (M, 4) the sensor's rotation on the pose (x, y, z, w)
     point_offset_translations: np.ndarray = _empty(3)  #: (M, 3) the sensor's position on the pose
 
 
