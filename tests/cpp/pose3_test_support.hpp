@@ -9,6 +9,13 @@
 
 namespace probslam::test_support {
 
+// Central differences with step h: truncation O(h^2) ~ 1e-12 and rounding ~ 1e-16 / h ~ 1e-10 for
+// these O(1)-O(10) functions; 1e-7 leaves a wide margin for both.
+constexpr double kFiniteDifferenceStep = 1e-6;
+constexpr double kJacobianTolerance = 1e-7;
+// Exact data solved exactly: what is left is rounding in a few dozen operations per vertex.
+constexpr double kExactTolerance = 1e-9;
+
 /// A pose with N(0, translation_scale^2) translation and a rotation vector N(0, angle_scale^2).
 inline Pose3 random_pose(std::mt19937& rng, double translation_scale, double angle_scale) {
   std::normal_distribution<double> normal;

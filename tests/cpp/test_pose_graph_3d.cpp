@@ -20,15 +20,11 @@ namespace probslam {
 namespace {
 
 using test_support::between;
+using test_support::kExactTolerance;
+using test_support::kFiniteDifferenceStep;
+using test_support::kJacobianTolerance;
 using test_support::compose;
 using test_support::random_pose;
-
-// Central differences with step h have truncation error O(h^2) ~ 1e-12 and rounding error
-// ~ 1e-16 / h ~ 1e-10 for these O(1) functions: 1e-7 leaves a wide margin for both.
-constexpr double kFiniteDifferenceStep = 1e-6;
-constexpr double kJacobianTolerance = 1e-7;
-// Exact data solved exactly: what is left is rounding in a few dozen operations per pose.
-constexpr double kExactTolerance = 1e-9;
 
 double rotation_distance(const Eigen::Quaterniond& a, const Eigen::Quaterniond& b) {
   return so3_log(a.conjugate() * b).norm();

@@ -17,15 +17,11 @@ namespace probslam {
 namespace {
 
 using test_support::between;
+using test_support::kExactTolerance;
+using test_support::kFiniteDifferenceStep;
+using test_support::kJacobianTolerance;
 using test_support::compose;
 using test_support::random_pose;
-
-// Central differences with step h: truncation O(h^2) ~ 1e-12, rounding ~ 1e-16 / h ~ 1e-10 for
-// these O(1)-O(10) functions; 1e-7 leaves a wide margin for both.
-constexpr double kFiniteDifferenceStep = 1e-6;
-constexpr double kJacobianTolerance = 1e-7;
-// Exact data solved exactly: what is left is rounding in a few dozen operations per vertex.
-constexpr double kExactTolerance = 1e-9;
 
 // The point in the frame of the sensor at `offset` on pose x, written independently of the
 // library's linearisation: (x * offset)^-1 p.
@@ -155,19 +151,21 @@ TEST(PoseGraph3DPoints, ExactGraphOptimisesToChi2ZeroWithEitherAlgorithm) {
   }
 }
 
+// Points 100 .. 100 + count - 1 all moved to one far place, so that only an initialiser that
+// places them from their sightings brings them back.
+void move_points_away(PoseGraph3D& g, int count) {
+  std::vector<int> ids;
+  for (int k = 0; k < count; ++k) ids.push_back(100 + k);
+  g.set_points(ids, std::vector<Eigen::Vector3d>(ids.size(), Eigen::Vector3d(50.0, -40.0, 30.0)));
+}
+
 TEST(PoseGraph3DPoints, InitialisersPlacePointsFromTheirFirstObservation) {
   std::mt19937 rng(23);
   const Truth t = random_truth(rng, 8, 5);
   const Pose3 offset = random_pose(rng, 0.3, 0.5);
   for (const bool chordal : {false, true}) {
     PoseGraph3D g = exact_graph(t, offset, rng);
-    std::vector<int> point_ids;
-    std::vector<Eigen::Vector3d> far;
-    for (int k = 0; k < 5; ++k) {
-      point_ids.push_back(100 + k);
-      far.emplace_back(50.0, -40.0, 30.0);
-    }
-    g.set_points(point_ids, far);
+    move_points_away(g, 5);
     if (chordal)
       initialize_chordal(g);
     else
@@ -242,13 +240,7 @@ TEST(PoseGraph3DPoints, IncrementalOptimisationOfAnExactGraphIsExact) {
   const Truth t = random_truth(rng, 9, 6);
   const Pose3 offset = random_pose(rng, 0.3, 0.5);
   PoseGraph3D g = exact_graph(t, offset, rng);
-  std::vector<int> point_ids;
-  std::vector<Eigen::Vector3d> far;
-  for (int k = 0; k < 6; ++k) {
-    point_ids.push_back(100 + k);
-    far.emplace_back(50.0, -40.0, 30.0);
-  }
-  g.set_points(point_ids, far);
+  move_points_away(g, 6);
   IncrementalOptions options;
   options.poses_per_step = 2;
   const IncrementalReport report = optimize_incremental(g, options);
