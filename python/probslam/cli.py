@@ -18,7 +18,7 @@ from . import eval as evaluation
 from .data import path as _data_path
 from .datasets import carmen, landmark_dataset_kind, load_landmark_dataset, mrclam, run_landmark_slam
 from .landmark_refine import refine_run
-from .io.trajectory import EXTENSIONS, TRAJECTORY_FORMATS
+from .io.trajectory import EXTENSIONS, POSITION_FIELDS, TRAJECTORY_FORMATS, first_row_fields
 from .mapping import map_laser_log
 from ._progress import progress_bar
 
@@ -887,6 +887,7 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
 #: What ``probslam eval`` reads.
 TRAJECTORY_FILE = "a trajectory: TUM (t x y z qx qy qz qw), KITTI (12 numbers a row) or 't x y theta' rows"
 RELATIONS_FILE = "a Freiburg relations file (t1 t2 x y z roll pitch yaw rows)"
+POSITIONS_FILE = "positions with times (t x y rows, e.g. a GPS track)"
 
 
 def _read_trajectory_file(path: str, role: str):
@@ -909,6 +910,30 @@ def _is_relations(path: str, ref_format: str) -> bool:
         return ref_format == "relations"
     name = os.path.basename(path).lower()
     return ".relations" in name
+
+
+def _is_positions(path: str) -> bool:
+    """Whether a reference file holds ``t x y`` rows (a GPS track), judged by its first row."""
+    _check_input(path, TRAJECTORY_FILE)
+    with _reading(path, TRAJECTORY_FILE):
+        return first_row_fields(path) == POSITION_FIELDS
+
+
+def _eval_positions(args: argparse.Namespace, est) -> int:
+    """``eval EST REF`` with REF a track of positions: the estimate at each fix's time."""
+    if args.rpe or args.align is not None:
+        raise UserError("--rpe and --align apply to a reference trajectory, not to positions (t x y rows): the "
+                        "error is printed both as it is and after the alignment")
+    with _reading(args.reference, POSITIONS_FILE):
+        ref = io.read_positions(args.reference)
+    print(f"{'reference:':<15}{args.reference}: {len(ref)} positions (t x y"
+          + (f"; {ref.skipped_rows} unreadable rows skipped)" if ref.skipped_rows else ")"))
+    with _reading(args.estimate, TRAJECTORY_FILE):
+        result = evaluation.position_error(est.timestamps, est.poses, ref.timestamps, ref.positions)
+    print(f"{'fixes:':<15}{result.count} used, {result.outside} outside the estimate's time span (the estimate is "
+          f"interpolated at each fix's time)\n")
+    print(result, end="")
+    return 0
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
@@ -935,6 +960,8 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         print(evaluation.statistics_table("relations error w.r.t. rotation angle in degrees (deg)",
                                           evaluation.error_statistics(np.degrees(error.rotational))), end="")
         return 0
+    if args.reference_format == "auto" and _is_positions(args.reference):
+        return _eval_positions(args, est)
     if args.reference_format != "auto":
         _check_input(args.reference, TRAJECTORY_FILE)
         with _reading(args.reference, TRAJECTORY_FILE):
@@ -1179,8 +1206,10 @@ def build_parser() -> argparse.ArgumentParser:
                                      "error (as evo_ape / evo_rpe print them), or the relations error")
     ev.add_argument("estimate", metavar="EST", help="the trajectory to score: TUM, KITTI (times in NAME_times.txt) or 't x y theta' "
                                      "rows, as the commands write it (PREFIX_trajectory.tum)")
-    ev.add_argument("reference", metavar="REF", help="the ground truth: a trajectory file as EST, or a relations file (a name with "
-                                      "'.relations', e.g. aces.relations; scored as 'slam' scores its logs)")
+    ev.add_argument("reference", metavar="REF", help="the ground truth: a trajectory file as EST, a relations file (a name with "
+                                      "'.relations', e.g. aces.relations; scored as 'slam' scores its logs), or "
+                                      "positions with times, 't x y' rows (a GPS track: the estimate is interpolated "
+                                      "at each fix's time, the error printed as it is and aligned)")
     ev.add_argument("--reference-format", choices=("auto",) + TRAJECTORY_FORMATS + ("relations",), default="auto",
                     help="what REF is (default: relations when its name has '.relations', else the trajectory "
                          "format its rows show)")

@@ -4,6 +4,8 @@ readers in ``probslam.io``, the scores in ``probslam.eval``.
 
 - ``mrclam``: UTIAS MRCLAM, one robot's odometry, sightings and ground truth;
 - ``victoria_park``: Victoria Park as iSAM / GTSAM text, a chain of odometry edges and sightings;
+- ``victoria_park_acfr``: the original Victoria Park run (ACFR): the car's speed and steering,
+  every tree detection, GPS;
 - ``carmen``: CARMEN laser logs, what ``probslam.run_slam`` reads.
 
 ``run_landmark_slam`` runs a landmark filter (EKF, multiple-hypothesis EKF, FastSLAM) over an
@@ -19,9 +21,9 @@ from typing import Mapping, Optional, Union
 from .._args import require_instance
 from ..fastslam import DEFAULT_P_NEW
 from ..io._files import file_path
-from ..io.landmark_datasets import Mrclam, VictoriaPark
+from ..io.landmark_datasets import Mrclam, VictoriaPark, VictoriaParkAcfr
 from ..landmark_slam import METHODS, Associations, LandmarkSlamResult
-from . import carmen, mrclam, victoria_park
+from . import carmen, mrclam, victoria_park, victoria_park_acfr
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -31,34 +33,42 @@ EKF_ASSOCIATIONS = ("jcbb", "ml")
 
 
 def landmark_dataset_kind(path: PathLike) -> str:
-    """What the path holds, judged before reading it: "mrclam" for a folder (it must hold
-    Barcodes.dat), "victoria_park" for a file (not empty). A missing path raises
-    ``FileNotFoundError``, a folder without Barcodes.dat or an empty file ``ValueError`` naming
-    the path."""
+    """What the path holds, judged before reading it: "mrclam" for a folder holding
+    Barcodes.dat, "victoria_park_acfr" for a folder holding inputs.dat and measurements.dat (the
+    original Victoria Park run), "victoria_park" for a file (not empty). A missing path raises
+    ``FileNotFoundError``, a folder holding neither or an empty file ``ValueError`` naming the
+    path."""
     path = pathlib.Path(file_path(path))
     if not path.exists():
         raise FileNotFoundError(f"path: no such file or folder: {str(path)!r}")
     if path.is_dir():
-        if not (path / "Barcodes.dat").exists():
-            raise ValueError(f"{path}: a folder without Barcodes.dat")
-        return "mrclam"
+        if (path / "Barcodes.dat").exists():
+            return "mrclam"
+        if victoria_park_acfr.is_run_folder(path):
+            return "victoria_park_acfr"
+        raise ValueError(f"{path}: a folder with neither Barcodes.dat (MRCLAM) nor inputs.dat and "
+                         f"measurements.dat (the original Victoria Park run)")
     if path.is_file() and path.stat().st_size == 0:
         raise ValueError(f"{path}: empty file")
     return "victoria_park"
 
 
 def load_landmark_dataset(path: PathLike, *, robot: int = 1, seconds: Optional[float] = None,
-                          raw_ranges: bool = False) -> Union[Mrclam, VictoriaPark]:
+                          raw_ranges: bool = False) -> Union[Mrclam, VictoriaPark, VictoriaParkAcfr]:
     """The landmark dataset at ``path`` (``landmark_dataset_kind``), read and checked: UTIAS
     MRCLAM's robot ``robot``, its first ``seconds`` (None: all), readings as distances unless
-    ``raw_ranges`` (``mrclam.load``), or Victoria Park in iSAM / GTSAM text
-    (``victoria_park.load``; ``robot``, ``seconds`` and ``raw_ranges`` are MRCLAM's only).
+    ``raw_ranges`` (``mrclam.load``), Victoria Park in iSAM / GTSAM text
+    (``victoria_park.load``) or the original Victoria Park run (``victoria_park_acfr.load``;
+    ``robot``, ``seconds`` and ``raw_ranges`` are MRCLAM's only).
 
     Errors: those of ``landmark_dataset_kind``, the readers' (``FileNotFoundError`` for a
     missing file, ``ValueError`` naming the file and line), and ``ValueError`` naming the path
     for data with nothing to run (no odometry, no sighting)."""
-    if landmark_dataset_kind(path) == "mrclam":
+    kind = landmark_dataset_kind(path)
+    if kind == "mrclam":
         return mrclam.load(path, robot, seconds, raw_ranges)
+    if kind == "victoria_park_acfr":
+        return victoria_park_acfr.load(path)
     return victoria_park.load(path)
 
 
@@ -129,4 +139,4 @@ def run_landmark_slam(dataset: Union[Mrclam, VictoriaPark, PathLike], method: st
 
 
 __all__ = ["Associations", "EKF_ASSOCIATIONS", "LandmarkSlamResult", "carmen", "landmark_dataset_kind",
-           "load_landmark_dataset", "mrclam", "run_landmark_slam", "victoria_park"]
+           "load_landmark_dataset", "mrclam", "run_landmark_slam", "victoria_park", "victoria_park_acfr"]

@@ -1,13 +1,14 @@
 """Readers and writers: CARMEN laser logs, ROS bags (``rosbags`` needed only for them), ROS
 map_server maps, PNG pictures, trajectories (TUM, KITTI), 3-D pose graph files (g2o SE3, iSAM
-EDGE3, TORO 3-D)."""
+EDGE3, TORO 3-D), landmark datasets (MRCLAM, Victoria Park as iSAM text and as the original run)."""
 
 from .carmen import CarmenLog, LaserScans, Odometry, read_carmen_log
-from .landmark_datasets import MRCLAM_RANGE_SCALE, Mrclam, VictoriaPark, read_mrclam, read_victoria_park
+from .landmark_datasets import (MRCLAM_RANGE_SCALE, Mrclam, VictoriaPark, VictoriaParkAcfr, read_mrclam,
+                                read_victoria_park, read_victoria_park_acfr)
 from .maps import load_ros_map, save_ros_map, write_png
 from .pose_graph_3d import QUATERNION_NORM_TOLERANCE, PoseGraph3DFile, read_pose_graph_3d, write_g2o_3d
-from .trajectory import (TRAJECTORY_FORMATS, Trajectory, kitti_times_path, read_trajectory, write_trajectory,
-                         write_trajectory_3d)
+from .trajectory import (TRAJECTORY_FORMATS, Positions, Trajectory, kitti_times_path, read_positions,
+                         read_trajectory, write_trajectory, write_trajectory_3d)
 from . import rosbag
 from .rosbag import RosbagLog, read_rosbag
 from .rosbag_writer import write_rosbag
@@ -19,19 +20,23 @@ __all__ = [
     "Mrclam",
     "Odometry",
     "PoseGraph3DFile",
+    "Positions",
     "QUATERNION_NORM_TOLERANCE",
     "RosbagLog",
     "TRAJECTORY_FORMATS",
     "Trajectory",
     "VictoriaPark",
+    "VictoriaParkAcfr",
     "kitti_times_path",
     "load_ros_map",
     "read_carmen_log",
     "read_mrclam",
     "read_pose_graph_3d",
+    "read_positions",
     "read_rosbag",
     "read_trajectory",
     "read_victoria_park",
+    "read_victoria_park_acfr",
     "save_ros_map",
     "write_g2o_3d",
     "write_png",

@@ -14,6 +14,10 @@
 - **xyt**: ``# timestamp x y theta`` then one ``t x y theta`` row per pose (s, m, m, rad), what
   ``probslam`` commands wrote before TUM (``--trajectory-format xyt``).
 
+Positions without a heading, ``t x y`` rows (a GPS track such as the original Victoria Park
+run's gps.dat), are read by ``read_positions``: a reference to score a path against
+(``probslam.eval.position_error``), not a trajectory.
+
 Units: seconds, metres, radians; theta wrapped to (-pi, pi]. Text is written with nine decimals
 (1 ns, 1 nm, 1e-9 in each quaternion and matrix entry).
 """
@@ -29,7 +33,7 @@ import numpy as np
 
 from .._args import real_array
 from .._core import wrap_angle
-from ._files import file_path, numeric_rows, require_regular_file
+from ._files import file_path, numeric_rows, numeric_table, require_regular_file, text_lines
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -269,5 +273,55 @@ def read_trajectory(path: PathLike, format: str = "auto", times_path: Optional[P
                       read.skipped, read.skipped_lines, from_index)
 
 
-__all__ = ["EXTENSIONS", "PLANAR_TOLERANCE", "QUATERNION_NORM_TOLERANCE", "TRAJECTORY_FORMATS", "Trajectory",
-           "kitti_times_path", "read_trajectory", "write_trajectory"]
+#: Fields of a row of positions with times: ``t x y``.
+POSITION_FIELDS = 3
+
+
+@dataclass
+class Positions:
+    """Positions with times read from a file (``read_positions``), such as a GPS track.
+
+    timestamps (G,) s, in the file's order; positions (G, 2) ``(x, y)`` m; skipped_rows:
+    unreadable rows the reader skipped, and skipped_lines the line numbers of the first
+    ``io._files.MAX_REPORTED_LINES`` of them."""
+
+    timestamps: np.ndarray
+    positions: np.ndarray
+    skipped_rows: int = 0
+    skipped_lines: List[int] = field(default_factory=list)
+
+    def __len__(self) -> int:
+        return int(self.timestamps.shape[0])
+
+
+def read_positions(path: PathLike) -> Positions:
+    """``t x y`` rows (s, m, m) of a text file: a GPS track or any reference without headings.
+    ``#`` starts a comment and blank lines are ignored.
+
+    Errors: a missing file raises ``FileNotFoundError``; a path that is not a regular file or a
+    file with no readable row raises ``ValueError`` naming the file. Row-level, as the other
+    readers: rows with another field count, words, NaN or inf are skipped, counted in
+    ``skipped_rows`` and announced by one warning naming the first line numbers."""
+    path = file_path(path)
+    require_regular_file(path)
+    read = numeric_table(path, POSITION_FIELDS, "position")
+    read.warn(path, "position")
+    return Positions(np.ascontiguousarray(read.table[:, 0]), np.ascontiguousarray(read.table[:, 1:3]),
+                     read.skipped, read.skipped_lines)
+
+
+def first_row_fields(path: PathLike) -> int:
+    """The number of fields of the first row of a text file that is not blank or a comment
+    (``#``), 0 when there is none: what a reader in format "auto" decides by."""
+    path = file_path(path)
+    require_regular_file(path)
+    for _, line in text_lines(path):
+        fields = line.split("#", 1)[0].split()
+        if fields:
+            return len(fields)
+    return 0
+
+
+__all__ = ["EXTENSIONS", "PLANAR_TOLERANCE", "POSITION_FIELDS", "Positions", "QUATERNION_NORM_TOLERANCE",
+           "TRAJECTORY_FORMATS", "Trajectory", "first_row_fields", "kitti_times_path", "read_positions",
+           "read_trajectory", "write_trajectory"]
