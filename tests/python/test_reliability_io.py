@@ -112,6 +112,10 @@ def _readers(tmp_path, bad):
     mrclam.mkdir()
     for name in ("Barcodes.dat", "Landmark_Groundtruth.dat", "Robot1_Odometry.dat"):
         os.symlink(bad, mrclam / name)
+    acfr = tmp_path / "acfr"
+    acfr.mkdir()
+    for name in ("inputs.dat", "measurements.dat", "gps.dat"):
+        os.symlink(bad, acfr / name)
     return [
         ("carmen", lambda: io.read_carmen_log(bad)),
         ("carmen_gz", lambda: io.read_carmen_log(_link(tmp_path, bad, "x.log.gz"))),
@@ -121,6 +125,8 @@ def _readers(tmp_path, bad):
         ("octomap_bt", lambda: ps.OccupancyGrid3D.read_bt(bad)),
         ("mrclam", lambda: io.read_mrclam(mrclam)),
         ("victoria_park", lambda: io.read_victoria_park(bad)),
+        ("victoria_park_acfr", lambda: io.read_victoria_park_acfr(acfr)),
+        ("positions", lambda: io.read_positions(bad)),
     ]
 
 
@@ -160,6 +166,7 @@ def test_missing_files_raise_file_not_found_naming_the_file(tmp_path):
 def test_readers_and_writers_name_a_path_argument_that_is_not_a_path(tmp_path, value):
     grid = ps.OccupancyGrid2D(0.1, 4, 4)
     calls = [("path", io.read_carmen_log), ("path", io.read_victoria_park), ("folder", io.read_mrclam),
+             ("folder", io.read_victoria_park_acfr), ("path", io.read_positions),
              ("yaml_path", io.load_ros_map), ("path", ps.OccupancyGrid2D.load), ("path", ps.graph.read_pose_graph),
              ("path", ps.eval.read_relations), ("yaml_path", lambda p: io.save_ros_map(grid, p)),
              ("path", lambda p: grid.save(p)), ("path", lambda p: io.write_png(grid, p)),

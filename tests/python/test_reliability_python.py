@@ -26,6 +26,7 @@ COVERED = (
     "eval.ate(times_est, poses_est, times_ref, poses_ref, align, max_time_difference)",
     "eval.rpe(times_est, poses_est, times_ref, poses_ref, delta, delta_unit, align, max_time_difference)",
     "io.write_trajectory(timestamps, poses, path, format) and io.read_trajectory(path)",
+    "eval.position_error(times_est, poses_est, times_ref, positions_ref)",
 )
 
 PROPERTY = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -231,3 +232,22 @@ def test_trajectory_files_are_written_finite_and_read_back_or_refused(tmp_path_f
         read = ps.io.read_trajectory(path)
     assert read.format == fmt and len(read) == len(traj[0])
     assert np.all(np.isfinite(read.poses)) and np.all(np.isfinite(read.timestamps))
+
+
+@PROPERTY
+@given(est=trajectory, ref=st.tuples(sometimes_ordinary((5,)), sometimes_ordinary((5, 2))),
+       positions=st.booleans())
+def test_position_error_is_finite_or_refused(est, ref, positions):
+    """Estimate times sorted when they can be (else refused by name), the reference's in any
+    order, odd values; (N, 2) positions as well as (N, 3) poses."""
+    ts = np.sort(est[0]) if np.all(np.isfinite(est[0])) else est[0]
+    poses = est[1][:, :2] if positions and np.ndim(est[1]) == 2 else est[1]
+
+    def call():
+        r = ev.position_error(ts, poses, ref[0], ref[1])
+        return {"errors": r.errors, "errors_aligned": r.errors_aligned, "rmse": r.rmse,
+                "rmse_aligned": r.rmse_aligned, "rotation": r.rotation, "translation": r.translation}
+
+    raised, out = policy.check_call(call)
+    if raised:
+        names_one_of(out, "times_est", "poses_est", "times_ref", "positions_ref")

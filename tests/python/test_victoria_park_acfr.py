@@ -137,7 +137,7 @@ def test_missing_empty_and_foreign_folders(tmp_path):
     with pytest.raises(TypeError, match="folder: expected a file path"):
         read_victoria_park_acfr(3)
     (tmp_path / "other").mkdir()
-    with pytest.raises(ValueError, match="neither Barcodes.dat .* nor inputs.dat and measurements.dat"):
+    with pytest.raises(ValueError, match=r"folder without Barcodes.dat \(MRCLAM\) or inputs.dat and measurements.dat"):
         landmark_dataset_kind(tmp_path / "other")
 
 

@@ -46,8 +46,8 @@ def landmark_dataset_kind(path: PathLike) -> str:
             return "mrclam"
         if victoria_park_acfr.is_run_folder(path):
             return "victoria_park_acfr"
-        raise ValueError(f"{path}: a folder with neither Barcodes.dat (MRCLAM) nor inputs.dat and "
-                         f"measurements.dat (the original Victoria Park run)")
+        raise ValueError(f"{path}: a folder without Barcodes.dat (MRCLAM) or inputs.dat and measurements.dat "
+                         f"(the original Victoria Park run)")
     if path.is_file() and path.stat().st_size == 0:
         raise ValueError(f"{path}: empty file")
     return "victoria_park"
