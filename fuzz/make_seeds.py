@@ -18,7 +18,7 @@ import tempfile
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(__file__))
-from targets import MRCLAM_FILES, SEPARATOR  # noqa: E402
+from targets import MRCLAM_FILES, SEPARATOR, VICTORIA_PARK_ACFR_FILES  # noqa: E402
 
 #: Larger seeds slow every execution (libFuzzer's -max_len follows the largest seed).
 MAX_SEED_BYTES = 4096
@@ -73,6 +73,11 @@ MRCLAM = [b"# Subject # Barcode #\n1 5\n2 14\n6 9\n7 25\n8 88\n",
           b"# Time # Barcode # Range # Bearing\n100.2 9 2.1 0.3\n100.2 25 3.0 -0.2\n100.7 14 1.0 0.0\n"
           b"100.8 77 1.0 0.0\n",
           b"# Time # x # y # theta\n100.0 0 0 0\n101.0 0.1 0 0.05\n"]
+VICTORIA_ACFR = [b"     0.973      0.000    -0.0035\n     0.998      0.512    -0.0042\n     1.023      1.250     0.3100\n",
+                 b"     0.852   20.46202    0.88575    0.35404\n     0.852   29.59859    1.02102    0.25717\n"
+                 b"     1.000    7.50000    0.00000    0.20000\n",
+                 b"     0.000     -67.6493     -41.7142\n     1.001     -67.7310     -41.6681\n",
+                 b"# t x y\n0.5 1.0 2.0\n1.5 1.1 2.2\n"]
 RELATIONS = b"""# t1 t2 x y z roll pitch yaw
 90.239599 90.719599 0.422330 -0.000750 0.000000 0.000000 0.000000 0.017260
 90.719599 91.321399 0.213430 -0.014750 0.000000 0.000000 0.000000 -0.405780
@@ -126,6 +131,7 @@ def committed(out: pathlib.Path = HERE / "seeds") -> None:
     _write(out / "isam_3d", "tiny.txt", ISAM_3D)
     _write(out / "victoria_park", "tiny.txt", VICTORIA)
     _write(out / "mrclam", "tiny.bin", SEPARATOR.join(MRCLAM))
+    _write(out / "victoria_park_acfr", "tiny.bin", SEPARATOR.join(VICTORIA_ACFR))
     _write(out / "relations", "tiny.relations", RELATIONS)
     _write(out / "relations", "tiny.relations.gz", gzip.compress(RELATIONS, mtime=0))
     _write(out / "relations", "tiny.relations.bz2", bz2.compress(RELATIONS))
@@ -178,6 +184,10 @@ def shared(out: pathlib.Path, data: pathlib.Path) -> int:
         if (vp / name).exists():
             add("isam", name, _head(_open(vp / name)))
             add("victoria_park", name, _head(_open(vp / name)))
+    acfr = data / "landmark_slam/victoria_park_acfr"
+    if acfr.is_dir():
+        parts = [_head(_open(acfr / name)) for name in VICTORIA_PARK_ACFR_FILES]
+        add("victoria_park_acfr", "victoria_park_acfr.bin", SEPARATOR.join(parts + parts[-1:]))
     for folder in sorted(data.glob("landmark_slam/mrclam_dataset*")):
         for robot in (1, 3):
             files = [f.replace("Robot1", f"Robot{robot}") for f in MRCLAM_FILES]

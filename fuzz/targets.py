@@ -10,7 +10,8 @@ finding: atheris reports it as a crash and saves the input.
 bytes; ``learned_model`` feeds ``LearnedInverseModel.load`` (a .npz archive).
 
 Multi-file formats take one input split at SEPARATOR lines: map_server is YAML + PGM, MRCLAM is
-Barcodes + Landmark_Groundtruth + Odometry + Measurement (+ Groundtruth).
+Barcodes + Landmark_Groundtruth + Odometry + Measurement (+ Groundtruth), the original Victoria
+Park run inputs + measurements + GPS (+ a track of positions).
 """
 
 from __future__ import annotations
@@ -107,6 +108,25 @@ def victoria_park(ws: Workspace, data: bytes) -> None:
     io.read_victoria_park(ws.write("victoriaPark.txt", data))
 
 
+VICTORIA_PARK_ACFR_FILES = ("inputs.dat", "measurements.dat", "gps.dat")
+
+
+def victoria_park_acfr(ws: Workspace, data: bytes) -> None:
+    """The original Victoria Park run's three files (``io.read_victoria_park_acfr``); a fourth
+    part of the input, if any, is read as a ``t x y`` track (``io.read_positions``)."""
+    from probslam import io
+    parts = data.split(SEPARATOR, len(VICTORIA_PARK_ACFR_FILES))
+    ws.clear()
+    if len(parts) > len(VICTORIA_PARK_ACFR_FILES):
+        try:
+            io.read_positions(ws.write("track.txt", parts[-1]))
+        except EXPECTED:
+            pass
+    for name, part in zip(VICTORIA_PARK_ACFR_FILES, parts):
+        ws.write(name, part)
+    io.read_victoria_park_acfr(ws.dir)
+
+
 def relations(ws: Workspace, data: bytes) -> None:
     from probslam import eval as ev
     # The reader picks plain, .gz or .bz2 by the name: name the file after the input's magic bytes
@@ -144,6 +164,7 @@ TARGETS: Dict[str, Callable[[Workspace, bytes], None]] = {
     "octomap_bt": octomap_bt,
     "mrclam": mrclam,
     "victoria_park": victoria_park,
+    "victoria_park_acfr": victoria_park_acfr,
     "relations": relations,
     "learned_model": learned_model,
     "trajectory": trajectory,
