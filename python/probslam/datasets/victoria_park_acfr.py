@@ -79,5 +79,5 @@ def start_pose(data: VictoriaParkAcfr) -> np.ndarray:
     return np.array([data.gps[0, 1], data.gps[0, 2], START_HEADING])
 
 
-__all__ = ["ENCODER_OFFSET", "LASER_AHEAD", "LASER_LEFT", "MAX_COORDINATE", "START_HEADING", "VictoriaParkAcfr", "WHEELBASE",
-           "is_run_folder", "load", "start_pose"]
+__all__ = ["ENCODER_OFFSET", "LASER_AHEAD", "LASER_LEFT", "MAX_COORDINATE", "START_HEADING", "VictoriaParkAcfr",
+           "WHEELBASE", "is_run_folder", "load", "start_pose"]
