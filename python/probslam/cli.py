@@ -1014,12 +1014,19 @@ def _is_carmen_log(path: str, ref_format: str) -> bool:
     return name.endswith(CARMEN_SUFFIXES)
 
 
-def _carmen_reference(path: str) -> io.Trajectory:
+def _carmen_reference(path: str, est: io.Trajectory, max_time_difference: float) -> io.Trajectory:
     """A CARMEN log with corrected poses (e.g. intel-corrected.log.gz) as eval's reference: the
-    laser poses at its scans' times, the poses the commands write for a log."""
+    laser poses at its scans' times, the poses the commands write for a log. UserError when its
+    times do not overlap the estimate's: the corrected Intel and FR079 logs carry their raw
+    logs' logger time, not the ipc time the commands write."""
     scans = _read_log(path).scans
+    t, te = scans.timestamps, est.timestamps
+    if te.max() < t.min() - max_time_difference or te.min() > t.max() + max_time_difference:
+        raise UserError(f"{path}: its scans' times [{t.min():.9g}, {t.max():.9g}] s do not overlap the estimate's "
+                        f"[{te.min():.9g}, {te.max():.9g}] s: a corrected log (Intel's, FR079's) is stamped with its "
+                        "raw log's logger time (each line's last field), not the ipc time the commands write")
     print(f"{'reference:':<15}{path}: {len(scans)} poses (CARMEN log: the laser poses of its scans)")
-    return io.Trajectory(scans.timestamps, scans.laser_poses, "carmen")
+    return io.Trajectory(t, scans.laser_poses, "carmen")
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
@@ -1054,7 +1061,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
                                           evaluation.error_statistics(np.degrees(error.rotational))), end="")
         return 0
     if _is_carmen_log(args.reference, args.reference_format):
-        ref = _carmen_reference(args.reference)
+        ref = _carmen_reference(args.reference, est, args.max_time_difference)
     elif args.reference_format != "auto":
         _check_input(args.reference, TRAJECTORY_FILE)
         with _reading(args.reference, TRAJECTORY_FILE):

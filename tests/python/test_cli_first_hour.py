@@ -193,6 +193,14 @@ def test_eval_scores_against_a_corrected_carmen_log(tmp_path, capsys):
     assert abs(expected.rmse - np.sqrt(np.mean(np.sum(noise[:, :2] ** 2, axis=1)))) < 0.01
 
 
+def test_eval_says_when_a_carmen_reference_has_another_clock(tmp_path, capsys):
+    reference = io.read_carmen_log(ps.data.path(cli.BUNDLED_LOG)).scans
+    # The ipc time of the raw log where the corrected one carries the logger time.
+    est = _tum(tmp_path / "est.tum", reference.timestamps + 976052857.0, reference.laser_poses)
+    err = _error(capsys, ["eval", est, ps.data.path(cli.BUNDLED_LOG)])
+    assert "do not overlap the estimate's" in err and "logger time" in err
+
+
 def test_an_output_folder_holds_files_named_for_the_command(tmp_path, capsys):
     out = tmp_path / "out"
     out.mkdir()
