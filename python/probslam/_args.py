@@ -67,3 +67,14 @@ def positive_real(value: object, name: str) -> float:
     if not (np.isfinite(number) and number > 0):
         raise ValueError(f"{name} must be finite and > 0, got {value!r}")
     return number
+
+
+def distinct_numbers(a: float, b: float, digits: int = 9) -> Tuple[str, str]:
+    """``a`` and ``b`` as text with ``digits`` significant digits, or as many more (up to 17, a
+    double's) as it takes to tell them apart: a message about two Unix times a fraction of a
+    second apart must not print the same number twice."""
+    for n in range(digits, 18):
+        text_a, text_b = f"{a:.{n}g}", f"{b:.{n}g}"
+        if text_a != text_b:
+            break
+    return text_a, text_b

@@ -4,14 +4,16 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import difflib
 import math
 import os
 import pathlib
+import re
 import stat
 import sys
 import time
 import warnings
-from typing import Iterator, List, Optional
+from typing import Dict, Iterator, List, Optional
 
 from . import __version__, io
 from . import eval as evaluation
@@ -45,7 +47,7 @@ DEFAULT_RESOLUTION = 0.05
 FASTSLAM_PARTICLES = 100
 
 #: What each kind of input file must be, for the error messages.
-CARMEN_LOG = "a CARMEN laser log (.log/.clf, optionally .gz/.bz2)"
+CARMEN_LOG = "a CARMEN laser log (.log/.clf, optionally .gz/.bz2/.xz)"
 ROS_BAG = "a ROS bag (ROS 1 .bag, a ROS 2 bag folder, or its .db3 / .mcap)"
 LANDMARK_DATASET = ("a UTIAS MRCLAM folder (Barcodes.dat, Landmark_Groundtruth.dat, RobotN_Odometry.dat, "
                     "RobotN_Measurement.dat) or a Victoria Park file in iSAM/GTSAM text format")
@@ -69,6 +71,7 @@ EPILOG = """exit status:
   3  optimize did not converge within --max-iterations, or localize's estimate never converged
      (the result is written all the same)
   130  interrupted (Ctrl-C); optimize writes the graph of its last completed iteration first
+  141  the output's reader stopped (probslam ... | head -1), nothing said, as other tools
 
 Without a dataset argument every command runs on small excerpts of public datasets bundled with
 the package (probslam.data.path(NAME) gives their paths). Plots need matplotlib (optional: pip
@@ -79,12 +82,62 @@ class UserError(Exception):
     """An input or usage error: printed as one line on stderr, exit status 2."""
 
 
+class _HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """Every option that takes a value shows its default: " (default: X)" after its help (X
+    "none" for an option that is off unless given), unless the help says it already (the word
+    "default")."""
+
+    def _get_help_string(self, action: argparse.Action) -> str:
+        text = action.help or ""
+        if (not action.option_strings or action.nargs == 0 or action.default is argparse.SUPPRESS
+                or "default" in text.lower()):
+            return text
+        return text + (" (default: none)" if action.default is None else " (default: %(default)s)")
+
+
+#: How close a misspelt option or choice must be to one of the parser's to be suggested
+#: (difflib's ratio: 0.6, its own default, takes --partcles for --particles, not --seed for --robot).
+SUGGESTION_CUTOFF = 0.6
+
+
 class _Parser(argparse.ArgumentParser):
     """argparse with its usage errors as one line on stderr (exit status 2, as argparse's own),
-    like every other user error; ``-h`` still shows the usage."""
+    like every other user error, naming the subcommand's -h and suggesting the option or choice
+    meant when one is close; ``-h`` still shows the usage, every option with its default."""
+
+    def __init__(self, *args, **kwargs):
+        kwargs.setdefault("formatter_class", _HelpFormatter)
+        super().__init__(*args, **kwargs)
 
     def error(self, message: str):
+        choice = re.search(r"invalid choice: '([^']*)' \(choose from (.*)\)", message)
+        if choice:
+            message += _did_you_mean(choice.group(1), re.findall(r"'([^']*)'", choice.group(2)))
         self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} -h')\n")
+
+    def parse_args(self, args=None, namespace=None):
+        """As argparse's, but an unknown option is reported by the subcommand's parser (whose
+        -h lists the options), with the nearest of its options when one is close."""
+        parsed, extras = self.parse_known_args(args, namespace)
+        if extras:
+            parser = self._command_parser(parsed)
+            options = [o for p in (parser, self) for a in p._actions for o in a.option_strings]
+            unknown = next((word.split("=", 1)[0] for word in extras if word.startswith("-")), "")
+            parser.error(f"unrecognized arguments: {' '.join(extras)}"
+                         + (_did_you_mean(unknown, options) if unknown else ""))
+        return parsed
+
+    def _command_parser(self, parsed: argparse.Namespace) -> argparse.ArgumentParser:
+        """The parser of the subcommand in ``parsed`` (this one without)."""
+        for action in self._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                return action.choices.get(getattr(parsed, action.dest, None), self)
+        return self
+
+
+def _did_you_mean(word: str, candidates: List[str]) -> str:
+    close = difflib.get_close_matches(word, candidates, n=1, cutoff=SUGGESTION_CUTOFF)
+    return f"; did you mean {close[0]}?" if close else ""
 
 
 def _bundled_log(name: str = BUNDLED_LOG) -> str:
@@ -116,17 +169,25 @@ def _check_input(path: str, expected: str, folder: bool = False) -> None:
 
 
 @contextlib.contextmanager
-def _reading(path: str, expected: str) -> Iterator[None]:
-    """Turn a reader's error into a UserError that names ``path`` and what was expected."""
+def _reading(path: str, expected: str, names: Optional[Dict[str, str]] = None) -> Iterator[None]:
+    """Turn a reader's error into a UserError that names ``path`` and what was expected.
+    ``names``: what the command line calls the library parameters that an error may name
+    (``scan_topic`` -> ``--scan-topic``, ``times_est`` -> the estimate's file): such an error is
+    about that option or file, not about the file's format, so it says so without the
+    "expected ..." tail."""
     try:
         yield
     except UserError:
         raise
     except (ValueError, OSError, EOFError, UnicodeError, IndexError) as exc:
         message = _one_line(exc)
+        named = 0
+        if names:
+            pattern = r"(?<![-\w])(" + "|".join(sorted(map(re.escape, names), key=len, reverse=True)) + r")\b"
+            message, named = re.subn(pattern, lambda m: names[m.group(1)], message)
         if path not in message:
             message = f"{path}: {message}"
-        raise UserError(f"{message}; expected {expected}") from None
+        raise UserError(message if named else f"{message}; expected {expected}") from None
 
 
 def _pyplot():
@@ -175,7 +236,7 @@ def _read_log(path: str, args: Optional[argparse.Namespace] = None):
     bag_options = _bag_options(args)
     if io.rosbag.is_bag(path):
         _check_input(path, ROS_BAG, folder=True)
-        with _reading(path, ROS_BAG):
+        with _reading(path, ROS_BAG, {name: _bag_option_name(name) for name in BAG_OPTIONS}):
             return io.read_rosbag(path, **bag_options)
     if bag_options:
         raise UserError(f"{_bag_option_name(next(iter(bag_options)))} applies to ROS bags; {path} is read as "
@@ -183,6 +244,10 @@ def _read_log(path: str, args: Optional[argparse.Namespace] = None):
     _check_input(path, CARMEN_LOG)
     with _reading(path, CARMEN_LOG):
         return carmen.load(path)
+
+
+#: read_rosbag's parameters that the command line sets, each by the option of its name.
+BAG_OPTIONS = ("scan_topic", "odom_topic", "pose_topic", "laser_offset")
 
 
 def _bag_option_name(name: str) -> str:
@@ -193,7 +258,7 @@ def _bag_options(args: Optional[argparse.Namespace]) -> dict:
     """The read_rosbag options given on the command line (topics, --laser-offset), checked."""
     if args is None:
         return {}
-    options = {name: getattr(args, name, None) for name in ("scan_topic", "odom_topic", "pose_topic", "laser_offset")}
+    options = {name: getattr(args, name, None) for name in BAG_OPTIONS}
     options = {name: value for name, value in options.items() if value is not None}
     if "laser_offset" in options and not all(math.isfinite(v) for v in options["laser_offset"]):
         raise UserError(f"--laser-offset must be three finite numbers X Y THETA (m, m, rad), "
@@ -211,6 +276,9 @@ def _print_bag(log) -> None:
 EXIT_NOT_CONVERGED = 3
 #: The exit status after Ctrl-C (128 + SIGINT, as shells report it).
 EXIT_INTERRUPTED = 130
+#: The exit status when the reader of the output pipe stopped (128 + SIGPIPE, as a tool killed by
+#: it has).
+EXIT_BROKEN_PIPE = 141
 
 
 def _check_output(prefix: str) -> None:
@@ -235,6 +303,9 @@ def _cmd_map(args: argparse.Namespace) -> int:
     _require_length(args.resolution, "--resolution")
     _require_length(args.max_range, "--max-range")
     _require_length(args.robot_radius, "--robot-radius", zero=True)
+    if args.inverse_model is not None:
+        _refuse_given(args, ("robot_radius", "keep_no_return"), "does not apply with --inverse-model (the learned "
+                      "model decides what each beam says)")
     _check_output(args.output)
     path = args.log or _bundled_log()
     t0 = time.perf_counter()
@@ -285,6 +356,11 @@ def _cmd_slam(args: argparse.Namespace) -> int:
     _require_length(args.resolution, "--resolution")
     _require_length(args.max_range, "--max-range")
     _require_length(args.submap_distance, "--submap-distance", zero=True)
+    if args.resume is not None:
+        _refuse_given(args, ("method", "particles", "proposal", "submap_distance", "no_loop_closures", "resolution",
+                             "max_range"), "does not apply with --resume (the run goes on with its saved options)")
+    _refuse_given(args, ("particles", "proposal") if args.method == "graph" else ("submap_distance", "no_loop_closures"),
+                  f"does not apply to --method {args.method}")
     _check_output(args.output)
     path = args.log or _bundled_log(BUNDLED_RAW_LOG)
     log = _read_log(path, args)
@@ -459,6 +535,9 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
 
     _check_landmark_options(args)
     _require_length(args.bearing_offset, "--bearing-offset", zero=True, what="angle (rad)")
+    if not args.unknown:
+        _refuse_given(args, ("association",), "applies with --unknown only (known correspondences need no "
+                      "association)")
     _check_output(args.output)
     t0 = time.perf_counter()
     path, kind = _landmark_path(args)
@@ -565,7 +644,11 @@ def _landmark_path(args: argparse.Namespace):
     _check_input(path, LANDMARK_DATASET, folder=True)
     path = pathlib.Path(path)
     with _reading(str(path), LANDMARK_DATASET):
-        return path, landmark_dataset_kind(path)
+        kind = landmark_dataset_kind(path)
+    if kind != "mrclam":
+        _refuse_given(args, ("robot", "seconds", "raw_ranges", "sigma_v", "sigma_w", "sigma_r", "sigma_phi"),
+                      f"applies to MRCLAM folders only; {path} is Victoria Park (one vehicle, its noise in the file)")
+    return path, kind
 
 
 def _landmark_data(args: argparse.Namespace, path: pathlib.Path):
@@ -778,12 +861,18 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     _require_count(args.max_iterations, "--max-iterations", 0)
     _require_count(args.poses_per_step, "--poses-per-step", 1)
     _require_length(args.kernel_width, "--kernel-width")
+    if args.kernel == "none":
+        _refuse_given(args, ("kernel_width",), "applies with --kernel huber or cauchy only")
+    if not args.plot:
+        _refuse_given(args, ("edges",), "draws in the picture, which --no-plot leaves out")
     _check_output(args.output)
     path = args.graph or _data_path(BUNDLED_GRAPH)
     _check_input(path, ANY_POSE_GRAPH)
     with _reading(path, ANY_POSE_GRAPH):
         dimension = pg.pose_graph_dimension(path)
     init = args.init or DEFAULT_INIT[dimension]
+    if init != "incremental":
+        _refuse_given(args, ("poses_per_step",), "applies with --init incremental only")
     other_only = INITS_2D_ONLY if dimension == 3 else INITS_3D_ONLY
     if init in other_only:
         choices = ", ".join(i for i in INITIALIZATIONS if i not in other_only)
@@ -924,6 +1013,8 @@ def _eval_positions(args: argparse.Namespace, est) -> int:
     if args.rpe or args.align is not None:
         raise UserError("--rpe and --align apply to a reference trajectory, not to positions (t x y rows): the "
                         "error is printed both as it is and after the alignment")
+    _refuse_given(args, ("max_time_difference",), "applies to a reference trajectory, not to positions (the "
+                  "estimate is interpolated at each fix's time)")
     with _reading(args.reference, POSITIONS_FILE):
         ref = io.read_positions(args.reference)
     print(f"{'reference:':<15}{args.reference}: {len(ref)} positions (t x y"
@@ -936,11 +1027,42 @@ def _eval_positions(args: argparse.Namespace, est) -> int:
     return 0
 
 
+#: The names of CARMEN logs (after a .gz, .bz2 or .xz suffix): what eval reads as a reference's
+#: laser poses.
+CARMEN_SUFFIXES = (".log", ".clf")
+
+
+def _is_carmen_log(path: str, ref_format: str) -> bool:
+    if ref_format != "auto":
+        return ref_format == "carmen"
+    name = os.path.basename(path).lower()
+    for suffix in (".gz", ".bz2", ".xz"):
+        name = name.removesuffix(suffix)
+    return name.endswith(CARMEN_SUFFIXES)
+
+
+def _carmen_reference(path: str, est: io.Trajectory, max_time_difference: float) -> io.Trajectory:
+    """A CARMEN log with corrected poses (e.g. intel-corrected.log.gz) as eval's reference: the
+    laser poses at its scans' times, the poses the commands write for a log. UserError when its
+    times do not overlap the estimate's: the corrected Intel and FR079 logs carry their raw
+    logs' logger time, not the ipc time the commands write."""
+    scans = _read_log(path).scans
+    t, te = scans.timestamps, est.timestamps
+    if te.max() < t.min() - max_time_difference or te.min() > t.max() + max_time_difference:
+        raise UserError(f"{path}: its scans' times [{t.min():.9g}, {t.max():.9g}] s do not overlap the estimate's "
+                        f"[{te.min():.9g}, {te.max():.9g}] s: a corrected log (Intel's, FR079's) is stamped with its "
+                        "raw log's logger time (each line's last field), not the ipc time the commands write")
+    print(f"{'reference:':<15}{path}: {len(scans)} poses (CARMEN log: the laser poses of its scans)")
+    return io.Trajectory(t, scans.laser_poses, "carmen")
+
+
 def _cmd_eval(args: argparse.Namespace) -> int:
     import numpy as np
 
     _require_length(args.max_time_difference, "--max-time-difference")
     _require_length(args.delta, "--delta")
+    if not args.rpe:
+        _refuse_given(args, ("delta", "delta_unit"), "applies with --rpe only (the absolute error takes every pose)")
     if args.delta_unit == "frames" and args.delta != int(args.delta):
         raise UserError(f"--delta must be a whole number of frames with --delta-unit frames, got {args.delta:g}")
     est = _read_trajectory_file(args.estimate, "estimate:")
@@ -948,9 +1070,14 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         if args.rpe or args.align:
             raise UserError("--rpe and --align apply to a reference trajectory, not to relations (relative poses "
                             "need no alignment)")
+        _refuse_given(args, ("max_time_difference",), "applies to a reference trajectory, not to relations (the "
+                      "estimate is interpolated at each relation's times)")
         _check_input(args.reference, RELATIONS_FILE)
         with _reading(args.reference, RELATIONS_FILE):
             relations = evaluation.read_relations(args.reference)
+        # Errors of the estimate against the relations: named by the files, no format to expect.
+        with _reading(args.estimate, TRAJECTORY_FILE, {"timestamps": args.estimate, "poses": args.estimate,
+                                                       "relations": "relations"}):
             error = evaluation.relations_error(est.timestamps, est.poses, relations)
         print(f"{'reference:':<15}{args.reference}: {len(relations)} relations"
               + (f" ({relations.skipped_rows} unreadable rows skipped)" if relations.skipped_rows else ""))
@@ -960,9 +1087,11 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         print(evaluation.statistics_table("relations error w.r.t. rotation angle in degrees (deg)",
                                           evaluation.error_statistics(np.degrees(error.rotational))), end="")
         return 0
-    if args.reference_format == "auto" and _is_positions(args.reference):
+    if _is_carmen_log(args.reference, args.reference_format):
+        ref = _carmen_reference(args.reference, est, args.max_time_difference)
+    elif args.reference_format == "auto" and _is_positions(args.reference):
         return _eval_positions(args, est)
-    if args.reference_format != "auto":
+    elif args.reference_format != "auto":
         _check_input(args.reference, TRAJECTORY_FILE)
         with _reading(args.reference, TRAJECTORY_FILE):
             ref = io.read_trajectory(args.reference, format=args.reference_format)
@@ -970,7 +1099,11 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     else:
         ref = _read_trajectory_file(args.reference, "reference:")
     align = "se2" if (args.align if args.align is not None else not args.rpe) else "none"
-    with _reading(args.estimate, TRAJECTORY_FILE):
+    # The scores' parameters as the command line gives them: files and options.
+    names = {"times_est": args.estimate, "poses_est": args.estimate, "times_ref": args.reference,
+             "poses_ref": args.reference, "max_time_difference": "--max-time-difference", "delta_unit": "--delta-unit",
+             "delta": "--delta"}
+    with _reading(args.estimate, TRAJECTORY_FILE, names):
         if args.rpe:
             result = evaluation.rpe(est.timestamps, est.poses, ref.timestamps, ref.poses, delta=args.delta,
                                     delta_unit=args.delta_unit, align=align,
@@ -1047,8 +1180,7 @@ def _landmark_dataset_options(parser: argparse.ArgumentParser, output: str) -> N
 
 def build_parser() -> argparse.ArgumentParser:
     """The ``probslam`` command line: one subcommand per pipeline, each with its options."""
-    parser = _Parser(prog="probslam", description="Probabilistic robot mapping and SLAM.",
-                                     epilog=EPILOG, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = _Parser(prog="probslam", description="Probabilistic robot mapping and SLAM.", epilog=EPILOG)
     parser.add_argument("--version", action="version", version=f"probslam {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
     p = sub.add_parser("map", help="occupancy grid map of a CARMEN laser log or ROS bag with known (corrected) poses")
@@ -1180,14 +1312,17 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("graph", nargs="?", help="graph file: .g2o, TORO .graph, or iSAM .txt, 2-D or 3-D; default: a "
                                             "bundled excerpt of the Intel Research Lab graph (400 poses; a 3-D one: "
                                             "probslam.data.path('parking_garage_400.g2o'))")
-    o.add_argument("--format", default="auto", choices=["auto", "g2o", "toro", "isam"])
-    o.add_argument("--algorithm", default="gauss-newton", choices=["gauss-newton", "levenberg-marquardt"])
+    o.add_argument("--format", default="auto", choices=["auto", "g2o", "toro", "isam"],
+                   help="the graph file's format (auto: from its records)")
+    o.add_argument("--algorithm", default="gauss-newton", choices=["gauss-newton", "levenberg-marquardt"],
+                   help="the least-squares solver")
     o.add_argument("--init", default=None, choices=list(INITIALIZATIONS),
                    help="starting point: the file's values (the default for 2-D; dead reckoning for iSAM files), "
                         "dead reckoning, the EKF SLAM estimate (2-D), incremental optimisation (2-D), or the "
                         "chordal relaxation of the rotations (3-D, its default)")
     o.add_argument("--poses-per-step", type=int, default=100, help="with --init incremental: poses per step")
-    o.add_argument("--max-iterations", type=int, default=100)
+    o.add_argument("--max-iterations", type=int, default=100,
+                   help="iterations at most; a run that has not converged by then exits with status 3")
     o.add_argument("--kernel", default="none", choices=["none", "huber", "cauchy"], help="robust kernel")
     o.add_argument("--kernel-width", type=float, default=1.0, help="kernel width, in units of sqrt(chi2)")
     o.add_argument("--linear-solver", default=None, choices=["simplicial", "supernodal", "auto"],
@@ -1207,12 +1342,15 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("estimate", metavar="EST", help="the trajectory to score: TUM, KITTI (times in NAME_times.txt) or 't x y theta' "
                                      "rows, as the commands write it (PREFIX_trajectory.tum)")
     ev.add_argument("reference", metavar="REF", help="the ground truth: a trajectory file as EST, a relations file (a name with "
-                                      "'.relations', e.g. aces.relations; scored as 'slam' scores its logs), or "
-                                      "positions with times, 't x y' rows (a GPS track: the estimate is interpolated "
-                                      "at each fix's time, the error printed as it is and aligned)")
-    ev.add_argument("--reference-format", choices=("auto",) + TRAJECTORY_FORMATS + ("relations",), default="auto",
-                    help="what REF is (default: relations when its name has '.relations', else the trajectory "
-                         "format its rows show)")
+                                      "'.relations', e.g. aces.relations; scored as 'slam' scores its logs), a "
+                                      "CARMEN log with corrected poses (e.g. intel-corrected.log.gz: its laser poses "
+                                      "at its scans' times), or positions with times, 't x y' rows (a GPS track: the "
+                                      "estimate is interpolated at each fix's time, the error printed as it is and "
+                                      "aligned)")
+    ev.add_argument("--reference-format", choices=("auto",) + TRAJECTORY_FORMATS + ("relations", "carmen"),
+                    default="auto",
+                    help="what REF is (default: relations when its name has '.relations', a CARMEN log when it "
+                         "ends in .log or .clf (optionally .gz/.bz2/.xz), else the trajectory format its rows show)")
     ev.add_argument("--rpe", action="store_true",
                     help="relative pose error over consecutive pairs --delta apart (default: absolute error)")
     ev.add_argument("--delta", type=float, default=1.0, help="with --rpe: the pairs' distance (default 1)")
@@ -1230,9 +1368,27 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Optional[List[str]] = None) -> int:
     """Run the command line; returns the exit status (0 ok, 2 user or input error, 1 unexpected
-    error). Set PROBSLAM_DEBUG=1 to see the traceback of an unexpected error."""
+    error, 141 when the reader of a pipe stopped). Set PROBSLAM_DEBUG=1 to see the traceback of
+    an unexpected error."""
+    try:
+        status = _run(argv)
+        sys.stdout.flush()  # a pipe closed under buffered output shows here, not at exit
+        return status
+    except BrokenPipeError:
+        # The reader stopped (probslam ... | head -1): quiet, with the status a tool killed by
+        # SIGPIPE has, as other command-line tools. The output left is dropped, not flushed into
+        # the closed pipe at exit (which Python would report).
+        with contextlib.suppress(OSError, ValueError):
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        return EXIT_BROKEN_PIPE
+
+
+def _run(argv: Optional[List[str]]) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
+    args.given = _given_options(argv)
+    if getattr(args, "output", None) is not None:
+        args.output = _output_prefix(args.output, parser._command_parser(args).get_default("output"))
     format_warning = warnings.formatwarning
     # A reader's warning (a few malformed lines skipped) as one line, without the source line.
     warnings.formatwarning = lambda message, category, *rest, **kw: f"probslam: warning: {message}\n"
@@ -1241,6 +1397,8 @@ def main(argv: Optional[List[str]] = None) -> int:
     except KeyboardInterrupt:
         print("probslam: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
+    except BrokenPipeError:
+        raise
     except (UserError, ValueError, TypeError, OSError, ImportError) as exc:
         # Bad options (the library names the argument), unreadable or unwritable files.
         print(f"probslam: error: {_one_line(exc)}", file=sys.stderr)
@@ -1253,6 +1411,40 @@ def main(argv: Optional[List[str]] = None) -> int:
         return 1
     finally:
         warnings.formatwarning = format_warning
+
+
+def _given_options(argv: Optional[List[str]]) -> Dict[str, str]:
+    """dest -> option (its long form) of each option given on the command line, defaults not
+    counted: the command line parsed again by a parser in which nothing has a default."""
+    parser = build_parser()
+    parsers = [parser]
+    for p in parsers:
+        p._defaults.clear()
+        for action in p._actions:
+            action.default = argparse.SUPPRESS
+            if isinstance(action, argparse._SubParsersAction):
+                parsers.extend(action.choices.values())
+    given = vars(parser.parse_args(argv))
+    flags = {a.dest: next((o for o in a.option_strings if o.startswith("--")), a.option_strings[0])
+             for p in parsers for a in p._actions if a.option_strings}
+    return {dest: flags.get(dest, dest.upper()) for dest in given}
+
+
+def _output_prefix(output: str, stem: str) -> str:
+    """-o as a prefix: a folder (one that exists, or a name ending in a slash) holds the files
+    under the command's own name (-o out/: out/map.yaml, not out/.yaml)."""
+    if output.endswith(("/", os.sep)) or os.path.isdir(output):
+        return os.path.join(output, stem)
+    return output
+
+
+def _refuse_given(args: argparse.Namespace, dests, why: str) -> None:
+    """UserError naming the first of the options ``dests`` given on the command line: it does
+    not apply to this run (``why``), and would otherwise pass unnoticed."""
+    given = getattr(args, "given", {})
+    for dest in dests:
+        if dest in given:
+            raise UserError(f"{given[dest]} {why}")
 
 
 if __name__ == "__main__":

@@ -21,7 +21,7 @@ from typing import Any, Dict, Iterator, List, Optional, Tuple, Union
 
 import numpy as np
 
-from ._args import positive_real, real_array, require_fields, require_instance
+from ._args import distinct_numbers, positive_real, real_array, require_fields, require_instance
 from ._core import wrap_angle
 from .io._files import MAX_REPORTED_LINES, file_path, numeric_rows, require_regular_file
 from .io.landmark_datasets import Mrclam
@@ -223,7 +223,7 @@ def _trajectory(timestamps: object, poses: object) -> Tuple[np.ndarray, np.ndarr
     decreasing = np.flatnonzero(np.diff(ts) < 0)
     if decreasing.size:
         i = int(decreasing[0])
-        raise ValueError(f"timestamps: decrease at index {i + 1} ({ts[i]:g} then {ts[i + 1]:g})")
+        raise ValueError("timestamps: decrease at index {} ({} then {})".format(i + 1, *distinct_numbers(ts[i], ts[i + 1])))
     return ts, ps
 
 

@@ -144,17 +144,51 @@ inline bool read_bounded_line(std::istream& in, std::string& line, std::size_t m
   }
 }
 
+/// The compression whose magic number `head` (the first bytes of a file) starts with, or nullptr.
+inline const char* compression_name(std::string_view head) {
+  using namespace std::string_view_literals;
+  if (head.substr(0, 2) == "\x1f\x8b"sv) return "gzip";
+  if (head.size() >= 10 && head.substr(0, 3) == "BZh"sv && head[3] >= '1' && head[3] <= '9' &&
+      (head.substr(4, 6) == "1AY&SY"sv || head.substr(4, 6) == "\x17rE8P\x90"sv))
+    return "bzip2";
+  if (head.substr(0, 6) == "\xfd" "7zXZ\0"sv) return "xz";
+  if (head.substr(0, 4) == "\x28\xb5\x2f\xfd"sv) return "zstd";
+  if (head.substr(0, 4) == "PK\x03\x04"sv) return "zip";
+  return nullptr;
+}
+
+/// Throws std::invalid_argument in one line when `first_line` (the input's first line, or as
+/// much of it as was read) shows that the input is not text: a compressed file's magic number,
+/// or a NUL byte. Without it the reader would quote the binary bytes as a malformed line. Only
+/// the first line is judged, so that a text file with a damaged line further on (a log cut off
+/// by a crash, padded with NULs) is still read with that line skipped.
+inline void reject_binary(std::string_view first_line, const std::string& source) {
+  if (const char* compression = compression_name(first_line))
+    throw std::invalid_argument(source + ": " + compression +
+                                "-compressed data, not text: decompress it first (this reader takes plain text)");
+  if (first_line.find('\0') != std::string_view::npos)
+    throw std::invalid_argument(source + ": binary data (a NUL byte in the first line), not a text file");
+}
+
 /// Calls record(fields, error, line_number) for each line of `in` that is neither blank nor a
 /// '#' comment; `error` prefixes messages with "source:LINE: ". With max_line_bytes, a longer
-/// line is refused before it is buffered.
+/// line is refused before it is buffered. Binary input (a compressed file, NUL bytes in the first
+/// line) is refused in one line (reject_binary) rather than parsed.
 template <class Record>
 void for_each_record(std::istream& in, const std::string& source, Record&& record,
                      std::optional<std::size_t> max_line_bytes = std::nullopt) {
   std::string line;
   for (long line_number = 1;; ++line_number) {
-    const bool more = max_line_bytes ? read_bounded_line(in, line, *max_line_bytes, source, line_number)
-                                     : static_cast<bool>(std::getline(in, line));
+    bool more = false;
+    try {
+      more = max_line_bytes ? read_bounded_line(in, line, *max_line_bytes, source, line_number)
+                            : static_cast<bool>(std::getline(in, line));
+    } catch (const LineParseError&) {  // too long a line: binary data says so first
+      if (line_number == 1) reject_binary(line, source);
+      throw;
+    }
     if (!more) return;
+    if (line_number == 1) reject_binary(line, source);
     const std::vector<std::string_view> tokens = split(line);
     if (tokens.empty() || tokens[0][0] == '#') continue;
     const LineError err(source, line_number);

@@ -5,6 +5,7 @@
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
+#include <utility>
 
 #include "probslam/core/angle.hpp"
 #include "probslam/core/check.hpp"
@@ -128,6 +129,29 @@ TEST(CarmenLog, NoValidScanIsAnErrorNamingTheFirstBadLine) {
   EXPECT_NE(expect_invalid([&] { parse_carmen_log(odometry_only, "o.log"); }).find("o.log: no laser scan"),
             std::string::npos);
   EXPECT_THROW(read_carmen_log("/nonexistent/file.log"), std::invalid_argument);
+}
+
+TEST(CarmenLog, BinaryInputIsOneLineNamingWhatItIs) {
+  // The first bytes of a gzip, a bzip2 and an xz file, and NULs: the readers said
+  // "'<binary bytes>' is not a CARMEN message name" before.
+  const std::pair<std::string, std::string> cases[] = {
+      {std::string("\x1f\x8b\x08\x00\x00\x00\x00\x00\x02\x03uN\n", 13), "gzip-compressed data, not text"},
+      {"BZh91AY&SY\x9a\xa1\n", "bzip2-compressed data, not text"},
+      {std::string("\xfd" "7zXZ\0\0\x04\n", 9), "xz-compressed data, not text"},
+      {std::string("FLASER \0\0\0\n", 11), "binary data (a NUL byte in the first line), not a text file"}};
+  const auto compressed_tail = [](const std::string& said) {
+    return said.find("compressed") != std::string::npos ? ": decompress it first (this reader takes plain text)" : "";
+  };
+  for (const auto& [bytes, said] : cases) {
+    std::istringstream in(bytes + "FLASER 1 1.0 0 0 0 0 0 0\n");
+    EXPECT_EQ(expect_invalid([&] { parse_carmen_log(in, "x.log"); }), "x.log: " + said + compressed_tail(said));
+    std::istringstream graph(bytes + "VERTEX_SE2 0 0 0 0\n");
+    EXPECT_EQ(expect_invalid([&] { parse_pose_graph(graph, PoseGraphFormat::kAuto, "x.g2o"); }),
+              "x.g2o: " + said + compressed_tail(said));
+  }
+  // A NUL further on is a damaged line, skipped and counted as any other.
+  std::istringstream damaged(std::string("FLASER 1 1.0 0 0 0 0 0 0\nFLASER ") + '\0' + "\n");
+  EXPECT_EQ(parse_carmen_log(damaged, "d.log").skipped_rows, 1u);
 }
 
 TEST(CarmenLog, RealIntelCorrectedLogWhenPresent) {

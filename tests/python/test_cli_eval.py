@@ -130,4 +130,4 @@ def test_eval_file_errors_name_the_file(tmp_path, capsys):
     far = io.read_trajectory(tmp_path / "ref.tum")
     io.write_trajectory(far.timestamps + 1000.0, far.poses, tmp_path / "later.tum")
     assert cli.main(["eval", str(tmp_path / "later.tum"), str(tmp_path / "ref.tum")]) == 2
-    assert "no pose within max_time_difference" in capsys.readouterr().err
+    assert "no pose within --max-time-difference" in capsys.readouterr().err

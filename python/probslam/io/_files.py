@@ -7,6 +7,7 @@ from __future__ import annotations
 import bz2
 import gzip
 import io
+import lzma
 import math
 import os
 import stat
@@ -43,10 +44,30 @@ def require_regular_file(path: str, arg: str = "path") -> None:
         raise ValueError(f"{arg}: {path!r} is not a regular file")
 
 
+#: The compressions the readers open, by their magic numbers (a file's first bytes) and their
+#: suffixes: a gzipped log named .log is read as one named .log.gz.
+_COMPRESSIONS = {"gzip": (gzip.open, ".gz"), "bzip2": (bz2.open, ".bz2"), "xz": (lzma.open, ".xz")}
+
+
+def compression(path: str) -> Optional[str]:
+    """"gzip", "bzip2" or "xz" when the file at ``path`` starts with that compression's magic
+    number, else the one its suffix (.gz, .bz2, .xz) names, else None (plain text)."""
+    with open(path, "rb") as f:
+        head = f.read(10)
+    if head.startswith(b"\x1f\x8b"):
+        return "gzip"
+    # "BZh", the block size 1-9, then a block's or the end of stream's magic.
+    if head[:3] == b"BZh" and head[3:4] in b"123456789" and head[4:10] in (b"1AY&SY", b"\x17rE8P\x90"):
+        return "bzip2"
+    if head.startswith(b"\xfd7zXZ\x00"):
+        return "xz"
+    return next((name for name, (_, suffix) in _COMPRESSIONS.items() if path.endswith(suffix)), None)
+
+
 def text_lines(path: str) -> Iterator[Tuple[int, str]]:
-    """(line number, text) of a UTF-8 text file, plain or ``.gz`` / ``.bz2`` (see
+    """(line number, text) of a UTF-8 text file, plain or compressed (gzip, bzip2, xz; see
     ``read_compressed``); invalid bytes appear as ``\\xNN`` escapes."""
-    if path.endswith((".gz", ".bz2")):
+    if compression(path):
         text = read_compressed(path).decode("utf-8", errors="backslashreplace")
         yield from enumerate(io.StringIO(text, newline=None), 1)  # line ends as open() reads them
         return
@@ -55,13 +76,13 @@ def text_lines(path: str) -> Iterator[Tuple[int, str]]:
 
 
 def read_compressed(path: str) -> bytes:
-    """The decompressed bytes of a .gz or .bz2 file, at most MAX_DECOMPRESSED_BYTES; a corrupt or
-    truncated stream raises ValueError naming the file."""
-    opener = gzip.open if path.endswith(".gz") else bz2.open
+    """The decompressed bytes of a gzip, bzip2 or xz file (told by ``compression``), at most
+    MAX_DECOMPRESSED_BYTES; a corrupt or truncated stream raises ValueError naming the file."""
+    opener = _COMPRESSIONS[compression(path) or "gzip"][0]
     try:
         with opener(path, "rb") as f:
             data = f.read(MAX_DECOMPRESSED_BYTES + 1)
-    except (OSError, EOFError, zlib.error) as exc:
+    except (OSError, EOFError, zlib.error, lzma.LZMAError) as exc:
         raise ValueError(f"{path}: corrupt compressed data: {exc}") from None
     if len(data) > MAX_DECOMPRESSED_BYTES:
         raise ValueError(f"{path}: decompresses to more than {MAX_DECOMPRESSED_BYTES} bytes "

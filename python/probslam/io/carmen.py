@@ -10,7 +10,7 @@ from typing import Dict, List, Union
 import numpy as np
 
 from .. import _core
-from ._files import file_path, read_compressed, require_regular_file
+from ._files import compression, file_path, read_compressed, require_regular_file
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -74,7 +74,7 @@ class CarmenLog:
 
 
 def read_carmen_log(path: PathLike) -> CarmenLog:
-    """Read a CARMEN log (plain, ``.gz`` or ``.bz2``).
+    """Read a CARMEN log (plain or compressed: gzip, bzip2 or xz, told by its first bytes).
 
     FLASER beams start at -90 degrees; their step is ``PARAM laser_front_laser_resolution``
     when the log has it, else 180 degrees / n (even n) or / (n - 1) (odd n).
@@ -93,7 +93,7 @@ def read_carmen_log(path: PathLike) -> CarmenLog:
     """
     path = file_path(path)
     require_regular_file(path)
-    if os.path.splitext(path)[1] in (".gz", ".bz2"):
+    if compression(path):
         raw = _core.parse_carmen_log(read_compressed(path), path)
     else:
         raw = _core.read_carmen_log(path)

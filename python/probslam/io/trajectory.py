@@ -31,7 +31,7 @@ from typing import List, Optional, Union
 
 import numpy as np
 
-from .._args import real_array
+from .._args import distinct_numbers, real_array
 from .._core import wrap_angle
 from ._files import file_path, numeric_rows, numeric_table, require_regular_file, text_lines
 
@@ -266,8 +266,9 @@ def read_trajectory(path: PathLike, format: str = "auto", times_path: Optional[P
         # Real logs have clock jumps (the bundled Intel log steps back 1 s); evo reads such files
         # and associates them by a linear search, as ``eval.associate`` does.
         i = int(decreasing[0])
+        before, after = distinct_numbers(ts[i], ts[i + 1])
         warnings.warn(f"{path}: timestamps decrease {decreasing.size} times, first at line {read.lines[i + 1]} "
-                      f"({ts[i]:.9g} then {ts[i + 1]:.9g}); kept in the file's order", stacklevel=2)
+                      f"({before} then {after}); kept in the file's order", stacklevel=2)
     ps[:, 2] = wrap_angle(ps[:, 2])
     return Trajectory(np.ascontiguousarray(ts, dtype=float), np.ascontiguousarray(ps), kind, projected,
                       read.skipped, read.skipped_lines, from_index)
