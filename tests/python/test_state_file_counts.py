@@ -180,7 +180,7 @@ def test_ctrl_c_during_add_scans_leaves_a_run_file_that_resumes(tmp_path, capsys
     command = shlex.split(err.split("to continue: ", 1)[1].strip())
     assert command[:2] == ["probslam", "slam"] and "--resume" in command
     # The command printed continues the run; the result is that of a run that never stopped.
-    assert cli.main(command[2:] + ["--no-progress"]) == 0
+    assert cli.main(command[1:] + ["--no-progress"]) == 0
     assert "resumed:" in capsys.readouterr().out
     assert cli.main(["slam", log, "-o", str(tmp_path / "one")] + method_opts + opts) == 0
     assert (tmp_path / "cut_trajectory.tum").read_bytes() == (tmp_path / "one_trajectory.tum").read_bytes()
