@@ -117,12 +117,12 @@ def small_states() -> dict:
     # Laser SLAM on the bundled log's first scans, few beams and coarse cells: a small state with
     # several submaps, constraints and particles.
     scans = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_RAW_LOG)).scans
-    n, beams = 40, slice(None, None, 12)
-    ranges, angles = scans.ranges[:n, beams], scans.beam_angles()[:n, beams]
-    slam = ps.SubmapSlam2D(resolution=0.5, submap_distance=1.0)
-    slam.add_scans(ranges, angles, scans.laser_poses[:n], scans.timestamps[:n])
-    rbpf = ps.GridFastSlam(num_particles=2, resolution=0.5)
-    rbpf.add_scans(ranges, angles, scans.laser_poses[:n], scans.timestamps[:n])
+    rows, beams = slice(0, 400, 8), slice(None, None, 12)
+    ranges, angles, odometry = scans.ranges[rows, beams], scans.beam_angles()[rows, beams], scans.laser_poses[rows]
+    slam = ps.SubmapSlam2D(resolution=1.0, max_usable_range=5.0, submap_scans=8)
+    slam.add_scans(ranges, angles, odometry, scans.timestamps[rows])
+    rbpf = ps.GridFastSlam(num_particles=2, resolution=1.0, max_usable_range=5.0)
+    rbpf.add_scans(ranges, angles, odometry, scans.timestamps[rows])
     fast = ps.FastSlam(3, np.diag([0.01, 0.01, 0.002]), np.diag([0.0025, 0.0001]), seed=3)
     ekf = EkfSlam(np.diag([0.01, 0.01, 0.002]), np.diag([0.0025, 0.0001]))
     mht = MultiHypothesisEkfSlam(EkfSlam(np.diag([0.01, 0.01, 0.002]), np.diag([0.0025, 0.0001])))
