@@ -8,6 +8,7 @@
 #include "graph_options.hpp"
 #include "numpy.hpp"
 #include "object_lock.hpp"
+#include "persistence.hpp"
 #include "repr.hpp"
 #include "probslam/graph/graph_optimizer.hpp"
 #include "probslam/graph/pose_graph_3d.hpp"
@@ -311,6 +312,7 @@ void define_graph3d(py::module_& m) {
           return text + std::to_string(g.pose_edges().size() + g.point_edges().size()) + " edges";
         }));
       });
+  define_persistence<PoseGraph3D>(graph_class);
   graph_class.attr("QUATERNION_NORM_TOLERANCE") = kQuaternionNormTolerance;
 
   m.def("read_pose_graph_3d_graph",

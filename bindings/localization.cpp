@@ -12,6 +12,7 @@
 #include "args.hpp"
 #include "numpy.hpp"
 #include "object_lock.hpp"
+#include "persistence.hpp"
 #include "repr.hpp"
 #include "probslam/core/check.hpp"
 #include "probslam/core/odometry_motion_model.hpp"
@@ -246,6 +247,7 @@ void define_localization(py::module_& m) {
           return std::to_string(s.num_particles()) + " particles, " + std::to_string(s.num_updates()) + " updates";
         }));
       });
+  define_persistence<Mcl>(c);
 
   m.def("odometry_motion", [](py::handle previous, py::handle current) {
     const Eigen::Vector3d a = pose_arg(previous, "previous"), b = pose_arg(current, "current");

@@ -18,7 +18,7 @@ import tempfile
 import numpy as np
 
 sys.path.insert(0, os.path.dirname(__file__))
-from targets import MRCLAM_FILES, SEPARATOR, VICTORIA_PARK_ACFR_FILES  # noqa: E402
+from targets import MRCLAM_FILES, RAW_STATE, SEPARATOR, STATE_CLASSES, VICTORIA_PARK_ACFR_FILES, state_payload  # noqa: E402
 
 #: Larger seeds slow every execution (libFuzzer's -max_len follows the largest seed).
 MAX_SEED_BYTES = 4096
@@ -93,15 +93,86 @@ def _write(folder: pathlib.Path, name: str, data: bytes) -> None:
     (folder / name).write_bytes(data)
 
 
+def small_states() -> dict:
+    """One small object of every class with a state file, by tag, each part way through a run
+    (so that every list in its state holds entries): the state_file target's seeds."""
+    import probslam as ps
+    from probslam import _core, cli, io
+    from probslam.ekf import EkfSlam, MultiHypothesisEkfSlam
+
+    grid = ps.OccupancyGrid2D(0.25, 24, 20, origin=(-3.0, -2.5))
+    grid.log_odds[:] = -2.0
+    grid.log_odds[[0, -1], :] = grid.log_odds[:, [0, -1]] = 3.0
+    grid3 = ps.OccupancyGrid3D(0.5)
+    grid3.insert_point_cloud(np.array([[1.0, 0.5, 0.2], [0.6, -0.4, 0.1]]), np.zeros(3))
+    graph = ps.PoseGraph2D()
+    for k in range(3):
+        graph.add_pose(k, (k, 0.1 * k, 0.0))
+    graph.add_point(9, (1.0, 2.0))
+    graph.add_pose_edge(0, 1, (1.0, 0.1, 0.0), np.eye(3))
+    graph.add_pose_edge(1, 2, (1.0, 0.1, 0.0), np.eye(3))
+    graph.add_point_edge(1, 9, (0.0, 1.9), np.eye(2))
+    graph3 = ps.PoseGraph3D()
+    for k in range(3):
+        graph3.add_pose(k, (k, 0.0, 0.1 * k, 0.0, 0.0, 0.0, 1.0))
+    graph3.add_point(9, (1.0, 2.0, 0.5))
+    graph3.add_pose_edge(0, 1, (1.0, 0.0, 0.1, 0.0, 0.0, 0.0, 1.0), np.eye(6))
+    graph3.add_pose_edge(1, 2, (1.0, 0.0, 0.1, 0.0, 0.0, 0.0, 1.0), np.eye(6))
+    graph3.add_pose_prior(0, (0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0), np.eye(6))
+    graph3.add_point_edge(1, 9, (0.0, 2.0, 0.4), np.eye(3))
+    # Laser SLAM on the bundled log's first scans, few beams and coarse cells: a small state with
+    # several submaps, constraints and particles.
+    scans = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_RAW_LOG)).scans
+    rows, beams = slice(0, 400, 8), slice(None, None, 12)
+    ranges, angles, odometry = scans.ranges[rows, beams], scans.beam_angles()[rows, beams], scans.laser_poses[rows]
+    slam = ps.SubmapSlam2D(resolution=1.0, max_usable_range=5.0, submap_scans=8)
+    slam.add_scans(ranges, angles, odometry, scans.timestamps[rows])
+    rbpf = ps.GridFastSlam(num_particles=2, resolution=1.0, max_usable_range=5.0)
+    rbpf.add_scans(ranges, angles, odometry, scans.timestamps[rows])
+    fast = ps.FastSlam(3, np.diag([0.01, 0.01, 0.002]), np.diag([0.0025, 0.0001]), seed=3)
+    ekf = EkfSlam(np.diag([0.01, 0.01, 0.002]), np.diag([0.0025, 0.0001]))
+    mht = MultiHypothesisEkfSlam(EkfSlam(np.diag([0.01, 0.01, 0.002]), np.diag([0.0025, 0.0001])))
+    z = np.array([[2.0, 0.3], [3.0, -0.4]])
+    for _ in range(2):
+        fast.predict(0.3, 0.1, 1.0)
+        fast.update_unknown(z)
+        ekf.predict(0.3, 0.1, 1.0)
+        ekf.update_unknown(z)
+        mht.predict(0.3, 0.1, 1.0)
+        mht.update(z)
+    mcl = ps.MonteCarloLocalization(grid, min_particles=20, max_particles=40, seed=5)
+    mcl.update(np.full(8, 2.0), np.linspace(-1.5, 1.5, 8))
+    mcl.predict_odometry((0.3, 0.0, 0.1))
+    states = {"OccupancyGrid2D": grid, "OccupancyGrid3D": grid3, "PoseGraph2D": graph, "PoseGraph3D": graph3,
+              "SubmapSlam2D": slam, "GridFastSlam": rbpf, "FastSlam": fast, "EkfSlam": ekf,
+              "MultiHypothesisEkfSlam": mht, "MonteCarloLocalization": mcl}
+    assert tuple(states) == STATE_CLASSES
+    return states
+
+
+def state_bytes(obj) -> bytes:
+    """The C++ state file of obj (the Python EKF classes pickle the one they wrap)."""
+    s = obj.__getstate__()
+    return s if isinstance(s, bytes) else next(iter(s.values())).__getstate__()
+
+
+def _state_seeds(out: pathlib.Path) -> None:
+    """The state_file target's seeds: a class byte, then a payload (framed with a valid checksum
+    by the target), for every class; and two whole files (header mutations)."""
+    for index, (tag, obj) in enumerate(small_states().items()):
+        framed = state_bytes(obj)
+        _write(out / "state_file", f"{tag}.bin", bytes([index]) + state_payload(framed)[1])
+        if tag in ("OccupancyGrid2D", "PoseGraph2D"):
+            _write(out / "state_file", f"{tag}_file.bin", bytes([RAW_STATE + index]) + framed)
+
+
 def _library_files(out: pathlib.Path) -> None:
-    """Seeds the library writes itself: a grid state file, a map_server map, two .bt trees."""
+    """Seeds the library writes itself: a map_server map, two .bt trees, a learned model."""
     import probslam as ps
     from probslam import io
     with tempfile.TemporaryDirectory() as tmp:
         grid = ps.OccupancyGrid2D(0.1, 5, 3, origin=(-0.2, 0.3))
         grid.log_odds[:] = np.arange(15.0).reshape(3, 5) - 7
-        grid.save(os.path.join(tmp, "g.psl"))
-        _write(out / "state_file", "small_grid.psl", pathlib.Path(tmp, "g.psl").read_bytes())
         io.save_ros_map(grid, os.path.join(tmp, "m.yaml"))
         yaml = pathlib.Path(tmp, "m.yaml").read_bytes().replace(b"m.pgm", b"map.pgm")
         _write(out / "ros_map", "trinary.bin", yaml + SEPARATOR + pathlib.Path(tmp, "m.pgm").read_bytes())
@@ -137,6 +208,7 @@ def committed(out: pathlib.Path = HERE / "seeds") -> None:
     _write(out / "relations", "tiny.relations.gz", gzip.compress(RELATIONS, mtime=0))
     _write(out / "relations", "tiny.relations.bz2", bz2.compress(RELATIONS))
     _library_files(out)
+    _state_seeds(out)
 
 
 def _head(data: bytes) -> bytes:

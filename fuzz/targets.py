@@ -6,6 +6,9 @@ where the reader documents it); ``UnicodeError`` is a ``ValueError`` subclass bu
 (the readers must name the file and line instead). Anything else escaping a target is a
 finding: atheris reports it as a crash and saves the input.
 
+``state_file`` reads every class's state file; its inputs are a class byte and a payload that
+the target frames with a valid checksum (or, from byte RAW_STATE on, a whole file).
+
 ``relations`` names its file ``.gz`` / ``.bz2`` when the input starts with that format's magic
 bytes; ``learned_model`` feeds ``LearnedInverseModel.load`` (a .npz archive).
 
@@ -17,6 +20,7 @@ Park run inputs + measurements + GPS (+ a track of positions).
 from __future__ import annotations
 
 import os
+import struct
 import tempfile
 import warnings
 from typing import Callable, Dict, Tuple
@@ -78,9 +82,55 @@ def ros_map(ws: Workspace, data: bytes) -> None:
     io.load_ros_map(ws.write("map.yaml", yaml))
 
 
+#: The classes with a state file (docs/file_format.md), by their tag; the C++ class of each.
+STATE_CLASSES = ("OccupancyGrid2D", "OccupancyGrid3D", "PoseGraph2D", "PoseGraph3D", "SubmapSlam2D", "GridFastSlam",
+                 "FastSlam", "EkfSlam", "MultiHypothesisEkfSlam", "MonteCarloLocalization")
+_STATE_BINDINGS = {"EkfSlam": "_EkfSlam", "MultiHypothesisEkfSlam": "_MultiHypothesisEkfSlam"}
+STATE_MAGIC = b"PSLSTATE"
+STATE_VERSION = 2  # kStateFormatVersion (include/probslam/core/state_file.hpp)
+#: A state_file input's first byte at or above this: the rest is a whole file, header included.
+RAW_STATE = 0x80
+
+
+def fnv1a(data: bytes) -> int:
+    """The state file's checksum (FNV-1a, 64 bits) of data."""
+    h = 0xcbf29ce484222325
+    for b in data:
+        h = ((h ^ b) * 0x100000001b3) & 0xFFFFFFFFFFFFFFFF
+    return h
+
+
+def frame_state(tag: str, payload: bytes) -> bytes:
+    """A whole state file of class ``tag`` around payload, its checksum recomputed: an edited
+    payload passes the integrity check and reaches the class's reader."""
+    name = tag.encode()
+    return (STATE_MAGIC + struct.pack("<IQ", STATE_VERSION, len(name)) + name +
+            struct.pack("<QQ", len(payload), fnv1a(payload)) + payload)
+
+
+def state_payload(framed: bytes) -> Tuple[str, bytes]:
+    """(tag, payload) of a state file as frame_state writes it."""
+    (tag_size,) = struct.unpack_from("<Q", framed, 12)
+    start = 20 + tag_size + 16
+    return framed[20:20 + tag_size].decode(), framed[start:]
+
+
+def state_class(tag: str):
+    """The C++ binding whose load reads a state of class ``tag``."""
+    from probslam import _core
+    return getattr(_core, _STATE_BINDINGS.get(tag, tag))
+
+
 def state_file(ws: Workspace, data: bytes) -> None:
-    import probslam as ps
-    ps.OccupancyGrid2D.load(ws.write("map.psl", data))
+    """Every class's state file: the first byte picks the class (modulo their number); below
+    RAW_STATE the rest is a payload framed with a valid checksum (so that mutations reach the
+    field readers rather than the integrity check), from RAW_STATE on it is the whole file
+    (mutations of the header)."""
+    if not data:
+        return
+    tag = STATE_CLASSES[data[0] % len(STATE_CLASSES)]
+    body = data[1:] if data[0] >= RAW_STATE else frame_state(tag, data[1:])
+    state_class(tag).load(ws.write("state.psl", body))
 
 
 def octomap_bt(ws: Workspace, data: bytes) -> None:

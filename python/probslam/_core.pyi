@@ -549,6 +549,11 @@ class PoseGraph3D:
     def edge_chi2(self) -> Array: ...  # (E + M,) pose edges, then point edges
     def chi2(self) -> float: ...  # edges and priors
     def copy(self) -> "PoseGraph3D": ...
+    def save(self, path: Union[str, os.PathLike[str]]) -> None:
+        """Writes the whole state to path (docs/file_format.md), bit for bit."""
+    @staticmethod
+    def load(path: Union[str, os.PathLike[str]]) -> "PoseGraph3D":
+        """The object saved at path; ValueError naming the path for any other or damaged file."""
 
 
 def read_pose_graph_3d_graph(path: str, format: str = "auto", noise: str = "default",
@@ -931,3 +936,8 @@ class MonteCarloLocalization:
         """Fox 2003's particle count for k occupied bins."""
     def copy(self) -> "MonteCarloLocalization":
         """An independent deep copy."""
+    def save(self, path: Union[str, os.PathLike[str]]) -> None:
+        """Writes the whole state to path (docs/file_format.md), bit for bit."""
+    @staticmethod
+    def load(path: Union[str, os.PathLike[str]]) -> "MonteCarloLocalization":
+        """The object saved at path; ValueError naming the path for any other or damaged file."""

@@ -9,6 +9,7 @@ import math
 import os
 import pathlib
 import re
+import shlex
 import stat
 import sys
 import time
@@ -348,9 +349,24 @@ def _cmd_map(args: argparse.Namespace) -> int:
     return 0
 
 
+def _resume_command(args: argparse.Namespace, run_file: str) -> str:
+    """The slam command that continues an interrupted run from run_file: the same log and
+    outputs (the saved run keeps its method and options)."""
+    words = ["probslam", "slam"] + ([args.log] if args.log else [])
+    for flag, value in (("--scan-topic", args.scan_topic), ("--odom-topic", args.odom_topic),
+                        ("--trajectory-format", None if args.trajectory_format == "tum" else args.trajectory_format),
+                        ("-o", None if args.output == "slam" else args.output)):
+        if value is not None:
+            words += [flag, value]
+    if args.laser_offset is not None:
+        words += ["--laser-offset"] + [repr(float(v)) for v in args.laser_offset]
+    words += ["--resume", run_file, "--save", run_file] + ([] if args.plot else ["--no-plot"])
+    return shlex.join(words)
+
+
 def _cmd_slam(args: argparse.Namespace) -> int:
     from .graph import write_g2o
-    from .slam import INITIAL_MAP, run_slam
+    from .slam import INITIAL_MAP, RunInterrupted, check_save_path, run_slam
 
     _require_count(args.particles, "--particles", 1)
     _require_length(args.resolution, "--resolution")
@@ -383,13 +399,23 @@ def _cmd_slam(args: argparse.Namespace) -> int:
     elif args.initial_pose is not None:
         raise UserError("--initial-pose: only with --map (where the log starts in the saved map)")
     if args.save is not None:
-        _check_output(args.save)
-    if args.resume is not None:
-        # The saved run's method and options go on; the command line's are not used.
-        result = run_slam(log, resume=args.resume, save=args.save, progress=None if args.progress else False)
-    else:
-        result = run_slam(log, method=args.method, progress=None if args.progress else False, save=args.save,
-                          **start, **options)
+        try:
+            check_save_path(args.save, "--save")
+        except ValueError as e:
+            raise UserError(str(e)) from None
+    try:
+        if args.resume is not None:
+            # The saved run's method and options go on; the command line's are not used.
+            result = run_slam(log, resume=args.resume, save=args.save, progress=None if args.progress else False)
+        else:
+            result = run_slam(log, method=args.method, progress=None if args.progress else False, save=args.save,
+                              **start, **options)
+    except RunInterrupted as e:
+        if e.saved is None:
+            raise
+        print(f"probslam: interrupted after {e.scans_done} of {e.log_scans} scans; run file {e.saved} written; "
+              f"to continue: {_resume_command(args, e.saved)}", file=sys.stderr)
+        return EXIT_INTERRUPTED
     io.save_ros_map(result.grid, args.output + ".yaml")
     written = [f"{args.output}.yaml", f"{args.output}.pgm"]
     if args.plot:

@@ -8,9 +8,12 @@ scan's odometry pose.
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import signal
 import struct
+import threading
 import time
 from dataclasses import dataclass, field
 from typing import Any, Dict, Optional, Union
@@ -110,19 +113,78 @@ def _json_options(options: Dict[str, Any]) -> Dict[str, Any]:
     return out
 
 
+class RunInterrupted(KeyboardInterrupt):
+    """``run_slam`` interrupted (Ctrl-C): ``saved`` the run file written (None when nothing was
+    saved: no ``save`` or no scan processed), with ``scans_done`` of the log's ``log_scans``."""
+
+    def __init__(self, saved: Optional[str], scans_done: int, log_scans: int) -> None:
+        super().__init__("interrupted")
+        self.saved, self.scans_done, self.log_scans = saved, scans_done, log_scans
+
+
+@contextlib.contextmanager
+def _interrupts_deferred():
+    """Ctrl-C held back until the block ends (then raised as KeyboardInterrupt), so that a save
+    is never cut half-way."""
+    # Only the main thread receives signals, and a handler installed outside Python cannot be put back.
+    if threading.current_thread() is not threading.main_thread() or signal.getsignal(signal.SIGINT) is None:
+        yield
+        return
+    caught = []
+    previous = signal.signal(signal.SIGINT, lambda signum, frame: caught.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, previous)
+    if caught:
+        raise KeyboardInterrupt
+
+
+def check_save_path(path: PathLike, arg: str = "save") -> str:
+    """The path a run file will be written to, checked before a run that may take minutes:
+    ValueError naming ``arg`` for a directory, a missing folder or a place that cannot be written
+    (tried by creating and removing the temporary file ``save_run`` writes through)."""
+    path = file_path(path, arg)
+    if os.path.isdir(path):
+        raise ValueError(f"{arg}: {path} is a directory, not a file name")
+    folder = os.path.dirname(path) or "."
+    if not os.path.isdir(folder):
+        raise ValueError(f"{arg}: {path}: folder {folder} does not exist")
+    tmp = path + ".tmp"
+    try:
+        with open(tmp, "xb"):
+            pass
+        os.remove(tmp)
+    except FileExistsError:
+        pass  # a temporary left by an older version; save_run overwrites it
+    except OSError as e:
+        raise ValueError(f"{arg}: cannot write {path} ({e.strerror})") from None
+    return path
+
+
 def save_run(run: SlamRun, path: PathLike) -> None:
     """Writes run to path (docs/file_format.md, "Run files"): the magic, the layout version, the
-    metadata as JSON, then the SLAM object's state file, bit for bit."""
-    path = file_path(path)
+    metadata as JSON, then the SLAM object's state file, bit for bit. It goes through PATH.tmp,
+    renamed over path, and Ctrl-C waits for it: path holds the old run or the new one, whole, and
+    no temporary is left (ValueError naming path when it cannot be written)."""
+    path = file_path(path, "save")
+    if run.mapper.num_scans != run.scans_done:
+        raise ValueError(f"save: the object holds {run.mapper.num_scans} scans, the run {run.scans_done}")
     meta = dict(format=RUN_FORMAT_VERSION, method=run.method, scans_done=int(run.scans_done),
                 first_timestamp=float(run.first_timestamp), last_timestamp=float(run.last_timestamp),
                 log_scans=int(run.log_scans), options=_json_options(run.options))
     head = json.dumps(meta, allow_nan=True).encode("utf-8")
-    state = run.mapper.__getstate__()
     tmp = path + ".tmp"
-    with open(tmp, "wb") as f:
-        f.write(RUN_MAGIC + struct.pack("<II", RUN_FORMAT_VERSION, len(head)) + head + state)
-    os.replace(tmp, path)
+    with _interrupts_deferred():
+        state = run.mapper.__getstate__()
+        try:
+            with open(tmp, "wb") as f:
+                f.write(RUN_MAGIC + struct.pack("<II", RUN_FORMAT_VERSION, len(head)) + head + state)
+            os.replace(tmp, path)
+        except OSError as e:
+            with contextlib.suppress(OSError):
+                os.remove(tmp)
+            raise ValueError(f"save: cannot write {path} ({e.strerror})") from None
 
 
 def load_run(path: PathLike) -> SlamRun:
@@ -149,9 +211,11 @@ def load_run(path: PathLike) -> SlamRun:
         scans_done = meta["scans_done"]
         first, last, log_scans = float(meta["first_timestamp"]), float(meta["last_timestamp"]), meta["log_scans"]
         options = meta.get("options", {})
-    except (ValueError, KeyError, TypeError, UnicodeDecodeError) as e:
+    except (ValueError, KeyError, TypeError, UnicodeDecodeError, OverflowError) as e:
         raise ValueError(f"{path}: corrupt run metadata ({e})") from None
-    if method not in _RUN_CLASSES or not isinstance(scans_done, int) or not isinstance(log_scans, int) \
+    except RecursionError:
+        raise ValueError(f"{path}: corrupt run metadata (nested too deeply)") from None
+    if not isinstance(method, str) or method not in _RUN_CLASSES or not isinstance(scans_done, int) or not isinstance(log_scans, int) \
             or not 1 <= scans_done <= log_scans or not isinstance(options, dict):
         raise ValueError(f"{path}: corrupt run metadata")
     cls = getattr(_core, _RUN_CLASSES[method])
@@ -272,7 +336,7 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: Optional[st
             raise ValueError(f"options: a resumed run keeps its saved options; got {sorted(options)}")
         method = run.method
     if save is not None:
-        save = file_path(save, "save")
+        save = check_save_path(save)
     if method is None:
         method = "graph"
     if method not in METHODS:
@@ -307,13 +371,23 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: Optional[st
     angles = scans.beam_angles()
     t0 = time.perf_counter()
 
-    def save_state(done: int) -> None:
-        if save is not None and done > 0:
+    written = [-1]  # the scans of the file last written
+
+    def save_state() -> Optional[str]:
+        # The object is the count: add_scans is all or nothing, and a Ctrl-C that arrives while it
+        # runs is raised when it returns, before the loop could count its scans.
+        done = mapper.num_scans
+        if save is None or done == 0:
+            return None
+        if done == written[0]:
+            return save
+        with _interrupts_deferred():  # a KeyboardInterrupt out of here comes after the file is written
             save_run(SlamRun(mapper=mapper, method=method, scans_done=done, first_timestamp=float(scans.timestamps[0]),
                              last_timestamp=float(scans.timestamps[done - 1]), log_scans=len(scans), options=opts),
                      save)
+            written[0] = done
+        return save
 
-    done = start
     # As map_laser_log: disable=None lets tqdm show the bar only on a terminal.
     try:
         with tqdm(total=len(scans), initial=start, unit="scan", desc=method,
@@ -321,12 +395,14 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: Optional[st
             for a in range(start, len(scans), chunk):
                 b = min(len(scans), a + chunk)
                 mapper.add_scans(scans.ranges[a:b], angles[a:b], scans.laser_poses[a:b], scans.timestamps[a:b])
-                done = b
                 bar.update(b - a)
+        save_state()
     except KeyboardInterrupt:
-        save_state(done)  # add_scans is all or nothing: the state holds exactly `done` scans
-        raise
-    save_state(done)
+        try:
+            saved = save_state()
+        except KeyboardInterrupt:  # Ctrl-C again, held back until the file was written
+            saved = save if save is not None and mapper.num_scans > 0 else None
+        raise RunInterrupted(saved, mapper.num_scans, len(scans)) from None
     t = scans.timestamps
     duration = float(np.nanmax(t) - np.nanmin(t)) if np.isfinite(t).any() else 0.0
     if method == "rbpf":
@@ -354,5 +430,6 @@ def write_trajectory(timestamps: np.ndarray, poses: np.ndarray, path: PathLike) 
     write_trajectory_file(timestamps, poses, path, format="xyt")
 
 
-__all__ = ["INITIAL_MAP", "METHODS", "SlamResult", "SlamRun", "load_initial_map", "load_run", "run_slam", "save_run",
+__all__ = ["INITIAL_MAP", "METHODS", "RunInterrupted", "SlamResult", "SlamRun", "check_save_path", "load_initial_map",
+           "load_run", "run_slam", "save_run",
            "scans_of", "write_trajectory"]

@@ -195,6 +195,8 @@ MultiHypothesisEkfSlam MultiHypothesisEkfSlam::read_state(StateReader& r) {
     b.cov = r.matrix<Eigen::VectorXd>();
     if (!std::isfinite(cost) || !std::isfinite(b.mean) || !std::isfinite(b.var) || !b.cov.allFinite())
       r.fail("a filter's cost or bearing offset is not finite");
+    if (!beam.empty() && filter.landmark_dim() != beam.front().filter.landmark_dim())
+      r.fail("the beam's filters differ in their landmark dimension");
     beam.push_back({std::move(filter), cost, next_id,
                     history >= 0 ? nodes[static_cast<std::size_t>(history)] : nullptr, std::move(b)});
   }

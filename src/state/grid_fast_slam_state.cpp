@@ -213,13 +213,19 @@ GridFastSlam GridFastSlam::read_state(StateReader& r) {
   f.timestamps_ = r.doubles();
   if (f.scan_offset_.size() != f.scan_step_.size() || f.timestamps_.size() != f.scan_step_.size())
     r.fail("the scans' steps, offsets and timestamps differ in number");
+  if (f.corrector_ && static_cast<std::size_t>(f.corrector_->num_scans()) != f.scan_step_.size())
+    r.fail("the odometry corrector's scans do not match the filter's");
+  for (const Eigen::Vector3d& offset : f.scan_offset_)
+    if (!offset.allFinite()) r.fail("a scan's offset is not finite");
   for (const Particle& p : f.particles_) {
     if (!f.scan_step_.empty() && !p.map) r.fail("a particle has no map after the first scan");
     for (int step : f.scan_step_)
       if (step < 0 || static_cast<std::size_t>(step) >= p.path.size()) r.fail("a scan hangs from a step out of range");
   }
   GridFastSlamSummary& s = f.summary_;
-  for (long* v : {&s.scans, &s.updates, &s.resamples, &s.matched, &s.fallbacks}) *v = static_cast<long>(r.i64());
+  for (long* v : {&s.scans, &s.updates, &s.resamples, &s.matched, &s.fallbacks})
+    if ((*v = static_cast<long>(r.i64())) < 0) r.fail("a counter is negative");
+  if (static_cast<std::size_t>(s.scans) != f.scan_step_.size()) r.fail("the scan count does not match the scans stored");
   s.effective_sample_size = r.f64();
   if (r.boolean()) {
     f.start_map_ = OccupancyGrid2D::read_state(r);

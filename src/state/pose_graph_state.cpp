@@ -1,22 +1,18 @@
 // PoseGraph2D's state (docs/file_format.md).
+#include "graph_state.hpp"
 #include "probslam/core/check.hpp"
-#include "probslam/core/state_file.hpp"
 #include "probslam/graph/pose_graph_2d.hpp"
 
 namespace probslam {
-namespace {
 
-// The information matrices were symmetrised when added; a stored one that is not SPD at this
-// tolerance was not written by save.
-constexpr double kStoredSymmetryTolerance = 1e-6;
-
-}  // namespace
+using state_detail::kStoredSymmetryTolerance;
+using state_detail::read_vertex_index;
 
 void PoseGraph2D::write_state(StateWriter& w) const {
   w.count(vertices_.size());
   for (const GraphVertex& v : vertices_) {
     w.i32(v.id);
-    w.u8(v.kind == VertexKind::kPose ? 0 : 1);
+    state_detail::write_vertex_kind(w, v.kind);
     w.matrix(v.value);
     w.boolean(v.fixed);
     w.i32(v.landmark_id);
@@ -44,23 +40,15 @@ PoseGraph2D PoseGraph2D::read_state(StateReader& r) {
   for (std::size_t k = 0; k < nv; ++k) {
     GraphVertex v{};
     v.id = r.i32();
-    const std::uint8_t kind = r.u8();
-    if (kind > 1) r.fail("a vertex kind is " + std::to_string(kind));
-    v.kind = kind == 0 ? VertexKind::kPose : VertexKind::kPoint;
+    v.kind = state_detail::read_vertex_kind(r);
     v.value = r.matrix<Eigen::Vector3d>();
     v.fixed = r.boolean();
     v.landmark_id = r.i32();
     if (!v.value.allFinite()) r.fail("vertex " + std::to_string(v.id) + " has a value that is not finite");
-    if (!g.index_.emplace(v.id, static_cast<int>(k)).second) r.fail("vertex id " + std::to_string(v.id) + " is repeated");
+    state_detail::index_vertex_id(r, g.index_, v.id, k);
     g.vertices_.push_back(v);
   }
-  const int n = static_cast<int>(nv);
-  const auto vertex = [&](VertexKind kind, const char* what) {
-    const int index = r.i32();
-    if (index < 0 || index >= n || g.vertices_[static_cast<std::size_t>(index)].kind != kind)
-      r.fail(std::string("an edge's ") + what + " index " + std::to_string(index) + " names no " + what);
-    return index;
-  };
+  const auto vertex = [&](VertexKind kind, const char* what) { return read_vertex_index(r, g.vertices_, kind, what); };
   const std::size_t npe = r.count(8 + 16 + 24 + 16 + 72);
   g.pose_edges_.reserve(npe);
   for (std::size_t k = 0; k < npe; ++k) {

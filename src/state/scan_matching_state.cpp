@@ -131,7 +131,9 @@ LikelihoodField LikelihoodField::read_state(StateReader& r) {
   f.log_likelihood_ = r.floats();
   const double cells = static_cast<double>(f.width_) * static_cast<double>(f.height_);
   if (f.width_ < 0 || f.height_ < 0 || static_cast<double>(f.distance_.size()) != cells ||
-      f.log_likelihood_.size() != f.distance_.size() || !(f.res_ > 0.0) || !std::isfinite(f.x0_) || !std::isfinite(f.y0_))
+      f.log_likelihood_.size() != f.distance_.size() || !(f.res_ > 0.0) || f.inv_res_ != 1.0 / f.res_ ||
+      !std::isfinite(f.inv_res_) || !std::isfinite(f.x0_) || !std::isfinite(f.y0_) || f.num_occupied_ < 0 ||
+      static_cast<double>(f.num_occupied_) > cells)
     r.fail("a likelihood field's size or lattice is inconsistent");
   f.build_tables();
   return f;
@@ -189,6 +191,8 @@ IncrementalScanMatcher IncrementalScanMatcher::read_state(StateReader& r) {
     e.fallback = r.boolean();
     e.submap = r.i32();
     e.points = r.i32();
+    if (!e.pose.allFinite() || !e.relative_covariance.allFinite() || e.points < 0)
+      r.fail("a scan's estimate is not finite");
     m.estimates_.push_back(e);
   }
   m.timestamps_ = r.doubles();
@@ -199,14 +203,22 @@ IncrementalScanMatcher IncrementalScanMatcher::read_state(StateReader& r) {
     Submap s{std::move(grid), r.matrix<Eigen::Vector3d>(), r.ints(), 0.0, 0};
     s.travel = r.f64();
     s.matched = r.i32();
+    if (!s.origin.allFinite()) r.fail("a submap's origin is not finite");
+    // A scan lies in the submap it names, or opened the next one there too (submaps overlap).
+    const int submap = static_cast<int>(k);
     for (int scan : s.scans)
-      if (scan < 0 || static_cast<std::size_t>(scan) >= n) r.fail("a submap names a scan out of range");
+      if (scan < 0 || static_cast<std::size_t>(scan) >= n ||
+          (m.estimates_[static_cast<std::size_t>(scan)].submap != submap &&
+           m.estimates_[static_cast<std::size_t>(scan)].submap != submap - 1))
+        r.fail("a submap names a scan out of range or of another submap");
     m.submaps_.push_back(std::move(s));
   }
+  if (n > 0 && ns == 0) r.fail("the scan matcher holds scans but no submap");
   for (const ScanEstimate& e : m.estimates_)
     if (e.submap < -1 || e.submap >= static_cast<int>(ns)) r.fail("a scan names a submap out of range");
   m.matched_odometry_ = r.matrix<Eigen::Vector3d>();
   m.matched_pose_ = r.matrix<Eigen::Vector3d>();
+  if (!m.matched_odometry_.allFinite() || !m.matched_pose_.allFinite()) r.fail("the last matched pose is not finite");
   auto cache = std::make_shared<FieldCache>();
   if (r.boolean()) {
     LikelihoodField field = LikelihoodField::read_state(r);

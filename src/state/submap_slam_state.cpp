@@ -105,10 +105,23 @@ SubmapSlam2D SubmapSlam2D::read_state(StateReader& r) {
   const std::size_t scans = static_cast<std::size_t>(s.frontend_.num_scans());
   const std::size_t np = r.count(16);
   for (std::size_t k = 0; k < np; ++k) s.points_.push_back(r.matrix<Points2>());
+  for (const Points2& p : s.points_)
+    if (!p.allFinite()) r.fail("a scan's hits are not finite");
+  // Every per-scan and per-submap list must hold one entry per scan / submap before any is used
+  // (the loop-closure search indexes them by scan and by submap).
+  if (np != scans) r.fail("the hits stored do not match the frontend's scans");
   const std::size_t nc = r.count(88);
+  if (nc != scans) r.fail("the scans' offset covariances do not match the frontend's scans");
   for (std::size_t k = 0; k < nc; ++k) s.offset_cov_.push_back(r.matrix<Eigen::Matrix3d>());
   const std::size_t nn = r.count(40);
+  // A node per submap once a scan is in (the first scan places node 0, each new submap its own).
+  if (nn != (scans > 0 ? s.frontend_.submaps().size() : 0))
+    r.fail("the graph's nodes do not match the frontend's submaps");
   for (std::size_t k = 0; k < nn; ++k) s.nodes_.push_back(r.matrix<Eigen::Vector3d>());
+  for (std::size_t k = 0; k < nc; ++k)
+    if (!s.offset_cov_[k].allFinite()) r.fail("a scan's offset covariance is not finite");
+  for (std::size_t k = 0; k < nn; ++k)
+    if (!s.nodes_[k].allFinite()) r.fail("a submap's node is not finite");
   const int nodes = static_cast<int>(nn);
   const std::size_t ne = r.count(150);
   for (std::size_t k = 0; k < ne; ++k) {
@@ -123,6 +136,7 @@ SubmapSlam2D SubmapSlam2D::read_state(StateReader& r) {
     c.active = r.boolean();
     if (c.from < 0 || c.from >= nodes || c.to < 0 || c.to >= nodes || c.scan < -1 || c.scan >= static_cast<int>(scans))
       r.fail("a constraint names a submap or scan out of range");
+    if (!c.measurement.allFinite() || !c.covariance.allFinite()) r.fail("a constraint is not finite");
     s.constraints_.push_back(c);
   }
   const std::size_t ns = r.count(32);
@@ -135,23 +149,26 @@ SubmapSlam2D SubmapSlam2D::read_state(StateReader& r) {
   s.chain_pose_ = r.matrix<Eigen::Vector3d>();
   s.chain_cov_ = r.matrix<Eigen::Matrix3d>();
   s.chain_submap_ = r.i32();
+  if (!s.chain_pose_.allFinite() || !s.chain_cov_.allFinite()) r.fail("the open chain's pose is not finite");
   const std::size_t na = r.count(48);
   for (std::size_t k = 0; k < na; ++k) {
     const int scan = r.i32(), submap = r.i32();
-    s.attempts_.emplace(std::make_pair(scan, submap), r.matrix<Eigen::Vector3d>());
+    const Eigen::Vector3d predicted = r.matrix<Eigen::Vector3d>();
+    if (scan < 0 || static_cast<std::size_t>(scan) >= scans || submap < 0 || submap >= nodes)
+      r.fail("a searched pair names a scan or submap out of range");
+    if (!predicted.allFinite()) r.fail("a searched pair's prediction is not finite");
+    if (!s.attempts_.emplace(std::make_pair(scan, submap), predicted).second) r.fail("a searched pair is repeated");
   }
   SubmapSlamSummary& c = s.counts_;
   for (int* v : {&c.scans, &c.submaps, &c.matched_scans, &c.closures_searched, &c.closures_accepted,
                  &c.closures_rejected, &c.closures_dissolved, &c.rounds, &c.optimizations})
-    *v = r.i32();
+    if ((*v = r.i32()) < 0) r.fail("a counter is negative");
   c.final_chi2 = r.f64();
   if (r.boolean()) s.set_start_map(OccupancyGrid2D::read_state(r));
   if (s.frontend_.awaits_first_scan_on_map() && !s.start_map_)
     r.fail("the frontend waits for its first scan on a map the state does not hold");
-  if (nn > s.frontend_.submaps().size() || s.chain_submap_ < 0 ||
-      static_cast<std::size_t>(s.chain_submap_) > s.frontend_.submaps().size())
-    r.fail("the graph's nodes or the open chain do not match the frontend's submaps");
-  if (s.points_.size() != scans) r.fail("the hits stored do not match the frontend's scans");
+  if (s.chain_submap_ < 0 || static_cast<std::size_t>(s.chain_submap_) > s.frontend_.submaps().size())
+    r.fail("the open chain does not match the frontend's submaps");
   // The finished submaps' obstacle cells, as add_scan keeps them (a file written before they were
   // kept holds the whole grids: the same cells).
   for (int k = 0; k + 1 < static_cast<int>(nn); ++k) s.keep_closure_cells(k);

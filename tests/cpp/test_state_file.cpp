@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "probslam/core/check.hpp"
+#include "probslam/core/pose2.hpp"
 #include "probslam/core/range_bearing_model.hpp"
 #include "probslam/core/state_file.hpp"
 #include "probslam/ekf/ekf_slam.hpp"
@@ -18,8 +19,10 @@
 #include "probslam/fastslam/fast_slam.hpp"
 #include "probslam/fastslam/grid_fast_slam.hpp"
 #include "probslam/graph/pose_graph_2d.hpp"
+#include "probslam/graph/pose_graph_3d.hpp"
 #include "probslam/grid/occupancy_grid_2d.hpp"
 #include "probslam/grid/occupancy_grid_3d.hpp"
+#include "probslam/localization/monte_carlo_localization.hpp"
 #include "probslam/slam2d/submap_slam.hpp"
 #include "test_support.hpp"
 
@@ -108,6 +111,32 @@ TEST(StateFile, CorruptLengthIsCheckedAgainstTheBytesLeft) {
   m.i64(1 << 20);
   StateReader rm(m.payload().data(), m.payload().size(), "state");
   EXPECT_THROW(rm.matrix<Eigen::MatrixXd>(), StateError);
+}
+
+// A dynamic dimension is a count even when the other is zero: an empty 0 x 2^62 matrix is
+// refused at once (it was read as 2^62 empty columns, a loop that never ended), as is a product
+// that overflows. Fixed dimensions are the type's: a 3 x 0 block with no bytes left is read.
+TEST(StateFile, EmptyMatrixDimensionsAreCounts) {
+  for (const auto& [rows, cols] : std::vector<std::pair<std::int64_t, std::int64_t>>{
+           {0, std::int64_t{1} << 62}, {std::int64_t{1} << 62, 0}, {std::int64_t{1} << 33, std::int64_t{1} << 33}}) {
+    StateWriter w;
+    w.i64(rows);
+    w.i64(cols);
+    for (int k = 0; k < 8; ++k) w.f64(1.0);
+    StateReader r(w.payload().data(), w.payload().size(), "state");
+    try {
+      r.matrix<Eigen::MatrixXd>();
+      ADD_FAILURE() << rows << " x " << cols << " read";
+    } catch (const StateError& e) {
+      EXPECT_NE(std::string(e.what()).find("bytes left"), std::string::npos) << e.what();
+    }
+  }
+  StateWriter w;
+  w.i64(3);
+  w.i64(0);
+  StateReader r(w.payload().data(), w.payload().size(), "state");
+  using ThreeRows = Eigen::Matrix<double, 3, Eigen::Dynamic>;
+  EXPECT_EQ(r.matrix<ThreeRows>().cols(), 0);
 }
 
 TEST(StateFile, OccupancyGrid2D) {
@@ -455,6 +484,96 @@ TEST(StateFile, OccupancyGrid3D) {
   refused(payload(1, 8192, 0.5f), "key outside");  // a block coordinate beyond 65536 / 8
   refused(payload(1, 1, 0.5f), "repeats");
   refused(payload(1, 2, 9.0f), "clamp bounds");
+}
+
+// PoseGraph3D: poses, a point, edges, a prior and a point edge with a sensor offset; the loaded
+// graph equals the saved one and continues alike.
+TEST(StateFile, PoseGraph3D) {
+  PoseGraph3D g;
+  Matrix6d info = Matrix6d::Identity();
+  info(0, 1) = info(1, 0) = 0.2;
+  for (int k = 0; k < 4; ++k)
+    g.add_pose(k, {Eigen::Quaterniond(Eigen::AngleAxisd(0.3 * k, Eigen::Vector3d(0.2, 0.5, 1.0).normalized())),
+                   Eigen::Vector3d(k, 0.5 * k, 0.1)});
+  g.add_point(10, {1.0, 2.0, 0.5});
+  for (int k = 0; k + 1 < 4; ++k) g.add_pose_edge(k, k + 1, {Eigen::Quaterniond(0.99, 0.1, 0.0, 0.05).normalized(), {1, 0.4, 0.1}}, info);
+  g.add_pose_prior(0, {}, 10.0 * Matrix6d::Identity());
+  g.add_point_edge(2, 10, {0.1, 1.2, 0.3}, 2.0 * Eigen::Matrix3d::Identity(),
+                   {Eigen::Quaterniond(0.98, 0.0, 0.2, 0.0).normalized(), {0.1, 0.0, 0.3}});
+  g.set_fixed(1);
+  PoseGraph3D h = round_trip<PoseGraph3D, PoseGraph2D>(g, "graph3d");
+  EXPECT_EQ(h.num_vertices(), g.num_vertices());
+  EXPECT_EQ(h.num_points(), 1);
+  EXPECT_TRUE(h.vertex(h.index_of(1)).fixed);
+  EXPECT_EQ(h.chi2(), g.chi2());
+  // A point edge naming a pose as its point is refused.
+  StateWriter w;
+  h.write_state(w);
+  std::string payload = w.payload();
+  const std::size_t point_edge = payload.size() - (4 + 4 + 16 + 24 + 16 + 72 + 56);
+  payload[point_edge + 4] = 0;  // its point index: vertex 0, a pose
+  EXPECT_THROW(object_from_state<PoseGraph3D>(frame_state("PoseGraph3D", payload), "state"), StateError);
+  g.add_pose_edge(3, 0, {}, Matrix6d::Identity());
+  h.add_pose_edge(3, 0, {}, Matrix6d::Identity());
+  EXPECT_EQ(state_bytes(h), state_bytes(g));
+}
+
+// MonteCarloLocalization: part way through tracking in a room, saved and loaded; both go on
+// alike (particles, weights, random streams), and a state with more particles than
+// max_particles is refused.
+TEST(StateFile, MonteCarloLocalization) {
+  OccupancyGrid2D map(0.1, 100, 80, {-5.0, -4.0});
+  map.log_odds().setConstant(-3.0);
+  const auto walls = room_walls();
+  for (int r = 0; r < 80; ++r)
+    for (int c = 0; c < 100; ++c) {
+      const double x = -5.0 + 0.1 * (c + 0.5), y = -4.0 + 0.1 * (r + 0.5);
+      if (std::abs(x) > 4.85 || std::abs(y) > 3.85) map.log_odds()(r, c) = 3.0;
+    }
+  MonteCarloLocalizationOptions o;
+  o.min_particles = 50;
+  o.max_particles = 200;
+  o.seed = 3;
+  MonteCarloLocalization mcl(map, o);
+  mcl.initialize_pose({0.0, 0.0, 0.2}, Eigen::Vector3d(0.04, 0.04, 0.01).asDiagonal());
+  const Eigen::VectorXd angles = Eigen::VectorXd::LinSpaced(60, -1.5, 1.5);
+  Eigen::Vector3d pose(0.0, 0.0, 0.2);
+  const auto step = [&](MonteCarloLocalization& f, const Eigen::Vector3d& at) {
+    f.predict_odometry({0.3, 0.0, 0.05});
+    f.update(cast(at, angles, walls), angles);
+  };
+  for (int k = 0; k < 3; ++k) {
+    pose = Pose2::from_vector(pose).compose(Pose2::from_vector({0.3, 0.0, 0.05})).vector();
+    step(mcl, pose);
+  }
+  mcl.predict_odometry({0.1, 0.0, 0.0});  // motion not yet applied is state too
+  MonteCarloLocalization loaded = round_trip<MonteCarloLocalization, PoseGraph2D>(mcl, "mcl");
+  EXPECT_EQ(loaded.num_particles(), mcl.num_particles());
+  EXPECT_TRUE((loaded.pose().array() == mcl.pose().array()).all());
+  for (int k = 0; k < 3; ++k) {
+    pose = Pose2::from_vector(pose).compose(Pose2::from_vector({0.3, 0.0, 0.05})).vector();
+    step(mcl, pose);
+    step(loaded, pose);
+  }
+  EXPECT_EQ(state_bytes(loaded), state_bytes(mcl));
+  EXPECT_TRUE((loaded.particles().array() == mcl.particles().array()).all());
+  // Options: the sensor model (1 byte), odometry noise, thresholds and likelihood field (8
+  // doubles), beam model (7), max and min range (2), max_beams, weight_scale, then
+  // min_particles and max_particles.
+  StateWriter w;
+  mcl.write_state(w);
+  std::string payload = w.payload();
+  const std::size_t min_particles = 1 + 8 * 8 + 7 * 8 + 2 * 8 + 4 + 8;
+  StateWriter counts;
+  counts.i32(1);
+  counts.i32(mcl.num_particles() - 1);
+  payload.replace(min_particles, 8, counts.payload());
+  try {
+    object_from_state<MonteCarloLocalization>(frame_state("MonteCarloLocalization", payload), "state");
+    ADD_FAILURE() << "more particles than max_particles loaded";
+  } catch (const StateError& e) {
+    EXPECT_NE(std::string(e.what()).find("particles, outside [1, max_particles"), std::string::npos) << e.what();
+  }
 }
 
 }  // namespace

@@ -202,3 +202,51 @@ def test_grid3d_round_trip(tmp_path):
     g.insert_point_cloud(more, (0.0, 0.0, 0.0))
     h.insert_point_cloud(more, (0.0, 0.0, 0.0))
     assert state_bytes(h) == state_bytes(g)
+
+
+def test_pose_graph_3d_round_trip(tmp_path):
+    g = ps.PoseGraph3D()
+    rng = np.random.default_rng(2)
+    for k in range(5):
+        q = rng.normal(size=4)
+        g.add_pose(k, np.concatenate([rng.normal(size=3), q / np.linalg.norm(q)]))
+    g.add_point(20, (1.0, -2.0, 0.5))
+    for k in range(4):
+        g.add_pose_edge(k, k + 1, (1.0, 0.0, 0.1, 0.0, 0.0, 0.0, 1.0), np.eye(6) * (k + 1))
+    g.add_pose_prior(0, (0, 0, 0, 0, 0, 0, 1), np.eye(6))
+    g.add_point_edge(3, 20, (0.5, 0.5, 0.5), np.eye(3))
+    g.set_fixed(2)
+    h = round_trip(g, ps.PoseGraph3D, tmp_path)
+    assert np.array_equal(h.poses, g.poses) and h.is_fixed(2) and h.chi2() == g.chi2()
+    for a, b in zip(h.point_edges(), g.point_edges()):
+        assert np.array_equal(a, b)
+    # Both continue alike.
+    for graph in (g, h):
+        ps.optimize(graph, max_iterations=3)
+    assert state_bytes(h) == state_bytes(g)
+
+
+def test_monte_carlo_localization_resumed_equals_uninterrupted(tmp_path):
+    grid = ps.OccupancyGrid2D(0.1, 80, 60, origin=(-4.0, -3.0))
+    grid.log_odds[:] = -3.0
+    grid.log_odds[[0, -1], :] = grid.log_odds[:, [0, -1]] = 3.0
+    grid.log_odds[20:25, 30:35] = 3.0
+    angles = np.linspace(-1.5, 1.5, 30)
+    rng = np.random.default_rng(6)
+    scans = [np.clip(rng.uniform(0.5, 4.0, 30), 0, None) for _ in range(8)]
+
+    def steps(f, part):
+        for z in part:
+            f.predict_odometry((0.25, 0.0, 0.05))
+            f.update(z, angles)
+
+    make = lambda: ps.MonteCarloLocalization(grid, initial_pose=(0.0, 0.0, 0.0), min_particles=60,
+                                             max_particles=300, seed=4)
+    straight, first = make(), make()
+    steps(straight, scans)
+    steps(first, scans[:4])
+    resumed = round_trip(first, ps.MonteCarloLocalization, tmp_path)
+    assert np.array_equal(resumed.particles, first.particles) and np.array_equal(resumed.weights, first.weights)
+    steps(resumed, scans[4:])
+    assert state_bytes(resumed) == state_bytes(straight)
+    assert np.array_equal(resumed.pose, straight.pose) and resumed.num_updates == straight.num_updates

@@ -147,16 +147,22 @@ class StateReader {
   std::vector<int> ints() { return items<int>(4, [this] { return static_cast<int>(i32()); }); }
   std::vector<std::uint8_t> bytes() { return items<std::uint8_t>(1, [this] { return u8(); }); }
 
-  /// A matrix of MatrixType; fixed dimensions must match, dynamic ones are checked against the
-  /// bytes left before allocation.
+  /// A matrix of MatrixType; fixed dimensions must match. The dynamic ones are counts, checked
+  /// against the bytes left before allocation or any loop: each alone as a count of 8-byte
+  /// entries (so an empty 0 x 2^62 matrix is refused, not walked column by column), and their
+  /// product without overflow.
   template <typename MatrixType>
   MatrixType matrix() {
     const std::int64_t rows = i64(), cols = i64();
     if (rows < 0 || cols < 0) fail("a matrix has negative dimensions");
-    if ((MatrixType::RowsAtCompileTime != Eigen::Dynamic && rows != MatrixType::RowsAtCompileTime) ||
-        (MatrixType::ColsAtCompileTime != Eigen::Dynamic && cols != MatrixType::ColsAtCompileTime))
+    constexpr bool kDynamicRows = MatrixType::RowsAtCompileTime == Eigen::Dynamic;
+    constexpr bool kDynamicCols = MatrixType::ColsAtCompileTime == Eigen::Dynamic;
+    if ((!kDynamicRows && rows != MatrixType::RowsAtCompileTime) || (!kDynamicCols && cols != MatrixType::ColsAtCompileTime))
       fail("a matrix is " + std::to_string(rows) + " x " + std::to_string(cols) + ", not of the expected size");
-    if (cols > 0 && static_cast<std::uint64_t>(rows) > remaining() / 8 / static_cast<std::uint64_t>(cols))
+    const std::uint64_t entries_left = remaining() / 8;
+    const auto r64 = static_cast<std::uint64_t>(rows), c64 = static_cast<std::uint64_t>(cols);
+    if ((kDynamicRows && r64 > entries_left) || (kDynamicCols && c64 > entries_left) ||
+        (c64 > 0 && r64 > entries_left / c64))
       fail("a " + std::to_string(rows) + " x " + std::to_string(cols) + " matrix exceeds the " +
            std::to_string(remaining()) + " bytes left (truncated or corrupt)");
     MatrixType m(rows, cols);

@@ -13,6 +13,7 @@
 // p (+) d = p + d, in world metres.
 #include <Eigen/Core>
 #include <Eigen/Geometry>
+#include <string>
 #include <unordered_map>
 #include <vector>
 
@@ -21,6 +22,9 @@
 #include "probslam/graph/vertex_kind.hpp"
 
 namespace probslam {
+
+class StateWriter;
+class StateReader;
 
 using Matrix6d = Eigen::Matrix<double, 6, 6>;
 using Vector6d = Eigen::Matrix<double, 6, 1>;
@@ -130,6 +134,14 @@ class PoseGraph3D {
   /// The objective: the sum over edges and priors; throws std::invalid_argument when it is not
   /// finite.
   double chi2() const;
+
+  /// Saves every vertex (id, kind, fixed, value), edge, prior and point edge, bit for bit
+  /// (docs/file_format.md); load refuses anything but a complete, undamaged, consistent graph.
+  static constexpr const char* kStateTag = "PoseGraph3D";
+  void save(const std::string& path) const;
+  static PoseGraph3D load(const std::string& path);
+  void write_state(StateWriter& w) const;
+  static PoseGraph3D read_state(StateReader& r);
 
  private:
   int add_vertex(int id, const Pose3& value, VertexKind kind);

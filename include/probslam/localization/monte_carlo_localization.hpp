@@ -8,6 +8,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <memory>
+#include <string>
 #include <vector>
 
 #include "probslam/core/object_mutex.hpp"
@@ -141,6 +142,15 @@ class MonteCarloLocalization {
   static double kld_bound(int k, double epsilon, double z);
 
   std::mutex& mutex() const noexcept { return mutex_.get(); }
+
+  /// Saves the options, the map and the whole filter (particles, random streams, averages, the
+  /// motion not yet applied, the estimate) bit for bit (docs/file_format.md): a loaded object
+  /// continues exactly as this one would. The map's tables are rebuilt from the map.
+  static constexpr const char* kStateTag = "MonteCarloLocalization";
+  void save(const std::string& path) const;
+  static MonteCarloLocalization load(const std::string& path);
+  void write_state(StateWriter& w) const;
+  static MonteCarloLocalization read_state(StateReader& r);
 
  private:
   void check_pose_free(const Eigen::Vector3d& pose, const char* name) const;
