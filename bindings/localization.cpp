@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "args.hpp"
+#include "interrupt.hpp"
 #include "numpy.hpp"
 #include "object_lock.hpp"
 #include "repr.hpp"
@@ -207,11 +208,12 @@ void define_localization(py::module_& m) {
         const DoubleArray r = vector_arg(ranges, "ranges");
         const DoubleArray a = vector_arg(angles, "angles");
         const bool f = force.get("force");
-        return locked(self, [&] { return self.update(as_vector(r), as_vector(a), f); });
+        const auto interrupt = python_interrupt();
+        return locked(self, [&] { return self.update(as_vector(r), as_vector(a), f, interrupt); });
       }, py::arg("ranges"), py::arg("angles"), py::kw_only(), py::arg_v("force", false),
          "One scan: ranges (B,) m (finite, >= 0), angles (B,) rad relative to the sensor heading. Updates\n"
          "after update_min_d / update_min_a of travel (or on the first scan, or with force=True).\n"
-         "Returns an MclUpdate.")
+         "Returns an MclUpdate. Ctrl-C stops a long update with the filter unchanged.")
       .def("measurement_log_likelihood", [](const Mcl& self, py::handle pose, py::handle ranges, py::handle angles) {
         const Eigen::Vector3d p = pose_arg(pose, "pose");
         const DoubleArray r = vector_arg(ranges, "ranges");

@@ -37,9 +37,11 @@ class LocalizationResult:
     mean, moved by odometry between updates); covariances (S, 3, 3); num_particles (S,);
     converged (S,) bool (``CONVERGED_XY_STD`` / ``CONVERGED_THETA_STD``); updated (S,) bool (the
     filter updated at this scan); convergence_time: seconds of log from the first scan until the
-    estimate converged for good (None if it never did); travel_to_converge: metres of odometry
+    estimate first converged (None if it never did); travel_to_converge: metres of odometry
     travel until then; seconds of processing; log_duration s; snapshots: (timestamp, particles
-    (M, 3)) at the requested times; options the filter's keywords.
+    (M, 3)) at the requested times; options the filter's keywords; odometry_travel: metres of
+    odometry over the scans (0: nothing moves the filter after its first update).
+    ``converged_fraction`` and ``lost`` tell how it went after the first convergence.
     """
 
     timestamps: np.ndarray
@@ -54,6 +56,28 @@ class LocalizationResult:
     log_duration: float
     snapshots: List[Tuple[float, np.ndarray]] = field(default_factory=list)
     options: Dict[str, Any] = field(default_factory=dict)
+    odometry_travel: float = 0.0
+
+    @property
+    def converged_fraction(self) -> Optional[float]:
+        """Share of the scans from the first convergence on at which the estimate was converged
+        (None if it never converged)."""
+        first = np.flatnonzero(self.converged)
+        return None if first.size == 0 else float(np.mean(self.converged[first[0]:]))
+
+    @property
+    def lost(self) -> List[Tuple[float, Optional[float]]]:
+        """The spells without convergence after the first: (log time it was lost, log time it
+        converged again or None), seconds from the first scan."""
+        c = np.asarray(self.converged, dtype=bool)
+        first = np.flatnonzero(c)
+        if first.size == 0:
+            return []
+        t = self.timestamps - self.timestamps[0]
+        change = np.flatnonzero(np.diff(c[first[0]:].astype(np.int8))) + first[0] + 1
+        starts = [int(i) for i in change if not c[i]]
+        ends = [int(i) for i in change if c[i]]
+        return [(float(t[a]), next((float(t[b]) for b in ends if b > a), None)) for a in starts]
 
     @property
     def real_time_factor(self) -> float:
@@ -134,17 +158,16 @@ def localize(log: Union[PathLike, CarmenLog, LaserScans], map: _core.OccupancyGr
     t = scans.timestamps[start:stop]
     duration = float(t[-1] - t[0]) if m > 1 else 0.0
     conv = np.array([is_converged(c) for c in covs])
-    never = np.flatnonzero(~conv)
-    first_good = 0 if never.size == 0 else int(never[-1]) + 1
+    good = np.flatnonzero(conv)
+    travelled = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(odom[start:stop, :2], axis=0).T))])
     conv_time = travel = None
-    if first_good < m:
-        conv_time = float(t[first_good] - t[0])
-        steps = np.diff(odom[start:start + first_good + 1, :2], axis=0)
-        travel = float(np.sum(np.hypot(steps[:, 0], steps[:, 1])))
+    if good.size:
+        conv_time = float(t[good[0]] - t[0])
+        travel = float(travelled[good[0]])
     return LocalizationResult(timestamps=np.array(t, dtype=float), poses=poses, covariances=covs, num_particles=counts,
                               converged=conv, updated=updated, convergence_time=conv_time,
                               travel_to_converge=travel, seconds=seconds, log_duration=duration,
-                              snapshots=snapshots, options=opts)
+                              snapshots=snapshots, options=opts, odometry_travel=float(travelled[-1]))
 
 
 __all__ = ["CONVERGED_THETA_STD", "CONVERGED_XY_STD", "LocalizationResult", "is_converged", "localize"]
