@@ -72,10 +72,15 @@ void MonteCarloLocalizationOptions::validate() const {
   require(std::isfinite(update_min_d) && update_min_d >= 0.0, "update_min_d", "must be finite and >= 0");
   require(std::isfinite(update_min_a) && update_min_a >= 0.0, "update_min_a", "must be finite and >= 0");
   require(threads >= 1 && threads <= 1024, "threads", "must lie in [1, 1024]");
-  if (sensor_model == MclSensorModel::kBeam) {
-    BeamMixture b = beam;
-    b.max_range = max_range;
+  // The beam mixture is checked whichever model is used (a NaN given for it is refused, not kept
+  // unseen), its errors naming the options as the bindings do (beam_sigma_hit, not sigma_hit,
+  // which is the likelihood field's).
+  BeamMixture b = beam;
+  b.max_range = max_range;
+  try {
     b.validate();
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("beam_") + e.what());
   }
 }
 
@@ -85,7 +90,7 @@ double MonteCarloLocalization::kld_bound(int k, double epsilon, double z) {
   const double a = 2.0 / (9.0 * km1);
   const double c = 1.0 - a + std::sqrt(a) * z;
   const double bound = km1 / (2.0 * epsilon) * c * c * c;
-  require(std::isfinite(bound), "epsilon", "too small (or z too large): the particle bound overflows a double");
+  require(std::isfinite(bound), "epsilon", "is too small (or z too large): the particle bound overflows a double");
   return bound;
 }
 
@@ -207,12 +212,12 @@ void MonteCarloLocalization::initialize_pose(const Eigen::Vector3d& pose, const 
 void MonteCarloLocalization::predict_odometry(const Eigen::Vector3d& delta) {
   require_all_finite(delta, "delta");
   const double step = std::hypot(delta.x(), delta.y());
-  require(step <= kMaxOdometryTravel, "delta", "translation exceeds 1e6 m (kMaxOdometryTravel) between two updates");
+  require(step <= kMaxOdometryTravel, "delta", "moves more than 1e6 m (kMaxOdometryTravel) in one step");
   const double c = std::cos(pending_.z()), s = std::sin(pending_.z());
   const Eigen::Vector3d next(pending_.x() + c * delta.x() - s * delta.y(), pending_.y() + s * delta.x() + c * delta.y(),
                              wrap_angle(pending_.z() + delta.z()));
   require(std::hypot(next.x(), next.y()) <= kMaxOdometryTravel, "delta",
-          "the motion pending since the last update would exceed 1e6 m (kMaxOdometryTravel)");
+          "would bring the motion pending since the last update beyond 1e6 m (kMaxOdometryTravel)");
   pending_ = next;
   travel_d_ += step;
   travel_a_ += std::abs(wrap_angle(delta.z()));

@@ -592,7 +592,7 @@ TEST(MonteCarloLocalization, MotionsAndOptionsThatCannotBeRepresentedAreRefused)
   const State pending(mcl);
   expect_invalid([&] { mcl.predict_odometry({6e5, 0.0, 0.0}); }, "delta");  // the pending sum
   EXPECT_TRUE(State(mcl) == pending);
-  expect_invalid([] { (void)MonteCarloLocalization::kld_bound(2, 1e-300, 1.0); }, "epsilon");
+  expect_invalid([] { (void)MonteCarloLocalization::kld_bound(2, 1e-309, 1.0); }, "epsilon");
   for (double sigma : {1e-301, 2e300, kInf}) {
     MonteCarloLocalizationOptions bad = o;
     bad.sigma_hit = sigma;
