@@ -233,6 +233,8 @@ void define_localization(py::module_& m) {
       .def_property_readonly("pose", getter(&Mcl::pose),
                              "(3,) the weighted mean of the largest particle cluster, moved by pending odometry.")
       .def_property_readonly("covariance", getter(&Mcl::covariance), "(3, 3) that cluster's covariance.")
+      .def_property_readonly("cluster_weight", getter(&Mcl::cluster_weight),
+                             "That cluster's share of the weight (near 1 once the filter settled on one place).")
       .def_property_readonly("particles", getter(&Mcl::particles), "(M, 3) particle poses (m, m, rad).")
       .def_property_readonly("weights", getter(&Mcl::weights), "(M,) normalised weights.")
       .def_property_readonly("num_particles", getter(&Mcl::num_particles), "M, the number of particles.")

@@ -388,10 +388,11 @@ def _snapshot_times(scans) -> List[float]:
 
 def _convergence_report(result) -> str:
     """converged: when first, then the share of the time, and the spells it was lost."""
-    from .localization import CONVERGED_THETA_STD, CONVERGED_XY_STD
+    from .localization import CONVERGED_CLUSTER_WEIGHT, CONVERGED_THETA_STD, CONVERGED_XY_STD
 
     if result.convergence_time is None:
-        return (f"no (the largest cluster never came below {CONVERGED_XY_STD} m / {CONVERGED_THETA_STD} rad)")
+        return (f"no (the largest cluster never came below {CONVERGED_XY_STD} m / {CONVERGED_THETA_STD} rad "
+                f"holding {CONVERGED_CLUSTER_WEIGHT:.0%} of the weight)")
     text = (f"after {result.convergence_time:.1f} s of log, {result.travel_to_converge:.1f} m of travel; "
             f"then converged {100 * result.converged_fraction:.1f}% of the time")
     lost = result.lost
@@ -475,17 +476,21 @@ def _cmd_localize(args: argparse.Namespace) -> int:
 
 
 def _converged_track(result):
-    """The estimate where it is converged, NaN elsewhere and at jumps of more than TRACK_JUMP:
-    a plotted line then shows only the track the filter was sure of, without straight lines
-    across the map."""
+    """The estimate where it is converged, with a NaN row in each gap (scans not converged) and
+    at each jump of more than TRACK_JUMP: a plotted line then shows only the track the filter
+    was sure of, without straight lines across the map."""
     import numpy as np
 
-    xy = np.array(result.poses[:, :2], dtype=float)
-    keep = np.asarray(result.converged, dtype=bool).copy()
-    jump = np.hypot(*np.diff(xy, axis=0).T) > TRACK_JUMP
-    keep[1:] &= ~jump
-    xy[~keep] = np.nan
-    return xy
+    xy = np.asarray(result.poses, dtype=float)[:, :2]
+    keep = np.asarray(result.converged, dtype=bool)
+    step = np.concatenate([[0.0], np.hypot(*np.diff(xy, axis=0).T)])
+    joined = np.concatenate([[False], keep[:-1] & keep[1:]]) & (step <= TRACK_JUMP)
+    rows = []
+    for i in np.flatnonzero(keep):
+        if rows and not joined[i]:
+            rows.append((np.nan, np.nan))
+        rows.append(tuple(xy[i]))
+    return np.array(rows, dtype=float).reshape(-1, 2)
 
 
 def _localization_picture(grid, result, path: str, title: str) -> str:

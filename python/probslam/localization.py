@@ -27,6 +27,9 @@ PathLike = Union[str, "os.PathLike[str]"]
 # has not settled spans metres.
 CONVERGED_XY_STD = 0.5
 CONVERGED_THETA_STD = 0.25
+# ... and when that cluster holds most of the weight: a global cloud after one scan splits into
+# many small tight clusters, none of which is an answer while the others are about as likely.
+CONVERGED_CLUSTER_WEIGHT = 0.5
 
 
 @dataclass
@@ -35,7 +38,7 @@ class LocalizationResult:
 
     timestamps (S,) s; poses (S, 3) the estimate at every scan (the largest cluster's weighted
     mean, moved by odometry between updates); covariances (S, 3, 3); num_particles (S,);
-    converged (S,) bool (``CONVERGED_XY_STD`` / ``CONVERGED_THETA_STD``); updated (S,) bool (the
+    converged (S,) bool (``CONVERGED_XY_STD`` / ``CONVERGED_THETA_STD`` / ``CONVERGED_CLUSTER_WEIGHT``); updated (S,) bool (the
     filter updated at this scan); convergence_time: seconds of log from the first scan until the
     estimate first converged (None if it never did); travel_to_converge: metres of odometry
     travel until then; seconds of processing; log_duration s; snapshots: (timestamp, particles
@@ -85,11 +88,13 @@ class LocalizationResult:
         return self.log_duration / self.seconds if self.seconds > 0 else float("inf")
 
 
-def is_converged(covariance: np.ndarray) -> bool:
-    """Whether a cluster covariance (3, 3) is below ``CONVERGED_XY_STD`` / ``CONVERGED_THETA_STD``."""
+def is_converged(covariance: np.ndarray, cluster_weight: float = 1.0) -> bool:
+    """Whether a cluster covariance (3, 3) is below ``CONVERGED_XY_STD`` / ``CONVERGED_THETA_STD``
+    and the cluster holds at least ``CONVERGED_CLUSTER_WEIGHT`` of the weight."""
     cov = np.asarray(covariance, dtype=float)
     xy = float(np.linalg.eigvalsh(cov[:2, :2])[-1])
-    return bool(np.sqrt(max(xy, 0.0)) < CONVERGED_XY_STD and np.sqrt(max(cov[2, 2], 0.0)) < CONVERGED_THETA_STD)
+    return bool(np.sqrt(max(xy, 0.0)) < CONVERGED_XY_STD and np.sqrt(max(cov[2, 2], 0.0)) < CONVERGED_THETA_STD
+                and cluster_weight >= CONVERGED_CLUSTER_WEIGHT)
 
 
 def localize(log: Union[PathLike, CarmenLog, LaserScans], map: _core.OccupancyGrid2D, *,
@@ -132,6 +137,7 @@ def localize(log: Union[PathLike, CarmenLog, LaserScans], map: _core.OccupancyGr
     poses = np.empty((m, 3))
     covs = np.empty((m, 3, 3))
     counts = np.empty(m, dtype=np.int64)
+    shares = np.empty(m)
     updated = np.zeros(m, dtype=bool)
     snapshots: List[Tuple[float, np.ndarray]] = []
     pending = sorted(times.tolist())
@@ -147,6 +153,7 @@ def localize(log: Union[PathLike, CarmenLog, LaserScans], map: _core.OccupancyGr
             updated[i] = u.updated
             poses[i] = mcl.pose
             covs[i] = mcl.covariance
+            shares[i] = mcl.cluster_weight
             counts[i] = mcl.num_particles
             while pending and scans.timestamps[k] >= pending[0]:
                 pending.pop(0)
@@ -157,7 +164,7 @@ def localize(log: Union[PathLike, CarmenLog, LaserScans], map: _core.OccupancyGr
     seconds = time.perf_counter() - t0
     t = scans.timestamps[start:stop]
     duration = float(t[-1] - t[0]) if m > 1 else 0.0
-    conv = np.array([is_converged(c) for c in covs])
+    conv = np.array([is_converged(c, w) for c, w in zip(covs, shares)], dtype=bool)
     good = np.flatnonzero(conv)
     travelled = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(odom[start:stop, :2], axis=0).T))])
     conv_time = travel = None
@@ -170,4 +177,4 @@ def localize(log: Union[PathLike, CarmenLog, LaserScans], map: _core.OccupancyGr
                               snapshots=snapshots, options=opts, odometry_travel=float(travelled[-1]))
 
 
-__all__ = ["CONVERGED_THETA_STD", "CONVERGED_XY_STD", "LocalizationResult", "is_converged", "localize"]
+__all__ = ["CONVERGED_CLUSTER_WEIGHT", "CONVERGED_THETA_STD", "CONVERGED_XY_STD", "LocalizationResult", "is_converged", "localize"]

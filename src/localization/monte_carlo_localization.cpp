@@ -131,7 +131,7 @@ MonteCarloLocalization::MonteCarloLocalization(const MonteCarloLocalization& o)
       w_slow_(o.w_slow_), w_fast_(o.w_fast_), slow_raw_(o.slow_raw_), fast_raw_(o.fast_raw_),
       slow_mass_(o.slow_mass_), fast_mass_(o.fast_mass_), random_fraction_(o.random_fraction_), low_updates_(o.low_updates_),
       num_updates_(o.num_updates_),
-      estimate_(o.estimate_), covariance_(o.covariance_) {}
+      estimate_(o.estimate_), covariance_(o.covariance_), cluster_weight_(o.cluster_weight_) {}
 
 MonteCarloLocalization::~MonteCarloLocalization() = default;
 
@@ -339,12 +339,13 @@ struct MonteCarloLocalization::FilterState {
   int low_updates, num_updates;
   Eigen::Vector3d estimate;
   Eigen::Matrix3d covariance;
+  double cluster_weight;
 };
 
 MonteCarloLocalization::FilterState MonteCarloLocalization::save_filter_state() const {
   return {poses_,     log_weights_, rngs_,     filter_rng_, next_stream_,     pending_,   travel_d_,
           travel_a_,  w_slow_,      w_fast_,   slow_raw_,   fast_raw_,        slow_mass_, fast_mass_,
-          random_fraction_, low_updates_, num_updates_, estimate_, covariance_};
+          random_fraction_, low_updates_, num_updates_, estimate_, covariance_, cluster_weight_};
 }
 
 void MonteCarloLocalization::restore_filter_state(FilterState&& s) {
@@ -367,6 +368,7 @@ void MonteCarloLocalization::restore_filter_state(FilterState&& s) {
   num_updates_ = s.num_updates;
   estimate_ = s.estimate;
   covariance_ = s.covariance;
+  cluster_weight_ = s.cluster_weight;
 }
 
 MclUpdate MonteCarloLocalization::update(const Eigen::Ref<const Eigen::VectorXd>& ranges,
@@ -617,6 +619,9 @@ void MonteCarloLocalization::compute_estimate() {
     cov += w * d * d.transpose();
   }
   covariance_ = cov / sw;
+  double total = 0.0;
+  for (double w : cluster_weight) total += w;
+  cluster_weight_ = total > 0.0 ? sw / total : 0.0;
 }
 
 Eigen::Vector3d MonteCarloLocalization::pose() const {

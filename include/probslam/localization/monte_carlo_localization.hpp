@@ -139,6 +139,9 @@ class MonteCarloLocalization {
   /// by weight), moved by the odometry not yet applied; and that cluster's covariance.
   Eigen::Vector3d pose() const;
   Eigen::Matrix3d covariance() const { return covariance_; }
+  /// The share of the (normalised) weight in that cluster: near 1 when the filter has settled
+  /// on one place, small while other places are as likely (a tight cluster is then no answer).
+  double cluster_weight() const { return cluster_weight_; }
   int num_updates() const { return num_updates_; }
   /// Augmented MCL's long- and short-term averages of the per-beam likelihood (Table 8.3).
   double w_slow() const { return w_slow_; }
@@ -206,6 +209,7 @@ class MonteCarloLocalization {
   int num_updates_ = 0;
   Eigen::Vector3d estimate_ = Eigen::Vector3d::Zero();
   Eigen::Matrix3d covariance_ = Eigen::Matrix3d::Zero();
+  double cluster_weight_ = 0.0;  // derived from the particles by compute_estimate()
   std::unique_ptr<WorkerPool> pool_;  // threads > 1: started on the first update
   ObjectMutex mutex_;
 };
