@@ -404,6 +404,23 @@ def _convergence_report(result) -> str:
     return text
 
 
+def _check_map_holds_scans(grid, scans, path: str) -> None:
+    """A map smaller than the log's median laser reading cannot hold a scan: a YAML whose
+    resolution is off by orders (1e-6 for 0.05) would otherwise localize the robot in a speck."""
+    import numpy as np
+
+    r = scans.ranges
+    r = r[np.isfinite(r) & (r > 0)]
+    if not r.size:
+        return
+    median = float(np.median(r))
+    width, height = grid.width * grid.resolution, grid.height * grid.resolution
+    if math.hypot(width, height) < median:
+        raise UserError(f"--map: {os.path.basename(path)} is {width:.3g} x {height:.3g} m ({grid.width} x "
+                        f"{grid.height} cells of {grid.resolution:g} m), smaller than the log's median laser reading "
+                        f"({median:.2f} m): check its resolution")
+
+
 def _cmd_localize(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -437,6 +454,7 @@ def _cmd_localize(args: argparse.Namespace) -> int:
     with _reading(args.map, "a map_server map (YAML with its image)"):
         grid = io.load_ros_map(args.map)
     log = _read_log(args.log, args)
+    _check_map_holds_scans(grid, log.scans, args.map)
     options = dict(min_particles=args.min_particles, max_particles=args.max_particles, seed=args.seed,
                    threads=args.threads, sensor_model=args.sensor_model)
     if args.max_range is not None:

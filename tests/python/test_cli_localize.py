@@ -138,3 +138,38 @@ def test_convergence_is_reported_from_its_first_time_with_the_spells_lost():
     r.converged[8:] = False
     assert r.lost == [(14.0, None)] and "not regained" in cli._convergence_report(r)
 
+
+
+def test_a_map_at_micrometre_cells_is_a_user_error(tmp_path, capsys):
+    """A map YAML at resolution 1e-6 asked the likelihood field for terabytes (exit 1, 'a bug');
+    the field is now bounded by the map, and the command says the map cannot hold a scan."""
+    import shutil
+
+    from probslam import data
+
+    shutil.copy(data.path("intel_raw_loop_map.pgm"), tmp_path / "intel_raw_loop_map.pgm")
+    text = open(data.path("intel_raw_loop_map.yaml")).read().splitlines()
+    text = ["resolution: 0.000001" if line.startswith("resolution:") else line for line in text]
+    (tmp_path / "tiny.yaml").write_text("\n".join(text) + "\n")
+    log = cli._bundled_log(cli.BUNDLED_RAW_LOG)
+    code = cli.main(["localize", log, "--map", str(tmp_path / "tiny.yaml"), "--global", "--no-progress", "--no-plot",
+                     "-o", str(tmp_path / "t")])
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert err.count("\n") == 1 and "tiny.yaml is 0.000296 x 0.000286 m" in err and "check its resolution" in err
+
+
+def test_threads_that_cannot_start_are_a_user_error(tmp_path, capsys):
+    """`localize --threads N` when the system refuses the threads: one line naming --threads,
+    exit 2 (was RuntimeError, exit 1 'a bug')."""
+    from probslam import _core
+
+    _core._fail_worker_thread_start_after(0)
+    try:
+        code = cli.main(["localize", "--threads", "4", "--no-progress", "--no-plot", "-o", str(tmp_path / "x")])
+    finally:
+        _core._fail_worker_thread_start_after(-1)
+    err = capsys.readouterr().err
+    assert code == 2, err
+    assert err.startswith("probslam: error: --threads 4: the system refused to start 4 worker threads")
+    assert err.count("\n") == 1
