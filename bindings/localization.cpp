@@ -229,7 +229,8 @@ void define_localization(py::module_& m) {
         return Mcl::kld_bound(kk, e, zz);
       }, py::arg("k"), py::arg("epsilon"), py::arg("z"),
          "Fox 2003: particles needed for k occupied bins, (k - 1) / (2 epsilon) (1 - 2 / (9 (k - 1)) +\n"
-         "sqrt(2 / (9 (k - 1))) z)^3 (0 for k <= 1), before the min / max bounds.")
+         "sqrt(2 / (9 (k - 1))) z)^3 (0 for k <= 1), before the min / max bounds. ValueError naming epsilon\n"
+         "when it overflows a double.")
       .def_property_readonly("pose", getter(&Mcl::pose),
                              "(3,) the weighted mean of the largest particle cluster, moved by pending odometry.")
       .def_property_readonly("covariance", getter(&Mcl::covariance), "(3, 3) that cluster's covariance.")
