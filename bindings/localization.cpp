@@ -10,6 +10,7 @@
 #include <utility>
 
 #include "args.hpp"
+#include "interrupt.hpp"
 #include "numpy.hpp"
 #include "object_lock.hpp"
 #include "persistence.hpp"
@@ -208,11 +209,12 @@ void define_localization(py::module_& m) {
         const DoubleArray r = vector_arg(ranges, "ranges");
         const DoubleArray a = vector_arg(angles, "angles");
         const bool f = force.get("force");
-        return locked(self, [&] { return self.update(as_vector(r), as_vector(a), f); });
+        const auto interrupt = python_interrupt();
+        return locked(self, [&] { return self.update(as_vector(r), as_vector(a), f, interrupt); });
       }, py::arg("ranges"), py::arg("angles"), py::kw_only(), py::arg_v("force", false),
          "One scan: ranges (B,) m (finite, >= 0), angles (B,) rad relative to the sensor heading. Updates\n"
          "after update_min_d / update_min_a of travel (or on the first scan, or with force=True).\n"
-         "Returns an MclUpdate.")
+         "Returns an MclUpdate. Ctrl-C stops a long update with the filter unchanged.")
       .def("measurement_log_likelihood", [](const Mcl& self, py::handle pose, py::handle ranges, py::handle angles) {
         const Eigen::Vector3d p = pose_arg(pose, "pose");
         const DoubleArray r = vector_arg(ranges, "ranges");
@@ -228,10 +230,13 @@ void define_localization(py::module_& m) {
         return Mcl::kld_bound(kk, e, zz);
       }, py::arg("k"), py::arg("epsilon"), py::arg("z"),
          "Fox 2003: particles needed for k occupied bins, (k - 1) / (2 epsilon) (1 - 2 / (9 (k - 1)) +\n"
-         "sqrt(2 / (9 (k - 1))) z)^3 (0 for k <= 1), before the min / max bounds.")
+         "sqrt(2 / (9 (k - 1))) z)^3 (0 for k <= 1), before the min / max bounds. ValueError naming epsilon\n"
+         "when it overflows a double.")
       .def_property_readonly("pose", getter(&Mcl::pose),
                              "(3,) the weighted mean of the largest particle cluster, moved by pending odometry.")
       .def_property_readonly("covariance", getter(&Mcl::covariance), "(3, 3) that cluster's covariance.")
+      .def_property_readonly("cluster_weight", getter(&Mcl::cluster_weight),
+                             "That cluster's share of the weight (near 1 once the filter settled on one place).")
       .def_property_readonly("particles", getter(&Mcl::particles), "(M, 3) particle poses (m, m, rad).")
       .def_property_readonly("weights", getter(&Mcl::weights), "(M,) normalised weights.")
       .def_property_readonly("num_particles", getter(&Mcl::num_particles), "M, the number of particles.")

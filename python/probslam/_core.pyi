@@ -900,6 +900,7 @@ class MonteCarloLocalization:
     are identical for any thread count. A failed call changes nothing."""
     pose: Array  # (3,) weighted mean of the largest cluster, moved by pending odometry
     covariance: Array  # (3, 3) that cluster's covariance
+    cluster_weight: float  # that cluster's share of the weight
     particles: Array  # (M, 3)
     weights: Array  # (M,) normalised
     num_particles: int

@@ -465,15 +465,77 @@ def _cmd_slam(args: argparse.Namespace) -> int:
     return 0
 
 
+#: Where ``localize`` records the particle cloud: at these shares of the log's odometry travel
+#: (the start, early while a global cloud settles, and the end), so that a robot standing still
+#: does not give pictures of the same cloud.
+SNAPSHOT_TRAVEL = (0.0, 0.02, 0.1, 1.0)
+#: The drawn estimate is broken where it jumps further than this between two scans (a relocation
+#: by augmented MCL, or a cluster that took over): a straight line there would cross the map. The
+#: robot moves a few decimetres between two scans of any laser log.
+TRACK_JUMP = 1.0
+
+
+def _snapshot_times(scans) -> List[float]:
+    """The log times of SNAPSHOT_TRAVEL: the first scan at or after each share of the travel."""
+    import numpy as np
+
+    t = scans.timestamps
+    if not len(t):
+        return []
+    xy = scans.laser_poses[:, :2]
+    travelled = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
+    index = [int(np.searchsorted(travelled, f * travelled[-1])) for f in SNAPSHOT_TRAVEL]
+    return [float(t[i]) for i in sorted(set(min(i, len(t) - 1) for i in index))]
+
+
+def _convergence_report(result) -> str:
+    """converged: when first, then the share of the time, and the spells it was lost."""
+    from .localization import CONVERGED_CLUSTER_WEIGHT, CONVERGED_THETA_STD, CONVERGED_XY_STD
+
+    if result.convergence_time is None:
+        return (f"no (the largest cluster never came below {CONVERGED_XY_STD} m / {CONVERGED_THETA_STD} rad "
+                f"holding {CONVERGED_CLUSTER_WEIGHT:.0%} of the weight)")
+    text = (f"after {result.convergence_time:.1f} s of log, {result.travel_to_converge:.1f} m of travel; "
+            f"then converged {100 * result.converged_fraction:.1f}% of the time")
+    lost = result.lost
+    if lost:
+        spells = "; ".join(f"lost at {a:.1f} s, " + ("regained at {:.1f} s".format(b) if b is not None else
+                                                     "not regained") for a, b in lost[:3])
+        more = f"; {len(lost) - 3} more" if len(lost) > 3 else ""
+        text += f" ({spells}{more})"
+    return text
+
+
+def _check_map_holds_scans(grid, scans, path: str) -> None:
+    """A map smaller than the log's median laser reading cannot hold a scan: a YAML whose
+    resolution is off by orders (1e-6 for 0.05) would otherwise localize the robot in a speck."""
+    import numpy as np
+
+    r = scans.ranges
+    r = r[np.isfinite(r) & (r > 0)]
+    if not r.size:
+        return
+    median = float(np.median(r))
+    width, height = grid.width * grid.resolution, grid.height * grid.resolution
+    if math.hypot(width, height) < median:
+        raise UserError(f"--map: {os.path.basename(path)} is {width:.3g} x {height:.3g} m ({grid.width} x "
+                        f"{grid.height} cells of {grid.resolution:g} m), smaller than the log's median laser reading "
+                        f"({median:.2f} m): check its resolution")
+
+
 def _cmd_localize(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from .localization import CONVERGED_THETA_STD, CONVERGED_XY_STD, localize
+    from .localization import localize
 
     if args.initial_pose is not None and args.global_:
         raise UserError("--initial-pose and --global exclude each other")
+    bundled = args.log is None and args.map is None
     if args.initial_pose is None and not args.global_:
-        raise UserError("say where the robot starts: --initial-pose X Y THETA, or --global (anywhere in free space)")
+        if not bundled:
+            raise UserError("say where the robot starts: --initial-pose X Y THETA, or --global (anywhere in free "
+                            "space)")
+        args.global_ = True  # the bundled demo: global localization, what MCL can do that a tracker cannot
     if args.initial_pose is not None and not all(math.isfinite(v) for v in args.initial_pose):
         raise UserError("--initial-pose: X Y THETA must be finite numbers")
     _require_count(args.min_particles, "--min-particles", 1, 1 << 20)
@@ -482,8 +544,10 @@ def _cmd_localize(args: argparse.Namespace) -> int:
     if not 0 <= args.seed <= MAX_SEED:
         raise UserError(f"--seed must lie in [0, {MAX_SEED}]")
     _check_output(args.output)
-    if args.log is None and args.map is None:
+    if bundled:
         args.log, args.map = _data_path(BUNDLED_RAW_LOG), _data_path(BUNDLED_LOCALIZATION_MAP)
+        print("probslam localize: no LOG given: the bundled raw Intel loop in its bundled map, from a global start "
+              "(particles anywhere in free space); give LOG --map MAP.yaml for your own", flush=True)
     elif args.map is None:
         raise UserError("--map: give the map to localize in (a map_server YAML, e.g. probslam slam's PREFIX.yaml)")
     elif args.log is None:
@@ -492,16 +556,19 @@ def _cmd_localize(args: argparse.Namespace) -> int:
     with _reading(args.map, "a map_server map (YAML with its image)"):
         grid = io.load_ros_map(args.map)
     log = _read_log(args.log, args)
+    _check_map_holds_scans(grid, log.scans, args.map)
     options = dict(min_particles=args.min_particles, max_particles=args.max_particles, seed=args.seed,
                    threads=args.threads, sensor_model=args.sensor_model)
     if args.max_range is not None:
         _require_length(args.max_range, "--max-range")
         options["max_range"] = args.max_range
-    scans = log.scans
-    t = scans.timestamps
-    snaps = [float(t[0] + f * (t[-1] - t[0])) for f in (0.0, 0.02, 0.1, 1.0)] if len(t) else []
-    result = localize(log, grid, initial_pose=args.initial_pose, snapshot_times=snaps, progress=_progress(args),
-                      **options)
+    try:
+        result = localize(log, grid, initial_pose=args.initial_pose, snapshot_times=_snapshot_times(log.scans),
+                          progress=_progress(args), **options)
+    except ValueError as exc:
+        if str(exc).startswith("threads:"):  # the library names its keyword; the user gave the flag
+            raise UserError(f"--threads {args.threads}: {_one_line(exc)[len('threads: '):]}") from None
+        raise
     written: List[str] = []
     _write_trajectory(args, result.timestamps, result.poses, written)
     if args.plot:
@@ -516,29 +583,49 @@ def _cmd_localize(args: argparse.Namespace) -> int:
     print(f"map:           {args.map}: {grid.width} x {grid.height} cells at {grid.resolution} m")
     print(f"start:         {start}")
     print(f"scans:         {len(result.timestamps)}; {int(result.updated.sum())} filter updates")
+    if result.odometry_travel == 0.0 and len(result.timestamps) > 1:
+        print("odometry:      none: the log's poses never move, and the filter updates only after travel "
+              f"({result.options.get('update_min_d', 0.2)} m or 30 degrees), so nothing moved it after the first "
+              "scan; localize a log with odometry")
     print(f"particles:     {int(n.min())} to {int(n.max())} (median {int(np.median(n))}, last {int(n[-1])})")
-    if result.convergence_time is None:
-        print("converged:     no (the largest cluster never stayed below "
-              f"{CONVERGED_XY_STD} m / {CONVERGED_THETA_STD} rad)")
-    else:
-        print(f"converged:     after {result.convergence_time:.1f} s of log, {result.travel_to_converge:.1f} m of travel")
+    print(f"converged:     {_convergence_report(result)}")
     print(f"time:          {result.seconds:.1f} s for {result.log_duration:.0f} s of log "
           f"(real-time factor {result.real_time_factor:.0f})")
     print(f"wrote:         {', '.join(written)}")
     return 0 if result.convergence_time is not None else EXIT_NOT_CONVERGED
 
 
+def _converged_track(result):
+    """The estimate where it is converged, with a NaN row in each gap (scans not converged) and
+    at each jump of more than TRACK_JUMP: a plotted line then shows only the track the filter
+    was sure of, without straight lines across the map."""
+    import numpy as np
+
+    xy = np.asarray(result.poses, dtype=float)[:, :2]
+    keep = np.asarray(result.converged, dtype=bool)
+    step = np.concatenate([[0.0], np.hypot(*np.diff(xy, axis=0).T)])
+    joined = np.concatenate([[False], keep[:-1] & keep[1:]]) & (step <= TRACK_JUMP)
+    rows = []
+    for i in np.flatnonzero(keep):
+        if rows and not joined[i]:
+            rows.append((np.nan, np.nan))
+        rows.append(tuple(xy[i]))
+    return np.array(rows, dtype=float).reshape(-1, 2)
+
+
 def _localization_picture(grid, result, path: str, title: str) -> str:
-    """PATH.png: the map, the estimated path and the particle clouds recorded (plot.occupancy_map)
-    beside the particle count over time; without matplotlib the plain picture of io.write_png."""
+    """PATH.png: the map, the converged estimate and the particle clouds recorded
+    (plot.occupancy_map) beside the particle count over time; without matplotlib the plain
+    picture of io.write_png."""
     plt = _pyplot()
+    track = _converged_track(result)
     if plt is None:
-        io.write_png(grid, path, trajectory=result.poses)
+        io.write_png(grid, path, trajectory=track)  # it leaves out the NaN rows
         return path
     from .plot import occupancy_map
 
     fig, (ax, bx) = plt.subplots(1, 2, figsize=(14, 6.5), gridspec_kw=dict(width_ratios=(2, 1)))
-    occupancy_map(ax, grid, result.poses, trajectory_label="MCL estimate")
+    occupancy_map(ax, grid, track, trajectory_label="MCL estimate (where converged)")
     colours = ("tab:blue", "tab:orange", "tab:green", "tab:purple")
     t0 = result.timestamps[0]
     for (t, particles), colour in zip(result.snapshots, colours):
@@ -551,7 +638,7 @@ def _localization_picture(grid, result, path: str, title: str) -> str:
     bx.set_xlabel("log time [s]")
     bx.set_ylabel("particles (KLD sampling)")
     if result.convergence_time is not None:
-        bx.axvline(result.convergence_time, color="tab:red", lw=0.8, label="converged")
+        bx.axvline(result.convergence_time, color="tab:red", lw=0.8, label="first converged")
         bx.legend(fontsize="small")
     return _save_figure(plt, fig, path)
 

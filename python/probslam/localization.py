@@ -27,6 +27,9 @@ PathLike = Union[str, "os.PathLike[str]"]
 # has not settled spans metres.
 CONVERGED_XY_STD = 0.5
 CONVERGED_THETA_STD = 0.25
+# ... and when that cluster holds most of the weight: a global cloud after one scan splits into
+# many small tight clusters, none of which is an answer while the others are about as likely.
+CONVERGED_CLUSTER_WEIGHT = 0.5
 
 
 @dataclass
@@ -35,11 +38,13 @@ class LocalizationResult:
 
     timestamps (S,) s; poses (S, 3) the estimate at every scan (the largest cluster's weighted
     mean, moved by odometry between updates); covariances (S, 3, 3); num_particles (S,);
-    converged (S,) bool (``CONVERGED_XY_STD`` / ``CONVERGED_THETA_STD``); updated (S,) bool (the
+    converged (S,) bool (``CONVERGED_XY_STD`` / ``CONVERGED_THETA_STD`` / ``CONVERGED_CLUSTER_WEIGHT``); updated (S,) bool (the
     filter updated at this scan); convergence_time: seconds of log from the first scan until the
-    estimate converged for good (None if it never did); travel_to_converge: metres of odometry
+    estimate first converged (None if it never did); travel_to_converge: metres of odometry
     travel until then; seconds of processing; log_duration s; snapshots: (timestamp, particles
-    (M, 3)) at the requested times; options the filter's keywords.
+    (M, 3)) at the requested times; options the filter's keywords; odometry_travel: metres of
+    odometry over the scans (0: nothing moves the filter after its first update).
+    ``converged_fraction`` and ``lost`` tell how it went after the first convergence.
     """
 
     timestamps: np.ndarray
@@ -54,6 +59,28 @@ class LocalizationResult:
     log_duration: float
     snapshots: List[Tuple[float, np.ndarray]] = field(default_factory=list)
     options: Dict[str, Any] = field(default_factory=dict)
+    odometry_travel: float = 0.0
+
+    @property
+    def converged_fraction(self) -> Optional[float]:
+        """Share of the scans from the first convergence on at which the estimate was converged
+        (None if it never converged)."""
+        first = np.flatnonzero(self.converged)
+        return None if first.size == 0 else float(np.mean(self.converged[first[0]:]))
+
+    @property
+    def lost(self) -> List[Tuple[float, Optional[float]]]:
+        """The spells without convergence after the first: (log time it was lost, log time it
+        converged again or None), seconds from the first scan."""
+        c = np.asarray(self.converged, dtype=bool)
+        first = np.flatnonzero(c)
+        if first.size == 0:
+            return []
+        t = self.timestamps - self.timestamps[0]
+        change = np.flatnonzero(np.diff(c[first[0]:].astype(np.int8))) + first[0] + 1
+        starts = [int(i) for i in change if not c[i]]
+        ends = [int(i) for i in change if c[i]]
+        return [(float(t[a]), next((float(t[b]) for b in ends if b > a), None)) for a in starts]
 
     @property
     def real_time_factor(self) -> float:
@@ -61,11 +88,13 @@ class LocalizationResult:
         return self.log_duration / self.seconds if self.seconds > 0 else float("inf")
 
 
-def is_converged(covariance: np.ndarray) -> bool:
-    """Whether a cluster covariance (3, 3) is below ``CONVERGED_XY_STD`` / ``CONVERGED_THETA_STD``."""
+def is_converged(covariance: np.ndarray, cluster_weight: float = 1.0) -> bool:
+    """Whether a cluster covariance (3, 3) is below ``CONVERGED_XY_STD`` / ``CONVERGED_THETA_STD``
+    and the cluster holds at least ``CONVERGED_CLUSTER_WEIGHT`` of the weight."""
     cov = np.asarray(covariance, dtype=float)
     xy = float(np.linalg.eigvalsh(cov[:2, :2])[-1])
-    return bool(np.sqrt(max(xy, 0.0)) < CONVERGED_XY_STD and np.sqrt(max(cov[2, 2], 0.0)) < CONVERGED_THETA_STD)
+    return bool(np.sqrt(max(xy, 0.0)) < CONVERGED_XY_STD and np.sqrt(max(cov[2, 2], 0.0)) < CONVERGED_THETA_STD
+                and cluster_weight >= CONVERGED_CLUSTER_WEIGHT)
 
 
 def localize(log: Union[PathLike, CarmenLog, LaserScans], map: _core.OccupancyGrid2D, *,
@@ -108,6 +137,7 @@ def localize(log: Union[PathLike, CarmenLog, LaserScans], map: _core.OccupancyGr
     poses = np.empty((m, 3))
     covs = np.empty((m, 3, 3))
     counts = np.empty(m, dtype=np.int64)
+    shares = np.empty(m)
     updated = np.zeros(m, dtype=bool)
     snapshots: List[Tuple[float, np.ndarray]] = []
     pending = sorted(times.tolist())
@@ -123,6 +153,7 @@ def localize(log: Union[PathLike, CarmenLog, LaserScans], map: _core.OccupancyGr
             updated[i] = u.updated
             poses[i] = mcl.pose
             covs[i] = mcl.covariance
+            shares[i] = mcl.cluster_weight
             counts[i] = mcl.num_particles
             while pending and scans.timestamps[k] >= pending[0]:
                 pending.pop(0)
@@ -133,18 +164,17 @@ def localize(log: Union[PathLike, CarmenLog, LaserScans], map: _core.OccupancyGr
     seconds = time.perf_counter() - t0
     t = scans.timestamps[start:stop]
     duration = float(t[-1] - t[0]) if m > 1 else 0.0
-    conv = np.array([is_converged(c) for c in covs])
-    never = np.flatnonzero(~conv)
-    first_good = 0 if never.size == 0 else int(never[-1]) + 1
+    conv = np.array([is_converged(c, w) for c, w in zip(covs, shares)], dtype=bool)
+    good = np.flatnonzero(conv)
+    travelled = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(odom[start:stop, :2], axis=0).T))])
     conv_time = travel = None
-    if first_good < m:
-        conv_time = float(t[first_good] - t[0])
-        steps = np.diff(odom[start:start + first_good + 1, :2], axis=0)
-        travel = float(np.sum(np.hypot(steps[:, 0], steps[:, 1])))
+    if good.size:
+        conv_time = float(t[good[0]] - t[0])
+        travel = float(travelled[good[0]])
     return LocalizationResult(timestamps=np.array(t, dtype=float), poses=poses, covariances=covs, num_particles=counts,
                               converged=conv, updated=updated, convergence_time=conv_time,
                               travel_to_converge=travel, seconds=seconds, log_duration=duration,
-                              snapshots=snapshots, options=opts)
+                              snapshots=snapshots, options=opts, odometry_travel=float(travelled[-1]))
 
 
-__all__ = ["CONVERGED_THETA_STD", "CONVERGED_XY_STD", "LocalizationResult", "is_converged", "localize"]
+__all__ = ["CONVERGED_CLUSTER_WEIGHT", "CONVERGED_THETA_STD", "CONVERGED_XY_STD", "LocalizationResult", "is_converged", "localize"]

@@ -4,6 +4,8 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <string>
+#include <system_error>
 #include <unordered_map>
 #include <utility>
 
@@ -25,6 +27,13 @@ constexpr double kBlockedLogPenalty = -50.0;
 constexpr double kMinBeamLogProbability = -50.0;
 // Particles per worker below which splitting over threads costs more than it saves.
 constexpr int kMinParticlesPerWorker = 256;
+// The same in elementary steps (look-ups of the default 60 likelihood-field beams): a worker
+// gets at least this much work, so that particles of an expensive scan (beam model: a ray
+// walk a beam) still spread over the threads.
+constexpr double kMinWorkPerWorker = kMinParticlesPerWorker * 60.0;
+// Elementary steps (a table look-up, a ray cell) between two interrupt checks: a few
+// milliseconds of work, so that Ctrl-C stops a long update at once.
+constexpr double kWorkPerCheck = 1 << 20;
 
 }  // namespace
 
@@ -34,7 +43,8 @@ void MonteCarloLocalizationOptions::validate() const {
           "occupied_threshold", "must lie in (0, 1)");
   require(std::isfinite(free_threshold) && free_threshold > 0.0 && free_threshold <= occupied_threshold,
           "free_threshold", "must lie in (0, occupied_threshold]");
-  require_positive(sigma_hit, "sigma_hit");
+  require(sigma_hit >= LikelihoodFieldOptions::kMinSigma && sigma_hit <= LikelihoodFieldOptions::kMaxSigma, "sigma_hit",
+          "must lie in [1e-300, 1e300] (LikelihoodFieldOptions::kMinSigma, kMaxSigma)");
   require_probability(p_rand, "p_rand");
   require_positive(max_range, "max_range");
   require(std::isfinite(min_range) && min_range >= 0.0 && min_range < max_range, "min_range",
@@ -62,10 +72,15 @@ void MonteCarloLocalizationOptions::validate() const {
   require(std::isfinite(update_min_d) && update_min_d >= 0.0, "update_min_d", "must be finite and >= 0");
   require(std::isfinite(update_min_a) && update_min_a >= 0.0, "update_min_a", "must be finite and >= 0");
   require(threads >= 1 && threads <= 1024, "threads", "must lie in [1, 1024]");
-  if (sensor_model == MclSensorModel::kBeam) {
-    BeamMixture b = beam;
-    b.max_range = max_range;
+  // The beam mixture is checked whichever model is used (a NaN given for it is refused, not kept
+  // unseen), its errors naming the options as the bindings do (beam_sigma_hit, not sigma_hit,
+  // which is the likelihood field's).
+  BeamMixture b = beam;
+  b.max_range = max_range;
+  try {
     b.validate();
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("beam_") + e.what());
   }
 }
 
@@ -74,7 +89,9 @@ double MonteCarloLocalization::kld_bound(int k, double epsilon, double z) {
   const double km1 = static_cast<double>(k - 1);
   const double a = 2.0 / (9.0 * km1);
   const double c = 1.0 - a + std::sqrt(a) * z;
-  return km1 / (2.0 * epsilon) * c * c * c;
+  const double bound = km1 / (2.0 * epsilon) * c * c * c;
+  require(std::isfinite(bound), "epsilon", "is too small (or z too large): the particle bound overflows a double");
+  return bound;
 }
 
 MonteCarloLocalization::MonteCarloLocalization(const OccupancyGrid2D& map, const MonteCarloLocalizationOptions& options)
@@ -114,7 +131,7 @@ MonteCarloLocalization::MonteCarloLocalization(const MonteCarloLocalization& o)
       w_slow_(o.w_slow_), w_fast_(o.w_fast_), slow_raw_(o.slow_raw_), fast_raw_(o.fast_raw_),
       slow_mass_(o.slow_mass_), fast_mass_(o.fast_mass_), random_fraction_(o.random_fraction_), low_updates_(o.low_updates_),
       num_updates_(o.num_updates_),
-      estimate_(o.estimate_), covariance_(o.covariance_) {}
+      estimate_(o.estimate_), covariance_(o.covariance_), cluster_weight_(o.cluster_weight_) {}
 
 MonteCarloLocalization::~MonteCarloLocalization() = default;
 
@@ -194,10 +211,15 @@ void MonteCarloLocalization::initialize_pose(const Eigen::Vector3d& pose, const 
 
 void MonteCarloLocalization::predict_odometry(const Eigen::Vector3d& delta) {
   require_all_finite(delta, "delta");
+  const double step = std::hypot(delta.x(), delta.y());
+  require(step <= kMaxOdometryTravel, "delta", "moves more than 1e6 m (kMaxOdometryTravel) in one step");
   const double c = std::cos(pending_.z()), s = std::sin(pending_.z());
-  pending_ = Eigen::Vector3d(pending_.x() + c * delta.x() - s * delta.y(), pending_.y() + s * delta.x() + c * delta.y(),
+  const Eigen::Vector3d next(pending_.x() + c * delta.x() - s * delta.y(), pending_.y() + s * delta.x() + c * delta.y(),
                              wrap_angle(pending_.z() + delta.z()));
-  travel_d_ += std::hypot(delta.x(), delta.y());
+  require(std::hypot(next.x(), next.y()) <= kMaxOdometryTravel, "delta",
+          "would bring the motion pending since the last update beyond 1e6 m (kMaxOdometryTravel)");
+  pending_ = next;
+  travel_d_ += step;
   travel_a_ += std::abs(wrap_angle(delta.z()));
 }
 
@@ -259,20 +281,23 @@ double MonteCarloLocalization::measurement_log_likelihood(const Eigen::Vector3d&
   return scan_log_likelihood(pose, ranges, angles, used_beams(ranges));
 }
 
-template <class F>
-void MonteCarloLocalization::for_particles(F&& f) {
-  for_range(num_particles(), std::forward<F>(f));
+void MonteCarloLocalization::start_pool() {
+  try {
+    pool_ = std::make_unique<WorkerPool>(static_cast<std::size_t>(options_.threads));
+  } catch (const std::system_error& e) {
+    throw std::invalid_argument("threads: the system refused to start " + std::to_string(options_.threads) +
+                                " worker threads (" + e.what() + "); use fewer");
+  }
 }
 
 template <class F>
-void MonteCarloLocalization::for_range(int m, F&& f) {
-  const int workers = std::min(options_.threads, std::max(1, m / kMinParticlesPerWorker));
+void MonteCarloLocalization::for_range(int m, F&& f, int min_per_worker) {
+  const int workers = std::min(options_.threads, std::max(1, m / min_per_worker));
   if (workers <= 1) {
     for (int j = 0; j < m; ++j) f(j);
     return;
   }
-  if (!pool_ || static_cast<int>(pool_->size()) < options_.threads)
-    pool_ = std::make_unique<WorkerPool>(static_cast<std::size_t>(options_.threads));
+  if (!pool_ || static_cast<int>(pool_->size()) < options_.threads) start_pool();
   const int n = static_cast<int>(pool_->size());
   pool_->run([&](std::size_t w) {
     const int begin = static_cast<int>(static_cast<long long>(m) * static_cast<long long>(w) / n);
@@ -281,8 +306,74 @@ void MonteCarloLocalization::for_range(int m, F&& f) {
   });
 }
 
+template <class F>
+void MonteCarloLocalization::for_range_checked(int m, double cost, const std::function<void()>& interrupt, F&& f) {
+  const double steps = std::max(cost, 1.0);
+  const int per_worker =
+      static_cast<int>(std::clamp(kMinWorkPerWorker / steps, 1.0, static_cast<double>(kMinParticlesPerWorker)));
+  const int chunk = std::max(per_worker * options_.threads,
+                             static_cast<int>(std::clamp(kWorkPerCheck / steps, 1.0, static_cast<double>(kMaxParticles))));
+  for (int begin = 0; begin < m; begin += chunk) {
+    if (interrupt) interrupt();
+    const int count = std::min(chunk, m - begin);
+    for_range(count, [&](int i) { f(begin + i); }, per_worker);
+  }
+}
+
+double MonteCarloLocalization::scan_cost(std::size_t beams) const {
+  const double n = static_cast<double>(std::max<std::size_t>(beams, 1));
+  if (field_) return n;
+  // A beam's ray walks at most max_range or the map's width plus height in cells.
+  const double reach = std::min(options_.max_range / map_.resolution(), static_cast<double>(map_.width() + map_.height()));
+  return n * std::max(reach, 1.0);
+}
+
+struct MonteCarloLocalization::FilterState {
+  std::vector<Eigen::Vector3d> poses;
+  std::vector<double> log_weights;
+  std::vector<ParticleRng> rngs;
+  ParticleRng filter_rng;
+  std::uint64_t next_stream;
+  Eigen::Vector3d pending;
+  double travel_d, travel_a, w_slow, w_fast, slow_raw, fast_raw, slow_mass, fast_mass, random_fraction;
+  int low_updates, num_updates;
+  Eigen::Vector3d estimate;
+  Eigen::Matrix3d covariance;
+  double cluster_weight;
+};
+
+MonteCarloLocalization::FilterState MonteCarloLocalization::save_filter_state() const {
+  return {poses_,     log_weights_, rngs_,     filter_rng_, next_stream_,     pending_,   travel_d_,
+          travel_a_,  w_slow_,      w_fast_,   slow_raw_,   fast_raw_,        slow_mass_, fast_mass_,
+          random_fraction_, low_updates_, num_updates_, estimate_, covariance_, cluster_weight_};
+}
+
+void MonteCarloLocalization::restore_filter_state(FilterState&& s) {
+  poses_ = std::move(s.poses);
+  log_weights_ = std::move(s.log_weights);
+  rngs_ = std::move(s.rngs);
+  filter_rng_ = s.filter_rng;
+  next_stream_ = s.next_stream;
+  pending_ = s.pending;
+  travel_d_ = s.travel_d;
+  travel_a_ = s.travel_a;
+  w_slow_ = s.w_slow;
+  w_fast_ = s.w_fast;
+  slow_raw_ = s.slow_raw;
+  fast_raw_ = s.fast_raw;
+  slow_mass_ = s.slow_mass;
+  fast_mass_ = s.fast_mass;
+  random_fraction_ = s.random_fraction;
+  low_updates_ = s.low_updates;
+  num_updates_ = s.num_updates;
+  estimate_ = s.estimate;
+  covariance_ = s.covariance;
+  cluster_weight_ = s.cluster_weight;
+}
+
 MclUpdate MonteCarloLocalization::update(const Eigen::Ref<const Eigen::VectorXd>& ranges,
-                                         const Eigen::Ref<const Eigen::VectorXd>& angles, bool force) {
+                                         const Eigen::Ref<const Eigen::VectorXd>& angles, bool force,
+                                         const std::function<void()>& interrupt) {
   check_scan(ranges, angles);
   MclUpdate out;
   out.num_particles = num_particles();
@@ -291,12 +382,26 @@ MclUpdate MonteCarloLocalization::update(const Eigen::Ref<const Eigen::VectorXd>
   if (!due) return out;
   if (options_.threads > 1 && !pool_ &&
       std::max(num_particles(), options_.recovery_candidates) >= 2 * kMinParticlesPerWorker)
-    pool_ = std::make_unique<WorkerPool>(static_cast<std::size_t>(options_.threads));  // may throw: nothing changed yet
+    start_pool();  // may throw: nothing changed yet
+  FilterState before = save_filter_state();
+  try {
+    return apply_update(ranges, angles, interrupt);
+  } catch (...) {
+    restore_filter_state(std::move(before));
+    throw;
+  }
+}
+
+MclUpdate MonteCarloLocalization::apply_update(const Eigen::Ref<const Eigen::VectorXd>& ranges,
+                                               const Eigen::Ref<const Eigen::VectorXd>& angles,
+                                               const std::function<void()>& interrupt) {
+  MclUpdate out;
   const std::vector<int> beams = used_beams(ranges);
+  const double cost = scan_cost(beams.size());
   const OdometryMotion u = OdometryMotion::of_delta(pending_);
   const bool moved = pending_.cwiseAbs().maxCoeff() > 0.0;
   std::vector<double> ll(poses_.size());
-  for_particles([&](int j) {
+  for_range_checked(num_particles(), cost, interrupt, [&](int j) {
     const std::size_t k = static_cast<std::size_t>(j);
     if (moved) poses_[k] = sample_odometry_motion(poses_[k], u, options_.odometry, rngs_[k]);
     double l = options_.weight_scale * scan_log_likelihood(poses_[k], ranges, angles, beams);
@@ -335,7 +440,7 @@ MclUpdate MonteCarloLocalization::update(const Eigen::Ref<const Eigen::VectorXd>
     auto scan = [&](const Eigen::Vector3d& x) {
       return options_.weight_scale * scan_log_likelihood(x, ranges, angles, beams);
     };
-    resample(low_updates_ >= options_.recovery_updates ? p_random : 0.0, scan);
+    resample(low_updates_ >= options_.recovery_updates ? p_random : 0.0, scan, cost, interrupt);
     out.resampled = true;
   }
   compute_estimate();
@@ -345,7 +450,8 @@ MclUpdate MonteCarloLocalization::update(const Eigen::Ref<const Eigen::VectorXd>
 }
 
 template <class Scan>
-void MonteCarloLocalization::resample(double random_probability, const Scan& scan) {
+void MonteCarloLocalization::resample(double random_probability, const Scan& scan, double scan_cost,
+                                      const std::function<void()>& interrupt) {
   const int m = num_particles();
   // Recovery candidates, made on the first injection: poses uniform over the free cells and
   // the cumulative sum of their scan likelihoods, from which injected particles are drawn.
@@ -358,7 +464,7 @@ void MonteCarloLocalization::resample(double random_probability, const Scan& sca
       candidates.resize(static_cast<std::size_t>(c));
       for (auto& x : candidates) x = random_free_pose(filter_rng_);
       std::vector<double> ll(static_cast<std::size_t>(c));
-      for_range(c, [&](int i) {
+      for_range_checked(c, scan_cost, interrupt, [&](int i) {
         const auto k = static_cast<std::size_t>(i);
         ll[k] = scan(candidates[k]);
       });
@@ -513,6 +619,9 @@ void MonteCarloLocalization::compute_estimate() {
     cov += w * d * d.transpose();
   }
   covariance_ = cov / sw;
+  double total = 0.0;
+  for (double w : cluster_weight) total += w;
+  cluster_weight_ = total > 0.0 ? sw / total : 0.0;
 }
 
 Eigen::Vector3d MonteCarloLocalization::pose() const {

@@ -11,7 +11,7 @@
 namespace probslam {
 
 void LikelihoodFieldOptions::validate() const {
-  require_positive(sigma, "sigma");
+  require(sigma >= kMinSigma && sigma <= kMaxSigma, "sigma", "must lie in [1e-300, 1e300] (kMinSigma, kMaxSigma)");
   require(std::isfinite(p_rand) && p_rand > 0.0 && p_rand < 1.0, "p_rand",
           "must be a probability strictly between 0 and 1");
   require_probability(occupied_probability, "occupied_probability");
@@ -189,24 +189,36 @@ LikelihoodField LikelihoodField::from_obstacles(const ObstacleCells& obstacles, 
   field.num_occupied_ = static_cast<int>(n - static_cast<std::size_t>(std::count(obstacles.cells.begin(),
                                                                                    obstacles.cells.end(), 0)));
   // Squared distances are whole numbers of cells, and every one beyond the truncation maps to
-  // it: only the `distinct` values below it need be told apart (see the tables below).
+  // it: only the `distinct` values below it need be told apart (see the tables below). No two
+  // cells of the lattice lie further apart than its diagonal, so a truncation beyond that
+  // (a sigma of metres on a small map, a map of micrometre cells) needs no more values than
+  // the diagonal's: the tables stay bounded by the map, whatever the options.
   const double cap = options.truncation();
-  const double cap_cells = cap * field.inv_res_ + 0.5;
+  const double cap_cells = std::min(cap * field.inv_res_ + 0.5, std::hypot(double(field.width_), double(field.height_)) + 1.0);
   const std::size_t distinct = static_cast<std::size_t>(std::ceil(cap_cells * cap_cells)) + 1;
   const std::vector<std::int32_t> sq = squared_cell_distances(obstacles, distinct);
-
-  // The distance and log p of each of those are computed once.
-  std::vector<float> dist_of(distinct), logp_of(distinct);
   auto distance_of = [&](double sq_cells) {
     return std::min(cap, std::max(0.0, (std::sqrt(sq_cells) - 0.5) * field.res_));  // inf -> cap
   };
+  const float far_d = static_cast<float>(cap), far_logp = static_cast<float>(field.log_likelihood_of_distance(cap));
+  field.distance_.resize(n);
+  field.log_likelihood_.resize(n);
+  if (distinct > n) {  // more distinct values than cells: each cell's own, memory bounded by the map
+    for (std::size_t i = 0; i < n; ++i) {
+      const bool near = static_cast<std::size_t>(sq[i]) < distinct;
+      const double d = near ? distance_of(static_cast<double>(sq[i])) : cap;
+      field.distance_[i] = near ? static_cast<float>(d) : far_d;
+      field.log_likelihood_[i] = near ? static_cast<float>(field.log_likelihood_of_distance(d)) : far_logp;
+    }
+    field.build_tables();
+    return field;
+  }
+  // The distance and log p of each of those are computed once.
+  std::vector<float> dist_of(distinct), logp_of(distinct);
   for (std::size_t k = 0; k < distinct; ++k) {
     dist_of[k] = static_cast<float>(distance_of(static_cast<double>(k)));
     logp_of[k] = static_cast<float>(field.log_likelihood_of_distance(distance_of(static_cast<double>(k))));
   }
-  const float far_d = static_cast<float>(cap), far_logp = static_cast<float>(field.log_likelihood_of_distance(cap));
-  field.distance_.resize(n);
-  field.log_likelihood_.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     const bool near = static_cast<std::size_t>(sq[i]) < distinct;
     const std::size_t k = near ? static_cast<std::size_t>(sq[i]) : 0;
@@ -225,14 +237,15 @@ void LikelihoodField::build_tables() {
   const double s = options_.sigma;
   for (std::size_t i = 0; i <= kTableSize; ++i) {
     const double d = std::min(truncation_, static_cast<double>(i) / table_scale_);
+    const double z = d / s;  // not d^2 / s^2: s^2 underflows or overflows for an extreme sigma
     log_table_[i] = log_likelihood_of_distance(d);
-    hit_table_[i] = std::exp(-0.5 * d * d / (s * s));
+    hit_table_[i] = std::exp(-0.5 * z * z);
   }
 }
 
 double LikelihoodField::log_likelihood_of_distance(double d) const {
-  const double s = options_.sigma;
-  return std::log((1.0 - options_.p_rand) * std::exp(-0.5 * d * d / (s * s)) + options_.p_rand);
+  const double z = d / options_.sigma;  // not d^2 / sigma^2: see build_tables
+  return std::log((1.0 - options_.p_rand) * std::exp(-0.5 * z * z) + options_.p_rand);
 }
 
 

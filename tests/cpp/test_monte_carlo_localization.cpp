@@ -550,3 +550,60 @@ TEST(MonteCarloLocalization, BadCallsThrowAndChangeNothing) {
   }
   EXPECT_TRUE(State(mcl) == State(twin));
 }
+
+TEST(MonteCarloLocalization, AnInterruptedUpdateChangesNothingAndTheFilterGoesOn) {
+  // The interrupt hook throws at its third call (mid-way through the particles, after some have
+  // moved and been weighed): the filter is as before, and then continues as a twin that never
+  // saw the interrupted call.
+  const OccupancyGrid2D g = box_map();
+  MonteCarloLocalizationOptions o;
+  o.min_particles = 20000;
+  o.max_particles = 20000;
+  o.max_beams = 500;  // 500 look-ups a particle: ~2000 particles between two interrupt checks
+  o.seed = 4;
+  const Eigen::VectorXd angles = Eigen::VectorXd::LinSpaced(500, -1.5, 1.5);
+  const Eigen::VectorXd z = Eigen::VectorXd::Constant(500, 2.0);
+  MonteCarloLocalization mcl(g, o), twin(g, o);
+  for (MonteCarloLocalization* m : {&mcl, &twin}) m->predict_odometry({0.3, 0.0, 0.1});
+  const State before(mcl);
+  int calls = 0;
+  struct Stop {};
+  EXPECT_THROW(mcl.update(z, angles, false, [&] {
+    if (++calls == 3) throw Stop{};
+  }), Stop);
+  EXPECT_EQ(calls, 3);
+  EXPECT_TRUE(State(mcl) == before);
+  int checks = 0;
+  for (MonteCarloLocalization* m : {&mcl, &twin}) m->update(z, angles, false, [&] { ++checks; });
+  EXPECT_GE(checks, 2 * 5);  // 20000 particles x 500 look-ups: several checks an update
+  EXPECT_TRUE(State(mcl) == State(twin));
+}
+
+TEST(MonteCarloLocalization, MotionsAndOptionsThatCannotBeRepresentedAreRefused) {
+  const OccupancyGrid2D g = box_map();
+  MonteCarloLocalizationOptions o;
+  o.min_particles = o.max_particles = 200;
+  MonteCarloLocalization mcl(g, o);
+  mcl.initialize_pose({3.0, 2.0, 0.0}, Eigen::Matrix3d::Identity() * 0.01);
+  const State before(mcl);
+  expect_invalid([&] { mcl.predict_odometry({1e300, 0.0, 0.0}); }, "delta");
+  EXPECT_TRUE(State(mcl) == before);  // pose() includes the pending odometry
+  mcl.predict_odometry({6e5, 0.0, 0.0});
+  const State pending(mcl);
+  expect_invalid([&] { mcl.predict_odometry({6e5, 0.0, 0.0}); }, "delta");  // the pending sum
+  EXPECT_TRUE(State(mcl) == pending);
+  expect_invalid([] { (void)MonteCarloLocalization::kld_bound(2, 1e-309, 1.0); }, "epsilon");
+  for (double sigma : {1e-301, 2e300, kInf}) {
+    MonteCarloLocalizationOptions bad = o;
+    bad.sigma_hit = sigma;
+    expect_invalid([&] { MonteCarloLocalization(g, bad); }, "sigma_hit");
+  }
+  for (double sigma : {1e-200, 1e300}) {  // the extremes accepted give finite weights and poses
+    MonteCarloLocalizationOptions extreme = o;
+    extreme.sigma_hit = sigma;
+    MonteCarloLocalization m(g, extreme);
+    m.initialize_pose({3.0, 2.0, 0.0}, Eigen::Matrix3d::Identity() * 0.01);
+    m.update(Eigen::VectorXd::Constant(5, 2.0), Eigen::VectorXd::LinSpaced(5, -1.0, 1.0), true);
+    EXPECT_TRUE(m.particles().allFinite() && m.weights().allFinite() && m.pose().allFinite()) << sigma;
+  }
+}

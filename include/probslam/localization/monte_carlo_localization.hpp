@@ -7,6 +7,7 @@
 // ROS AMCL's update_min_d / update_min_a.
 #include <Eigen/Core>
 #include <cstdint>
+#include <functional>
 #include <memory>
 #include <string>
 #include <vector>
@@ -110,14 +111,22 @@ class MonteCarloLocalization {
 
   /// Accumulates an odometry motion: delta = (dx, dy, dtheta) in the frame of the previous
   /// odometry pose. The particles move at the next update (the whole motion since the last one
-  /// is one Table 5.6 step, as AMCL does).
+  /// is one Table 5.6 step, as AMCL does). Refuses (nothing changed) a translation, or a pending
+  /// motion, beyond kMaxOdometryTravel.
   void predict_odometry(const Eigen::Vector3d& delta);
+  /// The longest odometry motion accepted between two updates, m: 10^6 m (1000 km) is far more
+  /// than any robot travels between two scans, and the sampled poses stay finite and exact to
+  /// ~1e-10 m (1e300 m sampled through Table 5.6's variance alpha trans^2 gives inf - inf = NaN).
+  static constexpr double kMaxOdometryTravel = 1e6;
   /// A scan: ranges (B,) m, beam angles (B,) rad relative to the sensor's heading (the poses are
   /// the sensor's). Updates when the travel since the last update reaches update_min_d or
   /// update_min_a, or on the first scan, or when `force`. Ranges must be finite or +inf (a max
-  /// reading) and >= 0; at least one must be usable. Changes nothing when it throws.
+  /// reading) and >= 0; at least one must be usable. `interrupt`, when given, is called every
+  /// few milliseconds of work from the calling thread (the bindings make it throw on Ctrl-C).
+  /// Changes nothing when it throws (bad input, an interrupt, threads that cannot start:
+  /// std::invalid_argument naming threads).
   MclUpdate update(const Eigen::Ref<const Eigen::VectorXd>& ranges, const Eigen::Ref<const Eigen::VectorXd>& angles,
-                   bool force = false);
+                   bool force = false, const std::function<void()>& interrupt = {});
 
   /// log p(z | pose, m) of the configured model with the scan subsampled as update() does
   /// (before weight_scale): the weight of one particle.
@@ -131,6 +140,9 @@ class MonteCarloLocalization {
   /// by weight), moved by the odometry not yet applied; and that cluster's covariance.
   Eigen::Vector3d pose() const;
   Eigen::Matrix3d covariance() const { return covariance_; }
+  /// The share of the (normalised) weight in that cluster: near 1 when the filter has settled
+  /// on one place, small while other places are as likely (a tight cluster is then no answer).
+  double cluster_weight() const { return cluster_weight_; }
   int num_updates() const { return num_updates_; }
   /// Augmented MCL's long- and short-term averages of the per-beam likelihood (Table 8.3).
   double w_slow() const { return w_slow_; }
@@ -138,7 +150,8 @@ class MonteCarloLocalization {
   const LikelihoodField* likelihood_field() const { return field_.get(); }
 
   /// Fox 2003 eq. (the Wilson-Hilferty approximation of the chi-square quantile): particles
-  /// needed for `k` occupied bins, before the min/max bounds.
+  /// needed for `k` occupied bins, before the min/max bounds. Throws std::invalid_argument
+  /// (naming epsilon) when the bound overflows a double.
   static double kld_bound(int k, double epsilon, double z);
 
   std::mutex& mutex() const noexcept { return mutex_.get(); }
@@ -160,15 +173,28 @@ class MonteCarloLocalization {
   void reset_particles(int n);
   /// `scan` gives the current scan's tempered log-likelihood of a pose (for recovery candidates).
   template <class Scan>
-  void resample(double random_probability, const Scan& scan);
+  void resample(double random_probability, const Scan& scan, double scan_cost, const std::function<void()>& interrupt);
+  /// f(j) for j in [0, n) over the worker threads, at least min_per_worker items a worker.
   template <class F>
-  void for_range(int n, F&& f);
+  void for_range(int n, F&& f, int min_per_worker);
+  /// for_range in chunks of about kWorkPerCheck elementary steps (`cost` steps an item), with
+  /// interrupt() called from this thread before each chunk.
+  template <class F>
+  void for_range_checked(int n, double cost, const std::function<void()>& interrupt, F&& f);
+  /// Elementary steps (table look-ups or ray cells) of one scan's likelihood at one pose.
+  double scan_cost(std::size_t beams) const;
+  void start_pool();
+  /// Everything update() changes: kept before it, put back when it throws.
+  struct FilterState;
+  FilterState save_filter_state() const;
+  void restore_filter_state(FilterState&& s);
+  /// update() once it is due, changing the filter in place (update() puts it back if this throws).
+  MclUpdate apply_update(const Eigen::Ref<const Eigen::VectorXd>& ranges, const Eigen::Ref<const Eigen::VectorXd>& angles,
+                         const std::function<void()>& interrupt);
   void compute_estimate();
   std::vector<int> used_beams(const Eigen::Ref<const Eigen::VectorXd>& ranges) const;
   double scan_log_likelihood(const Eigen::Vector3d& pose, const Eigen::Ref<const Eigen::VectorXd>& ranges,
                              const Eigen::Ref<const Eigen::VectorXd>& angles, const std::vector<int>& beams) const;
-  template <class F>
-  void for_particles(F&& f);
 
   MonteCarloLocalizationOptions options_;
   OccupancyGrid2D map_;
@@ -193,6 +219,7 @@ class MonteCarloLocalization {
   int num_updates_ = 0;
   Eigen::Vector3d estimate_ = Eigen::Vector3d::Zero();
   Eigen::Matrix3d covariance_ = Eigen::Matrix3d::Zero();
+  double cluster_weight_ = 0.0;  // derived from the particles by compute_estimate()
   std::unique_ptr<WorkerPool> pool_;  // threads > 1: started on the first update
   ObjectMutex mutex_;
 };

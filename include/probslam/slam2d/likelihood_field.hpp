@@ -22,6 +22,10 @@ struct LikelihoodFieldOptions {
   /// precision anyway when it is a few sigma. <= 0: 6 sigma.
   double max_distance = 0.0;
 
+  /// The range of sigma, m: below it the lookup table's step (2047 / 6 sigma a metre)
+  /// overflows a double, above it the 6 sigma truncation does; between, every value is finite.
+  static constexpr double kMinSigma = 1e-300, kMaxSigma = 1e300;
+
   void validate() const;
   double truncation() const { return max_distance > 0.0 ? max_distance : 6.0 * sigma; }
 };
