@@ -78,6 +78,7 @@ void MonteCarloLocalization::write_state(StateWriter& w) const {
   w.i32(num_updates_);
   w.matrix(estimate_);
   w.matrix(covariance_);
+  w.f64(cluster_weight_);
 }
 
 MonteCarloLocalization MonteCarloLocalization::read_state(StateReader& r) {
@@ -115,6 +116,9 @@ MonteCarloLocalization MonteCarloLocalization::read_state(StateReader& r) {
   f.covariance_ = r.matrix<Eigen::Matrix3d>();
   if (!f.pending_.allFinite() || !f.estimate_.allFinite() || !f.covariance_.allFinite())
     r.fail("the pending motion or the estimate is not finite");
+  // The estimate's share of the weight, which the convergence test reads: a fraction.
+  f.cluster_weight_ = r.f64();
+  if (!(f.cluster_weight_ >= 0.0 && f.cluster_weight_ <= 1.0)) r.fail("the estimate's cluster weight is not in [0, 1]");
   return f;
 }
 

@@ -247,6 +247,8 @@ def test_monte_carlo_localization_resumed_equals_uninterrupted(tmp_path):
     steps(first, scans[:4])
     resumed = round_trip(first, ps.MonteCarloLocalization, tmp_path)
     assert np.array_equal(resumed.particles, first.particles) and np.array_equal(resumed.weights, first.weights)
+    # The estimate's share of the weight (what 'converged' reads) travels with the state.
+    assert 0.0 < first.cluster_weight <= 1.0 and resumed.cluster_weight == first.cluster_weight
     steps(resumed, scans[4:])
     assert state_bytes(resumed) == state_bytes(straight)
     assert np.array_equal(resumed.pose, straight.pose) and resumed.num_updates == straight.num_updates
