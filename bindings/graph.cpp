@@ -109,6 +109,19 @@ PoseGraphRead read_graph(const std::string& path, const std::string& format, con
   return read_pose_graph(path, options);
 }
 
+// The line numbers and the reasons of the lines a read report lists (skipped or repaired).
+std::vector<long> line_numbers(const std::vector<SkippedLine>& listed) {
+  std::vector<long> lines;
+  for (const SkippedLine& s : listed) lines.push_back(s.line);
+  return lines;
+}
+
+py::list reasons_of(const std::vector<SkippedLine>& listed) {
+  py::list reasons;
+  for (const SkippedLine& s : listed) reasons.append(escaped_text(s.reason));
+  return reasons;
+}
+
 constexpr const char* kReadDoc =
     "format: \"g2o\" (VERTEX_SE2 / VERTEX_XY / EDGE_SE2 / EDGE_SE2_XY), \"toro\" (VERTEX2 / EDGE2),\n"
     "\"isam\" (ODOMETRY / EDGE2 / LANDMARK), or \"auto\" (from the first record). noise: what the\n"
@@ -343,38 +356,22 @@ void define_graph(py::module_& m) {
                     "Edges dropped because EQUIV records made their two ends one vertex.")
       .def_property_readonly(
           "skipped_lines",
-          [](const PoseGraphReadReport& r) {
-            std::vector<long> lines;
-            for (const SkippedLine& s : r.skipped_lines) lines.push_back(s.line);
-            return lines;
-          },
+          [](const PoseGraphReadReport& r) { return line_numbers(r.skipped_lines); },
           "Line numbers (1-based) of the first POSE_GRAPH_MAX_REPORTED_LINES skipped records.")
       .def_property_readonly(
           "skipped_reasons",
-          [](const PoseGraphReadReport& r) {
-            py::list reasons;
-            for (const SkippedLine& s : r.skipped_lines) reasons.append(escaped_text(s.reason));
-            return reasons;
-          },
+          [](const PoseGraphReadReport& r) { return reasons_of(r.skipped_lines); },
           "Why each of skipped_lines was skipped.")
       .def_readonly("repaired_rows", &PoseGraphReadReport::repaired_rows,
                     "Records whose information matrix was not positive definite and was repaired: eigenvalues\n"
                     "raised to INFORMATION_EIGENVALUE_FLOOR times the largest (docs/pose_graphs.md).")
       .def_property_readonly(
           "repaired_lines",
-          [](const PoseGraphReadReport& r) {
-            std::vector<long> lines;
-            for (const SkippedLine& s : r.repaired_lines) lines.push_back(s.line);
-            return lines;
-          },
+          [](const PoseGraphReadReport& r) { return line_numbers(r.repaired_lines); },
           "Line numbers (1-based) of the first POSE_GRAPH_MAX_REPORTED_LINES repaired records.")
       .def_property_readonly(
           "repaired_reasons",
-          [](const PoseGraphReadReport& r) {
-            py::list reasons;
-            for (const SkippedLine& s : r.repaired_lines) reasons.append(escaped_text(s.reason));
-            return reasons;
-          },
+          [](const PoseGraphReadReport& r) { return reasons_of(r.repaired_lines); },
           "What was repaired in each of repaired_lines.")
       .def("__repr__", [](py::handle self) {
         const PoseGraphReadReport& r = self.cast<const PoseGraphReadReport&>();

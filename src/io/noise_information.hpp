@@ -61,7 +61,7 @@ std::optional<RepairedInformation<N>> repaired_information(const Eigen::Matrix<d
   if (eigen.info() != Eigen::Success) return std::nullopt;
   const double largest = eigen.eigenvalues().maxCoeff();
   if (!(largest > 0.0) || !std::isfinite(largest)) return std::nullopt;
-  const auto raised = eigen.eigenvalues().cwiseMax(kInformationEigenvalueFloor * largest);
+  const Eigen::Matrix<double, N, 1> raised = eigen.eigenvalues().cwiseMax(kInformationEigenvalueFloor * largest);
   Matrix out = eigen.eigenvectors() * raised.asDiagonal() * eigen.eigenvectors().transpose();
   out = 0.5 * (out + out.transpose());
   if (Eigen::LLT<Matrix>(out).info() != Eigen::Success) return std::nullopt;

@@ -378,7 +378,7 @@ def test_skip_rows_are_counted_and_named(tmp_path):
         ("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 inf 0 0\n", r":2: .*finite"),
         ("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1e999 0 0\n", r":2: field 3"),
         ("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 99999999999 0 0 0\n", r":2: vertex id 99999999999 out of range"),
-        ("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 0 0 0\nEDGE_SE2 0 1 1 0 0 1 2 0 1 0 1\n", r":3: information"),
+        ("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 0 0 0\nEDGE_SE2 0 1 1 0 0 0 0 0 0 0 0\n", r":3: information"),
         ("ODOMETRY 0 1 1e308 0 0 1 0 0 1 0 1\nODOMETRY 1 2 1e308 0 0 1 0 0 1 0 1\n", r":2: .*(finite|beyond the double range)"),
         ("LANDMARK 0 1 1 1 nan 0 1\n", r":1: "),
     ],

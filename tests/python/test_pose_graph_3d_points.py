@@ -343,7 +343,7 @@ def test_g2o_points_read_into_the_graph_and_round_trip_bit_for_bit(tmp_path):
     ("VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nVERTEX_TRACKXYZ 1 1 2 3\n"
      "EDGE_SE3_TRACKXYZ 0 1 4 1 2 3 1 0 0 1 0 1\n", r":3: .*parameter 4"),
     ("VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nVERTEX_TRACKXYZ 1 1 2 3\nPARAMS_SE3OFFSET 0 0 0 0 0 0 0 1\n"
-     "EDGE_SE3_TRACKXYZ 0 1 0 1 2 3 1 0 0 -1 0 1\n", r":4: information"),
+     "EDGE_SE3_TRACKXYZ 0 1 0 1 2 3 -1 0 0 -1 0 -1\n", r":4: information"),
     ("VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nVERTEX_TRACKXYZ 1 1 nan 3\n", r":2: point"),
     ("VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nVERTEX_TRACKXYZ 1 1 2 3\nPARAMS_SE3OFFSET 0 0 0 0 0 0 0 1\n"
      "EDGE_SE3_TRACKXYZ 0 1 0 1 2 3 1 0 0 1 0\n", r":4:"),

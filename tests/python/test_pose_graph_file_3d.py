@@ -226,7 +226,7 @@ def test_chi2_of_initial_values_matches_gtsam(shared_data, relative):
 
 def _upper(matrix):
     """The 21 upper-triangle entries of a (6, 6) matrix as g2o text."""
-    return "".join(f" {matrix[i, j]!r}" for i in range(6) for j in range(i, 6))
+    return "".join(f" {float(matrix[i, j])!r}" for i in range(6) for j in range(i, 6))
 
 
 def _floored(information):
