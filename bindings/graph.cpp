@@ -50,16 +50,8 @@ py::array_t<double> values_of(const PoseGraph2D& g, VertexKind kind) {
   return out;
 }
 
-// Vertex ids from Python: integers only (a float id would be truncated) and within int (a
-// larger one would wrap onto another vertex).
-std::vector<int> vertex_ids(py::handle obj, const char* name) {
-  const LongArray ids = integer_array_arg(obj, name);
-  if (ids.ndim() != 1) throw py::value_error(std::string(name) + " must be a 1-D array of integers");
-  return int_entries(ids, name, "vertex id");
-}
-
 void set_values(PoseGraph2D& g, py::handle ids_obj, py::handle values_obj, int dim) {
-  const std::vector<int> ids = vertex_ids(ids_obj, "ids");
+  const std::vector<int> ids = vertex_ids_arg(ids_obj, "ids");
   DoubleArray values = matrix_arg(values_obj, dim == 3 ? "poses" : "points", dim);
   if (values.shape(0) != static_cast<py::ssize_t>(ids.size()))
     throw py::value_error(std::string(dim == 3 ? "poses" : "points") + " must have one row per id");
@@ -115,6 +107,19 @@ PoseGraphRead read_graph(const std::string& path, const std::string& format, con
   const PoseGraphReadOptions options = read_options(format, noise, rows, equivalences);
   py::gil_scoped_release release;  // a new graph: nothing else can see it yet
   return read_pose_graph(path, options);
+}
+
+// The line numbers and the reasons of the lines a read report lists (skipped or repaired).
+std::vector<long> line_numbers(const std::vector<SkippedLine>& listed) {
+  std::vector<long> lines;
+  for (const SkippedLine& s : listed) lines.push_back(s.line);
+  return lines;
+}
+
+py::list reasons_of(const std::vector<SkippedLine>& listed) {
+  py::list reasons;
+  for (const SkippedLine& s : listed) reasons.append(escaped_text(s.reason));
+  return reasons;
 }
 
 constexpr const char* kReadDoc =
@@ -199,8 +204,9 @@ void define_graph(py::module_& m) {
            py::arg("pose_id"), py::arg("point_id"), py::arg("measurement"), py::arg("information"),
            "Adds a pose-point edge: measurement (2,) the point in pose_id's frame (m), information (2, 2).")
       .def("set_fixed",
-           [](PoseGraph2D& g, IntArg id, bool fixed) {
+           [](PoseGraph2D& g, IntArg id, BoolArg fixed_arg) {
              const int i = id.get("id");
+             const bool fixed = fixed_arg.get("fixed");
              locked(g, [&] { g.set_fixed(i, fixed); });
            },
            py::arg("id"), py::arg("fixed") = true,
@@ -313,7 +319,8 @@ void define_graph(py::module_& m) {
                                "\ncallback(iteration, chi2), optional: called after each completed iteration (1 for the first)\n"
                                "with the chi2 after it, on the calling thread; returning False stops there (stop_reason \"stopped\n"
                                "by the callback\"). An exception it raises (KeyboardInterrupt on Ctrl-C) propagates with the graph\n"
-                               "at the last completed iteration's values."
+                               "at the last completed iteration's values. The callback may read the graph (it holds the values\n"
+                               "of the iteration just completed); changing it there raises RuntimeError."
                                "\nValueError for an empty graph or a part not connected to a fixed vertex.",
                                "Marginal covariances at the current values, one per id: (3, 3) for a pose (m, m, rad), (2, 2)\n"
                                "for a point (m), from the sparse inverse of the information matrix; a fixed vertex has zero\n"
@@ -349,25 +356,30 @@ void define_graph(py::module_& m) {
                     "Edges dropped because EQUIV records made their two ends one vertex.")
       .def_property_readonly(
           "skipped_lines",
-          [](const PoseGraphReadReport& r) {
-            std::vector<long> lines;
-            for (const SkippedLine& s : r.skipped_lines) lines.push_back(s.line);
-            return lines;
-          },
+          [](const PoseGraphReadReport& r) { return line_numbers(r.skipped_lines); },
           "Line numbers (1-based) of the first POSE_GRAPH_MAX_REPORTED_LINES skipped records.")
       .def_property_readonly(
           "skipped_reasons",
-          [](const PoseGraphReadReport& r) {
-            py::list reasons;
-            for (const SkippedLine& s : r.skipped_lines) reasons.append(escaped_text(s.reason));
-            return reasons;
-          },
+          [](const PoseGraphReadReport& r) { return reasons_of(r.skipped_lines); },
           "Why each of skipped_lines was skipped.")
+      .def_readonly("repaired_rows", &PoseGraphReadReport::repaired_rows,
+                    "Records whose information matrix was not positive definite and was repaired: eigenvalues\n"
+                    "raised to INFORMATION_EIGENVALUE_FLOOR times the largest (docs/pose_graphs.md).")
+      .def_property_readonly(
+          "repaired_lines",
+          [](const PoseGraphReadReport& r) { return line_numbers(r.repaired_lines); },
+          "Line numbers (1-based) of the first POSE_GRAPH_MAX_REPORTED_LINES repaired records.")
+      .def_property_readonly(
+          "repaired_reasons",
+          [](const PoseGraphReadReport& r) { return reasons_of(r.repaired_lines); },
+          "What was repaired in each of repaired_lines.")
       .def("__repr__", [](py::handle self) {
         const PoseGraphReadReport& r = self.cast<const PoseGraphReadReport&>();
-        return repr_of(self, std::to_string(r.rows) + " rows, " + std::to_string(r.skipped_rows) + " skipped");
+        return repr_of(self, std::to_string(r.rows) + " rows, " + std::to_string(r.skipped_rows) + " skipped" +
+                                 (r.repaired_rows ? ", " + std::to_string(r.repaired_rows) + " repaired" : ""));
       });
   m.attr("MAX_BAD_ROW_FRACTION") = kMaxBadRowFraction;
+  m.attr("INFORMATION_EIGENVALUE_FLOOR") = kInformationEigenvalueFloor;
   // static: pybind11 keeps the docstrings' pointers
   static const std::string graph_doc = std::string("Reads a pose graph file into a PoseGraph2D. ") + kReadDoc;
   static const std::string report_doc =

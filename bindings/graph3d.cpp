@@ -89,11 +89,6 @@ std::vector<Pose3> values_of(const PoseGraph3D& g, VertexKind kind) {
   });
 }
 
-std::vector<int> ids_arg(py::handle obj, const char* name) {
-  const LongArray ids = integer_array_arg(obj, name);
-  if (ids.ndim() != 1) throw py::value_error(std::string(name) + " must be a 1-D array of integers");
-  return int_entries(ids, name, "vertex id");
-}
 
 }  // namespace
 
@@ -163,8 +158,9 @@ void define_graph3d(py::module_& m) {
            "(6, 6) in the order [x, y, z, rotation vector]. A vertex with a prior holds its part of the\n"
            "graph as a fixed vertex does (softly): with any prior, optimisers no longer hold the first pose.")
       .def("set_fixed",
-           [](PoseGraph3D& g, IntArg id, bool fixed) {
+           [](PoseGraph3D& g, IntArg id, BoolArg fixed_arg) {
              const int i = id.get("id");
+             const bool fixed = fixed_arg.get("fixed");
              locked(g, [&] { g.set_fixed(i, fixed); });
            },
            py::arg("id"), py::arg("fixed") = true,
@@ -178,7 +174,7 @@ void define_graph3d(py::module_& m) {
            py::arg("id"), "Whether vertex id is fixed.")
       .def("set_poses",
            [](PoseGraph3D& g, py::handle ids_obj, py::handle poses_obj) {
-             const std::vector<int> ids = ids_arg(ids_obj, "ids");
+             const std::vector<int> ids = vertex_ids_arg(ids_obj, "ids");
              const DoubleArray rows = matrix_arg(poses_obj, "poses", kPoseWidth);
              if (rows.shape(0) != static_cast<py::ssize_t>(ids.size()))
                throw py::value_error("poses must have one row per id");
@@ -190,7 +186,7 @@ void define_graph3d(py::module_& m) {
            "Replaces the values of pose vertices ids (N,) with poses (N, 7), all or nothing.")
       .def("set_points",
            [](PoseGraph3D& g, py::handle ids_obj, py::handle points_obj) {
-             const std::vector<int> ids = ids_arg(ids_obj, "ids");
+             const std::vector<int> ids = vertex_ids_arg(ids_obj, "ids");
              const DoubleArray rows = matrix_arg(points_obj, "points", 3);
              if (rows.shape(0) != static_cast<py::ssize_t>(ids.size()))
                throw py::value_error("points must have one row per id");

@@ -10,6 +10,8 @@
 #include <vector>
 
 #include "args.hpp"
+#include "interrupt.hpp"
+#include "numpy.hpp"
 #include "object_lock.hpp"
 #include "probslam/graph/graph_initialization.hpp"  // IncrementalOptions
 #include "probslam/graph/graph_optimizer.hpp"
@@ -61,6 +63,27 @@ inline OptimizerOptions optimizer_options(const std::string& algorithm, int max_
   return o;
 }
 
+/// Vertex ids from Python (a sequence or 1-D array of integers): integers only (a float id would
+/// be truncated) and within int (a larger one would wrap onto another vertex); TypeError /
+/// ValueError naming the argument otherwise.
+inline std::vector<int> vertex_ids_arg(py::handle obj, const std::string& name) {
+  const LongArray ids = integer_array_arg(obj, name.c_str());
+  if (ids.ndim() != 1) throw py::value_error(name + " must be a 1-D array of integers");
+  return int_entries(ids, name.c_str(), "vertex id");
+}
+
+/// Groups of vertex ids (a sequence of sequences of integers), each checked as vertex_ids_arg
+/// and named by its position ("groups[2]").
+inline std::vector<std::vector<int>> vertex_id_groups_arg(py::handle obj, const std::string& name) {
+  if (py::isinstance<py::str>(obj) || py::isinstance<py::bytes>(obj) || !PySequence_Check(obj.ptr()))
+    throw py::type_error(name + " must be a sequence of sequences of vertex ids");
+  const py::sequence seq = py::reinterpret_borrow<py::sequence>(obj);
+  std::vector<std::vector<int>> groups;
+  for (std::size_t k = 0; k < seq.size(); ++k)
+    groups.push_back(vertex_ids_arg(seq[k], name + "[" + std::to_string(k) + "]"));
+  return groups;
+}
+
 /// The optimiser's IterationCallback calling a Python callable (or none for None); the callable
 /// must outlive the optimisation.
 inline IterationCallback iteration_callback(const py::object& callback) {
@@ -103,13 +126,14 @@ void def_optimizer(py::module_& m, const char* linear_solver, const char* orderi
     return out;
   };
   m.def("optimize",
-        [](Graph& graph, const std::string& algorithm, IntArg max_iterations_arg, double relative_tolerance,
-           double step_tolerance, const std::string& kernel, double kernel_width,
-           const std::string& linear_solver, const std::string& ordering, const std::string& damping,
-           const py::object& callback) {
+        [](Graph& graph, StrArg algorithm, IntArg max_iterations_arg, RealArg relative_tolerance,
+           RealArg step_tolerance, StrArg kernel, RealArg kernel_width, StrArg linear_solver, StrArg ordering,
+           StrArg damping, const py::object& callback) {
           const int max_iterations = max_iterations_arg.get("max_iterations");
-          const OptimizerOptions o = optimizer_options(algorithm, max_iterations, relative_tolerance, step_tolerance,
-                                                       kernel, kernel_width, linear_solver, ordering, damping);
+          const OptimizerOptions o = optimizer_options(
+              algorithm.get("algorithm"), max_iterations, relative_tolerance.get("relative_tolerance"),
+              step_tolerance.get("step_tolerance"), kernel.get("kernel"), kernel_width.get("kernel_width"),
+              linear_solver.get("linear_solver"), ordering.get("ordering"), damping.get("damping"));
           const IterationCallback on_iteration = iteration_callback(callback);
           return locked(graph, [&] { return optimize(graph, o, on_iteration); });
         },
@@ -118,13 +142,17 @@ void def_optimizer(py::module_& m, const char* linear_solver, const char* orderi
         py::arg("kernel_width") = 1.0, py::arg("linear_solver") = linear_solver, py::arg("ordering") = ordering,
         py::arg("damping") = "marquardt", py::arg("callback") = py::none(), doc.optimize);
   m.def("optimize_incremental",
-        [](Graph& graph, IntArg poses_per_step_arg, const std::string& algorithm, IntArg max_iterations_arg,
-           double relative_tolerance, double step_tolerance, const std::string& kernel, double kernel_width,
-           const std::string& linear_solver, const std::string& ordering, const std::string& damping) {
+        [](Graph& graph, IntArg poses_per_step_arg, StrArg algorithm, IntArg max_iterations_arg,
+           RealArg relative_tolerance, RealArg step_tolerance, StrArg kernel, RealArg kernel_width,
+           StrArg linear_solver, StrArg ordering, StrArg damping) {
           IncrementalOptions o;
           o.poses_per_step = poses_per_step_arg.get("poses_per_step");
-          o.step = optimizer_options(algorithm, max_iterations_arg.get("max_iterations"), relative_tolerance,
-                                     step_tolerance, kernel, kernel_width, linear_solver, ordering, damping);
+          o.step = optimizer_options(
+              algorithm.get("algorithm"), max_iterations_arg.get("max_iterations"),
+              relative_tolerance.get("relative_tolerance"), step_tolerance.get("step_tolerance"), kernel.get("kernel"),
+              kernel_width.get("kernel_width"), linear_solver.get("linear_solver"), ordering.get("ordering"),
+              damping.get("damping"));
+          o.interrupt = python_interrupt();  // Ctrl-C between steps and iterations
           return locked(graph, [&] { return optimize_incremental(graph, o); });
         },
         py::arg("graph"), py::arg("poses_per_step") = 100, py::arg("algorithm") = "gauss-newton",
@@ -132,17 +160,17 @@ void def_optimizer(py::module_& m, const char* linear_solver, const char* orderi
         py::arg("kernel") = "none", py::arg("kernel_width") = 1.0, py::arg("linear_solver") = linear_solver,
         py::arg("ordering") = ordering, py::arg("damping") = "marquardt", doc.optimize_incremental);
   m.def("marginal_covariances",
-        [list_of](const Graph& graph, const std::vector<int>& ids, const std::string& linear_solver,
-                  const std::string& ordering) {
-          const SparseCholeskyOptions o = solver_options(linear_solver, ordering);
+        [list_of](const Graph& graph, py::handle ids_arg, StrArg linear_solver, StrArg ordering) {
+          const std::vector<int> ids = vertex_ids_arg(ids_arg, "ids");
+          const SparseCholeskyOptions o = solver_options(linear_solver.get("linear_solver"), ordering.get("ordering"));
           return list_of(locked(graph, [&] { return marginal_covariances(graph, ids, o); }));
         },
         py::arg("graph"), py::arg("ids"), py::arg("linear_solver") = linear_solver, py::arg("ordering") = ordering,
         doc.marginals);
   m.def("joint_marginal_covariances",
-        [list_of](const Graph& graph, const std::vector<std::vector<int>>& groups, const std::string& linear_solver,
-                  const std::string& ordering) {
-          const SparseCholeskyOptions o = solver_options(linear_solver, ordering);
+        [list_of](const Graph& graph, py::handle groups_arg, StrArg linear_solver, StrArg ordering) {
+          const std::vector<std::vector<int>> groups = vertex_id_groups_arg(groups_arg, "groups");
+          const SparseCholeskyOptions o = solver_options(linear_solver.get("linear_solver"), ordering.get("ordering"));
           return list_of(locked(graph, [&] { return joint_marginal_covariances(graph, groups, o); }));
         },
         py::arg("graph"), py::arg("groups"), py::arg("linear_solver") = linear_solver, py::arg("ordering") = ordering,

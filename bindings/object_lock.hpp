@@ -6,18 +6,72 @@
 // object's mutex taken second, so a thread waiting for the object never holds the GIL, and the
 // thread that holds the object can always get the GIL back afterwards: no deadlock. f must not
 // touch Python objects; convert arguments before and results after.
+//
+// Re-entry: work under the lock may call back into Python on the same thread (optimize's
+// callback, a signal handler run by an interrupt check), and that Python code may use the same
+// object (a progress plot reading g.poses). Taking the mutex again would deadlock; instead the
+// thread remembers which objects it holds, a read (a const object) runs at once, and a change
+// (a non-const object) raises RuntimeError: it would pull the state from under the work.
 #include <pybind11/pybind11.h>
 
+#include <algorithm>
 #include <mutex>
+#include <stdexcept>
+#include <type_traits>
+#include <vector>
 
 #include "numpy.hpp"
 
 namespace probslam::bindings {
 
+namespace detail {
+
+// The objects whose mutex this thread holds through locked() (rarely more than one).
+inline std::vector<const void*>& held_by_this_thread() {
+  thread_local std::vector<const void*> held;
+  return held;
+}
+
+inline bool held_here(const void* object) {
+  const std::vector<const void*>& held = held_by_this_thread();
+  return std::find(held.begin(), held.end(), object) != held.end();
+}
+
+// Marks an object as held by this thread while the mutex is held.
+class HeldMark {
+ public:
+  explicit HeldMark(const void* object) : object_(object) { held_by_this_thread().push_back(object); }
+  ~HeldMark() {
+    std::vector<const void*>& held = held_by_this_thread();
+    held.erase(std::find(held.begin(), held.end(), object_));
+  }
+  HeldMark(const HeldMark&) = delete;
+  HeldMark& operator=(const HeldMark&) = delete;
+
+ private:
+  const void* object_;
+};
+
+// A re-entrant call on an object this thread already holds: reads run, changes are refused.
+template <typename T>
+void check_reentry() {
+  if constexpr (!std::is_const_v<T>)
+    throw std::logic_error(
+        "the object is in use by a call running on this thread (e.g. optimize, whose callback is "
+        "running): it can be read but not changed until that call returns");
+}
+
+}  // namespace detail
+
 template <typename T, typename F>
-decltype(auto) locked(const T& object, F&& f) {
+decltype(auto) locked(T& object, F&& f) {
+  if (detail::held_here(&object)) {
+    detail::check_reentry<T>();
+    return f();
+  }
   pybind11::gil_scoped_release release;
   std::lock_guard<std::mutex> lock(object.mutex());
+  const detail::HeldMark mark(&object);
   return f();
 }
 
@@ -30,13 +84,19 @@ auto getter(R (T::*method)() const) {
 
 /// Two objects at once (e.g. a source and a destination), in a deadlock-free order.
 template <typename A, typename B, typename F>
-decltype(auto) locked(const A& a, const B& b, F&& f) {
-  pybind11::gil_scoped_release release;
-  if (static_cast<const void*>(&a) == static_cast<const void*>(&b)) {
-    std::lock_guard<std::mutex> lock(a.mutex());
-    return f();
+decltype(auto) locked(A& a, B& b, F&& f) {
+  if (static_cast<const void*>(&a) == static_cast<const void*>(&b)) return locked(a, std::forward<F>(f));
+  if (detail::held_here(&a)) {
+    detail::check_reentry<A>();
+    return locked(b, std::forward<F>(f));
   }
+  if (detail::held_here(&b)) {
+    detail::check_reentry<B>();
+    return locked(a, std::forward<F>(f));
+  }
+  pybind11::gil_scoped_release release;
   std::scoped_lock lock(a.mutex(), b.mutex());
+  const detail::HeldMark mark_a(&a), mark_b(&b);
   return f();
 }
 

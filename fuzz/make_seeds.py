@@ -45,6 +45,25 @@ EDGE2 0 1 1 0 0 100 0 100 1000 0 0
 EDGE2 1 2 1 0 0 100 0 100 1000 0 0
 EDGE2 0 2 2 0 0 100 0 100 1000 0 0
 """
+#: TORO with EQUIV chains (both directions, a chain closing on itself, an edge inside one).
+TORO_EQUIV = TORO + b"""VERTEX2 3 0.1 0 0
+VERTEX2 4 1.1 0 0
+VERTEX2 5 2.1 0 0
+EDGE2 2 3 -2 0 0 100 0 100 1000 0 0
+EDGE2 3 4 1 0 0 100 0 100 1000 0 0
+EDGE2 4 5 1 0 0 100 0 100 1000 0 0
+EQUIV 3 0
+EQUIV 4 3
+EQUIV 1 4
+EQUIV 5 2
+"""
+#: TORO 3-D: VERTEX3 / EDGE3 id x y z roll pitch yaw and 21 information entries.
+TORO_3D = b"""VERTEX3 0 0 0 0 0 0 0
+VERTEX3 1 1 0 0 0 0 0.1
+VERTEX3 2 2 0 0 0 0 0.2
+EDGE3 0 1 1 0 0 0 0 0.1 100 0 0 0 0 0 100 0 0 0 0 100 0 0 0 400 0 0 400 0 400
+EDGE3 1 2 1 0 0 0 0 0.1 100 0 0 0 0 0 100 0 0 0 0 100 0 0 0 400 0 0 400 0 400
+"""
 ISAM = b"""ODOMETRY 0 1 1 0 0 10 0 0 10 0 31.6
 ODOMETRY 1 2 1 0 0.1 10 0 0 10 0 31.6
 LANDMARK 1 5 2 1 1.6 0 1.6
@@ -58,6 +77,15 @@ PARAMS_SE3OFFSET 0 0 0 0 0 0 0 1
 EDGE_SE3_PRIOR 1 0 1 0 0 0 0 0.0998334 0.9950042 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 4 0 0 4 0 4
 EDGE_SE3:QUAT 0 1 1 0 0 0 0 0.0998334 0.9950042 100 0 0 0 0 0 100 0 0 0 0 100 0 0 0 400 0 0 400 0 400
 """
+#: Points seen through two sensor offsets (PARAMS_SE3OFFSET, EDGE_SE3_TRACKXYZ).
+G2O_3D_POINTS = G2O_3D + b"""PARAMS_SE3OFFSET 1 0.1 0 0.2 0 0 0.0998334 0.9950042
+VERTEX_TRACKXYZ 7 2 1 0
+EDGE_SE3_TRACKXYZ 0 7 0 2 1 0 10 0 0 10 0 10
+EDGE_SE3_TRACKXYZ 1 7 1 1 1 -0.2 10 0 0 10 0 10
+"""
+#: An edge whose information has a negative eigenvalue (cubicle.g2o's kind): repaired, counted.
+G2O_3D_NEGATIVE = G2O_3D.replace(b"100 0 0 0 0 0 100 0 0 0 0 100 0 0 0 400 0 0 400 0 400",
+                                 b"100 0 0 0 0 0 100 0 0 0 0 100 0 0 0 400 0 0 400 0 -3")
 ISAM_3D = b"""EDGE3 0 1 1 0 0 0 0 0.2 10 0 0 0 0 0 10 0 0 0 0 10 0 0 0 100 0 0 100 0 25
 EDGE3 1 2 1 0 0 0.01 0 0.2 10 0 0 0 0 0 10 0 0 0 0 10 0 0 0 100 0 0 100 0 25
 EDGE3 0 2 2 0 0.1 0 0 0.4 10 0 0 0 0 0 10 0 0 0 0 10 0 0 0 100 0 0 100 0 25
@@ -201,6 +229,11 @@ def committed(out: pathlib.Path = HERE / "seeds") -> None:
     _write(out / "isam", "tiny.txt", ISAM)
     _write(out / "g2o_3d", "tiny.g2o", G2O_3D)
     _write(out / "isam_3d", "tiny.txt", ISAM_3D)
+    _write(out / "toro_3d", "tiny.graph", TORO_3D)
+    _write(out / "toro_equiv", "chains.graph", TORO_EQUIV)
+    _write(out / "g2o_3d_graph", "tiny.g2o", G2O_3D)
+    _write(out / "g2o_3d_graph", "points.g2o", G2O_3D_POINTS)
+    _write(out / "g2o_3d_graph", "negative_information.g2o", G2O_3D_NEGATIVE)
     _write(out / "victoria_park", "tiny.txt", VICTORIA)
     _write(out / "mrclam", "tiny.bin", SEPARATOR.join(MRCLAM))
     _write(out / "victoria_park_acfr", "tiny.bin", SEPARATOR.join(VICTORIA_ACFR))
@@ -245,9 +278,12 @@ def shared(out: pathlib.Path, data: pathlib.Path) -> int:
         target = {".g2o": "g2o", ".graph": "toro"}.get(graph.suffix)
         if target:
             add(target, graph.name, _head(_open(graph)))
+        if graph.suffix == ".graph":
+            add("toro_equiv", graph.name, _head(_open(graph)))
         head = _head(_open(graph)) if graph.suffix in (".g2o", ".txt") else b""
         if head.startswith(b"VERTEX_SE3:QUAT"):  # 3-D g2o (pose3example.txt among them)
             add("g2o_3d", graph.name, head)
+            add("g2o_3d_graph", graph.name, head)
         elif head.startswith(b"EDGE3"):  # iSAM 3-D (sphere2500.txt)
             add("isam_3d", graph.name, head)
     for rel in sorted(data.glob("laser_2d/*/*.relations")):

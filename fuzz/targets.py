@@ -75,6 +75,38 @@ def _pose_graph_3d(name: str, fmt: str):
     return target
 
 
+def _pose_graph_3d_graph(name: str, fmt: str):
+    """The 3-D reader straight into a PoseGraph3D (points, priors, FIX, sensor offsets applied)
+    under both row policies, and the graph written back and read again: what it reads it must
+    be able to write."""
+    def target(ws: Workspace, data: bytes) -> None:
+        from probslam import graph
+        path = ws.write(name, data)
+        for rows in ("strict", "skip"):
+            try:
+                g = graph.read_pose_graph_3d_with_report(path, format=fmt, rows=rows).graph
+            except EXPECTED:
+                continue
+            back = ws.write("back.g2o", b"")
+            graph.write_g2o_3d(g, back)
+            again = graph.read_pose_graph_3d(back)
+            if (again.num_vertices, again.num_pose_edges, again.num_point_edges) != (
+                    g.num_vertices, g.num_pose_edges, g.num_point_edges):
+                raise AssertionError("a graph read did not read back the same after writing")
+    return target
+
+
+def _toro_equivalences(ws: Workspace, data: bytes) -> None:
+    """TORO under both EQUIV policies and the skip row policy (the merge's union-find)."""
+    from probslam import graph
+    path = ws.write("graph.graph", data)
+    for equivalences in ("merge", "ignore"):
+        try:
+            graph.read_pose_graph_with_report(path, format="toro", rows="skip", equivalences=equivalences)
+        except EXPECTED:
+            pass
+
+
 def ros_map(ws: Workspace, data: bytes) -> None:
     from probslam import io
     yaml, pgm = _parts(data, 2)
@@ -209,6 +241,9 @@ TARGETS: Dict[str, Callable[[Workspace, bytes], None]] = {
     "isam": _pose_graph("graph.txt", "isam"),
     "g2o_3d": _pose_graph_3d("graph3d.g2o", "g2o"),
     "isam_3d": _pose_graph_3d("graph3d.txt", "isam"),
+    "toro_3d": _pose_graph_3d("graph3d.graph", "toro"),
+    "g2o_3d_graph": _pose_graph_3d_graph("graph3d.g2o", "g2o"),
+    "toro_equiv": _toro_equivalences,
     "ros_map": ros_map,
     "state_file": state_file,
     "octomap_bt": octomap_bt,

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # Fuzzes every parser entry point with atheris (fuzz/targets.py) for SECONDS_PER_TARGET seconds
-# each (default 6: about 100 s for the twelve targets on 2 cores), then prints a table of executions,
+# each (default 6: about 110 s for the eighteen targets on 2 cores), then prints a table of executions,
 # crashes and hangs. Exits 1 on any finding; the inputs are kept in $FUZZ_OUT (default
 # fuzz/findings/) as crash-*, timeout-* or oom-* files. Skips (exit 0) if atheris is missing.
 #   usage: scripts/fuzz.sh [SECONDS_PER_TARGET] [TARGET ...]

@@ -639,7 +639,11 @@ class PoseGraphReadReport:
     equivalences: int  # TORO EQUIV records read (applied under equivalences="merge" only)
     merged_vertices: int  # vertex ids merged into another by them
     collapsed_edges: int  # edges dropped because both their ends became one vertex
+    repaired_rows: int  # records whose information was not positive definite, repaired
+    repaired_lines: List[int]  # line numbers of the first POSE_GRAPH_MAX_REPORTED_LINES repaired records
+    repaired_reasons: List[str]  # what was repaired in each of repaired_lines
 MAX_BAD_ROW_FRACTION: float  # rows="skip": more than this fraction of records skipped is fatal
+INFORMATION_EIGENVALUE_FLOOR: float  # a non-positive-definite information's eigenvalues raised to this x the largest
 POSE_GRAPH_MAX_REPORTED_LINES: int  # skipped records a PoseGraphReadReport lists by line and reason
 def read_pose_graph(path: str, format: str = "auto", noise: str = "default", rows: str = "strict",
                     equivalences: str = "merge") -> PoseGraph2D:

@@ -1013,6 +1013,10 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
         if read_report.equivalences:
             print(f"            {read_report.equivalences} TORO EQUIV records: {read_report.merged_vertices} vertices "
                   f"merged into others, {read_report.collapsed_edges} edges between them dropped")
+    if read_report.repaired_rows:
+        first = read_report.repaired_lines[0]
+        print(f"            {read_report.repaired_rows} edges with an information matrix not positive definite: "
+              f"eigenvalues raised to {pg.INFORMATION_EIGENVALUE_FLOOR:g} of the largest (first at line {first})")
     # The solver options given; the others are the library's defaults for the graph's dimension.
     solver = {name: value for name, value in (("linear_solver", args.linear_solver), ("ordering", args.ordering))
               if value is not None}

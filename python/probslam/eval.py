@@ -459,9 +459,21 @@ def _trajectory_error(metric: str, errors: np.ndarray, **fields: Any) -> Traject
     return TrajectoryError(metric, errors, count=int(errors.size), **statistics, **fields)
 
 
-#: ``associate`` compares at most this many pairs of times at once when the longer trajectory's
-#: times are not sorted (a search over all of them per time): 2^22 pairs, 32 MiB of doubles.
-ASSOCIATE_CHUNK_PAIRS = 1 << 22
+def _nearest_unsorted(long: np.ndarray, short: np.ndarray) -> np.ndarray:
+    """For each time of ``short``, the index into unsorted ``long`` of its nearest time, as
+    ``argmin(abs(long - t))`` picks it (of equally near times, the lowest index), in
+    O((N + M) log N): a stable sort of ``long``; the nearest time is the first at or above t or
+    the last below it, and of equal times the stable order's first has the lowest index."""
+    order = np.argsort(long, kind="stable")
+    ordered = long[order]
+    above = np.searchsorted(ordered, short, side="left")  # the first of its equal times
+    below = np.searchsorted(ordered, ordered[np.maximum(above - 1, 0)], side="left")
+    has_above, has_below = above < len(long), above > 0
+    i_above, i_below = order[np.minimum(above, len(long) - 1)], order[below]
+    d_above = np.where(has_above, np.abs(long[i_above] - short), np.inf)
+    d_below = np.where(has_below, np.abs(long[i_below] - short), np.inf)
+    tie = d_above == d_below
+    return np.where(d_below < d_above, i_below, np.where(tie, np.minimum(i_above, i_below), i_above)).astype(np.int64)
 
 
 def associate(times_a: object, times_b: object, max_time_difference: float = MAX_TIME_DIFFERENCE):
@@ -469,7 +481,7 @@ def associate(times_a: object, times_b: object, max_time_difference: float = MAX
     each time of the trajectory with fewer poses (``times_b`` when both have as many) is paired
     with the nearest time of the other, if that is at most ``max_time_difference`` (s) away (a
     tie goes to the earlier). times_a (N,), times_b (M,): seconds, in any order (a log's clock
-    may jump back; unsorted times are searched in full, as evo does).
+    may jump back; unsorted times are searched as evo does, the nearest of all of them, in O(n log n)).
 
     Returns (ia, ib): int64 index arrays of equal length into times_a and times_b, in the
     order of the shorter trajectory's times (an index of the longer one may repeat when it is
@@ -491,10 +503,7 @@ def associate(times_a: object, times_b: object, max_time_difference: float = MAX
         keep = inside & (take_after | take_before)
         nearest = np.where(take_after, above, above - 1)
     else:
-        nearest = np.empty(len(short), np.int64)
-        step = max(1, ASSOCIATE_CHUNK_PAIRS // len(long))
-        for a in range(0, len(short), step):
-            nearest[a:a + step] = np.argmin(np.abs(long[None, :] - short[a:a + step, None]), axis=1)
+        nearest = _nearest_unsorted(long, short)
         keep = np.abs(long[nearest] - short) <= limit
     i_short = np.flatnonzero(keep)
     i_long = nearest[keep].astype(np.int64)
@@ -889,7 +898,6 @@ __all__ = [
     "ALIGNMENTS",
     "DELTA_UNITS",
     "MAX_REPORTED_LINES",
-    "ASSOCIATE_CHUNK_PAIRS",
     "MAX_TIME_DIFFERENCE",
     "NEES_SINGULAR_RTOL",
     "LandmarkScore",

@@ -30,6 +30,10 @@ PathLike = Union[str, "os.PathLike[str]"]
 #: rows="skip": a file with more than this fraction of its records skipped is refused, naming the
 #: first bad line (the C++ reader's kMaxBadRowFraction).
 MAX_BAD_ROW_FRACTION = _core.MAX_BAD_ROW_FRACTION
+#: The information-repair policy's floor: a record's information matrix that is not positive
+#: definite gets its eigenvalues raised to at least this fraction of the largest (the C++
+#: reader's kInformationEigenvalueFloor; docs/pose_graphs.md).
+INFORMATION_EIGENVALUE_FLOOR = _core.INFORMATION_EIGENVALUE_FLOOR
 
 
 def read_pose_graph(path: PathLike, format: str = "auto", *, noise: str = "default",
@@ -48,6 +52,12 @@ def read_pose_graph(path: PathLike, format: str = "auto", *, noise: str = "defau
     first; ``read_pose_graph_with_report`` tells which were skipped). A missing file raises
     ``FileNotFoundError`` naming it (as every reader of the package does).
 
+    An edge whose information matrix is finite and symmetric but not positive definite (SE-Sync's
+    cubicle.g2o has thousands) is repaired, not refused: its eigenvalues are raised to
+    ``INFORMATION_EIGENVALUE_FLOOR`` times the largest, eigenvectors kept (docs/pose_graphs.md,
+    "Information repair"); ``report.repaired_rows`` counts them. The same holds for the 3-D
+    readers.
+
     ``equivalences``: what TORO's ``EQUIV i j`` records (i and j are one node) do: 'merge' (each
     chain of equivalent ids becomes its smallest id, edges between them are dropped: TORO's
     collapse) or 'ignore' (the VERTEX2 / EDGE2 records alone, as GTSAM's ``load2D`` reads)."""
@@ -57,7 +67,8 @@ def read_pose_graph(path: PathLike, format: str = "auto", *, noise: str = "defau
 @dataclass(frozen=True)
 class PoseGraphRead:
     """A graph read from a file and what the reader skipped (``report.skipped_rows``,
-    ``report.skipped_lines``, ``report.skipped_reasons``)."""
+    ``report.skipped_lines``, ``report.skipped_reasons``) or repaired (``report.repaired_rows``,
+    ``report.repaired_lines``, ``report.repaired_reasons``)."""
 
     graph: PoseGraph2D
     report: PoseGraphReadReport
@@ -207,6 +218,7 @@ __all__ = [
     "INITIALIZATIONS",
     "IncrementalReport",
     "OptimizationReport",
+    "INFORMATION_EIGENVALUE_FLOOR",
     "MAX_BAD_ROW_FRACTION",
     "PoseGraph2D",
     "PoseGraph3D",

@@ -89,6 +89,12 @@ LEAVE_ONE_OUT_RANK_TOLERANCE = 1e-9
 #: resolves.
 ODOMETRY_COVARIANCE_FLOOR = 1e-6
 
+#: A given covariance (odometry, measurement noise, and the sighting's point covariance it gives)
+#: must be invertible in double precision: its smallest eigenvalue above this fraction of its
+#: largest. Below it the inverse is dominated by rounding (an eigenvalue of 1e-16 relative is at
+#: the level of one ulp of the entries) and numpy answers "Singular matrix" naming nothing.
+COVARIANCE_CONDITION_FLOOR = 1e-13
+
 #: The noise a filter is run with is set for the filter (MRCLAM's CLI default 0.15 m / 0.04 rad
 #: is several times the camera's error: at the GraphSLAM optimum of robot 1 of Dataset 7 with
 #: the barcodes as labels, chi2 is 722 for a redundancy of about 5000), and a test against a
@@ -221,14 +227,35 @@ def split_gate(num_sightings: int, probability: float = SPLIT_RUN_PROBABILITY) -
 # The linearised measurement: a sighting as the point in the pose's frame.
 
 
-def polar_to_point(measurements: np.ndarray, noise: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
-    """Range-bearing (K, 2) with covariances (K, 2, 2) as robot-frame points (K, 2) with their
-    information (K, 2, 2), through the Jacobian of (r cos phi, r sin phi)."""
+def _point_covariances(measurements: np.ndarray, noise: np.ndarray) -> np.ndarray:
+    """The robot-frame point covariances (K, 2, 2) of range-bearing sightings, through the
+    Jacobian of (r cos phi, r sin phi)."""
     r, phi = measurements[:, 0], measurements[:, 1]
     c, s = np.cos(phi), np.sin(phi)
     jac = np.stack([np.column_stack([c, -r * s]), np.column_stack([s, r * c])], axis=1)
     cov = jac @ noise @ jac.transpose(0, 2, 1)
-    return np.column_stack([r * c, r * s]), np.linalg.inv(0.5 * (cov + cov.transpose(0, 2, 1)))
+    return 0.5 * (cov + cov.transpose(0, 2, 1))
+
+
+def polar_to_point(measurements: np.ndarray, noise: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
+    """Range-bearing (K, 2) with covariances (K, 2, 2) as robot-frame points (K, 2) with their
+    information (K, 2, 2)."""
+    r, phi = measurements[:, 0], measurements[:, 1]
+    return np.column_stack([r * np.cos(phi), r * np.sin(phi)]), np.linalg.inv(_point_covariances(measurements, noise))
+
+
+def _require_invertible(covs: np.ndarray, name: str, what: str = "matrix") -> None:
+    """ValueError naming ``name`` and the first covariance of ``covs`` (N, n, n) that is not
+    positive definite or not invertible within COVARIANCE_CONDITION_FLOOR."""
+    if len(covs) == 0:
+        return
+    w = np.linalg.eigvalsh(covs)
+    bad = np.flatnonzero(~(w[:, 0] > COVARIANCE_CONDITION_FLOOR * np.abs(w[:, -1])))
+    if len(bad):
+        i = int(bad[0])
+        kind = "positive definite" if w[i, 0] <= 0 else f"invertible (eigenvalue ratio above {COVARIANCE_CONDITION_FLOOR:g})"
+        raise ValueError(f"{name}: must be positive definite and invertible; {what} {i} is not {kind}: "
+                         f"eigenvalues {w[i, 0]:.6g} .. {w[i, -1]:.6g}")
 
 
 def _rotation_t(theta: np.ndarray) -> np.ndarray:
@@ -817,8 +844,9 @@ def _check_input(poses, odometry, odometry_covariances, pose_index, measurements
         largest = np.abs(covs).max(axis=(1, 2))[:, None, None] if len(covs) else 0.0
         if len(covs) and np.any(np.abs(covs - covs.transpose(0, 2, 1)) > COVARIANCE_SYMMETRY * largest):
             raise ValueError(f"{name}: must be symmetric")
-        if len(covs) and np.any(np.linalg.eigvalsh(covs)[:, 0] <= 0):
-            raise ValueError(f"{name}: must be positive definite")
+        _require_invertible(covs, name)
+    # The point covariance a sighting gives (a range near 0 makes it singular).
+    _require_invertible(_point_covariances(measurements, q), "measurements, measurement_noise", "sighting")
     values: Dict[int, np.ndarray] = {}
     if landmarks is not None:
         require_instance(landmarks, dict, "landmarks")

@@ -121,7 +121,14 @@ IncrementalReport optimize_incremental_graph(Graph& target, const IncrementalOpt
 
   IncrementalReport report;
   std::vector<int> full_index;
+  IterationCallback on_iteration;
+  if (options.interrupt)
+    on_iteration = [&options](int, double) {
+      options.interrupt();
+      return true;
+    };
   for (int step = 0; step < static_cast<int>(points_joining.size()); ++step) {
+    if (options.interrupt) options.interrupt();
     const int end = std::min<int>((step + 1) * options.poses_per_step, static_cast<int>(order.size()));
     for (int i = step * options.poses_per_step; i < end; ++i) {
       const int v = order[i];
@@ -133,7 +140,7 @@ IncrementalReport optimize_incremental_graph(Graph& target, const IncrementalOpt
     Graph part = part_of(graph, joins, step, full_index);
     // A lone first pose (and its prior): nothing relates it to anything yet.
     if (part.pose_edges().empty() && part.point_edges().empty()) continue;
-    report.add_step(optimize(part, options.step));
+    report.add_step(optimize(part, options.step, on_iteration));
     for (int j = 0; j < part.num_vertices(); ++j) graph.vertex(full_index[j]).value = part.vertex(j).value;
   }
   report.chi2 = graph.chi2();

@@ -378,11 +378,14 @@ OptimizationReport optimize_graph(Graph& graph, const OptimizerOptions& options,
   if (!on_iteration) {
     report = optimize_in_place(work, options, on_iteration);
   } else {
-    // An exception from the callback comes after an iteration completed (its values are finite
-    // and in `work`): keep them, as a callback returning false does. Any other failure (singular
-    // system, non-finite step) happens before the callback is reached and leaves graph unchanged.
+    // The callback sees the graph at the iteration just completed (its values are finite): a
+    // progress plot may read it. An exception from the callback keeps those values, as a callback
+    // returning false does; any other failure (singular system, non-finite step) comes before the
+    // callback is reached and puts the values back as they were before the call.
+    const auto before = graph.values();
     bool in_callback = false;
     const IterationCallback guarded = [&](int iteration, double chi2) {
+      graph.assign_values(work.values());
       in_callback = true;
       const bool go_on = on_iteration(iteration, chi2);
       in_callback = false;
@@ -391,7 +394,7 @@ OptimizationReport optimize_graph(Graph& graph, const OptimizerOptions& options,
     try {
       report = optimize_in_place(work, options, guarded);
     } catch (...) {
-      if (in_callback) graph.assign_values(work.values());
+      if (!in_callback) graph.assign_values(before);
       throw;
     }
   }

@@ -3,6 +3,10 @@
 // shared by the 2-D and 3-D pose-graph readers.
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
+#include <Eigen/Eigenvalues>
+
+#include <cmath>
+#include <optional>
 
 #include "probslam/io/pose_graph_file.hpp"
 #include "text_fields.hpp"
@@ -33,6 +37,35 @@ Eigen::Matrix<double, N, N> information_from(const Eigen::Matrix<double, N, N>& 
   if (llt.info() != Eigen::Success) err.fail("covariance is not positive definite");
   const Matrix information = llt.solve(Matrix::Identity());
   return 0.5 * (information + information.transpose());
+}
+
+// The information-repair policy (docs/pose_graphs.md): an information matrix that is finite and
+// symmetric but not positive definite (SE-Sync's cubicle.g2o: 5,021 of 16,869 edges with a
+// negative eigenvalue) gets its eigenvalues raised to at least kInformationEigenvalueFloor times
+// the largest, the eigenvectors kept: the edge keeps its well-determined directions and gives
+// the doubtful ones almost no weight, instead of the whole file being refused. One with no
+// positive eigenvalue has nothing to keep and stays an error. Returns the repaired matrix and
+// its smallest eigenvalue before, or nothing when `information` is positive definite.
+
+template <int N>
+struct RepairedInformation {
+  Eigen::Matrix<double, N, N> information;
+  double smallest_eigenvalue;  // of the matrix the file gave
+};
+
+template <int N>
+std::optional<RepairedInformation<N>> repaired_information(const Eigen::Matrix<double, N, N>& information) {
+  using Matrix = Eigen::Matrix<double, N, N>;
+  if (!information.allFinite() || Eigen::LLT<Matrix>(information).info() == Eigen::Success) return std::nullopt;
+  const Eigen::SelfAdjointEigenSolver<Matrix> eigen(information);
+  if (eigen.info() != Eigen::Success) return std::nullopt;
+  const double largest = eigen.eigenvalues().maxCoeff();
+  if (!(largest > 0.0) || !std::isfinite(largest)) return std::nullopt;
+  const Eigen::Matrix<double, N, 1> raised = eigen.eigenvalues().cwiseMax(kInformationEigenvalueFloor * largest);
+  Matrix out = eigen.eigenvectors() * raised.asDiagonal() * eigen.eigenvectors().transpose();
+  out = 0.5 * (out + out.transpose());
+  if (Eigen::LLT<Matrix>(out).info() != Eigen::Success) return std::nullopt;
+  return RepairedInformation<N>{out, eigen.eigenvalues().minCoeff()};
 }
 
 }  // namespace probslam::io_detail

@@ -9,6 +9,7 @@
 #include <limits>
 #include <optional>
 #include <unordered_map>
+#include <utility>
 #include <vector>
 
 #include "probslam/core/check.hpp"
@@ -110,19 +111,19 @@ PoseGraphFormat detect(const std::string& tag) {
 }
 
 void parse_line(const Fields& f, const std::string& tag, PoseGraphFormat format, NoiseFormat noise, long line,
-                const LineError& err, Records& out) {
+                const LineError& err, Records& out, RowLog& rows) {
   // noise: the entries as the file orders them, made a symmetric matrix
   auto pose_edge = [&](const Eigen::Matrix3d& noise_entries) {
     const int from = vertex_id(f, 1, err), to = vertex_id(f, 2, err);
     const Eigen::Vector3d z(f.number(3), f.number(4), f.number(5));
-    const Eigen::Matrix3d information = information_from<3>(noise_entries, noise, err);
+    const Eigen::Matrix3d information = rows.repair<3>(information_from<3>(noise_entries, noise, err), line);
     check_edge(z, information, err);
     out.edges.push_back({line, false, from, to, z, information});
   };
   auto point_edge = [&](const Eigen::Matrix2d& noise_entries) {
     const int pose = vertex_id(f, 1, err), point = vertex_id(f, 2, err);
     const Eigen::Vector2d z(f.number(3), f.number(4));
-    const Eigen::Matrix2d information = information_from<2>(noise_entries, noise, err);
+    const Eigen::Matrix2d information = rows.repair<2>(information_from<2>(noise_entries, noise, err), line);
     check_edge(z, information, err);
     Eigen::Matrix3d info = Eigen::Matrix3d::Identity();
     info.topLeftCorner<2, 2>() = information;
@@ -240,13 +241,14 @@ void merge_equivalences(Records& records, Equivalences mode, PoseGraphReadReport
   for (const VertexRecord& v : records.vertices) used.insert(v.id);
   for (const EdgeRecord& e : records.edges) used.insert({e.from, e.to});
   std::unordered_map<int, int> parent;
+  // Union-find: a set's root is its smallest id (the larger root is linked under the smaller);
+  // path compression keeps a long chain of EQUIV records near-linear instead of quadratic.
   auto root = [&](int id) {
-    auto it = parent.find(id);
-    while (it != parent.end() && it->second != id) {
-      id = it->second;
-      it = parent.find(id);
-    }
-    return id;
+    int r = id;
+    for (auto it = parent.find(r); it != parent.end(); it = parent.find(r)) r = it->second;
+    for (auto it = parent.find(id); it != parent.end() && it->second != r; it = parent.find(id))
+      id = std::exchange(it->second, r);
+    return r;
   };
   for (const auto& [line, pair] : records.equivalences) {
     rows.row([&, line = line, pair = pair] {
@@ -323,7 +325,7 @@ PoseGraphRead parse_pose_graph(std::istream& in, const PoseGraphReadOptions& opt
       in, source, options.format, report, rows, records, "3-D",
       "use read_pose_graph_3d (Python: probslam.io.read_pose_graph_3d)", is_3d_tag, detect,
       [&](const Fields& fields, const std::string& tag, PoseGraphFormat f, long line, const LineError& err) {
-        parse_line(fields, tag, f, own_noise(options.noise, f), line, err, records);
+        parse_line(fields, tag, f, own_noise(options.noise, f), line, err, records, rows);
       });
   merge_equivalences(records, options.equivalences, report, source, rows);
   PoseGraph2D graph = build(records, format, source, rows);

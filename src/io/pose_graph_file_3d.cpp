@@ -1,6 +1,7 @@
 #include "probslam/io/pose_graph_file_3d.hpp"
 
 #include <Eigen/Cholesky>
+#include <array>
 #include <algorithm>
 #include <cmath>
 #include <fstream>
@@ -122,22 +123,23 @@ Eigen::Quaterniond from_roll_pitch_yaw(const Fields& f, std::size_t first, const
 }
 
 // The information the N (N + 1) / 2 upper-triangle entries (row-major, from field `first`) stand
-// for, positive definite.
+// for, positive definite (repaired under the information-repair policy, counted in rows).
 template <int N>
-Eigen::Matrix<double, N, N> information(const Fields& f, std::size_t first, NoiseFormat noise, const LineError& err) {
+Eigen::Matrix<double, N, N> information(const Fields& f, std::size_t first, NoiseFormat noise, const LineError& err,
+                                        RowLog& rows, long line) {
   using Matrix = Eigen::Matrix<double, N, N>;
   Matrix entries = Matrix::Zero();
   std::size_t k = first;
   for (int i = 0; i < N; ++i)
     for (int j = i; j < N; ++j) entries(i, j) = entries(j, i) = f.number(k++);
-  const Matrix info = io_detail::information_from<N>(entries, noise, err);
+  const Matrix info = rows.repair<N>(io_detail::information_from<N>(entries, noise, err), line);
   const Eigen::LLT<Matrix> llt(info);
   if (llt.info() != Eigen::Success || !info.allFinite()) err.fail("information is not positive definite");
   return info;
 }
 
 void parse_line(const Fields& f, const std::string& tag, PoseGraphFormat format, NoiseFormat noise, long line,
-                const LineError& err, Records& out) {
+                const LineError& err, Records& out, RowLog& rows) {
   auto edge_ends = [&](Edge3D& e) {
     e.from_id = vertex_id(f, 1, err);
     e.to_id = vertex_id(f, 2, err);
@@ -157,7 +159,7 @@ void parse_line(const Fields& f, const std::string& tag, PoseGraphFormat format,
       edge_ends(e);
       e.t = vector3(f, 3, "translation", err);
       e.q = quaternion(f, 6, err);
-      e.information = information<6>(f, 10, noise, err);
+      e.information = information<6>(f, 10, noise, err, rows, line);
       out.edges.push_back({line, e});
     } else if (tag == "EDGE_SE3_PRIOR") {
       f.need(31, "id param x y z qx qy qz qw and 21 information entries");
@@ -165,7 +167,7 @@ void parse_line(const Fields& f, const std::string& tag, PoseGraphFormat format,
       p.prior.id = vertex_id(f, 1, err);
       p.prior.t = vector3(f, 3, "translation", err);
       p.prior.q = quaternion(f, 6, err);
-      p.prior.information = information<6>(f, 10, noise, err);
+      p.prior.information = information<6>(f, 10, noise, err, rows, line);
       out.priors.push_back(p);
     } else if (tag == "VERTEX_TRACKXYZ") {
       f.need(5, "id x y z");
@@ -182,7 +184,7 @@ void parse_line(const Fields& f, const std::string& tag, PoseGraphFormat format,
       r.edge.z = vector3(f, 4, "measurement", err);
       // g2o's own convention for these records: the entries are the information (the NoiseFormat
       // option describes the pose records of the formats that differ).
-      r.edge.information = information<3>(f, 7, NoiseFormat::kInformation, err);
+      r.edge.information = information<3>(f, 7, NoiseFormat::kInformation, err, rows, line);
       out.point_edges.push_back(r);
     } else if (tag == "PARAMS_SE3OFFSET") {
       f.need(9, "id x y z qx qy qz qw");
@@ -218,7 +220,7 @@ void parse_line(const Fields& f, const std::string& tag, PoseGraphFormat format,
     edge_ends(e);
     e.t = vector3(f, 3, "translation", err);
     e.q = from_roll_pitch_yaw(f, 6, err);
-    e.information = information<6>(f, 9, noise, err);
+    e.information = information<6>(f, 9, noise, err, rows, line);
     out.edges.push_back({line, e});
   } else {
     err.fail(std::string("unsupported ") + format_name(format) + " record '" + tag + "' (VERTEX3 and EDGE3 only)");
@@ -361,7 +363,7 @@ PoseGraph3DRead parse_pose_graph_3d(std::istream& in, const PoseGraphReadOptions
       in, source, options.format, report, rows, records, "2-D",
       "use read_pose_graph (Python: probslam.graph.read_pose_graph)", is_2d_tag, detect,
       [&](const Fields& fields, const std::string& tag, PoseGraphFormat f, long line, const LineError& err) {
-        parse_line(fields, tag, f, own_noise(options.noise, f), line, err, records);
+        parse_line(fields, tag, f, own_noise(options.noise, f), line, err, records, rows);
       });
   PoseGraph3DData graph = build(records, source, rows);
   rows.require_few_skipped();  // again: building may have skipped more
@@ -395,13 +397,30 @@ Eigen::Matrix<double, 7, 1> offset_record(const PointEdge3D& e) {
 }
 
 // The sensor offsets to write as PARAMS_SE3OFFSET records: the identity first (parameter 0, the
-// priors'), then each distinct offset of a point edge in order.
-std::vector<Eigen::Matrix<double, 7, 1>> offsets_of(const PoseGraph3DData& graph) {
-  std::vector<Eigen::Matrix<double, 7, 1>> out(1);
-  out[0] << 0, 0, 0, 0, 0, 0, 1;
+// priors'), then each distinct offset of a point edge in order; and each point edge's parameter.
+struct Offsets {
+  std::vector<Eigen::Matrix<double, 7, 1>> records;
+  std::vector<std::size_t> of_edge;
+};
+
+Offsets offsets_of(const PoseGraph3DData& graph) {
+  Offsets out;
+  out.records.resize(1);
+  out.records[0] << 0, 0, 0, 0, 0, 0, 1;
+  // Keyed by the record's values (== as Eigen compares them: finite, so an ordered map finds the
+  // same ones); a lookup per edge, not a scan of the offsets seen so far.
+  std::map<std::array<double, 7>, std::size_t> index;
+  auto key = [](const Eigen::Matrix<double, 7, 1>& o) {
+    std::array<double, 7> k{};
+    std::copy(o.data(), o.data() + 7, k.begin());
+    return k;
+  };
+  index.emplace(key(out.records[0]), 0);
   for (const PointEdge3D& e : graph.point_edges) {
     const Eigen::Matrix<double, 7, 1> o = offset_record(e);
-    if (std::find(out.begin(), out.end(), o) == out.end()) out.push_back(o);
+    const auto [it, added] = index.emplace(key(o), out.records.size());
+    if (added) out.records.push_back(o);
+    out.of_edge.push_back(it->second);
   }
   return out;
 }
@@ -455,11 +474,11 @@ void write_g2o_3d(std::ostream& out, const PoseGraph3DData& graph) {
     write_information(out, e.information);
     out << '\n';
   }
-  const std::vector<Eigen::Matrix<double, 7, 1>> offsets = offsets_of(graph);
+  const Offsets offsets = offsets_of(graph);
   if (!graph.priors.empty() || !graph.point_edges.empty())
-    for (size_t k = 0; k < offsets.size(); ++k) {
+    for (size_t k = 0; k < offsets.records.size(); ++k) {
       out << "PARAMS_SE3OFFSET " << k;
-      for (int i = 0; i < 7; ++i) out << ' ' << offsets[k][i];
+      for (int i = 0; i < 7; ++i) out << ' ' << offsets.records[k][i];
       out << '\n';
     }
   for (const Prior3D& p : graph.priors) {
@@ -468,9 +487,9 @@ void write_g2o_3d(std::ostream& out, const PoseGraph3DData& graph) {
     write_information(out, p.information);
     out << '\n';
   }
-  for (const PointEdge3D& e : graph.point_edges) {
-    const auto param = std::find(offsets.begin(), offsets.end(), offset_record(e)) - offsets.begin();
-    out << "EDGE_SE3_TRACKXYZ " << e.pose_id << ' ' << e.point_id << ' ' << param << ' ' << e.z.x() << ' ' << e.z.y()
+  for (size_t k = 0; k < graph.point_edges.size(); ++k) {
+    const PointEdge3D& e = graph.point_edges[k];
+    out << "EDGE_SE3_TRACKXYZ " << e.pose_id << ' ' << e.point_id << ' ' << offsets.of_edge[k] << ' ' << e.z.x() << ' ' << e.z.y()
         << ' ' << e.z.z();
     write_information(out, e.information);
     out << '\n';

@@ -7,8 +7,11 @@
 #include <sstream>
 #include <stdexcept>
 #include <string>
+#include <type_traits>
+#include <utility>
 
 #include "probslam/io/pose_graph_file.hpp"
+#include "noise_information.hpp"
 #include "text_fields.hpp"
 
 namespace probslam::io_detail {
@@ -37,6 +40,24 @@ class RowLog {
     }
   }
 
+  // A record read after the information-repair policy changed its matrix (noise_information.hpp).
+  void repaired(long line, double smallest_eigenvalue) {
+    ++report_.repaired_rows;
+    std::ostringstream reason;
+    reason << "information not positive definite (smallest eigenvalue " << smallest_eigenvalue
+           << "): eigenvalues raised to " << kInformationEigenvalueFloor << " of the largest";
+    list_skipped_line(report_.repaired_lines, kPoseGraphMaxReportedLines, line, reason.str());
+  }
+
+  // The information the file gave, or its repair (counted) when it is not positive definite.
+  template <int N>
+  Eigen::Matrix<double, N, N> repair(const Eigen::Matrix<double, N, N>& information, long line) {
+    const auto fixed = repaired_information<N>(information);
+    if (!fixed) return information;
+    repaired(line, fixed->smallest_eigenvalue);
+    return fixed->information;
+  }
+
   void require_few_skipped() const {
     if (static_cast<double>(report_.skipped_rows) <= kMaxBadRowFraction * static_cast<double>(report_.rows)) return;
     std::ostringstream what;
@@ -57,10 +78,16 @@ class RowLog {
 constexpr std::size_t kPoseGraphMaxLineBytes = std::size_t{1} << 20;
 
 // The record loop of both pose-graph readers: every record counted and read by
+// Whether a reader's records hold point vertices apart from its vertices (the 3-D reader's do).
+template <class Records, class = void>
+struct has_points : std::false_type {};
+template <class Records>
+struct has_points<Records, std::void_t<decltype(std::declval<Records>().points)>> : std::true_type {};
+
 // parse(fields, tag, format, line, err) under the row policy, the format detected from the first
 // tag when it is kAuto. A record of the other dimension (is_other(tag)) is fatal under both
 // policies, since no line of the file can be read: the message says "this is a <other> graph
-// (TAG): <use>". Afterwards: too many bad rows, or a file without vertices and edges, throw.
+// (TAG): <use>". Afterwards: too many bad rows, or records without vertices and edges, throw.
 // Returns the format.
 template <class Records, class IsOther, class Detect, class Parse>
 PoseGraphFormat read_graph_records(std::istream& in, const std::string& source, PoseGraphFormat format,
@@ -80,7 +107,12 @@ PoseGraphFormat read_graph_records(std::istream& in, const std::string& source, 
       },
       kPoseGraphMaxLineBytes);
   rows.require_few_skipped();
-  if (records.edges.empty() && records.vertices.empty()) throw std::invalid_argument(source + ": no vertices or edges");
+  // A file without records is an empty graph (what the writers write for one); records that
+  // give neither a vertex nor an edge are not a graph.
+  bool none = records.edges.empty() && records.vertices.empty();
+  if constexpr (has_points<Records>::value) none = none && records.points.empty();
+  if (report.rows > 0 && none)
+    throw std::invalid_argument(source + ": no vertices or edges");
   return format;
 }
 

@@ -187,7 +187,7 @@ TEST(PoseGraphFile3D, MalformedRecordsNameTheirLine) {
       {"EDGE_SE3:QUAT 0 1 x 0 0 0 0 0 1" + kIdentityInformation + "\n", "<stream>:3: field 4 ('x') is not a number"},
       {"EDGE_SE3:QUAT 0 500 1 0 0 0 0 0 1" + kIdentityInformation + "\n", "<stream>:3: unknown vertex 500"},
       {"EDGE_SE3:QUAT 1 1 1 0 0 0 0 0 1" + kIdentityInformation + "\n", "<stream>:3: edge from vertex 1 to itself"},
-      {"EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1 1 0 0 0 0 0 1 0 0 0 0 1 0 0 0 1 0 0 1 0 -1\n",
+      {"EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1 -1 0 0 0 0 0 -1 0 0 0 0 -1 0 0 0 -1 0 0 -1 0 -1\n",
        "<stream>:3: information is not positive definite"},
       {"VERTEX_SE3:QUAT 1 1 0 0 0 0 0 1\n", "<stream>:3: vertex 1 given twice"},
       {"FIX 400\n", "<stream>:3: FIX names unknown vertex 400"},

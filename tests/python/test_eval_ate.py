@@ -161,6 +161,37 @@ def test_association_is_by_nearest_time_within_the_limit():
     assert ie.tolist() == [0, 0] and ir.tolist() == [0, 1]
 
 
+def _associate_by_brute_force(times_a, times_b, limit):
+    """evo's association written plainly: every time of the shorter trajectory against every
+    time of the other, the nearest (argmin: of equally near ones, the lowest index) kept when
+    within the limit."""
+    a, b = np.asarray(times_a, float), np.asarray(times_b, float)
+    short, long = (a, b) if len(b) > len(a) else (b, a)
+    pairs = [(i, int(np.argmin(np.abs(long - t)))) for i, t in enumerate(short)]
+    pairs = [(i, j) for i, j in pairs if abs(long[j] - short[i]) <= limit]
+    i_short = np.array([i for i, _ in pairs], np.int64)
+    i_long = np.array([j for _, j in pairs], np.int64)
+    return (i_short, i_long) if len(b) > len(a) else (i_long, i_short)
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_association_of_unsorted_times_equals_the_full_search(seed):
+    # Issue 48: once one stamp went back, every time was compared with every other (10^6 poses:
+    # ~20 min); the sorted search must give the full search's pairs exactly, repeated times and
+    # ties (integer and half-integer stamps) included.
+    rng = np.random.default_rng(seed)
+    n, m = rng.integers(1, 300, 2)
+    if seed % 2:
+        t_a, t_b = rng.integers(0, 60, n) / 2.0, rng.integers(-4, 64, m) / 2.0
+    else:
+        t_a, t_b = np.sort(rng.uniform(0, 50, n)), rng.uniform(-1, 51, m)
+        t_a[rng.integers(0, n)] -= 3.0  # one stamp goes back
+    for limit in (0.01, 0.5, 100.0):
+        got = ev.associate(t_a, t_b, limit)
+        want = _associate_by_brute_force(t_a, t_b, limit)
+        assert got[0].tolist() == want[0].tolist() and got[1].tolist() == want[1].tolist()
+
+
 def test_bad_arguments_are_named():
     times, ref, est = loop(n=10)
     with pytest.raises(ValueError, match="times_est: no pose within max_time_difference"):

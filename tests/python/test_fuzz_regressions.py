@@ -78,3 +78,20 @@ CLASSES += [
                          ids=[f"{t}-{i}" for i, (t, _, _) in enumerate(FINDINGS + CLASSES)])
 def test_fuzz_input_is_handled(tmp_path, target, data, before):
     targets.check(targets.TARGETS[target], targets.Workspace(tmp_path), data)
+
+
+# Issue 48: targets for the 3-D reader into a PoseGraph3D (with its write-and-read-back check),
+# TORO 3-D and TORO's EQUIV merge; their seeds, an empty file and a long EQUIV chain must give a
+# documented outcome.
+NEW_TARGETS = ("g2o_3d_graph", "toro_3d", "toro_equiv")
+CHAIN = b"".join(b"VERTEX2 %d %d 0 0\n" % (i, i) for i in range(2000)) + \
+    b"".join(b"EDGE2 %d %d 1 0 0 1 0 1 1 0 0\n" % (i, i + 1) for i in range(1999)) + \
+    b"".join(b"EQUIV %d %d\n" % (i + 1, i) for i in range(1999))
+
+
+@pytest.mark.parametrize("target, data", [
+    (t, p.read_bytes()) for t in NEW_TARGETS
+    for p in sorted((pathlib.Path(targets.__file__).parent / "seeds" / t).iterdir())
+] + [(t, b"") for t in NEW_TARGETS] + [("toro_equiv", CHAIN)])
+def test_new_targets_take_their_seeds(tmp_path, target, data):
+    targets.check(targets.TARGETS[target], targets.Workspace(tmp_path), data)

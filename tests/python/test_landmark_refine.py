@@ -583,6 +583,30 @@ def test_bad_sightings_are_refused_by_name():
         probslam.refine_landmarks(**dict(args, landmarks={0: [1.0, 2.0, 3.0]}))
 
 
+@pytest.mark.parametrize("name, value", [
+    # Issue 48: positive definite by its computed eigenvalues but not invertible in double
+    # precision (1 + 1e-16 rounds to 1): numpy's "Singular matrix" named nothing.
+    ("measurement_noise", np.array([[1.0, 1.0], [1.0, 1.0 + 1e-16]])),
+    ("odometry_covariances", np.tile(np.array([[1.0, 1.0, 0], [1.0, 1.0 + 1e-16, 0], [0, 0, 1]]), (20, 1, 1))),
+    ("measurement_noise", np.diag([1.0, 1e-300])),
+])
+def test_singular_covariances_are_refused_by_name(name, value):
+    args = _small()
+    args[name] = value
+    with pytest.raises(ValueError, match=f"^{name}: must be positive definite and invertible"):
+        probslam.refine_landmarks(**args)
+
+
+def test_a_sighting_whose_point_covariance_is_singular_is_named():
+    # A range so small that the sighting's point covariance (r^2 times the bearing variance in
+    # one direction) underflows: the sighting is named, not numpy's "Singular matrix".
+    args = _small()
+    ranges = args["measurements"].copy()
+    ranges[4, 0] = 1e-170
+    with pytest.raises(ValueError, match=r"^measurements, measurement_noise: .*sighting 4 "):
+        probslam.refine_landmarks(**dict(args, measurements=ranges))
+
+
 def test_refine_run_refuses_what_is_not_a_run_or_a_dataset():
     with pytest.raises(TypeError, match="run"):
         lr.refinement_input("a run", None)

@@ -91,3 +91,64 @@ def test_cli_optimize_progress_and_ctrl_c(tmp_path, capsys, monkeypatch):
     ps.optimize(one, max_iterations=1)
     np.testing.assert_allclose(written, one.poses, atol=1e-6)  # g2o text keeps 6+ digits
     assert not np.allclose(written, done, atol=1e-6)
+
+
+# Issue 48: a callback that uses the graph being optimised (a progress plot reading g.poses) ran
+# under the graph's lock and deadlocked. Each case runs in its own process with a timeout, so a
+# regression fails instead of hanging the suite.
+REENTRY = r"""
+import numpy as np
+import probslam as ps
+
+if DIM == 2:
+    g = ps.read_pose_graph(ps.data.path("intel_400.g2o"))
+    read = lambda: g.poses
+    write = lambda: g.set_poses(g.pose_ids[:1], g.poses[:1])
+else:
+    g = ps.read_pose_graph_3d(ps.data.path("parking_garage_400.g2o"))
+    read = lambda: g.poses
+    write = lambda: g.set_fixed(int(g.pose_ids[0]), True)
+seen = []
+
+def reads(it, chi2):
+    # The graph holds the values of the iteration just completed: its chi2 is the one reported.
+    seen.append((read().copy(), g.chi2(), chi2, g.num_pose_edges))
+    return True
+
+report = ps.optimize(g, callback=reads)
+assert len(seen) == report.iterations >= 1, (len(seen), report.iterations)
+for poses, graph_chi2, chi2, _ in seen:
+    assert abs(graph_chi2 - chi2) <= 1e-9 * max(1.0, chi2), (graph_chi2, chi2)
+assert np.array_equal(seen[-1][0], g.poses)
+
+def writes(it, chi2):
+    write()
+
+before = g.poses.copy()
+try:
+    ps.optimize(g, callback=writes)
+except RuntimeError as e:
+    assert "can be read but not changed" in str(e), e
+else:
+    raise AssertionError("a change from the callback was accepted")
+# The refused change left the graph at the first iteration's values, as any exception does.
+one = ps.read_pose_graph(ps.data.path("intel_400.g2o")) if DIM == 2 else \
+    ps.read_pose_graph_3d(ps.data.path("parking_garage_400.g2o"))
+ps.optimize(one, max_iterations=report.iterations)
+ps.optimize(one, max_iterations=1)
+assert np.array_equal(g.poses, one.poses)
+print("ok")
+"""
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_a_callback_may_read_the_graph_and_may_not_change_it(dim):
+    import subprocess
+    import sys
+
+    try:
+        done = subprocess.run([sys.executable, "-c", f"DIM = {dim}\n" + REENTRY], capture_output=True, text=True,
+                              timeout=300)
+    except subprocess.TimeoutExpired:
+        pytest.fail("optimize with a callback reading the graph did not return (deadlock)")
+    assert done.returncode == 0 and done.stdout.strip() == "ok", done.stderr[-3000:]

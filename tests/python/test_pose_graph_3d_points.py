@@ -343,7 +343,7 @@ def test_g2o_points_read_into_the_graph_and_round_trip_bit_for_bit(tmp_path):
     ("VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nVERTEX_TRACKXYZ 1 1 2 3\n"
      "EDGE_SE3_TRACKXYZ 0 1 4 1 2 3 1 0 0 1 0 1\n", r":3: .*parameter 4"),
     ("VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nVERTEX_TRACKXYZ 1 1 2 3\nPARAMS_SE3OFFSET 0 0 0 0 0 0 0 1\n"
-     "EDGE_SE3_TRACKXYZ 0 1 0 1 2 3 1 0 0 -1 0 1\n", r":4: information"),
+     "EDGE_SE3_TRACKXYZ 0 1 0 1 2 3 -1 0 0 -1 0 -1\n", r":4: information"),
     ("VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nVERTEX_TRACKXYZ 1 1 nan 3\n", r":2: point"),
     ("VERTEX_SE3:QUAT 0 0 0 0 0 0 0 1\nVERTEX_TRACKXYZ 1 1 2 3\nPARAMS_SE3OFFSET 0 0 0 0 0 0 0 1\n"
      "EDGE_SE3_TRACKXYZ 0 1 0 1 2 3 1 0 0 1 0\n", r":4:"),
@@ -437,3 +437,44 @@ def test_probslam_optimize_reads_optimises_writes_and_draws_the_points(tmp_path,
         (dots,) = [c for c in ax.collections if c.get_label() == "points"]
         np.testing.assert_allclose(dots.get_offsets(), result.points[:, columns])
     plt.close(fig)
+
+
+def test_many_distinct_offsets_round_trip_each_to_its_edge(tmp_path):
+    # Issue 48: the writer searched the offsets written so far for every point edge
+    # (O(edges x distinct offsets)); now a lookup. Each edge must still get its own offset's
+    # parameter, equal offsets sharing one, checked against the edges' offsets directly.
+    rng = np.random.default_rng(7)
+    g = probslam.PoseGraph3D()
+    g.add_pose(0, IDENTITY)
+    distinct = [to_row(Rotation.from_rotvec(0.5 * rng.normal(size=3)), rng.normal(size=3)) for _ in range(60)]
+    distinct[5] = np.array([0.0, -0.0, 0.0, 0.0, 0.0, 0.0, 1.0])  # the identity, written as parameter 0
+    chosen = rng.integers(0, len(distinct), 400)
+    for k, c in enumerate(chosen):
+        g.add_point(1 + k, rng.normal(size=3))
+        g.add_point_edge(0, 1 + k, rng.normal(size=3), np.eye(3), offset=distinct[c])
+    path = tmp_path / "offsets.g2o"
+    pg.write_g2o_3d(g, path)
+    params = [line.split() for line in path.read_text().splitlines() if line.startswith("PARAMS_SE3OFFSET")]
+    assert len(params) == len({c for c in chosen if c != 5}) + 1  # one per distinct offset, identity first
+    assert [float(x) for x in params[0][2:]] == [0, 0, 0, 0, 0, 0, 1]
+    back = pg.read_pose_graph_3d(path)
+    np.testing.assert_array_equal(back.point_edges()[3], g.point_edges()[3])
+    np.testing.assert_array_equal(back.point_edges()[0], g.point_edges()[0])
+
+
+@pytest.mark.parametrize("what", ["empty", "points only"])
+def test_a_graph_without_poses_round_trips(tmp_path, what):
+    # Issue 48: write_g2o_3d of an empty graph wrote a file the reader refused.
+    g = probslam.PoseGraph3D()
+    if what == "points only":
+        g.add_point(3, [1.0, 2.0, 3.0])
+    path = tmp_path / "g.g2o"
+    pg.write_g2o_3d(g, path)
+    back = pg.read_pose_graph_3d(path)
+    assert back.num_vertices == g.num_vertices and back.num_points == g.num_points
+    np.testing.assert_array_equal(back.points, g.points)
+    arrays = read_pose_graph_3d(path)
+    assert arrays.vertex_ids.shape == (0,)
+    two = tmp_path / "two.g2o"
+    pg.write_g2o(probslam.PoseGraph2D(), two)
+    assert pg.read_pose_graph(two).num_vertices == 0

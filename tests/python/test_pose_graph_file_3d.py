@@ -135,7 +135,7 @@ def test_writer_refuses_a_bad_graph_and_writes_nothing(tmp_path):
     ("VERTEX_SE3:QUAT 9 0 0 0 0 0 0 1.01", r"quaternion \(qx qy qz qw\) has norm 1.01, not 1"),
     ("VERTEX_SE3:QUAT 9 0 0 0 nan 0 0 1", "quaternion must be finite"),
     ("EDGE_SE3:QUAT 0 999 1 0 0 0 0 0 1" + IDENTITY_INFORMATION, "unknown vertex 999"),
-    ("EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1" + IDENTITY_INFORMATION.replace(" 1 0 1", " 1 0 -1"),
+    ("EDGE_SE3:QUAT 0 1 1 0 0 0 0 0 1" + IDENTITY_INFORMATION.replace(" 1", " -1"),
      "information is not positive definite"),
 ])
 def test_malformed_line_is_named_or_skipped(tmp_path, line, message):
@@ -222,3 +222,56 @@ def test_chi2_of_initial_values_matches_gtsam(shared_data, relative):
     ours = dense_chi2(g)
     theirs = 2 * graph.error(initial)
     assert math.isclose(ours, theirs, rel_tol=GTSAM_AGREEMENT), (ours, theirs)
+
+
+def _upper(matrix):
+    """The 21 upper-triangle entries of a (6, 6) matrix as g2o text."""
+    return "".join(f" {float(matrix[i, j])!r}" for i in range(6) for j in range(i, 6))
+
+
+def _floored(information):
+    """The information-repair policy written plainly: eigenvalues raised to the floor times the
+    largest, eigenvectors kept."""
+    w, v = np.linalg.eigh(information)
+    return (v * np.maximum(w, probslam.graph.INFORMATION_EIGENVALUE_FLOOR * w.max())) @ v.T
+
+
+def test_information_with_a_negative_eigenvalue_is_repaired_and_counted(tmp_path, capsys):
+    # Issue 48: SE-Sync's cubicle.g2o has 5,021 of 16,869 edges whose information has a negative
+    # eigenvalue, and the reader refused the whole file at the first (line 5753). Such edges are
+    # now repaired under a stated policy and counted, in both readers and in probslam optimize.
+    rng = np.random.default_rng(4)
+    n = 40
+    lines = chain_text(n).splitlines()
+    bad = {}
+    for k in (5, 17, 33):  # edges k -> k + 1, cubicle-like: dominant rotation weight, one direction < 0
+        q, _ = np.linalg.qr(rng.normal(size=(6, 6)))
+        info = (q * np.array([400.0, 300.0, 200.0, 9000.0, 8000.0, -35.0])) @ q.T
+        info = 0.5 * (info + info.T)
+        lines[n + 1 + k] = f"EDGE_SE3:QUAT {k} {k + 1} 1 0 0 0 0 0 1" + _upper(info)
+        bad[n + 2 + k] = info
+    path = write_text(tmp_path, "\n".join(lines) + "\n", "cubicle_like.g2o")
+    for strict in ("strict", "skip"):
+        read = probslam.graph.read_pose_graph_3d_with_report(path, rows=strict)
+        assert read.report.repaired_rows == 3 and read.report.skipped_rows == 0
+        assert read.report.repaired_lines == sorted(bad)
+        assert all("smallest eigenvalue -35" in r for r in read.report.repaired_reasons)
+        _, _, infos = read.graph.pose_edges()
+        for line, info in bad.items():
+            np.testing.assert_allclose(infos[line - n - 2], _floored(np.triu(info) + np.triu(info, 1).T),
+                                       rtol=1e-9, atol=1e-9 * np.abs(info).max())
+        probslam.optimize(read.graph)
+    arrays = read_pose_graph_3d(path)
+    assert arrays.report.repaired_rows == 3
+    # The 2-D reader keeps the same policy.
+    two = tmp_path / "two.g2o"
+    two.write_text("VERTEX_SE2 0 0 0 0\nVERTEX_SE2 1 1 0 0\nEDGE_SE2 0 1 1 0 0 4 1 0 -2 0 9\n")
+    read2 = probslam.graph.read_pose_graph_with_report(two)
+    assert (read2.report.repaired_rows, read2.report.repaired_lines) == (1, [3])
+    info2 = np.array([[4.0, 1, 0], [1, -2, 0], [0, 0, 9]])
+    np.testing.assert_allclose(read2.graph.pose_edges()[2][0], _floored(info2), rtol=1e-12, atol=1e-12)
+    # probslam optimize says how many it repaired.
+    from probslam import cli
+    capsys.readouterr()
+    cli.main(["optimize", str(path), "--no-plot", "--no-progress", "-o", str(tmp_path / "out")])
+    assert "3 edges with an information matrix not positive definite" in capsys.readouterr().out

@@ -41,6 +41,8 @@ CORE_INTERNAL = {
     "MAX_COORDINATE": "a limit the CLI checks its options against; users meet it in error messages",
     "MAX_BAD_ROW_FRACTION": "read_pose_graph's rows='skip' limit, exported as probslam.graph.MAX_BAD_ROW_FRACTION",
     "POSE_GRAPH_MAX_REPORTED_LINES": "how many skipped lines PoseGraphReadReport lists",
+    "INFORMATION_EIGENVALUE_FLOOR": "the pose-graph readers' information-repair floor, exported as "
+                                    "probslam.graph.INFORMATION_EIGENVALUE_FLOOR",
     "CARMEN_MAX_REPORTED_LINES": "how many skipped lines a CARMEN read lists (probslam.io.carmen.MAX_REPORTED_LINES)",
     "parse_carmen_log": "the parser under probslam.io.read_carmen_log, which reads compressed logs too",
     "read_pose_graph_3d_graph": "the reader under probslam.read_pose_graph_3d (and _with_report), which return "

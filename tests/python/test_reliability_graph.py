@@ -18,6 +18,7 @@ import probslam
 from probslam import graph as pg
 from probslam import graphslam
 from test_pose_graph import dense_gauss_newton, random_graph, wrap
+from test_reliability_graph3d import graph3d_state, small_graph3d
 
 #: The public calls the property tests below exercise.
 COVERED = (
@@ -384,15 +385,17 @@ SOME_IDS = st.one_of(st.sampled_from([0, 1, 2, 3, 4, 5, 100]), st.integers(-3, 1
 
 
 @PROPERTY
-@given(data=st.data(), points=st.booleans())
-def test_property_set_values(data, points):
-    g = small_graph()
+@given(data=st.data(), points=st.booleans(), three_d=st.booleans())
+def test_property_set_values(data, points, three_d):
+    # PoseGraph2D, and PoseGraph3D (issue 48): poses (N, 3) / (N, 7), points (N, 2) / (N, 3).
+    g, state = (small_graph3d(), graph3d_state) if three_d else (small_graph(), graph_state)
+    width = (3 if points else 7) if three_d else (2 if points else 3)
     ids = data.draw(st.one_of(st.lists(SOME_IDS, max_size=4), policy.arrays(max_dims=2), policy.odd_objects()))
     rows = len(ids) if isinstance(ids, list) else 2
-    values = data.draw(st.one_of(policy.arrays(shape=(rows, 2 if points else 3)), policy.arrays(max_dims=2),
+    values = data.draw(st.one_of(policy.arrays(shape=(rows, width)), policy.arrays(max_dims=2),
                                  policy.odd_objects()))
     call = (lambda: g.set_points(ids, values)) if points else (lambda: g.set_poses(ids, values))
-    policy.check_call(call, snapshot=lambda: graph_state(g))
+    policy.check_call(call, snapshot=lambda: state(g))
 
 
 @PROPERTY

@@ -649,3 +649,84 @@ def test_a_laser_mounted_upside_down_has_its_beams_mirrored(tmp_path, yaw):
     in_laser = np.column_stack([np.cos(beams), np.sin(beams), np.zeros(3)]) * np.array(ranges)[:, None]
     in_base = mount.apply(in_laser) + [0.2, 0.1, 0.0]
     np.testing.assert_allclose(planar, in_base[:, :2], atol=1e-12)
+
+
+def _as_humble_bag(folder):
+    """The ROS 2 sqlite3 bag rosbags wrote in ``folder`` turned into what Foxy / Galactic / Humble
+    record: metadata.yaml version 5 (no ros_distro, custom_data or type hashes) and a schema-3
+    database without the message_definitions table (and without Iron's metadata table), so the
+    bag holds no type definitions at all."""
+    import sqlite3
+
+    from ruamel.yaml import YAML
+
+    yaml = YAML(typ="safe")
+    meta_path = folder / "metadata.yaml"
+    meta = yaml.load(meta_path.read_text())
+    info = meta["rosbag2_bagfile_information"]
+    info["version"] = 5
+    for key in ("ros_distro", "custom_data"):
+        info.pop(key, None)
+    for topic in info["topics_with_message_count"]:
+        topic["topic_metadata"].pop("type_description_hash", None)
+    with open(meta_path, "w") as f:
+        yaml.dump(meta, f)
+    for db in folder.glob("*.db3"):
+        con = sqlite3.connect(db)
+        con.executescript("""
+            DROP TABLE message_definitions;
+            DROP TABLE metadata;
+            CREATE TABLE humble_topics(id INTEGER PRIMARY KEY, name TEXT NOT NULL, type TEXT NOT NULL,
+                                       serialization_format TEXT NOT NULL, offered_qos_profiles TEXT NOT NULL);
+            INSERT INTO humble_topics SELECT id, name, type, serialization_format, offered_qos_profiles FROM topics;
+            DROP TABLE topics;
+            ALTER TABLE humble_topics RENAME TO topics;
+            UPDATE schema SET schema_version = 3, ros_distro = 'humble';
+        """)
+        con.commit()
+        con.close()
+
+
+@needs_rosbags
+@pytest.mark.parametrize("odometry", ["odometry", "tf"])
+def test_a_ros2_bag_without_type_definitions_is_read_with_the_standard_messages(tmp_path, raw_log, odometry):
+    # Issue 48: bags recorded before Iron store no message definitions ("Bag contains no type
+    # definitions"); they are read with the distribution's standard messages.
+    with_definitions, humble = tmp_path / "iron", tmp_path / "humble"
+    io.write_rosbag(raw_log, with_definitions, format="rosbag2", odometry=odometry)
+    io.write_rosbag(raw_log, humble, format="rosbag2", odometry=odometry)
+    _as_humble_bag(humble)
+    assert "version: 5" in (humble / "metadata.yaml").read_text()
+    from rosbags.highlevel import AnyReader
+    with pytest.raises(Exception, match="no type definitions"):  # rosbags alone refuses it
+        AnyReader([humble]).open()
+    a, b = io.read_rosbag(with_definitions), io.read_rosbag(humble)
+    assert b.skipped_rows == 0 and len(b.scans) == len(raw_log.scans) == 630
+    for name in ("ranges", "timestamps", "robot_poses", "laser_poses", "start_angles", "angular_resolutions"):
+        np.testing.assert_array_equal(getattr(b.scans, name), getattr(a.scans, name))
+    assert (b.pose_source, b.laser_offset_source, b.topics) == (a.pose_source, a.laser_offset_source, a.topics)
+    np.testing.assert_array_equal(b.scans.ranges, raw_log.scans.ranges)
+
+
+@needs_rosbags
+def test_a_fifo_is_refused_not_waited_on(tmp_path, raw_log):
+    # Issue 48: read_rosbag on a FIFO blocked forever in open(). Run in a child process with a
+    # timeout, so a regression fails rather than hangs.
+    import subprocess
+
+    fifo = tmp_path / "pipe.bag"
+    os.mkfifo(fifo)
+    folder = tmp_path / "ros2"
+    io.write_rosbag(raw_log, folder, format="rosbag2")
+    db3 = next(folder.glob("*.db3"))
+    db3.unlink()
+    os.mkfifo(db3)  # the storage file of a real folder is a FIFO
+    code = ("import sys\nfrom probslam import io\n"
+            "try:\n    io.read_rosbag(sys.argv[1])\nexcept ValueError as e:\n    print(e)\n")
+    for path, named in ((fifo, fifo), (folder, db3), (db3, db3)):
+        try:
+            run = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True, timeout=120,
+                                 env=dict(os.environ, PYTHONPATH=os.pathsep.join(sys.path)))
+        except subprocess.TimeoutExpired:
+            pytest.fail(f"read_rosbag({path}) blocked")
+        assert run.stdout.strip() == f"path: {str(named)!r} is not a regular file", run.stderr

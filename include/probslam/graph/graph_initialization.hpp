@@ -5,6 +5,7 @@
 // from the edges alone (dead reckoning), and growing the graph pose by pose so that each
 // optimisation starts near its optimum. (Seeding from an EKF SLAM run is done in Python, where
 // the filter is driven; see probslam.graph.initialize.)
+#include <functional>
 #include <vector>
 
 #include "probslam/graph/graph_optimizer.hpp"
@@ -24,6 +25,10 @@ struct IncrementalOptions {
   int poses_per_step = 100;
   /// Each step's optimisation of the graph so far; few iterations suffice from a warm start.
   OptimizerOptions step;
+  /// Called before each step and after each of its iterations; a caller that wants to stop a
+  /// long run (the bindings, on Ctrl-C) makes it throw, and the exception leaves the call with
+  /// the graph unchanged. Empty: never called.
+  std::function<void()> interrupt;
 };
 
 struct IncrementalReport {

@@ -67,7 +67,8 @@ using IterationCallback = std::function<bool(int iteration, double chi2)>;
 /// on_iteration (optional, see IterationCallback): false stops with stop_reason "stopped by the
 /// callback" and the graph at that iteration's values. An exception it throws (a Python
 /// KeyboardInterrupt) is rethrown after the graph is set to the last completed iteration's
-/// values: an interrupted run keeps the work done, as a stopped one does.
+/// values: an interrupted run keeps the work done, as a stopped one does. While it runs the graph
+/// holds the values of the iteration just completed (a progress display may read them).
 OptimizationReport optimize(PoseGraph2D& graph, const OptimizerOptions& options = {},
                             const IterationCallback& on_iteration = {});
 

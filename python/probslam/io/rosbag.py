@@ -144,7 +144,7 @@ def _open_any(path: str) -> _Source:
     from rosbags.highlevel import AnyReader
 
     target = Path(path if path.lower().endswith(".bag") else _ros2_folder(path))
-    reader = AnyReader([target])
+    reader = AnyReader([target], default_typestore=_ros2_standard_messages())
     reader.open()
     try:
         topics = {name: info.msgtype for name, info in reader.topics.items()}
@@ -159,6 +159,42 @@ def _open_any(path: str) -> _Source:
                 yield conn.topic, t, (lambda raw=raw, typ=conn.msgtype: reader.deserialize(raw, typ))
 
     return _Source(topics, messages, close=reader.close, chunks_may_read_on=target.suffix.lower() == ".bag")
+
+
+#: The message definitions a ROS 2 bag without its own (recorded before Iron: metadata.yaml
+#: version 5 and below, Foxy / Galactic / Humble) is read with: the distribution's standard
+#: messages. Those read here (sensor_msgs/LaserScan, nav_msgs/Odometry, tf2_msgs/TFMessage,
+#: geometry_msgs/PoseStamped and PoseWithCovarianceStamped) are the same in Foxy, Galactic and
+#: Humble, so one store serves them all. A bag that stores its definitions is read with those.
+ROS2_DEFAULT_DISTRIBUTION = "ros2_humble"
+
+
+def _ros2_standard_messages():
+    """rosbags' typestore of ``ROS2_DEFAULT_DISTRIBUTION``'s standard messages."""
+    from rosbags.typesys import Stores, get_typestore
+
+    return get_typestore(Stores(ROS2_DEFAULT_DISTRIBUTION))
+
+
+#: Files of a ROS 2 bag folder that rosbags opens: each must be a regular file (a FIFO blocks
+#: the reader forever, a device never ends).
+_ROS2_FILES = ("metadata.yaml", ".db3", ".mcap", ".zstd")
+
+
+def _require_regular_bag_files(path: str) -> None:
+    """ValueError when ``path``, or a file its ROS 2 folder would be read from, is not a regular
+    file (a FIFO, a device, a socket)."""
+    from ._files import require_regular_file
+
+    if not os.path.isdir(path):
+        require_regular_file(path)
+        if path.lower().endswith(".bag"):
+            return
+    folder = path if os.path.isdir(path) else os.path.dirname(os.path.abspath(path))
+    with os.scandir(folder) as entries:
+        for entry in entries:
+            if entry.name.lower().endswith(_ROS2_FILES) and not entry.is_dir():
+                require_regular_file(entry.path)
 
 
 def _typestore_for(definitions: Dict[str, str]):
@@ -213,6 +249,7 @@ def _open(path: str) -> _Source:
     _rosbags()
     if not os.path.exists(path):
         raise FileNotFoundError(f"path: no such file or folder: {path!r}")
+    _require_regular_bag_files(path)
     try:
         return _open_any(path)
     except FileNotFoundError:
@@ -492,7 +529,9 @@ def read_rosbag(path: PathLike, *, scan_topic: Optional[str] = None, odom_topic:
     topic or the option. Messages that cannot be decoded (or hold non-finite fields) are
     skipped, counted in ``skipped_rows`` with the first numbers and reasons listed, and one
     warning names them; a ROS 1 bag whose index is damaged is read by walking its chunks
-    (``index_note``).
+    (``index_note``). A path (or a file of its ROS 2 folder) that is not a regular file (a FIFO,
+    a device): ValueError. A ROS 2 bag recorded without message definitions (before Iron) is read
+    with the standard messages of ``ROS2_DEFAULT_DISTRIBUTION``.
     """
     path = file_path(path)
     offset = _offset_arg(laser_offset)
