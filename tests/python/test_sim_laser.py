@@ -228,3 +228,14 @@ def test_bad_arguments_name_themselves():
         sl.simulate("office", "lds", speed=0.0)
     with pytest.raises(TypeError, match="world"):
         sl.simulate(3, "lds")
+
+
+@needs_rosbags
+@pytest.mark.parametrize("range_min", [-0.1, math.nan, math.inf, "0.1"])
+def test_write_rosbag_refuses_a_bad_range_min_and_writes_nothing(tmp_path, range_min):
+    from probslam.io import write_rosbag
+
+    run = sl.simulate("repeated", "stage", "perfect", seed=0)
+    with pytest.raises(ValueError, match="range_min"):
+        write_rosbag(run.scans("driver"), tmp_path / "x.bag", range_min=range_min)
+    assert not (tmp_path / "x.bag").exists()
