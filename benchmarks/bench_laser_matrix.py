@@ -109,7 +109,10 @@ def main():
     for m in args.methods:
         columns += [f"{m} ATE rmse (max) m", f"{m} scale", f"{m} CPU (s)"] + (["closures a / r / d"]
                                                                             if m == "graph" else [])
-    title = "Laser SLAM on simulated robots" + (" (full matrix)" if args.full else "")
+    # A run over another selection is its own RESULTS.md record (--record replaces by title).
+    chosen = any(getattr(args, k) for k in ("robots", "worlds", "odometry"))
+    title = "Laser SLAM on simulated robots" + (" (full matrix)" if args.full else "") + \
+        (f" ({'; '.join(', '.join(pick[k]) for k in ('robots', 'worlds', 'odometry'))})" if chosen else "")
     lines = heading(title, f"Commit {commit}; probslam.sim_laser seed {args.seed}; probslam.slam.run_slam with "
                     "its default options.", columns)
     lines += rows
