@@ -31,7 +31,8 @@ import probslam as ps  # noqa: E402
 from probslam import sim_laser  # noqa: E402
 from probslam.eval import associate, ate  # noqa: E402
 
-DEFAULT = dict(robots=["stage", "lds", "sick"], worlds=["office", "repeated"], odometry=["none", "perfect", "good", "poor"])
+DEFAULT = dict(robots=["stage", "lds", "sick"], worlds=["office", "repeated"],
+               odometry=["none", "perfect", "good", "poor"])
 
 
 def similarity_scale(times, poses, truth_times, truth) -> float:
@@ -62,8 +63,8 @@ def run_cell(robot: str, world: str, odometry: str, methods, seed: int):
         if method == "graph":
             s = result.summary
             closures = f"{s.closures_accepted} / {s.closures_rejected} / {s.closures_dissolved}"
-        cells[method] = (err.rmse, err.max, similarity_scale(result.timestamps, result.poses, sim.timestamps, sim.truth),
-                         cpu, closures)
+        scale = similarity_scale(result.timestamps, result.poses, sim.timestamps, sim.truth)
+        cells[method] = (err.rmse, err.max, scale, cpu, closures)
     return len(scans), truth_len, cells
 
 
@@ -117,7 +118,8 @@ def main():
                     "its default options.", columns)
     lines += rows
     lines += ["", "ATE: evo's APE rmse (and max) after SE(2) alignment against the exact truth; odometry ATE: the "
-              "odometry alone. Scale: of the similarity that best maps the estimate onto the truth (> 1: the estimate is too small). CPU: process seconds of "
+              "odometry alone. Scale: of the similarity that best maps the estimate onto the truth (> 1: the "
+              "estimate is too small). CPU: process seconds of "
               "run_slam (every thread). Closures: active at the end / rejected / dissolved.",
               "Robots (probslam.sim_laser.SENSORS): stage 270 deg / 90 beams / 5 m; lds 360 deg / 360 / 3.5 m; "
               "rplidar 360 / 360 / 12 m; hokuyo 270 / 1081 / 30 m; sick 180 / 181 / 80 m. Odometry: none, perfect, "

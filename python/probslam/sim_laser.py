@@ -151,6 +151,11 @@ def _wall(a: Tuple[float, float], b: Tuple[float, float], doors: List[float], wi
     return out
 
 
+def _rectangle_loop(x0: float, y0: float, x1: float, y1: float) -> np.ndarray:
+    """Waypoints around a rectangle, counter-clockwise, back to the start."""
+    return np.array([[x0, y0], [x1, y0], [x1, y1], [x0, y1], [x0, y0]])
+
+
 def _office(rng: np.random.Generator) -> World:
     """A 24 x 16 m floor: rooms on both sides of a ring corridor around a central block of rooms,
     doors placed by the seed, a box of furniture in some rooms."""
@@ -178,7 +183,7 @@ def _office(rng: np.random.Generator) -> World:
         w, h = rng.uniform(0.5, 1.0, 2)
         segs += _box(x, y, x + w, y + h)
     cx0, cy0, cx1, cy1 = inner[0] - c / 2, inner[1] - c / 2, inner[2] + c / 2, inner[3] + c / 2
-    return World("office", np.array(segs, float), np.array([[cx0, cy0], [cx1, cy0], [cx1, cy1], [cx0, cy1], [cx0, cy0]]))
+    return World("office", np.array(segs, float), _rectangle_loop(cx0, cy0, cx1, cy1))
 
 
 def _corridors(rng: np.random.Generator) -> World:
@@ -191,7 +196,7 @@ def _corridors(rng: np.random.Generator) -> World:
     # Alcoves 0.4 m deep behind the door gaps keep the ring a corridor.
     segs = _close_gaps(segs, 0.4) + _box(c, c, L - c, H - c)
     cx0, cy0, cx1, cy1 = c / 2, c / 2, L - c / 2, H - c / 2
-    return World("corridor", np.array(segs, float), np.array([[cx0, cy0], [cx1, cy0], [cx1, cy1], [cx0, cy1], [cx0, cy0]]))
+    return World("corridor", np.array(segs, float), _rectangle_loop(cx0, cy0, cx1, cy1))
 
 
 def _close_gaps(segs, depth: float):
