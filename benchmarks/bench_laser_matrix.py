@@ -4,8 +4,8 @@ Each cell: ``probslam.sim_laser.simulate(world, sensor, odometry, seed)`` (a loo
 exact ground truth), then ``probslam.slam.run_slam`` with its default options, ``method`` graph
 and rbpf (rbpf needs odometry: "-" for kind none). Printed per cell: ATE (``probslam.eval.ate``,
 SE(2) alignment, evo's APE rmse, m) of each method against the truth, the odometry alone's ATE
-beside them, the scale of the result (the similarity that best maps it onto the truth: 1.07 for
-a map 7 % too small), GraphSLAM's closures (active / rejected / dissolved) and the CPU seconds per log
+beside them, the scale of the result (the similarity that best maps it onto the truth: 1.25 for
+a map 20 % too small), GraphSLAM's closures (active / rejected / dissolved) and the CPU seconds per log
 (``time.process_time`` around run_slam: all threads of the process).
 
     .venv/bin/python benchmarks/bench_laser_matrix.py [--full] [--robots ...] [--worlds ...]
