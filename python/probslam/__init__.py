@@ -48,7 +48,7 @@ from ._core import (
     velocity_motion_jacobian,
     wrap_angle,
 )
-from . import data, datasets, eval, inverse_learning, io, sim, slam
+from . import data, datasets, eval, inverse_learning, io, sim, sim_laser, slam
 from . import localization
 from .graph import (IncrementalReport, OptimizationReport, PoseGraph2D, PoseGraph3D, PoseGraphReadReport,
                     initialize_chordal, initialize_odometry, joint_marginal_covariances, marginal_covariances, optimize,
@@ -173,6 +173,7 @@ __all__ = [
     "probability_from_log_odds",
     "range_bearing",
     "sim",
+    "sim_laser",
     "range_bearing_jacobians",
     "velocity_motion",
     "velocity_motion_control_jacobian",

@@ -64,10 +64,10 @@ class _Messages:
     def pose_stamped(self, header, p):
         return self.t["geometry_msgs/msg/PoseStamped"](header=header, pose=self.pose(p))
 
-    def scan(self, header, ranges: np.ndarray, start: float, step: float, range_max: float):
+    def scan(self, header, ranges: np.ndarray, start: float, step: float, range_max: float, range_min: float = 0.0):
         return self.t["sensor_msgs/msg/LaserScan"](
             header=header, angle_min=float(start), angle_max=float(start + step * (len(ranges) - 1)),
-            angle_increment=float(step), time_increment=0.0, scan_time=0.0, range_min=0.0,
+            angle_increment=float(step), time_increment=0.0, scan_time=0.0, range_min=float(range_min),
             range_max=float(range_max), ranges=np.asarray(ranges, dtype=np.float32),
             intensities=np.zeros(0, dtype=np.float32))
 
@@ -97,6 +97,7 @@ def _stamp_ns(t: float) -> int:
 
 def write_rosbag(log: Union[CarmenLog, LaserScans], path: PathLike, *, format: str = "rosbag1",
                  odometry: str = "odometry", laser_offset_in_tf_static: bool = True, poses: str = "robot",
+                 range_min: float = 0.0,
                  pose_topic: Optional[str] = None, scan_topic: str = "/scan", odom_topic: str = "/odom",
                  odom_frame: str = "odom", base_frame: str = "base_link", laser_frame: str = "laser") -> None:
     """Write a log's scans and poses as a ROS bag (for users converting CARMEN logs, and tests).
@@ -111,8 +112,10 @@ def write_rosbag(log: Union[CarmenLog, LaserScans], path: PathLike, *, format: s
     laser_frame``; with ``laser_offset_in_tf_static=False`` it is left out, and a reader needs
     ``laser_offset``); ``poses="laser"`` writes the laser poses as the robot's (offset zero).
     ``pose_topic``: the same poses as ``geometry_msgs/PoseStamped`` there too (frame "map"), for
-    ``map_laser_log`` of a corrected log. Record times are the stamps made non-decreasing (a
-    recorder's clock does not go back; stamps that do are kept in the headers).
+    ``map_laser_log`` of a corrected log. odometry="none" writes no pose at all (a robot without
+    odometry; ``read_rosbag`` then says so). range_min m: the LaserScans' range_min (a driver
+    reporting 0 for no return states a range_min above it). Record times are the stamps made
+    non-decreasing (a recorder's clock does not go back; stamps that do are kept in the headers).
 
     Errors: rosbags missing: ImportError; an existing ``path``: FileExistsError; a bad option
     or a log whose laser offset varies (see ``OFFSET_SPREAD_TOL``): ValueError. A failed write
@@ -131,10 +134,12 @@ def write_rosbag(log: Union[CarmenLog, LaserScans], path: PathLike, *, format: s
     from rosbags.rosbag2 import StoragePlugin, Writer as Writer2
     from rosbags.typesys import Stores, get_typestore
 
-    for name, value, allowed in (("format", format, FORMATS), ("odometry", odometry, ("odometry", "tf")),
+    for name, value, allowed in (("format", format, FORMATS), ("odometry", odometry, ("odometry", "tf", "none")),
                                  ("poses", poses, ("robot", "laser"))):
         if value not in allowed:
             raise ValueError(f"{name} must be one of {allowed}, got {value!r}")
+    if not (isinstance(range_min, (int, float)) and math.isfinite(range_min) and range_min >= 0):
+        raise ValueError(f"range_min must be a finite number >= 0, got {range_min!r}")
     if len(scans) == 0:
         raise ValueError("log: no scans to write")
     for name in ("laser_poses", "robot_poses", "timestamps", "start_angles", "angular_resolutions"):
@@ -183,7 +188,7 @@ def write_rosbag(log: Union[CarmenLog, LaserScans], path: PathLike, *, format: s
                 if c_odom is not None:
                     msg = build.odometry(build.header(stamp, odom_frame, i), base_frame, robot[i])
                     writer.write(c_odom, record, serialize(msg, "nav_msgs/msg/Odometry"))
-                else:
+                elif c_tf is not None:
                     msg = build.tf([build.transform(build.header(stamp, odom_frame, i), base_frame, robot[i])])
                     writer.write(c_tf, record, serialize(msg, "tf2_msgs/msg/TFMessage"))
                 if c_pose is not None:
@@ -191,7 +196,7 @@ def write_rosbag(log: Union[CarmenLog, LaserScans], path: PathLike, *, format: s
                     writer.write(c_pose, record, serialize(msg, "geometry_msgs/msg/PoseStamped"))
                 n = int(scans.num_beams[i])
                 msg = build.scan(build.header(stamp, laser_frame, i), scans.ranges[i, :n], scans.start_angles[i],
-                                 scans.angular_resolutions[i], no_return)
+                                 scans.angular_resolutions[i], no_return, range_min)
                 writer.write(c_scan, record, serialize(msg, "sensor_msgs/msg/LaserScan"))
     except BaseException:
         if os.path.isdir(path):
