@@ -119,11 +119,12 @@ def _drive(data, steps: Schedule, predict, update, desc: str, progress: Optional
     return np.concatenate([[data.inputs[0, 0]], steps.ends])
 
 
-def run_ekf(data: VictoriaParkAcfr, *, signatures: bool = False, association: str = "jcbb",
+def run_ekf(data: VictoriaParkAcfr, *, signatures: bool = True, association: str = "jcbb",
             dead_reckoning: bool = False, progress: Optional[bool] = False) -> LandmarkSlamResult:
     """EKF SLAM (Table 10.2, unknown correspondences by ``association``: "jcbb" or "ml") over the
     run from ``victoria_park_acfr.start_pose``; ``signatures``: the trunk's diameter joins each
-    detection. ``dead_reckoning``: predictions only. ``times``: the start, then the end of each
+    detection (the default: the detector measures it, and it tells neighbouring trees apart).
+    ``dead_reckoning``: predictions only. ``times``: the start, then the end of each
     step; ``poses``: the filter's pose then."""
     steps = schedule(data)
     z = _measurements(data, signatures)
@@ -146,10 +147,11 @@ def run_ekf(data: VictoriaParkAcfr, *, signatures: bool = False, association: st
 
 
 def run_fastslam(data: VictoriaParkAcfr, *, num_particles: int = 100, version: int = 1, seed: int = 0,
-                 threads: int = 1, p_new: float = DEFAULT_P_NEW, signatures: bool = False,
+                 threads: int = 1, p_new: float = DEFAULT_P_NEW, signatures: bool = True,
                  filter_options: Optional[Mapping] = None, progress: Optional[bool] = False) -> LandmarkSlamResult:
     """FastSLAM ``version`` 1 or 2 over the run, unknown correspondences (per particle, joint
-    maximum likelihood), from ``victoria_park_acfr.start_pose``; ``filter_options`` go to
+    maximum likelihood), from ``victoria_park_acfr.start_pose``; ``signatures``: as ``run_ekf``'s;
+    ``filter_options`` go to
     ``FastSlam``. ``times``: the start, then the end of each step; ``poses``: the best particle's
     path."""
     steps = schedule(data)
