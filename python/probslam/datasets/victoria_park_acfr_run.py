@@ -14,7 +14,7 @@ from typing import Mapping, Optional
 
 import numpy as np
 
-from .._args import require_instance
+from .._args import positive_real, require_instance
 from .._core import AckermannGeometry, FastSlam, ackermann_increments
 from .._progress import progress_bar
 from ..ekf import AssociationResult, EkfSlam
@@ -94,6 +94,19 @@ def schedule(data: VictoriaParkAcfr, noise: Optional[np.ndarray] = None) -> Sche
     return Schedule(cuts[1:], deltas, covariances, scan_after)
 
 
+def first_seconds(data: VictoriaParkAcfr, seconds: float) -> VictoriaParkAcfr:
+    """The run's first ``seconds`` after its first input: the inputs, scans and GPS fixes before
+    then (a prefix to test or show a method on)."""
+    require_instance(data, VictoriaParkAcfr, "data")
+    seconds = positive_real(seconds, "seconds")
+    end = data.inputs[0, 0] + seconds
+    m = data.measurements[data.measurements[:, 0] < end]
+    starts = np.flatnonzero(np.r_[True, np.diff(m[:, 0]) != 0]) if len(m) else np.empty(0, np.int64)
+    gps = None if data.gps is None else data.gps[data.gps[:, 0] < end]
+    return VictoriaParkAcfr(data.inputs[data.inputs[:, 0] < end], m, np.r_[starts, len(m)].astype(np.int64), gps,
+                            dict(data.skipped_rows))
+
+
 def _measurements(data: VictoriaParkAcfr, signatures: bool):
     """Each scan's measurement rows: (range, bearing[, diameter])."""
     columns = slice(1, 4 if signatures else 3)
@@ -167,5 +180,5 @@ def run_fastslam(data: VictoriaParkAcfr, *, num_particles: int = 100, version: i
 
 
 __all__ = ["BEARING_SIGMA", "DETECTION_INFLATION", "DIAMETER_SIGMA", "FIELD_OF_VIEW", "INPUT_INFLATION", "MAX_RANGE", "RANGE_SIGMA", "SPEED_SIGMA",
-           "STEERING_SIGMA", "Schedule", "control_noise", "geometry", "measurement_noise", "run_ekf", "run_fastslam",
+           "STEERING_SIGMA", "Schedule", "control_noise", "first_seconds", "geometry", "measurement_noise", "run_ekf", "run_fastslam",
            "schedule"]
