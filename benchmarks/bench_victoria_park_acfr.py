@@ -36,13 +36,16 @@ def main() -> None:
     parser.add_argument("folder", nargs="?", default=str(DEFAULT))
     parser.add_argument("--seeds", type=int, default=10, help="FastSLAM seeds 0..N-1 per variant (default 10)")
     parser.add_argument("--record", action="store_true")
+    parser.add_argument("--save", metavar="NPZ", help="also save every run's path and seed 0's maps (for "
+                                                      "docs/make_victoria_park_acfr_figure.py)")
     args = parser.parse_args()
     data = victoria_park_acfr.load(args.folder)
     rows = ["| method | seed | RMS vs GPS | aligned | landmarks | CPU |", "|---|---|---|---|---|---|"]
-    summary = []
+    summary, saved = [], {"gps": data.gps}
     for name, method in (("dead reckoning", lambda: victoria_park_acfr_run.run_ekf(data, dead_reckoning=True)),
                          ("EKF SLAM (JCBB)", lambda: victoria_park_acfr_run.run_ekf(data))):
         run, cpu, e = scored(data, method)
+        saved[name] = np.column_stack([run.times, run.poses])
         rows.append(f"| {name} | - | {e.rmse:.2f} m | {e.rmse_aligned:.2f} m | {len(run.landmarks)} | {cpu:.1f} s |")
         print(rows[-1], flush=True)
     for version in (1, 2):
@@ -50,6 +53,9 @@ def main() -> None:
         for seed in range(args.seeds):
             run, cpu, e = scored(data, lambda: victoria_park_acfr_run.run_fastslam(data, version=version, seed=seed))
             aligned.append(e.rmse_aligned)
+            saved[f"fastslam{version}_seed{seed}"] = np.column_stack([run.times, run.poses])
+            if seed == 0:
+                saved[f"fastslam{version}_map"] = np.array(list(run.landmarks.values())).reshape(-1, 2)
             cpus.append(cpu)
             rows.append(f"| FastSLAM {version}.0, 100 particles | {seed} | {e.rmse:.2f} m | {e.rmse_aligned:.2f} m | "
                         f"{len(run.landmarks)} | {cpu:.1f} s |")
@@ -67,6 +73,8 @@ def main() -> None:
     lines += rows + [""] + summary + ["", "Command: `OPENBLAS_NUM_THREADS=1 python benchmarks/bench_victoria_park_acfr.py "
                                           "--record`."]
     report(lines, args.record)
+    if args.save:
+        np.savez_compressed(args.save, **saved)
 
 
 if __name__ == "__main__":

@@ -99,3 +99,25 @@ def test_fastslam_ten_seeds_within_the_lecture_bound(run_data, version):
 @pytest.mark.slow
 def test_ekf_within_the_lecture_bound(run_data):
     assert rms_aligned(run_data, run_landmark_slam(run_data, "ekf", progress=False)) < LECTURE_RMS
+
+
+def test_cli_runs_the_folder_and_scores_it_against_gps(run_data, tmp_path, capsys):
+    """ekf-slam / fastslam DIR on the run's first 60 s written as the dataset's files: the RMS
+    against GPS printed, the trajectory written; --refine and --unknown's opposite refused."""
+    from probslam import cli
+
+    end = run_data.inputs[0, 0] + 60.0
+    folder = tmp_path / "vp"
+    folder.mkdir()
+    np.savetxt(folder / "inputs.dat", run_data.inputs[run_data.inputs[:, 0] < end])
+    m = run_data.measurements[run_data.measurements[:, 0] < end].copy()
+    m[:, 2] += np.pi / 2  # the file's detector angle
+    np.savetxt(folder / "measurements.dat", m)
+    np.savetxt(folder / "gps.dat", run_data.gps[run_data.gps[:, 0] < end])
+    for command in (["ekf-slam"], ["fastslam", "--particles", "10", "--variant", "2"]):
+        out = tmp_path / command[0]
+        assert cli.main(command + [str(folder), "-o", str(out), "--no-plot", "--no-progress"]) == 0
+        printed = capsys.readouterr().out
+        assert "GPS:" in printed and "after SE(2) alignment" in printed, printed
+        assert (tmp_path / f"{command[0]}_trajectory.tum").exists()
+    assert cli.main(["fastslam", str(folder), "--refine", "graphslam", "--no-plot", "-o", str(tmp_path / "r")]) == 2
