@@ -1,9 +1,10 @@
 """Landmark SLAM over the original Victoria Park run (``datasets.victoria_park_acfr``): the car's
 model (``probslam.ackermann_motion``, Guivant and Nebot) stepped at the inputs' own rate, 40 Hz,
 each laser scan's detections applied at their stamp (the step that holds a scan is cut there),
-correspondences unknown (the detections have no identities). The noise of the inputs and of the
-detections is the sensors', as the dataset's literature states it (below), one set for every
-method; nothing here was chosen on this run's result. Units: metres, radians, seconds.
+correspondences unknown (the detections have no identities), the trunk's diameter as signature.
+The noise of the inputs and of the detections is one published configuration for this run (below),
+one set for every method; no value was searched on this run's result (docs/landmark_fastslam.md
+says which two settings of it were run). Units: metres, radians, seconds.
 """
 
 from __future__ import annotations
