@@ -10,6 +10,8 @@
 #include "probslam/core/pose2.hpp"
 #include "probslam/core/range_bearing_model.hpp"
 #include "probslam/core/velocity_motion_model.hpp"
+#include "probslam/core/ackermann_motion_model.hpp"
+#include "probslam/core/filter_limits.hpp"
 
 namespace probslam::bindings {
 
@@ -25,6 +27,106 @@ py::array points_through(py::handle points, const char* name,
   for (Eigen::Index i = 0; i < out.rows(); ++i) out.row(i) = f(in.row(i).transpose()).transpose();
   return py::cast(std::move(out));
 }
+
+// Re-raises a row's std::invalid_argument with the row's index after the argument's name
+// ("steering[12] must lie in ..."), so a long control array names the bad entry.
+[[noreturn]] void rethrow_for_row(const std::invalid_argument& e, py::ssize_t row) {
+  const std::string what = e.what();
+  const std::size_t space = what.find(' ');
+  const std::string name = what.substr(0, space);
+  throw std::invalid_argument(name + "[" + std::to_string(row) + "]" +
+                              (space == std::string::npos ? "" : what.substr(space)));
+}
+
+AckermannGeometry geometry_arg(py::handle obj) {
+  if (obj.is_none()) return AckermannGeometry();
+  if (!py::isinstance<AckermannGeometry>(obj)) throw py::type_error("geometry must be an AckermannGeometry");
+  return obj.cast<AckermannGeometry>();
+}
+
+void define_ackermann(py::module_& m) {
+  py::class_<AckermannGeometry>(m, "AckermannGeometry",
+                                "A car's geometry (m) for the Ackermann motion model: the defaults are the Victoria\n"
+                                "Park utility car (wheelbase L, encoder offset H left of the rear axle's centre, the\n"
+                                "sensor a ahead of the rear axle and b to the left).")
+      .def(py::init([](RealArg wheelbase, RealArg encoder_offset, RealArg sensor_ahead, RealArg sensor_left) {
+             AckermannGeometry g{wheelbase.get("wheelbase"), encoder_offset.get("encoder_offset"),
+                                 sensor_ahead.get("sensor_ahead"), sensor_left.get("sensor_left")};
+             g.validate();
+             return g;
+           }),
+           py::arg("wheelbase") = 2.83, py::arg("encoder_offset") = 0.76, py::arg("sensor_ahead") = 3.78,
+           py::arg("sensor_left") = 0.50)
+      .def_readonly("wheelbase", &AckermannGeometry::wheelbase, "L (m), rear axle to front axle.")
+      .def_readonly("encoder_offset", &AckermannGeometry::encoder_offset,
+                    "H (m), the encoder wheel left of the rear axle's centre.")
+      .def_readonly("sensor_ahead", &AckermannGeometry::sensor_ahead, "a (m), the sensor ahead of the rear axle.")
+      .def_readonly("sensor_left", &AckermannGeometry::sensor_left, "b (m), the sensor left of the centre line.")
+      .def("__repr__", [](const AckermannGeometry& g) {
+        return "AckermannGeometry(wheelbase=" + num(g.wheelbase) + ", encoder_offset=" + num(g.encoder_offset) +
+               ", sensor_ahead=" + num(g.sensor_ahead) + ", sensor_left=" + num(g.sensor_left) + ")";
+      });
+  m.def(
+      "ackermann_motion",
+      [](py::handle pose, RealArg speed, RealArg steering, RealArg dt, py::handle geometry) {
+        return ackermann_motion(pose_arg(pose), speed.get("speed"), steering.get("steering"), dt.get("dt"),
+                                geometry_arg(geometry));
+      },
+      py::arg("pose"), py::arg("speed"), py::arg("steering"), py::arg("dt"), py::arg("geometry") = py::none(),
+      "The sensor's pose (3,) after dt (s) at encoder speed (m/s) and steering (rad, positive left)\n"
+      "from pose (3,) (Guivant and Nebot's car model, Euler step); geometry: AckermannGeometry\n"
+      "(None: the Victoria Park car).");
+  m.def(
+      "ackermann_motion_jacobian",
+      [](py::handle pose, RealArg speed, RealArg steering, RealArg dt, py::handle geometry) {
+        return ackermann_motion_jacobian(pose_arg(pose), speed.get("speed"), steering.get("steering"), dt.get("dt"),
+                                         geometry_arg(geometry));
+      },
+      py::arg("pose"), py::arg("speed"), py::arg("steering"), py::arg("dt"), py::arg("geometry") = py::none(),
+      "(3, 3) Jacobian G = d g / d pose of ackermann_motion.");
+  m.def(
+      "ackermann_motion_control_jacobian",
+      [](py::handle pose, RealArg speed, RealArg steering, RealArg dt, py::handle geometry) {
+        return ackermann_motion_control_jacobian(pose_arg(pose), speed.get("speed"), steering.get("steering"),
+                                                 dt.get("dt"), geometry_arg(geometry));
+      },
+      py::arg("pose"), py::arg("speed"), py::arg("steering"), py::arg("dt"), py::arg("geometry") = py::none(),
+      "(3, 2) Jacobian V = d g / d (speed, steering) of ackermann_motion.");
+  m.def(
+      "ackermann_increments",
+      [](py::handle speed, py::handle steering, py::handle dt, py::handle control_noise, py::handle geometry) {
+        const DoubleArray sa = vector_arg(speed, "speed");
+        const DoubleArray aa = vector_arg(steering, "steering", sa.shape(0));
+        const DoubleArray da = vector_arg(dt, "dt", sa.shape(0));
+        const Eigen::MatrixXd noise = square_matrix_arg(control_noise, "control_noise", 2);
+        require_covariance(noise, "control_noise", true);
+        const AckermannGeometry g = geometry_arg(geometry);
+        const auto v = as_vector(sa), a = as_vector(aa), t = as_vector(da);
+        const py::ssize_t n = sa.shape(0);
+        py::array_t<double> deltas({n, py::ssize_t{3}}), covs({n, py::ssize_t{3}, py::ssize_t{3}});
+        Eigen::Map<Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>> d(deltas.mutable_data(), n, 3);
+        double* c = covs.mutable_data();
+        {
+          py::gil_scoped_release release;
+          for (py::ssize_t k = 0; k < n; ++k) {
+            try {
+              d.row(k) = ackermann_increment(v[k], a[k], t[k], g).transpose();
+              const Eigen::Matrix<double, 3, 2> j = ackermann_increment_jacobian(v[k], a[k], t[k], g);
+              Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(c + 9 * k) = j * noise * j.transpose();
+            } catch (const std::invalid_argument& e) {
+              rethrow_for_row(e, k);
+            }
+          }
+        }
+        return py::make_tuple(deltas, covs);
+      },
+      py::arg("speed"), py::arg("steering"), py::arg("dt"), py::arg("control_noise"), py::arg("geometry") = py::none(),
+      "Each step's motion as a relative pose in the sensor's frame at its start, (N, 3), and its\n"
+      "covariance J M J^T, (N, 3, 3), for the control noise M = control_noise (2, 2) of (speed,\n"
+      "steering): speed, steering, dt are (N,) arrays (m/s, rad, s). The pose after a step is\n"
+      "pose (+) delta: what EkfSlam / FastSlam.predict_odometry take.");
+}
+
 
 }  // namespace
 
@@ -105,6 +207,8 @@ void define_core(py::module_& m) {
       },
       py::arg("pose"), py::arg("v"), py::arg("w"), py::arg("dt"),
       "(3, 2) Jacobian V = d g / d (v, w) of velocity_motion; pose (3,), v m/s, w rad/s, dt s.");
+
+  define_ackermann(m);
 
   m.def(
       "range_bearing",

@@ -4,6 +4,7 @@ Units: metres and radians; poses are ``(x, y, theta)`` with theta wrapped to (-p
 """
 
 from ._core import (
+    AckermannGeometry,
     Association,
     BeamSensorModel,
     BinaryMap2D,
@@ -28,6 +29,10 @@ from ._core import (
     SubmapSlam2D,
     SubmapSlamSummary,
     TileSharing,
+    ackermann_increments,
+    ackermann_motion,
+    ackermann_motion_control_jacobian,
+    ackermann_motion_jacobian,
     chi_square_cdf,
     chi_square_quantile,
     fastslam2_proposal,
@@ -82,6 +87,11 @@ __version__ = "0.1.0"
 
 
 __all__ = [
+    "AckermannGeometry",
+    "ackermann_increments",
+    "ackermann_motion",
+    "ackermann_motion_control_jacobian",
+    "ackermann_motion_jacobian",
     "Association",
     "AssociationResult",
     "CorrelativeScanMatcher",

@@ -46,6 +46,31 @@ class Pose2:
     def transform_from(self, points: ArrayLike) -> Array: ...  # (2,) or (n, 2) body -> world
     def transform_to(self, points: ArrayLike) -> Array: ...  # (2,) or (n, 2) world -> body
 
+class AckermannGeometry:
+    """A car's geometry (m); defaults: the Victoria Park utility car."""
+    def __init__(self, wheelbase: float = 2.83, encoder_offset: float = 0.76, sensor_ahead: float = 3.78,
+                 sensor_left: float = 0.50) -> None: ...
+    @property
+    def wheelbase(self) -> float: ...
+    @property
+    def encoder_offset(self) -> float: ...
+    @property
+    def sensor_ahead(self) -> float: ...
+    @property
+    def sensor_left(self) -> float: ...
+
+def ackermann_motion(pose: ArrayLike, speed: float, steering: float, dt: float,
+                     geometry: Optional[AckermannGeometry] = None) -> Array:
+    """(3,) the sensor's pose after dt s at encoder speed (m/s) and steering (rad)."""
+def ackermann_motion_jacobian(pose: ArrayLike, speed: float, steering: float, dt: float,
+                              geometry: Optional[AckermannGeometry] = None) -> Array:
+    """(3, 3) G = dg/dpose."""
+def ackermann_motion_control_jacobian(pose: ArrayLike, speed: float, steering: float, dt: float,
+                                      geometry: Optional[AckermannGeometry] = None) -> Array:
+    """(3, 2) V = dg/d(speed, steering)."""
+def ackermann_increments(speed: ArrayLike, steering: ArrayLike, dt: ArrayLike, control_noise: ArrayLike,
+                         geometry: Optional[AckermannGeometry] = None) -> Tuple[Array, Array]:
+    """((N, 3) steps in the sensor's frame, (N, 3, 3) their covariances J M J^T)."""
 def velocity_motion(pose: ArrayLike, v: float, w: float, dt: float) -> Array:
     """(3,) pose after v m/s, w rad/s for dt s (eq. 10.11); exact through w = 0."""
 def velocity_motion_jacobian(pose: ArrayLike, v: float, w: float, dt: float) -> Array:

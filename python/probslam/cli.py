@@ -654,6 +654,8 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
     _check_output(args.output)
     t0 = time.perf_counter()
     path, kind = _landmark_path(args)
+    if kind == "victoria_park_acfr":
+        return _acfr_command(args, path, "ekf", t0)
     _check_refine(args, kind, "ekf-slam")
     mht = args.unknown and args.association == "mht"
     if args.bearing_offset and kind != "mrclam":
@@ -709,6 +711,8 @@ def _cmd_fastslam(args: argparse.Namespace) -> int:
     _check_output(args.output)
     t0 = time.perf_counter()
     path, kind = _landmark_path(args)
+    if kind == "victoria_park_acfr":
+        return _acfr_command(args, path, "fastslam", t0)
     _check_refine(args, kind, "fastslam")
     data = _landmark_data(args, path)
     run = run_landmark_slam(data, "fastslam", known=not args.unknown, num_particles=args.particles,
@@ -738,6 +742,54 @@ def _cmd_fastslam(args: argparse.Namespace) -> int:
         refined = ", GraphSLAM refinement (ch. 11.6)" if refinement is not None else ""
         ax.set_title(f"probslam fastslam: {_dataset_name(args, path, data)}\nFastSLAM {args.variant}.0, "
                      f"{args.particles} particles, {correspondences} correspondences{refined}", fontsize="medium")
+
+    return _landmark_outputs(args, run, draw, t0)
+
+
+def _acfr_command(args: argparse.Namespace, path: pathlib.Path, method: str, t0: float) -> int:
+    """ekf-slam / fastslam on the original Victoria Park run (a folder of inputs.dat,
+    measurements.dat, gps.dat): unknown correspondences (the detections have none), the car's
+    model and the sensors' noise (``datasets.victoria_park_acfr_run``); prints the RMS against
+    the GPS, writes the trajectory and draws the path over the GPS fixes with the map."""
+    if args.refine != "none":
+        raise UserError("--refine graphslam does not run on the original Victoria Park run yet")
+    association = getattr(args, "association", "jcbb")  # ekf-slam's option
+    if association not in ("jcbb", "ml"):
+        raise UserError("--association on the original Victoria Park run: jcbb or ml (the EKF's)")
+    data = _landmark_data(args, path)
+    cpu = time.process_time()
+    if method == "ekf":
+        run = run_landmark_slam(data, "ekf", association=association, progress=_progress(args))
+        title = f"EKF SLAM, unknown correspondences ({association})"
+    else:
+        run = run_landmark_slam(data, "fastslam", num_particles=args.particles, version=args.variant,
+                                seed=args.seed, threads=args.threads, progress=_progress(args))
+        title = f"FastSLAM {args.variant}.0, {args.particles} particles, unknown correspondences"
+    cpu = time.process_time() - cpu
+    print(f"dataset:       Victoria Park (ACFR run) {path}: {len(data.inputs)} inputs, {len(data.measurements)} "
+          f"detections on {len(data.scan_times)} scans, {0 if data.gps is None else len(data.gps)} GPS fixes")
+    print(f"filter:        {title}; {run.seconds:.2f} s filter time, {cpu:.2f} s CPU")
+    print(f"landmarks:     {len(run.landmarks)} in the map")
+    error = None
+    if data.gps is not None:
+        error = evaluation.position_error(run.times, run.poses, data.gps[:, 0], data.gps[:, 1:])
+        print(f"GPS:           RMS {error.rmse:.2f} m as it is, {error.rmse_aligned:.2f} m after SE(2) alignment "
+              f"({error.count} fixes)")
+
+    def draw(ax):
+        import numpy as np
+
+        if data.gps is not None:
+            ax.plot(data.gps[:, 1], data.gps[:, 2], ".", ms=2, color="tab:blue", label="GPS")
+        ax.plot(run.poses[:, 0], run.poses[:, 1], "-", lw=1.0, color="tab:orange", label=title.split(",")[0])
+        if run.landmarks:
+            lm = np.array(list(run.landmarks.values()))
+            ax.plot(lm[:, 0], lm[:, 1], "+", ms=4, color="k", label=f"{len(lm)} landmarks")
+        ax.set_aspect("equal")
+        ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize="small")
+        rms = "" if error is None else f"; RMS vs GPS {error.rmse_aligned:.2f} m (aligned)"
+        ax.set_title(f"probslam {'ekf-slam' if method == 'ekf' else 'fastslam'}: Victoria Park (ACFR run)\n"
+                     f"{title}{rms}", fontsize="medium")
 
     return _landmark_outputs(args, run, draw, t0)
 

@@ -13,6 +13,7 @@
 #include "probslam/core/range_bearing_model.hpp"
 #include "probslam/core/spatial_hash_2d.hpp"
 #include "probslam/core/velocity_motion_model.hpp"
+#include "probslam/core/ackermann_motion_model.hpp"
 
 using namespace probslam;
 
@@ -109,6 +110,83 @@ TEST(VelocityMotion, RejectsBadInput) {
   } catch (const std::invalid_argument& e) {
     EXPECT_EQ(std::string(e.what()).rfind("dt", 0), 0u);
   }
+}
+
+// The README's equations of the Victoria Park data, written out in the world frame: the
+// independent reference the model's sensor-frame increment is checked against.
+Eigen::Vector3d guivant_nebot_step(const Eigen::Vector3d& x, double ve, double alpha, double dt,
+                                   const AckermannGeometry& g) {
+  const double vc = ve / (1.0 - std::tan(alpha) * g.encoder_offset / g.wheelbase);
+  const double w = vc / g.wheelbase * std::tan(alpha), a = g.sensor_ahead, b = g.sensor_left;
+  const double c = std::cos(x[2]), s = std::sin(x[2]);
+  return {x[0] + dt * (vc * c - w * (a * s + b * c)), x[1] + dt * (vc * s + w * (a * c - b * s)),
+          wrap_angle(x[2] + dt * w)};
+}
+
+TEST(AckermannMotion, MatchesTheWorldFrameEquations) {
+  const AckermannGeometry g;
+  for (double alpha : {0.0, 0.3, -0.45, 1e-7}) {
+    for (double ve : {0.0, 3.2, -1.5}) {
+      const Eigen::Vector3d x(12.0, -4.0, 2.9);
+      EXPECT_LT((ackermann_motion(x, ve, alpha, 0.025, g) - guivant_nebot_step(x, ve, alpha, 0.025, g)).norm(), 1e-13)
+          << ve << " " << alpha;
+    }
+  }
+  // Straight ahead the sensor moves along the heading, whatever its mounting.
+  const Eigen::Vector3d straight = ackermann_motion(Eigen::Vector3d(1, 2, 0.5), 4.0, 0.0, 0.5, g);
+  EXPECT_LT((straight - Eigen::Vector3d(1 + 2 * std::cos(0.5), 2 + 2 * std::sin(0.5), 0.5)).norm(), 1e-14);
+}
+
+TEST(AckermannMotion, JacobiansMatchFiniteDifferences) {
+  AckermannGeometry g;
+  g.sensor_left = -0.3;  // a mounting on the other side exercises b's sign
+  for (double alpha : {0.35, -0.5, 0.0}) {
+    const Eigen::Vector3d x(0.5, 0.2, 3.0);
+    const double ve = 2.5, dt = 0.2;
+    const auto f_pose = [&](const Eigen::VectorXd& p) -> Eigen::VectorXd { return ackermann_motion(p, ve, alpha, dt, g); };
+    const auto f_ctrl = [&](const Eigen::VectorXd& u) -> Eigen::VectorXd {
+      return ackermann_motion(x, u[0], u[1], dt, g);
+    };
+    const auto f_inc = [&](const Eigen::VectorXd& u) -> Eigen::VectorXd {
+      return ackermann_increment(u[0], u[1], dt, g);
+    };
+    const Eigen::Vector2d u(ve, alpha);
+    EXPECT_LT((ackermann_motion_jacobian(x, ve, alpha, dt, g) - numeric_jacobian(f_pose, x, true)).norm(), kFdTolerance)
+        << alpha;
+    EXPECT_LT((Eigen::MatrixXd(ackermann_motion_control_jacobian(x, ve, alpha, dt, g)) -
+               numeric_jacobian(f_ctrl, u, true)).norm(),
+              kFdTolerance)
+        << alpha;
+    EXPECT_LT((Eigen::MatrixXd(ackermann_increment_jacobian(ve, alpha, dt, g)) - numeric_jacobian(f_inc, u)).norm(),
+              kFdTolerance)
+        << alpha;
+  }
+}
+
+TEST(AckermannMotion, RejectsBadInput) {
+  const Eigen::Vector3d x(0, 0, 0);
+  const AckermannGeometry g;
+  const auto starts_with = [](const std::function<void()>& f, const std::string& name) {
+    try {
+      f();
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what()).rfind(name, 0) == 0;
+    }
+    return false;
+  };
+  EXPECT_TRUE(starts_with([&] { ackermann_motion(x, 1.0, 0.1, 0.0, g); }, "dt"));
+  EXPECT_TRUE(starts_with([&] { ackermann_motion(x, NAN, 0.1, 0.1, g); }, "speed"));
+  EXPECT_TRUE(starts_with([&] { ackermann_motion(x, 1.0, 1.6, 0.1, g); }, "steering"));
+  // tan(1.4) H / L = 1.55: the encoder wheel would turn about itself.
+  EXPECT_TRUE(starts_with([&] { ackermann_increment(1.0, 1.4, 0.1, g); }, "steering"));
+  EXPECT_TRUE(starts_with([&] { ackermann_motion(Eigen::Vector3d(0, NAN, 0), 1.0, 0.1, 0.1, g); }, "pose"));
+  EXPECT_TRUE(starts_with([&] { ackermann_motion(x, 1e300, 0.1, 1e300, g); }, "speed"));
+  AckermannGeometry bad;
+  bad.wheelbase = 0.0;
+  EXPECT_TRUE(starts_with([&] { ackermann_motion(x, 1.0, 0.1, 0.1, bad); }, "wheelbase"));
+  bad = g;
+  bad.sensor_left = INFINITY;
+  EXPECT_TRUE(starts_with([&] { ackermann_increment_jacobian(1.0, 0.1, 0.1, bad); }, "sensor_left"));
 }
 
 TEST(RangeBearing, ValuesJacobiansAndInverse) {

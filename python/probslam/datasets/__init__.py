@@ -23,7 +23,7 @@ from ..fastslam import DEFAULT_P_NEW
 from ..io._files import file_path
 from ..io.landmark_datasets import Mrclam, VictoriaPark, VictoriaParkAcfr
 from ..landmark_slam import METHODS, Associations, LandmarkSlamResult
-from . import carmen, mrclam, victoria_park, victoria_park_acfr
+from . import carmen, mrclam, victoria_park, victoria_park_acfr, victoria_park_acfr_run
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -72,13 +72,22 @@ def load_landmark_dataset(path: PathLike, *, robot: int = 1, seconds: Optional[f
     return victoria_park.load(path)
 
 
-def run_landmark_slam(dataset: Union[Mrclam, VictoriaPark, PathLike], method: str = "ekf", *, known: bool = True,
+def run_landmark_slam(dataset: Union[Mrclam, VictoriaPark, VictoriaParkAcfr, PathLike], method: str = "ekf", *,
+                      known: Optional[bool] = None,
                       motion_noise=None, measurement_noise=None, association: str = "jcbb",
                       hypotheses: Optional[Mapping] = None, num_particles: int = 100, version: int = 1, seed: int = 0,
                       threads: int = 1, p_new: float = DEFAULT_P_NEW,
                       filter_options: Optional[Mapping] = None, progress: Optional[bool] = None) -> LandmarkSlamResult:
-    """A landmark SLAM run over a dataset: an ``Mrclam`` robot or ``VictoriaPark`` as read, or a
-    path (read with ``load_landmark_dataset``'s defaults).
+    """A landmark SLAM run over a dataset: an ``Mrclam`` robot, ``VictoriaPark`` or the original
+    Victoria Park run (``VictoriaParkAcfr``) as read, or a path (read with
+    ``load_landmark_dataset``'s defaults).
+
+    ``known``: whether the dataset's labels give the correspondences; None (the default): True
+    where the dataset has labels (MRCLAM's barcodes, the iSAM file's landmark numbers), False on
+    the original Victoria Park run, whose detections have none (``known=True`` is refused
+    there). That run is driven by ``victoria_park_acfr_run`` (the car's model at the inputs'
+    40 Hz, the sensors' noise; ``motion_noise`` and ``measurement_noise`` are its own and refused
+    here), methods "ekf", "fastslam" and "dead-reckoning".
 
     ``method``:
       * ``"ekf"``: EKF SLAM (Tables 10.1 / 10.2); with ``known=False`` the correspondences are
@@ -106,11 +115,15 @@ def run_landmark_slam(dataset: Union[Mrclam, VictoriaPark, PathLike], method: st
     ``run_fastslam`` take further options (gates, hooks, start pose)."""
     if method not in METHODS:
         raise ValueError(f"method must be one of {', '.join(map(repr, METHODS))}, got {method!r}")
-    if not isinstance(known, bool):
-        raise TypeError(f"known must be a bool, got {type(known).__name__}")
+    if known is not None and not isinstance(known, bool):
+        raise TypeError(f"known must be None or a bool, got {type(known).__name__}")
     if isinstance(dataset, (str, bytes, os.PathLike)):
         dataset = load_landmark_dataset(dataset)
-    require_instance(dataset, (Mrclam, VictoriaPark), "dataset")
+    require_instance(dataset, (Mrclam, VictoriaPark, VictoriaParkAcfr), "dataset")
+    if isinstance(dataset, VictoriaParkAcfr):
+        return _run_acfr(dataset, method, known, motion_noise, measurement_noise, association, hypotheses,
+                         num_particles, version, seed, threads, p_new, filter_options, progress)
+    known = True if known is None else known
     if method == "mht" and known:
         raise ValueError("known: method 'mht' finds the correspondences itself; pass known=False")
     if method == "ekf" and not known and association not in EKF_ASSOCIATIONS:
@@ -138,5 +151,27 @@ def run_landmark_slam(dataset: Union[Mrclam, VictoriaPark, PathLike], method: st
                                  progress=progress)
 
 
+def _run_acfr(data: VictoriaParkAcfr, method, known, motion_noise, measurement_noise, association, hypotheses,
+              num_particles, version, seed, threads, p_new, filter_options, progress) -> LandmarkSlamResult:
+    """run_landmark_slam on the original Victoria Park run."""
+    if known:
+        raise ValueError("known: the original Victoria Park run's detections have no identities (known=False)")
+    for name, value in (("motion_noise", motion_noise), ("measurement_noise", measurement_noise)):
+        if value is not None:
+            raise ValueError(f"{name}: the original Victoria Park run takes its sensors' noise "
+                             "(victoria_park_acfr_run)")
+    if method == "mht" or hypotheses is not None:
+        raise ValueError("method 'mht' runs on MRCLAM only")
+    if method == "fastslam":
+        return victoria_park_acfr_run.run_fastslam(data, num_particles=num_particles, version=version, seed=seed,
+                                                   threads=threads, p_new=p_new, filter_options=filter_options,
+                                                   progress=progress)
+    if association not in EKF_ASSOCIATIONS:
+        raise ValueError(f"association must be one of {', '.join(map(repr, EKF_ASSOCIATIONS))}, got {association!r}")
+    return victoria_park_acfr_run.run_ekf(data, association=association, dead_reckoning=method == "dead-reckoning",
+                                          progress=progress)
+
+
 __all__ = ["Associations", "EKF_ASSOCIATIONS", "LandmarkSlamResult", "carmen", "landmark_dataset_kind",
-           "load_landmark_dataset", "mrclam", "run_landmark_slam", "victoria_park", "victoria_park_acfr"]
+           "load_landmark_dataset", "mrclam", "run_landmark_slam", "victoria_park", "victoria_park_acfr",
+           "victoria_park_acfr_run"]

@@ -1,0 +1,81 @@
+"""The original Victoria Park run (ACFR: 1,549 s of encoder speed and steering at 40 Hz, 52,974
+tree detections without identities, GPS) as the SLAM lecture measured it: EKF SLAM and FastSLAM
+1.0 / 2.0 with 100 particles, the defaults of ``datasets.victoria_park_acfr_run``, each FastSLAM
+variant over seeds 0-9; RMS against the GPS (as it is and SE(2)-aligned, evo's convention),
+landmarks in the map and CPU seconds of the whole run. Prints a table and, with --record, writes
+it into benchmarks/RESULTS.md.
+
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_victoria_park_acfr.py [DIR] [--seeds N] [--record]
+"""
+
+import argparse
+import datetime
+import os
+import pathlib
+import time
+
+import numpy as np
+
+import probslam as ps
+from common import machine, report
+from probslam.datasets import victoria_park_acfr, victoria_park_acfr_run
+
+DEFAULT = pathlib.Path(__file__).resolve().parents[2] / "shared/data/landmark_slam/victoria_park_acfr"
+
+
+def scored(data, run_method):
+    """(run, CPU seconds of the run, PositionError against the GPS)."""
+    c0 = time.process_time()
+    run = run_method()
+    cpu = time.process_time() - c0
+    return run, cpu, ps.eval.position_error(run.times, run.poses, data.gps[:, 0], data.gps[:, 1:])
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("folder", nargs="?", default=str(DEFAULT))
+    parser.add_argument("--seeds", type=int, default=10, help="FastSLAM seeds 0..N-1 per variant (default 10)")
+    parser.add_argument("--record", action="store_true")
+    parser.add_argument("--save", metavar="NPZ", help="also save every run's path and seed 0's maps (for "
+                                                      "docs/make_victoria_park_acfr_figure.py)")
+    args = parser.parse_args()
+    data = victoria_park_acfr.load(args.folder)
+    rows = ["| method | seed | RMS vs GPS | aligned | landmarks | CPU |", "|---|---|---|---|---|---|"]
+    summary, saved = [], {"gps": data.gps}
+    for name, method in (("dead reckoning", lambda: victoria_park_acfr_run.run_ekf(data, dead_reckoning=True)),
+                         ("EKF SLAM (JCBB)", lambda: victoria_park_acfr_run.run_ekf(data))):
+        run, cpu, e = scored(data, method)
+        saved[name] = np.column_stack([run.times, run.poses])
+        rows.append(f"| {name} | - | {e.rmse:.2f} m | {e.rmse_aligned:.2f} m | {len(run.landmarks)} | {cpu:.1f} s |")
+        print(rows[-1], flush=True)
+    for version in (1, 2):
+        aligned, cpus = [], []
+        for seed in range(args.seeds):
+            run, cpu, e = scored(data, lambda: victoria_park_acfr_run.run_fastslam(data, version=version, seed=seed))
+            aligned.append(e.rmse_aligned)
+            saved[f"fastslam{version}_seed{seed}"] = np.column_stack([run.times, run.poses])
+            if seed == 0:
+                saved[f"fastslam{version}_map"] = np.array(list(run.landmarks.values())).reshape(-1, 2)
+            cpus.append(cpu)
+            rows.append(f"| FastSLAM {version}.0, 100 particles | {seed} | {e.rmse:.2f} m | {e.rmse_aligned:.2f} m | "
+                        f"{len(run.landmarks)} | {cpu:.1f} s |")
+            print(rows[-1], flush=True)
+        summary.append(f"FastSLAM {version}.0: aligned RMS median {np.median(aligned):.2f} m, max "
+                       f"{np.max(aligned):.2f} m over {args.seeds} seeds; CPU median {np.median(cpus):.1f} s.")
+    lines = [f"## Victoria Park (ACFR run) against GPS, EKF and FastSLAM, {datetime.date.today()}", "",
+             f"Machine: {machine()}; load average {os.getloadavg()[0]:.1f} at the end (shared machine: CPU "
+             f"seconds, not wall time), BLAS threads: OPENBLAS_NUM_THREADS="
+             f"{os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}.", "",
+             f"{len(data.inputs)} inputs (40 Hz, {data.inputs[-1, 0] - data.inputs[0, 0]:.0f} s), "
+             f"{len(data.measurements)} detections on {len(data.scan_times)} scans, {len(data.gps)} GPS fixes; "
+             "unknown correspondences, the trunk's diameter as signature, the defaults of "
+             "datasets.victoria_park_acfr_run (noise: RFS-SLAM's published configuration for this run).", ""]
+    lines += rows + [""] + summary + ["", "Command: `OPENBLAS_NUM_THREADS=1 python benchmarks/bench_victoria_park_acfr.py "
+                                          "--record`."]
+    report(lines, args.record)
+    if args.save:
+        np.savez_compressed(args.save, **saved)
+
+
+if __name__ == "__main__":
+    main()
