@@ -10,7 +10,7 @@ import pytest
 import probslam as ps
 from probslam.datasets import run_landmark_slam, victoria_park_acfr, victoria_park_acfr_run
 
-#: The lecture's bound on the position error (RMS against GPS, m), and the issue's median bound.
+#: The lecture's bound on the position error (RMS against GPS, m).
 LECTURE_RMS = 5.0
 #: The steps' relative poses composed and the model stepped at the inputs' times differ by
 #: rounding only (62,000 steps).
