@@ -83,6 +83,7 @@ def main():
     real_scale = real.fit_evidence_scale([(occ, poses[a], ranges[a], known)], grid, angles, MAX_RANGE, hw)
     t1 = time.perf_counter()
     if args.save_model:
+        real.resolution, real.max_range = RES, MAX_RANGE  # the lattice and range it learned on: map's defaults
         real.save(args.save_model)
         print(f"saved {args.save_model}: trained on the first {half} scans ({t1 - t0:.0f} s), evidence scale "
               f"{real_scale:.3f}")

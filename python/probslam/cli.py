@@ -22,13 +22,16 @@ from .data import path as _data_path
 from .datasets import carmen, landmark_dataset_kind, load_landmark_dataset, mrclam, run_landmark_slam
 from .landmark_refine import refine_run
 from .io.trajectory import EXTENSIONS, POSITION_FIELDS, TRAJECTORY_FORMATS, first_row_fields
-from .mapping import map_laser_log
+from .mapping import DEFAULT_MAX_RANGE as MAP_MAX_RANGE, DEFAULT_RESOLUTION as MAP_RESOLUTION, map_laser_log
 from ._progress import progress_bar
 
 BUNDLED_LOG = "intel_excerpt.log.gz"
-#: A raw log (odometry and scans, no corrected poses) for ``probslam slam``: the Intel Research
-#: Lab's first loop.
+#: A raw log (odometry and scans, no corrected poses): the Intel Research Lab's first loop, short of
+#: its start (``probslam localize``'s default, in its map BUNDLED_LOCALIZATION_MAP).
 BUNDLED_RAW_LOG = "intel_raw_loop.log.gz"
+#: ``probslam slam``'s default: the Intel Research Lab's first lap, which comes back past its start,
+#: so that the first run shows loop closures.
+BUNDLED_SLAM_LOG = "intel_raw_lap.log.gz"
 #: The default of ``probslam optimize``: the first 400 poses of the Intel Research Lab graph.
 BUNDLED_GRAPH = "intel_400.g2o"
 #: The default of ``probslam ekf-slam`` / ``fastslam``: MRCLAM Dataset 7, robot 1, 120 s.
@@ -47,6 +50,9 @@ RBPF_PARTICLES = 30
 DEFAULT_RESOLUTION = 0.05
 FASTSLAM_PARTICLES = 100
 
+#: ekf-slam --unknown's association on MRCLAM without --association (docs/ekf_slam.md).
+MRCLAM_ASSOCIATION = "mht"
+
 #: What each kind of input file must be, for the error messages.
 CARMEN_LOG = "a CARMEN laser log (.log/.clf, optionally .gz/.bz2/.xz)"
 ROS_BAG = "a ROS bag (ROS 1 .bag, a ROS 2 bag folder, or its .db3 / .mcap)"
@@ -62,6 +68,12 @@ ANY_POSE_GRAPH = "a 2-D or 3-D pose graph (g2o, TORO or iSAM text)"
 INITS_2D_ONLY = ("ekf", "incremental")
 INITS_3D_ONLY = ("chordal",)
 DEFAULT_INIT = {2: "file", 3: "chordal"}
+#: ...except for a 2-D graph with landmarks: the EKF SLAM estimate. A landmark's value in a file
+#: (or placed from its first sighting on dead reckoning, as iSAM files are read) is off by the
+#: drift up to that sighting, and Gauss-Newton from there stalls: on Victoria Park 100 iterations
+#: to chi2 3.4e7, against 6184.12 in 5 from the EKF (docs/pose_graphs.md).
+LANDMARK_GRAPH_INIT = "ekf"
+LANDMARK_GRAPH_INIT_REASON = "the graph has landmarks: the EKF SLAM estimate places them"
 INITIALIZATIONS = ("file", "odometry", "ekf", "incremental", "chordal")
 
 EPILOG = """exit status:
@@ -315,17 +327,28 @@ def _cmd_map(args: argparse.Namespace) -> int:
         raise UserError(f"{path}: no poses to map with (no odometry, tf or --pose-topic in the bag); "
                         "'probslam slam' maps a bag of scans alone")
     if args.inverse_model is not None:
-        from .inverse_learning import LearnedInverseModel, map_laser_log_learned
+        from .inverse_learning import LearnedInverseModel, learned_map_geometry, map_laser_log_learned
 
         model_path = _data_path(BUNDLED_INVERSE_MODEL) if args.inverse_model == "bundled" else args.inverse_model
         try:
             model = LearnedInverseModel.load(model_path)
         except (OSError, ValueError, TypeError) as exc:
             raise UserError(f"--inverse-model: {exc}") from None
-        grid, summary = map_laser_log_learned(model, log.scans, resolution=args.resolution, max_range=args.max_range,
-                                              progress=None if args.progress else False)
+        # The model's own cell size and range where the command line gives none: it learned on them,
+        # and a finer lattice or longer range costs the network's time on every extra field cell.
+        resolution, max_range = learned_map_geometry(model, args.resolution, args.max_range)
+        own = [name for name, given, value in (("--resolution", args.resolution, model.resolution),
+                                               ("--max-range", args.max_range, model.max_range))
+               if given is None and value is not None]
+        print(f"mapping:       {len(log.scans)} scans with the learned inverse model {os.path.basename(model_path)} at "
+              f"{resolution:g} m cells, readings to {max_range:g} m"
+              + (f" (the model's own {' and '.join(own)})" if own else "") + "; a network on every cell in range "
+              "takes longer than the ray model", flush=True)
+        grid, summary = map_laser_log_learned(model, log.scans, resolution=resolution, max_range=max_range,
+                                              progress=_progress(args))
     else:
-        grid, summary = map_laser_log(log.scans, resolution=args.resolution, max_range=args.max_range,
+        grid, summary = map_laser_log(log.scans, resolution=_or_default(args.resolution, MAP_RESOLUTION),
+                                      max_range=_or_default(args.max_range, MAP_MAX_RANGE),
                                       robot_radius=args.robot_radius,
                                       skip_no_return=not args.keep_no_return, progress=None if args.progress else False)
     io.save_ros_map(grid, args.output + ".yaml")
@@ -346,6 +369,9 @@ def _cmd_map(args: argparse.Namespace) -> int:
     print(f"map:           {grid.width} x {grid.height} cells at {grid.resolution} m, origin {grid.origin}")
     print(f"time:          {total:.2f} s total, {summary.seconds:.3f} s mapping ({rate:.2f} M beams/s)")
     print(f"wrote:         {', '.join(written)}")
+    hint = _odometry_hint(log, args.log)
+    if hint:
+        print(f"hint:          {hint}")
     return 0
 
 
@@ -364,6 +390,22 @@ def _resume_command(args: argparse.Namespace, run_file: str) -> str:
     return shlex.join(words)
 
 
+def _odometry_hint(log, path: Optional[str]) -> str:
+    """What ``map`` says about its poses when they may be raw odometry, which smears a map wherever
+    it drifts: a bag's odometry or tf are; a CARMEN log's FLASER poses are either (a raw log and a
+    corrected one write the same fields, the same way), so the hint is conditional there. None for
+    the bundled corrected excerpt and a bag's --pose-topic."""
+    if path is None:
+        return ""
+    slam = f"'probslam slam {path}' corrects them (scan matching, loop closures)"
+    if isinstance(log, io.RosbagLog):
+        if log.pose_source.startswith("poses"):
+            return ""
+        return f"the poses are the bag's {log.pose_source}, raw odometry: the map smears wherever it drifts; {slam}"
+    return (f"map draws the log's poses as they are; if they are raw odometry (a log as the robot recorded it, "
+            f"not a corrected one), the map smears wherever it drifts, and {slam}")
+
+
 def _cmd_slam(args: argparse.Namespace) -> int:
     from .graph import write_g2o
     from .slam import INITIAL_MAP, RunInterrupted, check_save_path, run_slam
@@ -378,7 +420,7 @@ def _cmd_slam(args: argparse.Namespace) -> int:
     _refuse_given(args, ("particles", "proposal") if args.method == "graph" else ("submap_distance", "no_loop_closures"),
                   f"does not apply to --method {args.method}")
     _check_output(args.output)
-    path = args.log or _bundled_log(BUNDLED_RAW_LOG)
+    path = args.log or _bundled_log(BUNDLED_SLAM_LOG)
     log = _read_log(path, args)
     if args.method == "rbpf":
         options = dict(num_particles=args.particles, proposal=args.proposal)
@@ -429,7 +471,7 @@ def _cmd_slam(args: argparse.Namespace) -> int:
         written.append(f"{args.output}.g2o")
     s = result.summary
     grid = result.grid
-    print(f"log:           {path}{' (bundled Intel Research Lab raw excerpt)' if not args.log else ''}")
+    print(f"log:           {path}{' (bundled Intel Research Lab raw excerpt: one lap, back past its start)' if not args.log else ''}")
     _print_bag(log)
     skipped = f", {log.skipped_wide_scans} skipped: far wider than the rest" if log.skipped_wide_scans else ""
     if args.resume is not None:
@@ -657,7 +699,11 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
     if kind == "victoria_park_acfr":
         return _acfr_command(args, path, "ekf", t0)
     _check_refine(args, kind, "ekf-slam")
-    mht = args.unknown and args.association == "mht"
+    # MRCLAM's default: the multiple-hypothesis EKF, the one association that holds on every robot of
+    # Datasets 1 and 7 (JCBB builds 40 landmarks for 15 on Dataset 1 robot 1, docs/ekf_slam.md).
+    # Victoria Park's EKF takes the file's correspondences: there is nothing to choose.
+    association = args.association or (MRCLAM_ASSOCIATION if kind == "mrclam" else "jcbb")
+    mht = args.unknown and association == "mht"
     if args.bearing_offset and kind != "mrclam":
         raise UserError("--bearing-offset applies to MRCLAM folders (with --unknown --association mht)")
     if args.bearing_offset and not mht:
@@ -667,11 +713,11 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
     hypotheses = dict(bearing_offset_sigma=args.bearing_offset) if args.bearing_offset else None
     # Victoria Park: the EKF takes the file's correspondences, with or without --unknown.
     run = run_landmark_slam(data, "mht" if mht else "ekf", known=not (args.unknown and is_mrclam),
-                            association=args.association, hypotheses=hypotheses, progress=_progress(args),
+                            association=association, hypotheses=hypotheses, progress=_progress(args),
                             **_landmark_noise(args, data))
     if is_mrclam:
         print(f"dataset:       UTIAS MRCLAM {path} robot {args.robot}, "
-              f"{'unknown (' + args.association + ')' if args.unknown else 'known'} correspondences, "
+              f"{'unknown (' + association + ')' if args.unknown else 'known'} correspondences, "
               f"{'bearing offset ' + format(args.bearing_offset, 'g') + ' rad per scan, ' if hypotheses else ''}"
               f"{'raw depth readings' if args.raw_ranges else 'ranges from depth x ' + str(io.MRCLAM_RANGE_SCALE)}")
         print(f"odometry:      {len(data.odometry)} controls; measurements: {len(data.measurements)} of landmarks "
@@ -684,19 +730,17 @@ def _cmd_ekf_slam(args: argparse.Namespace) -> int:
         print(f"associations:  {evaluation.association_accuracy(run):.1%} correct (each landmark's majority barcode), "
               f"{run.associations.applied} of {len(data.measurements)} sightings applied")
     run, refinement = _refined(args, data, run)
-    dead, truth, truth_lm = _landmark_score(args, data, run)
+    reference = _landmark_score(args, data, run)
 
     def draw(ax):
-        dead_poses = None if dead is None else dead.poses
         if refinement is not None:
-            _draw_refined(ax, run, refinement, truth, truth_lm, data, dead_poses)
+            _draw_refined(ax, run, refinement, reference)
         else:
-            landmark_map(ax, run.poses, run.filter, truth_path=truth, truth_landmarks=truth_lm,
-                         dead_reckoning=dead_poses, truth_landmarks_label=_survey_label(data))
-        how = f"unknown correspondences, {args.association}" if args.unknown and is_mrclam else "known correspondences"
+            landmark_map(ax, run.poses, run.filter, **reference)
+        how = f"unknown correspondences, {association}" if args.unknown and is_mrclam else "known correspondences"
         refined = ", GraphSLAM refinement (ch. 11.6)" if refinement is not None else ""
-        ax.set_title(f"probslam ekf-slam: {_dataset_name(args, path, data)}\nEKF SLAM, {how}{refined}",
-                     fontsize="medium")
+        ax.set_title(f"probslam ekf-slam: {_dataset_name(args, path, data)}\nEKF SLAM, {how}{refined}"
+                     f"{_aligned_note(reference)}", fontsize="medium")
 
     return _landmark_outputs(args, run, draw, t0)
 
@@ -730,18 +774,17 @@ def _cmd_fastslam(args: argparse.Namespace) -> int:
     if run.associations is not None:
         print(f"associations:  {evaluation.association_accuracy(run):.1%} correct (each landmark's majority label)")
     run, refinement = _refined(args, data, run)
-    dead, truth, truth_lm = _landmark_score(args, data, run)
+    reference = _landmark_score(args, data, run)
 
     def draw(ax):
-        dead_poses = None if dead is None else dead.poses
         if refinement is not None:
-            _draw_refined(ax, run, refinement, truth, truth_lm, data, dead_poses)
+            _draw_refined(ax, run, refinement, reference)
         else:
-            fastslam_map(ax, run.filter, truth_path=truth, truth_landmarks=truth_lm,
-                         truth_landmarks_label=_survey_label(data), dead_reckoning=dead_poses)
+            fastslam_map(ax, run.filter, **reference)
         refined = ", GraphSLAM refinement (ch. 11.6)" if refinement is not None else ""
         ax.set_title(f"probslam fastslam: {_dataset_name(args, path, data)}\nFastSLAM {args.variant}.0, "
-                     f"{args.particles} particles, {correspondences} correspondences{refined}", fontsize="medium")
+                     f"{args.particles} particles, {correspondences} correspondences{refined}"
+                     f"{_aligned_note(reference)}", fontsize="medium")
 
     return _landmark_outputs(args, run, draw, t0)
 
@@ -858,9 +901,9 @@ def _refined(args: argparse.Namespace, data, run):
     return result, r
 
 
-def _draw_refined(ax, run, refinement, truth, truth_lm, data, dead) -> None:
+def _draw_refined(ax, run, refinement, reference: dict) -> None:
     """The picture of a refined run: its path and map, each landmark's ellipse from the final
-    GraphSLAM's marginal covariance."""
+    GraphSLAM's marginal covariance; ``reference`` as ``_landmark_score`` returns it."""
     import numpy as np
 
     from .plot import landmark_map
@@ -868,9 +911,7 @@ def _draw_refined(ax, run, refinement, truth, truth_lm, data, dead) -> None:
     labels = sorted(refinement.landmarks)
     means = np.array([refinement.landmarks[k] for k in labels]).reshape(-1, 2)
     covariances = np.array([refinement.landmark_covariances[k] for k in labels]).reshape(-1, 2, 2)
-    landmark_map(ax, run.poses, truth_path=truth, truth_landmarks=truth_lm, dead_reckoning=dead,
-                 truth_landmarks_label=_survey_label(data), path_label="GraphSLAM refinement",
-                 landmarks=(means, covariances))
+    landmark_map(ax, run.poses, path_label="GraphSLAM refinement", landmarks=(means, covariances), **reference)
 
 
 def _landmark_noise(args: argparse.Namespace, data) -> dict:
@@ -881,14 +922,30 @@ def _landmark_noise(args: argparse.Namespace, data) -> dict:
     return dict(motion_noise=motion, measurement_noise=sensor)
 
 
-def _landmark_score(args: argparse.Namespace, data, run):
-    """MRCLAM: the run's dead reckoning, and its path and map errors printed; returns (dead
-    reckoning run, ground-truth path (T, 2), landmarks) to draw (None where there is none)."""
+def _landmark_score(args: argparse.Namespace, data, run) -> dict:
+    """MRCLAM: the run's path and map errors printed (and its dead reckoning's); returns what the
+    picture draws them against, as keywords of plot.landmark_map / fastslam_map: the ground-truth
+    path (T, 2) and landmarks, the dead reckoning, and with robot ground truth the estimate's
+    alignment onto it (``align``: the picture shows the estimate where its aligned RMSE puts it,
+    the dead reckoning by its own alignment). Victoria Park: nothing."""
     if not isinstance(data, io.Mrclam):
-        return None, None, None
+        return {}
     dead = run_landmark_slam(data, "dead-reckoning", progress=False, **_landmark_noise(args, data))
     labels = evaluation.majority_labels(run) if run.associations is not None else None
-    return (dead,) + _print_mrclam_score(data, run, dead, labels)
+    reference = dict(dead_reckoning=dead.poses, truth_landmarks_label=_survey_label(data))
+    if data.groundtruth is None:
+        return dict(reference, truth_landmarks=_print_map_score(data, run, labels))
+    from .plot import ALIGNED_SUFFIX
+
+    s, d = _print_mrclam_score(data, run, dead, labels)
+    return dict(reference, truth_path=data.groundtruth[:, 1:3], truth_landmarks=data.landmark_positions,
+                align=(s.rotation, s.translation), dead_reckoning=dead.poses[:, :2] @ d.rotation.T + d.translation,
+                dead_reckoning_label="dead reckoning" + ALIGNED_SUFFIX)
+
+
+def _aligned_note(reference: dict) -> str:
+    """The title's note on a picture whose estimate is drawn aligned onto the ground truth."""
+    return "; estimate aligned onto ground truth" if reference.get("align") is not None else ""
 
 
 def _landmark_outputs(args: argparse.Namespace, run, draw, t0: float) -> int:
@@ -939,6 +996,11 @@ def _mrclam_noise(args: argparse.Namespace):
     return (np.diag([args.sigma_v ** 2, args.sigma_w ** 2]), np.diag([args.sigma_r ** 2, args.sigma_phi ** 2]))
 
 
+def _or_default(value: Optional[float], default: float) -> float:
+    """An option's value, or its default when it was not given (None)."""
+    return default if value is None else value
+
+
 def _require_length(value: Optional[float], option: str, zero: bool = False, what: str = "number") -> None:
     """UserError naming the option unless value (metres, seconds, radians; None: not given) is
     finite and > 0 (>= 0 with ``zero``): checked before any data is read."""
@@ -964,12 +1026,9 @@ def _print_skipped(skipped) -> None:
 
 
 def _print_mrclam_score(data, run, dead_reckoning, labels):
-    """The path and map errors of an MRCLAM run (against the robot's ground truth, or the map alone
-    against the survey without it); returns the ground-truth path (T, 2) and landmarks to draw
-    (without robot ground truth: no path, and the survey aligned onto the map). ``labels``: filter
-    landmark id -> surveyed subject (None: the ids are)."""
-    if data.groundtruth is None:
-        return None, _print_map_score(data, run, labels)
+    """The path and map errors of an MRCLAM run with robot ground truth printed; returns the
+    scores (eval.MrclamScore) of the run and of its dead reckoning. ``labels``: filter landmark
+    id -> surveyed subject (None: the ids are)."""
     import numpy as np
 
     with np.errstate(over="ignore", invalid="ignore"):  # huge coordinates: refused just below
@@ -978,7 +1037,7 @@ def _print_mrclam_score(data, run, dead_reckoning, labels):
     print(f"path RMSE:     {s.path_rmse:.3f} m raw, {s.path_rmse_aligned:.3f} m aligned "
           f"(dead reckoning {d.path_rmse:.3f} / {d.path_rmse_aligned:.3f} m)")
     print(f"landmark RMSE: {s.landmark_rmse:.3f} m raw, {s.landmark_rmse_aligned:.3f} m aligned")
-    return data.groundtruth[:, 1:3], data.landmark_positions
+    return s, d
 
 
 def _require_finite_scores(*scores: float) -> None:
@@ -1035,7 +1094,7 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     _check_input(path, ANY_POSE_GRAPH)
     with _reading(path, ANY_POSE_GRAPH):
         dimension = pg.pose_graph_dimension(path)
-    init = args.init or DEFAULT_INIT[dimension]
+    init = args.init or DEFAULT_INIT[dimension]  # 2-D with landmarks: LANDMARK_GRAPH_INIT, once it is read
     if init != "incremental":
         _refuse_given(args, ("poses_per_step",), "applies with --init incremental only")
     other_only = INITS_2D_ONLY if dimension == 3 else INITS_3D_ONLY
@@ -1072,6 +1131,9 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     # The solver options given; the others are the library's defaults for the graph's dimension.
     solver = {name: value for name, value in (("linear_solver", args.linear_solver), ("ordering", args.ordering))
               if value is not None}
+    why = ""
+    if args.init is None and dimension == 2 and len(g.point_ids):
+        init, why = LANDMARK_GRAPH_INIT, f" ({LANDMARK_GRAPH_INIT_REASON})"
     if init != "file":
         t_init = time.perf_counter()
         if init == "chordal":
@@ -1080,7 +1142,7 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
             pg.initialize_odometry(g)
         else:
             pg.initialize(g, init, poses_per_step=args.poses_per_step)
-        print(f"init:       {init} in {time.perf_counter() - t_init:.3f} s, chi2 {g.chi2():.6f}")
+        print(f"init:       {init}{why} in {time.perf_counter() - t_init:.3f} s, chi2 {g.chi2():.6f}")
     initial = g.poses
     initial_chi2 = g.chi2()
     t1 = time.perf_counter()
@@ -1356,9 +1418,12 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("log", nargs="?", help="CARMEN log (.log/.clf, optionally .gz/.bz2) or ROS bag (.bag, a ROS 2 "
                                           "folder, .db3, .mcap); default: a bundled excerpt of the Intel "
                                           "Research Lab log")
-    p.add_argument("--resolution", type=float, default=0.05, help="cell size in metres (default 0.05)")
-    p.add_argument("--max-range", type=float, default=30.0,
-                   help="readings at or beyond this (metres) only clear space (default 30)")
+    p.add_argument("--resolution", type=float, default=None,
+                   help=f"cell size in metres (default {MAP_RESOLUTION:g}; with --inverse-model the model's own, "
+                        "0.1 for the bundled one)")
+    p.add_argument("--max-range", type=float, default=None,
+                   help=f"readings at or beyond this (metres) only clear space (default {MAP_MAX_RANGE:g}; with "
+                        "--inverse-model the model's own, 10 for the bundled one)")
     p.add_argument("--robot-radius", type=float, default=0.0, help="clear the robot's footprint (metres)")
     p.add_argument("--keep-no-return", action="store_true",
                    help="let readings at the sensor maximum clear space (default: skip them)")
@@ -1376,7 +1441,7 @@ def build_parser() -> argparse.ArgumentParser:
                                      "submaps, GraphSLAM over them with loop closures (ch. 11.7)")
     sl.add_argument("log", nargs="?", help="CARMEN log (.log/.clf, optionally .gz/.bz2) or ROS bag (.bag, a ROS 2 "
                                            "folder, .db3, .mcap); default: a bundled raw excerpt of the Intel "
-                                           "Research Lab log")
+                                           "Research Lab log, one lap that closes its loop")
     sl.add_argument("--resolution", type=float, default=None,
                     help=f"cell size in metres (default {DEFAULT_RESOLUTION}, with --map the map's)")
     sl.add_argument("--max-range", type=float, default=None,
@@ -1448,10 +1513,11 @@ def build_parser() -> argparse.ArgumentParser:
     e.add_argument("dataset", nargs="?", help="a UTIAS MRCLAM folder, or Victoria Park in iSAM/GTSAM text format; "
                                               "default: a bundled MRCLAM excerpt (Dataset 7, robot 1, 120 s)")
     e.add_argument("--unknown", action="store_true", help="hide the correspondences (Table 10.2)")
-    e.add_argument("--association", choices=("jcbb", "ml", "mht"), default="jcbb",
-                   help="with --unknown: joint compatibility over each scan (default), maximum likelihood, "
-                        "or a beam of filters (multiple hypotheses; on MRCLAM they also pay for landmarks in the "
-                        "camera's field that a scan misses, and meet 95%% on every Dataset 1 robot)")
+    e.add_argument("--association", choices=("jcbb", "ml", "mht"), default=None,
+                   help="with --unknown on MRCLAM: joint compatibility over each scan, maximum likelihood, or a "
+                        "beam of filters (multiple hypotheses, the default: they also pay for landmarks in the "
+                        "camera's field that a scan misses, and meet 95%% on every Dataset 1 robot where JCBB "
+                        "keeps 19-40 landmarks for 15)")
     e.add_argument("--bearing-offset", type=float, default=0.0, metavar="SIGMA",
                    help="with --association mht on MRCLAM: a bearing offset (rad) shared by each scan's sightings, "
                         "carried by every hypothesis; --sigma-phi is then the part not shared (docs: "
@@ -1486,9 +1552,10 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("--algorithm", default="gauss-newton", choices=["gauss-newton", "levenberg-marquardt"],
                    help="the least-squares solver")
     o.add_argument("--init", default=None, choices=list(INITIALIZATIONS),
-                   help="starting point: the file's values (the default for 2-D; dead reckoning for iSAM files), "
-                        "dead reckoning, the EKF SLAM estimate (2-D), incremental optimisation (2-D), or the "
-                        "chordal relaxation of the rotations (3-D, its default)")
+                   help="starting point: the file's values (the default for 2-D pose graphs; dead reckoning for "
+                        "iSAM files), dead reckoning, the EKF SLAM estimate (2-D; the default for a graph with "
+                        "landmarks), incremental optimisation (2-D), or the chordal relaxation of the rotations "
+                        "(3-D, its default)")
     o.add_argument("--poses-per-step", type=int, default=100, help="with --init incremental: poses per step")
     o.add_argument("--max-iterations", type=int, default=100,
                    help="iterations at most; a run that has not converged by then exits with status 3")

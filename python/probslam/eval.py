@@ -766,6 +766,10 @@ class MrclamScore:
     path_rmse_aligned: float  # m, after the best rigid alignment of the path to ground truth
     landmark_rmse: float  # m, against the surveyed positions (same frame as the path)
     landmark_rmse_aligned: float  # m, after the path's alignment
+    # The path's alignment onto the ground truth, R estimate + t (the "aligned" errors', e.g. to
+    # draw the estimate where the scores put it).
+    rotation: np.ndarray = field(default_factory=lambda: np.eye(2))  # (2, 2)
+    translation: np.ndarray = field(default_factory=lambda: np.zeros(2))  # (2,) m
 
 
 def score_mrclam(result, data: Mrclam, landmark_map: Optional[Dict[int, int]] = None) -> MrclamScore:
@@ -784,7 +788,7 @@ def score_mrclam(result, data: Mrclam, landmark_map: Optional[Dict[int, int]] = 
     sur = np.array([p[1] for p in pairs]).reshape(-1, 2)
     return MrclamScore(rmse(result.poses[:, :2], truth), rmse(aligned, truth),
                        rmse(est, sur) if len(est) else float("nan"),
-                       rmse(est @ r.T + t, sur) if len(est) else float("nan"))
+                       rmse(est @ r.T + t, sur) if len(est) else float("nan"), r, t)
 
 
 @dataclass

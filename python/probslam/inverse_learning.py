@@ -396,6 +396,11 @@ class LearnedInverseModel:
         # fit_evidence_scale chooses it on training worlds, so that many overlapping scans, added
         # as if independent, do not make the map overconfident (docs/occupancy_mapping.md).
         self.evidence_scale = 1.0
+        # The grid's cell size and the readings' range (m) the model was trained at (None: not
+        # recorded): map_laser_log_learned's defaults, since the field's features were learned on
+        # that lattice and range (the bundled Intel model: 0.1 m, 10 m).
+        self.resolution: Optional[float] = None
+        self.max_range: Optional[float] = None
 
     # --- the network and J(W) (eq. 9.20) ---
 
@@ -547,12 +552,16 @@ class LearnedInverseModel:
     def save(self, path: str) -> None:
         """The weights and standardisation as a .npz file (numpy adds ``.npz`` to a str path
         without it): the float arrays ``weights``, ``mean`` and ``scale`` and the JSON text
-        ``meta`` = {"hidden": int, "prior": float, "evidence_scale": float}, what :meth:`load`
-        checks (files without evidence_scale, written before it existed, load with 1)."""
+        ``meta`` = {"hidden": int, "prior": float, "evidence_scale": float, and "resolution" and
+        "max_range" (m) when set}, what :meth:`load` checks (files without evidence_scale, written
+        before it existed, load with 1; without resolution or max_range, with None)."""
         self._check_trained()
-        np.savez(file_path(path), weights=self.weights, mean=self.mean, scale=self.scale,
-                 meta=json.dumps({"hidden": self.hidden, "prior": self.prior,
-                                  "evidence_scale": self.evidence_scale}))
+        meta = {"hidden": self.hidden, "prior": self.prior, "evidence_scale": self.evidence_scale}
+        for name in _TRAINED_AT:
+            value = getattr(self, name)
+            if value is not None:
+                meta[name] = positive_real(value, name)
+        np.savez(file_path(path), weights=self.weights, mean=self.mean, scale=self.scale, meta=json.dumps(meta))
 
     @classmethod
     def load(cls, path: str) -> "LearnedInverseModel":
@@ -566,7 +575,7 @@ class LearnedInverseModel:
         path = file_path(path)
         require_regular_file(path)
         arrays = _read_model_arrays(path)
-        hidden, prior, evidence_scale = _model_meta(path, arrays.pop("meta"))
+        hidden, prior, evidence_scale, trained_at = _model_meta(path, arrays.pop("meta"))
         m = cls(hidden)
         d = arrays["mean"].shape[0]
         if d == 0 or arrays["scale"].shape != (d,) or arrays["weights"].shape != (m.n_weights(d),):
@@ -579,6 +588,7 @@ class LearnedInverseModel:
             raise ValueError(f"{path}: scale holds a deviation <= 0")
         m.weights, m.mean, m.scale, m.prior = arrays["weights"], arrays["mean"], arrays["scale"], prior
         m.evidence_scale = evidence_scale
+        m.resolution, m.max_range = (trained_at.get(name) for name in _TRAINED_AT)
         return m
 
 
@@ -597,11 +607,24 @@ def learned_map_clamp(prior: float) -> Tuple[float, float]:
     return min(DEFAULT_CLAMP[0], lower), DEFAULT_CLAMP[1]
 
 
-def map_laser_log_learned(model: LearnedInverseModel, scans, resolution: float = 0.05, max_range: float = 30.0,
-                          progress: Optional[bool] = None):
+def learned_map_geometry(model: LearnedInverseModel, resolution: Optional[float] = None,
+                         max_range: Optional[float] = None) -> Tuple[float, float]:
+    """(resolution, max_range) in metres for mapping with ``model``: each one given, else the
+    model's own (what it was trained at: :attr:`LearnedInverseModel.resolution` / ``max_range``),
+    else map_laser_log's (``probslam.mapping.DEFAULT_RESOLUTION`` / ``DEFAULT_MAX_RANGE``)."""
+    from .mapping import DEFAULT_MAX_RANGE, DEFAULT_RESOLUTION
+
+    resolution = resolution if resolution is not None else model.resolution or DEFAULT_RESOLUTION
+    max_range = max_range if max_range is not None else model.max_range or DEFAULT_MAX_RANGE
+    return positive_real(resolution, "resolution"), positive_real(max_range, "max_range")
+
+
+def map_laser_log_learned(model: LearnedInverseModel, scans, resolution: Optional[float] = None,
+                          max_range: Optional[float] = None, progress: Optional[bool] = None):
     """Table 9.1 over a laser log (:class:`probslam.io.LaserScans`, poses taken as true) with a
     learned inverse model (:meth:`LearnedInverseModel.insert_scan`), the counterpart of
-    :func:`probslam.mapping.map_laser_log`: a grid sized from the data with the model's prior
+    :func:`probslam.mapping.map_laser_log`, at ``resolution`` and ``max_range`` (m; None: the
+    model's own, :func:`learned_map_geometry`): a grid sized from the data with the model's prior
     (clamped by :func:`learned_map_clamp`), readings at the sensor's no-return value and NaN
     meaning no return (inf), each scan's field half a beam spacing either side of its beams.
     Returns (grid, :class:`probslam.mapping.MappingSummary`). Memory: the grid plus one scan's
@@ -615,7 +638,7 @@ def map_laser_log_learned(model: LearnedInverseModel, scans, resolution: float =
     require_instance(scans, LaserScans, "scans")
     if len(scans) == 0:
         raise ValueError("scans must not be empty")
-    resolution, max_range = positive_real(resolution, "resolution"), positive_real(max_range, "max_range")
+    resolution, max_range = learned_map_geometry(model, resolution, max_range)
     if not np.all(np.isfinite(scans.laser_poses)):
         raise ValueError("scans.laser_poses must contain only finite values")
     angles = scans.beam_angles()
@@ -702,16 +725,25 @@ def _read_model_array(path: str, archive: zipfile.ZipFile, name: str) -> np.ndar
     return values if kind == "U" else values.astype(float)
 
 
-def _model_meta(path: str, meta: np.ndarray) -> Tuple[int, float, float]:
-    """(hidden, prior, evidence_scale) from a model file's meta text, checked (evidence_scale 1
-    when absent: files written before it existed)."""
+#: The optional meta fields of a model file: the cell size and range (m) it was trained at.
+_TRAINED_AT = ("resolution", "max_range")
+
+
+def _model_meta(path: str, meta: np.ndarray) -> Tuple[int, float, float, dict]:
+    """(hidden, prior, evidence_scale, {resolution, max_range: m, those present}) from a model
+    file's meta text, checked (evidence_scale 1 when absent: files written before it existed)."""
     try:
         fields = json.loads(str(meta))
     except (ValueError, RecursionError) as exc:
         raise ValueError(f"{path}: meta: not JSON ({_first_line(exc)})") from None
-    if not isinstance(fields, dict) or not {"hidden", "prior"} <= set(fields) <= {"hidden", "prior", "evidence_scale"}:
+    allowed = {"hidden", "prior", "evidence_scale", *_TRAINED_AT}
+    if not isinstance(fields, dict) or not {"hidden", "prior"} <= set(fields) <= allowed:
         raise ValueError(f"{path}: meta: expected {{\"hidden\": ..., \"prior\": ..., \"evidence_scale\": ...}}, "
                          f"got {str(meta)[:80]!r}")
+    trained_at = {name: fields[name] for name in _TRAINED_AT if name in fields}
+    for name, value in trained_at.items():
+        if isinstance(value, bool) or not isinstance(value, (int, float)) or not 0 < value < math.inf:
+            raise ValueError(f"{path}: meta: {name} must be a finite length > 0 (m), got {value!r}")
     hidden, prior, scale = fields["hidden"], fields["prior"], fields.get("evidence_scale", 1.0)
     if isinstance(hidden, bool) or not isinstance(hidden, int) or hidden < 1:
         raise ValueError(f"{path}: meta: hidden must be an integer >= 1, got {hidden!r}")
@@ -719,7 +751,7 @@ def _model_meta(path: str, meta: np.ndarray) -> Tuple[int, float, float]:
         raise ValueError(f"{path}: meta: prior must lie in (0, 1), got {prior!r}")
     if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not 0 <= scale < math.inf:
         raise ValueError(f"{path}: meta: evidence_scale must be finite and >= 0, got {scale!r}")
-    return hidden, float(prior), float(scale)
+    return hidden, float(prior), float(scale), {name: float(value) for name, value in trained_at.items()}
 
 
 __all__ = [
@@ -737,6 +769,7 @@ __all__ = [
     "free_poses",
     "known_map",
     "learned_map_clamp",
+    "learned_map_geometry",
     "real_training_set",
     "map_cross_entropy",
     "map_laser_log_learned",

@@ -51,7 +51,12 @@ def no_return_range(scans: LaserScans) -> float:
     return float(top) if np.count_nonzero(valid == top) > 1 else float("inf")
 
 
-def map_laser_log(scans: LaserScans, resolution: float = 0.05, max_range: float = 30.0,
+#: map_laser_log's cell size and range (m) by default (``probslam map``'s, and a learned inverse
+#: model's that does not record its own).
+DEFAULT_RESOLUTION, DEFAULT_MAX_RANGE = 0.05, 30.0
+
+
+def map_laser_log(scans: LaserScans, resolution: float = DEFAULT_RESOLUTION, max_range: float = DEFAULT_MAX_RANGE,
                   robot_radius: float = 0.0, grid: Optional[OccupancyGrid2D] = None,
                   skip_no_return: bool = True, progress: Optional[bool] = None,
                   chunk: int = 64) -> Tuple[OccupancyGrid2D, MappingSummary]:

@@ -86,21 +86,53 @@ def _metre_axes(ax) -> None:
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small")
 
 
+#: A rigid motion (R (2, 2), t (2,)): x -> R x + t, e.g. an estimate's alignment onto the ground
+#: truth (``probslam.eval.MrclamScore.rotation`` / ``translation``).
+Alignment = Tuple[np.ndarray, np.ndarray]
+#: What the labels of an estimate drawn through its alignment end with.
+ALIGNED_SUFFIX = " (aligned)"
+
+
+def _moved(xy: np.ndarray, align: Optional[Alignment]) -> np.ndarray:
+    """The first two columns of ``xy`` (N, 2+), moved by ``align`` (as they are without one)."""
+    xy = np.asarray(xy, dtype=float).reshape(len(xy), -1)[:, :2]
+    return xy if align is None else xy @ np.asarray(align[0]).T + np.asarray(align[1])
+
+
+def _moved_covariances(covariances: np.ndarray, align: Optional[Alignment]) -> np.ndarray:
+    """Covariances (N, 2, 2) rotated by ``align``: R C R^T."""
+    c = np.asarray(covariances, dtype=float)
+    return c if align is None else np.einsum("ij,njk,lk->nil", align[0], c, align[0])
+
+
+def _label(label: str, align: Optional[Alignment]) -> str:
+    return label if align is None else label + ALIGNED_SUFFIX
+
+
+def _reference(ax, truth_path: Optional[np.ndarray], dead_reckoning: Optional[np.ndarray],
+               dead_reckoning_label: str) -> None:
+    """The dead reckoning and ground truth paths (T, 2+), where given."""
+    if dead_reckoning is not None:
+        ax.plot(dead_reckoning[:, 0], dead_reckoning[:, 1], color="0.6", lw=0.8, label=dead_reckoning_label)
+    if truth_path is not None:
+        ax.plot(truth_path[:, 0], truth_path[:, 1], color="tab:green", lw=0.8, label="ground truth")
+
+
 def landmark_map(ax, poses: np.ndarray, ekf=None, truth_path: Optional[np.ndarray] = None,
                  truth_landmarks: Optional[Dict[int, np.ndarray]] = None, dead_reckoning: Optional[np.ndarray] = None,
                  n_sigma: Optional[float] = None, truth_landmarks_label: str = "surveyed landmarks", *,
                  confidence: float = ELLIPSE_CONFIDENCE, path_label: str = "EKF SLAM",
-                 landmarks: Optional[Tuple[np.ndarray, np.ndarray]] = None) -> None:
+                 landmarks: Optional[Tuple[np.ndarray, np.ndarray]] = None, align: Optional[Alignment] = None,
+                 dead_reckoning_label: str = "dead reckoning") -> None:
     """Estimated path (T, 3+) named ``path_label``, landmarks with their ``confidence`` ellipses
     (or n-sigma ones, given ``n_sigma``) from an EkfSlam, or ``landmarks`` = (means (N, 2),
     covariances (N, 2, 2)) given instead (a GraphSLAM refinement's), and the ground truth and
     dead reckoning where given; metre axes and a legend naming each line, marker and the
-    ellipses' confidence."""
-    if dead_reckoning is not None:
-        ax.plot(dead_reckoning[:, 0], dead_reckoning[:, 1], color="0.6", lw=0.8, label="dead reckoning")
-    if truth_path is not None:
-        ax.plot(truth_path[:, 0], truth_path[:, 1], color="tab:green", lw=0.8, label="ground truth")
-    ax.plot(poses[:, 0], poses[:, 1], color="tab:blue", lw=0.8, label=path_label)
+    ellipses' confidence. With ``align`` (R, t) the estimate (path, landmarks, ellipses) is drawn
+    moved by it, onto the ground truth it was scored against, and its labels say so."""
+    _reference(ax, truth_path, dead_reckoning, dead_reckoning_label)
+    xy = _moved(poses, align)
+    ax.plot(xy[:, 0], xy[:, 1], color="tab:blue", lw=0.8, label=_label(path_label, align))
     if truth_landmarks:
         xy = np.array(list(truth_landmarks.values()))
         ax.plot(xy[:, 0], xy[:, 1], "g+", ms=9, label=truth_landmarks_label)
@@ -108,36 +140,36 @@ def landmark_map(ax, poses: np.ndarray, ekf=None, truth_path: Optional[np.ndarra
         found = ekf.landmarks()
         landmarks = (found.means, found.covariances)
     if landmarks is not None and len(landmarks[0]):
-        xy = np.asarray(landmarks[0])
-        ax.plot(xy[:, 0], xy[:, 1], "r.", ms=4, label="estimated landmarks")
-        _ellipses(ax, xy, np.asarray(landmarks[1]), n_sigma, confidence)
+        xy = _moved(landmarks[0], align)
+        ax.plot(xy[:, 0], xy[:, 1], "r.", ms=4, label=_label("estimated landmarks", align))
+        _ellipses(ax, xy, _moved_covariances(landmarks[1], align), n_sigma, confidence)
     _metre_axes(ax)
 
 
 def fastslam_map(ax, fastslam, truth_path: Optional[np.ndarray] = None,
                  truth_landmarks: Optional[Dict[int, np.ndarray]] = None, dead_reckoning: Optional[np.ndarray] = None,
                  n_sigma: Optional[float] = None, truth_landmarks_label: str = "surveyed landmarks", *,
-                 confidence: float = ELLIPSE_CONFIDENCE) -> None:
+                 confidence: float = ELLIPSE_CONFIDENCE, align: Optional[Alignment] = None,
+                 dead_reckoning_label: str = "dead reckoning") -> None:
     """A FastSlam's particle cloud (its M poses), the best particle's path and landmarks with
     their ``confidence`` ellipses (or n-sigma ones, given ``n_sigma``), and the ground truth and
-    dead reckoning (T, 2+) where given (metres), with a legend as ``landmark_map``'s."""
+    dead reckoning (T, 2+) where given (metres), with a legend as ``landmark_map``'s; ``align``
+    as there (the particles, path and landmarks moved by it)."""
     best = fastslam.best_index
-    if dead_reckoning is not None:
-        ax.plot(dead_reckoning[:, 0], dead_reckoning[:, 1], color="0.6", lw=0.8, label="dead reckoning")
-    if truth_path is not None:
-        ax.plot(truth_path[:, 0], truth_path[:, 1], color="tab:green", lw=0.8, label="ground truth")
-    path = fastslam.path(best)
-    ax.plot(path[:, 0], path[:, 1], color="tab:blue", lw=0.8, label="best particle's path")
-    cloud = fastslam.poses
-    ax.plot(cloud[:, 0], cloud[:, 1], ".", color="tab:purple", ms=2, label=f"particles ({len(cloud)})")
+    _reference(ax, truth_path, dead_reckoning, dead_reckoning_label)
+    path = _moved(fastslam.path(best), align)
+    ax.plot(path[:, 0], path[:, 1], color="tab:blue", lw=0.8, label=_label("best particle's path", align))
+    cloud = _moved(fastslam.poses, align)
+    ax.plot(cloud[:, 0], cloud[:, 1], ".", color="tab:purple", ms=2, label=_label(f"particles ({len(cloud)})", align))
     if truth_landmarks:
         xy = np.array(list(truth_landmarks.values()))
         ax.plot(xy[:, 0], xy[:, 1], "g+", ms=9, label=truth_landmarks_label)
     landmarks = fastslam.landmarks(best)
     means, covs = landmarks.means, landmarks.covariances
     if len(means):
-        ax.plot(means[:, 0], means[:, 1], "r.", ms=4, label="best particle's landmarks")
-        _ellipses(ax, means, covs, n_sigma, confidence)
+        means = _moved(means, align)
+        ax.plot(means[:, 0], means[:, 1], "r.", ms=4, label=_label("best particle's landmarks", align))
+        _ellipses(ax, means, _moved_covariances(covs, align), n_sigma, confidence)
     _metre_axes(ax)
 
 
@@ -238,9 +270,23 @@ def crop_bounds(grid, crop: str = "occupied", margin: float = MAP_MARGIN) -> Tup
             max(int(cols[0]) - pad, 0), min(int(cols[-1]) + 1 + pad, grid.width))
 
 
+#: How dark ``occupancy_map`` draws a cell at the map's prior (unknown): mid grey, whatever the
+#: prior, so that free space (white) and unknown differ as much as unknown and occupied do.
+UNKNOWN_DARKNESS = 0.5
+
+
+def evidence_darkness(log_odds: np.ndarray, prior_log_odds: float) -> np.ndarray:
+    """Each cell's shade, 0 (white) to 1 (black): the probability its evidence alone gives,
+    sigmoid(l - l0), so that the prior (no evidence) is UNKNOWN_DARKNESS. With the 0.5 prior of the
+    ray model (l0 = 0) it is the cell's probability itself; a learned model's prior (~0.09 for
+    the Intel laser) would otherwise draw unknown as light as free space."""
+    return 1.0 / (1.0 + np.exp(-(np.asarray(log_odds, dtype=float) - float(prior_log_odds))))
+
+
 def occupancy_map(ax, grid, trajectory: Optional[np.ndarray] = None, *, crop: str = "occupied",
                   margin: float = MAP_MARGIN, trajectory_label: str = "trajectory") -> Tuple[float, float, float, float]:
-    """An OccupancyGrid2D as grey (black occupied, white free, mid grey unknown) on metre axes,
+    """An OccupancyGrid2D as grey (black occupied, white free, mid grey unknown: the map's prior,
+    ``evidence_darkness``) on metre axes,
     cropped to ``crop_bounds(grid, crop, margin)``, with ``trajectory`` (n, 2 or 3; metres) in red
     and a legend naming the trajectory and the three shades. Returns the extent shown, (x_min,
     x_max, y_min, y_max) in metres."""
@@ -249,8 +295,8 @@ def occupancy_map(ax, grid, trajectory: Optional[np.ndarray] = None, *, crop: st
     r0, r1, c0, c1 = crop_bounds(grid, crop, margin)
     res, (x0, y0) = grid.resolution, grid.origin
     extent = (x0 + c0 * res, x0 + c1 * res, y0 + r0 * res, y0 + r1 * res)
-    ax.imshow(1.0 - grid.probability()[r0:r1, c0:c1], cmap="gray", vmin=0.0, vmax=1.0, origin="lower",
-              extent=extent, interpolation="nearest")
+    ax.imshow(1.0 - evidence_darkness(grid.log_odds[r0:r1, c0:c1], grid.l0), cmap="gray",
+              vmin=0.0, vmax=1.0, origin="lower", extent=extent, interpolation="nearest")
     if trajectory is not None and len(trajectory):
         xy = np.asarray(trajectory, dtype=float)[:, :2]
         ax.plot(xy[:, 0], xy[:, 1], color="tab:red", lw=0.8, label=trajectory_label)
@@ -260,7 +306,7 @@ def occupancy_map(ax, grid, trajectory: Optional[np.ndarray] = None, *, crop: st
     ax.set_xlabel("x [m]")
     ax.set_ylabel("y [m]")
     handles, labels = ax.get_legend_handles_labels()
-    shade = 1.0 - grid.p_prior
+    shade = 1.0 - UNKNOWN_DARKNESS
     for label, colour in (("occupied", "black"), ("free", "white"), ("unknown", (shade, shade, shade))):
         handles.append(Patch(facecolor=colour, edgecolor="0.4", lw=0.5))
         labels.append(label)

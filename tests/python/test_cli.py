@@ -115,7 +115,7 @@ def test_ekf_slam_unknown_correspondences(tmp_path, capsys, shared_data):
     folder = shared_data / "landmark_slam/mrclam_dataset7"
     assert cli.main(["ekf-slam", str(folder), "--unknown", "-o", str(tmp_path / "e")]) == 0
     out = capsys.readouterr().out
-    assert "unknown (jcbb) correspondences" in out and "% correct" in out
+    assert "unknown (mht) correspondences" in out and "% correct" in out
     assert (tmp_path / "e.png").read_bytes()[:4] == b"\x89PNG"
 
 
@@ -124,7 +124,7 @@ def test_slam_bundled_raw_log(tmp_path, capsys):
     prefix = tmp_path / "s"
     assert cli.main(["slam", "-o", str(prefix), "--no-progress"]) == 0
     out = capsys.readouterr().out
-    log = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_RAW_LOG))
+    log = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_SLAM_LOG))
     assert f"scans:         {len(log.scans)} (" in out and "closures:" in out and "real-time factor" in out
     traj = io.read_trajectory(tmp_path / "s_trajectory.tum")
     assert traj.format == "tum" and traj.poses.shape == (len(log.scans), 3)
@@ -142,7 +142,8 @@ def test_slam_bundled_raw_log(tmp_path, capsys):
 @pytest.mark.slow
 def test_slam_rbpf_on_the_bundled_raw_log(tmp_path, capsys):
     prefix = tmp_path / "r"
-    assert cli.main(["slam", "--method", "rbpf", "--particles", "4", "-o", str(prefix), "--no-progress"]) == 0
+    assert cli.main(["slam", cli._bundled_log(cli.BUNDLED_RAW_LOG), "--method", "rbpf", "--particles", "4", "-o",
+                     str(prefix), "--no-progress"]) == 0
     out = capsys.readouterr().out
     log = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_RAW_LOG))
     assert "grid-based FastSLAM, 4 particles, scan-matching proposal" in out and "distinct tiles" in out
@@ -431,7 +432,9 @@ def test_ekf_slam_bearing_offset_on_the_bundled_mrclam(tmp_path, capsys):
     run = mrclam.run_ekf(robot, np.diag([0.15 ** 2, 0.6 ** 2]), np.diag([0.15 ** 2, 0.02 ** 2]), known=False,
                             association="mht", hypotheses=dict(bearing_offset_sigma=0.03))
     assert f"associations:  {ps.eval.association_accuracy(run):.1%} correct" in out
-    for bad, message in [(["ekf-slam", "--unknown", "--bearing-offset", "0.03"], "needs --unknown --association mht"),
+    for bad, message in [(["ekf-slam", "--unknown", "--association", "jcbb", "--bearing-offset", "0.03"],
+                          "needs --unknown --association mht"),
+                         (["ekf-slam", "--bearing-offset", "0.03"], "needs --unknown --association mht"),
                          (["ekf-slam", "--unknown", "--association", "mht", "--bearing-offset", "-0.1"], "finite angle (rad) >= 0"),
                          (["ekf-slam", "--unknown", "--association", "mht", "--bearing-offset", "nan"], "finite angle (rad) >= 0"),
                          (["ekf-slam", data.path("victoria_park_1000.txt"), "--bearing-offset", "0.03"], "MRCLAM")]:
@@ -603,7 +606,7 @@ def test_every_trajectory_is_one_format_with_timestamps(tmp_path, fmt):
         assert trajectory.format == fmt and not trajectory.times_from_index and len(trajectory) > 10
         assert np.all(np.isfinite(trajectory.poses))
         if name == "slam":  # the scans' times (the Intel log's clock steps back once: kept as logged)
-            log = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_RAW_LOG))
+            log = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_SLAM_LOG))
             np.testing.assert_allclose(trajectory.timestamps, log.scans.timestamps, rtol=0, atol=1e-9)
         else:
             assert np.all(np.diff(trajectory.timestamps) >= 0)
@@ -630,7 +633,7 @@ def test_refine_graphslam_prints_and_writes_what_the_library_computes(tmp_path, 
     assert cli.main([command, "--unknown", "--refine", "graphslam", "--no-plot", "-o", str(tmp_path / "r")]) == 0
     out = capsys.readouterr().out
     data = ps.datasets.load_landmark_dataset(ps.data.path("mrclam7_robot1_120s"))
-    run = ps.run_landmark_slam(data, "ekf" if command == "ekf-slam" else "fastslam", known=False)
+    run = ps.run_landmark_slam(data, "mht" if command == "ekf-slam" else "fastslam", known=False)  # the defaults
     refined = ps.refine_run(run, data, ps.datasets.mrclam.MOTION_NOISE, ps.datasets.mrclam.MEASUREMENT_NOISE)
     result = refined.as_landmark_slam_result(run)
     accuracy = ps.eval.association_accuracy(result)

@@ -11,7 +11,7 @@ from probslam import cli, io
 @pytest.fixture(scope="module")
 def slam_map(tmp_path_factory):
     prefix = tmp_path_factory.mktemp("slam") / "s"
-    assert cli.main(["slam", "-o", str(prefix), "--no-progress", "--no-plot"]) == 0
+    assert cli.main(["slam", cli._bundled_log(cli.BUNDLED_RAW_LOG), "-o", str(prefix), "--no-progress", "--no-plot"]) == 0
     return prefix
 
 

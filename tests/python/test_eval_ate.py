@@ -298,7 +298,8 @@ def test_same_statistics_as_evo_on_the_intel_raw_loop(tmp_path):
     from probslam import cli
 
     evo_modules()
-    assert cli.main(["slam", "--no-plot", "--no-progress", "-o", str(tmp_path / "s")]) == 0
+    assert cli.main(["slam", ps.data.path("intel_raw_loop.log.gz"), "--no-plot", "--no-progress",
+                     "-o", str(tmp_path / "s")]) == 0
     scans = io.read_carmen_log(ps.data.path("intel_raw_loop.log.gz")).scans
     io.write_trajectory(scans.timestamps, scans.laser_poses, tmp_path / "odometry.tum")
     with pytest.warns(UserWarning, match="timestamps decrease"):

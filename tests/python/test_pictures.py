@@ -99,7 +99,7 @@ def test_map_and_slam_pictures(tmp_path, figures):
     assert cli.main(["slam", "--no-progress", "-o", str(tmp_path / "s")]) == 0
     (m, s) = figures
     assert m["title"] == "probslam map: intel_excerpt.log.gz\noccupancy grid at the log's poses"
-    assert s["title"] == "probslam slam --method graph: intel_raw_loop.log.gz\nGraphSLAM over submaps"
+    assert s["title"] == f"probslam slam --method graph: {cli.BUNDLED_SLAM_LOG}\nGraphSLAM over submaps"
     for f in figures:
         assert (f["xlabel"], f["ylabel"]) == ("x [m]", "y [m]")
         assert f["legend"][1:] == ["occupied", "free", "unknown"] and "laser poses" in f["legend"][0]
@@ -116,7 +116,8 @@ def test_map_and_slam_pictures(tmp_path, figures):
 @pytest.mark.slow
 def test_the_rbpf_picture_is_cropped(tmp_path, figures):
     """The RBPF map's grid is grown for every particle's rays: the picture shows the walls."""
-    assert cli.main(["slam", "--method", "rbpf", "--particles", "4", "--no-progress", "-o", str(tmp_path / "r")]) == 0
+    assert cli.main(["slam", cli._bundled_log(cli.BUNDLED_RAW_LOG), "--method", "rbpf", "--particles", "4",
+                     "--no-progress", "-o", str(tmp_path / "r")]) == 0
     (r,) = figures
     assert r["title"].startswith("probslam slam --method rbpf: intel_raw_loop.log.gz\ngrid-based FastSLAM")
     grid = ps.io.load_ros_map(tmp_path / "r.yaml")
@@ -129,15 +130,17 @@ def test_landmark_pictures(tmp_path, figures):
     assert cli.main(["fastslam", "--particles", "10", "--no-progress", "-o", str(tmp_path / "f")]) == 0
     assert cli.main(["ekf-slam", ps.data.path("victoria_park_1000.txt"), "--no-progress", "-o", str(tmp_path / "v")]) == 0
     e, f, v = figures
-    assert e["title"] == "probslam ekf-slam: UTIAS MRCLAM mrclam7_robot1_120s robot 1\nEKF SLAM, known correspondences"
+    assert e["title"] == ("probslam ekf-slam: UTIAS MRCLAM mrclam7_robot1_120s robot 1\nEKF SLAM, known correspondences"
+                          "; estimate aligned onto ground truth")
     assert f["title"] == ("probslam fastslam: UTIAS MRCLAM mrclam7_robot1_120s robot 1\nFastSLAM 1.0, 10 particles, "
-                          "known correspondences")
+                          "known correspondences; estimate aligned onto ground truth")
     assert v["title"].startswith("probslam ekf-slam: Victoria Park victoria_park_1000.txt")
     ellipses = "95% confidence ellipses (chi2, 2 dof: 2.45 sigma)"
-    assert e["legend"] == ["dead reckoning", "ground truth", "EKF SLAM", "surveyed landmarks", "estimated landmarks",
+    assert e["legend"] == ["dead reckoning (aligned)", "ground truth", "EKF SLAM (aligned)", "surveyed landmarks",
+                           "estimated landmarks (aligned)", ellipses]
+    assert f["legend"] == ["dead reckoning (aligned)", "ground truth", "best particle's path (aligned)",
+                           "particles (10) (aligned)", "surveyed landmarks", "best particle's landmarks (aligned)",
                            ellipses]
-    assert f["legend"] == ["dead reckoning", "ground truth", "best particle's path", "particles (10)",
-                           "surveyed landmarks", "best particle's landmarks", ellipses]
     assert v["legend"] == ["EKF SLAM", "estimated landmarks", ellipses]
     for fig in figures:
         assert (fig["xlabel"], fig["ylabel"]) == ("x [m]", "y [m]")
@@ -158,9 +161,11 @@ def test_refined_landmark_picture_draws_the_refinement(tmp_path, figures, monkey
     assert cli.main(["fastslam", "--unknown", "--refine", "graphslam", "--particles", "10", "--no-progress",
                      "-o", str(tmp_path / "r")]) == 0
     (fig,) = figures
-    assert fig["title"].endswith("unknown correspondences, GraphSLAM refinement (ch. 11.6)")
-    assert fig["legend"] == ["dead reckoning", "ground truth", "GraphSLAM refinement", "surveyed landmarks",
-                             "estimated landmarks", "95% confidence ellipses (chi2, 2 dof: 2.45 sigma)"]
+    assert fig["title"].endswith("unknown correspondences, GraphSLAM refinement (ch. 11.6); estimate aligned onto "
+                                 "ground truth")
+    assert fig["legend"] == ["dead reckoning (aligned)", "ground truth", "GraphSLAM refinement (aligned)",
+                             "surveyed landmarks", "estimated landmarks (aligned)",
+                             "95% confidence ellipses (chi2, 2 dof: 2.45 sigma)"]
     r = drawn["refinement"]
     assert sorted(r.landmark_covariances) == sorted(r.landmarks) and len(drawn["ellipses"]) == len(r.landmarks)
     for label, cov in r.landmark_covariances.items():

@@ -15,8 +15,10 @@ from typing import Dict
 #: Every bundled file (or folder), with what it holds and which command uses it by default.
 FILES: Dict[str, str] = {
     "intel_excerpt.log.gz": "CARMEN log, 180 scans of the Intel Research Lab with corrected poses (probslam map)",
-    "intel_raw_loop.log.gz": "CARMEN log, 630 raw scans with odometry, the Intel Research Lab's first loop "
-                             "(probslam slam)",
+    "intel_raw_loop.log.gz": "CARMEN log, 630 raw scans with odometry, the Intel Research Lab's first loop, "
+                             "short of its start (probslam localize)",
+    "intel_raw_lap.log.gz": "CARMEN log, 667 raw scans with odometry, the Intel Research Lab's first lap, back "
+                            "past its start: a loop to close (probslam slam)",
     "intel_400.g2o": "g2o 2-D pose graph, the first 400 poses of the Intel Research Lab graph: 513 edges, "
                      "114 of them loop closures (probslam optimize)",
     "parking_garage_400.g2o": "g2o 3-D pose graph, the first 400 poses of the parking-garage graph: 500 edges, "
