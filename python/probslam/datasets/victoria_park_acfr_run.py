@@ -18,7 +18,7 @@ import numpy as np
 from .._args import positive_real, require_instance
 from .._core import AckermannGeometry, FastSlam, ackermann_increments
 from .._progress import progress_bar
-from ..ekf import AssociationResult, EkfSlam
+from ..ekf import EkfSlam
 from ..fastslam import DEFAULT_P_NEW, result_of
 from ..io.landmark_datasets import VictoriaParkAcfr
 from ..landmark_slam import LandmarkSlamResult, ekf_landmarks
