@@ -868,6 +868,11 @@ def _landmark_data(args: argparse.Namespace, path: pathlib.Path):
         _print_skipped(data.skipped_rows)
     else:
         _print_skipped({"unreadable records": data.skipped_rows} if data.skipped_rows else {})
+        if data.repaired_rows:
+            from .graph import INFORMATION_EIGENVALUE_FLOOR
+
+            print(f"repaired rows: {data.repaired_rows} (noise not positive definite: eigenvalues raised to "
+                  f"{INFORMATION_EIGENVALUE_FLOOR:g} of the largest)")
     return data
 
 

@@ -256,12 +256,16 @@ def test_mrclam_a_few_unreadable_rows_are_skipped_but_many_are_fatal(tmp_path):
         io.read_mrclam(folder)
 
 
-def test_victoria_park_singular_noise_record_skipped(tmp_path):
+def test_victoria_park_singular_noise_record_repaired(tmp_path):
     good = "".join(f"ODOMETRY {k} {k + 1} 1 0 0 10 0 0 10 0 31.6\n" for k in range(200))
     path = tmp_path / "vp.txt"
-    path.write_text(good + "LANDMARK 3 7 2 1 0 0 1.6\n")  # R singular: no covariance
+    path.write_text(good + "LANDMARK 3 7 2 1 0 0 1.6\n")  # R singular: information R^T R only PSD
     data = io.read_victoria_park(path)
-    assert data.skipped_rows == 1 and len(data.pose_from) == 200 and len(data.xy) == 0
+    # Repaired, not skipped (docs/pose_graphs.md, "Information repair"): the zero eigenvalue raised
+    # to the floor, so the sighting keeps its y information and is nearly uninformative in x.
+    assert data.repaired_rows == 1 and data.skipped_rows == 0 and len(data.pose_from) == 200 and len(data.xy) == 1
+    floor = ps.graph.INFORMATION_EIGENVALUE_FLOOR * 1.6 ** 2
+    assert np.allclose(np.linalg.inv(data.xy_cov[0]), np.diag([floor, 1.6 ** 2]))
 
 
 def test_victoria_park_skips_records_through_the_graph_reader(tmp_path):

@@ -215,6 +215,7 @@ class VictoriaPark:
     xy: np.ndarray
     xy_cov: np.ndarray
     skipped_rows: int = 0  # unreadable records skipped (see read_victoria_park)
+    repaired_rows: int = 0  # records whose noise was not positive definite, repaired (see read_victoria_park)
 
 
 def _covariances(information: np.ndarray) -> np.ndarray:
@@ -246,7 +247,10 @@ def read_victoria_park(path: PathLike, noise: str = "auto") -> VictoriaPark:
     file, and more than ``MAX_BAD_ROW_FRACTION`` unreadable records (``ValueError("file:line:
     ...")`` naming the first). Row-level (skipped, counted in ``VictoriaPark.skipped_rows``): a
     few records of an unknown type, with too few fields, numbers that are not finite, ids that
-    are not int32 integers, or a noise matrix that is not positive definite. A skipped ODOMETRY
+    are not int32 integers, or a noise matrix with no positive eigenvalue. A noise matrix that is
+    symmetric but not positive definite is repaired under the pose-graph readers' information
+    repair (docs/pose_graphs.md: eigenvalues raised to a floor), counted in
+    ``VictoriaPark.repaired_rows``. A skipped ODOMETRY
     record leaves the poses after it unreachable: their records are skipped too (so, usually,
     fatal)."""
     path = file_path(path)
@@ -259,7 +263,7 @@ def read_victoria_park(path: PathLike, noise: str = "auto") -> VictoriaPark:
     points, xy, xy_information = graph.point_edges()
     return VictoriaPark(ends[:, 0].astype(np.int64), ends[:, 1].astype(np.int64), delta, _covariances(information),
                         points[:, 0].astype(np.int64), _landmark_numbers(graph, points[:, 1]), xy,
-                        _covariances(xy_information), int(report.skipped_rows))
+                        _covariances(xy_information), int(report.skipped_rows), int(report.repaired_rows))
 
 
 #: The files of the original Victoria Park run (``read_victoria_park_acfr``): the vehicle's
