@@ -796,7 +796,7 @@ def _acfr_command(args: argparse.Namespace, path: pathlib.Path, method: str, t0:
     the GPS, writes the trajectory and draws the path over the GPS fixes with the map."""
     if args.refine != "none":
         raise UserError("--refine graphslam does not run on the original Victoria Park run yet")
-    association = getattr(args, "association", "jcbb")  # ekf-slam's option
+    association = getattr(args, "association", None) or "jcbb"  # ekf-slam's option; the run's EKF: JCBB
     if association not in ("jcbb", "ml"):
         raise UserError("--association on the original Victoria Park run: jcbb or ml (the EKF's)")
     data = _landmark_data(args, path)
@@ -864,7 +864,7 @@ def _landmark_data(args: argparse.Namespace, path: pathlib.Path):
     only); the rows the reader skipped are printed. UserError for data with nothing to run."""
     with _reading(str(path), LANDMARK_DATASET):
         data = load_landmark_dataset(path, robot=args.robot, seconds=args.seconds, raw_ranges=args.raw_ranges)
-    if isinstance(data, io.Mrclam):
+    if not isinstance(data, io.VictoriaPark):  # MRCLAM and the original run count by file and reason
         _print_skipped(data.skipped_rows)
     else:
         _print_skipped({"unreadable records": data.skipped_rows} if data.skipped_rows else {})

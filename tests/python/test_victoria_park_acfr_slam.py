@@ -105,10 +105,13 @@ def test_cli_runs_the_folder_and_scores_it_against_gps(run_data, tmp_path, capsy
     m[:, 2] += np.pi / 2  # the file's detector angle
     np.savetxt(folder / "measurements.dat", m)
     np.savetxt(folder / "gps.dat", run_data.gps[run_data.gps[:, 0] < end])
+    with open(folder / "inputs.dat", "a") as f:
+        f.write("1.0 not-a-speed 0.0\n")  # one unreadable row: skipped and counted, by file
     for command in (["ekf-slam"], ["fastslam", "--particles", "10", "--variant", "2"]):
         out = tmp_path / command[0]
         assert cli.main(command + [str(folder), "-o", str(out), "--no-plot", "--no-progress"]) == 0
         printed = capsys.readouterr().out
         assert "GPS:" in printed and "after SE(2) alignment" in printed, printed
+        assert "skipped rows:  1 (inputs.dat" in printed, printed
         assert (tmp_path / f"{command[0]}_trajectory.tum").exists()
     assert cli.main(["fastslam", str(folder), "--refine", "graphslam", "--no-plot", "-o", str(tmp_path / "r")]) == 2
