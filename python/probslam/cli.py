@@ -20,6 +20,7 @@ from . import __version__, io
 from . import eval as evaluation
 from .data import path as _data_path
 from .datasets import carmen, landmark_dataset_kind, load_landmark_dataset, mrclam, run_landmark_slam
+from .io.landmark_datasets import isam_noise_convention
 from .landmark_refine import refine_run
 from .io.trajectory import EXTENSIONS, POSITION_FIELDS, TRAJECTORY_FORMATS, first_row_fields
 from .mapping import DEFAULT_MAX_RANGE as MAP_MAX_RANGE, DEFAULT_RESOLUTION as MAP_RESOLUTION, map_laser_log
@@ -72,6 +73,10 @@ DEFAULT_INIT = {2: "file", 3: "chordal"}
 #: (or placed from its first sighting on dead reckoning, as iSAM files are read) is off by the
 #: drift up to that sighting, and Gauss-Newton from there stalls: on Victoria Park 100 iterations
 #: to chi2 3.4e7, against 6184.12 in 5 from the EKF (docs/pose_graphs.md).
+#: optimize --noise: what a graph file's noise entries hold (graph.read_pose_graph's ``noise``).
+NOISE_CONVENTIONS = ("auto", "information", "sqrt_information", "covariance")
+#: The records only iSAM text has (TORO shares EDGE2): an iSAM file when the first record is one.
+ISAM_ONLY_RECORDS = ("ODOMETRY", "LANDMARK")
 LANDMARK_GRAPH_INIT = "ekf"
 LANDMARK_GRAPH_INIT_REASON = "the graph has landmarks: the EKF SLAM estimate places them"
 INITIALIZATIONS = ("file", "odometry", "ekf", "incremental", "chordal")
@@ -1082,6 +1087,23 @@ def _print_map_score(data, run, labels):
     return s.survey_in_map_frame(fixed)
 
 
+def _graph_noise(args: argparse.Namespace, path: str) -> str:
+    """The reader's noise convention for ``optimize``: --noise, or for auto the format's own, but
+    covariance for an iSAM file named as GTSAM's copies are (``io.isam_noise_convention``), so that
+    GTSAM's victoria_park.txt reads as it is written. Printed when it is not the format's own."""
+    if args.noise != "auto":
+        return args.noise
+    if isam_noise_convention(path) != "covariance":
+        return "default"
+    with open(path, "r", errors="replace") as f:
+        first = next((line.split()[0] for line in f if line.strip() and not line.lstrip().startswith("#")), "")
+    if args.format == "isam" or (args.format == "auto" and first in ISAM_ONLY_RECORDS):
+        print(f"noise:      covariance (an iSAM file named as GTSAM's copies: {os.path.basename(path)}; "
+              "--noise sets another)")
+        return "covariance"
+    return "default"
+
+
 def _cmd_optimize(args: argparse.Namespace) -> int:
     import numpy as np
 
@@ -1111,9 +1133,10 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
         raise UserError("--trajectory-format xyt ('t x y theta') cannot hold a 3-D pose: use tum or kitti")
     expected = POSE_GRAPH_3D if dimension == 3 else POSE_GRAPH
     t0 = time.perf_counter()
+    noise = _graph_noise(args, path)
     with _reading(path, expected):
         read = (pg.read_pose_graph_3d_with_report if dimension == 3 else pg.read_pose_graph_with_report)(
-            path, format=args.format, rows="strict")
+            path, format=args.format, noise=noise, rows="strict")
     g, read_report = read.graph, read.report
     if g.num_vertices == 0:
         raise UserError(f"{path}: no vertices; expected {expected}")
@@ -1554,6 +1577,10 @@ def build_parser() -> argparse.ArgumentParser:
                                             "probslam.data.path('parking_garage_400.g2o'))")
     o.add_argument("--format", default="auto", choices=["auto", "g2o", "toro", "isam"],
                    help="the graph file's format (auto: from its records)")
+    o.add_argument("--noise", default="auto", choices=NOISE_CONVENTIONS,
+                   help="what the edges' noise entries hold (auto: the format's own -- information for g2o and "
+                        "TORO, square-root information for iSAM -- except GTSAM's iSAM copies, named '*gtsam*', "
+                        "which hold covariances)")
     o.add_argument("--algorithm", default="gauss-newton", choices=["gauss-newton", "levenberg-marquardt"],
                    help="the least-squares solver")
     o.add_argument("--init", default=None, choices=list(INITIALIZATIONS),

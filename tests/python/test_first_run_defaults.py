@@ -54,6 +54,19 @@ def test_optimize_victoria_park_converges_with_no_option(shared_data, tmp_path, 
     assert chi2 == pytest.approx(VICTORIA_PARK_CHI2, abs=0.01)
 
 
+@pytest.mark.slow
+def test_optimize_reads_gtsams_copy_of_victoria_park_as_covariances(shared_data, tmp_path, capsys):
+    """GTSAM's victoria_park.txt holds the same measurements with covariances where iSAM's holds
+    square-root information (1e-4 for 100): with no option it is read as written, and reaches
+    the same optimum (main refused it: 'information matrix is singular')."""
+    rc, out, _ = run(capsys, "optimize", str(shared_data / "landmark_slam" / "victoria_park" /
+                                             "victoria_park_gtsam.txt"), "-o", str(tmp_path / "g"))
+    assert rc == 0, out
+    assert "noise:      covariance" in out
+    chi2 = float(re.search(r"result:\s+chi2 (\S+) after (\d+) iterations", out).group(1))
+    assert chi2 == pytest.approx(VICTORIA_PARK_CHI2, rel=1e-4)
+
+
 # --- ekf-slam --unknown: the association ----------------------------------------------------------
 
 def test_ekf_slam_unknown_defaults_to_multiple_hypotheses_on_mrclam(tmp_path, capsys):

@@ -237,9 +237,17 @@ def _landmark_numbers(graph, points: np.ndarray) -> np.ndarray:
     return numbers[order][np.searchsorted(ids[order], points)].astype(np.int64)
 
 
+def isam_noise_convention(path: PathLike) -> str:
+    """What an iSAM text file's noise entries hold, by the one convention that tells the two
+    published copies apart: 'covariance' for GTSAM's copy (a name containing 'gtsam', as GTSAM's
+    examples/Data files are named), else iSAM's own 'sqrt_information'."""
+    return "covariance" if "gtsam" in os.path.basename(os.fspath(path)).lower() else "sqrt_information"
+
+
 def read_victoria_park(path: PathLike, noise: str = "auto") -> VictoriaPark:
     """``noise``: 'sqrt_information' (iSAM's file: upper-triangular R, covariance (R^T R)^-1),
-    'covariance' (GTSAM's copy), or 'auto' (covariance if the file name contains 'gtsam').
+    'covariance' (GTSAM's copy), or 'auto' (``isam_noise_convention``: covariance if the file name
+    contains 'gtsam').
 
     Read by the C++ iSAM reader (``probslam.graph.read_pose_graph_with_report``, format 'isam',
     rows 'skip'), the edges in file order; EDGE2 records (loop closures) would come out among
@@ -255,7 +263,7 @@ def read_victoria_park(path: PathLike, noise: str = "auto") -> VictoriaPark:
     fatal)."""
     path = file_path(path)
     if noise == "auto":
-        noise = "covariance" if "gtsam" in os.path.basename(path).lower() else "sqrt_information"
+        noise = isam_noise_convention(path)
     if noise not in ("sqrt_information", "covariance"):
         raise ValueError(f"noise must be 'sqrt_information', 'covariance' or 'auto', got {noise!r}")
     graph, report = _core.read_pose_graph_with_report(path, "isam", noise, "skip")
