@@ -263,6 +263,7 @@ def test_one_build_time_is_stated_and_a_rebuild_is_incremental():
     assert "about 15 minutes" not in setup
 
 
+@pytest.mark.slow  # a whole-file FastSLAM run: about 20 s under the sanitizers
 def test_landmark_fastslam_doc_states_the_picture_and_the_count_measured(tmp_path, capsys, shared_data):
     victoria_park = str(shared_data / "landmark_slam/victoria_park/victoriaPark.txt")
     doc = " ".join((ROOT / "docs/landmark_fastslam.md").read_text().split())

@@ -108,6 +108,7 @@ def test_a_model_file_records_the_resolution_and_range_it_was_trained_at(tmp_pat
         model.save(tmp_path / "bad.npz")
 
 
+@pytest.mark.slow  # 180 scans through the learned model: 18 s under the sanitizers
 def test_map_with_the_bundled_model_uses_its_own_resolution_and_range(tmp_path, capsys):
     """Main mapped at the ray model's 0.05 m and 30 m, 36x the cells of the model's own 0.1 m and
     10 m, in 118 s without a word; now the model's own, said before the work starts."""

@@ -56,6 +56,7 @@ def test_evidence_darkness_puts_the_prior_at_mid_grey():
     np.testing.assert_allclose(plot.evidence_darkness(ray.log_odds, ray.l0), ray.probability())
 
 
+@pytest.mark.slow  # 180 scans through the learned model: 15 s under the sanitizers
 def test_learned_map_draws_free_and_unknown_apart(tmp_path, axes, capsys):
     """`map --inverse-model bundled`: the model's prior (0.088) is the unknown cells'. Main drew
     them 0.91 grey and free space 0.93-0.99; now unknown is mid grey (its legend swatch), and the

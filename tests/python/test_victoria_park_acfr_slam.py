@@ -1,6 +1,6 @@
 """Landmark SLAM on the original Victoria Park run (ACFR) against its GPS, as the SLAM lecture
 measured FastSLAM ("100 particles, position error < 5 m RMS"): the drivers' time stepping, a
-prefix in the default run, the whole run's EKF behind the slow marker (the ten seeds of both FastSLAM
+prefix and the whole run's EKF behind the slow marker (the ten seeds of both FastSLAM
 variants are benchmarks/bench_victoria_park_acfr.py's table: minutes of CPU, not a CI test).
 Skipped without ../shared/data."""
 
@@ -63,6 +63,7 @@ def test_schedule_steps_at_the_inputs_and_cuts_at_the_scans(run_data):
     assert np.max(np.abs(pose[:2] - uncut[:2])) < CUT_DISCRETISATION
 
 
+@pytest.mark.slow  # EKF and FastSLAM over 300 s of the run: 80 s under the sanitizers
 def test_prefix_beats_dead_reckoning_within_the_lecture_bound(run_data):
     data = victoria_park_acfr_run.first_seconds(run_data, PREFIX_SECONDS)
     dead = rms_aligned(data, run_landmark_slam(data, "dead-reckoning", progress=False))
