@@ -533,13 +533,7 @@ def _associated(times_est, poses_est, times_ref, poses_ref, max_time_difference,
     est, ref = pe[ie], pr[ir]
     rotation, translation = np.eye(2), np.zeros(2)
     if align == "se2":
-        what = "poses_est and poses_ref: the alignment"
-        try:
-            with np.errstate(over="ignore", invalid="ignore"):
-                rotation, translation = align_rigid(est[:, :2], ref[:, :2])
-        except ValueError:  # the cross-covariance overflows: named by this call's arguments
-            raise ValueError(f"{what} overflows a double (inputs too large)") from None
-        _require_finite(np.concatenate([rotation.ravel(), translation]), what)
+        rotation, translation = _se2_alignment(est[:, :2], ref[:, :2], "poses_est and poses_ref: the alignment")
         turn = math.atan2(rotation[1, 0], rotation[0, 0])
         est = np.column_stack([est[:, :2] @ rotation.T + translation, _wrap(est[:, 2] + turn, "poses_est")])
     return est, ref, dict(matched=int(ie.size), est_indices=ie, ref_indices=ir, rotation=rotation,
