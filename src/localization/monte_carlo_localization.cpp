@@ -34,6 +34,14 @@ constexpr double kMinWorkPerWorker = kMinParticlesPerWorker * 60.0;
 // Elementary steps (a table look-up, a ray cell) between two interrupt checks: a few
 // milliseconds of work, so that Ctrl-C stops a long update at once.
 constexpr double kWorkPerCheck = 1 << 20;
+// Histogram bin indices are clamped to +-2^53: every such index is a double exactly, and a
+// neighbour (index +- 1) or a heading bin count stays far inside int64 (a bin of 5e-324 m put a
+// pose's index, and its neighbour's, beyond int64: undefined behaviour).
+constexpr double kMaxBinIndex = 9007199254740992.0;  // 2^53
+
+std::int64_t bin_index(double scaled) {
+  return static_cast<std::int64_t>(std::clamp(std::floor(scaled), -kMaxBinIndex, kMaxBinIndex));
+}
 
 }  // namespace
 
@@ -497,10 +505,8 @@ void MonteCarloLocalization::resample(double random_probability, const Scan& sca
   };
   const double bin_theta = options_.bin_theta;
   auto bin_key = [&](const Eigen::Vector3d& x) {
-    const auto ix = static_cast<std::int64_t>(std::floor(x.x() / options_.bin_xy));
-    const auto iy = static_cast<std::int64_t>(std::floor(x.y() / options_.bin_xy));
-    const auto it = static_cast<std::int64_t>(std::floor((x.z() + kPi) / bin_theta));
-    return std::make_tuple(ix, iy, it);
+    return std::make_tuple(bin_index(x.x() / options_.bin_xy), bin_index(x.y() / options_.bin_xy),
+                           bin_index((x.z() + kPi) / bin_theta));
   };
   struct KeyHash {
     std::size_t operator()(const std::tuple<std::int64_t, std::int64_t, std::int64_t>& k) const {
@@ -543,7 +549,7 @@ void MonteCarloLocalization::resample(double random_probability, const Scan& sca
 void MonteCarloLocalization::compute_estimate() {
   const int m = num_particles();
   const double bin_theta = options_.bin_theta;
-  const auto n_theta = static_cast<std::int64_t>(std::ceil(kTwoPi / bin_theta));
+  const std::int64_t n_theta = bin_index(std::ceil(kTwoPi / bin_theta));
   using Key = std::tuple<std::int64_t, std::int64_t, std::int64_t>;
   struct KeyHash {
     std::size_t operator()(const Key& k) const {
@@ -558,9 +564,8 @@ void MonteCarloLocalization::compute_estimate() {
   std::vector<double> bin_weight;
   for (int j = 0; j < m; ++j) {
     const Eigen::Vector3d& x = poses_[static_cast<std::size_t>(j)];
-    const Key k{static_cast<std::int64_t>(std::floor(x.x() / options_.bin_xy)),
-                static_cast<std::int64_t>(std::floor(x.y() / options_.bin_xy)),
-                std::min(n_theta - 1, static_cast<std::int64_t>(std::floor((x.z() + kPi) / bin_theta)))};
+    const Key k{bin_index(x.x() / options_.bin_xy), bin_index(x.y() / options_.bin_xy),
+                std::min(n_theta - 1, bin_index((x.z() + kPi) / bin_theta))};
     auto it = bin_of_key.emplace(k, static_cast<int>(keys.size()));
     if (it.second) {
       keys.push_back(k);
