@@ -103,8 +103,9 @@ double MonteCarloLocalization::kld_bound(int k, double epsilon, double z) {
 }
 
 MonteCarloLocalization::MonteCarloLocalization(const OccupancyGrid2D& map, const MonteCarloLocalizationOptions& options)
-    : options_(options), map_(map), filter_rng_(options.seed, kFilterStream) {
+    : options_(options), map_(map) {
   options_.validate();
+  f_.filter_rng = ParticleRng(options.seed, kFilterStream);
   const RowMatrixXd p = map_.probability();
   const std::size_t cells = static_cast<std::size_t>(p.size());
   cell_free_.assign(cells, 0);
@@ -134,12 +135,7 @@ MonteCarloLocalization::MonteCarloLocalization(const OccupancyGrid2D& map, const
 MonteCarloLocalization::MonteCarloLocalization(const MonteCarloLocalization& o)
     : options_(o.options_), map_(o.map_), cell_free_(o.cell_free_), cell_occupied_(o.cell_occupied_),
       free_cells_(o.free_cells_), field_(o.field_), binary_map_(o.binary_map_), beam_model_(o.beam_model_),
-      poses_(o.poses_), log_weights_(o.log_weights_), rngs_(o.rngs_), filter_rng_(o.filter_rng_),
-      next_stream_(o.next_stream_), pending_(o.pending_), travel_d_(o.travel_d_), travel_a_(o.travel_a_),
-      w_slow_(o.w_slow_), w_fast_(o.w_fast_), slow_raw_(o.slow_raw_), fast_raw_(o.fast_raw_),
-      slow_mass_(o.slow_mass_), fast_mass_(o.fast_mass_), random_fraction_(o.random_fraction_), low_updates_(o.low_updates_),
-      num_updates_(o.num_updates_),
-      estimate_(o.estimate_), covariance_(o.covariance_), cluster_weight_(o.cluster_weight_) {}
+      f_(o.f_) {}
 
 MonteCarloLocalization::~MonteCarloLocalization() = default;
 
@@ -168,23 +164,23 @@ Eigen::Vector3d MonteCarloLocalization::random_free_pose(ParticleRng& rng) const
 }
 
 void MonteCarloLocalization::reset_particles(int n) {
-  poses_.assign(static_cast<std::size_t>(n), Eigen::Vector3d::Zero());
-  log_weights_.assign(static_cast<std::size_t>(n), -std::log(static_cast<double>(n)));
-  rngs_.clear();
-  rngs_.reserve(static_cast<std::size_t>(n));
-  for (int j = 0; j < n; ++j) rngs_.emplace_back(options_.seed, next_stream_ + static_cast<std::uint64_t>(j));
-  next_stream_ += static_cast<std::uint64_t>(n);
-  pending_.setZero();
-  travel_d_ = travel_a_ = 0.0;
-  w_slow_ = w_fast_ = slow_raw_ = fast_raw_ = slow_mass_ = fast_mass_ = 0.0;
-  random_fraction_ = 0.0;
-  low_updates_ = 0;
-  num_updates_ = 0;
+  f_.poses.assign(static_cast<std::size_t>(n), Eigen::Vector3d::Zero());
+  f_.log_weights.assign(static_cast<std::size_t>(n), -std::log(static_cast<double>(n)));
+  f_.rngs.clear();
+  f_.rngs.reserve(static_cast<std::size_t>(n));
+  for (int j = 0; j < n; ++j) f_.rngs.emplace_back(options_.seed, f_.next_stream + static_cast<std::uint64_t>(j));
+  f_.next_stream += static_cast<std::uint64_t>(n);
+  f_.pending.setZero();
+  f_.travel_d = f_.travel_a = 0.0;
+  f_.w_slow = f_.w_fast = f_.slow_raw = f_.fast_raw = f_.slow_mass = f_.fast_mass = 0.0;
+  f_.random_fraction = 0.0;
+  f_.low_updates = 0;
+  f_.num_updates = 0;
 }
 
 void MonteCarloLocalization::initialize_global() {
   reset_particles(options_.max_particles);
-  for (std::size_t j = 0; j < poses_.size(); ++j) poses_[j] = random_free_pose(rngs_[j]);
+  for (std::size_t j = 0; j < f_.poses.size(); ++j) f_.poses[j] = random_free_pose(f_.rngs[j]);
   compute_estimate();
 }
 
@@ -208,11 +204,11 @@ void MonteCarloLocalization::initialize_pose(const Eigen::Vector3d& pose, const 
   const Eigen::Matrix3d root =
       eig.eigenvectors() * eig.eigenvalues().cwiseMax(0.0).cwiseSqrt().asDiagonal();
   reset_particles(options_.max_particles);
-  for (std::size_t j = 0; j < poses_.size(); ++j) {
-    const Eigen::Vector3d n(rngs_[j].normal(), rngs_[j].normal(), rngs_[j].normal());
+  for (std::size_t j = 0; j < f_.poses.size(); ++j) {
+    const Eigen::Vector3d n(f_.rngs[j].normal(), f_.rngs[j].normal(), f_.rngs[j].normal());
     Eigen::Vector3d x = pose + root * n;
     x.z() = wrap_angle(x.z());
-    poses_[j] = x;
+    f_.poses[j] = x;
   }
   compute_estimate();
 }
@@ -221,14 +217,14 @@ void MonteCarloLocalization::predict_odometry(const Eigen::Vector3d& delta) {
   require_all_finite(delta, "delta");
   const double step = std::hypot(delta.x(), delta.y());
   require(step <= kMaxOdometryTravel, "delta", "moves more than 1e6 m (kMaxOdometryTravel) in one step");
-  const double c = std::cos(pending_.z()), s = std::sin(pending_.z());
-  const Eigen::Vector3d next(pending_.x() + c * delta.x() - s * delta.y(), pending_.y() + s * delta.x() + c * delta.y(),
-                             wrap_angle(pending_.z() + delta.z()));
+  const double c = std::cos(f_.pending.z()), s = std::sin(f_.pending.z());
+  const Eigen::Vector3d next(f_.pending.x() + c * delta.x() - s * delta.y(), f_.pending.y() + s * delta.x() + c * delta.y(),
+                             wrap_angle(f_.pending.z() + delta.z()));
   require(std::hypot(next.x(), next.y()) <= kMaxOdometryTravel, "delta",
           "would bring the motion pending since the last update beyond 1e6 m (kMaxOdometryTravel)");
-  pending_ = next;
-  travel_d_ += step;
-  travel_a_ += std::abs(wrap_angle(delta.z()));
+  f_.pending = next;
+  f_.travel_d += step;
+  f_.travel_a += std::abs(wrap_angle(delta.z()));
 }
 
 std::vector<int> MonteCarloLocalization::used_beams(const Eigen::Ref<const Eigen::VectorXd>& ranges) const {
@@ -336,66 +332,23 @@ double MonteCarloLocalization::scan_cost(std::size_t beams) const {
   return n * std::max(reach, 1.0);
 }
 
-struct MonteCarloLocalization::FilterState {
-  std::vector<Eigen::Vector3d> poses;
-  std::vector<double> log_weights;
-  std::vector<ParticleRng> rngs;
-  ParticleRng filter_rng;
-  std::uint64_t next_stream;
-  Eigen::Vector3d pending;
-  double travel_d, travel_a, w_slow, w_fast, slow_raw, fast_raw, slow_mass, fast_mass, random_fraction;
-  int low_updates, num_updates;
-  Eigen::Vector3d estimate;
-  Eigen::Matrix3d covariance;
-  double cluster_weight;
-};
-
-MonteCarloLocalization::FilterState MonteCarloLocalization::save_filter_state() const {
-  return {poses_,     log_weights_, rngs_,     filter_rng_, next_stream_,     pending_,   travel_d_,
-          travel_a_,  w_slow_,      w_fast_,   slow_raw_,   fast_raw_,        slow_mass_, fast_mass_,
-          random_fraction_, low_updates_, num_updates_, estimate_, covariance_, cluster_weight_};
-}
-
-void MonteCarloLocalization::restore_filter_state(FilterState&& s) {
-  poses_ = std::move(s.poses);
-  log_weights_ = std::move(s.log_weights);
-  rngs_ = std::move(s.rngs);
-  filter_rng_ = s.filter_rng;
-  next_stream_ = s.next_stream;
-  pending_ = s.pending;
-  travel_d_ = s.travel_d;
-  travel_a_ = s.travel_a;
-  w_slow_ = s.w_slow;
-  w_fast_ = s.w_fast;
-  slow_raw_ = s.slow_raw;
-  fast_raw_ = s.fast_raw;
-  slow_mass_ = s.slow_mass;
-  fast_mass_ = s.fast_mass;
-  random_fraction_ = s.random_fraction;
-  low_updates_ = s.low_updates;
-  num_updates_ = s.num_updates;
-  estimate_ = s.estimate;
-  covariance_ = s.covariance;
-  cluster_weight_ = s.cluster_weight;
-}
-
 MclUpdate MonteCarloLocalization::update(const Eigen::Ref<const Eigen::VectorXd>& ranges,
                                          const Eigen::Ref<const Eigen::VectorXd>& angles, bool force,
                                          const std::function<void()>& interrupt) {
   check_scan(ranges, angles);
   MclUpdate out;
   out.num_particles = num_particles();
-  const bool due = force || num_updates_ == 0 || travel_d_ >= options_.update_min_d ||
-                   travel_a_ >= options_.update_min_a;
+  const bool due = force || f_.num_updates == 0 || f_.travel_d >= options_.update_min_d ||
+                   f_.travel_a >= options_.update_min_a;
   if (!due) return out;
   if (options_.threads > 1 && !pool_ &&
       std::max(num_particles(), options_.recovery_candidates) >= 2 * kMinParticlesPerWorker)
     start_pool();  // may throw: nothing changed yet
-  FilterState before = save_filter_state();
+  FilterState before = f_;
   try {
     return apply_update(ranges, angles, interrupt);
   } catch (...) {
-    restore_filter_state(std::move(before));
+    f_ = std::move(before);
     throw;
   }
 }
@@ -406,20 +359,20 @@ MclUpdate MonteCarloLocalization::apply_update(const Eigen::Ref<const Eigen::Vec
   MclUpdate out;
   const std::vector<int> beams = used_beams(ranges);
   const double cost = scan_cost(beams.size());
-  const OdometryMotion u = OdometryMotion::of_delta(pending_);
-  const bool moved = pending_.cwiseAbs().maxCoeff() > 0.0;
-  std::vector<double> ll(poses_.size());
+  const OdometryMotion u = OdometryMotion::of_delta(f_.pending);
+  const bool moved = f_.pending.cwiseAbs().maxCoeff() > 0.0;
+  std::vector<double> ll(f_.poses.size());
   for_range_checked(num_particles(), cost, interrupt, [&](int j) {
     const std::size_t k = static_cast<std::size_t>(j);
-    if (moved) poses_[k] = sample_odometry_motion(poses_[k], u, options_.odometry, rngs_[k]);
-    double l = options_.weight_scale * scan_log_likelihood(poses_[k], ranges, angles, beams);
-    if (is_occupied_or_outside(poses_[k])) l += kBlockedLogPenalty;
+    if (moved) f_.poses[k] = sample_odometry_motion(f_.poses[k], u, options_.odometry, f_.rngs[k]);
+    double l = options_.weight_scale * scan_log_likelihood(f_.poses[k], ranges, angles, beams);
+    if (is_occupied_or_outside(f_.poses[k])) l += kBlockedLogPenalty;
     ll[k] = l;
-    log_weights_[k] += l;
+    f_.log_weights[k] += l;
   });
-  pending_.setZero();
-  travel_d_ = travel_a_ = 0.0;
-  ++num_updates_;
+  f_.pending.setZero();
+  f_.travel_d = f_.travel_a = 0.0;
+  ++f_.num_updates;
   out.updated = true;
   if (!beams.empty()) {
     // Table 8.3's w_avg on the per-beam geometric mean of each particle's likelihood: the
@@ -432,28 +385,28 @@ MclUpdate MonteCarloLocalization::apply_update(const Eigen::Ref<const Eigen::Vec
     // (1 - (1 - alpha)^n): started from 0, w_slow would stay near 0 for ~1 / alpha_slow updates
     // (no recovery in that time); started from the first w_avg, it would keep the low
     // likelihood of the initial spread cloud as long.
-    slow_raw_ += options_.alpha_slow * (w_avg - slow_raw_);
-    fast_raw_ += options_.alpha_fast * (w_avg - fast_raw_);
-    slow_mass_ += options_.alpha_slow * (1.0 - slow_mass_);
-    fast_mass_ += options_.alpha_fast * (1.0 - fast_mass_);
-    w_slow_ = slow_mass_ > 0.0 ? slow_raw_ / slow_mass_ : 0.0;
-    w_fast_ = fast_mass_ > 0.0 ? fast_raw_ / fast_mass_ : 0.0;
+    f_.slow_raw += options_.alpha_slow * (w_avg - f_.slow_raw);
+    f_.fast_raw += options_.alpha_fast * (w_avg - f_.fast_raw);
+    f_.slow_mass += options_.alpha_slow * (1.0 - f_.slow_mass);
+    f_.fast_mass += options_.alpha_fast * (1.0 - f_.fast_mass);
+    f_.w_slow = f_.slow_mass > 0.0 ? f_.slow_raw / f_.slow_mass : 0.0;
+    f_.w_fast = f_.fast_mass > 0.0 ? f_.fast_raw / f_.fast_mass : 0.0;
   }
-  const bool augmented = options_.alpha_slow > 0.0 && w_slow_ > 0.0;
-  const double p_random = augmented ? std::max(0.0, 1.0 - w_fast_ / (options_.recovery_ratio * w_slow_)) : 0.0;
-  if (!beams.empty()) low_updates_ = p_random > 0.0 ? low_updates_ + 1 : 0;
-  const double n_eff = normalise_log_weights(log_weights_);
+  const bool augmented = options_.alpha_slow > 0.0 && f_.w_slow > 0.0;
+  const double p_random = augmented ? std::max(0.0, 1.0 - f_.w_fast / (options_.recovery_ratio * f_.w_slow)) : 0.0;
+  if (!beams.empty()) f_.low_updates = p_random > 0.0 ? f_.low_updates + 1 : 0;
+  const double n_eff = normalise_log_weights(f_.log_weights);
   out.effective_sample_size = n_eff;
   if (n_eff < options_.resample_threshold * static_cast<double>(num_particles())) {
     auto scan = [&](const Eigen::Vector3d& x) {
       return options_.weight_scale * scan_log_likelihood(x, ranges, angles, beams);
     };
-    resample(low_updates_ >= options_.recovery_updates ? p_random : 0.0, scan, cost, interrupt);
+    resample(f_.low_updates >= options_.recovery_updates ? p_random : 0.0, scan, cost, interrupt);
     out.resampled = true;
   }
   compute_estimate();
   out.num_particles = num_particles();
-  out.random_fraction = random_fraction_;
+  out.random_fraction = f_.random_fraction;
   return out;
 }
 
@@ -467,10 +420,10 @@ void MonteCarloLocalization::resample(double random_probability, const Scan& sca
   std::vector<double> candidate_cdf;
   auto recovery_pose = [&]() -> Eigen::Vector3d {
     const int c = options_.recovery_candidates;
-    if (c == 0) return random_free_pose(filter_rng_);
+    if (c == 0) return random_free_pose(f_.filter_rng);
     if (candidates.empty()) {
       candidates.resize(static_cast<std::size_t>(c));
-      for (auto& x : candidates) x = random_free_pose(filter_rng_);
+      for (auto& x : candidates) x = random_free_pose(f_.filter_rng);
       std::vector<double> ll(static_cast<std::size_t>(c));
       for_range_checked(c, scan_cost, interrupt, [&](int i) {
         const auto k = static_cast<std::size_t>(i);
@@ -481,12 +434,12 @@ void MonteCarloLocalization::resample(double random_probability, const Scan& sca
       double sum = 0.0;
       for (std::size_t i = 0; i < ll.size(); ++i) candidate_cdf[i] = sum += std::exp(ll[i] - top);
     }
-    const double u = filter_rng_.uniform() * candidate_cdf.back();
+    const double u = f_.filter_rng.uniform() * candidate_cdf.back();
     const auto it = std::upper_bound(candidate_cdf.begin(), candidate_cdf.end(), u);
     return candidates[std::min(candidates.size() - 1, static_cast<std::size_t>(it - candidate_cdf.begin()))];
   };
   Eigen::VectorXd w(m);
-  for (int j = 0; j < m; ++j) w[j] = std::exp(log_weights_[static_cast<std::size_t>(j)]);
+  for (int j = 0; j < m; ++j) w[j] = std::exp(f_.log_weights[static_cast<std::size_t>(j)]);
   // Draws come from a low-variance pass over M ancestors, visited in a random order (so that
   // any prefix is a sample of the posterior, as KLD sampling's sequential draws need); another
   // pass starts when KLD asks for more than M.
@@ -494,9 +447,9 @@ void MonteCarloLocalization::resample(double random_probability, const Scan& sca
   std::size_t next = 0;
   auto draw_ancestor = [&]() {
     if (next == ancestors.size()) {
-      ancestors = low_variance_resample(w, filter_rng_.uniform());
+      ancestors = low_variance_resample(w, f_.filter_rng.uniform());
       for (std::size_t i = ancestors.size(); i > 1; --i) {
-        const std::size_t k = std::min(i - 1, static_cast<std::size_t>(filter_rng_.uniform() * static_cast<double>(i)));
+        const std::size_t k = std::min(i - 1, static_cast<std::size_t>(f_.filter_rng.uniform() * static_cast<double>(i)));
         std::swap(ancestors[i - 1], ancestors[k]);
       }
       next = 0;
@@ -524,11 +477,11 @@ void MonteCarloLocalization::resample(double random_probability, const Scan& sca
     if (n >= lo && static_cast<double>(n) >= kld_bound(static_cast<int>(bins.size()), options_.kld_epsilon, options_.kld_z))
       break;
     Eigen::Vector3d x;
-    if (random_probability > 0.0 && filter_rng_.uniform() < random_probability) {
+    if (random_probability > 0.0 && f_.filter_rng.uniform() < random_probability) {
       x = recovery_pose();
       ++injected;
     } else {
-      x = poses_[static_cast<std::size_t>(draw_ancestor())];
+      x = f_.poses[static_cast<std::size_t>(draw_ancestor())];
     }
     bins.emplace(bin_key(x), 0);
     next_poses.push_back(x);
@@ -537,13 +490,13 @@ void MonteCarloLocalization::resample(double random_probability, const Scan& sca
   // New particles, uniform weights and fresh streams; the odometry pending and the averages
   // of augmented MCL go on (Table 8.3 keeps them: the filter injects for as long as the short-term
   // average stays below the long-term one).
-  poses_.swap(next_poses);
-  log_weights_.assign(static_cast<std::size_t>(count), -std::log(static_cast<double>(count)));
-  rngs_.clear();
-  rngs_.reserve(static_cast<std::size_t>(count));
-  for (int j = 0; j < count; ++j) rngs_.emplace_back(options_.seed, next_stream_ + static_cast<std::uint64_t>(j));
-  next_stream_ += static_cast<std::uint64_t>(count);
-  random_fraction_ = static_cast<double>(injected) / static_cast<double>(count);
+  f_.poses.swap(next_poses);
+  f_.log_weights.assign(static_cast<std::size_t>(count), -std::log(static_cast<double>(count)));
+  f_.rngs.clear();
+  f_.rngs.reserve(static_cast<std::size_t>(count));
+  for (int j = 0; j < count; ++j) f_.rngs.emplace_back(options_.seed, f_.next_stream + static_cast<std::uint64_t>(j));
+  f_.next_stream += static_cast<std::uint64_t>(count);
+  f_.random_fraction = static_cast<double>(injected) / static_cast<double>(count);
 }
 
 void MonteCarloLocalization::compute_estimate() {
@@ -563,7 +516,7 @@ void MonteCarloLocalization::compute_estimate() {
   std::vector<int> particle_bin(static_cast<std::size_t>(m));
   std::vector<double> bin_weight;
   for (int j = 0; j < m; ++j) {
-    const Eigen::Vector3d& x = poses_[static_cast<std::size_t>(j)];
+    const Eigen::Vector3d& x = f_.poses[static_cast<std::size_t>(j)];
     const Key k{bin_index(x.x() / options_.bin_xy), bin_index(x.y() / options_.bin_xy),
                 std::min(n_theta - 1, bin_index((x.z() + kPi) / bin_theta))};
     auto it = bin_of_key.emplace(k, static_cast<int>(keys.size()));
@@ -572,7 +525,7 @@ void MonteCarloLocalization::compute_estimate() {
       bin_weight.push_back(0.0);
     }
     particle_bin[static_cast<std::size_t>(j)] = it.first->second;
-    bin_weight[static_cast<std::size_t>(it.first->second)] += std::exp(log_weights_[static_cast<std::size_t>(j)]);
+    bin_weight[static_cast<std::size_t>(it.first->second)] += std::exp(f_.log_weights[static_cast<std::size_t>(j)]);
   }
   // Connected components of occupied bins (26-neighbourhood, heading bins wrap around).
   const int nb = static_cast<int>(keys.size());
@@ -606,43 +559,43 @@ void MonteCarloLocalization::compute_estimate() {
   double sw = 0.0, sx = 0.0, sy = 0.0, sc = 0.0, ss = 0.0;
   for (int j = 0; j < m; ++j) {
     if (cluster[static_cast<std::size_t>(particle_bin[static_cast<std::size_t>(j)])] != best) continue;
-    const double w = std::exp(log_weights_[static_cast<std::size_t>(j)]);
-    const Eigen::Vector3d& x = poses_[static_cast<std::size_t>(j)];
+    const double w = std::exp(f_.log_weights[static_cast<std::size_t>(j)]);
+    const Eigen::Vector3d& x = f_.poses[static_cast<std::size_t>(j)];
     sw += w;
     sx += w * x.x();
     sy += w * x.y();
     sc += w * std::cos(x.z());
     ss += w * std::sin(x.z());
   }
-  estimate_ = Eigen::Vector3d(sx / sw, sy / sw, std::atan2(ss, sc));
+  f_.estimate = Eigen::Vector3d(sx / sw, sy / sw, std::atan2(ss, sc));
   Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
   for (int j = 0; j < m; ++j) {
     if (cluster[static_cast<std::size_t>(particle_bin[static_cast<std::size_t>(j)])] != best) continue;
-    const double w = std::exp(log_weights_[static_cast<std::size_t>(j)]);
-    const Eigen::Vector3d& x = poses_[static_cast<std::size_t>(j)];
-    const Eigen::Vector3d d(x.x() - estimate_.x(), x.y() - estimate_.y(), wrap_angle(x.z() - estimate_.z()));
+    const double w = std::exp(f_.log_weights[static_cast<std::size_t>(j)]);
+    const Eigen::Vector3d& x = f_.poses[static_cast<std::size_t>(j)];
+    const Eigen::Vector3d d(x.x() - f_.estimate.x(), x.y() - f_.estimate.y(), wrap_angle(x.z() - f_.estimate.z()));
     cov += w * d * d.transpose();
   }
-  covariance_ = cov / sw;
+  f_.covariance = cov / sw;
   double total = 0.0;
   for (double w : cluster_weight) total += w;
-  cluster_weight_ = total > 0.0 ? sw / total : 0.0;
+  f_.cluster_weight = total > 0.0 ? sw / total : 0.0;
 }
 
 Eigen::Vector3d MonteCarloLocalization::pose() const {
-  const double c = std::cos(estimate_.z()), s = std::sin(estimate_.z());
-  return {estimate_.x() + c * pending_.x() - s * pending_.y(), estimate_.y() + s * pending_.x() + c * pending_.y(),
-          wrap_angle(estimate_.z() + pending_.z())};
+  const double c = std::cos(f_.estimate.z()), s = std::sin(f_.estimate.z());
+  return {f_.estimate.x() + c * f_.pending.x() - s * f_.pending.y(), f_.estimate.y() + s * f_.pending.x() + c * f_.pending.y(),
+          wrap_angle(f_.estimate.z() + f_.pending.z())};
 }
 
 Poses2 MonteCarloLocalization::particles() const {
   Poses2 out(num_particles(), 3);
-  for (int j = 0; j < num_particles(); ++j) out.row(j) = poses_[static_cast<std::size_t>(j)].transpose();
+  for (int j = 0; j < num_particles(); ++j) out.row(j) = f_.poses[static_cast<std::size_t>(j)].transpose();
   return out;
 }
 
 Eigen::VectorXd MonteCarloLocalization::weights() const {
-  std::vector<double> lw = log_weights_;
+  std::vector<double> lw = f_.log_weights;
   normalise_log_weights(lw);
   Eigen::VectorXd w(num_particles());
   for (int j = 0; j < num_particles(); ++j) w[j] = std::exp(lw[static_cast<std::size_t>(j)]);

@@ -63,22 +63,22 @@ constexpr std::size_t kParticleBytes = 3 * 8 + 8 + 4 * 8 + 8 + 1;
 void MonteCarloLocalization::write_state(StateWriter& w) const {
   write_options(w, options_);
   map_.write_state(w);
-  w.count(poses_.size());
-  for (std::size_t j = 0; j < poses_.size(); ++j) {
-    for (int c = 0; c < 3; ++c) w.f64(poses_[j][c]);
-    w.f64(log_weights_[j]);
-    rngs_[j].write_state(w);
+  w.count(f_.poses.size());
+  for (std::size_t j = 0; j < f_.poses.size(); ++j) {
+    for (int c = 0; c < 3; ++c) w.f64(f_.poses[j][c]);
+    w.f64(f_.log_weights[j]);
+    f_.rngs[j].write_state(w);
   }
-  filter_rng_.write_state(w);
-  w.u64(next_stream_);
-  w.matrix(pending_);
-  for (double v : {travel_d_, travel_a_, w_slow_, w_fast_, slow_raw_, fast_raw_, slow_mass_, fast_mass_, random_fraction_})
+  f_.filter_rng.write_state(w);
+  w.u64(f_.next_stream);
+  w.matrix(f_.pending);
+  for (double v : {f_.travel_d, f_.travel_a, f_.w_slow, f_.w_fast, f_.slow_raw, f_.fast_raw, f_.slow_mass, f_.fast_mass, f_.random_fraction})
     w.f64(v);
-  w.i32(low_updates_);
-  w.i32(num_updates_);
-  w.matrix(estimate_);
-  w.matrix(covariance_);
-  w.f64(cluster_weight_);
+  w.i32(f_.low_updates);
+  w.i32(f_.num_updates);
+  w.matrix(f_.estimate);
+  w.matrix(f_.covariance);
+  w.f64(f_.cluster_weight);
 }
 
 MonteCarloLocalization MonteCarloLocalization::read_state(StateReader& r) {
@@ -91,34 +91,34 @@ MonteCarloLocalization MonteCarloLocalization::read_state(StateReader& r) {
   MonteCarloLocalization f = validated(r, "options or map", [&] { return MonteCarloLocalization(map, o); });
   if (m < 1 || m > static_cast<std::size_t>(o.max_particles))
     r.fail("holds " + std::to_string(m) + " particles, outside [1, max_particles = " + std::to_string(o.max_particles) + "]");
-  f.poses_.assign(m, Eigen::Vector3d::Zero());
-  f.log_weights_.assign(m, 0.0);
-  f.rngs_.clear();
-  f.rngs_.reserve(m);
+  f.f_.poses.assign(m, Eigen::Vector3d::Zero());
+  f.f_.log_weights.assign(m, 0.0);
+  f.f_.rngs.clear();
+  f.f_.rngs.reserve(m);
   for (std::size_t j = 0; j < m; ++j) {
-    for (int c = 0; c < 3; ++c) f.poses_[j][c] = r.f64();
-    f.log_weights_[j] = r.f64();
-    f.rngs_.push_back(ParticleRng::read_state(r));
+    for (int c = 0; c < 3; ++c) f.f_.poses[j][c] = r.f64();
+    f.f_.log_weights[j] = r.f64();
+    f.f_.rngs.push_back(ParticleRng::read_state(r));
     // A log-weight may be -inf (a particle the scan ruled out), never NaN or +inf.
-    if (!f.poses_[j].allFinite() || std::isnan(f.log_weights_[j]) || f.log_weights_[j] == HUGE_VAL)
+    if (!f.f_.poses[j].allFinite() || std::isnan(f.f_.log_weights[j]) || f.f_.log_weights[j] == HUGE_VAL)
       r.fail("particle " + std::to_string(j) + " holds a pose or weight that is not finite");
   }
-  f.filter_rng_ = ParticleRng::read_state(r);
-  f.next_stream_ = r.u64();
-  f.pending_ = r.matrix<Eigen::Vector3d>();
-  for (double* v : {&f.travel_d_, &f.travel_a_, &f.w_slow_, &f.w_fast_, &f.slow_raw_, &f.fast_raw_, &f.slow_mass_,
-                    &f.fast_mass_, &f.random_fraction_})
+  f.f_.filter_rng = ParticleRng::read_state(r);
+  f.f_.next_stream = r.u64();
+  f.f_.pending = r.matrix<Eigen::Vector3d>();
+  for (double* v : {&f.f_.travel_d, &f.f_.travel_a, &f.f_.w_slow, &f.f_.w_fast, &f.f_.slow_raw, &f.f_.fast_raw, &f.f_.slow_mass,
+                    &f.f_.fast_mass, &f.f_.random_fraction})
     if (!std::isfinite(*v = r.f64()) || *v < 0.0) r.fail("a travel or average is not finite and >= 0");
-  f.low_updates_ = r.i32();
-  f.num_updates_ = r.i32();
-  if (f.low_updates_ < 0 || f.num_updates_ < 0) r.fail("a counter is negative");
-  f.estimate_ = r.matrix<Eigen::Vector3d>();
-  f.covariance_ = r.matrix<Eigen::Matrix3d>();
-  if (!f.pending_.allFinite() || !f.estimate_.allFinite() || !f.covariance_.allFinite())
+  f.f_.low_updates = r.i32();
+  f.f_.num_updates = r.i32();
+  if (f.f_.low_updates < 0 || f.f_.num_updates < 0) r.fail("a counter is negative");
+  f.f_.estimate = r.matrix<Eigen::Vector3d>();
+  f.f_.covariance = r.matrix<Eigen::Matrix3d>();
+  if (!f.f_.pending.allFinite() || !f.f_.estimate.allFinite() || !f.f_.covariance.allFinite())
     r.fail("the pending motion or the estimate is not finite");
   // The estimate's share of the weight, which the convergence test reads: a fraction.
-  f.cluster_weight_ = r.f64();
-  if (!(f.cluster_weight_ >= 0.0 && f.cluster_weight_ <= 1.0)) r.fail("the estimate's cluster weight is not in [0, 1]");
+  f.f_.cluster_weight = r.f64();
+  if (!(f.f_.cluster_weight >= 0.0 && f.f_.cluster_weight <= 1.0)) r.fail("the estimate's cluster weight is not in [0, 1]");
   return f;
 }
 

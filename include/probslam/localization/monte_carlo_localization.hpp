@@ -133,20 +133,20 @@ class MonteCarloLocalization {
   double measurement_log_likelihood(const Eigen::Vector3d& pose, const Eigen::Ref<const Eigen::VectorXd>& ranges,
                                     const Eigen::Ref<const Eigen::VectorXd>& angles) const;
 
-  int num_particles() const { return static_cast<int>(poses_.size()); }
+  int num_particles() const { return static_cast<int>(f_.poses.size()); }
   Poses2 particles() const;
   Eigen::VectorXd weights() const;  ///< normalised
   /// The weighted mean of the largest cluster (connected occupied bins of the KLD histogram,
   /// by weight), moved by the odometry not yet applied; and that cluster's covariance.
   Eigen::Vector3d pose() const;
-  Eigen::Matrix3d covariance() const { return covariance_; }
+  Eigen::Matrix3d covariance() const { return f_.covariance; }
   /// The share of the (normalised) weight in that cluster: near 1 when the filter has settled
   /// on one place, small while other places are as likely (a tight cluster is then no answer).
-  double cluster_weight() const { return cluster_weight_; }
-  int num_updates() const { return num_updates_; }
+  double cluster_weight() const { return f_.cluster_weight; }
+  int num_updates() const { return f_.num_updates; }
   /// Augmented MCL's long- and short-term averages of the per-beam likelihood (Table 8.3).
-  double w_slow() const { return w_slow_; }
-  double w_fast() const { return w_fast_; }
+  double w_slow() const { return f_.w_slow; }
+  double w_fast() const { return f_.w_fast; }
   const LikelihoodField* likelihood_field() const { return field_.get(); }
 
   /// Fox 2003 eq. (the Wilson-Hilferty approximation of the chi-square quantile): particles
@@ -184,10 +184,6 @@ class MonteCarloLocalization {
   /// Elementary steps (table look-ups or ray cells) of one scan's likelihood at one pose.
   double scan_cost(std::size_t beams) const;
   void start_pool();
-  /// Everything update() changes: kept before it, put back when it throws.
-  struct FilterState;
-  FilterState save_filter_state() const;
-  void restore_filter_state(FilterState&& s);
   /// update() once it is due, changing the filter in place (update() puts it back if this throws).
   MclUpdate apply_update(const Eigen::Ref<const Eigen::VectorXd>& ranges, const Eigen::Ref<const Eigen::VectorXd>& angles,
                          const std::function<void()>& interrupt);
@@ -204,22 +200,26 @@ class MonteCarloLocalization {
   std::shared_ptr<const BinaryMap2D> binary_map_;
   std::shared_ptr<const BeamSensorModel> beam_model_;
 
-  std::vector<Eigen::Vector3d> poses_;
-  std::vector<double> log_weights_;
-  std::vector<ParticleRng> rngs_;
-  ParticleRng filter_rng_;
-  std::uint64_t next_stream_ = 0;
-
-  Eigen::Vector3d pending_ = Eigen::Vector3d::Zero();  // odometry since the last update
-  double travel_d_ = 0.0, travel_a_ = 0.0;
-  double w_slow_ = 0.0, w_fast_ = 0.0;
-  double slow_raw_ = 0.0, fast_raw_ = 0.0, slow_mass_ = 0.0, fast_mass_ = 0.0;  // before bias correction
-  double random_fraction_ = 0.0;
-  int low_updates_ = 0;  // consecutive updates with w_fast < recovery_ratio w_slow
-  int num_updates_ = 0;
-  Eigen::Vector3d estimate_ = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d covariance_ = Eigen::Matrix3d::Zero();
-  double cluster_weight_ = 0.0;  // derived from the particles by compute_estimate()
+  /// Everything update() changes, in one place: kept before an update and put back when it
+  /// throws, copied whole by the copy constructor, written whole by save().
+  struct FilterState {
+    std::vector<Eigen::Vector3d> poses;
+    std::vector<double> log_weights;
+    std::vector<ParticleRng> rngs;
+    ParticleRng filter_rng;
+    std::uint64_t next_stream = 0;
+    Eigen::Vector3d pending = Eigen::Vector3d::Zero();  // odometry since the last update
+    double travel_d = 0.0, travel_a = 0.0;
+    double w_slow = 0.0, w_fast = 0.0;
+    double slow_raw = 0.0, fast_raw = 0.0, slow_mass = 0.0, fast_mass = 0.0;  // before bias correction
+    double random_fraction = 0.0;
+    int low_updates = 0;  // consecutive updates with w_fast < recovery_ratio w_slow
+    int num_updates = 0;
+    Eigen::Vector3d estimate = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d covariance = Eigen::Matrix3d::Zero();
+    double cluster_weight = 0.0;  // derived from the particles by compute_estimate()
+  };
+  FilterState f_;
   std::unique_ptr<WorkerPool> pool_;  // threads > 1: started on the first update
   ObjectMutex mutex_;
 };
