@@ -181,3 +181,23 @@ def test_eval_moves_relations_onto_the_estimates_clock(tmp_path, capsys):
     # --log applies to relations only.
     assert cli.main(["eval", est, est, "--log", str(log)]) == 2
     assert "--log applies to a relations file" in capsys.readouterr().err
+
+
+def test_a_run_saved_on_the_ipc_clock_is_refused_by_name(tmp_path):
+    """A run file written before issue 49 holds the ipc times of its first and last scans: resuming
+    it would mix the two clocks in one trajectory, so it is refused saying why."""
+    import dataclasses
+
+    from probslam.slam import load_run, run_slam, save_run
+
+    scans = io.read_carmen_log(ps.data.path("intel_raw_lap.log.gz")).scans
+    part = io.LaserScans(**{f.name: getattr(scans, f.name)[:40] for f in dataclasses.fields(scans)})
+    run_slam(part, progress=False, save=tmp_path / "run.psl")
+    run = load_run(tmp_path / "run.psl")
+    assert (run.first_timestamp, run.last_timestamp) == (scans.timestamps[0], scans.timestamps[39])
+    old = dataclasses.replace(run, first_timestamp=float(scans.ipc_timestamps[0]),
+                              last_timestamp=float(scans.ipc_timestamps[39]))
+    save_run(old, tmp_path / "old.psl")
+    with pytest.raises(ValueError, match="timed by their ipc stamp.*run it again"):
+        run_slam(scans, resume=tmp_path / "old.psl", progress=False)
+    assert len(run_slam(scans, resume=tmp_path / "run.psl", progress=False).timestamps) == len(scans)
