@@ -163,21 +163,19 @@ PROBSLAM_GRAPH_ARG(probslam::bindings::OrderingArg, "str | None")
 
 namespace probslam::bindings {
 
-inline std::string type_name(py::handle obj) { return py::str(py::type::of(obj).attr("__name__")); }
-
 /// f(graph) with the argument as the graph class it is: TypeError "<name>: expected a PoseGraph2D
 /// or PoseGraph3D, got <type>" otherwise.
 template <class F>
 decltype(auto) with_graph(const GraphArg& graph, const char* name, F&& f) {
   if (py::isinstance<PoseGraph2D>(graph.value)) return f(graph.value.cast<PoseGraph2D&>());
   if (py::isinstance<PoseGraph3D>(graph.value)) return f(graph.value.cast<PoseGraph3D&>());
-  throw py::type_error(std::string(name) + ": expected a PoseGraph2D or PoseGraph3D, got " + type_name(graph.value));
+  throw py::type_error(std::string(name) + ": expected a PoseGraph2D or PoseGraph3D, got " + type_name_of(graph.value));
 }
 
 /// The argument as a PoseGraph3D (for the 3-D-only calls): TypeError naming it otherwise.
 inline PoseGraph3D& graph3d_arg(const Graph3DArg& graph, const char* name, const char* why) {
   if (!py::isinstance<PoseGraph3D>(graph.value))
-    throw py::type_error(std::string(name) + ": expected a PoseGraph3D, got " + type_name(graph.value) + why);
+    throw py::type_error(std::string(name) + ": expected a PoseGraph3D, got " + type_name_of(graph.value) + why);
   return graph.value.cast<PoseGraph3D&>();
 }
 
