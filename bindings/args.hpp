@@ -157,7 +157,8 @@ inline py::arg_v real_arg(const char* name, double v) {
 
 namespace pybind11::detail {
 // The casters of the checked argument types: take any object as it is (checked in the body),
-// give it back as it is, and name the expected Python type in signatures.
+// give it back as it is, and name the expected Python type in signatures. Other headers declare
+// theirs with the same macro (graph_options.hpp's GraphArg).
 #define PROBSLAM_CHECKED_ARG(Type, py_name)                                                           \
   template <>                                                                                         \
   struct type_caster<Type> {                                                                          \
@@ -173,7 +174,6 @@ PROBSLAM_CHECKED_ARG(probslam::bindings::UInt64Arg, "int")
 PROBSLAM_CHECKED_ARG(probslam::bindings::RealArg, "float")
 PROBSLAM_CHECKED_ARG(probslam::bindings::BoolArg, "bool")
 PROBSLAM_CHECKED_ARG(probslam::bindings::StrArg, "str")
-#undef PROBSLAM_CHECKED_ARG
 
 template <class T>
 struct type_caster<probslam::bindings::ClassArg<T>> {

@@ -320,8 +320,8 @@ void define_graph3d(py::module_& m) {
         "(PoseGraph3D, PoseGraphReadReport); FIX records fix vertices, EDGE_SE3_PRIOR records are priors,\n"
         "VERTEX_TRACKXYZ / EDGE_SE3_TRACKXYZ points and point edges.");
   m.def("write_g2o_3d_graph",
-        [](const std::string& path, const Graph3DArg& graph_arg) {
-          const PoseGraph3D& graph = graph3d_arg(graph_arg, "graph", "");
+        [](const std::string& path, ClassArg<PoseGraph3D> graph_arg) {
+          const PoseGraph3D& graph = graph_arg.get("graph");
           const PoseGraph3DData data = locked(graph, [&] { return pose_graph_3d_data(graph); });
           py::gil_scoped_release release;
           write_g2o_3d(path, data);
@@ -370,8 +370,8 @@ void define_graph3d(py::module_& m) {
           "Unreached vertices keep their values. PoseGraph2D or PoseGraph3D."});
 
   m.def("initialize_chordal",
-        [](const Graph3DArg& graph_arg, StrArg linear_solver, StrArg ordering) {
-          PoseGraph3D& graph = graph3d_arg(graph_arg, "graph", " (chordal initialisation is for 3-D graphs)");
+        [](ClassArg<PoseGraph3D> graph_arg, StrArg linear_solver, StrArg ordering) {
+          PoseGraph3D& graph = graph_arg.get("graph");
           const SparseCholeskyOptions o = solver_options(linear_solver.get("linear_solver"), ordering.get("ordering"));
           locked(graph, [&] { initialize_chordal(graph, o); });
         },

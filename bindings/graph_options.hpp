@@ -131,10 +131,6 @@ struct DefaultOrdering<PoseGraph3D> {
 struct GraphArg {
   py::object value;
 };
-/// The same for the 3-D-only calls (graph3d_arg). Signature: `PoseGraph3D`.
-struct Graph3DArg {
-  py::object value;
-};
 /// A fill ordering or None for the graph type's default (ordering_for). Signature: `str | None`.
 struct OrderingArg {
   py::object value;
@@ -143,22 +139,9 @@ struct OrderingArg {
 }  // namespace probslam::bindings
 
 namespace pybind11::detail {
-// GraphArg, Graph3DArg and OrderingArg take any object (checked by with_graph / graph3d_arg /
-// ordering_for) and show the types they expect.
-#define PROBSLAM_GRAPH_ARG(Type, py_name)                                                              \
-  template <>                                                                                          \
-  struct type_caster<Type> {                                                                           \
-    PYBIND11_TYPE_CASTER(Type, const_name(py_name));                                                   \
-    bool load(handle src, bool) {                                                                      \
-      value.value = reinterpret_borrow<object>(src);                                                   \
-      return true;                                                                                     \
-    }                                                                                                  \
-    static handle cast(const Type& v, return_value_policy, handle) { return v.value.inc_ref(); }      \
-  };
-PROBSLAM_GRAPH_ARG(probslam::bindings::GraphArg, "PoseGraph2D | PoseGraph3D")
-PROBSLAM_GRAPH_ARG(probslam::bindings::Graph3DArg, "PoseGraph3D")
-PROBSLAM_GRAPH_ARG(probslam::bindings::OrderingArg, "str | None")
-#undef PROBSLAM_GRAPH_ARG
+// GraphArg and OrderingArg: any object, checked by with_graph / ordering_for.
+PROBSLAM_CHECKED_ARG(probslam::bindings::GraphArg, "PoseGraph2D | PoseGraph3D")
+PROBSLAM_CHECKED_ARG(probslam::bindings::OrderingArg, "str | None")
 }  // namespace pybind11::detail
 
 namespace probslam::bindings {
@@ -170,13 +153,6 @@ decltype(auto) with_graph(const GraphArg& graph, const char* name, F&& f) {
   if (py::isinstance<PoseGraph2D>(graph.value)) return f(graph.value.cast<PoseGraph2D&>());
   if (py::isinstance<PoseGraph3D>(graph.value)) return f(graph.value.cast<PoseGraph3D&>());
   throw py::type_error(std::string(name) + ": expected a PoseGraph2D or PoseGraph3D, got " + type_name_of(graph.value));
-}
-
-/// The argument as a PoseGraph3D (for the 3-D-only calls): TypeError naming it otherwise.
-inline PoseGraph3D& graph3d_arg(const Graph3DArg& graph, const char* name, const char* why) {
-  if (!py::isinstance<PoseGraph3D>(graph.value))
-    throw py::type_error(std::string(name) + ": expected a PoseGraph3D, got " + type_name_of(graph.value) + why);
-  return graph.value.cast<PoseGraph3D&>();
 }
 
 /// The solver options of a call on `graph`: ordering None is the graph type's default.
