@@ -38,7 +38,7 @@ def relations_error(options):
     """(mean, std) of the ACES relation errors for one run_slam call with these options."""
     scans = ps.io.read_carmen_log(ACES).scans
     result = ps.slam.run_slam(scans, progress=False, **options)
-    e = ps.eval.relations_error(result.timestamps, result.poses, RELATIONS)
+    e = ps.eval.relations_error(result.timestamps, result.poses, ps.eval.relations_on_logger_time(RELATIONS, scans))
     return e.trans_mean, e.trans_std
 
 

@@ -82,7 +82,7 @@ def child(name: str, method: str, scans: int) -> None:
                             bytes=r.tile_sharing.bytes)
     if name == "aces" and RELATIONS.exists():
         try:
-            e = ps.eval.relations_error(r.timestamps, r.poses, ps.eval.read_relations(RELATIONS))
+            e = ps.eval.relations_error(r.timestamps, r.poses, ps.eval.relations_on_logger_time(RELATIONS, log))
             out["relations"] = [e.trans_mean, e.trans_std, len(e.used)]
         except ValueError:
             pass
@@ -185,7 +185,7 @@ def mrpt_run(name: str, method: str, scans: int):
     if name == "aces" and RELATIONS.exists():
         try:
             poses = compose(robot, laser_mount(log))
-            e = ps.eval.relations_error(log.timestamps[steps], poses, ps.eval.read_relations(RELATIONS))
+            e = ps.eval.relations_error(log.timestamps[steps], poses, ps.eval.relations_on_logger_time(RELATIONS, log))
             out["relations"] = [e.trans_mean, e.trans_std, len(e.used)]
         except ValueError:
             pass

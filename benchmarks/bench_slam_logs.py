@@ -158,7 +158,8 @@ def run_log(name, quick, figures, method="graph", options=None):
     if relations is not None:
         rel = LASER / relations
         if rel.exists():
-            relations_file = ps.eval.read_relations(rel)
+            # aces.relations is stamped with the raw log's ipc time, the scans with its logger time.
+            relations_file = ps.eval.relations_on_logger_time(rel, scans)
             breakdown = []
             for label, poses in trajectories + [("raw odometry", scans.laser_poses)]:
                 e = ps.eval.relations_error(result.timestamps, poses, relations_file)

@@ -108,6 +108,25 @@ struct StrArg {
   }
 };
 
+/// The Python name of an object's type, for error messages ("int", "NoneType", "ndarray").
+inline std::string type_name_of(py::handle obj) { return py::str(py::type::of(obj).attr("__name__")); }
+
+/// An argument of a bound class T: `.get(name)` is the T, TypeError "<name>: expected a T, got
+/// <type>" otherwise (pybind11's own T& caster answers a wrong type with its list of signatures).
+/// Signature: T's Python name.
+template <class T>
+struct ClassArg {
+  py::object value;
+  T& get(const std::string& name) const {
+    if (!py::isinstance<T>(value)) {
+      const std::string expected = py::str(py::type::of<T>().attr("__name__"));
+      const bool vowel = std::string("AEIOU").find(expected[0]) != std::string::npos;
+      throw py::type_error(name + ": expected " + (vowel ? "an " : "a ") + expected + ", got " + type_name_of(value));
+    }
+    return value.cast<T&>();
+  }
+};
+
 /// The `particle` argument of a particle filter's per-particle calls (FastSlam, GridFastSlam):
 /// None is the best particle, resolved under the filter's lock; anything else an index in
 /// [0, num_particles), its type and sign checked with the GIL held.
@@ -138,7 +157,8 @@ inline py::arg_v real_arg(const char* name, double v) {
 
 namespace pybind11::detail {
 // The casters of the checked argument types: take any object as it is (checked in the body),
-// give it back as it is, and name the expected Python type in signatures.
+// give it back as it is, and name the expected Python type in signatures. Other headers declare
+// theirs with the same macro (graph_options.hpp's GraphArg).
 #define PROBSLAM_CHECKED_ARG(Type, py_name)                                                           \
   template <>                                                                                         \
   struct type_caster<Type> {                                                                          \
@@ -154,5 +174,16 @@ PROBSLAM_CHECKED_ARG(probslam::bindings::UInt64Arg, "int")
 PROBSLAM_CHECKED_ARG(probslam::bindings::RealArg, "float")
 PROBSLAM_CHECKED_ARG(probslam::bindings::BoolArg, "bool")
 PROBSLAM_CHECKED_ARG(probslam::bindings::StrArg, "str")
-#undef PROBSLAM_CHECKED_ARG
+
+template <class T>
+struct type_caster<probslam::bindings::ClassArg<T>> {
+  PYBIND11_TYPE_CASTER(probslam::bindings::ClassArg<T>, make_caster<T>::name);
+  bool load(handle src, bool) {
+    value.value = reinterpret_borrow<object>(src);
+    return true;
+  }
+  static handle cast(const probslam::bindings::ClassArg<T>& v, return_value_policy, handle) {
+    return v.value.inc_ref();
+  }
+};
 }  // namespace pybind11::detail

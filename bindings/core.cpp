@@ -166,10 +166,12 @@ void define_core(py::module_& m) {
       .def_readonly("y", &Pose2::y, "y position, metres.")
       .def_readonly("theta", &Pose2::theta, "Heading, radians in (-pi, pi].")
       .def("as_array", &Pose2::vector, "(3,) array (x, y, theta).")
-      .def("compose", &Pose2::compose, py::arg("other"), "self (+) other.")
+      .def("compose", [](const Pose2& p, ClassArg<Pose2> other) { return p.compose(other.get("other")); },
+           py::arg("other"), "self (+) other.")
       .def("__mul__", &Pose2::compose, "self * other is self.compose(other).")
       .def("inverse", &Pose2::inverse, "The pose p with self (+) p = identity.")
-      .def("between", &Pose2::between, py::arg("other"), "self^-1 (+) other.")
+      .def("between", [](const Pose2& p, ClassArg<Pose2> other) { return p.between(other.get("other")); },
+           py::arg("other"), "self^-1 (+) other.")
       .def(
           "transform_from",
           [](const Pose2& p, py::handle pts) {

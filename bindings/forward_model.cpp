@@ -116,13 +116,18 @@ Eigen::Map<const Poses2> poses_view(const DoubleArray& a) { return {a.data(), a.
 void define_forward_model(py::module_& m) {
   py::class_<BinaryMap2D>(m, "BinaryMap2D",
                           "A binary occupancy map on an OccupancyGrid2D's lattice (what forward models see).")
-      .def(py::init([](const OccupancyGrid2D& grid, py::handle occupied) {
+      .def(py::init([](ClassArg<OccupancyGrid2D> grid_arg, py::handle occupied) {
+             const OccupancyGrid2D& grid = grid_arg.get("grid");
              std::vector<std::uint8_t> cells = occupancy_arg(occupied, grid);  // the shape is fixed for the grid's life
              return locked(grid, [&] { return BinaryMap2D(grid, std::move(cells)); });
            }),
            py::arg("grid"), py::arg("occupied"),
            "grid's geometry with occupied (height, width) bool (or 0/1 integers; floats: TypeError).")
-      .def_static("from_grid", [](const OccupancyGrid2D& g) { return locked(g, [&] { return BinaryMap2D::thresholded(g); }); },
+      .def_static("from_grid",
+                  [](ClassArg<OccupancyGrid2D> grid) {
+                    const OccupancyGrid2D& g = grid.get("grid");
+                    return locked(g, [&] { return BinaryMap2D::thresholded(g); });
+                  },
                   py::arg("grid"), "grid thresholded: occupied iff p > 0.5 (log-odds > 0).")
       .def_property_readonly("shape", [](const BinaryMap2D& b) { return py::make_tuple(b.height(), b.width()); },
                              "(height, width) in cells.")
@@ -148,10 +153,12 @@ void define_forward_model(py::module_& m) {
                               "is the *weight* of max readings; the range limit is max_range (m). Weights >= 0 sum\n"
                               "to 1; sigma_hit (m), lambda_short (1/m), max_range (m) > 0; beta (rad) in (0, 2 pi]\n"
                               "for a sonar. Maps: BinaryMap2D or OccupancyGrid2D (thresholded at p > 0.5).")
-      .def(py::init([](const std::string& shape, double max_range, double beta, double z_hit, double z_short,
-                       double z_max, double z_rand, double sigma_hit, double lambda_short) {
-             BeamMixture mix{z_hit, z_short, z_max, z_rand, sigma_hit, lambda_short, max_range};
-             return BeamSensorModel(mix, shape_arg(shape), beta);
+      .def(py::init([](StrArg shape, RealArg max_range, RealArg beta, RealArg z_hit, RealArg z_short, RealArg z_max,
+                       RealArg z_rand, RealArg sigma_hit, RealArg lambda_short) {
+             BeamMixture mix{z_hit.get("z_hit"),         z_short.get("z_short"),       z_max.get("z_max"),
+                             z_rand.get("z_rand"),       sigma_hit.get("sigma_hit"),   lambda_short.get("lambda_short"),
+                             max_range.get("max_range")};
+             return BeamSensorModel(mix, shape_arg(shape.get("shape")), beta.get("beta"));
            }),
            py::arg("shape"), py::arg("max_range"), py::arg("beta") = 0.0, py::arg("z_hit") = 0.85,
            py::arg("z_short") = 0.05, py::arg("z_max") = 0.05, py::arg("z_rand") = 0.05, py::arg("sigma_hit") = 0.05,
@@ -245,9 +252,11 @@ void define_forward_model(py::module_& m) {
 
   m.def(
       "map_occupancy_grid_mapping",
-      [](py::handle poses, py::handle scans, py::handle beam_angles, const BeamSensorModel& model,
-         const OccupancyGrid2D& grid, py::handle prior, IntArg max_sweeps_arg, const std::string& scoring,
+      [](py::handle poses, py::handle scans, py::handle beam_angles, ClassArg<BeamSensorModel> model_arg,
+         ClassArg<OccupancyGrid2D> grid_arg, py::handle prior, IntArg max_sweeps_arg, const std::string& scoring,
          std::size_t max_evaluations, bool record_trace, bool sensitivity) {
+        const BeamSensorModel& model = model_arg.get("model");
+        const OccupancyGrid2D& grid = grid_arg.get("grid");
         const int max_sweeps = max_sweeps_arg.get("max_sweeps");
         const Scans s = scans_args(poses, scans, beam_angles);
         MapMappingOptions o;
@@ -304,9 +313,10 @@ void define_forward_model(py::module_& m) {
 
   m.def(
       "map_log_posterior",
-      [](py::handle map, py::handle poses, py::handle scans, py::handle beam_angles, const BeamSensorModel& model,
+      [](py::handle map, py::handle poses, py::handle scans, py::handle beam_angles, ClassArg<BeamSensorModel> model_arg,
          py::handle prior) {
         const BinaryMap2D b = map_arg(map);
+        const BeamSensorModel& model = model_arg.get("model");
         const Scans s = scans_args(poses, scans, beam_angles);
         if (prior.is_none()) throw py::type_error("prior must be given: a number or a (height, width) array");
         const RowMatrixXd p = prior_arg(prior, b.height(), b.width(), 0.5);

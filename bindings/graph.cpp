@@ -308,41 +308,6 @@ void define_graph(py::module_& m) {
                                  num(r.chi2));
       });
 
-  def_optimizer<PoseGraph2D>(m, "supernodal", "amd",
-                              {"Minimises the graph's objective in place from its current values and returns an\n"
-                               "OptimizationReport. Fixed vertices keep their values; with none fixed the first pose is held.\n"
-                               "algorithm: \"gauss-newton\" or \"levenberg-marquardt\" (damping \"marquardt\": D = diag(H), or\n"
-                               "\"levenberg\": D = I); stops after max_iterations, when an iteration lowers the objective by\n"
-                               "less than relative_tolerance of it, or when the largest step entry is below step_tolerance\n"
-                               "(m / rad). kernel: \"none\", \"huber\" or \"cauchy\" with kernel_width in units of sqrt(chi2).\n"
-                               "linear_solver: CHOLMOD \"simplicial\", \"supernodal\" or \"auto\"; ordering: \"amd\" or \"metis\"."
-                               "\ncallback(iteration, chi2), optional: called after each completed iteration (1 for the first)\n"
-                               "with the chi2 after it, on the calling thread; returning False stops there (stop_reason \"stopped\n"
-                               "by the callback\"). An exception it raises (KeyboardInterrupt on Ctrl-C) propagates with the graph\n"
-                               "at the last completed iteration's values. The callback may read the graph (it holds the values\n"
-                               "of the iteration just completed); changing it there raises RuntimeError."
-                               "\nValueError for an empty graph or a part not connected to a fixed vertex.",
-                               "Marginal covariances at the current values, one per id: (3, 3) for a pose (m, m, rad), (2, 2)\n"
-                               "for a point (m), from the sparse inverse of the information matrix; a fixed vertex has zero\n"
-                               "covariance. Returns a list of arrays.",
-                               "Joint marginal covariances at the current values, one per group of vertex ids: the covariance\n"
-                               "of the group's variables stacked in the order given (3 per pose, 2 per point), cross-covariances\n"
-                               "included, from one factorisation (e.g. a landmark pair's (4, 4) for ch. 11.6's correspondence\n"
-                               "test). A fixed vertex's rows and columns are zero. ValueError for an unknown id or a group\n"
-                               "naming a vertex twice. Returns a list of arrays.",
-                               "Incremental batch optimisation: poses join in the order they were added (each composed from\n"
-                               "its first edge to an earlier pose, each point from its first observation), and after every\n"
-                               "poses_per_step poses the part seen so far is optimised with the options of optimize.\n"
-                               "Returns an IncrementalReport."});
-
-  m.def("initialize_odometry",
-        [](PoseGraph2D& graph) {
-          locked(graph, [&] { initialize_odometry(graph); });
-        },
-        py::arg("graph"),
-        "Initial values by composing pose edges outward from the fixed vertices (or the first pose)\n"
-        "along a breadth-first spanning tree; a point is placed by its first edge from a reached pose.\n"
-        "For an odometry chain this is dead reckoning. Unreached vertices keep their values.");
   py::class_<PoseGraphReadReport>(m, "PoseGraphReadReport",
                                   "What read_pose_graph_with_report did with the file's records.")
       .def_readonly("rows", &PoseGraphReadReport::rows,

@@ -1,4 +1,5 @@
-// probslam.PoseGraph3D and the optimiser's, marginals' and initialisers' overloads for it.
+// probslam.PoseGraph3D, its initialisers and readers; the optimiser's and marginals' bindings for both
+// graph types (graph_options.hpp).
 #include <pybind11/eigen.h>
 #include <pybind11/numpy.h>
 #include <pybind11/pybind11.h>
@@ -19,13 +20,6 @@
 namespace probslam::bindings {
 
 namespace {
-
-// The fill ordering a 3-D graph gets by default: nested dissection orders sphere2500 and torus3D
-// with less fill than AMD (torus3D: 1.0e9 flops against 1.35e9 a factorisation; parking-garage a
-// little more, 3e7 against 2.2e7); 2-D graphs keep AMD, faster on every one measured
-// (docs/pose_graphs.md).
-constexpr const char* kLinearSolver = "supernodal";
-constexpr const char* kOrdering = "metis";
 
 // A pose as Python sees it: (7,) [x, y, z, qx, qy, qz, qw], g2o's VERTEX_SE3:QUAT order.
 constexpr int kPoseWidth = 7;
@@ -326,7 +320,8 @@ void define_graph3d(py::module_& m) {
         "(PoseGraph3D, PoseGraphReadReport); FIX records fix vertices, EDGE_SE3_PRIOR records are priors,\n"
         "VERTEX_TRACKXYZ / EDGE_SE3_TRACKXYZ points and point edges.");
   m.def("write_g2o_3d_graph",
-        [](const std::string& path, const PoseGraph3D& graph) {
+        [](const std::string& path, ClassArg<PoseGraph3D> graph_arg) {
+          const PoseGraph3D& graph = graph_arg.get("graph");
           const PoseGraph3DData data = locked(graph, [&] { return pose_graph_3d_data(graph); });
           py::gil_scoped_release release;
           write_g2o_3d(path, data);
@@ -335,30 +330,53 @@ void define_graph3d(py::module_& m) {
         "Writes a PoseGraph3D at its current values as g2o text (VERTEX_SE3:QUAT, VERTEX_TRACKXYZ, FIX,\n"
         "EDGE_SE3:QUAT, PARAMS_SE3OFFSET, EDGE_SE3_PRIOR, EDGE_SE3_TRACKXYZ; 17 significant digits).");
 
-  def_optimizer<PoseGraph3D>(m, kLinearSolver, kOrdering,
-                              {"The same for a PoseGraph3D: options, callback, report and errors as for a PoseGraph2D; the\n"
-                               "step is on the manifold (x (+) [v, w] = (R Exp(w), t + R v)), step_tolerance in m / rad.",
-                               "For a PoseGraph3D: (6, 6) per id in the pose's tangent [translation m in its own frame,\n"
-                               "rotation vector rad] (right perturbation), (3, 3) per point (m, world frame); a fixed vertex\n"
-                               "has zero covariance.",
-                               "For a PoseGraph3D: 6 rows per pose and 3 per point, in the tangent of marginal_covariances.",
-                               "For a PoseGraph3D: poses join in the order they were added, each composed from its first edge\n"
-                               "to an earlier pose; after every poses_per_step poses the graph of the poses so far (their edges\n"
-                               "and priors) is optimised with the options of optimize; each point joins with the earliest pose\n"
-                               "that sees it, placed by that pose's first edge to it. Returns an IncrementalReport."});
-
-  m.def("initialize_odometry", [](PoseGraph3D& graph) { locked(graph, [&] { initialize_odometry(graph); }); },
-        py::arg("graph"),
-        "For a PoseGraph3D: poses composed outward from the fixed vertices (or the first pose) along a\n"
-        "breadth-first spanning tree of the edges; then each free point placed by its first edge from a\n"
-        "reached pose (p = x * offset * z).");
+  // One optimize / marginals / initialize_odometry each for PoseGraph2D and PoseGraph3D (both classes
+  // are defined by now: define_graph runs first).
+  def_optimizers(
+      m, {"Minimises a PoseGraph2D's or PoseGraph3D's objective in place from its current values and returns\n"
+          "an OptimizationReport. Fixed vertices keep their values; with none fixed the first pose is held.\n"
+          "algorithm: \"gauss-newton\" or \"levenberg-marquardt\" (damping \"marquardt\": D = diag(H), or\n"
+          "\"levenberg\": D = I); stops after max_iterations, when an iteration lowers the objective by\n"
+          "less than relative_tolerance of it, or when the largest step entry is below step_tolerance\n"
+          "(m / rad). kernel: \"none\", \"huber\" or \"cauchy\" with kernel_width in units of sqrt(chi2).\n"
+          "linear_solver: CHOLMOD \"simplicial\", \"supernodal\" or \"auto\"; ordering: \"amd\" or \"metis\"\n"
+          "(None: \"amd\" for a PoseGraph2D, \"metis\" for a PoseGraph3D, the faster on the graphs measured).\n"
+          "A 3-D step is on the manifold (x (+) [v, w] = (R Exp(w), t + R v)), step_tolerance in m / rad.\n"
+          "callback(iteration, chi2), optional: called after each completed iteration (1 for the first)\n"
+          "with the chi2 after it, on the calling thread; returning False stops there (stop_reason \"stopped\n"
+          "by the callback\"). An exception it raises (KeyboardInterrupt on Ctrl-C) propagates with the graph\n"
+          "at the last completed iteration's values. The callback may read the graph (it holds the values\n"
+          "of the iteration just completed); changing it there raises RuntimeError.\n"
+          "TypeError naming graph for anything but a PoseGraph2D or PoseGraph3D; ValueError for an empty\n"
+          "graph or a part not connected to a fixed vertex.",
+          "Marginal covariances at the current values, one per id, from the sparse inverse of the\n"
+          "information matrix; a fixed vertex has zero covariance. PoseGraph2D: (3, 3) for a pose (m, m,\n"
+          "rad), (2, 2) for a point (m). PoseGraph3D: (6, 6) per pose in its tangent [translation m in its\n"
+          "own frame, rotation vector rad] (right perturbation), (3, 3) per point (m, world frame).\n"
+          "ordering None as for optimize. Returns a list of arrays.",
+          "Joint marginal covariances at the current values, one per group of vertex ids: the covariance\n"
+          "of the group's variables stacked in the order given (PoseGraph2D: 3 per pose, 2 per point;\n"
+          "PoseGraph3D: 6 per pose and 3 per point, in the tangent of marginal_covariances),\n"
+          "cross-covariances included, from one factorisation (e.g. a landmark pair's (4, 4) for ch.\n"
+          "11.6's correspondence test). A fixed vertex's rows and columns are zero. ValueError for an\n"
+          "unknown id or a group naming a vertex twice. Returns a list of arrays.",
+          "Incremental batch optimisation: poses join in the order they were added (each composed from\n"
+          "its first edge to an earlier pose, each point with the earliest pose that sees it, placed by\n"
+          "that pose's first edge to it), and after every poses_per_step poses the part seen so far (its\n"
+          "edges and priors) is optimised with the options of optimize. Returns an IncrementalReport.",
+          "Initial values by composing pose edges outward from the fixed vertices (or the first pose)\n"
+          "along a breadth-first spanning tree; then each free point is placed by its first edge from a\n"
+          "reached pose (3-D: p = x * offset * z). For an odometry chain this is dead reckoning.\n"
+          "Unreached vertices keep their values. PoseGraph2D or PoseGraph3D."});
 
   m.def("initialize_chordal",
-        [](PoseGraph3D& graph, const std::string& linear_solver, const std::string& ordering) {
-          const SparseCholeskyOptions o = solver_options(linear_solver, ordering);
+        [](ClassArg<PoseGraph3D> graph_arg, StrArg linear_solver, StrArg ordering) {
+          PoseGraph3D& graph = graph_arg.get("graph");
+          const SparseCholeskyOptions o = solver_options(linear_solver.get("linear_solver"), ordering.get("ordering"));
           locked(graph, [&] { initialize_chordal(graph, o); });
         },
-        py::arg("graph"), py::arg("linear_solver") = kLinearSolver, py::arg("ordering") = kOrdering,
+        py::arg("graph"), py::arg("linear_solver") = kGraphLinearSolver,
+        py::arg("ordering") = DefaultOrdering<PoseGraph3D>::value,
         "Chordal initialisation of a PoseGraph3D (Carlone et al. 2015): the rotations from the linear\n"
         "least-squares relaxation of R_to = R_from R_z (each 3x3 then projected onto SO(3)), then the\n"
         "translations by a second linear solve with those rotations; then each free point placed by its\n"

@@ -252,9 +252,17 @@ void define_grid(py::module_& m) {
 
   m.def(
       "fuse_max",
-      [](const std::vector<const Grid*>& grids) {
+      [](py::handle grids_arg) {
+        if (py::isinstance<py::str>(grids_arg) || !PySequence_Check(grids_arg.ptr()))
+          throw py::type_error("grids: expected a sequence of OccupancyGrid2D, got " + type_name_of(grids_arg));
+        const py::sequence seq = py::reinterpret_borrow<py::sequence>(grids_arg);
+        std::vector<py::object> held;  // the grids stay alive while the GIL is released, whatever the sequence does
+        std::vector<const Grid*> grids;
+        for (std::size_t k = 0; k < seq.size(); ++k) {
+          held.emplace_back(seq[k]);
+          grids.push_back(&ClassArg<Grid>{held.back()}.get("grids[" + std::to_string(k) + "]"));
+        }
         require(!grids.empty(), "grids", "must not be empty");
-        for (const Grid* g : grids) require(g != nullptr, "grids", "must not contain None");
         // One grid locked at a time (never two: no lock order to get wrong), the GIL released.
         py::gil_scoped_release release;
         std::optional<Grid> fused;

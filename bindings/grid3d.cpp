@@ -232,18 +232,21 @@ void define_grid3d(py::module_& m) {
           "voxels with centre z in [z_min, z_max] (eq. 9.9); unobserved columns hold 0.")
       .def(
           "write_bt",
-          [](const Grid& g, const std::filesystem::path& path) {
-            return locked(g, [&] { return write_octomap_bt(g, path.string()); });
+          [](const Grid& g, py::handle path_arg) {
+            const std::string path = path_argument(path_arg);
+            return locked(g, [&] { return write_octomap_bt(g, path); });
           },
           py::arg("path"),
           "Writes an OctoMap .bt file (maximum-likelihood: occupied or free per voxel). Returns the\n"
           "number of tree nodes.")
       .def_static(
           "read_bt",
-          [](const std::filesystem::path& path, double p_hit, double p_miss, py::handle clamp, double occupancy_threshold) {
-            const OccupancyParams3D params = params_of(p_hit, p_miss, clamp, occupancy_threshold);
+          [](py::handle path_arg, RealArg p_hit, RealArg p_miss, py::handle clamp, RealArg occupancy_threshold) {
+            const std::string path = path_argument(path_arg);
+            const OccupancyParams3D params = params_of(p_hit.get("p_hit"), p_miss.get("p_miss"), clamp,
+                                                       occupancy_threshold.get("occupancy_threshold"));
             py::gil_scoped_release release;
-            return new Grid(read_octomap_bt(path.string(), params));
+            return new Grid(read_octomap_bt(path, params));
           },
           py::arg("path"), py::arg("p_hit") = d.p_hit, py::arg("p_miss") = d.p_miss,
           py::arg("clamp") = py::make_tuple(d.clamp_min, d.clamp_max), py::arg("occupancy_threshold") = d.occupancy_threshold,

@@ -26,10 +26,12 @@ py::dict log_to_dict(CarmenLog&& log) {
   scans["max_ranges"] = py::cast(std::move(log.scans.max_ranges));
   scans["num_beams"] = py::cast(std::move(log.scans.num_beams));
   scans["timestamps"] = py::cast(std::move(log.scans.timestamps));
+  scans["ipc_timestamps"] = py::cast(std::move(log.scans.ipc_timestamps));
   py::dict odometry;
   odometry["poses"] = py::cast(std::move(log.odometry.poses));
   odometry["velocities"] = py::cast(std::move(log.odometry.velocities));
   odometry["timestamps"] = py::cast(std::move(log.odometry.timestamps));
+  odometry["ipc_timestamps"] = py::cast(std::move(log.odometry.ipc_timestamps));
   py::dict out;
   out["scans"] = scans;
   out["odometry"] = odometry;
@@ -290,7 +292,7 @@ void define_io(py::module_& m) {
       },
       py::arg("path"),
       "Reads a CARMEN log (FLASER, ROBOTLASER1, ODOM, PARAM lines; .gz read transparently).\n"
-      "Returns a dict: scans (ranges (S, B) m, laser_poses and robot_poses (S, 3), start_angles and\nangular_resolutions (S,) rad, max_ranges (S,) m, num_beams (S,), timestamps (S,) s), odometry\n(poses (K, 3), velocities (K, 2) (v m/s, w rad/s), timestamps (K,) s), params\n(PARAM lines, str -> str), skipped_wide_scans, skipped_rows, and the first\nCARMEN_MAX_REPORTED_LINES skipped_lines with their skipped_reasons. probslam.io.read_carmen_log\nwraps it in dataclasses.");
+      "Returns a dict: scans (ranges (S, B) m, laser_poses and robot_poses (S, 3), start_angles and\nangular_resolutions (S,) rad, max_ranges (S,) m, num_beams (S,), timestamps (S,) s: logger time,\nipc_timestamps (S,) s), odometry (poses (K, 3), velocities (K, 2) (v m/s, w rad/s), timestamps and\nipc_timestamps (K,) s), params\n(PARAM lines, str -> str), skipped_wide_scans, skipped_rows, and the first\nCARMEN_MAX_REPORTED_LINES skipped_lines with their skipped_reasons. probslam.io.read_carmen_log\nwraps it in dataclasses.");
   m.def(
       "parse_carmen_log",
       [](const std::string& text, const std::string& source) {  // text: str or bytes
@@ -304,7 +306,7 @@ void define_io(py::module_& m) {
       },
       py::arg("text"), py::arg("source") = "<text>",
       "As read_carmen_log for the log's text (str or bytes); source names it in error messages.\n"
-      "Returns a dict: scans (ranges (S, B) m, laser_poses and robot_poses (S, 3), start_angles and\nangular_resolutions (S,) rad, max_ranges (S,) m, num_beams (S,), timestamps (S,) s), odometry\n(poses (K, 3), velocities (K, 2) (v m/s, w rad/s), timestamps (K,) s), params\n(PARAM lines, str -> str), skipped_wide_scans, skipped_rows, and the first\nCARMEN_MAX_REPORTED_LINES skipped_lines with their skipped_reasons. probslam.io.read_carmen_log\nwraps it in dataclasses.");
+      "Returns a dict: scans (ranges (S, B) m, laser_poses and robot_poses (S, 3), start_angles and\nangular_resolutions (S,) rad, max_ranges (S,) m, num_beams (S,), timestamps (S,) s: logger time,\nipc_timestamps (S,) s), odometry (poses (K, 3), velocities (K, 2) (v m/s, w rad/s), timestamps and\nipc_timestamps (K,) s), params\n(PARAM lines, str -> str), skipped_wide_scans, skipped_rows, and the first\nCARMEN_MAX_REPORTED_LINES skipped_lines with their skipped_reasons. probslam.io.read_carmen_log\nwraps it in dataclasses.");
   m.def(
       "save_ros_map",
       [](const OccupancyGrid2D& grid, const std::string& yaml_path, double occupied_thresh, double free_thresh) {

@@ -6,5 +6,6 @@ result = ps.run_slam(log, progress=False)    # a path, a CarmenLog or LaserScans
 result.poses, result.grid, result.graph      # (S, 3) laser poses, OccupancyGrid2D, PoseGraph2D
 print(f"{len(result.poses)} scans, {result.graph.num_vertices} submaps, "
       f"map {result.grid.width} x {result.grid.height} cells")
-# With a log that has a relations file (ACES: aces.relations), its accuracy:
-# print(ps.eval.relations_error(result.timestamps, result.poses, "aces.relations"))
+# With a log that has a relations file (ACES: aces.relations, stamped with the log's ipc time), its accuracy:
+# print(ps.eval.relations_error(result.timestamps, result.poses,
+#                               ps.eval.relations_on_logger_time("aces.relations", ps.io.read_carmen_log(log).scans)))

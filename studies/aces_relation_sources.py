@@ -63,19 +63,19 @@ def triangle(ms):
     return {"reference": (ro + rl - ol) / 2, "odometry": (ro + ol - rl) / 2, "laser": (rl + ol - ro) / 2}
 
 
-def slam_relations(relations):
-    """run_slam's defaults on the whole log: each relation's relative pose (x, y, theta), (R, 3)."""
-    result = ps.slam.run_slam(ACES / "aces.clf.bz2", progress=False)
-    at = {round(t, 4): k for k, t in enumerate(result.timestamps)}
-    pairs = np.array([(at[round(t1, 4)], at[round(t2, 4)]) for t1, t2, *_ in relations])
+def slam_relations(scans, pairs):
+    """run_slam's defaults on the whole log: the relative pose (x, y, theta) of each pair of scan
+    indices (a pose per scan, in the log's order), (R, 3)."""
+    result = ps.slam.run_slam(scans, progress=False)
+    assert np.array_equal(result.timestamps, scans.timestamps)
     return ps.eval.relative_poses(result.poses[pairs[:, 0]], result.poses[pairs[:, 1]])
 
 
-def slam_table(relations, odo, short, same):
+def slam_table(scans, pairs, relations, odo, short, same):
     """run_slam's error on the short relations whose reference is odometry's (`same`), the other
     short ones and the long ones, beside odometry's relative poses `odo` (R, 3)."""
     expected = relations[:, [2, 3, 7]]
-    slam = slam_relations(relations)
+    slam = slam_relations(scans, pairs)
     parts = {"all": np.ones(len(relations), bool), "short, reference = odometry": short & same,
              "short, reference not odometry": short & ~same, "long": ~short}
     lines = ["| run_slam (defaults) on ACES: mean translational error (m) | " +
@@ -102,7 +102,8 @@ def main() -> int:
         return 0
     scans = ps.io.read_carmen_log(ACES / "aces.clf.bz2").scans
     relations = np.loadtxt(ACES / "aces.relations")
-    index = {round(t, 4): k for k, t in enumerate(scans.timestamps)}
+    # The relations name scans by their ipc time (read_carmen_log's timestamps are the logger's).
+    index = {round(t, 4): k for k, t in enumerate(scans.ipc_timestamps)}
     scan_pairs = np.array([(index[round(t1, 4)], index[round(t2, 4)]) for t1, t2, *_ in relations])
     odo_all = ps.eval.relative_poses(scans.robot_poses[scan_pairs[:, 0]], scans.robot_poses[scan_pairs[:, 1]])
     same_all = np.all(np.abs(relations[:, [2, 3]] - odo_all[:, :2]) < SAME_AS_ODOMETRY, axis=1)
@@ -140,7 +141,7 @@ def main() -> int:
         lines.append(f"Each source's RMS share if the three erred independently (the triangle of squared distances), "
                      f"{name}: " + ", ".join(f"{k} {np.sqrt(max(x, 0.0)):.4f} m" for k, x in shares.items()) + ".")
     if args.slam:
-        lines += ["", slam_table(relations, odo_all, short, same_all)]
+        lines += ["", slam_table(scans, scan_pairs, relations, odo_all, short, same_all)]
     report(lines, record=False)
     return 0
 

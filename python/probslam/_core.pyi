@@ -603,58 +603,35 @@ class IncrementalReport:
     chi2: float
     step_chi2: List[float]
 
-@overload
-def optimize(graph: PoseGraph2D, algorithm: str = "gauss-newton", max_iterations: int = 100,
+def optimize(graph: Union[PoseGraph2D, PoseGraph3D], algorithm: str = "gauss-newton", max_iterations: int = 100,
              relative_tolerance: float = 1e-10, step_tolerance: float = 1e-10, kernel: str = "none",
-             kernel_width: float = 1.0, linear_solver: str = "supernodal", ordering: str = "amd",
+             kernel_width: float = 1.0, linear_solver: str = "supernodal", ordering: Optional[str] = None,
              damping: str = "marquardt",
              callback: Optional[Callable[[int, float], Optional[bool]]] = None) -> OptimizationReport:
     """In place from the current values; algorithm "gauss-newton" / "levenberg-marquardt", kernel
     "none" / "huber" / "cauchy", linear_solver "supernodal" / "simplicial" / "auto", ordering
-    "amd" / "metis", damping "marquardt" / "levenberg". callback(iteration, chi2) after each
-    completed iteration: False stops; an exception it raises leaves the graph at the last completed
-    iteration."""
-@overload
-def optimize(graph: PoseGraph3D, algorithm: str = "gauss-newton", max_iterations: int = 100,
-             relative_tolerance: float = 1e-10, step_tolerance: float = 1e-10, kernel: str = "none",
-             kernel_width: float = 1.0, linear_solver: str = "supernodal", ordering: str = "metis",
-             damping: str = "marquardt",
-             callback: Optional[Callable[[int, float], Optional[bool]]] = None) -> OptimizationReport:
-    """The same for a 3-D graph; the step is x (+) [v, w] = (R Exp(w), t + R v)."""
-@overload
-def optimize_incremental(graph: PoseGraph2D, poses_per_step: int = 100, algorithm: str = "gauss-newton",
-                         max_iterations: int = 10, relative_tolerance: float = 1e-6, step_tolerance: float = 1e-10,
-                         kernel: str = "none", kernel_width: float = 1.0, linear_solver: str = "supernodal",
-                         ordering: str = "amd", damping: str = "marquardt") -> IncrementalReport: ...
-@overload
-def optimize_incremental(graph: PoseGraph3D, poses_per_step: int = 100, algorithm: str = "gauss-newton",
-                         max_iterations: int = 10, relative_tolerance: float = 1e-6, step_tolerance: float = 1e-10,
-                         kernel: str = "none", kernel_width: float = 1.0, linear_solver: str = "supernodal",
-                         ordering: str = "metis", damping: str = "marquardt") -> IncrementalReport:
+    "amd" / "metis" (None: "amd" for 2-D, "metis" for 3-D), damping "marquardt" / "levenberg".
+    callback(iteration, chi2) after each completed iteration: False stops; an exception it raises
+    leaves the graph at the last completed iteration. A 3-D step is x (+) [v, w] = (R Exp(w), t + R v).
+    TypeError naming graph for any other type."""
+def optimize_incremental(graph: Union[PoseGraph2D, PoseGraph3D], poses_per_step: int = 100,
+                         algorithm: str = "gauss-newton", max_iterations: int = 10, relative_tolerance: float = 1e-6,
+                         step_tolerance: float = 1e-10, kernel: str = "none", kernel_width: float = 1.0,
+                         linear_solver: str = "supernodal", ordering: Optional[str] = None,
+                         damping: str = "marquardt") -> IncrementalReport:
     """Poses join in the order added; the graph so far is optimised every poses_per_step poses."""
-@overload
-def initialize_odometry(graph: PoseGraph2D) -> None:
+def initialize_odometry(graph: Union[PoseGraph2D, PoseGraph3D]) -> None:
     """Composes pose edges outward along a breadth-first spanning tree (dead reckoning)."""
-@overload
-def initialize_odometry(graph: PoseGraph3D) -> None: ...
 def initialize_chordal(graph: PoseGraph3D, linear_solver: str = "supernodal", ordering: str = "metis") -> None:
     """Rotations by the chordal relaxation (projected onto SO(3)), then translations: exact without noise."""
-@overload
-def marginal_covariances(graph: PoseGraph2D, ids: Sequence[int], linear_solver: str = "supernodal",
-                         ordering: str = "amd") -> List[Array]:
-    """(3, 3) per pose id, (2, 2) per point id; zero for a fixed vertex."""
-@overload
-def marginal_covariances(graph: PoseGraph3D, ids: Sequence[int], linear_solver: str = "supernodal",
-                         ordering: str = "metis") -> List[Array]:
-    """(6, 6) per pose id in its tangent [translation, rotation vector]; zero for a fixed vertex."""
-@overload
-def joint_marginal_covariances(graph: PoseGraph2D, groups: Sequence[Sequence[int]], linear_solver: str = "supernodal",
-                               ordering: str = "amd") -> List[Array]:
-    """Per group, the joint covariance of its vertices stacked in order (3 per pose, 2 per point),
-    cross-covariances included; zero rows and columns for a fixed vertex."""
-@overload
-def joint_marginal_covariances(graph: PoseGraph3D, groups: Sequence[Sequence[int]], linear_solver: str = "supernodal",
-                               ordering: str = "metis") -> List[Array]: ...
+def marginal_covariances(graph: Union[PoseGraph2D, PoseGraph3D], ids: Sequence[int],
+                         linear_solver: str = "supernodal", ordering: Optional[str] = None) -> List[Array]:
+    """2-D: (3, 3) per pose id, (2, 2) per point id; 3-D: (6, 6) per pose id in its tangent
+    [translation, rotation vector], (3, 3) per point; zero for a fixed vertex."""
+def joint_marginal_covariances(graph: Union[PoseGraph2D, PoseGraph3D], groups: Sequence[Sequence[int]],
+                               linear_solver: str = "supernodal", ordering: Optional[str] = None) -> List[Array]:
+    """Per group, the joint covariance of its vertices stacked in order (2-D: 3 per pose, 2 per
+    point; 3-D: 6 and 3), cross-covariances included; zero rows and columns for a fixed vertex."""
 class PoseGraphReadReport:
     """What read_pose_graph_with_report did with the file's records."""
     rows: int  # records read, skipped ones included

@@ -1302,17 +1302,90 @@ def _is_carmen_log(path: str, ref_format: str) -> bool:
 
 def _carmen_reference(path: str, est: io.Trajectory, max_time_difference: float) -> io.Trajectory:
     """A CARMEN log with corrected poses (e.g. intel-corrected.log.gz) as eval's reference: the
-    laser poses at its scans' times, the poses the commands write for a log. UserError when its
-    times do not overlap the estimate's: the corrected Intel and FR079 logs carry their raw
-    logs' logger time, not the ipc time the commands write."""
+    laser poses at its scans' times, the poses the commands write for a log. Both are on the raw
+    log's logger time (each line's last field), which the corrected Intel and FR079 logs carry and
+    the commands write. UserError when its times do not overlap the estimate's (an estimate on
+    another clock, such as the ipc time, or of another log)."""
     scans = _read_log(path).scans
     t, te = scans.timestamps, est.timestamps
     if te.max() < t.min() - max_time_difference or te.min() > t.max() + max_time_difference:
         raise UserError(f"{path}: its scans' times [{t.min():.9g}, {t.max():.9g}] s do not overlap the estimate's "
                         f"[{te.min():.9g}, {te.max():.9g}] s: a corrected log (Intel's, FR079's) is stamped with its "
-                        "raw log's logger time (each line's last field), not the ipc time the commands write")
+                        "raw log's logger time (each line's last field), as the commands write a log's poses; "
+                        "the estimate is on another clock (the ipc time?) or of another log")
     print(f"{'reference:':<15}{path}: {len(scans)} poses (CARMEN log: the laser poses of its scans)")
     return io.Trajectory(t, scans.laser_poses, "carmen")
+
+
+#: How far apart (s) a relation's time and an estimate's may be and still be the same scan's: the
+#: logs and relations files write times to the microsecond.
+SAME_SCAN_TIME = 1e-6
+#: Relation times every candidate clock offset is tried on before all of them are checked, and
+#: candidates tried at once (bounds the work and memory of the search to ~8 MB).
+OFFSET_PROBES = 20
+OFFSET_CHUNK = 50_000
+
+
+def _on_times(times, stamps):
+    """Which stamps are one of the sorted times (within SAME_SCAN_TIME)."""
+    import numpy as np
+
+    at = np.searchsorted(times, stamps)
+    gap = np.minimum(np.abs(times[np.minimum(at, len(times) - 1)] - stamps),
+                     np.abs(times[np.maximum(at - 1, 0)] - stamps))
+    return gap <= SAME_SCAN_TIME
+
+
+def _clock_offset(times, stamps) -> Optional[float]:
+    """The one constant c for which every stamp - c is one of the sorted times (0 when they are
+    already); None when no c or more than one does. The Freiburg relations name scans by their
+    ipc time, `slam` stamps them with the logger time, and in the benchmark logs the two clocks
+    differ by a constant (ACES 70.1797 s, Intel 976052857.337284 s)."""
+    import numpy as np
+
+    if np.all(_on_times(times, stamps)):
+        return 0.0
+    probes = stamps[np.linspace(0, len(stamps) - 1, min(OFFSET_PROBES, len(stamps))).astype(int)]
+    found = []
+    for start in range(0, len(times), OFFSET_CHUNK):
+        candidates = probes[0] - times[start:start + OFFSET_CHUNK]
+        fit = _on_times(times, (probes[None, :] - candidates[:, None]).ravel()).reshape(len(candidates), -1)
+        found.extend(candidates[fit.all(axis=1)])
+    distinct = np.unique(np.round(np.array(found) / SAME_SCAN_TIME)) if found else []
+    if len(distinct) != 1 or not np.all(_on_times(times, stamps - found[0])):
+        return None
+    return float(found[0])
+
+
+def _relations_on_the_estimates_clock(args: argparse.Namespace, relations, est: io.Trajectory):
+    """The relations on the estimate's clock. The Freiburg files are stamped with the raw log's
+    ipc time, the commands write its logger time: with --log, each relation time is moved onto
+    the logger time of the scan it names; without, by the one constant offset that makes every
+    relation time a time of the estimate when there is one, else left as they are with a note
+    when none of them is a time of the estimate."""
+    import dataclasses
+
+    import numpy as np
+
+    if args.log is not None:
+        scans = _read_log(args.log).scans
+        with _reading(args.log, CARMEN_LOG, {"scans": args.log}):
+            moved = evaluation.relations_on_logger_time(relations, scans)
+        shift = float(np.median(relations.t1 - moved.t1))
+        print(f"{'relations:':<15}times moved from {args.log}'s ipc time to its logger time ({shift:.6f} s earlier)")
+        return moved
+    times = np.sort(est.timestamps)
+    stamps = np.concatenate([relations.t1, relations.t2])
+    offset = _clock_offset(times, stamps)
+    if offset:
+        print(f"{'relations:':<15}times moved {offset:.6f} s earlier, onto the estimate's clock (each is then a time "
+              "of the estimate: the relations are stamped with the raw log's ipc time, 'slam' writes its logger time)")
+        return dataclasses.replace(relations, t1=relations.t1 - offset, t2=relations.t2 - offset)
+    if offset is None and not np.any(_on_times(times, stamps)):
+        print(f"probslam: note: none of {args.reference}'s times is a time of {args.estimate}: a Freiburg relations file "
+              "is stamped with its raw log's ipc time, while 'slam' writes the log's logger time; give that log with "
+              "--log (e.g. --log aces.clf.bz2)", file=sys.stderr)
+    return relations
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
@@ -1334,6 +1407,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         _check_input(args.reference, RELATIONS_FILE)
         with _reading(args.reference, RELATIONS_FILE):
             relations = evaluation.read_relations(args.reference)
+        relations = _relations_on_the_estimates_clock(args, relations, est)
         # Errors of the estimate against the relations: named by the files, no format to expect.
         with _reading(args.estimate, TRAJECTORY_FILE, {"timestamps": args.estimate, "poses": args.estimate,
                                                        "relations": "relations"}):
@@ -1346,6 +1420,7 @@ def _cmd_eval(args: argparse.Namespace) -> int:
         print(evaluation.statistics_table("relations error w.r.t. rotation angle in degrees (deg)",
                                           evaluation.error_statistics(np.degrees(error.rotational))), end="")
         return 0
+    _refuse_given(args, ("log",), "applies to a relations file (the raw log whose ipc time stamps it)")
     if _is_carmen_log(args.reference, args.reference_format):
         ref = _carmen_reference(args.reference, est, args.max_time_difference)
     elif args.reference_format == "auto" and _is_positions(args.reference):
@@ -1627,6 +1702,10 @@ def build_parser() -> argparse.ArgumentParser:
     ev.add_argument("--align", action=argparse.BooleanOptionalAction, default=None,
                     help="move the estimate onto the reference by the best rotation and translation (Umeyama "
                          "without scale) first; default: aligned for the absolute error, not for --rpe (as evo)")
+    ev.add_argument("--log", metavar="LOG", default=None,
+                    help="with a relations file: the raw CARMEN log the estimate was made from (e.g. aces.clf.bz2); "
+                         "relations are stamped with its ipc time, the commands write its logger time, so each "
+                         "relation time is moved onto the logger time")
     ev.add_argument("--max-time-difference", type=float, default=0.01,
                     help="poses are paired with the nearest reference pose at most this far in time, s (default "
                          "0.01, evo's)")

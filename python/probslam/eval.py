@@ -24,6 +24,7 @@ import numpy as np
 from ._args import distinct_numbers, positive_real, real_array, require_fields, require_instance
 from ._core import wrap_angle
 from .io._files import MAX_REPORTED_LINES, file_path, numeric_rows, require_regular_file
+from .io.carmen import LaserScans
 from .io.landmark_datasets import Mrclam
 
 PathLike = Union[str, "os.PathLike[str]"]
@@ -206,6 +207,39 @@ def read_relations(path: PathLike) -> Relations:
     table = read.table
     return Relations(table[:, 0].copy(), table[:, 1].copy(), table[:, [2, 3, 7]].copy(), read.skipped,
                      read.skipped_lines)
+
+
+def relations_on_logger_time(relations: Union[Relations, PathLike], scans: LaserScans) -> Relations:
+    """The relations with t1, t2 moved from the raw log's ipc time onto its logger time.
+
+    The Freiburg relations files are stamped with the ipc time of the raw log's scans (every
+    ``aces.relations`` time is a FLASER ipc stamp of ``aces.clf``), while ``read_carmen_log``,
+    ``run_slam`` and ``probslam slam`` give the logger time (the clock the corrected Radish logs
+    carry). scans: the raw log's ``LaserScans`` (``read_carmen_log(...).scans``); each relation
+    time t becomes t - (ipc - logger) of the scan whose ipc stamp is nearest to t (the two clocks
+    differ by a constant in the benchmark logs: ACES 70.1797 s, Intel 976052857.337284 s).
+    ValueError naming ``scans`` when they have no ipc time (a ROS bag, a simulation).
+    """
+    if not isinstance(relations, Relations):
+        relations = read_relations(file_path(relations, "relations", "a Relations or the path of a relations file"))
+    require_instance(scans, LaserScans, "scans")
+    ipc = real_array(scans.ipc_timestamps, "scans.ipc_timestamps", (None,), finite=False)
+    logger = real_array(scans.timestamps, "scans.timestamps", (ipc.shape[0],), finite=False)
+    known = np.isfinite(ipc) & np.isfinite(logger)
+    if not np.any(known):
+        raise ValueError("scans: no scan has both an ipc and a logger time (relations are stamped with a raw "
+                         "CARMEN log's ipc time; read that log with read_carmen_log)")
+    order = np.argsort(ipc[known], kind="stable")
+    ipc_sorted, offset = ipc[known][order], (ipc - logger)[known][order]
+
+    def moved(t: np.ndarray) -> np.ndarray:
+        at = np.searchsorted(ipc_sorted, t)
+        below, above = np.clip(at - 1, 0, len(ipc_sorted) - 1), np.clip(at, 0, len(ipc_sorted) - 1)
+        nearest = np.where(np.abs(t - ipc_sorted[below]) <= np.abs(ipc_sorted[above] - t), below, above)
+        return t - offset[nearest]
+
+    t1, t2, delta = _checked_relations(relations)
+    return Relations(moved(t1), moved(t2), delta.copy(), relations.skipped_rows, list(relations.skipped_lines))
 
 
 # --------------------------------------------------------------------------------------------
@@ -918,6 +952,7 @@ __all__ = [
     "position_error",
     "primary_landmarks",
     "read_relations",
+    "relations_on_logger_time",
     "relations_error",
     "relative_poses",
     "rmse",

@@ -236,6 +236,10 @@ def _check_resume(run: SlamRun, scans: LaserScans, source: str) -> None:
     t = scans.timestamps
     n = run.scans_done
     same = len(scans) >= n and t[0] == run.first_timestamp and t[n - 1] == run.last_timestamp
+    ipc = scans.ipc_timestamps
+    if not same and len(scans) >= n and ipc[0] == run.first_timestamp and ipc[n - 1] == run.last_timestamp:
+        raise ValueError(f"{source}: the run was saved when CARMEN scans were timed by their ipc stamp; they are "
+                         "timed by their logger stamp now, and a resumed run would mix the two clocks: run it again")
     if not same:
         got = f"{len(scans)} scans from t={t[0]:.6f}" if len(scans) else "no scans"
         raise ValueError(f"{source}: the saved run processed {n} scans of a log of {run.log_scans} scans from "

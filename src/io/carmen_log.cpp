@@ -41,15 +41,33 @@ bool is_message_name(std::string_view token) {
   });
 }
 
+/// A record's times from its trailer `ipc_timestamp ipc_hostname logger_timestamp`, read from
+/// the end of the line when the record has its own `fields` and the three after them (older
+/// ROBOTLASER1 lines omit some of their own trailing fields). The record's time is the logger
+/// stamp: the clock of every record of the log (the corrected Radish logs carry it, their ipc
+/// stamps copied from it), where the ipc stamp is the sending host's; a record that ends before
+/// the logger stamp keeps its ipc stamp (NaN both when it has neither).
+struct Stamps {
+  double time, ipc;
+};
+Stamps record_stamps(const Fields& f, std::size_t fields) {
+  if (f.size() >= fields + 3) return {f.number(f.size() - 1), f.number(f.size() - 3)};
+  const double ipc = f.optional_number(fields);
+  return {ipc, ipc};
+}
+
 struct ScanRow {
   std::vector<double> ranges;
   double laser[3], robot[3];
-  double start, step, max_range, stamp;
+  double start, step, max_range;
+  Stamps stamps;
 };
+
+constexpr int kOdomWidth = 7;  // an ODOM row: x y theta tv rv time ipc_time
 
 struct Builder {
   std::vector<ScanRow> scans;
-  std::vector<double> odom;  // x y theta tv rv t
+  std::vector<double> odom;  // x y theta tv rv t ipc_t
   std::map<std::string, std::string> params;
   std::size_t skipped_rows = 0;
   std::vector<SkippedLine> skipped_lines;
@@ -87,7 +105,7 @@ struct Builder {
     s.step = flaser_step(n);
     s.start = -s.step * ((n % 2 == 0) ? n : n - 1) / 2.0;
     s.max_range = kNaN;
-    s.stamp = f.optional_number(2 + n + 6);
+    s.stamps = record_stamps(f, 2 + n + 6);
     scans.push_back(std::move(s));
   }
 
@@ -109,17 +127,19 @@ struct Builder {
     s.start = f.number(2);
     s.step = f.number(4);
     s.max_range = f.number(5);
-    s.stamp = f.optional_number(pose_at + 11);
+    s.stamps = record_stamps(f, pose_at + 6);
     scans.push_back(std::move(s));
   }
 
   // ODOM x y theta tv rv accel [ipc_ts host logger_ts]
   void odometry(const Fields& f) {
     f.need(7, "pose, velocities and acceleration");
-    double row[6];  // parsed whole before it is kept: a bad field skips the line, not half of it
+    double row[kOdomWidth];  // parsed whole before it is kept: a bad field skips the line, not half of it
     for (int k = 1; k <= 5; ++k) row[k - 1] = f.number(k);
-    row[5] = f.optional_number(7);
-    odom.insert(odom.end(), row, row + 6);
+    const Stamps stamps = record_stamps(f, 7);
+    row[5] = stamps.time;
+    row[6] = stamps.ipc;
+    odom.insert(odom.end(), row, row + kOdomWidth);
   }
 
   /// The widest scan width whose padded matrix stays within the bound above.
@@ -159,6 +179,7 @@ struct Builder {
     out.max_ranges.resize(s_count);
     out.num_beams.resize(s_count);
     out.timestamps.resize(s_count);
+    out.ipc_timestamps.resize(s_count);
     for (Eigen::Index i = 0; i < s_count; ++i) {
       const ScanRow& s = scans[i];
       for (std::size_t b = 0; b < s.ranges.size(); ++b) out.ranges(i, b) = s.ranges[b];
@@ -170,17 +191,20 @@ struct Builder {
       out.angular_resolutions[i] = s.step;
       out.max_ranges[i] = s.max_range;
       out.num_beams[i] = static_cast<int>(s.ranges.size());
-      out.timestamps[i] = s.stamp;
+      out.timestamps[i] = s.stamps.time;
+      out.ipc_timestamps[i] = s.stamps.ipc;
     }
-    const Eigen::Index m = static_cast<Eigen::Index>(odom.size() / 6);
+    const Eigen::Index m = static_cast<Eigen::Index>(odom.size() / kOdomWidth);
     log.odometry.poses.resize(m, 3);
     log.odometry.velocities.resize(m, 2);
     log.odometry.timestamps.resize(m);
+    log.odometry.ipc_timestamps.resize(m);
     for (Eigen::Index i = 0; i < m; ++i) {
-      const double* o = &odom[6 * i];
+      const double* o = &odom[kOdomWidth * i];
       log.odometry.poses.row(i) << o[0], o[1], o[2];
       log.odometry.velocities.row(i) << o[3], o[4];
       log.odometry.timestamps[i] = o[5];
+      log.odometry.ipc_timestamps[i] = o[6];
     }
     return log;
   }

@@ -61,6 +61,34 @@ TEST(CarmenLog, ParsesMessagesAndAngles) {
   EXPECT_EQ(log.params.at("laser_front_laser_resolution"), "1.0");
 }
 
+TEST(CarmenLog, EveryRecordIsTimedByItsLoggerStamp) {
+  // Issue 49: the ipc stamp (the sender's clock, here 1000 s ahead) was the scans' time, while
+  // the corrected Radish logs carry the logger stamp; a slam run's poses and the corrected log
+  // shared no clock. A RAWLASER1 record (no pose) and a short ROBOTLASER1 trailer included.
+  std::istringstream text(
+      "ODOM 1 2 0.5 0.3 0.1 0 1010.5 host 10.5\n"
+      "FLASER 2 1.0 2.0 0.1 0.2 0.3 1.1 1.2 1.3 1011.25 host 11.25\n"
+      "RAWLASER1 0 -1.5 3.0 1.0 80.0 0.01 0 2 5.0 6.0 0 1011.5 host 11.5\n"
+      "ROBOTLASER1 0 -1.5 3.0 1.0 80.0 0.01 0 2 5.0 6.0 0 0.5 0.6 0.7 0.4 0.5 0.6 0 0 0 0 0 1012.0 host 12.0\n"
+      "ROBOTLASER1 0 -1.5 3.0 1.0 80.0 0.01 0 2 5.0 6.0 0 0.5 0.6 0.7 0.4 0.5 0.6 1013.0 host 13.0\n"
+      "FLASER 2 1.0 2.0 0.1 0.2 0.3 1.1 1.2 1.3 1014.0\n"  // no logger stamp: the ipc one
+      "FLASER 2 1.0 2.0 0.1 0.2 0.3 1.1 1.2 1.3\n");       // no stamp at all
+  const CarmenLog log = parse_carmen_log(text, "t.log");
+  ASSERT_EQ(log.scans.timestamps.size(), 5);
+  EXPECT_EQ(log.scans.timestamps[0], 11.25);
+  EXPECT_EQ(log.scans.ipc_timestamps[0], 1011.25);
+  EXPECT_EQ(log.scans.timestamps[1], 12.0);
+  EXPECT_EQ(log.scans.ipc_timestamps[1], 1012.0);
+  EXPECT_EQ(log.scans.timestamps[2], 13.0);  // older ROBOTLASER1: fewer fields, trailer read from the end
+  EXPECT_EQ(log.scans.ipc_timestamps[2], 1013.0);
+  EXPECT_EQ(log.scans.timestamps[3], 1014.0);
+  EXPECT_TRUE(std::isnan(log.scans.timestamps[4]) && std::isnan(log.scans.ipc_timestamps[4]));
+  ASSERT_EQ(log.odometry.timestamps.size(), 1);
+  EXPECT_EQ(log.odometry.timestamps[0], 10.5);
+  EXPECT_EQ(log.odometry.ipc_timestamps[0], 1010.5);
+  EXPECT_EQ(log.skipped_rows, 0u);
+}
+
 TEST(CarmenLog, FlaserDefaultStepRule) {
   std::istringstream text("FLASER 181 " + [] { std::string s; for (int i = 0; i < 181; ++i) s += "1 "; return s; }() +
                           "0 0 0 0 0 0\n");

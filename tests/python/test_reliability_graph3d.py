@@ -164,3 +164,86 @@ def test_bad_arguments_are_named_in_one_line(dim, call, name):
     assert "\n" not in str(caught.value) and "incompatible function arguments" not in str(caught.value)
     after = graph3d_state(g) if dim == 3 else policy.state_of(g, "poses", "points", "edge_ids")
     assert policy.same_state(before, after)
+
+
+# ---------------------------------------------------------------- a graph of the wrong type
+
+#: The functions that take a PoseGraph2D or a PoseGraph3D, with the arguments after the graph.
+EITHER_GRAPH = [
+    (probslam.optimize, {}),
+    (probslam.optimize, {"algorithm": "levenberg-marquardt", "callback": lambda i, chi2: True}),
+    (probslam.optimize_incremental, {"poses_per_step": 2}),
+    (probslam.marginal_covariances, {"ids": [0]}),
+    (probslam.marginal_covariances, {"ids": [0], "linear_solver": "simplicial", "ordering": "amd"}),
+    (probslam.joint_marginal_covariances, {"groups": [[0, 1]]}),
+    (probslam.initialize_odometry, {}),
+]
+#: Objects that are no pose graph: an int, None, an array, a path, another probslam class.
+NOT_GRAPHS = [3, None, np.zeros((3, 3)), "graph.g2o", probslam.Pose2()]
+
+
+@pytest.mark.parametrize("function, options", EITHER_GRAPH)
+@pytest.mark.parametrize("wrong", NOT_GRAPHS, ids=lambda w: type(w).__name__)
+def test_a_wrong_graph_is_a_type_error_naming_graph(function, options, wrong):
+    # Issue 48: a typed overload per graph class answered with pybind11's list of signatures.
+    positional = list(options.values())[:1] if function in (probslam.marginal_covariances,
+                                                             probslam.joint_marginal_covariances) else []
+    rest = dict(list(options.items())[len(positional):])
+    for call in (lambda: function(wrong, *positional, **rest), lambda: function(graph=wrong, **options)):
+        with pytest.raises(TypeError, match=r"^graph: expected a PoseGraph2D or PoseGraph3D, got ") as caught:
+            call()
+        assert type(wrong).__name__ in str(caught.value) and "\n" not in str(caught.value)
+
+
+@pytest.mark.parametrize("call", [lambda g, tmp: probslam._core.initialize_chordal(g),
+                                  lambda g, tmp: probslam._core.write_g2o_3d_graph(str(tmp / "g.g2o"), g)])
+@pytest.mark.parametrize("wrong", NOT_GRAPHS + [graph2d()], ids=lambda w: type(w).__name__)
+def test_a_3d_only_call_names_graph_for_anything_else(call, wrong, tmp_path):
+    with pytest.raises(TypeError, match=r"^graph: expected a PoseGraph3D, got " + type(wrong).__name__) as caught:
+        call(wrong, tmp_path)
+    assert "\n" not in str(caught.value)
+    assert not (tmp_path / "g.g2o").exists()
+
+
+def grid_graph(dim, n=10):
+    """An n x n grid of poses with an edge to each right and upper neighbour: big enough that the
+    fill of the Cholesky factor shows which ordering ran (AMD and METIS differ by tens of entries)."""
+    rng = np.random.default_rng(0)
+    g = probslam.PoseGraph2D() if dim == 2 else probslam.PoseGraph3D()
+    still = [] if dim == 2 else [0.0, 0.0, 0.0, 1.0]
+    for i in range(n * n):
+        x, y = i % n + 0.1 * rng.normal(), i // n + 0.1 * rng.normal()
+        g.add_pose(i, [x, y, 0.0] + still if dim == 3 else [x, y, 0.1 * rng.normal()])
+    info = np.eye(3 if dim == 2 else 6)
+    for i in range(n * n):
+        if i % n < n - 1:
+            g.add_pose_edge(i, i + 1, [1.0, 0.0, 0.0] + still, info)
+        if i // n < n - 1:
+            g.add_pose_edge(i, i + n, [0.0, 1.0, 0.0] + still, info)
+    return g
+
+
+@pytest.mark.parametrize("dim, default, other", [(2, "amd", "metis"), (3, "metis", "amd")])
+def test_one_binding_per_function_keeps_each_graph_types_results_and_defaults(dim, default, other):
+    """ordering None (the default) is AMD for a 2-D graph and METIS for a 3-D one, as the typed
+    overloads had it: the same factor fill and values as naming it, another fill than the other
+    ordering; keywords, positional options and the callback reach the graph's own optimiser."""
+    runs = {}
+    for ordering in (None, default, other):
+        g = grid_graph(dim)
+        seen = []
+        options = {} if ordering is None else {"ordering": ordering}
+        report = probslam.optimize(g, "gauss-newton", 20, callback=lambda i, chi2: seen.append((i, chi2)), **options)
+        assert [i for i, _ in seen] == list(range(1, report.iterations + 1)) and seen[-1][1] == report.chi2
+        runs[ordering] = (report.factor_nonzeros, g.poses)
+    assert runs[None][0] == runs[default][0] != runs[other][0]
+    np.testing.assert_array_equal(runs[None][1], runs[default][1])
+    g = grid_graph(dim)
+    covariances = probslam.marginal_covariances(g, [0, 55])
+    width = 3 if dim == 2 else 6
+    assert [c.shape for c in covariances] == [(width, width)] * 2
+    np.testing.assert_array_equal(covariances[1], probslam.marginal_covariances(g, [55], ordering=default)[0])
+    joint = probslam.joint_marginal_covariances(graph=g, groups=[[0, 55]])[0]
+    np.testing.assert_allclose(joint[width:, width:], covariances[1], rtol=1e-9, atol=1e-12)
+    report = probslam.optimize_incremental(g, poses_per_step=25, max_iterations=3)
+    assert report.steps == 4

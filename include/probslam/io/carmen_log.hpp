@@ -23,13 +23,15 @@ struct LaserScans {
   Eigen::VectorXd angular_resolutions;  // (S,) rad between beams
   Eigen::VectorXd max_ranges;           // (S,) sensor maximum, NaN where the log does not say
   Eigen::VectorXi num_beams;            // (S,)
-  Eigen::VectorXd timestamps;           // (S,) ipc timestamp, NaN where absent
+  Eigen::VectorXd timestamps;           // (S,) logger timestamp (see CarmenLog), NaN where absent
+  Eigen::VectorXd ipc_timestamps;       // (S,) ipc timestamp, NaN where absent
 };
 
 struct Odometry {
   Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> poses;  // (M, 3)
   Eigen::Matrix<double, Eigen::Dynamic, 2, Eigen::RowMajor> velocities;  // (M, 2): tv m/s, rv rad/s
-  Eigen::VectorXd timestamps;  // (M,)
+  Eigen::VectorXd timestamps;      // (M,) logger timestamp, as LaserScans
+  Eigen::VectorXd ipc_timestamps;  // (M,) ipc timestamp
 };
 
 /// How many skipped lines a CarmenLog lists (all are counted); as eval.MAX_REPORTED_LINES.
@@ -54,7 +56,13 @@ struct CarmenLog {
 /// Fatal: a log with no valid scan at all (std::invalid_argument "source: no laser scan ...",
 /// with the number of lines skipped and the first of them as "source:LINE: reason"), and a read
 /// error (std::runtime_error).
-/// Other message types are ignored. FLASER beams start at -90 degrees and step by
+/// Times: every record ends `ipc_timestamp ipc_hostname logger_timestamp`; a record's time
+/// (`timestamps`) is the logger stamp, the one clock of the whole log (monotone from the start of
+/// logging; the corrected Radish logs carry their raw log's logger stamps), read from the end of
+/// the line. The ipc stamp (the sending host's clock, which the Freiburg relations files use) is
+/// kept in `ipc_timestamps`; a record that ends before its logger stamp has its ipc stamp as its
+/// time, and NaN for both when it has no stamp.
+/// Other message types are ignored (RAWLASER1 too: it carries no pose). FLASER beams start at -90 degrees and step by
 /// PARAM laser_front_laser_resolution (degrees) when the log gives it, else by 180 degrees /
 /// n for even n and 180 degrees / (n - 1) for odd n (so 181 and 361 beams include both ends).
 CarmenLog parse_carmen_log(std::istream& in, const std::string& source = "<stream>");

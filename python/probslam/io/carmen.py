@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 import warnings
 from dataclasses import dataclass, field
-from typing import Dict, List, Union
+from typing import Dict, List, Optional, Union
 
 import numpy as np
 
@@ -25,7 +25,10 @@ class LaserScans:
     ranges: (S, B) metres, NaN-padded; laser_poses / robot_poses: (S, 3) ``(x, y, theta)``;
     start_angles, angular_resolutions: (S,) radians relative to the laser heading;
     max_ranges: (S,) metres (NaN where the log does not say); num_beams: (S,);
-    timestamps: (S,) seconds (ipc timestamp).
+    timestamps: (S,) seconds, the log's logger time (each CARMEN record's last field: one clock
+    from the start of logging, the one the corrected Radish logs carry);
+    ipc_timestamps: (S,) seconds, the ipc time (the sending host's clock, the one the Freiburg
+    relations files use), NaN where the source has none (a ROS bag, a simulation).
     """
 
     ranges: np.ndarray
@@ -36,6 +39,11 @@ class LaserScans:
     max_ranges: np.ndarray
     num_beams: np.ndarray
     timestamps: np.ndarray
+    ipc_timestamps: Optional[np.ndarray] = None
+
+    def __post_init__(self) -> None:
+        if self.ipc_timestamps is None:
+            self.ipc_timestamps = np.full(np.shape(self.timestamps), np.nan)
 
     def __len__(self) -> int:
         return int(self.ranges.shape[0])
@@ -48,11 +56,17 @@ class LaserScans:
 
 @dataclass
 class Odometry:
-    """ODOM messages: poses (M, 3), velocities (M, 2) ``(tv m/s, rv rad/s)``, timestamps (M,)."""
+    """ODOM messages: poses (M, 3), velocities (M, 2) ``(tv m/s, rv rad/s)``, timestamps (M,)
+    (logger time, as LaserScans), ipc_timestamps (M,) (NaN where the source has none)."""
 
     poses: np.ndarray
     velocities: np.ndarray
     timestamps: np.ndarray
+    ipc_timestamps: Optional[np.ndarray] = None
+
+    def __post_init__(self) -> None:
+        if self.ipc_timestamps is None:
+            self.ipc_timestamps = np.full(np.shape(self.timestamps), np.nan)
 
 
 @dataclass

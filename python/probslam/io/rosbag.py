@@ -291,7 +291,10 @@ def _compose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def _stamp(header) -> float:
-    return header.stamp.sec + header.stamp.nanosec * 1e-9
+    """A header's stamp in seconds, the nearest double to sec + nanosec / 10^9 (integer division
+    rounds once: a CARMEN log's 0.204947 s written to a bag reads back as 0.204947, not
+    0.20494700000000002)."""
+    return (int(header.stamp.sec) * 1_000_000_000 + int(header.stamp.nanosec)) / 1_000_000_000
 
 
 def _frame(name: str) -> str:
