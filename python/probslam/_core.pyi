@@ -430,12 +430,15 @@ class FastSlam:
                  seed: int = 0, threads: int = 1, resample_threshold: float = 0.5, p_new: float = 0.01,
                  outlier_density: float = 0.0, association_radius: float = 2.0,
                  joint_association: bool = True, cell_size: float = 2.0, negative_information: bool = False, existence_hit: float = 1.0, existence_miss: float = 1.0,
-                 sensor_range: float = math.inf, sensor_fov: float = 6.283185307179586, record_path: bool = True,
+                 sensor_range: float = math.inf, sensor_fov: float = 6.283185307179586,
+                 min_sightings: int = 1, provisional_max_age: int = 20, record_path: bool = True,
                  bearing_offset_sigma: float = 0.0, bearing_offset_correlation: float = 0.0) -> None: ...
     def predict(self, v: float, w: float, dt: float) -> None:
         """Samples each particle's pose from the velocity motion model (v m/s, w rad/s, dt s)."""
     def predict_odometry(self, delta: ArrayLike, noise: ArrayLike) -> None:
         """x <- x (+) (delta + e), e ~ N(0, noise (3, 3)) in the robot frame."""
+    def predict_odometry_batch(self, deltas: ArrayLike, noises: ArrayLike) -> None:
+        """predict_odometry(deltas[k], noises[k]) for k = 0 .. K - 1, in one call: deltas (K, 3), noises (K, 3, 3)."""
     def update(self, z: ArrayLike, ids: ArrayLike) -> FastSlamUpdateResult:
         """Known correspondences: z (k, 2) or (k, 3), ids (k,) >= 0."""
     def update_unknown(self, z: ArrayLike, p_new: Optional[float] = None) -> FastSlamAssociationResult:
