@@ -38,6 +38,27 @@ void require_motion_noise(const Eigen::MatrixXd& noise, const char* name, bool s
 
 void require_on_map(const Eigen::Vector3d& pose, const char* name, const char* what) { require(on_map(pose), name, what); }
 
+// Side of the square tiles subtract_gram works in: a 64 x 64 tile of doubles (32 KiB) stays in
+// the cache while it is read across.
+constexpr Eigen::Index kGramTile = 64;
+
+// p -= w w^T for a symmetric p, symmetric to the bit: every correction of a call in one product
+// (inner dimension: the call's factor columns), so the n x n covariance is passed over once per
+// call instead of once per correction; the update is bound by memory traffic (a 1,300-dimensional
+// state is 13 MB). Only the lower triangle is computed, by column panels, then mirrored tile by
+// tile: a product's (i, j) and (j, i) need not round alike.
+void subtract_gram(Eigen::Block<Eigen::MatrixXd> p, const Eigen::Ref<const Eigen::MatrixXd>& w) {
+  const Eigen::Index n = p.rows();
+  for (Eigen::Index j = 0; j < n; j += kGramTile) {
+    const Eigen::Index b = std::min(kGramTile, n - j);
+    p.block(j, j, n - j, b).noalias() -= w.middleRows(j, n - j) * w.middleRows(j, b).transpose();
+  }
+  for (Eigen::Index j0 = 0; j0 < n; j0 += kGramTile)
+    for (Eigen::Index i0 = 0; i0 <= j0; i0 += kGramTile)
+      for (Eigen::Index j = j0; j < std::min(j0 + kGramTile, n); ++j)
+        for (Eigen::Index i = i0; i < std::min(i0 + kGramTile, j); ++i) p(i, j) = p(j, i);
+}
+
 }  // namespace
 
 // A call's effect on the state, computed without touching it. With P0 the covariance before the
@@ -448,11 +469,7 @@ void EkfSlam::commit(Staged& st) {
     p.block(0, a.at, n, ld_) = col;
     p.block(a.at, 0, ld_, n) = col.transpose();
   }
-  // Every correction in one product, W W^T: one pass over the n x n covariance per call instead
-  // of one per correction (the update is bound by memory traffic: a 1,300-dimensional state is
-  // 13 MB). It stays symmetric to the bit: entries (i, j) and (j, i) sum the same products
-  // w_ik w_jk in the same order of k.
-  if (st.c > 0) p.topLeftCorner(n, n).noalias() -= st.w.leftCols(st.c).topRows(n) * st.w.leftCols(st.c).topRows(n).transpose();
+  if (st.c > 0) subtract_gram(p.topLeftCorner(n, n), st.w.topLeftCorner(n, st.c));
   s_->mean.head(n) = st.mean.head(n);
   for (const Staged::Added& a : st.added) {
     ids_.push_back(a.id);
