@@ -73,7 +73,8 @@ void define_results(py::module_& m) {
       .def_readonly("ids", &FastSlamAssociationResult::ids, "(M, k) int64 landmark id used or created.")
       .def_readonly("is_new", &FastSlamAssociationResult::is_new, "(M, k) bool, True where the measurement created it.")
       .def_readonly("removed", &FastSlamAssociationResult::removed,
-                    "(R, 2) int64 rows (particle, landmark id) removed by negative information.")
+                    "(R, 2) int64 rows (particle, landmark id) removed by negative information or as provisional\n"
+                    "landmarks not seen in min_sightings scans.")
       .def_readonly("resampled", &FastSlamAssociationResult::resampled, "Whether the update resampled the particles.")
       .def("__repr__", [](py::handle self) {
         const auto& r = self.cast<const FastSlamAssociationResult&>();
