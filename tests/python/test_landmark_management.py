@@ -197,3 +197,49 @@ def test_ekf_refused_batch_changes_nothing():
         ekf.predict_odometry_batch(None, noises)
     np.testing.assert_array_equal(ekf.mean, mean)
     np.testing.assert_array_equal(ekf.covariance, cov)
+
+
+# ---- the Victoria Park driver's blocks against one call per step ------------------------------
+
+#: The driver's EKF over a prefix against one predict_odometry per step: the batched prediction
+#: reassociates the cross-covariance products (above), and 60 s of updates carry that rounding.
+DRIVER_TOLERANCE = 1e-9
+
+
+@pytest.mark.slow  # two FastSLAM and two EKF runs over 60 s of the run
+def test_victoria_park_driver_blocks_equal_one_call_per_step():
+    from conftest import SHARED_DATA
+    from probslam.datasets import victoria_park_acfr, victoria_park_acfr_run as run
+    folder = SHARED_DATA / "landmark_slam" / "victoria_park_acfr"
+    if not folder.is_dir():
+        pytest.skip(f"{folder} not present")
+    data = run.first_seconds(victoria_park_acfr.load(folder), 60.0)
+    steps = run.schedule(data)
+    z = [data.measurements[a:b, 1:4] for a, b in zip(data.scan_starts[:-1], data.scan_starts[1:])]
+    order = np.argsort(steps.scan_after, kind="stable")
+
+    def stepwise(predict, update):
+        pending = list(order)
+        while pending and steps.scan_after[pending[0]] < 0:
+            update(z[pending.pop(0)])
+        for k in range(len(steps.ends)):
+            predict(steps.deltas[k], steps.covariances[k])
+            while pending and steps.scan_after[pending[0]] == k:
+                update(z[pending.pop(0)])
+
+    fast = run.run_fastslam(data, seed=3)
+    f = ps.FastSlam(100, np.zeros((3, 3)), run.measurement_noise(True), seed=3, use_signatures=True,
+                    initial_pose=victoria_park_acfr.start_pose(data), p_new=ps.fastslam.DEFAULT_P_NEW)
+    stepwise(f.predict_odometry, f.update_unknown)
+    np.testing.assert_array_equal(fast.poses, f.path())
+    ekf = run.run_ekf(data)
+    e = ps.EkfSlam(run.control_noise(), run.measurement_noise(True), use_signatures=True,
+                   initial_pose=victoria_park_acfr.start_pose(data))
+    poses = [e.pose]
+
+    def predict(delta, cov):
+        e.predict_odometry(delta, cov)
+        poses.append(e.pose)
+    stepwise(predict, lambda zs: e.update_unknown(zs, association="jcbb"))
+    np.testing.assert_allclose(ekf.poses, np.array(poses), rtol=0, atol=DRIVER_TOLERANCE)
+    assert len(ekf.landmarks) == e.num_landmarks
