@@ -5,7 +5,9 @@ variant over seeds 0-9; RMS against the GPS (as it is and SE(2)-aligned, evo's c
 landmarks in the map and CPU seconds of the whole run. Prints a table and, with --record, writes
 it into benchmarks/RESULTS.md.
 
-    OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_victoria_park_acfr.py [DIR] [--seeds N] [--record]
+    OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_victoria_park_acfr.py [DIR] [--seeds N] [--provisional] [--record]
+
+--provisional runs every filter with the provisional-landmark rule (victoria_park_acfr_run.PROVISIONAL_*).
 """
 
 import argparse
@@ -17,7 +19,7 @@ import time
 import numpy as np
 
 import probslam as ps
-from common import machine, report
+from common import commit, machine, report
 from probslam.datasets import victoria_park_acfr, victoria_park_acfr_run
 
 DEFAULT = pathlib.Path(__file__).resolve().parents[2] / "shared/data/landmark_slam/victoria_park_acfr"
@@ -35,6 +37,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("folder", nargs="?", default=str(DEFAULT))
     parser.add_argument("--seeds", type=int, default=10, help="FastSLAM seeds 0..N-1 per variant (default 10)")
+    parser.add_argument("--provisional", action="store_true", help="new landmarks wait on the provisional list")
     parser.add_argument("--record", action="store_true")
     parser.add_argument("--save", metavar="NPZ", help="also save every run's path and seed 0's maps (for "
                                                       "docs/make_victoria_park_acfr_figure.py)")
@@ -43,7 +46,7 @@ def main() -> None:
     rows = ["| method | seed | RMS vs GPS | aligned | landmarks | CPU |", "|---|---|---|---|---|---|"]
     summary, saved = [], {"gps": data.gps}
     for name, method in (("dead reckoning", lambda: victoria_park_acfr_run.run_ekf(data, dead_reckoning=True)),
-                         ("EKF SLAM (JCBB)", lambda: victoria_park_acfr_run.run_ekf(data))):
+                         ("EKF SLAM (JCBB)", lambda: victoria_park_acfr_run.run_ekf(data, provisional=args.provisional))):
         run, cpu, e = scored(data, method)
         saved[name] = np.column_stack([run.times, run.poses])
         rows.append(f"| {name} | - | {e.rmse:.2f} m | {e.rmse_aligned:.2f} m | {len(run.landmarks)} | {cpu:.1f} s |")
@@ -51,7 +54,8 @@ def main() -> None:
     for version in (1, 2):
         aligned, cpus = [], []
         for seed in range(args.seeds):
-            run, cpu, e = scored(data, lambda: victoria_park_acfr_run.run_fastslam(data, version=version, seed=seed))
+            run, cpu, e = scored(data, lambda: victoria_park_acfr_run.run_fastslam(data, version=version, seed=seed,
+                                                                                    provisional=args.provisional))
             aligned.append(e.rmse_aligned)
             saved[f"fastslam{version}_seed{seed}"] = np.column_stack([run.times, run.poses])
             if seed == 0:
@@ -62,16 +66,20 @@ def main() -> None:
             print(rows[-1], flush=True)
         summary.append(f"FastSLAM {version}.0: aligned RMS median {np.median(aligned):.2f} m, max "
                        f"{np.max(aligned):.2f} m over {args.seeds} seeds; CPU median {np.median(cpus):.1f} s.")
-    lines = [f"## Victoria Park (ACFR run) against GPS, EKF and FastSLAM, {datetime.date.today()}", "",
+    rule = ", provisional landmarks" if args.provisional else ""
+    lines = [f"## Victoria Park (ACFR run) against GPS, EKF and FastSLAM{rule}, {datetime.date.today()}", "",
              f"Machine: {machine()}; load average {os.getloadavg()[0]:.1f} at the end (shared machine: CPU "
              f"seconds, not wall time), BLAS threads: OPENBLAS_NUM_THREADS="
              f"{os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}.", "",
              f"{len(data.inputs)} inputs (40 Hz, {data.inputs[-1, 0] - data.inputs[0, 0]:.0f} s), "
              f"{len(data.measurements)} detections on {len(data.scan_times)} scans, {len(data.gps)} GPS fixes; "
              "unknown correspondences, the trunk's diameter as signature, the defaults of "
-             "datasets.victoria_park_acfr_run (noise: RFS-SLAM's published configuration for this run).", ""]
+             "datasets.victoria_park_acfr_run (noise: RFS-SLAM's published configuration for this run)"
+             + (f"; provisional landmarks: seen in {victoria_park_acfr_run.PROVISIONAL_SIGHTINGS} scans before "
+                f"{victoria_park_acfr_run.PROVISIONAL_MAX_AGE} pass unseen" if args.provisional else "") + ".", "",
+             f"Commit: {commit()}.", ""]
     lines += rows + [""] + summary + ["", "Command: `OPENBLAS_NUM_THREADS=1 python benchmarks/bench_victoria_park_acfr.py "
-                                          "--record`."]
+                                          f"{'--provisional ' if args.provisional else ''}--record`."]
     report(lines, args.record)
     if args.save:
         np.savez_compressed(args.save, **saved)

@@ -26,6 +26,17 @@ def machine() -> str:
     return f"{cpu}, {os.cpu_count()} cores, Python {platform.python_version()}, numpy {np.__version__}"
 
 
+def commit() -> str:
+    """The short hash of the checkout's HEAD ("unknown" outside git)."""
+    import subprocess
+    try:
+        out = subprocess.run(["git", "rev-parse", "--short", "HEAD"], capture_output=True, text=True,
+                             cwd=pathlib.Path(__file__).parent).stdout.strip()
+    except OSError:
+        out = ""
+    return out or "unknown"
+
+
 def heading(title: str, note: str, columns) -> list:
     """The opening lines of a RESULTS.md section: title with today's date, the machine, and the
     header of its first table."""

@@ -213,6 +213,17 @@ void define_ekf_calls(py::class_<EkfSlam>& c) {
           "Odometry as a relative pose: x <- x (+) delta, delta (3,) (m, m, rad) with covariance noise\n"
           "(3, 3) in the robot frame.")
       .def(
+          "predict_odometry_batch",
+          [](EkfSlam& e, py::handle deltas, py::handle noises) {
+            const OdometryBatch b = odometry_batch_args(deltas, noises);
+            Poses2 poses = locked(e, [&] { return e.predict_odometry_batch(b.d(), b.n()); });
+            return py::array_t<double>({poses.rows(), Eigen::Index{3}}, poses.data());
+          },
+          py::arg("deltas"), py::arg("noises"),
+          "predict_odometry(deltas[k], noises[k]) for k = 0 .. K - 1 in one call: deltas (K, 3), noises\n"
+          "(K, 3, 3); returns the pose after each step (K, 3). The landmarks' cross covariances are\n"
+          "moved once, by the steps' composed Jacobian (equal to K calls up to rounding).")
+      .def(
           "update",
           [](EkfSlam& e, py::handle z, py::handle ids, double gate) {
             DoubleArray zz = measurements_arg(e, z);

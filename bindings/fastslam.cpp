@@ -73,7 +73,8 @@ void define_results(py::module_& m) {
       .def_readonly("ids", &FastSlamAssociationResult::ids, "(M, k) int64 landmark id used or created.")
       .def_readonly("is_new", &FastSlamAssociationResult::is_new, "(M, k) bool, True where the measurement created it.")
       .def_readonly("removed", &FastSlamAssociationResult::removed,
-                    "(R, 2) int64 rows (particle, landmark id) removed by negative information.")
+                    "(R, 2) int64 rows (particle, landmark id) removed by negative information or as provisional\n"
+                    "landmarks not seen in min_sightings scans.")
       .def_readonly("resampled", &FastSlamAssociationResult::resampled, "Whether the update resampled the particles.")
       .def("__repr__", [](py::handle self) {
         const auto& r = self.cast<const FastSlamAssociationResult&>();
@@ -206,6 +207,15 @@ void define_calls(py::class_<FastSlam>& c) {
           py::arg("delta"), py::arg("noise"),
           "x <- x (+) (delta + e), e ~ N(0, noise (3, 3)) in the robot frame; delta (3,) (m, m, rad).")
       .def(
+          "predict_odometry_batch",
+          [](FastSlam& f, py::handle deltas, py::handle noises) {
+            const OdometryBatch b = odometry_batch_args(deltas, noises);
+            locked(f, [&] { f.predict_odometry_batch(b.d(), b.n()); });
+          },
+          py::arg("deltas"), py::arg("noises"),
+          "predict_odometry(deltas[k], noises[k]) for k = 0 .. K - 1 in one call, bit for bit the same:\n"
+          "deltas (K, 3), noises (K, 3, 3). Every step is checked before any particle moves.")
+      .def(
           "update",
           [](FastSlam& f, py::handle z, py::handle ids) {
             DoubleArray zz = scan_arg(f, z);
@@ -298,6 +308,10 @@ void define_fastslam(py::module_& m) {
                          "        a seen one gains existence_hit; below zero it is removed.\n"
                          "    existence_hit, existence_miss: the counter's steps.\n"
                          "    sensor_range: m; sensor_fov: rad.\n"
+                         "    min_sightings: update_unknown's provisional landmarks: a new landmark stays provisional\n"
+                         "        until seen in min_sightings scans (its first counts), and is removed when it goes\n"
+                         "        more than provisional_max_age update_unknown calls unseen before that; 1: off.\n"
+                         "    provisional_max_age: see min_sightings.\n"
                          "    record_path: keep each particle's path (path()).\n"
                          "    bearing_offset_sigma: rad; a bearing offset shared by one scan's measurements, carried\n"
                          "        per particle; 0: none.\n"
@@ -310,7 +324,8 @@ void define_fastslam(py::module_& m) {
                     RealArg resample_threshold, RealArg p_new, RealArg outlier_density, RealArg association_radius,
                     BoolArg joint_association, RealArg cell_size, BoolArg negative_information,
                     RealArg existence_hit, RealArg existence_miss,
-                    RealArg sensor_range, RealArg sensor_fov, BoolArg record_path, RealArg bearing_offset_sigma,
+                    RealArg sensor_range, RealArg sensor_fov, IntArg min_sightings, IntArg provisional_max_age,
+                    BoolArg record_path, RealArg bearing_offset_sigma,
                     RealArg bearing_offset_correlation) {
           FastSlamOptions o;
           o.num_particles = num_particles.get("num_particles");
@@ -332,6 +347,8 @@ void define_fastslam(py::module_& m) {
           o.existence_miss = existence_miss.get("existence_miss");
           o.sensor_range = sensor_range.get("sensor_range");
           o.sensor_fov = sensor_fov.get("sensor_fov");
+          o.min_sightings = min_sightings.get("min_sightings");
+          o.provisional_max_age = provisional_max_age.get("provisional_max_age");
           o.record_path = record_path.get("record_path");
           o.bearing_offset_sigma = bearing_offset_sigma.get("bearing_offset_sigma");
           o.bearing_offset_correlation = bearing_offset_correlation.get("bearing_offset_correlation");
@@ -348,6 +365,7 @@ void define_fastslam(py::module_& m) {
         py::arg("negative_information") = d.negative_information,
         real_arg("existence_hit", d.existence_hit), real_arg("existence_miss", d.existence_miss),
         real_arg("sensor_range", d.sensor_range), real_arg("sensor_fov", d.sensor_fov),
+        py::arg("min_sightings") = d.min_sightings, py::arg("provisional_max_age") = d.provisional_max_age,
         py::arg("record_path") = d.record_path, real_arg("bearing_offset_sigma", d.bearing_offset_sigma),
         real_arg("bearing_offset_correlation", d.bearing_offset_correlation),
         "See the class docstring for the arguments and keyword options.");

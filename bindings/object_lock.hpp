@@ -109,4 +109,19 @@ void predict_odometry_locked(Filter& f, py::handle delta, py::handle noise) {
   locked(f, [&] { f.predict_odometry(d, n); });
 }
 
+/// The (K, 3) deltas and (K, 3, 3) noises of predict_odometry_batch, as (K, 3) and (K, 9) views.
+struct OdometryBatch {
+  DoubleArray deltas, noises;
+  ConstRowMatrixMap d() const { return {deltas.data(), deltas.shape(0), 3}; }
+  ConstRowMatrixMap n() const { return {noises.data(), noises.shape(0), 9}; }
+};
+
+inline OdometryBatch odometry_batch_args(py::handle deltas, py::handle noises) {
+  OdometryBatch b{matrix_arg(deltas, "deltas", 3), as_array(noises, "noises")};
+  if (b.noises.ndim() != 3 || b.noises.shape(0) != b.deltas.shape(0) || b.noises.shape(1) != 3 || b.noises.shape(2) != 3)
+    throw py::value_error("noises must have shape (" + std::to_string(b.deltas.shape(0)) + ", 3, 3), one per row of "
+                          "deltas, got " + shape_of(b.noises));
+  return b;
+}
+
 }  // namespace probslam::bindings

@@ -323,6 +323,8 @@ class _EkfSlam:
     def has_landmark(self, id: int) -> bool: ...
     def predict(self, v: float, w: float, dt: float, noise: Optional[ArrayLike] = None) -> None: ...
     def predict_odometry(self, delta: ArrayLike, noise: ArrayLike) -> None: ...
+    def predict_odometry_batch(self, deltas: ArrayLike, noises: ArrayLike) -> Array:
+        """predict_odometry for each row of deltas (K, 3) with noises (K, 3, 3); the poses after each step (K, 3)."""
     def update(self, z: ArrayLike, ids: ArrayLike, gate: float = math.inf) -> Tuple[Array, npt.NDArray[np.bool_]]: ...
     def update_unknown(self, z: ArrayLike, alpha: float, alpha_new: float,
                        association: Association = Association.MAXIMUM_LIKELIHOOD) -> Tuple[npt.NDArray[np.int64], Array,
@@ -349,7 +351,7 @@ class FastSlamAssociationResult:
     any resampling of the call."""
     ids: npt.NDArray[np.int64]  # (M, k) landmark used or created
     is_new: npt.NDArray[np.bool_]  # (M, k)
-    removed: npt.NDArray[np.int64]  # (R, 2) rows (particle, landmark id) removed by negative information
+    removed: npt.NDArray[np.int64]  # (R, 2) rows (particle, landmark id) removed (negative information, unconfirmed provisional)
     resampled: bool
 
 class LandmarkDetails:
@@ -398,6 +400,9 @@ class FastSlam:
         negative_information, existence_hit, existence_miss, sensor_range (m), sensor_fov (rad):
             the existence counter of update_unknown (seen: + hit; in range and field of view but
             not seen: - miss; removed below zero). sensor_range must be finite to enable it.
+        min_sightings, provisional_max_age: provisional landmarks of update_unknown: a new one
+            is removed when it goes more than provisional_max_age calls unseen before it has been
+            seen in min_sightings scans (its first counts); 1: every landmark permanent at once.
         record_path: keep each particle's path (persistent: shared after resampling).
         bearing_offset_sigma (rad), bearing_offset_correlation: a bearing offset shared by one
             scan's measurements, carried per particle (0: none), and its correlation from one
@@ -430,12 +435,15 @@ class FastSlam:
                  seed: int = 0, threads: int = 1, resample_threshold: float = 0.5, p_new: float = 0.01,
                  outlier_density: float = 0.0, association_radius: float = 2.0,
                  joint_association: bool = True, cell_size: float = 2.0, negative_information: bool = False, existence_hit: float = 1.0, existence_miss: float = 1.0,
-                 sensor_range: float = math.inf, sensor_fov: float = 6.283185307179586, record_path: bool = True,
+                 sensor_range: float = math.inf, sensor_fov: float = 6.283185307179586,
+                 min_sightings: int = 1, provisional_max_age: int = 20, record_path: bool = True,
                  bearing_offset_sigma: float = 0.0, bearing_offset_correlation: float = 0.0) -> None: ...
     def predict(self, v: float, w: float, dt: float) -> None:
         """Samples each particle's pose from the velocity motion model (v m/s, w rad/s, dt s)."""
     def predict_odometry(self, delta: ArrayLike, noise: ArrayLike) -> None:
         """x <- x (+) (delta + e), e ~ N(0, noise (3, 3)) in the robot frame."""
+    def predict_odometry_batch(self, deltas: ArrayLike, noises: ArrayLike) -> None:
+        """predict_odometry(deltas[k], noises[k]) for k = 0 .. K - 1, in one call: deltas (K, 3), noises (K, 3, 3)."""
     def update(self, z: ArrayLike, ids: ArrayLike) -> FastSlamUpdateResult:
         """Known correspondences: z (k, 2) or (k, 3), ids (k,) >= 0."""
     def update_unknown(self, z: ArrayLike, p_new: Optional[float] = None) -> FastSlamAssociationResult:

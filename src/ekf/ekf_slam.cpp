@@ -38,6 +38,27 @@ void require_motion_noise(const Eigen::MatrixXd& noise, const char* name, bool s
 
 void require_on_map(const Eigen::Vector3d& pose, const char* name, const char* what) { require(on_map(pose), name, what); }
 
+// Side of the square tiles subtract_gram works in: a 64 x 64 tile of doubles (32 KiB) stays in
+// the cache while it is read across.
+constexpr Eigen::Index kGramTile = 64;
+
+// p -= w w^T for a symmetric p, symmetric to the bit: every correction of a call in one product
+// (inner dimension: the call's factor columns), so the n x n covariance is passed over once per
+// call instead of once per correction; the update is bound by memory traffic (a 1,300-dimensional
+// state is 13 MB). Only the lower triangle is computed, by column panels, then mirrored tile by
+// tile: a product's (i, j) and (j, i) need not round alike.
+void subtract_gram(Eigen::Block<Eigen::MatrixXd> p, const Eigen::Ref<const Eigen::MatrixXd>& w) {
+  const Eigen::Index n = p.rows();
+  for (Eigen::Index j = 0; j < n; j += kGramTile) {
+    const Eigen::Index b = std::min(kGramTile, n - j);
+    p.block(j, j, n - j, b).noalias() -= w.middleRows(j, n - j) * w.middleRows(j, b).transpose();
+  }
+  for (Eigen::Index j0 = 0; j0 < n; j0 += kGramTile)
+    for (Eigen::Index i0 = 0; i0 <= j0; i0 += kGramTile)
+      for (Eigen::Index j = j0; j < std::min(j0 + kGramTile, n); ++j)
+        for (Eigen::Index i = i0; i < std::min(i0 + kGramTile, j); ++i) p(i, j) = p(j, i);
+}
+
 }  // namespace
 
 // A call's effect on the state, computed without touching it. With P0 the covariance before the
@@ -211,22 +232,64 @@ EkfSlam::Motion EkfSlam::plan_predict(double v, double w, double dt, const Eigen
   return plan_motion(next, g, r);
 }
 
-void EkfSlam::predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matrix3d& noise) {
-  require_all_finite(delta, "delta");
-  require(delta.head<2>().norm() <= kMaxCoordinate, "delta", "must be a step of at most 1e9 m (kMaxCoordinate)");
-  require_covariance(noise, "noise", true);
-  const Eigen::Vector3d x = pose();
+namespace {
+// One odometry step from pose x: the new pose, the motion's Jacobian G and the noise's J N J^T;
+// predict_odometry's checks, naming `delta_name` / `noise_name`.
+struct OdometryStep {
+  Eigen::Vector3d next;
+  Eigen::Matrix3d g, r;
+};
+OdometryStep odometry_step(const Eigen::Vector3d& x, const Eigen::Vector3d& delta, const Eigen::Matrix3d& noise,
+                           const char* delta_name, const char* noise_name) {
+  require_all_finite(delta, delta_name);
+  require(delta.head<2>().norm() <= kMaxCoordinate, delta_name, "must be a step of at most 1e9 m (kMaxCoordinate)");
+  require_covariance(noise, noise_name, true);
   const Eigen::Matrix2d rx = rotation_matrix(x[2]);
-  const Eigen::Vector2d t = x.head<2>() + rx * delta.head<2>();
-  Eigen::Matrix3d g = Eigen::Matrix3d::Identity();
   const Eigen::Vector2d turned = rx * delta.head<2>();
-  g(0, 2) = -turned.y();
-  g(1, 2) = turned.x();
+  OdometryStep s;
+  s.g = Eigen::Matrix3d::Identity();
+  s.g(0, 2) = -turned.y();
+  s.g(1, 2) = turned.x();
   Eigen::Matrix3d j = Eigen::Matrix3d::Identity();  // d(x (+) delta) / d delta
   j.topLeftCorner<2, 2>() = rx;
-  const Eigen::Vector3d next(t.x(), t.y(), wrap_angle(x[2] + delta[2]));
-  require_on_map(next, "delta", "moves the robot beyond 1e9 m (kMaxCoordinate)");
-  apply(plan_motion(next, g, j * noise * j.transpose()));
+  s.r = j * noise * j.transpose();
+  s.next = Eigen::Vector3d(x[0] + turned.x(), x[1] + turned.y(), wrap_angle(x[2] + delta[2]));
+  require_on_map(s.next, delta_name, "moves the robot beyond 1e9 m (kMaxCoordinate)");
+  return s;
+}
+}  // namespace
+
+void EkfSlam::predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matrix3d& noise) {
+  const OdometryStep s = odometry_step(pose(), delta, noise, "delta", "noise");
+  apply(plan_motion(s.next, s.g, s.r));
+}
+
+Poses2 EkfSlam::predict_odometry_batch(const Eigen::Ref<const RowMatrixXd>& deltas,
+                                       const Eigen::Ref<const RowMatrixXd>& noises) {
+  require(deltas.cols() == 3, "deltas", "must be (K, 3)");
+  require(noises.cols() == 9 && noises.rows() == deltas.rows(), "noises", "must be (K, 3, 3), one per row of deltas");
+  const Eigen::Index n = deltas.rows();
+  Poses2 poses(n, 3);
+  if (n == 0) return poses;
+  Eigen::Vector3d x = pose();
+  Eigen::Matrix3d prr = s_->cov.topLeftCorner<3, 3>();
+  Eigen::Matrix3d g = Eigen::Matrix3d::Identity();  // the steps' Jacobians, composed
+  for (Eigen::Index k = 0; k < n; ++k) {
+    const Eigen::Matrix3d noise = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(noises.row(k).data());
+    const std::string dn = "deltas[" + std::to_string(k) + "]", nn = "noises[" + std::to_string(k) + "]";
+    const OdometryStep s = odometry_step(x, deltas.row(k).transpose(), noise, dn.c_str(), nn.c_str());
+    const Eigen::Matrix3d next = s.g * prr * s.g.transpose() + s.r;  // plan_motion's, step by step
+    prr = 0.5 * (next + next.transpose());
+    require(prr.allFinite() && prr.cwiseAbs().maxCoeff() <= kMaxCovarianceEntry, nn.c_str(),
+            "and the motion would make the covariance too large to stay finite");
+    g = s.g * g;
+    x = s.next;
+    poses.row(k) = x.transpose();
+  }
+  Motion m{x, prr, g * s_->cov.block(0, 3, 3, n_ - 3), g};
+  require(m.prm.allFinite(), "noises", "and the motion would make the covariance too large to stay finite");
+  apply(m);
+  return poses;
 }
 
 void EkfSlam::check_measurements(const Eigen::Ref<const RowMatrixXd>& z) const { require_measurement_rows(z, md_); }
@@ -406,10 +469,7 @@ void EkfSlam::commit(Staged& st) {
     p.block(0, a.at, n, ld_) = col;
     p.block(a.at, 0, ld_, n) = col.transpose();
   }
-  // One correction at a time: with an inner dimension of m, each product is symmetric to the
-  // bit (entry (i, j) and (j, i) sum the same products in the same order).
-  for (Eigen::Index j = 0; j < st.c; j += md_)
-    p.topLeftCorner(n, n).noalias() -= st.w.block(0, j, n, md_) * st.w.block(0, j, n, md_).transpose();
+  if (st.c > 0) subtract_gram(p.topLeftCorner(n, n), st.w.topLeftCorner(n, st.c));
   s_->mean.head(n) = st.mean.head(n);
   for (const Staged::Added& a : st.added) {
     ids_.push_back(a.id);

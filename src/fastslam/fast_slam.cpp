@@ -486,6 +486,7 @@ struct FastSlam::Context {
       }
     }
     std::unordered_set<long> seen;
+    const long scan = ++part.scans;
     for (Eigen::Index i = 0; i < k; ++i) {
       const long id = assigned[static_cast<std::size_t>(i)];
       bool created = id < 0;
@@ -496,6 +497,8 @@ struct FastSlam::Context {
           created = true;  // on the robot now: cannot be this landmark
         } else {
           if (!in_proposal[static_cast<std::size_t>(i)]) ll += step;
+          lm.sightings = std::min(lm.sightings + 1, kFastSlamMaxCount);
+          lm.last_seen = scan;
           part.map.put(lm);
           ids_out[i] = id;
           new_out[i] = 0;
@@ -504,7 +507,10 @@ struct FastSlam::Context {
       }
       if (created) {
         const long nid = part.next_id++;
-        part.map.put(new_landmark(nid, part.pose, s, i));
+        Landmark lm = new_landmark(nid, part.pose, s, i);
+        lm.last_seen = scan;
+        part.map.put(lm);
+        if (o.min_sightings > 1) part.provisional.push_back(nid);
         ll += log_p_new_call;
         ids_out[i] = nid;
         new_out[i] = 1;
@@ -528,8 +534,26 @@ struct FastSlam::Context {
         }
       }
     }
+    expire_provisional(part, scan, removed);
     if (k > 0) end_motion(part);
     add_log_likelihood(part, ll);
+  }
+
+  /// Provisional landmarks (FastSlamOptions::min_sightings): the confirmed leave the list, those
+  /// unseen for more than provisional_max_age scans leave the map.
+  void expire_provisional(FastSlamParticle& part, long scan, std::vector<long>& removed) const {
+    std::size_t kept = 0;
+    for (const long id : part.provisional) {
+      const Landmark* lm = part.map.find(id);
+      if (lm == nullptr || lm->sightings >= o.min_sightings) continue;  // gone, or confirmed
+      if (scan - lm->last_seen > o.provisional_max_age) {
+        part.map.erase(id);
+        removed.push_back(id);
+        continue;
+      }
+      part.provisional[kept++] = id;
+    }
+    part.provisional.resize(kept);
   }
 };
 
@@ -566,6 +590,9 @@ FastSlam::FastSlam(const FastSlamOptions& options) : o_(options) {
           "existence_hit", "must be in [0, 1e9]");
   require(std::isfinite(o_.existence_miss) && o_.existence_miss >= 0.0 && o_.existence_miss <= kMaxCoordinate,
           "existence_miss", "must be in [0, 1e9]");
+  require(o_.min_sightings >= 1 && o_.min_sightings <= kFastSlamMaxCount, "min_sightings", "must be in [1, 1e6]");
+  require(o_.provisional_max_age >= 0 && o_.provisional_max_age <= kFastSlamMaxCount, "provisional_max_age",
+          "must be in [0, 1e6]");
   require(o_.sensor_range > 0.0 && (std::isinf(o_.sensor_range) || o_.sensor_range <= kMaxCoordinate),
           "sensor_range", "must be > 0 m (and at most 1e9 m, or infinite)");
   require(!o_.negative_information || std::isfinite(o_.sensor_range), "sensor_range",
@@ -712,36 +739,54 @@ void FastSlam::resample() {
 }
 
 template <class Sample>
-void FastSlam::move_particles(Sample&& sample) {
+void FastSlam::move_particles(int steps, Sample&& sample) {
   // One pass, in place (no particle is copied, so no shared node's count changes): worker k
   // keeps particle k's state in moves_[k], stamped with this call, before it moves the particle.
-  // A sample that throws leaves its particle untouched; every particle already moved is then put
-  // back from moves_ (its new path node dropped), so the call changes nothing.
+  // A sample that throws leaves its particle untouched (the path poses it appended are popped);
+  // every particle already moved is then put back from moves_, so the call changes nothing.
   moves_.resize(particles_.size());
   const std::uint64_t stamp = ++move_calls_;
   try {
     for_particles([&](int k) {
       const auto i = static_cast<std::size_t>(k);
       FastSlamParticle& p = particles_[i];
-      Motion next;
       ParticleRng rng = p.rng;
+      const Motion before{p.pose, p.prior_mean, p.prior_cov};
+      Motion now = before;
       // Version 2: the motion prior composes from the last update's pose (has_prior: no update
       // since), so the proposal covers every motion between two updates.
-      const Motion before{p.pose, p.prior_mean, p.prior_cov};
-      sample(p.pose, rng, next, o_.version == 2 && p.has_prior ? &before : nullptr);
-      Move& kept = moves_[i];
-      kept = Move{before, p.rng, p.has_prior, p.moves_since_update, stamp};
-      p.rng = rng;
-      p.pose = next.pose;
-      if (o_.version == 2) {
-        p.prior_mean = next.prior_mean;
-        p.prior_cov = next.prior_cov;
-        p.moves_since_update = p.has_prior ? p.moves_since_update + 1 : 1;
-        p.has_prior = true;
+      bool has_prior = p.has_prior;
+      int moves = p.moves_since_update;
+      int pushed = 0;
+      try {
+        for (int step = 0; step < steps; ++step) {
+          Motion next;
+          sample(step, now.pose, rng, next, o_.version == 2 && has_prior ? &now : nullptr);
+          now.pose = next.pose;
+          if (o_.version == 2) {
+            now.prior_mean = next.prior_mean;
+            now.prior_cov = next.prior_cov;
+            moves = has_prior ? moves + 1 : 1;
+            has_prior = true;
+          }
+          // Version 2's path holds the motion prior's mean: an update draws the pose and bridges
+          // the poses since the last one to it (bridge_path), so they carry no noise of their own.
+          if (o_.record_path) {
+            p.path.push(o_.version == 2 ? next.prior_mean : next.pose);
+            ++pushed;
+          }
+        }
+      } catch (...) {
+        for (; pushed > 0; --pushed) p.path.pop();
+        throw;
       }
-      // Version 2's path holds the motion prior's mean: an update draws the pose and bridges the
-      // poses since the last one to it (bridge_path), so they carry no noise of their own.
-      if (o_.record_path) p.path.push(o_.version == 2 ? next.prior_mean : next.pose);
+      moves_[i] = Move{before, p.rng, p.has_prior, p.moves_since_update, stamp, pushed};
+      p.rng = rng;
+      p.pose = now.pose;
+      p.prior_mean = now.prior_mean;
+      p.prior_cov = now.prior_cov;
+      p.has_prior = has_prior;
+      p.moves_since_update = moves;
     });
   } catch (...) {
     for (std::size_t i = 0; i < particles_.size(); ++i) {
@@ -754,7 +799,7 @@ void FastSlam::move_particles(Sample&& sample) {
       p.rng = kept.rng;
       p.has_prior = kept.has_prior;
       p.moves_since_update = kept.moves_since_update;
-      if (o_.record_path) p.path.pop();
+      for (int n = 0; n < kept.pushed; ++n) p.path.pop();
     }
     throw;
   }
@@ -767,7 +812,7 @@ void FastSlam::predict(double v, double w, double dt) {
   require(std::fabs(v * dt) <= kMaxCoordinate, "v", "* dt must be <= 1e9 m (kMaxCoordinate)");
   const Eigen::Matrix3d r = control_noise_ ? Eigen::Matrix3d::Zero() : Eigen::Matrix3d(o_.motion_noise);
   const Eigen::Matrix2d mc = control_noise_ ? Eigen::Matrix2d(o_.motion_noise) : Eigen::Matrix2d::Zero();
-  move_particles([&](const Eigen::Vector3d& x, ParticleRng& rng, Motion& mv, const Motion* since) {
+  move_particles(1, [&](int, const Eigen::Vector3d& x, ParticleRng& rng, Motion& mv, const Motion* since) {
     if (control_noise_) {
       const Eigen::Vector2d e = control_factor_ * Eigen::Vector2d(rng.normal(), rng.normal());
       mv.pose = velocity_motion(x, v + e[0], w + e[1], dt);
@@ -794,32 +839,66 @@ void FastSlam::predict(double v, double w, double dt) {
   });
 }
 
+namespace {
+// predict_odometry's checks of one step; throws naming `delta_name` / `noise_name`.
+void check_odometry_step(const Eigen::Vector3d& delta, const Eigen::Matrix3d& noise, const char* delta_name,
+                         const char* noise_name) {
+  require_all_finite(delta, delta_name);
+  require(delta.head<2>().norm() <= kMaxCoordinate, delta_name, "must be a step of at most 1e9 m (kMaxCoordinate)");
+  require_covariance(noise, noise_name, true);
+}
+}  // namespace
+
 void FastSlam::predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matrix3d& noise) {
-  require_all_finite(delta, "delta");
-  require(delta.head<2>().norm() <= kMaxCoordinate, "delta",
-          "must be a step of at most 1e9 m (kMaxCoordinate)");
-  require_covariance(noise, "noise", true);
+  check_odometry_step(delta, noise, "delta", "noise");
   const Eigen::Matrix3d cov = symmetric<3>(noise);
-  const Eigen::Matrix3d l = psd_factor<3>(cov);
-  move_particles([&](const Eigen::Vector3d& x, ParticleRng& rng, Motion& mv, const Motion* since) {
+  odometry_steps({delta}, {cov}, {psd_factor<3>(cov)}, "delta");
+}
+
+void FastSlam::predict_odometry_batch(const Eigen::Ref<const RowMatrixXd>& deltas,
+                                      const Eigen::Ref<const RowMatrixXd>& noises) {
+  require(deltas.cols() == 3, "deltas", "must be (K, 3)");
+  require(noises.cols() == 9 && noises.rows() == deltas.rows(), "noises", "must be (K, 3, 3), one per row of deltas");
+  const auto n = static_cast<std::size_t>(deltas.rows());
+  require(n <= static_cast<std::size_t>(std::numeric_limits<int>::max()), "deltas", "has too many rows");
+  std::vector<Eigen::Vector3d> d(n);
+  std::vector<Eigen::Matrix3d> covs(n), factors(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    const auto row = static_cast<Eigen::Index>(k);
+    d[k] = deltas.row(row).transpose();
+    const Eigen::Matrix3d noise = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(noises.row(row).data());
+    const std::string dn = "deltas[" + std::to_string(k) + "]", nn = "noises[" + std::to_string(k) + "]";
+    check_odometry_step(d[k], noise, dn.c_str(), nn.c_str());
+    covs[k] = symmetric<3>(noise);
+    factors[k] = psd_factor<3>(covs[k]);
+  }
+  if (n > 0) odometry_steps(d, covs, factors, "deltas");
+}
+
+void FastSlam::odometry_steps(const std::vector<Eigen::Vector3d>& deltas, const std::vector<Eigen::Matrix3d>& covs,
+                              const std::vector<Eigen::Matrix3d>& factors, const char* name) {
+  move_particles(static_cast<int>(deltas.size()), [&](int step, const Eigen::Vector3d& x, ParticleRng& rng, Motion& mv,
+                                                      const Motion* since) {
+    const auto k = static_cast<std::size_t>(step);
+    const Eigen::Vector3d& delta = deltas[k];
     const Eigen::Matrix2d rx = rotation_matrix(x[2]);
-    const Eigen::Vector3d d = delta + l * Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal());
+    const Eigen::Vector3d d = delta + factors[k] * Eigen::Vector3d(rng.normal(), rng.normal(), rng.normal());
     mv.pose.head<2>() = x.head<2>() + rx * d.head<2>();
     mv.pose[2] = wrap_angle(x[2] + d[2]);
-    require(on_map(mv.pose), "delta", "moves the robot beyond 1e9 m (kMaxCoordinate)");
+    require(on_map(mv.pose), name, "moves the robot beyond 1e9 m (kMaxCoordinate)");
     if (o_.version == 2) {
       const Eigen::Vector3d& from = since ? since->prior_mean : x;
       const Eigen::Matrix2d rf = rotation_matrix(from[2]);
-      const Eigen::Vector2d step = rf * delta.head<2>();
-      mv.prior_mean.head<2>() = from.head<2>() + step;
+      const Eigen::Vector2d step_xy = rf * delta.head<2>();
+      mv.prior_mean.head<2>() = from.head<2>() + step_xy;
       mv.prior_mean[2] = wrap_angle(from[2] + delta[2]);
       Eigen::Matrix3d j = Eigen::Matrix3d::Identity();  // d(from (+) delta) / d delta
       j.topLeftCorner<2, 2>() = rf;
-      mv.prior_cov = symmetric<3>(j * cov * j.transpose());
+      mv.prior_cov = symmetric<3>(j * covs[k] * j.transpose());
       if (since) {
         Eigen::Matrix3d g = Eigen::Matrix3d::Identity();  // d(from (+) delta) / d from
-        g(0, 2) = -step[1];
-        g(1, 2) = step[0];
+        g(0, 2) = -step_xy[1];
+        g(1, 2) = step_xy[0];
         mv.prior_cov = symmetric<3>(g * since->prior_cov * g.transpose() + mv.prior_cov);
       }
     }

@@ -18,6 +18,8 @@ void write_options(StateWriter& w, const FastSlamOptions& o) {
   w.boolean(o.joint_association);
   w.boolean(o.negative_information);
   for (double v : {o.existence_hit, o.existence_miss, o.sensor_range, o.sensor_fov}) w.f64(v);
+  w.i32(o.min_sightings);
+  w.i32(o.provisional_max_age);
   w.boolean(o.record_path);
   w.f64(o.bearing_offset_sigma);
   w.f64(o.bearing_offset_correlation);
@@ -38,6 +40,8 @@ FastSlamOptions read_options(StateReader& r) {
   o.joint_association = r.boolean();
   o.negative_information = r.boolean();
   for (double* v : {&o.existence_hit, &o.existence_miss, &o.sensor_range, &o.sensor_fov}) *v = r.f64();
+  o.min_sightings = r.i32();
+  o.provisional_max_age = r.i32();
   o.record_path = r.boolean();
   o.bearing_offset_sigma = r.f64();
   o.bearing_offset_correlation = r.f64();
@@ -70,6 +74,9 @@ void FastSlam::write_state(StateWriter& w) const {
     w.matrix(p.prior_mean);
     w.matrix(p.prior_cov);
     w.f64(p.bearing_offset);
+    w.i64(p.scans);
+    w.count(p.provisional.size());
+    for (long id : p.provisional) w.i64(id);
   }
   rng_.write_state(w);
   w.u64(next_stream_);
@@ -104,6 +111,13 @@ FastSlam FastSlam::read_state(StateReader& r) {
     p.prior_mean = r.matrix<Eigen::Vector3d>();
     p.prior_cov = r.matrix<Eigen::Matrix3d>();
     p.bearing_offset = r.f64();
+    p.scans = static_cast<long>(r.i64());
+    p.provisional.resize(r.count(8));
+    for (long& id : p.provisional) {
+      id = static_cast<long>(r.i64());
+      if (p.map.find(id) == nullptr) r.fail("a provisional landmark id is not in its particle's map");
+    }
+    if (p.scans < 0) r.fail("a particle's scan count is negative");
     if (!p.pose.allFinite() || !std::isfinite(p.log_weight) || !p.prior_mean.allFinite() || !p.prior_cov.allFinite() ||
         !std::isfinite(p.bearing_offset) || p.moves_since_update < 0)
       r.fail("a particle holds a value that is not finite or out of range");

@@ -57,6 +57,8 @@ void LandmarkMap::write_state(StateWriter& w) const {
     w.f64(lm.existence);
     w.f64(lm.signature);
     w.f64(lm.signature_var);
+    w.i32(lm.sightings);
+    w.i64(lm.last_seen);
   });
 }
 
@@ -64,7 +66,7 @@ LandmarkMap LandmarkMap::read_state(StateReader& r) {
   const double cell = r.f64();
   if (!(std::isfinite(cell) && cell > 0.0)) r.fail("a landmark map's cell size is not finite and > 0");
   LandmarkMap map(cell);
-  const std::size_t n = r.count(80);
+  const std::size_t n = r.count(92);
   for (std::size_t k = 0; k < n; ++k) {
     Landmark lm;
     lm.id = static_cast<long>(r.i64());
@@ -77,6 +79,9 @@ LandmarkMap LandmarkMap::read_state(StateReader& r) {
     lm.existence = r.f64();
     lm.signature = r.f64();
     lm.signature_var = r.f64();
+    lm.sightings = r.i32();
+    lm.last_seen = static_cast<long>(r.i64());
+    if (lm.sightings < 1) r.fail("landmark " + std::to_string(lm.id) + " has fewer than one sighting");
     if (!lm.mean.allFinite() || !lm.cov.allFinite() || !std::isfinite(lm.existence) || !std::isfinite(lm.signature) ||
         !std::isfinite(lm.signature_var))
       r.fail("landmark " + std::to_string(lm.id) + " holds a value that is not finite");

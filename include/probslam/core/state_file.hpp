@@ -21,7 +21,7 @@ namespace probslam {
 
 /// Version of the layout every class writes; a reader refuses any other.
 /// 2: SubmapSlam2D holds the saved map a run started from (issue 36's `slam --map`).
-inline constexpr std::uint32_t kStateFormatVersion = 2;
+inline constexpr std::uint32_t kStateFormatVersion = 3;
 
 /// What a reader throws: "<source>: <what is wrong>".
 class StateError : public std::invalid_argument {

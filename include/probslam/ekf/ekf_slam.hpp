@@ -113,6 +113,13 @@ class EkfSlam {
   void predict(double v, double w, double dt, const Eigen::MatrixXd& noise);
   /// Odometry given as a relative pose: x <- x (+) delta, delta ~ N(., noise) in the robot frame.
   void predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matrix3d& noise);
+  /// predict_odometry(deltas.row(k), noises.row(k) as a row-major 3x3) for k = 0 .. K - 1 in one
+  /// call: deltas (K, 3), noises (K, 9); returns the pose after each step (K, 3). The robot's
+  /// rows of the covariance are carried through every step, the landmarks' cross terms once
+  /// through the steps' composed Jacobian: O(K + N) against K calls' O(K N), equal to them up to
+  /// rounding. Every step is checked first (std::invalid_argument naming "deltas" / "noises" and
+  /// the row); a failed call changes nothing.
+  Poses2 predict_odometry_batch(const Eigen::Ref<const RowMatrixXd>& deltas, const Eigen::Ref<const RowMatrixXd>& noises);
 
   /// Table 10.1 lines 6-20 for measurements z (k x 2, or k x 3 with signatures) of landmarks
   /// `ids`, applied one after another (the exact EKF). A landmark seen for the first time is

@@ -28,6 +28,8 @@ inline constexpr int kFastSlamMaxParticles = kMaxParticles;
 inline constexpr int kFastSlamMaxThreads = 256;
 /// Landmarks in one particle's map (each measurement adds at most one).
 inline constexpr long kFastSlamMaxLandmarks = 1L << 26;
+/// Sightings and scan counts of the provisional landmarks (FastSlamOptions::min_sightings).
+inline constexpr int kFastSlamMaxCount = 1000000;
 
 /// Options of FastSlam; every value is checked by the constructor.
 struct FastSlamOptions {
@@ -95,6 +97,14 @@ struct FastSlamOptions {
   double existence_miss = 1.0;
   double sensor_range = std::numeric_limits<double>::infinity();  // m; finite for negative_information
   double sensor_fov = 6.283185307179586;                           // rad, full opening angle
+  /// Provisional landmarks in update_unknown (the landmark candidates of RFS-SLAM's FastSLAM,
+  /// Probabilistic Robotics' provisional list, ch. 10.3.3): a new landmark is provisional until
+  /// a particle has seen it in min_sightings scans (its first sighting counts); a provisional
+  /// landmark that goes more than provisional_max_age update_unknown calls without a sighting is
+  /// removed. It is in the particle's map meanwhile (associated and updated as any other).
+  /// 1 (the default): every new landmark is permanent at once. In [1, 1e6] and [0, 1e6].
+  int min_sightings = 1;
+  int provisional_max_age = 20;
   /// Keep every particle's path (a persistent list: shared after resampling, O(1) to copy).
   bool record_path = true;
   /// A bearing offset b shared by the measurements of one scan (a camera's timing or mounting
@@ -123,6 +133,8 @@ struct FastSlamParticle {
   Eigen::Vector3d prior_mean = Eigen::Vector3d::Zero();
   Eigen::Matrix3d prior_cov = Eigen::Matrix3d::Zero();
   double bearing_offset = 0.0;  // rad; see FastSlamOptions::bearing_offset_sigma
+  long scans = 0;                 // update_unknown calls this particle took (the provisional clock)
+  std::vector<long> provisional;  // ids of its provisional landmarks (FastSlamOptions::min_sightings)
 
   /// Lets go of the map and path this particle shares, keeping the rest (cheaper than
   /// constructing a particle, whose random stream is seeded).
@@ -138,7 +150,8 @@ struct FastSlamAssociation {
   int num_particles = 0, num_measurements = 0;
   std::vector<long> ids;                    // landmark used or created
   std::vector<std::uint8_t> is_new;         // 1 where the measurement created the landmark
-  std::vector<std::vector<long>> removed;   // per particle, landmarks removed by negative information
+  std::vector<std::vector<long>> removed;   // per particle, landmarks removed (negative information,
+                                            // provisional ones not seen often enough)
 };
 
 /// Nodes shared between the particles' maps.
@@ -213,6 +226,10 @@ class FastSlam {
   void predict(double v, double w, double dt);
   /// Odometry as a relative pose: x <- x (+) (delta + e), e ~ N(0, noise) in the robot frame.
   void predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matrix3d& noise);
+  /// predict_odometry(deltas.row(k), noises.row(k) as a row-major 3x3) for k = 0 .. K - 1, in
+  /// one call and bit for bit the same: deltas (K, 3), noises (K, 9). Every step is checked
+  /// before any particle moves (std::invalid_argument naming "deltas" / "noises" and the row).
+  void predict_odometry_batch(const Eigen::Ref<const RowMatrixXd>& deltas, const Eigen::Ref<const RowMatrixXd>& noises);
 
   /// Known correspondences: measurements z (k x 2, or k x 3 with signatures) of landmarks `ids`.
   /// Returns true when it resampled.
@@ -279,11 +296,16 @@ class FastSlam {
     bool has_prior = false;
     int moves_since_update = 0;
     std::uint64_t stamp = 0;
+    int pushed = 0;  // path poses the move appended
   };
-  /// Moves every particle by sample(pose, rng, motion), which fills `motion` drawing from rng
-  /// (a copy of the particle's stream); in place, and not at all when a sample throws.
+  /// Moves every particle `steps` times by sample(step, pose, rng, motion, since), which fills
+  /// `motion` drawing from rng (a copy of the particle's stream); in place, and not at all when a
+  /// sample throws.
   template <class Sample>
-  void move_particles(Sample&& sample);
+  void move_particles(int steps, Sample&& sample);
+  /// The odometry steps (validated; covariances symmetric, with their factors) as one move.
+  void odometry_steps(const std::vector<Eigen::Vector3d>& deltas, const std::vector<Eigen::Matrix3d>& covs,
+                      const std::vector<Eigen::Matrix3d>& factors, const char* name);
   /// (M,) the field of every particle.
   Eigen::VectorXd per_particle(double FastSlamParticle::*field) const;
   void check_measurements(const Eigen::Ref<const RowMatrixXd>& z) const;

@@ -198,6 +198,8 @@ struct Landmark {
   double existence = 1.0;
   double signature = 0.0;
   double signature_var = 0.0;
+  int sightings = 1;   // scans that saw it (update_unknown; capped at kFastSlamMaxCount)
+  long last_seen = 0;  // the particle's scan count (FastSlamParticle::scans) when last seen
 };
 
 /// A particle's landmarks, keyed for both queries FastSLAM needs, in two persistent treaps:
