@@ -438,6 +438,7 @@ def test_writer_errors(tmp_path, raw_log):
 
 # --- SLAM and mapping on bags ----------------------------------------------------------------------
 
+@pytest.mark.slow  # a whole log through SLAM twice
 @needs_rosbags
 @pytest.mark.parametrize("fmt", ["rosbag1", "mcap"])
 def test_slam_on_the_bag_equals_slam_on_the_log(tmp_path, raw_log, fmt):
@@ -487,6 +488,7 @@ def test_real_stationary_bag(shared_data):
 
 # --- command line ----------------------------------------------------------------------------------
 
+@pytest.mark.slow  # a whole log through SLAM twice
 @needs_rosbags
 def test_cli_slam_and_map_on_bags(tmp_path, raw_log, capsys):
     raw = tmp_path / "raw.bag"

@@ -11,6 +11,10 @@ import pytest
 from probslam import _core, cli, io
 from probslam.slam import run_slam
 
+# Each test runs SLAM over a whole log (slow: minutes under the sanitizers, which the reliability
+# files cover for the same C++ classes).
+pytestmark = pytest.mark.slow
+
 #: Scans of the bundled raw Intel loop: enough for a dozen 3 m submaps and closure searches.
 SCANS = 400
 GRID_CELL_BYTES = 12  # log-odds (double) and scan stamp (uint32) per cell

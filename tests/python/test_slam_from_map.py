@@ -11,6 +11,10 @@ import probslam as ps
 from probslam import cli, io
 from probslam.slam import run_slam
 
+# Each test runs SLAM over the bundled Intel lap (slow: seconds here, minutes under the sanitizers,
+# which the reliability files cover for the same C++ classes).
+pytestmark = pytest.mark.slow
+
 #: Where the second half starts, run on the first half's saved map, against the uninterrupted
 #: run (m): its first scans must be where the uninterrupted run put them, to about a cell (5 cm;
 #: measured 0.006 to 0.02 m over the first 20 scans).

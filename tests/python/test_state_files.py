@@ -143,6 +143,7 @@ def head(log_scans, n):
                                              for f in dataclasses.fields(log_scans)})
 
 
+@pytest.mark.slow  # a whole log through SLAM twice
 @pytest.mark.parametrize("method,options", [("graph", {}), ("rbpf", {"num_particles": 3})])
 def test_run_slam_resumed_equals_uninterrupted(tmp_path, method, options):
     log = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_RAW_LOG)).scans
@@ -169,6 +170,7 @@ def test_run_slam_resumed_equals_uninterrupted(tmp_path, method, options):
         run_slam(full, resume=tmp_path / "bad.psl", progress=False)
 
 
+@pytest.mark.slow  # a whole log through SLAM twice
 def test_cli_slam_save_then_resume_equals_one_run(tmp_path, capsys):
     lines = gzip.decompress(open(cli._bundled_log(cli.BUNDLED_RAW_LOG), "rb").read()).decode().splitlines(True)
     params = [s for s in lines if not s.startswith("FLASER")]
