@@ -308,11 +308,12 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: Optional[st
     ``method="graph"`` (default): ``options`` are those of ``probslam.SubmapSlam2D``: the
     frontend's (resolution (m), max_range (m; default: the log's no-return reading),
     max_usable_range, sigma, p_rand, linear_window, angular_window, min_travel, min_rotation,
-    submap_distance, submap_scans, min_match_quality, odometry_noise, use_odometry_prior) and the
-    loop closures' (loop_closures, closure_scans_per_submap, closure_min_match_quality,
-    closure_window_sigmas, closure_{min,max}_{linear,angular}_window, closure_max_distance,
-    dissolve_chi2, max_rounds, field_cache_mb). A log without odometry runs on scan matching
-    alone (no odometry prior, every scan matched, wider windows).
+    submap_distance, submap_scans, min_match_quality, odometry_noise, use_odometry_prior,
+    constant_velocity, match_fraction) and the loop closures' (loop_closures,
+    closure_scans_per_submap, closure_min_match_quality, closure_window_sigmas,
+    closure_{min,max}_{linear,angular}_window, closure_max_distance, dissolve_chi2, max_rounds,
+    field_cache_mb). Defaults taken from the log: ``log_options`` (a log without odometry runs on
+    scan matching alone, every scan matched, each predicted by the last matched motion).
 
     ``method="rbpf"``: grid-based FastSLAM, ``options`` those of ``probslam.GridFastSlam``
     (num_particles (30), proposal ("scan-matching", "motion" or "improved-odometry"),
