@@ -177,7 +177,8 @@ IncrementalScanMatcher::PendingScan IncrementalScanMatcher::prepare(const Eigen:
   p.angles = beam_angles;
   ScanEstimate& est = p.est;
   p.hits = scan_hits(ranges, beam_angles, options_.filter);
-  const Points2 points = matched_hits(p.hits);
+  // A saved map is whole beyond the scan: its edge pulls nothing, every hit is matched on it.
+  const Points2 points = started_on_map_ && submaps_.size() == 1 ? p.hits : matched_hits(p.hits);
   p.filter_seconds = cpu_seconds() - t0;
   est.points = static_cast<int>(points.rows());
   if (submaps_.empty()) {  // the map's frame is the first scan's odometry frame
@@ -193,8 +194,11 @@ IncrementalScanMatcher::PendingScan IncrementalScanMatcher::prepare(const Eigen:
   const bool on_map = awaits_first_scan_on_map();
   const Eigen::Vector3d delta = on_map ? Eigen::Vector3d::Zero()
                                 : options_.constant_velocity
-                                    ? last_motion(timestamp)
+                                    ? last_motion(timestamp).value_or(Eigen::Vector3d::Zero())
                                     : Pose2::from_vector(matched_odometry_).between(Pose2::from_vector(odometry)).vector();
+  // The constant-velocity prediction enters the score once there is a velocity: before (the
+  // log's first scans), a robot that starts at speed would be held at "no motion".
+  const bool prior_known = !options_.constant_velocity || last_motion(timestamp).has_value();
   const Eigen::Vector3d prior = Pose2::from_vector(matched_pose_).compose(Pose2::from_vector(delta)).vector();
   const Eigen::Matrix3d rel_cov = options_.odometry.covariance(delta);
   est.pose = prior;
@@ -207,7 +211,7 @@ IncrementalScanMatcher::PendingScan IncrementalScanMatcher::prepare(const Eigen:
     const double t1 = cpu_seconds();
     auto cache = std::make_shared<FieldCache>(*field_cache_);
     const MatchResult r = match(cur, points, prior, J * rel_cov * J.transpose(), *cache,
-                                options_.use_odometry_prior && !on_map);
+                                options_.use_odometry_prior && !on_map && prior_known);
     p.field_built = cache->matcher != field_cache_->matcher;
     p.cache = std::move(cache);
     p.match_seconds = cpu_seconds() - t1;
@@ -247,7 +251,7 @@ Points2 IncrementalScanMatcher::matched_hits(const Points2& hits) const {
   return out;
 }
 
-Eigen::Vector3d IncrementalScanMatcher::last_motion(double timestamp) const {
+std::optional<Eigen::Vector3d> IncrementalScanMatcher::last_motion(double timestamp) const {
   // The motion over the last kVelocityScans scans that moved (every scan of a log without
   // odometry, whose min_travel is 0), in the frame of the earliest, scaled to the time since the
   // last: one scan's matched motion scatters by centimetres, their mean over a few does not.
@@ -258,7 +262,7 @@ Eigen::Vector3d IncrementalScanMatcher::last_motion(double timestamp) const {
     before = k;
     ++seen;
   }
-  if (before < 0 || before == last) return Eigen::Vector3d::Zero();
+  if (seen <= kVelocityScans) return std::nullopt;
   const Eigen::Vector3d m = Pose2::from_vector(estimates_[static_cast<std::size_t>(before)].pose)
                                 .between(Pose2::from_vector(estimates_[static_cast<std::size_t>(last)].pose))
                                 .vector();
@@ -323,6 +327,7 @@ void IncrementalScanMatcher::start_from_map(const OccupancyGrid2D& map, const Ei
   submaps_.push_back(Submap{map, Eigen::Vector3d::Zero(), {}, 0.0, 0});
   matched_pose_ = initial_pose;
   matched_pose_.z() = wrap_angle(matched_pose_.z());
+  started_on_map_ = true;
 }
 
 IncrementalScanMatcher::Snapshot IncrementalScanMatcher::snapshot() const {

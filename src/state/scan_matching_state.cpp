@@ -166,6 +166,7 @@ void IncrementalScanMatcher::write_state(StateWriter& w) const {
   }
   w.matrix(matched_odometry_);
   w.matrix(matched_pose_);
+  w.boolean(started_on_map_);
   const FieldCache& c = *field_cache_;
   w.boolean(c.matcher != nullptr);
   if (c.matcher) {
@@ -223,6 +224,7 @@ IncrementalScanMatcher IncrementalScanMatcher::read_state(StateReader& r) {
   m.matched_odometry_ = r.matrix<Eigen::Vector3d>();
   m.matched_pose_ = r.matrix<Eigen::Vector3d>();
   if (!m.matched_odometry_.allFinite() || !m.matched_pose_.allFinite()) r.fail("the last matched pose is not finite");
+  m.started_on_map_ = r.boolean();
   auto cache = std::make_shared<FieldCache>();
   if (r.boolean()) {
     LikelihoodField field = LikelihoodField::read_state(r);

@@ -49,7 +49,7 @@ struct IncrementalScanMatcherOptions {
   /// is scored against the edge's last cells, which pulls the scan back towards the previous
   /// pose (-17 mm of every 50 mm step in a simulated corridor with a 5 m laser, 1.6 % too short
   /// in an office). Matching only the hits whose surroundings earlier scans mapped removes the
-  /// pull: 0.8 left a third of it, 0.6 left 3 % (probslam.sim_laser, Stage-like robot; ACES
+  /// pull: 0.8 left a quarter of it, 0.6 left 3 % (probslam.sim_laser, Stage-like robot; ACES
   /// relations 0.042 m against 0.043 m with every hit).
   double match_fraction = 0.6;
   /// A scan is matched only after the odometry has moved this far or turned this much since
@@ -212,8 +212,9 @@ class IncrementalScanMatcher {
                     const Eigen::Matrix3d& prior_cov, FieldCache& cache, bool use_prior) const;
   /// The hits a scan is matched on (options_.match_fraction).
   Points2 matched_hits(const Points2& hits) const;
-  /// The constant-velocity prediction of the motion to a scan at `timestamp`.
-  Eigen::Vector3d last_motion(double timestamp) const;
+  /// The constant-velocity prediction of the motion to a scan at `timestamp`; nothing before
+  /// enough scans have moved to tell a velocity.
+  std::optional<Eigen::Vector3d> last_motion(double timestamp) const;
   const CorrelativeScanMatcher& matcher_for(const Submap& submap, const Eigen::Vector4d& region,
                                             const Eigen::Vector3d& prior, FieldCache& cache) const;
 
@@ -225,6 +226,7 @@ class IncrementalScanMatcher {
   std::vector<Submap> submaps_;
   Eigen::Vector3d matched_odometry_ = Eigen::Vector3d::Zero();  // of the last matched scan
   Eigen::Vector3d matched_pose_ = Eigen::Vector3d::Zero();
+  bool started_on_map_ = false;  // submap 0 is a saved map (start_from_map)
   ScanMatcherTimings timings_;
   ObjectMutex mutex_;
 };
