@@ -100,6 +100,8 @@ struct FrontendArgs {
   RealArg min_match_quality;
   IntArg warmup_scans;
   RealArg field_refresh_distance, field_refresh_angle;
+  BoolArg constant_velocity;
+  RealArg match_fraction;
 
   IncrementalScanMatcherOptions get(IncrementalScanMatcherOptions o) const {
     o.resolution = resolution.get("resolution");
@@ -119,6 +121,8 @@ struct FrontendArgs {
     o.warmup_scans = warmup_scans.get("warmup_scans");
     o.field_refresh_distance = field_refresh_distance.get("field_refresh_distance");
     o.field_refresh_angle = field_refresh_angle.get("field_refresh_angle");
+    o.constant_velocity = constant_velocity.get("constant_velocity");
+    o.match_fraction = match_fraction.get("match_fraction");
     return o;
   }
 };
@@ -134,7 +138,9 @@ auto frontend_keywords(const IncrementalScanMatcherOptions& d) {
                       real_arg("submap_distance", d.submap_distance), py::arg_v("submap_scans", d.submap_scans),
                       real_arg("min_match_quality", d.min_match_quality), py::arg_v("warmup_scans", d.warmup_scans),
                       real_arg("field_refresh_distance", d.field_refresh_distance),
-                      real_arg("field_refresh_angle", d.field_refresh_angle)));
+                      real_arg("field_refresh_angle", d.field_refresh_angle),
+                      py::arg_v("constant_velocity", d.constant_velocity),
+                      real_arg("match_fraction", d.match_fraction)));
 }
 
 constexpr double kBytesPerMiB = 1024.0 * 1024.0;
@@ -560,6 +566,10 @@ void define_slam2d(py::module_& m) {
       "    warmup_scans: scans inserted into a new local map before matching starts against it.\n"
       "    field_refresh_distance: m; field_refresh_angle: rad; the local map's likelihood field is\n"
       "        rebuilt once the robot moved or turned this much since it was built (0: every scan).\n"
+      "    constant_velocity: predict each scan's motion as the last matched one (a log without\n"
+      "        odometry), not the odometry's.\n"
+      "    match_fraction: hits beyond this fraction of the usable range are inserted, not matched\n"
+      "        (the map's edge pulls them back), 0 < f <= 1.\n"
       "A failed call (add_scans included) changes nothing.");
   keyword_init(
       ism,
@@ -568,11 +578,12 @@ void define_slam2d(py::module_& m) {
                   RealArg linear_window, RealArg angular_window, BoolArg refine, BoolArg use_odometry_prior,
                   py::handle odometry_noise, RealArg min_travel, RealArg min_rotation, RealArg submap_distance,
                   IntArg submap_scans, RealArg min_match_quality, IntArg warmup_scans, RealArg field_refresh_distance,
-                  RealArg field_refresh_angle) {
+                  RealArg field_refresh_angle, BoolArg constant_velocity, RealArg match_fraction) {
         const FrontendArgs a{resolution, {max_range, min_range, max_usable_range, clear_no_return, min_point_spacing},
                              sigma, p_rand, linear_window, angular_window, refine, use_odometry_prior,
                              odometry_noise, min_travel, min_rotation, submap_distance, submap_scans,
-                             min_match_quality, warmup_scans, field_refresh_distance, field_refresh_angle};
+                             min_match_quality, warmup_scans, field_refresh_distance, field_refresh_angle,
+                             constant_velocity, match_fraction};
         const IncrementalScanMatcherOptions o = a.get(IncrementalScanMatcherOptions{});
         return std::make_unique<ISM>(o);
       }),
@@ -634,7 +645,7 @@ void define_slam2d(py::module_& m) {
                   RealArg linear_window, RealArg angular_window, BoolArg refine, BoolArg use_odometry_prior,
                   py::handle odometry_noise, RealArg min_travel, RealArg min_rotation, RealArg submap_distance,
                   IntArg submap_scans, RealArg min_match_quality, IntArg warmup_scans, RealArg field_refresh_distance,
-                  RealArg field_refresh_angle, BoolArg loop_closures, IntArg closure_scans_per_submap,
+                  RealArg field_refresh_angle, BoolArg constant_velocity, RealArg match_fraction, BoolArg loop_closures, IntArg closure_scans_per_submap,
                   RealArg closure_min_match_quality, RealArg closure_window_sigmas, RealArg closure_min_linear_window,
                   RealArg closure_max_linear_window, RealArg closure_min_angular_window,
                   RealArg closure_max_angular_window, RealArg closure_max_distance, RealArg dissolve_chi2,
@@ -642,7 +653,8 @@ void define_slam2d(py::module_& m) {
         const FrontendArgs a{resolution, {max_range, min_range, max_usable_range, clear_no_return, min_point_spacing},
                              sigma, p_rand, linear_window, angular_window, refine, use_odometry_prior,
                              odometry_noise, min_travel, min_rotation, submap_distance, submap_scans,
-                             min_match_quality, warmup_scans, field_refresh_distance, field_refresh_angle};
+                             min_match_quality, warmup_scans, field_refresh_distance, field_refresh_angle,
+                             constant_velocity, match_fraction};
         const ClosureArgs c{loop_closures, closure_scans_per_submap, closure_min_match_quality,
                             closure_window_sigmas, closure_min_linear_window, closure_max_linear_window,
                             closure_min_angular_window, closure_max_angular_window, closure_max_distance,

@@ -725,7 +725,9 @@ class IncrementalScanMatcher:
     (sigma (m), p_rand), the search window (linear_window (m), angular_window (rad), refine),
     use_odometry_prior, odometry_noise (6,), min_travel (m), min_rotation (rad), submap_distance
     (m), submap_scans, min_match_quality, warmup_scans, field_refresh_distance (m),
-    field_refresh_angle (rad)."""
+    field_refresh_angle (rad), constant_velocity (predict with the last matched motion, not the
+    odometry's), match_fraction (hits beyond this share of the usable range are inserted, not
+    matched)."""
     num_scans: int
     num_submaps: int
     pose: Array  # (3,) the last scan's pose
@@ -739,7 +741,8 @@ class IncrementalScanMatcher:
                  odometry_noise: ArrayLike = (0.1, 0.02, 0.01, 0.1, 0.05, 0.005), min_travel: float = 0.05,
                  min_rotation: float = 0.05, submap_distance: float = 5.0, submap_scans: int = 0,
                  min_match_quality: float = 0.1, warmup_scans: int = 1, field_refresh_distance: float = 0.3,
-                 field_refresh_angle: float = 0.3) -> None: ...
+                 field_refresh_angle: float = 0.3, constant_velocity: bool = False,
+                 match_fraction: float = 0.6) -> None: ...
     def add_scans(self, ranges: ArrayLike, beam_angles: ArrayLike, odometry: ArrayLike,
                   timestamps: ArrayLike) -> None:
         """ranges (S, B) m, beam_angles (B,) or (S, B) rad, odometry (S, 3) laser poses, timestamps (S,) s."""
@@ -797,7 +800,8 @@ class SubmapSlam2D:
                  odometry_noise: ArrayLike = (0.1, 0.02, 0.01, 0.1, 0.05, 0.005), min_travel: float = 0.05,
                  min_rotation: float = 0.05, submap_distance: float = 10.0, submap_scans: int = 0,
                  min_match_quality: float = 0.1, warmup_scans: int = 1, field_refresh_distance: float = 0.3,
-                 field_refresh_angle: float = 0.3, loop_closures: bool = True, closure_scans_per_submap: int = 3,
+                 field_refresh_angle: float = 0.3, constant_velocity: bool = False, match_fraction: float = 0.6,
+                 loop_closures: bool = True, closure_scans_per_submap: int = 3,
                  closure_min_match_quality: float = 0.6, closure_window_sigmas: float = 3.0,
                  closure_min_linear_window: float = 0.3, closure_max_linear_window: float = 4.0,
                  closure_min_angular_window: float = 0.1, closure_max_angular_window: float = 0.7,

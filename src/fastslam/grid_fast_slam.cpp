@@ -61,6 +61,10 @@ Eigen::Vector3d gaussian_offset(const Eigen::Matrix3d& cov, ParticleRng& rng) {
 IncrementalScanMatcherOptions GridFastSlamOptions::default_corrector() {
   IncrementalScanMatcherOptions o;
   o.submap_distance = 5.0;  // "short stretches": the corrected odometry drifts like a 5 m submap
+  // Every hit matched, as before issue 51's match_fraction: with 0.6 the short-range simulated
+  // robots' rbpf gained (Stage-like office, the truth as odometry: 1.13 to 0.086 m ATE) but
+  // ACES's relations went from 0.046 to 0.077 m.
+  o.match_fraction = 1.0;
   return o;
 }
 

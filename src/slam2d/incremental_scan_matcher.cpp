@@ -22,6 +22,14 @@ constexpr double kGrowMargin = 10.0;
 /// A field is built this far (m) beyond the region the scan needs: the next scans, a few cm
 /// on, then land inside it and reuse it.
 constexpr double kFieldRoom = 2.0;
+/// A scan is matched on its near hits (match_fraction) only when it has at least this many:
+/// fewer cannot fix three degrees of freedom against a noisy map.
+constexpr Eigen::Index kMinMatchedHits = 20;
+/// The constant-velocity prediction's velocity: the mean over this many matched motions.
+constexpr int kVelocityScans = 5;
+/// The constant-velocity prediction over a gap in the scans is at most this many times the last
+/// motion: beyond, the last velocity says little about what happened in between.
+constexpr double kMaxVelocityScale = 3.0;
 
 }  // namespace
 
@@ -47,6 +55,8 @@ void IncrementalScanMatcherOptions::validate() const {
   m.use_prior = false;
   m.validate();
   odometry.validate();
+  require(std::isfinite(match_fraction) && match_fraction > 0.0 && match_fraction <= 1.0, "match_fraction",
+          "must lie in (0, 1]");
   require(std::isfinite(min_travel) && min_travel >= 0.0, "min_travel", "must be finite and >= 0");
   require(std::isfinite(min_rotation) && min_rotation >= 0.0, "min_rotation", "must be finite and >= 0");
   require(std::isfinite(submap_distance) && submap_distance >= 0.0, "submap_distance", "must be finite and >= 0");
@@ -167,7 +177,8 @@ IncrementalScanMatcher::PendingScan IncrementalScanMatcher::prepare(const Eigen:
   p.angles = beam_angles;
   ScanEstimate& est = p.est;
   p.hits = scan_hits(ranges, beam_angles, options_.filter);
-  const Points2& points = p.hits;
+  // A saved map is whole beyond the scan: its edge pulls nothing, every hit is matched on it.
+  const Points2 points = started_on_map_ && submaps_.size() == 1 ? p.hits : matched_hits(p.hits);
   p.filter_seconds = cpu_seconds() - t0;
   est.points = static_cast<int>(points.rows());
   if (submaps_.empty()) {  // the map's frame is the first scan's odometry frame
@@ -182,7 +193,12 @@ IncrementalScanMatcher::PendingScan IncrementalScanMatcher::prepare(const Eigen:
   // moved from anything yet.
   const bool on_map = awaits_first_scan_on_map();
   const Eigen::Vector3d delta = on_map ? Eigen::Vector3d::Zero()
-                                       : Pose2::from_vector(matched_odometry_).between(Pose2::from_vector(odometry)).vector();
+                                : options_.constant_velocity
+                                    ? last_motion(timestamp).value_or(Eigen::Vector3d::Zero())
+                                    : Pose2::from_vector(matched_odometry_).between(Pose2::from_vector(odometry)).vector();
+  // The constant-velocity prediction enters the score once there is a velocity: before (the
+  // log's first scans), a robot that starts at speed would be held at "no motion".
+  const bool prior_known = !options_.constant_velocity || last_motion(timestamp).has_value();
   const Eigen::Vector3d prior = Pose2::from_vector(matched_pose_).compose(Pose2::from_vector(delta)).vector();
   const Eigen::Matrix3d rel_cov = options_.odometry.covariance(delta);
   est.pose = prior;
@@ -195,7 +211,7 @@ IncrementalScanMatcher::PendingScan IncrementalScanMatcher::prepare(const Eigen:
     const double t1 = cpu_seconds();
     auto cache = std::make_shared<FieldCache>(*field_cache_);
     const MatchResult r = match(cur, points, prior, J * rel_cov * J.transpose(), *cache,
-                                options_.use_odometry_prior && !on_map);
+                                options_.use_odometry_prior && !on_map && prior_known);
     p.field_built = cache->matcher != field_cache_->matcher;
     p.cache = std::move(cache);
     p.match_seconds = cpu_seconds() - t1;
@@ -218,6 +234,42 @@ IncrementalScanMatcher::PendingScan IncrementalScanMatcher::prepare(const Eigen:
   // The next submap starts here, with this scan in both: consecutive submaps overlap.
   if (p.open_next) p.next = new_submap_grid(est.pose);
   return p;
+}
+
+Points2 IncrementalScanMatcher::matched_hits(const Points2& hits) const {
+  const double reach = options_.match_fraction * options_.filter.usable_range();
+  if (!(reach < options_.filter.usable_range())) return hits;
+  const double reach2 = reach * reach;
+  Points2 out(hits.rows(), 2);
+  Eigen::Index n = 0;
+  for (Eigen::Index i = 0; i < hits.rows(); ++i)
+    if (hits.row(i).squaredNorm() <= reach2) out.row(n++) = hits.row(i);
+  // A scan that sees nothing that near (an open hall, a long corridor's end) keeps every hit:
+  // matching the far ones beats falling back to the prediction.
+  if (n < kMinMatchedHits) return hits;
+  out.conservativeResize(n, 2);
+  return out;
+}
+
+std::optional<Eigen::Vector3d> IncrementalScanMatcher::last_motion(double timestamp) const {
+  // The motion over the last kVelocityScans scans that moved (every scan of a log without
+  // odometry, whose min_travel is 0), in the frame of the earliest, scaled to the time since the
+  // last: one scan's matched motion scatters by centimetres, their mean over a few does not.
+  int last = -1, before = -1, seen = 0;
+  for (int k = num_scans() - 1; k >= 0 && seen <= kVelocityScans; --k) {
+    if (estimates_[static_cast<std::size_t>(k)].submap < 0) continue;
+    if (last < 0) last = k;
+    before = k;
+    ++seen;
+  }
+  if (seen <= kVelocityScans) return std::nullopt;
+  const Eigen::Vector3d m = Pose2::from_vector(estimates_[static_cast<std::size_t>(before)].pose)
+                                .between(Pose2::from_vector(estimates_[static_cast<std::size_t>(last)].pose))
+                                .vector();
+  const double dt = timestamps_[static_cast<std::size_t>(last)] - timestamps_[static_cast<std::size_t>(before)];
+  const double ahead = timestamp - timestamps_[static_cast<std::size_t>(last)];
+  const double scale = dt > 0.0 ? std::clamp(ahead / dt, 0.0, kMaxVelocityScale) : 1.0;
+  return m * scale;
 }
 
 ScanEstimate IncrementalScanMatcher::commit(PendingScan&& p) {
@@ -275,6 +327,7 @@ void IncrementalScanMatcher::start_from_map(const OccupancyGrid2D& map, const Ei
   submaps_.push_back(Submap{map, Eigen::Vector3d::Zero(), {}, 0.0, 0});
   matched_pose_ = initial_pose;
   matched_pose_.z() = wrap_angle(matched_pose_.z());
+  started_on_map_ = true;
 }
 
 IncrementalScanMatcher::Snapshot IncrementalScanMatcher::snapshot() const {

@@ -392,6 +392,10 @@ std::optional<SubmapConstraint> SubmapSlam2D::try_closure(int s, int i, const st
       return std::nullopt;
   }
   attempts_[key] = predicted;
+  // A pair that holds an active closure is not searched again: once the graph moved, the same
+  // match would be added a second time and count twice (a look-alike's as much as a true one's).
+  for (const SubmapConstraint& c : constraints_)
+    if (c.loop && c.active && c.scan == s && c.from == i) return std::nullopt;
 
   const ObstacleCells& cells = closure_cells_[static_cast<std::size_t>(i)];
   // The pyramid only as deep as this window needs (a search of a deeper one is the same
@@ -421,7 +425,7 @@ std::optional<SubmapConstraint> SubmapSlam2D::try_closure(int s, int i, const st
        std::max(std::abs(off.x()), std::abs(off.y())) > m.window.linear - kEdgeCells * res) ||
       (m.window.angular < lc.max_angular_window &&
        std::abs(wrap_angle(off.z())) > m.window.angular - kEdgeCells * r.angular_step);
-  if (r.match_quality < lc.min_match_quality || at_edge) {
+  if (r.match_quality < lc.min_match_quality || at_edge || !agrees_with_graph(r, predicted, Ti, W, SW, i, Si)) {
     ++counts_.closures_rejected;
     return std::nullopt;
   }
@@ -441,6 +445,29 @@ std::optional<SubmapConstraint> SubmapSlam2D::try_closure(int s, int i, const st
   c.covariance = compose_covariance(a, Sa, b, Jinv * offset_cov_[s] * Jinv.transpose()) +
                  kMinConstraintVariance * Eigen::Matrix3d::Identity();
   return c;
+}
+
+bool SubmapSlam2D::agrees_with_graph(const MatchResult& r, const Eigen::Vector3d& predicted, const Pose2& Ti,
+                                     const Eigen::Vector3d& W, const Eigen::Matrix3d& SW, int i,
+                                     const Eigen::Matrix3d& Si) const {
+  // The match against where the graph predicts the scan, in the world frame: the window spans
+  // the prediction's largest spread on both axes and the largest turn, so a look-alike place
+  // can score well inside it where the prediction's own spread makes it improbable (a corridor
+  // known across, not along; the map's heading known to a degree). A closure the optimised
+  // graph would dissolve at once (dissolve_chi2) is not added: the same test, before, with the
+  // two submaps' marginals taken as independent (their correlation only shrinks the spread of
+  // the difference, so this errs towards accepting) and submap i's heading spread carried to
+  // the scan by its lever arm.
+  const Eigen::Matrix3d R = frame_rotation(Ti.theta);  // submap i's frontend frame -> the world's
+  Eigen::Vector3d d = R * (r.pose - predicted);
+  d.z() = wrap_angle(r.pose.z() - predicted.z());
+  Eigen::Matrix3d J = Eigen::Matrix3d::Identity();
+  J(0, 2) = -(W.y() - nodes_[i].y());
+  J(1, 2) = W.x() - nodes_[i].x();
+  const Eigen::Matrix3d C = SW + J * Si * J.transpose() + R * r.covariance * R.transpose();
+  const Eigen::LDLT<Eigen::Matrix3d> ldlt(0.5 * (C + C.transpose()));
+  if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().array() > 0.0).all()) return true;
+  return d.dot(ldlt.solve(d)) <= options_.closures.dissolve_chi2;
 }
 
 Eigen::Vector4d SubmapSlam2D::closure_region(int i) const {

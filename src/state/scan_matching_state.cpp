@@ -60,6 +60,8 @@ void write(StateWriter& w, const IncrementalScanMatcherOptions& o) {
   write(w, o.match);
   write(w, o.odometry);
   w.boolean(o.use_odometry_prior);
+  w.boolean(o.constant_velocity);
+  w.f64(o.match_fraction);
   for (double v : {o.min_travel, o.min_rotation, o.submap_distance}) w.f64(v);
   w.i32(o.submap_scans);
   w.f64(o.min_match_quality);
@@ -74,6 +76,8 @@ void read(StateReader& r, IncrementalScanMatcherOptions& o) {
   read(r, o.match);
   read(r, o.odometry);
   o.use_odometry_prior = r.boolean();
+  o.constant_velocity = r.boolean();
+  o.match_fraction = r.f64();
   for (double* v : {&o.min_travel, &o.min_rotation, &o.submap_distance}) *v = r.f64();
   o.submap_scans = r.i32();
   o.min_match_quality = r.f64();
@@ -162,6 +166,7 @@ void IncrementalScanMatcher::write_state(StateWriter& w) const {
   }
   w.matrix(matched_odometry_);
   w.matrix(matched_pose_);
+  w.boolean(started_on_map_);
   const FieldCache& c = *field_cache_;
   w.boolean(c.matcher != nullptr);
   if (c.matcher) {
@@ -219,6 +224,7 @@ IncrementalScanMatcher IncrementalScanMatcher::read_state(StateReader& r) {
   m.matched_odometry_ = r.matrix<Eigen::Vector3d>();
   m.matched_pose_ = r.matrix<Eigen::Vector3d>();
   if (!m.matched_odometry_.allFinite() || !m.matched_pose_.allFinite()) r.fail("the last matched pose is not finite");
+  m.started_on_map_ = r.boolean();
   auto cache = std::make_shared<FieldCache>();
   if (r.boolean()) {
     LikelihoodField field = LikelihoodField::read_state(r);

@@ -134,7 +134,7 @@ def test_log_without_odometry_runs_on_scan_matching_alone(drive):
     scans = scans_of(true[:n], still, ranges[:n])
     assert not has_odometry(scans)
     result = run_slam(scans, progress=False)
-    assert not result.odometry and result.options["use_odometry_prior"] is False
+    assert not result.odometry and result.options["constant_velocity"] is True
     err = position_errors(result.poses, true[:n])
     assert err.max() < 0.2, err.max()
     # Submaps are cut by the estimated travel (the odometry says the robot never moved).

@@ -21,6 +21,8 @@ namespace probslam {
 
 /// Version of the layout every class writes; a reader refuses any other.
 /// 2: SubmapSlam2D holds the saved map a run started from (issue 36's `slam --map`).
+/// 3: the scan matcher holds constant_velocity, match_fraction and whether it started on a
+/// saved map (issue 51); FastSlam its provisional landmarks (min_sightings, issue 50).
 inline constexpr std::uint32_t kStateFormatVersion = 3;
 
 /// What a reader throws: "<source>: <what is wrong>".

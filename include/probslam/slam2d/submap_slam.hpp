@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "probslam/core/object_mutex.hpp"
+#include "probslam/core/pose2.hpp"
 #include "probslam/graph/graph_optimizer.hpp"
 #include "probslam/graph/pose_graph_2d.hpp"
 #include "probslam/slam2d/incremental_scan_matcher.hpp"
@@ -194,6 +195,11 @@ class SubmapSlam2D {
   int search_closures(int j);
   /// The closure a scan of submap j makes with submap i, if it passes every test (counted).
   std::optional<SubmapConstraint> try_closure(int scan, int i, const std::vector<Eigen::Matrix3d>& marginals);
+  /// Whether match r of a scan agrees with where the graph predicts it (predicted in submap i's
+  /// frame Ti; W, SW the world pose and covariance of the scan, Si submap i's marginal) within
+  /// dissolve_chi2.
+  bool agrees_with_graph(const MatchResult& r, const Eigen::Vector3d& predicted, const Pose2& Ti,
+                         const Eigen::Vector3d& W, const Eigen::Matrix3d& SW, int i, const Eigen::Matrix3d& Si) const;
   void optimize_and_dissolve();
   CorrelativeScanMatcher build_matcher(int submap, int levels);
   /// Where the loop-closure field of a finished submap lies: its hits, widened by the field's
