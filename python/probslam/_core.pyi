@@ -742,7 +742,7 @@ class IncrementalScanMatcher:
                  min_rotation: float = 0.05, submap_distance: float = 5.0, submap_scans: int = 0,
                  min_match_quality: float = 0.1, warmup_scans: int = 1, field_refresh_distance: float = 0.3,
                  field_refresh_angle: float = 0.3, constant_velocity: bool = False,
-                 match_fraction: float = 0.6) -> None: ...
+                 match_fraction: float = 1.0) -> None: ...
     def add_scans(self, ranges: ArrayLike, beam_angles: ArrayLike, odometry: ArrayLike,
                   timestamps: ArrayLike) -> None:
         """ranges (S, B) m, beam_angles (B,) or (S, B) rad, odometry (S, 3) laser poses, timestamps (S,) s."""
@@ -800,7 +800,7 @@ class SubmapSlam2D:
                  odometry_noise: ArrayLike = (0.1, 0.02, 0.01, 0.1, 0.05, 0.005), min_travel: float = 0.05,
                  min_rotation: float = 0.05, submap_distance: float = 10.0, submap_scans: int = 0,
                  min_match_quality: float = 0.1, warmup_scans: int = 1, field_refresh_distance: float = 0.3,
-                 field_refresh_angle: float = 0.3, constant_velocity: bool = False, match_fraction: float = 0.6,
+                 field_refresh_angle: float = 0.3, constant_velocity: bool = False, match_fraction: float = 1.0,
                  loop_closures: bool = True, closure_scans_per_submap: int = 3,
                  closure_min_match_quality: float = 0.6, closure_window_sigmas: float = 3.0,
                  closure_min_linear_window: float = 0.3, closure_max_linear_window: float = 4.0,
