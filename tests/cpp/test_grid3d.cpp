@@ -1,6 +1,7 @@
 // OccupancyGrid3D without OctoMap: argument checks, queries, threads, .bt files, projection.
 // (Agreement with OctoMap itself is test_octomap_crosscheck.cpp.)
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <cmath>
 #include <cstdio>
@@ -137,7 +138,11 @@ TEST(Grid3D, ProjectionTakesTheColumnMaximum) {
 
 class BtFile : public ::testing::Test {
  protected:
-  std::string path = ::testing::TempDir() + "probslam_grid3d_test.bt";
+  // One file per test and process: ctest runs the BtFile tests at once (-j), and a shared name
+  // let one test truncate the file another was reading.
+  std::string path = ::testing::TempDir() + "probslam_grid3d_" +
+                     ::testing::UnitTest::GetInstance()->current_test_info()->name() + "_" +
+                     std::to_string(::getpid()) + ".bt";
   void TearDown() override { std::remove(path.c_str()); }
   void write_raw(const std::string& bytes) { std::ofstream(path, std::ios::binary) << bytes; }
 };
