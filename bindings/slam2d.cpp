@@ -417,8 +417,9 @@ void define_slam2d(py::module_& m) {
   py::class_<LikelihoodField>(m, "LikelihoodField",
                               "The blurred likelihood field of a grid (ch. 6.4): log((1 - p_rand) exp(-d^2 / 2 sigma^2)\n"
                               "+ p_rand), d the distance (m) to the nearest occupied cell; immutable once built.")
-      .def(py::init([](const OccupancyGrid2D& grid, double sigma, double p_rand, double occupied_probability,
+      .def(py::init([](ClassArg<OccupancyGrid2D> grid_arg, double sigma, double p_rand, double occupied_probability,
                        double max_distance, py::handle region) {
+             const OccupancyGrid2D& grid = grid_arg.get("grid");
              const LikelihoodFieldOptions o{sigma, p_rand, occupied_probability, max_distance};
              if (region.is_none())
                return locked(grid, [&] { return LikelihoodField::from_grid(grid, o); });
@@ -493,7 +494,8 @@ void define_slam2d(py::module_& m) {
   py::class_<CorrelativeScanMatcher>(m, "CorrelativeScanMatcher",
                                      "Correlative scan matching (Olson 2009): branch and bound over a max-pooled pyramid of\n"
                                      "a LikelihoodField (Hess 2016). Immutable once built.")
-      .def(py::init([](const LikelihoodField& field, IntArg max_level_arg) {
+      .def(py::init([](ClassArg<LikelihoodField> field_arg, IntArg max_level_arg) {
+             const LikelihoodField& field = field_arg.get("field");
              const int max_level = max_level_arg.get("max_level");
              py::gil_scoped_release release;
              return CorrelativeScanMatcher(field, max_level);

@@ -25,6 +25,8 @@ CALLS = [
      "a BeamSensorModel"),
     (lambda w: _core.map_occupancy_grid_mapping(POSES, SCANS, ANGLES, w, GRID), "model", "a BeamSensorModel"),
     (lambda w: _core.map_occupancy_grid_mapping(POSES, SCANS, ANGLES, MODEL, w), "grid", "an OccupancyGrid2D"),
+    (lambda w: ps.LikelihoodField(w), "grid", "an OccupancyGrid2D"),
+    (lambda w: ps.CorrelativeScanMatcher(w), "field", "a LikelihoodField"),
 ]
 WRONG = [3, None, np.zeros(3), "x", ps.PoseGraph2D()]
 
