@@ -31,4 +31,20 @@ void require_measurement_rows(const Eigen::Ref<const RowMatrixXd>& z, int column
           "entries must be <= 1e9 (kMaxCoordinate) in magnitude");
 }
 
+void require_odometry_step(const Eigen::Vector3d& delta, const Eigen::Matrix3d& noise, const char* delta_name,
+                           const char* noise_name) {
+  require_all_finite(delta, delta_name);
+  require(delta.head<2>().norm() <= kMaxCoordinate, delta_name, "must be a step of at most 1e9 m (kMaxCoordinate)");
+  require_covariance(noise, noise_name, true);
+}
+
+void require_odometry_batch(const Eigen::Ref<const RowMatrixXd>& deltas, const Eigen::Ref<const RowMatrixXd>& noises) {
+  require(deltas.cols() == 3, "deltas", "must be (K, 3)");
+  require(noises.cols() == 9 && noises.rows() == deltas.rows(), "noises", "must be (K, 3, 3), one per row of deltas");
+}
+
+Eigen::Matrix3d odometry_batch_noise(const Eigen::Ref<const RowMatrixXd>& noises, Eigen::Index k) {
+  return Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(noises.row(k).data());
+}
+
 }  // namespace probslam

@@ -241,9 +241,7 @@ struct OdometryStep {
 };
 OdometryStep odometry_step(const Eigen::Vector3d& x, const Eigen::Vector3d& delta, const Eigen::Matrix3d& noise,
                            const char* delta_name, const char* noise_name) {
-  require_all_finite(delta, delta_name);
-  require(delta.head<2>().norm() <= kMaxCoordinate, delta_name, "must be a step of at most 1e9 m (kMaxCoordinate)");
-  require_covariance(noise, noise_name, true);
+  require_odometry_step(delta, noise, delta_name, noise_name);
   const Eigen::Matrix2d rx = rotation_matrix(x[2]);
   const Eigen::Vector2d turned = rx * delta.head<2>();
   OdometryStep s;
@@ -266,8 +264,7 @@ void EkfSlam::predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matrix
 
 Poses2 EkfSlam::predict_odometry_batch(const Eigen::Ref<const RowMatrixXd>& deltas,
                                        const Eigen::Ref<const RowMatrixXd>& noises) {
-  require(deltas.cols() == 3, "deltas", "must be (K, 3)");
-  require(noises.cols() == 9 && noises.rows() == deltas.rows(), "noises", "must be (K, 3, 3), one per row of deltas");
+  require_odometry_batch(deltas, noises);
   const Eigen::Index n = deltas.rows();
   Poses2 poses(n, 3);
   if (n == 0) return poses;
@@ -275,7 +272,7 @@ Poses2 EkfSlam::predict_odometry_batch(const Eigen::Ref<const RowMatrixXd>& delt
   Eigen::Matrix3d prr = s_->cov.topLeftCorner<3, 3>();
   Eigen::Matrix3d g = Eigen::Matrix3d::Identity();  // the steps' Jacobians, composed
   for (Eigen::Index k = 0; k < n; ++k) {
-    const Eigen::Matrix3d noise = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(noises.row(k).data());
+    const Eigen::Matrix3d noise = odometry_batch_noise(noises, k);
     const std::string dn = "deltas[" + std::to_string(k) + "]", nn = "noises[" + std::to_string(k) + "]";
     const OdometryStep s = odometry_step(x, deltas.row(k).transpose(), noise, dn.c_str(), nn.c_str());
     const Eigen::Matrix3d next = s.g * prr * s.g.transpose() + s.r;  // plan_motion's, step by step

@@ -839,26 +839,15 @@ void FastSlam::predict(double v, double w, double dt) {
   });
 }
 
-namespace {
-// predict_odometry's checks of one step; throws naming `delta_name` / `noise_name`.
-void check_odometry_step(const Eigen::Vector3d& delta, const Eigen::Matrix3d& noise, const char* delta_name,
-                         const char* noise_name) {
-  require_all_finite(delta, delta_name);
-  require(delta.head<2>().norm() <= kMaxCoordinate, delta_name, "must be a step of at most 1e9 m (kMaxCoordinate)");
-  require_covariance(noise, noise_name, true);
-}
-}  // namespace
-
 void FastSlam::predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matrix3d& noise) {
-  check_odometry_step(delta, noise, "delta", "noise");
+  require_odometry_step(delta, noise, "delta", "noise");
   const Eigen::Matrix3d cov = symmetric<3>(noise);
   odometry_steps({delta}, {cov}, {psd_factor<3>(cov)}, "delta");
 }
 
 void FastSlam::predict_odometry_batch(const Eigen::Ref<const RowMatrixXd>& deltas,
                                       const Eigen::Ref<const RowMatrixXd>& noises) {
-  require(deltas.cols() == 3, "deltas", "must be (K, 3)");
-  require(noises.cols() == 9 && noises.rows() == deltas.rows(), "noises", "must be (K, 3, 3), one per row of deltas");
+  require_odometry_batch(deltas, noises);
   const auto n = static_cast<std::size_t>(deltas.rows());
   require(n <= static_cast<std::size_t>(std::numeric_limits<int>::max()), "deltas", "has too many rows");
   std::vector<Eigen::Vector3d> d(n);
@@ -866,9 +855,9 @@ void FastSlam::predict_odometry_batch(const Eigen::Ref<const RowMatrixXd>& delta
   for (std::size_t k = 0; k < n; ++k) {
     const auto row = static_cast<Eigen::Index>(k);
     d[k] = deltas.row(row).transpose();
-    const Eigen::Matrix3d noise = Eigen::Map<const Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(noises.row(row).data());
+    const Eigen::Matrix3d noise = odometry_batch_noise(noises, row);
     const std::string dn = "deltas[" + std::to_string(k) + "]", nn = "noises[" + std::to_string(k) + "]";
-    check_odometry_step(d[k], noise, dn.c_str(), nn.c_str());
+    require_odometry_step(d[k], noise, dn.c_str(), nn.c_str());
     covs[k] = symmetric<3>(noise);
     factors[k] = psd_factor<3>(covs[k]);
   }

@@ -38,6 +38,18 @@ void require_covariance(const Eigen::MatrixXd& m, const char* name, bool semi_de
 /// Finite, with |x|, |y| <= kMaxCoordinate (the heading is any finite angle).
 bool on_map(const Eigen::Vector3d& pose);
 
+/// One odometry step of a filter's predict_odometry: refused with `delta_name` unless delta is
+/// finite and its translation at most kMaxCoordinate, with `noise_name` unless
+/// require_covariance(noise, semi-definite) holds.
+void require_odometry_step(const Eigen::Vector3d& delta, const Eigen::Matrix3d& noise, const char* delta_name,
+                           const char* noise_name);
+
+/// A batch of odometry steps (predict_odometry_batch): refused with "deltas" / "noises" unless
+/// deltas is (K, 3) and noises (K, 9), a row-major 3x3 covariance a row.
+void require_odometry_batch(const Eigen::Ref<const RowMatrixXd>& deltas, const Eigen::Ref<const RowMatrixXd>& noises);
+/// Row k of a batch's noises as the 3x3 covariance it holds.
+Eigen::Matrix3d odometry_batch_noise(const Eigen::Ref<const RowMatrixXd>& noises, Eigen::Index k);
+
 /// Range-bearing measurement rows (N x columns: range, bearing[, signature]): refused with "z"
 /// unless they have `columns` columns, are finite, ranges >= 0 and entries within kMaxCoordinate.
 void require_measurement_rows(const Eigen::Ref<const RowMatrixXd>& z, int columns);
