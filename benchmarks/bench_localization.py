@@ -67,10 +67,15 @@ def errors(poses, ref):
     return pos, head
 
 
+def mcl_options(scans, **fields):
+    """The filter's options for the log (its no-return reading as max_range) with ``fields`` set."""
+    return ps.localization.default_options(scans).replace(**fields)
+
+
 def track(scans, grid, ref, t, opts):
     """Tracking from the SLAM trajectory's first pose: the result, its ATE against the SLAM
     trajectory (no alignment), position and heading errors per scan, particles per update."""
-    r = ps.localize(scans, grid, initial_pose=ref[0], progress=False, seed=1, **opts)
+    r = ps.localize(scans, grid, initial_pose=ref[0], progress=False, options=mcl_options(scans, seed=1, **opts))
     ate = probslam.eval.ate(r.timestamps, r.poses, t, ref, align="none")
     pos, head = errors(r.poses, ref)
     return r, ate, pos, head, r.num_particles
@@ -170,7 +175,7 @@ def run(args):
         for s in starts:
             e = span_end(t, int(s), args.segment_seconds)
             idx = np.arange(int(s), e)
-            g = ps.localize(subset(scans, idx), grid, progress=False, seed=int(s), **opts)
+            g = ps.localize(subset(scans, idx), grid, progress=False, options=mcl_options(scans, seed=int(s), **opts))
             secs += g.seconds
             log_secs += g.log_duration
             pos, head = errors(g.poses, ref[idx])
@@ -200,7 +205,8 @@ def run(args):
         spliced.robot_poses[len(i1):] = odo2
         spliced.timestamps[len(i1):] = t2
         truth = np.concatenate([ref[i1], ref[i2]])
-        kr = ps.localize(spliced, grid, initial_pose=truth[0], progress=False, seed=3, **opts)
+        kr = ps.localize(spliced, grid, initial_pose=truth[0], progress=False,
+                        options=mcl_options(spliced, seed=3, **opts))
         pos, head = errors(kr.poses, truth)
         jump = float(np.hypot(*(truth[len(i1)] - truth[len(i1) - 1])[:2]))
         before_ok = bool(np.median(pos[:len(i1)]) < CONVERGED_ERROR)

@@ -111,6 +111,12 @@ struct StrArg {
 /// The Python name of an object's type, for error messages ("int", "NoneType", "ndarray").
 inline std::string type_name_of(py::handle obj) { return py::str(py::type::of(obj).attr("__name__")); }
 
+/// "a Pose2", "an OccupancyGrid2D": a class name with its indefinite article.
+inline std::string with_article(const std::string& name) {
+  const bool vowel = std::string("AEIOU").find(name[0]) != std::string::npos;
+  return (vowel ? "an " : "a ") + name;
+}
+
 /// An argument of a bound class T: `.get(name)` is the T, TypeError "<name>: expected a T, got
 /// <type>" otherwise (pybind11's own T& caster answers a wrong type with its list of signatures).
 /// Signature: T's Python name.
@@ -119,9 +125,8 @@ struct ClassArg {
   py::object value;
   T& get(const std::string& name) const {
     if (!py::isinstance<T>(value)) {
-      const std::string expected = py::str(py::type::of<T>().attr("__name__"));
-      const bool vowel = std::string("AEIOU").find(expected[0]) != std::string::npos;
-      throw py::type_error(name + ": expected " + (vowel ? "an " : "a ") + expected + ", got " + type_name_of(value));
+      throw py::type_error(name + ": expected " + with_article(py::str(py::type::of<T>().attr("__name__"))) + ", got " +
+                           type_name_of(value));
     }
     return value.cast<T&>();
   }

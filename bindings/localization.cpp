@@ -13,6 +13,7 @@
 #include "interrupt.hpp"
 #include "numpy.hpp"
 #include "object_lock.hpp"
+#include "options_class.hpp"
 #include "persistence.hpp"
 #include "repr.hpp"
 #include "probslam/core/check.hpp"
@@ -25,15 +26,6 @@ namespace probslam::bindings {
 namespace {
 
 using Mcl = MonteCarloLocalization;
-
-MclSensorModel sensor_model_arg(const StrArg& s) {
-  const std::string v = s.get("sensor_model");
-  if (v == "likelihood-field") return MclSensorModel::kLikelihoodField;
-  if (v == "beam") return MclSensorModel::kBeam;
-  throw py::value_error("sensor_model must be \"likelihood-field\" or \"beam\", got \"" + v + "\"");
-}
-
-const char* sensor_model_name(MclSensorModel m) { return m == MclSensorModel::kBeam ? "beam" : "likelihood-field"; }
 
 OdometryMotionNoise noise_arg(py::handle obj, const char* name) {
   const Eigen::Vector4d a = fixed_vector<4>(obj, name);
@@ -68,76 +60,31 @@ void define_localization(py::module_& m) {
                (u.resampled ? "True" : "False") + ", num_particles=" + std::to_string(u.num_particles) + ")";
       });
 
-  const MonteCarloLocalizationOptions d;
+  bind_options<OdometryMotionNoise>(m, "OdometryMotionNoise",
+                                    "The odometry motion model's noise (Probabilistic Robotics Table 5.5 / 5.6).");
+  bind_options<BeamMixture>(m, "BeamMixture",
+                            "The beam model's mixture of range readings (Probabilistic Robotics eq. 6.4-6.12).");
+  bind_options<MonteCarloLocalizationOptions>(m, "MonteCarloLocalizationOptions",
+                                              "The options of MonteCarloLocalization (Table 8.2 / 8.3, Fox 2003).");
   py::class_<Mcl> c(m, "MonteCarloLocalization",
       "Monte Carlo localization in a known occupancy grid (Probabilistic Robotics Table 8.2 / 8.3, Fox 2003).\n"
       "\n"
-      "MonteCarloLocalization(map, *, options): map is an OccupancyGrid2D (copied). Keywords:\n"
-      "    initial_pose: (3,) (m, m, rad) or None for a global start (uniform over free cells);\n"
-      "    initial_covariance: (3, 3) of the start (default diag(0.25 m, 0.25 m, 15 deg)^2).\n"
-      "    sensor_model: \"likelihood-field\" (Table 6.3) or \"beam\" (Table 6.1).\n"
-      "    odometry_noise: (4,) alpha1..alpha4 of Table 5.6.\n"
-      "    occupied_threshold / free_threshold: cell probabilities above / below which a cell is an\n"
-      "        obstacle / free space.\n"
-      "    sigma_hit (m), p_rand: the likelihood field's std and uniform weight.\n"
-      "    beam_z_hit, beam_z_short, beam_z_max, beam_z_rand, beam_sigma_hit (m), beam_lambda_short (1/m):\n"
-      "        the beam model's mixture.\n"
-      "    max_range, min_range (m): readings outside are skipped (the beam model scores max readings);\n"
-      "        max_beams: beams used per scan; weight_scale in (0, 1]: tempering of a scan's log-likelihood.\n"
-      "    min_particles, max_particles, kld_epsilon, kld_z (z_{1-delta}), bin_xy (m), bin_theta (rad):\n"
-      "        KLD sampling.\n"
-      "    alpha_slow, alpha_fast: augmented MCL's averages (alpha_slow 0 turns it off); recovery_ratio in\n"
-      "        (0, 1]: inject with probability max(0, 1 - w_fast / (recovery_ratio w_slow)), once that ratio\n"
-      "        has held at recovery_updates consecutive updates; recovery_candidates: injected particles\n"
-      "        are drawn from this many uniform free poses in proportion to the scan's likelihood (0: uniform).\n"
-      "    resample_threshold: resample when N_eff < resample_threshold * M.\n"
-      "    update_min_d (m), update_min_a (rad): travel before an update.\n"
-      "    seed: int in [0, 2^64); threads: worker threads (results identical for any count).\n"
-      "A failed call changes nothing.");
-  c.def(py::init([](py::handle map, py::handle initial_pose, py::handle initial_covariance, StrArg sensor_model,
-                    py::handle odometry_noise, RealArg occupied_threshold, RealArg free_threshold, RealArg sigma_hit,
-                    RealArg p_rand, RealArg beam_z_hit, RealArg beam_z_short, RealArg beam_z_max, RealArg beam_z_rand,
-                    RealArg beam_sigma_hit, RealArg beam_lambda_short, RealArg max_range, RealArg min_range,
-                    IntArg max_beams, RealArg weight_scale, IntArg min_particles, IntArg max_particles,
-                    RealArg kld_epsilon, RealArg kld_z, RealArg bin_xy, RealArg bin_theta, RealArg alpha_slow,
-                    RealArg alpha_fast, RealArg recovery_ratio, IntArg recovery_updates, IntArg recovery_candidates,
-                    RealArg resample_threshold, RealArg update_min_d, RealArg update_min_a,
-                    UInt64Arg seed, IntArg threads) {
-          if (!py::isinstance<OccupancyGrid2D>(map)) throw py::type_error("map must be an OccupancyGrid2D");
-          const OccupancyGrid2D& grid = map.cast<const OccupancyGrid2D&>();
-          MonteCarloLocalizationOptions o;
-          o.sensor_model = sensor_model_arg(sensor_model);
-          o.odometry = noise_arg(odometry_noise, "odometry_noise");
-          o.occupied_threshold = occupied_threshold.get("occupied_threshold");
-          o.free_threshold = free_threshold.get("free_threshold");
-          o.sigma_hit = sigma_hit.get("sigma_hit");
-          o.p_rand = p_rand.get("p_rand");
-          o.beam.z_hit = beam_z_hit.get("beam_z_hit");
-          o.beam.z_short = beam_z_short.get("beam_z_short");
-          o.beam.z_max = beam_z_max.get("beam_z_max");
-          o.beam.z_rand = beam_z_rand.get("beam_z_rand");
-          o.beam.sigma_hit = beam_sigma_hit.get("beam_sigma_hit");
-          o.beam.lambda_short = beam_lambda_short.get("beam_lambda_short");
-          o.max_range = max_range.get("max_range");
-          o.min_range = min_range.get("min_range");
-          o.max_beams = max_beams.get("max_beams");
-          o.weight_scale = weight_scale.get("weight_scale");
-          o.min_particles = min_particles.get("min_particles");
-          o.max_particles = max_particles.get("max_particles");
-          o.kld_epsilon = kld_epsilon.get("kld_epsilon");
-          o.kld_z = kld_z.get("kld_z");
-          o.bin_xy = bin_xy.get("bin_xy");
-          o.bin_theta = bin_theta.get("bin_theta");
-          o.alpha_slow = alpha_slow.get("alpha_slow");
-          o.alpha_fast = alpha_fast.get("alpha_fast");
-          o.recovery_ratio = recovery_ratio.get("recovery_ratio");
-          o.recovery_updates = recovery_updates.get("recovery_updates");
-          o.recovery_candidates = recovery_candidates.get("recovery_candidates");
-          o.resample_threshold = resample_threshold.get("resample_threshold");
-          o.update_min_d = update_min_d.get("update_min_d");
-          o.update_min_a = update_min_a.get("update_min_a");
-          o.seed = seed.get("seed");
-          o.threads = threads.get("threads");
+      "MonteCarloLocalization(map, *, options=None, initial_pose=None, initial_covariance=None, **fields):\n"
+      "    map: an OccupancyGrid2D (copied).\n"
+      "    options: a MonteCarloLocalizationOptions (None: the defaults); **fields set fields of it by name\n"
+      "        (sigma_hit=0.15, odometry=OdometryMotionNoise(alpha1=0.1), beam={\"z_hit\": 0.9, ...}).\n"
+      "    initial_pose: (x, y, theta) to start around, None for a global start (max_particles uniform over\n"
+      "        the free cells); initial_covariance: (3, 3), None for diag(0.25 m, 0.25 m, 15 deg)^2.\n"
+      "Errors name the field's path (\"beam.z_hit\"). A failed call changes nothing.");
+  py::options signatures;  // the fields' keywords are written from describe(), not **kwargs
+  signatures.disable_function_signatures();
+  c.def(py::init([](py::handle map, py::handle options, py::handle initial_pose, py::handle initial_covariance,
+                    const py::kwargs& fields) {
+          const OccupancyGrid2D& grid = ClassArg<OccupancyGrid2D>{py::reinterpret_borrow<py::object>(map)}.get("map");
+          MonteCarloLocalizationOptions base;
+          if (!options.is_none())
+            base = ClassArg<MonteCarloLocalizationOptions>{py::reinterpret_borrow<py::object>(options)}.get("options");
+          const MonteCarloLocalizationOptions o = options_with(base, fields, "MonteCarloLocalization()");
           const bool global = initial_pose.is_none();
           Eigen::Vector3d pose = Eigen::Vector3d::Zero();
           if (!global) pose = pose_arg(initial_pose, "initial_pose");
@@ -158,25 +105,15 @@ void define_localization(py::module_& m) {
             return f;
           });
         }),
-        py::arg("map"), py::kw_only(), py::arg("initial_pose") = py::none(), py::arg("initial_covariance") = py::none(),
-        py::arg_v("sensor_model", std::string(sensor_model_name(d.sensor_model))),
-        py::arg_v("odometry_noise",
-                  py::make_tuple(d.odometry.alpha1, d.odometry.alpha2, d.odometry.alpha3, d.odometry.alpha4)),
-        real_arg("occupied_threshold", d.occupied_threshold), real_arg("free_threshold", d.free_threshold),
-        real_arg("sigma_hit", d.sigma_hit), real_arg("p_rand", d.p_rand), real_arg("beam_z_hit", d.beam.z_hit),
-        real_arg("beam_z_short", d.beam.z_short), real_arg("beam_z_max", d.beam.z_max),
-        real_arg("beam_z_rand", d.beam.z_rand), real_arg("beam_sigma_hit", d.beam.sigma_hit),
-        real_arg("beam_lambda_short", d.beam.lambda_short), real_arg("max_range", d.max_range),
-        real_arg("min_range", d.min_range), py::arg_v("max_beams", d.max_beams),
-        real_arg("weight_scale", d.weight_scale), py::arg_v("min_particles", d.min_particles),
-        py::arg_v("max_particles", d.max_particles), real_arg("kld_epsilon", d.kld_epsilon),
-        real_arg("kld_z", d.kld_z), real_arg("bin_xy", d.bin_xy), real_arg("bin_theta", d.bin_theta),
-        real_arg("alpha_slow", d.alpha_slow), real_arg("alpha_fast", d.alpha_fast),
-        real_arg("recovery_ratio", d.recovery_ratio), py::arg_v("recovery_updates", d.recovery_updates),
-        py::arg_v("recovery_candidates", d.recovery_candidates),
-        real_arg("resample_threshold", d.resample_threshold), real_arg("update_min_d", d.update_min_d),
-        real_arg("update_min_a", d.update_min_a), py::arg_v("seed", d.seed), py::arg_v("threads", d.threads),
-        "Keyword options only: see the class docstring.");
+        py::arg("map"), py::kw_only(), py::arg("options") = py::none(), py::arg("initial_pose") = py::none(),
+        py::arg("initial_covariance") = py::none(),
+        ("__init__(self: MonteCarloLocalization, map: OccupancyGrid2D, *, options: Optional[MonteCarloLocalizationOptions]"
+         " = None, initial_pose: object = None, initial_covariance: object = None" +
+         field_parameters<MonteCarloLocalizationOptions>() +
+         ") -> None\n\nSee the class docstring: a field given by keyword replaces options' field.").c_str());
+  signatures.enable_function_signatures();
+  c.def_property_readonly("options", [](const Mcl& self) { return self.options(); },
+                          "A copy of the MonteCarloLocalizationOptions the filter runs with.");
   c.def("initialize_global", [](Mcl& self) { locked(self, [&] { self.initialize_global(); }); },
         "Restarts with max_particles poses uniform over the free cells.")
       .def("initialize_pose", [](Mcl& self, py::handle pose, py::handle covariance) {

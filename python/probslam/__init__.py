@@ -78,8 +78,8 @@ from .mapping import MappingSummary, map_laser_log
 from .map_occupancy import MapOccupancyResult, map_occupancy_grid_mapping
 from .inverse_learning import LearnedInverseModel
 from .slam import SlamResult, run_slam
-from ._core import (MclUpdate, MonteCarloLocalization, odometry_motion, odometry_motion_log_density,
-                    sample_odometry_motion)
+from ._core import (BeamMixture, MclUpdate, MonteCarloLocalization, MonteCarloLocalizationOptions,
+                    OdometryMotionNoise, odometry_motion, odometry_motion_log_density, sample_odometry_motion)
 from .localization import LocalizationResult, localize
 from .datasets import LandmarkSlamResult, run_landmark_slam
 
@@ -191,6 +191,9 @@ __all__ = [
     "wrap_angle",
     "MclUpdate",
     "MonteCarloLocalization",
+    "MonteCarloLocalizationOptions",
+    "OdometryMotionNoise",
+    "BeamMixture",
     "LocalizationResult",
     "localize",
     "localization",

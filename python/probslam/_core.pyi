@@ -911,11 +911,101 @@ class MclUpdate:
     effective_sample_size: float
     random_fraction: float
 
+class OdometryMotionNoise:
+    """The odometry motion model's noise (Probabilistic Robotics Table 5.5 / 5.6).
+    Fields by keyword (TypeError / ValueError name the field's path); replace() a validated copy."""
+    alpha1: float  # rad^2/rad^2
+    alpha2: float  # rad^2/m^2
+    alpha3: float  # m^2/m^2
+    alpha4: float  # m^2/rad^2
+    def __init__(self, *, alpha1: float = 0.2, alpha2: float = 0.2, alpha3: float = 0.2,
+                 alpha4: float = 0.2) -> None: ...
+    def replace(self, *, alpha1: float = 0.2, alpha2: float = 0.2, alpha3: float = 0.2,
+                alpha4: float = 0.2) -> OdometryMotionNoise: ...
+    def validate(self) -> None: ...
+    def copy(self) -> OdometryMotionNoise: ...
+
+class BeamMixture:
+    """The beam model's mixture of range readings (Probabilistic Robotics eq. 6.4-6.12).
+    Fields by keyword (TypeError / ValueError name the field's path); replace() a validated copy."""
+    z_hit: float
+    z_short: float
+    z_max: float
+    z_rand: float
+    sigma_hit: float  # m
+    lambda_short: float  # 1/m
+    max_range: float  # m
+    def __init__(self, *, z_hit: float = 0.85, z_short: float = 0.05, z_max: float = 0.05, z_rand: float = 0.05,
+                 sigma_hit: float = 0.05, lambda_short: float = 1.0, max_range: float = 5.0) -> None: ...
+    def replace(self, *, z_hit: float = 0.85, z_short: float = 0.05, z_max: float = 0.05, z_rand: float = 0.05,
+                sigma_hit: float = 0.05, lambda_short: float = 1.0, max_range: float = 5.0) -> BeamMixture: ...
+    def validate(self) -> None: ...
+    def copy(self) -> BeamMixture: ...
+
+class MonteCarloLocalizationOptions:
+    """The options of MonteCarloLocalization (Table 8.2 / 8.3, Fox 2003).
+    Fields by keyword (TypeError / ValueError name the field's path); replace() a validated copy."""
+    sensor_model: str
+    odometry: OdometryMotionNoise
+    occupied_threshold: float
+    free_threshold: float
+    sigma_hit: float  # m
+    p_rand: float
+    beam: BeamMixture
+    max_range: float  # m
+    min_range: float  # m
+    max_beams: int
+    weight_scale: float
+    min_particles: int
+    max_particles: int
+    kld_epsilon: float
+    kld_z: float
+    bin_xy: float  # m
+    bin_theta: float  # rad
+    alpha_slow: float
+    alpha_fast: float
+    recovery_ratio: float
+    recovery_updates: int
+    recovery_candidates: int
+    resample_threshold: float
+    update_min_d: float  # m
+    update_min_a: float  # rad
+    seed: int
+    threads: int
+    def __init__(self, *, sensor_model: str = 'likelihood-field',
+                 odometry: OdometryMotionNoise = OdometryMotionNoise(alpha1=0.2, alpha2=0.2, alpha3=0.2, alpha4=0.2),
+                 occupied_threshold: float = 0.65, free_threshold: float = 0.25, sigma_hit: float = 0.1,
+                 p_rand: float = 0.05,
+                 beam: BeamMixture = BeamMixture(z_hit=0.85, z_short=0.05, z_max=0.05, z_rand=0.05, sigma_hit=0.05, lambda_short=1.0, max_range=5.0),
+                 max_range: float = 30.0, min_range: float = 0.0, max_beams: int = 60, weight_scale: float = 0.1,
+                 min_particles: int = 500, max_particles: int = 20000, kld_epsilon: float = 0.05,
+                 kld_z: float = 2.326, bin_xy: float = 0.5, bin_theta: float = 0.174532925199433,
+                 alpha_slow: float = 0.001, alpha_fast: float = 0.1, recovery_ratio: float = 0.5,
+                 recovery_updates: int = 1, recovery_candidates: int = 0, resample_threshold: float = 0.5,
+                 update_min_d: float = 0.2, update_min_a: float = 0.5235987755982988, seed: int = 0,
+                 threads: int = 1) -> None: ...
+    def replace(self, *, sensor_model: str = 'likelihood-field',
+                odometry: OdometryMotionNoise = OdometryMotionNoise(alpha1=0.2, alpha2=0.2, alpha3=0.2, alpha4=0.2),
+                occupied_threshold: float = 0.65, free_threshold: float = 0.25, sigma_hit: float = 0.1,
+                p_rand: float = 0.05,
+                beam: BeamMixture = BeamMixture(z_hit=0.85, z_short=0.05, z_max=0.05, z_rand=0.05, sigma_hit=0.05, lambda_short=1.0, max_range=5.0),
+                max_range: float = 30.0, min_range: float = 0.0, max_beams: int = 60, weight_scale: float = 0.1,
+                min_particles: int = 500, max_particles: int = 20000, kld_epsilon: float = 0.05,
+                kld_z: float = 2.326, bin_xy: float = 0.5, bin_theta: float = 0.174532925199433,
+                alpha_slow: float = 0.001, alpha_fast: float = 0.1, recovery_ratio: float = 0.5,
+                recovery_updates: int = 1, recovery_candidates: int = 0, resample_threshold: float = 0.5,
+                update_min_d: float = 0.2, update_min_a: float = 0.5235987755982988, seed: int = 0,
+                threads: int = 1) -> MonteCarloLocalizationOptions: ...
+    def validate(self) -> None: ...
+    def copy(self) -> MonteCarloLocalizationOptions: ...
+
 class MonteCarloLocalization:
     """Monte Carlo localization in an OccupancyGrid2D (Table 8.2 / 8.3, KLD sampling of Fox 2003)
     with the odometry motion model (Table 5.6) and the likelihood field (Table 6.3) or beam model
-    (Table 6.1). initial_pose None: global start (max_particles uniform over free cells). Results
+    (Table 6.1), its options a MonteCarloLocalizationOptions (fields by keyword replace options'
+    fields). initial_pose None: global start (max_particles uniform over free cells). Results
     are identical for any thread count. A failed call changes nothing."""
+    options: MonteCarloLocalizationOptions  # a copy of the options it runs with
     pose: Array  # (3,) weighted mean of the largest cluster, moved by pending odometry
     covariance: Array  # (3, 3) that cluster's covariance
     cluster_weight: float  # that cluster's share of the weight
@@ -925,18 +1015,18 @@ class MonteCarloLocalization:
     num_updates: int
     w_slow: float  # augmented MCL's long-term average of the per-beam likelihood
     w_fast: float  # its short-term average
-    def __init__(self, map: OccupancyGrid2D, *, initial_pose: Optional[ArrayLike] = None,
-                 initial_covariance: Optional[ArrayLike] = None, sensor_model: str = "likelihood-field",
-                 odometry_noise: ArrayLike = (0.2, 0.2, 0.2, 0.2), occupied_threshold: float = 0.65,
-                 free_threshold: float = 0.25, sigma_hit: float = 0.1, p_rand: float = 0.05,
-                 beam_z_hit: float = 0.85, beam_z_short: float = 0.05, beam_z_max: float = 0.05,
-                 beam_z_rand: float = 0.05, beam_sigma_hit: float = 0.05, beam_lambda_short: float = 1.0,
+    def __init__(self, map: OccupancyGrid2D, *, options: Optional[MonteCarloLocalizationOptions] = None,
+                 initial_pose: Optional[ArrayLike] = None, initial_covariance: Optional[ArrayLike] = None,
+                 sensor_model: str = 'likelihood-field',
+                 odometry: OdometryMotionNoise = OdometryMotionNoise(alpha1=0.2, alpha2=0.2, alpha3=0.2, alpha4=0.2),
+                 occupied_threshold: float = 0.65, free_threshold: float = 0.25, sigma_hit: float = 0.1,
+                 p_rand: float = 0.05,
+                 beam: BeamMixture = BeamMixture(z_hit=0.85, z_short=0.05, z_max=0.05, z_rand=0.05, sigma_hit=0.05, lambda_short=1.0, max_range=5.0),
                  max_range: float = 30.0, min_range: float = 0.0, max_beams: int = 60, weight_scale: float = 0.1,
                  min_particles: int = 500, max_particles: int = 20000, kld_epsilon: float = 0.05,
                  kld_z: float = 2.326, bin_xy: float = 0.5, bin_theta: float = 0.174532925199433,
                  alpha_slow: float = 0.001, alpha_fast: float = 0.1, recovery_ratio: float = 0.5,
-                 recovery_updates: int = 1, recovery_candidates: int = 0,
-                 resample_threshold: float = 0.5,
+                 recovery_updates: int = 1, recovery_candidates: int = 0, resample_threshold: float = 0.5,
                  update_min_d: float = 0.2, update_min_a: float = 0.5235987755982988, seed: int = 0,
                  threads: int = 1) -> None: ...
     def initialize_global(self) -> None:

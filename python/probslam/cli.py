@@ -20,6 +20,7 @@ from . import __version__, io
 from . import eval as evaluation
 from .data import path as _data_path
 from .datasets import carmen, landmark_dataset_kind, load_landmark_dataset, mrclam, run_landmark_slam
+from ._core import MonteCarloLocalizationOptions
 from .io.landmark_datasets import isam_noise_convention
 from .landmark_refine import refine_run
 from .io.trajectory import EXTENSIONS, POSITION_FIELDS, TRAJECTORY_FORMATS, first_row_fields
@@ -165,6 +166,29 @@ def _bundled_log(name: str = BUNDLED_LOG) -> str:
 def _one_line(exc: BaseException) -> str:
     text = str(exc) or type(exc).__name__
     return " ".join(part.strip() for part in text.splitlines() if part.strip())
+
+
+#: localize's flags, by the MonteCarloLocalizationOptions field each sets.
+LOCALIZE_FLAGS = {"sensor_model": "--sensor-model", "min_particles": "--min-particles",
+                  "max_particles": "--max-particles", "max_range": "--max-range", "seed": "--seed",
+                  "threads": "--threads"}
+
+
+@contextlib.contextmanager
+def _option_flags(flags: Dict[str, str], args: argparse.Namespace) -> Iterator[None]:
+    """The library's errors about an option, told as the flag that set it with its value:
+    "min_particles must ..." becomes UserError "--min-particles 0: must ..." (the library checks
+    the values; the CLI does not check them again)."""
+    try:
+        yield
+    except (TypeError, ValueError) as exc:
+        text = _one_line(exc)
+        for name, flag in flags.items():
+            if re.match(re.escape(name) + r"\b(?![.])", text):
+                given = getattr(args, name, None)
+                rest = text[len(name):].lstrip(": ")
+                raise UserError(f"{flag}{'' if given is None else f' {given}'}: {rest}") from None
+        raise
 
 
 def _check_input(path: str, expected: str, folder: bool = False) -> None:
@@ -573,7 +597,7 @@ def _check_map_holds_scans(grid, scans, path: str) -> None:
 def _cmd_localize(args: argparse.Namespace) -> int:
     import numpy as np
 
-    from .localization import localize
+    from .localization import default_options, localize
 
     if args.initial_pose is not None and args.global_:
         raise UserError("--initial-pose and --global exclude each other")
@@ -585,11 +609,6 @@ def _cmd_localize(args: argparse.Namespace) -> int:
         args.global_ = True  # the bundled demo: global localization, what MCL can do that a tracker cannot
     if args.initial_pose is not None and not all(math.isfinite(v) for v in args.initial_pose):
         raise UserError("--initial-pose: X Y THETA must be finite numbers")
-    _require_count(args.min_particles, "--min-particles", 1, 1 << 20)
-    _require_count(args.max_particles, "--max-particles", args.min_particles, 1 << 20)
-    _require_count(args.threads, "--threads", 1, 1024)
-    if not 0 <= args.seed <= MAX_SEED:
-        raise UserError(f"--seed must lie in [0, {MAX_SEED}]")
     _check_output(args.output)
     if bundled:
         args.log, args.map = _data_path(BUNDLED_RAW_LOG), _data_path(BUNDLED_LOCALIZATION_MAP)
@@ -604,18 +623,13 @@ def _cmd_localize(args: argparse.Namespace) -> int:
         grid = io.load_ros_map(args.map)
     log = _read_log(args.log, args)
     _check_map_holds_scans(grid, log.scans, args.map)
-    options = dict(min_particles=args.min_particles, max_particles=args.max_particles, seed=args.seed,
-                   threads=args.threads, sensor_model=args.sensor_model)
-    if args.max_range is not None:
-        _require_length(args.max_range, "--max-range")
-        options["max_range"] = args.max_range
-    try:
-        result = localize(log, grid, initial_pose=args.initial_pose, snapshot_times=_snapshot_times(log.scans),
-                          progress=_progress(args), **options)
-    except ValueError as exc:
-        if str(exc).startswith("threads:"):  # the library names its keyword; the user gave the flag
-            raise UserError(f"--threads {args.threads}: {_one_line(exc)[len('threads: '):]}") from None
-        raise
+    options = default_options(log.scans)
+    with _option_flags(LOCALIZE_FLAGS, args):
+        for name in LOCALIZE_FLAGS:
+            if getattr(args, name) is not None:
+                setattr(options, name, getattr(args, name))
+        result = localize(log, grid, options=options, initial_pose=args.initial_pose,
+                          snapshot_times=_snapshot_times(log.scans), progress=_progress(args))
     written: List[str] = []
     _write_trajectory(args, result.timestamps, result.poses, written)
     if args.plot:
@@ -632,7 +646,7 @@ def _cmd_localize(args: argparse.Namespace) -> int:
     print(f"scans:         {len(result.timestamps)}; {int(result.updated.sum())} filter updates")
     if result.odometry_travel == 0.0 and len(result.timestamps) > 1:
         print("odometry:      none: the log's poses never move, and the filter updates only after travel "
-              f"({result.options.get('update_min_d', 0.2)} m or 30 degrees), so nothing moved it after the first "
+              f"({result.options.update_min_d} m or {math.degrees(result.options.update_min_a):g} degrees), so nothing moved it after the first "
               "scan; localize a log with odometry")
     print(f"particles:     {int(n.min())} to {int(n.max())} (median {int(np.median(n))}, last {int(n[-1])})")
     print(f"converged:     {_convergence_report(result)}")
@@ -1595,15 +1609,18 @@ def build_parser() -> argparse.ArgumentParser:
                     help="the start in the map's frame (m, m, rad): tracking")
     lo.add_argument("--global", dest="global_", action="store_true",
                     help="no start: particles uniform over free space (global localization)")
-    lo.add_argument("--sensor-model", choices=("likelihood-field", "beam"), default="likelihood-field",
-                    help="likelihood-field (Table 6.3, default) or beam (Table 6.1)")
-    lo.add_argument("--min-particles", type=int, default=500, help="KLD sampling's lower bound (default 500)")
-    lo.add_argument("--max-particles", type=int, default=20000,
-                    help="KLD sampling's upper bound, and the global start's count (default 20000)")
+    mcl = MonteCarloLocalizationOptions()  # the flags' defaults are the library's
+    lo.add_argument("--sensor-model", choices=("likelihood-field", "beam"), default=None,
+                    help=f"likelihood-field (Table 6.3) or beam (Table 6.1); default {mcl.sensor_model}")
+    lo.add_argument("--min-particles", type=int, default=None,
+                    help=f"KLD sampling's lower bound (default {mcl.min_particles})")
+    lo.add_argument("--max-particles", type=int, default=None,
+                    help=f"KLD sampling's upper bound, and the global start's count (default {mcl.max_particles})")
     lo.add_argument("--max-range", type=float, default=None,
                     help="readings at or beyond this (m) are skipped (default: the log's no-return reading)")
-    lo.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    lo.add_argument("--threads", type=int, default=1, help="worker threads (results identical for any count)")
+    lo.add_argument("--seed", type=int, default=None, help=f"random seed (default {mcl.seed})")
+    lo.add_argument("--threads", type=int, default=None,
+                    help=f"worker threads, results identical for any count (default {mcl.threads})")
     lo.add_argument("-o", "--output", default="localize",
                     help="output prefix: PREFIX_trajectory.tum, PREFIX.png (default 'localize')")
     _trajectory_format_option(lo, "the laser poses at the log's scan times (s)")

@@ -9,7 +9,7 @@ from __future__ import annotations
 import os
 import time
 from dataclasses import dataclass, field
-from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
+from typing import List, Optional, Sequence, Tuple, Union
 
 import numpy as np
 from tqdm import tqdm
@@ -42,7 +42,7 @@ class LocalizationResult:
     filter updated at this scan); convergence_time: seconds of log from the first scan until the
     estimate first converged (None if it never did); travel_to_converge: metres of odometry
     travel until then; seconds of processing; log_duration s; snapshots: (timestamp, particles
-    (M, 3)) at the requested times; options the filter's keywords; odometry_travel: metres of
+    (M, 3)) at the requested times; options the filter's ``MonteCarloLocalizationOptions``; odometry_travel: metres of
     odometry over the scans (0: nothing moves the filter after its first update).
     ``converged_fraction`` and ``lost`` tell how it went after the first convergence.
     """
@@ -58,7 +58,7 @@ class LocalizationResult:
     seconds: float
     log_duration: float
     snapshots: List[Tuple[float, np.ndarray]] = field(default_factory=list)
-    options: Dict[str, Any] = field(default_factory=dict)
+    options: Optional[_core.MonteCarloLocalizationOptions] = None
     odometry_travel: float = 0.0
 
     @property
@@ -97,17 +97,29 @@ def is_converged(covariance: np.ndarray, cluster_weight: float = 1.0) -> bool:
                 and cluster_weight >= CONVERGED_CLUSTER_WEIGHT)
 
 
+def default_options(log: Union[PathLike, CarmenLog, LaserScans]) -> _core.MonteCarloLocalizationOptions:
+    """The filter's options for a log: the defaults, with max_range at the log's no-return
+    reading when it has one (a CARMEN or ROS bag path, a ``CarmenLog`` or its ``LaserScans``)."""
+    options = _core.MonteCarloLocalizationOptions()
+    no_return = no_return_range(scans_of(log))
+    if np.isfinite(no_return):
+        options.max_range = no_return
+    return options
+
+
 def localize(log: Union[PathLike, CarmenLog, LaserScans], map: _core.OccupancyGrid2D, *,
              initial_pose: Optional[Sequence[float]] = None, initial_covariance: Optional[np.ndarray] = None,
              start: int = 0, stop: Optional[int] = None, snapshot_times: Sequence[float] = (),
-             progress: Optional[bool] = None, **options: Any) -> LocalizationResult:
+             options: Optional[_core.MonteCarloLocalizationOptions] = None,
+             progress: Optional[bool] = None) -> LocalizationResult:
     """Localizes the scans ``start:stop`` of a raw log (a CARMEN or ROS bag path, a ``CarmenLog``
     or its ``LaserScans``) in ``map`` (an ``OccupancyGrid2D``, e.g. ``io.load_ros_map``'s).
 
     ``initial_pose`` (x, y, theta) in the map's frame with ``initial_covariance`` (3, 3; default
     diag(0.25 m, 0.25 m, 15 deg)^2) for tracking; None for global localization (particles
-    uniform over the free cells). ``options`` are ``MonteCarloLocalization``'s keywords
-    (max_range defaults to the log's no-return reading). ``snapshot_times``: log times (s) at
+    uniform over the free cells). ``options``: the filter's ``MonteCarloLocalizationOptions``;
+    None takes the defaults with max_range at the log's no-return reading (given options are
+    used as they are). ``snapshot_times``: log times (s) at
     which the particle cloud is recorded (the first scan at or after each). ``progress=None``
     shows a bar only on a terminal.
     """
@@ -122,14 +134,14 @@ def localize(log: Union[PathLike, CarmenLog, LaserScans], map: _core.OccupancyGr
     start = int(start)
     if stop - start < 1:
         raise ValueError("start, stop: the range holds no scan")
-    opts: Dict[str, Any] = {}
-    no_return = no_return_range(scans)
-    if np.isfinite(no_return):
-        opts["max_range"] = no_return
-    opts.update(options)
-    mcl = _core.MonteCarloLocalization(map, initial_pose=initial_pose, initial_covariance=initial_covariance,
-                                       **opts)
-    skip = float(opts.get("max_range", 30.0)) + 1.0  # a value the filter skips (at or beyond max_range)
+    if options is None:
+        options = default_options(scans)
+    elif not isinstance(options, _core.MonteCarloLocalizationOptions):
+        raise TypeError(f"options: expected a MonteCarloLocalizationOptions, got {type(options).__name__}")
+    options = options.copy()
+    mcl = _core.MonteCarloLocalization(map, options=options, initial_pose=initial_pose,
+                                       initial_covariance=initial_covariance)
+    skip = options.max_range + 1.0  # a value the filter skips (at or beyond max_range)
     angles = scans.beam_angles()
     odom = scans.laser_poses
     times = np.asarray(snapshot_times, dtype=float)
@@ -174,7 +186,8 @@ def localize(log: Union[PathLike, CarmenLog, LaserScans], map: _core.OccupancyGr
     return LocalizationResult(timestamps=np.array(t, dtype=float), poses=poses, covariances=covs, num_particles=counts,
                               converged=conv, updated=updated, convergence_time=conv_time,
                               travel_to_converge=travel, seconds=seconds, log_duration=duration,
-                              snapshots=snapshots, options=opts, odometry_travel=float(travelled[-1]))
+                              snapshots=snapshots, options=options, odometry_travel=float(travelled[-1]))
 
 
-__all__ = ["CONVERGED_CLUSTER_WEIGHT", "CONVERGED_THETA_STD", "CONVERGED_XY_STD", "LocalizationResult", "is_converged", "localize"]
+__all__ = ["CONVERGED_CLUSTER_WEIGHT", "CONVERGED_THETA_STD", "CONVERGED_XY_STD", "LocalizationResult", "default_options",
+           "is_converged", "localize"]

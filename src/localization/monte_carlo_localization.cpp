@@ -46,7 +46,7 @@ std::int64_t bin_index(double scaled) {
 }  // namespace
 
 void MonteCarloLocalizationOptions::validate() const {
-  odometry.validate();
+  validate_group(odometry, "odometry");
   require(std::isfinite(occupied_threshold) && occupied_threshold > 0.0 && occupied_threshold < 1.0,
           "occupied_threshold", "must lie in (0, 1)");
   require(std::isfinite(free_threshold) && free_threshold > 0.0 && free_threshold <= occupied_threshold,
@@ -81,15 +81,10 @@ void MonteCarloLocalizationOptions::validate() const {
   require(std::isfinite(update_min_a) && update_min_a >= 0.0, "update_min_a", "must be finite and >= 0");
   require(threads >= 1 && threads <= 1024, "threads", "must lie in [1, 1024]");
   // The beam mixture is checked whichever model is used (a NaN given for it is refused, not kept
-  // unseen), its errors naming the options as the bindings do (beam_sigma_hit, not sigma_hit,
-  // which is the likelihood field's).
+  // unseen), with the sensor's max_range in place of its own, as the beam model is built.
   BeamMixture b = beam;
   b.max_range = max_range;
-  try {
-    b.validate();
-  } catch (const std::invalid_argument& e) {
-    throw std::invalid_argument(std::string("beam_") + e.what());
-  }
+  validate_group(b, "beam");
 }
 
 double MonteCarloLocalization::kld_bound(int k, double epsilon, double z) {

@@ -12,56 +12,13 @@
 namespace probslam {
 namespace {
 
-void write_options(StateWriter& w, const MonteCarloLocalizationOptions& o) {
-  state_detail::write_enum(w, o.sensor_model);
-  for (double v : {o.odometry.alpha1, o.odometry.alpha2, o.odometry.alpha3, o.odometry.alpha4}) w.f64(v);
-  for (double v : {o.occupied_threshold, o.free_threshold, o.sigma_hit, o.p_rand}) w.f64(v);
-  const BeamMixture& b = o.beam;
-  for (double v : {b.z_hit, b.z_short, b.z_max, b.z_rand, b.sigma_hit, b.lambda_short, b.max_range}) w.f64(v);
-  w.f64(o.max_range);
-  w.f64(o.min_range);
-  w.i32(o.max_beams);
-  w.f64(o.weight_scale);
-  w.i32(o.min_particles);
-  w.i32(o.max_particles);
-  for (double v : {o.kld_epsilon, o.kld_z, o.bin_xy, o.bin_theta, o.alpha_slow, o.alpha_fast, o.recovery_ratio}) w.f64(v);
-  w.i32(o.recovery_updates);
-  w.i32(o.recovery_candidates);
-  for (double v : {o.resample_threshold, o.update_min_d, o.update_min_a}) w.f64(v);
-  w.u64(o.seed);
-  w.i32(o.threads);
-}
-
-MonteCarloLocalizationOptions read_options(StateReader& r) {
-  MonteCarloLocalizationOptions o;
-  o.sensor_model = state_detail::read_enum(r, MclSensorModel::kBeam, "the sensor model");
-  for (double* v : {&o.odometry.alpha1, &o.odometry.alpha2, &o.odometry.alpha3, &o.odometry.alpha4}) *v = r.f64();
-  for (double* v : {&o.occupied_threshold, &o.free_threshold, &o.sigma_hit, &o.p_rand}) *v = r.f64();
-  BeamMixture& b = o.beam;
-  for (double* v : {&b.z_hit, &b.z_short, &b.z_max, &b.z_rand, &b.sigma_hit, &b.lambda_short, &b.max_range}) *v = r.f64();
-  o.max_range = r.f64();
-  o.min_range = r.f64();
-  o.max_beams = r.i32();
-  o.weight_scale = r.f64();
-  o.min_particles = r.i32();
-  o.max_particles = r.i32();
-  for (double* v : {&o.kld_epsilon, &o.kld_z, &o.bin_xy, &o.bin_theta, &o.alpha_slow, &o.alpha_fast, &o.recovery_ratio})
-    *v = r.f64();
-  o.recovery_updates = r.i32();
-  o.recovery_candidates = r.i32();
-  for (double* v : {&o.resample_threshold, &o.update_min_d, &o.update_min_a}) *v = r.f64();
-  o.seed = r.u64();
-  o.threads = r.i32();
-  return o;
-}
-
 // Bytes of one saved particle: pose, log-weight, random stream (four words, spare, flag).
 constexpr std::size_t kParticleBytes = 3 * 8 + 8 + 4 * 8 + 8 + 1;
 
 }  // namespace
 
 void MonteCarloLocalization::write_state(StateWriter& w) const {
-  write_options(w, options_);
+  write_options(w, options_);  // the fields in describe()'s order
   map_.write_state(w);
   w.count(f_.poses.size());
   for (std::size_t j = 0; j < f_.poses.size(); ++j) {
@@ -82,7 +39,8 @@ void MonteCarloLocalization::write_state(StateWriter& w) const {
 }
 
 MonteCarloLocalization MonteCarloLocalization::read_state(StateReader& r) {
-  const MonteCarloLocalizationOptions o = read_options(r);
+  MonteCarloLocalizationOptions o;
+  read_options(r, o);
   const OccupancyGrid2D map = OccupancyGrid2D::read_state(r);
   // The particles' bytes must be there before the constructor draws max_particles of its own.
   const std::size_t m = r.count(kParticleBytes);

@@ -507,7 +507,8 @@ TEST(MonteCarloLocalization, BadOptionsAndMapsNameTheArgument) {
   expect_invalid(with([](auto& o) { o.threads = 0; }), "threads");
   expect_invalid(with([](auto& o) { o.recovery_updates = 0; }), "recovery_updates");
   expect_invalid(with([](auto& o) { o.recovery_candidates = -1; }), "recovery_candidates");
-  expect_invalid(with([](auto& o) { o.odometry.alpha2 = -1.0; }), "alpha2");
+  expect_invalid(with([](auto& o) { o.odometry.alpha2 = -1.0; }), "odometry.alpha2");
+  expect_invalid(with([](auto& o) { o.beam.sigma_hit = std::nan(""); }), "beam.sigma_hit");
 }
 
 TEST(MonteCarloLocalization, BadCallsThrowAndChangeNothing) {

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "probslam/core/check.hpp"
+#include "probslam/core/options_description.hpp"
 #include "probslam/core/pose2.hpp"
 #include "probslam/core/range_bearing_model.hpp"
 #include "probslam/core/state_file.hpp"
@@ -93,6 +94,73 @@ T round_trip(const T& obj, const std::string& name) {
 }
 
 // A corrupt length inside a valid frame (the checksum recomputed) is refused before allocation.
+// A described options struct of every field kind, for the generic state layout.
+enum class Shade { kLight, kDark };
+}  // namespace
+template <>
+struct OptionEnum<Shade> {
+  static constexpr std::array<const char*, 2> names{"light", "dark"};
+};
+namespace {
+struct Inner {
+  double a = 1.5;
+  int b = -3;
+  template <class V>
+  static void describe(V& v) {
+    v("a", &Inner::a, "m", "a length");
+    v("b", &Inner::b, "", "a count");
+  }
+};
+struct Outer {
+  Shade shade = Shade::kDark;
+  Inner inner;
+  std::uint64_t seed = 7;
+  bool flag = true;
+  template <class V>
+  static void describe(V& v) {
+    v("shade", &Outer::shade, "", "an enum");
+    v("inner", &Outer::inner, "", "a group");
+    v("seed", &Outer::seed, "", "a seed");
+    v("flag", &Outer::flag, "", "a flag");
+  }
+};
+
+TEST(StateFile, DescribedOptionsAreTheirFieldsInOrderGroupsInline) {
+  Outer o;
+  o.inner.a = -2.25;
+  o.seed = 1ULL << 60;
+  StateWriter w;
+  write_options(w, o);
+  // By hand: the enum's byte, the group's double and int, the seed, the flag.
+  StateWriter expected;
+  expected.u8(1);
+  expected.f64(-2.25);
+  expected.i32(-3);
+  expected.u64(1ULL << 60);
+  expected.boolean(true);
+  ASSERT_EQ(w.payload(), expected.payload());
+  StateReader r(w.payload().data(), w.payload().size(), "state");
+  Outer back;
+  back.shade = Shade::kLight;
+  back.flag = false;
+  read_options(r, back);
+  EXPECT_EQ(back.shade, Shade::kDark);
+  EXPECT_EQ(back.inner.a, -2.25);
+  EXPECT_EQ(back.inner.b, -3);
+  EXPECT_EQ(back.seed, 1ULL << 60);
+  EXPECT_TRUE(back.flag);
+  // An enum value beyond its names is refused, naming the field.
+  std::string bad = w.payload();
+  bad[0] = 2;
+  StateReader rb(bad.data(), bad.size(), "state");
+  try {
+    read_options(rb, back);
+    FAIL() << "an unknown enum value was read";
+  } catch (const StateError& e) {
+    EXPECT_NE(std::string(e.what()).find("shade holds an unknown value 2"), std::string::npos) << e.what();
+  }
+}
+
 TEST(StateFile, CorruptLengthIsCheckedAgainstTheBytesLeft) {
   StateWriter w;
   w.count(std::size_t{1} << 60);  // a vector of 2^60 doubles, none present

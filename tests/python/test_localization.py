@@ -10,6 +10,7 @@ import pytest
 
 import probslam as ps
 from corridor_world import ANGLES, MAX_RANGE, corridor_drive, scans_of
+from probslam.localization import default_options
 
 NOISE = np.array([0.05, 0.02, 0.03, 0.04])
 
@@ -226,7 +227,8 @@ def test_tracking_converges_on_a_simulated_drive(corridor):
     true, odo, ranges, grid = corridor
     # The odometry starts at the true pose but drifts (a heading bias): MCL must hold the track.
     scans = scans_of(true, odo, ranges)
-    r = ps.localize(scans, grid, initial_pose=true[0], progress=False, seed=1, max_particles=3000)
+    r = ps.localize(scans, grid, initial_pose=true[0], progress=False,
+                    options=default_options(scans).replace(seed=1, max_particles=3000))
     err = _position_errors(r.poses, true)
     drift = _position_errors(odo, true)
     assert drift.max() > 1.0  # the odometry alone is lost
@@ -240,7 +242,7 @@ def test_tracking_converges_on_a_simulated_drive(corridor):
 def test_global_localization_converges_on_a_simulated_drive(corridor):
     true, odo, ranges, grid = corridor
     scans = scans_of(true, odo, ranges)
-    r = ps.localize(scans, grid, progress=False, seed=2)
+    r = ps.localize(scans, grid, progress=False, options=default_options(scans).replace(seed=2))
     assert r.convergence_time is not None
     k = int(np.searchsorted(r.timestamps, r.convergence_time))
     err = _position_errors(r.poses[k:], true[k:])
@@ -265,8 +267,9 @@ def test_thread_count_does_not_change_the_result(corridor):
 def test_beam_model_tracks(corridor):
     true, odo, ranges, grid = corridor
     scans = scans_of(true[:80], odo[:80], ranges[:80])
-    r = ps.localize(scans, grid, initial_pose=true[0], sensor_model="beam", progress=False, max_particles=1000,
-                    max_beams=30, beam_sigma_hit=0.1)
+    options = default_options(scans).replace(sensor_model="beam", max_particles=1000, max_beams=30,
+                                             beam={"sigma_hit": 0.1})
+    r = ps.localize(scans, grid, initial_pose=true[0], progress=False, options=options)
     assert np.median(_position_errors(r.poses, true[:80])) < 0.15
 
 
@@ -369,7 +372,7 @@ def test_kidnapped_robot_recovers(corridor):
     odo2 = np.vstack([odo[a], np.array(joined)])
     truth = np.vstack([true[a], true[b]])
     scans = scans_of(truth, odo2, np.vstack([ranges[a], ranges[b]]))
-    r = ps.localize(scans, grid, initial_pose=truth[0], progress=False, seed=5)
+    r = ps.localize(scans, grid, initial_pose=truth[0], progress=False, options=default_options(scans).replace(seed=5))
     err = _position_errors(r.poses, truth)
     assert np.median(err[:100]) < 0.1
     assert err[100] > 2.0  # the jump (about 12 m of corridor)

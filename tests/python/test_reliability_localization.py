@@ -121,10 +121,10 @@ def test_sigma_hit_beyond_its_bounds_is_named(sigma_hit):
 def test_beam_options_are_checked_and_named_whichever_model(sensor_model):
     """beam_sigma_hit = NaN was kept unseen with the likelihood field, and with the beam model
     refused as 'sigma_hit' (the likelihood field's option)."""
-    with pytest.raises(ValueError, match="^beam_sigma_hit must be finite"):
-        _core.MonteCarloLocalization(room(), sensor_model=sensor_model, beam_sigma_hit=math.nan)
-    with pytest.raises(ValueError, match="^beam_z_hit"):
-        _core.MonteCarloLocalization(room(), sensor_model=sensor_model, beam_z_hit=0.9)  # weights sum to 1.05
+    with pytest.raises(ValueError, match="^beam.sigma_hit must be finite"):
+        _core.MonteCarloLocalization(room(), sensor_model=sensor_model, beam={"sigma_hit": math.nan})
+    with pytest.raises(ValueError, match="^beam.z_hit"):
+        _core.MonteCarloLocalization(room(), sensor_model=sensor_model, beam={"z_hit": 0.9})  # weights sum to 1.05
 
 
 def test_kld_bound_never_returns_inf():
@@ -232,8 +232,8 @@ def test_threads_that_cannot_start_are_named_and_change_nothing():
 
 # ---- properties: odd input refused, object unchanged field by field ----
 
-NUMERIC_OPTIONS = ["occupied_threshold", "free_threshold", "sigma_hit", "p_rand", "beam_sigma_hit",
-                   "beam_lambda_short", "max_range", "min_range", "weight_scale", "kld_epsilon", "kld_z", "bin_xy",
+NUMERIC_OPTIONS = ["occupied_threshold", "free_threshold", "sigma_hit", "p_rand", "beam.sigma_hit",
+                   "beam.lambda_short", "max_range", "min_range", "weight_scale", "kld_epsilon", "kld_z", "bin_xy",
                    "bin_theta", "alpha_slow", "alpha_fast", "recovery_ratio", "resample_threshold", "update_min_d",
                    "update_min_a"]
 
@@ -242,8 +242,10 @@ NUMERIC_OPTIONS = ["occupied_threshold", "free_threshold", "sigma_hit", "p_rand"
 @given(value=policy.floats(), pick=policy.st.integers(0, 10 ** 6))
 def test_options_with_odd_numbers(value, pick):
     name = NUMERIC_OPTIONS[pick % len(NUMERIC_OPTIONS)]
+    group, _, field = name.rpartition(".")
+    fields = {group: {field: value}} if group else {name: value}
     raised, result = policy.check_call(lambda: _core.MonteCarloLocalization(room(), min_particles=50, max_particles=50,
-                                                                            **{name: value}))
+                                                                            **fields))
     if np.isnan(value):
         assert raised, (name, value)
     if not raised:

@@ -21,6 +21,15 @@ struct OdometryMotionNoise {
   double alpha4 = 0.2;  ///< translation noise from rotation
   /// std::invalid_argument naming the first coefficient that is not finite and >= 0.
   void validate() const;
+
+  template <class V>
+  static void describe(V& v) {
+    using O = OdometryMotionNoise;
+    v("alpha1", &O::alpha1, "rad^2/rad^2", "rotation noise from rotation");
+    v("alpha2", &O::alpha2, "rad^2/m^2", "rotation noise from translation");
+    v("alpha3", &O::alpha3, "m^2/m^2", "translation noise from translation");
+    v("alpha4", &O::alpha4, "m^2/rad^2", "translation noise from rotation");
+  }
 };
 
 /// (rot1, trans, rot2) of Table 5.5 lines 2-4: rot1 = atan2(dy, dx) - theta, trans = |d|,

@@ -25,6 +25,18 @@ struct BeamMixture {
   /// Throws std::invalid_argument naming the first bad parameter.
   void validate() const;
 
+  template <class V>
+  static void describe(V& v) {
+    using B = BeamMixture;
+    v("z_hit", &B::z_hit, "", "weight of the measurement noise around the expected range");
+    v("z_short", &B::z_short, "", "weight of unexpected objects short of it");
+    v("z_max", &B::z_max, "", "weight of max readings (failures)");
+    v("z_rand", &B::z_rand, "", "weight of random readings");
+    v("sigma_hit", &B::sigma_hit, "m", "std of a hit around the expected range");
+    v("lambda_short", &B::lambda_short, "1/m", "rate of the short readings' exponential");
+    v("max_range", &B::max_range, "m", "the sensor's largest reading (the book's z_max)");
+  }
+
   /// Eq. 6.12: z_hit p_hit + z_short p_short + z_max p_max + z_rand p_rand for reading z and
   /// expected range z_expected in [0, max_range]. Densities per metre, except p_max, which is
   /// the indicator of a max reading (eq. 6.10), as in Table 6.1 line 5. z must be >= 0 and not

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "probslam/core/object_mutex.hpp"
+#include "probslam/core/options_description.hpp"
 #include "probslam/core/odometry_motion_model.hpp"
 #include "probslam/core/types.hpp"
 #include "probslam/fastslam/particles.hpp"
@@ -27,6 +28,10 @@ namespace probslam {
 class WorkerPool;
 
 enum class MclSensorModel { kLikelihoodField, kBeam };
+template <>
+struct OptionEnum<MclSensorModel> {
+  static constexpr std::array<const char*, 2> names{"likelihood-field", "beam"};
+};
 
 struct MonteCarloLocalizationOptions {
   MclSensorModel sensor_model = MclSensorModel::kLikelihoodField;
@@ -77,8 +82,40 @@ struct MonteCarloLocalizationOptions {
   double update_min_a = 0.5235987755982988;  ///< turn (rad) before an update (30 degrees)
   std::uint64_t seed = 0;
   int threads = 1;
-  /// std::invalid_argument naming the first bad option.
+  /// std::invalid_argument naming the first bad option by its path ("beam.z_hit").
   void validate() const;
+
+  template <class V>
+  static void describe(V& v) {
+    using O = MonteCarloLocalizationOptions;
+    v("sensor_model", &O::sensor_model, "", "\"likelihood-field\" (Table 6.3) or \"beam\" (Table 6.1)");
+    v("odometry", &O::odometry, "", "the odometry motion model's alpha1..alpha4 (Table 5.6)");
+    v("occupied_threshold", &O::occupied_threshold, "", "cells above this probability are obstacles");
+    v("free_threshold", &O::free_threshold, "", "cells below this probability are free (where a robot can be)");
+    v("sigma_hit", &O::sigma_hit, "m", "likelihood field: std of a hit around the nearest obstacle");
+    v("p_rand", &O::p_rand, "", "likelihood field: weight of the uniform part");
+    v("beam", &O::beam, "", "beam model: the mixture of Table 6.1 (its max_range is not used: max_range below is the sensor's for both models)");
+    v("max_range", &O::max_range, "m", "readings >= this are max readings (skipped by the likelihood field)");
+    v("min_range", &O::min_range, "m", "readings <= this are skipped");
+    v("max_beams", &O::max_beams, "", "beams used per scan, evenly spaced");
+    v("weight_scale", &O::weight_scale, "", "in (0, 1]: each scan's log-likelihood is multiplied by this (the beams' errors are correlated)");
+    v("min_particles", &O::min_particles, "", "KLD sampling's lower bound on the particle count");
+    v("max_particles", &O::max_particles, "", "KLD sampling's upper bound, and the global start's count");
+    v("kld_epsilon", &O::kld_epsilon, "", "bound on the K-L divergence between the sample and the posterior");
+    v("kld_z", &O::kld_z, "", "z_{1-delta}, the upper 1 - delta quantile of N(0, 1)");
+    v("bin_xy", &O::bin_xy, "m", "KLD histogram bin side");
+    v("bin_theta", &O::bin_theta, "rad", "KLD histogram bin width");
+    v("alpha_slow", &O::alpha_slow, "", "augmented MCL's long-term average rate (0 turns it off)");
+    v("alpha_fast", &O::alpha_fast, "", "its short-term average rate");
+    v("recovery_ratio", &O::recovery_ratio, "", "in (0, 1]: inject with probability max(0, 1 - w_fast / (recovery_ratio w_slow))");
+    v("recovery_updates", &O::recovery_updates, "", "consecutive low updates before injection starts");
+    v("recovery_candidates", &O::recovery_candidates, "", "injected particles drawn from this many free poses by the scan's likelihood (0: uniform)");
+    v("resample_threshold", &O::resample_threshold, "", "resample when N_eff < this * M, in [0, 1]");
+    v("update_min_d", &O::update_min_d, "m", "travel before an update");
+    v("update_min_a", &O::update_min_a, "rad", "turn before an update");
+    v("seed", &O::seed, "", "random seed, in [0, 2^64)");
+    v("threads", &O::threads, "", "worker threads (results identical for any count)");
+  }
 };
 
 /// One entry of update(): whether the filter updated, and its state after.

@@ -1,0 +1,263 @@
+#pragma once
+// Python options classes and constructor keywords from a C++ options struct's describe()
+// (core/options_description.hpp): one class per struct, nested groups as attributes, each field
+// a property with its unit and doc in help(); values checked by type as they are set (TypeError
+// naming the field's path), ranges by the struct's validate() (ValueError naming the path).
+#include <pybind11/pybind11.h>
+
+#include <cmath>
+#include <cstdint>
+#include <set>
+#include <sstream>
+#include <string>
+#include <type_traits>
+
+#include "args.hpp"
+#include "probslam/core/options_description.hpp"
+
+namespace probslam::bindings {
+
+namespace options_detail {
+
+/// A field's value from Python, errors naming `path`. A group takes an instance of its options
+/// class or a dict of its fields.
+template <class T>
+T field_from_py(py::handle v, const std::string& path);
+
+template <class T>
+void set_fields(T& o, py::handle values, const std::string& prefix, const char* owner);
+
+template <class T>
+T field_from_py(py::handle v, const std::string& path) {
+  if constexpr (IsDescribed<T>::value) {
+    if (py::isinstance<T>(v)) return v.cast<T>();
+    if (!py::isinstance<py::dict>(v))
+      throw py::type_error(path + ": expected " + with_article(py::str(py::type::of<T>().attr("__name__"))) +
+                           " or a dict of its fields, got " + type_name_of(v));
+    T group;
+    set_fields(group, v, path + ".", path.c_str());
+    return group;
+  } else if constexpr (std::is_same_v<T, double>) {
+    return RealArg{py::reinterpret_borrow<py::object>(v)}.get(path.c_str());
+  } else if constexpr (std::is_same_v<T, int>) {
+    return IntArg{py::reinterpret_borrow<py::object>(v)}.get(path.c_str());
+  } else if constexpr (std::is_same_v<T, std::uint64_t>) {
+    return UInt64Arg{py::reinterpret_borrow<py::object>(v)}.get(path.c_str());
+  } else if constexpr (std::is_same_v<T, bool>) {
+    return BoolArg{py::reinterpret_borrow<py::object>(v)}.get(path.c_str());
+  } else {
+    const std::string s = StrArg{py::reinterpret_borrow<py::object>(v)}.get(path.c_str());
+    const auto& names = OptionEnum<T>::names;
+    std::string listed;
+    for (std::size_t k = 0; k < names.size(); ++k) {
+      if (s == names[k]) return static_cast<T>(k);
+      listed += std::string(k ? ", " : "") + "\"" + names[k] + "\"";
+    }
+    throw py::value_error(path + " must be one of " + listed + ", got \"" + s + "\"");
+  }
+}
+
+/// A field's value as Python shows it (an enum by its name, a group as its options class).
+template <class T>
+py::object field_to_py(const T& v) {
+  if constexpr (IsOptionEnum<T>::value) return py::str(OptionEnum<T>::names[static_cast<std::size_t>(v)]);
+  else return py::cast(v);
+}
+
+/// The field names of T, in order.
+template <class T>
+struct Names {
+  std::set<std::string> names;
+  template <class M>
+  void operator()(const char* name, M T::*, const char*, const char*) { names.insert(name); }
+};
+
+/// Sets the fields of `o` named in the mapping `values` (TypeError for a name T does not have).
+template <class T>
+struct Setter {
+  T& o;
+  py::handle values;
+  const std::string& prefix;
+  template <class M>
+  void operator()(const char* name, M T::*member, const char*, const char*) {
+    const py::str key(name);
+    if (!values.contains(key)) return;
+    const py::object v = values[key];
+    if constexpr (IsDescribed<M>::value) {
+      if (py::isinstance<py::dict>(v)) {  // a dict changes the fields it names, keeps the others
+        M group = o.*member;
+        set_fields(group, v, prefix + name + ".", (prefix + name).c_str());
+        o.*member = group;
+        return;
+      }
+    }
+    o.*member = field_from_py<M>(v, prefix + name);
+  }
+};
+
+template <class T>
+void set_fields(T& o, py::handle values, const std::string& prefix, const char* owner) {
+  Names<T> known;
+  T::describe(known);
+  for (auto item : py::reinterpret_borrow<py::dict>(values)) {
+    const std::string key = py::str(item.first);
+    if (!known.names.count(key))
+      throw py::type_error(std::string(owner) + " got an unexpected keyword argument '" + key + "'");
+  }
+  Setter<T> set{o, values, prefix};
+  T::describe(set);
+}
+
+/// "name=value, ..." of every field, groups nested.
+template <class T>
+struct Repr {
+  const T& o;
+  std::string out;
+  template <class M>
+  void operator()(const char* name, M T::*member, const char*, const char*) {
+    out += std::string(out.empty() ? "" : ", ") + name + "=" + std::string(py::repr(field_to_py(o.*member)));
+  }
+};
+
+/// Whether two structs agree on every field (doubles compared by value: NaN differs).
+template <class T>
+struct Equal {
+  const T& a;
+  const T& b;
+  bool same = true;
+  template <class M>
+  void operator()(const char*, M T::*member, const char*, const char*) {
+    if constexpr (IsDescribed<M>::value) {
+      Equal<M> inner{a.*member, b.*member};
+      M::describe(inner);
+      same = same && inner.same;
+    } else {
+      same = same && a.*member == b.*member;
+    }
+  }
+};
+
+/// {name: value} of every field (groups as their options classes).
+template <class T>
+struct ToDict {
+  const T& o;
+  py::dict d;
+  template <class M>
+  void operator()(const char* name, M T::*member, const char*, const char*) {
+    d[name] = field_to_py(o.*member);
+  }
+};
+
+/// Defines each field as a property: a group by reference (`o.beam.z_hit = 0.9` sets it), the
+/// others checked by type as they are set.
+template <class T>
+struct Properties {
+  py::class_<T>& c;
+  std::string& doc;
+  template <class M>
+  void operator()(const char* name, M T::*member, const char* unit, const char* text) {
+    const std::string field = std::string(name) + (*unit ? std::string(" (") + unit + ")" : "") + ": " + text;
+    doc += "\n    " + field;
+    if constexpr (IsDescribed<M>::value) {
+      c.def_property(
+          name, [member](T& o) -> M& { return o.*member; },
+          [member, n = std::string(name)](T& o, py::handle v) { o.*member = field_from_py<M>(v, n); },
+          py::return_value_policy::reference_internal, field.c_str());
+    } else {
+      c.def_property(
+          name, [member](const T& o) { return field_to_py(o.*member); },
+          [member, n = std::string(name)](T& o, py::handle v) { o.*member = field_from_py<M>(v, n); }, field.c_str());
+    }
+  }
+};
+
+/// "name: type = default" of each field, keyword-only parameters of a generated signature.
+template <class T>
+struct Signature {
+  const T& o;
+  std::string out;
+  template <class M>
+  void operator()(const char* name, M T::*member, const char*, const char*) {
+    std::string type;
+    if constexpr (IsDescribed<M>::value) type = py::str(py::type::of<M>().attr("__name__"));
+    else if constexpr (std::is_same_v<M, double>) type = "float";
+    else if constexpr (std::is_same_v<M, bool>) type = "bool";
+    else if constexpr (IsOptionEnum<M>::value) type = "str";
+    else type = "int";
+    out += std::string(", ") + name + ": " + type + " = " + std::string(py::repr(field_to_py(o.*member)));
+  }
+};
+
+}  // namespace options_detail
+
+/// ", name: type = default, ..." of T's fields at `defaults` (the signature a constructor that
+/// takes them by keyword shows; pybind11 sees only **kwargs).
+template <class T>
+std::string field_parameters(const T& defaults = T{}) {
+  options_detail::Signature<T> s{defaults, {}};
+  T::describe(s);
+  return s.out;
+}
+
+/// `o` with the fields named in `kwargs` set (a copy; the struct's validate() not run).
+template <class T>
+T options_with(T o, const py::kwargs& kwargs, const char* owner) {
+  options_detail::set_fields(o, kwargs, "", owner);
+  return o;
+}
+
+/// The Python class of options struct T: T(**fields) (validated), a property per field,
+/// validate(), copy(), ==, repr and pickling by fields.
+template <class T>
+py::class_<T> bind_options(py::module_& m, const char* name, const std::string& summary) {
+  py::class_<T> c(m, name);
+  std::string doc = summary + "\n\n" + name + "(**fields): every field has a default; unknown names raise TypeError,\n" +
+                    "values of the wrong type TypeError and out of range ValueError, naming the field's path.\nFields:";
+  options_detail::Properties<T> properties{c, doc};
+  T::describe(properties);
+  c.attr("__doc__") = doc;
+  const std::string params = field_parameters<T>();
+  {
+    py::options signatures;  // the keyword signatures are written from describe(), not **kwargs
+    signatures.disable_function_signatures();
+    c.def(py::init([name](const py::kwargs& kwargs) {
+           T o = options_with(T{}, kwargs, name);
+           o.validate();
+           return o;
+         }),
+         ("__init__(self: " + std::string(name) + ", *" + params + ") -> None\n\nThe options, validated.").c_str())
+        .def("replace", [name](const T& o, const py::kwargs& kwargs) {
+          T r = options_with(o, kwargs, name);
+          r.validate();
+          return r;
+        }, ("replace(self: " + std::string(name) + ", *" + params + ") -> " + name +
+            "\n\nA validated copy with the fields named set (a group's dict sets the fields it names; a default\n"
+            "shown is the struct's, a field not named keeps its value).").c_str());
+  }
+  c.def("validate", &T::validate, "ValueError naming the first field out of range by its path.")
+      .def("copy", [](const T& o) { return T(o); }, "An independent copy.")
+      .def("__copy__", [](const T& o) { return T(o); })
+      .def("__deepcopy__", [](const T& o, py::handle) { return T(o); }, py::arg("memo"))
+      .def("__eq__", [](const T& a, py::handle b) {
+        if (!py::isinstance<T>(b)) return false;
+        options_detail::Equal<T> eq{a, b.cast<const T&>()};
+        T::describe(eq);
+        return eq.same;
+      }, py::arg("other"))
+      .def("__repr__", [name](const T& o) {
+        options_detail::Repr<T> r{o, {}};
+        T::describe(r);
+        return std::string(name) + "(" + r.out + ")";
+      })
+      .def(py::pickle(
+          [](const T& o) {
+            options_detail::ToDict<T> fields{o, {}};
+            T::describe(fields);
+            return fields.d;
+          },
+          [name](const py::dict& d) { return options_with(T{}, py::kwargs(d), name); }));
+  c.attr("__hash__") = py::none();
+  return c;
+}
+
+}  // namespace probslam::bindings
