@@ -136,7 +136,7 @@ def main():
     if log_path.exists():
         log = ps.io.read_carmen_log(log_path)
         s = log.scans
-        r = np.where(s.ranges >= ps.mapping.no_return_range(s), np.nan, s.ranges)
+        r = np.where(s.ranges >= s.no_return_range(), np.nan, s.ranges)
         b = ps.mapping.scan_bounds(ps.io.LaserScans(**{**s.__dict__, "ranges": r}), 30.0)
         ray_rows += rays_rows("Intel corrected log (910 x 180 beams)", s.laser_poses, r, s.beam_angles()[0], 30.0,
                               res, b, python_scans=20)

@@ -50,7 +50,7 @@ def main():
     grid, _ = ps.map_laser_log(scans, resolution=RES, max_range=MAX_RANGE, progress=False)
     rows.append(("ray model (insert_rays, map_laser_log)", time.perf_counter() - t0, None))
     cone = ps.OccupancyGrid2D(RES, grid.width, grid.height, origin=grid.origin)
-    no_return = ps.mapping.no_return_range(scans)
+    no_return = scans.no_return_range()
     angles = scans.beam_angles()
     t0 = time.perf_counter()
     for pose, z, a, step in zip(scans.laser_poses, scans.ranges, angles, scans.angular_resolutions):

@@ -75,7 +75,7 @@ def aces_problems(n, rng, previous=10, max_usable=30.0):
     with the field of a grid of the `previous` scans before it at their corrected poses."""
     log = ps.io.read_carmen_log(ACES / "aces-corrected.log.gz")
     s = log.scans
-    no_return = ps.mapping.no_return_range(s)
+    no_return = s.no_return_range()
     angles = s.beam_angles()
     insert = np.where(s.ranges >= no_return, np.nan, s.ranges)
     problems = []

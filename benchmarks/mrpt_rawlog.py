@@ -14,7 +14,7 @@ by a ``CSensoryFrame`` holding one ``CObservation2DRangeScan`` with
   ``[-aperture / 2, aperture / 2]`` of the sensor frame, so the aperture is ``step * (N - 1)``
   and the sensor is yawed so that its first beam falls on the log's first bearing (-0.5 degree
   for beams at -90 .. 89 degrees),
-- readings at or beyond the sensor's no-return range (``mapping.no_return_range``: the stated
+- readings at or beyond the sensor's no-return range (``LaserScans.no_return_range``: the stated
   maximum, else the recurring largest reading, 81.83 m on ACES), NaN or <= 0 marked invalid.
 
 The laser's mounting on the robot is taken from the first scan (its laser pose relative to its
@@ -129,11 +129,10 @@ def compose(poses: np.ndarray, offset: Tuple[float, float, float]) -> np.ndarray
 def write_rawlog(scans, out: BinaryIO) -> int:
     """Write probslam ``LaserScans`` (a raw log: odometry in ``robot_poses``) as action /
     sensory-frame pairs; returns the number of pairs."""
-    from probslam.mapping import no_return_range
-
+    
     if len(scans) == 0:
         raise ValueError("scans: the log has no laser scans")
-    no_return = no_return_range(scans)
+    no_return = scans.no_return_range()
     finite = scans.ranges[np.isfinite(scans.ranges)]
     max_range = no_return if math.isfinite(no_return) else float(finite.max(initial=0.0))
     mount = laser_mount(scans)

@@ -53,7 +53,7 @@ from ._core import (
     velocity_motion_jacobian,
     wrap_angle,
 )
-from . import data, datasets, eval, inverse_learning, io, sim, sim_laser, slam
+from . import data, datasets, eval, geometry, inverse_learning, io, sim, sim_laser, slam
 from . import localization
 from .graph import (IncrementalReport, OptimizationReport, PoseGraph2D, PoseGraph3D, PoseGraphReadReport,
                     initialize_chordal, initialize_odometry, joint_marginal_covariances, marginal_covariances, optimize,
@@ -148,6 +148,7 @@ __all__ = [
     "eif_reduce",
     "eif_solve",
     "eval",
+    "geometry",
     "SlamResult",
     "run_slam",
     "LandmarkSlamResult",

@@ -22,6 +22,7 @@ from typing import Any, Dict, Iterator, List, Optional, Tuple, Union
 import numpy as np
 
 from ._args import distinct_numbers, positive_real, real_array, require_fields, require_instance
+from . import geometry
 from ._core import wrap_angle
 from .io._files import MAX_REPORTED_LINES, file_path, numeric_rows, require_regular_file
 from .io.carmen import LaserScans
@@ -270,16 +271,8 @@ def _interpolate(ts: np.ndarray, ps: np.ndarray, q: np.ndarray, what: str) -> np
 
 
 def _interpolate_unchecked(ts: np.ndarray, ps: np.ndarray, q: np.ndarray, what: str) -> np.ndarray:
-    n = ts.shape[0]
-    # side="right": a query at a repeated timestamp starts from the last pose stamped with it.
-    i = np.clip(np.searchsorted(ts, q, side="right") - 1, 0, max(n - 2, 0))
-    j = np.minimum(i + 1, n - 1)
-    dt = ts[j] - ts[i]
-    # dt is 0 only at the end (repeated last timestamp, or one pose): take the later pose.
-    frac = np.where(dt > 0, (q - ts[i]) / np.where(dt > 0, dt, 1.0), 1.0)
-    xy = ps[i, :2] + frac[:, None] * (ps[j, :2] - ps[i, :2])
-    theta = _wrap(ps[i, 2] + frac * _wrap(ps[j, 2] - ps[i, 2], what), what)
-    return np.column_stack([xy, theta])
+    _require_finite(np.diff(ps[:, 2]), what)  # headings near the largest double: their difference overflows
+    return geometry.interpolate(ts, ps, q)
 
 
 def interpolate_poses(timestamps: object, poses: object, query_times: object) -> np.ndarray:
@@ -309,13 +302,11 @@ def interpolate_poses(timestamps: object, poses: object, query_times: object) ->
 
 
 def _between(a: np.ndarray, b: np.ndarray, what: str) -> np.ndarray:
-    """``a^-1 (+) b`` for (K, 3) SE(2) poses, ``Pose2.between`` row by row: b expressed in the
-    frame of a (may overflow near the largest double: a heading raises naming ``what``, the
-    callers check the positions)."""
+    """``geometry.between`` of (K, 3) poses that may overflow near the largest double: a heading
+    that did raises naming ``what`` (the callers check the positions)."""
     with np.errstate(over="ignore", invalid="ignore"):
-        c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
-        dx, dy = b[:, 0] - a[:, 0], b[:, 1] - a[:, 1]
-        return np.column_stack([c * dx + s * dy, -s * dx + c * dy, _wrap(b[:, 2] - a[:, 2], what)])
+        _require_finite(b[:, 2] - a[:, 2], what)
+        return geometry.between(a, b)
 
 
 def relative_poses(a: object, b: object) -> np.ndarray:

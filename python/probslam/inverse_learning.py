@@ -632,7 +632,7 @@ def map_laser_log_learned(model: LearnedInverseModel, scans, resolution: Optiona
     from tqdm import tqdm
 
     from .io.carmen import LaserScans
-    from .mapping import MappingSummary, no_return_range, scan_bounds
+    from .mapping import MappingSummary, scan_bounds
 
     model._check_trained()
     require_instance(scans, LaserScans, "scans")
@@ -644,7 +644,7 @@ def map_laser_log_learned(model: LearnedInverseModel, scans, resolution: Optiona
     angles = scans.beam_angles()
     if not np.all(np.isfinite(angles)):
         raise ValueError("scans.start_angles and angular_resolutions must be finite")
-    no_return = no_return_range(scans)
+    no_return = scans.no_return_range()
     grid = OccupancyGrid2D.covering(scan_bounds(scans, max_range), resolution, p_prior=model.prior,
                                     clamp=learned_map_clamp(model.prior))
     updated, seconds, beams = 0, 0.0, 0

@@ -16,7 +16,6 @@ from tqdm import tqdm
 
 from . import _core
 from .io.carmen import CarmenLog, LaserScans
-from .mapping import no_return_range
 from .slam import scans_of
 
 PathLike = Union[str, "os.PathLike[str]"]
@@ -101,7 +100,7 @@ def default_options(log: Union[PathLike, CarmenLog, LaserScans]) -> _core.MonteC
     """The filter's options for a log: the defaults, with max_range at the log's no-return
     reading when it has one (a CARMEN or ROS bag path, a ``CarmenLog`` or its ``LaserScans``)."""
     options = _core.MonteCarloLocalizationOptions()
-    no_return = no_return_range(scans_of(log))
+    no_return = scans_of(log).no_return_range()
     if np.isfinite(no_return):
         options.max_range = no_return
     return options

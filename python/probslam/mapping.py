@@ -36,21 +36,6 @@ def scan_bounds(scans: LaserScans, max_range: float, margin: float = 1.0) -> Tup
     return (xs.min() - margin, ys.min() - margin, xs.max() + margin, ys.max() + margin)
 
 
-def no_return_range(scans: LaserScans) -> float:
-    """The sensor's "no return" reading: the smallest maximum range the log states, else the
-    largest reading if it recurs (SICK scanners report 81.83 / 81.91 m, simulators 50 m),
-    else infinity."""
-    require_instance(scans, LaserScans, "scans")
-    stated = scans.max_ranges[np.isfinite(scans.max_ranges)]
-    if stated.size:
-        return float(stated.min())
-    valid = scans.ranges[np.isfinite(scans.ranges)]
-    if valid.size == 0:
-        return float("inf")
-    top = valid.max()
-    return float(top) if np.count_nonzero(valid == top) > 1 else float("inf")
-
-
 #: map_laser_log's cell size and range (m) by default (``probslam map``'s, and a learned inverse
 #: model's that does not record its own).
 DEFAULT_RESOLUTION, DEFAULT_MAX_RANGE = 0.05, 30.0
@@ -64,7 +49,7 @@ def map_laser_log(scans: LaserScans, resolution: float = DEFAULT_RESOLUTION, max
 
     The grid is sized from the data unless given (a given grid is grown to fit). Readings at
     or beyond ``max_range`` (metres) only clear space up to it. With ``skip_no_return``,
-    readings at the sensor's maximum (``no_return_range``) are dropped: they mean "nothing
+    readings at the sensor's maximum (``LaserScans.no_return_range``) are dropped: they mean "nothing
     seen" (often glass), not free space. With ``robot_radius`` > 0 the robot's footprint
     around each robot pose is cleared too. ``progress=None`` shows a bar only on a terminal.
     """
@@ -88,7 +73,7 @@ def map_laser_log(scans: LaserScans, resolution: float = DEFAULT_RESOLUTION, max
     if not np.all(np.isfinite(scans.beam_angles())):
         raise ValueError("scans.start_angles and angular_resolutions must be finite")
     if skip_no_return:
-        ranges = np.where(scans.ranges >= no_return_range(scans), np.nan, scans.ranges)
+        ranges = np.where(scans.ranges >= scans.no_return_range(), np.nan, scans.ranges)
         scans = replace(scans, ranges=ranges)
     bounds = scan_bounds(scans, max_range)
     grid = OccupancyGrid2D.covering(bounds, resolution) if grid is None else grid.grown(bounds)

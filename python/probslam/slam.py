@@ -27,7 +27,6 @@ from .io.trajectory import write_trajectory as write_trajectory_file
 from .datasets import carmen
 from .io.carmen import CarmenLog, LaserScans
 from .io.rosbag import is_bag, read_rosbag
-from .mapping import no_return_range
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -284,7 +283,7 @@ def scans_of(log: Union[PathLike, CarmenLog, LaserScans]) -> LaserScans:
 
 def log_options(scans: LaserScans, method: str = "graph") -> Dict[str, Any]:
     """The options ``run_slam`` takes from the log itself (the one place its defaults depend on
-    the robot): the sensor's range limit (``mapping.no_return_range``: readings at it are no
+    the robot): the sensor's range limit (``LaserScans.no_return_range``: readings at it are no
     returns, and hits are used up to it) and whether the log has odometry. Without odometry
     (GraphSLAM only) every scan is matched, each predicted by the last matched motion (constant
     velocity, its spread the odometry model's, in the score as odometry would be once five
@@ -294,7 +293,7 @@ def log_options(scans: LaserScans, method: str = "graph") -> Dict[str, Any]:
     velocity between scans. The frontend's match_fraction (the share
     of the range matched) is left at its default, every hit."""
     opts: Dict[str, Any] = {}
-    no_return = no_return_range(scans)
+    no_return = scans.no_return_range()
     if np.isfinite(no_return):
         opts["max_range"] = no_return
     if method == "graph" and not carmen.has_odometry(scans):

@@ -5,7 +5,7 @@
 #include <fstream>
 #include <sstream>
 
-#include "../io/text_fields.hpp"
+#include "regular_file.hpp"
 
 namespace probslam {
 namespace {
@@ -92,7 +92,7 @@ void write_state_file(const std::string& path, const std::string& bytes) {
 }
 
 std::string read_state_file(const std::string& path) {
-  io_detail::require_regular_file(path, "path");
+  core_detail::require_regular_file(path, "path");
   std::ifstream in(path, std::ios::binary);
   if (!in) throw std::invalid_argument("path: cannot open '" + path + "'");
   std::ostringstream buffer;

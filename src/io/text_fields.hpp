@@ -13,34 +13,16 @@
 #include <string_view>
 #include <vector>
 
+#include "../core/regular_file.hpp"
 #include "probslam/core/check.hpp"
 
 namespace probslam::io_detail {
 
+using core_detail::NamedBy;
+using core_detail::require_regular_file;
+
 // A count larger than this in one message is corrupt, not data.
 constexpr long kMaxCount = 1'000'000;
-
-/// Who names a file: the caller (a missing one is FileNotFound) or a file being read (a missing
-/// one makes that file wrong: std::invalid_argument, as any other bad field).
-enum class NamedBy { kCaller, kFile };
-
-/// Throws unless `path` names an existing regular file (or a link to one): "ARG: cannot open
-/// '<path>' (no such file)" when nothing is there, "ARG: cannot open '<path>' (reason)" when it
-/// cannot be examined, "ARG: '<path>' is not a regular file" otherwise. Checked before opening: opening a fifo blocks until a writer comes, and a device
-/// such as /dev/zero never ends.
-inline void require_regular_file(const std::string& path, const char* arg, NamedBy named_by = NamedBy::kCaller) {
-  std::error_code ec;
-  const std::filesystem::file_status st = std::filesystem::status(path, ec);
-  if (st.type() == std::filesystem::file_type::not_found) {
-    const std::string what = std::string(arg) + ": cannot open '" + path + "' (no such file)";
-    if (named_by == NamedBy::kCaller) throw FileNotFound(what);
-    throw std::invalid_argument(what);
-  }
-  if (ec)  // there, but not reachable (a directory on the way without permission): not "missing"
-    throw std::invalid_argument(std::string(arg) + ": cannot open '" + path + "' (" + ec.message() + ")");
-  if (!std::filesystem::is_regular_file(st))
-    throw std::invalid_argument(std::string(arg) + ": '" + path + "' is not a regular file");
-}
 
 /// What LineError::fail throws: std::invalid_argument "source:LINE: reason", the line and the
 /// reason also kept apart for a reader that skips a bad line (and counts it) rather than fails.

@@ -37,7 +37,6 @@ WRONG_TYPES = [
     (lambda: victoria_park.run_fastslam(None), "data"),
     (lambda: ps.run_landmark_slam(3), "dataset"),
     (lambda: mapping.scan_bounds(None, 10.0), "scans"),
-    (lambda: mapping.no_return_range("scans"), "scans"),
     (lambda: ps.map_laser_log("log.clf"), "scans"),
     (lambda: carmen.has_odometry(None), "scans"),
     (lambda: sim.observe(np.zeros(3), None, sim.Sensor(Q), RNG), "world"),

@@ -188,8 +188,7 @@ def test_fr079_climb_starts_from_the_corrected_odometry(shared_data):
     # corrected log over the first 1200 scans); started from the odometry corrected by the
     # correlative matcher (the default), the same particle stays within a few centimetres.
     from probslam import io
-    from probslam.mapping import no_return_range
-
+    
     folder = shared_data / "laser_2d/fr079"
     raw = io.read_carmen_log(folder / "fr079.clf.bz2").scans
     corrected = io.read_carmen_log(folder / "freiburg-079-corrected.log.gz").scans
@@ -202,7 +201,7 @@ def test_fr079_climb_starts_from_the_corrected_odometry(shared_data):
     assert len(index) > 0.9 * n
 
     def error(**kw):
-        f = _core.GridFastSlam(num_particles=1, max_range=no_return_range(raw), **kw)
+        f = _core.GridFastSlam(num_particles=1, max_range=raw.no_return_range(), **kw)
         f.add_scans(raw.ranges[:n], raw.beam_angles()[:n], raw.laser_poses[:n], raw.timestamps[:n])
         p = f.scan_poses[index]
         # Rigid 2-D alignment (Kabsch) of the positions onto the reference.

@@ -15,7 +15,6 @@ import numpy as np
 import pytest
 
 from probslam import cli, io
-from probslam.mapping import no_return_range
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 SCANS = 60
@@ -121,7 +120,7 @@ def test_rawlog_holds_the_scans_odometry_and_timestamps(scans, tmp_path):
         assert converter().write_rawlog(scans, f) == SCANS
     pairs = read_pairs(path.read_bytes())
     assert len(pairs) == SCANS
-    no_return = no_return_range(scans)
+    no_return = scans.no_return_range()
     pose = scans.robot_poses[0].copy()
     for i, ((increment, action_ticks), scan) in enumerate(pairs):
         t = float(scans.timestamps[i])

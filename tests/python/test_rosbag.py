@@ -327,7 +327,7 @@ def test_no_return_and_too_close_readings(tmp_path):
     np.testing.assert_array_equal(s.num_beams, [7, 2])
     np.testing.assert_array_equal(s.max_ranges, [10.0, 10.0])
     np.testing.assert_array_equal(s.start_angles, F32([-1.5, -1.5]))
-    assert ps.mapping.no_return_range(s) == 10.0
+    assert s.no_return_range() == 10.0
     assert not carmen.has_odometry(s)
 
 
@@ -408,7 +408,7 @@ def test_round_trip(tmp_path, raw_log, fmt, odometry):
     np.testing.assert_array_equal(r.timestamps, s.timestamps)
     np.testing.assert_array_equal(r.start_angles, F32(s.start_angles))
     np.testing.assert_array_equal(r.angular_resolutions, F32(s.angular_resolutions))
-    np.testing.assert_array_equal(r.max_ranges, np.full(len(s), ps.mapping.no_return_range(s)))
+    np.testing.assert_array_equal(r.max_ranges, np.full(len(s), s.no_return_range()))
     for got, want in ((r.robot_poses, s.robot_poses), (r.laser_poses, s.laser_poses)):
         np.testing.assert_array_equal(got[:, :2], want[:, :2])
         assert _headings_close(got[:, 2], want[:, 2], HEADING_ROUND_TRIP_TOL)

@@ -53,6 +53,19 @@ class LaserScans:
         beams = np.arange(self.ranges.shape[1], dtype=float)
         return self.start_angles[:, None] + self.angular_resolutions[:, None] * beams[None, :]
 
+    def no_return_range(self) -> float:
+        """The sensor's "no return" reading: the smallest maximum range the log states, else the
+        largest reading if it recurs (SICK scanners report 81.83 / 81.91 m, simulators 50 m),
+        else infinity."""
+        stated = self.max_ranges[np.isfinite(self.max_ranges)]
+        if stated.size:
+            return float(stated.min())
+        valid = self.ranges[np.isfinite(self.ranges)]
+        if valid.size == 0:
+            return float("inf")
+        top = valid.max()
+        return float(top) if np.count_nonzero(valid == top) > 1 else float("inf")
+
 
 @dataclass
 class Odometry:

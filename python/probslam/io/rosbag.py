@@ -20,6 +20,7 @@ from typing import Any, Callable, Dict, Iterator, List, Optional, Sequence, Tupl
 
 import numpy as np
 
+from ..geometry import compose, interpolate
 from ._files import file_path
 from .carmen import CarmenLog, LaserScans, Odometry
 
@@ -280,16 +281,6 @@ def _rotation(q) -> np.ndarray:
                      [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)]])
 
 
-def _compose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a (+) b row by row for (N, 3) poses (b broadcast when (3,)): b in a's frame."""
-    from .._core import wrap_angle
-
-    b = np.broadcast_to(b, a.shape)
-    c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
-    return np.column_stack([a[:, 0] + c * b[:, 0] - s * b[:, 1], a[:, 1] + s * b[:, 0] + c * b[:, 1],
-                            wrap_angle(a[:, 2] + b[:, 2])])
-
-
 def _stamp(header) -> float:
     """A header's stamp in seconds, the nearest double to sec + nanosec / 10^9 (integer division
     rounds once: a CARMEN log's 0.204947 s written to a bag reads back as 0.204947, not
@@ -317,12 +308,10 @@ class _Track:
 
     def at(self, times: np.ndarray) -> Tuple[np.ndarray, np.ndarray]:
         """(poses at the times inside the track's span, mask of those times)."""
-        from ..eval import interpolate_poses
-
         if len(self.timestamps) == 0:
             return np.zeros((0, 3)), np.zeros(len(times), bool)
         inside = (times >= self.timestamps[0]) & (times <= self.timestamps[-1])
-        return interpolate_poses(self.timestamps, self.poses, times[inside]), inside
+        return interpolate(self.timestamps, self.poses, times[inside]), inside
 
 
 class _TfTree:
@@ -395,14 +384,14 @@ class _TfTree:
         ok = np.ones(len(times), bool)
         for edge in edges:
             if self.is_static(edge):
-                poses = _compose(poses, self.constant(edge))
+                poses = compose(poses, self.constant(edge))
                 continue
             track = _Track.of(self.dynamic[edge])
             step = np.zeros((len(times), 3))
             at, inside = track.at(times)
             step[inside] = at
             ok &= inside
-            poses = _compose(poses, step)
+            poses = compose(poses, step)
         return poses, ok
 
 
@@ -488,7 +477,7 @@ def _no_return(ranges: np.ndarray, num_beams: np.ndarray, range_min: np.ndarray,
                range_max: np.ndarray) -> np.ndarray:
     """Ranges (S, B), NaN-padded after each row's num_beams, with NaN, +inf and readings beyond
     range_max set to range_max: no return, the value a CARMEN log holds for it
-    (``mapping.no_return_range`` and ``run_slam`` read it from ``max_ranges``); -inf and readings
+    (``LaserScans.no_return_range`` and ``run_slam`` read it from ``max_ranges``); -inf and readings
     below range_min (too close, or an error: REP 117) set to NaN, no reading, as the padding."""
     beam = np.arange(ranges.shape[1])[None, :] < num_beams[:, None]
     out = ranges.copy()
@@ -691,7 +680,7 @@ def _read(source: _Source, path: str, scan_topic, odom_topic, pose_topic, odom_f
     else:
         found_offset, offset_source, upside_down = _static_offset(tree, base, laser_frame)
     mirror = -1.0 if upside_down else 1.0
-    laser = _compose(robot, found_offset)
+    laser = compose(robot, found_offset)
 
     for i in np.flatnonzero(~usable):
         skips.add(-1, f"{scan_topic}: scan stamped {stamps[i]:.9f} outside the poses' time span "

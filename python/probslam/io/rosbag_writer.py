@@ -10,6 +10,7 @@ from typing import Optional, Union
 
 import numpy as np
 
+from ..geometry import between
 from ._files import file_path
 from .carmen import CarmenLog, LaserScans
 from .rosbag import PathLike, _rosbags
@@ -75,12 +76,10 @@ class _Messages:
 def _laser_offset_of(scans: LaserScans) -> np.ndarray:
     """The laser's pose in the robot's frame, one for the whole log (the mean over the scans);
     ValueError when the scans' offsets differ by more than OFFSET_SPREAD_TOL."""
-    from ..eval import relative_poses
-
-    rel = relative_poses(scans.robot_poses, scans.laser_poses)
+    rel = between(scans.robot_poses, scans.laser_poses)
     heading = math.atan2(np.sin(rel[:, 2]).mean(), np.cos(rel[:, 2]).mean())
     offset = np.array([rel[:, 0].mean(), rel[:, 1].mean(), heading])
-    spread = np.abs(relative_poses(np.broadcast_to(offset, rel.shape), rel)).max(axis=0)
+    spread = np.abs(between(offset, rel)).max(axis=0)
     if spread.max() > OFFSET_SPREAD_TOL:
         raise ValueError(f"log: the laser's offset from the robot pose varies by up to ({spread[0]:.3g} m, "
                          f"{spread[1]:.3g} m, {spread[2]:.3g} rad) over the scans, more than tf_static's one "
@@ -105,7 +104,7 @@ def write_rosbag(log: Union[CarmenLog, LaserScans], path: PathLike, *, format: s
     format: "rosbag1" (a ``.bag`` file), "rosbag2" (a folder with sqlite3 storage) or "mcap" (a
     ROS 2 folder with mcap storage). Per scan: a ``sensor_msgs/LaserScan`` on ``scan_topic``
     (frame ``laser_frame``; ranges as float32, the message's type; range_max the log's no-return
-    reading, ``mapping.no_return_range``, else just above its largest reading) and the robot
+    reading, ``LaserScans.no_return_range``, else just above its largest reading) and the robot
     pose at the scan's stamp, as ``nav_msgs/Odometry`` on ``odom_topic`` (odometry="odometry")
     or as ``tf`` ``odom_frame -> base_frame`` (odometry="tf"). ``poses="robot"`` writes the
     scans' robot poses and the laser's offset from them once in ``tf_static`` (``base_frame ->
@@ -122,8 +121,6 @@ def write_rosbag(log: Union[CarmenLog, LaserScans], path: PathLike, *, format: s
     leaves nothing at ``path``.
     """
     import shutil
-
-    from ..mapping import no_return_range
 
     scans = log.scans if isinstance(log, CarmenLog) else log
     if not isinstance(scans, LaserScans):
@@ -149,7 +146,7 @@ def write_rosbag(log: Union[CarmenLog, LaserScans], path: PathLike, *, format: s
         raise FileExistsError(f"path: {path!r} exists already (a bag is never overwritten)")
     robot = scans.robot_poses if poses == "robot" else scans.laser_poses
     offset = _laser_offset_of(scans) if poses == "robot" else np.zeros(3)
-    no_return = no_return_range(scans)
+    no_return = scans.no_return_range()
     if not math.isfinite(no_return):
         top = np.nanmax(np.where(np.isfinite(scans.ranges), scans.ranges, np.nan)) if np.isfinite(scans.ranges).any() else 1.0
         no_return = float(np.nextafter(np.float32(top), np.float32(np.inf)))

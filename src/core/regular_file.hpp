@@ -1,0 +1,35 @@
+#pragma once
+// Opening a file named by an argument, shared by the state files (core) and the readers (io):
+// the path must name an existing regular file, checked before it is opened.
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+#include <system_error>
+
+#include "probslam/core/check.hpp"
+
+namespace probslam::core_detail {
+
+/// Who names a file: the caller (a missing one is FileNotFound) or a file being read (a missing
+/// one makes that file wrong: std::invalid_argument, as any other bad field).
+enum class NamedBy { kCaller, kFile };
+
+/// Throws unless `path` names an existing regular file (or a link to one): "ARG: cannot open
+/// '<path>' (no such file)" when nothing is there, "ARG: cannot open '<path>' (reason)" when it
+/// cannot be examined, "ARG: '<path>' is not a regular file" otherwise. Checked before opening: opening a fifo blocks until a writer comes, and a device
+/// such as /dev/zero never ends.
+inline void require_regular_file(const std::string& path, const char* arg, NamedBy named_by = NamedBy::kCaller) {
+  std::error_code ec;
+  const std::filesystem::file_status st = std::filesystem::status(path, ec);
+  if (st.type() == std::filesystem::file_type::not_found) {
+    const std::string what = std::string(arg) + ": cannot open '" + path + "' (no such file)";
+    if (named_by == NamedBy::kCaller) throw FileNotFound(what);
+    throw std::invalid_argument(what);
+  }
+  if (ec)  // there, but not reachable (a directory on the way without permission): not "missing"
+    throw std::invalid_argument(std::string(arg) + ": cannot open '" + path + "' (" + ec.message() + ")");
+  if (!std::filesystem::is_regular_file(st))
+    throw std::invalid_argument(std::string(arg) + ": '" + path + "' is not a regular file");
+}
+
+}  // namespace probslam::core_detail
