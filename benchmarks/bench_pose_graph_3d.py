@@ -33,7 +33,7 @@ optimum is a reference, not a bound.
 
 With --certify (a table of its own; the timing table is not run): for each graph, probslam's
 optimum from the chordal start is refined in SE-Sync's objective and certified globally optimal by
-SE-Sync's test (se_sync_certificate.py: the certificate matrix S = M - Lambda positive
+SE-Sync's test (probslam.certificate: the certificate matrix S = M - Lambda positive
 semidefinite, lambda_min(S) >= -eta); then probslam's optimiser (its own objective) is started from
 that certified point, and its chi2 compared with the one from the chordal start. The certificate
 is for SE-Sync's objective, not probslam's: the link is that re-run.
@@ -227,7 +227,7 @@ def main():
 def certify_graph(path):
     """probslam's optimum from the chordal start, refined in SE-Sync's objective and certified, and
     probslam's optimiser re-run from the certified point: a dict of the table's numbers."""
-    import se_sync_certificate as sc
+    import probslam.certificate as sc
 
     graph = probslam.graph.read_pose_graph_3d(path)
     probslam.graph.initialize_chordal(graph)
@@ -253,7 +253,7 @@ def certify_main(datasets, record):
              "the chordal start (relative tolerance 1e-10); SE-Sync's objective F = sum kappa ||R_j - R_i R_ij||_F^2 "
              "+ tau ||t_j - t_i - R_i t_ij||^2 (weights from SE-Sync's g2o reader: tau = 3 / tr(I_t^-1), "
              "kappa = 3 / (2 tr(I_R^-1))) there, then refined from there by damped Newton on F "
-             "(benchmarks/se_sync_certificate.py; Newton iterations, |grad F| at the end); the certificate "
+             "(probslam.certificate; Newton iterations, |grad F| at the end); the certificate "
              "S = M - blkdiag(0, Lambda) at the refined point: lambda_min(S) (shift-invert Lanczos at a shift "
              "below it) and the verdict, certified when no eigenvalue of S is below -eta (the inertia of an "
              "LDL^T factorisation of S + eta I), eta = 1e-10 ||S||_inf; lambda_gap is S's smallest eigenvalue "

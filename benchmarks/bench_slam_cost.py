@@ -14,10 +14,10 @@ MRPT (Debian's mrpt-apps 2.5.8) runs beside probslam when `icp-slam` / `rbpf-sla
 (methods mrpt-icp, mrpt-rbpf; skipped with a note otherwise): icp-slam with its shipped
 icp-slam_demo_classic.ini (no loop closure), rbpf-slam with gridmapping_optimal_sampling.ini and
 30 particles, each only with its input, output directory and no windows / images / 3-D scenes
-changed. Their input is written by mrpt_rawlog.py (beside this script): MRPT 2.5.8's own
+changed. Their input is written by probslam.io.mrpt_rawlog: MRPT 2.5.8's own
 carmen2rawlog does not serve, as it stamps every observation with the conversion time, assumes
 0.5 degree beams and an 81 m maximum range, and writes an observations-only rawlog rbpf-slam
-cannot read; mrpt_rawlog.py writes action / sensory-frame pairs (the odometry increment, the
+cannot read; probslam.io.mrpt_rawlog writes action / sensory-frame pairs (the odometry increment, the
 scan) with the FLASER timestamps, the log's 1 degree beams and max-range readings invalid. CPU s
 and peak RSS are the MRPT process's own (os.wait4's resource usage; the conversion excluded);
 the relations error scores MRPT's log_estimated_path.txt (its pose after each scan; for the RBPF
@@ -142,7 +142,7 @@ def mrpt_available(method: str):
 
 
 def mrpt_run(name: str, method: str, scans: int):
-    """One MRPT run on the log converted by mrpt_rawlog.py; the measurements as run() returns."""
+    """One MRPT run on the log converted by probslam.io.mrpt_rawlog; the measurements as run() returns."""
     import dataclasses
     import tempfile
 
@@ -150,7 +150,8 @@ def mrpt_run(name: str, method: str, scans: int):
 
     import probslam as ps
     import probslam.eval
-    from mrpt_rawlog import compose, laser_mount, write_rawlog
+    from probslam.geometry import compose
+    from probslam.io.mrpt_rawlog import laser_mount, write_rawlog
 
     log = ps.io.read_carmen_log(LASER / LOGS[name][1]).scans
     if scans:
@@ -286,7 +287,7 @@ def main():
               f"{', '.join(f'{v:.1f}' for v in run_loads)}); CPU s is processor time, "
               "which a shared machine's load inflates less than wall time. Real time per core = log duration / "
               "CPU s. Peak RSS: the whole process (Python, numpy, the log read: the column after it; MRPT's rows: "
-              "the MRPT process, which reads the rawlog mrpt_rawlog.py wrote).",
+              "the MRPT process, which reads the rawlog probslam.io.mrpt_rawlog wrote).",
               f"Command: `python benchmarks/bench_slam_cost.py --logs {' '.join(args.logs)} "
               f"--methods {' '.join(args.methods)}{f' --scans {args.scans}' if args.scans else ''}`.", ""]
     report(lines, record=args.record and not args.scans)

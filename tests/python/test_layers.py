@@ -14,7 +14,7 @@ LAYERS = [
     {"pipelines"},
     {"datasets"},
     {"slam", "localization", "fastslam", "ekf", "graph", "graphslam", "landmark_refine", "landmark_slam", "mapping",
-     "map_occupancy", "inverse_learning", "sim", "sim_laser", "plot", "batch"},
+     "map_occupancy", "inverse_learning", "sim", "sim_laser", "plot", "batch", "certificate"},
     {"eval"},
     {"io"},
     {"geometry"},

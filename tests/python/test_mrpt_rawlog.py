@@ -1,9 +1,8 @@
-"""benchmarks/mrpt_rawlog.py (CARMEN -> MRPT rawlog for bench_slam_cost.py's MRPT rows): the
+"""probslam.io.mrpt_rawlog (laser scans -> MRPT rawlog for bench_slam_cost.py's MRPT rows): the
 rawlog read back by a parser written here from MRPT's serialization layout, against the CARMEN
 log as probslam reads it; and by MRPT's own rawlog-edit when mrpt-apps is installed."""
 
 import dataclasses
-import importlib.util
 import math
 import pathlib
 import re
@@ -15,6 +14,7 @@ import numpy as np
 import pytest
 
 from probslam import cli, io
+from probslam.io import mrpt_rawlog
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 SCANS = 60
@@ -23,13 +23,6 @@ FLOAT32_RANGE_TOL = 1e-5  # m, for readings below 82 m
 FLOAT32_ANGLE_TOL = 1e-6  # rad: float32 aperture (~3.1 rad) times a beam fraction
 #: Odometry increments are doubles: chaining them back reproduces the poses up to rounding.
 CHAIN_TOL = 1e-9
-
-
-def converter():
-    spec = importlib.util.spec_from_file_location("mrpt_rawlog", ROOT / "benchmarks" / "mrpt_rawlog.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 @pytest.fixture(scope="module")
@@ -117,7 +110,7 @@ def seconds(ticks):
 def test_rawlog_holds_the_scans_odometry_and_timestamps(scans, tmp_path):
     path = tmp_path / "intel.rawlog"
     with open(path, "wb") as f:
-        assert converter().write_rawlog(scans, f) == SCANS
+        assert mrpt_rawlog.write_rawlog(scans, f) == SCANS
     pairs = read_pairs(path.read_bytes())
     assert len(pairs) == SCANS
     no_return = scans.no_return_range()
@@ -151,14 +144,14 @@ def test_rawlog_holds_the_scans_odometry_and_timestamps(scans, tmp_path):
 def test_an_empty_log_is_refused(scans, tmp_path):
     empty = dataclasses.replace(scans, **{f.name: getattr(scans, f.name)[:0] for f in dataclasses.fields(scans)})
     with open(tmp_path / "empty.rawlog", "wb") as f, pytest.raises(ValueError, match="scans"):
-        converter().write_rawlog(empty, f)
+        mrpt_rawlog.write_rawlog(empty, f)
 
 
 @pytest.mark.skipif(shutil.which("rawlog-edit") is None, reason="MRPT's rawlog-edit (mrpt-apps) is not installed")
 def test_mrpt_reads_the_rawlog(scans, tmp_path):
     path = tmp_path / "intel.rawlog"
     with open(path, "wb") as f:
-        converter().write_rawlog(scans, f)
+        mrpt_rawlog.write_rawlog(scans, f)
     done = subprocess.run(["rawlog-edit", "--info", "-i", str(path)], capture_output=True, text=True, timeout=120)
     assert done.returncode == 0, done.stderr
     info = dict(re.findall(r"^(.+?)\s+:\s+(.*)$", done.stdout, flags=re.M))

@@ -20,6 +20,7 @@ checked for
 from __future__ import annotations
 
 import ast
+import importlib
 import inspect
 import math
 import pathlib
@@ -34,7 +35,7 @@ from probslam import _core
 STUB = pathlib.Path(__file__).resolve().parents[2] / "python" / "probslam" / "_core.pyi"
 
 #: Subpackages whose ``__all__`` is public API (``datasets`` once it exists).
-SUBPACKAGES = ("io", "eval", "slam", "sim", "sim_laser", "inverse_learning", "data", "datasets")
+SUBPACKAGES = ("io", "eval", "slam", "sim", "sim_laser", "inverse_learning", "data", "datasets", "geometry", "certificate")
 
 #: Public names of probslam._core that are deliberately not exported, with the reason.
 CORE_INTERNAL = {
@@ -60,9 +61,8 @@ FORWARDED_KEYWORDS = "options"
 
 def modules():
     out = [probslam]
-    for name in SUBPACKAGES:
-        if hasattr(probslam, name):  # datasets: added by another change
-            out.append(getattr(probslam, name))
+    for name in SUBPACKAGES:  # probslam.certificate is imported on demand (scipy.sparse)
+        out.append(importlib.import_module(f"probslam.{name}"))
     return out
 
 

@@ -1,4 +1,4 @@
-"""benchmarks/se_sync_certificate.py: SE-Sync's objective against a per-edge loop, its Newton system
+"""probslam.certificate: SE-Sync's objective against a per-edge loop, its Newton system
 against finite differences, the certificate's eigenvalues against a dense numpy eigvalsh of the same
 S, the optimum certified and a wrong local minimum not (GTSAM's pose3example graphs and a synthetic
 loop)."""
@@ -16,8 +16,7 @@ from scipy.spatial.transform import Rotation  # noqa: E402
 
 import probslam  # noqa: E402
 
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "benchmarks"))
-import se_sync_certificate as sc  # noqa: E402
+import probslam.certificate as sc  # noqa: E402
 
 #: F and tr(X M X^T) sum the same ~10^2 products in another order: double rounding.
 ROUNDING = 1e-12
@@ -221,6 +220,7 @@ def test_benchmark_certifies_pose3example_and_the_rerun_returns(shared_data):
     path = shared_data / "pose_graphs" / "gtsam_examples" / "pose3example.txt"
     if not path.is_file():
         pytest.skip(f"dataset not present: {path}")
+    sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "benchmarks"))
     import bench_pose_graph_3d as bench
 
     r = bench.certify_graph(path)

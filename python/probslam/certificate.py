@@ -1,5 +1,6 @@
 """SE-Sync's objective on a 3-D pose graph, a local refinement of it and its optimality certificate
-(numpy + scipy only; used by bench_pose_graph_3d.py --certify and tests/python/test_se_sync_certificate.py).
+(numpy + scipy only): whether a 3-D pose graph's optimum is the global one
+(benchmarks/bench_pose_graph_3d.py --certify runs it on the published graphs).
 
 SE-Sync (Rosen, Carlone, Bandeira, Leonard, IJRR 2019) minimises
 
@@ -74,6 +75,7 @@ class Problem:
 
     @property
     def n(self) -> int:
+        """The number of poses."""
         return len(self.ids)
 
 
@@ -214,6 +216,8 @@ def _retract(R, t, step):
 
 @dataclass
 class Refinement:
+    """``refine``'s result: rotations R (n, 3, 3) and translations t (n, 3) at the end, the
+    objective F there and at the start, the Newton iterations and the gradient's norm."""
     R: np.ndarray
     t: np.ndarray
     objective: float
@@ -370,6 +374,8 @@ def null_basis(R, t):
 
 @dataclass
 class Certificate:
+    """``certify``'s verdict on a critical point: S's smallest eigenvalues, the tolerance and
+    whether S is positive semidefinite within it (then the point is a global minimum)."""
     lambda_min: float      # smallest eigenvalue of S (about 0 when certified: S has a null space)
     lambda_gap: float      # smallest eigenvalue of S off its known null space (X^T, the translation)
     eta: float             # the tolerance: certified when lambda_min >= -eta
@@ -399,3 +405,9 @@ def certify(p: Problem, R, t, eta_relative: float = ETA_RELATIVE) -> Certificate
     U = U[:, sv > 1e-8]
     gap = float(np.linalg.eigvalsh(U.T @ (S @ U))[0]) if U.shape[1] else float("nan")
     return Certificate(float(values[0]), gap, eta, norm, bool(certified), stationarity)
+
+
+__all__ = ["Certificate", "Problem", "Refinement", "certificate_matrix", "certify", "data_matrix",
+           "multipliers", "negative_eigenvalues", "null_basis", "objective", "poses_rows",
+           "problem_from_arrays", "problem_from_graph", "quaternion_to_rotation", "refine", "residuals",
+           "rotation_to_quaternion", "se_sync_weights", "smallest_eigenvalues", "stacked"]

@@ -1,5 +1,5 @@
-"""CARMEN laser log -> MRPT rawlog, for running MRPT's icp-slam and rbpf-slam on the logs
-bench_slam_cost.py measures (issue 40). Only the benchmark needs it, so it lives here.
+"""Laser scans -> MRPT rawlog (``write_mrpt_rawlog``), to run MRPT's icp-slam and rbpf-slam on the
+same log as probslam (benchmarks/bench_slam_cost.py compares them).
 
 Why not MRPT's own ``carmen2rawlog`` (2.5.8): it stamps every observation with the conversion
 time, assumes 0.5 degree beams and an 81 m maximum range, and writes an observations-only
@@ -24,20 +24,19 @@ The bytes: MRPT's ``CArchive`` object framing (class-name length | 0x80, the cla
 class's serialization version, its fields, the end flag 0x88), little endian; the fields and
 versions those of MRPT 2.5.8, checked against what its ``carmen2rawlog`` writes and read back
 with its ``rawlog-edit --info``.
-
-    python benchmarks/mrpt_rawlog.py LOG.clf[.bz2] OUT.rawlog
 """
 
 from __future__ import annotations
 
-import argparse
 import math
-import pathlib
+import os
 import struct
-import sys
 from typing import BinaryIO, Tuple
 
 import numpy as np
+
+from ..geometry import between
+from .carmen import LaserScans
 
 #: MRPT TTimeStamp: 100 ns ticks since 1601-01-01 (the Windows FILETIME epoch).
 TICKS_PER_SECOND = 10_000_000
@@ -103,33 +102,17 @@ def scan_frame(ranges: np.ndarray, valid: np.ndarray, aperture: float, max_range
                    struct.pack("<I", 1) + _object("mrpt::obs::CObservation2DRangeScan", scan))
 
 
-def _relative(a: np.ndarray, b: np.ndarray) -> Tuple[float, float, float]:
-    """Pose b in the frame of pose a, angle wrapped to (-pi, pi]."""
-    c, s = math.cos(a[2]), math.sin(a[2])
-    dx, dy = b[0] - a[0], b[1] - a[1]
-    dth = math.remainder(b[2] - a[2], 2.0 * math.pi)
-    return (c * dx + s * dy, -s * dx + c * dy, math.pi if dth == -math.pi else dth)
-
-
-def laser_mount(scans) -> Tuple[float, float, float]:
+def laser_mount(scans: LaserScans) -> Tuple[float, float, float]:
     """The laser's pose on the robot: the first scan's laser pose relative to its odometry pose."""
-    return _relative(scans.robot_poses[0], scans.laser_poses[0])
+    return tuple(between(scans.robot_poses[0], scans.laser_poses[0]).tolist())
 
 
-def compose(poses: np.ndarray, offset: Tuple[float, float, float]) -> np.ndarray:
-    """(N, 3) poses (+) a fixed offset in their frame (e.g. robot poses -> laser poses)."""
-    poses = np.asarray(poses, dtype=float)
-    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
-    heading = np.remainder(poses[:, 2] + offset[2] + np.pi, 2.0 * np.pi) - np.pi
-    heading[heading == -np.pi] = np.pi
-    return np.column_stack([poses[:, 0] + c * offset[0] - s * offset[1], poses[:, 1] + s * offset[0] + c * offset[1],
-                            heading])
-
-
-def write_rawlog(scans, out: BinaryIO) -> int:
-    """Write probslam ``LaserScans`` (a raw log: odometry in ``robot_poses``) as action /
-    sensory-frame pairs; returns the number of pairs."""
-    
+def write_rawlog(scans: LaserScans, out: BinaryIO) -> int:
+    """Write ``LaserScans`` (a raw log: odometry in ``robot_poses``) as action / sensory-frame
+    pairs to a binary stream; returns the number of pairs. ValueError for a log without scans
+    or with a scan of fewer than 2 beams."""
+    if not isinstance(scans, LaserScans):
+        raise TypeError(f"scans: expected LaserScans, got {type(scans).__name__}")
     if len(scans) == 0:
         raise ValueError("scans: the log has no laser scans")
     no_return = scans.no_return_range()
@@ -146,30 +129,17 @@ def write_rawlog(scans, out: BinaryIO) -> int:
         valid = np.isfinite(ranges) & (ranges > 0.0) & (ranges < no_return)
         ranges = np.where(np.isfinite(ranges), ranges, max_range)
         yaw = math.remainder(mount[2] + float(scans.start_angles[i]) + 0.5 * aperture, 2.0 * math.pi)
-        increment = (0.0, 0.0, 0.0) if i == 0 else _relative(scans.robot_poses[i - 1], scans.robot_poses[i])
+        increment = (0.0, 0.0, 0.0) if i == 0 else tuple(between(scans.robot_poses[i - 1], scans.robot_poses[i]).tolist())
         t = float(scans.timestamps[i])
         out.write(odometry_action(increment, t))
         out.write(scan_frame(ranges, valid, aperture, max_range, (mount[0], mount[1], yaw), t))
     return len(scans)
 
 
-def convert(log_path, rawlog_path) -> int:
-    """Read a CARMEN log (plain, .gz, .bz2) and write its rawlog; returns the number of scans."""
-    import probslam as ps
-
-    scans = ps.io.read_carmen_log(log_path).scans
-    with open(rawlog_path, "wb") as f:
+def write_mrpt_rawlog(scans: LaserScans, path: "os.PathLike[str] | str") -> int:
+    """Write ``scans`` as an MRPT rawlog file at ``path``; returns the number of scans."""
+    with open(path, "wb") as f:
         return write_rawlog(scans, f)
 
 
-def main(argv=None) -> None:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("log", type=pathlib.Path)
-    parser.add_argument("rawlog", type=pathlib.Path)
-    args = parser.parse_args(argv)
-    n = convert(args.log, args.rawlog)
-    print(f"{args.rawlog}: {n} action / sensory-frame pairs", file=sys.stderr)
-
-
-if __name__ == "__main__":
-    main()
+__all__ = ["laser_mount", "mrpt_ticks", "odometry_action", "scan_frame", "write_mrpt_rawlog", "write_rawlog"]
