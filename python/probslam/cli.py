@@ -21,7 +21,7 @@ from . import eval as evaluation
 from .data import path as _data_path
 from .datasets import carmen, landmark_dataset_kind, load_landmark_dataset, mrclam, run_landmark_slam
 from ._core import MonteCarloLocalizationOptions
-from .io.landmark_datasets import isam_noise_convention
+from .pipelines.optimize_file import INITIALIZATIONS, NOISE_CONVENTIONS, GraphFileOptions
 from .landmark_refine import refine_run
 from .io.trajectory import EXTENSIONS, POSITION_FIELDS, TRAJECTORY_FORMATS, first_row_fields
 from .mapping import DEFAULT_MAX_RANGE as MAP_MAX_RANGE, DEFAULT_RESOLUTION as MAP_RESOLUTION, map_laser_log
@@ -64,24 +64,6 @@ POSE_GRAPH = "a 2-D pose graph: g2o (VERTEX_SE2/EDGE_SE2), TORO .graph (VERTEX2/
 POSE_GRAPH_3D = ("a 3-D pose graph: g2o (VERTEX_SE3:QUAT/EDGE_SE3:QUAT), iSAM/GTSAM text (EDGE3) or TORO 3-D "
                  "(VERTEX3/EDGE3)")
 ANY_POSE_GRAPH = "a 2-D or 3-D pose graph (g2o, TORO or iSAM text)"
-#: optimize's starting points that only one dimension has, and the default of each dimension
-#: (3-D: the chordal relaxation of the rotations, since Gauss-Newton from the values in a file
-#: such as torus3D's, or from dead reckoning on noisier graphs, stalls in a wrong minimum).
-INITS_2D_ONLY = ("ekf", "incremental")
-INITS_3D_ONLY = ("chordal",)
-DEFAULT_INIT = {2: "file", 3: "chordal"}
-#: ...except for a 2-D graph with landmarks: the EKF SLAM estimate. A landmark's value in a file
-#: (or placed from its first sighting on dead reckoning, as iSAM files are read) is off by the
-#: drift up to that sighting, and Gauss-Newton from there stalls: on Victoria Park 100 iterations
-#: to chi2 3.4e7, against 6184.12 in 5 from the EKF (docs/pose_graphs.md).
-#: optimize --noise: what a graph file's noise entries hold (graph.read_pose_graph's ``noise``).
-NOISE_CONVENTIONS = ("auto", "information", "sqrt_information", "covariance")
-#: The records only iSAM text has (TORO shares EDGE2): an iSAM file when the first record is one.
-ISAM_ONLY_RECORDS = ("ODOMETRY", "LANDMARK")
-LANDMARK_GRAPH_INIT = "ekf"
-LANDMARK_GRAPH_INIT_REASON = "the graph has landmarks: the EKF SLAM estimate places them"
-INITIALIZATIONS = ("file", "odometry", "ekf", "incremental", "chordal")
-
 EPILOG = """exit status:
   0  success
   1  an unexpected error (a bug: please report it)
@@ -187,7 +169,9 @@ def _option_flags(flags: Dict[str, str], args: argparse.Namespace) -> Iterator[N
             if re.match(re.escape(name) + r"\b(?![.])", text):
                 given = getattr(args, name, None)
                 rest = text[len(name):].lstrip(": ")
-                raise UserError(f"{flag}{'' if given is None else f' {given}'}: {rest}") from None
+                if given is None or rest.startswith(f"{given} "):  # the message already says the value
+                    raise UserError(f"{flag} {rest}") from None
+                raise UserError(f"{flag} {given}: {rest}") from None
         raise
 
 
@@ -1101,149 +1085,49 @@ def _print_map_score(data, run, labels):
     return s.survey_in_map_frame(fixed)
 
 
-def _graph_noise(args: argparse.Namespace, path: str) -> str:
-    """The reader's noise convention for ``optimize``: --noise, or for auto the format's own, but
-    covariance for an iSAM file named as GTSAM's copies are (``io.isam_noise_convention``), so that
-    GTSAM's victoria_park.txt reads as it is written. Printed when it is not the format's own."""
-    if args.noise != "auto":
-        return args.noise
-    if isam_noise_convention(path) != "covariance":
-        return "default"
-    with open(path, "r", errors="replace") as f:
-        first = next((line.split()[0] for line in f if line.strip() and not line.lstrip().startswith("#")), "")
-    if args.format == "isam" or (args.format == "auto" and first in ISAM_ONLY_RECORDS):
-        print(f"noise:      covariance (an iSAM file named as GTSAM's copies: {os.path.basename(path)}; "
-              "--noise sets another)")
-        return "covariance"
-    return "default"
+#: optimize's flags, by the GraphFileOptions field each sets.
+OPTIMIZE_FLAGS = {"format": "--format", "noise": "--noise", "init": "--init", "poses_per_step": "--poses-per-step",
+                  "algorithm": "--algorithm", "max_iterations": "--max-iterations", "kernel": "--kernel",
+                  "kernel_width": "--kernel-width", "linear_solver": "--linear-solver", "ordering": "--ordering",
+                  "trajectory_format": "--trajectory-format"}
 
 
 def _cmd_optimize(args: argparse.Namespace) -> int:
-    import numpy as np
+    from .pipelines.optimize_file import GraphFileOptions, GraphFileRun
 
-    from . import graph as pg
-
-    _require_count(args.max_iterations, "--max-iterations", 0)
-    _require_count(args.poses_per_step, "--poses-per-step", 1)
-    _require_length(args.kernel_width, "--kernel-width")
-    if args.kernel == "none":
-        _refuse_given(args, ("kernel_width",), "applies with --kernel huber or cauchy only")
     if not args.plot:
         _refuse_given(args, ("edges",), "draws in the picture, which --no-plot leaves out")
+    fields = {name: getattr(args, name) for name in OPTIMIZE_FLAGS if name != "trajectory_format"}
+    with _option_flags(OPTIMIZE_FLAGS, args):
+        options = GraphFileOptions().replace(**fields)
     _check_output(args.output)
     path = args.graph or _data_path(BUNDLED_GRAPH)
     _check_input(path, ANY_POSE_GRAPH)
-    with _reading(path, ANY_POSE_GRAPH):
-        dimension = pg.pose_graph_dimension(path)
-    init = args.init or DEFAULT_INIT[dimension]  # 2-D with landmarks: LANDMARK_GRAPH_INIT, once it is read
-    if init != "incremental":
-        _refuse_given(args, ("poses_per_step",), "applies with --init incremental only")
-    other_only = INITS_2D_ONLY if dimension == 3 else INITS_3D_ONLY
-    if init in other_only:
-        choices = ", ".join(i for i in INITIALIZATIONS if i not in other_only)
-        raise UserError(f"--init {init} applies to {5 - dimension}-D graphs; {path} is a {dimension}-D graph "
-                        f"(its starting points: {choices})")
-    if dimension == 3 and args.trajectory_format == "xyt":
-        raise UserError("--trajectory-format xyt ('t x y theta') cannot hold a 3-D pose: use tum or kitti")
-    expected = POSE_GRAPH_3D if dimension == 3 else POSE_GRAPH
-    t0 = time.perf_counter()
-    noise = _graph_noise(args, path)
-    with _reading(path, expected):
-        read = (pg.read_pose_graph_3d_with_report if dimension == 3 else pg.read_pose_graph_with_report)(
-            path, format=args.format, noise=noise, rows="strict")
-    g, read_report = read.graph, read.report
-    if g.num_vertices == 0:
-        raise UserError(f"{path}: no vertices; expected {expected}")
-    t_read = time.perf_counter() - t0
-    bundled = " (bundled Intel Research Lab excerpt)" if not args.graph else ""
-    if dimension == 3:
-        points = f"{g.num_points} points, {g.num_point_edges} point edges, " if g.num_points else ""
-        print(f"graph:      {path}: 3-D, {len(g.pose_ids)} poses, {g.num_pose_edges} edges, {points}"
-              f"{g.num_pose_priors} priors (read in {t_read:.3f} s)")
-    else:
-        print(f"graph:      {path}{bundled}: {len(g.pose_ids)} poses, {len(g.point_ids)} points, "
-              f"{g.num_pose_edges} pose edges, {g.num_point_edges} point edges (read in {t_read:.3f} s)")
-        if read_report.equivalences:
-            print(f"            {read_report.equivalences} TORO EQUIV records: {read_report.merged_vertices} vertices "
-                  f"merged into others, {read_report.collapsed_edges} edges between them dropped")
-    if read_report.repaired_rows:
-        first = read_report.repaired_lines[0]
-        print(f"            {read_report.repaired_rows} edges with an information matrix not positive definite: "
-              f"eigenvalues raised to {pg.INFORMATION_EIGENVALUE_FLOOR:g} of the largest (first at line {first})")
-    # The solver options given; the others are the library's defaults for the graph's dimension.
-    solver = {name: value for name, value in (("linear_solver", args.linear_solver), ("ordering", args.ordering))
-              if value is not None}
-    why = ""
-    if args.init is None and dimension == 2 and len(g.point_ids):
-        init, why = LANDMARK_GRAPH_INIT, f" ({LANDMARK_GRAPH_INIT_REASON})"
-    if init != "file":
-        t_init = time.perf_counter()
-        if init == "chordal":
-            pg.initialize_chordal(g, **solver)
-        elif dimension == 3:
-            pg.initialize_odometry(g)
-        else:
-            pg.initialize(g, init, poses_per_step=args.poses_per_step)
-        print(f"init:       {init}{why} in {time.perf_counter() - t_init:.3f} s, chi2 {g.chi2():.6f}")
-    initial = g.poses
-    initial_chi2 = g.chi2()
-    t1 = time.perf_counter()
-    chi2_after: List[float] = []
-    report = None
-    with progress_bar(args.max_iterations, "optimize", "it", _progress(args)) as bar:
+    with _reading(path, ANY_POSE_GRAPH), _option_flags(OPTIMIZE_FLAGS, args):
+        run = GraphFileRun.read(path, options)
+        if run.dimension == 3 and args.trajectory_format == "xyt":
+            raise ValueError("trajectory_format: 'xyt' ('t x y theta') cannot hold a 3-D pose: use tum or kitti")
+    print(run.read_summary(path + ("" if args.graph else " (bundled Intel Research Lab excerpt)")))
+    run.start()
+    if run.start_summary():
+        print(run.start_summary())
+    with progress_bar(options.max_iterations, "optimize", "it", _progress(args)) as bar:
         def on_iteration(iteration: int, chi2: float) -> bool:
-            chi2_after.append(chi2)
             bar.set_postfix_str(f"chi2 {chi2:.6g}", refresh=False)
             bar.update(1)
             return True
 
-        try:
-            report = pg.optimize(g, algorithm=args.algorithm, max_iterations=args.max_iterations, kernel=args.kernel,
-                                 kernel_width=args.kernel_width, callback=on_iteration, **solver)
-        except KeyboardInterrupt:
-            pass  # Ctrl-C: the graph holds the last completed iteration's values, written below
-    t_opt = time.perf_counter() - t1
-    print(f"chi2:       {initial_chi2:.6f} initially")
-    seconds = report.iteration_seconds if report is not None else [math.nan] * len(chi2_after)
-    for i, (chi2, sec) in enumerate(zip(chi2_after, seconds), 1):
-        print(f"  iteration {i:3d}: chi2 {chi2:.6f}" + (f"  ({sec * 1e3:.2f} ms)" if math.isfinite(sec) else ""))
-    if report is None:
-        print(f"result:     interrupted: chi2 {g.chi2():.6f} after {len(chi2_after)} completed iterations (written "
-              f"as it is); optimisation {t_opt:.3f} s")
-    else:
-        print(f"result:     chi2 {report.chi2:.6f} after {report.iterations} iterations ({report.stop_reason}); "
-              f"optimisation {t_opt:.3f} s, file to result {time.perf_counter() - t0:.3f} s")
-    (pg.write_g2o_3d if dimension == 3 else pg.write_g2o)(g, args.output + ".g2o")
-    written = [args.output + ".g2o"]
-    order = np.argsort(g.pose_ids, kind="stable")
-    times = np.asarray(g.pose_ids, dtype=float)[order]
-    if dimension == 3:
-        written.extend(io.write_trajectory_3d(times, g.poses[order], args.output + "_trajectory"
-                                              + EXTENSIONS[args.trajectory_format], format=args.trajectory_format))
-    else:
-        _write_trajectory(args, times, g.poses[order], written)
+        run.optimize(on_iteration)
+    print(run.optimize_summary())
+    written = run.write(args.output, args.trajectory_format)
     plt = _pyplot() if args.plot else None
     if plt is not None:
-        title = (f"probslam optimize: {os.path.basename(path)}\n{args.algorithm}{'' if init == 'file' else ' from ' + init}, chi2 {initial_chi2:.4g} "
-                 f"-> {g.chi2():.4g} in {len(chi2_after)} iterations" + (" (interrupted)" if report is None else ""))
-        if dimension == 3:
-            from .plot import pose_graph_3d
-
-            fig, (top, side) = plt.subplots(1, 2, figsize=(14, 7))
-            pose_graph_3d(top, side, g, initial=initial, edges=args.edges)
-            fig.suptitle(title, fontsize="medium")
-        else:
-            from .plot import pose_graph
-
-            fig, ax = plt.subplots(figsize=(8, 8))
-            pose_graph(ax, g, initial=initial, edges=args.edges)
-            ax.set_title(title, fontsize="medium")
-        written.append(_save_figure(plt, fig, args.output + ".png"))
+        written.append(_save_figure(plt, run.draw(plt, edges=args.edges), args.output + ".png"))
     print(f"wrote:      {', '.join(written)}")
-    if report is None:
+    if run.interrupted:
         print("probslam: interrupted", file=sys.stderr)
         return EXIT_INTERRUPTED
-    return 0 if report.converged else EXIT_NOT_CONVERGED
+    return 0 if run.converged else EXIT_NOT_CONVERGED
 
 
 #: What ``probslam eval`` reads.
@@ -1667,24 +1551,27 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("graph", nargs="?", help="graph file: .g2o, TORO .graph, or iSAM .txt, 2-D or 3-D; default: a "
                                             "bundled excerpt of the Intel Research Lab graph (400 poses; a 3-D one: "
                                             "probslam.data.path('parking_garage_400.g2o'))")
-    o.add_argument("--format", default="auto", choices=["auto", "g2o", "toro", "isam"],
+    gfo = GraphFileOptions()  # the flags' defaults are the pipeline's
+    o.add_argument("--format", default=gfo.format, choices=["auto", "g2o", "toro", "isam"],
                    help="the graph file's format (auto: from its records)")
-    o.add_argument("--noise", default="auto", choices=NOISE_CONVENTIONS,
+    o.add_argument("--noise", default=gfo.noise, choices=NOISE_CONVENTIONS,
                    help="what the edges' noise entries hold (auto: the format's own -- information for g2o and "
                         "TORO, square-root information for iSAM -- except GTSAM's iSAM copies, named '*gtsam*', "
                         "which hold covariances)")
-    o.add_argument("--algorithm", default="gauss-newton", choices=["gauss-newton", "levenberg-marquardt"],
+    o.add_argument("--algorithm", default=gfo.algorithm, choices=["gauss-newton", "levenberg-marquardt"],
                    help="the least-squares solver")
     o.add_argument("--init", default=None, choices=list(INITIALIZATIONS),
                    help="starting point: the file's values (the default for 2-D pose graphs; dead reckoning for "
                         "iSAM files), dead reckoning, the EKF SLAM estimate (2-D; the default for a graph with "
                         "landmarks), incremental optimisation (2-D), or the chordal relaxation of the rotations "
                         "(3-D, its default)")
-    o.add_argument("--poses-per-step", type=int, default=100, help="with --init incremental: poses per step")
-    o.add_argument("--max-iterations", type=int, default=100,
+    o.add_argument("--poses-per-step", type=int, default=None,
+                   help="with --init incremental: poses per step (default 100)")
+    o.add_argument("--max-iterations", type=int, default=gfo.max_iterations,
                    help="iterations at most; a run that has not converged by then exits with status 3")
-    o.add_argument("--kernel", default="none", choices=["none", "huber", "cauchy"], help="robust kernel")
-    o.add_argument("--kernel-width", type=float, default=1.0, help="kernel width, in units of sqrt(chi2)")
+    o.add_argument("--kernel", default=gfo.kernel, choices=["none", "huber", "cauchy"], help="robust kernel")
+    o.add_argument("--kernel-width", type=float, default=None,
+                   help="kernel width, in units of sqrt(chi2) (default 1)")
     o.add_argument("--linear-solver", default=None, choices=["simplicial", "supernodal", "auto"],
                    help="sparse Cholesky: default supernodal")
     o.add_argument("--ordering", default=None, choices=["amd", "metis"],
