@@ -307,6 +307,8 @@ void define_multi_hypothesis(py::module_& m) {
         for (const auto& ids : locked(e, [&] { return e.history(); })) out.append(py::array(py::cast(ids)));
         return out;
       }, "The best hypothesis's assignments, one (k,) array of landmark ids per scan so far.")
+      .def("copy", [](const Mht& e) { return locked(e, [&] { return Mht(e); }); },
+           "An independent deep copy (every hypothesis, its history and costs).")
       .def("__repr__", [](py::handle self) {
         const Mht& e = self.cast<const Mht&>();
         return repr_of(self, locked(e, [&] {

@@ -254,6 +254,11 @@ void define_grid3d(py::module_& m) {
           "clamped log-odds logit(p_max) or logit(p_min) of clamp. A missing file raises FileNotFoundError,\n"
           "a malformed one ValueError.")
       .def("clear", [](Grid& g) { locked(g, [&] { g.clear(); }); }, "Forgets every voxel (all unknown again).")
+      // The grid holds a block pool it does not share: a copy goes through its state bytes.
+      .def("copy", [](const Grid& g) {
+        const std::string bytes = locked(g, [&] { return state_bytes(g); });
+        return object_from_state<Grid>(bytes, "OccupancyGrid3D copy");
+      }, "An independent deep copy.")
       .def("__repr__", [](py::handle self) {
         const Grid& g = self.cast<const Grid&>();
         return repr_of(self, locked(g, [&] {

@@ -176,6 +176,8 @@ class OccupancyGrid3D:
         """OctoMap .bt file; voxels get the clamped log-odds. FileNotFoundError for a missing file,
         ValueError for a bad one."""
     def clear(self) -> None: ...
+    def copy(self) -> "OccupancyGrid3D":
+        """An independent deep copy."""
     def save(self, path: Union[str, os.PathLike[str]]) -> None:
         """Writes the whole state to path (docs/file_format.md), bit for bit (every block's float
         log-odds, unlike write_bt's occupancy bits)."""
@@ -497,6 +499,7 @@ class _MultiHypothesisEkfSlam:
     def predict(self, v: float, w: float, dt: float, noise: Optional[ArrayLike] = None) -> None: ...
     def update(self, z: ArrayLike) -> npt.NDArray[np.int64]: ...
     def history(self) -> List[npt.NDArray[np.int64]]: ...
+    def copy(self) -> "_MultiHypothesisEkfSlam": ...
 
 # --- graph/: pose graphs (ch. 11); the public face is probslam.graph ---------------------------
     def save(self, path: Union[str, os.PathLike[str]]) -> None:

@@ -361,6 +361,12 @@ class MultiHypothesisEkfSlam:
         m._m = _core._MultiHypothesisEkfSlam.load(path)
         return m
 
+    def copy(self) -> "MultiHypothesisEkfSlam":
+        """An independent deep copy: the same calls then give both the same results."""
+        m = object.__new__(type(self))
+        m._m = self._m.copy()
+        return m
+
     def __getstate__(self):
         return {"_m": self._m}
 
