@@ -3,9 +3,7 @@ sequential measurements, state augmentation for new landmarks. The independent r
 
 import numpy as np
 
-
-def wrap(a):
-    return (a + np.pi) % (2 * np.pi) - np.pi
+from reference import wrap  # noqa: F401 (used below and by the tests that import it from here)
 
 
 def motion(x, v, w, dt):

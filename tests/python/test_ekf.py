@@ -5,6 +5,7 @@ import pytest
 
 import probslam as ps
 from ekf_reference import DenseEkfSlam
+from reference import wrap
 
 EXACT = 1e-9  # the sparse and dense forms differ only by rounding
 
@@ -228,15 +229,11 @@ def clustered_scan(rng, n_landmarks, k):
     seen = rng.choice(n_landmarks, size=min(k, n_landmarks), replace=False)
     pose = ekf.pose + rng.normal(0, [0.05, 0.05, 0.08])
     d = xy[seen] - pose[:2]
-    z = np.column_stack([np.hypot(d[:, 0], d[:, 1]), wrap_np(np.arctan2(d[:, 1], d[:, 0]) - pose[2])])
+    z = np.column_stack([np.hypot(d[:, 0], d[:, 1]), wrap(np.arctan2(d[:, 1], d[:, 0]) - pose[2])])
     z += rng.normal(0, [0.03, 0.01], z.shape)
     if rng.random() < 0.3:  # clutter
         z = np.vstack([z, [rng.uniform(2, 4), rng.uniform(-0.5, 0.5)]])
     return ekf, z[rng.permutation(len(z))], q
-
-
-def wrap_np(a):
-    return (a + np.pi) % (2 * np.pi) - np.pi
 
 
 @pytest.mark.parametrize("seed", range(40))

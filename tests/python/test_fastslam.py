@@ -7,6 +7,7 @@ import pytest
 
 import probslam as ps
 from probslam import _core
+from reference import wrap
 
 TWO_PI = 2 * np.pi
 
@@ -15,10 +16,6 @@ TWO_PI = 2 * np.pi
 def arrays(landmarks):
     """(ids, means, covariances) of a Landmarks result."""
     return landmarks.ids, landmarks.means, landmarks.covariances
-
-
-def wrap(a):
-    return (np.asarray(a) + np.pi) % TWO_PI - np.pi
 
 
 def h(x, m):

@@ -5,13 +5,10 @@ import numpy as np
 import pytest
 
 import probslam
+from reference import wrap
 
 # Two converged double-precision optimisers of the same objective agree to about this.
 CONVERGED = 1e-8
-
-
-def wrap(a):
-    return (a + np.pi) % (2 * np.pi) - np.pi
 
 
 def rot(t):
