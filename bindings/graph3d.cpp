@@ -305,7 +305,7 @@ void define_graph3d(py::module_& m) {
   define_persistence<PoseGraph3D>(graph_class);
   graph_class.attr("QUATERNION_NORM_TOLERANCE") = kQuaternionNormTolerance;
 
-  m.def("read_pose_graph_3d_graph",
+  m.def("read_pose_graph_3d",
         [](const std::string& path, const std::string& format, const std::string& noise, const std::string& rows) {
           const PoseGraphReadOptions options = read_options(format, noise, rows);
           PoseGraph3DFileRead read;
@@ -316,10 +316,10 @@ void define_graph3d(py::module_& m) {
           return py::make_tuple(std::move(read.graph), std::move(read.report));
         },
         py::arg("path"), py::arg("format") = "auto", py::arg("noise") = "default", py::arg("rows") = "strict",
-        "Reads a 3-D pose graph file (formats and options as read_pose_graph_3d) into a PoseGraph3D:\n"
+        "Reads a 3-D pose graph file (formats and options as probslam.graph.read_pose_graph_3d) into a PoseGraph3D:\n"
         "(PoseGraph3D, PoseGraphReadReport); FIX records fix vertices, EDGE_SE3_PRIOR records are priors,\n"
         "VERTEX_TRACKXYZ / EDGE_SE3_TRACKXYZ points and point edges.");
-  m.def("write_g2o_3d_graph",
+  m.def("write_g2o_3d",
         [](const std::string& path, ClassArg<PoseGraph3D> graph_arg) {
           const PoseGraph3D& graph = graph_arg.get("graph");
           const PoseGraph3DData data = locked(graph, [&] { return pose_graph_3d_data(graph); });

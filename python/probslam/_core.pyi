@@ -260,15 +260,6 @@ CARMEN_MAX_REPORTED_LINES: int  # skipped lines a log reader reports by number a
 def read_carmen_log(path: str) -> dict: ...
 def parse_carmen_log(text: str, source: str = "<text>") -> dict: ...
 QUATERNION_NORM_TOLERANCE: float  # 3-D graph files: a quaternion further than this from unit norm is refused
-def read_pose_graph_3d(path: str, format: str = "auto", noise: str = "default",
-                       rows: str = "strict") -> Tuple[Dict[str, np.ndarray], "PoseGraphReadReport"]:
-    """(arrays, report): vertex_ids (N,), quaternions (N, 4) as (x, y, z, w), translations (N, 3),
-    fixed (N,), edges (E, 2) ids, edge_quaternions (E, 4), edge_translations (E, 3), information
-    (E, 6, 6) in the order [translation, rotation], prior_ids / prior_quaternions /
-    prior_translations / prior_information (EDGE_SE3_PRIOR). format "auto", "g2o", "isam" or
-    "toro"; noise and rows as read_pose_graph."""
-def write_g2o_3d(path: str, arrays: Dict[str, ArrayLike]) -> None:
-    """Writes read_pose_graph_3d's arrays as g2o text, 17 significant digits."""
 def save_ros_map(grid: OccupancyGrid2D, yaml_path: str, occupied_thresh: float = 0.65,
                  free_thresh: float = 0.196) -> None: ...
 def load_ros_map(yaml_path: str) -> OccupancyGrid2D: ...
@@ -592,9 +583,9 @@ class PoseGraph3D:
         """The object saved at path; ValueError naming the path for any other or damaged file."""
 
 
-def read_pose_graph_3d_graph(path: str, format: str = "auto", noise: str = "default",
-                             rows: str = "strict") -> Tuple[PoseGraph3D, "PoseGraphReadReport"]: ...
-def write_g2o_3d_graph(path: str, graph: PoseGraph3D) -> None: ...
+def read_pose_graph_3d(path: str, format: str = "auto", noise: str = "default",
+                       rows: str = "strict") -> Tuple[PoseGraph3D, "PoseGraphReadReport"]: ...
+def write_g2o_3d(path: str, graph: PoseGraph3D) -> None: ...
 
 
 class OptimizationReport:

@@ -90,20 +90,41 @@ class PoseGraph3DRead:
     report: PoseGraphReadReport
 
 
+#: A quaternion further than this from unit norm is refused (files print 6-9 digits: rounding
+#: alone stays within 1e-6); the C++ kQuaternionNormTolerance.
+QUATERNION_NORM_TOLERANCE: float = _core.QUATERNION_NORM_TOLERANCE
+
+
 def read_pose_graph_3d(path: PathLike, format: str = "auto", *, noise: str = "default",
                        rows: str = "strict") -> PoseGraph3D:
-    """Read a 3-D pose graph file straight into a ``PoseGraph3D`` (in C++, no per-record Python):
-    formats, ``noise`` and ``rows`` as ``probslam.io.read_pose_graph_3d`` (which returns the
-    file's arrays instead). FIX records fix their vertices; ``EDGE_SE3_PRIOR`` records become
-    priors (``PoseGraph3D.add_pose_prior``), whose rotation block weighs the rotation vector as
-    the graph's edges do. A 2-D file raises ``ValueError`` naming ``read_pose_graph``."""
-    return _core.read_pose_graph_3d_graph(file_path(path), format, noise, rows)[0]
+    """Read a 3-D pose graph file into a ``PoseGraph3D`` (in C++, no per-record Python).
+
+    ``format``: 'g2o' (VERTEX_SE3:QUAT, EDGE_SE3:QUAT, EDGE_SE3_PRIOR through an identity
+    PARAMS_SE3OFFSET, VERTEX_TRACKXYZ, EDGE_SE3_TRACKXYZ, FIX), 'isam' (EDGE3 i j x y z roll pitch
+    yaw + 21; VERTEX3 id x y z roll pitch yaw as GTSAM's load3D; without vertices the poses are
+    dead-reckoned along the edges), 'toro' (VERTEX3 / EDGE3) or 'auto' (from the first record:
+    VERTEX3 is TORO, EDGE3 iSAM, anything else g2o). Euler angles give R = Rz(yaw) Ry(pitch)
+    Rx(roll); quaternions are (x, y, z, w) as g2o writes them, normalised when a file's rounding
+    leaves them within ``QUATERNION_NORM_TOLERANCE`` of unit norm, refused otherwise. An edge
+    (i, j) measures x_i^-1 x_j with (6, 6) information in g2o's order [translation, rotation].
+
+    ``noise``: what the 21 upper-triangle noise entries hold, as ``read_pose_graph``: 'default'
+    (information for g2o and TORO, square-root information for iSAM, as iSAM's own loader;
+    GTSAM's load3D reads iSAM files as 'information'), 'information', 'sqrt_information' or
+    'covariance'. ``rows``: 'strict' (a malformed record raises ``ValueError("file:LINE:
+    reason")``) or 'skip' (skipped and counted, ``read_pose_graph_3d_with_report``).
+
+    FIX records fix their vertices; ``EDGE_SE3_PRIOR`` records become priors
+    (``PoseGraph3D.add_pose_prior``), whose rotation block weighs the rotation vector as the
+    graph's edges do. A 2-D file raises ``ValueError`` naming ``read_pose_graph``; a missing one
+    ``FileNotFoundError``."""
+    return _core.read_pose_graph_3d(file_path(path), format, noise, rows)[0]
 
 
 def read_pose_graph_3d_with_report(path: PathLike, format: str = "auto", *, noise: str = "default",
                                    rows: str = "skip") -> PoseGraph3DRead:
     """``read_pose_graph_3d`` for real data: malformed records skipped and reported by default."""
-    graph, report = _core.read_pose_graph_3d_graph(file_path(path), format, noise, rows)
+    graph, report = _core.read_pose_graph_3d(file_path(path), format, noise, rows)
     return PoseGraph3DRead(graph, report)
 
 
@@ -115,7 +136,7 @@ def write_g2o_3d(graph: PoseGraph3D, path: PathLike) -> None:
         raise TypeError(f"graph: expected a PoseGraph3D, got {type(graph).__name__}")
     if not isinstance(path, (str, os.PathLike)):
         raise TypeError(f"path: expected a str or os.PathLike, got {type(path).__name__}")
-    _core.write_g2o_3d_graph(os.fspath(path), graph)
+    _core.write_g2o_3d(os.fspath(path), graph)
 
 
 #: Records that tell a 3-D graph file from a 2-D one (the first of either kind decides).
@@ -180,7 +201,7 @@ INITIALIZATIONS = ("odometry", "ekf", "incremental")
 
 
 def initialize(graph: PoseGraph2D, method: str = "odometry", poses_per_step: int = 100,
-               **step_options) -> Optional[IncrementalReport]:
+               **options) -> Optional[IncrementalReport]:
     """Replace the graph's values by a starting point for ``optimize``.
 
     ``method``:
@@ -190,7 +211,7 @@ def initialize(graph: PoseGraph2D, method: str = "odometry", poses_per_step: int
         with the pose edges between consecutive poses as odometry and the point edges as
         landmark observations (``landmark_slam.run_ekf_on_graph``);
       * ``"incremental"``: ``optimize_incremental``: the poses join ``poses_per_step`` at a time
-        and the graph so far is optimised after each step (``step_options`` go to each step's
+        and the graph so far is optimised after each step (``options`` go to each step's
         optimisation, e.g. ``algorithm``); its report is returned, and the graph ends at a
         minimum of the full problem.
 
@@ -210,11 +231,12 @@ def initialize(graph: PoseGraph2D, method: str = "odometry", poses_per_step: int
             graph.set_points(points, [run.landmarks[i] for i in points])
         return None
     if method == "incremental":
-        return optimize_incremental(graph, poses_per_step=poses_per_step, **step_options)
+        return optimize_incremental(graph, poses_per_step=poses_per_step, **options)
     raise ValueError(f"method must be one of {', '.join(repr(m) for m in INITIALIZATIONS)}, got {method!r}")
 
 
 __all__ = [
+    "QUATERNION_NORM_TOLERANCE",
     "INITIALIZATIONS",
     "IncrementalReport",
     "OptimizationReport",

@@ -35,7 +35,7 @@ from probslam import _core
 STUB = pathlib.Path(__file__).resolve().parents[2] / "python" / "probslam" / "_core.pyi"
 
 #: Subpackages whose ``__all__`` is public API (``datasets`` once it exists).
-SUBPACKAGES = ("io", "eval", "slam", "sim", "sim_laser", "inverse_learning", "data", "datasets", "geometry", "certificate", "pipelines")
+SUBPACKAGES = ("io", "eval", "slam", "sim", "sim_laser", "inverse_learning", "data", "datasets", "geometry", "certificate", "pipelines", "graph")
 
 #: Public names of probslam._core that are deliberately not exported, with the reason.
 CORE_INTERNAL = {

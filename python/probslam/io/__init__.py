@@ -1,6 +1,5 @@
 """Readers and writers: CARMEN laser logs, ROS bags (``rosbags`` needed only for them), ROS
-map_server maps, PNG pictures, trajectories (TUM, KITTI), 3-D pose graph files (g2o SE3, iSAM
-EDGE3, TORO 3-D), landmark datasets (MRCLAM, Victoria Park as iSAM text and as the original run); MRPT rawlogs
+map_server maps, PNG pictures, trajectories (TUM, KITTI), landmark datasets (MRCLAM, Victoria Park as iSAM text and as the original run); MRPT rawlogs
 (written, to run MRPT's apps on the same log)."""
 
 from .carmen import CarmenLog, LaserScans, Odometry, read_carmen_log
@@ -9,7 +8,6 @@ from .landmark_datasets import (MRCLAM_RANGE_SCALE, Mrclam, VictoriaPark, Victor
 from .maps import load_ros_map, save_ros_map, write_png
 from . import mrpt_rawlog
 from .mrpt_rawlog import write_mrpt_rawlog
-from .pose_graph_3d import QUATERNION_NORM_TOLERANCE, PoseGraph3DFile, read_pose_graph_3d, write_g2o_3d
 from .trajectory import (TRAJECTORY_FORMATS, Positions, Trajectory, kitti_times_path, read_positions,
                          read_trajectory, write_trajectory, write_trajectory_3d)
 from . import rosbag
@@ -22,9 +20,7 @@ __all__ = [
     "LaserScans",
     "Mrclam",
     "Odometry",
-    "PoseGraph3DFile",
     "Positions",
-    "QUATERNION_NORM_TOLERANCE",
     "RosbagLog",
     "TRAJECTORY_FORMATS",
     "Trajectory",
@@ -34,7 +30,6 @@ __all__ = [
     "load_ros_map",
     "read_carmen_log",
     "read_mrclam",
-    "read_pose_graph_3d",
     "read_positions",
     "read_rosbag",
     "read_trajectory",
@@ -43,7 +38,6 @@ __all__ = [
     "mrpt_rawlog",
     "save_ros_map",
     "write_mrpt_rawlog",
-    "write_g2o_3d",
     "write_png",
     "write_trajectory",
     "write_trajectory_3d",
