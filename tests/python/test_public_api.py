@@ -46,10 +46,6 @@ CORE_INTERNAL = {
                                     "probslam.graph.INFORMATION_EIGENVALUE_FLOOR",
     "CARMEN_MAX_REPORTED_LINES": "how many skipped lines a CARMEN read lists (probslam.io.carmen.MAX_REPORTED_LINES)",
     "parse_carmen_log": "the parser under probslam.io.read_carmen_log, which reads compressed logs too",
-    "read_pose_graph_3d_graph": "the reader under probslam.read_pose_graph_3d (and _with_report), which return "
-                                "the graph (probslam.io.read_pose_graph_3d keeps _core's name for the file's arrays)",
-    "write_g2o_3d_graph": "the writer under probslam.write_g2o_3d(graph, path) (probslam.io.write_g2o_3d keeps "
-                          "_core's name for the file's arrays)",
 }
 
 #: A parameter ``**options`` is allowed in a function whose docstring mentions "options" (it

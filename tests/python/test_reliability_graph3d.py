@@ -196,7 +196,7 @@ def test_a_wrong_graph_is_a_type_error_naming_graph(function, options, wrong):
 
 
 @pytest.mark.parametrize("call", [lambda g, tmp: probslam._core.initialize_chordal(g),
-                                  lambda g, tmp: probslam._core.write_g2o_3d_graph(str(tmp / "g.g2o"), g)])
+                                  lambda g, tmp: probslam._core.write_g2o_3d(str(tmp / "g.g2o"), g)])
 @pytest.mark.parametrize("wrong", NOT_GRAPHS + [graph2d()], ids=lambda w: type(w).__name__)
 def test_a_3d_only_call_names_graph_for_anything_else(call, wrong, tmp_path):
     with pytest.raises(TypeError, match=r"^graph: expected a PoseGraph3D, got " + type(wrong).__name__) as caught:
