@@ -9,16 +9,13 @@ import numpy as np
 import pytest
 
 import probslam as ps
+import walled_room
 
 API = (pathlib.Path(__file__).resolve().parents[2] / "docs" / "api.md").read_text()
 
 
 def room():
-    g = ps.OccupancyGrid2D(0.1, 40, 30, origin=(0.0, 0.0))
-    lo = np.full((30, 40), -3.0)
-    lo[0, :] = lo[-1, :] = lo[:, 0] = lo[:, -1] = 3.0
-    g.log_odds[:] = lo
-    return g
+    return walled_room.room(0.1, 40, 30)
 
 
 def ekf():

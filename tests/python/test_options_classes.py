@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import probslam as ps
+import walled_room
 from probslam import _core
 
 OPTIONS_CLASSES = [ps.OdometryMotionNoise, ps.BeamMixture, ps.MonteCarloLocalizationOptions]
@@ -22,11 +23,7 @@ def fields(cls):
 
 
 def room():
-    g = ps.OccupancyGrid2D(0.1, 40, 30, origin=(0.0, 0.0))
-    lo = np.full((30, 40), -3.0)
-    lo[0, :] = lo[-1, :] = lo[:, 0] = lo[:, -1] = 3.0
-    g.log_odds[:] = lo
-    return g
+    return walled_room.room(0.1, 40, 30)
 
 
 @pytest.mark.parametrize("cls", OPTIONS_CLASSES)

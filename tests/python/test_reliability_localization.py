@@ -16,6 +16,7 @@ import pytest
 from hypothesis import given, settings, HealthCheck
 
 import policy
+from walled_room import room
 from probslam import _core
 
 PROPERTY = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
@@ -30,15 +31,6 @@ COVERED = (
 )
 
 ANGLES = np.linspace(-1.5, 1.5, 31)
-
-
-def room(res=0.1, w=60, h=40):
-    """A free room with walls on its border."""
-    g = _core.OccupancyGrid2D(res, w, h, origin=(0.0, 0.0))
-    lo = np.full((h, w), -3.0)
-    lo[0, :] = lo[-1, :] = lo[:, 0] = lo[:, -1] = 3.0
-    g.log_odds[:] = lo
-    return g
 
 
 def ranges_from(grid, pose):
