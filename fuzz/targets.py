@@ -70,8 +70,8 @@ def _pose_graph(name: str, fmt: str):
 
 def _pose_graph_3d(name: str, fmt: str):
     def target(ws: Workspace, data: bytes) -> None:
-        from probslam import io
-        io.read_pose_graph_3d(ws.write(name, data), format=fmt)
+        from probslam import graph
+        graph.read_pose_graph_3d(ws.write(name, data), format=fmt)
     return target
 
 
