@@ -77,6 +77,7 @@ void MonteCarloLocalizationOptions::validate() const {
           "must lie in [0, 2^20]");
   require(std::isfinite(resample_threshold) && resample_threshold >= 0.0 && resample_threshold <= 1.0,
           "resample_threshold", "must lie in [0, 1]");
+  require(resample_interval >= 1 && resample_interval <= 1000000, "resample_interval", "must lie in [1, 10^6]");
   require(std::isfinite(update_min_d) && update_min_d >= 0.0, "update_min_d", "must be finite and >= 0");
   require(std::isfinite(update_min_a) && update_min_a >= 0.0, "update_min_a", "must be finite and >= 0");
   require(threads >= 1 && threads <= 1024, "threads", "must lie in [1, 1024]");
@@ -392,7 +393,8 @@ MclUpdate MonteCarloLocalization::apply_update(const Eigen::Ref<const Eigen::Vec
   if (!beams.empty()) f_.low_updates = p_random > 0.0 ? f_.low_updates + 1 : 0;
   const double n_eff = normalise_log_weights(f_.log_weights);
   out.effective_sample_size = n_eff;
-  if (n_eff < options_.resample_threshold * static_cast<double>(num_particles())) {
+  const bool interval_due = f_.num_updates % options_.resample_interval == 0;
+  if (interval_due && n_eff < options_.resample_threshold * static_cast<double>(num_particles())) {
     auto scan = [&](const Eigen::Vector3d& x) {
       return options_.weight_scale * scan_log_likelihood(x, ranges, angles, beams);
     };

@@ -377,3 +377,18 @@ def test_kidnapped_robot_recovers(corridor):
     assert np.median(err[:100]) < 0.1
     assert err[100] > 2.0  # the jump (about 12 m of corridor)
     assert np.max(err[-30:]) < 0.3, err[100::10]
+
+
+def test_resample_interval_resamples_at_every_kth_update_only(corridor):
+    """AMCL's resample_interval: with N_eff always below the threshold (resample_threshold 1), the
+    filter resamples at updates 3, 6, ... only."""
+    true, odo, ranges, grid = corridor
+    mcl = ps.MonteCarloLocalization(grid, initial_pose=true[0], min_particles=200, max_particles=200, seed=2,
+                                    resample_threshold=1.0, resample_interval=3)
+    resampled = [mcl.update(ranges[0], ANGLES, force=True).resampled for _ in range(7)]
+    assert resampled == [False, False, True, False, False, True, False]
+    every = ps.MonteCarloLocalization(grid, initial_pose=true[0], min_particles=200, max_particles=200, seed=2,
+                                      resample_threshold=1.0)
+    assert all(every.update(ranges[0], ANGLES, force=True).resampled for _ in range(3))
+    with pytest.raises(ValueError, match="^resample_interval must lie in"):
+        ps.MonteCarloLocalizationOptions(resample_interval=0)

@@ -78,6 +78,7 @@ struct MonteCarloLocalizationOptions {
   int recovery_candidates = 0;
   // ---- when to update and resample ----
   double resample_threshold = 0.5;  ///< resample when N_eff < this * M, in [0, 1]
+  int resample_interval = 1;        ///< resample at every this-th update at most (AMCL's resample_interval)
   double update_min_d = 0.2;        ///< travel (m) before an update
   double update_min_a = 0.5235987755982988;  ///< turn (rad) before an update (30 degrees)
   std::uint64_t seed = 0;
@@ -111,6 +112,7 @@ struct MonteCarloLocalizationOptions {
     v("recovery_updates", &O::recovery_updates, "", "consecutive low updates before injection starts");
     v("recovery_candidates", &O::recovery_candidates, "", "injected particles drawn from this many free poses by the scan's likelihood (0: uniform)");
     v("resample_threshold", &O::resample_threshold, "", "resample when N_eff < this * M, in [0, 1]");
+    v("resample_interval", &O::resample_interval, "", "resample at every this-th update at most (AMCL's resample_interval)");
     v("update_min_d", &O::update_min_d, "m", "travel before an update");
     v("update_min_a", &O::update_min_a, "rad", "turn before an update");
     v("seed", &O::seed, "", "random seed, in [0, 2^64)");
