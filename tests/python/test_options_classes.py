@@ -153,3 +153,17 @@ def test_the_state_file_holds_the_fields_in_describe_order(tmp_path):
     mcl.save(tmp_path / "mcl.psl")
     assert ps.MonteCarloLocalization.load(tmp_path / "mcl.psl").options == o
     assert pickle.loads(pickle.dumps(mcl)).options == o
+
+
+def test_the_stub_is_what_describe_generates():
+    """The stub's options classes and the keyword signatures of the classes that take them are
+    scripts/stub_options.py's output for the built module (run it after adding an option)."""
+    import importlib.util
+    import pathlib
+
+    path = pathlib.Path(__file__).resolve().parents[2] / "scripts" / "stub_options.py"
+    spec = importlib.util.spec_from_file_location("stub_options", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    stub = module.STUB.read_text()
+    assert module.generated(stub) == stub, "run scripts/stub_options.py"
