@@ -292,11 +292,20 @@ def log_options(scans: LaserScans, method: str = "graph") -> Dict[str, Any]:
     the motion, issue 51; the Stage-like robot in the simulated office: GraphSLAM 2.95 m ATE and
     the map 29 % small before, 0.23 m and 1.4 %), in a window wide enough for a change of
     velocity between scans. The frontend's match_fraction (the share
-    of the range matched) is left at its default, every hit."""
+    of the range matched) is left at its default, every hit.
+
+    Where the log states how noisy its odometry is (``LaserScans.odometry_noise``: a simulation
+    does, a CARMEN log or a bag as read today does not), that noise is the odometry model
+    (``odometry_noise``, both methods): the match's prior is the odometry's Mahalanobis term with
+    its own noise, so that good odometry is kept (the Stage-like robot in the simulated office
+    with the truth as odometry: GraphSLAM 1.02 m ATE with the fixed model, 0.005 m with the
+    stated one). Otherwise the fixed model, 10 % of the distance (``OdometryNoise``)."""
     opts: Dict[str, Any] = {}
     no_return = no_return_range(scans)
     if np.isfinite(no_return):
         opts["max_range"] = no_return
+    if scans.odometry_noise is not None and carmen.has_odometry(scans):
+        opts["odometry_noise"] = tuple(float(v) for v in scans.odometry_noise)
     if method == "graph" and not carmen.has_odometry(scans):
         opts.update(constant_velocity=True, min_travel=0.0, min_rotation=0.0, linear_window=0.5,
                     angular_window=0.5)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import os
 import warnings
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional, Union
+from typing import Dict, List, Optional, Tuple, Union
 
 import numpy as np
 
@@ -28,7 +28,10 @@ class LaserScans:
     timestamps: (S,) seconds, the log's logger time (each CARMEN record's last field: one clock
     from the start of logging, the one the corrected Radish logs carry);
     ipc_timestamps: (S,) seconds, the ipc time (the sending host's clock, the one the Freiburg
-    relations files use), NaN where the source has none (a ROS bag, a simulation).
+    relations files use), NaN where the source has none (a ROS bag, a simulation);
+    odometry_noise: the noise the log states of its odometry, the six coefficients of the
+    frontend's ``odometry_noise`` (a simulation's, ``sim_laser.OdometryModel.stated_noise``), None
+    where it states none (CARMEN logs, ROS bags as read today): ``slam.log_options`` passes it on.
     """
 
     ranges: np.ndarray
@@ -40,6 +43,7 @@ class LaserScans:
     num_beams: np.ndarray
     timestamps: np.ndarray
     ipc_timestamps: Optional[np.ndarray] = None
+    odometry_noise: Optional[Tuple[float, ...]] = None
 
     def __post_init__(self) -> None:
         if self.ipc_timestamps is None:
