@@ -494,6 +494,6 @@ def write_truth(run: LaserRun, path: PathLike) -> None:
     write_trajectory(run.timestamps, run.truth, path, format="tum")
 
 
-__all__ = ["LaserRun", "LaserSensor", "ODOMETRY", "OdometryModel", "SENSORS", "WORLDS", "World", "cast_rays",
-           "drive_loop", "make_world", "relative_steps", "simulate", "simulate_odometry", "write_bag",
+__all__ = ["LaserRun", "LaserSensor", "ODOMETRY", "OdometryModel", "SENSORS", "STATED_NOISE_FLOOR", "WORLDS", "World",
+           "cast_rays", "drive_loop", "make_world", "relative_steps", "simulate", "simulate_odometry", "write_bag",
            "write_carmen", "write_truth"]
