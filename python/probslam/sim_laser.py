@@ -18,7 +18,7 @@ import numpy as np
 
 from ._args import require_instance
 from ._core import wrap_angle
-from .io.carmen import LaserScans
+from .io.carmen import ODOMETRY_NOISE_PARAM, LaserScans
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -411,7 +411,8 @@ class LaserRun:
         return LaserScans(ranges=r, laser_poses=self.odometry.copy(), robot_poses=self.odometry.copy(),
                           start_angles=np.full(s, sensor.start), angular_resolutions=np.full(s, sensor.step),
                           max_ranges=np.full(s, sensor.max_range), num_beams=np.full(s, sensor.beams),
-                          timestamps=self.timestamps.copy(), odometry_noise=self.stated_noise)
+                          timestamps=self.timestamps.copy(),
+                          odometry_noise=None if self.stated_noise is None else np.tile(self.stated_noise, (s, 1)))
 
 
 def simulate(world: Union[str, World], sensor: Union[str, LaserSensor], odometry: str = "good", seed: int = 0,
@@ -455,7 +456,8 @@ def write_carmen(run: LaserRun, path: PathLike) -> None:
     """The log as CARMEN text (``read_carmen_log`` reads it): ``ROBOTLASER1`` lines (start angle,
     field of view, step and max range of the sensor; ranges in mm, the no-return as max range as
     CARMEN logs hold it; the odometry as laser and robot pose), preceded by an ``ODOM`` line at
-    each scan's stamp, none for odometry kind "none" (whose poses are all zero)."""
+    each scan's stamp, none for odometry kind "none" (whose poses are all zero); the odometry's
+    stated noise as ``PARAM probslam_odometry_noise`` (``read_carmen_log`` reads it back)."""
     from .io._files import file_path
 
     require_instance(run, LaserRun, "run")
@@ -465,6 +467,8 @@ def write_carmen(run: LaserRun, path: PathLike) -> None:
     with open(path, "w", encoding="ascii") as f:
         f.write(f"# probslam.sim_laser: world {run.world.kind}, sensor {s.name}, odometry {run.odometry_kind}, "
                 f"seed {run.seed}\n")
+        if run.stated_noise is not None:
+            f.write(f"PARAM {ODOMETRY_NOISE_PARAM} {','.join(repr(float(v)) for v in run.stated_noise)}\n")
         for i in range(len(sc)):
             x, y, th = sc.laser_poses[i]
             t = sc.timestamps[i]

@@ -43,7 +43,7 @@ def frontend(world, odometry, seed=0, **options):
     scans = sim.scans()
     # As a log that does not state its odometry's noise (the fixed model, 1 cm a scan): the
     # stated noise of perfect odometry would hold the frontend on it whatever the matching does.
-    scans.odometry_noise = None
+    scans.odometry_noise[:] = np.nan
     result = ps.slam.run_slam(scans, progress=False, loop_closures=False, **options)
     return sim, result
 
@@ -107,7 +107,7 @@ def test_log_options_follow_the_log():
     stated = sim_laser.ODOMETRY["good"].stated_noise()
     assert ps.slam.log_options(with_odometry) == {"max_range": 3.5, "odometry_noise": stated}
     assert ps.slam.log_options(with_odometry, method="rbpf")["odometry_noise"] == stated
-    with_odometry.odometry_noise = None  # a log that states nothing: the fixed model
+    with_odometry.odometry_noise[:] = np.nan  # a log that states nothing: the fixed model
     assert ps.slam.log_options(with_odometry) == {"max_range": 3.5}
     opts = ps.slam.log_options(without)
     assert opts["max_range"] == 3.5 and opts["constant_velocity"] and opts["min_travel"] == 0.0
