@@ -25,7 +25,7 @@ from . import _core
 from .io._files import file_path, require_regular_file
 from .io.trajectory import write_trajectory as write_trajectory_file
 from .datasets import carmen
-from .io.carmen import CarmenLog, LaserScans
+from .io.carmen import ODOMETRY_NOISE_SIZE, CarmenLog, LaserScans
 from .io.rosbag import is_bag, read_rosbag
 from .mapping import no_return_range
 
@@ -304,7 +304,10 @@ def log_options(scans: LaserScans, method: str = "graph") -> Dict[str, Any]:
     no_return = no_return_range(scans)
     if np.isfinite(no_return):
         opts["max_range"] = no_return
-    stated = scans.odometry_noise
+    stated = np.asarray(scans.odometry_noise, dtype=float)
+    if stated.shape != (len(scans), ODOMETRY_NOISE_SIZE):
+        raise ValueError(f"odometry_noise: LaserScans.odometry_noise must be ({len(scans)}, {ODOMETRY_NOISE_SIZE}) "
+                         f"(one statement per scan, NaN where none), got shape {stated.shape}")
     if len(stated) and np.isfinite(stated).all() and carmen.has_odometry(scans):
         # Where the scans state different noises, the loosest: one model serves the whole run.
         opts["odometry_noise"] = tuple(float(v) for v in stated.max(axis=0))

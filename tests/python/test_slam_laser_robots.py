@@ -114,6 +114,13 @@ def test_log_options_follow_the_log():
     assert "constant_velocity" not in ps.slam.log_options(without, method="rbpf")
 
 
+def test_a_misshapen_odometry_noise_is_refused_by_name():
+    scans = sim_laser.simulate("hall", "lds", "good", seed=0).scans()
+    scans.odometry_noise = np.ones(6)  # one statement, not one per scan
+    with pytest.raises(ValueError, match="odometry_noise"):
+        ps.slam.log_options(scans)
+
+
 @pytest.mark.parametrize("bad", [0.0, -0.5, 1.5, float("nan")])
 def test_match_fraction_out_of_range_is_refused(bad):
     with pytest.raises(ValueError, match="match_fraction"):
