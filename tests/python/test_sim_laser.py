@@ -12,6 +12,7 @@ import pytest
 from probslam import sim_laser as sl
 from probslam.datasets import carmen
 from probslam.io import read_carmen_log, read_rosbag, read_trajectory
+from probslam.io.carmen import ODOMETRY_NOISE_PARAM
 
 needs_rosbags = pytest.mark.skipif(importlib.util.find_spec("rosbags") is None,
                                    reason="rosbags is not installed (pip install rosbags)")
@@ -187,6 +188,21 @@ def test_carmen_log_reads_back_as_simulated(tmp_path, odometry):
     assert np.all(log.scans.max_ranges == run.sensor.max_range)
     assert len(log.odometry.poses) == (0 if odometry == "none" else len(run.truth))
     assert carmen.has_odometry(log.scans) == (odometry != "none")
+    # the PARAM line, bit for bit (repr); NaN (stated nowhere) without odometry
+    np.testing.assert_array_equal(log.scans.odometry_noise, want.odometry_noise)
+    assert np.isnan(want.odometry_noise).all() == (odometry == "none")
+
+
+@pytest.mark.parametrize("value", ["0.1,0,0.01", "0.1,0,0,0.1,0.05,0.005", "a,b,c,d,e,f", "0.1,0,0.01,0.1,nan,0.005"])
+def test_a_malformed_odometry_noise_param_is_ignored_with_a_warning(tmp_path, value):
+    run = sl.simulate("office", "lds", "good", seed=2)
+    sl.write_carmen(run, tmp_path / "sim.log")
+    text = (tmp_path / "sim.log").read_text().splitlines()
+    text = [f"PARAM {ODOMETRY_NOISE_PARAM} {value}" if t.startswith("PARAM") else t for t in text]
+    (tmp_path / "bad.log").write_text("\n".join(text) + "\n")
+    with pytest.warns(UserWarning, match=ODOMETRY_NOISE_PARAM):
+        log = read_carmen_log(tmp_path / "bad.log")
+    assert np.isnan(log.scans.odometry_noise).all() and len(log.scans) == len(run.truth)
 
 
 @needs_rosbags

@@ -2,10 +2,11 @@
 
 from __future__ import annotations
 
+import math
 import os
 import warnings
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional, Union
+from typing import Dict, List, Optional, Tuple, Union
 
 import numpy as np
 
@@ -16,6 +17,13 @@ PathLike = Union[str, "os.PathLike[str]"]
 
 #: How many skipped lines a ``CarmenLog`` lists (and its warning names); all are counted.
 MAX_REPORTED_LINES = _core.CARMEN_MAX_REPORTED_LINES
+
+#: The PARAM a log states its odometry's noise by (``sim_laser.write_carmen`` writes it): the six
+#: coefficients of the frontend's ``odometry_noise``, comma-separated, in one token.
+ODOMETRY_NOISE_PARAM = "probslam_odometry_noise"
+#: The coefficients of an odometry noise statement (trans_per_metre, trans_per_radian,
+#: trans_floor, rot_per_radian, rot_per_metre, rot_floor).
+ODOMETRY_NOISE_SIZE = 6
 
 
 @dataclass
@@ -28,7 +36,13 @@ class LaserScans:
     timestamps: (S,) seconds, the log's logger time (each CARMEN record's last field: one clock
     from the start of logging, the one the corrected Radish logs carry);
     ipc_timestamps: (S,) seconds, the ipc time (the sending host's clock, the one the Freiburg
-    relations files use), NaN where the source has none (a ROS bag, a simulation).
+    relations files use), NaN where the source has none (a ROS bag, a simulation);
+    odometry_noise: (S, 6) the noise the log states of its odometry at each scan, the six
+    coefficients of the frontend's ``odometry_noise`` (a simulation's,
+    ``sim_laser.OdometryModel.stated_noise``; a CARMEN log's ``PARAM probslam_odometry_noise``),
+    NaN where it states none (the CARMEN logs of the real robots, ROS bags as read today):
+    ``slam.log_options`` passes it on. Per scan, as every other field, so that a subset of the
+    rows is a subset of every field.
     """
 
     ranges: np.ndarray
@@ -40,10 +54,13 @@ class LaserScans:
     num_beams: np.ndarray
     timestamps: np.ndarray
     ipc_timestamps: Optional[np.ndarray] = None
+    odometry_noise: Optional[np.ndarray] = None
 
     def __post_init__(self) -> None:
         if self.ipc_timestamps is None:
             self.ipc_timestamps = np.full(np.shape(self.timestamps), np.nan)
+        if self.odometry_noise is None:
+            self.odometry_noise = np.full((len(np.atleast_1d(self.timestamps)), ODOMETRY_NOISE_SIZE), np.nan)
 
     def __len__(self) -> int:
         return int(self.ranges.shape[0])
@@ -80,6 +97,25 @@ class Odometry:
     def __post_init__(self) -> None:
         if self.ipc_timestamps is None:
             self.ipc_timestamps = np.full(np.shape(self.timestamps), np.nan)
+
+
+
+def stated_odometry_noise(params: Dict[str, str], source: object = "log") -> Optional[Tuple[float, ...]]:
+    """The odometry noise a log's ``ODOMETRY_NOISE_PARAM`` states; None where it states none, or
+    (with a warning naming the log) states it malformed: six finite numbers >= 0, floors > 0."""
+    text = params.get(ODOMETRY_NOISE_PARAM)
+    if text is None:
+        return None
+    try:
+        values = tuple(float(v) for v in text.split(","))
+    except ValueError:
+        values = ()
+    if (len(values) != ODOMETRY_NOISE_SIZE or not all(math.isfinite(v) and v >= 0 for v in values)
+            or values[2] <= 0 or values[5] <= 0):
+        warnings.warn(f"{source}: PARAM {ODOMETRY_NOISE_PARAM} {text[:80]!r} is not six numbers >= 0 with "
+                      "positive floors; ignored (the fixed odometry model is used)", stacklevel=3)
+        return None
+    return values
 
 
 @dataclass
@@ -127,6 +163,9 @@ def read_carmen_log(path: PathLike) -> CarmenLog:
     log = CarmenLog(LaserScans(**raw["scans"]), Odometry(**raw["odometry"]), dict(raw["params"]),
                     int(raw["skipped_wide_scans"]), int(raw["skipped_rows"]), list(raw["skipped_lines"]),
                     list(raw["skipped_reasons"]))
+    stated = stated_odometry_noise(log.params, path)
+    if stated is not None:
+        log.scans.odometry_noise[:] = stated
     if log.skipped_rows == 1:
         warnings.warn(f"{path}: skipped 1 malformed line (line {log.skipped_lines[0]}: {log.skipped_reasons[0]})",
                       stacklevel=2)
