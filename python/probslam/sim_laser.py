@@ -17,6 +17,7 @@ from typing import Dict, List, Optional, Tuple, Union
 import numpy as np
 
 from ._args import require_instance
+from . import geometry
 from ._core import wrap_angle
 from .io.carmen import ODOMETRY_NOISE_PARAM, LaserScans
 
@@ -309,26 +310,12 @@ def drive_loop(waypoints: np.ndarray, dt: float, speed: float = 0.5, turn_rate: 
     return poses
 
 
-def _compose(a: np.ndarray, d: np.ndarray) -> np.ndarray:
-    c, s = math.cos(a[2]), math.sin(a[2])
-    return np.array([a[0] + c * d[0] - s * d[1], a[1] + s * d[0] + c * d[1],
-                     math.remainder(a[2] + d[2], 2 * math.pi)])
-
-
-def relative_steps(poses: np.ndarray) -> np.ndarray:
-    """(T - 1, 3) the motion from each pose to the next in the frame of the first."""
-    d = np.diff(poses[:, :2], axis=0)
-    c, s = np.cos(poses[:-1, 2]), np.sin(poses[:-1, 2])
-    dth = np.arctan2(np.sin(np.diff(poses[:, 2])), np.cos(np.diff(poses[:, 2])))
-    return np.c_[c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1], dth]
-
-
 def simulate_odometry(truth: np.ndarray, model: Optional[OdometryModel], rng: np.random.Generator) -> np.ndarray:
     """Odometry poses (T, 3) for the true poses (T, 3), starting at the true start: each step's
     motion with the model's scale, drift, random error and slips (None: all zero, no odometry)."""
     if model is None:
         return np.zeros_like(truth)
-    steps = relative_steps(truth)
+    steps = geometry.steps(truth)
     dist = np.hypot(steps[:, 0], steps[:, 1])
     n = len(steps)
     factor = 1.0 + model.scale + model.sigma_dist * rng.standard_normal(n)
@@ -338,12 +325,7 @@ def simulate_odometry(truth: np.ndarray, model: Optional[OdometryModel], rng: np
     slip = np.where(slips, rng.uniform(0.0, model.slip_max, n), 0.0)
     factor = factor + slip
     turn = turn + slip * dist * rng.choice([-1.0, 1.0], n)
-    out = np.empty_like(truth)
-    out[0] = truth[0]
-    for i in range(n):  # composing poses is sequential; T is thousands, not beams
-        out[i + 1] = _compose(out[i], np.array([steps[i, 0] * factor[i], steps[i, 1] * factor[i], turn[i]]))
-    out[:, 2] = wrap_angle(out[:, 2])
-    return out
+    return geometry.accumulate(truth[0], np.column_stack([steps[:, 0] * factor, steps[:, 1] * factor, turn]))
 
 
 def cast_rays(segments: np.ndarray, origins: np.ndarray, angles: np.ndarray) -> np.ndarray:
@@ -499,5 +481,5 @@ def write_truth(run: LaserRun, path: PathLike) -> None:
 
 
 __all__ = ["LaserRun", "LaserSensor", "ODOMETRY", "OdometryModel", "SENSORS", "STATED_NOISE_FLOOR", "WORLDS", "World",
-           "cast_rays", "drive_loop", "make_world", "relative_steps", "simulate", "simulate_odometry", "write_bag",
+           "cast_rays", "drive_loop", "make_world", "simulate", "simulate_odometry", "write_bag",
            "write_carmen", "write_truth"]

@@ -9,6 +9,7 @@ import math
 import numpy as np
 import pytest
 
+from probslam import geometry
 from probslam import sim_laser as sl
 from probslam.datasets import carmen
 from probslam.io import read_carmen_log, read_rosbag, read_trajectory
@@ -140,7 +141,7 @@ def test_perfect_odometry_is_the_truth_and_none_is_zero():
 def _step_errors(model, seed=0):
     truth = sl.drive_loop(sl.make_world("corridor", 0).waypoints, 0.1)
     odo = sl.simulate_odometry(truth, model, np.random.default_rng(seed))
-    t, o = sl.relative_steps(truth), sl.relative_steps(odo)
+    t, o = geometry.steps(truth), geometry.steps(odo)
     dist = np.hypot(t[:, 0], t[:, 1])
     return t, o, dist
 

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import probslam as ps
-from probslam import sim_laser
+from probslam import geometry, sim_laser
 from probslam.eval import ate
 
 #: The frontend on the Stage-like robot (5 m, 90 beams over 270 deg) with perfect odometry in
@@ -153,7 +153,7 @@ def test_stated_noise_bounds_the_simulated_steps():
     model = sim_laser.ODOMETRY["good"]
     trans_m, trans_rad, trans_floor, rot_rad, rot_m, rot_floor = model.stated_noise()
     sim = sim_laser.simulate("office", "stage", "good", seed=3)
-    truth, odo = sim_laser.relative_steps(sim.truth), sim_laser.relative_steps(sim.odometry)
+    truth, odo = geometry.steps(sim.truth), geometry.steps(sim.odometry)
     d, a = np.hypot(truth[:, 0], truth[:, 1]), np.abs(truth[:, 2])
     sd_xy = trans_m * d + trans_rad * a + trans_floor
     sd_th = rot_rad * a + rot_m * d + rot_floor
