@@ -226,13 +226,15 @@ void define_graph3d(py::module_& m) {
              const std::vector<long> flat = locked(g, [&] {
                std::vector<long> out;
                for (const Pose3Edge& e : g.pose_edges()) out.insert(out.end(), {g.vertex(e.from).id, g.vertex(e.to).id});
+               for (const Point3Edge& e : g.point_edges()) out.insert(out.end(), {g.vertex(e.pose).id, g.vertex(e.point).id});
                return out;
              });
              py::array_t<long> out({static_cast<py::ssize_t>(flat.size() / 2), py::ssize_t{2}});
              std::copy(flat.begin(), flat.end(), out.mutable_data());
              return out;
            },
-           "(E, 2) int64 end ids (from, to) of every pose edge (point_edges() gives the point edges').")
+           "(E + M, 2) int64 end ids of every edge, as PoseGraph2D.edge_ids: the pose edges (from, to), then the\n"
+           "point edges (pose, point), in the order of edge_chi2.")
       .def("pose_edges",
            [](const PoseGraph3D& g) {
              std::vector<long> ends;

@@ -174,7 +174,7 @@ void define_localization(py::module_& m) {
       .def_property_readonly("covariance", getter(&Mcl::covariance), "(3, 3) that cluster's covariance.")
       .def_property_readonly("cluster_weight", getter(&Mcl::cluster_weight),
                              "That cluster's share of the weight (near 1 once the filter settled on one place).")
-      .def_property_readonly("particles", getter(&Mcl::particles), "(M, 3) particle poses (m, m, rad).")
+      .def_property_readonly("poses", getter(&Mcl::poses), "(M, 3) every particle's pose (m, m, rad).")
       .def_property_readonly("weights", getter(&Mcl::weights), "(M,) normalised weights.")
       .def_property_readonly("num_particles", getter(&Mcl::num_particles), "M, the number of particles.")
       .def_property_readonly("num_updates", getter(&Mcl::num_updates), "Updates since the last initialisation.")

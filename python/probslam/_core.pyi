@@ -567,7 +567,7 @@ class PoseGraph3D:
     def set_poses(self, ids: ArrayLike, poses: ArrayLike) -> None: ...  # (N,), (N, 7)
     def set_points(self, ids: ArrayLike, points: ArrayLike) -> None: ...  # (N,), (N, 3)
     def has_vertex(self, id: int) -> bool: ...
-    def edge_ids(self) -> npt.NDArray[np.int64]: ...  # (E, 2) of the pose edges
+    def edge_ids(self) -> npt.NDArray[np.int64]: ...  # (E + M, 2): pose edges, then point edges (pose, point)
     def pose_edges(self) -> Tuple[npt.NDArray[np.int64], Array, Array]: ...  # (E, 2), (E, 7), (E, 6, 6)
     def point_edges(self) -> Tuple[npt.NDArray[np.int64], Array, Array, Array]: ...  # (M, 2), (M, 3), (M, 3, 3), (M, 7)
     num_pose_priors: int
@@ -1007,7 +1007,7 @@ class MonteCarloLocalization:
     pose: Array  # (3,) weighted mean of the largest cluster, moved by pending odometry
     covariance: Array  # (3, 3) that cluster's covariance
     cluster_weight: float  # that cluster's share of the weight
-    particles: Array  # (M, 3)
+    poses: Array  # (M, 3) every particle's pose
     weights: Array  # (M,) normalised
     num_particles: int
     num_updates: int

@@ -168,7 +168,7 @@ def localize(log: Union[PathLike, CarmenLog, LaserScans], map: _core.OccupancyGr
             counts[i] = mcl.num_particles
             while pending and scans.timestamps[k] >= pending[0]:
                 pending.pop(0)
-                snapshots.append((float(scans.timestamps[k]), mcl.particles))
+                snapshots.append((float(scans.timestamps[k]), mcl.poses))
             if i % 100 == 99:
                 bar.update(100)
         bar.update(m - bar.n)

@@ -585,7 +585,7 @@ Eigen::Vector3d MonteCarloLocalization::pose() const {
           wrap_angle(f_.estimate.z() + f_.pending.z())};
 }
 
-Poses2 MonteCarloLocalization::particles() const {
+Poses2 MonteCarloLocalization::poses() const {
   Poses2 out(num_particles(), 3);
   for (int j = 0; j < num_particles(); ++j) out.row(j) = f_.poses[static_cast<std::size_t>(j)].transpose();
   return out;

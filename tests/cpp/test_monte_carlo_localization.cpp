@@ -138,7 +138,7 @@ struct State {
   int updates;
   double w_slow, w_fast;
   explicit State(const MonteCarloLocalization& m)
-      : particles(m.particles()), weights(m.weights()), pose(m.pose()), covariance(m.covariance()),
+      : particles(m.poses()), weights(m.weights()), pose(m.pose()), covariance(m.covariance()),
         updates(m.num_updates()), w_slow(m.w_slow()), w_fast(m.w_fast()) {}
   bool operator==(const State& o) const {
     return particles == o.particles && weights == o.weights && pose == o.pose && covariance == o.covariance &&
@@ -221,7 +221,7 @@ TEST(MonteCarloLocalization, OneDimensionalCorridorPosterior) {
   mcl.initialize_pose({2.0, 1.0, 0.0}, Eigen::Vector3d(0.09, 0.0, 0.0).asDiagonal());
   const Eigen::VectorXd ranges = Eigen::VectorXd::Constant(1, 3.8), angles = Eigen::VectorXd::Zero(1);
   mcl.update(ranges, angles);
-  const Poses2 p = mcl.particles();
+  const Poses2 p = mcl.poses();
   const Eigen::VectorXd w = mcl.weights();
   EXPECT_TRUE((p.col(1).array() == 1.0).all());  // a zero variance stays exact
   EXPECT_TRUE((p.col(2).array() == 0.0).all());
@@ -252,7 +252,7 @@ TEST(MonteCarloLocalization, InitialPoseMomentsAndGlobalSpread) {
   o.min_particles = 10;
   MonteCarloLocalization mcl(g, o);
   // Global: uniform over the free cells (rows 1..38, cols 1..58 of 0.1 m), headings uniform.
-  Poses2 p = mcl.particles();
+  Poses2 p = mcl.poses();
   const int m = static_cast<int>(p.rows());
   ASSERT_EQ(m, 50000);
   // Five standard errors of uniform means: sd of U[a, b] is (b - a) / sqrt(12).
@@ -268,7 +268,7 @@ TEST(MonteCarloLocalization, InitialPoseMomentsAndGlobalSpread) {
   cov << 0.04, 0.01, 0.0, 0.01, 0.02, 0.0, 0.0, 0.0, 0.01;
   const Eigen::Vector3d mu(3.0, 2.0, kPi - 0.05);  // the heading's cloud straddles +-pi
   mcl.initialize_pose(mu, cov);
-  p = mcl.particles();
+  p = mcl.poses();
   Eigen::MatrixXd d = p.rowwise() - mu.transpose();
   for (Eigen::Index j = 0; j < d.rows(); ++j) d(j, 2) = wrap_angle(d(j, 2));
   const Eigen::Vector3d mean = d.colwise().mean();
@@ -294,7 +294,7 @@ TEST(MonteCarloLocalization, KldCountAfterResamplingMatchesItsBins) {
   const Eigen::VectorXd angles = Eigen::VectorXd::LinSpaced(36, -kPi, kPi - 2 * kPi / 36);
   const MclUpdate u = mcl.update(Eigen::VectorXd::Constant(36, 2.0), angles);
   ASSERT_TRUE(u.resampled);
-  const Poses2 p = mcl.particles();
+  const Poses2 p = mcl.poses();
   std::vector<std::array<long, 3>> bins;
   for (Eigen::Index j = 0; j < p.rows(); ++j) {
     const std::array<long, 3> b{static_cast<long>(std::floor(p(j, 0) / o.bin_xy)),
@@ -321,9 +321,9 @@ TEST(MonteCarloLocalization, UpdatesOnlyAfterMinimumTravel) {
   const Eigen::VectorXd angles = Eigen::VectorXd::LinSpaced(5, -1.0, 1.0), ranges = Eigen::VectorXd::Constant(5, 2.0);
   EXPECT_TRUE(mcl.update(ranges, angles).updated);  // the first scan
   mcl.predict_odometry({0.15, 0.0, 0.0});
-  const Poses2 before = mcl.particles();
+  const Poses2 before = mcl.poses();
   EXPECT_FALSE(mcl.update(ranges, angles).updated);  // 0.15 m < update_min_d
-  EXPECT_EQ(mcl.particles(), before);
+  EXPECT_EQ(mcl.poses(), before);
   mcl.predict_odometry({0.06, 0.0, 0.0});
   EXPECT_TRUE(mcl.update(ranges, angles).updated);  // 0.21 m
   mcl.predict_odometry({0.0, 0.0, 0.5});
@@ -605,6 +605,6 @@ TEST(MonteCarloLocalization, MotionsAndOptionsThatCannotBeRepresentedAreRefused)
     MonteCarloLocalization m(g, extreme);
     m.initialize_pose({3.0, 2.0, 0.0}, Eigen::Matrix3d::Identity() * 0.01);
     m.update(Eigen::VectorXd::Constant(5, 2.0), Eigen::VectorXd::LinSpaced(5, -1.0, 1.0), true);
-    EXPECT_TRUE(m.particles().allFinite() && m.weights().allFinite() && m.pose().allFinite()) << sigma;
+    EXPECT_TRUE(m.poses().allFinite() && m.weights().allFinite() && m.pose().allFinite()) << sigma;
   }
 }

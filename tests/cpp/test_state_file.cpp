@@ -624,7 +624,7 @@ TEST(StateFile, MonteCarloLocalization) {
     step(loaded, pose);
   }
   EXPECT_EQ(state_bytes(loaded), state_bytes(mcl));
-  EXPECT_TRUE((loaded.particles().array() == mcl.particles().array()).all());
+  EXPECT_TRUE((loaded.poses().array() == mcl.poses().array()).all());
   // Options: the sensor model (1 byte), odometry noise, thresholds and likelihood field (8
   // doubles), beam model (7), max and min range (2), max_beams, weight_scale, then
   // min_particles and max_particles.

@@ -162,7 +162,7 @@ def test_kld_particle_count_matches_the_bins_it_filled():
     ranges = np.full(36, 2.0)
     u = mcl.update(ranges, np.linspace(-math.pi, math.pi, 36, endpoint=False))
     assert u.resampled
-    p = mcl.particles
+    p = mcl.poses
     n = len(p)
     bins = {(math.floor(x / bxy), math.floor(y / bxy), math.floor((t + math.pi) / bth)) for x, y, t in p}
     k = len(bins)
@@ -189,7 +189,7 @@ def test_one_dimensional_corridor_posterior():
                                     resample_threshold=0.0, weight_scale=1.0, seed=7)
     ranges, angles = np.array([3.8]), np.array([0.0])
     mcl.update(ranges, angles)
-    p, w = mcl.particles, mcl.weights
+    p, w = mcl.poses, mcl.weights
     assert np.allclose(p[:, 1], 1.0, atol=1e-12) and np.allclose(p[:, 2], 0.0, atol=1e-12)
     xs = np.linspace(0.0, 4.0, 4001)
     like = np.exp([_brute_log_likelihood(g, [x, 1.0, 0.0], ranges, angles, sigma, p_rand) for x in xs])
@@ -259,7 +259,7 @@ def test_thread_count_does_not_change_the_result(corridor):
             if k:
                 mcl.predict_odometry(previous=odo[k - 1], current=odo[k])
             mcl.update(ranges[k], ANGLES)
-        out.append((mcl.particles, mcl.weights, mcl.pose, mcl.covariance))
+        out.append((mcl.poses, mcl.weights, mcl.pose, mcl.covariance))
     for a, b in zip(*out):
         assert np.array_equal(a, b)
 
@@ -295,10 +295,10 @@ def test_copy_is_independent(corridor):
     for m in (a, b):
         m.predict_odometry(previous=odo[0], current=odo[3])
         m.update(ranges[3], ANGLES)
-    assert np.array_equal(a.particles, b.particles)
+    assert np.array_equal(a.poses, b.poses)
     a.predict_odometry(previous=odo[3], current=odo[6])
     a.update(ranges[6], ANGLES)
-    assert not np.array_equal(a.particles, b.particles)
+    assert not np.array_equal(a.poses, b.poses)
 
 
 # ---- bad input ----
@@ -331,7 +331,7 @@ def test_bad_input_names_the_argument_and_changes_nothing():
         ps.MonteCarloLocalization(g, max_beams=2.5)
     mcl = ps.MonteCarloLocalization(g, initial_pose=[3, 2, 0], min_particles=100, max_particles=300, seed=1)
     angles = np.linspace(-1, 1, 5)
-    before = (mcl.particles, mcl.weights, mcl.num_updates)
+    before = (mcl.poses, mcl.weights, mcl.num_updates)
     for bad in ([1, 2, math.nan, 1, 1], [1, 2, math.inf, 1, 1], [1, 2, -1, 1, 1]):
         with pytest.raises(ValueError, match="ranges"):
             mcl.update(np.array(bad, float), angles)
@@ -345,7 +345,7 @@ def test_bad_input_names_the_argument_and_changes_nothing():
         mcl.predict_odometry()
     with pytest.raises(ValueError, match="pose"):
         mcl.initialize_pose([100.0, 0, 0], np.eye(3))
-    after = (mcl.particles, mcl.weights, mcl.num_updates)
+    after = (mcl.poses, mcl.weights, mcl.num_updates)
     for x, y in zip(before, after):
         assert np.array_equal(x, y)
 

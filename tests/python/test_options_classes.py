@@ -133,7 +133,7 @@ def test_equal_options_give_equal_filters():
     b = ps.MonteCarloLocalization(room(), initial_pose=[2.0, 1.5, 0.0],
                                   options=ps.MonteCarloLocalizationOptions(min_particles=30, max_particles=60, seed=3,
                                                                            sigma_hit=0.2))
-    assert np.array_equal(a.particles, b.particles)
+    assert np.array_equal(a.poses, b.poses)
 
 
 def test_the_state_file_holds_the_fields_in_describe_order(tmp_path):

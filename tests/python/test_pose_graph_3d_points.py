@@ -478,3 +478,12 @@ def test_a_graph_without_poses_round_trips(tmp_path, what):
     two = tmp_path / "two.g2o"
     pg.write_g2o(probslam.PoseGraph2D(), two)
     assert pg.read_pose_graph(two).num_vertices == 0
+
+
+def test_edge_ids_are_every_edge_as_in_2d(tmp_path):
+    """PoseGraph3D.edge_ids, as PoseGraph2D's: the pose edges, then the point edges (pose, point),
+    one row per entry of edge_chi2 (it listed the pose edges only)."""
+    g = pg.read_pose_graph_3d(write_text(tmp_path, TEXT))
+    ids = g.edge_ids()
+    np.testing.assert_array_equal(ids, np.vstack([g.pose_edges()[0], g.point_edges()[0]]))
+    assert len(ids) == len(g.edge_chi2()) == g.num_pose_edges + g.num_point_edges

@@ -53,7 +53,7 @@ def tracked(**options):
 
 def full_state(mcl):
     """Every observable field of the filter, compared one by one."""
-    return policy.state_of(mcl, "particles", "weights", "pose", "covariance", "num_particles", "num_updates",
+    return policy.state_of(mcl, "poses", "weights", "pose", "covariance", "num_particles", "num_updates",
                            "w_slow", "w_fast")
 
 
@@ -76,7 +76,7 @@ def test_an_odometry_step_no_robot_makes_is_refused(delta):
     assert policy.same_state(before, full_state(mcl))
     assert policy.same_state(after_next, future(mcl, z))  # the pending motion is untouched too
     mcl.update(z, ANGLES, force=True)
-    assert np.all(np.isfinite(mcl.particles)) and np.all(np.isfinite(mcl.pose))
+    assert np.all(np.isfinite(mcl.poses)) and np.all(np.isfinite(mcl.pose))
 
 
 def test_pending_motion_is_bounded_and_the_filter_keeps_working():
@@ -87,7 +87,7 @@ def test_pending_motion_is_bounded_and_the_filter_keeps_working():
     with pytest.raises(ValueError, match="^delta would bring the motion pending"):
         mcl.predict_odometry([9e5, 0.0, 0.0])
     mcl.update(z, ANGLES, force=True)
-    assert np.all(np.isfinite(mcl.particles)) and np.all(np.isfinite(mcl.weights))
+    assert np.all(np.isfinite(mcl.poses)) and np.all(np.isfinite(mcl.weights))
     mcl.predict_odometry([0.2, 0.0, 0.0])
     mcl.update(z, ANGLES)  # still works
 
@@ -98,7 +98,7 @@ def test_extreme_sigma_hit_gives_finite_poses(sigma_hit):
     for _ in range(3):
         mcl.predict_odometry([0.25, 0.0, 0.0])
         mcl.update(z, ANGLES)
-    assert np.all(np.isfinite(mcl.particles)) and np.all(np.isfinite(mcl.pose))
+    assert np.all(np.isfinite(mcl.poses)) and np.all(np.isfinite(mcl.pose))
     assert np.all(np.isfinite(mcl.covariance))
     assert math.isfinite(mcl.measurement_log_likelihood([3.0, 2.0, 0.0], z, ANGLES))
 
@@ -241,7 +241,7 @@ def test_options_with_odd_numbers(value, pick):
     if np.isnan(value):
         assert raised, (name, value)
     if not raised:
-        assert np.all(np.isfinite(result.particles)) and np.all(np.isfinite(result.pose))
+        assert np.all(np.isfinite(result.poses)) and np.all(np.isfinite(result.pose))
 
 
 @PROPERTY
@@ -253,7 +253,7 @@ def test_predict_odometry_with_odd_arrays(delta):
     if raised:
         assert policy.same_state(before_next, future(mcl, z))
     mcl.update(z, ANGLES, force=True)
-    assert np.all(np.isfinite(mcl.particles)) and np.all(np.isfinite(mcl.weights))
+    assert np.all(np.isfinite(mcl.poses)) and np.all(np.isfinite(mcl.weights))
 
 
 @PROPERTY
@@ -266,7 +266,7 @@ def test_update_with_odd_arrays(ranges, angles):
     if raised:
         assert policy.same_state(before_next, future(mcl, z))
     else:
-        assert np.all(np.isfinite(mcl.particles)) and np.all(np.isfinite(mcl.weights))
+        assert np.all(np.isfinite(mcl.poses)) and np.all(np.isfinite(mcl.weights))
 
 
 @PROPERTY
@@ -275,7 +275,7 @@ def test_initialize_pose_with_odd_arrays(pose, covariance):
     mcl, z = tracked()
     raised, _ = policy.check_call(lambda: mcl.initialize_pose(pose, covariance), snapshot=lambda: full_state(mcl))
     if not raised:
-        assert np.all(np.isfinite(mcl.particles))
+        assert np.all(np.isfinite(mcl.poses))
 
 
 @PROPERTY

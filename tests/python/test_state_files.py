@@ -248,7 +248,7 @@ def test_monte_carlo_localization_resumed_equals_uninterrupted(tmp_path):
     steps(straight, scans)
     steps(first, scans[:4])
     resumed = round_trip(first, ps.MonteCarloLocalization, tmp_path)
-    assert np.array_equal(resumed.particles, first.particles) and np.array_equal(resumed.weights, first.weights)
+    assert np.array_equal(resumed.poses, first.poses) and np.array_equal(resumed.weights, first.weights)
     # The estimate's share of the weight (what 'converged' reads) travels with the state.
     assert 0.0 < first.cluster_weight <= 1.0 and resumed.cluster_weight == first.cluster_weight
     steps(resumed, scans[4:])

@@ -173,7 +173,7 @@ class MonteCarloLocalization {
                                     const Eigen::Ref<const Eigen::VectorXd>& angles) const;
 
   int num_particles() const { return static_cast<int>(f_.poses.size()); }
-  Poses2 particles() const;
+  Poses2 poses() const;
   Eigen::VectorXd weights() const;  ///< normalised
   /// The weighted mean of the largest cluster (connected occupied bins of the KLD histogram,
   /// by weight), moved by the odometry not yet applied; and that cluster's covariance.
