@@ -429,14 +429,16 @@ def _cmd_slam(args: argparse.Namespace) -> int:
     _require_length(args.submap_distance, "--submap-distance", zero=True)
     if args.resume is not None:
         _refuse_given(args, ("method", "particles", "proposal", "submap_distance", "no_loop_closures", "resolution",
-                             "max_range"), "does not apply with --resume (the run goes on with its saved options)")
-    _refuse_given(args, ("particles", "proposal") if args.method == "graph" else ("submap_distance", "no_loop_closures"),
-                  f"does not apply to --method {args.method}")
+                             "max_range", "seed", "threads"),
+                      "does not apply with --resume (the run goes on with its saved options)")
+    _refuse_given(args, ("particles", "proposal", "seed", "threads") if args.method == "graph"
+                  else ("submap_distance", "no_loop_closures"), f"does not apply to --method {args.method}")
     _check_output(args.output)
     path = args.log or _bundled_log(BUNDLED_SLAM_LOG)
     log = _read_log(path, args)
     if args.method == "rbpf":
         options = dict(num_particles=args.particles, proposal=args.proposal)
+        options.update({name: getattr(args, name) for name in ("seed", "threads") if getattr(args, name) is not None})
     else:
         options = dict(submap_distance=args.submap_distance, loop_closures=not args.no_loop_closures)
     if args.resolution is not None:
@@ -463,8 +465,9 @@ def _cmd_slam(args: argparse.Namespace) -> int:
             # The saved run's method and options go on; the command line's are not used.
             result = run_slam(log, resume=args.resume, save=args.save, progress=None if args.progress else False)
         else:
-            result = run_slam(log, method=args.method, progress=None if args.progress else False, save=args.save,
-                              **start, **options)
+            with _option_flags(SLAM_FLAGS, args):
+                result = run_slam(log, method=args.method, progress=None if args.progress else False, save=args.save,
+                                  **start, **options)
     except RunInterrupted as e:
         if e.saved is None:
             raise
@@ -1085,6 +1088,10 @@ def _print_map_score(data, run, labels):
     return s.survey_in_map_frame(fixed)
 
 
+#: slam's flags, by the run_slam option each sets (the library's messages told as the flag).
+SLAM_FLAGS = {"num_particles": "--particles", "seed": "--seed", "threads": "--threads", "resolution": "--resolution",
+              "max_range": "--max-range", "submap_distance": "--submap-distance"}
+
 #: optimize's flags, by the GraphFileOptions field each sets.
 OPTIMIZE_FLAGS = {"format": "--format", "noise": "--noise", "init": "--init", "poses_per_step": "--poses-per-step",
                   "algorithm": "--algorithm", "max_iterations": "--max-iterations", "kernel": "--kernel",
@@ -1460,6 +1467,9 @@ def build_parser() -> argparse.ArgumentParser:
     sl.add_argument("--proposal", choices=("scan-matching", "motion", "improved-odometry"), default="scan-matching",
                     help="rbpf: scan-matching (GMapping's improved proposal, default), motion (the plain filter) "
                          "or improved-odometry (odometry corrected by scan matching, then the plain filter)")
+    sl.add_argument("--seed", type=int, default=None, help="rbpf: random seed (default 0)")
+    sl.add_argument("--threads", type=int, default=None,
+                    help="rbpf: worker threads, the result identical for any count (default 1)")
     sl.add_argument("-o", "--output", default="slam",
                     help="output prefix: PREFIX.yaml/.pgm/.png, PREFIX_trajectory.tum, PREFIX.g2o (graph only; "
                          "default 'slam')")

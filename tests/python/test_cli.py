@@ -653,3 +653,15 @@ def test_refine_graphslam_refuses_what_it_cannot_refine(tmp_path, capsys, argv, 
     argv = [a if a != "VICTORIA" else ps.data.path("victoria_park_1000.txt") for a in argv]
     assert cli.main(argv + ["--no-plot", "-o", str(tmp_path / "x")]) == 2
     assert message in capsys.readouterr().err
+
+
+def test_slam_rbpf_takes_seed_and_threads(tmp_path, capsys):
+    """slam --method rbpf had no --seed and no --threads (issue 52); the library checks them and
+    its message names the flag."""
+    base = ["slam", "--method", "rbpf", "--particles", "2", "--no-plot", "--no-progress", "-o", str(tmp_path / "s")]
+    assert cli.main(base + ["--seed", "-1"]) == 2
+    assert capsys.readouterr().err.startswith("probslam: error: --seed -1: must be in [0, 2^64)")
+    assert cli.main(base + ["--threads", "0"]) == 2
+    assert capsys.readouterr().err.startswith("probslam: error: --threads 0: must lie in [1, 1024]")
+    assert cli.main(["slam", "--seed", "3", "--no-plot", "-o", str(tmp_path / "g")]) == 2
+    assert "--seed does not apply to --method graph" in capsys.readouterr().err
