@@ -47,7 +47,7 @@ def main():
     m.mean, m.scale, m.prior = np.zeros(2 + il.NEIGHBOURS), np.ones(2 + il.NEIGHBOURS), 0.1
     rows = []
     t0 = time.perf_counter()
-    grid, _ = ps.map_laser_log(scans, resolution=RES, max_range=MAX_RANGE, progress=False)
+    grid = ps.map_laser_log(scans, resolution=RES, max_range=MAX_RANGE, progress=False).grid
     rows.append(("ray model (insert_rays, map_laser_log)", time.perf_counter() - t0, None))
     cone = ps.OccupancyGrid2D(RES, grid.width, grid.height, origin=grid.origin)
     no_return = scans.no_return_range()

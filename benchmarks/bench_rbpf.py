@@ -78,7 +78,7 @@ def write_figure(path, result, png):
     """The best particle's path and every scan mapped along it (no-return readings left out, as
     the GraphSLAM map and `probslam map` do; the particles' own maps clear along them)."""
     scans = ps.io.read_carmen_log(path).scans
-    grid, _ = map_laser_log(dataclasses.replace(scans, laser_poses=result.poses), progress=False)
+    grid = map_laser_log(dataclasses.replace(scans, laser_poses=result.poses), progress=False).grid
     png.parent.mkdir(parents=True, exist_ok=True)
     ps.io.write_png(grid, png, trajectory=result.poses)
 

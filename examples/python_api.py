@@ -14,6 +14,7 @@ cov = ps.marginal_covariances(graph, [10, 20])             # 3x3 blocks, from th
 ps.write_g2o(graph, "intel_400_optimized.g2o")             # writers: the object first, then the path
 
 log = ps.io.read_carmen_log(ps.data.path("intel_excerpt.log.gz"))   # or intel-corrected.log.gz
-grid, summary = ps.map_laser_log(log.scans, resolution=0.05, progress=False)
+summary = ps.map_laser_log(log.scans, resolution=0.05, progress=False)
+grid = summary.grid
 ps.io.save_ros_map(grid, "intel.yaml"); ps.io.write_png(grid, "intel.png")
 print(f"chi2 {report.chi2:.4f} after {report.iterations} iterations; {summary.scans} scans mapped")

@@ -74,7 +74,7 @@ from .graphslam import (
 )
 from .ekf import AssociationResult, EkfSlam, MapManagement, MultiHypothesisEkfSlam, UpdateResult
 from .landmark_refine import LandmarkRefinement, refine_landmarks, refine_run
-from .mapping import MappingSummary, map_laser_log
+from .mapping import MappingResult, map_laser_log
 from .map_occupancy import MapOccupancyResult, map_occupancy_grid_mapping
 from .inverse_learning import LearnedInverseModel
 from .slam import SlamResult, run_slam
@@ -168,7 +168,7 @@ __all__ = [
     "write_g2o_3d",
     "MapManagement",
     "MultiHypothesisEkfSlam",
-    "MappingSummary",
+    "MappingResult",
     "OccupancyGrid2D",
     "OccupancyGrid3D",
     "Pose2",

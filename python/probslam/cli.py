@@ -357,13 +357,15 @@ def _cmd_map(args: argparse.Namespace) -> int:
               f"{resolution:g} m cells, readings to {max_range:g} m"
               + (f" (the model's own {' and '.join(own)})" if own else "") + "; a network on every cell in range "
               "takes longer than the ray model", flush=True)
-        grid, summary = map_laser_log_learned(model, log.scans, resolution=resolution, max_range=max_range,
-                                              progress=_progress(args))
+        summary = map_laser_log_learned(model, log.scans, resolution=resolution, max_range=max_range,
+                                        progress=_progress(args))
+        grid = summary.grid
     else:
-        grid, summary = map_laser_log(log.scans, resolution=_or_default(args.resolution, MAP_RESOLUTION),
-                                      max_range=_or_default(args.max_range, MAP_MAX_RANGE),
-                                      robot_radius=args.robot_radius,
-                                      skip_no_return=not args.keep_no_return, progress=None if args.progress else False)
+        summary = map_laser_log(log.scans, resolution=_or_default(args.resolution, MAP_RESOLUTION),
+                                max_range=_or_default(args.max_range, MAP_MAX_RANGE),
+                                robot_radius=args.robot_radius,
+                                skip_no_return=not args.keep_no_return, progress=None if args.progress else False)
+        grid = summary.grid
     io.save_ros_map(grid, args.output + ".yaml")
     written = [f"{args.output}.yaml", f"{args.output}.pgm"]
     if args.plot:

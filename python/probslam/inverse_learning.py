@@ -344,7 +344,7 @@ def known_map(scans, resolution: float, max_range: float, grid: Optional[Occupan
     grown to fit and mapped into, else one is sized from the data."""
     from .mapping import map_laser_log
 
-    grid, _ = map_laser_log(scans, resolution=resolution, max_range=max_range, grid=grid, progress=False)
+    grid = map_laser_log(scans, resolution=resolution, max_range=max_range, grid=grid, progress=False).grid
     l = np.asarray(grid.log_odds)
     return grid, l > grid.l0, np.abs(l - grid.l0) >= KNOWN_LOG_ODDS
 
@@ -627,12 +627,12 @@ def map_laser_log_learned(model: LearnedInverseModel, scans, resolution: Optiona
     model's own, :func:`learned_map_geometry`): a grid sized from the data with the model's prior
     (clamped by :func:`learned_map_clamp`), readings at the sensor's no-return value and NaN
     meaning no return (inf), each scan's field half a beam spacing either side of its beams.
-    Returns (grid, :class:`probslam.mapping.MappingSummary`). Memory: the grid plus one scan's
+    Returns a :class:`probslam.mapping.MappingResult` (``.grid`` the map). Memory: the grid plus one scan's
     field in chunks (FIELD_CHUNK_PAIRS); time linear in the cells within max_range of each pose."""
     from tqdm import tqdm
 
     from .io.carmen import LaserScans
-    from .mapping import MappingSummary, scan_bounds
+    from .mapping import MappingResult, scan_bounds
 
     model._check_trained()
     require_instance(scans, LaserScans, "scans")
@@ -657,7 +657,7 @@ def map_laser_log_learned(model: LearnedInverseModel, scans, resolution: Optiona
         updated += model.insert_scan(grid, scans.laser_poses[i], np.where(valid, z, np.inf), angles[i, :n], max_range,
                                      abs(float(scans.angular_resolutions[i])) / 2)
         seconds += time.perf_counter() - t0
-    return grid, MappingSummary(len(scans), beams, updated, seconds)
+    return MappingResult(grid, len(scans), beams, updated, seconds)
 
 
 #: The largest model file :meth:`LearnedInverseModel.load` reads, and the most bytes one of its

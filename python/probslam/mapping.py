@@ -14,9 +14,11 @@ from ._args import require_instance
 
 
 @dataclass
-class MappingSummary:
-    """What map_laser_log integrated: scans, valid readings (beams), cell updates, seconds."""
+class MappingResult:
+    """What map_laser_log made: the grid, and what it integrated (scans, valid readings (beams),
+    cell updates, seconds spent in the grid updates)."""
 
+    grid: OccupancyGrid2D
     scans: int
     beams: int  # valid readings integrated
     cells_updated: int
@@ -44,7 +46,7 @@ DEFAULT_RESOLUTION, DEFAULT_MAX_RANGE = 0.05, 30.0
 def map_laser_log(scans: LaserScans, resolution: float = DEFAULT_RESOLUTION, max_range: float = DEFAULT_MAX_RANGE,
                   robot_radius: float = 0.0, grid: Optional[OccupancyGrid2D] = None,
                   skip_no_return: bool = True, progress: Optional[bool] = None,
-                  chunk: int = 64) -> Tuple[OccupancyGrid2D, MappingSummary]:
+                  chunk: int = 64) -> MappingResult:
     """Map scans with known laser poses using the laser-beam update (``insert_rays``).
 
     The grid is sized from the data unless given (a given grid is grown to fit). Readings at
@@ -52,6 +54,7 @@ def map_laser_log(scans: LaserScans, resolution: float = DEFAULT_RESOLUTION, max
     readings at the sensor's maximum (``LaserScans.no_return_range``) are dropped: they mean "nothing
     seen" (often glass), not free space. With ``robot_radius`` > 0 the robot's footprint
     around each robot pose is cleared too. ``progress=None`` shows a bar only on a terminal.
+    Returns a ``MappingResult`` (``.grid`` the map).
     """
     require_instance(scans, LaserScans, "scans")
     # All or nothing: everything is checked before the first chunk changes the grid, so that a
@@ -95,4 +98,4 @@ def map_laser_log(scans: LaserScans, resolution: float = DEFAULT_RESOLUTION, max
         bar.update(stop - start)
     bar.close()
     beams = int(np.count_nonzero(np.isfinite(scans.ranges) & (scans.ranges >= 0)))
-    return grid, MappingSummary(len(scans), beams, updated, seconds)
+    return MappingResult(grid, len(scans), beams, updated, seconds)

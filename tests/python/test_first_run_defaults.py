@@ -120,7 +120,7 @@ def test_map_with_the_bundled_model_uses_its_own_resolution_and_range(tmp_path, 
     grid = io.load_ros_map(tmp_path / "m.yaml")
     assert grid.resolution == pytest.approx(0.1)
     model = il.LearnedInverseModel.load(ps.data.path(cli.BUNDLED_INVERSE_MODEL))
-    same, _ = il.map_laser_log_learned(model, io.read_carmen_log(cli._bundled_log()).scans, 0.1, 10.0, progress=False)
+    same = il.map_laser_log_learned(model, io.read_carmen_log(cli._bundled_log()).scans, 0.1, 10.0, progress=False).grid
     assert grid.same_geometry(same)
     # Given options win.
     rc, out, _ = run(capsys, "map", "--inverse-model", "bundled", "--resolution", "0.2", "-o", str(tmp_path / "n"))

@@ -479,7 +479,8 @@ def test_map_command_uses_a_saved_learned_model(tmp_path, capsys):
     m.evidence_scale = 0.5
     m.save(tmp_path / "model.npz")
     scans = io.read_carmen_log(cli._bundled_log()).scans
-    grid, summary = il.map_laser_log_learned(m, scans, resolution=0.2, max_range=4.0, progress=False)
+    summary = il.map_laser_log_learned(m, scans, resolution=0.2, max_range=4.0, progress=False)
+    grid = summary.grid
     by_hand = probslam.OccupancyGrid2D(0.2, grid.width, grid.height, origin=grid.origin, p_prior=0.2,
                                        clamp=il.learned_map_clamp(0.2))
     angles = scans.beam_angles()
@@ -512,8 +513,8 @@ def test_bundled_model_maps_the_bundled_log_as_the_ray_model_where_it_is_sure(tm
                      "-o", str(tmp_path / "learned"), "--no-progress", "--no-plot"]) == 0
     assert (tmp_path / "learned.yaml").exists()
     scans = io.read_carmen_log(cli._bundled_log()).scans
-    learned, _ = il.map_laser_log_learned(model, scans, resolution=0.1, max_range=10.0, progress=False)
-    rays, _ = probslam.map_laser_log(scans, resolution=0.1, max_range=10.0, progress=False)
+    learned = il.map_laser_log_learned(model, scans, resolution=0.1, max_range=10.0, progress=False).grid
+    rays = probslam.map_laser_log(scans, resolution=0.1, max_range=10.0, progress=False).grid
     # The two grids are bounded differently: the learned map's cell at each sure ray cell's centre.
     rows, cols = np.nonzero(np.abs(rays.log_odds) > 2.0)
     x = rays.origin[0] + (cols + 0.5) * rays.resolution

@@ -65,8 +65,8 @@ def test_learned_map_draws_free_and_unknown_apart(tmp_path, axes, capsys):
     capsys.readouterr()
     (ax,) = axes
     model = ps.inverse_learning.LearnedInverseModel.load(ps.data.path(cli.BUNDLED_INVERSE_MODEL))
-    grid, _ = ps.inverse_learning.map_laser_log_learned(model, io.read_carmen_log(cli._bundled_log()).scans,
-                                                        progress=False)
+    grid = ps.inverse_learning.map_laser_log_learned(model, io.read_carmen_log(cli._bundled_log()).scans,
+                                                     progress=False).grid
     r0, r1, c0, c1 = plot.crop_bounds(grid)
     shown = np.asarray(ax.get_images()[0].get_array())
     assert shown.shape == (r1 - r0, c1 - c0)
