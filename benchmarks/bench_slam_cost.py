@@ -75,7 +75,8 @@ def child(name: str, method: str, scans: int) -> None:
     r = ps.slam.run_slam(log, progress=False, method=method, **METHODS[method])
     cpu = time.process_time() - c0
     out = dict(scans=len(log), cpu=cpu, wall=time.perf_counter() - w0, duration=r.log_duration,
-               rss_read=after_read, rss_peak=peak_rss_mib(), timings=r.timings, memory=r.memory,
+               rss_read=after_read, rss_peak=peak_rss_mib(), timings=r.timings.as_dict(),
+               memory=None if r.memory is None else r.memory.as_dict(),
                map_bytes=12.0 * r.grid.width * r.grid.height, relations=None)
     if method == "rbpf":
         out["tiles"] = dict(references=r.tile_sharing.references, distinct=r.tile_sharing.distinct,

@@ -43,6 +43,8 @@ T field_from_py(py::handle v, const std::string& path) {
     return IntArg{py::reinterpret_borrow<py::object>(v)}.get(path.c_str());
   } else if constexpr (std::is_same_v<T, std::uint64_t>) {
     return UInt64Arg{py::reinterpret_borrow<py::object>(v)}.get(path.c_str());
+  } else if constexpr (std::is_same_v<T, long>) {
+    return static_cast<long>(index_value(v, path));
   } else if constexpr (std::is_same_v<T, bool>) {
     return BoolArg{py::reinterpret_borrow<py::object>(v)}.get(path.c_str());
   } else {
@@ -188,6 +190,19 @@ struct Signature {
   }
 };
 
+/// Defines each field as a read-only property (a report's).
+template <class T>
+struct ReadOnly {
+  py::class_<T>& c;
+  std::string& doc;
+  template <class M>
+  void operator()(const char* name, M T::*member, const char* unit, const char* text) {
+    const std::string field = std::string(name) + (*unit ? std::string(" (") + unit + ")" : "") + ": " + text;
+    doc += "\n    " + field;
+    c.def_property_readonly(name, [member](const T& o) { return field_to_py(o.*member); }, field.c_str());
+  }
+};
+
 }  // namespace options_detail
 
 /// ", name: type = default, ..." of T's fields at `defaults` (the signature a constructor that
@@ -256,6 +271,37 @@ py::class_<T> bind_options(py::module_& m, const char* name, const std::string& 
             return fields.d;
           },
           [name](const py::dict& d) { return options_with(T{}, py::kwargs(d), name); }));
+  c.attr("__hash__") = py::none();
+  return c;
+}
+
+/// The Python class of a described report struct T (what a run measured: timings, memory): a
+/// read-only property per field with its unit and doc, as_dict(), ==, repr and pickling.
+template <class T>
+py::class_<T> bind_report(py::module_& m, const char* name, const std::string& summary) {
+  py::class_<T> c(m, name);
+  std::string doc = summary + "\nFields:";
+  options_detail::ReadOnly<T> fields{c, doc};
+  T::describe(fields);
+  c.attr("__doc__") = doc;
+  auto to_dict = [](const T& o) {
+    options_detail::ToDict<T> d{o, {}};
+    T::describe(d);
+    return d.d;
+  };
+  c.def("as_dict", to_dict, "{field: value} of every field (to write as JSON or a table row).")
+      .def("__eq__", [](const T& a, py::handle b) {
+        if (!py::isinstance<T>(b)) return false;
+        options_detail::Equal<T> eq{a, b.cast<const T&>()};
+        T::describe(eq);
+        return eq.same;
+      }, py::arg("other"))
+      .def("__repr__", [name](const T& o) {
+        options_detail::Repr<T> r{o, {}};
+        T::describe(r);
+        return std::string(name) + "(" + r.out + ")";
+      })
+      .def(py::pickle(to_dict, [name](const py::dict& d) { return options_with(T{}, py::kwargs(d), name); }));
   c.attr("__hash__") = py::none();
   return c;
 }

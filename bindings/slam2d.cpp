@@ -14,6 +14,7 @@
 #include "numpy.hpp"
 #include "probslam/core/check.hpp"
 #include "object_lock.hpp"
+#include "options_class.hpp"
 #include "persistence.hpp"
 #include "repr.hpp"
 #include "probslam/slam2d/correlative_scan_matcher.hpp"
@@ -267,6 +268,12 @@ SubmapConstraintArrays constraint_arrays(const std::vector<SubmapConstraint>& cs
 }
 
 void define_laser_results(py::module_& m) {
+  bind_report<SubmapSlamTimings>(m, "SubmapSlamTimings",
+                                 "Processor seconds per stage of a SubmapSlam2D since construction or loading, and what it built.");
+  bind_report<SubmapSlamMemory>(m, "SubmapSlamMemory", "The bytes a SubmapSlam2D's large buffers hold.")
+      .def_property_readonly("total", &SubmapSlamMemory::total, "total (bytes): the sum of the fields.");
+  bind_report<GridFastSlamTimings>(m, "GridFastSlamTimings",
+                                   "Processor seconds per stage of a GridFastSlam since construction or loading.");
   using C = SubmapConstraintArrays;
   py::class_<C>(m, "SubmapConstraints",
                 "SubmapSlam2D.constraints: the constraints between submaps, row k one constraint (C rows).")
@@ -723,36 +730,11 @@ void define_slam2d(py::module_& m) {
       .def_property_readonly("summary", getter(&Slam::summary),
                              "SubmapSlamSummary: scans, submaps, matched_scans, closures searched / accepted /\n"
                              "rejected / dissolved, rounds, optimizations, final_chi2.")
-      .def_property_readonly("timings", [](const Slam& self) {
-        const SubmapSlamTimings t = locked(self, [&] { return self.timings(); });
-        py::dict d;
-        d["filter"] = t.filter;
-        d["match"] = t.match;
-        d["insert"] = t.insert;
-        d["closure_search"] = t.closure_search;
-        d["closure_fields"] = t.closure_fields;
-        d["optimize"] = t.optimize;
-        d["final_map"] = t.final_map;
-        d["frontend_fields"] = t.frontend_fields;
-        d["closure_fields_built"] = t.closure_fields_built;
-        d["closure_matches"] = t.closure_matches;
-        return d;
-      }, "Processor seconds per stage since construction or loading (dict): filter, match, insert (the\n"
-         "frontend), closure_search (closure_fields of it: building fields and pyramids), optimize,\n"
-         "final_map; and counts: frontend_fields, closure_fields_built, closure_matches. Not saved.")
-      .def_property_readonly("memory", [](const Slam& self) {
-        const SubmapSlamMemory m = locked(self, [&] { return self.memory(); });
-        py::dict d;
-        d["scans"] = m.scans;
-        d["submap_grids"] = m.submap_grids;
-        d["closure_cells"] = m.closure_cells;
-        d["closure_fields"] = m.closure_fields;
-        d["start_map"] = m.start_map;
-        d["total"] = m.total();
-        return d;
-      }, "Bytes the large buffers hold (dict): scans (ranges, angles, hits), submap_grids (the open\n"
-         "submap's; finished ones are released), closure_cells (what the loop-closure search keeps of\n"
-         "each finished submap), closure_fields (its cache of fields), start_map, total.");
+      .def_property_readonly("timings", getter(&Slam::timings),
+                             "SubmapSlamTimings: processor seconds per stage since construction or loading, and the\n"
+                             "fields and matches built (not saved).")
+      .def_property_readonly("memory", getter(&Slam::memory),
+                             "SubmapSlamMemory: the bytes the large buffers hold, and their total.");
 
   using Rbpf = GridFastSlam;
   const GridFastSlamOptions rbpf_defaults;
@@ -891,20 +873,8 @@ void define_slam2d(py::module_& m) {
                              "TileSharing: references (tiles held over all particles), distinct (allocated), bytes.")
       .def_property_readonly("summary", getter(&Rbpf::summary),
                              "GridFastSlamSummary: scans, updates, resamples, matched, fallbacks, effective_sample_size.")
-      .def_property_readonly("timings", [](const Rbpf& self) {
-        const GridFastSlamTimings t = locked(self, [&] { return self.timings(); });
-        py::dict d;
-        d["filter"] = t.filter;
-        d["corrector"] = t.corrector;
-        d["proposal"] = t.proposal;
-        d["resample"] = t.resample;
-        d["map_update"] = t.map_update;
-        d["table_copies"] = t.table_copies;
-        d["final_map"] = t.final_map;
-        return d;
-      }, "Processor seconds per stage since construction or loading (dict): filter, corrector,\n"
-         "proposal (each particle's match, fit and weight), resample, map_update (table_copies of it),\n"
-         "final_map. Not saved.")
+      .def_property_readonly("timings", getter(&Rbpf::timings),
+                             "GridFastSlamTimings: processor seconds per stage since construction or loading (not saved).")
       .def("__repr__", [](py::handle self) {
         const Rbpf& s = self.cast<const Rbpf&>();
         return repr_of(self, locked(s, [&] {

@@ -755,6 +755,41 @@ class SubmapConstraints:
     active: npt.NDArray[np.bool_]  # (C,) False once dissolved
     def __len__(self) -> int: ...
 
+class SubmapSlamTimings:
+    """Processor seconds per stage of a SubmapSlam2D since construction or loading, and what it built."""
+    filter: float  # s
+    match: float  # s
+    insert: float  # s
+    closure_search: float  # s
+    closure_fields: float  # s
+    optimize: float  # s
+    final_map: float  # s
+    frontend_fields: int
+    closure_fields_built: int
+    closure_matches: int
+    def as_dict(self) -> Dict[str, float]: ...
+
+class SubmapSlamMemory:
+    """The bytes a SubmapSlam2D's large buffers hold."""
+    scans: float  # bytes
+    submap_grids: float  # bytes
+    closure_cells: float  # bytes
+    closure_fields: float  # bytes
+    start_map: float  # bytes
+    total: float  # bytes
+    def as_dict(self) -> Dict[str, float]: ...
+
+class GridFastSlamTimings:
+    """Processor seconds per stage of a GridFastSlam since construction or loading."""
+    filter: float  # s
+    corrector: float  # s
+    proposal: float  # s
+    resample: float  # s
+    map_update: float  # s
+    table_copies: float  # s
+    final_map: float  # s
+    def as_dict(self) -> Dict[str, float]: ...
+
 class SubmapSlamSummary:
     """SubmapSlam2D.summary: counts of the run so far."""
     scans: int
@@ -784,8 +819,8 @@ class SubmapSlam2D:
     scan_info: Array  # (S, 5)
     constraints: SubmapConstraints
     summary: SubmapSlamSummary
-    timings: Dict[str, float]  # processor seconds per stage (and counts) since construction or loading
-    memory: Dict[str, float]  # bytes: scans, submap_grids, closure_cells, closure_fields, start_map, total
+    timings: SubmapSlamTimings  # processor seconds per stage (and counts) since construction or loading
+    memory: SubmapSlamMemory  # bytes the large buffers hold
     start_map: Optional[OccupancyGrid2D]  # a copy of the map started from (start_from_map), or None
     def __init__(self, *, resolution: float = 0.05, max_range: float = math.inf, min_range: float = 0.0,
                  max_usable_range: float = 30.0, clear_no_return: bool = True, min_point_spacing: float = 0.0,
@@ -855,7 +890,7 @@ class GridFastSlam:
     scan_poses: Array  # (S, 3) along the best particle's path
     tile_sharing: TileSharing
     summary: GridFastSlamSummary
-    timings: Dict[str, float]  # processor seconds per stage since construction or loading
+    timings: GridFastSlamTimings  # processor seconds per stage since construction or loading
     def __init__(self, *, num_particles: int = 30, proposal: str = "scan-matching", resolution: float = 0.05,
                  max_range: float = math.inf, min_range: float = 0.0, max_usable_range: float = 30.0,
                  clear_no_return: bool = True, min_point_spacing: float = 0.0,

@@ -63,8 +63,8 @@ class SlamResult:
     options: Dict[str, Any] = field(default_factory=dict)
     method: str = "graph"
     tile_sharing: Optional[_core.TileSharing] = None
-    timings: Optional[Dict[str, float]] = None
-    memory: Optional[Dict[str, float]] = None
+    timings: Optional[Union[_core.SubmapSlamTimings, _core.GridFastSlamTimings]] = None
+    memory: Optional[_core.SubmapSlamMemory] = None
 
     @property
     def real_time_factor(self) -> float:

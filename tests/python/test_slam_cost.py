@@ -4,8 +4,10 @@ grids are released (the loop-closure search keeps their obstacle cells), and the
 cache only trades time for memory."""
 
 import dataclasses
+import pickle
 
 import numpy as np
+
 import pytest
 
 from probslam import _core, cli, io
@@ -42,10 +44,10 @@ def test_results_do_not_depend_on_the_field_cache(log):
     a, b = small.constraints, large.constraints
     assert np.array_equal(a.measurement, b.measurement) and np.array_equal(a.active, b.active)
     assert np.array_equal(small.map().log_odds, large.map().log_odds)
-    ts, tl = small.timings, large.timings
+    ts, tl = small.timings.as_dict(), large.timings.as_dict()
     assert ts["closure_matches"] == tl["closure_matches"] == small.summary.closures_searched
     assert ts["closure_fields_built"] >= tl["closure_fields_built"] > 0
-    assert small.memory["closure_fields"] <= large.memory["closure_fields"]
+    assert small.memory.closure_fields <= large.memory.closure_fields
 
 
 def test_finished_submap_grids_are_released(log):
@@ -57,7 +59,7 @@ def test_finished_submap_grids_are_released(log):
     grids = [ism.submap_grid(k) for k in range(ism.num_submaps)]
     held = sum(g.width * g.height for g in grids) * GRID_CELL_BYTES
     last = grids[-1].width * grids[-1].height * GRID_CELL_BYTES
-    m = slam.memory
+    m = dict(slam.memory.as_dict(), total=slam.memory.total)
     # The open submap's grid, and one cell for each finished one.
     assert m["submap_grids"] == last + (len(grids) - 1) * GRID_CELL_BYTES
     assert 0 < m["closure_cells"] < held / 12
@@ -74,7 +76,7 @@ def test_saved_state_continues_after_release(tmp_path, log):
     a.add_scans(log.ranges[:half], angles[:half], log.laser_poses[:half], log.timestamps[:half])
     a.save(tmp_path / "s.psl")
     b = _core.SubmapSlam2D.load(tmp_path / "s.psl")
-    assert b.memory["closure_cells"] == a.memory["closure_cells"]
+    assert b.memory.closure_cells == a.memory.closure_cells
     for s in (a, b):
         s.add_scans(log.ranges[half:], angles[half:], log.laser_poses[half:], log.timestamps[half:])
         s.finish()
@@ -84,24 +86,30 @@ def test_saved_state_continues_after_release(tmp_path, log):
 
 def test_timings_count_every_stage(log):
     slam = slam_on(log)
-    before = slam.timings["final_map"]
+    before = slam.timings.final_map
     slam.map()
-    t = slam.timings
+    t = slam.timings.as_dict()
     assert set(t) == {"filter", "match", "insert", "closure_search", "closure_fields", "optimize", "final_map",
                       "frontend_fields", "closure_fields_built", "closure_matches"}
     assert all(v >= 0 for v in t.values())
     assert t["match"] > 0 and t["insert"] > 0 and t["final_map"] > before
     assert t["closure_fields"] <= t["closure_search"] and t["frontend_fields"] > 0
     # A copy carries the counts.
-    assert slam.copy().timings == t
+    assert slam.copy().timings.as_dict() == t
+    # A bound report: read-only fields, equal after pickling, its repr evaluates back.
+    timings = slam.timings
+    with pytest.raises(AttributeError):
+        timings.match = 0.0
+    assert pickle.loads(pickle.dumps(timings)) == timings
+    assert eval(repr(timings), {"SubmapSlamTimings": _core.SubmapSlamTimings}) == timings  # noqa: S307
 
 
 def test_run_slam_reports_timings_and_memory(log):
     r = run_slam(log, progress=False)
-    assert r.timings["match"] > 0 and r.memory["total"] > 0
+    assert r.timings.match > 0 and r.memory.total > 0
     f = run_slam(log, progress=False, method="rbpf", num_particles=3)
     assert f.memory is None
-    t = f.timings
+    t = f.timings.as_dict()
     assert set(t) == {"filter", "corrector", "proposal", "resample", "map_update", "table_copies", "final_map"}
     assert all(v >= 0 for v in t.values())
     assert t["proposal"] > 0 and t["map_update"] > 0 and t["final_map"] > 0 and t["table_copies"] <= t["map_update"]

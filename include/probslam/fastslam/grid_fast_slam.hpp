@@ -105,6 +105,18 @@ struct GridFastSlamTimings {
   double map_update = 0.0; ///< the scan's rays into every particle's map, tile clones included
   double table_copies = 0.0;  ///< of which copying shared maps' tile tables (before the rays)
   double final_map = 0.0;  ///< map(): a particle's tiles drawn into a dense grid
+
+  template <class V>
+  static void describe(V& v) {
+    using T = GridFastSlamTimings;
+    v("filter", &T::filter, "s", "the scan's hits and insertion ranges");
+    v("corrector", &T::corrector, "s", "the odometry corrector's scan matching and insertion");
+    v("proposal", &T::proposal, "s", "sampling every particle: its scan match, Gaussian fit and weight");
+    v("resample", &T::resample, "s", "normalising the weights and resampling");
+    v("map_update", &T::map_update, "s", "the scan's rays into every particle's map, tile clones included");
+    v("table_copies", &T::table_copies, "s", "of which copying shared maps' tile tables (before the rays)");
+    v("final_map", &T::final_map, "s", "map(): a particle's tiles drawn into a dense grid");
+  }
 };
 
 /// Every call is all or nothing (std::invalid_argument naming the argument, the object unchanged).

@@ -98,6 +98,21 @@ struct SubmapSlamTimings {
   double optimize = 0.0;        ///< pose-graph optimisation and dissolution
   double final_map = 0.0;       ///< map()
   long frontend_fields = 0, closure_fields_built = 0, closure_matches = 0;
+
+  template <class V>
+  static void describe(V& v) {
+    using T = SubmapSlamTimings;
+    v("filter", &T::filter, "s", "the frontend's scan filtering");
+    v("match", &T::match, "s", "the frontend's scan matching");
+    v("insert", &T::insert, "s", "the frontend's map insertion");
+    v("closure_search", &T::closure_search, "s", "the loop-closure search, its fields and marginals included");
+    v("closure_fields", &T::closure_fields, "s", "of which building likelihood fields and their pyramids");
+    v("optimize", &T::optimize, "s", "pose-graph optimisation and dissolution");
+    v("final_map", &T::final_map, "s", "map()");
+    v("frontend_fields", &T::frontend_fields, "", "likelihood fields the frontend built");
+    v("closure_fields_built", &T::closure_fields_built, "", "fields the closure search built");
+    v("closure_matches", &T::closure_matches, "", "closure matches tried");
+  }
 };
 
 /// What the object holds (bytes, approximate: the large buffers, not the bookkeeping).
@@ -108,6 +123,16 @@ struct SubmapSlamMemory {
   double closure_fields = 0.0;  ///< the loop-closure search's cache of fields and pyramids
   double start_map = 0.0;
   double total() const { return scans + submap_grids + closure_cells + closure_fields + start_map; }
+
+  template <class V>
+  static void describe(V& v) {
+    using T = SubmapSlamMemory;
+    v("scans", &T::scans, "bytes", "every scan's ranges, beam angles and hits (for the map and the search)");
+    v("submap_grids", &T::submap_grids, "bytes", "the frontend's grids (the open submap's; finished ones are released)");
+    v("closure_cells", &T::closure_cells, "bytes", "the obstacle cells kept of each finished submap");
+    v("closure_fields", &T::closure_fields, "bytes", "the loop-closure search's cache of fields and pyramids");
+    v("start_map", &T::start_map, "bytes", "the saved map a run started from");
+  }
 };
 
 /// Every call is all or nothing. add_scan checks its input first (check_scan) and the frontend
