@@ -138,13 +138,22 @@ class EkfSlam:
     # --- state -------------------------------------------------------------------------
     @property
     def mean(self) -> np.ndarray:
-        """(D,) zero-copy view of the state; valid until the next call that adds a landmark."""
+        """(D,) zero-copy view of the dense state (pose, then each landmark's x, y); valid until
+        the next call that adds a landmark."""
         return self._f.mean
 
     @property
     def covariance(self) -> np.ndarray:
         """(D, D) zero-copy view of the covariance (symmetric); same validity as ``mean``."""
         return self._f.covariance
+
+    @property
+    def signatures(self) -> np.ndarray:
+        """(N, 2) each landmark's signature mean and variance, in state order, a copy ((0, 2)
+        without signatures). The filter keeps them apart from ``mean`` and ``covariance``: a
+        signature is measured directly and uncorrelated with the pose and the positions, so its
+        cross covariances in the full state would be zero."""
+        return self._f.signatures
 
     @property
     def pose(self) -> np.ndarray:
@@ -168,7 +177,7 @@ class EkfSlam:
 
     @property
     def state_dim(self) -> int:
-        """Length of the state vector: 3 + (2 or 3) per landmark."""
+        """Length of the dense state: 3 + 2 per landmark (signatures apart, see ``signatures``)."""
         return self._f.state_dim
 
     @property

@@ -9,6 +9,22 @@ from ekf_reference import DenseEkfSlam
 EXACT = 1e-9  # the sparse and dense forms differ only by rounding
 
 
+def full_state(ekf):
+    """The filter's mean and covariance in the full state's layout (x, y, theta, then each
+    landmark's x, y[, signature]): with signatures, each landmark's signature mean and variance
+    (kept apart by the filter) put back in its place, its cross covariances zero."""
+    if not ekf.use_signatures:
+        return np.array(ekf.mean), np.array(ekf.covariance)
+    n = ekf.num_landmarks
+    dense = np.r_[0, 1, 2, (3 + 3 * np.arange(n)[:, None] + np.arange(2)).ravel()]
+    mean, cov = np.zeros(3 + 3 * n), np.zeros((3 + 3 * n, 3 + 3 * n))
+    mean[dense] = ekf.mean
+    cov[np.ix_(dense, dense)] = ekf.covariance
+    sig = 5 + 3 * np.arange(n)
+    mean[sig], cov[sig, sig] = ekf.signatures.T
+    return mean, cov
+
+
 def random_sequence(rng, signatures, steps=40, n_landmarks=12):
     world = ps.sim.LandmarkWorld.random(n_landmarks, 8.0, rng)
     q = np.diag([0.05 ** 2, 0.02 ** 2] + ([0.1 ** 2] if signatures else []))
@@ -32,12 +48,17 @@ def test_filter_equals_dense_numpy_table_10_1(signatures, noise, seed):
     for (v, w), z, ids in zip(run.controls, run.measurements, run.ids):
         ekf.predict(v, w, run.dt)
         ref.predict(v, w, run.dt)
-        np.testing.assert_allclose(ekf.mean, ref.mu, atol=EXACT, rtol=0)
+        np.testing.assert_allclose(full_state(ekf)[0], ref.mu, atol=EXACT, rtol=0)
         if len(z):
             ekf.update(z, ids)
             ref.update(z, ids)
-        np.testing.assert_allclose(ekf.mean, ref.mu, atol=EXACT, rtol=0)
-        np.testing.assert_allclose(ekf.covariance, ref.sigma, atol=EXACT, rtol=0)
+        mean, cov = full_state(ekf)
+        np.testing.assert_allclose(mean, ref.mu, atol=EXACT, rtol=0)
+        np.testing.assert_allclose(cov, ref.sigma, atol=EXACT, rtol=0)
+        if signatures:  # the full state's signature rows: uncorrelated with the rest, to the bit
+            sig = np.zeros(len(ref.mu), bool)
+            sig[5::3] = True
+            assert not ref.sigma[np.ix_(sig, ~sig)].any()
     assert list(ekf.landmarks().ids) == ref.ids
     assert np.array_equal(ekf.covariance, ekf.covariance.T)  # symmetric to the bit
 
@@ -89,8 +110,10 @@ def test_landmark_accessors():
     assert ekf.landmark(20)[2] == 9.0
     assert ekf.landmark_covariance(10).shape == (3, 3)
     ekf.remove_landmark(10)
-    assert list(ekf.landmarks().ids) == [20] and ekf.state_dim == 6
+    assert list(ekf.landmarks().ids) == [20] and ekf.state_dim == 5  # the signature apart
     np.testing.assert_allclose(ekf.landmark(20)[:2], [0.0, 3.0], atol=1e-12)
+    np.testing.assert_array_equal(ekf.signatures, [[9.0, 0.1]])
+    assert ekf.landmark_covariance(20)[2, 2] == 0.1 and not ekf.landmark_covariance(20)[2, :2].any()
 
 
 def test_unknown_correspondences_find_the_landmarks():
@@ -123,6 +146,9 @@ def test_unknown_correspondences_find_the_landmarks():
     (lambda: ps.EkfSlam(np.ones((3, 3)), np.eye(2)), ValueError, "motion_noise"),
     (lambda: ps.EkfSlam(np.eye(4), np.eye(2)), ValueError, "motion_noise"),
     (lambda: ps.EkfSlam(np.eye(3), np.eye(2), use_signatures=True), ValueError, "measurement_noise"),
+    # a signature correlated with range: the filter keeps signatures apart and cannot hold that
+    (lambda: ps.EkfSlam(np.eye(3), [[1, 0, 0.1], [0, 1, 0], [0.1, 0, 1]], use_signatures=True), ValueError,
+     "measurement_noise"),
     (lambda: ps.EkfSlam(np.eye(3), np.array([[1, 2], [0, 1.0]]), use_signatures=False), ValueError,
      "measurement_noise"),
     (lambda: ps.EkfSlam(np.eye(3), np.eye(2) * np.nan, use_signatures=False), ValueError, "measurement_noise"),

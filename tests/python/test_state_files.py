@@ -138,6 +138,25 @@ def test_ekf_and_mht_resumed_equal_uninterrupted(tmp_path):
     assert state_bytes(resumed) == state_bytes(straight)
 
 
+def test_ekf_with_signatures_resumed_equals_uninterrupted(tmp_path):
+    """The signatures, kept apart from the dense state, travel with the file."""
+    data = [(np.column_stack([z, 0.3 + 0.01 * ids]), ids) for z, ids in scans(24)]
+    make = lambda: EkfSlam(np.diag([0.01, 0.01, 0.002]), np.diag([0.0025, 0.0001, 0.01]), use_signatures=True,
+                           initial_pose=(3, 0, np.pi / 2))
+    straight, first = make(), make()
+    for f, part in ((straight, data), (first, data[:10])):
+        for z, ids in part:
+            f.predict(0.3, 0.1, 1.0)
+            f.update_unknown(z)
+    resumed = round_trip(first, EkfSlam, tmp_path)
+    assert np.array_equal(resumed.signatures, first.signatures) and len(first.signatures) == first.num_landmarks > 0
+    for z, ids in data[10:]:
+        resumed.predict(0.3, 0.1, 1.0)
+        resumed.update_unknown(z)
+    assert state_bytes(resumed) == state_bytes(straight)
+    assert np.array_equal(resumed.signatures, straight.signatures)
+
+
 def head(log_scans, n):
     return dataclasses.replace(log_scans, **{f.name: getattr(log_scans, f.name)[:n]
                                              for f in dataclasses.fields(log_scans)})
