@@ -19,6 +19,7 @@
 #include "probslam/core/spatial_hash_2d.hpp"
 #include "probslam/core/velocity_motion_model.hpp"
 #include "probslam/ekf/joint_compatibility.hpp"
+#include "gram_kernels.hpp"
 
 namespace probslam {
 namespace {
@@ -41,27 +42,6 @@ void require_on_map(const Eigen::Vector3d& pose, const char* name, const char* w
 // Rows of a correction's factor in the dense state: range and bearing (a signature's update is
 // its own scalar filter's).
 constexpr Eigen::Index kRangeBearing = 2;
-
-// Side of the square tiles subtract_gram works in: a 64 x 64 tile of doubles (32 KiB) stays in
-// the cache while it is read across.
-constexpr Eigen::Index kGramTile = 64;
-
-// p -= w w^T for a symmetric p, symmetric to the bit: every correction of a call in one product
-// (inner dimension: the call's factor columns), so the n x n covariance is passed over once per
-// call instead of once per correction; the update is bound by memory traffic (a 1,300-dimensional
-// state is 13 MB). Only the lower triangle is computed, by column panels, then mirrored tile by
-// tile: a product's (i, j) and (j, i) need not round alike.
-void subtract_gram(Eigen::Block<Eigen::MatrixXd> p, const Eigen::Ref<const Eigen::MatrixXd>& w) {
-  const Eigen::Index n = p.rows();
-  for (Eigen::Index j = 0; j < n; j += kGramTile) {
-    const Eigen::Index b = std::min(kGramTile, n - j);
-    p.block(j, j, n - j, b).noalias() -= w.middleRows(j, n - j) * w.middleRows(j, b).transpose();
-  }
-  for (Eigen::Index j0 = 0; j0 < n; j0 += kGramTile)
-    for (Eigen::Index i0 = 0; i0 <= j0; i0 += kGramTile)
-      for (Eigen::Index j = j0; j < std::min(j0 + kGramTile, n); ++j)
-        for (Eigen::Index i = i0; i < std::min(i0 + kGramTile, j); ++i) p(i, j) = p(j, i);
-}
 
 }  // namespace
 
@@ -509,7 +489,9 @@ void EkfSlam::commit(Staged& st) {
     p.block(0, a.at, n, ld_) = col;
     p.block(a.at, 0, ld_, n) = col.transpose();
   }
-  if (st.c > 0) subtract_gram(p.topLeftCorner(n, n), st.w.topLeftCorner(n, st.c));
+  // P -= W W^T over the whole state: the call's one O(n^2) step (gram_kernels.hpp).
+  static const ekf_detail::SubtractGram subtract_gram = ekf_detail::subtract_gram_kernel();
+  if (st.c > 0) subtract_gram(p.data(), n, p.outerStride(), st.w.data(), st.w.outerStride(), st.c);
   s_->mean.head(n) = st.mean.head(n);
   signature_ = std::move(st.sig);
   signature_var_ = std::move(st.sig_var);
@@ -768,16 +750,37 @@ AssociationReport EkfSlam::update_unknown(const Eigen::Ref<const RowMatrixXd>& z
   return report;
 }
 
-// JCBB over the scan's individually compatible pairs. The joint gate for n pairs is the chi-square
-// quantile, with n times one measurement's dof, at the probability alpha has for one.
+namespace {
+// JCBB's joint gates for up to k pairs (entry n: n pairs; entry 0 unused): the chi-square
+// quantile, with n times one measurement's dof, at the probability alpha has for one. Every scan
+// of a run asks for the same ones, so the last alpha's are kept (per thread: a filter's const
+// calls may run on several); a quantile costs a root search over the incomplete gamma function.
+const std::vector<double>& joint_gates(double alpha, int dof, int k) {
+  struct Gates {
+    double alpha = std::numeric_limits<double>::quiet_NaN();
+    int dof = 0;
+    std::vector<double> gates;
+  };
+  thread_local Gates cached;
+  if (!(cached.alpha == alpha && cached.dof == dof)) cached = Gates{alpha, dof, {}};
+  std::vector<double>& gates = cached.gates;
+  if (static_cast<int>(gates.size()) <= k) {
+    const double probability = chi_square_cdf(alpha, dof);
+    const int from = std::max(1, static_cast<int>(gates.size()));
+    gates.resize(static_cast<std::size_t>(k) + 1, std::numeric_limits<double>::infinity());
+    if (probability < 1.0)
+      for (int n = from; n <= k; ++n) gates[static_cast<std::size_t>(n)] = chi_square_quantile(probability, n * dof);
+  }
+  return gates;
+}
+}  // namespace
+
+// JCBB over the scan's individually compatible pairs, gated by joint_gates.
 std::vector<int> EkfSlam::joint_target(const Eigen::Ref<const RowMatrixXd>& z,
                                        const std::vector<std::tuple<double, int, int>>& pairs,
                                        const std::unordered_map<int, Candidate>& cache, int n_map, double alpha) const {
   const int k = static_cast<int>(z.rows());
-  const double probability = chi_square_cdf(alpha, md_);
-  std::vector<double> gates(k + 1, std::numeric_limits<double>::infinity());
-  if (probability < 1.0)
-    for (int n = 1; n <= k; ++n) gates[n] = chi_square_quantile(probability, n * md_);
+  const std::vector<double>& gates = joint_gates(alpha, md_, k);
   std::vector<Pairing> pairings;
   pairings.reserve(pairs.size());
   for (const auto& [pi, i, j] : pairs) {
