@@ -4,25 +4,9 @@ import numpy as np
 import pytest
 
 import probslam as ps
-from ekf_reference import DenseEkfSlam
+from ekf_reference import DenseEkfSlam, full_state
 
 EXACT = 1e-9  # the sparse and dense forms differ only by rounding
-
-
-def full_state(ekf):
-    """The filter's mean and covariance in the full state's layout (x, y, theta, then each
-    landmark's x, y[, signature]): with signatures, each landmark's signature mean and variance
-    (kept apart by the filter) put back in its place, its cross covariances zero."""
-    if not ekf.use_signatures:
-        return np.array(ekf.mean), np.array(ekf.covariance)
-    n = ekf.num_landmarks
-    dense = np.r_[0, 1, 2, (3 + 3 * np.arange(n)[:, None] + np.arange(2)).ravel()]
-    mean, cov = np.zeros(3 + 3 * n), np.zeros((3 + 3 * n, 3 + 3 * n))
-    mean[dense] = ekf.mean
-    cov[np.ix_(dense, dense)] = ekf.covariance
-    sig = 5 + 3 * np.arange(n)
-    mean[sig], cov[sig, sig] = ekf.signatures.T
-    return mean, cov
 
 
 def random_sequence(rng, signatures, steps=40, n_landmarks=12):
