@@ -129,7 +129,8 @@ void define_options(py::module_& m) {
 
 void define_ekf_state(py::class_<EkfSlam>& c) {
   c.def_property_readonly("state_dim", getter(&EkfSlam::state_dim),
-                          "Length of the state: 3 + landmark_dim * num_landmarks.")
+                          "Length of the dense state: 3 + 2 * num_landmarks (signatures are kept apart:\n"
+                          "see signatures).")
       .def_property_readonly("landmark_dim", getter(&EkfSlam::landmark_dim),
                              "2 (x, y) m, or 3 with a signature.")
       .def_property_readonly("num_landmarks", getter(&EkfSlam::num_landmarks), "Landmarks in the state.")
@@ -155,8 +156,8 @@ void define_ekf_state(py::class_<EkfSlam>& c) {
                                auto [s, n] = storage_of(e);
                                return storage_view(s, s->mean.data(), {n}, {sizeof(double)});
                              },
-                             "(state_dim,) mean (x, y, theta, then each landmark), a zero-copy view of the\n"
-                             "storage (stale once the state grows).")
+                             "(state_dim,) mean (x, y, theta, then each landmark's x, y), a zero-copy view of\n"
+                             "the storage (stale once the state grows).")
       .def_property_readonly("covariance",
                              [](const EkfSlam& e) {
                                auto [s, n] = storage_of(e);
@@ -168,6 +169,19 @@ void define_ekf_state(py::class_<EkfSlam>& c) {
                              },
                              "(state_dim, state_dim) covariance, a zero-copy view of the storage (stale once\n"
                              "the state grows).")
+      .def_property_readonly("signatures",
+                             [](const EkfSlam& e) {
+                               return locked(e, [&] {
+                                 const std::vector<double>& m = e.signatures();
+                                 Eigen::MatrixX2d out(static_cast<Eigen::Index>(m.size()), 2);
+                                 for (std::size_t j = 0; j < m.size(); ++j)
+                                   out.row(static_cast<Eigen::Index>(j)) << m[j], e.signature_variances()[j];
+                                 return out;
+                               });
+                             },
+                             "(num_landmarks, 2) each landmark's signature mean and variance in state order,\n"
+                             "a copy ((0, 2) without signatures): kept apart from the dense state, with which\n"
+                             "it is uncorrelated.")
       .def_property_readonly("pose", getter(&EkfSlam::pose), "(3,) mean pose (x m, y m, theta rad), a copy.")
       .def("landmark", [](const EkfSlam& e, long id) { return locked(e, [&] { return e.landmark(id); }); },
            py::arg("id"), "Mean (landmark_dim,) of landmark id: (x, y) m[, signature].")

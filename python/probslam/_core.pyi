@@ -301,7 +301,8 @@ class _EkfSlam:
     num_landmarks: int
     num_provisional: int
     capacity: int
-    mean: Array  # (state_dim,) zero-copy view
+    mean: Array  # (state_dim,) zero-copy view: pose, then each landmark's x, y
+    signatures: Array  # (num_landmarks, 2) signature mean, variance (a copy)
     covariance: Array  # (state_dim, state_dim) zero-copy view
     pose: Array  # (3,)
     map_management: MapManagement

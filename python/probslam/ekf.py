@@ -65,13 +65,17 @@ def _flag(value, name: str) -> bool:
 class EkfSlam:
     """Online SLAM with the extended Kalman filter (Tables 10.1, 10.2).
 
-    State (eq. 10.7): ``(x, y, theta, m1x, m1y[, s1], ...)``.
+    State (eq. 10.7): ``(x, y, theta, m1x, m1y[, s1], ...)``. The signatures s_j are kept apart
+    from the dense ``mean`` and ``covariance`` (``signatures``: each one's mean and variance): a
+    signature is measured directly and starts uncorrelated with the rest, so its cross
+    covariances in the full state are zero, and the O(n^2) update passes over a smaller matrix.
 
     Args:
         motion_noise: (3, 3) pose-space covariance R_t added as F_x^T R_t F_x, or (2, 2)
             control-space covariance M of (v [m/s], w [rad/s]) mapped through dg/du.
         measurement_noise: Q_t, (2, 2) variances of (range [m^2], bearing [rad^2]), or (3, 3)
-            with the signature's variance when ``use_signatures``.
+            with the signature's variance when ``use_signatures`` (the signature uncorrelated
+            with range and bearing: zero (0, 2) and (1, 2) entries).
 
     Keyword options:
         use_signatures: measurements ``(range, bearing, signature)`` and landmarks with a
@@ -138,13 +142,22 @@ class EkfSlam:
     # --- state -------------------------------------------------------------------------
     @property
     def mean(self) -> np.ndarray:
-        """(D,) zero-copy view of the state; valid until the next call that adds a landmark."""
+        """(D,) zero-copy view of the dense state (pose, then each landmark's x, y); valid until
+        the next call that adds a landmark."""
         return self._f.mean
 
     @property
     def covariance(self) -> np.ndarray:
         """(D, D) zero-copy view of the covariance (symmetric); same validity as ``mean``."""
         return self._f.covariance
+
+    @property
+    def signatures(self) -> np.ndarray:
+        """(N, 2) each landmark's signature mean and variance, in state order, a copy ((0, 2)
+        without signatures). The filter keeps them apart from ``mean`` and ``covariance``: a
+        signature is measured directly and uncorrelated with the pose and the positions, so its
+        cross covariances in the full state would be zero."""
+        return self._f.signatures
 
     @property
     def pose(self) -> np.ndarray:
@@ -168,7 +181,7 @@ class EkfSlam:
 
     @property
     def state_dim(self) -> int:
-        """Length of the state vector: 3 + (2 or 3) per landmark."""
+        """Length of the dense state: 3 + 2 per landmark (signatures apart, see ``signatures``)."""
         return self._f.state_dim
 
     @property

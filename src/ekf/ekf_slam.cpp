@@ -19,6 +19,7 @@
 #include "probslam/core/spatial_hash_2d.hpp"
 #include "probslam/core/velocity_motion_model.hpp"
 #include "probslam/ekf/joint_compatibility.hpp"
+#include "gram_kernels.hpp"
 
 namespace probslam {
 namespace {
@@ -38,26 +39,9 @@ void require_motion_noise(const Eigen::MatrixXd& noise, const char* name, bool s
 
 void require_on_map(const Eigen::Vector3d& pose, const char* name, const char* what) { require(on_map(pose), name, what); }
 
-// Side of the square tiles subtract_gram works in: a 64 x 64 tile of doubles (32 KiB) stays in
-// the cache while it is read across.
-constexpr Eigen::Index kGramTile = 64;
-
-// p -= w w^T for a symmetric p, symmetric to the bit: every correction of a call in one product
-// (inner dimension: the call's factor columns), so the n x n covariance is passed over once per
-// call instead of once per correction; the update is bound by memory traffic (a 1,300-dimensional
-// state is 13 MB). Only the lower triangle is computed, by column panels, then mirrored tile by
-// tile: a product's (i, j) and (j, i) need not round alike.
-void subtract_gram(Eigen::Block<Eigen::MatrixXd> p, const Eigen::Ref<const Eigen::MatrixXd>& w) {
-  const Eigen::Index n = p.rows();
-  for (Eigen::Index j = 0; j < n; j += kGramTile) {
-    const Eigen::Index b = std::min(kGramTile, n - j);
-    p.block(j, j, n - j, b).noalias() -= w.middleRows(j, n - j) * w.middleRows(j, b).transpose();
-  }
-  for (Eigen::Index j0 = 0; j0 < n; j0 += kGramTile)
-    for (Eigen::Index i0 = 0; i0 <= j0; i0 += kGramTile)
-      for (Eigen::Index j = j0; j < std::min(j0 + kGramTile, n); ++j)
-        for (Eigen::Index i = i0; i < std::min(i0 + kGramTile, j); ++i) p(i, j) = p(j, i);
-}
+// Rows of a correction's factor in the dense state: range and bearing (a signature's update is
+// its own scalar filter's).
+constexpr Eigen::Index kRangeBearing = 2;
 
 }  // namespace
 
@@ -67,7 +51,8 @@ void subtract_gram(Eigen::Block<Eigen::MatrixXd> p, const Eigen::Ref<const Eigen
 // P0 - W W^T, W holding one n x m factor per correction (Table 10.1 line 18's K S K^T). A
 // landmark added after correction j extends that correction's factor with G_x W_j's robot rows.
 // So each correction costs O(n) for the few columns it reads, and commit applies all of them
-// in one product: the state is written only once everything has been checked finite.
+// in one product: the state is written only once everything has been checked finite. The
+// signatures, apart from the dense state, are staged as values (sig, sig_var: one per landmark).
 struct EkfSlam::Staged {
   struct Added {
     long id;
@@ -79,11 +64,14 @@ struct EkfSlam::Staged {
   Eigen::VectorXd mean;               // the state mean now (n of its rows used)
   Eigen::MatrixXd robot;              // P0's robot columns, extended (n x 3 used)
   Eigen::MatrixXd w;                  // the factors (n x c used)
+  std::vector<double> sig, sig_var;   // the signatures now (with signatures)
   std::vector<Added> added;
   std::unordered_map<long, Eigen::Index> index;  // landmarks added by this call
 
-  Staged(const EkfSlam& f, Eigen::Index final_dim, Eigen::Index max_columns)
-      : n0(f.n_), n(f.n_), mean(final_dim), robot(final_dim, 3), w(final_dim, max_columns) {
+  // max_corrections: the call's corrections at most (each adds kRangeBearing factor columns).
+  Staged(const EkfSlam& f, Eigen::Index final_dim, Eigen::Index max_corrections)
+      : n0(f.n_), n(f.n_), mean(final_dim), robot(final_dim, 3), w(final_dim, kRangeBearing * max_corrections),
+        sig(f.signature_), sig_var(f.signature_var_) {
     mean.head(n0) = f.s_->mean.head(n0);
     robot.topRows(n0) = f.s_->cov.block(0, 0, n0, 3);
   }
@@ -105,13 +93,13 @@ struct EkfSlam::Saved {
   int n;
   std::vector<long> ids;
   std::unordered_map<long, int> index;
-  std::vector<double> existence;
+  std::vector<double> existence, signature, signature_var;
   long next_id;
 };
 
 EkfSlam::EkfSlam(const Eigen::MatrixXd& motion_noise, const Eigen::MatrixXd& measurement_noise, bool use_signatures,
                  const Eigen::Vector3d& initial_pose, const Eigen::Matrix3d& initial_pose_cov) {
-  md_ = ld_ = use_signatures ? 3 : 2;
+  md_ = use_signatures ? 3 : 2;
   require_motion_noise(motion_noise, "motion_noise", false);
   control_noise_ = motion_noise.rows() == 2;
   if (control_noise_) m_control_ = motion_noise;
@@ -119,6 +107,9 @@ EkfSlam::EkfSlam(const Eigen::MatrixXd& motion_noise, const Eigen::MatrixXd& mea
   require(measurement_noise.rows() == md_ && measurement_noise.cols() == md_, "measurement_noise",
           use_signatures ? "must be 3x3 (range, bearing, signature)" : "must be 2x2 (range, bearing)");
   require_covariance(measurement_noise, "measurement_noise", false);
+  require(!use_signatures || (measurement_noise(0, 2) == 0.0 && measurement_noise(1, 2) == 0.0), "measurement_noise",
+          "must leave the signature uncorrelated with range and bearing (zero (0, 2) and (1, 2) entries): the "
+          "filter keeps signatures apart from the dense state");
   Q_ = measurement_noise;
   require_on_map(initial_pose, "initial_pose", "must be finite with |x|, |y| <= 1e9 m (kMaxCoordinate)");
   require_covariance(initial_pose_cov, "initial_pose_cov", true);
@@ -137,13 +128,21 @@ int EkfSlam::index_of(long id) const {
   return it->second;
 }
 
-Eigen::VectorXd EkfSlam::landmark(long id) const {
-  return s_->mean.segment(index_of(id), ld_);
+Eigen::VectorXd EkfSlam::landmark_at(Eigen::Index index) const {
+  Eigen::VectorXd lm(md_);
+  lm.head<2>() = s_->mean.segment<2>(index);
+  if (md_ == 3) lm[2] = signature_[static_cast<std::size_t>((index - 3) / ld_)];
+  return lm;
 }
+
+Eigen::VectorXd EkfSlam::landmark(long id) const { return landmark_at(index_of(id)); }
 
 Eigen::MatrixXd EkfSlam::landmark_covariance(long id) const {
   const int at = index_of(id);
-  return s_->cov.block(at, at, ld_, ld_);
+  Eigen::MatrixXd c = Eigen::MatrixXd::Zero(md_, md_);
+  c.topLeftCorner<2, 2>() = s_->cov.block<2, 2>(at, at);
+  if (md_ == 3) c(2, 2) = signature_var_[static_cast<std::size_t>((at - 3) / ld_)];
+  return c;
 }
 
 double EkfSlam::existence(long id) const {
@@ -164,7 +163,8 @@ std::shared_ptr<EkfSlamStorage> trimmed_copy(const EkfSlamStorage& s, Eigen::Ind
 // compares every observable field, so a member added later and forgotten here shows).
 EkfSlam::EkfSlam(const EkfSlam& o)
     : r_pose_(o.r_pose_), m_control_(o.m_control_), control_noise_(o.control_noise_), Q_(o.Q_), md_(o.md_),
-      ld_(o.ld_), s_(trimmed_copy(*o.s_, o.n_)), n_(o.n_), ids_(o.ids_), index_(o.index_), existence_(o.existence_),
+      s_(trimmed_copy(*o.s_, o.n_)), n_(o.n_), ids_(o.ids_), index_(o.index_), signature_(o.signature_),
+      signature_var_(o.signature_var_), existence_(o.existence_),
       provisional_(o.provisional_), next_id_(o.next_id_), gate_distance_(o.gate_distance_), mm_(o.mm_) {}
 
 EkfSlam& EkfSlam::operator=(const EkfSlam& o) {
@@ -300,7 +300,7 @@ void EkfSlam::measurement_jacobian(const Eigen::Vector3d& x, const Eigen::Vector
   z_hat[0] = r;
   z_hat[1] = wrap_angle(std::atan2(dy, dx) - x[2]);
   hx = Eigen::MatrixXd::Zero(md_, 3);
-  hm = Eigen::MatrixXd::Zero(md_, ld_);
+  hm = Eigen::MatrixXd::Zero(md_, md_);  // (x, y[, signature]): a signature's column is its own filter's
   // Table 10.1 line 16, signs corrected.
   hx(0, 0) = -dx / r, hx(0, 1) = -dy / r;
   hx(1, 0) = dy / q, hx(1, 1) = -dx / q, hx(1, 2) = -1.0;
@@ -321,15 +321,16 @@ bool EkfSlam::innovation_at(const Eigen::VectorXd& z, int index, Eigen::VectorXd
                             Eigen::MatrixXd& pht) const {
   Eigen::VectorXd z_hat;
   Eigen::MatrixXd hx, hm;
-  const Eigen::VectorXd lm = s_->mean.segment(index, ld_);
+  const Eigen::VectorXd lm = landmark_at(index);
   const double dx = lm[0] - s_->mean[0], dy = lm[1] - s_->mean[1];
   if (dx * dx + dy * dy < kMinRangeSquared) return false;
   measurement_jacobian(pose(), lm, z_hat, hx, hm);
   innovation(z, z_hat, nu);
   const Eigen::MatrixXd& p = s_->cov;
-  pht = p.block(0, 0, n_, 3) * hx.transpose() + p.block(0, index, n_, ld_) * hm.transpose();
-  const Eigen::MatrixXd hph = hx * pht.topRows(3) + hm * pht.middleRows(index, ld_);
+  pht = p.block(0, 0, n_, 3) * hx.transpose() + p.block(0, index, n_, ld_) * hm.leftCols(ld_).transpose();
+  const Eigen::MatrixXd hph = hx * pht.topRows(3) + hm.leftCols(ld_) * pht.middleRows(index, ld_);
   s = 0.5 * (hph + hph.transpose()) + Q_;
+  if (md_ == 3) s(2, 2) += signature_var_[static_cast<std::size_t>((index - 3) / ld_)];
   return true;
 }
 
@@ -373,13 +374,13 @@ std::vector<long> EkfSlam::nearby_landmarks(const Eigen::VectorXd& z) const {
 void EkfSlam::inverse_measurement(const Eigen::Vector3d& x, const Eigen::VectorXd& z, Eigen::VectorXd& m,
                                   Eigen::MatrixXd& gx, Eigen::MatrixXd& gz) const {
   const MeasurementJacobians<2> j = landmark_from_range_bearing_jacobians(x, z.head<2>());
-  m.resize(ld_);
+  m.resize(md_);
   m.head<2>() = landmark_from_range_bearing(x, z.head<2>());
-  gx = Eigen::MatrixXd::Zero(ld_, 3);
-  gz = Eigen::MatrixXd::Zero(ld_, md_);
+  gx = Eigen::MatrixXd::Zero(md_, 3);
+  gz = Eigen::MatrixXd::Zero(md_, md_);
   gx.topRows<2>() = j.pose;
   gz.topLeftCorner<2, 2>() = j.landmark;
-  if (ld_ == 3) {
+  if (md_ == 3) {
     m[2] = z[2];
     gz(2, 2) = 1.0;
   }
@@ -391,7 +392,10 @@ double EkfSlam::stage_correct(Staged& st, const Eigen::VectorXd& z, Eigen::Index
                               bool& used) const {
   used = false;
   const Eigen::Index n = st.n;
-  const Eigen::VectorXd lm = st.mean.segment(index, ld_);
+  const std::size_t slot = static_cast<std::size_t>((index - 3) / ld_);
+  Eigen::VectorXd lm(md_);
+  lm.head<2>() = st.mean.segment<2>(index);
+  if (md_ == 3) lm[2] = st.sig[slot];
   const Eigen::Vector3d x = st.mean.head<3>();
   const double dx = lm[0] - x[0], dy = lm[1] - x[1];
   if (!(dx * dx + dy * dy >= kMinRangeSquared)) return std::numeric_limits<double>::quiet_NaN();
@@ -412,13 +416,19 @@ double EkfSlam::stage_correct(Staged& st, const Eigen::VectorXd& z, Eigen::Index
     cols.block(index, 3, ld_, ld_) += it->own;
   }
   if (st.c > 0) cols.noalias() -= st.w.topLeftCorner(n, st.c) * st.factor_rows(index, ld_).transpose();
-  const Eigen::MatrixXd pht = cols.leftCols<3>() * hx.transpose() + cols.rightCols(ld_) * hm.transpose();  // n x md
-  const Eigen::MatrixXd hph = hx * pht.topRows(3) + hm * pht.middleRows(index, ld_);
-  const Eigen::MatrixXd s = 0.5 * (hph + hph.transpose()) + Q_;
-  const Eigen::LLT<Eigen::MatrixXd> llt(s);
-  const Eigen::VectorXd white = llt.matrixL().solve(nu);  // L^-1 nu
-  const double nis = white.squaredNorm();
-  require(llt.info() == Eigen::Success && std::isfinite(nis), "z",
+  // H's dense part: range and bearing rows (a signature row reads only the signature).
+  const Eigen::MatrixXd hm_dense = hm.topLeftCorner(kRangeBearing, ld_);
+  const Eigen::MatrixXd pht = cols.leftCols<3>() * hx.topRows(kRangeBearing).transpose() +
+                              cols.rightCols(ld_) * hm_dense.transpose();  // n x 2
+  const Eigen::MatrixXd hph = hx.topRows(kRangeBearing) * pht.topRows(3) + hm_dense * pht.middleRows(index, ld_);
+  const Eigen::Matrix2d s = 0.5 * (hph + hph.transpose()) + Q_.topLeftCorner<2, 2>();
+  const Eigen::LLT<Eigen::Matrix2d> llt(s);
+  const Eigen::Vector2d white = llt.matrixL().solve(nu.head<2>());  // L^-1 nu
+  // The signature's scalar filter: S = its variance + Q's, the same NIS term as the full state's.
+  const double sig_s = md_ == 3 ? st.sig_var[slot] + Q_(2, 2) : 1.0;
+  const double sig_white = md_ == 3 ? nu[2] / std::sqrt(sig_s) : 0.0;
+  const double nis = white.squaredNorm() + sig_white * sig_white;
+  require(llt.info() == Eigen::Success && std::isfinite(nis) && sig_s > 0.0, "z",
           "cannot be applied: its innovation covariance is not finite positive definite");
   if (!(nis <= gate)) return nis;
   // K = P H^T S^-1 = W L^-1 with W = P H^T L^-T; then P -= W W^T.
@@ -426,11 +436,18 @@ double EkfSlam::stage_correct(Staged& st, const Eigen::VectorXd& z, Eigen::Index
   Eigen::VectorXd moved = st.mean.head(n);
   moved.noalias() += wj * white;
   moved[2] = wrap_angle(moved[2]);
-  require(wj.allFinite() && moved.allFinite() && wj.cwiseAbs2().rowwise().sum().maxCoeff() <= kMaxCovarianceEntry,
+  const double sig_w = md_ == 3 ? st.sig_var[slot] / std::sqrt(sig_s) : 0.0;  // the signature's W
+  const double sig = md_ == 3 ? st.sig[slot] + sig_w * sig_white : 0.0;
+  require(wj.allFinite() && moved.allFinite() && wj.cwiseAbs2().rowwise().sum().maxCoeff() <= kMaxCovarianceEntry &&
+              std::isfinite(sig) && sig_w * sig_w <= kMaxCovarianceEntry,
           "z", "cannot be applied: the update would not be finite");
   st.mean.head(n) = moved;
-  st.w.block(0, st.c, n, md_) = wj;
-  st.c += md_;
+  st.w.block(0, st.c, n, kRangeBearing) = wj;
+  st.c += kRangeBearing;
+  if (md_ == 3) {
+    st.sig[slot] = sig;
+    st.sig_var[slot] -= sig_w * sig_w;
+  }
   used = true;
   return nis;
 }
@@ -441,14 +458,20 @@ void EkfSlam::stage_augment(Staged& st, const Eigen::VectorXd& z, long id) const
   Eigen::VectorXd m;
   Eigen::MatrixXd gx, gz;
   inverse_measurement(st.mean.head<3>(), z, m, gx, gz);
-  Staged::Added a{id, st.n, gx, gz * Q_ * gz.transpose()};
-  const Eigen::MatrixXd robot_rows = gx * s_->cov.topLeftCorner<3, 3>();
+  // The position's rows (a signature starts as its measurement: z[2] with variance Q(2, 2)).
+  const Eigen::MatrixXd gx_pos = gx.topRows(ld_), gz_pos = gz.topLeftCorner(ld_, kRangeBearing);
+  Staged::Added a{id, st.n, gx_pos, gz_pos * Q_.topLeftCorner<2, 2>() * gz_pos.transpose()};
+  const Eigen::MatrixXd robot_rows = gx_pos * s_->cov.topLeftCorner<3, 3>();
   require(m.allFinite() && a.own.allFinite() && robot_rows.allFinite() &&
               std::max(a.own.cwiseAbs().maxCoeff(), robot_rows.cwiseAbs().maxCoeff()) <= kMaxCovarianceEntry,
           "z", "places a landmark whose covariance would be too large to stay finite");
-  st.mean.segment(st.n, ld_) = m;
+  st.mean.segment(st.n, ld_) = m.head(ld_);
+  if (md_ == 3) {
+    st.sig.push_back(m[2]);
+    st.sig_var.push_back(Q_(2, 2));
+  }
   st.robot.middleRows(st.n, ld_) = robot_rows;
-  if (st.c > 0) st.w.block(st.n, 0, ld_, st.c) = gx * st.w.block(0, 0, 3, st.c);
+  if (st.c > 0) st.w.block(st.n, 0, ld_, st.c) = gx_pos * st.w.block(0, 0, 3, st.c);
   st.index[id] = st.n;
   st.added.push_back(std::move(a));
   st.n += ld_;
@@ -466,8 +489,12 @@ void EkfSlam::commit(Staged& st) {
     p.block(0, a.at, n, ld_) = col;
     p.block(a.at, 0, ld_, n) = col.transpose();
   }
-  if (st.c > 0) subtract_gram(p.topLeftCorner(n, n), st.w.topLeftCorner(n, st.c));
+  // P -= W W^T over the whole state: the call's one O(n^2) step (gram_kernels.hpp).
+  static const ekf_detail::SubtractGram subtract_gram = ekf_detail::subtract_gram_kernel();
+  if (st.c > 0) subtract_gram(p.data(), n, p.outerStride(), st.w.data(), st.w.outerStride(), st.c);
   s_->mean.head(n) = st.mean.head(n);
+  signature_ = std::move(st.sig);
+  signature_var_ = std::move(st.sig_var);
   for (const Staged::Added& a : st.added) {
     ids_.push_back(a.id);
     index_[a.id] = static_cast<int>(a.at);
@@ -478,7 +505,8 @@ void EkfSlam::commit(Staged& st) {
 }
 
 EkfSlam::Saved EkfSlam::save() const {
-  return {s_, s_->mean.head(n_), s_->cov.topLeftCorner(n_, n_), n_, ids_, index_, existence_, next_id_};
+  return {s_, s_->mean.head(n_), s_->cov.topLeftCorner(n_, n_), n_, ids_, index_, existence_, signature_,
+          signature_var_, next_id_};
 }
 
 void EkfSlam::restore(Saved& saved) {
@@ -489,6 +517,8 @@ void EkfSlam::restore(Saved& saved) {
   ids_ = std::move(saved.ids);
   index_ = std::move(saved.index);
   existence_ = std::move(saved.existence);
+  signature_ = std::move(saved.signature);
+  signature_var_ = std::move(saved.signature_var);
   next_id_ = saved.next_id;
 }
 
@@ -524,7 +554,7 @@ UpdateReport EkfSlam::update(const Eigen::Ref<const RowMatrixXd>& z, const std::
   try {
     Eigen::Index from = 0;
     for (const Eigen::Index to : ends) {
-      Staged st(*this, final_dim, md_ * std::count(corrects.begin() + from, corrects.begin() + to, 1));
+      Staged st(*this, final_dim, std::count(corrects.begin() + from, corrects.begin() + to, 1));
       for (Eigen::Index i = from; i < to; ++i) {
         const Eigen::VectorXd zi = z.row(i).transpose();
         const auto it = index_.find(ids[i]);
@@ -554,10 +584,12 @@ EkfSlam::Candidate EkfSlam::candidate(const Eigen::VectorXd& lm, const Eigen::Ma
   const Eigen::MatrixXd& hm = c.hm;
   const Eigen::MatrixXd& p = s_->cov;
   Eigen::MatrixXd psi = hx * p.topLeftCorner<3, 3>() * hx.transpose() + Q_;
-  if (own_cov == nullptr) {  // a map landmark: correlated with the robot
+  if (own_cov == nullptr) {  // a map landmark: correlated with the robot (its position)
     const Eigen::MatrixXd pxm = p.block(0, index, 3, ld_);
-    psi += hx * pxm * hm.transpose() + hm * pxm.transpose() * hx.transpose() +
-           hm * p.block(index, index, ld_, ld_) * hm.transpose();
+    const Eigen::MatrixXd hp = hm.leftCols(ld_);
+    psi += hx * pxm * hp.transpose() + hp * pxm.transpose() * hx.transpose() +
+           hp * p.block(index, index, ld_, ld_) * hp.transpose();
+    if (md_ == 3) psi(2, 2) += signature_var_[static_cast<std::size_t>((index - 3) / ld_)];
   } else {  // a provisional landmark: kept apart from the state
     psi += hm * (*own_cov) * hm.transpose();
   }
@@ -577,7 +609,7 @@ bool EkfSlam::update_provisional(Provisional& p, const Eigen::Vector3d& x, const
   const Eigen::MatrixXd s = hm * p.cov * hm.transpose() + hx * pose_cov * hx.transpose() + Q_;
   const Eigen::MatrixXd k = p.cov * hm.transpose() * s.llt().solve(Eigen::MatrixXd::Identity(md_, md_));
   p.mean += k * nu;
-  const Eigen::MatrixXd c = (Eigen::MatrixXd::Identity(ld_, ld_) - k * hm) * p.cov;
+  const Eigen::MatrixXd c = (Eigen::MatrixXd::Identity(md_, md_) - k * hm) * p.cov;
   p.cov = 0.5 * (c + c.transpose());
   require(p.mean.allFinite() && p.cov.allFinite(), "z", "cannot be applied: a provisional landmark would not be finite");
   p.seen = std::min(p.seen + 1, kEkfMaxCount);
@@ -628,7 +660,7 @@ AssociationReport EkfSlam::update_unknown(const Eigen::Ref<const RowMatrixXd>& z
       auto it = cache.find(j);
       if (it == cache.end()) {
         const bool prov = j >= n_map;
-        const Eigen::VectorXd lm = prov ? provisional_[j - n_map].mean : Eigen::VectorXd(s_->mean.segment(3 + j * ld_, ld_));
+        const Eigen::VectorXd lm = prov ? provisional_[j - n_map].mean : landmark_at(3 + j * ld_);
         const double dx = lm[0] - x[0], dy = lm[1] - x[1];
         if (dx * dx + dy * dy < kMinRangeSquared) continue;
         it = cache.emplace(j, candidate(lm, prov ? &provisional_[j - n_map].cov : nullptr, 3 + j * ld_)).first;
@@ -663,7 +695,7 @@ AssociationReport EkfSlam::update_unknown(const Eigen::Ref<const RowMatrixXd>& z
     if (!taken[j]) free_pi[i] = std::min(free_pi[i], pi);
 
   // Stage the scan: nothing below changes the filter until commit.
-  Staged st(*this, n_ + k * ld_, std::min<Eigen::Index>(k, n_map) * md_);
+  Staged st(*this, n_ + k * ld_, std::min<Eigen::Index>(k, n_map));
   std::vector<Provisional> prov = provisional_;
   std::vector<std::uint8_t> observed(n_map, 0);
   std::vector<int> promoted;
@@ -718,16 +750,37 @@ AssociationReport EkfSlam::update_unknown(const Eigen::Ref<const RowMatrixXd>& z
   return report;
 }
 
-// JCBB over the scan's individually compatible pairs. The joint gate for n pairs is the chi-square
-// quantile, with n times one measurement's dof, at the probability alpha has for one.
+namespace {
+// JCBB's joint gates for up to k pairs (entry n: n pairs; entry 0 unused): the chi-square
+// quantile, with n times one measurement's dof, at the probability alpha has for one. Every scan
+// of a run asks for the same ones, so the last alpha's are kept (per thread: a filter's const
+// calls may run on several); a quantile costs a root search over the incomplete gamma function.
+const std::vector<double>& joint_gates(double alpha, int dof, int k) {
+  struct Gates {
+    double alpha = std::numeric_limits<double>::quiet_NaN();
+    int dof = 0;
+    std::vector<double> gates;
+  };
+  thread_local Gates cached;
+  if (!(cached.alpha == alpha && cached.dof == dof)) cached = Gates{alpha, dof, {}};
+  std::vector<double>& gates = cached.gates;
+  if (static_cast<int>(gates.size()) <= k) {
+    const double probability = chi_square_cdf(alpha, dof);
+    const int from = std::max(1, static_cast<int>(gates.size()));
+    gates.resize(static_cast<std::size_t>(k) + 1, std::numeric_limits<double>::infinity());
+    if (probability < 1.0)
+      for (int n = from; n <= k; ++n) gates[static_cast<std::size_t>(n)] = chi_square_quantile(probability, n * dof);
+  }
+  return gates;
+}
+}  // namespace
+
+// JCBB over the scan's individually compatible pairs, gated by joint_gates.
 std::vector<int> EkfSlam::joint_target(const Eigen::Ref<const RowMatrixXd>& z,
                                        const std::vector<std::tuple<double, int, int>>& pairs,
                                        const std::unordered_map<int, Candidate>& cache, int n_map, double alpha) const {
   const int k = static_cast<int>(z.rows());
-  const double probability = chi_square_cdf(alpha, md_);
-  std::vector<double> gates(k + 1, std::numeric_limits<double>::infinity());
-  if (probability < 1.0)
-    for (int n = 1; n <= k; ++n) gates[n] = chi_square_quantile(probability, n * md_);
+  const std::vector<double>& gates = joint_gates(alpha, md_, k);
   std::vector<Pairing> pairings;
   pairings.reserve(pairs.size());
   for (const auto& [pi, i, j] : pairs) {
@@ -739,10 +792,12 @@ std::vector<int> EkfSlam::joint_target(const Eigen::Ref<const RowMatrixXd>& z,
     if (j < n_map) {  // robot and landmark columns of the state
       const int at = 3 + j * ld_;
       p.jacobian.resize(md_, 3 + ld_);
-      p.jacobian << c.hx, c.hm;
+      p.jacobian << c.hx, c.hm.leftCols(ld_);
       p.columns = {0, 1, 2};
       for (int d = 0; d < ld_; ++d) p.columns.push_back(at + d);
+      // The signature's own variance: no other pairing's landmark is correlated with it.
       p.noise = Q_;
+      if (md_ == 3) p.noise(2, 2) += signature_var_[static_cast<std::size_t>(j)];
     } else {  // a provisional landmark: outside the state, uncorrelated with it
       p.jacobian = c.hx;
       p.columns = {0, 1, 2};
@@ -787,6 +842,10 @@ void EkfSlam::remove_landmark(long id) {
   const int slot = (at - 3) / ld_;
   ids_.erase(ids_.begin() + slot);
   existence_.erase(existence_.begin() + slot);
+  if (md_ == 3) {
+    signature_.erase(signature_.begin() + slot);
+    signature_var_.erase(signature_var_.begin() + slot);
+  }
   index_.erase(id);
   n_ -= ld_;
   for (auto& [other, index] : index_)

@@ -144,8 +144,8 @@ void MultiHypothesisEkfSlam::condition_offset(const EkfSlam& f, const Eigen::Vec
   Eigen::VectorXd nu, z_hat;
   Eigen::MatrixXd s, pht, hx, hm;
   if (!f.innovation_at(z, index, nu, s, pht)) return;  // a landmark on the robot: no update
-  f.measurement_jacobian(f.pose(), f.s_->mean.segment(index, f.ld_), z_hat, hx, hm);
-  const Eigen::VectorXd hd = hx * b.cov.head<3>() + hm * b.cov.segment(index, f.ld_);
+  f.measurement_jacobian(f.pose(), f.landmark_at(index), z_hat, hx, hm);
+  const Eigen::VectorXd hd = hx * b.cov.head<3>() + hm.leftCols(f.ld_) * b.cov.segment(index, f.ld_);
   const Eigen::VectorXd s_inv_hd = Eigen::LLT<Eigen::MatrixXd>(s).solve(hd);
   b.mean += s_inv_hd.dot(nu);
   b.var -= hd.dot(s_inv_hd);

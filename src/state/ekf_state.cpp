@@ -9,6 +9,11 @@
 #include "probslam/ekf/multi_hypothesis_ekf_slam.hpp"
 
 namespace probslam {
+namespace {
+// A saved signature variance's bound: the filter's own bound on a covariance entry
+// (ekf_slam.cpp's kMaxCovarianceEntry), so that the next update's products stay finite.
+constexpr double kMaxSignatureVariance = 1e150;
+}  // namespace
 
 void EkfSlam::write_state(StateWriter& w) const {
   w.boolean(control_noise_);
@@ -16,13 +21,14 @@ void EkfSlam::write_state(StateWriter& w) const {
   w.matrix(m_control_);
   w.matrix(Q_);
   w.i32(md_);
-  w.i32(ld_);
   w.i32(n_);
   w.matrix(s_->mean.head(n_));
   w.matrix(s_->cov.topLeftCorner(n_, n_));
   w.longs(ids_);
   for (long id : ids_) w.i32(index_.at(id));
   w.doubles(existence_);
+  w.doubles(signature_);
+  w.doubles(signature_var_);
   w.count(provisional_.size());
   for (const Provisional& p : provisional_) {
     w.matrix(p.mean);
@@ -47,9 +53,9 @@ EkfSlam EkfSlam::read_state(StateReader& r) {
   const Eigen::Matrix2d m_control = r.matrix<Eigen::Matrix2d>();
   const Eigen::MatrixXd q = r.matrix<Eigen::MatrixXd>();
   const int md = r.int_in(2, 3, "the measurement dimension");
-  const int ld = r.int_in(2, 3, "the landmark dimension");
   const int n = r.int_in(3, kEkfMaxStateDimension, "the state dimension");
-  if (md != ld || q.rows() != md || (n - 3) % ld != 0) r.fail("the filter's dimensions do not agree");
+  constexpr int ld = EkfSlam::ld_;
+  if (q.rows() != md || (n - 3) % ld != 0) r.fail("the filter's dimensions do not agree");
   const Eigen::VectorXd mean = r.matrix<Eigen::VectorXd>();
   if (mean.size() != n) r.fail("the mean is not as long as the state");
   r.require_bytes(8.0 * n * n, "the covariance");
@@ -59,7 +65,7 @@ EkfSlam EkfSlam::read_state(StateReader& r) {
   // The constructor checks the noise and the pose; everything else is then the saved state.
   EkfSlam f = validated(r, "filter", [&] {
     const Eigen::MatrixXd motion = control ? Eigen::MatrixXd(m_control) : Eigen::MatrixXd(r_pose);
-    return EkfSlam(motion, q, ld == 3, mean.head<3>(), Eigen::Matrix3d::Zero());
+    return EkfSlam(motion, q, md == 3, mean.head<3>(), Eigen::Matrix3d::Zero());
   });
   f.r_pose_ = r_pose;
   f.m_control_ = m_control;
@@ -78,6 +84,14 @@ EkfSlam EkfSlam::read_state(StateReader& r) {
   }
   f.existence_ = r.doubles();
   if (f.existence_.size() != f.ids_.size()) r.fail("the existence log-odds are not one per landmark");
+  f.signature_ = r.doubles();
+  f.signature_var_ = r.doubles();
+  const std::size_t signatures = md == 3 ? f.ids_.size() : 0;
+  if (f.signature_.size() != signatures || f.signature_var_.size() != signatures)
+    r.fail("the signatures are not one per landmark (with signatures) or absent (without)");
+  for (std::size_t j = 0; j < signatures; ++j)
+    if (!std::isfinite(f.signature_[j]) || !(f.signature_var_[j] >= 0.0 && f.signature_var_[j] <= kMaxSignatureVariance))
+      r.fail("a signature is not finite or its variance not in [0, 1e150]");
   const std::size_t np = r.count(2 * 16 + 8);
   for (std::size_t k = 0; k < np; ++k) {
     Provisional p;
@@ -85,7 +99,7 @@ EkfSlam EkfSlam::read_state(StateReader& r) {
     p.cov = r.matrix<Eigen::MatrixXd>();
     p.seen = r.i32();
     p.age = r.i32();
-    if (p.mean.size() != ld || p.cov.rows() != ld || p.cov.cols() != ld || !p.mean.allFinite() || !p.cov.allFinite())
+    if (p.mean.size() != md || p.cov.rows() != md || p.cov.cols() != md || !p.mean.allFinite() || !p.cov.allFinite())
       r.fail("a provisional landmark is not a finite landmark-sized Gaussian");
     f.provisional_.push_back(std::move(p));
   }

@@ -101,6 +101,8 @@ TEST(EkfSlam, CopiesAreDeep) {
       EXPECT_EQ(Eigen::VectorXd(x.storage()->mean.head(x.state_dim())),
                 Eigen::VectorXd(ekf.storage()->mean.head(ekf.state_dim())));
       for (const long id : ekf.landmark_ids()) EXPECT_EQ(x.existence(id), ekf.existence(id));
+      EXPECT_EQ(x.signatures(), ekf.signatures());
+      EXPECT_EQ(x.signature_variances(), ekf.signature_variances());
     }
   }
   // The same calls on a copy and on the original give the same results; neither moves the other.

@@ -203,6 +203,16 @@ TEST(LandmarkTree, CopyIsConstantAndUpdateCopiesOnePath) {
   EXPECT_LT(added, 80);  // depth of a treap of 20000 keys: ~2 ln N = 20 expected
   EXPECT_EQ(map.find(1234)->cov(0, 0), 0.0);
   EXPECT_EQ(copies[4].find(1234)->cov(0, 0), 0.0);
+  // The path the update copied is copies[3]'s alone: updating the landmark again changes those
+  // nodes in place (no node built), and no other handle sees it.
+  const long after_first = g_persistent_tree_nodes.load();
+  lm.cov(1, 1) = 7.0;
+  copies[3].put(lm);
+  EXPECT_EQ(g_persistent_tree_nodes.load(), after_first);
+  EXPECT_EQ(copies[3].find(1234)->cov(1, 1), 7.0);
+  EXPECT_EQ(copies[4].find(1234)->cov(1, 1), 0.0);
+  EXPECT_EQ(map.find(1234)->cov(1, 1), 0.0);
+  check_treap<LandmarkMap::SpatialTree>(copies[3].spatial_tree().root());
   lm.mean += Eigen::Vector2d(10.0, 10.0);  // moves cells: erase + insert + the id tree's path
   copies[3].put(lm);
   EXPECT_LT(g_persistent_tree_nodes.load() - before, 400);

@@ -26,6 +26,22 @@ def motion(x, v, w, dt):
     return d, np.eye(3) + g, dv
 
 
+def full_state(ekf):
+    """The filter's mean and covariance in the full state's layout (x, y, theta, then each
+    landmark's x, y[, signature]): with signatures, each landmark's signature mean and variance
+    (kept apart by the filter) put back in its place, its cross covariances zero."""
+    if not ekf.use_signatures:
+        return np.array(ekf.mean), np.array(ekf.covariance)
+    n = ekf.num_landmarks
+    dense = np.r_[0, 1, 2, (3 + 3 * np.arange(n)[:, None] + np.arange(2)).ravel()]
+    mean, cov = np.zeros(3 + 3 * n), np.zeros((3 + 3 * n, 3 + 3 * n))
+    mean[dense] = ekf.mean
+    cov[np.ix_(dense, dense)] = ekf.covariance
+    sig = 5 + 3 * np.arange(n)
+    mean[sig], cov[sig, sig] = ekf.signatures.T
+    return mean, cov
+
+
 class DenseEkfSlam:
     def __init__(self, motion_noise, q, signatures, pose=(0, 0, 0), pose_cov=None):
         self.m = np.asarray(motion_noise, float)
@@ -45,6 +61,20 @@ class DenseEkfSlam:
         self.mu = self.mu + fx.T @ d
         self.mu[2] = wrap(self.mu[2])
         self.sigma = g @ self.sigma @ g.T + fx.T @ r @ fx
+
+    def predict_odometry(self, delta, noise):
+        """x <- x (+) delta, delta (3,) with covariance noise (3, 3) in the robot's frame."""
+        th = self.mu[2]
+        rot = np.array([[np.cos(th), -np.sin(th)], [np.sin(th), np.cos(th)]])
+        t = rot @ np.asarray(delta[:2], float)
+        n = len(self.mu)
+        g = np.eye(n)
+        g[0, 2], g[1, 2] = -t[1], t[0]
+        j = np.eye(3)
+        j[:2, :2] = rot
+        self.mu[:3] = [self.mu[0] + t[0], self.mu[1] + t[1], wrap(th + delta[2])]
+        self.sigma = g @ self.sigma @ g.T
+        self.sigma[:3, :3] += j @ np.asarray(noise, float) @ j.T
 
     def update(self, z, ids):
         for zi, j in zip(np.atleast_2d(z), np.atleast_1d(ids)):

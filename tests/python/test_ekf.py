@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import probslam as ps
-from ekf_reference import DenseEkfSlam
+from ekf_reference import DenseEkfSlam, full_state
 from reference import wrap
 
 EXACT = 1e-9  # the sparse and dense forms differ only by rounding
@@ -33,12 +33,17 @@ def test_filter_equals_dense_numpy_table_10_1(signatures, noise, seed):
     for (v, w), z, ids in zip(run.controls, run.measurements, run.ids):
         ekf.predict(v, w, run.dt)
         ref.predict(v, w, run.dt)
-        np.testing.assert_allclose(ekf.mean, ref.mu, atol=EXACT, rtol=0)
+        np.testing.assert_allclose(full_state(ekf)[0], ref.mu, atol=EXACT, rtol=0)
         if len(z):
             ekf.update(z, ids)
             ref.update(z, ids)
-        np.testing.assert_allclose(ekf.mean, ref.mu, atol=EXACT, rtol=0)
-        np.testing.assert_allclose(ekf.covariance, ref.sigma, atol=EXACT, rtol=0)
+        mean, cov = full_state(ekf)
+        np.testing.assert_allclose(mean, ref.mu, atol=EXACT, rtol=0)
+        np.testing.assert_allclose(cov, ref.sigma, atol=EXACT, rtol=0)
+        if signatures:  # the full state's signature rows: uncorrelated with the rest, to the bit
+            sig = np.zeros(len(ref.mu), bool)
+            sig[5::3] = True
+            assert not ref.sigma[np.ix_(sig, ~sig)].any()
     assert list(ekf.landmarks().ids) == ref.ids
     assert np.array_equal(ekf.covariance, ekf.covariance.T)  # symmetric to the bit
 
@@ -90,8 +95,10 @@ def test_landmark_accessors():
     assert ekf.landmark(20)[2] == 9.0
     assert ekf.landmark_covariance(10).shape == (3, 3)
     ekf.remove_landmark(10)
-    assert list(ekf.landmarks().ids) == [20] and ekf.state_dim == 6
+    assert list(ekf.landmarks().ids) == [20] and ekf.state_dim == 5  # the signature apart
     np.testing.assert_allclose(ekf.landmark(20)[:2], [0.0, 3.0], atol=1e-12)
+    np.testing.assert_array_equal(ekf.signatures, [[9.0, 0.1]])
+    assert ekf.landmark_covariance(20)[2, 2] == 0.1 and not ekf.landmark_covariance(20)[2, :2].any()
 
 
 def test_unknown_correspondences_find_the_landmarks():
@@ -124,6 +131,9 @@ def test_unknown_correspondences_find_the_landmarks():
     (lambda: ps.EkfSlam(np.ones((3, 3)), np.eye(2)), ValueError, "motion_noise"),
     (lambda: ps.EkfSlam(np.eye(4), np.eye(2)), ValueError, "motion_noise"),
     (lambda: ps.EkfSlam(np.eye(3), np.eye(2), use_signatures=True), ValueError, "measurement_noise"),
+    # a signature correlated with range: the filter keeps signatures apart and cannot hold that
+    (lambda: ps.EkfSlam(np.eye(3), [[1, 0, 0.1], [0, 1, 0], [0.1, 0, 1]], use_signatures=True), ValueError,
+     "measurement_noise"),
     (lambda: ps.EkfSlam(np.eye(3), np.array([[1, 2], [0, 1.0]]), use_signatures=False), ValueError,
      "measurement_noise"),
     (lambda: ps.EkfSlam(np.eye(3), np.eye(2) * np.nan, use_signatures=False), ValueError, "measurement_noise"),

@@ -111,9 +111,8 @@ def test_fastslam_resumed_equals_uninterrupted(tmp_path, version, known):
         assert np.array_equal(a.ids, b.ids) and np.array_equal(a.means, b.means) and np.array_equal(a.covariances, b.covariances)
 
 
-def test_ekf_and_mht_resumed_equal_uninterrupted(tmp_path):
-    data = scans(24)
-    make = lambda: EkfSlam(np.diag([0.01, 0.01, 0.002]), np.diag([0.0025, 0.0001]), initial_pose=(3, 0, np.pi / 2))
+def ekf_resumed(make, data, tmp_path):
+    """(an EkfSlam saved after scan 10, loaded and run on, one run through, the saved one)."""
     straight, first = make(), make()
     for f, part in ((straight, data), (first, data[:10])):
         for z, ids in part:
@@ -123,6 +122,13 @@ def test_ekf_and_mht_resumed_equal_uninterrupted(tmp_path):
     for z, ids in data[10:]:
         resumed.predict(0.3, 0.1, 1.0)
         resumed.update_unknown(z)
+    return resumed, straight, first
+
+
+def test_ekf_and_mht_resumed_equal_uninterrupted(tmp_path):
+    data = scans(24)
+    make = lambda: EkfSlam(np.diag([0.01, 0.01, 0.002]), np.diag([0.0025, 0.0001]), initial_pose=(3, 0, np.pi / 2))
+    resumed, straight, _ = ekf_resumed(make, data, tmp_path)
     assert np.array_equal(resumed.mean, straight.mean) and np.array_equal(resumed.covariance, straight.covariance)
 
     straight, first = MultiHypothesisEkfSlam(make()), MultiHypothesisEkfSlam(make())
@@ -136,6 +142,17 @@ def test_ekf_and_mht_resumed_equal_uninterrupted(tmp_path):
         resumed.update(z)
     assert np.array_equal(resumed.costs, straight.costs) and np.array_equal(resumed.best.mean, straight.best.mean)
     assert state_bytes(resumed) == state_bytes(straight)
+
+
+def test_ekf_with_signatures_resumed_equals_uninterrupted(tmp_path):
+    """The signatures, kept apart from the dense state, travel with the file."""
+    data = [(np.column_stack([z, 0.3 + 0.01 * ids]), ids) for z, ids in scans(24)]
+    make = lambda: EkfSlam(np.diag([0.01, 0.01, 0.002]), np.diag([0.0025, 0.0001, 0.01]), use_signatures=True,
+                           initial_pose=(3, 0, np.pi / 2))
+    resumed, straight, first = ekf_resumed(make, data, tmp_path)
+    assert len(first.signatures) == first.num_landmarks > 0
+    assert state_bytes(resumed) == state_bytes(straight)
+    assert np.array_equal(resumed.signatures, straight.signatures)
 
 
 def head(log_scans, n):

@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import probslam as ps
+from ekf_reference import DenseEkfSlam, full_state
 from probslam.datasets import run_landmark_slam, victoria_park_acfr, victoria_park_acfr_run
 
 #: The lecture's bound on the position error (RMS against GPS, m).
@@ -19,6 +20,12 @@ COMPOSE_TOLERANCE = 1e-6
 CUT_DISCRETISATION = 0.01
 #: The prefix the default run drives (s): the car's first loop through the park.
 PREFIX_SECONDS = 300.0
+#: The prefix on which EkfSlam (signatures apart) is replayed by the full-state dense reference (s).
+REPLAY_SECONDS = 20.0
+#: Their states after it: the same filter rounded differently (every product in another order;
+#: the reference inverts S where the filter solves by Cholesky) over ~900 steps and ~95 scans:
+#: 5e-14 measured.
+REPLAY_TOLERANCE = 1e-10
 
 
 @pytest.fixture(scope="module")
@@ -28,6 +35,40 @@ def run_data():
     if not folder.is_dir():
         pytest.skip(f"{folder} not present")
     return victoria_park_acfr.load(folder)
+
+
+@pytest.mark.slow  # the dense reference's Python loop: 30-40 s on a loaded 2-core machine
+def test_ekf_with_signatures_apart_equals_the_full_state(run_data):
+    """EkfSlam keeps the trees' diameters out of its dense state; the dense numpy Table 10.1, with
+    the diameter in the state, replayed with the same associations on the run's first seconds
+    ends in the same state, and its diameters' cross covariances are zero throughout."""
+    data = victoria_park_acfr_run.first_seconds(run_data, REPLAY_SECONDS)
+    steps = victoria_park_acfr_run.schedule(data)
+    z = np.ascontiguousarray(data.measurements[:, 1:4])
+    scans = [z[a:b] for a, b in zip(data.scan_starts[:-1], data.scan_starts[1:])]
+    q = victoria_park_acfr_run.measurement_noise(signatures=True)
+    start = victoria_park_acfr.start_pose(data)
+    ekf = ps.EkfSlam(victoria_park_acfr_run.control_noise(), q, use_signatures=True, initial_pose=start)
+    ref = DenseEkfSlam(np.eye(3), q, True, pose=start)
+
+    def scan(s):
+        result = ekf.update_unknown(scans[s], association="jcbb")
+        applied = result.outcome <= 1  # associated or a new landmark, in measurement order
+        ref.update(scans[s][applied], result.ids[applied])
+
+    for s in np.flatnonzero(steps.scan_after < 0):
+        scan(s)
+    for k in range(len(steps.deltas)):
+        ekf.predict_odometry(steps.deltas[k], steps.covariances[k])
+        ref.predict_odometry(steps.deltas[k], steps.covariances[k])
+        for s in np.flatnonzero(steps.scan_after == k):
+            scan(s)
+    sig = np.zeros(len(ref.mu), bool)
+    sig[5::3] = True
+    assert ekf.num_landmarks >= 20 and not ref.sigma[np.ix_(sig, ~sig)].any()
+    mean, cov = full_state(ekf)
+    np.testing.assert_allclose(mean, ref.mu, atol=REPLAY_TOLERANCE, rtol=0)
+    np.testing.assert_allclose(cov, ref.sigma, atol=REPLAY_TOLERANCE, rtol=0)
 
 
 def rms_aligned(data, run):

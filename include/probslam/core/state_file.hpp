@@ -23,7 +23,8 @@ namespace probslam {
 /// 2: SubmapSlam2D holds the saved map a run started from (issue 36's `slam --map`).
 /// 3: the scan matcher holds constant_velocity, match_fraction and whether it started on a
 /// saved map (issue 51); FastSlam its provisional landmarks (min_sightings, issue 50).
-/// 4: MonteCarloLocalization's options hold resample_interval (issue 52: an option added by its
+/// 4: EkfSlam keeps its landmarks' signatures apart from the dense state (issue 50's speed);
+/// MonteCarloLocalization's options hold resample_interval (issue 52: an option added by its
 /// describe() line alone).
 inline constexpr std::uint32_t kStateFormatVersion = 4;
 

@@ -21,7 +21,7 @@ class StateReader;
 
 // Reliability limits beside the shared ones of core/filter_limits.hpp (kMaxCoordinate,
 // kMaxVariance, kMaxLandmarkId), refused by name beyond them.
-/// State dimension (3 + landmarks x landmark_dim): a dense covariance of 2 GiB, whose O(n^2)
+/// State dimension (3 + 2 x landmarks): a dense covariance of 2 GiB, whose O(n^2)
 /// update takes about a second. Larger maps need a sparse method (graph SLAM).
 inline constexpr int kEkfMaxStateDimension = 16384;
 /// Existence log-odds increments and threshold: far beyond any probability a double can hold.
@@ -74,27 +74,42 @@ struct AssociationReport {
 /// Every method validates all its input before changing anything (std::invalid_argument whose
 /// message starts with the argument's name) and leaves the filter unchanged when it throws; a
 /// call whose result would not be finite throws too. The filter does not lock itself: see mutex().
+///
+/// The dense state holds the pose and the landmarks' positions (3 + 2 per landmark). A landmark's
+/// signature is kept apart, as its own mean and variance (a scalar Kalman filter): it is measured
+/// directly (H's signature row has no other entry), starts uncorrelated with everything (the
+/// measurement noise's signature is uncorrelated with range and bearing, which the constructor
+/// requires), and so stays uncorrelated: in the full state its cross covariances would be zero to
+/// the bit. Apart, the O(n^2) covariance update passes over (2/3)^2 of the full state's matrix.
 class EkfSlam {
  public:
   /// Lock it around every call when several threads share this object (core/object_mutex.hpp).
   std::mutex& mutex() const noexcept { return mutex_.get(); }
 
   /// motion_noise: 3x3 pose-space R_t, or 2x2 control-space M (R_t = V M V^T) for (v, w).
-  /// measurement_noise: Q_t, variances of (range, bearing[, signature]): 3x3 with signatures.
+  /// measurement_noise: Q_t, variances of (range, bearing[, signature]): 3x3 with signatures,
+  /// the signature uncorrelated with range and bearing (Q(0, 2) = Q(1, 2) = 0).
   /// All must be symmetric positive definite (initial_pose_cov positive semi-definite).
   EkfSlam(const Eigen::MatrixXd& motion_noise, const Eigen::MatrixXd& measurement_noise, bool use_signatures,
           const Eigen::Vector3d& initial_pose, const Eigen::Matrix3d& initial_pose_cov);
 
+  /// Dimension of the dense state: 3 + 2 per landmark (signatures are kept apart).
   int state_dim() const { return n_; }
-  int landmark_dim() const { return ld_; }
+  /// Values per landmark: 2 (x, y), or 3 with the signature.
+  int landmark_dim() const { return md_; }
   int num_landmarks() const { return static_cast<int>(ids_.size()); }
-  bool use_signatures() const { return ld_ == 3; }
+  bool use_signatures() const { return md_ == 3; }
+  /// Each landmark's signature mean and variance, in state order (empty without signatures).
+  const std::vector<double>& signatures() const { return signature_; }
+  const std::vector<double>& signature_variances() const { return signature_var_; }
   Eigen::VectorBlock<Eigen::VectorXd> mean() { return s_->mean.head(n_); }
   Eigen::Block<Eigen::MatrixXd> covariance() { return s_->cov.topLeftCorner(n_, n_); }
   Eigen::Vector3d pose() const { return s_->mean.head<3>(); }
   const std::vector<long>& landmark_ids() const { return ids_; }
   bool has_landmark(long id) const { return index_.count(id) != 0; }
+  /// (x, y[, signature]) of landmark `id`.
   Eigen::VectorXd landmark(long id) const;
+  /// Its landmark_dim() x landmark_dim() covariance (a signature's cross terms are zero).
   Eigen::MatrixXd landmark_covariance(long id) const;
   double existence(long id) const;
   std::shared_ptr<EkfSlamStorage> storage() const { return s_; }
@@ -173,8 +188,8 @@ class EkfSlam {
 
  private:
   struct Provisional {
-    Eigen::VectorXd mean;  // ld
-    Eigen::MatrixXd cov;   // ld x ld
+    Eigen::VectorXd mean;  // landmark_dim(): (x, y[, signature])
+    Eigen::MatrixXd cov;   // landmark_dim() x landmark_dim()
     int seen = 1;
     int age = 0;
   };
@@ -189,6 +204,8 @@ class EkfSlam {
 
   /// First state index of landmark `id`; std::invalid_argument if it is not in the map.
   int index_of(long id) const;
+  /// The landmark at state index `index` as a measurement sees it: (x, y[, signature]).
+  Eigen::VectorXd landmark_at(Eigen::Index index) const;
   friend class MultiHypothesisEkfSlam;  // plans every filter's motion before applying any
   struct Motion {  // Table 10.1 lines 3-5's result: the robot's mean, covariance and cross rows
     Eigen::Vector3d pose;
@@ -233,11 +250,14 @@ class EkfSlam {
   Eigen::Matrix2d m_control_ = Eigen::Matrix2d::Zero();
   bool control_noise_ = false;
   Eigen::MatrixXd Q_;
-  int md_ = 2, ld_ = 2;
+  // md_: measured values per landmark (2, or 3 with the signature); ld_: its dense state rows.
+  int md_ = 2;
+  static constexpr int ld_ = 2;
   std::shared_ptr<EkfSlamStorage> s_;
   int n_ = 3;
   std::vector<long> ids_;
   std::unordered_map<long, int> index_;  // id -> first state index
+  std::vector<double> signature_, signature_var_;  // per landmark, in state order (with signatures)
   std::vector<double> existence_;
   std::vector<Provisional> provisional_;
   long next_id_ = 0;

@@ -3,11 +3,14 @@
 // reference-counted nodes are shared between particles, and the per-particle landmark map built
 // on two of them.
 //
-// Persistence: a tree is a handle on a root node. Nodes never change after construction; an
-// insert, update or erase builds new copies of the O(log N) nodes on the path from the root to
-// the changed key and points them at the untouched subtrees of the old tree. Copying a handle
-// (resampling a particle) copies one pointer. So no change through one handle can ever show
-// through another, whatever nodes they share.
+// Persistence: a tree is a handle on a root node. A shared node never changes; an insert, update
+// or erase builds new copies of the O(log N) nodes on the path from the root to the changed key
+// and points them at the untouched subtrees of the old tree. Copying a handle (resampling a
+// particle) copies one pointer. So no change through one handle can ever show through another,
+// whatever nodes they share. The exception, invisible from outside: an insert changes in place
+// the nodes at the top of its path that this handle alone reaches (a count of one all the way
+// from the root, such as the nodes an earlier insert through it copied), as a copy would have
+// built them: a particle's several landmark updates of a scan copy their shared top once.
 //
 // Threads: nodes are immutable once built and their reference counts are atomic, so handles on
 // different threads may share nodes; one handle must not be changed by two threads at once.
@@ -76,7 +79,7 @@ class PersistentTreap {
   }
 
   /// Inserts key, or replaces its value.
-  void insert_or_assign(const Key& key, const Value& value) { root_ = insert(root_, key, value, KeyHash()(key)); }
+  void insert_or_assign(const Key& key, const Value& value) { insert_owned(root_, key, value, KeyHash()(key)); }
 
   /// Removes key; false (and nothing copied) if it is absent.
   bool erase(const Key& key) {
@@ -128,6 +131,27 @@ class PersistentTreap {
     if (!b) return a;
     if (above(a->priority, a->key, *b)) return make(*a, a->left, merge(a->right, b));
     return make(*b, merge(a, b->left), b->right);
+  }
+
+  // insert() into the subtree at `slot`, changing in place the nodes only this path reaches: a
+  // node whose count is one below a node reached that way has no other owner (counts are only
+  // raised by copying a reference, which needs one). The result is the tree insert() builds.
+  static void insert_owned(Ref& slot, const Key& key, const Value& value, std::uint64_t priority) {
+    if (!slot || slot->refs.load(std::memory_order_acquire) != 1) {
+      slot = insert(slot, key, value, priority);
+      return;
+    }
+    Node& t = const_cast<Node&>(*slot);
+    if (!(key < t.key) && !(t.key < key)) {
+      t.value = value;  // the same key: the same priority
+      return;
+    }
+    if (above(priority, key, t)) {  // the new node goes here: split (copying) as insert() does
+      slot = insert(slot, key, value, priority);
+      return;
+    }
+    insert_owned(key < t.key ? t.left : t.right, key, value, priority);
+    t.size = 1 + size_of(t.left) + size_of(t.right);
   }
 
   // An existing key lies on the search path above every node of lower priority (heap order),
