@@ -444,6 +444,15 @@ int SubmapSlam2D::add_consistent(const std::vector<SubmapConstraint>& found) {
   std::vector<double> own(members.size(), -1.0);
   for (std::size_t a = 0; a < members.size(); ++a) live[a] = static_cast<int>(conflicts[a].size());
   std::vector<bool> dropped(members.size(), false);
+  for (std::size_t a = 0; a < members.size(); ++a) {
+    if (members[a] < first_new) continue;
+    own[a] = chain_chi2(constraints_[members[a]], chain);
+    if (own[a] <= gate) continue;
+    dropped[a] = true;
+    for (std::size_t b : conflicts[a]) --live[b];
+    constraints_[members[a]].active = false;
+    ++counts_.closures_rejected;
+  }
   for (;;) {
     std::size_t worst = members.size();
     for (std::size_t a = 0; a < members.size(); ++a) {
