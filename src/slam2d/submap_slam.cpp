@@ -472,22 +472,6 @@ int SubmapSlam2D::add_consistent(const std::vector<SubmapConstraint>& found) {
       ++counts_.closures_rejected;
     }
   }
-  // A new closure no other closure of another scan agrees with is one match's word alone.
-  for (std::size_t a = 0; a < members.size(); ++a) {
-    if (members[a] < first_new || dropped[a]) continue;
-    bool supported = false;
-    for (std::size_t b = 0; b < members.size() && !supported; ++b) {
-      if (b == a || dropped[b] || constraints_[members[b]].scan == constraints_[members[a]].scan) continue;
-      if (std::find(conflicts[a].begin(), conflicts[a].end(), b) != conflicts[a].end()) continue;
-      const SubmapConstraint &x = constraints_[members[a]], &y = constraints_[members[b]];
-      // only closures whose cycle is short enough to test: the same or neighbouring submaps
-      supported = std::abs(x.from - y.from) <= 1 && std::abs(x.to - y.to) <= 1;
-    }
-    if (supported) continue;
-    dropped[a] = true;
-    constraints_[members[a]].active = false;
-    ++counts_.closures_rejected;
-  }
   // The new closures refused are not kept; an active one outvoted stays, dissolved.
   int kept = 0;
   std::vector<SubmapConstraint> rest(constraints_.begin(), constraints_.begin() + static_cast<std::ptrdiff_t>(first_new));
