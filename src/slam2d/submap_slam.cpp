@@ -99,7 +99,9 @@ Leg leg_of(const SubmapConstraint& c) { return {c.measurement, c.covariance}; }
 
 /// chi2 of the cycle two closures close with the chain: from a's submap to its scan's along a,
 /// on along the chain to b's scan's submap, back along b, and along the chain to the start
-/// (pairwise consistency, Mangelson et al. 2018's PCM; RRR's inter-cluster test).
+/// (pairwise consistency, Mangelson et al. 2018's PCM; RRR's inter-cluster test). Where the two
+/// chain legs share submaps (travelled both ways) their errors cancel, but the legs are composed
+/// as independent: the spread is overstated there, so the test errs towards consistency.
 double pair_chi2(const SubmapConstraint& a, const SubmapConstraint& b, ChainLegs& chain) {
   return cycle_chi2(then(then(then(leg_of(a), chain(a.to, b.to)), inverted(leg_of(b))), chain(b.from, a.from)));
 }
