@@ -42,6 +42,73 @@ double largest_eigenvalue(const Eigen::Matrix2d& m) {
   return Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(0.5 * (m + m.transpose())).eigenvalues()(1);
 }
 
+/// A relative pose (x, y, theta) with its covariance, to first order.
+struct Leg {
+  Eigen::Vector3d pose = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
+};
+
+Leg then(const Leg& a, const Leg& b) {
+  return {pose_of(a.pose).compose(pose_of(b.pose)).vector(), compose_covariance(a.pose, a.cov, b.pose, b.cov)};
+}
+
+Leg inverted(const Leg& a) {
+  const Eigen::Matrix3d J = inverse_jacobian(a.pose);
+  return {pose_of(a.pose).inverse().vector(), J * a.cov * J.transpose()};
+}
+
+/// chi2 of a cycle's composition against the identity; 0 when its covariance is singular (no
+/// evidence against it).
+double cycle_chi2(const Leg& c) {
+  Eigen::Vector3d e = c.pose;
+  e.z() = wrap_angle(e.z());
+  const Eigen::LDLT<Eigen::Matrix3d> ldlt(0.5 * (c.cov + c.cov.transpose()));
+  if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().array() > 0.0).all()) return 0.0;
+  return e.dot(ldlt.solve(e));
+}
+
+/// The consecutive constraints composed between any two submaps: what the odometry and the
+/// frontend alone say of their relative pose, independent of every closure. The legs from a
+/// start are built once, when first asked for.
+class ChainLegs {
+ public:
+  explicit ChainLegs(const std::vector<SubmapConstraint>& constraints) {
+    for (const SubmapConstraint& c : constraints) {
+      if (c.loop) continue;
+      if (static_cast<int>(steps_.size()) <= c.from) steps_.resize(static_cast<std::size_t>(c.from) + 1);
+      steps_[static_cast<std::size_t>(c.from)] = {c.measurement, c.covariance};
+    }
+  }
+  /// Submap b's origin seen from submap a's along the chain.
+  Leg operator()(int a, int b) {
+    if (a > b) return inverted((*this)(b, a));
+    std::vector<Leg>& legs = from_[a];
+    if (legs.empty()) {
+      legs.emplace_back();
+      for (std::size_t k = static_cast<std::size_t>(a); k < steps_.size(); ++k) legs.push_back(then(legs.back(), steps_[k]));
+    }
+    return legs[static_cast<std::size_t>(b - a)];
+  }
+
+ private:
+  std::vector<Leg> steps_;  // k -> k + 1
+  std::unordered_map<int, std::vector<Leg>> from_;
+};
+
+Leg leg_of(const SubmapConstraint& c) { return {c.measurement, c.covariance}; }
+
+/// chi2 of the cycle two closures close with the chain: from a's submap to its scan's along a,
+/// on along the chain to b's scan's submap, back along b, and along the chain to the start
+/// (pairwise consistency, Mangelson et al. 2018's PCM; RRR's inter-cluster test). Where the two
+/// chain legs share submaps (travelled both ways) their errors cancel, but the legs are composed
+/// as independent: the spread is overstated there, so the test errs towards consistency.
+double pair_chi2(const SubmapConstraint& a, const SubmapConstraint& b, ChainLegs& chain) {
+  return cycle_chi2(then(then(then(leg_of(a), chain(a.to, b.to)), inverted(leg_of(b))), chain(b.from, a.from)));
+}
+
+/// chi2 of a closure against the chain between its submaps alone.
+double chain_chi2(const SubmapConstraint& c, ChainLegs& chain) { return cycle_chi2(then(leg_of(c), chain(c.to, c.from))); }
+
 }  // namespace
 
 /// The likelihood fields (with their pyramids) of finished submaps, built on first use and
@@ -305,7 +372,9 @@ void SubmapSlam2D::link_finished_submap(int j) {
   constraints_.push_back(c);
   nodes_.push_back(pose_of(nodes_[j]).compose(pose_of(z)).vector());
   keep_closure_cells(j);
-  if (options_.closures.enabled && search_closures(j) > 0) optimize_and_dissolve();
+  const int dissolved = counts_.closures_dissolved;  // an active closure outvoted: the graph changed too
+  if (options_.closures.enabled && (search_closures(j) > 0 || counts_.closures_dissolved != dissolved))
+    optimize_and_dissolve();
 }
 
 void SubmapSlam2D::keep_closure_cells(int j) {
@@ -343,12 +412,75 @@ int SubmapSlam2D::search_closures(int j) {
       const int s = candidates[static_cast<std::size_t>((q + 0.5) * candidates.size() / n)];
       if (auto c = try_closure(s, i, marginals)) found[static_cast<std::size_t>(q)].push_back(*c);
     }
-  int added = 0;
-  for (const std::vector<SubmapConstraint>& f : found) {
-    constraints_.insert(constraints_.end(), f.begin(), f.end());
-    added += static_cast<int>(f.size());
+  std::vector<SubmapConstraint> all;
+  for (const std::vector<SubmapConstraint>& f : found) all.insert(all.end(), f.begin(), f.end());
+  return add_consistent(all);
+}
+
+int SubmapSlam2D::add_consistent(const std::vector<SubmapConstraint>& found) {
+  if (found.empty()) return 0;
+  // Each closure passed the graph's gate alone; two look-alike places can each pass it and
+  // still contradict each other by metres (two closures of one submap pair that cannot both
+  // hold). Every pair of closures, the new against the active and each other, must close its
+  // cycle over the consecutive chain within dissolve_chi2 (the same 99.9% quantile of chi2(3)
+  // the optimised graph dissolves at); where pairs conflict, the closure in most conflicts goes
+  // first (a greedy largest consistent set, as PCM's heuristic clique), on a tie the one the
+  // chain between its own submaps agrees with least.
+  const double gate = options_.closures.dissolve_chi2;
+  const std::size_t first_new = constraints_.size();
+  constraints_.insert(constraints_.end(), found.begin(), found.end());
+  std::vector<std::size_t> members;  // the active closures, then the new ones
+  for (std::size_t k = 0; k < constraints_.size(); ++k)
+    if (constraints_[k].loop && constraints_[k].active) members.push_back(k);
+  ChainLegs chain(constraints_);
+  std::vector<std::vector<std::size_t>> conflicts(members.size());
+  for (std::size_t a = 0; a < members.size(); ++a) {
+    if (members[a] < first_new) continue;  // the active ones agree with each other already
+    for (std::size_t b = 0; b < a; ++b)
+      if (pair_chi2(constraints_[members[a]], constraints_[members[b]], chain) > gate) {
+        conflicts[a].push_back(b);
+        conflicts[b].push_back(a);
+      }
   }
-  return added;
+  std::vector<int> live(members.size());
+  std::vector<double> own(members.size(), -1.0);
+  for (std::size_t a = 0; a < members.size(); ++a) live[a] = static_cast<int>(conflicts[a].size());
+  std::vector<bool> dropped(members.size(), false);
+  for (std::size_t a = 0; a < members.size(); ++a) {
+    if (members[a] < first_new) continue;
+    own[a] = chain_chi2(constraints_[members[a]], chain);
+    if (own[a] <= gate) continue;
+    dropped[a] = true;
+    for (std::size_t b : conflicts[a]) --live[b];
+    constraints_[members[a]].active = false;
+    ++counts_.closures_rejected;
+  }
+  for (;;) {
+    std::size_t worst = members.size();
+    for (std::size_t a = 0; a < members.size(); ++a) {
+      if (dropped[a] || live[a] == 0) continue;
+      if (own[a] < 0.0) own[a] = chain_chi2(constraints_[members[a]], chain);
+      if (worst == members.size() || live[a] > live[worst] || (live[a] == live[worst] && own[a] > own[worst]))
+        worst = a;
+    }
+    if (worst == members.size()) break;
+    dropped[worst] = true;
+    for (std::size_t b : conflicts[worst])
+      if (!dropped[b]) --live[b];
+    constraints_[members[worst]].active = false;
+    if (members[worst] < first_new) {
+      ++counts_.closures_dissolved;
+    } else {
+      ++counts_.closures_rejected;
+    }
+  }
+  // The new closures refused are not kept; an active one outvoted stays, dissolved.
+  int kept = 0;
+  std::vector<SubmapConstraint> rest(constraints_.begin(), constraints_.begin() + static_cast<std::ptrdiff_t>(first_new));
+  for (std::size_t k = first_new; k < constraints_.size(); ++k)
+    if (constraints_[k].active) rest.push_back(constraints_[k]), ++kept;
+  constraints_ = std::move(rest);
+  return kept;
 }
 
 std::optional<SubmapConstraint> SubmapSlam2D::try_closure(int s, int i, const std::vector<Eigen::Matrix3d>& marginals) {

@@ -226,6 +226,10 @@ class SubmapSlam2D {
   bool agrees_with_graph(const MatchResult& r, const Eigen::Vector3d& predicted, const Pose2& Ti,
                          const Eigen::Vector3d& W, const Eigen::Matrix3d& SW, int i, const Eigen::Matrix3d& Si) const;
   void optimize_and_dissolve();
+  /// Adds the closures found (consecutive order) where they agree with each other and with the
+  /// active closures (pairwise over the consecutive chain, resolve_conflicts); returns how many
+  /// of them stay. An active closure outvoted by the new ones is dissolved.
+  int add_consistent(const std::vector<SubmapConstraint>& found);
   CorrelativeScanMatcher build_matcher(int submap, int levels);
   /// Where the loop-closure field of a finished submap lies: its hits, widened by the field's
   /// reach (and the saved map's occupied extent for a run started from one).
