@@ -286,10 +286,12 @@ def refined_result(refinement: RunRefinement, run: LandmarkSlamResult) -> Landma
     detection's refined label in ``associations``; ``filter`` stays the run's, ``seconds`` adds
     the refinement's."""
     times, poses = np.asarray(run.times, float), np.asarray(run.poses, float)
-    nodes = np.searchsorted(times, refinement.input.times)
-    if len(nodes) != len(refinement.result.poses) or np.any(times[np.minimum(nodes, len(times) - 1)] !=
-                                                            refinement.input.times):
-        raise ValueError("refinement: was not made from run")
+    require_fields(refinement, ("input", "result"), "refinement", "a RunRefinement")
+    require_fields(run, ("times", "poses", "landmarks", "associations"), "run", "a LandmarkSlamResult")
+    nodes = np.minimum(np.searchsorted(times, refinement.input.times), len(times) - 1)
+    if run.associations is None or len(run.associations) != len(refinement.input.labels) or \
+            np.any(times[nodes] != refinement.input.times) or np.any(poses[nodes] != refinement.input.poses):
+        raise ValueError("refinement: was not made from run (its scan poses or detections are not the run's)")
     node = np.searchsorted(nodes, np.arange(len(times)), side="right") - 1
     filled = compose_poses(refinement.result.poses[node], relative_poses(poses[nodes[node]], poses))
     record = Associations(refinement.input.times[refinement.input.pose_index], refinement.input.truth,
