@@ -590,10 +590,6 @@ def _split_moves(g: _Graph, problem: _Problem, tests: _SightingTests, gate: floa
     factor_a, factor_b = np.zeros((offset, 2 * len(suspects))), np.zeros((offset, 2 * len(suspects)))
     used = 0
 
-    def block(c: np.ndarray) -> np.ndarray:
-        """(n, 5, 5) the current posterior's blocks of column sets c (n, 5)."""
-        return sigma[c[:, :, None], c[:, None, :]] + np.einsum("nik,njk->nij", factor_b[c, :used], factor_a[c, :used])
-
     landmark_start = np.array([start[g.point_id(c)] for c in g.labels], dtype=np.int64)
 
     def columns(pose: np.ndarray, landmark: np.ndarray) -> np.ndarray:
@@ -609,12 +605,14 @@ def _split_moves(g: _Graph, problem: _Problem, tests: _SightingTests, gate: floa
     scale = np.linalg.eigvalsh(q_all)[:, -1]
     remaining = np.ones(len(suspects), bool)
     left = []
+    # Each suspect's (pose, landmark) block of the posterior, the leavers' terms added as they leave.
+    suspect_blocks = sigma[cols[:, :, None], cols[:, None, :]]
     while remaining.any():
         # Every remaining suspect's leave-one-out statistic under the posterior without the leavers.
         r = np.flatnonzero(remaining)
         h, c = h_all[r], cols[r]
         v = e_all[r] + np.einsum("nij,nj->ni", h, delta[c])
-        m = q_all[r] - h @ block(c) @ h.transpose(0, 2, 1)
+        m = q_all[r] - h @ suspect_blocks[r] @ h.transpose(0, 2, 1)
         m = 0.5 * (m + m.transpose(0, 2, 1))
         testable = np.linalg.eigvalsh(m)[:, 0] > LEAVE_ONE_OUT_RANK_TOLERANCE * scale[r]
         remaining[r[~testable]] = False  # its landmark now rests on it alone: not testable
@@ -632,12 +630,29 @@ def _split_moves(g: _Graph, problem: _Problem, tests: _SightingTests, gate: floa
         left.append((int(suspects[best]), float(x[worst])))
         delta += a @ (w @ v[worst])
         factor_a[:, used:used + 2], factor_b[:, used:used + 2] = a, a @ w
+        suspect_blocks += factor_b[cols, used:used + 2] @ factor_a[cols, used:used + 2].transpose(0, 2, 1)
         used += 2
     by_pose = np.argsort(problem.pose_index, kind="stable")
     bounds = np.searchsorted(problem.pose_index[by_pose], np.arange(len(problem.poses) + 1))
     labels = problem.labels.copy()
     moves = []
     slots = np.arange(len(g.labels))
+    # The final posterior's blocks the moves read: (the leaver's pose, each landmark).
+    landmark_rows = landmark_start[:, None] + np.arange(2)
+    landmark_terms = factor_b[landmark_rows, :used] @ factor_a[landmark_rows, :used].transpose(0, 2, 1)
+
+    def pose_landmark_blocks(pose: int, free: np.ndarray) -> np.ndarray:
+        """(n, 5, 5) the posterior without the leavers over (pose, landmark slot) for slots ``free``."""
+        p, rows = start[pose] + np.arange(3), landmark_rows[free].ravel()
+        k = np.column_stack([np.broadcast_to(p, (len(free), 3)), landmark_rows[free]])
+        out = sigma[k[:, :, None], k[:, None, :]]
+        out[:, :3, :3] += factor_b[p, :used] @ factor_a[p, :used].T
+        out[:, :3, 3:] += (factor_b[p, :used] @ factor_a[rows, :used].T).reshape(3, -1, 2).transpose(1, 0, 2)
+        out[:, 3:, :3] += (factor_b[rows, :used] @ factor_a[p, :used].T).reshape(-1, 2, 3)
+        out[:, 3:, 3:] += landmark_terms[free]
+        return out
+
+    all_marks = np.array([problem.landmarks[int(c)] for c in g.labels])
     for i, stat in left:
         t = int(problem.pose_index[i])
         scan = by_pose[bounds[t]:bounds[t + 1]]
@@ -646,13 +661,12 @@ def _split_moves(g: _Graph, problem: _Problem, tests: _SightingTests, gate: floa
         free = slots[~np.isin(g.labels, np.array(sorted(excluded), dtype=np.int64))]
         options = []
         if len(free):
-            marks = np.array([problem.landmarks[int(c)] for c in g.labels[free]])
-            e, j_pose, j_point = point_residuals(np.repeat(problem.poses[t][None], len(free), 0), marks,
+            e, j_pose, j_point = point_residuals(np.repeat(problem.poses[t][None], len(free), 0), all_marks[free],
                                                  np.repeat(problem.z[i][None], len(free), 0))
             h = np.concatenate([j_pose, j_point], axis=2)
             k = columns(np.full(len(free), t), free)
             v = e + np.einsum("nij,nj->ni", h, delta[k])
-            cov = problem.z_covariance[i][None] + h @ block(k) @ h.transpose(0, 2, 1)
+            cov = problem.z_covariance[i][None] + h @ pose_landmark_blocks(t, free) @ h.transpose(0, 2, 1)
             x = np.einsum("ni,ni->n", v, np.linalg.solve(cov, v[:, :, None])[:, :, 0])
             within = np.flatnonzero(x <= gate)
             options = [(float(y), float(d), int(c)) for y, d, c in
