@@ -54,7 +54,10 @@ def refine_columns(pool, data, run):
         return None
     if run.associations is None:
         return _done((" - | - | - |", None))
-    return pool.submit(refined_scores, data, dataclasses.replace(run, filter=None))
+    future = pool.submit(refined_scores, data, dataclasses.replace(run, filter=None))
+    label = f"{run.method} {getattr(run.filter, 'version', '')}".strip()
+    future.add_done_callback(lambda f: print(f"refined ({label}):{f.result()[0]}", flush=True))
+    return future
 
 
 def _done(value):
