@@ -138,7 +138,8 @@ def main() -> None:
              f"Commit: {commit()}.", ""]
     lines += rows + [""] + summary + ["", "Command: `OPENBLAS_NUM_THREADS=1 python benchmarks/bench_victoria_park_acfr.py "
                                           f"{'--provisional ' if args.provisional else ''}"
-                                          f"{'--refine ' if args.refine else ''}--record`."]
+                                          f"{'--refine ' if args.refine else ''}"
+                                          f"{'' if args.seeds == 10 else f'--seeds {args.seeds} '}--record`."]
     report(lines, args.record)
     if args.save:
         np.savez_compressed(args.save, **saved)
