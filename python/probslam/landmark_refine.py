@@ -1259,6 +1259,6 @@ def refine_run(run, data, motion_noise=None, measurement_noise=None, *, command_
 
 __all__ = ["LEAVE_ONE_OUT_RANK_TOLERANCE", "MAX_ITERATIONS", "MERGE_PROBABILITY", "ODOMETRY_COVARIANCE_FLOOR",
            "SPLIT_RUN_PROBABILITY", "UNASSIGNED", "LandmarkRefinement", "Merge", "RefinementInput", "RefinementRound",
-           "RunRefinement", "Split", "compose_increments", "compose_poses", "floor_covariances", "majority_truth", "merge_gate", "point_residuals",
-           "polar_to_point", "refine_landmarks", "refine_run", "refinement_input", "sighting_accuracy", "split_gate",
-           "velocity_increments"]
+           "RunRefinement", "Split", "compose_increments", "compose_poses", "floor_covariances", "majority_truth",
+           "merge_gate", "point_residuals", "polar_to_point", "refine_landmarks", "refine_run", "refinement_input",
+           "sighting_accuracy", "split_gate", "velocity_increments"]
