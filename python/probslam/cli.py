@@ -801,9 +801,9 @@ def _acfr_command(args: argparse.Namespace, path: pathlib.Path, method: str, t0:
     """ekf-slam / fastslam on the original Victoria Park run (a folder of inputs.dat,
     measurements.dat, gps.dat): unknown correspondences (the detections have none), the car's
     model and the sensors' noise (``datasets.victoria_park_acfr_run``); prints the RMS against
-    the GPS, writes the trajectory and draws the path over the GPS fixes with the map."""
-    if args.refine != "none":
-        raise UserError("--refine graphslam does not run on the original Victoria Park run yet")
+    the GPS, writes the trajectory and draws the path over the GPS fixes with the map. --refine
+    graphslam: GraphSLAM's correspondence test over the run (``victoria_park_acfr_run.refine``),
+    the RMS before and after printed, the refined path written and drawn beside the filter's."""
     association = getattr(args, "association", None) or "jcbb"  # ekf-slam's option; the run's EKF: JCBB
     if association not in ("jcbb", "ml"):
         raise UserError("--association on the original Victoria Park run: jcbb or ml (the EKF's)")
@@ -821,28 +821,59 @@ def _acfr_command(args: argparse.Namespace, path: pathlib.Path, method: str, t0:
           f"detections on {len(data.scan_times)} scans, {0 if data.gps is None else len(data.gps)} GPS fixes")
     print(f"filter:        {title}; {run.seconds:.2f} s filter time, {cpu:.2f} s CPU")
     print(f"landmarks:     {len(run.landmarks)} in the map")
-    error = None
-    if data.gps is not None:
-        error = evaluation.position_error(run.times, run.poses, data.gps[:, 0], data.gps[:, 1:])
-        print(f"GPS:           RMS {error.rmse:.2f} m as it is, {error.rmse_aligned:.2f} m after SE(2) alignment "
-              f"({error.count} fixes)")
+    error = _acfr_gps_error(data, run, "GPS:")
+    filtered = run
+    if args.refine == "graphslam":
+        run, error = _acfr_refined(data, run)
 
     def draw(ax):
         import numpy as np
 
         if data.gps is not None:
             ax.plot(data.gps[:, 1], data.gps[:, 2], ".", ms=2, color="tab:blue", label="GPS")
-        ax.plot(run.poses[:, 0], run.poses[:, 1], "-", lw=1.0, color="tab:orange", label=title.split(",")[0])
+        name = title.split(",")[0]
+        if run is not filtered:
+            ax.plot(filtered.poses[:, 0], filtered.poses[:, 1], "-", lw=0.8, color="0.6", label=name)
+            name = "GraphSLAM refinement"
+        ax.plot(run.poses[:, 0], run.poses[:, 1], "-", lw=1.0, color="tab:orange", label=name)
         if run.landmarks:
             lm = np.array(list(run.landmarks.values()))
             ax.plot(lm[:, 0], lm[:, 1], "+", ms=4, color="k", label=f"{len(lm)} landmarks")
         ax.set_aspect("equal")
         ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize="small")
         rms = "" if error is None else f"; RMS vs GPS {error.rmse_aligned:.2f} m (aligned)"
+        refined = ", GraphSLAM refinement (ch. 11.6)" if run is not filtered else ""
         ax.set_title(f"probslam {'ekf-slam' if method == 'ekf' else 'fastslam'}: Victoria Park (ACFR run)\n"
-                     f"{title}{rms}", fontsize="medium")
+                     f"{title}{refined}{rms}", fontsize="medium")
 
     return _landmark_outputs(args, run, draw, t0)
+
+
+def _acfr_gps_error(data, run, label: str):
+    """The run's position error against the GPS (None without gps.dat), printed after ``label``."""
+    if data.gps is None:
+        return None
+    error = evaluation.position_error(run.times, run.poses, data.gps[:, 0], data.gps[:, 1:])
+    print(f"{label:<15}RMS {error.rmse:.2f} m as it is, {error.rmse_aligned:.2f} m after SE(2) alignment "
+          f"({error.count} fixes)")
+    return error
+
+
+def _acfr_refined(data, run):
+    """--refine graphslam on the original Victoria Park run: (the refined run at the run's times,
+    its error against the GPS), the refinement's summary and the RMS after it printed."""
+    from .datasets import victoria_park_acfr_run
+
+    cpu = time.process_time()
+    refinement = victoria_park_acfr_run.refine(run, data)
+    r = refinement.result
+    cpu = time.process_time() - cpu
+    print(f"refinement:    GraphSLAM correspondence test (ch. 11.6) on {len(r.poses)} scan poses: "
+          f"{len(r.landmarks)} landmarks, {len(r.merges)} merges, {len(r.splits)} detections moved, "
+          f"{int((r.labels < 0).sum())} unassigned, {r.iterations} rounds, {cpu:.2f} s CPU"
+          f"{'' if r.converged else ' (stopped at the round limit)'}; the path and picture below are the refined ones")
+    refined = victoria_park_acfr_run.refined_result(refinement, run)
+    return refined, _acfr_gps_error(data, refined, "GPS refined:")
 
 
 def _dataset_name(args: argparse.Namespace, path: pathlib.Path, data) -> str:
@@ -1413,8 +1444,9 @@ def _landmark_dataset_options(parser: argparse.ArgumentParser, output: str) -> N
     _trajectory_format_option(parser, "times in seconds (MRCLAM) or the pose's index (Victoria Park, whose file has "
                                       "no times)")
     parser.add_argument("--refine", choices=("none", "graphslam"), default="none",
-                        help="with --unknown: after the filter, GraphSLAM over all sightings with the correspondence "
-                             "test of ch. 11.6 (merge, split, re-associate until stable; docs/landmark_refine.md)")
+                        help="with --unknown (always, on the original Victoria Park run): after the filter, GraphSLAM "
+                             "over all sightings with the correspondence test of ch. 11.6 (merge, split, re-associate "
+                             "until stable; docs/landmark_refine.md)")
     _no_progress_option(parser)
     _no_plot_option(parser)
 

@@ -585,58 +585,92 @@ def _split_moves(g: _Graph, problem: _Problem, tests: _SightingTests, gate: floa
         offset += 3 if v < g.num_poses else 2
     sigma = np.array(joint_marginal_covariances(g.graph, [ids])[0])
     delta = np.zeros(offset)
+    # The posterior without the leavers is sigma + B A^T, one rank-2 term (a W, a) per leaver:
+    # kept as factors, so each leaver costs O(n * leavers) for the blocks read, not O(n^2).
+    factor_a, factor_b = np.zeros((offset, 2 * len(suspects))), np.zeros((offset, 2 * len(suspects)))
+    used = 0
 
-    def columns(pose: int, label: int) -> np.ndarray:
-        p, m = start[pose], start[g.point_id(label)]
-        return np.r_[p:p + 3, m:m + 2]
+    landmark_start = np.array([start[g.point_id(c)] for c in g.labels], dtype=np.int64)
 
-    at = {i: int(np.searchsorted(tests.rows, i)) for i in suspects}
-    cols = {i: columns(int(problem.pose_index[i]), int(problem.labels[i])) for i in suspects}
-    remaining, left = list(suspects), []
-    while remaining:
-        best, best_stat, best_v, best_m = -1, gate, None, None
-        for i in list(remaining):
-            h, c = tests.h[at[i]], cols[i]
-            v = tests.e[at[i]] + h @ delta[c]
-            m = problem.z_covariance[i] - h @ sigma[np.ix_(c, c)] @ h.T
-            m = 0.5 * (m + m.T)
-            scale = np.linalg.eigvalsh(problem.z_covariance[i])[-1]
-            if np.linalg.eigvalsh(m)[0] <= LEAVE_ONE_OUT_RANK_TOLERANCE * scale:
-                remaining.remove(i)  # its landmark now rests on it alone: not testable
-                continue
-            x = float(v @ np.linalg.solve(m, v))
-            if x > best_stat:
-                best, best_stat, best_v, best_m = i, x, v, m
-        if best < 0:
+    def columns(pose: np.ndarray, landmark: np.ndarray) -> np.ndarray:
+        """(n, 5) the dense posterior's columns of (pose, landmark) pairs (pose ids, label slots)."""
+        p = np.array([start[int(x)] for x in pose], dtype=np.int64)
+        return np.column_stack([p, p + 1, p + 2, landmark_start[landmark], landmark_start[landmark] + 1])
+
+    suspects = np.array(suspects, dtype=np.int64)
+    at = np.searchsorted(tests.rows, suspects)
+    cols = columns(problem.pose_index[suspects], np.searchsorted(g.labels, problem.labels[suspects]))
+    h_all, e_all = tests.h[at], tests.e[at]
+    q_all = problem.z_covariance[suspects]
+    scale = np.linalg.eigvalsh(q_all)[:, -1]
+    remaining = np.ones(len(suspects), bool)
+    left = []
+    # Each suspect's (pose, landmark) block of the posterior, the leavers' terms added as they leave.
+    suspect_blocks = sigma[cols[:, :, None], cols[:, None, :]]
+    while remaining.any():
+        # Every remaining suspect's leave-one-out statistic under the posterior without the leavers.
+        r = np.flatnonzero(remaining)
+        h, c = h_all[r], cols[r]
+        v = e_all[r] + np.einsum("nij,nj->ni", h, delta[c])
+        m = q_all[r] - h @ suspect_blocks[r] @ h.transpose(0, 2, 1)
+        m = 0.5 * (m + m.transpose(0, 2, 1))
+        testable = np.linalg.eigvalsh(m)[:, 0] > LEAVE_ONE_OUT_RANK_TOLERANCE * scale[r]
+        remaining[r[~testable]] = False  # its landmark now rests on it alone: not testable
+        r, v, m = r[testable], v[testable], m[testable]
+        if len(r) == 0:
             break
-        a = sigma[:, cols[best]] @ tests.h[at[best]].T
-        w = np.linalg.inv(best_m)
-        step = a @ (w @ best_v)
-        remaining.remove(best)
-        left.append((best, best_stat))
-        delta += step
-        sigma += a @ w @ a.T
-    scan_of = collections.defaultdict(list)
-    for i in range(len(problem.labels)):
-        scan_of[int(problem.pose_index[i])].append(i)
+        x = np.einsum("ni,ni->n", v, np.linalg.solve(m, v[:, :, None])[:, :, 0])
+        worst = int(np.argmax(x))
+        if not x[worst] > gate:
+            break
+        best = int(r[worst])
+        a = (sigma[:, cols[best]] + factor_b[:, :used] @ factor_a[cols[best], :used].T) @ h_all[best].T
+        w = np.linalg.inv(m[worst])
+        remaining[best] = False
+        left.append((int(suspects[best]), float(x[worst])))
+        delta += a @ (w @ v[worst])
+        factor_a[:, used:used + 2], factor_b[:, used:used + 2] = a, a @ w
+        suspect_blocks += factor_b[cols, used:used + 2] @ factor_a[cols, used:used + 2].transpose(0, 2, 1)
+        used += 2
+    by_pose = np.argsort(problem.pose_index, kind="stable")
+    bounds = np.searchsorted(problem.pose_index[by_pose], np.arange(len(problem.poses) + 1))
     labels = problem.labels.copy()
     moves = []
+    slots = np.arange(len(g.labels))
+    # The final posterior's blocks the moves read: (the leaver's pose, each landmark).
+    landmark_rows = landmark_start[:, None] + np.arange(2)
+    landmark_terms = factor_b[landmark_rows, :used] @ factor_a[landmark_rows, :used].transpose(0, 2, 1)
+
+    def pose_landmark_blocks(pose: int, free: np.ndarray) -> np.ndarray:
+        """(n, 5, 5) the posterior without the leavers over (pose, landmark slot) for slots ``free``."""
+        p, rows = start[pose] + np.arange(3), landmark_rows[free].ravel()
+        k = np.column_stack([np.broadcast_to(p, (len(free), 3)), landmark_rows[free]])
+        out = sigma[k[:, :, None], k[:, None, :]]
+        out[:, :3, :3] += factor_b[p, :used] @ factor_a[p, :used].T
+        out[:, :3, 3:] += (factor_b[p, :used] @ factor_a[rows, :used].T).reshape(3, -1, 2).transpose(1, 0, 2)
+        out[:, 3:, :3] += (factor_b[rows, :used] @ factor_a[p, :used].T).reshape(-1, 2, 3)
+        out[:, 3:, 3:] += landmark_terms[free]
+        return out
+
+    all_marks = np.array([problem.landmarks[int(c)] for c in g.labels])
     for i, stat in left:
         t = int(problem.pose_index[i])
-        held = {int(labels[j]) for j in scan_of[t] if j != i}
+        scan = by_pose[bounds[t]:bounds[t + 1]]
+        held = set(labels[scan[scan != i]].tolist())
+        excluded = held | problem.left[i] | {int(problem.labels[i])}
+        free = slots[~np.isin(g.labels, np.array(sorted(excluded), dtype=np.int64))]
         options = []
-        for c in g.labels:
-            c = int(c)
-            if c == int(problem.labels[i]) or c in held or c in problem.left[i]:
-                continue
-            e, j_pose, j_point = point_residuals(problem.poses[t][None], problem.landmarks[c][None], problem.z[i][None])
-            h = np.concatenate([j_pose[0], j_point[0]], axis=1)
-            k = columns(t, c)
-            v = e[0] + h @ delta[k]
-            cov = problem.z_covariance[i] + h @ sigma[np.ix_(k, k)] @ h.T
-            x = float(v @ np.linalg.solve(cov, v))
-            if x <= gate:
-                options.append((x + np.linalg.slogdet(cov)[1], x, c))
+        if len(free):
+            e, j_pose, j_point = point_residuals(np.repeat(problem.poses[t][None], len(free), 0), all_marks[free],
+                                                 np.repeat(problem.z[i][None], len(free), 0))
+            h = np.concatenate([j_pose, j_point], axis=2)
+            k = columns(np.full(len(free), t), free)
+            v = e + np.einsum("nij,nj->ni", h, delta[k])
+            cov = problem.z_covariance[i][None] + h @ pose_landmark_blocks(t, free) @ h.transpose(0, 2, 1)
+            x = np.einsum("ni,ni->n", v, np.linalg.solve(cov, v[:, :, None])[:, :, 0])
+            within = np.flatnonzero(x <= gate)
+            options = [(float(y), float(d), int(c)) for y, d, c in
+                       zip(x[within] + np.linalg.slogdet(cov[within])[1], x[within], g.labels[free][within])]
         old = int(labels[i])
         if options:
             _, new_d2, new = min(options)
@@ -892,10 +926,10 @@ def refine_landmarks(poses, odometry, odometry_covariances, pose_index, measurem
     for name, flag in (("estimate_noise", estimate_noise), ("new_landmarks", new_landmarks)):
         if not isinstance(flag, (bool, np.bool_)):
             raise TypeError(f"{name} must be a bool, got {type(flag).__name__}")
-    for a in np.unique(index):
-        scan = labels[(index == a) & (labels != UNASSIGNED)]
-        if len(np.unique(scan)) != len(scan):
-            raise ValueError(f"labels: two sightings of pose {a} (one scan) name the same landmark")
+    order = np.lexsort((labels, index))
+    twice = (np.diff(index[order]) == 0) & (np.diff(labels[order]) == 0) & (labels[order][1:] != UNASSIGNED)
+    if twice.any():
+        raise ValueError(f"labels: two sightings of pose {index[order][1:][twice][0]} (one scan) name the same landmark")
     problem = _Problem(poses.copy(), odometry, odo_cov, index, z_polar, np.array(q), labels.copy())
     labelled = np.flatnonzero(labels != UNASSIGNED)
     points = _placed(problem, labelled)
@@ -1010,41 +1044,48 @@ def velocity_increments(v: np.ndarray, w: np.ndarray, dt: np.ndarray, control_no
 
 def compose_increments(deltas: np.ndarray, covariances: np.ndarray, nodes: np.ndarray):
     """Relative motions between chain nodes: ``deltas`` (n, 3) move node i to node i + 1 in node
-    i's frame, with ``covariances`` (n, 3, 3), independent. For consecutive entries a < b of
+    i's frame, with ``covariances`` (n, 3, 3), independent. For consecutive entries a <= b of
     ``nodes`` (m,), returns node b in node a's frame (m - 1, 3) and its covariance (m - 1, 3, 3)
     (first order: each increment's Jacobian rotates it into a's frame and, for its heading,
-    swings the rest of the segment about its end point)."""
+    swings the rest of the segment about its end point; a segment a == b is no motion, zero
+    covariance). Vectorised over all increments at once: the chain is laid out in node 0's
+    frame, each increment's share of its segment's covariance summed per segment."""
     deltas = np.asarray(deltas, float)
+    covariances = np.asarray(covariances, float)
+    nodes = np.asarray(nodes, np.int64)
     heading = np.concatenate([[0.0], np.cumsum(deltas[:, 2])])  # unwrapped, node 0's frame
     c, s = np.cos(heading[:-1]), np.sin(heading[:-1])
     step = np.column_stack([c * deltas[:, 0] - s * deltas[:, 1], s * deltas[:, 0] + c * deltas[:, 1]])
     position = np.vstack([np.zeros(2), np.cumsum(step, axis=0)])
-    rel = np.empty((len(nodes) - 1, 3))
-    cov = np.empty((len(nodes) - 1, 3, 3))
-    for k, (a, b) in enumerate(zip(nodes[:-1], nodes[1:])):
-        ra = np.array([[np.cos(heading[a]), -np.sin(heading[a])], [np.sin(heading[a]), np.cos(heading[a])]])
-        rel[k, :2] = ra.T @ (position[b] - position[a])
-        rel[k, 2] = np.arctan2(np.sin(heading[b] - heading[a]), np.cos(heading[b] - heading[a]))
-        i = np.arange(a, b)
+    a, b = nodes[:-1], nodes[1:]
+    frame = np.zeros((len(a), 3, 3))  # blockdiag(R(heading_a), 1): a's frame in node 0's
+    frame[:, :2, :2] = np.transpose(_rotation_t(heading[a]), (0, 2, 1))
+    frame[:, 2, 2] = 1.0
+    rel = np.empty((len(a), 3))
+    rel[:, :2] = np.einsum("nji,nj->ni", frame[:, :2, :2], position[b] - position[a])
+    rel[:, 2] = np.arctan2(np.sin(heading[b] - heading[a]), np.cos(heading[b] - heading[a]))
+    world = np.zeros((len(a), 3, 3))
+    moving = np.flatnonzero(b > a)
+    if len(moving):
+        i = np.arange(a[moving[0]], b[moving[-1]])
+        segment = np.searchsorted(b, i, side="right")  # a[segment] <= i < b[segment]
         g = np.zeros((len(i), 3, 3))
         g[:, 0, 0], g[:, 0, 1], g[:, 1, 0], g[:, 1, 1] = c[i], -s[i], s[i], c[i]
-        arm = position[b] - position[i + 1]  # the heading of increment i swings the rest about its end
+        arm = position[b[segment]] - position[i + 1]  # the heading of increment i swings the rest about its end
         g[:, 0, 2], g[:, 1, 2], g[:, 2, 2] = -arm[:, 1], arm[:, 0], 1.0
-        world = np.einsum("nij,njk,nlk->il", g, covariances[i], g)
-        frame = np.eye(3)
-        frame[:2, :2] = ra
-        cov[k] = frame.T @ world @ frame
+        world[moving] = np.add.reduceat(g @ covariances[i] @ g.transpose(0, 2, 1), a[moving] - i[0], axis=0)
+    cov = frame.transpose(0, 2, 1) @ world @ frame
     return rel, 0.5 * (cov + cov.transpose(0, 2, 1))
 
 
-def _floored(covariances: np.ndarray) -> np.ndarray:
+def floor_covariances(covariances: np.ndarray) -> np.ndarray:
     """Covariances with eigenvalues raised to ODOMETRY_COVARIANCE_FLOOR of their largest."""
     values, vectors = np.linalg.eigh(covariances)
     values = np.maximum(values, ODOMETRY_COVARIANCE_FLOOR * values[:, -1:])
     return np.einsum("nij,nj,nkj->nik", vectors, values, vectors)
 
 
-def _compose_pose(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+def compose_poses(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     """a (+) b for poses (n, 3): b expressed in a's frame."""
     c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
     out = np.column_stack([a[:, 0] + c * b[:, 0] - s * b[:, 1], a[:, 1] + s * b[:, 0] + c * b[:, 1], a[:, 2] + b[:, 2]])
@@ -1102,7 +1143,7 @@ def _start_pose(times: np.ndarray, poses: np.ndarray, chain_times: np.ndarray, c
     k = np.searchsorted(times, chain_times + 1e-9, side="right") - 1
     k = np.clip(k, 0, len(times) - 1)
     node = np.clip(np.searchsorted(chain_times, times[k] + 1e-9, side="right") - 1, 0, len(chain_times) - 1)
-    return _compose_pose(poses[k], relative_poses(chain[node], chain))
+    return compose_poses(poses[k], relative_poses(chain[node], chain))
 
 
 def _mrclam_input(run, data, motion_noise, measurement_noise, command_period: float) -> RefinementInput:
@@ -1136,7 +1177,7 @@ def _mrclam_input(run, data, motion_noise, measurement_noise, command_period: fl
     times, recorded = np.asarray(run.times, float), np.asarray(run.poses, float)
     poses = _start_pose(times, recorded, events, chain)[nodes]
     scan_of_row = np.repeat(np.arange(1, len(scan_rows) + 1), [r.stop - r.start for r in scan_rows])
-    return RefinementInput(np.concatenate([[odo[0, 0]], scan_times]), poses, odometry, _floored(odometry_cov),
+    return RefinementInput(np.concatenate([[odo[0, 0]], scan_times]), poses, odometry, floor_covariances(odometry_cov),
                            scan_of_row.astype(np.int64), meas[rows, 2:4], labels, measurement_noise,
                            {int(k): np.asarray(v, float) for k, v in run.landmarks.items()}, rows, truth)
 
@@ -1218,6 +1259,6 @@ def refine_run(run, data, motion_noise=None, measurement_noise=None, *, command_
 
 __all__ = ["LEAVE_ONE_OUT_RANK_TOLERANCE", "MAX_ITERATIONS", "MERGE_PROBABILITY", "ODOMETRY_COVARIANCE_FLOOR",
            "SPLIT_RUN_PROBABILITY", "UNASSIGNED", "LandmarkRefinement", "Merge", "RefinementInput", "RefinementRound",
-           "RunRefinement", "Split", "compose_increments", "majority_truth", "merge_gate", "point_residuals",
-           "polar_to_point", "refine_landmarks", "refine_run", "refinement_input", "sighting_accuracy", "split_gate",
-           "velocity_increments"]
+           "RunRefinement", "Split", "compose_increments", "compose_poses", "floor_covariances", "majority_truth",
+           "merge_gate", "point_residuals", "polar_to_point", "refine_landmarks", "refine_run", "refinement_input",
+           "sighting_accuracy", "split_gate", "velocity_increments"]

@@ -329,26 +329,37 @@ std::vector<Eigen::MatrixXd> SparseCholesky::inverse_blocks(
 
   std::vector<Eigen::MatrixXd> out;
   out.reserve(blocks.size());
-  std::map<int, Eigen::VectorXd> solved_columns;  // entries outside the pattern of L
+  // Entries outside the pattern of L come from solves against unit columns: gathered by column
+  // first, then solved kSolveChunk columns at a time (one supernodal sweep serves them all, and
+  // the memory stays n * kSolveChunk whatever the number of columns).
+  struct Pending {
+    size_t block;
+    int r, c;
+  };
+  std::map<int, std::vector<Pending>> pending;  // original column -> the entries it serves
   for (const InverseBlock& b : blocks) {
     Eigen::MatrixXd block(b.rows, b.cols);
     for (int c = 0; c < b.cols; ++c) {
       for (int r = 0; r < b.rows; ++r) {
         const int orig_r = b.row + r, orig_c = b.col + c;
-        double v = m.inverse_entry(m.inverse_permutation[orig_r], m.inverse_permutation[orig_c]);
-        if (std::isnan(v)) {
-          auto it = solved_columns.find(orig_c);
-          if (it == solved_columns.end()) {
-            Eigen::VectorXd unit = Eigen::VectorXd::Zero(n);
-            unit[orig_c] = 1.0;
-            it = solved_columns.emplace(orig_c, solve(unit)).first;
-          }
-          v = it->second[orig_r];
-        }
-        block(r, c) = v;
+        block(r, c) = m.inverse_entry(m.inverse_permutation[orig_r], m.inverse_permutation[orig_c]);
+        if (std::isnan(block(r, c))) pending[orig_c].push_back({out.size(), r, c});
       }
     }
     out.push_back(std::move(block));
+  }
+  constexpr int kSolveChunk = 64;
+  std::vector<int> columns;
+  columns.reserve(pending.size());
+  for (const auto& entry : pending) columns.push_back(entry.first);
+  for (size_t start = 0; start < columns.size(); start += kSolveChunk) {
+    const int count = static_cast<int>(std::min<size_t>(kSolveChunk, columns.size() - start));
+    Eigen::MatrixXd units = Eigen::MatrixXd::Zero(n, count);
+    for (int k = 0; k < count; ++k) units(columns[start + k], k) = 1.0;
+    const Eigen::MatrixXd solved = solve(units);
+    for (int k = 0; k < count; ++k)
+      for (const Pending& p : pending[columns[start + k]])
+        out[p.block](p.r, p.c) = solved(blocks[p.block].row + p.r, k);
   }
   return out;
 }

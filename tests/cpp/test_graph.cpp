@@ -3,6 +3,7 @@
 
 #include <Eigen/Dense>
 #include <Eigen/SparseCore>
+#include <algorithm>
 #include <cstdlib>
 #include <random>
 #include <stdexcept>
@@ -17,9 +18,8 @@ namespace {
 constexpr double kTolerance = 1e-10;
 
 // A random block system over a chain with a few extra couplings; returns the dense H too.
-BlockSystem random_system(std::mt19937& rng, Eigen::MatrixXd& dense) {
-  const std::vector<int> sizes = {3, 2, 3, 3, 0, 2, 3};  // variable 4 is fixed
-  std::vector<std::pair<int, int>> couplings = {{0, 1}, {1, 2}, {2, 3}, {3, 4}, {4, 5}, {5, 6}, {6, 0}, {2, 5}};
+BlockSystem random_system(std::mt19937& rng, Eigen::MatrixXd& dense, const std::vector<int>& sizes,
+                          const std::vector<std::pair<int, int>>& couplings) {
   BlockSystem system(sizes, couplings);
   dense.setZero(system.dim(), system.dim());
   std::normal_distribution<double> normal;
@@ -46,6 +46,35 @@ BlockSystem random_system(std::mt19937& rng, Eigen::MatrixXd& dense) {
   system.add_to_diagonal(diag);
   dense.diagonal() += diag;
   return system;
+}
+
+BlockSystem random_system(std::mt19937& rng, Eigen::MatrixXd& dense) {
+  const std::vector<int> sizes = {3, 2, 3, 3, 0, 2, 3};  // variable 4 is fixed
+  return random_system(rng, dense, sizes, {{0, 1}, {1, 2}, {2, 3}, {3, 4}, {4, 5}, {5, 6}, {6, 0}, {2, 5}});
+}
+
+TEST(SparseCholesky, InverseBlocksOutsideThePatternComeInChunksOfColumns) {
+  // A chain of 50 poses: most block pairs lie outside L's pattern, 150 columns to solve for,
+  // more than one chunk of inverse_blocks' solves (64 columns).
+  std::vector<int> sizes(50, 3);
+  std::vector<std::pair<int, int>> couplings;
+  for (int i = 0; i + 1 < 50; ++i) couplings.emplace_back(i, i + 1);
+  for (FactorMethod method : {FactorMethod::kSimplicial, FactorMethod::kSupernodal}) {
+    std::mt19937 rng(3);
+    Eigen::MatrixXd dense;
+    BlockSystem system = random_system(rng, dense, sizes, couplings);
+    SparseCholesky cholesky({method, FillOrdering::kAmd});
+    cholesky.factorize(system.upper());
+    const Eigen::MatrixXd inverse = dense.inverse();
+    std::vector<InverseBlock> requests;
+    for (int i = 0; i < 50; ++i)
+      for (int j = 0; j < 50; ++j) requests.push_back({system.offset(i), 3, system.offset(j), 3});
+    const auto blocks = cholesky.inverse_blocks(requests);
+    double worst = 0.0;
+    for (size_t k = 0; k < requests.size(); ++k)
+      worst = std::max(worst, (blocks[k] - inverse.block(requests[k].row, requests[k].col, 3, 3)).cwiseAbs().maxCoeff());
+    EXPECT_LT(worst, kTolerance * std::max(1.0, inverse.cwiseAbs().maxCoeff()));
+  }
 }
 
 TEST(BlockSystem, AssemblesTheUpperTriangleOfTheDenseSum) {

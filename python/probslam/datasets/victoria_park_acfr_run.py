@@ -15,13 +15,16 @@ from typing import Mapping, Optional
 
 import numpy as np
 
-from .._args import positive_real, require_instance
+from .._args import positive_real, require_fields, require_instance
 from .._core import AckermannGeometry, FastSlam, ackermann_increments
 from .._progress import progress_bar
 from ..ekf import EkfSlam, MapManagement
-from ..fastslam import DEFAULT_P_NEW, result_of
+from ..eval import relative_poses
+from ..fastslam import DEFAULT_P_NEW, AssociationHistories, result_of
 from ..io.landmark_datasets import VictoriaParkAcfr
-from ..landmark_slam import LandmarkSlamResult, ekf_landmarks
+from ..landmark_refine import (UNASSIGNED, RefinementInput, RunRefinement, compose_increments, compose_poses,
+                               floor_covariances, refine_landmarks)
+from ..landmark_slam import Associations, LandmarkSlamResult, ekf_landmarks
 from . import victoria_park_acfr
 
 # The noise of the inputs and detections: RFS-SLAM's FastSLAM configuration for this run
@@ -160,6 +163,7 @@ def run_ekf(data: VictoriaParkAcfr, *, signatures: bool = True, association: str
     if provisional:
         ekf.map_management = provisional_list()
     poses = [ekf.pose[None, :]]
+    ids = np.full(len(data.measurements), UNASSIGNED, np.int64)
     t0 = time.perf_counter()
 
     def predict(a, b):
@@ -167,11 +171,19 @@ def run_ekf(data: VictoriaParkAcfr, *, signatures: bool = True, association: str
 
     def update(s):
         if not dead_reckoning:
-            ekf.update_unknown(z[s], association=association)
+            ids[data.scan_starts[s]:data.scan_starts[s + 1]] = ekf.update_unknown(z[s], association=association).ids
 
     times = _drive(data, steps, predict, update, "dead reckoning" if dead_reckoning else "EKF SLAM", progress)
+    seconds = time.perf_counter() - t0
     return LandmarkSlamResult("dead-reckoning" if dead_reckoning else "ekf", times, np.concatenate(poses),
-                              ekf_landmarks(ekf), ekf, time.perf_counter() - t0)
+                              ekf_landmarks(ekf), ekf, seconds, None if dead_reckoning else _record(data, ids))
+
+
+def _record(data: VictoriaParkAcfr, ids: np.ndarray) -> Associations:
+    """The association record of a run: per detection (the data's row order) its scan's stamp,
+    no label of its own (``truth`` -1: the detections have no identities) and the filter's
+    landmark (-1: none)."""
+    return Associations(data.measurements[:, 0].copy(), np.full(len(ids), UNASSIGNED, np.int64), ids)
 
 
 def provisional_list() -> MapManagement:
@@ -199,13 +211,96 @@ def run_fastslam(data: VictoriaParkAcfr, *, num_particles: int = 100, version: i
     f = FastSlam(num_particles, np.zeros((3, 3)), measurement_noise(signatures), version=version, seed=seed,
                  threads=threads, initial_pose=victoria_park_acfr.start_pose(data), p_new=p_new,
                  use_signatures=signatures, **options)
+    # Each particle's associations, carried along the resamplings (O(1) Python work per scan): the
+    # best particle's record is what the GraphSLAM refinement starts from.
+    histories = AssociationHistories()
+    no_label = np.full(len(data.measurements), UNASSIGNED, np.int64)
+
+    def update(s):
+        a, b = data.scan_starts[s], data.scan_starts[s + 1]
+        histories.add(f, f.update_unknown(z[s]).ids, no_label[a:b], float(data.measurements[a, 0]))
+
     t0 = time.perf_counter()
     times = _drive(data, steps, lambda a, b: f.predict_odometry_batch(steps.deltas[a:b], steps.covariances[a:b]),
-                   lambda s: f.update_unknown(z[s]), f"FastSLAM {version}.0", progress)
-    return result_of(f, times, time.perf_counter() - t0)
+                   update, f"FastSLAM {version}.0", progress)
+    return result_of(f, times, time.perf_counter() - t0, histories)
+
+
+# ---------------------------------------------------------------------------------------------
+# GraphSLAM's refinement (``probslam.landmark_refine``) of a run.
+
+
+def refinement_input(run: LandmarkSlamResult, data: VictoriaParkAcfr) -> RefinementInput:
+    """The arrays of ``landmark_refine.refine_landmarks`` from an EKF or FastSLAM run over
+    ``data`` (``run_ekf`` / ``run_fastslam``, or ``run_landmark_slam``): one pose per scan's step
+    (and the start, held as the gauge), the run's poses there; between two, the car's steps
+    (``schedule``: the Ackermann increments, speed and steering noise carried by their Jacobian)
+    composed into one motion and its covariance (``compose_increments``, floored as
+    ``floor_covariances`` says, for stretches where the car stands); every detection's
+    (range, bearing) with the run's noise (``measurement_noise()``) on the run's landmark (its
+    association record; UNASSIGNED where it put the detection on none). The diameter is not
+    used: the graph is geometry. ``times`` are the poses' stamps, ``rows`` the detections' rows,
+    ``truth`` -1 (no identities)."""
+    require_fields(run, ("times", "poses", "landmarks", "associations"), "run", "a LandmarkSlamResult")
+    require_instance(data, VictoriaParkAcfr, "data")
+    steps = schedule(data)
+    poses = np.asarray(run.poses, float)
+    if poses.shape != (len(steps.ends) + 1, 3):
+        raise ValueError(f"run: holds {len(poses)} poses, the data's schedule {len(steps.ends) + 1} "
+                         "(was it run on this data?)")
+    record = run.associations
+    if record is None:
+        raise ValueError(f"run: a {run.method} run holds no association record, nothing to refine")
+    k = len(data.measurements)
+    if len(record) != k or np.any(np.asarray(record.times) != data.measurements[:, 0]):
+        raise ValueError("run: its associations do not follow the data's detections (was it run on this data?)")
+    node_of_scan = steps.scan_after + 1  # pose 0 is the start, pose j + 1 the end of step j
+    nodes = np.unique(np.r_[0, node_of_scan])
+    odometry, covariances = compose_increments(steps.deltas, steps.covariances, nodes)
+    scan_of_row = np.repeat(np.arange(len(data.scan_starts) - 1), np.diff(data.scan_starts))
+    pose_index = np.searchsorted(nodes, node_of_scan)[scan_of_row].astype(np.int64)
+    labels = np.where(np.asarray(record.ids) >= 0, record.ids, UNASSIGNED).astype(np.int64)
+    # Scans applied at one pose (those past the inputs' end) are one scan to the refinement, which
+    # sees distinct landmarks in it: a landmark named twice there keeps its first detection.
+    order = np.lexsort((np.arange(k), labels, pose_index))
+    repeated = np.r_[False, (np.diff(pose_index[order]) == 0) & (np.diff(labels[order]) == 0)]
+    labels[order[repeated & (labels[order] != UNASSIGNED)]] = UNASSIGNED
+    return RefinementInput(np.asarray(run.times, float)[nodes], poses[nodes], odometry, floor_covariances(covariances),
+                           pose_index, data.measurements[:, 1:3].copy(), labels, measurement_noise(),
+                           {int(i): np.asarray(m, float) for i, m in run.landmarks.items()}, np.arange(k),
+                           np.asarray(record.truth, np.int64))
+
+
+def refine(run: LandmarkSlamResult, data: VictoriaParkAcfr, **options) -> RunRefinement:
+    """GraphSLAM's correspondence test (``landmark_refine.refine_landmarks``, ch. 11.6) on an EKF
+    or FastSLAM run over ``data`` (``refinement_input``); ``options`` go to ``refine_landmarks``
+    (merge_probability, split_probability, max_iterations, estimate_noise, new_landmarks)."""
+    start = refinement_input(run, data)
+    return RunRefinement(start, refine_landmarks(**start.arguments(), **options))
+
+
+def refined_result(refinement: RunRefinement, run: LandmarkSlamResult) -> LandmarkSlamResult:
+    """The refinement of ``run`` as a ``LandmarkSlamResult`` at the run's own times: each pose
+    between two scans is the refined pose of the scan before it moved on by the run's own motion
+    since (the filters' poses between scans are their predictions), the refined map, each
+    detection's refined label in ``associations``; ``filter`` stays the run's, ``seconds`` adds
+    the refinement's."""
+    times, poses = np.asarray(run.times, float), np.asarray(run.poses, float)
+    require_fields(refinement, ("input", "result"), "refinement", "a RunRefinement")
+    require_fields(run, ("times", "poses", "landmarks", "associations"), "run", "a LandmarkSlamResult")
+    nodes = np.minimum(np.searchsorted(times, refinement.input.times), len(times) - 1)
+    if run.associations is None or len(run.associations) != len(refinement.input.labels) or \
+            np.any(times[nodes] != refinement.input.times) or np.any(poses[nodes] != refinement.input.poses):
+        raise ValueError("refinement: was not made from run (its scan poses or detections are not the run's)")
+    node = np.searchsorted(nodes, np.arange(len(times)), side="right") - 1
+    filled = compose_poses(refinement.result.poses[node], relative_poses(poses[nodes[node]], poses))
+    record = Associations(refinement.input.times[refinement.input.pose_index], refinement.input.truth,
+                          refinement.result.labels.astype(np.int64))
+    return LandmarkSlamResult(run.method, times, filled, dict(refinement.result.landmarks), run.filter,
+                              run.seconds + refinement.result.seconds, record)
 
 
 __all__ = ["BEARING_SIGMA", "DETECTION_INFLATION", "DIAMETER_SIGMA", "FIELD_OF_VIEW", "INPUT_INFLATION", "MAX_RANGE",
            "PROVISIONAL_MAX_AGE", "PROVISIONAL_SIGHTINGS", "RANGE_SIGMA", "SPEED_SIGMA", "STEERING_SIGMA", "Schedule",
-           "control_noise", "first_seconds", "geometry", "measurement_noise", "provisional_list", "run_ekf", "run_fastslam",
-           "schedule"]
+           "control_noise", "first_seconds", "geometry", "measurement_noise", "provisional_list", "refine",
+           "refined_result", "refinement_input", "run_ekf", "run_fastslam", "schedule"]
