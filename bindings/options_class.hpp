@@ -221,6 +221,31 @@ T options_with(T o, const py::kwargs& kwargs, const char* owner) {
   return o;
 }
 
+/// What every class made from a describe() has: {field: value} (as_dict), == by fields, a repr
+/// of every field, pickling by fields (rebuilt through the fields' setters), no hash (mutable).
+template <class T>
+void define_by_fields(py::class_<T>& c, const char* name) {
+  auto to_dict = [](const T& o) {
+    options_detail::ToDict<T> d{o, {}};
+    T::describe(d);
+    return d.d;
+  };
+  c.def("as_dict", to_dict, "{field: value} of every field (to write as JSON or a table row).")
+      .def("__eq__", [](const T& a, py::handle b) {
+        if (!py::isinstance<T>(b)) return false;
+        options_detail::Equal<T> eq{a, b.cast<const T&>()};
+        T::describe(eq);
+        return eq.same;
+      }, py::arg("other"))
+      .def("__repr__", [name](const T& o) {
+        options_detail::Repr<T> r{o, {}};
+        T::describe(r);
+        return std::string(name) + "(" + r.out + ")";
+      })
+      .def(py::pickle(to_dict, [name](const py::dict& d) { return options_with(T{}, py::kwargs(d), name); }));
+  c.attr("__hash__") = py::none();
+}
+
 /// The Python class of options struct T: T(**fields) (validated), a property per field,
 /// validate(), copy(), ==, repr and pickling by fields.
 template <class T>
@@ -252,26 +277,8 @@ py::class_<T> bind_options(py::module_& m, const char* name, const std::string& 
   c.def("validate", &T::validate, "ValueError naming the first field out of range by its path.")
       .def("copy", [](const T& o) { return T(o); }, "An independent copy.")
       .def("__copy__", [](const T& o) { return T(o); })
-      .def("__deepcopy__", [](const T& o, py::handle) { return T(o); }, py::arg("memo"))
-      .def("__eq__", [](const T& a, py::handle b) {
-        if (!py::isinstance<T>(b)) return false;
-        options_detail::Equal<T> eq{a, b.cast<const T&>()};
-        T::describe(eq);
-        return eq.same;
-      }, py::arg("other"))
-      .def("__repr__", [name](const T& o) {
-        options_detail::Repr<T> r{o, {}};
-        T::describe(r);
-        return std::string(name) + "(" + r.out + ")";
-      })
-      .def(py::pickle(
-          [](const T& o) {
-            options_detail::ToDict<T> fields{o, {}};
-            T::describe(fields);
-            return fields.d;
-          },
-          [name](const py::dict& d) { return options_with(T{}, py::kwargs(d), name); }));
-  c.attr("__hash__") = py::none();
+      .def("__deepcopy__", [](const T& o, py::handle) { return T(o); }, py::arg("memo"));
+  define_by_fields(c, name);
   return c;
 }
 
@@ -284,25 +291,7 @@ py::class_<T> bind_report(py::module_& m, const char* name, const std::string& s
   options_detail::ReadOnly<T> fields{c, doc};
   T::describe(fields);
   c.attr("__doc__") = doc;
-  auto to_dict = [](const T& o) {
-    options_detail::ToDict<T> d{o, {}};
-    T::describe(d);
-    return d.d;
-  };
-  c.def("as_dict", to_dict, "{field: value} of every field (to write as JSON or a table row).")
-      .def("__eq__", [](const T& a, py::handle b) {
-        if (!py::isinstance<T>(b)) return false;
-        options_detail::Equal<T> eq{a, b.cast<const T&>()};
-        T::describe(eq);
-        return eq.same;
-      }, py::arg("other"))
-      .def("__repr__", [name](const T& o) {
-        options_detail::Repr<T> r{o, {}};
-        T::describe(r);
-        return std::string(name) + "(" + r.out + ")";
-      })
-      .def(py::pickle(to_dict, [name](const py::dict& d) { return options_with(T{}, py::kwargs(d), name); }));
-  c.attr("__hash__") = py::none();
+  define_by_fields(c, name);
   return c;
 }
 

@@ -65,7 +65,8 @@ def class_text(cls) -> str:
     params = signature_params(cls.__init__, "*, ")
     out.append(wrap("    def __init__(self, *, ", params, ") -> None: ...", 17))
     out.append(wrap("    def replace(self, *, ", params, f") -> {name}: ...", 16))
-    out += ["    def validate(self) -> None: ...", f"    def copy(self) -> {name}: ..."]
+    out += ["    def validate(self) -> None: ...", f"    def copy(self) -> {name}: ...",
+            "    def as_dict(self) -> Dict[str, Any]: ..."]
     return "\n".join(out) + "\n"
 
 
