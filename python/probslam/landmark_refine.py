@@ -1147,8 +1147,6 @@ def _start_pose(times: np.ndarray, poses: np.ndarray, chain_times: np.ndarray, c
 
 
 def _mrclam_input(run, data, motion_noise, measurement_noise, command_period: float) -> RefinementInput:
-    from .datasets.mrclam import scans
-
     motion_noise = real_array(motion_noise, "motion_noise", (2, 2))
     measurement_noise = real_array(measurement_noise, "measurement_noise", (2, 2))
     command_period = positive_real(command_period, "command_period")
@@ -1156,7 +1154,7 @@ def _mrclam_input(run, data, motion_noise, measurement_noise, command_period: fl
     if len(odo) < 2:
         raise ValueError("data: the robot needs at least two odometry rows")
     # The sightings the filters take: scans stamped from the first control to before the last.
-    scan_rows = [r for r in scans(meas) if odo[0, 0] <= meas[r.start, 0] < odo[-1, 0]]
+    scan_rows = [r for r in data.scans() if odo[0, 0] <= meas[r.start, 0] < odo[-1, 0]]
     rows = np.concatenate([np.arange(r.start, r.stop) for r in scan_rows]) if scan_rows else np.empty(0, np.int64)
     scan_times = np.array([meas[r.start, 0] for r in scan_rows])
     truth = meas[rows, 1].astype(np.int64)

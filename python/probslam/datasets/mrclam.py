@@ -112,14 +112,6 @@ def load(folder: PathLike, robot: int = 1, seconds: Optional[float] = None, raw_
     return data if raw_ranges else data.with_euclidean_ranges()
 
 
-def scans(measurements: np.ndarray) -> List[slice]:
-    """Row slices of the measurements sharing one time stamp (rows sorted by time)."""
-    if len(measurements) == 0:
-        return []
-    starts = np.flatnonzero(np.r_[True, np.diff(measurements[:, 0]) != 0])
-    return [slice(a, b) for a, b in zip(starts, np.r_[starts[1:], len(measurements)])]
-
-
 def perceptual_field(data: Mrclam, quantile: float = PERCEPTUAL_FIELD_QUANTILE) -> Tuple[float, float]:
     """(range m, full field-of-view angle rad) of the camera, from the robot's own sightings:
     the ``quantile`` of their ranges, and twice that of their absolute bearings."""
@@ -159,7 +151,7 @@ def _timeline(data: Mrclam, with_scans: bool = True, progress: Optional[bool] = 
 def _events(data: Mrclam, with_scans: bool) -> Iterator[tuple]:
     """``_timeline``'s events, without the bar."""
     odo, meas = data.odometry, data.measurements
-    scan_rows = scans(meas)
+    scan_rows = data.scans()
     starts = np.array([r.start for r in scan_rows], dtype=np.int64)
     s = int(np.searchsorted(meas[starts, 0], odo[0, 0]))
     t_now = odo[0, 0]
@@ -361,7 +353,7 @@ def same_scan_residuals(data: Mrclam) -> Dict[int, np.ndarray]:
     require_instance(data, Mrclam, "data")
     surveyed = data.landmark_positions
     out: Dict[int, list] = {s: [] for s in surveyed}
-    for rows in scans(data.measurements):
+    for rows in data.scans():
         m = data.measurements[rows]
         points = m[:, 2:3] * np.column_stack([np.cos(m[:, 3]), np.sin(m[:, 3])])
         for a, b in itertools.combinations(range(len(m)), 2):
@@ -429,4 +421,4 @@ __all__ = ["COMMAND_PERIOD", "MEASUREMENT_NOISE", "MEASUREMENT_SIGMA", "MHT_DETE
            "MHT_NEW_LANDMARK_COST", "MOTION_NOISE", "MOTION_SIGMA",
            "OUTLIER_PROBABILITY", "PERCEPTUAL_FIELD_QUANTILE", "outlier_density", "ROBOTS", "SURVEY_RESIDUAL_LIMIT", "dead_reckoning",
            "dead_reckoning_map", "first_seconds", "fit_range_scale", "load", "perceptual_field", "run_ekf",
-           "run_fastslam", "same_scan_residuals", "scans", "start_pose", "survey_label_swaps"]
+           "run_fastslam", "same_scan_residuals", "start_pose", "survey_label_swaps"]

@@ -113,6 +113,14 @@ class Mrclam:
     #: the data's own table does not list), "<file>: unreadable" (see ``read_mrclam``)
     skipped_rows: Dict[str, int] = field(default_factory=dict)
 
+    def scans(self) -> List[slice]:
+        """Row slices of ``measurements`` sharing one time stamp (one camera frame each; the rows
+        are sorted by time)."""
+        if len(self.measurements) == 0:
+            return []
+        starts = np.flatnonzero(np.r_[True, np.diff(self.measurements[:, 0]) != 0])
+        return [slice(a, b) for a, b in zip(starts, np.r_[starts[1:], len(self.measurements)])]
+
     @property
     def landmark_positions(self) -> Dict[int, np.ndarray]:
         """Surveyed landmark positions: subject id -> (2,) x, y in metres (Landmark_Groundtruth.dat)."""
