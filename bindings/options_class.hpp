@@ -27,6 +27,9 @@ T field_from_py(py::handle v, const std::string& path);
 template <class T>
 void set_fields(T& o, py::handle values, const std::string& prefix, const char* owner);
 
+template <class M>
+void assign_field(M& field, py::handle v, const std::string& path);
+
 template <class T>
 T field_from_py(py::handle v, const std::string& path) {
   if constexpr (IsDescribed<T>::value) {
@@ -84,18 +87,24 @@ struct Setter {
   void operator()(const char* name, M T::*member, const char*, const char*) {
     const py::str key(name);
     if (!values.contains(key)) return;
-    const py::object v = values[key];
-    if constexpr (IsDescribed<M>::value) {
-      if (py::isinstance<py::dict>(v)) {  // a dict changes the fields it names, keeps the others
-        M group = o.*member;
-        set_fields(group, v, prefix + name + ".", (prefix + name).c_str());
-        o.*member = group;
-        return;
-      }
-    }
-    o.*member = field_from_py<M>(v, prefix + name);
+    assign_field(o.*member, values[key], prefix + name);
   }
 };
+
+/// `field = v` for a value from Python, errors naming `path`: a group given a dict changes the
+/// fields it names and keeps the others (on a copy, so a refused value changes nothing).
+template <class M>
+void assign_field(M& field, py::handle v, const std::string& path) {
+  if constexpr (IsDescribed<M>::value) {
+    if (py::isinstance<py::dict>(v)) {
+      M group = field;
+      set_fields(group, v, path + ".", path.c_str());
+      field = group;
+      return;
+    }
+  }
+  field = field_from_py<M>(v, path);
+}
 
 template <class T>
 void set_fields(T& o, py::handle values, const std::string& prefix, const char* owner) {
@@ -139,6 +148,11 @@ struct Equal {
   }
 };
 
+/// "name (unit): doc", a field's line in help() and in its class's docstring.
+inline std::string field_doc(const char* name, const char* unit, const char* text) {
+  return std::string(name) + (*unit ? std::string(" (") + unit + ")" : "") + ": " + text;
+}
+
 /// {name: value} of every field (groups as their options classes).
 template <class T>
 struct ToDict {
@@ -158,17 +172,17 @@ struct Properties {
   std::string& doc;
   template <class M>
   void operator()(const char* name, M T::*member, const char* unit, const char* text) {
-    const std::string field = std::string(name) + (*unit ? std::string(" (") + unit + ")" : "") + ": " + text;
+    const std::string field = field_doc(name, unit, text);
     doc += "\n    " + field;
     if constexpr (IsDescribed<M>::value) {
       c.def_property(
           name, [member](T& o) -> M& { return o.*member; },
-          [member, n = std::string(name)](T& o, py::handle v) { o.*member = field_from_py<M>(v, n); },
+          [member, n = std::string(name)](T& o, py::handle v) { assign_field(o.*member, v, n); },
           py::return_value_policy::reference_internal, field.c_str());
     } else {
       c.def_property(
           name, [member](const T& o) { return field_to_py(o.*member); },
-          [member, n = std::string(name)](T& o, py::handle v) { o.*member = field_from_py<M>(v, n); }, field.c_str());
+          [member, n = std::string(name)](T& o, py::handle v) { assign_field(o.*member, v, n); }, field.c_str());
     }
   }
 };
@@ -197,7 +211,7 @@ struct ReadOnly {
   std::string& doc;
   template <class M>
   void operator()(const char* name, M T::*member, const char* unit, const char* text) {
-    const std::string field = std::string(name) + (*unit ? std::string(" (") + unit + ")" : "") + ": " + text;
+    const std::string field = field_doc(name, unit, text);
     doc += "\n    " + field;
     c.def_property_readonly(name, [member](const T& o) { return field_to_py(o.*member); }, field.c_str());
   }

@@ -94,6 +94,8 @@ def test_groups_are_attributes_by_reference_and_dicts_merge():
     o.validate()
     o.odometry = {"alpha3": 0.05}  # a dict sets the fields it names
     assert (o.odometry.alpha1, o.odometry.alpha3) == (0.2, 0.05)
+    o.odometry = {"alpha1": 0.3}  # ... and keeps the others, as replace and the keywords do
+    assert (o.odometry.alpha1, o.odometry.alpha3) == (0.3, 0.05)
     r = o.replace(beam={"sigma_hit": 0.2})
     assert (r.beam.z_hit, r.beam.sigma_hit, o.beam.sigma_hit) == (0.8, 0.2, 0.05)
     with pytest.raises(ValueError, match="^beam.z_hit"):  # the weights no longer sum to 1
