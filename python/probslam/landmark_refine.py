@@ -51,6 +51,7 @@ from typing import Dict, List, Optional, Tuple
 import numpy as np
 
 from ._args import positive_real, real_array, require_fields, require_instance, require_integer
+from . import geometry
 from ._core import PoseGraph2D, chi_square_quantile, joint_marginal_covariances, marginal_covariances, optimize
 from .eval import majority_truth, relative_poses, sighting_accuracy  # noqa: F401 (re-exported)
 
@@ -1085,14 +1086,6 @@ def floor_covariances(covariances: np.ndarray) -> np.ndarray:
     return np.einsum("nij,nj,nkj->nik", vectors, values, vectors)
 
 
-def compose_poses(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """a (+) b for poses (n, 3): b expressed in a's frame."""
-    c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
-    out = np.column_stack([a[:, 0] + c * b[:, 0] - s * b[:, 1], a[:, 1] + s * b[:, 0] + c * b[:, 1], a[:, 2] + b[:, 2]])
-    out[:, 2] = np.arctan2(np.sin(out[:, 2]), np.cos(out[:, 2]))
-    return out
-
-
 @dataclass(frozen=True)
 class RefinementInput:
     """The arrays ``refine_landmarks`` takes, built from a run over a dataset, and what scoring
@@ -1143,7 +1136,7 @@ def _start_pose(times: np.ndarray, poses: np.ndarray, chain_times: np.ndarray, c
     k = np.searchsorted(times, chain_times + 1e-9, side="right") - 1
     k = np.clip(k, 0, len(times) - 1)
     node = np.clip(np.searchsorted(chain_times, times[k] + 1e-9, side="right") - 1, 0, len(chain_times) - 1)
-    return compose_poses(poses[k], relative_poses(chain[node], chain))
+    return geometry.compose(poses[k], geometry.between(chain[node], chain))
 
 
 def _mrclam_input(run, data, motion_noise, measurement_noise, command_period: float) -> RefinementInput:
@@ -1168,10 +1161,7 @@ def _mrclam_input(run, data, motion_noise, measurement_noise, command_period: fl
     nodes = np.concatenate([[0], np.searchsorted(events, scan_times)])
     odometry, odometry_cov = compose_increments(deltas, covs, nodes)
     # The run's poses at the nodes, from the dead-reckoned chain between its records.
-    heading = np.concatenate([[0.0], np.cumsum(deltas[:, 2])])
-    c, s = np.cos(heading[:-1]), np.sin(heading[:-1])
-    chain = np.column_stack([np.concatenate([[0.0], np.cumsum(c * deltas[:, 0] - s * deltas[:, 1])]),
-                             np.concatenate([[0.0], np.cumsum(s * deltas[:, 0] + c * deltas[:, 1])]), heading])
+    chain = geometry.accumulate(np.zeros(3), deltas)
     times, recorded = np.asarray(run.times, float), np.asarray(run.poses, float)
     poses = _start_pose(times, recorded, events, chain)[nodes]
     scan_of_row = np.repeat(np.arange(1, len(scan_rows) + 1), [r.stop - r.start for r in scan_rows])
@@ -1257,6 +1247,6 @@ def refine_run(run, data, motion_noise=None, measurement_noise=None, *, command_
 
 __all__ = ["LEAVE_ONE_OUT_RANK_TOLERANCE", "MAX_ITERATIONS", "MERGE_PROBABILITY", "ODOMETRY_COVARIANCE_FLOOR",
            "SPLIT_RUN_PROBABILITY", "UNASSIGNED", "LandmarkRefinement", "Merge", "RefinementInput", "RefinementRound",
-           "RunRefinement", "Split", "compose_increments", "compose_poses", "floor_covariances", "majority_truth",
+           "RunRefinement", "Split", "compose_increments", "floor_covariances", "majority_truth",
            "merge_gate", "point_residuals", "polar_to_point", "refine_landmarks", "refine_run", "refinement_input",
            "sighting_accuracy", "split_gate", "velocity_increments"]

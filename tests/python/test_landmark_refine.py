@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 
 import probslam
+from probslam import geometry
 from probslam import landmark_refine as lr
 from probslam import sim
 
@@ -45,7 +46,7 @@ def simulated(seed, steps=80, n=16):
     odometry = np.tile(_relative_motion(), (steps, 1))
     dead = [np.zeros(3)]
     for d in odometry:
-        dead.append(lr.compose_poses(dead[-1][None], d[None])[0])
+        dead.append(geometry.compose(dead[-1][None], d[None])[0])
     pose_index = np.concatenate([np.full(len(z), k + 1) for k, z in enumerate(run.measurements)]).astype(np.int64)
     return dict(poses=np.array(dead), odometry=odometry, odometry_covariances=np.tile(MOTION, (steps, 1, 1)),
                 pose_index=pose_index, measurements=np.vstack(run.measurements),
@@ -680,7 +681,7 @@ def test_a_runs_sightings_labels_and_odometry_are_those_the_filter_used(shared_d
     dead = mrclam.dead_reckoning(odo, start.poses[0])
     chain = [start.poses[0]]
     for d in start.odometry:
-        chain.append(lr.compose_poses(chain[-1][None], d[None])[0])
+        chain.append(geometry.compose(chain[-1][None], d[None])[0])
     for t, pose in zip(start.times[1:], chain[1:]):
         k = int(np.searchsorted(odo[:, 0], t, side="right")) - 1
         expected = dead[k] if t == odo[k, 0] else probslam.velocity_motion(dead[k], odo[k, 1], odo[k, 2], t - odo[k, 0])

@@ -19,10 +19,10 @@ from .._args import positive_real, require_fields, require_instance
 from .._core import AckermannGeometry, FastSlam, ackermann_increments
 from .._progress import progress_bar
 from ..ekf import EkfSlam, MapManagement
-from ..eval import relative_poses
 from ..fastslam import DEFAULT_P_NEW, AssociationHistories, result_of
+from ..geometry import between, compose
 from ..io.landmark_datasets import VictoriaParkAcfr
-from ..landmark_refine import (UNASSIGNED, RefinementInput, RunRefinement, compose_increments, compose_poses,
+from ..landmark_refine import (UNASSIGNED, RefinementInput, RunRefinement, compose_increments,
                                floor_covariances, refine_landmarks)
 from ..landmark_slam import Associations, LandmarkSlamResult, ekf_landmarks
 from . import victoria_park_acfr
@@ -293,7 +293,7 @@ def refined_result(refinement: RunRefinement, run: LandmarkSlamResult) -> Landma
             np.any(times[nodes] != refinement.input.times) or np.any(poses[nodes] != refinement.input.poses):
         raise ValueError("refinement: was not made from run (its scan poses or detections are not the run's)")
     node = np.searchsorted(nodes, np.arange(len(times)), side="right") - 1
-    filled = compose_poses(refinement.result.poses[node], relative_poses(poses[nodes[node]], poses))
+    filled = compose(refinement.result.poses[node], between(poses[nodes[node]], poses))
     record = Associations(refinement.input.times[refinement.input.pose_index], refinement.input.truth,
                           refinement.result.labels.astype(np.int64))
     return LandmarkSlamResult(run.method, times, filled, dict(refinement.result.landmarks), run.filter,

@@ -17,6 +17,7 @@ from typing import Callable, List, Optional, Union
 import numpy as np
 
 from .. import graph as pg
+from .._args import positive_real
 from .. import io
 from ..io.landmark_datasets import isam_noise_convention
 
@@ -85,9 +86,7 @@ class GraphFileOptions:
         if self.kernel_width is not None:
             if self.kernel == "none":
                 raise ValueError("kernel_width applies with kernel huber or cauchy only")
-            if not (isinstance(self.kernel_width, (int, float)) and math.isfinite(self.kernel_width)
-                    and self.kernel_width > 0):
-                raise ValueError("kernel_width must be finite and > 0")
+            positive_real(self.kernel_width, "kernel_width")
         if self.poses_per_step is not None and self.init != "incremental":
             raise ValueError("poses_per_step applies with init incremental only")
 
