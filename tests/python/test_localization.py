@@ -359,6 +359,8 @@ def test_localize_driver_checks_its_arguments(corridor):
         ps.localize(scans, grid, stop=10 ** 6, progress=False)
     with pytest.raises(ValueError, match="start"):
         ps.localize(scans, grid, start=5, stop=5, progress=False)
+    with pytest.raises(TypeError, match="^options: expected a MonteCarloLocalizationOptions, got dict"):
+        ps.localize(scans, grid, options={"seed": 1}, progress=False)
 
 
 def test_kidnapped_robot_recovers(corridor):
