@@ -1,3 +1,4 @@
+#include <cmath>
 #include <functional>
 
 #include "args.hpp"
@@ -209,6 +210,44 @@ void define_core(py::module_& m) {
       },
       py::arg("pose"), py::arg("v"), py::arg("w"), py::arg("dt"),
       "(3, 2) Jacobian V = d g / d (v, w) of velocity_motion; pose (3,), v m/s, w rad/s, dt s.");
+
+  m.def(
+      "velocity_increments",
+      [](py::handle v_obj, py::handle w_obj, py::handle dt_obj, py::handle noise_obj) {
+        const DoubleArray v = vector_arg(v_obj, "v");
+        const py::ssize_t n = v.shape(0);
+        const DoubleArray w = vector_arg(w_obj, "w", n), dt = vector_arg(dt_obj, "dt", n);
+        const DoubleArray noise = as_array(noise_obj, "control_noise");
+        if (noise.ndim() != 3 || noise.shape(0) != n || noise.shape(1) != 2 || noise.shape(2) != 2)
+          throw py::value_error("control_noise must have shape (" + std::to_string(n) + ", 2, 2), got " +
+                                shape_of(noise));
+        for (const DoubleArray* a : {&v, &w, &dt, &noise})
+          for (py::ssize_t k = 0; k < a->size(); ++k)
+            if (!std::isfinite(a->data()[k]))
+              throw py::value_error(std::string(a == &v ? "v" : a == &w ? "w" : a == &dt ? "dt" : "control_noise") +
+                                    " must be finite");
+        py::array_t<double> delta({n, py::ssize_t{3}}), cov({n, py::ssize_t{3}, py::ssize_t{3}});
+        {
+          py::gil_scoped_release release;
+          const Eigen::Vector3d origin = Eigen::Vector3d::Zero();
+          for (py::ssize_t k = 0; k < n; ++k) {
+            const Eigen::Vector3d d = velocity_motion(origin, v.data()[k], w.data()[k], dt.data()[k]);
+            const Eigen::Matrix<double, 3, 2> jac = velocity_motion_control_jacobian(origin, v.data()[k], w.data()[k],
+                                                                                     dt.data()[k]);
+            const Eigen::Map<const Eigen::Matrix<double, 2, 2, Eigen::RowMajor>> m_k(noise.data(k, 0, 0));
+            const Eigen::Matrix3d p = jac * m_k * jac.transpose();
+            const Eigen::Matrix3d c = 0.5 * (p + p.transpose());  // symmetric to the bit
+            std::copy(d.data(), d.data() + 3, delta.mutable_data(k, 0));
+            Eigen::Map<Eigen::Matrix<double, 3, 3, Eigen::RowMajor>>(cov.mutable_data(k, 0, 0)) = c;
+          }
+        }
+        return py::make_tuple(delta, cov);
+      },
+      py::arg("v"), py::arg("w"), py::arg("dt"), py::arg("control_noise"),
+      "The velocity motion model over pieces (v m/s, w rad/s, dt s) (n,): each piece's motion in\n"
+      "the robot's frame (velocity_motion from the origin) (n, 3) and its covariance\n"
+      "V control_noise[k] V^T (n, 3, 3), V = velocity_motion_control_jacobian; control_noise\n"
+      "(n, 2, 2), the covariance of (v, w) over each piece.");
 
   define_ackermann(m);
 

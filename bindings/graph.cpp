@@ -1,3 +1,4 @@
+#include <cmath>
 #include <pybind11/stl.h>
 
 
@@ -157,6 +158,84 @@ PoseGraphReadOptions read_options(const std::string& format, const std::string& 
                                         {{"merge", Equivalences::kMerge}, {"ignore", Equivalences::kIgnore}});
   return o;
 }
+
+namespace {
+
+// Rows of an (n, cols) array of finite numbers, n = rows when rows >= 0.
+DoubleArray edge_rows(py::handle obj, const char* name, py::ssize_t cols, py::ssize_t rows) {
+  DoubleArray a = matrix_arg(obj, name, cols);
+  if (rows >= 0 && a.shape(0) != rows)
+    throw py::value_error(std::string(name) + " must have " + std::to_string(rows) + " rows (one per edge), got " +
+                          std::to_string(a.shape(0)));
+  for (py::ssize_t k = 0; k < a.size(); ++k)
+    if (!std::isfinite(a.data()[k])) throw py::value_error(std::string(name) + " must be finite");
+  return a;
+}
+
+// Writes a fixed-size matrix into entry k of an (n, rows, cols) or (n, cols) array.
+template <class M>
+void put_block(py::array_t<double>& out, py::ssize_t k, const M& block) {
+  double* d = out.mutable_data(k);
+  for (int i = 0; i < block.rows(); ++i)
+    for (int j = 0; j < block.cols(); ++j) *d++ = block(i, j);
+}
+
+// linearize_pose_edge / linearize_point_edge over arrays of edges: the refinement of landmark
+// runs (probslam.landmark_refine) linearises its edges with the graph's own errors.
+void define_edge_linearization(py::module_& m) {
+  m.def(
+      "linearize_pose_edges",
+      [](py::handle from_obj, py::handle to_obj, py::handle z_obj) {
+        const DoubleArray from = edge_rows(from_obj, "from_poses", 3, -1);
+        const py::ssize_t n = from.shape(0);
+        const DoubleArray to = edge_rows(to_obj, "to_poses", 3, n), z = edge_rows(z_obj, "measurements", 3, n);
+        py::array_t<double> error({n, py::ssize_t{3}}), d_from({n, py::ssize_t{3}, py::ssize_t{3}}),
+            d_to({n, py::ssize_t{3}, py::ssize_t{3}});
+        {
+          py::gil_scoped_release release;
+          for (py::ssize_t k = 0; k < n; ++k) {
+            const PoseEdgeLinearization l =
+                linearize_pose_edge(Eigen::Vector3d(from.data(k, 0)), Eigen::Vector3d(to.data(k, 0)),
+                                    Eigen::Vector3d(z.data(k, 0)));
+            put_block(error, k, l.error.transpose());
+            put_block(d_from, k, l.d_from);
+            put_block(d_to, k, l.d_to);
+          }
+        }
+        return py::make_tuple(error, d_from, d_to);
+      },
+      py::arg("from_poses"), py::arg("to_poses"), py::arg("measurements"),
+      "Errors and Jacobians of pose edges, as PoseGraph2D's optimiser linearises them: for\n"
+      "from_poses, to_poses and measurements (n, 3), returns (error (n, 3), d_from (n, 3, 3),\n"
+      "d_to (n, 3, 3)); error = t2v(z^-1 from^-1 to), its angle wrapped; angles move additively.");
+  m.def(
+      "linearize_point_edges",
+      [](py::handle pose_obj, py::handle point_obj, py::handle z_obj) {
+        const DoubleArray poses = edge_rows(pose_obj, "poses", 3, -1);
+        const py::ssize_t n = poses.shape(0);
+        const DoubleArray points = edge_rows(point_obj, "points", 2, n), z = edge_rows(z_obj, "measurements", 2, n);
+        py::array_t<double> error({n, py::ssize_t{2}}), d_pose({n, py::ssize_t{2}, py::ssize_t{3}}),
+            d_point({n, py::ssize_t{2}, py::ssize_t{2}});
+        {
+          py::gil_scoped_release release;
+          for (py::ssize_t k = 0; k < n; ++k) {
+            const PointEdgeLinearization l =
+                linearize_point_edge(Eigen::Vector3d(poses.data(k, 0)), Eigen::Vector2d(points.data(k, 0)),
+                                     Eigen::Vector2d(z.data(k, 0)));
+            put_block(error, k, l.error.transpose());
+            put_block(d_pose, k, l.d_pose);
+            put_block(d_point, k, l.d_point);
+          }
+        }
+        return py::make_tuple(error, d_pose, d_point);
+      },
+      py::arg("poses"), py::arg("points"), py::arg("measurements"),
+      "Errors and Jacobians of point edges (PoseGraph2D's, g2o EDGE_SE2_XY): for poses (n, 3),\n"
+      "points (n, 2) and measurements (n, 2), returns (error (n, 2), d_pose (n, 2, 3),\n"
+      "d_point (n, 2, 2)); error = R(theta)^T (point - position) - z.");
+}
+
+}  // namespace
 
 void define_graph(py::module_& m) {
   // Every method runs its C++ work under the graph's lock with the GIL released (object_lock.hpp).
@@ -373,6 +452,7 @@ void define_graph(py::module_& m) {
         py::arg("path"), py::arg("graph"),
         "iSAM text: pose edges, then LANDMARK edges under each point's landmark id (see "
         "PoseGraph2D.landmark_ids); no vertex values (reading back dead-reckons them).");
+  define_edge_linearization(m);
 }
 
 }  // namespace probslam::bindings

@@ -77,6 +77,8 @@ def velocity_motion_jacobian(pose: ArrayLike, v: float, w: float, dt: float) -> 
     """(3, 3) G = dg/dpose (Table 10.1 line 4, signs corrected)."""
 def velocity_motion_control_jacobian(pose: ArrayLike, v: float, w: float, dt: float) -> Array:
     """(3, 2) V = dg/d(v, w)."""
+def velocity_increments(v: ArrayLike, w: ArrayLike, dt: ArrayLike, control_noise: ArrayLike) -> Tuple[Array, Array]:
+    """Motions (n, 3) of pieces (v, w, dt) from the origin and their covariances (n, 3, 3)."""
 def range_bearing(pose: ArrayLike, landmark: ArrayLike) -> Array:
     """(2,) (range, bearing) of landmark (2,), or (3,) with its signature for a (3,) landmark."""
 def range_bearing_jacobians(pose: ArrayLike, landmark: ArrayLike) -> Tuple[Array, Array]:
@@ -659,6 +661,8 @@ def read_pose_graph_with_report(path: str, format: str = "auto", noise: str = "d
     """As read_pose_graph, with what was skipped."""
 def write_g2o(path: str, graph: PoseGraph2D) -> None: ...
 def write_isam(path: str, graph: PoseGraph2D) -> None: ...
+def linearize_pose_edges(from_poses: ArrayLike, to_poses: ArrayLike, measurements: ArrayLike) -> Tuple[Array, Array, Array]: ...
+def linearize_point_edges(poses: ArrayLike, points: ArrayLike, measurements: ArrayLike) -> Tuple[Array, Array, Array]: ...
 
 # --- slam2d/: scan matching and GraphSLAM over submaps (ch. 11.7) ---------------------------
 

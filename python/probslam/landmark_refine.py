@@ -52,7 +52,8 @@ import numpy as np
 
 from ._args import positive_real, real_array, require_fields, require_instance, require_integer
 from . import geometry
-from ._core import PoseGraph2D, chi_square_quantile, joint_marginal_covariances, marginal_covariances, optimize
+from ._core import (PoseGraph2D, chi_square_quantile, joint_marginal_covariances, linearize_point_edges,
+                    linearize_pose_edges, marginal_covariances, optimize, velocity_increments)
 from .eval import majority_truth, relative_poses, sighting_accuracy  # noqa: F401 (re-exported)
 
 #: A landmark pair merges when the Mahalanobis distance of their difference from 0 is within the
@@ -265,19 +266,6 @@ def _rotation_t(theta: np.ndarray) -> np.ndarray:
     return np.stack([np.stack([c, s], -1), np.stack([-s, c], -1)], -2)
 
 
-def point_residuals(poses: np.ndarray, points: np.ndarray, z: np.ndarray):
-    """Residuals R^T (m - p) - z (n, 2) of sightings z taken from poses (n, 3) of points (n, 2),
-    and their Jacobians with respect to the pose (n, 2, 3) and to the point (n, 2, 2)."""
-    rt = _rotation_t(poses[:, 2])
-    d = points - poses[:, :2]
-    e = np.einsum("nij,nj->ni", rt, d) - z
-    c, s = np.cos(poses[:, 2]), np.sin(poses[:, 2])
-    # d(R^T d)/d theta = (-s dx + c dy, -c dx - s dy)
-    d_theta = np.column_stack([-s * d[:, 0] + c * d[:, 1], -c * d[:, 0] - s * d[:, 1]])
-    j_pose = np.concatenate([-rt, d_theta[:, :, None]], axis=2)
-    return e, j_pose, rt
-
-
 # ---------------------------------------------------------------------------------------------
 # The refinement.
 
@@ -476,7 +464,7 @@ def _sighting_statistics(g: _Graph, problem: _Problem, counts: Dict[int, int]) -
     joint = np.array(joint_marginal_covariances(g.graph, groups))
     marks = np.array([problem.landmarks[int(c)] for c in g.labels])
     m = marks[np.searchsorted(g.labels, problem.labels[rows])]
-    e, j_pose, j_point = point_residuals(problem.poses[t], m, problem.z[rows])
+    e, j_pose, j_point = linearize_point_edges(problem.poses[t], m, problem.z[rows])
     h = np.concatenate([j_pose, j_point], axis=2)  # (n, 2, 5)
     residual_cov = problem.z_covariance[rows] - h @ joint @ h.transpose(0, 2, 1)
     residual_cov = 0.5 * (residual_cov + residual_cov.transpose(0, 2, 1))
@@ -487,26 +475,6 @@ def _sighting_statistics(g: _Graph, problem: _Problem, counts: Dict[int, int]) -
     inv[ok] = np.linalg.inv(residual_cov[ok])
     stats[rows[ok]] = np.einsum("ni,nij,nj->n", e[ok], inv[ok], e[ok])
     return _SightingTests(rows, e, h, residual_cov, inv, ok, stats, joint)
-
-
-def pose_edge_residuals(a: np.ndarray, b: np.ndarray, z: np.ndarray):
-    """Errors t2v(z^-1 a^-1 b) (n, 3) of odometry edges from poses a to b (n, 3) measuring z
-    (n, 3), and their Jacobians (n, 3, 6) with respect to (a, b)."""
-    ra_t, rz_t = _rotation_t(a[:, 2]), _rotation_t(z[:, 2])
-    d = b[:, :2] - a[:, :2]
-    rel = np.einsum("nij,nj->ni", ra_t, d)
-    e = np.empty((len(a), 3))
-    e[:, :2] = np.einsum("nij,nj->ni", rz_t, rel - z[:, :2])
-    e[:, 2] = np.arctan2(np.sin(b[:, 2] - a[:, 2] - z[:, 2]), np.cos(b[:, 2] - a[:, 2] - z[:, 2]))
-    c, s = np.cos(a[:, 2]), np.sin(a[:, 2])
-    d_rel = np.column_stack([-s * d[:, 0] + c * d[:, 1], -c * d[:, 0] - s * d[:, 1]])  # d(R_a^T d)/d theta_a
-    rza = rz_t @ ra_t
-    jac = np.zeros((len(a), 3, 6))
-    jac[:, :2, 0:2] = -rza
-    jac[:, :2, 2] = np.einsum("nij,nj->ni", rz_t, d_rel)
-    jac[:, :2, 3:5] = rza
-    jac[:, 2, 2], jac[:, 2, 5] = -1.0, 1.0
-    return e, jac
 
 
 def _variance_factors(g: _Graph, problem: _Problem, tests: _SightingTests, gate: float) -> np.ndarray:
@@ -520,7 +488,8 @@ def _variance_factors(g: _Graph, problem: _Problem, tests: _SightingTests, gate:
     t = len(problem.poses)
     if t > 1:
         joint = np.array(joint_marginal_covariances(g.graph, [[k, k + 1] for k in range(t - 1)]))
-        e, jac = pose_edge_residuals(problem.poses[:-1], problem.poses[1:], problem.odometry)
+        e, d_from, d_to = linearize_pose_edges(problem.poses[:-1], problem.poses[1:], problem.odometry)
+        jac = np.concatenate([d_from, d_to], axis=2)
         info = problem.odometry_information
         residual = problem.odometry_covariances - jac @ joint @ jac.transpose(0, 2, 1)
         redundancy = np.einsum("nij,nji->", info, residual)
@@ -662,8 +631,8 @@ def _split_moves(g: _Graph, problem: _Problem, tests: _SightingTests, gate: floa
         free = slots[~np.isin(g.labels, np.array(sorted(excluded), dtype=np.int64))]
         options = []
         if len(free):
-            e, j_pose, j_point = point_residuals(np.repeat(problem.poses[t][None], len(free), 0), all_marks[free],
-                                                 np.repeat(problem.z[i][None], len(free), 0))
+            e, j_pose, j_point = linearize_point_edges(np.repeat(problem.poses[t][None], len(free), 0),
+                                                       all_marks[free], np.repeat(problem.z[i][None], len(free), 0))
             h = np.concatenate([j_pose, j_point], axis=2)
             k = columns(np.full(len(free), t), free)
             v = e + np.einsum("nij,nj->ni", h, delta[k])
@@ -710,7 +679,7 @@ def _reassociation_distances(g: _Graph, problem: _Problem, queries: List[Tuple[i
     loo = joint + a @ w @ a.transpose(0, 2, 1)
     marks = np.array([problem.landmarks[int(c)] for c in g.labels])
     m = marks[np.searchsorted(g.labels, candidates)]
-    e_c, j_pose, j_point = point_residuals(problem.poses[t], m, problem.z[rows])
+    e_c, j_pose, j_point = linearize_point_edges(problem.poses[t], m, problem.z[rows])
     h = np.zeros((n, 2, 7))
     h[:, :, 0:3] = j_pose
     h[:, :, 5:7] = j_point
@@ -763,7 +732,7 @@ def _likelihood_moves(g: _Graph, problem: _Problem, tests: _SightingTests, gate:
         lmax_p[:n_own] = np.maximum(np.linalg.eigvalsh(h @ joint @ h.transpose(0, 2, 1))[:, -1], 0.0)
         lmax_w[:n_own] = np.linalg.eigvalsh(w)[:, -1]
         e_w[:n_own] = np.linalg.norm(np.einsum("nij,nj->ni", w, e), axis=1)
-    _, hx, _ = point_residuals(problem.poses[t], _placed(problem, rows), problem.z[rows])
+    _, hx, _ = linearize_point_edges(problem.poses[t], _placed(problem, rows), problem.z[rows])
     sigma_x = np.sqrt(np.maximum(np.linalg.eigvalsh(hx @ pose_cov @ hx.transpose(0, 2, 1))[:, -1], 0.0))
     sigma_q = np.sqrt(np.linalg.eigvalsh(q)[:, -1])
     # The distance a candidate must stay within: the gate, and for a labelled sighting the
@@ -806,7 +775,7 @@ def _likelihood_moves(g: _Graph, problem: _Problem, tests: _SightingTests, gate:
                                                               for i, c in lone_queries]))
         i_ = np.array([i for i, _ in lone_queries])
         mk = np.array([problem.landmarks[c] for _, c in lone_queries])
-        e_c, j_pose, j_point = point_residuals(problem.poses[problem.pose_index[i_]], mk, problem.z[i_])
+        e_c, j_pose, j_point = linearize_point_edges(problem.poses[problem.pose_index[i_]], mk, problem.z[i_])
         h = np.concatenate([j_pose, j_point], axis=2)
         s_c = problem.z_covariance[i_] + h @ joint @ h.transpose(0, 2, 1)
         d2 = np.einsum("ni,ni->n", e_c, np.linalg.solve(s_c, e_c[:, :, None])[:, :, 0])
@@ -1014,35 +983,6 @@ def refine_landmarks(poses, odometry, odometry_covariances, pose_index, measurem
 # From a filter run over a dataset.
 
 
-def _sinc(a: np.ndarray) -> np.ndarray:
-    return np.sinc(a / np.pi)  # numpy's sinc is sin(pi x) / (pi x)
-
-
-def _sinc_derivative(a: np.ndarray) -> np.ndarray:
-    small = np.abs(a) < 1e-3  # the series' truncation error (a^5 / 840) is below double precision there
-    safe = np.where(small, 1.0, a)
-    return np.where(small, -a / 3.0 + a ** 3 / 30.0, (safe * np.cos(safe) - np.sin(safe)) / safe ** 2)
-
-
-def velocity_increments(v: np.ndarray, w: np.ndarray, dt: np.ndarray, control_noise: np.ndarray):
-    """The velocity motion model (Table 5.3 without noise, as ``velocity_motion`` from the origin)
-    over pieces (v, w, dt) (n,): the robot-frame motion (n, 3) of each and its covariance
-    V (control_noise[k]) V^T (n, 3, 3), V the Jacobian with respect to (v, w) (as
-    ``velocity_motion_control_jacobian``); ``control_noise`` (n, 2, 2)."""
-    a = 0.5 * w * dt
-    s, ds = _sinc(a), _sinc_derivative(a)
-    d = v * dt * s
-    ca, sa = np.cos(a), np.sin(a)
-    delta = np.column_stack([d * ca, d * sa, w * dt])
-    dd_dw = v * dt * ds * 0.5 * dt
-    jac = np.zeros((len(v), 3, 2))
-    jac[:, 0, 0], jac[:, 1, 0] = dt * s * ca, dt * s * sa
-    jac[:, 0, 1] = dd_dw * ca - d * sa * 0.5 * dt
-    jac[:, 1, 1] = dd_dw * sa + d * ca * 0.5 * dt
-    jac[:, 2, 1] = dt
-    return delta, jac @ control_noise @ jac.transpose(0, 2, 1)
-
-
 def compose_increments(deltas: np.ndarray, covariances: np.ndarray, nodes: np.ndarray):
     """Relative motions between chain nodes: ``deltas`` (n, 3) move node i to node i + 1 in node
     i's frame, with ``covariances`` (n, 3, 3), independent. For consecutive entries a <= b of
@@ -1248,5 +1188,5 @@ def refine_run(run, data, motion_noise=None, measurement_noise=None, *, command_
 __all__ = ["LEAVE_ONE_OUT_RANK_TOLERANCE", "MAX_ITERATIONS", "MERGE_PROBABILITY", "ODOMETRY_COVARIANCE_FLOOR",
            "SPLIT_RUN_PROBABILITY", "UNASSIGNED", "LandmarkRefinement", "Merge", "RefinementInput", "RefinementRound",
            "RunRefinement", "Split", "compose_increments", "floor_covariances", "majority_truth",
-           "merge_gate", "point_residuals", "polar_to_point", "refine_landmarks", "refine_run", "refinement_input",
-           "sighting_accuracy", "split_gate", "velocity_increments"]
+           "merge_gate", "polar_to_point", "refine_landmarks", "refine_run", "refinement_input",
+           "sighting_accuracy", "split_gate"]

@@ -513,18 +513,6 @@ def test_increments_compose_as_one_at_a_time_propagation():
     np.testing.assert_allclose(cov, ref_cov, rtol=1e-6, atol=1e-12)
 
 
-def test_velocity_increments_are_the_bound_motion_model_from_the_origin():
-    v = np.array([0.3, -0.2, 0.0, 0.5, 1e-9])
-    w = np.array([0.5, 1e-5, -0.7, 0.0, 2.0])
-    dt = np.array([0.015, 0.2, 0.01, 1.0, 0.3])
-    noise = np.tile(np.diag([0.15 ** 2, 0.6 ** 2]), (len(v), 1, 1))
-    delta, cov = lr.velocity_increments(v, w, dt, noise)
-    for k in range(len(v)):
-        np.testing.assert_allclose(delta[k], probslam.velocity_motion(np.zeros(3), v[k], w[k], dt[k]), atol=1e-15)
-        jac = probslam.velocity_motion_control_jacobian(np.zeros(3), v[k], w[k], dt[k])
-        np.testing.assert_allclose(cov[k], jac @ noise[k] @ jac.T, rtol=1e-12, atol=1e-18)
-
-
 # ---------------------------------------------------------------------------------------------
 # Bad input: named, before any work.
 
