@@ -14,7 +14,7 @@ import stat
 import sys
 import time
 import warnings
-from typing import Dict, Iterator, List, Optional
+from typing import Dict, Iterator, List, Optional, Tuple
 
 from . import __version__, io
 from . import eval as evaluation
@@ -24,7 +24,10 @@ from ._core import MonteCarloLocalizationOptions
 from .pipelines.optimize_file import INITIALIZATIONS, NOISE_CONVENTIONS, GraphFileOptions
 from .landmark_refine import refine_run
 from .io.trajectory import EXTENSIONS, POSITION_FIELDS, TRAJECTORY_FORMATS, first_row_fields
-from .mapping import DEFAULT_MAX_RANGE as MAP_MAX_RANGE, DEFAULT_RESOLUTION as MAP_RESOLUTION, map_laser_log
+from .localization import default_options
+from .mapping import DEFAULT_MAX_RANGE as MAP_MAX_RANGE, DEFAULT_RESOLUTION as MAP_RESOLUTION
+from .pipelines.localize_log import localize_log
+from .pipelines.map_log import BUNDLED_INVERSE_MODEL, MapOptions, MapRun
 from ._progress import progress_bar
 
 BUNDLED_LOG = "intel_excerpt.log.gz"
@@ -38,8 +41,6 @@ BUNDLED_SLAM_LOG = "intel_raw_lap.log.gz"
 BUNDLED_GRAPH = "intel_400.g2o"
 #: The default of ``probslam ekf-slam`` / ``fastslam``: MRCLAM Dataset 7, robot 1, 120 s.
 BUNDLED_LANDMARKS = "mrclam7_robot1_120s"
-#: ``map --inverse-model bundled``: a learned inverse model of the Intel laser (studies/eval_inverse_real.py).
-BUNDLED_INVERSE_MODEL = "intel_laser_inverse.npz"
 #: ``probslam localize`` without a LOG: the bundled raw loop in its map made by ``probslam slam``.
 BUNDLED_LOCALIZATION_MAP = "intel_raw_loop_map.yaml"
 
@@ -150,28 +151,47 @@ def _one_line(exc: BaseException) -> str:
     return " ".join(part.strip() for part in text.splitlines() if part.strip())
 
 
-#: localize's flags, by the MonteCarloLocalizationOptions field each sets.
+#: localize's flags, by the MonteCarloLocalizationOptions field each sets; then the run's other
+#: arguments the library's messages may name.
 LOCALIZE_FLAGS = {"sensor_model": "--sensor-model", "min_particles": "--min-particles",
                   "max_particles": "--max-particles", "max_range": "--max-range", "seed": "--seed",
                   "threads": "--threads"}
+LOCALIZE_ARGUMENTS = {**LOCALIZE_FLAGS, "initial_pose": "--initial-pose", "map": "--map"}
+
+
+def _as_given(text: str, names: Dict[str, str], args: Optional[argparse.Namespace] = None) -> Tuple[str, bool]:
+    """A library message told as the command line gave it, and whether it named anything: its
+    subject (a leading name of ``names``, the library's parameter or option field) becomes what the
+    command line calls it, with the value given (from ``args``) unless the message says it already
+    ("min_particles must ..." -> "--min-particles 0: must ..."); other names it mentions become
+    theirs (the subject's own name further on is prose: "4 worker threads")."""
+    pattern = r"(?<![-\w.])(" + "|".join(sorted(map(re.escape, names), key=len, reverse=True)) + r")\b(?![.])"
+    subject = re.match(pattern, text)
+    rest = text[subject.end():] if subject else text
+    rest, named = re.subn(pattern, lambda m: m.group(1) if subject and m.group(1) == subject.group(1)
+                          else names[m.group(1)], rest)
+    if not subject:
+        return rest, bool(named)
+    name, colon = subject.group(1), ":" if rest.startswith(":") else ""
+    rest = rest.lstrip(": ")
+    given = getattr(args, name, None) if args is not None else None
+    if isinstance(given, (list, tuple)):
+        given = " ".join(map(str, given))
+    if given is None or isinstance(given, bool) or rest.startswith(f"{given} ") or f"got {given}" in rest:
+        return f"{names[name]}{colon} {rest}", True  # no value to add, or the message says it
+    return f"{names[name]} {given}: {rest}", True
 
 
 @contextlib.contextmanager
 def _option_flags(flags: Dict[str, str], args: argparse.Namespace) -> Iterator[None]:
-    """The library's errors about an option, told as the flag that set it with its value:
-    "min_particles must ..." becomes UserError "--min-particles 0: must ..." (the library checks
-    the values; the CLI does not check them again)."""
+    """The library's errors about an option, told as the flag that set it with its value
+    (``_as_given``): the library checks the values; the CLI does not check them again."""
     try:
         yield
     except (TypeError, ValueError) as exc:
-        text = _one_line(exc)
-        for name, flag in flags.items():
-            if re.match(re.escape(name) + r"\b(?![.])", text):
-                given = getattr(args, name, None)
-                rest = text[len(name):].lstrip(": ")
-                if given is None or rest.startswith(f"{given} "):  # the message already says the value
-                    raise UserError(f"{flag} {rest}") from None
-                raise UserError(f"{flag} {given}: {rest}") from None
+        text, named = _as_given(_one_line(exc), flags, args)
+        if named:
+            raise UserError(text) from None
         raise
 
 
@@ -206,11 +226,7 @@ def _reading(path: str, expected: str, names: Optional[Dict[str, str]] = None) -
     except UserError:
         raise
     except (ValueError, OSError, EOFError, UnicodeError, IndexError) as exc:
-        message = _one_line(exc)
-        named = 0
-        if names:
-            pattern = r"(?<![-\w])(" + "|".join(sorted(map(re.escape, names), key=len, reverse=True)) + r")\b"
-            message, named = re.subn(pattern, lambda m: names[m.group(1)], message)
+        message, named = _as_given(_one_line(exc), names) if names else (_one_line(exc), False)
         if path not in message:
             message = f"{path}: {message}"
         raise UserError(message if named else f"{message}; expected {expected}") from None
@@ -238,22 +254,25 @@ def _save_figure(plt, fig, path: str) -> str:
 
 
 def _map_picture(grid, path: str, trajectory, label: str, title: str) -> str:
-    """PATH.png: the map on metre axes, cropped to its walls with a margin, the trajectory and a
-    legend (``plot.occupancy_map``); without matplotlib the plain picture of ``io.write_png``
+    """PATH.png: the map on metre axes, cropped to its walls, the trajectory and a legend
+    (``plot.occupancy_map_figure``); without matplotlib the plain picture of ``io.write_png``
     (one pixel a cell), after a notice. Returns the path."""
     plt = _pyplot()
     if plt is None:
         io.write_png(grid, path, trajectory=trajectory)
         return path
-    from .plot import crop_bounds, occupancy_map
+    from .plot import occupancy_map_figure
 
-    r0, r1, c0, c1 = crop_bounds(grid)
-    # Nine inches for the map's longer side and room for the legend beside it.
-    scale = 9.0 / max(r1 - r0, c1 - c0)
-    fig, ax = plt.subplots(figsize=(max((c1 - c0) * scale, 4.0) + 1.0, max((r1 - r0) * scale, 4.0) + 0.8))
-    occupancy_map(ax, grid, trajectory, trajectory_label=label)
-    ax.set_title(title, fontsize="medium")
-    return _save_figure(plt, fig, path)
+    return _save_figure(plt, occupancy_map_figure(plt, grid, trajectory, label, title), path)
+
+
+def _picture(run, path: str, **draw) -> str:
+    """PATH.png drawn by a pipeline's run (``run.draw(plt, **draw)``); without matplotlib its plain
+    picture (``run.write_plain_picture``), after a notice. Returns the path."""
+    plt = _pyplot()
+    if plt is None:
+        return run.write_plain_picture(path)
+    return _save_figure(plt, run.draw(plt, **draw), path)
 
 
 def _read_log(path: str, args: Optional[argparse.Namespace] = None):
@@ -325,68 +344,27 @@ def _write_trajectory(args: argparse.Namespace, times, poses, written: List[str]
     written.extend(io.write_trajectory(times, poses, args.output + "_trajectory" + EXTENSIONS[fmt], format=fmt))
 
 
+#: map's flags, by the MapOptions field each sets.
+MAP_FLAGS = {"resolution": "--resolution", "max_range": "--max-range", "robot_radius": "--robot-radius",
+             "skip_no_return": "--keep-no-return", "inverse_model": "--inverse-model"}
+
+
 def _cmd_map(args: argparse.Namespace) -> int:
-    _require_length(args.resolution, "--resolution")
-    _require_length(args.max_range, "--max-range")
-    _require_length(args.robot_radius, "--robot-radius", zero=True)
-    if args.inverse_model is not None:
-        _refuse_given(args, ("robot_radius", "keep_no_return"), "does not apply with --inverse-model (the learned "
-                      "model decides what each beam says)")
+    with _option_flags(MAP_FLAGS, args):
+        options = MapOptions().replace(**{name: getattr(args, name) for name in MAP_FLAGS})
     _check_output(args.output)
     path = args.log or _bundled_log()
-    t0 = time.perf_counter()
     log = _read_log(path, args)
-    if isinstance(log, io.RosbagLog) and log.pose_source == "none":
-        raise UserError(f"{path}: no poses to map with (no odometry, tf or --pose-topic in the bag); "
-                        "'probslam slam' maps a bag of scans alone")
-    if args.inverse_model is not None:
-        from .inverse_learning import LearnedInverseModel, learned_map_geometry, map_laser_log_learned
-
-        model_path = _data_path(BUNDLED_INVERSE_MODEL) if args.inverse_model == "bundled" else args.inverse_model
-        try:
-            model = LearnedInverseModel.load(model_path)
-        except (OSError, ValueError, TypeError) as exc:
-            raise UserError(f"--inverse-model: {exc}") from None
-        # The model's own cell size and range where the command line gives none: it learned on them,
-        # and a finer lattice or longer range costs the network's time on every extra field cell.
-        resolution, max_range = learned_map_geometry(model, args.resolution, args.max_range)
-        own = [name for name, given, value in (("--resolution", args.resolution, model.resolution),
-                                               ("--max-range", args.max_range, model.max_range))
-               if given is None and value is not None]
-        print(f"mapping:       {len(log.scans)} scans with the learned inverse model {os.path.basename(model_path)} at "
-              f"{resolution:g} m cells, readings to {max_range:g} m"
-              + (f" (the model's own {' and '.join(own)})" if own else "") + "; a network on every cell in range "
-              "takes longer than the ray model", flush=True)
-        summary = map_laser_log_learned(model, log.scans, resolution=resolution, max_range=max_range,
-                                        progress=_progress(args))
-        grid = summary.grid
-    else:
-        summary = map_laser_log(log.scans, resolution=_or_default(args.resolution, MAP_RESOLUTION),
-                                max_range=_or_default(args.max_range, MAP_MAX_RANGE),
-                                robot_radius=args.robot_radius,
-                                skip_no_return=not args.keep_no_return, progress=None if args.progress else False)
-        grid = summary.grid
-    io.save_ros_map(grid, args.output + ".yaml")
-    written = [f"{args.output}.yaml", f"{args.output}.pgm"]
+    with _option_flags(MAP_FLAGS, args):
+        run = MapRun.prepare(log, options, path)
+    if run.start_summary():
+        print(run.start_summary(), flush=True)
+    run.run(_progress(args))
+    written = run.write(args.output)
     if args.plot:
-        written.append(_map_picture(grid, args.output + ".png", log.scans.laser_poses, "laser poses (the log's)",
-                                    f"probslam map: {os.path.basename(path)}\noccupancy grid at the log's poses"))
-    total = time.perf_counter() - t0
-    rate = summary.beams / summary.seconds / 1e6 if summary.seconds > 0 else float("inf")
-    print(f"log:           {path}{' (bundled Intel Research Lab excerpt)' if not args.log else ''}")
-    _print_bag(log)
-    print(f"scans:         {summary.scans}"
-          + (f" ({log.skipped_wide_scans} skipped: far wider than the rest)" if log.skipped_wide_scans else "")
-          + (f" ({log.skipped_rows} malformed log lines skipped)"
-             if log.skipped_rows and not isinstance(log, io.RosbagLog) else ""))
-    print(f"beams:         {summary.beams}")
-    print(f"cells updated: {summary.cells_updated}")
-    print(f"map:           {grid.width} x {grid.height} cells at {grid.resolution} m, origin {grid.origin}")
-    print(f"time:          {total:.2f} s total, {summary.seconds:.3f} s mapping ({rate:.2f} M beams/s)")
-    print(f"wrote:         {', '.join(written)}")
-    hint = _odometry_hint(log, args.log)
-    if hint:
-        print(f"hint:          {hint}")
+        written.append(_picture(run, args.output + ".png"))
+    print(run.summary(path + ("" if args.log else " (bundled Intel Research Lab excerpt)"), written,
+                      hint=args.log is not None))
     return 0
 
 
@@ -403,22 +381,6 @@ def _resume_command(args: argparse.Namespace, run_file: str) -> str:
         words += ["--laser-offset"] + [repr(float(v)) for v in args.laser_offset]
     words += ["--resume", run_file, "--save", run_file] + ([] if args.plot else ["--no-plot"])
     return shlex.join(words)
-
-
-def _odometry_hint(log, path: Optional[str]) -> str:
-    """What ``map`` says about its poses when they may be raw odometry, which smears a map wherever
-    it drifts: a bag's odometry or tf are; a CARMEN log's FLASER poses are either (a raw log and a
-    corrected one write the same fields, the same way), so the hint is conditional there. None for
-    the bundled corrected excerpt and a bag's --pose-topic."""
-    if path is None:
-        return ""
-    slam = f"'probslam slam {path}' corrects them (scan matching, loop closures)"
-    if isinstance(log, io.RosbagLog):
-        if log.pose_source.startswith("poses"):
-            return ""
-        return f"the poses are the bag's {log.pose_source}, raw odometry: the map smears wherever it drifts; {slam}"
-    return (f"map draws the log's poses as they are; if they are raw odometry (a log as the robot recorded it, "
-            f"not a corrected one), the map smears wherever it drifts, and {slam}")
 
 
 def _cmd_slam(args: argparse.Namespace) -> int:
@@ -525,81 +487,18 @@ def _cmd_slam(args: argparse.Namespace) -> int:
     return 0
 
 
-#: Where ``localize`` records the particle cloud: at these shares of the log's odometry travel
-#: (the start, early while a global cloud settles, and the end), so that a robot standing still
-#: does not give pictures of the same cloud.
-SNAPSHOT_TRAVEL = (0.0, 0.02, 0.1, 1.0)
-#: The drawn estimate is broken where it jumps further than this between two scans (a relocation
-#: by augmented MCL, or a cluster that took over): a straight line there would cross the map. The
-#: robot moves a few decimetres between two scans of any laser log.
-TRACK_JUMP = 1.0
-
-
-def _snapshot_times(scans) -> List[float]:
-    """The log times of SNAPSHOT_TRAVEL: the first scan at or after each share of the travel."""
-    import numpy as np
-
-    t = scans.timestamps
-    if not len(t):
-        return []
-    xy = scans.laser_poses[:, :2]
-    travelled = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
-    index = [int(np.searchsorted(travelled, f * travelled[-1])) for f in SNAPSHOT_TRAVEL]
-    return [float(t[i]) for i in sorted(set(min(i, len(t) - 1) for i in index))]
-
-
-def _convergence_report(result) -> str:
-    """converged: when first, then the share of the time, and the spells it was lost."""
-    from .localization import CONVERGED_CLUSTER_WEIGHT, CONVERGED_THETA_STD, CONVERGED_XY_STD
-
-    if result.convergence_time is None:
-        return (f"no (the largest cluster never came below {CONVERGED_XY_STD} m / {CONVERGED_THETA_STD} rad "
-                f"holding {CONVERGED_CLUSTER_WEIGHT:.0%} of the weight)")
-    text = (f"after {result.convergence_time:.1f} s of log, {result.travel_to_converge:.1f} m of travel; "
-            f"then converged {100 * result.converged_fraction:.1f}% of the time")
-    lost = result.lost
-    if lost:
-        spells = "; ".join(f"lost at {a:.1f} s, " + ("regained at {:.1f} s".format(b) if b is not None else
-                                                     "not regained") for a, b in lost[:3])
-        more = f"; {len(lost) - 3} more" if len(lost) > 3 else ""
-        text += f" ({spells}{more})"
-    return text
-
-
-def _check_map_holds_scans(grid, scans, path: str) -> None:
-    """A map smaller than the log's median laser reading cannot hold a scan: a YAML whose
-    resolution is off by orders (1e-6 for 0.05) would otherwise localize the robot in a speck."""
-    import numpy as np
-
-    r = scans.ranges
-    r = r[np.isfinite(r) & (r > 0)]
-    if not r.size:
-        return
-    median = float(np.median(r))
-    width, height = grid.width * grid.resolution, grid.height * grid.resolution
-    if math.hypot(width, height) < median:
-        raise UserError(f"--map: {os.path.basename(path)} is {width:.3g} x {height:.3g} m ({grid.width} x "
-                        f"{grid.height} cells of {grid.resolution:g} m), smaller than the log's median laser reading "
-                        f"({median:.2f} m): check its resolution")
+#: What ``localize --map`` reads.
+MAP_FILE = "a map_server map (YAML with its image)"
 
 
 def _cmd_localize(args: argparse.Namespace) -> int:
-    import numpy as np
-
-    from .localization import default_options, localize
-
     if args.initial_pose is not None and args.global_:
         raise UserError("--initial-pose and --global exclude each other")
     bundled = args.log is None and args.map is None
-    if args.initial_pose is None and not args.global_:
-        if not bundled:
-            raise UserError("say where the robot starts: --initial-pose X Y THETA, or --global (anywhere in free "
-                            "space)")
-        args.global_ = True  # the bundled demo: global localization, what MCL can do that a tracker cannot
-    if args.initial_pose is not None and not all(math.isfinite(v) for v in args.initial_pose):
-        raise UserError("--initial-pose: X Y THETA must be finite numbers")
+    if args.initial_pose is None and not args.global_ and not bundled:
+        raise UserError("say where the robot starts: --initial-pose X Y THETA, or --global (anywhere in free space)")
     _check_output(args.output)
-    if bundled:
+    if bundled:  # global localization, what MCL can do that a tracker cannot
         args.log, args.map = _data_path(BUNDLED_RAW_LOG), _data_path(BUNDLED_LOCALIZATION_MAP)
         print("probslam localize: no LOG given: the bundled raw Intel loop in its bundled map, from a global start "
               "(particles anywhere in free space); give LOG --map MAP.yaml for your own", flush=True)
@@ -607,90 +506,20 @@ def _cmd_localize(args: argparse.Namespace) -> int:
         raise UserError("--map: give the map to localize in (a map_server YAML, e.g. probslam slam's PREFIX.yaml)")
     elif args.log is None:
         raise UserError("--map given without a LOG: name the log to localize")
-    _check_input(args.map, "a map_server map (YAML with its image)")
-    with _reading(args.map, "a map_server map (YAML with its image)"):
+    _check_input(args.map, MAP_FILE)
+    with _reading(args.map, MAP_FILE):
         grid = io.load_ros_map(args.map)
     log = _read_log(args.log, args)
-    _check_map_holds_scans(grid, log.scans, args.map)
-    options = default_options(log.scans)
-    with _option_flags(LOCALIZE_FLAGS, args):
-        for name in LOCALIZE_FLAGS:
-            if getattr(args, name) is not None:
-                setattr(options, name, getattr(args, name))
-        result = localize(log, grid, options=options, initial_pose=args.initial_pose,
-                          snapshot_times=_snapshot_times(log.scans), progress=_progress(args))
-    written: List[str] = []
-    _write_trajectory(args, result.timestamps, result.poses, written)
+    with _option_flags(LOCALIZE_ARGUMENTS, args):
+        options = default_options(log.scans).replace(
+            **{name: getattr(args, name) for name in LOCALIZE_FLAGS if getattr(args, name) is not None})
+        run = localize_log(log, grid, options, initial_pose=args.initial_pose, progress=_progress(args))
+    written = run.write(args.output, args.trajectory_format)
     if args.plot:
-        written.append(_localization_picture(grid, result, args.output + ".png",
-                                             f"probslam localize: {os.path.basename(args.log)} in "
-                                             f"{os.path.basename(args.map)}"))
-    start = "global (uniform over free space)" if args.global_ else "from x={:.2f} y={:.2f} theta={:.3f}".format(
-        *args.initial_pose)
-    n = result.num_particles
-    print(f"log:           {args.log}")
-    _print_bag(log)
-    print(f"map:           {args.map}: {grid.width} x {grid.height} cells at {grid.resolution} m")
-    print(f"start:         {start}")
-    print(f"scans:         {len(result.timestamps)}; {int(result.updated.sum())} filter updates")
-    if result.odometry_travel == 0.0 and len(result.timestamps) > 1:
-        print("odometry:      none: the log's poses never move, and the filter updates only after travel "
-              f"({result.options.update_min_d} m or {math.degrees(result.options.update_min_a):g} degrees), so nothing moved it after the first "
-              "scan; localize a log with odometry")
-    print(f"particles:     {int(n.min())} to {int(n.max())} (median {int(np.median(n))}, last {int(n[-1])})")
-    print(f"converged:     {_convergence_report(result)}")
-    print(f"time:          {result.seconds:.1f} s for {result.log_duration:.0f} s of log "
-          f"(real-time factor {result.real_time_factor:.0f})")
-    print(f"wrote:         {', '.join(written)}")
-    return 0 if result.convergence_time is not None else EXIT_NOT_CONVERGED
-
-
-def _converged_track(result):
-    """The estimate where it is converged, with a NaN row in each gap (scans not converged) and
-    at each jump of more than TRACK_JUMP: a plotted line then shows only the track the filter
-    was sure of, without straight lines across the map."""
-    import numpy as np
-
-    xy = np.asarray(result.poses, dtype=float)[:, :2]
-    keep = np.asarray(result.converged, dtype=bool)
-    step = np.concatenate([[0.0], np.hypot(*np.diff(xy, axis=0).T)])
-    joined = np.concatenate([[False], keep[:-1] & keep[1:]]) & (step <= TRACK_JUMP)
-    rows = []
-    for i in np.flatnonzero(keep):
-        if rows and not joined[i]:
-            rows.append((np.nan, np.nan))
-        rows.append(tuple(xy[i]))
-    return np.array(rows, dtype=float).reshape(-1, 2)
-
-
-def _localization_picture(grid, result, path: str, title: str) -> str:
-    """PATH.png: the map, the converged estimate and the particle clouds recorded
-    (plot.occupancy_map) beside the particle count over time; without matplotlib the plain
-    picture of io.write_png."""
-    plt = _pyplot()
-    track = _converged_track(result)
-    if plt is None:
-        io.write_png(grid, path, trajectory=track)  # it leaves out the NaN rows
-        return path
-    from .plot import occupancy_map
-
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(14, 6.5), gridspec_kw=dict(width_ratios=(2, 1)))
-    occupancy_map(ax, grid, track, trajectory_label="MCL estimate (where converged)")
-    colours = ("tab:blue", "tab:orange", "tab:green", "tab:purple")
-    t0 = result.timestamps[0]
-    for (t, particles), colour in zip(result.snapshots, colours):
-        ax.scatter(particles[:, 0], particles[:, 1], s=0.5, color=colour, alpha=0.4,
-                   label=f"particles at {t - t0:.0f} s ({len(particles)})")
-    ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize="small", markerscale=8)
-    ax.set_title(title, fontsize="medium")
-    bx.plot(result.timestamps - t0, result.num_particles, color="tab:blue")
-    bx.set_yscale("log")
-    bx.set_xlabel("log time [s]")
-    bx.set_ylabel("particles (KLD sampling)")
-    if result.convergence_time is not None:
-        bx.axvline(result.convergence_time, color="tab:red", lw=0.8, label="first converged")
-        bx.legend(fontsize="small")
-    return _save_figure(plt, fig, path)
+        title = f"probslam localize: {os.path.basename(args.log)} in {os.path.basename(args.map)}"
+        written.append(_picture(run, args.output + ".png", title=title))
+    print(run.summary(args.log, args.map, written))
+    return 0 if run.converged else EXIT_NOT_CONVERGED
 
 
 def _cmd_ekf_slam(args: argparse.Namespace) -> int:
@@ -1038,11 +867,6 @@ def _mrclam_noise(args: argparse.Namespace):
             raise UserError(f"{option} must be a finite standard deviation > 0 with a finite variance > 0, "
                             f"got {value}")
     return (np.diag([args.sigma_v ** 2, args.sigma_w ** 2]), np.diag([args.sigma_r ** 2, args.sigma_phi ** 2]))
-
-
-def _or_default(value: Optional[float], default: float) -> float:
-    """An option's value, or its default when it was not given (None)."""
-    return default if value is None else value
 
 
 def _require_length(value: Optional[float], option: str, zero: bool = False, what: str = "number") -> None:
@@ -1467,7 +1291,7 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"readings at or beyond this (metres) only clear space (default {MAP_MAX_RANGE:g}; with "
                         "--inverse-model the model's own, 10 for the bundled one)")
     p.add_argument("--robot-radius", type=float, default=0.0, help="clear the robot's footprint (metres)")
-    p.add_argument("--keep-no-return", action="store_true",
+    p.add_argument("--keep-no-return", dest="skip_no_return", action="store_false",
                    help="let readings at the sensor maximum clear space (default: skip them)")
     p.add_argument("--inverse-model", default=None, metavar="MODEL.npz",
                    help="map with a learned inverse sensor model (ch. 9.3; probslam.inverse_learning, saved with "
