@@ -28,6 +28,7 @@ from .localization import default_options
 from .mapping import DEFAULT_MAX_RANGE as MAP_MAX_RANGE, DEFAULT_RESOLUTION as MAP_RESOLUTION
 from .pipelines.localize_log import localize_log
 from .pipelines.map_log import BUNDLED_INVERSE_MODEL, MapOptions, MapRun
+from .pipelines.evaluate_trajectory import REFERENCE_FORMATS, EvaluationOptions, TrajectoryEvaluation
 from ._progress import progress_bar
 
 BUNDLED_LOG = "intel_excerpt.log.gz"
@@ -163,15 +164,15 @@ def _as_given(text: str, names: Dict[str, str], args: Optional[argparse.Namespac
     """A library message told as the command line gave it, and whether it named anything: its
     subject (a leading name of ``names``, the library's parameter or option field) becomes what the
     command line calls it, with the value given (from ``args``) unless the message says it already
-    ("min_particles must ..." -> "--min-particles 0: must ..."); other names it mentions become
-    theirs (the subject's own name further on is prose: "4 worker threads")."""
+    ("min_particles must ..." -> "--min-particles 0: must ..."); the other names it mentions become
+    theirs where they cannot be prose (an identifier with an underscore: "4 worker threads" stays)."""
     pattern = r"(?<![-\w.])(" + "|".join(sorted(map(re.escape, names), key=len, reverse=True)) + r")\b(?![.])"
     subject = re.match(pattern, text)
     rest = text[subject.end():] if subject else text
-    rest, named = re.subn(pattern, lambda m: m.group(1) if subject and m.group(1) == subject.group(1)
-                          else names[m.group(1)], rest)
+    mentioned = [m.group(1) for m in re.finditer(pattern, rest) if "_" in m.group(1)]
+    rest = re.sub(pattern, lambda m: names[m.group(1)] if m.group(1) in mentioned else m.group(1), rest)
     if not subject:
-        return rest, bool(named)
+        return rest, bool(mentioned)
     name, colon = subject.group(1), ":" if rest.startswith(":") else ""
     rest = rest.lstrip(": ")
     given = getattr(args, name, None) if args is not None else None
@@ -996,220 +997,40 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
 
 #: What ``probslam eval`` reads.
 TRAJECTORY_FILE = "a trajectory: TUM (t x y z qx qy qz qw), KITTI (12 numbers a row) or 't x y theta' rows"
-RELATIONS_FILE = "a Freiburg relations file (t1 t2 x y z roll pitch yaw rows)"
-POSITIONS_FILE = "positions with times (t x y rows, e.g. a GPS track)"
-
-
-def _read_trajectory_file(path: str, role: str):
-    """A trajectory file read for ``eval``, what was skipped or projected printed."""
-    _check_input(path, TRAJECTORY_FILE)
-    with _reading(path, TRAJECTORY_FILE):
-        trajectory = io.read_trajectory(path)
-    notes = [f"{trajectory.skipped_rows} unreadable rows skipped"] if trajectory.skipped_rows else []
-    if trajectory.projected_rows:
-        notes.append(f"{trajectory.projected_rows} non-planar rows read as their 2-D projection")
-    if trajectory.times_from_index:
-        notes.append("no times file: the row index is the time")
-    print(f"{role:<15}{path}: {len(trajectory)} poses ({trajectory.format.upper()}"
-          f"{'; ' + '; '.join(notes) if notes else ''})")
-    return trajectory
-
-
-def _is_relations(path: str, ref_format: str) -> bool:
-    if ref_format != "auto":
-        return ref_format == "relations"
-    name = os.path.basename(path).lower()
-    return ".relations" in name
-
-
-def _is_positions(path: str) -> bool:
-    """Whether a reference file holds ``t x y`` rows (a GPS track), judged by its first row."""
-    _check_input(path, TRAJECTORY_FILE)
-    with _reading(path, TRAJECTORY_FILE):
-        return first_row_fields(path) == POSITION_FIELDS
-
-
-def _eval_positions(args: argparse.Namespace, est) -> int:
-    """``eval EST REF`` with REF a track of positions: the estimate at each fix's time."""
-    if args.rpe or args.align is not None:
-        raise UserError("--rpe and --align apply to a reference trajectory, not to positions (t x y rows): the "
-                        "error is printed both as it is and after the alignment")
-    _refuse_given(args, ("max_time_difference",), "applies to a reference trajectory, not to positions (the "
-                  "estimate is interpolated at each fix's time)")
-    with _reading(args.reference, POSITIONS_FILE):
-        ref = io.read_positions(args.reference)
-    print(f"{'reference:':<15}{args.reference}: {len(ref)} positions (t x y"
-          + (f"; {ref.skipped_rows} unreadable rows skipped)" if ref.skipped_rows else ")"))
-    with _reading(args.estimate, TRAJECTORY_FILE):
-        result = evaluation.position_error(est.timestamps, est.poses, ref.timestamps, ref.positions)
-    print(f"{'fixes:':<15}{result.count} used, {result.outside} outside the estimate's time span (the estimate is "
-          f"interpolated at each fix's time)\n")
-    print(result, end="")
-    return 0
-
-
-#: The names of CARMEN logs (after a .gz, .bz2 or .xz suffix): what eval reads as a reference's
-#: laser poses.
-CARMEN_SUFFIXES = (".log", ".clf")
-
-
-def _is_carmen_log(path: str, ref_format: str) -> bool:
-    if ref_format != "auto":
-        return ref_format == "carmen"
-    name = os.path.basename(path).lower()
-    for suffix in (".gz", ".bz2", ".xz"):
-        name = name.removesuffix(suffix)
-    return name.endswith(CARMEN_SUFFIXES)
-
-
-def _carmen_reference(path: str, est: io.Trajectory, max_time_difference: float) -> io.Trajectory:
-    """A CARMEN log with corrected poses (e.g. intel-corrected.log.gz) as eval's reference: the
-    laser poses at its scans' times, the poses the commands write for a log. Both are on the raw
-    log's logger time (each line's last field), which the corrected Intel and FR079 logs carry and
-    the commands write. UserError when its times do not overlap the estimate's (an estimate on
-    another clock, such as the ipc time, or of another log)."""
-    scans = _read_log(path).scans
-    t, te = scans.timestamps, est.timestamps
-    if te.max() < t.min() - max_time_difference or te.min() > t.max() + max_time_difference:
-        raise UserError(f"{path}: its scans' times [{t.min():.9g}, {t.max():.9g}] s do not overlap the estimate's "
-                        f"[{te.min():.9g}, {te.max():.9g}] s: a corrected log (Intel's, FR079's) is stamped with its "
-                        "raw log's logger time (each line's last field), as the commands write a log's poses; "
-                        "the estimate is on another clock (the ipc time?) or of another log")
-    print(f"{'reference:':<15}{path}: {len(scans)} poses (CARMEN log: the laser poses of its scans)")
-    return io.Trajectory(t, scans.laser_poses, "carmen")
-
-
-#: How far apart (s) a relation's time and an estimate's may be and still be the same scan's: the
-#: logs and relations files write times to the microsecond.
-SAME_SCAN_TIME = 1e-6
-#: Relation times every candidate clock offset is tried on before all of them are checked, and
-#: candidates tried at once (bounds the work and memory of the search to ~8 MB).
-OFFSET_PROBES = 20
-OFFSET_CHUNK = 50_000
-
-
-def _on_times(times, stamps):
-    """Which stamps are one of the sorted times (within SAME_SCAN_TIME)."""
-    import numpy as np
-
-    at = np.searchsorted(times, stamps)
-    gap = np.minimum(np.abs(times[np.minimum(at, len(times) - 1)] - stamps),
-                     np.abs(times[np.maximum(at - 1, 0)] - stamps))
-    return gap <= SAME_SCAN_TIME
-
-
-def _clock_offset(times, stamps) -> Optional[float]:
-    """The one constant c for which every stamp - c is one of the sorted times (0 when they are
-    already); None when no c or more than one does. The Freiburg relations name scans by their
-    ipc time, `slam` stamps them with the logger time, and in the benchmark logs the two clocks
-    differ by a constant (ACES 70.1797 s, Intel 976052857.337284 s)."""
-    import numpy as np
-
-    if np.all(_on_times(times, stamps)):
-        return 0.0
-    probes = stamps[np.linspace(0, len(stamps) - 1, min(OFFSET_PROBES, len(stamps))).astype(int)]
-    found = []
-    for start in range(0, len(times), OFFSET_CHUNK):
-        candidates = probes[0] - times[start:start + OFFSET_CHUNK]
-        fit = _on_times(times, (probes[None, :] - candidates[:, None]).ravel()).reshape(len(candidates), -1)
-        found.extend(candidates[fit.all(axis=1)])
-    distinct = np.unique(np.round(np.array(found) / SAME_SCAN_TIME)) if found else []
-    if len(distinct) != 1 or not np.all(_on_times(times, stamps - found[0])):
-        return None
-    return float(found[0])
-
-
-def _relations_on_the_estimates_clock(args: argparse.Namespace, relations, est: io.Trajectory):
-    """The relations on the estimate's clock. The Freiburg files are stamped with the raw log's
-    ipc time, the commands write its logger time: with --log, each relation time is moved onto
-    the logger time of the scan it names; without, by the one constant offset that makes every
-    relation time a time of the estimate when there is one, else left as they are with a note
-    when none of them is a time of the estimate."""
-    import dataclasses
-
-    import numpy as np
-
-    if args.log is not None:
-        scans = _read_log(args.log).scans
-        with _reading(args.log, CARMEN_LOG, {"scans": args.log}):
-            moved = evaluation.relations_on_logger_time(relations, scans)
-        shift = float(np.median(relations.t1 - moved.t1))
-        print(f"{'relations:':<15}times moved from {args.log}'s ipc time to its logger time ({shift:.6f} s earlier)")
-        return moved
-    times = np.sort(est.timestamps)
-    stamps = np.concatenate([relations.t1, relations.t2])
-    offset = _clock_offset(times, stamps)
-    if offset:
-        print(f"{'relations:':<15}times moved {offset:.6f} s earlier, onto the estimate's clock (each is then a time "
-              "of the estimate: the relations are stamped with the raw log's ipc time, 'slam' writes its logger time)")
-        return dataclasses.replace(relations, t1=relations.t1 - offset, t2=relations.t2 - offset)
-    if offset is None and not np.any(_on_times(times, stamps)):
-        print(f"probslam: note: none of {args.reference}'s times is a time of {args.estimate}: a Freiburg relations file "
-              "is stamped with its raw log's ipc time, while 'slam' writes the log's logger time; give that log with "
-              "--log (e.g. --log aces.clf.bz2)", file=sys.stderr)
-    return relations
+REFERENCE_FILES = {"trajectory": TRAJECTORY_FILE, "carmen": CARMEN_LOG,
+                   "relations": "a Freiburg relations file (t1 t2 x y z roll pitch yaw rows)",
+                   "positions": "positions with times (t x y rows, e.g. a GPS track)"}
+#: eval's flags, by the EvaluationOptions field each sets.
+EVAL_FLAGS = {"reference_format": "--reference-format", "rpe": "--rpe", "delta": "--delta", "delta_unit": "--delta-unit",
+              "align": "--align", "raw_log": "--log", "max_time_difference": "--max-time-difference"}
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
-    import numpy as np
-
-    _require_length(args.max_time_difference, "--max-time-difference")
-    _require_length(args.delta, "--delta")
-    if not args.rpe:
-        _refuse_given(args, ("delta", "delta_unit"), "applies with --rpe only (the absolute error takes every pose)")
-    if args.delta_unit == "frames" and args.delta != int(args.delta):
-        raise UserError(f"--delta must be a whole number of frames with --delta-unit frames, got {args.delta:g}")
-    est = _read_trajectory_file(args.estimate, "estimate:")
-    if _is_relations(args.reference, args.reference_format):
-        if args.rpe or args.align:
-            raise UserError("--rpe and --align apply to a reference trajectory, not to relations (relative poses "
-                            "need no alignment)")
-        _refuse_given(args, ("max_time_difference",), "applies to a reference trajectory, not to relations (the "
-                      "estimate is interpolated at each relation's times)")
-        _check_input(args.reference, RELATIONS_FILE)
-        with _reading(args.reference, RELATIONS_FILE):
-            relations = evaluation.read_relations(args.reference)
-        relations = _relations_on_the_estimates_clock(args, relations, est)
-        # Errors of the estimate against the relations: named by the files, no format to expect.
-        with _reading(args.estimate, TRAJECTORY_FILE, {"timestamps": args.estimate, "poses": args.estimate,
-                                                       "relations": "relations"}):
-            error = evaluation.relations_error(est.timestamps, est.poses, relations)
-        print(f"{'reference:':<15}{args.reference}: {len(relations)} relations"
-              + (f" ({relations.skipped_rows} unreadable rows skipped)" if relations.skipped_rows else ""))
-        print(f"{'relations:':<15}{len(error.used)} used, {error.skipped} outside the estimate's time span\n")
-        print(evaluation.statistics_table("relations error w.r.t. translation part (m)",
-                                          evaluation.error_statistics(error.translational)))
-        print(evaluation.statistics_table("relations error w.r.t. rotation angle in degrees (deg)",
-                                          evaluation.error_statistics(np.degrees(error.rotational))), end="")
-        return 0
-    _refuse_given(args, ("log",), "applies to a relations file (the raw log whose ipc time stamps it)")
-    if _is_carmen_log(args.reference, args.reference_format):
-        ref = _carmen_reference(args.reference, est, args.max_time_difference)
-    elif args.reference_format == "auto" and _is_positions(args.reference):
-        return _eval_positions(args, est)
-    elif args.reference_format != "auto":
-        _check_input(args.reference, TRAJECTORY_FILE)
-        with _reading(args.reference, TRAJECTORY_FILE):
-            ref = io.read_trajectory(args.reference, format=args.reference_format)
-        print(f"{'reference:':<15}{args.reference}: {len(ref)} poses ({ref.format.upper()})")
-    else:
-        ref = _read_trajectory_file(args.reference, "reference:")
-    align = "se2" if (args.align if args.align is not None else not args.rpe) else "none"
+    with _option_flags(EVAL_FLAGS, args):
+        options = EvaluationOptions().replace(**{name: getattr(args, name) for name in EVAL_FLAGS})
+    _check_input(args.estimate, TRAJECTORY_FILE)
+    with _reading(args.estimate, TRAJECTORY_FILE):
+        run = TrajectoryEvaluation.read_estimate(args.estimate, options)
+    print(run.estimate_summary())
+    _check_input(args.reference, TRAJECTORY_FILE)
+    with _reading(args.reference, TRAJECTORY_FILE), _option_flags(EVAL_FLAGS, args):
+        kind = run.reference_kind(args.reference)
+    with _reading(args.reference, REFERENCE_FILES[kind]):
+        run.read_reference()
+    if args.raw_log is not None:
+        _check_input(args.raw_log, CARMEN_LOG)
+    with _reading(args.raw_log, CARMEN_LOG, {"scans": args.raw_log}) if args.raw_log else contextlib.nullcontext():
+        run.match_clocks()
+    print(run.reference_summary())
+    for note in run.notes:
+        print(f"probslam: note: {note}", file=sys.stderr)
     # The scores' parameters as the command line gives them: files and options.
     names = {"times_est": args.estimate, "poses_est": args.estimate, "times_ref": args.reference,
-             "poses_ref": args.reference, "max_time_difference": "--max-time-difference", "delta_unit": "--delta-unit",
-             "delta": "--delta"}
+             "poses_ref": args.reference, "timestamps": args.estimate, "poses": args.estimate, "relations": "relations",
+             **{name: flag for name, flag in EVAL_FLAGS.items() if "_" in name or name == "delta"}}
     with _reading(args.estimate, TRAJECTORY_FILE, names):
-        if args.rpe:
-            result = evaluation.rpe(est.timestamps, est.poses, ref.timestamps, ref.poses, delta=args.delta,
-                                    delta_unit=args.delta_unit, align=align,
-                                    max_time_difference=args.max_time_difference)
-        else:
-            result = evaluation.ate(est.timestamps, est.poses, ref.timestamps, ref.poses, align=align,
-                                    max_time_difference=args.max_time_difference)
-    print(f"{'associated:':<15}{result.matched} of {min(len(est), len(ref))} possible pose pairs within "
-          f"{args.max_time_difference:g} s" + (f"; {result.count} relative pairs" if args.rpe else "") + "\n")
-    print(result, end="")
+        run.score()
+    print(run.summary(), end="")
     return 0
 
 
@@ -1462,23 +1283,23 @@ def build_parser() -> argparse.ArgumentParser:
                                       "at its scans' times), or positions with times, 't x y' rows (a GPS track: the "
                                       "estimate is interpolated at each fix's time, the error printed as it is and "
                                       "aligned)")
-    ev.add_argument("--reference-format", choices=("auto",) + TRAJECTORY_FORMATS + ("relations", "carmen"),
+    ev.add_argument("--reference-format", choices=REFERENCE_FORMATS,
                     default="auto",
                     help="what REF is (default: relations when its name has '.relations', a CARMEN log when it "
                          "ends in .log or .clf (optionally .gz/.bz2/.xz), else the trajectory format its rows show)")
     ev.add_argument("--rpe", action="store_true",
                     help="relative pose error over consecutive pairs --delta apart (default: absolute error)")
-    ev.add_argument("--delta", type=float, default=1.0, help="with --rpe: the pairs' distance (default 1)")
-    ev.add_argument("--delta-unit", choices=("frames", "m", "s"), default="frames",
+    ev.add_argument("--delta", type=float, default=None, help="with --rpe: the pairs' distance (default 1)")
+    ev.add_argument("--delta-unit", choices=("frames", "m", "s"), default=None,
                     help="with --rpe: delta in poses (default), metres travelled or seconds")
     ev.add_argument("--align", action=argparse.BooleanOptionalAction, default=None,
                     help="move the estimate onto the reference by the best rotation and translation (Umeyama "
                          "without scale) first; default: aligned for the absolute error, not for --rpe (as evo)")
-    ev.add_argument("--log", metavar="LOG", default=None,
+    ev.add_argument("--log", dest="raw_log", metavar="LOG", default=None,
                     help="with a relations file: the raw CARMEN log the estimate was made from (e.g. aces.clf.bz2); "
                          "relations are stamped with its ipc time, the commands write its logger time, so each "
                          "relation time is moved onto the logger time")
-    ev.add_argument("--max-time-difference", type=float, default=0.01,
+    ev.add_argument("--max-time-difference", type=float, default=None,
                     help="poses are paired with the nearest reference pose at most this far in time, s (default "
                          "0.01, evo's)")
     ev.set_defaults(func=_cmd_eval)

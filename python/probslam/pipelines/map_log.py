@@ -157,6 +157,7 @@ class MapRun:
         return [prefix + ".yaml", prefix + ".pgm"]
 
     def title(self) -> str:
+        """The picture's title: the log and what the map is."""
         name = os.path.basename(self.path) if self.path else "a laser log"
         return f"probslam map: {name}\noccupancy grid at the log's poses"
 
