@@ -23,11 +23,11 @@ from .datasets import carmen, landmark_dataset_kind, load_landmark_dataset, mrcl
 from ._core import MonteCarloLocalizationOptions
 from .pipelines.optimize_file import INITIALIZATIONS, NOISE_CONVENTIONS, GraphFileOptions
 from .landmark_refine import refine_run
-from .io.trajectory import EXTENSIONS, POSITION_FIELDS, TRAJECTORY_FORMATS, first_row_fields
+from .io.trajectory import EXTENSIONS, TRAJECTORY_FORMATS
 from .localization import default_options
 from .mapping import DEFAULT_MAX_RANGE as MAP_MAX_RANGE, DEFAULT_RESOLUTION as MAP_RESOLUTION
 from .pipelines.localize_log import localize_log
-from .pipelines.map_log import BUNDLED_INVERSE_MODEL, MapOptions, MapRun
+from .pipelines.map_log import MapOptions, MapRun
 from .pipelines.evaluate_trajectory import REFERENCE_FORMATS, EvaluationOptions, TrajectoryEvaluation
 from ._progress import progress_bar
 
