@@ -196,6 +196,13 @@ def _option_flags(flags: Dict[str, str], args: argparse.Namespace) -> Iterator[N
         raise
 
 
+def _options(options, flags: Dict[str, str], args: argparse.Namespace):
+    """``options.replace`` with the field each flag of ``flags`` sets (a flag not given, None,
+    leaves the options' own), the library's refusals told as the flags."""
+    with _option_flags(flags, args):
+        return options.replace(**{name: getattr(args, name) for name in flags if getattr(args, name) is not None})
+
+
 def _check_input(path: str, expected: str, folder: bool = False) -> None:
     """UserError naming ``path`` when it is missing, empty, or not a regular file (or a folder,
     with ``folder``)."""
@@ -351,8 +358,7 @@ MAP_FLAGS = {"resolution": "--resolution", "max_range": "--max-range", "robot_ra
 
 
 def _cmd_map(args: argparse.Namespace) -> int:
-    with _option_flags(MAP_FLAGS, args):
-        options = MapOptions().replace(**{name: getattr(args, name) for name in MAP_FLAGS})
+    options = _options(MapOptions(), MAP_FLAGS, args)
     _check_output(args.output)
     path = args.log or _bundled_log()
     log = _read_log(path, args)
@@ -511,9 +517,8 @@ def _cmd_localize(args: argparse.Namespace) -> int:
     with _reading(args.map, MAP_FILE):
         grid = io.load_ros_map(args.map)
     log = _read_log(args.log, args)
+    options = _options(default_options(log.scans), LOCALIZE_FLAGS, args)
     with _option_flags(LOCALIZE_ARGUMENTS, args):
-        options = default_options(log.scans).replace(
-            **{name: getattr(args, name) for name in LOCALIZE_FLAGS if getattr(args, name) is not None})
         run = localize_log(log, grid, options, initial_pose=args.initial_pose, progress=_progress(args))
     written = run.write(args.output, args.trajectory_format)
     if args.plot:
@@ -1006,8 +1011,7 @@ EVAL_FLAGS = {"reference_format": "--reference-format", "rpe": "--rpe", "delta":
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
-    with _option_flags(EVAL_FLAGS, args):
-        options = EvaluationOptions().replace(**{name: getattr(args, name) for name in EVAL_FLAGS})
+    options = _options(EvaluationOptions(), EVAL_FLAGS, args)
     _check_input(args.estimate, TRAJECTORY_FILE)
     with _reading(args.estimate, TRAJECTORY_FILE):
         run = TrajectoryEvaluation.read_estimate(args.estimate, options)
@@ -1025,9 +1029,8 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     for note in run.notes:
         print(f"probslam: note: {note}", file=sys.stderr)
     # The scores' parameters as the command line gives them: files and options.
-    names = {"times_est": args.estimate, "poses_est": args.estimate, "times_ref": args.reference,
-             "poses_ref": args.reference, "timestamps": args.estimate, "poses": args.estimate, "relations": "relations",
-             **{name: flag for name, flag in EVAL_FLAGS.items() if "_" in name or name == "delta"}}
+    names = {**EVAL_FLAGS, "times_est": args.estimate, "poses_est": args.estimate, "times_ref": args.reference,
+             "poses_ref": args.reference, "timestamps": args.estimate, "poses": args.estimate, "relations": "relations"}
     with _reading(args.estimate, TRAJECTORY_FILE, names):
         run.score()
     print(run.summary(), end="")
@@ -1111,7 +1114,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-range", type=float, default=None,
                    help=f"readings at or beyond this (metres) only clear space (default {MAP_MAX_RANGE:g}; with "
                         "--inverse-model the model's own, 10 for the bundled one)")
-    p.add_argument("--robot-radius", type=float, default=0.0, help="clear the robot's footprint (metres)")
+    p.add_argument("--robot-radius", type=float, default=MapOptions().robot_radius,
+                   help="clear the robot's footprint (metres)")
     p.add_argument("--keep-no-return", dest="skip_no_return", action="store_false",
                    help="let readings at the sensor maximum clear space (default: skip them)")
     p.add_argument("--inverse-model", default=None, metavar="MODEL.npz",
