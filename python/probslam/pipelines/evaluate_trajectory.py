@@ -18,6 +18,7 @@ from typing import List, Optional, Union
 
 import numpy as np
 
+from ._options import Options
 from .. import eval as evaluation
 from .. import io
 from .._args import positive_real, require_instance
@@ -38,7 +39,7 @@ LABEL_WIDTH = 15
 
 
 @dataclass
-class EvaluationOptions:
+class EvaluationOptions(Options):
     """How ``evaluate_trajectory`` scores an estimate.
 
     reference_format: what the reference is (REFERENCE_FORMATS; ``auto``: ``reference_kind``).
@@ -80,11 +81,6 @@ class EvaluationOptions:
         if self.raw_log is not None:
             require_instance(self.raw_log, (str, os.PathLike), "raw_log")
 
-    def replace(self, **options) -> "EvaluationOptions":
-        """A validated copy with the named options (fields) set."""
-        out = dataclasses.replace(self, **options)
-        out.validate()
-        return out
 
     @property
     def step(self) -> float:

@@ -6,13 +6,13 @@ travel as one ``MapOptions``; every refusal names its field.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 import time
 from dataclasses import dataclass
 from typing import List, Optional, Sequence, Union
 
+from ._options import Options
 from .. import io
 from .._args import positive_real, require_instance
 from ..data import path as data_path
@@ -29,7 +29,7 @@ LEARNED_MODEL_DECIDES = "the learned model decides what each beam says"
 
 
 @dataclass
-class MapOptions:
+class MapOptions(Options):
     """How ``map_log`` maps a log.
 
     resolution: cell size, m (None: ``mapping.DEFAULT_RESOLUTION``, or the inverse model's own).
@@ -62,12 +62,6 @@ class MapOptions:
                 raise ValueError(f"robot_radius does not apply with inverse_model ({LEARNED_MODEL_DECIDES})")
             if not self.skip_no_return:
                 raise ValueError(f"skip_no_return does not apply with inverse_model ({LEARNED_MODEL_DECIDES})")
-
-    def replace(self, **options) -> "MapOptions":
-        """A validated copy with the named options (fields) set."""
-        out = dataclasses.replace(self, **options)
-        out.validate()
-        return out
 
 
 @dataclass
