@@ -364,9 +364,9 @@ def _cmd_map(args: argparse.Namespace) -> int:
     log = _read_log(path, args)
     with _option_flags(MAP_FLAGS, args):
         run = MapRun.prepare(log, options, path)
-    if run.start_summary():
-        print(run.start_summary(), flush=True)
-    run.run(_progress(args))
+        if run.start_summary():
+            print(run.start_summary(), flush=True)
+        run.run(_progress(args))
     written = run.write(args.output)
     if args.plot:
         written.append(_picture(run, args.output + ".png"))
