@@ -360,10 +360,10 @@ MAP_FLAGS = {"resolution": "--resolution", "max_range": "--max-range", "robot_ra
 def _cmd_map(args: argparse.Namespace) -> int:
     options = _options(MapOptions(), MAP_FLAGS, args)
     _check_output(args.output)
-    path = args.log or _bundled_log()
+    path, t0 = args.log or _bundled_log(), time.perf_counter()
     log = _read_log(path, args)
     with _option_flags(MAP_FLAGS, args):
-        run = MapRun.prepare(log, options, path)
+        run = MapRun.prepare(log, options, path, read_seconds=time.perf_counter() - t0)
         if run.start_summary():
             print(run.start_summary(), flush=True)
         run.run(_progress(args))
@@ -1006,8 +1006,9 @@ REFERENCE_FILES = {"trajectory": TRAJECTORY_FILE, "carmen": CARMEN_LOG,
                    "relations": "a Freiburg relations file (t1 t2 x y z roll pitch yaw rows)",
                    "positions": "positions with times (t x y rows, e.g. a GPS track)"}
 #: eval's flags, by the EvaluationOptions field each sets.
-EVAL_FLAGS = {"reference_format": "--reference-format", "rpe": "--rpe", "delta": "--delta", "delta_unit": "--delta-unit",
-              "align": "--align", "raw_log": "--log", "max_time_difference": "--max-time-difference"}
+EVAL_FLAGS = {"reference_format": "--reference-format", "rpe": "--rpe", "delta": "--delta",
+              "delta_unit": "--delta-unit", "align": "--align", "raw_log": "--log",
+              "max_time_difference": "--max-time-difference"}
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:

@@ -63,7 +63,8 @@ class EvaluationOptions(Options):
 
     def validate(self) -> None:
         """ValueError / TypeError naming the first field that is wrong or does not apply."""
-        for name, choices in (("reference_format", REFERENCE_FORMATS), ("delta_unit", (None,) + evaluation.DELTA_UNITS)):
+        units = (None,) + evaluation.DELTA_UNITS
+        for name, choices in (("reference_format", REFERENCE_FORMATS), ("delta_unit", units)):
             if getattr(self, name) not in choices:
                 raise ValueError(f"{name} must be one of {', '.join(c for c in choices if c)}, "
                                  f"got {getattr(self, name)!r}")
@@ -211,7 +212,8 @@ class TrajectoryEvaluation:
         if o.raw_log is not None:
             moved = evaluation.relations_on_logger_time(relations, scans_of(o.raw_log))
             shift = float(np.median(relations.t1 - moved.t1))
-            self.clock = f"times moved from {os.fspath(o.raw_log)}'s ipc time to its logger time ({shift:.6f} s earlier)"
+            self.clock = (f"times moved from {os.fspath(o.raw_log)}'s ipc time to its logger time ({shift:.6f} s "
+                          "earlier)")
             self.reference = moved
             return
         times = np.sort(self.estimate.timestamps)
@@ -309,7 +311,8 @@ class TrajectoryEvaluation:
                      fontsize="medium")
         errors = r.translational if self.kind == "relations" else r.errors
         bx.plot(errors, color="tab:red", lw=1)
-        bx.set_xlabel({"relations": "relation", "positions": "fix"}.get(self.kind, "pair" if self.options.rpe else "pose"))
+        each = "pair" if self.options.rpe else "pose"
+        bx.set_xlabel({"relations": "relation", "positions": "fix"}.get(self.kind, each))
         bx.set_ylabel("translational error [m]")
         return fig
 

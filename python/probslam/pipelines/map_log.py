@@ -77,14 +77,22 @@ class MapRun:
     model: object = None  # the LearnedInverseModel, or None for the ray model
     model_path: Optional[str] = None
     mapping: Optional[MappingResult] = None
-    seconds: float = 0.0  # mapping, writing and drawing
+    started: float = 0.0  # time.perf_counter() when the run began (its log's reading included)
 
     @classmethod
     def prepare(cls, log: Union[PathLike, object], options: Optional[MapOptions] = None,
-                path: Optional[PathLike] = None) -> "MapRun":
+                path: Optional[PathLike] = None, read_seconds: float = 0.0) -> "MapRun":
         """A run of ``log`` (a CARMEN log's path, or a log read: ``io.CarmenLog`` / ``io.RosbagLog``;
-        ``path`` its file when read) with ``options``. ValueError naming ``log`` for a bag with no
-        poses, ``inverse_model`` for a model that cannot be read."""
+        ``path`` its file and ``read_seconds`` the time its reading took, counted in the total)
+        with ``options``. ValueError for a bag with no poses, naming ``inverse_model`` for a model
+        that cannot be read."""
+        started = time.perf_counter() - read_seconds
+        run = cls._prepare(log, options, path)
+        run.started = started
+        return run
+
+    @classmethod
+    def _prepare(cls, log, options: Optional[MapOptions], path: Optional[PathLike]) -> "MapRun":
         options = MapOptions() if options is None else options
         require_instance(options, MapOptions, "options")
         options.validate()
@@ -125,7 +133,6 @@ class MapRun:
     def run(self, progress: Optional[bool] = None) -> MappingResult:
         """Maps the log's scans (``mapping.map_laser_log``, or ``map_laser_log_learned``);
         ``progress=None`` shows a bar only on a terminal."""
-        t0 = time.perf_counter()
         if self.model is None:
             self.mapping = map_laser_log(self.log.scans, resolution=self.resolution, max_range=self.max_range,
                                          robot_radius=self.options.robot_radius,
@@ -135,7 +142,6 @@ class MapRun:
 
             self.mapping = map_laser_log_learned(self.model, self.log.scans, resolution=self.resolution,
                                                  max_range=self.max_range, progress=progress)
-        self.seconds += time.perf_counter() - t0
         return self.mapping
 
     @property
@@ -145,9 +151,7 @@ class MapRun:
 
     def write(self, prefix: str) -> List[str]:
         """PREFIX.yaml and PREFIX.pgm (map_server's); returns the paths written."""
-        t0 = time.perf_counter()
         io.save_ros_map(self.grid, prefix + ".yaml")
-        self.seconds += time.perf_counter() - t0
         return [prefix + ".yaml", prefix + ".pgm"]
 
     def title(self) -> str:
@@ -159,10 +163,7 @@ class MapRun:
         """A figure of the map and the log's laser poses (matplotlib's pyplot given)."""
         from ..plot import occupancy_map_figure
 
-        t0 = time.perf_counter()
-        fig = occupancy_map_figure(plt, self.grid, self.log.scans.laser_poses, "laser poses (the log's)", self.title())
-        self.seconds += time.perf_counter() - t0
-        return fig
+        return occupancy_map_figure(plt, self.grid, self.log.scans.laser_poses, "laser poses (the log's)", self.title())
 
     def write_plain_picture(self, path: str) -> str:
         """PATH: the picture without matplotlib (``io.write_png``: one pixel a cell)."""
@@ -171,9 +172,11 @@ class MapRun:
 
     def summary(self, name: Optional[str] = None, written: Sequence[str] = (), hint: bool = True) -> str:
         """What was mapped and made, in lines (``name``: how to call the log; default its path),
-        the files ``written``, and (``hint``) what the map means when its poses may be raw odometry."""
+        the files ``written``, and (``hint``) what the map means when its poses may be raw odometry.
+        Its time: the total since the run began (the log's reading included) and the mapping's."""
         m, grid, log = self.mapping, self.grid, self.log
         rate = m.beams / m.seconds / 1e6 if m.seconds > 0 else float("inf")
+        total = time.perf_counter() - self.started
         lines = [f"log:           {self.path if name is None else name}"]
         if isinstance(log, io.RosbagLog):
             lines.append(f"bag:           {log.describe()}")
@@ -184,7 +187,7 @@ class MapRun:
                   f"beams:         {m.beams}",
                   f"cells updated: {m.cells_updated}",
                   f"map:           {grid.width} x {grid.height} cells at {grid.resolution} m, origin {grid.origin}",
-                  f"time:          {self.seconds:.2f} s total, {m.seconds:.3f} s mapping ({rate:.2f} M beams/s)"]
+                  f"time:          {total:.2f} s total, {m.seconds:.3f} s mapping ({rate:.2f} M beams/s)"]
         if written:
             lines.append(f"wrote:         {', '.join(written)}")
         if hint and self.odometry_hint():
