@@ -18,11 +18,16 @@ def require_instance(value: object, types: Union[type, Tuple[type, ...]], name: 
 
 def require_integer(value: object, name: str, lowest: Optional[int] = None, highest: Optional[int] = None) -> int:
     """``value`` as an int: a Python or numpy integer (not a bool, nor a float that int() would
-    truncate), TypeError naming ``name`` otherwise; ValueError outside [lowest, highest]."""
+    truncate), TypeError naming ``name`` otherwise; ValueError naming it and the range outside
+    [lowest, highest] (None: no bound on that side)."""
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
         raise TypeError(f"{name} must be an integer, got {type(value).__name__}")
     if (lowest is not None and value < lowest) or (highest is not None and value > highest):
-        raise ValueError(f"{name} is out of range: {value}")
+        if highest is None:
+            raise ValueError(f"{name} must be >= {lowest}, got {value}")
+        if lowest is None:
+            raise ValueError(f"{name} must be <= {highest}, got {value}")
+        raise ValueError(f"{name} must lie in [{lowest}, {highest}], got {value}")
     return int(value)
 
 

@@ -14,7 +14,7 @@ import stat
 import sys
 import time
 import warnings
-from typing import Dict, Iterator, List, Optional
+from typing import Dict, Iterator, List, Optional, Tuple
 
 from . import __version__, io
 from . import eval as evaluation
@@ -23,8 +23,12 @@ from .datasets import carmen, landmark_dataset_kind, load_landmark_dataset, mrcl
 from ._core import MonteCarloLocalizationOptions
 from .pipelines.optimize_file import INITIALIZATIONS, NOISE_CONVENTIONS, GraphFileOptions
 from .landmark_refine import refine_run
-from .io.trajectory import EXTENSIONS, POSITION_FIELDS, TRAJECTORY_FORMATS, first_row_fields
-from .mapping import DEFAULT_MAX_RANGE as MAP_MAX_RANGE, DEFAULT_RESOLUTION as MAP_RESOLUTION, map_laser_log
+from .io.trajectory import EXTENSIONS, TRAJECTORY_FORMATS
+from .localization import default_options
+from .mapping import DEFAULT_MAX_RANGE as MAP_MAX_RANGE, DEFAULT_RESOLUTION as MAP_RESOLUTION
+from .pipelines.localize_log import localize_log
+from .pipelines.map_log import MapOptions, MapRun
+from .pipelines.evaluate_trajectory import REFERENCE_FORMATS, EvaluationOptions, TrajectoryEvaluation
 from ._progress import progress_bar
 
 BUNDLED_LOG = "intel_excerpt.log.gz"
@@ -38,8 +42,6 @@ BUNDLED_SLAM_LOG = "intel_raw_lap.log.gz"
 BUNDLED_GRAPH = "intel_400.g2o"
 #: The default of ``probslam ekf-slam`` / ``fastslam``: MRCLAM Dataset 7, robot 1, 120 s.
 BUNDLED_LANDMARKS = "mrclam7_robot1_120s"
-#: ``map --inverse-model bundled``: a learned inverse model of the Intel laser (studies/eval_inverse_real.py).
-BUNDLED_INVERSE_MODEL = "intel_laser_inverse.npz"
 #: ``probslam localize`` without a LOG: the bundled raw loop in its map made by ``probslam slam``.
 BUNDLED_LOCALIZATION_MAP = "intel_raw_loop_map.yaml"
 
@@ -150,29 +152,55 @@ def _one_line(exc: BaseException) -> str:
     return " ".join(part.strip() for part in text.splitlines() if part.strip())
 
 
-#: localize's flags, by the MonteCarloLocalizationOptions field each sets.
+#: localize's flags, by the MonteCarloLocalizationOptions field each sets; then the run's other
+#: arguments the library's messages may name.
 LOCALIZE_FLAGS = {"sensor_model": "--sensor-model", "min_particles": "--min-particles",
                   "max_particles": "--max-particles", "max_range": "--max-range", "seed": "--seed",
                   "threads": "--threads"}
+LOCALIZE_ARGUMENTS = {**LOCALIZE_FLAGS, "initial_pose": "--initial-pose", "map": "--map"}
+
+
+def _as_given(text: str, names: Dict[str, str], args: Optional[argparse.Namespace] = None) -> Tuple[str, bool]:
+    """A library message told as the command line gave it, and whether it named anything: its
+    subject (a leading name of ``names``, the library's parameter or option field) becomes what the
+    command line calls it, with the value given (from ``args``) unless the message says it already
+    ("min_particles must ..." -> "--min-particles 0: must ..."); the other names it mentions become
+    theirs where they cannot be prose (an identifier with an underscore: "4 worker threads" stays)."""
+    pattern = r"(?<![-\w.])(" + "|".join(sorted(map(re.escape, names), key=len, reverse=True)) + r")\b(?![.])"
+    subject = re.match(pattern, text)
+    rest = text[subject.end():] if subject else text
+    mentioned = [m.group(1) for m in re.finditer(pattern, rest) if "_" in m.group(1)]
+    rest = re.sub(pattern, lambda m: names[m.group(1)] if m.group(1) in mentioned else m.group(1), rest)
+    if not subject:
+        return rest, bool(mentioned)
+    name, colon = subject.group(1), ":" if rest.startswith(":") else ""
+    rest = rest.lstrip(": ")
+    given = getattr(args, name, None) if args is not None else None
+    if isinstance(given, (list, tuple)):
+        given = " ".join(map(str, given))
+    if given is None or isinstance(given, bool) or rest.startswith(f"{given} ") or f"got {given}" in rest:
+        return f"{names[name]}{colon} {rest}", True  # no value to add, or the message says it
+    return f"{names[name]} {given}: {rest}", True
 
 
 @contextlib.contextmanager
 def _option_flags(flags: Dict[str, str], args: argparse.Namespace) -> Iterator[None]:
-    """The library's errors about an option, told as the flag that set it with its value:
-    "min_particles must ..." becomes UserError "--min-particles 0: must ..." (the library checks
-    the values; the CLI does not check them again)."""
+    """The library's errors about an option, told as the flag that set it with its value
+    (``_as_given``): the library checks the values; the CLI does not check them again."""
     try:
         yield
     except (TypeError, ValueError) as exc:
-        text = _one_line(exc)
-        for name, flag in flags.items():
-            if re.match(re.escape(name) + r"\b(?![.])", text):
-                given = getattr(args, name, None)
-                rest = text[len(name):].lstrip(": ")
-                if given is None or rest.startswith(f"{given} "):  # the message already says the value
-                    raise UserError(f"{flag} {rest}") from None
-                raise UserError(f"{flag} {given}: {rest}") from None
+        text, named = _as_given(_one_line(exc), flags, args)
+        if named:
+            raise UserError(text) from None
         raise
+
+
+def _options(options, flags: Dict[str, str], args: argparse.Namespace):
+    """``options.replace`` with the field each flag of ``flags`` sets (a flag not given, None,
+    leaves the options' own), the library's refusals told as the flags."""
+    with _option_flags(flags, args):
+        return options.replace(**{name: getattr(args, name) for name in flags if getattr(args, name) is not None})
 
 
 def _check_input(path: str, expected: str, folder: bool = False) -> None:
@@ -206,11 +234,7 @@ def _reading(path: str, expected: str, names: Optional[Dict[str, str]] = None) -
     except UserError:
         raise
     except (ValueError, OSError, EOFError, UnicodeError, IndexError) as exc:
-        message = _one_line(exc)
-        named = 0
-        if names:
-            pattern = r"(?<![-\w])(" + "|".join(sorted(map(re.escape, names), key=len, reverse=True)) + r")\b"
-            message, named = re.subn(pattern, lambda m: names[m.group(1)], message)
+        message, named = _as_given(_one_line(exc), names) if names else (_one_line(exc), False)
         if path not in message:
             message = f"{path}: {message}"
         raise UserError(message if named else f"{message}; expected {expected}") from None
@@ -238,22 +262,25 @@ def _save_figure(plt, fig, path: str) -> str:
 
 
 def _map_picture(grid, path: str, trajectory, label: str, title: str) -> str:
-    """PATH.png: the map on metre axes, cropped to its walls with a margin, the trajectory and a
-    legend (``plot.occupancy_map``); without matplotlib the plain picture of ``io.write_png``
+    """PATH.png: the map on metre axes, cropped to its walls, the trajectory and a legend
+    (``plot.occupancy_map_figure``); without matplotlib the plain picture of ``io.write_png``
     (one pixel a cell), after a notice. Returns the path."""
     plt = _pyplot()
     if plt is None:
         io.write_png(grid, path, trajectory=trajectory)
         return path
-    from .plot import crop_bounds, occupancy_map
+    from .plot import occupancy_map_figure
 
-    r0, r1, c0, c1 = crop_bounds(grid)
-    # Nine inches for the map's longer side and room for the legend beside it.
-    scale = 9.0 / max(r1 - r0, c1 - c0)
-    fig, ax = plt.subplots(figsize=(max((c1 - c0) * scale, 4.0) + 1.0, max((r1 - r0) * scale, 4.0) + 0.8))
-    occupancy_map(ax, grid, trajectory, trajectory_label=label)
-    ax.set_title(title, fontsize="medium")
-    return _save_figure(plt, fig, path)
+    return _save_figure(plt, occupancy_map_figure(plt, grid, trajectory, label, title), path)
+
+
+def _picture(run, path: str, **draw) -> str:
+    """PATH.png drawn by a pipeline's run (``run.draw(plt, **draw)``); without matplotlib its plain
+    picture (``run.write_plain_picture``), after a notice. Returns the path."""
+    plt = _pyplot()
+    if plt is None:
+        return run.write_plain_picture(path)
+    return _save_figure(plt, run.draw(plt, **draw), path)
 
 
 def _read_log(path: str, args: Optional[argparse.Namespace] = None):
@@ -325,68 +352,26 @@ def _write_trajectory(args: argparse.Namespace, times, poses, written: List[str]
     written.extend(io.write_trajectory(times, poses, args.output + "_trajectory" + EXTENSIONS[fmt], format=fmt))
 
 
-def _cmd_map(args: argparse.Namespace) -> int:
-    _require_length(args.resolution, "--resolution")
-    _require_length(args.max_range, "--max-range")
-    _require_length(args.robot_radius, "--robot-radius", zero=True)
-    if args.inverse_model is not None:
-        _refuse_given(args, ("robot_radius", "keep_no_return"), "does not apply with --inverse-model (the learned "
-                      "model decides what each beam says)")
-    _check_output(args.output)
-    path = args.log or _bundled_log()
-    t0 = time.perf_counter()
-    log = _read_log(path, args)
-    if isinstance(log, io.RosbagLog) and log.pose_source == "none":
-        raise UserError(f"{path}: no poses to map with (no odometry, tf or --pose-topic in the bag); "
-                        "'probslam slam' maps a bag of scans alone")
-    if args.inverse_model is not None:
-        from .inverse_learning import LearnedInverseModel, learned_map_geometry, map_laser_log_learned
+#: map's flags, by the MapOptions field each sets.
+MAP_FLAGS = {"resolution": "--resolution", "max_range": "--max-range", "robot_radius": "--robot-radius",
+             "skip_no_return": "--keep-no-return", "inverse_model": "--inverse-model"}
 
-        model_path = _data_path(BUNDLED_INVERSE_MODEL) if args.inverse_model == "bundled" else args.inverse_model
-        try:
-            model = LearnedInverseModel.load(model_path)
-        except (OSError, ValueError, TypeError) as exc:
-            raise UserError(f"--inverse-model: {exc}") from None
-        # The model's own cell size and range where the command line gives none: it learned on them,
-        # and a finer lattice or longer range costs the network's time on every extra field cell.
-        resolution, max_range = learned_map_geometry(model, args.resolution, args.max_range)
-        own = [name for name, given, value in (("--resolution", args.resolution, model.resolution),
-                                               ("--max-range", args.max_range, model.max_range))
-               if given is None and value is not None]
-        print(f"mapping:       {len(log.scans)} scans with the learned inverse model {os.path.basename(model_path)} at "
-              f"{resolution:g} m cells, readings to {max_range:g} m"
-              + (f" (the model's own {' and '.join(own)})" if own else "") + "; a network on every cell in range "
-              "takes longer than the ray model", flush=True)
-        summary = map_laser_log_learned(model, log.scans, resolution=resolution, max_range=max_range,
-                                        progress=_progress(args))
-        grid = summary.grid
-    else:
-        summary = map_laser_log(log.scans, resolution=_or_default(args.resolution, MAP_RESOLUTION),
-                                max_range=_or_default(args.max_range, MAP_MAX_RANGE),
-                                robot_radius=args.robot_radius,
-                                skip_no_return=not args.keep_no_return, progress=None if args.progress else False)
-        grid = summary.grid
-    io.save_ros_map(grid, args.output + ".yaml")
-    written = [f"{args.output}.yaml", f"{args.output}.pgm"]
+
+def _cmd_map(args: argparse.Namespace) -> int:
+    options = _options(MapOptions(), MAP_FLAGS, args)
+    _check_output(args.output)
+    path, t0 = args.log or _bundled_log(), time.perf_counter()
+    log = _read_log(path, args)
+    with _option_flags(MAP_FLAGS, args):
+        run = MapRun.prepare(log, options, path, read_seconds=time.perf_counter() - t0)
+        if run.start_summary():
+            print(run.start_summary(), flush=True)
+        run.run(_progress(args))
+    written = run.write(args.output)
     if args.plot:
-        written.append(_map_picture(grid, args.output + ".png", log.scans.laser_poses, "laser poses (the log's)",
-                                    f"probslam map: {os.path.basename(path)}\noccupancy grid at the log's poses"))
-    total = time.perf_counter() - t0
-    rate = summary.beams / summary.seconds / 1e6 if summary.seconds > 0 else float("inf")
-    print(f"log:           {path}{' (bundled Intel Research Lab excerpt)' if not args.log else ''}")
-    _print_bag(log)
-    print(f"scans:         {summary.scans}"
-          + (f" ({log.skipped_wide_scans} skipped: far wider than the rest)" if log.skipped_wide_scans else "")
-          + (f" ({log.skipped_rows} malformed log lines skipped)"
-             if log.skipped_rows and not isinstance(log, io.RosbagLog) else ""))
-    print(f"beams:         {summary.beams}")
-    print(f"cells updated: {summary.cells_updated}")
-    print(f"map:           {grid.width} x {grid.height} cells at {grid.resolution} m, origin {grid.origin}")
-    print(f"time:          {total:.2f} s total, {summary.seconds:.3f} s mapping ({rate:.2f} M beams/s)")
-    print(f"wrote:         {', '.join(written)}")
-    hint = _odometry_hint(log, args.log)
-    if hint:
-        print(f"hint:          {hint}")
+        written.append(_picture(run, args.output + ".png"))
+    print(run.summary(path + ("" if args.log else " (bundled Intel Research Lab excerpt)"), written,
+                      hint=args.log is not None))
     return 0
 
 
@@ -403,22 +388,6 @@ def _resume_command(args: argparse.Namespace, run_file: str) -> str:
         words += ["--laser-offset"] + [repr(float(v)) for v in args.laser_offset]
     words += ["--resume", run_file, "--save", run_file] + ([] if args.plot else ["--no-plot"])
     return shlex.join(words)
-
-
-def _odometry_hint(log, path: Optional[str]) -> str:
-    """What ``map`` says about its poses when they may be raw odometry, which smears a map wherever
-    it drifts: a bag's odometry or tf are; a CARMEN log's FLASER poses are either (a raw log and a
-    corrected one write the same fields, the same way), so the hint is conditional there. None for
-    the bundled corrected excerpt and a bag's --pose-topic."""
-    if path is None:
-        return ""
-    slam = f"'probslam slam {path}' corrects them (scan matching, loop closures)"
-    if isinstance(log, io.RosbagLog):
-        if log.pose_source.startswith("poses"):
-            return ""
-        return f"the poses are the bag's {log.pose_source}, raw odometry: the map smears wherever it drifts; {slam}"
-    return (f"map draws the log's poses as they are; if they are raw odometry (a log as the robot recorded it, "
-            f"not a corrected one), the map smears wherever it drifts, and {slam}")
 
 
 def _cmd_slam(args: argparse.Namespace) -> int:
@@ -525,81 +494,18 @@ def _cmd_slam(args: argparse.Namespace) -> int:
     return 0
 
 
-#: Where ``localize`` records the particle cloud: at these shares of the log's odometry travel
-#: (the start, early while a global cloud settles, and the end), so that a robot standing still
-#: does not give pictures of the same cloud.
-SNAPSHOT_TRAVEL = (0.0, 0.02, 0.1, 1.0)
-#: The drawn estimate is broken where it jumps further than this between two scans (a relocation
-#: by augmented MCL, or a cluster that took over): a straight line there would cross the map. The
-#: robot moves a few decimetres between two scans of any laser log.
-TRACK_JUMP = 1.0
-
-
-def _snapshot_times(scans) -> List[float]:
-    """The log times of SNAPSHOT_TRAVEL: the first scan at or after each share of the travel."""
-    import numpy as np
-
-    t = scans.timestamps
-    if not len(t):
-        return []
-    xy = scans.laser_poses[:, :2]
-    travelled = np.concatenate([[0.0], np.cumsum(np.hypot(*np.diff(xy, axis=0).T))])
-    index = [int(np.searchsorted(travelled, f * travelled[-1])) for f in SNAPSHOT_TRAVEL]
-    return [float(t[i]) for i in sorted(set(min(i, len(t) - 1) for i in index))]
-
-
-def _convergence_report(result) -> str:
-    """converged: when first, then the share of the time, and the spells it was lost."""
-    from .localization import CONVERGED_CLUSTER_WEIGHT, CONVERGED_THETA_STD, CONVERGED_XY_STD
-
-    if result.convergence_time is None:
-        return (f"no (the largest cluster never came below {CONVERGED_XY_STD} m / {CONVERGED_THETA_STD} rad "
-                f"holding {CONVERGED_CLUSTER_WEIGHT:.0%} of the weight)")
-    text = (f"after {result.convergence_time:.1f} s of log, {result.travel_to_converge:.1f} m of travel; "
-            f"then converged {100 * result.converged_fraction:.1f}% of the time")
-    lost = result.lost
-    if lost:
-        spells = "; ".join(f"lost at {a:.1f} s, " + ("regained at {:.1f} s".format(b) if b is not None else
-                                                     "not regained") for a, b in lost[:3])
-        more = f"; {len(lost) - 3} more" if len(lost) > 3 else ""
-        text += f" ({spells}{more})"
-    return text
-
-
-def _check_map_holds_scans(grid, scans, path: str) -> None:
-    """A map smaller than the log's median laser reading cannot hold a scan: a YAML whose
-    resolution is off by orders (1e-6 for 0.05) would otherwise localize the robot in a speck."""
-    import numpy as np
-
-    r = scans.ranges
-    r = r[np.isfinite(r) & (r > 0)]
-    if not r.size:
-        return
-    median = float(np.median(r))
-    width, height = grid.width * grid.resolution, grid.height * grid.resolution
-    if math.hypot(width, height) < median:
-        raise UserError(f"--map: {os.path.basename(path)} is {width:.3g} x {height:.3g} m ({grid.width} x "
-                        f"{grid.height} cells of {grid.resolution:g} m), smaller than the log's median laser reading "
-                        f"({median:.2f} m): check its resolution")
+#: What ``localize --map`` reads.
+MAP_FILE = "a map_server map (YAML with its image)"
 
 
 def _cmd_localize(args: argparse.Namespace) -> int:
-    import numpy as np
-
-    from .localization import default_options, localize
-
     if args.initial_pose is not None and args.global_:
         raise UserError("--initial-pose and --global exclude each other")
     bundled = args.log is None and args.map is None
-    if args.initial_pose is None and not args.global_:
-        if not bundled:
-            raise UserError("say where the robot starts: --initial-pose X Y THETA, or --global (anywhere in free "
-                            "space)")
-        args.global_ = True  # the bundled demo: global localization, what MCL can do that a tracker cannot
-    if args.initial_pose is not None and not all(math.isfinite(v) for v in args.initial_pose):
-        raise UserError("--initial-pose: X Y THETA must be finite numbers")
+    if args.initial_pose is None and not args.global_ and not bundled:
+        raise UserError("say where the robot starts: --initial-pose X Y THETA, or --global (anywhere in free space)")
     _check_output(args.output)
-    if bundled:
+    if bundled:  # global localization, what MCL can do that a tracker cannot
         args.log, args.map = _data_path(BUNDLED_RAW_LOG), _data_path(BUNDLED_LOCALIZATION_MAP)
         print("probslam localize: no LOG given: the bundled raw Intel loop in its bundled map, from a global start "
               "(particles anywhere in free space); give LOG --map MAP.yaml for your own", flush=True)
@@ -607,90 +513,19 @@ def _cmd_localize(args: argparse.Namespace) -> int:
         raise UserError("--map: give the map to localize in (a map_server YAML, e.g. probslam slam's PREFIX.yaml)")
     elif args.log is None:
         raise UserError("--map given without a LOG: name the log to localize")
-    _check_input(args.map, "a map_server map (YAML with its image)")
-    with _reading(args.map, "a map_server map (YAML with its image)"):
+    _check_input(args.map, MAP_FILE)
+    with _reading(args.map, MAP_FILE):
         grid = io.load_ros_map(args.map)
     log = _read_log(args.log, args)
-    _check_map_holds_scans(grid, log.scans, args.map)
-    options = default_options(log.scans)
-    with _option_flags(LOCALIZE_FLAGS, args):
-        for name in LOCALIZE_FLAGS:
-            if getattr(args, name) is not None:
-                setattr(options, name, getattr(args, name))
-        result = localize(log, grid, options=options, initial_pose=args.initial_pose,
-                          snapshot_times=_snapshot_times(log.scans), progress=_progress(args))
-    written: List[str] = []
-    _write_trajectory(args, result.timestamps, result.poses, written)
+    options = _options(default_options(log.scans), LOCALIZE_FLAGS, args)
+    with _option_flags(LOCALIZE_ARGUMENTS, args):
+        run = localize_log(log, grid, options, initial_pose=args.initial_pose, progress=_progress(args))
+    written = run.write(args.output, args.trajectory_format)
     if args.plot:
-        written.append(_localization_picture(grid, result, args.output + ".png",
-                                             f"probslam localize: {os.path.basename(args.log)} in "
-                                             f"{os.path.basename(args.map)}"))
-    start = "global (uniform over free space)" if args.global_ else "from x={:.2f} y={:.2f} theta={:.3f}".format(
-        *args.initial_pose)
-    n = result.num_particles
-    print(f"log:           {args.log}")
-    _print_bag(log)
-    print(f"map:           {args.map}: {grid.width} x {grid.height} cells at {grid.resolution} m")
-    print(f"start:         {start}")
-    print(f"scans:         {len(result.timestamps)}; {int(result.updated.sum())} filter updates")
-    if result.odometry_travel == 0.0 and len(result.timestamps) > 1:
-        print("odometry:      none: the log's poses never move, and the filter updates only after travel "
-              f"({result.options.update_min_d} m or {math.degrees(result.options.update_min_a):g} degrees), so nothing moved it after the first "
-              "scan; localize a log with odometry")
-    print(f"particles:     {int(n.min())} to {int(n.max())} (median {int(np.median(n))}, last {int(n[-1])})")
-    print(f"converged:     {_convergence_report(result)}")
-    print(f"time:          {result.seconds:.1f} s for {result.log_duration:.0f} s of log "
-          f"(real-time factor {result.real_time_factor:.0f})")
-    print(f"wrote:         {', '.join(written)}")
-    return 0 if result.convergence_time is not None else EXIT_NOT_CONVERGED
-
-
-def _converged_track(result):
-    """The estimate where it is converged, with a NaN row in each gap (scans not converged) and
-    at each jump of more than TRACK_JUMP: a plotted line then shows only the track the filter
-    was sure of, without straight lines across the map."""
-    import numpy as np
-
-    xy = np.asarray(result.poses, dtype=float)[:, :2]
-    keep = np.asarray(result.converged, dtype=bool)
-    step = np.concatenate([[0.0], np.hypot(*np.diff(xy, axis=0).T)])
-    joined = np.concatenate([[False], keep[:-1] & keep[1:]]) & (step <= TRACK_JUMP)
-    rows = []
-    for i in np.flatnonzero(keep):
-        if rows and not joined[i]:
-            rows.append((np.nan, np.nan))
-        rows.append(tuple(xy[i]))
-    return np.array(rows, dtype=float).reshape(-1, 2)
-
-
-def _localization_picture(grid, result, path: str, title: str) -> str:
-    """PATH.png: the map, the converged estimate and the particle clouds recorded
-    (plot.occupancy_map) beside the particle count over time; without matplotlib the plain
-    picture of io.write_png."""
-    plt = _pyplot()
-    track = _converged_track(result)
-    if plt is None:
-        io.write_png(grid, path, trajectory=track)  # it leaves out the NaN rows
-        return path
-    from .plot import occupancy_map
-
-    fig, (ax, bx) = plt.subplots(1, 2, figsize=(14, 6.5), gridspec_kw=dict(width_ratios=(2, 1)))
-    occupancy_map(ax, grid, track, trajectory_label="MCL estimate (where converged)")
-    colours = ("tab:blue", "tab:orange", "tab:green", "tab:purple")
-    t0 = result.timestamps[0]
-    for (t, particles), colour in zip(result.snapshots, colours):
-        ax.scatter(particles[:, 0], particles[:, 1], s=0.5, color=colour, alpha=0.4,
-                   label=f"particles at {t - t0:.0f} s ({len(particles)})")
-    ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize="small", markerscale=8)
-    ax.set_title(title, fontsize="medium")
-    bx.plot(result.timestamps - t0, result.num_particles, color="tab:blue")
-    bx.set_yscale("log")
-    bx.set_xlabel("log time [s]")
-    bx.set_ylabel("particles (KLD sampling)")
-    if result.convergence_time is not None:
-        bx.axvline(result.convergence_time, color="tab:red", lw=0.8, label="first converged")
-        bx.legend(fontsize="small")
-    return _save_figure(plt, fig, path)
+        title = f"probslam localize: {os.path.basename(args.log)} in {os.path.basename(args.map)}"
+        written.append(_picture(run, args.output + ".png", title=title))
+    print(run.summary(args.log, args.map, written))
+    return 0 if run.converged else EXIT_NOT_CONVERGED
 
 
 def _cmd_ekf_slam(args: argparse.Namespace) -> int:
@@ -1040,11 +875,6 @@ def _mrclam_noise(args: argparse.Namespace):
     return (np.diag([args.sigma_v ** 2, args.sigma_w ** 2]), np.diag([args.sigma_r ** 2, args.sigma_phi ** 2]))
 
 
-def _or_default(value: Optional[float], default: float) -> float:
-    """An option's value, or its default when it was not given (None)."""
-    return default if value is None else value
-
-
 def _require_length(value: Optional[float], option: str, zero: bool = False, what: str = "number") -> None:
     """UserError naming the option unless value (metres, seconds, radians; None: not given) is
     finite and > 0 (>= 0 with ``zero``): checked before any data is read."""
@@ -1172,220 +1002,39 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
 
 #: What ``probslam eval`` reads.
 TRAJECTORY_FILE = "a trajectory: TUM (t x y z qx qy qz qw), KITTI (12 numbers a row) or 't x y theta' rows"
-RELATIONS_FILE = "a Freiburg relations file (t1 t2 x y z roll pitch yaw rows)"
-POSITIONS_FILE = "positions with times (t x y rows, e.g. a GPS track)"
-
-
-def _read_trajectory_file(path: str, role: str):
-    """A trajectory file read for ``eval``, what was skipped or projected printed."""
-    _check_input(path, TRAJECTORY_FILE)
-    with _reading(path, TRAJECTORY_FILE):
-        trajectory = io.read_trajectory(path)
-    notes = [f"{trajectory.skipped_rows} unreadable rows skipped"] if trajectory.skipped_rows else []
-    if trajectory.projected_rows:
-        notes.append(f"{trajectory.projected_rows} non-planar rows read as their 2-D projection")
-    if trajectory.times_from_index:
-        notes.append("no times file: the row index is the time")
-    print(f"{role:<15}{path}: {len(trajectory)} poses ({trajectory.format.upper()}"
-          f"{'; ' + '; '.join(notes) if notes else ''})")
-    return trajectory
-
-
-def _is_relations(path: str, ref_format: str) -> bool:
-    if ref_format != "auto":
-        return ref_format == "relations"
-    name = os.path.basename(path).lower()
-    return ".relations" in name
-
-
-def _is_positions(path: str) -> bool:
-    """Whether a reference file holds ``t x y`` rows (a GPS track), judged by its first row."""
-    _check_input(path, TRAJECTORY_FILE)
-    with _reading(path, TRAJECTORY_FILE):
-        return first_row_fields(path) == POSITION_FIELDS
-
-
-def _eval_positions(args: argparse.Namespace, est) -> int:
-    """``eval EST REF`` with REF a track of positions: the estimate at each fix's time."""
-    if args.rpe or args.align is not None:
-        raise UserError("--rpe and --align apply to a reference trajectory, not to positions (t x y rows): the "
-                        "error is printed both as it is and after the alignment")
-    _refuse_given(args, ("max_time_difference",), "applies to a reference trajectory, not to positions (the "
-                  "estimate is interpolated at each fix's time)")
-    with _reading(args.reference, POSITIONS_FILE):
-        ref = io.read_positions(args.reference)
-    print(f"{'reference:':<15}{args.reference}: {len(ref)} positions (t x y"
-          + (f"; {ref.skipped_rows} unreadable rows skipped)" if ref.skipped_rows else ")"))
-    with _reading(args.estimate, TRAJECTORY_FILE):
-        result = evaluation.position_error(est.timestamps, est.poses, ref.timestamps, ref.positions)
-    print(f"{'fixes:':<15}{result.count} used, {result.outside} outside the estimate's time span (the estimate is "
-          f"interpolated at each fix's time)\n")
-    print(result, end="")
-    return 0
-
-
-#: The names of CARMEN logs (after a .gz, .bz2 or .xz suffix): what eval reads as a reference's
-#: laser poses.
-CARMEN_SUFFIXES = (".log", ".clf")
-
-
-def _is_carmen_log(path: str, ref_format: str) -> bool:
-    if ref_format != "auto":
-        return ref_format == "carmen"
-    name = os.path.basename(path).lower()
-    for suffix in (".gz", ".bz2", ".xz"):
-        name = name.removesuffix(suffix)
-    return name.endswith(CARMEN_SUFFIXES)
-
-
-def _carmen_reference(path: str, est: io.Trajectory, max_time_difference: float) -> io.Trajectory:
-    """A CARMEN log with corrected poses (e.g. intel-corrected.log.gz) as eval's reference: the
-    laser poses at its scans' times, the poses the commands write for a log. Both are on the raw
-    log's logger time (each line's last field), which the corrected Intel and FR079 logs carry and
-    the commands write. UserError when its times do not overlap the estimate's (an estimate on
-    another clock, such as the ipc time, or of another log)."""
-    scans = _read_log(path).scans
-    t, te = scans.timestamps, est.timestamps
-    if te.max() < t.min() - max_time_difference or te.min() > t.max() + max_time_difference:
-        raise UserError(f"{path}: its scans' times [{t.min():.9g}, {t.max():.9g}] s do not overlap the estimate's "
-                        f"[{te.min():.9g}, {te.max():.9g}] s: a corrected log (Intel's, FR079's) is stamped with its "
-                        "raw log's logger time (each line's last field), as the commands write a log's poses; "
-                        "the estimate is on another clock (the ipc time?) or of another log")
-    print(f"{'reference:':<15}{path}: {len(scans)} poses (CARMEN log: the laser poses of its scans)")
-    return io.Trajectory(t, scans.laser_poses, "carmen")
-
-
-#: How far apart (s) a relation's time and an estimate's may be and still be the same scan's: the
-#: logs and relations files write times to the microsecond.
-SAME_SCAN_TIME = 1e-6
-#: Relation times every candidate clock offset is tried on before all of them are checked, and
-#: candidates tried at once (bounds the work and memory of the search to ~8 MB).
-OFFSET_PROBES = 20
-OFFSET_CHUNK = 50_000
-
-
-def _on_times(times, stamps):
-    """Which stamps are one of the sorted times (within SAME_SCAN_TIME)."""
-    import numpy as np
-
-    at = np.searchsorted(times, stamps)
-    gap = np.minimum(np.abs(times[np.minimum(at, len(times) - 1)] - stamps),
-                     np.abs(times[np.maximum(at - 1, 0)] - stamps))
-    return gap <= SAME_SCAN_TIME
-
-
-def _clock_offset(times, stamps) -> Optional[float]:
-    """The one constant c for which every stamp - c is one of the sorted times (0 when they are
-    already); None when no c or more than one does. The Freiburg relations name scans by their
-    ipc time, `slam` stamps them with the logger time, and in the benchmark logs the two clocks
-    differ by a constant (ACES 70.1797 s, Intel 976052857.337284 s)."""
-    import numpy as np
-
-    if np.all(_on_times(times, stamps)):
-        return 0.0
-    probes = stamps[np.linspace(0, len(stamps) - 1, min(OFFSET_PROBES, len(stamps))).astype(int)]
-    found = []
-    for start in range(0, len(times), OFFSET_CHUNK):
-        candidates = probes[0] - times[start:start + OFFSET_CHUNK]
-        fit = _on_times(times, (probes[None, :] - candidates[:, None]).ravel()).reshape(len(candidates), -1)
-        found.extend(candidates[fit.all(axis=1)])
-    distinct = np.unique(np.round(np.array(found) / SAME_SCAN_TIME)) if found else []
-    if len(distinct) != 1 or not np.all(_on_times(times, stamps - found[0])):
-        return None
-    return float(found[0])
-
-
-def _relations_on_the_estimates_clock(args: argparse.Namespace, relations, est: io.Trajectory):
-    """The relations on the estimate's clock. The Freiburg files are stamped with the raw log's
-    ipc time, the commands write its logger time: with --log, each relation time is moved onto
-    the logger time of the scan it names; without, by the one constant offset that makes every
-    relation time a time of the estimate when there is one, else left as they are with a note
-    when none of them is a time of the estimate."""
-    import dataclasses
-
-    import numpy as np
-
-    if args.log is not None:
-        scans = _read_log(args.log).scans
-        with _reading(args.log, CARMEN_LOG, {"scans": args.log}):
-            moved = evaluation.relations_on_logger_time(relations, scans)
-        shift = float(np.median(relations.t1 - moved.t1))
-        print(f"{'relations:':<15}times moved from {args.log}'s ipc time to its logger time ({shift:.6f} s earlier)")
-        return moved
-    times = np.sort(est.timestamps)
-    stamps = np.concatenate([relations.t1, relations.t2])
-    offset = _clock_offset(times, stamps)
-    if offset:
-        print(f"{'relations:':<15}times moved {offset:.6f} s earlier, onto the estimate's clock (each is then a time "
-              "of the estimate: the relations are stamped with the raw log's ipc time, 'slam' writes its logger time)")
-        return dataclasses.replace(relations, t1=relations.t1 - offset, t2=relations.t2 - offset)
-    if offset is None and not np.any(_on_times(times, stamps)):
-        print(f"probslam: note: none of {args.reference}'s times is a time of {args.estimate}: a Freiburg relations file "
-              "is stamped with its raw log's ipc time, while 'slam' writes the log's logger time; give that log with "
-              "--log (e.g. --log aces.clf.bz2)", file=sys.stderr)
-    return relations
+REFERENCE_FILES = {"trajectory": TRAJECTORY_FILE, "carmen": CARMEN_LOG,
+                   "relations": "a Freiburg relations file (t1 t2 x y z roll pitch yaw rows)",
+                   "positions": "positions with times (t x y rows, e.g. a GPS track)"}
+#: eval's flags, by the EvaluationOptions field each sets.
+EVAL_FLAGS = {"reference_format": "--reference-format", "rpe": "--rpe", "delta": "--delta",
+              "delta_unit": "--delta-unit", "align": "--align", "raw_log": "--log",
+              "max_time_difference": "--max-time-difference"}
 
 
 def _cmd_eval(args: argparse.Namespace) -> int:
-    import numpy as np
-
-    _require_length(args.max_time_difference, "--max-time-difference")
-    _require_length(args.delta, "--delta")
-    if not args.rpe:
-        _refuse_given(args, ("delta", "delta_unit"), "applies with --rpe only (the absolute error takes every pose)")
-    if args.delta_unit == "frames" and args.delta != int(args.delta):
-        raise UserError(f"--delta must be a whole number of frames with --delta-unit frames, got {args.delta:g}")
-    est = _read_trajectory_file(args.estimate, "estimate:")
-    if _is_relations(args.reference, args.reference_format):
-        if args.rpe or args.align:
-            raise UserError("--rpe and --align apply to a reference trajectory, not to relations (relative poses "
-                            "need no alignment)")
-        _refuse_given(args, ("max_time_difference",), "applies to a reference trajectory, not to relations (the "
-                      "estimate is interpolated at each relation's times)")
-        _check_input(args.reference, RELATIONS_FILE)
-        with _reading(args.reference, RELATIONS_FILE):
-            relations = evaluation.read_relations(args.reference)
-        relations = _relations_on_the_estimates_clock(args, relations, est)
-        # Errors of the estimate against the relations: named by the files, no format to expect.
-        with _reading(args.estimate, TRAJECTORY_FILE, {"timestamps": args.estimate, "poses": args.estimate,
-                                                       "relations": "relations"}):
-            error = evaluation.relations_error(est.timestamps, est.poses, relations)
-        print(f"{'reference:':<15}{args.reference}: {len(relations)} relations"
-              + (f" ({relations.skipped_rows} unreadable rows skipped)" if relations.skipped_rows else ""))
-        print(f"{'relations:':<15}{len(error.used)} used, {error.skipped} outside the estimate's time span\n")
-        print(evaluation.statistics_table("relations error w.r.t. translation part (m)",
-                                          evaluation.error_statistics(error.translational)))
-        print(evaluation.statistics_table("relations error w.r.t. rotation angle in degrees (deg)",
-                                          evaluation.error_statistics(np.degrees(error.rotational))), end="")
-        return 0
-    _refuse_given(args, ("log",), "applies to a relations file (the raw log whose ipc time stamps it)")
-    if _is_carmen_log(args.reference, args.reference_format):
-        ref = _carmen_reference(args.reference, est, args.max_time_difference)
-    elif args.reference_format == "auto" and _is_positions(args.reference):
-        return _eval_positions(args, est)
-    elif args.reference_format != "auto":
-        _check_input(args.reference, TRAJECTORY_FILE)
-        with _reading(args.reference, TRAJECTORY_FILE):
-            ref = io.read_trajectory(args.reference, format=args.reference_format)
-        print(f"{'reference:':<15}{args.reference}: {len(ref)} poses ({ref.format.upper()})")
-    else:
-        ref = _read_trajectory_file(args.reference, "reference:")
-    align = "se2" if (args.align if args.align is not None else not args.rpe) else "none"
+    options = _options(EvaluationOptions(), EVAL_FLAGS, args)
+    _check_input(args.estimate, TRAJECTORY_FILE)
+    with _reading(args.estimate, TRAJECTORY_FILE):
+        run = TrajectoryEvaluation.read_estimate(args.estimate, options)
+    print(run.estimate_summary())
+    _check_input(args.reference, TRAJECTORY_FILE)
+    with _reading(args.reference, TRAJECTORY_FILE), _option_flags(EVAL_FLAGS, args):
+        kind = run.reference_kind(args.reference)
+    with _reading(args.reference, REFERENCE_FILES[kind]):
+        run.read_reference()
+    if args.raw_log is not None:
+        _check_input(args.raw_log, CARMEN_LOG)
+    with _reading(args.raw_log, CARMEN_LOG, {"scans": args.raw_log}) if args.raw_log else contextlib.nullcontext():
+        run.match_clocks()
+    print(run.reference_summary())
+    for note in run.notes:
+        print(f"probslam: note: {note}", file=sys.stderr)
     # The scores' parameters as the command line gives them: files and options.
-    names = {"times_est": args.estimate, "poses_est": args.estimate, "times_ref": args.reference,
-             "poses_ref": args.reference, "max_time_difference": "--max-time-difference", "delta_unit": "--delta-unit",
-             "delta": "--delta"}
+    names = {**EVAL_FLAGS, "times_est": args.estimate, "poses_est": args.estimate, "times_ref": args.reference,
+             "poses_ref": args.reference, "timestamps": args.estimate, "poses": args.estimate, "relations": "relations"}
     with _reading(args.estimate, TRAJECTORY_FILE, names):
-        if args.rpe:
-            result = evaluation.rpe(est.timestamps, est.poses, ref.timestamps, ref.poses, delta=args.delta,
-                                    delta_unit=args.delta_unit, align=align,
-                                    max_time_difference=args.max_time_difference)
-        else:
-            result = evaluation.ate(est.timestamps, est.poses, ref.timestamps, ref.poses, align=align,
-                                    max_time_difference=args.max_time_difference)
-    print(f"{'associated:':<15}{result.matched} of {min(len(est), len(ref))} possible pose pairs within "
-          f"{args.max_time_difference:g} s" + (f"; {result.count} relative pairs" if args.rpe else "") + "\n")
-    print(result, end="")
+        run.score()
+    print(run.summary(), end="")
     return 0
 
 
@@ -1466,8 +1115,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--max-range", type=float, default=None,
                    help=f"readings at or beyond this (metres) only clear space (default {MAP_MAX_RANGE:g}; with "
                         "--inverse-model the model's own, 10 for the bundled one)")
-    p.add_argument("--robot-radius", type=float, default=0.0, help="clear the robot's footprint (metres)")
-    p.add_argument("--keep-no-return", action="store_true",
+    p.add_argument("--robot-radius", type=float, default=MapOptions().robot_radius,
+                   help="clear the robot's footprint (metres)")
+    p.add_argument("--keep-no-return", dest="skip_no_return", action="store_false",
                    help="let readings at the sensor maximum clear space (default: skip them)")
     p.add_argument("--inverse-model", default=None, metavar="MODEL.npz",
                    help="map with a learned inverse sensor model (ch. 9.3; probslam.inverse_learning, saved with "
@@ -1638,23 +1288,23 @@ def build_parser() -> argparse.ArgumentParser:
                                       "at its scans' times), or positions with times, 't x y' rows (a GPS track: the "
                                       "estimate is interpolated at each fix's time, the error printed as it is and "
                                       "aligned)")
-    ev.add_argument("--reference-format", choices=("auto",) + TRAJECTORY_FORMATS + ("relations", "carmen"),
+    ev.add_argument("--reference-format", choices=REFERENCE_FORMATS,
                     default="auto",
                     help="what REF is (default: relations when its name has '.relations', a CARMEN log when it "
                          "ends in .log or .clf (optionally .gz/.bz2/.xz), else the trajectory format its rows show)")
     ev.add_argument("--rpe", action="store_true",
                     help="relative pose error over consecutive pairs --delta apart (default: absolute error)")
-    ev.add_argument("--delta", type=float, default=1.0, help="with --rpe: the pairs' distance (default 1)")
-    ev.add_argument("--delta-unit", choices=("frames", "m", "s"), default="frames",
+    ev.add_argument("--delta", type=float, default=None, help="with --rpe: the pairs' distance (default 1)")
+    ev.add_argument("--delta-unit", choices=("frames", "m", "s"), default=None,
                     help="with --rpe: delta in poses (default), metres travelled or seconds")
     ev.add_argument("--align", action=argparse.BooleanOptionalAction, default=None,
                     help="move the estimate onto the reference by the best rotation and translation (Umeyama "
                          "without scale) first; default: aligned for the absolute error, not for --rpe (as evo)")
-    ev.add_argument("--log", metavar="LOG", default=None,
+    ev.add_argument("--log", dest="raw_log", metavar="LOG", default=None,
                     help="with a relations file: the raw CARMEN log the estimate was made from (e.g. aces.clf.bz2); "
                          "relations are stamped with its ipc time, the commands write its logger time, so each "
                          "relation time is moved onto the logger time")
-    ev.add_argument("--max-time-difference", type=float, default=0.01,
+    ev.add_argument("--max-time-difference", type=float, default=None,
                     help="poses are paired with the nearest reference pose at most this far in time, s (default "
                          "0.01, evo's)")
     ev.set_defaults(func=_cmd_eval)

@@ -243,6 +243,42 @@ def relations_on_logger_time(relations: Union[Relations, PathLike], scans: Laser
     return Relations(moved(t1), moved(t2), delta.copy(), relations.skipped_rows, list(relations.skipped_lines))
 
 
+#: How far apart (s) a relation's time and an estimate's may be and still be the same scan's: the
+#: logs and relations files write times to the microsecond.
+SAME_SCAN_TIME = 1e-6
+#: Relation times every candidate clock offset is tried on before all of them are checked, and
+#: candidates tried at once (bounds the work and memory of ``clock_offset``'s search to ~8 MB).
+OFFSET_PROBES = 20
+OFFSET_CHUNK = 50_000
+
+
+def on_times(times: np.ndarray, stamps: np.ndarray) -> np.ndarray:
+    """(K,) bool: which ``stamps`` are one of the sorted ``times`` (within SAME_SCAN_TIME)."""
+    at = np.searchsorted(times, stamps)
+    gap = np.minimum(np.abs(times[np.minimum(at, len(times) - 1)] - stamps),
+                     np.abs(times[np.maximum(at - 1, 0)] - stamps))
+    return gap <= SAME_SCAN_TIME
+
+
+def clock_offset(times: np.ndarray, stamps: np.ndarray) -> Optional[float]:
+    """The one constant c for which every stamp - c is one of the sorted ``times`` (0 when they
+    already are); None when no c or more than one does. The Freiburg relations name scans by their
+    ipc time, ``run_slam`` stamps them with the logger time, and in the benchmark logs the two
+    clocks differ by a constant (ACES 70.1797 s, Intel 976052857.337284 s)."""
+    if np.all(on_times(times, stamps)):
+        return 0.0
+    probes = stamps[np.linspace(0, len(stamps) - 1, min(OFFSET_PROBES, len(stamps))).astype(int)]
+    found = []
+    for start in range(0, len(times), OFFSET_CHUNK):
+        candidates = probes[0] - times[start:start + OFFSET_CHUNK]
+        fit = on_times(times, (probes[None, :] - candidates[:, None]).ravel()).reshape(len(candidates), -1)
+        found.extend(candidates[fit.all(axis=1)])
+    distinct = np.unique(np.round(np.array(found) / SAME_SCAN_TIME)) if found else []
+    if len(distinct) != 1 or not np.all(on_times(times, stamps - found[0])):
+        return None
+    return float(found[0])
+
+
 # --------------------------------------------------------------------------------------------
 # Interpolation and the metric
 
@@ -928,6 +964,7 @@ __all__ = [
     "PositionError",
     "Relations",
     "RelationsError",
+    "SAME_SCAN_TIME",
     "STATISTICS",
     "SingularCovarianceError",
     "TrajectoryError",
@@ -935,11 +972,13 @@ __all__ = [
     "associate",
     "ate",
     "association_accuracy",
+    "clock_offset",
     "error_statistics",
     "interpolate_poses",
     "majority_labels",
     "majority_truth",
     "nees",
+    "on_times",
     "position_error",
     "primary_landmarks",
     "read_relations",

@@ -313,3 +313,14 @@ def occupancy_map(ax, grid, trajectory: Optional[np.ndarray] = None, *, crop: st
     # Outside the axes: a map has no empty corner to spare.
     ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize="small")
     return extent
+
+
+def occupancy_map_figure(plt, grid, trajectory: Optional[np.ndarray], label: str, title: str):
+    """A figure of ``occupancy_map`` (matplotlib's pyplot given): the map on metre axes, cropped to
+    its walls, the trajectory and a legend beside it; nine inches for the map's longer side."""
+    r0, r1, c0, c1 = crop_bounds(grid)
+    scale = 9.0 / max(r1 - r0, c1 - c0)
+    fig, ax = plt.subplots(figsize=(max((c1 - c0) * scale, 4.0) + 1.0, max((r1 - r0) * scale, 4.0) + 0.8))
+    occupancy_map(ax, grid, trajectory, trajectory_label=label)
+    ax.set_title(title, fontsize="medium")
+    return fig

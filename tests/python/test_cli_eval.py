@@ -105,13 +105,13 @@ def test_eval_against_relations_as_slam_scores_them(tmp_path, capsys):
     assert table(first)["mean"] == round(error.trans_mean, 6)
     assert table(second)["mean"] == round(math.degrees(np.mean(error.rotational)), 6)
     assert cli.main(["eval", str(tmp_path / "est.tum"), str(tmp_path / "run.relations"), "--rpe"]) == 2
-    assert "--rpe and --align apply to a reference trajectory" in capsys.readouterr().err
+    assert "--rpe applies to a reference trajectory, not to relations" in capsys.readouterr().err
 
 
 @pytest.mark.parametrize("argv, message", [
-    (["--delta", "0"], "--delta must be a finite number > 0"),
+    (["--delta", "0"], "--delta must be finite and > 0"),
     (["--rpe", "--delta", "1.5"], "--delta must be a whole number of frames"),
-    (["--max-time-difference", "nan"], "--max-time-difference must be a finite number > 0"),
+    (["--max-time-difference", "nan"], "--max-time-difference must be finite and > 0"),
 ])
 def test_eval_option_errors_are_one_line(tmp_path, capsys, argv, message):
     write_pair(tmp_path, n=20)

@@ -124,6 +124,7 @@ def test_convergence_is_reported_from_its_first_time_with_the_spells_lost():
     """A run that converged early and lost the track for one moment late on: 'converged after'
     the first time (not after the late moment), the share of the time, and the spell."""
     from probslam.localization import LocalizationResult
+    from probslam.pipelines import convergence_report
 
     t = np.arange(10, dtype=float) * 2.0 + 100.0
     converged = np.array([False, False, True, True, True, True, True, False, True, True])
@@ -132,11 +133,11 @@ def test_convergence_is_reported_from_its_first_time_with_the_spells_lost():
                            convergence_time=4.0, travel_to_converge=1.5, seconds=1.0, log_duration=18.0)
     assert r.converged_fraction == pytest.approx(7 / 8)
     assert r.lost == [(14.0, 16.0)]
-    text = cli._convergence_report(r)
+    text = convergence_report(r)
     assert text.startswith("after 4.0 s of log, 1.5 m of travel; then converged 87.5% of the time")
     assert "lost at 14.0 s, regained at 16.0 s" in text
     r.converged[8:] = False
-    assert r.lost == [(14.0, None)] and "not regained" in cli._convergence_report(r)
+    assert r.lost == [(14.0, None)] and "not regained" in convergence_report(r)
 
 
 
@@ -156,7 +157,8 @@ def test_a_map_at_micrometre_cells_is_a_user_error(tmp_path, capsys):
                      "-o", str(tmp_path / "t")])
     err = capsys.readouterr().err
     assert code == 2, err
-    assert err.count("\n") == 1 and "tiny.yaml is 0.000296 x 0.000286 m" in err and "check its resolution" in err
+    assert err.count("\n") == 1 and "--map " in err and "tiny.yaml: 0.000296 x 0.000286 m" in err
+    assert "check its resolution" in err
 
 
 def test_threads_that_cannot_start_are_a_user_error(tmp_path, capsys):

@@ -14,6 +14,7 @@ import pytest
 import probslam as ps
 from probslam import cli, io
 from probslam import inverse_learning as il
+from probslam.pipelines.map_log import BUNDLED_INVERSE_MODEL
 
 #: Victoria Park's optimum from a start near it (docs/pose_graphs.md, README: chi2 6184.12).
 VICTORIA_PARK_CHI2 = 6184.12
@@ -92,7 +93,7 @@ def test_ekf_slam_unknown_maps_dataset_1_robot_1_by_default(shared_data, tmp_pat
 # --- map with a learned inverse model -------------------------------------------------------------
 
 def test_a_model_file_records_the_resolution_and_range_it_was_trained_at(tmp_path):
-    model = il.LearnedInverseModel.load(ps.data.path(cli.BUNDLED_INVERSE_MODEL))
+    model = il.LearnedInverseModel.load(ps.data.path(BUNDLED_INVERSE_MODEL))
     assert (model.resolution, model.max_range) == (0.1, 10.0)  # studies/eval_inverse_real.py's RES, MAX_RANGE
     assert il.learned_map_geometry(model) == (0.1, 10.0)
     assert il.learned_map_geometry(model, 0.2, None) == (0.2, 10.0)
@@ -119,7 +120,7 @@ def test_map_with_the_bundled_model_uses_its_own_resolution_and_range(tmp_path, 
                                                 "--max-range)" in first
     grid = io.load_ros_map(tmp_path / "m.yaml")
     assert grid.resolution == pytest.approx(0.1)
-    model = il.LearnedInverseModel.load(ps.data.path(cli.BUNDLED_INVERSE_MODEL))
+    model = il.LearnedInverseModel.load(ps.data.path(BUNDLED_INVERSE_MODEL))
     same = il.map_laser_log_learned(model, io.read_carmen_log(cli._bundled_log()).scans, 0.1, 10.0, progress=False).grid
     assert grid.same_geometry(same)
     # Given options win.

@@ -5,6 +5,7 @@ import pytest
 
 import probslam
 from probslam import inverse_learning as il
+from probslam.pipelines.map_log import BUNDLED_INVERSE_MODEL
 
 #: Central differences with step 1e-6 on J(W) ~ 0.7: truncation ~1e-12, rounding ~1e-10.
 FD_STEP = 1e-6
@@ -507,7 +508,7 @@ def test_bundled_model_maps_the_bundled_log_as_the_ray_model_where_it_is_sure(tm
     sure (beyond p = 0.88 either way: walls above the prior, free space below it)."""
     from probslam import cli, io
 
-    model = il.LearnedInverseModel.load(probslam.data.path(cli.BUNDLED_INVERSE_MODEL))
+    model = il.LearnedInverseModel.load(probslam.data.path(BUNDLED_INVERSE_MODEL))
     assert 0.0 < model.evidence_scale < 1.0  # fitted for Table 9.1's overlapping scans
     assert cli.main(["map", "--inverse-model", "bundled", "--resolution", "0.1", "--max-range", "10",
                      "-o", str(tmp_path / "learned"), "--no-progress", "--no-plot"]) == 0

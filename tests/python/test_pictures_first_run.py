@@ -15,6 +15,7 @@ from scipy.optimize import linear_sum_assignment
 
 import probslam as ps
 from probslam import cli, eval as evaluation, io, plot
+from probslam.pipelines.map_log import BUNDLED_INVERSE_MODEL
 
 plt = pytest.importorskip("matplotlib.pyplot", reason="the pictures need matplotlib")
 
@@ -64,7 +65,7 @@ def test_learned_map_draws_free_and_unknown_apart(tmp_path, axes, capsys):
     assert cli.main(["map", "--inverse-model", "bundled", "--no-progress", "-o", str(tmp_path / "m")]) == 0
     capsys.readouterr()
     (ax,) = axes
-    model = ps.inverse_learning.LearnedInverseModel.load(ps.data.path(cli.BUNDLED_INVERSE_MODEL))
+    model = ps.inverse_learning.LearnedInverseModel.load(ps.data.path(BUNDLED_INVERSE_MODEL))
     grid = ps.inverse_learning.map_laser_log_learned(model, io.read_carmen_log(cli._bundled_log()).scans,
                                                      progress=False).grid
     r0, r1, c0, c1 = plot.crop_bounds(grid)

@@ -8,24 +8,24 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from probslam import _core, cli
+from probslam import _core
 from probslam.localization import LocalizationResult
+from probslam.pipelines import SNAPSHOT_TRAVEL, TRACK_JUMP, LocalizationRun, snapshot_times
 
 plt = pytest.importorskip("matplotlib.pyplot", reason="the pictures need matplotlib")
 
 
 @pytest.fixture
-def figures(monkeypatch):
-    """The figures the command line saves."""
+def figures():
+    """The figures drawn, closed after the test."""
     seen = []
-    save = cli._save_figure
+    yield seen
+    for fig in seen:
+        plt.close(fig)
 
-    def record(plt_, fig, path):
-        seen.append(fig)
-        return save(plt_, fig, path)
 
-    monkeypatch.setattr(cli, "_save_figure", record)
-    return seen
+def _draw(result, figures):
+    figures.append(LocalizationRun(None, _room(), result).draw(plt, title="t"))
 
 
 def _room():
@@ -57,7 +57,7 @@ def test_the_estimate_is_drawn_only_where_converged_and_broken_at_jumps(tmp_path
     wander = [[1.0, 1.0, 0.0], [9.0, 5.0, 0.0], [2.0, 5.0, 0.0], [8.0, 1.0, 0.0]]
     track = [[2.0 + 0.2 * k, 3.0, 0.0] for k in range(10)] + [[6.5 + 0.2 * k, 3.0, 0.0] for k in range(6)]
     converged = [False] * 4 + [True] * 16
-    cli._localization_picture(_room(), _result(converged, wander + track), str(tmp_path / "p.png"), "t")
+    _draw(_result(converged, wander + track), figures)
     (fig,) = figures
     xy = _estimate_line(fig)
     drawn = xy[np.isfinite(xy[:, 0])]
@@ -65,7 +65,7 @@ def test_the_estimate_is_drawn_only_where_converged_and_broken_at_jumps(tmp_path
     pieces = np.split(xy, np.flatnonzero(np.isnan(xy[:, 0])))
     assert [len(p[np.isfinite(p[:, 0])]) for p in pieces] == [10, 6]  # broken once, at the jump
     steps = np.hypot(*np.diff(xy, axis=0).T)
-    assert np.nanmax(steps) < cli.TRACK_JUMP  # no drawn segment crosses the map
+    assert np.nanmax(steps) < TRACK_JUMP  # no drawn segment crosses the map
     assert "where converged" in fig.axes[0].get_lines()[0].get_label()
 
 
@@ -76,21 +76,21 @@ def test_snapshots_are_spaced_by_travel_not_time():
     x = np.concatenate([np.zeros(400), np.linspace(0.0, 20.0, 100)])
     scans = SimpleNamespace(timestamps=np.arange(n, dtype=float), laser_poses=np.column_stack([x, np.zeros(n),
                                                                                                np.zeros(n)]))
-    times = cli._snapshot_times(scans)
-    assert len(times) == len(cli.SNAPSHOT_TRAVEL)
+    times = snapshot_times(scans)
+    assert len(times) == len(SNAPSHOT_TRAVEL)
     at = x[np.searchsorted(scans.timestamps, times)]
     assert np.all(np.diff(at) > 0.3)  # each cloud further along the path than the one before
     assert at[-1] == pytest.approx(20.0)
     # No travel at all (a log without odometry): one snapshot, not four of the same cloud.
     still = SimpleNamespace(timestamps=scans.timestamps, laser_poses=np.zeros((n, 3)))
-    assert cli._snapshot_times(still) == [0.0]
+    assert snapshot_times(still) == [0.0]
 
 
 def test_the_picture_draws_the_snapshots_it_is_given(tmp_path, figures):
     rng = np.random.default_rng(0)
     snaps = [(0.0, rng.uniform(0, 10, (300, 3))), (5.0, rng.normal(3.0, 0.1, (200, 3)))]
     poses = [[3.0 + 0.1 * k, 3.0, 0.0] for k in range(8)]
-    cli._localization_picture(_room(), _result([True] * 8, poses, snaps), str(tmp_path / "p.png"), "t")
+    _draw(_result([True] * 8, poses, snaps), figures)
     (fig,) = figures
     labels = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
     assert labels[:3] == ["MCL estimate (where converged)", "particles at 0 s (300)", "particles at 5 s (200)"]

@@ -7,7 +7,6 @@ optimize``). Options travel as one ``GraphFileOptions``; every refusal names its
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 import time
@@ -16,6 +15,7 @@ from typing import Callable, List, Optional, Union
 
 import numpy as np
 
+from ._options import Options
 from .. import graph as pg
 from .._args import positive_real
 from .. import io
@@ -45,7 +45,7 @@ ISAM_ONLY_RECORDS = ("ODOMETRY", "LANDMARK")
 
 
 @dataclass
-class GraphFileOptions:
+class GraphFileOptions(Options):
     """How ``optimize_file`` reads, starts and optimises a graph file.
 
     format: the reader (``auto`` by content and extension, or g2o / toro / isam).
@@ -89,12 +89,6 @@ class GraphFileOptions:
             positive_real(self.kernel_width, "kernel_width")
         if self.poses_per_step is not None and self.init != "incremental":
             raise ValueError("poses_per_step applies with init incremental only")
-
-    def replace(self, **options) -> "GraphFileOptions":
-        """A validated copy with the named options (fields) set."""
-        out = dataclasses.replace(self, **options)
-        out.validate()
-        return out
 
 
 @dataclass

@@ -1,0 +1,334 @@
+"""A trajectory file scored against a ground truth: the absolute or relative trajectory error
+against a reference trajectory (as evo_ape / evo_rpe print them), the relations error against a
+Freiburg relations file, or the position error against ``t x y`` fixes (a GPS track); a CARMEN log
+with corrected poses is a reference trajectory (its laser poses at its scans' times).
+
+``evaluate_trajectory(estimate, reference, options)`` runs it all; ``TrajectoryEvaluation`` runs
+it step by step for a caller that reports each step (``probslam eval``): ``read_estimate``,
+``reference_kind``, ``read_reference``, ``match_clocks``, ``score``; ``summary`` and ``draw``
+present it. Options travel as one ``EvaluationOptions``; every refusal names its field.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+from dataclasses import dataclass, field
+from typing import List, Optional, Union
+
+import numpy as np
+
+from ._options import Options
+from .. import eval as evaluation
+from .. import io
+from .._args import positive_real, require_instance
+from ..datasets import carmen
+from ..io.trajectory import POSITION_FIELDS, TRAJECTORY_FORMATS, first_row_fields
+from ..slam import scans_of
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+#: What a reference file may be: ``auto`` tells it by its name and rows (``reference_kind``).
+REFERENCE_FORMATS = ("auto",) + TRAJECTORY_FORMATS + ("relations", "carmen")
+#: The kinds of reference, as ``reference_kind`` tells them.
+REFERENCE_KINDS = ("trajectory", "relations", "positions", "carmen")
+#: The names of CARMEN logs (after a .gz, .bz2 or .xz suffix): read as a reference's laser poses.
+CARMEN_SUFFIXES = (".log", ".clf")
+#: How a row of the summary starts: its label, padded to this width.
+LABEL_WIDTH = 15
+
+
+@dataclass
+class EvaluationOptions(Options):
+    """How ``evaluate_trajectory`` scores an estimate.
+
+    reference_format: what the reference is (REFERENCE_FORMATS; ``auto``: ``reference_kind``).
+    rpe: the relative pose error over consecutive pairs ``delta`` apart (False: the absolute error).
+    delta, delta_unit: with rpe, the pairs' distance (None: 1) in frames, m or s (None: frames).
+    align: move the estimate onto the reference first (Umeyama without scale); None: aligned for
+        the absolute error, not for rpe (as evo).
+    raw_log: with a relations file, the raw CARMEN log the estimate was made from (its ipc time
+        stamps the relations; each relation time is moved onto its logger time).
+    max_time_difference: poses are paired with the nearest reference pose at most this far in
+        time, s (None: ``eval.MAX_TIME_DIFFERENCE``, evo's 0.01).
+    """
+
+    reference_format: str = "auto"
+    rpe: bool = False
+    delta: Optional[float] = None
+    delta_unit: Optional[str] = None
+    align: Optional[bool] = None
+    raw_log: Optional[PathLike] = None
+    max_time_difference: Optional[float] = None
+
+    def validate(self) -> None:
+        """ValueError / TypeError naming the first field that is wrong or does not apply."""
+        units = (None,) + evaluation.DELTA_UNITS
+        for name, choices in (("reference_format", REFERENCE_FORMATS), ("delta_unit", units)):
+            if getattr(self, name) not in choices:
+                raise ValueError(f"{name} must be one of {', '.join(c for c in choices if c)}, "
+                                 f"got {getattr(self, name)!r}")
+        for name in ("rpe", "align"):
+            if getattr(self, name) is not None:
+                require_instance(getattr(self, name), bool, name)
+        for name in ("delta", "max_time_difference"):
+            if getattr(self, name) is not None:
+                positive_real(getattr(self, name), name)
+        if not self.rpe and (self.delta is not None or self.delta_unit is not None):
+            name = "delta" if self.delta is not None else "delta_unit"
+            raise ValueError(f"{name} applies with rpe only (the absolute error takes every pose)")
+        if self.unit == "frames" and self.step != int(self.step):
+            raise ValueError(f"delta must be a whole number of frames with delta_unit frames, got {self.delta:g}")
+        if self.raw_log is not None:
+            require_instance(self.raw_log, (str, os.PathLike), "raw_log")
+
+
+    @property
+    def step(self) -> float:
+        """delta, its default filled in."""
+        return 1.0 if self.delta is None else float(self.delta)
+
+    @property
+    def unit(self) -> str:
+        """delta_unit, its default filled in."""
+        return "frames" if self.delta_unit is None else self.delta_unit
+
+    @property
+    def time_difference(self) -> float:
+        """max_time_difference, its default filled in."""
+        return evaluation.MAX_TIME_DIFFERENCE if self.max_time_difference is None else self.max_time_difference
+
+    def check_reference(self, kind: str) -> None:
+        """ValueError naming the first option that does not apply to a reference of ``kind``."""
+        why = {"relations": "relative poses need no alignment, and the estimate is interpolated at each relation's "
+                            "times",
+               "positions": "the estimate is interpolated at each fix's time, and the error printed both as it is and "
+                            "after the alignment"}.get(kind)
+        for name in ("rpe", "align", "max_time_difference"):
+            if why and getattr(self, name) not in (None, False):
+                raise ValueError(f"{name} applies to a reference trajectory, not to {kind} ({why})")
+        if kind != "relations" and self.raw_log is not None:
+            raise ValueError("raw_log applies to a relations file (the raw log whose ipc time stamps it)")
+
+
+def reference_kind(path: PathLike, reference_format: str = "auto") -> str:
+    """What the reference at ``path`` is (REFERENCE_KINDS): with ``reference_format`` auto, a
+    relations file when its name has '.relations', a CARMEN log when it ends in .log or .clf
+    (optionally .gz/.bz2/.xz), positions when its first row is ``t x y``, else a trajectory."""
+    if reference_format in ("relations", "carmen"):
+        return reference_format
+    if reference_format != "auto":
+        return "trajectory"
+    name = os.path.basename(os.fspath(path)).lower()
+    if ".relations" in name:
+        return "relations"
+    for suffix in (".gz", ".bz2", ".xz"):
+        name = name.removesuffix(suffix)
+    if name.endswith(CARMEN_SUFFIXES):
+        return "carmen"
+    return "positions" if first_row_fields(path) == POSITION_FIELDS else "trajectory"
+
+
+def _row(label: str, text: str) -> str:
+    return f"{label:<{LABEL_WIDTH}}{text}"
+
+
+def _trajectory_line(label: str, path: str, trajectory: io.Trajectory) -> str:
+    """A trajectory file as read: its poses, format and what was skipped or projected."""
+    notes = [f"{trajectory.skipped_rows} unreadable rows skipped"] if trajectory.skipped_rows else []
+    if trajectory.projected_rows:
+        notes.append(f"{trajectory.projected_rows} non-planar rows read as their 2-D projection")
+    if trajectory.times_from_index:
+        notes.append("no times file: the row index is the time")
+    return _row(label, f"{path}: {len(trajectory)} poses ({trajectory.format.upper()}"
+                       f"{'; ' + '; '.join(notes) if notes else ''})")
+
+
+@dataclass
+class TrajectoryEvaluation:
+    """One estimate scored against one reference, step by step; each step's figures are fields,
+    ``estimate_summary``, ``reference_summary`` and ``summary`` say them in lines (``notes``:
+    what the caller should be told besides, e.g. on stderr)."""
+
+    options: EvaluationOptions
+    estimate_path: str
+    estimate: io.Trajectory
+    reference_path: Optional[str] = None
+    kind: Optional[str] = None
+    reference: object = None  # io.Trajectory, io.Positions or eval.Relations
+    clock: str = ""  # how the relations' times were moved onto the estimate's clock
+    notes: List[str] = field(default_factory=list)
+    result: object = None  # eval.TrajectoryError, eval.RelationsError or eval.PositionError
+
+    @classmethod
+    def read_estimate(cls, path: PathLike, options: Optional[EvaluationOptions] = None) -> "TrajectoryEvaluation":
+        """Reads the estimate (``io.read_trajectory``: TUM, KITTI or ``t x y theta``)."""
+        options = EvaluationOptions() if options is None else options
+        require_instance(options, EvaluationOptions, "options")
+        options.validate()
+        return cls(options, os.fspath(path), io.read_trajectory(path))
+
+    def estimate_summary(self) -> str:
+        """The estimate as read, in a line: its poses, format and what was skipped."""
+        return _trajectory_line("estimate:", self.estimate_path, self.estimate)
+
+    def reference_kind(self, path: PathLike) -> str:
+        """Tells what the reference at ``path`` is (``reference_kind``) and refuses an option that
+        does not apply to it (ValueError naming the field)."""
+        kind = reference_kind(path, self.options.reference_format)
+        self.options.check_reference(kind)
+        self.reference_path, self.kind = os.fspath(path), kind
+        return kind
+
+    def read_reference(self) -> None:
+        """Reads the reference that ``reference_kind`` told."""
+        path, kind = self.reference_path, self.kind
+        if kind == "relations":
+            self.reference = evaluation.read_relations(path)
+        elif kind == "positions":
+            self.reference = io.read_positions(path)
+        elif kind == "carmen":
+            scans = carmen.load(path).scans
+            self.reference = io.Trajectory(scans.timestamps, scans.laser_poses, "carmen")
+        elif self.options.reference_format == "auto":
+            self.reference = io.read_trajectory(path)
+        else:
+            self.reference = io.read_trajectory(path, format=self.options.reference_format)
+
+    def match_clocks(self) -> None:
+        """Relations onto the estimate's clock; a CARMEN log's times checked against the
+        estimate's. The Freiburg relations are stamped with the raw log's ipc time, the commands
+        write its logger time: with ``raw_log``, each relation time is moved onto the logger time
+        of the scan it names; without, by the one constant offset that makes every relation time
+        a time of the estimate (``eval.clock_offset``) when there is one, else left as they are
+        with a note when none of them is a time of the estimate. A corrected CARMEN log (Intel's,
+        FR079's) carries its raw log's logger time: ValueError when its times do not overlap the
+        estimate's (an estimate on another clock, such as the ipc time, or of another log)."""
+        if self.kind == "carmen":
+            self._check_overlap()
+        if self.kind != "relations":
+            return
+        relations, o = self.reference, self.options
+        if o.raw_log is not None:
+            moved = evaluation.relations_on_logger_time(relations, scans_of(o.raw_log))
+            shift = float(np.median(relations.t1 - moved.t1))
+            self.clock = (f"times moved from {os.fspath(o.raw_log)}'s ipc time to its logger time ({shift:.6f} s "
+                          "earlier)")
+            self.reference = moved
+            return
+        times = np.sort(self.estimate.timestamps)
+        stamps = np.concatenate([relations.t1, relations.t2])
+        offset = evaluation.clock_offset(times, stamps)
+        if offset:
+            self.clock = (f"times moved {offset:.6f} s earlier, onto the estimate's clock (each is then a time of the "
+                          "estimate: the relations are stamped with the raw log's ipc time, 'slam' writes its logger "
+                          "time)")
+            self.reference = dataclasses.replace(relations, t1=relations.t1 - offset, t2=relations.t2 - offset)
+        elif offset is None and not np.any(evaluation.on_times(times, stamps)):
+            self.notes.append(f"none of {self.reference_path}'s times is a time of {self.estimate_path}: a Freiburg "
+                              "relations file is stamped with its raw log's ipc time, while 'slam' writes the log's "
+                              "logger time; give that log with --log (e.g. --log aces.clf.bz2)")
+
+    def _check_overlap(self) -> None:
+        t, te, slack = self.reference.timestamps, self.estimate.timestamps, self.options.time_difference
+        if te.max() < t.min() - slack or te.min() > t.max() + slack:
+            raise ValueError(f"{self.reference_path}: its scans' times [{t.min():.9g}, {t.max():.9g}] s do not overlap "
+                             f"the estimate's [{te.min():.9g}, {te.max():.9g}] s: a corrected log (Intel's, FR079's) "
+                             "is stamped with its raw log's logger time (each line's last field), as the commands "
+                             "write a log's poses; the estimate is on another clock (the ipc time?) or of another log")
+
+    def reference_summary(self) -> str:
+        """The reference as read (after the relations' clock line, when they were moved)."""
+        ref, path = self.reference, self.reference_path
+        if self.kind == "relations":
+            return "\n".join(([_row("relations:", self.clock)] if self.clock else [])
+                             + [_row("reference:", f"{path}: {len(ref)} relations"
+                                     + (f" ({ref.skipped_rows} unreadable rows skipped)" if ref.skipped_rows else ""))])
+        if self.kind == "positions":
+            return _row("reference:", f"{path}: {len(ref)} positions (t x y"
+                        + (f"; {ref.skipped_rows} unreadable rows skipped)" if ref.skipped_rows else ")"))
+        if self.kind == "carmen":
+            return _row("reference:", f"{path}: {len(ref)} poses (CARMEN log: the laser poses of its scans)")
+        if self.options.reference_format == "auto":
+            return _trajectory_line("reference:", path, ref)
+        return _row("reference:", f"{path}: {len(ref)} poses ({ref.format.upper()})")
+
+    @property
+    def align(self) -> str:
+        """The alignment of a trajectory score: "se2" or "none"."""
+        o = self.options
+        return "se2" if (o.align if o.align is not None else not o.rpe) else "none"
+
+    def score(self):
+        """The error of the estimate against the reference (``eval.relations_error``,
+        ``eval.position_error``, ``eval.rpe`` or ``eval.ate``)."""
+        est, ref, o = self.estimate, self.reference, self.options
+        if self.kind == "relations":
+            self.result = evaluation.relations_error(est.timestamps, est.poses, ref)
+        elif self.kind == "positions":
+            self.result = evaluation.position_error(est.timestamps, est.poses, ref.timestamps, ref.positions)
+        elif o.rpe:
+            self.result = evaluation.rpe(est.timestamps, est.poses, ref.timestamps, ref.poses, delta=o.step,
+                                         delta_unit=o.unit, align=self.align, max_time_difference=o.time_difference)
+        else:
+            self.result = evaluation.ate(est.timestamps, est.poses, ref.timestamps, ref.poses, align=self.align,
+                                         max_time_difference=o.time_difference)
+        return self.result
+
+    def summary(self) -> str:
+        """The score: what was paired, then evo's statistics tables."""
+        r, o = self.result, self.options
+        if self.kind == "relations":
+            return (_row("relations:", f"{len(r.used)} used, {r.skipped} outside the estimate's time span\n\n")
+                    + evaluation.statistics_table("relations error w.r.t. translation part (m)",
+                                                  evaluation.error_statistics(r.translational)) + "\n"
+                    + evaluation.statistics_table("relations error w.r.t. rotation angle in degrees (deg)",
+                                                  evaluation.error_statistics(np.degrees(r.rotational))))
+        if self.kind == "positions":
+            return (_row("fixes:", f"{r.count} used, {r.outside} outside the estimate's time span (the estimate is "
+                                   "interpolated at each fix's time)\n\n") + str(r))
+        return (_row("associated:", f"{r.matched} of {min(len(self.estimate), len(self.reference))} possible pose "
+                                    f"pairs within {o.time_difference:g} s")
+                + (f"; {r.count} relative pairs" if o.rpe else "") + "\n\n" + str(r))
+
+    def draw(self, plt):
+        """A figure (matplotlib's pyplot given): the reference and the estimate on metre axes, the
+        estimate moved by the alignment when one was made, and the error per pose, pair or fix."""
+        est, ref, r = self.estimate, self.reference, self.result
+        fig, (ax, bx) = plt.subplots(1, 2, figsize=(13, 6), gridspec_kw=dict(width_ratios=(3, 2)))
+        xy = est.poses[:, :2]
+        if self.kind != "relations":
+            xy = xy @ r.rotation.T + r.translation
+            ref_xy = ref.positions if self.kind == "positions" else ref.poses[:, :2]
+            ax.plot(ref_xy[:, 0], ref_xy[:, 1], ".", ms=2, color="0.4", label=f"reference ({self.kind})")
+        ax.plot(xy[:, 0], xy[:, 1], "-", lw=1, color="tab:blue",
+                label="estimate" + (" (aligned)" if self.kind != "relations" and self.align != "none" else ""))
+        ax.set_aspect("equal", adjustable="datalim")
+        ax.set_xlabel("x [m]")
+        ax.set_ylabel("y [m]")
+        ax.legend(fontsize="small")
+        ax.set_title(f"{os.path.basename(self.estimate_path)} against {os.path.basename(self.reference_path)}",
+                     fontsize="medium")
+        errors = r.translational if self.kind == "relations" else r.errors
+        bx.plot(errors, color="tab:red", lw=1)
+        each = "pair" if self.options.rpe else "pose"
+        bx.set_xlabel({"relations": "relation", "positions": "fix"}.get(self.kind, each))
+        bx.set_ylabel("translational error [m]")
+        return fig
+
+
+def evaluate_trajectory(estimate: PathLike, reference: PathLike,
+                        options: Optional[EvaluationOptions] = None) -> TrajectoryEvaluation:
+    """Scores the trajectory file ``estimate`` against ``reference`` (a trajectory file, a
+    relations file, a CARMEN log with corrected poses or ``t x y`` positions) with ``options``;
+    the evaluation with its result (``notes``: what a caller should say besides the summary)."""
+    run = TrajectoryEvaluation.read_estimate(estimate, options)
+    run.reference_kind(reference)
+    run.read_reference()
+    run.match_clocks()
+    run.score()
+    return run
+
+
+__all__ = ["CARMEN_SUFFIXES", "EvaluationOptions", "REFERENCE_FORMATS", "REFERENCE_KINDS", "TrajectoryEvaluation",
+           "evaluate_trajectory", "reference_kind"]
