@@ -6,6 +6,7 @@
 
 #include "numpy.hpp"
 #include "object_lock.hpp"
+#include "options_class.hpp"
 #include "persistence.hpp"
 #include "landmarks.hpp"
 #include "repr.hpp"
@@ -61,33 +62,8 @@ void predict_locked(Filter& f, double v, double w, double dt, py::handle noise) 
 }
 
 void define_options(py::module_& m) {
-  py::class_<MapManagement>(m, "MapManagement",
-                            "Ch. 10.3.3 map management; every part off by default. Values are checked when the "
-                            "options are given to a filter.")
-      .def(py::init<>(), "Everything off (the defaults of each field).")
-      .def_readwrite("provisional", &MapManagement::provisional,
-                     "New landmarks first wait on a provisional list (False).")
-      .def_readwrite("min_observations", &MapManagement::min_observations,
-                     "Sightings before a provisional landmark joins the map (3).")
-      .def_readwrite("provisional_max_std", &MapManagement::provisional_max_std,
-                     "... and its largest position standard deviation must be below this, metres (0.5).")
-      .def_readwrite("provisional_max_age", &MapManagement::provisional_max_age,
-                     "Scans without a sighting before a provisional landmark is forgotten (20).")
-      .def_readwrite("existence", &MapManagement::existence, "Keep a per-landmark existence log-odds o_j (False).")
-      .def_readwrite("existence_hit", &MapManagement::existence_hit, "Added to o_j when landmark j is seen (1.0).")
-      .def_readwrite("existence_miss", &MapManagement::existence_miss,
-                     "Subtracted from o_j when j is in the sensor's field but not seen (0.5).")
-      .def_readwrite("existence_threshold", &MapManagement::existence_threshold,
-                     "Landmarks with o_j below this are removed (-1.0).")
-      .def_readwrite("sensor_range", &MapManagement::sensor_range, "Range of the sensor's field, metres (inf).")
-      .def_readwrite("sensor_fov", &MapManagement::sensor_fov,
-                     "Full opening angle of the sensor's field, radians (2 pi).")
-      .def("__repr__", [](py::handle self) {
-        const MapManagement& o = self.cast<const MapManagement&>();
-        return repr_of(self, std::string("provisional ") + (o.provisional ? "on" : "off") + ", existence " +
-                                 (o.existence ? "on" : "off") + ", sensor_range " + num(o.sensor_range) +
-                                 " m, sensor_fov " + num(o.sensor_fov) + " rad");
-      });
+  bind_options<MapManagement>(m, "MapManagement",
+                              "Ch. 10.3.3 map management of EkfSlam.update_unknown; every part off by default.");
 
   py::enum_<Association>(m, "Association", "How update_unknown pairs a scan's measurements with landmarks.")
       .value("MAXIMUM_LIKELIHOOD", Association::kMaximumLikelihood,
@@ -95,36 +71,8 @@ void define_options(py::module_& m) {
       .value("JOINT_COMPATIBILITY", Association::kJointCompatibility,
              "Joint compatibility branch and bound over the scan (Neira & Tardos 2001).");
 
-  py::class_<MultiHypothesisOptions>(m, "MultiHypothesisOptions",
-                                     "Beam and costs (NIS units) of MultiHypothesisEkfSlam; checked when given to it.")
-      .def(py::init<>(), "The defaults of each field.")
-      .def_readwrite("max_hypotheses", &MultiHypothesisOptions::max_hypotheses,
-                     "Filters kept after each scan, the beam (10; at most 1000).")
-      .def_readwrite("max_children", &MultiHypothesisOptions::max_children,
-                     "Assignments of one scan tried per filter, cheapest first (4; at most 100).")
-      .def_readwrite("gate", &MultiHypothesisOptions::gate,
-                     "NIS gate of a pairing candidate (13.8155: chi-square 0.999, 2 dof).")
-      .def_readwrite("new_landmark_cost", &MultiHypothesisOptions::new_landmark_cost,
-                     "Cost of a measurement starting a landmark, NIS units (27.6).")
-      .def_readwrite("clutter_cost", &MultiHypothesisOptions::clutter_cost,
-                     "Cost of dropping a measurement as clutter, NIS units (20).")
-      .def_readwrite("prune_margin", &MultiHypothesisOptions::prune_margin,
-                     "Filters costing more than the best plus this are dropped, NIS units (40).")
-      .def_readwrite("detection_probability", &MultiHypothesisOptions::detection_probability,
-                     "P_D of a landmark in the sensor's view; 0 (default) turns missed-detection costs off.")
-      .def_readwrite("sensor_range", &MultiHypothesisOptions::sensor_range, "Sensor range, m (with P_D > 0).")
-      .def_readwrite("sensor_fov", &MultiHypothesisOptions::sensor_fov, "Field of view, rad (with P_D > 0).")
-      .def_readwrite("bearing_offset_sigma", &MultiHypothesisOptions::bearing_offset_sigma,
-                     "Standard deviation (rad) of a bearing offset shared by one scan's measurements; 0 (default): none.")
-      .def_readwrite("bearing_offset_correlation", &MultiHypothesisOptions::bearing_offset_correlation,
-                     "The offset's correlation from one scan to the next, in [0, 1) (0: afresh per scan).")
-      .def("__repr__", [](py::handle self) {
-        const MultiHypothesisOptions& o = self.cast<const MultiHypothesisOptions&>();
-        return repr_of(self, "max_hypotheses " + std::to_string(o.max_hypotheses) + ", max_children " +
-                                 std::to_string(o.max_children) + ", gate " + num(o.gate) + ", new_landmark_cost " +
-                                 num(o.new_landmark_cost) + ", clutter_cost " + num(o.clutter_cost) +
-                                 ", prune_margin " + num(o.prune_margin));
-      });
+  bind_options<MultiHypothesisOptions>(m, "MultiHypothesisOptions",
+                                       "Beam and costs (NIS units) of MultiHypothesisEkfSlam.");
 }
 
 void define_ekf_state(py::class_<EkfSlam>& c) {

@@ -279,14 +279,6 @@ class EkfSlam:
         return AssociationResult(ids.astype(np.int64), pi, outcome.astype(np.int8), np.asarray(removed, np.int64))
 
 
-#: MultiHypothesisEkfSlam's defaults as chi-square probabilities (the measurement's dof):
-#: a pairing candidate's NIS gate; the costs, in NIS units, of starting a landmark and of
-#: dropping a measurement as clutter. Clutter is the cheaper explanation of one odd sighting,
-#: a new landmark of a second sighting at the same place.
-MHT_GATE_PROBABILITY = 0.999
-MHT_CLUTTER_PROBABILITY = 1.0 - 4.5e-5
-
-
 class MultiHypothesisEkfSlam:
     """EKF SLAM with unknown correspondences decided over several scans: a beam of ``EkfSlam``
     filters, each one history of assignments (track-splitting multiple-hypothesis tracking).
@@ -303,51 +295,31 @@ class MultiHypothesisEkfSlam:
 
     Args:
         ekf: the starting filter (copied): noise, pose, any landmarks already mapped.
-        gate: NIS gate of a pairing candidate (default: chi-square quantile 0.999).
-        detection_probability: P_D of a landmark inside the sensor's view (``sensor_range`` m,
-            ``sensor_fov`` rad centred ahead) from a filter's pose before the scan: each such
-            landmark costs -2 ln P_D when a measurement of the scan goes to it and -2 ln(1 - P_D)
-            when none does, so alternatives holding landmarks that are never seen again (a
-            clutter point taken for a landmark, a duplicate) fall behind. 0 (default): off.
-        bearing_offset_sigma: standard deviation (rad) of a bearing offset b shared by the
-            measurements of one scan (bearing = atan2(dy, dx) - theta - b + noise; a camera that
-            misreads a frame as a whole); ``ekf``'s measurement noise is then the part not
-            shared. Each filter carries b's mean, variance and covariance with its state, so a
-            scan is judged by its sightings' joint geometry and by the offset earlier scans
-            left. 0 (default): off.
-        bearing_offset_correlation: rho of b's AR(1) from one scan to the next (b' = rho b + w,
-            stationary standard deviation ``bearing_offset_sigma``); 0 (default): afresh per scan.
+        options: a ``MultiHypothesisOptions`` (default: its defaults); further keyword options
+            set single fields of it by name (``max_hypotheses=20``). Its fields, with units and limits, are
+            in ``help(MultiHypothesisOptions)``: the beam (max_hypotheses, max_children), the
+            costs in NIS units (gate, new_landmark_cost and clutter_cost, whose default 0 stands
+            for the chi-square quantiles 0.999, 1 - 1e-6 and 1 - 4.5e-5 of the measurement's
+            dimension; prune_margin), missed detections (detection_probability P_D of a
+            landmark inside the sensor's field, sensor_range m and sensor_fov rad centred
+            ahead: a landmark in view costs -2 ln P_D when a measurement goes to it and
+            -2 ln(1 - P_D) when none does, so alternatives holding landmarks never seen again
+            fall behind), and a bearing offset shared by a scan's measurements
+            (bearing_offset_sigma rad, bearing_offset_correlation: its AR(1) from scan to scan;
+            each filter carries the offset's mean, variance and covariance with its state, and
+            ``ekf``'s measurement noise is the part not shared).
 
-    Limits (``multi_hypothesis_ekf_slam.hpp``): max_hypotheses in [1, 1000], max_children in
-    [1, 100], gate, costs and prune_margin in (0, 1e6], detection_probability in [0, 1) (with
-    P_D > 0: sensor_range > 0, sensor_fov in (0, 2 pi]), bearing_offset_sigma in [0, pi], bearing_offset_correlation in [0, 1); a scan whose children would hold more
-    than 4 GiB of covariance is refused. ``predict`` and ``update`` change every filter of the
-    beam or, when they raise, none.
+    A value out of range raises ValueError naming the field; ``predict`` and ``update`` change
+    every filter of the beam or, when they raise, none. A scan whose children would hold more
+    than 4 GiB of covariance is refused.
     """
 
-    def __init__(self, ekf: EkfSlam, *, max_hypotheses: int = 10, max_children: int = 4, gate: Optional[float] = None,
-                 new_landmark_cost: Optional[float] = None, clutter_cost: Optional[float] = None,
-                 prune_margin: float = 40.0, detection_probability: float = 0.0, sensor_range: float = 0.0,
-                 sensor_fov: float = 0.0, bearing_offset_sigma: float = 0.0,
-                 bearing_offset_correlation: float = 0.0):
+    def __init__(self, ekf: EkfSlam, *, options: Optional[_core.MultiHypothesisOptions] = None, **fields):
         if not isinstance(ekf, EkfSlam):
             raise TypeError(f"ekf must be an EkfSlam, got {type(ekf).__name__}")
-        d = ekf._f.landmark_dim
-        o = _core.MultiHypothesisOptions()
-        o.max_hypotheses = _count(max_hypotheses, "max_hypotheses")
-        o.max_children = _count(max_children, "max_children")
-        o.prune_margin = _number(prune_margin, "prune_margin")
-        o.detection_probability = _number(detection_probability, "detection_probability")
-        o.sensor_range = _number(sensor_range, "sensor_range")
-        o.sensor_fov = _number(sensor_fov, "sensor_fov")
-        o.bearing_offset_sigma = _number(bearing_offset_sigma, "bearing_offset_sigma")
-        o.bearing_offset_correlation = _number(bearing_offset_correlation, "bearing_offset_correlation")
-        gate, new_landmark_cost, clutter_cost = (None if v is None else _number(v, name) for v, name in (
-            (gate, "gate"), (new_landmark_cost, "new_landmark_cost"), (clutter_cost, "clutter_cost")))
-        o.gate = chi_square_quantile(MHT_GATE_PROBABILITY, d) if gate is None else gate
-        o.new_landmark_cost = (chi_square_quantile(DEFAULT_NEW_LANDMARK_PROBABILITY, d) if new_landmark_cost is None
-                               else new_landmark_cost)
-        o.clutter_cost = chi_square_quantile(MHT_CLUTTER_PROBABILITY, d) if clutter_cost is None else clutter_cost
+        if options is not None and not isinstance(options, _core.MultiHypothesisOptions):
+            raise TypeError(f"options must be a MultiHypothesisOptions, got {type(options).__name__}")
+        o = (options or _core.MultiHypothesisOptions()).replace(**fields)
         self._m = _core._MultiHypothesisEkfSlam(ekf._f, o)
 
     def __repr__(self) -> str:

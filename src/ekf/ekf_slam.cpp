@@ -852,7 +852,8 @@ void EkfSlam::remove_landmark(long id) {
     if (index > at) index -= ld_;
 }
 
-void EkfSlam::set_map_management(const MapManagement& m) {
+void MapManagement::validate() const {
+  const MapManagement& m = *this;
   require(m.min_observations >= 1 && m.min_observations <= kEkfMaxCount, "min_observations", "must be in [1, 1e6]");
   require_positive(m.provisional_max_std, "provisional_max_std");
   require(m.provisional_max_age >= 0 && m.provisional_max_age <= kEkfMaxCount, "provisional_max_age",
@@ -865,6 +866,10 @@ void EkfSlam::set_map_management(const MapManagement& m) {
   log_odds(m.existence_threshold, "existence_threshold");
   require(!std::isnan(m.sensor_range) && m.sensor_range > 0.0, "sensor_range", "must be > 0");
   require(std::isfinite(m.sensor_fov) && m.sensor_fov > 0.0, "sensor_fov", "must be finite and > 0");
+}
+
+void EkfSlam::set_map_management(const MapManagement& m) {
+  m.validate();
   mm_ = m;
 }
 

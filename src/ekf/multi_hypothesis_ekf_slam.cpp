@@ -11,6 +11,7 @@
 
 #include "probslam/core/angle.hpp"
 #include "probslam/core/check.hpp"
+#include "probslam/core/chi_square.hpp"
 #include "probslam/core/gaussian.hpp"
 #include "probslam/core/range_bearing_model.hpp"
 
@@ -76,16 +77,18 @@ class AssignmentSearch {
 
 }  // namespace
 
-void validate(const MultiHypothesisOptions& o) {
+void MultiHypothesisOptions::validate() const {
+  const MultiHypothesisOptions& o = *this;
   require(o.max_hypotheses >= 1 && o.max_hypotheses <= kMhtMaxHypotheses, "max_hypotheses", "must be in [1, 1000]");
   require(o.max_children >= 1 && o.max_children <= kMhtMaxChildren, "max_children", "must be in [1, 100]");
-  const auto cost = [](double v, const char* name) {
-    require(std::isfinite(v) && v > 0.0 && v <= kMhtMaxCost, name, "must be in (0, 1e6] (kMhtMaxCost)");
+  const auto cost = [](double v, const char* name, bool zero) {
+    require(std::isfinite(v) && (v > 0.0 || (zero && v == 0.0)) && v <= kMhtMaxCost, name,
+            zero ? "must be in (0, 1e6] (kMhtMaxCost), or 0 for the default" : "must be in (0, 1e6] (kMhtMaxCost)");
   };
-  cost(o.gate, "gate");
-  cost(o.new_landmark_cost, "new_landmark_cost");
-  cost(o.clutter_cost, "clutter_cost");
-  cost(o.prune_margin, "prune_margin");
+  cost(o.gate, "gate", true);
+  cost(o.new_landmark_cost, "new_landmark_cost", true);
+  cost(o.clutter_cost, "clutter_cost", true);
+  cost(o.prune_margin, "prune_margin", false);
   require(std::isfinite(o.detection_probability) && o.detection_probability >= 0.0 && o.detection_probability < 1.0,
           "detection_probability", "must be in [0, 1)");
   if (o.detection_probability > 0.0) {
@@ -100,9 +103,16 @@ void validate(const MultiHypothesisOptions& o) {
           "bearing_offset_correlation", "must be in [0, 1)");
 }
 
+MultiHypothesisOptions MultiHypothesisOptions::resolved(int dof) const {
+  MultiHypothesisOptions o = *this;
+  if (o.gate == 0.0) o.gate = chi_square_quantile(kDefaultGateProbability, dof);
+  if (o.new_landmark_cost == 0.0) o.new_landmark_cost = chi_square_quantile(kDefaultNewLandmarkProbability, dof);
+  if (o.clutter_cost == 0.0) o.clutter_cost = chi_square_quantile(kDefaultClutterProbability, dof);
+  return o;
+}
+
 MultiHypothesisEkfSlam::MultiHypothesisEkfSlam(const EkfSlam& initial, const MultiHypothesisOptions& options)
-    : options_(options) {
-  validate(options);
+    : options_((options.validate(), options.resolved(initial.landmark_dim()))) {
   // Costs are relative to one measurement's whole noise, the offset's share included, so that
   // moving noise from Q into the offset leaves the new-landmark and clutter costs' meaning.
   Eigen::MatrixXd q = initial.measurement_noise();

@@ -38,13 +38,7 @@ void EkfSlam::write_state(StateWriter& w) const {
   }
   w.i64(next_id_);
   w.f64(gate_distance_);
-  w.boolean(mm_.provisional);
-  w.i32(mm_.min_observations);
-  w.f64(mm_.provisional_max_std);
-  w.i32(mm_.provisional_max_age);
-  w.boolean(mm_.existence);
-  for (double v : {mm_.existence_hit, mm_.existence_miss, mm_.existence_threshold, mm_.sensor_range, mm_.sensor_fov})
-    w.f64(v);
+  write_options(w, mm_);
 }
 
 EkfSlam EkfSlam::read_state(StateReader& r) {
@@ -106,13 +100,7 @@ EkfSlam EkfSlam::read_state(StateReader& r) {
   f.next_id_ = static_cast<long>(r.i64());
   const double gate = r.f64();
   MapManagement mm;
-  mm.provisional = r.boolean();
-  mm.min_observations = r.i32();
-  mm.provisional_max_std = r.f64();
-  mm.provisional_max_age = r.i32();
-  mm.existence = r.boolean();
-  for (double* v : {&mm.existence_hit, &mm.existence_miss, &mm.existence_threshold, &mm.sensor_range, &mm.sensor_fov})
-    *v = r.f64();
+  read_options(r, mm);
   validated(r, "map management", [&] {
     f.set_gate_distance(gate);
     f.set_map_management(mm);
@@ -124,28 +112,6 @@ void EkfSlam::save(const std::string& path) const { save_state(*this, path); }
 EkfSlam EkfSlam::load(const std::string& path) { return load_state<EkfSlam>(path); }
 
 // ---- the beam of filters ----
-
-namespace {
-
-void write_options(StateWriter& w, const MultiHypothesisOptions& o) {
-  w.i32(o.max_hypotheses);
-  w.i32(o.max_children);
-  for (double v : {o.gate, o.new_landmark_cost, o.clutter_cost, o.prune_margin, o.detection_probability,
-                   o.sensor_range, o.sensor_fov, o.bearing_offset_sigma, o.bearing_offset_correlation})
-    w.f64(v);
-}
-
-MultiHypothesisOptions read_options(StateReader& r) {
-  MultiHypothesisOptions o;
-  o.max_hypotheses = r.i32();
-  o.max_children = r.i32();
-  for (double* v : {&o.gate, &o.new_landmark_cost, &o.clutter_cost, &o.prune_margin, &o.detection_probability,
-                    &o.sensor_range, &o.sensor_fov, &o.bearing_offset_sigma, &o.bearing_offset_correlation})
-    *v = r.f64();
-  return o;
-}
-
-}  // namespace
 
 void MultiHypothesisEkfSlam::write_state(StateWriter& w) const {
   write_options(w, options_);
@@ -180,7 +146,8 @@ void MultiHypothesisEkfSlam::write_state(StateWriter& w) const {
 }
 
 MultiHypothesisEkfSlam MultiHypothesisEkfSlam::read_state(StateReader& r) {
-  const MultiHypothesisOptions options = read_options(r);
+  MultiHypothesisOptions options;
+  read_options(r, options);
   const double log_det_q = r.f64(), offset = r.f64();
   if (!std::isfinite(log_det_q) || !std::isfinite(offset)) r.fail("a cost is not finite");
   const std::size_t nn = r.count(16);

@@ -300,7 +300,9 @@ def _signature_problem(qualname, obj, name, params_list):
         for pname, kind, _ in params:
             if kind == "var_positional":
                 return f"{qualname}: *{pname} (no real signature)"
-            if kind == "var_keyword" and not (pname == FORWARDED_KEYWORDS and "options" in (obj.__doc__ or "")):
+            # **options forwarded (and said so), or **fields beside a typed options= whose fields they set.
+            sugar = pname == "fields" and any(p[0] == "options" for p in params)
+            if kind == "var_keyword" and not sugar and not (pname == FORWARDED_KEYWORDS and "options" in (obj.__doc__ or "")):
                 return f"{qualname}: bare **{pname} (no real signature)"
     return None
 

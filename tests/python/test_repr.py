@@ -63,8 +63,10 @@ def test_filters():
     assert repr(ekf).startswith("<EkfSlam: 1 landmarks, state 5, pose (")
     mht = ps.MultiHypothesisEkfSlam(ekf)
     assert re.fullmatch(r"<MultiHypothesisEkfSlam: 1 hypotheses, best 1 landmarks, cost \S+>", repr(mht))
-    assert repr(ps.MapManagement()) == ("<MapManagement: provisional off, existence off, sensor_range inf m, "
-                                        "sensor_fov 6.28319 rad>")
+    # An options class shows every field as its constructor takes it: the repr rebuilds it.
+    options = ps.MapManagement(provisional=True, sensor_range=12.5)
+    assert repr(options).startswith("MapManagement(provisional=True, min_observations=3, ")
+    assert eval(repr(options), {"MapManagement": ps.MapManagement, "inf": float("inf")}) == options
     fs = ps.FastSlam(10, np.diag([0.01, 0.01, 0.001]), np.diag([0.01, 0.001]), version=2)
     assert repr(fs) == "<FastSlam: version 2, 10 particles, best has 0 landmarks, N_eff 10>"
     rbpf = _core.GridFastSlam(num_particles=3)

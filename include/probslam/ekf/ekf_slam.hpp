@@ -12,6 +12,7 @@
 
 #include "probslam/core/filter_limits.hpp"
 #include "probslam/core/object_mutex.hpp"
+#include "probslam/core/options_description.hpp"
 #include "probslam/core/types.hpp"
 
 namespace probslam {
@@ -48,6 +49,25 @@ struct MapManagement {
   double existence_threshold = -1.0; // landmarks with o_j below this are removed
   double sensor_range = std::numeric_limits<double>::infinity();  // m, perceptual field
   double sensor_fov = 6.283185307179586;                           // rad, full opening angle
+
+  /// std::invalid_argument naming the first field out of its range.
+  void validate() const;
+
+  /// The fields in the order the state files hold them (core/options_description.hpp).
+  template <class V>
+  static void describe(V& v) {
+    using O = MapManagement;
+    v("provisional", &O::provisional, "", "new landmarks first wait on a provisional list");
+    v("min_observations", &O::min_observations, "", "sightings before a provisional landmark joins the map, in [1, 1e6]");
+    v("provisional_max_std", &O::provisional_max_std, "m", "... and its largest position standard deviation must be below this");
+    v("provisional_max_age", &O::provisional_max_age, "", "scans without a sighting before a provisional landmark is forgotten, in [0, 1e6]");
+    v("existence", &O::existence, "", "keep a per-landmark existence log-odds o_j");
+    v("existence_hit", &O::existence_hit, "", "added to o_j when landmark j is seen");
+    v("existence_miss", &O::existence_miss, "", "subtracted from o_j when j is in the sensor's field but not seen");
+    v("existence_threshold", &O::existence_threshold, "", "landmarks with o_j below this are removed");
+    v("sensor_range", &O::sensor_range, "m", "range of the sensor's field");
+    v("sensor_fov", &O::sensor_fov, "rad", "full opening angle of the sensor's field");
+  }
 };
 
 /// What update() did with each measurement.

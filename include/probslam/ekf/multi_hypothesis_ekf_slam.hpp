@@ -21,9 +21,12 @@ namespace probslam {
 struct MultiHypothesisOptions {
   int max_hypotheses = 10;          // filters kept after each scan (the beam)
   int max_children = 4;             // assignments of one scan tried per filter, cheapest first
-  double gate = 13.815510557964274; // NIS gate of a pairing candidate (chi-square 0.999, 2 dof)
-  double new_landmark_cost = 27.6;  // a measurement starting a landmark (about chi-square 1 - 1e-6)
-  double clutter_cost = 20.0;       // a measurement dropped as a false detection or outlier
+  // The three below depend on the measurement's dimension (2, or 3 with signatures): 0 (the
+  // default) stands for the chi-square quantile of its kDefault*Probability below for that
+  // many degrees of freedom, resolved when a filter takes the options.
+  double gate = 0.0;                // NIS gate of a pairing candidate
+  double new_landmark_cost = 0.0;   // a measurement starting a landmark
+  double clutter_cost = 0.0;        // a measurement dropped as a false detection or outlier
   double prune_margin = 40.0;       // filters costing more than the best plus this are dropped
   // Missed detections (0: off): a landmark of a filter within sensor_range (m) and sensor_fov
   // (rad, centred ahead) of its pose before the scan costs -2 ln P_D when a measurement of the
@@ -39,6 +42,33 @@ struct MultiHypothesisOptions {
   // geometry and by the offset the earlier scans left (measurement_noise is then the part not shared).
   double bearing_offset_sigma = 0.0;
   double bearing_offset_correlation = 0.0;
+
+  /// The chi-square probabilities behind the defaults of gate, new_landmark_cost, clutter_cost.
+  static constexpr double kDefaultGateProbability = 0.999;
+  static constexpr double kDefaultNewLandmarkProbability = 1.0 - 1e-6;
+  static constexpr double kDefaultClutterProbability = 1.0 - 4.5e-5;
+
+  /// std::invalid_argument naming the first field out of its range.
+  void validate() const;
+  /// These options with the 0 costs replaced by their quantiles for `dof` measurement dimensions.
+  MultiHypothesisOptions resolved(int dof) const;
+
+  /// The fields in the order the state files hold them (core/options_description.hpp).
+  template <class V>
+  static void describe(V& v) {
+    using O = MultiHypothesisOptions;
+    v("max_hypotheses", &O::max_hypotheses, "", "filters kept after each scan, the beam, in [1, 1000]");
+    v("max_children", &O::max_children, "", "assignments of one scan tried per filter, cheapest first, in [1, 100]");
+    v("gate", &O::gate, "NIS", "gate of a pairing candidate (0: the chi-square quantile 0.999 of the measurement's dimension)");
+    v("new_landmark_cost", &O::new_landmark_cost, "NIS", "cost of a measurement starting a landmark (0: the quantile 1 - 1e-6)");
+    v("clutter_cost", &O::clutter_cost, "NIS", "cost of a measurement dropped as clutter (0: the quantile 1 - 4.5e-5)");
+    v("prune_margin", &O::prune_margin, "NIS", "filters costing more than the best plus this are dropped");
+    v("detection_probability", &O::detection_probability, "", "P_D of a landmark inside the sensor's field, in [0, 1) (0: off)");
+    v("sensor_range", &O::sensor_range, "m", "range of the sensor's field (with P_D > 0)");
+    v("sensor_fov", &O::sensor_fov, "rad", "full opening angle of the sensor's field, centred ahead (with P_D > 0)");
+    v("bearing_offset_sigma", &O::bearing_offset_sigma, "rad", "std of a bearing offset shared by a scan's measurements, in [0, pi] (0: off)");
+    v("bearing_offset_correlation", &O::bearing_offset_correlation, "", "its AR(1) correlation from scan to scan, in [0, 1)");
+  }
 };
 
 /// Reliability limits: the beam and the children per filter, each a full copy of a filter.
@@ -53,8 +83,6 @@ inline constexpr double kMhtCostResolution = 1e-6;
 /// Bytes of covariance the children of one scan may hold together (beam x children x state^2).
 inline constexpr double kMhtMaxBranchBytes = 4.0 * (1 << 30);
 
-/// std::invalid_argument naming the first option out of its range.
-void validate(const MultiHypothesisOptions& options);
 
 /// Every call validates all input first and leaves the beam unchanged when it throws.
 class MultiHypothesisEkfSlam {
