@@ -24,6 +24,7 @@ from ..io._files import file_path
 from ..io.landmark_datasets import Mrclam, VictoriaPark, VictoriaParkAcfr
 from ..landmark_slam import METHODS, Associations, LandmarkSlamResult
 from . import carmen, mrclam, victoria_park, victoria_park_acfr, victoria_park_acfr_run
+from .landmark_dataset import LandmarkDataset, LandmarkScore, RefinedRun
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -51,6 +52,16 @@ def landmark_dataset_kind(path: PathLike) -> str:
     if path.is_file() and path.stat().st_size == 0:
         raise ValueError(f"{path}: empty file")
     return "victoria_park"
+
+
+#: Each kind of ``landmark_dataset_kind``, by the class that shows it to a landmark run.
+LANDMARK_DATASETS = {"mrclam": mrclam.MrclamRobot, "victoria_park": victoria_park.VictoriaParkChain,
+                     "victoria_park_acfr": victoria_park_acfr_run.VictoriaParkRun}
+
+
+def landmark_dataset_class(path: PathLike) -> type:
+    """The ``LandmarkDataset`` class of the data at ``path`` (``landmark_dataset_kind``'s errors)."""
+    return LANDMARK_DATASETS[landmark_dataset_kind(path)]
 
 
 def load_landmark_dataset(path: PathLike, *, robot: int = 1, seconds: Optional[float] = None,
@@ -172,6 +183,7 @@ def _run_acfr(data: VictoriaParkAcfr, method, known, motion_noise, measurement_n
                                           progress=progress)
 
 
-__all__ = ["Associations", "EKF_ASSOCIATIONS", "LandmarkSlamResult", "carmen", "landmark_dataset_kind",
+__all__ = ["Associations", "EKF_ASSOCIATIONS", "LANDMARK_DATASETS", "LandmarkDataset", "LandmarkScore",
+           "LandmarkSlamResult", "RefinedRun", "carmen", "landmark_dataset_class", "landmark_dataset_kind",
            "load_landmark_dataset", "mrclam", "run_landmark_slam", "victoria_park", "victoria_park_acfr",
            "victoria_park_acfr_run"]

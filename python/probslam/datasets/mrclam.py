@@ -23,11 +23,12 @@ from .._args import require_instance
 from .._progress import progress_bar
 from .._core import FastSlam, chi_square_quantile, velocity_motion, velocity_motion_control_jacobian
 from ..ekf import AssociationResult, EkfSlam, MapManagement, MultiHypothesisEkfSlam
-from ..eval import truth_positions
+from ..eval import majority_labels, score_landmarks, score_mrclam, truth_positions
 from ..fastslam import DEFAULT_P_NEW, AssociationHistories, result_of
 from ..io._files import file_path
-from ..io.landmark_datasets import Mrclam, read_mrclam
+from ..io.landmark_datasets import MRCLAM_RANGE_SCALE, Mrclam, read_mrclam
 from ..landmark_slam import Associations, LandmarkSlamResult, ekf_landmarks
+from .landmark_dataset import LandmarkDataset, LandmarkScore, association_line, fastslam_lines
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -417,7 +418,140 @@ def dead_reckoning_map(data: Mrclam, initial_pose=(0.0, 0.0, 0.0)) -> Dict[int, 
     return {s: np.mean(p, axis=0) for s, p in placed.items()}
 
 
-__all__ = ["COMMAND_PERIOD", "MEASUREMENT_NOISE", "MEASUREMENT_SIGMA", "MHT_DETECTION_PROBABILITY",
+#: The EKF's association with hidden correspondences on MRCLAM when none is named: the
+#: multiple-hypothesis EKF, the one association that holds on every robot of Datasets 1 and 7
+#: (JCBB builds 40 landmarks for 15 on Dataset 1 robot 1, docs/ekf_slam.md).
+DEFAULT_ASSOCIATION = "mht"
+
+
+class MrclamRobot(LandmarkDataset):
+    """One MRCLAM robot as a landmark run sees it (``landmark_dataset.LandmarkDataset``): its
+    barcodes as labels, ``MOTION_SIGMA`` / ``MEASUREMENT_SIGMA`` as the noise unless the options
+    name others, scored against the robot's ground truth and the landmark survey (the survey alone
+    where the dataset has no robot ground truth, Dataset 1)."""
+
+    OPTIONS = ("robot", "seconds", "raw_ranges", "sigma_v", "sigma_w", "sigma_r", "sigma_phi")
+    LABEL = "UTIAS MRCLAM"
+
+    def __init__(self, data: Mrclam, path: PathLike, robot: int = 1, seconds: Optional[float] = None,
+                 raw_ranges: bool = False):
+        require_instance(data, Mrclam, "data")
+        super().__init__(data, pathlib.Path(path))
+        self.robot, self.seconds, self.raw_ranges = robot, seconds, raw_ranges
+
+    @classmethod
+    def check(cls, options, path) -> None:
+        super().check(options, path)
+        if options.bearing_offset and not (options.unknown and options.association in (None, "mht")):
+            raise ValueError("bearing_offset needs hidden correspondences (unknown) and association mht")
+        if options.refine != "none" and not options.unknown:
+            raise ValueError("refine graphslam needs unknown correspondences (with known ones there is nothing to "
+                             "refine)")
+
+    @classmethod
+    def load(cls, path, options) -> "MrclamRobot":
+        robot = 1 if options.robot is None else options.robot
+        return cls(load(path, robot, options.seconds, options.raw_ranges), path, robot, options.seconds,
+                   options.raw_ranges)
+
+    def noise(self, options) -> dict:
+        """The (2, 2) covariances of the sigma options, MOTION_SIGMA / MEASUREMENT_SIGMA where unset."""
+        sigma = [d if v is None else v for v, d in zip((options.sigma_v, options.sigma_w, options.sigma_r,
+                                                         options.sigma_phi), MOTION_SIGMA + MEASUREMENT_SIGMA)]
+        return dict(motion_noise=np.diag([sigma[0] ** 2, sigma[1] ** 2]),
+                    measurement_noise=np.diag([sigma[2] ** 2, sigma[3] ** 2]))
+
+    def association(self, options) -> str:
+        return options.association or DEFAULT_ASSOCIATION
+
+    def run(self, options, progress: Optional[bool] = None) -> LandmarkSlamResult:
+        noise = self.noise(options)
+        if options.method == "fastslam":
+            return run_fastslam(self.data, noise["motion_noise"], noise["measurement_noise"], known=not options.unknown,
+                                num_particles=options.num_particles, version=options.version, seed=options.seed,
+                                threads=options.threads, progress=progress)
+        association = self.association(options)
+        hypotheses = dict(bearing_offset_sigma=options.bearing_offset) if options.bearing_offset else None
+        if association not in ("jcbb", "ml", "mht"):
+            raise ValueError(f"association must be one of 'jcbb', 'ml', 'mht', got {association!r}")
+        return run_ekf(self.data, noise["motion_noise"], noise["measurement_noise"], known=not options.unknown,
+                       association=association, hypotheses=hypotheses, progress=progress)
+
+    def summary(self, result: LandmarkSlamResult, options, seconds: float) -> List[str]:
+        data, source = self.data, f"UTIAS MRCLAM {self.path} robot {self.robot}"
+        if options.method == "fastslam":
+            return ([f"dataset:       {source}, {'unknown' if options.unknown else 'known'} correspondences"]
+                    + fastslam_lines(result, options) + association_line(result))
+        association = self.association(options)
+        offset = (f"bearing offset {options.bearing_offset:g} rad per scan, "
+                  if options.bearing_offset and options.unknown and association == "mht" else "")
+        ranges = "raw depth readings" if self.raw_ranges else f"ranges from depth x {MRCLAM_RANGE_SCALE}"
+        return [f"dataset:       {source}, {'unknown (' + association + ')' if options.unknown else 'known'} "
+                f"correspondences, {offset}{ranges}",
+                f"odometry:      {len(data.odometry)} controls; measurements: {len(data.measurements)} of landmarks "
+                f"({data.robot_measurements} of robots dropped), {result.rejected} gated as outliers",
+                f"landmarks:     {len(result.landmarks)} in the map; filter time {result.seconds:.2f} s",
+                *association_line(result, "barcode", len(data.measurements))]
+
+    def score(self, result: LandmarkSlamResult, options) -> LandmarkScore:
+        """The path and map errors against the ground truth and survey (``eval.score_mrclam``), and
+        the dead reckoning's; without robot ground truth (Dataset 1) the map alone, aligned onto the
+        survey after the survey labels that contradict the barcodes have been exchanged
+        (``eval.score_landmarks``). ValueError when a score is not finite (no mapped landmark in the
+        survey, or coordinates too large to square)."""
+        noise = self.noise(options)
+        dead = run_ekf(self.data, noise["motion_noise"], noise["measurement_noise"], known=True,
+                       dead_reckoning=True, progress=False)
+        labels = majority_labels(result) if result.associations is not None else None
+        if self.data.groundtruth is None:
+            return self._survey_score(result, dead, labels)
+        from ..plot import ALIGNED_SUFFIX
+
+        with np.errstate(over="ignore", invalid="ignore"):  # huge coordinates: refused just below
+            s, d = score_mrclam(result, self.data, labels), score_mrclam(dead, self.data)
+        _require_finite(s.path_rmse, s.path_rmse_aligned, s.landmark_rmse, s.landmark_rmse_aligned)
+        lines = [f"path RMSE:     {s.path_rmse:.3f} m raw, {s.path_rmse_aligned:.3f} m aligned "
+                 f"(dead reckoning {d.path_rmse:.3f} / {d.path_rmse_aligned:.3f} m)",
+                 f"landmark RMSE: {s.landmark_rmse:.3f} m raw, {s.landmark_rmse_aligned:.3f} m aligned"]
+        reference = dict(dead_reckoning=dead.poses[:, :2] @ d.rotation.T + d.translation,
+                         truth_landmarks_label="surveyed landmarks", truth_path=self.data.groundtruth[:, 1:3],
+                         truth_landmarks=self.data.landmark_positions, align=(s.rotation, s.translation),
+                         dead_reckoning_label="dead reckoning" + ALIGNED_SUFFIX)
+        return LandmarkScore(lines, reference, dict(score=s, dead_reckoning=d))
+
+    def _survey_score(self, result: LandmarkSlamResult, dead: LandmarkSlamResult, labels) -> LandmarkScore:
+        swaps = survey_label_swaps(self.data)
+        lines = [f"survey:        positions of subjects {', '.join(f'{a}<->{b}' for a, b in swaps)} exchanged "
+                 f"(their surveyed distances contradict the readings of the same scans)"] if swaps else []
+        fixed = self.data.with_survey_swapped(swaps)
+        with np.errstate(over="ignore", invalid="ignore"):  # huge coordinates: refused just below
+            s = score_landmarks(result.landmarks, fixed, labels)
+            d = score_landmarks(dead_reckoning_map(self.data), fixed)
+        _require_finite(s.rmse_aligned)
+        lines.append(f"landmark RMSE: {s.rmse_aligned:.3f} m after aligning the map onto the survey "
+                     f"(dead-reckoning map {d.rmse_aligned:.3f} m; no robot ground truth)")
+        reference = dict(dead_reckoning=dead.poses, truth_landmarks_label="surveyed landmarks (aligned onto the map)",
+                         truth_landmarks=s.survey_in_map_frame(fixed))
+        return LandmarkScore(lines, reference, dict(score=s, dead_reckoning=d))
+
+    def title(self, options) -> str:
+        return f"UTIAS MRCLAM {self.path.name} robot {self.robot}" + (f", {self.seconds:g} s" if self.seconds else "")
+
+    def caption(self, options) -> str:
+        if options.method == "ekf" and options.unknown:
+            return f"EKF SLAM, unknown correspondences, {self.association(options)}"
+        return super().caption(options)
+
+
+def _require_finite(*scores: float) -> None:
+    """ValueError when a score is NaN or inf: no mapped landmark is in the survey, or the survey or
+    ground truth holds coordinates too large to square (the run went through, the files did not fit)."""
+    if not all(np.isfinite(v) for v in scores):
+        raise ValueError("the MRCLAM scores are not finite numbers: no landmark of the map is in "
+                         "Landmark_Groundtruth.dat, or its or the ground truth's coordinates are too large")
+
+
+__all__ = ["COMMAND_PERIOD", "DEFAULT_ASSOCIATION", "MEASUREMENT_NOISE", "MrclamRobot", "MEASUREMENT_SIGMA", "MHT_DETECTION_PROBABILITY",
            "MHT_NEW_LANDMARK_COST", "MOTION_NOISE", "MOTION_SIGMA",
            "OUTLIER_PROBABILITY", "PERCEPTUAL_FIELD_QUANTILE", "outlier_density", "ROBOTS", "SURVEY_RESIDUAL_LIMIT", "dead_reckoning",
            "dead_reckoning_map", "first_seconds", "fit_range_scale", "load", "perceptual_field", "run_ekf",

@@ -10,7 +10,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import pathlib
-from typing import Mapping, Optional, Tuple, Union
+from typing import List, Mapping, Optional, Tuple, Union
 
 import numpy as np
 
@@ -20,6 +20,7 @@ from ..fastslam import DEFAULT_P_NEW, fastslam_along_chain
 from ..io._files import file_path
 from ..io.landmark_datasets import VictoriaPark, read_victoria_park
 from ..landmark_slam import LandmarkSlamResult, ekf_along_chain, polar_measurements
+from .landmark_dataset import LandmarkDataset, association_line, fastslam_lines, skipped_rows_line
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -118,4 +119,53 @@ def run_fastslam(data: VictoriaPark, measurement_noise=None, *, known: bool = Tr
                                 progress=progress)
 
 
-__all__ = ["MAX_COORDINATE", "ODOMETRY_NOISE_SCALE", "chain", "load", "run_ekf", "run_fastslam"]
+class VictoriaParkChain(LandmarkDataset):
+    """Victoria Park as iSAM / GTSAM text, as a landmark run sees it
+    (``landmark_dataset.LandmarkDataset``): its odometry and sighting noise are the file's, its
+    landmark numbers the labels; the EKF takes them (known correspondences, with or without
+    ``unknown``), FastSLAM may hide them. Nothing to score against (the file has no ground truth)."""
+
+    LABEL = "Victoria Park"
+
+    @classmethod
+    def check(cls, options, path) -> None:
+        super().check(options, path)
+        if options.bearing_offset:
+            raise ValueError("bearing_offset applies to MRCLAM folders (with unknown, association mht)")
+        if options.refine != "none" and not options.unknown:
+            raise ValueError("refine graphslam needs unknown correspondences (with known ones there is nothing to "
+                             "refine)")
+        if options.refine != "none" and options.method == "ekf":
+            raise ValueError("refine graphslam applies to MRCLAM folders with method ekf (Victoria Park's EKF takes "
+                             "the file's correspondences); use fastslam with unknown for Victoria Park")
+
+    @classmethod
+    def load(cls, path, options) -> "VictoriaParkChain":
+        return cls(load(path), path)
+
+    def read_lines(self) -> List[str]:
+        from ..graph import INFORMATION_EIGENVALUE_FLOOR
+
+        data = self.data
+        lines = [skipped_rows_line({"unreadable records": data.skipped_rows} if data.skipped_rows else {})]
+        if data.repaired_rows:
+            lines.append(f"repaired rows: {data.repaired_rows} (noise not positive definite: eigenvalues raised to "
+                         f"{INFORMATION_EIGENVALUE_FLOOR:g} of the largest)")
+        return lines
+
+    def run(self, options, progress: Optional[bool] = None) -> LandmarkSlamResult:
+        if options.method == "fastslam":
+            return run_fastslam(self.data, known=not options.unknown, num_particles=options.num_particles,
+                                version=options.version, seed=options.seed, threads=options.threads, progress=progress)
+        return run_ekf(self.data, progress=progress)
+
+    def summary(self, result: LandmarkSlamResult, options, seconds: float) -> List[str]:
+        source = f"Victoria Park {self.path}: {len(result.poses)} poses, {len(self.data.xy)} observations"
+        if options.method == "fastslam":
+            return ([f"dataset:       {source}, {'unknown' if options.unknown else 'known'} correspondences"]
+                    + fastslam_lines(result, options) + association_line(result))
+        return [f"dataset:       {source}",
+                f"landmarks:     {len(result.landmarks)}; filter time {result.seconds:.3f} s"]
+
+
+__all__ = ["MAX_COORDINATE", "ODOMETRY_NOISE_SCALE", "VictoriaParkChain", "chain", "load", "run_ekf", "run_fastslam"]
