@@ -1065,7 +1065,7 @@ def _landmark_dataset_options(parser: argparse.ArgumentParser, method: str, outp
                               ("--sigma-w", mrclam.MOTION_SIGMA[1], "odometry noise, rad/s per 10 ms command"),
                               ("--sigma-r", mrclam.MEASUREMENT_SIGMA[0], "range noise, m"),
                               ("--sigma-phi", mrclam.MEASUREMENT_SIGMA[1], "bearing noise, rad")):
-        parser.add_argument(flag, type=float, default=None, help=f"MRCLAM {what} (default {sigma})")
+        parser.add_argument(flag, type=float, default=None, help=f"MRCLAM {what} (default: {sigma})")
     parser.add_argument("-o", "--output", default=output,
                         help=f"output prefix: PREFIX_trajectory.tum, PREFIX.png (default '{output}')")
     _trajectory_format_option(parser, "times in seconds (MRCLAM) or the pose's index (Victoria Park, whose file has "

@@ -441,15 +441,18 @@ class MrclamRobot(LandmarkDataset):
 
     @classmethod
     def check(cls, options, path) -> None:
+        """As ``LandmarkDataset.check``; and bearing_offset needs the multiple-hypothesis EKF,
+        refine hidden correspondences."""
         super().check(options, path)
         if options.bearing_offset and not (options.unknown and options.association in (None, "mht")):
-            raise ValueError("bearing_offset needs hidden correspondences (unknown) and association mht")
+            raise ValueError("bearing_offset needs unknown correspondences and association mht")
         if options.refine != "none" and not options.unknown:
             raise ValueError("refine graphslam needs unknown correspondences (with known ones there is nothing to "
                              "refine)")
 
     @classmethod
     def load(cls, path, options) -> "MrclamRobot":
+        """The robot of ``options.robot`` (1 when None), its window and ranges (``load``)."""
         robot = 1 if options.robot is None else options.robot
         return cls(load(path, robot, options.seconds, options.raw_ranges), path, robot, options.seconds,
                    options.raw_ranges)
@@ -462,9 +465,11 @@ class MrclamRobot(LandmarkDataset):
                     measurement_noise=np.diag([sigma[2] ** 2, sigma[3] ** 2]))
 
     def association(self, options) -> str:
+        """The option, or ``DEFAULT_ASSOCIATION``."""
         return options.association or DEFAULT_ASSOCIATION
 
     def run(self, options, progress: Optional[bool] = None) -> LandmarkSlamResult:
+        """``run_ekf`` (EKF or the multiple-hypothesis EKF) or ``run_fastslam`` with the options' noise."""
         noise = self.noise(options)
         if options.method == "fastslam":
             return run_fastslam(self.data, noise["motion_noise"], noise["measurement_noise"], known=not options.unknown,
@@ -478,6 +483,7 @@ class MrclamRobot(LandmarkDataset):
                        association=association, hypotheses=hypotheses, progress=progress)
 
     def summary(self, result: LandmarkSlamResult, options, seconds: float) -> List[str]:
+        """The robot, its correspondences and readings, what the filter took and mapped."""
         data, source = self.data, f"UTIAS MRCLAM {self.path} robot {self.robot}"
         if options.method == "fastslam":
             return ([f"dataset:       {source}, {'unknown' if options.unknown else 'known'} correspondences"]
@@ -535,9 +541,11 @@ class MrclamRobot(LandmarkDataset):
         return LandmarkScore(lines, reference, dict(score=s, dead_reckoning=d))
 
     def title(self, options) -> str:
+        """The folder, robot and window, for the picture's title."""
         return f"UTIAS MRCLAM {self.path.name} robot {self.robot}" + (f", {self.seconds:g} s" if self.seconds else "")
 
     def caption(self, options) -> str:
+        """The filter and its association, for the picture's title."""
         if options.method == "ekf" and options.unknown:
             return f"EKF SLAM, unknown correspondences, {self.association(options)}"
         return super().caption(options)

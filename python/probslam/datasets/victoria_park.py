@@ -129,6 +129,8 @@ class VictoriaParkChain(LandmarkDataset):
 
     @classmethod
     def check(cls, options, path) -> None:
+        """As ``LandmarkDataset.check``; and no bearing offset, refine only FastSLAM's hidden
+        correspondences."""
         super().check(options, path)
         if options.bearing_offset:
             raise ValueError("bearing_offset applies to MRCLAM folders (with unknown, association mht)")
@@ -141,9 +143,11 @@ class VictoriaParkChain(LandmarkDataset):
 
     @classmethod
     def load(cls, path, options) -> "VictoriaParkChain":
+        """The file at ``path`` (``load``)."""
         return cls(load(path), path)
 
     def read_lines(self) -> List[str]:
+        """The records skipped and those whose noise was repaired."""
         from ..graph import INFORMATION_EIGENVALUE_FLOOR
 
         data = self.data
@@ -154,12 +158,14 @@ class VictoriaParkChain(LandmarkDataset):
         return lines
 
     def run(self, options, progress: Optional[bool] = None) -> LandmarkSlamResult:
+        """``run_fastslam``, or ``run_ekf`` (known correspondences, the file's)."""
         if options.method == "fastslam":
             return run_fastslam(self.data, known=not options.unknown, num_particles=options.num_particles,
                                 version=options.version, seed=options.seed, threads=options.threads, progress=progress)
         return run_ekf(self.data, progress=progress)
 
     def summary(self, result: LandmarkSlamResult, options, seconds: float) -> List[str]:
+        """The file, its poses and observations, what the filter mapped."""
         source = f"Victoria Park {self.path}: {len(result.poses)} poses, {len(self.data.xy)} observations"
         if options.method == "fastslam":
             return ([f"dataset:       {source}, {'unknown' if options.unknown else 'known'} correspondences"]

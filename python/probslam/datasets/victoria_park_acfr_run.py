@@ -315,6 +315,7 @@ class VictoriaParkRun(LandmarkDataset):
 
     @classmethod
     def check(cls, options, path) -> None:
+        """As ``LandmarkDataset.check``; and no bearing offset, the EKF's ``ASSOCIATIONS`` only."""
         super().check(options, path)
         if options.bearing_offset:
             raise ValueError("bearing_offset applies to MRCLAM folders (with unknown, association mht)")
@@ -323,18 +324,22 @@ class VictoriaParkRun(LandmarkDataset):
 
     @classmethod
     def load(cls, path, options) -> "VictoriaParkRun":
+        """The run's folder at ``path`` (``victoria_park_acfr.load``)."""
         return cls(victoria_park_acfr.load(path), path)
 
     def run(self, options, progress: Optional[bool] = None) -> LandmarkSlamResult:
+        """``run_fastslam`` or ``run_ekf`` over the run."""
         if options.method == "fastslam":
             return run_fastslam(self.data, num_particles=options.num_particles, version=options.version,
                                 seed=options.seed, threads=options.threads, progress=progress)
         return run_ekf(self.data, association=self.association(options), progress=progress)
 
     def title(self, options) -> str:
+        """The run, for the picture's title."""
         return self.LABEL
 
     def caption(self, options) -> str:
+        """The filter, for the picture's title."""
         if options.method == "fastslam":
             return f"FastSLAM {options.version}.0, {options.num_particles} particles, unknown correspondences"
         return f"EKF SLAM, unknown correspondences ({self.association(options)})"
@@ -353,6 +358,8 @@ class VictoriaParkRun(LandmarkDataset):
         return position_error(result.times, result.poses, self.data.gps[:, 0], self.data.gps[:, 1:])
 
     def summary(self, result: LandmarkSlamResult, options, seconds: float) -> List[str]:
+        """The run's inputs, detections and fixes, the filter (with its CPU ``seconds``), the map and
+        the error against the GPS."""
         data = self.data
         return [f"dataset:       {self.LABEL} {self.path}: {len(data.inputs)} inputs, {len(data.measurements)} "
                 f"detections on {len(data.scan_times)} scans, {0 if data.gps is None else len(data.gps)} GPS fixes",

@@ -99,7 +99,7 @@ class LandmarkRunOptions:
             if not self.unknown:
                 raise ValueError("association applies with unknown correspondences only (known correspondences need "
                                  "no association)")
-        _real(self.bearing_offset, "bearing_offset", zero=True)
+        _real(self.bearing_offset, "bearing_offset", zero=True, what="angle (rad)")
         if self.bearing_offset and self.method != "ekf":
             raise ValueError("bearing_offset applies to method ekf only")
         for name, lowest, highest in (("num_particles", 1, None), ("version", 1, 2), ("seed", 0, MAX_SEED),
@@ -116,7 +116,7 @@ class LandmarkRunOptions:
         for name in ("sigma_v", "sigma_w", "sigma_r", "sigma_phi"):
             value = getattr(self, name)
             # Squared, a negative sigma would pass unnoticed, 1e300 overflow and 1e-200 vanish.
-            if value is not None and not (math.isfinite(_real(value, name, zero=None)) and 0 < value * value < math.inf):
+            if value is not None and not (0 < _real(value, name, zero=None) < math.inf and 0 < value * value < math.inf):
                 raise ValueError(f"{name} {value} must be a finite standard deviation > 0 with a finite variance > 0")
 
     def replace(self, **options) -> "LandmarkRunOptions":
@@ -137,7 +137,7 @@ def _integer(value, name: str, lowest: int, highest: Optional[int], what: str = 
         raise ValueError(f"{name} {value} must be {what or 'an integer ' + bounds}")
 
 
-def _real(value, name: str, zero: Optional[bool] = False) -> float:
+def _real(value, name: str, zero: Optional[bool] = False, what: str = "number") -> float:
     """``value`` as a finite float > 0 (>= 0 with ``zero``; any number with ``zero`` None);
     TypeError / ValueError naming ``name``."""
     if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
@@ -145,7 +145,7 @@ def _real(value, name: str, zero: Optional[bool] = False) -> float:
     if zero is None:
         return float(value)
     if not (math.isfinite(value) and (value >= 0 if zero else value > 0)):
-        raise ValueError(f"{name} {value} must be a finite number {'>= 0' if zero else '> 0'}")
+        raise ValueError(f"{name} {value} must be a finite {what} {'>= 0' if zero else '> 0'}")
     return float(value)
 
 
