@@ -24,13 +24,9 @@ from ..io._files import file_path
 from ..io.landmark_datasets import Mrclam, VictoriaPark, VictoriaParkAcfr
 from ..landmark_slam import METHODS, Associations, LandmarkSlamResult
 from . import carmen, mrclam, victoria_park, victoria_park_acfr, victoria_park_acfr_run
-from .landmark_dataset import LandmarkDataset, LandmarkScore, RefinedRun
+from .landmark_dataset import EKF_ASSOCIATIONS, LandmarkDataset, LandmarkScore, RefinedRun
 
 PathLike = Union[str, "os.PathLike[str]"]
-
-#: The associations of ``run_landmark_slam(method="ekf", known=False)``: joint compatibility over
-#: each scan, or maximum likelihood per sighting (``EkfSlam.update_unknown``).
-EKF_ASSOCIATIONS = ("jcbb", "ml")
 
 
 def landmark_dataset_kind(path: PathLike) -> str:
@@ -130,60 +126,22 @@ def run_landmark_slam(dataset: Union[Mrclam, VictoriaPark, VictoriaParkAcfr, Pat
         raise TypeError(f"known must be None or a bool, got {type(known).__name__}")
     if isinstance(dataset, (str, bytes, os.PathLike)):
         dataset = load_landmark_dataset(dataset)
-    require_instance(dataset, (Mrclam, VictoriaPark, VictoriaParkAcfr), "dataset")
-    if isinstance(dataset, VictoriaParkAcfr):
-        return _run_acfr(dataset, method, known, motion_noise, measurement_noise, association, hypotheses,
-                         num_particles, version, seed, threads, p_new, filter_options, progress)
-    known = True if known is None else known
-    if method == "mht" and known:
-        raise ValueError("known: method 'mht' finds the correspondences itself; pass known=False")
-    if method == "ekf" and not known and association not in EKF_ASSOCIATIONS:
-        raise ValueError(f"association must be one of {', '.join(map(repr, EKF_ASSOCIATIONS))}, got {association!r}")
-    if hypotheses is not None and method != "mht":
-        raise ValueError(f"hypotheses: options of method 'mht', not of {method!r}")
-    fastslam = dict(num_particles=num_particles, version=version, seed=seed, threads=threads, p_new=p_new,
-                    filter_options=filter_options)
-    if isinstance(dataset, Mrclam):
-        if method == "fastslam":
-            return mrclam.run_fastslam(dataset, motion_noise, measurement_noise, known=known, progress=progress,
-                                       **fastslam)
-        return mrclam.run_ekf(dataset, motion_noise, measurement_noise, known=known or method == "dead-reckoning",
-                              association="mht" if method == "mht" else association, hypotheses=hypotheses,
-                              dead_reckoning=method == "dead-reckoning", progress=progress)
-    if motion_noise is not None:
-        raise ValueError("motion_noise: Victoria Park's odometry noise is its file's")
-    if method == "fastslam":
-        return victoria_park.run_fastslam(dataset, measurement_noise, known=known, progress=progress, **fastslam)
-    if method == "mht":
-        raise ValueError("method 'mht' runs on MRCLAM only")
-    if method == "ekf" and not known:
-        raise ValueError("known: on Victoria Park the EKF runs with the file's correspondences only (known=True)")
-    return victoria_park.run_ekf(dataset, measurement_noise, dead_reckoning=method == "dead-reckoning",
-                                 progress=progress)
+    return landmark_dataset(dataset).run_filter(
+        method, known=known, motion_noise=motion_noise, measurement_noise=measurement_noise, association=association,
+        hypotheses=hypotheses, num_particles=num_particles, version=version, seed=seed, threads=threads, p_new=p_new,
+        filter_options=filter_options, progress=progress)
 
 
-def _run_acfr(data: VictoriaParkAcfr, method, known, motion_noise, measurement_noise, association, hypotheses,
-              num_particles, version, seed, threads, p_new, filter_options, progress) -> LandmarkSlamResult:
-    """run_landmark_slam on the original Victoria Park run."""
-    if known:
-        raise ValueError("known: the original Victoria Park run's detections have no identities (known=False)")
-    for name, value in (("motion_noise", motion_noise), ("measurement_noise", measurement_noise)):
-        if value is not None:
-            raise ValueError(f"{name}: the original Victoria Park run takes its sensors' noise "
-                             "(victoria_park_acfr_run)")
-    if method == "mht" or hypotheses is not None:
-        raise ValueError("method 'mht' runs on MRCLAM only")
-    if method == "fastslam":
-        return victoria_park_acfr_run.run_fastslam(data, num_particles=num_particles, version=version, seed=seed,
-                                                   threads=threads, p_new=p_new, filter_options=filter_options,
-                                                   progress=progress)
-    if association not in EKF_ASSOCIATIONS:
-        raise ValueError(f"association must be one of {', '.join(map(repr, EKF_ASSOCIATIONS))}, got {association!r}")
-    return victoria_park_acfr_run.run_ekf(data, association=association, dead_reckoning=method == "dead-reckoning",
-                                          progress=progress)
+def landmark_dataset(data: Union[Mrclam, VictoriaPark, VictoriaParkAcfr]) -> LandmarkDataset:
+    """A dataset as read (``load_landmark_dataset``), as a landmark run sees it: its
+    ``LandmarkDataset`` (with no path: its title names none)."""
+    classes = tuple(LANDMARK_DATASETS.values())
+    require_instance(data, tuple(c.DATA for c in classes), "dataset")
+    return next(c for c in classes if isinstance(data, c.DATA))(data)
 
 
 __all__ = ["Associations", "EKF_ASSOCIATIONS", "LANDMARK_DATASETS", "LandmarkDataset", "LandmarkScore",
-           "LandmarkSlamResult", "RefinedRun", "carmen", "landmark_dataset_class", "landmark_dataset_kind",
+           "LandmarkSlamResult", "RefinedRun", "carmen", "landmark_dataset", "landmark_dataset_class",
+           "landmark_dataset_kind",
            "load_landmark_dataset", "mrclam", "run_landmark_slam", "victoria_park", "victoria_park_acfr",
            "victoria_park_acfr_run"]

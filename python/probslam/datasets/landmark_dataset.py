@@ -14,14 +14,19 @@ from __future__ import annotations
 
 import pathlib
 from dataclasses import dataclass, field
-from typing import Dict, List, Optional, Tuple
+from typing import Dict, List, Mapping, Optional, Tuple
 
 import numpy as np
 
 from .. import eval as evaluation
+from ..fastslam import DEFAULT_P_NEW
+from .._args import require_instance
 from ..landmark_refine import refine_run
 from ..landmark_slam import LandmarkSlamResult
 
+#: The associations of an EKF with hidden correspondences (``run_filter(method="ekf", known=False)``):
+#: joint compatibility over each scan, or maximum likelihood per sighting (``EkfSlam.update_unknown``).
+EKF_ASSOCIATIONS = ("jcbb", "ml")
 #: The options that only some datasets take (each dataset lists those it takes in ``OPTIONS``).
 DATASET_OPTIONS = ("robot", "seconds", "raw_ranges", "sigma_v", "sigma_w", "sigma_r", "sigma_phi")
 
@@ -56,12 +61,15 @@ class LandmarkDataset:
 
     OPTIONS: Tuple[str, ...] = ()
     LABEL = ""
+    #: The type of ``data``.
+    DATA: type = object
     #: What the dataset is, in the refusal of an option that does not apply to it.
     REFUSAL = "Victoria Park (one vehicle, its noise in the file)"
 
-    def __init__(self, data, path: pathlib.Path):
+    def __init__(self, data, path: Optional[pathlib.Path] = None):
+        require_instance(data, self.DATA, "data")
         self.data = data
-        self.path = pathlib.Path(path)
+        self.path = pathlib.Path("<data>" if path is None else path)
 
     # -- before reading -----------------------------------------------------------------------
     @classmethod
@@ -91,6 +99,30 @@ class LandmarkDataset:
 
     def run(self, options, progress: Optional[bool] = None) -> LandmarkSlamResult:
         """The filter of ``options`` over the dataset."""
+        raise NotImplementedError
+
+    def run_filter(self, method: str, *, known: Optional[bool] = None, motion_noise=None, measurement_noise=None,
+                   association: str = "jcbb", hypotheses: Optional[Mapping] = None, num_particles: int = 100,
+                   version: int = 1, seed: int = 0, threads: int = 1, p_new: float = DEFAULT_P_NEW,
+                   filter_options: Optional[Mapping] = None, progress: Optional[bool] = None) -> LandmarkSlamResult:
+        """One filter over the dataset, as ``datasets.run_landmark_slam`` describes its arguments
+        (``known`` None: True, the dataset's labels). The checks shared by the datasets with labels
+        are here; each dataset's ``_run_filter`` runs it."""
+        known = True if known is None else known
+        if method == "mht" and known:
+            raise ValueError("known: method 'mht' finds the correspondences itself; pass known=False")
+        if method == "ekf" and not known and association not in EKF_ASSOCIATIONS:
+            raise ValueError(f"association must be one of {', '.join(map(repr, EKF_ASSOCIATIONS))}, got "
+                             f"{association!r}")
+        if hypotheses is not None and method != "mht":
+            raise ValueError(f"hypotheses: options of method 'mht', not of {method!r}")
+        fastslam = dict(num_particles=num_particles, version=version, seed=seed, threads=threads, p_new=p_new,
+                        filter_options=filter_options)
+        return self._run_filter(method, known, motion_noise, measurement_noise, association, hypotheses, fastslam,
+                                progress)
+
+    def _run_filter(self, method: str, known: bool, motion_noise, measurement_noise, association: str, hypotheses,
+                    fastslam: dict, progress: Optional[bool]) -> LandmarkSlamResult:
         raise NotImplementedError
 
     def summary(self, result: LandmarkSlamResult, options, seconds: float) -> List[str]:
@@ -171,5 +203,6 @@ def association_line(result: LandmarkSlamResult, what: str = "label", applied: O
             f"{what}){tail}"]
 
 
-__all__ = ["DATASET_OPTIONS", "LandmarkDataset", "LandmarkScore", "RefinedRun", "association_line", "fastslam_lines",
+__all__ = ["DATASET_OPTIONS", "EKF_ASSOCIATIONS", "LandmarkDataset", "LandmarkScore", "RefinedRun", "association_line",
+           "fastslam_lines",
            "skipped_rows_line"]

@@ -433,10 +433,11 @@ class MrclamRobot(LandmarkDataset):
     OPTIONS = ("robot", "seconds", "raw_ranges", "sigma_v", "sigma_w", "sigma_r", "sigma_phi")
     LABEL = "UTIAS MRCLAM"
 
-    def __init__(self, data: Mrclam, path: PathLike, robot: int = 1, seconds: Optional[float] = None,
+    DATA = Mrclam
+
+    def __init__(self, data: Mrclam, path: Optional[PathLike] = None, robot: int = 1, seconds: Optional[float] = None,
                  raw_ranges: bool = False):
-        require_instance(data, Mrclam, "data")
-        super().__init__(data, pathlib.Path(path))
+        super().__init__(data, path)
         self.robot, self.seconds, self.raw_ranges = robot, seconds, raw_ranges
 
     @classmethod
@@ -472,15 +473,22 @@ class MrclamRobot(LandmarkDataset):
         """``run_ekf`` (EKF or the multiple-hypothesis EKF) or ``run_fastslam`` with the options' noise."""
         noise = self.noise(options)
         if options.method == "fastslam":
-            return run_fastslam(self.data, noise["motion_noise"], noise["measurement_noise"], known=not options.unknown,
-                                num_particles=options.num_particles, version=options.version, seed=options.seed,
-                                threads=options.threads, progress=progress)
+            return self.run_filter("fastslam", known=not options.unknown, num_particles=options.num_particles,
+                                   version=options.version, seed=options.seed, threads=options.threads,
+                                   progress=progress, **noise)
         association = self.association(options)
+        mht = options.unknown and association == "mht"
         hypotheses = dict(bearing_offset_sigma=options.bearing_offset) if options.bearing_offset else None
-        if association not in ("jcbb", "ml", "mht"):
-            raise ValueError(f"association must be one of 'jcbb', 'ml', 'mht', got {association!r}")
-        return run_ekf(self.data, noise["motion_noise"], noise["measurement_noise"], known=not options.unknown,
-                       association=association, hypotheses=hypotheses, progress=progress)
+        return self.run_filter("mht" if mht else "ekf", known=not options.unknown, association=association,
+                               hypotheses=hypotheses, progress=progress, **noise)
+
+    def _run_filter(self, method, known, motion_noise, measurement_noise, association, hypotheses, fastslam,
+                    progress) -> LandmarkSlamResult:
+        if method == "fastslam":
+            return run_fastslam(self.data, motion_noise, measurement_noise, known=known, progress=progress, **fastslam)
+        return run_ekf(self.data, motion_noise, measurement_noise, known=known or method == "dead-reckoning",
+                       association="mht" if method == "mht" else association, hypotheses=hypotheses,
+                       dead_reckoning=method == "dead-reckoning", progress=progress)
 
     def summary(self, result: LandmarkSlamResult, options, seconds: float) -> List[str]:
         """The robot, its correspondences and readings, what the filter took and mapped."""
@@ -505,9 +513,7 @@ class MrclamRobot(LandmarkDataset):
         survey after the survey labels that contradict the barcodes have been exchanged
         (``eval.score_landmarks``). ValueError when a score is not finite (no mapped landmark in the
         survey, or coordinates too large to square)."""
-        noise = self.noise(options)
-        dead = run_ekf(self.data, noise["motion_noise"], noise["measurement_noise"], known=True,
-                       dead_reckoning=True, progress=False)
+        dead = self.run_filter("dead-reckoning", progress=False, **self.noise(options))
         labels = majority_labels(result) if result.associations is not None else None
         if self.data.groundtruth is None:
             return self._survey_score(result, dead, labels)
@@ -559,7 +565,8 @@ def _require_finite(*scores: float) -> None:
                          "Landmark_Groundtruth.dat, or its or the ground truth's coordinates are too large")
 
 
-__all__ = ["COMMAND_PERIOD", "DEFAULT_ASSOCIATION", "MEASUREMENT_NOISE", "MrclamRobot", "MEASUREMENT_SIGMA", "MHT_DETECTION_PROBABILITY",
+__all__ = ["COMMAND_PERIOD", "DEFAULT_ASSOCIATION", "MEASUREMENT_NOISE", "MrclamRobot", "MEASUREMENT_SIGMA",
+           "MHT_DETECTION_PROBABILITY",
            "MHT_NEW_LANDMARK_COST", "MOTION_NOISE", "MOTION_SIGMA",
            "OUTLIER_PROBABILITY", "PERCEPTUAL_FIELD_QUANTILE", "outlier_density", "ROBOTS", "SURVEY_RESIDUAL_LIMIT", "dead_reckoning",
            "dead_reckoning_map", "first_seconds", "fit_range_scale", "load", "perceptual_field", "run_ekf",

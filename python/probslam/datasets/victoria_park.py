@@ -126,6 +126,7 @@ class VictoriaParkChain(LandmarkDataset):
     ``unknown``), FastSLAM may hide them. Nothing to score against (the file has no ground truth)."""
 
     LABEL = "Victoria Park"
+    DATA = VictoriaPark
 
     @classmethod
     def check(cls, options, path) -> None:
@@ -160,9 +161,22 @@ class VictoriaParkChain(LandmarkDataset):
     def run(self, options, progress: Optional[bool] = None) -> LandmarkSlamResult:
         """``run_fastslam``, or ``run_ekf`` (known correspondences, the file's)."""
         if options.method == "fastslam":
-            return run_fastslam(self.data, known=not options.unknown, num_particles=options.num_particles,
-                                version=options.version, seed=options.seed, threads=options.threads, progress=progress)
-        return run_ekf(self.data, progress=progress)
+            return self.run_filter("fastslam", known=not options.unknown, num_particles=options.num_particles,
+                                   version=options.version, seed=options.seed, threads=options.threads,
+                                   progress=progress)
+        return self.run_filter("ekf", progress=progress)
+
+    def _run_filter(self, method, known, motion_noise, measurement_noise, association, hypotheses, fastslam,
+                    progress) -> LandmarkSlamResult:
+        if motion_noise is not None:
+            raise ValueError("motion_noise: Victoria Park's odometry noise is its file's")
+        if method == "fastslam":
+            return run_fastslam(self.data, measurement_noise, known=known, progress=progress, **fastslam)
+        if method == "mht":
+            raise ValueError("method 'mht' runs on MRCLAM only")
+        if method == "ekf" and not known:
+            raise ValueError("known: on Victoria Park the EKF runs with the file's correspondences only (known=True)")
+        return run_ekf(self.data, measurement_noise, dead_reckoning=method == "dead-reckoning", progress=progress)
 
     def summary(self, result: LandmarkSlamResult, options, seconds: float) -> List[str]:
         """The file, its poses and observations, what the filter mapped."""

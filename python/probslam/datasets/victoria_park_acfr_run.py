@@ -27,7 +27,7 @@ from ..landmark_refine import (UNASSIGNED, RefinementInput, RunRefinement, compo
 from ..landmark_slam import Associations, LandmarkSlamResult, ekf_landmarks
 from ..eval import position_error
 from . import victoria_park_acfr
-from .landmark_dataset import LandmarkDataset, LandmarkScore, RefinedRun
+from .landmark_dataset import EKF_ASSOCIATIONS, LandmarkDataset, LandmarkScore, RefinedRun
 
 # The noise of the inputs and detections: RFS-SLAM's FastSLAM configuration for this run
 # (kykleung/RFS-SLAM cfg/fastslam_VictoriaPark.xml; its converter made the dataset's files): the
@@ -302,25 +302,23 @@ def refined_result(refinement: RunRefinement, run: LandmarkSlamResult) -> Landma
                               run.seconds + refinement.result.seconds, record)
 
 
-#: The associations of the EKF over the run (``run_ekf``).
-ASSOCIATIONS = ("jcbb", "ml")
-
-
 class VictoriaParkRun(LandmarkDataset):
     """The original Victoria Park run as a landmark run sees it (``landmark_dataset.LandmarkDataset``):
     unknown correspondences always (the detections have no identities), the car's model and the
     sensors' noise of this module, scored against the GPS (``eval.position_error``)."""
 
     LABEL = "Victoria Park (ACFR run)"
+    DATA = VictoriaParkAcfr
 
     @classmethod
     def check(cls, options, path) -> None:
-        """As ``LandmarkDataset.check``; and no bearing offset, the EKF's ``ASSOCIATIONS`` only."""
+        """As ``LandmarkDataset.check``; and no bearing offset, the EKF's ``EKF_ASSOCIATIONS`` only."""
         super().check(options, path)
         if options.bearing_offset:
             raise ValueError("bearing_offset applies to MRCLAM folders (with unknown, association mht)")
-        if options.association not in (None, *ASSOCIATIONS):
-            raise ValueError(f"association on the original Victoria Park run: {' or '.join(ASSOCIATIONS)} (the EKF's)")
+        if options.association not in (None, *EKF_ASSOCIATIONS):
+            raise ValueError(f"association on the original Victoria Park run: {' or '.join(EKF_ASSOCIATIONS)} "
+                             "(the EKF's)")
 
     @classmethod
     def load(cls, path, options) -> "VictoriaParkRun":
@@ -330,9 +328,32 @@ class VictoriaParkRun(LandmarkDataset):
     def run(self, options, progress: Optional[bool] = None) -> LandmarkSlamResult:
         """``run_fastslam`` or ``run_ekf`` over the run."""
         if options.method == "fastslam":
-            return run_fastslam(self.data, num_particles=options.num_particles, version=options.version,
-                                seed=options.seed, threads=options.threads, progress=progress)
-        return run_ekf(self.data, association=self.association(options), progress=progress)
+            return self.run_filter("fastslam", num_particles=options.num_particles, version=options.version,
+                                   seed=options.seed, threads=options.threads, progress=progress)
+        return self.run_filter("ekf", association=self.association(options), progress=progress)
+
+    def run_filter(self, method: str, *, known: Optional[bool] = None, motion_noise=None, measurement_noise=None,
+                   association: str = "jcbb", hypotheses: Optional[Mapping] = None, num_particles: int = 100,
+                   version: int = 1, seed: int = 0, threads: int = 1, p_new: float = DEFAULT_P_NEW,
+                   filter_options: Optional[Mapping] = None, progress: Optional[bool] = None) -> LandmarkSlamResult:
+        """One filter over the run (``known`` None or False: the detections have no identities; the
+        noise is the sensors', ``motion_noise`` and ``measurement_noise`` are refused)."""
+        if known:
+            raise ValueError("known: the original Victoria Park run's detections have no identities (known=False)")
+        for name, value in (("motion_noise", motion_noise), ("measurement_noise", measurement_noise)):
+            if value is not None:
+                raise ValueError(f"{name}: the original Victoria Park run takes its sensors' noise "
+                                 "(victoria_park_acfr_run)")
+        if method == "mht" or hypotheses is not None:
+            raise ValueError("method 'mht' runs on MRCLAM only")
+        if method == "fastslam":
+            return run_fastslam(self.data, num_particles=num_particles, version=version, seed=seed, threads=threads,
+                                p_new=p_new, filter_options=filter_options, progress=progress)
+        if association not in EKF_ASSOCIATIONS:
+            raise ValueError(f"association must be one of {', '.join(map(repr, EKF_ASSOCIATIONS))}, got "
+                             f"{association!r}")
+        return run_ekf(self.data, association=association, dead_reckoning=method == "dead-reckoning",
+                       progress=progress)
 
     def title(self, options) -> str:
         """The run, for the picture's title."""
@@ -405,7 +426,7 @@ class VictoriaParkRun(LandmarkDataset):
         return "" if error is None else f"; RMS vs GPS {error.rmse_aligned:.2f} m (aligned)"
 
 
-__all__ = ["ASSOCIATIONS", "BEARING_SIGMA", "VictoriaParkRun", "DETECTION_INFLATION", "DIAMETER_SIGMA", "FIELD_OF_VIEW", "INPUT_INFLATION", "MAX_RANGE",
-           "PROVISIONAL_MAX_AGE", "PROVISIONAL_SIGHTINGS", "RANGE_SIGMA", "SPEED_SIGMA", "STEERING_SIGMA", "Schedule",
+__all__ = ["BEARING_SIGMA", "DETECTION_INFLATION", "DIAMETER_SIGMA", "FIELD_OF_VIEW", "INPUT_INFLATION", "MAX_RANGE",
+           "VictoriaParkRun", "PROVISIONAL_MAX_AGE", "PROVISIONAL_SIGHTINGS", "RANGE_SIGMA", "SPEED_SIGMA", "STEERING_SIGMA", "Schedule",
            "control_noise", "first_seconds", "geometry", "measurement_noise", "provisional_list", "refine",
            "refined_result", "refinement_input", "run_ekf", "run_fastslam", "schedule"]

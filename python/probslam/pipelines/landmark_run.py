@@ -115,8 +115,9 @@ class LandmarkRunOptions:
             _real(self.seconds, "seconds")
         for name in ("sigma_v", "sigma_w", "sigma_r", "sigma_phi"):
             value = getattr(self, name)
+            sigma = None if value is None else _real(value, name, zero=None)
             # Squared, a negative sigma would pass unnoticed, 1e300 overflow and 1e-200 vanish.
-            if value is not None and not (0 < _real(value, name, zero=None) < math.inf and 0 < value * value < math.inf):
+            if sigma is not None and not (0 < sigma < math.inf and 0 < sigma * sigma < math.inf):
                 raise ValueError(f"{name} {value} must be a finite standard deviation > 0 with a finite variance > 0")
 
     def replace(self, **options) -> "LandmarkRunOptions":
