@@ -7,7 +7,6 @@ import contextlib
 import difflib
 import math
 import os
-import pathlib
 import re
 import shlex
 import stat
@@ -50,10 +49,7 @@ BUNDLED_LOCALIZATION_MAP = "intel_raw_loop_map.yaml"
 RBPF_PARTICLES = 30
 #: slam's cell size (m) without --resolution or --map.
 DEFAULT_RESOLUTION = 0.05
-FASTSLAM_PARTICLES = 100
-
-#: ekf-slam --unknown's association on MRCLAM without --association (docs/ekf_slam.md).
-MRCLAM_ASSOCIATION = "mht"
+FASTSLAM_PARTICLES = LandmarkRunOptions.num_particles
 
 #: What each kind of input file must be, for the error messages.
 CARMEN_LOG = "a CARMEN laser log (.log/.clf, optionally .gz/.bz2/.xz)"

@@ -107,7 +107,7 @@ class LandmarkRunOptions:
             _integer(getattr(self, name), name, lowest, highest)
         if self.method != "fastslam":
             for name in FASTSLAM_OPTIONS:
-                if getattr(self, name) != getattr(DEFAULTS, name):
+                if getattr(self, name) != getattr(_DEFAULTS, name):
                     raise ValueError(f"{name} applies to method fastslam only")
         if self.robot is not None:
             _integer(self.robot, "robot", 1, mrclam.ROBOTS, what=f"an MRCLAM robot number 1 to {mrclam.ROBOTS}")
@@ -127,7 +127,7 @@ class LandmarkRunOptions:
         return out
 
 
-DEFAULTS = LandmarkRunOptions()
+_DEFAULTS = LandmarkRunOptions()
 
 
 def _integer(value, name: str, lowest: int, highest: Optional[int], what: str = "") -> None:
