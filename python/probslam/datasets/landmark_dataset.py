@@ -21,7 +21,7 @@ import numpy as np
 from .. import eval as evaluation
 from ..fastslam import DEFAULT_P_NEW
 from .._args import require_instance
-from ..landmark_refine import refine_run
+from ..landmark_refine import RefinementInput, RunRefinement, refine_landmarks
 from ..landmark_slam import LandmarkSlamResult
 
 #: The associations of an EKF with hidden correspondences (``run_filter(method="ekf", known=False)``):
@@ -129,10 +129,24 @@ class LandmarkDataset:
         """The lines that say what ran over what (``seconds``: the filter's CPU time)."""
         raise NotImplementedError
 
+    def refinement_input(self, run: LandmarkSlamResult, motion_noise=None, measurement_noise=None,
+                         command_period: Optional[float] = None) -> RefinementInput:
+        """The arrays of ``landmark_refine.refine_landmarks`` from a run over the dataset, with the
+        noise it ran with (``datasets.refinement_input``)."""
+        raise NotImplementedError
+
+    def refine_run(self, run: LandmarkSlamResult, motion_noise=None, measurement_noise=None,
+                   command_period: Optional[float] = None, **options) -> RunRefinement:
+        """GraphSLAM's correspondence test (``landmark_refine.refine_landmarks``, ch. 11.6) on the
+        run (``refinement_input``); ``options`` go to ``refine_landmarks``."""
+        period = {} if command_period is None else {"command_period": command_period}
+        start = self.refinement_input(run, motion_noise, measurement_noise, **period)
+        return RunRefinement(start, refine_landmarks(**start.arguments(), **options))
+
     def refine(self, result: LandmarkSlamResult, options) -> RefinedRun:
-        """GraphSLAM's correspondence test (ch. 11.6) over the run (``landmark_refine.refine_run``)."""
+        """GraphSLAM's correspondence test (ch. 11.6) over the run (``refine_run``), said in a line."""
         noise = self.noise(options)
-        refined = refine_run(result, self.data, noise.get("motion_noise"), noise.get("measurement_noise"))
+        refined = self.refine_run(result, noise.get("motion_noise"), noise.get("measurement_noise"))
         r = refined.result
         out = refined.as_landmark_slam_result(result)
         line = (f"refinement:    GraphSLAM correspondence test (ch. 11.6): {evaluation.association_accuracy(out):.1%} "

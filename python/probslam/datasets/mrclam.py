@@ -19,14 +19,17 @@ from typing import Dict, Iterator, List, Mapping, Optional, Tuple, Union
 
 import numpy as np
 
-from .._args import require_instance
+from .._args import positive_real, real_array, require_fields, require_instance
 from .._progress import progress_bar
 from .._core import FastSlam, chi_square_quantile, velocity_motion, velocity_motion_control_jacobian
 from ..ekf import AssociationResult, EkfSlam, MapManagement, MultiHypothesisEkfSlam
 from ..eval import majority_labels, score_landmarks, score_mrclam, truth_positions
 from ..fastslam import DEFAULT_P_NEW, AssociationHistories, result_of
+from ..geometry import accumulate
 from ..io._files import file_path
 from ..io.landmark_datasets import MRCLAM_RANGE_SCALE, Mrclam, read_mrclam
+from ..landmark_refine import (RefinementInput, compose_increments, floor_covariances, poses_at_nodes, run_labels,
+                               velocity_increments)
 from ..landmark_slam import Associations, LandmarkSlamResult, ekf_landmarks
 from .landmark_dataset import LandmarkDataset, LandmarkScore, association_line, fastslam_lines
 
@@ -418,6 +421,46 @@ def dead_reckoning_map(data: Mrclam, initial_pose=(0.0, 0.0, 0.0)) -> Dict[int, 
     return {s: np.mean(p, axis=0) for s, p in placed.items()}
 
 
+def refinement_input(run: LandmarkSlamResult, data: Mrclam, motion_noise, measurement_noise,
+                     command_period: float = COMMAND_PERIOD) -> RefinementInput:
+    """The arrays of ``landmark_refine.refine_landmarks`` from a filter run over an MRCLAM robot
+    (``run_ekf`` / ``run_fastslam``): ``motion_noise`` (2, 2) and ``measurement_noise`` (2, 2) the
+    noise the run used (per ``command_period`` of control, as the runs take it). The poses are the
+    start (held) and one per scan, the odometry between them the controls integrated as the
+    filters predict them (``landmark_refine.velocity_increments``)."""
+    require_fields(run, ("times", "poses", "landmarks", "associations"), "run", "a LandmarkSlamResult")
+    require_instance(data, Mrclam, "data")
+    motion_noise = real_array(motion_noise, "motion_noise", (2, 2))
+    measurement_noise = real_array(measurement_noise, "measurement_noise", (2, 2))
+    command_period = positive_real(command_period, "command_period")
+    odo, meas = data.odometry, data.measurements
+    if len(odo) < 2:
+        raise ValueError("data: the robot needs at least two odometry rows")
+    # The sightings the filters take: scans stamped from the first control to before the last.
+    scan_rows = [r for r in data.scans() if odo[0, 0] <= meas[r.start, 0] < odo[-1, 0]]
+    rows = np.concatenate([np.arange(r.start, r.stop) for r in scan_rows]) if scan_rows else np.empty(0, np.int64)
+    scan_times = np.array([meas[r.start, 0] for r in scan_rows])
+    truth = meas[rows, 1].astype(np.int64)
+    labels = run_labels(run, truth)
+    # The motion pieces the filters predict over: each control from its stamp to the next event.
+    events = np.unique(np.concatenate([odo[:, 0], scan_times]))
+    control = np.searchsorted(odo[:, 0], events[:-1], side="right") - 1
+    dt = np.diff(events)
+    noise = np.asarray(motion_noise, float)[None] * (command_period / dt)[:, None, None]
+    deltas, covs = velocity_increments(odo[control, 1], odo[control, 2], dt, noise)
+    nodes = np.concatenate([[0], np.searchsorted(events, scan_times)])
+    odometry, odometry_cov = compose_increments(deltas, covs, nodes)
+    # The run's poses at the nodes, from the dead-reckoned chain between its records.
+    chain = accumulate(np.zeros(3), deltas)
+    times, recorded = np.asarray(run.times, float), np.asarray(run.poses, float)
+    poses = poses_at_nodes(times, recorded, events, chain)[nodes]
+    scan_of_row = np.repeat(np.arange(1, len(scan_rows) + 1), [r.stop - r.start for r in scan_rows])
+    return RefinementInput(np.concatenate([[odo[0, 0]], scan_times]), poses, odometry, floor_covariances(odometry_cov),
+                           scan_of_row.astype(np.int64), meas[rows, 2:4], labels, measurement_noise,
+                           {int(k): np.asarray(v, float) for k, v in run.landmarks.items()}, rows, truth)
+
+
+
 #: The EKF's association with hidden correspondences on MRCLAM when none is named: the
 #: multiple-hypothesis EKF, the one association that holds on every robot of Datasets 1 and 7
 #: (JCBB builds 40 landmarks for 15 on Dataset 1 robot 1, docs/ekf_slam.md).
@@ -507,6 +550,13 @@ class MrclamRobot(LandmarkDataset):
                 f"landmarks:     {len(result.landmarks)} in the map; filter time {result.seconds:.2f} s",
                 *association_line(result, "barcode", len(data.measurements))]
 
+    def refinement_input(self, run: LandmarkSlamResult, motion_noise=None, measurement_noise=None,
+                         command_period: float = COMMAND_PERIOD) -> RefinementInput:
+        """``refinement_input`` of the run (the noise it ran with: both needed)."""
+        if motion_noise is None or measurement_noise is None:
+            raise ValueError("motion_noise, measurement_noise: MRCLAM runs need the noise they were run with")
+        return refinement_input(run, self.data, motion_noise, measurement_noise, command_period)
+
     def score(self, result: LandmarkSlamResult, options) -> LandmarkScore:
         """The path and map errors against the ground truth and survey (``eval.score_mrclam``), and
         the dead reckoning's; without robot ground truth (Dataset 1) the map alone, aligned onto the
@@ -569,5 +619,5 @@ __all__ = ["COMMAND_PERIOD", "DEFAULT_ASSOCIATION", "MEASUREMENT_NOISE", "Mrclam
            "MHT_DETECTION_PROBABILITY",
            "MHT_NEW_LANDMARK_COST", "MOTION_NOISE", "MOTION_SIGMA",
            "OUTLIER_PROBABILITY", "PERCEPTUAL_FIELD_QUANTILE", "outlier_density", "ROBOTS", "SURVEY_RESIDUAL_LIMIT", "dead_reckoning",
-           "dead_reckoning_map", "first_seconds", "fit_range_scale", "load", "perceptual_field", "run_ekf",
+           "dead_reckoning_map", "first_seconds", "fit_range_scale", "load", "perceptual_field", "refinement_input", "run_ekf",
            "run_fastslam", "same_scan_residuals", "start_pose", "survey_label_swaps"]

@@ -15,10 +15,11 @@ from typing import List, Mapping, Optional, Tuple, Union
 import numpy as np
 
 from .. import _core
-from .._args import positive_real, require_instance
+from .._args import positive_real, require_fields, require_instance
 from ..fastslam import DEFAULT_P_NEW, fastslam_along_chain
 from ..io._files import file_path
 from ..io.landmark_datasets import VictoriaPark, read_victoria_park
+from ..landmark_refine import RefinementInput, compose_increments, run_labels
 from ..landmark_slam import LandmarkSlamResult, ekf_along_chain, polar_measurements
 from .landmark_dataset import LandmarkDataset, association_line, fastslam_lines, skipped_rows_line
 
@@ -119,6 +120,26 @@ def run_fastslam(data: VictoriaPark, measurement_noise=None, *, known: bool = Tr
                                 progress=progress)
 
 
+def refinement_input(run: LandmarkSlamResult, data: VictoriaPark) -> RefinementInput:
+    """The arrays of ``landmark_refine.refine_landmarks`` from a filter run along the chain
+    (``run_ekf`` / ``run_fastslam``): the file's odometry and observation covariances, poses the
+    start and the chain poses with sightings, the sightings in the order the filters take them."""
+    require_fields(run, ("times", "poses", "landmarks", "associations"), "run", "a LandmarkSlamResult")
+    observed_from, z, z_cov = chain(data)
+    order = np.argsort(observed_from, kind="stable")  # the order the filters take the sightings in
+    truth = data.landmark[order].astype(np.int64)
+    steps = observed_from[order]
+    labels = run_labels(run, truth)
+    recorded = np.asarray(run.poses, float)
+    if len(recorded) != len(data.pose_to) + 1:
+        raise ValueError(f"run: holds {len(recorded)} poses, the data's chain {len(data.pose_to) + 1}")
+    nodes = np.unique(np.concatenate([[0], steps]))
+    odometry, odometry_cov = compose_increments(data.delta, data.delta_cov, nodes)
+    return RefinementInput(nodes.astype(float), recorded[nodes], odometry, odometry_cov,
+                           np.searchsorted(nodes, steps).astype(np.int64), z[order], labels, z_cov[order],
+                           {int(k): np.asarray(v, float) for k, v in run.landmarks.items()}, order, truth)
+
+
 class VictoriaParkChain(LandmarkDataset):
     """Victoria Park as iSAM / GTSAM text, as a landmark run sees it
     (``landmark_dataset.LandmarkDataset``): its odometry and sighting noise are the file's, its
@@ -178,6 +199,11 @@ class VictoriaParkChain(LandmarkDataset):
             raise ValueError("known: on Victoria Park the EKF runs with the file's correspondences only (known=True)")
         return run_ekf(self.data, measurement_noise, dead_reckoning=method == "dead-reckoning", progress=progress)
 
+    def refinement_input(self, run: LandmarkSlamResult, motion_noise=None, measurement_noise=None,
+                         command_period: Optional[float] = None) -> RefinementInput:
+        """``refinement_input`` of the run (the file's noise: the noise arguments are not used)."""
+        return refinement_input(run, self.data)
+
     def summary(self, result: LandmarkSlamResult, options, seconds: float) -> List[str]:
         """The file, its poses and observations, what the filter mapped."""
         source = f"Victoria Park {self.path}: {len(result.poses)} poses, {len(self.data.xy)} observations"
@@ -188,4 +214,4 @@ class VictoriaParkChain(LandmarkDataset):
                 f"landmarks:     {len(result.landmarks)}; filter time {result.seconds:.3f} s"]
 
 
-__all__ = ["MAX_COORDINATE", "ODOMETRY_NOISE_SCALE", "VictoriaParkChain", "chain", "load", "run_ekf", "run_fastslam"]
+__all__ = ["MAX_COORDINATE", "ODOMETRY_NOISE_SCALE", "VictoriaParkChain", "chain", "load", "refinement_input", "run_ekf", "run_fastslam"]

@@ -22,8 +22,7 @@ from ..ekf import EkfSlam, MapManagement
 from ..fastslam import DEFAULT_P_NEW, AssociationHistories, result_of
 from ..geometry import between, compose
 from ..io.landmark_datasets import VictoriaParkAcfr
-from ..landmark_refine import (UNASSIGNED, RefinementInput, RunRefinement, compose_increments,
-                               floor_covariances, refine_landmarks)
+from ..landmark_refine import UNASSIGNED, RefinementInput, RunRefinement, compose_increments, floor_covariances
 from ..landmark_slam import Associations, LandmarkSlamResult, ekf_landmarks
 from ..eval import position_error
 from . import victoria_park_acfr
@@ -273,14 +272,6 @@ def refinement_input(run: LandmarkSlamResult, data: VictoriaParkAcfr) -> Refinem
                            np.asarray(record.truth, np.int64))
 
 
-def refine(run: LandmarkSlamResult, data: VictoriaParkAcfr, **options) -> RunRefinement:
-    """GraphSLAM's correspondence test (``landmark_refine.refine_landmarks``, ch. 11.6) on an EKF
-    or FastSLAM run over ``data`` (``refinement_input``); ``options`` go to ``refine_landmarks``
-    (merge_probability, split_probability, max_iterations, estimate_noise, new_landmarks)."""
-    start = refinement_input(run, data)
-    return RunRefinement(start, refine_landmarks(**start.arguments(), **options))
-
-
 def refined_result(refinement: RunRefinement, run: LandmarkSlamResult) -> LandmarkSlamResult:
     """The refinement of ``run`` as a ``LandmarkSlamResult`` at the run's own times: each pose
     between two scans is the refined pose of the scan before it moved on by the run's own motion
@@ -388,10 +379,18 @@ class VictoriaParkRun(LandmarkDataset):
                 f"landmarks:     {len(result.landmarks)} in the map",
                 *self._gps_lines(result, "GPS:")]
 
+    def refinement_input(self, run: LandmarkSlamResult, motion_noise=None, measurement_noise=None,
+                         command_period: Optional[float] = None) -> RefinementInput:
+        """``refinement_input`` of the run (the sensors' noise: none other is taken)."""
+        for name, value in (("motion_noise", motion_noise), ("measurement_noise", measurement_noise)):
+            if value is not None:
+                raise ValueError(f"{name}: the original Victoria Park run takes its sensors' noise")
+        return refinement_input(run, self.data)
+
     def refine(self, result: LandmarkSlamResult, options) -> RefinedRun:
         """GraphSLAM's correspondence test over the run (``refine``) and its error against the GPS."""
         cpu = time.process_time()
-        refinement = refine(result, self.data)
+        refinement = self.refine_run(result)
         r = refinement.result
         cpu = time.process_time() - cpu
         refined = refined_result(refinement, result)
@@ -428,5 +427,5 @@ class VictoriaParkRun(LandmarkDataset):
 
 __all__ = ["BEARING_SIGMA", "DETECTION_INFLATION", "DIAMETER_SIGMA", "FIELD_OF_VIEW", "INPUT_INFLATION", "MAX_RANGE",
            "VictoriaParkRun", "PROVISIONAL_MAX_AGE", "PROVISIONAL_SIGHTINGS", "RANGE_SIGMA", "SPEED_SIGMA", "STEERING_SIGMA", "Schedule",
-           "control_noise", "first_seconds", "geometry", "measurement_noise", "provisional_list", "refine",
+           "control_noise", "first_seconds", "geometry", "measurement_noise", "provisional_list",
            "refined_result", "refinement_input", "run_ekf", "run_fastslam", "schedule"]
