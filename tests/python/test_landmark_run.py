@@ -72,6 +72,8 @@ def test_a_dataset_already_read_runs_as_its_path():
     b = run_landmark_dataset(MRCLAM, options, progress=False)
     np.testing.assert_array_equal(a.result.poses, b.result.poses)
     assert a.summary().split("filter:")[0] == b.summary().split("filter:")[0]
+    with pytest.raises(ValueError, match="^seconds"):
+        LandmarkRun.read(robot, options)
 
 
 @pytest.mark.parametrize("field, value, error", [

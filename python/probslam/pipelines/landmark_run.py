@@ -38,6 +38,8 @@ REFINEMENTS = ("none", "graphslam")
 COMMANDS = {"ekf": "ekf-slam", "fastslam": "fastslam"}
 #: The largest seed: the filters' seeds are unsigned 64-bit integers.
 MAX_SEED = 2 ** 64 - 1
+#: The options that say how a path is read (not for a dataset given as read).
+READ_OPTIONS = ("robot", "seconds", "raw_ranges")
 #: The options that apply to FastSLAM only.
 FASTSLAM_OPTIONS = ("num_particles", "version", "seed", "threads")
 
@@ -180,6 +182,9 @@ class LandmarkRun:
         require_instance(options, LandmarkRunOptions, "options")
         options.validate()
         if isinstance(dataset, LandmarkDataset):
+            for name in READ_OPTIONS:
+                if getattr(options, name) not in (None, False):
+                    raise ValueError(f"{name} says how a path is read; the dataset given is read already")
             type(dataset).check(options, dataset.path)
             return cls(dataset, options)
         path = pathlib.Path(os.fspath(dataset))
