@@ -1199,7 +1199,7 @@ def build_parser() -> argparse.ArgumentParser:
     fsp.add_argument("--unknown", action="store_true",
                      help="hide the correspondences: each particle associates by maximum likelihood")
     lro = LandmarkRunOptions()  # the flags' defaults are the pipeline's
-    fsp.add_argument("--particles", dest="num_particles", type=int, default=lro.num_particles,
+    fsp.add_argument("--particles", dest="num_particles", metavar="PARTICLES", type=int, default=lro.num_particles,
                      help=f"number of particles (default {lro.num_particles}, not slam's {RBPF_PARTICLES}: a particle "
                           "holds a few landmarks, not a grid map, so 100 filter MRCLAM Dataset 7 in 2 s)")
     fsp.add_argument("--variant", dest="version", type=int, choices=(1, 2), default=lro.version,
