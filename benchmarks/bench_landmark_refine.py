@@ -26,7 +26,7 @@ import numpy as np
 import probslam as ps
 from probslam import eval as ev
 from probslam import landmark_refine as lr
-from probslam.datasets import mrclam
+from probslam.datasets import mrclam, refine_run
 from common import heading, report
 
 DATA = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data" / "landmark_slam"
@@ -61,7 +61,7 @@ def run_one(job):
     else:
         run = mrclam.run_ekf(data, MOTION, SENSOR, known=False, association=method)
     t0 = time.perf_counter()
-    refined = lr.refine_run(run, data, MOTION, SENSOR, new_landmarks=new_landmarks)
+    refined = refine_run(run, data, MOTION, SENSOR, new_landmarks=new_landmarks)
     seconds = time.perf_counter() - t0
     start, result = refined.input, refined.result
     labelled = start.labels != lr.UNASSIGNED

@@ -26,7 +26,7 @@ import numpy as np
 
 import probslam as ps
 from common import commit, machine, report
-from probslam.datasets import victoria_park_acfr, victoria_park_acfr_run
+from probslam.datasets import refine_run, victoria_park_acfr, victoria_park_acfr_run
 
 DEFAULT = pathlib.Path(__file__).resolve().parents[2] / "shared/data/landmark_slam/victoria_park_acfr"
 
@@ -43,7 +43,7 @@ def refined_scores(data, run):
     """(the table's refine columns for ``run``, the refined aligned RMS): GraphSLAM's refinement
     of the run against the GPS, its landmarks and CPU seconds."""
     refined, cpu, e = scored(data, lambda: victoria_park_acfr_run.refined_result(
-        victoria_park_acfr_run.refine(run, data), run))
+        refine_run(run, data), run))
     return f" {e.rmse_aligned:.2f} m | {len(refined.landmarks)} | {cpu:.1f} s |", e.rmse_aligned
 
 

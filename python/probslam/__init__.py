@@ -79,7 +79,7 @@ from .graphslam import (
     graph_slam,
 )
 from .ekf import AssociationResult, EkfSlam, MapManagement, MultiHypothesisEkfSlam, UpdateResult
-from .landmark_refine import LandmarkRefinement, refine_landmarks, refine_run
+from .landmark_refine import LandmarkRefinement, refine_landmarks
 from .mapping import MappingResult, map_laser_log
 from .map_occupancy import MapOccupancyResult, map_occupancy_grid_mapping
 from .inverse_learning import LearnedInverseModel
@@ -87,7 +87,7 @@ from .slam import SlamResult, run_slam
 from ._core import (BeamMixture, MclUpdate, MonteCarloLocalization, MonteCarloLocalizationOptions,
                     OdometryMotionNoise, odometry_motion, odometry_motion_log_density, sample_odometry_motion)
 from .localization import LocalizationResult, localize
-from .datasets import LandmarkSlamResult, run_landmark_slam
+from .datasets import LandmarkSlamResult, refine_run, run_landmark_slam
 
 __version__ = "0.1.0"
 

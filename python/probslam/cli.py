@@ -7,7 +7,6 @@ import contextlib
 import difflib
 import math
 import os
-import pathlib
 import re
 import shlex
 import stat
@@ -17,12 +16,11 @@ import warnings
 from typing import Dict, Iterator, List, Optional, Tuple
 
 from . import __version__, io
-from . import eval as evaluation
 from .data import path as _data_path
-from .datasets import carmen, landmark_dataset_kind, load_landmark_dataset, mrclam, run_landmark_slam
+from .datasets import carmen, mrclam
 from ._core import MonteCarloLocalizationOptions
+from .pipelines.landmark_run import ASSOCIATIONS, LandmarkRun, LandmarkRunOptions
 from .pipelines.optimize_file import INITIALIZATIONS, NOISE_CONVENTIONS, GraphFileOptions
-from .landmark_refine import refine_run
 from .io.trajectory import EXTENSIONS, TRAJECTORY_FORMATS
 from .localization import default_options
 from .mapping import DEFAULT_MAX_RANGE as MAP_MAX_RANGE, DEFAULT_RESOLUTION as MAP_RESOLUTION
@@ -52,10 +50,7 @@ BUNDLED_LOCALIZATION_MAP = "intel_raw_loop_map.yaml"
 RBPF_PARTICLES = 30
 #: slam's cell size (m) without --resolution or --map.
 DEFAULT_RESOLUTION = 0.05
-FASTSLAM_PARTICLES = 100
-
-#: ekf-slam --unknown's association on MRCLAM without --association (docs/ekf_slam.md).
-MRCLAM_ASSOCIATION = "mht"
+FASTSLAM_PARTICLES = LandmarkRunOptions.num_particles
 
 #: What each kind of input file must be, for the error messages.
 CARMEN_LOG = "a CARMEN laser log (.log/.clf, optionally .gz/.bz2/.xz)"
@@ -528,318 +523,31 @@ def _cmd_localize(args: argparse.Namespace) -> int:
     return 0 if run.converged else EXIT_NOT_CONVERGED
 
 
-def _cmd_ekf_slam(args: argparse.Namespace) -> int:
-    from .plot import landmark_map
+#: ekf-slam's and fastslam's flags, by the LandmarkRunOptions field each sets.
+LANDMARK_FLAGS = {"unknown": "--unknown", "association": "--association", "bearing_offset": "--bearing-offset",
+                  "num_particles": "--particles", "version": "--variant", "seed": "--seed", "threads": "--threads",
+                  "robot": "--robot", "seconds": "--seconds", "raw_ranges": "--raw-ranges", "sigma_v": "--sigma-v",
+                  "sigma_w": "--sigma-w", "sigma_r": "--sigma-r", "sigma_phi": "--sigma-phi", "refine": "--refine"}
 
-    _check_landmark_options(args)
-    _require_length(args.bearing_offset, "--bearing-offset", zero=True, what="angle (rad)")
-    if not args.unknown:
-        _refuse_given(args, ("association",), "applies with --unknown only (known correspondences need no "
-                      "association)")
+
+def _cmd_landmarks(args: argparse.Namespace) -> int:
+    """ekf-slam and fastslam: ``pipelines.LandmarkRun`` on the dataset argument."""
+    with _option_flags(LANDMARK_FLAGS, args):
+        options = LandmarkRunOptions(method=args.method, **{k: getattr(args, k) for k in LANDMARK_FLAGS if k in args})
+        options.validate()
     _check_output(args.output)
     t0 = time.perf_counter()
-    path, kind = _landmark_path(args)
-    if kind == "victoria_park_acfr":
-        return _acfr_command(args, path, "ekf", t0)
-    _check_refine(args, kind, "ekf-slam")
-    # MRCLAM's default: the multiple-hypothesis EKF, the one association that holds on every robot of
-    # Datasets 1 and 7 (JCBB builds 40 landmarks for 15 on Dataset 1 robot 1, docs/ekf_slam.md).
-    # Victoria Park's EKF takes the file's correspondences: there is nothing to choose.
-    association = args.association or (MRCLAM_ASSOCIATION if kind == "mrclam" else "jcbb")
-    mht = args.unknown and association == "mht"
-    if args.bearing_offset and kind != "mrclam":
-        raise UserError("--bearing-offset applies to MRCLAM folders (with --unknown --association mht)")
-    if args.bearing_offset and not mht:
-        raise UserError("--bearing-offset needs --unknown --association mht")
-    data = _landmark_data(args, path)
-    is_mrclam = kind == "mrclam"
-    hypotheses = dict(bearing_offset_sigma=args.bearing_offset) if args.bearing_offset else None
-    # Victoria Park: the EKF takes the file's correspondences, with or without --unknown.
-    run = run_landmark_slam(data, "mht" if mht else "ekf", known=not (args.unknown and is_mrclam),
-                            association=association, hypotheses=hypotheses, progress=_progress(args),
-                            **_landmark_noise(args, data))
-    if is_mrclam:
-        print(f"dataset:       UTIAS MRCLAM {path} robot {args.robot}, "
-              f"{'unknown (' + association + ')' if args.unknown else 'known'} correspondences, "
-              f"{'bearing offset ' + format(args.bearing_offset, 'g') + ' rad per scan, ' if hypotheses else ''}"
-              f"{'raw depth readings' if args.raw_ranges else 'ranges from depth x ' + str(io.MRCLAM_RANGE_SCALE)}")
-        print(f"odometry:      {len(data.odometry)} controls; measurements: {len(data.measurements)} of landmarks "
-              f"({data.robot_measurements} of robots dropped), {run.rejected} gated as outliers")
-        print(f"landmarks:     {len(run.landmarks)} in the map; filter time {run.seconds:.2f} s")
-    else:
-        print(f"dataset:       Victoria Park {path}: {len(run.poses)} poses, {len(data.xy)} observations")
-        print(f"landmarks:     {len(run.landmarks)}; filter time {run.seconds:.3f} s")
-    if run.associations is not None:
-        print(f"associations:  {evaluation.association_accuracy(run):.1%} correct (each landmark's majority barcode), "
-              f"{run.associations.applied} of {len(data.measurements)} sightings applied")
-    run, refinement = _refined(args, data, run)
-    reference = _landmark_score(args, data, run)
-
-    def draw(ax):
-        if refinement is not None:
-            _draw_refined(ax, run, refinement, reference)
-        else:
-            landmark_map(ax, run.poses, run.filter, **reference)
-        how = f"unknown correspondences, {association}" if args.unknown and is_mrclam else "known correspondences"
-        refined = ", GraphSLAM refinement (ch. 11.6)" if refinement is not None else ""
-        ax.set_title(f"probslam ekf-slam: {_dataset_name(args, path, data)}\nEKF SLAM, {how}{refined}"
-                     f"{_aligned_note(reference)}", fontsize="medium")
-
-    return _landmark_outputs(args, run, draw, t0)
-
-
-def _cmd_fastslam(args: argparse.Namespace) -> int:
-    from .plot import fastslam_map
-
-    _require_count(args.particles, "--particles", 1)
-    _require_count(args.threads, "--threads", 1)
-    _require_count(args.seed, "--seed", 0, MAX_SEED)
-    _check_landmark_options(args)
-    _check_output(args.output)
-    t0 = time.perf_counter()
-    path, kind = _landmark_path(args)
-    if kind == "victoria_park_acfr":
-        return _acfr_command(args, path, "fastslam", t0)
-    _check_refine(args, kind, "fastslam")
-    data = _landmark_data(args, path)
-    run = run_landmark_slam(data, "fastslam", known=not args.unknown, num_particles=args.particles,
-                            version=args.variant, seed=args.seed, threads=args.threads, progress=_progress(args),
-                            **_landmark_noise(args, data))
-    correspondences = "unknown" if args.unknown else "known"
-    if isinstance(data, io.Mrclam):
-        print(f"dataset:       UTIAS MRCLAM {path} robot {args.robot}, {correspondences} correspondences")
-    else:
-        print(f"dataset:       Victoria Park {path}: {len(run.poses)} poses, {len(data.xy)} observations, "
-              f"{correspondences} correspondences")
-    print(f"filter:        FastSLAM {args.variant}.0, {args.particles} particles, {run.filter.num_resamples} "
-          f"resamplings; filter time {run.seconds:.2f} s")
-    print(f"landmarks:     {len(run.landmarks)} in the best particle's map")
-    if run.associations is not None:
-        print(f"associations:  {evaluation.association_accuracy(run):.1%} correct (each landmark's majority label)")
-    run, refinement = _refined(args, data, run)
-    reference = _landmark_score(args, data, run)
-
-    def draw(ax):
-        if refinement is not None:
-            _draw_refined(ax, run, refinement, reference)
-        else:
-            fastslam_map(ax, run.filter, **reference)
-        refined = ", GraphSLAM refinement (ch. 11.6)" if refinement is not None else ""
-        ax.set_title(f"probslam fastslam: {_dataset_name(args, path, data)}\nFastSLAM {args.variant}.0, "
-                     f"{args.particles} particles, {correspondences} correspondences{refined}"
-                     f"{_aligned_note(reference)}", fontsize="medium")
-
-    return _landmark_outputs(args, run, draw, t0)
-
-
-def _acfr_command(args: argparse.Namespace, path: pathlib.Path, method: str, t0: float) -> int:
-    """ekf-slam / fastslam on the original Victoria Park run (a folder of inputs.dat,
-    measurements.dat, gps.dat): unknown correspondences (the detections have none), the car's
-    model and the sensors' noise (``datasets.victoria_park_acfr_run``); prints the RMS against
-    the GPS, writes the trajectory and draws the path over the GPS fixes with the map. --refine
-    graphslam: GraphSLAM's correspondence test over the run (``victoria_park_acfr_run.refine``),
-    the RMS before and after printed, the refined path written and drawn beside the filter's."""
-    association = getattr(args, "association", None) or "jcbb"  # ekf-slam's option; the run's EKF: JCBB
-    if association not in ("jcbb", "ml"):
-        raise UserError("--association on the original Victoria Park run: jcbb or ml (the EKF's)")
-    data = _landmark_data(args, path)
-    cpu = time.process_time()
-    if method == "ekf":
-        run = run_landmark_slam(data, "ekf", association=association, progress=_progress(args))
-        title = f"EKF SLAM, unknown correspondences ({association})"
-    else:
-        run = run_landmark_slam(data, "fastslam", num_particles=args.particles, version=args.variant,
-                                seed=args.seed, threads=args.threads, progress=_progress(args))
-        title = f"FastSLAM {args.variant}.0, {args.particles} particles, unknown correspondences"
-    cpu = time.process_time() - cpu
-    print(f"dataset:       Victoria Park (ACFR run) {path}: {len(data.inputs)} inputs, {len(data.measurements)} "
-          f"detections on {len(data.scan_times)} scans, {0 if data.gps is None else len(data.gps)} GPS fixes")
-    print(f"filter:        {title}; {run.seconds:.2f} s filter time, {cpu:.2f} s CPU")
-    print(f"landmarks:     {len(run.landmarks)} in the map")
-    error = _acfr_gps_error(data, run, "GPS:")
-    filtered = run
-    if args.refine == "graphslam":
-        run, error = _acfr_refined(data, run)
-
-    def draw(ax):
-        import numpy as np
-
-        if data.gps is not None:
-            ax.plot(data.gps[:, 1], data.gps[:, 2], ".", ms=2, color="tab:blue", label="GPS")
-        name = title.split(",")[0]
-        if run is not filtered:
-            ax.plot(filtered.poses[:, 0], filtered.poses[:, 1], "-", lw=0.8, color="0.6", label=name)
-            name = "GraphSLAM refinement"
-        ax.plot(run.poses[:, 0], run.poses[:, 1], "-", lw=1.0, color="tab:orange", label=name)
-        if run.landmarks:
-            lm = np.array(list(run.landmarks.values()))
-            ax.plot(lm[:, 0], lm[:, 1], "+", ms=4, color="k", label=f"{len(lm)} landmarks")
-        ax.set_aspect("equal")
-        ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize="small")
-        rms = "" if error is None else f"; RMS vs GPS {error.rmse_aligned:.2f} m (aligned)"
-        refined = ", GraphSLAM refinement (ch. 11.6)" if run is not filtered else ""
-        ax.set_title(f"probslam {'ekf-slam' if method == 'ekf' else 'fastslam'}: Victoria Park (ACFR run)\n"
-                     f"{title}{refined}{rms}", fontsize="medium")
-
-    return _landmark_outputs(args, run, draw, t0)
-
-
-def _acfr_gps_error(data, run, label: str):
-    """The run's position error against the GPS (None without gps.dat), printed after ``label``."""
-    if data.gps is None:
-        return None
-    error = evaluation.position_error(run.times, run.poses, data.gps[:, 0], data.gps[:, 1:])
-    print(f"{label:<15}RMS {error.rmse:.2f} m as it is, {error.rmse_aligned:.2f} m after SE(2) alignment "
-          f"({error.count} fixes)")
-    return error
-
-
-def _acfr_refined(data, run):
-    """--refine graphslam on the original Victoria Park run: (the refined run at the run's times,
-    its error against the GPS), the refinement's summary and the RMS after it printed."""
-    from .datasets import victoria_park_acfr_run
-
-    cpu = time.process_time()
-    refinement = victoria_park_acfr_run.refine(run, data)
-    r = refinement.result
-    cpu = time.process_time() - cpu
-    print(f"refinement:    GraphSLAM correspondence test (ch. 11.6) on {len(r.poses)} scan poses: "
-          f"{len(r.landmarks)} landmarks, {len(r.merges)} merges, {len(r.splits)} detections moved, "
-          f"{int((r.labels < 0).sum())} unassigned, {r.iterations} rounds, {cpu:.2f} s CPU"
-          f"{'' if r.converged else ' (stopped at the round limit)'}; the path and picture below are the refined ones")
-    refined = victoria_park_acfr_run.refined_result(refinement, run)
-    return refined, _acfr_gps_error(data, refined, "GPS refined:")
-
-
-def _dataset_name(args: argparse.Namespace, path: pathlib.Path, data) -> str:
-    """The data a landmark picture shows, for its title."""
-    if isinstance(data, io.Mrclam):
-        return f"UTIAS MRCLAM {path.name} robot {args.robot}" + (f", {args.seconds:g} s" if args.seconds else "")
-    return f"Victoria Park {path.name}"
-
-
-def _landmark_path(args: argparse.Namespace):
-    """(path, kind) of the ekf-slam / fastslam dataset argument (default: the bundled MRCLAM
-    excerpt): "mrclam" or "victoria_park". UserError for a missing or empty file or a folder that
-    is not MRCLAM."""
     path = args.dataset or _data_path(BUNDLED_LANDMARKS)
     _check_input(path, LANDMARK_DATASET, folder=True)
-    path = pathlib.Path(path)
-    with _reading(str(path), LANDMARK_DATASET):
-        kind = landmark_dataset_kind(path)
-    if kind != "mrclam":
-        _refuse_given(args, ("robot", "seconds", "raw_ranges", "sigma_v", "sigma_w", "sigma_r", "sigma_phi"),
-                      f"applies to MRCLAM folders only; {path} is Victoria Park (one vehicle, its noise in the file)")
-    return path, kind
-
-
-def _landmark_data(args: argparse.Namespace, path: pathlib.Path):
-    """The dataset at ``path`` read with the --robot, --seconds and --raw-ranges options (MRCLAM
-    only); the rows the reader skipped are printed. UserError for data with nothing to run."""
-    with _reading(str(path), LANDMARK_DATASET):
-        data = load_landmark_dataset(path, robot=args.robot, seconds=args.seconds, raw_ranges=args.raw_ranges)
-    if not isinstance(data, io.VictoriaPark):  # MRCLAM and the original run count by file and reason
-        _print_skipped(data.skipped_rows)
-    else:
-        _print_skipped({"unreadable records": data.skipped_rows} if data.skipped_rows else {})
-        if data.repaired_rows:
-            from .graph import INFORMATION_EIGENVALUE_FLOOR
-
-            print(f"repaired rows: {data.repaired_rows} (noise not positive definite: eigenvalues raised to "
-                  f"{INFORMATION_EIGENVALUE_FLOOR:g} of the largest)")
-    return data
-
-
-def _check_refine(args: argparse.Namespace, kind: str, command: str) -> None:
-    """--refine graphslam needs hidden correspondences (with known ones the labels are the
-    dataset's), and a run with a sighting record (not ekf-slam on Victoria Park, which takes the
-    file's correspondences)."""
-    if args.refine == "none":
-        return
-    if not args.unknown:
-        raise UserError("--refine graphslam needs --unknown (with known correspondences there is nothing to refine)")
-    if command == "ekf-slam" and kind != "mrclam":
-        raise UserError("--refine graphslam applies to MRCLAM folders with ekf-slam (Victoria Park's EKF takes "
-                        "the file's correspondences); use fastslam --unknown for Victoria Park")
-
-
-def _refined(args: argparse.Namespace, data, run):
-    """(the run after GraphSLAM's correspondence test (--refine graphslam), the refinement), its
-    summary printed; (the run itself, None) without --refine."""
-    if args.refine == "none":
-        return run, None
-    noise = _landmark_noise(args, data)
-    refined = refine_run(run, data, noise.get("motion_noise"), noise.get("measurement_noise"))
-    r = refined.result
-    result = refined.as_landmark_slam_result(run)
-    print(f"refinement:    GraphSLAM correspondence test (ch. 11.6): {evaluation.association_accuracy(result):.1%} "
-          f"correct, {len(r.landmarks)} landmarks, {len(r.merges)} merges, {len(r.splits)} sightings moved, "
-          f"{int((r.labels < 0).sum())} unassigned, {r.iterations} rounds, {r.seconds:.2f} s"
-          f"{'' if r.converged else ' (stopped at the round limit)'}; the scores, path and picture below are the "
-          f"refined ones")
-    return result, r
-
-
-def _draw_refined(ax, run, refinement, reference: dict) -> None:
-    """The picture of a refined run: its path and map, each landmark's ellipse from the final
-    GraphSLAM's marginal covariance; ``reference`` as ``_landmark_score`` returns it."""
-    import numpy as np
-
-    from .plot import landmark_map
-
-    labels = sorted(refinement.landmarks)
-    means = np.array([refinement.landmarks[k] for k in labels]).reshape(-1, 2)
-    covariances = np.array([refinement.landmark_covariances[k] for k in labels]).reshape(-1, 2, 2)
-    landmark_map(ax, run.poses, path_label="GraphSLAM refinement", landmarks=(means, covariances), **reference)
-
-
-def _landmark_noise(args: argparse.Namespace, data) -> dict:
-    """The --sigma-* options as run_landmark_slam's noise (MRCLAM; Victoria Park: its file's)."""
-    if not isinstance(data, io.Mrclam):
-        return {}
-    motion, sensor = _mrclam_noise(args)
-    return dict(motion_noise=motion, measurement_noise=sensor)
-
-
-def _landmark_score(args: argparse.Namespace, data, run) -> dict:
-    """MRCLAM: the run's path and map errors printed (and its dead reckoning's); returns what the
-    picture draws them against, as keywords of plot.landmark_map / fastslam_map: the ground-truth
-    path (T, 2) and landmarks, the dead reckoning, and with robot ground truth the estimate's
-    alignment onto it (``align``: the picture shows the estimate where its aligned RMSE puts it,
-    the dead reckoning by its own alignment). Victoria Park: nothing."""
-    if not isinstance(data, io.Mrclam):
-        return {}
-    dead = run_landmark_slam(data, "dead-reckoning", progress=False, **_landmark_noise(args, data))
-    labels = evaluation.majority_labels(run) if run.associations is not None else None
-    reference = dict(dead_reckoning=dead.poses, truth_landmarks_label=_survey_label(data))
-    if data.groundtruth is None:
-        return dict(reference, truth_landmarks=_print_map_score(data, run, labels))
-    from .plot import ALIGNED_SUFFIX
-
-    s, d = _print_mrclam_score(data, run, dead, labels)
-    return dict(reference, truth_path=data.groundtruth[:, 1:3], truth_landmarks=data.landmark_positions,
-                align=(s.rotation, s.translation), dead_reckoning=dead.poses[:, :2] @ d.rotation.T + d.translation,
-                dead_reckoning_label="dead reckoning" + ALIGNED_SUFFIX)
-
-
-def _aligned_note(reference: dict) -> str:
-    """The title's note on a picture whose estimate is drawn aligned onto the ground truth."""
-    return "; estimate aligned onto ground truth" if reference.get("align") is not None else ""
-
-
-def _landmark_outputs(args: argparse.Namespace, run, draw, t0: float) -> int:
-    """PREFIX_trajectory.tum (--trajectory-format), and PREFIX.png drawn by ``draw(ax)`` unless --no-plot; the time."""
-    written: List[str] = []
-    _write_trajectory(args, run.times, run.poses, written)
+    with _reading(path, LANDMARK_DATASET), _option_flags(LANDMARK_FLAGS, args):
+        run = LandmarkRun.read(path, options)
+    with _option_flags(LANDMARK_FLAGS, args):
+        run.run(_progress(args))
+    print(run.summary())
+    written = run.write(args.output, args.trajectory_format)
     plt = _pyplot() if args.plot else None
     if plt is not None:
-        fig, ax = plt.subplots(figsize=(8, 8))
-        draw(ax)
-        (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
-        # Eight inches of map in the data's own shape (Victoria Park is five times as wide as tall;
-        # 3 to 10 inches tall), and 3.5 beside it for the legend.
-        fig.set_size_inches(11.5, min(max(8 * (y1 - y0) / max(x1 - x0, 1e-9), 3.0), 10.0) + 1.0)
-        written.insert(0, _save_figure(plt, fig, args.output + ".png"))
+        written.insert(0, _save_figure(plt, run.draw(plt), args.output + ".png"))
     print(f"time:          {time.perf_counter() - t0:.2f} s total")
     print(f"wrote:         {', '.join(written)}")
     return 0
@@ -856,23 +564,6 @@ def _require_count(value: int, option: str, lowest: int, highest: int = MAX_INT_
         raise UserError(f"{option} must be an integer in [{lowest}, {highest}], got {value}")
 
 
-#: The largest --seed: the filters' seeds are unsigned 64-bit integers.
-MAX_SEED = 2 ** 64 - 1
-
-
-def _mrclam_noise(args: argparse.Namespace):
-    """(motion (2, 2), sensor (2, 2)) covariances from the --sigma-* options, each checked to be a
-    finite standard deviation > 0 whose square (the variance) is finite and > 0 too (squared, a
-    negative one would pass unnoticed, 1e300 would overflow and 1e-200 vanish)."""
-    import numpy as np
-
-    sigmas = {"--sigma-v": args.sigma_v, "--sigma-w": args.sigma_w, "--sigma-r": args.sigma_r,
-              "--sigma-phi": args.sigma_phi}
-    for option, value in sigmas.items():
-        if not (math.isfinite(value) and value > 0 and 0 < value * value < math.inf):
-            raise UserError(f"{option} must be a finite standard deviation > 0 with a finite variance > 0, "
-                            f"got {value}")
-    return (np.diag([args.sigma_v ** 2, args.sigma_w ** 2]), np.diag([args.sigma_r ** 2, args.sigma_phi ** 2]))
 
 
 def _require_length(value: Optional[float], option: str, zero: bool = False, what: str = "number") -> None:
@@ -880,75 +571,6 @@ def _require_length(value: Optional[float], option: str, zero: bool = False, wha
     finite and > 0 (>= 0 with ``zero``): checked before any data is read."""
     if value is not None and not (math.isfinite(value) and (value >= 0 if zero else value > 0)):
         raise UserError(f"{option} must be a finite {what} {'>= 0' if zero else '> 0'}, got {value}")
-
-
-def _check_landmark_options(args: argparse.Namespace) -> None:
-    """The options ekf-slam and fastslam share, before the dataset is read."""
-    if not 1 <= args.robot <= mrclam.ROBOTS:
-        raise UserError(f"--robot must be an MRCLAM robot number 1 to {mrclam.ROBOTS}, got {args.robot}")
-    _require_length(args.seconds, "--seconds")
-    _mrclam_noise(args)
-
-
-def _print_skipped(skipped) -> None:
-    """The rows a reader skipped (a real file is read even with a few bad rows, and says so)."""
-    if skipped:
-        print(f"skipped rows:  {sum(skipped.values())} "
-              f"({'; '.join(f'{reason}: {count}' for reason, count in sorted(skipped.items()))})")
-    else:
-        print("skipped rows:  0")
-
-
-def _print_mrclam_score(data, run, dead_reckoning, labels):
-    """The path and map errors of an MRCLAM run with robot ground truth printed; returns the
-    scores (eval.MrclamScore) of the run and of its dead reckoning. ``labels``: filter landmark
-    id -> surveyed subject (None: the ids are)."""
-    import numpy as np
-
-    with np.errstate(over="ignore", invalid="ignore"):  # huge coordinates: refused just below
-        s, d = evaluation.score_mrclam(run, data, labels), evaluation.score_mrclam(dead_reckoning, data)
-    _require_finite_scores(s.path_rmse, s.path_rmse_aligned, s.landmark_rmse, s.landmark_rmse_aligned)
-    print(f"path RMSE:     {s.path_rmse:.3f} m raw, {s.path_rmse_aligned:.3f} m aligned "
-          f"(dead reckoning {d.path_rmse:.3f} / {d.path_rmse_aligned:.3f} m)")
-    print(f"landmark RMSE: {s.landmark_rmse:.3f} m raw, {s.landmark_rmse_aligned:.3f} m aligned")
-    return s, d
-
-
-def _require_finite_scores(*scores: float) -> None:
-    """UserError when a score is NaN or inf: no mapped landmark is in the survey, or the survey or
-    ground truth holds coordinates too large to square (the run went through, the files did not fit)."""
-    if not all(math.isfinite(v) for v in scores):
-        raise UserError("the MRCLAM scores are not finite numbers: no landmark of the map is in "
-                        "Landmark_Groundtruth.dat, or its or the ground truth's coordinates are too large")
-
-
-def _survey_label(data) -> str:
-    """The picture's legend for the survey: as surveyed, or (no robot ground truth to share a
-    frame with) moved onto the map by the alignment the landmark RMSE used."""
-    if isinstance(data, io.Mrclam) and data.groundtruth is None:
-        return "surveyed landmarks (aligned onto the map)"
-    return "surveyed landmarks"
-
-
-def _print_map_score(data, run, labels):
-    """MRCLAM without robot ground truth (Dataset 1): the map alone, aligned onto the survey,
-    after the survey labels that contradict the barcodes have been exchanged. ``labels``: filter
-    landmark id -> surveyed subject (None: the ids are the subjects). Returns the survey in the
-    map's frame (subject -> (2,) m) for the picture."""
-    swaps = mrclam.survey_label_swaps(data)
-    if swaps:
-        print(f"survey:        positions of subjects {', '.join(f'{a}<->{b}' for a, b in swaps)} exchanged "
-              f"(their surveyed distances contradict the readings of the same scans)")
-    fixed = data.with_survey_swapped(swaps)
-    import numpy as np
-
-    with np.errstate(over="ignore", invalid="ignore"):  # huge coordinates: refused just below
-        s = evaluation.score_landmarks(run.landmarks, fixed, labels)
-        d = evaluation.score_landmarks(mrclam.dead_reckoning_map(data), fixed)
-    _require_finite_scores(s.rmse_aligned)
-    print(f"landmark RMSE: {s.rmse_aligned:.3f} m after aligning the map onto the survey "
-          f"(dead-reckoning map {d.rmse_aligned:.3f} m; no robot ground truth)")
-    return s.survey_in_map_frame(fixed)
 
 
 #: slam's flags, by the run_slam option each sets (the library's messages told as the flag).
@@ -1074,20 +696,22 @@ def _trajectory_format_option(parser: argparse.ArgumentParser, times: str) -> No
                              f"PREFIX_trajectory_times.txt, or PREFIX_trajectory.txt: 't x y theta'; {times}")
 
 
-def _landmark_dataset_options(parser: argparse.ArgumentParser, output: str) -> None:
-    """The options ekf-slam and fastslam share: the MRCLAM robot and noise, the output prefix."""
-    parser.add_argument("--robot", type=int, default=1, help="MRCLAM robot number (default 1)")
+def _landmark_dataset_options(parser: argparse.ArgumentParser, method: str, output: str) -> None:
+    """The options ekf-slam and fastslam share: the dataset, the MRCLAM robot and noise, the output."""
+    parser.add_argument("dataset", nargs="?", help="a UTIAS MRCLAM folder, Victoria Park in iSAM/GTSAM text format, "
+                                                   "or the original Victoria Park run's folder; default: a bundled "
+                                                   "MRCLAM excerpt (Dataset 7, robot 1, 120 s)")
+    parser.add_argument("--robot", type=int, default=None, help="MRCLAM robot number (default 1)")
     parser.add_argument("--seconds", type=float, default=None,
                         help="MRCLAM: use only the first SECONDS of the robot's odometry (default: all)")
     parser.add_argument("--raw-ranges", action="store_true",
                         help="use MRCLAM's readings as ranges (by default they are taken as the camera's depth "
                              "and turned into distances, see io.MRCLAM_RANGE_SCALE)")
-    parser.add_argument("--sigma-v", type=float, default=mrclam.MOTION_SIGMA[0],
-                        help="MRCLAM odometry noise, m/s per 10 ms command")
-    parser.add_argument("--sigma-w", type=float, default=mrclam.MOTION_SIGMA[1],
-                        help="MRCLAM odometry noise, rad/s per 10 ms command")
-    parser.add_argument("--sigma-r", type=float, default=mrclam.MEASUREMENT_SIGMA[0], help="range noise, m")
-    parser.add_argument("--sigma-phi", type=float, default=mrclam.MEASUREMENT_SIGMA[1], help="bearing noise, rad")
+    for flag, sigma, what in (("--sigma-v", mrclam.MOTION_SIGMA[0], "odometry noise, m/s per 10 ms command"),
+                              ("--sigma-w", mrclam.MOTION_SIGMA[1], "odometry noise, rad/s per 10 ms command"),
+                              ("--sigma-r", mrclam.MEASUREMENT_SIGMA[0], "range noise, m"),
+                              ("--sigma-phi", mrclam.MEASUREMENT_SIGMA[1], "bearing noise, rad")):
+        parser.add_argument(flag, type=float, default=None, help=f"MRCLAM {what} (default: {sigma})")
     parser.add_argument("-o", "--output", default=output,
                         help=f"output prefix: PREFIX_trajectory.tum, PREFIX.png (default '{output}')")
     _trajectory_format_option(parser, "times in seconds (MRCLAM) or the pose's index (Victoria Park, whose file has "
@@ -1098,6 +722,7 @@ def _landmark_dataset_options(parser: argparse.ArgumentParser, output: str) -> N
                              "until stable; docs/landmark_refine.md)")
     _no_progress_option(parser)
     _no_plot_option(parser)
+    parser.set_defaults(func=_cmd_landmarks, method=method)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -1208,10 +833,8 @@ def build_parser() -> argparse.ArgumentParser:
     lo.set_defaults(func=_cmd_localize)
 
     e = sub.add_parser("ekf-slam", help="EKF SLAM on a landmark dataset (MRCLAM folder or Victoria Park file)")
-    e.add_argument("dataset", nargs="?", help="a UTIAS MRCLAM folder, or Victoria Park in iSAM/GTSAM text format; "
-                                              "default: a bundled MRCLAM excerpt (Dataset 7, robot 1, 120 s)")
     e.add_argument("--unknown", action="store_true", help="hide the correspondences (Table 10.2)")
-    e.add_argument("--association", choices=("jcbb", "ml", "mht"), default=None,
+    e.add_argument("--association", choices=ASSOCIATIONS, default=None,
                    help="with --unknown on MRCLAM: joint compatibility over each scan, maximum likelihood, or a "
                         "beam of filters (multiple hypotheses, the default: they also pay for landmarks in the "
                         "camera's field that a scan misses, and meet 95%% on every Dataset 1 robot where JCBB "
@@ -1220,25 +843,21 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --association mht on MRCLAM: a bearing offset (rad) shared by each scan's sightings, "
                         "carried by every hypothesis; --sigma-phi is then the part not shared (docs: "
                         "--bearing-offset 0.03 --sigma-phi 0.02 lifts Dataset 7 to 81-90%%)")
-    _landmark_dataset_options(e, "ekf_slam")
-    e.set_defaults(func=_cmd_ekf_slam)
+    _landmark_dataset_options(e, "ekf", "ekf_slam")
 
     fsp = sub.add_parser("fastslam", help="FastSLAM 1.0 / 2.0 on a landmark dataset (MRCLAM folder or Victoria "
                                           "Park file)")
-    fsp.add_argument("dataset", nargs="?", help="a UTIAS MRCLAM folder, or Victoria Park in iSAM/GTSAM text "
-                                                "format; default: a bundled MRCLAM excerpt (Dataset 7, robot 1, "
-                                                "120 s)")
     fsp.add_argument("--unknown", action="store_true",
                      help="hide the correspondences: each particle associates by maximum likelihood")
-    fsp.add_argument("--particles", type=int, default=FASTSLAM_PARTICLES,
-                     help=f"number of particles (default {FASTSLAM_PARTICLES}, not slam's {RBPF_PARTICLES}: a particle "
+    lro = LandmarkRunOptions()  # the flags' defaults are the pipeline's
+    fsp.add_argument("--particles", dest="num_particles", metavar="PARTICLES", type=int, default=lro.num_particles,
+                     help=f"number of particles (default {lro.num_particles}, not slam's {RBPF_PARTICLES}: a particle "
                           "holds a few landmarks, not a grid map, so 100 filter MRCLAM Dataset 7 in 2 s)")
-    fsp.add_argument("--variant", type=int, choices=(1, 2), default=1,
+    fsp.add_argument("--variant", dest="version", type=int, choices=(1, 2), default=lro.version,
                      help="1: FastSLAM 1.0 (default); 2: FastSLAM 2.0, the proposal that includes the measurements")
-    fsp.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
-    fsp.add_argument("--threads", type=int, default=1, help="threads (same result for any count)")
-    _landmark_dataset_options(fsp, "fastslam")
-    fsp.set_defaults(func=_cmd_fastslam)
+    fsp.add_argument("--seed", type=int, default=lro.seed, help="random seed")
+    fsp.add_argument("--threads", type=int, default=lro.threads, help="threads (same result for any count)")
+    _landmark_dataset_options(fsp, "fastslam", "fastslam")
 
     o = sub.add_parser("optimize", help="optimise a 2-D pose/landmark graph or a 3-D pose graph (g2o, TORO or "
                                         "iSAM text; the dimension is read from the file)")

@@ -34,9 +34,9 @@ range-bearing noise carried through the polar-to-Cartesian Jacobian (GraphSLAM's
 the tests measure what the Cartesian form changes against exact range-bearing residuals: 0.02
 standard deviations of a landmark).
 
-``refine_landmarks`` works on arrays; ``refinement_input`` builds them from a filter run over a
-dataset (``probslam.run_landmark_slam``),
-and ``refine_run`` does both: the one entry point for a run.
+``refine_landmarks`` works on arrays; each dataset builds them from a filter run over it
+(``probslam.datasets.refinement_input``, with ``run_labels`` and ``poses_at_nodes`` from here),
+and ``probslam.refine_run`` does both: the one entry point for a run.
 ``sighting_accuracy`` and ``majority_truth`` (from ``probslam.eval``) score a labelling against
 the dataset's ids.
 """
@@ -50,10 +50,10 @@ from typing import Dict, List, Optional, Tuple
 
 import numpy as np
 
-from ._args import positive_real, real_array, require_fields, require_instance, require_integer
+from ._args import positive_real, real_array, require_instance, require_integer
 from . import geometry
 from ._core import (PoseGraph2D, chi_square_quantile, joint_marginal_covariances, linearize_point_edges,
-                    linearize_pose_edges, marginal_covariances, optimize, velocity_increments)
+                    linearize_pose_edges, marginal_covariances, optimize)
 from .eval import majority_truth, relative_poses, sighting_accuracy  # noqa: F401 (re-exported)
 
 #: A landmark pair merges when the Mahalanobis distance of their difference from 0 is within the
@@ -1052,7 +1052,7 @@ class RefinementInput:
                     measurement_noise=self.measurement_noise, landmarks=self.landmarks)
 
 
-def _run_labels(run, truth: np.ndarray) -> np.ndarray:
+def run_labels(run, truth: np.ndarray) -> np.ndarray:
     """Per sighting, the run's landmark (UNASSIGNED where it put the sighting on none): from its
     association record (hidden correspondences), else the true ids (known), less the sightings
     an EKF's outlier gate rejected."""
@@ -1068,7 +1068,7 @@ def _run_labels(run, truth: np.ndarray) -> np.ndarray:
     return np.where(np.asarray(record.ids) >= 0, record.ids, UNASSIGNED).astype(np.int64)
 
 
-def _start_pose(times: np.ndarray, poses: np.ndarray, chain_times: np.ndarray, chain: np.ndarray) -> np.ndarray:
+def poses_at_nodes(times: np.ndarray, poses: np.ndarray, chain_times: np.ndarray, chain: np.ndarray) -> np.ndarray:
     """The run's pose at each chain node time: its latest recorded pose at or before it, moved
     on by the dead-reckoned motion since (the run's poses may be recorded at other times than
     the sightings', e.g. the EKF's at the odometry stamps)."""
@@ -1077,85 +1077,6 @@ def _start_pose(times: np.ndarray, poses: np.ndarray, chain_times: np.ndarray, c
     k = np.clip(k, 0, len(times) - 1)
     node = np.clip(np.searchsorted(chain_times, times[k] + 1e-9, side="right") - 1, 0, len(chain_times) - 1)
     return geometry.compose(poses[k], geometry.between(chain[node], chain))
-
-
-def _mrclam_input(run, data, motion_noise, measurement_noise, command_period: float) -> RefinementInput:
-    motion_noise = real_array(motion_noise, "motion_noise", (2, 2))
-    measurement_noise = real_array(measurement_noise, "measurement_noise", (2, 2))
-    command_period = positive_real(command_period, "command_period")
-    odo, meas = data.odometry, data.measurements
-    if len(odo) < 2:
-        raise ValueError("data: the robot needs at least two odometry rows")
-    # The sightings the filters take: scans stamped from the first control to before the last.
-    scan_rows = [r for r in data.scans() if odo[0, 0] <= meas[r.start, 0] < odo[-1, 0]]
-    rows = np.concatenate([np.arange(r.start, r.stop) for r in scan_rows]) if scan_rows else np.empty(0, np.int64)
-    scan_times = np.array([meas[r.start, 0] for r in scan_rows])
-    truth = meas[rows, 1].astype(np.int64)
-    labels = _run_labels(run, truth)
-    # The motion pieces the filters predict over: each control from its stamp to the next event.
-    events = np.unique(np.concatenate([odo[:, 0], scan_times]))
-    control = np.searchsorted(odo[:, 0], events[:-1], side="right") - 1
-    dt = np.diff(events)
-    noise = np.asarray(motion_noise, float)[None] * (command_period / dt)[:, None, None]
-    deltas, covs = velocity_increments(odo[control, 1], odo[control, 2], dt, noise)
-    nodes = np.concatenate([[0], np.searchsorted(events, scan_times)])
-    odometry, odometry_cov = compose_increments(deltas, covs, nodes)
-    # The run's poses at the nodes, from the dead-reckoned chain between its records.
-    chain = geometry.accumulate(np.zeros(3), deltas)
-    times, recorded = np.asarray(run.times, float), np.asarray(run.poses, float)
-    poses = _start_pose(times, recorded, events, chain)[nodes]
-    scan_of_row = np.repeat(np.arange(1, len(scan_rows) + 1), [r.stop - r.start for r in scan_rows])
-    return RefinementInput(np.concatenate([[odo[0, 0]], scan_times]), poses, odometry, floor_covariances(odometry_cov),
-                           scan_of_row.astype(np.int64), meas[rows, 2:4], labels, measurement_noise,
-                           {int(k): np.asarray(v, float) for k, v in run.landmarks.items()}, rows, truth)
-
-
-def _victoria_park_input(run, data) -> RefinementInput:
-    from .landmark_slam import polar_measurements
-
-    if np.any(data.pose_from[1:] != data.pose_to[:-1]):
-        raise ValueError("data: the odometry edges do not form one chain")
-    chain_ids = np.r_[data.pose_from[0], data.pose_to]
-    position = {int(p): k for k, p in enumerate(chain_ids)}
-    observed_from = np.array([position[int(p)] for p in data.pose], dtype=np.int64)
-    order = np.argsort(observed_from, kind="stable")  # the order the filters take the sightings in
-    z, z_cov = polar_measurements(data.xy[order], data.xy_cov[order])
-    truth = data.landmark[order].astype(np.int64)
-    steps = observed_from[order]
-    labels = _run_labels(run, truth)
-    recorded = np.asarray(run.poses, float)
-    if len(recorded) != len(chain_ids):
-        raise ValueError(f"run: holds {len(recorded)} poses, the data's chain {len(chain_ids)}")
-    nodes = np.unique(np.concatenate([[0], steps]))
-    odometry, odometry_cov = compose_increments(data.delta, data.delta_cov, nodes)
-    return RefinementInput(nodes.astype(float), recorded[nodes], odometry, odometry_cov,
-                           np.searchsorted(nodes, steps).astype(np.int64), z, labels, z_cov,
-                           {int(k): np.asarray(v, float) for k, v in run.landmarks.items()}, order, truth)
-
-
-def refinement_input(run, data, motion_noise=None, measurement_noise=None, *,
-                     command_period: float = 0.01) -> RefinementInput:
-    """The arrays of ``refine_landmarks`` from a filter run over a dataset.
-
-    ``run``: a ``LandmarkSlamResult`` (``probslam.run_landmark_slam``: EKF, MHT or FastSLAM),
-    known or hidden correspondences; ``data``: the Mrclam robot or VictoriaPark it ran on. MRCLAM:
-    ``motion_noise`` (2, 2) and ``measurement_noise`` (2, 2), the noise the run used (per
-    ``command_period`` of control, as the runs take it): the poses are the start (held) and one
-    per scan, the odometry between them the controls integrated as the filters predict them.
-    Victoria Park: the file's odometry and observation covariances (the noise arguments unused),
-    poses the start and the chain poses with sightings. A run with known correspondences gives
-    the true ids as labels (less an EKF's gated outliers): geometry alone then has nothing to
-    add, and in MRCLAM Dataset 7's 0.18 m clusters its moves cost 3% of the sightings (first
-    200 s of robot 1): refine runs with hidden correspondences."""
-    from .io.landmark_datasets import Mrclam, VictoriaPark
-
-    require_fields(run, ("times", "poses", "landmarks", "associations"), "run", "a LandmarkSlamResult")
-    require_instance(data, (Mrclam, VictoriaPark), "data")
-    if isinstance(data, Mrclam):
-        if motion_noise is None or measurement_noise is None:
-            raise ValueError("motion_noise, measurement_noise: MRCLAM runs need the noise they were run with")
-        return _mrclam_input(run, data, motion_noise, measurement_noise, command_period)
-    return _victoria_park_input(run, data)
 
 
 @dataclass(frozen=True)
@@ -1177,16 +1098,8 @@ class RunRefinement:
                                   run.filter, run.seconds + self.result.seconds, record)
 
 
-def refine_run(run, data, motion_noise=None, measurement_noise=None, *, command_period: float = 0.01,
-               **options) -> RunRefinement:
-    """``refine_landmarks`` on a filter run over a dataset (``refinement_input``); ``options``
-    go to ``refine_landmarks`` (merge_probability, split_probability, max_iterations)."""
-    start = refinement_input(run, data, motion_noise, measurement_noise, command_period=command_period)
-    return RunRefinement(start, refine_landmarks(**start.arguments(), **options))
-
-
 __all__ = ["LEAVE_ONE_OUT_RANK_TOLERANCE", "MAX_ITERATIONS", "MERGE_PROBABILITY", "ODOMETRY_COVARIANCE_FLOOR",
            "SPLIT_RUN_PROBABILITY", "UNASSIGNED", "LandmarkRefinement", "Merge", "RefinementInput", "RefinementRound",
            "RunRefinement", "Split", "compose_increments", "floor_covariances", "majority_truth",
-           "merge_gate", "polar_to_point", "refine_landmarks", "refine_run", "refinement_input",
+           "merge_gate", "poses_at_nodes", "polar_to_point", "refine_landmarks", "run_labels",
            "sighting_accuracy", "split_gate"]

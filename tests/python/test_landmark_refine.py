@@ -598,10 +598,10 @@ def test_a_sighting_whose_point_covariance_is_singular_is_named():
 
 def test_refine_run_refuses_what_is_not_a_run_or_a_dataset():
     with pytest.raises(TypeError, match="run"):
-        lr.refinement_input("a run", None)
+        probslam.datasets.refinement_input("a run", None)
     run = type("Run", (), dict(times=np.zeros(1), poses=np.zeros((1, 3)), landmarks={}, associations=[]))()
     with pytest.raises(TypeError, match="data"):
-        lr.refinement_input(run, "a dataset")
+        probslam.datasets.refinement_input(run, "a dataset")
     with pytest.raises(ValueError, match="labels, truth"):
         lr.sighting_accuracy([0, 1], [0])
 
@@ -660,7 +660,7 @@ def test_a_runs_sightings_labels_and_odometry_are_those_the_filter_used(shared_d
     else:
         run = mrclam.run_ekf(data, MRCLAM_MOTION, MRCLAM_SENSOR, known=False, association=method)
     accuracy = ev.association_accuracy(run)
-    start = lr.refinement_input(run, data, MRCLAM_MOTION, MRCLAM_SENSOR)
+    start = probslam.datasets.refinement_input(run, data, MRCLAM_MOTION, MRCLAM_SENSOR)
     assert lr.sighting_accuracy(start.labels, start.truth) == pytest.approx(accuracy, abs=1e-12)
     np.testing.assert_array_equal(start.truth, data.measurements[start.rows, 1])
     # The odometry composed from the start is dead reckoning (the velocity model, control by

@@ -149,15 +149,18 @@ def test_landmark_pictures(tmp_path, figures):
 def test_refined_landmark_picture_draws_the_refinement(tmp_path, figures, monkeypatch):
     """--refine graphslam: the picture is the refinement's path and map, one ellipse per refined
     landmark from the final GraphSLAM's marginal covariance (not the filter's)."""
+    from probslam.datasets import LandmarkDataset
+
     drawn = {}
-    draw = cli._draw_refined
+    draw = LandmarkDataset.draw
 
-    def spy(ax, run, refinement, *rest):
-        drawn["refinement"] = refinement
-        draw(ax, run, refinement, *rest)
+    def spy(dataset, ax, result, score, refinement=None, *rest):
+        drawn["refinement"] = refinement.refinement
+        note = draw(dataset, ax, result, score, refinement, *rest)
         drawn["ellipses"] = [p for p in ax.patches if p.get_edgecolor()[:3] == plt.matplotlib.colors.to_rgb("tab:red")]
+        return note
 
-    monkeypatch.setattr(cli, "_draw_refined", spy)
+    monkeypatch.setattr(LandmarkDataset, "draw", spy)
     assert cli.main(["fastslam", "--unknown", "--refine", "graphslam", "--particles", "10", "--no-progress",
                      "-o", str(tmp_path / "r")]) == 0
     (fig,) = figures

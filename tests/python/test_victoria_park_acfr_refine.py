@@ -10,7 +10,8 @@ import pytest
 
 import probslam as ps
 from probslam import landmark_refine as lr
-from probslam.datasets import Associations, run_landmark_slam, victoria_park_acfr, victoria_park_acfr_run as vpr
+from probslam.datasets import (Associations, refine_run, run_landmark_slam, victoria_park_acfr,
+                               victoria_park_acfr_run as vpr)
 from test_victoria_park_acfr_slam import rms_aligned, run_data, write_prefix  # noqa: F401 (run_data: a fixture)
 
 #: The composed edges and the step-by-step composition differ by rounding only (a few thousand
@@ -80,7 +81,7 @@ def test_refinement_of_a_prefix_is_no_worse_against_gps(run_data):
     data = vpr.first_seconds(run_data, PREFIX_SECONDS)
     for run in (run_landmark_slam(data, "ekf", progress=False),
                 run_landmark_slam(data, "fastslam", version=2, seed=0, progress=False)):
-        refinement = vpr.refine(run, data)
+        refinement = refine_run(run, data)
         refined = vpr.refined_result(refinement, run)
         assert refinement.result.converged
         np.testing.assert_array_equal(refined.times, run.times)
@@ -97,21 +98,21 @@ def test_refinement_refuses_what_it_cannot_take(run_data):
     with pytest.raises(TypeError, match="^run"):
         vpr.refinement_input(run.poses, data)
     with pytest.raises(TypeError, match="^data"):
-        vpr.refine(run, "inputs.dat")
+        refine_run(run, "inputs.dat")
     with pytest.raises(ValueError, match="^run: holds"):
-        vpr.refine(run, vpr.first_seconds(run_data, 2 * SHORT_SECONDS))
+        refine_run(run, vpr.first_seconds(run_data, 2 * SHORT_SECONDS))
     with pytest.raises(ValueError, match="^run: a dead-reckoning run"):
-        vpr.refine(run_landmark_slam(data, "dead-reckoning", progress=False), data)
+        refine_run(run_landmark_slam(data, "dead-reckoning", progress=False), data)
     record = run.associations
     dropped = dataclasses.replace(run, associations=Associations(record.times[1:], record.truth[1:], record.ids[1:]))
     with pytest.raises(ValueError, match="^run: its associations"):
-        vpr.refine(dropped, data)
-    refinement = vpr.refine(run, data, max_iterations=0)
+        refine_run(dropped, data)
+    refinement = refine_run(run, data, max_iterations=0)
     with pytest.raises(ValueError, match="^refinement"):
         vpr.refined_result(refinement, run_landmark_slam(vpr.first_seconds(run_data, 2 * SHORT_SECONDS), "ekf",
                                                          progress=False))
     with pytest.raises(ValueError, match="^max_iterations"):
-        vpr.refine(run, data, max_iterations=-1)
+        refine_run(run, data, max_iterations=-1)
 
 
 def test_cli_refines_the_run_and_prints_the_gps_error_before_and_after(run_data, tmp_path, capsys):

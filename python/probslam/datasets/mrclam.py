@@ -19,15 +19,19 @@ from typing import Dict, Iterator, List, Mapping, Optional, Tuple, Union
 
 import numpy as np
 
-from .._args import require_instance
+from .._args import positive_real, real_array, require_fields, require_instance
 from .._progress import progress_bar
 from .._core import FastSlam, chi_square_quantile, velocity_motion, velocity_motion_control_jacobian
 from ..ekf import AssociationResult, EkfSlam, MapManagement, MultiHypothesisEkfSlam
-from ..eval import truth_positions
+from ..eval import majority_labels, score_landmarks, score_mrclam, truth_positions
 from ..fastslam import DEFAULT_P_NEW, AssociationHistories, result_of
+from ..geometry import accumulate
 from ..io._files import file_path
-from ..io.landmark_datasets import Mrclam, read_mrclam
+from ..io.landmark_datasets import MRCLAM_RANGE_SCALE, Mrclam, read_mrclam
+from .._core import velocity_increments
+from ..landmark_refine import RefinementInput, compose_increments, floor_covariances, poses_at_nodes, run_labels
 from ..landmark_slam import Associations, LandmarkSlamResult, ekf_landmarks
+from .landmark_dataset import LandmarkDataset, LandmarkScore, association_line, fastslam_lines
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -417,8 +421,203 @@ def dead_reckoning_map(data: Mrclam, initial_pose=(0.0, 0.0, 0.0)) -> Dict[int, 
     return {s: np.mean(p, axis=0) for s, p in placed.items()}
 
 
-__all__ = ["COMMAND_PERIOD", "MEASUREMENT_NOISE", "MEASUREMENT_SIGMA", "MHT_DETECTION_PROBABILITY",
+def refinement_input(run: LandmarkSlamResult, data: Mrclam, motion_noise, measurement_noise,
+                     command_period: float = COMMAND_PERIOD) -> RefinementInput:
+    """The arrays of ``landmark_refine.refine_landmarks`` from a filter run over an MRCLAM robot
+    (``run_ekf`` / ``run_fastslam``): ``motion_noise`` (2, 2) and ``measurement_noise`` (2, 2) the
+    noise the run used (per ``command_period`` of control, as the runs take it). The poses are the
+    start (held) and one per scan, the odometry between them the controls integrated as the
+    filters predict them (``probslam.velocity_increments``)."""
+    require_fields(run, ("times", "poses", "landmarks", "associations"), "run", "a LandmarkSlamResult")
+    require_instance(data, Mrclam, "data")
+    motion_noise = real_array(motion_noise, "motion_noise", (2, 2))
+    measurement_noise = real_array(measurement_noise, "measurement_noise", (2, 2))
+    command_period = positive_real(command_period, "command_period")
+    odo, meas = data.odometry, data.measurements
+    if len(odo) < 2:
+        raise ValueError("data: the robot needs at least two odometry rows")
+    # The sightings the filters take: scans stamped from the first control to before the last.
+    scan_rows = [r for r in data.scans() if odo[0, 0] <= meas[r.start, 0] < odo[-1, 0]]
+    rows = np.concatenate([np.arange(r.start, r.stop) for r in scan_rows]) if scan_rows else np.empty(0, np.int64)
+    scan_times = np.array([meas[r.start, 0] for r in scan_rows])
+    truth = meas[rows, 1].astype(np.int64)
+    labels = run_labels(run, truth)
+    # The motion pieces the filters predict over: each control from its stamp to the next event.
+    events = np.unique(np.concatenate([odo[:, 0], scan_times]))
+    control = np.searchsorted(odo[:, 0], events[:-1], side="right") - 1
+    dt = np.diff(events)
+    noise = np.asarray(motion_noise, float)[None] * (command_period / dt)[:, None, None]
+    deltas, covs = velocity_increments(odo[control, 1], odo[control, 2], dt, noise)
+    nodes = np.concatenate([[0], np.searchsorted(events, scan_times)])
+    odometry, odometry_cov = compose_increments(deltas, covs, nodes)
+    # The run's poses at the nodes, from the dead-reckoned chain between its records.
+    chain = accumulate(np.zeros(3), deltas)
+    times, recorded = np.asarray(run.times, float), np.asarray(run.poses, float)
+    poses = poses_at_nodes(times, recorded, events, chain)[nodes]
+    scan_of_row = np.repeat(np.arange(1, len(scan_rows) + 1), [r.stop - r.start for r in scan_rows])
+    return RefinementInput(np.concatenate([[odo[0, 0]], scan_times]), poses, odometry, floor_covariances(odometry_cov),
+                           scan_of_row.astype(np.int64), meas[rows, 2:4], labels, measurement_noise,
+                           {int(k): np.asarray(v, float) for k, v in run.landmarks.items()}, rows, truth)
+
+
+
+#: The EKF's association with hidden correspondences on MRCLAM when none is named: the
+#: multiple-hypothesis EKF, the one association that holds on every robot of Datasets 1 and 7
+#: (JCBB builds 40 landmarks for 15 on Dataset 1 robot 1, docs/ekf_slam.md).
+DEFAULT_ASSOCIATION = "mht"
+
+
+class MrclamRobot(LandmarkDataset):
+    """One MRCLAM robot as a landmark run sees it (``landmark_dataset.LandmarkDataset``): its
+    barcodes as labels, ``MOTION_SIGMA`` / ``MEASUREMENT_SIGMA`` as the noise unless the options
+    name others, scored against the robot's ground truth and the landmark survey (the survey alone
+    where the dataset has no robot ground truth, Dataset 1)."""
+
+    OPTIONS = ("robot", "seconds", "raw_ranges", "sigma_v", "sigma_w", "sigma_r", "sigma_phi")
+    LABEL = "UTIAS MRCLAM"
+
+    DATA = Mrclam
+
+    def __init__(self, data: Mrclam, path: Optional[PathLike] = None, robot: int = 1, seconds: Optional[float] = None,
+                 raw_ranges: bool = False):
+        super().__init__(data, path)
+        self.robot, self.seconds, self.raw_ranges = robot, seconds, raw_ranges
+
+    @classmethod
+    def check(cls, options, path) -> None:
+        """As ``LandmarkDataset.check``; and bearing_offset needs the multiple-hypothesis EKF,
+        refine hidden correspondences."""
+        super().check(options, path)
+        if options.bearing_offset and not (options.unknown and options.association in (None, "mht")):
+            raise ValueError("bearing_offset needs unknown correspondences and association mht")
+        if options.refine != "none" and not options.unknown:
+            raise ValueError("refine graphslam needs unknown correspondences (with known ones there is nothing to "
+                             "refine)")
+
+    @classmethod
+    def load(cls, path, options) -> "MrclamRobot":
+        """The robot of ``options.robot`` (1 when None), its window and ranges (``load``)."""
+        robot = 1 if options.robot is None else options.robot
+        return cls(load(path, robot, options.seconds, options.raw_ranges), path, robot, options.seconds,
+                   options.raw_ranges)
+
+    def noise(self, options) -> dict:
+        """The (2, 2) covariances of the sigma options, MOTION_SIGMA / MEASUREMENT_SIGMA where unset."""
+        sigma = [d if v is None else v for v, d in zip((options.sigma_v, options.sigma_w, options.sigma_r,
+                                                         options.sigma_phi), MOTION_SIGMA + MEASUREMENT_SIGMA)]
+        return dict(motion_noise=np.diag([sigma[0] ** 2, sigma[1] ** 2]),
+                    measurement_noise=np.diag([sigma[2] ** 2, sigma[3] ** 2]))
+
+    def association(self, options) -> str:
+        """The option, or ``DEFAULT_ASSOCIATION``."""
+        return options.association or DEFAULT_ASSOCIATION
+
+    def run(self, options, progress: Optional[bool] = None) -> LandmarkSlamResult:
+        """``run_ekf`` (EKF or the multiple-hypothesis EKF) or ``run_fastslam`` with the options' noise."""
+        noise = self.noise(options)
+        if options.method == "fastslam":
+            return self.run_filter("fastslam", known=not options.unknown, num_particles=options.num_particles,
+                                   version=options.version, seed=options.seed, threads=options.threads,
+                                   progress=progress, **noise)
+        association = self.association(options)
+        mht = options.unknown and association == "mht"
+        hypotheses = dict(bearing_offset_sigma=options.bearing_offset) if options.bearing_offset else None
+        return self.run_filter("mht" if mht else "ekf", known=not options.unknown, association=association,
+                               hypotheses=hypotheses, progress=progress, **noise)
+
+    def _run_filter(self, method, known, motion_noise, measurement_noise, association, hypotheses, fastslam,
+                    progress) -> LandmarkSlamResult:
+        if method == "fastslam":
+            return run_fastslam(self.data, motion_noise, measurement_noise, known=known, progress=progress, **fastslam)
+        return run_ekf(self.data, motion_noise, measurement_noise, known=known or method == "dead-reckoning",
+                       association="mht" if method == "mht" else association, hypotheses=hypotheses,
+                       dead_reckoning=method == "dead-reckoning", progress=progress)
+
+    def summary(self, result: LandmarkSlamResult, options, seconds: float) -> List[str]:
+        """The robot, its correspondences and readings, what the filter took and mapped."""
+        data, source = self.data, f"UTIAS MRCLAM {self.path} robot {self.robot}"
+        if options.method == "fastslam":
+            return ([f"dataset:       {source}, {'unknown' if options.unknown else 'known'} correspondences"]
+                    + fastslam_lines(result, options) + association_line(result))
+        association = self.association(options)
+        offset = (f"bearing offset {options.bearing_offset:g} rad per scan, "
+                  if options.bearing_offset and options.unknown and association == "mht" else "")
+        ranges = "raw depth readings" if self.raw_ranges else f"ranges from depth x {MRCLAM_RANGE_SCALE}"
+        return [f"dataset:       {source}, {'unknown (' + association + ')' if options.unknown else 'known'} "
+                f"correspondences, {offset}{ranges}",
+                f"odometry:      {len(data.odometry)} controls; measurements: {len(data.measurements)} of landmarks "
+                f"({data.robot_measurements} of robots dropped), {result.rejected} gated as outliers",
+                f"landmarks:     {len(result.landmarks)} in the map; filter time {result.seconds:.2f} s",
+                *association_line(result, "barcode", len(data.measurements))]
+
+    def refinement_input(self, run: LandmarkSlamResult, motion_noise=None, measurement_noise=None,
+                         command_period: float = COMMAND_PERIOD) -> RefinementInput:
+        """``refinement_input`` of the run (the noise it ran with: both needed)."""
+        if motion_noise is None or measurement_noise is None:
+            raise ValueError("motion_noise, measurement_noise: MRCLAM runs need the noise they were run with")
+        return refinement_input(run, self.data, motion_noise, measurement_noise, command_period)
+
+    def score(self, result: LandmarkSlamResult, options) -> LandmarkScore:
+        """The path and map errors against the ground truth and survey (``eval.score_mrclam``), and
+        the dead reckoning's; without robot ground truth (Dataset 1) the map alone, aligned onto the
+        survey after the survey labels that contradict the barcodes have been exchanged
+        (``eval.score_landmarks``). ValueError when a score is not finite (no mapped landmark in the
+        survey, or coordinates too large to square)."""
+        dead = self.run_filter("dead-reckoning", progress=False, **self.noise(options))
+        labels = majority_labels(result) if result.associations is not None else None
+        if self.data.groundtruth is None:
+            return self._survey_score(result, dead, labels)
+        from ..plot import ALIGNED_SUFFIX
+
+        with np.errstate(over="ignore", invalid="ignore"):  # huge coordinates: refused just below
+            s, d = score_mrclam(result, self.data, labels), score_mrclam(dead, self.data)
+        _require_finite(s.path_rmse, s.path_rmse_aligned, s.landmark_rmse, s.landmark_rmse_aligned)
+        lines = [f"path RMSE:     {s.path_rmse:.3f} m raw, {s.path_rmse_aligned:.3f} m aligned "
+                 f"(dead reckoning {d.path_rmse:.3f} / {d.path_rmse_aligned:.3f} m)",
+                 f"landmark RMSE: {s.landmark_rmse:.3f} m raw, {s.landmark_rmse_aligned:.3f} m aligned"]
+        reference = dict(dead_reckoning=dead.poses[:, :2] @ d.rotation.T + d.translation,
+                         truth_landmarks_label="surveyed landmarks", truth_path=self.data.groundtruth[:, 1:3],
+                         truth_landmarks=self.data.landmark_positions, align=(s.rotation, s.translation),
+                         dead_reckoning_label="dead reckoning" + ALIGNED_SUFFIX)
+        return LandmarkScore(lines, reference, dict(score=s, dead_reckoning=d))
+
+    def _survey_score(self, result: LandmarkSlamResult, dead: LandmarkSlamResult, labels) -> LandmarkScore:
+        swaps = survey_label_swaps(self.data)
+        lines = [f"survey:        positions of subjects {', '.join(f'{a}<->{b}' for a, b in swaps)} exchanged "
+                 f"(their surveyed distances contradict the readings of the same scans)"] if swaps else []
+        fixed = self.data.with_survey_swapped(swaps)
+        with np.errstate(over="ignore", invalid="ignore"):  # huge coordinates: refused just below
+            s = score_landmarks(result.landmarks, fixed, labels)
+            d = score_landmarks(dead_reckoning_map(self.data), fixed)
+        _require_finite(s.rmse_aligned)
+        lines.append(f"landmark RMSE: {s.rmse_aligned:.3f} m after aligning the map onto the survey "
+                     f"(dead-reckoning map {d.rmse_aligned:.3f} m; no robot ground truth)")
+        reference = dict(dead_reckoning=dead.poses, truth_landmarks_label="surveyed landmarks (aligned onto the map)",
+                         truth_landmarks=s.survey_in_map_frame(fixed))
+        return LandmarkScore(lines, reference, dict(score=s, dead_reckoning=d))
+
+    def title(self, options) -> str:
+        """The folder, robot and window, for the picture's title."""
+        return f"UTIAS MRCLAM {self.path.name} robot {self.robot}" + (f", {self.seconds:g} s" if self.seconds else "")
+
+    def caption(self, options) -> str:
+        """The filter and its association, for the picture's title."""
+        if options.method == "ekf" and options.unknown:
+            return f"EKF SLAM, unknown correspondences, {self.association(options)}"
+        return super().caption(options)
+
+
+def _require_finite(*scores: float) -> None:
+    """ValueError when a score is NaN or inf: no mapped landmark is in the survey, or the survey or
+    ground truth holds coordinates too large to square (the run went through, the files did not fit)."""
+    if not all(np.isfinite(v) for v in scores):
+        raise ValueError("the MRCLAM scores are not finite numbers: no landmark of the map is in "
+                         "Landmark_Groundtruth.dat, or its or the ground truth's coordinates are too large")
+
+
+__all__ = ["COMMAND_PERIOD", "DEFAULT_ASSOCIATION", "MEASUREMENT_NOISE", "MrclamRobot", "MEASUREMENT_SIGMA",
+           "MHT_DETECTION_PROBABILITY",
            "MHT_NEW_LANDMARK_COST", "MOTION_NOISE", "MOTION_SIGMA",
            "OUTLIER_PROBABILITY", "PERCEPTUAL_FIELD_QUANTILE", "outlier_density", "ROBOTS", "SURVEY_RESIDUAL_LIMIT", "dead_reckoning",
-           "dead_reckoning_map", "first_seconds", "fit_range_scale", "load", "perceptual_field", "run_ekf",
+           "dead_reckoning_map", "first_seconds", "fit_range_scale", "load", "perceptual_field", "refinement_input", "run_ekf",
            "run_fastslam", "same_scan_residuals", "start_pose", "survey_label_swaps"]

@@ -10,16 +10,18 @@ from __future__ import annotations
 import dataclasses
 import os
 import pathlib
-from typing import Mapping, Optional, Tuple, Union
+from typing import List, Mapping, Optional, Tuple, Union
 
 import numpy as np
 
 from .. import _core
-from .._args import positive_real, require_instance
+from .._args import positive_real, require_fields, require_instance
 from ..fastslam import DEFAULT_P_NEW, fastslam_along_chain
 from ..io._files import file_path
 from ..io.landmark_datasets import VictoriaPark, read_victoria_park
+from ..landmark_refine import RefinementInput, compose_increments, run_labels
 from ..landmark_slam import LandmarkSlamResult, ekf_along_chain, polar_measurements
+from .landmark_dataset import LandmarkDataset, association_line, fastslam_lines, skipped_rows_line
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -118,4 +120,98 @@ def run_fastslam(data: VictoriaPark, measurement_noise=None, *, known: bool = Tr
                                 progress=progress)
 
 
-__all__ = ["MAX_COORDINATE", "ODOMETRY_NOISE_SCALE", "chain", "load", "run_ekf", "run_fastslam"]
+def refinement_input(run: LandmarkSlamResult, data: VictoriaPark) -> RefinementInput:
+    """The arrays of ``landmark_refine.refine_landmarks`` from a filter run along the chain
+    (``run_ekf`` / ``run_fastslam``): the file's odometry and observation covariances, poses the
+    start and the chain poses with sightings, the sightings in the order the filters take them."""
+    require_fields(run, ("times", "poses", "landmarks", "associations"), "run", "a LandmarkSlamResult")
+    observed_from, z, z_cov = chain(data)
+    order = np.argsort(observed_from, kind="stable")  # the order the filters take the sightings in
+    truth = data.landmark[order].astype(np.int64)
+    steps = observed_from[order]
+    labels = run_labels(run, truth)
+    recorded = np.asarray(run.poses, float)
+    if len(recorded) != len(data.pose_to) + 1:
+        raise ValueError(f"run: holds {len(recorded)} poses, the data's chain {len(data.pose_to) + 1}")
+    nodes = np.unique(np.concatenate([[0], steps]))
+    odometry, odometry_cov = compose_increments(data.delta, data.delta_cov, nodes)
+    return RefinementInput(nodes.astype(float), recorded[nodes], odometry, odometry_cov,
+                           np.searchsorted(nodes, steps).astype(np.int64), z[order], labels, z_cov[order],
+                           {int(k): np.asarray(v, float) for k, v in run.landmarks.items()}, order, truth)
+
+
+class VictoriaParkChain(LandmarkDataset):
+    """Victoria Park as iSAM / GTSAM text, as a landmark run sees it
+    (``landmark_dataset.LandmarkDataset``): its odometry and sighting noise are the file's, its
+    landmark numbers the labels; the EKF takes them (known correspondences, with or without
+    ``unknown``), FastSLAM may hide them. Nothing to score against (the file has no ground truth)."""
+
+    LABEL = "Victoria Park"
+    DATA = VictoriaPark
+
+    @classmethod
+    def check(cls, options, path) -> None:
+        """As ``LandmarkDataset.check``; and no bearing offset, refine only FastSLAM's hidden
+        correspondences."""
+        super().check(options, path)
+        if options.bearing_offset:
+            raise ValueError("bearing_offset applies to MRCLAM folders (with unknown, association mht)")
+        if options.refine != "none" and not options.unknown:
+            raise ValueError("refine graphslam needs unknown correspondences (with known ones there is nothing to "
+                             "refine)")
+        if options.refine != "none" and options.method == "ekf":
+            raise ValueError("refine graphslam applies to MRCLAM folders with method ekf (Victoria Park's EKF takes "
+                             "the file's correspondences); use fastslam with unknown for Victoria Park")
+
+    @classmethod
+    def load(cls, path, options) -> "VictoriaParkChain":
+        """The file at ``path`` (``load``)."""
+        return cls(load(path), path)
+
+    def read_lines(self) -> List[str]:
+        """The records skipped and those whose noise was repaired."""
+        from ..graph import INFORMATION_EIGENVALUE_FLOOR
+
+        data = self.data
+        lines = [skipped_rows_line({"unreadable records": data.skipped_rows} if data.skipped_rows else {})]
+        if data.repaired_rows:
+            lines.append(f"repaired rows: {data.repaired_rows} (noise not positive definite: eigenvalues raised to "
+                         f"{INFORMATION_EIGENVALUE_FLOOR:g} of the largest)")
+        return lines
+
+    def run(self, options, progress: Optional[bool] = None) -> LandmarkSlamResult:
+        """``run_fastslam``, or ``run_ekf`` (known correspondences, the file's)."""
+        if options.method == "fastslam":
+            return self.run_filter("fastslam", known=not options.unknown, num_particles=options.num_particles,
+                                   version=options.version, seed=options.seed, threads=options.threads,
+                                   progress=progress)
+        return self.run_filter("ekf", progress=progress)
+
+    def _run_filter(self, method, known, motion_noise, measurement_noise, association, hypotheses, fastslam,
+                    progress) -> LandmarkSlamResult:
+        if motion_noise is not None:
+            raise ValueError("motion_noise: Victoria Park's odometry noise is its file's")
+        if method == "fastslam":
+            return run_fastslam(self.data, measurement_noise, known=known, progress=progress, **fastslam)
+        if method == "mht":
+            raise ValueError("method 'mht' runs on MRCLAM only")
+        if method == "ekf" and not known:
+            raise ValueError("known: on Victoria Park the EKF runs with the file's correspondences only (known=True)")
+        return run_ekf(self.data, measurement_noise, dead_reckoning=method == "dead-reckoning", progress=progress)
+
+    def refinement_input(self, run: LandmarkSlamResult, motion_noise=None, measurement_noise=None,
+                         command_period: Optional[float] = None) -> RefinementInput:
+        """``refinement_input`` of the run (the file's noise: the noise arguments are not used)."""
+        return refinement_input(run, self.data)
+
+    def summary(self, result: LandmarkSlamResult, options, seconds: float) -> List[str]:
+        """The file, its poses and observations, what the filter mapped."""
+        source = f"Victoria Park {self.path}: {len(result.poses)} poses, {len(self.data.xy)} observations"
+        if options.method == "fastslam":
+            return ([f"dataset:       {source}, {'unknown' if options.unknown else 'known'} correspondences"]
+                    + fastslam_lines(result, options) + association_line(result))
+        return [f"dataset:       {source}",
+                f"landmarks:     {len(result.landmarks)}; filter time {result.seconds:.3f} s"]
+
+
+__all__ = ["MAX_COORDINATE", "ODOMETRY_NOISE_SCALE", "VictoriaParkChain", "chain", "load", "refinement_input", "run_ekf", "run_fastslam"]

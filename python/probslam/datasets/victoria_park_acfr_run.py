@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import Mapping, Optional
+from typing import List, Mapping, Optional
 
 import numpy as np
 
@@ -22,10 +22,11 @@ from ..ekf import EkfSlam, MapManagement
 from ..fastslam import DEFAULT_P_NEW, AssociationHistories, result_of
 from ..geometry import between, compose
 from ..io.landmark_datasets import VictoriaParkAcfr
-from ..landmark_refine import (UNASSIGNED, RefinementInput, RunRefinement, compose_increments,
-                               floor_covariances, refine_landmarks)
+from ..landmark_refine import UNASSIGNED, RefinementInput, RunRefinement, compose_increments, floor_covariances
 from ..landmark_slam import Associations, LandmarkSlamResult, ekf_landmarks
+from ..eval import position_error
 from . import victoria_park_acfr
+from .landmark_dataset import EKF_ASSOCIATIONS, LandmarkDataset, LandmarkScore, RefinedRun
 
 # The noise of the inputs and detections: RFS-SLAM's FastSLAM configuration for this run
 # (kykleung/RFS-SLAM cfg/fastslam_VictoriaPark.xml; its converter made the dataset's files): the
@@ -271,14 +272,6 @@ def refinement_input(run: LandmarkSlamResult, data: VictoriaParkAcfr) -> Refinem
                            np.asarray(record.truth, np.int64))
 
 
-def refine(run: LandmarkSlamResult, data: VictoriaParkAcfr, **options) -> RunRefinement:
-    """GraphSLAM's correspondence test (``landmark_refine.refine_landmarks``, ch. 11.6) on an EKF
-    or FastSLAM run over ``data`` (``refinement_input``); ``options`` go to ``refine_landmarks``
-    (merge_probability, split_probability, max_iterations, estimate_noise, new_landmarks)."""
-    start = refinement_input(run, data)
-    return RunRefinement(start, refine_landmarks(**start.arguments(), **options))
-
-
 def refined_result(refinement: RunRefinement, run: LandmarkSlamResult) -> LandmarkSlamResult:
     """The refinement of ``run`` as a ``LandmarkSlamResult`` at the run's own times: each pose
     between two scans is the refined pose of the scan before it moved on by the run's own motion
@@ -300,7 +293,139 @@ def refined_result(refinement: RunRefinement, run: LandmarkSlamResult) -> Landma
                               run.seconds + refinement.result.seconds, record)
 
 
+class VictoriaParkRun(LandmarkDataset):
+    """The original Victoria Park run as a landmark run sees it (``landmark_dataset.LandmarkDataset``):
+    unknown correspondences always (the detections have no identities), the car's model and the
+    sensors' noise of this module, scored against the GPS (``eval.position_error``)."""
+
+    LABEL = "Victoria Park (ACFR run)"
+    DATA = VictoriaParkAcfr
+
+    @classmethod
+    def check(cls, options, path) -> None:
+        """As ``LandmarkDataset.check``; and no bearing offset, the EKF's ``EKF_ASSOCIATIONS`` only."""
+        super().check(options, path)
+        if options.bearing_offset:
+            raise ValueError("bearing_offset applies to MRCLAM folders (with unknown, association mht)")
+        if options.association not in (None, *EKF_ASSOCIATIONS):
+            raise ValueError(f"association on the original Victoria Park run: {' or '.join(EKF_ASSOCIATIONS)} "
+                             "(the EKF's)")
+
+    @classmethod
+    def load(cls, path, options) -> "VictoriaParkRun":
+        """The run's folder at ``path`` (``victoria_park_acfr.load``)."""
+        return cls(victoria_park_acfr.load(path), path)
+
+    def run(self, options, progress: Optional[bool] = None) -> LandmarkSlamResult:
+        """``run_fastslam`` or ``run_ekf`` over the run."""
+        if options.method == "fastslam":
+            return self.run_filter("fastslam", num_particles=options.num_particles, version=options.version,
+                                   seed=options.seed, threads=options.threads, progress=progress)
+        return self.run_filter("ekf", association=self.association(options), progress=progress)
+
+    def run_filter(self, method: str, *, known: Optional[bool] = None, motion_noise=None, measurement_noise=None,
+                   association: str = "jcbb", hypotheses: Optional[Mapping] = None, num_particles: int = 100,
+                   version: int = 1, seed: int = 0, threads: int = 1, p_new: float = DEFAULT_P_NEW,
+                   filter_options: Optional[Mapping] = None, progress: Optional[bool] = None) -> LandmarkSlamResult:
+        """One filter over the run (``known`` None or False: the detections have no identities; the
+        noise is the sensors', ``motion_noise`` and ``measurement_noise`` are refused)."""
+        if known:
+            raise ValueError("known: the original Victoria Park run's detections have no identities (known=False)")
+        for name, value in (("motion_noise", motion_noise), ("measurement_noise", measurement_noise)):
+            if value is not None:
+                raise ValueError(f"{name}: the original Victoria Park run takes its sensors' noise "
+                                 "(victoria_park_acfr_run)")
+        if method == "mht" or hypotheses is not None:
+            raise ValueError("method 'mht' runs on MRCLAM only")
+        if method == "fastslam":
+            return run_fastslam(self.data, num_particles=num_particles, version=version, seed=seed, threads=threads,
+                                p_new=p_new, filter_options=filter_options, progress=progress)
+        if association not in EKF_ASSOCIATIONS:
+            raise ValueError(f"association must be one of {', '.join(map(repr, EKF_ASSOCIATIONS))}, got "
+                             f"{association!r}")
+        return run_ekf(self.data, association=association, dead_reckoning=method == "dead-reckoning",
+                       progress=progress)
+
+    def title(self, options) -> str:
+        """The run, for the picture's title."""
+        return self.LABEL
+
+    def caption(self, options) -> str:
+        """The filter, for the picture's title."""
+        if options.method == "fastslam":
+            return f"FastSLAM {options.version}.0, {options.num_particles} particles, unknown correspondences"
+        return f"EKF SLAM, unknown correspondences ({self.association(options)})"
+
+    def _gps_lines(self, result: LandmarkSlamResult, label: str) -> List[str]:
+        error = self._gps_error(result)
+        if error is None:
+            return []
+        return [f"{label:<15}RMS {error.rmse:.2f} m as it is, {error.rmse_aligned:.2f} m after SE(2) alignment "
+                f"({error.count} fixes)"]
+
+    def _gps_error(self, result: LandmarkSlamResult):
+        """The run's position error against the GPS (None without gps.dat)."""
+        if self.data.gps is None:
+            return None
+        return position_error(result.times, result.poses, self.data.gps[:, 0], self.data.gps[:, 1:])
+
+    def summary(self, result: LandmarkSlamResult, options, seconds: float) -> List[str]:
+        """The run's inputs, detections and fixes, the filter (with its CPU ``seconds``), the map and
+        the error against the GPS."""
+        data = self.data
+        return [f"dataset:       {self.LABEL} {self.path}: {len(data.inputs)} inputs, {len(data.measurements)} "
+                f"detections on {len(data.scan_times)} scans, {0 if data.gps is None else len(data.gps)} GPS fixes",
+                f"filter:        {self.caption(options)}; {result.seconds:.2f} s filter time, {seconds:.2f} s CPU",
+                f"landmarks:     {len(result.landmarks)} in the map",
+                *self._gps_lines(result, "GPS:")]
+
+    def refinement_input(self, run: LandmarkSlamResult, motion_noise=None, measurement_noise=None,
+                         command_period: Optional[float] = None) -> RefinementInput:
+        """``refinement_input`` of the run (the sensors' noise: none other is taken)."""
+        for name, value in (("motion_noise", motion_noise), ("measurement_noise", measurement_noise)):
+            if value is not None:
+                raise ValueError(f"{name}: the original Victoria Park run takes its sensors' noise")
+        return refinement_input(run, self.data)
+
+    def refine(self, result: LandmarkSlamResult, options) -> RefinedRun:
+        """GraphSLAM's correspondence test over the run (``refine``) and its error against the GPS."""
+        cpu = time.process_time()
+        refinement = self.refine_run(result)
+        r = refinement.result
+        cpu = time.process_time() - cpu
+        refined = refined_result(refinement, result)
+        line = (f"refinement:    GraphSLAM correspondence test (ch. 11.6) on {len(r.poses)} scan poses: "
+                f"{len(r.landmarks)} landmarks, {len(r.merges)} merges, {len(r.splits)} detections moved, "
+                f"{int((r.labels < 0).sum())} unassigned, {r.iterations} rounds, {cpu:.2f} s CPU"
+                f"{'' if r.converged else ' (stopped at the round limit)'}; the path and picture below are the refined "
+                "ones")
+        return RefinedRun(refined, r, [line, *self._gps_lines(refined, "GPS refined:")])
+
+    def score(self, result: LandmarkSlamResult, options) -> LandmarkScore:
+        """The error against the GPS (said in the summary and the refinement's lines)."""
+        return LandmarkScore(values=dict(gps=self._gps_error(result)))
+
+    def draw(self, ax, result: LandmarkSlamResult, score: LandmarkScore, refinement: Optional[RefinedRun] = None,
+             filtered: Optional[LandmarkSlamResult] = None, options=None) -> str:
+        """The path over the GPS fixes, with the map (and the filter's path beside a refined one)."""
+        gps = self.data.gps
+        if gps is not None:
+            ax.plot(gps[:, 1], gps[:, 2], ".", ms=2, color="tab:blue", label="GPS")
+        name = self.caption(options).split(",")[0]
+        if refinement is not None:
+            ax.plot(filtered.poses[:, 0], filtered.poses[:, 1], "-", lw=0.8, color="0.6", label=name)
+            name = "GraphSLAM refinement"
+        ax.plot(result.poses[:, 0], result.poses[:, 1], "-", lw=1.0, color="tab:orange", label=name)
+        if result.landmarks:
+            lm = np.array(list(result.landmarks.values()))
+            ax.plot(lm[:, 0], lm[:, 1], "+", ms=4, color="k", label=f"{len(lm)} landmarks")
+        ax.set_aspect("equal")
+        ax.legend(loc="upper left", bbox_to_anchor=(1.0, 1.0), fontsize="small")
+        error = score.values.get("gps")
+        return "" if error is None else f"; RMS vs GPS {error.rmse_aligned:.2f} m (aligned)"
+
+
 __all__ = ["BEARING_SIGMA", "DETECTION_INFLATION", "DIAMETER_SIGMA", "FIELD_OF_VIEW", "INPUT_INFLATION", "MAX_RANGE",
-           "PROVISIONAL_MAX_AGE", "PROVISIONAL_SIGHTINGS", "RANGE_SIGMA", "SPEED_SIGMA", "STEERING_SIGMA", "Schedule",
-           "control_noise", "first_seconds", "geometry", "measurement_noise", "provisional_list", "refine",
+           "VictoriaParkRun", "PROVISIONAL_MAX_AGE", "PROVISIONAL_SIGHTINGS", "RANGE_SIGMA", "SPEED_SIGMA", "STEERING_SIGMA", "Schedule",
+           "control_noise", "first_seconds", "geometry", "measurement_noise", "provisional_list",
            "refined_result", "refinement_input", "run_ekf", "run_fastslam", "schedule"]

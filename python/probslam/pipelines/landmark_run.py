@@ -1,0 +1,248 @@
+"""A landmark dataset from disk to its map (``probslam ekf-slam`` / ``fastslam``): read it (an
+MRCLAM folder, Victoria Park as iSAM / GTSAM text, or the original Victoria Park run), run EKF SLAM
+or FastSLAM over it, refine the run by GraphSLAM's correspondence test if asked, score it against
+the dataset's reference (ground truth, survey, GPS), then write its trajectory and draw it.
+``run_landmark_dataset(path, options)`` runs it all; ``LandmarkRun`` runs it step by step.
+Options travel as one ``LandmarkRunOptions``; every refusal names its field. What differs between
+the datasets is theirs (``datasets.LandmarkDataset``), not this module's.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+import pathlib
+import time
+from dataclasses import dataclass
+from typing import List, Optional, Union
+
+import numpy as np
+
+from .. import io
+from .._args import require_instance
+from ..datasets import LandmarkDataset, LandmarkScore, RefinedRun, landmark_dataset_class, mrclam
+from ..landmark_slam import LandmarkSlamResult
+
+PathLike = Union[str, "os.PathLike[str]"]
+
+#: The filters: EKF SLAM (with hidden correspondences: JCBB, maximum likelihood or the
+#: multiple-hypothesis EKF) and FastSLAM 1.0 / 2.0.
+METHODS = ("ekf", "fastslam")
+#: The EKF's associations with hidden correspondences (None: the dataset's default, see
+#: ``datasets.mrclam.DEFAULT_ASSOCIATION``).
+ASSOCIATIONS = ("jcbb", "ml", "mht")
+#: What follows the filter: nothing, or GraphSLAM's correspondence test (ch. 11.6).
+REFINEMENTS = ("none", "graphslam")
+#: The command each method is, for the picture's title.
+COMMANDS = {"ekf": "ekf-slam", "fastslam": "fastslam"}
+#: The largest seed: the filters' seeds are unsigned 64-bit integers.
+MAX_SEED = 2 ** 64 - 1
+#: The options that say how a path is read (not for a dataset given as read).
+READ_OPTIONS = ("robot", "seconds", "raw_ranges")
+#: The options that apply to FastSLAM only.
+FASTSLAM_OPTIONS = ("num_particles", "version", "seed", "threads")
+
+
+@dataclass
+class LandmarkRunOptions:
+    """How ``run_landmark_dataset`` runs a landmark dataset.
+
+    method: "ekf" (EKF SLAM, Tables 10.1 / 10.2) or "fastslam".
+    unknown: hide the correspondences (Table 10.2); on the original Victoria Park run they are
+        always hidden, and Victoria Park's EKF takes the file's whatever this says.
+    association: the EKF's association with hidden correspondences, "jcbb", "ml" or "mht"
+        (None: the dataset's, the multiple-hypothesis EKF on MRCLAM, JCBB elsewhere).
+    bearing_offset: MRCLAM with association mht: the standard deviation (rad) of a bearing offset
+        shared by each scan's sightings, carried by every hypothesis (0: none).
+    num_particles, version (1 or 2), seed, threads (the result is the same for any count):
+        FastSLAM's.
+    robot (None: 1), seconds (None: the whole run), raw_ranges (the depth readings as ranges):
+        which part of an MRCLAM folder is read, and how.
+    sigma_v (m/s), sigma_w (rad/s): MRCLAM's control noise per 10 ms command; sigma_r (m),
+        sigma_phi (rad): its sighting noise (None: ``mrclam.MOTION_SIGMA`` /
+        ``mrclam.MEASUREMENT_SIGMA``; Victoria Park takes its file's or its sensors').
+    refine: "none", or "graphslam": GraphSLAM's correspondence test over the run (hidden
+        correspondences; docs/landmark_refine.md).
+    """
+
+    method: str = "ekf"
+    unknown: bool = False
+    association: Optional[str] = None
+    bearing_offset: float = 0.0
+    num_particles: int = 100
+    version: int = 1
+    seed: int = 0
+    threads: int = 1
+    robot: Optional[int] = None
+    seconds: Optional[float] = None
+    raw_ranges: bool = False
+    sigma_v: Optional[float] = None
+    sigma_w: Optional[float] = None
+    sigma_r: Optional[float] = None
+    sigma_phi: Optional[float] = None
+    refine: str = "none"
+
+    def validate(self) -> None:
+        """ValueError / TypeError naming the first field that is wrong or does not apply (the
+        dataset's own refusals come when it is known: ``LandmarkRun.read``)."""
+        for name, choices in (("method", METHODS), ("refine", REFINEMENTS)):
+            if getattr(self, name) not in choices:
+                raise ValueError(f"{name} must be one of {', '.join(choices)}, got {getattr(self, name)!r}")
+        for name in ("unknown", "raw_ranges"):
+            if not isinstance(getattr(self, name), (bool, np.bool_)):
+                raise TypeError(f"{name} must be a bool, got {type(getattr(self, name)).__name__}")
+        if self.association is not None:
+            if self.association not in ASSOCIATIONS:
+                raise ValueError(f"association must be one of {', '.join(ASSOCIATIONS)}, got {self.association!r}")
+            if self.method != "ekf":
+                raise ValueError("association applies to method ekf only (FastSLAM's particles associate by "
+                                 "maximum likelihood)")
+            if not self.unknown:
+                raise ValueError("association applies with unknown correspondences only (known correspondences need "
+                                 "no association)")
+        _real(self.bearing_offset, "bearing_offset", zero=True, what="angle (rad)")
+        if self.bearing_offset and self.method != "ekf":
+            raise ValueError("bearing_offset applies to method ekf only")
+        for name, lowest, highest in (("num_particles", 1, None), ("version", 1, 2), ("seed", 0, MAX_SEED),
+                                      ("threads", 1, None)):
+            _integer(getattr(self, name), name, lowest, highest)
+        if self.method != "fastslam":
+            for name in FASTSLAM_OPTIONS:
+                if getattr(self, name) != getattr(_DEFAULTS, name):
+                    raise ValueError(f"{name} applies to method fastslam only")
+        if self.robot is not None:
+            _integer(self.robot, "robot", 1, mrclam.ROBOTS, what=f"an MRCLAM robot number 1 to {mrclam.ROBOTS}")
+        if self.seconds is not None:
+            _real(self.seconds, "seconds")
+        for name in ("sigma_v", "sigma_w", "sigma_r", "sigma_phi"):
+            value = getattr(self, name)
+            sigma = None if value is None else _real(value, name, zero=None)
+            # Squared, a negative sigma would pass unnoticed, 1e300 overflow and 1e-200 vanish.
+            if sigma is not None and not (0 < sigma < math.inf and 0 < sigma * sigma < math.inf):
+                raise ValueError(f"{name} {value} must be a finite standard deviation > 0 with a finite variance > 0")
+
+    def replace(self, **options) -> "LandmarkRunOptions":
+        """A validated copy with the named options (fields) set."""
+        out = dataclasses.replace(self, **options)
+        out.validate()
+        return out
+
+
+_DEFAULTS = LandmarkRunOptions()
+
+
+def _integer(value, name: str, lowest: int, highest: Optional[int], what: str = "") -> None:
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name} must be an integer, got {type(value).__name__}")
+    if value < lowest or (highest is not None and value > highest):
+        bounds = f"in [{lowest}, {highest}]" if highest is not None else f">= {lowest}"
+        raise ValueError(f"{name} {value} must be {what or 'an integer ' + bounds}")
+
+
+def _real(value, name: str, zero: Optional[bool] = False, what: str = "number") -> float:
+    """``value`` as a finite float > 0 (>= 0 with ``zero``; any number with ``zero`` None);
+    TypeError / ValueError naming ``name``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise TypeError(f"{name} must be a real number, got {type(value).__name__}")
+    if zero is None:
+        return float(value)
+    if not (math.isfinite(value) and (value >= 0 if zero else value > 0)):
+        raise ValueError(f"{name} {value} must be a finite {what} {'>= 0' if zero else '> 0'}")
+    return float(value)
+
+
+@dataclass
+class LandmarkRun:
+    """One landmark dataset's run, step by step: ``read`` it, ``run`` the filter (and the
+    refinement, and the score), then ``summary``, ``write`` and ``draw``.
+
+    dataset: the ``datasets.LandmarkDataset`` read; filtered: the filter's run
+    (``LandmarkSlamResult``); result: the run the scores, path and picture are of (the refined
+    one after ``refine`` graphslam, else the filter's); refinement: the ``datasets.RefinedRun``
+    (None without); score: the ``datasets.LandmarkScore`` against the dataset's reference;
+    cpu_seconds: the filter's CPU time."""
+
+    dataset: LandmarkDataset
+    options: LandmarkRunOptions
+    filtered: Optional[LandmarkSlamResult] = None
+    result: Optional[LandmarkSlamResult] = None
+    refinement: Optional[RefinedRun] = None
+    score: Optional[LandmarkScore] = None
+    cpu_seconds: float = 0.0
+
+    @classmethod
+    def read(cls, dataset: Union[PathLike, LandmarkDataset],
+             options: Optional[LandmarkRunOptions] = None) -> "LandmarkRun":
+        """The dataset at a path (an MRCLAM folder, a Victoria Park file, the original Victoria
+        Park run's folder) read with ``options``, or a ``LandmarkDataset`` already read. The
+        options are checked first, then against the dataset (ValueError naming the field that
+        does not apply), before it is read; the readers' errors name the file."""
+        options = LandmarkRunOptions() if options is None else options
+        require_instance(options, LandmarkRunOptions, "options")
+        options.validate()
+        if isinstance(dataset, LandmarkDataset):
+            for name in READ_OPTIONS:
+                if getattr(options, name) not in (None, False):
+                    raise ValueError(f"{name} says how a path is read; the dataset given is read already")
+            type(dataset).check(options, dataset.path)
+            return cls(dataset, options)
+        path = pathlib.Path(os.fspath(dataset))
+        kind = landmark_dataset_class(path)
+        kind.check(options, path)
+        return cls(kind.load(path, options), options)
+
+    def run(self, progress: Optional[bool] = None) -> None:
+        """The filter, the refinement (``refine``) and the score. ``progress``: a bar over the
+        dataset's steps (None: on a terminal only)."""
+        cpu = time.process_time()
+        self.filtered = self.dataset.run(self.options, progress)
+        self.cpu_seconds = time.process_time() - cpu
+        self.result = self.filtered
+        if self.options.refine != "none":
+            self.refinement = self.dataset.refine(self.filtered, self.options)
+            self.result = self.refinement.result
+        self.score = self.dataset.score(self.result, self.options)
+
+    def summary(self) -> str:
+        """What was read, run, refined and scored, in lines (as ``probslam ekf-slam`` prints them)."""
+        lines = self.dataset.read_lines()
+        if self.filtered is not None:
+            lines += self.dataset.summary(self.filtered, self.options, self.cpu_seconds)
+            lines += [] if self.refinement is None else self.refinement.lines
+            lines += self.score.lines
+        return "\n".join(lines)
+
+    def write(self, prefix: str, trajectory_format: str = "tum") -> List[str]:
+        """PREFIX_trajectory.EXT (``io.write_trajectory``: tum, kitti or xyt) of the run's path at
+        its times; returns the paths written."""
+        path = prefix + "_trajectory" + io.trajectory.EXTENSIONS[trajectory_format]
+        return list(io.write_trajectory(self.result.times, self.result.poses, path, format=trajectory_format))
+
+    def title(self, note: str = "") -> str:
+        """The picture's title: the command, the data, the filter (``note``: what the drawing adds)."""
+        refined = ", GraphSLAM refinement (ch. 11.6)" if self.refinement is not None else ""
+        return (f"probslam {COMMANDS[self.options.method]}: {self.dataset.title(self.options)}\n"
+                f"{self.dataset.caption(self.options)}{refined}{note}")
+
+    def draw(self, plt):
+        """A figure of the run (matplotlib's pyplot given): its path and map over the dataset's
+        reference, eight inches of map in the data's own shape and room for the legend beside it."""
+        fig, ax = plt.subplots(figsize=(8, 8))
+        note = self.dataset.draw(ax, self.result, self.score, self.refinement, self.filtered, self.options)
+        ax.set_title(self.title(note), fontsize="medium")
+        (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+        # Victoria Park is five times as wide as tall: 3 to 10 inches tall, 3.5 beside for the legend.
+        fig.set_size_inches(11.5, min(max(8 * (y1 - y0) / max(x1 - x0, 1e-9), 3.0), 10.0) + 1.0)
+        return fig
+
+
+def run_landmark_dataset(dataset: Union[PathLike, LandmarkDataset], options: Optional[LandmarkRunOptions] = None,
+                         progress: Optional[bool] = None) -> LandmarkRun:
+    """Reads the landmark dataset (``LandmarkRun.read``) and runs it; the run with its results."""
+    run = LandmarkRun.read(dataset, options)
+    run.run(progress)
+    return run
+
+
+__all__ = ["ASSOCIATIONS", "LandmarkRun", "LandmarkRunOptions", "METHODS", "REFINEMENTS", "run_landmark_dataset"]
