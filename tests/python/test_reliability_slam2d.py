@@ -37,9 +37,16 @@ _DRIVE = corridor_drive(laps=0.3)
 FED_PARTICLES = 4
 
 
+def laser(cls, **fields):
+    """cls with the corridor's sensor maximum (SubmapSlam2D's filter is its frontend's)."""
+    if cls is _core.SubmapSlam2D:
+        return cls(frontend={"filter": {"max_range": MAX_RANGE}, **fields.pop("frontend", {})}, **fields)
+    return cls(filter={"max_range": MAX_RANGE}, **fields)
+
+
 def fed(cls, n=4):
     true, odo, ranges = _DRIVE
-    obj = cls(max_range=MAX_RANGE, num_particles=FED_PARTICLES) if cls is _core.GridFastSlam else cls(max_range=MAX_RANGE)
+    obj = laser(cls, num_particles=FED_PARTICLES) if cls is _core.GridFastSlam else laser(cls)
     obj.add_scans(ranges[:n], ANGLES, odo[:n], np.arange(n, dtype=float))
     return obj
 
@@ -138,10 +145,10 @@ def test_queries_with_odd_arguments(value):
 def test_threads_sharing_one_object(cls):
     true, odo, ranges = _DRIVE
     n = len(true)
-    alone = cls(max_range=MAX_RANGE)
+    alone = laser(cls)
     for k in range(n):
         alone.add_scans(ranges[k:k + 1], ANGLES, odo[k:k + 1], np.array([float(k)]))
-    shared = cls(max_range=MAX_RANGE)
+    shared = laser(cls)
     order = []
 
     def feeder():
@@ -187,12 +194,11 @@ def assert_same(a, b):
 
 
 MAKERS = {
-    "scan-matcher": lambda: _core.IncrementalScanMatcher(max_range=MAX_RANGE, submap_distance=2.0),
-    "submap-slam": lambda: _core.SubmapSlam2D(max_range=MAX_RANGE, submap_distance=2.0),
-    "rbpf-motion": lambda: _core.GridFastSlam(max_range=MAX_RANGE, num_particles=4, proposal="motion", seed=3),
-    "rbpf-scan-matching": lambda: _core.GridFastSlam(max_range=MAX_RANGE, num_particles=4, seed=3),
-    "rbpf-improved-odometry": lambda: _core.GridFastSlam(max_range=MAX_RANGE, num_particles=4,
-                                                         proposal="improved-odometry", seed=3),
+    "scan-matcher": lambda: laser(_core.IncrementalScanMatcher, submap_distance=2.0),
+    "submap-slam": lambda: laser(_core.SubmapSlam2D, frontend={"submap_distance": 2.0}),
+    "rbpf-motion": lambda: laser(_core.GridFastSlam, num_particles=4, proposal="motion", seed=3),
+    "rbpf-scan-matching": lambda: laser(_core.GridFastSlam, num_particles=4, seed=3),
+    "rbpf-improved-odometry": lambda: laser(_core.GridFastSlam, num_particles=4, proposal="improved-odometry", seed=3),
 }
 
 
@@ -294,7 +300,7 @@ def smallest_budget(**options):
 def test_grid_fastslam_update_over_the_memory_bound_keeps_nothing():
     # A bound the first update fits (one shared map) but the second does not (each particle then
     # holds its own tiles): a batch of both is undone whole.
-    options = dict(max_range=MAX_RANGE, num_particles=10, seed=1)
+    options = dict(filter={"max_range": MAX_RANGE}, num_particles=10, seed=1)
     smallest = smallest_budget(**options)
     probe = _core.GridFastSlam(max_map_bytes=smallest, **options)
     probe.add_scans(*rows(0, 1))
