@@ -872,9 +872,9 @@ class GridFastSlam:
                  proposal: str = 'scan-matching', resolution: float = 0.05, filter: ScanFilter = ...,
                  odometry: OdometryNoise = ..., likelihood: EndpointLikelihoodOptions = ...,
                  matching: ScanProposalOptions = ..., weight_scale: float = 0.03, resample_threshold: float = 0.5,
-                 update: UpdateTrigger = ..., corrector: IncrementalScanMatcherOptions = ...,
-                 corrected_start: bool = True, seed: int = 0, threads: int = 1,
-                 max_map_bytes: float = 8589934592.0) -> None: ...
+                 update: UpdateTrigger = ..., update_interval: float = 0.0,
+                 corrector: IncrementalScanMatcherOptions = ..., corrected_start: bool = True, seed: int = 0,
+                 threads: int = 1, max_map_bytes: float = 8589934592.0) -> None: ...
     def add_scans(self, ranges: ArrayLike, beam_angles: ArrayLike, odometry: ArrayLike,
                   timestamps: ArrayLike) -> None:
         """ranges (S, B) m, beam_angles (B,) or (S, B) rad, odometry (S, 3) sensor poses, timestamps (S,) s."""
@@ -1162,6 +1162,7 @@ class GridFastSlamOptions:
     weight_scale: float
     resample_threshold: float
     update: UpdateTrigger
+    update_interval: float  # s
     corrector: IncrementalScanMatcherOptions
     corrected_start: bool
     seed: int
@@ -1171,14 +1172,16 @@ class GridFastSlamOptions:
                  filter: ScanFilter = ..., odometry: OdometryNoise = ...,
                  likelihood: EndpointLikelihoodOptions = ..., matching: ScanProposalOptions = ...,
                  weight_scale: float = 0.03, resample_threshold: float = 0.5, update: UpdateTrigger = ...,
-                 corrector: IncrementalScanMatcherOptions = ..., corrected_start: bool = True, seed: int = 0,
-                 threads: int = 1, max_map_bytes: float = 8589934592.0) -> None: ...
+                 update_interval: float = 0.0, corrector: IncrementalScanMatcherOptions = ...,
+                 corrected_start: bool = True, seed: int = 0, threads: int = 1,
+                 max_map_bytes: float = 8589934592.0) -> None: ...
     def replace(self, *, num_particles: int = 30, proposal: str = 'scan-matching', resolution: float = 0.05,
                 filter: ScanFilter = ..., odometry: OdometryNoise = ...,
                 likelihood: EndpointLikelihoodOptions = ..., matching: ScanProposalOptions = ...,
                 weight_scale: float = 0.03, resample_threshold: float = 0.5, update: UpdateTrigger = ...,
-                corrector: IncrementalScanMatcherOptions = ..., corrected_start: bool = True, seed: int = 0,
-                threads: int = 1, max_map_bytes: float = 8589934592.0) -> GridFastSlamOptions: ...
+                update_interval: float = 0.0, corrector: IncrementalScanMatcherOptions = ...,
+                corrected_start: bool = True, seed: int = 0, threads: int = 1,
+                max_map_bytes: float = 8589934592.0) -> GridFastSlamOptions: ...
     def validate(self) -> None: ...
     def copy(self) -> GridFastSlamOptions: ...
     def as_dict(self) -> Dict[str, Any]: ...

@@ -84,6 +84,7 @@ void GridFastSlamOptions::validate() const {
   require(std::isfinite(resample_threshold) && resample_threshold >= 0.0 && resample_threshold <= 1.0,
           "resample_threshold", "must lie in [0, 1]");
   validate_group(update, "update");
+  require(std::isfinite(update_interval) && update_interval >= 0.0, "update_interval", "must be finite and >= 0");
   if (uses_corrector()) validate_group(corrector, "corrector");
   require(threads >= 1 && threads <= 1024, "threads", "must lie in [1, 1024]");
   require_positive(max_map_bytes, "max_map_bytes");
@@ -250,7 +251,8 @@ bool GridFastSlam::add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
   }
   const Eigen::Vector3d delta = between(last_update_odometry_, source);
   const int step = static_cast<int>(summary_.updates);
-  if (!options_.update.reached(delta.head<2>().norm(), std::fabs(delta.z()))) {
+  const bool timed = options_.update_interval > 0.0 && timestamp - last_update_time() >= options_.update_interval;
+  if (!timed && !options_.update.reached(delta.head<2>().norm(), std::fabs(delta.z()))) {
     commit_scan();
     corrected_cov_ = chain_cov;
     last_corrected_ = last_corrected;
@@ -296,6 +298,13 @@ Eigen::Matrix3d GridFastSlam::corrected_motion_covariance(const Eigen::Vector3d&
   const OdometryNoise& n = options_.odometry;
   cov.diagonal() += Eigen::Vector3d(n.trans_floor * n.trans_floor, n.trans_floor * n.trans_floor, n.rot_floor * n.rot_floor);
   return cov;
+}
+
+double GridFastSlam::last_update_time() const {
+  // The scans hang from the update before them in order: the first that hangs from the last
+  // update is the scan it updated on.
+  const auto first = std::lower_bound(scan_step_.begin(), scan_step_.end(), scan_step_.back());
+  return timestamps_[static_cast<std::size_t>(first - scan_step_.begin())];
 }
 
 void GridFastSlam::start_stretch(const Eigen::Vector3d& source, const Eigen::Vector3d& raw, int step) {

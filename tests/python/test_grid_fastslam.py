@@ -169,6 +169,24 @@ def test_option_types(kwargs, path):
         make(**kwargs)
 
 
+@pytest.mark.parametrize("interval, expected", [(0.0, []), (1.0, [4, 8, 12, 16, 20, 24, 28]),
+                                                 (0.6, [3, 6, 9, 12, 15, 18, 21, 24, 27])])
+def test_a_robot_standing_still_updates_every_interval(drive, interval, expected):
+    # Scans 0.25 s apart from one place: no travel, so only the time trigger updates, at the
+    # first scan at least interval after the last update; 0 (the default) never.
+    true, odo, ranges = drive
+    f = make(num_particles=3, update_interval=interval)
+    updated = []
+    for k in range(30):
+        before = f.summary.updates
+        f.add_scans(ranges[:1], ANGLES, odo[:1], [0.25 * k])
+        if f.summary.updates > before:
+            updated.append(k)
+    assert updated == expected
+    with pytest.raises(ValueError, match="^update_interval "):
+        make(update_interval=-1.0)
+
+
 def test_the_corrector_sees_the_scans_as_the_filter_does():
     # Its resolution, filter and odometry are the filter's, whatever the options hold (a C++
     # caller gets the same): options shows what runs.

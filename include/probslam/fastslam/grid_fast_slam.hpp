@@ -70,6 +70,10 @@ struct GridFastSlamOptions {
   /// over twice the distance: on the bundled excerpt with 4 particles the best path's median
   /// distance from GraphSLAM's grows from under 0.1 m to 0.2 m.
   UpdateTrigger update{0.25, 0.25};
+  /// The filter also updates once this much log time (s) has passed since the last update,
+  /// moved or not (GMapping's temporalUpdate): a robot standing still has its particles weighed
+  /// by new scans. 0: on travel alone.
+  double update_interval = 0.0;
   /// kImprovedOdometry's incremental scan matcher (its submaps cut every few metres). It sees
   /// the scans as the filter does: its resolution, filter and odometry are the filter's (the
   /// constructor sets them, so options() shows what runs).
@@ -107,6 +111,7 @@ struct GridFastSlamOptions {
     v("weight_scale", &O::weight_scale, "", "in (0, 1]: each update's log weight increment is multiplied by this (a scan's beams are not independent)");
     v("resample_threshold", &O::resample_threshold, "", "resample when N_eff < this * M, in [0, 1]");
     v("update", &O::update, "", "the filter updates once the odometry moved or turned this much since the last update");
+    v("update_interval", &O::update_interval, "s", "... or once this much log time passed since the last update (0: travel alone)");
     v("corrector", &O::corrector, "", "the incremental scan matcher that corrects the odometry (its resolution, filter and odometry are the filter's)");
     v("corrected_start", &O::corrected_start, "", "scan-matching: the climb starts from the corrected odometry");
     v("seed", &O::seed, "", "random seed, in [0, 2^64)");
@@ -273,6 +278,8 @@ class GridFastSlam {
   bool needs_growth(const TiledGrid2D& map, const Eigen::Vector3d& pose, Eigen::Vector4d& bounds) const;
   /// Returns the processor seconds spent copying a shared map's tile table.
   double insert(Particle& p, const Eigen::VectorXd& insertion, const Eigen::Ref<const Eigen::VectorXd>& angles) const;
+  /// The log time of the last update's scan (the first scan's before any update).
+  double last_update_time() const;
   /// Frees the corrector's finished submap grids: it only matches against its open submap.
   void release_corrector_grids();
   /// kImprovedOdometry: the covariance of the corrected motion since the last update, given the
