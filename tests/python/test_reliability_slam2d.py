@@ -72,13 +72,25 @@ def full_state(obj):
     return s
 
 
-#: Numeric options of each class (the scan matchers share the frontend's).
-FRONTEND_OPTIONS = ["resolution", "max_range", "min_range", "max_usable_range", "sigma", "p_rand", "linear_window",
-                    "angular_window", "min_travel", "min_rotation", "submap_distance", "min_match_quality",
-                    "field_refresh_distance", "field_refresh_angle"]
-RBPF_OPTIONS = ["resolution", "max_range", "min_range", "max_usable_range", "sigma", "p_rand", "search_radius",
-                "linear_step", "angular_step", "sample_linear", "sample_angular", "min_match_quality",
-                "resample_threshold", "update_distance", "update_angle"]
+#: Numeric options of each class by path (SubmapSlam2D's scan matcher is its frontend).
+FRONTEND_OPTIONS = ["resolution", "filter.max_range", "filter.min_range", "filter.max_usable_range", "field.sigma",
+                    "field.p_rand", "match.window.linear", "match.window.angular", "update.distance", "update.angle",
+                    "submap_distance", "min_match_quality", "field_refresh_distance", "field_refresh_angle"]
+RBPF_OPTIONS = ["resolution", "filter.max_range", "filter.min_range", "filter.max_usable_range", "likelihood.sigma",
+                "likelihood.p_rand", "likelihood.search_radius", "matching.linear_step", "matching.angular_step",
+                "matching.sample_linear", "matching.sample_angular", "matching.min_match_quality",
+                "resample_threshold", "update.distance", "update.angle", "update_interval"]
+
+
+def option_fields(cls, path, value):
+    """The keyword of cls that sets the field at path ({"frontend": {"filter": {"max_range": v}}})."""
+    if cls is _core.SubmapSlam2D:
+        path = "frontend." + path
+    *groups, name = path.split(".")
+    fields = {name: value}
+    for group in reversed(groups):
+        fields = {group: fields}
+    return fields
 
 
 @pytest.mark.parametrize("cls", CLASSES)
@@ -92,13 +104,25 @@ def test_add_scans_with_odd_arrays(cls, ranges, angles, odometry, stamps):
 
 
 @pytest.mark.parametrize("cls", CLASSES)
+def test_the_option_paths_are_the_classes(cls):
+    # Every path above is a field (an unknown one would raise TypeError, passing the test below
+    # for the wrong reason): set to its default, it builds the class.
+    defaults = _core.GridFastSlamOptions() if cls is _core.GridFastSlam else _core.IncrementalScanMatcherOptions()
+    for name in RBPF_OPTIONS if cls is _core.GridFastSlam else FRONTEND_OPTIONS:
+        value = defaults
+        for part in name.split("."):
+            value = getattr(value, part)
+        cls(**option_fields(cls, name, value))
+
+
+@pytest.mark.parametrize("cls", CLASSES)
 @PROPERTY
 @given(value=policy.floats(), pick=policy.st.integers(0, 10 ** 6))
 def test_options_with_odd_numbers(cls, value, pick):
     names = RBPF_OPTIONS if cls is _core.GridFastSlam else FRONTEND_OPTIONS
     name = names[pick % len(names)]
-    raised, _ = policy.check_call(lambda: cls(**{name: value}))
-    if np.isnan(value) or (np.isinf(value) and name != "max_range"):  # max_range = inf: none stated
+    raised, _ = policy.check_call(lambda: cls(**option_fields(cls, name, value)))
+    if np.isnan(value) or (np.isinf(value) and name != "filter.max_range"):  # max_range = inf: none stated
         assert raised, (name, value)
 
 
