@@ -92,6 +92,12 @@ def row(label, result, extra="", aces=True):
             f"{relations(result) + extra if aces else (extra or '-')} |")
 
 
+def rbpf(log, **fields):
+    """run_slam(method="rbpf") with the log's default options, these fields replaced."""
+    scans = ps.slam.scans_of(log)
+    return ps.slam.run_slam(scans, progress=False, options=ps.slam.default_options(scans, "rbpf").replace(**fields))
+
+
 def main():
     parser = argparse.ArgumentParser()
     parser.add_argument("--quick", action="store_true", help="the particle sweep on 500 scans (not recorded)")
@@ -112,14 +118,12 @@ def main():
     excerpt = first_scans(log.scans, n)
     for m in PARTICLES:
         print(f"bench_rbpf: ACES first {n} scans, {m} particles ...", file=sys.stderr, flush=True)
-        lines.append(row(f"ACES first {n} scans, {m} particles", ps.slam.run_slam(excerpt, method="rbpf",
-                                                                                 progress=False, num_particles=m)))
+        lines.append(row(f"ACES first {n} scans, {m} particles", rbpf(excerpt, num_particles=m)))
     if not args.quick:
         results = {}
         for threads in (1, 2):
             print(f"bench_rbpf: ACES excerpt, {threads} threads ...", file=sys.stderr, flush=True)
-            results[threads] = ps.slam.run_slam(excerpt, method="rbpf", progress=False, num_particles=30,
-                                                threads=threads)
+            results[threads] = rbpf(excerpt, num_particles=30, threads=threads)
         same = np.array_equal(results[1].poses, results[2].poses)
         lines.append(row(f"ACES first {n} scans, 30 particles, 2 threads", results[2],
                          f"; {results[1].seconds / results[2].seconds:.2f}x one thread, "
@@ -130,7 +134,7 @@ def main():
                 lines.append(f"| {title} | - | - | - | - | - | - | - | not found |")
                 continue
             print(f"bench_rbpf: {title}, 30 particles ...", file=sys.stderr, flush=True)
-            result = ps.slam.run_slam(path, method="rbpf", progress=False, num_particles=30)
+            result = rbpf(path, num_particles=30)
             lines.append(row(f"{title} whole log, 30 particles", result, aces=name == "aces",
                              extra="" if name == "aces" else corrected_agreement(name, path, result)))
             if args.figures is not None:

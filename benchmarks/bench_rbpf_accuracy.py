@@ -34,10 +34,12 @@ RUNS = [("scan-matching", dict(proposal="scan-matching"), (10, 30)),
         ("motion", dict(proposal="motion"), (30, 100))]
 
 
-def relations_error(options):
-    """(mean, std) of the ACES relation errors for one run_slam call with these options."""
+def relations_error(method, fields):
+    """(mean, std) of the ACES relation errors for one run_slam call: the log's default options
+    for method with these fields replaced."""
     scans = ps.io.read_carmen_log(ACES).scans
-    result = ps.slam.run_slam(scans, progress=False, **options)
+    options = ps.slam.default_options(scans, method).replace(**fields)
+    result = ps.slam.run_slam(scans, progress=False, options=options)
     e = ps.eval.relations_error(result.timestamps, result.poses, ps.eval.relations_on_logger_time(RELATIONS, scans))
     return e.trans_mean, e.trans_std
 
@@ -53,13 +55,13 @@ def main():
         return
     if args.jobs < 1:
         parser.error("--jobs must be at least 1")
-    jobs = {("graph", 0, 0): dict(method="graph")}
+    jobs = {("graph", 0, 0): ("graph", {})}
     for label, options, counts in RUNS:
         for m in counts:
             for seed in args.seeds:
-                jobs[(label, m, seed)] = dict(method="rbpf", num_particles=m, seed=seed, **options)
+                jobs[(label, m, seed)] = ("rbpf", dict(num_particles=m, seed=seed, **options))
     with concurrent.futures.ProcessPoolExecutor(max_workers=args.jobs) as pool:
-        futures = {key: pool.submit(relations_error, options) for key, options in jobs.items()}
+        futures = {key: pool.submit(relations_error, *job) for key, job in jobs.items()}
         results = {}
         for key, fut in futures.items():
             results[key] = fut.result()

@@ -72,7 +72,8 @@ def child(name: str, method: str, scans: int) -> None:
     after_read = peak_rss_mib()
     c0 = time.process_time()
     w0 = time.perf_counter()
-    r = ps.slam.run_slam(log, progress=False, method=method, **METHODS[method])
+    options = ps.slam.default_options(log, method).replace(**METHODS[method])
+    r = ps.slam.run_slam(log, progress=False, method=method, options=options)
     cpu = time.process_time() - c0
     out = dict(scans=len(log), cpu=cpu, wall=time.perf_counter() - w0, duration=r.log_duration,
                rss_read=after_read, rss_peak=peak_rss_mib(), timings=r.timings.as_dict(),

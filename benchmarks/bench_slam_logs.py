@@ -135,7 +135,8 @@ def run_log(name, quick, figures, method="graph", options=None):
     log = ps.io.read_carmen_log(path)
     scans = first_scans(log.scans, QUICK_SCANS) if quick else log.scans
     print(f"bench_slam_logs: {title}: {len(scans)} scans ...", file=sys.stderr, flush=True)
-    result = ps.slam.run_slam(scans, progress=False, method=method, **(options or {}))
+    result = ps.slam.run_slam(scans, progress=False, method=method,
+                              options=ps.slam.with_fields(ps.slam.default_options(scans, method), options or {}))
     s = result.summary
     print(f"bench_slam_logs: {title}: {result.seconds:.1f} s", file=sys.stderr, flush=True)
     if method == "rbpf":
@@ -206,7 +207,8 @@ def main():
     parser.add_argument("--method", choices=ps.slam.METHODS, default="graph",
                         help="graph (GraphSLAM over submaps, default) or rbpf (grid-based FastSLAM)")
     parser.add_argument("--option", action="append", default=[], metavar="NAME=VALUE",
-                        help="an option for run_slam (a Python literal), e.g. num_particles=30; repeatable")
+                        help="an option of run_slam's options by its path (a Python literal), e.g. num_particles=30 or "
+                             "closures.enabled=False; repeatable")
     args = parser.parse_args()
     import ast
 

@@ -7,6 +7,7 @@
 #include "args.hpp"
 #include "numpy.hpp"
 #include "object_lock.hpp"
+#include "options_class.hpp"
 #include "persistence.hpp"
 #include "repr.hpp"
 #include "probslam/graph/graph_initialization.hpp"
@@ -238,6 +239,9 @@ void define_edge_linearization(py::module_& m) {
 }  // namespace
 
 void define_graph(py::module_& m) {
+  bind_options<SparseCholeskyOptions>(m, "SparseCholeskyOptions", "The sparse Cholesky factorisation (CHOLMOD).");
+  bind_options<OptimizerOptions>(m, "OptimizerOptions",
+                                 "The pose-graph optimiser's options (Gauss-Newton or Levenberg-Marquardt).");
   // Every method runs its C++ work under the graph's lock with the GIL released (object_lock.hpp).
   auto graph_class = py::class_<PoseGraph2D>(m, "PoseGraph2D",
                           "A planar pose/landmark graph (GraphSLAM's constraints, ch. 11): pose vertices (x m, y m,\n"

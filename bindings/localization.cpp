@@ -72,7 +72,7 @@ void define_localization(py::module_& m) {
       "MonteCarloLocalization(map, *, options=None, initial_pose=None, initial_covariance=None, **fields):\n"
       "    map: an OccupancyGrid2D (copied).\n"
       "    options: a MonteCarloLocalizationOptions (None: the defaults); **fields set fields of it by name\n"
-      "        (sigma_hit=0.15, odometry=OdometryMotionNoise(alpha1=0.1), beam={\"z_hit\": 0.9, ...}).\n"
+      "        (sigma=0.15, odometry=OdometryMotionNoise(alpha1=0.1), beam={\"z_hit\": 0.9, ...}).\n"
       "    initial_pose: (x, y, theta) to start around, None for a global start (max_particles uniform over\n"
       "        the free cells); initial_covariance: (3, 3), None for diag(0.25 m, 0.25 m, 15 deg)^2.\n"
       "Errors name the field's path (\"beam.z_hit\"). A failed call changes nothing.");
@@ -81,10 +81,7 @@ void define_localization(py::module_& m) {
   c.def(py::init([](py::handle map, py::handle options, py::handle initial_pose, py::handle initial_covariance,
                     const py::kwargs& fields) {
           const OccupancyGrid2D& grid = ClassArg<OccupancyGrid2D>{py::reinterpret_borrow<py::object>(map)}.get("map");
-          MonteCarloLocalizationOptions base;
-          if (!options.is_none())
-            base = ClassArg<MonteCarloLocalizationOptions>{py::reinterpret_borrow<py::object>(options)}.get("options");
-          const MonteCarloLocalizationOptions o = options_with(base, fields, "MonteCarloLocalization()");
+          const auto o = options_arg<MonteCarloLocalizationOptions>(options, fields, "MonteCarloLocalization()");
           const bool global = initial_pose.is_none();
           Eigen::Vector3d pose = Eigen::Vector3d::Zero();
           if (!global) pose = pose_arg(initial_pose, "initial_pose");
@@ -150,7 +147,7 @@ void define_localization(py::module_& m) {
         return locked(self, [&] { return self.update(as_vector(r), as_vector(a), f, interrupt); });
       }, py::arg("ranges"), py::arg("angles"), py::kw_only(), py::arg_v("force", false),
          "One scan: ranges (B,) m (finite, >= 0), angles (B,) rad relative to the sensor heading. Updates\n"
-         "after update_min_d / update_min_a of travel (or on the first scan, or with force=True).\n"
+         "after update.distance / update.angle of travel (or on the first scan, or with force=True).\n"
          "Returns an MclUpdate. Ctrl-C stops a long update with the filter unchanged.")
       .def("measurement_log_likelihood", [](const Mcl& self, py::handle pose, py::handle ranges, py::handle angles) {
         const Eigen::Vector3d p = pose_arg(pose, "pose");

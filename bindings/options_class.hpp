@@ -200,7 +200,17 @@ struct Signature {
     else if constexpr (std::is_same_v<M, bool>) type = "bool";
     else if constexpr (IsOptionEnum<M>::value) type = "str";
     else type = "int";
-    out += std::string(", ") + name + ": " + type + " = " + std::string(py::repr(field_to_py(o.*member)));
+    out += std::string(", ") + name + ": " + type + " = " + default_text(o.*member);
+  }
+  /// A group's default is its class's (`...` here: the class shows it), an infinity math.inf
+  /// (what the stub imports), anything else its repr.
+  template <class M>
+  static std::string default_text(const M& v) {
+    if constexpr (IsDescribed<M>::value) return "...";
+    else if constexpr (std::is_same_v<M, double>) {
+      if (std::isinf(v)) return v > 0 ? "math.inf" : "-math.inf";
+    }
+    return py::repr(field_to_py(v));
   }
 };
 
@@ -233,6 +243,16 @@ template <class T>
 T options_with(T o, const py::kwargs& kwargs, const char* owner) {
   options_detail::set_fields(o, kwargs, "", owner);
   return o;
+}
+
+/// What a constructor `Owner(..., *, options=None, **fields)` runs with: `options` (None: T's
+/// defaults; else a T, TypeError naming `options` otherwise) with the fields named in `fields`
+/// replaced (the struct's validate() not run: the owner's constructor runs it).
+template <class T>
+T options_arg(py::handle options, const py::kwargs& fields, const char* owner) {
+  T base;
+  if (!options.is_none()) base = ClassArg<T>{py::reinterpret_borrow<py::object>(options)}.get("options");
+  return options_with(base, fields, owner);
 }
 
 /// What every class made from a describe() has: {field: value} (as_dict), == by fields, a repr

@@ -23,6 +23,7 @@
 #include "probslam/slam2d/range_scan.hpp"
 #include "probslam/fastslam/grid_fast_slam.hpp"
 #include "probslam/slam2d/submap_slam.hpp"
+#include "probslam/core/update_trigger.hpp"
 
 namespace probslam::bindings {
 
@@ -57,153 +58,41 @@ MatchOptions match_options(double linear_window, double angular_window, double a
   o.brute_force = brute_force;
   o.min_translation_std = min_translation_std;
   o.min_rotation_std = min_rotation_std;
-  o.validate();
+  try {
+    o.validate();
+  } catch (const std::invalid_argument& e) {
+    // The window's fields are match()'s keywords linear_window, angular_window and angular_step.
+    std::string what = e.what();
+    for (const auto& [path, keyword] : {std::pair{"window.linear", "linear_window"}, std::pair{"window.angular_step", "angular_step"},
+                                        std::pair{"window.angular", "angular_window"}}) {
+      const std::string prefix = std::string(path) + " ";
+      if (what.rfind(prefix, 0) == 0) {
+        what = std::string(keyword) + what.substr(std::string(path).size());
+        break;
+      }
+    }
+    throw std::invalid_argument(what);
+  }
   return o;
 }
 
-/// The scan filter's keywords, shared by every laser SLAM class.
-struct FilterArgs {
-  RealArg max_range, min_range, max_usable_range;
-  BoolArg clear_no_return;
-  RealArg min_point_spacing;
-  ScanFilter get() const {
-    return {max_range.get("max_range"), min_range.get("min_range"), max_usable_range.get("max_usable_range"),
-            clear_no_return.get("clear_no_return"), min_point_spacing.get("min_point_spacing")};
-  }
-};
-
-auto filter_keywords(const ScanFilter& d) {
-  return std::make_tuple(real_arg("max_range", d.max_range), real_arg("min_range", d.min_range),
-                         real_arg("max_usable_range", d.max_usable_range),
-                         py::arg_v("clear_no_return", d.clear_no_return), real_arg("min_point_spacing", d.min_point_spacing));
-}
-
-/// odometry_noise: the six OdometryNoise coefficients, in their declaration order.
-OdometryNoise odometry_noise_arg(py::handle v) {
-  const DoubleArray a = vector_arg(v, "odometry_noise", 6);
-  return {a.data()[0], a.data()[1], a.data()[2], a.data()[3], a.data()[4], a.data()[5]};
-}
-
-py::tuple odometry_noise_default(const OdometryNoise& n) {
-  return py::make_tuple(n.trans_per_metre, n.trans_per_radian, n.trans_floor, n.rot_per_radian, n.rot_per_metre,
-                        n.rot_floor);
-}
-
-/// The frontend's keywords (IncrementalScanMatcher, and SubmapSlam2D's frontend), in signature order.
-struct FrontendArgs {
-  RealArg resolution;
-  FilterArgs filter;
-  RealArg sigma, p_rand, linear_window, angular_window;
-  BoolArg refine, use_odometry_prior;
-  py::handle odometry_noise;
-  RealArg min_travel, min_rotation, submap_distance;
-  IntArg submap_scans;
-  RealArg min_match_quality;
-  IntArg warmup_scans;
-  RealArg field_refresh_distance, field_refresh_angle;
-  BoolArg constant_velocity;
-  RealArg match_fraction;
-
-  IncrementalScanMatcherOptions get(IncrementalScanMatcherOptions o) const {
-    o.resolution = resolution.get("resolution");
-    o.filter = filter.get();
-    o.field.sigma = sigma.get("sigma");
-    o.field.p_rand = p_rand.get("p_rand");
-    o.match.window.linear = linear_window.get("linear_window");
-    o.match.window.angular = angular_window.get("angular_window");
-    o.match.refine = refine.get("refine");
-    o.use_odometry_prior = use_odometry_prior.get("use_odometry_prior");
-    o.odometry = odometry_noise_arg(odometry_noise);
-    o.min_travel = min_travel.get("min_travel");
-    o.min_rotation = min_rotation.get("min_rotation");
-    o.submap_distance = submap_distance.get("submap_distance");
-    o.submap_scans = submap_scans.get("submap_scans");
-    o.min_match_quality = min_match_quality.get("min_match_quality");
-    o.warmup_scans = warmup_scans.get("warmup_scans");
-    o.field_refresh_distance = field_refresh_distance.get("field_refresh_distance");
-    o.field_refresh_angle = field_refresh_angle.get("field_refresh_angle");
-    o.constant_velocity = constant_velocity.get("constant_velocity");
-    o.match_fraction = match_fraction.get("match_fraction");
-    return o;
-  }
-};
-
-auto frontend_keywords(const IncrementalScanMatcherOptions& d) {
-  return std::tuple_cat(
-      std::make_tuple(real_arg("resolution", d.resolution)), filter_keywords(d.filter),
-      std::make_tuple(real_arg("sigma", d.field.sigma), real_arg("p_rand", d.field.p_rand),
-                      real_arg("linear_window", d.match.window.linear), real_arg("angular_window", d.match.window.angular),
-                      py::arg_v("refine", d.match.refine), py::arg_v("use_odometry_prior", d.use_odometry_prior),
-                      py::arg_v("odometry_noise", odometry_noise_default(d.odometry)),
-                      real_arg("min_travel", d.min_travel), real_arg("min_rotation", d.min_rotation),
-                      real_arg("submap_distance", d.submap_distance), py::arg_v("submap_scans", d.submap_scans),
-                      real_arg("min_match_quality", d.min_match_quality), py::arg_v("warmup_scans", d.warmup_scans),
-                      real_arg("field_refresh_distance", d.field_refresh_distance),
-                      real_arg("field_refresh_angle", d.field_refresh_angle),
-                      py::arg_v("constant_velocity", d.constant_velocity),
-                      real_arg("match_fraction", d.match_fraction)));
-}
-
-constexpr double kBytesPerMiB = 1024.0 * 1024.0;
-
-/// The loop closures' keywords of SubmapSlam2D (field_cache_mb in MiB; the C++ option is bytes).
-struct ClosureArgs {
-  BoolArg loop_closures;
-  IntArg closure_scans_per_submap;
-  RealArg closure_min_match_quality, closure_window_sigmas, closure_min_linear_window, closure_max_linear_window,
-      closure_min_angular_window, closure_max_angular_window, closure_max_distance, dissolve_chi2, field_cache_mb;
-  IntArg max_rounds;
-
-  void get(SubmapSlamOptions& o) const {
-    LoopClosureOptions& c = o.closures;
-    c.enabled = loop_closures.get("loop_closures");
-    c.scans_per_submap = closure_scans_per_submap.get("closure_scans_per_submap");
-    c.min_match_quality = closure_min_match_quality.get("closure_min_match_quality");
-    c.window_sigmas = closure_window_sigmas.get("closure_window_sigmas");
-    c.min_linear_window = closure_min_linear_window.get("closure_min_linear_window");
-    c.max_linear_window = closure_max_linear_window.get("closure_max_linear_window");
-    c.min_angular_window = closure_min_angular_window.get("closure_min_angular_window");
-    c.max_angular_window = closure_max_angular_window.get("closure_max_angular_window");
-    c.max_distance = closure_max_distance.get("closure_max_distance");
-    c.dissolve_chi2 = dissolve_chi2.get("dissolve_chi2");
-    c.field_cache_bytes = field_cache_mb.get("field_cache_mb") * kBytesPerMiB;
-    o.max_rounds = max_rounds.get("max_rounds");
-  }
-};
-
-auto closure_keywords(const SubmapSlamOptions& d) {
-  const LoopClosureOptions& c = d.closures;
-  return std::make_tuple(
-      py::arg_v("loop_closures", c.enabled), py::arg_v("closure_scans_per_submap", c.scans_per_submap),
-      real_arg("closure_min_match_quality", c.min_match_quality), real_arg("closure_window_sigmas", c.window_sigmas),
-      real_arg("closure_min_linear_window", c.min_linear_window),
-      real_arg("closure_max_linear_window", c.max_linear_window),
-      real_arg("closure_min_angular_window", c.min_angular_window),
-      real_arg("closure_max_angular_window", c.max_angular_window), real_arg("closure_max_distance", c.max_distance),
-      real_arg("dissolve_chi2", c.dissolve_chi2), real_arg("field_cache_mb", c.field_cache_bytes / kBytesPerMiB),
-      py::arg_v("max_rounds", d.max_rounds));
-}
-
-GridProposal proposal_arg(const StrArg& v) {
-  const std::string name = v.get("proposal");
-  if (name == "motion") return GridProposal::kMotion;
-  if (name == "scan-matching") return GridProposal::kScanMatching;
-  if (name == "improved-odometry") return GridProposal::kImprovedOdometry;
-  throw py::value_error("proposal must be 'motion', 'scan-matching' or 'improved-odometry', got '" + name + "'");
-}
-
-const char* proposal_name(GridProposal p) {
-  switch (p) {
-    case GridProposal::kMotion: return "motion";
-    case GridProposal::kImprovedOdometry: return "improved-odometry";
-    default: return "scan-matching";
-  }
-}
-
-/// Defines a constructor whose keywords are the tuple `keywords` (py::arg_v each), after py::kw_only().
-template <typename Class, typename Init, typename Keywords>
-void keyword_init(Class& c, Init&& init, const Keywords& keywords, const char* doc) {
-  std::apply([&](const auto&... k) { c.def(std::forward<Init>(init), py::kw_only(), k..., doc); }, keywords);
+/// `Owner(*, options=None, **fields)` for a class built from one options struct T, and its
+/// `options` property (a copy of what it runs with).
+template <class Owner, class T>
+void def_options_init(py::class_<Owner>& c, const char* owner, const char* options_name) {
+  py::options signatures;  // the fields' keywords are written from describe(), not **kwargs
+  signatures.disable_function_signatures();
+  const std::string call = std::string(owner) + "()";
+  c.def(py::init([call](py::handle options, const py::kwargs& fields) {
+          return std::make_unique<Owner>(options_arg<T>(options, fields, call.c_str()));
+        }),
+        py::kw_only(), py::arg("options") = py::none(),
+        ("__init__(self: " + std::string(owner) + ", *, options: Optional[" + options_name + "] = None" +
+         field_parameters<T>() + ") -> None\n\nSee the class docstring: a field given by keyword replaces options' field.")
+            .c_str());
+  signatures.enable_function_signatures();
+  c.def_property_readonly("options", [](const Owner& self) { return locked(self, [&] { return self.options(); }); },
+                          ("A copy of the " + std::string(options_name) + " it runs with.").c_str());
 }
 
 /// add_scans of the laser SLAM classes: shapes checked here, then the class's own add_scans
@@ -267,6 +156,29 @@ SubmapConstraintArrays constraint_arrays(const std::vector<SubmapConstraint>& cs
   return out;
 }
 
+/// The laser SLAM classes' options, groups before the structs that hold them (a signature names
+/// a group's class). UpdateTrigger is MonteCarloLocalizationOptions' too (bound after this).
+void define_laser_options(py::module_& m) {
+  bind_options<UpdateTrigger>(m, "UpdateTrigger",
+                              "When a filter or scan matcher works on a scan: after this much travel or turn since it last did.");
+  bind_options<ScanFilter>(m, "ScanFilter", "How raw laser readings become hits, and the usable range.");
+  bind_options<LikelihoodFieldOptions>(m, "LikelihoodFieldOptions",
+                                       "The blurred likelihood field of a grid (ch. 6.4) scans are matched against.");
+  bind_options<SearchWindow>(m, "SearchWindow", "The correlative search window around the prior pose.");
+  bind_options<MatchOptions>(m, "MatchOptions", "Correlative scan matching's window, refinement and covariance floors.");
+  bind_options<OdometryNoise>(m, "OdometryNoise",
+                              "The laser SLAM classes' odometry noise: stds growing with the distance travelled and the angle turned.");
+  bind_options<IncrementalScanMatcherOptions>(m, "IncrementalScanMatcherOptions",
+                                              "The options of IncrementalScanMatcher (and SubmapSlam2D's frontend).");
+  bind_options<LoopClosureOptions>(m, "LoopClosureOptions", "SubmapSlam2D's loop-closure search.");
+  bind_options<SubmapSlamOptions>(m, "SubmapSlamOptions", "The options of SubmapSlam2D (ch. 11.7).");
+  bind_options<EndpointLikelihoodOptions>(m, "EndpointLikelihoodOptions",
+                                          "GridFastSlam's end-point likelihood p(z | x, m) (ch. 6.4).");
+  bind_options<ScanProposalOptions>(m, "ScanProposalOptions",
+                                    "GridFastSlam's scan-matching proposal (Grisetti et al. 2007): hill climb and Gaussian fit.");
+  bind_options<GridFastSlamOptions>(m, "GridFastSlamOptions", "The options of GridFastSlam.");
+}
+
 void define_laser_results(py::module_& m) {
   bind_report<SubmapSlamTimings>(m, "SubmapSlamTimings",
                                  "Processor seconds per stage of a SubmapSlam2D since construction or loading, and what it built.");
@@ -313,7 +225,7 @@ void define_laser_results(py::module_& m) {
   using G = GridFastSlamSummary;
   py::class_<G>(m, "GridFastSlamSummary", "GridFastSlam.summary: counts of the run so far.")
       .def_readonly("scans", &G::scans, "Scans added.")
-      .def_readonly("updates", &G::updates, "Filter updates (scans after update_distance / update_angle of travel).")
+      .def_readonly("updates", &G::updates, "Filter updates (scans after update.distance / update.angle of travel).")
       .def_readonly("resamples", &G::resamples, "Resamplings.")
       .def_readonly("matched", &G::matched, "Particle updates drawn from the scan-matching proposal.")
       .def_readonly("fallbacks", &G::fallbacks, "Particle updates whose match failed (motion model instead).")
@@ -424,18 +336,18 @@ void define_slam2d(py::module_& m) {
   py::class_<LikelihoodField>(m, "LikelihoodField",
                               "The blurred likelihood field of a grid (ch. 6.4): log((1 - p_rand) exp(-d^2 / 2 sigma^2)\n"
                               "+ p_rand), d the distance (m) to the nearest occupied cell; immutable once built.")
-      .def(py::init([](ClassArg<OccupancyGrid2D> grid_arg, double sigma, double p_rand, double occupied_probability,
+      .def(py::init([](ClassArg<OccupancyGrid2D> grid_arg, double sigma, double p_rand, double occupied_threshold,
                        double max_distance, py::handle region) {
              const OccupancyGrid2D& grid = grid_arg.get("grid");
-             const LikelihoodFieldOptions o{sigma, p_rand, occupied_probability, max_distance};
+             const LikelihoodFieldOptions o{sigma, p_rand, occupied_threshold, max_distance};
              if (region.is_none())
                return locked(grid, [&] { return LikelihoodField::from_grid(grid, o); });
              const Eigen::Vector4d box = fixed_vector<4>(region, "region");
              return locked(grid, [&] { return LikelihoodField::from_grid(grid, box, o); });
            }),
-           py::arg("grid"), py::arg("sigma") = 0.05, py::arg("p_rand") = 0.05, py::arg("occupied_probability") = 0.5,
+           py::arg("grid"), py::arg("sigma") = 0.05, py::arg("p_rand") = 0.05, py::arg("occupied_threshold") = 0.5,
            py::arg("max_distance") = 0.0, py::arg("region") = py::none(),
-           "From grid's cells with p > occupied_probability; sigma m; max_distance m (0: 6 sigma), the\n"
+           "From grid's cells with p > occupied_threshold; sigma m; max_distance m (0: 6 sigma), the\n"
            "truncation; region (xmin, ymin, xmax, ymax) m limits it to part of the grid.")
       .def_property_readonly("resolution", &LikelihoodField::resolution, "Cell side, metres.")
       .def_property_readonly("origin", &LikelihoodField::origin, "(x0, y0) m of cell (0, 0)'s lower-left corner.")
@@ -545,58 +457,19 @@ void define_slam2d(py::module_& m) {
           py::arg("points"), py::arg("pose"), py::arg("prior") = py::none(), py::arg("prior_covariance") = py::none(),
           "Score (sum of log p over points (N, 2) m, plus the prior term) at pose (3,) on the bilinear field.");
 
+  define_laser_options(m);
   define_laser_results(m);
 
   using ISM = IncrementalScanMatcher;
-  const IncrementalScanMatcherOptions ism_defaults;
   auto ism = mapper_class<ISM>(
       m, "IncrementalScanMatcher",
       "Each scan matched against the map built so far (incremental scan matching into local submaps).\n"
       "\n"
-      "IncrementalScanMatcher(*, options), every option a keyword (defaults in the signature):\n"
-      "    resolution: cell side of the local maps, m.\n"
-      "    max_range: the sensor's maximum, m (readings at or beyond it are no-returns).\n"
-      "    min_range: closer readings (the robot's own body) are dropped, m.\n"
-      "    max_usable_range: farther hits are not used; they clear free space up to it, m.\n"
-      "    clear_no_return: no-return beams clear free space up to the usable range.\n"
-      "    min_point_spacing: hits closer than this to the last kept one are dropped, m (0: keep all).\n"
-      "    sigma: standard deviation of a hit around the nearest obstacle in the likelihood field, m.\n"
-      "    p_rand: weight of the field's uniform part.\n"
-      "    linear_window: half-width of the search window, m; angular_window: rad.\n"
-      "    refine: Gauss-Newton on the interpolated field after the search.\n"
-      "    use_odometry_prior: the odometry motion model enters the score.\n"
-      "    odometry_noise: (6,) trans_per_metre (m/m), trans_per_radian (m/rad), trans_floor (m),\n"
-      "        rot_per_radian (rad/rad), rot_per_metre (rad/m), rot_floor (rad) of the odometry model.\n"
-      "    min_travel: m; min_rotation: rad; a scan is matched once the odometry moved or turned this\n"
-      "        much since the last matched scan.\n"
-      "    submap_distance: a new submap starts after this much travel, m (0: one map);\n"
-      "        submap_scans: ... or this many matched scans (0: no limit).\n"
-      "    min_match_quality: matches below this mean hit likelihood (0 .. 1) fall back to odometry.\n"
-      "    warmup_scans: scans inserted into a new local map before matching starts against it.\n"
-      "    field_refresh_distance: m; field_refresh_angle: rad; the local map's likelihood field is\n"
-      "        rebuilt once the robot moved or turned this much since it was built (0: every scan).\n"
-      "    constant_velocity: predict each scan's motion as the last matched one (a log without\n"
-      "        odometry), not the odometry's.\n"
-      "    match_fraction: hits beyond this fraction of the usable range are inserted, not matched\n"
-      "        (the map's edge pulls them back), 0 < f <= 1.\n"
-      "A failed call (add_scans included) changes nothing.");
-  keyword_init(
-      ism,
-      py::init([](RealArg resolution, RealArg max_range, RealArg min_range, RealArg max_usable_range,
-                  BoolArg clear_no_return, RealArg min_point_spacing, RealArg sigma, RealArg p_rand,
-                  RealArg linear_window, RealArg angular_window, BoolArg refine, BoolArg use_odometry_prior,
-                  py::handle odometry_noise, RealArg min_travel, RealArg min_rotation, RealArg submap_distance,
-                  IntArg submap_scans, RealArg min_match_quality, IntArg warmup_scans, RealArg field_refresh_distance,
-                  RealArg field_refresh_angle, BoolArg constant_velocity, RealArg match_fraction) {
-        const FrontendArgs a{resolution, {max_range, min_range, max_usable_range, clear_no_return, min_point_spacing},
-                             sigma, p_rand, linear_window, angular_window, refine, use_odometry_prior,
-                             odometry_noise, min_travel, min_rotation, submap_distance, submap_scans,
-                             min_match_quality, warmup_scans, field_refresh_distance, field_refresh_angle,
-                             constant_velocity, match_fraction};
-        const IncrementalScanMatcherOptions o = a.get(IncrementalScanMatcherOptions{});
-        return std::make_unique<ISM>(o);
-      }),
-      frontend_keywords(ism_defaults), "Keyword options only: see the class docstring.");
+      "IncrementalScanMatcher(*, options=None, **fields):\n"
+      "    options: an IncrementalScanMatcherOptions (None: the defaults); **fields set fields of it by name\n"
+      "        (resolution=0.1, filter={\"max_range\": 8.0}, update=UpdateTrigger(distance=0.1)).\n"
+      "Errors name the field's path (\"filter.max_range\"). A failed call (add_scans included) changes nothing.");
+  def_options_init<ISM, IncrementalScanMatcherOptions>(ism, "IncrementalScanMatcher", "IncrementalScanMatcherOptions");
   ism.def_property_readonly("num_scans", getter(&ISM::num_scans), "Scans added.")
       .def_property_readonly("pose", [](const ISM& self) {
         return locked(self, [&] {
@@ -626,55 +499,17 @@ void define_slam2d(py::module_& m) {
       }, py::arg("index"), "A copy of submap index's OccupancyGrid2D.");
 
   using Slam = SubmapSlam2D;
-  const SubmapSlamOptions slam_defaults;
   auto slam = mapper_class<Slam>(
       m, "SubmapSlam2D",
       "GraphSLAM over scan-matched submaps with correlative loop closures (ch. 11.7).\n"
       "probslam.slam.run_slam drives it from a log.\n"
       "\n"
-      "SubmapSlam2D(*, options), every option a keyword (defaults in the signature): the\n"
-      "IncrementalScanMatcher's (the frontend; submap_distance 10 m here) and the loop closures':\n"
-      "    loop_closures: search for loop closures at all.\n"
-      "    closure_scans_per_submap: scans of each finished submap matched against the older ones.\n"
-      "    closure_min_match_quality: a closure needs this mean hit likelihood (0 .. 1).\n"
-      "    closure_window_sigmas: the search window is this many standard deviations of the\n"
-      "        predicted relative pose, within closure_min_linear_window .. closure_max_linear_window\n"
-      "        (m) and closure_min_angular_window .. closure_max_angular_window (rad).\n"
-      "    closure_max_distance: submaps predicted farther apart are not searched, m.\n"
-      "    dissolve_chi2: a closure whose error in the optimised graph exceeds this chi2 (3 dof) is\n"
-      "        dissolved.\n"
-      "    field_cache_mb: MiB of submap likelihood fields kept for the search (least recently used\n"
-      "        rebuilt).\n"
-      "    max_rounds: rounds of search, optimisation and dissolution in finish().\n"
-      "A failed call (add_scans included) changes nothing.");
-  keyword_init(
-      slam,
-      py::init([](RealArg resolution, RealArg max_range, RealArg min_range, RealArg max_usable_range,
-                  BoolArg clear_no_return, RealArg min_point_spacing, RealArg sigma, RealArg p_rand,
-                  RealArg linear_window, RealArg angular_window, BoolArg refine, BoolArg use_odometry_prior,
-                  py::handle odometry_noise, RealArg min_travel, RealArg min_rotation, RealArg submap_distance,
-                  IntArg submap_scans, RealArg min_match_quality, IntArg warmup_scans, RealArg field_refresh_distance,
-                  RealArg field_refresh_angle, BoolArg constant_velocity, RealArg match_fraction, BoolArg loop_closures, IntArg closure_scans_per_submap,
-                  RealArg closure_min_match_quality, RealArg closure_window_sigmas, RealArg closure_min_linear_window,
-                  RealArg closure_max_linear_window, RealArg closure_min_angular_window,
-                  RealArg closure_max_angular_window, RealArg closure_max_distance, RealArg dissolve_chi2,
-                  RealArg field_cache_mb, IntArg max_rounds) {
-        const FrontendArgs a{resolution, {max_range, min_range, max_usable_range, clear_no_return, min_point_spacing},
-                             sigma, p_rand, linear_window, angular_window, refine, use_odometry_prior,
-                             odometry_noise, min_travel, min_rotation, submap_distance, submap_scans,
-                             min_match_quality, warmup_scans, field_refresh_distance, field_refresh_angle,
-                             constant_velocity, match_fraction};
-        const ClosureArgs c{loop_closures, closure_scans_per_submap, closure_min_match_quality,
-                            closure_window_sigmas, closure_min_linear_window, closure_max_linear_window,
-                            closure_min_angular_window, closure_max_angular_window, closure_max_distance,
-                            dissolve_chi2, field_cache_mb, max_rounds};
-        SubmapSlamOptions o;
-        o.frontend = a.get(o.frontend);
-        c.get(o);
-        return std::make_unique<Slam>(o);
-      }),
-      std::tuple_cat(frontend_keywords(slam_defaults.frontend), closure_keywords(slam_defaults)),
-      "Keyword options only: see the class docstring.");
+      "SubmapSlam2D(*, options=None, **fields):\n"
+      "    options: a SubmapSlamOptions (None: the defaults); **fields set fields of it by name\n"
+      "        (closures={\"min_match_quality\": 0.7}, frontend=IncrementalScanMatcherOptions(resolution=0.1)).\n"
+      "Errors name the field's path (\"closures.min_match_quality\"). A failed call (add_scans included)\n"
+      "changes nothing.");
+  def_options_init<Slam, SubmapSlamOptions>(slam, "SubmapSlam2D", "SubmapSlamOptions");
   define_persistence<Slam>(slam);
   slam.def("start_from_map",
            start_from_map_method<Slam>(),
@@ -737,102 +572,18 @@ void define_slam2d(py::module_& m) {
                              "SubmapSlamMemory: the bytes the large buffers hold, and their total.");
 
   using Rbpf = GridFastSlam;
-  const GridFastSlamOptions rbpf_defaults;
   auto rbpf = mapper_class<Rbpf>(
       m, "GridFastSlam",
       "Grid-based FastSLAM from a raw laser log: particles with a pose, a log weight and their own\n"
       "occupancy grid (32 x 32-cell tiles shared copy-on-write).\n"
       "\n"
-      "GridFastSlam(*, options), every option a keyword (defaults in the signature):\n"
-      "    num_particles: M.\n"
-      "    proposal: \"scan-matching\" (Grisetti et al. 2007), \"motion\" (the odometry motion model) or\n"
-      "        \"improved-odometry\" (Haehnel et al. 2003).\n"
-      "    resolution: cell side of the particles' maps, m.\n"
-      "    max_range, min_range, max_usable_range (m), clear_no_return, min_point_spacing (m): the scan\n"
-      "        filter, as IncrementalScanMatcher's.\n"
-      "    odometry_noise: (6,) the odometry model's coefficients, as IncrementalScanMatcher's.\n"
-      "    sigma: standard deviation of a hit around the nearest obstacle, m; p_rand: weight of the\n"
-      "        uniform part; search_radius: obstacles farther than this count as none, m.\n"
-      "    linear_step (m), angular_step (rad): the proposal's first hill-climbing steps; refinements:\n"
-      "        step halvings; sample_linear (m), sample_angular (rad): spacing of its evaluation poses.\n"
-      "    min_match_quality: a match below this mean hit likelihood (0 .. 1) falls back to the motion\n"
-      "        model.\n"
-      "    corrected_start: the climb starts from the odometry corrected by incremental scan matching.\n"
-      "    resample_threshold: resample when N_eff < resample_threshold * M, in [0, 1].\n"
-      "    weight_scale: each update's log weight increment is multiplied by this, in (0, 1] (tempered\n"
-      "        weights: a scan's beams are not independent).\n"
-      "    update_distance (m), update_angle (rad): the filter updates once the odometry moved or\n"
-      "        turned this much since the last update.\n"
-      "    corrector_submap_distance: submap length of the odometry corrector, m.\n"
-      "    seed: int in [0, 2^64); threads: worker threads (results identical for any count).\n"
-      "    max_map_bytes: bytes; the particles' maps with the worst case of the next update; a\n"
-      "        num_particles or an update that could exceed it raises ValueError.\n"
-      "A failed call (add_scans included) changes nothing.");
-  keyword_init(
-      rbpf,
-      py::init([](IntArg num_particles, StrArg proposal, RealArg resolution, RealArg max_range, RealArg min_range,
-                  RealArg max_usable_range, BoolArg clear_no_return, RealArg min_point_spacing,
-                  py::handle odometry_noise, RealArg sigma, RealArg p_rand, RealArg search_radius, RealArg linear_step,
-                  RealArg angular_step, IntArg refinements, RealArg sample_linear, RealArg sample_angular,
-                  RealArg min_match_quality, BoolArg corrected_start, RealArg resample_threshold, RealArg weight_scale,
-                  RealArg update_distance, RealArg update_angle, RealArg corrector_submap_distance, UInt64Arg seed,
-                  IntArg threads, RealArg max_map_bytes) {
-        GridFastSlamOptions o;
-        o.num_particles = num_particles.get("num_particles");
-        o.proposal = proposal_arg(proposal);
-        o.resolution = resolution.get("resolution");
-        o.filter = FilterArgs{max_range, min_range, max_usable_range, clear_no_return, min_point_spacing}.get();
-        o.odometry = odometry_noise_arg(odometry_noise);
-        o.likelihood.sigma = sigma.get("sigma");
-        o.likelihood.p_rand = p_rand.get("p_rand");
-        o.likelihood.search_radius = search_radius.get("search_radius");
-        o.matching.linear_step = linear_step.get("linear_step");
-        o.matching.angular_step = angular_step.get("angular_step");
-        o.matching.refinements = refinements.get("refinements");
-        o.matching.sample_linear = sample_linear.get("sample_linear");
-        o.matching.sample_angular = sample_angular.get("sample_angular");
-        o.matching.min_quality = min_match_quality.get("min_match_quality");
-        o.corrected_start = corrected_start.get("corrected_start");
-        o.resample_threshold = resample_threshold.get("resample_threshold");
-        o.weight_scale = weight_scale.get("weight_scale");
-        o.update_distance = update_distance.get("update_distance");
-        o.update_angle = update_angle.get("update_angle");
-        o.corrector.submap_distance = corrector_submap_distance.get("corrector_submap_distance");
-        o.seed = seed.get("seed");
-        o.threads = threads.get("threads");
-        o.max_map_bytes = max_map_bytes.get("max_map_bytes");
-        // The corrector sees the scans as the filter does.
-        o.corrector.resolution = o.resolution;
-        o.corrector.filter = o.filter;
-        o.corrector.odometry = o.odometry;
-        return std::make_unique<Rbpf>(o);
-      }),
-      std::make_tuple(
-          py::arg_v("num_particles", rbpf_defaults.num_particles),
-          py::arg_v("proposal", std::string(proposal_name(rbpf_defaults.proposal))),
-          real_arg("resolution", rbpf_defaults.resolution), real_arg("max_range", rbpf_defaults.filter.max_range),
-          real_arg("min_range", rbpf_defaults.filter.min_range),
-          real_arg("max_usable_range", rbpf_defaults.filter.max_usable_range),
-          py::arg_v("clear_no_return", rbpf_defaults.filter.clear_no_return),
-          real_arg("min_point_spacing", rbpf_defaults.filter.min_point_spacing),
-          py::arg_v("odometry_noise", odometry_noise_default(rbpf_defaults.odometry)),
-          real_arg("sigma", rbpf_defaults.likelihood.sigma), real_arg("p_rand", rbpf_defaults.likelihood.p_rand),
-          real_arg("search_radius", rbpf_defaults.likelihood.search_radius),
-          real_arg("linear_step", rbpf_defaults.matching.linear_step),
-          real_arg("angular_step", rbpf_defaults.matching.angular_step),
-          py::arg_v("refinements", rbpf_defaults.matching.refinements),
-          real_arg("sample_linear", rbpf_defaults.matching.sample_linear),
-          real_arg("sample_angular", rbpf_defaults.matching.sample_angular),
-          real_arg("min_match_quality", rbpf_defaults.matching.min_quality),
-          py::arg_v("corrected_start", rbpf_defaults.corrected_start),
-          real_arg("resample_threshold", rbpf_defaults.resample_threshold),
-          real_arg("weight_scale", rbpf_defaults.weight_scale),
-          real_arg("update_distance", rbpf_defaults.update_distance),
-          real_arg("update_angle", rbpf_defaults.update_angle),
-          real_arg("corrector_submap_distance", rbpf_defaults.corrector.submap_distance),
-          py::arg_v("seed", rbpf_defaults.seed), py::arg_v("threads", rbpf_defaults.threads),
-          real_arg("max_map_bytes", rbpf_defaults.max_map_bytes)),
-      "Keyword options only: see the class docstring.");
+      "GridFastSlam(*, options=None, **fields):\n"
+      "    options: a GridFastSlamOptions (None: the defaults); **fields set fields of it by name\n"
+      "        (num_particles=50, proposal=\"motion\", likelihood={\"sigma\": 0.1}).\n"
+      "Errors name the field's path (\"likelihood.sigma\"); a num_particles whose maps could exceed\n"
+      "max_map_bytes raises ValueError. Results are identical for any thread count. A failed call\n"
+      "(add_scans included) changes nothing.");
+  def_options_init<Rbpf, GridFastSlamOptions>(rbpf, "GridFastSlam", "GridFastSlamOptions");
   define_persistence<Rbpf>(rbpf);
   rbpf.def_property_readonly("num_scans", getter(&Rbpf::num_scans), "Scans added.")
       .def_property_readonly("num_particles", getter(&Rbpf::num_particles), "M, the number of particles.")

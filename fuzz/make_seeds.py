@@ -153,9 +153,9 @@ def small_states() -> dict:
     scans = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_RAW_LOG)).scans
     rows, beams = slice(0, 400, 8), slice(None, None, 12)
     ranges, angles, odometry = scans.ranges[rows, beams], scans.beam_angles()[rows, beams], scans.laser_poses[rows]
-    slam = ps.SubmapSlam2D(resolution=1.0, max_usable_range=5.0, submap_scans=8)
+    slam = ps.SubmapSlam2D(frontend=dict(resolution=1.0, filter={"max_usable_range": 5.0}, submap_scans=8))
     slam.add_scans(ranges, angles, odometry, scans.timestamps[rows])
-    rbpf = ps.GridFastSlam(num_particles=2, resolution=1.0, max_usable_range=5.0)
+    rbpf = ps.GridFastSlam(num_particles=2, resolution=1.0, filter={"max_usable_range": 5.0})
     rbpf.add_scans(ranges, angles, odometry, scans.timestamps[rows])
     fast = ps.FastSlam(3, np.diag([0.01, 0.01, 0.002]), np.diag([0.0025, 0.0001]), seed=3)
     ekf = EkfSlam(np.diag([0.01, 0.01, 0.002]), np.diag([0.0025, 0.0001]))

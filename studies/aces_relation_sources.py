@@ -42,8 +42,9 @@ SHORT_RELATION = 1.0
 #: prints five decimals, so a translation of its own would differ by more than rounding (5e-6).
 SAME_AS_ODOMETRY = 1e-4
 #: The laser-only match: the frontend's defaults, a window wide enough for either start.
-MATCH_OPTIONS = dict(use_odometry_prior=False, min_travel=0.0, min_rotation=0.0, submap_distance=0.0,
-                     linear_window=0.3, angular_window=0.2, field_refresh_distance=0.0, field_refresh_angle=0.0)
+MATCH_OPTIONS = dict(use_odometry_prior=False, update={"distance": 0.0, "angle": 0.0}, submap_distance=0.0,
+                     match={"window": {"linear": 0.3, "angular": 0.2}}, field_refresh_distance=0.0,
+                     field_refresh_angle=0.0)
 
 
 def laser_relation(scans, i, j, start):

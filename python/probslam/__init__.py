@@ -86,6 +86,11 @@ from .inverse_learning import LearnedInverseModel
 from .slam import SlamResult, run_slam
 from ._core import (BeamMixture, MclUpdate, MonteCarloLocalization, MonteCarloLocalizationOptions,
                     OdometryMotionNoise, odometry_motion, odometry_motion_log_density, sample_odometry_motion)
+# The options classes of the laser SLAM classes and the graph optimiser (C++ describe()).
+from ._core import (EndpointLikelihoodOptions, GridFastSlamOptions, IncrementalScanMatcherOptions,
+                    LikelihoodFieldOptions, LoopClosureOptions, MatchOptions, OdometryNoise, OptimizerOptions,
+                    ScanFilter, ScanProposalOptions, SearchWindow, SparseCholeskyOptions, SubmapSlamOptions,
+                    UpdateTrigger)
 from .localization import LocalizationResult, localize
 from .datasets import LandmarkSlamResult, refine_run, run_landmark_slam
 
@@ -207,6 +212,20 @@ __all__ = [
     "MonteCarloLocalizationOptions",
     "OdometryMotionNoise",
     "BeamMixture",
+    "UpdateTrigger",
+    "ScanFilter",
+    "LikelihoodFieldOptions",
+    "SearchWindow",
+    "MatchOptions",
+    "OdometryNoise",
+    "IncrementalScanMatcherOptions",
+    "LoopClosureOptions",
+    "SubmapSlamOptions",
+    "EndpointLikelihoodOptions",
+    "ScanProposalOptions",
+    "GridFastSlamOptions",
+    "OptimizerOptions",
+    "SparseCholeskyOptions",
     "LocalizationResult",
     "localize",
     "localization",

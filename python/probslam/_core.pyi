@@ -659,7 +659,7 @@ class LikelihoodField:
     distance: npt.NDArray[np.float32]  # (rows, cols) metres to the nearest occupied cell
     log_likelihood: npt.NDArray[np.float32]
     def __init__(self, grid: OccupancyGrid2D, sigma: float = 0.05, p_rand: float = 0.05,
-                 occupied_probability: float = 0.5, max_distance: float = 0.0,
+                 occupied_threshold: float = 0.5, max_distance: float = 0.0,
                  region: Optional[ArrayLike] = None) -> None: ...
     def interpolate_distance(self, points: ArrayLike) -> Tuple[Array, Array]:
         """(N,) bilinear distances and (N, 2) their gradients at world points (N, 2)."""
@@ -691,29 +691,21 @@ class CorrelativeScanMatcher:
 
 class IncrementalScanMatcher:
     """Each scan matched against the map so far (the lecture's scan matching), into local submaps.
-    Keyword options (units in the runtime docstring): resolution (m), the scan filter (max_range,
-    min_range, max_usable_range (m), clear_no_return, min_point_spacing (m)), the likelihood field
-    (sigma (m), p_rand), the search window (linear_window (m), angular_window (rad), refine),
-    use_odometry_prior, odometry_noise (6,), min_travel (m), min_rotation (rad), submap_distance
-    (m), submap_scans, min_match_quality, warmup_scans, field_refresh_distance (m),
-    field_refresh_angle (rad), constant_velocity (predict with the last matched motion, not the
-    odometry's), match_fraction (hits beyond this share of the usable range are inserted, not
-    matched)."""
+    IncrementalScanMatcher(*, options=None, **fields): an IncrementalScanMatcherOptions, fields by
+    keyword replacing its (errors name the field's path, "filter.max_range")."""
+    options: IncrementalScanMatcherOptions  # a copy
     num_scans: int
     num_submaps: int
     pose: Array  # (3,) the last scan's pose
     scan_poses: Array  # (S, 3)
     timestamps: Array  # (S,)
     scan_info: Array  # (S, 5): matched, fallback, submap, match_quality, points
-    def __init__(self, *, resolution: float = 0.05, max_range: float = math.inf, min_range: float = 0.0,
-                 max_usable_range: float = 30.0, clear_no_return: bool = True, min_point_spacing: float = 0.0,
-                 sigma: float = 0.05, p_rand: float = 0.05, linear_window: float = 0.3, angular_window: float = 0.35,
-                 refine: bool = True, use_odometry_prior: bool = True,
-                 odometry_noise: ArrayLike = (0.1, 0.02, 0.01, 0.1, 0.05, 0.005), min_travel: float = 0.05,
-                 min_rotation: float = 0.05, submap_distance: float = 5.0, submap_scans: int = 0,
-                 min_match_quality: float = 0.1, warmup_scans: int = 1, field_refresh_distance: float = 0.3,
-                 field_refresh_angle: float = 0.3, constant_velocity: bool = False,
-                 match_fraction: float = 1.0) -> None: ...
+    def __init__(self, *, options: Optional[IncrementalScanMatcherOptions] = None, resolution: float = 0.05,
+                 filter: ScanFilter = ..., field: LikelihoodFieldOptions = ..., match: MatchOptions = ...,
+                 odometry: OdometryNoise = ..., use_odometry_prior: bool = True, constant_velocity: bool = False,
+                 match_fraction: float = 1.0, update: UpdateTrigger = ..., submap_distance: float = 5.0,
+                 submap_scans: int = 0, min_match_quality: float = 0.1, warmup_scans: int = 1,
+                 field_refresh_distance: float = 0.3, field_refresh_angle: float = 0.3) -> None: ...
     def add_scans(self, ranges: ArrayLike, beam_angles: ArrayLike, odometry: ArrayLike,
                   timestamps: ArrayLike) -> None:
         """ranges (S, B) m, beam_angles (B,) or (S, B) rad, odometry (S, 3) laser poses, timestamps (S,) s."""
@@ -781,11 +773,10 @@ class SubmapSlamSummary:
     final_chi2: float
 
 class SubmapSlam2D:
-    """GraphSLAM over scan-matched submaps with correlative loop closures (ch. 11.7). Keyword
-    options: the IncrementalScanMatcher's (submap_distance 10 m here) and the loop closures'
-    (loop_closures, closure_scans_per_submap, closure_min_match_quality, closure_window_sigmas,
-    closure_{min,max}_{linear,angular}_window (m, rad), closure_max_distance (m), dissolve_chi2,
-    field_cache_mb (MiB), max_rounds)."""
+    """GraphSLAM over scan-matched submaps with correlative loop closures (ch. 11.7).
+    SubmapSlam2D(*, options=None, **fields): a SubmapSlamOptions, fields by keyword replacing its
+    (errors name the field's path, "closures.min_match_quality")."""
+    options: SubmapSlamOptions  # a copy
     num_scans: int
     num_submaps: int
     pose: Array  # (3,) the last scan's optimised pose
@@ -799,20 +790,9 @@ class SubmapSlam2D:
     timings: SubmapSlamTimings  # processor seconds per stage (and counts) since construction or loading
     memory: SubmapSlamMemory  # bytes the large buffers hold
     start_map: Optional[OccupancyGrid2D]  # a copy of the map started from (start_from_map), or None
-    def __init__(self, *, resolution: float = 0.05, max_range: float = math.inf, min_range: float = 0.0,
-                 max_usable_range: float = 30.0, clear_no_return: bool = True, min_point_spacing: float = 0.0,
-                 sigma: float = 0.05, p_rand: float = 0.05, linear_window: float = 0.3, angular_window: float = 0.35,
-                 refine: bool = True, use_odometry_prior: bool = True,
-                 odometry_noise: ArrayLike = (0.1, 0.02, 0.01, 0.1, 0.05, 0.005), min_travel: float = 0.05,
-                 min_rotation: float = 0.05, submap_distance: float = 10.0, submap_scans: int = 0,
-                 min_match_quality: float = 0.1, warmup_scans: int = 1, field_refresh_distance: float = 0.3,
-                 field_refresh_angle: float = 0.3, constant_velocity: bool = False, match_fraction: float = 1.0,
-                 loop_closures: bool = True, closure_scans_per_submap: int = 3,
-                 closure_min_match_quality: float = 0.6, closure_window_sigmas: float = 3.0,
-                 closure_min_linear_window: float = 0.3, closure_max_linear_window: float = 4.0,
-                 closure_min_angular_window: float = 0.1, closure_max_angular_window: float = 0.7,
-                 closure_max_distance: float = 20.0, dissolve_chi2: float = 16.27, field_cache_mb: float = 48.0,
-                 max_rounds: int = 10) -> None: ...
+    def __init__(self, *, options: Optional[SubmapSlamOptions] = None,
+                 frontend: IncrementalScanMatcherOptions = ..., closures: LoopClosureOptions = ...,
+                 optimizer: OptimizerOptions = ..., max_rounds: int = 10) -> None: ...
     def add_scans(self, ranges: ArrayLike, beam_angles: ArrayLike, odometry: ArrayLike,
                   timestamps: ArrayLike) -> None: ...
     def copy(self) -> "SubmapSlam2D": ...
@@ -846,17 +826,13 @@ class TileSharing:
 
 class GridFastSlam:
     """Grid-based FastSLAM from a raw log (C++ fastslam/grid_fast_slam.hpp): particles with a pose,
-    a log weight and their own occupancy grid (32 x 32 tiles shared copy-on-write). Keyword
-    options (units in the runtime docstring): num_particles, proposal ("scan-matching", "motion",
-    "improved-odometry"), resolution (m), the scan filter as IncrementalScanMatcher's,
-    odometry_noise (6,), sigma (m), p_rand, search_radius (m), linear_step (m), angular_step
-    (rad), refinements, sample_linear (m), sample_angular (rad), min_match_quality,
-    corrected_start, resample_threshold, weight_scale (tempered weights), update_distance (m),
-    update_angle (rad), corrector_submap_distance (m), seed, threads, max_map_bytes (bytes: the
-    particles' maps plus the worst case of the next update; a num_particles or an update that
-    could exceed it raises ValueError). Results are identical for any thread count. A failed
+    a log weight and their own occupancy grid (32 x 32 tiles shared copy-on-write).
+    GridFastSlam(*, options=None, **fields): a GridFastSlamOptions, fields by keyword replacing its
+    (errors name the field's path, "likelihood.sigma"; a num_particles or an update whose maps could
+    exceed max_map_bytes raises ValueError). Results are identical for any thread count. A failed
     call changes nothing: add_scans checks every row first and undoes a batch whose row fails on
     the filter's state."""
+    options: GridFastSlamOptions  # a copy
     num_scans: int
     num_particles: int
     pose: Array  # (3,) the best particle's pose
@@ -868,15 +844,12 @@ class GridFastSlam:
     tile_sharing: TileSharing
     summary: GridFastSlamSummary
     timings: GridFastSlamTimings  # processor seconds per stage since construction or loading
-    def __init__(self, *, num_particles: int = 30, proposal: str = "scan-matching", resolution: float = 0.05,
-                 max_range: float = math.inf, min_range: float = 0.0, max_usable_range: float = 30.0,
-                 clear_no_return: bool = True, min_point_spacing: float = 0.0,
-                 odometry_noise: ArrayLike = (0.1, 0.02, 0.01, 0.1, 0.05, 0.005), sigma: float = 0.05,
-                 p_rand: float = 0.05, search_radius: float = 0.3, linear_step: float = 0.05,
-                 angular_step: float = 0.05, refinements: int = 5, sample_linear: float = 0.01,
-                 sample_angular: float = 0.005, min_match_quality: float = 0.3, corrected_start: bool = True,
-                 resample_threshold: float = 0.5, weight_scale: float = 0.03, update_distance: float = 0.25,
-                 update_angle: float = 0.25, corrector_submap_distance: float = 5.0, seed: int = 0,
+    def __init__(self, *, options: Optional[GridFastSlamOptions] = None, num_particles: int = 30,
+                 proposal: str = 'scan-matching', resolution: float = 0.05, filter: ScanFilter = ...,
+                 odometry: OdometryNoise = ..., likelihood: EndpointLikelihoodOptions = ...,
+                 matching: ScanProposalOptions = ..., weight_scale: float = 0.03, resample_threshold: float = 0.5,
+                 update: UpdateTrigger = ..., update_interval: float = 0.0,
+                 corrector: IncrementalScanMatcherOptions = ..., corrected_start: bool = True, seed: int = 0,
                  threads: int = 1, max_map_bytes: float = 8589934592.0) -> None: ...
     def add_scans(self, ranges: ArrayLike, beam_angles: ArrayLike, odometry: ArrayLike,
                   timestamps: ArrayLike) -> None:
@@ -933,11 +906,11 @@ class MapManagement:
     sensor_fov: float  # rad
     def __init__(self, *, provisional: bool = False, min_observations: int = 3, provisional_max_std: float = 0.5,
                  provisional_max_age: int = 20, existence: bool = False, existence_hit: float = 1.0,
-                 existence_miss: float = 0.5, existence_threshold: float = -1.0, sensor_range: float = inf,
+                 existence_miss: float = 0.5, existence_threshold: float = -1.0, sensor_range: float = math.inf,
                  sensor_fov: float = 6.283185307179586) -> None: ...
     def replace(self, *, provisional: bool = False, min_observations: int = 3, provisional_max_std: float = 0.5,
                 provisional_max_age: int = 20, existence: bool = False, existence_hit: float = 1.0,
-                existence_miss: float = 0.5, existence_threshold: float = -1.0, sensor_range: float = inf,
+                existence_miss: float = 0.5, existence_threshold: float = -1.0, sensor_range: float = math.inf,
                 sensor_fov: float = 6.283185307179586) -> MapManagement: ...
     def validate(self) -> None: ...
     def copy(self) -> MapManagement: ...
@@ -968,6 +941,277 @@ class MultiHypothesisOptions:
                 bearing_offset_correlation: float = 0.0) -> MultiHypothesisOptions: ...
     def validate(self) -> None: ...
     def copy(self) -> MultiHypothesisOptions: ...
+    def as_dict(self) -> Dict[str, Any]: ...
+
+class SparseCholeskyOptions:
+    """The sparse Cholesky factorisation (CHOLMOD).
+    Fields by keyword (TypeError / ValueError name the field's path); replace() a validated copy."""
+    method: str
+    ordering: str
+    def __init__(self, *, method: str = 'supernodal', ordering: str = 'amd') -> None: ...
+    def replace(self, *, method: str = 'supernodal', ordering: str = 'amd') -> SparseCholeskyOptions: ...
+    def validate(self) -> None: ...
+    def copy(self) -> SparseCholeskyOptions: ...
+    def as_dict(self) -> Dict[str, Any]: ...
+
+class OptimizerOptions:
+    """The pose-graph optimiser's options (Gauss-Newton or Levenberg-Marquardt).
+    Fields by keyword (TypeError / ValueError name the field's path); replace() a validated copy."""
+    algorithm: str
+    damping: str
+    max_iterations: int
+    relative_tolerance: float
+    step_tolerance: float
+    kernel: str
+    kernel_width: float
+    linear_solver: SparseCholeskyOptions
+    def __init__(self, *, algorithm: str = 'gauss-newton', damping: str = 'marquardt', max_iterations: int = 100,
+                 relative_tolerance: float = 1e-10, step_tolerance: float = 1e-10, kernel: str = 'none',
+                 kernel_width: float = 1.0, linear_solver: SparseCholeskyOptions = ...) -> None: ...
+    def replace(self, *, algorithm: str = 'gauss-newton', damping: str = 'marquardt', max_iterations: int = 100,
+                relative_tolerance: float = 1e-10, step_tolerance: float = 1e-10, kernel: str = 'none',
+                kernel_width: float = 1.0, linear_solver: SparseCholeskyOptions = ...) -> OptimizerOptions: ...
+    def validate(self) -> None: ...
+    def copy(self) -> OptimizerOptions: ...
+    def as_dict(self) -> Dict[str, Any]: ...
+
+class UpdateTrigger:
+    """When a filter or scan matcher works on a scan: after this much travel or turn since it last did.
+    Fields by keyword (TypeError / ValueError name the field's path); replace() a validated copy."""
+    distance: float  # m
+    angle: float  # rad
+    def __init__(self, *, distance: float = 0.0, angle: float = 0.0) -> None: ...
+    def replace(self, *, distance: float = 0.0, angle: float = 0.0) -> UpdateTrigger: ...
+    def validate(self) -> None: ...
+    def copy(self) -> UpdateTrigger: ...
+    def as_dict(self) -> Dict[str, Any]: ...
+
+class ScanFilter:
+    """How raw laser readings become hits, and the usable range.
+    Fields by keyword (TypeError / ValueError name the field's path); replace() a validated copy."""
+    max_range: float  # m
+    min_range: float  # m
+    max_usable_range: float  # m
+    clear_no_return: bool
+    min_point_spacing: float  # m
+    def __init__(self, *, max_range: float = math.inf, min_range: float = 0.0, max_usable_range: float = 30.0,
+                 clear_no_return: bool = True, min_point_spacing: float = 0.0) -> None: ...
+    def replace(self, *, max_range: float = math.inf, min_range: float = 0.0, max_usable_range: float = 30.0,
+                clear_no_return: bool = True, min_point_spacing: float = 0.0) -> ScanFilter: ...
+    def validate(self) -> None: ...
+    def copy(self) -> ScanFilter: ...
+    def as_dict(self) -> Dict[str, Any]: ...
+
+class LikelihoodFieldOptions:
+    """The blurred likelihood field of a grid (ch. 6.4) scans are matched against.
+    Fields by keyword (TypeError / ValueError name the field's path); replace() a validated copy."""
+    sigma: float  # m
+    p_rand: float
+    occupied_threshold: float
+    max_distance: float  # m
+    def __init__(self, *, sigma: float = 0.05, p_rand: float = 0.05, occupied_threshold: float = 0.5,
+                 max_distance: float = 0.0) -> None: ...
+    def replace(self, *, sigma: float = 0.05, p_rand: float = 0.05, occupied_threshold: float = 0.5,
+                max_distance: float = 0.0) -> LikelihoodFieldOptions: ...
+    def validate(self) -> None: ...
+    def copy(self) -> LikelihoodFieldOptions: ...
+    def as_dict(self) -> Dict[str, Any]: ...
+
+class SearchWindow:
+    """The correlative search window around the prior pose.
+    Fields by keyword (TypeError / ValueError name the field's path); replace() a validated copy."""
+    linear: float  # m
+    angular: float  # rad
+    angular_step: float  # rad
+    def __init__(self, *, linear: float = 0.3, angular: float = 0.35, angular_step: float = 0.0) -> None: ...
+    def replace(self, *, linear: float = 0.3, angular: float = 0.35,
+                angular_step: float = 0.0) -> SearchWindow: ...
+    def validate(self) -> None: ...
+    def copy(self) -> SearchWindow: ...
+    def as_dict(self) -> Dict[str, Any]: ...
+
+class MatchOptions:
+    """Correlative scan matching's window, refinement and covariance floors.
+    Fields by keyword (TypeError / ValueError name the field's path); replace() a validated copy."""
+    window: SearchWindow
+    refine: bool
+    brute_force: bool
+    min_translation_std: float  # m
+    min_rotation_std: float  # rad
+    min_score: float
+    def __init__(self, *, window: SearchWindow = ..., refine: bool = True, brute_force: bool = False,
+                 min_translation_std: float = 0.0, min_rotation_std: float = 0.0,
+                 min_score: float = -math.inf) -> None: ...
+    def replace(self, *, window: SearchWindow = ..., refine: bool = True, brute_force: bool = False,
+                min_translation_std: float = 0.0, min_rotation_std: float = 0.0,
+                min_score: float = -math.inf) -> MatchOptions: ...
+    def validate(self) -> None: ...
+    def copy(self) -> MatchOptions: ...
+    def as_dict(self) -> Dict[str, Any]: ...
+
+class OdometryNoise:
+    """The laser SLAM classes' odometry noise: stds growing with the distance travelled and the angle turned.
+    Fields by keyword (TypeError / ValueError name the field's path); replace() a validated copy."""
+    trans_per_metre: float  # m/m
+    trans_per_radian: float  # m/rad
+    trans_floor: float  # m
+    rot_per_radian: float  # rad/rad
+    rot_per_metre: float  # rad/m
+    rot_floor: float  # rad
+    def __init__(self, *, trans_per_metre: float = 0.1, trans_per_radian: float = 0.02, trans_floor: float = 0.01,
+                 rot_per_radian: float = 0.1, rot_per_metre: float = 0.05, rot_floor: float = 0.005) -> None: ...
+    def replace(self, *, trans_per_metre: float = 0.1, trans_per_radian: float = 0.02, trans_floor: float = 0.01,
+                rot_per_radian: float = 0.1, rot_per_metre: float = 0.05,
+                rot_floor: float = 0.005) -> OdometryNoise: ...
+    def validate(self) -> None: ...
+    def copy(self) -> OdometryNoise: ...
+    def as_dict(self) -> Dict[str, Any]: ...
+
+class IncrementalScanMatcherOptions:
+    """The options of IncrementalScanMatcher (and SubmapSlam2D's frontend).
+    Fields by keyword (TypeError / ValueError name the field's path); replace() a validated copy."""
+    resolution: float  # m
+    filter: ScanFilter
+    field: LikelihoodFieldOptions
+    match: MatchOptions
+    odometry: OdometryNoise
+    use_odometry_prior: bool
+    constant_velocity: bool
+    match_fraction: float
+    update: UpdateTrigger
+    submap_distance: float  # m
+    submap_scans: int
+    min_match_quality: float
+    warmup_scans: int
+    field_refresh_distance: float  # m
+    field_refresh_angle: float  # rad
+    def __init__(self, *, resolution: float = 0.05, filter: ScanFilter = ..., field: LikelihoodFieldOptions = ...,
+                 match: MatchOptions = ..., odometry: OdometryNoise = ..., use_odometry_prior: bool = True,
+                 constant_velocity: bool = False, match_fraction: float = 1.0, update: UpdateTrigger = ...,
+                 submap_distance: float = 5.0, submap_scans: int = 0, min_match_quality: float = 0.1,
+                 warmup_scans: int = 1, field_refresh_distance: float = 0.3,
+                 field_refresh_angle: float = 0.3) -> None: ...
+    def replace(self, *, resolution: float = 0.05, filter: ScanFilter = ..., field: LikelihoodFieldOptions = ...,
+                match: MatchOptions = ..., odometry: OdometryNoise = ..., use_odometry_prior: bool = True,
+                constant_velocity: bool = False, match_fraction: float = 1.0, update: UpdateTrigger = ...,
+                submap_distance: float = 5.0, submap_scans: int = 0, min_match_quality: float = 0.1,
+                warmup_scans: int = 1, field_refresh_distance: float = 0.3,
+                field_refresh_angle: float = 0.3) -> IncrementalScanMatcherOptions: ...
+    def validate(self) -> None: ...
+    def copy(self) -> IncrementalScanMatcherOptions: ...
+    def as_dict(self) -> Dict[str, Any]: ...
+
+class LoopClosureOptions:
+    """SubmapSlam2D's loop-closure search.
+    Fields by keyword (TypeError / ValueError name the field's path); replace() a validated copy."""
+    enabled: bool
+    scans_per_submap: int
+    min_match_quality: float
+    window_sigmas: float
+    min_linear_window: float  # m
+    max_linear_window: float  # m
+    min_angular_window: float  # rad
+    max_angular_window: float  # rad
+    max_distance: float  # m
+    dissolve_chi2: float
+    field_cache_bytes: float  # bytes
+    def __init__(self, *, enabled: bool = True, scans_per_submap: int = 3, min_match_quality: float = 0.6,
+                 window_sigmas: float = 3.0, min_linear_window: float = 0.3, max_linear_window: float = 4.0,
+                 min_angular_window: float = 0.1, max_angular_window: float = 0.7, max_distance: float = 20.0,
+                 dissolve_chi2: float = 16.27, field_cache_bytes: float = 50331648.0) -> None: ...
+    def replace(self, *, enabled: bool = True, scans_per_submap: int = 3, min_match_quality: float = 0.6,
+                window_sigmas: float = 3.0, min_linear_window: float = 0.3, max_linear_window: float = 4.0,
+                min_angular_window: float = 0.1, max_angular_window: float = 0.7, max_distance: float = 20.0,
+                dissolve_chi2: float = 16.27, field_cache_bytes: float = 50331648.0) -> LoopClosureOptions: ...
+    def validate(self) -> None: ...
+    def copy(self) -> LoopClosureOptions: ...
+    def as_dict(self) -> Dict[str, Any]: ...
+
+class SubmapSlamOptions:
+    """The options of SubmapSlam2D (ch. 11.7).
+    Fields by keyword (TypeError / ValueError name the field's path); replace() a validated copy."""
+    frontend: IncrementalScanMatcherOptions
+    closures: LoopClosureOptions
+    optimizer: OptimizerOptions
+    max_rounds: int
+    def __init__(self, *, frontend: IncrementalScanMatcherOptions = ..., closures: LoopClosureOptions = ...,
+                 optimizer: OptimizerOptions = ..., max_rounds: int = 10) -> None: ...
+    def replace(self, *, frontend: IncrementalScanMatcherOptions = ..., closures: LoopClosureOptions = ...,
+                optimizer: OptimizerOptions = ..., max_rounds: int = 10) -> SubmapSlamOptions: ...
+    def validate(self) -> None: ...
+    def copy(self) -> SubmapSlamOptions: ...
+    def as_dict(self) -> Dict[str, Any]: ...
+
+class EndpointLikelihoodOptions:
+    """GridFastSlam's end-point likelihood p(z | x, m) (ch. 6.4).
+    Fields by keyword (TypeError / ValueError name the field's path); replace() a validated copy."""
+    sigma: float  # m
+    p_rand: float
+    search_radius: float  # m
+    occupied_threshold: float
+    def __init__(self, *, sigma: float = 0.05, p_rand: float = 0.05, search_radius: float = 0.3,
+                 occupied_threshold: float = 0.5) -> None: ...
+    def replace(self, *, sigma: float = 0.05, p_rand: float = 0.05, search_radius: float = 0.3,
+                occupied_threshold: float = 0.5) -> EndpointLikelihoodOptions: ...
+    def validate(self) -> None: ...
+    def copy(self) -> EndpointLikelihoodOptions: ...
+    def as_dict(self) -> Dict[str, Any]: ...
+
+class ScanProposalOptions:
+    """GridFastSlam's scan-matching proposal (Grisetti et al. 2007): hill climb and Gaussian fit.
+    Fields by keyword (TypeError / ValueError name the field's path); replace() a validated copy."""
+    linear_step: float  # m
+    angular_step: float  # rad
+    refinements: int
+    max_moves: int
+    sample_linear: float  # m
+    sample_angular: float  # rad
+    min_match_quality: float
+    def __init__(self, *, linear_step: float = 0.05, angular_step: float = 0.05, refinements: int = 5,
+                 max_moves: int = 200, sample_linear: float = 0.01, sample_angular: float = 0.005,
+                 min_match_quality: float = 0.3) -> None: ...
+    def replace(self, *, linear_step: float = 0.05, angular_step: float = 0.05, refinements: int = 5,
+                max_moves: int = 200, sample_linear: float = 0.01, sample_angular: float = 0.005,
+                min_match_quality: float = 0.3) -> ScanProposalOptions: ...
+    def validate(self) -> None: ...
+    def copy(self) -> ScanProposalOptions: ...
+    def as_dict(self) -> Dict[str, Any]: ...
+
+class GridFastSlamOptions:
+    """The options of GridFastSlam.
+    Fields by keyword (TypeError / ValueError name the field's path); replace() a validated copy."""
+    num_particles: int
+    proposal: str
+    resolution: float  # m
+    filter: ScanFilter
+    odometry: OdometryNoise
+    likelihood: EndpointLikelihoodOptions
+    matching: ScanProposalOptions
+    weight_scale: float
+    resample_threshold: float
+    update: UpdateTrigger
+    update_interval: float  # s
+    corrector: IncrementalScanMatcherOptions
+    corrected_start: bool
+    seed: int
+    threads: int
+    max_map_bytes: float  # bytes
+    def __init__(self, *, num_particles: int = 30, proposal: str = 'scan-matching', resolution: float = 0.05,
+                 filter: ScanFilter = ..., odometry: OdometryNoise = ...,
+                 likelihood: EndpointLikelihoodOptions = ..., matching: ScanProposalOptions = ...,
+                 weight_scale: float = 0.03, resample_threshold: float = 0.5, update: UpdateTrigger = ...,
+                 update_interval: float = 0.0, corrector: IncrementalScanMatcherOptions = ...,
+                 corrected_start: bool = True, seed: int = 0, threads: int = 1,
+                 max_map_bytes: float = 8589934592.0) -> None: ...
+    def replace(self, *, num_particles: int = 30, proposal: str = 'scan-matching', resolution: float = 0.05,
+                filter: ScanFilter = ..., odometry: OdometryNoise = ...,
+                likelihood: EndpointLikelihoodOptions = ..., matching: ScanProposalOptions = ...,
+                weight_scale: float = 0.03, resample_threshold: float = 0.5, update: UpdateTrigger = ...,
+                update_interval: float = 0.0, corrector: IncrementalScanMatcherOptions = ...,
+                corrected_start: bool = True, seed: int = 0, threads: int = 1,
+                max_map_bytes: float = 8589934592.0) -> GridFastSlamOptions: ...
+    def validate(self) -> None: ...
+    def copy(self) -> GridFastSlamOptions: ...
     def as_dict(self) -> Dict[str, Any]: ...
 
 class OdometryMotionNoise:
@@ -1010,7 +1254,7 @@ class MonteCarloLocalizationOptions:
     odometry: OdometryMotionNoise
     occupied_threshold: float
     free_threshold: float
-    sigma_hit: float  # m
+    sigma: float  # m
     p_rand: float
     beam: BeamMixture
     max_range: float  # m
@@ -1030,33 +1274,26 @@ class MonteCarloLocalizationOptions:
     recovery_candidates: int
     resample_threshold: float
     resample_interval: int
-    update_min_d: float  # m
-    update_min_a: float  # rad
+    update: UpdateTrigger
     seed: int
     threads: int
-    def __init__(self, *, sensor_model: str = 'likelihood-field',
-                 odometry: OdometryMotionNoise = OdometryMotionNoise(alpha1=0.2, alpha2=0.2, alpha3=0.2, alpha4=0.2),
-                 occupied_threshold: float = 0.65, free_threshold: float = 0.25, sigma_hit: float = 0.1,
-                 p_rand: float = 0.05,
-                 beam: BeamMixture = BeamMixture(z_hit=0.85, z_short=0.05, z_max=0.05, z_rand=0.05, sigma_hit=0.05, lambda_short=1.0, max_range=5.0),
-                 max_range: float = 30.0, min_range: float = 0.0, max_beams: int = 60, weight_scale: float = 0.1,
-                 min_particles: int = 500, max_particles: int = 20000, kld_epsilon: float = 0.05,
-                 kld_z: float = 2.326, bin_xy: float = 0.5, bin_theta: float = 0.174532925199433,
-                 alpha_slow: float = 0.001, alpha_fast: float = 0.1, recovery_ratio: float = 0.5,
-                 recovery_updates: int = 1, recovery_candidates: int = 0, resample_threshold: float = 0.5,
-                 resample_interval: int = 1, update_min_d: float = 0.2, update_min_a: float = 0.5235987755982988,
+    def __init__(self, *, sensor_model: str = 'likelihood-field', odometry: OdometryMotionNoise = ...,
+                 occupied_threshold: float = 0.65, free_threshold: float = 0.25, sigma: float = 0.1,
+                 p_rand: float = 0.05, beam: BeamMixture = ..., max_range: float = 30.0, min_range: float = 0.0,
+                 max_beams: int = 60, weight_scale: float = 0.1, min_particles: int = 500,
+                 max_particles: int = 20000, kld_epsilon: float = 0.05, kld_z: float = 2.326, bin_xy: float = 0.5,
+                 bin_theta: float = 0.174532925199433, alpha_slow: float = 0.001, alpha_fast: float = 0.1,
+                 recovery_ratio: float = 0.5, recovery_updates: int = 1, recovery_candidates: int = 0,
+                 resample_threshold: float = 0.5, resample_interval: int = 1, update: UpdateTrigger = ...,
                  seed: int = 0, threads: int = 1) -> None: ...
-    def replace(self, *, sensor_model: str = 'likelihood-field',
-                odometry: OdometryMotionNoise = OdometryMotionNoise(alpha1=0.2, alpha2=0.2, alpha3=0.2, alpha4=0.2),
-                occupied_threshold: float = 0.65, free_threshold: float = 0.25, sigma_hit: float = 0.1,
-                p_rand: float = 0.05,
-                beam: BeamMixture = BeamMixture(z_hit=0.85, z_short=0.05, z_max=0.05, z_rand=0.05, sigma_hit=0.05, lambda_short=1.0, max_range=5.0),
-                max_range: float = 30.0, min_range: float = 0.0, max_beams: int = 60, weight_scale: float = 0.1,
-                min_particles: int = 500, max_particles: int = 20000, kld_epsilon: float = 0.05,
-                kld_z: float = 2.326, bin_xy: float = 0.5, bin_theta: float = 0.174532925199433,
-                alpha_slow: float = 0.001, alpha_fast: float = 0.1, recovery_ratio: float = 0.5,
-                recovery_updates: int = 1, recovery_candidates: int = 0, resample_threshold: float = 0.5,
-                resample_interval: int = 1, update_min_d: float = 0.2, update_min_a: float = 0.5235987755982988,
+    def replace(self, *, sensor_model: str = 'likelihood-field', odometry: OdometryMotionNoise = ...,
+                occupied_threshold: float = 0.65, free_threshold: float = 0.25, sigma: float = 0.1,
+                p_rand: float = 0.05, beam: BeamMixture = ..., max_range: float = 30.0, min_range: float = 0.0,
+                max_beams: int = 60, weight_scale: float = 0.1, min_particles: int = 500,
+                max_particles: int = 20000, kld_epsilon: float = 0.05, kld_z: float = 2.326, bin_xy: float = 0.5,
+                bin_theta: float = 0.174532925199433, alpha_slow: float = 0.001, alpha_fast: float = 0.1,
+                recovery_ratio: float = 0.5, recovery_updates: int = 1, recovery_candidates: int = 0,
+                resample_threshold: float = 0.5, resample_interval: int = 1, update: UpdateTrigger = ...,
                 seed: int = 0, threads: int = 1) -> MonteCarloLocalizationOptions: ...
     def validate(self) -> None: ...
     def copy(self) -> MonteCarloLocalizationOptions: ...
@@ -1082,17 +1319,14 @@ class MonteCarloLocalization:
     w_fast: float  # its short-term average
     def __init__(self, map: OccupancyGrid2D, *, options: Optional[MonteCarloLocalizationOptions] = None,
                  initial_pose: Optional[ArrayLike] = None, initial_covariance: Optional[ArrayLike] = None,
-                 sensor_model: str = 'likelihood-field',
-                 odometry: OdometryMotionNoise = OdometryMotionNoise(alpha1=0.2, alpha2=0.2, alpha3=0.2, alpha4=0.2),
-                 occupied_threshold: float = 0.65, free_threshold: float = 0.25, sigma_hit: float = 0.1,
-                 p_rand: float = 0.05,
-                 beam: BeamMixture = BeamMixture(z_hit=0.85, z_short=0.05, z_max=0.05, z_rand=0.05, sigma_hit=0.05, lambda_short=1.0, max_range=5.0),
-                 max_range: float = 30.0, min_range: float = 0.0, max_beams: int = 60, weight_scale: float = 0.1,
-                 min_particles: int = 500, max_particles: int = 20000, kld_epsilon: float = 0.05,
-                 kld_z: float = 2.326, bin_xy: float = 0.5, bin_theta: float = 0.174532925199433,
-                 alpha_slow: float = 0.001, alpha_fast: float = 0.1, recovery_ratio: float = 0.5,
-                 recovery_updates: int = 1, recovery_candidates: int = 0, resample_threshold: float = 0.5,
-                 resample_interval: int = 1, update_min_d: float = 0.2, update_min_a: float = 0.5235987755982988,
+                 sensor_model: str = 'likelihood-field', odometry: OdometryMotionNoise = ...,
+                 occupied_threshold: float = 0.65, free_threshold: float = 0.25, sigma: float = 0.1,
+                 p_rand: float = 0.05, beam: BeamMixture = ..., max_range: float = 30.0, min_range: float = 0.0,
+                 max_beams: int = 60, weight_scale: float = 0.1, min_particles: int = 500,
+                 max_particles: int = 20000, kld_epsilon: float = 0.05, kld_z: float = 2.326, bin_xy: float = 0.5,
+                 bin_theta: float = 0.174532925199433, alpha_slow: float = 0.001, alpha_fast: float = 0.1,
+                 recovery_ratio: float = 0.5, recovery_updates: int = 1, recovery_candidates: int = 0,
+                 resample_threshold: float = 0.5, resample_interval: int = 1, update: UpdateTrigger = ...,
                  seed: int = 0, threads: int = 1) -> None: ...
     def initialize_global(self) -> None:
         """Restart: max_particles uniform over the free cells."""

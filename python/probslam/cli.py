@@ -170,7 +170,9 @@ def _as_given(text: str, names: Dict[str, str], args: Optional[argparse.Namespac
         return rest, bool(mentioned)
     name, colon = subject.group(1), ":" if rest.startswith(":") else ""
     rest = rest.lstrip(": ")
-    given = getattr(args, name, None) if args is not None else None
+    # The value given: the flag's dest, named as the option (min_particles) or as the flag
+    # (frontend.resolution is --resolution's).
+    given = None if args is None else getattr(args, name, getattr(args, names[name].lstrip("-").replace("-", "_"), None))
     if isinstance(given, (list, tuple)):
         given = " ".join(map(str, given))
     if given is None or isinstance(given, bool) or rest.startswith(f"{given} ") or f"got {given}" in rest:
@@ -387,38 +389,32 @@ def _resume_command(args: argparse.Namespace, run_file: str) -> str:
 
 def _cmd_slam(args: argparse.Namespace) -> int:
     from .graph import write_g2o
-    from .slam import INITIAL_MAP, RunInterrupted, check_save_path, run_slam
+    from .slam import (INITIAL_MAP, OPTIONS_CLASSES, RunInterrupted, check_save_path, default_options,
+                       load_initial_map, run_slam, with_fields)
 
-    _require_count(args.particles, "--particles", 1)
-    _require_length(args.resolution, "--resolution")
-    _require_length(args.max_range, "--max-range")
-    _require_length(args.submap_distance, "--submap-distance", zero=True)
     if args.resume is not None:
         _refuse_given(args, ("method", "particles", "proposal", "submap_distance", "no_loop_closures", "resolution",
                              "max_range", "seed", "threads"),
                       "does not apply with --resume (the run goes on with its saved options)")
     _refuse_given(args, ("particles", "proposal", "seed", "threads") if args.method == "graph"
                   else ("submap_distance", "no_loop_closures"), f"does not apply to --method {args.method}")
+    flags = SLAM_FLAGS[args.method]
+    given = {path: getattr(args, flag[2:].replace("-", "_")) for path, flag in flags.items()
+             if flag in getattr(args, "given", {}).values()}
+    with _option_flags(flags, args):
+        with_fields(OPTIONS_CLASSES[args.method](), given)  # the library checks the flags before the log is read
     _check_output(args.output)
     path = args.log or _bundled_log(BUNDLED_SLAM_LOG)
     log = _read_log(path, args)
-    if args.method == "rbpf":
-        options = dict(num_particles=args.particles, proposal=args.proposal)
-        options.update({name: getattr(args, name) for name in ("seed", "threads") if getattr(args, name) is not None})
-    else:
-        options = dict(submap_distance=args.submap_distance, loop_closures=not args.no_loop_closures)
-    if args.resolution is not None:
-        options["resolution"] = args.resolution
-    elif args.map is None:
-        options["resolution"] = DEFAULT_RESOLUTION
-    if args.max_range is not None:
-        options["max_range"] = args.max_range
     start = {}
     if args.map is not None:
         if args.resume is not None:
             raise UserError("--map: a resumed run continues on the map its run file holds")
         _check_input(args.map, INITIAL_MAP)
-        start = dict(initial_map=args.map, initial_pose=args.initial_pose)
+        try:
+            start = dict(initial_map=load_initial_map(args.map), initial_pose=args.initial_pose)
+        except ValueError as e:
+            raise UserError(f"--map: {_one_line(e)}") from None
     elif args.initial_pose is not None:
         raise UserError("--initial-pose: only with --map (where the log starts in the saved map)")
     if args.save is not None:
@@ -431,9 +427,11 @@ def _cmd_slam(args: argparse.Namespace) -> int:
             # The saved run's method and options go on; the command line's are not used.
             result = run_slam(log, resume=args.resume, save=args.save, progress=None if args.progress else False)
         else:
-            with _option_flags(SLAM_FLAGS, args):
+            with _option_flags(flags, args):
+                # The log's options, each flag given replacing the field it names.
+                options = with_fields(default_options(log, args.method, initial_map=start.get("initial_map")), given)
                 result = run_slam(log, method=args.method, progress=None if args.progress else False, save=args.save,
-                                  **start, **options)
+                                  options=options, **start)
     except RunInterrupted as e:
         if e.saved is None:
             raise
@@ -443,7 +441,8 @@ def _cmd_slam(args: argparse.Namespace) -> int:
     io.save_ros_map(result.grid, args.output + ".yaml")
     written = [f"{args.output}.yaml", f"{args.output}.pgm"]
     if args.plot:
-        how = ("grid-based FastSLAM, best of " + str(args.particles) + " particles" if args.method == "rbpf" else
+        how = ("grid-based FastSLAM, best of " + str(result.options.num_particles) + " particles"
+               if result.method == "rbpf" else
                "GraphSLAM over submaps")
         written.append(_map_picture(result.grid, args.output + ".png", result.poses, "SLAM laser poses",
                                     f"probslam slam --method {args.method}: {os.path.basename(path)}\n{how}"))
@@ -465,8 +464,7 @@ def _cmd_slam(args: argparse.Namespace) -> int:
               f"matched at {result.poses[0][0]:.3f} {result.poses[0][1]:.3f} {result.poses[0][2]:.3f})")
     if result.method == "rbpf":
         t = result.tile_sharing
-        particles = result.options.get("num_particles", args.particles)
-        proposal = result.options.get("proposal", args.proposal)
+        particles, proposal = result.options.num_particles, result.options.proposal
         print(f"method:        grid-based FastSLAM, {particles} particles, {proposal} proposal")
         print(f"scans:         {s.scans}{skipped}; {s.updates} filter updates, {s.resamples} resamplings")
         if proposal == "scan-matching":
@@ -573,9 +571,16 @@ def _require_length(value: Optional[float], option: str, zero: bool = False, wha
         raise UserError(f"{option} must be a finite {what} {'>= 0' if zero else '> 0'}, got {value}")
 
 
-#: slam's flags, by the run_slam option each sets (the library's messages told as the flag).
-SLAM_FLAGS = {"num_particles": "--particles", "seed": "--seed", "threads": "--threads", "resolution": "--resolution",
-              "max_range": "--max-range", "submap_distance": "--submap-distance"}
+#: slam's flags, by method: the option path each sets in SubmapSlamOptions / GridFastSlamOptions
+#: (the library's messages, which name the path, told as the flag). A flag's value is its dest's
+#: (--no-loop-closures stores False).
+SLAM_FLAGS = {
+    "graph": {"frontend.resolution": "--resolution", "frontend.filter.max_range": "--max-range",
+              "frontend.submap_distance": "--submap-distance", "closures.enabled": "--no-loop-closures"},
+    "rbpf": {"num_particles": "--particles", "proposal": "--proposal", "seed": "--seed", "threads": "--threads",
+             "resolution": "--resolution", "filter.max_range": "--max-range"},
+}
+
 
 #: optimize's flags, by the GraphFileOptions field each sets.
 OPTIMIZE_FLAGS = {"format": "--format", "noise": "--noise", "init": "--init", "poses_per_step": "--poses-per-step",
@@ -763,17 +768,18 @@ def build_parser() -> argparse.ArgumentParser:
                     help=f"cell size in metres (default {DEFAULT_RESOLUTION}, with --map the map's)")
     sl.add_argument("--max-range", type=float, default=None,
                     help="the sensor's no-return reading in metres (default: from the log)")
-    sl.add_argument("--submap-distance", type=float, default=10.0,
+    sl.add_argument("--submap-distance", type=float, default=None,
                     help="travel per submap in metres (default 10; 0: one map, scan matching alone)")
-    sl.add_argument("--no-loop-closures", action="store_true", help="scan matching and submaps only")
+    sl.add_argument("--no-loop-closures", action="store_false", default=None,
+                    help="scan matching and submaps only")
     sl.add_argument("--method", choices=("graph", "rbpf"), default="graph",
                     help="graph: GraphSLAM over submaps (default); rbpf: grid-based FastSLAM (particle filter)")
-    sl.add_argument("--particles", type=int, default=RBPF_PARTICLES,
+    sl.add_argument("--particles", type=int, default=None,
                     help=f"rbpf: number of particles (default {RBPF_PARTICLES}, not fastslam's {FASTSLAM_PARTICLES}: "
                          "each carries a grid map, so time and memory grow with the count; on the bundled log 100 "
                          "take 3.8x the time and 3.5x the map memory of 30, and on ACES's first 2000 scans the "
                          "relations error is 0.042-0.044 m for 1 to 100, docs/grid_fastslam.md)")
-    sl.add_argument("--proposal", choices=("scan-matching", "motion", "improved-odometry"), default="scan-matching",
+    sl.add_argument("--proposal", choices=("scan-matching", "motion", "improved-odometry"), default=None,
                     help="rbpf: scan-matching (GMapping's improved proposal, default), motion (the plain filter) "
                          "or improved-odometry (odometry corrected by scan matching, then the plain filter)")
     sl.add_argument("--seed", type=int, default=None, help="rbpf: random seed (default 0)")

@@ -116,7 +116,7 @@ class OdometryModel:
     slip_max: float = 0.0
 
     def stated_noise(self) -> Tuple[float, float, float, float, float, float]:
-        """The noise this odometry states, in the frontend's terms (``odometry_noise``: sd_xy =
+        """The noise this odometry states, in the frontend's terms (``OdometryNoise``: sd_xy =
         trans_per_metre d + trans_per_radian a + trans_floor, sd_theta = rot_per_radian a +
         rot_per_metre d + rot_floor, per step of d metres and a radians), what a log or bag
         written from it says of its odometry (``LaserScans.odometry_noise``).

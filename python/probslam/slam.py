@@ -15,7 +15,7 @@ import signal
 import struct
 import threading
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any, Dict, Optional, Union
 
 import numpy as np
@@ -46,7 +46,8 @@ class SlamResult:
     rbpf only: tile_sharing, the particles' map tiles (``TileSharing``: references, distinct, bytes).
     timings: processor seconds per stage of the SLAM object (``SubmapSlam2D.timings`` or
     ``GridFastSlam.timings``; a resumed run's count from its loading); memory (GraphSLAM only):
-    the bytes its large buffers hold at the end (``SubmapSlam2D.memory``).
+    the bytes its large buffers hold at the end (``SubmapSlam2D.memory``); options the run's
+    ``SubmapSlamOptions`` or ``GridFastSlamOptions`` (as the SLAM object ran them).
     """
 
     timestamps: np.ndarray
@@ -60,7 +61,7 @@ class SlamResult:
     seconds: float
     log_duration: float
     odometry: bool
-    options: Dict[str, Any] = field(default_factory=dict)
+    options: Union[_core.SubmapSlamOptions, _core.GridFastSlamOptions, None] = None
     method: str = "graph"
     tile_sharing: Optional[_core.TileSharing] = None
     timings: Optional[Union[_core.SubmapSlamTimings, _core.GridFastSlamTimings]] = None
@@ -78,10 +79,12 @@ METHODS = ("graph", "rbpf")
 
 #: The first bytes of a run file (``run_slam(save=...)``, ``probslam slam --save``), its layout's version.
 RUN_MAGIC = b"PSLRUN\0\0"
-RUN_FORMAT_VERSION = 1
+RUN_FORMAT_VERSION = 2
 #: Metadata larger than this is a damaged file, not a run's few fields.
 MAX_RUN_METADATA_BYTES = 1 << 20
 _RUN_CLASSES = {"graph": "SubmapSlam2D", "rbpf": "GridFastSlam"}
+#: Each method's options class.
+OPTIONS_CLASSES = {"graph": _core.SubmapSlamOptions, "rbpf": _core.GridFastSlamOptions}
 
 
 @dataclass
@@ -89,7 +92,8 @@ class SlamRun:
     """A run file's content: the SLAM object (``SubmapSlam2D`` before its final ``finish``, or
     ``GridFastSlam``), its method, how many scans of the log it has processed (scans_done), the
     timestamps of the log's first scan and of the last processed one (to check that a resumed
-    log is the same), the log's number of scans and the options of the run."""
+    log is the same) and the log's number of scans; ``options`` the run's options object (the
+    SLAM object's: its state file holds them)."""
 
     mapper: Any
     method: str
@@ -97,19 +101,11 @@ class SlamRun:
     first_timestamp: float
     last_timestamp: float
     log_scans: int
-    options: Dict[str, Any] = field(default_factory=dict)
 
-
-def _json_options(options: Dict[str, Any]) -> Dict[str, Any]:
-    out: Dict[str, Any] = {}
-    for k, v in options.items():
-        v = v.tolist() if isinstance(v, np.ndarray) else v.item() if isinstance(v, np.generic) else v
-        try:
-            json.dumps(v, allow_nan=True)
-        except (TypeError, ValueError):
-            v = repr(v)
-        out[k] = list(v) if isinstance(v, tuple) else v
-    return out
+    @property
+    def options(self) -> Union[_core.SubmapSlamOptions, _core.GridFastSlamOptions]:
+        """The run's options (a copy of the SLAM object's)."""
+        return self.mapper.options
 
 
 class RunInterrupted(KeyboardInterrupt):
@@ -171,7 +167,7 @@ def save_run(run: SlamRun, path: PathLike) -> None:
         raise ValueError(f"save: the object holds {run.mapper.num_scans} scans, the run {run.scans_done}")
     meta = dict(format=RUN_FORMAT_VERSION, method=run.method, scans_done=int(run.scans_done),
                 first_timestamp=float(run.first_timestamp), last_timestamp=float(run.last_timestamp),
-                log_scans=int(run.log_scans), options=_json_options(run.options))
+                log_scans=int(run.log_scans))
     head = json.dumps(meta, allow_nan=True).encode("utf-8")
     tmp = path + ".tmp"
     with _interrupts_deferred():
@@ -209,13 +205,12 @@ def load_run(path: PathLike) -> SlamRun:
         method = meta["method"]
         scans_done = meta["scans_done"]
         first, last, log_scans = float(meta["first_timestamp"]), float(meta["last_timestamp"]), meta["log_scans"]
-        options = meta.get("options", {})
     except (ValueError, KeyError, TypeError, UnicodeDecodeError, OverflowError) as e:
         raise ValueError(f"{path}: corrupt run metadata ({e})") from None
     except RecursionError:
         raise ValueError(f"{path}: corrupt run metadata (nested too deeply)") from None
     if not isinstance(method, str) or method not in _RUN_CLASSES or not isinstance(scans_done, int) or not isinstance(log_scans, int) \
-            or not 1 <= scans_done <= log_scans or not isinstance(options, dict):
+            or not 1 <= scans_done <= log_scans:
         raise ValueError(f"{path}: corrupt run metadata")
     cls = getattr(_core, _RUN_CLASSES[method])
     mapper = cls.__new__(cls)
@@ -226,7 +221,7 @@ def load_run(path: PathLike) -> SlamRun:
     if mapper.num_scans != scans_done:
         raise ValueError(f"{path}: the run's object holds {mapper.num_scans} scans, its metadata {scans_done}")
     return SlamRun(mapper=mapper, method=method, scans_done=scans_done, first_timestamp=first, last_timestamp=last,
-                   log_scans=log_scans, options=options)
+                   log_scans=log_scans)
 
 
 def _check_resume(run: SlamRun, scans: LaserScans, source: str) -> None:
@@ -281,9 +276,13 @@ def scans_of(log: Union[PathLike, CarmenLog, LaserScans]) -> LaserScans:
     return scans
 
 
-def log_options(scans: LaserScans, method: str = "graph") -> Dict[str, Any]:
-    """The options ``run_slam`` takes from the log itself (the one place its defaults depend on
-    the robot): the sensor's range limit (``LaserScans.no_return_range``: readings at it are no
+def default_options(log: Union[PathLike, CarmenLog, LaserScans], method: str = "graph", *,
+                    initial_map: Optional[_core.OccupancyGrid2D] = None
+                    ) -> Union[_core.SubmapSlamOptions, _core.GridFastSlamOptions]:
+    """The options ``run_slam`` runs ``method`` with on ``log`` (a CARMEN or ROS bag path, a
+    ``CarmenLog`` or its ``LaserScans``): the defaults of ``SubmapSlamOptions`` ("graph") or
+    ``GridFastSlamOptions`` ("rbpf") with what the log itself says (the one place the defaults
+    depend on the robot): the sensor's range limit (``LaserScans.no_return_range``: readings at it are no
     returns, and hits are used up to it) and whether the log has odometry. Without odometry
     (GraphSLAM only) every scan is matched, each predicted by the last matched motion (constant
     velocity, its spread the odometry model's, in the score as odometry would be once five
@@ -295,49 +294,74 @@ def log_options(scans: LaserScans, method: str = "graph") -> Dict[str, Any]:
 
     Where the log states how noisy its odometry is (``LaserScans.odometry_noise``: a simulation
     does, and the CARMEN log it writes; a real robot's log or a bag as read today does not), that noise is the odometry model
-    (``odometry_noise``, both methods): the match's prior is the odometry's Mahalanobis term with
+    (``odometry``, both methods): the match's prior is the odometry's Mahalanobis term with
     its own noise, so that good odometry is kept (the Stage-like robot in the simulated office
     with the truth as odometry: GraphSLAM 1.02 m ATE with the fixed model, 0.005 m with the
-    stated one). Otherwise the fixed model, 10 % of the distance (``OdometryNoise``)."""
-    opts: Dict[str, Any] = {}
+    stated one). Otherwise the fixed model, 10 % of the distance (``OdometryNoise``).
+
+    ``initial_map`` (an ``OccupancyGrid2D``, as ``load_initial_map`` gives): the resolution is
+    the map's (a run started from it draws on its lattice)."""
+    if method not in METHODS:
+        raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    scans = scans_of(log)
+    options = OPTIONS_CLASSES[method]()
+    # GraphSLAM's scan matching settings are its frontend's; GridFastSlam's are its own.
+    scan_matching = options.frontend if method == "graph" else options
     no_return = scans.no_return_range()
     if np.isfinite(no_return):
-        opts["max_range"] = no_return
+        scan_matching.filter.max_range = no_return
     stated = np.asarray(scans.odometry_noise, dtype=float)
     if stated.shape != (len(scans), ODOMETRY_NOISE_SIZE):
         raise ValueError(f"odometry_noise: LaserScans.odometry_noise must be ({len(scans)}, {ODOMETRY_NOISE_SIZE}) "
                          f"(one statement per scan, NaN where none), got shape {stated.shape}")
-    if len(stated) and np.isfinite(stated).all() and carmen.has_odometry(scans):
+    odometry = carmen.has_odometry(scans)
+    if len(stated) and np.isfinite(stated).all() and odometry:
         # Where the scans state different noises, the loosest: one model serves the whole run.
-        opts["odometry_noise"] = tuple(float(v) for v in stated.max(axis=0))
-    if method == "graph" and not carmen.has_odometry(scans):
-        opts.update(constant_velocity=True, min_travel=0.0, min_rotation=0.0, linear_window=0.5,
-                    angular_window=0.5)
-    return opts
+        names = ("trans_per_metre", "trans_per_radian", "trans_floor", "rot_per_radian", "rot_per_metre", "rot_floor")
+        scan_matching.odometry = _core.OdometryNoise(**dict(zip(names, (float(v) for v in stated.max(axis=0)))))
+    if method == "graph" and not odometry:
+        frontend = options.frontend
+        frontend.constant_velocity = True
+        frontend.update = _core.UpdateTrigger(distance=0.0, angle=0.0)
+        frontend.match.window = _core.SearchWindow(linear=0.5, angular=0.5)
+    if initial_map is not None:
+        if not isinstance(initial_map, _core.OccupancyGrid2D):
+            raise TypeError(f"initial_map: expected an OccupancyGrid2D, got {type(initial_map).__name__}")
+        scan_matching.resolution = initial_map.resolution
+    options.validate()
+    return options
+
+
+def with_fields(options: Any, values: Dict[str, Any]) -> Any:
+    """A validated copy of an options object with each field named by its path set
+    (``{"frontend.filter.max_range": 8.0, "num_particles": 50}``): ``options.replace`` with the
+    groups' fields nested as dicts. Errors name the path (TypeError, ValueError)."""
+    nested: Dict[str, Any] = {}
+    for path, value in values.items():
+        *groups, name = path.split(".")
+        level = nested
+        for group in groups:
+            level = level.setdefault(group, {})
+        level[name] = value
+    return options.replace(**nested)
 
 
 def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: Optional[str] = None,
              progress: Optional[bool] = None, chunk: int = 200, resume: Optional[PathLike] = None,
              save: Optional[PathLike] = None, initial_map: Optional[Union[PathLike, _core.OccupancyGrid2D]] = None,
-             initial_pose: Optional[Any] = None, **options: Any) -> SlamResult:
+             initial_pose: Optional[Any] = None,
+             options: Union[_core.SubmapSlamOptions, _core.GridFastSlamOptions, None] = None) -> SlamResult:
     """Turns a raw log (a CARMEN or ROS bag path, a ``CarmenLog`` such as ``io.read_rosbag``'s, or
     its ``LaserScans``) into a consistent map.
 
-    ``method="graph"`` (default): ``options`` are those of ``probslam.SubmapSlam2D``: the
-    frontend's (resolution (m), max_range (m; default: the log's no-return reading),
-    max_usable_range, sigma, p_rand, linear_window, angular_window, min_travel, min_rotation,
-    submap_distance, submap_scans, min_match_quality, odometry_noise, use_odometry_prior,
-    constant_velocity, match_fraction) and the loop closures' (loop_closures,
-    closure_scans_per_submap, closure_min_match_quality, closure_window_sigmas,
-    closure_{min,max}_{linear,angular}_window, closure_max_distance, dissolve_chi2, max_rounds,
-    field_cache_mb). Defaults taken from the log: ``log_options`` (a log without odometry runs on
-    scan matching alone, every scan matched, each predicted by the last matched motion).
-
-    ``method="rbpf"``: grid-based FastSLAM, ``options`` those of ``probslam.GridFastSlam``
-    (num_particles (30), proposal ("scan-matching", "motion" or "improved-odometry"),
-    resolution, max_range, max_usable_range, sigma, p_rand, search_radius, odometry_noise,
-    resample_threshold, update_distance, update_angle, corrected_start, seed, threads, ...). It
-    needs odometry.
+    ``method="graph"`` (default): GraphSLAM over submaps (``SubmapSlam2D``), ``options`` a
+    ``SubmapSlamOptions``. ``method="rbpf"``: grid-based FastSLAM (``GridFastSlam``), ``options``
+    a ``GridFastSlamOptions``; it needs odometry. ``method=None`` is the one ``options`` is for
+    ("graph" without options). ``options=None`` takes ``default_options(log, method)`` (the
+    defaults with the log's no-return reading, stated odometry noise, and for a log without
+    odometry scan matching alone, every scan matched and predicted by the last matched motion);
+    given options are used as they are (start from ``default_options`` to keep what the log says).
+    Options of the other method's class: TypeError naming ``options``.
 
     ``progress=None`` shows a bar only on a terminal.
 
@@ -345,7 +369,7 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: Optional[st
     number of scans processed, see ``save_run``) is written there at the end, or when the run is
     interrupted (KeyboardInterrupt: the scans of the chunks completed so far). ``resume``: a run
     file; the run continues with the log's next scan, with the saved object and its options
-    (``options`` must then be empty; ``method`` defaults to the saved one). A resumed run gives
+    (``options`` must then be None; ``method`` defaults to the saved one). A resumed run gives
     the uninterrupted run's result bit for bit.
 
     ``initial_map``: start from a saved map (``load_initial_map``: an ``OccupancyGrid2D``, a
@@ -356,8 +380,8 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: Optional[st
     map's origin; the scans of the first ``submap_distance`` of travel are matched against and
     drawn into it, and later loop closures search it whole. ``method="rbpf"``: every particle's
     map starts as the saved map (its tiles shared) with the first scan drawn in. Either way the
-    result's grid is the saved map with the log drawn in, on its lattice; ``resolution``
-    defaults to the map's. ``SubmapSlam2D.start_from_map`` / ``GridFastSlam.start_from_map`` say
+    result's grid is the saved map with the log drawn in, on its lattice; the default options'
+    resolution is the map's. ``SubmapSlam2D.start_from_map`` / ``GridFastSlam.start_from_map`` say
     what is refused. A saved run (``save``) holds the map; ``resume`` takes neither argument.
     """
     if initial_pose is not None and initial_map is None:
@@ -371,15 +395,18 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: Optional[st
         run = load_run(resume)
         if method is not None and method != run.method:
             raise ValueError(f"resume: {file_path(resume)} holds a {run.method!r} run, not {method!r}")
-        if options:
-            raise ValueError(f"options: a resumed run keeps its saved options; got {sorted(options)}")
+        if options is not None:
+            raise ValueError("options: a resumed run keeps its saved options")
         method = run.method
     if save is not None:
         save = check_save_path(save)
     if method is None:
-        method = "graph"
+        method = next((m for m, cls in OPTIONS_CLASSES.items() if isinstance(options, cls)), "graph")
     if method not in METHODS:
         raise ValueError(f"method must be one of {METHODS}, got {method!r}")
+    if options is not None and not isinstance(options, OPTIONS_CLASSES[method]):
+        raise TypeError(f"options: expected a {OPTIONS_CLASSES[method].__name__} for method {method!r}, "
+                        f"got {type(options).__name__}")
     scans = scans_of(log)
     if int(chunk) != chunk or chunk < 1:
         raise ValueError("chunk must be an integer >= 1")
@@ -387,16 +414,14 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: Optional[st
     if not odometry and method == "rbpf":
         raise ValueError("log has no odometry (its laser poses never move): method 'rbpf' samples the "
                          "odometry motion model; use method 'graph', which runs on scan matching alone")
-    opts = log_options(scans, method)
-    if initial_map is not None:
-        opts["resolution"] = initial_map.resolution
-    opts.update(options)
     start = 0
     if run is not None:
         _check_resume(run, scans, str(file_path(resume)))
-        mapper, start, opts = run.mapper, run.scans_done, dict(run.options)
+        mapper, start = run.mapper, run.scans_done
     else:
-        mapper = _core.GridFastSlam(**opts) if method == "rbpf" else _core.SubmapSlam2D(**opts)
+        if options is None:
+            options = default_options(scans, method, initial_map=initial_map)
+        mapper = getattr(_core, _RUN_CLASSES[method])(options=options)
         if initial_map is not None:
             mapper.start_from_map(initial_map, (0.0, 0.0, 0.0) if initial_pose is None else initial_pose)
     angles = scans.beam_angles()
@@ -414,7 +439,7 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: Optional[st
             return save
         with _interrupts_deferred():  # a KeyboardInterrupt out of here comes after the file is written
             save_run(SlamRun(mapper=mapper, method=method, scans_done=done, first_timestamp=float(scans.timestamps[0]),
-                             last_timestamp=float(scans.timestamps[done - 1]), log_scans=len(scans), options=opts),
+                             last_timestamp=float(scans.timestamps[done - 1]), log_scans=len(scans)),
                      save)
             written[0] = done
         return save
@@ -441,8 +466,8 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: Optional[st
         seconds = time.perf_counter() - t0
         return SlamResult(timestamps=mapper.timestamps, poses=mapper.scan_poses, frontend_poses=None,
                           submap_poses=None, grid=grid, graph=None, constraints=None, summary=mapper.summary,
-                          seconds=seconds, log_duration=duration, odometry=odometry, options=opts, method=method,
-                          tile_sharing=mapper.tile_sharing, timings=mapper.timings)
+                          seconds=seconds, log_duration=duration, odometry=odometry, options=mapper.options,
+                          method=method, tile_sharing=mapper.tile_sharing, timings=mapper.timings)
     frontend = mapper.frontend_poses
     mapper.finish()
     grid = mapper.map()
@@ -450,7 +475,8 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: Optional[st
     return SlamResult(timestamps=mapper.timestamps, poses=mapper.scan_poses, frontend_poses=frontend,
                       submap_poses=mapper.submap_poses, grid=grid, graph=mapper.graph(),
                       constraints=mapper.constraints, summary=mapper.summary, seconds=seconds, log_duration=duration,
-                      odometry=odometry, options=opts, method=method, timings=mapper.timings, memory=mapper.memory)
+                      odometry=odometry, options=mapper.options, method=method, timings=mapper.timings,
+                      memory=mapper.memory)
 
 
 def write_trajectory(timestamps: np.ndarray, poses: np.ndarray, path: PathLike) -> None:
@@ -461,6 +487,6 @@ def write_trajectory(timestamps: np.ndarray, poses: np.ndarray, path: PathLike) 
     write_trajectory_file(timestamps, poses, path, format="xyt")
 
 
-__all__ = ["INITIAL_MAP", "METHODS", "RunInterrupted", "SlamResult", "SlamRun", "check_save_path", "load_initial_map",
-           "load_run", "log_options", "run_slam", "save_run",
-           "scans_of", "write_trajectory"]
+__all__ = ["INITIAL_MAP", "METHODS", "OPTIONS_CLASSES", "RunInterrupted", "SlamResult", "SlamRun", "check_save_path", "default_options",
+           "load_initial_map", "load_run", "run_slam", "save_run",
+           "scans_of", "with_fields", "write_trajectory"]

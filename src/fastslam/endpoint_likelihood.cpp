@@ -5,6 +5,7 @@
 #include <limits>
 
 #include "probslam/core/check.hpp"
+#include "probslam/grid/log_odds.hpp"
 
 namespace probslam {
 
@@ -12,7 +13,7 @@ void EndpointLikelihoodOptions::validate() const {
   require_positive(sigma, "sigma");
   require(std::isfinite(p_rand) && p_rand > 0.0 && p_rand < 1.0, "p_rand", "must lie in (0, 1)");
   require(std::isfinite(search_radius) && search_radius >= 0.0, "search_radius", "must be finite and >= 0");
-  require(std::isfinite(occupied_log_odds), "occupied_log_odds", "must be finite");
+  require_probability(occupied_threshold, "occupied_threshold");
 }
 
 EndpointLikelihood::EndpointLikelihood(const EndpointLikelihoodOptions& options, double resolution)
@@ -38,13 +39,14 @@ EndpointLikelihood::EndpointLikelihood(const EndpointLikelihoodOptions& options,
   });
   half_diagonal_ = resolution * std::sqrt(0.5);
   log_p_none_ = std::log(options.p_rand);
+  occupied_log_odds_ = logit(options.occupied_threshold);
 }
 
 double EndpointLikelihood::log_likelihood(const TiledGrid2D& grid, const Eigen::Vector3d& pose,
                                           const Eigen::Ref<const Points2>& points, double* quality) const {
   const double c = std::cos(pose.z()), s = std::sin(pose.z());
   const GridLattice2D& lattice = grid.lattice();
-  const double threshold = options_.occupied_log_odds;
+  const double threshold = occupied_log_odds_;
   const double radius2 = options_.search_radius * options_.search_radius;
   const double two_var = 2.0 * options_.sigma * options_.sigma;
   double sum = 0.0, hits = 0.0;

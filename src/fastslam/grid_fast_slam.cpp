@@ -75,24 +75,32 @@ void GridFastSlamOptions::validate() const {
               proposal == GridProposal::kImprovedOdometry,
           "proposal", "must be motion, scan-matching or improved-odometry");
   require_positive(resolution, "resolution");
-  filter.validate();
-  odometry.validate();
-  likelihood.validate();
-  matching.validate();
+  validate_group(filter, "filter");
+  validate_group(odometry, "odometry");
+  validate_group(likelihood, "likelihood");
+  validate_group(matching, "matching");
   require(std::isfinite(weight_scale) && weight_scale > 0.0 && weight_scale <= 1.0, "weight_scale",
           "must lie in (0, 1]");
   require(std::isfinite(resample_threshold) && resample_threshold >= 0.0 && resample_threshold <= 1.0,
           "resample_threshold", "must lie in [0, 1]");
-  require(std::isfinite(update_distance) && update_distance >= 0.0, "update_distance", "must be finite and >= 0");
-  require(std::isfinite(update_angle) && update_angle >= 0.0, "update_angle", "must be finite and >= 0");
-  if (uses_corrector()) corrector.validate();
+  validate_group(update, "update");
+  require(std::isfinite(update_interval) && update_interval >= 0.0, "update_interval", "must be finite and >= 0");
+  if (uses_corrector()) validate_group(corrector, "corrector");
   require(threads >= 1 && threads <= 1024, "threads", "must lie in [1, 1024]");
   require_positive(max_map_bytes, "max_map_bytes");
 }
 
+GridFastSlamOptions GridFastSlamOptions::coupled() const {
+  GridFastSlamOptions o = *this;
+  o.corrector.resolution = resolution;
+  o.corrector.filter = filter;
+  o.corrector.odometry = odometry;
+  return o;
+}
+
 GridFastSlam::GridFastSlam(const GridFastSlamOptions& options)
-    : options_((options.validate(), options)),
-      likelihood_(options.likelihood, options.resolution),
+    : options_(options.coupled()),
+      likelihood_((options_.validate(), options.likelihood), options.resolution),
       rng_(options.seed, kFilterStream) {
   check_particle_budget();  // before any particle is allocated
   if (options_.uses_corrector())
@@ -243,7 +251,8 @@ bool GridFastSlam::add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
   }
   const Eigen::Vector3d delta = between(last_update_odometry_, source);
   const int step = static_cast<int>(summary_.updates);
-  if (delta.head<2>().norm() < options_.update_distance && std::fabs(delta.z()) < options_.update_angle) {
+  const bool timed = options_.update_interval > 0.0 && timestamp - last_update_time() >= options_.update_interval;
+  if (!timed && !options_.update.reached(delta.head<2>().norm(), std::fabs(delta.z()))) {
     commit_scan();
     corrected_cov_ = chain_cov;
     last_corrected_ = last_corrected;
@@ -261,13 +270,9 @@ bool GridFastSlam::add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
   }
   motion.cov = 0.5 * (motion.cov + motion.cov.transpose());
   t0 = cpu_seconds();
-  // The corrector filtered the scan already: with the same filter (as the bindings set it), its
-  // hits, not a second pass (clear_no_return does not change which readings hit).
-  const ScanFilter& f = options_.filter;
-  const ScanFilter* cf = corrector_ ? &options_.corrector.filter : nullptr;
-  const bool same = cf && cf->max_range == f.max_range && cf->min_range == f.min_range &&
-                    cf->max_usable_range == f.max_usable_range && cf->min_point_spacing == f.min_point_spacing;
-  const Points2 hits = same ? std::move(corrected->hits) : scan_hits(ranges, beam_angles, f);
+  // The corrector filtered the scan already with the filter's options (coupled()): its hits, not
+  // a second pass.
+  const Points2 hits = corrector_ ? std::move(corrected->hits) : scan_hits(ranges, beam_angles, options_.filter);
   t1 = cpu_seconds();
   timings_.filter += t1 - t0;
   std::vector<Sampled> sampled = sample(hits, motion);
@@ -293,6 +298,13 @@ Eigen::Matrix3d GridFastSlam::corrected_motion_covariance(const Eigen::Vector3d&
   const OdometryNoise& n = options_.odometry;
   cov.diagonal() += Eigen::Vector3d(n.trans_floor * n.trans_floor, n.trans_floor * n.trans_floor, n.rot_floor * n.rot_floor);
   return cov;
+}
+
+double GridFastSlam::last_update_time() const {
+  // The scans hang from the update before them in order: the first that hangs from the last
+  // update is the scan it updated on.
+  const auto first = std::lower_bound(scan_step_.begin(), scan_step_.end(), scan_step_.back());
+  return timestamps_[static_cast<std::size_t>(first - scan_step_.begin())];
 }
 
 void GridFastSlam::start_stretch(const Eigen::Vector3d& source, const Eigen::Vector3d& raw, int step) {

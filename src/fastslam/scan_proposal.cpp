@@ -93,7 +93,7 @@ void ScanProposalOptions::validate() const {
   require(max_moves >= 0 && max_moves <= 1000000, "max_moves", "must lie in [0, 1000000]");
   require_positive(sample_linear, "sample_linear");
   require_positive(sample_angular, "sample_angular");
-  require(std::isfinite(min_quality) && min_quality >= 0.0 && min_quality <= 1.0, "min_quality",
+  require(std::isfinite(min_match_quality) && min_match_quality >= 0.0 && min_match_quality <= 1.0, "min_match_quality",
           "must lie in [0, 1]");
 }
 
@@ -167,7 +167,7 @@ ScanProposal scan_matching_proposal(const EndpointLikelihood& likelihood, const 
   }
   p.mode = best;
   likelihood.log_likelihood(grid, best, points, &p.quality);
-  p.matched = p.quality >= options.min_quality;
+  p.matched = p.quality >= options.min_match_quality;
   if (!p.matched) return p;
 
   // K = 27 poses around the mode; the mode first (the reference heading of the fit).

@@ -2,6 +2,7 @@
 
 #include "optimizer_core.hpp"
 #include "probslam/core/angle.hpp"
+#include "probslam/core/check.hpp"
 
 namespace probslam {
 namespace graph_detail {
@@ -68,6 +69,11 @@ struct GraphTraits<PoseGraph2D> {
 };
 
 }  // namespace graph_detail
+
+void OptimizerOptions::validate() const {
+  require(max_iterations >= 1, "max_iterations", "must be >= 1");
+  require_positive(kernel_width, "kernel_width");
+}
 
 OptimizationReport optimize(PoseGraph2D& graph, const OptimizerOptions& options,
                             const IterationCallback& on_iteration) {

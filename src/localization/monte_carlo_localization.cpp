@@ -51,7 +51,7 @@ void MonteCarloLocalizationOptions::validate() const {
           "occupied_threshold", "must lie in (0, 1)");
   require(std::isfinite(free_threshold) && free_threshold > 0.0 && free_threshold <= occupied_threshold,
           "free_threshold", "must lie in (0, occupied_threshold]");
-  require(sigma_hit >= LikelihoodFieldOptions::kMinSigma && sigma_hit <= LikelihoodFieldOptions::kMaxSigma, "sigma_hit",
+  require(sigma >= LikelihoodFieldOptions::kMinSigma && sigma <= LikelihoodFieldOptions::kMaxSigma, "sigma",
           "must lie in [1e-300, 1e300] (LikelihoodFieldOptions::kMinSigma, kMaxSigma)");
   require_probability(p_rand, "p_rand");
   require_positive(max_range, "max_range");
@@ -78,8 +78,7 @@ void MonteCarloLocalizationOptions::validate() const {
   require(std::isfinite(resample_threshold) && resample_threshold >= 0.0 && resample_threshold <= 1.0,
           "resample_threshold", "must lie in [0, 1]");
   require(resample_interval >= 1 && resample_interval <= 1000000, "resample_interval", "must lie in [1, 10^6]");
-  require(std::isfinite(update_min_d) && update_min_d >= 0.0, "update_min_d", "must be finite and >= 0");
-  require(std::isfinite(update_min_a) && update_min_a >= 0.0, "update_min_a", "must be finite and >= 0");
+  validate_group(update, "update");
   require(threads >= 1 && threads <= 1024, "threads", "must lie in [1, 1024]");
   // The beam mixture is checked whichever model is used (a NaN given for it is refused, not kept
   // unseen), with the sensor's max_range in place of its own, as the beam model is built.
@@ -115,9 +114,9 @@ MonteCarloLocalization::MonteCarloLocalization(const OccupancyGrid2D& map, const
   require(!free_cells_.empty(), "map", "has no free cell (occupancy probability below free_threshold)");
   if (options_.sensor_model == MclSensorModel::kLikelihoodField) {
     LikelihoodFieldOptions lf;
-    lf.sigma = options_.sigma_hit;
+    lf.sigma = options_.sigma;
     lf.p_rand = options_.p_rand;
-    lf.occupied_probability = options_.occupied_threshold;
+    lf.occupied_threshold = options_.occupied_threshold;
     field_ = std::make_shared<const LikelihoodField>(LikelihoodField::from_grid(map_, lf));
   } else {
     binary_map_ = std::make_shared<const BinaryMap2D>(map_, cell_occupied_);
@@ -334,8 +333,7 @@ MclUpdate MonteCarloLocalization::update(const Eigen::Ref<const Eigen::VectorXd>
   check_scan(ranges, angles);
   MclUpdate out;
   out.num_particles = num_particles();
-  const bool due = force || f_.num_updates == 0 || f_.travel_d >= options_.update_min_d ||
-                   f_.travel_a >= options_.update_min_a;
+  const bool due = force || f_.num_updates == 0 || options_.update.reached(f_.travel_d, f_.travel_a);
   if (!due) return out;
   if (options_.threads > 1 && !pool_ &&
       std::max(num_particles(), options_.recovery_candidates) >= 2 * kMinParticlesPerWorker)

@@ -116,11 +116,14 @@ struct SearchSpace {
 
 }  // namespace
 
+void SearchWindow::validate() const {
+  require(std::isfinite(linear) && linear >= 0.0, "linear", "must be finite and >= 0");
+  require(std::isfinite(angular) && angular >= 0.0 && angular <= kPi, "angular", "must be finite and in [0, pi]");
+  require(std::isfinite(angular_step), "angular_step", "must be finite (<= 0: automatic)");
+}
+
 void MatchOptions::validate() const {
-  require(std::isfinite(window.linear) && window.linear >= 0.0, "linear_window", "must be finite and >= 0");
-  require(std::isfinite(window.angular) && window.angular >= 0.0 && window.angular <= kPi, "angular_window",
-          "must be finite and in [0, pi]");
-  require(std::isfinite(window.angular_step), "angular_step", "must be finite (<= 0: automatic)");
+  validate_group(window, "window");
   require(std::isfinite(min_translation_std) && std::isfinite(min_rotation_std), "min_translation_std",
           "and min_rotation_std must be finite");
   require(!std::isnan(min_score) && min_score < std::numeric_limits<double>::infinity(), "min_score",

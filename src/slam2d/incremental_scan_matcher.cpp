@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <utility>
 #include <string>
 
 #include "probslam/core/angle.hpp"
@@ -34,10 +35,11 @@ constexpr double kMaxVelocityScale = 3.0;
 }  // namespace
 
 void OdometryNoise::validate() const {
-  for (double v : {trans_per_metre, trans_per_radian, rot_per_radian, rot_per_metre})
-    require(std::isfinite(v) && v >= 0.0, "odometry_noise", "coefficients must be finite and >= 0");
-  require_positive(trans_floor, "odometry_noise");
-  require_positive(rot_floor, "odometry_noise");
+  for (const auto& [v, name] : {std::pair{trans_per_metre, "trans_per_metre"}, std::pair{trans_per_radian, "trans_per_radian"},
+                                std::pair{rot_per_radian, "rot_per_radian"}, std::pair{rot_per_metre, "rot_per_metre"}})
+    require(std::isfinite(v) && v >= 0.0, name, "must be finite and >= 0");
+  require_positive(trans_floor, "trans_floor");
+  require_positive(rot_floor, "rot_floor");
 }
 
 Eigen::Matrix3d OdometryNoise::covariance(const Eigen::Vector3d& delta) const {
@@ -49,16 +51,15 @@ Eigen::Matrix3d OdometryNoise::covariance(const Eigen::Vector3d& delta) const {
 
 void IncrementalScanMatcherOptions::validate() const {
   require_positive(resolution, "resolution");
-  filter.validate();
-  field.validate();
+  validate_group(filter, "filter");
+  validate_group(field, "field");
   MatchOptions m = match;
   m.use_prior = false;
-  m.validate();
-  odometry.validate();
+  validate_group(m, "match");
+  validate_group(odometry, "odometry");
   require(std::isfinite(match_fraction) && match_fraction > 0.0 && match_fraction <= 1.0, "match_fraction",
           "must lie in (0, 1]");
-  require(std::isfinite(min_travel) && min_travel >= 0.0, "min_travel", "must be finite and >= 0");
-  require(std::isfinite(min_rotation) && min_rotation >= 0.0, "min_rotation", "must be finite and >= 0");
+  validate_group(update, "update");
   require(std::isfinite(submap_distance) && submap_distance >= 0.0, "submap_distance", "must be finite and >= 0");
   require(submap_scans >= 0, "submap_scans", "must be >= 0");
   require(std::isfinite(min_match_quality) && min_match_quality >= 0.0 && min_match_quality <= 1.0,
@@ -203,7 +204,7 @@ IncrementalScanMatcher::PendingScan IncrementalScanMatcher::prepare(const Eigen:
   const Eigen::Matrix3d rel_cov = options_.odometry.covariance(delta);
   est.pose = prior;
   est.relative_covariance = rel_cov;
-  p.moved = on_map || delta.head<2>().norm() >= options_.min_travel || std::abs(delta.z()) >= options_.min_rotation;
+  p.moved = on_map || options_.update.reached(delta.head<2>().norm(), std::abs(delta.z()));
   if (!p.moved) return p;
   const Submap& cur = submaps_.back();
   const Eigen::Matrix3d J = frame_rotation(matched_pose_.z());
@@ -253,7 +254,7 @@ Points2 IncrementalScanMatcher::matched_hits(const Points2& hits) const {
 
 std::optional<Eigen::Vector3d> IncrementalScanMatcher::last_motion(double timestamp) const {
   // The motion over the last kVelocityScans scans that moved (every scan of a log without
-  // odometry, whose min_travel is 0), in the frame of the earliest, scaled to the time since the
+  // odometry, whose update.distance is 0), in the frame of the earliest, scaled to the time since the
   // last: one scan's matched motion scatters by centimetres, their mean over a few does not.
   int last = -1, before = -1, seen = 0;
   for (int k = num_scans() - 1; k >= 0 && seen <= kVelocityScans; --k) {

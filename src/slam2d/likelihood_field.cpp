@@ -14,7 +14,7 @@ void LikelihoodFieldOptions::validate() const {
   require(sigma >= kMinSigma && sigma <= kMaxSigma, "sigma", "must lie in [1e-300, 1e300] (kMinSigma, kMaxSigma)");
   require(std::isfinite(p_rand) && p_rand > 0.0 && p_rand < 1.0, "p_rand",
           "must be a probability strictly between 0 and 1");
-  require_probability(occupied_probability, "occupied_probability");
+  require_probability(occupied_threshold, "occupied_threshold");
   require(std::isfinite(max_distance), "max_distance", "must be finite (<= 0: 6 sigma)");
 }
 
@@ -140,12 +140,12 @@ LikelihoodField LikelihoodField::from_grid(const OccupancyGrid2D& grid, const Li
 LikelihoodField LikelihoodField::from_grid(const OccupancyGrid2D& grid, const Eigen::Vector4d& region,
                                            const LikelihoodFieldOptions& options) {
   options.validate();
-  return from_obstacles(obstacles_of(grid, region, options.occupied_probability), options);
+  return from_obstacles(obstacles_of(grid, region, options.occupied_threshold), options);
 }
 
 ObstacleCells LikelihoodField::obstacles_of(const OccupancyGrid2D& grid, const Eigen::Vector4d& region,
-                                            double occupied_probability) {
-  require_probability(occupied_probability, "occupied_probability");
+                                            double occupied_threshold) {
+  require_probability(occupied_threshold, "occupied_threshold");
   require_all_finite(region, "region");
   require(region[0] <= region[2] && region[1] <= region[3], "region", "must be (xmin, ymin, xmax, ymax)");
   const GridLattice2D& lat = grid.lattice();
@@ -161,7 +161,7 @@ ObstacleCells LikelihoodField::obstacles_of(const OccupancyGrid2D& grid, const E
   out.width = std::max(0, c1 - c0);
   out.height = std::max(0, r1 - r0);
   out.cells.resize(static_cast<std::size_t>(out.width) * out.height);
-  const double occupied = logit(occupied_probability);
+  const double occupied = logit(occupied_threshold);
   for (int r = 0; r < out.height; ++r) {
     const double* row = grid.data() + static_cast<std::size_t>(r0 + r) * grid.width() + c0;
     for (int c = 0; c < out.width; ++c) out.cells[static_cast<std::size_t>(r) * out.width + c] = row[c] > occupied;

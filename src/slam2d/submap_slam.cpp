@@ -187,12 +187,13 @@ void LoopClosureOptions::validate() const {
   require(std::isfinite(min_match_quality) && min_match_quality >= 0.0 && min_match_quality <= 1.0,
           "min_match_quality", "must be in [0, 1]");
   require_positive(window_sigmas, "window_sigmas");
-  require(std::isfinite(min_linear_window) && min_linear_window >= 0.0 && max_linear_window >= min_linear_window &&
-              std::isfinite(max_linear_window),
-          "linear_window", "needs 0 <= min_linear_window <= max_linear_window, finite");
-  require(std::isfinite(min_angular_window) && min_angular_window >= 0.0 &&
-              max_angular_window >= min_angular_window && max_angular_window <= kPi,
-          "angular_window", "needs 0 <= min_angular_window <= max_angular_window <= pi");
+  require(std::isfinite(min_linear_window) && min_linear_window >= 0.0, "min_linear_window", "must be finite and >= 0");
+  require(std::isfinite(max_linear_window) && max_linear_window >= min_linear_window, "max_linear_window",
+          "must be finite and >= min_linear_window");
+  require(std::isfinite(min_angular_window) && min_angular_window >= 0.0, "min_angular_window",
+          "must be finite and >= 0");
+  require(max_angular_window >= min_angular_window && max_angular_window <= kPi, "max_angular_window",
+          "must lie in [min_angular_window, pi]");
   require_positive(max_distance, "max_distance");
   require_positive(dissolve_chi2, "dissolve_chi2");
   require_positive(field_cache_bytes, "field_cache_bytes");
@@ -215,10 +216,9 @@ IncrementalScanMatcherOptions SubmapSlamOptions::default_frontend() {
 }
 
 void SubmapSlamOptions::validate() const {
-  frontend.validate();
-  closures.validate();
-  require(optimizer.max_iterations >= 1, "max_iterations", "must be >= 1");
-  require_positive(optimizer.kernel_width, "kernel_width");
+  validate_group(frontend, "frontend");
+  validate_group(closures, "closures");
+  validate_group(optimizer, "optimizer");
   require(max_rounds >= 1, "max_rounds", "must be >= 1");
 }
 
@@ -384,7 +384,7 @@ void SubmapSlam2D::keep_closure_cells(int j) {
   // to megabytes (docs/performance.md). The field built from it is from_grid's, value for value.
   closure_cells_.resize(static_cast<std::size_t>(j));  // one link per submap, in order: a no-op
   closure_cells_.push_back(LikelihoodField::obstacles_of(frontend_.submaps()[j].grid, closure_region(j),
-                                                         options_.frontend.field.occupied_probability));
+                                                         options_.frontend.field.occupied_threshold));
   frontend_.release_grid(j);
 }
 

@@ -2,7 +2,7 @@
 #include <cmath>
 #include <unordered_map>
 
-#include "options_state.hpp"
+#include "probslam/core/options_description.hpp"
 #include "probslam/fastslam/grid_fast_slam.hpp"
 #include "probslam/fastslam/tiled_grid_2d.hpp"
 
@@ -95,59 +95,8 @@ std::vector<std::shared_ptr<TiledGrid2D>> TiledGrid2D::read_family(StateReader& 
   return out;
 }
 
-namespace {
-
-void write_options(StateWriter& w, const GridFastSlamOptions& o) {
-  w.i32(o.num_particles);
-  state_detail::write_enum(w, o.proposal);
-  w.f64(o.resolution);
-  state_detail::write(w, o.filter);
-  state_detail::write(w, o.odometry);
-  for (double v : {o.likelihood.sigma, o.likelihood.p_rand, o.likelihood.search_radius, o.likelihood.occupied_log_odds})
-    w.f64(v);
-  const ScanProposalOptions& m = o.matching;
-  w.f64(m.linear_step);
-  w.f64(m.angular_step);
-  w.i32(m.refinements);
-  w.i32(m.max_moves);
-  for (double v : {m.sample_linear, m.sample_angular, m.min_quality}) w.f64(v);
-  for (double v : {o.weight_scale, o.resample_threshold, o.update_distance, o.update_angle}) w.f64(v);
-  state_detail::write(w, o.corrector);
-  w.boolean(o.corrected_start);
-  w.u64(o.seed);
-  w.i32(o.threads);
-  w.f64(o.max_map_bytes);
-}
-
-GridFastSlamOptions read_options(StateReader& r) {
-  GridFastSlamOptions o;
-  o.num_particles = r.i32();
-  o.proposal = state_detail::read_enum(r, GridProposal::kImprovedOdometry, "the proposal");
-  o.resolution = r.f64();
-  state_detail::read(r, o.filter);
-  state_detail::read(r, o.odometry);
-  for (double* v :
-       {&o.likelihood.sigma, &o.likelihood.p_rand, &o.likelihood.search_radius, &o.likelihood.occupied_log_odds})
-    *v = r.f64();
-  ScanProposalOptions& m = o.matching;
-  m.linear_step = r.f64();
-  m.angular_step = r.f64();
-  m.refinements = r.i32();
-  m.max_moves = r.i32();
-  for (double* v : {&m.sample_linear, &m.sample_angular, &m.min_quality}) *v = r.f64();
-  for (double* v : {&o.weight_scale, &o.resample_threshold, &o.update_distance, &o.update_angle}) *v = r.f64();
-  state_detail::read(r, o.corrector);
-  o.corrected_start = r.boolean();
-  o.seed = r.u64();
-  o.threads = r.i32();
-  o.max_map_bytes = r.f64();
-  return o;
-}
-
-}  // namespace
-
 void GridFastSlam::write_state(StateWriter& w) const {
-  write_options(w, options_);
+  write_options(w, options_);  // the fields in describe()'s order
   w.boolean(corrector_ != nullptr);
   if (corrector_) corrector_->write_state(w);
   w.count(particles_.size());
@@ -181,7 +130,8 @@ void GridFastSlam::write_state(StateWriter& w) const {
 }
 
 GridFastSlam GridFastSlam::read_state(StateReader& r) {
-  const GridFastSlamOptions o = read_options(r);
+  GridFastSlamOptions o;
+  read_options(r, o);
   GridFastSlam f = validated(r, "options", [&] { return GridFastSlam(o); });
   const bool has_corrector = r.boolean();
   if (has_corrector != (f.corrector_ != nullptr)) r.fail("the corrector does not match the options");

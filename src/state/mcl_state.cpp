@@ -6,7 +6,7 @@
 #include <cmath>
 #include <string>
 
-#include "options_state.hpp"
+#include "probslam/core/options_description.hpp"
 #include "probslam/localization/monte_carlo_localization.hpp"
 
 namespace probslam {

@@ -1,122 +1,19 @@
-// Scan matching's options, likelihood fields and IncrementalScanMatcher as state
-// (docs/file_format.md).
+// Likelihood fields and IncrementalScanMatcher as state (their options through describe(),
+// core/options_description.hpp; docs/file_format.md).
 #include <cmath>
 
-#include "options_state.hpp"
+#include "probslam/core/options_description.hpp"
+#include "probslam/slam2d/incremental_scan_matcher.hpp"
 #include "probslam/slam2d/likelihood_field.hpp"
 
 namespace probslam {
-namespace state_detail {
-
-void write(StateWriter& w, const ScanFilter& o) {
-  for (double v : {o.max_range, o.min_range, o.max_usable_range}) w.f64(v);
-  w.boolean(o.clear_no_return);
-  w.f64(o.min_point_spacing);
-}
-void read(StateReader& r, ScanFilter& o) {
-  for (double* v : {&o.max_range, &o.min_range, &o.max_usable_range}) *v = r.f64();
-  o.clear_no_return = r.boolean();
-  o.min_point_spacing = r.f64();
-}
-
-void write(StateWriter& w, const LikelihoodFieldOptions& o) {
-  for (double v : {o.sigma, o.p_rand, o.occupied_probability, o.max_distance}) w.f64(v);
-}
-void read(StateReader& r, LikelihoodFieldOptions& o) {
-  for (double* v : {&o.sigma, &o.p_rand, &o.occupied_probability, &o.max_distance}) *v = r.f64();
-}
-
-void write(StateWriter& w, const MatchOptions& o) {
-  for (double v : {o.window.linear, o.window.angular, o.window.angular_step}) w.f64(v);
-  w.boolean(o.use_prior);
-  w.matrix(o.prior_covariance);
-  w.boolean(o.refine);
-  w.boolean(o.brute_force);
-  for (double v : {o.min_translation_std, o.min_rotation_std, o.min_score}) w.f64(v);
-}
-void read(StateReader& r, MatchOptions& o) {
-  for (double* v : {&o.window.linear, &o.window.angular, &o.window.angular_step}) *v = r.f64();
-  o.use_prior = r.boolean();
-  o.prior_covariance = r.matrix<Eigen::Matrix3d>();
-  o.refine = r.boolean();
-  o.brute_force = r.boolean();
-  for (double* v : {&o.min_translation_std, &o.min_rotation_std, &o.min_score}) *v = r.f64();
-}
-
-void write(StateWriter& w, const OdometryNoise& o) {
-  for (double v : {o.trans_per_metre, o.trans_per_radian, o.trans_floor, o.rot_per_radian, o.rot_per_metre, o.rot_floor})
-    w.f64(v);
-}
-void read(StateReader& r, OdometryNoise& o) {
-  for (double* v : {&o.trans_per_metre, &o.trans_per_radian, &o.trans_floor, &o.rot_per_radian, &o.rot_per_metre,
-                    &o.rot_floor})
-    *v = r.f64();
-}
-
-void write(StateWriter& w, const IncrementalScanMatcherOptions& o) {
-  w.f64(o.resolution);
-  write(w, o.filter);
-  write(w, o.field);
-  write(w, o.match);
-  write(w, o.odometry);
-  w.boolean(o.use_odometry_prior);
-  w.boolean(o.constant_velocity);
-  w.f64(o.match_fraction);
-  for (double v : {o.min_travel, o.min_rotation, o.submap_distance}) w.f64(v);
-  w.i32(o.submap_scans);
-  w.f64(o.min_match_quality);
-  w.i32(o.warmup_scans);
-  w.f64(o.field_refresh_distance);
-  w.f64(o.field_refresh_angle);
-}
-void read(StateReader& r, IncrementalScanMatcherOptions& o) {
-  o.resolution = r.f64();
-  read(r, o.filter);
-  read(r, o.field);
-  read(r, o.match);
-  read(r, o.odometry);
-  o.use_odometry_prior = r.boolean();
-  o.constant_velocity = r.boolean();
-  o.match_fraction = r.f64();
-  for (double* v : {&o.min_travel, &o.min_rotation, &o.submap_distance}) *v = r.f64();
-  o.submap_scans = r.i32();
-  o.min_match_quality = r.f64();
-  o.warmup_scans = r.i32();
-  o.field_refresh_distance = r.f64();
-  o.field_refresh_angle = r.f64();
-}
-
-void write(StateWriter& w, const OptimizerOptions& o) {
-  write_enum(w, o.algorithm);
-  write_enum(w, o.damping);
-  w.i32(o.max_iterations);
-  w.f64(o.relative_tolerance);
-  w.f64(o.step_tolerance);
-  write_enum(w, o.kernel);
-  w.f64(o.kernel_width);
-  write_enum(w, o.linear_solver.method);
-  write_enum(w, o.linear_solver.ordering);
-}
-void read(StateReader& r, OptimizerOptions& o) {
-  o.algorithm = read_enum(r, OptimizerAlgorithm::kLevenbergMarquardt, "the optimiser");
-  o.damping = read_enum(r, Damping::kLevenberg, "the damping");
-  o.max_iterations = r.i32();
-  o.relative_tolerance = r.f64();
-  o.step_tolerance = r.f64();
-  o.kernel = read_enum(r, RobustKernel::kCauchy, "the robust kernel");
-  o.kernel_width = r.f64();
-  o.linear_solver.method = read_enum(r, FactorMethod::kAuto, "the factorisation");
-  o.linear_solver.ordering = read_enum(r, FillOrdering::kMetis, "the fill ordering");
-}
-
-}  // namespace state_detail
 
 void LikelihoodField::write_state(StateWriter& w) const {
   for (double v : {x0_, y0_, res_, inv_res_}) w.f64(v);
   w.i32(width_);
   w.i32(height_);
   w.i32(num_occupied_);
-  state_detail::write(w, options_);
+  write_options(w, options_);
   w.f32(floor_);
   w.floats(distance_);
   w.floats(log_likelihood_);
@@ -128,7 +25,7 @@ LikelihoodField LikelihoodField::read_state(StateReader& r) {
   f.width_ = r.i32();
   f.height_ = r.i32();
   f.num_occupied_ = r.i32();
-  state_detail::read(r, f.options_);
+  read_options(r, f.options_);
   f.floor_ = r.f32();
   validated(r, "likelihood field options", [&] { f.options_.validate(); });
   f.distance_ = r.floats();
@@ -144,7 +41,7 @@ LikelihoodField LikelihoodField::read_state(StateReader& r) {
 }
 
 void IncrementalScanMatcher::write_state(StateWriter& w) const {
-  state_detail::write(w, options_);
+  write_options(w, options_);
   w.count(estimates_.size());
   for (const ScanEstimate& e : estimates_) {
     w.matrix(e.pose);
@@ -183,7 +80,7 @@ void IncrementalScanMatcher::write_state(StateWriter& w) const {
 
 IncrementalScanMatcher IncrementalScanMatcher::read_state(StateReader& r) {
   IncrementalScanMatcherOptions o;
-  state_detail::read(r, o);
+  read_options(r, o);
   IncrementalScanMatcher m = validated(r, "scan matcher options", [&] { return IncrementalScanMatcher(o); });
   const std::size_t n = r.count(24 + 88 + 8 + 2 + 8);
   m.estimates_.reserve(n);

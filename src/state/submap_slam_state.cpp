@@ -1,34 +1,12 @@
 // SubmapSlam2D's state (docs/file_format.md).
 #include <cmath>
 
-#include "options_state.hpp"
+#include "probslam/core/options_description.hpp"
 #include "probslam/slam2d/submap_slam.hpp"
 
 namespace probslam {
-namespace {
-
-void write_closures(StateWriter& w, const LoopClosureOptions& o) {
-  w.boolean(o.enabled);
-  w.i32(o.scans_per_submap);
-  for (double v : {o.min_match_quality, o.window_sigmas, o.min_linear_window, o.max_linear_window, o.min_angular_window,
-                   o.max_angular_window, o.max_distance, o.dissolve_chi2, o.field_cache_bytes})
-    w.f64(v);
-}
-void read_closures(StateReader& r, LoopClosureOptions& o) {
-  o.enabled = r.boolean();
-  o.scans_per_submap = r.i32();
-  for (double* v : {&o.min_match_quality, &o.window_sigmas, &o.min_linear_window, &o.max_linear_window,
-                    &o.min_angular_window, &o.max_angular_window, &o.max_distance, &o.dissolve_chi2, &o.field_cache_bytes})
-    *v = r.f64();
-}
-
-}  // namespace
-
 void SubmapSlam2D::write_state(StateWriter& w) const {
-  state_detail::write(w, options_.frontend);
-  write_closures(w, options_.closures);
-  state_detail::write(w, options_.optimizer);
-  w.i32(options_.max_rounds);
+  write_options(w, options_);  // the fields in describe()'s order
   if (closure_cells_.empty()) {
     frontend_.write_state(w);
   } else {
@@ -43,7 +21,7 @@ void SubmapSlam2D::write_state(StateWriter& w) const {
       if (c.width == 0 || c.height == 0) continue;  // nothing kept (a region off the grid): the 1 x 1 grid
       OccupancyGrid2D g(c.resolution, c.width, c.height, Eigen::Vector2d(c.x0, c.y0), released.p_prior(),
                         released.clamp());
-      const double occupied = logit(options_.frontend.field.occupied_probability);
+      const double occupied = logit(options_.frontend.field.occupied_threshold);
       const double high = released.clamp().enabled && std::isfinite(released.clamp().max) &&
                                   released.clamp().max > occupied
                               ? released.clamp().max
@@ -96,10 +74,7 @@ void SubmapSlam2D::write_state(StateWriter& w) const {
 
 SubmapSlam2D SubmapSlam2D::read_state(StateReader& r) {
   SubmapSlamOptions o;
-  state_detail::read(r, o.frontend);
-  read_closures(r, o.closures);
-  state_detail::read(r, o.optimizer);
-  o.max_rounds = r.i32();
+  read_options(r, o);
   SubmapSlam2D s = validated(r, "options", [&] { return SubmapSlam2D(o); });
   s.frontend_ = IncrementalScanMatcher::read_state(r);
   const std::size_t scans = static_cast<std::size_t>(s.frontend_.num_scans());

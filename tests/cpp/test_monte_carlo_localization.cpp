@@ -160,7 +160,7 @@ TEST(MonteCarloLocalization, LikelihoodFieldAgainstBruteForce) {
   OccupancyGrid2D g = box_map();
   g.log_odds().block(10, 20, 4, 3).setConstant(kOccupiedLogOdds);  // a pillar
   MonteCarloLocalizationOptions o;
-  o.sigma_hit = 0.15;
+  o.sigma = 0.15;
   o.p_rand = 0.05;
   o.max_beams = 1000;
   o.min_particles = 10;
@@ -211,7 +211,7 @@ TEST(MonteCarloLocalization, OneDimensionalCorridorPosterior) {
   g.log_odds().setConstant(kFreeLogOdds);
   g.log_odds().rightCols(3).setConstant(kOccupiedLogOdds);
   MonteCarloLocalizationOptions o;
-  o.sigma_hit = sigma;
+  o.sigma = sigma;
   o.p_rand = p_rand;
   o.min_particles = o.max_particles = 40000;
   o.resample_threshold = 0.0;
@@ -322,12 +322,12 @@ TEST(MonteCarloLocalization, UpdatesOnlyAfterMinimumTravel) {
   EXPECT_TRUE(mcl.update(ranges, angles).updated);  // the first scan
   mcl.predict_odometry({0.15, 0.0, 0.0});
   const Poses2 before = mcl.poses();
-  EXPECT_FALSE(mcl.update(ranges, angles).updated);  // 0.15 m < update_min_d
+  EXPECT_FALSE(mcl.update(ranges, angles).updated);  // 0.15 m < update.distance
   EXPECT_EQ(mcl.poses(), before);
   mcl.predict_odometry({0.06, 0.0, 0.0});
   EXPECT_TRUE(mcl.update(ranges, angles).updated);  // 0.21 m
   mcl.predict_odometry({0.0, 0.0, 0.5});
-  EXPECT_FALSE(mcl.update(ranges, angles).updated);  // 0.5 rad = 28.6 deg < update_min_a
+  EXPECT_FALSE(mcl.update(ranges, angles).updated);  // 0.5 rad = 28.6 deg < update.angle
   mcl.predict_odometry({0.0, 0.0, 0.03});
   EXPECT_TRUE(mcl.update(ranges, angles).updated);   // 30.4 deg
   EXPECT_TRUE(mcl.update(ranges, angles, true).updated);  // forced
@@ -502,7 +502,7 @@ TEST(MonteCarloLocalization, BadOptionsAndMapsNameTheArgument) {
   expect_invalid(with([](auto& o) { o.free_threshold = 0.9; }), "free_threshold");
   expect_invalid(with([](auto& o) { o.weight_scale = 0.0; }), "weight_scale");
   expect_invalid(with([](auto& o) { o.recovery_ratio = 1.5; }), "recovery_ratio");
-  expect_invalid(with([](auto& o) { o.sigma_hit = std::nan(""); }), "sigma_hit");
+  expect_invalid(with([](auto& o) { o.sigma = std::nan(""); }), "sigma");
   expect_invalid(with([](auto& o) { o.bin_theta = 7.0; }), "bin_theta");
   expect_invalid(with([](auto& o) { o.threads = 0; }), "threads");
   expect_invalid(with([](auto& o) { o.recovery_updates = 0; }), "recovery_updates");
@@ -596,12 +596,12 @@ TEST(MonteCarloLocalization, MotionsAndOptionsThatCannotBeRepresentedAreRefused)
   expect_invalid([] { (void)MonteCarloLocalization::kld_bound(2, 1e-309, 1.0); }, "epsilon");
   for (double sigma : {1e-301, 2e300, kInf}) {
     MonteCarloLocalizationOptions bad = o;
-    bad.sigma_hit = sigma;
-    expect_invalid([&] { MonteCarloLocalization(g, bad); }, "sigma_hit");
+    bad.sigma = sigma;
+    expect_invalid([&] { MonteCarloLocalization(g, bad); }, "sigma");
   }
   for (double sigma : {1e-200, 1e300}) {  // the extremes accepted give finite weights and poses
     MonteCarloLocalizationOptions extreme = o;
-    extreme.sigma_hit = sigma;
+    extreme.sigma = sigma;
     MonteCarloLocalization m(g, extreme);
     m.initialize_pose({3.0, 2.0, 0.0}, Eigen::Matrix3d::Identity() * 0.01);
     m.update(Eigen::VectorXd::Constant(5, 2.0), Eigen::VectorXd::LinSpaced(5, -1.0, 1.0), true);

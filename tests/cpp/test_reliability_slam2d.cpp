@@ -132,8 +132,7 @@ GridFastSlamOptions rbpf(GridProposal proposal) {
   o.num_particles = 4;
   o.proposal = proposal;
   o.filter.max_usable_range = 8.0;
-  o.corrector.filter = o.filter;
-  o.update_distance = 0.2;
+  o.update.distance = 0.2;
   o.seed = 7;
   return o;
 }

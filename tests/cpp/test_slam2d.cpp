@@ -93,7 +93,7 @@ TEST(Slam2dLikelihoodField, EdtEqualsBruteForceWithCropAndEmpty) {
       LikelihoodFieldOptions o;
       o.sigma = 0.08;
       o.max_distance = max_distance;
-      o.occupied_probability = occ;
+      o.occupied_threshold = occ;
       const double thr = logit(occ);
       for (int crop = 0; crop < 2; ++crop) {
         const LikelihoodField f = crop ? LikelihoodField::from_grid(g, Eigen::Vector4d(-1.31, 1.52, 1.77, 3.0), o)
@@ -419,10 +419,10 @@ TEST(Slam2dBadInput, EachNamesItsArgument) {
     change(o);
     expect_invalid([&] { m.match(pts, prior, o); }, name);
   };
-  with([](MatchOptions& o) { o.window.linear = -0.1; }, "linear_window");
-  with([](MatchOptions& o) { o.window.angular = -0.1; }, "angular_window");
-  with([](MatchOptions& o) { o.window.angular = 3.2; }, "angular_window");
-  with([&](MatchOptions& o) { o.window.angular_step = nan; }, "angular_step");
+  with([](MatchOptions& o) { o.window.linear = -0.1; }, "window.linear");
+  with([](MatchOptions& o) { o.window.angular = -0.1; }, "window.angular");
+  with([](MatchOptions& o) { o.window.angular = 3.2; }, "window.angular");
+  with([&](MatchOptions& o) { o.window.angular_step = nan; }, "window.angular_step");
   with([](MatchOptions& o) { o.window = {2000.0, 0.0, 0.0}; }, "window");
   with([](MatchOptions& o) { o.window = {0.0, kPi, 1e-12}; }, "window");
   // Within the candidate limit, yet the rotated scans or the top-level nodes would fill memory.
@@ -449,7 +449,7 @@ TEST(Slam2dBadInput, EachNamesItsArgument) {
   field_with([](LikelihoodFieldOptions& o) { o.p_rand = 0.0; }, "p_rand");
   field_with([](LikelihoodFieldOptions& o) { o.p_rand = 1.0; }, "p_rand");
   field_with([&](LikelihoodFieldOptions& o) { o.p_rand = nan; }, "p_rand");
-  field_with([&](LikelihoodFieldOptions& o) { o.occupied_probability = nan; }, "occupied_probability");
+  field_with([&](LikelihoodFieldOptions& o) { o.occupied_threshold = nan; }, "occupied_threshold");
   field_with([&](LikelihoodFieldOptions& o) { o.max_distance = nan; }, "max_distance");
   expect_invalid([&] { LikelihoodField::from_grid(g, Eigen::Vector4d(0, nan, 1, 1)); }, "region");
   expect_invalid([&] { LikelihoodField::from_grid(g, Eigen::Vector4d(1, 1, 0, 0)); }, "region");
@@ -584,10 +584,10 @@ TEST(Slam2dSubmapSlam, CopyIsDeepAndContinuesAsTheOriginalDoes) {
 TEST(Slam2dSubmapSlam, BadOptionsAndEmptyInput) {
   SubmapSlamOptions o;
   o.closures.scans_per_submap = 0;
-  expect_invalid([&] { SubmapSlam2D s(o); }, "scans_per_submap");
+  expect_invalid([&] { SubmapSlam2D s(o); }, "closures.scans_per_submap");
   o = SubmapSlamOptions();
   o.closures.max_angular_window = 4.0;
-  expect_invalid([&] { SubmapSlam2D s(o); }, "angular_window");
+  expect_invalid([&] { SubmapSlam2D s(o); }, "closures.max_angular_window");
   o = SubmapSlamOptions();
   o.max_rounds = 0;
   expect_invalid([&] { SubmapSlam2D s(o); }, "max_rounds");

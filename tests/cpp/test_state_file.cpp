@@ -440,7 +440,7 @@ TEST(StateFile, GridFastSlamResumedEqualsUninterrupted) {
     o.proposal = proposal;
     o.resolution = 0.1;
     o.filter.max_usable_range = 8.0;
-    o.update_distance = 0.2;
+    o.update.distance = 0.2;
     o.seed = 4;
     const RoomRun run;
     GridFastSlam straight(o), first(o);

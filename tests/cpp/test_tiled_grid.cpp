@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "probslam/core/angle.hpp"
+#include "probslam/grid/log_odds.hpp"
 #include "probslam/fastslam/grid_fast_slam.hpp"
 #include "probslam/fastslam/scan_proposal.hpp"
 #include "probslam/fastslam/tiled_grid_2d.hpp"
@@ -345,7 +346,7 @@ double brute_force_log_likelihood(const TiledGrid2D& g, const EndpointLikelihood
     double best = std::numeric_limits<double>::infinity();
     for (int r = 0; r < g.height(); ++r)
       for (int c = 0; c < g.width(); ++c)
-        if (g.log_odds(r, c) > o.occupied_log_odds) {
+        if (g.log_odds(r, c) > logit(o.occupied_threshold)) {
           const double cx = g.origin().x() + (c + 0.5) * g.resolution(), cy = g.origin().y() + (r + 0.5) * g.resolution();
           best = std::min(best, (x - cx) * (x - cx) + (y - cy) * (y - cy));
         }
@@ -547,7 +548,7 @@ TEST(GridFastSlam, CopyIsDeepAndContinuesAsTheOriginalDoes) {
   GridFastSlamOptions o;
   o.num_particles = 3;
   o.resolution = 0.1;
-  o.update_distance = 0.1;
+  o.update.distance = 0.1;
   o.resample_threshold = 1.0;  // resample at every update: the filter's own stream is copied too
   o.seed = 4;
   GridFastSlam original(o), reference(o);

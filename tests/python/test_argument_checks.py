@@ -116,6 +116,8 @@ INT_OPTIONS = [
     (lambda v: ps._core.GridFastSlam(num_particles=v), "num_particles"),
     (lambda v: ps._core.GridFastSlam(threads=v), "threads"),
     (lambda v: ps._core.SubmapSlam2D(max_rounds=v), "max_rounds"),
+    (lambda v: ps._core.SubmapSlam2D(closures={"scans_per_submap": v}), "closures.scans_per_submap"),
+    (lambda v: ps._core.GridFastSlam(matching={"refinements": v}), "matching.refinements"),
     (lambda v: ps._core.GridFastSlam(num_particles=2).map(v), "particle"),
     (lambda v: ps._core.GridFastSlam(num_particles=2).path(v), "particle"),
     (lambda v: ps.FastSlam(5, np.eye(2) * 0.01, Q).path(v), "particle"),

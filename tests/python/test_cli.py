@@ -446,11 +446,33 @@ def test_ekf_slam_bearing_offset_on_the_bundled_mrclam(tmp_path, capsys):
         assert message in capsys.readouterr().err
 
 
+def test_slam_flags_set_their_option_paths(tmp_path, capsys, monkeypatch):
+    # Each flag replaces one field of default_options(log) (SLAM_FLAGS); the rest is the log's.
+    seen = []
+
+    def spy(log, **kw):
+        seen.append(kw["options"])
+        raise KeyboardInterrupt  # the options are what is tested, not the run
+    monkeypatch.setattr("probslam.slam.run_slam", spy)
+    log = cli._bundled_log(cli.BUNDLED_RAW_LOG)
+    out = ["-o", str(tmp_path / "s"), "--no-progress"]
+    assert cli.main(["slam", log, "--resolution", "0.1", "--submap-distance", "5", "--no-loop-closures"] + out) \
+        == cli.EXIT_INTERRUPTED
+    assert cli.main(["slam", log, "--method", "rbpf", "--particles", "7", "--proposal", "motion", "--seed", "9",
+                     "--threads", "2", "--max-range", "40"] + out) == cli.EXIT_INTERRUPTED
+    graph, rbpf = seen
+    assert graph == ps.slam.default_options(log).replace(frontend={"resolution": 0.1, "submap_distance": 5.0},
+                                                         closures={"enabled": False})
+    assert rbpf == ps.slam.default_options(log, "rbpf").replace(num_particles=7, proposal="motion", seed=9, threads=2,
+                                                                 filter={"max_range": 40.0})
+
+
 def test_slam_particle_count_is_checked_by_name_before_reading(tmp_path, capsys):
-    for value in ("0", str(2 ** 64)):
+    # The library checks num_particles; the CLI tells its message as the flag.
+    for value, message in (("0", "must lie in [1, 100000]"), (str(2 ** 64), "is out of range")):
         assert cli.main(["slam", "--method", "rbpf", "--particles", value, "-o", str(tmp_path / "s"), "--no-progress"]) == 2
         err = capsys.readouterr()
-        assert "probslam: error: --particles must be an integer in [1, " in err.err and "scans" not in err.out
+        assert f"probslam: error: --particles {value}: {message}" in err.err and "scans" not in err.out
     assert not list(tmp_path.iterdir())
 
 

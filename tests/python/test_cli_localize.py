@@ -67,7 +67,8 @@ def test_localize_without_arguments_uses_the_bundled_loop_and_map(tmp_path, caps
     assert cli.main(["localize", "--global", "--no-progress", "--no-plot", "-o", str(tmp_path / "g")]) == 0
     assert "converged:     after" in capsys.readouterr().out
     ours = io.read_trajectory(tmp_path / "g_trajectory.tum")
-    slam = ps.run_slam(data.path("intel_raw_loop.log.gz"), resolution=0.1, progress=False)
+    log = data.path("intel_raw_loop.log.gz")
+    slam = ps.run_slam(log, options=ps.slam.default_options(log).replace(frontend={"resolution": 0.1}), progress=False)
     late = ours.timestamps >= ours.timestamps[len(ours) // 2]  # well after convergence
     idx = np.searchsorted(slam.timestamps, ours.timestamps[late])
     err = np.hypot(*(ours.poses[late, :2] - slam.poses[idx, :2]).T)

@@ -1,6 +1,8 @@
 """Grid-based FastSLAM (C++ GridFastSlam): particle weights against a numpy evaluation of the
 measurement likelihood, threads, tile sharing, a simulated loop, bad input."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -17,7 +19,7 @@ def drive():
 
 
 def make(**kw):
-    o = dict(max_range=MAX_RANGE, seed=3)
+    o = dict(filter={"max_range": MAX_RANGE}, seed=3)
     o.update(kw)
     return _core.GridFastSlam(**o)
 
@@ -46,8 +48,8 @@ def numpy_log_likelihood(grid, pose, ranges):
 @pytest.mark.parametrize("scale", [1.0, 0.25])
 def test_weights_equal_a_numpy_evaluation_of_the_measurement_likelihood(drive, scale):
     true, odo, ranges = drive
-    f = make(num_particles=12, proposal="motion", resample_threshold=0.0, update_distance=0.0, update_angle=0.0,
-             sigma=SIGMA, p_rand=P_RAND, search_radius=RADIUS, weight_scale=scale)
+    f = make(num_particles=12, proposal="motion", resample_threshold=0.0, update=_core.UpdateTrigger(),
+             likelihood=dict(sigma=SIGMA, p_rand=P_RAND, search_radius=RADIUS), weight_scale=scale)
     feed(f, drive, 1)
     before = f.map(0)  # every particle's map after the first scan
     assert np.all(f.log_weights == pytest.approx(-np.log(12)))
@@ -118,7 +120,8 @@ def test_run_slam_rbpf_equals_the_class(drive):
 
     true, odo, ranges = drive
     scans = scans_of(true, odo, ranges)
-    result = run_slam(scans, method="rbpf", progress=False, chunk=29, num_particles=5, seed=2)
+    options = _core.GridFastSlamOptions(filter={"max_range": MAX_RANGE}, num_particles=5, seed=2)
+    result = run_slam(scans, method="rbpf", progress=False, chunk=29, options=options)
     direct = make(num_particles=5, seed=2)
     direct.add_scans(ranges, scans.beam_angles(), odo, scans.timestamps)  # the log's beam angles
     np.testing.assert_array_equal(result.poses, direct.scan_poses)
@@ -128,36 +131,72 @@ def test_run_slam_rbpf_equals_the_class(drive):
     np.testing.assert_array_equal(result.grid.log_odds, direct.map().log_odds)
     with pytest.raises(ValueError, match="method"):
         run_slam(scans, method="particles", progress=False)
-    with pytest.raises(TypeError):
-        run_slam(scans, method="rbpf", progress=False, submap_distance=5.0)  # a GraphSLAM option
+    with pytest.raises(TypeError, match="^options: expected a GridFastSlamOptions"):
+        run_slam(scans, method="rbpf", progress=False, options=_core.SubmapSlamOptions())  # a GraphSLAM's options
 
 
-@pytest.mark.parametrize("kwargs, name", [
+@pytest.mark.parametrize("kwargs, path", [
     (dict(num_particles=0), "num_particles"),
     (dict(num_particles=10 ** 6), "num_particles"),
-    (dict(sigma=0.0), "sigma"),
-    (dict(p_rand=1.0), "p_rand"),
-    (dict(search_radius=-1.0), "search_radius"),
+    (dict(likelihood={"sigma": 0.0}), "likelihood.sigma"),
+    (dict(likelihood={"p_rand": 1.0}), "likelihood.p_rand"),
+    (dict(likelihood={"search_radius": -1.0}), "likelihood.search_radius"),
+    (dict(likelihood={"occupied_threshold": 1.0}), "likelihood.occupied_threshold"),
+    (dict(matching={"min_match_quality": 1.5}), "matching.min_match_quality"),
     (dict(resample_threshold=1.5), "resample_threshold"),
     (dict(weight_scale=0.0), "weight_scale"),
     (dict(weight_scale=2.0), "weight_scale"),
-    (dict(update_distance=float("nan")), "update_distance"),
+    (dict(update={"distance": float("nan")}), "update.distance"),
     (dict(threads=0), "threads"),
     (dict(resolution=-0.05), "resolution"),
-    (dict(odometry_noise=[0.1, 0.02, 0.0, 0.1, 0.05, 0.005]), "odometry_noise"),
+    (dict(odometry={"trans_floor": 0.0}), "odometry.trans_floor"),
+    (dict(corrector={"submap_distance": -1.0}), "corrector.submap_distance"),
     (dict(proposal="bogus"), "proposal"),
     (dict(seed=-1), "seed"),
 ])
-def test_bad_options_name_the_argument(kwargs, name):
-    with pytest.raises(ValueError, match=name):
+def test_bad_options_name_the_path(kwargs, path):
+    with pytest.raises(ValueError, match="^" + re.escape(path) + " "):
         make(**kwargs)
 
 
-@pytest.mark.parametrize("kwargs", [dict(proposal=1), dict(num_particles=2.5), dict(particle_count=3),
-                                    dict(corrected_start=1)])
-def test_option_types(kwargs):
-    with pytest.raises(TypeError):
+@pytest.mark.parametrize("kwargs, path", [(dict(proposal=1), "proposal"), (dict(num_particles=2.5), "num_particles"),
+                                          (dict(particle_count=3), "particle_count"),
+                                          (dict(corrected_start=1), "corrected_start"),
+                                          (dict(likelihood=0.05), "likelihood"),
+                                          (dict(options=_core.SubmapSlamOptions()), "options")])
+def test_option_types(kwargs, path):
+    with pytest.raises(TypeError, match=re.escape(path)):
         make(**kwargs)
+
+
+@pytest.mark.parametrize("interval, expected", [(0.0, []), (1.0, [4, 8, 12, 16, 20, 24, 28]),
+                                                 (0.6, [3, 6, 9, 12, 15, 18, 21, 24, 27])])
+def test_a_robot_standing_still_updates_every_interval(drive, interval, expected):
+    # Scans 0.25 s apart from one place: no travel, so only the time trigger updates, at the
+    # first scan at least interval after the last update; 0 (the default) never.
+    true, odo, ranges = drive
+    f = make(num_particles=3, update_interval=interval)
+    updated = []
+    for k in range(30):
+        before = f.summary.updates
+        f.add_scans(ranges[:1], ANGLES, odo[:1], [0.25 * k])
+        if f.summary.updates > before:
+            updated.append(k)
+    assert updated == expected
+    with pytest.raises(ValueError, match="^update_interval "):
+        make(update_interval=-1.0)
+
+
+def test_the_corrector_sees_the_scans_as_the_filter_does():
+    # Its resolution, filter and odometry are the filter's, whatever the options hold (a C++
+    # caller gets the same): options shows what runs.
+    options = _core.GridFastSlamOptions(resolution=0.1, filter={"max_range": 8.0}, odometry={"trans_floor": 0.02})
+    options.corrector.resolution = 0.5
+    ran = _core.GridFastSlam(options=options).options
+    assert ran.corrector.resolution == 0.1 and ran.corrector.filter == ran.filter == options.filter
+    assert ran.corrector.odometry == options.odometry
+    assert ran.corrector.submap_distance == options.corrector.submap_distance
+    assert _core.GridFastSlam(options=ran).options == ran
 
 
 def test_bad_scans_change_nothing_and_invalid_readings_never_hit(drive):
@@ -201,7 +240,7 @@ def test_fr079_climb_starts_from_the_corrected_odometry(shared_data):
     assert len(index) > 0.9 * n
 
     def error(**kw):
-        f = _core.GridFastSlam(num_particles=1, max_range=raw.no_return_range(), **kw)
+        f = _core.GridFastSlam(num_particles=1, filter={"max_range": raw.no_return_range()}, **kw)
         f.add_scans(raw.ranges[:n], raw.beam_angles()[:n], raw.laser_poses[:n], raw.timestamps[:n])
         p = f.scan_poses[index]
         # Rigid 2-D alignment (Kabsch) of the positions onto the reference.

@@ -1,6 +1,8 @@
 """Incremental scan matching (IncrementalScanMatcher): on a simulated drive through a known room
 with drifting odometry, the matched trajectory stays close to the truth while odometry drifts."""
 
+import re
+
 import numpy as np
 import pytest
 
@@ -37,7 +39,7 @@ def drive(n=120, seed=3):
 
 def test_matched_trajectory_beats_drifting_odometry():
     true, odo, ranges = drive()
-    ism = _core.IncrementalScanMatcher(max_range=30.0, submap_distance=0.0, min_travel=0.0, min_rotation=0.0)
+    ism = _core.IncrementalScanMatcher(filter={"max_range": 30.0}, submap_distance=0.0, update=_core.UpdateTrigger())
     ism.add_scans(ranges, ANGLES, odo, np.arange(len(true), dtype=float))
     err = np.linalg.norm(ism.scan_poses[:, :2] - true[:, :2], axis=1)
     odo_err = np.linalg.norm(odo[:, :2] - true[:, :2], axis=1)
@@ -49,7 +51,7 @@ def test_matched_trajectory_beats_drifting_odometry():
 
 def test_submaps_cut_by_travel():
     true, odo, ranges = drive()
-    ism = _core.IncrementalScanMatcher(max_range=30.0, submap_distance=5.0, min_travel=0.0, min_rotation=0.0)
+    ism = _core.IncrementalScanMatcher(filter={"max_range": 30.0}, submap_distance=5.0, update=_core.UpdateTrigger())
     ism.add_scans(ranges, ANGLES, odo, np.arange(len(true), dtype=float))
     travel = np.linalg.norm(np.diff(ism.scan_poses[:, :2], axis=0), axis=1).sum()
     assert ism.num_submaps == int(travel // 5.0) + 1 or ism.num_submaps == int(travel // 5.0)
@@ -61,25 +63,34 @@ def test_submaps_cut_by_travel():
 def test_scans_without_motion_are_not_matched():
     true, odo, ranges = drive(n=10)
     still = np.repeat(odo[:1], 5, axis=0)
-    ism = _core.IncrementalScanMatcher(max_range=30.0)
+    ism = _core.IncrementalScanMatcher(filter={"max_range": 30.0})
     ism.add_scans(ranges[:5], ANGLES, still, np.arange(5.0))
     assert ism.scan_info[1:, 0].sum() == 0
     np.testing.assert_allclose(ism.scan_poses, still)
 
 
-@pytest.mark.parametrize("kwargs, name", [
-    (dict(resolution=0.0), "resolution"), (dict(max_range=-1.0), "max_range"), (dict(sigma=float("nan")), "sigma"),
-    (dict(p_rand=1.5), "p_rand"), (dict(linear_window=-1.0), "linear_window"), (dict(submap_scans=-1), "submap_scans"),
-    (dict(min_match_quality=2.0), "min_match_quality"), (dict(odometry_noise=[1, 2]), "odometry_noise"),
-    (dict(odometry_noise=[0.1, 0.1, 0.0, 0.1, 0.1, 0.1]), "odometry_noise")])
-def test_bad_options_name_the_argument(kwargs, name):
-    with pytest.raises(ValueError, match=name):
+@pytest.mark.parametrize("kwargs, path", [
+    (dict(resolution=0.0), "resolution"), (dict(filter={"max_range": -1.0}), "filter.max_range"),
+    (dict(field={"sigma": float("nan")}), "field.sigma"), (dict(field={"p_rand": 1.5}), "field.p_rand"),
+    (dict(match={"window": {"linear": -1.0}}), "match.window.linear"), (dict(submap_scans=-1), "submap_scans"),
+    (dict(min_match_quality=2.0), "min_match_quality"), (dict(update={"angle": -0.1}), "update.angle"),
+    (dict(odometry={"trans_floor": 0.0}), "odometry.trans_floor"),
+    (dict(odometry={"rot_per_metre": -1.0}), "odometry.rot_per_metre")])
+def test_bad_options_name_the_path(kwargs, path):
+    with pytest.raises(ValueError, match="^" + re.escape(path) + " "):
         _core.IncrementalScanMatcher(**kwargs)
+
+
+def test_option_types_name_the_path():
+    with pytest.raises(TypeError, match=r"^odometry\.trans_floor"):
+        _core.IncrementalScanMatcher(odometry={"trans_floor": "0.1"})
+    with pytest.raises(TypeError, match=r"^odometry: expected an OdometryNoise or a dict"):
+        _core.IncrementalScanMatcher(odometry=[0.1, 0.02, 0.01, 0.1, 0.05, 0.005])
 
 
 def test_bad_scans_change_nothing():
     true, odo, ranges = drive(n=6)
-    ism = _core.IncrementalScanMatcher(max_range=30.0)
+    ism = _core.IncrementalScanMatcher(filter={"max_range": 30.0})
     ism.add_scans(ranges[:2], ANGLES, odo[:2], np.arange(2.0))
     bad_odo = odo[2:4].copy()
     bad_odo[1, 0] = np.nan

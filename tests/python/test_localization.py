@@ -123,7 +123,7 @@ def test_likelihood_field_weight_against_brute_force():
     lo = g.log_odds.copy()
     lo[10:14, 20:23] = 3.0  # a pillar
     g.log_odds[:] = lo
-    mcl = ps.MonteCarloLocalization(g, sigma_hit=0.15, p_rand=0.05, max_beams=1000, max_particles=300,
+    mcl = ps.MonteCarloLocalization(g, sigma=0.15, p_rand=0.05, max_beams=1000, max_particles=300,
                                     min_particles=10)
     rng = np.random.default_rng(0)
     angles = np.linspace(-math.pi, math.pi, 90, endpoint=False)
@@ -185,7 +185,7 @@ def test_one_dimensional_corridor_posterior():
     g.log_odds[:] = lo
     sigma, p_rand = 0.2, 0.05
     mcl = ps.MonteCarloLocalization(g, initial_pose=[2.0, 1.0, 0.0], initial_covariance=np.diag([0.09, 0.0, 0.0]),
-                                    sigma_hit=sigma, p_rand=p_rand, max_particles=40000, min_particles=40000,
+                                    sigma=sigma, p_rand=p_rand, max_particles=40000, min_particles=40000,
                                     resample_threshold=0.0, weight_scale=1.0, seed=7)
     ranges, angles = np.array([3.8]), np.array([0.0])
     mcl.update(ranges, angles)
@@ -281,7 +281,7 @@ def test_predict_odometry_forms_agree_and_pose_follows(corridor):
     d = ps.Pose2(*odo[0]).between(ps.Pose2(*odo[1]))
     b.predict_odometry([d.x, d.y, d.theta])
     assert np.allclose(a.pose, b.pose, atol=1e-12)
-    # No update yet (0.25 m < update_min_d... or not): the pose moved by the pending odometry.
+    # No update yet (0.25 m < update.distance... or not): the pose moved by the pending odometry.
     before = ps.MonteCarloLocalization(grid, initial_pose=true[0], max_particles=500).pose
     expect = ps.Pose2(*before).compose(ps.Pose2(d.x, d.y, d.theta)).as_array()
     assert np.allclose(a.pose, expect, atol=1e-9)

@@ -52,12 +52,14 @@ def test_the_defaults_are_the_ones_the_filter_uses():
 
 def test_errors_name_the_field_path():
     O = ps.MonteCarloLocalizationOptions
-    with pytest.raises(TypeError, match="^sigma_hit must be a real number"):
-        O(sigma_hit="0.1")
+    with pytest.raises(TypeError, match="^sigma must be a real number"):
+        O(sigma="0.1")
     with pytest.raises(TypeError, match="^max_beams must be an int"):
         O(max_beams=2.5)
-    with pytest.raises(TypeError, match="unexpected keyword argument 'sigma'"):
-        O(sigma=0.1)
+    with pytest.raises(TypeError, match="unexpected keyword argument 'sigma_hit'"):  # the beam's name, not the field's
+        O(sigma_hit=0.1)
+    with pytest.raises(TypeError, match="unexpected keyword argument 'update_min_d'"):  # update.distance now
+        O(update_min_d=0.1)
     with pytest.raises(TypeError, match="^odometry: expected an OdometryMotionNoise or a dict"):
         O(odometry=(0.1, 0.1, 0.1, 0.1))
     with pytest.raises(TypeError, match="^odometry got an unexpected keyword argument 'alpha5'"):
@@ -75,9 +77,9 @@ def test_errors_name_the_field_path():
 
 
 def test_a_failed_set_leaves_the_options_unchanged():
-    o = ps.MonteCarloLocalizationOptions(sigma_hit=0.2)
+    o = ps.MonteCarloLocalizationOptions(sigma=0.2)
     before = o.copy()
-    for field, value in [("sigma_hit", "x"), ("odometry", 3), ("beam", {"z_hit": "x"}), ("sensor_model", "sonar")]:
+    for field, value in [("sigma", "x"), ("odometry", 3), ("beam", {"z_hit": "x"}), ("sensor_model", "sonar")]:
         with pytest.raises((TypeError, ValueError)):
             setattr(o, field, value)
         assert o == before
@@ -131,10 +133,10 @@ def test_keywords_replace_the_given_options_fields():
 def test_equal_options_give_equal_filters():
     """Keywords and an options object are one path: the same filter, particle for particle."""
     a = ps.MonteCarloLocalization(room(), initial_pose=[2.0, 1.5, 0.0], min_particles=30, max_particles=60, seed=3,
-                                  sigma_hit=0.2)
+                                  sigma=0.2)
     b = ps.MonteCarloLocalization(room(), initial_pose=[2.0, 1.5, 0.0],
                                   options=ps.MonteCarloLocalizationOptions(min_particles=30, max_particles=60, seed=3,
-                                                                           sigma_hit=0.2))
+                                                                           sigma=0.2))
     assert np.array_equal(a.poses, b.poses)
 
 
@@ -144,13 +146,13 @@ def test_the_state_file_holds_the_fields_in_describe_order(tmp_path):
     another's place would show)."""
     o = ps.MonteCarloLocalizationOptions(
         sensor_model="beam", odometry={"alpha1": 0.11, "alpha2": 0.12, "alpha3": 0.13, "alpha4": 0.14},
-        occupied_threshold=0.7, free_threshold=0.2, sigma_hit=0.15, p_rand=0.04,
+        occupied_threshold=0.7, free_threshold=0.2, sigma=0.15, p_rand=0.04,
         beam={"z_hit": 0.8, "z_short": 0.1, "z_max": 0.04, "z_rand": 0.06, "sigma_hit": 0.07, "lambda_short": 1.5,
               "max_range": 9.0},
         max_range=12.0, min_range=0.1, max_beams=33, weight_scale=0.2, min_particles=21, max_particles=42,
         kld_epsilon=0.06, kld_z=2.0, bin_xy=0.4, bin_theta=0.2, alpha_slow=0.002, alpha_fast=0.2,
-        recovery_ratio=0.6, recovery_updates=2, recovery_candidates=5, resample_threshold=0.4, update_min_d=0.3,
-        update_min_a=0.4, seed=123, threads=2)
+        recovery_ratio=0.6, recovery_updates=2, recovery_candidates=5, resample_threshold=0.4, update={"distance": 0.3,
+        "angle": 0.4}, seed=123, threads=2)
     mcl = ps.MonteCarloLocalization(room(), options=o)
     mcl.save(tmp_path / "mcl.psl")
     assert ps.MonteCarloLocalization.load(tmp_path / "mcl.psl").options == o

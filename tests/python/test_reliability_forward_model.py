@@ -22,7 +22,7 @@ from probslam import _core
 PROPERTY = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 
 COVERED = (
-    "LikelihoodField(grid, sigma, p_rand, occupied_probability, max_distance, region)",
+    "LikelihoodField(grid, sigma, p_rand, occupied_threshold, max_distance, region)",
     "LikelihoodField.interpolate_distance",
     "CorrelativeScanMatcher.match",
     "CorrelativeScanMatcher.smooth_score",

@@ -1,7 +1,7 @@
 """The reliability policy for MonteCarloLocalization: odd input is refused with ValueError/TypeError
 naming the argument and changes nothing (every observable field compared before and after), what
 it accepts keeps the particle cloud finite, a long update stops on Ctrl-C with the filter as it
-was, and the likelihood field's memory is bounded by the map whatever sigma_hit."""
+was, and the likelihood field's memory is bounded by the map whatever the field's sigma."""
 
 import math
 import os
@@ -94,7 +94,7 @@ def test_pending_motion_is_bounded_and_the_filter_keeps_working():
 
 @pytest.mark.parametrize("sigma_hit", [1e-200, 1e-300, 1e300])
 def test_extreme_sigma_hit_gives_finite_poses(sigma_hit):
-    mcl, z = tracked(sigma_hit=sigma_hit)
+    mcl, z = tracked(sigma=sigma_hit)
     for _ in range(3):
         mcl.predict_odometry([0.25, 0.0, 0.0])
         mcl.update(z, ANGLES)
@@ -105,8 +105,8 @@ def test_extreme_sigma_hit_gives_finite_poses(sigma_hit):
 
 @pytest.mark.parametrize("sigma_hit", [1e-320, 1e301, math.inf, math.nan, 0.0])
 def test_sigma_hit_beyond_its_bounds_is_named(sigma_hit):
-    with pytest.raises(ValueError, match="^sigma_hit must lie in"):
-        _core.MonteCarloLocalization(room(), sigma_hit=sigma_hit)
+    with pytest.raises(ValueError, match="^sigma must lie in"):
+        _core.MonteCarloLocalization(room(), sigma=sigma_hit)
 
 
 @pytest.mark.parametrize("sensor_model", ["likelihood-field", "beam"])
@@ -143,10 +143,10 @@ def test_extreme_histogram_bins_give_a_finite_estimate(bins):
 # ---- memory bounded by the map ----
 
 def test_a_huge_sigma_hit_gives_the_right_field():
-    """sigma_hit = 150 m: every end point lies within a metre of a wall, far inside 6 sigma, so
+    """sigma = 150 m: every end point lies within a metre of a wall, far inside 6 sigma, so
     each beam's log p is log((1 - p_rand) exp(-d^2 / 2 sigma^2) + p_rand) ~ 0."""
     g = room()
-    mcl = _core.MonteCarloLocalization(g, sigma_hit=150.0, min_particles=10, max_particles=10)
+    mcl = _core.MonteCarloLocalization(g, sigma=150.0, min_particles=10, max_particles=10)
     z = ranges_from(g, [3.0, 2.0, 0.0])
     ll = mcl.measurement_log_likelihood([3.0, 2.0, 0.0], z, ANGLES)
     assert -1e-3 < ll <= 0.0
@@ -156,7 +156,7 @@ def test_a_huge_sigma_hit_gives_the_right_field():
 @pytest.mark.skipif(bool(os.environ.get("PROBSLAM_SANITIZED")),
                     reason="AddressSanitizer's shadow memory cannot map under an address-space limit")
 def test_a_huge_sigma_hit_builds_in_memory_bounded_by_the_map():
-    """sigma_hit = 150 m on a 20 x 20 m map of 0.05 m cells asked for tables of (6 sigma /
+    """sigma = 150 m on a 20 x 20 m map of 0.05 m cells asked for tables of (6 sigma /
     resolution)^2 = 3.2e8 entries (2.6 GB); in a child process limited to 1 GiB of address space
     the filter now builds (its field holds the map's 160,000 cells)."""
     code = ("import resource, numpy as np\n"
@@ -165,7 +165,7 @@ def test_a_huge_sigma_hit_builds_in_memory_bounded_by_the_map():
             "g = _core.OccupancyGrid2D(0.05, 400, 400, origin=(0.0, 0.0))\n"
             "lo = np.full((400, 400), -3.0); lo[0] = lo[-1] = 3.0; lo[:, 0] = lo[:, -1] = 3.0\n"
             "g.log_odds[:] = lo\n"
-            "_core.MonteCarloLocalization(g, sigma_hit=150.0, min_particles=10, max_particles=10)\n"
+            "_core.MonteCarloLocalization(g, sigma=150.0, min_particles=10, max_particles=10)\n"
             "print('ok')\n")
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")  # no per-thread arenas
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, env=env)
@@ -224,10 +224,10 @@ def test_threads_that_cannot_start_are_named_and_change_nothing():
 
 # ---- properties: odd input refused, object unchanged field by field ----
 
-NUMERIC_OPTIONS = ["occupied_threshold", "free_threshold", "sigma_hit", "p_rand", "beam.sigma_hit",
+NUMERIC_OPTIONS = ["occupied_threshold", "free_threshold", "sigma", "p_rand", "beam.sigma_hit",
                    "beam.lambda_short", "max_range", "min_range", "weight_scale", "kld_epsilon", "kld_z", "bin_xy",
-                   "bin_theta", "alpha_slow", "alpha_fast", "recovery_ratio", "resample_threshold", "update_min_d",
-                   "update_min_a"]
+                   "bin_theta", "alpha_slow", "alpha_fast", "recovery_ratio", "resample_threshold", "update.distance",
+                   "update.angle"]
 
 
 @PROPERTY

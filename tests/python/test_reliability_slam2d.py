@@ -37,9 +37,16 @@ _DRIVE = corridor_drive(laps=0.3)
 FED_PARTICLES = 4
 
 
+def laser(cls, **fields):
+    """cls with the corridor's sensor maximum (SubmapSlam2D's filter is its frontend's)."""
+    if cls is _core.SubmapSlam2D:
+        return cls(frontend={"filter": {"max_range": MAX_RANGE}, **fields.pop("frontend", {})}, **fields)
+    return cls(filter={"max_range": MAX_RANGE}, **fields)
+
+
 def fed(cls, n=4):
     true, odo, ranges = _DRIVE
-    obj = cls(max_range=MAX_RANGE, num_particles=FED_PARTICLES) if cls is _core.GridFastSlam else cls(max_range=MAX_RANGE)
+    obj = laser(cls, num_particles=FED_PARTICLES) if cls is _core.GridFastSlam else laser(cls)
     obj.add_scans(ranges[:n], ANGLES, odo[:n], np.arange(n, dtype=float))
     return obj
 
@@ -65,13 +72,25 @@ def full_state(obj):
     return s
 
 
-#: Numeric options of each class (the scan matchers share the frontend's).
-FRONTEND_OPTIONS = ["resolution", "max_range", "min_range", "max_usable_range", "sigma", "p_rand", "linear_window",
-                    "angular_window", "min_travel", "min_rotation", "submap_distance", "min_match_quality",
-                    "field_refresh_distance", "field_refresh_angle"]
-RBPF_OPTIONS = ["resolution", "max_range", "min_range", "max_usable_range", "sigma", "p_rand", "search_radius",
-                "linear_step", "angular_step", "sample_linear", "sample_angular", "min_match_quality",
-                "resample_threshold", "update_distance", "update_angle"]
+#: Numeric options of each class by path (SubmapSlam2D's scan matcher is its frontend).
+FRONTEND_OPTIONS = ["resolution", "filter.max_range", "filter.min_range", "filter.max_usable_range", "field.sigma",
+                    "field.p_rand", "match.window.linear", "match.window.angular", "update.distance", "update.angle",
+                    "submap_distance", "min_match_quality", "field_refresh_distance", "field_refresh_angle"]
+RBPF_OPTIONS = ["resolution", "filter.max_range", "filter.min_range", "filter.max_usable_range", "likelihood.sigma",
+                "likelihood.p_rand", "likelihood.search_radius", "matching.linear_step", "matching.angular_step",
+                "matching.sample_linear", "matching.sample_angular", "matching.min_match_quality",
+                "resample_threshold", "update.distance", "update.angle", "update_interval"]
+
+
+def option_fields(cls, path, value):
+    """The keyword of cls that sets the field at path ({"frontend": {"filter": {"max_range": v}}})."""
+    if cls is _core.SubmapSlam2D:
+        path = "frontend." + path
+    *groups, name = path.split(".")
+    fields = {name: value}
+    for group in reversed(groups):
+        fields = {group: fields}
+    return fields
 
 
 @pytest.mark.parametrize("cls", CLASSES)
@@ -85,13 +104,25 @@ def test_add_scans_with_odd_arrays(cls, ranges, angles, odometry, stamps):
 
 
 @pytest.mark.parametrize("cls", CLASSES)
+def test_the_option_paths_are_the_classes(cls):
+    # Every path above is a field (an unknown one would raise TypeError, passing the test below
+    # for the wrong reason): set to its default, it builds the class.
+    defaults = _core.GridFastSlamOptions() if cls is _core.GridFastSlam else _core.IncrementalScanMatcherOptions()
+    for name in RBPF_OPTIONS if cls is _core.GridFastSlam else FRONTEND_OPTIONS:
+        value = defaults
+        for part in name.split("."):
+            value = getattr(value, part)
+        cls(**option_fields(cls, name, value))
+
+
+@pytest.mark.parametrize("cls", CLASSES)
 @PROPERTY
 @given(value=policy.floats(), pick=policy.st.integers(0, 10 ** 6))
 def test_options_with_odd_numbers(cls, value, pick):
     names = RBPF_OPTIONS if cls is _core.GridFastSlam else FRONTEND_OPTIONS
     name = names[pick % len(names)]
-    raised, _ = policy.check_call(lambda: cls(**{name: value}))
-    if np.isnan(value) or (np.isinf(value) and name != "max_range"):  # max_range = inf: none stated
+    raised, _ = policy.check_call(lambda: cls(**option_fields(cls, name, value)))
+    if np.isnan(value) or (np.isinf(value) and name != "filter.max_range"):  # max_range = inf: none stated
         assert raised, (name, value)
 
 
@@ -138,10 +169,10 @@ def test_queries_with_odd_arguments(value):
 def test_threads_sharing_one_object(cls):
     true, odo, ranges = _DRIVE
     n = len(true)
-    alone = cls(max_range=MAX_RANGE)
+    alone = laser(cls)
     for k in range(n):
         alone.add_scans(ranges[k:k + 1], ANGLES, odo[k:k + 1], np.array([float(k)]))
-    shared = cls(max_range=MAX_RANGE)
+    shared = laser(cls)
     order = []
 
     def feeder():
@@ -187,12 +218,11 @@ def assert_same(a, b):
 
 
 MAKERS = {
-    "scan-matcher": lambda: _core.IncrementalScanMatcher(max_range=MAX_RANGE, submap_distance=2.0),
-    "submap-slam": lambda: _core.SubmapSlam2D(max_range=MAX_RANGE, submap_distance=2.0),
-    "rbpf-motion": lambda: _core.GridFastSlam(max_range=MAX_RANGE, num_particles=4, proposal="motion", seed=3),
-    "rbpf-scan-matching": lambda: _core.GridFastSlam(max_range=MAX_RANGE, num_particles=4, seed=3),
-    "rbpf-improved-odometry": lambda: _core.GridFastSlam(max_range=MAX_RANGE, num_particles=4,
-                                                         proposal="improved-odometry", seed=3),
+    "scan-matcher": lambda: laser(_core.IncrementalScanMatcher, submap_distance=2.0),
+    "submap-slam": lambda: laser(_core.SubmapSlam2D, frontend={"submap_distance": 2.0}),
+    "rbpf-motion": lambda: laser(_core.GridFastSlam, num_particles=4, proposal="motion", seed=3),
+    "rbpf-scan-matching": lambda: laser(_core.GridFastSlam, num_particles=4, seed=3),
+    "rbpf-improved-odometry": lambda: laser(_core.GridFastSlam, num_particles=4, proposal="improved-odometry", seed=3),
 }
 
 
@@ -294,7 +324,7 @@ def smallest_budget(**options):
 def test_grid_fastslam_update_over_the_memory_bound_keeps_nothing():
     # A bound the first update fits (one shared map) but the second does not (each particle then
     # holds its own tiles): a batch of both is undone whole.
-    options = dict(max_range=MAX_RANGE, num_particles=10, seed=1)
+    options = dict(filter={"max_range": MAX_RANGE}, num_particles=10, seed=1)
     smallest = smallest_budget(**options)
     probe = _core.GridFastSlam(max_map_bytes=smallest, **options)
     probe.add_scans(*rows(0, 1))

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from probslam import _core, cli, io
-from probslam.slam import run_slam
+from probslam.slam import default_options, run_slam
 
 # Each test runs SLAM over a whole log (slow: minutes under the sanitizers, which the reliability
 # files cover for the same C++ classes).
@@ -28,8 +28,8 @@ def log():
     return dataclasses.replace(scans, **{f.name: getattr(scans, f.name)[:SCANS] for f in dataclasses.fields(scans)})
 
 
-def slam_on(log, **kw):
-    slam = _core.SubmapSlam2D(submap_distance=3.0, **kw)
+def slam_on(log, **closures):
+    slam = _core.SubmapSlam2D(frontend={"submap_distance": 3.0}, closures=closures)
     slam.add_scans(log.ranges, log.beam_angles(), log.laser_poses, log.timestamps)
     slam.finish()
     return slam
@@ -38,7 +38,7 @@ def slam_on(log, **kw):
 def test_results_do_not_depend_on_the_field_cache(log):
     # A cache too small for one field rebuilds every field it is asked for; a large one builds
     # each once: the closures, the graph and the map must be the same bit for bit.
-    small, large = slam_on(log, field_cache_mb=1e-3), slam_on(log, field_cache_mb=1024.0)
+    small, large = slam_on(log, field_cache_bytes=1024.0), slam_on(log, field_cache_bytes=2.0 ** 30)
     assert small.summary.closures_searched > 0 and small.num_submaps >= 6, small.summary
     assert np.array_equal(small.scan_poses, large.scan_poses)
     a, b = small.constraints, large.constraints
@@ -71,7 +71,7 @@ def test_saved_state_continues_after_release(tmp_path, log):
     # The file holds the released submaps as their obstacle cells: a loaded object searches the
     # same fields, so it continues exactly as the original.
     half = SCANS // 2
-    a = _core.SubmapSlam2D(submap_distance=3.0)
+    a = _core.SubmapSlam2D(frontend={"submap_distance": 3.0})
     angles = log.beam_angles()
     a.add_scans(log.ranges[:half], angles[:half], log.laser_poses[:half], log.timestamps[:half])
     a.save(tmp_path / "s.psl")
@@ -107,7 +107,7 @@ def test_timings_count_every_stage(log):
 def test_run_slam_reports_timings_and_memory(log):
     r = run_slam(log, progress=False)
     assert r.timings.match > 0 and r.memory.total > 0
-    f = run_slam(log, progress=False, method="rbpf", num_particles=3)
+    f = run_slam(log, progress=False, options=default_options(log, "rbpf").replace(num_particles=3))
     assert f.memory is None
     t = f.timings.as_dict()
     assert set(t) == {"filter", "corrector", "proposal", "resample", "map_update", "table_copies", "final_map"}

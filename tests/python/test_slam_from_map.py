@@ -9,7 +9,7 @@ import pytest
 
 import probslam as ps
 from probslam import cli, io
-from probslam.slam import run_slam
+from probslam.slam import default_options, run_slam
 
 # Each test runs SLAM over the bundled Intel lap (slow: seconds here, minutes under the sanitizers,
 # which the reliability files cover for the same C++ classes).
@@ -134,7 +134,8 @@ def test_bad_maps_and_poses_are_refused_by_name(tmp_path):
     with pytest.raises(ValueError, match="initial_pose"):
         run_slam(log, progress=False, initial_map=room, initial_pose=(0.0, np.nan, 0.0))
     with pytest.raises(ValueError, match="map has resolution"):
-        run_slam(log, progress=False, initial_map=room, resolution=0.1)
+        run_slam(log, progress=False, initial_map=room,
+                 options=default_options(log).replace(frontend={"resolution": 0.1}))
     with pytest.raises(ValueError, match="initial_pose: only with initial_map"):
         run_slam(log, progress=False, initial_pose=(0.0, 0.0, 0.0))
     with pytest.raises(ValueError, match="initial_pose .*outside the map"):
@@ -167,8 +168,9 @@ def test_rbpf_starts_on_a_saved_map():
     # own differences, 0.20 m without the map).
     log = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_RAW_LOG)).scans
     graph = run_slam(log, progress=False)
-    rbpf = run_slam(log, progress=False, method="rbpf", num_particles=3, initial_map=graph.grid,
-                    initial_pose=graph.poses[0])
+    options = default_options(log, "rbpf", initial_map=graph.grid).replace(num_particles=3)
+    assert options.resolution == graph.grid.resolution
+    rbpf = run_slam(log, progress=False, options=options, initial_map=graph.grid, initial_pose=graph.poses[0])
     gap = np.hypot(*(rbpf.poses[:, :2] - graph.poses[:, :2]).T)
     assert gap[:20].max() < OWN_START_M and gap.max() < OWN_MAP_M
     assert rbpf.tile_sharing.distinct < rbpf.tile_sharing.references  # the particles share the map's tiles

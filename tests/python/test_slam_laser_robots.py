@@ -37,14 +37,15 @@ def similarity_scale(estimate, truth):
 NEAR_HITS = 0.6
 
 
-def frontend(world, odometry, seed=0, **options):
-    options.setdefault("match_fraction", NEAR_HITS)
+def frontend(world, odometry, seed=0, match_fraction=NEAR_HITS):
     sim = sim_laser.simulate(world, "stage", odometry, seed=seed)
     scans = sim.scans()
     # As a log that does not state its odometry's noise (the fixed model, 1 cm a scan): the
     # stated noise of perfect odometry would hold the frontend on it whatever the matching does.
     scans.odometry_noise[:] = np.nan
-    result = ps.slam.run_slam(scans, progress=False, loop_closures=False, **options)
+    options = ps.slam.default_options(scans).replace(closures={"enabled": False},
+                                                     frontend={"match_fraction": match_fraction})
+    result = ps.slam.run_slam(scans, progress=False, options=options)
     return sim, result
 
 
@@ -82,9 +83,10 @@ def test_without_odometry_blind_scans_continue_the_last_motion(constant_velocity
     n = first + BLIND_SCANS
     # Without constant velocity, as run_slam ran such a log before: no prior ("no motion" in the
     # score holds the path at its start).
-    m = ps.SubmapSlam2D(max_range=sim.sensor.max_range, min_travel=0.0, min_rotation=0.0, linear_window=0.5,
-                        angular_window=0.5, constant_velocity=constant_velocity,
-                        use_odometry_prior=constant_velocity, loop_closures=False, match_fraction=NEAR_HITS)
+    m = ps.SubmapSlam2D(frontend=dict(filter={"max_range": sim.sensor.max_range}, update=ps.UpdateTrigger(),
+                                      match={"window": {"linear": 0.5, "angular": 0.5}},
+                                      constant_velocity=constant_velocity, use_odometry_prior=constant_velocity,
+                                      match_fraction=NEAR_HITS), closures={"enabled": False})
     m.add_scans(scans.ranges[:n], scans.beam_angles()[:n], scans.laser_poses[:n], scans.timestamps[:n])
     poses = m.frontend_poses
     moved = np.hypot(*(poses[n - 1, :2] - poses[first - 1, :2]))
@@ -101,30 +103,42 @@ def test_without_odometry_the_frontend_follows_the_office_loop():
     assert err.rmse < NONE_OFFICE_ATE
 
 
-def test_log_options_follow_the_log():
+def test_default_options_follow_the_log():
     with_odometry = sim_laser.simulate("hall", "lds", "good", seed=0).scans()
     without = sim_laser.simulate("hall", "lds", "none", seed=0).scans()
-    stated = sim_laser.ODOMETRY["good"].stated_noise()
-    assert ps.slam.log_options(with_odometry) == {"max_range": 3.5, "odometry_noise": stated}
-    assert ps.slam.log_options(with_odometry, method="rbpf")["odometry_noise"] == stated
+    names = ("trans_per_metre", "trans_per_radian", "trans_floor", "rot_per_radian", "rot_per_metre", "rot_floor")
+    stated = ps.OdometryNoise(**dict(zip(names, sim_laser.ODOMETRY["good"].stated_noise())))
+    graph = ps.slam.default_options(with_odometry)
+    assert isinstance(graph, ps.SubmapSlamOptions)
+    expected = ps.SubmapSlamOptions()
+    expected.frontend.filter.max_range = 3.5
+    expected.frontend.odometry = stated
+    assert graph == expected
+    rbpf = ps.slam.default_options(with_odometry, method="rbpf")
+    assert isinstance(rbpf, ps.GridFastSlamOptions)
+    assert rbpf == ps.GridFastSlamOptions(filter={"max_range": 3.5}, odometry=stated)
     with_odometry.odometry_noise[:] = np.nan  # a log that states nothing: the fixed model
-    assert ps.slam.log_options(with_odometry) == {"max_range": 3.5}
-    opts = ps.slam.log_options(without)
-    assert opts["max_range"] == 3.5 and opts["constant_velocity"] and opts["min_travel"] == 0.0
-    assert "constant_velocity" not in ps.slam.log_options(without, method="rbpf")
+    expected.frontend.odometry = ps.OdometryNoise()
+    assert ps.slam.default_options(with_odometry) == expected
+    frontend = ps.slam.default_options(without).frontend
+    assert frontend.filter.max_range == 3.5 and frontend.constant_velocity and frontend.update.distance == 0.0
+    assert frontend.match.window.linear == 0.5
+    assert not ps.slam.default_options(without, method="rbpf").corrector.constant_velocity
+    with pytest.raises(ValueError, match="method"):
+        ps.slam.default_options(without, method="particles")
 
 
 def test_a_misshapen_odometry_noise_is_refused_by_name():
     scans = sim_laser.simulate("hall", "lds", "good", seed=0).scans()
     scans.odometry_noise = np.ones(6)  # one statement, not one per scan
     with pytest.raises(ValueError, match="odometry_noise"):
-        ps.slam.log_options(scans)
+        ps.slam.default_options(scans)
 
 
 @pytest.mark.parametrize("bad", [0.0, -0.5, 1.5, float("nan")])
 def test_match_fraction_out_of_range_is_refused(bad):
-    with pytest.raises(ValueError, match="match_fraction"):
-        ps.SubmapSlam2D(match_fraction=bad)
+    with pytest.raises(ValueError, match=r"^frontend\.match_fraction "):
+        ps.SubmapSlam2D(frontend={"match_fraction": bad})
 
 
 #: The issue's bar for the truth as odometry: GraphSLAM (closures on, every default) under
@@ -179,7 +193,8 @@ def test_look_alike_closures_are_refused(seed):
     sim = sim_laser.simulate("repeated", "stage", "poor", seed=seed)
     scans = sim.scans()
     with_closures = ps.slam.run_slam(scans, progress=False)
-    without = ps.slam.run_slam(scans, progress=False, loop_closures=False)
+    without = ps.slam.run_slam(scans, progress=False,
+                               options=ps.slam.default_options(scans).replace(closures={"enabled": False}))
     ate_with = ate(with_closures.timestamps, with_closures.poses, sim.timestamps, sim.truth).rmse
     ate_without = ate(without.timestamps, without.poses, sim.timestamps, sim.truth).rmse
     assert ate_with <= ate_without + FALSE_CLOSURE_MOVE, (ate_with, ate_without)

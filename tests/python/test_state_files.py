@@ -12,7 +12,7 @@ import pytest
 import probslam as ps
 from probslam import _core, cli, io
 from probslam.ekf import EkfSlam, MultiHypothesisEkfSlam
-from probslam.slam import load_run, run_slam
+from probslam.slam import default_options, load_run, run_slam
 
 LANDMARKS = np.array([[6 * np.cos(0.5 * k), 6 * np.sin(0.5 * k)] for k in range(12)])
 
@@ -161,17 +161,20 @@ def head(log_scans, n):
 
 
 @pytest.mark.slow  # a whole log through SLAM twice
-@pytest.mark.parametrize("method,options", [("graph", {}), ("rbpf", {"num_particles": 3})])
-def test_run_slam_resumed_equals_uninterrupted(tmp_path, method, options):
+@pytest.mark.parametrize("method,fields", [("graph", {}), ("rbpf", {"num_particles": 3})])
+def test_run_slam_resumed_equals_uninterrupted(tmp_path, method, fields):
     log = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_RAW_LOG)).scans
     n = 250 if method == "graph" else 120
     full = log if method == "graph" else head(log, 240)
-    straight = run_slam(full, method=method, progress=False, **options)
-    run_slam(head(full, n), method=method, progress=False, save=tmp_path / "run.psl", **options)
+    options = default_options(full, method).replace(**fields)
+    straight = run_slam(full, method=method, progress=False, options=options)
+    run_slam(head(full, n), method=method, progress=False, save=tmp_path / "run.psl", options=options)
     saved = load_run(tmp_path / "run.psl")
     assert saved.method == method and saved.scans_done == n
     mapper = _core.SubmapSlam2D if method == "graph" else _core.GridFastSlam
     assert isinstance(saved.mapper, mapper)
+    # The run file holds the options object (in the object's state), the one the run ran with.
+    assert saved.options == straight.options and isinstance(saved.options, type(options))
     resumed = run_slam(full, resume=tmp_path / "run.psl", progress=False)
     assert resumed.method == method
     assert np.array_equal(resumed.timestamps, straight.timestamps) and np.array_equal(resumed.poses, straight.poses)

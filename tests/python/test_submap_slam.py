@@ -2,6 +2,9 @@
 heading bias drifts metres over a lap; the submap graph with correlative loop closures brings
 every scan back to the true trajectory."""
 
+import pickle
+import re
+
 import numpy as np
 import pytest
 
@@ -18,9 +21,9 @@ def drive():
     return corridor_drive()
 
 
-def run(drive, **kw):
+def run(drive, frontend=(), **kw):
     true, odo, ranges = drive
-    slam = _core.SubmapSlam2D(max_range=MAX_RANGE, **kw)
+    slam = _core.SubmapSlam2D(frontend={"filter": {"max_range": MAX_RANGE}, **dict(frontend)}, **kw)
     slam.add_scans(ranges, ANGLES, odo, np.arange(len(true), dtype=float))
     slam.finish()
     return slam
@@ -38,7 +41,7 @@ def test_loop_closes_with_odometry_only_frontend(drive):
     # Submaps built on drifting odometry are blurred by the drift inside them, so their matches
     # score lower than scan-matched ones: 0.55 rather than the default 0.6 (measured: 0.55
     # closes the loop to 0.20 m at most, 0.6 to 0.38 m, and 0.5 accepts wrong closures).
-    slam = run(drive, min_match_quality=1.0, submap_distance=4.0, closure_min_match_quality=0.55)
+    slam = run(drive, frontend=dict(min_match_quality=1.0, submap_distance=4.0), closures={"min_match_quality": 0.55})
     odo_err = position_errors(odo, true)
     err = position_errors(slam.scan_poses, true)
     s = slam.summary
@@ -46,7 +49,7 @@ def test_loop_closes_with_odometry_only_frontend(drive):
     assert s.closures_accepted >= 3, s
     assert err.max() < 0.35 and np.median(err) < 0.15, (err.max(), np.median(err), s)
     # Without closures the same graph keeps the drift.
-    open_loop = run(drive, min_match_quality=1.0, submap_distance=4.0, loop_closures=False)
+    open_loop = run(drive, frontend=dict(min_match_quality=1.0, submap_distance=4.0), closures={"enabled": False})
     assert position_errors(open_loop.scan_poses, true).max() > 1.0
 
 
@@ -75,21 +78,44 @@ def test_full_pipeline_on_the_loop(drive):
     assert isinstance(grid, ps.OccupancyGrid2D)
 
 
-@pytest.mark.parametrize("kwargs, name", [
-    (dict(closure_scans_per_submap=0), "scans_per_submap"), (dict(closure_min_match_quality=1.5), "min_match_quality"),
-    (dict(closure_window_sigmas=0.0), "window_sigmas"), (dict(closure_max_linear_window=-1.0), "linear_window"),
-    (dict(closure_max_angular_window=4.0), "angular_window"), (dict(dissolve_chi2=float("nan")), "dissolve_chi2"),
-    (dict(max_rounds=0), "max_rounds"), (dict(field_cache_mb=0.0), "field_cache_bytes")])
-def test_bad_options_name_the_argument(kwargs, name):
-    with pytest.raises(ValueError, match=name):
+@pytest.mark.parametrize("closures, path", [
+    (dict(scans_per_submap=0), "closures.scans_per_submap"), (dict(min_match_quality=1.5), "closures.min_match_quality"),
+    (dict(window_sigmas=0.0), "closures.window_sigmas"), (dict(max_linear_window=-1.0), "closures.max_linear_window"),
+    (dict(max_angular_window=4.0), "closures.max_angular_window"),
+    (dict(dissolve_chi2=float("nan")), "closures.dissolve_chi2"), (dict(field_cache_bytes=0.0), "closures.field_cache_bytes")])
+def test_bad_options_name_the_path(closures, path):
+    # The message starts with the field's whole path, from the keywords and from an options object alike.
+    with pytest.raises(ValueError, match="^" + re.escape(path) + " "):
+        _core.SubmapSlam2D(closures=closures)
+    options = _core.SubmapSlamOptions()
+    for name, value in closures.items():
+        setattr(options.closures, name, value)
+    with pytest.raises(ValueError, match="^" + re.escape(path) + " "):
+        _core.SubmapSlam2D(options=options)
+    with pytest.raises(ValueError, match="^max_rounds "):
+        _core.SubmapSlam2D(max_rounds=0)
+    with pytest.raises(ValueError, match=r"^frontend\.filter\.max_range "):
+        _core.SubmapSlam2D(frontend={"filter": {"max_range": -1.0}})
+
+
+@pytest.mark.parametrize("kwargs, kind, path", [
+    (dict(closures={"enabled": 1}), TypeError, "closures.enabled"), (dict(max_rounds=2.5), TypeError, "max_rounds"),
+    (dict(frontend={"resolution": "x"}), TypeError, "frontend.resolution"),
+    (dict(no_such_option=1), TypeError, "no_such_option"), (dict(options=_core.GridFastSlamOptions()), TypeError, "options")])
+def test_option_types(kwargs, kind, path):
+    with pytest.raises(kind, match=re.escape(path)):
         _core.SubmapSlam2D(**kwargs)
 
 
-@pytest.mark.parametrize("kwargs, kind", [(dict(loop_closures=1), TypeError), (dict(max_rounds=2.5), TypeError),
-                                          (dict(resolution="x"), TypeError), (dict(no_such_option=1), TypeError)])
-def test_option_types(kwargs, kind):
-    with pytest.raises(kind):
-        _core.SubmapSlam2D(**kwargs)
+def test_options_round_trip_and_the_keywords_replace_fields():
+    options = _core.SubmapSlamOptions(max_rounds=3)
+    options.frontend.filter.max_range = 8.0
+    slam = _core.SubmapSlam2D(options=options, closures={"min_match_quality": 0.7})
+    got = slam.options
+    assert got.frontend.filter.max_range == 8.0 and got.max_rounds == 3 and got.closures.min_match_quality == 0.7
+    assert got.closures.scans_per_submap == _core.LoopClosureOptions().scans_per_submap  # the rest kept
+    assert got == _core.SubmapSlam2D(options=got).options and got == pickle.loads(pickle.dumps(got))
+    assert options.closures.min_match_quality == 0.6  # the caller's object is not changed
 
 
 def test_empty_and_bad_input():
@@ -110,7 +136,7 @@ def test_run_slam_equals_the_class(drive):
     true, odo, ranges = drive
     scans = scans_of(true, odo, ranges)
     result = run_slam(scans, progress=False, chunk=37)
-    direct = _core.SubmapSlam2D(max_range=MAX_RANGE)  # as the log states it
+    direct = _core.SubmapSlam2D(frontend={"filter": {"max_range": MAX_RANGE}})  # as the log states it
     direct.add_scans(ranges, scans.beam_angles(), odo, scans.timestamps)
     direct.finish()
     np.testing.assert_allclose(result.poses, direct.scan_poses, atol=1e-9)
@@ -134,7 +160,7 @@ def test_log_without_odometry_runs_on_scan_matching_alone(drive):
     scans = scans_of(true[:n], still, ranges[:n])
     assert not has_odometry(scans)
     result = run_slam(scans, progress=False)
-    assert not result.odometry and result.options["constant_velocity"] is True
+    assert not result.odometry and result.options.frontend.constant_velocity is True
     err = position_errors(result.poses, true[:n])
     assert err.max() < 0.2, err.max()
     # Submaps are cut by the estimated travel (the odometry says the robot never moved).
@@ -151,8 +177,12 @@ def test_run_slam_bad_input(drive):
         run_slam(scans_of(true[:0], odo[:0], ranges[:0]))
     with pytest.raises(ValueError, match="chunk"):
         run_slam(scans_of(true, odo, ranges), chunk=0)
-    with pytest.raises(TypeError, match="no_such_option"):  # pybind11 names the keyword it could not place
+    with pytest.raises(TypeError, match="no_such_option"):
         run_slam(scans_of(true[:3], odo[:3], ranges[:3]), no_such_option=1)
+    with pytest.raises(TypeError, match="^options: expected a SubmapSlamOptions"):
+        run_slam(scans_of(true[:3], odo[:3], ranges[:3]), method="graph", options=_core.GridFastSlamOptions())
+    with pytest.raises(TypeError, match="^options: expected a SubmapSlamOptions"):
+        run_slam(scans_of(true[:3], odo[:3], ranges[:3]), options={"max_rounds": 3})
 
 
 def test_scans_of_differing_beam_counts(drive):
@@ -174,7 +204,7 @@ def test_scans_with_no_valid_reading_take_the_odometry(drive):
     true, odo, ranges = drive
     bad = ranges[:30].copy()
     bad[10:13] = np.nan  # three scans with no return at all
-    slam = _core.SubmapSlam2D(max_range=MAX_RANGE)
+    slam = _core.SubmapSlam2D(frontend={"filter": {"max_range": MAX_RANGE}})
     slam.add_scans(bad, ANGLES, odo[:30], np.arange(30.0))
     slam.finish()
     info = slam.scan_info

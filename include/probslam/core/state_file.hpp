@@ -26,7 +26,9 @@ namespace probslam {
 /// 4: EkfSlam keeps its landmarks' signatures apart from the dense state (issue 50's speed);
 /// MonteCarloLocalization's options hold resample_interval (issue 52: an option added by its
 /// describe() line alone).
-inline constexpr std::uint32_t kStateFormatVersion = 4;
+/// 5: the laser SLAM classes' options written through their describe() (issue 52): the scan
+/// matcher's no longer hold the match's prior, which every owner sets per match.
+inline constexpr std::uint32_t kStateFormatVersion = 5;
 
 /// What a reader throws: "<source>: <what is wrong>".
 class StateError : public std::invalid_argument {

@@ -22,8 +22,16 @@ struct EndpointLikelihoodOptions {
   /// gave 0.046, 0.050, 0.046 m relations error against 0.057, 0.053, 0.047 m with 0.15, and
   /// FR079 and Intel agree with their corrected logs as well or better (0.059, 0.054 m).
   double search_radius = 0.3;
-  double occupied_log_odds = 0.0;  ///< cells above this log-odds (p > 0.5) are obstacles
+  double occupied_threshold = 0.5;  ///< cells above this probability are obstacles
   void validate() const;
+  template <class V>
+  static void describe(V& v) {
+    using O = EndpointLikelihoodOptions;
+    v("sigma", &O::sigma, "m", "std of a hit around the nearest obstacle");
+    v("p_rand", &O::p_rand, "", "weight of the uniform part, in (0, 1): bounds a stray point's cost");
+    v("search_radius", &O::search_radius, "m", "obstacles farther than this count as none");
+    v("occupied_threshold", &O::occupied_threshold, "", "cells above this probability are obstacles");
+  }
 };
 
 /// log p(z | x, m) = sum over the end points of log((1 - p_rand) exp(-d^2 / 2 sigma^2) + p_rand),
@@ -59,6 +67,7 @@ class EndpointLikelihood {
   double res_;
   std::vector<Offset> offsets_;  // cells that may lie within search_radius, nearest first
   double half_diagonal_ = 0.0, log_p_none_ = 0.0;
+  double occupied_log_odds_ = 0.0;  // logit(occupied_threshold)
 };
 
 }  // namespace probslam

@@ -18,6 +18,8 @@
 #include <vector>
 
 #include "probslam/core/object_mutex.hpp"
+#include "probslam/core/options_description.hpp"
+#include "probslam/core/update_trigger.hpp"
 #include "probslam/core/types.hpp"
 #include "probslam/fastslam/endpoint_likelihood.hpp"
 #include "probslam/fastslam/particles.hpp"
@@ -31,6 +33,10 @@ namespace probslam {
 class WorkerPool;
 
 enum class GridProposal : std::uint8_t { kMotion = 0, kScanMatching = 1, kImprovedOdometry = 2 };
+template <>
+struct OptionEnum<GridProposal> {
+  static constexpr std::array<const char*, 3> names{"motion", "scan-matching", "improved-odometry"};
+};
 
 /// Particles at most: each holds a grid map's tile table; far beyond any published use (GMapping
 /// runs 30 to 100).
@@ -63,8 +69,14 @@ struct GridFastSlamOptions {
   /// relations error against 0.0458), but the scans between updates then follow the odometry
   /// over twice the distance: on the bundled excerpt with 4 particles the best path's median
   /// distance from GraphSLAM's grows from under 0.1 m to 0.2 m.
-  double update_distance = 0.25, update_angle = 0.25;
-  /// kImprovedOdometry's incremental scan matcher (its submaps cut every few metres).
+  UpdateTrigger update{0.25, 0.25};
+  /// The filter also updates once this much log time (s) has passed since the last update,
+  /// moved or not (GMapping's temporalUpdate): a robot standing still has its particles weighed
+  /// by new scans. 0: on travel alone.
+  double update_interval = 0.0;
+  /// kImprovedOdometry's incremental scan matcher (its submaps cut every few metres). It sees
+  /// the scans as the filter does: its resolution, filter and odometry are the filter's (the
+  /// constructor sets them, so options() shows what runs).
   IncrementalScanMatcherOptions corrector = default_corrector();
   /// kScanMatching: the hill climb starts from the odometry corrected by incremental scan
   /// matching (`corrector`) instead of the raw odometry; the proposal's target, p(z | x, m) times
@@ -81,7 +93,31 @@ struct GridFastSlamOptions {
   double max_map_bytes = kGridFastSlamDefaultMapBytes;
 
   static IncrementalScanMatcherOptions default_corrector();
+  /// std::invalid_argument naming the first bad option by its path ("likelihood.sigma").
   void validate() const;
+  /// These options with the corrector's resolution, filter and odometry set to the filter's:
+  /// what the filter runs with.
+  GridFastSlamOptions coupled() const;
+  template <class V>
+  static void describe(V& v) {
+    using O = GridFastSlamOptions;
+    v("num_particles", &O::num_particles, "", "M, in [1, 100000]");
+    v("proposal", &O::proposal, "", "\"scan-matching\" (Grisetti et al. 2007), \"motion\" (the odometry motion model) or \"improved-odometry\" (Haehnel et al. 2003)");
+    v("resolution", &O::resolution, "m", "cell side of the particles' maps");
+    v("filter", &O::filter, "", "which readings hit, and the usable range");
+    v("odometry", &O::odometry, "", "the odometry motion model's noise");
+    v("likelihood", &O::likelihood, "", "the end-point likelihood p(z | x, m)");
+    v("matching", &O::matching, "", "the scan-matching proposal's hill climb and Gaussian fit");
+    v("weight_scale", &O::weight_scale, "", "in (0, 1]: each update's log weight increment is multiplied by this (a scan's beams are not independent)");
+    v("resample_threshold", &O::resample_threshold, "", "resample when N_eff < this * M, in [0, 1]");
+    v("update", &O::update, "", "the filter updates once the odometry moved or turned this much since the last update");
+    v("update_interval", &O::update_interval, "s", "... or once this much log time passed since the last update (0: travel alone)");
+    v("corrector", &O::corrector, "", "the incremental scan matcher that corrects the odometry (its resolution, filter and odometry are the filter's)");
+    v("corrected_start", &O::corrected_start, "", "scan-matching: the climb starts from the corrected odometry");
+    v("seed", &O::seed, "", "random seed, in [0, 2^64)");
+    v("threads", &O::threads, "", "worker threads (results identical for any count)");
+    v("max_map_bytes", &O::max_map_bytes, "bytes", "bound on the particles' maps with the worst case of the next update");
+  }
   /// kImprovedOdometry, or kScanMatching with corrected_start: the corrector runs.
   bool uses_corrector() const {
     return proposal == GridProposal::kImprovedOdometry || (proposal == GridProposal::kScanMatching && corrected_start);
@@ -242,6 +278,8 @@ class GridFastSlam {
   bool needs_growth(const TiledGrid2D& map, const Eigen::Vector3d& pose, Eigen::Vector4d& bounds) const;
   /// Returns the processor seconds spent copying a shared map's tile table.
   double insert(Particle& p, const Eigen::VectorXd& insertion, const Eigen::Ref<const Eigen::VectorXd>& angles) const;
+  /// The log time of the last update's scan (the first scan's before any update).
+  double last_update_time() const;
   /// Frees the corrector's finished submap grids: it only matches against its open submap.
   void release_corrector_grids();
   /// kImprovedOdometry: the covariance of the corrected motion since the last update, given the

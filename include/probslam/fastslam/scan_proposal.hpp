@@ -27,12 +27,23 @@ struct ScanProposalOptions {
   double sample_angular = 0.005; ///< ... rad
   /// The match fails (the caller falls back to the motion model) when the mean hit likelihood
   /// of the scan at the mode is below this (0..1).
-  double min_quality = 0.3;
+  double min_match_quality = 0.3;
   void validate() const;
+  template <class V>
+  static void describe(V& v) {
+    using O = ScanProposalOptions;
+    v("linear_step", &O::linear_step, "m", "the hill climb's first step");
+    v("angular_step", &O::angular_step, "rad", "the hill climb's first step");
+    v("refinements", &O::refinements, "", "step halvings before the climb stops, in [0, 30]");
+    v("max_moves", &O::max_moves, "", "moves at most");
+    v("sample_linear", &O::sample_linear, "m", "spacing of the 3 x 3 x 3 evaluation poses");
+    v("sample_angular", &O::sample_angular, "rad", "... in heading");
+    v("min_match_quality", &O::min_match_quality, "", "a match below this mean hit likelihood (0 .. 1) falls back to the motion model");
+  }
 };
 
 struct ScanProposal {
-  bool matched = false;  ///< the mode passed min_quality; otherwise only `mode` and `quality` are set
+  bool matched = false;  ///< the mode passed min_match_quality; otherwise only `mode` and `quality` are set
   Eigen::Vector3d mode = Eigen::Vector3d::Zero();
   double quality = 0.0;
   Eigen::Vector3d mean = Eigen::Vector3d::Zero();      ///< of the fitted Gaussian, heading wrapped

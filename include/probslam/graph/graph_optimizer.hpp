@@ -29,6 +29,19 @@ enum class RobustKernel { kNone, kHuber, kCauchy };
 /// another minimum (chi2 6241 against 215.83).
 enum class Damping { kMarquardt, kLevenberg };
 
+template <>
+struct OptionEnum<OptimizerAlgorithm> {
+  static constexpr std::array<const char*, 2> names{"gauss-newton", "levenberg-marquardt"};
+};
+template <>
+struct OptionEnum<RobustKernel> {
+  static constexpr std::array<const char*, 3> names{"none", "huber", "cauchy"};
+};
+template <>
+struct OptionEnum<Damping> {
+  static constexpr std::array<const char*, 2> names{"marquardt", "levenberg"};
+};
+
 struct OptimizerOptions {
   OptimizerAlgorithm algorithm = OptimizerAlgorithm::kGaussNewton;
   Damping damping = Damping::kMarquardt;  ///< Levenberg-Marquardt only
@@ -41,6 +54,21 @@ struct OptimizerOptions {
   RobustKernel kernel = RobustKernel::kNone;
   double kernel_width = 1.0;  ///< in units of sqrt(chi2), e.g. 1.345 or chi2 quantiles' roots
   SparseCholeskyOptions linear_solver;
+
+  /// std::invalid_argument naming the first bad option: max_iterations >= 1, kernel_width > 0.
+  void validate() const;
+  template <class V>
+  static void describe(V& v) {
+    using O = OptimizerOptions;
+    v("algorithm", &O::algorithm, "", "\"gauss-newton\" or \"levenberg-marquardt\"");
+    v("damping", &O::damping, "", "Levenberg-Marquardt's damping: \"marquardt\" (diag(H)) or \"levenberg\" (I)");
+    v("max_iterations", &O::max_iterations, "", "iterations at most, >= 1");
+    v("relative_tolerance", &O::relative_tolerance, "", "stop when an iteration lowers the objective by less than this fraction");
+    v("step_tolerance", &O::step_tolerance, "", "stop when the update's largest entry is below this (m, rad)");
+    v("kernel", &O::kernel, "", "robust kernel: \"none\", \"huber\" or \"cauchy\"");
+    v("kernel_width", &O::kernel_width, "", "the kernel's width in units of sqrt(chi2)");
+    v("linear_solver", &O::linear_solver, "", "the sparse Cholesky factorisation");
+  }
 };
 
 struct OptimizationReport {

@@ -6,6 +6,8 @@
 #include <memory>
 #include <vector>
 
+#include "probslam/core/options_description.hpp"
+
 namespace probslam {
 
 using SparseMatrixd = Eigen::SparseMatrix<double, Eigen::ColMajor, int>;
@@ -23,9 +25,24 @@ enum class FillOrdering {
 
 // Supernodal by default: with Eigen's kernels it is the faster one on every pose graph measured,
 // 2-D and 3-D (docs/pose_graphs.md: w10000 36 against 71 ms an iteration, M3500 5.2 against 7.6).
+template <>
+struct OptionEnum<FactorMethod> {
+  static constexpr std::array<const char*, 3> names{"simplicial", "supernodal", "auto"};
+};
+template <>
+struct OptionEnum<FillOrdering> {
+  static constexpr std::array<const char*, 2> names{"amd", "metis"};
+};
+
 struct SparseCholeskyOptions {
   FactorMethod method = FactorMethod::kSupernodal;
   FillOrdering ordering = FillOrdering::kAmd;
+  void validate() const {}  // every value of the enums is valid
+  template <class V>
+  static void describe(V& v) {
+    v("method", &SparseCholeskyOptions::method, "", "\"supernodal\", \"simplicial\" or \"auto\" (CHOLMOD's choice)");
+    v("ordering", &SparseCholeskyOptions::ordering, "", "fill-reducing ordering: \"amd\" or \"metis\" (nested dissection)");
+  }
 };
 
 /// A block of the inverse: rows [row, row + rows) and columns [col, col + cols).

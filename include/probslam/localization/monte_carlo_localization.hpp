@@ -4,7 +4,7 @@
 // (Table 6.1) measurement model; augmented MCL (Table 8.3: random particles in free space when
 // the short-term average weight drops below the long-term one); KLD sampling (Fox 2003) for the
 // particle count; resampling when N_eff is low; an update only after a minimum travel, as
-// ROS AMCL's update_min_d / update_min_a.
+// ROS AMCL's update_min_d / update_min_a (UpdateTrigger).
 #include <Eigen/Core>
 #include <cstdint>
 #include <functional>
@@ -16,6 +16,7 @@
 #include "probslam/core/options_description.hpp"
 #include "probslam/core/odometry_motion_model.hpp"
 #include "probslam/core/types.hpp"
+#include "probslam/core/update_trigger.hpp"
 #include "probslam/fastslam/particles.hpp"
 #include "probslam/grid/beam_mixture.hpp"
 #include "probslam/grid/beam_sensor_model.hpp"
@@ -40,7 +41,7 @@ struct MonteCarloLocalizationOptions {
   double occupied_threshold = 0.65;  ///< cells above this probability are obstacles
   double free_threshold = 0.25;      ///< cells below this probability are free (where a robot can be)
   // ---- the measurement ----
-  double sigma_hit = 0.1;   ///< likelihood field: std of a hit around the nearest obstacle, m
+  double sigma = 0.1;       ///< likelihood field: std of a hit around the nearest obstacle, m (LikelihoodFieldOptions' sigma)
   double p_rand = 0.05;     ///< likelihood field: weight of the uniform part (z_rand / z_max)
   BeamMixture beam;         ///< beam model: the mixture of Table 6.1 (its max_range too)
   double max_range = 30.0;  ///< readings >= this are max readings, skipped (Table 6.3 line 3), m
@@ -79,8 +80,7 @@ struct MonteCarloLocalizationOptions {
   // ---- when to update and resample ----
   double resample_threshold = 0.5;  ///< resample when N_eff < this * M, in [0, 1]
   int resample_interval = 1;        ///< resample at every this-th update at most (AMCL's resample_interval)
-  double update_min_d = 0.2;        ///< travel (m) before an update
-  double update_min_a = 0.5235987755982988;  ///< turn (rad) before an update (30 degrees)
+  UpdateTrigger update{0.2, 0.5235987755982988};  ///< travel (m) or turn (rad, 30 degrees) before an update
   std::uint64_t seed = 0;
   int threads = 1;
   /// std::invalid_argument naming the first bad option by its path ("beam.z_hit").
@@ -93,7 +93,7 @@ struct MonteCarloLocalizationOptions {
     v("odometry", &O::odometry, "", "the odometry motion model's alpha1..alpha4 (Table 5.6)");
     v("occupied_threshold", &O::occupied_threshold, "", "cells above this probability are obstacles");
     v("free_threshold", &O::free_threshold, "", "cells below this probability are free (where a robot can be)");
-    v("sigma_hit", &O::sigma_hit, "m", "likelihood field: std of a hit around the nearest obstacle");
+    v("sigma", &O::sigma, "m", "likelihood field: std of a hit around the nearest obstacle");
     v("p_rand", &O::p_rand, "", "likelihood field: weight of the uniform part");
     v("beam", &O::beam, "", "beam model: the mixture of Table 6.1 (its max_range is not used: max_range below is the sensor's for both models)");
     v("max_range", &O::max_range, "m", "readings >= this are max readings (skipped by the likelihood field)");
@@ -113,8 +113,7 @@ struct MonteCarloLocalizationOptions {
     v("recovery_candidates", &O::recovery_candidates, "", "injected particles drawn from this many free poses by the scan's likelihood (0: uniform)");
     v("resample_threshold", &O::resample_threshold, "", "resample when N_eff < this * M, in [0, 1]");
     v("resample_interval", &O::resample_interval, "", "resample at every this-th update at most (AMCL's resample_interval)");
-    v("update_min_d", &O::update_min_d, "m", "travel before an update");
-    v("update_min_a", &O::update_min_a, "rad", "turn before an update");
+    v("update", &O::update, "", "the filter updates once the odometry moved or turned this much since the last update");
     v("seed", &O::seed, "", "random seed, in [0, 2^64)");
     v("threads", &O::threads, "", "worker threads (results identical for any count)");
   }
@@ -158,8 +157,8 @@ class MonteCarloLocalization {
   /// ~1e-10 m (1e300 m sampled through Table 5.6's variance alpha trans^2 gives inf - inf = NaN).
   static constexpr double kMaxOdometryTravel = 1e6;
   /// A scan: ranges (B,) m, beam angles (B,) rad relative to the sensor's heading (the poses are
-  /// the sensor's). Updates when the travel since the last update reaches update_min_d or
-  /// update_min_a, or on the first scan, or when `force`. Ranges must be finite or +inf (a max
+  /// the sensor's). Updates when the travel since the last update reaches update.distance or
+  /// update.angle, or on the first scan, or when `force`. Ranges must be finite or +inf (a max
   /// reading) and >= 0; at least one must be usable. `interrupt`, when given, is called every
   /// few milliseconds of work from the calling thread (the bindings make it throw on Ctrl-C).
   /// Changes nothing when it throws (bad input, an interrupt, threads that cannot start:

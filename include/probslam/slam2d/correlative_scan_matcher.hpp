@@ -7,6 +7,7 @@
 #include <limits>
 #include <vector>
 
+#include "probslam/core/options_description.hpp"
 #include "probslam/core/types.hpp"
 #include "probslam/slam2d/likelihood_field.hpp"
 
@@ -19,6 +20,15 @@ struct SearchWindow {
   double angular = 0.35;  ///< half-width, rad
   /// rad; <= 0 picks the step at which the scan's farthest point moves one cell.
   double angular_step = 0.0;
+
+  void validate() const;
+  template <class V>
+  static void describe(V& v) {
+    using O = SearchWindow;
+    v("linear", &O::linear, "m", "half-width in x and y around the prior");
+    v("angular", &O::angular, "rad", "half-width in heading, in [0, pi]");
+    v("angular_step", &O::angular_step, "rad", "heading step (<= 0: the scan's farthest point moves one cell)");
+  }
 };
 
 struct MatchOptions {
@@ -41,6 +51,18 @@ struct MatchOptions {
   double min_score = -std::numeric_limits<double>::infinity();
 
   void validate() const;
+  /// use_prior and prior_covariance are not described: every owner (the frontend, the loop
+  /// closures) sets them per match from its odometry model, so they are no setting of the run.
+  template <class V>
+  static void describe(V& v) {
+    using O = MatchOptions;
+    v("window", &O::window, "", "the search window around the prior");
+    v("refine", &O::refine, "", "Gauss-Newton on the interpolated field after the search");
+    v("brute_force", &O::brute_force, "", "score every pose of the window (the tests' oracle)");
+    v("min_translation_std", &O::min_translation_std, "m", "floor of the returned covariance (<= 0: the map's cell quantization)");
+    v("min_rotation_std", &O::min_rotation_std, "rad", "floor of the returned covariance (<= 0: none)");
+    v("min_score", &O::min_score, "", "lattice poses scoring below this are not wanted (-inf: always the best)");
+  }
 };
 
 struct MatchResult {

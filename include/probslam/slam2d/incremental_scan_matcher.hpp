@@ -9,6 +9,8 @@
 #include <vector>
 
 #include "probslam/core/object_mutex.hpp"
+#include "probslam/core/options_description.hpp"
+#include "probslam/core/update_trigger.hpp"
 #include "probslam/core/types.hpp"
 #include "probslam/grid/occupancy_grid_2d.hpp"
 #include "probslam/slam2d/correlative_scan_matcher.hpp"
@@ -27,6 +29,16 @@ struct OdometryNoise {
   double trans_per_metre = 0.1, trans_per_radian = 0.02, trans_floor = 0.01;
   double rot_per_radian = 0.1, rot_per_metre = 0.05, rot_floor = 0.005;
   void validate() const;
+  template <class V>
+  static void describe(V& v) {
+    using O = OdometryNoise;
+    v("trans_per_metre", &O::trans_per_metre, "m/m", "translation std per metre travelled");
+    v("trans_per_radian", &O::trans_per_radian, "m/rad", "translation std per radian turned");
+    v("trans_floor", &O::trans_floor, "m", "translation std of any motion, > 0");
+    v("rot_per_radian", &O::rot_per_radian, "rad/rad", "rotation std per radian turned");
+    v("rot_per_metre", &O::rot_per_metre, "rad/m", "rotation std per metre travelled");
+    v("rot_floor", &O::rot_floor, "rad", "rotation std of any motion, > 0");
+  }
   /// Covariance (3x3, in the frame of the earlier pose) of a relative motion `delta`.
   Eigen::Matrix3d covariance(const Eigen::Vector3d& delta) const;
 };
@@ -55,9 +67,9 @@ struct IncrementalScanMatcherOptions {
   /// far hits are what hold the frontend), and cost LDS and RPLidar cells of the simulated matrix
   /// (docs/laser_slam.md); a fraction derived from the sensor and the map's extent is open (issue 51).
   double match_fraction = 1.0;
-  /// A scan is matched only after the odometry has moved this far or turned this much since
-  /// the last matched scan; scans in between take the odometry's relative motion (m, rad).
-  double min_travel = 0.05, min_rotation = 0.05;
+  /// A scan is matched only after the odometry has moved update.distance or turned
+  /// update.angle since the last matched scan; scans in between take the odometry's relative motion.
+  UpdateTrigger update{0.05, 0.05};
   /// A new submap starts after this much travel (m) or this many matched scans; 0 = never
   /// (one map: incremental scan matching alone, the inconsistent map of Fig. 11.2).
   double submap_distance = 5.0;
@@ -72,7 +84,27 @@ struct IncrementalScanMatcherOptions {
   /// (ACES, first 2500 scans: 0.037 m relation error either way, 3x faster). 0: every scan.
   double field_refresh_distance = 0.3, field_refresh_angle = 0.3;
 
+  /// std::invalid_argument naming the first bad option by its path ("filter.max_range").
   void validate() const;
+  template <class V>
+  static void describe(V& v) {
+    using O = IncrementalScanMatcherOptions;
+    v("resolution", &O::resolution, "m", "cell side of the local maps");
+    v("filter", &O::filter, "", "which readings hit, and the usable range");
+    v("field", &O::field, "", "the likelihood field scans are matched against");
+    v("match", &O::match, "", "the search window and refinement (the prior comes from odometry)");
+    v("odometry", &O::odometry, "", "the odometry motion model's noise (the match's prior)");
+    v("use_odometry_prior", &O::use_odometry_prior, "", "the odometry motion model enters the score");
+    v("constant_velocity", &O::constant_velocity, "", "predict each scan's motion as the last matched one (a log without odometry)");
+    v("match_fraction", &O::match_fraction, "", "hits beyond this share of the usable range are inserted, not matched, in (0, 1]");
+    v("update", &O::update, "", "a scan is matched once the odometry moved or turned this much since the last matched one");
+    v("submap_distance", &O::submap_distance, "m", "a new submap starts after this much travel (0: one map)");
+    v("submap_scans", &O::submap_scans, "", "... or after this many matched scans (0: no limit)");
+    v("min_match_quality", &O::min_match_quality, "", "matches below this mean hit likelihood (0 .. 1) fall back to odometry");
+    v("warmup_scans", &O::warmup_scans, "", "scans inserted into a new local map before matching starts against it");
+    v("field_refresh_distance", &O::field_refresh_distance, "m", "the likelihood field is rebuilt once the robot moved this far (0: every scan)");
+    v("field_refresh_angle", &O::field_refresh_angle, "rad", "... or turned this much");
+  }
 };
 
 /// One submap: a local occupancy grid in the frontend's world frame, the pose of its first scan

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <vector>
 
+#include "probslam/core/options_description.hpp"
 #include "probslam/grid/occupancy_grid_2d.hpp"
 
 namespace probslam {
@@ -17,7 +18,7 @@ class StateReader;
 struct LikelihoodFieldOptions {
   double sigma = 0.05;            ///< std of a hit around the nearest obstacle, m
   double p_rand = 0.05;           ///< weight of the uniform part: bounds a stray point's cost
-  double occupied_probability = 0.5;  ///< cells above this probability are obstacles
+  double occupied_threshold = 0.5;  ///< cells above this probability are obstacles
   /// Distances are computed (and stored) up to this; beyond it p(d) is p_rand to double
   /// precision anyway when it is a few sigma. <= 0: 6 sigma.
   double max_distance = 0.0;
@@ -28,6 +29,15 @@ struct LikelihoodFieldOptions {
 
   void validate() const;
   double truncation() const { return max_distance > 0.0 ? max_distance : 6.0 * sigma; }
+
+  template <class V>
+  static void describe(V& v) {
+    using O = LikelihoodFieldOptions;
+    v("sigma", &O::sigma, "m", "std of a hit around the nearest obstacle");
+    v("p_rand", &O::p_rand, "", "weight of the uniform part, in (0, 1): bounds a stray point's cost");
+    v("occupied_threshold", &O::occupied_threshold, "", "cells above this probability are obstacles");
+    v("max_distance", &O::max_distance, "m", "distances are computed up to this (<= 0: 6 sigma)");
+  }
 };
 
 /// What a likelihood field is built from: which cells of a window of a grid's lattice hold an
@@ -49,10 +59,10 @@ class LikelihoodField {
   static LikelihoodField from_grid(const OccupancyGrid2D& grid, const Eigen::Vector4d& region,
                                    const LikelihoodFieldOptions& options = {});
   /// The cells of `grid` that meet `region` (clipped to the grid), marked where their occupancy
-  /// exceeds occupied_probability: from_obstacles of it is from_grid(grid, region, options),
+  /// exceeds occupied_threshold: from_obstacles of it is from_grid(grid, region, options),
   /// value for value (from_grid is built that way).
   static ObstacleCells obstacles_of(const OccupancyGrid2D& grid, const Eigen::Vector4d& region,
-                                    double occupied_probability);
+                                    double occupied_threshold);
   static LikelihoodField from_obstacles(const ObstacleCells& obstacles, const LikelihoodFieldOptions& options = {});
 
   double resolution() const { return res_; }

@@ -6,6 +6,7 @@
 #include <string>
 
 #include "probslam/core/filter_limits.hpp"
+#include "probslam/core/options_description.hpp"
 #include "probslam/core/types.hpp"
 
 namespace probslam {
@@ -29,6 +30,16 @@ struct ScanFilter {
   /// Throws std::invalid_argument naming the field when a value is out of range.
   void validate() const;
   double usable_range() const { return max_range < max_usable_range ? max_range : max_usable_range; }
+
+  template <class V>
+  static void describe(V& v) {
+    using O = ScanFilter;
+    v("max_range", &O::max_range, "m", "the sensor's maximum: readings at or beyond it (inf, NaN) are no returns");
+    v("min_range", &O::min_range, "m", "closer readings (the robot's own body) are dropped");
+    v("max_usable_range", &O::max_usable_range, "m", "farther hits are not used; they clear free space up to it");
+    v("clear_no_return", &O::clear_no_return, "", "no-return beams clear free space up to the usable range");
+    v("min_point_spacing", &O::min_point_spacing, "m", "hits closer than this to the last kept one are dropped (0: keep all)");
+  }
 };
 
 /// The per-scan checks every laser SLAM class's add_scan makes: ranges non-empty and as long as

@@ -49,6 +49,21 @@ struct LoopClosureOptions {
   double field_cache_bytes = 48.0 * 1024 * 1024;
 
   void validate() const;
+  template <class V>
+  static void describe(V& v) {
+    using O = LoopClosureOptions;
+    v("enabled", &O::enabled, "", "search for loop closures at all");
+    v("scans_per_submap", &O::scans_per_submap, "", "scans of each finished submap matched against the older submaps");
+    v("min_match_quality", &O::min_match_quality, "", "a closure needs this mean hit likelihood (0 .. 1)");
+    v("window_sigmas", &O::window_sigmas, "", "the search window is this many std of the predicted relative pose ...");
+    v("min_linear_window", &O::min_linear_window, "m", "... at least this ...");
+    v("max_linear_window", &O::max_linear_window, "m", "... and at most this");
+    v("min_angular_window", &O::min_angular_window, "rad", "the angular window at least this ...");
+    v("max_angular_window", &O::max_angular_window, "rad", "... and at most this (<= pi)");
+    v("max_distance", &O::max_distance, "m", "submaps predicted farther apart are not searched");
+    v("dissolve_chi2", &O::dissolve_chi2, "", "a closure whose error in the optimised graph exceeds this chi2 (3 dof) is dissolved");
+    v("field_cache_bytes", &O::field_cache_bytes, "bytes", "submap likelihood fields kept for the search (least recently used rebuilt; results do not depend on it)");
+  }
 };
 
 struct SubmapSlamOptions {
@@ -60,7 +75,16 @@ struct SubmapSlamOptions {
   /// Rounds of search, optimisation and dissolution after the last scan (Fig. 11.4).
   int max_rounds = 10;
 
+  /// std::invalid_argument naming the first bad option by its path ("closures.min_match_quality").
   void validate() const;
+  template <class V>
+  static void describe(V& v) {
+    using O = SubmapSlamOptions;
+    v("frontend", &O::frontend, "", "the incremental scan matcher that builds the submaps (submap_distance 10 m here)");
+    v("closures", &O::closures, "", "the loop-closure search");
+    v("optimizer", &O::optimizer, "", "the pose-graph optimiser (Levenberg-Marquardt with a Huber kernel here)");
+    v("max_rounds", &O::max_rounds, "", "rounds of search, optimisation and dissolution in finish()");
+  }
   static OptimizerOptions default_optimizer();
   /// The frontend's defaults, with submaps cut every 10 m of travel: on ACES 5 m submaps (ch.
   /// 11.7's figure) gave 0.233 +- 0.891 m relation error, 10 m gave 0.043 +- 0.038 m; a short

@@ -19,7 +19,7 @@ PathLike = Union[str, "os.PathLike[str]"]
 MAX_REPORTED_LINES = _core.CARMEN_MAX_REPORTED_LINES
 
 #: The PARAM a log states its odometry's noise by (``sim_laser.write_carmen`` writes it): the six
-#: coefficients of the frontend's ``odometry_noise``, comma-separated, in one token.
+#: coefficients of an ``OdometryNoise`` in its field order, comma-separated, in one token.
 ODOMETRY_NOISE_PARAM = "probslam_odometry_noise"
 #: The coefficients of an odometry noise statement (trans_per_metre, trans_per_radian,
 #: trans_floor, rot_per_radian, rot_per_metre, rot_floor).
@@ -38,10 +38,10 @@ class LaserScans:
     ipc_timestamps: (S,) seconds, the ipc time (the sending host's clock, the one the Freiburg
     relations files use), NaN where the source has none (a ROS bag, a simulation);
     odometry_noise: (S, 6) the noise the log states of its odometry at each scan, the six
-    coefficients of the frontend's ``odometry_noise`` (a simulation's,
+    coefficients of an ``OdometryNoise`` (a simulation's,
     ``sim_laser.OdometryModel.stated_noise``; a CARMEN log's ``PARAM probslam_odometry_noise``),
     NaN where it states none (the CARMEN logs of the real robots, ROS bags as read today):
-    ``slam.log_options`` passes it on. Per scan, as every other field, so that a subset of the
+    ``slam.default_options`` takes it. Per scan, as every other field, so that a subset of the
     rows is a subset of every field.
     """
 

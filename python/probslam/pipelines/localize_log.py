@@ -123,7 +123,7 @@ class LocalizationRun:
                   f"scans:         {len(r.timestamps)}; {int(r.updated.sum())} filter updates"]
         if r.odometry_travel == 0.0 and len(r.timestamps) > 1:
             lines.append("odometry:      none: the log's poses never move, and the filter updates only after travel "
-                         f"({r.options.update_min_d} m or {math.degrees(r.options.update_min_a):g} degrees), so "
+                         f"({r.options.update.distance} m or {math.degrees(r.options.update.angle):g} degrees), so "
                          "nothing moved it after the first scan; localize a log with odometry")
         lines += [f"particles:     {int(n.min())} to {int(n.max())} (median {int(np.median(n))}, last {int(n[-1])})",
                   f"converged:     {convergence_report(r)}",
