@@ -84,7 +84,11 @@ def score(outcome: Outcome, run: Run) -> Dict[str, Any]:
         raise ValueError(f"reference: a {run.kind} run makes no trajectory to score")
     with tempfile.TemporaryDirectory(prefix="probslam-batch-") as folder:
         path = outcome.write_trajectory(os.path.join(folder, "run"))
-        evaluation = evaluate_trajectory(path, run.reference, EvaluationOptions(**dict(run.evaluation)))
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            evaluation = evaluate_trajectory(path, run.reference, EvaluationOptions(**dict(run.evaluation)))
+    for w in caught:  # said of the run's trajectory, not of a temporary file
+        warnings.warn(str(w.message).replace(path, f"the {run.kind} run's trajectory"), w.category)
     r = evaluation.result
     if evaluation.kind == "relations":
         return {"relations_mean_m": float(r.translational.mean()),

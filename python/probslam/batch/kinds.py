@@ -126,14 +126,13 @@ def _localize(dataset: str, values, inputs) -> Outcome:
     r = run.result
     return Outcome({"scans": len(r.timestamps), "updates": int(np.sum(r.updated)), "converged": run.converged,
                     "convergence_time_s": r.convergence_time, "converged_fraction": float(r.converged_fraction),
-                    "particles_median": float(np.median(r.num_particles)), "real_time_factor": float(r.real_time_factor)},
+                    "particles_median": float(np.median(r.num_particles))},
                    lambda prefix: run.write(prefix)[0])
 
 
 register(RunKind("optimize", _graph_options, _optimize, ("poses", "chi2_initial", "chi2", "iterations", "converged")))
 register(RunKind("localize", _localize_options, _localize,
-                 ("scans", "updates", "converged", "convergence_time_s", "converged_fraction", "particles_median",
-                  "real_time_factor"),
+                 ("scans", "updates", "converged", "convergence_time_s", "converged_fraction", "particles_median"),
                  inputs={"map": True, "initial_pose": False}, inputs_are_paths={"map": True}, seeded=True))
 
 

@@ -62,11 +62,12 @@ class RunGroup:
 @dataclass
 class Sweep:
     """Groups of runs; ``base``: the folder relative paths are read from (a sweep file's own);
-    ``time_limit``: seconds a run may take (None: no limit)."""
+    ``time_limit``: seconds a run may take (None: no limit); ``source``: what messages call it."""
 
     runs: Sequence[RunGroup]
     base: str = "."
     time_limit: Optional[float] = None
+    source: str = "sweep"  # how messages name it: its file
 
     @classmethod
     def from_dict(cls, spec: Mapping[str, Any], base: PathLike = ".", where: str = "sweep") -> "Sweep":
@@ -81,14 +82,14 @@ class Sweep:
         if time_limit is not None:
             _require(_is_number(time_limit) and time_limit > 0, f"{where}: time_limit must be a number of seconds > 0, "
                                                                 f"got {time_limit!r}")
-        return cls(runs, os.fspath(base), time_limit)
+        return cls(runs, os.fspath(base), time_limit, where)
 
     def expand(self) -> List["Run"]:
         """Every run of the sweep in order (each distinct run once). ValueError naming the group
         and the dataset, input, option or seed that is refused, before anything runs."""
         runs: Dict[str, Run] = {}
         for k, group in enumerate(self.runs):
-            for run in _expand_group(group, self.base, f"runs[{k}]"):
+            for run in _expand_group(group, self.base, f"{self.source}: runs[{k}]"):
                 runs.setdefault(run.run_id, run)
         return list(runs.values())
 

@@ -25,11 +25,20 @@ IDENTITY_COLUMNS = ("run_id", "kind", "dataset", "seed", "reference", "status", 
 
 
 def columns(rows: Sequence[Dict[str, Any]]) -> List[str]:
-    """Every column of ``rows``, in the order of first appearance."""
+    """Every column of ``rows``: what the run is, its options, its metrics, how it went and its
+    cost, each part in the order of first appearance."""
     seen: Dict[str, None] = {}
     for row in rows:
         seen.update(dict.fromkeys(row))
-    return list(seen)
+
+    def part(name: str) -> int:
+        if name in IDENTITY_COLUMNS[:5]:
+            return 0
+        if name.startswith(OPTION_PREFIX):
+            return 1
+        return 3 if name in IDENTITY_COLUMNS or name in COST_COLUMNS else 2
+
+    return sorted(seen, key=part)
 
 
 def _arrow_column(values: List[Any]):
