@@ -1043,6 +1043,7 @@ def _cmd_batch(args: argparse.Namespace) -> int:
 
     sweep = batch.load(args.sweep)  # refused before a worker starts
     runs = len(sweep.expand())
+    batch.require_dask()
     os.makedirs(args.directory, exist_ok=True)
     try:
         rows = batch.run(sweep, directory=args.directory, time_limit=args.time_limit, scheduler=args.scheduler,

@@ -214,3 +214,21 @@ def test_the_demo_on_a_scheduler_and_two_workers_started_as_a_cluster_would_be(t
             p.terminate()
         for p in started:
             p.wait(timeout=30)
+
+
+def test_the_package_imports_without_dask_and_batch_says_how_to_install_it(tmp_path):
+    """A user who never batches needs none of the extra: probslam and probslam.batch import; the
+    command says what to install, in one line, exit 2."""
+    blocker = ("import sys\n"
+               "class Block:\n"
+               "    def find_spec(self, name, path=None, target=None):\n"
+               "        if name.split('.')[0] in ('dask', 'distributed', 'pyarrow'):\n"
+               "            raise ImportError(f'No module named {name!r}')\n"
+               "sys.meta_path.insert(0, Block())\n"
+               "import probslam, probslam.batch\n"
+               "from probslam.cli import main\n"
+               f"sys.exit(main(['batch', {str(DEMO)!r}, '-o', {str(tmp_path / 'out')!r}]))\n")
+    done = subprocess.run([sys.executable, "-c", blocker], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.startswith("probslam: error: probslam batch needs dask, distributed and pyarrow: pip install "
+                                  "'probslam[batch]'") and done.stderr.count("\n") == 1, done.stderr

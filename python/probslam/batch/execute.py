@@ -33,6 +33,9 @@ ALLOWED_FAILURES = 1
 #: Where Linux keeps a process's peak resident memory (VmHWM), and how it is reset before a run
 #: (proc(5): writing 5 to clear_refs resets the peak), so that each row has its own run's peak.
 PROC_STATUS = "/proc/self/status"
+#: The table is written whole (Parquet and CSV), so at most once in this many seconds while rows
+#: come (and at the end, or when stopped): a row a run apart would cost O(runs^2) on long sweeps.
+WRITE_INTERVAL = 1.0
 PROC_CLEAR_REFS = "/proc/self/clear_refs"
 MISSING = ("probslam batch needs dask, distributed and pyarrow: pip install 'probslam[batch]' "
            "(scripts/setup.sh installs them)")
@@ -205,7 +208,8 @@ def run(sweep, client=None, directory: Optional[str] = None, *, time_limit: Opti
     """Runs ``sweep`` (a ``Sweep``, its dict, or a TOML file's path) on ``client`` (None: one of
     ``start_client(scheduler, workers, memory_limit)``, closed at the end) and returns its rows in
     the sweep's order (dicts; ``pandas.DataFrame(rows)`` makes a frame). With ``directory``, the
-    rows are written there as they come (``table``) and the runs whose rows are there already are
+    rows are written there as they come (``table``; at most once in WRITE_INTERVAL, and at the end
+    or when stopped) and the runs whose rows are there already are
     not made again. ``time_limit`` (s; None: the sweep's own) bounds each run. ValueError naming
     what the sweep refuses before any run."""
     sweep = _as_sweep(sweep)
@@ -248,6 +252,7 @@ def _run_on(client, runs: Sequence[Run], time_limit: Optional[float], directory:
 
     from .._progress import progress_bar
 
+    written, pending = -math.inf, False  # the first row is written at once
     futures = {client.submit(_on_worker, r, KINDS[r.kind], time_limit, key=f"probslam-run-{r.run_id}", pure=False): r
                for r in runs}
     try:
@@ -268,10 +273,14 @@ def _run_on(client, runs: Sequence[Run], time_limit: Optional[float], directory:
                     # Its thread still runs on that worker: a new process frees the core.
                     client.restart_workers([row["worker"]], raise_for_error=False)
                 rows.append(row)
-                if directory is not None:
+                pending = directory is not None
+                if pending and time.monotonic() - written >= WRITE_INTERVAL:
                     table.write(directory, rows)
+                    written, pending = time.monotonic(), False
                 bar.update(1)
     finally:
+        if pending:  # the last rows, also when stopped (Ctrl-C)
+            table.write(directory, rows)
         client.cancel([f for f in futures if not f.done()])
 
 

@@ -1,7 +1,7 @@
 """A sweep's table on disk: one row per run (its configuration, metrics, cost and status) in
-``results.parquet`` with ``results.csv`` beside it, rewritten whole after each row (each through a
+``results.parquet`` with ``results.csv`` beside it, rewritten whole as rows come (each through a
 temporary file and a rename, so that a stop at any moment leaves both complete up to the last
-row), read back to skip the runs done; and its summary: the medians of each group of runs that
+row written), read back to skip the runs done; and its summary: the medians of each group of runs that
 differ only in their seed.
 """
 
