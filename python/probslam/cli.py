@@ -1041,12 +1041,8 @@ def _cmd_eval(args: argparse.Namespace) -> int:
 def _cmd_batch(args: argparse.Namespace) -> int:
     from . import batch
 
-    sweep = batch.load(args.sweep)  # refused before a worker starts
-    runs = len(sweep.expand())
-    batch.require_dask()
-    os.makedirs(args.directory, exist_ok=True)
-    try:
-        rows = batch.run(sweep, directory=args.directory, time_limit=args.time_limit, scheduler=args.scheduler,
+    try:  # a sweep refused, or dask missing: before a folder is made or a worker started
+        rows = batch.run(args.sweep, directory=args.directory, time_limit=args.time_limit, scheduler=args.scheduler,
                          workers=args.workers, memory_limit=args.memory_limit, progress=_progress(args))
     except KeyboardInterrupt:
         print(f"probslam batch: {args.directory}/{batch.PARQUET} holds every run that finished; run the same command "
@@ -1054,7 +1050,7 @@ def _cmd_batch(args: argparse.Namespace) -> int:
         raise
     failed = sum(row["status"] != "ok" for row in rows)
     print(batch.summary(rows))
-    print(f"\n{runs} runs, {failed} failed: {args.directory}/{batch.PARQUET}, {batch.CSV}")
+    print(f"\n{len(rows)} runs, {failed} failed: {args.directory}/{batch.PARQUET}, {batch.CSV}")
     return 0
 
 

@@ -207,8 +207,8 @@ def run(sweep, client=None, directory: Optional[str] = None, *, time_limit: Opti
         memory_limit: Union[str, float, None] = "auto", progress: Optional[bool] = None) -> List[Dict[str, Any]]:
     """Runs ``sweep`` (a ``Sweep``, its dict, or a TOML file's path) on ``client`` (None: one of
     ``start_client(scheduler, workers, memory_limit)``, closed at the end) and returns its rows in
-    the sweep's order (dicts; ``pandas.DataFrame(rows)`` makes a frame). With ``directory``, the
-    rows are written there as they come (``table``; at most once in WRITE_INTERVAL, and at the end
+    the sweep's order (dicts; ``pandas.DataFrame(rows)`` makes a frame). With ``directory`` (made
+    if missing), the rows are written there as they come (``table``; at most once in WRITE_INTERVAL, and at the end
     or when stopped) and the runs whose rows are there already are
     not made again. ``time_limit`` (s; None: the sweep's own) bounds each run. ValueError naming
     what the sweep refuses before any run."""
@@ -216,8 +216,8 @@ def run(sweep, client=None, directory: Optional[str] = None, *, time_limit: Opti
     runs = sweep.expand()
     time_limit = sweep.time_limit if time_limit is None else time_limit
     require_dask()
-    if directory is not None and not os.path.isdir(directory):
-        raise ValueError(f"directory: {directory} is not a folder")
+    if directory is not None:
+        os.makedirs(directory, exist_ok=True)
     rows = table.read(directory) if directory is not None else []
     done = {row["run_id"] for row in rows}
     todo = [r for r in runs if r.run_id not in done]
