@@ -4,6 +4,7 @@ worker is killed (SIGKILL, by a test-only run kind) each leave one row and the s
 sweep stopped by Ctrl-C leaves its table complete and, started again, makes only what is missing;
 a sweep with an unknown key or option is refused in one line before anything runs."""
 
+import _thread
 import dataclasses
 import json
 import os
@@ -11,6 +12,7 @@ import pathlib
 import signal
 import subprocess
 import sys
+import threading
 import time
 
 import pytest
@@ -36,13 +38,13 @@ COST = set(table.COST_COLUMNS) | {"worker"}
 class ProbeOptions:
     """The options of the test-only kind: what it does."""
 
-    action: str = "ok"  # ok, raise, sleep, kill-once (SIGKILL its own worker the first time)
+    action: str = "ok"  # ok, raise, sleep, kill-once (SIGKILL its own worker the first time), kill
     value: int = 0
 
     def replace(self, **fields):
         out = dataclasses.replace(self, **fields)
-        if out.action not in ("ok", "raise", "sleep", "kill-once"):
-            raise ValueError(f"action must be ok, raise, sleep or kill-once, got {out.action!r}")
+        if out.action not in ("ok", "raise", "sleep", "kill-once", "kill"):
+            raise ValueError(f"action must be ok, raise, sleep, kill-once or kill, got {out.action!r}")
         return out
 
 
@@ -57,6 +59,8 @@ def probe(dataset, values, inputs):
         if not marker.exists():
             marker.write_text(str(os.getpid()))
             os.kill(os.getpid(), signal.SIGKILL)  # the worker process dies mid-run
+    if options.action == "kill":  # a crash, every time
+        os.kill(os.getpid(), signal.SIGKILL)
     return batch.Outcome({"value": options.value * 2, "pid": os.getpid()})
 
 
@@ -129,26 +133,47 @@ def test_a_run_that_raises_times_out_or_kills_its_worker_is_one_row_each(client,
     assert len(table.read(str(out))) == 6
 
 
-def test_a_sweep_stopped_by_ctrl_c_makes_only_what_is_missing_when_started_again(tmp_path):
+@pytest.mark.slow  # three worker processes started again: 5-15 s
+def test_a_run_that_kills_every_worker_it_is_given_is_recorded_killed_and_the_others_are_not(client, tmp_path):
+    data = tmp_path / "data.txt"
+    data.write_text("")
+    sweep = batch.Sweep([
+        batch.RunGroup("probe", [str(data)], {"action": "kill", "value": 7}, inputs={"folder": str(tmp_path)}),
+        batch.RunGroup("probe", [str(data)], {"action": "ok", "value": [8, 9, 10, 11]}, inputs={"folder": str(tmp_path)}),
+    ])
+    rows = batch.run(sweep, client)
+    assert len(rows) == 5 and len({row["run_id"] for row in rows}) == 5
+    status = {row["options.value"]: (row["status"], row["error"]) for row in rows}
+    assert status[7][0] == "killed" and f"died {batch.ALLOWED_FAILURES + 1} times" in status[7][1]
+    assert [status[v] for v in (8, 9, 10, 11)] == [("ok", None)] * 4
+
+
+def test_a_sweep_stopped_by_ctrl_c_makes_only_what_is_missing_when_started_again(client, tmp_path, capsys):
+    """The demo sweep through the command line, on the module's cluster (--scheduler), stopped by
+    Ctrl-C (a KeyboardInterrupt in the main thread, as a terminal's SIGINT gives) after its first
+    row, then started again."""
     out = tmp_path / "out"
-    cmd = PROBSLAM + ["batch", str(DEMO), "-o", str(out), "--workers", "2", "--no-progress"]
-    first = subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    deadline = time.monotonic() + 60
-    while not (out / batch.PARQUET).exists() and time.monotonic() < deadline and first.poll() is None:
-        time.sleep(0.05)
-    first.send_signal(signal.SIGINT)
-    _, err = first.communicate(timeout=60)
-    assert first.returncode == 130, err
-    assert "holds every run that finished" in err
+    cmd = ["batch", str(DEMO), "-o", str(out), "--scheduler", client.scheduler.address, "--no-progress"]
+
+    def press_ctrl_c():
+        deadline = time.monotonic() + 60
+        while not (out / batch.PARQUET).exists() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        _thread.interrupt_main()
+
+    threading.Thread(target=press_ctrl_c, daemon=True).start()
+    assert cli.main(cmd) == 130
+    assert "holds every run that finished" in capsys.readouterr().err
     done = table.read(str(out))
     assert 0 < len(done) < 12
-    second = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
-    assert second.returncode == 0, second.stderr
-    assert "12 runs, 0 failed" in second.stdout and "localize (medians" in second.stdout
+    assert cli.main(cmd) == 0
+    printed = capsys.readouterr().out
+    assert "12 runs, 0 failed" in printed and "localize (medians" in printed and "optimize (medians" in printed
     rows = table.read(str(out))
     assert len(rows) == 12 and len({row["run_id"] for row in rows}) == 12
     assert [_given(row) for row in rows[:len(done)]] == [_given(row) for row in done]  # kept, not made again
     assert {row["run_id"] for row in rows} == {r.run_id for r in batch.load(DEMO).expand()}
+    assert (out / batch.CSV).read_text().count("\n") == 13
 
 
 @pytest.mark.parametrize("text, message", [

@@ -28,8 +28,13 @@ from . import table
 
 #: How many times a run's worker may die before the run is recorded as ``killed`` (Dask's
 #: ``distributed.scheduler.allowed-failures``, 3 by default, set for the clusters the sweep
-#: starts): once for a worker lost by chance, once more to be sure the run is what kills it.
-ALLOWED_FAILURES = 1
+#: starts): a worker lost by chance, or a run that only waited on a worker another run killed,
+#: is retried; a run that kills every worker it is given costs three worker starts, not four.
+ALLOWED_FAILURES = 2
+#: Runs sent to a worker at a time per thread (Dask's ``distributed.scheduler.worker-saturation``,
+#: 1.1 by default): one, so that a worker that dies takes only the run that killed it, not a run
+#: queued behind it (which would count a death against it too), and a free worker takes the next.
+WORKER_SATURATION = 1.0
 #: Where Linux keeps a process's peak resident memory (VmHWM), and how it is reset before a run
 #: (proc(5): writing 5 to clear_refs resets the peak), so that each row has its own run's peak.
 PROC_STATUS = "/proc/self/status"
@@ -180,10 +185,14 @@ def start_client(scheduler: Optional[str] = None, workers: Optional[int] = None,
 
     scheduler = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")
     if scheduler:
+        for name, value, default in (("workers", workers, None), ("memory_limit", memory_limit, "auto")):
+            if value != default:
+                raise ValueError(f"{name} applies to a local cluster; the scheduler at {scheduler} has its workers")
         return Client(scheduler)
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
         raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
-    with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES}):
+    with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES,
+                          "distributed.scheduler.worker-saturation": WORKER_SATURATION}):
         cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
                                memory_limit=memory_limit or 0, dashboard_address=None,
                                silence_logs=logging.CRITICAL)
