@@ -56,7 +56,6 @@ def timed_sweep(sweep: batch.Sweep, workers: int, table: bool):
             return started, time.perf_counter() - t, rows
     finally:
         client.close()
-        client._probslam_cluster.close()
 
 
 def main() -> None:

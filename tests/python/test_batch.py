@@ -74,7 +74,6 @@ def client():
     c = batch.start_client(workers=2, memory_limit="2GB")
     yield c
     c.close()
-    c._probslam_cluster.close()
     del batch.KINDS["probe"]
 
 

@@ -181,7 +181,7 @@ def start_client(scheduler: Optional[str] = None, workers: Optional[int] = None,
     limit). Close it when done (``client.close()``; the local cluster closes with it)."""
     require_dask()
     import dask
-    from distributed import Client, LocalCluster
+    from distributed import Client
 
     scheduler = scheduler or os.environ.get("DASK_SCHEDULER_ADDRESS")
     if scheduler:
@@ -193,12 +193,9 @@ def start_client(scheduler: Optional[str] = None, workers: Optional[int] = None,
         raise ValueError(f"workers must be an integer >= 1, got {workers!r}")
     with dask.config.set({"distributed.scheduler.allowed-failures": ALLOWED_FAILURES,
                           "distributed.scheduler.worker-saturation": WORKER_SATURATION}):
-        cluster = LocalCluster(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
-                               memory_limit=memory_limit or 0, dashboard_address=None,
-                               silence_logs=logging.CRITICAL)
-    client = Client(cluster)
-    client._probslam_cluster = cluster  # closed with the client by ``run``
-    return client
+        # The client starts its own LocalCluster, and closes it with itself.
+        return Client(n_workers=workers or os.cpu_count() or 1, threads_per_worker=1, processes=True,
+                      memory_limit=memory_limit or 0, dashboard_address=None, silence_logs=logging.CRITICAL)
 
 
 def _as_sweep(sweep: Union[Sweep, Mapping[str, Any], str, "os.PathLike[str]"]) -> Sweep:
@@ -239,10 +236,7 @@ def run(sweep, client=None, directory: Optional[str] = None, *, time_limit: Opti
         _run_on(client, todo, time_limit, directory, rows, progress)
     finally:
         if own:
-            cluster = getattr(client, "_probslam_cluster", None)
             client.close()
-            if cluster is not None:
-                cluster.close()
     return _in_order(runs, rows)
 
 
