@@ -1330,7 +1330,8 @@ def build_parser() -> argparse.ArgumentParser:
                                       "(docs/batch.md; needs 'probslam[batch]')")
     ba.add_argument("sweep", metavar="SWEEP", help="the sweep: a TOML file (docs/batch.md; examples/sweep_demo.toml)")
     ba.add_argument("-o", "--output-dir", dest="directory", metavar="DIR", required=True,
-                    help="the folder of the table (made if missing); the runs whose rows are there are not made again")
+                    help="the folder of the table (made if missing; no default); the runs whose rows are there are not "
+                         "made again")
     ba.add_argument("--scheduler", metavar="ADDRESS", default=None,
                     help="a running Dask scheduler (tcp://host:8786); default: DASK_SCHEDULER_ADDRESS, else a local "
                          "cluster")

@@ -22,6 +22,7 @@ import time
 import warnings
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Union
 
+from .._args import positive_real
 from .kinds import KINDS, Outcome, RunKind
 from .sweep import Run, Sweep, load
 from . import table
@@ -220,7 +221,7 @@ def run(sweep, client=None, directory: Optional[str] = None, *, time_limit: Opti
     what the sweep refuses before any run."""
     sweep = _as_sweep(sweep)
     runs = sweep.expand()
-    time_limit = sweep.time_limit if time_limit is None else time_limit
+    time_limit = sweep.time_limit if time_limit is None else positive_real(time_limit, "time_limit")
     require_dask()
     if directory is not None:
         os.makedirs(directory, exist_ok=True)
