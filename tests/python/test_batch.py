@@ -256,3 +256,23 @@ def test_the_package_imports_without_dask_and_batch_says_how_to_install_it(tmp_p
     assert done.returncode == 2, done.stderr
     assert done.stderr.startswith("probslam: error: probslam batch needs dask, distributed and pyarrow: pip install "
                                   "'probslam[batch]'") and done.stderr.count("\n") == 1, done.stderr
+
+
+def test_a_map_run_counts_the_cells_its_map_file_has(tmp_path):
+    """The map kind's counts against the map_server file the map pipeline writes (the C++
+    writer's trinary PGM: 0 occupied, 254 free)."""
+    from probslam.pipelines import MapOptions, map_log
+
+    [run] = batch.Sweep([batch.RunGroup("map", ["bundled:intel_excerpt.log.gz"], {"resolution": 0.1})]).expand()
+    row = batch.run_one(run)
+    made = map_log(run.dataset, MapOptions(resolution=0.1), progress=False)
+    made.write(str(tmp_path / "m"))
+    pgm = (tmp_path / "m.pgm").read_bytes()
+    fields = [line for line in pgm.split(b"\n", 4)[:4] if not line.startswith(b"#")]  # P5, [# comment,] W H, 255
+    width, height = map(int, fields[1].split())
+    pixels = pgm[-width * height:]
+    assert row["status"] == "ok" and (row["width"], row["height"]) == (width, height)
+    assert row["occupied_cells"] == pixels.count(0) and row["free_cells"] == pixels.count(254)
+    assert row["scans"] == 180 and row["cells_updated"] == made.mapping.cells_updated
+    with pytest.raises(ValueError, match="reference: a map run makes no trajectory to score"):
+        batch.Sweep([batch.RunGroup("map", ["bundled:intel_excerpt.log.gz"], reference="bundled:intel_400.g2o")]).expand()

@@ -38,6 +38,7 @@ class RunKind:
     inputs: the kind's own keys in a sweep's group besides the dataset (name -> required).
     inputs_are_paths: which of those name files (resolved as datasets are).
     seeded: whether its options have a ``seed`` (a sweep's seeds set it; else seeds are refused).
+    scored: whether its runs make a trajectory to score against a reference (else one is refused).
     """
 
     name: str
@@ -47,6 +48,7 @@ class RunKind:
     inputs: Mapping[str, bool] = field(default_factory=dict)
     inputs_are_paths: Mapping[str, bool] = field(default_factory=dict)
     seeded: bool = False
+    scored: bool = True
 
 
 #: Every kind by name, in the order registered.
@@ -130,10 +132,32 @@ def _localize(dataset: str, values, inputs) -> Outcome:
                    lambda prefix: run.write(prefix)[0])
 
 
+#: map_saver's thresholds (``io.save_ros_map``'s): a map run counts its cells as its map file has them.
+OCCUPIED_THRESHOLD, FREE_THRESHOLD = 0.65, 0.196
+
+
+def _map_options():
+    from ..pipelines import MapOptions
+
+    return MapOptions()
+
+
+def _map(dataset: str, values, inputs) -> Outcome:
+    from ..pipelines import map_log
+
+    run = map_log(dataset, set_options(_map_options(), values), progress=False)
+    p, m = run.grid.probability(), run.mapping
+    return Outcome({"scans": int(m.scans), "beams": int(m.beams), "cells_updated": int(m.cells_updated),
+                    "width": run.grid.width, "height": run.grid.height,
+                    "occupied_cells": int(np.sum(p > OCCUPIED_THRESHOLD)), "free_cells": int(np.sum(p < FREE_THRESHOLD))})
+
+
 register(RunKind("optimize", _graph_options, _optimize, ("poses", "chi2_initial", "chi2", "iterations", "converged")))
 register(RunKind("localize", _localize_options, _localize,
                  ("scans", "updates", "converged", "convergence_time_s", "converged_fraction", "particles_median"),
                  inputs={"map": True, "initial_pose": False}, inputs_are_paths={"map": True}, seeded=True))
+register(RunKind("map", _map_options, _map,
+                 ("scans", "beams", "cells_updated", "width", "height", "occupied_cells", "free_cells"), scored=False))
 
 
 __all__ = ["KINDS", "Outcome", "RunKind", "option_names", "register", "set_options"]

@@ -215,6 +215,8 @@ def _expand_group(group: RunGroup, base: str, where: str) -> List[Run]:
     options = _flatten(group.options)
     if "seed" in options:
         raise ValueError(f"{where}: options: seed: give the seeds as seeds = [...], not as an option")
+    if group.reference is not None and not kind.scored:
+        raise ValueError(f"{where}: reference: a {kind.name} run makes no trajectory to score")
     if group.seeds and not kind.seeded:
         raise ValueError(f"{where}: seeds: {kind.name} has no randomness (one run per dataset and options)")
     grid = [[(name, v) for v in (value if isinstance(value, list) else [value])] for name, value in options.items()]
@@ -231,8 +233,8 @@ def _expand_group(group: RunGroup, base: str, where: str) -> List[Run]:
     missing = [k for k, required in kind.inputs.items() if required and k not in group.inputs]
     if missing:
         raise ValueError(f"{where}: {missing[0]}: a {kind.name} run needs one")
-    inputs = tuple(sorted((k, _one_path(v, base, f"{where}: {k}") if kind.inputs_are_paths.get(k) else v)
-                          for k, v in group.inputs.items()))
+    inputs = tuple(sorted((k, _one_path(v, base, f"{where}: {k}") if kind.inputs_are_paths.get(k) else
+                           tuple(v) if isinstance(v, list) else v) for k, v in group.inputs.items()))
     runs = []
     for pattern in group.datasets:
         for dataset in _paths(pattern, base, f"{where}: datasets"):
