@@ -146,24 +146,35 @@ def _known_keys(table: Mapping[str, Any], keys: Sequence[str], where: str) -> No
         raise ValueError(f"{where}: unknown key {unknown[0]!r} (the keys: {', '.join(keys)})")
 
 
-def _group(spec: Any, where: str) -> RunGroup:
-    _require(isinstance(spec, Mapping), f"{where}: expected a table")
-    command = spec.get("command")
+def _kind(command: Any, where: str) -> RunKind:
     _require(command in KINDS, f"{where}: command must be one of {', '.join(KINDS)}, got {command!r}")
-    kind = KINDS[command]
+    return KINDS[command]
+
+
+def _group(spec: Any, where: str) -> RunGroup:
+    """A ``[[runs]]`` table as a group (its values are checked by ``_checked``)."""
+    _require(isinstance(spec, Mapping), f"{where}: expected a table")
+    kind = _kind(spec.get("command"), where)
     _known_keys(spec, GROUP_KEYS + tuple(kind.inputs), where)
-    datasets = spec.get("datasets")
-    datasets = [datasets] if isinstance(datasets, str) else datasets
-    _require(isinstance(datasets, list) and datasets and all(isinstance(d, str) for d in datasets),
+    return RunGroup(kind.name, spec.get("datasets"), spec.get("options", {}), spec.get("seeds", []),
+                    spec.get("reference"), spec.get("evaluation", {}), {k: spec[k] for k in kind.inputs if k in spec})
+
+
+def _checked(group: RunGroup, where: str) -> RunGroup:
+    """``group`` with its values checked (ValueError naming the first that is wrong), a lone
+    dataset as a list."""
+    kind = _kind(group.command, where)
+    _known_keys(group.inputs, tuple(kind.inputs), where)
+    datasets = [group.datasets] if isinstance(group.datasets, str) else group.datasets
+    _require(isinstance(datasets, (list, tuple)) and len(datasets) > 0 and all(isinstance(d, str) for d in datasets),
              f"{where}: datasets must be a path or a list of paths and globs")
     for key in ("options", "evaluation"):
-        _require(isinstance(spec.get(key, {}), Mapping), f"{where}: {key} must be a table")
-    seeds = spec.get("seeds", [])
-    _require(isinstance(seeds, list) and all(isinstance(s, int) and not isinstance(s, bool) for s in seeds),
+        _require(isinstance(getattr(group, key), Mapping), f"{where}: {key} must be a table")
+    seeds = group.seeds
+    _require(isinstance(seeds, (list, tuple)) and all(isinstance(s, int) and not isinstance(s, bool) for s in seeds),
              f"{where}: seeds must be a list of integers")
-    _require(spec.get("reference") is None or isinstance(spec["reference"], str), f"{where}: reference must be a path")
-    return RunGroup(command, datasets, dict(spec.get("options", {})), seeds, spec.get("reference"),
-                    dict(spec.get("evaluation", {})), {k: spec[k] for k in kind.inputs if k in spec})
+    _require(group.reference is None or isinstance(group.reference, str), f"{where}: reference must be a path")
+    return dataclasses.replace(group, datasets=list(datasets))
 
 
 def _flatten(options: Mapping[str, Any], prefix: str = "") -> Dict[str, Any]:
@@ -180,7 +191,12 @@ def _flatten(options: Mapping[str, Any], prefix: str = "") -> Dict[str, Any]:
 def _paths(pattern: str, base: str, where: str) -> List[str]:
     """The files a dataset entry names: a path or a glob (relative to ``base``, or ``bundled:``)."""
     if pattern.startswith(BUNDLED):
-        folder, pattern = os.path.dirname(bundled_data.path("intel_400.g2o")), pattern[len(BUNDLED):]
+        folder, pattern = os.path.dirname(os.path.abspath(bundled_data.__file__)), pattern[len(BUNDLED):]
+        if not glob.has_magic(pattern):
+            try:
+                return [bundled_data.path(pattern)]
+            except ValueError as exc:  # names the bundled files there are
+                raise ValueError(f"{where}: {str(exc).removeprefix('name: ')}") from None
     else:
         folder = base
     full = os.path.join(folder, os.path.expanduser(pattern))
@@ -211,7 +227,8 @@ def _reference(template: str, dataset: str, base: str, where: str) -> str:
 
 
 def _expand_group(group: RunGroup, base: str, where: str) -> List[Run]:
-    kind: RunKind = KINDS[group.command]
+    group = _checked(group, where)
+    kind = KINDS[group.command]
     options = _flatten(group.options)
     if "seed" in options:
         raise ValueError(f"{where}: options: seed: give the seeds as seeds = [...], not as an option")
