@@ -58,9 +58,11 @@ def require_dask() -> None:
 
 
 def describe(run: Run) -> Dict[str, Any]:
-    """The columns that say what ``run`` is: its id, kind, dataset, seed, reference and options."""
+    """The columns that say what ``run`` is: its id, kind, dataset, seed, reference, the kind's
+    inputs and the options."""
     row = {"run_id": run.run_id, "kind": run.kind, "dataset": run.dataset, "seed": run.seed,
            "reference": run.reference}
+    row.update({table.INPUT_PREFIX + name: value for name, value in run.inputs})
     row.update({table.OPTION_PREFIX + name: value for name, value in run.options})
     return row
 

@@ -18,6 +18,8 @@ PARQUET = "results.parquet"
 CSV = "results.csv"
 #: The option columns are named ``options.NAME`` (NAME a dotted path for a sub-structure's field).
 OPTION_PREFIX = "options."
+#: The kind's own inputs (localize's map) are named ``inputs.NAME``.
+INPUT_PREFIX = "inputs."
 #: Columns that describe a run's cost, not its result: their medians close each summary row.
 COST_COLUMNS = ("wall_s", "cpu_s", "peak_memory_mb")
 #: The columns that say what a run is and how it went, not what it measured.
@@ -34,7 +36,7 @@ def columns(rows: Sequence[Dict[str, Any]]) -> List[str]:
     def part(name: str) -> int:
         if name in IDENTITY_COLUMNS[:5]:
             return 0
-        if name.startswith(OPTION_PREFIX):
+        if name.startswith((INPUT_PREFIX, OPTION_PREFIX)):
             return 1
         return 3 if name in IDENTITY_COLUMNS or name in COST_COLUMNS else 2
 
@@ -97,13 +99,13 @@ def summary(rows: Sequence[Dict[str, Any]]) -> str:
     for kind in dict.fromkeys(row["kind"] for row in rows):
         mine = [row for row in rows if row["kind"] == kind]
         names = columns(mine)
-        options = [n for n in names if n.startswith(OPTION_PREFIX)]
+        options = [n for n in names if n.startswith((INPUT_PREFIX, OPTION_PREFIX))]
         metrics = [n for n in names if n not in IDENTITY_COLUMNS and n not in options and n not in COST_COLUMNS]
         metrics += list(COST_COLUMNS)
         groups: Dict[tuple, List[Dict[str, Any]]] = {}
         for row in mine:
             key = (os.path.basename(str(row["dataset"]).rstrip(os.sep)),
-                   ", ".join(f"{n[len(OPTION_PREFIX):]}={row[n]}" for n in options if row.get(n) is not None))
+                   ", ".join(f"{_name(n)}={_value(row[n])}" for n in options if row.get(n) is not None))
             groups.setdefault(key, []).append(row)
         header = ["dataset", "options", "ok"] + metrics
         lines = [header]
@@ -115,6 +117,15 @@ def summary(rows: Sequence[Dict[str, Any]]) -> str:
         out.append(f"{kind} (medians over each line's seeds; ok: the runs that ended well):")
         out += ["  " + "  ".join(c.ljust(w) for c, w in zip(line, widths)).rstrip() for line in lines]
     return "\n".join(out)
+
+
+def _name(column: str) -> str:
+    return column.split(".", 1)[1]
+
+
+def _value(value: Any) -> str:
+    """An option or input as the summary shows it (a file by its name)."""
+    return os.path.basename(value) if isinstance(value, str) and os.sep in value else str(value)
 
 
 def _median(values: Iterable[Any]) -> str:
