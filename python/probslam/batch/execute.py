@@ -23,6 +23,7 @@ import warnings
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Union
 
 from .._args import positive_real
+from ..pipelines import EvaluationOptions, evaluate_trajectory
 from .kinds import KINDS, Outcome, RunKind
 from .sweep import Run, Sweep, load
 from . import table
@@ -89,8 +90,6 @@ def _peak_memory_mb() -> float:
 def score(outcome: Outcome, run: Run) -> Dict[str, Any]:
     """The run's trajectory against its reference (``pipelines.evaluate_trajectory``): ATE or RPE
     against a trajectory, the relations error, or the RMS against positions."""
-    from ..pipelines import EvaluationOptions, evaluate_trajectory
-
     if outcome.write_trajectory is None:
         raise ValueError(f"reference: a {run.kind} run makes no trajectory to score")
     with tempfile.TemporaryDirectory(prefix="probslam-batch-") as folder:

@@ -13,6 +13,12 @@ from typing import Any, Callable, Dict, Mapping, Optional, Sequence, Tuple
 
 import numpy as np
 
+from .. import io
+from .._core import MonteCarloLocalizationOptions
+from ..datasets import carmen
+from ..localization import default_options
+from ..pipelines import GraphFileOptions, MapOptions, localize_log, map_log, optimize_file
+
 
 @dataclass
 class Outcome:
@@ -94,33 +100,14 @@ def _set(options: Any, parts: Sequence[str], value: Any, path: str) -> Any:
 
 
 def _optimize(dataset: str, values, inputs) -> Outcome:
-    from ..pipelines import optimize_file
-
-    run = optimize_file(dataset, set_options(_graph_options(), values))
+    run = optimize_file(dataset, set_options(GraphFileOptions(), values))
     report = run.report
     return Outcome({"poses": len(run.graph.pose_ids), "chi2_initial": run.initial_chi2, "chi2": run.graph.chi2(),
                     "iterations": int(report.iterations), "converged": run.converged},
                    lambda prefix: run.write(prefix)[-1])
 
 
-def _graph_options():
-    from ..pipelines import GraphFileOptions
-
-    return GraphFileOptions()
-
-
-def _localize_options():
-    from .._core import MonteCarloLocalizationOptions
-
-    return MonteCarloLocalizationOptions()
-
-
 def _localize(dataset: str, values, inputs) -> Outcome:
-    from .. import io
-    from ..datasets import carmen
-    from ..localization import default_options
-    from ..pipelines import localize_log
-
     log = io.read_rosbag(dataset) if io.rosbag.is_bag(dataset) else carmen.load(dataset)
     # The sweep's options over the log's own defaults (its no-return reading as max_range).
     options = set_options(default_options(log), values)
@@ -136,27 +123,19 @@ def _localize(dataset: str, values, inputs) -> Outcome:
 OCCUPIED_THRESHOLD, FREE_THRESHOLD = 0.65, 0.196
 
 
-def _map_options():
-    from ..pipelines import MapOptions
-
-    return MapOptions()
-
-
 def _map(dataset: str, values, inputs) -> Outcome:
-    from ..pipelines import map_log
-
-    run = map_log(dataset, set_options(_map_options(), values), progress=False)
+    run = map_log(dataset, set_options(MapOptions(), values), progress=False)
     p, m = run.grid.probability(), run.mapping
     return Outcome({"scans": int(m.scans), "beams": int(m.beams), "cells_updated": int(m.cells_updated),
                     "width": run.grid.width, "height": run.grid.height,
                     "occupied_cells": int(np.sum(p > OCCUPIED_THRESHOLD)), "free_cells": int(np.sum(p < FREE_THRESHOLD))})
 
 
-register(RunKind("optimize", _graph_options, _optimize, ("poses", "chi2_initial", "chi2", "iterations", "converged")))
-register(RunKind("localize", _localize_options, _localize,
+register(RunKind("optimize", GraphFileOptions, _optimize, ("poses", "chi2_initial", "chi2", "iterations", "converged")))
+register(RunKind("localize", MonteCarloLocalizationOptions, _localize,
                  ("scans", "updates", "converged", "convergence_time_s", "converged_fraction", "particles_median"),
                  inputs={"map": True, "initial_pose": False}, inputs_are_paths={"map": True}, seeded=True))
-register(RunKind("map", _map_options, _map,
+register(RunKind("map", MapOptions, _map,
                  ("scans", "beams", "cells_updated", "width", "height", "occupied_cells", "free_cells"), scored=False))
 
 

@@ -12,7 +12,7 @@ import json
 import math
 import os
 import statistics
-from typing import Any, Dict, Iterable, List, Optional, Sequence
+from typing import Any, Dict, Iterable, List, Sequence
 
 PARQUET = "results.parquet"
 CSV = "results.csv"
