@@ -1038,12 +1038,18 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     return 0
 
 
+BATCH_FLAGS = {"time_limit": "--time-limit", "scheduler": "--scheduler", "workers": "--workers",
+               "memory_limit": "--memory-limit"}
+
+
 def _cmd_batch(args: argparse.Namespace) -> int:
     from . import batch
 
+    sweep = batch.load(args.sweep)  # its own refusals name its keys, not flags
     try:  # a sweep refused, or dask missing: before a folder is made or a worker started
-        rows = batch.run(args.sweep, directory=args.directory, time_limit=args.time_limit, scheduler=args.scheduler,
-                         workers=args.workers, memory_limit=args.memory_limit, progress=_progress(args))
+        with _option_flags(BATCH_FLAGS, args):
+            rows = batch.run(sweep, directory=args.directory, time_limit=args.time_limit, scheduler=args.scheduler,
+                             workers=args.workers, memory_limit=args.memory_limit, progress=_progress(args))
     except KeyboardInterrupt:
         print(f"probslam batch: {args.directory}/{batch.PARQUET} holds every run that finished; run the same command "
               "again to make the rest", file=sys.stderr)
