@@ -276,3 +276,33 @@ def test_a_map_run_counts_the_cells_its_map_file_has(tmp_path):
     assert row["scans"] == 180 and row["cells_updated"] == made.mapping.cells_updated
     with pytest.raises(ValueError, match="reference: a map run makes no trajectory to score"):
         batch.Sweep([batch.RunGroup("map", ["bundled:intel_excerpt.log.gz"], reference="bundled:intel_400.g2o")]).expand()
+
+
+def test_relative_globs_and_a_reference_template_score_each_dataset_against_its_own(tmp_path):
+    """Datasets are read relative to the sweep file; reference = "{dir}/{stem}_gt.tum" names each
+    one's ground truth: a graph scored against its own optimum has no error (but for the file's
+    digits), against the other graph's it has."""
+    import shutil
+
+    from probslam import data
+    from probslam.pipelines import optimize_file
+
+    graphs = tmp_path / "graphs"
+    graphs.mkdir()
+    for name in ("a", "b"):
+        shutil.copy(data.path("intel_400.g2o"), graphs / f"{name}.g2o")
+    optimize_file(graphs / "a.g2o").write(str(tmp_path / "a"))  # a.g2o, a_trajectory.tum
+    (tmp_path / "a_trajectory.tum").rename(graphs / "a_gt.tum")
+    own = graphs / "a_gt.tum"
+    # b's "ground truth": a's optimum moved 1 m along x after pose 200 (an error the alignment cannot remove)
+    rows = [line.split() for line in own.read_text().splitlines() if not line.startswith("#")]
+    (graphs / "b_gt.tum").write_text("".join(
+        " ".join([r[0], str(float(r[1]) + (1.0 if float(r[0]) >= 200 else 0.0))] + r[2:]) + "\n" for r in rows))
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text('[[runs]]\ncommand = "optimize"\ndatasets = ["graphs/*.g2o"]\nreference = "{dir}/{stem}_gt.tum"\n')
+    runs = batch.load(sweep).expand()
+    assert [os.path.basename(r.dataset) for r in runs] == ["a.g2o", "b.g2o"]
+    assert [os.path.basename(r.reference) for r in runs] == ["a_gt.tum", "b_gt.tum"]
+    a, b = (batch.run_one(r) for r in runs)
+    assert a["status"] == b["status"] == "ok" and a["pairs"] == b["pairs"] == 400
+    assert a["ate_rmse_m"] < 1e-5 and b["ate_rmse_m"] > 0.3
