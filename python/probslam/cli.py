@@ -665,6 +665,28 @@ def _cmd_eval(args: argparse.Namespace) -> int:
     return 0
 
 
+BATCH_FLAGS = {"time_limit": "--time-limit", "scheduler": "--scheduler", "workers": "--workers",
+               "memory_limit": "--memory-limit"}
+
+
+def _cmd_batch(args: argparse.Namespace) -> int:
+    from . import batch
+
+    sweep = batch.load(args.sweep)  # its own refusals name its keys, not flags
+    try:  # a sweep refused, or dask missing: before a folder is made or a worker started
+        with _option_flags(BATCH_FLAGS, args):
+            rows = batch.run(sweep, directory=args.directory, time_limit=args.time_limit, scheduler=args.scheduler,
+                             workers=args.workers, memory_limit=args.memory_limit, progress=_progress(args))
+    except KeyboardInterrupt:
+        print(f"probslam batch: {args.directory}/{batch.PARQUET} holds every run that finished; run the same command "
+              "again to make the rest", file=sys.stderr)
+        raise
+    failed = sum(row["status"] != "ok" for row in rows)
+    print(batch.summary(rows))
+    print(f"\n{len(rows)} runs, {failed} failed: {args.directory}/{batch.PARQUET}, {batch.CSV}")
+    return 0
+
+
 def _bag_input_options(parser: argparse.ArgumentParser, poses: bool) -> None:
     """The options of a ROS bag input (map and slam): topics and the laser's offset."""
     parser.add_argument("--scan-topic", help="ROS bag: the sensor_msgs/LaserScan topic (default: the only one)")
@@ -933,6 +955,27 @@ def build_parser() -> argparse.ArgumentParser:
                     help="poses are paired with the nearest reference pose at most this far in time, s (default "
                          "0.01, evo's)")
     ev.set_defaults(func=_cmd_eval)
+
+    ba = sub.add_parser("batch", help="a sweep of runs (datasets x commands x option grids x seeds) on Dask "
+                                      "distributed, one row per run in DIR/results.parquet and results.csv "
+                                      "(docs/batch.md; needs 'probslam[batch]')")
+    ba.add_argument("sweep", metavar="SWEEP", help="the sweep: a TOML file (docs/batch.md; examples/sweep_demo.toml)")
+    ba.add_argument("-o", "--output-dir", dest="directory", metavar="DIR", required=True,
+                    help="the folder of the table (made if missing; no default); the runs whose rows are there are not "
+                         "made again")
+    ba.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                    help="a running Dask scheduler (tcp://host:8786); default: DASK_SCHEDULER_ADDRESS, else a local "
+                         "cluster")
+    ba.add_argument("--workers", type=int, default=None, help="local cluster: worker processes of one thread "
+                                                              "(default: one per core)")
+    ba.add_argument("--memory-limit", default="auto", help="local cluster: memory per worker, e.g. 4GB; a worker past "
+                                                           "it is restarted and its run retried (default: auto, the "
+                                                           "memory shared out)")
+    ba.add_argument("--time-limit", type=float, default=None, metavar="S",
+                    help="seconds a run may take before it is recorded as timeout (default: the sweep's time_limit, "
+                         "else none)")
+    _no_progress_option(ba)
+    ba.set_defaults(func=_cmd_batch)
     return parser
 
 

@@ -220,7 +220,7 @@ def _subparsers(parser):
 
 def test_every_option_with_a_value_shows_its_default_in_help():
     commands = _subparsers(cli.build_parser())
-    assert set(commands) == {"map", "slam", "localize", "ekf-slam", "fastslam", "optimize", "eval"}
+    assert set(commands) == {"map", "slam", "localize", "ekf-slam", "fastslam", "optimize", "eval", "batch"}
     missing = []
     for name, parser in commands.items():
         formatter = parser._get_formatter()

@@ -1,5 +1,5 @@
-"""The package's imports point downward: cli -> pipelines -> datasets -> algorithms -> eval -> io
--> geometry -> _core (and the private helpers beside it). A module may import its own layer and
+"""The package's imports point downward: cli -> batch -> pipelines -> datasets -> algorithms -> eval
+-> io -> geometry -> _core (and the private helpers beside it). A module may import its own layer and
 any layer below; an import upward (io reading eval, an algorithm reading a dataset) is a cycle
 waiting to happen and a sign that a kernel lives in the wrong place."""
 
@@ -11,10 +11,11 @@ PACKAGE = pathlib.Path(__file__).resolve().parents[2] / "python" / "probslam"
 #: Each top-level module or subpackage of probslam, by layer (0 is the top).
 LAYERS = [
     {"cli", "__main__", "__init__"},
+    {"batch"},
     {"pipelines"},
     {"datasets"},
     {"slam", "localization", "fastslam", "ekf", "graph", "graphslam", "landmark_refine", "landmark_slam", "mapping",
-     "map_occupancy", "inverse_learning", "sim", "sim_laser", "plot", "batch", "certificate"},
+     "map_occupancy", "inverse_learning", "sim", "sim_laser", "plot", "certificate"},
     {"eval"},
     {"io"},
     {"geometry"},

@@ -1,0 +1,142 @@
+"""The kinds of run a sweep can make, as a registry: each kind says how its typed options are
+made (``options()``: the defaults, set by name from the sweep), how one run goes on the library's
+pipelines (``run``: a pure function of the run's inputs, no CLI), and which metrics its rows hold.
+Adding a command to ``probslam batch`` is one ``register(RunKind(...))``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+from dataclasses import dataclass, field
+from typing import Any, Callable, Dict, Mapping, Optional, Sequence, Tuple
+
+import numpy as np
+
+from .. import io
+from .._core import MonteCarloLocalizationOptions
+from ..datasets import carmen
+from ..localization import default_options
+from ..pipelines import GraphFileOptions, MapOptions, localize_log, map_log, optimize_file
+
+
+@dataclass
+class Outcome:
+    """What a run gives back: its metrics (name -> a number, bool or text) and, when it makes a
+    trajectory, how to write it (``write_trajectory(prefix) -> path``, for the score against a
+    reference)."""
+
+    metrics: Dict[str, Any]
+    write_trajectory: Optional[Callable[[str], str]] = None
+
+
+@dataclass(frozen=True)
+class RunKind:
+    """A command of a sweep.
+
+    name: as sweeps name it (the CLI command's name).
+    options: the default options object of the kind (a pipeline's ``Options`` dataclass or a C++
+        options class), whose fields a sweep sets by name.
+    run: ``run(dataset, values, inputs) -> Outcome``: the run on a worker; ``values``: the
+        sweep's options (name or dotted path -> value, the seed included), which it sets
+        (``set_options``) on its defaults for the dataset.
+    metrics: the names of the metrics its ``Outcome`` holds (the table's columns, in order).
+    inputs: the kind's own keys in a sweep's group besides the dataset (name -> required).
+    inputs_are_paths: which of those name files (resolved as datasets are).
+    seeded: whether its options have a ``seed`` (a sweep's seeds set it; else seeds are refused).
+    scored: whether its runs make a trajectory to score against a reference (else one is refused).
+    """
+
+    name: str
+    options: Callable[[], Any]
+    run: Callable[[str, Any, Mapping[str, Any]], Outcome]
+    metrics: Tuple[str, ...]
+    inputs: Mapping[str, bool] = field(default_factory=dict)
+    inputs_are_paths: Mapping[str, bool] = field(default_factory=dict)
+    seeded: bool = False
+    scored: bool = True
+
+
+#: Every kind by name, in the order registered.
+KINDS: Dict[str, RunKind] = {}
+
+
+def register(kind: RunKind) -> RunKind:
+    """Adds (or replaces) ``kind`` in KINDS; returns it."""
+    KINDS[kind.name] = kind
+    return kind
+
+
+def option_names(options: Any) -> Tuple[str, ...]:
+    """The field names of an options object: a dataclass's fields, a C++ options class's
+    ``as_dict`` keys."""
+    if dataclasses.is_dataclass(options):
+        return tuple(f.name for f in dataclasses.fields(options))
+    return tuple(options.as_dict())
+
+
+def set_options(options: Any, values: Mapping[str, Any]) -> Any:
+    """A validated copy of ``options`` with ``values`` set (name or dotted path into a
+    sub-structure -> value): ValueError / TypeError naming the option."""
+    for path, value in values.items():
+        options = _set(options, path.split("."), value, path)
+    return options
+
+
+def _set(options: Any, parts: Sequence[str], value: Any, path: str) -> Any:
+    name = parts[0]
+    names = option_names(options)
+    if name not in names:
+        close = difflib.get_close_matches(name, names, n=1)
+        hint = f"; did you mean {close[0]!r}?" if close else ""
+        raise ValueError(f"unknown option {path!r} (the options here: {', '.join(names)}){hint}")
+    if len(parts) > 1:
+        value = _set(getattr(options, name), parts[1:], value, path)
+    try:
+        return options.replace(**{name: value})
+    except (ValueError, TypeError) as exc:
+        message = str(exc)
+        raise type(exc)(message if path in message else f"{path}: {message}") from None
+
+
+def _optimize(dataset: str, values, inputs) -> Outcome:
+    run = optimize_file(dataset, set_options(GraphFileOptions(), values))
+    report = run.report
+    return Outcome({"poses": len(run.graph.pose_ids), "chi2_initial": run.initial_chi2, "chi2": run.graph.chi2(),
+                    "iterations": int(report.iterations), "converged": run.converged},
+                   lambda prefix: run.write(prefix)[-1])
+
+
+def _localize(dataset: str, values, inputs) -> Outcome:
+    log = io.read_rosbag(dataset) if io.rosbag.is_bag(dataset) else carmen.load(dataset)
+    # The sweep's options over the log's own defaults (its no-return reading as max_range).
+    options = set_options(default_options(log), values)
+    run = localize_log(log, inputs["map"], options, initial_pose=inputs.get("initial_pose"), progress=False)
+    r = run.result
+    return Outcome({"scans": len(r.timestamps), "updates": int(np.sum(r.updated)), "converged": run.converged,
+                    "convergence_time_s": r.convergence_time, "converged_fraction": float(r.converged_fraction),
+                    "particles_median": float(np.median(r.num_particles))},
+                   lambda prefix: run.write(prefix)[0])
+
+
+#: map_saver's thresholds (``io.save_ros_map``'s): a map run counts its cells as its map file has them.
+OCCUPIED_THRESHOLD, FREE_THRESHOLD = 0.65, 0.196
+
+
+def _map(dataset: str, values, inputs) -> Outcome:
+    run = map_log(dataset, set_options(MapOptions(), values), progress=False)
+    p, m = run.grid.probability(), run.mapping
+    return Outcome({"scans": int(m.scans), "beams": int(m.beams), "cells_updated": int(m.cells_updated),
+                    "width": run.grid.width, "height": run.grid.height,
+                    "occupied_cells": int(np.sum(p > OCCUPIED_THRESHOLD)), "free_cells": int(np.sum(p < FREE_THRESHOLD))})
+
+
+register(RunKind("optimize", GraphFileOptions, _optimize, ("poses", "chi2_initial", "chi2", "iterations", "converged")))
+register(RunKind("localize", MonteCarloLocalizationOptions, _localize,
+                 ("scans", "updates", "converged", "convergence_time_s", "converged_fraction", "particles_median"),
+                 inputs={"map": True, "initial_pose": False}, inputs_are_paths={"map": True}, seeded=True))
+register(RunKind("map", MapOptions, _map,
+                 ("scans", "beams", "cells_updated", "width", "height", "occupied_cells", "free_cells"), scored=False))
+
+
+__all__ = ["KINDS", "Outcome", "RunKind", "option_names", "register", "set_options"]

@@ -1,0 +1,308 @@
+"""probslam batch: sweeps on Dask distributed. On a LocalCluster of two worker processes: a sweep
+gives the rows its runs give alone; a run that raises, one past its time limit and one whose
+worker is killed (SIGKILL, by a test-only run kind) each leave one row and the sweep goes on; a
+sweep stopped by Ctrl-C leaves its table complete and, started again, makes only what is missing;
+a sweep with an unknown key or option is refused in one line before anything runs."""
+
+import _thread
+import dataclasses
+import json
+import os
+import pathlib
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import pytest
+
+if os.environ.get("PROBSLAM_SANITIZED"):  # before dask is imported: worker processes are not what that run tests
+    pytest.skip("the sanitized run (scripts/sanitize.sh) leaves sweeps out", allow_module_level=True)
+distributed = pytest.importorskip("distributed")
+pytest.importorskip("pyarrow")
+cloudpickle = pytest.importorskip("cloudpickle")
+
+from probslam import batch, cli  # noqa: E402
+from probslam.batch import table  # noqa: E402
+
+ROOT = pathlib.Path(__file__).resolve().parents[2]
+DEMO = ROOT / "examples" / "sweep_demo.toml"
+PROBSLAM = [sys.executable, "-m", "probslam"]
+#: The metrics of a run made twice (alone and on a worker) are the same computation: equal bit for
+#: bit; only the cost columns and the worker differ.
+COST = set(table.COST_COLUMNS) | {"worker"}
+
+
+@dataclasses.dataclass
+class ProbeOptions:
+    """The options of the test-only kind: what it does."""
+
+    action: str = "ok"  # ok, raise, sleep, kill-once (SIGKILL its own worker the first time), kill
+    value: int = 0
+
+    def replace(self, **fields):
+        out = dataclasses.replace(self, **fields)
+        if out.action not in ("ok", "raise", "sleep", "kill-once", "kill"):
+            raise ValueError(f"action must be ok, raise, sleep, kill-once or kill, got {out.action!r}")
+        return out
+
+
+def probe(dataset, values, inputs):
+    options = batch.set_options(ProbeOptions(), values)
+    if options.action == "raise":
+        raise RuntimeError(f"probe {options.value} raised")
+    if options.action == "sleep":
+        time.sleep(60)
+    if options.action == "kill-once":
+        marker = pathlib.Path(inputs["folder"]) / f"killed-{options.value}"
+        if not marker.exists():
+            marker.write_text(str(os.getpid()))
+            os.kill(os.getpid(), signal.SIGKILL)  # the worker process dies mid-run
+    if options.action == "kill":  # a crash, every time
+        os.kill(os.getpid(), signal.SIGKILL)
+    return batch.Outcome({"value": options.value * 2, "pid": os.getpid()})
+
+
+PROBE = batch.RunKind("probe", ProbeOptions, probe, ("value", "pid"), inputs={"folder": True})
+
+
+@pytest.fixture(scope="module")
+def client():
+    cloudpickle.register_pickle_by_value(sys.modules[__name__])  # the workers cannot import this file
+    batch.register(PROBE)
+    c = batch.start_client(workers=2, memory_limit="2GB")
+    yield c
+    c.close()
+    del batch.KINDS["probe"]
+
+
+def _metrics(row):
+    return {k: v for k, v in row.items() if k not in COST}
+
+
+def _given(row):
+    """A row without the columns it does not have (the table fills them with None)."""
+    return {k: v for k, v in row.items() if v is not None}
+
+
+def test_a_sweep_gives_the_rows_its_runs_give_alone(client, tmp_path):
+    sweep = batch.Sweep([
+        batch.RunGroup("optimize", ["bundled:*_400.g2o"], {"algorithm": ["gauss-newton", "levenberg-marquardt"]}),
+        batch.RunGroup("localize", ["bundled:intel_raw_loop.log.gz"], {"max_particles": [1000, 3000]}, seeds=[0, 1],
+                       inputs={"map": "bundled:intel_raw_loop_map.yaml"}, reference="bundled:intel_excerpt.log.gz")])
+    runs = sweep.expand()
+    assert len(runs) == 8 and len({r.run_id for r in runs}) == 8
+    rows = batch.run(sweep, client, str(tmp_path))
+    assert [row["run_id"] for row in rows] == [r.run_id for r in runs]
+    assert all(row["status"] == "ok" for row in rows), [row["error"] for row in rows]
+    assert {row["worker"] for row in rows} <= set(client.scheduler_info()["workers"])
+    for run, row in zip(runs, rows):
+        assert _metrics(batch.run_one(run)) == _metrics(row)
+    # The table on disk holds the same rows, typed (Parquet) and as text (CSV).
+    back = {row["run_id"]: row for row in table.read(str(tmp_path))}  # in the order the runs finished
+    assert [_given(back[row["run_id"]]) for row in rows] == [_given(row) for row in rows]
+    csv_lines = (tmp_path / batch.CSV).read_text().splitlines()
+    assert len(csv_lines) == 9 and csv_lines[0].startswith("run_id,kind,dataset,seed,reference,options.")
+    localize = [row for row in rows if row["kind"] == "localize"]
+    assert all(row["ate_rmse_m"] > 0 and row["scans"] == 630 for row in localize)
+    assert "localize (medians" in batch.summary(rows)
+
+
+def test_a_run_that_raises_times_out_or_kills_its_worker_is_one_row_each(client, tmp_path):
+    data = tmp_path / "data.txt"
+    data.write_text("")
+    sweep = batch.Sweep([
+        batch.RunGroup("probe", [str(data)], {"action": "ok", "value": [1, 2, 3]}, inputs={"folder": str(tmp_path)}),
+        batch.RunGroup("probe", [str(data)], {"action": "raise", "value": 4}, inputs={"folder": str(tmp_path)}),
+        batch.RunGroup("probe", [str(data)], {"action": "kill-once", "value": 5}, inputs={"folder": str(tmp_path)}),
+        batch.RunGroup("probe", [str(data)], {"action": "sleep", "value": 6}, inputs={"folder": str(tmp_path)}),
+    ], time_limit=1.5)
+    out = tmp_path / "out"
+    out.mkdir()
+    rows = batch.run(sweep, client, str(out))
+    assert len(rows) == 6 and len({row["run_id"] for row in rows}) == 6
+    status = {row["options.value"]: (row["status"], row["error"]) for row in rows}
+    assert [status[v][0] for v in (1, 2, 3)] == ["ok"] * 3
+    assert status[4] == ("error", "RuntimeError: probe 4 raised")
+    killed = next(row for row in rows if row["options.value"] == 5)
+    first_pid = int((tmp_path / "killed-5").read_text())
+    assert killed["status"] == "ok" and killed["value"] == 10 and killed["pid"] != first_pid  # retried elsewhere
+    assert status[6][0] == "timeout" and "1.5 s" in status[6][1]
+    assert len(table.read(str(out))) == 6
+
+
+@pytest.mark.slow  # three worker processes started again: 5-15 s
+def test_a_run_that_kills_every_worker_it_is_given_is_recorded_killed_and_the_others_are_not(client, tmp_path):
+    data = tmp_path / "data.txt"
+    data.write_text("")
+    sweep = batch.Sweep([
+        batch.RunGroup("probe", [str(data)], {"action": "kill", "value": 7}, inputs={"folder": str(tmp_path)}),
+        batch.RunGroup("probe", [str(data)], {"action": "ok", "value": [8, 9, 10, 11]}, inputs={"folder": str(tmp_path)}),
+    ])
+    rows = batch.run(sweep, client)
+    assert len(rows) == 5 and len({row["run_id"] for row in rows}) == 5
+    status = {row["options.value"]: (row["status"], row["error"]) for row in rows}
+    assert status[7][0] == "killed" and f"died {batch.ALLOWED_FAILURES + 1} times" in status[7][1]
+    assert [status[v] for v in (8, 9, 10, 11)] == [("ok", None)] * 4
+
+
+def test_a_sweep_stopped_by_ctrl_c_makes_only_what_is_missing_when_started_again(client, tmp_path, capsys):
+    """The demo sweep through the command line, on the module's cluster (--scheduler), stopped by
+    Ctrl-C (a KeyboardInterrupt in the main thread, as a terminal's SIGINT gives) after its first
+    row, then started again."""
+    out = tmp_path / "out"
+    cmd = ["batch", str(DEMO), "-o", str(out), "--scheduler", client.scheduler.address, "--no-progress"]
+
+    def press_ctrl_c():
+        deadline = time.monotonic() + 60
+        while not (out / batch.PARQUET).exists() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        _thread.interrupt_main()
+
+    threading.Thread(target=press_ctrl_c, daemon=True).start()
+    assert cli.main(cmd) == 130
+    assert "holds every run that finished" in capsys.readouterr().err
+    done = table.read(str(out))
+    assert 0 < len(done) < 12
+    assert cli.main(cmd) == 0
+    printed = capsys.readouterr().out
+    assert "12 runs, 0 failed" in printed and "localize (medians" in printed and "optimize (medians" in printed
+    rows = table.read(str(out))
+    assert len(rows) == 12 and len({row["run_id"] for row in rows}) == 12
+    assert [_given(row) for row in rows[:len(done)]] == [_given(row) for row in done]  # kept, not made again
+    assert {row["run_id"] for row in rows} == {r.run_id for r in batch.load(DEMO).expand()}
+    assert (out / batch.CSV).read_text().count("\n") == 13
+
+
+@pytest.mark.parametrize("text, message", [
+    ('runz = []', "unknown key 'runz' (the keys: runs, time_limit)"),
+    ('[[runs]]\ncommand = "optimize"\ndatasets = ["bundled:intel_400.g2o"]\nseed = [1]',
+     "runs[0]: unknown key 'seed'"),
+    ('[[runs]]\ncommand = "optimize"\ndatasets = ["bundled:intel_400.g2o"]\noptions = { kernal = "huber" }',
+     "runs[0]: options: unknown option 'kernal' (the options here: format, noise"),
+    ('[[runs]]\ncommand = "optimize"\ndatasets = ["bundled:intel_400.g2o"]\noptions = { kernel = ["none", "tukey"] }',
+     "runs[0]: options: kernel must be one of none, huber, cauchy, got 'tukey'"),
+    ('[[runs]]\ncommand = "localize"\ndatasets = ["bundled:intel_raw_loop.log.gz"]\nmap = "bundled:intel_raw_loop_map.yaml"'
+     '\n[runs.options.odometry]\nalpha9 = 0.1', "runs[0]: options: unknown option 'odometry.alpha9'"),
+    ('[[runs]]\ncommand = "optimize"\ndatasets = ["bundled:intel_400.g2o"]\nseeds = [0, 1]',
+     "runs[0]: seeds: optimize has no randomness"),
+    ('[[runs]]\ncommand = "localize"\ndatasets = ["bundled:intel_raw_loop.log.gz"]', "runs[0]: map: a localize run "
+                                                                                      "needs one"),
+    ('[[runs]]\ncommand = "optimise"\ndatasets = ["a.g2o"]', "runs[0]: command must be one of optimize, localize"),
+    ('[[runs]]\ncommand = "optimize"\ndatasets = ["graphs/*.g2o"]', "runs[0]: datasets: 'graphs/*.g2o' matches no file"),
+])
+def test_an_unknown_key_or_option_is_one_line_and_exit_2_before_any_run(tmp_path, capsys, text, message):
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text(text + "\n")
+    status = cli.main(["batch", str(sweep), "-o", str(tmp_path / "out")])
+    err = capsys.readouterr().err
+    assert status == 2 and err.count("\n") == 1, err
+    assert err.startswith(f"probslam: error: {sweep}: {message}"), err
+    assert not (tmp_path / "out").exists()  # refused before a worker started or a table was made
+
+
+def test_the_same_run_has_the_same_id_and_another_run_another():
+    group = batch.RunGroup("optimize", ["bundled:intel_400.g2o"], {"kernel": ["none", "huber"]})
+    a, b = batch.Sweep([group]).expand(), batch.Sweep([group, group]).expand()
+    assert [r.run_id for r in a] == [r.run_id for r in b] and a[0].run_id != a[1].run_id
+
+
+@pytest.mark.slow
+def test_the_demo_on_a_scheduler_and_two_workers_started_as_a_cluster_would_be(tmp_path):
+    """`dask scheduler` and two `dask worker` processes on localhost, as on a cluster's nodes;
+    `probslam batch --scheduler ADDRESS` sends the demo sweep to them."""
+    info = tmp_path / "scheduler.json"
+    dask = [sys.executable, "-m", "dask"]
+    started = [subprocess.Popen(dask + ["scheduler", "--host", "127.0.0.1", "--port", "0", "--no-dashboard",
+                                        "--scheduler-file", str(info)], stderr=subprocess.DEVNULL)]
+    try:
+        deadline = time.monotonic() + 60
+        while not info.exists() and time.monotonic() < deadline:
+            time.sleep(0.1)
+        started += [subprocess.Popen(dask + ["worker", "--scheduler-file", str(info), "--nthreads", "1",
+                                             "--no-dashboard", "--memory-limit", "2GB"], stderr=subprocess.DEVNULL)
+                    for _ in range(2)]
+        address = json.loads(info.read_text())["address"]
+        with distributed.Client(address) as c:
+            c.wait_for_workers(2, timeout=60)
+        out = tmp_path / "out"
+        done = subprocess.run(PROBSLAM + ["batch", str(DEMO), "-o", str(out), "--scheduler", address,
+                                          "--no-progress"], capture_output=True, text=True, timeout=120)
+        assert done.returncode == 0, done.stderr
+        rows = table.read(str(out))
+        assert len(rows) == 12 and all(row["status"] == "ok" for row in rows)
+        assert len({row["worker"] for row in rows}) == 2  # both workers ran some
+    finally:
+        for p in started:
+            p.terminate()
+        for p in started:
+            p.wait(timeout=30)
+
+
+def test_the_package_imports_without_dask_and_batch_says_how_to_install_it(tmp_path):
+    """A user who never batches needs none of the extra: probslam and probslam.batch import; the
+    command says what to install, in one line, exit 2."""
+    blocker = ("import sys\n"
+               "class Block:\n"
+               "    def find_spec(self, name, path=None, target=None):\n"
+               "        if name.split('.')[0] in ('dask', 'distributed', 'pyarrow'):\n"
+               "            raise ImportError(f'No module named {name!r}')\n"
+               "sys.meta_path.insert(0, Block())\n"
+               "import probslam, probslam.batch\n"
+               "from probslam.cli import main\n"
+               f"sys.exit(main(['batch', {str(DEMO)!r}, '-o', {str(tmp_path / 'out')!r}]))\n")
+    done = subprocess.run([sys.executable, "-c", blocker], capture_output=True, text=True, timeout=60)
+    assert done.returncode == 2, done.stderr
+    assert done.stderr.startswith("probslam: error: probslam batch needs dask, distributed and pyarrow: pip install "
+                                  "'probslam[batch]'") and done.stderr.count("\n") == 1, done.stderr
+
+
+def test_a_map_run_counts_the_cells_its_map_file_has(tmp_path):
+    """The map kind's counts against the map_server file the map pipeline writes (the C++
+    writer's trinary PGM: 0 occupied, 254 free)."""
+    from probslam.pipelines import MapOptions, map_log
+
+    [run] = batch.Sweep([batch.RunGroup("map", ["bundled:intel_excerpt.log.gz"], {"resolution": 0.1})]).expand()
+    row = batch.run_one(run)
+    made = map_log(run.dataset, MapOptions(resolution=0.1), progress=False)
+    made.write(str(tmp_path / "m"))
+    pgm = (tmp_path / "m.pgm").read_bytes()
+    fields = [line for line in pgm.split(b"\n", 4)[:4] if not line.startswith(b"#")]  # P5, [# comment,] W H, 255
+    width, height = map(int, fields[1].split())
+    pixels = pgm[-width * height:]
+    assert row["status"] == "ok" and (row["width"], row["height"]) == (width, height)
+    assert row["occupied_cells"] == pixels.count(0) and row["free_cells"] == pixels.count(254)
+    assert row["scans"] == 180 and row["cells_updated"] == made.mapping.cells_updated
+    with pytest.raises(ValueError, match="reference: a map run makes no trajectory to score"):
+        batch.Sweep([batch.RunGroup("map", ["bundled:intel_excerpt.log.gz"], reference="bundled:intel_400.g2o")]).expand()
+
+
+def test_relative_globs_and_a_reference_template_score_each_dataset_against_its_own(tmp_path):
+    """Datasets are read relative to the sweep file; reference = "{dir}/{stem}_gt.tum" names each
+    one's ground truth: a graph scored against its own optimum has no error (but for the file's
+    digits), against the other graph's it has."""
+    import shutil
+
+    from probslam import data
+    from probslam.pipelines import optimize_file
+
+    graphs = tmp_path / "graphs"
+    graphs.mkdir()
+    for name in ("a", "b"):
+        shutil.copy(data.path("intel_400.g2o"), graphs / f"{name}.g2o")
+    optimize_file(graphs / "a.g2o").write(str(tmp_path / "a"))  # a.g2o, a_trajectory.tum
+    (tmp_path / "a_trajectory.tum").rename(graphs / "a_gt.tum")
+    own = graphs / "a_gt.tum"
+    # b's "ground truth": a's optimum moved 1 m along x after pose 200 (an error the alignment cannot remove)
+    rows = [line.split() for line in own.read_text().splitlines() if not line.startswith("#")]
+    (graphs / "b_gt.tum").write_text("".join(
+        " ".join([r[0], str(float(r[1]) + (1.0 if float(r[0]) >= 200 else 0.0))] + r[2:]) + "\n" for r in rows))
+    sweep = tmp_path / "sweep.toml"
+    sweep.write_text('[[runs]]\ncommand = "optimize"\ndatasets = ["graphs/*.g2o"]\nreference = "{dir}/{stem}_gt.tum"\n')
+    runs = batch.load(sweep).expand()
+    assert [os.path.basename(r.dataset) for r in runs] == ["a.g2o", "b.g2o"]
+    assert [os.path.basename(r.reference) for r in runs] == ["a_gt.tum", "b_gt.tum"]
+    a, b = (batch.run_one(r) for r in runs)
+    assert a["status"] == b["status"] == "ok" and a["pairs"] == b["pairs"] == 400
+    assert a["ate_rmse_m"] < 1e-5 and b["ate_rmse_m"] > 0.3
