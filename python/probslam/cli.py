@@ -21,7 +21,7 @@ from .datasets import carmen, mrclam
 from ._core import MonteCarloLocalizationOptions
 from .pipelines.landmark_run import ASSOCIATIONS, LandmarkRun, LandmarkRunOptions
 from .pipelines.optimize_file import INITIALIZATIONS, NOISE_CONVENTIONS, GraphFileOptions
-from .io.trajectory import EXTENSIONS, TRAJECTORY_FORMATS
+from .io.trajectory import TRAJECTORY_FORMATS
 from .localization import default_options
 from .mapping import DEFAULT_MAX_RANGE as MAP_MAX_RANGE, DEFAULT_RESOLUTION as MAP_RESOLUTION
 from .pipelines.localize_log import localize_log
@@ -258,19 +258,6 @@ def _save_figure(plt, fig, path: str) -> str:
     return path
 
 
-def _map_picture(grid, path: str, trajectory, label: str, title: str) -> str:
-    """PATH.png: the map on metre axes, cropped to its walls, the trajectory and a legend
-    (``plot.occupancy_map_figure``); without matplotlib the plain picture of ``io.write_png``
-    (one pixel a cell), after a notice. Returns the path."""
-    plt = _pyplot()
-    if plt is None:
-        io.write_png(grid, path, trajectory=trajectory)
-        return path
-    from .plot import occupancy_map_figure
-
-    return _save_figure(plt, occupancy_map_figure(plt, grid, trajectory, label, title), path)
-
-
 def _picture(run, path: str, **draw) -> str:
     """PATH.png drawn by a pipeline's run (``run.draw(plt, **draw)``); without matplotlib its plain
     picture (``run.write_plain_picture``), after a notice. Returns the path."""
@@ -316,12 +303,6 @@ def _bag_options(args: Optional[argparse.Namespace]) -> dict:
     return options
 
 
-def _print_bag(log) -> None:
-    """What a bag gave (topics, sources, counts skipped), for the summaries of map and slam."""
-    if isinstance(log, io.RosbagLog):
-        print(f"bag:           {log.describe()}")
-
-
 #: The exit status of a run that finished but did not converge (optimize).
 EXIT_NOT_CONVERGED = 3
 #: The exit status after Ctrl-C (128 + SIGINT, as shells report it).
@@ -339,14 +320,6 @@ def _check_output(prefix: str) -> None:
         raise UserError(f"-o {prefix}: folder {folder} does not exist")
     if not os.access(folder, os.W_OK | os.X_OK):
         raise UserError(f"-o {prefix}: folder {folder} is not writable")
-
-
-def _write_trajectory(args: argparse.Namespace, times, poses, written: List[str]) -> None:
-    """PREFIX_trajectory.tum (or .kitti with PREFIX_trajectory_times.txt, or .txt as ``timestamp
-    x y theta``: --trajectory-format): every command's trajectory, with its timestamps, through
-    one writer (``io.write_trajectory``)."""
-    fmt = args.trajectory_format
-    written.extend(io.write_trajectory(times, poses, args.output + "_trajectory" + EXTENSIONS[fmt], format=fmt))
 
 
 #: map's flags, by the MapOptions field each sets.
@@ -388,9 +361,9 @@ def _resume_command(args: argparse.Namespace, run_file: str) -> str:
 
 
 def _cmd_slam(args: argparse.Namespace) -> int:
-    from .graph import write_g2o
+    from .pipelines.slam_log import slam_log
     from .slam import (INITIAL_MAP, OPTIONS_CLASSES, RunInterrupted, check_save_path, default_options,
-                       load_initial_map, run_slam, with_fields)
+                       load_initial_map, with_fields)
 
     if args.resume is not None:
         _refuse_given(args, ("method", "particles", "proposal", "submap_distance", "no_loop_closures", "resolution",
@@ -423,67 +396,25 @@ def _cmd_slam(args: argparse.Namespace) -> int:
         except ValueError as e:
             raise UserError(str(e)) from None
     try:
-        if args.resume is not None:
-            # The saved run's method and options go on; the command line's are not used.
-            result = run_slam(log, resume=args.resume, save=args.save, progress=None if args.progress else False)
-        else:
-            with _option_flags(flags, args):
-                # The log's options, each flag given replacing the field it names.
-                options = with_fields(default_options(log, args.method, initial_map=start.get("initial_map")), given)
-                result = run_slam(log, method=args.method, progress=None if args.progress else False, save=args.save,
-                                  options=options, **start)
+        with _option_flags(flags, args):
+            # The log's options, each flag given replacing the field it names; a resumed run keeps its own.
+            options = None if args.resume is not None else with_fields(
+                default_options(log, args.method, initial_map=start.get("initial_map")), given)
+            run = slam_log(log, options, path=path, start_map=args.map, resume=args.resume, save=args.save,
+                           progress=None if args.progress else False, **start)
     except RunInterrupted as e:
         if e.saved is None:
             raise
         print(f"probslam: interrupted after {e.scans_done} of {e.log_scans} scans; run file {e.saved} written; "
               f"to continue: {_resume_command(args, e.saved)}", file=sys.stderr)
         return EXIT_INTERRUPTED
-    io.save_ros_map(result.grid, args.output + ".yaml")
-    written = [f"{args.output}.yaml", f"{args.output}.pgm"]
+    written = run.write(args.output, args.trajectory_format)
     if args.plot:
-        how = ("grid-based FastSLAM, best of " + str(result.options.num_particles) + " particles"
-               if result.method == "rbpf" else
-               "GraphSLAM over submaps")
-        written.append(_map_picture(result.grid, args.output + ".png", result.poses, "SLAM laser poses",
-                                    f"probslam slam --method {args.method}: {os.path.basename(path)}\n{how}"))
-    _write_trajectory(args, result.timestamps, result.poses, written)
-    if result.graph is not None:
-        write_g2o(result.graph, args.output + ".g2o")
-        written.append(f"{args.output}.g2o")
-    s = result.summary
-    grid = result.grid
-    print(f"log:           {path}{' (bundled Intel Research Lab raw excerpt: one lap, back past its start)' if not args.log else ''}")
-    _print_bag(log)
-    skipped = f", {log.skipped_wide_scans} skipped: far wider than the rest" if log.skipped_wide_scans else ""
-    if args.resume is not None:
-        print(f"resumed:       {args.resume} ({result.method}, its saved options)")
-    if args.map is not None:
-        x, y, theta = args.initial_pose or (0.0, 0.0, 0.0)
-        role = "every particle's first map" if result.method == "rbpf" else "the graph's fixed first submap"
-        print(f"started from:  {args.map} ({role}; the log's first scan guessed at {x:g} {y:g} {theta:g}, "
-              f"matched at {result.poses[0][0]:.3f} {result.poses[0][1]:.3f} {result.poses[0][2]:.3f})")
-    if result.method == "rbpf":
-        t = result.tile_sharing
-        particles, proposal = result.options.num_particles, result.options.proposal
-        print(f"method:        grid-based FastSLAM, {particles} particles, {proposal} proposal")
-        print(f"scans:         {s.scans}{skipped}; {s.updates} filter updates, {s.resamples} resamplings")
-        if proposal == "scan-matching":
-            print(f"proposal:      {s.matched} particle updates scan-matched, {s.fallbacks} fell back to "
-                  f"the motion model")
-        print(f"maps:          {t.distinct} distinct tiles for {t.references} held "
-              f"({t.bytes / 2 ** 20:.1f} MiB)")
-    else:
-        print(f"scans:         {s.scans} ({s.matched_scans} scan-matched"
-              + ("" if result.odometry else "; no odometry in the log: scan matching alone") + ")" + skipped)
-        print(f"submaps:       {s.submaps}")
-        print(f"closures:      {s.closures_accepted} accepted, {s.closures_rejected} rejected, "
-              f"{s.closures_dissolved} dissolved ({s.closures_searched} searched, {s.rounds} rounds)")
-    print(f"map:           {grid.width} x {grid.height} cells at {grid.resolution} m, origin {grid.origin}")
-    print(f"time:          {result.seconds:.1f} s for {result.log_duration:.0f} s of log "
-          f"(real-time factor {result.real_time_factor:.1f})")
+        written.insert(2, _picture(run, args.output + ".png"))
     if args.save is not None:
         written.append(args.save)
-    print(f"wrote:         {', '.join(written)}")
+    bundled = "" if args.log else " (bundled Intel Research Lab raw excerpt: one lap, back past its start)"
+    print(run.summary(path + bundled, written))
     return 0
 
 

@@ -1,6 +1,7 @@
 """The probslam command line, end to end."""
 
 import contextlib
+import importlib
 import os
 import time
 
@@ -453,7 +454,8 @@ def test_slam_flags_set_their_option_paths(tmp_path, capsys, monkeypatch):
     def spy(log, **kw):
         seen.append(kw["options"])
         raise KeyboardInterrupt  # the options are what is tested, not the run
-    monkeypatch.setattr("probslam.slam.run_slam", spy)
+    # The module (the package's attribute of that name is the function).
+    monkeypatch.setattr(importlib.import_module("probslam.pipelines.slam_log"), "run_slam", spy)
     log = cli._bundled_log(cli.BUNDLED_RAW_LOG)
     out = ["-o", str(tmp_path / "s"), "--no-progress"]
     assert cli.main(["slam", log, "--resolution", "0.1", "--submap-distance", "5", "--no-loop-closures"] + out) \
