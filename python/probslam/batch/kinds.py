@@ -17,7 +17,10 @@ from .. import io
 from .._core import MonteCarloLocalizationOptions
 from ..datasets import carmen
 from ..localization import default_options
-from ..pipelines import GraphFileOptions, MapOptions, localize_log, map_log, optimize_file
+from .._core import GridFastSlamOptions, SubmapSlamOptions
+from ..pipelines import (GraphFileOptions, LandmarkRunOptions, MapOptions, localize_log, map_log, optimize_file,
+                         run_landmark_dataset, slam_log)
+from ..slam import default_options as slam_default_options
 
 
 @dataclass
@@ -131,12 +134,49 @@ def _map(dataset: str, values, inputs) -> Outcome:
                     "occupied_cells": int(np.sum(p > OCCUPIED_THRESHOLD)), "free_cells": int(np.sum(p < FREE_THRESHOLD))})
 
 
+def _read_log(dataset: str):
+    return io.read_rosbag(dataset) if io.rosbag.is_bag(dataset) else carmen.load(dataset)
+
+
+def _slam(method: str):
+    def run(dataset: str, values, inputs) -> Outcome:
+        log = _read_log(dataset)
+        # The sweep's options over the log's own defaults (slam.default_options: its range, odometry).
+        run = slam_log(log, set_options(slam_default_options(log, method), values), progress=False)
+        r, s = run.result, run.result.summary
+        metrics = {"scans": int(s.scans), "seconds": float(r.seconds), "real_time_factor": float(r.real_time_factor)}
+        if method == "graph":
+            metrics.update(submaps=int(s.submaps), closures_accepted=int(s.closures_accepted),
+                           closures_rejected=int(s.closures_rejected))
+        else:
+            metrics.update(updates=int(s.updates), resamples=int(s.resamples))
+        return Outcome(metrics, lambda prefix: io.write_trajectory(r.timestamps, r.poses, prefix + "_trajectory.tum")[0])
+    return run
+
+
+def _landmarks(method: str):
+    def run(dataset: str, values, inputs) -> Outcome:
+        lr = run_landmark_dataset(dataset, set_options(LandmarkRunOptions(method=method), values), progress=False)
+        r = lr.result
+        return Outcome({"poses": len(r.poses), "landmarks": len(r.landmarks), "filter_cpu_s": float(lr.cpu_seconds)},
+                       lambda prefix: io.write_trajectory(r.times, r.poses, prefix + "_trajectory.tum")[0])
+    return run
+
+
 register(RunKind("optimize", GraphFileOptions, _optimize, ("poses", "chi2_initial", "chi2", "iterations", "converged")))
 register(RunKind("localize", MonteCarloLocalizationOptions, _localize,
                  ("scans", "updates", "converged", "convergence_time_s", "converged_fraction", "particles_median"),
                  inputs={"map": True, "initial_pose": False}, inputs_are_paths={"map": True}, seeded=True))
 register(RunKind("map", MapOptions, _map,
                  ("scans", "beams", "cells_updated", "width", "height", "occupied_cells", "free_cells"), scored=False))
+register(RunKind("slam", SubmapSlamOptions, _slam("graph"),
+                 ("scans", "seconds", "real_time_factor", "submaps", "closures_accepted", "closures_rejected")))
+register(RunKind("slam-rbpf", GridFastSlamOptions, _slam("rbpf"),
+                 ("scans", "seconds", "real_time_factor", "updates", "resamples"), seeded=True))
+register(RunKind("ekf-slam", lambda: LandmarkRunOptions(method="ekf"), _landmarks("ekf"),
+                 ("poses", "landmarks", "filter_cpu_s")))
+register(RunKind("fastslam", lambda: LandmarkRunOptions(method="fastslam"), _landmarks("fastslam"),
+                 ("poses", "landmarks", "filter_cpu_s"), seeded=True))
 
 
 __all__ = ["KINDS", "Outcome", "RunKind", "option_names", "register", "set_options"]
