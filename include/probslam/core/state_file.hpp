@@ -26,7 +26,9 @@ namespace probslam {
 /// 4: EkfSlam keeps its landmarks' signatures apart from the dense state (issue 50's speed);
 /// MonteCarloLocalization's options hold resample_interval (issue 52: an option added by its
 /// describe() line alone).
-inline constexpr std::uint32_t kStateFormatVersion = 4;
+/// 5: FastSlam writes its options through their describe(), its noise and start pose after them
+/// (issue 52: the model is the constructor's, the options the tunables).
+inline constexpr std::uint32_t kStateFormatVersion = 5;
 
 /// What a reader throws: "<source>: <what is wrong>".
 class StateError : public std::invalid_argument {
