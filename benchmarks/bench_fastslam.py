@@ -101,7 +101,8 @@ def simulated_run(steps):
 
 def run_simulated(run, version, threads=1):
     """The filter over the run: (filter, seconds in update, seconds in predict)."""
-    f = ps.FastSlam(PARTICLES, SIM_M, SIM_Q, version=version, threads=threads, seed=7, initial_pose=run.poses[0])
+    f = ps.FastSlam(SIM_M, SIM_Q, num_particles=PARTICLES, version=version, threads=threads, seed=7,
+                    initial_pose=run.poses[0])
     t_update = t_predict = 0.0
     for (v, w), z, ids in zip(run.controls, run.measurements, run.ids):
         t0 = time.perf_counter()
@@ -154,7 +155,8 @@ class MapSweep:
 
     def __init__(self, n, rng):
         self.points, self.rng, self.pose = grid_landmarks(n), rng, np.zeros(3)
-        self.filter = ps.FastSlam(PARTICLES, MAP_R, SIM_Q, resample_threshold=0.0, seed=3, record_path=False)
+        self.filter = ps.FastSlam(MAP_R, SIM_Q, num_particles=PARTICLES, resample_threshold=0.0, seed=3,
+                                  record_path=False)
 
     def plan(self, known):
         """(pose, ids, z) of one step: a random pose near one of the first `known` landmarks,
@@ -279,7 +281,7 @@ class VictoriaPark:
 def run_victoria_cpp(vp, known, threads=1):
     """Hidden associations: the odometry noise inflated as `probslam fastslam` does
     (victoria_park.ODOMETRY_NOISE_SCALE), which lets the particles close the park's loops."""
-    f = ps.FastSlam(PARTICLES, np.eye(3) * 1e-6, vp.q, version=1, seed=11, threads=threads)
+    f = ps.FastSlam(np.eye(3) * 1e-6, vp.q, num_particles=PARTICLES, version=1, seed=11, threads=threads)
     inflate = 1.0 if known else victoria_park.ODOMETRY_NOISE_SCALE ** 2
     for _, odometry, rows in vp.scans():
         if odometry is not None:

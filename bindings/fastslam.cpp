@@ -10,6 +10,7 @@
 #include "args.hpp"
 #include "numpy.hpp"
 #include "object_lock.hpp"
+#include "options_class.hpp"
 #include "persistence.hpp"
 #include "repr.hpp"
 #include "landmarks.hpp"
@@ -274,101 +275,54 @@ void define_calls(py::class_<FastSlam>& c) {
 
 void define_fastslam(py::module_& m) {
   define_results(m);
-  const FastSlamOptions d;  // every keyword's default
+  bind_options<FastSlamOptions>(m, "FastSlamOptions",
+                                 "The options of FastSlam (Probabilistic Robotics ch. 13; Montemerlo 2002, 2003).");
   py::class_<FastSlam> c(m, "FastSlam",
                          "FastSLAM 1.0 / 2.0 (Montemerlo 2002, 2003; Probabilistic Robotics ch. 13) for point landmarks\n"
                          "seen by a range-bearing(-signature) sensor. Units: metres, radians, seconds.\n"
                          "\n"
-                         "FastSlam(num_particles, motion_noise, measurement_noise, *, options):\n"
-                         "    num_particles: M in [1, 2^20].\n"
+                         "FastSlam(motion_noise, measurement_noise, *, initial_pose=(0, 0, 0), options=None, **fields):\n"
                          "    motion_noise: (3, 3) pose-space covariance R of (x, y, theta) added to g(x, u), or (2, 2)\n"
                          "        control-space covariance M of (v [m/s], w [rad/s]); positive semi-definite.\n"
                          "    measurement_noise: Q, (2, 2) covariance of (range [m], bearing [rad]), or (3, 3) with the\n"
                          "        signature's variance when use_signatures.\n"
-                         "Keyword options (defaults in the signature):\n"
-                         "    version: 1 (poses from the motion model) or 2 (from the proposal that includes the scan).\n"
-                         "    use_signatures: measurements and landmarks carry a signature (3 values instead of 2).\n"
                          "    initial_pose: (3,) every particle's start pose (m, m, rad).\n"
-                         "    seed: int in [0, 2^64); particle k starts with random stream k of it.\n"
-                         "    threads: worker threads; results identical for any count (two threads run 100\n"
-                         "        particles 1.5-1.85x faster on idle cores).\n"
-                         "    resample_threshold: resample when N_eff < resample_threshold * M, in [0, 1].\n"
-                         "    p_new: density (1 / (m rad)) of a new landmark's measurement.\n"
-                         "    outlier_density: known correspondences: density (1 / (m rad)) of a measurement its\n"
-                         "        labelled landmark did not produce; 0: no outlier model.\n"
-                         "    association_radius: m; association candidates lie within it plus three standard\n"
-                         "        deviations of where the measurement places its landmark.\n"
-                         "    joint_association: update_unknown assigns a scan's measurements jointly (the\n"
-                         "        maximum-likelihood assignment to distinct landmarks or new ones; version 2 with the\n"
-                         "        pose's uncertainty shared by the scan, as JCBB); False: each measurement its most\n"
-                         "        likely landmark, best pairs first.\n"
-                         "    cell_size: m, the side of the landmarks' spatial key cells (about association_radius).\n"
-                         "    negative_information: update_unknown's existence counter: a landmark inside sensor_range\n"
-                         "        (m) and sensor_fov (rad, full opening angle) that is not seen loses existence_miss,\n"
-                         "        a seen one gains existence_hit; below zero it is removed.\n"
-                         "    existence_hit, existence_miss: the counter's steps.\n"
-                         "    sensor_range: m; sensor_fov: rad.\n"
-                         "    min_sightings: update_unknown's provisional landmarks: a new landmark stays provisional\n"
-                         "        until seen in min_sightings scans (its first counts), and is removed when it goes\n"
-                         "        more than provisional_max_age update_unknown calls unseen before that; 1: off.\n"
-                         "    provisional_max_age: see min_sightings.\n"
-                         "    record_path: keep each particle's path (path()).\n"
-                         "    bearing_offset_sigma: rad; a bearing offset shared by one scan's measurements, carried\n"
-                         "        per particle; 0: none.\n"
-                         "    bearing_offset_correlation: its correlation from one update to the next, in [0, 1).\n"
+                         "    options: a FastSlamOptions (None: the defaults); **fields set fields of it by name\n"
+                         "        (num_particles=50, version=2, seed=3, ...; see FastSlamOptions for each).\n"
                          "\n"
-                         "Every call validates its input first and raises ValueError / TypeError naming the argument,\n"
-                         "the filter unchanged. Calls release the GIL and are serialised by a per-filter lock.");
-  c.def(py::init([](IntArg num_particles, py::handle motion_noise, py::handle measurement_noise, IntArg version,
-                    BoolArg use_signatures, py::handle initial_pose, UInt64Arg seed, IntArg threads,
-                    RealArg resample_threshold, RealArg p_new, RealArg outlier_density, RealArg association_radius,
-                    BoolArg joint_association, RealArg cell_size, BoolArg negative_information,
-                    RealArg existence_hit, RealArg existence_miss,
-                    RealArg sensor_range, RealArg sensor_fov, IntArg min_sightings, IntArg provisional_max_age,
-                    BoolArg record_path, RealArg bearing_offset_sigma,
-                    RealArg bearing_offset_correlation) {
-          FastSlamOptions o;
-          o.num_particles = num_particles.get("num_particles");
-          o.motion_noise = square_matrix_arg(motion_noise, "motion_noise");
-          o.measurement_noise = square_matrix_arg(measurement_noise, "measurement_noise");
-          o.version = version.get("version");
-          o.use_signatures = use_signatures.get("use_signatures");
-          o.initial_pose = pose_arg(initial_pose, "initial_pose");
-          o.seed = seed.get("seed");
-          o.threads = threads.get("threads");
-          o.resample_threshold = resample_threshold.get("resample_threshold");
-          o.p_new = p_new.get("p_new");
-          o.outlier_density = outlier_density.get("outlier_density");
-          o.association_radius = association_radius.get("association_radius");
-          o.joint_association = joint_association.get("joint_association");
-          o.cell_size = cell_size.get("cell_size");
-          o.negative_information = negative_information.get("negative_information");
-          o.existence_hit = existence_hit.get("existence_hit");
-          o.existence_miss = existence_miss.get("existence_miss");
-          o.sensor_range = sensor_range.get("sensor_range");
-          o.sensor_fov = sensor_fov.get("sensor_fov");
-          o.min_sightings = min_sightings.get("min_sightings");
-          o.provisional_max_age = provisional_max_age.get("provisional_max_age");
-          o.record_path = record_path.get("record_path");
-          o.bearing_offset_sigma = bearing_offset_sigma.get("bearing_offset_sigma");
-          o.bearing_offset_correlation = bearing_offset_correlation.get("bearing_offset_correlation");
-          py::gil_scoped_release release;
-          return std::make_unique<FastSlam>(o);
-        }),
-        py::arg("num_particles"), py::arg("motion_noise"), py::arg("measurement_noise"), py::kw_only(),
-        py::arg("version") = d.version, py::arg("use_signatures") = d.use_signatures,
-        py::arg("initial_pose") = py::make_tuple(d.initial_pose.x(), d.initial_pose.y(), d.initial_pose.z()),
-        py::arg("seed") = d.seed, py::arg("threads") = d.threads,
-        real_arg("resample_threshold", d.resample_threshold), real_arg("p_new", d.p_new),
-        real_arg("outlier_density", d.outlier_density), real_arg("association_radius", d.association_radius),
-        py::arg("joint_association") = d.joint_association, real_arg("cell_size", d.cell_size),
-        py::arg("negative_information") = d.negative_information,
-        real_arg("existence_hit", d.existence_hit), real_arg("existence_miss", d.existence_miss),
-        real_arg("sensor_range", d.sensor_range), real_arg("sensor_fov", d.sensor_fov),
-        py::arg("min_sightings") = d.min_sightings, py::arg("provisional_max_age") = d.provisional_max_age,
-        py::arg("record_path") = d.record_path, real_arg("bearing_offset_sigma", d.bearing_offset_sigma),
-        real_arg("bearing_offset_correlation", d.bearing_offset_correlation),
-        "See the class docstring for the arguments and keyword options.");
+                         "Every call validates its input first and raises ValueError / TypeError naming the argument\n"
+                         "or the option's field, the filter unchanged. Calls release the GIL and are serialised by a\n"
+                         "per-filter lock.");
+  {
+    py::options signatures;  // the fields' keywords are written from describe(), not **kwargs
+    signatures.disable_function_signatures();
+    c.def(py::init([](py::handle motion_noise, py::handle measurement_noise, py::handle initial_pose,
+                      py::handle options, const py::kwargs& fields) {
+            const Eigen::MatrixXd r = square_matrix_arg(motion_noise, "motion_noise");
+            const Eigen::MatrixXd q = square_matrix_arg(measurement_noise, "measurement_noise");
+            const Eigen::Vector3d x0 = pose_arg(initial_pose, "initial_pose");
+            FastSlamOptions base;
+            if (!options.is_none())
+              base = ClassArg<FastSlamOptions>{py::reinterpret_borrow<py::object>(options)}.get("options");
+            const FastSlamOptions o = options_with(base, fields, "FastSlam()");
+            py::gil_scoped_release release;
+            return std::make_unique<FastSlam>(r, q, o, x0);
+          }),
+          py::arg("motion_noise"), py::arg("measurement_noise"), py::kw_only(),
+          py::arg("initial_pose") = py::make_tuple(0.0, 0.0, 0.0), py::arg("options") = py::none(),
+          ("__init__(self: FastSlam, motion_noise: ArrayLike, measurement_noise: ArrayLike, *, initial_pose: "
+           "ArrayLike = (0.0, 0.0, 0.0), options: Optional[FastSlamOptions] = None" +
+           field_parameters<FastSlamOptions>() +
+           ") -> None\n\nSee the class docstring: a field given by keyword replaces options' field.").c_str());
+  }
+  c.def_property_readonly("options", [](const FastSlam& f) { return f.options(); },
+                          "A copy of the FastSlamOptions the filter runs with.")
+      .def_property_readonly("motion_noise", [](const FastSlam& f) { return f.motion_noise(); },
+                             "The motion noise it was given (symmetrised): (3, 3) pose space or (2, 2) control space.")
+      .def_property_readonly("measurement_noise", [](const FastSlam& f) { return f.measurement_noise(); },
+                             "Q (symmetrised): (2, 2) of (range, bearing), or (3, 3) with the signature.")
+      .def_property_readonly("initial_pose", [](const FastSlam& f) { return f.initial_pose(); },
+                             "(3,) every particle's start pose (heading wrapped).");
   define_state(c);
   define_calls(c);
   define_persistence<FastSlam>(c);

@@ -4,7 +4,7 @@
 import numpy as np
 import probslam as ps
 
-f = ps.FastSlam(100, np.diag([0.01, 0.01, 0.002]), np.diag([0.01, 0.001]), version=2, seed=3)
+f = ps.FastSlam(np.diag([0.01, 0.01, 0.002]), np.diag([0.01, 0.001]), version=2, seed=3)  # model, options
 slam = ps.SubmapSlam2D(frontend={"filter": {"max_range": 30.0}, "submap_distance": 10.0})  # options only
 rbpf = ps.GridFastSlam(options=ps.GridFastSlamOptions(num_particles=30, proposal="scan-matching"))
 print(slam.options.closures.min_match_quality, rbpf.options.update)    # what each runs with

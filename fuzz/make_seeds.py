@@ -157,7 +157,7 @@ def small_states() -> dict:
     slam.add_scans(ranges, angles, odometry, scans.timestamps[rows])
     rbpf = ps.GridFastSlam(num_particles=2, resolution=1.0, filter={"max_usable_range": 5.0})
     rbpf.add_scans(ranges, angles, odometry, scans.timestamps[rows])
-    fast = ps.FastSlam(3, np.diag([0.01, 0.01, 0.002]), np.diag([0.0025, 0.0001]), seed=3)
+    fast = ps.FastSlam(np.diag([0.01, 0.01, 0.002]), np.diag([0.0025, 0.0001]), num_particles=3, seed=3)
     ekf = EkfSlam(np.diag([0.01, 0.01, 0.002]), np.diag([0.0025, 0.0001]))
     mht = MultiHypothesisEkfSlam(EkfSlam(np.diag([0.01, 0.01, 0.002]), np.diag([0.0025, 0.0001])))
     z = np.array([[2.0, 0.3], [3.0, -0.4]])

@@ -74,7 +74,7 @@ def coalescence(steps, at=(10, 100, 300, 500, 800, 950, 990)):
     lines = ["| filter | " + " | ".join(f"step {s}" for s in at) + f" | step {steps} |",
              "|---|" + "---|" * (len(at) + 1)]
     for name, version, particles in FILTERS[1:]:
-        f = ps.FastSlam(particles, M, Q, version=version, initial_pose=run.poses[0], seed=0)
+        f = ps.FastSlam(M, Q, num_particles=particles, version=version, initial_pose=run.poses[0], seed=0)
         for (v, w), z, ids in zip(run.controls, run.measurements, run.ids):
             f.predict(v, w, run.dt)
             if len(z):

@@ -356,43 +356,24 @@ class FastSlam:
     landmarks seen by a range-bearing(-signature) sensor. Units: metres, radians, seconds.
 
     Args:
-        num_particles: M in [1, 2^20].
         motion_noise: (3, 3) pose-space covariance R of (x, y, theta) added to g(x, u), or (2, 2)
             control-space covariance M of (v [m/s], w [rad/s]); positive semi-definite (zero
             allowed: noise-free motion).
         measurement_noise: Q, (2, 2) covariance of (range [m], bearing [rad]), or (3, 3) with the
             signature's variance (uncorrelated with range and bearing) when ``use_signatures``.
-    Keyword options:
-        version: 1 (poses from the motion model) or 2 (from the proposal that includes the scan).
-        use_signatures, initial_pose ((3,)), seed (int in [0, 2^64)), threads (results identical
-            for any count; two threads run 100 particles 1.5-1.85x faster on idle cores),
-            resample_threshold (resample when N_eff < threshold * M),
-        p_new: density (1 / (m rad)) of a measurement of a new landmark: the threshold of the
-            maximum-likelihood association and the weight factor of every new landmark.
-        outlier_density: known correspondences, density (1 / (m rad)) of a measurement its
-            labelled landmark did not produce: the weight factor is N(z - z_hat; 0, Q_j) +
-            outlier_density, and the landmark is updated only where the Gaussian term is larger.
-            0: no outlier model.
-        association_radius, cell_size: metres: candidates lie within the radius plus 3 sigma of
-            where a measurement places its landmark; the spatial key's cell side.
-        joint_association: update_unknown assigns a scan's measurements jointly, the
-            maximum-likelihood assignment to distinct landmarks or new ones (version 2 with the
-            pose's uncertainty shared by the scan, as JCBB); False: each measurement its most
-            likely landmark, best pairs first.
-        negative_information, existence_hit, existence_miss, sensor_range (m), sensor_fov (rad):
-            the existence counter of update_unknown (seen: + hit; in range and field of view but
-            not seen: - miss; removed below zero). sensor_range must be finite to enable it.
-        min_sightings, provisional_max_age: provisional landmarks of update_unknown: a new one
-            is removed when it goes more than provisional_max_age calls unseen before it has been
-            seen in min_sightings scans (its first counts); 1: every landmark permanent at once.
-        record_path: keep each particle's path (persistent: shared after resampling).
-        bearing_offset_sigma (rad), bearing_offset_correlation: a bearing offset shared by one
-            scan's measurements, carried per particle (0: none), and its correlation from one
-            update to the next.
+        initial_pose: (3,) every particle's start pose.
+        options: a FastSlamOptions (None: the defaults): num_particles, version (1 or 2), seed,
+            threads, p_new, the association, negative information, provisional landmarks, the
+            bearing offset; each field by keyword replaces options' field (``num_particles=50``).
 
-    Every call validates its input first and raises ValueError / TypeError naming the argument,
-    the filter unchanged. Calls release the GIL and are serialised by a per-filter lock.
+    Every call validates its input first and raises ValueError / TypeError naming the argument or
+    the option's field, the filter unchanged. Calls release the GIL and are serialised by a
+    per-filter lock.
     """
+    options: FastSlamOptions  # a copy of the options it runs with
+    motion_noise: Array  # as given (symmetrised): (3, 3) pose space or (2, 2) control space
+    measurement_noise: Array  # Q (symmetrised)
+    initial_pose: Array  # (3,) every particle's start pose (heading wrapped)
     num_particles: int
     version: int
     landmark_dim: int
@@ -412,14 +393,16 @@ class FastSlam:
     ancestors: npt.NDArray[np.int32]  # (M,) after a resampling: particle j's ancestor; else (0,)
     map_sharing: MapSharing
     num_landmarks: int  # in the best particle's map
-    def __init__(self, num_particles: int, motion_noise: ArrayLike, measurement_noise: ArrayLike, *,
-                 version: int = 1, use_signatures: bool = False, initial_pose: ArrayLike = (0.0, 0.0, 0.0),
-                 seed: int = 0, threads: int = 1, resample_threshold: float = 0.5, p_new: float = 0.01,
-                 outlier_density: float = 0.0, association_radius: float = 2.0,
-                 joint_association: bool = True, cell_size: float = 2.0, negative_information: bool = False, existence_hit: float = 1.0, existence_miss: float = 1.0,
-                 sensor_range: float = math.inf, sensor_fov: float = 6.283185307179586,
-                 min_sightings: int = 1, provisional_max_age: int = 20, record_path: bool = True,
-                 bearing_offset_sigma: float = 0.0, bearing_offset_correlation: float = 0.0) -> None: ...
+    def __init__(self, motion_noise: ArrayLike, measurement_noise: ArrayLike, *,
+                 initial_pose: ArrayLike = (0.0, 0.0, 0.0), options: Optional[FastSlamOptions] = None,
+                 num_particles: int = 100, version: int = 1, use_signatures: bool = False, seed: int = 0,
+                 threads: int = 1, resample_threshold: float = 0.5, p_new: float = 0.01,
+                 outlier_density: float = 0.0, association_radius: float = 2.0, joint_association: bool = True,
+                 cell_size: float = 2.0, negative_information: bool = False, existence_hit: float = 1.0,
+                 existence_miss: float = 1.0, sensor_range: float = math.inf,
+                 sensor_fov: float = 6.283185307179586, min_sightings: int = 1, provisional_max_age: int = 20,
+                 record_path: bool = True, bearing_offset_sigma: float = 0.0,
+                 bearing_offset_correlation: float = 0.0) -> None: ...
     def predict(self, v: float, w: float, dt: float) -> None:
         """Samples each particle's pose from the velocity motion model (v m/s, w rad/s, dt s)."""
     def predict_odometry(self, delta: ArrayLike, noise: ArrayLike) -> None:
@@ -941,6 +924,50 @@ class MultiHypothesisOptions:
                 bearing_offset_correlation: float = 0.0) -> MultiHypothesisOptions: ...
     def validate(self) -> None: ...
     def copy(self) -> MultiHypothesisOptions: ...
+    def as_dict(self) -> Dict[str, Any]: ...
+
+class FastSlamOptions:
+    """The options of FastSlam (Probabilistic Robotics ch. 13; Montemerlo 2002, 2003).
+    Fields by keyword (TypeError / ValueError name the field's path); replace() a validated copy."""
+    num_particles: int
+    version: int
+    use_signatures: bool
+    seed: int
+    threads: int
+    resample_threshold: float
+    p_new: float  # m^-1 rad^-1
+    outlier_density: float  # m^-1 rad^-1
+    association_radius: float  # m
+    joint_association: bool
+    cell_size: float  # m
+    negative_information: bool
+    existence_hit: float
+    existence_miss: float
+    sensor_range: float  # m
+    sensor_fov: float  # rad
+    min_sightings: int
+    provisional_max_age: int
+    record_path: bool
+    bearing_offset_sigma: float  # rad
+    bearing_offset_correlation: float
+    def __init__(self, *, num_particles: int = 100, version: int = 1, use_signatures: bool = False, seed: int = 0,
+                 threads: int = 1, resample_threshold: float = 0.5, p_new: float = 0.01,
+                 outlier_density: float = 0.0, association_radius: float = 2.0, joint_association: bool = True,
+                 cell_size: float = 2.0, negative_information: bool = False, existence_hit: float = 1.0,
+                 existence_miss: float = 1.0, sensor_range: float = math.inf,
+                 sensor_fov: float = 6.283185307179586, min_sightings: int = 1, provisional_max_age: int = 20,
+                 record_path: bool = True, bearing_offset_sigma: float = 0.0,
+                 bearing_offset_correlation: float = 0.0) -> None: ...
+    def replace(self, *, num_particles: int = 100, version: int = 1, use_signatures: bool = False, seed: int = 0,
+                threads: int = 1, resample_threshold: float = 0.5, p_new: float = 0.01,
+                outlier_density: float = 0.0, association_radius: float = 2.0, joint_association: bool = True,
+                cell_size: float = 2.0, negative_information: bool = False, existence_hit: float = 1.0,
+                existence_miss: float = 1.0, sensor_range: float = math.inf,
+                sensor_fov: float = 6.283185307179586, min_sightings: int = 1, provisional_max_age: int = 20,
+                record_path: bool = True, bearing_offset_sigma: float = 0.0,
+                bearing_offset_correlation: float = 0.0) -> FastSlamOptions: ...
+    def validate(self) -> None: ...
+    def copy(self) -> FastSlamOptions: ...
     def as_dict(self) -> Dict[str, Any]: ...
 
 class SparseCholeskyOptions:

@@ -160,8 +160,8 @@ def fastslam_known(run: SimRun, motion_noise: np.ndarray, measurement_noise: np.
     require_instance(run, SimRun, "run")
     from ._core import FastSlam
 
-    f = FastSlam(num_particles, motion_noise, measurement_noise, version=version, initial_pose=run.poses[0],
-                 seed=seed, threads=threads, record_path=False)
+    f = FastSlam(motion_noise, measurement_noise, initial_pose=run.poses[0], num_particles=num_particles,
+                 version=version, seed=seed, threads=threads, record_path=False)
     steps = len(run.controls)
     poses, covariances, n_eff = np.zeros((steps, 3)), np.zeros((steps, 3, 3)), np.zeros(steps)
     for t, ((v, w), z, ids) in enumerate(zip(run.controls, run.measurements, run.ids)):

@@ -557,68 +557,72 @@ struct FastSlam::Context {
   }
 };
 
-FastSlam::FastSlam(const FastSlamOptions& options) : o_(options) {
-  require(o_.num_particles >= 1 && o_.num_particles <= kFastSlamMaxParticles, "num_particles",
+void FastSlamOptions::validate() const {
+  require(num_particles >= 1 && num_particles <= kFastSlamMaxParticles, "num_particles",
           "must be in [1, 2^20] (kFastSlamMaxParticles)");
-  require(o_.version == 1 || o_.version == 2, "version", "must be 1 or 2");
-  require((o_.motion_noise.rows() == 3 && o_.motion_noise.cols() == 3) ||
-              (o_.motion_noise.rows() == 2 && o_.motion_noise.cols() == 2),
-          "motion_noise", "must be 3x3 (pose space) or 2x2 (control space)");
-  require_covariance(o_.motion_noise, "motion_noise", true);
-  const int md = o_.use_signatures ? 3 : 2;
-  require(o_.measurement_noise.rows() == md && o_.measurement_noise.cols() == md, "measurement_noise",
-          o_.use_signatures ? "must be 3x3 (range, bearing, signature)" : "must be 2x2 (range, bearing)");
-  require_covariance(o_.measurement_noise, "measurement_noise", false);
-  if (o_.use_signatures)
-    require(o_.measurement_noise(0, 2) == 0.0 && o_.measurement_noise(1, 2) == 0.0 &&
-                o_.measurement_noise(2, 0) == 0.0 && o_.measurement_noise(2, 1) == 0.0,
-            "measurement_noise", "the signature must be uncorrelated with range and bearing (zero off-diagonal entries)");
-  require(on_map(o_.initial_pose), "initial_pose", "must be finite with |x|, |y| <= 1e9 m (kMaxCoordinate)");
-  require(o_.threads >= 1 && o_.threads <= kFastSlamMaxThreads, "threads", "must be in [1, 256] (kFastSlamMaxThreads)");
-  require(std::isfinite(o_.resample_threshold) && o_.resample_threshold >= 0.0 && o_.resample_threshold <= 1.0,
+  require(version == 1 || version == 2, "version", "must be 1 or 2");
+  require(threads >= 1 && threads <= kFastSlamMaxThreads, "threads", "must be in [1, 256] (kFastSlamMaxThreads)");
+  require(std::isfinite(resample_threshold) && resample_threshold >= 0.0 && resample_threshold <= 1.0,
           "resample_threshold", "must be in [0, 1]");
-  require(std::isfinite(o_.p_new) && o_.p_new > 0.0 && std::isfinite(std::log(o_.p_new)), "p_new",
-          "must be finite and > 0");
-  require(std::isfinite(o_.outlier_density) && o_.outlier_density >= 0.0, "outlier_density",
+  require(std::isfinite(p_new) && p_new > 0.0 && std::isfinite(std::log(p_new)), "p_new", "must be finite and > 0");
+  require(std::isfinite(outlier_density) && outlier_density >= 0.0, "outlier_density",
           "must be finite and >= 0 (0: no outlier model)");
-  require(std::isfinite(o_.association_radius) && o_.association_radius >= 0.0 &&
-              o_.association_radius <= kMaxCoordinate,
+  require(std::isfinite(association_radius) && association_radius >= 0.0 && association_radius <= kMaxCoordinate,
           "association_radius", "must be in [0, 1e9] m");
-  require(std::isfinite(o_.cell_size) && o_.cell_size >= kMinHashCellSize && o_.cell_size <= kMaxCoordinate,
-          "cell_size", "must be in [1e-6, 1e9] m (kMinHashCellSize)");
-  require(std::isfinite(o_.existence_hit) && o_.existence_hit >= 0.0 && o_.existence_hit <= kMaxCoordinate,
-          "existence_hit", "must be in [0, 1e9]");
-  require(std::isfinite(o_.existence_miss) && o_.existence_miss >= 0.0 && o_.existence_miss <= kMaxCoordinate,
+  require(std::isfinite(cell_size) && cell_size >= kMinHashCellSize && cell_size <= kMaxCoordinate, "cell_size",
+          "must be in [1e-6, 1e9] m (kMinHashCellSize)");
+  require(std::isfinite(existence_hit) && existence_hit >= 0.0 && existence_hit <= kMaxCoordinate, "existence_hit",
+          "must be in [0, 1e9]");
+  require(std::isfinite(existence_miss) && existence_miss >= 0.0 && existence_miss <= kMaxCoordinate,
           "existence_miss", "must be in [0, 1e9]");
-  require(o_.min_sightings >= 1 && o_.min_sightings <= kFastSlamMaxCount, "min_sightings", "must be in [1, 1e6]");
-  require(o_.provisional_max_age >= 0 && o_.provisional_max_age <= kFastSlamMaxCount, "provisional_max_age",
+  require(min_sightings >= 1 && min_sightings <= kFastSlamMaxCount, "min_sightings", "must be in [1, 1e6]");
+  require(provisional_max_age >= 0 && provisional_max_age <= kFastSlamMaxCount, "provisional_max_age",
           "must be in [0, 1e6]");
-  require(o_.sensor_range > 0.0 && (std::isinf(o_.sensor_range) || o_.sensor_range <= kMaxCoordinate),
-          "sensor_range", "must be > 0 m (and at most 1e9 m, or infinite)");
-  require(!o_.negative_information || std::isfinite(o_.sensor_range), "sensor_range",
+  require(sensor_range > 0.0 && (std::isinf(sensor_range) || sensor_range <= kMaxCoordinate), "sensor_range",
+          "must be > 0 m (and at most 1e9 m, or infinite)");
+  require(!negative_information || std::isfinite(sensor_range), "sensor_range",
           "must be finite with negative_information");
-  require(std::isfinite(o_.sensor_fov) && o_.sensor_fov > 0.0 && o_.sensor_fov <= kTwoPi, "sensor_fov",
+  require(std::isfinite(sensor_fov) && sensor_fov > 0.0 && sensor_fov <= kTwoPi, "sensor_fov",
           "must be in (0, 2 pi] rad");
-  require(std::isfinite(o_.bearing_offset_sigma) && o_.bearing_offset_sigma >= 0.0 && o_.bearing_offset_sigma <= kPi,
+  require(std::isfinite(bearing_offset_sigma) && bearing_offset_sigma >= 0.0 && bearing_offset_sigma <= kPi,
           "bearing_offset_sigma", "must be in [0, pi] rad");
-  require(std::isfinite(o_.bearing_offset_correlation) && o_.bearing_offset_correlation >= 0.0 &&
-              o_.bearing_offset_correlation < 1.0,
+  require(std::isfinite(bearing_offset_correlation) && bearing_offset_correlation >= 0.0 &&
+              bearing_offset_correlation < 1.0,
           "bearing_offset_correlation", "must be in [0, 1)");
+}
 
-  o_.motion_noise = symmetric<Eigen::Dynamic>(o_.motion_noise);
-  control_noise_ = o_.motion_noise.rows() == 2;
-  if (control_noise_) control_factor_ = psd_factor<2>(Eigen::Matrix2d(o_.motion_noise));
-  else motion_factor_ = psd_factor<3>(Eigen::Matrix3d(o_.motion_noise));
-  o_.measurement_noise = symmetric<Eigen::Dynamic>(o_.measurement_noise);
-  q2_ = o_.measurement_noise.topLeftCorner<2, 2>();
-  if (o_.use_signatures) q_signature_ = o_.measurement_noise(2, 2);
-  o_.initial_pose[2] = wrap_angle(o_.initial_pose[2]);
+FastSlam::FastSlam(const Eigen::MatrixXd& motion_noise, const Eigen::MatrixXd& measurement_noise,
+                   const FastSlamOptions& options, const Eigen::Vector3d& initial_pose)
+    : o_(options) {
+  o_.validate();
+  require((motion_noise.rows() == 3 && motion_noise.cols() == 3) || (motion_noise.rows() == 2 && motion_noise.cols() == 2),
+          "motion_noise", "must be 3x3 (pose space) or 2x2 (control space)");
+  require_covariance(motion_noise, "motion_noise", true);
+  const int md = o_.use_signatures ? 3 : 2;
+  require(measurement_noise.rows() == md && measurement_noise.cols() == md, "measurement_noise",
+          o_.use_signatures ? "must be 3x3 (range, bearing, signature)" : "must be 2x2 (range, bearing)");
+  require_covariance(measurement_noise, "measurement_noise", false);
+  if (o_.use_signatures)
+    require(measurement_noise(0, 2) == 0.0 && measurement_noise(1, 2) == 0.0 && measurement_noise(2, 0) == 0.0 &&
+                measurement_noise(2, 1) == 0.0,
+            "measurement_noise", "the signature must be uncorrelated with range and bearing (zero off-diagonal entries)");
+  require(on_map(initial_pose), "initial_pose", "must be finite with |x|, |y| <= 1e9 m (kMaxCoordinate)");
+
+  motion_noise_ = symmetric<Eigen::Dynamic>(motion_noise);
+  control_noise_ = motion_noise_.rows() == 2;
+  if (control_noise_) control_factor_ = psd_factor<2>(Eigen::Matrix2d(motion_noise_));
+  else motion_factor_ = psd_factor<3>(Eigen::Matrix3d(motion_noise_));
+  measurement_noise_ = symmetric<Eigen::Dynamic>(measurement_noise);
+  q2_ = measurement_noise_.topLeftCorner<2, 2>();
+  if (o_.use_signatures) q_signature_ = measurement_noise_(2, 2);
+  initial_pose_ = initial_pose;
+  initial_pose_[2] = wrap_angle(initial_pose_[2]);
 
   const int m = o_.num_particles;
   particles_.resize(static_cast<std::size_t>(m));
   for (int k = 0; k < m; ++k) {
     FastSlamParticle& p = particles_[static_cast<std::size_t>(k)];
-    p.pose = o_.initial_pose;
+    p.pose = initial_pose_;
     p.log_weight = -std::log(static_cast<double>(m));
     p.map = LandmarkMap(o_.cell_size);
     p.rng = ParticleRng(o_.seed, static_cast<std::uint64_t>(k));
@@ -631,6 +635,9 @@ FastSlam::FastSlam(const FastSlamOptions& options) : o_(options) {
 
 FastSlam::FastSlam(const FastSlam& other)
     : o_(other.o_),
+      motion_noise_(other.motion_noise_),
+      measurement_noise_(other.measurement_noise_),
+      initial_pose_(other.initial_pose_),
       motion_factor_(other.motion_factor_),
       control_factor_(other.control_factor_),
       control_noise_(other.control_noise_),
@@ -808,10 +815,10 @@ void FastSlam::move_particles(int steps, Sample&& sample) {
 
 void FastSlam::predict(double v, double w, double dt) {
   // Validates v, w, dt (finite, dt > 0) before anything changes.
-  velocity_motion_jacobian(o_.initial_pose, v, w, dt);
+  velocity_motion_jacobian(initial_pose_, v, w, dt);
   require(std::fabs(v * dt) <= kMaxCoordinate, "v", "* dt must be <= 1e9 m (kMaxCoordinate)");
-  const Eigen::Matrix3d r = control_noise_ ? Eigen::Matrix3d::Zero() : Eigen::Matrix3d(o_.motion_noise);
-  const Eigen::Matrix2d mc = control_noise_ ? Eigen::Matrix2d(o_.motion_noise) : Eigen::Matrix2d::Zero();
+  const Eigen::Matrix3d r = control_noise_ ? Eigen::Matrix3d::Zero() : Eigen::Matrix3d(motion_noise_);
+  const Eigen::Matrix2d mc = control_noise_ ? Eigen::Matrix2d(motion_noise_) : Eigen::Matrix2d::Zero();
   move_particles(1, [&](int, const Eigen::Vector3d& x, ParticleRng& rng, Motion& mv, const Motion* since) {
     if (control_noise_) {
       const Eigen::Vector2d e = control_factor_ * Eigen::Vector2d(rng.normal(), rng.normal());

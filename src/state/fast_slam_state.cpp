@@ -1,52 +1,10 @@
 // FastSlam's state (docs/file_format.md).
+#include "probslam/core/options_description.hpp"
 #include "probslam/core/state_file.hpp"
 #include "probslam/fastslam/fast_slam.hpp"
 
 namespace probslam {
 namespace {
-
-void write_options(StateWriter& w, const FastSlamOptions& o) {
-  w.i32(o.num_particles);
-  w.i32(o.version);
-  w.matrix(o.motion_noise);
-  w.matrix(o.measurement_noise);
-  w.boolean(o.use_signatures);
-  w.matrix(o.initial_pose);
-  w.u64(o.seed);
-  w.i32(o.threads);
-  for (double v : {o.resample_threshold, o.p_new, o.outlier_density, o.association_radius, o.cell_size}) w.f64(v);
-  w.boolean(o.joint_association);
-  w.boolean(o.negative_information);
-  for (double v : {o.existence_hit, o.existence_miss, o.sensor_range, o.sensor_fov}) w.f64(v);
-  w.i32(o.min_sightings);
-  w.i32(o.provisional_max_age);
-  w.boolean(o.record_path);
-  w.f64(o.bearing_offset_sigma);
-  w.f64(o.bearing_offset_correlation);
-}
-
-FastSlamOptions read_options(StateReader& r) {
-  FastSlamOptions o;
-  o.num_particles = r.i32();
-  o.version = r.i32();
-  o.motion_noise = r.matrix<Eigen::MatrixXd>();
-  o.measurement_noise = r.matrix<Eigen::MatrixXd>();
-  o.use_signatures = r.boolean();
-  o.initial_pose = r.matrix<Eigen::Vector3d>();
-  o.seed = r.u64();
-  o.threads = r.i32();
-  for (double* v : {&o.resample_threshold, &o.p_new, &o.outlier_density, &o.association_radius, &o.cell_size})
-    *v = r.f64();
-  o.joint_association = r.boolean();
-  o.negative_information = r.boolean();
-  for (double* v : {&o.existence_hit, &o.existence_miss, &o.sensor_range, &o.sensor_fov}) *v = r.f64();
-  o.min_sightings = r.i32();
-  o.provisional_max_age = r.i32();
-  o.record_path = r.boolean();
-  o.bearing_offset_sigma = r.f64();
-  o.bearing_offset_correlation = r.f64();
-  return o;
-}
 
 // Fewest bytes a saved particle takes (its fixed fields, an empty map and path).
 constexpr double kMinParticleBytes = 200.0;
@@ -55,6 +13,9 @@ constexpr double kMinParticleBytes = 200.0;
 
 void FastSlam::write_state(StateWriter& w) const {
   write_options(w, o_);
+  w.matrix(motion_noise_);
+  w.matrix(measurement_noise_);
+  w.matrix(initial_pose_);
   w.matrix(motion_factor_);
   w.matrix(control_factor_);
   w.boolean(control_noise_);
@@ -86,16 +47,20 @@ void FastSlam::write_state(StateWriter& w) const {
 }
 
 FastSlam FastSlam::read_state(StateReader& r) {
-  const FastSlamOptions o = read_options(r);
+  FastSlamOptions o;
+  read_options(r, o);
+  const auto motion_noise = r.matrix<Eigen::MatrixXd>();
+  const auto measurement_noise = r.matrix<Eigen::MatrixXd>();
+  const auto initial_pose = r.matrix<Eigen::Vector3d>();
   if (o.num_particles >= 1) r.require_bytes(kMinParticleBytes * o.num_particles, "the particles");
   // The constructor checks every option; its particles are then replaced by the saved ones.
-  FastSlam f = validated(r, "options", [&] { return FastSlam(o); });
+  FastSlam f = validated(r, "options", [&] { return FastSlam(motion_noise, measurement_noise, o, initial_pose); });
   f.motion_factor_ = r.matrix<Eigen::Matrix3d>();
   f.control_factor_ = r.matrix<Eigen::Matrix2d>();
   f.control_noise_ = r.boolean();
   f.q2_ = r.matrix<Eigen::Matrix2d>();
   f.q_signature_ = r.f64();
-  if (f.control_noise_ != (f.o_.motion_noise.rows() == 2)) r.fail("the motion noise's kind does not match the options");
+  if (f.control_noise_ != (f.motion_noise_.rows() == 2)) r.fail("the motion noise's kind does not match the options");
   const std::size_t m = r.count(static_cast<std::size_t>(kMinParticleBytes));
   if (m != f.particles_.size()) r.fail("holds " + std::to_string(m) + " particles, its options " + std::to_string(f.particles_.size()));
   for (FastSlamParticle& p : f.particles_) {

@@ -74,11 +74,15 @@ FastSlamOptions options(int particles, int version) {
   FastSlamOptions o;
   o.num_particles = particles;
   o.version = version;
-  o.motion_noise = Eigen::Vector3d(0.02, 0.02, 0.005).asDiagonal();
-  o.measurement_noise = Eigen::Vector2d(0.01, 0.001).asDiagonal();
   o.seed = 7;
   return o;
 }
+
+// The motion and measurement noise of the tests' filters.
+const Eigen::MatrixXd kMotionNoise = Eigen::Vector3d(0.02, 0.02, 0.005).asDiagonal();
+const Eigen::MatrixXd kMeasurementNoise = Eigen::Vector2d(0.01, 0.001).asDiagonal();
+
+FastSlam filter(const FastSlamOptions& o) { return FastSlam(kMotionNoise, kMeasurementNoise, o); }
 
 // A small world and a noisy drive around it: measurements (k x 2) and ids per step.
 struct World {
@@ -374,11 +378,11 @@ TEST(FastSlam, ThreadsGiveIdenticalResults) {
   for (int version : {1, 2})
     for (bool unknown : {false, true}) {
       FastSlamOptions o = options(64, version);
-      FastSlam one(o);
+      FastSlam one = filter(o);
       o.threads = 2;
-      FastSlam two(o);
+      FastSlam two = filter(o);
       o.threads = 5;
-      FastSlam five(o);
+      FastSlam five = filter(o);
       drive(one, w, unknown);
       drive(two, w, unknown);
       drive(five, w, unknown);
@@ -390,7 +394,7 @@ TEST(FastSlam, ThreadsGiveIdenticalResults) {
 
 TEST(FastSlam, ResamplingSharesMaps) {
   const World w = make_world(40, 4);
-  FastSlam f(options(50, 1));
+  FastSlam f = filter(options(50, 1));
   drive(f, w, false);
   const MapSharing before = f.map_sharing();
   const long live = g_persistent_tree_nodes.load();
@@ -406,17 +410,12 @@ TEST(FastSlam, BadInputRaisesAndKeepsState) {
   const auto bad = [](auto change, const char* name) {
     FastSlamOptions o = options(4, 1);
     change(o);
-    expect_invalid([&] { FastSlam f(o); }, name);
+    expect_invalid([&] { o.validate(); }, name);
+    expect_invalid([&] { (void)filter(o); }, name);
   };
   bad([](FastSlamOptions& o) { o.num_particles = 0; }, "num_particles");
   bad([](FastSlamOptions& o) { o.num_particles = -3; }, "num_particles");
   bad([](FastSlamOptions& o) { o.version = 3; }, "version");
-  bad([](FastSlamOptions& o) { o.motion_noise = -Eigen::Matrix3d::Identity(); }, "motion_noise");
-  bad([](FastSlamOptions& o) { o.motion_noise = Eigen::Matrix4d::Identity(); }, "motion_noise");
-  bad([](FastSlamOptions& o) { o.measurement_noise = Eigen::Matrix2d::Zero(); }, "measurement_noise");
-  bad([](FastSlamOptions& o) { o.measurement_noise(0, 0) = NAN; }, "measurement_noise");
-  bad([](FastSlamOptions& o) { o.use_signatures = true; }, "measurement_noise");
-  bad([](FastSlamOptions& o) { o.initial_pose[0] = INFINITY; }, "initial_pose");
   bad([](FastSlamOptions& o) { o.threads = 0; }, "threads");
   bad([](FastSlamOptions& o) { o.resample_threshold = 1.5; }, "resample_threshold");
   bad([](FastSlamOptions& o) { o.p_new = 0.0; }, "p_new");
@@ -424,9 +423,28 @@ TEST(FastSlam, BadInputRaisesAndKeepsState) {
   bad([](FastSlamOptions& o) { o.association_radius = -1.0; }, "association_radius");
   bad([](FastSlamOptions& o) { o.negative_information = true; }, "sensor_range");
   bad([](FastSlamOptions& o) { o.sensor_fov = 7.0; }, "sensor_fov");
+  bad([](FastSlamOptions& o) { o.min_sightings = 0; }, "min_sightings");
+  bad([](FastSlamOptions& o) { o.bearing_offset_correlation = 1.0; }, "bearing_offset_correlation");
+  // The model: the constructor's arguments.
+  const FastSlamOptions o = options(4, 1);
+  const auto bad_model = [&](const Eigen::MatrixXd& r, const Eigen::MatrixXd& q, const FastSlamOptions& opt,
+                             const Eigen::Vector3d& x0, const char* name) {
+    expect_invalid([&] { (void)FastSlam(r, q, opt, x0); }, name);
+  };
+  const Eigen::Vector3d x0 = Eigen::Vector3d::Zero();
+  bad_model(-Eigen::Matrix3d::Identity(), kMeasurementNoise, o, x0, "motion_noise");
+  bad_model(Eigen::Matrix4d::Identity(), kMeasurementNoise, o, x0, "motion_noise");
+  bad_model(kMotionNoise, Eigen::Matrix2d::Zero(), o, x0, "measurement_noise");
+  Eigen::MatrixXd nan_q = kMeasurementNoise;
+  nan_q(0, 0) = NAN;
+  bad_model(kMotionNoise, nan_q, o, x0, "measurement_noise");
+  FastSlamOptions signatures = o;
+  signatures.use_signatures = true;
+  bad_model(kMotionNoise, kMeasurementNoise, signatures, x0, "measurement_noise");
+  bad_model(kMotionNoise, kMeasurementNoise, o, Eigen::Vector3d(INFINITY, 0.0, 0.0), "initial_pose");
 
   const World w = make_world(10, 6);
-  FastSlam f(options(8, 2));
+  FastSlam f = filter(options(8, 2));
   drive(f, w, false);
   const FastSlam saved = f;
   RowMatrixXd z(1, 2);
@@ -458,10 +476,8 @@ TEST(FastSlam, OutlierMixtureWeightsAndSkipsTheLandmark) {
   for (const double range : {5.02, 8.0}) {
     FastSlamOptions o;
     o.num_particles = 1;
-    o.motion_noise = Eigen::Matrix3d::Zero();
-    o.measurement_noise = q;
     o.outlier_density = kDensity;
-    FastSlam f(o);
+    FastSlam f(Eigen::Matrix3d::Zero(), q, o);
     RowMatrixXd z(1, 2);
     z << 5.0, 0.0;
     f.update(z, {0});
@@ -481,9 +497,9 @@ TEST(FastSlam, OutlierMixtureWeightsAndSkipsTheLandmark) {
   }
   FastSlamOptions o = options(4, 1);
   o.outlier_density = -1.0;
-  expect_invalid([&] { FastSlam f(o); }, "outlier_density");
+  expect_invalid([&] { (void)filter(o); }, "outlier_density");
   o.outlier_density = NAN;
-  expect_invalid([&] { FastSlam f(o); }, "outlier_density");
+  expect_invalid([&] { (void)filter(o); }, "outlier_density");
 }
 
 // The free list hands a thread back the block it freed last (not under AddressSanitizer, which

@@ -311,10 +311,12 @@ TEST(StateFile, FastSlamResumedEqualsUninterrupted) {
       FastSlamOptions o;
       o.num_particles = 20;
       o.version = version;
-      o.motion_noise = Eigen::Vector3d(0.01, 0.01, 0.002).asDiagonal();
-      o.measurement_noise = Eigen::Vector2d(0.0025, 0.0001).asDiagonal();
       o.seed = 5;
-      FastSlam first(o);
+      o.min_sightings = 2;  // a non-default option travels too
+      const Eigen::MatrixXd r = Eigen::Vector3d(0.01, 0.01, 0.002).asDiagonal();
+      const Eigen::MatrixXd q = Eigen::Vector2d(0.0025, 0.0001).asDiagonal();
+      const Eigen::Vector3d x0(0.5, -1.0, 0.25);
+      FastSlam first(r, q, o, x0);
       const auto step = [&](FastSlam& f) {
         return [&f, known](int t, const RowMatrixXd& z, const std::vector<long>& ids) {
           f.predict(0.3, 0.1, 1.0);
@@ -330,7 +332,7 @@ TEST(StateFile, FastSlamResumedEqualsUninterrupted) {
       expect_same_fastslam(resumed, first);
       drive(14, 30, step(resumed));
       // The uninterrupted run: the same calls without the save and load.
-      FastSlam reference(o);
+      FastSlam reference(r, q, o, x0);
       drive(0, 14, step(reference));
       reference.predict(0.3, 0.1, 1.0);
       drive(14, 30, step(reference));

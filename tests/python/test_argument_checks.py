@@ -110,9 +110,9 @@ def test_checked_functions_still_compute_what_they_did():
 # an array of several numbers (which has __index__ but refuses it) or an int beyond 64 bits
 # was a RuntimeError ("Unable to cast Python instance ...") from pybind11's cast.
 INT_OPTIONS = [
-    (lambda v: ps.FastSlam(5, np.eye(2) * 0.01, Q, threads=v), "threads"),
-    (lambda v: ps.FastSlam(5, np.eye(2) * 0.01, Q, version=v), "version"),
-    (lambda v: ps.FastSlam(5, np.eye(2) * 0.01, Q, seed=v), "seed"),
+    (lambda v: ps.FastSlam(np.eye(2) * 0.01, Q, num_particles=5, threads=v), "threads"),
+    (lambda v: ps.FastSlam(np.eye(2) * 0.01, Q, num_particles=5, version=v), "version"),
+    (lambda v: ps.FastSlam(np.eye(2) * 0.01, Q, num_particles=5, seed=v), "seed"),
     (lambda v: ps._core.GridFastSlam(num_particles=v), "num_particles"),
     (lambda v: ps._core.GridFastSlam(threads=v), "threads"),
     (lambda v: ps._core.SubmapSlam2D(max_rounds=v), "max_rounds"),
@@ -120,8 +120,8 @@ INT_OPTIONS = [
     (lambda v: ps._core.GridFastSlam(matching={"refinements": v}), "matching.refinements"),
     (lambda v: ps._core.GridFastSlam(num_particles=2).map(v), "particle"),
     (lambda v: ps._core.GridFastSlam(num_particles=2).path(v), "particle"),
-    (lambda v: ps.FastSlam(5, np.eye(2) * 0.01, Q).path(v), "particle"),
-    (lambda v: ps.FastSlam(5, np.eye(2) * 0.01, Q).landmarks(v), "particle"),
+    (lambda v: ps.FastSlam(np.eye(2) * 0.01, Q, num_particles=5).path(v), "particle"),
+    (lambda v: ps.FastSlam(np.eye(2) * 0.01, Q, num_particles=5).landmarks(v), "particle"),
 ]
 
 
@@ -136,7 +136,7 @@ def test_int_options_refuse_arrays_and_out_of_range_ints_by_name(call, name):
 
 
 def test_int_options_take_numpy_integers():
-    f = ps.FastSlam(5, np.eye(2) * 0.01, Q, threads=np.int64(2), seed=np.uint8(3))
+    f = ps.FastSlam(np.eye(2) * 0.01, Q, num_particles=5, threads=np.int64(2), seed=np.uint8(3))
     assert f.num_particles == 5
     g = ps._core.GridFastSlam(num_particles=np.int32(2))
     assert g.num_particles == 2

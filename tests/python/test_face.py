@@ -47,7 +47,7 @@ def grid_3d():
 STATEFUL = [
     ("EkfSlam", ekf),
     ("MultiHypothesisEkfSlam", lambda: ps.MultiHypothesisEkfSlam(ekf())),
-    ("FastSlam", lambda: ps.FastSlam(10, np.diag([0.01, 0.01, 0.002]), np.diag([0.01, 0.001]), seed=1)),
+    ("FastSlam", lambda: ps.FastSlam(np.diag([0.01, 0.01, 0.002]), np.diag([0.01, 0.001]), num_particles=10, seed=1)),
     ("GridFastSlam", lambda: ps.GridFastSlam(num_particles=2)),
     ("SubmapSlam2D", lambda: ps.SubmapSlam2D()),
     ("MonteCarloLocalization", lambda: ps.MonteCarloLocalization(room(), min_particles=20, max_particles=40)),

@@ -66,7 +66,7 @@ def test_nees_refuses_a_singular_covariance_and_bad_input():
 def test_mean_pose_and_covariance_are_the_weighted_particle_summary():
     """FastSlam.mean_pose / pose_covariance against numpy on its own particles and weights, with
     the heading near +-pi so that a mean or difference not taken on the circle would be off by 2 pi."""
-    f = ps.FastSlam(200, M, Q, initial_pose=(0.0, 0.0, np.pi - 0.01), seed=4)
+    f = ps.FastSlam(M, Q, num_particles=200, initial_pose=(0.0, 0.0, np.pi - 0.01), seed=4)
     for _ in range(3):
         f.predict(1.0, 0.0, 0.2)
     f.update([[4.0, 0.2], [6.0, -0.4]], [0, 1])

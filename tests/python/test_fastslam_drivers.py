@@ -96,7 +96,7 @@ def test_association_history_backtracking_equals_forward_lists():
     m_noise = np.diag([0.02, 0.005])
     sim = ps.sim.simulate(world, ps.sim.circle_controls(150, 1.0, 0.15), 0.2, sensor, m_noise, rng,
                           initial_pose=(0, -6.5, 0))
-    f = ps.FastSlam(15, m_noise, q, seed=3, initial_pose=(0, -6.5, 0), p_new=1e-2)
+    f = ps.FastSlam(m_noise, q, num_particles=15, seed=3, initial_pose=(0, -6.5, 0), p_new=1e-2)
     hist = fs.AssociationHistories()
     heads = [None] * f.num_particles
     resamplings = 0

@@ -18,7 +18,7 @@ BATCH_TOLERANCE = 1e-12
 
 def filter_at_origin(**options):
     """One particle, no motion noise: its pose is the odometry's, its map the sightings'."""
-    return ps.FastSlam(1, np.zeros((3, 3)), Q, **options)
+    return ps.FastSlam(np.zeros((3, 3)), Q, num_particles=1, **options)
 
 
 def sighting(landmark, pose=(0.0, 0.0, 0.0)):
@@ -77,7 +77,7 @@ def test_bad_provisional_options_are_refused_by_name(name, value, error):
 
 def test_provisional_state_survives_save_and_load(tmp_path):
     rng = np.random.default_rng(3)
-    f = ps.FastSlam(20, np.diag([0.01, 0.01, 1e-3]), Q, min_sightings=3, provisional_max_age=2, seed=5)
+    f = ps.FastSlam(np.diag([0.01, 0.01, 1e-3]), Q, num_particles=20, min_sightings=3, provisional_max_age=2, seed=5)
     world = rng.uniform(-10, 10, (15, 2))
     for _ in range(4):
         f.predict_odometry([0.3, 0.0, 0.05], np.diag([1e-3, 1e-3, 1e-4]))
@@ -108,8 +108,8 @@ def odometry(n, seed=0):
 def test_fastslam_batch_is_the_steps_bit_for_bit(version):
     deltas, noises = odometry(40)
     z = np.array([sighting(A), sighting(B)])
-    one = ps.FastSlam(30, np.zeros((3, 3)), Q, version=version, seed=7)
-    many = ps.FastSlam(30, np.zeros((3, 3)), Q, version=version, seed=7)
+    one = ps.FastSlam(np.zeros((3, 3)), Q, num_particles=30, version=version, seed=7)
+    many = ps.FastSlam(np.zeros((3, 3)), Q, num_particles=30, version=version, seed=7)
     for f in (one, many):
         f.update_unknown(z)
     for d, n in zip(deltas[:25], noises[:25]):
@@ -128,7 +128,7 @@ def test_fastslam_batch_is_the_steps_bit_for_bit(version):
 
 def test_fastslam_refused_batch_changes_nothing():
     deltas, noises = odometry(10)
-    f = ps.FastSlam(10, np.zeros((3, 3)), Q, version=2, seed=1)
+    f = ps.FastSlam(np.zeros((3, 3)), Q, num_particles=10, version=2, seed=1)
     f.predict_odometry_batch(deltas[:3], noises[:3])
     before = (f.poses.copy(), [f.path(k).copy() for k in range(10)])
     bad = deltas.copy()
@@ -152,7 +152,7 @@ def test_fastslam_refused_batch_changes_nothing():
     for k in range(10):
         np.testing.assert_array_equal(f.path(k), before[1][k])
     # and it continues as one never refused
-    g = ps.FastSlam(10, np.zeros((3, 3)), Q, version=2, seed=1)
+    g = ps.FastSlam(np.zeros((3, 3)), Q, num_particles=10, version=2, seed=1)
     g.predict_odometry_batch(deltas[:3], noises[:3])
     f.predict_odometry_batch(deltas[3:], noises[3:])
     g.predict_odometry_batch(deltas[3:], noises[3:])
@@ -228,7 +228,7 @@ def test_victoria_park_driver_blocks_equal_one_call_per_step():
                 update(z[pending.pop(0)])
 
     fast = run.run_fastslam(data, seed=3)
-    f = ps.FastSlam(100, np.zeros((3, 3)), run.measurement_noise(True), seed=3, use_signatures=True,
+    f = ps.FastSlam(np.zeros((3, 3)), run.measurement_noise(True), num_particles=100, seed=3, use_signatures=True,
                     initial_pose=victoria_park_acfr.start_pose(data), p_new=ps.fastslam.DEFAULT_P_NEW)
     stepwise(f.predict_odometry, f.update_unknown)
     np.testing.assert_array_equal(fast.poses, f.path())

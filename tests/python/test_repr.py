@@ -67,7 +67,7 @@ def test_filters():
     options = ps.MapManagement(provisional=True, sensor_range=12.5)
     assert repr(options).startswith("MapManagement(provisional=True, min_observations=3, ")
     assert eval(repr(options), {"MapManagement": ps.MapManagement, "inf": float("inf")}) == options
-    fs = ps.FastSlam(10, np.diag([0.01, 0.01, 0.001]), np.diag([0.01, 0.001]), version=2)
+    fs = ps.FastSlam(np.diag([0.01, 0.01, 0.001]), np.diag([0.01, 0.001]), num_particles=10, version=2)
     assert repr(fs) == "<FastSlam: version 2, 10 particles, best has 0 landmarks, N_eff 10>"
     rbpf = _core.GridFastSlam(num_particles=3)
     assert repr(rbpf) == "<GridFastSlam: 3 particles, 0 scans, best 0>"

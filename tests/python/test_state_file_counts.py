@@ -63,9 +63,9 @@ def matrix_at(payload: bytes, offset: int, rows: int, cols: int, skip: int) -> b
 
 
 # (class, payload offset of a matrix with both dimensions dynamic, its entries as saved):
-# FastSlam's motion noise after num_particles and version; EkfSlam's Q after the control flag,
-# the 3 x 3 pose noise and the 2 x 2 control noise.
-DYNAMIC_MATRICES = [("FastSlam", 8, 9), ("EkfSlam", 1 + 88 + 48, 4)]
+# FastSlam's motion noise after its options (FastSlamOptions::describe(): 5 int32, 11 doubles, a
+# uint64, 4 flags); EkfSlam's Q after the control flag, the 3 x 3 pose noise and the 2 x 2 control noise.
+DYNAMIC_MATRICES = [("FastSlam", 5 * 4 + 11 * 8 + 8 + 4, 9), ("EkfSlam", 1 + 88 + 48, 4)]
 
 
 @pytest.mark.parametrize("tag,offset,entries", DYNAMIC_MATRICES)

@@ -97,7 +97,8 @@ def fastslam_steps(f, data, known, start=0):
 @pytest.mark.parametrize("known", [True, False])
 def test_fastslam_resumed_equals_uninterrupted(tmp_path, version, known):
     data = scans(30)
-    make = lambda: ps.FastSlam(20, np.diag([0.01, 0.01, 0.002]), np.diag([0.0025, 0.0001]), version=version, seed=3)
+    make = lambda: ps.FastSlam(np.diag([0.01, 0.01, 0.002]), np.diag([0.0025, 0.0001]), num_particles=20,
+                               version=version, seed=3)
     straight, first = make(), make()
     fastslam_steps(straight, data, known)
     fastslam_steps(first, data[:14], known)

@@ -26,8 +26,9 @@ namespace probslam {
 /// 4: EkfSlam keeps its landmarks' signatures apart from the dense state (issue 50's speed);
 /// MonteCarloLocalization's options hold resample_interval (issue 52: an option added by its
 /// describe() line alone).
-/// 5: the laser SLAM classes' options written through their describe() (issue 52): the scan
-/// matcher's no longer hold the match's prior, which every owner sets per match.
+/// 5: the options of the laser SLAM classes and of FastSlam written through their describe()
+/// (issue 52): the scan matcher's no longer hold the match's prior, which every owner sets per
+/// match; FastSlam's noise and start pose follow its options (the model is the constructor's).
 inline constexpr std::uint32_t kStateFormatVersion = 5;
 
 /// What a reader throws: "<source>: <what is wrong>".

@@ -13,6 +13,7 @@
 
 #include "probslam/core/filter_limits.hpp"
 #include "probslam/core/object_mutex.hpp"
+#include "probslam/core/options_description.hpp"
 #include "probslam/core/types.hpp"
 #include "probslam/fastslam/landmark_tree.hpp"
 #include "probslam/fastslam/particles.hpp"
@@ -31,7 +32,8 @@ inline constexpr long kFastSlamMaxLandmarks = 1L << 26;
 /// Sightings and scan counts of the provisional landmarks (FastSlamOptions::min_sightings).
 inline constexpr int kFastSlamMaxCount = 1000000;
 
-/// Options of FastSlam; every value is checked by the constructor.
+/// The tunables of FastSlam (the model, its motion and measurement noise and the start pose, is
+/// the constructor's). validate() checks each; the constructor runs it.
 struct FastSlamOptions {
   static constexpr int kDefaultParticles = 100;
   static constexpr double kDefaultResampleThreshold = 0.5;
@@ -49,14 +51,8 @@ struct FastSlamOptions {
   /// update draws: with many odometry rows per scan (MRCLAM: ~25) a proposal over the last
   /// motion alone leaves the noise of the others to the weights.
   int version = 1;
-  /// 3x3 pose-space covariance R of (x, y, theta), or 2x2 control-space covariance M of (v, w);
-  /// symmetric positive semi-definite (zero is allowed: a noise-free motion).
-  Eigen::MatrixXd motion_noise;
-  /// Q: covariance of (range [m], bearing [rad]), or 3x3 with the signature's variance (the
-  /// signature uncorrelated with range and bearing). Symmetric positive definite.
-  Eigen::MatrixXd measurement_noise;
+  /// Measurements and landmarks carry a signature (measurement_noise is then 3x3).
   bool use_signatures = false;
-  Eigen::Vector3d initial_pose = Eigen::Vector3d::Zero();
   /// Particle k starts with random stream k of this seed (see FastSlam's comment).
   std::uint64_t seed = 0;
   /// Particles are updated by this many threads; results do not depend on it.
@@ -116,6 +112,36 @@ struct FastSlamOptions {
   /// part of the bearing noise that is not shared.
   double bearing_offset_sigma = 0.0;
   double bearing_offset_correlation = 0.0;
+
+  /// std::invalid_argument naming the first field out of its range.
+  void validate() const;
+
+  /// The fields in the order the state files hold them (core/options_description.hpp).
+  template <class V>
+  static void describe(V& v) {
+    using O = FastSlamOptions;
+    v("num_particles", &O::num_particles, "", "M, in [1, 2^20]");
+    v("version", &O::version, "", "1: FastSLAM 1.0 (poses from the motion model); 2: FastSLAM 2.0 (from the proposal that includes the scan)");
+    v("use_signatures", &O::use_signatures, "", "measurements and landmarks carry a signature (measurement_noise 3x3)");
+    v("seed", &O::seed, "", "random seed, in [0, 2^64): particle k starts with random stream k of it");
+    v("threads", &O::threads, "", "worker threads, in [1, 256] (results identical for any count)");
+    v("resample_threshold", &O::resample_threshold, "", "resample when N_eff < this * M, in [0, 1]");
+    v("p_new", &O::p_new, "m^-1 rad^-1", "density of a new landmark's measurement (times 1 / signature unit with signatures)");
+    v("outlier_density", &O::outlier_density, "m^-1 rad^-1", "known correspondences: density of a measurement its labelled landmark did not produce (0: no outlier model)");
+    v("association_radius", &O::association_radius, "m", "association candidates lie within it plus three standard deviations of where the measurement places its landmark");
+    v("joint_association", &O::joint_association, "", "update_unknown assigns a scan's measurements jointly (maximum likelihood over distinct landmarks or new ones); False: each its most likely landmark, best pairs first");
+    v("cell_size", &O::cell_size, "m", "side of the landmarks' spatial key cells (about association_radius)");
+    v("negative_information", &O::negative_information, "", "update_unknown's existence counter: an unseen landmark inside sensor_range and sensor_fov loses existence_miss, a seen one gains existence_hit; below zero it is removed");
+    v("existence_hit", &O::existence_hit, "", "the counter's step up, in [0, 1e9]");
+    v("existence_miss", &O::existence_miss, "", "the counter's step down, in [0, 1e9]");
+    v("sensor_range", &O::sensor_range, "m", "range of the sensor's field (finite with negative_information)");
+    v("sensor_fov", &O::sensor_fov, "rad", "full opening angle of the sensor's field, in (0, 2 pi]");
+    v("min_sightings", &O::min_sightings, "", "update_unknown: a new landmark is provisional until seen in this many scans (its first counts), in [1, 1e6] (1: off)");
+    v("provisional_max_age", &O::provisional_max_age, "", "update_unknown calls a provisional landmark may go unseen before it is removed, in [0, 1e6]");
+    v("record_path", &O::record_path, "", "keep each particle's path (path())");
+    v("bearing_offset_sigma", &O::bearing_offset_sigma, "rad", "std of a bearing offset shared by one scan's measurements, carried per particle, in [0, pi] (0: off)");
+    v("bearing_offset_correlation", &O::bearing_offset_correlation, "", "its correlation from one update to the next, in [0, 1)");
+  }
 };
 
 /// One particle: a pose sample, its log weight and its map; in version 2 also the motion prior
@@ -206,7 +232,14 @@ PoseProposal fastslam2_proposal(const Eigen::Vector3d& pose_mean, const Eigen::M
 /// unchanged. It does not lock itself: see mutex().
 class FastSlam {
  public:
-  explicit FastSlam(const FastSlamOptions& options);
+  /// motion_noise: 3x3 pose-space covariance R of (x, y, theta), or 2x2 control-space covariance
+  /// M of (v, w); symmetric positive semi-definite (zero is allowed: a noise-free motion).
+  /// measurement_noise: Q, covariance of (range [m], bearing [rad]), or 3x3 with the signature's
+  /// variance (options.use_signatures; the signature uncorrelated with range and bearing);
+  /// symmetric positive definite. initial_pose: every particle's start (x, y, theta).
+  FastSlam(const Eigen::MatrixXd& motion_noise, const Eigen::MatrixXd& measurement_noise,
+           const FastSlamOptions& options = FastSlamOptions(),
+           const Eigen::Vector3d& initial_pose = Eigen::Vector3d::Zero());
   FastSlam(const FastSlam& other);
   FastSlam& operator=(const FastSlam& other);
   FastSlam(FastSlam&&) noexcept;
@@ -215,6 +248,10 @@ class FastSlam {
 
   std::mutex& mutex() const noexcept { return mutex_.get(); }
   const FastSlamOptions& options() const { return o_; }
+  /// The motion and measurement noise as given (symmetrised), and the start pose (heading wrapped).
+  const Eigen::MatrixXd& motion_noise() const { return motion_noise_; }
+  const Eigen::MatrixXd& measurement_noise() const { return measurement_noise_; }
+  const Eigen::Vector3d& initial_pose() const { return initial_pose_; }
   int num_particles() const { return static_cast<int>(particles_.size()); }
   int version() const { return o_.version; }
   int landmark_dim() const { return o_.use_signatures ? 3 : 2; }
@@ -317,6 +354,9 @@ class FastSlam {
   void settle(const std::vector<int>& ancestors);
 
   FastSlamOptions o_;
+  Eigen::MatrixXd motion_noise_;
+  Eigen::MatrixXd measurement_noise_;
+  Eigen::Vector3d initial_pose_ = Eigen::Vector3d::Zero();
   Eigen::Matrix3d motion_factor_ = Eigen::Matrix3d::Zero();  // L with L L^T = R (pose space)
   Eigen::Matrix2d control_factor_ = Eigen::Matrix2d::Zero();  // L with L L^T = M (control space)
   bool control_noise_ = false;

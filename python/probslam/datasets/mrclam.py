@@ -307,8 +307,8 @@ def run_fastslam(data: Mrclam, motion_noise=None, measurement_noise=None, *, kno
         options["outlier_density"] = outlier_density(measurement_noise)
     initial_pose = start_pose(data) if initial_pose is None else initial_pose
     m_rate = np.asarray(motion_noise, float) * command_period
-    f = FastSlam(num_particles, np.eye(3) * 0.0, measurement_noise, version=version, seed=seed, threads=threads,
-                 initial_pose=initial_pose, p_new=p_new, **options)
+    f = FastSlam(np.eye(3) * 0.0, measurement_noise, initial_pose=initial_pose, num_particles=num_particles,
+                 version=version, seed=seed, threads=threads, p_new=p_new, **options)
     histories = None if known else AssociationHistories()
     times = [data.odometry[0, 0]]  # of the path's poses: the start, then one per prediction
     zero = np.zeros(3)

@@ -114,8 +114,8 @@ def run_fastslam(data: VictoriaPark, measurement_noise=None, *, known: bool = Tr
     require_instance(data, VictoriaPark, "data")
     scale = positive_real(odometry_noise_scale, "odometry_noise_scale")
     observed_from, z, z_cov = chain(data)
-    f = _core.FastSlam(num_particles, np.eye(3) * 0.0, _sensor_noise(z_cov, measurement_noise), version=version,
-                       seed=seed, threads=threads, p_new=p_new, **dict(filter_options or {}))
+    f = _core.FastSlam(np.eye(3) * 0.0, _sensor_noise(z_cov, measurement_noise), num_particles=num_particles,
+                       version=version, seed=seed, threads=threads, p_new=p_new, **dict(filter_options or {}))
     return fastslam_along_chain(f, data.delta, scale ** 2 * data.delta_cov, observed_from, z, data.landmark, known,
                                 progress=progress)
 

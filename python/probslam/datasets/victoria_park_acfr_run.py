@@ -209,8 +209,8 @@ def run_fastslam(data: VictoriaParkAcfr, *, num_particles: int = 100, version: i
     options = dict(filter_options or {})
     if provisional:
         options = {"min_sightings": PROVISIONAL_SIGHTINGS, "provisional_max_age": PROVISIONAL_MAX_AGE, **options}
-    f = FastSlam(num_particles, np.zeros((3, 3)), measurement_noise(signatures), version=version, seed=seed,
-                 threads=threads, initial_pose=victoria_park_acfr.start_pose(data), p_new=p_new,
+    f = FastSlam(np.zeros((3, 3)), measurement_noise(signatures), initial_pose=victoria_park_acfr.start_pose(data),
+                 num_particles=num_particles, version=version, seed=seed, threads=threads, p_new=p_new,
                  use_signatures=signatures, **options)
     # Each particle's associations, carried along the resamplings (O(1) Python work per scan): the
     # best particle's record is what the GraphSLAM refinement starts from.
