@@ -79,7 +79,7 @@ from .graphslam import (
     eif_solve,
     graph_slam,
 )
-from .ekf import AssociationResult, EkfSlam, MapManagement, MultiHypothesisEkfSlam, UpdateResult
+from .ekf import AssociationResult, EkfSlam, HypothesisUpdate, MapManagement, MultiHypothesisEkfSlam, UpdateResult
 from .landmark_refine import LandmarkRefinement, refine_landmarks
 from .mapping import MappingResult, map_laser_log
 from .map_occupancy import MapOccupancyResult, map_occupancy_grid_mapping
@@ -106,6 +106,7 @@ __all__ = [
     "ackermann_motion_jacobian",
     "Association",
     "AssociationResult",
+    "HypothesisUpdate",
     "CorrelativeScanMatcher",
     "FastSlamAssociationResult",
     "FastSlamUpdateResult",

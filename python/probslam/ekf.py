@@ -29,6 +29,14 @@ class UpdateResult(NamedTuple):
     used: np.ndarray  # (k,) bool, False where the gate rejected the measurement
 
 
+class HypothesisUpdate(NamedTuple):
+    """What MultiHypothesisEkfSlam.update did with a scan of k measurements."""
+
+    ids: np.ndarray  # (k,) the best filter's landmark id per measurement, -1 for clutter
+    num_hypotheses: int  # filters in the beam after the scan
+    cost: float  # the best filter's cost, NIS units
+
+
 class AssociationResult(NamedTuple):
     """What EkfSlam.update_unknown did with each of its k measurements."""
 
@@ -329,10 +337,12 @@ class MultiHypothesisEkfSlam:
         """Table 10.1 lines 2-5 on every filter (see ``EkfSlam.predict``)."""
         self._m.predict(_number(v, "v"), _number(w, "w"), _number(dt, "dt"), noise)
 
-    def update(self, z) -> np.ndarray:
+    def update(self, z) -> HypothesisUpdate:
         """One scan z (k, 2) or (k, 3). Returns the best filter's landmark id per measurement
-        (k,), -1 for clutter; later scans may still change the best filter's earlier choices."""
-        return self._m.update(z).astype(np.int64)
+        (k,), -1 for clutter (later scans may still change the best filter's earlier choices),
+        the beam's size and the best filter's cost after the scan."""
+        ids = self._m.update(z).astype(np.int64)
+        return HypothesisUpdate(ids, self._m.num_hypotheses, self._m.total_cost)
 
     def save(self, path) -> None:
         """Writes the whole beam to path (docs/file_format.md), bit for bit:

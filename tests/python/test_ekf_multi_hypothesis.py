@@ -430,3 +430,19 @@ def test_bearing_offset_keeps_close_pairs_apart_whatever_the_new_landmark_cost(n
         assert scores["offset"] > 0.97
         if new_landmark_cost is None:
             assert scores["inflated"] < 0.5
+
+
+def test_update_says_the_best_filters_assignments_the_beam_and_its_cost():
+    """update's HypothesisUpdate is the beam after the scan: the best filter's ids for the scan
+    are the last entry of its history, the count and cost the beam's own."""
+    ekf = ps.EkfSlam(np.eye(2) * 0.01, np.eye(2) * 0.01, use_signatures=False)
+    mht = ps.MultiHypothesisEkfSlam(ekf, max_hypotheses=5)
+    rng = np.random.default_rng(4)
+    for _ in range(6):
+        z = np.column_stack([rng.uniform(1.0, 8.0, 3), rng.uniform(-1.0, 1.0, 3)])
+        result = mht.update(z)
+        assert isinstance(result, ps.HypothesisUpdate)
+        assert result.ids.dtype == np.int64 and result.ids.shape == (3,)
+        np.testing.assert_array_equal(result.ids, mht.history()[-1])
+        assert result.num_hypotheses == mht.num_hypotheses and result.cost == mht.total_cost
+        mht.predict(0.5, 0.1, 1.0)
