@@ -26,7 +26,6 @@ from .io._files import file_path, require_regular_file
 from .io.trajectory import write_trajectory as write_trajectory_file
 from .datasets import carmen
 from .io.carmen import ODOMETRY_NOISE_SIZE, CarmenLog, LaserScans
-from .io.rosbag import is_bag, read_rosbag
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -267,7 +266,7 @@ def scans_of(log: Union[PathLike, CarmenLog, LaserScans]) -> LaserScans:
     """The laser scans of a log given as a path (CARMEN log or ROS bag), a ``CarmenLog`` or its
     ``LaserScans``: TypeError for anything else, ValueError for a log without scans."""
     if isinstance(log, (str, os.PathLike)):
-        log = read_rosbag(log) if is_bag(log) else carmen.load(log)
+        log = carmen.load_log(log)
     scans = log.scans if isinstance(log, CarmenLog) else log
     if not isinstance(scans, LaserScans):
         raise TypeError("log must be a path, a CarmenLog or LaserScans")

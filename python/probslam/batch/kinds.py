@@ -14,10 +14,10 @@ from typing import Any, Callable, Dict, Mapping, Optional, Sequence, Tuple
 import numpy as np
 
 from .. import io
-from .._core import MonteCarloLocalizationOptions
+from .._core import GridFastSlamOptions, MonteCarloLocalizationOptions, SubmapSlamOptions
 from ..datasets import carmen
+from ..io.maps import FREE_THRESH, OCCUPIED_THRESH
 from ..localization import default_options
-from .._core import GridFastSlamOptions, SubmapSlamOptions
 from ..pipelines import (GraphFileOptions, LandmarkRunOptions, MapOptions, localize_log, map_log, optimize_file,
                          run_landmark_dataset, slam_log)
 from ..slam import default_options as slam_default_options
@@ -111,7 +111,7 @@ def _optimize(dataset: str, values, inputs) -> Outcome:
 
 
 def _localize(dataset: str, values, inputs) -> Outcome:
-    log = io.read_rosbag(dataset) if io.rosbag.is_bag(dataset) else carmen.load(dataset)
+    log = carmen.load_log(dataset)
     # The sweep's options over the log's own defaults (its no-return reading as max_range).
     options = set_options(default_options(log), values)
     run = localize_log(log, inputs["map"], options, initial_pose=inputs.get("initial_pose"), progress=False)
@@ -122,25 +122,18 @@ def _localize(dataset: str, values, inputs) -> Outcome:
                    lambda prefix: run.write(prefix)[0])
 
 
-#: map_saver's thresholds (``io.save_ros_map``'s): a map run counts its cells as its map file has them.
-OCCUPIED_THRESHOLD, FREE_THRESHOLD = 0.65, 0.196
-
-
 def _map(dataset: str, values, inputs) -> Outcome:
     run = map_log(dataset, set_options(MapOptions(), values), progress=False)
+    # Cells counted as its map file (io.save_ros_map, map_saver's thresholds) has them.
     p, m = run.grid.probability(), run.mapping
     return Outcome({"scans": int(m.scans), "beams": int(m.beams), "cells_updated": int(m.cells_updated),
                     "width": run.grid.width, "height": run.grid.height,
-                    "occupied_cells": int(np.sum(p > OCCUPIED_THRESHOLD)), "free_cells": int(np.sum(p < FREE_THRESHOLD))})
-
-
-def _read_log(dataset: str):
-    return io.read_rosbag(dataset) if io.rosbag.is_bag(dataset) else carmen.load(dataset)
+                    "occupied_cells": int(np.sum(p > OCCUPIED_THRESH)), "free_cells": int(np.sum(p < FREE_THRESH))})
 
 
 def _slam(method: str):
     def run(dataset: str, values, inputs) -> Outcome:
-        log = _read_log(dataset)
+        log = carmen.load_log(dataset)
         # The sweep's options over the log's own defaults (slam.default_options: its range, odometry).
         run = slam_log(log, set_options(slam_default_options(log, method), values), progress=False)
         r, s = run.result, run.result.summary

@@ -13,6 +13,7 @@ import numpy as np
 from .._args import require_instance
 from ..io._files import file_path
 from ..io.carmen import CarmenLog, LaserScans, read_carmen_log
+from ..io.rosbag import is_bag, read_rosbag
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -31,6 +32,12 @@ def load(path: PathLike) -> CarmenLog:
     return log
 
 
+def load_log(path: PathLike) -> CarmenLog:
+    """The laser log at ``path``: a ROS bag (``io.read_rosbag``, its topics found by their types;
+    an ``io.RosbagLog``) or a CARMEN log (``load``)."""
+    return read_rosbag(path) if is_bag(path) else load(path)
+
+
 def has_odometry(scans: LaserScans) -> bool:
     """Whether the laser poses of the log move at all (some logs repeat one pose throughout)."""
     require_instance(scans, LaserScans, "scans")
@@ -38,4 +45,4 @@ def has_odometry(scans: LaserScans) -> bool:
     return bool(len(p) > 1 and np.ptp(p, axis=0).max() > NO_ODOMETRY_MOTION)
 
 
-__all__ = ["NO_ODOMETRY_MOTION", "has_odometry", "load"]
+__all__ = ["NO_ODOMETRY_MOTION", "has_odometry", "load", "load_log"]

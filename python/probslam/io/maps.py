@@ -17,8 +17,13 @@ from ._files import file_path
 PathLike = Union[str, "os.PathLike[str]"]
 
 
+#: map_saver's default thresholds: cells above OCCUPIED_THRESH are written occupied, below
+#: FREE_THRESH free, the rest unknown.
+OCCUPIED_THRESH, FREE_THRESH = 0.65, 0.196
+
+
 def save_ros_map(grid: _core.OccupancyGrid2D, yaml_path: PathLike,
-                 occupied_thresh: float = 0.65, free_thresh: float = 0.196) -> None:
+                 occupied_thresh: float = OCCUPIED_THRESH, free_thresh: float = FREE_THRESH) -> None:
     """Write ``yaml_path`` and a trinary PGM beside it (map_saver's conventions)."""
     _core.save_ros_map(grid, file_path(yaml_path, "yaml_path"), occupied_thresh, free_thresh)
 

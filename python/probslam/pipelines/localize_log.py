@@ -180,7 +180,7 @@ def localize_log(log: Union[PathLike, object], map: Union[PathLike, _core.Occupa
     ValueError naming ``initial_pose`` when it is not three finite numbers, ``map`` when it cannot
     hold a scan; the filter's own errors name its option."""
     if isinstance(log, (str, os.PathLike)):
-        log = io.read_rosbag(log) if io.rosbag.is_bag(log) else carmen.load(log)
+        log = carmen.load_log(log)
     if isinstance(map, (str, os.PathLike)):
         map = io.load_ros_map(map)
     require_instance(map, _core.OccupancyGrid2D, "map")

@@ -118,8 +118,7 @@ def slam_log(log: Any, options=None, *, path: Optional[PathLike] = None, start_m
     ``save`` and ``progress`` are run_slam's; ``path`` and ``start_map`` name the log's and the
     map's files in the summary (default: ``log`` when it is a path)."""
     if isinstance(log, (str, os.PathLike)):
-        path, log = os.fspath(log) if path is None else path, (io.read_rosbag(log) if io.rosbag.is_bag(log)
-                                                               else carmen.load(log))
+        path, log = os.fspath(log) if path is None else path, carmen.load_log(log)
     require_instance(log, io.CarmenLog, "log")
     if resume is not None:
         result = run_slam(log, resume=resume, save=save, progress=progress)
