@@ -615,6 +615,13 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     failed = sum(row["status"] != "ok" for row in rows)
     print(batch.summary(rows))
     print(f"\n{len(rows)} runs, {failed} failed: {args.directory}/{batch.PARQUET}, {batch.CSV}")
+    if args.plot:
+        try:
+            figures = batch.plot(rows, args.directory)
+        except ImportError as exc:  # the table is whole; the figures need the plot extra
+            print(f"probslam batch: no figures: {exc}", file=sys.stderr)
+        else:
+            print(f"figures: {len(figures)} in {args.directory}/{batch.FIGURES}/")
     return 0
 
 
@@ -905,6 +912,7 @@ def build_parser() -> argparse.ArgumentParser:
     ba.add_argument("--time-limit", type=float, default=None, metavar="S",
                     help="seconds a run may take before it is recorded as timeout (default: the sweep's time_limit, "
                          "else none)")
+    _no_plot_option(ba)
     _no_progress_option(ba)
     ba.set_defaults(func=_cmd_batch)
     return parser

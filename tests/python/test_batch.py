@@ -173,6 +173,27 @@ def test_a_sweep_stopped_by_ctrl_c_makes_only_what_is_missing_when_started_again
     assert [_given(row) for row in rows[:len(done)]] == [_given(row) for row in done]  # kept, not made again
     assert {row["run_id"] for row in rows} == {r.run_id for r in batch.load(DEMO).expand()}
     assert (out / batch.CSV).read_text().count("\n") == 13
+    figures = {p.name for p in (out / batch.FIGURES).glob("*.png")}
+    assert f"figures: {len(figures)} in" in printed
+    assert {"optimize_chi2.png", "localize_ate_rmse_m.png", "localize_cpu_s.png"} <= figures
+
+
+def test_a_figure_per_measured_metric_with_each_group_of_seeds_on_its_line(tmp_path):
+    """Synthetic rows of two option values x three seeds: one figure per metric some ok run
+    measured (none for a metric only failed runs have), each group's runs on their line."""
+    pytest.importorskip("matplotlib")
+    rows = [{"run_id": f"{k}{s}", "kind": "localize", "dataset": "/data/a.log", "seed": s, "status": "ok",
+             "error": None, "options.max_particles": k, "ate_rmse_m": 0.1 * (s + 1) * k, "wall_s": 1.0,
+             "cpu_s": 1.0, "peak_memory_mb": 10.0, "never_ok": None} for k in (1, 2) for s in range(3)]
+    rows.append(dict(rows[0], run_id="x", status="error", never_ok=5.0))
+    options, _ = table.kind_columns(rows)
+    groups = table.groups(rows, options)
+    assert list(groups) == [("a.log", "max_particles=1"), ("a.log", "max_particles=2")]
+    assert [len(g) for g in groups.values()] == [4, 3]
+    paths = batch.plot(rows, str(tmp_path))
+    assert sorted(os.path.basename(p) for p in paths) == ["localize_ate_rmse_m.png", "localize_cpu_s.png",
+                                                          "localize_peak_memory_mb.png", "localize_wall_s.png"]
+    assert all(open(p, "rb").read(8) == b"\x89PNG\r\n\x1a\n" for p in paths)
 
 
 @pytest.mark.parametrize("text, message", [

@@ -12,7 +12,7 @@ import json
 import math
 import os
 import statistics
-from typing import Any, Dict, Iterable, List, Sequence
+from typing import Any, Dict, Iterable, List, Sequence, Tuple
 
 PARQUET = "results.parquet"
 CSV = "results.csv"
@@ -88,31 +88,50 @@ def read(directory: str) -> List[Dict[str, Any]]:
     return pq.read_table(path).to_pylist()
 
 
-def _is_metric(value: Any) -> bool:
+def is_metric(value: Any) -> bool:
+    """A finite number (not a bool): what a median and a plot take."""
     return isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+
+
+def kind_columns(rows: Sequence[Dict[str, Any]]) -> Tuple[List[str], List[str]]:
+    """The option and input columns of one kind's ``rows``, and its metric columns (the kind's
+    own, then the cost columns)."""
+    names = columns(rows)
+    options = [n for n in names if n.startswith((INPUT_PREFIX, OPTION_PREFIX))]
+    metrics = [n for n in names if n not in IDENTITY_COLUMNS and n not in options and n not in COST_COLUMNS]
+    return options, metrics + list(COST_COLUMNS)
+
+
+def groups(rows: Sequence[Dict[str, Any]], options: Sequence[str]) -> Dict[Tuple[str, str], List[Dict[str, Any]]]:
+    """One kind's ``rows`` grouped by dataset and options: the runs that differ only in their
+    seed, keyed by (the dataset's name, "name=value, ..." or "(defaults)")."""
+    out: Dict[Tuple[str, str], List[Dict[str, Any]]] = {}
+    for row in rows:
+        key = (os.path.basename(str(row["dataset"]).rstrip(os.sep)),
+               ", ".join(f"{_name(n)}={_value(row[n])}" for n in options if row.get(n) is not None) or "(defaults)")
+        out.setdefault(key, []).append(row)
+    return out
+
+
+def by_kind(rows: Sequence[Dict[str, Any]]) -> Dict[str, List[Dict[str, Any]]]:
+    """``rows`` split by their kind, in the order the kinds first appear."""
+    out: Dict[str, List[Dict[str, Any]]] = {}
+    for row in rows:
+        out.setdefault(row["kind"], []).append(row)
+    return out
 
 
 def summary(rows: Sequence[Dict[str, Any]]) -> str:
     """The medians over seeds of each kind's metrics, one line per dataset and options (as
     benchmarks/RESULTS.md shows them), with how many runs were ok and the cost of a run."""
     out = []
-    for kind in dict.fromkeys(row["kind"] for row in rows):
-        mine = [row for row in rows if row["kind"] == kind]
-        names = columns(mine)
-        options = [n for n in names if n.startswith((INPUT_PREFIX, OPTION_PREFIX))]
-        metrics = [n for n in names if n not in IDENTITY_COLUMNS and n not in options and n not in COST_COLUMNS]
-        metrics += list(COST_COLUMNS)
-        groups: Dict[tuple, List[Dict[str, Any]]] = {}
-        for row in mine:
-            key = (os.path.basename(str(row["dataset"]).rstrip(os.sep)),
-                   ", ".join(f"{_name(n)}={_value(row[n])}" for n in options if row.get(n) is not None))
-            groups.setdefault(key, []).append(row)
+    for kind, mine in by_kind(rows).items():
+        options, metrics = kind_columns(mine)
         header = ["dataset", "options", "ok"] + metrics
         lines = [header]
-        for (dataset, opts), group in groups.items():
+        for (dataset, opts), group in groups(mine, options).items():
             ok = [r for r in group if r["status"] == "ok"]
-            lines.append([dataset, opts or "(defaults)", f"{len(ok)}/{len(group)}"]
-                         + [_median(r.get(m) for r in ok) for m in metrics])
+            lines.append([dataset, opts, f"{len(ok)}/{len(group)}"] + [_median(r.get(m) for r in ok) for m in metrics])
         widths = [max(len(line[k]) for line in lines) for k in range(len(header))]
         out.append(f"{kind} (medians over each line's seeds; ok: the runs that ended well):")
         out += ["  " + "  ".join(c.ljust(w) for c, w in zip(line, widths)).rstrip() for line in lines]
@@ -132,8 +151,8 @@ def _median(values: Iterable[Any]) -> str:
     values = list(values)
     if values and all(isinstance(v, bool) for v in values):
         return f"{sum(values)}/{len(values)}"
-    numbers = [float(v) for v in values if _is_metric(v)]
+    numbers = [float(v) for v in values if is_metric(v)]
     return f"{statistics.median(numbers):.6g}" if numbers else "-"
 
 
-__all__ = ["CSV", "PARQUET", "columns", "read", "summary", "write"]
+__all__ = ["CSV", "PARQUET", "by_kind", "columns", "groups", "is_metric", "kind_columns", "read", "summary", "write"]
