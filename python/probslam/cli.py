@@ -607,7 +607,8 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     try:  # a sweep refused, or dask missing: before a folder is made or a worker started
         with _option_flags(BATCH_FLAGS, args):
             rows = batch.run(sweep, directory=args.directory, time_limit=args.time_limit, scheduler=args.scheduler,
-                             workers=args.workers, memory_limit=args.memory_limit, progress=_progress(args))
+                             workers=args.workers, memory_limit=args.memory_limit, progress=_progress(args),
+                             trajectories=args.trajectories)
     except KeyboardInterrupt:
         print(f"probslam batch: {args.directory}/{batch.PARQUET} holds every run that finished; run the same command "
               "again to make the rest", file=sys.stderr)
@@ -912,6 +913,9 @@ def build_parser() -> argparse.ArgumentParser:
     ba.add_argument("--time-limit", type=float, default=None, metavar="S",
                     help="seconds a run may take before it is recorded as timeout (default: the sweep's time_limit, "
                          "else none)")
+    ba.add_argument("--trajectories", action="store_true",
+                    help="keep each run's trajectory in DIR/trajectories (TUM; on a cluster DIR must be storage the "
+                         "workers share)")
     _no_plot_option(ba)
     _no_progress_option(ba)
     ba.set_defaults(func=_cmd_batch)

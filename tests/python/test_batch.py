@@ -93,12 +93,20 @@ def test_a_sweep_gives_the_rows_its_runs_give_alone(client, tmp_path):
                        inputs={"map": "bundled:intel_raw_loop_map.yaml"}, reference="bundled:intel_excerpt.log.gz")])
     runs = sweep.expand()
     assert len(runs) == 8 and len({r.run_id for r in runs}) == 8
-    rows = batch.run(sweep, client, str(tmp_path))
+    rows = batch.run(sweep, client, str(tmp_path), trajectories=True)
     assert [row["run_id"] for row in rows] == [r.run_id for r in runs]
     assert all(row["status"] == "ok" for row in rows), [row["error"] for row in rows]
     assert {row["worker"] for row in rows} <= set(client.scheduler_info()["workers"])
     for run, row in zip(runs, rows):
-        assert _metrics(batch.run_one(run)) == _metrics(row)
+        assert _metrics(batch.run_one(run)) == {k: v for k, v in _metrics(row).items() if k != "trajectory"}
+    # The trajectories kept are the ones scored: scored again, the same figure.
+    from probslam.pipelines import EvaluationOptions, evaluate_trajectory
+    for row in rows:
+        kept = tmp_path / batch.TRAJECTORIES / row["trajectory"]
+        assert kept.name.startswith(row["run_id"]) and kept.is_file()
+        if row["kind"] == "localize":
+            again = evaluate_trajectory(str(kept), row["reference"], EvaluationOptions())
+            assert again.result.rmse == row["ate_rmse_m"]
     # The table on disk holds the same rows, typed (Parquet) and as text (CSV).
     back = {row["run_id"]: row for row in table.read(str(tmp_path))}  # in the order the runs finished
     assert [_given(back[row["run_id"]]) for row in rows] == [_given(row) for row in rows]
@@ -212,6 +220,8 @@ def test_a_figure_per_measured_metric_with_each_group_of_seeds_on_its_line(tmp_p
                                                                                       "needs one"),
     ('[[runs]]\ncommand = "optimise"\ndatasets = ["a.g2o"]', "runs[0]: command must be one of optimize, localize"),
     ('[[runs]]\ncommand = "optimize"\ndatasets = ["graphs/*.g2o"]', "runs[0]: datasets: 'graphs/*.g2o' matches no file"),
+    ('[[runs]]\ncommand = "optimize"\ndatasets = ["$PROBSLAM_UNSET_FOR_TEST/a.g2o"]',
+     "runs[0]: datasets: '$PROBSLAM_UNSET_FOR_TEST/a.g2o': the environment variable PROBSLAM_UNSET_FOR_TEST is not set"),
 ])
 def test_an_unknown_key_or_option_is_one_line_and_exit_2_before_any_run(tmp_path, capsys, text, message):
     sweep = tmp_path / "sweep.toml"
@@ -221,6 +231,17 @@ def test_an_unknown_key_or_option_is_one_line_and_exit_2_before_any_run(tmp_path
     assert status == 2 and err.count("\n") == 1, err
     assert err.startswith(f"probslam: error: {sweep}: {message}"), err
     assert not (tmp_path / "out").exists()  # refused before a worker started or a table was made
+
+
+def test_a_path_takes_environment_variables(tmp_path, monkeypatch):
+    """Data on a cluster's shared storage or a machine's data folder: $NAME and ${NAME}."""
+    from probslam import data
+    folder = os.path.dirname(data.path("intel_400.g2o"))
+    monkeypatch.setenv("PROBSLAM_TEST_DATA", folder)
+    for written in ("$PROBSLAM_TEST_DATA/intel_400.g2o", "${PROBSLAM_TEST_DATA}/*_400.g2o"):
+        group = batch.RunGroup("optimize", [written], {})
+        found = {r.dataset for r in batch.Sweep([group], base=str(tmp_path)).expand()}
+        assert os.path.join(folder, "intel_400.g2o") in found
 
 
 def test_the_same_run_has_the_same_id_and_another_run_another():

@@ -8,11 +8,11 @@ each command's run is, on the library's pipelines (a registry); ``execute``: the
 sweep is run.
 """
 
-from .execute import ALLOWED_FAILURES, require_dask, run, run_one, start_client
+from .execute import ALLOWED_FAILURES, TRAJECTORIES, require_dask, run, run_one, start_client
 from .figures import FIGURES, plot
 from .kinds import KINDS, Outcome, RunKind, register, set_options
 from .sweep import BUNDLED, Run, RunGroup, Sweep, load
 from .table import CSV, PARQUET, summary
 
-__all__ = ["ALLOWED_FAILURES", "BUNDLED", "CSV", "FIGURES", "KINDS", "Outcome", "PARQUET", "Run", "RunGroup", "RunKind", "Sweep",
-           "load", "plot", "register", "require_dask", "run", "run_one", "set_options", "start_client", "summary"]
+__all__ = ["ALLOWED_FAILURES", "BUNDLED", "CSV", "FIGURES", "KINDS", "Outcome", "PARQUET", "Run", "RunGroup", "RunKind",
+           "Sweep", "TRAJECTORIES", "load", "plot", "register", "require_dask", "run", "run_one", "set_options", "start_client", "summary"]

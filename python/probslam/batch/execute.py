@@ -44,6 +44,10 @@ PROC_STATUS = "/proc/self/status"
 #: come (and at the end, or when stopped): a row a run apart would cost O(runs^2) on long sweeps.
 WRITE_INTERVAL = 1.0
 PROC_CLEAR_REFS = "/proc/self/clear_refs"
+#: The folder of a sweep's directory that keeps the runs' trajectories (run(..., trajectories=True)),
+#: and the row's column naming a run's file there.
+TRAJECTORIES = "trajectories"
+TRAJECTORY_COLUMN = "trajectory"
 MISSING = ("probslam batch needs dask, distributed and pyarrow: pip install 'probslam[batch]' "
            "(scripts/setup.sh installs them)")
 
@@ -87,13 +91,14 @@ def _peak_memory_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
-def score(outcome: Outcome, run: Run) -> Dict[str, Any]:
-    """The run's trajectory against its reference (``pipelines.evaluate_trajectory``): ATE or RPE
-    against a trajectory, the relations error, or the RMS against positions."""
+def score(outcome: Outcome, run: Run, path: Optional[str] = None) -> Dict[str, Any]:
+    """The run's trajectory (written at ``path`` already, or None: written here to a temporary
+    file) against its reference (``pipelines.evaluate_trajectory``): ATE or RPE against a
+    trajectory, the relations error, or the RMS against positions."""
     if outcome.write_trajectory is None:
         raise ValueError(f"reference: a {run.kind} run makes no trajectory to score")
     with tempfile.TemporaryDirectory(prefix="probslam-batch-") as folder:
-        path = outcome.write_trajectory(os.path.join(folder, "run"))
+        path = path or outcome.write_trajectory(os.path.join(folder, "run"))
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             evaluation = evaluate_trajectory(path, run.reference, EvaluationOptions(**dict(run.evaluation)))
@@ -108,22 +113,29 @@ def score(outcome: Outcome, run: Run) -> Dict[str, Any]:
     return {("rpe" if evaluation.options.rpe else "ate") + "_rmse_m": float(r.rmse), "pairs": int(r.count)}
 
 
-def _metrics(run: Run, kind: RunKind) -> Dict[str, Any]:
+def _metrics(run: Run, kind: RunKind, trajectories: Optional[str]) -> Dict[str, Any]:
     values = dict(run.options)
     if run.seed is not None:
         values["seed"] = run.seed
     outcome = kind.run(run.dataset, values, dict(run.inputs))
     metrics = dict(outcome.metrics)
+    path = None
+    if trajectories is not None and outcome.write_trajectory is not None:
+        path = outcome.write_trajectory(os.path.join(trajectories, run.run_id))
+        metrics[TRAJECTORY_COLUMN] = os.path.basename(path)
     if run.reference is not None:
-        metrics.update(score(outcome, run))
+        metrics.update(score(outcome, run, path))
     return metrics
 
 
-def run_one(run: Run, kind: Optional[RunKind] = None, time_limit: Optional[float] = None) -> Dict[str, Any]:
+def run_one(run: Run, kind: Optional[RunKind] = None, time_limit: Optional[float] = None,
+            trajectories: Optional[str] = None) -> Dict[str, Any]:
     """Makes ``run`` (with ``kind``; None: KINDS[run.kind]) and returns its row: what it is, its
     metrics, its status (ok, error, timeout), error text and warnings, wall and CPU seconds and the
     process's peak memory during it. Past ``time_limit`` seconds the row says timeout and the run's
-    thread is left running (the caller restarts the process). On a worker or alone: the same row."""
+    thread is left running (the caller restarts the process). On a worker or alone: the same row.
+    ``trajectories``: a folder (existing; on a cluster, on storage the workers share) where a run
+    that makes a trajectory writes it as RUN_ID_trajectory.tum, named in the row's ``trajectory``."""
     kind = KINDS[run.kind] if kind is None else kind
     row = describe(run)
     row.update(dict.fromkeys(kind.metrics))
@@ -133,7 +145,7 @@ def run_one(run: Run, kind: Optional[RunKind] = None, time_limit: Optional[float
         with warnings.catch_warnings(record=True) as caught:  # a reader's notes go in the row, not on a console
             warnings.simplefilter("always")
             try:
-                outcome["metrics"] = _metrics(run, kind)
+                outcome["metrics"] = _metrics(run, kind, trajectories)
             except Exception as exc:  # noqa: BLE001 - any failure of the run is its row's error
                 outcome["error"] = f"{type(exc).__name__}: {exc}"
         outcome["warnings"] = "; ".join(dict.fromkeys(str(w.message) for w in caught)) or None
@@ -159,10 +171,10 @@ def run_one(run: Run, kind: Optional[RunKind] = None, time_limit: Optional[float
     return row
 
 
-def _on_worker(run: Run, kind: RunKind, time_limit: Optional[float]) -> Dict[str, Any]:
+def _on_worker(run: Run, kind: RunKind, time_limit: Optional[float], trajectories: Optional[str]) -> Dict[str, Any]:
     from distributed import get_worker
 
-    row = run_one(run, kind, time_limit)
+    row = run_one(run, kind, time_limit, trajectories)
     row["worker"] = get_worker().address
     return row
 
@@ -212,20 +224,28 @@ def _as_sweep(sweep: Union[Sweep, Mapping[str, Any], str, "os.PathLike[str]"]) -
 
 def run(sweep, client=None, directory: Optional[str] = None, *, time_limit: Optional[float] = None,
         scheduler: Optional[str] = None, workers: Optional[int] = None,
-        memory_limit: Union[str, float, None] = "auto", progress: Optional[bool] = None) -> List[Dict[str, Any]]:
+        memory_limit: Union[str, float, None] = "auto", progress: Optional[bool] = None,
+        trajectories: bool = False) -> List[Dict[str, Any]]:
     """Runs ``sweep`` (a ``Sweep``, its dict, or a TOML file's path) on ``client`` (None: one of
     ``start_client(scheduler, workers, memory_limit)``, closed at the end) and returns its rows in
     the sweep's order (dicts; ``pandas.DataFrame(rows)`` makes a frame). With ``directory`` (made
     if missing), the rows are written there as they come (``table``; at most once in WRITE_INTERVAL, and at the end
     or when stopped) and the runs whose rows are there already are
-    not made again. ``time_limit`` (s; None: the sweep's own) bounds each run. ValueError naming
-    what the sweep refuses before any run."""
+    not made again. ``time_limit`` (s; None: the sweep's own) bounds each run. ``trajectories``
+    (with ``directory``): each run's trajectory kept in ``directory``/trajectories (TRAJECTORIES),
+    its file named in the row. ValueError naming what the sweep refuses before any run."""
     sweep = _as_sweep(sweep)
     runs = sweep.expand()
     time_limit = sweep.time_limit if time_limit is None else positive_real(time_limit, "time_limit")
     require_dask()
+    if trajectories and directory is None:
+        raise ValueError("trajectories: kept in the sweep's directory; give one")
     if directory is not None:
         os.makedirs(directory, exist_ok=True)
+    folder = None
+    if trajectories:
+        folder = os.path.abspath(os.path.join(directory, TRAJECTORIES))
+        os.makedirs(folder, exist_ok=True)
     rows = table.read(directory) if directory is not None else []
     done = {row["run_id"] for row in rows}
     todo = [r for r in runs if r.run_id not in done]
@@ -235,7 +255,7 @@ def run(sweep, client=None, directory: Optional[str] = None, *, time_limit: Opti
     if own:
         client = start_client(scheduler, workers, memory_limit)
     try:
-        _run_on(client, todo, time_limit, directory, rows, progress)
+        _run_on(client, todo, time_limit, directory, rows, progress, folder)
     finally:
         if own:
             client.close()
@@ -249,7 +269,7 @@ def _in_order(runs: Sequence[Run], rows: Sequence[Dict[str, Any]]) -> List[Dict[
 
 
 def _run_on(client, runs: Sequence[Run], time_limit: Optional[float], directory: Optional[str],
-            rows: List[Dict[str, Any]], progress: Optional[bool]) -> None:
+            rows: List[Dict[str, Any]], progress: Optional[bool], trajectories: Optional[str] = None) -> None:
     """Makes ``runs`` on ``client``, each row appended to ``rows`` and written to the table as it comes."""
     from distributed import as_completed
     from distributed.client import FutureCancelledError
@@ -258,7 +278,7 @@ def _run_on(client, runs: Sequence[Run], time_limit: Optional[float], directory:
     from .._progress import progress_bar
 
     written, pending = -math.inf, False  # the first row is written at once
-    futures = {client.submit(_on_worker, r, KINDS[r.kind], time_limit, key=f"probslam-run-{r.run_id}", pure=False): r
+    futures = {client.submit(_on_worker, r, KINDS[r.kind], time_limit, trajectories, key=f"probslam-run-{r.run_id}", pure=False): r
                for r in runs}
     try:
         with progress_bar(len(runs), "probslam batch", "run", progress) as bar:
@@ -289,4 +309,4 @@ def _run_on(client, runs: Sequence[Run], time_limit: Optional[float], directory:
         client.cancel([f for f in futures if not f.done()])
 
 
-__all__ = ["ALLOWED_FAILURES", "describe", "require_dask", "run", "run_one", "score", "start_client"]
+__all__ = ["ALLOWED_FAILURES", "TRAJECTORIES", "describe", "require_dask", "run", "run_one", "score", "start_client"]

@@ -18,6 +18,7 @@ import hashlib
 import itertools
 import json
 import os
+import re
 import string
 from dataclasses import dataclass, field
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Tuple, Union
@@ -199,13 +200,22 @@ def _paths(pattern: str, base: str, where: str) -> List[str]:
                 raise ValueError(f"{where}: {str(exc).removeprefix('name: ')}") from None
     else:
         folder = base
-    full = os.path.join(folder, os.path.expanduser(pattern))
+    full = os.path.join(folder, os.path.expanduser(_expand_variables(pattern, where)))
     if glob.has_magic(pattern):
         found = sorted(glob.glob(full, recursive=True))
         _require(bool(found), f"{where}: {pattern!r} matches no file")
         return [os.path.abspath(p) for p in found]
     _require(os.path.exists(full), f"{where}: {pattern!r}: no such file or folder ({os.path.abspath(full)})")
     return [os.path.abspath(full)]
+
+
+def _expand_variables(pattern: str, where: str) -> str:
+    """``$NAME`` / ``${NAME}`` from the environment (data on a cluster's shared storage, a
+    machine's data folder); an unset one is refused naming it, rather than read as a file name."""
+    for match in re.finditer(r"\$(\w+)|\$\{(\w+)\}", pattern):
+        name = match.group(1) or match.group(2)
+        _require(name in os.environ, f"{where}: {pattern!r}: the environment variable {name} is not set")
+    return os.path.expandvars(pattern)
 
 
 def _one_path(value: Any, base: str, where: str) -> str:

@@ -23,7 +23,8 @@ INPUT_PREFIX = "inputs."
 #: Columns that describe a run's cost, not its result: their medians close each summary row.
 COST_COLUMNS = ("wall_s", "cpu_s", "peak_memory_mb")
 #: The columns that say what a run is and how it went, not what it measured.
-IDENTITY_COLUMNS = ("run_id", "kind", "dataset", "seed", "reference", "status", "error", "warnings", "worker")
+IDENTITY_COLUMNS = ("run_id", "kind", "dataset", "seed", "reference", "status", "error", "warnings", "worker",
+                    "trajectory")
 
 
 def columns(rows: Sequence[Dict[str, Any]]) -> List[str]:
