@@ -36,4 +36,4 @@ for f in python/probslam/*; do ln -s "$PWD/$f" "$pkg/"; done
 ln -s "$PWD/$(ls "$build"/bindings/_core*.so)" "$pkg/"
 LD_PRELOAD="$(g++ -print-file-name=libasan.so):$(g++ -print-file-name=libubsan.so)" \
   PYTHONPATH="$PWD/$build/pkg" PROBSLAM_SANITIZED=1 \
-  "$venv/bin/python" -m pytest tests/python -q -p no:cacheprovider -x --capture=sys
+  "$venv/bin/python" -m pytest tests/python -q -p no:cacheprovider -x --capture=sys -n "$jobs" --dist loadfile

@@ -8,7 +8,7 @@ cd "$(dirname "${BASH_SOURCE[0]}")/.."
 APT_PACKAGES=(cmake g++ make git libeigen3-dev libsuitesparse-dev liboctomap-dev libgtest-dev
               python3 python3-venv python3-dev)
 PIP_PACKAGES=("scikit-build-core>=0.10" "pybind11>=2.12" "ninja" "numpy>=1.23" "tqdm>=4.60"
-              "pytest>=7" "scipy>=1.10" "matplotlib>=3.6" "hypothesis>=6.100" "rosbags>=0.10" "evo>=1.38"
+              "pytest>=7" "pytest-xdist>=3.5" "scipy>=1.10" "matplotlib>=3.6" "hypothesis>=6.100" "rosbags>=0.10" "evo>=1.38"
               "dask>=2024.1" "distributed>=2024.1" "pyarrow>=14")
 # The fuzzer of scripts/fuzz.sh: optional (wheels exist for common CPython/Linux pairs only;
 # fuzz.sh skips with a message without it), so its failure to install stops nothing.
@@ -32,7 +32,7 @@ if [ ! -x "$venv/bin/python" ]; then
   "${PYTHON:-python3}" -m venv "$venv"
 fi
 py="$venv/bin/python"
-if ! "$py" -c "import scikit_build_core, pybind11, ninja, numpy, tqdm, pytest, scipy, matplotlib, hypothesis, rosbags, evo, dask, distributed, pyarrow" 2>/dev/null; then
+if ! "$py" -c "import scikit_build_core, pybind11, ninja, numpy, tqdm, pytest, xdist, scipy, matplotlib, hypothesis, rosbags, evo, dask, distributed, pyarrow" 2>/dev/null; then
   echo "setup: installing Python packages into $venv"
   "$py" -m pip install -q --disable-pip-version-check "${PIP_PACKAGES[@]}"
 fi

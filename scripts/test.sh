@@ -17,4 +17,6 @@ if [ ! -f "${caches[0]}" ] || [ "${#caches[@]}" -ne 1 ]; then
   exit 1
 fi
 ctest --test-dir "$(dirname "${caches[0]}")" --output-on-failure -j "$jobs"
-"$venv/bin/python" -m pytest tests/python -q -p no:cacheprovider
+# pytest on every core (pytest-xdist): a test file's tests stay together in one worker (module
+# fixtures such as test_batch's cluster are made once), files are shared out as workers free up.
+"$venv/bin/python" -m pytest tests/python -q -p no:cacheprovider -n "$jobs" --dist loadfile
