@@ -18,6 +18,7 @@ import numpy as np
 from ._options import Options
 from .. import graph as pg
 from .._args import positive_real
+from .._progress import progress_bar
 from .. import io
 from ..io.landmark_datasets import isam_noise_convention
 
@@ -190,25 +191,29 @@ class GraphFileRun:
         why = f" ({self.init_reason})" if self.init_reason else ""
         return f"init:       {self.init}{why} in {self.init_seconds:.3f} s, chi2 {self.initial_chi2:.6f}"
 
-    def optimize(self, on_iteration: Optional[Callable[[int, float], bool]] = None) -> None:
+    def optimize(self, on_iteration: Optional[Callable[[int, float], bool]] = None,
+                 progress: Optional[bool] = False) -> None:
         """Optimises from the start; ``on_iteration(iteration, chi2)`` after each iteration
-        (False stops). Ctrl-C keeps the last completed iteration's values (``interrupted``)."""
+        (False stops); ``progress``: a bar over the iterations with chi2 beside it (None: on a
+        terminal only). Ctrl-C keeps the last completed iteration's values (``interrupted``)."""
         if self.initial_poses is None:
             self.start()
-
-        def record(iteration: int, chi2: float) -> bool:
-            self.chi2_history.append(chi2)
-            return True if on_iteration is None else on_iteration(iteration, chi2)
-
         o = self.options
-        kernel_width = {} if o.kernel_width is None else {"kernel_width": o.kernel_width}
-        t = time.perf_counter()
-        try:
-            self.report = pg.optimize(self.graph, algorithm=o.algorithm, max_iterations=o.max_iterations,
-                                      kernel=o.kernel, callback=record, **kernel_width, **self._solver())
-        except KeyboardInterrupt:
-            self.interrupted = True  # the graph holds the last completed iteration's values
-        self.optimize_seconds = time.perf_counter() - t
+        with progress_bar(o.max_iterations, "optimize", "it", progress) as bar:
+            def record(iteration: int, chi2: float) -> bool:
+                self.chi2_history.append(chi2)
+                bar.set_postfix_str(f"chi2 {chi2:.6g}", refresh=False)
+                bar.update(1)
+                return True if on_iteration is None else on_iteration(iteration, chi2)
+
+            kernel_width = {} if o.kernel_width is None else {"kernel_width": o.kernel_width}
+            t = time.perf_counter()
+            try:
+                self.report = pg.optimize(self.graph, algorithm=o.algorithm, max_iterations=o.max_iterations,
+                                          kernel=o.kernel, callback=record, **kernel_width, **self._solver())
+            except KeyboardInterrupt:
+                self.interrupted = True  # the graph holds the last completed iteration's values
+            self.optimize_seconds = time.perf_counter() - t
 
     @property
     def converged(self) -> bool:
