@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import argparse
 import contextlib
+import dataclasses
 import difflib
 import functools
 import os
@@ -76,15 +77,16 @@ EXIT_NOT_CONVERGED, EXIT_INTERRUPTED, EXIT_BROKEN_PIPE = 3, 130, 141
 #: (difflib's ratio: 0.6, its own default, takes --partcles for --particles, not --seed for --robot).
 SUGGESTION_CUTOFF = 0.6
 #: slam's option fields by method (SubmapSlamOptions / GridFastSlamOptions paths), each set by the
-#: flag of its last name (SLAM_FLAG_NAMES where the flag's name differs).
+#: flag of its last name (FLAG_NAMES where the flag's name differs).
 SLAM_FIELDS = {"graph": ("frontend.resolution", "frontend.filter.max_range", "frontend.submap_distance",
                          "closures.enabled"),
                "rbpf": ("num_particles", "proposal", "seed", "threads", "resolution", "filter.max_range")}
-SLAM_FLAG_NAMES = {"num_particles": "--particles", "closures.enabled": "--no-loop-closures"}
+FLAG_NAMES = {"num_particles": "--particles", "version": "--variant", "closures.enabled": "--no-loop-closures",
+              "raw_log": "--log"}
 
 
 def _flag(path: str) -> str:
-    return SLAM_FLAG_NAMES.get(path, "--" + path.rsplit(".", 1)[-1].replace("_", "-"))
+    return FLAG_NAMES.get(path, "--" + path.rsplit(".", 1)[-1].replace("_", "-"))
 
 
 #: slam's flags by method: the option path each sets (the library's messages, which name the path,
@@ -329,12 +331,12 @@ def _cmd_slam(args: argparse.Namespace) -> int:
     from .slam import (INITIAL_MAP, OPTIONS_CLASSES, RunInterrupted, check_save_path, default_options,
                        load_initial_map, with_fields)
 
+    dests = {m: [flag[2:].replace("-", "_") for flag in SLAM_FLAGS[m].values()] for m in SLAM_FLAGS}
     if args.resume is not None:
-        _refuse_given(args, ("method", "particles", "proposal", "submap_distance", "no_loop_closures", "resolution",
-                             "max_range", "seed", "threads"),
+        _refuse_given(args, ["method", *dests["graph"], *dests["rbpf"]],
                       "does not apply with --resume (the run goes on with its saved options)")
-    _refuse_given(args, ("particles", "proposal", "seed", "threads") if args.method == "graph"
-                  else ("submap_distance", "no_loop_closures"), f"does not apply to --method {args.method}")
+    _refuse_given(args, [d for d in dests["rbpf" if args.method == "graph" else "graph"] if d not in dests[args.method]],
+                  f"does not apply to --method {args.method}")
     flags = SLAM_FLAGS[args.method]
     given = {path: getattr(args, flag[2:].replace("-", "_")) for path, flag in flags.items() if flag in args.given.values()}
     with _option_flags(args, flags):
@@ -483,19 +485,41 @@ def _cmd_batch(args: argparse.Namespace) -> int:
 
 
 def _described(parser: argparse.ArgumentParser, options, paths, prefix: str = "", defaults: Dict[str, str] = {}):
-    """A flag for each field at ``paths`` of ``options`` (a described options class's instance,
-    whose values are the defaults shown; ``defaults``: the text of a default the run sets): --NAME
-    by the field's last name (``_flag``), its help ``prefix`` and the field's doc and unit, its type
-    the default's, a text field's choices the names its doc quotes; None until given, so that the
-    field keeps the run's own."""
+    """A flag for each field at ``paths`` of ``options`` (a bound options class's instance, or a
+    pipeline's options dataclass, whose values are the defaults shown; ``defaults``: the text of a
+    default the run sets): --NAME by the field's last name (``_flag``), its dest that name, its
+    help ``prefix`` and the field's description (doc, unit, choices; the fields it names as their
+    flags, "None: X" as the default), its type the default's; a field with a default is None until
+    given, so that the field keeps the run's own."""
     for path in paths:
         *groups, name = path.split(".")
         owner = functools.reduce(getattr, groups, options)
-        unit, doc = re.match(r"\w+(?: \((.*?)\))?: (.*)", getattr(type(owner), name).__doc__, re.S).groups()
-        value = getattr(owner, name)
-        kind = dict(choices=re.findall(r'"([^"]+)"', doc)) if isinstance(value, str) else dict(type=type(value))
-        text = f"{prefix}{doc}{', ' + unit if unit else ''} (default: {defaults.get(path, value)})"
-        parser.add_argument(_flag(path), default=None, help=text.replace("%", "%%"), **kind)
+        value, meta = getattr(owner, name), _description(owner, name)
+        doc = re.sub(r"``(\w+)``", lambda m: _flag(m.group(1)) if hasattr(owner, m.group(1)) else m.group(1),
+                     meta["doc"].replace("%", "%%"))
+        none = re.search(r" ?\(None: ([^)]*)\)", doc) if value is None else None  # what None means: the default
+        doc, shown = (doc.replace(none.group(0), ""), none.group(1)) if none else (doc, value)
+        shown = defaults.get(path, shown)
+        text = prefix + doc + (f", {meta['unit']}" if meta["unit"] else "") + ("" if shown is None or (
+            value is False) else f" (default: {shown})")
+        kind = meta.get("type") or (str if value is None else type(value))
+        if kind is bool:
+            action = argparse.BooleanOptionalAction if value is None else "store_true"
+            parser.add_argument(_flag(path), dest=name, action=action, help=text)
+            continue
+        # A bound options class's text field: the names its doc quotes (a dataclass field has its own).
+        choices = meta.get("choices") or (re.findall(r'"([^"]+)"', doc) if kind is str and "type" not in meta else None) or None
+        parser.add_argument(_flag(path), dest=name, default=None, choices=choices, type=None if kind is str else kind,
+                            metavar=None if choices else _flag(path)[2:].replace("-", "_").upper(), help=text)
+
+
+def _description(owner, name: str) -> dict:
+    """A field's doc, unit, choices and type: a dataclass field's metadata (``described``), or what
+    a bound options class's property says ("name (unit): doc")."""
+    if dataclasses.is_dataclass(owner):
+        return next(f.metadata for f in dataclasses.fields(owner) if f.name == name)
+    unit, doc = re.match(r"\w+(?: \((.*?)\))?: (.*)", getattr(type(owner), name).__doc__, re.S).groups()
+    return dict(doc=doc, unit=unit or "")
 
 
 def _outputs(parser, name: str, files: str, times: Optional[str] = None, plot: bool = True, progress: bool = True):
@@ -528,32 +552,19 @@ def _log_input(parser, default: str, poses: bool = False) -> None:
                         help="ROS bag: the laser's pose on the robot (m, m, rad; default: from tf_static)")
 
 
-def _landmark_parser(sub, name: str, method: str, what: str, unknown: str) -> argparse.ArgumentParser:
-    """ekf-slam's or fastslam's parser with the options they share: the dataset, the MRCLAM robot
-    and noise, the outputs."""
+def _landmark_parser(sub, name: str, method: str, what: str, fields) -> None:
+    """ekf-slam's or fastslam's parser: the dataset, the LandmarkRunOptions ``fields`` of the method
+    and those they share (the MRCLAM robot and noise, the refinement), the outputs."""
     p = _command(sub, name, _cmd_landmarks, f"{what} on a landmark dataset (MRCLAM folder or Victoria Park file)")
     p.set_defaults(method=method)
     p.add_argument("dataset", nargs="?", help="a UTIAS MRCLAM folder, Victoria Park in iSAM/GTSAM text format, or the "
                                               "original Victoria Park run's folder; default: a bundled MRCLAM excerpt "
                                               "(Dataset 7, robot 1, 120 s)")
-    p.add_argument("--unknown", action="store_true", help=f"hide the correspondences{unknown}")
-    p.add_argument("--robot", type=int, default=None, help="MRCLAM robot number (default 1)")
-    p.add_argument("--seconds", type=float, default=None,
-                   help="MRCLAM: use only the first SECONDS of the robot's odometry (default: all)")
-    p.add_argument("--raw-ranges", action="store_true", help="use MRCLAM's readings as ranges (by default they are "
-                   "taken as the camera's depth and turned into distances, see io.MRCLAM_RANGE_SCALE)")
-    for flag, sigma, text in (("--sigma-v", mrclam.MOTION_SIGMA[0], "odometry noise, m/s per 10 ms command"),
-                              ("--sigma-w", mrclam.MOTION_SIGMA[1], "odometry noise, rad/s per 10 ms command"),
-                              ("--sigma-r", mrclam.MEASUREMENT_SIGMA[0], "range noise, m"),
-                              ("--sigma-phi", mrclam.MEASUREMENT_SIGMA[1], "bearing noise, rad")):
-        p.add_argument(flag, type=float, default=None, help=f"MRCLAM {text} (default: {sigma})")
-    p.add_argument("--refine", choices=("none", "graphslam"), default="none",
-                   help="with --unknown (always, on the original Victoria Park run): after the filter, GraphSLAM over "
-                        "all sightings with the correspondence test of ch. 11.6 (merge, split, re-associate until "
-                        "stable; docs/landmark_refine.md)")
+    sigmas = dict(zip(("sigma_v", "sigma_w", "sigma_r", "sigma_phi"), mrclam.MOTION_SIGMA + mrclam.MEASUREMENT_SIGMA))
+    _described(p, LandmarkRunOptions(), ("unknown",) + fields + ("robot", "seconds", "raw_ranges", *sigmas, "refine"),
+               defaults=sigmas)
     _outputs(p, name.replace("-", "_"), "PREFIX_trajectory.tum, PREFIX.png", "times in seconds (MRCLAM) or the pose's "
              "index (Victoria Park, whose file has no times)")
-    return p
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -564,15 +575,11 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     p = _command(sub, "map", _cmd_map, "occupancy grid map of a CARMEN laser log or ROS bag with known (corrected) poses")
     _log_input(p, "a bundled excerpt of the Intel Research Lab log", poses=True)
-    model = "; with --inverse-model the model's own, {} for the bundled one)"
-    p.add_argument("--resolution", type=float, help=f"cell size, m (default {MAP_RESOLUTION:g}" + model.format(0.1))
-    p.add_argument("--max-range", type=float, help=f"readings at or beyond this (m) only clear space (default "
-                                                   f"{MAP_MAX_RANGE:g}" + model.format(10))
-    p.add_argument("--robot-radius", type=float, default=MapOptions().robot_radius, help="clear the robot's footprint, m")
+    _described(p, MapOptions(), ("resolution", "max_range", "robot_radius", "inverse_model"),
+               defaults={"resolution": f"{MAP_RESOLUTION:g}; with --inverse-model the model's own",
+                         "max_range": f"{MAP_MAX_RANGE:g}; with --inverse-model the model's own"})
     p.add_argument("--keep-no-return", dest="skip_no_return", action="store_false",
                    help="let readings at the sensor maximum clear space (default: skip them)")
-    p.add_argument("--inverse-model", metavar="MODEL.npz", help="map with a learned inverse sensor model (ch. 9.3, "
-                   "LearnedInverseModel.save) instead of the ray model; 'bundled': the Intel laser's")
     _outputs(p, "map", "PREFIX.yaml/.pgm/.png")
 
     sl = _command(sub, "slam", _cmd_slam, "map a raw CARMEN laser log or ROS bag (odometry and scans): scan matching "
@@ -581,10 +588,9 @@ def build_parser() -> argparse.ArgumentParser:
     sl.add_argument("--method", choices=("graph", "rbpf"), default="graph",
                     help="graph: GraphSLAM over submaps (default); rbpf: grid-based FastSLAM (particle filter)")
     graph, rbpf = SubmapSlamOptions(), GridFastSlamOptions()
-    sl.add_argument("--resolution", type=float, help=f"cell size, m (default {graph.frontend.resolution}; with --map "
-                                                     "the map's)")
-    _described(sl, graph, ("frontend.filter.max_range", "frontend.submap_distance"),
-               defaults={"frontend.filter.max_range": "from the log"})
+    _described(sl, graph, SLAM_FIELDS["graph"][:3], defaults={
+        "frontend.resolution": f"{graph.frontend.resolution}; with --map the map's", "frontend.filter.max_range": "from "
+        "the log"})
     sl.add_argument("--no-loop-closures", action="store_false", default=None, help="scan matching and submaps only")
     sl.add_argument("--particles", type=int, help=f"rbpf: number of particles (default {rbpf.num_particles}, not "
                     f"fastslam's {LandmarkRunOptions.num_particles}: each carries a grid map; docs/cli.md)")
@@ -612,42 +618,14 @@ def build_parser() -> argparse.ArgumentParser:
                                                      "seed", "threads"), defaults={"max_range": "from the log"})
     _outputs(lo, "localize", "PREFIX_trajectory.tum, PREFIX.png", "the laser poses at the log's scan times (s)")
 
-    e = _landmark_parser(sub, "ekf-slam", "ekf", "EKF SLAM", " (Table 10.2)")
-    e.add_argument("--association", choices=ASSOCIATIONS, help="with --unknown on MRCLAM: joint compatibility, "
-                   "maximum likelihood or multiple hypotheses (default: mht; docs/ekf_slam.md)")
-    e.add_argument("--bearing-offset", type=float, default=0.0, metavar="SIGMA", help="with --association mht: a "
-                   "bearing offset (rad) shared by each scan's sightings; --sigma-phi is then the part not shared")
-    f = _landmark_parser(sub, "fastslam", "fastslam", "FastSLAM 1.0 / 2.0",
-                         ": each particle associates by maximum likelihood")
-    lro = LandmarkRunOptions()  # the flags' defaults are the pipeline's
-    f.add_argument("--particles", dest="num_particles", metavar="PARTICLES", type=int, default=lro.num_particles,
-                   help=f"number of particles (not slam's {rbpf.num_particles}: a particle holds a few landmarks)")
-    f.add_argument("--variant", dest="version", type=int, choices=(1, 2), default=lro.version,
-                   help="1: FastSLAM 1.0 (default); 2: FastSLAM 2.0, the proposal that includes the measurements")
-    f.add_argument("--seed", type=int, default=lro.seed, help="random seed")
-    f.add_argument("--threads", type=int, default=lro.threads, help="threads (same result for any count)")
+    _landmark_parser(sub, "ekf-slam", "ekf", "EKF SLAM", ("association", "bearing_offset"))
+    _landmark_parser(sub, "fastslam", "fastslam", "FastSLAM 1.0 / 2.0", ("num_particles", "version", "seed", "threads"))
 
     o = _command(sub, "optimize", _cmd_optimize, "optimise a 2-D pose/landmark graph or a 3-D pose graph (g2o, TORO "
                  "or iSAM text; the dimension is read from the file)")
     o.add_argument("graph", nargs="?", help="graph file: .g2o, TORO .graph or iSAM .txt, 2-D or 3-D; default: the "
                    "Intel graph's first 400 poses (3-D: probslam.data.path('parking_garage_400.g2o'))")
-    gfo = GraphFileOptions()  # the flags' defaults are the pipeline's
-    o.add_argument("--format", default=gfo.format, choices=["auto", "g2o", "toro", "isam"],
-                   help="the graph file's format (auto: from its records)")
-    o.add_argument("--noise", default=gfo.noise, choices=NOISE_CONVENTIONS, help="what the edges' noise entries "
-                   "hold (auto: the format's own, covariances in GTSAM's iSAM copies named '*gtsam*')")
-    o.add_argument("--algorithm", default=gfo.algorithm, choices=["gauss-newton", "levenberg-marquardt"],
-                   help="the least-squares solver")
-    o.add_argument("--init", choices=list(INITIALIZATIONS), help="starting point (default: file in 2-D, dead "
-                   "reckoning for iSAM files, ekf with landmarks, chordal in 3-D; docs/cli.md)")
-    o.add_argument("--poses-per-step", type=int, help="with --init incremental: poses per step (default 100)")
-    o.add_argument("--max-iterations", type=int, default=gfo.max_iterations,
-                   help="iterations at most; a run that has not converged by then exits with status 3")
-    o.add_argument("--kernel", default=gfo.kernel, choices=["none", "huber", "cauchy"], help="robust kernel")
-    o.add_argument("--kernel-width", type=float, help="kernel width, in units of sqrt(chi2) (default 1)")
-    o.add_argument("--linear-solver", choices=["simplicial", "supernodal", "auto"],
-                   help="sparse Cholesky: default supernodal")
-    o.add_argument("--ordering", choices=["amd", "metis"], help="fill-reducing ordering: default amd 2-D, metis 3-D")
+    _described(o, GraphFileOptions(), [f.name for f in dataclasses.fields(GraphFileOptions)])
     o.add_argument("--edges", action="store_true", help="draw every edge in the picture")
     _outputs(o, "optimized", "PREFIX.g2o/.png, PREFIX_trajectory.tum",
              "a graph file has no times: each pose's vertex id is its time")
@@ -658,19 +636,7 @@ def build_parser() -> argparse.ArgumentParser:
                                                     "'t x y theta' rows, as the commands write it (PREFIX_trajectory.tum)")
     ev.add_argument("reference", metavar="REF", help="the ground truth: a trajectory file as EST, a relations file "
                     "(aces.relations), a CARMEN log with corrected poses, or 't x y' rows (a GPS track; docs/cli.md)")
-    ev.add_argument("--reference-format", choices=REFERENCE_FORMATS, default="auto",
-                    help="what REF is (auto: by its name, else the trajectory format its rows show)")
-    ev.add_argument("--rpe", action="store_true",
-                    help="relative pose error over consecutive pairs --delta apart (default: absolute error)")
-    ev.add_argument("--delta", type=float, help="with --rpe: the pairs' distance (default 1)")
-    ev.add_argument("--delta-unit", choices=("frames", "m", "s"),
-                    help="with --rpe: delta in poses (default), metres travelled or seconds")
-    ev.add_argument("--align", action=argparse.BooleanOptionalAction, help="move the estimate onto the reference "
-                    "first (Umeyama without scale); default: for the absolute error, not for --rpe (as evo)")
-    ev.add_argument("--log", dest="raw_log", metavar="LOG", help="with a relations file: the raw CARMEN log the "
-                    "estimate was made from, whose logger time each relation time is moved onto")
-    ev.add_argument("--max-time-difference", type=float, help="poses are paired with the nearest reference pose at "
-                                                              "most this far in time, s (default 0.01, evo's)")
+    _described(ev, EvaluationOptions(), [f.name for f in dataclasses.fields(EvaluationOptions)])
 
     ba = _command(sub, "batch", _cmd_batch, "a sweep of runs (datasets x commands x option grids x seeds) on Dask "
                   "distributed, one row per run in DIR/results.parquet and results.csv (docs/batch.md; needs "
