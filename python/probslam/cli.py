@@ -23,14 +23,14 @@ from . import __version__, io
 from .data import path as _data_path
 from .datasets import carmen, mrclam
 from ._core import GridFastSlamOptions, MonteCarloLocalizationOptions, SubmapSlamOptions
-from .pipelines.landmark_run import ASSOCIATIONS, LandmarkRun, LandmarkRunOptions
-from .pipelines.optimize_file import INITIALIZATIONS, NOISE_CONVENTIONS, GraphFileOptions, GraphFileRun
+from .pipelines.landmark_run import LandmarkRun, LandmarkRunOptions
+from .pipelines.optimize_file import GraphFileOptions, GraphFileRun
 from .io.trajectory import TRAJECTORY_FORMATS
 from . import localization
 from .mapping import DEFAULT_MAX_RANGE as MAP_MAX_RANGE, DEFAULT_RESOLUTION as MAP_RESOLUTION
 from .pipelines.localize_log import localize_log
 from .pipelines.map_log import MapOptions, MapRun
-from .pipelines.evaluate_trajectory import REFERENCE_FORMATS, EvaluationOptions, TrajectoryEvaluation
+from .pipelines.evaluate_trajectory import EvaluationOptions, TrajectoryEvaluation
 
 BUNDLED_LOG = "intel_excerpt.log.gz"
 #: A raw log (odometry and scans, no corrected poses): the Intel Research Lab's first loop, short of
@@ -99,9 +99,8 @@ class UserError(Exception):
 
 
 class _HelpFormatter(argparse.RawDescriptionHelpFormatter):
-    """Every option that takes a value shows its default: " (default: X)" after its help (X
-    "none" for an option that is off unless given), unless the help says it already (the word
-    "default")."""
+    """Every option that takes a value shows its default ("none": off unless given), unless its
+    help says it."""
 
     def _get_help_string(self, action: argparse.Action) -> str:
         text = action.help or ""
@@ -112,9 +111,8 @@ class _HelpFormatter(argparse.RawDescriptionHelpFormatter):
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse with its usage errors as one line on stderr (exit status 2, as argparse's own),
-    like every other user error, naming the subcommand's -h and suggesting the option or choice
-    meant when one is close; ``-h`` still shows the usage, every option with its default."""
+    """argparse with its usage errors as one line on stderr (exit status 2), like every other user
+    error, naming the subcommand's -h and the option or choice meant when one is close."""
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, formatter_class=_HelpFormatter, **kwargs)
@@ -126,8 +124,7 @@ class _Parser(argparse.ArgumentParser):
         self.exit(2, f"{self.prog}: error: {message} (see '{self.prog} -h')\n")
 
     def parse_args(self, args=None, namespace=None):
-        """As argparse's, but an unknown option is reported by the subcommand's parser (whose
-        -h lists the options), with the nearest of its options when one is close."""
+        """An unknown option reported by the subcommand's parser, with the nearest of its options."""
         parsed, extras = self.parse_known_args(args, namespace)
         if extras:
             parser = self._command_parser(parsed)
@@ -159,10 +156,8 @@ def _one_line(exc: BaseException) -> str:
 
 def _as_given(text: str, names: Dict[str, str], args: Optional[argparse.Namespace] = None) -> Tuple[str, bool]:
     """A library message told as the command line gave it, and whether it named anything: its
-    subject (a leading name of ``names``, the library's parameter or option field) becomes what the
-    command line calls it, with the value given (from ``args``) unless the message says it already
-    ("min_particles must ..." -> "--min-particles 0: must ..."); the other names it mentions become
-    theirs where they cannot be prose (an identifier with an underscore: "4 worker threads" stays)."""
+    subject (a leading name of ``names``) as the flag with the value given ("min_particles must ..."
+    -> "--min-particles 0: must ..."), the other names with an underscore as theirs."""
     pattern = r"(?<![-\w.])(" + "|".join(sorted(map(re.escape, names), key=len, reverse=True)) + r")\b(?![.])"
     subject = re.match(pattern, text)
     rest = text[subject.end():] if subject else text
@@ -172,9 +167,8 @@ def _as_given(text: str, names: Dict[str, str], args: Optional[argparse.Namespac
         return rest, bool(mentioned)
     name, colon = subject.group(1), ":" if rest.startswith(":") else ""
     rest = rest.lstrip(": ")
-    # The value given: the flag's dest, named as the option (min_particles) or as the flag
-    # (frontend.resolution is --resolution's).
-    given = None if args is None else getattr(args, name, getattr(args, names[name].lstrip("-").replace("-", "_"), None))
+    # The value given: the flag's dest, named as the option (min_particles) or as the flag (--resolution).
+    given = getattr(args, name, getattr(args, names[name].lstrip("-").replace("-", "_"), None)) if args else None
     if isinstance(given, (list, tuple)):
         given = " ".join(map(str, given))
     if given is None or isinstance(given, bool) or rest.startswith(f"{given} ") or f"got {given}" in rest:
@@ -184,9 +178,8 @@ def _as_given(text: str, names: Dict[str, str], args: Optional[argparse.Namespac
 
 @contextlib.contextmanager
 def _option_flags(args: argparse.Namespace, names: Optional[Dict[str, str]] = None) -> Iterator[None]:
-    """The library's errors about an option, told as the flag that set it with its value
-    (``_as_given``; ``names``: field -> flag, default each option's dest -> its flag): the library
-    checks the values; the CLI does not check them again."""
+    """The library's errors about an option told as the flag that set it (``_as_given``; ``names``:
+    field -> flag, default each option's dest -> its flag): the CLI does not check values again."""
     try:
         yield
     except (TypeError, ValueError) as exc:
@@ -197,16 +190,15 @@ def _option_flags(args: argparse.Namespace, names: Optional[Dict[str, str]] = No
 
 
 def _options(options, args: argparse.Namespace):
-    """``options.replace`` with each field that a flag of its name sets (a flag not given, None,
-    leaves the options' own), the library's refusals told as the flags."""
+    """``options.replace`` with the field of each flag given (its dest), refusals told as the flags."""
     fields = options.as_dict() if hasattr(options, "as_dict") else vars(options)
     with _option_flags(args):
-        return options.replace(**{k: getattr(args, k) for k in args.flags if k in fields and getattr(args, k) is not None})
+        return options.replace(**{k: getattr(args, k) for k in fields
+                                  if k in args.flags and getattr(args, k) is not None})
 
 
 def _check_input(path: str, expected: str, folder: bool = False) -> None:
-    """UserError naming ``path`` when it is missing, empty, or not a regular file (or a folder,
-    with ``folder``)."""
+    """UserError naming ``path`` when it is missing, empty, or not a regular file (or a ``folder``)."""
     try:
         mode = os.stat(path).st_mode
     except FileNotFoundError:
@@ -224,11 +216,9 @@ def _check_input(path: str, expected: str, folder: bool = False) -> None:
 
 @contextlib.contextmanager
 def _reading(path: str, expected: str, names: Optional[Dict[str, str]] = None, folder: bool = False) -> Iterator[None]:
-    """``path`` checked (``_check_input``), then a reader's error turned into a UserError that
-    names it and what was expected. ``names``: what the command line calls the library parameters
-    that an error may name (``scan_topic`` -> ``--scan-topic``, ``times_est`` -> the estimate's
-    file): such an error is about that option or file, not about the file's format, so it says so
-    without the "expected ..." tail."""
+    """``path`` checked, then a reader's error as a UserError naming it and what was ``expected``;
+    an error that names a parameter of ``names`` (``scan_topic`` -> ``--scan-topic``) is about it,
+    not the file's format: told as it, without "expected"."""
     _check_input(path, expected, folder)
     try:
         yield
@@ -242,8 +232,7 @@ def _reading(path: str, expected: str, names: Optional[Dict[str, str]] = None, f
 
 
 def _save_figure(plt, fig, path: str) -> str:
-    """Writes `fig` to `path` (120 dpi) and closes it; returns the path. The bounding box is
-    fitted to what is drawn, a legend beside the axes included."""
+    """`fig` written to `path` (120 dpi, the box fitted to what is drawn, a legend beside included)."""
     fig.tight_layout()
     fig.savefig(path, dpi=120, bbox_inches="tight")
     plt.close(fig)
@@ -251,8 +240,7 @@ def _save_figure(plt, fig, path: str) -> str:
 
 
 def _picture(run, args: argparse.Namespace, **draw) -> List[str]:
-    """[PREFIX.png] drawn by a pipeline's run (``run.draw(plt, **draw)``); without matplotlib,
-    after a notice, its plain picture (``run.write_plain_picture``) or none; [] with --no-plot."""
+    """[PREFIX.png] drawn by the run (``draw``), without matplotlib its plain picture if it has one."""
     from .plot import require_matplotlib
 
     if not args.plot:
@@ -272,8 +260,7 @@ def _progress(args: argparse.Namespace) -> Optional[bool]:
 
 
 def _read_log(path: str, args: argparse.Namespace):
-    """The CARMEN log or ROS bag at ``path`` (a bag with the topic and offset flags given);
-    UserError naming the file, or the option given for a CARMEN log."""
+    """The CARMEN log or ROS bag at ``path`` (a bag with the topic and offset flags given)."""
     bag = {name: getattr(args, name) for name in BAG_OPTIONS if getattr(args, name, None) is not None}
     if io.rosbag.is_bag(path):
         with _reading(path, ROS_BAG, {name: "--" + name.replace("_", "-") for name in BAG_OPTIONS}, folder=True):
@@ -289,8 +276,7 @@ BAG_OPTIONS = ("scan_topic", "odom_topic", "pose_topic", "laser_offset")
 
 
 def _check_output(prefix: str) -> None:
-    """UserError naming -o when the output prefix's folder is missing or not writable: checked
-    before the run, which may take minutes, rather than when the first file is written."""
+    """UserError naming -o when its folder is missing or not writable: before a run of minutes."""
     folder = os.path.dirname(prefix) or "."
     if not os.path.isdir(folder):
         raise UserError(f"-o {prefix}: folder {folder} does not exist")
@@ -315,8 +301,7 @@ def _cmd_map(args: argparse.Namespace) -> int:
 
 
 def _resume_command(args: argparse.Namespace, run_file: str) -> str:
-    """The slam command that continues an interrupted run from run_file: the same log and
-    outputs (the saved run keeps its method and options)."""
+    """The slam command that continues from run_file: the same log and outputs."""
     words = ["probslam", "slam"] + ([args.log] if args.log else [])
     for flag, value in (("--scan-topic", args.scan_topic), ("--odom-topic", args.odom_topic),
                         ("--trajectory-format", None if args.trajectory_format == "tum" else args.trajectory_format),
@@ -335,10 +320,11 @@ def _cmd_slam(args: argparse.Namespace) -> int:
     if args.resume is not None:
         _refuse_given(args, ["method", *dests["graph"], *dests["rbpf"]],
                       "does not apply with --resume (the run goes on with its saved options)")
-    _refuse_given(args, [d for d in dests["rbpf" if args.method == "graph" else "graph"] if d not in dests[args.method]],
-                  f"does not apply to --method {args.method}")
+    other = dests["rbpf" if args.method == "graph" else "graph"]
+    _refuse_given(args, [d for d in other if d not in dests[args.method]], f"does not apply to --method {args.method}")
     flags = SLAM_FLAGS[args.method]
-    given = {path: getattr(args, flag[2:].replace("-", "_")) for path, flag in flags.items() if flag in args.given.values()}
+    given = {path: getattr(args, flag[2:].replace("-", "_")) for path, flag in flags.items()
+             if flag in args.given.values()}
     with _option_flags(args, flags):
         with_fields(OPTIONS_CLASSES[args.method](), given)  # the library checks the flags before the log is read
     _check_output(args.output)
@@ -485,12 +471,9 @@ def _cmd_batch(args: argparse.Namespace) -> int:
 
 
 def _described(parser: argparse.ArgumentParser, options, paths, prefix: str = "", defaults: Dict[str, str] = {}):
-    """A flag for each field at ``paths`` of ``options`` (a bound options class's instance, or a
-    pipeline's options dataclass, whose values are the defaults shown; ``defaults``: the text of a
-    default the run sets): --NAME by the field's last name (``_flag``), its dest that name, its
-    help ``prefix`` and the field's description (doc, unit, choices; the fields it names as their
-    flags, "None: X" as the default), its type the default's; a field with a default is None until
-    given, so that the field keeps the run's own."""
+    """A flag (``_flag``, dest the field's name) for each field at ``paths`` of ``options`` (a bound
+    options class's or pipeline options dataclass's instance: the defaults shown, ``defaults`` the
+    text of those the run sets) from the field's description; None until given (the run's own)."""
     for path in paths:
         *groups, name = path.split(".")
         owner = functools.reduce(getattr, groups, options)
@@ -508,14 +491,14 @@ def _described(parser: argparse.ArgumentParser, options, paths, prefix: str = ""
             parser.add_argument(_flag(path), dest=name, action=action, help=text)
             continue
         # A bound options class's text field: the names its doc quotes (a dataclass field has its own).
-        choices = meta.get("choices") or (re.findall(r'"([^"]+)"', doc) if kind is str and "type" not in meta else None) or None
+        quoted = re.findall(r'"([^"]+)"', doc) if kind is str and "type" not in meta else None
+        choices = meta.get("choices") or quoted or None
         parser.add_argument(_flag(path), dest=name, default=None, choices=choices, type=None if kind is str else kind,
                             metavar=None if choices else _flag(path)[2:].replace("-", "_").upper(), help=text)
 
 
 def _description(owner, name: str) -> dict:
-    """A field's doc, unit, choices and type: a dataclass field's metadata (``described``), or what
-    a bound options class's property says ("name (unit): doc")."""
+    """A field's doc, unit, choices, type: a dataclass's (``described``) or a bound class's property doc."""
     if dataclasses.is_dataclass(owner):
         return next(f.metadata for f in dataclasses.fields(owner) if f.name == name)
     unit, doc = re.match(r"\w+(?: \((.*?)\))?: (.*)", getattr(type(owner), name).__doc__, re.S).groups()
@@ -523,8 +506,7 @@ def _description(owner, name: str) -> dict:
 
 
 def _outputs(parser, name: str, files: str, times: Optional[str] = None, plot: bool = True, progress: bool = True):
-    """-o (``name`` the default prefix, ``files`` what it names), --trajectory-format (``times``:
-    what a trajectory's times are; None: no trajectory), --no-plot and --no-progress."""
+    """-o (``name``: default prefix, ``files``), --trajectory-format (``times``), --no-plot, --no-progress."""
     if name:
         parser.add_argument("-o", "--output", default=name, help=f"output prefix: {files} (default '{name}')")
     if times:
@@ -539,7 +521,7 @@ def _outputs(parser, name: str, files: str, times: Optional[str] = None, plot: b
 
 
 def _log_input(parser, default: str, poses: bool = False) -> None:
-    """LOG (``default`` says the bundled one) and the options of a ROS bag: topics, the laser's offset."""
+    """LOG (``default``: the bundled one) and a ROS bag's options: topics, the laser's offset."""
     parser.add_argument("log", nargs="?", help="CARMEN log (.log/.clf, optionally .gz/.bz2) or ROS bag (.bag, a ROS 2 "
                                                f"folder, .db3, .mcap); default: {default}")
     parser.add_argument("--scan-topic", help="ROS bag: the sensor_msgs/LaserScan topic (default: the only one)")
@@ -553,8 +535,8 @@ def _log_input(parser, default: str, poses: bool = False) -> None:
 
 
 def _landmark_parser(sub, name: str, method: str, what: str, fields) -> None:
-    """ekf-slam's or fastslam's parser: the dataset, the LandmarkRunOptions ``fields`` of the method
-    and those they share (the MRCLAM robot and noise, the refinement), the outputs."""
+    """ekf-slam's or fastslam's parser: the dataset, the method's LandmarkRunOptions ``fields`` and
+    the shared ones."""
     p = _command(sub, name, _cmd_landmarks, f"{what} on a landmark dataset (MRCLAM folder or Victoria Park file)")
     p.set_defaults(method=method)
     p.add_argument("dataset", nargs="?", help="a UTIAS MRCLAM folder, Victoria Park in iSAM/GTSAM text format, or the "
@@ -573,7 +555,8 @@ def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(prog="probslam", description="Probabilistic robot mapping and SLAM.", epilog=EPILOG)
     parser.add_argument("--version", action="version", version=f"probslam {__version__}")
     sub = parser.add_subparsers(dest="command", required=True)
-    p = _command(sub, "map", _cmd_map, "occupancy grid map of a CARMEN laser log or ROS bag with known (corrected) poses")
+    p = _command(sub, "map", _cmd_map, "occupancy grid map of a CARMEN laser log or ROS bag with known (corrected) "
+                 "poses")
     _log_input(p, "a bundled excerpt of the Intel Research Lab log", poses=True)
     _described(p, MapOptions(), ("resolution", "max_range", "robot_radius", "inverse_model"),
                defaults={"resolution": f"{MAP_RESOLUTION:g}; with --inverse-model the model's own",
@@ -588,9 +571,9 @@ def build_parser() -> argparse.ArgumentParser:
     sl.add_argument("--method", choices=("graph", "rbpf"), default="graph",
                     help="graph: GraphSLAM over submaps (default); rbpf: grid-based FastSLAM (particle filter)")
     graph, rbpf = SubmapSlamOptions(), GridFastSlamOptions()
-    _described(sl, graph, SLAM_FIELDS["graph"][:3], defaults={
-        "frontend.resolution": f"{graph.frontend.resolution}; with --map the map's", "frontend.filter.max_range": "from "
-        "the log"})
+    _described(sl, graph, SLAM_FIELDS["graph"][:3], defaults={"frontend.filter.max_range": "from the log",
+                                                               "frontend.resolution": f"{graph.frontend.resolution}; "
+                                                                                      "with --map the map's"})
     sl.add_argument("--no-loop-closures", action="store_false", default=None, help="scan matching and submaps only")
     sl.add_argument("--particles", type=int, help=f"rbpf: number of particles (default {rbpf.num_particles}, not "
                     f"fastslam's {LandmarkRunOptions.num_particles}: each carries a grid map; docs/cli.md)")
@@ -633,7 +616,7 @@ def build_parser() -> argparse.ArgumentParser:
     ev = _command(sub, "eval", _cmd_eval, "score a trajectory against a ground truth: absolute or relative trajectory "
                   "error (as evo_ape / evo_rpe print them), or the relations error")
     ev.add_argument("estimate", metavar="EST", help="the trajectory to score: TUM, KITTI (times in NAME_times.txt) or "
-                                                    "'t x y theta' rows, as the commands write it (PREFIX_trajectory.tum)")
+                    "'t x y theta' rows, as the commands write it (PREFIX_trajectory.tum)")
     ev.add_argument("reference", metavar="REF", help="the ground truth: a trajectory file as EST, a relations file "
                     "(aces.relations), a CARMEN log with corrected poses, or 't x y' rows (a GPS track; docs/cli.md)")
     _described(ev, EvaluationOptions(), [f.name for f in dataclasses.fields(EvaluationOptions)])
@@ -650,7 +633,7 @@ def build_parser() -> argparse.ArgumentParser:
     ba.add_argument("--memory-limit", default="auto", help="local cluster: memory per worker, e.g. 4GB; a worker past "
                                                            "it is restarted and its run retried")
     ba.add_argument("--time-limit", type=float, metavar="S", help="seconds a run may take before it is recorded as "
-                                                                  "timeout (default: the sweep's time_limit, else none)")
+                    "timeout (default: the sweep's time_limit, else none)")
     _outputs(ba, "", "", plot=False)
     return parser
 
@@ -662,17 +645,15 @@ def _command(sub, name: str, func, text: str) -> argparse.ArgumentParser:
 
 
 def main(argv: Optional[List[str]] = None) -> int:
-    """Run the command line; returns the exit status (0 ok, 2 user or input error, 1 unexpected
-    error, 141 when the reader of a pipe stopped). Set PROBSLAM_DEBUG=1 to see the traceback of
-    an unexpected error."""
+    """Runs the command line; the exit status (EPILOG). PROBSLAM_DEBUG=1 shows an unexpected error's
+    traceback."""
     try:
         status = _run(argv)
         sys.stdout.flush()  # a pipe closed under buffered output shows here, not at exit
         return status
     except BrokenPipeError:
-        # The reader stopped (probslam ... | head -1): quiet, with the status a tool killed by
-        # SIGPIPE has, as other command-line tools. The output left is dropped, not flushed into
-        # the closed pipe at exit (which Python would report).
+        # The reader stopped (probslam ... | head -1): quiet, the status of a tool killed by SIGPIPE;
+        # the output left is dropped, not flushed into the closed pipe at exit.
         with contextlib.suppress(OSError, ValueError):
             os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         return EXIT_BROKEN_PIPE
@@ -716,8 +697,7 @@ def _long_options(*parsers: argparse.ArgumentParser) -> Dict[str, str]:
 
 
 def _given_options(argv: Optional[List[str]]) -> Dict[str, str]:
-    """dest -> option (its long form) of each option given on the command line, defaults not
-    counted: the command line parsed again by a parser in which nothing has a default."""
+    """dest -> option (its long form) of each option given: parsed again with no defaults."""
     parsers = [build_parser()]
     for p in parsers:
         p._defaults.clear()
@@ -730,16 +710,14 @@ def _given_options(argv: Optional[List[str]]) -> Dict[str, str]:
 
 
 def _output_prefix(output: str, stem: str) -> str:
-    """-o as a prefix: a folder (one that exists, or a name ending in a slash) holds the files
-    under the command's own name (-o out/: out/map.yaml, not out/.yaml)."""
+    """-o as a prefix: a folder (existing, or ending in a slash) holds files of the command's name."""
     if output.endswith(("/", os.sep)) or os.path.isdir(output):
         return os.path.join(output, stem)
     return output
 
 
 def _refuse_given(args: argparse.Namespace, dests, why: str) -> None:
-    """UserError naming the first of the options ``dests`` given on the command line: it does
-    not apply to this run (``why``), and would otherwise pass unnoticed."""
+    """UserError naming the first of ``dests`` given: it does not apply to this run (``why``)."""
     for dest in dests:
         if dest in args.given:
             raise UserError(f"{args.given[dest]} {why}")

@@ -35,7 +35,8 @@ class MapOptions(Options):
     resolution: Optional[float] = described(None, "cell size (None: mapping.DEFAULT_RESOLUTION; with "
                                                   "``inverse_model`` the model's own)", "m", type=float)
     max_range: Optional[float] = described(None, "readings at or beyond it only clear space (None: "
-                                                 "mapping.DEFAULT_MAX_RANGE; with ``inverse_model`` the model's own)", "m", type=float)
+                                                 "mapping.DEFAULT_MAX_RANGE; with ``inverse_model`` the model's own)",
+                                           "m", type=float)
     robot_radius: float = described(0.0, "clear the robot's footprint (ray model only)", "m")
     skip_no_return: bool = described(True, "drop readings at the sensor maximum (they mean \"nothing seen\"; ray "
                                            "model only)")
