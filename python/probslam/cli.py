@@ -470,7 +470,8 @@ def _cmd_batch(args: argparse.Namespace) -> int:
     return 0
 
 
-def _described(parser: argparse.ArgumentParser, options, paths, prefix: str = "", defaults: Dict[str, str] = {}):
+def _described(parser: argparse.ArgumentParser, options, paths, prefix: str = "",
+               defaults: Optional[Dict[str, str]] = None):
     """A flag (``_flag``, dest the field's name) for each field at ``paths`` of ``options`` (a bound
     options class's or pipeline options dataclass's instance: the defaults shown, ``defaults`` the
     text of those the run sets) from the field's description; None until given (the run's own)."""
@@ -482,11 +483,11 @@ def _described(parser: argparse.ArgumentParser, options, paths, prefix: str = ""
                      meta["doc"].replace("%", "%%"))
         none = re.search(r" ?\(None: ([^)]*)\)", doc) if value is None else None  # what None means: the default
         doc, shown = (doc.replace(none.group(0), ""), none.group(1)) if none else (doc, value)
-        shown = defaults.get(path, shown)
+        shown = (defaults or {}).get(path, shown)
         text = prefix + doc + (f", {meta['unit']}" if meta["unit"] else "") + ("" if shown is None or (
             value is False) else f" (default: {shown})")
         kind = meta.get("type") or (str if value is None else type(value))
-        if kind is bool:
+        if kind is bool:  # off by default, or None (--X / --no-X); a field on by default is written by hand
             action = argparse.BooleanOptionalAction if value is None else "store_true"
             parser.add_argument(_flag(path), dest=name, action=action, help=text)
             continue
