@@ -286,7 +286,6 @@ def _check_output(prefix: str) -> None:
 
 def _cmd_map(args: argparse.Namespace) -> int:
     options = _options(MapOptions(), args)
-    _check_output(args.output)
     path, t0 = args.log or _bundled_log(), time.perf_counter()
     log = _read_log(path, args)
     with _option_flags(args):
@@ -327,7 +326,6 @@ def _cmd_slam(args: argparse.Namespace) -> int:
              if flag in args.given.values()}
     with _option_flags(args, flags):
         with_fields(OPTIONS_CLASSES[args.method](), given)  # the library checks the flags before the log is read
-    _check_output(args.output)
     path = args.log or _bundled_log(BUNDLED_SLAM_LOG)
     log, start = _read_log(path, args), {}
     if args.map is not None:
@@ -368,7 +366,6 @@ def _cmd_localize(args: argparse.Namespace) -> int:
     bundled = args.log is None and args.map is None
     if args.initial_pose is None and not args.global_ and not bundled:
         raise UserError("say where the robot starts: --initial-pose X Y THETA, or --global (anywhere in free space)")
-    _check_output(args.output)
     if bundled:  # global localization, what MCL can do that a tracker cannot
         args.log, args.map = _data_path(BUNDLED_RAW_LOG), _data_path(BUNDLED_LOCALIZATION_MAP)
         print("probslam localize: no LOG given: the bundled raw Intel loop in its bundled map, from a global start "
@@ -392,7 +389,6 @@ def _cmd_localize(args: argparse.Namespace) -> int:
 def _cmd_landmarks(args: argparse.Namespace) -> int:
     """ekf-slam and fastslam: ``pipelines.LandmarkRun`` on the dataset argument."""
     options = _options(LandmarkRunOptions(method=args.method), args)
-    _check_output(args.output)
     t0, path = time.perf_counter(), args.dataset or _data_path(BUNDLED_LANDMARKS)
     with _reading(path, LANDMARK_DATASET, folder=True), _option_flags(args):
         run = LandmarkRun.read(path, options)
@@ -409,7 +405,6 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
     if not args.plot:
         _refuse_given(args, ("edges",), "draws in the picture, which --no-plot leaves out")
     options = _options(GraphFileOptions(), args)
-    _check_output(args.output)
     path = args.graph or _data_path(BUNDLED_GRAPH)
     with _reading(path, ANY_POSE_GRAPH), _option_flags(args):
         run = GraphFileRun.read(path, options)
@@ -665,12 +660,13 @@ def _run(argv: Optional[List[str]]) -> int:
     args = parser.parse_args(argv)
     command = parser._command_parser(args)
     args.given, args.flags = _given_options(argv), _long_options(command)
-    if getattr(args, "output", None) is not None:
-        args.output = _output_prefix(args.output, command.get_default("output"))
     format_warning = warnings.formatwarning
     # A reader's warning (a few malformed lines skipped) as one line, without the source line.
     warnings.formatwarning = lambda message, category, *rest, **kw: f"probslam: warning: {message}\n"
     try:
+        if getattr(args, "output", None) is not None:
+            args.output = _output_prefix(args.output, command.get_default("output"))
+            _check_output(args.output)  # before any data is read: a run may take minutes
         return args.func(args)
     except KeyboardInterrupt:
         print("probslam: interrupted", file=sys.stderr)
