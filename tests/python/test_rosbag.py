@@ -527,7 +527,7 @@ def test_cli_bag_errors_exit_2(tmp_path, raw_log, capsys):
     assert cli.main(["slam", ps.data.path(INTEL_RAW), "--odom-topic", "/odom", "-o", out]) == 2
     assert "--odom-topic applies to ROS bags" in capsys.readouterr().err
     assert cli.main(["slam", str(raw), "--laser-offset", "0", "nan", "0", "-o", out]) == 2
-    assert "--laser-offset must be three finite numbers" in capsys.readouterr().err
+    assert "--laser-offset: must contain only finite values" in capsys.readouterr().err
     assert cli.main(["slam", str(tmp_path / "missing.bag"), "-o", out]) == 2
     assert "missing.bag: no such file" in capsys.readouterr().err
     scans_only = tmp_path / "scans_only.bag"

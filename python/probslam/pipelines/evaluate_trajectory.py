@@ -18,7 +18,7 @@ from typing import List, Optional, Union
 
 import numpy as np
 
-from ._options import Options
+from ._options import Options, described
 from .. import eval as evaluation
 from .. import io
 from .._args import positive_real, require_instance
@@ -40,26 +40,22 @@ LABEL_WIDTH = 15
 
 @dataclass
 class EvaluationOptions(Options):
-    """How ``evaluate_trajectory`` scores an estimate.
+    """How ``evaluate_trajectory`` scores an estimate."""
 
-    reference_format: what the reference is (REFERENCE_FORMATS; ``auto``: ``reference_kind``).
-    rpe: the relative pose error over consecutive pairs ``delta`` apart (False: the absolute error).
-    delta, delta_unit: with rpe, the pairs' distance (None: 1) in frames, m or s (None: frames).
-    align: move the estimate onto the reference first (Umeyama without scale); None: aligned for
-        the absolute error, not for rpe (as evo).
-    raw_log: with a relations file, the raw CARMEN log the estimate was made from (its ipc time
-        stamps the relations; each relation time is moved onto its logger time).
-    max_time_difference: poses are paired with the nearest reference pose at most this far in
-        time, s (None: ``eval.MAX_TIME_DIFFERENCE``, evo's 0.01).
-    """
-
-    reference_format: str = "auto"
-    rpe: bool = False
-    delta: Optional[float] = None
-    delta_unit: Optional[str] = None
-    align: Optional[bool] = None
-    raw_log: Optional[PathLike] = None
-    max_time_difference: Optional[float] = None
+    reference_format: str = described("auto", "what the reference is (auto: ``reference_kind``, a relations file by "
+                                      "'.relations' in its name, a CARMEN log by .log / .clf, else the trajectory "
+                                      "format its rows show)", choices=REFERENCE_FORMATS)
+    rpe: bool = described(False, "the relative pose error over consecutive pairs ``delta`` apart, not the absolute "
+                                 "error")
+    delta: Optional[float] = described(None, "with ``rpe``: the pairs' distance (None: 1)", type=float)
+    delta_unit: Optional[str] = described(None, "with ``rpe``: ``delta`` in poses, metres travelled or seconds "
+                                                "(None: frames)", choices=evaluation.DELTA_UNITS)
+    align: Optional[bool] = described(None, "move the estimate onto the reference first, Umeyama without scale "
+                                            "(None: for the absolute error, not for ``rpe``, as evo)", type=bool)
+    raw_log: Optional[PathLike] = described(None, "with a relations file: the raw CARMEN log the estimate was made "
+                                                  "from, whose logger time each relation time is moved onto", type=str)
+    max_time_difference: Optional[float] = described(None, "poses are paired with the nearest reference pose at most "
+                                                           "this far in time (None: 0.01, evo's)", "s", type=float)
 
     def validate(self) -> None:
         """ValueError / TypeError naming the first field that is wrong or does not apply."""

@@ -9,7 +9,6 @@ the datasets is theirs (``datasets.LandmarkDataset``), not this module's.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 import os
 import pathlib
@@ -19,6 +18,7 @@ from typing import List, Optional, Union
 
 import numpy as np
 
+from ._options import Options, described
 from .. import io
 from .._args import require_instance
 from ..datasets import LandmarkDataset, LandmarkScore, RefinedRun, landmark_dataset_class, mrclam
@@ -45,43 +45,38 @@ FASTSLAM_OPTIONS = ("num_particles", "version", "seed", "threads")
 
 
 @dataclass
-class LandmarkRunOptions:
-    """How ``run_landmark_dataset`` runs a landmark dataset.
+class LandmarkRunOptions(Options):
+    """How ``run_landmark_dataset`` runs a landmark dataset. MRCLAM's options (robot, seconds,
+    raw_ranges, sigma_*) are refused on Victoria Park, which takes its file's or its sensors' noise."""
 
-    method: "ekf" (EKF SLAM, Tables 10.1 / 10.2) or "fastslam".
-    unknown: hide the correspondences (Table 10.2); on the original Victoria Park run they are
-        always hidden, and Victoria Park's EKF takes the file's whatever this says.
-    association: the EKF's association with hidden correspondences, "jcbb", "ml" or "mht"
-        (None: the dataset's, the multiple-hypothesis EKF on MRCLAM, JCBB elsewhere).
-    bearing_offset: MRCLAM with association mht: the standard deviation (rad) of a bearing offset
-        shared by each scan's sightings, carried by every hypothesis (0: none).
-    num_particles, version (1 or 2), seed, threads (the result is the same for any count):
-        FastSLAM's.
-    robot (None: 1), seconds (None: the whole run), raw_ranges (the depth readings as ranges):
-        which part of an MRCLAM folder is read, and how.
-    sigma_v (m/s), sigma_w (rad/s): MRCLAM's control noise per 10 ms command; sigma_r (m),
-        sigma_phi (rad): its sighting noise (None: ``mrclam.MOTION_SIGMA`` /
-        ``mrclam.MEASUREMENT_SIGMA``; Victoria Park takes its file's or its sensors').
-    refine: "none", or "graphslam": GraphSLAM's correspondence test over the run (hidden
-        correspondences; docs/landmark_refine.md).
-    """
-
-    method: str = "ekf"
-    unknown: bool = False
-    association: Optional[str] = None
-    bearing_offset: float = 0.0
-    num_particles: int = 100
-    version: int = 1
-    seed: int = 0
-    threads: int = 1
-    robot: Optional[int] = None
-    seconds: Optional[float] = None
-    raw_ranges: bool = False
-    sigma_v: Optional[float] = None
-    sigma_w: Optional[float] = None
-    sigma_r: Optional[float] = None
-    sigma_phi: Optional[float] = None
-    refine: str = "none"
+    method: str = described("ekf", "EKF SLAM (Tables 10.1 / 10.2) or FastSLAM", choices=METHODS)
+    unknown: bool = described(False, "hide the correspondences (always hidden on the original Victoria Park run; "
+                                     "its EKF takes the file's)")
+    association: Optional[str] = described(None, "with ``unknown``, EKF: joint compatibility, maximum likelihood or "
+                                                 "multiple hypotheses (None: mht on MRCLAM, jcbb elsewhere)",
+                                           choices=ASSOCIATIONS)
+    bearing_offset: float = described(0.0, "MRCLAM, ``association`` mht: the standard deviation of a bearing offset "
+                                            "shared by each scan's sightings (0: none)", "rad")
+    num_particles: int = described(100, "FastSLAM: number of particles (a particle holds a few landmarks, not a grid "
+                                        "map)")
+    version: int = described(1, "FastSLAM 1.0 or 2.0 (the proposal that includes the measurements)", choices=(1, 2))
+    seed: int = described(0, "FastSLAM: random seed")
+    threads: int = described(1, "FastSLAM: worker threads (the same result for any count)")
+    robot: Optional[int] = described(None, "MRCLAM robot number (None: 1)", type=int)
+    seconds: Optional[float] = described(None, "MRCLAM: only the first seconds of the robot's odometry (None: all)",
+                                         "s", type=float)
+    raw_ranges: bool = described(False, "MRCLAM's readings as ranges (by default they are taken as the camera's depth "
+                                        "and turned into distances, io.MRCLAM_RANGE_SCALE)")
+    sigma_v: Optional[float] = described(None, "MRCLAM odometry noise per 10 ms command (None: mrclam.MOTION_SIGMA)",
+                                         "m/s", type=float)
+    sigma_w: Optional[float] = described(None, "MRCLAM odometry noise per 10 ms command (None: mrclam.MOTION_SIGMA)",
+                                         "rad/s", type=float)
+    sigma_r: Optional[float] = described(None, "MRCLAM range noise (None: mrclam.MEASUREMENT_SIGMA)", "m",
+                                         type=float)
+    sigma_phi: Optional[float] = described(None, "MRCLAM bearing noise (None: mrclam.MEASUREMENT_SIGMA)", "rad",
+                                           type=float)
+    refine: str = described("none", "with ``unknown``: after the filter, GraphSLAM over all sightings with the "
+                                    "correspondence test of ch. 11.6 (docs/landmark_refine.md)", choices=REFINEMENTS)
 
     def validate(self) -> None:
         """ValueError / TypeError naming the first field that is wrong or does not apply (the
@@ -121,12 +116,6 @@ class LandmarkRunOptions:
             # Squared, a negative sigma would pass unnoticed, 1e300 overflow and 1e-200 vanish.
             if sigma is not None and not (0 < sigma < math.inf and 0 < sigma * sigma < math.inf):
                 raise ValueError(f"{name} {value} must be a finite standard deviation > 0 with a finite variance > 0")
-
-    def replace(self, **options) -> "LandmarkRunOptions":
-        """A validated copy with the named options (fields) set."""
-        out = dataclasses.replace(self, **options)
-        out.validate()
-        return out
 
 
 _DEFAULTS = LandmarkRunOptions()

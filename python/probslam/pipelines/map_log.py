@@ -12,7 +12,7 @@ import time
 from dataclasses import dataclass
 from typing import List, Optional, Sequence, Union
 
-from ._options import Options
+from ._options import Options, described
 from .. import io
 from .._args import positive_real, require_instance
 from ..data import path as data_path
@@ -30,22 +30,19 @@ LEARNED_MODEL_DECIDES = "the learned model decides what each beam says"
 
 @dataclass
 class MapOptions(Options):
-    """How ``map_log`` maps a log.
+    """How ``map_log`` maps a log."""
 
-    resolution: cell size, m (None: ``mapping.DEFAULT_RESOLUTION``, or the inverse model's own).
-    max_range: readings at or beyond it (m) only clear space (None: ``mapping.DEFAULT_MAX_RANGE``,
-        or the inverse model's own).
-    robot_radius: clear the robot's footprint, m (ray model only).
-    skip_no_return: drop readings at the sensor maximum (they mean "nothing seen"; ray model only).
-    inverse_model: the path of a ``LearnedInverseModel`` (``LearnedInverseModel.save``), or
-        "bundled" (BUNDLED_INVERSE_MODEL), to map with instead of the ray model; None: the ray model.
-    """
-
-    resolution: Optional[float] = None
-    max_range: Optional[float] = None
-    robot_radius: float = 0.0
-    skip_no_return: bool = True
-    inverse_model: Optional[PathLike] = None
+    resolution: Optional[float] = described(None, "cell size (None: mapping.DEFAULT_RESOLUTION; with "
+                                                  "``inverse_model`` the model's own)", "m", type=float)
+    max_range: Optional[float] = described(None, "readings at or beyond it only clear space (None: "
+                                                 "mapping.DEFAULT_MAX_RANGE; with ``inverse_model`` the model's own)",
+                                           "m", type=float)
+    robot_radius: float = described(0.0, "clear the robot's footprint (ray model only)", "m")
+    skip_no_return: bool = described(True, "drop readings at the sensor maximum (they mean \"nothing seen\"; ray "
+                                           "model only)")
+    inverse_model: Optional[PathLike] = described(None, "a LearnedInverseModel file (LearnedInverseModel.save), or "
+                                                        "'bundled' (the Intel laser's), to map with instead of the ray "
+                                                        "model, ch. 9.3 (None: the ray model)", type=str)
 
     def validate(self) -> None:
         """ValueError / TypeError naming the first field that is wrong or does not apply."""

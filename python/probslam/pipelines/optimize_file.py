@@ -15,9 +15,10 @@ from typing import Callable, List, Optional, Union
 
 import numpy as np
 
-from ._options import Options
+from ._options import Options, described
 from .. import graph as pg
 from .._args import positive_real
+from .._progress import progress_bar
 from .. import io
 from ..io.landmark_datasets import isam_noise_convention
 
@@ -46,27 +47,25 @@ ISAM_ONLY_RECORDS = ("ODOMETRY", "LANDMARK")
 
 @dataclass
 class GraphFileOptions(Options):
-    """How ``optimize_file`` reads, starts and optimises a graph file.
+    """How ``optimize_file`` reads, starts and optimises a graph file."""
 
-    format: the reader (``auto`` by content and extension, or g2o / toro / isam).
-    noise: what the file's noise entries hold (``auto``: the format's own, but covariance for an
-        iSAM file named as GTSAM's copies are; information / sqrt_information / covariance).
-    init: the start (None: ``DEFAULT_INIT`` of the dimension, EKF for 2-D graphs with landmarks).
-    poses_per_step: poses added per step of the incremental start (init ``incremental`` only).
-    algorithm, max_iterations, kernel, kernel_width (None: 1.0; huber and cauchy only),
-    linear_solver, ordering (None: the graph type's): ``optimize``'s options.
-    """
-
-    format: str = "auto"
-    noise: str = "auto"
-    init: Optional[str] = None
-    poses_per_step: Optional[int] = None
-    algorithm: str = "gauss-newton"
-    max_iterations: int = 100
-    kernel: str = "none"
-    kernel_width: Optional[float] = None
-    linear_solver: Optional[str] = None
-    ordering: Optional[str] = None
+    format: str = described("auto", "the graph file's format (auto: from its records and extension)",
+                            choices=("auto", "g2o", "toro", "isam"))
+    noise: str = described("auto", "what the edges' noise entries hold (auto: the format's own, covariances in "
+                           "GTSAM's iSAM copies named '*gtsam*')", choices=NOISE_CONVENTIONS)
+    init: Optional[str] = described(None, "the start (None: file in 2-D, chordal in 3-D, dead reckoning for iSAM "
+                                    "files, ekf for 2-D graphs with landmarks: DEFAULT_INIT, LANDMARK_GRAPH_INIT)",
+                                    choices=INITIALIZATIONS)
+    poses_per_step: Optional[int] = described(None, "with ``init`` incremental: poses per step (None: 100)", type=int)
+    algorithm: str = described("gauss-newton", "the least-squares solver", choices=ALGORITHMS)
+    max_iterations: int = described(100, "iterations at most (the command exits with status 3 if they end the run)")
+    kernel: str = described("none", "robust kernel", choices=KERNELS)
+    kernel_width: Optional[float] = described(None, "with a ``kernel``: its width, in units of sqrt(chi2) (None: 1)",
+                                              type=float)
+    linear_solver: Optional[str] = described(None, "sparse Cholesky (None: supernodal)",
+                                             choices=("simplicial", "supernodal", "auto"))
+    ordering: Optional[str] = described(None, "fill-reducing ordering (None: amd in 2-D, metis in 3-D)",
+                                        choices=("amd", "metis"))
 
     def validate(self) -> None:
         """ValueError / TypeError naming the first field that is wrong or does not apply."""
@@ -190,25 +189,29 @@ class GraphFileRun:
         why = f" ({self.init_reason})" if self.init_reason else ""
         return f"init:       {self.init}{why} in {self.init_seconds:.3f} s, chi2 {self.initial_chi2:.6f}"
 
-    def optimize(self, on_iteration: Optional[Callable[[int, float], bool]] = None) -> None:
+    def optimize(self, on_iteration: Optional[Callable[[int, float], bool]] = None,
+                 progress: Optional[bool] = False) -> None:
         """Optimises from the start; ``on_iteration(iteration, chi2)`` after each iteration
-        (False stops). Ctrl-C keeps the last completed iteration's values (``interrupted``)."""
+        (False stops); ``progress``: a bar over the iterations with chi2 beside it (None: on a
+        terminal only). Ctrl-C keeps the last completed iteration's values (``interrupted``)."""
         if self.initial_poses is None:
             self.start()
-
-        def record(iteration: int, chi2: float) -> bool:
-            self.chi2_history.append(chi2)
-            return True if on_iteration is None else on_iteration(iteration, chi2)
-
         o = self.options
-        kernel_width = {} if o.kernel_width is None else {"kernel_width": o.kernel_width}
-        t = time.perf_counter()
-        try:
-            self.report = pg.optimize(self.graph, algorithm=o.algorithm, max_iterations=o.max_iterations,
-                                      kernel=o.kernel, callback=record, **kernel_width, **self._solver())
-        except KeyboardInterrupt:
-            self.interrupted = True  # the graph holds the last completed iteration's values
-        self.optimize_seconds = time.perf_counter() - t
+        with progress_bar(o.max_iterations, "optimize", "it", progress) as bar:
+            def record(iteration: int, chi2: float) -> bool:
+                self.chi2_history.append(chi2)
+                bar.set_postfix_str(f"chi2 {chi2:.6g}", refresh=False)
+                bar.update(1)
+                return True if on_iteration is None else on_iteration(iteration, chi2)
+
+            kernel_width = {} if o.kernel_width is None else {"kernel_width": o.kernel_width}
+            t = time.perf_counter()
+            try:
+                self.report = pg.optimize(self.graph, algorithm=o.algorithm, max_iterations=o.max_iterations,
+                                          kernel=o.kernel, callback=record, **kernel_width, **self._solver())
+            except KeyboardInterrupt:
+                self.interrupted = True  # the graph holds the last completed iteration's values
+            self.optimize_seconds = time.perf_counter() - t
 
     @property
     def converged(self) -> bool:
