@@ -416,6 +416,20 @@ struct RoomRun {
   }
 };
 
+TEST(StateFile, IncrementalScanMatcherResumedEqualsUninterrupted) {
+  IncrementalScanMatcherOptions o;
+  o.submap_distance = 3.0;
+  o.filter.max_usable_range = 8.0;
+  const RoomRun run;
+  IncrementalScanMatcher straight(o), first(o);
+  run.feed(straight, 0, 120);
+  run.feed(first, 0, 70);
+  IncrementalScanMatcher resumed = round_trip<IncrementalScanMatcher, SubmapSlam2D>(first, "matcher");
+  run.feed(resumed, 70, 120);
+  EXPECT_EQ(state_bytes(resumed), state_bytes(straight));
+  EXPECT_GT(resumed.submaps().size(), 1u);
+}
+
 TEST(StateFile, SubmapSlam2DResumedEqualsUninterrupted) {
   SubmapSlamOptions o;
   o.frontend.submap_distance = 3.0;

@@ -13,18 +13,27 @@ from .. import geometry
 from ._checks import _require_finite
 
 
+def _path_times(times: object, name: str, ordered: bool = True, why: str = "") -> np.ndarray:
+    """Checked (N,) times of a path, N >= 1, non-decreasing when ``ordered`` (``why``: the reason
+    told after a decrease). One check for every metric, so their messages agree."""
+    ts = real_array(times, name, (None,))
+    if ts.shape[0] == 0:
+        raise ValueError(f"{name}: empty trajectory")
+    decreasing = np.flatnonzero(np.diff(ts) < 0) if ordered else ()
+    if len(decreasing):
+        i = int(decreasing[0])
+        # distinct_numbers: two Unix times a fraction of a second apart must not print alike.
+        before, after = distinct_numbers(ts[i], ts[i + 1])
+        raise ValueError(f"{name}: decrease at index {i + 1} ({before} then {after}){why}")
+    return ts
+
+
 def _trajectory(timestamps: object, poses: object) -> Tuple[np.ndarray, np.ndarray]:
     """Checked (N,) timestamps and (N, 3) poses: non-empty, same length, non-decreasing."""
-    ts = real_array(timestamps, "timestamps", (None,))
+    ts = _path_times(timestamps, "timestamps")
     ps = real_array(poses, "poses", (None, 3))
-    if ts.shape[0] == 0:
-        raise ValueError("timestamps: empty trajectory")
     if ps.shape[0] != ts.shape[0]:
         raise ValueError(f"poses: {ps.shape[0]} poses for {ts.shape[0]} timestamps")
-    decreasing = np.flatnonzero(np.diff(ts) < 0)
-    if decreasing.size:
-        i = int(decreasing[0])
-        raise ValueError("timestamps: decrease at index {} ({} then {})".format(i + 1, *distinct_numbers(ts[i], ts[i + 1])))
     return ts, ps
 
 

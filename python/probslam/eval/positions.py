@@ -11,7 +11,7 @@ import numpy as np
 from .._args import real_array
 from ._checks import _require_finite
 from .alignment import _se2_alignment
-from .poses import _interpolate
+from .poses import _interpolate, _path_times
 from .statistics import error_statistics, statistics_table
 
 
@@ -47,14 +47,7 @@ class PositionError:
 def _path_positions(times_est: object, poses_est: object) -> Tuple[np.ndarray, np.ndarray]:
     """Checked (N,) times, non-decreasing, and (N, 3) poses (x, y, theta; (N, 2) positions get
     a heading of 0), N >= 1."""
-    te = real_array(times_est, "times_est", (None,))
-    if len(te) == 0:
-        raise ValueError("times_est: empty trajectory")
-    decreasing = np.flatnonzero(np.diff(te) < 0)
-    if decreasing.size:
-        i = int(decreasing[0])
-        raise ValueError(f"times_est: decrease at index {i + 1} ({te[i]:g} then {te[i + 1]:g}); the path is "
-                         f"interpolated in time")
+    te = _path_times(times_est, "times_est", why="; the path is interpolated in time")
     pe = real_array(poses_est, "poses_est", (len(te), None))
     if pe.shape[1] not in (2, 3):
         raise ValueError(f"poses_est: expected shape (N, 3) poses or (N, 2) positions, got {pe.shape}")

@@ -12,7 +12,7 @@ import numpy as np
 from .._args import positive_real, real_array
 from ._checks import _require_finite, _wrap
 from .alignment import _se2_alignment
-from .poses import _between
+from .poses import _between, _path_times
 from .statistics import STATISTICS, error_statistics, statistics_table
 
 
@@ -142,11 +142,8 @@ def associate(times_a: object, times_b: object, max_time_difference: float = MAX
 
 def _poses_at_times(times: object, poses: object, which: str) -> Tuple[np.ndarray, np.ndarray]:
     """Checked (N,) times in any order and (N, 3) poses, N >= 1 (``which``: "est" or "ref")."""
-    ts = real_array(times, f"times_{which}", (None,))
-    ps = real_array(poses, f"poses_{which}", (len(ts), 3))
-    if len(ts) == 0:
-        raise ValueError(f"times_{which}: empty trajectory")
-    return ts, ps
+    ts = _path_times(times, f"times_{which}", ordered=False)  # a log's clock may jump back
+    return ts, real_array(poses, f"poses_{which}", (len(ts), 3))
 
 
 def _associated(times_est, poses_est, times_ref, poses_ref, max_time_difference, align):

@@ -9,6 +9,7 @@ from typing import Dict, Tuple
 
 import numpy as np
 
+from .. import geometry
 from .._core import PoseGraph2D, marginal_covariances, optimize
 
 
@@ -64,12 +65,6 @@ def polar_to_point(measurements: np.ndarray, noise: np.ndarray) -> Tuple[np.ndar
 
 
 
-def _rotation_t(theta: np.ndarray) -> np.ndarray:
-    """R(theta)^T, (..., 2, 2)."""
-    c, s = np.cos(theta), np.sin(theta)
-    return np.stack([np.stack([c, s], -1), np.stack([-s, c], -1)], -2)
-
-
 
 # ---------------------------------------------------------------------------------------------
 # The refinement.
@@ -100,9 +95,7 @@ class _Problem:
 
 def _placed(problem: _Problem, rows: np.ndarray) -> np.ndarray:
     """World positions (n, 2) of sightings ``rows`` placed from their poses' current values."""
-    x = problem.poses[problem.pose_index[rows]]
-    r = np.transpose(_rotation_t(x[:, 2]), (0, 2, 1))
-    return x[:, :2] + np.einsum("nij,nj->ni", r, problem.z[rows])
+    return geometry.transform_points(problem.poses[problem.pose_index[rows]], problem.z[rows])
 
 
 class _Graph:

@@ -10,7 +10,7 @@ from typing import Dict
 import numpy as np
 
 from .. import geometry
-from .problem import UNASSIGNED, _rotation_t
+from .problem import UNASSIGNED
 from .results import LandmarkRefinement
 
 #: MRCLAM odometry between two scans comes from the velocity motion model with two noise terms
@@ -34,13 +34,12 @@ def compose_increments(deltas: np.ndarray, covariances: np.ndarray, nodes: np.nd
     deltas = np.asarray(deltas, float)
     covariances = np.asarray(covariances, float)
     nodes = np.asarray(nodes, np.int64)
-    heading = np.concatenate([[0.0], np.cumsum(deltas[:, 2])])  # unwrapped, node 0's frame
-    c, s = np.cos(heading[:-1]), np.sin(heading[:-1])
-    step = np.column_stack([c * deltas[:, 0] - s * deltas[:, 1], s * deltas[:, 0] + c * deltas[:, 1]])
-    position = np.vstack([np.zeros(2), np.cumsum(step, axis=0)])
+    # Unwrapped headings: a segment's turn is the difference of its ends' however many laps.
+    heading = np.concatenate([[0.0], np.cumsum(deltas[:, 2])])  # node 0's frame
+    position = geometry.accumulate(np.zeros(3), deltas)[:, :2]
     a, b = nodes[:-1], nodes[1:]
     frame = np.zeros((len(a), 3, 3))  # blockdiag(R(heading_a), 1): a's frame in node 0's
-    frame[:, :2, :2] = np.transpose(_rotation_t(heading[a]), (0, 2, 1))
+    frame[:, :2, :2] = geometry.rotations(heading[a])
     frame[:, 2, 2] = 1.0
     rel = np.empty((len(a), 3))
     rel[:, :2] = np.einsum("nji,nj->ni", frame[:, :2, :2], position[b] - position[a])
@@ -51,7 +50,7 @@ def compose_increments(deltas: np.ndarray, covariances: np.ndarray, nodes: np.nd
         i = np.arange(a[moving[0]], b[moving[-1]])
         segment = np.searchsorted(b, i, side="right")  # a[segment] <= i < b[segment]
         g = np.zeros((len(i), 3, 3))
-        g[:, 0, 0], g[:, 0, 1], g[:, 1, 0], g[:, 1, 1] = c[i], -s[i], s[i], c[i]
+        g[:, :2, :2] = geometry.rotations(heading[i])
         arm = position[b[segment]] - position[i + 1]  # the heading of increment i swings the rest about its end
         g[:, 0, 2], g[:, 1, 2], g[:, 2, 2] = -arm[:, 1], arm[:, 0], 1.0
         world[moving] = np.add.reduceat(g @ covariances[i] @ g.transpose(0, 2, 1), a[moving] - i[0], axis=0)
