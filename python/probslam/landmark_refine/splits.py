@@ -3,7 +3,7 @@ by backward elimination and go to the most likely other landmark, a new one, or 
 
 from __future__ import annotations
 
-from typing import List
+from typing import List, Tuple
 
 import numpy as np
 
@@ -34,46 +34,84 @@ def _split_moves(g: _Graph, problem: _Problem, tests: _SightingTests, gate: floa
     new landmark of its own (``new_landmarks``) or to none (UNASSIGNED)."""
     stats = tests.stats
     suspects = [int(i) for i in np.argsort(-np.nan_to_num(stats, nan=-np.inf), kind="stable") if stats[i] > gate]
-    suspects = suspects[:MAX_SUSPECTS_PER_ROUND]
-    if not suspects:
+    suspects = np.array(suspects[:MAX_SUSPECTS_PER_ROUND], dtype=np.int64)
+    if not len(suspects):
         return []
-    # One dense joint posterior of the suspects' poses and every landmark.
-    poses = sorted({int(problem.pose_index[i]) for i in suspects})
-    ids = poses + [g.point_id(c) for c in g.labels]
-    start = {}
-    offset = 0
-    for v in ids:
-        start[v] = offset
-        offset += 3 if v < g.num_poses else 2
-    sigma = np.array(joint_marginal_covariances(g.graph, [ids])[0])
-    delta = np.zeros(offset)
-    # The posterior without the leavers is sigma + B A^T, one rank-2 term (a W, a) per leaver:
-    # kept as factors, so each leaver costs O(n * leavers) for the blocks read, not O(n^2).
-    factor_a, factor_b = np.zeros((offset, 2 * len(suspects))), np.zeros((offset, 2 * len(suspects)))
-    used = 0
+    posterior = _Posterior(g, problem, suspects)
+    left = _eliminate(posterior, g, problem, tests, suspects, gate)
+    return _destinations(posterior, g, problem, left, gate, next_label, iteration, new_landmarks)
 
-    landmark_start = np.array([start[g.point_id(c)] for c in g.labels], dtype=np.int64)
 
-    def columns(pose: np.ndarray, landmark: np.ndarray) -> np.ndarray:
+class _Posterior:
+    """One dense joint posterior of the suspects' poses and every landmark, and its updates as
+    sightings leave: the posterior without the leavers is sigma + B A^T, one rank-2 term (a W, a)
+    per leaver, kept as factors, so each leaver costs O(n * leavers) for the blocks read, not
+    O(n^2); its mean moves by ``delta``."""
+
+    def __init__(self, g: _Graph, problem: _Problem, suspects: np.ndarray):
+        poses = sorted({int(problem.pose_index[i]) for i in suspects})
+        ids = poses + [g.point_id(c) for c in g.labels]
+        self.start, offset = {}, 0
+        for v in ids:
+            self.start[v] = offset
+            offset += 3 if v < g.num_poses else 2
+        self.sigma = np.array(joint_marginal_covariances(g.graph, [ids])[0])
+        self.delta = np.zeros(offset)
+        self.factor_a, self.factor_b = np.zeros((offset, 2 * len(suspects))), np.zeros((offset, 2 * len(suspects)))
+        self.used = 0
+        self.landmark_start = np.array([self.start[g.point_id(c)] for c in g.labels], dtype=np.int64)
+        self.landmark_rows = self.landmark_start[:, None] + np.arange(2)
+        self._landmark_terms = None  # the leavers' terms of each landmark's block, once they have left
+
+    def columns(self, pose: np.ndarray, landmark: np.ndarray) -> np.ndarray:
         """(n, 5) the dense posterior's columns of (pose, landmark) pairs (pose ids, label slots)."""
-        p = np.array([start[int(x)] for x in pose], dtype=np.int64)
-        return np.column_stack([p, p + 1, p + 2, landmark_start[landmark], landmark_start[landmark] + 1])
+        p = np.array([self.start[int(x)] for x in pose], dtype=np.int64)
+        return np.column_stack([p, p + 1, p + 2, self.landmark_start[landmark], self.landmark_start[landmark] + 1])
 
-    suspects = np.array(suspects, dtype=np.int64)
+    def remove(self, cols: np.ndarray, h: np.ndarray, w: np.ndarray, v: np.ndarray) -> np.ndarray:
+        """Takes out the sighting of Jacobian ``h`` over columns ``cols``, with W = ``w`` and
+        innovation ``v`` (Woodbury); returns its new rank-2 term's columns, (n, 2) each factor."""
+        used = self.used
+        a = (self.sigma[:, cols] + self.factor_b[:, :used] @ self.factor_a[cols, :used].T) @ h.T
+        self.delta += a @ (w @ v)
+        self.factor_a[:, used:used + 2], self.factor_b[:, used:used + 2] = a, a @ w
+        self.used += 2
+        self._landmark_terms = None
+        return self.factor_a[:, used:used + 2], self.factor_b[:, used:used + 2]
+
+    def pose_landmark_blocks(self, pose: int, free: np.ndarray) -> np.ndarray:
+        """(n, 5, 5) the posterior without the leavers over (pose, landmark slot) for slots ``free``."""
+        used, fa, fb, landmark_rows = self.used, self.factor_a, self.factor_b, self.landmark_rows
+        if self._landmark_terms is None:
+            self._landmark_terms = fb[landmark_rows, :used] @ fa[landmark_rows, :used].transpose(0, 2, 1)
+        p, rows = self.start[pose] + np.arange(3), landmark_rows[free].ravel()
+        k = np.column_stack([np.broadcast_to(p, (len(free), 3)), landmark_rows[free]])
+        out = self.sigma[k[:, :, None], k[:, None, :]]
+        out[:, :3, :3] += fb[p, :used] @ fa[p, :used].T
+        out[:, :3, 3:] += (fb[p, :used] @ fa[rows, :used].T).reshape(3, -1, 2).transpose(1, 0, 2)
+        out[:, 3:, :3] += (fb[rows, :used] @ fa[p, :used].T).reshape(-1, 2, 3)
+        out[:, 3:, 3:] += self._landmark_terms[free]
+        return out
+
+
+def _eliminate(posterior: _Posterior, g: _Graph, problem: _Problem, tests: _SightingTests, suspects: np.ndarray,
+               gate: float) -> List[Tuple[int, float]]:
+    """The backward elimination: (sighting, statistic) of each suspect that left, worst first,
+    its statistic under the posterior without the ones before it."""
     at = np.searchsorted(tests.rows, suspects)
-    cols = columns(problem.pose_index[suspects], np.searchsorted(g.labels, problem.labels[suspects]))
+    cols = posterior.columns(problem.pose_index[suspects], np.searchsorted(g.labels, problem.labels[suspects]))
     h_all, e_all = tests.h[at], tests.e[at]
     q_all = problem.z_covariance[suspects]
     scale = np.linalg.eigvalsh(q_all)[:, -1]
     remaining = np.ones(len(suspects), bool)
     left = []
     # Each suspect's (pose, landmark) block of the posterior, the leavers' terms added as they leave.
-    suspect_blocks = sigma[cols[:, :, None], cols[:, None, :]]
+    suspect_blocks = posterior.sigma[cols[:, :, None], cols[:, None, :]]
     while remaining.any():
         # Every remaining suspect's leave-one-out statistic under the posterior without the leavers.
         r = np.flatnonzero(remaining)
         h, c = h_all[r], cols[r]
-        v = e_all[r] + np.einsum("nij,nj->ni", h, delta[c])
+        v = e_all[r] + np.einsum("nij,nj->ni", h, posterior.delta[c])
         m = q_all[r] - h @ suspect_blocks[r] @ h.transpose(0, 2, 1)
         m = 0.5 * (m + m.transpose(0, 2, 1))
         testable = np.linalg.eigvalsh(m)[:, 0] > LEAVE_ONE_OUT_RANK_TOLERANCE * scale[r]
@@ -86,34 +124,23 @@ def _split_moves(g: _Graph, problem: _Problem, tests: _SightingTests, gate: floa
         if not x[worst] > gate:
             break
         best = int(r[worst])
-        a = (sigma[:, cols[best]] + factor_b[:, :used] @ factor_a[cols[best], :used].T) @ h_all[best].T
-        w = np.linalg.inv(m[worst])
         remaining[best] = False
         left.append((int(suspects[best]), float(x[worst])))
-        delta += a @ (w @ v[worst])
-        factor_a[:, used:used + 2], factor_b[:, used:used + 2] = a, a @ w
-        suspect_blocks += factor_b[cols, used:used + 2] @ factor_a[cols, used:used + 2].transpose(0, 2, 1)
-        used += 2
+        a, b = posterior.remove(cols[best], h_all[best], np.linalg.inv(m[worst]), v[worst])
+        suspect_blocks += b[cols] @ a[cols].transpose(0, 2, 1)
+    return left
+
+
+def _destinations(posterior: _Posterior, g: _Graph, problem: _Problem, left: List[Tuple[int, float]], gate: float,
+                  next_label: int, iteration: int, new_landmarks: bool) -> List[Split]:
+    """Where each sighting that left goes, worst first: the most likely landmark within the gate
+    under the posterior without the round's leavers that its scan does not hold and it has not
+    left before, else a new landmark (``new_landmarks``) or none."""
     by_pose = np.argsort(problem.pose_index, kind="stable")
     bounds = np.searchsorted(problem.pose_index[by_pose], np.arange(len(problem.poses) + 1))
     labels = problem.labels.copy()
     moves = []
     slots = np.arange(len(g.labels))
-    # The final posterior's blocks the moves read: (the leaver's pose, each landmark).
-    landmark_rows = landmark_start[:, None] + np.arange(2)
-    landmark_terms = factor_b[landmark_rows, :used] @ factor_a[landmark_rows, :used].transpose(0, 2, 1)
-
-    def pose_landmark_blocks(pose: int, free: np.ndarray) -> np.ndarray:
-        """(n, 5, 5) the posterior without the leavers over (pose, landmark slot) for slots ``free``."""
-        p, rows = start[pose] + np.arange(3), landmark_rows[free].ravel()
-        k = np.column_stack([np.broadcast_to(p, (len(free), 3)), landmark_rows[free]])
-        out = sigma[k[:, :, None], k[:, None, :]]
-        out[:, :3, :3] += factor_b[p, :used] @ factor_a[p, :used].T
-        out[:, :3, 3:] += (factor_b[p, :used] @ factor_a[rows, :used].T).reshape(3, -1, 2).transpose(1, 0, 2)
-        out[:, 3:, :3] += (factor_b[rows, :used] @ factor_a[p, :used].T).reshape(-1, 2, 3)
-        out[:, 3:, 3:] += landmark_terms[free]
-        return out
-
     all_marks = np.array([problem.landmarks[int(c)] for c in g.labels])
     for i, stat in left:
         t = int(problem.pose_index[i])
@@ -126,9 +153,9 @@ def _split_moves(g: _Graph, problem: _Problem, tests: _SightingTests, gate: floa
             e, j_pose, j_point = linearize_point_edges(np.repeat(problem.poses[t][None], len(free), 0),
                                                        all_marks[free], np.repeat(problem.z[i][None], len(free), 0))
             h = np.concatenate([j_pose, j_point], axis=2)
-            k = columns(np.full(len(free), t), free)
-            v = e + np.einsum("nij,nj->ni", h, delta[k])
-            cov = problem.z_covariance[i][None] + h @ pose_landmark_blocks(t, free) @ h.transpose(0, 2, 1)
+            k = posterior.columns(np.full(len(free), t), free)
+            v = e + np.einsum("nij,nj->ni", h, posterior.delta[k])
+            cov = problem.z_covariance[i][None] + h @ posterior.pose_landmark_blocks(t, free) @ h.transpose(0, 2, 1)
             x = np.einsum("ni,ni->n", v, np.linalg.solve(cov, v[:, :, None])[:, :, 0])
             within = np.flatnonzero(x <= gate)
             options = [(float(y), float(d), int(c)) for y, d, c in
