@@ -52,11 +52,25 @@ def _likelihood_moves(g: _Graph, problem: _Problem, tests: _SightingTests, gate:
     if len(rows) == 0:
         return []
     n_own = len(labelled_at)
+    own_score, reach, per_sigma = _reach(g, problem, tests, labelled_at, rows, gate)
+    own_queries, lone_queries = _near_landmarks(g, problem, rows, n_own, reach, per_sigma)
+    scores: Dict[int, Tuple[float, int, float]] = {}  # sighting -> (score to beat, best candidate, its d2)
+    _score_own(g, problem, tests, own_queries, dict(zip(rows[:n_own].tolist(), own_score)), gate, scores)
+    _score_lone(g, problem, lone_queries, gate, scores)
+    return _moves(problem, tests, scores, iteration)
+
+
+def _reach(g: _Graph, problem: _Problem, tests: _SightingTests, labelled_at: np.ndarray, rows: np.ndarray,
+           gate: float) -> Tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """For sightings ``rows`` (the labelled ones, ``labelled_at`` of the tests, first): the score
+    a candidate must beat (d_own + ln det S_own, labelled only), and the distance within which a
+    candidate landmark can win, ``reach + per_sigma * sigma_c`` (see ``_likelihood_moves``)."""
+    n_own = len(labelled_at)
     t = problem.pose_index[rows]
     q = problem.z_covariance[rows]
     # The posterior without the sighting: its pose's covariance and the shift of its mean.
     pose_cov = np.zeros((len(rows), 3, 3))
-    if len(lone):
+    if len(rows) > n_own:  # sightings on no landmark: their pose as the graph has it
         pose_cov[n_own:] = np.array(marginal_covariances(g.graph, [int(a) for a in t[n_own:]])).reshape(-1, 3, 3)
     shift_x = np.zeros((len(rows), 3))
     lmax_p, lmax_w, e_w = (np.zeros(len(rows)) for _ in range(3))
@@ -85,6 +99,12 @@ def _likelihood_moves(g: _Graph, problem: _Problem, tests: _SightingTests, gate:
     reach = np.linalg.norm(np.einsum("nij,nj->ni", hx, shift_x), axis=1) + root * (sigma_q + sigma_x)
     per_sigma = np.sqrt(lmax_p) * e_w + root * np.sqrt(1.0 + lmax_p * lmax_w)
     reach[budget <= 0.0] = -np.inf  # nothing can beat its own landmark
+    return own_score, reach, per_sigma
+
+
+def _near_landmarks(g: _Graph, problem: _Problem, rows: np.ndarray, n_own: int, reach: np.ndarray,
+                    per_sigma: np.ndarray) -> Tuple[List[Tuple[int, int]], List[Tuple[int, int]]]:
+    """(sighting, label) pairs within reach, of the labelled sightings and of the lone ones."""
     marginal = g.landmark_marginals()
     sigma_c = np.sqrt(np.linalg.eigvalsh(marginal)[:, -1])
     marks = np.array([problem.landmarks[int(c)] for c in g.labels])
@@ -97,36 +117,53 @@ def _likelihood_moves(g: _Graph, problem: _Problem, tests: _SightingTests, gate:
         near &= g.labels[None, :] != problem.labels[rows[block]][:, None]
         for n, c in zip(*np.nonzero(near)):
             (own_queries if start + n < n_own else lone_queries).append((int(rows[start + n]), int(g.labels[c])))
-    scores: Dict[int, Tuple[float, int, float]] = {}  # sighting -> (score to beat, best candidate, its d2)
-    if own_queries:
-        d2, logdet = _reassociation_distances(g, problem, own_queries, tests)
-        at = {int(i): k for k, i in enumerate(rows[:n_own])}
-        for (i, c), x, ld in zip(own_queries, d2, logdet):
-            gain = own_score[at[i]] - (x + ld)
-            if c in problem.left[i]:
-                continue
-            if x <= gate and gain > REASSOCIATION_MARGIN and gain > scores.get(i, (-np.inf,))[0]:
-                scores[i] = (float(gain), c, float(x))
-    if lone_queries:
-        joint = np.array(joint_marginal_covariances(g.graph, [[int(problem.pose_index[i]), g.point_id(c)]
-                                                              for i, c in lone_queries]))
-        i_ = np.array([i for i, _ in lone_queries])
-        mk = np.array([problem.landmarks[c] for _, c in lone_queries])
-        e_c, j_pose, j_point = linearize_point_edges(problem.poses[problem.pose_index[i_]], mk, problem.z[i_])
-        h = np.concatenate([j_pose, j_point], axis=2)
-        s_c = problem.z_covariance[i_] + h @ joint @ h.transpose(0, 2, 1)
-        d2 = np.einsum("ni,ni->n", e_c, np.linalg.solve(s_c, e_c[:, :, None])[:, :, 0])
-        logdet = np.linalg.slogdet(s_c)[1]
-        for (i, c), x, ld in zip(lone_queries, d2, logdet):
-            if c in problem.left[i]:
-                continue
-            if x <= gate and -(x + ld) > scores.get(i, (-np.inf,))[0]:
-                scores[i] = (float(-(x + ld)), c, float(x))
+    return own_queries, lone_queries
+
+
+def _score_own(g: _Graph, problem: _Problem, tests: _SightingTests, queries: List[Tuple[int, int]],
+               own_score: Dict[int, float], gate: float, scores: Dict[int, Tuple[float, int, float]]) -> None:
+    """Each labelled sighting's best candidate within the gate whose gain over its own landmark
+    exceeds REASSOCIATION_MARGIN, into ``scores``."""
+    if not queries:
+        return
+    d2, logdet = _reassociation_distances(g, problem, queries, tests)
+    for (i, c), x, ld in zip(queries, d2, logdet):
+        gain = own_score[i] - (x + ld)
+        if c in problem.left[i]:
+            continue
+        if x <= gate and gain > REASSOCIATION_MARGIN and gain > scores.get(i, (-np.inf,))[0]:
+            scores[i] = (float(gain), c, float(x))
+
+
+def _score_lone(g: _Graph, problem: _Problem, queries: List[Tuple[int, int]], gate: float,
+                scores: Dict[int, Tuple[float, int, float]]) -> None:
+    """Each sighting on no landmark: its most likely candidate within the gate, into ``scores``."""
+    if not queries:
+        return
+    joint = np.array(joint_marginal_covariances(g.graph, [[int(problem.pose_index[i]), g.point_id(c)]
+                                                          for i, c in queries]))
+    i_ = np.array([i for i, _ in queries])
+    mk = np.array([problem.landmarks[c] for _, c in queries])
+    e_c, j_pose, j_point = linearize_point_edges(problem.poses[problem.pose_index[i_]], mk, problem.z[i_])
+    h = np.concatenate([j_pose, j_point], axis=2)
+    s_c = problem.z_covariance[i_] + h @ joint @ h.transpose(0, 2, 1)
+    d2 = np.einsum("ni,ni->n", e_c, np.linalg.solve(s_c, e_c[:, :, None])[:, :, 0])
+    logdet = np.linalg.slogdet(s_c)[1]
+    for (i, c), x, ld in zip(queries, d2, logdet):
+        if c in problem.left[i]:
+            continue
+        if x <= gate and -(x + ld) > scores.get(i, (-np.inf,))[0]:
+            scores[i] = (float(-(x + ld)), c, float(x))
+
+
+def _moves(problem: _Problem, tests: _SightingTests, scores: Dict[int, Tuple[float, int, float]],
+           iteration: int) -> List[Split]:
+    """The moves, labelled sightings by their gain first, then the unassigned by likelihood, each
+    onto a landmark no other sighting of its scan holds (as the earlier moves left them)."""
     scan_of = collections.defaultdict(set)
     for i in np.flatnonzero(problem.labels != UNASSIGNED):
         scan_of[int(problem.pose_index[i])].add(int(problem.labels[i]))
     moves = []
-    # Labelled sightings by their gain first, then the unassigned by likelihood.
     order = sorted(scores, key=lambda i: (problem.labels[i] == UNASSIGNED, -scores[i][0], i))
     for i in order:
         _, c, x = scores[i]
