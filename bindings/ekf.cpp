@@ -146,7 +146,10 @@ void define_ekf_state(py::class_<EkfSlam>& c) {
           "Map management of update_unknown (a copy; assign a MapManagement to change it).")
       .def_property(
           "gate_distance", getter(&EkfSlam::gate_distance),
-          [](EkfSlam& e, double metres) { locked(e, [&] { e.set_gate_distance(metres); }); },
+          [](EkfSlam& e, RealArg metres_arg) {
+            const double metres = metres_arg.get("gate_distance");
+            locked(e, [&] { e.set_gate_distance(metres); });
+          },
           "Association candidates: landmarks within this distance (m) of where a measurement places\n"
           "its landmark, plus three standard deviations (5.0).")
       .def("copy", [](const EkfSlam& e) { return locked(e, [&] { return EkfSlam(e); }); },

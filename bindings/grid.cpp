@@ -109,11 +109,17 @@ void define_grid(py::module_& m) {
           "update, unbounded). Settable.")
       .def_property(
           "p_hit", [](const Grid& g) { return locked(g, [&] { return g.beam_model().p_hit; }); },
-          [](Grid& g, double p) { locked(g, [&] { g.set_beam_model({p, g.beam_model().p_miss}); }); },
+          [](Grid& g, RealArg p_arg) {
+            const double p = p_arg.get("p_hit");
+            locked(g, [&] { g.set_beam_model({p, g.beam_model().p_miss}); });
+          },
           "Probability of occupancy at a beam's end point in insert_rays / insert_scans. Settable.")
       .def_property(
           "p_miss", [](const Grid& g) { return locked(g, [&] { return g.beam_model().p_miss; }); },
-          [](Grid& g, double p) { locked(g, [&] { g.set_beam_model({g.beam_model().p_hit, p}); }); },
+          [](Grid& g, RealArg p_arg) {
+            const double p = p_arg.get("p_miss");
+            locked(g, [&] { g.set_beam_model({g.beam_model().p_hit, p}); });
+          },
           "Probability of occupancy of the cells a beam passes through in insert_rays. Settable.")
       .def_property_readonly(
           "log_odds",

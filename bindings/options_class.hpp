@@ -7,10 +7,13 @@
 
 #include <cmath>
 #include <cstdint>
+#include <map>
 #include <set>
 #include <sstream>
 #include <string>
 #include <type_traits>
+#include <typeindex>
+#include <utility>
 
 #include "args.hpp"
 #include "probslam/core/options_description.hpp"
@@ -164,8 +167,40 @@ struct ToDict {
   }
 };
 
+/// Where a group reached through its options sits in them (`o.frontend.filter` is at
+/// "frontend.filter."), so that its setters name a field's whole path as the constructors do
+/// (the group's class alone knows only the leaf). Keyed by the group's address and type; an
+/// entry lives as long as the group's Python object, which keeps its options alive (a weak
+/// reference's callback removes it), so a freed address never inherits a stale path.
+using GroupKey = std::pair<const void*, std::type_index>;
+inline std::map<GroupKey, std::string>& group_paths() {
+  static std::map<GroupKey, std::string> paths;  // guarded by the GIL
+  return paths;
+}
+
+/// The path prefix of `o` ("" for options not reached through others).
+template <class T>
+std::string path_prefix(const T& o) {
+  const auto it = group_paths().find(GroupKey{&o, std::type_index(typeid(T))});
+  return it == group_paths().end() ? std::string() : it->second;
+}
+
+/// Group `group` of the options object `parent`, by reference, its path recorded as `path`.
+template <class M>
+py::object group_of(py::handle parent, M& group, const std::string& path) {
+  py::object child = py::cast(&group, py::return_value_policy::reference_internal, parent);
+  const GroupKey key{&group, std::type_index(typeid(M))};
+  if (group_paths().emplace(key, path).second) {
+    py::weakref(child, py::cpp_function([key](py::handle ref) {
+      group_paths().erase(key);
+      ref.dec_ref();
+    })).release();
+  }
+  return child;
+}
+
 /// Defines each field as a property: a group by reference (`o.beam.z_hit = 0.9` sets it), the
-/// others checked by type as they are set.
+/// others checked by type as they are set, errors naming the field's path.
 template <class T>
 struct Properties {
   py::class_<T>& c;
@@ -174,15 +209,16 @@ struct Properties {
   void operator()(const char* name, M T::*member, const char* unit, const char* text) {
     const std::string field = field_doc(name, unit, text);
     doc += "\n    " + field;
+    auto set = [member, n = std::string(name)](T& o, py::handle v) { assign_field(o.*member, v, path_prefix(o) + n); };
     if constexpr (IsDescribed<M>::value) {
       c.def_property(
-          name, [member](T& o) -> M& { return o.*member; },
-          [member, n = std::string(name)](T& o, py::handle v) { assign_field(o.*member, v, n); },
-          py::return_value_policy::reference_internal, field.c_str());
+          name, [member, n = std::string(name)](py::handle self) {
+            T& o = self.cast<T&>();
+            return group_of(self, o.*member, path_prefix(o) + n + ".");
+          },
+          set, field.c_str());
     } else {
-      c.def_property(
-          name, [member](const T& o) { return field_to_py(o.*member); },
-          [member, n = std::string(name)](T& o, py::handle v) { assign_field(o.*member, v, n); }, field.c_str());
+      c.def_property(name, [member](const T& o) { return field_to_py(o.*member); }, set, field.c_str());
     }
   }
 };

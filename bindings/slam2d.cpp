@@ -470,6 +470,7 @@ void define_slam2d(py::module_& m) {
       "        (resolution=0.1, filter={\"max_range\": 8.0}, update=UpdateTrigger(distance=0.1)).\n"
       "Errors name the field's path (\"filter.max_range\"). A failed call (add_scans included) changes nothing.");
   def_options_init<ISM, IncrementalScanMatcherOptions>(ism, "IncrementalScanMatcher", "IncrementalScanMatcherOptions");
+  define_persistence<ISM>(ism);
   ism.def_property_readonly("num_scans", getter(&ISM::num_scans), "Scans added.")
       .def_property_readonly("pose", [](const ISM& self) {
         return locked(self, [&] {

@@ -155,6 +155,8 @@ def small_states() -> dict:
     ranges, angles, odometry = scans.ranges[rows, beams], scans.beam_angles()[rows, beams], scans.laser_poses[rows]
     slam = ps.SubmapSlam2D(frontend=dict(resolution=1.0, filter={"max_usable_range": 5.0}, submap_scans=8))
     slam.add_scans(ranges, angles, odometry, scans.timestamps[rows])
+    ism = ps.IncrementalScanMatcher(resolution=1.0, filter={"max_usable_range": 5.0}, submap_scans=8)
+    ism.add_scans(ranges, angles, odometry, scans.timestamps[rows])
     rbpf = ps.GridFastSlam(num_particles=2, resolution=1.0, filter={"max_usable_range": 5.0})
     rbpf.add_scans(ranges, angles, odometry, scans.timestamps[rows])
     fast = ps.FastSlam(np.diag([0.01, 0.01, 0.002]), np.diag([0.0025, 0.0001]), num_particles=3, seed=3)
@@ -173,7 +175,7 @@ def small_states() -> dict:
     mcl.predict_odometry((0.3, 0.0, 0.1))
     states = {"OccupancyGrid2D": grid, "OccupancyGrid3D": grid3, "PoseGraph2D": graph, "PoseGraph3D": graph3,
               "SubmapSlam2D": slam, "GridFastSlam": rbpf, "FastSlam": fast, "EkfSlam": ekf,
-              "MultiHypothesisEkfSlam": mht, "MonteCarloLocalization": mcl}
+              "MultiHypothesisEkfSlam": mht, "MonteCarloLocalization": mcl, "IncrementalScanMatcher": ism}
     assert tuple(states) == STATE_CLASSES
     return states
 

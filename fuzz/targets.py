@@ -116,7 +116,7 @@ def ros_map(ws: Workspace, data: bytes) -> None:
 
 #: The classes with a state file (docs/file_format.md), by their tag; the C++ class of each.
 STATE_CLASSES = ("OccupancyGrid2D", "OccupancyGrid3D", "PoseGraph2D", "PoseGraph3D", "SubmapSlam2D", "GridFastSlam",
-                 "FastSlam", "EkfSlam", "MultiHypothesisEkfSlam", "MonteCarloLocalization")
+                 "FastSlam", "EkfSlam", "MultiHypothesisEkfSlam", "MonteCarloLocalization", "IncrementalScanMatcher")
 _STATE_BINDINGS = {"EkfSlam": "_EkfSlam", "MultiHypothesisEkfSlam": "_MultiHypothesisEkfSlam"}
 STATE_MAGIC = b"PSLSTATE"
 STATE_VERSION = 5  # kStateFormatVersion (include/probslam/core/state_file.hpp)

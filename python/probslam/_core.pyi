@@ -694,6 +694,11 @@ class IncrementalScanMatcher:
         """ranges (S, B) m, beam_angles (B,) or (S, B) rad, odometry (S, 3) laser poses, timestamps (S,) s."""
     def copy(self) -> "IncrementalScanMatcher": ...
     def submap_grid(self, index: int) -> OccupancyGrid2D: ...
+    def save(self, path: Union[str, os.PathLike[str]]) -> None:
+        """Writes the whole state to path (docs/file_format.md), bit for bit."""
+    @staticmethod
+    def load(path: Union[str, os.PathLike[str]]) -> "IncrementalScanMatcher":
+        """The object saved at path; ValueError naming the path for any other or damaged file."""
 
 class SubmapConstraints:
     """SubmapSlam2D.constraints: one row per constraint between submaps (C rows)."""

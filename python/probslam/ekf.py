@@ -198,6 +198,17 @@ class EkfSlam:
         return self._f.landmark_dim == 3
 
     @property
+    def gate_distance(self) -> float:
+        """Association candidates of update_unknown: the landmarks within this distance (m) of
+        where a measurement places its landmark, plus three standard deviations. Settable, checked
+        as the constructor checks it (a name not a property would be a silent new attribute)."""
+        return self._f.gate_distance
+
+    @gate_distance.setter
+    def gate_distance(self, metres: float) -> None:
+        self._f.gate_distance = _number(metres, "gate_distance")
+
+    @property
     def map_management(self) -> MapManagement:
         """Ch. 10.3.3 options of update_unknown (a copy; assign a MapManagement to change them)."""
         return self._f.map_management

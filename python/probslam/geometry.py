@@ -18,6 +18,19 @@ def _rows(a) -> np.ndarray:
     return np.asarray(a, dtype=float)
 
 
+def rotations(theta) -> np.ndarray:
+    """(..., 2, 2) the rotation matrices R(theta) = [[cos, -sin], [sin, cos]] of angles (...,)."""
+    c, s = np.cos(theta), np.sin(theta)
+    return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)
+
+
+def transform_points(poses, points) -> np.ndarray:
+    """(..., 2): points given in the frames of ``poses`` (..., 3), in their parent frame
+    (``R(theta) p + t`` row by row; a sighting placed in the world)."""
+    poses = _rows(poses)
+    return poses[..., :2] + np.einsum("...ij,...j->...i", rotations(poses[..., 2]), _rows(points))
+
+
 def compose(a, b) -> np.ndarray:
     """``a (+) b`` row by row: pose (or motion) ``b`` given in the frame of ``a``, in a's parent
     frame (``Pose2.compose``)."""
@@ -80,4 +93,4 @@ def interpolate(times, poses, query) -> np.ndarray:
     return np.column_stack([xy, theta])
 
 
-__all__ = ["accumulate", "between", "compose", "interpolate", "inverse", "steps"]
+__all__ = ["accumulate", "between", "compose", "interpolate", "inverse", "rotations", "steps", "transform_points"]

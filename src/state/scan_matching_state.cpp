@@ -139,4 +139,9 @@ IncrementalScanMatcher IncrementalScanMatcher::read_state(StateReader& r) {
   return m;
 }
 
+void IncrementalScanMatcher::save(const std::string& path) const { save_state(*this, path); }
+IncrementalScanMatcher IncrementalScanMatcher::load(const std::string& path) {
+  return load_state<IncrementalScanMatcher>(path);
+}
+
 }  // namespace probslam

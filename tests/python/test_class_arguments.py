@@ -72,3 +72,21 @@ def test_the_checked_calls_compute_what_they_did(tmp_path):
     voxels.write_bt(tmp_path / "v.bt")
     back = ps.OccupancyGrid3D.read_bt(str(tmp_path / "v.bt"))
     np.testing.assert_array_equal(back.occupied_voxels()[0], voxels.occupied_voxels()[0])
+
+
+def test_settable_properties_check_their_value_by_name():
+    """A settable property of a stateful class refuses a wrong value naming itself (pybind11's
+    typed setter listed its signatures instead), and a failed set changes nothing; EkfSlam's
+    gate_distance is a property (setting a name that is none would add an attribute silently)."""
+    grid = ps.OccupancyGrid2D(0.5, 8, 6)
+    ekf = ps.EkfSlam(np.eye(2) * 0.01, np.eye(2) * 0.01)
+    for obj, name, bad, error in [(grid, "p_hit", "0.9", TypeError), (grid, "p_miss", None, TypeError),
+                                  (grid, "p_hit", 1.5, ValueError), (ekf, "gate_distance", "x", TypeError),
+                                  (ekf, "gate_distance", -1.0, ValueError)]:
+        before = getattr(obj, name)
+        with pytest.raises(error, match=f"^{name}"):
+            setattr(obj, name, bad)
+        assert getattr(obj, name) == before
+    ekf.gate_distance = 2.5
+    grid.p_hit = 0.9
+    assert ekf.gate_distance == 2.5 and grid.p_hit == 0.9 and "gate_distance" not in vars(ekf)

@@ -43,6 +43,14 @@ def grid_3d():
     return g
 
 
+def scan_matcher():
+    from test_incremental_scan_matching import ANGLES, drive
+    true, odo, ranges = drive(8)
+    m = ps.IncrementalScanMatcher(filter={"max_range": 30.0})
+    m.add_scans(ranges, ANGLES, odo, np.arange(len(true), dtype=float))
+    return m
+
+
 #: Every stateful class, built and moved a little: (name, factory).
 STATEFUL = [
     ("EkfSlam", ekf),
@@ -50,6 +58,7 @@ STATEFUL = [
     ("FastSlam", lambda: ps.FastSlam(np.diag([0.01, 0.01, 0.002]), np.diag([0.01, 0.001]), num_particles=10, seed=1)),
     ("GridFastSlam", lambda: ps.GridFastSlam(num_particles=2)),
     ("SubmapSlam2D", lambda: ps.SubmapSlam2D()),
+    ("IncrementalScanMatcher", scan_matcher),
     ("MonteCarloLocalization", lambda: ps.MonteCarloLocalization(room(), min_particles=20, max_particles=40)),
     ("OccupancyGrid2D", room),
     ("OccupancyGrid3D", grid_3d),

@@ -76,6 +76,32 @@ def test_errors_name_the_field_path():
         O(seed=True)
 
 
+def test_a_property_set_through_its_groups_names_the_whole_path():
+    """``o.frontend.filter.max_range = "x"`` is refused naming ``frontend.filter.max_range``, as the
+    constructor names it; a group standing alone names its own fields."""
+    s = ps.SubmapSlamOptions()
+    with pytest.raises(TypeError, match="^frontend.filter.max_range must be a real number"):
+        s.frontend.filter.max_range = "x"
+    with pytest.raises(TypeError, match="^closures.min_match_quality must be a real number"):
+        s.closures.min_match_quality = "x"
+    frontend = s.frontend
+    with pytest.raises(TypeError, match="^frontend.update.distance must be a real number"):
+        frontend.update.distance = "x"
+    with pytest.raises(TypeError, match="^frontend.filter: expected a ScanFilter or a dict"):
+        frontend.filter = 3
+    o = ps.MonteCarloLocalizationOptions()
+    with pytest.raises(TypeError, match="^odometry.alpha2 must be a real number"):
+        o.odometry.alpha2 = "x"
+    with pytest.raises(ValueError, match='^sensor_model must be one of'):
+        o.sensor_model = "sonar"
+    with pytest.raises(TypeError, match="^alpha2 must be a real number"):
+        o.odometry.copy().alpha2 = "x"  # a copy stands alone
+    with pytest.raises(TypeError, match="^max_range must be a real number"):
+        ps.ScanFilter().max_range = "x"
+    s.frontend.filter.max_range = 12.0  # and a good value is set through the groups
+    assert s.frontend.filter.max_range == 12.0 and s == ps.SubmapSlamOptions(frontend={"filter": {"max_range": 12.0}})
+
+
 def test_a_failed_set_leaves_the_options_unchanged():
     o = ps.MonteCarloLocalizationOptions(sigma=0.2)
     before = o.copy()

@@ -384,6 +384,104 @@ def test_every_public_object_is_documented_with_a_real_signature_that_the_stub_m
     assert not problems, "\n".join(problems)
 
 
+# --- the face of the classes (docs/api.md) -----------------------------------------------------
+
+API_PAGE = STUB.parents[2] / "docs" / "api.md"
+
+#: Classes with save() that are not stateful classes of the face, with the reason (docs/api.md says it too).
+NOT_STATE_FILES = {
+    "LearnedInverseModel": "a trained model: save/load write its weights as a NumPy .npz, not a state file",
+}
+
+
+def api_row(text: str, first_cell: str):
+    """The names in backticks in the last cell of the docs/api.md table row that starts with
+    ``first_cell`` (the classes a name applies to)."""
+    for line in text.splitlines():
+        cells = line.split("|")
+        if len(cells) > 3 and cells[1].strip().startswith(first_cell):
+            return re.findall(r"`(\w+)`", cells[-2])
+    raise AssertionError(f"docs/api.md has no row starting {first_cell}")
+
+
+def exported_class(name: str):
+    """The class probslam exports as ``name``, or None."""
+    obj = getattr(probslam, name, None)
+    return obj if isinstance(obj, type) and name in probslam.__all__ else None
+
+
+def face_problems(text: str):
+    """What the classes do against what docs/api.md says they do: every class of the copy() row
+    has copy() and is stateful, so it has save/load and pickling and is in the save row; every
+    class of the save row has them; every exported class with save() is on both rows; every
+    class of the options row has ``options``; every result type of the results table is exported."""
+    problems = []
+    copyable, saved = api_row(text, "`copy()`"), api_row(text, "`save(path)`")
+    for name in copyable + saved:
+        cls = exported_class(name)
+        if cls is None:
+            problems.append(f"{name}: on the api page but not a class probslam exports")
+            continue
+        for attribute in ("copy", "save", "load", "__getstate__", "__setstate__"):
+            if not callable(getattr(cls, attribute, None)):
+                problems.append(f"{name}: no {attribute} (docs/api.md: every stateful class has copy, save/load, pickle)")
+    problems += [f"{name}: in the copy() row but not in the save row" for name in copyable if name not in saved]
+    with_options = api_row(text, "`options`")
+    for name in probslam.__all__:
+        cls = exported_class(name)
+        if cls is None or hasattr(cls, "validate") or hasattr(cls, "replace") or name in NOT_STATE_FILES:
+            continue  # not a class, an options class (copy() and pickling by fields, no file), or a model
+        if callable(getattr(cls, "save", None)):
+            problems += [f"{name}: has save() but is not in the {row} row of docs/api.md"
+                         for row, names in (("copy()", copyable), ("save", saved)) if name not in names]
+        if callable(getattr(cls, "copy", None)) and name not in copyable:
+            problems.append(f"{name}: has copy() but is not in the copy() row of docs/api.md")
+        if isinstance(getattr(cls, "options", None), property) and name not in with_options:
+            problems.append(f"{name}: has options but is not in the options row of docs/api.md")
+    for name in with_options:
+        cls = exported_class(name)
+        if cls is None or not isinstance(getattr(cls, "options", None), property):
+            problems.append(f"{name}: in the options row but has no options property")
+    results = text.split("## Results", 1)[1].split("\n## ", 1)[0]
+    for line in results.splitlines():
+        cells = line.split("|")
+        if len(cells) > 3 and cells[2].strip().startswith("`"):
+            for name in re.findall(r"`(\w+)`", cells[2]):
+                if not any(hasattr(m, name) for m in modules()):
+                    problems.append(f"{name}: a result type on the api page that no module exports")
+    return problems
+
+
+def test_the_classes_have_the_face_the_api_page_describes():
+    problems = face_problems(API_PAGE.read_text())
+    assert not problems, "\n".join(problems)
+
+
+def test_a_face_that_drifts_from_the_api_page_is_caught():
+    """A class named on the save row without save(), one left off it that has save(), an options
+    row naming a class without options, and a result type nobody exports each give a problem."""
+    text = API_PAGE.read_text()
+    cases = {
+        "CorrelativeScanMatcher: no save": ("`PoseGraph3D`, `MonteCarloLocalization` |",
+                                            "`PoseGraph3D`, `MonteCarloLocalization`, `CorrelativeScanMatcher` |"),
+        "FastSlam: has save() but is not in the save row": ("| `EkfSlam`, `MultiHypothesisEkfSlam`, `FastSlam`, `GridFastSlam`, "
+                                                            "`SubmapSlam2D`, `IncrementalScanMatcher`, `OccupancyGrid2D`, `OccupancyGrid3D`, "
+                                                            "`PoseGraph2D`, `PoseGraph3D`, `MonteCarloLocalization` |",
+                                                            "| `EkfSlam`, `MultiHypothesisEkfSlam`, `GridFastSlam`, "
+                                                            "`SubmapSlam2D`, `IncrementalScanMatcher`, `OccupancyGrid2D`, `OccupancyGrid3D`, "
+                                                            "`PoseGraph2D`, `PoseGraph3D`, `MonteCarloLocalization` |"),
+        "GridFastSlam: has options but is not in the options row": (
+            "| `MonteCarloLocalization`, `IncrementalScanMatcher`, `SubmapSlam2D`, `GridFastSlam`, ",
+            "| `MonteCarloLocalization`, `IncrementalScanMatcher`, `SubmapSlam2D`, "),
+        "EkfSlam: in the options row": ("`FastSlam`, `MultiHypothesisEkfSlam` |", "`FastSlam`, `MultiHypothesisEkfSlam`, `EkfSlam` |"),
+        "NoSuchResult: a result type": ("| `UpdateResult` |", "| `NoSuchResult` |"),
+    }
+    for expected, (old, new) in cases.items():
+        drifted = text.replace(old, new, 1)
+        assert drifted != text, expected
+        assert any(p.startswith(expected) for p in face_problems(drifted)), (expected, face_problems(drifted))
+
+
 # --- the checks can fail ------------------------------------------------------------------------
 
 def test_a_stub_that_drifts_is_caught():

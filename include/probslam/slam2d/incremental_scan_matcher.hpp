@@ -6,6 +6,7 @@
 #include <Eigen/Core>
 #include <memory>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "probslam/core/object_mutex.hpp"
@@ -228,7 +229,12 @@ class IncrementalScanMatcher {
   double grid_bytes() const;
 
   /// Options, estimates, submaps and the likelihood field the next scans are matched against
-  /// (built from an earlier state of the map, so it is saved, not rebuilt): bit for bit.
+  /// (built from an earlier state of the map, so it is saved, not rebuilt): bit for bit, to one
+  /// file (docs/file_format.md) as the other stateful classes; a loaded object continues exactly
+  /// as this one would.
+  static constexpr const char* kStateTag = "IncrementalScanMatcher";
+  void save(const std::string& path) const;
+  static IncrementalScanMatcher load(const std::string& path);
   void write_state(StateWriter& w) const;
   static IncrementalScanMatcher read_state(StateReader& r);
 

@@ -31,6 +31,7 @@ from typing import List, Optional, Union
 
 import numpy as np
 
+from .. import geometry
 from .._args import distinct_numbers, real_array
 from .._core import wrap_angle
 from ._files import file_path, numeric_rows, numeric_table, require_regular_file, text_lines
@@ -98,9 +99,8 @@ def _checked(timestamps: object, poses: object):
 
 def _rotations(theta: np.ndarray) -> np.ndarray:
     """(N, 3, 3) rotations about z by theta."""
-    c, s = np.cos(theta), np.sin(theta)
     r = np.zeros((len(theta), 3, 3))
-    r[:, 0, 0], r[:, 0, 1], r[:, 1, 0], r[:, 1, 1], r[:, 2, 2] = c, -s, s, c, 1.0
+    r[:, :2, :2], r[:, 2, 2] = geometry.rotations(theta), 1.0
     return r
 
 

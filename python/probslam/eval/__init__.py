@@ -1,0 +1,63 @@
+"""How good is a SLAM result: the relations metric of Kümmerle et al. 2009 (``relations``), the
+NEES (``consistency``), evo's ATE and RPE (``trajectory``, their statistics in ``statistics``), a
+path against reference positions such as a GPS track (``positions``), and the scores of landmark
+SLAM runs (path and map against ground truth or a survey in ``landmarks``, data association
+against a dataset's labels in ``association``). Every name is importable from ``probslam.eval``.
+
+Units: metres, radians and seconds; poses are ``(x, y, theta)`` with theta in (-pi, pi].
+"""
+
+from ..io._files import MAX_REPORTED_LINES
+from .alignment import align_rigid
+from .association import (association_accuracy, majority_labels, majority_truth, primary_landmarks,
+                          sighting_accuracy)
+from .consistency import NEES_SINGULAR_RTOL, SingularCovarianceError, nees
+from .landmarks import LandmarkScore, MrclamScore, score_landmarks, score_mrclam, truth_positions
+from .poses import interpolate_poses, relative_poses
+from .positions import PositionError, position_error
+from .relations import (SAME_SCAN_TIME, Relations, RelationsError, clock_offset, on_times, read_relations,
+                        relations_error, relations_on_logger_time)
+from .statistics import STATISTICS, error_statistics, rmse, statistics_table
+from .trajectory import (ALIGNMENTS, DELTA_UNITS, MAX_TIME_DIFFERENCE, TrajectoryError, associate, ate, rpe)
+
+
+__all__ = [
+    "ALIGNMENTS",
+    "DELTA_UNITS",
+    "MAX_REPORTED_LINES",
+    "MAX_TIME_DIFFERENCE",
+    "NEES_SINGULAR_RTOL",
+    "LandmarkScore",
+    "MrclamScore",
+    "PositionError",
+    "Relations",
+    "RelationsError",
+    "SAME_SCAN_TIME",
+    "STATISTICS",
+    "SingularCovarianceError",
+    "TrajectoryError",
+    "align_rigid",
+    "associate",
+    "ate",
+    "association_accuracy",
+    "clock_offset",
+    "error_statistics",
+    "interpolate_poses",
+    "majority_labels",
+    "majority_truth",
+    "nees",
+    "on_times",
+    "position_error",
+    "primary_landmarks",
+    "read_relations",
+    "relations_on_logger_time",
+    "relations_error",
+    "relative_poses",
+    "rmse",
+    "rpe",
+    "score_landmarks",
+    "score_mrclam",
+    "statistics_table",
+    "sighting_accuracy",
+    "truth_positions",
+]
