@@ -57,6 +57,10 @@ struct OptimizerOptions {
 
   /// std::invalid_argument naming the first bad option: max_iterations >= 1, kernel_width > 0.
   void validate() const;
+  /// What optimize() accepts (std::invalid_argument naming the first bad field): max_iterations
+  /// >= 0 (0 evaluates the start only), tolerances >= 0, a kernel's width > 0 with a finite,
+  /// normal square (the kernels divide by it).
+  void check_ranges() const;
   template <class V>
   static void describe(V& v) {
     using O = OptimizerOptions;
