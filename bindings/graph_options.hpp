@@ -1,5 +1,6 @@
 #pragma once
-// The graph optimisers' options from Python strings, shared by the 2-D and 3-D graph bindings.
+// The graph optimisers' bindings, one function each for the 2-D and 3-D graphs, their options the
+// typed classes of the C++ structs (options_class.hpp), and the graph arguments' checks.
 #include <pybind11/eigen.h>
 #include <pybind11/pybind11.h>
 #include <pybind11/stl.h>

@@ -53,6 +53,8 @@ struct OptimizerOptions {
   double step_tolerance = 1e-10;
   RobustKernel kernel = RobustKernel::kNone;
   double kernel_width = 1.0;  ///< in units of sqrt(chi2), e.g. 1.345 or chi2 quantiles' roots
+  /// Its fill ordering kDefault is each graph's own: AMD for a PoseGraph2D, METIS for a
+  /// PoseGraph3D (GraphTraits::kDefaultOrdering); the marginals' and chordal start's likewise.
   SparseCholeskyOptions linear_solver;
 
   /// std::invalid_argument naming the first bad option: max_iterations >= 1, kernel_width > 0.

@@ -630,5 +630,5 @@ __all__ = ["COMMAND_PERIOD", "DEFAULT_ASSOCIATION", "MEASUREMENT_NOISE", "Mrclam
            "MHT_DETECTION_PROBABILITY",
            "MHT_NEW_LANDMARK_COST", "MOTION_NOISE", "MOTION_SIGMA",
            "OUTLIER_PROBABILITY", "PERCEPTUAL_FIELD_QUANTILE", "outlier_density", "ROBOTS", "SURVEY_RESIDUAL_LIMIT", "dead_reckoning",
-           "dead_reckoning_map", "first_seconds", "fit_range_scale", "load", "perceptual_field", "refinement_input", "run_ekf",
+           "dead_reckoning_map", "fastslam_options", "first_seconds", "fit_range_scale", "load", "perceptual_field", "refinement_input", "run_ekf",
            "run_fastslam", "same_scan_residuals", "start_pose", "survey_label_swaps"]
