@@ -57,7 +57,7 @@ def load(dataset: int, robot: int, seconds):
 def run_one(job):
     dataset, robot, method, seconds, particles, seed, existence_miss = job
     options = {} if existence_miss is None else {"existence_miss": existence_miss}
-    fastslam = dict(num_particles=particles, seed=seed, filter_options=options)
+    fastslam = dict(num_particles=particles, seed=seed, **options)
     data = load(dataset, robot, seconds)
     t0 = time.perf_counter()
     known = method.endswith("-known")
@@ -69,9 +69,9 @@ def run_one(job):
         offset = method == "mht-offset"
         run = ps.run_landmark_slam(data, "mht", known=False, motion_noise=MOTION,
                                    measurement_noise=MHT_OFFSET_SENSOR if offset else SENSOR,
-                                   hypotheses=MHT_OFFSET_OPTIONS if offset else None)
+                                   hypotheses=ps.MultiHypothesisOptions(**MHT_OFFSET_OPTIONS) if offset else None)
     elif method in OFFSET_METHODS:
-        fastslam["filter_options"] = {**options, **OFFSET_OPTIONS}
+        fastslam.update(OFFSET_OPTIONS)
         run = ps.run_landmark_slam(data, "fastslam", known=False, motion_noise=MOTION, measurement_noise=OFFSET_SENSOR,
                                    version=int(method.split("-")[0][-1]), p_new=OFFSET_P_NEW, **fastslam)
     else:

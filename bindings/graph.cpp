@@ -242,6 +242,8 @@ void define_graph(py::module_& m) {
   bind_options<SparseCholeskyOptions>(m, "SparseCholeskyOptions", "The sparse Cholesky factorisation (CHOLMOD).");
   bind_options<OptimizerOptions>(m, "OptimizerOptions",
                                  "The pose-graph optimiser's options (Gauss-Newton or Levenberg-Marquardt).");
+  bind_options<IncrementalOptions>(m, "IncrementalOptions",
+                                   "optimize_incremental's options: poses per step and each step's optimiser.");
   // Every method runs its C++ work under the graph's lock with the GIL released (object_lock.hpp).
   auto graph_class = py::class_<PoseGraph2D>(m, "PoseGraph2D",
                           "A planar pose/landmark graph (GraphSLAM's constraints, ch. 11): pose vertices (x m, y m,\n"

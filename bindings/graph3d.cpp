@@ -337,54 +337,62 @@ void define_graph3d(py::module_& m) {
   def_optimizers(
       m, {"Minimises a PoseGraph2D's or PoseGraph3D's objective in place from its current values and returns\n"
           "an OptimizationReport. Fixed vertices keep their values; with none fixed the first pose is held.\n"
-          "algorithm: \"gauss-newton\" or \"levenberg-marquardt\" (damping \"marquardt\": D = diag(H), or\n"
-          "\"levenberg\": D = I); stops after max_iterations, when an iteration lowers the objective by\n"
-          "less than relative_tolerance of it, or when the largest step entry is below step_tolerance\n"
-          "(m / rad). kernel: \"none\", \"huber\" or \"cauchy\" with kernel_width in units of sqrt(chi2).\n"
-          "linear_solver: CHOLMOD \"simplicial\", \"supernodal\" or \"auto\"; ordering: \"amd\" or \"metis\"\n"
-          "(None: \"amd\" for a PoseGraph2D, \"metis\" for a PoseGraph3D, the faster on the graphs measured).\n"
-          "A 3-D step is on the manifold (x (+) [v, w] = (R Exp(w), t + R v)), step_tolerance in m / rad.\n"
+          "options: an OptimizerOptions (None: its defaults); a field given by keyword replaces options'\n"
+          "field (max_iterations=5, algorithm=\"levenberg-marquardt\", linear_solver={\"ordering\": \"amd\"}).\n"
+          "The fill ordering \"default\" is \"amd\" for a PoseGraph2D and \"metis\" for a PoseGraph3D, the\n"
+          "faster on the graphs measured. A 3-D step is on the manifold (x (+) [v, w] = (R Exp(w), t + R v)).\n"
           "callback(iteration, chi2), optional: called after each completed iteration (1 for the first)\n"
           "with the chi2 after it, on the calling thread; returning False stops there (stop_reason \"stopped\n"
           "by the callback\"). An exception it raises (KeyboardInterrupt on Ctrl-C) propagates with the graph\n"
           "at the last completed iteration's values. The callback may read the graph (it holds the values\n"
           "of the iteration just completed); changing it there raises RuntimeError.\n"
-          "TypeError naming graph for anything but a PoseGraph2D or PoseGraph3D; ValueError for an empty\n"
-          "graph or a part not connected to a fixed vertex.",
+          "TypeError naming graph for anything but a PoseGraph2D or PoseGraph3D; TypeError / ValueError\n"
+          "naming an option's path (\"linear_solver.ordering\"); ValueError for an empty graph or a part\n"
+          "not connected to a fixed vertex.",
           "Marginal covariances at the current values, one per id, from the sparse inverse of the\n"
           "information matrix; a fixed vertex has zero covariance. PoseGraph2D: (3, 3) for a pose (m, m,\n"
           "rad), (2, 2) for a point (m). PoseGraph3D: (6, 6) per pose in its tangent [translation m in its\n"
           "own frame, rotation vector rad] (right perturbation), (3, 3) per point (m, world frame).\n"
-          "ordering None as for optimize. Returns a list of arrays.",
+          "options: a SparseCholeskyOptions (None: its defaults, the ordering as for optimize), fields by\n"
+          "keyword as for optimize. Returns a list of arrays.",
           "Joint marginal covariances at the current values, one per group of vertex ids: the covariance\n"
           "of the group's variables stacked in the order given (PoseGraph2D: 3 per pose, 2 per point;\n"
           "PoseGraph3D: 6 per pose and 3 per point, in the tangent of marginal_covariances),\n"
           "cross-covariances included, from one factorisation (e.g. a landmark pair's (4, 4) for ch.\n"
           "11.6's correspondence test). A fixed vertex's rows and columns are zero. ValueError for an\n"
-          "unknown id or a group naming a vertex twice. Returns a list of arrays.",
+          "unknown id or a group naming a vertex twice. options as for marginal_covariances. Returns a\n"
+          "list of arrays.",
           "Incremental batch optimisation: poses join in the order they were added (each composed from\n"
           "its first edge to an earlier pose, each point with the earliest pose that sees it, placed by\n"
           "that pose's first edge to it), and after every poses_per_step poses the part seen so far (its\n"
-          "edges and priors) is optimised with the options of optimize. Returns an IncrementalReport.",
+          "edges and priors) is optimised with options.step (an OptimizerOptions; from a warm start its\n"
+          "defaults stop sooner than optimize's). options: an IncrementalOptions (None: its defaults), fields\n"
+          "by keyword as for optimize (poses_per_step=25, step={\"max_iterations\": 3}); errors name the\n"
+          "field's path (\"step.kernel\"). Returns an IncrementalReport.",
           "Initial values by composing pose edges outward from the fixed vertices (or the first pose)\n"
           "along a breadth-first spanning tree; then each free point is placed by its first edge from a\n"
           "reached pose (3-D: p = x * offset * z). For an odometry chain this is dead reckoning.\n"
           "Unreached vertices keep their values. PoseGraph2D or PoseGraph3D."});
 
-  m.def("initialize_chordal",
-        [](ClassArg<PoseGraph3D> graph_arg, StrArg linear_solver, StrArg ordering) {
-          PoseGraph3D& graph = graph_arg.get("graph");
-          const SparseCholeskyOptions o = solver_options(linear_solver.get("linear_solver"), ordering.get("ordering"));
-          locked(graph, [&] { initialize_chordal(graph, o); });
-        },
-        py::arg("graph"), py::arg("linear_solver") = kGraphLinearSolver,
-        py::arg("ordering") = DefaultOrdering<PoseGraph3D>::value,
+  {
+    py::options signatures;  // the fields' keywords are written from describe(), not **kwargs
+    signatures.disable_function_signatures();
+    m.def("initialize_chordal",
+          [](ClassArg<PoseGraph3D> graph_arg, py::handle options, const py::kwargs& fields) {
+            const auto o = options_arg<SparseCholeskyOptions>(options, fields, "initialize_chordal()");
+            PoseGraph3D& graph = graph_arg.get("graph");
+            locked(graph, [&] { initialize_chordal(graph, o); });
+          },
+          py::arg("graph"), py::kw_only(), py::arg("options") = py::none(),
+          options_signature<SparseCholeskyOptions>("initialize_chordal", "PoseGraph3D", "", "", "None",
         "Chordal initialisation of a PoseGraph3D (Carlone et al. 2015): the rotations from the linear\n"
         "least-squares relaxation of R_to = R_from R_z (each 3x3 then projected onto SO(3)), then the\n"
         "translations by a second linear solve with those rotations; then each free point placed by its\n"
         "first edge (p = x * offset * z). Exact for noise-free edges; the\n"
         "held vertices (fixed, or the first) keep their values. ValueError for a part of the graph not\n"
-        "connected to a held vertex.");
+        "connected to a held vertex. options: the linear solves' SparseCholeskyOptions, fields by keyword\n"
+        "as for optimize.").c_str());
+  }
 }
 
 }  // namespace probslam::bindings

@@ -1,7 +1,7 @@
 """Rewrites the parts of python/probslam/_core.pyi that come from the C++ options structs'
 describe() (core/options_description.hpp): each options class (its fields with units, __init__
-and replace with every field) and the __init__ of each class that takes one (`options:
-Optional[XOptions]` plus every field by keyword). Run after adding an option, on the built module:
+and replace with every field), the __init__ of each class and the signature of each function that
+takes one (`options: Optional[XOptions]` plus every field by keyword). Run after adding an option, on the built module:
 
     .venv/bin/python scripts/stub_options.py          # rewrite the stub
     .venv/bin/python scripts/stub_options.py --check  # exit 1 if the stub is not what it would write
@@ -88,6 +88,17 @@ def generated(stub: str) -> str:
         init = stub.index("    def __init__(self, ", start)
         end = stub.index(") -> None: ...", init) + len(") -> None: ...")
         stub = stub[:init] + text + stub[end:]
+    for name, function in vars(_core).items():
+        first = (getattr(function, "__doc__", None) or "").splitlines()[:1]
+        if isinstance(function, type) or not callable(function) or not first or "options: Optional[" not in first[0]:
+            continue
+        line = first[0]
+        params, returns = line[line.index("(") + 1:line.rindex(") -> ")], line[line.rindex(") -> ") + 5:]
+        head = f"def {name}("
+        text = wrap(head, params, f") -> {returns}:", len(head))
+        start = stub.index("\n" + head) + 1
+        end = stub.index(":\n", stub.index(") -> ", start)) + 1
+        stub = stub[:start] + text + stub[end:]
     return stub
 
 

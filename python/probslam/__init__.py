@@ -88,8 +88,8 @@ from .slam import SlamResult, run_slam
 from ._core import (BeamMixture, MclUpdate, MonteCarloLocalization, MonteCarloLocalizationOptions,
                     OdometryMotionNoise, odometry_motion, odometry_motion_log_density, sample_odometry_motion)
 # The options classes of the laser SLAM classes and the graph optimiser (C++ describe()).
-from ._core import (EndpointLikelihoodOptions, GridFastSlamOptions, IncrementalScanMatcherOptions,
-                    LikelihoodFieldOptions, LoopClosureOptions, MatchOptions, OdometryNoise, OptimizerOptions,
+from ._core import (EndpointLikelihoodOptions, GridFastSlamOptions, IncrementalOptions,
+                    IncrementalScanMatcherOptions, LikelihoodFieldOptions, LoopClosureOptions, MatchOptions, OdometryNoise, OptimizerOptions,
                     ScanFilter, ScanProposalOptions, SearchWindow, SparseCholeskyOptions, SubmapSlamOptions,
                     UpdateTrigger)
 from .localization import LocalizationResult, localize
@@ -228,6 +228,7 @@ __all__ = [
     "ScanProposalOptions",
     "GridFastSlamOptions",
     "OptimizerOptions",
+    "IncrementalOptions",
     "SparseCholeskyOptions",
     "LocalizationResult",
     "localize",

@@ -4,7 +4,7 @@ deep inside could say less)."""
 
 from __future__ import annotations
 
-from typing import Optional, Tuple, Union
+from typing import Mapping, Optional, Tuple, Union
 
 import numpy as np
 
@@ -14,6 +14,20 @@ def require_instance(value: object, types: Union[type, Tuple[type, ...]], name: 
     if not isinstance(value, types):
         expected = " or ".join(t.__name__ for t in (types if isinstance(types, tuple) else (types,)))
         raise TypeError(f"{name}: expected {expected}, got {type(value).__name__}")
+
+
+def options_over(cls: type, options: object, fields: Mapping, defaults: Mapping, name: str = "options"):
+    """The options of a run taken as ``(..., options=None, **fields)`` over its own defaults (a
+    dataset's noise, its sensor's field): ``options`` (None: ``cls()``) with each of ``defaults``
+    where it still holds ``cls()``'s value, then ``fields`` set (a field named by keyword always
+    wins: ``p_new=1e-2`` runs with that value even where it is ``cls()``'s). A ``cls`` is a bound
+    options class (``replace`` validates); TypeError naming ``name`` for another type, the class's
+    TypeError / ValueError naming the field's path for a bad field."""
+    base = cls() if options is None else options
+    require_instance(base, cls, name)
+    stock = cls()
+    own = {k: v for k, v in defaults.items() if k not in fields and getattr(base, k) == getattr(stock, k)}
+    return base.replace(**own, **fields)
 
 
 def require_integer(value: object, name: str, lowest: Optional[int] = None, highest: Optional[int] = None) -> int:

@@ -563,35 +563,40 @@ class IncrementalReport:
     chi2: float
     step_chi2: List[float]
 
-def optimize(graph: Union[PoseGraph2D, PoseGraph3D], algorithm: str = "gauss-newton", max_iterations: int = 100,
-             relative_tolerance: float = 1e-10, step_tolerance: float = 1e-10, kernel: str = "none",
-             kernel_width: float = 1.0, linear_solver: str = "supernodal", ordering: Optional[str] = None,
-             damping: str = "marquardt",
-             callback: Optional[Callable[[int, float], Optional[bool]]] = None) -> OptimizationReport:
-    """In place from the current values; algorithm "gauss-newton" / "levenberg-marquardt", kernel
-    "none" / "huber" / "cauchy", linear_solver "supernodal" / "simplicial" / "auto", ordering
-    "amd" / "metis" (None: "amd" for 2-D, "metis" for 3-D), damping "marquardt" / "levenberg".
-    callback(iteration, chi2) after each completed iteration: False stops; an exception it raises
-    leaves the graph at the last completed iteration. A 3-D step is x (+) [v, w] = (R Exp(w), t + R v).
-    TypeError naming graph for any other type."""
-def optimize_incremental(graph: Union[PoseGraph2D, PoseGraph3D], poses_per_step: int = 100,
-                         algorithm: str = "gauss-newton", max_iterations: int = 10, relative_tolerance: float = 1e-6,
-                         step_tolerance: float = 1e-10, kernel: str = "none", kernel_width: float = 1.0,
-                         linear_solver: str = "supernodal", ordering: Optional[str] = None,
-                         damping: str = "marquardt") -> IncrementalReport:
-    """Poses join in the order added; the graph so far is optimised every poses_per_step poses."""
+def optimize(graph: Union[PoseGraph2D, PoseGraph3D], *, options: Optional[OptimizerOptions] = None,
+             callback: Optional[Callable[[int, float], Optional[bool]]] = None, algorithm: str = 'gauss-newton',
+             damping: str = 'marquardt', max_iterations: int = 100, relative_tolerance: float = 1e-10,
+             step_tolerance: float = 1e-10, kernel: str = 'none', kernel_width: float = 1.0,
+             linear_solver: SparseCholeskyOptions = ...) -> OptimizationReport:
+    """In place from the current values with ``options`` (an OptimizerOptions; None: its defaults)
+    and its fields by keyword (``max_iterations=5``, ``linear_solver={"ordering": "amd"}``); the fill
+    ordering "default" is "amd" for 2-D, "metis" for 3-D. callback(iteration, chi2) after each
+    completed iteration: False stops; an exception it raises leaves the graph at the last completed
+    iteration. A 3-D step is x (+) [v, w] = (R Exp(w), t + R v). TypeError naming graph for any
+    other type; errors name an option's path ("linear_solver.ordering")."""
+def optimize_incremental(graph: Union[PoseGraph2D, PoseGraph3D], *, options: Optional[IncrementalOptions] = None,
+                         poses_per_step: int = 100, step: OptimizerOptions = ...) -> IncrementalReport:
+    """Poses join in the order added; the graph so far is optimised every poses_per_step poses with
+    options.step (IncrementalOptions; its defaults stop sooner than optimize's); fields by keyword
+    (``poses_per_step=25``, ``step={"max_iterations": 3}``), errors naming the path ("step.kernel")."""
 def initialize_odometry(graph: Union[PoseGraph2D, PoseGraph3D]) -> None:
     """Composes pose edges outward along a breadth-first spanning tree (dead reckoning)."""
-def initialize_chordal(graph: PoseGraph3D, linear_solver: str = "supernodal", ordering: str = "metis") -> None:
-    """Rotations by the chordal relaxation (projected onto SO(3)), then translations: exact without noise."""
-def marginal_covariances(graph: Union[PoseGraph2D, PoseGraph3D], ids: Sequence[int],
-                         linear_solver: str = "supernodal", ordering: Optional[str] = None) -> List[Array]:
+def initialize_chordal(graph: PoseGraph3D, *, options: Optional[SparseCholeskyOptions] = None,
+                       method: str = 'supernodal', ordering: str = 'default') -> None:
+    """Rotations by the chordal relaxation (projected onto SO(3)), then translations: exact without noise.
+    options: the linear solves' SparseCholeskyOptions (fields by keyword as for optimize)."""
+def marginal_covariances(graph: Union[PoseGraph2D, PoseGraph3D], ids: Sequence[int], *,
+                         options: Optional[SparseCholeskyOptions] = None, method: str = 'supernodal',
+                         ordering: str = 'default') -> List[Array]:
     """2-D: (3, 3) per pose id, (2, 2) per point id; 3-D: (6, 6) per pose id in its tangent
-    [translation, rotation vector], (3, 3) per point; zero for a fixed vertex."""
-def joint_marginal_covariances(graph: Union[PoseGraph2D, PoseGraph3D], groups: Sequence[Sequence[int]],
-                               linear_solver: str = "supernodal", ordering: Optional[str] = None) -> List[Array]:
+    [translation, rotation vector], (3, 3) per point; zero for a fixed vertex. options: a
+    SparseCholeskyOptions (fields by keyword: method, ordering)."""
+def joint_marginal_covariances(graph: Union[PoseGraph2D, PoseGraph3D], groups: Sequence[Sequence[int]], *,
+                               options: Optional[SparseCholeskyOptions] = None, method: str = 'supernodal',
+                               ordering: str = 'default') -> List[Array]:
     """Per group, the joint covariance of its vertices stacked in order (2-D: 3 per pose, 2 per
-    point; 3-D: 6 and 3), cross-covariances included; zero rows and columns for a fixed vertex."""
+    point; 3-D: 6 and 3), cross-covariances included; zero rows and columns for a fixed vertex.
+    options as for marginal_covariances."""
 class PoseGraphReadReport:
     """What read_pose_graph_with_report did with the file's records."""
     rows: int  # records read, skipped ones included
@@ -980,8 +985,8 @@ class SparseCholeskyOptions:
     Fields by keyword (TypeError / ValueError name the field's path); replace() a validated copy."""
     method: str
     ordering: str
-    def __init__(self, *, method: str = 'supernodal', ordering: str = 'amd') -> None: ...
-    def replace(self, *, method: str = 'supernodal', ordering: str = 'amd') -> SparseCholeskyOptions: ...
+    def __init__(self, *, method: str = 'supernodal', ordering: str = 'default') -> None: ...
+    def replace(self, *, method: str = 'supernodal', ordering: str = 'default') -> SparseCholeskyOptions: ...
     def validate(self) -> None: ...
     def copy(self) -> SparseCholeskyOptions: ...
     def as_dict(self) -> Dict[str, Any]: ...
@@ -1005,6 +1010,17 @@ class OptimizerOptions:
                 kernel_width: float = 1.0, linear_solver: SparseCholeskyOptions = ...) -> OptimizerOptions: ...
     def validate(self) -> None: ...
     def copy(self) -> OptimizerOptions: ...
+    def as_dict(self) -> Dict[str, Any]: ...
+
+class IncrementalOptions:
+    """optimize_incremental's options: poses per step and each step's optimiser.
+    Fields by keyword (TypeError / ValueError name the field's path); replace() a validated copy."""
+    poses_per_step: int
+    step: OptimizerOptions
+    def __init__(self, *, poses_per_step: int = 100, step: OptimizerOptions = ...) -> None: ...
+    def replace(self, *, poses_per_step: int = 100, step: OptimizerOptions = ...) -> IncrementalOptions: ...
+    def validate(self) -> None: ...
+    def copy(self) -> IncrementalOptions: ...
     def as_dict(self) -> Dict[str, Any]: ...
 
 class UpdateTrigger:

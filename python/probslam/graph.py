@@ -21,9 +21,9 @@ from typing import Optional, Union
 
 from . import _core
 from .io._files import file_path
-from ._core import (IncrementalReport, OptimizationReport, PoseGraph2D, PoseGraph3D, PoseGraphReadReport,
-                    initialize_chordal, initialize_odometry, joint_marginal_covariances, marginal_covariances,
-                    optimize, optimize_incremental)
+from ._core import (IncrementalOptions, IncrementalReport, OptimizationReport, OptimizerOptions, PoseGraph2D,
+                    PoseGraph3D, PoseGraphReadReport, SparseCholeskyOptions, initialize_chordal, initialize_odometry,
+                    joint_marginal_covariances, marginal_covariances, optimize, optimize_incremental)
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -200,8 +200,8 @@ def write_isam(graph: PoseGraph2D, path: PathLike) -> None:
 INITIALIZATIONS = ("odometry", "ekf", "incremental")
 
 
-def initialize(graph: PoseGraph2D, method: str = "odometry", poses_per_step: int = 100,
-               **options) -> Optional[IncrementalReport]:
+def initialize(graph: PoseGraph2D, method: str = "odometry", options: Optional[IncrementalOptions] = None,
+               **fields) -> Optional[IncrementalReport]:
     """Replace the graph's values by a starting point for ``optimize``.
 
     ``method``:
@@ -210,13 +210,16 @@ def initialize(graph: PoseGraph2D, method: str = "odometry", poses_per_step: int
       * ``"ekf"``: the estimate of EKF SLAM run along the poses in the order they were added,
         with the pose edges between consecutive poses as odometry and the point edges as
         landmark observations (``landmark_slam.run_ekf_on_graph``);
-      * ``"incremental"``: ``optimize_incremental``: the poses join ``poses_per_step`` at a time
-        and the graph so far is optimised after each step (``options`` go to each step's
-        optimisation, e.g. ``algorithm``); its report is returned, and the graph ends at a
-        minimum of the full problem.
+      * ``"incremental"``: ``optimize_incremental`` with ``options`` (an ``IncrementalOptions``,
+        None: its defaults) and ``fields`` of it by keyword (``poses_per_step``, ``step``): the
+        poses join ``poses_per_step`` at a time and the graph so far is optimised after each
+        step; its report is returned, and the graph ends at a minimum of the full problem.
 
     Fixed vertices keep their values. Raises ValueError for an unknown method.
     """
+    if method != "incremental" and (options is not None or fields):
+        name = "options" if options is not None else next(iter(fields))
+        raise ValueError(f"{name}: options apply to method 'incremental' only, not to {method!r}")
     if method == "odometry":
         initialize_odometry(graph)
         return None
@@ -231,14 +234,17 @@ def initialize(graph: PoseGraph2D, method: str = "odometry", poses_per_step: int
             graph.set_points(points, [run.landmarks[i] for i in points])
         return None
     if method == "incremental":
-        return optimize_incremental(graph, poses_per_step=poses_per_step, **options)
+        return optimize_incremental(graph, options=options, **fields)
     raise ValueError(f"method must be one of {', '.join(repr(m) for m in INITIALIZATIONS)}, got {method!r}")
 
 
 __all__ = [
     "QUATERNION_NORM_TOLERANCE",
     "INITIALIZATIONS",
+    "IncrementalOptions",
     "IncrementalReport",
+    "OptimizerOptions",
+    "SparseCholeskyOptions",
     "OptimizationReport",
     "INFORMATION_EIGENVALUE_FLOOR",
     "MAX_BAD_ROW_FRACTION",

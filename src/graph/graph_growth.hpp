@@ -90,7 +90,7 @@ inline bool joined(const std::vector<int>& joins, int v, int step) { return join
 template <typename Graph, typename Propagate, typename Place, typename PartOf>
 IncrementalReport optimize_incremental_graph(Graph& target, const IncrementalOptions& options, Propagate propagate,
                                              Place place, PartOf part_of) {
-  require(options.poses_per_step >= 1, "poses_per_step", "must be >= 1");
+  options.validate();
   Graph graph = target;  // committed only when every step succeeded with finite values
   const int n = graph.num_vertices();
   std::vector<int> order, position(n, kNone), joins(n, kNone);

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <deque>
+#include <stdexcept>
+#include <string>
 
 #include "graph_growth.hpp"
 #include "probslam/core/check.hpp"
@@ -73,6 +75,22 @@ void initialize_odometry(PoseGraph2D& target) {
   graph_detail::spread_along_pose_edges(graph, reached, std::move(queue), propagate);
   graph_detail::place_points(graph, reached, place_point);
   target.assign_values(graph.values());
+}
+
+OptimizerOptions IncrementalOptions::default_step() {
+  OptimizerOptions o;
+  o.max_iterations = 10;
+  o.relative_tolerance = 1e-6;
+  return o;
+}
+
+void IncrementalOptions::validate() const {
+  require(poses_per_step >= 1, "poses_per_step", "must be >= 1");
+  try {
+    step.check_ranges();
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("step.") + e.what());
+  }
 }
 
 IncrementalReport optimize_incremental(PoseGraph2D& target, const IncrementalOptions& options) {

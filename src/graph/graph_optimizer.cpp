@@ -10,6 +10,8 @@ namespace graph_detail {
 // Variable sizes: 3 per pose, 2 per point; the first pose holds the gauge when nothing is fixed.
 template <>
 struct GraphTraits<PoseGraph2D> {
+  /// AMD: faster than METIS on every 2-D graph measured (docs/pose_graphs.md).
+  static constexpr FillOrdering kDefaultOrdering = FillOrdering::kAmd;
   static std::vector<std::pair<int, int>> couplings(const PoseGraph2D& graph) {
     std::vector<std::pair<int, int>> pairs;
     pairs.reserve(graph.pose_edges().size() + graph.point_edges().size());
@@ -73,6 +75,19 @@ struct GraphTraits<PoseGraph2D> {
 void OptimizerOptions::validate() const {
   require(max_iterations >= 1, "max_iterations", "must be >= 1");
   require_positive(kernel_width, "kernel_width");
+}
+
+void OptimizerOptions::check_ranges() const {
+  require(max_iterations >= 0, "max_iterations", "must be >= 0");
+  require(relative_tolerance >= 0.0, "relative_tolerance", "must be >= 0");
+  require(step_tolerance >= 0.0, "step_tolerance", "must be >= 0");
+  if (kernel != RobustKernel::kNone) {
+    require_positive(kernel_width, "kernel_width");
+    // The kernels divide by width^2: it must neither overflow nor underflow.
+    const double w2 = kernel_width * kernel_width;
+    require(std::isfinite(w2) && w2 >= std::numeric_limits<double>::min(), "kernel_width",
+            "must have a finite, normal square");
+  }
 }
 
 OptimizationReport optimize(PoseGraph2D& graph, const OptimizerOptions& options,

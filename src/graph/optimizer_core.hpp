@@ -164,16 +164,7 @@ template <typename Graph>
 void validate(const Graph& graph, const OptimizerOptions& options) {
   require(graph.num_vertices() > 0, "graph", "has no vertices");
   require(GraphTraits<Graph>::has_edges(graph), "graph", "has no edges");
-  require(options.max_iterations >= 0, "max_iterations", "must be >= 0");
-  require(options.relative_tolerance >= 0.0, "relative_tolerance", "must be >= 0");
-  require(options.step_tolerance >= 0.0, "step_tolerance", "must be >= 0");
-  if (options.kernel != RobustKernel::kNone) {
-    require_positive(options.kernel_width, "kernel_width");
-    // The kernels divide by width^2: it must neither overflow nor underflow.
-    const double w2 = options.kernel_width * options.kernel_width;
-    require(std::isfinite(w2) && w2 >= std::numeric_limits<double>::min(), "kernel_width",
-            "must have a finite, normal square");
-  }
+  options.check_ranges();
 }
 
 // Floating vertices listed by name in the error; the rest are counted.
@@ -278,7 +269,7 @@ OptimizationReport optimize_in_place(Graph& graph, const OptimizerOptions& optio
     report.stop_reason = "nothing to optimise: every vertex is fixed";
     return report;
   }
-  SparseCholesky cholesky(options.linear_solver);
+  SparseCholesky cholesky(options.linear_solver.resolved(GraphTraits<Graph>::kDefaultOrdering));
   const RobustKernel kernel = options.kernel;
   const double width = options.kernel_width;
   Objective current = equations.assemble(graph, kernel, width);
@@ -434,7 +425,7 @@ std::vector<Eigen::MatrixXd> joint_marginals(const Graph& graph, const std::vect
       }
   std::vector<Eigen::MatrixXd> blocks;
   if (!requests.empty()) {
-    SparseCholesky cholesky(linear_solver);
+    SparseCholesky cholesky(linear_solver.resolved(GraphTraits<Graph>::kDefaultOrdering));
     factorize(cholesky, graph, system);
     blocks = cholesky.inverse_blocks(requests);
   }

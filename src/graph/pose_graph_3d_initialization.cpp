@@ -123,7 +123,7 @@ void initialize_chordal(PoseGraph3D& target, const SparseCholeskyOptions& linear
   // Each is posed at rho = 0 for the free vertices (their stored rotations are not used), so
   // that the Gauss-Newton step is the solution.
   EdgeAssembler system(sizes(3), couplings);
-  SparseCholesky cholesky(linear_solver);
+  SparseCholesky cholesky(linear_solver.resolved(graph_detail::GraphTraits<PoseGraph3D>::kDefaultOrdering));
   std::vector<Eigen::Matrix3d> rotation(n, Eigen::Matrix3d::Zero());
   for (int v = 0; v < n; ++v)
     if (held[v]) rotation[v] = graph.vertex(v).value.rotation.toRotationMatrix();

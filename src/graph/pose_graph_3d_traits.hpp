@@ -9,6 +9,9 @@ namespace graph_detail {
 
 template <>
 struct GraphTraits<PoseGraph3D> {
+  /// Nested dissection orders sphere2500 and torus3D with less fill than AMD (torus3D: 1.0e9
+  /// flops against 1.35e9 a factorisation; parking-garage a little more, 3e7 against 2.2e7).
+  static constexpr FillOrdering kDefaultOrdering = FillOrdering::kMetis;
   static std::vector<std::pair<int, int>> couplings(const PoseGraph3D& graph) {
     std::vector<std::pair<int, int>> pairs;
     pairs.reserve(graph.pose_edges().size() + graph.point_edges().size());

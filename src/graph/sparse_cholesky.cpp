@@ -90,6 +90,7 @@ struct SparseCholesky::Impl {
                         : options.method == FactorMethod::kSupernodal ? CHOLMOD_SUPERNODAL
                                                                       : CHOLMOD_AUTO;
     common.nmethods = 1;
+    // kDefault here (no problem that names its own) is AMD.
     common.method[0].ordering =
         options.ordering == FillOrdering::kMetis ? CHOLMOD_METIS : CHOLMOD_AMD;
     common.postorder = 1;

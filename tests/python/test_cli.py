@@ -435,7 +435,7 @@ def test_ekf_slam_bearing_offset_on_the_bundled_mrclam(tmp_path, capsys):
     assert "unknown (mht) correspondences, bearing offset 0.03 rad per scan" in out
     robot = io.read_mrclam(data.path("mrclam7_robot1_120s")).with_euclidean_ranges()
     run = mrclam.run_ekf(robot, np.diag([0.15 ** 2, 0.6 ** 2]), np.diag([0.15 ** 2, 0.02 ** 2]), known=False,
-                            association="mht", hypotheses=dict(bearing_offset_sigma=0.03))
+                            association="mht", hypotheses=ps.MultiHypothesisOptions(bearing_offset_sigma=0.03))
     assert f"associations:  {ps.eval.association_accuracy(run):.1%} correct" in out
     for bad, message in [(["ekf-slam", "--unknown", "--association", "jcbb", "--bearing-offset", "0.03"],
                           "needs unknown correspondences and association mht"),

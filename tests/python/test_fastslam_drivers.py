@@ -186,8 +186,7 @@ def test_mrclam_benchmark_passes_the_fastslam_options():
     for miss in (None, 1.0, 0.0):
         row = rows[miss] = bench.run_one((1, 1, "fastslam1", 300.0, 20, 3, miss))
         options = {} if miss is None else {"existence_miss": miss}
-        run = mrclam.run_fastslam(data, bench.MOTION, bench.SENSOR, known=False, num_particles=20, seed=3,
-                                  filter_options=options)
+        run = mrclam.run_fastslam(data, bench.MOTION, bench.SENSOR, known=False, num_particles=20, seed=3, **options)
         assert row["landmarks"] == len(run.landmarks)
         assert row["correct"] == ev.association_accuracy(run)
         assert run.filter.num_particles == 20
@@ -208,3 +207,33 @@ def test_known_mrclam_outlier_density_is_the_ekf_gate():
     point = np.linalg.cholesky(q) @ np.array([np.sqrt(gate), 0.0])  # Mahalanobis^2 = gate
     expected = stats.multivariate_normal(mean=[0.0, 0.0], cov=q).pdf(point)
     assert mrclam.outlier_density(q) == pytest.approx(expected, rel=1e-9)
+
+
+def test_the_drivers_take_fastslam_options_over_the_datasets_own():
+    """Issue 52: run_fastslam / run_landmark_slam take a FastSlamOptions or its fields by keyword
+    (identical runs); the fields left at FastSlamOptions' defaults take the dataset's (p_new
+    DEFAULT_P_NEW, the recorded runs'; MRCLAM's outlier density, or its camera field for negative
+    information), a field named by keyword wins, and a bad field is named."""
+    data = mrclam.load(ps.data.path("mrclam7_robot1_120s"), 1, 20.0)
+    by_keyword = mrclam.run_fastslam(data, known=False, num_particles=5, seed=2)
+    by_object = mrclam.run_fastslam(data, known=False, options=ps.FastSlamOptions(num_particles=5, seed=2))
+    np.testing.assert_array_equal(by_keyword.poses, by_object.poses)
+    through_front_door = ps.run_landmark_slam(data, "fastslam", known=False, options=ps.FastSlamOptions(seed=2),
+                                              num_particles=5, progress=False)
+    np.testing.assert_array_equal(through_front_door.poses, by_object.poses)
+    o = by_object.filter.options
+    field_range, field_fov = mrclam.perceptual_field(data)
+    assert (o.num_particles, o.seed, o.p_new) == (5, 2, fs.DEFAULT_P_NEW) != (5, 2, ps.FastSlamOptions().p_new)
+    assert (o.negative_information, o.sensor_range, o.sensor_fov) == (True, field_range, field_fov)
+    named = mrclam.run_fastslam(data, known=False, num_particles=5, p_new=ps.FastSlamOptions().p_new,
+                                negative_information=False).filter.options
+    assert (named.p_new, named.negative_information) == (ps.FastSlamOptions().p_new, False)
+    known = mrclam.run_fastslam(data, num_particles=5).filter.options
+    assert known.outlier_density == mrclam.outlier_density(mrclam.MEASUREMENT_NOISE) > 0
+    assert mrclam.run_fastslam(data, num_particles=5, outlier_density=0.5).filter.options.outlier_density == 0.5
+    with pytest.raises(ValueError, match="^num_particles"):
+        mrclam.run_fastslam(data, num_particles=0)
+    with pytest.raises(TypeError, match="^options: expected FastSlamOptions"):
+        mrclam.run_fastslam(data, options={"num_particles": 5})
+    with pytest.raises(ValueError, match="^num_particles: FastSLAM's options apply to method 'fastslam' only"):
+        ps.run_landmark_slam(data, "ekf", num_particles=5)

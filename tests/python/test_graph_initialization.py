@@ -116,8 +116,10 @@ def test_initialize_rejects_bad_input():
         pg.initialize(g, "magic")
     with pytest.raises(ValueError, match="poses_per_step"):
         pg.initialize(g, "incremental", poses_per_step=0)
-    with pytest.raises(ValueError, match="algorithm"):
-        pg.initialize(g, "incremental", algorithm="newton")
+    with pytest.raises(ValueError, match=r"^step\.algorithm must be one of"):
+        pg.initialize(g, "incremental", step={"algorithm": "newton"})
+    with pytest.raises(ValueError, match="^poses_per_step: options apply to method 'incremental' only"):
+        pg.initialize(g, "odometry", poses_per_step=3)
     broken = pg.PoseGraph2D()
     for i in range(3):
         broken.add_pose(i, [0.0, 0.0, 0.0])

@@ -113,7 +113,7 @@ def dense_gauss_newton(g, pose_edges, point_edges, iterations=50):
 def test_optimum_equals_dense_gauss_newton(algorithm, damping, solver):
     g, pose_edges, point_edges = random_graph()
     reference, ref_chi2, hessian, offset = dense_gauss_newton(g, pose_edges, point_edges)
-    report = probslam.optimize(g, algorithm=algorithm, linear_solver=solver, damping=damping)
+    report = probslam.optimize(g, algorithm=algorithm, linear_solver={"method": solver}, damping=damping)
     assert report.converged
     assert report.chi2 == pytest.approx(ref_chi2, rel=CONVERGED)
     assert g.chi2() == pytest.approx(report.chi2)

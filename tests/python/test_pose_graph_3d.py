@@ -179,8 +179,8 @@ def test_incremental_optimisation_reaches_the_batch_optimum_from_dead_reckoning(
     batch = build(truth, edges)
     probslam.optimize(batch, relative_tolerance=0.0, step_tolerance=1e-12)
     g = build(scrambled, edges)
-    report = probslam.optimize_incremental(g, poses_per_step=5, max_iterations=50, relative_tolerance=0.0,
-                                           step_tolerance=1e-12)
+    report = probslam.optimize_incremental(g, poses_per_step=5, step=dict(max_iterations=50, relative_tolerance=0.0,
+                                                step_tolerance=1e-12))
     assert report.steps == 3 and len(report.step_chi2) == 3  # 12 poses, 5 a step
     assert report.chi2 == pytest.approx(batch.chi2(), rel=1e-12)
     assert report.step_chi2[-1] == pytest.approx(report.chi2, rel=1e-12)
@@ -194,8 +194,8 @@ def test_incremental_optimisation_of_an_exact_graph_is_exact_and_refuses_bad_inp
     before = g.poses
     with pytest.raises(ValueError, match="poses_per_step"):
         probslam.optimize_incremental(g, poses_per_step=0)
-    with pytest.raises(ValueError, match="algorithm"):
-        probslam.optimize_incremental(g, algorithm="newton")
+    with pytest.raises(ValueError, match=r"^step\.algorithm"):
+        probslam.optimize_incremental(g, step={"algorithm": "newton"})
     assert np.array_equal(g.poses, before)
     report = probslam.optimize_incremental(g, poses_per_step=2)
     assert report.steps == 5
@@ -215,8 +215,8 @@ def test_incremental_optimisation_with_a_prior_on_the_first_pose():
     g.add_pose_prior(100, to_row(*truth[0]), np.eye(6))
     batch = g.copy()
     probslam.optimize(batch, relative_tolerance=0.0, step_tolerance=1e-12)
-    report = probslam.optimize_incremental(g, poses_per_step=1, max_iterations=50, relative_tolerance=0.0,
-                                           step_tolerance=1e-12)
+    report = probslam.optimize_incremental(g, poses_per_step=1, step=dict(max_iterations=50, relative_tolerance=0.0,
+                                                step_tolerance=1e-12))
     assert report.steps == len(truth) - 1
     assert report.chi2 == pytest.approx(batch.chi2(), rel=1e-12)
     assert np.abs(g.poses - batch.poses).max() < POSE_TOLERANCE

@@ -199,8 +199,8 @@ def test_incremental_optimisation_with_points_reaches_the_batch_optimum():
     probslam.optimize(batch, relative_tolerance=0.0, step_tolerance=1e-12)
     scrambled = [poses[0]] + [(Rotation.random(random_state=rng), rng.normal(size=3)) for _ in poses[1:]]
     g = build(scrambled, [50 * np.ones(3)] * len(points), pose_edges, point_edges)
-    report = probslam.optimize_incremental(g, poses_per_step=2, max_iterations=50, relative_tolerance=0.0,
-                                           step_tolerance=1e-12)
+    report = probslam.optimize_incremental(g, poses_per_step=2, step=dict(max_iterations=50, relative_tolerance=0.0,
+                                                step_tolerance=1e-12))
     assert report.steps == 4  # 7 poses, 2 a step
     assert report.chi2 == pytest.approx(batch.chi2(), rel=1e-12)
     assert np.abs(g.poses - batch.poses).max() < POSE_TOLERANCE

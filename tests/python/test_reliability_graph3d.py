@@ -142,14 +142,21 @@ BAD_CALLS = [  # (call on a graph, the argument the one-line error must name)
     (lambda g: probslam.marginal_covariances(g, [0.5]), "ids"),
     (lambda g: probslam.joint_marginal_covariances(g, [[0], [2**40]]), r"groups\[1\]"),
     (lambda g: probslam.joint_marginal_covariances(g, 3), "groups"),
-    (lambda g: probslam.marginal_covariances(g, [0], linear_solver=3), "linear_solver"),
+    (lambda g: probslam.marginal_covariances(g, [0], method=3), "method"),
+    (lambda g: probslam.marginal_covariances(g, [0], options={"method": "auto"}), "options"),
+    (lambda g: probslam.joint_marginal_covariances(g, [[0]], ordering="nd"), "ordering"),
     (lambda g: probslam.optimize(g, algorithm=None), "algorithm"),
     (lambda g: probslam.optimize(g, relative_tolerance="small"), "relative_tolerance"),
     (lambda g: probslam.optimize(g, step_tolerance=[1e-3]), "step_tolerance"),
     (lambda g: probslam.optimize(g, kernel_width="1"), "kernel_width"),
     (lambda g: probslam.optimize(g, damping=1), "damping"),
-    (lambda g: probslam.optimize_incremental(g, kernel=0), "kernel"),
-    (lambda g: probslam.optimize_incremental(g, relative_tolerance=None), "relative_tolerance"),
+    (lambda g: probslam.optimize(g, linear_solver={"ordering": "nd"}), r"linear_solver\.ordering"),
+    (lambda g: probslam.optimize(g, linear_solver="simplicial"), "linear_solver"),
+    (lambda g: probslam.optimize(g, max_iterations=-1), "max_iterations"),
+    (lambda g: probslam.optimize_incremental(g, step={"kernel": 0}), r"step\.kernel"),
+    (lambda g: probslam.optimize_incremental(g, step={"relative_tolerance": None}), r"step\.relative_tolerance"),
+    (lambda g: probslam.optimize_incremental(g, step={"max_iterations": -1}), r"step\.max_iterations"),
+    (lambda g: probslam.optimize_incremental(g, poses_per_step=0), "poses_per_step"),
 ]
 
 
@@ -174,7 +181,7 @@ EITHER_GRAPH = [
     (probslam.optimize, {"algorithm": "levenberg-marquardt", "callback": lambda i, chi2: True}),
     (probslam.optimize_incremental, {"poses_per_step": 2}),
     (probslam.marginal_covariances, {"ids": [0]}),
-    (probslam.marginal_covariances, {"ids": [0], "linear_solver": "simplicial", "ordering": "amd"}),
+    (probslam.marginal_covariances, {"ids": [0], "method": "simplicial", "ordering": "amd"}),
     (probslam.joint_marginal_covariances, {"groups": [[0, 1]]}),
     (probslam.initialize_odometry, {}),
 ]
@@ -225,18 +232,20 @@ def grid_graph(dim, n=10):
 
 @pytest.mark.parametrize("dim, default, other", [(2, "amd", "metis"), (3, "metis", "amd")])
 def test_one_binding_per_function_keeps_each_graph_types_results_and_defaults(dim, default, other):
-    """ordering None (the default) is AMD for a 2-D graph and METIS for a 3-D one, as the typed
-    overloads had it: the same factor fill and values as naming it, another fill than the other
-    ordering; keywords, positional options and the callback reach the graph's own optimiser."""
+    """The fill ordering "default" (SparseCholeskyOptions') is AMD for a 2-D graph and METIS for a
+    3-D one, as the typed overloads had it: the same factor fill and values as naming it, another
+    fill than the other ordering; fields, the options object and the callback reach the graph's
+    own optimiser."""
     runs = {}
-    for ordering in (None, default, other):
+    for ordering in (None, "default", default, other):
         g = grid_graph(dim)
         seen = []
-        options = {} if ordering is None else {"ordering": ordering}
-        report = probslam.optimize(g, "gauss-newton", 20, callback=lambda i, chi2: seen.append((i, chi2)), **options)
+        options = {} if ordering is None else {"linear_solver": {"ordering": ordering}}
+        report = probslam.optimize(g, algorithm="gauss-newton", max_iterations=20,
+                                   callback=lambda i, chi2: seen.append((i, chi2)), **options)
         assert [i for i, _ in seen] == list(range(1, report.iterations + 1)) and seen[-1][1] == report.chi2
         runs[ordering] = (report.factor_nonzeros, g.poses)
-    assert runs[None][0] == runs[default][0] != runs[other][0]
+    assert runs[None][0] == runs["default"][0] == runs[default][0] != runs[other][0]
     np.testing.assert_array_equal(runs[None][1], runs[default][1])
     g = grid_graph(dim)
     covariances = probslam.marginal_covariances(g, [0, 55])
@@ -245,5 +254,48 @@ def test_one_binding_per_function_keeps_each_graph_types_results_and_defaults(di
     np.testing.assert_array_equal(covariances[1], probslam.marginal_covariances(g, [55], ordering=default)[0])
     joint = probslam.joint_marginal_covariances(graph=g, groups=[[0, 55]])[0]
     np.testing.assert_allclose(joint[width:, width:], covariances[1], rtol=1e-9, atol=1e-12)
-    report = probslam.optimize_incremental(g, poses_per_step=25, max_iterations=3)
+    report = probslam.optimize_incremental(g, poses_per_step=25, step={"max_iterations": 3})
     assert report.steps == 4
+
+
+@pytest.mark.parametrize("dim", [2, 3])
+def test_an_options_object_and_the_same_fields_by_keyword_run_alike(dim):
+    """Issue 52: optimize / optimize_incremental / the marginals take their typed options or the
+    same fields by keyword, with identical results (bit for bit); the defaults are the C++
+    structs' (optimize_incremental's step stops sooner than optimize)."""
+    fields = dict(algorithm="levenberg-marquardt", max_iterations=7, kernel="huber", kernel_width=2.0,
+                  linear_solver={"method": "simplicial"})
+    by_keyword, by_object = grid_graph(dim), grid_graph(dim)
+    a = probslam.optimize(by_keyword, **fields)
+    b = probslam.optimize(by_object, options=probslam.OptimizerOptions(**fields))
+    assert (a.iterations, a.chi2, a.factor_nonzeros) == (b.iterations, b.chi2, b.factor_nonzeros)
+    np.testing.assert_array_equal(by_keyword.poses, by_object.poses)
+    # A keyword replaces that field of the object, the others kept.
+    c = probslam.optimize(grid_graph(dim), options=probslam.OptimizerOptions(**fields), max_iterations=1)
+    assert c.iterations == 1 and c.chi2 != a.chi2
+    step = probslam.OptimizerOptions(max_iterations=3, relative_tolerance=1e-8)
+    incremental = [probslam.optimize_incremental(grid_graph(dim), poses_per_step=30, step=step),
+                   probslam.optimize_incremental(grid_graph(dim), poses_per_step=30, step=step.as_dict()),
+                   probslam.optimize_incremental(grid_graph(dim), options=probslam.IncrementalOptions(
+                       poses_per_step=30, step=step))]
+    assert len({(r.steps, r.iterations, r.chi2) for r in incremental}) == 1
+    defaults = probslam.IncrementalOptions()
+    assert (defaults.poses_per_step, defaults.step.max_iterations, defaults.step.relative_tolerance) == (100, 10, 1e-6)
+    assert (probslam.OptimizerOptions().max_iterations, probslam.OptimizerOptions().relative_tolerance) == (100, 1e-10)
+    g = grid_graph(dim)
+    probslam.optimize(g)
+    solver = probslam.SparseCholeskyOptions(method="simplicial", ordering="amd")
+    np.testing.assert_array_equal(probslam.marginal_covariances(g, [5, 40], method="simplicial", ordering="amd"),
+                                  probslam.marginal_covariances(g, [5, 40], options=solver))
+    np.testing.assert_array_equal(probslam.joint_marginal_covariances(g, [[5, 40]], method="simplicial",
+                                                                      ordering="amd"),
+                                  probslam.joint_marginal_covariances(g, [[5, 40]], options=solver))
+    # A bad field names its path; the graph is left as it was.
+    before = g.poses.copy()
+    with pytest.raises(ValueError, match=r"^linear_solver\.ordering must be one of"):
+        probslam.optimize(g, options=probslam.OptimizerOptions(), linear_solver={"ordering": "colamd"})
+    with pytest.raises(TypeError, match=r"^step\.max_iterations"):
+        probslam.optimize_incremental(g, step={"max_iterations": 2.5})
+    with pytest.raises(TypeError, match=r"^options: expected an? OptimizerOptions"):
+        probslam.optimize(g, options=probslam.SparseCholeskyOptions())
+    np.testing.assert_array_equal(g.poses, before)

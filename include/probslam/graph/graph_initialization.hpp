@@ -23,12 +23,24 @@ void initialize_odometry(PoseGraph2D& graph);
 struct IncrementalOptions {
   /// Poses added (in the order they were added to the graph) between two optimisations.
   int poses_per_step = 100;
-  /// Each step's optimisation of the graph so far; few iterations suffice from a warm start.
-  OptimizerOptions step;
+  /// Each step's optimisation of the graph so far (default_step()).
+  OptimizerOptions step = default_step();
   /// Called before each step and after each of its iterations; a caller that wants to stop a
   /// long run (the bindings, on Ctrl-C) makes it throw, and the exception leaves the call with
   /// the graph unchanged. Empty: never called.
   std::function<void()> interrupt;
+
+  /// From a warm start (the last step's result) few iterations and a loose tolerance suffice:
+  /// 10 iterations at most, stop below a relative decrease of 1e-6.
+  static OptimizerOptions default_step();
+  /// std::invalid_argument naming the first bad field by its path: poses_per_step >= 1, then
+  /// step's fields as optimize() checks them ("step.max_iterations must be >= 0").
+  void validate() const;
+  template <class V>
+  static void describe(V& v) {
+    v("poses_per_step", &IncrementalOptions::poses_per_step, "", "poses added between two optimisations, >= 1");
+    v("step", &IncrementalOptions::step, "", "each step's optimisation of the graph so far");
+  }
 };
 
 struct IncrementalReport {

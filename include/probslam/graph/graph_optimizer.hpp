@@ -53,10 +53,16 @@ struct OptimizerOptions {
   double step_tolerance = 1e-10;
   RobustKernel kernel = RobustKernel::kNone;
   double kernel_width = 1.0;  ///< in units of sqrt(chi2), e.g. 1.345 or chi2 quantiles' roots
+  /// Its fill ordering kDefault is each graph's own: AMD for a PoseGraph2D, METIS for a
+  /// PoseGraph3D (GraphTraits::kDefaultOrdering); the marginals' and chordal start's likewise.
   SparseCholeskyOptions linear_solver;
 
   /// std::invalid_argument naming the first bad option: max_iterations >= 1, kernel_width > 0.
   void validate() const;
+  /// What optimize() accepts (std::invalid_argument naming the first bad field): max_iterations
+  /// >= 0 (0 evaluates the start only), tolerances >= 0, a kernel's width > 0 with a finite,
+  /// normal square (the kernels divide by it).
+  void check_ranges() const;
   template <class V>
   static void describe(V& v) {
     using O = OptimizerOptions;

@@ -19,8 +19,9 @@ enum class FactorMethod {
 };
 
 enum class FillOrdering {
-  kAmd,    ///< approximate minimum degree
-  kMetis,  ///< nested dissection (METIS)
+  kAmd,      ///< approximate minimum degree
+  kMetis,    ///< nested dissection (METIS)
+  kDefault,  ///< the problem's own: METIS for a 3-D pose graph, AMD otherwise
 };
 
 // Supernodal by default: with Eigen's kernels it is the faster one on every pose graph measured,
@@ -31,17 +32,23 @@ struct OptionEnum<FactorMethod> {
 };
 template <>
 struct OptionEnum<FillOrdering> {
-  static constexpr std::array<const char*, 2> names{"amd", "metis"};
+  static constexpr std::array<const char*, 3> names{"amd", "metis", "default"};
 };
 
 struct SparseCholeskyOptions {
   FactorMethod method = FactorMethod::kSupernodal;
-  FillOrdering ordering = FillOrdering::kAmd;
+  FillOrdering ordering = FillOrdering::kDefault;
   void validate() const {}  // every value of the enums is valid
+  /// These options with kDefault replaced by `fallback` (the problem's own ordering).
+  SparseCholeskyOptions resolved(FillOrdering fallback) const {
+    SparseCholeskyOptions o = *this;
+    if (o.ordering == FillOrdering::kDefault) o.ordering = fallback;
+    return o;
+  }
   template <class V>
   static void describe(V& v) {
     v("method", &SparseCholeskyOptions::method, "", "\"supernodal\", \"simplicial\" or \"auto\" (CHOLMOD's choice)");
-    v("ordering", &SparseCholeskyOptions::ordering, "", "fill-reducing ordering: \"amd\" or \"metis\" (nested dissection)");
+    v("ordering", &SparseCholeskyOptions::ordering, "", "fill-reducing ordering: \"amd\", \"metis\" (nested dissection) or \"default\" (metis for a 3-D pose graph, amd otherwise)");
   }
 };
 

@@ -16,10 +16,10 @@ from __future__ import annotations
 
 import os
 import pathlib
-from typing import Mapping, Optional, Union
+from typing import Optional, Union
 
 from .._args import require_fields, require_instance
-from ..fastslam import DEFAULT_P_NEW
+from .._core import FastSlamOptions, MultiHypothesisOptions
 from ..io._files import file_path
 from ..io.landmark_datasets import Mrclam, VictoriaPark, VictoriaParkAcfr
 from ..landmark_refine import RefinementInput, RunRefinement
@@ -81,11 +81,10 @@ def load_landmark_dataset(path: PathLike, *, robot: int = 1, seconds: Optional[f
 
 
 def run_landmark_slam(dataset: Union[Mrclam, VictoriaPark, VictoriaParkAcfr, PathLike], method: str = "ekf", *,
-                      known: Optional[bool] = None,
-                      motion_noise=None, measurement_noise=None, association: str = "jcbb",
-                      hypotheses: Optional[Mapping] = None, num_particles: int = 100, version: int = 1, seed: int = 0,
-                      threads: int = 1, p_new: float = DEFAULT_P_NEW,
-                      filter_options: Optional[Mapping] = None, progress: Optional[bool] = None) -> LandmarkSlamResult:
+                      known: Optional[bool] = None, motion_noise=None, measurement_noise=None,
+                      association: str = "jcbb", hypotheses: Optional[MultiHypothesisOptions] = None,
+                      options: Optional[FastSlamOptions] = None, progress: Optional[bool] = None,
+                      **fields) -> LandmarkSlamResult:
     """A landmark SLAM run over a dataset: an ``Mrclam`` robot, ``VictoriaPark`` or the original
     Victoria Park run (``VictoriaParkAcfr``) as read, or a path (read with
     ``load_landmark_dataset``'s defaults).
@@ -102,11 +101,13 @@ def run_landmark_slam(dataset: Union[Mrclam, VictoriaPark, VictoriaParkAcfr, Pat
         hidden and found by ``association`` (``EKF_ASSOCIATIONS``: "jcbb" joint compatibility over
         each scan, "ml" maximum likelihood). On Victoria Park known correspondences only.
       * ``"mht"``: the multiple-hypothesis EKF, a beam of filters (hidden correspondences,
-        ``known=False``; MRCLAM only); ``hypotheses``: options of ``MultiHypothesisEkfSlam``
-        over the dataset's (``mrclam.run_ekf``).
-      * ``"fastslam"``: FastSLAM with ``num_particles``, ``version`` (1 or 2), ``seed``,
-        ``threads`` (the result is the same for any count), ``p_new`` (the density of a new
-        landmark, hidden correspondences); ``filter_options`` go to ``FastSlam``.
+        ``known=False``; MRCLAM only); ``hypotheses``: a ``MultiHypothesisOptions``, its fields
+        left at their defaults taking the dataset's (``mrclam.run_ekf``).
+      * ``"fastslam"``: FastSLAM with ``options`` (a ``FastSlamOptions``) and ``fields`` of it by
+        keyword (``num_particles=30``, ``version``, ``seed``, ``threads``: the result is the same
+        for any count), the dataset's own defaults where they hold FastSlamOptions' (p_new
+        ``fastslam.DEFAULT_P_NEW``, MRCLAM's outlier density and camera field: the dataset
+        modules' ``run_fastslam``). Only FastSLAM takes them (ValueError naming the first).
       * ``"dead-reckoning"``: the odometry alone (the baseline the maps are compared with).
 
     Noise: ``motion_noise`` (2, 2), MRCLAM's control noise of one 10 ms command (default
@@ -129,8 +130,7 @@ def run_landmark_slam(dataset: Union[Mrclam, VictoriaPark, VictoriaParkAcfr, Pat
         dataset = load_landmark_dataset(dataset)
     return landmark_dataset(dataset, "dataset").run_filter(
         method, known=known, motion_noise=motion_noise, measurement_noise=measurement_noise, association=association,
-        hypotheses=hypotheses, num_particles=num_particles, version=version, seed=seed, threads=threads, p_new=p_new,
-        filter_options=filter_options, progress=progress)
+        hypotheses=hypotheses, options=options, progress=progress, **fields)
 
 
 def landmark_dataset(data: Union[Mrclam, VictoriaPark, VictoriaParkAcfr], name: str = "data") -> LandmarkDataset:

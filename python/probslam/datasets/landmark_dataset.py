@@ -19,7 +19,7 @@ from typing import Dict, List, Mapping, Optional, Tuple
 import numpy as np
 
 from .. import eval as evaluation
-from ..fastslam import DEFAULT_P_NEW
+from .._core import FastSlamOptions, MultiHypothesisOptions
 from .._args import require_instance
 from ..landmark_refine import RefinementInput, RunRefinement, refine_landmarks
 from ..landmark_slam import LandmarkSlamResult
@@ -102,9 +102,9 @@ class LandmarkDataset:
         raise NotImplementedError
 
     def run_filter(self, method: str, *, known: Optional[bool] = None, motion_noise=None, measurement_noise=None,
-                   association: str = "jcbb", hypotheses: Optional[Mapping] = None, num_particles: int = 100,
-                   version: int = 1, seed: int = 0, threads: int = 1, p_new: float = DEFAULT_P_NEW,
-                   filter_options: Optional[Mapping] = None, progress: Optional[bool] = None) -> LandmarkSlamResult:
+                   association: str = "jcbb", hypotheses: Optional[MultiHypothesisOptions] = None,
+                   options: Optional[FastSlamOptions] = None, progress: Optional[bool] = None,
+                   **fields) -> LandmarkSlamResult:
         """One filter over the dataset, as ``datasets.run_landmark_slam`` describes its arguments
         (``known`` None: True, the dataset's labels). The checks shared by the datasets with labels
         are here; each dataset's ``_run_filter`` runs it."""
@@ -116,13 +116,13 @@ class LandmarkDataset:
                              f"{association!r}")
         if hypotheses is not None and method != "mht":
             raise ValueError(f"hypotheses: options of method 'mht', not of {method!r}")
-        fastslam = dict(num_particles=num_particles, version=version, seed=seed, threads=threads, p_new=p_new,
-                        filter_options=filter_options)
-        return self._run_filter(method, known, motion_noise, measurement_noise, association, hypotheses, fastslam,
-                                progress)
+        require_fastslam_options(method, options, fields)
+        return self._run_filter(method, known, motion_noise, measurement_noise, association, hypotheses,
+                                {"options": options, **fields}, progress)
 
     def _run_filter(self, method: str, known: bool, motion_noise, measurement_noise, association: str, hypotheses,
                     fastslam: dict, progress: Optional[bool]) -> LandmarkSlamResult:
+        """``fastslam``: the FastSLAM run's ``options`` and fields by keyword."""
         raise NotImplementedError
 
     def summary(self, result: LandmarkSlamResult, options, seconds: float) -> List[str]:
@@ -193,6 +193,20 @@ class LandmarkDataset:
         return "; estimate aligned onto ground truth" if reference.get("align") is not None else ""
 
 
+def require_fastslam_options(method: str, options: Optional[FastSlamOptions], fields: Mapping) -> None:
+    """ValueError naming the first FastSLAM option given to another method."""
+    if method != "fastslam" and (options is not None or fields):
+        name = "options" if options is not None else next(iter(fields))
+        raise ValueError(f"{name}: FastSLAM's options apply to method 'fastslam' only, not to {method!r}")
+
+
+def fastslam_run_options(options) -> FastSlamOptions:
+    """The FastSlamOptions of a ``LandmarkRunOptions`` (its num_particles, version, seed and
+    threads); the dataset's own defaults join them in its ``run_fastslam``."""
+    return FastSlamOptions(num_particles=options.num_particles, version=options.version, seed=options.seed,
+                           threads=options.threads)
+
+
 def skipped_rows_line(skipped: Dict[str, int]) -> str:
     """The rows a reader skipped, by reason, in a line."""
     if not skipped:
@@ -218,5 +232,5 @@ def association_line(result: LandmarkSlamResult, what: str = "label", applied: O
 
 
 __all__ = ["DATASET_OPTIONS", "EKF_ASSOCIATIONS", "LandmarkDataset", "LandmarkScore", "RefinedRun", "association_line",
-           "fastslam_lines",
+           "fastslam_lines", "fastslam_run_options", "require_fastslam_options",
            "skipped_rows_line"]

@@ -15,23 +15,24 @@ import itertools
 import os
 import pathlib
 import time
-from typing import Dict, Iterator, List, Mapping, Optional, Tuple, Union
+from typing import Dict, Iterator, List, Optional, Tuple, Union
 
 import numpy as np
 
-from .._args import positive_real, real_array, require_fields, require_instance
+from .._args import options_over, positive_real, real_array, require_fields, require_instance
 from .._progress import progress_bar
-from .._core import FastSlam, chi_square_quantile, velocity_motion, velocity_motion_control_jacobian
+from .._core import (FastSlam, FastSlamOptions, MultiHypothesisOptions, chi_square_quantile, velocity_motion,
+                     velocity_motion_control_jacobian)
 from ..ekf import AssociationResult, EkfSlam, MapManagement, MultiHypothesisEkfSlam
 from ..eval import majority_labels, score_landmarks, score_mrclam, truth_positions
-from ..fastslam import DEFAULT_P_NEW, AssociationHistories, result_of
+from ..fastslam import AssociationHistories, dataset_options, result_of
 from ..geometry import accumulate
 from ..io._files import file_path
 from ..io.landmark_datasets import MRCLAM_RANGE_SCALE, Mrclam, read_mrclam
 from .._core import velocity_increments
 from ..landmark_refine import RefinementInput, compose_increments, floor_covariances, poses_at_nodes, run_labels
 from ..landmark_slam import Associations, LandmarkSlamResult, ekf_landmarks
-from .landmark_dataset import LandmarkDataset, LandmarkScore, association_line, fastslam_lines
+from .landmark_dataset import LandmarkDataset, LandmarkScore, association_line, fastslam_lines, fastslam_run_options
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -185,7 +186,7 @@ def run_ekf(data: Mrclam, motion_noise=None, measurement_noise=None, *, known: b
             gate: Optional[float] = None, alpha: Optional[float] = None, alpha_new: Optional[float] = None,
             initial_pose=None, map_management: Optional[MapManagement] = None, gate_distance: float = 1.0,
             dead_reckoning: bool = False, command_period: float = COMMAND_PERIOD, association: str = "jcbb",
-            hypotheses: Optional[Mapping] = None, before_scan=None,
+            hypotheses: Optional[MultiHypothesisOptions] = None, before_scan=None,
             progress: Optional[bool] = False) -> LandmarkSlamResult:
     """EKF SLAM over an MRCLAM robot: odometry (v, w) between stamps, the measurements of one
     time stamp as one scan. ``motion_noise`` (2, 2; default ``MOTION_NOISE``) is the control
@@ -195,10 +196,10 @@ def run_ekf(data: Mrclam, motion_noise=None, measurement_noise=None, *, known: b
     ``MEASUREMENT_NOISE``). ``known``: the barcodes give the correspondences (gated by ``gate``,
     default the chi-square ``OUTLIER_PROBABILITY`` quantile); else Table 10.2 (barcodes hidden)
     with ``association``: "jcbb" or "ml" (see ``EkfSlam.update_unknown``), or "mht", a beam of
-    filters (``MultiHypothesisEkfSlam``, options from ``hypotheses``, by default with missed
-    detections in the camera's perceptual field, ``MHT_DETECTION_PROBABILITY``, and
-    ``MHT_NEW_LANDMARK_COST``) whose best one is returned (method "mht"), clutter left out of
-    its map (id -1 in ``associations``).
+    filters (``MultiHypothesisEkfSlam``, options ``hypotheses``: a MultiHypothesisOptions whose
+    fields left at their defaults take MRCLAM's, missed detections in the camera's perceptual
+    field, ``MHT_DETECTION_PROBABILITY`` and ``MHT_NEW_LANDMARK_COST``) whose best one is returned
+    (method "mht"), clutter left out of its map (id -1 in ``associations``).
     ``dead_reckoning``: predictions only (method "dead-reckoning"). The start pose defaults to
     ``start_pose(data)``. ``before_scan(filter, rows)``, if given, sees the filter (the EkfSlam,
     or the MultiHypothesisEkfSlam) and each scan's measurement rows (k, 4) just before it takes
@@ -214,13 +215,13 @@ def run_ekf(data: Mrclam, motion_noise=None, measurement_noise=None, *, known: b
                   map_management=map_management, gate_distance=gate_distance)
     mht = None
     if not known and association == "mht":
-        options = dict(new_landmark_cost=MHT_NEW_LANDMARK_COST, detection_probability=MHT_DETECTION_PROBABILITY)
+        own = dict(new_landmark_cost=MHT_NEW_LANDMARK_COST, detection_probability=MHT_DETECTION_PROBABILITY)
         if len(data.measurements):
-            options["sensor_range"], options["sensor_fov"] = perceptual_field(data)
+            own["sensor_range"], own["sensor_fov"] = perceptual_field(data)
         else:
-            options["detection_probability"] = 0.0
-        options.update(hypotheses or {})
-        mht = MultiHypothesisEkfSlam(ekf, **options)
+            own["detection_probability"] = 0.0
+        mht = MultiHypothesisEkfSlam(ekf, options=options_over(MultiHypothesisOptions, hypotheses, {}, own,
+                                                               "hypotheses"))
         ekf = mht  # predict() goes to every filter
     odo = data.odometry
     times, poses = np.empty(len(odo)), np.empty((len(odo), 3))
@@ -278,42 +279,52 @@ def outlier_density(measurement_noise) -> float:
     return float(np.exp(-0.5 * gate) / (2 * np.pi * np.sqrt(np.linalg.det(q))))
 
 
+def fastslam_options(data: Mrclam, measurement_noise=None, known: bool = True,
+                     options: Optional[FastSlamOptions] = None, **fields) -> FastSlamOptions:
+    """The FastSlamOptions ``run_fastslam`` runs with (``fastslam.dataset_options``): ``options``
+    and ``fields`` over MRCLAM's own: with ``known`` correspondences the ``outlier_density`` of
+    ``measurement_noise`` (default ``MEASUREMENT_NOISE``), with hidden ones negative information
+    in the camera's field (``perceptual_field``), p_new ``DEFAULT_P_NEW``."""
+    measurement_noise = MEASUREMENT_NOISE if measurement_noise is None else measurement_noise
+    own = {}
+    if known:
+        own["outlier_density"] = outlier_density(measurement_noise)
+    elif len(data.measurements):
+        field_range, field_fov = perceptual_field(data)
+        own = {"negative_information": True, "sensor_range": field_range, "sensor_fov": field_fov}
+    return dataset_options(options, fields, **own)
+
+
 def run_fastslam(data: Mrclam, motion_noise=None, measurement_noise=None, *, known: bool = True,
-                 num_particles: int = 100, version: int = 1, seed: int = 0, threads: int = 1,
-                 p_new: float = DEFAULT_P_NEW, initial_pose=None, command_period: float = COMMAND_PERIOD,
-                 negative_information: bool = True, filter_options: Optional[Mapping] = None,
-                 progress: Optional[bool] = False) -> LandmarkSlamResult:
+                 options: Optional[FastSlamOptions] = None, initial_pose=None, command_period: float = COMMAND_PERIOD,
+                 progress: Optional[bool] = False, **fields) -> LandmarkSlamResult:
     """FastSLAM over an MRCLAM robot, as ``run_ekf`` runs the EKF: odometry (v, w) between
     stamps; the control noise ``motion_noise`` (2, 2; default ``MOTION_NOISE``) is that of one
     command period, applied as white velocity noise (pose noise V (M period / dt) V^T for a step
     of dt); the measurements of one stamp form one scan. ``known``: the barcodes are the
     correspondences; else each particle associates by maximum likelihood
-    (``FastSlam.update_unknown``), with ``negative_information`` in the camera's field
-    (``perceptual_field``, unless ``filter_options`` give ``sensor_range`` / ``sensor_fov``): a
-    landmark there that a scan does not see loses existence, and a particle's duplicates, never
-    seen again, are removed. Known correspondences reject outliers as ``run_ekf`` does
-    (``outlier_density``) unless ``filter_options`` set one. ``filter_options`` go to ``FastSlam`` (e.g. ``existence_miss``,
-    ``bearing_offset_sigma``). The start pose defaults to ``start_pose(data)``. ``times`` are
-    the stamps of the best particle's path: the start, then one per prediction. ``progress``: a
-    bar over the controls (None: on a terminal only)."""
+    (``FastSlam.update_unknown``).
+
+    ``options``: a FastSlamOptions, ``fields`` fields of it by keyword (num_particles, version,
+    seed, threads, ...); where they hold FastSlamOptions' defaults the dataset's own apply
+    (``fastslam_options``): p_new ``DEFAULT_P_NEW``; with known correspondences outliers rejected
+    as ``run_ekf`` does (``outlier_density``); with hidden ones negative information in the
+    camera's field (``perceptual_field``): a landmark there that a scan does not see loses
+    existence, and a particle's duplicates, never seen again, are removed. The start pose defaults
+    to ``start_pose(data)``. ``times`` are the stamps of the best particle's path: the start,
+    then one per prediction. ``progress``: a bar over the controls (None: on a terminal only)."""
     _require_odometry(data)
     motion_noise = MOTION_NOISE if motion_noise is None else motion_noise
     measurement_noise = MEASUREMENT_NOISE if measurement_noise is None else measurement_noise
-    options = dict(filter_options or {})
-    if not known and negative_information and len(data.measurements):
-        field_range, field_fov = perceptual_field(data)
-        options = {"negative_information": True, "sensor_range": field_range, "sensor_fov": field_fov, **options}
-    if known and "outlier_density" not in options:
-        options["outlier_density"] = outlier_density(measurement_noise)
+    o = fastslam_options(data, measurement_noise, known, options, **fields)
     initial_pose = start_pose(data) if initial_pose is None else initial_pose
     m_rate = np.asarray(motion_noise, float) * command_period
-    f = FastSlam(np.eye(3) * 0.0, measurement_noise, initial_pose=initial_pose, num_particles=num_particles,
-                 version=version, seed=seed, threads=threads, p_new=p_new, **options)
+    f = FastSlam(np.eye(3) * 0.0, measurement_noise, initial_pose=initial_pose, options=o)
     histories = None if known else AssociationHistories()
     times = [data.odometry[0, 0]]  # of the path's poses: the start, then one per prediction
     zero = np.zeros(3)
     t0 = time.perf_counter()
-    for event in _timeline(data, progress=progress, desc=f"FastSLAM {version}.0"):
+    for event in _timeline(data, progress=progress, desc=f"FastSLAM {o.version}.0"):
         if event[0] == "move":
             # Robot-frame motion and its covariance: V (M period / dt) V^T at the origin.
             _, v, w, t, dt = event
@@ -516,12 +527,12 @@ class MrclamRobot(LandmarkDataset):
         """``run_ekf`` (EKF or the multiple-hypothesis EKF) or ``run_fastslam`` with the options' noise."""
         noise = self.noise(options)
         if options.method == "fastslam":
-            return self.run_filter("fastslam", known=not options.unknown, num_particles=options.num_particles,
-                                   version=options.version, seed=options.seed, threads=options.threads,
+            return self.run_filter("fastslam", known=not options.unknown, options=fastslam_run_options(options),
                                    progress=progress, **noise)
         association = self.association(options)
         mht = options.unknown and association == "mht"
-        hypotheses = dict(bearing_offset_sigma=options.bearing_offset) if options.bearing_offset else None
+        hypotheses = (MultiHypothesisOptions(bearing_offset_sigma=options.bearing_offset) if options.bearing_offset
+                      else None)
         return self.run_filter("mht" if mht else "ekf", known=not options.unknown, association=association,
                                hypotheses=hypotheses, progress=progress, **noise)
 
@@ -619,5 +630,5 @@ __all__ = ["COMMAND_PERIOD", "DEFAULT_ASSOCIATION", "MEASUREMENT_NOISE", "Mrclam
            "MHT_DETECTION_PROBABILITY",
            "MHT_NEW_LANDMARK_COST", "MOTION_NOISE", "MOTION_SIGMA",
            "OUTLIER_PROBABILITY", "PERCEPTUAL_FIELD_QUANTILE", "outlier_density", "ROBOTS", "SURVEY_RESIDUAL_LIMIT", "dead_reckoning",
-           "dead_reckoning_map", "first_seconds", "fit_range_scale", "load", "perceptual_field", "refinement_input", "run_ekf",
+           "dead_reckoning_map", "fastslam_options", "first_seconds", "fit_range_scale", "load", "perceptual_field", "refinement_input", "run_ekf",
            "run_fastslam", "same_scan_residuals", "start_pose", "survey_label_swaps"]

@@ -10,18 +10,19 @@ from __future__ import annotations
 import dataclasses
 import os
 import pathlib
-from typing import List, Mapping, Optional, Tuple, Union
+from typing import List, Optional, Tuple, Union
 
 import numpy as np
 
 from .. import _core
 from .._args import positive_real, require_fields, require_instance
-from ..fastslam import DEFAULT_P_NEW, fastslam_along_chain
+from ..fastslam import dataset_options, fastslam_along_chain
 from ..io._files import file_path
 from ..io.landmark_datasets import VictoriaPark, read_victoria_park
 from ..landmark_refine import RefinementInput, compose_increments, run_labels
 from ..landmark_slam import LandmarkSlamResult, ekf_along_chain, polar_measurements
-from .landmark_dataset import LandmarkDataset, association_line, fastslam_lines, skipped_rows_line
+from .landmark_dataset import (LandmarkDataset, association_line, fastslam_lines, fastslam_run_options,
+                               skipped_rows_line)
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -102,20 +103,21 @@ def run_ekf(data: VictoriaPark, measurement_noise=None, dead_reckoning: bool = F
     return dataclasses.replace(result, method="dead-reckoning") if dead_reckoning else result
 
 
-def run_fastslam(data: VictoriaPark, measurement_noise=None, *, known: bool = True, num_particles: int = 100,
-                 version: int = 1, seed: int = 0, threads: int = 1, p_new: float = DEFAULT_P_NEW,
-                 odometry_noise_scale: float = ODOMETRY_NOISE_SCALE,
-                 filter_options: Optional[Mapping] = None, progress: Optional[bool] = False) -> LandmarkSlamResult:
+def run_fastslam(data: VictoriaPark, measurement_noise=None, *, known: bool = True,
+                 options: Optional[_core.FastSlamOptions] = None, odometry_noise_scale: float = ODOMETRY_NOISE_SCALE,
+                 progress: Optional[bool] = False, **fields) -> LandmarkSlamResult:
     """FastSLAM along the odometry edges, as relative poses with their covariances times
     ``odometry_noise_scale`` ** 2 (see ``ODOMETRY_NOISE_SCALE``), the landmark points as
     range-bearing (Q_t as ``run_ekf``). ``known=False`` hides the associations: each particle
-    associates by maximum likelihood. ``filter_options`` go to ``FastSlam``. ``progress``: a bar
-    over the poses (None: on a terminal only)."""
+    associates by maximum likelihood. ``options``: a FastSlamOptions, ``fields`` fields of it by
+    keyword (num_particles, version, seed, threads, ...), p_new ``DEFAULT_P_NEW`` where left at
+    FastSlamOptions' default (``fastslam.dataset_options``). ``progress``: a bar over the poses
+    (None: on a terminal only)."""
     require_instance(data, VictoriaPark, "data")
     scale = positive_real(odometry_noise_scale, "odometry_noise_scale")
+    o = dataset_options(options, fields)
     observed_from, z, z_cov = chain(data)
-    f = _core.FastSlam(np.eye(3) * 0.0, _sensor_noise(z_cov, measurement_noise), num_particles=num_particles,
-                       version=version, seed=seed, threads=threads, p_new=p_new, **dict(filter_options or {}))
+    f = _core.FastSlam(np.eye(3) * 0.0, _sensor_noise(z_cov, measurement_noise), options=o)
     return fastslam_along_chain(f, data.delta, scale ** 2 * data.delta_cov, observed_from, z, data.landmark, known,
                                 progress=progress)
 
@@ -182,8 +184,7 @@ class VictoriaParkChain(LandmarkDataset):
     def run(self, options, progress: Optional[bool] = None) -> LandmarkSlamResult:
         """``run_fastslam``, or ``run_ekf`` (known correspondences, the file's)."""
         if options.method == "fastslam":
-            return self.run_filter("fastslam", known=not options.unknown, num_particles=options.num_particles,
-                                   version=options.version, seed=options.seed, threads=options.threads,
+            return self.run_filter("fastslam", known=not options.unknown, options=fastslam_run_options(options),
                                    progress=progress)
         return self.run_filter("ekf", progress=progress)
 

@@ -11,22 +11,23 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
-from typing import List, Mapping, Optional
+from typing import List, Optional
 
 import numpy as np
 
 from .._args import positive_real, require_fields, require_instance
-from .._core import AckermannGeometry, FastSlam, ackermann_increments
+from .._core import AckermannGeometry, FastSlam, FastSlamOptions, MultiHypothesisOptions, ackermann_increments
 from .._progress import progress_bar
 from ..ekf import EkfSlam, MapManagement
-from ..fastslam import DEFAULT_P_NEW, AssociationHistories, result_of
+from ..fastslam import AssociationHistories, dataset_options, result_of
 from ..geometry import between, compose
 from ..io.landmark_datasets import VictoriaParkAcfr
 from ..landmark_refine import UNASSIGNED, RefinementInput, RunRefinement, compose_increments, floor_covariances
 from ..landmark_slam import Associations, LandmarkSlamResult, ekf_landmarks
 from ..eval import position_error
 from . import victoria_park_acfr
-from .landmark_dataset import EKF_ASSOCIATIONS, LandmarkDataset, LandmarkScore, RefinedRun
+from .landmark_dataset import (EKF_ASSOCIATIONS, LandmarkDataset, LandmarkScore, RefinedRun, fastslam_run_options,
+                               require_fastslam_options)
 
 # The noise of the inputs and detections: RFS-SLAM's FastSLAM configuration for this run
 # (kykleung/RFS-SLAM cfg/fastslam_VictoriaPark.xml; its converter made the dataset's files): the
@@ -196,22 +197,22 @@ def provisional_list() -> MapManagement:
     return m
 
 
-def run_fastslam(data: VictoriaParkAcfr, *, num_particles: int = 100, version: int = 1, seed: int = 0,
-                 threads: int = 1, p_new: float = DEFAULT_P_NEW, signatures: bool = True, provisional: bool = False,
-                 filter_options: Optional[Mapping] = None, progress: Optional[bool] = False) -> LandmarkSlamResult:
-    """FastSLAM ``version`` 1 or 2 over the run, unknown correspondences (per particle, joint
-    maximum likelihood), from ``victoria_park_acfr.start_pose``; ``signatures``, ``provisional``:
-    as ``run_ekf``'s; ``filter_options`` go to
-    ``FastSlam``. ``times``: the start, then the end of each step; ``poses``: the best particle's
-    path."""
+def run_fastslam(data: VictoriaParkAcfr, *, options: Optional[FastSlamOptions] = None, signatures: bool = True,
+                 provisional: bool = False, progress: Optional[bool] = False, **fields) -> LandmarkSlamResult:
+    """FastSLAM over the run, unknown correspondences (per particle, joint maximum likelihood),
+    from ``victoria_park_acfr.start_pose``; ``signatures``, ``provisional``: as ``run_ekf``'s (the
+    provisional list: ``PROVISIONAL_SIGHTINGS``, ``PROVISIONAL_MAX_AGE`` where the options leave
+    min_sightings and provisional_max_age at their defaults). ``options``: a FastSlamOptions,
+    ``fields`` fields of it by keyword (num_particles, version, seed, threads, ...), p_new
+    ``DEFAULT_P_NEW`` where left at FastSlamOptions' default (``fastslam.dataset_options``);
+    use_signatures is ``signatures``. ``times``: the start, then the end of each step; ``poses``:
+    the best particle's path."""
     steps = schedule(data)
     z = _measurements(data, signatures)
-    options = dict(filter_options or {})
-    if provisional:
-        options = {"min_sightings": PROVISIONAL_SIGHTINGS, "provisional_max_age": PROVISIONAL_MAX_AGE, **options}
+    own = {"min_sightings": PROVISIONAL_SIGHTINGS, "provisional_max_age": PROVISIONAL_MAX_AGE} if provisional else {}
+    o = dataset_options(options, {**fields, "use_signatures": signatures}, **own)
     f = FastSlam(np.zeros((3, 3)), measurement_noise(signatures), initial_pose=victoria_park_acfr.start_pose(data),
-                 num_particles=num_particles, version=version, seed=seed, threads=threads, p_new=p_new,
-                 use_signatures=signatures, **options)
+                 options=o)
     # Each particle's associations, carried along the resamplings (O(1) Python work per scan): the
     # best particle's record is what the GraphSLAM refinement starts from.
     histories = AssociationHistories()
@@ -223,7 +224,7 @@ def run_fastslam(data: VictoriaParkAcfr, *, num_particles: int = 100, version: i
 
     t0 = time.perf_counter()
     times = _drive(data, steps, lambda a, b: f.predict_odometry_batch(steps.deltas[a:b], steps.covariances[a:b]),
-                   update, f"FastSLAM {version}.0", progress)
+                   update, f"FastSLAM {o.version}.0", progress)
     return result_of(f, times, time.perf_counter() - t0, histories)
 
 
@@ -319,14 +320,13 @@ class VictoriaParkRun(LandmarkDataset):
     def run(self, options, progress: Optional[bool] = None) -> LandmarkSlamResult:
         """``run_fastslam`` or ``run_ekf`` over the run."""
         if options.method == "fastslam":
-            return self.run_filter("fastslam", num_particles=options.num_particles, version=options.version,
-                                   seed=options.seed, threads=options.threads, progress=progress)
+            return self.run_filter("fastslam", options=fastslam_run_options(options), progress=progress)
         return self.run_filter("ekf", association=self.association(options), progress=progress)
 
     def run_filter(self, method: str, *, known: Optional[bool] = None, motion_noise=None, measurement_noise=None,
-                   association: str = "jcbb", hypotheses: Optional[Mapping] = None, num_particles: int = 100,
-                   version: int = 1, seed: int = 0, threads: int = 1, p_new: float = DEFAULT_P_NEW,
-                   filter_options: Optional[Mapping] = None, progress: Optional[bool] = None) -> LandmarkSlamResult:
+                   association: str = "jcbb", hypotheses: Optional[MultiHypothesisOptions] = None,
+                   options: Optional[FastSlamOptions] = None, progress: Optional[bool] = None,
+                   **fields) -> LandmarkSlamResult:
         """One filter over the run (``known`` None or False: the detections have no identities; the
         noise is the sensors', ``motion_noise`` and ``measurement_noise`` are refused)."""
         if known:
@@ -337,9 +337,9 @@ class VictoriaParkRun(LandmarkDataset):
                                  "(victoria_park_acfr_run)")
         if method == "mht" or hypotheses is not None:
             raise ValueError("method 'mht' runs on MRCLAM only")
+        require_fastslam_options(method, options, fields)
         if method == "fastslam":
-            return run_fastslam(self.data, num_particles=num_particles, version=version, seed=seed, threads=threads,
-                                p_new=p_new, filter_options=filter_options, progress=progress)
+            return run_fastslam(self.data, options=options, progress=progress, **fields)
         if association not in EKF_ASSOCIATIONS:
             raise ValueError(f"association must be one of {', '.join(map(repr, EKF_ASSOCIATIONS))}, got "
                              f"{association!r}")

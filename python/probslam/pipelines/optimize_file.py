@@ -165,7 +165,8 @@ class GraphFileRun:
         return "\n".join(lines)
 
     def _solver(self) -> dict:
-        return {name: value for name, value in (("linear_solver", self.options.linear_solver),
+        """The fields of SparseCholeskyOptions the options name (linear_solver is its method)."""
+        return {name: value for name, value in (("method", self.options.linear_solver),
                                                 ("ordering", self.options.ordering)) if value is not None}
 
     def start(self) -> None:
@@ -208,7 +209,8 @@ class GraphFileRun:
             t = time.perf_counter()
             try:
                 self.report = pg.optimize(self.graph, algorithm=o.algorithm, max_iterations=o.max_iterations,
-                                          kernel=o.kernel, callback=record, **kernel_width, **self._solver())
+                                          kernel=o.kernel, linear_solver=self._solver(), callback=record,
+                                          **kernel_width)
             except KeyboardInterrupt:
                 self.interrupted = True  # the graph holds the last completed iteration's values
             self.optimize_seconds = time.perf_counter() - t
