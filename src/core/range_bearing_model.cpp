@@ -42,13 +42,9 @@ MeasurementJacobians<2> range_bearing_jacobians(const Eigen::Vector3d& pose,
   const Eigen::Vector2d d = offset(pose, landmark);
   const double r = std::hypot(d.x(), d.y());
   require(r * r >= kMinRangeSquared, "landmark", "coincides with the robot position");
-  // Unit vector u = d / r; the 1/q terms as u / r, which cannot overflow where d^2 would.
-  const double ux = d.x() / r, uy = d.y() / r;
+  Eigen::Vector2d z;
   MeasurementJacobians<2> j;
-  j.pose << -ux, -uy, 0.0,  //
-      uy / r, -ux / r, -1.0;
-  j.landmark << ux, uy,  //
-      -uy / r, ux / r;
+  range_bearing_unchecked(pose, landmark, z, j);
   return j;
 }
 
@@ -81,14 +77,10 @@ MeasurementJacobians<2> landmark_from_range_bearing_jacobians(const Eigen::Vecto
   require_all_finite(pose, "pose");
   require_all_finite(z, "z");
   require(z[0] >= 0.0, "z", "range must be >= 0");
-  const double a = z[1] + pose[2];
-  const double c = std::cos(a), s = std::sin(a);
+  require(std::isfinite(z[1] + pose[2]), "z", "bearing plus heading is beyond the double range");
+  Eigen::Vector2d m;
   MeasurementJacobians<2> j;
-  j.pose << 1.0, 0.0, -z[0] * s,  //
-      0.0, 1.0, z[0] * c;
-  j.landmark << c, -z[0] * s,  //
-      s, z[0] * c;
-  require(std::isfinite(a), "z", "bearing plus heading is beyond the double range");
+  landmark_from_range_bearing_unchecked(pose, z, m, j);
   return j;
 }
 

@@ -64,8 +64,9 @@ struct Predicted {
 /// h and its Jacobians at (pose, landmark); false for a landmark on the robot.
 bool predict_measurement(const Eigen::Vector3d& x, const Eigen::Vector2d& m, Predicted& out) {
   if (!((m - x.head<2>()).squaredNorm() >= kMinRangeSquared)) return false;
-  out.z_hat = range_bearing(x, m);
-  const MeasurementJacobians<2> j = range_bearing_jacobians(x, m);
+  // Poses and landmark means are finite by the filter's checks: the model without its own.
+  MeasurementJacobians<2> j;
+  range_bearing_unchecked(x, m, out.z_hat, j);
   out.hx = j.pose;
   out.hm = j.landmark;
   return true;
@@ -195,8 +196,9 @@ struct FastSlam::Context {
   Landmark new_landmark(long id, const Eigen::Vector3d& x, const Scan& s, Eigen::Index i) const {
     Landmark lm;
     lm.id = id;
-    lm.mean = landmark_from_range_bearing(x, s.rb(i));
-    const Eigen::Matrix2d gz = landmark_from_range_bearing_jacobians(x, s.rb(i)).landmark;  // = H^-1
+    MeasurementJacobians<2> j;
+    landmark_from_range_bearing_unchecked(x, s.rb(i), lm.mean, j);
+    const Eigen::Matrix2d& gz = j.landmark;  // = H^-1
     lm.cov = symmetric<2>(gz * q * gz.transpose());
     lm.existence = o.existence_hit;
     if (s.signatures) {
@@ -345,13 +347,27 @@ struct FastSlam::Context {
   /// measurements in order of their best candidate, candidates best first, pruned by a bound:
   /// no measurement's term exceeds max(log p_new, the log density of N(0, Q) at its mean),
   /// since every innovation covariance is Q plus positive semi-definite terms.
-  JointAssignment joint_association(const Scan& s, const std::vector<Pair>& pairs, const Eigen::Vector3d& mu0,
+  JointAssignment joint_association(const Scan& s, std::vector<Pair>& pairs, const Eigen::Vector3d& mu0,
                                     const Eigen::Matrix3d& p0, bool proposal, double log_p_new_call) const {
     const Eigen::Index k = s.z.rows();
-    std::vector<std::vector<const Pair*>> cands(static_cast<std::size_t>(k));
-    for (const Pair& pr : pairs) cands[static_cast<std::size_t>(pr.i)].push_back(&pr);
-    const auto better = [](const Pair* a, const Pair* b) { return a->ll != b->ll ? a->ll > b->ll : a->id < b->id; };
-    for (auto& c : cands) std::sort(c.begin(), c.end(), better);
+    // Measurement i's candidates, best first: pairs[first[i] .. first[i + 1]) after the sort.
+    std::sort(pairs.begin(), pairs.end(), [](const Pair& a, const Pair& b) {
+      if (a.i != b.i) return a.i < b.i;
+      return a.ll != b.ll ? a.ll > b.ll : a.id < b.id;
+    });
+    std::vector<std::size_t> first(static_cast<std::size_t>(k) + 1, 0);
+    for (const Pair& pr : pairs) ++first[static_cast<std::size_t>(pr.i) + 1];
+    for (std::size_t i = 0; i < static_cast<std::size_t>(k); ++i) first[i + 1] += first[i];
+    struct Candidates {
+      const Pair* b;
+      const Pair* e;
+      const Pair* begin() const { return b; }
+      const Pair* end() const { return e; }
+      bool empty() const { return b == e; }
+      const Pair* front() const { return b; }
+    };
+    std::vector<Candidates> cands(static_cast<std::size_t>(k));
+    for (std::size_t i = 0; i < cands.size(); ++i) cands[i] = {pairs.data() + first[i], pairs.data() + first[i + 1]};
     JointAssignment best;
     if (!proposal) {
       // The pose known, the terms are independent: when no two measurements' best candidates
@@ -400,7 +416,8 @@ struct FastSlam::Context {
         return;
       }
       const Eigen::Index i = order[d];
-      for (const Pair* c : cands[static_cast<std::size_t>(i)]) {
+      for (const Pair& cand : cands[static_cast<std::size_t>(i)]) {
+        const Pair* c = &cand;
         if (std::find(current.begin(), current.end(), c->id) != current.end()) continue;
         Eigen::Vector3d mu_next = mu;
         Eigen::Matrix3d p_next = p;
@@ -430,24 +447,28 @@ struct FastSlam::Context {
     Eigen::Vector3d mu = proposal ? part.prior_mean : part.pose;
     Eigen::Matrix3d p = proposal ? part.prior_cov : Eigen::Matrix3d::Zero();
     // Candidate pairs whose likelihood exceeds p_new, from the landmarks near where each
-    // measurement places its landmark (version 2: the marginal likelihood at the prior mean).
-    std::vector<Pair> pairs;
+    // measurement places its landmark (version 2: the marginal likelihood at the prior mean),
+    // found in one walk of the map for the whole scan (their order does not matter: the
+    // association sorts them).
+    std::vector<LandmarkMap::Disc> discs(static_cast<std::size_t>(k));
     for (Eigen::Index i = 0; i < k; ++i) {
-      const Eigen::Vector2d z = s.rb(i);
-      const Eigen::Vector2d placed = landmark_from_range_bearing(mu, z);
-      const MeasurementJacobians<2> j = landmark_from_range_bearing_jacobians(mu, z);
+      MeasurementJacobians<2> j;
+      LandmarkMap::Disc& d = discs[static_cast<std::size_t>(i)];
+      landmark_from_range_bearing_unchecked(mu, s.rb(i), d.center, j);
       const Eigen::Matrix2d spread =
           j.landmark * q * j.landmark.transpose() + j.pose * p * j.pose.transpose();
-      const double radius = o.association_radius + kPlacementSigmas * std::sqrt(std::max(0.0, lambda_max(spread)));
-      part.map.for_each_within(placed, radius, [&](const Landmark& lm) {
-        Predicted pr;
-        if (!predict_measurement(mu, lm.mean, pr)) return;
-        const Eigen::Matrix2d sm = symmetric<2>(pr.hm * lm.cov * pr.hm.transpose()) + q +
-                                   symmetric<2>(pr.hx * p * pr.hx.transpose());
-        const double ll = log_gauss2(innovation(z, pr.z_hat), sm) + sig_log_likelihood(s, i, lm);
-        if (ll > log_p_new_call) pairs.push_back({ll, i, lm.id, &lm});
-      });
+      d.radius = o.association_radius + kPlacementSigmas * std::sqrt(std::max(0.0, lambda_max(spread)));
     }
+    std::vector<Pair> pairs;
+    part.map.for_each_within_any(discs, [&](const Landmark& lm, std::size_t at) {
+      const auto i = static_cast<Eigen::Index>(at);
+      Predicted pr;
+      if (!predict_measurement(mu, lm.mean, pr)) return;
+      const Eigen::Matrix2d sm = symmetric<2>(pr.hm * lm.cov * pr.hm.transpose()) + q +
+                                 symmetric<2>(pr.hx * p * pr.hx.transpose());
+      const double ll = log_gauss2(innovation(s.rb(i), pr.z_hat), sm) + sig_log_likelihood(s, i, lm);
+      if (ll > log_p_new_call) pairs.push_back({ll, i, lm.id, &lm});
+    });
     std::vector<long> assigned(static_cast<std::size_t>(k), -1);
     double ll = 0.0;
     std::vector<std::uint8_t> in_proposal(static_cast<std::size_t>(k), 0);
@@ -485,7 +506,7 @@ struct FastSlam::Context {
         if (any) take_proposal_sample(part, mu, p);
       }
     }
-    std::unordered_set<long> seen;
+    std::unordered_set<long> seen;  // for negative information only
     const long scan = ++part.scans;
     for (Eigen::Index i = 0; i < k; ++i) {
       const long id = assigned[static_cast<std::size_t>(i)];
@@ -502,7 +523,7 @@ struct FastSlam::Context {
           part.map.put(lm);
           ids_out[i] = id;
           new_out[i] = 0;
-          seen.insert(id);
+          if (o.negative_information) seen.insert(id);
         }
       }
       if (created) {
@@ -514,7 +535,7 @@ struct FastSlam::Context {
         ll += log_p_new_call;
         ids_out[i] = nid;
         new_out[i] = 1;
-        seen.insert(nid);
+        if (o.negative_information) seen.insert(nid);
       }
     }
     if (o.negative_information) {

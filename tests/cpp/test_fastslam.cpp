@@ -2,6 +2,7 @@
 
 #include <Eigen/Dense>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <random>
 #include <thread>
@@ -51,6 +52,20 @@ void expect_equal(const LandmarkMap& map, const Reference& ref, std::mt19937& rn
     if ((lm.mean - c).squaredNorm() <= radius * radius) want.push_back(id);
   std::sort(got.begin(), got.end());
   EXPECT_EQ(got, want);
+  // Several discs in one walk (a scan's measurements): the same (disc, landmark) pairs as the
+  // brute force, each once; a disc of negative radius holds nothing, an infinite one everything.
+  std::vector<LandmarkMap::Disc> discs;
+  for (int i = 0; i < 5; ++i) discs.push_back({Eigen::Vector2d(u(rng), u(rng)), r(rng)});
+  discs.push_back({Eigen::Vector2d(u(rng), u(rng)), -1.0});
+  discs.push_back({Eigen::Vector2d(u(rng), u(rng)), std::numeric_limits<double>::infinity()});
+  std::vector<std::pair<std::size_t, long>> got_pairs, want_pairs;
+  map.for_each_within_any(discs, [&](const Landmark& lm, std::size_t i) { got_pairs.emplace_back(i, lm.id); });
+  for (std::size_t i = 0; i < discs.size(); ++i)
+    for (const auto& [id, lm] : ref)
+      if ((lm.mean - discs[i].center).squaredNorm() <= discs[i].radius * discs[i].radius && discs[i].radius >= 0.0)
+        want_pairs.emplace_back(i, id);
+  std::sort(got_pairs.begin(), got_pairs.end());
+  EXPECT_EQ(got_pairs, want_pairs);
 }
 
 // BST order on keys, heap order on priorities, sizes: the treap's invariants.

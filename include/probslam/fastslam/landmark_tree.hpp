@@ -27,6 +27,7 @@
 #include <limits>
 #include <unordered_set>
 #include <utility>
+#include <vector>
 
 #include "probslam/fastslam/node_pool.hpp"
 #include "probslam/fastslam/node_ref.hpp"
@@ -97,6 +98,13 @@ class PersistentTreap {
   template <class F>
   void for_each(F&& f) const {
     visit_all(root_.get(), f);
+  }
+  /// f(key, value), in order, for every node whose subtree `may_hold(lo, hi)` does not rule out:
+  /// lo and hi bound the subtree's keys (exclusive; nullptr: unbounded), and may_hold returns
+  /// false only when no key that f wants lies between them. f filters the keys it is given.
+  template <class MayHold, class F>
+  void for_each_pruned(MayHold&& may_hold, F&& f) const {
+    visit_pruned(root_.get(), nullptr, nullptr, may_hold, f);
   }
 
   /// Adds the nodes of this tree not in `seen` to it; shared subtrees are skipped, so the cost is
@@ -189,6 +197,15 @@ class PersistentTreap {
       if (above_lo) visit_range(t->left.get(), lo, hi, f);
       if (!(t->key < lo) && !(hi < t->key)) f(t->key, t->value);
       if (!below_hi) return;
+      t = t->right.get();  // the right subtree by iteration
+    }
+  }
+  template <class M, class F>
+  static void visit_pruned(const Node* t, const Key* lo, const Key* hi, M& may_hold, F& f) {
+    while (t && may_hold(lo, hi)) {
+      visit_pruned(t->left.get(), lo, &t->key, may_hold, f);
+      f(t->key, t->value);
+      lo = &t->key;
       t = t->right.get();  // the right subtree by iteration
     }
   }
@@ -327,6 +344,64 @@ class LandmarkMap {
     for (std::int64_t cy = cy0; cy <= cy1; ++cy)
       spatial_.for_each_in_range(CellKey{cy, cx0, std::numeric_limits<long>::min()},
                                  CellKey{cy, cx1, std::numeric_limits<long>::max()}, near);
+  }
+
+  /// A disc of for_each_within_any: centre and radius (m).
+  struct Disc {
+    Eigen::Vector2d center;
+    double radius;
+  };
+  /// f(landmark, i) for every disc i and every landmark whose mean is within discs[i] (what
+  /// for_each_within(discs[i].center, discs[i].radius, ...) gives for each i), in one walk of the
+  /// tree that skips the subtrees outside every disc's rectangle of cells: the top of the tree,
+  /// which each row's range query descends again, is read once. Pairs come in key order, not
+  /// disc by disc.
+  template <class F>
+  void for_each_within_any(const std::vector<Disc>& discs, F&& f) const {
+    struct Rect {
+      std::int64_t cy0, cy1, cx0, cx1;
+      double r2;
+    };
+    std::vector<Rect> rects(discs.size());
+    bool any = false;
+    for (std::size_t i = 0; i < discs.size(); ++i) {
+      const Disc& d = discs[i];
+      Rect& r = rects[i];
+      if (!(d.radius >= 0.0)) {  // none: an empty rectangle
+        r = {1, 0, 1, 0, -1.0};
+        continue;
+      }
+      r = {cell_of(d.center.y() - d.radius), cell_of(d.center.y() + d.radius), cell_of(d.center.x() - d.radius),
+           cell_of(d.center.x() + d.radius), d.radius * d.radius};
+      any = true;
+    }
+    if (ids_.empty() || !any) return;
+    constexpr std::int64_t kLow = std::numeric_limits<std::int64_t>::min(), kHigh = std::numeric_limits<std::int64_t>::max();
+    // Keys between lo and hi have cells (cy, cx) from lo's to hi's in row-major order.
+    const auto may_hold = [&](const CellKey* lo, const CellKey* hi) {
+      const std::int64_t ly = lo ? lo->cy : kLow, lx = lo ? lo->cx : kLow;
+      const std::int64_t hy = hi ? hi->cy : kHigh, hx = hi ? hi->cx : kHigh;
+      for (const Rect& r : rects) {
+        if (r.cy1 < ly || r.cy0 > hy) continue;
+        if (ly == hy) {
+          if (r.cx0 <= hx && r.cx1 >= lx) return true;
+          continue;
+        }
+        // Rows strictly between lo's and hi's hold every column.
+        if (std::max(r.cy0, ly + 1) <= std::min(r.cy1, hy - 1)) return true;
+        if (r.cy0 <= ly && ly <= r.cy1 && r.cx1 >= lx) return true;  // lo's row, from lo's column on
+        if (r.cy0 <= hy && hy <= r.cy1 && r.cx0 <= hx) return true;  // hi's row, up to hi's column
+      }
+      return false;
+    };
+    spatial_.for_each_pruned(may_hold, [&](const CellKey& key, const Landmark& lm) {
+      for (std::size_t i = 0; i < rects.size(); ++i) {
+        const Rect& r = rects[i];
+        if (key.cy >= r.cy0 && key.cy <= r.cy1 && key.cx >= r.cx0 && key.cx <= r.cx1 &&
+            (lm.mean - discs[i].center).squaredNorm() <= r.r2)
+          f(lm, i);
+      }
+    });
   }
 
   /// f(landmark) for every landmark, in spatial key order.
