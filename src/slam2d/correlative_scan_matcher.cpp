@@ -30,6 +30,9 @@ constexpr double kRefineStepTolerance = 1e-7;
 /// Variance of a uniform distribution over an interval of unit width: the error of a quantity
 /// known only to one cell (or one lattice step).
 constexpr double kUniformVariance = 1.0 / 12.0;
+/// The error of log p read from the field's table (LikelihoodField::tabulated: linear
+/// interpolation of 2048 entries over the truncation, below 1e-6).
+constexpr double kTableError = 1e-6;
 /// Pose parameters (x, y, theta): the residuals at the fitted pose are smaller than the errors,
 /// on average by this many degrees of freedom.
 constexpr double kPoseDof = 3.0;
@@ -505,9 +508,10 @@ double CorrelativeScanMatcher::closeness(const Eigen::Ref<const Points2>& points
     sum += la - lb;
     sum_sq += (la - lb) * (la - lb);
   }
-  // Vuong (1989): the sum of the pointwise log-likelihood ratios over its standard error.
-  const double variance = std::max(0.0, sum_sq / n - (sum / n) * (sum / n));
-  if (!(variance > 0.0)) return sum == 0.0 ? 0.0 : std::copysign(std::numeric_limits<double>::infinity(), sum);
+  // Vuong (1989): the sum of the pointwise log-likelihood ratios over its standard error. Each
+  // difference also carries the table's error (two lookups): two poses that explain the scan
+  // alike up to it are alike, not told apart by their rounding.
+  const double variance = std::max(0.0, sum_sq / n - (sum / n) * (sum / n)) + 2.0 * kTableError * kTableError;
   return sum / std::sqrt(n * variance);
 }
 

@@ -121,8 +121,8 @@ class CorrelativeScanMatcher {
   /// Vuong's (1989) closeness statistic of two poses of one scan on the interpolated field: the
   /// sum over the points of log p(at a) - log p(at b), over its standard error (sqrt(N) times the
   /// points' sd of the difference). Asymptotically standard normal when the two poses explain
-  /// the scan equally well; large and positive when a explains it better. +-inf when every
-  /// point's difference is the same nonzero value, 0 when all are zero.
+  /// the scan equally well; large and positive when a explains it better. The table's error of
+  /// log p (1e-6) is part of each difference's spread: differences within it count as none.
   double closeness(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& a, const Eigen::Vector3d& b) const;
 
   /// The score (sum of log p over points, + log prior when options.use_prior) of `pose` on the
