@@ -455,7 +455,40 @@ void define_slam2d(py::module_& m) {
             return self.smooth_score(p, x, x0, o);
           },
           py::arg("points"), py::arg("pose"), py::arg("prior") = py::none(), py::arg("prior_covariance") = py::none(),
-          "Score (sum of log p over points (N, 2) m, plus the prior term) at pose (3,) on the bilinear field.");
+          "Score (sum of log p over points (N, 2) m, plus the prior term) at pose (3,) on the bilinear field.")
+      .def(
+          "runner_up",
+          [](const CorrelativeScanMatcher& self, py::handle points, py::handle prior, const MatchResult& best,
+             double distinct_chi2, double linear_window, double angular_window, double angular_step, bool refine,
+             bool brute_force, double min_score, py::handle admitted) {
+            const Points2 p = points_arg(points);
+            const Eigen::Vector3d x0 = pose_arg(prior, "prior");
+            const MatchOptions o = match_options(linear_window, angular_window, angular_step, py::none(), refine,
+                                                 brute_force, 0.0, 0.0, min_score);
+            const Eigen::Matrix3d a =
+                admitted.is_none() ? Eigen::Matrix3d::Zero() : square_matrix_arg(admitted, "admitted", 3);
+            py::gil_scoped_release release;
+            return self.runner_up(p, x0, o, best, distinct_chi2, a);
+          },
+          py::arg("points"), py::arg("prior"), py::arg("best"), py::arg("distinct_chi2"),
+          py::arg("linear_window") = 0.3, py::arg("angular_window") = 0.35, py::arg("angular_step") = 0.0,
+          py::arg("refine") = true, py::arg("brute_force") = false,
+          py::arg("min_score") = -std::numeric_limits<double>::infinity(), py::arg("admitted") = py::none(),
+          "The best pose of the window (match()'s arguments) that is another place than best (match()'s\n"
+          "MatchResult): beyond chi2 distinct_chi2 of best's covariance and beyond the field's reach of its\n"
+          "points (rms); admitted (3, 3): only poses p with (p - prior)^T admitted (p - prior) <= 1. A\n"
+          "MatchResult (found False when there is none; its covariance is not computed).")
+      .def(
+          "closeness",
+          [](const CorrelativeScanMatcher& self, py::handle points, py::handle a, py::handle b) {
+            const Points2 p = points_arg(points);
+            const Eigen::Vector3d xa = pose_arg(a, "a"), xb = pose_arg(b, "b");
+            py::gil_scoped_release release;
+            return self.closeness(p, xa, xb);
+          },
+          py::arg("points"), py::arg("a"), py::arg("b"),
+          "Vuong's statistic of poses a and b (3,) for points (N, 2): the sum of the points' log p(a) -\n"
+          "log p(b) over its standard error (standard normal when both explain the scan equally well).");
 
   define_laser_options(m);
   define_laser_results(m);

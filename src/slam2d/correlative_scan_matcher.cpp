@@ -30,6 +30,9 @@ constexpr double kRefineStepTolerance = 1e-7;
 /// Variance of a uniform distribution over an interval of unit width: the error of a quantity
 /// known only to one cell (or one lattice step).
 constexpr double kUniformVariance = 1.0 / 12.0;
+/// The error of log p read from the field's table (LikelihoodField::tabulated: linear
+/// interpolation of 2048 entries over the truncation, below 1e-6).
+constexpr double kTableError = 1e-6;
 /// Pose parameters (x, y, theta): the residuals at the fitted pose are smaller than the errors,
 /// on average by this many degrees of freedom.
 constexpr double kPoseDof = 3.0;
@@ -442,6 +445,78 @@ Eigen::Matrix3d CorrelativeScanMatcher::unseen_errors(const Eigen::Matrix<double
 
 MatchResult CorrelativeScanMatcher::match(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
                                           const MatchOptions& options) const {
+  return search(points, prior, options, nullptr);
+}
+
+MatchResult CorrelativeScanMatcher::runner_up(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
+                                              const MatchOptions& options, const MatchResult& best,
+                                              double distinct_chi2, const Eigen::Matrix3d& admitted) const {
+  require(std::isfinite(distinct_chi2) && distinct_chi2 >= 0.0, "distinct_chi2", "must be finite and >= 0");
+  require(best.found, "best", "must be a match that was found");
+  require_all_finite(best.pose, "best.pose");
+  const Eigen::LDLT<Eigen::Matrix3d> ldlt(0.5 * (best.covariance + best.covariance.transpose()));
+  require(ldlt.info() == Eigen::Success && (ldlt.vectorD().array() > 0.0).all(), "best.covariance",
+          "must be positive definite");
+  require_all_finite(admitted, "admitted");
+  Exclusion ex;
+  ex.centre = best.pose;
+  ex.prior = prior;
+  ex.admitted = 0.5 * (admitted + admitted.transpose());
+  // The poses best's spread admits: chi2 under its covariance within distinct_chi2.
+  const Eigen::Matrix3d info = ldlt.solve(Eigen::Matrix3d::Identity());
+  ex.spread = 0.5 * (info + info.transpose()) / std::max(distinct_chi2, std::numeric_limits<double>::min());
+  // The poses that move the scan's points by less than the field's reach (rms, to first order
+  // in the turn): there the points still see the obstacles they hit at best, so the score
+  // there is best's peak's flank, not another place.
+  const Eigen::Matrix2d R = rotation_matrix(best.pose.z());
+  Eigen::Matrix3d moved = Eigen::Matrix3d::Zero();
+  for (Eigen::Index i = 0; i < points.rows(); ++i) {
+    const Eigen::Vector2d q = R * points.row(i).transpose();
+    const Eigen::Vector3d row_x(1.0, 0.0, -q.y()), row_y(0.0, 1.0, q.x());
+    moved += row_x * row_x.transpose() + row_y * row_y.transpose();
+  }
+  const double reach = field_.options().truncation();
+  ex.reach = moved / (static_cast<double>(points.rows()) * reach * reach);
+  return search(points, prior, options, &ex);
+}
+
+bool CorrelativeScanMatcher::Exclusion::contains(const Eigen::Vector3d& pose, bool by_spread) const {
+  Eigen::Vector3d d = pose - centre;
+  d.z() = wrap_angle(d.z());
+  return d.dot((by_spread ? spread : reach) * d) <= 1.0;
+}
+
+bool CorrelativeScanMatcher::Exclusion::contains(const Eigen::Vector3d& pose) const {
+  Eigen::Vector3d d = pose - prior;
+  d.z() = wrap_angle(d.z());
+  return contains(pose, true) || contains(pose, false) || d.dot(admitted * d) > 1.0;
+}
+
+double CorrelativeScanMatcher::closeness(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& a,
+                                         const Eigen::Vector3d& b) const {
+  require(points.rows() > 1, "points", "must hold at least two points");
+  require_all_finite(points, "points");
+  require_all_finite(a, "a");
+  require_all_finite(b, "b");
+  const Eigen::Matrix2d Ra = rotation_matrix(a.z()), Rb = rotation_matrix(b.z());
+  const double n = static_cast<double>(points.rows());
+  double sum = 0.0, sum_sq = 0.0;
+  for (Eigen::Index i = 0; i < points.rows(); ++i) {
+    const Eigen::Vector2d p = points.row(i).transpose();
+    const double la = fit_point(field_, Ra * p + a.head<2>(), a.head<2>(), false).log_p;
+    const double lb = fit_point(field_, Rb * p + b.head<2>(), b.head<2>(), false).log_p;
+    sum += la - lb;
+    sum_sq += (la - lb) * (la - lb);
+  }
+  // Vuong (1989): the sum of the pointwise log-likelihood ratios over its standard error. Each
+  // difference also carries the table's error (two lookups): two poses that explain the scan
+  // alike up to it are alike, not told apart by their rounding.
+  const double variance = std::max(0.0, sum_sq / n - (sum / n) * (sum / n)) + 2.0 * kTableError * kTableError;
+  return sum / std::sqrt(n * variance);
+}
+
+MatchResult CorrelativeScanMatcher::search(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
+                                           const MatchOptions& options, const Exclusion* exclusion) const {
   options.validate();
   require(points.rows() > 0, "points", "must not be empty (a scan with no valid reading cannot be matched)");
   require(points.rows() <= kMaxPoints, "points", "has more than 2^20 rows; decimate the scan first");
@@ -508,6 +583,24 @@ MatchResult CorrelativeScanMatcher::match(const Eigen::Ref<const Points2>& point
     return bound + kBoundSlack * std::abs(bound);
   };
 
+  // A runner-up search leaves out every pose of the best's region (a node when its four corners
+  // lie in one of its two ellipses: each is convex in translation at each rotation) and every
+  // pose outside the admitted one (at the leaves: its outside is not convex).
+  auto excluded = [&](int a, int cx, int cy, int size) {
+    if (!exclusion) return false;
+    const int hi = size - 1;
+    for (const bool by_spread : {true, false}) {
+      bool all = true;
+      for (int dx = 0; dx <= hi && all; dx += std::max(hi, 1))
+        for (int dy = 0; dy <= hi && all; dy += std::max(hi, 1))
+          all = exclusion->contains(
+              Eigen::Vector3d(prior.x() + (cx + dx) * res, prior.y() + (cy + dy) * res, prior.z() + sp.theta_offset(a)),
+              by_spread);
+      if (all) return true;
+    }
+    return false;
+  };
+
   const int W = sp.linear_cells;
   // Nothing below min_score is wanted: B&B prunes against it from the start (Hess et al.'s
   // minimum score), so a scan that fits nowhere ends after the coarse levels.
@@ -516,6 +609,9 @@ MatchResult CorrelativeScanMatcher::match(const Eigen::Ref<const Points2>& point
     for (int a = 0; a < num_angles; ++a)
       for (int cx = -W; cx <= W; ++cx)
         for (int cy = -W; cy <= W; ++cy) {
+          if (exclusion && exclusion->contains(Eigen::Vector3d(prior.x() + cx * res, prior.y() + cy * res,
+                                                               prior.z() + sp.theta_offset(a))))
+            continue;
           const double s = score_at(0, a, cx, cy);
           if (s > best.bound) best = {a, cx, cy, s};
         }
@@ -546,7 +642,11 @@ MatchResult CorrelativeScanMatcher::match(const Eigen::Ref<const Points2>& point
         continue;
       }
       const Node n = f.nodes[f.next++];
+      if (excluded(n.a, n.cx, n.cy, 1 << f.level)) continue;
       if (f.level == 0) {
+        if (exclusion && exclusion->contains(Eigen::Vector3d(prior.x() + n.cx * res, prior.y() + n.cy * res,
+                                                             prior.z() + sp.theta_offset(n.a))))
+          continue;
         best = n;
         continue;
       }
@@ -582,6 +682,16 @@ MatchResult CorrelativeScanMatcher::match(const Eigen::Ref<const Points2>& point
   result.pose = result.search_pose;
   const Eigen::Matrix3d* prior_info = sp.use_prior ? &sp.info : nullptr;
   const bool stationary = refine(points, prior, prior_info, options, sp.step, result);
+  if (exclusion) {
+    // A runner-up whose refinement climbs into the best's region was the flank of its peak.
+    result.covariance.setZero();
+    if (exclusion->contains(result.pose)) {
+      result.found = false;
+      result.pose = prior;
+      result.score = result.search_score = -std::numeric_limits<double>::infinity();
+    }
+    return result;
+  }
   result.covariance = pose_covariance(points, prior, prior_info, options, sp.step, result, stationary);
   return result;
 }

@@ -11,6 +11,7 @@
 
 #include "probslam/core/angle.hpp"
 #include "probslam/core/check.hpp"
+#include "probslam/core/chi_square.hpp"
 #include "probslam/core/pose2.hpp"
 #include "probslam/core/pose2_covariance.hpp"
 #include "probslam/slam2d/cpu_clock.hpp"
@@ -557,7 +558,9 @@ std::optional<SubmapConstraint> SubmapSlam2D::try_closure(int s, int i, const st
        std::max(std::abs(off.x()), std::abs(off.y())) > m.window.linear - kEdgeCells * res) ||
       (m.window.angular < lc.max_angular_window &&
        std::abs(wrap_angle(off.z())) > m.window.angular - kEdgeCells * r.angular_step);
-  if (r.match_quality < lc.min_match_quality || at_edge || !agrees_with_graph(r, predicted, Ti, W, SW, i, Si)) {
+  const Eigen::Matrix3d gate = graph_gate(r, Ti, W, SW, i, Si);
+  if (r.match_quality < lc.min_match_quality || at_edge || gate_chi2(gate, r.pose, predicted) > lc.dissolve_chi2 ||
+      !unique_match(matcher, points_[s], predicted, m, r, gate)) {
     ++counts_.closures_rejected;
     return std::nullopt;
   }
@@ -579,9 +582,8 @@ std::optional<SubmapConstraint> SubmapSlam2D::try_closure(int s, int i, const st
   return c;
 }
 
-bool SubmapSlam2D::agrees_with_graph(const MatchResult& r, const Eigen::Vector3d& predicted, const Pose2& Ti,
-                                     const Eigen::Vector3d& W, const Eigen::Matrix3d& SW, int i,
-                                     const Eigen::Matrix3d& Si) const {
+Eigen::Matrix3d SubmapSlam2D::graph_gate(const MatchResult& r, const Pose2& Ti, const Eigen::Vector3d& W,
+                                         const Eigen::Matrix3d& SW, int i, const Eigen::Matrix3d& Si) const {
   // The match against where the graph predicts the scan, in the world frame: the window spans
   // the prediction's largest spread on both axes and the largest turn, so a look-alike place
   // can score well inside it where the prediction's own spread makes it improbable (a corridor
@@ -591,15 +593,39 @@ bool SubmapSlam2D::agrees_with_graph(const MatchResult& r, const Eigen::Vector3d
   // the difference, so this errs towards accepting) and submap i's heading spread carried to
   // the scan by its lever arm.
   const Eigen::Matrix3d R = frame_rotation(Ti.theta);  // submap i's frontend frame -> the world's
-  Eigen::Vector3d d = R * (r.pose - predicted);
-  d.z() = wrap_angle(r.pose.z() - predicted.z());
   Eigen::Matrix3d J = Eigen::Matrix3d::Identity();
   J(0, 2) = -(W.y() - nodes_[i].y());
   J(1, 2) = W.x() - nodes_[i].x();
   const Eigen::Matrix3d C = SW + J * Si * J.transpose() + R * r.covariance * R.transpose();
   const Eigen::LDLT<Eigen::Matrix3d> ldlt(0.5 * (C + C.transpose()));
-  if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().array() > 0.0).all()) return true;
-  return d.dot(ldlt.solve(d)) <= options_.closures.dissolve_chi2;
+  if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().array() > 0.0).all()) return Eigen::Matrix3d::Zero();
+  const Eigen::Matrix3d info = R.transpose() * ldlt.solve(R);
+  return 0.5 * (info + info.transpose());
+}
+
+double SubmapSlam2D::gate_chi2(const Eigen::Matrix3d& gate, const Eigen::Vector3d& pose, const Eigen::Vector3d& predicted) {
+  Eigen::Vector3d d = pose - predicted;
+  d.z() = wrap_angle(d.z());
+  return d.dot(gate * d);
+}
+
+bool SubmapSlam2D::unique_match(const CorrelativeScanMatcher& matcher, const Points2& points,
+                                const Eigen::Vector3d& predicted, const MatchOptions& m, const MatchResult& r,
+                                const Eigen::Matrix3d& gate) const {
+  // A look-alike place (the next door along a corridor, the neighbouring box) can score as well
+  // as the match and lie within the graph's gate as well: the match alone cannot tell them
+  // apart, and the one it picked may be the wrong one (Olson 2009's uniqueness test). The
+  // runner-up is the best pose that is another place (beyond the match's own spread at
+  // dissolve_chi2 and beyond the field's reach of its points) which the graph's gate admits as
+  // well; the match is kept only when it explains the scan better than the runner-up beyond
+  // chance: Vuong's statistic above the normal quantile of dissolve_chi2's confidence (one
+  // sided: 3.09 at 0.999).
+  const double chi2 = options_.closures.dissolve_chi2;
+  const MatchResult ru = matcher.runner_up(points, predicted, m, r, chi2, gate / chi2);
+  const double z = ru.found ? matcher.closeness(points, r.pose, ru.pose) : std::numeric_limits<double>::infinity();
+  const double confidence = chi_square_cdf(chi2, 3);
+  const double z_min = std::sqrt(chi_square_quantile(2.0 * confidence - 1.0, 1));
+  return z > z_min;
 }
 
 Eigen::Vector4d SubmapSlam2D::closure_region(int i) const {

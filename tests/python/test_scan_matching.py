@@ -233,6 +233,13 @@ def test_bad_input_names_the_argument(room):
     raises(lambda: m.match(None, prior), "points")
     raises(lambda: m.match("abc", prior), "points")
     raises(lambda: m.match(pts, np.zeros(2)), "prior")
+    best = m.match(pts, prior)
+    raises(lambda: m.runner_up(pts, prior, best, -1.0), "distinct_chi2")
+    raises(lambda: m.runner_up(pts, prior, best, np.nan), "distinct_chi2")
+    raises(lambda: m.runner_up(pts, prior, best, 16.27, admitted=np.ones(2)), "admitted")
+    raises(lambda: m.runner_up(pts, prior, m.match(pts, prior, min_score=0.0), 16.27), "best")
+    raises(lambda: m.closeness(pts[:1], prior, prior), "points")
+    raises(lambda: m.closeness(pts, prior, np.array([0.0, np.inf, 0.0])), "b")
     raises(lambda: m.match(pts, [np.nan, 0, 0]), "prior")
     raises(lambda: m.match(pts, None), "prior")
     raises(lambda: m.match(pts, "abc"), "prior")
@@ -273,3 +280,63 @@ def test_scan_filter_semantics():
     out, _ = _core.ranges_for_insertion(r, max_range=10.0, min_range=0.1, max_usable_range=5.0,
                                         clear_no_return=False)
     np.testing.assert_array_equal(out, [1.0] + [np.nan] * 7 + [2.0])
+
+
+#: The loop closures' uniqueness test (SubmapSlam2D::unique_match): a match is another place's
+#: look-alike when Vuong's statistic against its runner-up is below the one-sided normal quantile
+#: of dissolve_chi2's confidence (chi2(3) 16.27: 0.999, z 3.09).
+UNIQUE_Z = stats.norm.ppf(stats.chi2.cdf(16.27, 3))
+#: The scans of the look-alike test see this far: one box, not the other nor the room's walls.
+NEAR = 1.6
+
+
+def box(cx, cy, half=0.4):
+    c = [(cx - half, cy - half), (cx + half, cy - half), (cx + half, cy + half), (cx - half, cy + half)]
+    return [(c[k], c[(k + 1) % 4]) for k in range(4)]
+
+
+def look_alike(second):
+    """A 10 x 8 m room with a box at (-1.5, 0) and `second` (walls) beside it; a map of it, a
+    matcher, and a near scan of the first box from its lower left."""
+    walls = [((-5, -4), (5, -4)), ((5, -4), (5, 4)), ((5, 4), (-5, 4)), ((-5, 4), (-5, -4))] + box(-1.5, 0) + second
+    angles = np.linspace(-np.pi, np.pi, 720, endpoint=False)
+    g = ps.OccupancyGrid2D.covering((-5.5123, -4.4871, 5.5, 4.5), RES)
+    for x in (-3.0, -1.5, 0.0, 1.5, 3.0):
+        for y in (-1.5, 1.5):
+            g.insert_rays(np.array([x, y, 0.0]), cast_ranges(np.array([x, y, 0.0]), angles, walls), angles, 30.0)
+    _, m = make_matcher(g)
+    true = np.array([-2.3, -1.1, np.pi / 4])
+    r = cast_ranges(true, ANGLES, walls)
+    return m, true, _core.scan_hits(np.where(r <= NEAR, r, np.inf), ANGLES)
+
+
+def test_runner_up_is_the_look_alike_box_and_as_likely():
+    m, true, pts = look_alike(box(1.5, 0))
+    prior = true + np.array([0.1, -0.05, 0.03])
+    kw = dict(linear_window=3.5, angular_window=0.2)
+    best = m.match(pts, prior, **kw)
+    ru = m.runner_up(pts, prior, best, 16.27, **kw)
+    assert ru.found
+    # One of them is the true place, the other the same place by the look-alike box, 3 m on.
+    places = sorted([best.pose[0], ru.pose[0]])
+    np.testing.assert_allclose(places, [true[0], true[0] + 3.0], atol=RES)
+    np.testing.assert_allclose([best.pose[1], ru.pose[1]], true[1], atol=RES)
+    assert abs(m.closeness(pts, best.pose, ru.pose)) < UNIQUE_Z
+    # The branch and bound's runner-up is the brute force's over the same lattice.
+    lattice = [m.runner_up(pts, prior, best, 16.27, refine=False, brute_force=bf, **kw) for bf in (False, True)]
+    assert lattice[0].search_score == pytest.approx(lattice[1].search_score, abs=1e-6)
+    np.testing.assert_allclose(lattice[0].search_pose, lattice[1].search_pose, atol=1e-9)
+    # Admitted only within a metre of the prior, the other box is no runner-up.
+    near = m.runner_up(pts, prior, best, 16.27, admitted=np.diag([1.0, 1.0, 0.0]), **kw)
+    assert not near.found or np.linalg.norm(near.pose[:2] - prior[:2]) <= 1.0 + RES
+
+
+def test_a_unique_match_explains_the_scan_better_than_its_runner_up():
+    # The second box turned into a wall: nothing else looks like the first box from there.
+    m, true, pts = look_alike([((1.0, -0.4), (2.0, 0.4))])
+    prior = true + np.array([0.1, -0.05, 0.03])
+    kw = dict(linear_window=3.5, angular_window=0.2)
+    best = m.match(pts, prior, **kw)
+    assert np.abs(best.pose[:2] - true[:2]).max() <= RES
+    ru = m.runner_up(pts, prior, best, 16.27, **kw)
+    assert not ru.found or m.closeness(pts, best.pose, ru.pose) > UNIQUE_Z, ru

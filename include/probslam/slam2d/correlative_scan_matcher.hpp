@@ -103,6 +103,28 @@ class CorrelativeScanMatcher {
   MatchResult match(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
                     const MatchOptions& options = {}) const;
 
+  /// The best pose of the window that is another place than `best` (match()'s result for the
+  /// same points, prior and options): the lattice pose of highest score whose Mahalanobis chi2
+  /// from best.pose under best.covariance exceeds distinct_chi2 (the poses best's own spread
+  /// admits are best's hypothesis) and that moves the scan's points by more than the field's
+  /// reach (truncation(), rms over the points, to first order in the turn: nearer, the points
+  /// still see best's obstacles, the flank of best's peak), refined. found = false when none reaches options.min_score
+  /// or its refinement climbs back into best's region (the flank of best's peak); covariance
+  /// is not computed (zero). For a uniqueness test of the match (Olson 2009): see closeness().
+  /// Only poses p with (p - prior)^T admitted (p - prior) <= 1 are considered (the heading
+  /// difference wrapped): where another estimate, independent of the scan, allows the scan to
+  /// be; a zero matrix admits the whole window.
+  MatchResult runner_up(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
+                        const MatchOptions& options, const MatchResult& best, double distinct_chi2,
+                        const Eigen::Matrix3d& admitted = Eigen::Matrix3d::Zero()) const;
+
+  /// Vuong's (1989) closeness statistic of two poses of one scan on the interpolated field: the
+  /// sum over the points of log p(at a) - log p(at b), over its standard error (sqrt(N) times the
+  /// points' sd of the difference). Asymptotically standard normal when the two poses explain
+  /// the scan equally well; large and positive when a explains it better. The table's error of
+  /// log p (1e-6) is part of each difference's spread: differences within it count as none.
+  double closeness(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& a, const Eigen::Vector3d& b) const;
+
   /// The score (sum of log p over points, + log prior when options.use_prior) of `pose` on the
   /// interpolated field: the function the refinement maximises.
   double smooth_score(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& pose,
@@ -131,6 +153,22 @@ class CorrelativeScanMatcher {
   static double bytes_for(int width, int height, int max_level);
 
  private:
+  /// The poses a runner-up search leaves out: d^T Q d <= 1 (d the pose's offset from centre)
+  /// for one of two quadratic forms Q, each convex in translation at a given turn.
+  struct Exclusion {
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d spread = Eigen::Matrix3d::Zero();  ///< the best's information / distinct_chi2
+    Eigen::Matrix3d reach = Eigen::Matrix3d::Zero();   ///< the points' mean squared shift / reach^2
+    Eigen::Vector3d prior = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d admitted = Eigen::Matrix3d::Zero();  ///< around prior; outside is left out
+    /// In the spread's (by_spread) or the reach's ellipse.
+    bool contains(const Eigen::Vector3d& pose, bool by_spread) const;
+    /// In either ellipse, or outside the admitted one.
+    bool contains(const Eigen::Vector3d& pose) const;
+  };
+  /// match(), or with an exclusion runner_up()'s search (without its covariance).
+  MatchResult search(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
+                     const MatchOptions& options, const Exclusion* exclusion) const;
   struct Level {
     int pad = 0;  // stored rows/cols start at -pad
     int width = 0, height = 0;

@@ -244,11 +244,16 @@ class SubmapSlam2D {
   int search_closures(int j);
   /// The closure a scan of submap j makes with submap i, if it passes every test (counted).
   std::optional<SubmapConstraint> try_closure(int scan, int i, const std::vector<Eigen::Matrix3d>& marginals);
-  /// Whether match r of a scan agrees with where the graph predicts it (predicted in submap i's
-  /// frame Ti; W, SW the world pose and covariance of the scan, Si submap i's marginal) within
-  /// dissolve_chi2.
-  bool agrees_with_graph(const MatchResult& r, const Eigen::Vector3d& predicted, const Pose2& Ti,
-                         const Eigen::Vector3d& W, const Eigen::Matrix3d& SW, int i, const Eigen::Matrix3d& Si) const;
+  /// The information of where the graph predicts a scan (in submap i's frontend frame Ti,
+  /// against match r there; W, SW the scan's world pose and covariance, Si submap i's marginal):
+  /// a match agrees with the graph when gate_chi2 is within dissolve_chi2. Zero when singular.
+  Eigen::Matrix3d graph_gate(const MatchResult& r, const Pose2& Ti, const Eigen::Vector3d& W,
+                             const Eigen::Matrix3d& SW, int i, const Eigen::Matrix3d& Si) const;
+  static double gate_chi2(const Eigen::Matrix3d& gate, const Eigen::Vector3d& pose, const Eigen::Vector3d& predicted);
+  /// Whether match r of `points` (searched around `predicted` with options m) explains the scan
+  /// better than any other place the gate admits (see the definition).
+  bool unique_match(const CorrelativeScanMatcher& matcher, const Points2& points, const Eigen::Vector3d& predicted,
+                    const MatchOptions& m, const MatchResult& r, const Eigen::Matrix3d& gate) const;
   void optimize_and_dissolve();
   /// Adds the closures found (consecutive order) where they agree with each other and with the
   /// active closures (pairwise over the consecutive chain, resolve_conflicts); returns how many
