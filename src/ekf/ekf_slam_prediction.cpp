@@ -7,6 +7,7 @@
 
 #include "probslam/core/angle.hpp"
 #include "probslam/core/velocity_motion_model.hpp"
+#include "../core/odometry_step.hpp"
 
 namespace probslam {
 using namespace ekf_detail;
@@ -58,30 +59,22 @@ EkfSlam::Motion EkfSlam::plan_predict(double v, double w, double dt, const Eigen
 namespace {
 // One odometry step from pose x: the new pose, the motion's Jacobian G and the noise's J N J^T;
 // predict_odometry's checks, naming `delta_name` / `noise_name`.
-struct OdometryStep {
+struct OdometryMotion {
   Eigen::Vector3d next;
   Eigen::Matrix3d g, r;
 };
-OdometryStep odometry_step(const Eigen::Vector3d& x, const Eigen::Vector3d& delta, const Eigen::Matrix3d& noise,
-                           const char* delta_name, const char* noise_name) {
+OdometryMotion odometry_motion(const Eigen::Vector3d& x, const Eigen::Vector3d& delta, const Eigen::Matrix3d& noise,
+                               const char* delta_name, const char* noise_name) {
   require_odometry_step(delta, noise, delta_name, noise_name);
-  const Eigen::Matrix2d rx = rotation_matrix(x[2]);
-  const Eigen::Vector2d turned = rx * delta.head<2>();
-  OdometryStep s;
-  s.g = Eigen::Matrix3d::Identity();
-  s.g(0, 2) = -turned.y();
-  s.g(1, 2) = turned.x();
-  Eigen::Matrix3d j = Eigen::Matrix3d::Identity();  // d(x (+) delta) / d delta
-  j.topLeftCorner<2, 2>() = rx;
-  s.r = j * noise * j.transpose();
-  s.next = Eigen::Vector3d(x[0] + turned.x(), x[1] + turned.y(), wrap_angle(x[2] + delta[2]));
+  const core_detail::OdometryStep step = core_detail::odometry_step(x, delta);
+  const OdometryMotion s{step.next, step.g, step.j * noise * step.j.transpose()};
   require_on_map(s.next, delta_name, "moves the robot beyond 1e9 m (kMaxCoordinate)");
   return s;
 }
 }  // namespace
 
 void EkfSlam::predict_odometry(const Eigen::Vector3d& delta, const Eigen::Matrix3d& noise) {
-  const OdometryStep s = odometry_step(pose(), delta, noise, "delta", "noise");
+  const OdometryMotion s = odometry_motion(pose(), delta, noise, "delta", "noise");
   apply(plan_motion(s.next, s.g, s.r));
 }
 
@@ -97,7 +90,7 @@ Poses2 EkfSlam::predict_odometry_batch(const Eigen::Ref<const RowMatrixXd>& delt
   for (Eigen::Index k = 0; k < n; ++k) {
     const Eigen::Matrix3d noise = odometry_batch_noise(noises, k);
     const std::string dn = "deltas[" + std::to_string(k) + "]", nn = "noises[" + std::to_string(k) + "]";
-    const OdometryStep s = odometry_step(x, deltas.row(k).transpose(), noise, dn.c_str(), nn.c_str());
+    const OdometryMotion s = odometry_motion(x, deltas.row(k).transpose(), noise, dn.c_str(), nn.c_str());
     const Eigen::Matrix3d next = s.g * prr * s.g.transpose() + s.r;  // plan_motion's, step by step
     prr = 0.5 * (next + next.transpose());
     require(prr.allFinite() && prr.cwiseAbs().maxCoeff() <= kMaxCovarianceEntry, nn.c_str(),

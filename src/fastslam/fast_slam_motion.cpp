@@ -7,6 +7,7 @@
 #include "probslam/core/check.hpp"
 #include "probslam/core/pose2.hpp"
 #include "probslam/core/velocity_motion_model.hpp"
+#include "../core/odometry_step.hpp"
 
 namespace probslam {
 using namespace fastslam_detail;
@@ -150,19 +151,10 @@ void FastSlam::odometry_steps(const std::vector<Eigen::Vector3d>& deltas, const 
     require(on_map(mv.pose), name, "moves the robot beyond 1e9 m (kMaxCoordinate)");
     if (o_.version == 2) {
       const Eigen::Vector3d& from = since ? since->prior_mean : x;
-      const Eigen::Matrix2d rf = rotation_matrix(from[2]);
-      const Eigen::Vector2d step_xy = rf * delta.head<2>();
-      mv.prior_mean.head<2>() = from.head<2>() + step_xy;
-      mv.prior_mean[2] = wrap_angle(from[2] + delta[2]);
-      Eigen::Matrix3d j = Eigen::Matrix3d::Identity();  // d(from (+) delta) / d delta
-      j.topLeftCorner<2, 2>() = rf;
-      mv.prior_cov = symmetric<3>(j * covs[k] * j.transpose());
-      if (since) {
-        Eigen::Matrix3d g = Eigen::Matrix3d::Identity();  // d(from (+) delta) / d from
-        g(0, 2) = -step_xy[1];
-        g(1, 2) = step_xy[0];
-        mv.prior_cov = symmetric<3>(g * since->prior_cov * g.transpose() + mv.prior_cov);
-      }
+      const core_detail::OdometryStep prior = core_detail::odometry_step(from, delta);
+      mv.prior_mean = prior.next;
+      mv.prior_cov = symmetric<3>(prior.j * covs[k] * prior.j.transpose());
+      if (since) mv.prior_cov = symmetric<3>(prior.g * since->prior_cov * prior.g.transpose() + mv.prior_cov);
     }
   });
 }
