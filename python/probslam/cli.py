@@ -31,7 +31,7 @@ from .pipelines.localize_log import localize_log
 from .pipelines.map_log import MapOptions, MapRun
 from .pipelines.evaluate_trajectory import EvaluationOptions, TrajectoryEvaluation
 from .pipelines.inputs import (ANY_POSE_GRAPH, BAG_OPTIONS, CARMEN_LOG, LANDMARK_DATASET, MAP_FILE, READ_ERRORS,
-                               REFERENCE_FILES, TRAJECTORY_FILE, InputError, check_input, name_pattern, one_line,
+                               REFERENCE_FILES, TRAJECTORY_FILE, InputError, name_pattern, one_line,
                                read_log, reading)
 
 BUNDLED_LOG = "intel_excerpt.log.gz"
@@ -157,7 +157,7 @@ def _as_given(text: str, names: Dict[str, str], args: Optional[argparse.Namespac
     given = getattr(args, name, getattr(args, names[name].lstrip("-").replace("-", "_"), None)) if args else None
     if isinstance(given, (list, tuple)):
         given = " ".join(map(str, given))
-    if given is None or isinstance(given, bool) or rest.startswith(f"{given} ") or f"got {given}" in rest:
+    if given is None or isinstance(given, bool) or rest.startswith((f"{given} ", f"{given}:")) or f"got {given}" in rest:
         return f"{names[name]}{colon} {rest}", True  # no value to add, or the message says it
     return f"{names[name]} {given}: {rest}", True
 
@@ -279,8 +279,7 @@ def _resume_command(args: argparse.Namespace, run_file: str) -> str:
 
 def _cmd_slam(args: argparse.Namespace) -> int:
     from .pipelines.slam_log import slam_log
-    from .slam import (INITIAL_MAP, OPTIONS_CLASSES, RunInterrupted, check_save_path, default_options,
-                       load_initial_map, with_fields)
+    from .slam import OPTIONS_CLASSES, RunInterrupted, with_fields
 
     dests = {m: [flag[2:].replace("-", "_") for flag in SLAM_FLAGS[m].values()] for m in SLAM_FLAGS}
     if args.resume is not None:
@@ -294,26 +293,12 @@ def _cmd_slam(args: argparse.Namespace) -> int:
     with _option_flags(args, flags):
         with_fields(OPTIONS_CLASSES[args.method](), given)  # the library checks the flags before the log is read
     path = args.log or _bundled_log(BUNDLED_SLAM_LOG)
-    log, start = _read_log(path, args), {}
-    if args.map is not None:
-        if args.resume is not None:
-            raise UserError("--map: a resumed run continues on the map its run file holds")
-        check_input(args.map, INITIAL_MAP)
-        try:
-            start = dict(initial_map=load_initial_map(args.map), initial_pose=args.initial_pose)
-        except ValueError as e:
-            raise UserError(f"--map: {one_line(e)}") from None
-    elif args.initial_pose is not None:
-        raise UserError("--initial-pose: only with --map (where the log starts in the saved map)")
-    if args.save is not None:
-        check_save_path(args.save, "--save")  # its refusal names --save
+    log = _read_log(path, args)
+    names = {**flags, "initial_map": "--map", "initial_pose": "--initial-pose", "save": "--save"}
     try:
-        with _option_flags(args, flags):
-            # The log's options, each flag given replacing the field it names; a resumed run keeps its own.
-            options = None if args.resume is not None else with_fields(
-                default_options(log, args.method, initial_map=start.get("initial_map")), given)
-            run = slam_log(log, options, path=path, start_map=args.map, resume=args.resume, save=args.save,
-                           progress=_progress(args), **start)
+        with _option_flags(args, names):
+            run = slam_log(log, method=args.method, fields=given, path=path, initial_map=args.map,
+                           initial_pose=args.initial_pose, resume=args.resume, save=args.save, progress=_progress(args))
     except RunInterrupted as e:
         if e.saved is None:
             raise
