@@ -30,7 +30,7 @@ from .mapping import DEFAULT_MAX_RANGE as MAP_MAX_RANGE, DEFAULT_RESOLUTION as M
 from .pipelines.localize_log import localize_log
 from .pipelines.map_log import MapOptions, MapRun
 from .pipelines.evaluate_trajectory import EvaluationOptions, TrajectoryEvaluation
-from .pipelines.inputs import (ANY_POSE_GRAPH, BAG_OPTIONS, CARMEN_LOG, LANDMARK_DATASET, MAP_FILE, READ_ERRORS,
+from .pipelines.inputs import (BAG_OPTIONS, CARMEN_LOG, MAP_FILE, READ_ERRORS,
                                REFERENCE_FILES, TRAJECTORY_FILE, InputError, name_pattern, one_line,
                                read_log, reading)
 
@@ -342,7 +342,7 @@ def _cmd_landmarks(args: argparse.Namespace) -> int:
     """ekf-slam and fastslam: ``pipelines.LandmarkRun`` on the dataset argument."""
     options = _options(LandmarkRunOptions(method=args.method), args)
     t0, path = time.perf_counter(), args.dataset or _data_path(BUNDLED_LANDMARKS)
-    with _reading(path, LANDMARK_DATASET, folder=True), _option_flags(args):
+    with _option_flags(args):
         run = LandmarkRun.read(path, options)
     with _option_flags(args):
         run.run(_progress(args))
@@ -358,7 +358,7 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
         _refuse_given(args, ("edges",), "draws in the picture, which --no-plot leaves out")
     options = _options(GraphFileOptions(), args)
     path = args.graph or _data_path(BUNDLED_GRAPH)
-    with _reading(path, ANY_POSE_GRAPH), _option_flags(args):
+    with _option_flags(args):
         run = GraphFileRun.read(path, options)
         if run.dimension == 3 and args.trajectory_format == "xyt":
             raise ValueError("trajectory_format: 'xyt' ('t x y theta') cannot hold a 3-D pose: use tum or kitti")
