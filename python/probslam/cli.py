@@ -18,9 +18,9 @@ import time
 import warnings
 from typing import Dict, Iterator, List, Optional, Tuple
 
-from . import __version__, io
+from . import __version__
 from .data import path as _data_path
-from .datasets import carmen, mrclam
+from .datasets import mrclam
 from ._core import GridFastSlamOptions, MonteCarloLocalizationOptions, SubmapSlamOptions
 from .pipelines.landmark_run import LandmarkRun, LandmarkRunOptions
 from .pipelines.optimize_file import GraphFileOptions, GraphFileRun
@@ -30,7 +30,7 @@ from .mapping import DEFAULT_MAX_RANGE as MAP_MAX_RANGE, DEFAULT_RESOLUTION as M
 from .pipelines.localize_log import localize_log
 from .pipelines.map_log import MapOptions, MapRun
 from .pipelines.evaluate_trajectory import EvaluationOptions, TrajectoryEvaluation
-from .pipelines.inputs import (BAG_OPTIONS, CARMEN_LOG, MAP_FILE, READ_ERRORS,
+from .pipelines.inputs import (BAG_OPTIONS, CARMEN_LOG, READ_ERRORS,
                                REFERENCE_FILES, TRAJECTORY_FILE, InputError, name_pattern, one_line,
                                read_log, reading)
 
@@ -326,12 +326,10 @@ def _cmd_localize(args: argparse.Namespace) -> int:
         raise UserError("--map: give the map to localize in (a map_server YAML, e.g. probslam slam's PREFIX.yaml)")
     elif args.log is None:
         raise UserError("--map given without a LOG: name the log to localize")
-    with _reading(args.map, MAP_FILE):
-        grid = io.load_ros_map(args.map)
     log = _read_log(args.log, args)
     options = _options(localization.default_options(log.scans), args)
     with _option_flags(args):
-        run = localize_log(log, grid, options, initial_pose=args.initial_pose, progress=_progress(args))
+        run = localize_log(log, args.map, options, initial_pose=args.initial_pose, progress=_progress(args))
     written = run.write(args.output, args.trajectory_format) + _picture(
         run, args, title=f"probslam localize: {os.path.basename(args.log)} in {os.path.basename(args.map)}")
     print(run.summary(args.log, args.map, written))
