@@ -13,15 +13,14 @@ import functools
 import os
 import re
 import shlex
-import stat
 import sys
 import time
 import warnings
 from typing import Dict, Iterator, List, Optional, Tuple
 
-from . import __version__, io
+from . import __version__
 from .data import path as _data_path
-from .datasets import carmen, mrclam
+from .datasets import mrclam
 from ._core import GridFastSlamOptions, MonteCarloLocalizationOptions, SubmapSlamOptions
 from .pipelines.landmark_run import LandmarkRun, LandmarkRunOptions
 from .pipelines.optimize_file import GraphFileOptions, GraphFileRun
@@ -31,6 +30,9 @@ from .mapping import DEFAULT_MAX_RANGE as MAP_MAX_RANGE, DEFAULT_RESOLUTION as M
 from .pipelines.localize_log import localize_log
 from .pipelines.map_log import MapOptions, MapRun
 from .pipelines.evaluate_trajectory import EvaluationOptions, TrajectoryEvaluation
+from .pipelines.inputs import (BAG_OPTIONS, CARMEN_LOG, READ_ERRORS,
+                               REFERENCE_FILES, TRAJECTORY_FILE, InputError, name_pattern, one_line,
+                               read_log, reading)
 
 BUNDLED_LOG = "intel_excerpt.log.gz"
 #: A raw log (odometry and scans, no corrected poses): the Intel Research Lab's first loop, short of
@@ -46,17 +48,6 @@ BUNDLED_LANDMARKS = "mrclam7_robot1_120s"
 #: ``probslam localize`` without a LOG: the bundled raw loop in its map made by ``probslam slam``.
 BUNDLED_LOCALIZATION_MAP = "intel_raw_loop_map.yaml"
 
-#: What each kind of input file must be, for the error messages.
-CARMEN_LOG = "a CARMEN laser log (.log/.clf, optionally .gz/.bz2/.xz)"
-ROS_BAG = "a ROS bag (ROS 1 .bag, a ROS 2 bag folder, or its .db3 / .mcap)"
-LANDMARK_DATASET = ("a UTIAS MRCLAM folder (Barcodes.dat, Landmark_Groundtruth.dat, RobotN_Odometry.dat, "
-                    "RobotN_Measurement.dat) or a Victoria Park file in iSAM/GTSAM text format")
-ANY_POSE_GRAPH = "a 2-D or 3-D pose graph (g2o, TORO or iSAM text)"
-MAP_FILE = "a map_server map (YAML with its image)"
-TRAJECTORY_FILE = "a trajectory: TUM (t x y z qx qy qz qw), KITTI (12 numbers a row) or 't x y theta' rows"
-REFERENCE_FILES = {"trajectory": TRAJECTORY_FILE, "carmen": CARMEN_LOG,
-                   "relations": "a Freiburg relations file (t1 t2 x y z roll pitch yaw rows)",
-                   "positions": "positions with times (t x y rows, e.g. a GPS track)"}
 EPILOG = """exit status:
   0  success
   1  an unexpected error (a bug: please report it)
@@ -149,20 +140,15 @@ def _bundled_log(name: str = BUNDLED_LOG) -> str:
     return _data_path(name)
 
 
-def _one_line(exc: BaseException) -> str:
-    text = str(exc) or type(exc).__name__
-    return " ".join(part.strip() for part in text.splitlines() if part.strip())
-
-
 def _as_given(text: str, names: Dict[str, str], args: Optional[argparse.Namespace] = None) -> Tuple[str, bool]:
     """A library message told as the command line gave it, and whether it named anything: its
     subject (a leading name of ``names``) as the flag with the value given ("min_particles must ..."
     -> "--min-particles 0: must ..."), the other names with an underscore as theirs."""
-    pattern = r"(?<![-\w.])(" + "|".join(sorted(map(re.escape, names), key=len, reverse=True)) + r")\b(?![.])"
-    subject = re.match(pattern, text)
+    pattern = name_pattern(names)
+    subject = pattern.match(text)
     rest = text[subject.end():] if subject else text
-    mentioned = [m.group(1) for m in re.finditer(pattern, rest) if "_" in m.group(1)]
-    rest = re.sub(pattern, lambda m: names[m.group(1)] if m.group(1) in mentioned else m.group(1), rest)
+    mentioned = [m.group(1) for m in pattern.finditer(rest) if "_" in m.group(1)]
+    rest = pattern.sub(lambda m: names[m.group(1)] if m.group(1) in mentioned else m.group(1), rest)
     if not subject:
         return rest, bool(mentioned)
     name, colon = subject.group(1), ":" if rest.startswith(":") else ""
@@ -171,7 +157,7 @@ def _as_given(text: str, names: Dict[str, str], args: Optional[argparse.Namespac
     given = getattr(args, name, getattr(args, names[name].lstrip("-").replace("-", "_"), None)) if args else None
     if isinstance(given, (list, tuple)):
         given = " ".join(map(str, given))
-    if given is None or isinstance(given, bool) or rest.startswith(f"{given} ") or f"got {given}" in rest:
+    if given is None or isinstance(given, bool) or rest.startswith((f"{given} ", f"{given}:")) or f"got {given}" in rest:
         return f"{names[name]}{colon} {rest}", True  # no value to add, or the message says it
     return f"{names[name]} {given}: {rest}", True
 
@@ -182,8 +168,10 @@ def _option_flags(args: argparse.Namespace, names: Optional[Dict[str, str]] = No
     field -> flag, default each option's dest -> its flag): the CLI does not check values again."""
     try:
         yield
+    except InputError:
+        raise
     except (TypeError, ValueError) as exc:
-        text, named = _as_given(_one_line(exc), names or args.flags, args)
+        text, named = _as_given(one_line(exc), names or args.flags, args)
         if named:
             raise UserError(text) from None
         raise
@@ -197,38 +185,26 @@ def _options(options, args: argparse.Namespace):
                                   if k in args.flags and getattr(args, k) is not None})
 
 
-def _check_input(path: str, expected: str, folder: bool = False) -> None:
-    """UserError naming ``path`` when it is missing, empty, or not a regular file (or a ``folder``)."""
+@contextlib.contextmanager
+def _told(path: str, names: Dict[str, str]) -> Iterator[None]:
+    """A reader's error about a parameter of ``names`` (``inputs.reading`` passes it on: not the
+    file's) told as it (``scan_topic`` -> ``--scan-topic``), naming ``path``."""
     try:
-        mode = os.stat(path).st_mode
-    except FileNotFoundError:
-        raise UserError(f"{path}: no such file; expected {expected}") from None
-    except OSError as exc:
-        raise UserError(f"{path}: cannot read it ({exc.strerror}); expected {expected}") from None
-    if stat.S_ISDIR(mode):
-        if not folder:
-            raise UserError(f"{path}: is a directory; expected {expected}")
-    elif not stat.S_ISREG(mode):
-        raise UserError(f"{path}: not a regular file; expected {expected}")
-    elif os.path.getsize(path) == 0:
-        raise UserError(f"{path}: empty file; expected {expected}")
+        yield
+    except InputError:
+        raise
+    except READ_ERRORS as exc:
+        text, named = _as_given(one_line(exc), names) if names else ("", False)
+        if not named:
+            raise
+        raise UserError(text if path in text else f"{path}: {text}") from None
 
 
 @contextlib.contextmanager
 def _reading(path: str, expected: str, names: Optional[Dict[str, str]] = None, folder: bool = False) -> Iterator[None]:
-    """``path`` checked, then a reader's error as a UserError naming it and what was ``expected``;
-    an error that names a parameter of ``names`` (``scan_topic`` -> ``--scan-topic``) is about it,
-    not the file's format: told as it, without "expected"."""
-    _check_input(path, expected, folder)
-    try:
+    """``inputs.reading``: errors naming ``path`` and what was ``expected``, or a parameter of ``names``."""
+    with _told(path, names or {}), reading(path, expected, tuple(names or ()), folder):
         yield
-    except UserError:
-        raise
-    except (ValueError, OSError, EOFError, UnicodeError, IndexError) as exc:
-        message, named = _as_given(_one_line(exc), names) if names else (_one_line(exc), False)
-        if path not in message:
-            message = f"{path}: {message}"
-        raise UserError(message if named else f"{message}; expected {expected}") from None
 
 
 def _save_figure(plt, fig, path: str) -> str:
@@ -262,17 +238,8 @@ def _progress(args: argparse.Namespace) -> Optional[bool]:
 def _read_log(path: str, args: argparse.Namespace):
     """The CARMEN log or ROS bag at ``path`` (a bag with the topic and offset flags given)."""
     bag = {name: getattr(args, name) for name in BAG_OPTIONS if getattr(args, name, None) is not None}
-    if io.rosbag.is_bag(path):
-        with _reading(path, ROS_BAG, {name: "--" + name.replace("_", "-") for name in BAG_OPTIONS}, folder=True):
-            return io.read_rosbag(path, **bag)
-    if bag:
-        raise UserError(f"--{next(iter(bag)).replace('_', '-')} applies to ROS bags; {path} is read as {CARMEN_LOG}")
-    with _reading(path, CARMEN_LOG):
-        return carmen.load(path)
-
-
-#: read_rosbag's parameters that the command line sets, each by the option of its name.
-BAG_OPTIONS = ("scan_topic", "odom_topic", "pose_topic", "laser_offset")
+    with _told(path, {name: "--" + name.replace("_", "-") for name in BAG_OPTIONS}):
+        return read_log(path, **bag)
 
 
 def _check_output(prefix: str) -> None:
@@ -312,8 +279,7 @@ def _resume_command(args: argparse.Namespace, run_file: str) -> str:
 
 def _cmd_slam(args: argparse.Namespace) -> int:
     from .pipelines.slam_log import slam_log
-    from .slam import (INITIAL_MAP, OPTIONS_CLASSES, RunInterrupted, check_save_path, default_options,
-                       load_initial_map, with_fields)
+    from .slam import OPTIONS_CLASSES, RunInterrupted, with_fields
 
     dests = {m: [flag[2:].replace("-", "_") for flag in SLAM_FLAGS[m].values()] for m in SLAM_FLAGS}
     if args.resume is not None:
@@ -327,26 +293,12 @@ def _cmd_slam(args: argparse.Namespace) -> int:
     with _option_flags(args, flags):
         with_fields(OPTIONS_CLASSES[args.method](), given)  # the library checks the flags before the log is read
     path = args.log or _bundled_log(BUNDLED_SLAM_LOG)
-    log, start = _read_log(path, args), {}
-    if args.map is not None:
-        if args.resume is not None:
-            raise UserError("--map: a resumed run continues on the map its run file holds")
-        _check_input(args.map, INITIAL_MAP)
-        try:
-            start = dict(initial_map=load_initial_map(args.map), initial_pose=args.initial_pose)
-        except ValueError as e:
-            raise UserError(f"--map: {_one_line(e)}") from None
-    elif args.initial_pose is not None:
-        raise UserError("--initial-pose: only with --map (where the log starts in the saved map)")
-    if args.save is not None:
-        check_save_path(args.save, "--save")  # its refusal names --save
+    log = _read_log(path, args)
+    names = {**flags, "initial_map": "--map", "initial_pose": "--initial-pose", "save": "--save"}
     try:
-        with _option_flags(args, flags):
-            # The log's options, each flag given replacing the field it names; a resumed run keeps its own.
-            options = None if args.resume is not None else with_fields(
-                default_options(log, args.method, initial_map=start.get("initial_map")), given)
-            run = slam_log(log, options, path=path, start_map=args.map, resume=args.resume, save=args.save,
-                           progress=_progress(args), **start)
+        with _option_flags(args, names):
+            run = slam_log(log, method=args.method, fields=given, path=path, initial_map=args.map,
+                           initial_pose=args.initial_pose, resume=args.resume, save=args.save, progress=_progress(args))
     except RunInterrupted as e:
         if e.saved is None:
             raise
@@ -374,12 +326,10 @@ def _cmd_localize(args: argparse.Namespace) -> int:
         raise UserError("--map: give the map to localize in (a map_server YAML, e.g. probslam slam's PREFIX.yaml)")
     elif args.log is None:
         raise UserError("--map given without a LOG: name the log to localize")
-    with _reading(args.map, MAP_FILE):
-        grid = io.load_ros_map(args.map)
     log = _read_log(args.log, args)
     options = _options(localization.default_options(log.scans), args)
     with _option_flags(args):
-        run = localize_log(log, grid, options, initial_pose=args.initial_pose, progress=_progress(args))
+        run = localize_log(log, args.map, options, initial_pose=args.initial_pose, progress=_progress(args))
     written = run.write(args.output, args.trajectory_format) + _picture(
         run, args, title=f"probslam localize: {os.path.basename(args.log)} in {os.path.basename(args.map)}")
     print(run.summary(args.log, args.map, written))
@@ -390,7 +340,7 @@ def _cmd_landmarks(args: argparse.Namespace) -> int:
     """ekf-slam and fastslam: ``pipelines.LandmarkRun`` on the dataset argument."""
     options = _options(LandmarkRunOptions(method=args.method), args)
     t0, path = time.perf_counter(), args.dataset or _data_path(BUNDLED_LANDMARKS)
-    with _reading(path, LANDMARK_DATASET, folder=True), _option_flags(args):
+    with _option_flags(args):
         run = LandmarkRun.read(path, options)
     with _option_flags(args):
         run.run(_progress(args))
@@ -406,7 +356,7 @@ def _cmd_optimize(args: argparse.Namespace) -> int:
         _refuse_given(args, ("edges",), "draws in the picture, which --no-plot leaves out")
     options = _options(GraphFileOptions(), args)
     path = args.graph or _data_path(BUNDLED_GRAPH)
-    with _reading(path, ANY_POSE_GRAPH), _option_flags(args):
+    with _option_flags(args):
         run = GraphFileRun.read(path, options)
         if run.dimension == 3 and args.trajectory_format == "xyt":
             raise ValueError("trajectory_format: 'xyt' ('t x y theta') cannot hold a 3-D pose: use tum or kitti")
@@ -685,12 +635,12 @@ def _run(argv: Optional[List[str]]) -> int:
         raise
     except (UserError, ValueError, TypeError, OSError, ImportError) as exc:
         # Bad options (the library names the argument), unreadable or unwritable files.
-        print(f"probslam: error: {_one_line(exc)}", file=sys.stderr)
+        print(f"probslam: error: {one_line(exc)}", file=sys.stderr)
         return 2
     except Exception as exc:  # noqa: BLE001 - the last resort: one line, not a traceback
         if os.environ.get("PROBSLAM_DEBUG"):
             raise
-        print(f"probslam: unexpected error: {type(exc).__name__}: {_one_line(exc)} "
+        print(f"probslam: unexpected error: {type(exc).__name__}: {one_line(exc)} "
               "(a bug: please report it; PROBSLAM_DEBUG=1 shows the traceback)", file=sys.stderr)
         return 1
     finally:

@@ -10,6 +10,7 @@ import pytest
 
 import probslam as ps
 from probslam import cli, io
+from probslam.pipelines.inputs import LANDMARK_DATASET
 
 
 def test_map_bundled_log(tmp_path, capsys):
@@ -361,7 +362,7 @@ def test_subprocess_bad_file_has_no_traceback(tmp_path):
     run = _run(["-m", "probslam", "ekf-slam", str(tmp_path / "missing")], tmp_path)
     assert run.returncode == 2 and "Traceback" not in run.stderr
     assert run.stderr.strip() == f"probslam: error: {tmp_path / 'missing'}: no such file; expected " \
-                                 f"{cli.LANDMARK_DATASET}"
+                                 f"{LANDMARK_DATASET}"
 
 
 @pytest.mark.slow

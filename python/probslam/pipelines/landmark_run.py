@@ -13,12 +13,13 @@ import math
 import os
 import pathlib
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 from typing import List, Optional, Union
 
 import numpy as np
 
 from ._options import Options, described
+from .inputs import LANDMARK_DATASET, reading
 from .. import io
 from .._args import require_instance
 from ..datasets import LandmarkDataset, LandmarkScore, RefinedRun, landmark_dataset_class, mrclam
@@ -166,7 +167,8 @@ class LandmarkRun:
         """The dataset at a path (an MRCLAM folder, a Victoria Park file, the original Victoria
         Park run's folder) read with ``options``, or a ``LandmarkDataset`` already read. The
         options are checked first, then against the dataset (ValueError naming the field that
-        does not apply), before it is read; the readers' errors name the file."""
+        does not apply), before it is read; the readers' errors name the file and what was expected
+        (``inputs.reading``: InputError)."""
         options = LandmarkRunOptions() if options is None else options
         require_instance(options, LandmarkRunOptions, "options")
         options.validate()
@@ -177,9 +179,10 @@ class LandmarkRun:
             type(dataset).check(options, dataset.path)
             return cls(dataset, options)
         path = pathlib.Path(os.fspath(dataset))
-        kind = landmark_dataset_class(path)
-        kind.check(options, path)
-        return cls(kind.load(path, options), options)
+        with reading(str(path), LANDMARK_DATASET, [f.name for f in fields(LandmarkRunOptions)], folder=True):
+            kind = landmark_dataset_class(path)
+            kind.check(options, path)
+            return cls(kind.load(path, options), options)
 
     def run(self, progress: Optional[bool] = None) -> None:
         """The filter, the refinement (``refine``) and the score. ``progress``: a bar over the

@@ -17,10 +17,10 @@ import numpy as np
 
 from .. import _core, io
 from .._args import real_array, require_instance
-from ..datasets import carmen
 from ..localization import (CONVERGED_CLUSTER_WEIGHT, CONVERGED_THETA_STD, CONVERGED_XY_STD, LocalizationResult,
                             default_options, localize)
 from ..slam import scans_of
+from .inputs import MAP_FILE, read_log, reading
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -178,11 +178,13 @@ def localize_log(log: Union[PathLike, object], map: Union[PathLike, _core.Occupa
     in the map's frame: tracking; None: global, particles over the free space) with ``options``
     (None: ``localization.default_options(log)``), the particle cloud recorded at SNAPSHOT_TRAVEL.
     ValueError naming ``initial_pose`` when it is not three finite numbers, ``map`` when it cannot
-    hold a scan; the filter's own errors name its option."""
-    if isinstance(log, (str, os.PathLike)):
-        log = carmen.load_log(log)
+    hold a scan; the filter's own errors name its option; files that are not a map or a log an
+    InputError naming them (``inputs.reading``)."""
     if isinstance(map, (str, os.PathLike)):
-        map = io.load_ros_map(map)
+        with reading(os.fspath(map), MAP_FILE):
+            map = io.load_ros_map(map)
+    if isinstance(log, (str, os.PathLike)):
+        log = read_log(os.fspath(log))
     require_instance(map, _core.OccupancyGrid2D, "map")
     if initial_pose is not None:
         initial_pose = tuple(float(v) for v in real_array(initial_pose, "initial_pose", (3,)))

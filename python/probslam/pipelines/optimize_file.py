@@ -10,12 +10,13 @@ from __future__ import annotations
 import math
 import os
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Callable, List, Optional, Union
 
 import numpy as np
 
 from ._options import Options, described
+from .inputs import ANY_POSE_GRAPH, reading
 from .. import graph as pg
 from .._args import positive_real
 from .._progress import progress_bar
@@ -115,29 +116,31 @@ class GraphFileRun:
     @classmethod
     def read(cls, path: PathLike, options: Optional[GraphFileOptions] = None) -> "GraphFileRun":
         """Reads the graph at ``path`` (2-D or 3-D by its records). ValueError for a file with no
-        vertex, a start of the other dimension, or a bad row (naming its line)."""
+        vertex, a start of the other dimension, or a bad row (naming its line); an InputError
+        (``inputs.reading``) naming the file and what was expected when it is not a graph."""
         options = GraphFileOptions() if options is None else options
         if not isinstance(options, GraphFileOptions):
             raise TypeError(f"options: expected a GraphFileOptions, got {type(options).__name__}")
         options.validate()
         path = os.fspath(path)
-        dimension = pg.pose_graph_dimension(path)
-        init = options.init or DEFAULT_INIT[dimension]
-        other_only = INITS_2D_ONLY if dimension == 3 else INITS_3D_ONLY
-        if init in other_only:
-            choices = ", ".join(i for i in INITIALIZATIONS if i not in other_only)
-            raise ValueError(f"init {init} applies to {5 - dimension}-D graphs; {path} is a {dimension}-D graph "
-                             f"(its starting points: {choices})")
-        noise = _noise_convention(path, options)
-        t0 = time.perf_counter()
-        read = (pg.read_pose_graph_3d_with_report if dimension == 3 else pg.read_pose_graph_with_report)(
-            path, format=options.format, noise=noise, rows="strict")
-        if read.graph.num_vertices == 0:
-            raise ValueError(f"{path}: no vertices")
-        run = cls(path, options, dimension, read.graph, read.report, noise, time.perf_counter() - t0, init=init)
-        if options.init is None and dimension == 2 and len(run.graph.point_ids):
-            run.init, run.init_reason = LANDMARK_GRAPH_INIT, LANDMARK_GRAPH_INIT_REASON
-        return run
+        with reading(path, ANY_POSE_GRAPH, [f.name for f in fields(GraphFileOptions)]):  # errors name the file
+            dimension = pg.pose_graph_dimension(path)
+            init = options.init or DEFAULT_INIT[dimension]
+            other_only = INITS_2D_ONLY if dimension == 3 else INITS_3D_ONLY
+            if init in other_only:
+                choices = ", ".join(i for i in INITIALIZATIONS if i not in other_only)
+                raise ValueError(f"init {init} applies to {5 - dimension}-D graphs; {path} is a {dimension}-D graph "
+                                 f"(its starting points: {choices})")
+            noise = _noise_convention(path, options)
+            t0 = time.perf_counter()
+            read = (pg.read_pose_graph_3d_with_report if dimension == 3 else pg.read_pose_graph_with_report)(
+                path, format=options.format, noise=noise, rows="strict")
+            if read.graph.num_vertices == 0:
+                raise ValueError(f"{path}: no vertices")
+            run = cls(path, options, dimension, read.graph, read.report, noise, time.perf_counter() - t0, init=init)
+            if options.init is None and dimension == 2 and len(run.graph.point_ids):
+                run.init, run.init_reason = LANDMARK_GRAPH_INIT, LANDMARK_GRAPH_INIT_REASON
+            return run
 
     def read_summary(self, name: Optional[str] = None) -> str:
         """What was read, in lines (``name``: how to call the file; default its path)."""

@@ -9,14 +9,14 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
-from typing import Any, List, Optional, Sequence, Tuple, Union
+from typing import Any, Dict, List, Optional, Sequence, Tuple, Union
 
 from .. import io
 from .._args import require_instance
-from ..datasets import carmen
 from ..graph import write_g2o
 from ..io.trajectory import EXTENSIONS
-from ..slam import SlamResult, run_slam
+from ..slam import INITIAL_MAP, SlamResult, default_options, load_initial_map, run_slam, with_fields
+from .inputs import check_input, one_line, read_log
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -108,23 +108,41 @@ class SlamLogRun:
         return "\n".join(lines)
 
 
-def slam_log(log: Any, options=None, *, path: Optional[PathLike] = None, start_map: Optional[PathLike] = None,
-             initial_map=None, initial_pose=None, resume: Optional[PathLike] = None, save: Optional[PathLike] = None,
+def slam_log(log: Any, options=None, *, method: Optional[str] = None, fields: Optional[Dict[str, Any]] = None,
+             path: Optional[PathLike] = None, initial_map=None, start_map: Optional[PathLike] = None,
+             initial_pose=None, resume: Optional[PathLike] = None, save: Optional[PathLike] = None,
              progress: Optional[bool] = None) -> SlamLogRun:
-    """``slam.run_slam`` over ``log`` (a CARMEN log's or a bag's path, or a log already read:
-    ``io.CarmenLog`` / ``io.RosbagLog``) with ``options`` (a
-    ``SubmapSlamOptions`` or ``GridFastSlamOptions``; None: ``slam.default_options(log)``), and
-    the run that summarises, writes and draws it. ``initial_map`` / ``initial_pose``, ``resume``,
-    ``save`` and ``progress`` are run_slam's; ``path`` and ``start_map`` name the log's and the
-    map's files in the summary (default: ``log`` when it is a path)."""
+    """``slam.run_slam`` over ``log`` (a CARMEN log's or a bag's path, read by ``inputs.read_log``,
+    or a log already read: ``io.CarmenLog`` / ``io.RosbagLog``) with ``options`` (a
+    ``SubmapSlamOptions`` or ``GridFastSlamOptions``; None: ``slam.default_options`` of the log,
+    ``method`` and the start map) and the fields by path in ``fields``
+    (``{"frontend.resolution": 0.1}``, ``slam.with_fields``), and the run that summarises, writes
+    and draws it. ``initial_map``: a saved map to start from (an ``OccupancyGrid2D`` or its file,
+    ``slam.load_initial_map``; errors name ``initial_map``), ``initial_pose`` the log's first scan
+    in it; ``resume`` a run file to continue (its method and options), ``save`` where to write the
+    run's; ``progress`` as run_slam's. ``path`` and ``start_map`` name the log's and the map's
+    files in the summary (default: ``log`` and ``initial_map`` when they are paths)."""
     if isinstance(log, (str, os.PathLike)):
-        path, log = os.fspath(log) if path is None else path, carmen.load_log(log)
+        path, log = os.fspath(log) if path is None else path, read_log(os.fspath(log))
     require_instance(log, io.CarmenLog, "log")
-    if resume is not None:
-        result = run_slam(log, resume=resume, save=save, progress=progress)
+    if isinstance(initial_map, (str, os.PathLike)):
+        start_map = initial_map if start_map is None else start_map
+        if resume is None:  # run_slam refuses a start map with a resumed run
+            check_input(os.fspath(initial_map), INITIAL_MAP)
+            try:
+                initial_map = load_initial_map(initial_map)
+            except ValueError as e:  # named as the argument, once
+                message = one_line(e)
+                raise ValueError(message if message.startswith("initial_map") else f"initial_map: {message}") from None
+    if resume is None:
+        if options is None:
+            options = default_options(log, method or "graph", initial_map=initial_map)
+        options = with_fields(options, fields or {})
+        result = run_slam(log, options=options, save=save, progress=progress, initial_map=initial_map,
+                          initial_pose=initial_pose)
     else:
-        start = {} if initial_map is None else dict(initial_map=initial_map, initial_pose=initial_pose)
-        result = run_slam(log, options=options, save=save, progress=progress, **start)
+        result = run_slam(log, resume=resume, save=save, progress=progress, initial_map=initial_map,
+                          initial_pose=initial_pose)
     return SlamLogRun(log=log, result=result, path=None if path is None else os.fspath(path),
                       start_map=None if start_map is None else os.fspath(start_map),
                       initial_pose=None if initial_pose is None else tuple(initial_pose),
