@@ -140,6 +140,9 @@ from probslam import _core, cli, slam
 
 slam.run_slam.__kwdefaults__["chunk"] = CHUNK
 calls = []
+# Ctrl-C as from a terminal: a test runner's worker process may ignore SIGINT, and a child
+# inherits that (Python then installs no KeyboardInterrupt handler).
+signal.signal(signal.SIGINT, signal.default_int_handler)
 
 def announced(cls):
     class Announced(cls):
