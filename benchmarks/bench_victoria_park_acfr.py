@@ -101,8 +101,8 @@ def main() -> None:
     first = f"| dead reckoning | - | {e.rmse:.2f} m | {e.rmse_aligned:.2f} m | 0 | - |" + (" - | - | - |" if args.refine
                                                                                          else "")
     lines, summary = table(rows, args.refine)
-    text = [f"## Victoria Park (ACFR run) against GPS, EKF and FastSLAM{', GraphSLAM refinement' if args.refine else ''}"
-            f", {datetime.date.today()}", "",
+    refined = ", GraphSLAM refinement" if args.refine else ""
+    text = [f"## Victoria Park (ACFR run) against GPS, EKF and FastSLAM{refined}, {datetime.date.today()}", "",
             f"Machine: {machine()}; load average {os.getloadavg()[0]:.1f} at the end (shared machine: CPU "
             f"seconds, not wall time), BLAS threads: OPENBLAS_NUM_THREADS="
             f"{os.environ.get('OPENBLAS_NUM_THREADS', 'unset')}; the runs on probslam.batch's local cluster.", "",

@@ -15,4 +15,5 @@ from .sweep import BUNDLED, Run, RunGroup, Sweep, load
 from .table import CSV, PARQUET, summary
 
 __all__ = ["ALLOWED_FAILURES", "BUNDLED", "CSV", "FIGURES", "KINDS", "Outcome", "PARQUET", "Run", "RunGroup", "RunKind",
-           "Sweep", "TRAJECTORIES", "load", "plot", "register", "require_dask", "run", "run_one", "set_options", "start_client", "summary"]
+           "Sweep", "TRAJECTORIES", "load", "plot", "register", "require_dask", "run", "run_one", "set_options",
+           "start_client", "summary"]

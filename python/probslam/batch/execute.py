@@ -278,8 +278,8 @@ def _run_on(client, runs: Sequence[Run], time_limit: Optional[float], directory:
     from .._progress import progress_bar
 
     written, pending = -math.inf, False  # the first row is written at once
-    futures = {client.submit(_on_worker, r, KINDS[r.kind], time_limit, trajectories, key=f"probslam-run-{r.run_id}", pure=False): r
-               for r in runs}
+    futures = {client.submit(_on_worker, r, KINDS[r.kind], time_limit, trajectories, key=f"probslam-run-{r.run_id}",
+                             pure=False): r for r in runs}
     try:
         with progress_bar(len(runs), "probslam batch", "run", progress) as bar:
             for future in as_completed(futures):

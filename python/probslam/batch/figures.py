@@ -30,7 +30,7 @@ def _draw(plt, kind: str, metric: str, groups: Dict[tuple, List[Dict[str, Any]]]
     labels, values = [], []
     for (dataset, options), group in groups.items():
         labels.append(f"{dataset}  {options}")
-        values.append([float(r[metric]) for r in group if r["status"] == "ok" and table.is_metric(r.get(metric))])
+        values.append(table.measured(group, metric))
     fig, ax = plt.subplots(figsize=(8.0, max(MIN_HEIGHT_INCHES, 1.0 + INCHES_PER_GROUP * len(labels))))
     try:
         for line, vals in enumerate(values):
@@ -64,7 +64,7 @@ def plot(rows: Sequence[Dict[str, Any]], directory: str) -> List[str]:
         options, metrics = table.kind_columns(mine)
         grouped = table.groups(mine, options)
         for metric in metrics:
-            if not any(r["status"] == "ok" and table.is_metric(r.get(metric)) for r in mine):
+            if not table.measured(mine, metric):
                 continue  # a metric no run measured (e.g. a score without a reference)
             path = os.path.join(folder, _file_name(kind, metric))
             _draw(plt, kind, metric, grouped, path)

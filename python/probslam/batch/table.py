@@ -122,6 +122,11 @@ def by_kind(rows: Sequence[Dict[str, Any]]) -> Dict[str, List[Dict[str, Any]]]:
     return out
 
 
+def measured(rows: Iterable[Dict[str, Any]], metric: str) -> List[float]:
+    """The values of ``metric`` in the runs of ``rows`` that ended well and measured it (a finite number)."""
+    return [float(r[metric]) for r in rows if r["status"] == "ok" and is_metric(r.get(metric))]
+
+
 def summary(rows: Sequence[Dict[str, Any]]) -> str:
     """The medians over seeds of each kind's metrics, one line per dataset and options (as
     benchmarks/RESULTS.md shows them), with how many runs were ok and the cost of a run."""
@@ -156,4 +161,4 @@ def _median(values: Iterable[Any]) -> str:
     return f"{statistics.median(numbers):.6g}" if numbers else "-"
 
 
-__all__ = ["CSV", "PARQUET", "by_kind", "columns", "groups", "is_metric", "kind_columns", "read", "summary", "write"]
+__all__ = ["CSV", "PARQUET", "by_kind", "columns", "groups", "is_metric", "kind_columns", "measured", "read", "summary", "write"]
