@@ -348,3 +348,50 @@ def test_relative_globs_and_a_reference_template_score_each_dataset_against_its_
     a, b = (batch.run_one(r) for r in runs)
     assert a["status"] == b["status"] == "ok" and a["pairs"] == b["pairs"] == 400
     assert a["ate_rmse_m"] < 1e-5 and b["ate_rmse_m"] > 0.3
+
+
+@pytest.mark.parametrize("path", sorted((ROOT / "benchmarks" / "sweeps").glob("*.toml")), ids=lambda p: p.name)
+def test_the_benchmarks_sweeps_are_accepted(path, shared_data, monkeypatch):
+    """Every option of a benchmark's sweep is an option of its kind with a value it takes (the
+    sweep is checked as it is read), and its datasets are where the shared data has them."""
+    monkeypatch.setenv("PROBSLAM_SHARED_DATA", str(shared_data))
+    runs = batch.load(path).expand()
+    assert runs and len({r.run_id for r in runs}) == len(runs)
+
+
+def test_a_landmark_run_row_holds_its_datasets_scores():
+    """An MRCLAM run's row carries what the dataset's reference scores (the association table's
+    measures), each the same as the eval function computes from the run."""
+    from probslam import data, eval as ev
+    from probslam.datasets import mrclam
+    from probslam.pipelines import LandmarkRunOptions, run_landmark_dataset
+
+    path = data.path("mrclam7_robot1_120s")
+    row = batch.KINDS["ekf-slam"].run(path, {"unknown": True}, {}).metrics
+    run = run_landmark_dataset(path, LandmarkRunOptions(method="ekf", unknown=True), progress=False)
+    r, d = run.result, run.dataset.data
+    assert row["landmarks"] == len(r.landmarks) and row["association_correct"] == ev.association_accuracy(r)
+    fixed = d.with_survey_swapped(mrclam.survey_label_swaps(d))
+    assert row["map_rmse_survey_aligned_m"] == ev.score_landmarks(r.landmarks, fixed, ev.majority_labels(r)).rmse_aligned
+    score = ev.score_mrclam(r, d, ev.majority_labels(r))
+    assert (row["path_rmse_m"], row["landmark_rmse_aligned_m"]) == (score.path_rmse, score.landmark_rmse_aligned)
+
+
+def test_the_docs_sweeps_are_accepted(tmp_path, shared_data, monkeypatch):
+    """docs/batch.md's sweep examples on the bundled and the shared data read as sweeps: their
+    options are the kinds' and their values taken (the examples on a user's own files are not run)."""
+    import re
+
+    monkeypatch.setenv("PROBSLAM_SHARED_DATA", str(shared_data))
+    blocks = re.findall(r"```toml\n(.*?)```", (ROOT / "docs" / "batch.md").read_text(), re.S)
+    checked = 0
+    for k, text in enumerate(blocks):
+        datasets = re.findall(r'datasets = \[(.*?)\]', text)
+        if not datasets or not all(d.strip().strip('"').startswith(("bundled:", "$PROBSLAM_SHARED_DATA"))
+                                   for line in datasets for d in line.split(",")):
+            continue
+        path = tmp_path / f"block{k}.toml"
+        path.write_text(text)
+        assert batch.load(path).expand(), text
+        checked += 1
+    assert checked >= 5

@@ -16,6 +16,7 @@ import numpy as np
 from .. import io
 from .._core import GridFastSlamOptions, MonteCarloLocalizationOptions, SubmapSlamOptions
 from ..datasets import carmen
+from ..datasets.landmark_dataset import LandmarkDataset
 from ..io.maps import FREE_THRESH, OCCUPIED_THRESH
 from ..localization import default_options
 from ..pipelines import (GraphFileOptions, LandmarkRunOptions, MapOptions, localize_log, map_log, optimize_file,
@@ -151,8 +152,9 @@ def _landmarks(method: str):
     def run(dataset: str, values, inputs) -> Outcome:
         lr = run_landmark_dataset(dataset, set_options(LandmarkRunOptions(method=method), values), progress=False)
         r = lr.result
-        return Outcome({"poses": len(r.poses), "landmarks": len(r.landmarks), "filter_cpu_s": float(lr.cpu_seconds)},
-                       lambda prefix: io.write_trajectory(r.times, r.poses, prefix + "_trajectory.tum")[0])
+        metrics = {"poses": len(r.poses), "landmarks": len(r.landmarks), "filter_cpu_s": float(lr.cpu_seconds),
+                   **lr.dataset.metrics(r, lr.score)}  # what the dataset's own reference scores
+        return Outcome(metrics, lambda prefix: io.write_trajectory(r.times, r.poses, prefix + "_trajectory.tum")[0])
     return run
 
 
@@ -166,10 +168,10 @@ register(RunKind("slam", SubmapSlamOptions, _slam("graph"),
                  ("scans", "seconds", "real_time_factor", "submaps", "closures_accepted", "closures_rejected")))
 register(RunKind("slam-rbpf", GridFastSlamOptions, _slam("rbpf"),
                  ("scans", "seconds", "real_time_factor", "updates", "resamples"), seeded=True))
-register(RunKind("ekf-slam", lambda: LandmarkRunOptions(method="ekf"), _landmarks("ekf"),
-                 ("poses", "landmarks", "filter_cpu_s")))
-register(RunKind("fastslam", lambda: LandmarkRunOptions(method="fastslam"), _landmarks("fastslam"),
-                 ("poses", "landmarks", "filter_cpu_s"), seeded=True))
+LANDMARK_METRICS = ("poses", "landmarks", "filter_cpu_s") + LandmarkDataset.METRICS
+register(RunKind("ekf-slam", lambda: LandmarkRunOptions(method="ekf"), _landmarks("ekf"), LANDMARK_METRICS))
+register(RunKind("fastslam", lambda: LandmarkRunOptions(method="fastslam"), _landmarks("fastslam"), LANDMARK_METRICS,
+                 seeded=True))
 
 
 __all__ = ["KINDS", "Outcome", "RunKind", "option_names", "register", "set_options"]

@@ -96,10 +96,11 @@ def is_metric(value: Any) -> bool:
 
 def kind_columns(rows: Sequence[Dict[str, Any]]) -> Tuple[List[str], List[str]]:
     """The option and input columns of one kind's ``rows``, and its metric columns (the kind's
-    own, then the cost columns)."""
+    own that some run has, e.g. a landmark run's MRCLAM scores only on MRCLAM, then the cost columns)."""
     names = columns(rows)
     options = [n for n in names if n.startswith((INPUT_PREFIX, OPTION_PREFIX))]
-    metrics = [n for n in names if n not in IDENTITY_COLUMNS and n not in options and n not in COST_COLUMNS]
+    metrics = [n for n in names if n not in IDENTITY_COLUMNS and n not in options and n not in COST_COLUMNS
+               and any(_given(r.get(n)) for r in rows)]
     return options, metrics + list(COST_COLUMNS)
 
 
@@ -142,6 +143,11 @@ def summary(rows: Sequence[Dict[str, Any]]) -> str:
         out.append(f"{kind} (medians over each line's seeds; ok: the runs that ended well):")
         out += ["  " + "  ".join(c.ljust(w) for c, w in zip(line, widths)).rstrip() for line in lines]
     return "\n".join(out)
+
+
+def _given(value: Any) -> bool:
+    """A value a run gave: not None, nor the NaN a table read back holds where a row had None."""
+    return value is not None and not (isinstance(value, float) and math.isnan(value))
 
 
 def _name(column: str) -> str:

@@ -60,6 +60,9 @@ class LandmarkDataset:
     it; ``LABEL``: what it is, for the refusal of the others."""
 
     OPTIONS: Tuple[str, ...] = ()
+    #: The names ``metrics`` may give, over every dataset (a sweep table's columns).
+    METRICS: Tuple[str, ...] = ("association_correct", "path_rmse_m", "path_rmse_aligned_m", "landmark_rmse_m",
+                                "landmark_rmse_aligned_m", "map_rmse_survey_aligned_m")
     LABEL = ""
     #: The type of ``data``.
     DATA: type = object
@@ -159,6 +162,11 @@ class LandmarkDataset:
     def score(self, result: LandmarkSlamResult, options) -> LandmarkScore:
         """The run against the dataset's reference (nothing to score against: an empty score)."""
         return LandmarkScore()
+
+    def metrics(self, result: LandmarkSlamResult, score: LandmarkScore) -> Dict[str, float]:
+        """The run's scores as named numbers (a sweep's row, ``probslam batch``): ``METRICS``'s
+        names, those the dataset can score (none without a reference)."""
+        return {}
 
     # -- the picture --------------------------------------------------------------------------
     def title(self, options) -> str:

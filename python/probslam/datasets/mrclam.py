@@ -24,7 +24,7 @@ from .._progress import progress_bar
 from .._core import (FastSlam, FastSlamOptions, MultiHypothesisOptions, chi_square_quantile, velocity_motion,
                      velocity_motion_control_jacobian)
 from ..ekf import AssociationResult, EkfSlam, MapManagement, MultiHypothesisEkfSlam
-from ..eval import majority_labels, score_landmarks, score_mrclam, truth_positions
+from ..eval import association_accuracy, majority_labels, score_landmarks, score_mrclam, truth_positions
 from ..fastslam import AssociationHistories, dataset_options, result_of
 from ..geometry import accumulate
 from ..io._files import file_path
@@ -606,6 +606,26 @@ class MrclamRobot(LandmarkDataset):
         reference = dict(dead_reckoning=dead.poses, truth_landmarks_label="surveyed landmarks (aligned onto the map)",
                          truth_landmarks=s.survey_in_map_frame(fixed))
         return LandmarkScore(lines, reference, dict(score=s, dead_reckoning=d))
+
+    def metrics(self, result: LandmarkSlamResult, score: LandmarkScore) -> Dict[str, float]:
+        """The score's numbers, the map's RMSE after aligning it onto the survey (its labels
+        exchanged as ``score`` does: the association table's measure on every dataset, with or
+        without robot ground truth; NaN when no landmark of the map is in the survey) and, with
+        hidden correspondences, the share of sightings whose landmark's majority barcode is their own."""
+        labels = majority_labels(result) if result.associations is not None else None
+        fixed = self.data.with_survey_swapped(survey_label_swaps(self.data))
+        try:
+            survey = score_landmarks(result.landmarks, fixed, labels).rmse_aligned
+        except ValueError:
+            survey = float("nan")
+        out = {"map_rmse_survey_aligned_m": float(survey)}
+        if labels is not None:
+            out["association_correct"] = association_accuracy(result)
+        s = score.values.get("score")
+        if self.data.groundtruth is not None and s is not None:
+            out.update(path_rmse_m=s.path_rmse, path_rmse_aligned_m=s.path_rmse_aligned, landmark_rmse_m=s.landmark_rmse,
+                       landmark_rmse_aligned_m=s.landmark_rmse_aligned)
+        return {k: float(v) for k, v in out.items()}
 
     def title(self, options) -> str:
         """The folder, robot and window, for the picture's title."""
