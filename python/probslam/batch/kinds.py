@@ -153,7 +153,7 @@ def _landmarks(method: str):
         lr = run_landmark_dataset(dataset, set_options(LandmarkRunOptions(method=method), values), progress=False)
         r = lr.result
         metrics = {"poses": len(r.poses), "landmarks": len(r.landmarks), "filter_cpu_s": float(lr.cpu_seconds),
-                   **lr.dataset.metrics(r, lr.score)}  # what the dataset's own reference scores
+                   **lr.score.metrics}  # what the dataset's own reference scores
         return Outcome(metrics, lambda prefix: io.write_trajectory(r.times, r.poses, prefix + "_trajectory.tum")[0])
     return run
 

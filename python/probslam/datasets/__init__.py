@@ -25,7 +25,7 @@ from ..io.landmark_datasets import Mrclam, VictoriaPark, VictoriaParkAcfr
 from ..landmark_refine import RefinementInput, RunRefinement
 from ..landmark_slam import METHODS, Associations, LandmarkSlamResult
 from . import carmen, mrclam, victoria_park, victoria_park_acfr, victoria_park_acfr_run
-from .landmark_dataset import EKF_ASSOCIATIONS, LandmarkDataset, LandmarkScore, RefinedRun
+from .landmark_dataset import EKF_ASSOCIATIONS, LandmarkDataset, DatasetScore, RefinedRun
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -171,7 +171,7 @@ def refine_run(run: LandmarkSlamResult, data: Union[Mrclam, VictoriaPark, Victor
     return landmark_dataset(data).refine_run(run, motion_noise, measurement_noise, command_period, **options)
 
 
-__all__ = ["Associations", "EKF_ASSOCIATIONS", "LANDMARK_DATASETS", "LandmarkDataset", "LandmarkScore",
+__all__ = ["Associations", "EKF_ASSOCIATIONS", "LANDMARK_DATASETS", "LandmarkDataset", "DatasetScore",
            "LandmarkSlamResult", "RefinedRun", "carmen", "landmark_dataset", "landmark_dataset_class",
            "landmark_dataset_kind", "refine_run", "refinement_input",
            "load_landmark_dataset", "mrclam", "run_landmark_slam", "victoria_park", "victoria_park_acfr",

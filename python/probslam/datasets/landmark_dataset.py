@@ -32,14 +32,17 @@ DATASET_OPTIONS = ("robot", "seconds", "raw_ranges", "sigma_v", "sigma_w", "sigm
 
 
 @dataclass
-class LandmarkScore:
+class DatasetScore:
     """A run's score against its dataset's reference: the lines that say it, and what the
     picture draws it against (keywords of ``plot.landmark_map`` / ``fastslam_map``; empty when
-    the dataset has nothing to draw against), and the scores themselves (``values``)."""
+    the dataset has nothing to draw against), the scores themselves (``values``) and those of
+    them that are numbers by name (``metrics``: names of ``LandmarkDataset.METRICS``, a sweep's
+    row in ``probslam batch``)."""
 
     lines: List[str] = field(default_factory=list)
     reference: dict = field(default_factory=dict)
     values: Dict[str, object] = field(default_factory=dict)
+    metrics: Dict[str, float] = field(default_factory=dict)
 
 
 @dataclass
@@ -60,7 +63,7 @@ class LandmarkDataset:
     it; ``LABEL``: what it is, for the refusal of the others."""
 
     OPTIONS: Tuple[str, ...] = ()
-    #: The names ``metrics`` may give, over every dataset (a sweep table's columns).
+    #: The names of a score's ``metrics``, over every dataset (a sweep table's columns).
     METRICS: Tuple[str, ...] = ("association_correct", "path_rmse_m", "path_rmse_aligned_m", "landmark_rmse_m",
                                 "landmark_rmse_aligned_m", "map_rmse_survey_aligned_m")
     LABEL = ""
@@ -159,14 +162,9 @@ class LandmarkDataset:
                 f"refined ones")
         return RefinedRun(out, r, [line])
 
-    def score(self, result: LandmarkSlamResult, options) -> LandmarkScore:
+    def score(self, result: LandmarkSlamResult, options) -> DatasetScore:
         """The run against the dataset's reference (nothing to score against: an empty score)."""
-        return LandmarkScore()
-
-    def metrics(self, result: LandmarkSlamResult, score: LandmarkScore) -> Dict[str, float]:
-        """The run's scores as named numbers (a sweep's row, ``probslam batch``): ``METRICS``'s
-        names, those the dataset can score (none without a reference)."""
-        return {}
+        return DatasetScore()
 
     # -- the picture --------------------------------------------------------------------------
     def title(self, options) -> str:
@@ -180,7 +178,7 @@ class LandmarkDataset:
                     f"{'unknown' if options.unknown else 'known'} correspondences")
         return "EKF SLAM, known correspondences"
 
-    def draw(self, ax, result: LandmarkSlamResult, score: LandmarkScore,
+    def draw(self, ax, result: LandmarkSlamResult, score: DatasetScore,
              refinement: Optional[RefinedRun] = None, filtered: Optional[LandmarkSlamResult] = None,
              options=None) -> str:
         """Draws the run on ``ax``; returns the title's note on what is drawn ("" for none)."""
@@ -239,6 +237,6 @@ def association_line(result: LandmarkSlamResult, what: str = "label", applied: O
             f"{what}){tail}"]
 
 
-__all__ = ["DATASET_OPTIONS", "EKF_ASSOCIATIONS", "LandmarkDataset", "LandmarkScore", "RefinedRun", "association_line",
+__all__ = ["DATASET_OPTIONS", "EKF_ASSOCIATIONS", "LandmarkDataset", "DatasetScore", "RefinedRun", "association_line",
            "fastslam_lines", "fastslam_run_options", "require_fastslam_options",
            "skipped_rows_line"]

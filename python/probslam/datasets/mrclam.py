@@ -32,7 +32,7 @@ from ..io.landmark_datasets import MRCLAM_RANGE_SCALE, Mrclam, read_mrclam
 from .._core import velocity_increments
 from ..landmark_refine import RefinementInput, compose_increments, floor_covariances, poses_at_nodes, run_labels
 from ..landmark_slam import Associations, LandmarkSlamResult, ekf_landmarks
-from .landmark_dataset import LandmarkDataset, LandmarkScore, association_line, fastslam_lines, fastslam_run_options
+from .landmark_dataset import LandmarkDataset, DatasetScore, association_line, fastslam_lines, fastslam_run_options
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -568,7 +568,7 @@ class MrclamRobot(LandmarkDataset):
             raise ValueError("motion_noise, measurement_noise: MRCLAM runs need the noise they were run with")
         return refinement_input(run, self.data, motion_noise, measurement_noise, command_period)
 
-    def score(self, result: LandmarkSlamResult, options) -> LandmarkScore:
+    def score(self, result: LandmarkSlamResult, options) -> DatasetScore:
         """The path and map errors against the ground truth and survey (``eval.score_mrclam``), and
         the dead reckoning's; without robot ground truth (Dataset 1) the map alone, aligned onto the
         survey after the survey labels that contradict the barcodes have been exchanged
@@ -590,9 +590,27 @@ class MrclamRobot(LandmarkDataset):
                          truth_landmarks_label="surveyed landmarks", truth_path=self.data.groundtruth[:, 1:3],
                          truth_landmarks=self.data.landmark_positions, align=(s.rotation, s.translation),
                          dead_reckoning_label="dead reckoning" + ALIGNED_SUFFIX)
-        return LandmarkScore(lines, reference, dict(score=s, dead_reckoning=d))
+        metrics = dict(path_rmse_m=float(s.path_rmse), path_rmse_aligned_m=float(s.path_rmse_aligned),
+                       landmark_rmse_m=float(s.landmark_rmse), landmark_rmse_aligned_m=float(s.landmark_rmse_aligned),
+                       **self._map_metrics(result, labels))
+        return DatasetScore(lines, reference, dict(score=s, dead_reckoning=d), metrics)
 
-    def _survey_score(self, result: LandmarkSlamResult, dead: LandmarkSlamResult, labels) -> LandmarkScore:
+    def _map_metrics(self, result: LandmarkSlamResult, labels) -> Dict[str, float]:
+        """The association table's measures: the map's RMSE after aligning it onto the survey, its
+        exchanged labels corrected (on every dataset, with or without robot ground truth; NaN when
+        no landmark of the map is in the survey) and, with hidden correspondences, the share of
+        sightings whose landmark's majority barcode is their own."""
+        fixed = self.data.with_survey_swapped(survey_label_swaps(self.data))
+        try:
+            survey = score_landmarks(result.landmarks, fixed, labels).rmse_aligned
+        except ValueError:
+            survey = float("nan")
+        out = {"map_rmse_survey_aligned_m": survey}
+        if labels is not None:
+            out["association_correct"] = association_accuracy(result)
+        return {k: float(v) for k, v in out.items()}
+
+    def _survey_score(self, result: LandmarkSlamResult, dead: LandmarkSlamResult, labels) -> DatasetScore:
         swaps = survey_label_swaps(self.data)
         lines = [f"survey:        positions of subjects {', '.join(f'{a}<->{b}' for a, b in swaps)} exchanged "
                  f"(their surveyed distances contradict the readings of the same scans)"] if swaps else []
@@ -605,27 +623,7 @@ class MrclamRobot(LandmarkDataset):
                      f"(dead-reckoning map {d.rmse_aligned:.3f} m; no robot ground truth)")
         reference = dict(dead_reckoning=dead.poses, truth_landmarks_label="surveyed landmarks (aligned onto the map)",
                          truth_landmarks=s.survey_in_map_frame(fixed))
-        return LandmarkScore(lines, reference, dict(score=s, dead_reckoning=d))
-
-    def metrics(self, result: LandmarkSlamResult, score: LandmarkScore) -> Dict[str, float]:
-        """The score's numbers, the map's RMSE after aligning it onto the survey (its labels
-        exchanged as ``score`` does: the association table's measure on every dataset, with or
-        without robot ground truth; NaN when no landmark of the map is in the survey) and, with
-        hidden correspondences, the share of sightings whose landmark's majority barcode is their own."""
-        labels = majority_labels(result) if result.associations is not None else None
-        fixed = self.data.with_survey_swapped(survey_label_swaps(self.data))
-        try:
-            survey = score_landmarks(result.landmarks, fixed, labels).rmse_aligned
-        except ValueError:
-            survey = float("nan")
-        out = {"map_rmse_survey_aligned_m": float(survey)}
-        if labels is not None:
-            out["association_correct"] = association_accuracy(result)
-        s = score.values.get("score")
-        if self.data.groundtruth is not None and s is not None:
-            out.update(path_rmse_m=s.path_rmse, path_rmse_aligned_m=s.path_rmse_aligned, landmark_rmse_m=s.landmark_rmse,
-                       landmark_rmse_aligned_m=s.landmark_rmse_aligned)
-        return {k: float(v) for k, v in out.items()}
+        return DatasetScore(lines, reference, dict(score=s, dead_reckoning=d), self._map_metrics(result, labels))
 
     def title(self, options) -> str:
         """The folder, robot and window, for the picture's title."""

@@ -26,7 +26,7 @@ from ..landmark_refine import UNASSIGNED, RefinementInput, RunRefinement, compos
 from ..landmark_slam import Associations, LandmarkSlamResult, ekf_landmarks
 from ..eval import position_error
 from . import victoria_park_acfr
-from .landmark_dataset import (EKF_ASSOCIATIONS, LandmarkDataset, LandmarkScore, RefinedRun, fastslam_run_options,
+from .landmark_dataset import (EKF_ASSOCIATIONS, LandmarkDataset, DatasetScore, RefinedRun, fastslam_run_options,
                                require_fastslam_options)
 
 # The noise of the inputs and detections: RFS-SLAM's FastSLAM configuration for this run
@@ -401,11 +401,11 @@ class VictoriaParkRun(LandmarkDataset):
                 "ones")
         return RefinedRun(refined, r, [line, *self._gps_lines(refined, "GPS refined:")])
 
-    def score(self, result: LandmarkSlamResult, options) -> LandmarkScore:
+    def score(self, result: LandmarkSlamResult, options) -> DatasetScore:
         """The error against the GPS (said in the summary and the refinement's lines)."""
-        return LandmarkScore(values=dict(gps=self._gps_error(result)))
+        return DatasetScore(values=dict(gps=self._gps_error(result)))
 
-    def draw(self, ax, result: LandmarkSlamResult, score: LandmarkScore, refinement: Optional[RefinedRun] = None,
+    def draw(self, ax, result: LandmarkSlamResult, score: DatasetScore, refinement: Optional[RefinedRun] = None,
              filtered: Optional[LandmarkSlamResult] = None, options=None) -> str:
         """The path over the GPS fixes, with the map (and the filter's path beside a refined one)."""
         gps = self.data.gps

@@ -22,7 +22,7 @@ from ._options import Options, described
 from .inputs import LANDMARK_DATASET, reading
 from .. import io
 from .._args import require_instance
-from ..datasets import LandmarkDataset, LandmarkScore, RefinedRun, landmark_dataset_class, mrclam
+from ..datasets import LandmarkDataset, DatasetScore, RefinedRun, landmark_dataset_class, mrclam
 from ..landmark_slam import LandmarkSlamResult
 
 PathLike = Union[str, "os.PathLike[str]"]
@@ -150,7 +150,7 @@ class LandmarkRun:
     dataset: the ``datasets.LandmarkDataset`` read; filtered: the filter's run
     (``LandmarkSlamResult``); result: the run the scores, path and picture are of (the refined
     one after ``refine`` graphslam, else the filter's); refinement: the ``datasets.RefinedRun``
-    (None without); score: the ``datasets.LandmarkScore`` against the dataset's reference;
+    (None without); score: the ``datasets.DatasetScore`` against the dataset's reference;
     cpu_seconds: the filter's CPU time."""
 
     dataset: LandmarkDataset
@@ -158,7 +158,7 @@ class LandmarkRun:
     filtered: Optional[LandmarkSlamResult] = None
     result: Optional[LandmarkSlamResult] = None
     refinement: Optional[RefinedRun] = None
-    score: Optional[LandmarkScore] = None
+    score: Optional[DatasetScore] = None
     cpu_seconds: float = 0.0
 
     @classmethod
