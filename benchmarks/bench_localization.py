@@ -39,7 +39,6 @@ import numpy as np
 
 import probslam as ps
 import probslam.eval
-from probslam.datasets import carmen
 from common import heading, report
 
 HERE = pathlib.Path(__file__).resolve().parent
@@ -152,7 +151,7 @@ def run(args):
             print(f"{title}: {path} missing, skipped", file=sys.stderr)
             continue
         grid, ref = maps_for(name, path, maps)
-        scans = carmen.load(path).scans
+        scans = ps.io.read_carmen_scans(path).scans
         if len(ref) != len(scans):
             notes.append(f"{title}: {len(ref)} SLAM poses for {len(scans)} scans: skipped")
             continue

@@ -24,8 +24,8 @@ from tqdm import tqdm
 from . import _core
 from .io._files import file_path, require_regular_file
 from .io.trajectory import write_trajectory as write_trajectory_file
-from .datasets import carmen
 from .io.carmen import ODOMETRY_NOISE_SIZE, CarmenLog, LaserScans
+from .io.laser_log import has_odometry, read_laser_log
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -266,7 +266,7 @@ def scans_of(log: Union[PathLike, CarmenLog, LaserScans]) -> LaserScans:
     """The laser scans of a log given as a path (CARMEN log or ROS bag), a ``CarmenLog`` or its
     ``LaserScans``: TypeError for anything else, ValueError for a log without scans."""
     if isinstance(log, (str, os.PathLike)):
-        log = carmen.load_log(log)
+        log = read_laser_log(log)
     scans = log.scans if isinstance(log, CarmenLog) else log
     if not isinstance(scans, LaserScans):
         raise TypeError("log must be a path, a CarmenLog or LaserScans")
@@ -313,7 +313,7 @@ def default_options(log: Union[PathLike, CarmenLog, LaserScans], method: str = "
     if stated.shape != (len(scans), ODOMETRY_NOISE_SIZE):
         raise ValueError(f"odometry_noise: LaserScans.odometry_noise must be ({len(scans)}, {ODOMETRY_NOISE_SIZE}) "
                          f"(one statement per scan, NaN where none), got shape {stated.shape}")
-    odometry = carmen.has_odometry(scans)
+    odometry = has_odometry(scans)
     if len(stated) and np.isfinite(stated).all() and odometry:
         # Where the scans state different noises, the loosest: one model serves the whole run.
         names = ("trans_per_metre", "trans_per_radian", "trans_floor", "rot_per_radian", "rot_per_metre", "rot_floor")
@@ -409,7 +409,7 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: Optional[st
     scans = scans_of(log)
     if int(chunk) != chunk or chunk < 1:
         raise ValueError("chunk must be an integer >= 1")
-    odometry = carmen.has_odometry(scans)
+    odometry = has_odometry(scans)
     if not odometry and method == "rbpf":
         raise ValueError("log has no odometry (its laser poses never move): method 'rbpf' samples the "
                          "odometry motion model; use method 'graph', which runs on scan matching alone")

@@ -11,7 +11,7 @@ from probslam import inverse_learning as il
 from probslam import landmark_slam as ls
 from probslam import mapping, sim
 from probslam import slam as sl
-from probslam.datasets import carmen, mrclam, victoria_park
+from probslam.datasets import mrclam, victoria_park
 
 RNG = np.random.default_rng(0)
 GRID = ps.OccupancyGrid2D(0.1, 20, 20)
@@ -38,7 +38,7 @@ WRONG_TYPES = [
     (lambda: ps.run_landmark_slam(3), "dataset"),
     (lambda: mapping.scan_bounds(None, 10.0), "scans"),
     (lambda: ps.map_laser_log("log.clf"), "scans"),
-    (lambda: carmen.has_odometry(None), "scans"),
+    (lambda: ps.io.has_odometry(None), "scans"),
     (lambda: sim.observe(np.zeros(3), None, sim.Sensor(Q), RNG), "world"),
     (lambda: sim.observe(np.zeros(3), sim.LandmarkWorld(np.zeros((1, 2)), np.zeros(1)), None, RNG), "sensor"),
     (lambda: sim.observe(np.zeros(3), sim.LandmarkWorld(np.zeros((1, 2)), np.zeros(1)), sim.Sensor(Q), 0), "rng"),

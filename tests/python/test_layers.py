@@ -24,9 +24,7 @@ LAYERS = [
 LEVEL = {name: k for k, names in enumerate(LAYERS) for name in names}
 
 #: Upward imports still in the tree, each with what removes it (issue 52): the list only shrinks.
-KNOWN_UPWARD = {
-    ("slam", "datasets"),             # run_slam is a pipeline: it moves to pipelines/
-}
+KNOWN_UPWARD: set = set()
 
 
 def imports():

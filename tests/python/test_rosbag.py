@@ -14,7 +14,6 @@ import pytest
 
 import probslam as ps
 from probslam import cli, io
-from probslam.datasets import carmen
 from probslam.io import rosbag_writer
 
 needs_rosbags = pytest.mark.skipif(importlib.util.find_spec("rosbags") is None,
@@ -328,7 +327,7 @@ def test_no_return_and_too_close_readings(tmp_path):
     np.testing.assert_array_equal(s.max_ranges, [10.0, 10.0])
     np.testing.assert_array_equal(s.start_angles, F32([-1.5, -1.5]))
     assert s.no_return_range() == 10.0
-    assert not carmen.has_odometry(s)
+    assert not io.has_odometry(s)
 
 
 @needs_rosbags
@@ -471,7 +470,7 @@ def test_real_bag_with_a_broken_index(shared_data):
     assert log.scans.ranges.shape == (360, 681) and log.pose_source == "none"
     np.testing.assert_allclose(log.scans.start_angles, -2.0862, atol=1e-4)
     np.testing.assert_allclose(log.scans.max_ranges, 5.6)
-    assert not carmen.has_odometry(log.scans)
+    assert not io.has_odometry(log.scans)
     span = log.scans.timestamps[-1] - log.scans.timestamps[0]
     assert 35 < span < 37
 

@@ -11,8 +11,7 @@ import pytest
 
 from probslam import geometry
 from probslam import sim_laser as sl
-from probslam.datasets import carmen
-from probslam.io import read_carmen_log, read_rosbag, read_trajectory
+from probslam.io import has_odometry, read_carmen_log, read_rosbag, read_trajectory
 from probslam.io.carmen import ODOMETRY_NOISE_PARAM
 
 needs_rosbags = pytest.mark.skipif(importlib.util.find_spec("rosbags") is None,
@@ -135,7 +134,7 @@ def test_perfect_odometry_is_the_truth_and_none_is_zero():
     assert angle_gap(perfect.odometry[:, 2], perfect.truth[:, 2]).max() < 1e-12
     none = sl.simulate("repeated", "stage", "none", seed=1)
     assert np.all(none.odometry == 0)
-    assert not carmen.has_odometry(none.scans()) and carmen.has_odometry(perfect.scans())
+    assert not has_odometry(none.scans()) and has_odometry(perfect.scans())
 
 
 def _step_errors(model, seed=0):
@@ -188,7 +187,7 @@ def test_carmen_log_reads_back_as_simulated(tmp_path, odometry):
     np.testing.assert_allclose(log.scans.beam_angles()[0], run.sensor.angles(), atol=1e-9)
     assert np.all(log.scans.max_ranges == run.sensor.max_range)
     assert len(log.odometry.poses) == (0 if odometry == "none" else len(run.truth))
-    assert carmen.has_odometry(log.scans) == (odometry != "none")
+    assert has_odometry(log.scans) == (odometry != "none")
     # the PARAM line, bit for bit (repr); NaN (stated nowhere) without odometry
     np.testing.assert_array_equal(log.scans.odometry_noise, want.odometry_noise)
     assert np.isnan(want.odometry_noise).all() == (odometry == "none")

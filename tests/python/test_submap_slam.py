@@ -151,7 +151,7 @@ def test_run_slam_equals_the_class(drive):
 
 
 def test_log_without_odometry_runs_on_scan_matching_alone(drive):
-    from probslam.datasets.carmen import has_odometry
+    from probslam.io import has_odometry
     from probslam.slam import run_slam
 
     true, odo, ranges = drive

@@ -15,8 +15,8 @@ import numpy as np
 
 from .. import io
 from .._core import GridFastSlamOptions, MonteCarloLocalizationOptions, SubmapSlamOptions
-from ..datasets import carmen
 from ..datasets.landmark_dataset import LandmarkDataset
+from ..io.laser_log import read_laser_log
 from ..io.maps import FREE_THRESH, OCCUPIED_THRESH
 from ..localization import default_options
 from ..pipelines import (GraphFileOptions, LandmarkRunOptions, MapOptions, localize_log, map_log, optimize_file,
@@ -112,7 +112,7 @@ def _optimize(dataset: str, values, inputs) -> Outcome:
 
 
 def _localize(dataset: str, values, inputs) -> Outcome:
-    log = carmen.load_log(dataset)
+    log = read_laser_log(dataset)
     # The sweep's options over the log's own defaults (its no-return reading as max_range).
     options = set_options(default_options(log), values)
     run = localize_log(log, inputs["map"], options, initial_pose=inputs.get("initial_pose"), progress=False)
@@ -134,7 +134,7 @@ def _map(dataset: str, values, inputs) -> Outcome:
 
 def _slam(method: str):
     def run(dataset: str, values, inputs) -> Outcome:
-        log = carmen.load_log(dataset)
+        log = read_laser_log(dataset)
         # The sweep's options over the log's own defaults (slam.default_options: its range, odometry).
         run = slam_log(log, set_options(slam_default_options(log, method), values), progress=False)
         r, s = run.result, run.result.summary

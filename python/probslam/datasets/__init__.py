@@ -5,8 +5,9 @@ readers in ``probslam.io``, the scores in ``probslam.eval``.
 - ``mrclam``: UTIAS MRCLAM, one robot's odometry, sightings and ground truth;
 - ``victoria_park``: Victoria Park as iSAM / GTSAM text, a chain of odometry edges and sightings;
 - ``victoria_park_acfr``: the original Victoria Park run (ACFR): the car's speed and steering,
-  every tree detection, GPS;
-- ``carmen``: CARMEN laser logs, what ``probslam.run_slam`` reads.
+  every tree detection, GPS.
+
+Laser logs (CARMEN, ROS bags) are read by ``probslam.io.read_laser_log``.
 
 ``run_landmark_slam`` runs a landmark filter (EKF, multiple-hypothesis EKF, FastSLAM) over an
 MRCLAM robot or Victoria Park, given as read (``load_landmark_dataset``) or as a path.
@@ -24,7 +25,7 @@ from ..io._files import file_path
 from ..io.landmark_datasets import Mrclam, VictoriaPark, VictoriaParkAcfr
 from ..landmark_refine import RefinementInput, RunRefinement
 from ..landmark_slam import METHODS, Associations, LandmarkSlamResult
-from . import carmen, mrclam, victoria_park, victoria_park_acfr, victoria_park_acfr_run
+from . import mrclam, victoria_park, victoria_park_acfr, victoria_park_acfr_run
 from .landmark_dataset import EKF_ASSOCIATIONS, LandmarkDataset, DatasetScore, RefinedRun
 
 PathLike = Union[str, "os.PathLike[str]"]
@@ -172,7 +173,7 @@ def refine_run(run: LandmarkSlamResult, data: Union[Mrclam, VictoriaPark, Victor
 
 
 __all__ = ["Associations", "EKF_ASSOCIATIONS", "LANDMARK_DATASETS", "LandmarkDataset", "DatasetScore",
-           "LandmarkSlamResult", "RefinedRun", "carmen", "landmark_dataset", "landmark_dataset_class",
+           "LandmarkSlamResult", "RefinedRun", "landmark_dataset", "landmark_dataset_class",
            "landmark_dataset_kind", "refine_run", "refinement_input",
            "load_landmark_dataset", "mrclam", "run_landmark_slam", "victoria_park", "victoria_park_acfr",
            "victoria_park_acfr_run"]

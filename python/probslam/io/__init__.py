@@ -3,6 +3,7 @@ map_server maps, PNG pictures, trajectories (TUM, KITTI), landmark datasets (MRC
 (written, to run MRPT's apps on the same log)."""
 
 from .carmen import CarmenLog, LaserScans, Odometry, read_carmen_log
+from .laser_log import NO_ODOMETRY_MOTION, has_odometry, read_carmen_scans, read_laser_log
 from .landmark_datasets import (MRCLAM_RANGE_SCALE, Mrclam, VictoriaPark, VictoriaParkAcfr, read_mrclam,
                                 read_victoria_park, read_victoria_park_acfr)
 from .maps import load_ros_map, save_ros_map, write_png
@@ -15,10 +16,11 @@ from .rosbag import RosbagLog, read_rosbag
 from .rosbag_writer import write_rosbag
 
 __all__ = [
-    "MRCLAM_RANGE_SCALE",
     "CarmenLog",
     "LaserScans",
+    "MRCLAM_RANGE_SCALE",
     "Mrclam",
+    "NO_ODOMETRY_MOTION",
     "Odometry",
     "Positions",
     "RosbagLog",
@@ -26,20 +28,23 @@ __all__ = [
     "Trajectory",
     "VictoriaPark",
     "VictoriaParkAcfr",
+    "has_odometry",
     "kitti_times_path",
     "load_ros_map",
+    "mrpt_rawlog",
     "read_carmen_log",
+    "read_carmen_scans",
+    "read_laser_log",
     "read_mrclam",
     "read_positions",
     "read_rosbag",
     "read_trajectory",
     "read_victoria_park",
     "read_victoria_park_acfr",
-    "mrpt_rawlog",
     "save_ros_map",
     "write_mrpt_rawlog",
     "write_png",
+    "write_rosbag",
     "write_trajectory",
     "write_trajectory_3d",
-    "write_rosbag",
 ]

@@ -21,8 +21,8 @@ import numpy as np
 from ._options import Options, described
 from .. import eval as evaluation
 from .. import io
+from ..io.laser_log import read_carmen_scans
 from .._args import positive_real, require_instance
-from ..datasets import carmen
 from ..io.trajectory import POSITION_FIELDS, TRAJECTORY_FORMATS, first_row_fields
 from ..slam import scans_of
 
@@ -184,7 +184,7 @@ class TrajectoryEvaluation:
         elif kind == "positions":
             self.reference = io.read_positions(path)
         elif kind == "carmen":
-            scans = carmen.load(path).scans
+            scans = read_carmen_scans(path).scans
             self.reference = io.Trajectory(scans.timestamps, scans.laser_poses, "carmen")
         elif self.options.reference_format == "auto":
             self.reference = io.read_trajectory(path)

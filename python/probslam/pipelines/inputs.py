@@ -11,7 +11,7 @@ import stat
 from typing import Iterator, Sequence
 
 from .. import io
-from ..datasets import carmen
+from ..io.laser_log import read_carmen_scans
 
 #: What each kind of input file must be, for the error messages.
 CARMEN_LOG = "a CARMEN laser log (.log/.clf, optionally .gz/.bz2/.xz)"
@@ -89,7 +89,7 @@ def reading(path: str, expected: str, arguments: Sequence[str] = (), folder: boo
 
 
 def read_log(path: str, **bag):
-    """The CARMEN log (``carmen.load``) or ROS bag (``io.read_rosbag`` with ``bag``, of
+    """The CARMEN log (``io.read_carmen_scans``) or ROS bag (``io.read_rosbag`` with ``bag``, of
     BAG_OPTIONS) at ``path``, its errors naming the file (``reading``)."""
     path = os.fspath(path)
     if io.rosbag.is_bag(path):
@@ -98,7 +98,7 @@ def read_log(path: str, **bag):
     if bag:
         raise ValueError(f"{next(iter(bag))} applies to ROS bags; {path} is read as {CARMEN_LOG}")
     with reading(path, CARMEN_LOG):
-        return carmen.load(path)
+        return read_carmen_scans(path)
 
 
 __all__ = ["ANY_POSE_GRAPH", "BAG_OPTIONS", "CARMEN_LOG", "InputError", "LANDMARK_DATASET", "MAP_FILE", "ROS_BAG",

@@ -14,9 +14,9 @@ from typing import List, Optional, Sequence, Union
 
 from ._options import Options, described
 from .. import io
+from ..io.laser_log import read_carmen_scans
 from .._args import positive_real, require_instance
 from ..data import path as data_path
-from ..datasets import carmen
 from ..mapping import DEFAULT_MAX_RANGE, DEFAULT_RESOLUTION, MappingResult, map_laser_log
 
 PathLike = Union[str, "os.PathLike[str]"]
@@ -94,7 +94,7 @@ class MapRun:
         require_instance(options, MapOptions, "options")
         options.validate()
         if isinstance(log, (str, os.PathLike)):
-            path, log = os.fspath(log), carmen.load(log)
+            path, log = os.fspath(log), read_carmen_scans(log)
         require_instance(log, io.CarmenLog, "log")
         if isinstance(log, io.RosbagLog) and log.pose_source == "none":
             raise ValueError(f"{path or log.path}: no poses to map with (no odometry, tf or pose topic in the bag); "

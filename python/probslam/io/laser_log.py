@@ -1,6 +1,7 @@
-"""CARMEN laser logs (the Freiburg / Radish logs: FLASER / ROBOTLASER1 / ODOM lines, plain or
-compressed), as ``probslam.run_slam`` and ``map_laser_log`` take them: read (``load``), and
-what a log carries (``has_odometry``). The line reader is ``probslam.io.read_carmen_log``.
+"""Laser logs as the laser pipelines take them: a CARMEN log (the Freiburg / Radish logs:
+FLASER / ROBOTLASER1 / ODOM lines, plain or compressed) that holds scans (``read_carmen_scans``),
+a ROS bag or a CARMEN log by what the path is (``read_laser_log``), and what a log carries
+(``has_odometry``). The readers of each format are ``read_carmen_log`` and ``read_rosbag``.
 """
 
 from __future__ import annotations
@@ -11,9 +12,9 @@ from typing import Union
 import numpy as np
 
 from .._args import require_instance
-from ..io._files import file_path
-from ..io.carmen import CarmenLog, LaserScans, read_carmen_log
-from ..io.rosbag import is_bag, read_rosbag
+from ._files import file_path
+from .carmen import CarmenLog, LaserScans, read_carmen_log
+from .rosbag import is_bag, read_rosbag
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -22,7 +23,7 @@ PathLike = Union[str, "os.PathLike[str]"]
 NO_ODOMETRY_MOTION = 1e-6
 
 
-def load(path: PathLike) -> CarmenLog:
+def read_carmen_scans(path: PathLike) -> CarmenLog:
     """The log at ``path``, which must hold laser scans: besides the reader's errors
     (``io.read_carmen_log``), a ValueError naming the file when it has none."""
     path = file_path(path)
@@ -32,10 +33,10 @@ def load(path: PathLike) -> CarmenLog:
     return log
 
 
-def load_log(path: PathLike) -> CarmenLog:
+def read_laser_log(path: PathLike) -> CarmenLog:
     """The laser log at ``path``: a ROS bag (``io.read_rosbag``, its topics found by their types;
-    an ``io.RosbagLog``) or a CARMEN log (``load``)."""
-    return read_rosbag(path) if is_bag(path) else load(path)
+    a ``RosbagLog``) or a CARMEN log (``read_carmen_scans``)."""
+    return read_rosbag(path) if is_bag(path) else read_carmen_scans(path)
 
 
 def has_odometry(scans: LaserScans) -> bool:
@@ -45,4 +46,4 @@ def has_odometry(scans: LaserScans) -> bool:
     return bool(len(p) > 1 and np.ptp(p, axis=0).max() > NO_ODOMETRY_MOTION)
 
 
-__all__ = ["NO_ODOMETRY_MOTION", "has_odometry", "load", "load_log"]
+__all__ = ["NO_ODOMETRY_MOTION", "has_odometry", "read_carmen_scans", "read_laser_log"]
