@@ -1,4 +1,4 @@
-"""pipelines.slam_log, the run of ``probslam slam``: from Python it runs run_slam with the options
+"""pipelines.slam_log (module pipelines.slam_run), the run of ``probslam slam``: from Python it runs run_slam with the options
 given, writes what the command writes and says what it prints."""
 
 import pytest
