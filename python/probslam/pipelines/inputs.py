@@ -63,7 +63,8 @@ def renamed(text: str, names: Mapping[str, str], given: object = None) -> Tuple[
     rest = rest.lstrip(": ")
     if isinstance(given, (list, tuple)):
         given = " ".join(map(str, given))
-    if given is None or isinstance(given, bool) or rest.startswith((f"{given} ", f"{given}:")) or f"got {given}" in rest:
+    if (given is None or isinstance(given, bool) or rest.startswith((f"{given} ", f"{given}:"))
+            or f"got {given}" in rest):
         return f"{name}{colon} {rest}", True  # no value to add, or the message says it
     return f"{name} {given}: {rest}", True
 
