@@ -150,7 +150,7 @@ def small_states() -> dict:
     graph3.add_point_edge(1, 9, (0.0, 2.0, 0.4), np.eye(3))
     # Laser SLAM on the bundled log's first scans, few beams and coarse cells: a small state with
     # several submaps, constraints and particles.
-    scans = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_RAW_LOG)).scans
+    scans = io.read_carmen_log(ps.data.path(cli.BUNDLED_RAW_LOG)).scans
     rows, beams = slice(0, 400, 8), slice(None, None, 12)
     ranges, angles, odometry = scans.ranges[rows, beams], scans.beam_angles()[rows, beams], scans.laser_poses[rows]
     slam = ps.SubmapSlam2D(frontend=dict(resolution=1.0, filter={"max_usable_range": 5.0}, submap_scans=8))

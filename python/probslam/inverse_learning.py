@@ -46,6 +46,17 @@ EPS = 1e-6
 FIELD_CHUNK_PAIRS = 1 << 20
 
 
+def _outer_walls(grid: OccupancyGrid2D, rng: np.random.Generator) -> np.ndarray:
+    """Where every prior starts: (H, W) bool, the outer walls one cell thick (``grid`` and ``rng``
+    checked)."""
+    require_instance(grid, OccupancyGrid2D, "grid")
+    require_instance(rng, np.random.Generator, "rng")
+    occ = np.zeros(grid.shape, dtype=bool)
+    occ[[0, -1], :] = True
+    occ[:, [0, -1]] = True
+    return occ
+
+
 def random_map(grid: OccupancyGrid2D, rng: np.random.Generator, min_room: float = 2.0, door: float = 0.9,
                clutter: int = 6) -> np.ndarray:
     """A map drawn from the prior used for training: outer walls one cell thick; the floor split
@@ -53,13 +64,8 @@ def random_map(grid: OccupancyGrid2D, rng: np.random.Generator, min_room: float 
     position at least ``min_room`` from its ends) by walls with one door ``door`` m wide each at
     a uniform position; then ``clutter`` boxes of 0.2-0.6 m per side at uniform positions
     (furniture). Returns (H, W) bool."""
-    require_instance(grid, OccupancyGrid2D, "grid")
-    require_instance(rng, np.random.Generator, "rng")
-    h, w = grid.shape
-    res = grid.resolution
-    occ = np.zeros((h, w), dtype=bool)
-    occ[[0, -1], :] = True
-    occ[:, [0, -1]] = True
+    occ = _outer_walls(grid, rng)
+    (h, w), res = occ.shape, grid.resolution
     min_cells = max(2, int(round(min_room / res)))
     door_cells = max(1, int(round(door / res)))
 
@@ -97,14 +103,9 @@ def pillar_map(grid: OccupancyGrid2D, rng: np.random.Generator, walls: int = 5, 
     against the lattice), and ``pillars`` round pillars of radius 0.1-0.4 m (a cell is occupied
     when its centre lies inside the disc or the wall's segment passes through the cell).
     Returns (H, W) bool."""
-    require_instance(grid, OccupancyGrid2D, "grid")
-    require_instance(rng, np.random.Generator, "rng")
+    occ = _outer_walls(grid, rng)
     walls, pillars = require_integer(walls, "walls", 0), require_integer(pillars, "pillars", 0)
-    h, w = grid.shape
-    res = grid.resolution
-    occ = np.zeros((h, w), dtype=bool)
-    occ[[0, -1], :] = True
-    occ[:, [0, -1]] = True
+    (h, w), res = occ.shape, grid.resolution
     for _ in range(walls):
         length, angle = rng.uniform(1.5, 4.0), rng.uniform(-np.pi, np.pi)
         cx, cy = rng.uniform(0, w * res), rng.uniform(0, h * res)

@@ -1,7 +1,6 @@
 """The probslam command line, end to end."""
 
 import contextlib
-import importlib
 import os
 import time
 
@@ -11,12 +10,13 @@ import pytest
 import probslam as ps
 from probslam import cli, io
 from probslam.pipelines.inputs import LANDMARK_DATASET
+from probslam.data import path as data_path
 
 
 def test_map_bundled_log(tmp_path, capsys):
     assert cli.main(["map", "-o", str(tmp_path / "m"), "--no-progress"]) == 0
     out = capsys.readouterr().out
-    summary = ps.map_laser_log(io.read_carmen_log(cli._bundled_log()).scans, progress=False)
+    summary = ps.map_laser_log(io.read_carmen_log(data_path(cli.BUNDLED_LOG)).scans, progress=False)
     expected = summary.grid
     assert f"scans:         {summary.scans}" in out and f"beams:         {summary.beams}" in out
     assert f"cells updated: {summary.cells_updated}" in out
@@ -44,7 +44,7 @@ def test_map_log_with_a_bad_line_reports_the_skip(tmp_path, capsys):
 
 
 def test_map_matches_direct_api(tmp_path):
-    log = io.read_carmen_log(cli._bundled_log())
+    log = io.read_carmen_log(data_path(cli.BUNDLED_LOG))
     summary = ps.map_laser_log(log.scans, resolution=0.1, progress=False)
     grid = summary.grid
     direct = ps.OccupancyGrid2D(0.1, grid.width, grid.height, origin=grid.origin)
@@ -129,7 +129,7 @@ def test_slam_bundled_raw_log(tmp_path, capsys):
     prefix = tmp_path / "s"
     assert cli.main(["slam", "-o", str(prefix), "--no-progress"]) == 0
     out = capsys.readouterr().out
-    log = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_SLAM_LOG))
+    log = io.read_carmen_log(data_path(cli.BUNDLED_SLAM_LOG))
     assert f"scans:         {len(log.scans)} (" in out and "closures:" in out and "real-time factor" in out
     traj = io.read_trajectory(tmp_path / "s_trajectory.tum")
     assert traj.format == "tum" and traj.poses.shape == (len(log.scans), 3)
@@ -147,10 +147,10 @@ def test_slam_bundled_raw_log(tmp_path, capsys):
 @pytest.mark.slow
 def test_slam_rbpf_on_the_bundled_raw_log(tmp_path, capsys):
     prefix = tmp_path / "r"
-    assert cli.main(["slam", cli._bundled_log(cli.BUNDLED_RAW_LOG), "--method", "rbpf", "--particles", "4", "-o",
+    assert cli.main(["slam", data_path(cli.BUNDLED_RAW_LOG), "--method", "rbpf", "--particles", "4", "-o",
                      str(prefix), "--no-progress"]) == 0
     out = capsys.readouterr().out
-    log = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_RAW_LOG))
+    log = io.read_carmen_log(data_path(cli.BUNDLED_RAW_LOG))
     assert "grid-based FastSLAM, 4 particles, scan-matching proposal" in out and "distinct tiles" in out
     traj = io.read_trajectory(tmp_path / "r_trajectory.tum")
     assert traj.poses.shape == (len(log.scans), 3)
@@ -165,7 +165,7 @@ def test_slam_rbpf_on_the_bundled_raw_log(tmp_path, capsys):
 
 
 def test_slam_rbpf_needs_odometry(tmp_path, capsys):
-    log = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_RAW_LOG))
+    log = io.read_carmen_log(data_path(cli.BUNDLED_RAW_LOG))
     scans = log.scans
     lines = [f"FLASER {scans.ranges.shape[1]} " + " ".join(f"{r:.3f}" for r in scans.ranges[k]) + " 0 0 0 0 0 0 "
              f"{scans.timestamps[k]:.6f} host {scans.timestamps[k]:.6f}" for k in range(30)]
@@ -393,7 +393,7 @@ def test_an_unexpected_error_is_one_line_and_exit_1(monkeypatch, capsys):
     def broken(args):
         raise RuntimeError("something the code did not expect")
 
-    monkeypatch.setattr(cli, "_cmd_map", broken)
+    monkeypatch.setitem(cli.COMMANDS, "map", broken)
     monkeypatch.delenv("PROBSLAM_DEBUG", raising=False)
     assert cli.main(["map"]) == 1
     err = capsys.readouterr().err
@@ -455,9 +455,8 @@ def test_slam_flags_set_their_option_paths(tmp_path, capsys, monkeypatch):
     def spy(log, **kw):
         seen.append(kw["options"])
         raise KeyboardInterrupt  # the options are what is tested, not the run
-    # The module (the package's attribute of that name is the function).
-    monkeypatch.setattr(importlib.import_module("probslam.pipelines.slam_log"), "run_slam", spy)
-    log = cli._bundled_log(cli.BUNDLED_RAW_LOG)
+    monkeypatch.setattr(ps.pipelines.slam_run, "run_slam", spy)
+    log = data_path(cli.BUNDLED_RAW_LOG)
     out = ["-o", str(tmp_path / "s"), "--no-progress"]
     assert cli.main(["slam", log, "--resolution", "0.1", "--submap-distance", "5", "--no-loop-closures"] + out) \
         == cli.EXIT_INTERRUPTED
@@ -635,7 +634,7 @@ def test_every_trajectory_is_one_format_with_timestamps(tmp_path, fmt):
         assert trajectory.format == fmt and not trajectory.times_from_index and len(trajectory) > 10
         assert np.all(np.isfinite(trajectory.poses))
         if name == "slam":  # the scans' times (the Intel log's clock steps back once: kept as logged)
-            log = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_SLAM_LOG))
+            log = io.read_carmen_log(data_path(cli.BUNDLED_SLAM_LOG))
             np.testing.assert_allclose(trajectory.timestamps, log.scans.timestamps, rtol=0, atol=1e-9)
         else:
             assert np.all(np.diff(trajectory.timestamps) >= 0)

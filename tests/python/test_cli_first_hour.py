@@ -135,10 +135,10 @@ def test_a_misspelt_option_or_choice_gets_the_one_meant_and_the_subcommand_help(
 
 
 def test_options_given_are_told_from_defaults():
-    given = cli._given_options(["slam", "--method", "rbpf", "--partic", "30", "-o", "x", "--no-plot"])
+    given = cli.parser.given_options(["slam", "--method", "rbpf", "--partic", "30", "-o", "x", "--no-plot"])
     assert {d: f for d, f in given.items() if d != "command"} == {
         "method": "--method", "particles": "--particles", "output": "--output", "plot": "--no-plot"}
-    assert set(cli._given_options(["eval", "a", "b"])) == {"command", "estimate", "reference"}
+    assert set(cli.parser.given_options(["eval", "a", "b"])) == {"command", "estimate", "reference"}
 
 
 def _bundled_victoria_park():

@@ -6,19 +6,20 @@ import pytest
 
 import probslam as ps
 from probslam import cli, io
+from probslam.data import path as data_path
 
 
 @pytest.fixture(scope="module")
 def slam_map(tmp_path_factory):
     prefix = tmp_path_factory.mktemp("slam") / "s"
-    assert cli.main(["slam", cli._bundled_log(cli.BUNDLED_RAW_LOG), "-o", str(prefix), "--no-progress", "--no-plot"]) == 0
+    assert cli.main(["slam", data_path(cli.BUNDLED_RAW_LOG), "-o", str(prefix), "--no-progress", "--no-plot"]) == 0
     return prefix
 
 
 def test_localize_tracks_the_slam_trajectory(slam_map, tmp_path, capsys):
     capsys.readouterr()
     ref = io.read_trajectory(f"{slam_map}_trajectory.tum")
-    log = cli._bundled_log(cli.BUNDLED_RAW_LOG)
+    log = data_path(cli.BUNDLED_RAW_LOG)
     prefix = tmp_path / "loc"
     args = ["localize", log, "--map", f"{slam_map}.yaml", "--initial-pose", *map(str, ref.poses[0]), "-o",
             str(prefix), "--no-progress"]
@@ -36,7 +37,7 @@ def test_localize_tracks_the_slam_trajectory(slam_map, tmp_path, capsys):
 @pytest.mark.slow
 def test_localize_global_on_the_bundled_log(slam_map, tmp_path, capsys):
     ref = io.read_trajectory(f"{slam_map}_trajectory.tum")
-    log = cli._bundled_log(cli.BUNDLED_RAW_LOG)
+    log = data_path(cli.BUNDLED_RAW_LOG)
     code = cli.main(["localize", log, "--map", f"{slam_map}.yaml", "--global", "-o", str(tmp_path / "g"),
                      "--no-progress", "--no-plot"])
     assert code == 0
@@ -46,7 +47,7 @@ def test_localize_global_on_the_bundled_log(slam_map, tmp_path, capsys):
 
 
 def test_localize_options_are_checked(slam_map, tmp_path, capsys):
-    log = cli._bundled_log(cli.BUNDLED_RAW_LOG)
+    log = data_path(cli.BUNDLED_RAW_LOG)
     base = ["localize", log, "--map", f"{slam_map}.yaml", "-o", str(tmp_path / "x"), "--no-progress"]
     assert cli.main(base) == 2
     assert "--initial-pose" in capsys.readouterr().err
@@ -96,7 +97,7 @@ def _scan_only_log(tmp_path):
     import gzip
 
     lines = []
-    with gzip.open(cli._bundled_log(cli.BUNDLED_RAW_LOG), "rt") as f:
+    with gzip.open(data_path(cli.BUNDLED_RAW_LOG), "rt") as f:
         for line in f:
             if line.startswith("FLASER"):
                 w = line.split()
@@ -153,7 +154,7 @@ def test_a_map_at_micrometre_cells_is_a_user_error(tmp_path, capsys):
     text = open(data.path("intel_raw_loop_map.yaml")).read().splitlines()
     text = ["resolution: 0.000001" if line.startswith("resolution:") else line for line in text]
     (tmp_path / "tiny.yaml").write_text("\n".join(text) + "\n")
-    log = cli._bundled_log(cli.BUNDLED_RAW_LOG)
+    log = data_path(cli.BUNDLED_RAW_LOG)
     code = cli.main(["localize", log, "--map", str(tmp_path / "tiny.yaml"), "--global", "--no-progress", "--no-plot",
                      "-o", str(tmp_path / "t")])
     err = capsys.readouterr().err

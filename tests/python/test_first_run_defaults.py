@@ -14,7 +14,8 @@ import pytest
 import probslam as ps
 from probslam import cli, io
 from probslam import inverse_learning as il
-from probslam.pipelines.map_log import BUNDLED_INVERSE_MODEL
+from probslam.pipelines.map_run import BUNDLED_INVERSE_MODEL
+from probslam.data import path as data_path
 
 #: Victoria Park's optimum from a start near it (docs/pose_graphs.md, README: chi2 6184.12).
 VICTORIA_PARK_CHI2 = 6184.12
@@ -121,7 +122,7 @@ def test_map_with_the_bundled_model_uses_its_own_resolution_and_range(tmp_path, 
     grid = io.load_ros_map(tmp_path / "m.yaml")
     assert grid.resolution == pytest.approx(0.1)
     model = il.LearnedInverseModel.load(ps.data.path(BUNDLED_INVERSE_MODEL))
-    same = il.map_laser_log_learned(model, io.read_carmen_log(cli._bundled_log()).scans, 0.1, 10.0, progress=False).grid
+    same = il.map_laser_log_learned(model, io.read_carmen_log(data_path(cli.BUNDLED_LOG)).scans, 0.1, 10.0, progress=False).grid
     assert grid.same_geometry(same)
     # Given options win.
     rc, out, _ = run(capsys, "map", "--inverse-model", "bundled", "--resolution", "0.2", "-o", str(tmp_path / "n"))

@@ -5,7 +5,8 @@ import pytest
 
 import probslam
 from probslam import inverse_learning as il
-from probslam.pipelines.map_log import BUNDLED_INVERSE_MODEL
+from probslam.pipelines.map_run import BUNDLED_INVERSE_MODEL
+from probslam.data import path as data_path
 
 #: Central differences with step 1e-6 on J(W) ~ 0.7: truncation ~1e-12, rounding ~1e-10.
 FD_STEP = 1e-6
@@ -479,7 +480,7 @@ def test_map_command_uses_a_saved_learned_model(tmp_path, capsys):
     m = untrained_free_model()
     m.evidence_scale = 0.5
     m.save(tmp_path / "model.npz")
-    scans = io.read_carmen_log(cli._bundled_log()).scans
+    scans = io.read_carmen_log(data_path(cli.BUNDLED_LOG)).scans
     summary = il.map_laser_log_learned(m, scans, resolution=0.2, max_range=4.0, progress=False)
     grid = summary.grid
     by_hand = probslam.OccupancyGrid2D(0.2, grid.width, grid.height, origin=grid.origin, p_prior=0.2,
@@ -513,7 +514,7 @@ def test_bundled_model_maps_the_bundled_log_as_the_ray_model_where_it_is_sure(tm
     assert cli.main(["map", "--inverse-model", "bundled", "--resolution", "0.1", "--max-range", "10",
                      "-o", str(tmp_path / "learned"), "--no-progress", "--no-plot"]) == 0
     assert (tmp_path / "learned.yaml").exists()
-    scans = io.read_carmen_log(cli._bundled_log()).scans
+    scans = io.read_carmen_log(data_path(cli.BUNDLED_LOG)).scans
     learned = il.map_laser_log_learned(model, scans, resolution=0.1, max_range=10.0, progress=False).grid
     rays = probslam.map_laser_log(scans, resolution=0.1, max_range=10.0, progress=False).grid
     # The two grids are bounded differently: the learned map's cell at each sure ray cell's centre.

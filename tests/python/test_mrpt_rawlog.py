@@ -15,6 +15,7 @@ import pytest
 
 from probslam import cli, io
 from probslam.io import mrpt_rawlog
+from probslam.data import path as data_path
 
 ROOT = pathlib.Path(__file__).resolve().parents[2]
 SCANS = 60
@@ -27,7 +28,7 @@ CHAIN_TOL = 1e-9
 
 @pytest.fixture(scope="module")
 def scans():
-    s = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_RAW_LOG)).scans
+    s = io.read_carmen_log(data_path(cli.BUNDLED_RAW_LOG)).scans
     return dataclasses.replace(s, **{f.name: getattr(s, f.name)[:SCANS] for f in dataclasses.fields(s)})
 
 

@@ -11,6 +11,7 @@ import pytest
 
 import probslam as ps
 from probslam import cli, plot
+from probslam.data import path as data_path
 
 plt = pytest.importorskip("matplotlib.pyplot", reason="the pictures need matplotlib")
 
@@ -23,7 +24,7 @@ def legend_texts(ax):
 def figures(monkeypatch):
     """The figures the command line saves, as (title, x label, y label, legend texts, axes)."""
     seen = []
-    save = cli._save_figure
+    save = cli.commands._save_figure
 
     def record(plt_, fig, path):
         ax = fig.axes[0]
@@ -32,7 +33,7 @@ def figures(monkeypatch):
                          suptitle=fig.get_suptitle(), axes=list(fig.axes)))
         return save(plt_, fig, path)
 
-    monkeypatch.setattr(cli, "_save_figure", record)
+    monkeypatch.setattr(cli.commands, "_save_figure", record)
     return seen
 
 
@@ -116,7 +117,7 @@ def test_map_and_slam_pictures(tmp_path, figures):
 @pytest.mark.slow
 def test_the_rbpf_picture_is_cropped(tmp_path, figures):
     """The RBPF map's grid is grown for every particle's rays: the picture shows the walls."""
-    assert cli.main(["slam", cli._bundled_log(cli.BUNDLED_RAW_LOG), "--method", "rbpf", "--particles", "4",
+    assert cli.main(["slam", data_path(cli.BUNDLED_RAW_LOG), "--method", "rbpf", "--particles", "4",
                      "--no-progress", "-o", str(tmp_path / "r")]) == 0
     (r,) = figures
     assert r["title"].startswith("probslam slam --method rbpf: intel_raw_loop.log.gz\ngrid-based FastSLAM")

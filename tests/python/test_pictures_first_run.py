@@ -15,7 +15,8 @@ from scipy.optimize import linear_sum_assignment
 
 import probslam as ps
 from probslam import cli, eval as evaluation, io, plot
-from probslam.pipelines.map_log import BUNDLED_INVERSE_MODEL
+from probslam.pipelines.map_run import BUNDLED_INVERSE_MODEL
+from probslam.data import path as data_path
 
 plt = pytest.importorskip("matplotlib.pyplot", reason="the pictures need matplotlib")
 
@@ -26,13 +27,13 @@ README = pathlib.Path(__file__).resolve().parents[2] / "README.md"
 def axes(monkeypatch):
     """The axes of every figure the command line saves (the first axes of each)."""
     seen = []
-    save = cli._save_figure
+    save = cli.commands._save_figure
 
     def record(plt_, fig, path):
         seen.append(fig.axes[0])
         return save(plt_, fig, path)
 
-    monkeypatch.setattr(cli, "_save_figure", record)
+    monkeypatch.setattr(cli.commands, "_save_figure", record)
     return seen
 
 
@@ -66,7 +67,7 @@ def test_learned_map_draws_free_and_unknown_apart(tmp_path, axes, capsys):
     capsys.readouterr()
     (ax,) = axes
     model = ps.inverse_learning.LearnedInverseModel.load(ps.data.path(BUNDLED_INVERSE_MODEL))
-    grid = ps.inverse_learning.map_laser_log_learned(model, io.read_carmen_log(cli._bundled_log()).scans,
+    grid = ps.inverse_learning.map_laser_log_learned(model, io.read_carmen_log(data_path(cli.BUNDLED_LOG)).scans,
                                                      progress=False).grid
     r0, r1, c0, c1 = plot.crop_bounds(grid)
     shown = np.asarray(ax.get_images()[0].get_array())

@@ -182,7 +182,7 @@ def test_options_that_do_not_apply_to_the_reference_are_refused_by_field(tmp_pat
                                          "relations file")):
         run = TrajectoryEvaluation.read_estimate(est, options)
         with pytest.raises(ValueError, match=message):
-            run.reference_kind(tmp_path / reference)
+            run.read_reference(tmp_path / reference)
 
 
 def test_the_evaluation_draws_the_aligned_estimate_on_the_reference(tmp_path):

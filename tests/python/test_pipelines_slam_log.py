@@ -1,4 +1,4 @@
-"""pipelines.slam_log, the run of ``probslam slam``: from Python it runs run_slam with the options
+"""pipelines.slam_log (module pipelines.slam_run), the run of ``probslam slam``: from Python it runs run_slam with the options
 given, writes what the command writes and says what it prints."""
 
 import pytest
@@ -6,11 +6,12 @@ import pytest
 import probslam as ps
 from probslam import cli
 from probslam.pipelines import SlamLogRun, slam_log
+from probslam.data import path as data_path
 
 
 @pytest.mark.slow
 def test_slam_log_is_run_slam_and_writes_and_says_what_the_command_does(tmp_path, capsys):
-    log = cli._bundled_log(cli.BUNDLED_SLAM_LOG)
+    log = data_path(cli.BUNDLED_SLAM_LOG)
     options = ps.slam.default_options(log).replace(closures={"enabled": False})
     run = slam_log(log, options, progress=False)
     assert isinstance(run, SlamLogRun) and run.path == log and run.result.options == options

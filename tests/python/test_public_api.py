@@ -24,6 +24,7 @@ import importlib
 import inspect
 import math
 import pathlib
+import pkgutil
 import re
 import types
 
@@ -60,6 +61,23 @@ def modules():
     for name in SUBPACKAGES:  # probslam.certificate is imported on demand (scipy.sparse)
         out.append(importlib.import_module(f"probslam.{name}"))
     return out
+
+
+def test_no_module_is_hidden_by_a_name_of_its_package():
+    """A package's attribute of a submodule's name is that module: ``from .slam_log import
+    slam_log`` made ``probslam.pipelines.slam_log`` the function, its module out of reach."""
+    hidden, packages = [], [probslam]
+    while packages:
+        package = packages.pop()
+        for info in pkgutil.iter_modules(package.__path__):
+            if info.name == "__main__":  # importing it runs the command line
+                continue
+            module = importlib.import_module(f"{package.__name__}.{info.name}")
+            packages += [module] if info.ispkg else []
+            attribute = getattr(package, info.name)
+            if attribute is not module:
+                hidden.append(f"{module.__name__} (the package's {info.name} is a {type(attribute).__name__})")
+    assert not hidden, hidden
 
 
 def public_objects():

@@ -12,6 +12,7 @@ import pytest
 
 from probslam import _core, cli, io
 from probslam.slam import default_options, run_slam
+from probslam.data import path as data_path
 
 # Each test runs SLAM over a whole log (slow: minutes under the sanitizers, which the reliability
 # files cover for the same C++ classes).
@@ -24,7 +25,7 @@ GRID_CELL_BYTES = 12  # log-odds (double) and scan stamp (uint32) per cell
 
 @pytest.fixture(scope="module")
 def log():
-    scans = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_RAW_LOG)).scans
+    scans = io.read_carmen_log(data_path(cli.BUNDLED_RAW_LOG)).scans
     return dataclasses.replace(scans, **{f.name: getattr(scans, f.name)[:SCANS] for f in dataclasses.fields(scans)})
 
 

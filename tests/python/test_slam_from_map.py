@@ -10,6 +10,7 @@ import pytest
 import probslam as ps
 from probslam import cli, io
 from probslam.slam import default_options, run_slam
+from probslam.data import path as data_path
 
 # Each test runs SLAM over the bundled Intel lap (slow: seconds here, minutes under the sanitizers,
 # which the reliability files cover for the same C++ classes).
@@ -40,7 +41,7 @@ OWN_MAP_M = 0.35
 def split_log(tmp_path):
     """The bundled raw loop as two CARMEN logs (PARAM lines in both) and the index of the first
     scan of the second half."""
-    lines = gzip.decompress(open(cli._bundled_log(cli.BUNDLED_RAW_LOG), "rb").read()).decode().splitlines(True)
+    lines = gzip.decompress(open(data_path(cli.BUNDLED_RAW_LOG), "rb").read()).decode().splitlines(True)
     params = [s for s in lines if not s.startswith("FLASER")]
     lasers = [s for s in lines if s.startswith("FLASER")]
     half = len(lasers) // 2
@@ -65,7 +66,7 @@ def angle_diff(a, b):
 @pytest.mark.filterwarnings("ignore:.*timestamps decrease")  # the raw Intel log's clock steps back
 def test_second_half_on_the_first_halfs_saved_map(tmp_path, capsys):
     half = split_log(tmp_path)
-    full = cli._bundled_log(cli.BUNDLED_RAW_LOG)
+    full = data_path(cli.BUNDLED_RAW_LOG)
     opts = ["--no-progress", "--no-plot"]
     assert cli.main(["slam", full, "-o", str(tmp_path / "whole")] + opts) == 0
     assert cli.main(["slam", str(tmp_path / "first.log"), "-o", str(tmp_path / "first")] + opts) == 0
@@ -95,7 +96,7 @@ def test_second_half_on_the_first_halfs_saved_map(tmp_path, capsys):
 
 
 def test_run_slam_on_a_map_grid_or_state_file(tmp_path):
-    log = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_RAW_LOG)).scans
+    log = io.read_carmen_log(data_path(cli.BUNDLED_RAW_LOG)).scans
     first = run_slam(log, progress=False)
     first.grid.save(tmp_path / "grid.psl")
     # The whole log again, on its own map, from its own first pose: it stays where it was.
@@ -115,7 +116,7 @@ def test_run_slam_on_a_map_grid_or_state_file(tmp_path):
 
 
 def test_bad_maps_and_poses_are_refused_by_name(tmp_path):
-    log = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_RAW_LOG)).scans
+    log = io.read_carmen_log(data_path(cli.BUNDLED_RAW_LOG)).scans
     room = run_slam(log, progress=False).grid
     with pytest.raises(FileNotFoundError, match="initial_map"):
         run_slam(log, progress=False, initial_map=tmp_path / "missing.psl")
@@ -166,7 +167,7 @@ def test_rbpf_starts_on_a_saved_map():
     # Grid FastSLAM on the graph run's map, from the graph run's first pose: in the map's frame,
     # near the graph run (measured 0.058 m over the first scans, 0.17 m at most: the two methods'
     # own differences, 0.20 m without the map).
-    log = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_RAW_LOG)).scans
+    log = io.read_carmen_log(data_path(cli.BUNDLED_RAW_LOG)).scans
     graph = run_slam(log, progress=False)
     options = default_options(log, "rbpf", initial_map=graph.grid).replace(num_particles=3)
     assert options.resolution == graph.grid.resolution

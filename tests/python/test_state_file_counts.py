@@ -19,6 +19,7 @@ import pytest
 
 from probslam import cli
 from probslam.slam import RUN_FORMAT_VERSION, RUN_MAGIC, load_run
+from probslam.data import path as data_path
 
 sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[2] / "fuzz"))
 import make_seeds  # noqa: E402
@@ -126,7 +127,7 @@ def test_every_state_seed_loads_through_the_fuzz_target(states, tmp_path):
 
 def part_log(tmp_path, scans):
     """The bundled raw log's first `scans` laser scans, as a CARMEN file."""
-    lines = gzip.decompress(open(cli._bundled_log(cli.BUNDLED_RAW_LOG), "rb").read()).decode().splitlines(True)
+    lines = gzip.decompress(open(data_path(cli.BUNDLED_RAW_LOG), "rb").read()).decode().splitlines(True)
     lasers = [s for s in lines if s.startswith("FLASER")]
     path = tmp_path / "part.log"
     path.write_text("".join([s for s in lines if not s.startswith("FLASER")] + lasers[:scans]))

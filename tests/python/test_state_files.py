@@ -13,6 +13,7 @@ import probslam as ps
 from probslam import _core, cli, io
 from probslam.ekf import EkfSlam, MultiHypothesisEkfSlam
 from probslam.slam import default_options, load_run, run_slam
+from probslam.data import path as data_path
 
 LANDMARKS = np.array([[6 * np.cos(0.5 * k), 6 * np.sin(0.5 * k)] for k in range(12)])
 
@@ -186,7 +187,7 @@ def head(log_scans, n):
 @pytest.mark.slow  # a whole log through SLAM twice
 @pytest.mark.parametrize("method,fields", [("graph", {}), ("rbpf", {"num_particles": 3})])
 def test_run_slam_resumed_equals_uninterrupted(tmp_path, method, fields):
-    log = io.read_carmen_log(cli._bundled_log(cli.BUNDLED_RAW_LOG)).scans
+    log = io.read_carmen_log(data_path(cli.BUNDLED_RAW_LOG)).scans
     n = 250 if method == "graph" else 120
     full = log if method == "graph" else head(log, 240)
     options = default_options(full, method).replace(**fields)
@@ -215,11 +216,11 @@ def test_run_slam_resumed_equals_uninterrupted(tmp_path, method, fields):
 
 @pytest.mark.slow  # a whole log through SLAM twice
 def test_cli_slam_save_then_resume_equals_one_run(tmp_path, capsys):
-    lines = gzip.decompress(open(cli._bundled_log(cli.BUNDLED_RAW_LOG), "rb").read()).decode().splitlines(True)
+    lines = gzip.decompress(open(data_path(cli.BUNDLED_RAW_LOG), "rb").read()).decode().splitlines(True)
     params = [s for s in lines if not s.startswith("FLASER")]
     lasers = [s for s in lines if s.startswith("FLASER")]
     (tmp_path / "part.log").write_text("".join(params + lasers[:300]))
-    full = cli._bundled_log(cli.BUNDLED_RAW_LOG)
+    full = data_path(cli.BUNDLED_RAW_LOG)
     opts = ["--no-progress", "--no-plot"]
     assert cli.main(["slam", full, "-o", str(tmp_path / "one")] + opts) == 0
     assert cli.main(["slam", str(tmp_path / "part.log"), "-o", str(tmp_path / "part"), "--save",

@@ -99,11 +99,15 @@ def score(outcome: Outcome, run: Run, path: Optional[str] = None) -> Dict[str, A
         raise ValueError(f"reference: a {run.kind} run makes no trajectory to score")
     with tempfile.TemporaryDirectory(prefix="probslam-batch-") as folder:
         path = path or outcome.write_trajectory(os.path.join(folder, "run"))
+        trajectory = f"the {run.kind} run's trajectory"  # what is said, not a temporary file
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
-            evaluation = evaluate_trajectory(path, run.reference, EvaluationOptions(**dict(run.evaluation)))
-    for w in caught:  # said of the run's trajectory, not of a temporary file
-        warnings.warn(str(w.message).replace(path, f"the {run.kind} run's trajectory"), w.category)
+            try:
+                evaluation = evaluate_trajectory(path, run.reference, EvaluationOptions(**dict(run.evaluation)))
+            except ValueError as exc:
+                raise ValueError(str(exc).replace(path, trajectory)) from None
+    for w in caught:
+        warnings.warn(str(w.message).replace(path, trajectory), w.category)
     r = evaluation.result
     if evaluation.kind == "relations":
         return {"relations_mean_m": float(r.translational.mean()),

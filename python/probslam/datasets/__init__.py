@@ -129,12 +129,12 @@ def run_landmark_slam(dataset: Union[Mrclam, VictoriaPark, VictoriaParkAcfr, Pat
         raise TypeError(f"known must be None or a bool, got {type(known).__name__}")
     if isinstance(dataset, (str, bytes, os.PathLike)):
         dataset = load_landmark_dataset(dataset)
-    return landmark_dataset(dataset, "dataset").run_filter(
+    return as_landmark_dataset(dataset, "dataset").run_filter(
         method, known=known, motion_noise=motion_noise, measurement_noise=measurement_noise, association=association,
         hypotheses=hypotheses, options=options, progress=progress, **fields)
 
 
-def landmark_dataset(data: Union[Mrclam, VictoriaPark, VictoriaParkAcfr], name: str = "data") -> LandmarkDataset:
+def as_landmark_dataset(data: Union[Mrclam, VictoriaPark, VictoriaParkAcfr], name: str = "data") -> LandmarkDataset:
     """A dataset as read (``load_landmark_dataset``), as a landmark run sees it: its
     ``LandmarkDataset`` (with no path: its title names none). TypeError naming ``name`` for
     anything else."""
@@ -160,7 +160,7 @@ def refinement_input(run: LandmarkSlamResult, data: Union[Mrclam, VictoriaPark, 
     refine runs with hidden correspondences."""
     require_fields(run, ("times", "poses", "landmarks", "associations"), "run", "a LandmarkSlamResult")
     period = {} if command_period is None else {"command_period": command_period}
-    return landmark_dataset(data).refinement_input(run, motion_noise, measurement_noise, **period)
+    return as_landmark_dataset(data).refinement_input(run, motion_noise, measurement_noise, **period)
 
 
 def refine_run(run: LandmarkSlamResult, data: Union[Mrclam, VictoriaPark, VictoriaParkAcfr], motion_noise=None,
@@ -169,11 +169,11 @@ def refine_run(run: LandmarkSlamResult, data: Union[Mrclam, VictoriaPark, Victor
     run over a dataset (``refinement_input``); ``options`` go to ``refine_landmarks``
     (merge_probability, split_probability, max_iterations, estimate_noise, new_landmarks)."""
     require_fields(run, ("times", "poses", "landmarks", "associations"), "run", "a LandmarkSlamResult")
-    return landmark_dataset(data).refine_run(run, motion_noise, measurement_noise, command_period, **options)
+    return as_landmark_dataset(data).refine_run(run, motion_noise, measurement_noise, command_period, **options)
 
 
 __all__ = ["Associations", "EKF_ASSOCIATIONS", "LANDMARK_DATASETS", "LandmarkDataset", "DatasetScore",
-           "LandmarkSlamResult", "RefinedRun", "landmark_dataset", "landmark_dataset_class",
+           "LandmarkSlamResult", "RefinedRun", "as_landmark_dataset", "landmark_dataset_class",
            "landmark_dataset_kind", "refine_run", "refinement_input",
            "load_landmark_dataset", "mrclam", "run_landmark_slam", "victoria_park", "victoria_park_acfr",
            "victoria_park_acfr_run"]

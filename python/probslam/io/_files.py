@@ -31,16 +31,33 @@ def file_path(value: object, arg: str = "path", expected: str = "a file path (st
     return os.fsdecode(value)
 
 
-def require_regular_file(path: str, arg: str = "path") -> None:
-    """FileNotFoundError for a missing path; ValueError for anything but a regular file (a
-    directory, a device such as /dev/zero that never ends, a fifo that blocks on open)."""
+def path_kind(path: str) -> Tuple[str, str]:
+    """What is at ``path``, and why it cannot be read: ("missing", ""), ("unreadable", the
+    system's reason), ("folder", ""), ("special", "") for a device such as /dev/zero that never
+    ends or a fifo that blocks on open, ("empty", "") for a regular file of no bytes, else
+    ("file", "")."""
     try:
-        mode = os.stat(path).st_mode
+        st = os.stat(path)
     except FileNotFoundError:
-        raise FileNotFoundError(f"{arg}: no such file: {path!r}") from None
+        return "missing", ""
     except OSError as exc:
-        raise ValueError(f"{arg}: cannot read {path!r}: {exc.strerror}") from None
-    if not stat.S_ISREG(mode):
+        return "unreadable", exc.strerror or type(exc).__name__
+    if stat.S_ISDIR(st.st_mode):
+        return "folder", ""
+    if not stat.S_ISREG(st.st_mode):
+        return "special", ""
+    return ("empty" if st.st_size == 0 else "file"), ""
+
+
+def require_regular_file(path: str, arg: str = "path") -> None:
+    """FileNotFoundError for a missing path; ValueError for anything but a regular file
+    (``path_kind``: a folder, a device, a fifo, or a path that cannot be read)."""
+    kind, why = path_kind(path)
+    if kind == "missing":
+        raise FileNotFoundError(f"{arg}: no such file: {path!r}")
+    if kind == "unreadable":
+        raise ValueError(f"{arg}: cannot read {path!r}: {why}")
+    if kind in ("folder", "special"):
         raise ValueError(f"{arg}: {path!r} is not a regular file")
 
 

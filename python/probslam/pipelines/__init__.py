@@ -1,14 +1,17 @@
 """Pipelines: a whole run from files to results (read, start, run, score, write, draw), each
 taking one typed options object and returning a run that summarises, writes and draws itself.
-The command line calls one pipeline per command and prints what it returns."""
+The command line calls one pipeline per command and prints what it returns. Each module is named
+for what it runs (``graph_file``, ``map_run``, ``localization_run``, ``evaluation``,
+``landmark_run``, ``slam_run``), never as a function the package exports, so that
+``pipelines.optimize_file`` is the function and ``pipelines.graph_file`` its module."""
 
-from .optimize_file import GraphFileOptions, GraphFileRun, optimize_file
-from .map_log import MapOptions, MapRun, map_log
-from .localize_log import (SNAPSHOT_TRAVEL, TRACK_JUMP, LocalizationRun, convergence_report, converged_track,
-                           localize_log, snapshot_times)
-from .evaluate_trajectory import EvaluationOptions, TrajectoryEvaluation, evaluate_trajectory, reference_kind
+from .graph_file import GraphFileOptions, GraphFileRun, optimize_file
+from .map_run import MapOptions, MapRun, map_log
+from .localization_run import (SNAPSHOT_TRAVEL, TRACK_JUMP, LocalizationRun, convergence_report, converged_track,
+                               localize_log, snapshot_times)
+from .evaluation import EvaluationOptions, TrajectoryEvaluation, evaluate_trajectory, reference_kind
 from .landmark_run import LandmarkRun, LandmarkRunOptions, run_landmark_dataset
-from .slam_log import SlamLogRun, slam_log
+from .slam_run import SlamLogRun, slam_log
 
 __all__ = ["GraphFileOptions", "GraphFileRun", "optimize_file",
            "MapOptions", "MapRun", "map_log",

@@ -7,10 +7,10 @@ from __future__ import annotations
 import contextlib
 import os
 import re
-import stat
-from typing import Iterator, Sequence
+from typing import Iterable, Iterator, Mapping, Optional, Tuple
 
 from .. import io
+from ..io._files import path_kind
 from ..io.laser_log import read_carmen_scans
 
 #: What each kind of input file must be, for the error messages.
@@ -40,42 +40,52 @@ def one_line(exc: BaseException) -> str:
     return " ".join(part.strip() for part in text.splitlines() if part.strip())
 
 
-def name_pattern(names: Sequence[str]) -> "re.Pattern[str]":
+def name_pattern(names: Iterable[str]) -> "re.Pattern[str]":
     """A parameter's name in a message (not part of a longer name, a flag or a file name)."""
     return re.compile(r"(?<![-\w.])(" + "|".join(sorted(map(re.escape, names), key=len, reverse=True)) + r")\b(?![.])")
 
 
-def names_argument(text: str, names: Sequence[str]) -> bool:
-    """Whether a message is about one of the parameters ``names``: it starts with one, or names one
-    with an underscore (a word of prose is not a parameter)."""
+def renamed(text: str, names: Mapping[str, str], given: object = None) -> Tuple[str, bool]:
+    """A message about parameters told in the caller's words, and whether it named one: its subject
+    (a leading name of ``names``) as ``names`` calls it, with the value ``given`` for it unless the
+    message says it ("min_particles must ..." -> "--min-particles 0: must ..."), the other names
+    with an underscore (a word of prose is not a parameter) as theirs."""
     if not names:
-        return False
+        return text, False
     pattern = name_pattern(names)
-    return bool(pattern.match(text)) or any("_" in m.group(1) for m in pattern.finditer(text))
+    subject = pattern.match(text)
+    rest = text[subject.end():] if subject else text
+    mentioned = {m.group(1) for m in pattern.finditer(rest) if "_" in m.group(1)}
+    rest = pattern.sub(lambda m: names[m.group(1)] if m.group(1) in mentioned else m.group(1), rest)
+    if not subject:
+        return rest, bool(mentioned)
+    name, colon = names[subject.group(1)], ":" if rest.startswith(":") else ""
+    rest = rest.lstrip(": ")
+    if isinstance(given, (list, tuple)):
+        given = " ".join(map(str, given))
+    if (given is None or isinstance(given, bool) or rest.startswith((f"{given} ", f"{given}:"))
+            or f"got {given}" in rest):
+        return f"{name}{colon} {rest}", True  # no value to add, or the message says it
+    return f"{name} {given}: {rest}", True
 
 
 def check_input(path: str, expected: str, folder: bool = False) -> None:
     """InputError naming ``path`` when it is missing, empty, or not a regular file (or a ``folder``)."""
-    try:
-        mode = os.stat(path).st_mode
-    except FileNotFoundError:
-        raise InputError(f"{path}: no such file; expected {expected}") from None
-    except OSError as exc:
-        raise InputError(f"{path}: cannot read it ({exc.strerror}); expected {expected}") from None
-    if stat.S_ISDIR(mode):
-        if not folder:
-            raise InputError(f"{path}: is a directory; expected {expected}")
-    elif not stat.S_ISREG(mode):
-        raise InputError(f"{path}: not a regular file; expected {expected}")
-    elif os.path.getsize(path) == 0:
-        raise InputError(f"{path}: empty file; expected {expected}")
+    kind, why = path_kind(path)
+    problem = {"missing": "no such file", "unreadable": f"cannot read it ({why})",
+               "folder": None if folder else "is a directory", "special": "not a regular file",
+               "empty": "empty file"}.get(kind)
+    if problem:
+        raise InputError(f"{path}: {problem}; expected {expected}")
 
 
 @contextlib.contextmanager
-def reading(path: str, expected: str, arguments: Sequence[str] = (), folder: bool = False) -> Iterator[None]:
+def reading(path: str, expected: str, arguments: Iterable[str] = (), folder: bool = False,
+            files: Optional[Mapping[str, str]] = None) -> Iterator[None]:
     """``path`` checked (``check_input``), then a reader's error as an InputError naming the file
-    and what was ``expected``. An error about one of the parameters ``arguments``
-    (``names_argument``) is not the file's: raised as it is, for the caller to tell as its argument."""
+    and what was ``expected``. An error about one of the parameters ``arguments`` (``renamed``)
+    is not the file's: raised as it is, for the caller to tell as its argument; one about a
+    parameter of ``files`` (parameter -> what it was read from) is told so, naming ``path``."""
     check_input(path, expected, folder)
     try:
         yield
@@ -83,7 +93,10 @@ def reading(path: str, expected: str, arguments: Sequence[str] = (), folder: boo
         raise
     except READ_ERRORS as exc:
         message = one_line(exc)
-        if names_argument(message, arguments):
+        text, of_file = renamed(message, files or {})
+        if of_file:
+            raise ValueError(text if path in text else f"{path}: {text}") from None
+        if renamed(message, {name: name for name in arguments})[1]:
             raise
         raise InputError(f"{message if path in message else f'{path}: {message}'}; expected {expected}") from None
 
@@ -102,5 +115,5 @@ def read_log(path: str, **bag):
 
 
 __all__ = ["ANY_POSE_GRAPH", "BAG_OPTIONS", "CARMEN_LOG", "InputError", "LANDMARK_DATASET", "MAP_FILE", "ROS_BAG",
-           "REFERENCE_FILES", "TRAJECTORY_FILE", "check_input", "name_pattern", "names_argument", "one_line", "reading",
-           "read_log"]
+           "REFERENCE_FILES", "TRAJECTORY_FILE", "check_input", "name_pattern", "one_line", "reading", "read_log",
+           "renamed"]

@@ -5,8 +5,9 @@ with corrected poses is a reference trajectory (its laser poses at its scans' ti
 
 ``evaluate_trajectory(estimate, reference, options)`` runs it all; ``TrajectoryEvaluation`` runs
 it step by step for a caller that reports each step (``probslam eval``): ``read_estimate``,
-``reference_kind``, ``read_reference``, ``match_clocks``, ``score``; ``summary`` and ``draw``
-present it. Options travel as one ``EvaluationOptions``; every refusal names its field.
+``read_reference``, ``score``; ``summary`` and ``draw`` present it. Options travel as one
+``EvaluationOptions``; every refusal names its field, every file's error the file
+(``inputs.reading``).
 """
 
 from __future__ import annotations
@@ -25,6 +26,7 @@ from ..io.laser_log import read_carmen_scans
 from .._args import positive_real, require_instance
 from ..io.trajectory import POSITION_FIELDS, TRAJECTORY_FORMATS, first_row_fields
 from ..slam import scans_of
+from .inputs import CARMEN_LOG, REFERENCE_FILES, TRAJECTORY_FILE, reading
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -162,22 +164,28 @@ class TrajectoryEvaluation:
         options = EvaluationOptions() if options is None else options
         require_instance(options, EvaluationOptions, "options")
         options.validate()
-        return cls(options, os.fspath(path), io.read_trajectory(path))
+        path = os.fspath(path)
+        with reading(path, TRAJECTORY_FILE):
+            return cls(options, path, io.read_trajectory(path))
 
     def estimate_summary(self) -> str:
         """The estimate as read, in a line: its poses, format and what was skipped."""
         return _trajectory_line("estimate:", self.estimate_path, self.estimate)
 
-    def reference_kind(self, path: PathLike) -> str:
-        """Tells what the reference at ``path`` is (``reference_kind``) and refuses an option that
-        does not apply to it (ValueError naming the field)."""
-        kind = reference_kind(path, self.options.reference_format)
+    def read_reference(self, path: PathLike) -> None:
+        """Tells what the reference at ``path`` is (``reference_kind``), refuses an option that
+        does not apply to it (ValueError naming the field), reads it and puts it on the
+        estimate's clock (``_match_clocks``)."""
+        path = os.fspath(path)
+        with reading(path, TRAJECTORY_FILE):  # its name or first row tells what it is
+            kind = reference_kind(path, self.options.reference_format)
         self.options.check_reference(kind)
-        self.reference_path, self.kind = os.fspath(path), kind
-        return kind
+        self.reference_path, self.kind = path, kind
+        with reading(path, REFERENCE_FILES[kind]):
+            self._read_reference()
+        self._match_clocks()
 
-    def read_reference(self) -> None:
-        """Reads the reference that ``reference_kind`` told."""
+    def _read_reference(self) -> None:
         path, kind = self.reference_path, self.kind
         if kind == "relations":
             self.reference = evaluation.read_relations(path)
@@ -191,7 +199,7 @@ class TrajectoryEvaluation:
         else:
             self.reference = io.read_trajectory(path, format=self.options.reference_format)
 
-    def match_clocks(self) -> None:
+    def _match_clocks(self) -> None:
         """Relations onto the estimate's clock; a CARMEN log's times checked against the
         estimate's. The Freiburg relations are stamped with the raw log's ipc time, the commands
         write its logger time: with ``raw_log``, each relation time is moved onto the logger time
@@ -206,7 +214,8 @@ class TrajectoryEvaluation:
             return
         relations, o = self.reference, self.options
         if o.raw_log is not None:
-            moved = evaluation.relations_on_logger_time(relations, scans_of(o.raw_log))
+            with reading(os.fspath(o.raw_log), CARMEN_LOG, files={"scans": os.fspath(o.raw_log)}):
+                moved = evaluation.relations_on_logger_time(relations, scans_of(o.raw_log))
             shift = float(np.median(relations.t1 - moved.t1))
             self.clock = (f"times moved from {os.fspath(o.raw_log)}'s ipc time to its logger time ({shift:.6f} s "
                           "earlier)")
@@ -257,7 +266,16 @@ class TrajectoryEvaluation:
 
     def score(self):
         """The error of the estimate against the reference (``eval.relations_error``,
-        ``eval.position_error``, ``eval.rpe`` or ``eval.ate``)."""
+        ``eval.position_error``, ``eval.rpe`` or ``eval.ate``). An error about the estimate or the
+        reference names its file (those functions' parameters told as the files they were read
+        from), one about an option its field (``delta: ...``)."""
+        est_path, ref_path = self.estimate_path, self.reference_path
+        files = {**dict.fromkeys(("times_est", "poses_est", "timestamps", "poses"), est_path),
+                 "times_ref": ref_path, "poses_ref": ref_path, "relations": "relations"}
+        with reading(est_path, TRAJECTORY_FILE, [f.name for f in dataclasses.fields(EvaluationOptions)], files=files):
+            return self._score()
+
+    def _score(self):
         est, ref, o = self.estimate, self.reference, self.options
         if self.kind == "relations":
             self.result = evaluation.relations_error(est.timestamps, est.poses, ref)
@@ -317,11 +335,10 @@ def evaluate_trajectory(estimate: PathLike, reference: PathLike,
                         options: Optional[EvaluationOptions] = None) -> TrajectoryEvaluation:
     """Scores the trajectory file ``estimate`` against ``reference`` (a trajectory file, a
     relations file, a CARMEN log with corrected poses or ``t x y`` positions) with ``options``;
-    the evaluation with its result (``notes``: what a caller should say besides the summary)."""
+    the evaluation with its result (``notes``: what a caller should say besides the summary). A file
+    that is not what it should be is an InputError naming it (``inputs.reading``)."""
     run = TrajectoryEvaluation.read_estimate(estimate, options)
-    run.reference_kind(reference)
-    run.read_reference()
-    run.match_clocks()
+    run.read_reference(reference)
     run.score()
     return run
 
