@@ -215,9 +215,7 @@ Eigen::Matrix3d SubmapSlam2D::graph_gate(const MatchResult& r, const Pose2& Ti, 
   // the difference, so this errs towards accepting) and submap i's heading spread carried to
   // the scan by its lever arm.
   const Eigen::Matrix3d R = frame_rotation(Ti.theta);  // submap i's frontend frame -> the world's
-  Eigen::Matrix3d J = Eigen::Matrix3d::Identity();
-  J(0, 2) = -(W.y() - nodes_[i].y());
-  J(1, 2) = W.x() - nodes_[i].x();
+  const Eigen::Matrix3d J = heading_jacobian(W.head<2>() - nodes_[i].head<2>());
   const Eigen::Matrix3d C = SW + J * Si * J.transpose() + R * r.covariance * R.transpose();
   const Eigen::LDLT<Eigen::Matrix3d> ldlt(0.5 * (C + C.transpose()));
   if (ldlt.info() != Eigen::Success || !(ldlt.vectorD().array() > 0.0).all()) return Eigen::Matrix3d::Zero();
