@@ -68,13 +68,7 @@ void SubmapSlam2D::add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
   }
   // This scan finishes a submap: the search and optimisation that follow may fail on the
   // graph's state; undone from a snapshot taken once per submap, not per scan.
-  Snapshot before = snapshot();
-  try {
-    add_prepared(std::move(scan), ranges, beam_angles);
-  } catch (...) {
-    restore(std::move(before));
-    throw;
-  }
+  all_or_nothing(*this, [&] { add_prepared(std::move(scan), ranges, beam_angles); });
 }
 
 void SubmapSlam2D::add_prepared(IncrementalScanMatcher::PendingScan&& scan, const Eigen::Ref<const Eigen::VectorXd>& ranges,
