@@ -5,6 +5,7 @@
 #include "probslam/core/angle.hpp"
 #include "probslam/core/check.hpp"
 #include "probslam/core/pose2.hpp"
+#include "probslam/core/pose2_covariance.hpp"
 
 namespace probslam {
 namespace {
@@ -85,11 +86,7 @@ Eigen::Matrix3d ackermann_motion_jacobian(const Eigen::Vector3d& pose, double sp
                                           const AckermannGeometry& g) {
   require_all_finite(pose, "pose");
   const Eigen::Vector3d d = ackermann_increment(speed, steering, dt, g);
-  const Eigen::Vector2d turned = rotation_matrix(pose[2]) * d.head<2>();
-  Eigen::Matrix3d jac = Eigen::Matrix3d::Identity();
-  jac(0, 2) = -turned.y();
-  jac(1, 2) = turned.x();
-  return finite_result(jac);
+  return finite_result(heading_jacobian(rotation_matrix(pose[2]) * d.head<2>()));
 }
 
 Eigen::Matrix<double, 3, 2> ackermann_motion_control_jacobian(const Eigen::Vector3d& pose, double speed,

@@ -5,6 +5,7 @@
 
 #include "probslam/core/angle.hpp"
 #include "probslam/core/pose2.hpp"
+#include "probslam/core/pose2_covariance.hpp"
 
 namespace probslam::core_detail {
 
@@ -19,9 +20,7 @@ inline OdometryStep odometry_step(const Eigen::Vector3d& x, const Eigen::Vector3
   const Eigen::Matrix2d rx = rotation_matrix(x[2]);
   const Eigen::Vector2d turned = rx * delta.head<2>();
   OdometryStep s;
-  s.g = Eigen::Matrix3d::Identity();
-  s.g(0, 2) = -turned.y();
-  s.g(1, 2) = turned.x();
+  s.g = heading_jacobian(turned);
   s.j = Eigen::Matrix3d::Identity();
   s.j.topLeftCorner<2, 2>() = rx;
   s.next = Eigen::Vector3d(x[0] + turned.x(), x[1] + turned.y(), wrap_angle(x[2] + delta[2]));

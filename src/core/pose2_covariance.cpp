@@ -13,10 +13,7 @@ Eigen::Matrix3d frame_rotation(double theta) {
 }
 
 void compose_jacobians(const Eigen::Vector3d& a, const Eigen::Vector3d& b, Eigen::Matrix3d& d_a, Eigen::Matrix3d& d_b) {
-  const Eigen::Vector2d rb = rotation_matrix(a.z()) * b.head<2>();
-  d_a = Eigen::Matrix3d::Identity();
-  d_a(0, 2) = -rb.y();
-  d_a(1, 2) = rb.x();
+  d_a = heading_jacobian(rotation_matrix(a.z()) * b.head<2>());
   d_b = frame_rotation(a.z());
 }
 

@@ -2,6 +2,7 @@
 // Opening a file named by an argument, shared by the state files (core) and the readers (io):
 // the path must name an existing regular file, checked before it is opened.
 #include <filesystem>
+#include <fstream>
 #include <stdexcept>
 #include <string>
 #include <system_error>
@@ -30,6 +31,16 @@ inline void require_regular_file(const std::string& path, const char* arg, Named
     throw std::invalid_argument(std::string(arg) + ": cannot open '" + path + "' (" + ec.message() + ")");
   if (!std::filesystem::is_regular_file(st))
     throw std::invalid_argument(std::string(arg) + ": '" + path + "' is not a regular file");
+}
+
+/// The regular file `path` opened for reading (binary: the readers count bytes and lines
+/// themselves), after require_regular_file(path, arg); "ARG: cannot open '<path>'" when it
+/// cannot be opened all the same (no permission).
+inline std::ifstream open_regular_file(const std::string& path, const char* arg) {
+  require_regular_file(path, arg);
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::invalid_argument(std::string(arg) + ": cannot open '" + path + "'");
+  return in;
 }
 
 }  // namespace probslam::core_detail

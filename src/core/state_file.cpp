@@ -92,9 +92,7 @@ void write_state_file(const std::string& path, const std::string& bytes) {
 }
 
 std::string read_state_file(const std::string& path) {
-  core_detail::require_regular_file(path, "path");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::invalid_argument("path: cannot open '" + path + "'");
+  std::ifstream in = core_detail::open_regular_file(path, "path");
   std::ostringstream buffer;
   buffer << in.rdbuf();
   if (in.bad()) throw std::invalid_argument("path: cannot read '" + path + "'");

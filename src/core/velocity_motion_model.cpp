@@ -4,6 +4,7 @@
 
 #include "probslam/core/angle.hpp"
 #include "probslam/core/check.hpp"
+#include "probslam/core/pose2_covariance.hpp"
 
 namespace probslam {
 namespace {
@@ -76,10 +77,7 @@ Eigen::Matrix3d velocity_motion_jacobian(const Eigen::Vector3d& pose, double v, 
   check_inputs(pose, v, w, dt);
   const Arc arc(pose, w, dt);
   const double d = v * dt * arc.s;
-  Eigen::Matrix3d g = Eigen::Matrix3d::Identity();
-  g(0, 2) = -d * arc.s_h;
-  g(1, 2) = d * arc.c_h;
-  return finite_result(g, "v");
+  return finite_result(heading_jacobian(Eigen::Vector2d(d * arc.c_h, d * arc.s_h)), "v");
 }
 
 Eigen::Matrix<double, 3, 2> velocity_motion_control_jacobian(const Eigen::Vector3d& pose, double v,

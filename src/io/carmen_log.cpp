@@ -249,9 +249,7 @@ CarmenLog parse_carmen_log(std::istream& in, const std::string& source) {
 }
 
 CarmenLog read_carmen_log(const std::string& path) {
-  io_detail::require_regular_file(path, "path");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::invalid_argument("path: cannot open '" + path + "'");
+  std::ifstream in = io_detail::open_regular_file(path, "path");
   return parse_carmen_log(in, path);
 }
 

@@ -151,9 +151,7 @@ std::size_t write_octomap_bt(const OccupancyGrid3D& grid, const std::string& pat
 }
 
 OccupancyGrid3D read_octomap_bt(const std::string& path, const OccupancyParams3D& params) {
-  io_detail::require_regular_file(path, "path");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::invalid_argument("path: cannot open '" + path + "'");
+  std::ifstream in = io_detail::open_regular_file(path, "path");
   const auto fail = [&](const std::string& what) -> void { throw std::invalid_argument(path + ": " + what); };
   std::string line;
   if (!std::getline(in, line) || line.compare(0, std::char_traits<char>::length(kFileHeader), kFileHeader) != 0)

@@ -29,41 +29,18 @@ PoseGraph3DData pose_graph_3d_data(const PoseGraph3D& graph) {
       data.points.push_back({v.id, v.value.translation, v.fixed});
       continue;
     }
-    Vertex3D out;
-    out.id = v.id;
-    out.q = v.value.rotation;
-    out.t = v.value.translation;
-    out.fixed = v.fixed;
-    data.vertices.push_back(out);
+    data.vertices.push_back({v.id, v.value.rotation, v.value.translation, v.fixed});
   }
+  // Each record as its struct lists its fields: the converse of pose_graph_3d_from_data.
+  const auto id = [&](int index) { return graph.vertex(index).id; };
   data.edges.reserve(graph.pose_edges().size());
-  for (const Pose3Edge& e : graph.pose_edges()) {
-    Edge3D out;
-    out.from_id = graph.vertex(e.from).id;
-    out.to_id = graph.vertex(e.to).id;
-    out.q = e.measurement.rotation;
-    out.t = e.measurement.translation;
-    out.information = e.information;
-    data.edges.push_back(out);
-  }
-  for (const Pose3Prior& p : graph.pose_priors()) {
-    Prior3D out;
-    out.id = graph.vertex(p.vertex).id;
-    out.q = p.measurement.rotation;
-    out.t = p.measurement.translation;
-    out.information = p.information;
-    data.priors.push_back(out);
-  }
-  for (const Point3Edge& e : graph.point_edges()) {
-    PointEdge3D out;
-    out.pose_id = graph.vertex(e.pose).id;
-    out.point_id = graph.vertex(e.point).id;
-    out.z = e.measurement;
-    out.information = e.information;
-    out.offset_q = e.offset.rotation;
-    out.offset_t = e.offset.translation;
-    data.point_edges.push_back(out);
-  }
+  for (const Pose3Edge& e : graph.pose_edges())
+    data.edges.push_back({id(e.from), id(e.to), e.measurement.rotation, e.measurement.translation, e.information});
+  for (const Pose3Prior& p : graph.pose_priors())
+    data.priors.push_back({id(p.vertex), p.measurement.rotation, p.measurement.translation, p.information});
+  for (const Point3Edge& e : graph.point_edges())
+    data.point_edges.push_back(
+        {id(e.pose), id(e.point), e.measurement, e.information, e.offset.rotation, e.offset.translation});
   return data;
 }
 

@@ -340,9 +340,7 @@ PoseGraph2D parse_pose_graph(std::istream& in, PoseGraphFormat format, const std
 }
 
 PoseGraphRead read_pose_graph(const std::string& path, const PoseGraphReadOptions& options) {
-  io_detail::require_regular_file(path, "path");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::invalid_argument("path: cannot open '" + path + "'");
+  std::ifstream in = io_detail::open_regular_file(path, "path");
   return parse_pose_graph(in, options, path);
 }
 

@@ -371,9 +371,7 @@ PoseGraph3DRead parse_pose_graph_3d(std::istream& in, const PoseGraphReadOptions
 }
 
 PoseGraph3DRead read_pose_graph_3d(const std::string& path, const PoseGraphReadOptions& options) {
-  io_detail::require_regular_file(path, "path");
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::invalid_argument("path: cannot open '" + path + "'");
+  std::ifstream in = io_detail::open_regular_file(path, "path");
   return parse_pose_graph_3d(in, options, path);
 }
 

@@ -19,6 +19,7 @@
 namespace probslam::io_detail {
 
 using core_detail::NamedBy;
+using core_detail::open_regular_file;
 using core_detail::require_regular_file;
 
 // A count larger than this in one message is corrupt, not data.

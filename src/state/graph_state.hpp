@@ -1,10 +1,12 @@
 #pragma once
 // What the 2-D and 3-D pose graphs' states share (docs/file_format.md): a vertex's kind as one
-// byte, vertex ids read once each, and edges' vertex indices checked against the vertices read.
+// byte, vertex ids read once each, edges' vertex indices checked against the vertices read, and
+// their information checked as adding them checks it.
 #include <string>
 #include <unordered_map>
 #include <vector>
 
+#include "probslam/core/check.hpp"
 #include "probslam/core/state_file.hpp"
 #include "probslam/graph/vertex_kind.hpp"
 
@@ -25,6 +27,13 @@ inline VertexKind read_vertex_kind(StateReader& r) {
 /// Records vertex `index`'s id, refusing one read before.
 inline void index_vertex_id(StateReader& r, std::unordered_map<int, int>& index_of_id, int id, std::size_t index) {
   if (!index_of_id.emplace(id, static_cast<int>(index)).second) r.fail("vertex id " + std::to_string(id) + " is repeated");
+}
+
+/// Checks a stored edge's (or prior's) information as adding the edge checks it: symmetric
+/// positive definite; `what` names the edge in the error.
+template <typename Matrix>
+void check_information(const StateReader& r, const char* what, const Matrix& information) {
+  validated(r, what, [&] { require_symmetric_positive_definite(information, "information", kStoredSymmetryTolerance); });
 }
 
 /// An edge's end: a vertex index, which must name a vertex of `kind` among `vertices`.

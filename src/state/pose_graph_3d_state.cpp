@@ -11,7 +11,6 @@
 namespace probslam {
 namespace {
 
-using state_detail::kStoredSymmetryTolerance;
 using state_detail::read_vertex_index;
 
 // Bytes of one stored pose (quaternion x, y, z, w and translation) and one matrix header.
@@ -36,7 +35,7 @@ Pose3 read_pose(StateReader& r, const std::string& what) {
 template <typename Matrix>
 Matrix read_information(StateReader& r, const char* what) {
   const Matrix information = r.matrix<Matrix>();
-  validated(r, what, [&] { require_symmetric_positive_definite(information, "information", kStoredSymmetryTolerance); });
+  state_detail::check_information(r, what, information);
   return information;
 }
 

@@ -5,8 +5,26 @@
 
 namespace probslam {
 
-using state_detail::kStoredSymmetryTolerance;
 using state_detail::read_vertex_index;
+
+namespace {
+
+/// A 2-D edge's measurement and information as stored.
+template <typename Edge>
+void read_measurement(StateReader& r, Edge& e) {
+  e.measurement = r.matrix<decltype(e.measurement)>();
+  e.information = r.matrix<decltype(e.information)>();
+}
+
+/// Checks them as add_pose_edge and add_point_edge do (a finite measurement, an SPD
+/// information); `what` names the edge in the error.
+template <typename Edge>
+void check_measurement(const StateReader& r, const char* what, const Edge& e) {
+  validated(r, what, [&] { require_all_finite(e.measurement, "measurement"); });
+  state_detail::check_information(r, what, e.information);
+}
+
+}  // namespace
 
 void PoseGraph2D::write_state(StateWriter& w) const {
   w.count(vertices_.size());
@@ -55,13 +73,9 @@ PoseGraph2D PoseGraph2D::read_state(StateReader& r) {
     PoseEdge e{};
     e.from = vertex(VertexKind::kPose, "pose");
     e.to = vertex(VertexKind::kPose, "pose");
-    e.measurement = r.matrix<Eigen::Vector3d>();
-    e.information = r.matrix<Eigen::Matrix3d>();
+    read_measurement(r, e);
     if (e.from == e.to) r.fail("a pose edge joins a vertex to itself");
-    validated(r, "pose edge", [&] {
-      require_all_finite(e.measurement, "measurement");
-      require_symmetric_positive_definite(e.information, "information", kStoredSymmetryTolerance);
-    });
+    check_measurement(r, "pose edge", e);
     g.pose_edges_.push_back(e);
   }
   const std::size_t nqe = r.count(8 + 16 + 16 + 16 + 32);
@@ -70,12 +84,8 @@ PoseGraph2D PoseGraph2D::read_state(StateReader& r) {
     PointEdge e{};
     e.pose = vertex(VertexKind::kPose, "pose");
     e.point = vertex(VertexKind::kPoint, "point");
-    e.measurement = r.matrix<Eigen::Vector2d>();
-    e.information = r.matrix<Eigen::Matrix2d>();
-    validated(r, "point edge", [&] {
-      require_all_finite(e.measurement, "measurement");
-      require_symmetric_positive_definite(e.information, "information", kStoredSymmetryTolerance);
-    });
+    read_measurement(r, e);
+    check_measurement(r, "point edge", e);
     g.point_edges_.push_back(e);
   }
   return g;

@@ -1,9 +1,20 @@
 #pragma once
 // First-order propagation of covariance through planar pose composition and inversion, the
-// Jacobians the submap graph's constraints and the scan matcher's frames need.
+// Jacobians the submap graph's constraints, the scan matcher's frames and the motion models need.
 #include <Eigen/Core>
 
 namespace probslam {
+
+/// d(x (+) step) / d x for a step whose translation, turned into the world by x's heading, is
+/// `turned`: the identity but for the heading column (-turned.y, turned.x, 1), since turning x
+/// swings the step about x's position. The motion models' G (Table 10.1 line 4's form), the
+/// composition's first Jacobian, a lever arm carrying a heading's spread.
+inline Eigen::Matrix3d heading_jacobian(const Eigen::Vector2d& turned) {
+  Eigen::Matrix3d g = Eigen::Matrix3d::Identity();
+  g(0, 2) = -turned.y();
+  g(1, 2) = turned.x();
+  return g;
+}
 
 /// blockdiag(R(theta), 1): rotates a covariance (x, y, theta) between frames.
 Eigen::Matrix3d frame_rotation(double theta);

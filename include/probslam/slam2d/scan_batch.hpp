@@ -4,11 +4,25 @@
 // bound) restores the snapshot taken before the batch, so a batch is applied whole or not at all.
 #include <Eigen/Core>
 #include <string>
+#include <utility>
 
 #include "probslam/core/check.hpp"
 #include "probslam/core/types.hpp"
 
 namespace probslam {
+
+/// f(); should it throw, `mapper` is put back as it was before (its snapshot() and
+/// restore(snapshot)) and the exception passed on: all or nothing.
+template <typename Mapper, typename F>
+void all_or_nothing(Mapper& mapper, F&& f) {
+  auto before = mapper.snapshot();
+  try {
+    f();
+  } catch (...) {
+    mapper.restore(std::move(before));
+    throw;
+  }
+}
 
 /// ranges (S, B), beam_angles (1, B) shared by every scan or (S, B), odometry (S, 3),
 /// timestamps (S,). Mapper has check_scan(ranges, angles, odometry, timestamp, row),
@@ -31,14 +45,10 @@ void add_scan_rows(Mapper& mapper, const Eigen::Ref<const RowMatrixXd>& ranges,
     mapper.add_scan(ranges.row(0).transpose(), angles(0), odometry.row(0).transpose(), timestamps[0]);
     return;
   }
-  auto before = mapper.snapshot();
-  try {
+  all_or_nothing(mapper, [&] {  // rule: all or nothing, for the whole batch
     for (Eigen::Index k = 0; k < S; ++k)
       mapper.add_scan(ranges.row(k).transpose(), angles(k), odometry.row(k).transpose(), timestamps[k]);
-  } catch (...) {
-    mapper.restore(std::move(before));  // rule: all or nothing, for the whole batch
-    throw;
-  }
+  });
 }
 
 }  // namespace probslam

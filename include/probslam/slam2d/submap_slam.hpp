@@ -240,10 +240,28 @@ class SubmapSlam2D {
   /// add_scan after the frontend prepared the scan.
   void add_prepared(IncrementalScanMatcher::PendingScan&& scan, const Eigen::Ref<const Eigen::VectorXd>& ranges,
                     const Eigen::Ref<const Eigen::VectorXd>& beam_angles);
+  /// The covariance of scan `index`'s offset from its submap's origin (estimate est), along
+  /// the chain of matches since that origin.
+  Eigen::Matrix3d offset_covariance(const ScanEstimate& est, int index) const;
   void link_finished_submap(int j);
+  /// Searches finished submap j's scans against the older submaps; returns the closures added.
   int search_closures(int j);
+  /// The scans of submap j matched in it with hits enough to be searched.
+  std::vector<int> closure_candidates(int j) const;
+  /// The marginal covariances of submap nodes 0 .. j in the graph as it stands.
+  std::vector<Eigen::Matrix3d> submap_marginals(int j) const;
   /// The closure a scan of submap j makes with submap i, if it passes every test (counted).
   std::optional<SubmapConstraint> try_closure(int scan, int i, const std::vector<Eigen::Matrix3d>& marginals);
+  /// Scan s's pose seen from its submap's origin (frontend frame).
+  Eigen::Vector3d scan_offset(int s) const;
+  /// How far world position W lies from submap i's scans (Ti its frontend frame in the world;
+  /// from the saved map's occupied extent, for submap 0 of a run started from one).
+  double distance_to_submap(int i, const Pose2& Ti, const Eigen::Vector3d& W) const;
+  /// Whether scan s need not be searched in submap i (predicted there in its frame): searched
+  /// at about that place before, or the pair holds an active closure. Records the attempt.
+  bool searched_before(int s, int i, const Eigen::Vector3d& predicted);
+  /// The loop constraint from submap i to scan s's submap of match r of s in submap i.
+  SubmapConstraint closure_constraint(int s, int i, const MatchResult& r) const;
   /// The information of where the graph predicts a scan (in submap i's frontend frame Ti,
   /// against match r there; W, SW the scan's world pose and covariance, Si submap i's marginal):
   /// a match agrees with the graph when gate_chi2 is within dissolve_chi2. Zero when singular.
@@ -255,11 +273,15 @@ class SubmapSlam2D {
   bool unique_match(const CorrelativeScanMatcher& matcher, const Points2& points, const Eigen::Vector3d& predicted,
                     const MatchOptions& m, const MatchResult& r, const Eigen::Matrix3d& gate) const;
   void optimize_and_dissolve();
+  /// The active closure the graph contradicts most beyond dissolve_chi2, or nullptr.
+  SubmapConstraint* most_contradicted();
   /// Adds the closures found (consecutive order) where they agree with each other and with the
   /// active closures (pairwise over the consecutive chain, resolve_conflicts); returns how many
   /// of them stay. An active closure outvoted by the new ones is dissolved.
   int add_consistent(const std::vector<SubmapConstraint>& found);
   CorrelativeScanMatcher build_matcher(int submap, int levels);
+  /// Submap i's closure field (from the cache) with the pyramid a window of this half-width needs.
+  const CorrelativeScanMatcher& closure_matcher(int i, double linear_window);
   /// Where the loop-closure field of a finished submap lies: its hits, widened by the field's
   /// reach (and the saved map's occupied extent for a run started from one).
   Eigen::Vector4d closure_region(int submap) const;
