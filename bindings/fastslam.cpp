@@ -295,10 +295,9 @@ void define_fastslam(py::module_& m) {
           }),
           py::arg("motion_noise"), py::arg("measurement_noise"), py::kw_only(),
           py::arg("initial_pose") = py::make_tuple(0.0, 0.0, 0.0), py::arg("options") = py::none(),
-          ("__init__(self: FastSlam, motion_noise: ArrayLike, measurement_noise: ArrayLike, *, initial_pose: "
-           "ArrayLike = (0.0, 0.0, 0.0), options: Optional[FastSlamOptions] = None" +
-           field_parameters<FastSlamOptions>() +
-           ") -> None\n\nSee the class docstring: a field given by keyword replaces options' field.").c_str());
+          options_init_signature<FastSlamOptions>(
+              "FastSlam", "motion_noise: ArrayLike, measurement_noise: ArrayLike, *, initial_pose: ArrayLike = (0.0, 0.0, 0.0), ")
+              .c_str());
   }
   c.def_property_readonly("options", [](const FastSlam& f) { return f.options(); },
                           "A copy of the FastSlamOptions the filter runs with.")

@@ -268,6 +268,24 @@ std::string field_parameters(const T& defaults = T{}) {
   return s.out;
 }
 
+/// "<head>options: Optional[<T's class>] = None<after><T's fields>) -> <returns>\n\n<doc>": the
+/// signature line of a call taking T as `options` and its fields by keyword (pybind11 would show
+/// **kwargs); head ends with the parameters before options ("optimize(graph: ..., *, ").
+template <class T>
+std::string options_signature_line(const std::string& head, const std::string& after, const std::string& returns,
+                                   const std::string& doc) {
+  const std::string type = py::str(py::type::of<T>().attr("__name__"));
+  return head + "options: Optional[" + type + "] = None" + after + field_parameters<T>() + ") -> " + returns +
+         "\n\n" + doc;
+}
+
+/// The signature line of a constructor `owner(<before>options=None<after>, **fields)`.
+template <class T>
+std::string options_init_signature(const std::string& owner, const std::string& before, const std::string& after = "") {
+  return options_signature_line<T>("__init__(self: " + owner + ", " + before, after, "None",
+                                   "See the class docstring: a field given by keyword replaces options' field.");
+}
+
 /// `o` with the fields named in `kwargs` set (a copy; the struct's validate() not run).
 template <class T>
 T options_with(T o, const py::kwargs& kwargs, const char* owner) {
