@@ -1,4 +1,5 @@
 #include <cmath>
+#include <tuple>
 #include <pybind11/stl.h>
 
 
@@ -138,29 +139,41 @@ void put_block(py::array_t<double>& out, py::ssize_t k, const M& block) {
     for (int j = 0; j < block.cols(); ++j) *d++ = block(i, j);
 }
 
+// The errors (n, Z) and the Jacobians (n, Z, A) and (n, Z, B) of n edges of one kind, from the
+// rows of their two ends a (n, A), b (n, B) and their measurements (n, Z): linearize(a, b, z)
+// returns (error, d_a, d_b) of one edge, run with the GIL released.
+template <int A, int B, int Z, class Linearize>
+auto linearize_rows(py::handle a_obj, const char* a_name, py::handle b_obj, const char* b_name, py::handle z_obj,
+                    Linearize linearize) {
+  const DoubleArray a = edge_rows(a_obj, a_name, A, -1);
+  const py::ssize_t n = a.shape(0);
+  const DoubleArray b = edge_rows(b_obj, b_name, B, n), z = edge_rows(z_obj, "measurements", Z, n);
+  py::array_t<double> error({n, py::ssize_t{Z}}), d_a({n, py::ssize_t{Z}, py::ssize_t{A}}),
+      d_b({n, py::ssize_t{Z}, py::ssize_t{B}});
+  {
+    py::gil_scoped_release release;
+    for (py::ssize_t k = 0; k < n; ++k) {
+      const auto [e, ja, jb] = linearize(Eigen::Matrix<double, A, 1>(a.data(k, 0)), Eigen::Matrix<double, B, 1>(b.data(k, 0)),
+                                         Eigen::Matrix<double, Z, 1>(z.data(k, 0)));
+      put_block(error, k, e.transpose());
+      put_block(d_a, k, ja);
+      put_block(d_b, k, jb);
+    }
+  }
+  return py::make_tuple(error, d_a, d_b);
+}
+
 // linearize_pose_edge / linearize_point_edge over arrays of edges: the refinement of landmark
 // runs (probslam.landmark_refine) linearises its edges with the graph's own errors.
 void define_edge_linearization(py::module_& m) {
   m.def(
       "linearize_pose_edges",
       [](py::handle from_obj, py::handle to_obj, py::handle z_obj) {
-        const DoubleArray from = edge_rows(from_obj, "from_poses", 3, -1);
-        const py::ssize_t n = from.shape(0);
-        const DoubleArray to = edge_rows(to_obj, "to_poses", 3, n), z = edge_rows(z_obj, "measurements", 3, n);
-        py::array_t<double> error({n, py::ssize_t{3}}), d_from({n, py::ssize_t{3}, py::ssize_t{3}}),
-            d_to({n, py::ssize_t{3}, py::ssize_t{3}});
-        {
-          py::gil_scoped_release release;
-          for (py::ssize_t k = 0; k < n; ++k) {
-            const PoseEdgeLinearization l =
-                linearize_pose_edge(Eigen::Vector3d(from.data(k, 0)), Eigen::Vector3d(to.data(k, 0)),
-                                    Eigen::Vector3d(z.data(k, 0)));
-            put_block(error, k, l.error.transpose());
-            put_block(d_from, k, l.d_from);
-            put_block(d_to, k, l.d_to);
-          }
-        }
-        return py::make_tuple(error, d_from, d_to);
+        return linearize_rows<3, 3, 3>(from_obj, "from_poses", to_obj, "to_poses", z_obj,
+                                       [](const Eigen::Vector3d& from, const Eigen::Vector3d& to, const Eigen::Vector3d& z) {
+                                         const PoseEdgeLinearization l = linearize_pose_edge(from, to, z);
+                                         return std::tuple{l.error, l.d_from, l.d_to};
+                                       });
       },
       py::arg("from_poses"), py::arg("to_poses"), py::arg("measurements"),
       "Errors and Jacobians of pose edges, as PoseGraph2D's optimiser linearises them: for\n"
@@ -169,23 +182,11 @@ void define_edge_linearization(py::module_& m) {
   m.def(
       "linearize_point_edges",
       [](py::handle pose_obj, py::handle point_obj, py::handle z_obj) {
-        const DoubleArray poses = edge_rows(pose_obj, "poses", 3, -1);
-        const py::ssize_t n = poses.shape(0);
-        const DoubleArray points = edge_rows(point_obj, "points", 2, n), z = edge_rows(z_obj, "measurements", 2, n);
-        py::array_t<double> error({n, py::ssize_t{2}}), d_pose({n, py::ssize_t{2}, py::ssize_t{3}}),
-            d_point({n, py::ssize_t{2}, py::ssize_t{2}});
-        {
-          py::gil_scoped_release release;
-          for (py::ssize_t k = 0; k < n; ++k) {
-            const PointEdgeLinearization l =
-                linearize_point_edge(Eigen::Vector3d(poses.data(k, 0)), Eigen::Vector2d(points.data(k, 0)),
-                                     Eigen::Vector2d(z.data(k, 0)));
-            put_block(error, k, l.error.transpose());
-            put_block(d_pose, k, l.d_pose);
-            put_block(d_point, k, l.d_point);
-          }
-        }
-        return py::make_tuple(error, d_pose, d_point);
+        return linearize_rows<3, 2, 2>(pose_obj, "poses", point_obj, "points", z_obj,
+                                       [](const Eigen::Vector3d& pose, const Eigen::Vector2d& point, const Eigen::Vector2d& z) {
+                                         const PointEdgeLinearization l = linearize_point_edge(pose, point, z);
+                                         return std::tuple{l.error, l.d_pose, l.d_point};
+                                       });
       },
       py::arg("poses"), py::arg("points"), py::arg("measurements"),
       "Errors and Jacobians of point edges (PoseGraph2D's, g2o EDGE_SE2_XY): for poses (n, 3),\n"
