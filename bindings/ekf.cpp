@@ -20,22 +20,8 @@ namespace probslam::bindings {
 
 namespace {
 
-DoubleArray measurements_arg(int landmark_dim, py::handle z) {
-  DoubleArray a = as_array(z, "z");
-  if (a.ndim() == 1 && a.shape(0) == landmark_dim) return DoubleArray(a.reshape({py::ssize_t{1}, a.shape(0)}));
-  return matrix_arg(z, "z", landmark_dim);
-}
-
-DoubleArray measurements_arg(const EkfSlam& e, py::handle z) { return measurements_arg(getter(&EkfSlam::landmark_dim)(e), z); }
-
-// Integer ids (integer_array_arg refuses floats, bools and unsigned values beyond long); range checks (ids in [0, 2^62]) are EkfSlam::update's own.
-std::vector<long> ids_arg(py::handle ids, py::ssize_t k) {
-  LongArray a = integer_array_arg(ids, "ids");
-  if (a.ndim() == 0) a = a.reshape({py::ssize_t{1}});
-  if (a.ndim() != 1 || a.shape(0) != k)
-    throw py::value_error("ids must have shape (" + std::to_string(k) + ",), one id per measurement");
-  return std::vector<long>(a.data(), a.data() + a.shape(0));
-}
+// A scan's measurements; landmark_dim read under the lock.
+DoubleArray scan_arg(const EkfSlam& e, py::handle z) { return measurements_arg(getter(&EkfSlam::landmark_dim)(e), z); }
 
 // A view into the filter's storage that keeps that storage (not the filter) alive.
 py::array storage_view(const std::shared_ptr<EkfSlamStorage>& s, double* data, std::vector<py::ssize_t> shape,
@@ -191,7 +177,7 @@ void define_ekf_calls(py::class_<EkfSlam>& c) {
       .def(
           "update",
           [](EkfSlam& e, py::handle z, py::handle ids, double gate) {
-            DoubleArray zz = measurements_arg(e, z);
+            DoubleArray zz = scan_arg(e, z);
             const std::vector<long> id = ids_arg(ids, zz.shape(0));
             const UpdateReport r = locked(e, [&] { return e.update(as_matrix(zz), id, gate); });
             std::vector<bool> used(r.used.begin(), r.used.end());
@@ -204,7 +190,7 @@ void define_ekf_calls(py::class_<EkfSlam>& c) {
       .def(
           "update_unknown",
           [](EkfSlam& e, py::handle z, double alpha, double alpha_new, Association association) {
-            DoubleArray zz = measurements_arg(e, z);
+            DoubleArray zz = scan_arg(e, z);
             const AssociationReport r =
                 locked(e, [&] { return e.update_unknown(as_matrix(zz), alpha, alpha_new, association); });
             return py::make_tuple(py::array(py::cast(r.ids)), r.mahalanobis,
@@ -223,7 +209,7 @@ void define_ekf_calls(py::class_<EkfSlam>& c) {
       .def(
           "pairing_likelihood",
           [](const EkfSlam& e, py::handle z, long id) {
-            DoubleArray zz = measurements_arg(e, z);
+            DoubleArray zz = scan_arg(e, z);
             if (zz.shape(0) != 1) throw py::value_error("z must be one measurement");
             const Eigen::VectorXd zi = as_matrix(zz).row(0).transpose();
             const EkfSlam::PairingLikelihood p = locked(e, [&] { return e.pairing_likelihood(zi, id); });

@@ -21,20 +21,8 @@ namespace probslam::bindings {
 
 namespace {
 
-DoubleArray scan_arg(const FastSlam& f, py::handle z) {
-  const int md = f.landmark_dim();  // fixed at construction: no lock needed
-  DoubleArray a = as_array(z, "z");
-  if (a.ndim() == 1 && a.shape(0) == md) return DoubleArray(a.reshape({py::ssize_t{1}, a.shape(0)}));
-  return matrix_arg(z, "z", md);
-}
-
-std::vector<long> ids_arg(py::handle ids, py::ssize_t k) {
-  LongArray a = integer_array_arg(ids, "ids");
-  if (a.ndim() == 0) a = a.reshape({py::ssize_t{1}});
-  if (a.ndim() != 1 || a.shape(0) != k)
-    throw py::value_error("ids must have shape (" + std::to_string(k) + ",), one id per measurement");
-  return std::vector<long>(a.data(), a.data() + a.shape(0));
-}
+// A scan's measurements; landmark_dim is fixed at construction: no lock needed.
+DoubleArray scan_arg(const FastSlam& f, py::handle z) { return measurements_arg(f.landmark_dim(), z); }
 
 /// The result of FastSlam.update (known correspondences).
 struct FastSlamUpdateResult {
@@ -301,19 +289,15 @@ void define_fastslam(py::module_& m) {
             const Eigen::MatrixXd r = square_matrix_arg(motion_noise, "motion_noise");
             const Eigen::MatrixXd q = square_matrix_arg(measurement_noise, "measurement_noise");
             const Eigen::Vector3d x0 = pose_arg(initial_pose, "initial_pose");
-            FastSlamOptions base;
-            if (!options.is_none())
-              base = ClassArg<FastSlamOptions>{py::reinterpret_borrow<py::object>(options)}.get("options");
-            const FastSlamOptions o = options_with(base, fields, "FastSlam()");
+            const auto o = options_arg<FastSlamOptions>(options, fields, "FastSlam()");
             py::gil_scoped_release release;
             return std::make_unique<FastSlam>(r, q, o, x0);
           }),
           py::arg("motion_noise"), py::arg("measurement_noise"), py::kw_only(),
           py::arg("initial_pose") = py::make_tuple(0.0, 0.0, 0.0), py::arg("options") = py::none(),
-          ("__init__(self: FastSlam, motion_noise: ArrayLike, measurement_noise: ArrayLike, *, initial_pose: "
-           "ArrayLike = (0.0, 0.0, 0.0), options: Optional[FastSlamOptions] = None" +
-           field_parameters<FastSlamOptions>() +
-           ") -> None\n\nSee the class docstring: a field given by keyword replaces options' field.").c_str());
+          options_init_signature<FastSlamOptions>(
+              "FastSlam", "motion_noise: ArrayLike, measurement_noise: ArrayLike, *, initial_pose: ArrayLike = (0.0, 0.0, 0.0), ")
+              .c_str());
   }
   c.def_property_readonly("options", [](const FastSlam& f) { return f.options(); },
                           "A copy of the FastSlamOptions the filter runs with.")

@@ -1,8 +1,10 @@
 #include <cmath>
+#include <tuple>
 #include <pybind11/stl.h>
 
 
 #include "exceptions.hpp"
+#include "graph_common.hpp"
 #include "graph_options.hpp"
 #include "args.hpp"
 #include "numpy.hpp"
@@ -20,88 +22,44 @@ namespace probslam::bindings {
 
 namespace {
 
-// Vertex ids and values of one kind, gathered under the graph's lock, arrays built after it.
-struct KindSnapshot {
-  std::vector<long> ids;
-  std::vector<double> values;
-};
-
-KindSnapshot snapshot(const PoseGraph2D& g, VertexKind kind, bool landmark_ids = false) {
-  return locked(g, [&] {
-    KindSnapshot out;
-    const int dim = kind == VertexKind::kPose ? 3 : 2;
-    for (const GraphVertex& v : g.vertices()) {
-      if (v.kind != kind) continue;
-      out.ids.push_back(landmark_ids ? v.landmark_id : v.id);
-      out.values.insert(out.values.end(), v.value.data(), v.value.data() + dim);
-    }
+// The values (P, 3) of the poses or (L, 2) of the points, in the order of their ids.
+py::array_t<double> values_of(const PoseGraph2D& g, VertexKind kind) {
+  const int dim = kind == VertexKind::kPose ? 3 : 2;
+  const std::vector<double> values = locked(g, [&] {
+    std::vector<double> out;
+    for (const GraphVertex& v : g.vertices())
+      if (v.kind == kind) out.insert(out.end(), v.value.data(), v.value.data() + dim);
     return out;
   });
-}
-
-py::array_t<long> ids_of(const PoseGraph2D& g, VertexKind kind, bool landmark_ids = false) {
-  const KindSnapshot s = snapshot(g, kind, landmark_ids);
-  return py::array_t<long>(static_cast<py::ssize_t>(s.ids.size()), s.ids.data());
-}
-
-py::array_t<double> values_of(const PoseGraph2D& g, VertexKind kind) {
-  const KindSnapshot s = snapshot(g, kind);
-  const py::ssize_t dim = kind == VertexKind::kPose ? 3 : 2;
-  py::array_t<double> out({static_cast<py::ssize_t>(s.ids.size()), dim});
-  std::copy(s.values.begin(), s.values.end(), out.mutable_data());
+  py::array_t<double> out({static_cast<py::ssize_t>(values.size()) / dim, py::ssize_t{dim}});
+  std::copy(values.begin(), values.end(), out.mutable_data());
   return out;
 }
 
 void set_values(PoseGraph2D& g, py::handle ids_obj, py::handle values_obj, int dim) {
-  const std::vector<int> ids = vertex_ids_arg(ids_obj, "ids");
-  DoubleArray values = matrix_arg(values_obj, dim == 3 ? "poses" : "points", dim);
-  if (values.shape(0) != static_cast<py::ssize_t>(ids.size()))
-    throw py::value_error(std::string(dim == 3 ? "poses" : "points") + " must have one row per id");
-  std::vector<Eigen::Vector3d> rows(ids.size(), Eigen::Vector3d::Zero());
-  for (size_t k = 0; k < ids.size(); ++k)
-    for (int d = 0; d < dim; ++d) rows[k][d] = values.at(static_cast<py::ssize_t>(k), d);
-  locked(g, [&] { g.set_values(ids, rows, dim == 3 ? VertexKind::kPose : VertexKind::kPoint); });
+  const RowsPerId a = rows_per_id(ids_obj, values_obj, dim == 3 ? "poses" : "points", dim);
+  std::vector<Eigen::Vector3d> rows(a.ids.size(), Eigen::Vector3d::Zero());
+  for (size_t k = 0; k < a.ids.size(); ++k)
+    for (int d = 0; d < dim; ++d) rows[k][d] = a.rows.at(static_cast<py::ssize_t>(k), d);
+  locked(g, [&] { g.set_values(a.ids, rows, dim == 3 ? VertexKind::kPose : VertexKind::kPoint); });
 }
 
 // Every edge's end ids (E, 2), measurement (E, dim) and information (E, dim, dim) as arrays,
 // copied under the graph's lock first.
 template <int Dim, typename Edge, typename Ends>
 py::tuple edge_arrays(const PoseGraph2D& g, const std::vector<Edge>& live, Ends ends) {
-  std::vector<std::pair<long, long>> ends_ids;
-  const std::vector<Edge> edges = locked(g, [&] {
-    for (const Edge& e : live) {
-      const auto [a, b] = ends(e);
-      ends_ids.emplace_back(g.vertex(a).id, g.vertex(b).id);
-    }
-    return live;
-  });
+  const auto [ids, edges] = edges_with_ids(g, live, ends);
   const auto n = static_cast<py::ssize_t>(edges.size());
-  py::array_t<long> ids({n, py::ssize_t{2}});
   py::array_t<double> z({n, py::ssize_t{Dim}}), info({n, py::ssize_t{Dim}, py::ssize_t{Dim}});
-  auto i = ids.mutable_unchecked<2>();
   auto m = z.mutable_unchecked<2>();
   auto w = info.mutable_unchecked<3>();
   for (py::ssize_t k = 0; k < n; ++k) {
-    i(k, 0) = ends_ids[k].first;
-    i(k, 1) = ends_ids[k].second;
     for (int r = 0; r < Dim; ++r) {
       m(k, r) = edges[k].measurement[r];
       for (int c = 0; c < Dim; ++c) w(k, r, c) = edges[k].information(r, c);
     }
   }
   return py::make_tuple(ids, z, info);
-}
-
-py::array_t<long> all_edge_ids(const PoseGraph2D& g) {
-  const std::vector<long> flat = locked(g, [&] {
-    std::vector<long> out;
-    for (const PoseEdge& e : g.pose_edges()) out.insert(out.end(), {g.vertex(e.from).id, g.vertex(e.to).id});
-    for (const PointEdge& e : g.point_edges()) out.insert(out.end(), {g.vertex(e.pose).id, g.vertex(e.point).id});
-    return out;
-  });
-  py::array_t<long> out({static_cast<py::ssize_t>(flat.size() / 2), py::ssize_t{2}});
-  std::copy(flat.begin(), flat.end(), out.mutable_data());
-  return out;
 }
 
 PoseGraphRead read_graph(const std::string& path, const std::string& format, const std::string& noise,
@@ -181,29 +139,41 @@ void put_block(py::array_t<double>& out, py::ssize_t k, const M& block) {
     for (int j = 0; j < block.cols(); ++j) *d++ = block(i, j);
 }
 
+// The errors (n, Z) and the Jacobians (n, Z, A) and (n, Z, B) of n edges of one kind, from the
+// rows of their two ends a (n, A), b (n, B) and their measurements (n, Z): linearize(a, b, z)
+// returns (error, d_a, d_b) of one edge, run with the GIL released.
+template <int A, int B, int Z, class Linearize>
+auto linearize_rows(py::handle a_obj, const char* a_name, py::handle b_obj, const char* b_name, py::handle z_obj,
+                    Linearize linearize) {
+  const DoubleArray a = edge_rows(a_obj, a_name, A, -1);
+  const py::ssize_t n = a.shape(0);
+  const DoubleArray b = edge_rows(b_obj, b_name, B, n), z = edge_rows(z_obj, "measurements", Z, n);
+  py::array_t<double> error({n, py::ssize_t{Z}}), d_a({n, py::ssize_t{Z}, py::ssize_t{A}}),
+      d_b({n, py::ssize_t{Z}, py::ssize_t{B}});
+  {
+    py::gil_scoped_release release;
+    for (py::ssize_t k = 0; k < n; ++k) {
+      const auto [e, ja, jb] = linearize(Eigen::Matrix<double, A, 1>(a.data(k, 0)), Eigen::Matrix<double, B, 1>(b.data(k, 0)),
+                                         Eigen::Matrix<double, Z, 1>(z.data(k, 0)));
+      put_block(error, k, e.transpose());
+      put_block(d_a, k, ja);
+      put_block(d_b, k, jb);
+    }
+  }
+  return py::make_tuple(error, d_a, d_b);
+}
+
 // linearize_pose_edge / linearize_point_edge over arrays of edges: the refinement of landmark
 // runs (probslam.landmark_refine) linearises its edges with the graph's own errors.
 void define_edge_linearization(py::module_& m) {
   m.def(
       "linearize_pose_edges",
       [](py::handle from_obj, py::handle to_obj, py::handle z_obj) {
-        const DoubleArray from = edge_rows(from_obj, "from_poses", 3, -1);
-        const py::ssize_t n = from.shape(0);
-        const DoubleArray to = edge_rows(to_obj, "to_poses", 3, n), z = edge_rows(z_obj, "measurements", 3, n);
-        py::array_t<double> error({n, py::ssize_t{3}}), d_from({n, py::ssize_t{3}, py::ssize_t{3}}),
-            d_to({n, py::ssize_t{3}, py::ssize_t{3}});
-        {
-          py::gil_scoped_release release;
-          for (py::ssize_t k = 0; k < n; ++k) {
-            const PoseEdgeLinearization l =
-                linearize_pose_edge(Eigen::Vector3d(from.data(k, 0)), Eigen::Vector3d(to.data(k, 0)),
-                                    Eigen::Vector3d(z.data(k, 0)));
-            put_block(error, k, l.error.transpose());
-            put_block(d_from, k, l.d_from);
-            put_block(d_to, k, l.d_to);
-          }
-        }
-        return py::make_tuple(error, d_from, d_to);
+        return linearize_rows<3, 3, 3>(from_obj, "from_poses", to_obj, "to_poses", z_obj,
+                                       [](const Eigen::Vector3d& from, const Eigen::Vector3d& to, const Eigen::Vector3d& z) {
+                                         const PoseEdgeLinearization l = linearize_pose_edge(from, to, z);
+                                         return std::tuple{l.error, l.d_from, l.d_to};
+                                       });
       },
       py::arg("from_poses"), py::arg("to_poses"), py::arg("measurements"),
       "Errors and Jacobians of pose edges, as PoseGraph2D's optimiser linearises them: for\n"
@@ -212,23 +182,11 @@ void define_edge_linearization(py::module_& m) {
   m.def(
       "linearize_point_edges",
       [](py::handle pose_obj, py::handle point_obj, py::handle z_obj) {
-        const DoubleArray poses = edge_rows(pose_obj, "poses", 3, -1);
-        const py::ssize_t n = poses.shape(0);
-        const DoubleArray points = edge_rows(point_obj, "points", 2, n), z = edge_rows(z_obj, "measurements", 2, n);
-        py::array_t<double> error({n, py::ssize_t{2}}), d_pose({n, py::ssize_t{2}, py::ssize_t{3}}),
-            d_point({n, py::ssize_t{2}, py::ssize_t{2}});
-        {
-          py::gil_scoped_release release;
-          for (py::ssize_t k = 0; k < n; ++k) {
-            const PointEdgeLinearization l =
-                linearize_point_edge(Eigen::Vector3d(poses.data(k, 0)), Eigen::Vector2d(points.data(k, 0)),
-                                     Eigen::Vector2d(z.data(k, 0)));
-            put_block(error, k, l.error.transpose());
-            put_block(d_pose, k, l.d_pose);
-            put_block(d_point, k, l.d_point);
-          }
-        }
-        return py::make_tuple(error, d_pose, d_point);
+        return linearize_rows<3, 2, 2>(pose_obj, "poses", point_obj, "points", z_obj,
+                                       [](const Eigen::Vector3d& pose, const Eigen::Vector2d& point, const Eigen::Vector2d& z) {
+                                         const PointEdgeLinearization l = linearize_point_edge(pose, point, z);
+                                         return std::tuple{l.error, l.d_pose, l.d_point};
+                                       });
       },
       py::arg("poses"), py::arg("points"), py::arg("measurements"),
       "Errors and Jacobians of point edges (PoseGraph2D's, g2o EDGE_SE2_XY): for poses (n, 3),\n"
@@ -288,46 +246,17 @@ void define_graph(py::module_& m) {
            },
            py::arg("pose_id"), py::arg("point_id"), py::arg("measurement"), py::arg("information"),
            "Adds a pose-point edge: measurement (2,) the point in pose_id's frame (m), information (2, 2).")
-      .def("set_fixed",
-           [](PoseGraph2D& g, IntArg id, BoolArg fixed_arg) {
-             const int i = id.get("id");
-             const bool fixed = fixed_arg.get("fixed");
-             locked(g, [&] { g.set_fixed(i, fixed); });
-           },
-           py::arg("id"), py::arg("fixed") = true,
-           "A fixed vertex keeps its value when optimising (the gauge); with none fixed, optimisers hold\n"
-           "the first pose.")
-      .def("is_fixed",
-           [](const PoseGraph2D& g, IntArg id) {
-             const int i = id.get("id");
-             return locked(g, [&] { return g.vertex(g.index_of(i)).fixed; });
-           },
-           py::arg("id"), "Whether vertex id is fixed.")
       .def("set_poses", [](PoseGraph2D& g, py::handle ids, py::handle v) { set_values(g, ids, v, 3); },
            py::arg("ids"), py::arg("poses"),
            "Replaces the values of pose vertices ids (N,) with poses (N, 3), all or nothing.")
       .def("set_points", [](PoseGraph2D& g, py::handle ids, py::handle v) { set_values(g, ids, v, 2); },
            py::arg("ids"), py::arg("points"),
            "Replaces the values of point vertices ids (N,) with points (N, 2) m, all or nothing.")
-      .def("has_vertex",
-           [](const PoseGraph2D& g, IntArg id) {
-             const int i = id.get("id");
-             return locked(g, [&] { return g.has_vertex(i); });
-           },
-           py::arg("id"), "Whether a pose or point vertex has this id.")
-      .def_property_readonly("num_vertices", getter(&PoseGraph2D::num_vertices), "Poses plus points.")
-      .def_property_readonly("num_pose_edges",
-                             [](const PoseGraph2D& g) { return locked(g, [&] { return g.pose_edges().size(); }); },
-                             "Number of pose-pose edges.")
-      .def_property_readonly("num_point_edges",
-                             [](const PoseGraph2D& g) { return locked(g, [&] { return g.point_edges().size(); }); },
-                             "Number of pose-point edges.")
-      .def_property_readonly("pose_ids", [](const PoseGraph2D& g) { return ids_of(g, VertexKind::kPose); },
-                             "(P,) int64 ids of the pose vertices, in the order they were added.")
-      .def_property_readonly("point_ids", [](const PoseGraph2D& g) { return ids_of(g, VertexKind::kPoint); },
-                             "(L,) int64 ids of the point vertices, in the order they were added.")
       .def_property_readonly(
-          "landmark_ids", [](const PoseGraph2D& g) { return ids_of(g, VertexKind::kPoint, true); },
+          "landmark_ids",
+          [](const PoseGraph2D& g) {
+            return ids_of(g, VertexKind::kPoint, [](const GraphVertex& v) { return static_cast<long>(v.landmark_id); });
+          },
           "Each point's id among the landmarks (iSAM's LANDMARK numbers, an id space apart from the "
           "poses'): equal to point_ids unless read_pose_graph moved an iSAM landmark whose number a pose "
           "uses; write_isam writes these.")
@@ -335,7 +264,7 @@ void define_graph(py::module_& m) {
                              "(P, 3) pose values (x m, y m, theta rad) in the order of pose_ids, a copy.")
       .def_property_readonly("points", [](const PoseGraph2D& g) { return values_of(g, VertexKind::kPoint); },
                              "(L, 2) point values (x, y) m in the order of point_ids, a copy.")
-      .def("edge_ids", &all_edge_ids,
+      .def("edge_ids", &all_edge_ids<PoseGraph2D>,
            "(E, 2) int64 end ids of every edge: pose edges (from, to) first, then point edges (pose, point).")
       .def("pose_edges",
            [](const PoseGraph2D& g) {
@@ -349,8 +278,6 @@ void define_graph(py::module_& m) {
            "(ids (E, 2) (pose, point), measurements (E, 2) m, information (E, 2, 2)) of the point edges.")
       .def("chi2", getter(&PoseGraph2D::chi2),
            "Sum over edges of e^T Omega e at the current values (g2o's chi2); ValueError if not finite.")
-      .def("copy", [](const PoseGraph2D& g) { return locked(g, [&] { return PoseGraph2D(g); }); },
-           "An independent deep copy.")
       .def("__repr__", [](py::handle self) {
         const PoseGraph2D& g = self.cast<const PoseGraph2D&>();
         return repr_of(self, locked(g, [&] {
@@ -361,6 +288,7 @@ void define_graph(py::module_& m) {
                  std::to_string(g.pose_edges().size() + g.point_edges().size()) + " edges";
         }));
       });
+  define_common_graph_methods(graph_class, "Whether a pose or point vertex has this id.");
   define_persistence<PoseGraph2D>(graph_class);
 
   py::class_<OptimizationReport>(m, "OptimizationReport", "What optimize did.")

@@ -6,6 +6,7 @@
 #include <pybind11/stl.h>
 
 #include "args.hpp"
+#include "graph_common.hpp"
 #include "graph_options.hpp"
 #include "numpy.hpp"
 #include "object_lock.hpp"
@@ -63,17 +64,7 @@ py::array_t<double> informations(const std::vector<Factor>& factors) {
   return out;
 }
 
-// The ids of the vertices of one kind, and their values, in index order.
-py::array_t<long> ids_of(const PoseGraph3D& g, VertexKind kind) {
-  const std::vector<long> ids = locked(g, [&] {
-    std::vector<long> out;
-    for (const Pose3Vertex& v : g.vertices())
-      if (v.kind == kind) out.push_back(v.id);
-    return out;
-  });
-  return py::array_t<long>(static_cast<py::ssize_t>(ids.size()), ids.data());
-}
-
+// The values of the vertices of one kind, in index order.
 std::vector<Pose3> values_of(const PoseGraph3D& g, VertexKind kind) {
   return locked(g, [&] {
     std::vector<Pose3> out;
@@ -151,66 +142,29 @@ void define_graph3d(py::module_& m) {
            "Adds a prior on pose id (g2o's EDGE_SE3_PRIOR): error [t_e, Log(R_e)] of z^-1 x, information\n"
            "(6, 6) in the order [x, y, z, rotation vector]. A vertex with a prior holds its part of the\n"
            "graph as a fixed vertex does (softly): with any prior, optimisers no longer hold the first pose.")
-      .def("set_fixed",
-           [](PoseGraph3D& g, IntArg id, BoolArg fixed_arg) {
-             const int i = id.get("id");
-             const bool fixed = fixed_arg.get("fixed");
-             locked(g, [&] { g.set_fixed(i, fixed); });
-           },
-           py::arg("id"), py::arg("fixed") = true,
-           "A fixed vertex keeps its value when optimising (the gauge); with none fixed, optimisers hold\n"
-           "the first pose.")
-      .def("is_fixed",
-           [](const PoseGraph3D& g, IntArg id) {
-             const int i = id.get("id");
-             return locked(g, [&] { return g.vertex(g.index_of(i)).fixed; });
-           },
-           py::arg("id"), "Whether vertex id is fixed.")
       .def("set_poses",
            [](PoseGraph3D& g, py::handle ids_obj, py::handle poses_obj) {
-             const std::vector<int> ids = vertex_ids_arg(ids_obj, "ids");
-             const DoubleArray rows = matrix_arg(poses_obj, "poses", kPoseWidth);
-             if (rows.shape(0) != static_cast<py::ssize_t>(ids.size()))
-               throw py::value_error("poses must have one row per id");
+             const RowsPerId a = rows_per_id(ids_obj, poses_obj, "poses", kPoseWidth);
              std::vector<Pose3> poses;
-             for (size_t k = 0; k < ids.size(); ++k) poses.push_back(pose_of(rows.data() + kPoseWidth * k));
-             locked(g, [&] { g.set_poses(ids, poses); });
+             for (size_t k = 0; k < a.ids.size(); ++k) poses.push_back(pose_of(a.rows.data() + kPoseWidth * k));
+             locked(g, [&] { g.set_poses(a.ids, poses); });
            },
            py::arg("ids"), py::arg("poses"),
            "Replaces the values of pose vertices ids (N,) with poses (N, 7), all or nothing.")
       .def("set_points",
            [](PoseGraph3D& g, py::handle ids_obj, py::handle points_obj) {
-             const std::vector<int> ids = vertex_ids_arg(ids_obj, "ids");
-             const DoubleArray rows = matrix_arg(points_obj, "points", 3);
-             if (rows.shape(0) != static_cast<py::ssize_t>(ids.size()))
-               throw py::value_error("points must have one row per id");
+             const RowsPerId a = rows_per_id(ids_obj, points_obj, "points", 3);
              std::vector<Eigen::Vector3d> points;
-             for (size_t k = 0; k < ids.size(); ++k) points.emplace_back(Eigen::Map<const Eigen::Vector3d>(rows.data() + 3 * k));
-             locked(g, [&] { g.set_points(ids, points); });
+             for (size_t k = 0; k < a.ids.size(); ++k)
+               points.emplace_back(Eigen::Map<const Eigen::Vector3d>(a.rows.data() + 3 * k));
+             locked(g, [&] { g.set_points(a.ids, points); });
            },
            py::arg("ids"), py::arg("points"),
            "Replaces the values of point vertices ids (N,) with points (N, 3) m, all or nothing.")
-      .def("has_vertex",
-           [](const PoseGraph3D& g, IntArg id) {
-             const int i = id.get("id");
-             return locked(g, [&] { return g.has_vertex(i); });
-           },
-           py::arg("id"), "Whether a vertex has this id.")
-      .def_property_readonly("num_vertices", getter(&PoseGraph3D::num_vertices), "Poses plus points.")
       .def_property_readonly("num_points", getter(&PoseGraph3D::num_points), "Number of point vertices.")
-      .def_property_readonly("num_point_edges",
-                             [](const PoseGraph3D& g) { return locked(g, [&] { return g.point_edges().size(); }); },
-                             "Number of pose-point edges.")
-      .def_property_readonly("num_pose_edges",
-                             [](const PoseGraph3D& g) { return locked(g, [&] { return g.pose_edges().size(); }); },
-                             "Number of pose-pose edges.")
-      .def_property_readonly("pose_ids", [](const PoseGraph3D& g) { return ids_of(g, VertexKind::kPose); },
-                             "(P,) int64 ids of the pose vertices, in the order they were added.")
       .def_property_readonly(
           "poses", [](const PoseGraph3D& g) { return pose_rows(values_of(g, VertexKind::kPose)); },
           "(P, 7) pose values [x, y, z, qx, qy, qz, qw] in the order of pose_ids, a copy.")
-      .def_property_readonly("point_ids", [](const PoseGraph3D& g) { return ids_of(g, VertexKind::kPoint); },
-                             "(L,) int64 ids of the point vertices, in the order they were added.")
       .def_property_readonly(
           "points",
           [](const PoseGraph3D& g) {
@@ -221,44 +175,21 @@ void define_graph3d(py::module_& m) {
             return out;
           },
           "(L, 3) point values [x, y, z] m in the order of point_ids, a copy.")
-      .def("edge_ids",
-           [](const PoseGraph3D& g) {
-             const std::vector<long> flat = locked(g, [&] {
-               std::vector<long> out;
-               for (const Pose3Edge& e : g.pose_edges()) out.insert(out.end(), {g.vertex(e.from).id, g.vertex(e.to).id});
-               for (const Point3Edge& e : g.point_edges()) out.insert(out.end(), {g.vertex(e.pose).id, g.vertex(e.point).id});
-               return out;
-             });
-             py::array_t<long> out({static_cast<py::ssize_t>(flat.size() / 2), py::ssize_t{2}});
-             std::copy(flat.begin(), flat.end(), out.mutable_data());
-             return out;
-           },
+      .def("edge_ids", &all_edge_ids<PoseGraph3D>,
            "(E + M, 2) int64 end ids of every edge, as PoseGraph2D.edge_ids: the pose edges (from, to), then the\n"
            "point edges (pose, point), in the order of edge_chi2.")
       .def("pose_edges",
            [](const PoseGraph3D& g) {
-             std::vector<long> ends;
-             const std::vector<Pose3Edge> edges = locked(g, [&] {
-               for (const Pose3Edge& e : g.pose_edges()) ends.insert(ends.end(), {g.vertex(e.from).id, g.vertex(e.to).id});
-               return g.pose_edges();
-             });
-             const auto n = static_cast<py::ssize_t>(edges.size());
-             py::array_t<long> ids({n, py::ssize_t{2}});
-             std::copy(ends.begin(), ends.end(), ids.mutable_data());
+             const auto [ids, edges] =
+                 edges_with_ids(g, g.pose_edges(), [](const Pose3Edge& e) { return std::pair{e.from, e.to}; });
              return py::make_tuple(ids, measurements(edges), informations(edges));
            },
            "(ids (E, 2) (from, to), measurements (E, 7), information (E, 6, 6)) of the edges.")
       .def("point_edges",
            [](const PoseGraph3D& g) {
-             std::vector<long> ends;
-             const std::vector<Point3Edge> edges = locked(g, [&] {
-               for (const Point3Edge& e : g.point_edges())
-                 ends.insert(ends.end(), {g.vertex(e.pose).id, g.vertex(e.point).id});
-               return g.point_edges();
-             });
+             const auto [ids, edges] =
+                 edges_with_ids(g, g.point_edges(), [](const Point3Edge& e) { return std::pair{e.pose, e.point}; });
              const auto n = static_cast<py::ssize_t>(edges.size());
-             py::array_t<long> ids({n, py::ssize_t{2}});
-             std::copy(ends.begin(), ends.end(), ids.mutable_data());
              py::array_t<double> z({n, py::ssize_t{3}}), info({n, py::ssize_t{3}, py::ssize_t{3}}),
                  offsets({n, py::ssize_t{kPoseWidth}});
              for (py::ssize_t k = 0; k < n; ++k) {
@@ -294,8 +225,6 @@ void define_graph3d(py::module_& m) {
            "(E,) e^T Omega e of each edge at the current values: pose edges, then point edges.")
       .def("chi2", getter(&PoseGraph3D::chi2),
            "Sum over edges and priors of e^T Omega e at the current values; ValueError if not finite.")
-      .def("copy", [](const PoseGraph3D& g) { return locked(g, [&] { return PoseGraph3D(g); }); },
-           "An independent deep copy.")
       .def("__repr__", [](py::handle self) {
         const PoseGraph3D& g = self.cast<const PoseGraph3D&>();
         return repr_of(self, locked(g, [&] {
@@ -304,6 +233,7 @@ void define_graph3d(py::module_& m) {
           return text + std::to_string(g.pose_edges().size() + g.point_edges().size()) + " edges";
         }));
       });
+  define_common_graph_methods(graph_class, "Whether a vertex has this id.");
   define_persistence<PoseGraph3D>(graph_class);
   graph_class.attr("QUATERNION_NORM_TOLERANCE") = kQuaternionNormTolerance;
 

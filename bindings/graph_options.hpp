@@ -119,9 +119,7 @@ struct OptimizerDocs {
 template <class T>
 std::string options_signature(const char* name, const char* graph, const char* before, const char* after,
                               const char* returns, const char* doc) {
-  const std::string type = py::str(py::type::of<T>().attr("__name__"));
-  return std::string(name) + "(graph: " + graph + ", " + before + "*, options: Optional[" + type + "] = None" +
-         after + field_parameters<T>() + ") -> " + returns + "\n\n" + doc;
+  return options_signature_line<T>(std::string(name) + "(graph: " + graph + ", " + before + "*, ", after, returns, doc);
 }
 
 /// optimize, optimize_incremental, marginal_covariances, joint_marginal_covariances and

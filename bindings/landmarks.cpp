@@ -24,6 +24,20 @@ LandmarkArrays landmark_arrays(const std::vector<LandmarkEntry>& entries) {
   return out;
 }
 
+DoubleArray measurements_arg(int landmark_dim, py::handle z) {
+  DoubleArray a = as_array(z, "z");
+  if (a.ndim() == 1 && a.shape(0) == landmark_dim) return DoubleArray(a.reshape({py::ssize_t{1}, a.shape(0)}));
+  return matrix_arg(z, "z", landmark_dim);
+}
+
+std::vector<long> ids_arg(py::handle ids, py::ssize_t k) {
+  LongArray a = integer_array_arg(ids, "ids");
+  if (a.ndim() == 0) a = a.reshape({py::ssize_t{1}});
+  if (a.ndim() != 1 || a.shape(0) != k)
+    throw py::value_error("ids must have shape (" + std::to_string(k) + ",), one id per measurement");
+  return std::vector<long>(a.data(), a.data() + a.shape(0));
+}
+
 void define_landmarks(py::module_& m) {
   py::class_<LandmarkArrays>(m, "Landmarks",
                              "One map's landmarks (EkfSlam.landmarks(), FastSlam.landmarks(particle)): ids,\n"

@@ -104,10 +104,9 @@ void define_localization(py::module_& m) {
         }),
         py::arg("map"), py::kw_only(), py::arg("options") = py::none(), py::arg("initial_pose") = py::none(),
         py::arg("initial_covariance") = py::none(),
-        ("__init__(self: MonteCarloLocalization, map: OccupancyGrid2D, *, options: Optional[MonteCarloLocalizationOptions]"
-         " = None, initial_pose: object = None, initial_covariance: object = None" +
-         field_parameters<MonteCarloLocalizationOptions>() +
-         ") -> None\n\nSee the class docstring: a field given by keyword replaces options' field.").c_str());
+        options_init_signature<MonteCarloLocalizationOptions>(
+            "MonteCarloLocalization", "map: OccupancyGrid2D, *, ", ", initial_pose: object = None, initial_covariance: object = None")
+            .c_str());
   signatures.enable_function_signatures();
   c.def_property_readonly("options", [](const Mcl& self) { return self.options(); },
                           "A copy of the MonteCarloLocalizationOptions the filter runs with.");

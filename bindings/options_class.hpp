@@ -200,15 +200,22 @@ py::object group_of(py::handle parent, M& group, const std::string& path) {
 }
 
 /// Defines each field as a property: a group by reference (`o.beam.z_hit = 0.9` sets it), the
-/// others checked by type as they are set, errors naming the field's path.
+/// others checked by type as they are set, errors naming the field's path; a report's fields
+/// (writable false) read-only.
 template <class T>
 struct Properties {
   py::class_<T>& c;
   std::string& doc;
+  bool writable;
   template <class M>
   void operator()(const char* name, M T::*member, const char* unit, const char* text) {
     const std::string field = field_doc(name, unit, text);
     doc += "\n    " + field;
+    auto get = [member](const T& o) { return field_to_py(o.*member); };
+    if (!writable) {
+      c.def_property_readonly(name, get, field.c_str());
+      return;
+    }
     auto set = [member, n = std::string(name)](T& o, py::handle v) { assign_field(o.*member, v, path_prefix(o) + n); };
     if constexpr (IsDescribed<M>::value) {
       c.def_property(
@@ -218,7 +225,7 @@ struct Properties {
           },
           set, field.c_str());
     } else {
-      c.def_property(name, [member](const T& o) { return field_to_py(o.*member); }, set, field.c_str());
+      c.def_property(name, get, set, field.c_str());
     }
   }
 };
@@ -250,19 +257,6 @@ struct Signature {
   }
 };
 
-/// Defines each field as a read-only property (a report's).
-template <class T>
-struct ReadOnly {
-  py::class_<T>& c;
-  std::string& doc;
-  template <class M>
-  void operator()(const char* name, M T::*member, const char* unit, const char* text) {
-    const std::string field = field_doc(name, unit, text);
-    doc += "\n    " + field;
-    c.def_property_readonly(name, [member](const T& o) { return field_to_py(o.*member); }, field.c_str());
-  }
-};
-
 }  // namespace options_detail
 
 /// ", name: type = default, ..." of T's fields at `defaults` (the signature a constructor that
@@ -272,6 +266,24 @@ std::string field_parameters(const T& defaults = T{}) {
   options_detail::Signature<T> s{defaults, {}};
   T::describe(s);
   return s.out;
+}
+
+/// "<head>options: Optional[<T's class>] = None<after><T's fields>) -> <returns>\n\n<doc>": the
+/// signature line of a call taking T as `options` and its fields by keyword (pybind11 would show
+/// **kwargs); head ends with the parameters before options ("optimize(graph: ..., *, ").
+template <class T>
+std::string options_signature_line(const std::string& head, const std::string& after, const std::string& returns,
+                                   const std::string& doc) {
+  const std::string type = py::str(py::type::of<T>().attr("__name__"));
+  return head + "options: Optional[" + type + "] = None" + after + field_parameters<T>() + ") -> " + returns +
+         "\n\n" + doc;
+}
+
+/// The signature line of a constructor `owner(<before>options=None<after>, **fields)`.
+template <class T>
+std::string options_init_signature(const std::string& owner, const std::string& before, const std::string& after = "") {
+  return options_signature_line<T>("__init__(self: " + owner + ", " + before, after, "None",
+                                   "See the class docstring: a field given by keyword replaces options' field.");
 }
 
 /// `o` with the fields named in `kwargs` set (a copy; the struct's validate() not run).
@@ -316,16 +328,27 @@ void define_by_fields(py::class_<T>& c, const char* name) {
   c.attr("__hash__") = py::none();
 }
 
+/// The Python class of a described struct T with a property per field (writable or read-only)
+/// and the docstring `head` followed by "Fields:" and each field's "name (unit): doc".
+template <class T>
+py::class_<T> described_class(py::module_& m, const char* name, const std::string& head, bool writable) {
+  py::class_<T> c(m, name);
+  std::string doc = head + "\nFields:";
+  options_detail::Properties<T> properties{c, doc, writable};
+  T::describe(properties);
+  c.attr("__doc__") = doc;
+  return c;
+}
+
 /// The Python class of options struct T: T(**fields) (validated), a property per field,
 /// validate(), copy(), ==, repr and pickling by fields.
 template <class T>
 py::class_<T> bind_options(py::module_& m, const char* name, const std::string& summary) {
-  py::class_<T> c(m, name);
-  std::string doc = summary + "\n\n" + name + "(**fields): every field has a default; unknown names raise TypeError,\n" +
-                    "values of the wrong type TypeError and out of range ValueError, naming the field's path.\nFields:";
-  options_detail::Properties<T> properties{c, doc};
-  T::describe(properties);
-  c.attr("__doc__") = doc;
+  py::class_<T> c = described_class<T>(
+      m, name,
+      summary + "\n\n" + name + "(**fields): every field has a default; unknown names raise TypeError,\n" +
+          "values of the wrong type TypeError and out of range ValueError, naming the field's path.",
+      true);
   const std::string params = field_parameters<T>();
   {
     py::options signatures;  // the keyword signatures are written from describe(), not **kwargs
@@ -356,11 +379,7 @@ py::class_<T> bind_options(py::module_& m, const char* name, const std::string& 
 /// read-only property per field with its unit and doc, as_dict(), ==, repr and pickling.
 template <class T>
 py::class_<T> bind_report(py::module_& m, const char* name, const std::string& summary) {
-  py::class_<T> c(m, name);
-  std::string doc = summary + "\nFields:";
-  options_detail::ReadOnly<T> fields{c, doc};
-  T::describe(fields);
-  c.attr("__doc__") = doc;
+  py::class_<T> c = described_class<T>(m, name, summary, false);
   define_by_fields(c, name);
   return c;
 }

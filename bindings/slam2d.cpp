@@ -87,9 +87,7 @@ void def_options_init(py::class_<Owner>& c, const char* owner, const char* optio
           return std::make_unique<Owner>(options_arg<T>(options, fields, call.c_str()));
         }),
         py::kw_only(), py::arg("options") = py::none(),
-        ("__init__(self: " + std::string(owner) + ", *, options: Optional[" + options_name + "] = None" +
-         field_parameters<T>() + ") -> None\n\nSee the class docstring: a field given by keyword replaces options' field.")
-            .c_str());
+        options_init_signature<T>(owner, "*, ").c_str());
   signatures.enable_function_signatures();
   c.def_property_readonly("options", [](const Owner& self) { return locked(self, [&] { return self.options(); }); },
                           ("A copy of the " + std::string(options_name) + " it runs with.").c_str());

@@ -1,10 +1,13 @@
 #pragma once
 // SE(3) helpers shared by the PoseGraph3D test files, written apart from the library's own
 // composition (quaternion products, normalised) so the tests do not check the library with itself.
+#include <gtest/gtest.h>
+
 #include <Eigen/Geometry>
 #include <random>
 
 #include "probslam/core/so3.hpp"
+#include "probslam/graph/graph_optimizer.hpp"
 #include "probslam/graph/pose_graph_3d.hpp"
 
 namespace probslam::test_support {
@@ -21,6 +24,24 @@ inline Pose3 random_pose(std::mt19937& rng, double translation_scale, double ang
   std::normal_distribution<double> normal;
   const Eigen::Vector3d w(normal(rng), normal(rng), normal(rng));
   return {so3_exp(angle_scale * w), translation_scale * Eigen::Vector3d(normal(rng), normal(rng), normal(rng))};
+}
+
+/// A random N x N information matrix A A^T + I (A's entries N(0, 1), column by column).
+template <int N>
+Eigen::Matrix<double, N, N> random_information(std::mt19937& rng) {
+  std::normal_distribution<double> normal;
+  Eigen::Matrix<double, N, N> a;
+  for (int i = 0; i < N * N; ++i) a.data()[i] = normal(rng);
+  return a * a.transpose() + Eigen::Matrix<double, N, N>::Identity();
+}
+
+/// optimize(g) with `algorithm`, expected to converge; its report.
+inline OptimizationReport converged_optimum(PoseGraph3D& g, OptimizerAlgorithm algorithm) {
+  OptimizerOptions options;
+  options.algorithm = algorithm;
+  const OptimizationReport report = optimize(g, options);
+  EXPECT_TRUE(report.converged) << report.stop_reason;
+  return report;
 }
 
 /// a * b.

@@ -12,8 +12,10 @@
 #include "probslam/io/carmen_log.hpp"
 #include "probslam/io/pose_graph_file.hpp"
 #include "probslam/io/ros_map.hpp"
+#include "test_support.hpp"
 
 using namespace probslam;
+using probslam::test_support::expect_invalid;
 namespace fs = std::filesystem;
 
 namespace {
@@ -22,16 +24,6 @@ fs::path scratch(const std::string& name) {
   const fs::path dir = fs::temp_directory_path() / ("probslam_test_" + std::to_string(::getpid()));
   fs::create_directories(dir);
   return dir / name;
-}
-
-std::string expect_invalid(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const std::invalid_argument& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "no std::invalid_argument thrown";
-  return "";
 }
 
 }  // namespace

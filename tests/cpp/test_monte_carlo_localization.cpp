@@ -129,6 +129,23 @@ Eigen::Vector3d delta(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
 
 double position_error(const Eigen::Vector3d& a, const Eigen::Vector3d& b) { return (a - b).head<2>().norm(); }
 
+/// Steps k = first .. last - 1 of a drive through the room: the odometry motion from odometry[k - 1]
+/// to odometry[k] (none at step `first`), then the scan taken at truth[k] (its ranges below
+/// kRoomMaxRange, the room's longest beam being 12.8 m); on_update(k, report) sees each update.
+template <class OnUpdate>
+void drive(MonteCarloLocalization& mcl, const std::vector<Eigen::Vector3d>& truth,
+           const std::vector<Eigen::Vector3d>& odometry, std::size_t first, std::size_t last, OnUpdate on_update) {
+  for (std::size_t k = first; k < last; ++k) {
+    if (k > first) mcl.predict_odometry(delta(odometry[k - 1], odometry[k]));
+    on_update(k, mcl.update(room_scan(truth[k]).cwiseMin(kRoomMaxRange), fan()));
+  }
+}
+
+void drive(MonteCarloLocalization& mcl, const std::vector<Eigen::Vector3d>& truth,
+           const std::vector<Eigen::Vector3d>& odometry, std::size_t first, std::size_t last) {
+  drive(mcl, truth, odometry, first, last, [](std::size_t, const MclUpdate&) {});
+}
+
 /// Everything observable of a filter, for "unchanged" and "identical" checks.
 struct State {
   Poses2 particles;
@@ -346,11 +363,9 @@ TEST(MonteCarloLocalization, TracksTheRoomWithDriftingOdometry) {
   MonteCarloLocalization mcl(g, o);
   mcl.initialize_pose(truth[0], Eigen::Vector3d(0.04, 0.04, 0.01).asDiagonal());
   double worst = 0.0;
-  for (std::size_t k = 0; k < truth.size(); ++k) {
-    if (k) mcl.predict_odometry(delta(odo[k - 1], odo[k]));
-    mcl.update(room_scan(truth[k]).cwiseMin(kRoomMaxRange), fan());
+  drive(mcl, truth, odo, 0, truth.size(), [&](std::size_t k, const MclUpdate&) {
     if (k >= 5) worst = std::max(worst, position_error(mcl.pose(), truth[k]));
-  }
+  });
   // The map's cells are 0.05 m: within a few cells throughout, once the first scans settled it.
   EXPECT_LT(worst, 0.2);
   EXPECT_LT(std::abs(wrap_angle(mcl.pose().z() - truth.back().z())), 0.05);
@@ -364,11 +379,7 @@ TEST(MonteCarloLocalization, GlobalLocalizationInTheRoom) {
   o.max_range = kRoomMaxRange;
   o.seed = 5;
   MonteCarloLocalization mcl(g, o);
-  const std::size_t n = truth.size();
-  for (std::size_t k = 0; k < n; ++k) {
-    if (k) mcl.predict_odometry(delta(truth[k - 1], truth[k]));
-    mcl.update(room_scan(truth[k]).cwiseMin(kRoomMaxRange), fan());
-  }
+  drive(mcl, truth, truth, 0, truth.size());
   EXPECT_LT(position_error(mcl.pose(), truth.back()), 0.15);
   EXPECT_LT(mcl.covariance().trace() - mcl.covariance()(2, 2), 0.05);
   EXPECT_LT(mcl.num_particles(), 2000);
@@ -386,10 +397,7 @@ TEST(MonteCarloLocalization, ThreadCountDoesNotChangeTheResult) {
     o.seed = 11;
     o.threads = threads;
     MonteCarloLocalization mcl(g, o);  // global: 4000 particles, split over the workers
-    for (std::size_t k = 0; k < 25; ++k) {
-      if (k) mcl.predict_odometry(delta(odo[k - 1], odo[k]));
-      mcl.update(room_scan(truth[k]).cwiseMin(kRoomMaxRange), fan());
-    }
+    drive(mcl, truth, odo, 0, 25);
     out.emplace_back(mcl);
   }
   EXPECT_TRUE(out[0] == out[1]);
@@ -430,11 +438,9 @@ TEST(MonteCarloLocalization, BeamModelTracksTheRoom) {
   MonteCarloLocalization mcl(g, o);
   mcl.initialize_pose(truth[0], Eigen::Vector3d(0.04, 0.04, 0.01).asDiagonal());
   double worst = 0.0;
-  for (std::size_t k = 0; k < 40; ++k) {
-    if (k) mcl.predict_odometry(delta(truth[k - 1], truth[k]));
-    mcl.update(room_scan(truth[k]).cwiseMin(kRoomMaxRange), fan());
+  drive(mcl, truth, truth, 0, 40, [&](std::size_t k, const MclUpdate&) {
     if (k >= 5) worst = std::max(worst, position_error(mcl.pose(), truth[k]));
-  }
+  });
   EXPECT_LT(worst, 0.2);
 }
 
@@ -455,35 +461,26 @@ TEST(MonteCarloLocalization, KidnappingInjectsRandomParticlesAndRecovers) {
   MonteCarloLocalization mcl(g, o);
   mcl.initialize_pose(truth[0], Eigen::Vector3d(0.01, 0.01, 0.001).asDiagonal());
   double injected_while_tracking = 0.0;
-  for (std::size_t k = 0; k < 20; ++k) {
-    if (k) mcl.predict_odometry(delta(truth[k - 1], truth[k]));
-    injected_while_tracking = std::max(injected_while_tracking, mcl.update(room_scan(truth[k]), fan()).random_fraction);
-  }
+  drive(mcl, truth, truth, 0, 20, [&](std::size_t, const MclUpdate& u) {
+    injected_while_tracking = std::max(injected_while_tracking, u.random_fraction);
+  });
   EXPECT_EQ(injected_while_tracking, 0.0);
   ASSERT_LT(position_error(mcl.pose(), truth[19]), 0.1);
   const std::size_t jump = truth.size() / 2 + 4;  // the top side, heading opposite
   ASSERT_GT(position_error(truth[jump], truth[19]), 3.0);
   double injected = 0.0;
   mcl.predict_odometry(delta(truth[19], truth[20]));
-  for (std::size_t k = jump; k < truth.size(); ++k) {
-    if (k > jump) mcl.predict_odometry(delta(truth[k - 1], truth[k]));
-    injected = std::max(injected, mcl.update(room_scan(truth[k]), fan()).random_fraction);
-  }
+  drive(mcl, truth, truth, jump, truth.size(),
+        [&](std::size_t, const MclUpdate& u) { injected = std::max(injected, u.random_fraction); });
   EXPECT_GT(injected, 0.0);
   EXPECT_LT(position_error(mcl.pose(), truth.back()), 0.15);
   // The candidates are scored over the worker threads: the same run on three threads.
   o.threads = 3;
   MonteCarloLocalization par(g, o);
   par.initialize_pose(truth[0], Eigen::Vector3d(0.01, 0.01, 0.001).asDiagonal());
-  for (std::size_t k = 0; k < 20; ++k) {
-    if (k) par.predict_odometry(delta(truth[k - 1], truth[k]));
-    par.update(room_scan(truth[k]), fan());
-  }
+  drive(par, truth, truth, 0, 20);
   par.predict_odometry(delta(truth[19], truth[20]));
-  for (std::size_t k = jump; k < truth.size(); ++k) {
-    if (k > jump) par.predict_odometry(delta(truth[k - 1], truth[k]));
-    par.update(room_scan(truth[k]), fan());
-  }
+  drive(par, truth, truth, jump, truth.size());
   EXPECT_TRUE(State(par) == State(mcl));
 }
 

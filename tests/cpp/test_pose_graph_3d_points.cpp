@@ -16,25 +16,13 @@
 namespace probslam {
 namespace {
 
-using test_support::between;
-using test_support::kExactTolerance;
-using test_support::kFiniteDifferenceStep;
-using test_support::kJacobianTolerance;
-using test_support::compose;
-using test_support::random_pose;
+using namespace test_support;  // the SE(3) helpers of pose3_test_support.hpp
 
 // The point in the frame of the sensor at `offset` on pose x, written independently of the
 // library's linearisation: (x * offset)^-1 p.
 Eigen::Vector3d observe(const Pose3& x, const Pose3& offset, const Eigen::Vector3d& p) {
   const Pose3 s = compose(x, offset);
   return s.rotation.conjugate() * (p - s.translation);
-}
-
-Eigen::Matrix3d random_information(std::mt19937& rng) {
-  std::normal_distribution<double> normal;
-  Eigen::Matrix3d a;
-  for (int i = 0; i < 9; ++i) a.data()[i] = normal(rng);
-  return a * a.transpose() + Eigen::Matrix3d::Identity();
 }
 
 TEST(PoseGraph3DPoints, PointEdgeJacobiansMatchCentralDifferences) {
@@ -89,7 +77,7 @@ PoseGraph3D exact_graph(const Truth& t, const Pose3& offset, std::mt19937& rng) 
     for (int j = 0; j < 3; ++j) {
       const int pose = (static_cast<int>(k) + 2 * j) % n;
       g.add_point_edge(pose, 100 + static_cast<int>(k), observe(t.poses[pose], offset, t.points[k]),
-                       random_information(rng), offset);
+                       random_information<3>(rng), offset);
     }
   return g;
 }
@@ -141,10 +129,7 @@ TEST(PoseGraph3DPoints, ExactGraphOptimisesToChi2ZeroWithEitherAlgorithm) {
       }
       g.set_points(point_ids, points);
       EXPECT_GT(g.chi2(), 1.0);
-      OptimizerOptions options;
-      options.algorithm = algorithm;
-      const OptimizationReport report = optimize(g, options);
-      EXPECT_TRUE(report.converged) << report.stop_reason;
+      const OptimizationReport report = converged_optimum(g, algorithm);
       EXPECT_LE(report.chi2, 1e-18);
       expect_at_truth(g, t);
     }

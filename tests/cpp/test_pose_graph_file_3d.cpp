@@ -11,24 +11,16 @@
 #include "probslam/io/pose_graph_file.hpp"
 #include "probslam/io/pose_graph_file_3d.hpp"
 #include "probslam/io/pose_graph_3d_graph.hpp"
+#include "test_support.hpp"
 
 using namespace probslam;
+using probslam::test_support::expect_invalid;
 namespace fs = std::filesystem;
 
 namespace {
 
 // Values parsed from decimal text and composed with a few products: double rounding only.
 constexpr double kRoundingTolerance = 1e-12;
-
-std::string expect_invalid(const std::function<void()>& f) {
-  try {
-    f();
-  } catch (const std::invalid_argument& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "no std::invalid_argument thrown";
-  return "";
-}
 
 PoseGraph3DRead parse(const std::string& text, PoseGraphReadOptions options = {}) {
   std::istringstream in(text);

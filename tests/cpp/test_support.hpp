@@ -48,6 +48,17 @@ inline Eigen::VectorXd cast(const Eigen::Vector3d& pose, const Eigen::VectorXd& 
   return out;
 }
 
+/// The message of the std::invalid_argument `call` throws; a test failure and "" when it throws none.
+inline std::string expect_invalid(const std::function<void()>& call) {
+  try {
+    call();
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << "no std::invalid_argument thrown";
+  return "";
+}
+
 /// Expects std::invalid_argument whose message starts with the argument's name.
 inline void expect_invalid(const std::function<void()>& call, const std::string& name) {
   try {

@@ -57,6 +57,14 @@ Scan random_scan(std::mt19937& rng) {
   return s;
 }
 
+// n random scans inserted into g, one after another.
+void insert_random_scans(TiledGrid2D& g, std::mt19937& rng, int n) {
+  for (int k = 0; k < n; ++k) {
+    const Scan s = random_scan(rng);
+    g.insert_rays(s.pose, s.ranges, s.angles, s.max_range);
+  }
+}
+
 void expect_same_cells(const TiledGrid2D& tiled, const OccupancyGrid2D& dense) {
   const OccupancyGrid2D g = tiled.to_grid();
   ASSERT_TRUE(g.same_geometry(dense));
@@ -141,10 +149,7 @@ TEST(TiledGrid2D, RandomResamplingAndUpdatesNeverAlias) {
 TEST(TiledGrid2D, CopyingSharesEveryTileAndAnUpdateClonesOnlyTheTilesItTouches) {
   std::mt19937 rng(3);
   TiledGrid2D a(prototype());
-  for (int k = 0; k < 20; ++k) {
-    const Scan s = random_scan(rng);
-    a.insert_rays(s.pose, s.ranges, s.angles, s.max_range);
-  }
+  insert_random_scans(a, rng, 20);
   const std::size_t held = a.tiles_allocated();
   ASSERT_GT(held, 3u);
   TiledGrid2D b = a;
@@ -173,10 +178,7 @@ TEST(TiledGrid2D, CopyingSharesEveryTileAndAnUpdateClonesOnlyTheTilesItTouches) 
 TEST(TiledGrid2D, DeepCopySharesNothingWithTheOriginalsAndKeepsTheirSharing) {
   std::mt19937 rng(5);
   auto a = std::make_shared<TiledGrid2D>(prototype());
-  for (int k = 0; k < 20; ++k) {
-    const Scan s = random_scan(rng);
-    a->insert_rays(s.pose, s.ranges, s.angles, s.max_range);
-  }
+  insert_random_scans(*a, rng, 20);
   auto b = std::make_shared<TiledGrid2D>(*a);  // shares every tile of a
   const Scan extra = random_scan(rng);
   b->insert_rays(extra.pose, extra.ranges, extra.angles, extra.max_range);  // clones a few
@@ -263,10 +265,7 @@ TEST(TiledGrid2D, BadInputRaisesAndChangesNothing) {
 TEST(TiledGrid2D, ConcurrentUpdatesOfGridsSharingTiles) {
   std::mt19937 rng(5);
   TiledGrid2D base(prototype());
-  for (int k = 0; k < 10; ++k) {
-    const Scan s = random_scan(rng);
-    base.insert_rays(s.pose, s.ranges, s.angles, s.max_range);
-  }
+  insert_random_scans(base, rng, 10);
   std::vector<std::vector<Scan>> scans(4);
   for (auto& list : scans)
     for (int k = 0; k < 15; ++k) list.push_back(random_scan(rng));

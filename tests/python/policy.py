@@ -16,8 +16,18 @@ import threading
 from typing import Any, Callable, Iterable
 
 import numpy as np
+from hypothesis import HealthCheck, settings
 from hypothesis import strategies as st
 from hypothesis.extra import numpy as hnp
+
+def property_settings(max_examples: int = 40) -> settings:
+    """The property tests' settings: max_examples inputs a test, no deadline (a call's first run can
+    be slow) and too_slow not a failure (each example builds its objects afresh)."""
+    return settings(max_examples=max_examples, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+
+
+#: The settings of the property tests (test_reliability_*.py).
+PROPERTY = property_settings()
 
 # Exceptions the policy allows a public call to raise for bad input.
 CLEAN_ERRORS = (ValueError, TypeError, IndexError, KeyError, OverflowError)

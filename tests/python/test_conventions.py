@@ -9,14 +9,7 @@ import pytest
 
 import probslam as ps
 from probslam import graph as pg
-
-
-def _graph():
-    g = ps.PoseGraph2D()
-    g.add_pose(0, [0.0, 0.0, 0.0])
-    g.add_pose(1, [1.0, 0.2, 0.1])
-    g.add_pose_edge(0, 1, [1.0, 0.0, 0.0], np.eye(3))
-    return g
+from test_pose_graph import two_pose_graph
 
 
 @pytest.mark.parametrize("writer", [pg.write_g2o, pg.write_isam, ps.write_g2o])
@@ -24,14 +17,14 @@ def test_writers_take_the_object_first(tmp_path, writer):
     path = tmp_path / "g.txt"
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        writer(_graph(), path)  # an os.PathLike is fine too
+        writer(two_pose_graph(), path)  # an os.PathLike is fine too
     back = ps.read_pose_graph(str(path), format="isam" if writer is pg.write_isam else "g2o")
     assert back.num_vertices == 2
 
 
 @pytest.mark.parametrize("writer", [pg.write_g2o, pg.write_isam])
 def test_the_old_order_warns_and_writes_the_same_file(tmp_path, writer):
-    g = _graph()
+    g = two_pose_graph()
     writer(g, str(tmp_path / "new.txt"))
     with pytest.warns(DeprecationWarning, match=rf"{writer.__name__}\(path, graph\) is deprecated"):
         writer(str(tmp_path / "old.txt"), g)
@@ -42,7 +35,7 @@ def test_writer_arguments_are_checked_by_name(tmp_path):
     with pytest.raises(TypeError, match="graph: expected a PoseGraph2D"):
         pg.write_g2o("a.g2o", "b.g2o")
     with pytest.raises(TypeError, match="path: expected a str"):
-        pg.write_g2o(_graph(), 3)
+        pg.write_g2o(two_pose_graph(), 3)
 
 
 def test_missing_pose_graph_and_bt_raise_file_not_found(tmp_path):

@@ -56,21 +56,24 @@ def clutter_run(seed, steps=250, clutter=0.5):
 MHT_COST_RESOLUTION = 1e-6
 
 
-def test_best_history_replayed_densely_gives_its_cost_and_state():
-    run, m, q = clutter_run(3, steps=120)
-    mht = ps.MultiHypothesisEkfSlam(ps.EkfSlam(m, q, use_signatures=False, initial_pose=(0, -8.3, 0)))
-    ref_scans = []
+def drive(mht, run):
+    """The filter over a simulated run: each control predicted, each non-empty scan an update."""
     for (v, w), z in zip(run.controls, run.measurements):
         mht.predict(v, w, run.dt)
         if len(z):
             mht.update(z)
-        ref_scans.append(z)
+
+
+def test_best_history_replayed_densely_gives_its_cost_and_state():
+    run, m, q = clutter_run(3, steps=120)
+    mht = ps.MultiHypothesisEkfSlam(ps.EkfSlam(m, q, use_signatures=False, initial_pose=(0, -8.3, 0)))
+    drive(mht, run)
     o = mht.options
     log_det_q = np.log(np.linalg.det(2 * np.pi * q))
     ref = DenseEkfSlam(m, q, False, pose=(0, -8.3, 0))
     history = iter(mht.history())
     cost = 0.0
-    for (v, w), z in zip(run.controls, ref_scans):
+    for (v, w), z in zip(run.controls, run.measurements):
         ref.predict(v, w, run.dt)
         if not len(z):
             continue
@@ -113,10 +116,7 @@ def association_scores(run, history):
 def test_clutter_and_new_landmarks_are_told_apart_on_a_simulated_run():
     run, m, q = clutter_run(5)
     mht = ps.MultiHypothesisEkfSlam(ps.EkfSlam(m, q, use_signatures=False, initial_pose=(0, -8.3, 0)))
-    for (v, w), z in zip(run.controls, run.measurements):
-        mht.predict(v, w, run.dt)
-        if len(z):
-            mht.update(z)
+    drive(mht, run)
     precision, recall, clutter_kept, n_landmarks = association_scores(run, mht.history())
     n_clutter = sum(int(np.count_nonzero(ids == ps.sim.CLUTTER_ID)) for ids in run.ids)
     seen = {int(i) for ids in run.ids for i in ids if i != ps.sim.CLUTTER_ID}
@@ -343,17 +343,12 @@ def test_bearing_offset_filter_equals_dense_reference_with_the_offset_in_the_sta
     # new landmarks cheaper than clutter, so that the one filter maps (clutter costs no state)
     mht = ps.MultiHypothesisEkfSlam(ekf, max_hypotheses=1, max_children=1, bearing_offset_sigma=sigma_b,
                                     bearing_offset_correlation=rho, new_landmark_cost=10.0)
-    scans = []
-    for (v, w), z in zip(run.controls, run.measurements):
-        mht.predict(v, w, run.dt)
-        if len(z):
-            mht.update(z)
-        scans.append(z)
+    drive(mht, run)
     o = mht.options
     log_det_q = np.log(np.linalg.det(2 * np.pi * (q + np.diag([0.0, sigma_b ** 2]))))
     ref = DenseOffsetEkf(m, q, sigma_b, rho, np.array([0, -8.3, 0.0]), pose_cov)
     history, cost, kinds = iter(mht.history()), 0.0, set()
-    for (v, w), z in zip(run.controls, scans):
+    for (v, w), z in zip(run.controls, run.measurements):
         ref.predict(v, w, run.dt)
         if not len(z):
             continue
@@ -422,10 +417,7 @@ def test_bearing_offset_keeps_close_pairs_apart_whatever_the_new_landmark_cost(n
             else:
                 ekf = ps.EkfSlam(m, q + np.diag([0.0, sigma_b ** 2]), use_signatures=False, initial_pose=(0, -8.3, 0))
                 mht = ps.MultiHypothesisEkfSlam(ekf, **field)
-            for (v, w), z in zip(run.controls, run.measurements):
-                mht.predict(v, w, run.dt)
-                if len(z):
-                    mht.update(z)
+            drive(mht, run)
             scores[model] = share_correct(run, mht.history())
         assert scores["offset"] > 0.97
         if new_landmark_cost is None:

@@ -10,6 +10,7 @@ import pytest
 
 import probslam as ps
 import walled_room
+from test_pose_graph import two_pose_graph
 
 API = (pathlib.Path(__file__).resolve().parents[2] / "docs" / "api.md").read_text()
 
@@ -23,14 +24,6 @@ def ekf():
     f.predict(1.0, 0.1, 0.1)
     f.update(np.array([[4.0, 0.3], [6.0, -0.5]]), np.array([0, 1]))
     return f
-
-
-def pose_graph_2d():
-    g = ps.PoseGraph2D()
-    g.add_pose(0, [0.0, 0.0, 0.0])
-    g.add_pose(1, [1.0, 0.0, 0.1])
-    g.add_pose_edge(0, 1, [1.0, 0.0, 0.0], np.eye(3))
-    return g
 
 
 def pose_graph_3d():
@@ -62,7 +55,7 @@ STATEFUL = [
     ("MonteCarloLocalization", lambda: ps.MonteCarloLocalization(room(), min_particles=20, max_particles=40)),
     ("OccupancyGrid2D", room),
     ("OccupancyGrid3D", grid_3d),
-    ("PoseGraph2D", pose_graph_2d),
+    ("PoseGraph2D", two_pose_graph),
     ("PoseGraph3D", pose_graph_3d),
 ]
 

@@ -25,6 +25,15 @@ def edge_error(a, b, z):
     return np.r_[rot(z[2]).T @ (d[:2] - z[:2]), wrap(d[2] - z[2])]
 
 
+def two_pose_graph():
+    """The smallest graph: two poses and the edge between them."""
+    g = probslam.PoseGraph2D()
+    g.add_pose(0, [0.0, 0.0, 0.0])
+    g.add_pose(1, [1.0, 0.0, 0.1])
+    g.add_pose_edge(0, 1, [1.0, 0.0, 0.0], np.eye(3))
+    return g
+
+
 def random_graph(n=12, loops=6, landmarks=3, seed=3):
     rng = np.random.default_rng(seed)
     truth = np.zeros((n, 3))

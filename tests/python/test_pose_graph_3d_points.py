@@ -13,23 +13,14 @@ from scipy.spatial.transform import Rotation
 import probslam
 from probslam import graph as pg
 from g2o3d_text import parse as read_pose_graph_3d
-from se3_reference import between, compose, from_row, pose_error, retract, to_row
+from se3_reference import between, chi2, compose, dense_gauss_newton, from_row, observe, retract, to_row
 
-#: The reference's central differences: truncation O(h^2) ~ 1e-12 and rounding ~ 1e-16 / h ~ 1e-10
-#: in its Jacobians shift neither its fixed point nor its marginals beyond ~1e-9 relative.
-FD_STEP = 1e-6
 #: The issue's agreement: poses and points to 1e-8 (m, rad), marginals to 1e-6 relative.
 POSE_TOLERANCE = 1e-8
 MARGINAL_TOLERANCE = 1e-6
 #: Exact data solved exactly: rounding in a few dozen operations per vertex.
 EXACT_TOLERANCE = 1e-9
 IDENTITY = np.array([0, 0, 0, 0, 0, 0, 1.0])
-
-
-def observe(x, offset, p):
-    """The point p in the frame of the sensor at `offset` on pose x: (x * offset)^-1 p."""
-    rs, ts = compose(x, offset)
-    return rs.inv().apply(p - ts)
 
 
 def random_problem(seed, n=5, m=7, noise=0.03, with_offset=True):
@@ -68,52 +59,6 @@ def build(poses, points, pose_edges, point_edges):
     for i, k, z, info, offset in point_edges:
         g.add_point_edge(pose_id=i, point_id=100 + k, measurement=z, information=info, offset=to_row(*offset))
     return g
-
-
-def residuals(poses, points, pose_edges, point_edges):
-    out = [(pose_error(poses[i], poses[j], z), info) for i, j, z, info in pose_edges]
-    out += [(observe(poses[i], off, points[k]) - z, info) for i, k, z, info, off in point_edges]
-    return out
-
-
-def chi2(*problem):
-    return sum(float(e @ info @ e) for e, info in residuals(*problem))
-
-
-def dense_gauss_newton(poses, points, pose_edges, point_edges, iterations=60):
-    """Gauss-Newton on the dense normal equations over [poses 1.. (6 each), points (3 each)], the
-    first pose held; returns the poses, the points and the dense information matrix at the end."""
-    poses, points = list(poses), [np.array(p, dtype=float) for p in points]
-    n, m = len(poses), len(points)
-    size = 6 * (n - 1) + 3 * m
-
-    def moved(d):  # the values at tangent step d
-        return ([poses[0]] + [retract(poses[v], d[6 * (v - 1):6 * v]) for v in range(1, n)],
-                [points[k] + d[6 * (n - 1) + 3 * k:6 * (n - 1) + 3 * k + 3] for k in range(m)])
-
-    def stacked(d):
-        ps, ls = moved(d)
-        return [e for e, _ in residuals(ps, ls, pose_edges, point_edges)]
-
-    for _ in range(iterations):
-        base = stacked(np.zeros(size))
-        columns = []
-        for c in range(size):
-            d = np.zeros(size)
-            d[c] = FD_STEP
-            plus, minus = stacked(d), stacked(-d)
-            columns.append([(a - b) / (2 * FD_STEP) for a, b in zip(plus, minus)])
-        infos = [info for _, _, _, info in pose_edges] + [info for _, _, _, info, _ in point_edges]
-        h, b = np.zeros((size, size)), np.zeros(size)
-        for r, (e, info) in enumerate(zip(base, infos)):
-            jac = np.stack([columns[c][r] for c in range(size)], axis=1)
-            h += jac.T @ info @ jac
-            b -= jac.T @ info @ e
-        dx = np.linalg.solve(h, b)
-        poses, points = moved(dx)
-        if np.abs(dx).max() < 1e-13:
-            break
-    return poses, points, h
 
 
 def start_of(poses, points, seed):

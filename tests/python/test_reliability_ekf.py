@@ -10,7 +10,7 @@ import textwrap
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 import policy
@@ -32,7 +32,7 @@ COVERED = (
 
 R = np.diag([0.01, 0.01, 0.001])
 Q = np.diag([0.01, 0.001])
-PROPERTY = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+PROPERTY = policy.property_settings(max_examples=60)
 
 
 def filled(signatures=False):

@@ -13,13 +13,13 @@ import time
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 
 import policy
 import probslam
 from probslam import _core
 
-PROPERTY = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+PROPERTY = policy.PROPERTY
 
 COVERED = (
     "LikelihoodField(grid, sigma, p_rand, occupied_threshold, max_distance, region)",

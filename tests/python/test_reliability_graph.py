@@ -10,7 +10,7 @@ import textwrap
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 import policy
@@ -30,7 +30,7 @@ COVERED = (
     "graphslam.graph_slam", "graphslam.eif_correspondence_test",
 )
 
-PROPERTY = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+PROPERTY = policy.PROPERTY
 
 
 def graph_state(g):

@@ -6,13 +6,14 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 import policy
 import probslam
 from probslam import graph as pg
+from test_pose_graph import two_pose_graph
 
 #: The public calls the property tests below (and test_reliability_graph's set_values) exercise.
 COVERED = (
@@ -22,7 +23,7 @@ COVERED = (
     "optimize_incremental",
 )
 
-PROPERTY = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+PROPERTY = policy.PROPERTY
 
 
 def graph3d_state(g):
@@ -125,14 +126,6 @@ def test_property_initialisation(scale, step, fix):
 
 # ---------------------------------------------------------------- errors that name the argument
 
-def graph2d():
-    g = probslam.PoseGraph2D()
-    g.add_pose(0, [0.0, 0.0, 0.0])
-    g.add_pose(1, [1.0, 0.0, 0.0])
-    g.add_pose_edge(0, 1, [1.0, 0.0, 0.0], np.eye(3))
-    return g
-
-
 BAD_CALLS = [  # (call on a graph, the argument the one-line error must name)
     (lambda g: g.set_fixed(1, "x"), "fixed"),
     (lambda g: g.set_fixed(1, 1), "fixed"),
@@ -164,7 +157,7 @@ BAD_CALLS = [  # (call on a graph, the argument the one-line error must name)
 @pytest.mark.parametrize("call, name", BAD_CALLS)
 def test_bad_arguments_are_named_in_one_line(dim, call, name):
     # Issue 48: these gave pybind11's multi-line "incompatible function arguments" list.
-    g = graph2d() if dim == 2 else small_graph3d()
+    g = two_pose_graph() if dim == 2 else small_graph3d()
     before = graph3d_state(g) if dim == 3 else policy.state_of(g, "poses", "points", "edge_ids")
     with pytest.raises((TypeError, ValueError), match=f"^{name}") as caught:
         call(g)
@@ -204,7 +197,7 @@ def test_a_wrong_graph_is_a_type_error_naming_graph(function, options, wrong):
 
 @pytest.mark.parametrize("call", [lambda g, tmp: probslam._core.initialize_chordal(g),
                                   lambda g, tmp: probslam._core.write_g2o_3d(str(tmp / "g.g2o"), g)])
-@pytest.mark.parametrize("wrong", NOT_GRAPHS + [graph2d()], ids=lambda w: type(w).__name__)
+@pytest.mark.parametrize("wrong", NOT_GRAPHS + [two_pose_graph()], ids=lambda w: type(w).__name__)
 def test_a_3d_only_call_names_graph_for_anything_else(call, wrong, tmp_path):
     with pytest.raises(TypeError, match=r"^graph: expected a PoseGraph3D, got " + type(wrong).__name__) as caught:
         call(wrong, tmp_path)

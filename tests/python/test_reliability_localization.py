@@ -13,13 +13,13 @@ import time
 
 import numpy as np
 import pytest
-from hypothesis import given, settings, HealthCheck
+from hypothesis import given
 
 import policy
 from walled_room import room
 from probslam import _core
 
-PROPERTY = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+PROPERTY = policy.PROPERTY
 
 COVERED = (
     "MonteCarloLocalization(*, options)",

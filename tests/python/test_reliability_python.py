@@ -5,7 +5,7 @@ exactly as it was. The calls covered are listed in ``COVERED``."""
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 
 import policy
@@ -29,7 +29,7 @@ COVERED = (
     "eval.position_error(times_est, poses_est, times_ref, positions_ref)",
 )
 
-PROPERTY = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+PROPERTY = policy.PROPERTY
 INPUTS = 2 + il.NEIGHBOURS
 
 
@@ -110,7 +110,7 @@ LABELS = {"bool": np.arange(6) % 2 == 0, "one class": np.zeros(6, dtype=bool), "
           "not 0/1": np.arange(6) * 0.5, "too few": np.ones(5, dtype=bool)}
 
 
-@settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@PROPERTY
 @given(x=st.one_of(policy.arrays((6, 7), special=False), policy.arrays(max_side=6, max_dims=2)), labels=st.sampled_from(sorted(LABELS)),
        rng=st.sampled_from(["generator", 3, None]), iterations=st.sampled_from([2, 0, 2.5, True]))
 def test_train_is_all_or_nothing(x, labels, rng, iterations):

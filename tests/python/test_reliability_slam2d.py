@@ -6,13 +6,13 @@ import re
 
 import numpy as np
 import pytest
-from hypothesis import assume, given, settings, HealthCheck
+from hypothesis import assume, given
 
 import policy
 from probslam import _core
 from corridor_world import ANGLES, MAX_RANGE, corridor_drive
 
-PROPERTY = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+PROPERTY = policy.PROPERTY
 CLASSES = [_core.IncrementalScanMatcher, _core.SubmapSlam2D, _core.GridFastSlam]
 
 COVERED = (

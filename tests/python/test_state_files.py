@@ -135,18 +135,23 @@ def test_fastslam_resumed_equals_uninterrupted(tmp_path, version, known):
         assert np.array_equal(a.ids, b.ids) and np.array_equal(a.means, b.means) and np.array_equal(a.covariances, b.covariances)
 
 
-def ekf_resumed(make, data, tmp_path):
-    """(an EkfSlam saved after scan 10, loaded and run on, one run through, the saved one)."""
+def resumed_run(make, cls, step, data, tmp_path):
+    """(a filter saved after scan 10, loaded and run on; one run straight through; the saved one):
+    each scan z is predict(0.3, 0.1, 1.0), then step(filter, z)."""
     straight, first = make(), make()
     for f, part in ((straight, data), (first, data[:10])):
-        for z, ids in part:
+        for z, _ in part:
             f.predict(0.3, 0.1, 1.0)
-            f.update_unknown(z)
-    resumed = round_trip(first, EkfSlam, tmp_path)
-    for z, ids in data[10:]:
-        resumed.predict(0.3, 0.1, 1.0)
-        resumed.update_unknown(z)
-    return resumed, straight, first
+            step(f, z)
+    out = round_trip(first, cls, tmp_path)
+    for z, _ in data[10:]:
+        out.predict(0.3, 0.1, 1.0)
+        step(out, z)
+    return out, straight, first
+
+
+def ekf_resumed(make, data, tmp_path):
+    return resumed_run(make, EkfSlam, lambda f, z: f.update_unknown(z), data, tmp_path)
 
 
 def test_ekf_and_mht_resumed_equal_uninterrupted(tmp_path):
@@ -155,17 +160,10 @@ def test_ekf_and_mht_resumed_equal_uninterrupted(tmp_path):
     resumed, straight, _ = ekf_resumed(make, data, tmp_path)
     assert np.array_equal(resumed.mean, straight.mean) and np.array_equal(resumed.covariance, straight.covariance)
 
-    straight, first = MultiHypothesisEkfSlam(make()), MultiHypothesisEkfSlam(make())
-    for f, part in ((straight, data), (first, data[:10])):
-        for z, _ in part:
-            f.predict(0.3, 0.1, 1.0)
-            f.update(z)
-    resumed = round_trip(first, MultiHypothesisEkfSlam, tmp_path)
-    for z, _ in data[10:]:
-        resumed.predict(0.3, 0.1, 1.0)
-        resumed.update(z)
-    assert np.array_equal(resumed.costs, straight.costs) and np.array_equal(resumed.best.mean, straight.best.mean)
-    assert state_bytes(resumed) == state_bytes(straight)
+    mht, straight, _ = resumed_run(lambda: MultiHypothesisEkfSlam(make()), MultiHypothesisEkfSlam,
+                                   lambda f, z: f.update(z), data, tmp_path)
+    assert np.array_equal(mht.costs, straight.costs) and np.array_equal(mht.best.mean, straight.best.mean)
+    assert state_bytes(mht) == state_bytes(straight)
 
 
 def test_ekf_with_signatures_resumed_equals_uninterrupted(tmp_path):
