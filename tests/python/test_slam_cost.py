@@ -90,7 +90,8 @@ def test_timings_count_every_stage(log):
     slam.map()
     t = slam.timings.as_dict()
     assert set(t) == {"filter", "match", "insert", "closure_search", "closure_fields", "optimize", "final_map",
-                      "frontend_fields", "closure_fields_built", "closure_matches"}
+                      "frontend_fields", "closure_fields_built", "closure_matches", "frontend_local",
+                      "frontend_searches"}
     assert all(v >= 0 for v in t.values())
     assert t["match"] > 0 and t["insert"] > 0 and t["final_map"] > before
     assert t["closure_fields"] <= t["closure_search"] and t["frontend_fields"] > 0
