@@ -101,9 +101,10 @@ struct IncrementalScanMatcherOptions {
   /// correlative search over `match.window` only when the local match is poor: it did not
   /// converge inside the window, its Hessian does not hold the pose within the window, its
   /// quality is below min_match_quality or significantly below the last matched scan's, or it
-  /// lies beyond the prior's 99.9 % chi2 gate (see docs/laser_slam.md). Without a prior in the
-  /// score (use_odometry_prior off, the first scans without a velocity, a start on a map) every
-  /// scan is searched. kAlways: every scan is searched.
+  /// lies beyond the prior's 99.9 % chi2 gate (see docs/performance.md). Without odometry
+  /// (constant_velocity: the prediction is a guess) or without a prior in the score
+  /// (use_odometry_prior off, a start on a map) every scan is searched. kAlways: every scan is
+  /// searched.
   FrontendSearch search = FrontendSearch::kFallback;
 
   /// std::invalid_argument naming the first bad option by its path ("filter.max_range").
