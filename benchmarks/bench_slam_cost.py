@@ -254,7 +254,8 @@ def main():
                         f"{r['rss_peak']:.0f} MB | {r['rss_read']:.0f} MB | {rel} |")
             if method == "graph":
                 graph_rows.append(f"| {title} | " + " | ".join(f"{t[s]:.2f}" for s in GRAPH_STAGES) +
-                                  f" | {t['frontend_fields']} / {t['closure_fields_built']} / {t['closure_matches']} |")
+                                  f" | {t['frontend_fields']} / {t['closure_fields_built']} / {t['closure_matches']}"
+                                  f" / {t.get('frontend_local', '-')} / {t.get('frontend_searches', '-')} |")
                 m = r["memory"]
                 memory_rows.append(f"| {title} | GraphSLAM | scans {m['scans'] / MIB:.0f}, open submap grid "
                                    f"{m['submap_grids'] / MIB:.0f}, finished submaps' obstacle cells "
@@ -276,7 +277,7 @@ def main():
     lines += rows
     if graph_rows:
         lines += ["", "GraphSLAM, processor seconds per stage (counts: frontend fields / closure fields built / "
-                  "closure matches):", "", "| log | " + " | ".join(GRAPH_STAGES) + " | counts |",
+                  "closure matches / scans the frontend matched locally / by the search):", "", "| log | " + " | ".join(GRAPH_STAGES) + " | counts |",
                   "|" + "---|" * (len(GRAPH_STAGES) + 2), *graph_rows]
     if rbpf_rows:
         lines += ["", "Grid FastSLAM, processor seconds per stage (table_copies is part of map_update):", "",

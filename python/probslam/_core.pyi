@@ -698,7 +698,8 @@ class IncrementalScanMatcher:
                  odometry: OdometryNoise = ..., use_odometry_prior: bool = True, constant_velocity: bool = False,
                  match_fraction: float = 1.0, update: UpdateTrigger = ..., submap_distance: float = 5.0,
                  submap_scans: int = 0, min_match_quality: float = 0.1, warmup_scans: int = 1,
-                 field_refresh_distance: float = 0.3, field_refresh_angle: float = 0.3) -> None: ...
+                 field_refresh_distance: float = 0.3, field_refresh_angle: float = 0.3,
+                 search: str = 'fallback') -> None: ...
     def add_scans(self, ranges: ArrayLike, beam_angles: ArrayLike, odometry: ArrayLike,
                   timestamps: ArrayLike) -> None:
         """ranges (S, B) m, beam_angles (B,) or (S, B) rad, odometry (S, 3) laser poses, timestamps (S,) s."""
@@ -1138,18 +1139,19 @@ class IncrementalScanMatcherOptions:
     warmup_scans: int
     field_refresh_distance: float  # m
     field_refresh_angle: float  # rad
+    search: str
     def __init__(self, *, resolution: float = 0.05, filter: ScanFilter = ..., field: LikelihoodFieldOptions = ...,
                  match: MatchOptions = ..., odometry: OdometryNoise = ..., use_odometry_prior: bool = True,
                  constant_velocity: bool = False, match_fraction: float = 1.0, update: UpdateTrigger = ...,
                  submap_distance: float = 5.0, submap_scans: int = 0, min_match_quality: float = 0.1,
-                 warmup_scans: int = 1, field_refresh_distance: float = 0.3,
-                 field_refresh_angle: float = 0.3) -> None: ...
+                 warmup_scans: int = 1, field_refresh_distance: float = 0.3, field_refresh_angle: float = 0.3,
+                 search: str = 'fallback') -> None: ...
     def replace(self, *, resolution: float = 0.05, filter: ScanFilter = ..., field: LikelihoodFieldOptions = ...,
                 match: MatchOptions = ..., odometry: OdometryNoise = ..., use_odometry_prior: bool = True,
                 constant_velocity: bool = False, match_fraction: float = 1.0, update: UpdateTrigger = ...,
                 submap_distance: float = 5.0, submap_scans: int = 0, min_match_quality: float = 0.1,
-                warmup_scans: int = 1, field_refresh_distance: float = 0.3,
-                field_refresh_angle: float = 0.3) -> IncrementalScanMatcherOptions: ...
+                warmup_scans: int = 1, field_refresh_distance: float = 0.3, field_refresh_angle: float = 0.3,
+                search: str = 'fallback') -> IncrementalScanMatcherOptions: ...
     def validate(self) -> None: ...
     def copy(self) -> IncrementalScanMatcherOptions: ...
     def as_dict(self) -> Dict[str, Any]: ...

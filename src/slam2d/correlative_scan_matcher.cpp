@@ -134,13 +134,14 @@ void MatchOptions::validate() const {
   if (use_prior) require_symmetric_positive_definite(prior_covariance, "prior_covariance", 1e-9);
 }
 
-CorrelativeScanMatcher::CorrelativeScanMatcher(LikelihoodField field, int max_level) : field_(std::move(field)) {
+CorrelativeScanMatcher::CorrelativeScanMatcher(LikelihoodField field, int max_level)
+    : field_(std::make_shared<const LikelihoodField>(std::move(field))) {
   require(max_level >= 0 && max_level <= kMaxLevel, "max_level", "must be in [0, 10]");
-  floor_ = field_.floor_value();
+  floor_ = field_->floor_value();
   pyramid_.resize(1);
   Level& base = pyramid_[0];
-  base.width = field_.width();
-  base.height = field_.height();
+  base.width = field_->width();
+  base.height = field_->height();
   extend_levels(max_level);
 }
 
@@ -160,7 +161,13 @@ double CorrelativeScanMatcher::bytes_for(int width, int height, int max_level) {
   return b;
 }
 
-double CorrelativeScanMatcher::bytes() const { return bytes_for(field_.width(), field_.height(), max_level()); }
+double CorrelativeScanMatcher::bytes() const { return bytes_for(field_->width(), field_->height(), max_level()); }
+
+CorrelativeScanMatcher CorrelativeScanMatcher::with_levels(int max_level) const {
+  CorrelativeScanMatcher deeper(*this);  // shares the field; copies the levels built
+  deeper.extend_levels(max_level);
+  return deeper;
+}
 
 void CorrelativeScanMatcher::extend_levels(int max_level) {
   require(max_level >= 0 && max_level <= kMaxLevel, "max_level", "must be in [0, 10]");
@@ -211,7 +218,7 @@ double CorrelativeScanMatcher::evaluate(const Eigen::Ref<const Points2>& points,
   if (gradient) gradient->setZero();
   double sum = 0.0, fit = 0.0;
   for (Eigen::Index i = 0; i < points.rows(); ++i) {
-    const PointFit p = fit_point(field_, R * points.row(i).transpose() + t, t, hessian != nullptr);
+    const PointFit p = fit_point(*field_, R * points.row(i).transpose() + t, t, hessian != nullptr);
     sum += p.log_p;
     fit += p.hit;
     if (!hessian) continue;
@@ -239,7 +246,7 @@ CorrelativeScanMatcher::ScanMoments CorrelativeScanMatcher::scan_moments(const E
   // Kish's effective count of the points that constrain the pose, weighted by their information.
   double info_sum = 0.0, info_sq_sum = 0.0;
   for (Eigen::Index i = 0; i < points.rows(); ++i) {
-    const PointFit p = fit_point(field_, R * points.row(i).transpose() + t, t, true);
+    const PointFit p = fit_point(*field_, R * points.row(i).transpose() + t, t, true);
     const Eigen::Vector3d g = (p.weight * p.d) * p.J;  // this point's gradient of -log p
     m.bread += p.weight * p.J * p.J.transpose();
     m.meat += g * g.transpose();
@@ -263,11 +270,12 @@ double CorrelativeScanMatcher::smooth_score(const Eigen::Ref<const Points2>& poi
 
 bool CorrelativeScanMatcher::refine(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
                                     const Eigen::Matrix3d* prior_info, const MatchOptions& options, double angular_step,
-                                    MatchResult& result) const {
-  const double res = field_.resolution();
+                                    MatchResult& result, long* evaluations) const {
+  const double res = field_->resolution();
   Eigen::Matrix3d H;
   Eigen::Vector3d g;
   double quality = 0.0;
+  long count = 1;
   result.score = evaluate(points, result.pose, prior, prior_info, &H, &g, &quality);
   result.match_quality = quality;
   if (!options.refine) return false;
@@ -288,6 +296,7 @@ bool CorrelativeScanMatcher::refine(const Eigen::Ref<const Points2>& points, con
       Eigen::Vector3d gc;
       double qc = 0.0;
       const double sc = evaluate(points, cand, prior, prior_info, &Hc, &gc, &qc);
+      ++count;
       if (sc > sx) {
         x = cand, H = Hc, g = gc, sx = sc, qx = qc;
         accepted = true;
@@ -299,6 +308,7 @@ bool CorrelativeScanMatcher::refine(const Eigen::Ref<const Points2>& points, con
       break;
     }
   }
+  if (evaluations) *evaluations += count;
   // A refinement that wanders out of the window has left the basin the search found.
   const Eigen::Vector3d moved(x.x() - prior.x(), x.y() - prior.y(), wrap_angle(x.z() - prior.z()));
   if (std::abs(moved.x()) > options.window.linear + res || std::abs(moved.y()) > options.window.linear + res ||
@@ -339,7 +349,7 @@ Eigen::Matrix3d CorrelativeScanMatcher::pose_covariance(const Eigen::Ref<const P
   // refinement may reach (a Gaussian of the same variance, (2 half-width)^2 / 12). This is what
   // bounds the covariance along a direction the scan does not constrain (a corridor); elsewhere
   // it is negligible against the scan.
-  const double res = field_.resolution();
+  const double res = field_->resolution();
   const Eigen::Vector3d half(options.window.linear + res, options.window.linear + res,
                              options.window.angular + angular_step);
   const Eigen::Matrix3d window_info = (4.0 * kUniformVariance * half.cwiseAbs2()).cwiseInverse().asDiagonal();
@@ -422,7 +432,7 @@ double CorrelativeScanMatcher::profile_variance(const Eigen::Ref<const Points2>&
 Eigen::Matrix3d CorrelativeScanMatcher::unseen_errors(const Eigen::Matrix<double, 3, 2>& map_share,
                                                       const MatchOptions& options, double angular_step,
                                                       bool stationary) const {
-  const double res = field_.resolution();
+  const double res = field_->resolution();
   Eigen::Matrix3d extra = Eigen::Matrix3d::Zero();
   if (options.min_translation_std > 0.0) {
     extra.topLeftCorner<2, 2>().diagonal().setConstant(options.min_translation_std * options.min_translation_std);
@@ -446,6 +456,80 @@ Eigen::Matrix3d CorrelativeScanMatcher::unseen_errors(const Eigen::Matrix<double
 MatchResult CorrelativeScanMatcher::match(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
                                           const MatchOptions& options) const {
   return search(points, prior, options, nullptr);
+}
+
+void CorrelativeScanMatcher::check_match_input(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
+                                               const MatchOptions& options) {
+  options.validate();
+  require(points.rows() > 0, "points", "must not be empty (a scan with no valid reading cannot be matched)");
+  require(points.rows() <= kMaxPoints, "points", "has more than 2^20 rows; decimate the scan first");
+  require_all_finite(points, "points");
+  require_all_finite(prior, "prior");
+}
+
+Eigen::Matrix3d CorrelativeScanMatcher::prior_information(const MatchOptions& options) {
+  if (!options.use_prior) return Eigen::Matrix3d::Zero();
+  const Eigen::Matrix3d info = options.prior_covariance.inverse();
+  return 0.5 * (info + info.transpose());
+}
+
+double CorrelativeScanMatcher::angular_step_for(const Eigen::Ref<const Points2>& points,
+                                                const MatchOptions& options) const {
+  if (options.window.angular_step > 0.0) return options.window.angular_step;
+  // The step at which the farthest point moves one cell (law of cosines).
+  const double res = field_->resolution();
+  const double max_range = std::max(points.rowwise().norm().maxCoeff(), res);
+  return std::acos(std::clamp(1.0 - res * res / (2.0 * max_range * max_range), -1.0, 1.0));
+}
+
+CorrelativeScanMatcher::Linearization CorrelativeScanMatcher::linearize(const Eigen::Ref<const Points2>& points,
+                                                                        const Eigen::Vector3d& pose,
+                                                                        const Eigen::Vector3d& prior,
+                                                                        const MatchOptions& options) const {
+  check_match_input(points, prior, options);
+  require_all_finite(pose, "pose");
+  const Eigen::Matrix3d info = prior_information(options);
+  Linearization l;
+  l.score = evaluate(points, pose, prior, options.use_prior ? &info : nullptr, &l.hessian, &l.gradient,
+                     &l.match_quality);
+  return l;
+}
+
+MatchResult CorrelativeScanMatcher::local_match(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& start,
+                                                const Eigen::Vector3d& prior, const MatchOptions& options) const {
+  check_match_input(points, prior, options);
+  require_all_finite(start, "start");
+  const Eigen::Matrix3d info = prior_information(options);
+  const Eigen::Matrix3d* prior_info = options.use_prior ? &info : nullptr;
+  const double step = angular_step_for(points, options);
+  MatchResult result;
+  result.num_points = static_cast<int>(points.rows());
+  result.angular_step = step;
+  result.pose = Eigen::Vector3d(start.x(), start.y(), wrap_angle(start.z()));
+  MatchOptions refined = options;
+  refined.refine = true;
+  const bool stationary = refine(points, prior, prior_info, refined, step, result, &result.candidates_scored);
+  result.search_pose = result.pose;
+  result.search_score = result.score;
+  result.covariance.setZero();
+  // The basin test: in units of the window's half-widths (as the covariance's), every principal
+  // curvature of the Hessian at least kBasinWidths^2, i.e. kBasinWidths Laplace widths inside
+  // the window; a smaller one is a flat run (a corridor without a prior) the local optimiser
+  // cannot place.
+  const double res = field_->resolution();
+  const Eigen::Vector3d half(options.window.linear + res, options.window.linear + res, options.window.angular + step);
+  bool basin = false;
+  if (stationary) {
+    const Linearization at = linearize(points, result.pose, prior, options);
+    ++result.candidates_scored;
+    const Eigen::Matrix3d unit = half.asDiagonal() * at.hessian * half.asDiagonal();
+    const double smallest = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(unit, Eigen::EigenvaluesOnly).eigenvalues()(0);
+    basin = smallest >= kBasinWidths * kBasinWidths;
+  }
+  result.found = stationary && basin;
+  if (!result.found) return result;
+  result.covariance = pose_covariance(points, prior, prior_info, options, step, result, true);
+  return result;
 }
 
 MatchResult CorrelativeScanMatcher::runner_up(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
@@ -475,7 +559,7 @@ MatchResult CorrelativeScanMatcher::runner_up(const Eigen::Ref<const Points2>& p
     const Eigen::Vector3d row_x(1.0, 0.0, -q.y()), row_y(0.0, 1.0, q.x());
     moved += row_x * row_x.transpose() + row_y * row_y.transpose();
   }
-  const double reach = field_.options().truncation();
+  const double reach = field_->options().truncation();
   ex.reach = moved / (static_cast<double>(points.rows()) * reach * reach);
   return search(points, prior, options, &ex);
 }
@@ -503,8 +587,8 @@ double CorrelativeScanMatcher::closeness(const Eigen::Ref<const Points2>& points
   double sum = 0.0, sum_sq = 0.0;
   for (Eigen::Index i = 0; i < points.rows(); ++i) {
     const Eigen::Vector2d p = points.row(i).transpose();
-    const double la = fit_point(field_, Ra * p + a.head<2>(), a.head<2>(), false).log_p;
-    const double lb = fit_point(field_, Rb * p + b.head<2>(), b.head<2>(), false).log_p;
+    const double la = fit_point(*field_, Ra * p + a.head<2>(), a.head<2>(), false).log_p;
+    const double lb = fit_point(*field_, Rb * p + b.head<2>(), b.head<2>(), false).log_p;
     sum += la - lb;
     sum_sq += (la - lb) * (la - lb);
   }
@@ -517,22 +601,14 @@ double CorrelativeScanMatcher::closeness(const Eigen::Ref<const Points2>& points
 
 MatchResult CorrelativeScanMatcher::search(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
                                            const MatchOptions& options, const Exclusion* exclusion) const {
-  options.validate();
-  require(points.rows() > 0, "points", "must not be empty (a scan with no valid reading cannot be matched)");
-  require(points.rows() <= kMaxPoints, "points", "has more than 2^20 rows; decimate the scan first");
-  require_all_finite(points, "points");
-  require_all_finite(prior, "prior");
-  const double res = field_.resolution();
+  check_match_input(points, prior, options);
+  const double res = field_->resolution();
 
   SearchSpace sp;
   sp.res = res;
   sp.prior = prior;
   sp.use_prior = options.use_prior;
-  const double max_range = std::max(points.rowwise().norm().maxCoeff(), res);
-  // The step at which the farthest point moves one cell (law of cosines).
-  sp.step = options.window.angular_step > 0.0
-                ? options.window.angular_step
-                : std::acos(std::clamp(1.0 - res * res / (2.0 * max_range * max_range), -1.0, 1.0));
+  sp.step = angular_step_for(points, options);
   const double linear_cells = std::ceil(options.window.linear / res);
   const double angular_steps = std::floor(options.window.angular / sp.step + 1e-9);
   const double candidates = (2 * angular_steps + 1) * (2 * linear_cells + 1) * (2 * linear_cells + 1);
@@ -545,8 +621,7 @@ MatchResult CorrelativeScanMatcher::search(const Eigen::Ref<const Points2>& poin
   sp.linear_cells = static_cast<int>(linear_cells);
   sp.angular_steps = static_cast<int>(angular_steps);
   if (sp.use_prior) {
-    sp.info = options.prior_covariance.inverse();
-    sp.info = 0.5 * (sp.info + sp.info.transpose());
+    sp.info = prior_information(options);
     const Eigen::Matrix2d lxx = sp.info.topLeftCorner<2, 2>();
     const Eigen::Vector2d lxt = sp.info.block<2, 1>(0, 2);
     const Eigen::Matrix2d lxx_inv = lxx.inverse();
@@ -559,7 +634,7 @@ MatchResult CorrelativeScanMatcher::search(const Eigen::Ref<const Points2>& poin
   const int num_angles = 2 * sp.angular_steps + 1;
   sp.scans.resize(static_cast<std::size_t>(num_angles));
   // The field's col_of / row_of, inlined: this runs for every point at every rotation.
-  const Eigen::Vector2d field_origin = field_.origin();
+  const Eigen::Vector2d field_origin = field_->origin();
   const double inv_res = 1.0 / res;
   for (int a = 0; a < num_angles; ++a) {
     const Eigen::Matrix2d R = rotation_matrix(prior.z() + sp.theta_offset(a));

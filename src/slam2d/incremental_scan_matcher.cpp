@@ -1,12 +1,15 @@
 #include "probslam/slam2d/incremental_scan_matcher.hpp"
 
+#include <Eigen/Cholesky>
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <utility>
 #include <string>
 
 #include "probslam/core/angle.hpp"
 #include "probslam/core/check.hpp"
+#include "probslam/core/chi_square.hpp"
 #include "probslam/core/pose2.hpp"
 #include "probslam/core/pose2_covariance.hpp"
 #include "probslam/slam2d/cpu_clock.hpp"
@@ -31,6 +34,14 @@ constexpr int kVelocityScans = 5;
 /// The constant-velocity prediction over a gap in the scans is at most this many times the last
 /// motion: beyond, the last velocity says little about what happened in between.
 constexpr double kMaxVelocityScale = 3.0;
+/// A local match (options.search = fallback) is taken without the search only inside the
+/// gates of this probability: its offset from the prediction within the prior's chi2 (3 dof)
+/// quantile, its quality not below the last matched scan's by more than the one-sided normal
+/// quantile times the standard error. 0.999: the 16.27 the closures' dissolution gate uses
+/// (LoopClosureOptions::dissolve_chi2); a gate too strict costs a search, not accuracy.
+constexpr double kLocalMatchProbability = 0.999;
+/// The reference quality is the last matched scan's among the open submap's last this many.
+constexpr int kReferenceScans = 10;
 
 }  // namespace
 
@@ -98,7 +109,8 @@ std::optional<OccupancyGrid2D> IncrementalScanMatcher::grown_for(const Submap& s
 }
 
 MatchResult IncrementalScanMatcher::match(const Submap& submap, const Points2& points, const Eigen::Vector3d& prior,
-                                          const Eigen::Matrix3d& prior_cov, FieldCache& cache, bool use_prior) const {
+                                          const Eigen::Matrix3d& prior_cov, FieldCache& cache, bool use_prior,
+                                          double reference_quality, bool& searched) const {
   MatchOptions m = options_.match;
   m.use_prior = use_prior;
   m.prior_covariance = prior_cov;
@@ -117,11 +129,59 @@ MatchResult IncrementalScanMatcher::match(const Submap& submap, const Points2& p
   const double bulge = points.rowwise().norm().maxCoeff() * (1.0 - std::cos(0.5 * m.window.angular));
   const double margin = m.window.linear + bulge + options_.field.truncation() + 2 * options_.resolution;
   const Eigen::Vector4d region(lo.x() - margin, lo.y() - margin, hi.x() + margin, hi.y() + margin);
-  return matcher_for(submap, region, prior, cache).match(points, prior, m);
+  const std::shared_ptr<const CorrelativeScanMatcher> matcher = matcher_for(submap, region, prior, cache);
+  // The local optimiser needs the prior: it is what places the scan along what the scan does not
+  // fix, and what its innovation is measured against. A constant-velocity prediction is a guess,
+  // not a measurement: started from it, the optimiser stays in its basin, and a short-range robot
+  // without odometry lost the office loop (Stage-like, frontend alone: 0.51 m ATE searched, 3.96 m
+  // local; docs/performance.md). Such a log keeps the search for every scan.
+  if (options_.search == FrontendSearch::kFallback && use_prior && !options_.constant_velocity) {
+    MatchResult local = matcher->local_match(points, prior, prior, m);
+    if (local_match_holds(local, prior, prior_cov, reference_quality)) {
+      searched = false;
+      return local;
+    }
+  }
+  searched = true;
+  // The search's pyramid is built the first time a field is searched (the field is shared).
+  const int levels = CorrelativeScanMatcher::levels_for_window(m.window.linear, options_.resolution);
+  if (matcher->max_level() >= levels) return matcher->match(points, prior, m);
+  cache.matcher = std::make_shared<const CorrelativeScanMatcher>(matcher->with_levels(levels));
+  return cache.matcher->match(points, prior, m);
 }
 
-const CorrelativeScanMatcher& IncrementalScanMatcher::matcher_for(const Submap& submap, const Eigen::Vector4d& region,
-                                                                  const Eigen::Vector3d& prior, FieldCache& c) const {
+bool IncrementalScanMatcher::local_match_holds(const MatchResult& local, const Eigen::Vector3d& prior,
+                                               const Eigen::Matrix3d& prior_cov, double reference_quality) const {
+  static const double innovation_gate = chi_square_quantile(kLocalMatchProbability, 3);
+  static const double quality_sigmas = std::sqrt(chi_square_quantile(2.0 * kLocalMatchProbability - 1.0, 1));
+  if (!local.found || !(local.match_quality >= options_.min_match_quality)) return false;
+  // Quality: a mean of N values in [0, 1] around q has a standard error of at most
+  // sqrt(q (1 - q) / N); a local optimum in the wrong basin leaves many points off their walls.
+  if (!std::isfinite(reference_quality)) return false;
+  const double se = std::sqrt(reference_quality * (1.0 - reference_quality) / std::max(local.num_points, 1));
+  if (local.match_quality < reference_quality - quality_sigmas * se) return false;
+  // Innovation: the match's offset from the prediction, in the prior's Mahalanobis terms.
+  Eigen::Vector3d d = local.pose - prior;
+  d.z() = wrap_angle(d.z());
+  const Eigen::LDLT<Eigen::Matrix3d> ldlt(prior_cov);
+  return ldlt.info() == Eigen::Success && d.dot(ldlt.solve(d)) <= innovation_gate;
+}
+
+double IncrementalScanMatcher::reference_quality() const {
+  if (submaps_.empty()) return std::numeric_limits<double>::quiet_NaN();
+  const std::vector<int>& scans = submaps_.back().scans;
+  const int n = static_cast<int>(scans.size());
+  for (int k = n - 1; k >= 0 && k >= n - kReferenceScans; --k) {
+    const ScanEstimate& e = estimates_[static_cast<std::size_t>(scans[static_cast<std::size_t>(k)])];
+    if (e.matched && e.match_quality > 0.0) return e.match_quality;
+  }
+  return std::numeric_limits<double>::quiet_NaN();
+}
+
+std::shared_ptr<const CorrelativeScanMatcher> IncrementalScanMatcher::matcher_for(const Submap& submap,
+                                                                                  const Eigen::Vector4d& region,
+                                                                                  const Eigen::Vector3d& prior,
+                                                                                  FieldCache& c) const {
   const int index = static_cast<int>(&submap - submaps_.data());
   const bool near = (prior.head<2>() - c.built_at.head<2>()).norm() < options_.field_refresh_distance &&
                     std::abs(wrap_angle(prior.z() - c.built_at.z())) < options_.field_refresh_angle;
@@ -129,13 +189,14 @@ const CorrelativeScanMatcher& IncrementalScanMatcher::matcher_for(const Submap& 
                      c.grid_width == submap.grid.width() && c.grid_height == submap.grid.height() &&
                      region[0] >= c.region[0] &&
                      region[1] >= c.region[1] && region[2] <= c.region[2] && region[3] <= c.region[3];
-  if (fresh) return *c.matcher;
+  if (fresh) return c.matcher;
   // Built with room to spare, so that the next scans land inside it too.
   const Eigen::Vector4d grown = region + Eigen::Vector4d(-kFieldRoom, -kFieldRoom, kFieldRoom, kFieldRoom);
   LikelihoodField field = LikelihoodField::from_grid(submap.grid, grown, options_.field);
-  int levels = 0;
-  const double cells = 2.0 * std::ceil(options_.match.window.linear / options_.resolution) + 1.0;
-  while (levels < CorrelativeScanMatcher::kMaxLevel && (1 << levels) < cells) ++levels;
+  // The search's pyramid now, or (fallback) when a scan first needs the search on this field.
+  const int levels = options_.search == FrontendSearch::kAlways
+                         ? CorrelativeScanMatcher::levels_for_window(options_.match.window.linear, options_.resolution)
+                         : 0;
   c.matcher = std::make_shared<const CorrelativeScanMatcher>(std::move(field), levels);
   c.submap = index;
   c.built_at = prior;
@@ -143,7 +204,7 @@ const CorrelativeScanMatcher& IncrementalScanMatcher::matcher_for(const Submap& 
   c.grid_origin = submap.grid.origin();
   c.grid_width = submap.grid.width();
   c.grid_height = submap.grid.height();
-  return *c.matcher;
+  return c.matcher;
 }
 
 void IncrementalScanMatcher::check_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
@@ -212,8 +273,11 @@ IncrementalScanMatcher::PendingScan IncrementalScanMatcher::prepare(const Eigen:
     const double t1 = cpu_seconds();
     auto cache = std::make_shared<FieldCache>(*field_cache_);
     const MatchResult r = match(cur, points, prior, J * rel_cov * J.transpose(), *cache,
-                                options_.use_odometry_prior && !on_map && prior_known);
-    p.field_built = cache->matcher != field_cache_->matcher;
+                                options_.use_odometry_prior && !on_map && prior_known, reference_quality(),
+                                p.searched);
+    p.local = !p.searched;
+    // A field of its own (a deeper pyramid on the cached field is no new field).
+    p.field_built = !field_cache_->matcher || &cache->matcher->field() != &field_cache_->matcher->field();
     p.cache = std::move(cache);
     p.match_seconds = cpu_seconds() - t1;
     est.match_quality = r.match_quality;
@@ -280,6 +344,8 @@ ScanEstimate IncrementalScanMatcher::commit(PendingScan&& p) {
   timings_.filter += p.filter_seconds;
   timings_.match += p.match_seconds;
   timings_.fields_built += p.field_built;
+  timings_.local_matches += p.local;
+  timings_.searches += p.searched;
   if (p.cache) field_cache_ = std::move(p.cache);
   if (p.moved) {
     Submap& cur = submaps_.back();

@@ -11,6 +11,8 @@ SubmapSlamTimings SubmapSlam2D::timings() const {
   t.match = f.match;
   t.insert = f.insert;
   t.frontend_fields = f.fields_built;
+  t.frontend_local = f.local_matches;
+  t.frontend_searches = f.searches;
   t.final_map = map_seconds_;
   return t;
 }

@@ -91,10 +91,16 @@ def test_timings_count_every_stage(log):
     slam.map()
     t = slam.timings.as_dict()
     assert set(t) == {"filter", "match", "insert", "closure_search", "closure_fields", "optimize", "final_map",
-                      "frontend_fields", "closure_fields_built", "closure_matches"}
+                      "frontend_fields", "closure_fields_built", "closure_matches", "frontend_local",
+                      "frontend_searches"}
     assert all(v >= 0 for v in t.values())
     assert t["match"] > 0 and t["insert"] > 0 and t["final_map"] > before
     assert t["closure_fields"] <= t["closure_search"] and t["frontend_fields"] > 0
+    # Every scan the frontend matched (the first is placed, not matched) went one way or the
+    # other (issue 54; a match that failed its quality test counts too); a log with odometry is
+    # matched mostly by the local optimiser.
+    assert t["frontend_local"] + t["frontend_searches"] >= slam.summary.matched_scans - 1
+    assert t["frontend_local"] > t["frontend_searches"]
     # A copy carries the counts.
     assert slam.copy().timings.as_dict() == t
     # A bound report: read-only fields, equal after pickling, the fields in its repr.

@@ -37,14 +37,15 @@ def similarity_scale(estimate, truth):
 NEAR_HITS = 0.6
 
 
-def frontend(world, odometry, seed=0, match_fraction=NEAR_HITS):
+def frontend(world, odometry, seed=0, match_fraction=NEAR_HITS, search="fallback"):
     sim = sim_laser.simulate(world, "stage", odometry, seed=seed)
     scans = sim.scans()
     # As a log that does not state its odometry's noise (the fixed model, 1 cm a scan): the
     # stated noise of perfect odometry would hold the frontend on it whatever the matching does.
     scans.odometry_noise[:] = np.nan
     options = ps.slam.default_options(scans).replace(closures={"enabled": False},
-                                                     frontend={"match_fraction": match_fraction})
+                                                     frontend={"match_fraction": match_fraction,
+                                                               "search": search})
     result = ps.slam.run_slam(scans, progress=False, options=options)
     return sim, result
 
@@ -63,9 +64,14 @@ def test_short_range_frontend_does_not_shrink_a_corridor():
 
 
 def test_every_hit_matched_brings_the_edge_pull_back():
-    # The cause, shown: with match_fraction 1 the same corridor shrinks by a third.
-    sim, result = frontend("corridor", "perfect", match_fraction=1.0)
+    # The cause, shown: with match_fraction 1 and the search for every scan the same corridor
+    # shrinks by a third (the search's best lattice pose is pulled back by the map's edge); the
+    # local optimiser from the prediction (issue 54's default) stays in the prediction's basin
+    # and shrinks it much less (1.06 on seed 0).
+    sim, result = frontend("corridor", "perfect", match_fraction=1.0, search="always")
     assert similarity_scale(result.frontend_poses, sim.truth) > 1.2
+    sim, result = frontend("corridor", "perfect", match_fraction=1.0)
+    assert similarity_scale(result.frontend_poses, sim.truth) < 1.1
 
 
 #: Scans without a hit (the laser blinded) take the prediction: constant velocity carries the

@@ -29,7 +29,7 @@ namespace probslam {
 /// 5: the options of the laser SLAM classes and of FastSlam written through their describe()
 /// (issue 52): the scan matcher's no longer hold the match's prior, which every owner sets per
 /// match; FastSlam's noise and start pose follow its options (the model is the constructor's).
-inline constexpr std::uint32_t kStateFormatVersion = 5;
+inline constexpr std::uint32_t kStateFormatVersion = 6;
 
 /// What a reader throws: "<source>: <what is wrong>".
 class StateError : public std::invalid_argument {

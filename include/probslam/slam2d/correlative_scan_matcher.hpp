@@ -5,6 +5,7 @@
 // the robust sandwich of the score, the map's cell quantization and the search window.
 #include <Eigen/Core>
 #include <limits>
+#include <memory>
 #include <vector>
 
 #include "probslam/core/options_description.hpp"
@@ -89,7 +90,7 @@ class CorrelativeScanMatcher {
   /// 2^k x 2^k cells, k = 0..max_level (a window wider than 2^max_level cells starts with
   /// several top-level nodes). Throws std::invalid_argument unless 0 <= max_level <= kMaxLevel.
   explicit CorrelativeScanMatcher(LikelihoodField field, int max_level = 6);
-  const LikelihoodField& field() const { return field_; }
+  const LikelihoodField& field() const { return *field_; }
 
   /// Matches hit points (N, 2, sensor frame, metres) against the field around `prior` (the
   /// sensor pose (x, y, theta) in the field's frame). Throws std::invalid_argument for no
@@ -130,6 +131,30 @@ class CorrelativeScanMatcher {
   double smooth_score(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& pose,
                       const Eigen::Vector3d& prior, const MatchOptions& options) const;
 
+  /// The refinement's linearisation at `pose`: smooth_score, the gradient of -smooth_score (the
+  /// points' sum of w d J, w the IRLS weight of -log p, d the distance, J its Jacobian in the
+  /// pose, plus the prior's information times the offset) and its Gauss-Newton Hessian.
+  struct Linearization {
+    double score = 0.0, match_quality = 0.0;
+    Eigen::Vector3d gradient = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d hessian = Eigen::Matrix3d::Zero();
+  };
+  Linearization linearize(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& pose,
+                          const Eigen::Vector3d& prior, const MatchOptions& options) const;
+
+  /// The local optimiser alone (issue 54): Gauss-Newton on the interpolated field from `start`
+  /// (a prediction), the prior as a residual when options.use_prior, to the nearest stationary
+  /// point of smooth_score; no search. found = false (covariance zero; pose, score and quality
+  /// where the optimiser stopped: `start` if it left the window) unless it
+  /// converged there inside the window around `prior` and the Hessian there (with the prior)
+  /// holds the pose within the window: along every principal axis the Laplace basin's
+  /// kBasinWidths widths lie inside the window's half-width (the test widen_where_flat uses to
+  /// tell a basin from a flat run). When found, the covariance is match()'s for a refined pose
+  /// (the sandwich, widened where the score stays flat across the window) and search_pose is
+  /// the pose too; candidates_scored counts the score evaluations and angular_steps is 0.
+  MatchResult local_match(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& start,
+                          const Eigen::Vector3d& prior, const MatchOptions& options) const;
+
   /// Largest number of lattice poses a window may hold: 2e9 would take minutes even pruned.
   static constexpr double kMaxCandidates = 2e9;
   /// Largest number of points in a scan (a long scan is decimated first).
@@ -147,6 +172,9 @@ class CorrelativeScanMatcher {
   /// them already): a field built for small windows, then asked for a large one. Not
   /// thread-safe, unlike match(). std::invalid_argument unless max_level <= kMaxLevel.
   void extend_levels(int max_level);
+  /// A copy with levels up to max_level that shares this one's field (extend_levels without
+  /// changing this object: a field built for the local optimiser, then searched).
+  CorrelativeScanMatcher with_levels(int max_level) const;
   /// Bytes held: the field's two tables and the pyramid's levels above the base.
   double bytes() const;
   /// What bytes() would be with levels up to max_level (for a cache's budget before it builds).
@@ -166,6 +194,14 @@ class CorrelativeScanMatcher {
     /// In either ellipse, or outside the admitted one.
     bool contains(const Eigen::Vector3d& pose) const;
   };
+  /// The angular step of a search of `points` (options.window.angular_step, or the step at
+  /// which the farthest point moves one cell).
+  double angular_step_for(const Eigen::Ref<const Points2>& points, const MatchOptions& options) const;
+  /// The checks match() makes of its input.
+  static void check_match_input(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
+                                const MatchOptions& options);
+  /// The prior's information (symmetrised inverse covariance) when options.use_prior.
+  static Eigen::Matrix3d prior_information(const MatchOptions& options);
   /// match(), or with an exclusion runner_up()'s search (without its covariance).
   MatchResult search(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
                      const MatchOptions& options, const Exclusion* exclusion) const;
@@ -181,7 +217,7 @@ class CorrelativeScanMatcher {
   };
   LevelView level_view(int k) const {
     const Level& L = pyramid_[static_cast<std::size_t>(k)];
-    return {k == 0 ? field_.log_likelihood().data() : L.values.data(), L.pad, L.width, L.height};
+    return {k == 0 ? field_->log_likelihood().data() : L.values.data(), L.pad, L.width, L.height};
   }
   // In the header so that the search's inner loop inlines it (it is most of a match's time).
   float level_value(const LevelView& L, int row, int col) const {
@@ -207,9 +243,10 @@ class CorrelativeScanMatcher {
   ScanMoments scan_moments(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& pose) const;
   /// Gauss-Newton from result.pose (when options.refine); sets pose, score and match_quality.
   /// True when it ended at a stationary point of the smooth score inside the window.
+  /// evaluations (if given) counts the score's evaluations.
   bool refine(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
               const Eigen::Matrix3d* prior_info, const MatchOptions& options, double angular_step,
-              MatchResult& result) const;
+              MatchResult& result, long* evaluations = nullptr) const;
   static Eigen::Matrix3d scan_meat(const ScanMoments& scan);
   Eigen::Matrix3d pose_covariance(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
                                   const Eigen::Matrix3d* prior_info, const MatchOptions& options,
@@ -233,8 +270,9 @@ class CorrelativeScanMatcher {
   Eigen::Matrix3d unseen_errors(const Eigen::Matrix<double, 3, 2>& map_share, const MatchOptions& options,
                                 double angular_step, bool stationary) const;
 
-  LikelihoodField field_;
-  float floor_ = 0.0f;  // field_.floor_value(), kept beside the pyramid
+  /// Immutable, shared by copies (with_levels): a deeper pyramid needs no copy of the field.
+  std::shared_ptr<const LikelihoodField> field_;
+  float floor_ = 0.0f;  // field_->floor_value(), kept beside the pyramid
   std::vector<Level> pyramid_;  // immutable after construction: match() is thread-safe
 };
 

@@ -4,6 +4,7 @@
 // and then inserted at the matched pose. With submap_distance > 0 the map is cut into local
 // submaps (ch. 11.7's "local submaps from scan matching"), each starting at a scan's pose.
 #include <Eigen/Core>
+#include <array>
 #include <memory>
 #include <optional>
 #include <string>
@@ -42,6 +43,18 @@ struct OdometryNoise {
   }
   /// Covariance (3x3, in the frame of the earlier pose) of a relative motion `delta`.
   Eigen::Matrix3d covariance(const Eigen::Vector3d& delta) const;
+};
+
+/// How the frontend matches a scan against its submap (issue 54).
+enum class FrontendSearch {
+  /// A local optimiser (Gauss-Newton on the interpolated field from the prediction, the odometry
+  /// prior as a residual); the correlative search only when that match is poor.
+  kFallback,
+  kAlways,  ///< the correlative search (branch and bound over the window) for every scan
+};
+template <>
+struct OptionEnum<FrontendSearch> {
+  static constexpr std::array<const char*, 2> names{"fallback", "always"};
 };
 
 struct IncrementalScanMatcherOptions {
@@ -84,6 +97,15 @@ struct IncrementalScanMatcherOptions {
   /// the map of a few decimetres ago costs nothing in accuracy and saves most distance transforms
   /// (ACES, first 2500 scans: 0.037 m relation error either way, 3x faster). 0: every scan.
   double field_refresh_distance = 0.3, field_refresh_angle = 0.3;
+  /// kFallback: each scan is matched by a local optimiser from the prediction, and by the
+  /// correlative search over `match.window` only when the local match is poor: it did not
+  /// converge inside the window, its Hessian does not hold the pose within the window, its
+  /// quality is below min_match_quality or significantly below the last matched scan's, or it
+  /// lies beyond the prior's 99.9 % chi2 gate (see docs/performance.md). Without odometry
+  /// (constant_velocity: the prediction is a guess) or without a prior in the score
+  /// (use_odometry_prior off, a start on a map) every scan is searched. kAlways: every scan is
+  /// searched.
+  FrontendSearch search = FrontendSearch::kFallback;
 
   /// std::invalid_argument naming the first bad option by its path ("filter.max_range").
   void validate() const;
@@ -105,6 +127,9 @@ struct IncrementalScanMatcherOptions {
     v("warmup_scans", &O::warmup_scans, "", "scans inserted into a new local map before matching starts against it");
     v("field_refresh_distance", &O::field_refresh_distance, "m", "the likelihood field is rebuilt once the robot moved this far (0: every scan)");
     v("field_refresh_angle", &O::field_refresh_angle, "rad", "... or turned this much");
+    v("search", &O::search, "",
+      "'fallback': a local optimiser from the prediction, the correlative search only where its match is poor; "
+      "'always': the search for every scan");
   }
 };
 
@@ -137,6 +162,8 @@ struct ScanMatcherTimings {
   double match = 0.0;   ///< correlative matching, the likelihood fields built for it included
   double insert = 0.0;  ///< rays into the submap grids, their growth and new submaps included
   long fields_built = 0;  ///< likelihood fields built for matching
+  long local_matches = 0;  ///< scans matched by the local optimiser alone (options.search)
+  long searches = 0;       ///< scans matched by the correlative search
 };
 
 /// Every call is all or nothing: add_scan checks its input (check_scan), then works out the scan's
@@ -183,6 +210,7 @@ class IncrementalScanMatcher {
     std::shared_ptr<const FieldCache> cache;  // the field cache after matching
     double filter_seconds = 0.0, match_seconds = 0.0;  // spent in prepare, added by commit
     bool field_built = false;
+    bool searched = false, local = false;  // which matcher gave the estimate
   };
   /// The estimate of a scan that passed check_scan, and every grid it needs: throws (nothing
   /// changed) when a grid would exceed its limit.
@@ -249,15 +277,23 @@ class IncrementalScanMatcher {
   OccupancyGrid2D new_submap_grid(const Eigen::Vector3d& origin) const;
   /// The open submap's grid grown to hold a scan at `pose`, or nothing when it holds it already.
   std::optional<OccupancyGrid2D> grown_for(const Submap& submap, const Eigen::Vector3d& pose) const;
+  /// The scan's match: the local optimiser's when options_.search allows and it holds (see
+  /// local_match_holds against reference_quality), else the correlative search's (`searched`).
   MatchResult match(const Submap& submap, const Points2& points, const Eigen::Vector3d& prior,
-                    const Eigen::Matrix3d& prior_cov, FieldCache& cache, bool use_prior) const;
+                    const Eigen::Matrix3d& prior_cov, FieldCache& cache, bool use_prior, double reference_quality,
+                    bool& searched) const;
+  /// Whether a local match stands without the search (options_.search's tests).
+  bool local_match_holds(const MatchResult& local, const Eigen::Vector3d& prior, const Eigen::Matrix3d& prior_cov,
+                         double reference_quality) const;
+  /// The match quality of the open submap's last scan-matched scan (NaN: none yet).
+  double reference_quality() const;
   /// The hits a scan is matched on (options_.match_fraction).
   Points2 matched_hits(const Points2& hits) const;
   /// The constant-velocity prediction of the motion to a scan at `timestamp`; nothing before
   /// enough scans have moved to tell a velocity.
   std::optional<Eigen::Vector3d> last_motion(double timestamp) const;
-  const CorrelativeScanMatcher& matcher_for(const Submap& submap, const Eigen::Vector4d& region,
-                                            const Eigen::Vector3d& prior, FieldCache& cache) const;
+  std::shared_ptr<const CorrelativeScanMatcher> matcher_for(const Submap& submap, const Eigen::Vector4d& region,
+                                                            const Eigen::Vector3d& prior, FieldCache& cache) const;
 
   std::shared_ptr<const FieldCache> field_cache_ = std::make_shared<FieldCache>();
 

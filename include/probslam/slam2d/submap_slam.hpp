@@ -122,6 +122,7 @@ struct SubmapSlamTimings {
   double optimize = 0.0;        ///< pose-graph optimisation and dissolution
   double final_map = 0.0;       ///< map()
   long frontend_fields = 0, closure_fields_built = 0, closure_matches = 0;
+  long frontend_local = 0, frontend_searches = 0;  ///< the frontend's (ScanMatcherTimings)
 
   template <class V>
   static void describe(V& v) {
@@ -136,6 +137,8 @@ struct SubmapSlamTimings {
     v("frontend_fields", &T::frontend_fields, "", "likelihood fields the frontend built");
     v("closure_fields_built", &T::closure_fields_built, "", "fields the closure search built");
     v("closure_matches", &T::closure_matches, "", "closure matches tried");
+    v("frontend_local", &T::frontend_local, "", "scans the frontend matched by its local optimiser alone");
+    v("frontend_searches", &T::frontend_searches, "", "scans the frontend matched by the correlative search");
   }
 };
 
