@@ -8,6 +8,16 @@
 #include "probslam/grid/log_odds.hpp"
 
 namespace probslam {
+namespace {
+
+/// A memo's first table size (a power of two): a proposal visits a few hundred to a few
+/// thousand cells; the table doubles when half full.
+constexpr std::size_t kMemoFirstSlots = 4096;
+/// Extra reach (m) of a memo entry beyond where the search provably stops, against rounding in
+/// that bound (distances of metres, rounding of 1e-16 m): a longer list only costs a few steps.
+constexpr double kMemoSlack = 1e-6;
+
+}  // namespace
 
 void EndpointLikelihoodOptions::validate() const {
   require_positive(sigma, "sigma");
@@ -42,11 +52,11 @@ EndpointLikelihood::EndpointLikelihood(const EndpointLikelihoodOptions& options,
   occupied_log_odds_ = logit(options.occupied_threshold);
 }
 
-double EndpointLikelihood::log_likelihood(const TiledGrid2D& grid, const Eigen::Vector3d& pose,
-                                          const Eigen::Ref<const Points2>& points, double* quality) const {
+template <class Nearest>
+double EndpointLikelihood::sum(const TiledGrid2D& grid, const Eigen::Vector3d& pose,
+                               const Eigen::Ref<const Points2>& points, double* quality, const Nearest& best2_of) const {
   const double c = std::cos(pose.z()), s = std::sin(pose.z());
   const GridLattice2D& lattice = grid.lattice();
-  const double threshold = occupied_log_odds_;
   const double radius2 = options_.search_radius * options_.search_radius;
   const double two_var = 2.0 * options_.sigma * options_.sigma;
   double sum = 0.0, hits = 0.0;
@@ -54,20 +64,9 @@ double EndpointLikelihood::log_likelihood(const TiledGrid2D& grid, const Eigen::
     const double x = pose.x() + c * points(i, 0) - s * points(i, 1);
     const double y = pose.y() + s * points(i, 0) + c * points(i, 1);
     const int row = lattice.key(1, y), col = lattice.key(0, x);
-    // Offset of the point from its cell's centre; a cell at centre distance D from that centre
-    // lies at least D - half_diagonal_ from the point, so the search stops once that exceeds
-    // the best distance found.
+    // Offset of the point from its cell's centre.
     const double ex = x - lattice.key_to_coord(0, col), ey = y - lattice.key_to_coord(1, row);
-    double best2 = std::numeric_limits<double>::infinity();
-    for (const Offset& o : offsets_) {
-      const double bound = o.centre_distance - half_diagonal_;
-      if (bound > 0.0 && bound * bound > best2) break;
-      // Saturated keys (far outside) plus a bounded offset stay far from int overflow.
-      const int rr = row + o.drow, cc = col + o.dcol;
-      if (!grid.contains(rr, cc) || !(grid.log_odds(rr, cc) > threshold)) continue;
-      const double dx = o.dcol * res_ - ex, dy = o.drow * res_ - ey;
-      best2 = std::min(best2, dx * dx + dy * dy);
-    }
+    const double best2 = best2_of(row, col, ex, ey);
     if (best2 <= radius2) {
       const double hit = std::exp(-best2 / two_var);
       sum += std::log((1.0 - options_.p_rand) * hit + options_.p_rand);
@@ -78,6 +77,88 @@ double EndpointLikelihood::log_likelihood(const TiledGrid2D& grid, const Eigen::
   }
   if (quality) *quality = points.rows() > 0 ? hits / static_cast<double>(points.rows()) : 0.0;
   return sum;
+}
+
+double EndpointLikelihood::log_likelihood(const TiledGrid2D& grid, const Eigen::Vector3d& pose,
+                                          const Eigen::Ref<const Points2>& points, double* quality) const {
+  const double threshold = occupied_log_odds_;
+  return sum(grid, pose, points, quality, [&](int row, int col, double ex, double ey) {
+    // A cell at centre distance D from the point's cell's centre lies at least D - half_diagonal_
+    // from the point, so the search stops once that exceeds the best distance found.
+    double best2 = std::numeric_limits<double>::infinity();
+    for (const Offset& o : offsets_) {
+      const double bound = o.centre_distance - half_diagonal_;
+      if (bound > 0.0 && bound * bound > best2) break;
+      // Saturated keys (far outside) plus a bounded offset stay far from int overflow.
+      const int rr = row + o.drow, cc = col + o.dcol;
+      if (!grid.contains(rr, cc) || !(grid.log_odds(rr, cc) > threshold)) continue;
+      const double dx = o.dcol * res_ - ex, dy = o.drow * res_ - ey;
+      best2 = std::min(best2, dx * dx + dy * dy);
+    }
+    return best2;
+  });
+}
+
+double EndpointLikelihood::log_likelihood(const TiledGrid2D& grid, const Eigen::Vector3d& pose,
+                                          const Eigen::Ref<const Points2>& points, Memo& memo, double* quality) const {
+  if (memo.grid != &grid) {
+    memo.grid = &grid;
+    memo.slots.assign(kMemoFirstSlots, -1);
+    memo.entries.clear();
+    memo.occupied.clear();
+  }
+  return sum(grid, pose, points, quality, [&](int row, int col, double ex, double ey) {
+    // The search's loop over the occupied cells alone: the bound grows along the search's order
+    // and best2 changes only at occupied cells, so the search stops at an unoccupied cell only
+    // where it would stop at the next occupied one.
+    const Memo::Entry& e = remembered(grid, row, col, memo);
+    double best2 = std::numeric_limits<double>::infinity();
+    for (std::uint32_t k = e.begin; k < e.end; ++k) {
+      const Memo::Occupied& o = memo.occupied[k];
+      if (o.bound > 0.0 && o.bound * o.bound > best2) break;
+      const double dx = o.dcol * res_ - ex, dy = o.drow * res_ - ey;
+      best2 = std::min(best2, dx * dx + dy * dy);
+    }
+    return best2;
+  });
+}
+
+const EndpointLikelihood::Memo::Entry& EndpointLikelihood::remembered(const TiledGrid2D& grid, int row, int col,
+                                                                      Memo& memo) const {
+  const std::int64_t key = static_cast<std::int64_t>((static_cast<std::uint64_t>(static_cast<std::uint32_t>(row)) << 32) |
+                                                     static_cast<std::uint32_t>(col));
+  auto slot_of = [&](std::int64_t k) {
+    const std::size_t mask = memo.slots.size() - 1;
+    std::size_t h = static_cast<std::size_t>((static_cast<std::uint64_t>(k) * 0x9E3779B97F4A7C15ull) >> 32) & mask;
+    while (memo.slots[h] >= 0 && memo.entries[static_cast<std::size_t>(memo.slots[h])].key != k) h = (h + 1) & mask;
+    return h;
+  };
+  std::size_t h = slot_of(key);
+  if (memo.slots[h] >= 0) return memo.entries[static_cast<std::size_t>(memo.slots[h])];
+  // A new cell: the search's occupied cells in its order. For any point of the cell (at most
+  // half_diagonal_ from its centre) the search has found a cell within D1 + half_diagonal_ once
+  // it meets the first occupied one (centre distance D1), and stops before any cell whose bound
+  // exceeds that: those are not kept (kMemoSlack keeps a few more, harmless: the walk applies
+  // the search's stopping rule itself).
+  const double threshold = occupied_log_odds_;
+  Memo::Entry e{key, static_cast<std::uint32_t>(memo.occupied.size()), 0};
+  double last = std::numeric_limits<double>::infinity();
+  for (const Offset& o : offsets_) {
+    if (o.centre_distance > last) break;
+    const int rr = row + o.drow, cc = col + o.dcol;
+    if (!grid.contains(rr, cc) || !(grid.log_odds(rr, cc) > threshold)) continue;
+    memo.occupied.push_back({o.drow, o.dcol, o.centre_distance - half_diagonal_});
+    if (last == std::numeric_limits<double>::infinity()) last = o.centre_distance + 2.0 * half_diagonal_ + kMemoSlack;
+  }
+  e.end = static_cast<std::uint32_t>(memo.occupied.size());
+  memo.entries.push_back(e);
+  if (2 * memo.entries.size() > memo.slots.size()) {  // keep the table at most half full
+    memo.slots.assign(2 * memo.slots.size(), -1);
+    for (std::size_t k = 0; k < memo.entries.size(); ++k) memo.slots[slot_of(memo.entries[k].key)] = static_cast<std::int32_t>(k);
+  } else {
+    memo.slots[h] = static_cast<std::int32_t>(memo.entries.size() - 1);
+  }
+  return memo.entries.back();
 }
 
 }  // namespace probslam

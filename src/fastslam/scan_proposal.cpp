@@ -147,7 +147,11 @@ ScanProposal scan_matching_proposal(const EndpointLikelihood& likelihood, const 
   require(grid.resolution() == likelihood.resolution(), "grid", "must have the likelihood's resolution");
 
   const PoseGaussian motion(prior, prior_cov);
-  auto score = [&](const Eigen::Vector3d& x) { return likelihood.log_likelihood(grid, x, points) + motion.log_density(x); };
+  // Every evaluation below is on this grid: the end points' searches are remembered per cell.
+  EndpointLikelihood::Memo memo;
+  auto score = [&](const Eigen::Vector3d& x) {
+    return likelihood.log_likelihood(grid, x, points, memo) + motion.log_density(x);
+  };
 
   ScanProposal p;
   double best_score = 0.0;
@@ -166,7 +170,7 @@ ScanProposal scan_matching_proposal(const EndpointLikelihood& likelihood, const 
     }
   }
   p.mode = best;
-  likelihood.log_likelihood(grid, best, points, &p.quality);
+  likelihood.log_likelihood(grid, best, points, memo, &p.quality);
   p.matched = p.quality >= options.min_match_quality;
   if (!p.matched) return p;
 

@@ -6,6 +6,7 @@
 // LikelihoodField) would cost more than the whole update; the search visits only the few cells
 // within search_radius of each end point, nearest first.
 #include <Eigen/Core>
+#include <cstdint>
 #include <vector>
 
 #include "probslam/core/types.hpp"
@@ -58,11 +59,49 @@ class EndpointLikelihood {
   double log_likelihood(const TiledGrid2D& grid, const Eigen::Vector3d& pose, const Eigen::Ref<const Points2>& points,
                         double* quality = nullptr) const;
 
+  /// The search's result per cell, for many evaluations on one grid that does not change
+  /// meanwhile (a proposal's climb and fit: about a hundred poses, each end point's cell visited
+  /// again and again). For each cell an end point fell in, it keeps the occupied cells of the
+  /// search in its order, up to where the search stops for any point of that cell; an end point
+  /// in a known cell then walks that short list (none at all far from obstacles) instead of the
+  /// window. The value is the search's, bit for bit: the same cells in the same order, the same
+  /// stopping rule. Not shared between threads; tied to one likelihood and grid.
+  class Memo {
+   public:
+    Memo() = default;
+
+   private:
+    friend class EndpointLikelihood;
+    struct Occupied {
+      int drow, dcol;
+      double bound;  // the search's lower bound on the distance to it: centre distance - half diagonal
+    };
+    struct Entry {
+      std::int64_t key;  // row << 32 | col (as unsigned)
+      std::uint32_t begin, end;  // its cells in `occupied`
+    };
+    const TiledGrid2D* grid = nullptr;
+    std::vector<std::int32_t> slots;  // open addressing: index into `entries`, -1 free
+    std::vector<Entry> entries;
+    std::vector<Occupied> occupied;
+  };
+  /// log_likelihood with the searches remembered in `memo` (cleared when it last saw another grid).
+  /// The grid must not change while the memo is used with it.
+  double log_likelihood(const TiledGrid2D& grid, const Eigen::Vector3d& pose, const Eigen::Ref<const Points2>& points,
+                        Memo& memo, double* quality = nullptr) const;
+
  private:
   struct Offset {
     int drow, dcol;
     double centre_distance;  // between the two cells' centres, m
   };
+  /// The sum and quality with best2(row, col, ex, ey) giving the squared distance to the nearest
+  /// occupied cell the search finds (infinity for none).
+  template <class Nearest>
+  double sum(const TiledGrid2D& grid, const Eigen::Vector3d& pose, const Eigen::Ref<const Points2>& points,
+             double* quality, const Nearest& best2) const;
+  /// memo's entry for cell (row, col), made on first use.
+  const Memo::Entry& remembered(const TiledGrid2D& grid, int row, int col, Memo& memo) const;
   EndpointLikelihoodOptions options_;
   double res_;
   std::vector<Offset> offsets_;  // cells that may lie within search_radius, nearest first
