@@ -735,6 +735,8 @@ class SubmapSlamTimings:
     frontend_fields: int
     closure_fields_built: int
     closure_matches: int
+    frontend_local: int
+    frontend_searches: int
     def as_dict(self) -> Dict[str, float]: ...
 
 class SubmapSlamMemory:
