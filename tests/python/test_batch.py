@@ -168,8 +168,14 @@ def test_a_sweep_stopped_by_ctrl_c_makes_only_what_is_missing_when_started_again
             time.sleep(0.01)
         _thread.interrupt_main()
 
-    threading.Thread(target=press_ctrl_c, daemon=True).start()
-    assert cli.main(cmd) == 130
+    # interrupt_main does nothing where SIGINT is ignored, as a runner started in the background
+    # (a non-interactive shell's `&`) passes it to pytest and its workers: the terminal's handler here.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        threading.Thread(target=press_ctrl_c, daemon=True).start()
+        assert cli.main(cmd) == 130
+    finally:
+        signal.signal(signal.SIGINT, previous)
     assert "holds every run that finished" in capsys.readouterr().err
     done = table.read(str(out))
     assert 0 < len(done) < 12
