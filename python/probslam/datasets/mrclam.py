@@ -592,23 +592,27 @@ class MrclamRobot(LandmarkDataset):
                          dead_reckoning_label="dead reckoning" + ALIGNED_SUFFIX)
         metrics = dict(path_rmse_m=float(s.path_rmse), path_rmse_aligned_m=float(s.path_rmse_aligned),
                        landmark_rmse_m=float(s.landmark_rmse), landmark_rmse_aligned_m=float(s.landmark_rmse_aligned),
-                       **self._map_metrics(result, labels))
+                       **self._map_metrics(result, labels, self._survey_rmse(result, labels)))
         return DatasetScore(lines, reference, dict(score=s, dead_reckoning=d), metrics)
 
-    def _map_metrics(self, result: LandmarkSlamResult, labels) -> Dict[str, float]:
-        """The association table's measures: the map's RMSE after aligning it onto the survey, its
-        exchanged labels corrected (on every dataset, with or without robot ground truth; NaN when
-        no landmark of the map is in the survey) and, with hidden correspondences, the share of
-        sightings whose landmark's majority barcode is their own."""
+    def _survey_rmse(self, result: LandmarkSlamResult, labels) -> float:
+        """The map's RMSE after aligning it onto the survey, its labels that contradict the barcodes
+        exchanged (as ``_survey_score`` has it without robot ground truth); NaN when no landmark
+        of the map is in the survey."""
         fixed = self.data.with_survey_swapped(survey_label_swaps(self.data))
         try:
-            survey = score_landmarks(result.landmarks, fixed, labels).rmse_aligned
+            return score_landmarks(result.landmarks, fixed, labels).rmse_aligned
         except ValueError:
-            survey = float("nan")
-        out = {"map_rmse_survey_aligned_m": survey}
+            return float("nan")
+
+    @staticmethod
+    def _map_metrics(result: LandmarkSlamResult, labels, survey_rmse: float) -> Dict[str, float]:
+        """The association table's measures: the map's RMSE aligned onto the survey and, with hidden
+        correspondences, the share of sightings whose landmark's majority barcode is their own."""
+        out = {"map_rmse_survey_aligned_m": float(survey_rmse)}
         if labels is not None:
-            out["association_correct"] = association_accuracy(result)
-        return {k: float(v) for k, v in out.items()}
+            out["association_correct"] = float(association_accuracy(result))
+        return out
 
     def _survey_score(self, result: LandmarkSlamResult, dead: LandmarkSlamResult, labels) -> DatasetScore:
         swaps = survey_label_swaps(self.data)
@@ -623,7 +627,8 @@ class MrclamRobot(LandmarkDataset):
                      f"(dead-reckoning map {d.rmse_aligned:.3f} m; no robot ground truth)")
         reference = dict(dead_reckoning=dead.poses, truth_landmarks_label="surveyed landmarks (aligned onto the map)",
                          truth_landmarks=s.survey_in_map_frame(fixed))
-        return DatasetScore(lines, reference, dict(score=s, dead_reckoning=d), self._map_metrics(result, labels))
+        return DatasetScore(lines, reference, dict(score=s, dead_reckoning=d),
+                            self._map_metrics(result, labels, s.rmse_aligned))
 
     def title(self, options) -> str:
         """The folder, robot and window, for the picture's title."""
