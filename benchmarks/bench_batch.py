@@ -2,10 +2,10 @@
 kind (it does nothing) on a LocalCluster already started, with and without the table written
 after each row, so that the difference of the wall times over the runs is the executor's and
 the table's own cost; then (--throughput) a sweep of 20 localize runs on the bundled raw Intel
-loop on one worker and on two. Cluster start-up is timed apart. Prints a table (not recorded:
-the throughput on this shared 2-core machine is not yet what issue 53 asks).
+loop on one worker and on two. Cluster start-up is timed apart. Prints a table; --record writes
+it into RESULTS.md (run it on a quiet machine: the second worker's gain is the point).
 
-    .venv/bin/python benchmarks/bench_batch.py [--runs N] [--throughput]
+    .venv/bin/python benchmarks/bench_batch.py [--runs N] [--throughput] [--record]
 """
 
 import argparse
@@ -14,6 +14,7 @@ import tempfile
 import time
 
 from probslam import batch
+from common import commit, heading, report
 
 
 def nothing(dataset, values, inputs):
@@ -62,17 +63,26 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--runs", type=int, default=200, help="trivial runs per sweep (default 200)")
     parser.add_argument("--throughput", action="store_true", help="also 20 localize runs on 1 and 2 workers")
+    parser.add_argument("--record", action="store_true", help="write the table into benchmarks/RESULTS.md")
     args = parser.parse_args()
-    print("| sweep | workers | table | runs | start-up s | sweep s | per run ms | run's own wall ms (median) |")
-    print("|---|---|---|---|---|---|---|---|")
+    lines = heading("probslam batch: cost per run and a second worker's throughput",
+                    f"Commit {commit()}. A LocalCluster per row (process workers, one thread each); "
+                    "per run = sweep s / runs; the localize runs are 2,000-particle MCL on the bundled "
+                    "raw Intel loop, seeds 0-19.",
+                    ["sweep", "workers", "table", "runs", "start-up s", "sweep s", "per run ms",
+                     "run's own wall ms (median)"])
     cases = [(trivial_sweep(args.runs), w, table) for w in (1, 2) for table in (False, True)]
     if args.throughput:
         cases += [(localize_sweep(20), w, True) for w in (1, 2)]
     for sweep, workers, table in cases:
         started, seconds, rows = timed_sweep(sweep, workers, table)
         own = sorted(row["wall_s"] for row in rows)[len(rows) // 2]
-        print(f"| {rows[0]['kind']} | {workers} | {'yes' if table else 'no'} | {len(rows)} | {started:.2f} | "
-              f"{seconds:.2f} | {1e3 * seconds / len(rows):.1f} | {1e3 * own:.2f} |")
+        lines.append(f"| {rows[0]['kind']} | {workers} | {'yes' if table else 'no'} | {len(rows)} | {started:.2f} | "
+                     f"{seconds:.2f} | {1e3 * seconds / len(rows):.1f} | {1e3 * own:.2f} |")
+    if args.throughput:
+        one, two = (float(line.split("|")[6]) for line in lines[-2:])
+        lines += ["", f"Two workers give {one / two:.2f}x the throughput of one on the localize sweep."]
+    report(lines, record=args.record)
 
 
 if __name__ == "__main__":
