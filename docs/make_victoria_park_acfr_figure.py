@@ -4,7 +4,8 @@ best particle's paths over the GPS fixes with seed 0's map; beside it the RMS ag
 seed (SE(2)-aligned) of FastSLAM 1.0 and 2.0, with the EKF's. Draws the runs the benchmark's
 sweep kept (its table and trajectories), and runs seed 0 of FastSLAM 1.0 again for its map:
 
-    OPENBLAS_NUM_THREADS=1 .venv/bin/python benchmarks/bench_victoria_park_acfr.py DATA -o OUT
+    PROBSLAM_SHARED_DATA=../shared/data OPENBLAS_NUM_THREADS=1 .venv/bin/probslam batch \\
+        benchmarks/sweeps/victoria_park_acfr.toml -o OUT --trajectories
     .venv/bin/python docs/make_victoria_park_acfr_figure.py OUT [DATA]
 """
 
@@ -24,13 +25,13 @@ DEFAULT = HERE.parents[1] / "shared/data/landmark_slam/victoria_park_acfr"
 
 def main():
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("runs", help="the folder of bench_victoria_park_acfr.py -o OUT (the sweep's table)")
+    parser.add_argument("runs", help="the folder of the sweep's table (probslam batch ... -o OUT --trajectories)")
     parser.add_argument("data", nargs="?", default=str(DEFAULT), help="the dataset's folder")
     args = parser.parse_args()
     data = victoria_park_acfr.load(args.data)
     gps = data.gps
     rows = [r for r in table.read(args.runs) if r["status"] == "ok" and r.get("options.refine", "none") == "none"]
-    fastslam = {(r["options.version"], r["seed"]): r for r in rows if r["kind"] == "fastslam"}
+    fastslam = {(r["options.fastslam.version"], r["seed"]): r for r in rows if r["kind"] == "fastslam"}
     ekf = next(r for r in rows if r["kind"] == "ekf-slam")
     seeds = sorted(s for v, s in fastslam if v == 1)
 

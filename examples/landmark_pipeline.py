@@ -3,7 +3,7 @@
 import probslam as ps
 from probslam.pipelines import LandmarkRunOptions, run_landmark_dataset
 
-options = LandmarkRunOptions(method="fastslam", unknown=True, num_particles=30, seed=1, refine="graphslam")
+options = LandmarkRunOptions(method="fastslam", unknown=True, fastslam=dict(num_particles=30, seed=1), refine="graphslam")
 run = run_landmark_dataset(ps.data.path("mrclam7_robot1_120s"), options)
 print(run.summary())                        # the lines `probslam fastslam --unknown ...` prints
 run.write("fastslam")                       # fastslam_trajectory.tum; run.draw(pyplot) the picture

@@ -25,16 +25,19 @@ import argparse
 import dataclasses
 import itertools
 import pathlib
-import sys
 
 import numpy as np
 
 import probslam as ps
 from probslam import eval as ev
 from probslam.datasets import mrclam
-sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "benchmarks"))  # common.py and the benchmarks reused here
-# The CLI's MRCLAM noise, and the bench's multiple-hypothesis settings with the bearing offset.
-from bench_mrclam_association import MHT_OFFSET_OPTIONS, MHT_OFFSET_SENSOR, MOTION, SENSOR
+
+# The CLI's MRCLAM noise, and the multiple-hypothesis EKF with the bearing offset as
+# benchmarks/sweeps/mrclam_association_offset.toml runs it: 0.03 rad of the bearing noise moved into
+# an offset drawn afresh per scan, the sensor 0.15 m / 0.02 rad.
+MOTION, SENSOR = mrclam.MOTION_NOISE, mrclam.MEASUREMENT_NOISE
+MHT_OFFSET_SENSOR = np.diag([0.15 ** 2, 0.02 ** 2])
+MHT_OFFSET_OPTIONS = dict(bearing_offset_sigma=0.03, bearing_offset_correlation=0.0)
 
 DEFAULT = pathlib.Path(__file__).resolve().parents[2] / "shared/data/landmark_slam/mrclam_dataset7"
 #: Offsets tried per scan (rad): the common bearing error stays within +-0.1 rad.

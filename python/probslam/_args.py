@@ -4,6 +4,7 @@ deep inside could say less)."""
 
 from __future__ import annotations
 
+import dataclasses
 from typing import Mapping, Optional, Tuple, Union
 
 import numpy as np
@@ -28,6 +29,21 @@ def options_over(cls: type, options: object, fields: Mapping, defaults: Mapping,
     stock = cls()
     own = {k: v for k, v in defaults.items() if k not in fields and getattr(base, k) == getattr(stock, k)}
     return base.replace(**own, **fields)
+
+
+def differing_field(options: object, default: object) -> Optional[str]:
+    """The first field of an options object (a bound options class's, a dataclass's) whose value
+    is not ``default``'s (NaN equal to NaN); None when all are equal."""
+    mine, theirs = _fields(options), _fields(default)
+    return next((name for name, value in mine.items() if not _same(value, theirs[name])), None)
+
+
+def _fields(options: object) -> dict:
+    return dataclasses.asdict(options) if dataclasses.is_dataclass(options) else options.as_dict()
+
+
+def _same(a: object, b: object) -> bool:
+    return a == b or (isinstance(a, float) and isinstance(b, float) and a != a and b != b)
 
 
 def require_integer(value: object, name: str, lowest: Optional[int] = None, highest: Optional[int] = None) -> int:

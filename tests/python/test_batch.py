@@ -15,6 +15,7 @@ import sys
 import threading
 import time
 
+import numpy as np
 import pytest
 
 if os.environ.get("PROBSLAM_SANITIZED"):  # before dask is imported: worker processes are not what that run tests
@@ -365,22 +366,72 @@ def test_the_benchmarks_sweeps_are_accepted(path, shared_data, monkeypatch):
     assert runs and len({r.run_id for r in runs}) == len(runs)
 
 
-def test_a_landmark_run_row_holds_its_datasets_scores():
-    """An MRCLAM run's row carries what the dataset's reference scores (the association table's
-    measures), each the same as the eval function computes from the run."""
+def test_a_landmark_run_row_holds_its_datasets_scores_and_the_refinements():
+    """An MRCLAM run refined by GraphSLAM (what benchmarks/sweeps/landmark_refine.toml runs): its row
+    carries what the dataset's reference scores (the association and refinement tables' measures)
+    and the refinement's figures, each the same as the eval functions compute from the filter run
+    and datasets.refine_run made directly (the first 40 s of the bundled excerpt)."""
     from probslam import data, eval as ev
-    from probslam.datasets import mrclam
-    from probslam.pipelines import LandmarkRunOptions, run_landmark_dataset
+    from probslam.datasets import mrclam, refine_run
+    from probslam.landmark_refine import UNASSIGNED
 
     path = data.path("mrclam7_robot1_120s")
-    row = batch.KINDS["ekf-slam"].run(path, {"unknown": True}, {}).metrics
-    run = run_landmark_dataset(path, LandmarkRunOptions(method="ekf", unknown=True), progress=False)
-    r, d = run.result, run.dataset.data
-    assert row["landmarks"] == len(r.landmarks) and row["association_correct"] == ev.association_accuracy(r)
+    values = {"unknown": True, "association": "jcbb", "seconds": 40.0, "refine": "graphslam"}
+    row = batch.KINDS["ekf-slam"].run(path, values, {}).metrics
+    d = mrclam.load(path, seconds=40.0)
+    filtered = mrclam.run_ekf(d, known=False, association="jcbb")
+    refined = refine_run(filtered, d, mrclam.MOTION_NOISE, mrclam.MEASUREMENT_NOISE)
+    start, r = refined.input, refined.result
+    labels = ev.majority_truth(r.labels, start.truth)
     fixed = d.with_survey_swapped(mrclam.survey_label_swaps(d))
-    assert row["map_rmse_survey_aligned_m"] == ev.score_landmarks(r.landmarks, fixed, ev.majority_labels(r)).rmse_aligned
-    score = ev.score_mrclam(r, d, ev.majority_labels(r))
+    assert (row["landmarks"], row["landmarks_associated"]) == (len(r.landmarks), len(set(r.labels[r.labels >= 0])))
+    assert row["association_correct"] == ev.sighting_accuracy(r.labels, start.truth)
+    assert row["map_rmse_survey_aligned_m"] == ev.score_landmarks(r.landmarks, fixed, labels).rmse_aligned
+    truth = ev.truth_positions(d.groundtruth, start.times)
+    for name, poses in (("path_rmse_aligned_m", r.poses), ("filter_path_rmse_aligned_m", start.poses)):
+        rotation, translation = ev.align_rigid(poses[:, :2], truth)
+        assert row[name] == ev.rmse(poses[:, :2] @ rotation.T + translation, truth)
+    score = ev.score_mrclam(refined.as_landmark_slam_result(filtered), d, labels)
     assert (row["path_rmse_m"], row["landmark_rmse_aligned_m"]) == (score.path_rmse, score.landmark_rmse_aligned)
+    assert (row["unassigned"], row["sightings"]) == (int(np.sum(r.labels == UNASSIGNED)), len(d.measurements))
+    assert row["landmarks_seen"] == len(set(d.measurements[:, 1].astype(int)) & set(d.landmark_positions))
+    assert (row["refine_rounds"], row["refine_merges"], row["refine_moves"], row["refine_converged"]) == (
+        r.iterations, len(r.merges), len(r.splits), r.converged)
+    assert row["refine_cpu_s"] > 0 and row["refine_moves"] >= 1  # the refined run is not the filter's
+
+
+def test_a_landmark_sweep_sets_the_filters_options_by_dotted_path(tmp_path):
+    """A sweep sets a field of LandmarkRunOptions' groups by its path (FastSLAM's options, the
+    refinement's), the seeds set fastslam.seed, and the run is the driver's with those options; a
+    misspelt field is refused naming its path, before any run."""
+    from probslam import FastSlamOptions, data, eval as ev
+    from probslam.datasets import mrclam
+
+    kind = batch.KINDS["fastslam"]
+    options = batch.set_options(kind.options(), {"fastslam.num_particles": 20, "fastslam.existence_miss": 0.0,
+                                                 "refine": "graphslam", "refinement.new_landmarks": True})
+    assert options.fastslam == FastSlamOptions(num_particles=20, existence_miss=0.0) and options.refinement.new_landmarks
+    assert kind.options().fastslam == FastSlamOptions()
+    for bad, message in (({"fastslam.num_particle": 5}, "unknown option 'fastslam.num_particle'.*'num_particles'"),
+                         ({"fastslam.num_particles": 0}, "^fastslam.num_particles"),
+                         ({"refinement.new_landmarks": 1}, "^refinement.new_landmarks")):
+        with pytest.raises((ValueError, TypeError), match=message):
+            batch.set_options(kind.options(), bad)
+    sweep = tmp_path / "sweep.toml"
+    text = ('[[runs]]\ncommand = "fastslam"\ndatasets = ["bundled:mrclam7_robot1_120s"]\nseeds = [3]\n'
+            'options = {{ unknown = true, seconds = 30.0, "fastslam.num_particles" = 20, {} }}\n')
+    sweep.write_text(text.format('"fastslam.existence_miss" = 0.0'))
+    run, = batch.load(sweep).expand()
+    row = batch.run_one(run)
+    assert row["status"] == "ok", row["error"]
+    d = mrclam.load(data.path("mrclam7_robot1_120s"), seconds=30.0)
+    direct = mrclam.run_fastslam(d, known=False, num_particles=20, seed=3, existence_miss=0.0)
+    assert (row["landmarks"], row["association_correct"]) == (len(direct.landmarks), ev.association_accuracy(direct))
+    for given, message in (('"fastslam.particles" = 5', "runs\\[0\\]: options: unknown option 'fastslam.particles'"),
+                           ('"fastslam.seed" = 1', "options: fastslam.seed: give the seeds as seeds")):
+        sweep.write_text(text.format(given))
+        with pytest.raises(ValueError, match=message):
+            batch.load(sweep).expand()
 
 
 def test_the_docs_sweeps_are_accepted(tmp_path, shared_data, monkeypatch):

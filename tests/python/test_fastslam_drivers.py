@@ -161,39 +161,6 @@ def test_mrclam_hidden_negative_information_removes_duplicates(mrclam_d1r1):
     assert ev.association_accuracy(with_ni) >= 0.9
 
 
-@pytest.mark.slow
-def test_mrclam_benchmark_passes_the_fastslam_options():
-    """benchmarks/bench_mrclam_association.py's --particles / --seed / --existence-miss reach the
-    filter: each job equals the driver called with those options (first 300 s of Dataset 1
-    robot 1, 20 particles; there a miss of 0, no removals, keeps one landmark more than the
-    default), and the default existence miss is the library's (1)."""
-    import importlib.util
-    import pathlib
-    import sys
-
-    bench_dir = pathlib.Path(__file__).resolve().parents[2] / "benchmarks"
-    sys.path.insert(0, str(bench_dir))  # the benchmark imports its sibling `common`
-    try:
-        spec = importlib.util.spec_from_file_location("bench_mrclam_association", bench_dir / "bench_mrclam_association.py")
-        bench = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(bench)
-    finally:
-        sys.path.remove(str(bench_dir))
-    if not bench.DATA.is_dir():
-        pytest.skip(f"MRCLAM not present at {bench.DATA}")
-    data = bench.load(1, 1, 300.0)
-    rows = {}
-    for miss in (None, 1.0, 0.0):
-        row = rows[miss] = bench.run_one((1, 1, "fastslam1", 300.0, 20, 3, miss))
-        options = {} if miss is None else {"existence_miss": miss}
-        run = mrclam.run_fastslam(data, bench.MOTION, bench.SENSOR, known=False, num_particles=20, seed=3, **options)
-        assert row["landmarks"] == len(run.landmarks)
-        assert row["correct"] == ev.association_accuracy(run)
-        assert run.filter.num_particles == 20
-    assert (rows[None]["landmarks"], rows[None]["correct"]) == (rows[1.0]["landmarks"], rows[1.0]["correct"])
-    assert rows[0.0]["landmarks"] != rows[None]["landmarks"]  # so the option is not dropped on the way
-
-
 def test_known_mrclam_outlier_density_is_the_ekf_gate():
     """FastSLAM's outlier density for known MRCLAM correspondences equals the Gaussian density
     of Q on the EKF gate's chi-square contour (scipy as the reference), so both filters call the

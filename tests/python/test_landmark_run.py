@@ -26,8 +26,12 @@ def _lines(text):
 @pytest.mark.parametrize("argv, options", [
     (["ekf-slam", "--unknown"], LandmarkRunOptions(unknown=True)),
     (["fastslam", "--unknown", "--particles", "10", "--variant", "2", "--seed", "3", "--refine", "graphslam"],
-     LandmarkRunOptions(method="fastslam", unknown=True, num_particles=10, version=2, seed=3, refine="graphslam")),
-    (["fastslam", VICTORIA, "--particles", "5"], LandmarkRunOptions(method="fastslam", num_particles=5)),
+     LandmarkRunOptions(method="fastslam", unknown=True, fastslam=dict(num_particles=10, version=2, seed=3),
+                        refine="graphslam")),
+    (["fastslam", VICTORIA, "--particles", "5"], LandmarkRunOptions(method="fastslam", fastslam=dict(num_particles=5))),
+    (["ekf-slam", "--unknown", "--association", "mht", "--bearing-offset", "0.03", "--seconds", "30"],
+     LandmarkRunOptions(unknown=True, association="mht", seconds=30.0,
+                        hypotheses=ps.MultiHypothesisOptions(bearing_offset_sigma=0.03))),
 ])
 def test_a_run_from_python_is_what_the_command_prints_and_writes(tmp_path, capsys, argv, options):
     assert cli.main(argv + ["--no-plot", "--no-progress", "-o", str(tmp_path / "cli")]) == 0
@@ -56,8 +60,9 @@ def test_the_run_is_the_drivers_and_its_score_the_scorers():
 
 def test_fastslam_threads_change_nothing_and_the_seed_does():
     def poses(**options):
-        return run_landmark_dataset(MRCLAM, LandmarkRunOptions(method="fastslam", unknown=True, num_particles=20,
-                                                               **options), progress=False).result.poses
+        return run_landmark_dataset(MRCLAM, LandmarkRunOptions(method="fastslam", unknown=True,
+                                                               fastslam=dict(num_particles=20, **options)),
+                                    progress=False).result.poses
 
     one = poses(seed=5)
     np.testing.assert_array_equal(one, poses(seed=5, threads=3))
@@ -65,7 +70,7 @@ def test_fastslam_threads_change_nothing_and_the_seed_does():
 
 
 def test_a_dataset_already_read_runs_as_its_path():
-    options = LandmarkRunOptions(method="fastslam", num_particles=10, seconds=60.0)
+    options = LandmarkRunOptions(method="fastslam", fastslam=dict(num_particles=10), seconds=60.0)
     robot = mrclam.MrclamRobot(mrclam.load(MRCLAM, seconds=60.0), MRCLAM, seconds=60.0)
     assert isinstance(robot, LandmarkDataset)
     a = run_landmark_dataset(robot, options.replace(seconds=None), progress=False)
@@ -78,33 +83,63 @@ def test_a_dataset_already_read_runs_as_its_path():
 
 @pytest.mark.parametrize("field, value, error", [
     ("method", "graphslam", ValueError), ("unknown", 1, TypeError), ("association", "nn", ValueError),
-    ("bearing_offset", -0.1, ValueError), ("bearing_offset", float("nan"), ValueError),
-    ("num_particles", 0, ValueError), ("num_particles", 2.0, TypeError), ("version", 3, ValueError),
-    ("seed", -1, ValueError), ("seed", 2 ** 64, ValueError), ("threads", 0, ValueError),
     ("robot", 6, ValueError), ("robot", True, TypeError), ("seconds", float("inf"), ValueError),
     ("seconds", 0, ValueError), ("sigma_v", -0.1, ValueError), ("sigma_w", 1e300, ValueError),
     ("sigma_r", 1e-200, ValueError), ("sigma_phi", "0.1", TypeError), ("refine", "yes", ValueError),
 ])
 def test_a_bad_option_is_refused_by_its_field_before_the_data_is_read(tmp_path, field, value, error):
-    method = "fastslam" if field in ("num_particles", "version", "seed", "threads") else "ekf"
-    options = LandmarkRunOptions(method=method, unknown=field == "association")
+    options = LandmarkRunOptions(unknown=field == "association")
     setattr(options, field, value)
     missing = tmp_path / "missing"
     with pytest.raises(error, match=f"^{field}\\b"):
         LandmarkRun.read(missing, options)
     with pytest.raises(error, match=f"^{field}\\b"):
-        LandmarkRunOptions(method=method).replace(**{"unknown": field == "association", field: value})
+        LandmarkRunOptions().replace(**{"unknown": field == "association", field: value})
+
+
+@pytest.mark.parametrize("path, value, error", [
+    ("fastslam.num_particles", 0, ValueError), ("fastslam.num_particles", 2.0, TypeError),
+    ("fastslam.version", 3, ValueError), ("fastslam.seed", -1, ValueError), ("fastslam.seed", 2 ** 64, ValueError),
+    ("fastslam.threads", 0, ValueError), ("hypotheses.bearing_offset_sigma", -0.1, ValueError),
+    ("hypotheses.bearing_offset_sigma", float("nan"), ValueError), ("refinement.max_iterations", -1, ValueError),
+    ("refinement.merge_probability", 1.0, ValueError), ("refinement.new_landmarks", 1, TypeError),
+])
+def test_a_bad_field_of_a_group_is_refused_by_its_path(path, value, error):
+    """The filters' options objects (and the refinement's) given as a dict of fields, made or
+    replaced: the refusal names the field's whole path, as a sweep and the command line say it."""
+    group, name = path.split(".")
+    with pytest.raises(error, match=f"^{re.escape(path)}\\b"):
+        LandmarkRunOptions(**{group: {name: value}})
+    with pytest.raises(error, match=f"^{re.escape(path)}\\b"):
+        LandmarkRunOptions().replace(**{group: {name: value}})
+    with pytest.raises(TypeError, match=f"^{group}: .*unexpected keyword argument 'nope'"):
+        LandmarkRunOptions().replace(**{group: {"nope": 1}})
+    with pytest.raises(TypeError, match=f"^{group}: expected"):
+        LandmarkRunOptions().replace(**{group: 5})
+
+
+def test_a_group_is_copied_with_the_options():
+    """replace() gives the copy groups of its own: a field set on one leaves the other as it was."""
+    a = LandmarkRunOptions(method="fastslam", fastslam=dict(num_particles=10))
+    b = a.replace(fastslam={"seed": 4})
+    assert (b.fastslam.num_particles, b.fastslam.seed, a.fastslam.seed) == (10, 4, 0)
+    b.fastslam.num_particles = 7
+    assert a.fastslam.num_particles == 10 and a.replace().fastslam is not a.fastslam
 
 
 @pytest.mark.parametrize("path, options, field", [
     (VICTORIA, dict(robot=2), "robot"),
     (VICTORIA, dict(sigma_phi=0.02), "sigma_phi"),
     (VICTORIA, dict(unknown=True, refine="graphslam"), "refine"),
-    (VICTORIA, dict(unknown=True, association="mht", bearing_offset=0.03), "bearing_offset"),
+    (VICTORIA, dict(unknown=True, association="mht", hypotheses=dict(bearing_offset_sigma=0.03)),
+     "hypotheses.bearing_offset_sigma"),
     (MRCLAM, dict(refine="graphslam"), "refine"),
-    (MRCLAM, dict(unknown=True, association="jcbb", bearing_offset=0.03), "bearing_offset"),
+    (MRCLAM, dict(unknown=True, association="jcbb", hypotheses=dict(bearing_offset_sigma=0.03)),
+     "hypotheses.bearing_offset_sigma"),
+    (MRCLAM, dict(method="fastslam", hypotheses=dict(max_hypotheses=3)), "hypotheses.max_hypotheses"),
+    (MRCLAM, dict(unknown=True, refinement=dict(new_landmarks=True)), "refinement.new_landmarks"),
     (MRCLAM, dict(association="ml"), "association"),
-    (MRCLAM, dict(num_particles=10), "num_particles"),
+    (MRCLAM, dict(fastslam=dict(num_particles=10)), "fastslam.num_particles"),
     (MRCLAM, dict(method="fastslam", unknown=True, association="ml"), "association"),
 ])
 def test_an_option_that_does_not_apply_is_refused_by_its_field(path, options, field):

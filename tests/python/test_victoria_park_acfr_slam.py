@@ -1,7 +1,7 @@
 """Landmark SLAM on the original Victoria Park run (ACFR) against its GPS, as the SLAM lecture
 measured FastSLAM ("100 particles, position error < 5 m RMS"): the drivers' time stepping, a
 prefix and the whole run's EKF behind the slow marker (the ten seeds of both FastSLAM
-variants are benchmarks/bench_victoria_park_acfr.py's table: minutes of CPU, not a CI test).
+variants are benchmarks/sweeps/victoria_park_acfr.toml's table: minutes of CPU, not a CI test).
 Skipped without ../shared/data."""
 
 import numpy as np

@@ -120,7 +120,7 @@ def score(outcome: Outcome, run: Run, path: Optional[str] = None) -> Dict[str, A
 def _metrics(run: Run, kind: RunKind, trajectories: Optional[str]) -> Dict[str, Any]:
     values = dict(run.options)
     if run.seed is not None:
-        values["seed"] = run.seed
+        values[kind.seed_option] = run.seed
     outcome = kind.run(run.dataset, values, dict(run.inputs))
     metrics = dict(outcome.metrics)
     path = None

@@ -6,7 +6,6 @@ Adding a command to ``probslam batch`` is one ``register(RunKind(...))``.
 
 from __future__ import annotations
 
-import dataclasses
 import difflib
 from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, Mapping, Optional, Sequence, Tuple
@@ -21,6 +20,7 @@ from ..io.maps import FREE_THRESH, OCCUPIED_THRESH
 from ..localization import default_options
 from ..pipelines import (GraphFileOptions, LandmarkRunOptions, MapOptions, localize_log, map_log, optimize_file,
                          run_landmark_dataset, slam_log)
+from ..pipelines._options import option_names
 from ..slam import default_options as slam_default_options
 
 
@@ -47,7 +47,8 @@ class RunKind:
     metrics: the names of the metrics its ``Outcome`` holds (the table's columns, in order).
     inputs: the kind's own keys in a sweep's group besides the dataset (name -> required).
     inputs_are_paths: which of those name files (resolved as datasets are).
-    seeded: whether its options have a ``seed`` (a sweep's seeds set it; else seeds are refused).
+    seeded: whether its options have a seed (a sweep's seeds set it; else seeds are refused).
+    seed_option: the option (a dotted path) the seeds set: ``seed``, or the group's that holds it.
     scored: whether its runs make a trajectory to score against a reference (else one is refused).
     """
 
@@ -59,6 +60,7 @@ class RunKind:
     inputs_are_paths: Mapping[str, bool] = field(default_factory=dict)
     seeded: bool = False
     scored: bool = True
+    seed_option: str = "seed"
 
 
 #: Every kind by name, in the order registered.
@@ -69,14 +71,6 @@ def register(kind: RunKind) -> RunKind:
     """Adds (or replaces) ``kind`` in KINDS; returns it."""
     KINDS[kind.name] = kind
     return kind
-
-
-def option_names(options: Any) -> Tuple[str, ...]:
-    """The field names of an options object: a dataclass's fields, a C++ options class's
-    ``as_dict`` keys."""
-    if dataclasses.is_dataclass(options):
-        return tuple(f.name for f in dataclasses.fields(options))
-    return tuple(options.as_dict())
 
 
 def set_options(options: Any, values: Mapping[str, Any]) -> Any:
@@ -153,7 +147,7 @@ def _landmarks(method: str):
         lr = run_landmark_dataset(dataset, set_options(LandmarkRunOptions(method=method), values), progress=False)
         r = lr.result
         metrics = {"poses": len(r.poses), "landmarks": len(r.landmarks), "filter_cpu_s": float(lr.cpu_seconds),
-                   **lr.score.metrics}  # what the dataset's own reference scores
+                   **lr.metrics}  # what the dataset's own reference scores, and the refinement's figures
         return Outcome(metrics, lambda prefix: io.write_trajectory(r.times, r.poses, prefix + "_trajectory.tum")[0])
     return run
 
@@ -171,7 +165,7 @@ register(RunKind("slam-rbpf", GridFastSlamOptions, _slam("rbpf"),
 LANDMARK_METRICS = ("poses", "landmarks", "filter_cpu_s") + LandmarkDataset.METRICS
 register(RunKind("ekf-slam", lambda: LandmarkRunOptions(method="ekf"), _landmarks("ekf"), LANDMARK_METRICS))
 register(RunKind("fastslam", lambda: LandmarkRunOptions(method="fastslam"), _landmarks("fastslam"), LANDMARK_METRICS,
-                 seeded=True))
+                 seeded=True, seed_option="fastslam.seed"))
 
 
 __all__ = ["KINDS", "Outcome", "RunKind", "option_names", "register", "set_options"]

@@ -240,8 +240,9 @@ def _expand_group(group: RunGroup, base: str, where: str) -> List[Run]:
     group = _checked(group, where)
     kind = KINDS[group.command]
     options = _flatten(group.options)
-    if "seed" in options:
-        raise ValueError(f"{where}: options: seed: give the seeds as seeds = [...], not as an option")
+    seed = next((name for name in ("seed", kind.seed_option) if name in options), None)
+    if seed is not None:
+        raise ValueError(f"{where}: options: {seed}: give the seeds as seeds = [...], not as an option")
     if group.reference is not None and not kind.scored:
         raise ValueError(f"{where}: reference: a {kind.name} run makes no trajectory to score")
     if group.seeds and not kind.seeded:

@@ -17,7 +17,7 @@ from ..pipelines import (EvaluationOptions, GraphFileOptions, GraphFileRun, Land
 from ..pipelines.inputs import BAG_OPTIONS, read_log
 from ..slam import OPTIONS_CLASSES, RunInterrupted, with_fields
 from .messages import EXIT_INTERRUPTED, EXIT_NOT_CONVERGED, UserError, refuse_given, told
-from .parser import SLAM_FLAGS, dest, flag
+from .parser import LANDMARK_FLAGS, SLAM_FLAGS, dest, flag
 
 BUNDLED_LOG = "intel_excerpt.log.gz"
 #: A raw log (odometry and scans, no corrected poses): the Intel Research Lab's first loop, short of
@@ -161,9 +161,13 @@ def _cmd_localize(args: argparse.Namespace) -> int:
 
 def _cmd_landmarks(args: argparse.Namespace) -> int:
     """ekf-slam and fastslam: ``pipelines.LandmarkRun`` on the dataset argument."""
-    options = _options(LandmarkRunOptions(method=args.method), args)
+    flags = {**args.flags, **LANDMARK_FLAGS[args.method]}  # the library's messages name a group's fields by path
+    given = {path: getattr(args, path.rsplit(".", 1)[-1]) for path in LANDMARK_FLAGS[args.method]
+             if path.rsplit(".", 1)[-1] in args.given}
+    with told(flags, args):
+        options = with_fields(LandmarkRunOptions(method=args.method), given)
     t0, path = time.perf_counter(), args.dataset or data_path(BUNDLED_LANDMARKS)
-    with told(args.flags, args):
+    with told(flags, args):
         run = LandmarkRun.read(path, options)
         run.run(_progress(args))
     print(run.summary())

@@ -10,7 +10,7 @@ import difflib
 import functools
 import os
 import re
-from typing import Dict, List, Optional, Sequence
+from typing import Dict, List, Optional
 
 from .. import __version__
 from .._core import GridFastSlamOptions, MonteCarloLocalizationOptions, SubmapSlamOptions
@@ -28,13 +28,20 @@ SUGGESTION_CUTOFF = 0.6
 SLAM_FIELDS = {"graph": ("frontend.resolution", "frontend.filter.max_range", "frontend.submap_distance",
                          "closures.enabled"),
                "rbpf": ("num_particles", "proposal", "seed", "threads", "resolution", "filter.max_range")}
+#: ekf-slam's and fastslam's own option fields by method (LandmarkRunOptions paths, its groups' fields
+#: by dotted path), each set by the flag of its last name (FLAG_NAMES where the flag's name differs);
+#: LANDMARK_SHARED_FIELDS are both commands'.
+LANDMARK_FIELDS = {"ekf": ("association", "hypotheses.bearing_offset_sigma"),
+                   "fastslam": ("fastslam.num_particles", "fastslam.version", "fastslam.seed", "fastslam.threads")}
+LANDMARK_SHARED_FIELDS = ("robot", "seconds", "raw_ranges", "sigma_v", "sigma_w", "sigma_r", "sigma_phi", "refine")
 FLAG_NAMES = {"num_particles": "--particles", "version": "--variant", "closures.enabled": "--no-loop-closures",
-              "raw_log": "--log"}
+              "raw_log": "--log", "hypotheses.bearing_offset_sigma": "--bearing-offset"}
 
 
 def flag(path: str) -> str:
-    """The flag that sets the option field at ``path``."""
-    return FLAG_NAMES.get(path, "--" + path.rsplit(".", 1)[-1].replace("_", "-"))
+    """The flag that sets the option field at ``path`` (FLAG_NAMES by path, else by last name)."""
+    name = path.rsplit(".", 1)[-1]
+    return FLAG_NAMES.get(path) or FLAG_NAMES.get(name) or "--" + name.replace("_", "-")
 
 
 def dest(option: str) -> str:
@@ -45,6 +52,9 @@ def dest(option: str) -> str:
 #: slam's flags by method: the option path each sets (the library's messages, which name the path,
 #: told as the flag). A flag's value is its dest's (--no-loop-closures stores False).
 SLAM_FLAGS = {method: {path: flag(path) for path in paths} for method, paths in SLAM_FIELDS.items()}
+#: ekf-slam's and fastslam's flags by method: the option path each sets.
+LANDMARK_FLAGS = {method: {path: flag(path) for path in ("unknown",) + paths + LANDMARK_SHARED_FIELDS}
+                  for method, paths in LANDMARK_FIELDS.items()}
 
 
 class _HelpFormatter(argparse.RawDescriptionHelpFormatter):
@@ -120,7 +130,7 @@ def build_parser() -> Parser:
                                                                                       "with --map the map's"})
     sl.add_argument("--no-loop-closures", action="store_false", default=None, help="scan matching and submaps only")
     sl.add_argument("--particles", type=int, help=f"rbpf: number of particles (default {rbpf.num_particles}, not "
-                    f"fastslam's {LandmarkRunOptions.num_particles}: each carries a grid map; docs/cli.md)")
+                    f"fastslam's {LandmarkRunOptions().fastslam.num_particles}: each carries a grid map; docs/cli.md)")
     _described(sl, rbpf, ("proposal", "seed", "threads"), prefix="rbpf: ")
     sl.add_argument("--save", metavar="RUN.psl", help="write the run's state to RUN.psl at the end or on Ctrl-C, for "
                                                       "--resume (docs/cli.md)")
@@ -145,8 +155,8 @@ def build_parser() -> Parser:
                                                      "seed", "threads"), defaults={"max_range": "from the log"})
     _outputs(lo, "localize", "PREFIX_trajectory.tum, PREFIX.png", "the laser poses at the log's scan times (s)")
 
-    _landmark_parser(sub, "ekf-slam", "ekf", "EKF SLAM", ("association", "bearing_offset"))
-    _landmark_parser(sub, "fastslam", "fastslam", "FastSLAM 1.0 / 2.0", ("num_particles", "version", "seed", "threads"))
+    _landmark_parser(sub, "ekf-slam", "ekf", "EKF SLAM")
+    _landmark_parser(sub, "fastslam", "fastslam", "FastSLAM 1.0 / 2.0")
 
     o = sub.add_parser("optimize", help="optimise a 2-D pose/landmark graph or a 3-D pose graph (g2o, TORO or iSAM "
                        "text; the dimension is read from the file)")
@@ -184,36 +194,40 @@ def build_parser() -> Parser:
     return parser
 
 
-def _landmark_parser(sub, name: str, method: str, what: str, fields: Sequence[str]) -> None:
-    """ekf-slam's or fastslam's parser: the dataset, the method's LandmarkRunOptions ``fields`` and
-    the shared ones."""
+def _landmark_parser(sub, name: str, method: str, what: str) -> None:
+    """ekf-slam's or fastslam's parser: the dataset, the method's LandmarkRunOptions fields
+    (LANDMARK_FLAGS) and the shared ones."""
     p = sub.add_parser(name, help=f"{what} on a landmark dataset (MRCLAM folder or Victoria Park file)")
     p.set_defaults(method=method)
     p.add_argument("dataset", nargs="?", help="a UTIAS MRCLAM folder, Victoria Park in iSAM/GTSAM text format, or the "
                                               "original Victoria Park run's folder; default: a bundled MRCLAM excerpt "
                                               "(Dataset 7, robot 1, 120 s)")
     sigmas = dict(zip(("sigma_v", "sigma_w", "sigma_r", "sigma_phi"), mrclam.MOTION_SIGMA + mrclam.MEASUREMENT_SIGMA))
-    _described(p, LandmarkRunOptions(), ("unknown",) + tuple(fields) + ("robot", "seconds", "raw_ranges", *sigmas,
-                                                                         "refine"), defaults=sigmas)
+    _described(p, LandmarkRunOptions(), LANDMARK_FLAGS[method], defaults=sigmas, overrides={
+        "hypotheses.bearing_offset_sigma": dict(prefix="MRCLAM, --association mht: "),
+        "fastslam.num_particles": dict(doc="number of particles (a particle holds a few landmarks, not a grid map)"),
+        "fastslam.version": dict(choices=(1, 2))})
     _outputs(p, name.replace("-", "_"), "PREFIX_trajectory.tum, PREFIX.png", "times in seconds (MRCLAM) or the pose's "
              "index (Victoria Park, whose file has no times)")
 
 
 def _described(parser: argparse.ArgumentParser, options, paths, prefix: str = "",
-               defaults: Optional[Dict[str, str]] = None):
+               defaults: Optional[Dict[str, str]] = None, overrides: Optional[Dict[str, dict]] = None):
     """A flag (``flag``, dest the field's name) for each field at ``paths`` of ``options`` (a bound
     options class's or pipeline options dataclass's instance: the defaults shown, ``defaults`` the
-    text of those the run sets) from the field's description; None until given (the run's own)."""
+    text of those the run sets) from the field's description (``overrides``: a path's own doc,
+    choices or prefix, where the library's text says less on this command); None until given (the
+    run's own)."""
     for path in paths:
         *groups, name = path.split(".")
         owner = functools.reduce(getattr, groups, options)
-        value, meta = getattr(owner, name), _description(owner, name)
+        value, meta = getattr(owner, name), {**_description(owner, name), **(overrides or {}).get(path, {})}
         doc = re.sub(r"``(\w+)``", lambda m: flag(m.group(1)) if hasattr(owner, m.group(1)) else m.group(1),
-                     meta["doc"].replace("%", "%%"))
+                     meta.get("prefix", prefix) + meta["doc"].replace("%", "%%"))
         none = re.search(r" ?\(None: ([^)]*)\)", doc) if value is None else None  # what None means: the default
         doc, shown = (doc.replace(none.group(0), ""), none.group(1)) if none else (doc, value)
         shown = (defaults or {}).get(path, shown)
-        text = prefix + doc + (f", {meta['unit']}" if meta["unit"] else "") + ("" if shown is None or (
+        text = doc + (f", {meta['unit']}" if meta["unit"] else "") + ("" if shown is None or (
             value is False) else f" (default: {shown})")
         kind = meta.get("type") or (str if value is None else type(value))
         if kind is bool:  # off by default, or None (--X / --no-X); a field on by default is written by hand

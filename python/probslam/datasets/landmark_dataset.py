@@ -6,13 +6,16 @@ dataset module holds its own (``mrclam.MrclamRobot``, ``victoria_park.VictoriaPa
 asks the dataset instead of branching on its kind.
 
 ``options`` below is the run's ``probslam.pipelines.LandmarkRunOptions`` (its fields method,
-unknown, association, bearing_offset, num_particles, version, seed, threads, robot, seconds,
-raw_ranges, sigma_v, sigma_w, sigma_r, sigma_phi, refine).
+unknown, association, hypotheses (a MultiHypothesisOptions), fastslam (a FastSlamOptions), robot,
+seconds, raw_ranges, sigma_v, sigma_w, sigma_r, sigma_phi, refine, refinement (the keywords of
+``landmark_refine.refine_landmarks``)).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import pathlib
+import time
 from dataclasses import dataclass, field
 from typing import Dict, List, Mapping, Optional, Tuple
 
@@ -20,7 +23,7 @@ import numpy as np
 
 from .. import eval as evaluation
 from .._core import FastSlamOptions, MultiHypothesisOptions
-from .._args import require_instance
+from .._args import differing_field, require_instance
 from ..landmark_refine import RefinementInput, RunRefinement, refine_landmarks
 from ..landmark_slam import LandmarkSlamResult
 
@@ -48,11 +51,13 @@ class DatasetScore:
 @dataclass
 class RefinedRun:
     """GraphSLAM's correspondence test over a run (ch. 11.6): the refined run, the refinement
-    (``landmark_refine.LandmarkRefinement``) and the lines that say what it did."""
+    (``landmark_refine.LandmarkRefinement``), the lines that say what it did and its figures by
+    name (``metrics``: names of ``LandmarkDataset.METRICS``)."""
 
     result: LandmarkSlamResult
     refinement: object
     lines: List[str]
+    metrics: Dict[str, object] = field(default_factory=dict)
 
 
 class LandmarkDataset:
@@ -63,9 +68,15 @@ class LandmarkDataset:
     it; ``LABEL``: what it is, for the refusal of the others."""
 
     OPTIONS: Tuple[str, ...] = ()
-    #: The names of a score's ``metrics``, over every dataset (a sweep table's columns).
+    #: The names of a score's and a refinement's ``metrics``, over every dataset (a sweep table's
+    #: columns): the score's against the dataset's reference (and the dead reckoning's, the
+    #: baseline), the association's (sightings on no landmark, the landmarks that hold sightings:
+    #: ``association_metrics``) and the refinement's (``refinement_metrics``).
     METRICS: Tuple[str, ...] = ("association_correct", "path_rmse_m", "path_rmse_aligned_m", "landmark_rmse_m",
-                                "landmark_rmse_aligned_m", "map_rmse_survey_aligned_m")
+                                "landmark_rmse_aligned_m", "map_rmse_survey_aligned_m", "sightings", "landmarks_seen",
+                                "landmarks_associated", "unassigned", "filter_path_rmse_aligned_m", "refine_cpu_s",
+                                "refine_rounds", "refine_merges", "refine_moves", "refine_converged",
+                                "dead_reckoning_rmse_m", "dead_reckoning_rmse_aligned_m")
     LABEL = ""
     #: The type of ``data``.
     DATA: type = object
@@ -150,9 +161,13 @@ class LandmarkDataset:
         return RunRefinement(start, refine_landmarks(**start.arguments(), **options))
 
     def refine(self, result: LandmarkSlamResult, options) -> RefinedRun:
-        """GraphSLAM's correspondence test (ch. 11.6) over the run (``refine_run``), said in a line."""
+        """GraphSLAM's correspondence test (ch. 11.6) over the run (``refine_run`` with the options'
+        ``refinement``), said in a line."""
         noise = self.noise(options)
-        refined = self.refine_run(result, noise.get("motion_noise"), noise.get("measurement_noise"))
+        cpu = time.process_time()
+        refined = self.refine_run(result, noise.get("motion_noise"), noise.get("measurement_noise"),
+                                  **refinement_keywords(options))
+        cpu = time.process_time() - cpu
         r = refined.result
         out = refined.as_landmark_slam_result(result)
         line = (f"refinement:    GraphSLAM correspondence test (ch. 11.6): {evaluation.association_accuracy(out):.1%} "
@@ -160,7 +175,15 @@ class LandmarkDataset:
                 f"{int((r.labels < 0).sum())} unassigned, {r.iterations} rounds, {r.seconds:.2f} s"
                 f"{'' if r.converged else ' (stopped at the round limit)'}; the scores, path and picture below are the "
                 f"refined ones")
-        return RefinedRun(out, r, [line])
+        return RefinedRun(out, r, [line], self.refinement_metrics(refined, cpu))
+
+    def refinement_metrics(self, refined: RunRefinement, cpu_seconds: float) -> Dict[str, object]:
+        """The refinement's figures by name (``METRICS``): its CPU seconds (its input built from the
+        run included), rounds, merges, sightings moved, and whether it converged (False: it
+        stopped at max_iterations)."""
+        r = refined.result
+        return {"refine_cpu_s": float(cpu_seconds), "refine_rounds": int(r.iterations), "refine_merges": len(r.merges),
+                "refine_moves": len(r.splits), "refine_converged": bool(r.converged)}
 
     def score(self, result: LandmarkSlamResult, options) -> DatasetScore:
         """The run against the dataset's reference (nothing to score against: an empty score)."""
@@ -174,7 +197,7 @@ class LandmarkDataset:
     def caption(self, options) -> str:
         """The filter, for the picture's title."""
         if options.method == "fastslam":
-            return (f"FastSLAM {options.version}.0, {options.num_particles} particles, "
+            return (f"FastSLAM {options.fastslam.version}.0, {options.fastslam.num_particles} particles, "
                     f"{'unknown' if options.unknown else 'known'} correspondences")
         return "EKF SLAM, known correspondences"
 
@@ -206,11 +229,29 @@ def require_fastslam_options(method: str, options: Optional[FastSlamOptions], fi
         raise ValueError(f"{name}: FastSLAM's options apply to method 'fastslam' only, not to {method!r}")
 
 
-def fastslam_run_options(options) -> FastSlamOptions:
-    """The FastSlamOptions of a ``LandmarkRunOptions`` (its num_particles, version, seed and
-    threads); the dataset's own defaults join them in its ``run_fastslam``."""
-    return FastSlamOptions(num_particles=options.num_particles, version=options.version, seed=options.seed,
-                           threads=options.threads)
+def refuse_hypotheses(options) -> None:
+    """ValueError naming the first field of the options' ``hypotheses`` that is set: the
+    multiple-hypothesis EKF runs on MRCLAM only."""
+    changed = differing_field(options.hypotheses, MultiHypothesisOptions())
+    if changed is not None:
+        raise ValueError(f"hypotheses.{changed} applies to MRCLAM folders (with unknown, association mht)")
+
+
+def refinement_keywords(options) -> dict:
+    """``landmark_refine.refine_landmarks``' keywords of a ``LandmarkRunOptions`` (its ``refinement``)."""
+    return dataclasses.asdict(options.refinement)
+
+
+def association_metrics(result: LandmarkSlamResult) -> Dict[str, int]:
+    """A run's association figures by name (``LandmarkDataset.METRICS``; hidden correspondences
+    only, else none): ``unassigned``, the sightings it put on no landmark (discarded as clutter,
+    left provisional, or, refined, left by the split test for no other), and
+    ``landmarks_associated``, the landmarks that hold sightings (a particle filter's include those
+    its map has dropped since)."""
+    if result.associations is None:
+        return {}
+    ids = np.asarray(result.associations.ids)
+    return {"unassigned": int(np.count_nonzero(ids < 0)), "landmarks_associated": len(np.unique(ids[ids >= 0]))}
 
 
 def skipped_rows_line(skipped: Dict[str, int]) -> str:
@@ -223,7 +264,7 @@ def skipped_rows_line(skipped: Dict[str, int]) -> str:
 
 def fastslam_lines(result: LandmarkSlamResult, options) -> List[str]:
     """What a FastSLAM run did: its particles, resamplings, time and map, in lines."""
-    return [f"filter:        FastSLAM {options.version}.0, {options.num_particles} particles, "
+    return [f"filter:        FastSLAM {options.fastslam.version}.0, {options.fastslam.num_particles} particles, "
             f"{result.filter.num_resamples} resamplings; filter time {result.seconds:.2f} s",
             f"landmarks:     {len(result.landmarks)} in the best particle's map"]
 
@@ -238,5 +279,6 @@ def association_line(result: LandmarkSlamResult, what: str = "label", applied: O
 
 
 __all__ = ["DATASET_OPTIONS", "EKF_ASSOCIATIONS", "LandmarkDataset", "DatasetScore", "RefinedRun", "association_line",
-           "fastslam_lines", "fastslam_run_options", "require_fastslam_options",
+           "association_metrics", "fastslam_lines", "refinement_keywords", "refuse_hypotheses",
+           "require_fastslam_options",
            "skipped_rows_line"]

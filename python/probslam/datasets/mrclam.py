@@ -19,7 +19,7 @@ from typing import Dict, Iterator, List, Optional, Tuple, Union
 
 import numpy as np
 
-from .._args import options_over, positive_real, real_array, require_fields, require_instance
+from .._args import differing_field, options_over, positive_real, real_array, require_fields, require_instance
 from .._progress import progress_bar
 from .._core import (FastSlam, FastSlamOptions, MultiHypothesisOptions, chi_square_quantile, velocity_motion,
                      velocity_motion_control_jacobian)
@@ -30,9 +30,10 @@ from ..geometry import accumulate
 from ..io._files import file_path
 from ..io.landmark_datasets import MRCLAM_RANGE_SCALE, Mrclam, read_mrclam
 from .._core import velocity_increments
-from ..landmark_refine import RefinementInput, compose_increments, floor_covariances, poses_at_nodes, run_labels
+from ..landmark_refine import (RefinementInput, RunRefinement, compose_increments, floor_covariances, poses_at_nodes,
+                               run_labels)
 from ..landmark_slam import Associations, LandmarkSlamResult, ekf_landmarks
-from .landmark_dataset import LandmarkDataset, DatasetScore, association_line, fastslam_lines, fastslam_run_options
+from .landmark_dataset import LandmarkDataset, DatasetScore, association_line, association_metrics, fastslam_lines
 
 PathLike = Union[str, "os.PathLike[str]"]
 
@@ -69,7 +70,7 @@ PERCEPTUAL_FIELD_QUANTILE = 0.9
 #: the camera's perceptual field (``perceptual_field``) is seen with this probability, so
 #: a hypothesis pays -2 ln(1 - P_D) = 1.39 for each such landmark a scan misses; and a new
 #: landmark costs this much (NIS units, below the library's 27.6). Chosen over all ten shipped
-#: robots (benchmarks/bench_mrclam_association.py; docs/landmark_fastslam.md has the sweep).
+#: robots (benchmarks/sweeps/mrclam_association.toml; docs/landmark_fastslam.md has the sweep).
 MHT_DETECTION_PROBABILITY = 0.5
 MHT_NEW_LANDMARK_COST = 21.0
 
@@ -496,11 +497,12 @@ class MrclamRobot(LandmarkDataset):
 
     @classmethod
     def check(cls, options, path) -> None:
-        """As ``LandmarkDataset.check``; and bearing_offset needs the multiple-hypothesis EKF,
-        refine hidden correspondences."""
+        """As ``LandmarkDataset.check``; and the options of ``hypotheses`` need the
+        multiple-hypothesis EKF, refine hidden correspondences."""
         super().check(options, path)
-        if options.bearing_offset and not (options.unknown and options.association in (None, "mht")):
-            raise ValueError("bearing_offset needs unknown correspondences and association mht")
+        changed = differing_field(options.hypotheses, MultiHypothesisOptions())
+        if changed is not None and not (options.unknown and options.association in (None, "mht")):
+            raise ValueError(f"hypotheses.{changed} needs unknown correspondences and association mht")
         if options.refine != "none" and not options.unknown:
             raise ValueError("refine graphslam needs unknown correspondences (with known ones there is nothing to "
                              "refine)")
@@ -527,14 +529,12 @@ class MrclamRobot(LandmarkDataset):
         """``run_ekf`` (EKF or the multiple-hypothesis EKF) or ``run_fastslam`` with the options' noise."""
         noise = self.noise(options)
         if options.method == "fastslam":
-            return self.run_filter("fastslam", known=not options.unknown, options=fastslam_run_options(options),
+            return self.run_filter("fastslam", known=not options.unknown, options=options.fastslam,
                                    progress=progress, **noise)
         association = self.association(options)
         mht = options.unknown and association == "mht"
-        hypotheses = (MultiHypothesisOptions(bearing_offset_sigma=options.bearing_offset) if options.bearing_offset
-                      else None)
         return self.run_filter("mht" if mht else "ekf", known=not options.unknown, association=association,
-                               hypotheses=hypotheses, progress=progress, **noise)
+                               hypotheses=options.hypotheses if mht else None, progress=progress, **noise)
 
     def _run_filter(self, method, known, motion_noise, measurement_noise, association, hypotheses, fastslam,
                     progress) -> LandmarkSlamResult:
@@ -551,8 +551,8 @@ class MrclamRobot(LandmarkDataset):
             return ([f"dataset:       {source}, {'unknown' if options.unknown else 'known'} correspondences"]
                     + fastslam_lines(result, options) + association_line(result))
         association = self.association(options)
-        offset = (f"bearing offset {options.bearing_offset:g} rad per scan, "
-                  if options.bearing_offset and options.unknown and association == "mht" else "")
+        sigma = options.hypotheses.bearing_offset_sigma
+        offset = f"bearing offset {sigma:g} rad per scan, " if sigma and options.unknown and association == "mht" else ""
         ranges = "raw depth readings" if self.raw_ranges else f"ranges from depth x {MRCLAM_RANGE_SCALE}"
         return [f"dataset:       {source}, {'unknown (' + association + ')' if options.unknown else 'known'} "
                 f"correspondences, {offset}{ranges}",
@@ -592,6 +592,7 @@ class MrclamRobot(LandmarkDataset):
                          dead_reckoning_label="dead reckoning" + ALIGNED_SUFFIX)
         metrics = dict(path_rmse_m=float(s.path_rmse), path_rmse_aligned_m=float(s.path_rmse_aligned),
                        landmark_rmse_m=float(s.landmark_rmse), landmark_rmse_aligned_m=float(s.landmark_rmse_aligned),
+                       dead_reckoning_rmse_m=float(d.path_rmse), dead_reckoning_rmse_aligned_m=float(d.path_rmse_aligned),
                        **self._map_metrics(result, labels, self._survey_rmse(result, labels)))
         return DatasetScore(lines, reference, dict(score=s, dead_reckoning=d), metrics)
 
@@ -605,13 +606,27 @@ class MrclamRobot(LandmarkDataset):
         except ValueError:
             return float("nan")
 
-    @staticmethod
-    def _map_metrics(result: LandmarkSlamResult, labels, survey_rmse: float) -> Dict[str, float]:
-        """The association table's measures: the map's RMSE aligned onto the survey and, with hidden
-        correspondences, the share of sightings whose landmark's majority barcode is their own."""
-        out = {"map_rmse_survey_aligned_m": float(survey_rmse)}
+    def _map_metrics(self, result: LandmarkSlamResult, labels, survey_rmse: float) -> Dict[str, float]:
+        """The association table's measures: the map's RMSE aligned onto the survey, the robot's
+        sightings and the surveyed landmarks they name, and with hidden correspondences the share
+        of sightings whose landmark's majority barcode is their own and ``association_metrics``."""
+        seen = set(self.data.measurements[:, 1].astype(int).tolist()) & set(self.data.landmark_positions)
+        out = {"map_rmse_survey_aligned_m": float(survey_rmse), "sightings": len(self.data.measurements),
+               "landmarks_seen": len(seen)}
         if labels is not None:
             out["association_correct"] = float(association_accuracy(result))
+        return {**out, **association_metrics(result)}
+
+    def refinement_metrics(self, refined: RunRefinement, cpu_seconds: float) -> Dict[str, object]:
+        """As ``LandmarkDataset.refinement_metrics``; with robot ground truth also the filter's path
+        at the refinement's poses (one per scan), aligned onto it: what the refined run's
+        path_rmse_aligned_m is measured against."""
+        out = super().refinement_metrics(refined, cpu_seconds)
+        if self.data.groundtruth is not None:
+            start = refined.input
+            filtered = LandmarkSlamResult("filter", start.times, start.poses, start.landmarks, None)
+            with np.errstate(over="ignore", invalid="ignore"):
+                out["filter_path_rmse_aligned_m"] = float(score_mrclam(filtered, self.data).path_rmse_aligned)
         return out
 
     def _survey_score(self, result: LandmarkSlamResult, dead: LandmarkSlamResult, labels) -> DatasetScore:

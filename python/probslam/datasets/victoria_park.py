@@ -21,7 +21,7 @@ from ..io._files import file_path
 from ..io.landmark_datasets import VictoriaPark, read_victoria_park
 from ..landmark_refine import RefinementInput, compose_increments, run_labels
 from ..landmark_slam import LandmarkSlamResult, ekf_along_chain, polar_measurements
-from .landmark_dataset import (LandmarkDataset, association_line, fastslam_lines, fastslam_run_options,
+from .landmark_dataset import (LandmarkDataset, association_line, fastslam_lines, refuse_hypotheses,
                                skipped_rows_line)
 
 PathLike = Union[str, "os.PathLike[str]"]
@@ -153,11 +153,10 @@ class VictoriaParkChain(LandmarkDataset):
 
     @classmethod
     def check(cls, options, path) -> None:
-        """As ``LandmarkDataset.check``; and no bearing offset, refine only FastSLAM's hidden
-        correspondences."""
+        """As ``LandmarkDataset.check``; and no options of the multiple-hypothesis EKF, refine only
+        FastSLAM's hidden correspondences."""
         super().check(options, path)
-        if options.bearing_offset:
-            raise ValueError("bearing_offset applies to MRCLAM folders (with unknown, association mht)")
+        refuse_hypotheses(options)
         if options.refine != "none" and not options.unknown:
             raise ValueError("refine graphslam needs unknown correspondences (with known ones there is nothing to "
                              "refine)")
@@ -184,7 +183,7 @@ class VictoriaParkChain(LandmarkDataset):
     def run(self, options, progress: Optional[bool] = None) -> LandmarkSlamResult:
         """``run_fastslam``, or ``run_ekf`` (known correspondences, the file's)."""
         if options.method == "fastslam":
-            return self.run_filter("fastslam", known=not options.unknown, options=fastslam_run_options(options),
+            return self.run_filter("fastslam", known=not options.unknown, options=options.fastslam,
                                    progress=progress)
         return self.run_filter("ekf", progress=progress)
 

@@ -26,8 +26,8 @@ from ..landmark_refine import UNASSIGNED, RefinementInput, RunRefinement, compos
 from ..landmark_slam import Associations, LandmarkSlamResult, ekf_landmarks
 from ..eval import position_error
 from . import victoria_park_acfr
-from .landmark_dataset import (EKF_ASSOCIATIONS, LandmarkDataset, DatasetScore, RefinedRun, fastslam_run_options,
-                               require_fastslam_options)
+from .landmark_dataset import (EKF_ASSOCIATIONS, LandmarkDataset, DatasetScore, RefinedRun, refinement_keywords,
+                               refuse_hypotheses, require_fastslam_options)
 
 # The noise of the inputs and detections: RFS-SLAM's FastSLAM configuration for this run
 # (kykleung/RFS-SLAM cfg/fastslam_VictoriaPark.xml; its converter made the dataset's files): the
@@ -304,10 +304,10 @@ class VictoriaParkRun(LandmarkDataset):
 
     @classmethod
     def check(cls, options, path) -> None:
-        """As ``LandmarkDataset.check``; and no bearing offset, the EKF's ``EKF_ASSOCIATIONS`` only."""
+        """As ``LandmarkDataset.check``; and no options of the multiple-hypothesis EKF, the EKF's
+        ``EKF_ASSOCIATIONS`` only."""
         super().check(options, path)
-        if options.bearing_offset:
-            raise ValueError("bearing_offset applies to MRCLAM folders (with unknown, association mht)")
+        refuse_hypotheses(options)
         if options.association not in (None, *EKF_ASSOCIATIONS):
             raise ValueError(f"association on the original Victoria Park run: {' or '.join(EKF_ASSOCIATIONS)} "
                              "(the EKF's)")
@@ -320,7 +320,7 @@ class VictoriaParkRun(LandmarkDataset):
     def run(self, options, progress: Optional[bool] = None) -> LandmarkSlamResult:
         """``run_fastslam`` or ``run_ekf`` over the run."""
         if options.method == "fastslam":
-            return self.run_filter("fastslam", options=fastslam_run_options(options), progress=progress)
+            return self.run_filter("fastslam", options=options.fastslam, progress=progress)
         return self.run_filter("ekf", association=self.association(options), progress=progress)
 
     def run_filter(self, method: str, *, known: Optional[bool] = None, motion_noise=None, measurement_noise=None,
@@ -353,7 +353,8 @@ class VictoriaParkRun(LandmarkDataset):
     def caption(self, options) -> str:
         """The filter, for the picture's title."""
         if options.method == "fastslam":
-            return f"FastSLAM {options.version}.0, {options.num_particles} particles, unknown correspondences"
+            return (f"FastSLAM {options.fastslam.version}.0, {options.fastslam.num_particles} particles, unknown "
+                    "correspondences")
         return f"EKF SLAM, unknown correspondences ({self.association(options)})"
 
     def _gps_lines(self, result: LandmarkSlamResult, label: str) -> List[str]:
@@ -388,9 +389,10 @@ class VictoriaParkRun(LandmarkDataset):
         return refinement_input(run, self.data)
 
     def refine(self, result: LandmarkSlamResult, options) -> RefinedRun:
-        """GraphSLAM's correspondence test over the run (``refine``) and its error against the GPS."""
+        """GraphSLAM's correspondence test over the run (``refine``, with the options' ``refinement``)
+        and its error against the GPS."""
         cpu = time.process_time()
-        refinement = self.refine_run(result)
+        refinement = self.refine_run(result, **refinement_keywords(options))
         r = refinement.result
         cpu = time.process_time() - cpu
         refined = refined_result(refinement, result)
@@ -399,11 +401,19 @@ class VictoriaParkRun(LandmarkDataset):
                 f"{int((r.labels < 0).sum())} unassigned, {r.iterations} rounds, {cpu:.2f} s CPU"
                 f"{'' if r.converged else ' (stopped at the round limit)'}; the path and picture below are the refined "
                 "ones")
-        return RefinedRun(refined, r, [line, *self._gps_lines(refined, "GPS refined:")])
+        return RefinedRun(refined, r, [line, *self._gps_lines(refined, "GPS refined:")],
+                          self.refinement_metrics(refinement, cpu))
 
     def score(self, result: LandmarkSlamResult, options) -> DatasetScore:
-        """The error against the GPS (said in the summary and the refinement's lines)."""
-        return DatasetScore(values=dict(gps=self._gps_error(result)))
+        """The error against the GPS (said in the summary and the refinement's lines), and that of
+        the car's model alone (``run_ekf(dead_reckoning=True)``, the baseline) as ``metrics``."""
+        error = self._gps_error(result)
+        if error is None:
+            return DatasetScore(values=dict(gps=None))
+        dead = self._gps_error(self.run_filter("dead-reckoning", progress=False))
+        return DatasetScore(values=dict(gps=error, dead_reckoning=dead),
+                            metrics={"dead_reckoning_rmse_m": float(dead.rmse),
+                                     "dead_reckoning_rmse_aligned_m": float(dead.rmse_aligned)})
 
     def draw(self, ax, result: LandmarkSlamResult, score: DatasetScore, refinement: Optional[RefinedRun] = None,
              filtered: Optional[LandmarkSlamResult] = None, options=None) -> str:

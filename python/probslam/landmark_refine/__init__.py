@@ -52,7 +52,7 @@ from .moves import REASSOCIATION_MARGIN, REASSOCIATION_ODDS
 from .noise import NOISE_MAX_ITERATIONS, NOISE_TOLERANCE
 from .problem import (COVARIANCE_CONDITION_FLOOR, MINIMUM_DECREASE, MINIMUM_STEP, NOISE_OPTIMIZE_TOLERANCE,
                       UNASSIGNED, polar_to_point)
-from .refine import MAX_ITERATIONS, refine_landmarks
+from .refine import MAX_ITERATIONS, check_options, refine_landmarks
 from .results import LandmarkRefinement, Merge, RefinementRound, Split
 from .runs import (ODOMETRY_COVARIANCE_FLOOR, RefinementInput, RunRefinement, compose_increments, floor_covariances,
                    poses_at_nodes, run_labels)
@@ -65,6 +65,6 @@ __all__ = ["COVARIANCE_CONDITION_FLOOR", "LEAVE_ONE_OUT_RANK_TOLERANCE", "Landma
            "MAX_SUSPECTS_PER_ROUND", "MERGE_PROBABILITY", "MINIMUM_DECREASE", "MINIMUM_STEP", "Merge",
            "NOISE_MAX_ITERATIONS", "NOISE_OPTIMIZE_TOLERANCE", "NOISE_TOLERANCE", "ODOMETRY_COVARIANCE_FLOOR",
            "REASSOCIATION_MARGIN", "REASSOCIATION_ODDS", "RefinementInput", "RefinementRound", "RunRefinement",
-           "SPLIT_RUN_PROBABILITY", "Split", "UNASSIGNED", "compose_increments", "floor_covariances",
+           "SPLIT_RUN_PROBABILITY", "Split", "UNASSIGNED", "check_options", "compose_increments", "floor_covariances",
            "majority_truth", "merge_gate", "polar_to_point", "poses_at_nodes", "refine_landmarks", "run_labels",
            "sighting_accuracy", "split_gate"]

@@ -20,7 +20,7 @@ from .sightings import _SightingTests, _reassociation_distances
 #: (both under the posterior of all the other sightings). 1: maximum likelihood, as the filters
 #: associate, no prior in favour of the filter's label (measured on the ten MRCLAM runs of three
 #: filters: odds of 10 gained 2-5 points of correct sightings where maximum likelihood gained
-#: 3-12; bench_landmark_refine.py).
+#: 3-12; benchmarks/sweeps/landmark_refine.toml).
 REASSOCIATION_ODDS = 1.0
 REASSOCIATION_MARGIN = 2.0 * float(np.log(REASSOCIATION_ODDS))  # in -2 log likelihood
 

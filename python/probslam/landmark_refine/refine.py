@@ -54,7 +54,7 @@ def refine_landmarks(poses, odometry, odometry_covariances, pose_index, measurem
     start = time.perf_counter()
     poses, odometry, odo_cov, index, z_polar, labels, q, values = _check_input(
         poses, odometry, odometry_covariances, pose_index, measurements, labels, measurement_noise, landmarks)
-    max_iterations = _check_options(merge_probability, split_probability, max_iterations, estimate_noise,
+    max_iterations = check_options(merge_probability, split_probability, max_iterations, estimate_noise,
                                     new_landmarks)
     _require_one_label_per_scan(index, labels)
     problem = _Problem(poses.copy(), odometry, odo_cov, index, z_polar, np.array(q), labels.copy())
@@ -78,8 +78,9 @@ def refine_landmarks(poses, odometry, odometry_covariances, pose_index, measurem
     return _result(problem, g, run, converged, chi2, time.perf_counter() - start)
 
 
-def _check_options(merge_probability, split_probability, max_iterations, estimate_noise, new_landmarks) -> int:
-    """The options' checks (ValueError / TypeError naming the option); max_iterations as an int."""
+def check_options(merge_probability, split_probability, max_iterations, estimate_noise, new_landmarks) -> int:
+    """``refine_landmarks``' options checked (ValueError / TypeError naming the option); max_iterations
+    as an int."""
     for name, p in (("merge_probability", merge_probability), ("split_probability", split_probability)):
         if positive_real(p, name) >= 1.0:
             raise ValueError(f"{name} must lie in (0, 1), got {p!r}")

@@ -10,7 +10,7 @@ from .map_run import MapOptions, MapRun, map_log
 from .localization_run import (SNAPSHOT_TRAVEL, TRACK_JUMP, LocalizationRun, convergence_report, converged_track,
                                localize_log, snapshot_times)
 from .evaluation import EvaluationOptions, TrajectoryEvaluation, evaluate_trajectory, reference_kind
-from .landmark_run import LandmarkRun, LandmarkRunOptions, run_landmark_dataset
+from .landmark_run import LandmarkRun, LandmarkRunOptions, RefinementOptions, run_landmark_dataset
 from .slam_run import SlamLogRun, slam_log
 
 __all__ = ["GraphFileOptions", "GraphFileRun", "optimize_file",
@@ -18,5 +18,5 @@ __all__ = ["GraphFileOptions", "GraphFileRun", "optimize_file",
            "LocalizationRun", "SNAPSHOT_TRAVEL", "TRACK_JUMP", "convergence_report", "converged_track", "localize_log",
            "snapshot_times",
            "EvaluationOptions", "TrajectoryEvaluation", "evaluate_trajectory", "reference_kind",
-           "LandmarkRun", "LandmarkRunOptions", "run_landmark_dataset",
+           "LandmarkRun", "LandmarkRunOptions", "RefinementOptions", "run_landmark_dataset",
            "SlamLogRun", "slam_log"]

@@ -13,16 +13,18 @@ import math
 import os
 import pathlib
 import time
-from dataclasses import dataclass, fields
-from typing import List, Optional, Union
+from dataclasses import asdict, dataclass, fields
+from typing import Dict, List, Optional, Union
 
 import numpy as np
 
-from ._options import Options, described
+from ._options import Options, described, described_group, group_message, option_names
 from .inputs import LANDMARK_DATASET, reading
 from .. import io
-from .._args import require_instance
+from .._args import differing_field, require_instance
+from .._core import FastSlamOptions, MultiHypothesisOptions
 from ..datasets import LandmarkDataset, DatasetScore, RefinedRun, landmark_dataset_class, mrclam
+from ..landmark_refine import MAX_ITERATIONS, MERGE_PROBABILITY, SPLIT_RUN_PROBABILITY, check_options
 from ..landmark_slam import LandmarkSlamResult
 
 PathLike = Union[str, "os.PathLike[str]"]
@@ -37,18 +39,37 @@ ASSOCIATIONS = ("jcbb", "ml", "mht")
 REFINEMENTS = ("none", "graphslam")
 #: The command each method is, for the picture's title.
 COMMANDS = {"ekf": "ekf-slam", "fastslam": "fastslam"}
-#: The largest seed: the filters' seeds are unsigned 64-bit integers.
-MAX_SEED = 2 ** 64 - 1
 #: The options that say how a path is read (not for a dataset given as read).
 READ_OPTIONS = ("robot", "seconds", "raw_ranges")
-#: The options that apply to FastSLAM only.
-FASTSLAM_OPTIONS = ("num_particles", "version", "seed", "threads")
+
+
+@dataclass
+class RefinementOptions(Options):
+    """How ``refine`` graphslam refines a run: ``landmark_refine.refine_landmarks``' options
+    (docs/landmark_refine.md)."""
+
+    merge_probability: float = described(MERGE_PROBABILITY, "two landmarks merge when their difference is within "
+                                                             "the chi-square quantile at this probability (2 dof)")
+    split_probability: float = described(SPLIT_RUN_PROBABILITY, "the split gate's: the probability that no correct "
+                                                                 "sighting of the run leaves its landmark")
+    max_iterations: int = described(MAX_ITERATIONS, "rounds of optimise, test and change at most")
+    estimate_noise: bool = described(True, "rescale the odometry and sensor noise to the first optimum's residuals "
+                                           "before the first test")
+    new_landmarks: bool = described(False, "a sighting that leaves its landmark and fits no other founds a landmark "
+                                           "(else it is left on none)")
+
+    def validate(self) -> None:
+        """ValueError / TypeError naming the first field out of range or of the wrong type."""
+        check_options(**asdict(self))
 
 
 @dataclass
 class LandmarkRunOptions(Options):
     """How ``run_landmark_dataset`` runs a landmark dataset. MRCLAM's options (robot, seconds,
-    raw_ranges, sigma_*) are refused on Victoria Park, which takes its file's or its sensors' noise."""
+    raw_ranges, sigma_*) are refused on Victoria Park, which takes its file's or its sensors' noise.
+    The filters' own options are their options objects (``fastslam``, ``hypotheses``), set whole, by
+    a dict of their fields, or field by field by dotted path (``fastslam.num_particles`` in a sweep);
+    the dataset's own values (its noise, its sensor's field) apply where they hold their defaults."""
 
     method: str = described("ekf", "EKF SLAM (Tables 10.1 / 10.2) or FastSLAM", choices=METHODS)
     unknown: bool = described(False, "hide the correspondences (always hidden on the original Victoria Park run; "
@@ -56,13 +77,12 @@ class LandmarkRunOptions(Options):
     association: Optional[str] = described(None, "with ``unknown``, EKF: joint compatibility, maximum likelihood or "
                                                  "multiple hypotheses (None: mht on MRCLAM, jcbb elsewhere)",
                                            choices=ASSOCIATIONS)
-    bearing_offset: float = described(0.0, "MRCLAM, ``association`` mht: the standard deviation of a bearing offset "
-                                            "shared by each scan's sightings (0: none)", "rad")
-    num_particles: int = described(100, "FastSLAM: number of particles (a particle holds a few landmarks, not a grid "
-                                        "map)")
-    version: int = described(1, "FastSLAM 1.0 or 2.0 (the proposal that includes the measurements)", choices=(1, 2))
-    seed: int = described(0, "FastSLAM: random seed")
-    threads: int = described(1, "FastSLAM: worker threads (the same result for any count)")
+    hypotheses: MultiHypothesisOptions = described_group(
+        MultiHypothesisOptions, "MRCLAM, ``association`` mht: the multiple-hypothesis EKF's beam and costs (those left "
+                                "at their defaults take MRCLAM's: mrclam.run_ekf)")
+    fastslam: FastSlamOptions = described_group(
+        FastSlamOptions, "method fastslam: FastSLAM's options (those left at their defaults take the dataset's: "
+                         "fastslam.dataset_options)")
     robot: Optional[int] = described(None, "MRCLAM robot number (None: 1)", type=int)
     seconds: Optional[float] = described(None, "MRCLAM: only the first seconds of the robot's odometry (None: all)",
                                          "s", type=float)
@@ -78,6 +98,7 @@ class LandmarkRunOptions(Options):
                                            type=float)
     refine: str = described("none", "with ``unknown``: after the filter, GraphSLAM over all sightings with the "
                                     "correspondence test of ch. 11.6 (docs/landmark_refine.md)", choices=REFINEMENTS)
+    refinement: RefinementOptions = described_group(RefinementOptions, "with ``refine`` graphslam: its options")
 
     def validate(self) -> None:
         """ValueError / TypeError naming the first field that is wrong or does not apply (the
@@ -97,16 +118,18 @@ class LandmarkRunOptions(Options):
             if not self.unknown:
                 raise ValueError("association applies with unknown correspondences only (known correspondences need "
                                  "no association)")
-        _real(self.bearing_offset, "bearing_offset", zero=True, what="angle (rad)")
-        if self.bearing_offset and self.method != "ekf":
-            raise ValueError("bearing_offset applies to method ekf only")
-        for name, lowest, highest in (("num_particles", 1, None), ("version", 1, 2), ("seed", 0, MAX_SEED),
-                                      ("threads", 1, None)):
-            _integer(getattr(self, name), name, lowest, highest)
-        if self.method != "fastslam":
-            for name in FASTSLAM_OPTIONS:
-                if getattr(self, name) != getattr(_DEFAULTS, name):
-                    raise ValueError(f"{name} applies to method fastslam only")
+        for name, applies, why in (("hypotheses", self.method == "ekf", "applies to method ekf only"),
+                                   ("fastslam", self.method == "fastslam", "applies to method fastslam only"),
+                                   ("refinement", self.refine != "none", "applies with refine graphslam only")):
+            group = getattr(self, name)
+            require_instance(group, type(_DEFAULT_GROUPS[name]), name)
+            try:
+                group.validate()
+            except (TypeError, ValueError) as exc:
+                raise type(exc)(group_message(name, str(exc), option_names(group))) from None
+            changed = differing_field(group, _DEFAULT_GROUPS[name])
+            if changed is not None and not applies:
+                raise ValueError(f"{name}.{changed} {why}")
         if self.robot is not None:
             _integer(self.robot, "robot", 1, mrclam.ROBOTS, what=f"an MRCLAM robot number 1 to {mrclam.ROBOTS}")
         if self.seconds is not None:
@@ -119,7 +142,13 @@ class LandmarkRunOptions(Options):
                 raise ValueError(f"{name} {value} must be a finite standard deviation > 0 with a finite variance > 0")
 
 
-_DEFAULTS = LandmarkRunOptions()
+#: Each group's defaults, which a method that does not take it must leave as they are.
+_DEFAULT_GROUPS = {"hypotheses": MultiHypothesisOptions(), "fastslam": FastSlamOptions(),
+                   "refinement": RefinementOptions()}
+#: Every option by its path (a group's fields as group.field): a message naming one is about the
+#: options, not the file read.
+_OPTION_PATHS = [f.name for f in fields(LandmarkRunOptions)] + [
+    f"{group}.{name}" for group, default in _DEFAULT_GROUPS.items() for name in option_names(default)]
 
 
 def _integer(value, name: str, lowest: int, highest: Optional[int], what: str = "") -> None:
@@ -179,7 +208,7 @@ class LandmarkRun:
             type(dataset).check(options, dataset.path)
             return cls(dataset, options)
         path = pathlib.Path(os.fspath(dataset))
-        with reading(str(path), LANDMARK_DATASET, [f.name for f in fields(LandmarkRunOptions)], folder=True):
+        with reading(str(path), LANDMARK_DATASET, _OPTION_PATHS, folder=True):
             kind = landmark_dataset_class(path)
             kind.check(options, path)
             return cls(kind.load(path, options), options)
@@ -195,6 +224,12 @@ class LandmarkRun:
             self.refinement = self.dataset.refine(self.filtered, self.options)
             self.result = self.refinement.result
         self.score = self.dataset.score(self.result, self.options)
+
+    @property
+    def metrics(self) -> Dict[str, object]:
+        """The run's figures by name (names of ``LandmarkDataset.METRICS``, a sweep's row): the
+        score's against the dataset's reference and the refinement's."""
+        return {**self.score.metrics, **({} if self.refinement is None else self.refinement.metrics)}
 
     def summary(self) -> str:
         """What was read, run, refined and scored, in lines (as ``probslam ekf-slam`` prints them)."""
@@ -237,4 +272,5 @@ def run_landmark_dataset(dataset: Union[PathLike, LandmarkDataset], options: Opt
     return run
 
 
-__all__ = ["ASSOCIATIONS", "LandmarkRun", "LandmarkRunOptions", "METHODS", "REFINEMENTS", "run_landmark_dataset"]
+__all__ = ["ASSOCIATIONS", "LandmarkRun", "LandmarkRunOptions", "METHODS", "REFINEMENTS", "RefinementOptions",
+           "run_landmark_dataset"]
