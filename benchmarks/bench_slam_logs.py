@@ -5,9 +5,10 @@ Per log: scans, submaps, loop closures (accepted, i.e. active at the end / rejec
 processing seconds (reading the log not included: run_slam's own clock, from the first scan to
 the map), the log's duration and the real-time factor (duration / processing time on one core).
 
-Accuracy: benchmarks/sweeps/laser_logs.toml makes the same GraphSLAM runs with their references (ACES' relations; Intel's and FR079's corrected logs, paired scan for
-scan by probslam.eval.pair_corrected_scans) through `probslam batch`, and with them scan matching
-alone. This script keeps what needs a timing harness: the logs one after the other on one core of
+Accuracy: benchmarks/sweeps/laser_logs.toml makes the same GraphSLAM runs with their references
+(ACES' relations; Intel's and FR079's corrected logs, paired scan for scan by
+probslam.eval.pair_corrected_scans) through `probslam batch`, and scores scan matching alone with
+them. This script keeps what needs a timing harness: the logs one after the other on one core of
 a quiet machine.
 
     .venv/bin/python benchmarks/bench_slam_logs.py [--logs aces intel fr079 mit_csail]

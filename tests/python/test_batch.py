@@ -430,6 +430,7 @@ def test_a_slam_run_row_holds_its_score_against_a_corrected_log(tmp_path):
             e = evaluate_trajectory(write(str(tmp_path / "run")), run.reference,
                                     EvaluationOptions(raw_log=str(lap))).result
             assert isinstance(e, ev.CorrectedLogError) and row[prefix + "pairs"] == e.matched >= ev.MIN_PAIRS
-            for name, unit, statistics in (("position", "m", e.statistics), ("heading", "deg", e.heading_statistics_deg)):
+            for name, unit, statistics in (("position", "m", e.statistics),
+                                           ("heading", "deg", e.heading_statistics_deg)):
                 assert [row[f"{prefix}{name}_{s}_{unit}"] for s in ("mean", "median", "max")] == \
                     [statistics[s] for s in ("mean", "median", "max")]
