@@ -28,7 +28,6 @@ import probslam as ps
 import probslam.eval
 import probslam.slam
 from probslam.mapping import map_laser_log
-from bench_slam_logs import LOGS as CORRECTED_LOGS, agreement, pair_scans
 from common import heading, report
 
 HERE = pathlib.Path(__file__).resolve().parent
@@ -37,6 +36,8 @@ LASER = SHARED / "laser_2d"
 LOGS = {"aces": ("ACES", "aces/aces.clf.bz2"), "intel": ("Intel", "intel/intel.clf"),
         "fr079": ("FR079", "fr079/fr079.clf.bz2")}
 RELATIONS = LASER / "aces" / "aces.relations"
+#: The corrected logs the Intel and FR079 paths are compared with (ps.eval.corrected_log_error).
+CORRECTED = {"intel": "intel/intel-corrected.log.gz", "fr079": "fr079/freiburg-079-corrected.log.gz"}
 SWEEP_SCANS = 2000
 PARTICLES = (1, 3, 10, 30, 100)
 TILE_BYTES = 32 * 32 * 12  # log-odds (double) and scan stamp (uint32) of 32 x 32 cells
@@ -64,14 +65,15 @@ def relations(result):
 
 def corrected_agreement(name, path, result):
     """Mean position difference (m) from the log's corrected log after a rigid alignment, or "-"."""
-    corrected = CORRECTED_LOGS[name][3]
+    corrected = CORRECTED.get(name)
     if corrected is None or not (LASER / corrected).exists():
         return "-"
-    index, reference, _, note = pair_scans(path, ps.io.read_carmen_log(path).scans, LASER / corrected)
-    if index is None or len(index) < 3:
+    try:
+        e = ps.eval.corrected_log_error(result.poses, ps.io.read_carmen_log(path).scans,
+                                        ps.io.read_carmen_log(LASER / corrected).scans)
+    except ValueError:  # fewer than ps.eval.MIN_PAIRS pairs
         return "-"
-    pos, _ = agreement(result.poses[index], reference)
-    return f"corrected log: mean {pos.mean():.3f} m ({len(index)} scans)"
+    return f"corrected log: mean {e.errors.mean():.3f} m ({e.matched} scans)"
 
 
 def write_figure(path, result, png):

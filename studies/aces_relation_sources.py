@@ -36,7 +36,7 @@ sys.path.insert(0, str(pathlib.Path(__file__).resolve().parents[1] / "benchmarks
 from common import heading, report
 
 ACES = pathlib.Path(__file__).resolve().parents[2] / "shared" / "data" / "laser_2d" / "aces"
-#: Relations shorter than this (s) are "short", as in bench_slam_logs.py.
+#: Relations shorter than this (s) are "short": consecutive-scan geometry, no loop in them.
 SHORT_RELATION = 1.0
 #: A reference translation within this of odometry's (m, each axis) is odometry's: the file
 #: prints five decimals, so a translation of its own would differ by more than rounding (5e-6).

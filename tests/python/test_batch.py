@@ -452,3 +452,36 @@ def test_the_docs_sweeps_are_accepted(tmp_path, shared_data, monkeypatch):
         assert batch.load(path).expand(), text
         checked += 1
     assert checked >= 5
+
+
+#: Scans of the bundled raw Intel lap a slam run takes in the corrected-log test (0.2 CPU s): the
+#: first 90 s, where 4 scans of the bundled corrected excerpt (from 32.9 s) have their raw twin.
+LAP_SCANS = 150
+def test_a_slam_run_row_holds_its_score_against_a_corrected_log(tmp_path):
+    """A slam run on the start of the bundled raw Intel lap against the bundled corrected excerpt:
+    the row's metrics are evaluate_trajectory's with the run's log as raw_log (the corrected scans
+    paired with its scans by identical ranges), its frontend_ ones those of scan matching alone."""
+    import gzip
+    import warnings
+
+    from probslam import data, eval as ev
+    from probslam.batch.execute import score
+    from probslam.pipelines import EvaluationOptions, evaluate_trajectory
+
+    with gzip.open(data.path("intel_raw_lap.log.gz"), "rt") as f:
+        lines = f.read().splitlines()
+    lap = tmp_path / "lap.log"
+    lap.write_text("\n".join(lines[:[i for i, line in enumerate(lines) if line.startswith("FLASER ")][LAP_SCANS]]))
+    run = batch.Run("slam", str(lap), reference=data.path("intel_excerpt.log.gz"))
+    outcome = batch.KINDS["slam"].run(run.dataset, {}, {})  # what run_one scores, made once
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the raw Intel times go back, and the trajectory's with them
+        row = score(outcome, run)
+        for prefix, write in (("", outcome.write_trajectory), ("frontend_", outcome.also_scored["frontend"])):
+            e = evaluate_trajectory(write(str(tmp_path / "run")), run.reference,
+                                    EvaluationOptions(raw_log=str(lap))).result
+            assert isinstance(e, ev.CorrectedLogError) and row[prefix + "pairs"] == e.matched >= ev.MIN_PAIRS
+            for name, unit, statistics in (("position", "m", e.statistics),
+                                           ("heading", "deg", e.heading_statistics_deg)):
+                assert [row[f"{prefix}{name}_{s}_{unit}"] for s in ("mean", "median", "max")] == \
+                    [statistics[s] for s in ("mean", "median", "max")]

@@ -23,7 +23,8 @@ import warnings
 from typing import Any, Dict, List, Mapping, Optional, Sequence, Union
 
 from .._args import positive_real
-from ..pipelines import EvaluationOptions, evaluate_trajectory
+from ..eval import CorrectedLogError
+from ..pipelines import EvaluationOptions, evaluate_trajectory, reference_kind
 from .kinds import KINDS, Outcome, RunKind
 from .sweep import Run, Sweep, load
 from . import table
@@ -94,26 +95,48 @@ def _peak_memory_mb() -> float:
 def score(outcome: Outcome, run: Run, path: Optional[str] = None) -> Dict[str, Any]:
     """The run's trajectory (written at ``path`` already, or None: written here to a temporary
     file) against its reference (``pipelines.evaluate_trajectory``): ATE or RPE against a
-    trajectory, the relations error, or the RMS against positions."""
+    trajectory, the relations error, the RMS against positions, or the errors scan for scan
+    against a corrected log; then the run's other trajectories (``Outcome.also_scored``), their
+    metrics named ``NAME_METRIC``. The evaluation's ``raw_log`` is the run's (``Outcome.raw_log``)
+    for a relations file or a corrected log, unless the sweep names one."""
     if outcome.write_trajectory is None:
         raise ValueError(f"reference: a {run.kind} run makes no trajectory to score")
+    options = EvaluationOptions(**dict(run.evaluation))
+    if (options.raw_log is None and outcome.raw_log is not None
+            and reference_kind(run.reference, options.reference_format) in ("relations", "carmen")):
+        options = options.replace(raw_log=outcome.raw_log)
+    metrics = _score(outcome.write_trajectory, run, options, path, f"the {run.kind} run's trajectory")
+    for name, write in outcome.also_scored.items():
+        scored = _score(write, run, options, None, f"the {run.kind} run's {name} trajectory")
+        metrics.update({f"{name}_{metric}": value for metric, value in scored.items()})
+    return metrics
+
+
+def _score(write, run: Run, options: EvaluationOptions, path: Optional[str], trajectory: str) -> Dict[str, Any]:
+    """One trajectory's metrics against the run's reference (``trajectory``: what messages call
+    it, not a temporary file)."""
     with tempfile.TemporaryDirectory(prefix="probslam-batch-") as folder:
-        path = path or outcome.write_trajectory(os.path.join(folder, "run"))
-        trajectory = f"the {run.kind} run's trajectory"  # what is said, not a temporary file
+        path = path or write(os.path.join(folder, "run"))
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             try:
-                evaluation = evaluate_trajectory(path, run.reference, EvaluationOptions(**dict(run.evaluation)))
+                evaluation = evaluate_trajectory(path, run.reference, options)
             except ValueError as exc:
                 raise ValueError(str(exc).replace(path, trajectory)) from None
     for w in caught:
         warnings.warn(str(w.message).replace(path, trajectory), w.category)
     r = evaluation.result
     if evaluation.kind == "relations":
-        return {"relations_mean_m": float(r.translational.mean()),
-                "relations_rotation_mean_deg": math.degrees(float(r.rotational.mean())), "relations_used": len(r.used)}
+        return {"relations_mean_m": r.trans_mean, "relations_std_m": r.trans_std,
+                "relations_rotation_mean_deg": r.rot_mean_deg, "relations_rotation_std_deg": r.rot_std_deg,
+                "relations_used": len(r.used)}
     if evaluation.kind == "positions":
         return {"position_rmse_m": float(r.rmse), "position_rmse_aligned_m": float(r.rmse_aligned)}
+    if isinstance(r, CorrectedLogError):
+        position, heading = r.statistics, r.heading_statistics_deg
+        return {"position_mean_m": position["mean"], "position_median_m": position["median"],
+                "position_max_m": position["max"], "heading_mean_deg": heading["mean"],
+                "heading_median_deg": heading["median"], "heading_max_deg": heading["max"], "pairs": r.matched}
     return {("rpe" if evaluation.options.rpe else "ate") + "_rmse_m": float(r.rmse), "pairs": int(r.count)}
 
 

@@ -17,6 +17,7 @@ from .._core import GridFastSlamOptions, MonteCarloLocalizationOptions, SubmapSl
 from ..datasets.landmark_dataset import LandmarkDataset
 from ..io.laser_log import read_laser_log
 from ..io.maps import FREE_THRESH, OCCUPIED_THRESH
+from ..io.rosbag import is_bag
 from ..localization import default_options
 from ..pipelines import (GraphFileOptions, LandmarkRunOptions, MapOptions, localize_log, map_log, optimize_file,
                          run_landmark_dataset, slam_log)
@@ -28,10 +29,16 @@ from ..slam import default_options as slam_default_options
 class Outcome:
     """What a run gives back: its metrics (name -> a number, bool or text) and, when it makes a
     trajectory, how to write it (``write_trajectory(prefix) -> path``, for the score against a
-    reference)."""
+    reference); ``also_scored``: other trajectories of the run scored against the same
+    reference (name -> writer; their metrics named ``NAME_METRIC``: GraphSLAM's frontend alone);
+    ``raw_log``: the CARMEN log whose scans the trajectories' rows are, row for row (a relations
+    file's times and a corrected log's scans are then taken from it, ``EvaluationOptions.raw_log``,
+    unless the sweep's evaluation names one)."""
 
     metrics: Dict[str, Any]
     write_trajectory: Optional[Callable[[str], str]] = None
+    also_scored: Mapping[str, Callable[[str], str]] = field(default_factory=dict)
+    raw_log: Optional[str] = None
 
 
 @dataclass(frozen=True)
@@ -126,6 +133,10 @@ def _map(dataset: str, values, inputs) -> Outcome:
                     "occupied_cells": int(np.sum(p > OCCUPIED_THRESH)), "free_cells": int(np.sum(p < FREE_THRESH))})
 
 
+#: The name GraphSLAM's frontend trajectory (incremental scan matching alone) is scored under.
+FRONTEND = "frontend"
+
+
 def _slam(method: str):
     def run(dataset: str, values, inputs) -> Outcome:
         log = read_laser_log(dataset)
@@ -138,7 +149,14 @@ def _slam(method: str):
                            closures_rejected=int(s.closures_rejected))
         else:
             metrics.update(updates=int(s.updates), resamples=int(s.resamples))
-        return Outcome(metrics, lambda prefix: io.write_trajectory(r.timestamps, r.poses, prefix + "_trajectory.tum")[0])
+
+        def writer(poses, name):
+            return lambda prefix: io.write_trajectory(r.timestamps, poses, f"{prefix}_{name}.tum")[0]
+
+        also = {} if r.frontend_poses is None else {FRONTEND: writer(r.frontend_poses, "frontend")}
+        # A CARMEN log's trajectory has a pose per scan: relations and a corrected log are read against its scans.
+        raw_log = None if is_bag(dataset) else dataset
+        return Outcome(metrics, writer(r.poses, "trajectory"), also, raw_log)
     return run
 
 

@@ -1,5 +1,6 @@
 """How good is a SLAM result: the relations metric of Kümmerle et al. 2009 (``relations``), the
-NEES (``consistency``), evo's ATE and RPE (``trajectory``, their statistics in ``statistics``), a
+NEES (``consistency``), a trajectory against a corrected CARMEN log scan for scan
+(``corrected``), evo's ATE and RPE (``trajectory``, their statistics in ``statistics``), a
 path against reference positions such as a GPS track (``positions``), and the scores of landmark
 SLAM runs (path and map against ground truth or a survey in ``landmarks``, data association
 against a dataset's labels in ``association``). Every name is importable from ``probslam.eval``.
@@ -11,6 +12,8 @@ from ..io._files import MAX_REPORTED_LINES
 from .alignment import align_rigid
 from .association import (association_accuracy, majority_labels, majority_truth, primary_landmarks,
                           sighting_accuracy)
+from .corrected import (MIN_PAIRS, PAIR_TOLERANCE, CorrectedLogError, ScanPairs, corrected_log_error,
+                        pair_corrected_scans)
 from .consistency import NEES_SINGULAR_RTOL, SingularCovarianceError, nees
 from .landmarks import LandmarkScore, MrclamScore, score_landmarks, score_mrclam, truth_positions
 from .poses import interpolate_poses, relative_poses
@@ -23,10 +26,13 @@ from .trajectory import (ALIGNMENTS, DELTA_UNITS, MAX_TIME_DIFFERENCE, Trajector
 
 __all__ = [
     "ALIGNMENTS",
+    "CorrectedLogError",
     "DELTA_UNITS",
     "MAX_REPORTED_LINES",
     "MAX_TIME_DIFFERENCE",
+    "MIN_PAIRS",
     "NEES_SINGULAR_RTOL",
+    "PAIR_TOLERANCE",
     "LandmarkScore",
     "MrclamScore",
     "PositionError",
@@ -34,6 +40,7 @@ __all__ = [
     "RelationsError",
     "SAME_SCAN_TIME",
     "STATISTICS",
+    "ScanPairs",
     "SingularCovarianceError",
     "TrajectoryError",
     "align_rigid",
@@ -41,12 +48,14 @@ __all__ = [
     "ate",
     "association_accuracy",
     "clock_offset",
+    "corrected_log_error",
     "error_statistics",
     "interpolate_poses",
     "majority_labels",
     "majority_truth",
     "nees",
     "on_times",
+    "pair_corrected_scans",
     "position_error",
     "primary_landmarks",
     "read_relations",

@@ -1,7 +1,9 @@
 """A trajectory file scored against a ground truth: the absolute or relative trajectory error
 against a reference trajectory (as evo_ape / evo_rpe print them), the relations error against a
 Freiburg relations file, or the position error against ``t x y`` fixes (a GPS track); a CARMEN log
-with corrected poses is a reference trajectory (its laser poses at its scans' times).
+with corrected poses is a reference trajectory (its laser poses at its scans' times), or with the
+raw log the estimate was made from, scored scan for scan (``eval.corrected_log_error``: its scans
+paired with the raw log's by identical ranges and logger time).
 
 ``evaluate_trajectory(estimate, reference, options)`` runs it all; ``TrajectoryEvaluation`` runs
 it step by step for a caller that reports each step (``probslam eval``): ``read_estimate``,
@@ -54,8 +56,11 @@ class EvaluationOptions(Options):
                                                 "(None: frames)", choices=evaluation.DELTA_UNITS)
     align: Optional[bool] = described(None, "move the estimate onto the reference first, Umeyama without scale "
                                             "(None: for the absolute error, not for ``rpe``, as evo)", type=bool)
-    raw_log: Optional[PathLike] = described(None, "with a relations file: the raw CARMEN log the estimate was made "
-                                                  "from, whose logger time each relation time is moved onto", type=str)
+    raw_log: Optional[PathLike] = described(None, "the raw CARMEN log the estimate was made from, its rows that log's "
+                                                  "scans: with a relations file, each relation time is moved onto "
+                                                  "the logger time of the scan it names; with a corrected CARMEN log, "
+                                                  "its scans are paired with the raw log's by identical ranges and "
+                                                  "logger times within max_time_difference", type=str)
     max_time_difference: Optional[float] = described(None, "poses are paired with the nearest reference pose at most "
                                                            "this far in time (None: 0.01, evo's)", "s", type=float)
 
@@ -105,8 +110,12 @@ class EvaluationOptions(Options):
         for name in ("rpe", "align", "max_time_difference"):
             if why and getattr(self, name) not in (None, False):
                 raise ValueError(f"{name} applies to a reference trajectory, not to {kind} ({why})")
-        if kind != "relations" and self.raw_log is not None:
-            raise ValueError("raw_log applies to a relations file (the raw log whose ipc time stamps it)")
+        if kind not in ("relations", "carmen") and self.raw_log is not None:
+            raise ValueError("raw_log applies to a relations file (the raw log whose ipc time stamps it) or a "
+                             "corrected CARMEN log (the raw log whose scans it corrects)")
+        if kind == "carmen" and self.raw_log is not None and (self.rpe or self.align is False):
+            raise ValueError(f"{'rpe' if self.rpe else 'align'}: with raw_log a corrected log is compared scan for "
+                             "scan, its absolute poses after the rigid alignment")
 
 
 def reference_kind(path: PathLike, reference_format: str = "auto") -> str:
@@ -154,9 +163,11 @@ class TrajectoryEvaluation:
     reference_path: Optional[str] = None
     kind: Optional[str] = None
     reference: object = None  # io.Trajectory, io.Positions or eval.Relations
+    corrected: object = None  # a CARMEN reference's io.LaserScans
+    raw: object = None  # with raw_log and a CARMEN reference: the raw log's io.LaserScans
     clock: str = ""  # how the relations' times were moved onto the estimate's clock
     notes: List[str] = field(default_factory=list)
-    result: object = None  # eval.TrajectoryError, eval.RelationsError or eval.PositionError
+    result: object = None  # eval.TrajectoryError, RelationsError, PositionError or CorrectedLogError
 
     @classmethod
     def read_estimate(cls, path: PathLike, options: Optional[EvaluationOptions] = None) -> "TrajectoryEvaluation":
@@ -192,8 +203,8 @@ class TrajectoryEvaluation:
         elif kind == "positions":
             self.reference = io.read_positions(path)
         elif kind == "carmen":
-            scans = read_carmen_scans(path).scans
-            self.reference = io.Trajectory(scans.timestamps, scans.laser_poses, "carmen")
+            self.corrected = read_carmen_scans(path).scans
+            self.reference = io.Trajectory(self.corrected.timestamps, self.corrected.laser_poses, "carmen")
         elif self.options.reference_format == "auto":
             self.reference = io.read_trajectory(path)
         else:
@@ -201,7 +212,8 @@ class TrajectoryEvaluation:
 
     def _match_clocks(self) -> None:
         """Relations onto the estimate's clock; a CARMEN log's times checked against the
-        estimate's. The Freiburg relations are stamped with the raw log's ipc time, the commands
+        estimate's (with ``raw_log``: its scans read, the estimate's rows checked to be them,
+        ``_raw_scans``). The Freiburg relations are stamped with the raw log's ipc time, the commands
         write its logger time: with ``raw_log``, each relation time is moved onto the logger time
         of the scan it names; without, by the one constant offset that makes every relation time
         a time of the estimate (``eval.clock_offset``) when there is one, else left as they are
@@ -210,6 +222,8 @@ class TrajectoryEvaluation:
         estimate's (an estimate on another clock, such as the ipc time, or of another log)."""
         if self.kind == "carmen":
             self._check_overlap()
+            if self.options.raw_log is not None:
+                self._raw_scans()
         if self.kind != "relations":
             return
         relations, o = self.reference, self.options
@@ -234,6 +248,21 @@ class TrajectoryEvaluation:
                               "relations file is stamped with its raw log's ipc time, while 'slam' writes the log's "
                               "logger time; give that log with --log (e.g. --log aces.clf.bz2)")
 
+    def _raw_scans(self) -> None:
+        raw_log = os.fspath(self.options.raw_log)
+        with reading(raw_log, CARMEN_LOG):
+            self.raw = read_carmen_scans(raw_log).scans
+        te, tr = self.estimate.timestamps, self.raw.timestamps
+        if len(te) > len(tr):
+            why = f"{len(te)} poses, {len(tr)} scans"
+        else:  # the times as written (io.write_trajectory: to 1 ns; a log: to 1 us) are the scans'
+            off = np.flatnonzero(np.abs(te - tr[:len(te)]) > evaluation.SAME_SCAN_TIME)
+            if not off.size:
+                return
+            why = f"row {off[0]} at {te[off[0]]:.9g} s, scan {off[0]} at {tr[off[0]]:.9g} s"
+        raise ValueError(f"{self.estimate_path}: its rows are not {raw_log}'s scans in order ({why}): with raw_log "
+                         "the estimate holds a pose for each of its scans from the first, as 'slam' writes them")
+
     def _check_overlap(self) -> None:
         t, te, slack = self.reference.timestamps, self.estimate.timestamps, self.options.time_difference
         if te.max() < t.min() - slack or te.min() > t.max() + slack:
@@ -253,7 +282,9 @@ class TrajectoryEvaluation:
             return _row("reference:", f"{path}: {len(ref)} positions (t x y"
                         + (f"; {ref.skipped_rows} unreadable rows skipped)" if ref.skipped_rows else ")"))
         if self.kind == "carmen":
-            return _row("reference:", f"{path}: {len(ref)} poses (CARMEN log: the laser poses of its scans)")
+            return _row("reference:", f"{path}: {len(ref)} poses (CARMEN log: the laser poses of its scans)"
+                        + (f"\n{_row('raw log:', f'{os.fspath(self.options.raw_log)}: {len(self.raw)} scans')}"
+                           if self.raw is not None else ""))
         if self.options.reference_format == "auto":
             return _trajectory_line("reference:", path, ref)
         return _row("reference:", f"{path}: {len(ref)} poses ({ref.format.upper()})")
@@ -271,7 +302,9 @@ class TrajectoryEvaluation:
         from), one about an option its field (``delta: ...``)."""
         est_path, ref_path = self.estimate_path, self.reference_path
         files = {**dict.fromkeys(("times_est", "poses_est", "timestamps", "poses"), est_path),
-                 "times_ref": ref_path, "poses_ref": ref_path, "relations": "relations"}
+                 "times_ref": ref_path, "poses_ref": ref_path, "relations": "relations", "corrected": ref_path}
+        if self.options.raw_log is not None:
+            files["raw"] = os.fspath(self.options.raw_log)
         with reading(est_path, TRAJECTORY_FILE, [f.name for f in dataclasses.fields(EvaluationOptions)], files=files):
             return self._score()
 
@@ -281,6 +314,8 @@ class TrajectoryEvaluation:
             self.result = evaluation.relations_error(est.timestamps, est.poses, ref)
         elif self.kind == "positions":
             self.result = evaluation.position_error(est.timestamps, est.poses, ref.timestamps, ref.positions)
+        elif self.raw is not None:
+            self.result = evaluation.corrected_log_error(est.poses, self.raw, self.corrected, o.time_difference)
         elif o.rpe:
             self.result = evaluation.rpe(est.timestamps, est.poses, ref.timestamps, ref.poses, delta=o.step,
                                          delta_unit=o.unit, align=self.align, max_time_difference=o.time_difference)
@@ -298,6 +333,10 @@ class TrajectoryEvaluation:
                                                   evaluation.error_statistics(r.translational)) + "\n"
                     + evaluation.statistics_table("relations error w.r.t. rotation angle in degrees (deg)",
                                                   evaluation.error_statistics(np.degrees(r.rotational))))
+        if isinstance(r, evaluation.CorrectedLogError):
+            outside = f"; {r.outside} past the estimate's last scan" if r.outside else ""
+            return (_row("paired:", f"{r.pairs} with {os.fspath(o.raw_log)}'s scans (identical ranges, logger times "
+                                    f"within {r.pairs.tolerance:g} s){outside}\n\n") + str(r))
         if self.kind == "positions":
             return (_row("fixes:", f"{r.count} used, {r.outside} outside the estimate's time span (the estimate is "
                                    "interpolated at each fix's time)\n\n") + str(r))
