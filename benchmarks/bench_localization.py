@@ -199,7 +199,7 @@ def main():
     lines += ["", "| log | kidnapping jump | tracking before | recovery (log time, travel) | max particles |",
               "|---|---|---|---|---|"]
     lines += kidnap
-    workers = f" --workers {args.workers}" if args.workers else ""
+    flags = (" --no-beam" if args.no_beam else "") + (f" --workers {args.workers}" if args.workers else "")
     lines += ["",
               f"Load average at the start: {load0:.2f} (on {os.cpu_count()} cores). Tracking starts at the SLAM "
               "trajectory's first pose; ATE is against the SLAM trajectory without alignment (the map is in its "
@@ -207,7 +207,7 @@ def main():
               "the SLAM pose from then to the segment's end. Global segments start at the sweep's start scans (drawn "
               "with numpy's default_rng(0)), each seeded by its start scan. Kidnapping: scans at 1/5 and 3/5 of the "
               "log, 120 s each, the second piece's odometry continued from the first's end.",
-              f"Command: `python benchmarks/bench_localization.py --logs {' '.join(args.logs)}{workers}"
+              f"Command: `python benchmarks/bench_localization.py --logs {' '.join(args.logs)}{flags}"
               + "".join(f" --option {kv}" for kv in args.option) + "` (the runs: "
               "`probslam batch benchmarks/sweeps/localization.toml`)."]
     report(lines, args.record)
