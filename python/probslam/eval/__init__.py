@@ -1,7 +1,7 @@
 """How good is a SLAM result: the relations metric of Kümmerle et al. 2009 (``relations``), the
 NEES (``consistency``), evo's ATE and RPE (``trajectory``, their statistics in ``statistics``), a
 path against reference positions such as a GPS track (``positions``), when an estimate got to
-its reference and stayed (``convergence``: a global localization, a kidnapping), and the scores of landmark
+its reference and stayed (``converging``: a global localization, a kidnapping), and the scores of landmark
 SLAM runs (path and map against ground truth or a survey in ``landmarks``, data association
 against a dataset's labels in ``association``). Every name is importable from ``probslam.eval``.
 
@@ -12,7 +12,7 @@ from ..io._files import MAX_REPORTED_LINES
 from .alignment import align_rigid
 from .association import (association_accuracy, majority_labels, majority_truth, primary_landmarks,
                           sighting_accuracy)
-from .convergence import CONVERGED_HEADING, CONVERGED_POSITION, Convergence, convergence
+from .converging import CONVERGED_HEADING, CONVERGED_POSITION, Convergence, convergence
 from .consistency import NEES_SINGULAR_RTOL, SingularCovarianceError, nees
 from .landmarks import LandmarkScore, MrclamScore, score_landmarks, score_mrclam, truth_positions
 from .poses import interpolate_poses, relative_poses

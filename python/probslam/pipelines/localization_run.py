@@ -25,6 +25,7 @@ from .._args import positive_real, real_array, require_instance, require_integer
 from ..localization import (CONVERGED_CLUSTER_WEIGHT, CONVERGED_THETA_STD, CONVERGED_XY_STD, LocalizationResult,
                             default_options, localize)
 from ..slam import scans_of
+from ._options import Options, described
 from .evaluation import EvaluationOptions, TrajectoryEvaluation
 from .inputs import MAP_FILE, read_log, reading
 
@@ -73,28 +74,29 @@ def splice(scans: io.LaserScans, first, second) -> io.LaserScans:
                             for f in dataclasses.fields(a)})
 
 
-@dataclass(frozen=True)
-class LogPiece:
-    """The scans of a log a localization runs on: ``segment_seconds`` of log time (``span_end``;
-    None: to the log's end) from scan ``start_scan``; with ``splice_scan``, a kidnapped robot:
-    that piece, then as long a piece from scan ``splice_scan`` (after the first: each scan keeps
-    its time), its odometry continued from the first's end (``splice``). TypeError / ValueError
-    naming the field that is wrong."""
+@dataclass
+class LogPiece(Options):
+    """The scans of a log a localization runs on: a segment of log time (``span_end``), or two
+    spliced as a kidnapped robot (``splice``: the second piece after the first, each scan keeping
+    its time). Checked when made and by ``replace``: TypeError / ValueError naming the field."""
 
-    start_scan: int = 0
-    segment_seconds: Optional[float] = None
-    splice_scan: Optional[int] = None
+    start_scan: int = described(0, "the first scan (its index in the log)")
+    segment_seconds: Optional[float] = described(None, "how much log time from ``start_scan`` (None: to the log's "
+                                                       "end)", "s", type=float)
+    splice_scan: Optional[int] = described(None, "a kidnapping: as long a piece from this scan (after the first) "
+                                                 "follows the first, its odometry continued from the first's end "
+                                                 "(None: no splice)", type=int)
 
     def __post_init__(self) -> None:
+        self.validate()
+
+    def validate(self) -> None:
+        """TypeError / ValueError naming the first field that is wrong."""
         require_integer(self.start_scan, "start_scan", lowest=0)
         if self.segment_seconds is not None:
             positive_real(self.segment_seconds, "segment_seconds")
         if self.splice_scan is not None:
             require_integer(self.splice_scan, "splice_scan", lowest=0)
-
-    def replace(self, **fields) -> "LogPiece":
-        """A checked copy with ``fields`` set."""
-        return dataclasses.replace(self, **fields)
 
     def cut(self, scans: io.LaserScans) -> Tuple[io.LaserScans, Optional[int]]:
         """The piece's scans of ``scans`` and, spliced, the index of the first scan after the
