@@ -178,7 +178,8 @@ def test_a_segment_row_is_the_segment_localized_and_scored_by_hand(loop):
     values = {"start_scan": 300, "segment_seconds": 40.0, **SMALL}
     with pytest.warns(UserWarning, match="timestamps decrease"):
         row = KINDS["localize"].run(data.path("intel_raw_loop.log.gz"), values,
-                                    {"map": data.path("intel_raw_loop_map.yaml"), "reference": reference}).metrics
+                                    {"map": data.path("intel_raw_loop_map.yaml"), "reference": reference,
+                                     "evaluation": {"align": False}}).metrics
     scans = log.scans
     stop = span_end(scans.timestamps, 300, 40.0)
     part = scans.take(slice(300, stop))
@@ -198,7 +199,8 @@ def test_a_kidnapping_row_tracks_from_the_reference_and_scores_the_recovery(loop
 
     log, grid, reference, ref = loop
     values = {"start_scan": 100, "segment_seconds": 30.0, "splice_scan": 450, "seed": 3, **SMALL}
-    inputs = {"map": data.path("intel_raw_loop_map.yaml"), "reference": reference, "initial_pose": "reference"}
+    inputs = {"map": data.path("intel_raw_loop_map.yaml"), "reference": reference, "initial_pose": "reference",
+              "evaluation": {"align": False}}
     with pytest.warns(UserWarning, match="timestamps decrease"):
         row = KINDS["localize"].run(data.path("intel_raw_loop.log.gz"), values, inputs).metrics
     piece = LogPiece(start_scan=100, segment_seconds=30.0, splice_scan=450)
@@ -213,3 +215,30 @@ def test_a_kidnapping_row_tracks_from_the_reference_and_scores_the_recovery(loop
         after.converged, after.time, after.travel)
     with pytest.raises(ValueError, match="^initial_pose: 'reference' needs a reference"):
         localize_log(log, grid, initial_pose="reference", piece=piece)
+
+
+def test_a_reference_in_another_frame_is_scored_after_the_alignment_the_ate_makes(loop, tmp_path):
+    """Without ``align = false`` the row's ATE aligns the estimate onto the reference, and so do
+    its convergence metrics: against a reference moved rigidly, the errors are the aligned ATE's
+    and the run converged from its first scan as it did against the unmoved one."""
+    from probslam.batch import KINDS
+
+    _, _, reference, ref = loop
+    moved = tmp_path / "moved.tum"
+    io.write_trajectory(ref.timestamps, geometry.compose([3.0, -2.0, 0.7], ref.poses), moved)
+    values = {"segment_seconds": 60.0, "seed": 1, **SMALL}
+    outcomes = []
+    for path, evaluation in ((reference, {"align": False}), (str(moved), {})):
+        inputs = {"map": data.path("intel_raw_loop_map.yaml"), "initial_pose": tuple(ref.poses[0]),
+                  "reference": path, "evaluation": evaluation}
+        with pytest.warns(UserWarning, match="timestamps decrease"):
+            outcomes.append(KINDS["localize"].run(data.path("intel_raw_loop.log.gz"), values, inputs))
+    same, aligned = (o.metrics for o in outcomes)
+    assert (same["converged_to_reference"], same["time_to_converge_s"]) == (True, 0.0)
+    assert (aligned["converged_to_reference"], aligned["time_to_converge_s"]) == (True, 0.0)
+    with pytest.warns(UserWarning, match="timestamps decrease"):
+        estimate = io.read_trajectory(outcomes[1].write_trajectory(str(tmp_path / "run")))
+    ate = ev.ate(estimate.timestamps, estimate.poses, ref.timestamps, geometry.compose([3.0, -2.0, 0.7], ref.poses))
+    assert aligned["error_median_m"] == pytest.approx(ate.median, abs=1e-5)  # the file's six decimals
+    assert aligned["error_max_m"] == pytest.approx(ate.max, abs=1e-5)
+    assert aligned["error_max_m"] < 0.2 and same["error_max_m"] < 0.2

@@ -123,7 +123,7 @@ def _metrics(run: Run, kind: RunKind, trajectories: Optional[str]) -> Dict[str, 
         values["seed"] = run.seed
     inputs = dict(run.inputs)
     if kind.reads_reference:
-        inputs["reference"] = run.reference
+        inputs.update(reference=run.reference, evaluation=dict(run.evaluation))
     outcome = kind.run(run.dataset, values, inputs)
     metrics = dict(outcome.metrics)
     path = None

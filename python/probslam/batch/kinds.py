@@ -19,8 +19,8 @@ from ..datasets.landmark_dataset import LandmarkDataset
 from ..io.laser_log import read_laser_log
 from ..io.maps import FREE_THRESH, OCCUPIED_THRESH
 from ..localization import default_options
-from ..pipelines import (GraphFileOptions, LandmarkRunOptions, LogPiece, MapOptions, localize_log, map_log,
-                         optimize_file, run_landmark_dataset, slam_log)
+from ..pipelines import (EvaluationOptions, GraphFileOptions, LandmarkRunOptions, LogPiece, MapOptions, localize_log,
+                         map_log, optimize_file, run_landmark_dataset, slam_log)
 from ..slam import default_options as slam_default_options
 
 
@@ -50,7 +50,8 @@ class RunKind:
     seeded: whether its options have a ``seed`` (a sweep's seeds set it; else seeds are refused).
     scored: whether its runs make a trajectory to score against a reference (else one is refused).
     reads_reference: whether its run reads the reference too (``inputs["reference"]``: the path,
-        or None), for what it scores itself or starts from.
+        or None; ``inputs["evaluation"]``: the score's EvaluationOptions fields), for what it
+        scores itself or starts from.
     """
 
     name: str
@@ -159,8 +160,9 @@ def _localize(dataset: str, values, inputs) -> Outcome:
                "particles_median": float(np.median(r.num_particles)), "particles_max": int(np.max(r.num_particles)),
                "particles_last": int(r.num_particles[-1]), "seconds": float(r.seconds),
                "real_time_factor": float(r.real_time_factor)}
-    if run.reference is not None:
-        metrics.update(run.reference_metrics())
+    if run.reference is not None:  # aligned as the row's ATE is (the map's frame: align = false)
+        score = EvaluationOptions(**inputs.get("evaluation", {}))
+        metrics.update(run.reference_metrics(align=score.align if score.align is not None else not score.rpe))
     return Outcome(metrics, lambda prefix: run.write(prefix)[0])
 
 

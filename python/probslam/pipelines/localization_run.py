@@ -197,9 +197,10 @@ class LocalizationRun:
         """Whether the estimate ever converged."""
         return self.result.convergence_time is not None
 
-    def reference_metrics(self) -> Dict[str, Any]:
+    def reference_metrics(self, align: bool = False) -> Dict[str, Any]:
         """The run against its reference, in the map's frame (the trajectory of the SLAM run that
-        made the map: no alignment), each pose paired with the reference's at its time:
+        made the map; with ``align``, a reference in another frame, the estimate first moved onto
+        it as the ATE aligns it), each pose paired with the reference's at its time:
         ``converged_to_reference``, ``time_to_converge_s``, ``travel_to_converge_m``
         (``eval.convergence``; spliced: from the jump on); the position errors' median and max
         and the heading errors' median (degrees) over the run; spliced also ``jump_m`` (how far
@@ -209,9 +210,14 @@ class LocalizationRun:
             raise ValueError("reference: the run was given none")
         r, ref = self.result, self.reference
         odometry = scans_of(self.log).laser_poses
+        poses = r.poses
+        if align:
+            a = evaluation.ate(r.timestamps, r.poses, ref.timestamps, ref.poses, align="se2")
+            turn = math.atan2(a.rotation[1, 0], a.rotation[0, 0])
+            poses = geometry.compose([a.translation[0], a.translation[1], turn], r.poses)
 
         def converge(start: int) -> evaluation.Convergence:
-            return evaluation.convergence(r.timestamps[start:], r.poses[start:], ref.timestamps, ref.poses,
+            return evaluation.convergence(r.timestamps[start:], poses[start:], ref.timestamps, ref.poses,
                                           odometry=odometry[start:])
 
         whole = converge(0)
