@@ -144,7 +144,10 @@ def _metrics(run: Run, kind: RunKind, trajectories: Optional[str]) -> Dict[str, 
     values = dict(run.options)
     if run.seed is not None:
         values[kind.seed_option] = run.seed
-    outcome = kind.run(run.dataset, values, dict(run.inputs))
+    inputs = dict(run.inputs)
+    if kind.reads_reference:
+        inputs.update(reference=run.reference, evaluation=dict(run.evaluation))
+    outcome = kind.run(run.dataset, values, inputs)
     metrics = dict(outcome.metrics)
     path = None
     if trajectories is not None and outcome.write_trajectory is not None:

@@ -6,6 +6,7 @@ Adding a command to ``probslam batch`` is one ``register(RunKind(...))``.
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 from dataclasses import dataclass, field
 from typing import Any, Callable, Dict, Mapping, Optional, Sequence, Tuple
@@ -19,8 +20,8 @@ from ..io.laser_log import read_laser_log
 from ..io.maps import FREE_THRESH, OCCUPIED_THRESH
 from ..io.rosbag import is_bag
 from ..localization import default_options
-from ..pipelines import (GraphFileOptions, LandmarkRunOptions, MapOptions, localize_log, map_log, optimize_file,
-                         run_landmark_dataset, slam_log)
+from ..pipelines import (EvaluationOptions, GraphFileOptions, LandmarkRunOptions, LogPiece, MapOptions, localize_log,
+                         map_log, optimize_file, run_landmark_dataset, slam_log)
 from ..pipelines._options import option_names
 from ..slam import default_options as slam_default_options
 
@@ -57,6 +58,9 @@ class RunKind:
     seeded: whether its options have a seed (a sweep's seeds set it; else seeds are refused).
     seed_option: the option (a dotted path) the seeds set: ``seed``, or the group's that holds it.
     scored: whether its runs make a trajectory to score against a reference (else one is refused).
+    reads_reference: whether its run reads the reference too (``inputs["reference"]``: the path,
+        or None; ``inputs["evaluation"]``: the score's EvaluationOptions fields), for what it
+        scores itself or starts from.
     """
 
     name: str
@@ -68,6 +72,7 @@ class RunKind:
     seeded: bool = False
     scored: bool = True
     seed_option: str = "seed"
+    reads_reference: bool = False
 
 
 #: Every kind by name, in the order registered.
@@ -112,16 +117,55 @@ def _optimize(dataset: str, values, inputs) -> Outcome:
                    lambda prefix: run.write(prefix)[-1])
 
 
+class LocalizeOptions:
+    """The localize kind's options: the filter's (``MonteCarloLocalizationOptions``) and the piece
+    of the log it runs on (``pipelines.LogPiece``: ``start_scan``, ``segment_seconds``,
+    ``splice_scan``), set by name side by side (``max_particles``, ``odometry.alpha1``,
+    ``start_scan``)."""
+
+    def __init__(self, filter: Optional[MonteCarloLocalizationOptions] = None, piece: Optional[LogPiece] = None):
+        self.filter = MonteCarloLocalizationOptions() if filter is None else filter
+        self.piece = LogPiece() if piece is None else piece
+
+    def as_dict(self) -> Dict[str, Any]:
+        return {**self.filter.as_dict(), **dataclasses.asdict(self.piece)}
+
+    def replace(self, **fields) -> "LocalizeOptions":
+        """A checked copy with ``fields`` set, each on the part that has it."""
+        piece = {k: fields.pop(k) for k in PIECE_FIELDS if k in fields}
+        return LocalizeOptions(self.filter.replace(**fields) if fields else self.filter, self.piece.replace(**piece))
+
+    def __getattr__(self, name: str) -> Any:  # a sub-structure of the filter's (odometry.alpha1)
+        if name in ("filter", "piece"):
+            raise AttributeError(name)
+        return getattr(self.filter, name)
+
+
+#: The options of the localize kind that say which scans it runs on.
+PIECE_FIELDS = tuple(f.name for f in dataclasses.fields(LogPiece))
+
+
 def _localize(dataset: str, values, inputs) -> Outcome:
     log = read_laser_log(dataset)
-    # The sweep's options over the log's own defaults (its no-return reading as max_range).
-    options = set_options(default_options(log), values)
-    run = localize_log(log, inputs["map"], options, initial_pose=inputs.get("initial_pose"), progress=False)
+    # The sweep's options over the log's own defaults (its no-return reading as max_range). A
+    # piece without a seed of the sweep's is seeded by its start scan: each segment its own draws.
+    options = set_options(LocalizeOptions(default_options(log)), values)
+    filter_options, piece = options.filter, options.piece
+    if "seed" not in values:
+        filter_options = filter_options.replace(seed=piece.start_scan)
+    run = localize_log(log, inputs["map"], filter_options, initial_pose=inputs.get("initial_pose"),
+                       piece=None if piece == LogPiece() else piece, reference=inputs.get("reference"),
+                       progress=False)
     r = run.result
-    return Outcome({"scans": len(r.timestamps), "updates": int(np.sum(r.updated)), "converged": run.converged,
-                    "convergence_time_s": r.convergence_time, "converged_fraction": float(r.converged_fraction),
-                    "particles_median": float(np.median(r.num_particles))},
-                   lambda prefix: run.write(prefix)[0])
+    metrics = {"scans": len(r.timestamps), "updates": int(np.sum(r.updated)), "converged": run.converged,
+               "convergence_time_s": r.convergence_time, "converged_fraction": r.converged_fraction,
+               "particles_median": float(np.median(r.num_particles)), "particles_max": int(np.max(r.num_particles)),
+               "particles_last": int(r.num_particles[-1]), "seconds": float(r.seconds),
+               "real_time_factor": float(r.real_time_factor)}
+    if run.reference is not None:  # aligned as the row's ATE is (the map's frame: align = false)
+        score = EvaluationOptions(**inputs.get("evaluation", {}))
+        metrics.update(run.reference_metrics(align=score.align if score.align is not None else not score.rpe))
+    return Outcome(metrics, lambda prefix: run.write(prefix)[0])
 
 
 def _map(dataset: str, values, inputs) -> Outcome:
@@ -171,9 +215,13 @@ def _landmarks(method: str):
 
 
 register(RunKind("optimize", GraphFileOptions, _optimize, ("poses", "chi2_initial", "chi2", "iterations", "converged")))
-register(RunKind("localize", MonteCarloLocalizationOptions, _localize,
-                 ("scans", "updates", "converged", "convergence_time_s", "converged_fraction", "particles_median"),
-                 inputs={"map": True, "initial_pose": False}, inputs_are_paths={"map": True}, seeded=True))
+register(RunKind("localize", LocalizeOptions, _localize,
+                 ("scans", "updates", "converged", "convergence_time_s", "converged_fraction", "particles_median",
+                  "particles_max", "particles_last", "seconds", "real_time_factor", "converged_to_reference",
+                  "time_to_converge_s", "travel_to_converge_m", "error_median_m", "error_max_m",
+                  "heading_error_median_deg", "jump_m", "tracked_before_jump"),
+                 inputs={"map": True, "initial_pose": False}, inputs_are_paths={"map": True}, seeded=True,
+                 reads_reference=True))
 register(RunKind("map", MapOptions, _map,
                  ("scans", "beams", "cells_updated", "width", "height", "occupied_cells", "free_cells"), scored=False))
 register(RunKind("slam", SubmapSlamOptions, _slam("graph"),
@@ -186,4 +234,4 @@ register(RunKind("fastslam", lambda: LandmarkRunOptions(method="fastslam"), _lan
                  seeded=True, seed_option="fastslam.seed"))
 
 
-__all__ = ["KINDS", "Outcome", "RunKind", "option_names", "register", "set_options"]
+__all__ = ["KINDS", "LocalizeOptions", "Outcome", "PIECE_FIELDS", "RunKind", "option_names", "register", "set_options"]

@@ -1,7 +1,8 @@
 """How good is a SLAM result: the relations metric of Kümmerle et al. 2009 (``relations``), the
 NEES (``consistency``), a trajectory against a corrected CARMEN log scan for scan
 (``corrected``), evo's ATE and RPE (``trajectory``, their statistics in ``statistics``), a
-path against reference positions such as a GPS track (``positions``), and the scores of landmark
+path against reference positions such as a GPS track (``positions``), when an estimate got to
+its reference and stayed (``converging``: a global localization, a kidnapping), and the scores of landmark
 SLAM runs (path and map against ground truth or a survey in ``landmarks``, data association
 against a dataset's labels in ``association``). Every name is importable from ``probslam.eval``.
 
@@ -12,6 +13,7 @@ from ..io._files import MAX_REPORTED_LINES
 from .alignment import align_rigid
 from .association import (association_accuracy, majority_labels, majority_truth, primary_landmarks,
                           sighting_accuracy)
+from .converging import CONVERGED_HEADING, CONVERGED_POSITION, Convergence, convergence
 from .corrected import (MIN_PAIRS, PAIR_TOLERANCE, CorrectedLogError, ScanPairs, corrected_log_error,
                         pair_corrected_scans)
 from .consistency import NEES_SINGULAR_RTOL, SingularCovarianceError, nees
@@ -27,12 +29,15 @@ from .trajectory import (ALIGNMENTS, DELTA_UNITS, MAX_TIME_DIFFERENCE, Trajector
 __all__ = [
     "ALIGNMENTS",
     "CorrectedLogError",
+    "CONVERGED_HEADING",
+    "CONVERGED_POSITION",
     "DELTA_UNITS",
     "MAX_REPORTED_LINES",
     "MAX_TIME_DIFFERENCE",
     "MIN_PAIRS",
     "NEES_SINGULAR_RTOL",
     "PAIR_TOLERANCE",
+    "Convergence",
     "LandmarkScore",
     "MrclamScore",
     "PositionError",
@@ -49,6 +54,7 @@ __all__ = [
     "association_accuracy",
     "clock_offset",
     "corrected_log_error",
+    "convergence",
     "error_statistics",
     "interpolate_poses",
     "majority_labels",

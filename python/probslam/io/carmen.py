@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 import os
 import warnings
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields
 from typing import Dict, List, Optional, Tuple, Union
 
 import numpy as np
@@ -64,6 +64,11 @@ class LaserScans:
 
     def __len__(self) -> int:
         return int(self.ranges.shape[0])
+
+    def take(self, index) -> "LaserScans":
+        """The scans at ``index`` (row indices, a slice or a boolean mask): every field has one
+        row per scan, so each is indexed alike."""
+        return LaserScans(**{f.name: getattr(self, f.name)[index] for f in fields(self)})
 
     def beam_angles(self) -> np.ndarray:
         """(S, B) bearing of every beam relative to the laser heading, radians."""

@@ -7,16 +7,18 @@ for what it runs (``graph_file``, ``map_run``, ``localization_run``, ``evaluatio
 
 from .graph_file import GraphFileOptions, GraphFileRun, optimize_file
 from .map_run import MapOptions, MapRun, map_log
-from .localization_run import (SNAPSHOT_TRAVEL, TRACK_JUMP, LocalizationRun, convergence_report, converged_track,
-                               localize_log, snapshot_times)
+from .localization_run import (CLOCK_JUMP, FROM_REFERENCE, SNAPSHOT_TRAVEL, TRACK_JUMP, LocalizationRun, LogPiece,
+                               convergence_report, converged_track, localize_log, reference_poses, snapshot_times,
+                               span_end, splice)
 from .evaluation import EvaluationOptions, TrajectoryEvaluation, evaluate_trajectory, reference_kind
 from .landmark_run import LandmarkRun, LandmarkRunOptions, RefinementOptions, run_landmark_dataset
 from .slam_run import SlamLogRun, slam_log
 
 __all__ = ["GraphFileOptions", "GraphFileRun", "optimize_file",
            "MapOptions", "MapRun", "map_log",
-           "LocalizationRun", "SNAPSHOT_TRAVEL", "TRACK_JUMP", "convergence_report", "converged_track", "localize_log",
-           "snapshot_times",
+           "CLOCK_JUMP", "FROM_REFERENCE", "LocalizationRun", "LogPiece", "SNAPSHOT_TRAVEL", "TRACK_JUMP",
+           "convergence_report", "converged_track", "localize_log", "reference_poses", "snapshot_times", "span_end",
+           "splice",
            "EvaluationOptions", "TrajectoryEvaluation", "evaluate_trajectory", "reference_kind",
            "LandmarkRun", "LandmarkRunOptions", "RefinementOptions", "run_landmark_dataset",
            "SlamLogRun", "slam_log"]
