@@ -82,7 +82,7 @@ def test_full_pipeline_on_the_loop(drive):
     (dict(scans_per_submap=0), "closures.scans_per_submap"), (dict(min_match_quality=1.5), "closures.min_match_quality"),
     (dict(window_sigmas=0.0), "closures.window_sigmas"), (dict(max_linear_window=-1.0), "closures.max_linear_window"),
     (dict(max_angular_window=4.0), "closures.max_angular_window"),
-    (dict(dissolve_chi2=float("nan")), "closures.dissolve_chi2"), (dict(field_cache_bytes=0.0), "closures.field_cache_bytes")])
+    (dict(dissolve_chi2=float("nan")), "closures.dissolve_chi2"), (dict(field_cache_bytes=-1.0), "closures.field_cache_bytes")])
 def test_bad_options_name_the_path(closures, path):
     # The message starts with the field's whole path, from the keywords and from an options object alike.
     with pytest.raises(ValueError, match="^" + re.escape(path) + " "):
