@@ -531,6 +531,9 @@ MatchResult CorrelativeScanMatcher::local_match(const Eigen::Ref<const Points2>&
   }
   result.found = stationary && basin;
   if (!result.found) return result;
+  // With the profile of exp(score) across the window (48 of the 55 evaluations of a local
+  // match): without it (the sandwich alone) Intel's corrected-log agreement moved from 0.072 /
+  // 0.066 to 0.076 / 0.071 m mean / median (docs/performance.md), so it stays.
   result.covariance = pose_covariance(points, prior, prior_info, options, step, result, true, &scan);
   return result;
 }
