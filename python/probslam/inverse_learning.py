@@ -28,7 +28,6 @@ from dataclasses import dataclass
 from typing import Callable, List, Optional, Sequence, Tuple
 
 import numpy as np
-from scipy.optimize import minimize, minimize_scalar
 
 from ._core import BeamSensorModel, BinaryMap2D, OccupancyGrid2D, logit
 from .io._files import file_path, require_regular_file
@@ -462,6 +461,10 @@ class LearnedInverseModel:
             raise ValueError("inputs: too large to standardise (their mean or deviation overflows)")
         s = (x - mean) / scale
         w0 = rng.normal(0.0, 0.3, self.n_weights(s.shape[1]))
+        # Imported here, as scipy.ndimage below: scipy.optimize is about 50 MB of the process and
+        # 3-5 s of `import probslam` for every program, most of which never trains a model.
+        from scipy.optimize import minimize
+
         res = minimize(self.objective, w0, args=(s, y), jac=True, method="L-BFGS-B",
                        options={"maxiter": max_iterations})
         if not (np.all(np.isfinite(res.x)) and np.isfinite(res.fun)):
@@ -545,6 +548,8 @@ class LearnedInverseModel:
         if total.size == 0:
             raise ValueError("worlds: no scan covers any cell")
         l0 = float(logit(self.prior))
+        from scipy.optimize import minimize_scalar
+
         res = minimize_scalar(lambda k: map_cross_entropy(l0 + k * total, truth), bounds=(lo, hi), method="bounded",
                               options={"xatol": 1e-4})
         self.evidence_scale = float(res.x)

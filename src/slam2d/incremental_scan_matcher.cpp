@@ -91,16 +91,16 @@ OccupancyGrid2D IncrementalScanMatcher::new_submap_grid(const Eigen::Vector3d& o
   return OccupancyGrid2D::covering(origin.x() - r, origin.y() - r, origin.x() + r, origin.y() + r, options_.resolution);
 }
 
-std::optional<OccupancyGrid2D> IncrementalScanMatcher::grown_for(const Submap& submap, const Eigen::Vector3d& pose) const {
+std::optional<OccupancyGrid2D> IncrementalScanMatcher::grown_for(const OccupancyGrid2D& grid, const Eigen::Vector3d& pose) const {
   // Every ray ends within the usable range: grow the grid to hold that disc, with room to spare.
   const double reach = options_.filter.usable_range();
-  const Eigen::Vector2d lo = submap.grid.origin();
-  const Eigen::Vector2d hi = lo + submap.grid.resolution() * Eigen::Vector2d(submap.grid.width(), submap.grid.height());
+  const Eigen::Vector2d lo = grid.origin();
+  const Eigen::Vector2d hi = lo + grid.resolution() * Eigen::Vector2d(grid.width(), grid.height());
   if (pose.x() - reach >= lo.x() && pose.y() - reach >= lo.y() && pose.x() + reach <= hi.x() && pose.y() + reach <= hi.y())
     return std::nullopt;
   const double m = reach + kGrowMargin;
   try {
-    return submap.grid.grown_to_include(std::min(lo.x(), pose.x() - m), std::min(lo.y(), pose.y() - m),
+    return grid.grown_to_include(std::min(lo.x(), pose.x() - m), std::min(lo.y(), pose.y() - m),
                                         std::max(hi.x(), pose.x() + m), std::max(hi.y(), pose.y() + m));
   } catch (const std::invalid_argument& e) {
     // The grid's own message names its bounds; the user passed the odometry that led there.
@@ -292,7 +292,7 @@ IncrementalScanMatcher::PendingScan IncrementalScanMatcher::prepare(const Eigen:
   }
   // Travel as estimated, not as the odometry says: a log without odometry still moves.
   p.travel = on_map ? 0.0 : cur.travel + (est.pose.head<2>() - matched_pose_.head<2>()).norm();
-  p.grid = grown_for(cur, est.pose);
+  p.grid = grown_for(cur.grid, est.pose);
   est.submap = static_cast<int>(submaps_.size()) - 1;
   p.open_next = (options_.submap_distance > 0.0 && p.travel >= options_.submap_distance) ||
                 (options_.submap_scans > 0 && cur.matched + est.matched >= options_.submap_scans);
@@ -397,22 +397,55 @@ void IncrementalScanMatcher::start_from_map(const OccupancyGrid2D& map, const Ei
   started_on_map_ = true;
 }
 
-IncrementalScanMatcher::Snapshot IncrementalScanMatcher::snapshot() const {
+IncrementalScanMatcher::Snapshot IncrementalScanMatcher::snapshot(bool copy_open_grid) const {
   Snapshot s;
   s.scans = estimates_.size();
   s.submaps = submaps_.size();
-  if (!submaps_.empty()) s.open = submaps_.back();
+  if (!submaps_.empty()) {
+    const Submap& open = submaps_.back();
+    if (copy_open_grid) {
+      s.open = open;
+    } else {
+      const OccupancyGrid2D& g = open.grid;
+      s.open = Submap{OccupancyGrid2D(g.resolution(), 1, 1, g.origin(), g.p_prior(), g.clamp()), open.origin, open.scans,
+                      open.travel, open.matched};
+      s.open_grid_kept = false;
+    }
+  }
   s.matched_odometry = matched_odometry_;
   s.matched_pose = matched_pose_;
   s.cache = field_cache_;
   return s;
 }
 
-void IncrementalScanMatcher::restore(Snapshot&& s) {
+OccupancyGrid2D IncrementalScanMatcher::replayed_grid(std::size_t k, const ScanReplay& replay) const {
+  const Submap& sub = submaps_[k];
+  // As prepare and commit built it: a new submap's grid around its first scan (a saved map for
+  // submap 0 of a run started on one), grown before each later scan is inserted where that scan
+  // needs it (the first scan on a map too), each scan inserted at its estimate.
+  const bool on_map = started_on_map_ && k == 0;
+  OccupancyGrid2D grid = on_map ? *replay.start_map : new_submap_grid(sub.origin);
+  const double reach = options_.filter.usable_range();
+  for (std::size_t n = 0; n < sub.scans.size(); ++n) {
+    const int s = sub.scans[n];
+    const Eigen::Vector3d& pose = estimates_[static_cast<std::size_t>(s)].pose;
+    if (on_map || n > 0) {
+      if (std::optional<OccupancyGrid2D> grown = grown_for(grid, pose)) grid = std::move(*grown);
+    }
+    const auto [ranges, angles] = replay.scan(s);
+    grid.insert_rays(pose, ranges_for_insertion(*ranges, options_.filter), *angles, reach);
+  }
+  return grid;
+}
+
+void IncrementalScanMatcher::restore(Snapshot&& s, const ScanReplay* replay) {
+  require(s.open_grid_kept || !s.open || (replay && replay->scan && (!started_on_map_ || replay->start_map)), "replay",
+          "is needed to restore a snapshot taken without the open submap's grid");
   estimates_.resize(s.scans);
   timestamps_.resize(s.scans);
   submaps_.erase(submaps_.begin() + static_cast<std::ptrdiff_t>(s.submaps), submaps_.end());
   if (s.open) submaps_.back() = std::move(*s.open);
+  if (!s.open_grid_kept && s.open) submaps_.back().grid = replayed_grid(submaps_.size() - 1, *replay);
   matched_odometry_ = s.matched_odometry;
   matched_pose_ = s.matched_pose;
   field_cache_ = std::move(s.cache);

@@ -25,7 +25,7 @@ SubmapSlam2D::SubmapSlam2D(const SubmapSlamOptions& options)
 SubmapSlam2D::SubmapSlam2D(const SubmapSlam2D& other)
     : options_(other.options_),
       frontend_(other.frontend_),
-      points_(other.points_),
+      hit_counts_(other.hit_counts_),
       offset_cov_(other.offset_cov_),
       nodes_(other.nodes_),
       constraints_(other.constraints_),
@@ -74,9 +74,9 @@ void SubmapSlam2D::add_scan(const Eigen::Ref<const Eigen::VectorXd>& ranges,
 void SubmapSlam2D::add_prepared(IncrementalScanMatcher::PendingScan&& scan, const Eigen::Ref<const Eigen::VectorXd>& ranges,
                                 const Eigen::Ref<const Eigen::VectorXd>& beam_angles) {
   const std::size_t submaps_before = frontend_.submaps().size();
-  Points2 hits = std::move(scan.hits);  // the frontend's filtering, not repeated
+  const int hits = static_cast<int>(scan.hits.rows());  // the frontend's filtering, not repeated
   const ScanEstimate est = frontend_.commit(std::move(scan));
-  points_.push_back(std::move(hits));
+  hit_counts_.push_back(hits);
   ranges_.emplace_back(ranges);
   keep_angles(beam_angles);
   const Eigen::Matrix3d cov = offset_covariance(est, frontend_.num_scans() - 1);
@@ -107,6 +107,11 @@ Eigen::Matrix3d SubmapSlam2D::offset_covariance(const ScanEstimate& est, int ind
   return Eigen::Matrix3d::Zero();
 }
 
+Points2 SubmapSlam2D::hits_of(int s) const {
+  const std::size_t k = static_cast<std::size_t>(s);
+  return scan_hits(ranges_[k], *angles_[k], options_.frontend.filter);
+}
+
 void SubmapSlam2D::keep_angles(const Eigen::Ref<const Eigen::VectorXd>& beam_angles) {
   if (!angles_.empty() && *angles_.back() == beam_angles) {
     angles_.push_back(angles_.back());
@@ -127,15 +132,22 @@ void SubmapSlam2D::add_scans(const Eigen::Ref<const RowMatrixXd>& ranges, const 
 }
 
 SubmapSlam2D::Snapshot SubmapSlam2D::snapshot() const {
-  return Snapshot{frontend_.snapshot(), points_.size(), nodes_, constraints_, chain_pose_, chain_cov_, chain_submap_,
+  // Without a copy of the open submap's grid: every scan is kept, so restore inserts them again.
+  return Snapshot{frontend_.snapshot(false), hit_counts_.size(), nodes_, constraints_, chain_pose_, chain_cov_, chain_submap_,
                   attempts_, counts_};
 }
 
 void SubmapSlam2D::restore(Snapshot&& s) {
   const int open = static_cast<int>(s.frontend.submaps) - 1;
-  frontend_.restore(std::move(s.frontend));
+  IncrementalScanMatcher::ScanReplay replay;
+  replay.scan = [this](int k) {
+    const std::size_t i = static_cast<std::size_t>(k);
+    return std::make_pair(&ranges_[i], angles_[i].get());
+  };
+  replay.start_map = start_map_ ? &*start_map_ : nullptr;
+  frontend_.restore(std::move(s.frontend), &replay);
   closure_cells_.resize(static_cast<std::size_t>(std::max(0, open)));  // the open one's grid is back
-  points_.resize(s.scans);
+  hit_counts_.resize(s.scans);
   offset_cov_.resize(s.scans);
   ranges_.resize(s.scans);
   angles_.resize(s.scans);

@@ -22,8 +22,9 @@ SubmapSlamMemory SubmapSlam2D::memory() const {
   for (std::size_t k = 0; k < ranges_.size(); ++k) {
     // A scan's beam angles are counted once where it shares them with the scan before.
     const bool shared = k > 0 && angles_[k] == angles_[k - 1];
-    m.scans += 8.0 * static_cast<double>(ranges_[k].size() + (shared ? 0 : angles_[k]->size()) + points_[k].size());
+    m.scans += 8.0 * static_cast<double>(ranges_[k].size() + (shared ? 0 : angles_[k]->size()));
   }
+  m.scans += static_cast<double>(hit_counts_.size() * sizeof(int));
   m.scans += static_cast<double>(offset_cov_.size() * sizeof(Eigen::Matrix3d));
   m.submap_grids = frontend_.grid_bytes();
   for (const ObstacleCells& c : closure_cells_) m.closure_cells += static_cast<double>(c.bytes());

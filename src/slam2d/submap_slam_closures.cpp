@@ -84,10 +84,16 @@ int SubmapSlam2D::search_closures(int j) {
   // smaller than the submaps searched would rebuild every field n times); the closures found
   // are added scan by scan, the order of old, which the optimiser's sums depend on.
   std::vector<std::vector<SubmapConstraint>> found(static_cast<std::size_t>(n));
+  std::vector<int> scans(static_cast<std::size_t>(n));
+  std::vector<Points2> hits(static_cast<std::size_t>(n));
+  for (int q = 0; q < n; ++q) {
+    scans[static_cast<std::size_t>(q)] = candidates[static_cast<std::size_t>((q + 0.5) * candidates.size() / n)];
+    hits[static_cast<std::size_t>(q)] = hits_of(scans[static_cast<std::size_t>(q)]);
+  }
   for (int i = 0; i + 2 <= j; ++i)
     for (int q = 0; q < n; ++q) {
-      const int s = candidates[static_cast<std::size_t>((q + 0.5) * candidates.size() / n)];
-      if (auto c = try_closure(s, i, marginals)) found[static_cast<std::size_t>(q)].push_back(*c);
+      const std::size_t k = static_cast<std::size_t>(q);
+      if (auto c = try_closure(scans[k], hits[k], i, marginals)) found[k].push_back(*c);
     }
   std::vector<SubmapConstraint> all;
   for (const std::vector<SubmapConstraint>& f : found) all.insert(all.end(), f.begin(), f.end());
@@ -98,7 +104,7 @@ std::vector<int> SubmapSlam2D::closure_candidates(int j) const {
   const std::vector<ScanEstimate>& est = frontend_.estimates();
   std::vector<int> candidates;
   for (int s : frontend_.submaps()[j].scans)
-    if (est[s].submap == j && points_[s].rows() >= kMinClosurePoints) candidates.push_back(s);
+    if (est[s].submap == j && hit_counts_[static_cast<std::size_t>(s)] >= kMinClosurePoints) candidates.push_back(s);
   return candidates;
 }
 
@@ -112,7 +118,8 @@ std::vector<Eigen::Matrix3d> SubmapSlam2D::submap_marginals(int j) const {
   return marginals;
 }
 
-std::optional<SubmapConstraint> SubmapSlam2D::try_closure(int s, int i, const std::vector<Eigen::Matrix3d>& marginals) {
+std::optional<SubmapConstraint> SubmapSlam2D::try_closure(int s, const Points2& points, int i,
+                                                          const std::vector<Eigen::Matrix3d>& marginals) {
   const LoopClosureOptions& lc = options_.closures;
   // The scan in the world as the graph has it (W, with covariance SW), and submap i's frontend
   // frame in the world (Ti): its scans' positions, where W must come near.
@@ -129,8 +136,8 @@ std::optional<SubmapConstraint> SubmapSlam2D::try_closure(int s, int i, const st
   const Eigen::Vector3d predicted = Ti.inverse().compose(pose_of(W)).vector();
   if (searched_before(s, i, predicted)) return std::nullopt;
   const CorrelativeScanMatcher& matcher = closure_matcher(i, m.window.linear);
-  m.min_score = min_closure_score(points_[s].rows(), options_);
-  const MatchResult r = matcher.match(points_[s], predicted, m);
+  m.min_score = min_closure_score(points.rows(), options_);
+  const MatchResult r = matcher.match(points, predicted, m);
   ++counts_.closures_searched;
   ++timings_.closure_matches;
   if (!r.found) {
@@ -140,7 +147,7 @@ std::optional<SubmapConstraint> SubmapSlam2D::try_closure(int s, int i, const st
   const bool at_edge = at_window_edge(r, predicted, m, lc, matcher.field().resolution());
   const Eigen::Matrix3d gate = graph_gate(r, Ti, W, SW, i, Si);
   if (r.match_quality < lc.min_match_quality || at_edge || gate_chi2(gate, r.pose, predicted) > lc.dissolve_chi2 ||
-      !unique_match(matcher, points_[s], predicted, m, r, gate)) {
+      !unique_match(matcher, points, predicted, m, r, gate)) {
     ++counts_.closures_rejected;
     return std::nullopt;
   }

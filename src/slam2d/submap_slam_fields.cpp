@@ -91,8 +91,9 @@ Eigen::Vector4d SubmapSlam2D::closure_region(int i) const {
   }
   for (int k : sub.scans) {
     const Pose2 p = pose_of(est[k].pose);
-    for (Eigen::Index n = 0; n < points_[k].rows(); ++n) {
-      const Eigen::Vector2d q = p.transform_from(points_[k].row(n).transpose());
+    const Points2 hits = hits_of(k);
+    for (Eigen::Index n = 0; n < hits.rows(); ++n) {
+      const Eigen::Vector2d q = p.transform_from(hits.row(n).transpose());
       lo = lo.cwiseMin(q);
       hi = hi.cwiseMax(q);
     }

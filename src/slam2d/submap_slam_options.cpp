@@ -21,7 +21,7 @@ void LoopClosureOptions::validate() const {
           "must lie in [min_angular_window, pi]");
   require_positive(max_distance, "max_distance");
   require_positive(dissolve_chi2, "dissolve_chi2");
-  require_positive(field_cache_bytes, "field_cache_bytes");
+  require(std::isfinite(field_cache_bytes) && field_cache_bytes >= 0.0, "field_cache_bytes", "must be finite and >= 0");
 }
 
 OptimizerOptions SubmapSlamOptions::default_optimizer() {

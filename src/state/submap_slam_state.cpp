@@ -32,8 +32,9 @@ void SubmapSlam2D::write_state(StateWriter& w) const {
     }
     frontend.write_state(w);
   }
-  w.count(points_.size());
-  for (const Points2& p : points_) w.matrix(p);
+  // Each scan's hits: not kept (hits_of computes them from the ranges), written for the format.
+  w.count(ranges_.size());
+  for (std::size_t k = 0; k < ranges_.size(); ++k) w.matrix(hits_of(static_cast<int>(k)));
   w.count(offset_cov_.size());
   for (const Eigen::Matrix3d& c : offset_cov_) w.matrix(c);
   w.count(nodes_.size());
@@ -79,8 +80,9 @@ SubmapSlam2D SubmapSlam2D::read_state(StateReader& r) {
   s.frontend_ = IncrementalScanMatcher::read_state(r);
   const std::size_t scans = static_cast<std::size_t>(s.frontend_.num_scans());
   const std::size_t np = r.count(16);
-  for (std::size_t k = 0; k < np; ++k) s.points_.push_back(r.matrix<Points2>());
-  for (const Points2& p : s.points_)
+  std::vector<Points2> hits;  // checked against the ranges below (the object computes them from those)
+  for (std::size_t k = 0; k < np; ++k) hits.push_back(r.matrix<Points2>());
+  for (const Points2& p : hits)
     if (!p.allFinite()) r.fail("a scan's hits are not finite");
   // Every per-scan and per-submap list must hold one entry per scan / submap before any is used
   // (the loop-closure search indexes them by scan and by submap).
@@ -120,6 +122,11 @@ SubmapSlam2D SubmapSlam2D::read_state(StateReader& r) {
     s.ranges_.push_back(r.matrix<Eigen::VectorXd>());
     s.keep_angles(r.matrix<Eigen::VectorXd>());
     if (s.ranges_.back().size() != s.angles_.back()->size()) r.fail("a scan has not one angle per range");
+    if (!s.angles_.back()->allFinite()) r.fail("a scan's beam angles are not finite");
+    const Points2 computed = s.hits_of(static_cast<int>(k));
+    if (computed.rows() != hits[k].rows() || computed != hits[k]) r.fail("a scan's hits do not follow from its ranges");
+    s.hit_counts_.push_back(static_cast<int>(computed.rows()));
+    hits[k] = Points2();
   }
   s.chain_pose_ = r.matrix<Eigen::Vector3d>();
   s.chain_cov_ = r.matrix<Eigen::Matrix3d>();

@@ -193,6 +193,23 @@ TEST(ReliabilitySlam2D, SubmapSlamBadCallsChangeNothing) {
   bad_calls_change_nothing<SubmapSlam2D>([] { return std::make_unique<SubmapSlam2D>(submap_slam()); });
 }
 
+TEST(ReliabilitySlam2D, SubmapSlamStartedOnAMapBadCallsChangeNothing) {
+  // A batch refused midway rebuilds the open submap's grid from its scans (the snapshot holds no
+  // copy of it): on a run started from a saved map, submap 0 starts as that map.
+  bad_calls_change_nothing<SubmapSlam2D>([] {
+    OccupancyGrid2D room = OccupancyGrid2D::covering(-6.0, -5.0, 6.0, 5.0, frontend().resolution);
+    for (int k = 0; k < 10; ++k) {
+      const Eigen::Vector3d at(-4.0 + 0.8 * k, 0.5, 0.3 * k);
+      room.insert_rays(at, cast(at), fan(), 8.0);
+    }
+    SubmapSlamOptions o = submap_slam();
+    o.frontend.submap_distance = 2.0;  // the failing batch lies in submap 0, the map
+    auto m = std::make_unique<SubmapSlam2D>(o);
+    m->start_from_map(room, pose_at(0));
+    return m;
+  });
+}
+
 TEST(ReliabilitySlam2D, GridFastSlamMotionProposalBadCallsChangeNothing) {
   bad_calls_change_nothing<GridFastSlam>([] { return std::make_unique<GridFastSlam>(rbpf(GridProposal::kMotion)); });
 }

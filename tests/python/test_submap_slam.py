@@ -82,7 +82,7 @@ def test_full_pipeline_on_the_loop(drive):
     (dict(scans_per_submap=0), "closures.scans_per_submap"), (dict(min_match_quality=1.5), "closures.min_match_quality"),
     (dict(window_sigmas=0.0), "closures.window_sigmas"), (dict(max_linear_window=-1.0), "closures.max_linear_window"),
     (dict(max_angular_window=4.0), "closures.max_angular_window"),
-    (dict(dissolve_chi2=float("nan")), "closures.dissolve_chi2"), (dict(field_cache_bytes=0.0), "closures.field_cache_bytes")])
+    (dict(dissolve_chi2=float("nan")), "closures.dissolve_chi2"), (dict(field_cache_bytes=-1.0), "closures.field_cache_bytes")])
 def test_bad_options_name_the_path(closures, path):
     # The message starts with the field's whole path, from the keywords and from an options object alike.
     with pytest.raises(ValueError, match="^" + re.escape(path) + " "):
@@ -148,6 +148,23 @@ def test_run_slam_equals_the_class(drive):
     grid = direct.map()
     assert (result.grid.width, result.grid.height) == (grid.width, grid.height)
     np.testing.assert_allclose(result.grid.origin, grid.origin, atol=1e-6)
+
+
+def test_run_slam_passes_each_scan_its_own_beam_angles_when_they_differ(drive):
+    # run_slam passes one row of angles for a log whose scans share start angle and step (the
+    # test above); where they differ, each scan's own row: the class given the (S, B) matrix.
+    from probslam.slam import run_slam
+
+    true, odo, ranges = drive
+    n = 40
+    scans = scans_of(true[:n], odo[:n], ranges[:n])
+    scans.start_angles = scans.start_angles.copy()
+    scans.start_angles[1::2] += 0.002  # every other scan turned by 0.1 degree
+    result = run_slam(scans, progress=False, chunk=16)
+    direct = _core.SubmapSlam2D(frontend={"filter": {"max_range": MAX_RANGE}})
+    direct.add_scans(scans.ranges, scans.beam_angles(), scans.laser_poses, scans.timestamps)
+    direct.finish()
+    assert np.array_equal(result.poses, direct.scan_poses)
 
 
 def test_log_without_odometry_runs_on_scan_matching_alone(drive):

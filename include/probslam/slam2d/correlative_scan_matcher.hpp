@@ -248,9 +248,12 @@ class CorrelativeScanMatcher {
               const Eigen::Matrix3d* prior_info, const MatchOptions& options, double angular_step,
               MatchResult& result, long* evaluations = nullptr) const;
   static Eigen::Matrix3d scan_meat(const ScanMoments& scan);
+  /// The covariance of a refined pose (see match()); scan: scan_moments at result.pose when
+  /// computed already; widen: profile exp(score) across the window (widen_where_flat).
   Eigen::Matrix3d pose_covariance(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
                                   const Eigen::Matrix3d* prior_info, const MatchOptions& options,
-                                  double angular_step, const MatchResult& result, bool stationary) const;
+                                  double angular_step, const MatchResult& result, bool stationary,
+                                  const ScanMoments* scan = nullptr, bool widen = true) const;
   /// cov widened along its principal axes where exp(score) keeps mass beyond the local basin
   /// across the window (half: the window's half-widths, m, m, rad; hessian: Gauss-Newton, with
   /// the prior).

@@ -40,13 +40,16 @@ struct LoopClosureOptions {
   /// A closure whose error in the optimised graph exceeds this chi2 (3 dof) is dissolved
   /// (ch. 11.6 item 3); 16.27 is the 99.9% quantile.
   double dissolve_chi2 = 16.27;
-  /// Fields of submaps kept for the search (bytes); the least recently used are rebuilt. A field
-  /// takes 8 bytes a cell, and its search pyramid 4 a cell per level, only as many levels as
-  /// the windows searched in it need (4 for the smallest window at 5 cm, 8 for the largest):
-  /// 48 MiB keeps the few submaps a stretch of travel is searched against (against 128: ACES
-  /// rebuilds 14% more fields, 0.5 s, and peaks about 100 MB lower); the run's results do not
-  /// depend on it, only its time and memory do (docs/performance.md).
-  double field_cache_bytes = 48.0 * 1024 * 1024;
+  /// Fields of finished submaps kept for the search beyond the one in use (bytes); the least
+  /// recently used are rebuilt. A field takes 8 bytes a cell, and its search pyramid 4 a cell
+  /// per level, only as many levels as the windows searched in it need. The search of each
+  /// finished submap sweeps the older ones in order (submap by submap, so that it builds each
+  /// field once), and the next search sweeps them again: a least-recently-used cache smaller
+  /// than a whole sweep evicts each field before the next sweep asks for it and never hits, and
+  /// a sweep grows with the log. So by default none is kept (0): each search builds each field
+  /// it needs once. A budget that holds a whole sweep saves the rebuilds (512 MiB on ACES); the
+  /// run's results do not depend on it, only its time and memory do (docs/performance.md).
+  double field_cache_bytes = 0.0;
 
   void validate() const;
   template <class V>
@@ -62,7 +65,7 @@ struct LoopClosureOptions {
     v("max_angular_window", &O::max_angular_window, "rad", "... and at most this (<= pi)");
     v("max_distance", &O::max_distance, "m", "submaps predicted farther apart are not searched");
     v("dissolve_chi2", &O::dissolve_chi2, "", "a closure whose error in the optimised graph exceeds this chi2 (3 dof) is dissolved");
-    v("field_cache_bytes", &O::field_cache_bytes, "bytes", "submap likelihood fields kept for the search (least recently used rebuilt; results do not depend on it)");
+    v("field_cache_bytes", &O::field_cache_bytes, "bytes", "submap likelihood fields kept for the search beyond the one in use, >= 0 (least recently used rebuilt; results do not depend on it)");
   }
 };
 
@@ -144,7 +147,7 @@ struct SubmapSlamTimings {
 
 /// What the object holds (bytes, approximate: the large buffers, not the bookkeeping).
 struct SubmapSlamMemory {
-  double scans = 0.0;           ///< every scan's ranges, beam angles and hits (for the map and the search)
+  double scans = 0.0;           ///< every scan's ranges and beam angles (for the map and the search)
   double submap_grids = 0.0;    ///< the frontend's grids (the open submap's; finished ones are released)
   double closure_cells = 0.0;   ///< the obstacle cells kept of each finished submap
   double closure_fields = 0.0;  ///< the loop-closure search's cache of fields and pyramids
@@ -154,7 +157,7 @@ struct SubmapSlamMemory {
   template <class V>
   static void describe(V& v) {
     using T = SubmapSlamMemory;
-    v("scans", &T::scans, "bytes", "every scan's ranges, beam angles and hits (for the map and the search)");
+    v("scans", &T::scans, "bytes", "every scan's ranges and beam angles (for the map and the search)");
     v("submap_grids", &T::submap_grids, "bytes", "the frontend's grids (the open submap's; finished ones are released)");
     v("closure_cells", &T::closure_cells, "bytes", "the obstacle cells kept of each finished submap");
     v("closure_fields", &T::closure_fields, "bytes", "the loop-closure search's cache of fields and pyramids");
@@ -165,8 +168,9 @@ struct SubmapSlamMemory {
 /// Every call is all or nothing. add_scan checks its input first (check_scan) and the frontend
 /// adds the scan whole or not at all. add_scans checks every row first; a row refused on the
 /// object's state (a submap grid beyond OccupancyGrid2D::kMaxCells, an optimisation that fails)
-/// restores the state of before the batch from a snapshot taken once per batch (the open submap's
-/// grid, the graph's nodes, constraints and search history).
+/// restores the state of before the batch from a snapshot taken once per batch (the graph's
+/// nodes, constraints and search history; the open submap's grid not copied but built again
+/// from its scans, which the object keeps: IncrementalScanMatcher::snapshot).
 class SubmapSlam2D {
  public:
   std::mutex& mutex() const noexcept { return mutex_.get(); }
@@ -253,8 +257,14 @@ class SubmapSlam2D {
   std::vector<int> closure_candidates(int j) const;
   /// The marginal covariances of submap nodes 0 .. j in the graph as it stands.
   std::vector<Eigen::Matrix3d> submap_marginals(int j) const;
-  /// The closure a scan of submap j makes with submap i, if it passes every test (counted).
-  std::optional<SubmapConstraint> try_closure(int scan, int i, const std::vector<Eigen::Matrix3d>& marginals);
+  /// The closure a scan of submap j (its hits, sensor frame) makes with submap i, if it passes
+  /// every test (counted).
+  std::optional<SubmapConstraint> try_closure(int scan, const Points2& hits, int i,
+                                              const std::vector<Eigen::Matrix3d>& marginals);
+  /// Scan s's hits (sensor frame): the frontend's filtering of its ranges, computed again
+  /// rather than kept (they follow from the ranges, and held for every scan would double the
+  /// scans' bytes).
+  Points2 hits_of(int s) const;
   /// Scan s's pose seen from its submap's origin (frontend frame).
   Eigen::Vector3d scan_offset(int s) const;
   /// How far world position W lies from submap i's scans (Ti its frontend frame in the world;
@@ -294,7 +304,7 @@ class SubmapSlam2D {
 
   SubmapSlamOptions options_;
   IncrementalScanMatcher frontend_;
-  std::vector<Points2> points_;             // hits of each scan, sensor frame
+  std::vector<int> hit_counts_;             // hits of each scan (hits_of(s).rows())
   std::vector<Eigen::Matrix3d> offset_cov_; // of each inserted scan's pose from its submap's origin
   std::vector<Eigen::Vector3d> nodes_;      // optimised submap origins
   std::vector<SubmapConstraint> constraints_;
