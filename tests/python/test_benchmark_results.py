@@ -79,12 +79,16 @@ def test_studies_only_print():
 
 
 def test_results_has_one_section_per_benchmark_script():
-    """RESULTS.md: a `## script.py` section for each recording benchmark, in which every record
-    is `### Title, date` followed by the machine line; nothing else at those levels."""
+    """RESULTS.md: a `## script.py` section for each recording benchmark (or `## sweeps/NAME.toml`
+    for a sweep file that exists), in which every record is `### Title, date` followed by the
+    machine line; nothing else at those levels."""
     text = (ROOT / "benchmarks" / "RESULTS.md").read_text()
     sections = re.findall(r"^## (.*)$", text, flags=re.M)
-    recording = sorted(p.name for p in (ROOT / "benchmarks").glob("bench_*.py") if '"--record"' in p.read_text())
-    assert sorted(sections) == recording
+    recording = [p.name for p in (ROOT / "benchmarks").glob("bench_*.py") if '"--record"' in p.read_text()]
+    # A sweep's section holds tables made by `probslam batch` on that file of benchmarks/sweeps/.
+    sweeps = [s for s in sections if s.startswith("sweeps/")]
+    assert all((ROOT / "benchmarks" / s).is_file() for s in sweeps), sweeps
+    assert sorted(sections) == sorted(recording + sweeps)
     for block in re.split(r"^## ", text, flags=re.M)[1:]:
         records = re.findall(r"^### (.*)\n\n(.*)$", block, flags=re.M)
         assert records, block.split("\n")[0]
