@@ -119,7 +119,7 @@ STATE_CLASSES = ("OccupancyGrid2D", "OccupancyGrid3D", "PoseGraph2D", "PoseGraph
                  "FastSlam", "EkfSlam", "MultiHypothesisEkfSlam", "MonteCarloLocalization", "IncrementalScanMatcher")
 _STATE_BINDINGS = {"EkfSlam": "_EkfSlam", "MultiHypothesisEkfSlam": "_MultiHypothesisEkfSlam"}
 STATE_MAGIC = b"PSLSTATE"
-STATE_VERSION = 6  # kStateFormatVersion (include/probslam/core/state_file.hpp)
+STATE_VERSION = 7  # kStateFormatVersion (include/probslam/core/state_file.hpp)
 #: A state_file input's first byte at or above this: the rest is a whole file, header included.
 RAW_STATE = 0x80
 

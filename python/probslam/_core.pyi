@@ -758,6 +758,11 @@ class GridFastSlamTimings:
     map_update: float  # s
     table_copies: float  # s
     final_map: float  # s
+    proposals: int
+    proposal_local: int
+    proposal_evaluations: int
+    corrector_local: int
+    corrector_searches: int
     def as_dict(self) -> Dict[str, float]: ...
 
 class SubmapSlamSummary:
@@ -1224,12 +1229,13 @@ class ScanProposalOptions:
     sample_linear: float  # m
     sample_angular: float  # rad
     min_match_quality: float
+    search: str
     def __init__(self, *, linear_step: float = 0.05, angular_step: float = 0.05, refinements: int = 5,
                  max_moves: int = 200, sample_linear: float = 0.01, sample_angular: float = 0.005,
-                 min_match_quality: float = 0.3) -> None: ...
+                 min_match_quality: float = 0.3, search: str = 'always') -> None: ...
     def replace(self, *, linear_step: float = 0.05, angular_step: float = 0.05, refinements: int = 5,
                 max_moves: int = 200, sample_linear: float = 0.01, sample_angular: float = 0.005,
-                min_match_quality: float = 0.3) -> ScanProposalOptions: ...
+                min_match_quality: float = 0.3, search: str = 'always') -> ScanProposalOptions: ...
     def validate(self) -> None: ...
     def copy(self) -> ScanProposalOptions: ...
     def as_dict(self) -> Dict[str, Any]: ...

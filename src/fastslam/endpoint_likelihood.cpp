@@ -52,9 +52,10 @@ EndpointLikelihood::EndpointLikelihood(const EndpointLikelihoodOptions& options,
   occupied_log_odds_ = logit(options.occupied_threshold);
 }
 
-template <class Nearest>
+template <class Nearest, class OnHit>
 double EndpointLikelihood::sum(const TiledGrid2D& grid, const Eigen::Vector3d& pose,
-                               const Eigen::Ref<const Points2>& points, double* quality, const Nearest& best2_of) const {
+                               const Eigen::Ref<const Points2>& points, double* quality, const Nearest& best2_of,
+                               const OnHit& on_hit) const {
   const double c = std::cos(pose.z()), s = std::sin(pose.z());
   const GridLattice2D& lattice = grid.lattice();
   const double radius2 = options_.search_radius * options_.search_radius;
@@ -66,11 +67,13 @@ double EndpointLikelihood::sum(const TiledGrid2D& grid, const Eigen::Vector3d& p
     const int row = lattice.key(1, y), col = lattice.key(0, x);
     // Offset of the point from its cell's centre.
     const double ex = x - lattice.key_to_coord(0, col), ey = y - lattice.key_to_coord(1, row);
-    const double best2 = best2_of(row, col, ex, ey);
+    double tx = 0.0, ty = 0.0;
+    const double best2 = best2_of(row, col, ex, ey, tx, ty);
     if (best2 <= radius2) {
       const double hit = std::exp(-best2 / two_var);
       sum += std::log((1.0 - options_.p_rand) * hit + options_.p_rand);
       hits += hit;
+      on_hit(x - pose.x(), y - pose.y(), tx, ty, hit);
     } else {
       sum += log_p_none_;
     }
@@ -82,7 +85,7 @@ double EndpointLikelihood::sum(const TiledGrid2D& grid, const Eigen::Vector3d& p
 double EndpointLikelihood::log_likelihood(const TiledGrid2D& grid, const Eigen::Vector3d& pose,
                                           const Eigen::Ref<const Points2>& points, double* quality) const {
   const double threshold = occupied_log_odds_;
-  return sum(grid, pose, points, quality, [&](int row, int col, double ex, double ey) {
+  const auto best2_of = [&](int row, int col, double ex, double ey, double&, double&) {
     // A cell at centre distance D from the point's cell's centre lies at least D - half_diagonal_
     // from the point, so the search stops once that exceeds the best distance found.
     double best2 = std::numeric_limits<double>::infinity();
@@ -96,31 +99,78 @@ double EndpointLikelihood::log_likelihood(const TiledGrid2D& grid, const Eigen::
       best2 = std::min(best2, dx * dx + dy * dy);
     }
     return best2;
-  });
+  };
+  return sum(grid, pose, points, quality, best2_of, [](double, double, double, double, double) {});
+}
+
+void EndpointLikelihood::attach(const TiledGrid2D& grid, Memo& memo) {
+  if (memo.grid == &grid) return;
+  memo.grid = &grid;
+  memo.slots.assign(kMemoFirstSlots, -1);
+  memo.entries.clear();
+  memo.occupied.clear();
+}
+
+double EndpointLikelihood::remembered_nearest(const TiledGrid2D& grid, int row, int col, double ex, double ey,
+                                              Memo& memo, double& tx, double& ty) const {
+  // The search's loop over the occupied cells alone: the bound grows along the search's order
+  // and best2 changes only at occupied cells, so the search stops at an unoccupied cell only
+  // where it would stop at the next occupied one.
+  const Memo::Entry& e = remembered(grid, row, col, memo);
+  double best2 = std::numeric_limits<double>::infinity();
+  for (std::uint32_t k = e.begin; k < e.end; ++k) {
+    const Memo::Occupied& o = memo.occupied[k];
+    if (o.bound > 0.0 && o.bound * o.bound > best2) break;
+    const double dx = o.dcol * res_ - ex, dy = o.drow * res_ - ey;
+    const double d2 = dx * dx + dy * dy;
+    if (d2 < best2) {  // the search's min, and where it is
+      best2 = d2;
+      tx = dx;
+      ty = dy;
+    }
+  }
+  return best2;
 }
 
 double EndpointLikelihood::log_likelihood(const TiledGrid2D& grid, const Eigen::Vector3d& pose,
                                           const Eigen::Ref<const Points2>& points, Memo& memo, double* quality) const {
-  if (memo.grid != &grid) {
-    memo.grid = &grid;
-    memo.slots.assign(kMemoFirstSlots, -1);
-    memo.entries.clear();
-    memo.occupied.clear();
-  }
-  return sum(grid, pose, points, quality, [&](int row, int col, double ex, double ey) {
-    // The search's loop over the occupied cells alone: the bound grows along the search's order
-    // and best2 changes only at occupied cells, so the search stops at an unoccupied cell only
-    // where it would stop at the next occupied one.
-    const Memo::Entry& e = remembered(grid, row, col, memo);
-    double best2 = std::numeric_limits<double>::infinity();
-    for (std::uint32_t k = e.begin; k < e.end; ++k) {
-      const Memo::Occupied& o = memo.occupied[k];
-      if (o.bound > 0.0 && o.bound * o.bound > best2) break;
-      const double dx = o.dcol * res_ - ex, dy = o.drow * res_ - ey;
-      best2 = std::min(best2, dx * dx + dy * dy);
-    }
-    return best2;
-  });
+  attach(grid, memo);
+  return sum(
+      grid, pose, points, quality,
+      [&](int row, int col, double ex, double ey, double& tx, double& ty) {
+        return remembered_nearest(grid, row, col, ex, ey, memo, tx, ty);
+      },
+      [](double, double, double, double, double) {});
+}
+
+double EndpointLikelihood::log_likelihood(const TiledGrid2D& grid, const Eigen::Vector3d& pose,
+                                          const Eigen::Ref<const Points2>& points, Memo& memo, Derivatives& derivatives,
+                                          double* quality) const {
+  attach(grid, memo);
+  // Per point, e = end point - nearest centre = -(tx, ty), d^2 = |e|^2, and the term
+  // log((1 - p) h + p) has derivative -w / (2 sigma^2) in d^2, so its gradient is
+  // -(w / sigma^2) J^T e, J = [1 0 -ry; 0 1 rx] (the end point's derivative in x, y, theta).
+  double g0 = 0.0, g1 = 0.0, g2 = 0.0, h02 = 0.0, h12 = 0.0, h22 = 0.0, h00 = 0.0;
+  const double inv_var = 1.0 / (options_.sigma * options_.sigma), p = options_.p_rand;
+  const double value = sum(
+      grid, pose, points, quality,
+      [&](int row, int col, double ex, double ey, double& tx, double& ty) {
+        return remembered_nearest(grid, row, col, ex, ey, memo, tx, ty);
+      },
+      [&](double rx, double ry, double tx, double ty, double hit) {
+        const double w = inv_var * (1.0 - p) * hit / ((1.0 - p) * hit + p);
+        // J^T e with e = -(tx, ty): (-tx, -ty, ry tx - rx ty).
+        g0 += w * tx;
+        g1 += w * ty;
+        g2 -= w * (ry * tx - rx * ty);
+        h00 += w;
+        h02 -= w * ry;
+        h12 += w * rx;
+        h22 += w * (rx * rx + ry * ry);
+      });
+  derivatives.gradient << g0, g1, g2;
+  derivatives.information << h00, 0.0, h02, 0.0, h00, h12, h02, h12, h22;
+  return value;
 }
 
 const EndpointLikelihood::Memo::Entry& EndpointLikelihood::remembered(const TiledGrid2D& grid, int row, int col,

@@ -450,6 +450,12 @@ std::vector<GridFastSlam::Sampled> GridFastSlam::sample(const Points2& points, c
   for_each_particle([&](std::size_t k) {
     if (source[k] == k) proposals[k] = propose(particles_[k], points, motion);
   });
+  for (std::size_t k = 0; k < n; ++k)
+    if (source[k] == k) {
+      ++timings_.proposals;
+      timings_.proposal_local += proposals[k].local;
+      timings_.proposal_evaluations += proposals[k].evaluations;
+    }
   for_each_particle([&](std::size_t k) { out[k] = sample_particle(particles_[k], &proposals[source[k]], points, motion); });
   return out;
 }
@@ -579,6 +585,10 @@ OccupancyGrid2D GridFastSlam::map(int particle) const {
 GridFastSlamTimings GridFastSlam::timings() const {
   GridFastSlamTimings t = timings_;
   t.final_map = map_seconds_;
+  if (corrector_) {
+    t.corrector_local = corrector_->timings().local_matches;
+    t.corrector_searches = corrector_->timings().searches;
+  }
   return t;
 }
 

@@ -7,6 +7,7 @@
 
 #include "probslam/core/angle.hpp"
 #include "probslam/core/check.hpp"
+#include "probslam/core/chi_square.hpp"
 
 namespace probslam {
 namespace {
@@ -15,6 +16,12 @@ namespace {
 /// in double (J P J^T) are symmetric to a few ulps.
 constexpr double kCovarianceSymmetry = 1e-9;
 constexpr double kLog2Pi = 1.8378770664093453;
+/// Gauss-Newton ascent: at most this many iterations (each at most halves its step until the
+/// step is below the climb's precision); an ascent still moving after them is not trusted.
+constexpr int kMaxAscentIterations = 30;
+/// The ascent's mode is kept when it lies within the motion prior's gate at this probability
+/// (the frontend's local match uses the same: IncrementalScanMatcher).
+constexpr double kLocalModeProbability = 0.999;
 
 Eigen::Vector3d pose_offset(const Eigen::Vector3d& a, const Eigen::Vector3d& b) {
   return {a.x() - b.x(), a.y() - b.y(), wrap_angle(a.z() - b.z())};
@@ -34,6 +41,8 @@ class PoseGaussian {
     const Eigen::Matrix3d i = llt_.solve(Eigen::Matrix3d::Identity());
     return 0.5 * (i + i.transpose());
   }
+  /// pose - mean, the heading difference wrapped.
+  Eigen::Vector3d offset(const Eigen::Vector3d& pose) const { return pose_offset(pose, mean_); }
 
  private:
   Eigen::Vector3d mean_;
@@ -84,6 +93,93 @@ Eigen::Vector3d climb(const Score& score, const Eigen::Vector3d& from, double fr
   return best;
 }
 
+/// The end of a Gauss-Newton ascent.
+struct Ascent {
+  Eigen::Vector3d pose;
+  double score = 0.0, quality = 0.0;
+  bool converged = false;
+};
+
+/// Gauss-Newton ascent of log p(z | x, m) + log N(x; motion) from `from` (iteratively reweighted
+/// least squares on the end points' distances to their nearest occupied cells, the prior as a
+/// quadratic): each step is halved until it ascends; the ascent has converged when no step down
+/// to the climb's precision (`tolerance`, m, m, rad) ascends, or the step taken is below it.
+Ascent ascend(const EndpointLikelihood& likelihood, const TiledGrid2D& grid, const Eigen::Ref<const Points2>& points,
+              EndpointLikelihood::Memo& memo, const PoseGaussian& motion, const Eigen::Matrix3d& prior_information,
+              const Eigen::Vector3d& from, const Eigen::Vector3d& tolerance, int& evaluations) {
+  auto evaluate = [&](const Eigen::Vector3d& x, Eigen::Vector3d& g, Eigen::Matrix3d& H, double& q) {
+    EndpointLikelihood::Derivatives d;
+    const double s = likelihood.log_likelihood(grid, x, points, memo, d, &q) + motion.log_density(x);
+    ++evaluations;
+    g = d.gradient - prior_information * motion.offset(x);
+    H = d.information + prior_information;
+    return s;
+  };
+  Ascent a;
+  a.pose = from;
+  Eigen::Vector3d g;
+  Eigen::Matrix3d H;
+  a.score = evaluate(from, g, H, a.quality);
+  for (int it = 0; it < kMaxAscentIterations; ++it) {
+    // H holds the prior's information: positive definite.
+    const Eigen::Vector3d step = Eigen::LLT<Eigen::Matrix3d>(H).solve(g);
+    if (!step.allFinite()) return a;
+    Eigen::Vector3d scaled = step;
+    bool accepted = false;
+    while (!accepted && (scaled.cwiseAbs().array() >= tolerance.array()).any()) {
+      Eigen::Vector3d cand = a.pose + scaled;
+      cand.z() = wrap_angle(cand.z());
+      Eigen::Vector3d gc;
+      Eigen::Matrix3d Hc;
+      double qc = 0.0;
+      const double sc = evaluate(cand, gc, Hc, qc);
+      if (sc > a.score) {
+        a.pose = cand, a.score = sc, a.quality = qc, g = gc, H = Hc;
+        accepted = true;
+      } else {
+        scaled *= 0.5;
+      }
+    }
+    if (!accepted || (scaled.cwiseAbs().array() < tolerance.array()).all()) {
+      a.converged = true;
+      return a;
+    }
+  }
+  return a;
+}
+
+/// kFallback's mode: Gauss-Newton from the start (else the prior), and from the prior too if it
+/// scores higher than where that ascent ended (the climb's two starts, the other way round: the
+/// corrected start is the nearer). True, with `mode`, its score and quality, when the ascent
+/// holds: it converged, its quality passes min_match_quality, and the mode lies inside the
+/// motion prior's gate; false sends the proposal to the climb.
+bool local_mode(const EndpointLikelihood& likelihood, const TiledGrid2D& grid, const Eigen::Ref<const Points2>& points,
+                EndpointLikelihood::Memo& memo, const PoseGaussian& motion, const Eigen::Matrix3d& prior_information,
+                const Eigen::Vector3d& prior, const std::optional<Eigen::Vector3d>& start,
+                const ScanProposalOptions& options, Eigen::Vector3d& mode, double& score, double& quality,
+                int& evaluations) {
+  static const double gate = chi_square_quantile(kLocalModeProbability, 3);
+  const double precision = std::ldexp(1.0, -options.refinements);
+  const Eigen::Vector3d tolerance(options.linear_step * precision, options.linear_step * precision,
+                                  options.angular_step * precision);
+  Ascent a = ascend(likelihood, grid, points, memo, motion, prior_information, start ? *start : prior, tolerance,
+                    evaluations);
+  if (start) {
+    ++evaluations;
+    if (likelihood.log_likelihood(grid, prior, points, memo) + motion.log_density(prior) > a.score) {
+      const Ascent b = ascend(likelihood, grid, points, memo, motion, prior_information, prior, tolerance, evaluations);
+      if (b.converged && (!a.converged || b.score > a.score)) a = b;
+    }
+  }
+  if (!a.converged || !(a.quality >= options.min_match_quality)) return false;
+  const Eigen::Vector3d d = motion.offset(a.pose);
+  if (!(d.dot(prior_information * d) <= gate)) return false;
+  mode = a.pose;
+  score = a.score;
+  quality = a.quality;
+  return true;
+}
+
 }  // namespace
 
 void ScanProposalOptions::validate() const {
@@ -95,6 +191,8 @@ void ScanProposalOptions::validate() const {
   require_positive(sample_angular, "sample_angular");
   require(std::isfinite(min_match_quality) && min_match_quality >= 0.0 && min_match_quality <= 1.0, "min_match_quality",
           "must lie in [0, 1]");
+  require(search == ProposalSearch::kFallback || search == ProposalSearch::kAlways, "search",
+          "must be fallback or always");
 }
 
 double log_gaussian_pose(const Eigen::Vector3d& pose, const Eigen::Vector3d& prior, const Eigen::Matrix3d& prior_cov) {
@@ -147,30 +245,53 @@ ScanProposal scan_matching_proposal(const EndpointLikelihood& likelihood, const 
   require(grid.resolution() == likelihood.resolution(), "grid", "must have the likelihood's resolution");
 
   const PoseGaussian motion(prior, prior_cov);
+  const Eigen::Matrix3d prior_information = motion.information();
   // Every evaluation below is on this grid: the end points' searches are remembered per cell.
   EndpointLikelihood::Memo memo;
+  ScanProposal p;
   auto score = [&](const Eigen::Vector3d& x) {
+    ++p.evaluations;
     return likelihood.log_likelihood(grid, x, points, memo) + motion.log_density(x);
   };
 
-  ScanProposal p;
   double best_score = 0.0;
-  Eigen::Vector3d best = climb(score, prior, score(prior), options, best_score);
-  // The odometry pose of a scan may be stale; if the corrected start explains the scan better
-  // than where the climb from the odometry ended, climb from it too and keep the better mode.
-  if (start) {
-    const double from = score(*start);
-    if (from > best_score) {
-      double other_score = 0.0;
-      const Eigen::Vector3d other = climb(score, *start, from, options, other_score);
-      if (other_score > best_score) {
-        best = other;
-        best_score = other_score;
+  Eigen::Vector3d best = prior;
+  if (options.search == ProposalSearch::kFallback) p.local = local_mode(likelihood, grid, points, memo, motion,
+                                                                        prior_information, prior, start, options,
+                                                                        best, best_score, p.quality, p.evaluations);
+  if (p.local) {
+    // The ascent stops once its step is below the climb's precision, but its Hessian (the points'
+    // weights held) is steeper than the score's, so it stops a few millimetres short of the
+    // optimum. The climb's last stages finish it: from its first step halved until it is within
+    // the fit's spacing (the ascent's mode lies within that of the optimum) to its last.
+    ScanProposalOptions finish = options;
+    while (finish.refinements > 0 && finish.linear_step > options.sample_linear) {
+      finish.linear_step *= 0.5;
+      finish.angular_step *= 0.5;
+      --finish.refinements;
+    }
+    best = climb(score, best, best_score, finish, best_score);
+    ++p.evaluations;
+    likelihood.log_likelihood(grid, best, points, memo, &p.quality);
+  } else {
+    best = climb(score, prior, score(prior), options, best_score);
+    // The odometry pose of a scan may be stale; if the corrected start explains the scan better
+    // than where the climb from the odometry ended, climb from it too and keep the better mode.
+    if (start) {
+      const double from = score(*start);
+      if (from > best_score) {
+        double other_score = 0.0;
+        const Eigen::Vector3d other = climb(score, *start, from, options, other_score);
+        if (other_score > best_score) {
+          best = other;
+          best_score = other_score;
+        }
       }
     }
+    ++p.evaluations;
+    likelihood.log_likelihood(grid, best, points, memo, &p.quality);
   }
   p.mode = best;
-  likelihood.log_likelihood(grid, best, points, memo, &p.quality);
   p.matched = p.quality >= options.min_match_quality;
   if (!p.matched) return p;
 

@@ -81,9 +81,10 @@ T round_trip(const T& obj, const std::string& name) {
   write_bytes(bad, before + "x");
   expect_refused<T>(bad, "padded");
   std::string version = before;
-  version[8] = 7;
+  constexpr std::uint32_t kOtherVersion = kStateFormatVersion + 1;  // any version but this build's
+  version[8] = static_cast<char>(kOtherVersion);
   write_bytes(bad, version);
-  expect_refused<T>(bad, "version 7");
+  expect_refused<T>(bad, "version " + std::to_string(kOtherVersion));
   // A file of another class names both.
   write_bytes(bad, frame_state(Other::kStateTag, ""));
   expect_refused<T>(bad, std::string("holds a ") + Other::kStateTag);

@@ -143,6 +143,7 @@ def test_run_slam_rbpf_equals_the_class(drive):
     (dict(likelihood={"search_radius": -1.0}), "likelihood.search_radius"),
     (dict(likelihood={"occupied_threshold": 1.0}), "likelihood.occupied_threshold"),
     (dict(matching={"min_match_quality": 1.5}), "matching.min_match_quality"),
+    (dict(matching={"search": "bogus"}), "matching.search"),
     (dict(resample_threshold=1.5), "resample_threshold"),
     (dict(weight_scale=0.0), "weight_scale"),
     (dict(weight_scale=2.0), "weight_scale"),

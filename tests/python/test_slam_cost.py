@@ -117,6 +117,11 @@ def test_run_slam_reports_timings_and_memory(log):
     f = run_slam(log, progress=False, options=default_options(log, "rbpf").replace(num_particles=3))
     assert f.memory is None
     t = f.timings.as_dict()
-    assert set(t) == {"filter", "corrector", "proposal", "resample", "map_update", "table_copies", "final_map"}
+    assert set(t) == {"filter", "corrector", "proposal", "resample", "map_update", "table_copies", "final_map",
+                      "proposals", "proposal_local", "proposal_evaluations", "corrector_local", "corrector_searches"}
     assert all(v >= 0 for v in t.values())
     assert t["proposal"] > 0 and t["map_update"] > 0 and t["final_map"] > 0 and t["table_copies"] <= t["map_update"]
+    # Counts: every proposal evaluates the likelihood (at least the 27 poses of its fit when it
+    # matched); the corrector matched scans by the search, the local optimiser, or both ways.
+    assert 0 <= t["proposal_local"] <= t["proposals"] > 0 and t["proposal_evaluations"] >= t["proposals"]
+    assert t["corrector_local"] + t["corrector_searches"] > 0

@@ -29,7 +29,9 @@ namespace probslam {
 /// 5: the options of the laser SLAM classes and of FastSlam written through their describe()
 /// (issue 52): the scan matcher's no longer hold the match's prior, which every owner sets per
 /// match; FastSlam's noise and start pose follow its options (the model is the constructor's).
-inline constexpr std::uint32_t kStateFormatVersion = 6;
+/// 6: the scan matcher's options hold `search` (issue 54, the frontend's local optimiser).
+/// 7: GridFastSlam's proposal options hold `search` (issue 54, the proposal's Gauss-Newton).
+inline constexpr std::uint32_t kStateFormatVersion = 7;
 
 /// What a reader throws: "<source>: <what is wrong>".
 class StateError : public std::invalid_argument {

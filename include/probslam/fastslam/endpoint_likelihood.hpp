@@ -90,16 +90,37 @@ class EndpointLikelihood {
   double log_likelihood(const TiledGrid2D& grid, const Eigen::Vector3d& pose, const Eigen::Ref<const Points2>& points,
                         Memo& memo, double* quality = nullptr) const;
 
+  /// The derivatives of log p(z | x, m) in the pose (x, y, theta), with each end point's nearest
+  /// occupied cell held where it is (the derivative wherever that cell is unique): `gradient`
+  /// exactly, and `information` the Gauss-Newton (iteratively reweighted least squares)
+  /// approximation of minus the Hessian, sum of w / sigma^2 J^T J over the points within
+  /// search_radius, J = d(end point)/d(pose) and w = (1 - p_rand) h / ((1 - p_rand) h + p_rand),
+  /// h = exp(-d^2 / 2 sigma^2), the point's probability of being a hit.
+  struct Derivatives {
+    Eigen::Vector3d gradient = Eigen::Vector3d::Zero();
+    Eigen::Matrix3d information = Eigen::Matrix3d::Zero();
+  };
+  /// log_likelihood with the memo, and its derivatives (the same value, bit for bit).
+  double log_likelihood(const TiledGrid2D& grid, const Eigen::Vector3d& pose, const Eigen::Ref<const Points2>& points,
+                        Memo& memo, Derivatives& derivatives, double* quality = nullptr) const;
+
  private:
   struct Offset {
     int drow, dcol;
     double centre_distance;  // between the two cells' centres, m
   };
-  /// The sum and quality with best2(row, col, ex, ey) giving the squared distance to the nearest
-  /// occupied cell the search finds (infinity for none).
-  template <class Nearest>
+  /// The sum and quality with best2(row, col, ex, ey, tx, ty) giving the squared distance to the
+  /// nearest occupied cell the search finds (infinity for none), and (if it sets them) (tx, ty)
+  /// from the point to that cell's centre; on_hit(rx, ry, tx, ty, hit) is called for each point
+  /// within search_radius, (rx, ry) the point relative to the pose's position.
+  template <class Nearest, class OnHit>
   double sum(const TiledGrid2D& grid, const Eigen::Vector3d& pose, const Eigen::Ref<const Points2>& points,
-             double* quality, const Nearest& best2) const;
+             double* quality, const Nearest& best2, const OnHit& on_hit) const;
+  /// The memo's walk for a point (ex, ey) off the centre of cell (row, col); (tx, ty) as in sum.
+  double remembered_nearest(const TiledGrid2D& grid, int row, int col, double ex, double ey, Memo& memo, double& tx,
+                            double& ty) const;
+  /// Resets the memo when it last saw another grid.
+  static void attach(const TiledGrid2D& grid, Memo& memo);
   /// memo's entry for cell (row, col), made on first use.
   const Memo::Entry& remembered(const TiledGrid2D& grid, int row, int col, Memo& memo) const;
   EndpointLikelihoodOptions options_;

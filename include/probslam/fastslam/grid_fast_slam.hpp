@@ -141,6 +141,10 @@ struct GridFastSlamTimings {
   double map_update = 0.0; ///< the scan's rays into every particle's map, tile clones included
   double table_copies = 0.0;  ///< of which copying shared maps' tile tables (before the rays)
   double final_map = 0.0;  ///< map(): a particle's tiles drawn into a dense grid
+  long proposals = 0;        ///< scan-matching proposals computed (one per distinct parent)
+  long proposal_local = 0;   ///< of which found their mode by Gauss-Newton alone (matching.search)
+  long proposal_evaluations = 0;  ///< evaluations of p(z | x, m) the proposals made
+  long corrector_local = 0, corrector_searches = 0;  ///< the corrector's (ScanMatcherTimings)
 
   template <class V>
   static void describe(V& v) {
@@ -152,6 +156,11 @@ struct GridFastSlamTimings {
     v("map_update", &T::map_update, "s", "the scan's rays into every particle's map, tile clones included");
     v("table_copies", &T::table_copies, "s", "of which copying shared maps' tile tables (before the rays)");
     v("final_map", &T::final_map, "s", "map(): a particle's tiles drawn into a dense grid");
+    v("proposals", &T::proposals, "", "scan-matching proposals computed (one per distinct parent)");
+    v("proposal_local", &T::proposal_local, "", "of which found their mode by Gauss-Newton alone");
+    v("proposal_evaluations", &T::proposal_evaluations, "", "evaluations of p(z | x, m) the proposals made");
+    v("corrector_local", &T::corrector_local, "", "scans the corrector matched by its local optimiser alone");
+    v("corrector_searches", &T::corrector_searches, "", "scans the corrector matched by the correlative search");
   }
 };
 

@@ -12,11 +12,25 @@
 // filter loses the spread it needs when the corridor's end comes into view. The quadratic fit
 // gives the flat direction the motion model's width.
 #include <Eigen/Core>
+#include <array>
 #include <optional>
 
+#include "probslam/core/options_description.hpp"
 #include "probslam/fastslam/endpoint_likelihood.hpp"
 
 namespace probslam {
+
+/// How the proposal finds the mode of p(z | x, m) p(x | x_t-1, u) (issue 54).
+enum class ProposalSearch {
+  /// Gauss-Newton from the start (the corrected odometry, else the prediction); the hill climb
+  /// only where that ascent is poor.
+  kFallback,
+  kAlways,  ///< the hill climb for every proposal
+};
+template <>
+struct OptionEnum<ProposalSearch> {
+  static constexpr std::array<const char*, 2> names{"fallback", "always"};
+};
 
 struct ScanProposalOptions {
   double linear_step = 0.05;   ///< first hill-climbing step, m
@@ -28,6 +42,14 @@ struct ScanProposalOptions {
   /// The match fails (the caller falls back to the motion model) when the mean hit likelihood
   /// of the scan at the mode is below this (0..1).
   double min_match_quality = 0.3;
+  /// kFallback: the mode is found by Gauss-Newton (the end points' squared distances to their
+  /// nearest occupied cells, reweighted by their hit probability, with the motion prior) from the
+  /// corrected start, or the prediction without one, then from the prediction too if that scores
+  /// higher; it stops once its step is below the climb's last step (linear_step and angular_step
+  /// halved `refinements` times: the climb's precision). The climb runs instead when the ascent
+  /// did not converge, its mode's quality is below min_match_quality, or the mode lies beyond the
+  /// motion prior's 99.9 % chi2 gate (3 dof). kAlways: the climb for every proposal.
+  ProposalSearch search = ProposalSearch::kAlways;
   void validate() const;
   template <class V>
   static void describe(V& v) {
@@ -39,6 +61,9 @@ struct ScanProposalOptions {
     v("sample_linear", &O::sample_linear, "m", "spacing of the 3 x 3 x 3 evaluation poses");
     v("sample_angular", &O::sample_angular, "rad", "... in heading");
     v("min_match_quality", &O::min_match_quality, "", "a match below this mean hit likelihood (0 .. 1) falls back to the motion model");
+    v("search", &O::search, "",
+      "'fallback': Gauss-Newton from the corrected start, the hill climb only where that ascent is poor; "
+      "'always': the hill climb for every proposal");
   }
 };
 
@@ -53,6 +78,8 @@ struct ScanProposal {
   double log_normaliser = 0.0;
   Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> samples;  ///< the K poses (K x 3)
   Eigen::VectorXd log_scores;  ///< log p(z | x_j, m) + log N(x_j; prior, prior_cov), (K,)
+  bool local = false;  ///< the mode is the Gauss-Newton ascent's (search = kFallback), not the climb's
+  int evaluations = 0;  ///< evaluations of p(z | x, m) this proposal made
 };
 
 /// log N(pose; prior, prior_cov) with the heading difference wrapped (the full density, its
