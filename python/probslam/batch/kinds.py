@@ -163,8 +163,7 @@ def _localize(dataset: str, values, inputs) -> Outcome:
                "particles_last": int(r.num_particles[-1]), "seconds": float(r.seconds),
                "real_time_factor": float(r.real_time_factor)}
     if run.reference is not None:  # aligned as the row's ATE is (the map's frame: align = false)
-        score = EvaluationOptions(**inputs.get("evaluation", {}))
-        metrics.update(run.reference_metrics(align=score.align if score.align is not None else not score.rpe))
+        metrics.update(run.reference_metrics(align=EvaluationOptions(**inputs.get("evaluation", {})).aligned))
     return Outcome(metrics, lambda prefix: run.write(prefix)[0])
 
 

@@ -101,6 +101,11 @@ class EvaluationOptions(Options):
         """max_time_difference, its default filled in."""
         return evaluation.MAX_TIME_DIFFERENCE if self.max_time_difference is None else self.max_time_difference
 
+    @property
+    def aligned(self) -> bool:
+        """align, its default filled in: the ATE aligns (evo_ape -a), the RPE does not."""
+        return self.align if self.align is not None else not self.rpe
+
     def check_reference(self, kind: str) -> None:
         """ValueError naming the first option that does not apply to a reference of ``kind``."""
         why = {"relations": "relative poses need no alignment, and the estimate is interpolated at each relation's "
@@ -292,8 +297,7 @@ class TrajectoryEvaluation:
     @property
     def align(self) -> str:
         """The alignment of a trajectory score: "se2" or "none"."""
-        o = self.options
-        return "se2" if (o.align if o.align is not None else not o.rpe) else "none"
+        return "se2" if self.options.aligned else "none"
 
     def score(self):
         """The error of the estimate against the reference (``eval.relations_error``,
