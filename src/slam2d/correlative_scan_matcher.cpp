@@ -48,6 +48,18 @@ constexpr double kBasinWidths = 4.0;
 /// Samples on each side of the pose in that profile: enough to see a flat run or a second
 /// basin inside the window at a few evaluations of the score.
 constexpr int kProfileSamples = 8;
+/// evaluate() with a floor tests its bound every this many points: often enough to stop early
+/// on a pose whose points miss their walls, rarely enough to cost nothing beside the points.
+constexpr Eigen::Index kFloorCheckEvery = 16;
+/// ...visiting the points this many apart, so that the points visited first span the scan.
+constexpr Eigen::Index kFloorStride = 8;
+/// Nats added to that bound: the sums' rounding (relative 1e-16 of a few thousand nats) is far
+/// below it, so a pose given up on is certain to score below the floor.
+constexpr double kFloorSlack = 1.0;
+/// A profile sample is skipped (evaluate's floor) when its share of the profile's sums is
+/// certainly below 2^-60 of the local basin's: adding it could not change a sum's last bit
+/// (a share below 2^-54 of a double rounds away), so the profile is bit for bit the full one.
+constexpr double kNegligibleShare = 0x1p-60;
 
 /// One point's fit to the field: distance d (m), log p(d), exp(-d^2 / 2 sigma^2); with
 /// linearisation also J = d(d)/d(pose) and the IRLS weight w of -log p (see evaluate).
@@ -211,11 +223,20 @@ void CorrelativeScanMatcher::extend_levels(int max_level) {
 double CorrelativeScanMatcher::evaluate(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& pose,
                                         const Eigen::Vector3d& prior, const Eigen::Matrix3d* prior_info,
                                         Eigen::Matrix3d* hessian, Eigen::Vector3d* gradient,
-                                        double* quality) const {
+                                        double* quality, double floor) const {
   const Eigen::Matrix2d R = rotation_matrix(pose.z());
   const Eigen::Vector2d t = pose.head<2>();
   if (hessian) hessian->setZero();
   if (gradient) gradient->setZero();
+  Eigen::Vector3d d_prior = Eigen::Vector3d::Zero();
+  double prior_term = 0.0;
+  if (prior_info) {
+    d_prior = pose - prior;
+    d_prior.z() = wrap_angle(d_prior.z());
+    prior_term = 0.5 * d_prior.dot(*prior_info * d_prior);
+  }
+  if (floor > -std::numeric_limits<double>::infinity() && !hessian && !quality)
+    return score_above(points, R, t, prior_term, prior_info != nullptr, floor);
   double sum = 0.0, fit = 0.0;
   for (Eigen::Index i = 0; i < points.rows(); ++i) {
     const PointFit p = fit_point(*field_, R * points.row(i).transpose() + t, t, hessian != nullptr);
@@ -226,15 +247,43 @@ double CorrelativeScanMatcher::evaluate(const Eigen::Ref<const Points2>& points,
     *hessian += p.weight * p.J * p.J.transpose();
   }
   if (prior_info) {
-    Eigen::Vector3d d = pose - prior;
-    d.z() = wrap_angle(d.z());
-    sum -= 0.5 * d.dot(*prior_info * d);
+    const Eigen::Vector3d& d = d_prior;
+    sum -= prior_term;
     if (hessian) {
       *gradient += *prior_info * d;
       *hessian += *prior_info;
     }
   }
   if (quality) *quality = fit / static_cast<double>(points.rows());
+  return sum;
+}
+
+double CorrelativeScanMatcher::score_above(const Eigen::Ref<const Points2>& points, const Eigen::Matrix2d& R,
+                                           const Eigen::Vector2d& t, double prior_term, bool with_prior,
+                                           double floor) const {
+  // The points are visited kFloorStride apart (0, s, 2s, ..., then 1, 1 + s, ...), so that the
+  // terms summed so far sample the whole scan: a rotation moves the far points most, and they
+  // lie together. Every kFloorCheckEvery points the score's upper bound (those terms plus the
+  // largest term for each point left, less the prior's) is tested; kFloorSlack covers rounding.
+  const Eigen::Index n = points.rows();
+  const double max_term = field_->max_tabulated_log_p();
+  thread_local std::vector<double> terms;
+  terms.resize(static_cast<std::size_t>(n));
+  double partial = 0.0;
+  Eigen::Index done = 0;
+  for (Eigen::Index start = 0; start < kFloorStride; ++start)
+    for (Eigen::Index i = start; i < n; i += kFloorStride) {
+      const double log_p = fit_point(*field_, R * points.row(i).transpose() + t, t, false).log_p;
+      terms[static_cast<std::size_t>(i)] = log_p;
+      partial += log_p;
+      if (++done % kFloorCheckEvery == 0 &&
+          partial + static_cast<double>(n - done) * max_term - prior_term + kFloorSlack < floor)
+        return -std::numeric_limits<double>::infinity();
+    }
+  // Summed in evaluate's order, so the score is evaluate's to the bit.
+  double sum = 0.0;
+  for (Eigen::Index i = 0; i < n; ++i) sum += terms[static_cast<std::size_t>(i)];
+  if (with_prior) sum -= prior_term;
   return sum;
 }
 
@@ -259,13 +308,15 @@ CorrelativeScanMatcher::ScanMoments CorrelativeScanMatcher::scan_moments(const E
 }
 
 double CorrelativeScanMatcher::smooth_score(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& pose,
-                                            const Eigen::Vector3d& prior, const MatchOptions& options) const {
+                                            const Eigen::Vector3d& prior, const MatchOptions& options,
+                                            double floor) const {
   options.validate();
   require_all_finite(points, "points");
   require_all_finite(pose, "pose");
   require_all_finite(prior, "prior");
+  require(!std::isnan(floor), "floor", "must not be NaN");
   const Eigen::Matrix3d info = options.prior_covariance.inverse();
-  return evaluate(points, pose, prior, options.use_prior ? &info : nullptr, nullptr, nullptr, nullptr);
+  return evaluate(points, pose, prior, options.use_prior ? &info : nullptr, nullptr, nullptr, nullptr, floor);
 }
 
 bool CorrelativeScanMatcher::refine(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& prior,
@@ -407,14 +458,23 @@ double CorrelativeScanMatcher::profile_variance(const Eigen::Ref<const Points2>&
   const double dt = (1.0 - from) / kProfileSamples;
   std::array<double, 2 * kProfileSamples> t{}, score{};
   double top = result.score;
+  // Beyond the basin the sums below start at its mass and moment, and a sample adds
+  // exp(score - top) dt (times t^2): one whose score is certain to leave that below
+  // kNegligibleShare of them changes no bit of either, so its evaluation stops at that certainty
+  // (score -infinity, which adds exactly 0). Within the basin (moment from 0) none is skipped.
+  const bool may_skip = !basin_fills_window && local_variance > 0.0;
+  const double log_basin = std::log(kNegligibleShare * std::sqrt(2.0 * kPi) * width / dt);
   for (int k = 0; k < 2 * kProfileSamples; ++k) {
     const double side = k < kProfileSamples ? -1.0 : 1.0;
     // Uniform over [from, 1]: cell ends when starting at the pose, cell midpoints beyond the basin.
     const double offset = basin_fills_window ? k % kProfileSamples + 1.0 : k % kProfileSamples + 0.5;
-    t[static_cast<std::size_t>(k)] = side * (from + dt * offset);
-    Eigen::Vector3d p = result.pose + t[static_cast<std::size_t>(k)] * direction;
+    const double tk = side * (from + dt * offset);
+    t[static_cast<std::size_t>(k)] = tk;
+    Eigen::Vector3d p = result.pose + tk * direction;
     p.z() = wrap_angle(p.z());
-    score[static_cast<std::size_t>(k)] = evaluate(points, p, prior, prior_info, nullptr, nullptr, nullptr);
+    const double floor = may_skip ? result.score + log_basin - std::log(std::max(1.0, tk * tk / local_variance))
+                                  : -std::numeric_limits<double>::infinity();
+    score[static_cast<std::size_t>(k)] = evaluate(points, p, prior, prior_info, nullptr, nullptr, nullptr, floor);
     top = std::max(top, score[static_cast<std::size_t>(k)]);
   }
   // exp(score) relative to its largest value. The pose holds one sample's mass when the profile

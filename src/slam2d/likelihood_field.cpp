@@ -66,11 +66,11 @@ constexpr int kMaxWindowCells = 32;
 /// true one is: a column sweep (vertical distance to the nearest obstacle, capped at K + 1)
 /// and a row pass over 2K + 1 offsets, both over contiguous rows (the separable exact
 /// transform walks columns with a stride, cache line by cache line: several times slower).
-std::vector<std::int32_t> squared_cell_distances(const ObstacleCells& obstacles, std::size_t distinct) {
+UninitializedVector<std::int32_t> squared_cell_distances(const ObstacleCells& obstacles, std::size_t distinct) {
   const int W = obstacles.width, H = obstacles.height;
   const std::size_t n = static_cast<std::size_t>(W) * H;
   const int K = static_cast<int>(std::ceil(std::sqrt(static_cast<double>(distinct))));
-  std::vector<std::int32_t> out(n);
+  UninitializedVector<std::int32_t> out(n);  // every element written below
   if (K > kMaxWindowCells) {  // a long truncation: the exact transform (Felzenszwalb & Huttenlocher)
     std::vector<float> sq(n), tmp(n);
     for (std::size_t i = 0; i < n; ++i) sq[i] = obstacles.cells[i] != 0 ? 0.0f : kFar;
@@ -89,7 +89,7 @@ std::vector<std::int32_t> squared_cell_distances(const ObstacleCells& obstacles,
   }
   // Vertical distance to the nearest obstacle of the column, K + 1 for none within K.
   const std::uint8_t none = static_cast<std::uint8_t>(K + 1);
-  std::vector<std::uint8_t> g(n);
+  UninitializedVector<std::uint8_t> g(n);  // every element written below
   const std::uint8_t* cells = obstacles.cells.data();
   for (int r = 0; r < H; ++r) {
     std::uint8_t* row = g.data() + static_cast<std::size_t>(r) * W;
@@ -196,7 +196,7 @@ LikelihoodField LikelihoodField::from_obstacles(const ObstacleCells& obstacles, 
   const double cap = options.truncation();
   const double cap_cells = std::min(cap * field.inv_res_ + 0.5, std::hypot(double(field.width_), double(field.height_)) + 1.0);
   const std::size_t distinct = static_cast<std::size_t>(std::ceil(cap_cells * cap_cells)) + 1;
-  const std::vector<std::int32_t> sq = squared_cell_distances(obstacles, distinct);
+  const UninitializedVector<std::int32_t> sq = squared_cell_distances(obstacles, distinct);
   auto distance_of = [&](double sq_cells) {
     return std::min(cap, std::max(0.0, (std::sqrt(sq_cells) - 0.5) * field.res_));  // inf -> cap
   };
@@ -241,6 +241,8 @@ void LikelihoodField::build_tables() {
     log_table_[i] = log_likelihood_of_distance(d);
     hit_table_[i] = std::exp(-0.5 * z * z);
   }
+  // Interpolation between entries stays within them, so the largest entry bounds tabulated().
+  max_log_p_ = *std::max_element(log_table_.begin(), log_table_.end());
 }
 
 double LikelihoodField::log_likelihood_of_distance(double d) const {

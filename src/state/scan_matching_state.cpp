@@ -28,8 +28,9 @@ LikelihoodField LikelihoodField::read_state(StateReader& r) {
   read_options(r, f.options_);
   f.floor_ = r.f32();
   validated(r, "likelihood field options", [&] { f.options_.validate(); });
-  f.distance_ = r.floats();
-  f.log_likelihood_ = r.floats();
+  const std::vector<float> distance = r.floats(), log_likelihood = r.floats();
+  f.distance_.assign(distance.begin(), distance.end());
+  f.log_likelihood_.assign(log_likelihood.begin(), log_likelihood.end());
   const double cells = static_cast<double>(f.width_) * static_cast<double>(f.height_);
   if (f.width_ < 0 || f.height_ < 0 || static_cast<double>(f.distance_.size()) != cells ||
       f.log_likelihood_.size() != f.distance_.size() || !(f.res_ > 0.0) || f.inv_res_ != 1.0 / f.res_ ||

@@ -197,3 +197,39 @@ TEST(LocalMatch, FrontendFallsBackToTheSearchWhenThePredictionIsFarOff) {
   EXPECT_EQ(searched.timings().local_matches, 0);
   EXPECT_EQ(searched.timings().searches, static_cast<long>(truth.size()) - 1);
 }
+
+// The covariance's profile skips a pose once its score is certain to fall below a floor
+// (smooth_score's floor): a pose kept scores bit for bit as without the floor, a pose given up
+// on scores below it, and far poses are given up on (else the floor saves nothing).
+TEST(LocalMatch, ScoreFloorGivesUpOnlyOnPosesCertainlyBelowIt) {
+  const CorrelativeScanMatcher m(room_field(), 0);
+  std::mt19937 rng(17);
+  std::uniform_real_distribution<double> u(-1, 1);
+  int given_up = 0, kept = 0;
+  for (int trial = 0; trial < 40; ++trial) {
+    const Eigen::Vector3d truth = random_pose(rng);
+    const Points2 pts = scan_at(rng, truth, 0.01);
+    const MatchOptions o = options_with_prior(trial % 2 == 0);
+    // Poses from on the truth to a window's width off it, floors from far below to far above.
+    const double off = 0.3 * (trial % 5) / 4.0;
+    const Eigen::Vector3d pose = truth + Eigen::Vector3d(off * u(rng), off * u(rng), off * u(rng));
+    const double full = m.smooth_score(pts, pose, truth, o);
+    for (const double gap : {-200.0, -20.0, -1.0, 0.0, 1.0, 20.0, 200.0}) {
+      const double floor = full + gap;
+      const double s = m.smooth_score(pts, pose, truth, o, floor);
+      if (std::isinf(s)) {
+        EXPECT_LT(s, 0.0);
+        EXPECT_LT(full, floor) << "trial " << trial << " gap " << gap;
+        ++given_up;
+      } else {
+        EXPECT_EQ(s, full) << "trial " << trial << " gap " << gap;  // bit for bit
+        ++kept;
+      }
+    }
+  }
+  EXPECT_GT(given_up, 20);
+  EXPECT_GT(kept, 100);
+  EXPECT_THROW(m.smooth_score(scan_at(rng, Eigen::Vector3d::Zero(), 0.0), Eigen::Vector3d::Zero(),
+                              Eigen::Vector3d::Zero(), MatchOptions{}, std::nan("")),
+               std::invalid_argument);
+}

@@ -67,7 +67,8 @@ class StateWriter {
     count(v.size());
     for (double x : v) f64(x);
   }
-  void floats(const std::vector<float>& v) {
+  template <typename Allocator>
+  void floats(const std::vector<float, Allocator>& v) {
     count(v.size());
     for (float x : v) f32(x);
   }

@@ -10,6 +10,7 @@
 
 #include "probslam/core/options_description.hpp"
 #include "probslam/core/types.hpp"
+#include "probslam/core/uninitialized_vector.hpp"
 #include "probslam/slam2d/likelihood_field.hpp"
 
 namespace probslam {
@@ -127,9 +128,11 @@ class CorrelativeScanMatcher {
   double closeness(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& a, const Eigen::Vector3d& b) const;
 
   /// The score (sum of log p over points, + log prior when options.use_prior) of `pose` on the
-  /// interpolated field: the function the refinement maximises.
+  /// interpolated field: the function the refinement maximises. floor: -infinity as soon as the
+  /// score is certain to be below it (what the covariance's profile skips), else the score.
   double smooth_score(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& pose,
-                      const Eigen::Vector3d& prior, const MatchOptions& options) const;
+                      const Eigen::Vector3d& prior, const MatchOptions& options,
+                      double floor = -std::numeric_limits<double>::infinity()) const;
 
   /// The refinement's linearisation at `pose`: smooth_score, the gradient of -smooth_score (the
   /// points' sum of w d J, w the IRLS weight of -log p, d the distance, J its Jacobian in the
@@ -208,7 +211,7 @@ class CorrelativeScanMatcher {
   struct Level {
     int pad = 0;  // stored rows/cols start at -pad
     int width = 0, height = 0;
-    std::vector<float> values;  // empty for level 0: the field's own table (not copied)
+    UninitializedVector<float> values;  // written whole by extend_levels; empty for level 0: the field's own table (not copied)
   };
   /// One level's values, read in place (level 0 is the field's table).
   struct LevelView {
@@ -228,10 +231,17 @@ class CorrelativeScanMatcher {
     return L.values[static_cast<std::size_t>(i) * L.width + j];
   }
   /// Score (sum of log p + log prior) at pose; with hessian/gradient also the Gauss-Newton
-  /// terms of the negative score; quality: mean exp(-d^2 / 2 sigma^2).
+  /// terms of the negative score; quality: mean exp(-d^2 / 2 sigma^2). floor (score only, no
+  /// hessian or quality): -infinity as soon as the score is certain to fall below it (the
+  /// points summed so far plus the largest term for each point left), else the score as without
+  /// a floor, bit for bit.
   double evaluate(const Eigen::Ref<const Points2>& points, const Eigen::Vector3d& pose,
                   const Eigen::Vector3d& prior, const Eigen::Matrix3d* prior_info, Eigen::Matrix3d* hessian,
-                  Eigen::Vector3d* gradient, double* quality) const;
+                  Eigen::Vector3d* gradient, double* quality,
+                  double floor = -std::numeric_limits<double>::infinity()) const;
+  /// evaluate's score at the pose (R, t), or -infinity once it is certain to fall below floor.
+  double score_above(const Eigen::Ref<const Points2>& points, const Eigen::Matrix2d& R, const Eigen::Vector2d& t,
+                     double prior_term, bool with_prior, double floor) const;
   /// Sums over the points at a pose of the scan alone (no prior): bread = sum w J J^T (the
   /// Gauss-Newton Hessian of -score), meat = sum g g^T (g the per-point gradients of -log p),
   /// and Kish's effective number of points that constrain the pose.

@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "probslam/core/options_description.hpp"
+#include "probslam/core/uninitialized_vector.hpp"
 #include "probslam/grid/occupancy_grid_2d.hpp"
 
 namespace probslam {
@@ -96,6 +97,8 @@ class LikelihoodField {
     *log_p = log_table_[i] + f * (log_table_[i + 1] - log_table_[i]);
     *hit = hit_table_[i] + f * (hit_table_[i + 1] - hit_table_[i]);
   }
+  /// The largest log_p tabulated() returns for any distance: a bound on every point's term.
+  double max_tabulated_log_p() const { return max_log_p_; }
   /// The table value of cell (row, col), floor_value() outside.
   float cell_value(int row, int col) const {
     return static_cast<unsigned>(row) < static_cast<unsigned>(height_) &&
@@ -121,12 +124,13 @@ class LikelihoodField {
   static constexpr std::size_t kTableSize = 2048;
   double truncation_ = 0, table_scale_ = 0;
   std::vector<double> log_table_, hit_table_;
+  double max_log_p_ = 0.0;
   double x0_ = 0, y0_ = 0, res_ = 1, inv_res_ = 1;
   int width_ = 0, height_ = 0, num_occupied_ = 0;
   LikelihoodFieldOptions options_;
   float floor_ = 0;
-  std::vector<float> distance_;
-  std::vector<float> log_likelihood_;
+  UninitializedVector<float> distance_;  // written whole where built
+  UninitializedVector<float> log_likelihood_;
 };
 
 }  // namespace probslam
