@@ -129,6 +129,10 @@ def test_run_slam_rbpf_equals_the_class(drive):
     assert record_fields(result.summary) == record_fields(direct.summary)
     assert record_fields(result.tile_sharing) == record_fields(direct.tile_sharing)
     np.testing.assert_array_equal(result.grid.log_odds, direct.map().log_odds)
+    # The default adds one scan a call (no batch snapshot holding old tiles): the same filter.
+    one_by_one = run_slam(scans, method="rbpf", progress=False, options=options)
+    np.testing.assert_array_equal(one_by_one.poses, direct.scan_poses)
+    np.testing.assert_array_equal(one_by_one.grid.log_odds, direct.map().log_odds)
     with pytest.raises(ValueError, match="method"):
         run_slam(scans, method="particles", progress=False)
     with pytest.raises(TypeError, match="^options: expected a GridFastSlamOptions"):
