@@ -211,7 +211,8 @@ class CorrelativeScanMatcher {
   struct Level {
     int pad = 0;  // stored rows/cols start at -pad
     int width = 0, height = 0;
-    UninitializedVector<float> values;  // written whole by extend_levels; empty for level 0: the field's own table (not copied)
+    // Written whole by extend_levels; empty for level 0: the field's own table (not copied).
+    UninitializedVector<float> values;
   };
   /// One level's values, read in place (level 0 is the field's table).
   struct LevelView {
