@@ -236,7 +236,7 @@ double CorrelativeScanMatcher::evaluate(const Eigen::Ref<const Points2>& points,
     prior_term = 0.5 * d_prior.dot(*prior_info * d_prior);
   }
   if (floor > -std::numeric_limits<double>::infinity() && !hessian && !quality)
-    return score_above(points, R, t, prior_term, prior_info != nullptr, floor);
+    return score_above(points, R, t, prior_term, floor);
   double sum = 0.0, fit = 0.0;
   for (Eigen::Index i = 0; i < points.rows(); ++i) {
     const PointFit p = fit_point(*field_, R * points.row(i).transpose() + t, t, hessian != nullptr);
@@ -247,10 +247,9 @@ double CorrelativeScanMatcher::evaluate(const Eigen::Ref<const Points2>& points,
     *hessian += p.weight * p.J * p.J.transpose();
   }
   if (prior_info) {
-    const Eigen::Vector3d& d = d_prior;
     sum -= prior_term;
     if (hessian) {
-      *gradient += *prior_info * d;
+      *gradient += *prior_info * d_prior;
       *hessian += *prior_info;
     }
   }
@@ -259,8 +258,7 @@ double CorrelativeScanMatcher::evaluate(const Eigen::Ref<const Points2>& points,
 }
 
 double CorrelativeScanMatcher::score_above(const Eigen::Ref<const Points2>& points, const Eigen::Matrix2d& R,
-                                           const Eigen::Vector2d& t, double prior_term, bool with_prior,
-                                           double floor) const {
+                                           const Eigen::Vector2d& t, double prior_term, double floor) const {
   // The points are visited kFloorStride apart (0, s, 2s, ..., then 1, 1 + s, ...), so that the
   // terms summed so far sample the whole scan: a rotation moves the far points most, and they
   // lie together. Every kFloorCheckEvery points the score's upper bound (those terms plus the
@@ -280,11 +278,11 @@ double CorrelativeScanMatcher::score_above(const Eigen::Ref<const Points2>& poin
           partial + static_cast<double>(n - done) * max_term - prior_term + kFloorSlack < floor)
         return -std::numeric_limits<double>::infinity();
     }
-  // Summed in evaluate's order, so the score is evaluate's to the bit.
+  // Summed in evaluate's order, so the score is evaluate's to the bit (without a prior,
+  // prior_term is 0 and x - 0 is x).
   double sum = 0.0;
   for (Eigen::Index i = 0; i < n; ++i) sum += terms[static_cast<std::size_t>(i)];
-  if (with_prior) sum -= prior_term;
-  return sum;
+  return sum - prior_term;
 }
 
 CorrelativeScanMatcher::ScanMoments CorrelativeScanMatcher::scan_moments(const Eigen::Ref<const Points2>& points,

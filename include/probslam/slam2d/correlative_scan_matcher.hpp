@@ -242,7 +242,7 @@ class CorrelativeScanMatcher {
                   double floor = -std::numeric_limits<double>::infinity()) const;
   /// evaluate's score at the pose (R, t), or -infinity once it is certain to fall below floor.
   double score_above(const Eigen::Ref<const Points2>& points, const Eigen::Matrix2d& R, const Eigen::Vector2d& t,
-                     double prior_term, bool with_prior, double floor) const;
+                     double prior_term, double floor) const;
   /// Sums over the points at a pose of the scan alone (no prior): bread = sum w J J^T (the
   /// Gauss-Newton Hessian of -score), meat = sum g g^T (g the per-point gradients of -log p),
   /// and Kish's effective number of points that constrain the pose.
