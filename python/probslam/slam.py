@@ -22,6 +22,7 @@ import numpy as np
 from tqdm import tqdm
 
 from . import _core
+from ._args import require_integer
 from .io._files import file_path, require_regular_file
 from .io.trajectory import write_trajectory as write_trajectory_file
 from .io.carmen import ODOMETRY_NOISE_SIZE, CarmenLog, LaserScans
@@ -425,15 +426,7 @@ def run_slam(log: Union[PathLike, CarmenLog, LaserScans], *, method: Optional[st
         raise TypeError(f"options: expected a {OPTIONS_CLASSES[method].__name__} for method {method!r}, "
                         f"got {type(options).__name__}")
     scans = scans_of(log)
-    if chunk is None:
-        chunk = DEFAULT_CHUNK[method]
-    try:
-        whole = not isinstance(chunk, bool) and int(chunk) == chunk
-    except (TypeError, ValueError):
-        whole = False
-    if not whole or chunk < 1:
-        raise ValueError(f"chunk must be an integer >= 1, got {chunk!r}")
-    chunk = int(chunk)
+    chunk = require_integer(DEFAULT_CHUNK[method] if chunk is None else chunk, "chunk", lowest=1)
     odometry = has_odometry(scans)
     if not odometry and method == "rbpf":
         raise ValueError("log has no odometry (its laser poses never move): method 'rbpf' samples the "

@@ -192,8 +192,10 @@ def test_run_slam_bad_input(drive):
         run_slam(42)
     with pytest.raises(ValueError, match="no laser scans"):
         run_slam(scans_of(true[:0], odo[:0], ranges[:0]))
-    for chunk in (0, 2.5, "ten", True):
-        with pytest.raises(ValueError, match="^chunk must be an integer >= 1"):
+    with pytest.raises(ValueError, match="^chunk must be >= 1, got 0"):
+        run_slam(scans_of(true, odo, ranges), chunk=0)
+    for chunk in (2.5, "ten", True):
+        with pytest.raises(TypeError, match="^chunk must be an integer"):
             run_slam(scans_of(true, odo, ranges), chunk=chunk)
     with pytest.raises(TypeError, match="no_such_option"):
         run_slam(scans_of(true[:3], odo[:3], ranges[:3]), no_such_option=1)
